@@ -1,0 +1,45 @@
+"""ament_python package setup: works under `colcon build` and under `pip install -e .`."""
+import os
+from glob import glob
+
+from setuptools import find_packages, setup
+
+package_name = "strapdown_ros"
+
+# Runtime dependencies for installs without a system ROS 2 (real Jazzy builds from PyPI).
+# In a ROS 2 workspace rclpy and the message packages come from the ROS installation
+# (package.xml), so they are an extra here rather than install_requires.
+ROS_FROM_PYPI = ["ros-jazzy-rclpy[fastrtps]", "ros-jazzy-common-interfaces"]
+
+setup(
+    name=package_name,
+    version="0.1.0",
+    packages=find_packages(exclude=["test", "test.*"]),
+    data_files=[
+        ("share/ament_index/resource_index/packages", ["resource/" + package_name]),
+        ("share/" + package_name, ["package.xml"]),
+        (os.path.join("share", package_name, "config"), glob("config/*.yaml")),
+    ],
+    install_requires=["setuptools", "numpy"],
+    extras_require={
+        "ros": ROS_FROM_PYPI,
+        "tools": ["scipy", "matplotlib", "rosbags"],
+        "test": ["pytest", "pytest-timeout", "colcon-core", "colcon-ros",
+                 "colcon-python-setup-py", "catkin_pkg"],
+    },
+    zip_safe=True,
+    maintainer="strapdown_ros maintainers",
+    maintainer_email="maintainers@strapdown-ros.invalid",
+    description="Strapdown INS attitude with selectable coning algorithms, integrating-sensor "
+                "simulators and star-camera boresight calibration for ROS 2 Jazzy.",
+    license="Apache-2.0",
+    python_requires=">=3.10",
+    entry_points={
+        "console_scripts": [
+            "imu_sim_node = strapdown_ros.nodes.imu_sim_node:main",
+            "sins_node = strapdown_ros.nodes.sins_node:main",
+            "strapdown_demo = strapdown_ros.tools.demo:main",
+            "sins_bench = strapdown_ros.tools.sins_bench:main",
+        ],
+    },
+)

@@ -1,0 +1,291 @@
+"""SINS attitude integrator: gyro increments → attitude and its error covariance.
+
+:class:`AttitudeIntegrator` consumes integrating-gyro increments ``Δθ_k`` (body axes,
+rad) stamped at the end of their intervals and produces, at every update of the
+selected coning algorithm (:mod:`strapdown_ros.coning`):
+
+* the attitude ``q_ref_body`` (``q_k = q_{k−1} ⊗ exp(φ_k)``, 003 eqs. 1.63/1.64 in
+  quaternion form, renormalised);
+* the attitude-error covariance ``P_k`` of ε (body axes, ``C_est = C_true(I + [ε×])``,
+  the definition of 004 §2.3).
+
+Covariance propagation
+----------------------
+004 eq. (2) propagates ``E_k = (I − [ρ_k×]) E_{k−1} (I + [ρ_k×]) + P_ρk``.  The factor
+``I − [ρ×]`` is the first-order form of ``ΔC_kᵀ`` (the transpose of the update
+rotation); we use the exact ``ΔC_kᵀ``.  Written in reference axes, ``e_k = C_k ε_k``,
+the recursion becomes a plain sum, ``e_k = e_{k−1} + C_k δρ_k``, because
+``C_k ΔC_kᵀ = C_{k−1}``.  So the covariance is a cumulative sum over updates of
+``C_k Q_k C_kᵀ``, which numpy evaluates for a whole batch at once; the body-axis
+covariance is ``P_k = C_kᵀ P^ref_k C_k``.
+
+Two error models (parameter ``covariance_model``):
+
+``"004"``
+    Exactly 004: every term of P_ρk (misalignment, scale factor, bias, noise) is
+    treated as white from one increment to the next.  The bias then contributes
+    ``(σ_b T)²`` per step: the attitude error grows like √t.
+
+``"random_constant"`` (default)
+    Only the random walk is white.  Bias ``b`` and the scale/misalignment matrix M
+    are random constants (as they are in the sensor and in the simulator):
+    ``e_k = Σ C_j (M ρ_j + b h_j + w_j)``, so ``P^ref = S P_b Sᵀ + J P_M Jᵀ + Σ C Q_w Cᵀ``
+    with ``S = Σ C_j h_j`` and ``J = Σ C_j ∂(Mρ_j)/∂vec M``.  The bias error then
+    grows like t, as it physically does.  The published covariance is the one a
+    navigation user can trust.
+
+In both models increments inside one multi-sample update are lumped (their P_ρ
+are added and rotated with the update's end attitude): the rotation within one
+update is first order in ρ and enters the covariance at second order.
+
+Pulse quantization does not accumulate (the remainder is carried, 000 eq. 5.1);
+it adds ``σ²/12`` per axis to the body covariance at every epoch.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .coning import ConingAlgorithm, get_algorithm
+from .rotation import quat_cumprod, quat_normalize, quat_to_dcm, rotvec_to_quat
+from .sensors import SensorSigmas, increment_correction, increment_covariance
+
+__all__ = ["AttitudeIntegrator", "UpdateBatch", "IncrementAccumulator", "COVARIANCE_MODELS"]
+
+COVARIANCE_MODELS = ("random_constant", "004")
+_DIAG9 = np.array([0, 4, 8])        # positions of M's diagonal in column-major vec(M)
+
+
+@dataclass
+class UpdateBatch:
+    """Outputs of one :meth:`AttitudeIntegrator.push`; M updates."""
+    stamps: np.ndarray          # (M,) end time of each update, s
+    attitude: np.ndarray        # (M, 4) q_ref_body, scalar-first
+    covariance: np.ndarray      # (M, 3, 3) attitude error covariance, body axes, rad²
+    rotation_vector: np.ndarray  # (M, 3) φ of each update
+    mean_rate: np.ndarray       # (M, 3) Σq / h, rad/s
+    interval: np.ndarray        # (M,) update interval h, s
+
+    def __len__(self):
+        return len(self.stamps)
+
+
+class AttitudeIntegrator:
+    """Streaming strapdown attitude integrator (vectorised over each pushed block).
+
+    Parameters
+    ----------
+    algorithm: name from :data:`strapdown_ros.coning.ALGORITHMS`.
+    initial_attitude: ``q_ref_body`` at ``initial_time`` (scalar-first).
+    initial_time: stamp (s) of the initial attitude; None → taken as the start of the
+        first increment, ``stamp_1 − nominal_period``.
+    nominal_period: expected gyro interval T (s), used only for the first sample.
+    gyro: statistics of the gyro errors for P_ρk (zeros → covariance stays at P0).
+    initial_sigma: 1σ of the initial attitude error per axis (rad).
+    covariance_model: ``"random_constant"`` or ``"004"`` (see module docstring).
+    quantization_correction: apply 000 eq. (5.6) with pulse weight ``gyro.quantum``.
+    """
+
+    def __init__(self, algorithm: str = "2", initial_attitude=(1.0, 0.0, 0.0, 0.0),
+                 initial_time: float | None = None, nominal_period: float = 0.01,
+                 gyro: SensorSigmas | None = None, initial_sigma: float = 0.0,
+                 covariance_model: str = "random_constant", quantization_correction: bool = False):
+        if covariance_model not in COVARIANCE_MODELS:
+            raise ValueError(f"unknown covariance_model {covariance_model!r}; valid: {', '.join(COVARIANCE_MODELS)}")
+        if not (np.isfinite(nominal_period) and nominal_period > 0):
+            raise ValueError(f"nominal_period must be > 0, got {nominal_period}")
+        if not (np.isfinite(initial_sigma) and initial_sigma >= 0):
+            raise ValueError(f"initial_sigma must be >= 0, got {initial_sigma}")
+        q0 = np.asarray(initial_attitude, dtype=float)
+        if q0.shape != (4,) or not np.all(np.isfinite(q0)) or np.linalg.norm(q0) < 0.5:
+            raise ValueError("initial_attitude must be a finite quaternion [w, x, y, z]")
+        self.algorithm: ConingAlgorithm = get_algorithm(algorithm)
+        self.q = quat_normalize(q0)
+        self.time = initial_time
+        self.nominal_period = float(nominal_period)
+        self.gyro = gyro or SensorSigmas()
+        self.covariance_model = covariance_model
+        self.quantization_correction = bool(quantization_correction)
+        self._last_sign = np.zeros(3)
+        self._last_stamp = initial_time
+        self._pending = np.zeros((0, 3))         # increments of the update in progress
+        self._pending_dt = np.zeros(0)
+        self._recent = np.zeros((0, 3))          # last few used increments (history for 6, 7)
+        c0 = quat_to_dcm(self.q)
+        self._p_ref = c0 @ (initial_sigma ** 2 * np.eye(3)) @ c0.T   # white + initial part
+        self._s_bias = np.zeros((3, 3))          # Σ C_j h_j
+        self._j_mis = np.zeros((3, 9))           # Σ C_j ∂(Mρ_j)/∂vec(M)
+        self.updates = 0
+        self.samples = 0
+
+    # -------------------------------------------------------------------------------
+    @property
+    def algorithm_name(self) -> str:
+        return self.algorithm.name
+
+    def set_algorithm(self, name: str) -> None:
+        """Switch algorithm between updates.  Increments of an unfinished update are
+        applied one by one (φ = q) so that no rotation is lost."""
+        new = get_algorithm(name)
+        if len(self._pending):
+            phi = self._pending
+            dq = rotvec_to_quat(phi)
+            q = quat_cumprod(self.q, dq)
+            self.q = q[-1]
+            self._accumulate_covariance(quat_to_dcm(q), phi, self._pending, self._pending_dt)
+            self._pending = np.zeros((0, 3))
+            self._pending_dt = np.zeros(0)
+        self.algorithm = new
+
+    def covariance(self) -> np.ndarray:
+        """Current body-axis covariance (3, 3)."""
+        return self._body_covariance(quat_to_dcm(self.q)[None], self._p_ref[None],
+                                     self._s_bias[None], self._j_mis[None])[0]
+
+    # -------------------------------------------------------------------------------
+    def push(self, delta_theta: np.ndarray, stamps: np.ndarray) -> UpdateBatch:
+        """Consume increments (n, 3) stamped at the end of their intervals (n,).
+
+        The caller guarantees finite values and strictly increasing stamps (the ROS
+        node checks and counts violations before calling).
+        """
+        dth = np.asarray(delta_theta, dtype=float).reshape(-1, 3)
+        stamps = np.asarray(stamps, dtype=float).reshape(-1)
+        if len(dth) != len(stamps):
+            raise ValueError("delta_theta and stamps must have the same length")
+        if len(dth) == 0:
+            return self._empty()
+        if self.quantization_correction and self.gyro.quantum > 0:
+            dth, self._last_sign = increment_correction(dth, self.gyro.quantum, self._last_sign)
+        prev = self._last_stamp if self._last_stamp is not None else stamps[0] - self.nominal_period
+        if self.time is None:
+            self.time = prev
+        dt = np.diff(np.concatenate([[prev], stamps]))
+        self._last_stamp = float(stamps[-1])
+        self.samples += len(dth)
+
+        alg = self.algorithm
+        n_new, hist = alg.samples, alg.history
+        work = np.vstack([self._pending, dth])
+        work_dt = np.concatenate([self._pending_dt, dt])
+        work_t = np.concatenate([np.full(len(self._pending), np.nan), stamps])
+        m = len(work) // n_new
+        used = m * n_new
+        if m == 0:
+            self._pending, self._pending_dt = work, work_dt
+            return self._empty()
+        # history: previous increments; at start-up repeat the first one (zero cross products)
+        recent = self._recent if len(self._recent) >= hist else \
+            np.vstack([np.repeat(work[:1], hist - len(self._recent), axis=0), self._recent])
+        seq = np.vstack([recent[len(recent) - hist:], work[:used]]) if hist else work[:used]
+        windows = np.lib.stride_tricks.sliding_window_view(seq, alg.window, axis=0)[::n_new]
+        windows = np.ascontiguousarray(np.moveaxis(windows, -1, 1))       # (m, window, 3)
+        phi = alg.phi(windows)
+        q = quat_cumprod(self.q, rotvec_to_quat(phi))
+        c = quat_to_dcm(q)
+        blocks = work[:used].reshape(m, n_new, 3)
+        h = work_dt[:used].reshape(m, n_new).sum(1)
+        p_ref, s_bias, j_mis = self._accumulate_covariance(c, blocks.sum(1), blocks, work_dt[:used].reshape(m, n_new))
+        cov = self._body_covariance(c, p_ref, s_bias, j_mis)
+
+        self.q = q[-1]
+        self.time = float(work_t[used - 1])
+        self.updates += m
+        self._pending, self._pending_dt = work[used:], work_dt[used:]
+        self._recent = np.vstack([self._recent, work[:used]])[-4:]
+        return UpdateBatch(stamps=work_t[n_new - 1:used:n_new], attitude=q, covariance=cov,
+                           rotation_vector=phi, mean_rate=blocks.sum(1) / h[:, None], interval=h)
+
+    # -------------------------------------------------------------------------------
+    def _accumulate_covariance(self, c, rho_sum, blocks, dts):
+        """Advance the reference-axis accumulators over m updates; return their running
+        values after every update: (m,3,3), (m,3,3), (m,3,9)."""
+        g = self.gyro
+        blocks = np.asarray(blocks).reshape(len(c), -1, 3)
+        dts = np.asarray(dts).reshape(len(c), -1)
+        if self.covariance_model == "004":
+            q_white = np.zeros((len(c), 3, 3))
+            for i in range(blocks.shape[1]):          # ≤ 5 samples per update
+                q_white += increment_covariance(blocks[:, i], dts[:, i], g.bias_sigma, g.scale_sigma,
+                                                g.misalignment_sigma, g.random_walk)
+        else:
+            q_white = (g.random_walk ** 2 * dts.sum(1))[:, None, None] * np.eye(3)
+        p_ref = self._p_ref + np.cumsum(c @ q_white @ np.swapaxes(c, -1, -2), axis=0)
+        self._p_ref = p_ref[-1]
+        if self.covariance_model == "random_constant":
+            s_bias = self._s_bias + np.cumsum(c * dts.sum(1)[:, None, None], axis=0)
+            # ∂(Mρ)/∂vec(M) (column-major) = [ρx I, ρy I, ρz I]
+            r = np.einsum("mk,ij->mikj", rho_sum, np.eye(3)).reshape(len(c), 3, 9)
+            j_mis = self._j_mis + np.cumsum(c @ r, axis=0)
+            self._s_bias, self._j_mis = s_bias[-1], j_mis[-1]
+        else:
+            s_bias = np.broadcast_to(self._s_bias, (len(c), 3, 3))
+            j_mis = np.broadcast_to(self._j_mis, (len(c), 3, 9))
+        return p_ref, s_bias, j_mis
+
+    def _body_covariance(self, c, p_ref, s_bias, j_mis):
+        g = self.gyro
+        total = p_ref
+        if self.covariance_model == "random_constant":
+            if g.bias_sigma > 0:
+                total = total + g.bias_sigma ** 2 * (s_bias @ np.swapaxes(s_bias, -1, -2))
+            if g.scale_sigma > 0 or g.misalignment_sigma > 0:
+                var_m = np.full(9, g.misalignment_sigma ** 2)
+                var_m[_DIAG9] = g.scale_sigma ** 2
+                total = total + (j_mis * var_m) @ np.swapaxes(j_mis, -1, -2)
+        cov = np.swapaxes(c, -1, -2) @ total @ c
+        if g.quantum > 0:
+            cov = cov + (g.quantum ** 2 / 12.0) * np.eye(3)
+        return 0.5 * (cov + np.swapaxes(cov, -1, -2))
+
+    @staticmethod
+    def _empty() -> UpdateBatch:
+        return UpdateBatch(np.zeros(0), np.zeros((0, 4)), np.zeros((0, 3, 3)), np.zeros((0, 3)),
+                           np.zeros((0, 3)), np.zeros(0))
+
+
+class IncrementAccumulator:
+    """Sums stamped increments (e.g. accelerometer Δv at 300 Hz) over arbitrary intervals
+    ``(t_a, t_b]`` (e.g. the gyro update intervals) to give mean specific force."""
+
+    def __init__(self):
+        self._t = np.zeros(0)
+        self._v = np.zeros((0, 3))
+        self.latest = -np.inf
+
+    def add(self, increments: np.ndarray, stamps: np.ndarray) -> None:
+        inc = np.asarray(increments, dtype=float).reshape(-1, 3)
+        st = np.asarray(stamps, dtype=float).reshape(-1)
+        self._t = np.concatenate([self._t, st])
+        self._v = np.vstack([self._v, inc])
+        if len(st):
+            self.latest = max(self.latest, float(st.max()))
+
+    def covered_until(self) -> float:
+        return self.latest
+
+    def take(self, t_a: float, t_b: float) -> tuple[np.ndarray, int]:
+        """Sum of increments stamped in (t_a, t_b]; drops everything up to t_b.
+
+        Returns (sum (3,), count).  An increment whose interval straddles t_a or t_b is
+        counted whole in the interval holding its end stamp.
+        """
+        sel = (self._t > t_a) & (self._t <= t_b)
+        total = self._v[sel].sum(0) if np.any(sel) else np.zeros(3)
+        keep = self._t > t_b
+        self._t, self._v = self._t[keep], self._v[keep]
+        return total, int(sel.sum())
+
+    def take_many(self, edges: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Vectorised :meth:`take` over consecutive intervals ``(edges[i], edges[i+1]]``."""
+        edges = np.asarray(edges, dtype=float)
+        idx = np.searchsorted(edges, self._t, side="left") - 1      # interval holding each stamp
+        valid = (idx >= 0) & (idx < len(edges) - 1)
+        sums = np.zeros((len(edges) - 1, 3))
+        counts = np.zeros(len(edges) - 1, dtype=int)
+        np.add.at(sums, idx[valid], self._v[valid])
+        np.add.at(counts, idx[valid], 1)
+        keep = self._t > edges[-1]
+        self._t, self._v = self._t[keep], self._v[keep]
+        return sums, counts

@@ -1,0 +1,270 @@
+"""Rotations: quaternions, direction-cosine matrices (DCM), rotation vectors, Euler angles.
+
+Conventions (stated once, used everywhere in the core)
+------------------------------------------------------
+* Quaternions are **Hamilton** quaternions, stored **scalar-first** ``[w, x, y, z]``
+  as numpy arrays of shape ``(..., 4)``. ROS messages use ``x, y, z, w``; the
+  conversion happens only at the edge (:func:`to_ros_xyzw`, :func:`from_ros_xyzw`).
+* An attitude ``q_a_b`` (or DCM ``C_a_b``) **maps vectors from frame b to frame a**:
+  ``v_a = q_a_b ⊗ v_b ⊗ q_a_b*`` and ``v_a = C_a_b @ v_b``.  The SINS attitude is
+  ``q_ref_body`` (body → reference), exactly the thesis matrix ``U`` of 003
+  (``dU/dt = U·[ω×]`` with ω the body rate in body axes) and 004's
+  ``S_GCRS^MF`` (MF coordinates → GCRS coordinates).  It is also the ROS meaning
+  of an orientation: the pose of the child (body) frame in the parent frame.
+* Composition: ``q_a_c = q_a_b ⊗ q_b_c``.  A body-frame increment ``φ`` (rotation
+  vector in body axes, from integrating gyros) updates ``q_k = q_{k-1} ⊗ exp(φ)``.
+* Rotation vector ``φ = angle·axis`` (radians), right-handed.
+  ``exp(φ) = [cos(|φ|/2), sin(|φ|/2)·φ/|φ|]``.
+* Small attitude errors are right-perturbations in body axes:
+  ``q_true = q_est ⊗ exp(-ε)``, equivalently ``C_est ≈ C_true (I + [ε×])``,
+  the definition of ε in 004 §2.3.
+* Units: radians, seconds (REP-103).
+
+Everything is vectorised: functions accept arrays with any leading shape.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+__all__ = [
+    "skew", "quat_multiply", "quat_conjugate", "quat_normalize", "quat_identity",
+    "rotvec_to_quat", "quat_to_rotvec", "quat_to_dcm", "dcm_to_quat", "rotvec_to_dcm",
+    "quat_rotate", "quat_angle_between", "quat_error_rotvec", "quat_cumprod",
+    "to_ros_xyzw", "from_ros_xyzw", "elementary_dcm", "ypr_to_dcm", "dcm_to_ypr",
+    "aircraft_angles_to_quat",
+]
+
+
+def skew(v: np.ndarray) -> np.ndarray:
+    """Cross-product matrix ``[v×]`` so that ``[v×] @ u == v × u``; shape (..., 3, 3)."""
+    v = np.asarray(v, dtype=float)
+    z = np.zeros(v.shape[:-1])
+    x, y, w = v[..., 0], v[..., 1], v[..., 2]
+    return np.stack([np.stack([z, -w, y], -1),
+                     np.stack([w, z, -x], -1),
+                     np.stack([-y, x, z], -1)], -2)
+
+
+def quat_identity(shape=()) -> np.ndarray:
+    q = np.zeros(tuple(np.atleast_1d(shape)) + (4,) if shape != () else (4,))
+    q[..., 0] = 1.0
+    return q
+
+
+def quat_multiply(p: np.ndarray, q: np.ndarray) -> np.ndarray:
+    """Hamilton product ``p ⊗ q`` (scalar-first), broadcasting over leading axes."""
+    p = np.asarray(p, dtype=float)
+    q = np.asarray(q, dtype=float)
+    pw, px, py, pz = p[..., 0], p[..., 1], p[..., 2], p[..., 3]
+    qw, qx, qy, qz = q[..., 0], q[..., 1], q[..., 2], q[..., 3]
+    return np.stack([
+        pw * qw - px * qx - py * qy - pz * qz,
+        pw * qx + px * qw + py * qz - pz * qy,
+        pw * qy - px * qz + py * qw + pz * qx,
+        pw * qz + px * qy - py * qx + pz * qw,
+    ], axis=-1)
+
+
+def quat_conjugate(q: np.ndarray) -> np.ndarray:
+    q = np.asarray(q, dtype=float)
+    return q * np.array([1.0, -1.0, -1.0, -1.0])
+
+
+def quat_normalize(q: np.ndarray) -> np.ndarray:
+    q = np.asarray(q, dtype=float)
+    return q / np.linalg.norm(q, axis=-1, keepdims=True)
+
+
+def rotvec_to_quat(phi: np.ndarray) -> np.ndarray:
+    """``exp(φ)``: rotation vector (..., 3) → unit quaternion (..., 4).
+
+    Uses ``sin(a/2)/a = sinc(a/2π)/2`` so it is exact (to round-off) at any angle,
+    including zero.
+    """
+    phi = np.asarray(phi, dtype=float)
+    angle = np.linalg.norm(phi, axis=-1, keepdims=True)
+    half_sinc = 0.5 * np.sinc(angle / (2.0 * np.pi))   # sin(a/2)/a
+    return np.concatenate([np.cos(0.5 * angle), phi * half_sinc], axis=-1)
+
+
+def quat_to_rotvec(q: np.ndarray) -> np.ndarray:
+    """``log(q)``: unit quaternion → rotation vector with angle in [0, π]."""
+    q = np.asarray(q, dtype=float)
+    q = np.where(q[..., :1] < 0.0, -q, q)            # shortest rotation
+    v = q[..., 1:]
+    s = np.linalg.norm(v, axis=-1, keepdims=True)
+    angle = 2.0 * np.arctan2(s, q[..., :1])
+    # angle / s, with the s → 0 limit 2/w (w ≈ 1 there)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        factor = np.where(s > 1e-12, angle / np.where(s > 0, s, 1.0),
+                          2.0 / q[..., :1] * (1.0 + s * s / (3.0 * q[..., :1] ** 2)))
+    return v * factor
+
+
+def quat_to_dcm(q: np.ndarray) -> np.ndarray:
+    """Unit quaternion ``q_a_b`` → DCM ``C_a_b`` (maps b-coordinates to a-coordinates)."""
+    q = np.asarray(q, dtype=float)
+    w, x, y, z = q[..., 0], q[..., 1], q[..., 2], q[..., 3]
+    return np.stack([
+        np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)], -1),
+        np.stack([2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)], -1),
+        np.stack([2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)], -1),
+    ], -2)
+
+
+def dcm_to_quat(C: np.ndarray) -> np.ndarray:
+    """DCM → unit quaternion with w ≥ 0 (Shepperd's method, robust at any angle)."""
+    C = np.asarray(C, dtype=float)
+    shape = C.shape[:-2]
+    C = C.reshape(-1, 3, 3)
+    tr = np.trace(C, axis1=1, axis2=2)
+    diag = np.stack([C[:, 0, 0], C[:, 1, 1], C[:, 2, 2]], -1)
+    choice = np.argmax(np.concatenate([tr[:, None], diag], 1), axis=1)
+    q = np.empty((C.shape[0], 4))
+    for i in range(C.shape[0]):          # branch per element; DCM conversion is not a hot path
+        c = C[i]
+        k = choice[i]
+        if k == 0:
+            s = 2.0 * np.sqrt(1.0 + tr[i])
+            q[i] = [0.25 * s, (c[2, 1] - c[1, 2]) / s, (c[0, 2] - c[2, 0]) / s, (c[1, 0] - c[0, 1]) / s]
+        elif k == 1:
+            s = 2.0 * np.sqrt(1.0 + c[0, 0] - c[1, 1] - c[2, 2])
+            q[i] = [(c[2, 1] - c[1, 2]) / s, 0.25 * s, (c[0, 1] + c[1, 0]) / s, (c[0, 2] + c[2, 0]) / s]
+        elif k == 2:
+            s = 2.0 * np.sqrt(1.0 + c[1, 1] - c[0, 0] - c[2, 2])
+            q[i] = [(c[0, 2] - c[2, 0]) / s, (c[0, 1] + c[1, 0]) / s, 0.25 * s, (c[1, 2] + c[2, 1]) / s]
+        else:
+            s = 2.0 * np.sqrt(1.0 + c[2, 2] - c[0, 0] - c[1, 1])
+            q[i] = [(c[1, 0] - c[0, 1]) / s, (c[0, 2] + c[2, 0]) / s, (c[1, 2] + c[2, 1]) / s, 0.25 * s]
+    q = np.where(q[:, :1] < 0, -q, q)
+    return quat_normalize(q).reshape(shape + (4,))
+
+
+def rotvec_to_dcm(phi: np.ndarray) -> np.ndarray:
+    """Rodrigues' formula (003 eq. 1.26/1.42/1.63): ``E + sin φ/φ·Φ + (1-cos φ)/φ²·Φ²``."""
+    return quat_to_dcm(rotvec_to_quat(phi))
+
+
+def quat_rotate(q: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """Rotate vectors: ``q ⊗ v ⊗ q*`` (maps b-coordinates to a-coordinates for q_a_b)."""
+    q = np.asarray(q, dtype=float)
+    v = np.asarray(v, dtype=float)
+    qv = q[..., 1:]
+    t = 2.0 * np.cross(qv, v)
+    return v + q[..., :1] * t + np.cross(qv, t)
+
+
+def quat_error_rotvec(q_est: np.ndarray, q_true: np.ndarray, frame: str = "body") -> np.ndarray:
+    """Attitude error as a rotation vector.
+
+    ``frame='body'``: ε with ``q_est = q_true ⊗ exp(ε)`` (body axes, 004's definition).
+    ``frame='reference'``: e with ``q_est = exp(e) ⊗ q_true`` (reference axes).
+    """
+    if frame == "body":
+        d = quat_multiply(quat_conjugate(q_true), q_est)
+    elif frame == "reference":
+        d = quat_multiply(q_est, quat_conjugate(q_true))
+    else:
+        raise ValueError(f"frame must be 'body' or 'reference', got {frame!r}")
+    return quat_to_rotvec(d)
+
+
+def quat_angle_between(q1: np.ndarray, q2: np.ndarray) -> np.ndarray:
+    """Angle (rad) of the rotation between two attitudes."""
+    d = quat_multiply(quat_conjugate(q1), q2)
+    return 2.0 * np.arctan2(np.linalg.norm(d[..., 1:], axis=-1), np.abs(d[..., 0]))
+
+
+def quat_cumprod(q0: np.ndarray, dq: np.ndarray) -> np.ndarray:
+    """Running attitude ``q_k = q0 ⊗ dq_1 ⊗ … ⊗ dq_k`` for k = 1..n, vectorised.
+
+    An inclusive parallel-prefix (Hillis–Steele) scan: ⌈log2 n⌉ vectorised passes
+    of ``out[i] = out[i-d] ⊗ out[i]`` (earlier factor on the left, the product is
+    not commutative), each followed by renormalisation.  Mathematically identical
+    to the sequential update (003 eq. 1.64); each result passes through at most
+    ⌈log2 n⌉ products, so round-off grows like log n instead of n.
+    """
+    out = np.array(dq, dtype=float, copy=True)
+    n = out.shape[0]
+    d = 1
+    while d < n:
+        out[d:] = quat_multiply(out[:-d], out[d:])
+        out[d:] /= np.linalg.norm(out[d:], axis=-1, keepdims=True)
+        d *= 2
+    out = quat_multiply(np.asarray(q0, dtype=float), out)
+    return out / np.linalg.norm(out, axis=-1, keepdims=True)
+
+
+# --- ROS edge helpers -------------------------------------------------------------
+def to_ros_xyzw(q: np.ndarray) -> np.ndarray:
+    """Scalar-first ``[w,x,y,z]`` → ROS order ``[x,y,z,w]``."""
+    q = np.asarray(q, dtype=float)
+    return np.concatenate([q[..., 1:], q[..., :1]], axis=-1)
+
+
+def from_ros_xyzw(q: np.ndarray) -> np.ndarray:
+    """ROS order ``[x,y,z,w]`` → scalar-first ``[w,x,y,z]``."""
+    q = np.asarray(q, dtype=float)
+    return np.concatenate([q[..., 3:], q[..., :3]], axis=-1)
+
+
+# --- Euler sequences of the seeds --------------------------------------------------
+def elementary_dcm(axis: int, angle) -> np.ndarray:
+    """Active rotation by ``angle`` about coordinate axis 0/1/2 (x/y/z): ``exp([angle·e_axis ×])``."""
+    angle = np.asarray(angle, dtype=float)
+    c, s = np.cos(angle), np.sin(angle)
+    one, zero = np.ones_like(angle), np.zeros_like(angle)
+    if axis == 0:
+        rows = [[one, zero, zero], [zero, c, -s], [zero, s, c]]
+    elif axis == 1:
+        rows = [[c, zero, s], [zero, one, zero], [-s, zero, c]]
+    elif axis == 2:
+        rows = [[c, -s, zero], [s, c, zero], [zero, zero, one]]
+    else:
+        raise ValueError("axis must be 0, 1 or 2")
+    return np.stack([np.stack(r, -1) for r in rows], -2)
+
+
+# 004 §1, eq. (1): C_MF^VF = R_ψ(β_ψ) R_ϑ(β_ϑ) R_γ(β_γ), yaw/pitch/roll of VF relative to MF.
+# The Russian navigation convention of 004's reference [1] (body axes x right,
+# y forward along the optical/longitudinal axis, z up; ENU-like parent):
+#   yaw ψ about z (positive counter-clockwise seen from +z; this is *not* the
+#   clockwise compass heading), pitch ϑ about the once-rotated x axis, roll γ about
+#   the twice-rotated y axis.  The matrix maps child (VF) coordinates to parent (MF).
+YPR_AXES = (2, 0, 1)
+
+
+def ypr_to_dcm(yaw, pitch, roll) -> np.ndarray:
+    """``C_parent_child = R_z(ψ) R_x(ϑ) R_y(γ)`` (004 eq. 1), mapping child → parent coordinates."""
+    return (elementary_dcm(YPR_AXES[0], yaw) @ elementary_dcm(YPR_AXES[1], pitch)
+            @ elementary_dcm(YPR_AXES[2], roll))
+
+
+def dcm_to_ypr(C: np.ndarray) -> np.ndarray:
+    """Inverse of :func:`ypr_to_dcm`; pitch in [-π/2, π/2].  Returns (..., 3) [ψ, ϑ, γ]."""
+    C = np.asarray(C, dtype=float)
+    # R_z(ψ)R_x(ϑ)R_y(γ): C[2,1] = sin ϑ, C[0,1] = -sin ψ cos ϑ, C[1,1] = cos ψ cos ϑ,
+    # C[2,0] = -cos ϑ sin γ, C[2,2] = cos ϑ cos γ
+    pitch = np.arcsin(np.clip(C[..., 2, 1], -1.0, 1.0))
+    yaw = np.arctan2(-C[..., 0, 1], C[..., 1, 1])
+    roll = np.arctan2(-C[..., 2, 0], C[..., 2, 2])
+    return np.stack([yaw, pitch, roll], -1)
+
+
+# 000 §6: "aircraft" angles (Lurie, Analytical mechanics): yaw φ1, pitch φ2, roll φ3.
+# Lurie's aircraft axes: x longitudinal (forward), y normal (up), z lateral (right).
+# Sequence: yaw about y, then pitch about the new z, then roll about the new x;
+# the quaternion maps body (J) coordinates to the reference basis (L).
+AIRCRAFT_AXES = (1, 2, 0)
+
+
+def aircraft_angles_to_quat(angles) -> np.ndarray:
+    """Quaternion ``N_L_J(φ) = exp(φ1·e_y/2) ⊗ exp(φ2·e_z/2) ⊗ exp(φ3·e_x/2)`` (000 §6)."""
+    angles = np.asarray(angles, dtype=float)
+    q = None
+    for axis, k in zip(AIRCRAFT_AXES, range(3)):
+        rv = np.zeros(angles.shape[:-1] + (3,))
+        rv[..., axis] = angles[..., k]
+        e = rotvec_to_quat(rv)
+        q = e if q is None else quat_multiply(q, e)
+    return q

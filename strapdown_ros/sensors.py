@@ -1,0 +1,243 @@
+"""Integrating-sensor models: gyro angle increments Δθ and accelerometer velocity increments Δv.
+
+Measurement model (per output interval k of length T, body/sensor axes)::
+
+    y_k = (I + M) · u_k + b · T + w_k,       w_k ~ N(0, σ_rw² · T · I)
+
+* ``u_k``: exact increment of the motion profile (∫ω dt or ∫f dt).
+* ``M``: scale-factor errors on the diagonal, axis misalignments off the diagonal.
+  This is 004 §2.1's ``M_G`` (general 3×3).  000 §6's structure
+  ``Δω = D(ω)c`` with ``D = [D_I D_II E3]``, ``D_I = diag(ω)``,
+  ``D_II = [[ω2,0,ω3],[ω1,ω3,0],[0,ω2,ω1]]`` is the special case
+  ``M = [[c1,c4,c6],[c4,c2,c5],[c6,c5,c3]]``, ``b = (c7,c8,c9)``
+  (see :meth:`SensorErrorModel.from_tkachenko`).
+* ``b``: bias (rad/s or m/s²), a random constant.
+* ``σ_rw``: angle/velocity random walk (rad/√s or m/s/√s), so the increment noise
+  has covariance ``σ_rw²·T`` (004: P_wG = (σ_wG √T_IMU)² I).
+
+Level quantization (000 §5, eq. 5.1): each axis emits pulses of weight σ when the
+integral of its (erroneous) signal since the previous pulse reaches ±σ; the output
+over an interval is the sum of the pulses in it.  The remainder is carried, so
+
+    θ*_k = θ_k + Δθ_{k-1} − Δθ_k,     Δθ_k = ∫_{τ_k}^{t_k} ω* dt  (|Δθ_k| < σ)
+
+and the quantization error never accumulates.  The pulse generator is the play
+(backlash) operator on the running integral A: the last pulse level P = mσ moves
+by σ whenever |A − P| reaches σ.  The optional increment correction (5.6)
+``θ⁰_k = θ*_k + ½σ(sign θ*_k − sign θ*_{k−1})`` removes the mean of the remainder.
+
+All random draws come from one ``numpy.random.Generator`` seeded by the user.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+__all__ = ["SensorSigmas", "SensorErrorModel", "PulseQuantizer", "IntegratingSensor",
+           "increment_correction", "increment_covariance", "DEG_PER_HOUR", "ARCSEC",
+           "NAVIGATION_GRADE_GYRO", "NAVIGATION_GRADE_ACCEL"]
+
+DEG_PER_HOUR = np.pi / 180.0 / 3600.0          # rad/s in one °/h
+ARCSEC = np.pi / 180.0 / 3600.0                # rad in one arc second
+
+
+@dataclass(frozen=True)
+class SensorSigmas:
+    """Statistics of a sensor triad's errors (what a data sheet or a calibration report gives).
+
+    The simulator draws its constants from these; the SINS uses them for P_ρk (004 §2.1).
+    """
+    bias_sigma: float = 0.0            # rad/s (gyro) or m/s² (accel), per axis
+    scale_sigma: float = 0.0           # relative scale-factor error σ_k
+    misalignment_sigma: float = 0.0    # rad, each off-diagonal element σ_φ
+    random_walk: float = 0.0           # rad/√s or m/s/√s
+    quantum: float = 0.0               # pulse weight σ (0: not quantized)
+
+    def __post_init__(self):
+        for name in ("bias_sigma", "scale_sigma", "misalignment_sigma", "random_walk", "quantum"):
+            v = getattr(self, name)
+            if not (np.isfinite(v) and v >= 0):
+                raise ValueError(f"{name} must be finite and >= 0, got {v}")
+
+    def draw(self, rng: np.random.Generator) -> "SensorErrorModel":
+        return SensorErrorModel.random(rng, self.bias_sigma, self.scale_sigma, self.misalignment_sigma,
+                                       self.random_walk, self.quantum)
+
+
+#: 004 §6 navigation-grade gyro: σ_φG = 3″, σ_kG = 1e-5, σ_wG = 0.0012°/√h, σ_bG = 0.007°/h
+NAVIGATION_GRADE_GYRO = SensorSigmas(bias_sigma=0.007 * np.pi / 180 / 3600, scale_sigma=1e-5,
+                                     misalignment_sigma=3.0 * np.pi / 180 / 3600,
+                                     random_walk=0.0012 * np.pi / 180 / 60.0)
+#: a matching navigation-grade accelerometer (typical data-sheet values; not from the seeds)
+NAVIGATION_GRADE_ACCEL = SensorSigmas(bias_sigma=50e-6 * 9.80665, scale_sigma=50e-6,
+                                      misalignment_sigma=5.0 * np.pi / 180 / 3600,
+                                      random_walk=20e-6 * 9.80665)
+
+
+@dataclass
+class SensorErrorModel:
+    """Constant errors plus white noise of a sensor triad (SI units)."""
+    bias: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    scale_factor: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    misalignment: np.ndarray = field(default_factory=lambda: np.zeros((3, 3)))   # off-diagonal used
+    random_walk: float = 0.0                    # rad/√s (gyro) or m/s/√s (accelerometer)
+    quantum: float = 0.0                        # pulse weight σ; 0 disables quantization
+
+    def __post_init__(self):
+        self.bias = np.asarray(self.bias, dtype=float).reshape(3)
+        self.scale_factor = np.asarray(self.scale_factor, dtype=float).reshape(3)
+        self.misalignment = np.asarray(self.misalignment, dtype=float).reshape(3, 3)
+        for name in ("random_walk", "quantum"):
+            v = float(getattr(self, name))
+            if not np.isfinite(v) or v < 0:
+                raise ValueError(f"{name} must be finite and >= 0, got {v}")
+            setattr(self, name, v)
+        if not (np.all(np.isfinite(self.bias)) and np.all(np.isfinite(self.scale_factor))
+                and np.all(np.isfinite(self.misalignment))):
+            raise ValueError("sensor error constants must be finite")
+
+    @property
+    def matrix(self) -> np.ndarray:
+        """``M``: scale factors on the diagonal, misalignments off it."""
+        m = self.misalignment.copy()
+        np.fill_diagonal(m, self.scale_factor)
+        return m
+
+    @classmethod
+    def from_tkachenko(cls, c, random_walk: float = 0.0, quantum: float = 0.0) -> "SensorErrorModel":
+        """000 §6: ``Δω = [D_I D_II E3]·c`` with c = (c1..c9)."""
+        c = np.asarray(c, dtype=float).reshape(9)
+        mis = np.array([[0.0, c[3], c[5]], [c[3], 0.0, c[4]], [c[5], c[4], 0.0]])
+        return cls(bias=c[6:9], scale_factor=c[0:3], misalignment=mis,
+                   random_walk=random_walk, quantum=quantum)
+
+    @classmethod
+    def random(cls, rng: np.random.Generator, bias_sigma: float = 0.0, scale_sigma: float = 0.0,
+               misalignment_sigma: float = 0.0, random_walk: float = 0.0,
+               quantum: float = 0.0) -> "SensorErrorModel":
+        """Draw the constants as zero-mean Gaussians with the given σ (004 §2.1)."""
+        mis = rng.normal(0.0, misalignment_sigma, (3, 3)) if misalignment_sigma > 0 else np.zeros((3, 3))
+        np.fill_diagonal(mis, 0.0)
+        return cls(bias=rng.normal(0.0, bias_sigma, 3) if bias_sigma > 0 else np.zeros(3),
+                   scale_factor=rng.normal(0.0, scale_sigma, 3) if scale_sigma > 0 else np.zeros(3),
+                   misalignment=mis, random_walk=random_walk, quantum=quantum)
+
+
+class PulseQuantizer:
+    """Per-axis pulse generator with carried remainder (000 eq. 5.1)."""
+
+    def __init__(self, quantum: float):
+        if not quantum > 0:
+            raise ValueError("quantum must be > 0")
+        self.quantum = float(quantum)
+        self.integral = np.zeros(3)        # running integral A of the continuous signal
+        self.level = np.zeros(3)           # last pulse level P (a multiple of σ)
+
+    def __call__(self, increments: np.ndarray) -> np.ndarray:
+        """Quantize a block (n, 3) of continuous increments; returns pulse sums (n, 3).
+
+        The play operator is sequential by nature; it runs over plain Python floats
+        (about 1 µs per sample and axis), the only per-sample loop in the simulator.
+        """
+        inc = np.asarray(increments, dtype=float)
+        out = np.empty_like(inc)
+        sigma = self.quantum
+        for axis in range(3):
+            a = float(self.integral[axis])
+            p = float(self.level[axis])
+            col = inc[:, axis].tolist()
+            res = [0.0] * len(col)
+            for i, d in enumerate(col):
+                a += d
+                gap = a - p
+                if gap >= sigma or gap <= -sigma:
+                    n = int(gap / sigma)           # truncation toward zero: |A − P_new| < σ
+                    p += n * sigma
+                    res[i] = n * sigma
+            out[:, axis] = res
+            self.integral[axis] = a
+            self.level[axis] = p
+        return out
+
+    @property
+    def remainder(self) -> np.ndarray:
+        """Δθ_k of (5.1): integral since the last pulse."""
+        return self.integral - self.level
+
+
+def increment_correction(pulses: np.ndarray, quantum: float, previous_sign=None):
+    """000 eq. (5.6): ``θ⁰_k = θ*_k + ½σ(sign θ*_k − sign θ*_{k−1})``, sign θ*_0 = 0.
+
+    ``pulses`` (n, 3); ``previous_sign`` (3,) carries sign θ*_{k−1} across blocks.
+    Returns the corrected increments and the last sign.
+    """
+    pulses = np.asarray(pulses, dtype=float)
+    s = np.sign(pulses)
+    prev = np.zeros(3) if previous_sign is None else np.asarray(previous_sign, dtype=float)
+    s_prev = np.vstack([prev[None, :], s[:-1]]) if len(s) else s
+    return pulses + 0.5 * quantum * (s - s_prev), (s[-1].copy() if len(s) else prev)
+
+
+class IntegratingSensor:
+    """A sensor triad sampling one profile quantity on a uniform time grid.
+
+    ``kind`` is ``'gyro'`` (``profile.delta_theta``) or ``'accel'`` (``profile.delta_v``).
+    Sample k covers ``[t0 + (k−1)T, t0 + kT]`` and is stamped at its end.
+    """
+
+    def __init__(self, profile, kind: str, rate_hz: float, errors: SensorErrorModel | None = None,
+                 seed: int | None = 0, start_time: float = 0.0):
+        if kind not in ("gyro", "accel"):
+            raise ValueError(f"kind must be 'gyro' or 'accel', got {kind!r}")
+        if not (np.isfinite(rate_hz) and rate_hz > 0):
+            raise ValueError(f"rate_hz must be > 0, got {rate_hz}")
+        self.profile = profile
+        self.kind = kind
+        self.period = 1.0 / float(rate_hz)
+        self.errors = errors or SensorErrorModel()
+        self.rng = np.random.default_rng(seed)
+        self.start_time = float(start_time)
+        self.count = 0
+        self.quantizer = PulseQuantizer(self.errors.quantum) if self.errors.quantum > 0 else None
+
+    def epochs(self, n: int) -> np.ndarray:
+        """End times of the next n samples (does not advance)."""
+        k = self.count + np.arange(1, n + 1)
+        return self.start_time + k * self.period
+
+    def true_increments(self, n: int):
+        k = self.count + np.arange(0, n + 1)
+        t = self.start_time + k * self.period
+        f = self.profile.delta_theta if self.kind == "gyro" else self.profile.delta_v
+        return t[1:], f(t[:-1], t[1:])
+
+    def sample(self, n: int):
+        """Advance by n samples; returns (end_times (n,), measured (n,3), true (n,3))."""
+        t_end, true = self.true_increments(n)
+        e = self.errors
+        meas = true @ (np.eye(3) + e.matrix).T + e.bias * self.period
+        if e.random_walk > 0:
+            meas = meas + self.rng.normal(0.0, e.random_walk * np.sqrt(self.period), meas.shape)
+        if self.quantizer is not None:
+            meas = self.quantizer(meas)
+        self.count += n
+        return t_end, meas, true
+
+
+def increment_covariance(increments: np.ndarray, period: float, bias_sigma: float, scale_sigma: float,
+                         misalignment_sigma: float, random_walk: float) -> np.ndarray:
+    """004 §2.1: covariance P_ρk of the error of each increment ρ_k (n, 3) → (n, 3, 3).
+
+    ``P_ρk = σ_φ² diag(ρy²+ρz², ρx²+ρz², ρx²+ρy²) + σ_k² diag(ρx², ρy², ρz²)
+    + (σ_b T)² I + σ_w² T I``.
+    """
+    r2 = np.asarray(increments, dtype=float) ** 2
+    total = r2.sum(-1, keepdims=True)
+    period = np.asarray(period, dtype=float)[..., None]        # scalar or one per increment
+    d = misalignment_sigma ** 2 * (total - r2) + scale_sigma ** 2 * r2 \
+        + (bias_sigma * period) ** 2 + random_walk ** 2 * period
+    out = np.zeros(r2.shape[:-1] + (3, 3))
+    idx = np.arange(3)
+    out[..., idx, idx] = d
+    return out

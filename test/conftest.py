@@ -1,0 +1,17 @@
+"""Test-session isolation for ROS 2.
+
+Every pytest session gets its own ROS_DOMAIN_ID and keeps discovery on this machine
+(ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST) *before* anything imports rclpy, so parallel
+sessions (or another ROS graph on the machine) never see each other.
+"""
+import os
+import sys
+
+_DOMAIN = str(1 + (os.getpid() % 100))          # 1..100, valid on Linux
+os.environ["ROS_DOMAIN_ID"] = _DOMAIN
+os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
+os.environ.pop("ROS_STATIC_PEERS", None)
+os.environ.setdefault("RCUTILS_LOGGING_BUFFERED_STREAM", "1")
+
+# tests import the package from the repository checkout
+sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
