@@ -1,0 +1,185 @@
+"""Parameters of every node and tool: one declaration, used by the ROS nodes (as validated
+ROS parameters), by offline tools (read from the same ROS 2 parameter YAML file), and
+by the README tables (``python -m strapdown_ros.config`` prints them as Markdown).
+
+No ROS imports here.
+"""
+from __future__ import annotations
+
+import sys
+from dataclasses import dataclass
+from typing import Any, Sequence
+
+import numpy as np
+
+from .coning import algorithm_names
+from .integrator import COVARIANCE_MODELS
+from .profiles import PROFILE_NAMES
+from .sensors import NAVIGATION_GRADE_ACCEL, NAVIGATION_GRADE_GYRO, SensorSigmas
+
+__all__ = ["ParamSpec", "PROFILE_PARAMS", "GYRO_PARAMS", "ACCEL_PARAMS", "IMU_SIM_PARAMS",
+           "SINS_PARAMS", "sigmas_from", "load_parameter_file", "check_all", "markdown_table"]
+
+
+@dataclass(frozen=True)
+class ParamSpec:
+    """One parameter: default, unit and meaning, and its validation (range or choices)."""
+    name: str
+    default: Any
+    description: str
+    minimum: float | None = None
+    maximum: float | None = None
+    choices: Sequence[str] | None = None
+    exclusive_minimum: bool = False
+    length: int | None = None            # arrays of fixed length
+
+    def check(self, value) -> str | None:
+        """Return an error message that names the valid values, or None when valid."""
+        if self.choices is not None:
+            if value not in self.choices:
+                return f"{self.name}={value!r} is not valid; valid values: {', '.join(map(str, self.choices))}"
+            return None
+        if self.length is not None:
+            try:
+                arr = np.asarray(value, dtype=float)
+            except (TypeError, ValueError):
+                return f"{self.name} must be a list of {self.length} numbers, got {value!r}"
+            if arr.shape != (self.length,) or not np.all(np.isfinite(arr)):
+                return f"{self.name} must be a list of {self.length} finite numbers, got {value!r}"
+            return None
+        if isinstance(self.default, bool):
+            return None if isinstance(value, bool) else f"{self.name} must be true or false, got {value!r}"
+        if isinstance(self.default, (int, float)):
+            if isinstance(value, bool) or not isinstance(value, (int, float)):
+                return f"{self.name} must be a number, got {value!r}"
+            if not np.isfinite(value):
+                return f"{self.name} must be finite, got {value!r}"
+            return self._range_error(value)
+        return None
+
+    def _range_error(self, value) -> str | None:
+        lo, hi = self.minimum, self.maximum
+        bad = (lo is not None and (value < lo or (self.exclusive_minimum and value <= lo))) or \
+              (hi is not None and value > hi)
+        return f"{self.name}={value!r} is out of range; valid: {self.range_text()}" if bad else None
+
+    def range_text(self) -> str:
+        if self.choices is not None:
+            return ", ".join(map(str, self.choices))
+        parts = []
+        if self.minimum is not None:
+            parts.append(("> " if self.exclusive_minimum else ">= ") + f"{self.minimum:g}")
+        if self.maximum is not None:
+            parts.append(f"<= {self.maximum:g}")
+        if self.length is not None:
+            parts.append(f"{self.length} finite numbers")
+        return " and ".join(parts) if parts else "any"
+
+
+def _sensor_params(prefix: str, grade: SensorSigmas, rate: float, unit: str, rw_unit: str) -> list[ParamSpec]:
+    return [
+        ParamSpec(f"{prefix}_rate", rate, f"{prefix} output rate, Hz", 0.0, 10000.0, exclusive_minimum=True),
+        ParamSpec(f"{prefix}_bias_sigma", grade.bias_sigma, f"1σ of the constant bias per axis, {unit}", 0.0),
+        ParamSpec(f"{prefix}_scale_sigma", grade.scale_sigma, "1σ of each scale-factor error (relative)", 0.0, 0.1),
+        ParamSpec(f"{prefix}_misalignment_sigma", grade.misalignment_sigma,
+                  "1σ of each axis misalignment (off-diagonal of M), rad", 0.0, 0.1),
+        ParamSpec(f"{prefix}_random_walk", grade.random_walk, f"white-noise random walk, {rw_unit}", 0.0),
+        ParamSpec(f"{prefix}_quantum", 0.0, f"pulse weight σ of level quantization (0 = off), "
+                  f"{'rad' if prefix == 'gyro' else 'm/s'}", 0.0),
+    ]
+
+
+PROFILE_PARAMS = [
+    ParamSpec("profile", "coning", "motion profile", choices=PROFILE_NAMES),
+    ParamSpec("coning_alpha", 0.087, "coning half-angle α, rad (003 §2.2)", 0.0, np.pi, exclusive_minimum=True),
+    ParamSpec("coning_nu", 1.0, "coning frequency ν, rad/s", 0.0, 1000.0, exclusive_minimum=True),
+    ParamSpec("bench_latitude_deg", 50.45, "bench latitude, degrees (Earth-rate direction)", -90.0, 90.0),
+    ParamSpec("bench_earth_rate", True, "bench profile turns with the Earth"),
+    ParamSpec("profile_file", "", "YAML with 'segments' for profile=piecewise"),
+    ParamSpec("gravity", [0.0, 0.0, 0.0], "specific force at rest in reference axes, m/s² "
+              "(coning and piecewise profiles; the bench uses ENU gravity)", length=3),
+]
+
+GYRO_PARAMS = _sensor_params("gyro", NAVIGATION_GRADE_GYRO, 100.0, "rad/s", "rad/√s")
+ACCEL_PARAMS = _sensor_params("accel", NAVIGATION_GRADE_ACCEL, 300.0, "m/s²", "m/s/√s")
+
+COMMON_PARAMS = [
+    ParamSpec("frame_id", "imu_link", "body (IMU) frame id"),
+    ParamSpec("reference_frame_id", "gcrs", "inertial reference frame id of attitudes"),
+    ParamSpec("qos_depth", 500, "history depth of the stream QoS", 1, 100000),
+    ParamSpec("diagnostics_period", 1.0, "period of /diagnostics, wall seconds", 0.0, 3600.0,
+              exclusive_minimum=True),
+]
+
+IMU_SIM_PARAMS = PROFILE_PARAMS + GYRO_PARAMS + ACCEL_PARAMS + COMMON_PARAMS + [
+    ParamSpec("seed", 0, "seed of the random error constants and noise", 0, 2**31 - 1),
+    ParamSpec("time_scale", 1.0, "simulated seconds per wall second (> 1: faster than real time)",
+              0.0, 1e6, exclusive_minimum=True),
+    ParamSpec("duration", 0.0, "simulated seconds to publish (0: the profile length, or forever)", 0.0),
+    ParamSpec("start_time", 0.0, "header stamp of profile time 0, s", 0.0),
+    ParamSpec("publish_period", 0.02, "wall period of the publishing timer, s", 0.0, 1.0, exclusive_minimum=True),
+]
+
+SINS_PARAMS = GYRO_PARAMS + ACCEL_PARAMS + COMMON_PARAMS + [
+    ParamSpec("coning_algorithm", "2", "coning algorithm (doc/coning_derivations.md)", choices=tuple(algorithm_names())),
+    ParamSpec("initial_orientation", [0.0, 0.0, 0.0, 1.0],
+              "initial q_ref_body as ROS x, y, z, w (normalised if not unit)", length=4),
+    ParamSpec("initial_attitude_sigma", 0.0, "1σ initial attitude error per axis, rad", 0.0, np.pi),
+    ParamSpec("covariance_model", "random_constant", "gyro error model of the covariance", choices=COVARIANCE_MODELS),
+    ParamSpec("quantization_correction", False, "apply 000 eq. (5.6) with gyro_quantum"),
+    ParamSpec("accel_wait", 0.1, "how long (stamp seconds) sins/imu waits for accelerometer data", 0.0, 10.0),
+]
+
+
+def sigmas_from(values: dict, prefix: str) -> SensorSigmas:
+    return SensorSigmas(bias_sigma=float(values[f"{prefix}_bias_sigma"]),
+                        scale_sigma=float(values[f"{prefix}_scale_sigma"]),
+                        misalignment_sigma=float(values[f"{prefix}_misalignment_sigma"]),
+                        random_walk=float(values[f"{prefix}_random_walk"]),
+                        quantum=float(values[f"{prefix}_quantum"]))
+
+
+def check_all(specs: Sequence[ParamSpec], values: dict) -> dict:
+    """Fill defaults and validate; raises ValueError listing the valid values."""
+    out = {}
+    known = {s.name for s in specs}
+    for k in values:
+        if k not in known:
+            raise ValueError(f"unknown parameter {k!r}; known: {', '.join(sorted(known))}")
+    for s in specs:
+        v = values.get(s.name, s.default)
+        err = s.check(v)
+        if err:
+            raise ValueError(err)
+        out[s.name] = v
+    return out
+
+
+def load_parameter_file(path: str, node_name: str) -> dict:
+    """Parameters for ``node_name`` from a ROS 2 parameter YAML file (``/**`` wildcard
+    and exact node names are merged, exact names win), as the nodes would see them."""
+    import yaml
+
+    with open(path, "r", encoding="utf-8") as fh:
+        doc = yaml.safe_load(fh) or {}
+    merged: dict = {}
+    for key in ("/**", "**", node_name, "/" + node_name):
+        block = doc.get(key)
+        if isinstance(block, dict):
+            merged.update(block.get("ros__parameters", {}) or {})
+    return merged
+
+
+def markdown_table(specs: Sequence[ParamSpec]) -> str:
+    rows = ["| parameter | type | default | valid | meaning |", "|---|---|---|---|---|"]
+    for s in specs:
+        typ = type(s.default).__name__ if s.length is None else f"double[{s.length}]"
+        default = f"{s.default:.6g}" if isinstance(s.default, float) else repr(s.default) \
+            if isinstance(s.default, str) else str(s.default).lower() if isinstance(s.default, bool) else str(s.default)
+        rows.append(f"| `{s.name}` | {typ} | {default} | {s.range_text()} | {s.description} |")
+    return "\n".join(rows)
+
+
+if __name__ == "__main__":   # python -m strapdown_ros.config → README parameter tables
+    for title, specs in (("imu_sim_node", IMU_SIM_PARAMS), ("sins_node", SINS_PARAMS)):
+        sys.stdout.write(f"\n#### {title}\n\n{markdown_table(specs)}\n")

@@ -1,0 +1,170 @@
+"""imu_sim_node: integrating gyros (Δθ) and accelerometers (Δv) on an exact motion profile.
+
+Publishes (stamps are simulated time: ``start_time`` + profile time; each stamp is the
+*end* of its integration interval):
+
+* ``imu/delta_theta``     geometry_msgs/Vector3Stamped, rad, at ``gyro_rate``
+* ``imu/delta_velocity``  geometry_msgs/Vector3Stamped, m/s, at ``accel_rate``
+* ``imu/data_raw``        sensor_msgs/Imu at ``gyro_rate``: mean rate Δθ/T and mean specific
+                          force over the same interval; no orientation (REP-145:
+                          orientation_covariance[0] = −1)
+* ``imu/truth/attitude``  geometry_msgs/QuaternionStamped, exact q_ref_body at gyro epochs
+* ``/diagnostics``
+
+A wall-clock timer paces the output (``time_scale`` simulated seconds per wall second);
+nothing downstream depends on the wall clock.
+"""
+from __future__ import annotations
+
+import sys
+import time
+
+import numpy as np
+import rclpy
+import rclpy.executors
+from diagnostic_msgs.msg import DiagnosticArray
+from geometry_msgs.msg import QuaternionStamped, Vector3Stamped
+from rclpy.exceptions import ParameterException
+from rclpy.node import Node
+from sensor_msgs.msg import Imu
+
+from ..config import IMU_SIM_PARAMS, sigmas_from
+from ..profiles import profile_from_config
+from ..sensors import IntegratingSensor
+from . import ros_io
+
+NODE_NAME = "imu_sim_node"
+
+
+class ImuSimNode(Node):
+    def __init__(self, **kwargs):
+        super().__init__(NODE_NAME, **kwargs)
+        self.p = ros_io.declare_validated(self, IMU_SIM_PARAMS, on_change=self._reject_changes)
+        p = self.p
+        self.profile = profile_from_config(p)
+        rng_seed = int(p["seed"])
+        rng = np.random.default_rng(rng_seed)
+        self.gyro_errors = sigmas_from(p, "gyro").draw(rng)
+        self.accel_errors = sigmas_from(p, "accel").draw(rng)
+        self.gyro = IntegratingSensor(self.profile, "gyro", float(p["gyro_rate"]), self.gyro_errors,
+                                      seed=rng_seed + 1)
+        self.accel = IntegratingSensor(self.profile, "accel", float(p["accel_rate"]), self.accel_errors,
+                                       seed=rng_seed + 2)
+        dur = float(p["duration"])
+        self.end_time = dur if dur > 0 else self.profile.duration
+        self.start_ns = int(round(float(p["start_time"]) * 1e9))
+        self.frame_id = p["frame_id"]
+        self.ref_frame = p["reference_frame_id"]
+        qos = ros_io.stream_qos(int(p["qos_depth"]))
+        self.pub_dtheta = self.create_publisher(Vector3Stamped, "imu/delta_theta", qos)
+        self.pub_dv = self.create_publisher(Vector3Stamped, "imu/delta_velocity", qos)
+        self.pub_raw = self.create_publisher(Imu, "imu/data_raw", qos)
+        self.pub_truth = self.create_publisher(QuaternionStamped, "imu/truth/attitude", qos)
+        self.pub_diag = self.create_publisher(DiagnosticArray, "/diagnostics", ros_io.DIAGNOSTICS_QOS)
+        self.counts = {"delta_theta": 0, "delta_velocity": 0, "data_raw": 0}
+        self._pending_dv = np.zeros(3)
+        self._wall_start = None
+        self.sim_time = 0.0
+        self.finished = False
+        self.timer = self.create_timer(float(p["publish_period"]), self._tick)
+        self.diag_timer = self.create_timer(float(p["diagnostics_period"]), self._publish_diagnostics)
+        self.get_logger().info(
+            f"started: profile={p['profile']} gyro {p['gyro_rate']} Hz, accel {p['accel_rate']} Hz, "
+            f"time_scale {p['time_scale']}, duration {self.end_time:g} s")
+
+    def _reject_changes(self, new: dict) -> str | None:
+        return ("imu_sim_node parameters are fixed after start-up (they define the simulated truth); "
+                "restart the node to change " + ", ".join(sorted(new)))
+
+    # ---------------------------------------------------------------------------------
+    def _tick(self):
+        if self.finished:
+            return
+        now = time.monotonic()
+        if self._wall_start is None:
+            self._wall_start = now
+        target = min((now - self._wall_start) * float(self.p["time_scale"]), self.end_time)
+        self._advance_to(target)
+        if target >= self.end_time:
+            self.finished = True
+            self._publish_diagnostics()
+            self.get_logger().info(f"finished: published {self.counts} up to t = {self.sim_time:.3f} s")
+
+    def _advance_to(self, target: float):
+        n_g = int(np.floor(target / self.gyro.period + 1e-9)) - self.gyro.count
+        n_a = int(np.floor(target / self.accel.period + 1e-9)) - self.accel.count
+        if n_g <= 0 and n_a <= 0:
+            return
+        ta, dv, _ = self.accel.sample(max(n_a, 0))
+        tg, dth, _ = self.gyro.sample(max(n_g, 0))
+        q_true = self.profile.attitude(tg) if n_g > 0 else np.zeros((0, 4))
+        stamp = lambda t: ros_io.ns_to_stamp(self.start_ns + int(round(t * 1e9)))  # noqa: E731
+        for t, v in zip(ta, dv):
+            self.pub_dv.publish(ros_io.vector3_stamped(stamp(t), self.frame_id, v))
+        self.counts["delta_velocity"] += len(ta)
+        # mean specific force over each gyro interval, from the Δv stamped inside it
+        edges = np.concatenate([[tg[0] - self.gyro.period], tg]) if n_g > 0 else np.zeros(1)
+        for k, (t, v, q) in enumerate(zip(tg, dth, q_true)):
+            st = stamp(t)
+            self.pub_dtheta.publish(ros_io.vector3_stamped(st, self.frame_id, v))
+            sel = (ta > edges[k] - 1e-12) & (ta <= t + 1e-12)
+            f_mean = (self._pending_dv + dv[sel].sum(0)) / self.gyro.period
+            self._pending_dv = np.zeros(3)
+            self.pub_raw.publish(self._imu_raw(st, v / self.gyro.period, f_mean))
+            self.pub_truth.publish(ros_io.quaternion_stamped(st, self.ref_frame, q))
+        if n_g > 0:
+            later = ta > tg[-1] + 1e-12
+            self._pending_dv += dv[later].sum(0)
+        elif len(ta):
+            self._pending_dv += dv.sum(0)
+        self.counts["delta_theta"] += len(tg)
+        self.counts["data_raw"] += len(tg)
+        self.sim_time = max(self.gyro.count * self.gyro.period, self.accel.count * self.accel.period)
+
+    def _imu_raw(self, stamp, rate, f_mean) -> Imu:
+        m = Imu()
+        m.header.stamp = stamp
+        m.header.frame_id = self.frame_id
+        m.orientation_covariance[0] = -1.0                      # REP-145: no orientation
+        m.angular_velocity = ros_io.vector3(rate)
+        m.linear_acceleration = ros_io.vector3(f_mean)
+        g = self.gyro_errors.random_walk ** 2 / self.gyro.period    # variance of the mean rate
+        a = self.accel_errors.random_walk ** 2 / self.gyro.period
+        m.angular_velocity_covariance = [g, 0.0, 0.0, 0.0, g, 0.0, 0.0, 0.0, g]
+        m.linear_acceleration_covariance = [a, 0.0, 0.0, 0.0, a, 0.0, 0.0, 0.0, a]
+        return m
+
+    def _publish_diagnostics(self):
+        wall = (time.monotonic() - self._wall_start) if self._wall_start else 0.0
+        st = ros_io.ns_to_stamp(self.start_ns + int(round(self.sim_time * 1e9)))
+        values = {"simulated_time_s": self.sim_time, "real_time_factor": self.sim_time / wall if wall > 0 else 0.0,
+                  "gyro_rate_hz": self.p["gyro_rate"], "accel_rate_hz": self.p["accel_rate"],
+                  "delta_theta_published": self.counts["delta_theta"],
+                  "delta_velocity_published": self.counts["delta_velocity"],
+                  "data_raw_published": self.counts["data_raw"], "finished": self.finished,
+                  "profile": self.p["profile"]}
+        msg = "finished" if self.finished else "running"
+        self.pub_diag.publish(ros_io.diagnostic_array(st, f"{self.get_name()}: simulator", "imu_sim",
+                                                      ros_io.OK, msg, values))
+
+
+def main(args=None):
+    rclpy.init(args=args)
+    try:
+        node = ImuSimNode()
+    except (ValueError, ParameterException) as exc:   # invalid parameters: clear message, exit 2
+        print(f"[{NODE_NAME}] error: {exc}", file=sys.stderr)
+        rclpy.try_shutdown()
+        return 2
+    try:
+        rclpy.spin(node)
+    except (KeyboardInterrupt, rclpy.executors.ExternalShutdownException):
+        pass
+    finally:
+        node.destroy_node()
+        rclpy.try_shutdown()
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

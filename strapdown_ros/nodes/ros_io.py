@@ -1,0 +1,162 @@
+"""ROS I/O shared by the nodes: QoS, stamps, message builders, validated parameters, diagnostics.
+
+This is the only place (with the node modules) that imports rclpy and message packages.
+Quaternions cross the edge here: ROS messages carry ``x, y, z, w``; the core uses
+scalar-first ``[w, x, y, z]`` (:mod:`strapdown_ros.rotation`).
+"""
+from __future__ import annotations
+
+from typing import Any, Callable, Sequence
+
+import numpy as np
+from builtin_interfaces.msg import Time
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from geometry_msgs.msg import Quaternion, QuaternionStamped, Vector3, Vector3Stamped
+from rcl_interfaces.msg import (FloatingPointRange, IntegerRange, ParameterDescriptor,
+                                SetParametersResult)
+from rclpy.parameter import Parameter
+from rclpy.qos import (DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy)
+
+from ..config import ParamSpec
+
+# --- QoS ---------------------------------------------------------------------------
+def stream_qos(depth: int = 500) -> QoSProfile:
+    """Sensor-data QoS (best effort, volatile) for high-rate streams.
+
+    The history is deeper than rclpy's ``qos_profile_sensor_data`` (5) so that bursts
+    from a faster-than-real-time simulator are queued rather than overwritten.
+    """
+    return QoSProfile(reliability=ReliabilityPolicy.BEST_EFFORT, durability=DurabilityPolicy.VOLATILE,
+                      history=HistoryPolicy.KEEP_LAST, depth=depth)
+
+
+DIAGNOSTICS_QOS = QoSProfile(reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.VOLATILE,
+                             history=HistoryPolicy.KEEP_LAST, depth=10)
+
+
+# --- time ----------------------------------------------------------------------------
+def stamp_to_ns(stamp: Time) -> int:
+    return int(stamp.sec) * 1_000_000_000 + int(stamp.nanosec)
+
+
+def ns_to_stamp(ns: int) -> Time:
+    ns = int(ns)
+    return Time(sec=ns // 1_000_000_000, nanosec=ns % 1_000_000_000)
+
+
+def seconds_to_stamp(t: float) -> Time:
+    return ns_to_stamp(int(round(t * 1e9)))
+
+
+# --- messages -----------------------------------------------------------------------------
+def vector3(v: Sequence[float]) -> Vector3:
+    return Vector3(x=float(v[0]), y=float(v[1]), z=float(v[2]))
+
+
+def quaternion_msg(q_wxyz: Sequence[float]) -> Quaternion:
+    """Core scalar-first quaternion → ROS message (x, y, z, w)."""
+    return Quaternion(w=float(q_wxyz[0]), x=float(q_wxyz[1]), y=float(q_wxyz[2]), z=float(q_wxyz[3]))
+
+
+def quaternion_from_msg(q: Quaternion) -> np.ndarray:
+    """ROS quaternion → core scalar-first array."""
+    return np.array([q.w, q.x, q.y, q.z], dtype=float)
+
+
+def vector3_stamped(stamp: Time, frame_id: str, v) -> Vector3Stamped:
+    m = Vector3Stamped()
+    m.header.stamp = stamp
+    m.header.frame_id = frame_id
+    m.vector = vector3(v)
+    return m
+
+
+def quaternion_stamped(stamp: Time, frame_id: str, q_wxyz) -> QuaternionStamped:
+    m = QuaternionStamped()
+    m.header.stamp = stamp
+    m.header.frame_id = frame_id
+    m.quaternion = quaternion_msg(q_wxyz)
+    return m
+
+
+# --- parameters ---------------------------------------------------------------------------
+def descriptor(spec: ParamSpec) -> ParameterDescriptor:
+    """ROS descriptor of a core :class:`~strapdown_ros.config.ParamSpec` (shown by ``ros2 param describe``)."""
+    d = ParameterDescriptor(description=spec.description)
+    # a YAML "50" for a double parameter must not be a type error: the value is checked by spec.check
+    d.dynamic_typing = isinstance(spec.default, (int, float)) and not isinstance(spec.default, bool)
+    if spec.choices is not None or spec.length is not None:
+        d.additional_constraints = "valid: " + spec.range_text()
+    elif isinstance(spec.default, float) and (spec.minimum is not None or spec.maximum is not None):
+        d.floating_point_range = [FloatingPointRange(
+            from_value=float(spec.minimum if spec.minimum is not None else -1e300),
+            to_value=float(spec.maximum if spec.maximum is not None else 1e300), step=0.0)]
+        d.additional_constraints = "valid: " + spec.range_text()
+    elif isinstance(spec.default, int) and not isinstance(spec.default, bool) and \
+            (spec.minimum is not None or spec.maximum is not None):
+        d.integer_range = [IntegerRange(from_value=int(spec.minimum if spec.minimum is not None else -2**31),
+                                        to_value=int(spec.maximum if spec.maximum is not None else 2**31 - 1),
+                                        step=1)]
+    return d
+
+
+class InvalidParameter(ValueError):  # noqa: N818 (reads better at the call site)
+    """Raised at start-up for a parameter value that fails validation."""
+
+
+def declare_validated(node, specs: Sequence[ParamSpec], on_change: Callable[[dict], str | None] | None = None):
+    """Declare parameters with descriptors, validate the start-up values (raising
+    :class:`InvalidParameter` with the valid values in the message), and install a
+    runtime callback that rejects invalid sets.  ``on_change(values)`` may veto a
+    valid change by returning a reason (e.g. a read-only value).  Returns a dict of
+    current values.
+    """
+    by_name = {s.name: s for s in specs}
+    values = {}
+    for s in specs:
+        p = node.declare_parameter(s.name, s.default, descriptor(s))
+        v = p.value
+        err = s.check(v)
+        if err:
+            raise InvalidParameter(err)
+        values[s.name] = v
+
+    def _callback(params: list[Parameter]) -> SetParametersResult:
+        new = {}
+        for p in params:
+            spec = by_name.get(p.name)
+            if spec is None:
+                continue
+            err = spec.check(p.value)
+            if err:
+                return SetParametersResult(successful=False, reason=err)
+            new[p.name] = p.value
+        if on_change is not None and new:
+            reason = on_change(new)
+            if reason:
+                return SetParametersResult(successful=False, reason=reason)
+        return SetParametersResult(successful=True)
+
+    node.add_on_set_parameters_callback(_callback)
+    return values
+
+
+# --- diagnostics -------------------------------------------------------------------------
+def diagnostic_array(stamp: Time, name: str, hardware_id: str, level: int, message: str,
+                     values: dict[str, Any]) -> DiagnosticArray:
+    st = DiagnosticStatus(level=bytes([level]) if isinstance(level, int) else level, name=name,
+                          message=message, hardware_id=hardware_id,
+                          values=[KeyValue(key=str(k), value=_fmt(v)) for k, v in values.items()])
+    arr = DiagnosticArray()
+    arr.header.stamp = stamp
+    arr.status = [st]
+    return arr
+
+
+def _fmt(v) -> str:
+    if isinstance(v, float):
+        return f"{v:.6g}"
+    return str(v)
+
+
+OK, WARN, ERROR = 0, 1, 2
