@@ -176,8 +176,11 @@ class AttitudeIntegrator:
             self._pending, self._pending_dt = work, work_dt
             return self._empty()
         # history: previous increments; at start-up repeat the first one (zero cross products)
-        recent = self._recent if len(self._recent) >= hist else \
-            np.vstack([np.repeat(work[:1], hist - len(self._recent), axis=0), self._recent])
+        if len(self._recent) >= hist:
+            recent = self._recent
+        else:   # start-up: repeat the earliest increment seen so far
+            first = self._recent[:1] if len(self._recent) else work[:1]
+            recent = np.vstack([np.repeat(first, hist - len(self._recent), axis=0), self._recent])
         seq = np.vstack([recent[len(recent) - hist:], work[:used]]) if hist else work[:used]
         windows = np.lib.stride_tricks.sliding_window_view(seq, alg.window, axis=0)[::n_new]
         windows = np.ascontiguousarray(np.moveaxis(windows, -1, 1))       # (m, window, 3)
