@@ -38,7 +38,7 @@ setup(
         "console_scripts": [
             "imu_sim_node = strapdown_ros.nodes.imu_sim_node:main",
             "sins_node = strapdown_ros.nodes.sins_node:main",
-            "strapdown_demo = strapdown_ros.tools.demo:main",
+            "strapdown_demo = strapdown_ros.nodes.demo:main",
             "sins_bench = strapdown_ros.tools.sins_bench:main",
         ],
     },

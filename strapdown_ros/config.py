@@ -117,7 +117,7 @@ IMU_SIM_PARAMS = PROFILE_PARAMS + GYRO_PARAMS + ACCEL_PARAMS + COMMON_PARAMS + [
               0.0, 1e6, exclusive_minimum=True),
     ParamSpec("duration", 0.0, "simulated seconds to publish (0: the profile length, or forever)", 0.0),
     ParamSpec("start_time", 0.0, "header stamp of profile time 0, s", 0.0),
-    ParamSpec("publish_period", 0.02, "wall period of the publishing timer, s", 0.0, 1.0, exclusive_minimum=True),
+    ParamSpec("publish_period", 0.005, "wall period of the publishing timer, s", 0.0, 1.0, exclusive_minimum=True),
 ]
 
 SINS_PARAMS = GYRO_PARAMS + ACCEL_PARAMS + COMMON_PARAMS + [

@@ -78,11 +78,11 @@ class MotionProfile:
 
     def delta_v(self, t0, t1, max_step: float | None = None) -> np.ndarray:
         """∫ f dt by composite 8-point Gauss–Legendre quadrature (vectorised)."""
-        t0 = np.atleast_1d(np.asarray(t0, dtype=float))
-        t1 = np.atleast_1d(np.asarray(t1, dtype=float))
+        shape = np.broadcast(np.asarray(t0), np.asarray(t1)).shape + (3,)
+        t0, t1 = (np.atleast_1d(np.asarray(x, dtype=float)).ravel() for x in np.broadcast_arrays(t0, t1))
         total = np.zeros(t0.shape + (3,))
         if not np.any(self.reference_specific_force) or t0.size == 0:
-            return total
+            return total.reshape(shape)
         step = max_step if max_step is not None else self._quadrature_step()
         longest = float(np.max(t1 - t0))
         n_sub = max(1, int(np.ceil(longest / step)))
@@ -96,7 +96,7 @@ class MotionProfile:
             nodes = mid[..., None] + half[..., None] * nodes_x             # (..., n)
             f = self.specific_force(nodes)                                 # (..., n, 3)
             total += half[..., None] * np.einsum("...k,...kj->...j", weights, f)
-        return total
+        return total.reshape(shape)
 
     def _frequency(self) -> float:
         """Highest angular frequency (rad/s) in the specific force, for the quadrature rule."""

@@ -107,13 +107,13 @@ class ImuSimNode(Node):
         for k, (t, v, q) in enumerate(zip(tg, dth, q_true)):
             st = stamp(t)
             self.pub_dtheta.publish(ros_io.vector3_stamped(st, self.frame_id, v))
-            sel = (ta > edges[k] - 1e-12) & (ta <= t + 1e-12)
+            sel = (ta > edges[k] + 1e-9) & (ta <= t + 1e-9)          # (t_{k-1}, t_k]
             f_mean = (self._pending_dv + dv[sel].sum(0)) / self.gyro.period
             self._pending_dv = np.zeros(3)
             self.pub_raw.publish(self._imu_raw(st, v / self.gyro.period, f_mean))
             self.pub_truth.publish(ros_io.quaternion_stamped(st, self.ref_frame, q))
         if n_g > 0:
-            later = ta > tg[-1] + 1e-12
+            later = ta > tg[-1] + 1e-9
             self._pending_dv += dv[later].sum(0)
         elif len(ta):
             self._pending_dv += dv.sum(0)
@@ -144,7 +144,7 @@ class ImuSimNode(Node):
                   "data_raw_published": self.counts["data_raw"], "finished": self.finished,
                   "profile": self.p["profile"]}
         msg = "finished" if self.finished else "running"
-        self.pub_diag.publish(ros_io.diagnostic_array(st, f"{self.get_name()}: simulator", "imu_sim",
+        self.pub_diag.publish(ros_io.diagnostic_array(st, f"{self.get_fully_qualified_name()}: simulator", "imu_sim",
                                                       ros_io.OK, msg, values))
 
 

@@ -12,8 +12,7 @@ import numpy as np
 from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import Quaternion, QuaternionStamped, Vector3, Vector3Stamped
-from rcl_interfaces.msg import (FloatingPointRange, IntegerRange, ParameterDescriptor,
-                                SetParametersResult)
+from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
 from rclpy.parameter import Parameter
 from rclpy.qos import (DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy)
 
@@ -81,22 +80,16 @@ def quaternion_stamped(stamp: Time, frame_id: str, q_wxyz) -> QuaternionStamped:
 
 # --- parameters ---------------------------------------------------------------------------
 def descriptor(spec: ParamSpec) -> ParameterDescriptor:
-    """ROS descriptor of a core :class:`~strapdown_ros.config.ParamSpec` (shown by ``ros2 param describe``)."""
-    d = ParameterDescriptor(description=spec.description)
-    # a YAML "50" for a double parameter must not be a type error: the value is checked by spec.check
+    """ROS descriptor of a core :class:`~strapdown_ros.config.ParamSpec` (``ros2 param describe``).
+
+    Ranges and choices are stated in ``additional_constraints`` and enforced by
+    :func:`declare_validated` (one message format that lists the valid values), not by
+    rclpy's numeric ranges, whose messages differ between start-up and runtime.
+    """
+    d = ParameterDescriptor(description=spec.description,
+                            additional_constraints="valid: " + spec.range_text())
+    # a YAML "50" for a double parameter must not be a type error: spec.check validates it
     d.dynamic_typing = isinstance(spec.default, (int, float)) and not isinstance(spec.default, bool)
-    if spec.choices is not None or spec.length is not None:
-        d.additional_constraints = "valid: " + spec.range_text()
-    elif isinstance(spec.default, float) and (spec.minimum is not None or spec.maximum is not None):
-        d.floating_point_range = [FloatingPointRange(
-            from_value=float(spec.minimum if spec.minimum is not None else -1e300),
-            to_value=float(spec.maximum if spec.maximum is not None else 1e300), step=0.0)]
-        d.additional_constraints = "valid: " + spec.range_text()
-    elif isinstance(spec.default, int) and not isinstance(spec.default, bool) and \
-            (spec.minimum is not None or spec.maximum is not None):
-        d.integer_range = [IntegerRange(from_value=int(spec.minimum if spec.minimum is not None else -2**31),
-                                        to_value=int(spec.maximum if spec.maximum is not None else 2**31 - 1),
-                                        step=1)]
     return d
 
 

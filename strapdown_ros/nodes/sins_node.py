@@ -225,7 +225,7 @@ class SinsNode(Node):
             values.update({"attitude_sigma_x_rad": sig[0], "attitude_sigma_y_rad": sig[1],
                            "attitude_sigma_z_rad": sig[2]})
         stamp_ns = g.last_ns if g.last_ns is not None else 0
-        self.pub_diag.publish(ros_io.diagnostic_array(ros_io.ns_to_stamp(stamp_ns), f"{self.get_name()}: attitude",
+        self.pub_diag.publish(ros_io.diagnostic_array(ros_io.ns_to_stamp(stamp_ns), f"{self.get_fully_qualified_name()}: attitude",
                                                       "sins", level, message, values))
 
 

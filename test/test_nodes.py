@@ -1,0 +1,231 @@
+"""Node tests: real nodes spun in-process under an executor (plain pytest, no launch_testing).
+
+Each test runs its graph in its own namespace; the session has its own ROS_DOMAIN_ID and
+LOCALHOST discovery (conftest.py).  Every wait has a timeout.  Content is checked against
+independent truth: the closed-form coning attitude and specific force of the profile.
+"""
+import os
+import subprocess
+import sys
+import time
+
+import numpy as np
+import pytest
+
+rclpy = pytest.importorskip("rclpy")
+
+from diagnostic_msgs.msg import DiagnosticArray  # noqa: E402
+from geometry_msgs.msg import QuaternionStamped, Vector3Stamped  # noqa: E402
+from rclpy.executors import SingleThreadedExecutor  # noqa: E402
+from rclpy.parameter import Parameter  # noqa: E402
+from rclpy.qos import ReliabilityPolicy  # noqa: E402
+from sensor_msgs.msg import Imu  # noqa: E402
+
+from strapdown_ros.coning import ALGORITHMS, theory_drift  # noqa: E402
+from strapdown_ros.nodes.imu_sim_node import ImuSimNode  # noqa: E402
+from strapdown_ros.nodes.ros_io import stamp_to_ns, stream_qos  # noqa: E402
+from strapdown_ros.nodes.sins_node import SinsNode  # noqa: E402
+from strapdown_ros.profiles import ConingProfile  # noqa: E402
+from strapdown_ros.rotation import from_ros_xyzw, quat_angle_between, to_ros_xyzw  # noqa: E402
+
+ALPHA, NU = 0.1, 4 * np.pi          # 2 Hz cone: Ωh = 0.25 for the 2-sample algorithm at 100 Hz
+IDEAL = [Parameter(f"{s}_{k}", value=0.0) for s in ("gyro", "accel")
+         for k in ("bias_sigma", "scale_sigma", "misalignment_sigma", "random_walk")]
+
+
+@pytest.fixture(scope="module")
+def ros():
+    rclpy.init()
+    yield
+    rclpy.shutdown()
+
+
+class Recorder:
+    """Subscribes to topics and keeps (stamp_s, msg) per topic."""
+
+    def __init__(self, node, topics):
+        self.data = {name: [] for name, _ in topics}
+        for name, typ in topics:
+            qos = 10 if typ is DiagnosticArray else stream_qos()
+            node.create_subscription(typ, name, lambda m, n=name: self.data[n].append(m), qos)
+
+    def stamps(self, name):
+        return np.array([stamp_to_ns(m.header.stamp) * 1e-9 for m in self.data[name]])
+
+
+def spin_until(executor, predicate, timeout):
+    end = time.monotonic() + timeout
+    while time.monotonic() < end:
+        executor.spin_once(timeout_sec=0.02)
+        if predicate():
+            return True
+    return False
+
+
+def make_graph(ns, algorithm="2", duration=4.0, extra_sim=(), extra_sins=()):
+    sim = ImuSimNode(namespace=ns, parameter_overrides=[
+        Parameter("coning_alpha", value=ALPHA), Parameter("coning_nu", value=NU),
+        Parameter("gravity", value=[0.0, 0.0, 9.80665]),
+        Parameter("time_scale", value=5.0), Parameter("duration", value=duration), *IDEAL, *extra_sim])
+    q0 = ConingProfile(ALPHA, NU).attitude(0.0)
+    sins = SinsNode(namespace=ns, parameter_overrides=[
+        Parameter("coning_algorithm", value=algorithm), Parameter("initial_orientation", value=list(to_ros_xyzw(q0))),
+        *IDEAL, *extra_sins])
+    return sim, sins
+
+
+def test_full_graph_topics_qos_rates_and_content(ros):
+    ns = "/t_graph"
+    sim, sins = make_graph(ns)
+    mon = rclpy.create_node("monitor", namespace=ns)
+    rec = Recorder(mon, [("imu/delta_theta", Vector3Stamped), ("imu/delta_velocity", Vector3Stamped),
+                         ("imu/data_raw", Imu), ("imu/truth/attitude", QuaternionStamped),
+                         ("sins/attitude", QuaternionStamped), ("sins/imu", Imu), ("/diagnostics", DiagnosticArray)])
+    ex = SingleThreadedExecutor()
+    for n in (sim, sins, mon):
+        ex.add_node(n)
+    try:
+        # discovery first: the simulator only starts its clock at its first timer tick,
+        # so give subscriptions time to match before data flows
+        assert spin_until(ex, lambda: mon.count_publishers(f"{ns}/sins/attitude") == 1, 10.0)
+        assert spin_until(ex, lambda: sim.finished and len(rec.data["sins/attitude"]) >= 199, 30.0), \
+            {k: len(v) for k, v in rec.data.items()}
+        spin_until(ex, lambda: len(rec.data["sins/imu"]) >= 200, 3.0)
+
+        # --- graph: names, types, publisher counts, QoS
+        types = dict(mon.get_topic_names_and_types())
+        expect = {"imu/delta_theta": "geometry_msgs/msg/Vector3Stamped",
+                  "imu/delta_velocity": "geometry_msgs/msg/Vector3Stamped",
+                  "imu/data_raw": "sensor_msgs/msg/Imu", "imu/truth/attitude": "geometry_msgs/msg/QuaternionStamped",
+                  "sins/attitude": "geometry_msgs/msg/QuaternionStamped", "sins/imu": "sensor_msgs/msg/Imu"}
+        for topic, typ in expect.items():
+            assert types[f"{ns}/{topic}"] == [typ]
+            assert mon.count_publishers(f"{ns}/{topic}") == 1
+            info = mon.get_publishers_info_by_topic(f"{ns}/{topic}")
+            assert info[0].qos_profile.reliability == ReliabilityPolicy.BEST_EFFORT
+        assert types["/diagnostics"] == ["diagnostic_msgs/msg/DiagnosticArray"]
+        assert mon.count_subscribers(f"{ns}/imu/delta_theta") >= 2          # sins + monitor
+
+        # --- rates from header stamps (the simulated clock)
+        for topic, hz in (("imu/delta_theta", 100.0), ("imu/delta_velocity", 300.0), ("sins/attitude", 50.0)):
+            st = rec.stamps(topic)
+            assert len(st) >= 0.95 * 4.0 * hz, (topic, len(st))
+            assert np.median(np.diff(st)) == pytest.approx(1.0 / hz, rel=1e-6)
+
+        # --- content: the simulator against the closed-form profile
+        prof = ConingProfile(ALPHA, NU, gravity=(0, 0, 9.80665))
+        st = rec.stamps("imu/delta_theta")
+        dth = np.array([[m.vector.x, m.vector.y, m.vector.z] for m in rec.data["imu/delta_theta"]])
+        np.testing.assert_allclose(dth, prof.delta_theta(st - 0.01, st), atol=1e-15)
+        raw = rec.data["imu/data_raw"]
+        assert all(m.orientation_covariance[0] == -1.0 for m in raw)               # REP-145
+        f_raw = np.array([[m.linear_acceleration.x, m.linear_acceleration.y, m.linear_acceleration.z] for m in raw])
+        t_raw = rec.stamps("imu/data_raw")
+        np.testing.assert_allclose(f_raw, prof.delta_v(t_raw - 0.01, t_raw) / 0.01, atol=1e-12)
+
+        # --- content: SINS attitude against truth, within the 2-sample coning error
+        st = rec.stamps("sins/attitude")
+        q = from_ros_xyzw(np.array([[m.quaternion.x, m.quaternion.y, m.quaternion.z, m.quaternion.w]
+                                    for m in rec.data["sins/attitude"]]))
+        err = quat_angle_between(q, prof.attitude(st))
+        drift = abs(theory_drift(ALGORITHMS["2"], NU * 0.02)) * ALPHA ** 2 * NU       # rad/s
+        assert np.all(err <= 1.3 * drift * st + 1e-10), (err[-1], drift * st[-1])
+        assert err[-1] > 0.5 * drift * st[-1]          # the coning error is really there (not a copy of truth)
+
+        # --- sins/imu: orientation equals sins/attitude, covariance present, mean specific force
+        imu = {stamp_to_ns(m.header.stamp): m for m in rec.data["sins/imu"]}
+        m0 = rec.data["sins/attitude"][-1]
+        m1 = imu[stamp_to_ns(m0.header.stamp)]
+        assert (m1.orientation.x, m1.orientation.w) == (m0.quaternion.x, m0.quaternion.w)
+        t1 = stamp_to_ns(m1.header.stamp) * 1e-9
+        f = [m1.linear_acceleration.x, m1.linear_acceleration.y, m1.linear_acceleration.z]
+        np.testing.assert_allclose(f, prof.delta_v(t1 - 0.02, t1) / 0.02, atol=1e-12)
+        w = [m1.angular_velocity.x, m1.angular_velocity.y, m1.angular_velocity.z]
+        np.testing.assert_allclose(w, prof.delta_theta(t1 - 0.02, t1) / 0.02, atol=1e-12)
+
+        # --- diagnostics of both nodes
+        spin_until(ex, lambda: any(s.name.startswith(f"{ns}/sins_node") for d in rec.data["/diagnostics"]
+                                   for s in d.status), 5.0)
+        sins.publish_diagnostics()
+        spin_until(ex, lambda: False, 0.3)
+        status = [s for d in rec.data["/diagnostics"] for s in d.status if s.name.startswith(f"{ns}/sins_node")][-1]
+        kv = {v.key: v.value for v in status.values}
+        assert kv["coning_algorithm"] == "2" and int(kv["gyro_accepted"]) == 400
+        assert float(kv["gyro_rate_hz_from_stamps"]) == pytest.approx(100.0)
+        assert int(kv["gyro_dropped_nan"]) == 0 and int(kv["gyro_missing_samples"]) == 0
+    finally:
+        for n in (sim, sins, mon):
+            ex.remove_node(n)
+            n.destroy_node()
+
+
+def test_bad_input_is_dropped_counted_and_reported(ros):
+    ns = "/t_bad"
+    sins = SinsNode(namespace=ns, parameter_overrides=[Parameter("coning_algorithm", value="1"), *IDEAL])
+    src = rclpy.create_node("source", namespace=ns)
+    pub = src.create_publisher(Vector3Stamped, "imu/delta_theta", stream_qos())
+    diags = []
+    src.create_subscription(DiagnosticArray, "/diagnostics", diags.append, 10)
+    ex = SingleThreadedExecutor()
+    for n in (sins, src):
+        ex.add_node(n)
+    try:
+        assert spin_until(ex, lambda: pub.get_subscription_count() >= 1, 10.0)
+        rate = 0.01
+
+        def send(k, v=(0.001, 0.0, 0.0)):
+            m = Vector3Stamped()
+            m.header.stamp.sec, m.header.stamp.nanosec = 100 + k // 100, int(round((k % 100) * rate * 1e9))
+            m.vector.x, m.vector.y, m.vector.z = v
+            pub.publish(m)
+            ex.spin_once(timeout_sec=0.005)
+        for k in range(1, 11):
+            send(k)
+        send(11, (float("nan"), 0.0, 0.0))       # NaN
+        send(10)                                  # duplicate stamp
+        send(5)                                   # out of order
+        send(12)                                  # gap: sample 11 is missing (its NaN was dropped)
+        send(13)
+        assert spin_until(ex, lambda: sins.gyro_check.received >= 15, 5.0)
+        g = sins.gyro_check
+        assert (g.accepted, g.nan, g.duplicate, g.out_of_order, g.gaps, g.missing) == (12, 1, 1, 1, 1, 1)
+        assert sins.integrator.updates == 12
+        sins.publish_diagnostics()
+        assert spin_until(ex, lambda: any(s.name.startswith(f"{ns}/sins_node") for d in diags for s in d.status), 5.0)
+        st = [s for d in diags for s in d.status if s.name.startswith(f"{ns}/sins_node")][-1]
+        kv = {v.key: v.value for v in st.values}
+        assert st.level == b"\x02" and "missing" in st.message              # ERROR: rotation lost in a gap
+        assert (kv["gyro_dropped_nan"], kv["gyro_dropped_duplicate"], kv["gyro_dropped_out_of_order"]) == ("1", "1", "1")
+    finally:
+        for n in (sins, src):
+            ex.remove_node(n)
+            n.destroy_node()
+
+
+def test_unknown_algorithm_and_out_of_range_parameters_are_refused(ros):
+    with pytest.raises(ValueError, match=r"valid values: 1, 2, 3, .*4\+.*four_sample_optimal"):
+        SinsNode(namespace="/t_refuse1", parameter_overrides=[Parameter("coning_algorithm", value="rk4")])
+    with pytest.raises(ValueError, match=r"gyro_rate=-100.0 is out of range; valid: > 0"):
+        SinsNode(namespace="/t_refuse2", parameter_overrides=[Parameter("gyro_rate", value=-100.0)])
+    with pytest.raises(ValueError, match="valid values: coning, tkachenko, bench, piecewise"):
+        ImuSimNode(namespace="/t_refuse3", parameter_overrides=[Parameter("profile", value="spiral")])
+    node = SinsNode(namespace="/t_refuse4")
+    try:
+        res = node.set_parameters([Parameter("coning_algorithm", value="bogus")])[0]
+        assert not res.successful and "valid values: 1, 2, 3" in res.reason
+        assert node.get_parameter("coning_algorithm").value == "2"
+        res = node.set_parameters([Parameter("coning_algorithm", value="4+")])[0]
+        assert res.successful and node.integrator.algorithm_name == "4+"
+        res = node.set_parameters([Parameter("gyro_rate", value=200.0)])[0]
+        assert not res.successful and "only coning_algorithm can change" in res.reason
+    finally:
+        node.destroy_node()
+
+
+def test_node_executable_exits_with_a_clear_message_on_bad_algorithm():
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join([os.path.dirname(os.path.dirname(os.path.abspath(__file__))),
+                                                        os.environ.get("PYTHONPATH", "")]))
+    res = subprocess.run([sys.executable, "-m", "strapdown_ros.nodes.sins_node", "--ros-args",
+                          "-p", "coning_algorithm:=rk4"], capture_output=True, text=True, timeout=60, env=env)
+    assert res.returncode == 2
+    assert "coning_algorithm='rk4' is not valid; valid values: 1, 2, 3" in res.stderr
