@@ -33,9 +33,17 @@ class ParamSpec:
     exclusive_minimum: bool = False
     length: int | None = None            # arrays of fixed length
 
+    def normalise(self, value):
+        """Choices are strings; a name like ``2`` or ``3.1`` given unquoted on the command line
+        (``-p coning_algorithm:=2``) arrives as a number and is read as its string spelling."""
+        if self.choices is not None and isinstance(value, (int, float)) and not isinstance(value, bool):
+            return format(value, "g")
+        return value
+
     def check(self, value) -> str | None:
         """Return an error message that names the valid values, or None when valid."""
         if self.choices is not None:
+            value = self.normalise(value)
             if value not in self.choices:
                 return f"{self.name}={value!r} is not valid; valid values: {', '.join(map(str, self.choices))}"
             return None
@@ -147,7 +155,7 @@ def check_all(specs: Sequence[ParamSpec], values: dict) -> dict:
         if k not in known:
             raise ValueError(f"unknown parameter {k!r}; known: {', '.join(sorted(known))}")
     for s in specs:
-        v = values.get(s.name, s.default)
+        v = s.normalise(values.get(s.name, s.default))
         err = s.check(v)
         if err:
             raise ValueError(err)

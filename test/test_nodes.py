@@ -229,3 +229,14 @@ def test_node_executable_exits_with_a_clear_message_on_bad_algorithm():
                           "-p", "coning_algorithm:=rk4"], capture_output=True, text=True, timeout=60, env=env)
     assert res.returncode == 2
     assert "coning_algorithm='rk4' is not valid; valid values: 1, 2, 3" in res.stderr
+
+
+def test_numeric_algorithm_names_given_unquoted_are_accepted(ros):
+    """`-p coning_algorithm:=2` or `:=3.1` reach the node as numbers (ROS YAML); both are names."""
+    node = SinsNode(namespace="/t_numeric", cli_args=["--ros-args", "-p", "coning_algorithm:=3.1"])
+    try:
+        assert node.integrator.algorithm_name == "3.1"
+        assert node.set_parameters([Parameter("coning_algorithm", value=4)])[0].successful
+        assert node.integrator.algorithm_name == "4"
+    finally:
+        node.destroy_node()

@@ -89,7 +89,9 @@ def descriptor(spec: ParamSpec) -> ParameterDescriptor:
     d = ParameterDescriptor(description=spec.description,
                             additional_constraints="valid: " + spec.range_text())
     # a YAML "50" for a double parameter must not be a type error: spec.check validates it
-    d.dynamic_typing = isinstance(spec.default, (int, float)) and not isinstance(spec.default, bool)
+    # and an unquoted algorithm name "2" (an integer to the YAML parser) is accepted as well
+    d.dynamic_typing = spec.choices is not None or (isinstance(spec.default, (int, float))
+                                                    and not isinstance(spec.default, bool))
     return d
 
 
@@ -108,7 +110,7 @@ def declare_validated(node, specs: Sequence[ParamSpec], on_change: Callable[[dic
     values = {}
     for s in specs:
         p = node.declare_parameter(s.name, s.default, descriptor(s))
-        v = p.value
+        v = s.normalise(p.value)
         err = s.check(v)
         if err:
             raise InvalidParameter(err)
@@ -123,7 +125,7 @@ def declare_validated(node, specs: Sequence[ParamSpec], on_change: Callable[[dic
             err = spec.check(p.value)
             if err:
                 return SetParametersResult(successful=False, reason=err)
-            new[p.name] = p.value
+            new[p.name] = spec.normalise(p.value)
         if on_change is not None and new:
             reason = on_change(new)
             if reason:
