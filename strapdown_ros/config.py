@@ -74,11 +74,13 @@ class ParamSpec:
     def range_text(self) -> str:
         if self.choices is not None:
             return ", ".join(map(str, self.choices))
+        def num(v):
+            return str(v) if isinstance(v, int) else f"{v:g}"
         parts = []
         if self.minimum is not None:
-            parts.append(("> " if self.exclusive_minimum else ">= ") + f"{self.minimum:g}")
+            parts.append(("> " if self.exclusive_minimum else ">= ") + num(self.minimum))
         if self.maximum is not None:
-            parts.append(f"<= {self.maximum:g}")
+            parts.append(f"<= {num(self.maximum)}")
         if self.length is not None:
             parts.append(f"{self.length} finite numbers")
         return " and ".join(parts) if parts else "any"
@@ -139,6 +141,10 @@ SINS_PARAMS = GYRO_PARAMS + ACCEL_PARAMS + COMMON_PARAMS + [
 ]
 
 
+#: every parameter name declared by any node or tool of the package
+ALL_PARAMETER_NAMES = frozenset(s.name for s in IMU_SIM_PARAMS + SINS_PARAMS)
+
+
 def sigmas_from(values: dict, prefix: str) -> SensorSigmas:
     return SensorSigmas(bias_sigma=float(values[f"{prefix}_bias_sigma"]),
                         scale_sigma=float(values[f"{prefix}_scale_sigma"]),
@@ -148,11 +154,16 @@ def sigmas_from(values: dict, prefix: str) -> SensorSigmas:
 
 
 def check_all(specs: Sequence[ParamSpec], values: dict) -> dict:
-    """Fill defaults and validate; raises ValueError listing the valid values."""
+    """Fill defaults and validate; raises ValueError listing the valid values.
+
+    Names that another node of the package declares are ignored (a shared parameter file
+    serves several nodes, as ROS itself ignores undeclared parameters); any other name is
+    an error, so a typo does not pass silently.
+    """
     out = {}
     known = {s.name for s in specs}
     for k in values:
-        if k not in known:
+        if k not in known and k not in ALL_PARAMETER_NAMES:
             raise ValueError(f"unknown parameter {k!r}; known: {', '.join(sorted(known))}")
     for s in specs:
         v = s.normalise(values.get(s.name, s.default))
@@ -181,7 +192,8 @@ def load_parameter_file(path: str, node_name: str) -> dict:
 def markdown_table(specs: Sequence[ParamSpec]) -> str:
     rows = ["| parameter | type | default | valid | meaning |", "|---|---|---|---|---|"]
     for s in specs:
-        typ = type(s.default).__name__ if s.length is None else f"double[{s.length}]"
+        ros_type = {bool: "bool", int: "integer", float: "double", str: "string"}
+        typ = ros_type[type(s.default)] if s.length is None else f"double[{s.length}]"
         default = f"{s.default:.6g}" if isinstance(s.default, float) else repr(s.default) \
             if isinstance(s.default, str) else str(s.default).lower() if isinstance(s.default, bool) else str(s.default)
         rows.append(f"| `{s.name}` | {typ} | {default} | {s.range_text()} | {s.description} |")

@@ -15,8 +15,8 @@ Order of accuracy here means the exponent p of the cone-axis drift
 ``ε ∝ α²Ω(Ωh)^p`` under classical coning (h = update interval), the meaning the
 thesis uses ("algorithm 2 is of 4th order").  Under coning the drift is odd in Ωh
 per update, so p is always even.  The verdicts on the printed formulas of 003 come
-from :mod:`strapdown_ros.tools.coning_bench` and ``test/test_coning_order.py`` and are
-written up in ``doc/coning.md``.
+from ``test/test_coning_order.py`` and are written up, with the derivations of the
+corrected forms, in ``doc/coning_derivations.md``.
 
 All ``phi`` functions are vectorised: ``window`` has shape (M, history + samples, 3).
 """
@@ -41,7 +41,7 @@ class ConingAlgorithm:
     additions: int                   # vector additions/subtractions per update (incl. Σq)
     scalings: int                    # vector × scalar products per update
     order_intended: int | None       # order claimed by the source (thesis or literature)
-    order_expected: int | None       # order of this form, from the moment conditions (doc/coning.md)
+    order_expected: int | None       # order of this form, from the moment conditions (doc/coning_derivations.md)
     source: str                      # equation reference
     formula: str                     # the formula as implemented
     note: str = ""
@@ -98,7 +98,7 @@ def _alg4(w):                                    # (1.80)/(2.18)
     return q1 + q2 + q3 + q4 + (2.0 / 3.0) * _x(q1 + q2, q3 + q4)
 
 
-def _alg4plus(w):                                # (1.81)/(2.19) corrected (doc/coning.md §4+)
+def _alg4plus(w):                                # (1.81)/(2.19) corrected (doc/coning_derivations.md §4+)
     q1, q2, q3, q4 = (_q(w, i) for i in range(4))
     return (q1 + q2 + q3 + q4 + (22.0 / 15.0) * (_x(q1, q3) + _x(q2, q4))
             - (8.0 / 15.0) * _x(q2, q3))
@@ -133,7 +133,7 @@ def _alg6(w):                                    # (1.83)/(2.21): q2 + 1/12 q1 �
     return q2 + (1.0 / 12.0) * _x(q1, q2)
 
 
-def _alg7(w):                                    # (1.84)/(2.22), causal reading (doc/coning.md §7)
+def _alg7(w):                                    # (1.84)/(2.22), causal reading (doc/coning_derivations.md §7)
     q1, q2, q3 = _q(w, 0), _q(w, 1), _q(w, 2)    # q3 current, q2, q1 previous
     return q3 + (1.0 / 6.0) * _x(q2, q3) - (1.0 / 24.0) * _x(q1, q3)
 
@@ -268,8 +268,9 @@ def theory_drift(alg: ConingAlgorithm, omega_h) -> float | None:
     """Cone-axis drift ε/(α²Ω) to leading order in α, *exact* in Ωh.
 
     Under classical coning with x = Ωτ the z component of ``q_i × q_j`` is
-    ``−sin²α·4 sin²(x/2)·sin((j−i)x)`` and the rotation-vector z increment over an update
-    of N increments exceeds Σq_z by ``½ sin²α (Nx − sin Nx)``.  Hence per update
+    ``−sin²α·4 sin²(x/2)·sin((j−i)x)`` and Σq_z over an update of N increments exceeds
+    the z component of the true rotation vector by ``½ sin²α (Nx − sin Nx)``.  With the
+    error taken as computed minus true, per update
     ``e = α²[½(Nx − sin Nx) − Σ_m K_m 4 sin²(x/2) sin(mx)]`` and ``ε/(α²Ω) = e/(α² Nx)``.
     Expanding in x reproduces every entry of :data:`LITERATURE_DRIFT`.
     """

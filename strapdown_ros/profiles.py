@@ -14,7 +14,7 @@ The reference frame is inertial.  All methods are vectorised over arrays of time
 Exactness
 ---------
 * :class:`ConingProfile`: attitude, rate and increments are closed-form (003 §2.2,
-  with the printed misprints of (2.6) and (2.10) corrected, see doc/coning.md).
+  with the printed misprints of (2.6) and (2.10) corrected, see doc/coning_derivations.md).
 * :class:`PiecewiseRateProfile`: body rate piecewise constant relative to an
   optionally rotating Earth frame.  Attitude and both increments are closed-form
   (Rodrigues' formula and its time integral); an interval that spans segment

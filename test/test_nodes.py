@@ -240,3 +240,15 @@ def test_numeric_algorithm_names_given_unquoted_are_accepted(ros):
         assert node.integrator.algorithm_name == "4"
     finally:
         node.destroy_node()
+
+
+def test_nodes_start_from_the_shipped_parameter_file(ros):
+    path = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "config", "coning.yaml")
+    sim = ImuSimNode(namespace="/t_file", cli_args=["--ros-args", "--params-file", path])
+    sins = SinsNode(namespace="/t_file", cli_args=["--ros-args", "--params-file", path])
+    try:
+        assert sim.p["coning_alpha"] == 0.087 and sins.integrator.algorithm_name == "2"
+        assert sins.integrator.gyro.random_walk == pytest.approx(3.4907e-07)
+    finally:
+        sim.destroy_node()
+        sins.destroy_node()
