@@ -40,6 +40,7 @@ setup(
             "sins_node = strapdown_ros.nodes.sins_node:main",
             "strapdown_demo = strapdown_ros.nodes.demo:main",
             "sins_bench = strapdown_ros.tools.sins_bench:main",
+            "coning_bench = strapdown_ros.tools.coning_bench:main",
         ],
     },
 )

@@ -123,7 +123,7 @@ say "pip install done in $((SECONDS - t0)) s"
 
 # Console scripts must be on .venv/bin. A legacy `setup.py develop` install would honour
 # setup.cfg [develop] script_dir and put them in .venv/lib/strapdown_ros instead.
-for exe in imu_sim_node sins_node strapdown_demo sins_bench; do
+for exe in imu_sim_node sins_node strapdown_demo sins_bench coning_bench; do
     [[ -x "$VENV/bin/$exe" ]] || die ".venv/bin/$exe missing after install (legacy 'setup.py develop' editable? need pip >= $MIN_PIP and setuptools >= 64)"
 done
 

@@ -23,6 +23,7 @@ All ``phi`` functions are vectorised: ``window`` has shape (M, history + samples
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import lru_cache
 from typing import Callable
 
 import numpy as np
@@ -38,8 +39,9 @@ class ConingAlgorithm:
     history: int                     # previous increments used (accelerating algorithms)
     phi: Callable[[np.ndarray], np.ndarray]
     cross_products: int              # vector cross products per update
-    additions: int                   # vector additions/subtractions per update (incl. Σq)
-    scalings: int                    # vector × scalar products per update
+    additions: int                   # vector additions/subtractions per update (incl. Σq),
+    scalings: int                    # vector × scalar products per update; both counted for the
+                                     # cheapest evaluation order (the attitude update not included)
     order_intended: int | None       # order claimed by the source (thesis or literature)
     order_expected: int | None       # order of this form, from the moment conditions (doc/coning_derivations.md)
     source: str                      # equation reference
@@ -166,7 +168,7 @@ _T = "003"
 ALGORITHMS: dict[str, ConingAlgorithm] = {a.name: a for a in [
     ConingAlgorithm("1", 1, 0, _alg1, 0, 0, 0, 2, 2, f"{_T} (1.76), (2.14)", "φ = q1",
                     "single sample; no coning correction"),
-    ConingAlgorithm("2", 2, 0, _alg2, 1, 3, 1, 4, 4, f"{_T} (1.77), (2.15)",
+    ConingAlgorithm("2", 2, 0, _alg2, 1, 2, 1, 4, 4, f"{_T} (1.77), (2.15)",
                     "φ = q1 + q2 + 2/3 q1×q2", "as printed: OK; identical to two_sample"),
     ConingAlgorithm("3", 3, 0, _alg3, 1, 3, 1, 4, 4, f"{_T} (1.78), (2.16)",
                     "φ = q1 + q2 + q3 + 9/8 q1×q3",
@@ -179,7 +181,7 @@ ALGORITHMS: dict[str, ConingAlgorithm] = {a.name: a for a in [
                     "equals three_sample_optimal and reaches order 6 (the thesis claims 4)"),
     ConingAlgorithm("3.1_as_printed", 3, 0, _alg31_printed, 1, 5, 2, 4, 2, f"{_T} (1.79) as printed",
                     "φ = q1 + q2 + q3 + 9/20 (q3 − q1)×(q1 + 3/2 q2)", ""),
-    ConingAlgorithm("4", 4, 0, _alg4, 1, 5, 1, 4, 4, f"{_T} (1.80), (2.18)",
+    ConingAlgorithm("4", 4, 0, _alg4, 1, 4, 1, 4, 4, f"{_T} (1.80), (2.18)",
                     "φ = Σq + 2/3 (q1 + q2)×(q3 + q4)",
                     "as printed: OK; the 2-sample algorithm on pairs of increments"),
     ConingAlgorithm("4+", 4, 0, _alg4plus_runge, 3, 6, 2, 5, 6, f"{_T} (1.81), (2.19); §1.4.4",
@@ -187,17 +189,17 @@ ALGORITHMS: dict[str, ConingAlgorithm] = {a.name: a for a in [
                     "printed form is garbled (sum q2+q2+q3+q3, order 2). This is the Runge (Richardson) "
                     "extrapolation §1.4.4 describes, (16·fine − coarse)/15 with fine = two 2-sample "
                     "updates and coarse = algorithm 4: 3 cross products, order 6 (odd orders cannot occur)"),
-    ConingAlgorithm("4+_printed_terms", 4, 0, _alg4plus, 3, 5, 2, 5, 6, f"{_T} (1.81) cross-product set",
+    ConingAlgorithm("4+_printed_terms", 4, 0, _alg4plus, 3, 6, 2, 5, 6, f"{_T} (1.81) cross-product set",
                     "φ = Σq + 22/15 (q1×q3 + q2×q4) − 8/15 q2×q3",
                     "keeps the printed cross-product set and solves the two coning moment conditions; "
                     "order 6 but a 20× larger coefficient than 4+"),
-    ConingAlgorithm("4+_as_printed", 4, 0, _alg4plus_printed, 3, 5, 2, 5, 2, f"{_T} (1.81) as printed",
+    ConingAlgorithm("4+_as_printed", 4, 0, _alg4plus_printed, 3, 6, 1, 5, 2, f"{_T} (1.81) as printed",
                     "φ = q2 + q2 + q3 + q3 + 4/3 [q1×q3 + q2×q3 + q2×q4]", ""),
-    ConingAlgorithm("5", 5, 0, _alg5, 4, 6, 4, 4, 6, f"{_T} (1.82), (2.20)",
+    ConingAlgorithm("5", 5, 0, _alg5, 4, 8, 3, 4, 6, f"{_T} (1.82), (2.20)",
                     "φ = Σq − 1375/432 q2×q4 − 1625/864 q1×q5 + 875/216 (q1×q4 + q2×q5)",
                     "printed later×earlier products have the operands reversed (order 2); corrected form "
                     "reaches order 6 (the thesis claims 4)"),
-    ConingAlgorithm("5_as_printed", 5, 0, _alg5_printed, 4, 6, 4, 4, 2, f"{_T} (1.82) as printed",
+    ConingAlgorithm("5_as_printed", 5, 0, _alg5_printed, 4, 8, 3, 4, 2, f"{_T} (1.82) as printed",
                     "φ = Σq − 1375/432 q4×q2 − 1625/864 q5×q1 + 875/216 (q4×q1 + q5×q2)", ""),
     ConingAlgorithm("6", 1, 1, _alg6, 1, 1, 1, 3, 4, f"{_T} (1.83), (2.21)",
                     "φ = q2 + 1/12 q1×q2 (q1 previous)",
@@ -213,13 +215,13 @@ ALGORITHMS: dict[str, ConingAlgorithm] = {a.name: a for a in [
     # literature
     ConingAlgorithm("one_plus_previous", 1, 1, _alg6, 1, 1, 1, 4, 4, "Miller 1983; Savage 1998",
                     "φ = q_k + 1/12 q_{k−1}×q_k", "drift (Ωh)^4/60"),
-    ConingAlgorithm("two_sample", 2, 0, _alg2, 1, 3, 1, 4, 4, "Miller 1983",
+    ConingAlgorithm("two_sample", 2, 0, _alg2, 1, 2, 1, 4, 4, "Miller 1983",
                     "φ = q1 + q2 + 2/3 q1×q2", "drift (Ωh)^4/960"),
-    ConingAlgorithm("three_sample_polynomial", 3, 0, _three_poly, 2, 4, 2, 4, 4, "Lee et al. 1990",
+    ConingAlgorithm("three_sample_polynomial", 3, 0, _three_poly, 2, 5, 2, 4, 4, "Lee et al. 1990",
                     "φ = Σq + 33/80 q1×q3 + 57/80 q2×(q3 − q1)", "drift −(Ωh)^4/6480"),
-    ConingAlgorithm("three_sample_optimal", 3, 0, _three_opt, 2, 4, 2, 6, 6, "Miller 1983",
+    ConingAlgorithm("three_sample_optimal", 3, 0, _three_opt, 2, 5, 2, 6, 6, "Miller 1983",
                     "φ = Σq + 9/20 q1×q3 + 27/40 q2×(q3 − q1)", "drift (Ωh)^6/204120"),
-    ConingAlgorithm("four_sample_optimal", 4, 0, _four_opt, 1, 5, 3, 8, 8, "Lee et al. 1990",
+    ConingAlgorithm("four_sample_optimal", 4, 0, _four_opt, 1, 6, 3, 8, 8, "Lee et al. 1990",
                     "φ = Σq + (54 q1 + 92 q2 + 214 q3)/105 × q4", "drift (Ωh)^8/82575360"),
 ]}
 
@@ -273,14 +275,47 @@ def theory_drift(alg: ConingAlgorithm, omega_h) -> float | None:
     error taken as computed minus true, per update
     ``e = α²[½(Nx − sin Nx) − Σ_m K_m 4 sin²(x/2) sin(mx)]`` and ``ε/(α²Ω) = e/(α² Nx)``.
     Expanding in x reproduces every entry of :data:`LITERATURE_DRIFT`.
+
+    The bracket is evaluated as its Taylor series with exact rational coefficients
+    (``4 sin²(x/2) sin(mx) = 2 sin(mx) − sin((m+1)x) − sin((m−1)x)``, K_m recovered as
+    fractions), because the closed form cancels catastrophically for high orders at
+    small Ωh (the x⁹ term of an 8th-order algorithm against x³ terms of size 1).
     """
+    coeffs = _series_coefficients(alg.name)
+    if coeffs is None:
+        return None
+    x = np.asarray(omega_h, dtype=float) / alg.samples
+    total = np.zeros_like(x)
+    x2 = x * x
+    power = x ** 3
+    for c in coeffs:                      # c_j multiplies x^(2j+1), j = 1, 2, ...
+        total = total + c * power
+        power = power * x2
+    out = total / (alg.samples * x)
+    return float(out) if out.ndim == 0 else out
+
+
+@lru_cache(maxsize=None)
+def _series_coefficients(name: str, terms: int = 40):
+    from fractions import Fraction
+    from math import factorial
+
+    alg = ALGORITHMS[name]
     k = spacing_coefficients(alg)
     if k is None:
         return None
-    x = np.asarray(omega_h, dtype=float) / alg.samples
+    kf = {m: Fraction(v).limit_denominator(1_000_000) for m, v in k.items()}
     n = alg.samples
-    corr = sum(km * 4.0 * np.sin(0.5 * x) ** 2 * np.sin(m * x) for m, km in k.items())
-    return (0.5 * (n * x - np.sin(n * x)) - corr) / (n * x)
+
+    def s(j, a):                          # coefficient of x^(2j+1) in sin(a x)
+        return Fraction((-1) ** j * a ** (2 * j + 1), factorial(2 * j + 1))
+    out = []
+    for j in range(1, terms + 1):
+        c = -Fraction(1, 2) * s(j, n)     # from ½(Nx − sin Nx); the x term cancels
+        for m, km in kf.items():
+            c -= km * (2 * s(j, m) - s(j, m + 1) - s(j, m - 1))
+        out.append(float(c))
+    return tuple(out)
 
 
 def algorithm_names() -> list[str]:

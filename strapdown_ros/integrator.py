@@ -85,12 +85,15 @@ class AttitudeIntegrator:
     initial_sigma: 1σ of the initial attitude error per axis (rad).
     covariance_model: ``"random_constant"`` or ``"004"`` (see module docstring).
     quantization_correction: apply 000 eq. (5.6) with pulse weight ``gyro.quantum``.
+    propagate_covariance: False skips the covariance (published as NaN), for benchmarks of
+        the attitude algorithm alone.
     """
 
     def __init__(self, algorithm: str = "2", initial_attitude=(1.0, 0.0, 0.0, 0.0),
                  initial_time: float | None = None, nominal_period: float = 0.01,
                  gyro: SensorSigmas | None = None, initial_sigma: float = 0.0,
-                 covariance_model: str = "random_constant", quantization_correction: bool = False):
+                 covariance_model: str = "random_constant", quantization_correction: bool = False,
+                 propagate_covariance: bool = True):
         if covariance_model not in COVARIANCE_MODELS:
             raise ValueError(f"unknown covariance_model {covariance_model!r}; valid: {', '.join(COVARIANCE_MODELS)}")
         if not (np.isfinite(nominal_period) and nominal_period > 0):
@@ -107,6 +110,7 @@ class AttitudeIntegrator:
         self.gyro = gyro or SensorSigmas()
         self.covariance_model = covariance_model
         self.quantization_correction = bool(quantization_correction)
+        self.propagate_covariance = bool(propagate_covariance)
         self._last_sign = np.zeros(3)
         self._last_stamp = initial_time
         self._pending = np.zeros((0, 3))         # increments of the update in progress
@@ -189,8 +193,12 @@ class AttitudeIntegrator:
         c = quat_to_dcm(q)
         blocks = work[:used].reshape(m, n_new, 3)
         h = work_dt[:used].reshape(m, n_new).sum(1)
-        p_ref, s_bias, j_mis = self._accumulate_covariance(c, blocks.sum(1), blocks, work_dt[:used].reshape(m, n_new))
-        cov = self._body_covariance(c, p_ref, s_bias, j_mis)
+        if self.propagate_covariance:
+            p_ref, s_bias, j_mis = self._accumulate_covariance(c, blocks.sum(1), blocks,
+                                                               work_dt[:used].reshape(m, n_new))
+            cov = self._body_covariance(c, p_ref, s_bias, j_mis)
+        else:                                     # attitude only (algorithm benchmarks)
+            cov = np.full((m, 3, 3), np.nan)
 
         self.q = q[-1]
         self.time = float(work_t[used - 1])
