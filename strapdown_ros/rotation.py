@@ -19,6 +19,8 @@ Conventions (stated once, used everywhere in the core)
   ``q_true = q_est ⊗ exp(-ε)``, equivalently ``C_est ≈ C_true (I + [ε×])``,
   the definition of ε in 004 §2.3.
 * Units: radians, seconds (REP-103).
+* Euler angles: 004's heading/pitch/roll ``C = R_z(−ψ) R_x(ϑ) R_y(γ)`` (:func:`ypr_to_dcm`)
+  and 000's aircraft angles (:func:`aircraft_angles_to_quat`).
 
 Everything is vectorised: functions accept arrays with any leading shape.
 """
@@ -31,7 +33,7 @@ __all__ = [
     "rotvec_to_quat", "quat_to_rotvec", "quat_to_dcm", "dcm_to_quat", "rotvec_to_dcm",
     "quat_rotate", "quat_angle_between", "quat_error_rotvec", "quat_cumprod",
     "to_ros_xyzw", "from_ros_xyzw", "elementary_dcm", "ypr_to_dcm", "dcm_to_ypr",
-    "aircraft_angles_to_quat",
+    "aircraft_angles_to_quat", "ypr_error_to_rotation",
 ]
 
 
@@ -225,30 +227,40 @@ def elementary_dcm(axis: int, angle) -> np.ndarray:
     return np.stack([np.stack(r, -1) for r in rows], -2)
 
 
-# 004 §1, eq. (1): C_MF^VF = R_ψ(β_ψ) R_ϑ(β_ϑ) R_γ(β_γ), yaw/pitch/roll of VF relative to MF.
-# The Russian navigation convention of 004's reference [1] (body axes x right,
-# y forward along the optical/longitudinal axis, z up; ENU-like parent):
-#   yaw ψ about z (positive counter-clockwise seen from +z; this is *not* the
-#   clockwise compass heading), pitch ϑ about the once-rotated x axis, roll γ about
-#   the twice-rotated y axis.  The matrix maps child (VF) coordinates to parent (MF).
-YPR_AXES = (2, 0, 1)
+# 004 §1, eq. (1): C_MF^VF = R_ψ(β_ψ) R_ϑ(β_ϑ) R_γ(β_γ), heading/pitch/roll of VF relative to MF.
+# The axes are those of an ENU-like parent (x east/right, y north/forward — the longitudinal
+# axis — z up).  004's own D matrices (§5) fix the signs: D2 = C·D1 has columns
+# [0, 0, −1], [cos ψ, −sin ψ, 0], [sin ψ cos ϑ, cos ψ cos ϑ, sin ϑ], i.e. the heading ψ turns
+# *clockwise* seen from +z (compass heading, R_ψ = R_z(−ψ)), pitch ϑ is about the once-turned
+# x axis (R_x(ϑ)), roll γ about the twice-turned y axis (R_y(γ)).  The matrix maps child (VF)
+# coordinates to parent (MF) coordinates.
 
 
 def ypr_to_dcm(yaw, pitch, roll) -> np.ndarray:
-    """``C_parent_child = R_z(ψ) R_x(ϑ) R_y(γ)`` (004 eq. 1), mapping child → parent coordinates."""
-    return (elementary_dcm(YPR_AXES[0], yaw) @ elementary_dcm(YPR_AXES[1], pitch)
-            @ elementary_dcm(YPR_AXES[2], roll))
+    """``C_parent_child = R_z(−ψ) R_x(ϑ) R_y(γ)`` (004 eq. 1), mapping child → parent coordinates."""
+    return (elementary_dcm(2, -np.asarray(yaw, dtype=float)) @ elementary_dcm(0, pitch)
+            @ elementary_dcm(1, roll))
 
 
 def dcm_to_ypr(C: np.ndarray) -> np.ndarray:
     """Inverse of :func:`ypr_to_dcm`; pitch in [-π/2, π/2].  Returns (..., 3) [ψ, ϑ, γ]."""
     C = np.asarray(C, dtype=float)
-    # R_z(ψ)R_x(ϑ)R_y(γ): C[2,1] = sin ϑ, C[0,1] = -sin ψ cos ϑ, C[1,1] = cos ψ cos ϑ,
-    # C[2,0] = -cos ϑ sin γ, C[2,2] = cos ϑ cos γ
+    # R_z(−ψ)R_x(ϑ)R_y(γ): C[2,1] = sin ϑ, C[0,1] = sin ψ cos ϑ, C[1,1] = cos ψ cos ϑ,
+    # C[2,0] = −cos ϑ sin γ, C[2,2] = cos ϑ cos γ
     pitch = np.arcsin(np.clip(C[..., 2, 1], -1.0, 1.0))
-    yaw = np.arctan2(-C[..., 0, 1], C[..., 1, 1])
+    yaw = np.arctan2(C[..., 0, 1], C[..., 1, 1])
     roll = np.arctan2(-C[..., 2, 0], C[..., 2, 2])
     return np.stack([yaw, pitch, roll], -1)
+
+
+def ypr_error_to_rotation(yaw, pitch, roll) -> tuple[np.ndarray, np.ndarray]:
+    """004 §5: small-angle maps ``θ_child = D1 δβ`` and ``θ_parent = D2 δβ = C D1 δβ`` of a
+    perturbation δβ of (ψ, ϑ, γ) into the rotation error of C (``C ≈ C̆(I + [θ_child×])``)."""
+    sy, cy = np.sin(yaw), np.cos(yaw)
+    sp, cp = np.sin(pitch), np.cos(pitch)
+    d2 = np.array([[0.0, cy, cp * sy], [0.0, -sy, cp * cy], [-1.0, 0.0, sp]])
+    C = ypr_to_dcm(yaw, pitch, roll)
+    return C.T @ d2, d2
 
 
 # 000 §6: "aircraft" angles (Lurie, Analytical mechanics): yaw φ1, pitch φ2, roll φ3.

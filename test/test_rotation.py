@@ -86,12 +86,29 @@ def test_ros_order_roundtrip():
 def test_ypr_sequence_of_004():
     yaw, pitch, roll = 0.7, -0.4, 2.1
     C = R.ypr_to_dcm(yaw, pitch, roll)
-    np.testing.assert_allclose(C, R.rotvec_to_dcm([0, 0, yaw]) @ R.rotvec_to_dcm([pitch, 0, 0])
+    np.testing.assert_allclose(C, R.rotvec_to_dcm([0, 0, -yaw]) @ R.rotvec_to_dcm([pitch, 0, 0])
                                @ R.rotvec_to_dcm([0, roll, 0]), atol=1e-15)
     np.testing.assert_allclose(R.dcm_to_ypr(C), [yaw, pitch, roll], atol=1e-14)
     angles = rng.uniform([-np.pi, -1.5, -np.pi], [np.pi, 1.5, np.pi], size=(200, 3))
     back = R.dcm_to_ypr(R.ypr_to_dcm(angles[:, 0], angles[:, 1], angles[:, 2]))
     np.testing.assert_allclose(back, angles, atol=1e-12)
+
+
+def test_ypr_error_maps_match_004_d1_d2_by_finite_differences():
+    """004 §5: C(β + δβ) ≈ C(β)(I + [D1 δβ ×]) and D2 = C D1 (its printed D2 fixes the signs)."""
+    beta = np.array([0.7, -0.4, 2.1])
+    D1, D2 = R.ypr_error_to_rotation(*beta)
+    C = R.ypr_to_dcm(*beta)
+    for k in range(3):
+        d = np.zeros(3)
+        d[k] = 1e-6
+        dC = (R.ypr_to_dcm(*(beta + d)) - R.ypr_to_dcm(*(beta - d))) / 2e-6
+        W = C.T @ dC                                      # = [θ×] per unit δβ_k
+        np.testing.assert_allclose([W[2, 1], W[0, 2], W[1, 0]], D1[:, k], atol=1e-8)
+    # the printed D1 of 004 §5
+    sy, cy, sp, cp, sg, cg = np.sin(0.7), np.cos(0.7), np.sin(-0.4), np.cos(-0.4), np.sin(2.1), np.cos(2.1)
+    np.testing.assert_allclose(D1, [[sg * cp, cg, 0], [-sp, 0, 1], [-cg * cp, sg, 0]], atol=1e-15)
+    np.testing.assert_allclose(D2, C @ D1, atol=1e-15)
 
 
 def test_aircraft_angles_of_000():
