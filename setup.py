@@ -24,6 +24,7 @@ setup(
     extras_require={
         "ros": ROS_FROM_PYPI,
         "tools": ["scipy", "matplotlib", "rosbags"],
+        "bench": ["opencv-python-headless"],          # boresight_bench: OpenCV hand-eye peers
         "test": ["pytest", "pytest-timeout", "colcon-core", "colcon-ros",
                  "colcon-python-setup-py", "catkin_pkg"],
     },
@@ -41,6 +42,11 @@ setup(
             "strapdown_demo = strapdown_ros.nodes.demo:main",
             "sins_bench = strapdown_ros.tools.sins_bench:main",
             "coning_bench = strapdown_ros.tools.coning_bench:main",
+            "star_camera_sim_node = strapdown_ros.nodes.star_camera_sim_node:main",
+            "calibrator_node = strapdown_ros.nodes.calibrator_node:main",
+            "record_sim = strapdown_ros.tools.record_sim:main",
+            "calibrate_bag = strapdown_ros.tools.calibrate_bag:main",
+            "boresight_bench = strapdown_ros.tools.boresight_bench:main",
         ],
     },
 )

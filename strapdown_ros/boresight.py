@@ -18,10 +18,12 @@ Two remarks on the printed formulas, with evidence in ``test/test_boresight.py``
 
 * §2.2 r_0k(τ): the ρ·Δρ term is ``−(ρ·Δρ)/8 (τ³/T³ − τ²/T²)`` (from |θ(τ)|²/8 with
   θ(τ) = ρτ/T + Δρ/2 (τ²/T² − τ/T)); the printed /4 triples the partial-interval error.
-* §4.2 starts Gauss–Newton from a given β0.  Far from the truth the Euler-angle cost is not
-  convex; the solver first aligns the rotation axes in closed form (the rotation vectors
-  satisfy log ΔS_imu = C log ΔS_avu; least squares over C is Wahba's problem, solved by SVD)
-  and starts Gauss–Newton there, so it converges from β0 = 0 for any true β.
+* §4.2 starts Gauss–Newton from a given β0 (``init="given"``).  From β0 = 0 it converged for
+  all of 205 random boresights tried, including pitch near ±90° (test/test_boresight.py), in a
+  median of 8 and at most 21 iterations.  By default the solver first aligns the rotation axes
+  in closed form (the rotation vectors satisfy log ΔS_imu = C log ΔS_avu; least squares over C
+  is Wahba's problem, solved by SVD), which needs no β0 at all and leaves Gauss–Newton 1–2
+  iterations.
 """
 from __future__ import annotations
 
@@ -231,8 +233,8 @@ def solve_boresight(pairs, beta0=(0.0, 0.0, 0.0), weighted: bool = True, init: s
                     max_sigma: float = 1e-3, min_rotation: float = np.radians(0.5)) -> BoresightSolution:
     """Estimate β and its covariance from increment pairs (004 §4), or report why not.
 
-    init: ``"axes"`` starts Gauss–Newton from the closed-form axis alignment (robust for any
-    β); ``"given"`` starts from ``beta0`` exactly as 004 §4.2.
+    init: ``"axes"`` starts Gauss–Newton from the closed-form axis alignment (independent of
+    β0, 1–2 iterations); ``"given"`` starts from ``beta0`` exactly as 004 §4.2.
     """
     pairs = list(pairs)
     n = len(pairs)

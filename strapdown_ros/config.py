@@ -18,7 +18,7 @@ from .profiles import PROFILE_NAMES
 from .sensors import NAVIGATION_GRADE_ACCEL, NAVIGATION_GRADE_GYRO, SensorSigmas
 
 __all__ = ["ParamSpec", "PROFILE_PARAMS", "GYRO_PARAMS", "ACCEL_PARAMS", "IMU_SIM_PARAMS",
-           "SINS_PARAMS", "sigmas_from", "load_parameter_file", "check_all", "markdown_table"]
+           "SINS_PARAMS", "STAR_CAMERA_PARAMS", "CALIBRATOR_PARAMS", "sigmas_from", "load_parameter_file", "check_all", "markdown_table"]
 
 
 @dataclass(frozen=True)
@@ -141,16 +141,65 @@ SINS_PARAMS = GYRO_PARAMS + ACCEL_PARAMS + COMMON_PARAMS + [
 ]
 
 
-#: every parameter name declared by any node or tool of the package
-ALL_PARAMETER_NAMES = frozenset(s.name for s in IMU_SIM_PARAMS + SINS_PARAMS)
-
-
 def sigmas_from(values: dict, prefix: str) -> SensorSigmas:
     return SensorSigmas(bias_sigma=float(values[f"{prefix}_bias_sigma"]),
                         scale_sigma=float(values[f"{prefix}_scale_sigma"]),
                         misalignment_sigma=float(values[f"{prefix}_misalignment_sigma"]),
                         random_walk=float(values[f"{prefix}_random_walk"]),
                         quantum=float(values[f"{prefix}_quantum"]))
+
+
+ARCSEC_RAD = np.pi / 180.0 / 3600.0
+
+STAR_CAMERA_PARAMS = PROFILE_PARAMS + [
+    ParamSpec("reference_frame_id", "gcrs", "inertial reference frame id of attitudes"),
+    ParamSpec("camera_frame_id", "star_camera", "camera frame (VF) id"),
+    ParamSpec("qos_depth", 500, "history depth of the stream QoS", 1, 100000),
+    ParamSpec("diagnostics_period", 1.0, "period of /diagnostics, wall seconds", 0.0, 3600.0, exclusive_minimum=True),
+    ParamSpec("seed", 0, "seed of the camera noise", 0, 2**31 - 1),
+    ParamSpec("time_scale", 1.0, "simulated seconds per wall second (as imu_sim_node)", 0.0, 1e6,
+              exclusive_minimum=True),
+    ParamSpec("duration", 0.0, "simulated seconds to publish (0: the profile length, or forever)", 0.0),
+    ParamSpec("start_time", 0.0, "header stamp of profile time 0, s (as imu_sim_node)", 0.0),
+    ParamSpec("publish_period", 0.005, "wall period of the publishing timer, s", 0.0, 1.0, exclusive_minimum=True),
+    ParamSpec("camera_interval", 20.0, "time between exposures, s", 0.0, 3600.0, exclusive_minimum=True),
+    ParamSpec("camera_first_exposure", 0.0, "profile time of the first exposure, s (0: one interval)", 0.0),
+    ParamSpec("camera_sigma_xy", 0.6 * ARCSEC_RAD, "1σ attitude noise about VF x and y, rad (004: 0.6″)", 0.0, 0.1),
+    ParamSpec("camera_sigma_z", 6.0 * ARCSEC_RAD, "1σ attitude noise about the optical axis VF z, rad (004: 6″)",
+              0.0, 0.1),
+    ParamSpec("boresight", [0.0, 0.0, 0.0], "true β = (heading ψ, pitch ϑ, roll γ) of VF relative to MF, rad",
+              length=3),
+    ParamSpec("camera_time_offset", 0.0, "camera clock minus IMU clock, s (a fix stamped t shows t − offset)",
+              -10.0, 10.0),
+    ParamSpec("camera_exposure_time", 0.0, "exposure duration, s", 0.0, 10.0),
+    ParamSpec("camera_stamp_at_exposure_start", False, "stamp = exposure start while the attitude is mid-exposure"),
+]
+
+CALIBRATOR_PARAMS = GYRO_PARAMS + [
+    ParamSpec("reference_frame_id", "gcrs", "inertial reference frame id of attitudes"),
+    ParamSpec("frame_id", "imu_link", "IMU frame (MF) id"),
+    ParamSpec("camera_frame_id", "star_camera", "camera frame (VF) id"),
+    ParamSpec("qos_depth", 500, "history depth of the stream QoS", 1, 100000),
+    ParamSpec("diagnostics_period", 1.0, "period of /diagnostics, wall seconds", 0.0, 3600.0, exclusive_minimum=True),
+    ParamSpec("weighted", True, "weight the pairs by E_imu and E_avu (false: unit weights as 004)"),
+    ParamSpec("covariance_model", "random_constant", "gyro error model of E_imu", choices=COVARIANCE_MODELS),
+    ParamSpec("initial_boresight", [0.0, 0.0, 0.0], "β0, rad (the solver aligns rotation axes first, so any β0 "
+              "converges)", length=3),
+    ParamSpec("min_rotation_deg", 0.5, "increments below this angle do not count as rotations (004 §4.1)",
+              0.0, 180.0),
+    ParamSpec("max_sigma", 1e-3, "publish only when every boresight direction has predicted σ below this, rad",
+              0.0, 1.0, exclusive_minimum=True),
+    ParamSpec("max_pairs", 0, "keep at most this many latest pairs (0: all)", 0, 10**7),
+    ParamSpec("use_camera_covariance", True, "read P_avu from star_camera/attitude_with_covariance "
+              "(false: star_camera/attitude with camera_sigma_xy/z)"),
+    ParamSpec("camera_sigma_xy", 0.6 * ARCSEC_RAD, "assumed camera σ about VF x, y when no covariance, rad", 0.0, 0.1),
+    ParamSpec("camera_sigma_z", 6.0 * ARCSEC_RAD, "assumed camera σ about VF z when no covariance, rad", 0.0, 0.1),
+]
+
+
+#: every parameter name declared by any node or tool of the package
+ALL_PARAMETER_NAMES = frozenset(s.name for s in IMU_SIM_PARAMS + SINS_PARAMS + STAR_CAMERA_PARAMS
+                                + CALIBRATOR_PARAMS)
 
 
 def check_all(specs: Sequence[ParamSpec], values: dict) -> dict:
@@ -201,5 +250,6 @@ def markdown_table(specs: Sequence[ParamSpec]) -> str:
 
 
 if __name__ == "__main__":   # python -m strapdown_ros.config → README parameter tables
-    for title, specs in (("imu_sim_node", IMU_SIM_PARAMS), ("sins_node", SINS_PARAMS)):
+    for title, specs in (("imu_sim_node", IMU_SIM_PARAMS), ("sins_node", SINS_PARAMS),
+                         ("star_camera_sim_node", STAR_CAMERA_PARAMS), ("calibrator_node", CALIBRATOR_PARAMS)):
         sys.stdout.write(f"\n#### {title}\n\n{markdown_table(specs)}\n")

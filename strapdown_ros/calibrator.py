@@ -1,0 +1,107 @@
+"""Streaming boresight calibrator: gyro increments + camera fixes → increment pairs → estimate.
+
+Used by ``calibrator_node`` (live) and ``calibrate_bag`` (offline) alike, so both give the same
+answer on the same data.  No ROS imports.
+
+Feed it in any interleaving (stamps in seconds, any origin):
+
+* :meth:`add_gyro` — increments Δθ with the stamps of the ends of their intervals;
+* :meth:`add_camera` — a camera attitude q_GCRS_VF (scalar-first) with its 3×3 covariance
+  (VF axes).
+
+A pair (n−1, n) is formed as soon as the gyro increment whose interval contains t_{E,n} has
+arrived.  :meth:`solve` runs the estimator over all pairs, warm-started from the previous
+solution, and returns a :class:`~strapdown_ros.boresight.BoresightSolution` (which says
+whether the boresight is observable, and why not).
+"""
+from __future__ import annotations
+
+from collections import deque
+
+import numpy as np
+
+from .boresight import BoresightSolution, IncrementPair, camera_increment, gyro_increment, solve_boresight
+from .sensors import SensorSigmas
+
+__all__ = ["BoresightCalibrator"]
+
+
+class BoresightCalibrator:
+    def __init__(self, gyro: SensorSigmas | None = None, covariance_model: str = "random_constant",
+                 weighted: bool = True, initial_boresight=(0.0, 0.0, 0.0), min_rotation: float = np.radians(0.5),
+                 max_sigma: float = 1e-3, max_pairs: int = 0):
+        self.gyro = gyro
+        self.covariance_model = covariance_model
+        self.weighted = weighted
+        self.initial_boresight = np.asarray(initial_boresight, dtype=float)
+        self.min_rotation = min_rotation
+        self.max_sigma = max_sigma
+        self.max_pairs = int(max_pairs)
+        self._t = []                    # gyro stamps (python lists: appended one at a time live)
+        self._v = []
+        self._cams: deque = deque()     # fixes waiting for gyro coverage: (stamp, q, P)
+        self._last_fix = None           # the fix that starts the next pair
+        self.pairs: list[IncrementPair] = []
+        self.solution: BoresightSolution | None = None
+
+    # --- input -----------------------------------------------------------------------------
+    def add_gyro(self, stamps, delta_theta) -> int:
+        """Append increments (stamps strictly increasing); returns the number of new pairs."""
+        st = np.atleast_1d(np.asarray(stamps, dtype=float))
+        v = np.asarray(delta_theta, dtype=float).reshape(-1, 3)
+        self._t.extend(st.tolist())
+        self._v.extend(v.tolist())
+        return self._form_pairs()
+
+    def add_camera(self, stamp: float, q_gcrs_vf, covariance) -> int:
+        """Append one camera fix; returns the number of new pairs."""
+        self._cams.append((float(stamp), np.asarray(q_gcrs_vf, dtype=float), np.asarray(covariance, dtype=float)))
+        return self._form_pairs()
+
+    def _form_pairs(self) -> int:
+        new = 0
+        while self._cams:
+            stamp, q, P = self._cams[0]
+            if self._last_fix is None:
+                self._last_fix = self._cams.popleft()
+                continue
+            if not self._t or self._t[-1] < stamp:
+                break                                   # wait for the gyro to cover t_E,n
+            t0, q0, P0 = self._last_fix
+            lo = max(0, int(np.searchsorted(self._t, t0)) - 2)
+            hi = int(np.searchsorted(self._t, stamp, side="right")) + 1
+            r = gyro_increment(np.asarray(self._t[lo:hi]), np.asarray(self._v[lo:hi]), t0, stamp, self.gyro,
+                               self.covariance_model)
+            self._cams.popleft()
+            self._last_fix = (stamp, q, P)
+            if r is None:                               # not enough gyro data around t0: skip this pair
+                continue
+            dq_c, E_c = camera_increment(q0, P0, q, P)
+            self.pairs.append(IncrementPair(t0, stamp, r[0], dq_c, r[1], E_c))
+            new += 1
+            # drop gyro data no longer needed (keep a margin before the newest fix)
+            cut = max(0, int(np.searchsorted(self._t, stamp)) - 3)
+            if cut > 10000:
+                del self._t[:cut], self._v[:cut]
+        if self.max_pairs and len(self.pairs) > self.max_pairs:
+            del self.pairs[:len(self.pairs) - self.max_pairs]
+        return new
+
+    # --- estimate ------------------------------------------------------------------------------
+    def solve(self) -> BoresightSolution:
+        """Estimate from all pairs.  Warm start: once a converged solution exists, Gauss–Newton
+        starts from it (the closed-form axis alignment is only needed the first time)."""
+        prev = self.solution
+        if prev is not None and prev.observable and prev.converged:
+            sol = solve_boresight(self.pairs, beta0=prev.beta, weighted=self.weighted, init="given",
+                                  max_sigma=self.max_sigma, min_rotation=self.min_rotation)
+            if not (sol.observable and sol.converged):
+                sol = self._cold()
+        else:
+            sol = self._cold()
+        self.solution = sol
+        return sol
+
+    def _cold(self) -> BoresightSolution:
+        return solve_boresight(self.pairs, beta0=self.initial_boresight, weighted=self.weighted, init="axes",
+                               max_sigma=self.max_sigma, min_rotation=self.min_rotation)
