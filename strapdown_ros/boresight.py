@@ -90,7 +90,7 @@ def gyro_increment(stamps: np.ndarray, delta_theta: np.ndarray, t_start: float, 
     if gyro is not None:
         # eq. (2) over the whole IMU intervals k0..k1 from E = 0 (004: E(t_En) ≈ E(t_I,K−1)),
         # evaluated as a sum in the axes of MF(t_start): C_k = attitude after interval k
-        C = quat_to_dcm(quat_cumprod(np.array([1.0, 0.0, 0.0, 0.0]), quat_normalize(r_partial(rho, drho, np.ones(len(rho))))))
+        C = quat_to_dcm(quat_cumprod(np.array([1.0, 0.0, 0.0, 0.0]), full))
         if covariance_model == "004":
             Q = increment_covariance(rho, T, gyro.bias_sigma, gyro.scale_sigma, gyro.misalignment_sigma,
                                      gyro.random_walk)
