@@ -23,7 +23,7 @@ setup(
     install_requires=["setuptools", "numpy"],
     extras_require={
         "ros": ROS_FROM_PYPI,
-        "tools": ["scipy", "matplotlib", "rosbags"],
+        "tools": ["scipy", "matplotlib", "rosbags", "pyyaml"],
         "bench": ["opencv-python-headless"],          # boresight_bench: OpenCV hand-eye peers
         "test": ["pytest", "pytest-timeout", "colcon-core", "colcon-ros",
                  "colcon-python-setup-py", "catkin_pkg"],

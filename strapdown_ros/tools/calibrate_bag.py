@@ -1,0 +1,380 @@
+"""calibrate_bag: star-camera boresight C_MF^VF from a rosbag2 bag, offline and without ROS.
+
+Reads ``imu/delta_theta`` (geometry_msgs/msg/Vector3Stamped) and the camera attitude — from
+``star_camera/attitude_with_covariance`` (geometry_msgs/msg/PoseWithCovarianceStamped, rotation
+block = camera covariance in VF axes) when the bag has it and ``use_camera_covariance`` is true,
+otherwise from ``star_camera/attitude`` (geometry_msgs/msg/QuaternionStamped) with the assumed
+``camera_sigma_xy``/``camera_sigma_z`` — and feeds the same ``BoresightCalibrator`` as
+``calibrator_node``, in stamp order.  Topic names match with or without the leading slash, under
+``--namespace`` when given; a bag with a single namespace is found without it.  MCAP and
+sqlite3 storage (a bag directory or a single .mcap/.db3 file).
+
+Header stamps are the time base.  Input validation is ``calibrator_node``'s, per topic in bag
+order: messages with NaN/Inf values, duplicate stamps or stamps older than the previous accepted
+one are dropped and counted; a gyro gap (a step above 1.5/``gyro_rate``: increments missing, their
+rotation lost) is counted and every increment pair spanning it is discarded; a camera quaternion
+that is not unit is normalised, a zero one dropped; an all-zero camera covariance (ROS "unknown")
+is replaced by the ``camera_sigma_*`` diagonal, one that is not positive semi-definite is dropped.
+
+Output (``--json FILE``, also printed as a human summary)::
+
+    {"q_mf_vf_xyzw": [x, y, z, w], "rotation_covariance_mf_rad2": 3×3, "beta_rad": [ψ, ϑ, γ],
+     "beta_sigma_rad": [...], "covariance_rad2": 3×3, "pairs": n, "observable": bool,
+     "unobservable_axes": [...], "residual_rms_rad": r, "weighted": bool, ...extra keys}
+
+``q_mf_vf_xyzw`` is C_MF^VF (maps VF coordinates to MF coordinates) as a ROS quaternion;
+``rotation_covariance_mf_rad2`` is the covariance of its error in MF axes (004 eq. 8);
+``covariance_rad2`` that of β.  Not observable: those are null and the exit status is 3.
+Exit status: 0 solved, 2 bad arguments/parameters/bag, 3 not observable, 4 no convergence.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+import numpy as np
+
+from ..calibrator import BoresightCalibrator
+from ..config import CALIBRATOR_PARAMS, check_all, load_parameter_file, sigmas_from
+from ..rotation import from_ros_xyzw, to_ros_xyzw
+from .record_sim import parse_overrides
+
+__all__ = ["main", "read_bag", "calibrate", "calibrator_parameters", "make_calibrator", "solution_json", "BagError"]
+
+GYRO_TOPIC = "imu/delta_theta"
+CAMERA_TOPIC = "star_camera/attitude"
+CAMERA_COV_TOPIC = "star_camera/attitude_with_covariance"
+EXPECTED_TYPES = {
+    GYRO_TOPIC: "geometry_msgs/msg/Vector3Stamped",
+    CAMERA_TOPIC: "geometry_msgs/msg/QuaternionStamped",
+    CAMERA_COV_TOPIC: "geometry_msgs/msg/PoseWithCovarianceStamped",
+}
+ARCSEC_PER_RAD = 180.0 / np.pi * 3600.0
+
+
+class BagError(RuntimeError):
+    """The bag cannot be used (missing topics, wrong types, unreadable)."""
+
+
+# --- parameters -------------------------------------------------------------------------------
+def calibrator_parameters(params_file: str | None = None, overrides: dict | None = None) -> dict:
+    """calibrator_node parameters from a ROS 2 parameter YAML (+ overrides), validated."""
+    raw = load_parameter_file(params_file, "calibrator_node") if params_file else {}
+    raw.update(overrides or {})
+    return check_all(CALIBRATOR_PARAMS, raw)
+
+
+def make_calibrator(p: dict) -> BoresightCalibrator:
+    """The calibrator exactly as built from calibrator_node parameters."""
+    return BoresightCalibrator(gyro=sigmas_from(p, "gyro"), covariance_model=p["covariance_model"],
+                               weighted=bool(p["weighted"]),
+                               initial_boresight=np.asarray(p["initial_boresight"], dtype=float),
+                               min_rotation=np.radians(float(p["min_rotation_deg"])),
+                               max_sigma=float(p["max_sigma"]), max_pairs=int(p["max_pairs"]))
+
+
+# --- bag ------------------------------------------------------------------------------------------
+def _resolve(topics: dict, name: str, namespace: str) -> str | None:
+    """The bag topic for relative ``name``: ``[/]<namespace>/<name>``; without a namespace,
+    ``[/]<name>`` or else the only topic ending in ``/<name>``."""
+    ns = namespace.strip("/")
+    want = f"{ns}/{name}" if ns else name
+    for t in topics:
+        if t.strip("/") == want:
+            return t
+    if not ns:
+        cands = [t for t in topics if t.strip("/").endswith("/" + name)]
+        if len(cands) == 1:
+            return cands[0]
+    return None
+
+
+def _stamp_ns(header) -> int:
+    return int(header.stamp.sec) * 1_000_000_000 + int(header.stamp.nanosec)
+
+
+class _Stream:
+    """Per-topic acceptance as ``calibrator_node`` (``sins_node.StreamCheck``): finite values,
+    strictly increasing stamps (bag order); steps above 1.5 nominal periods are gaps."""
+
+    def __init__(self, nominal_period: float = np.inf):
+        self.nominal_ns = nominal_period * 1e9
+        self.stamps: list[int] = []
+        self.values: list = []
+        self.received = 0
+        self.dropped = {"nan": 0, "duplicate": 0, "out_of_order": 0}
+        self.gaps: list[tuple[int, int]] = []          # (last stamp before, first stamp after), ns
+        self.missing = 0
+
+    def offer(self, ns: int, value, finite: bool) -> bool:
+        self.received += 1
+        last = self.stamps[-1] if self.stamps else None
+        if not finite:
+            self.dropped["nan"] += 1
+            return False
+        if last is not None:
+            if ns == last:
+                self.dropped["duplicate"] += 1
+                return False
+            if ns < last:
+                self.dropped["out_of_order"] += 1
+                return False
+            if ns - last > 1.5 * self.nominal_ns:
+                self.gaps.append((last, ns))
+                self.missing += int(round((ns - last) / self.nominal_ns)) - 1
+        self.stamps.append(ns)
+        self.values.append(value)
+        return True
+
+
+def read_bag(path: str | Path, namespace: str = "", use_camera_covariance: bool = True,
+             camera_sigma=(0.0, 0.0, 0.0), gyro_period: float = 0.01) -> dict:
+    """Gyro increments and camera fixes from a bag, validated as calibrator_node validates its
+    input (drops counted); raises BagError."""
+    from rosbags.highlevel import AnyReader, AnyReaderError
+    from rosbags.typesys import Stores, get_typestore
+
+    path = Path(path)
+    if not path.exists():
+        raise BagError(f"{path} does not exist")
+    try:
+        reader = AnyReader([path], default_typestore=get_typestore(Stores.ROS2_JAZZY))
+        reader.open()
+    except Exception as exc:                           # noqa: BLE001 - any unreadable bag is reported
+        raise BagError(f"cannot open {path}: {exc}") from exc
+    try:
+        topics = {c.topic: c.msgtype for c in reader.connections}
+        gyro_topic = _resolve(topics, GYRO_TOPIC, namespace)
+        cov_topic = _resolve(topics, CAMERA_COV_TOPIC, namespace)
+        cam_plain = _resolve(topics, CAMERA_TOPIC, namespace)
+        cam_topic = cov_topic if (cov_topic and use_camera_covariance) else cam_plain
+        where = f" under namespace {namespace!r}" if namespace.strip("/") else ""
+        if gyro_topic is None or cam_topic is None:
+            missing = [n for n, t in ((GYRO_TOPIC, gyro_topic), (CAMERA_TOPIC, cam_topic)) if t is None]
+            raise BagError(f"{path}: no {' and no '.join(missing)}{where}; topics in the bag: "
+                           f"{', '.join(sorted(topics)) or 'none'}")
+        for rel, t in ((GYRO_TOPIC, gyro_topic), (CAMERA_COV_TOPIC if cam_topic == cov_topic else CAMERA_TOPIC,
+                                                   cam_topic)):
+            if topics[t] != EXPECTED_TYPES[rel]:
+                raise BagError(f"{t} has type {topics[t]}, expected {EXPECTED_TYPES[rel]}")
+        with_cov = cam_topic == cov_topic
+        P_assumed = np.diag(np.asarray(camera_sigma, dtype=float) ** 2)
+        gyro, cam = _Stream(gyro_period), _Stream()        # exposures need not be periodic: no gap test
+        fix_counts = {"zero_quaternion": 0, "bad_covariance": 0, "normalised": 0, "covariance_substituted": 0}
+        frames = {"gyro": set(), "camera": set()}
+        conns = [c for c in reader.connections if c.topic in (gyro_topic, cam_topic)]
+        for conn, _, raw in reader.messages(connections=conns):
+            try:
+                msg = reader.deserialize(raw, conn.msgtype)
+            except AnyReaderError as exc:
+                raise BagError(f"{path}: cannot deserialize a {conn.msgtype} message on {conn.topic}: {exc}") from exc
+            ns = _stamp_ns(msg.header)
+            if conn.topic == gyro_topic:
+                frames["gyro"].add(msg.header.frame_id)
+                v = np.array([msg.vector.x, msg.vector.y, msg.vector.z], dtype=float)
+                gyro.offer(ns, v, bool(np.all(np.isfinite(v))))
+                continue
+            frames["camera"].add(msg.header.frame_id)
+            if with_cov:
+                qm = msg.pose.pose.orientation
+                P = np.asarray(msg.pose.covariance, dtype=float).reshape(6, 6)[3:, 3:]
+            else:
+                qm = msg.quaternion
+                P = P_assumed
+            q = from_ros_xyzw(np.array([qm.x, qm.y, qm.z, qm.w], dtype=float))
+            norm = float(np.linalg.norm(q)) if np.all(np.isfinite(q)) else float("nan")
+            if np.isfinite(norm) and norm < 1e-6:
+                cam.received += 1
+                fix_counts["zero_quaternion"] += 1
+                continue
+            if with_cov and np.all(np.isfinite(P)):
+                P = 0.5 * (P + P.T)
+                if not np.any(P):
+                    P = P_assumed                            # all-zero covariance: "unknown" in ROS
+                    fix_counts["covariance_substituted"] += 1
+                elif np.min(np.linalg.eigvalsh(P)) < -1e-12 * max(np.trace(P), 1e-300):
+                    cam.received += 1
+                    fix_counts["bad_covariance"] += 1
+                    continue
+            finite = bool(np.isfinite(norm) and np.all(np.isfinite(P)))
+            if finite and abs(norm - 1.0) > 1e-9:
+                q = q / norm
+            if cam.offer(ns, (q, np.array(P, dtype=float)), finite) and abs(norm - 1.0) > 1e-9:
+                fix_counts["normalised"] += 1
+    finally:
+        reader.close()
+    return {"gyro_topic": gyro_topic, "camera_topic": cam_topic, "camera_covariance_from_bag": with_cov,
+            "gyro": gyro, "camera": cam, "camera_fixes": fix_counts,
+            "frames": {k: sorted(v) for k, v in frames.items()}}
+
+
+def calibrate(data: dict, p: dict):
+    """Feed the calibrator as calibrator_node does and solve; returns (solution, calibrator,
+    pairs discarded over gyro gaps).  Gyro first, then the fixes in stamp order: a pair is formed
+    once the gyro covers its end, so the pairs are those of any interleaving."""
+    g, c = data["gyro"], data["camera"]
+    t0 = min(g.stamps[0], c.stamps[0])                 # origin: float seconds keep ns resolution
+    cal = make_calibrator(p)
+    cal.add_gyro((np.asarray(g.stamps, dtype=np.int64) - t0) * 1e-9, np.asarray(g.values))
+    gaps = [((a - t0) * 1e-9, (b - t0) * 1e-9) for a, b in g.gaps]
+    h = 1.5 / float(p["gyro_rate"])                     # the in-interval polynomial reads the neighbours
+    discarded = 0
+    for ns, (q, P) in zip(c.stamps, c.values):
+        new = cal.add_camera((ns - t0) * 1e-9, q, P)
+        if new and gaps:                               # as calibrator_node._discard_pairs_over_gaps
+            tail = cal.pairs[len(cal.pairs) - new:]
+            keep = [pr for pr in tail if not any(pr.t_start - h < b and a < pr.t_end + h for a, b in gaps)]
+            discarded += len(tail) - len(keep)
+            del cal.pairs[len(cal.pairs) - new:]
+            cal.pairs.extend(keep)
+    return cal.solve(), cal, discarded
+
+
+# --- output -----------------------------------------------------------------------------------------
+def _num(x):
+    x = float(x)
+    return x if np.isfinite(x) else None
+
+
+def _mat(m):
+    return None if m is None else [[_num(v) for v in row] for row in np.asarray(m, dtype=float)]
+
+
+def solution_json(sol, weighted: bool) -> dict:
+    """The JSON record of a BoresightSolution (schema in the module docstring)."""
+    ok = bool(sol.observable and sol.beta is not None)
+    unobs = list(sol.unobservable_axes) if not ok else []
+    if not ok and not unobs:                   # too few pairs: nothing is observable
+        unobs = [f"rotation about VF axis ({', '.join('1.00' if i == j else '0.00' for j in range(3))})"
+                 for i in range(3)]
+    out = {
+        "q_mf_vf_xyzw": [float(c) for c in to_ros_xyzw(sol.q_mf_vf)] if ok else None,
+        "rotation_covariance_mf_rad2": _mat(sol.rotation_covariance_mf) if ok else None,
+        "beta_rad": [float(b) for b in sol.beta] if ok else None,
+        "beta_sigma_rad": [float(s) for s in np.sqrt(np.diag(sol.covariance_beta))] if ok else None,
+        "covariance_rad2": _mat(sol.covariance_beta) if ok else None,
+        "pairs": int(sol.pairs),
+        "observable": ok,
+        "unobservable_axes": unobs,
+        "residual_rms_rad": _num(sol.residual_rms),
+        "weighted": bool(sol.weighted if ok else weighted),
+        # extra keys
+        "message": sol.message,
+        "converged": bool(sol.converged),
+        "iterations": int(sol.iterations),
+        "chi2_per_dof": _num(sol.chi2_per_dof),
+    }
+    rep = sol.observability
+    if rep is not None:
+        out["observability"] = {"eigenvalues": [_num(v) for v in rep.eigenvalues],
+                                "predicted_sigma_rad": [_num(v) for v in rep.predicted_sigma],
+                                "condition": _num(rep.condition), "weak": list(rep.weak)}
+    return out
+
+
+def _summary(bag: str, data: dict, result: dict, p: dict) -> str:
+    g, c = data["gyro"], data["camera"]
+    lines = [f"calibrate_bag: {bag}: {len(g.stamps)} Δθ from {data['gyro_topic']}, {len(c.stamps)} camera fixes "
+             f"from {data['camera_topic']} ({'covariance from the bag' if data['camera_covariance_from_bag'] else 'assumed camera σ'})"]
+    drops = {f"{k} {n}": v for k, d in result["dropped"].items() for n, v in d.items() if v}
+    lines.append("  dropped: " + (", ".join(f"{k} {v}" for k, v in drops.items()) if drops else "none"))
+    gg, fx = result["gyro_gaps"], result["camera_fixes"]
+    if gg["gaps"]:
+        lines.append(f"  GYRO GAPS: {gg['gaps']} gap(s), {gg['missing']} increment(s) missing (rotation lost); "
+                     f"{gg['pairs_discarded']} pair(s) spanning them discarded")
+    notes = [f"{n.replace('_', ' ')} {v}" for n, v in fx.items() if v]
+    if notes:
+        lines.append("  camera fixes: " + ", ".join(notes))
+    chi2 = result["chi2_per_dof"]
+    lines.append(f"  pairs {result['pairs']}, {'weighted' if result['weighted'] else 'unweighted (004)'}, "
+                 f"covariance model {p['covariance_model']}, "
+                 + (f"{'converged' if result['converged'] else 'NOT converged'} in {result['iterations']} iterations, "
+                    f"residual RMS {result['residual_rms_rad'] * ARCSEC_PER_RAD:.3g}″"
+                    + (f", χ²/dof {chi2:.3g}" if chi2 is not None else "") if result["observable"] else "not observable"))
+    if result["observable"]:
+        names = ("heading ψ", "pitch ϑ", "roll γ")
+        lines.append("  β: " + ", ".join(f"{n} {np.degrees(b):.6f}° ± {s * ARCSEC_PER_RAD:.3g}″"
+                                        for n, b, s in zip(names, result["beta_rad"], result["beta_sigma_rad"])))
+        sig_mf = np.sqrt(np.diag(result["rotation_covariance_mf_rad2"])) * ARCSEC_PER_RAD
+        lines.append(f"  q_mf_vf (x, y, z, w) = [{', '.join(f'{v:.9f}' for v in result['q_mf_vf_xyzw'])}], "
+                     f"σ about MF x, y, z = {', '.join(f'{s:.3g}' for s in sig_mf)}″")
+    return "\n".join(lines)
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(prog="calibrate_bag", description=__doc__,
+                                 formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("bag", help="rosbag2 bag directory, or a .mcap / .db3 file")
+    ap.add_argument("--params", metavar="FILE", help="ROS 2 parameter YAML (calibrator_node and /** blocks)")
+    ap.add_argument("--json", metavar="FILE", help="write the result as JSON")
+    ap.add_argument("--unweighted", action="store_true", help="unit weights, covariance from the residuals (004)")
+    ap.add_argument("--covariance-model", choices=("004", "random_constant"),
+                    help="gyro error model of E_imu (default: the parameter, random_constant)")
+    ap.add_argument("--namespace", default="", help="topic namespace, e.g. /robot1")
+    ap.add_argument("-p", "--param", action="append", default=[], metavar="NAME:=VALUE",
+                    help="calibrator_node parameter override (repeatable)")
+    args = ap.parse_args(argv)
+    try:
+        over = parse_overrides(args.param)
+        if args.unweighted:
+            over["weighted"] = False
+        if args.covariance_model:
+            over["covariance_model"] = args.covariance_model
+        p = calibrator_parameters(args.params, over)
+        data = read_bag(args.bag, args.namespace, bool(p["use_camera_covariance"]),
+                        (p["camera_sigma_xy"], p["camera_sigma_xy"], p["camera_sigma_z"]),
+                        1.0 / float(p["gyro_rate"]))
+    except (ValueError, OSError, BagError) as exc:
+        print(f"calibrate_bag: error: {exc}", file=sys.stderr)
+        return 2
+    for kind, want in (("gyro", p["frame_id"]), ("camera", p["reference_frame_id"])):
+        other = [f for f in data["frames"][kind] if f != want]
+        if other:
+            print(f"calibrate_bag: warning: {kind} messages in frame {', '.join(map(repr, other))}, "
+                  f"parameters expect {want!r}", file=sys.stderr)
+
+    g, c = data["gyro"], data["camera"]
+    if not g.stamps or not c.stamps:
+        print(f"calibrate_bag: error: no usable {'gyro' if not g.stamps else 'camera'} messages", file=sys.stderr)
+        return 2
+    if len(g.stamps) > 2:
+        step = float(np.median(np.diff(g.stamps))) * 1e-9
+        if abs(step * float(p["gyro_rate"]) - 1.0) > 0.1:
+            print(f"calibrate_bag: warning: gyro stamps are {step:.6g} s apart but gyro_rate is {p['gyro_rate']:g} Hz; "
+                  f"gaps are judged against gyro_rate (set -p gyro_rate:={1.0 / step:.6g})", file=sys.stderr)
+    sol, _, discarded = calibrate(data, p)
+    result = solution_json(sol, bool(p["weighted"]))
+    result["covariance_model"] = p["covariance_model"]
+    result["dropped"] = {"gyro": dict(g.dropped),
+                         "camera": {**c.dropped, "zero_quaternion": data["camera_fixes"]["zero_quaternion"],
+                                    "bad_covariance": data["camera_fixes"]["bad_covariance"]}}
+    result["gyro_gaps"] = {"gaps": len(g.gaps), "missing": g.missing, "pairs_discarded": discarded}
+    result["camera_fixes"] = {k: data["camera_fixes"][k] for k in ("normalised", "covariance_substituted")}
+    result["messages"] = {"gyro": len(g.stamps), "camera": len(c.stamps)}
+    result["topics"] = {"gyro": data["gyro_topic"], "camera": data["camera_topic"]}
+    result["camera_covariance_from_bag"] = data["camera_covariance_from_bag"]
+    print(_summary(args.bag, data, result, p))
+    if args.json:
+        try:
+            with open(args.json, "w", encoding="utf-8") as fh:
+                json.dump(result, fh, indent=2)
+                fh.write("\n")
+        except OSError as exc:
+            print(f"calibrate_bag: error: cannot write {args.json}: {exc}", file=sys.stderr)
+            return 2
+    if not result["observable"]:
+        advice = ("Record rotations about at least two non-parallel axes between camera exposures."
+                  if sol.pairs >= 2 else "Needs two camera fixes whose interval the gyro data covers without a gap.")
+        print(f"calibrate_bag: boresight NOT observable from this bag: {sol.message}; unobservable: "
+              f"{'; '.join(result['unobservable_axes'])}.  {advice}", file=sys.stderr)
+        return 3
+    if not result["converged"]:
+        print(f"calibrate_bag: warning: {sol.message}", file=sys.stderr)
+        return 4
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
