@@ -5,7 +5,8 @@ import sys
 import textwrap
 
 REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-CORE = ["rotation", "profiles", "sensors", "coning", "integrator", "config"]
+CORE = ["rotation", "profiles", "sensors", "coning", "integrator", "config", "coning_analysis", "observability",
+        "star_camera", "boresight", "calibrator", "integral_method"]
 
 
 def test_core_imports_with_rclpy_absent():
