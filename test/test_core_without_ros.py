@@ -6,7 +6,7 @@ import textwrap
 
 REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 CORE = ["rotation", "profiles", "sensors", "coning", "integrator", "config", "coning_analysis", "observability",
-        "star_camera", "boresight", "calibrator", "integral_method"]
+        "star_camera", "boresight", "calibrator", "integral_method", "tkachenko"]
 
 
 def test_core_imports_with_rclpy_absent():
