@@ -47,6 +47,7 @@ setup(
             "record_sim = strapdown_ros.tools.record_sim:main",
             "calibrate_bag = strapdown_ros.tools.calibrate_bag:main",
             "boresight_bench = strapdown_ros.tools.boresight_bench:main",
+            "reproduce_seeds = strapdown_ros.tools.reproduce_seeds:main",
         ],
     },
 )

@@ -1,0 +1,41 @@
+"""reproduce_seeds in quick mode: the JSON schema the issue fixes, and the comparisons it reports."""
+import json
+
+import pytest
+
+from strapdown_ros.tools import reproduce_seeds
+
+
+@pytest.fixture(scope="module")
+def result(tmp_path_factory):
+    d = tmp_path_factory.mktemp("seeds")
+    assert reproduce_seeds.main(["--only", "000,002,003", "--quick", "--json", str(d / "r.json"),
+                                 "--report", str(d / "r.md")]) == 0
+    return json.loads((d / "r.json").read_text()), (d / "r.md").read_text()
+
+
+def test_000_schema(result):
+    res, _ = result
+    cases = res["000"]["cases"]
+    assert set(cases) == {"unquantized", "quantized_raw", "quantized_centred"}
+    for case in cases.values():
+        for key in ("paper", "ours", "ours_iterated", "ours_mc_mean", "ours_mc_std"):
+            assert len(case[key]["w0"]) == 3 and len(case[key]["dc"]) == 9 and len(case[key]["dd"]) == 3
+
+
+def test_000_iterated_unquantized_is_1000x_below_the_paper(result):
+    res, _ = result
+    c = res["000"]["cases"]["unquantized"]
+    for k in ("dc", "dd"):
+        for ours, paper in zip(c["ours_iterated"][k], c["paper"][k]):
+            assert abs(ours) <= 1e-3 * abs(paper)
+
+
+def test_002_and_003_sections(result):
+    res, text = result
+    r = res["002"]
+    assert set(r["rms_000"]) == set(r["rms_002"]) == set(r["rms_002_adaptive"])
+    assert all(v > 0 for v in r["rms_000"].values())
+    assert res["003"]["claim_case1"]["0.01"]["algorithm_1_above_1e-3"]
+    for needle in ("## 000", "## 002", "## 003", "Centring (5.5) against raw"):
+        assert needle in text
