@@ -24,7 +24,8 @@ setup(
     extras_require={
         "ros": ROS_FROM_PYPI,
         "tools": ["scipy", "matplotlib", "rosbags", "pyyaml"],
-        "bench": ["opencv-python-headless"],          # boresight_bench: OpenCV hand-eye peers
+        # boresight_bench: OpenCV hand-eye peers; 5.0.0 lacks calibrateHandEye in Python (opencv#29565)
+        "bench": ["opencv-python-headless>=4.8,<5"],
         "test": ["pytest", "pytest-timeout", "colcon-core", "colcon-ros",
                  "colcon-python-setup-py", "catkin_pkg"],
     },

@@ -94,7 +94,8 @@ class BoresightCalibrator:
         prev = self.solution
         if prev is not None and prev.observable and prev.converged:
             sol = solve_boresight(self.pairs, beta0=prev.beta, weighted=self.weighted, init="given",
-                                  max_sigma=self.max_sigma, min_rotation=self.min_rotation)
+                                  max_sigma=self.max_sigma, min_rotation=self.min_rotation,
+                                  common_rotation_sigma=self.common_rotation_sigma)
             if not (sol.observable and sol.converged):
                 sol = self._cold()
         else:
@@ -104,4 +105,10 @@ class BoresightCalibrator:
 
     def _cold(self) -> BoresightSolution:
         return solve_boresight(self.pairs, beta0=self.initial_boresight, weighted=self.weighted, init="axes",
-                               max_sigma=self.max_sigma, min_rotation=self.min_rotation)
+                               max_sigma=self.max_sigma, min_rotation=self.min_rotation,
+                               common_rotation_sigma=self.common_rotation_sigma)
+
+    @property
+    def common_rotation_sigma(self) -> float:
+        """σ per axis of the gyro-triad rotation (antisymmetric misalignment), σ_φ/√2."""
+        return self.gyro.misalignment_sigma / np.sqrt(2.0) if self.gyro is not None else 0.0

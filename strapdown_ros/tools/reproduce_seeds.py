@@ -160,17 +160,62 @@ def section_003(duration: float) -> dict:
 
 
 # ------------------------------------------------------------------------------------- 004
+#: 004 §6: 12 rotations of the INS between static segments, heading within 50°…300°, pitch
+#: within ±7°, roll within ±15° (its Fig. 1a); the order and sizes here are ours
+TURNS_004 = [(2, 40.0), (0, 5.0), (2, 60.0), (1, 12.0), (2, -30.0), (0, -10.0),
+             (2, 80.0), (1, -25.0), (2, -50.0), (0, 7.0), (2, 45.0), (1, 15.0)]
+
+
+def experiment_004_pairs(seed: int, n_fixes: int = 73, interval: float = 21.0, _cache={}):
+    """One run of a 004 §6-like experiment: 73 exposures 21 s apart, 200 Hz navigation-grade
+    gyro (004 §6 values), camera 0.6″/0.6″/6″ looking up (β = 0: VF z, the optical axis, is MF z,
+    the vertical), 12 turns (mostly in heading) between static segments, Earth rate on."""
+    from ..boresight import camera_increment, gyro_increment
+    from ..profiles import EARTH_RATE, STANDARD_GRAVITY, PiecewiseRateProfile, Segment
+    from ..sensors import NAVIGATION_GRADE_GYRO
+    from ..star_camera import StarCameraModel
+
+    if "profile" not in _cache:
+        span = n_fixes * interval + 5.0
+        turn = 10.0
+        hold = (span - len(TURNS_004) * turn) / (len(TURNS_004) + 1)
+        segs = [Segment(hold)]
+        for axis, deg in TURNS_004:
+            r = np.zeros(3)
+            r[axis] = np.radians(deg) / turn
+            segs += [Segment(turn, r), Segment(hold)]
+        lat = np.radians(55.75)
+        _cache["profile"] = PiecewiseRateProfile(segs, earth_rate=EARTH_RATE * np.array([0.0, np.cos(lat), np.sin(lat)]),
+                                                 gravity=(0.0, 0.0, STANDARD_GRAVITY))
+        p = _cache["profile"]
+        tg = np.arange(int(span * 200) + 1) / 200.0
+        _cache["t"], _cache["u"] = tg[1:], p.delta_theta(tg[:-1], tg[1:])
+    prof, t, u = _cache["profile"], _cache["t"], _cache["u"]
+    rng = np.random.default_rng(seed)
+    err = NAVIGATION_GRADE_GYRO.draw(rng)
+    y = u @ (np.eye(3) + err.matrix).T + err.bias / 200.0 + rng.normal(0, err.random_walk * np.sqrt(1 / 200.0), u.shape)
+    cam = StarCameraModel(boresight=np.zeros(3), interval=interval, seed=1000 + seed)
+    fixes = cam.fixes(prof, n_fixes)
+    pairs = []
+    from ..boresight import IncrementPair
+    for f0, f1 in zip(fixes[:-1], fixes[1:]):
+        dq_i, E_i = gyro_increment(t, y, f0.stamp, f1.stamp, NAVIGATION_GRADE_GYRO)
+        dq_c, E_c = camera_increment(f0.attitude, f0.covariance, f1.attitude, f1.covariance)
+        pairs.append(IncrementPair(f0.stamp, f1.stamp, dq_i, dq_c, E_i, E_c))
+    return pairs, np.zeros(3)
+
+
 def section_004(runs: int) -> dict:
     from ..boresight import solve_boresight
     from ..sensors import ARCSEC
-    from .boresight_bench import experiment_004_pairs
 
     paper = {"sigma_beta_arcsec": [6.0, 0.6, 0.6], "N": 73, "interval_s": 21.0}
     sig_u, sig_w, err_u, err_w = [], [], [], []
     for seed in range(runs):
         pairs, beta_true = experiment_004_pairs(seed)
         for weighted, sig, err in ((False, sig_u, err_u), (True, sig_w, err_w)):
-            sol = solve_boresight(pairs, weighted=weighted)
+            sol = solve_boresight(pairs, weighted=weighted,
+                                  common_rotation_sigma=0.0 if not weighted else 3 * ARCSEC / np.sqrt(2))
             sig.append(np.sqrt(np.diag(sol.covariance_beta)) / ARCSEC)
             err.append((sol.beta - beta_true) / ARCSEC)
     out = {"paper": paper,
@@ -179,10 +224,17 @@ def section_004(runs: int) -> dict:
            "ours_weighted_sigma_arcsec_mean": _vec(np.mean(sig_w, 0)),
            "ours_weighted_rms_error_arcsec": _vec(np.sqrt(np.mean(np.square(err_w), 0))),
            "runs": runs,
-           "notes": ["Simulated with 004 §6's sensor parameters (N = 73 exposures ~21 s apart, T_IMU = 5 ms, "
-                     "σ_φG = 3″, σ_kG = 1e-5, σ_wG = 0.0012°/√h, σ_bG = 0.007°/h, camera 0.6″/0.6″/6″) on a "
-                     "trajectory of holds and 10–15° turns; 004's trajectory itself is not published in full, "
-                     "so the pattern (large σ about the optical axis) is what can be compared, not the digits."]}
+           "notes": ["Simulated with 004 §6's sensor parameters (N = 73 exposures 21 s apart, T_IMU = 5 ms, "
+                     "σ_φG = 3″, σ_kG = 1e-5, σ_wG = 0.0012°/√h, σ_bG = 0.007°/h, camera 0.6″/0.6″/6″ looking up) "
+                     "on a trajectory like 004's Fig. 1a: 12 turns, mostly in heading (about the optical axis), "
+                     "small pitch and roll changes. 004's trajectory is not published in full, so the pattern is "
+                     "what can be compared, not the digits.",
+                     "The pattern comes from the trajectory, not from the camera's anisotropy: turns about the "
+                     "optical axis say nothing about a boresight rotation about that axis (004 §4.1), so with "
+                     "mostly-heading turns the heading component is the weakly observed one.",
+                     "004's σ_β are the residual-based P_β of §4.3, which cannot see errors common to all pairs; the "
+                     "RMS errors here include the gyro-triad rotation (σ_φ/√2 ≈ 2.1″ per axis), which no boresight "
+                     "estimator can remove (boresight_bench), so they cannot reach 0.6″."]}
     return out
 
 
