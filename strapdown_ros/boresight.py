@@ -223,8 +223,11 @@ def check_observability(pairs, c_mf_vf: np.ndarray | None = None, weights: np.nd
         rep.observable = False
         rep.unobservable = [describe(rep.directions[:, 0])]
     if not rep.observable:
-        rep.message = f"{rep.unobservable[0]} not observable" + (f": {why}" if why else
-                                                                 f": predicted σ {rep.predicted_sigma[0]:.2g} rad")
+        if why.startswith("no rotation"):
+            rep.message = f"boresight not observable: {why}; weakest: {rep.unobservable[0]}"
+        else:
+            rep.message = f"{rep.unobservable[0]} not observable" + (f": {why}" if why else
+                                                                     f": predicted σ {rep.predicted_sigma[0]:.2g} rad")
     return rep
 
 

@@ -51,7 +51,16 @@ class BoresightCalibrator:
         v = np.asarray(delta_theta, dtype=float).reshape(-1, 3)
         self._t.extend(st.tolist())
         self._v.extend(v.tolist())
-        return self._form_pairs()
+        new = self._form_pairs()
+        if not self._cams and len(self._t) > self.MAX_BUFFER:
+            # no fix waiting: only the data from the last fix on can still be used
+            keep_from = self._last_fix[0] if self._last_fix is not None else self._t[-1]
+            cut = max(0, min(int(np.searchsorted(self._t, keep_from)) - 3, len(self._t) - 1000))
+            del self._t[:cut], self._v[:cut]
+        return new
+
+    #: gyro samples kept when no camera fix is pending (a bound on memory without fixes)
+    MAX_BUFFER = 200_000
 
     def add_camera(self, stamp: float, q_gcrs_vf, covariance) -> int:
         """Append one camera fix; returns the number of new pairs."""

@@ -156,6 +156,9 @@ def main(args=None):
         print(f"[{NODE_NAME}] error: {exc}", file=sys.stderr)
         rclpy.try_shutdown()
         return 2
+    except KeyboardInterrupt:                          # Ctrl-C while starting up
+        rclpy.try_shutdown()
+        return 0
     try:
         rclpy.spin(node)
     except (KeyboardInterrupt, rclpy.executors.ExternalShutdownException):

@@ -11,7 +11,8 @@ from typing import Any, Callable, Sequence
 import numpy as np
 from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
-from geometry_msgs.msg import Quaternion, QuaternionStamped, Vector3, Vector3Stamped
+from geometry_msgs.msg import (PoseWithCovarianceStamped, Quaternion, QuaternionStamped, Vector3,
+                               Vector3Stamped)
 from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
 from rclpy.parameter import Parameter
 from rclpy.qos import (DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy)
@@ -31,6 +32,42 @@ def stream_qos(depth: int = 500) -> QoSProfile:
 
 DIAGNOSTICS_QOS = QoSProfile(reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.VOLATILE,
                              history=HistoryPolicy.KEEP_LAST, depth=10)
+
+
+# --- camera and calibration messages ----------------------------------------------------
+UNKNOWN_POSITION_VARIANCE = 1e9
+
+
+def camera_qos(depth: int) -> QoSProfile:
+    """Reliable, volatile, keep-last: for rare, important messages (camera fixes)."""
+    return QoSProfile(reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.VOLATILE,
+                      history=HistoryPolicy.KEEP_LAST, depth=int(depth))
+
+
+def latched_qos() -> QoSProfile:
+    """Reliable, transient-local, depth 1: the latest value reaches late subscribers."""
+    return QoSProfile(reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL,
+                      history=HistoryPolicy.KEEP_LAST, depth=1)
+
+
+def pose_with_covariance(stamp, frame_id: str, q_wxyz, rotation_covariance) -> PoseWithCovarianceStamped:
+    """Attitude-only PoseWithCovarianceStamped: position 0 with :data:`UNKNOWN_POSITION_VARIANCE`
+    on its diagonal, rotation block (rows/cols 3..5) = ``rotation_covariance`` (3×3, rad²)."""
+    m = PoseWithCovarianceStamped()
+    m.header.stamp = stamp
+    m.header.frame_id = frame_id
+    m.pose.pose.orientation = quaternion_msg(q_wxyz)
+    cov = np.zeros((6, 6))
+    cov[0, 0] = cov[1, 1] = cov[2, 2] = UNKNOWN_POSITION_VARIANCE
+    P = np.asarray(rotation_covariance, dtype=float).reshape(3, 3)
+    cov[3:, 3:] = 0.5 * (P + P.T)
+    m.pose.covariance = [float(c) for c in cov.reshape(36)]
+    return m
+
+
+def rotation_block(msg: PoseWithCovarianceStamped) -> np.ndarray:
+    """The 3×3 rotation block (rows/cols 3..5) of a PoseWithCovariance covariance."""
+    return np.asarray(msg.pose.covariance, dtype=float).reshape(6, 6)[3:, 3:].copy()
 
 
 # --- time ----------------------------------------------------------------------------

@@ -1,0 +1,348 @@
+"""calibrator_node: boresight β of a star camera (VF) relative to the IMU (MF) from attitude increments (004).
+
+A thin wrapper around :class:`~strapdown_ros.calibrator.BoresightCalibrator` (the same
+object ``calibrate_bag`` uses offline, so live and offline answers agree).
+
+Subscribes:
+
+* ``imu/delta_theta``  geometry_msgs/Vector3Stamped, rad, stamp = end of interval (stream QoS).
+* ``star_camera/attitude_with_covariance``  geometry_msgs/PoseWithCovarianceStamped (when
+  ``use_camera_covariance``: P_avu = the rotation block, rows/cols 3..5, VF axes, rad²), or
+  ``star_camera/attitude``  geometry_msgs/QuaternionStamped (otherwise: P_avu =
+  diag(σ_xy², σ_xy², σ_z²) from ``camera_sigma_xy``/``camera_sigma_z``).  Both RELIABLE,
+  VOLATILE, KEEP_LAST(``qos_depth``): fixes are rare and each one matters.
+
+Publishes, only while the boresight is observable and the solver converged:
+
+* ``calibration/boresight``  geometry_msgs/PoseWithCovarianceStamped, RELIABLE +
+  TRANSIENT_LOCAL, depth 1 (a late subscriber gets the latest estimate).  frame_id =
+  ``frame_id`` (MF); orientation = q_MF_VF = C_MF^VF (VF coordinates → MF coordinates: the
+  orientation of the camera frame in the IMU frame, the ROS meaning of a pose); the rotation
+  block of the covariance is P^clb = D2 P_β D2ᵀ (MF axes, rad², 004 eq. 8); position is not
+  estimated: 1e9 m² on its diagonal (as ``star_camera_sim_node``).  Stamp = the end stamp
+  t_{E,n} of the newest increment pair.
+* ``calibration/boresight_angles``  geometry_msgs/Vector3Stamped, same QoS and frame: β =
+  (ψ, ϑ, γ) in rad in x, y, z (004 eq. 1, :func:`~strapdown_ros.rotation.ypr_to_dcm`).
+* ``calibration/imu_attitude_from_camera``  geometry_msgs/PoseWithCovarianceStamped, camera
+  QoS, one per accepted camera fix once a valid boresight exists (fixes that arrive before
+  it wait, the latest ``qos_depth`` of them): q_GCRS_MF = q_GCRS_VF ⊗ q_MF_VFᵀ with P^mfa =
+  C P_avu Cᵀ + D2 P_β D2ᵀ (004 §5 eq. 8, MF axes), frame_id = ``reference_frame_id``,
+  stamp = the fix's stamp.
+* ``/diagnostics``  every ``diagnostics_period``: the frames (``camera_frame_id`` in
+  ``frame_id``: the pose message has no child-frame field, and no tf is broadcast), pairs,
+  observability (level WARN and the solver's reason when not observable), residual RMS,
+  iterations, χ²/dof, β and its σ, the processing time of the last solve (perf_counter, ms;
+  not used for timing), and the input counters.
+
+When the boresight is not observable nothing is published on the calibration topics; the
+reason (which VF rotation axis, and why: one rotation axis, static motion, too few pairs) is
+logged when it changes and reported on ``/diagnostics``.  (Once observable, more pairs only
+add information; a later invalid solve — possible after a runtime change of ``weighted`` or with a
+``max_pairs`` window — publishes nothing and leaves the last valid estimate latched.)
+
+Input validation (as ``sins_node``): NaN/Inf, out-of-order and duplicate stamps are dropped
+and counted on both inputs; a gyro gap (missing increments: their rotation is lost) is
+counted, reported as ERROR, and every increment pair that spans it is discarded.  A camera
+quaternion that is not unit is normalised and counted; a zero one is dropped.  A camera
+covariance whose rotation block is all zero (the ROS "unknown") is replaced by the
+``camera_sigma_*`` diagonal and counted; one that is not symmetric positive semi-definite
+is dropped.  Stamps are handled in integer nanoseconds relative to the first stamp seen on
+any input; timing comes only from header stamps.
+
+Only ``weighted`` may change at runtime (the estimate is recomputed at once); every other
+parameter is fixed after start-up.
+"""
+from __future__ import annotations
+
+import math
+import sys
+import time
+from collections import deque
+
+import numpy as np
+import rclpy
+import rclpy.executors
+from diagnostic_msgs.msg import DiagnosticArray
+from geometry_msgs.msg import PoseWithCovarianceStamped, QuaternionStamped, Vector3Stamped
+from rclpy.exceptions import ParameterException
+from rclpy.node import Node
+
+from ..boresight import imu_attitude_from_camera
+from ..calibrator import BoresightCalibrator
+from ..config import CALIBRATOR_PARAMS, sigmas_from
+from . import ros_io
+from .sins_node import StreamCheck
+from .ros_io import camera_qos, latched_qos, pose_with_covariance, rotation_block
+
+NODE_NAME = "calibrator_node"
+ARCSEC = math.pi / 180.0 / 3600.0
+LOG_THROTTLE_S = 30.0          # a not-observable reason that keeps its wording is repeated at most this often
+
+
+class CalibratorNode(Node):
+    def __init__(self, **kwargs):
+        super().__init__(NODE_NAME, **kwargs)
+        self.p = ros_io.declare_validated(self, CALIBRATOR_PARAMS, on_change=self._on_change)
+        p = self.p
+        self.gyro_period = 1.0 / float(p["gyro_rate"])
+        self.cal = BoresightCalibrator(
+            gyro=sigmas_from(p, "gyro"), covariance_model=p["covariance_model"], weighted=bool(p["weighted"]),
+            initial_boresight=np.asarray(p["initial_boresight"], dtype=float),
+            min_rotation=math.radians(float(p["min_rotation_deg"])), max_sigma=float(p["max_sigma"]),
+            max_pairs=int(p["max_pairs"]))
+        sxy, sz = float(p["camera_sigma_xy"]), float(p["camera_sigma_z"])
+        self.default_p_avu = np.diag([sxy ** 2, sxy ** 2, sz ** 2])
+        self.gyro_check = StreamCheck(self.gyro_period)
+        self.camera_check = StreamCheck(math.inf)      # exposures need not be periodic: no gap test
+        self.camera_counts = {"dropped_zero_quaternion": 0, "normalised": 0, "dropped_bad_covariance": 0,
+                              "covariance_substituted": 0, "frame_mismatch": 0}
+        self.origin_ns: int | None = None              # stamps are handled relative to the first one
+        self.gaps: deque = deque(maxlen=1000)          # (start, end) relative seconds of gyro gaps
+        self.pairs_discarded_gap = 0
+        self.solves = 0
+        self.solve_ms = float("nan")
+        self.published = {"boresight": 0, "imu_attitude_from_camera": 0}
+        self.valid = None                              # the latest observable, converged solution
+        self.valid_stamp_ns: int | None = None
+        self.pending_fixes: deque = deque(maxlen=int(p["qos_depth"]))   # (stamp_ns, q, P) awaiting a solution
+        self._last_reason: str | None = None
+        self._last_reason_log = -math.inf
+        self.frame_id = p["frame_id"]
+        self.ref_frame = p["reference_frame_id"]
+        self.use_cov = bool(p["use_camera_covariance"])
+
+        self.pub_boresight = self.create_publisher(PoseWithCovarianceStamped, "calibration/boresight", latched_qos())
+        self.pub_angles = self.create_publisher(Vector3Stamped, "calibration/boresight_angles", latched_qos())
+        self.pub_imu_att = self.create_publisher(PoseWithCovarianceStamped, "calibration/imu_attitude_from_camera",
+                                                 camera_qos(int(p["qos_depth"])))
+        self.pub_diag = self.create_publisher(DiagnosticArray, "/diagnostics", ros_io.DIAGNOSTICS_QOS)
+        self.create_subscription(Vector3Stamped, "imu/delta_theta", self._on_gyro,
+                                 ros_io.stream_qos(int(p["qos_depth"])))
+        if self.use_cov:
+            self.create_subscription(PoseWithCovarianceStamped, "star_camera/attitude_with_covariance",
+                                     self._on_camera_cov, camera_qos(int(p["qos_depth"])))
+        else:
+            self.create_subscription(QuaternionStamped, "star_camera/attitude", self._on_camera_plain,
+                                     camera_qos(int(p["qos_depth"])))
+        self.create_timer(float(p["diagnostics_period"]), self.publish_diagnostics)
+        camera_topic = "star_camera/attitude_with_covariance" if self.use_cov else "star_camera/attitude"
+        self.get_logger().info(
+            f"started: camera input {camera_topic}, weighted={p['weighted']}, covariance_model={p['covariance_model']}, "
+            f"min_rotation {p['min_rotation_deg']:g}°, max_sigma {p['max_sigma']:g} rad, max_pairs {p['max_pairs']}")
+
+    # --- parameters ---------------------------------------------------------------------
+    def _on_change(self, new: dict) -> str | None:
+        fixed = sorted(set(new) - {"weighted"})
+        if fixed:
+            return "only weighted can change at runtime; restart the node to change " + ", ".join(fixed)
+        w = bool(new["weighted"])
+        if w != self.cal.weighted:
+            self.cal.weighted = w
+            self.p["weighted"] = w
+            self.get_logger().info(f"weighted switched to {w}; re-solving")
+            # the warm start of the previous weighting is as good a start as any: solve() keeps it
+            if len(self.cal.pairs) >= 2:
+                self._solve()
+        return None
+
+    # --- input ------------------------------------------------------------------------------
+    def _rel(self, stamp_ns: int) -> float:
+        if self.origin_ns is None:
+            self.origin_ns = stamp_ns
+        return (stamp_ns - self.origin_ns) * 1e-9
+
+    def _abs_ns(self, t_rel: float) -> int:
+        return self.origin_ns + int(round(t_rel * 1e9))
+
+    def _on_gyro(self, msg: Vector3Stamped):
+        ns = ros_io.stamp_to_ns(msg.header.stamp)
+        v = (msg.vector.x, msg.vector.y, msg.vector.z)
+        g = self.gyro_check
+        prev_ns, gaps_before = g.last_ns, g.gaps
+        if not g.accept(ns, v):
+            return
+        t = self._rel(ns)
+        if g.gaps > gaps_before:
+            # the rotation of the missing increments is lost: no pair may span (prev, t]
+            self.gaps.append(((prev_ns - self.origin_ns) * 1e-9, t))
+            self.get_logger().error(
+                f"gyro gap: {int(round((ns - prev_ns) / (self.gyro_period * 1e9))) - 1} increment(s) missing "
+                f"before stamp {ns * 1e-9:.6f} s; pairs spanning it are discarded", throttle_duration_sec=5.0)
+        self._after_input(self.cal.add_gyro([t], [v]))
+
+    def _on_camera_cov(self, msg: PoseWithCovarianceStamped):
+        self._on_camera(msg.header, msg.pose.pose.orientation, rotation_block(msg))
+
+    def _on_camera_plain(self, msg: QuaternionStamped):
+        self._on_camera(msg.header, msg.quaternion, self.default_p_avu)
+
+    def _on_camera(self, header, q_msg, P):
+        ns = ros_io.stamp_to_ns(header.stamp)
+        q = ros_io.quaternion_from_msg(q_msg)
+        c = self.camera_check
+        norm = float(np.linalg.norm(q)) if np.all(np.isfinite(q)) else float("nan")
+        if math.isfinite(norm) and norm < 1e-6:
+            c.received += 1
+            self.camera_counts["dropped_zero_quaternion"] += 1
+            self.get_logger().warn("camera fix with a zero quaternion dropped", throttle_duration_sec=10.0)
+            return
+        if np.all(np.isfinite(P)) and self.use_cov:
+            P = 0.5 * (P + P.T)
+            if not np.any(P):
+                P = self.default_p_avu            # all-zero covariance: "unknown" in ROS
+                self.camera_counts["covariance_substituted"] += 1
+            elif np.min(np.linalg.eigvalsh(P)) < -1e-12 * max(np.trace(P), 1e-300):
+                c.received += 1
+                self.camera_counts["dropped_bad_covariance"] += 1
+                self.get_logger().warn("camera fix with a covariance that is not positive semi-definite dropped",
+                                       throttle_duration_sec=10.0)
+                return
+        if not c.accept(ns, list(q) + list(np.asarray(P).ravel())):
+            return
+        if abs(norm - 1.0) > 1e-9:
+            q = q / norm
+            self.camera_counts["normalised"] += 1
+        if header.frame_id and header.frame_id != self.ref_frame:
+            self.camera_counts["frame_mismatch"] += 1
+            self.get_logger().warn(f"camera attitude in frame {header.frame_id!r}, expected {self.ref_frame!r}",
+                                   throttle_duration_sec=30.0)
+        self.pending_fixes.append((ns, q, np.asarray(P, dtype=float)))
+        self._after_input(self.cal.add_camera(self._rel(ns), q, P))
+        self._publish_imu_attitudes()
+
+    # --- estimate ------------------------------------------------------------------------------
+    def _after_input(self, new_pairs: int):
+        if new_pairs <= 0:
+            return
+        if self.gaps:
+            self._discard_pairs_over_gaps(new_pairs)
+        self._solve()
+
+    def _discard_pairs_over_gaps(self, new_pairs: int):
+        pairs = self.cal.pairs              # public list of the core; the newest pairs are at its end
+        start = max(0, len(pairs) - new_pairs)          # (max_pairs may already have trimmed the list)
+        h = 1.5 * self.gyro_period      # the in-interval polynomial also reads the neighbouring increments
+        keep_tail = []
+        for pair in pairs[start:]:
+            if any(pair.t_start - h < b and a < pair.t_end + h for a, b in self.gaps):
+                self.pairs_discarded_gap += 1
+            else:
+                keep_tail.append(pair)
+        del pairs[start:]
+        pairs.extend(keep_tail)
+
+    def _solve(self):
+        t0 = time.perf_counter()
+        sol = self.cal.solve()
+        self.solve_ms = (time.perf_counter() - t0) * 1e3
+        self.solves += 1
+        if sol.observable and sol.converged:
+            self.valid = sol
+            self.valid_stamp_ns = self._abs_ns(self.cal.pairs[-1].t_end)
+            self._publish_solution()
+            self._publish_imu_attitudes()
+            if self._last_reason is not None or self.published["boresight"] == 1:
+                self.get_logger().info(f"boresight observable from {sol.pairs} pairs: publishing β = "
+                                       f"{np.round(np.degrees(sol.beta), 5).tolist()}°")
+            self._last_reason = None
+        else:
+            # the published estimate stays what it was (transient-local); no new output
+            self.valid = None
+            self._log_reason(sol.message)
+
+    def _log_reason(self, message: str):
+        key = message.split(":", 1)[-1].strip()        # the "why" part; the axis numbers may jitter
+        now = time.monotonic()
+        if key != self._last_reason or now - self._last_reason_log >= LOG_THROTTLE_S:
+            self.get_logger().warn(f"boresight not published: {message}")
+            self._last_reason = key
+            self._last_reason_log = now
+
+    # --- output ------------------------------------------------------------------------------
+    def _publish_solution(self):
+        sol = self.valid
+        st = ros_io.ns_to_stamp(self.valid_stamp_ns)
+        self.pub_boresight.publish(pose_with_covariance(st, self.frame_id, sol.q_mf_vf, sol.rotation_covariance_mf))
+        self.pub_angles.publish(ros_io.vector3_stamped(st, self.frame_id, sol.beta))
+        self.published["boresight"] += 1
+
+    def _publish_imu_attitudes(self):
+        if self.valid is None:
+            return
+        while self.pending_fixes:
+            ns, q, P = self.pending_fixes.popleft()
+            q_mf, P_mfa = imu_attitude_from_camera(q, P, self.valid)
+            self.pub_imu_att.publish(pose_with_covariance(ros_io.ns_to_stamp(ns), self.ref_frame, q_mf, P_mfa))
+            self.published["imu_attitude_from_camera"] += 1
+
+    def publish_diagnostics(self):
+        g, c = self.gyro_check, self.camera_check
+        sol = self.cal.solution
+        values = {"pairs": len(self.cal.pairs), "solves": self.solves}
+        if sol is None:
+            level, message = ros_io.WARN, "waiting for increment pairs (need gyro data and two camera fixes)"
+            values.update({"observable": False, "message": message})
+        else:
+            message = sol.message
+            ok = sol.observable and sol.converged
+            level = ros_io.OK if ok else ros_io.WARN
+            values.update({"observable": sol.observable, "message": sol.message,
+                           "unobservable_axes": "; ".join(sol.unobservable_axes) if sol.unobservable_axes else "none",
+                           "residual_rms_rad": sol.residual_rms, "iterations": sol.iterations,
+                           "converged": sol.converged, "chi2_per_dof": sol.chi2_per_dof})
+            if sol.observable and sol.beta is not None:
+                b = np.degrees(sol.beta)
+                s = np.sqrt(np.maximum(np.diag(sol.covariance_beta), 0.0)) / ARCSEC
+                values.update({"beta_yaw_deg": float(b[0]), "beta_pitch_deg": float(b[1]),
+                               "beta_roll_deg": float(b[2]), "beta_yaw_sigma_arcsec": float(s[0]),
+                               "beta_pitch_sigma_arcsec": float(s[1]), "beta_roll_sigma_arcsec": float(s[2])})
+        values.update({"weighted": self.cal.weighted, "covariance_model": self.cal.covariance_model,
+                       "boresight_of": f"{self.p['camera_frame_id']} in {self.frame_id}",
+                       "last_solve_ms": self.solve_ms,
+                       "boresight_published": self.published["boresight"],
+                       "imu_attitude_from_camera_published": self.published["imu_attitude_from_camera"],
+                       "pairs_discarded_gyro_gap": self.pairs_discarded_gap,
+                       **g.as_dict("gyro"),
+                       "camera_received": c.received, "camera_accepted": c.accepted,
+                       "camera_dropped_nan": c.nan, "camera_dropped_out_of_order": c.out_of_order,
+                       "camera_dropped_duplicate": c.duplicate,
+                       **{f"camera_{k}": v for k, v in self.camera_counts.items()}})
+        g_drop = g.nan + g.out_of_order + g.duplicate
+        c_drop = c.nan + c.out_of_order + c.duplicate + self.camera_counts["dropped_zero_quaternion"] \
+            + self.camera_counts["dropped_bad_covariance"]
+        if level == ros_io.OK and (g_drop or c_drop):
+            level = ros_io.WARN
+            message = f"{message}; dropped {g_drop} gyro and {c_drop} camera messages"
+        if g.missing:
+            level = ros_io.ERROR
+            message = (f"{message}; {g.missing} gyro increments missing in {g.gaps} gaps: "
+                       f"{self.pairs_discarded_gap} pair(s) spanning them discarded")
+        stamp_ns = max(g.last_ns or 0, c.last_ns or 0)
+        self.pub_diag.publish(ros_io.diagnostic_array(ros_io.ns_to_stamp(stamp_ns),
+                                                      f"{self.get_fully_qualified_name()}: boresight",
+                                                      "calibrator", level, message, values))
+
+
+def main(args=None):
+    rclpy.init(args=args)
+    try:
+        node = CalibratorNode()
+    except (ValueError, ParameterException) as exc:   # invalid parameters: clear message, exit 2
+        print(f"[{NODE_NAME}] error: {exc}", file=sys.stderr)
+        rclpy.try_shutdown()
+        return 2
+    except KeyboardInterrupt:                          # Ctrl-C while starting up
+        rclpy.try_shutdown()
+        return 0
+    try:
+        rclpy.spin(node)
+    except (KeyboardInterrupt, rclpy.executors.ExternalShutdownException):
+        pass
+    finally:
+        node.destroy_node()
+        rclpy.try_shutdown()
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,168 @@
+"""star_camera_sim_node: a star camera (astro-visual unit, 004 §3) on the same exact motion profile.
+
+The profile parameters and the time origin (``profile``…, ``start_time``, ``time_scale``,
+``duration``) mean exactly what they mean for ``imu_sim_node``, so one parameter file gives
+both simulators the same truth: the camera frame VF is the IMU frame MF turned by the
+boresight β = (ψ, ϑ, γ), ``q_GCRS_VF = q_GCRS_MF ⊗ q_MF_VF`` with
+``C_MF^VF = R_z(−ψ) R_x(ϑ) R_y(γ)`` (:class:`~strapdown_ros.star_camera.StarCameraModel`).
+
+Publishes, one message per exposure (stamp = ``start_time`` + exposure stamp; exposures every
+``camera_interval`` s from ``camera_first_exposure``, 0 meaning one interval after t = 0):
+
+* ``star_camera/attitude``  geometry_msgs/QuaternionStamped: measured q_GCRS_VF,
+  frame_id = ``reference_frame_id``.
+* ``star_camera/attitude_with_covariance``  geometry_msgs/PoseWithCovarianceStamped: the same
+  orientation, frame_id = ``reference_frame_id``, position 0.  Covariance (6×6, row-major):
+  the rotation block (rows/columns 3..5, about x, y, z) is the covariance of the measurement
+  error θ of 004 §3.3 (``S_GCRS^VF ≈ S̆_GCRS^VF (I + [θ×])``, VF axes, rad²) =
+  diag(σ_xy², σ_xy², σ_z²).  **Position is not estimated**: following the robot_localization
+  convention for unmeasured quantities, its diagonal carries a very large variance
+  (:data:`UNKNOWN_POSITION_VARIANCE` = 1e9 m²) and the cross terms are 0; a consumer must not
+  read the position as a measurement.
+* ``star_camera/truth/boresight``  geometry_msgs/QuaternionStamped, published once at
+  start-up with TRANSIENT_LOCAL durability (depth 1, late subscribers get it): the true
+  q_MF_VF (VF coordinates → MF coordinates, i.e. the orientation of the camera frame in the
+  IMU frame), stamp = ``start_time``.  The parameters of this node name no IMU frame, so the
+  header carries ``camera_frame_id``, the frame the quaternion describes; it is evaluation
+  truth, not a transform for tf.
+* ``/diagnostics``  exposure count, simulated time, real-time factor.
+
+QoS of the camera topics: RELIABLE, VOLATILE, KEEP_LAST(``qos_depth``).  Camera fixes are rare
+(one every ``camera_interval`` s) and each is worth a whole calibration pair, so they must not
+be lost the way a best-effort stream may lose samples; reliability costs nothing at this rate.
+
+A wall-clock timer paces the output exactly like ``imu_sim_node`` (``time_scale`` simulated
+seconds per wall second; every fix whose stamp is ≤ the simulated time is published; the
+node stops at ``duration`` or the end of the profile); nothing downstream depends on the
+wall clock.
+"""
+from __future__ import annotations
+
+import sys
+import time
+
+import numpy as np
+import rclpy
+import rclpy.executors
+from diagnostic_msgs.msg import DiagnosticArray
+from geometry_msgs.msg import PoseWithCovarianceStamped, QuaternionStamped
+from rclpy.exceptions import ParameterException
+from rclpy.node import Node
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+
+from ..config import STAR_CAMERA_PARAMS
+from ..profiles import profile_from_config
+from ..star_camera import StarCameraModel
+from . import ros_io
+from .ros_io import camera_qos, latched_qos, pose_with_covariance
+
+NODE_NAME = "star_camera_sim_node"
+
+#: variance (m²) on the position diagonal of attitude-only poses: "not measured"
+class StarCameraSimNode(Node):
+    def __init__(self, **kwargs):
+        super().__init__(NODE_NAME, **kwargs)
+        self.p = ros_io.declare_validated(self, STAR_CAMERA_PARAMS, on_change=self._reject_changes)
+        p = self.p
+        self.profile = profile_from_config(p)
+        sxy, sz = float(p["camera_sigma_xy"]), float(p["camera_sigma_z"])
+        first = float(p["camera_first_exposure"])
+        self.model = StarCameraModel(
+            boresight=np.asarray(p["boresight"], dtype=float), interval=float(p["camera_interval"]),
+            sigma=np.array([sxy, sxy, sz]), first_exposure=None if first == 0.0 else first,
+            time_offset=float(p["camera_time_offset"]), exposure_time=float(p["camera_exposure_time"]),
+            stamp_at_exposure_start=bool(p["camera_stamp_at_exposure_start"]), seed=int(p["seed"]))
+        dur = float(p["duration"])
+        self.end_time = dur if dur > 0 else self.profile.duration
+        self.start_ns = int(round(float(p["start_time"]) * 1e9))
+        self.ref_frame = p["reference_frame_id"]
+        self.camera_frame = p["camera_frame_id"]
+        qos = camera_qos(int(p["qos_depth"]))
+        self.pub_att = self.create_publisher(QuaternionStamped, "star_camera/attitude", qos)
+        self.pub_cov = self.create_publisher(PoseWithCovarianceStamped, "star_camera/attitude_with_covariance", qos)
+        self.pub_truth = self.create_publisher(QuaternionStamped, "star_camera/truth/boresight", latched_qos())
+        self.pub_diag = self.create_publisher(DiagnosticArray, "/diagnostics", ros_io.DIAGNOSTICS_QOS)
+        self.pub_truth.publish(ros_io.quaternion_stamped(ros_io.ns_to_stamp(self.start_ns), self.camera_frame,
+                                                         self.model.q_mf_vf))
+        self.published = 0
+        self.last_stamp: float | None = None
+        self._wall_start = None
+        self.sim_time = 0.0
+        self.finished = False
+        self.timer = self.create_timer(float(p["publish_period"]), self._tick)
+        self.diag_timer = self.create_timer(float(p["diagnostics_period"]), self.publish_diagnostics)
+        self.get_logger().info(
+            f"started: profile={p['profile']}, exposure every {p['camera_interval']:g} s from "
+            f"{self.model.epoch(0):g} s, σ = ({sxy:.3g}, {sxy:.3g}, {sz:.3g}) rad, boresight β = "
+            f"{np.round(np.degrees(self.model.boresight), 6).tolist()}°, time_scale {p['time_scale']}, "
+            f"duration {self.end_time:g} s")
+
+    def _reject_changes(self, new: dict) -> str | None:
+        return ("star_camera_sim_node parameters are fixed after start-up (they define the simulated truth); "
+                "restart the node to change " + ", ".join(sorted(new)))
+
+    # ---------------------------------------------------------------------------------
+    def _tick(self):
+        if self.finished:
+            return
+        now = time.monotonic()
+        if self._wall_start is None:
+            self._wall_start = now
+        target = min((now - self._wall_start) * float(self.p["time_scale"]), self.end_time)
+        self._advance_to(target)
+        if target >= self.end_time:
+            self.finished = True
+            self.publish_diagnostics()
+            self.get_logger().info(f"finished: published {self.published} fixes up to t = {self.sim_time:.3f} s")
+
+    def _advance_to(self, target: float):
+        n = 0
+        while self.model.epoch(self.model.count + n) <= target + 1e-9:
+            n += 1
+        self.sim_time = target
+        if n == 0:
+            return
+        for fix in self.model.fixes(self.profile, n):
+            st = ros_io.ns_to_stamp(self.start_ns + int(round(fix.stamp * 1e9)))
+            self.pub_att.publish(ros_io.quaternion_stamped(st, self.ref_frame, fix.attitude))
+            self.pub_cov.publish(pose_with_covariance(st, self.ref_frame, fix.attitude, fix.covariance))
+            self.published += 1
+            self.last_stamp = fix.stamp
+
+    def publish_diagnostics(self):
+        wall = (time.monotonic() - self._wall_start) if self._wall_start else 0.0
+        st = ros_io.ns_to_stamp(self.start_ns + int(round(self.sim_time * 1e9)))
+        values = {"simulated_time_s": self.sim_time,
+                  "real_time_factor": self.sim_time / wall if wall > 0 else 0.0,
+                  "fixes_published": self.published, "camera_interval_s": self.p["camera_interval"],
+                  "next_exposure_s": self.model.epoch(self.model.count),
+                  "last_exposure_s": self.last_stamp if self.last_stamp is not None else "none",
+                  "finished": self.finished, "profile": self.p["profile"]}
+        msg = "finished" if self.finished else "running"
+        self.pub_diag.publish(ros_io.diagnostic_array(st, f"{self.get_fully_qualified_name()}: star camera",
+                                                      "star_camera_sim", ros_io.OK, msg, values))
+
+
+def main(args=None):
+    rclpy.init(args=args)
+    try:
+        node = StarCameraSimNode()
+    except (ValueError, ParameterException) as exc:   # invalid parameters: clear message, exit 2
+        print(f"[{NODE_NAME}] error: {exc}", file=sys.stderr)
+        rclpy.try_shutdown()
+        return 2
+    except KeyboardInterrupt:                          # Ctrl-C while starting up
+        rclpy.try_shutdown()
+        return 0
+    try:
+        rclpy.spin(node)
+    except (KeyboardInterrupt, rclpy.executors.ExternalShutdownException):
+        pass
+    finally:
+        node.destroy_node()
+        rclpy.try_shutdown()
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
