@@ -276,27 +276,24 @@ def solve_boresight(pairs, beta0=(0.0, 0.0, 0.0), weighted: bool = True, init: s
                           - _residuals(ypr_to_dcm(*(b - 0.5 * d)), A_imu, A_cam)) / dx
         return H
 
+    def linearise(b):
+        """Residuals, Jacobian, weights and the normal matrix Hᵀ W H at β = b."""
+        C = ypr_to_dcm(*b)
+        H = jacobian(b)
+        W = weights(C)
+        HtW = np.einsum("nji,njk->nik", H, W)
+        return C, _residuals(C, A_imu, A_cam), H, W, HtW, np.einsum("nij,njk->ik", HtW, H)
+
     converged = False
     it = 0
     for it in range(1, max_iterations + 1):
-        C = ypr_to_dcm(*beta)
-        f = _residuals(C, A_imu, A_cam)
-        H = jacobian(beta)
-        W = weights(C)
-        HtW = np.einsum("nji,njk->nik", H, W)
-        N = np.einsum("nij,njk->ik", HtW, H)
-        g = np.einsum("nij,nj->i", HtW, f)
-        step = -np.linalg.solve(N, g)
+        _, f, _, _, HtW, N = linearise(beta)
+        step = -np.linalg.solve(N, np.einsum("nij,nj->i", HtW, f))
         beta = beta + step
         if np.linalg.norm(step) <= tolerance:
             converged = True
             break
-    C = ypr_to_dcm(*beta)
-    f = _residuals(C, A_imu, A_cam)
-    H = jacobian(beta)
-    W = weights(C)
-    HtW = np.einsum("nji,njk->nik", H, W)
-    N = np.einsum("nij,njk->ik", HtW, H)
+    C, f, H, W, HtW, N = linearise(beta)
     # 004 §4.3: residual block P_S from the residuals, the same for every pair
     P_S = f.T @ f / max(n - 1, 1)
     Hu = H.reshape(-1, 3)

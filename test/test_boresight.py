@@ -5,10 +5,10 @@ import pytest
 from strapdown_ros.boresight import (IncrementPair, camera_increment, check_observability, gyro_increment,
                                      imu_attitude_from_camera, r_partial, solve_boresight)
 from strapdown_ros.calibrator import BoresightCalibrator
-from strapdown_ros.profiles import PiecewiseRateProfile, Segment, bench_profile
+from strapdown_ros.profiles import bench_profile
 from strapdown_ros.rotation import (quat_angle_between, quat_conjugate, quat_error_rotvec, quat_multiply,
                                     quat_normalize, quat_to_dcm, rotvec_to_quat, ypr_to_dcm, dcm_to_quat)
-from strapdown_ros.sensors import ARCSEC, IntegratingSensor, NAVIGATION_GRADE_GYRO, SensorErrorModel, SensorSigmas
+from strapdown_ros.sensors import ARCSEC, IntegratingSensor, NAVIGATION_GRADE_GYRO, SensorSigmas
 from strapdown_ros.star_camera import StarCameraModel
 
 BETA = np.radians([40.0, -25.0, 120.0])

@@ -106,7 +106,7 @@ def test_ypr_error_maps_match_004_d1_d2_by_finite_differences():
         W = C.T @ dC                                      # = [θ×] per unit δβ_k
         np.testing.assert_allclose([W[2, 1], W[0, 2], W[1, 0]], D1[:, k], atol=1e-8)
     # the printed D1 of 004 §5
-    sy, cy, sp, cp, sg, cg = np.sin(0.7), np.cos(0.7), np.sin(-0.4), np.cos(-0.4), np.sin(2.1), np.cos(2.1)
+    sp, cp, sg, cg = np.sin(-0.4), np.cos(-0.4), np.sin(2.1), np.cos(2.1)
     np.testing.assert_allclose(D1, [[sg * cp, cg, 0], [-sp, 0, 1], [-cg * cp, sg, 0]], atol=1e-15)
     np.testing.assert_allclose(D2, C @ D1, atol=1e-15)
 

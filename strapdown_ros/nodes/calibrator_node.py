@@ -60,11 +60,8 @@ import time
 from collections import deque
 
 import numpy as np
-import rclpy
-import rclpy.executors
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import PoseWithCovarianceStamped, QuaternionStamped, Vector3Stamped
-from rclpy.exceptions import ParameterException
 from rclpy.node import Node
 
 from ..boresight import imu_attitude_from_camera
@@ -324,24 +321,7 @@ class CalibratorNode(Node):
 
 
 def main(args=None):
-    rclpy.init(args=args)
-    try:
-        node = CalibratorNode()
-    except (ValueError, ParameterException) as exc:   # invalid parameters: clear message, exit 2
-        print(f"[{NODE_NAME}] error: {exc}", file=sys.stderr)
-        rclpy.try_shutdown()
-        return 2
-    except KeyboardInterrupt:                          # Ctrl-C while starting up
-        rclpy.try_shutdown()
-        return 0
-    try:
-        rclpy.spin(node)
-    except (KeyboardInterrupt, rclpy.executors.ExternalShutdownException):
-        pass
-    finally:
-        node.destroy_node()
-        rclpy.try_shutdown()
-    return 0
+    return ros_io.run_node(CalibratorNode, NODE_NAME, args)
 
 
 if __name__ == "__main__":

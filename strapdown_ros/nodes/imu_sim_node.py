@@ -20,11 +20,8 @@ import sys
 import time
 
 import numpy as np
-import rclpy
-import rclpy.executors
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import QuaternionStamped, Vector3Stamped
-from rclpy.exceptions import ParameterException
 from rclpy.node import Node
 from sensor_msgs.msg import Imu
 
@@ -149,24 +146,7 @@ class ImuSimNode(Node):
 
 
 def main(args=None):
-    rclpy.init(args=args)
-    try:
-        node = ImuSimNode()
-    except (ValueError, ParameterException) as exc:   # invalid parameters: clear message, exit 2
-        print(f"[{NODE_NAME}] error: {exc}", file=sys.stderr)
-        rclpy.try_shutdown()
-        return 2
-    except KeyboardInterrupt:                          # Ctrl-C while starting up
-        rclpy.try_shutdown()
-        return 0
-    try:
-        rclpy.spin(node)
-    except (KeyboardInterrupt, rclpy.executors.ExternalShutdownException):
-        pass
-    finally:
-        node.destroy_node()
-        rclpy.try_shutdown()
-    return 0
+    return ros_io.run_node(ImuSimNode, NODE_NAME, args)
 
 
 if __name__ == "__main__":

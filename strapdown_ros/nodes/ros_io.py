@@ -192,3 +192,34 @@ def _fmt(v) -> str:
 
 
 OK, WARN, ERROR = 0, 1, 2
+
+
+# --- process entry point -------------------------------------------------------------------
+def run_node(node_class, name: str, args=None) -> int:
+    """``main()`` of every node: init, construct (invalid parameters → message on stderr, exit 2),
+    spin until Ctrl-C or shutdown, clean up.  Returns the process exit status."""
+    import sys
+
+    import rclpy
+    import rclpy.executors
+    from rclpy.exceptions import ParameterException
+
+    rclpy.init(args=args)
+    try:
+        node = node_class()
+    except (ValueError, ParameterException) as exc:   # invalid parameters: clear message, exit 2
+        print(f"[{name}] error: {exc}", file=sys.stderr)
+        rclpy.try_shutdown()
+        return 2
+    except KeyboardInterrupt:                          # Ctrl-C while starting up
+        rclpy.try_shutdown()
+        return 0
+    try:
+        rclpy.spin(node)
+    except (KeyboardInterrupt, rclpy.executors.ExternalShutdownException):
+        pass
+    finally:
+        node.destroy_node()
+        rclpy.try_shutdown()
+    return 0
+

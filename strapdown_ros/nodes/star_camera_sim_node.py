@@ -42,13 +42,9 @@ import sys
 import time
 
 import numpy as np
-import rclpy
-import rclpy.executors
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import PoseWithCovarianceStamped, QuaternionStamped
-from rclpy.exceptions import ParameterException
 from rclpy.node import Node
-from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
 from ..config import STAR_CAMERA_PARAMS
 from ..profiles import profile_from_config
@@ -144,24 +140,7 @@ class StarCameraSimNode(Node):
 
 
 def main(args=None):
-    rclpy.init(args=args)
-    try:
-        node = StarCameraSimNode()
-    except (ValueError, ParameterException) as exc:   # invalid parameters: clear message, exit 2
-        print(f"[{NODE_NAME}] error: {exc}", file=sys.stderr)
-        rclpy.try_shutdown()
-        return 2
-    except KeyboardInterrupt:                          # Ctrl-C while starting up
-        rclpy.try_shutdown()
-        return 0
-    try:
-        rclpy.spin(node)
-    except (KeyboardInterrupt, rclpy.executors.ExternalShutdownException):
-        pass
-    finally:
-        node.destroy_node()
-        rclpy.try_shutdown()
-    return 0
+    return ros_io.run_node(StarCameraSimNode, NODE_NAME, args)
 
 
 if __name__ == "__main__":

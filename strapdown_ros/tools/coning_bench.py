@@ -21,7 +21,7 @@ import time
 
 import numpy as np
 
-from ..coning import ALGORITHMS, LITERATURE_DRIFT, SEED_ALGORITHMS, theory_drift
+from ..coning import ALGORITHMS, theory_drift
 from ..coning_analysis import cost_per_update, measure_case, order_sweep
 from ..profiles import ConingProfile
 from ..rotation import quat_to_dcm, rotvec_to_dcm

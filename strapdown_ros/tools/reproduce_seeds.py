@@ -89,7 +89,6 @@ def _c_errors_from_B(B, s0, c_true):
 
 def section_002(n_runs: int) -> dict:
     from ..integral_method import calibrate_from_measurements
-    from ..rotation import quat_multiply
     from ..tkachenko import TKACHENKO_C, estimate, simulate_000
 
     sigma = 1e-5                                           # rad, star tracker noise
