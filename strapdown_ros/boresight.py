@@ -56,8 +56,14 @@ def r_partial(rho: np.ndarray, drho: np.ndarray, x: np.ndarray) -> np.ndarray:
 
 
 def gyro_increment(stamps: np.ndarray, delta_theta: np.ndarray, t_start: float, t_end: float,
-                   gyro: SensorSigmas | None = None, covariance_model: str = "random_constant"):
+                   gyro: SensorSigmas | None = None, covariance_model: str = "random_constant",
+                   sensitivity: bool = False):
     """ΔS_imu (quaternion, MF(t_end) → MF(t_start)) and E_imu (3×3, MF axes at t_end).
+
+    With ``sensitivity=True`` (and ``gyro`` given) two more items are returned: G (3×12), the
+    sensitivity of the error ε_imu to the gyro constants x = [b (3), vec M (9, column-major)]
+    (MF axes at t_end), and the white part of E_imu (random walk only).  They let the
+    estimator treat the constants as common to all pairs (``weighting="correlated"``).
 
     ``stamps`` are the end times of the increments ``delta_theta`` (sorted).  Needs the
     increment whose interval contains ``t_end``; returns None when it has not arrived.
@@ -87,6 +93,8 @@ def gyro_increment(stamps: np.ndarray, delta_theta: np.ndarray, t_start: float, 
         chain = quat_cumprod(np.array([1.0, 0.0, 0.0, 0.0]), factors)
         dq = chain[-1]
     cov = np.zeros((3, 3))
+    G = np.zeros((3, 12))
+    white = np.zeros((3, 3))
     if gyro is not None:
         # eq. (2) over the whole IMU intervals k0..k1 from E = 0 (004: E(t_En) ≈ E(t_I,K−1)),
         # evaluated as a sum in the axes of MF(t_start): C_k = attitude after interval k
@@ -109,6 +117,14 @@ def gyro_increment(stamps: np.ndarray, delta_theta: np.ndarray, t_start: float, 
         Cend = C[-1]
         cov = Cend.T @ P @ Cend
         cov = 0.5 * (cov + cov.T)
+        if sensitivity:
+            # ε = C_endᵀ Σ_k C_k (M ρ_k + b T_k + w_k): linear in x = [b, vec M]
+            S = np.einsum("kij,k->ij", C, T)
+            r = np.einsum("mk,ij->mikj", rho, np.eye(3)).reshape(len(rho), 3, 9)
+            G = Cend.T @ np.hstack([S, np.einsum("kij,kjl->il", C, r)])
+            white = gyro.random_walk ** 2 * T.sum() * np.eye(3)
+    if sensitivity:
+        return quat_normalize(dq), cov, G, white
     return quat_normalize(dq), cov
 
 
@@ -127,6 +143,12 @@ class IncrementPair:
     dq_cam: np.ndarray          # ΔS_avu
     cov_imu: np.ndarray         # E_imu, MF axes
     cov_cam: np.ndarray         # E_avu, VF axes
+    # optional, for weighting="correlated": gyro constants' sensitivity G (3×12) and the white
+    # part of E_imu, and the covariances of the two camera fixes (adjacent pairs share a fix)
+    imu_sensitivity: np.ndarray | None = None
+    cov_imu_white: np.ndarray | None = None
+    cov_fix_start: np.ndarray | None = None
+    cov_fix_end: np.ndarray | None = None
 
     @property
     def angle(self) -> float:
@@ -145,6 +167,7 @@ class BoresightSolution:
     covariance_beta_model: np.ndarray | None = None      # (Hᵀ W H)⁻¹ from E_imu, E_avu
     rotation_covariance_mf: np.ndarray | None = None     # P^clb = D2 P_β D2ᵀ (MF axes)
     weighted: bool = False
+    weighting: str = "unit"
     iterations: int = 0
     converged: bool = False
     residual_rms: float = float("nan")             # rad, RMS of the residual components
@@ -231,10 +254,40 @@ def check_observability(pairs, c_mf_vf: np.ndarray | None = None, weights: np.nd
     return rep
 
 
+WEIGHTINGS = ("unit", "pairwise", "correlated", "auto")
+#: "auto" uses the correlated (dense) solution up to this many pairs, pairwise weights beyond
+CORRELATED_MAX_PAIRS = 300
+
+
+def _correlated_covariance(C, pairs, A_cam, E_cam, gyro: SensorSigmas) -> np.ndarray:
+    """Covariance (3n×3n) of the stacked residuals f_n ≈ Cᵀε_imu,n − ε_avu,n.
+
+    * diagonal blocks: Cᵀ E_imu,white C + E_avu;
+    * adjacent pairs sharing a camera fix θ_n: cov(f_n, f_{n+1}) = −P_n R_{n+1}, since
+      ε_avu,n = θ_n − R_nᵀ θ_{n−1} (004 §3.3) and R_{n+1} = ΔS_avu,n+1;
+    * the gyro constants x = [b, vec M], common to all pairs: U P_x Uᵀ with U_n = Cᵀ G_n.
+    """
+    n = len(pairs)
+    Sig = np.zeros((3 * n, 3 * n))
+    U = np.zeros((3 * n, 12))
+    for k, p in enumerate(pairs):
+        sl = slice(3 * k, 3 * k + 3)
+        Sig[sl, sl] = C.T @ p.cov_imu_white @ C + E_cam[k]
+        U[sl] = C.T @ p.imu_sensitivity
+        if k + 1 < n and p.cov_fix_end is not None and abs(pairs[k + 1].t_start - p.t_end) < 1e-9:
+            cross = -p.cov_fix_end @ A_cam[k + 1]
+            Sig[sl, 3 * k + 3:3 * k + 6] = cross
+            Sig[3 * k + 3:3 * k + 6, sl] = cross.T
+    var_x = np.concatenate([np.full(3, gyro.bias_sigma ** 2), np.full(9, gyro.misalignment_sigma ** 2)])
+    var_x[3 + _DIAG9] = gyro.scale_sigma ** 2
+    return Sig + (U * var_x) @ U.T
+
+
 def solve_boresight(pairs, beta0=(0.0, 0.0, 0.0), weighted: bool = True, init: str = "axes",
                     max_iterations: int = 50, tolerance: float = 1e-9, dx: float = 1e-7,
                     max_sigma: float = 1e-3, min_rotation: float = np.radians(0.5),
-                    common_rotation_sigma: float = 0.0) -> BoresightSolution:
+                    common_rotation_sigma: float = 0.0, weighting: str | None = None,
+                    gyro: SensorSigmas | None = None) -> BoresightSolution:
     """Estimate β and its covariance from increment pairs (004 §4), or report why not.
 
     init: ``"axes"`` starts Gauss–Newton from the closed-form axis alignment (independent of
@@ -245,9 +298,26 @@ def solve_boresight(pairs, beta0=(0.0, 0.0, 0.0), weighted: bool = True, init: s
     and never averages out.  For independent off-diagonal misalignments of σ_φ it is
     σ_φ/√2 per axis.  It is added to the published covariance (MF axes: σ²I; β: D2⁻¹σ²D2⁻ᵀ);
     without it the weighted covariance is overconfident (boresight_bench: mean NEES 5.1 → 2.95).
+    weighting: ``"unit"`` (004), ``"pairwise"`` (each pair by Cᵀ E_imu C + E_avu, independent
+    pairs), ``"correlated"`` (generalised least squares with the full residual covariance of
+    :func:`_correlated_covariance`: shared camera fixes and gyro constants common to all pairs;
+    needs ``gyro`` and pairs carrying sensitivities, O(n³)), or ``"auto"`` (correlated when
+    possible and n ≤ CORRELATED_MAX_PAIRS, else pairwise).  Default: pairwise if ``weighted``
+    else unit.  The correlated covariance contains the gyro-triad rotation itself, so
+    ``common_rotation_sigma`` is not added to it.
     """
     pairs = list(pairs)
     n = len(pairs)
+    if weighting is None:
+        weighting = "pairwise" if weighted else "unit"
+    if weighting not in WEIGHTINGS:
+        raise ValueError(f"weighting must be one of {', '.join(WEIGHTINGS)}, got {weighting!r}")
+    can_correlate = gyro is not None and all(p.imu_sensitivity is not None for p in pairs)
+    if weighting == "auto":
+        weighting = "correlated" if can_correlate and n <= CORRELATED_MAX_PAIRS else "pairwise"
+    if weighting == "correlated" and not can_correlate:
+        raise ValueError("weighting='correlated' needs gyro sigmas and pairs with imu_sensitivity")
+    weighted = weighting != "unit"
     if n < 2:
         return BoresightSolution(False, f"{n} increment pair(s): need at least 2", pairs=n)
     A_imu, A_cam, E_imu, E_cam = _stack(pairs)
@@ -277,37 +347,46 @@ def solve_boresight(pairs, beta0=(0.0, 0.0, 0.0), weighted: bool = True, init: s
         return H
 
     def linearise(b):
-        """Residuals, Jacobian, weights and the normal matrix Hᵀ W H at β = b."""
+        """Residuals, Jacobian, weights, normal matrix Hᵀ W H and gradient Hᵀ W f at β = b."""
         C = ypr_to_dcm(*b)
         H = jacobian(b)
+        f = _residuals(C, A_imu, A_cam)
+        if weighting == "correlated":
+            Sig = _correlated_covariance(C, pairs, A_cam, E_cam, gyro)
+            Hs = H.reshape(-1, 3)
+            WH_Wf = np.linalg.solve(Sig, np.hstack([Hs, f.reshape(-1, 1)]))
+            N = Hs.T @ WH_Wf[:, :3]
+            g = Hs.T @ WH_Wf[:, 3]
+            return C, f, H, None, None, N, g, float(f.reshape(-1) @ WH_Wf[:, 3])
         W = weights(C)
         HtW = np.einsum("nji,njk->nik", H, W)
-        return C, _residuals(C, A_imu, A_cam), H, W, HtW, np.einsum("nij,njk->ik", HtW, H)
+        g = np.einsum("nij,nj->i", HtW, f)
+        return C, f, H, W, HtW, np.einsum("nij,njk->ik", HtW, H), g, float(np.einsum("ni,nij,nj->", f, W, f))
 
     converged = False
     it = 0
     for it in range(1, max_iterations + 1):
-        _, f, _, _, HtW, N = linearise(beta)
-        step = -np.linalg.solve(N, np.einsum("nij,nj->i", HtW, f))
+        _, f, _, _, _, N, g, _ = linearise(beta)
+        step = -np.linalg.solve(N, g)
         beta = beta + step
         if np.linalg.norm(step) <= tolerance:
             converged = True
             break
-    C, f, H, W, HtW, N = linearise(beta)
+    C, f, H, W, HtW, N, g, wss = linearise(beta)
     # 004 §4.3: residual block P_S from the residuals, the same for every pair
     P_S = f.T @ f / max(n - 1, 1)
     Hu = H.reshape(-1, 3)
     Ninv_u = np.linalg.inv(Hu.T @ Hu)
     P_res = Ninv_u @ np.einsum("nji,jk,nkl->il", H, P_S, H) @ Ninv_u
     P_model = np.linalg.inv(N) if weighted else None
-    chi2 = float(np.einsum("ni,nij,nj->", f, W, f)) / max(3 * n - 3, 1) if weighted else float("nan")
+    chi2 = wss / max(3 * n - 3, 1) if weighted else float("nan")
     if weighted:
         P = P_model * max(1.0, chi2)                 # inflate if the residuals exceed the model
     else:
         P = P_res
     # P^clb = D2 P_β D2ᵀ in MF axes (004 eq. 8)
     _, D2 = ypr_error_to_rotation(*beta)
-    if common_rotation_sigma > 0:
+    if common_rotation_sigma > 0 and weighting != "correlated":
         D2i = np.linalg.inv(D2)
         P = P + common_rotation_sigma ** 2 * D2i @ D2i.T
     beta_wrapped = dcm_to_ypr(C)                     # canonical angles of the same rotation
@@ -315,6 +394,7 @@ def solve_boresight(pairs, beta0=(0.0, 0.0, 0.0), weighted: bool = True, init: s
         observable=True, message="observable" if converged else f"not converged after {it} iterations",
         beta=beta_wrapped, c_mf_vf=C, covariance_beta=P, covariance_beta_residual=P_res,
         covariance_beta_model=P_model, rotation_covariance_mf=D2 @ P @ D2.T, weighted=weighted,
+        weighting=weighting,
         iterations=it, converged=converged, residual_rms=float(np.sqrt(np.mean(f ** 2))), chi2_per_dof=chi2,
         pairs=n, observability=rep)
     return sol

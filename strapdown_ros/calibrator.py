@@ -80,13 +80,15 @@ class BoresightCalibrator:
             lo = max(0, int(np.searchsorted(self._t, t0)) - 2)
             hi = int(np.searchsorted(self._t, stamp, side="right")) + 1
             r = gyro_increment(np.asarray(self._t[lo:hi]), np.asarray(self._v[lo:hi]), t0, stamp, self.gyro,
-                               self.covariance_model)
+                               self.covariance_model, sensitivity=self.gyro is not None)
             self._cams.popleft()
             self._last_fix = (stamp, q, P)
             if r is None:                               # not enough gyro data around t0: skip this pair
                 continue
             dq_c, E_c = camera_increment(q0, P0, q, P)
-            self.pairs.append(IncrementPair(t0, stamp, r[0], dq_c, r[1], E_c))
+            extra = dict(imu_sensitivity=r[2], cov_imu_white=r[3]) if self.gyro is not None else {}
+            self.pairs.append(IncrementPair(t0, stamp, r[0], dq_c, r[1], E_c, cov_fix_start=P0, cov_fix_end=P,
+                                            **extra))
             new += 1
             # drop gyro data no longer needed (keep a margin before the newest fix)
             cut = max(0, int(np.searchsorted(self._t, stamp)) - 3)
@@ -102,9 +104,7 @@ class BoresightCalibrator:
         starts from it (the closed-form axis alignment is only needed the first time)."""
         prev = self.solution
         if prev is not None and prev.observable and prev.converged:
-            sol = solve_boresight(self.pairs, beta0=prev.beta, weighted=self.weighted, init="given",
-                                  max_sigma=self.max_sigma, min_rotation=self.min_rotation,
-                                  common_rotation_sigma=self.common_rotation_sigma)
+            sol = solve_boresight(self.pairs, beta0=prev.beta, init="given", **self._solver_options())
             if not (sol.observable and sol.converged):
                 sol = self._cold()
         else:
@@ -113,9 +113,20 @@ class BoresightCalibrator:
         return sol
 
     def _cold(self) -> BoresightSolution:
-        return solve_boresight(self.pairs, beta0=self.initial_boresight, weighted=self.weighted, init="axes",
-                               max_sigma=self.max_sigma, min_rotation=self.min_rotation,
-                               common_rotation_sigma=self.common_rotation_sigma)
+        return solve_boresight(self.pairs, beta0=self.initial_boresight, init="axes", **self._solver_options())
+
+    def _solver_options(self) -> dict:
+        """Weighting: unit when ``weighted`` is off; with the random-constant gyro model the
+        correlated solution (shared fixes, common gyro constants) up to CORRELATED_MAX_PAIRS pairs
+        and pairwise weights beyond; with 004's white model pairwise weights."""
+        if not self.weighted:
+            weighting = "unit"
+        elif self.covariance_model == "random_constant" and self.gyro is not None:
+            weighting = "auto"
+        else:
+            weighting = "pairwise"
+        return dict(weighting=weighting, gyro=self.gyro, max_sigma=self.max_sigma, min_rotation=self.min_rotation,
+                    common_rotation_sigma=self.common_rotation_sigma)
 
     @property
     def common_rotation_sigma(self) -> float:
