@@ -233,4 +233,4 @@ def test_correlated_weighting_is_consistent_and_beats_pairwise():
     rms = {w: np.sqrt(np.mean(np.sum(np.square(v), 1))) for w, v in errs.items()}
     assert rms["correlated"] < 0.9 * rms["pairwise"]
     assert 2.0 < np.mean(nees) < 4.0
-    assert cal.solve().weighting == "correlated"                 # what the calibrator publishes (≤ 300 pairs)
+    assert cal.solve().weighting == "correlated"                 # what the calibrator publishes (≤ 200 pairs)

@@ -917,11 +917,11 @@ def write_report(path: str, res: dict, plots: list[str]):
     cv = acc.get("calibrator_le_best_opencv")
     L += ["", "## Acceptance checks", "",
           f"* **The calibrator** (correlated weighting, what `calibrator_node` and `calibrate_bag` publish for up to "
-          f"300 pairs): RMS ≤ 1.2 × √(exact CRLB): ratios {', '.join(_f(x) for x in ac['ratios'])} → "
+          f"200 pairs): RMS ≤ 1.2 × √(exact CRLB): ratios {', '.join(_f(x) for x in ac['ratios'])} → "
           f"**{'PASS' if ac['pass'] else 'FAIL'}**; mean NEES {_f(sm['nees']['calibrator.covariance_beta']['mean'])}"
           + (f"; against the best OpenCV method ({cv['best_opencv']}) total-angle RMS ratio {_f(cv['ratio_total_angle'])} "
              f"→ **{'PASS' if cv['pass'] else 'FAIL'}**." if cv else "."),
-          "* The pairwise-weighted estimator (independent pairs; used beyond 300 pairs) below:",
+          "* The pairwise-weighted estimator (independent pairs; used beyond 200 pairs) below:",
           f"* Weighted RMS ≤ 1.2 × √CRLB: vs the exact CRLB ratios "
           f"{', '.join(_f(x) for x in a1['vs_exact_crlb']['ratios'])} → **{'PASS' if a1['vs_exact_crlb']['pass'] else 'FAIL'}** "
           f"(analytic prediction, no Monte Carlo noise: {', '.join(_f(x) for x in a1['vs_exact_crlb']['predicted_ratios'])} → "
