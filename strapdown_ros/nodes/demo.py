@@ -215,7 +215,7 @@ def run_calibration(args) -> dict:
                     "error_arcsec": (err / np.radians(1 / 3600)).tolist(),
                     "sigma_arcsec": (sig / np.radians(1 / 3600)).tolist(),
                     "rotation_error_mf_over_sigma": (e_mf / np.sqrt(np.diag(sol.rotation_covariance_mf))).tolist(),
-                    "chi2_per_dof": sol.chi2_per_dof, "iterations": sol.iterations,
+                    "chi2_per_dof": sol.chi2_per_dof, "iterations": sol.iterations, "weighting": sol.weighting,
                     "sins_final_error_arcsec": float(np.linalg.norm(quat_error_rotvec(
                         q_sins, sim.profile.attitude(sins.integrator.time), "body")) / np.radians(1 / 3600))})
         return out
@@ -236,7 +236,8 @@ def format_calibration(c: dict) -> str:
     for k, name in enumerate(("heading ψ", "pitch ϑ", "roll γ")):
         e, s_ = c["error_arcsec"][k], c["sigma_arcsec"][k]
         lines.append(f"{name:<10}{c['beta_true_deg'][k]:>12.4f}{c['beta_deg'][k]:>14.5f}{e:>10.2f}{s_:>8.2f}{e / s_:>9.2f}")
-    lines.append(f"weighted Gauss–Newton, χ²/dof {c['chi2_per_dof']:.2f}; rotation error in MF axes / σ: "
+    lines.append(f"Gauss–Newton, {c.get('weighting', 'weighted')} weighting, χ²/dof {c['chi2_per_dof']:.2f}; "
+                 "rotation error in MF axes / σ: "
                  + ", ".join(f"{v:+.2f}" for v in c["rotation_error_mf_over_sigma"])
                  + f"; SINS (algorithm 2) attitude error at the end: {c['sins_final_error_arcsec']:.2f}″")
     return "\n".join(lines)
