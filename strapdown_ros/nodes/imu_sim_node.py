@@ -33,7 +33,7 @@ from . import ros_io
 NODE_NAME = "imu_sim_node"
 
 
-class ImuSimNode(Node):
+class ImuSimNode(ros_io.PacedSimulation, Node):
     def __init__(self, **kwargs):
         super().__init__(NODE_NAME, **kwargs)
         self.p = ros_io.declare_validated(self, IMU_SIM_PARAMS, on_change=self._reject_changes)
@@ -74,18 +74,9 @@ class ImuSimNode(Node):
                 "restart the node to change " + ", ".join(sorted(new)))
 
     # ---------------------------------------------------------------------------------
-    def _tick(self):
-        if self.finished:
-            return
-        now = time.monotonic()
-        if self._wall_start is None:
-            self._wall_start = now
-        target = min((now - self._wall_start) * float(self.p["time_scale"]), self.end_time)
-        self._advance_to(target)
-        if target >= self.end_time:
-            self.finished = True
-            self._publish_diagnostics()
-            self.get_logger().info(f"finished: published {self.counts} up to t = {self.sim_time:.3f} s")
+    def _on_finished(self):
+        self._publish_diagnostics()
+        self.get_logger().info(f"finished: published {self.counts} up to t = {self.sim_time:.3f} s")
 
     def _advance_to(self, target: float):
         n_g = int(np.floor(target / self.gyro.period + 1e-9)) - self.gyro.count

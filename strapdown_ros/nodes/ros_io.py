@@ -194,6 +194,31 @@ def _fmt(v) -> str:
 OK, WARN, ERROR = 0, 1, 2
 
 
+# --- simulators ------------------------------------------------------------------------------
+class PacedSimulation:
+    """Mixin for the simulator nodes: a wall timer calls :meth:`_tick`, which advances the
+    simulated time to ``time_scale`` × the wall time since the first tick (capped at
+    ``end_time``) through the node's ``_advance_to(target)``, and calls ``_on_finished()`` once.
+    Nothing downstream sees the wall clock: every stamp is simulated time.  Setting
+    ``_wall_start = None`` restarts the pacing at the next tick (used after discovery)."""
+
+    _wall_start = None
+    finished = False
+
+    def _tick(self):
+        import time
+        if self.finished:
+            return
+        now = time.monotonic()
+        if self._wall_start is None:
+            self._wall_start = now
+        target = min((now - self._wall_start) * float(self.p["time_scale"]), self.end_time)
+        self._advance_to(target)
+        if target >= self.end_time:
+            self.finished = True
+            self._on_finished()
+
+
 # --- process entry point -------------------------------------------------------------------
 def run_node(node_class, name: str, args=None) -> int:
     """``main()`` of every node: init, construct (invalid parameters → message on stderr, exit 2),

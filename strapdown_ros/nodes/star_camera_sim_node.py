@@ -55,7 +55,7 @@ from .ros_io import camera_qos, latched_qos, pose_with_covariance
 NODE_NAME = "star_camera_sim_node"
 
 #: variance (m²) on the position diagonal of attitude-only poses: "not measured"
-class StarCameraSimNode(Node):
+class StarCameraSimNode(ros_io.PacedSimulation, Node):
     def __init__(self, **kwargs):
         super().__init__(NODE_NAME, **kwargs)
         self.p = ros_io.declare_validated(self, STAR_CAMERA_PARAMS, on_change=self._reject_changes)
@@ -98,18 +98,9 @@ class StarCameraSimNode(Node):
                 "restart the node to change " + ", ".join(sorted(new)))
 
     # ---------------------------------------------------------------------------------
-    def _tick(self):
-        if self.finished:
-            return
-        now = time.monotonic()
-        if self._wall_start is None:
-            self._wall_start = now
-        target = min((now - self._wall_start) * float(self.p["time_scale"]), self.end_time)
-        self._advance_to(target)
-        if target >= self.end_time:
-            self.finished = True
-            self.publish_diagnostics()
-            self.get_logger().info(f"finished: published {self.published} fixes up to t = {self.sim_time:.3f} s")
+    def _on_finished(self):
+        self.publish_diagnostics()
+        self.get_logger().info(f"finished: published {self.published} fixes up to t = {self.sim_time:.3f} s")
 
     def _advance_to(self, target: float):
         n = 0
