@@ -17,6 +17,14 @@ rclpy = pytest.importorskip("rclpy")
 from diagnostic_msgs.msg import DiagnosticArray  # noqa: E402
 from geometry_msgs.msg import QuaternionStamped, Vector3Stamped  # noqa: E402
 from rclpy.executors import SingleThreadedExecutor  # noqa: E402
+
+try:    # one thread serves all nodes here; the events executor keeps up (see test_calibration_nodes.py)
+    from rclpy.experimental import EventsExecutor as GraphExecutor  # noqa: E402
+except ImportError:                                                 # older rclpy
+    GraphExecutor = SingleThreadedExecutor
+# best-effort history deep enough for a whole run, so a stall of this process on a loaded
+# machine cannot overwrite samples before they are taken
+QUEUE = 20000
 from rclpy.parameter import Parameter  # noqa: E402
 from rclpy.qos import ReliabilityPolicy  # noqa: E402
 from sensor_msgs.msg import Imu  # noqa: E402
@@ -46,7 +54,7 @@ class Recorder:
     def __init__(self, node, topics):
         self.data = {name: [] for name, _ in topics}
         for name, typ in topics:
-            qos = 10 if typ is DiagnosticArray else stream_qos()
+            qos = 10 if typ is DiagnosticArray else stream_qos(QUEUE)
             node.create_subscription(typ, name, lambda m, n=name: self.data[n].append(m), qos)
 
     def stamps(self, name):
@@ -66,11 +74,12 @@ def make_graph(ns, algorithm="2", duration=4.0, extra_sim=(), extra_sins=()):
     sim = ImuSimNode(namespace=ns, parameter_overrides=[
         Parameter("coning_alpha", value=ALPHA), Parameter("coning_nu", value=NU),
         Parameter("gravity", value=[0.0, 0.0, 9.80665]),
-        Parameter("time_scale", value=5.0), Parameter("duration", value=duration), *IDEAL, *extra_sim])
+        Parameter("time_scale", value=5.0), Parameter("duration", value=duration),
+        Parameter("qos_depth", value=QUEUE), *IDEAL, *extra_sim])
     q0 = ConingProfile(ALPHA, NU).attitude(0.0)
     sins = SinsNode(namespace=ns, parameter_overrides=[
         Parameter("coning_algorithm", value=algorithm), Parameter("initial_orientation", value=list(to_ros_xyzw(q0))),
-        *IDEAL, *extra_sins])
+        Parameter("qos_depth", value=QUEUE), *IDEAL, *extra_sins])
     return sim, sins
 
 
@@ -81,13 +90,14 @@ def test_full_graph_topics_qos_rates_and_content(ros):
     rec = Recorder(mon, [("imu/delta_theta", Vector3Stamped), ("imu/delta_velocity", Vector3Stamped),
                          ("imu/data_raw", Imu), ("imu/truth/attitude", QuaternionStamped),
                          ("sins/attitude", QuaternionStamped), ("sins/imu", Imu), ("/diagnostics", DiagnosticArray)])
-    ex = SingleThreadedExecutor()
+    ex = GraphExecutor()
     for n in (sim, sins, mon):
         ex.add_node(n)
     try:
-        # discovery first: the simulator only starts its clock at its first timer tick,
-        # so give subscriptions time to match before data flows
+        # discovery first, then restart the simulator's clock so no sample is sent before
+        # every subscription has matched
         assert spin_until(ex, lambda: mon.count_publishers(f"{ns}/sins/attitude") == 1, 10.0)
+        sim._wall_start = None
         assert spin_until(ex, lambda: sim.finished and len(rec.data["sins/attitude"]) >= 199, 30.0), \
             {k: len(v) for k, v in rec.data.items()}
         spin_until(ex, lambda: len(rec.data["sins/imu"]) >= 200, 3.0)
