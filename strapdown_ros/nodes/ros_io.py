@@ -230,20 +230,28 @@ def run_node(node_class, name: str, args=None) -> int:
     from rclpy.exceptions import ParameterException
 
     rclpy.init(args=args)
+    # The executor is built before the node announces itself, so a Ctrl-C that follows the
+    # "started" line can never land inside the executor's constructor (rclpy then prints an
+    # "Exception ignored in Executor.__del__" traceback from the half-built object).
+    executor = rclpy.executors.SingleThreadedExecutor()
     try:
         node = node_class()
     except (ValueError, ParameterException) as exc:   # invalid parameters: clear message, exit 2
         print(f"[{name}] error: {exc}", file=sys.stderr)
+        executor.shutdown()
         rclpy.try_shutdown()
         return 2
     except KeyboardInterrupt:                          # Ctrl-C while starting up
+        executor.shutdown()
         rclpy.try_shutdown()
         return 0
     try:
-        rclpy.spin(node)
+        executor.add_node(node)
+        executor.spin()
     except (KeyboardInterrupt, rclpy.executors.ExternalShutdownException):
         pass
     finally:
+        executor.shutdown()
         node.destroy_node()
         rclpy.try_shutdown()
     return 0
