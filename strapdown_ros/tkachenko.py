@@ -39,6 +39,31 @@ differences: the remainder is second order in the errors.  The mounting of J on 
 cancels out of P (``q_I_J(t)q_I_J(t0)* = Λ(t)Λ(t0)*`` for any constant E→J rotation), which is
 why 000 may say that the E–J orientation is "known only approximately".
 
+Where to evaluate the coefficients: exact in w0 ('identity', the default)
+-----------------------------------------------------------------------
+(2.7) evaluates every coefficient at the reference increment p.  Any increment equal to p to
+first order would do as well for a first-order method, and the choice decides the size of the
+second-order remainder.  Exactly, the computed attitude is ``Λ(t) = W0∘Δ(t)∘M(t)`` with
+``W0 ∝ 1 + w0`` and ``Δ(t) ≈ 1 − ½Θ(t)c`` the gyro error accumulated in the axes of M, so
+
+    P° = W0∘Q∘W0*,   Q = Δ∘P*,   q = p* − Γ(p*)Θc   (to first order in c, exactly in w0).
+
+``W0∘Q = P°∘W0`` gives, vector part, ``p° − q = w0 × (q + p°) + w0·(q − p°)·w0`` — the last
+term is third order — so
+
+    p* − p = 2Φ(½(q + p°))·w0 + Γ(p*)·Θc + Γ(p)·Ψd.
+
+With ``q ≈ p*`` and ``p° ≈ p`` the coefficients are: w0 columns at the mean ``½(p + p*)``,
+c columns at the computed increment p*, d columns at the reference p.  For pure w0 (c = d = 0)
+this is exact (``test_identity_coefficients_are_exact_in_w0``: w0 = 1e-2 per axis recovered to
+1e-15; with the printed coefficients the error is 2.4e-4, quadratic in w0).  The printed choice
+leaves ``z`` with ``2w0 × (w0 × p*)``, about 6e-6·|p*| for §6's w0 = 1e-3 per axis, which the
+least squares puts into c: δc6 = +3.0e-6 against the paper's −2.4e-8 (125×).  With the identity
+coefficients the unquantized first-order errors are all within 2.9× of the paper's (the
+remaining second-order terms, w0·c and c², are smaller than the paper's own), and centring (5.5)
+reduces the RMS error of c by 26% over 100 quantization seeds instead of 0.1%: the w0² bias of the
+printed coefficients had hidden the gain.  ``coefficients='printed'`` keeps 000's form.
+
 If ``t* < t0`` (L aligned with I at t*), P is taken relative to L(t0), the w0 term becomes
 ``2Φ(p)(w0 − v(t0))`` with ``v(t0) = ½Ψ(t0, t*)d`` (000 §3, last paragraph); this module keeps
 w0 relative to I and puts ``−Φ(p)Ψ(t0, t*)`` into the d columns, which is the same correction.
@@ -78,15 +103,17 @@ Beyond the paper
 
 Results on §6 (``python -m strapdown_ros.tkachenko``; numbers in the issue report)
 -------------------------------------------------------------------------------
-* Unquantized, first order: errors of the paper's size (δc ~ 1e-6…6e-6, δd ~ 5e-8, w⁰ ~ 6e-6);
-  they are second-order terms dominated by w0² and their pattern is not reproducible component by
-  component.  Iterated: ~1e-15 (round-off) — the truth, the computed attitude (the two-sample
-  algorithm is exact for rates constant on each interval, and the 5 s rate changes fall on update
-  ends) and the drift model exp(Ψd) are all exact.
-* Quantized, σ = 2e-5, Δθ_0 = 0 as in 000: the bias-driven errors match the printed raw set
-  (δc4, δc5, δc7…δc9 within a factor 2, 8 of 9 signs of δc).  Over 100 initial remainders the
-  scatter dominates (δd ≈ 1.3e-6 RMS); centring removes the bias (−25% RMS on c7…c9, −11% on d;
-  −25% on all c when iterated); weighting by R(δz)⁻¹ gives another −20% on c.
+* Unquantized, first order: with the identity coefficients every δc_i, δd_i is within 2.9× of
+  the paper's (most are 5–70× smaller; w⁰ ≈ 1.6e-6); with the printed coefficients the w0² term
+  dominates (δc ~ 1e-6…6e-6, δc6 125× the paper's).  The component pattern of these second-order
+  remainders depends on details 000 does not give.  Iterated: ~1e-15 (round-off) — the truth,
+  the computed attitude (the two-sample algorithm is exact for rates constant on each interval,
+  and the 5 s rate changes fall on update ends) and the drift model exp(Ψd) are all exact.
+* Quantized, σ = 2e-5, Δθ_0 = 0 as in 000: the quantization bias dominates and the raw set matches
+  the printed one: δc1 and δc4…δc9 at 0.71–1.09 of the paper's values with the same signs, w⁰ at
+  0.45–0.59 with the same signs (δc2, δc3 and δd differ in sign).  Over 100 initial remainders the
+  scatter dominates (δd ≈ 1.3e-6 RMS); centring removes the bias (−26% RMS on c, −28% on c7…c9,
+  −11% on d); weighting by R(δz)⁻¹ gives another −20% on c.
 
 Everything is accumulated recursively (5.8): ``UᵀU`` and ``UᵀZ`` are updated row by row and no
 row is stored (:class:`NormalEquations`).
@@ -111,7 +138,7 @@ __all__ = [
     "PAPER_000", "TKACHENKO_STRUCTURE", "TKACHENKO_C", "TKACHENKO_D", "TKACHENKO_W0", "TKACHENKO_PHI0", "MODES",
     "tkachenko_D", "bias_D", "identity_G", "ErrorStructure", "quat_to_aircraft_angles",
     "GyrostabilizerReference", "psi_matrix", "integrate_attitude", "theta_quadrature",
-    "NormalEquations", "measurement_rows", "quantization_covariance", "TkachenkoSolution",
+    "NormalEquations", "COEFFICIENTS", "measurement_rows", "quantization_covariance", "TkachenkoSolution",
     "estimate", "predicted_reference_increments", "rank_test", "simple_case_test",
     "error_at_epochs", "run_tkachenko_experiment", "monte_carlo_000", "simulate_000", "reproduce_000",
 ]
@@ -447,20 +474,34 @@ class NormalEquations:
 
 
 # --------------------------------------------------------------------------- equations
+#: Where the coefficients of the first-order equations are evaluated (see the module docstring).
+COEFFICIENTS = ("identity", "printed")
+
+
 def measurement_rows(p_ref: np.ndarray, theta: np.ndarray, psi: np.ndarray,
-                     psi0: np.ndarray | None = None) -> np.ndarray:
+                     psi0: np.ndarray | None = None, p_computed: np.ndarray | None = None) -> np.ndarray:
     """Coefficient block of (2.7)/(5.7) for one epoch: ``[2Φ(p), ΓΘ, ΓΨ]``, Γ = ½(p0E3 − Φ(p)).
 
     ``p_ref`` (4,) the reference increment P; ``psi0`` = Ψ(t0, t*) when t* < t0 (adds
     ``−Φ(p)Ψ(t0, t*)`` to the d columns, see the module docstring).
+
+    ``p_computed`` (4,) the computed increment P*: if given, the coefficients are evaluated where
+    the exact quaternion identity puts them ('identity' coefficients): the w0 columns at the
+    mean ``2Φ(½(p + p*))``, the c columns at ``Γ(p*)``, the d columns at ``Γ(p)``.  Without it,
+    everything at the reference p, as printed in 000.  The two agree to first order.
     """
     p0, p = p_ref[0], p_ref[1:]
     F = skew(p)
     gamma = 0.5 * (p0 * np.eye(3) - F)
     dcols = gamma @ psi
+    if p_computed is None:
+        F_w, gamma_c = F, gamma
+    else:
+        F_w = skew(0.5 * (p + p_computed[1:]))
+        gamma_c = 0.5 * (p_computed[0] * np.eye(3) - skew(p_computed[1:]))
     if psi0 is not None:
-        dcols = dcols - F @ psi0
-    return np.hstack([2.0 * F, gamma @ theta, dcols])
+        dcols = dcols - F_w @ psi0
+    return np.hstack([2.0 * F_w, gamma_c @ theta, dcols])
 
 
 def quantization_covariance(p_ref: np.ndarray, quantum: float, angle_noise: float = 0.0) -> np.ndarray:
@@ -559,7 +600,7 @@ def estimate(meas, h: float, M0, ref_q0, ref_q, epochs, structure: ErrorStructur
              algorithm: str = "2", quadrature: str = "exact", mode: str = "raw", quantum: float = 0.0,
              iterate: bool = False, weighted: bool = False, t0: float = 0.0, t_star: float | None = None,
              tol: float = 1e-13, max_iter: int = 12, angle_noise: float = 0.0, min_p0: float = 0.05,
-             noise_sigma: float | None = None) -> TkachenkoSolution:
+             noise_sigma: float | None = None, coefficients: str = "identity") -> TkachenkoSolution:
     """Estimate x = [w0, c, d] (000 §2–§5) from gyro increments and reference quaternions.
 
     meas: measured increments θ* (N, 3) on the grid t0 + k·h (quantized or not).
@@ -570,12 +611,18 @@ def estimate(meas, h: float, M0, ref_q0, ref_q, epochs, structure: ErrorStructur
     weighted: weight the equations by R(δz)⁻¹ (needs quantum > 0 or angle_noise > 0).
     noise_sigma: σ of z for the observability report of an unweighted solution (default: the
         quantization σ/√48, else the a-posteriori residual RMS).
+    coefficients: 'identity' (default) evaluates the coefficients of (2.7) where the exact
+        identity ``p° − q = w0 × (p° + q)`` puts them, 'printed' at the reference increment p as
+        000 prints (5.7).  Same cost, same first order; 'printed' leaves the w0² term in z
+        (see the module docstring).  For ``iterate=True`` both converge to the same solution.
     """
     t_start = _time.perf_counter()
     if mode not in MODES:
         raise ValueError(f"unknown mode {mode!r}; valid: {', '.join(MODES)}")
     if quadrature not in QUADRATURES:
         raise ValueError(f"unknown quadrature {quadrature!r}; valid: {', '.join(QUADRATURES)}")
+    if coefficients not in COEFFICIENTS:
+        raise ValueError(f"unknown coefficients {coefficients!r}; valid: {', '.join(COEFFICIENTS)}")
     if mode != "raw" and not quantum > 0:
         raise ValueError(f"mode {mode!r} needs quantum > 0")
     if weighted and not (quantum > 0 or angle_noise > 0):
@@ -610,7 +657,8 @@ def estimate(meas, h: float, M0, ref_q0, ref_q, epochs, structure: ErrorStructur
         for j in range(len(epochs)):
             if not keep[j]:
                 continue
-            U = measurement_rows(P[j], Theta[epochs[j]], psi[j], psi0)
+            U = measurement_rows(P[j], Theta[epochs[j]], psi[j], psi0,
+                                 P_hat[j] if coefficients == "identity" else None)
             z = P_hat[j, 1:] - P[j, 1:]
             if mode == "centred":
                 p0j, pj = P[j, 0], P[j, 1:]
@@ -784,7 +832,8 @@ def simulate_000(quantum: float = 0.0, seed: int | None = 0, profile=None, c=TKA
 
 def run_tkachenko_experiment(quantum: float = 0.0, mode: str = "raw", seed: int | None = 0,
                              iterate: bool = False, weighted: bool = False, algorithm: str = "2",
-                             quadrature: str = "exact", profile=None, full: bool = False, **kw) -> dict:
+                             quadrature: str = "exact", profile=None, full: bool = False,
+                             coefficients: str = "identity", **kw) -> dict:
     """Reproduce 000 §6 (m = 3, n = 1, D = [D_I D_II E3], G = E3, h = 0.02 s, epochs 4, 4.2 … 30 s).
 
     Returns the errors in the paper's terms: ``w0`` = w⁰, the corrected attitude error at t_f
@@ -796,7 +845,8 @@ def run_tkachenko_experiment(quantum: float = 0.0, mode: str = "raw", seed: int 
     sim = simulate_000(quantum=quantum, seed=seed, profile=profile, **kw)
     sol = estimate(sim.meas, sim.h, sim.M0, sim.ref_q0, sim.ref_q, sim.epochs, algorithm=algorithm,
                    quadrature=quadrature, mode=mode, quantum=quantum, iterate=iterate, weighted=weighted,
-                   t_star=sim.reference.t_star, angle_noise=sim.reference.angle_noise)
+                   t_star=sim.reference.t_star, angle_noise=sim.reference.angle_noise,
+                   coefficients=coefficients)
     err = sol.x - sim.x_true
     w_err = error_at_epochs(sol.refined_attitude, sim.truth_epochs)
     out = {"w0": w_err[-1].tolist(), "dc": err[3:12].tolist(), "dd": err[12:15].tolist(),
@@ -813,19 +863,19 @@ def monte_carlo_000(seeds: Sequence[int] = range(100), quantum: float = 2e-5,
                     cases: Sequence[tuple] = (("raw", False, False), ("centred", False, False),
                                               ("corrected", False, False), ("raw", True, False),
                                               ("raw", False, True), ("raw", True, True)),
-                    profile=None) -> dict:
+                    profile=None, coefficients: str = "identity") -> dict:
     """Monte Carlo of the quantized §6 experiment over the initial remainders (one per seed).
 
     ``cases``: (mode, iterate, weighted).  Returns per case the errors (seeds × 15:
-    δw0, δc, δd), their mean, std and RMS per component, the RMS over the c and d groups
-    (relative: each component divided by the RMS of the unquantized first-order error? no —
-    absolute), and the w⁰ RMS.
+    δw0, δc, δd), their mean, std and RMS per component, the (absolute) RMS over the c and d
+    groups, and the w⁰ RMS.
     """
     res = {}
     for mode, it, wt in cases:
         errs, wrms, wf = [], [], []
         for s in seeds:
-            r = run_tkachenko_experiment(quantum, mode, s, iterate=it, weighted=wt, profile=profile)
+            r = run_tkachenko_experiment(quantum, mode, s, iterate=it, weighted=wt, profile=profile,
+                                         coefficients=coefficients)
             errs.append(r["dw0"] + r["dc"] + r["dd"])
             wrms.append(r["w_rms"])
             wf.append(r["w0"])

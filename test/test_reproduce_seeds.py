@@ -19,8 +19,18 @@ def test_000_schema(result):
     cases = res["000"]["cases"]
     assert set(cases) == {"unquantized", "quantized_raw", "quantized_centred"}
     for case in cases.values():
-        for key in ("paper", "ours", "ours_iterated", "ours_mc_mean", "ours_mc_std"):
+        for key in ("paper", "ours", "ours_as_printed", "ours_iterated", "ours_mc_mean", "ours_mc_std"):
             assert len(case[key]["w0"]) == 3 and len(case[key]["dc"]) == 9 and len(case[key]["dd"]) == 3
+
+
+def test_000_first_order_unquantized_within_10x_of_the_paper(result):
+    res, text = result
+    c = res["000"]["cases"]["unquantized"]
+    for k in ("dc", "dd"):
+        for ours, paper in zip(c["ours"][k], c["paper"][k]):
+            assert abs(ours) <= 10 * abs(paper)
+    assert max(res["000"]["unquantized_ratio_to_paper"]["ours"]) <= 10
+    assert "ours_as_printed" in text and "w0 × (p° + q)" in text
 
 
 def test_000_iterated_unquantized_is_1000x_below_the_paper(result):
