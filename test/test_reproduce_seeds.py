@@ -10,12 +10,12 @@ from strapdown_ros.tools import reproduce_seeds
 def result(tmp_path_factory):
     d = tmp_path_factory.mktemp("seeds")
     assert reproduce_seeds.main(["--only", "000,002,003", "--quick", "--json", str(d / "r.json"),
-                                 "--report", str(d / "r.md")]) == 0
-    return json.loads((d / "r.json").read_text()), (d / "r.md").read_text()
+                                 "--report", str(d / "r.md"), "--plots", str(d / "plots")]) == 0
+    return json.loads((d / "r.json").read_text()), (d / "r.md").read_text(), d
 
 
 def test_000_schema(result):
-    res, _ = result
+    res, _, _ = result
     cases = res["000"]["cases"]
     assert set(cases) == {"unquantized", "quantized_raw", "quantized_centred"}
     for case in cases.values():
@@ -24,7 +24,7 @@ def test_000_schema(result):
 
 
 def test_000_first_order_unquantized_within_10x_of_the_paper(result):
-    res, text = result
+    res, text, _ = result
     c = res["000"]["cases"]["unquantized"]
     for k in ("dc", "dd"):
         for ours, paper in zip(c["ours"][k], c["paper"][k]):
@@ -34,7 +34,7 @@ def test_000_first_order_unquantized_within_10x_of_the_paper(result):
 
 
 def test_000_iterated_unquantized_is_1000x_below_the_paper(result):
-    res, _ = result
+    res, _, _ = result
     c = res["000"]["cases"]["unquantized"]
     for k in ("dc", "dd"):
         for ours, paper in zip(c["ours_iterated"][k], c["paper"][k]):
@@ -42,10 +42,18 @@ def test_000_iterated_unquantized_is_1000x_below_the_paper(result):
 
 
 def test_002_and_003_sections(result):
-    res, text = result
+    res, text, _ = result
     r = res["002"]
     assert set(r["rms_000"]) == set(r["rms_002"]) == set(r["rms_002_adaptive"])
     assert all(v > 0 for v in r["rms_000"].values())
     assert res["003"]["claim_case1"]["0.01"]["algorithm_1_above_1e-3"]
     for needle in ("## 000", "## 002", "## 003", "Centring (5.5) against raw"):
         assert needle in text
+
+
+def test_plots_written_and_linked(result):
+    _, text, d = result
+    for name in ("seeds_000_errors.png", "seeds_000_centring.png"):
+        png = d / "plots" / name
+        assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and png.stat().st_size > 10_000
+        assert f"(plots/{name})" in text

@@ -1,6 +1,6 @@
 """reproduce_seeds: rerun the experiments of the seed papers and set our numbers beside theirs.
 
-    reproduce_seeds [--only 000,002,003,004] [--seeds N] [--json FILE] [--report FILE] [--quick]
+    reproduce_seeds [--only 000,002,003,004] [--seeds N] [--json FILE] [--report FILE] [--plots DIR] [--quick]
 
 * 000 (Tkachenko 1983, §6): the three published error sets — unquantized; σ = 2e-5 rad without
   centring; with centring — beside our first-order method (the paper's equations, coefficients
@@ -330,6 +330,81 @@ def report(res: dict) -> str:
     return "\n".join(L)
 
 
+# ----------------------------------------------------------------------------------- plots
+def write_plots(res: dict, outdir: str) -> list[str]:
+    """PNG figures beside the report (matplotlib, from the ``tools`` extra).  Returns the paths."""
+    import os
+
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    os.makedirs(outdir, exist_ok=True)
+    paths = []
+    labels = [f"c{i}" for i in range(1, 10)] + [f"d{i}" for i in range(1, 4)]
+    x = np.arange(len(labels))
+    if "000" in res:
+        cases = res["000"]["cases"]
+        fig, axes = plt.subplots(1, 3, figsize=(15, 4.2), sharey=True)
+        for ax, (case, rec) in zip(axes, cases.items()):
+            def mag(key):
+                return np.abs(np.r_[rec[key]["dc"], rec[key]["dd"]])
+            ax.semilogy(x, mag("paper"), "ks", ms=7, label="000 (paper)")
+            ax.semilogy(x, mag("ours"), "o", color="C0", label="ours, first order")
+            ax.semilogy(x, mag("ours_as_printed"), "x", color="C3", ms=7, label="ours, printed coefficients")
+            if any(v > 0 for v in rec["ours_mc_std"]["dc"]):
+                rms = np.sqrt(np.square(np.r_[rec["ours_mc_mean"]["dc"], rec["ours_mc_mean"]["dd"]])
+                              + np.square(np.r_[rec["ours_mc_std"]["dc"], rec["ours_mc_std"]["dd"]]))
+                ax.semilogy(x, rms, "_", color="C2", ms=14, mew=2, label="ours, Monte Carlo RMS")
+            ax.set_xticks(x, labels)
+            ax.set_title(case)
+            ax.grid(True, which="both", alpha=0.3)
+        axes[0].set_ylabel("|estimate − truth| (c1–6: 1; c7–9, d: rad/s)")
+        axes[0].legend(fontsize=8, loc="lower left")
+        fig.suptitle("000 §6: estimation errors, paper against ours (iterated: ~1e-15, off scale)")
+        fig.tight_layout()
+        paths.append(os.path.join(outdir, "seeds_000_errors.png"))
+        fig.savefig(paths[-1], dpi=110)
+        plt.close(fig)
+        g = res["000"]["centring_gain"]
+        fig, ax = plt.subplots(figsize=(6.5, 4))
+        groups = ["c", "c7–9 (biases)", "d"]
+        raw = [g["rms_c_raw"], g["rms_c_bias_raw"], g["rms_d_raw"]]
+        cen = [g["rms_c_centred"], g["rms_c_bias_centred"], g["rms_d_centred"]]
+        xx = np.arange(3)
+        ax.bar(xx - 0.2, raw, 0.4, label="raw (5.4)")
+        ax.bar(xx + 0.2, cen, 0.4, label="centred (5.5)")
+        for i in range(3):
+            ax.annotate(f"−{100 * (1 - cen[i] / raw[i]):.0f}%", (xx[i] + 0.2, cen[i]), ha="center", va="bottom")
+        ax.set_xticks(xx, groups)
+        ax.set_ylabel("RMS error over seeds")
+        ax.set_title(f"000 §6, σ = 2e-5: centring, Monte Carlo over {g['seeds']} seeds")
+        ax.legend()
+        fig.tight_layout()
+        paths.append(os.path.join(outdir, "seeds_000_centring.png"))
+        fig.savefig(paths[-1], dpi=110)
+        plt.close(fig)
+    if "004" in res:
+        r = res["004"]
+        fig, ax = plt.subplots(figsize=(6.5, 4))
+        xx = np.arange(3)
+        series = [("paper σ_β", r["paper"]["sigma_beta_arcsec"]),
+                  ("ours, unit weights: mean σ", r["ours_unweighted_sigma_arcsec_mean"]),
+                  ("ours, unit weights: RMS error", r["ours_unweighted_rms_error_arcsec"]),
+                  ("ours, weighted: RMS error", r["ours_weighted_rms_error_arcsec"])]
+        for k, (name, v) in enumerate(series):
+            ax.bar(xx + (k - 1.5) * 0.2, v, 0.2, label=name)
+        ax.set_xticks(xx, ["ψ (optical axis)", "ϑ", "γ"])
+        ax.set_ylabel("arcsec")
+        ax.set_title("004 §6: boresight σ pattern")
+        ax.legend(fontsize=8)
+        fig.tight_layout()
+        paths.append(os.path.join(outdir, "seeds_004_sigma.png"))
+        fig.savefig(paths[-1], dpi=110)
+        plt.close(fig)
+    return paths
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(prog="reproduce_seeds", description=__doc__,
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -340,6 +415,7 @@ def main(argv=None) -> int:
     ap.add_argument("--quick", action="store_true", help="few runs (for tests)")
     ap.add_argument("--json", help="write the results as JSON")
     ap.add_argument("--report", help="write a Markdown report")
+    ap.add_argument("--plots", help="write PNG figures to this directory (needs matplotlib)")
     a = ap.parse_args(argv)
     only = [s.strip() for s in a.only.split(",") if s.strip()]
     bad = [s for s in only if s not in SECTIONS]
@@ -355,6 +431,12 @@ def main(argv=None) -> int:
         res[s]["wall_s"] = time.perf_counter() - t
         print(f"[reproduce_seeds] {s}: {res[s]['wall_s']:.1f} s", file=sys.stderr)
     text = report(res)
+    if a.plots:
+        import os
+        pngs = write_plots(res, a.plots)
+        base = os.path.dirname(os.path.abspath(a.report)) if a.report else os.getcwd()
+        text += "\n## Figures\n\n" + "\n".join(
+            f"![{os.path.basename(pth)}]({os.path.relpath(os.path.abspath(pth), base)})" for pth in pngs) + "\n"
     print(text)
     if a.json:
         with open(a.json, "w", encoding="utf-8") as fh:
