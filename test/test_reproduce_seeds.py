@@ -57,3 +57,11 @@ def test_plots_written_and_linked(result):
         png = d / "plots" / name
         assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and png.stat().st_size > 10_000
         assert f"(plots/{name})" in text
+
+
+def test_000_beyond_the_paper_gains_reported(result):
+    res, text, _ = result
+    b = res["000"]["beyond_paper"]
+    assert {"raw", "centred", "centred+iter", "centred+weighted", "centred+iter+weighted"} <= set(b)
+    assert b["centred+weighted"]["rms_c"] < b["centred"]["rms_c"] < b["raw"]["rms_c"]
+    assert "Beyond the paper" in text
