@@ -2,24 +2,25 @@
 import os
 import re
 
-from strapdown_ros.config import IMU_SIM_PARAMS, SINS_PARAMS, markdown_table
+from strapdown_ros.config import (CALIBRATOR_PARAMS, IMU_SIM_PARAMS, SINS_PARAMS, STAR_CAMERA_PARAMS,
+                                  markdown_table)
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 README = open(os.path.join(ROOT, "README.md"), encoding="utf-8").read()
 
 
 def test_parameter_tables_are_current():
-    for specs in (IMU_SIM_PARAMS, SINS_PARAMS):
+    for specs in (IMU_SIM_PARAMS, SINS_PARAMS, STAR_CAMERA_PARAMS, CALIBRATOR_PARAMS):
         assert markdown_table(specs) in README, "regenerate with: python -m strapdown_ros.config"
 
 
 def test_every_topic_is_documented():
     topics = set()
-    for f in ("imu_sim_node.py", "sins_node.py"):
+    for f in ("imu_sim_node.py", "sins_node.py", "star_camera_sim_node.py", "calibrator_node.py"):
         src = open(os.path.join(ROOT, "strapdown_ros", "nodes", f), encoding="utf-8").read()
-        topics |= set(re.findall(r'create_(?:publisher|subscription)\(\w+, "([^"]+)"', src))
+        topics |= set(re.findall(r'create_(?:publisher|subscription)\(\s*\w+,\s*"([^"]+)"', src))
     assert topics >= {"imu/delta_theta", "imu/delta_velocity", "imu/data_raw", "sins/attitude", "sins/imu",
-                      "/diagnostics"}
+                      "/diagnostics", "star_camera/attitude", "calibration/boresight"}
     for t in topics:
         assert f"`{t}`" in README, t
 
