@@ -43,7 +43,7 @@ Where to evaluate the coefficients: exact in w0 ('identity', the default)
 -----------------------------------------------------------------------
 (2.7) evaluates every coefficient at the reference increment p.  Any increment equal to p to
 first order would do as well for a first-order method, and the choice decides the size of the
-second-order remainder.  Exactly, the computed attitude is ``Λ(t) = W0∘Δ(t)∘M(t)`` with
+second-order remainder.  Exactly, the true attitude is ``Λ(t) = W0∘Δ(t)∘M(t)`` (M computed) with
 ``W0 ∝ 1 + w0`` and ``Δ(t) ≈ 1 − ½Θ(t)c`` the gyro error accumulated in K (the reference axes of M), so
 
     P° = W0∘Q∘W0*,   Q = Δ∘P*,   q = p* − Γ(p*)Θc   (to first order in c, exactly in w0).
