@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import sys
 import time
 
@@ -355,8 +356,6 @@ def report(res: dict) -> str:
 # ----------------------------------------------------------------------------------- plots
 def write_plots(res: dict, outdir: str) -> list[str]:
     """PNG figures beside the report (matplotlib, from the ``tools`` extra).  Returns the paths."""
-    import os
-
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
@@ -454,7 +453,6 @@ def main(argv=None) -> int:
         print(f"[reproduce_seeds] {s}: {res[s]['wall_s']:.1f} s", file=sys.stderr)
     text = report(res)
     if a.plots:
-        import os
         pngs = write_plots(res, a.plots)
         base = os.path.dirname(os.path.abspath(a.report)) if a.report else os.getcwd()
         text += "\n## Figures\n\n" + "\n".join(
