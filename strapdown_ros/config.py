@@ -16,6 +16,7 @@ from .coning import algorithm_names
 from .integrator import COVARIANCE_MODELS
 from .profiles import PROFILE_NAMES
 from .sensors import NAVIGATION_GRADE_ACCEL, NAVIGATION_GRADE_GYRO, SensorSigmas
+from .sensors.effects import effect_parameters
 
 __all__ = ["ParamSpec", "PROFILE_PARAMS", "GYRO_PARAMS", "ACCEL_PARAMS", "IMU_SIM_PARAMS",
            "SINS_PARAMS", "STAR_CAMERA_PARAMS", "CALIBRATOR_PARAMS", "sigmas_from", "load_parameter_file", "check_all", "markdown_table"]
@@ -54,7 +55,8 @@ class ParamSpec:
                 return f"{self.name} must be a list of {self.length} numbers, got {value!r}"
             if arr.shape != (self.length,) or not np.all(np.isfinite(arr)):
                 return f"{self.name} must be a list of {self.length} finite numbers, got {value!r}"
-            return None
+            bad = [v for v in arr if self._range_error(float(v))]
+            return self._range_error(float(bad[0])) if bad else None
         if isinstance(self.default, bool):
             return None if isinstance(value, bool) else f"{self.name} must be true or false, got {value!r}"
         if isinstance(self.default, (int, float)):
@@ -110,7 +112,23 @@ PROFILE_PARAMS = [
               "(coning and piecewise profiles; the bench uses ENU gravity)", length=3),
 ]
 
-GYRO_PARAMS = _sensor_params("gyro", NAVIGATION_GRADE_GYRO, 100.0, "rad/s", "rad/√s")
+def _effect_specs(sensor: str, skip: Sequence[ParamSpec] = ()) -> list[ParamSpec]:
+    """ParamSpecs of the effect parameters of one sensor (:mod:`strapdown_ros.sensors.effects`
+    owns them), except names already in ``skip``."""
+    have = {s.name for s in skip}
+    out = []
+    for e in effect_parameters(sensor):
+        if e.name in have:
+            continue
+        out.append(ParamSpec(e.name, list(e.default) if e.size > 1 else e.default, e.description,
+                             e.minimum, e.maximum, exclusive_minimum=e.exclusive_minimum,
+                             length=e.size if e.size > 1 else None))
+    return out
+
+
+_GYRO_SIGMAS = _sensor_params("gyro", NAVIGATION_GRADE_GYRO, 100.0, "rad/s", "rad/√s")
+#: gyro statistics (the random constants' σ) and the known systematic effects of the registry
+GYRO_PARAMS = _GYRO_SIGMAS + _effect_specs("gyro", _GYRO_SIGMAS)
 ACCEL_PARAMS = _sensor_params("accel", NAVIGATION_GRADE_ACCEL, 300.0, "m/s²", "m/s/√s")
 
 COMMON_PARAMS = [
@@ -142,11 +160,7 @@ SINS_PARAMS = GYRO_PARAMS + ACCEL_PARAMS + COMMON_PARAMS + [
 
 
 def sigmas_from(values: dict, prefix: str) -> SensorSigmas:
-    return SensorSigmas(bias_sigma=float(values[f"{prefix}_bias_sigma"]),
-                        scale_sigma=float(values[f"{prefix}_scale_sigma"]),
-                        misalignment_sigma=float(values[f"{prefix}_misalignment_sigma"]),
-                        random_walk=float(values[f"{prefix}_random_walk"]),
-                        quantum=float(values[f"{prefix}_quantum"]))
+    return SensorSigmas.from_params(values, prefix)
 
 
 ARCSEC_RAD = np.pi / 180.0 / 3600.0
@@ -174,6 +188,8 @@ STAR_CAMERA_PARAMS = PROFILE_PARAMS + [
     ParamSpec("camera_exposure_time", 0.0, "exposure duration, s", 0.0, 10.0),
     ParamSpec("camera_stamp_at_exposure_start", False, "stamp = exposure start while the attitude is mid-exposure"),
 ]
+STAR_CAMERA_PARAMS += _effect_specs("camera", STAR_CAMERA_PARAMS)
+
 
 CALIBRATOR_PARAMS = GYRO_PARAMS + [
     ParamSpec("reference_frame_id", "gcrs", "inertial reference frame id of attitudes"),
@@ -195,6 +211,8 @@ CALIBRATOR_PARAMS = GYRO_PARAMS + [
     ParamSpec("camera_sigma_xy", 0.6 * ARCSEC_RAD, "assumed camera σ about VF x, y when no covariance, rad", 0.0, 0.1),
     ParamSpec("camera_sigma_z", 6.0 * ARCSEC_RAD, "assumed camera σ about VF z when no covariance, rad", 0.0, 0.1),
 ]
+#: camera effects the calibrator compensates (time offset of the fixes, camera noise scale)
+CALIBRATOR_PARAMS += _effect_specs("camera")
 
 
 #: every parameter name declared by any node or tool of the package

@@ -44,10 +44,14 @@ class StarCameraModel:
     exposure_time: float = 0.0
     stamp_at_exposure_start: bool = False
     seed: int = 0
+    #: true noise σ ÷ the reported σ per VF axis (effect camera_noise_anisotropy); the fix
+    #: still reports ``sigma``
+    noise_scale: np.ndarray = field(default_factory=lambda: np.ones(3))
 
     def __post_init__(self):
         self.boresight = np.asarray(self.boresight, dtype=float).reshape(3)
         self.sigma = np.asarray(self.sigma, dtype=float).reshape(3)
+        self.noise_scale = np.asarray(self.noise_scale, dtype=float).reshape(3)
         if not np.all(np.isfinite(self.boresight)):
             raise ValueError("boresight angles must be finite")
         if not (np.isfinite(self.interval) and self.interval > 0):
@@ -58,6 +62,17 @@ class StarCameraModel:
             raise ValueError("exposure_time must be >= 0")
         self.rng = np.random.default_rng(self.seed)
         self.count = 0
+
+    @classmethod
+    def from_params(cls, p: dict) -> "StarCameraModel":
+        """The camera of ``star_camera_sim_node`` / ``record_sim`` from validated node parameters."""
+        sxy, sz = float(p["camera_sigma_xy"]), float(p["camera_sigma_z"])
+        first = float(p["camera_first_exposure"])
+        return cls(boresight=np.asarray(p["boresight"], dtype=float), interval=float(p["camera_interval"]),
+                   sigma=np.array([sxy, sxy, sz]), first_exposure=None if first == 0.0 else first,
+                   time_offset=float(p["camera_time_offset"]), exposure_time=float(p["camera_exposure_time"]),
+                   stamp_at_exposure_start=bool(p["camera_stamp_at_exposure_start"]), seed=int(p["seed"]),
+                   noise_scale=np.asarray(p.get("camera_noise_scale", (1.0, 1.0, 1.0)), dtype=float))
 
     @property
     def c_mf_vf(self) -> np.ndarray:
@@ -86,7 +101,7 @@ class StarCameraModel:
             if self.stamp_at_exposure_start:
                 t_att += 0.5 * self.exposure_time
             q_true = quat_normalize(quat_multiply(profile.attitude(t_att), q_mf_vf))
-            theta = self.rng.normal(0.0, 1.0, 3) * self.sigma
+            theta = self.rng.normal(0.0, 1.0, 3) * self.sigma * self.noise_scale
             q_meas = quat_normalize(quat_multiply(q_true, rotvec_to_quat(theta)))
             out.append(CameraFix(stamp, q_meas, self.covariance.copy(), q_true))
             self.count += 1

@@ -25,9 +25,9 @@ from geometry_msgs.msg import QuaternionStamped, Vector3Stamped
 from rclpy.node import Node
 from sensor_msgs.msg import Imu
 
-from ..config import IMU_SIM_PARAMS, sigmas_from
+from ..config import IMU_SIM_PARAMS
 from ..profiles import profile_from_config
-from ..sensors import IntegratingSensor
+from ..sensors import simulated_imu
 from . import ros_io
 
 NODE_NAME = "imu_sim_node"
@@ -39,14 +39,8 @@ class ImuSimNode(ros_io.PacedSimulation, Node):
         self.p = ros_io.declare_validated(self, IMU_SIM_PARAMS, on_change=self._reject_changes)
         p = self.p
         self.profile = profile_from_config(p)
-        rng_seed = int(p["seed"])
-        rng = np.random.default_rng(rng_seed)
-        self.gyro_errors = sigmas_from(p, "gyro").draw(rng)
-        self.accel_errors = sigmas_from(p, "accel").draw(rng)
-        self.gyro = IntegratingSensor(self.profile, "gyro", float(p["gyro_rate"]), self.gyro_errors,
-                                      seed=rng_seed + 1)
-        self.accel = IntegratingSensor(self.profile, "accel", float(p["accel_rate"]), self.accel_errors,
-                                       seed=rng_seed + 2)
+        self.gyro, self.accel = simulated_imu(p, self.profile)
+        self.gyro_errors, self.accel_errors = self.gyro.errors, self.accel.errors
         dur = float(p["duration"])
         self.end_time = dur if dur > 0 else self.profile.duration
         self.start_ns = int(round(float(p["start_time"]) * 1e9))

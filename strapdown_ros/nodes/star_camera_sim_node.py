@@ -61,13 +61,8 @@ class StarCameraSimNode(ros_io.PacedSimulation, Node):
         self.p = ros_io.declare_validated(self, STAR_CAMERA_PARAMS, on_change=self._reject_changes)
         p = self.p
         self.profile = profile_from_config(p)
+        self.model = StarCameraModel.from_params(p)
         sxy, sz = float(p["camera_sigma_xy"]), float(p["camera_sigma_z"])
-        first = float(p["camera_first_exposure"])
-        self.model = StarCameraModel(
-            boresight=np.asarray(p["boresight"], dtype=float), interval=float(p["camera_interval"]),
-            sigma=np.array([sxy, sxy, sz]), first_exposure=None if first == 0.0 else first,
-            time_offset=float(p["camera_time_offset"]), exposure_time=float(p["camera_exposure_time"]),
-            stamp_at_exposure_start=bool(p["camera_stamp_at_exposure_start"]), seed=int(p["seed"]))
         dur = float(p["duration"])
         self.end_time = dur if dur > 0 else self.profile.duration
         self.start_ns = int(round(float(p["start_time"]) * 1e9))

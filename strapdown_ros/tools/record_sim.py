@@ -35,10 +35,10 @@ from pathlib import Path
 
 import numpy as np
 
-from ..config import IMU_SIM_PARAMS, PROFILE_PARAMS, STAR_CAMERA_PARAMS, check_all, load_parameter_file, sigmas_from
+from ..config import IMU_SIM_PARAMS, PROFILE_PARAMS, STAR_CAMERA_PARAMS, check_all, load_parameter_file
 from ..profiles import profile_from_config
 from ..rotation import to_ros_xyzw
-from ..sensors import IntegratingSensor
+from ..sensors import simulated_imu
 from ..star_camera import StarCameraModel
 
 __all__ = ["main", "record", "parse_overrides", "simulator_parameters", "TOPICS", "UNKNOWN_POSITION_VARIANCE"]
@@ -174,12 +174,8 @@ def record(bag: str | Path, imu_p: dict, cam_p: dict, storage: str = "mcap", acc
         raise ValueError(f"storage={storage!r} is not valid; valid values: mcap, sqlite3")
     # --- imu_sim_node ----------------------------------------------------------------------
     profile = profile_from_config(imu_p)
-    seed = int(imu_p["seed"])
-    rng = np.random.default_rng(seed)
-    gyro_errors = sigmas_from(imu_p, "gyro").draw(rng)
-    accel_errors = sigmas_from(imu_p, "accel").draw(rng)
-    gyro = IntegratingSensor(profile, "gyro", float(imu_p["gyro_rate"]), gyro_errors, seed=seed + 1)
-    acc = IntegratingSensor(profile, "accel", float(imu_p["accel_rate"]), accel_errors, seed=seed + 2)
+    gyro, acc = simulated_imu(imu_p, profile)
+    gyro_errors = gyro.errors
     imu_end = _end_time(imu_p, profile, "imu_sim_node")
     imu_start_ns = int(round(float(imu_p["start_time"]) * 1e9))
     n_gyro = int(np.floor(imu_end / gyro.period + 1e-9))
@@ -189,16 +185,7 @@ def record(bag: str | Path, imu_p: dict, cam_p: dict, storage: str = "mcap", acc
     if any(imu_p[s.name] != cam_p[s.name] for s in PROFILE_PARAMS):
         print("record_sim: warning: imu_sim_node and star_camera_sim_node have different profile "
               "parameters; each uses its own, as the nodes would", file=sys.stderr)
-    first = float(cam_p["camera_first_exposure"])
-    cam = StarCameraModel(boresight=np.asarray(cam_p["boresight"], dtype=float),
-                          interval=float(cam_p["camera_interval"]),
-                          sigma=[float(cam_p["camera_sigma_xy"]), float(cam_p["camera_sigma_xy"]),
-                                 float(cam_p["camera_sigma_z"])],
-                          first_exposure=None if first == 0.0 else first,
-                          time_offset=float(cam_p["camera_time_offset"]),
-                          exposure_time=float(cam_p["camera_exposure_time"]),
-                          stamp_at_exposure_start=bool(cam_p["camera_stamp_at_exposure_start"]),
-                          seed=int(cam_p["seed"]))
+    cam = StarCameraModel.from_params(cam_p)
     cam_end = _end_time(cam_p, cam_profile, "star_camera_sim_node")
     cam_start_ns = int(round(float(cam_p["start_time"]) * 1e9))
     frame_id, ref_frame = imu_p["frame_id"], imu_p["reference_frame_id"]

@@ -34,7 +34,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-__all__ = ["SensorSigmas", "SensorErrorModel", "PulseQuantizer", "IntegratingSensor",
+__all__ = ["SensorSigmas", "SensorErrorModel", "PulseQuantizer", "IntegratingSensor", "simulated_imu",
            "increment_correction", "increment_covariance", "DEG_PER_HOUR", "ARCSEC",
            "NAVIGATION_GRADE_GYRO", "NAVIGATION_GRADE_ACCEL"]
 
@@ -59,6 +59,13 @@ class SensorSigmas:
             v = getattr(self, name)
             if not (np.isfinite(v) and v >= 0):
                 raise ValueError(f"{name} must be finite and >= 0, got {v}")
+
+    @classmethod
+    def from_params(cls, values: dict, prefix: str) -> "SensorSigmas":
+        """From node parameters ``<prefix>_bias_sigma`` … ``<prefix>_quantum`` (prefix gyro/accel)."""
+        return cls(**{f: float(values[f"{prefix}_{k}"]) for f, k in (
+            ("bias_sigma", "bias_sigma"), ("scale_sigma", "scale_sigma"),
+            ("misalignment_sigma", "misalignment_sigma"), ("random_walk", "random_walk"), ("quantum", "quantum"))})
 
     def draw(self, rng: np.random.Generator) -> "SensorErrorModel":
         return SensorErrorModel.random(rng, self.bias_sigma, self.scale_sigma, self.misalignment_sigma,
@@ -187,7 +194,7 @@ class IntegratingSensor:
     """
 
     def __init__(self, profile, kind: str, rate_hz: float, errors: SensorErrorModel | None = None,
-                 seed: int | None = 0, start_time: float = 0.0):
+                 seed: int | None = 0, start_time: float = 0.0, effects=None):
         if kind not in ("gyro", "accel"):
             raise ValueError(f"kind must be 'gyro' or 'accel', got {kind!r}")
         if not (np.isfinite(rate_hz) and rate_hz > 0):
@@ -200,6 +207,10 @@ class IntegratingSensor:
         self.start_time = float(start_time)
         self.count = 0
         self.quantizer = PulseQuantizer(self.errors.quantum) if self.errors.quantum > 0 else None
+        # systematic effects of the registry (sensors.effects.GyroEffects), epoch = first stamp
+        self.effects = effects if effects is not None and effects.active else None
+        if self.effects is not None and self.effects.epoch is None:
+            self.effects.epoch = self.start_time + self.period
 
     def epochs(self, n: int) -> np.ndarray:
         """End times of the next n samples (does not advance)."""
@@ -216,7 +227,8 @@ class IntegratingSensor:
         """Advance by n samples; returns (end_times (n,), measured (n,3), true (n,3))."""
         t_end, true = self.true_increments(n)
         e = self.errors
-        meas = true @ (np.eye(3) + e.matrix).T + e.bias * self.period
+        u = true if self.effects is None else self.effects.apply(true, t_end, self.period)
+        meas = u @ (np.eye(3) + e.matrix).T + e.bias * self.period
         if e.random_walk > 0:
             meas = meas + self.rng.normal(0.0, e.random_walk * np.sqrt(self.period), meas.shape)
         if self.quantizer is not None:
@@ -241,3 +253,20 @@ def increment_covariance(increments: np.ndarray, period: float, bias_sigma: floa
     idx = np.arange(3)
     out[..., idx, idx] = d
     return out
+
+
+def simulated_imu(p: dict, profile):
+    """The gyro and accelerometer triads of ``imu_sim_node`` and ``record_sim`` from validated
+    node parameters: constants drawn gyro first, then accelerometer, from ``default_rng(seed)``;
+    noise streams seed+1 (gyro) and seed+2 (accelerometer); the gyro carries the systematic
+    effects of the registry.  Returns (gyro, accel) :class:`IntegratingSensor`."""
+    from .effects import GyroEffects
+
+    seed = int(p["seed"])
+    rng = np.random.default_rng(seed)
+    gyro_errors = SensorSigmas.from_params(p, "gyro").draw(rng)
+    accel_errors = SensorSigmas.from_params(p, "accel").draw(rng)
+    gyro = IntegratingSensor(profile, "gyro", float(p["gyro_rate"]), gyro_errors, seed=seed + 1,
+                             effects=GyroEffects(p))
+    accel = IntegratingSensor(profile, "accel", float(p["accel_rate"]), accel_errors, seed=seed + 2)
+    return gyro, accel
