@@ -107,6 +107,7 @@ PROFILE_PARAMS = [
     ParamSpec("coning_nu", 1.0, "coning frequency ν, rad/s", 0.0, 1000.0, exclusive_minimum=True),
     ParamSpec("bench_latitude_deg", 50.45, "bench latitude, degrees (Earth-rate direction)", -90.0, 90.0),
     ParamSpec("bench_earth_rate", True, "bench profile turns with the Earth"),
+    ParamSpec("bench_repeat", 1, "passes of the bench turn sequence (150 s each after a 20 s hold)", 1, 100000),
     ParamSpec("profile_file", "", "YAML with 'segments' for profile=piecewise"),
     ParamSpec("gravity", [0.0, 0.0, 0.0], "specific force at rest in reference axes, m/s² "
               "(coning and piecewise profiles; the bench uses ENU gravity)", length=3),

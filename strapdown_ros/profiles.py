@@ -322,15 +322,16 @@ def tkachenko_profile() -> PiecewiseRateProfile:
 def bench_profile(latitude_deg: float = 50.45, earth_rate: bool = True,
                   hold: float = 20.0, rotation_time: float = 5.0,
                   angles_deg: Sequence[float] = (15.0, -12.0, 10.0, -15.0, 12.0, -10.0),
-                  axes: Sequence[int] = (2, 0, 1, 2, 0, 1)) -> PiecewiseRateProfile:
+                  axes: Sequence[int] = (2, 0, 1, 2, 0, 1), repeat: int = 1) -> PiecewiseRateProfile:
     """A bench sequence in the spirit of 004 §6: static holds and 10–15° rotations about
     the body z, x and y axes in turn, on a bench that turns with the Earth.
 
     Reference frame: inertial, coinciding with the local ENU frame at t = 0.  Earth rate in
-    ENU is Ω·[0, cos φ, sin φ]; gravity specific force [0, 0, g].
+    ENU is Ω·[0, cos φ, sin φ]; gravity specific force [0, 0, g].  ``repeat`` runs the
+    sequence that many times (the turns of a pass cancel about each axis, so the attitude stays near the start).
     """
     segments = [Segment(hold)]
-    for ang, ax in zip(angles_deg, axes):
+    for ang, ax in list(zip(angles_deg, axes)) * int(repeat):
         rate = np.zeros(3)
         rate[ax] = np.radians(ang) / rotation_time
         segments += [Segment(rotation_time, rate), Segment(hold)]
@@ -361,7 +362,8 @@ def profile_from_config(cfg: dict) -> MotionProfile:
         return tkachenko_profile()
     if name == "bench":
         return bench_profile(latitude_deg=float(cfg.get("bench_latitude_deg", 50.45)),
-                             earth_rate=bool(cfg.get("bench_earth_rate", True)))
+                             earth_rate=bool(cfg.get("bench_earth_rate", True)),
+                             repeat=int(cfg.get("bench_repeat", 1)))
     path = cfg.get("profile_file", "")
     if not path:
         raise ValueError("profile 'piecewise' needs profile_file: a YAML file with 'segments'")

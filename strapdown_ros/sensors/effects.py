@@ -73,6 +73,8 @@ class Effect:
     parameters: tuple[EffectParameter, ...] = ()
     #: parameter giving the prior 1σ of the value parameter (per component), if any
     sigma_parameter: str | None = None
+    #: changes the mean of the residuals (systematic effects, and quantization's lag)
+    has_mean: bool = True
     #: the zero-effect value of the estimated parameters (1 for multiplicative noise scales)
     neutral: float = 0.0
     summary: str = ""
@@ -103,6 +105,16 @@ class Effect:
         return bool(np.any(self.value(params) != self.neutral))
 
     # gyro systematic effects override these -------------------------------------------
+    def direct_check(self, delta_theta: np.ndarray, theta: np.ndarray) -> str | None:
+        """A test of the effect on the raw measured increments, independent of the residuals:
+        None when the data are consistent with it (or there is no such test), else the reason."""
+        return None
+
+    def fit_basis(self) -> np.ndarray | None:
+        """(size, q) map from the q combinations the residuals can separate to the parameters,
+        or None when all are separable."""
+        return None
+
     def matrix_term(self, theta: np.ndarray, sign: np.ndarray) -> np.ndarray | None:
         """Contribution to K − I for increments with signs ``sign`` (n, 3) → (n, 3, 3), or None."""
         return None
@@ -219,6 +231,13 @@ class GyroMisalignment(Effect):
                       "whole triad, the same signature as a boresight change, so only the symmetric part "
                       "(non-orthogonality, 3 combinations) is separable")
 
+    def fit_basis(self):
+        """Symmetric non-orthogonality: M_xy = M_yx, M_xz = M_zx, M_yz = M_zy."""
+        S = np.zeros((6, 3))
+        for c, pair in enumerate(((0, 2), (1, 4), (3, 5))):
+            S[list(pair), c] = 1.0
+        return S
+
     def matrix_term(self, theta, sign):
         M = np.zeros((3, 3))
         for v, (i, j) in zip(theta, MISALIGNMENT_INDEX):
@@ -237,6 +256,7 @@ class GyroRandomWalk(Effect):
     """White angle random walk: part of every nominal model, not searched for."""
     name = "gyro_random_walk"
     kind = "noise"
+    has_mean = False
     candidate = False
     compensable = False
     parameters = (EffectParameter("gyro_random_walk", "rad/√s", 1, NAVIGATION_GRADE_GYRO.random_walk,
@@ -251,8 +271,43 @@ class GyroQuantization(Effect):
     parameters = (EffectParameter("gyro_quantum", "rad", 1, 0.0,
                                   "pulse weight σ of level quantization (0 = off), rad", 0.0),)
     summary = "pulse quantization with carried remainder (000 §5), uncompensated"
-    signature_text = ("no mean; the remainders at the two fixes of a pair add σ²/12 per axis at each fix, "
-                      "with the camera-fix correlation structure; the increments lie on a lattice of step σ")
+    signature_text = ("the output lags the integral by the carried remainder: a mean σ/2 in the sense of the "
+                      "motion on each axis (000 §5.3), seen where a pair starts and ends in different motion, "
+                      "and a variance σ²/12 per axis at each fix, with the camera-fix correlation structure")
+
+    @staticmethod
+    def lattice_step(delta_theta: np.ndarray, tolerance: float = 0.01, min_fraction: float = 0.9):
+        """The pulse weight the increments are multiples of, per axis, or None per axis where they
+        are not quantized: the smallest non-zero |Δθ| (1st percentile), accepted when at least
+        ``min_fraction`` of the non-zero increments lie within ``tolerance`` of a multiple, then
+        refined as the median of Δθ / round(Δθ / step)."""
+        steps = []
+        for x in np.asarray(delta_theta, dtype=float).reshape(-1, 3).T:
+            x = x[x != 0.0]
+            if len(x) < 20:
+                steps.append(None)
+                continue
+            q0 = float(np.percentile(np.abs(x), 1.0))
+            m = np.round(x / q0)
+            good = (m != 0) & (np.abs(x / q0 - m) < tolerance)
+            if np.mean(good) < min_fraction:
+                steps.append(None)
+                continue
+            steps.append(float(np.median(x[good] / m[good])))
+        return steps
+
+    def direct_check(self, delta_theta, theta):
+        """Quantized increments are multiples of the pulse weight: the lattice must exist and its
+        step must agree with the estimate within a factor 1.5."""
+        steps = [s for s in self.lattice_step(delta_theta) if s is not None]
+        if not steps:
+            return "the measured increments are not multiples of a pulse weight (no quantization lattice)"
+        q = float(np.median(steps))
+        if theta is None:
+            return None
+        if not (q / 1.5 <= float(theta[0]) <= 1.5 * q):
+            return f"the increments lie on a lattice of step {q:.3g} rad, not {float(theta[0]):.3g}"
+        return None
 
     def fix_covariance(self, P: np.ndarray, theta: np.ndarray) -> np.ndarray:
         """Per-fix covariance (n, 3, 3) with the remainder variance σ²/12 added (isotropic, so the
@@ -264,6 +319,7 @@ class CameraNoiseAnisotropy(Effect):
     name = "camera_noise_anisotropy"
     sensor = "camera"
     kind = "noise"
+    has_mean = False
     neutral = 1.0
     parameters = (EffectParameter("camera_noise_scale", "1", 3, [1.0, 1.0, 1.0],
                                   "true camera noise σ about VF x, y, z ÷ the σ the camera reports (or "
