@@ -23,7 +23,7 @@ setup(
     install_requires=["setuptools", "numpy"],
     extras_require={
         "ros": ROS_FROM_PYPI,
-        "tools": ["scipy", "matplotlib", "rosbags", "pyyaml"],
+        "tools": ["scipy", "matplotlib", "rosbags", "pyyaml", "allantools"],
         # boresight_bench: OpenCV hand-eye peers; 5.0.0 lacks calibrateHandEye in Python (opencv#29565)
         "bench": ["opencv-python-headless>=4.8,<5"],
         "test": ["pytest", "pytest-timeout", "colcon-core", "colcon-ros",
@@ -49,6 +49,7 @@ setup(
             "calibrate_bag = strapdown_ros.tools.calibrate_bag:main",
             "boresight_bench = strapdown_ros.tools.boresight_bench:main",
             "reproduce_seeds = strapdown_ros.tools.reproduce_seeds:main",
+            "discrepancy = strapdown_ros.tools.discrepancy:main",
         ],
     },
 )

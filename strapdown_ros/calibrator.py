@@ -9,6 +9,11 @@ Feed it in any interleaving (stamps in seconds, any origin):
 * :meth:`add_camera` — a camera attitude q_GCRS_VF (scalar-first) with its 3×3 covariance
   (VF axes).
 
+Known effects (:mod:`strapdown_ros.sensors.effects`) are compensated on the way in: the
+systematic gyro effects of ``effects`` (bias, drift, scale, asymmetry, misalignment) on the
+increments, and the camera's ``camera_time_offset`` (a fix stamped t belongs to t − offset) and
+``camera_noise_scale`` (P → K P K) on the fixes.
+
 A pair (n−1, n) is formed as soon as the gyro increment whose interval contains t_{E,n} has
 arrived.  :meth:`solve` runs the estimator over all pairs, warm-started from the previous
 solution, and returns a :class:`~strapdown_ros.boresight.BoresightSolution` (which says
@@ -22,6 +27,7 @@ import numpy as np
 
 from .boresight import BoresightSolution, IncrementPair, camera_increment, gyro_increment, solve_boresight
 from .sensors import SensorSigmas
+from .sensors.effects import CameraEffects, GyroEffects
 
 __all__ = ["BoresightCalibrator"]
 
@@ -29,7 +35,11 @@ __all__ = ["BoresightCalibrator"]
 class BoresightCalibrator:
     def __init__(self, gyro: SensorSigmas | None = None, covariance_model: str = "random_constant",
                  weighted: bool = True, initial_boresight=(0.0, 0.0, 0.0), min_rotation: float = np.radians(0.5),
-                 max_sigma: float = 1e-3, max_pairs: int = 0):
+                 max_sigma: float = 1e-3, max_pairs: int = 0, effects: GyroEffects | None = None,
+                 camera: CameraEffects | None = None):
+        self.effects = effects if effects is not None and effects.active else None
+        self.camera = camera
+        self._last_stamp = None
         self.gyro = gyro
         self.covariance_model = covariance_model
         self.weighted = weighted
@@ -44,11 +54,25 @@ class BoresightCalibrator:
         self.pairs: list[IncrementPair] = []
         self.solution: BoresightSolution | None = None
 
+    @classmethod
+    def from_params(cls, p: dict) -> "BoresightCalibrator":
+        """The calibrator of ``calibrator_node`` parameters (node and ``calibrate_bag`` alike)."""
+        return cls(gyro=SensorSigmas.from_params(p, "gyro"), covariance_model=p["covariance_model"],
+                   weighted=bool(p["weighted"]), initial_boresight=np.asarray(p["initial_boresight"], dtype=float),
+                   min_rotation=np.radians(float(p["min_rotation_deg"])), max_sigma=float(p["max_sigma"]),
+                   max_pairs=int(p["max_pairs"]), effects=GyroEffects(p), camera=CameraEffects(p))
+
     # --- input -----------------------------------------------------------------------------
     def add_gyro(self, stamps, delta_theta) -> int:
         """Append increments (stamps strictly increasing); returns the number of new pairs."""
         st = np.atleast_1d(np.asarray(stamps, dtype=float))
         v = np.asarray(delta_theta, dtype=float).reshape(-1, 3)
+        if self.effects is not None and len(st):
+            prev = self._last_stamp if self._last_stamp is not None else (
+                st[0] - (st[1] - st[0]) if len(st) > 1 else st[0] - 0.01)
+            v = self.effects.compensate(v, st, np.diff(np.concatenate([[prev], st])))
+        if len(st):
+            self._last_stamp = float(st[-1])
         self._t.extend(st.tolist())
         self._v.extend(v.tolist())
         new = self._form_pairs()
@@ -63,8 +87,12 @@ class BoresightCalibrator:
     MAX_BUFFER = 200_000
 
     def add_camera(self, stamp: float, q_gcrs_vf, covariance) -> int:
-        """Append one camera fix; returns the number of new pairs."""
-        self._cams.append((float(stamp), np.asarray(q_gcrs_vf, dtype=float), np.asarray(covariance, dtype=float)))
+        """Append one camera fix; returns the number of new pairs.  With camera effects the fix
+        is placed at its IMU-clock epoch and its covariance corrected."""
+        P = np.asarray(covariance, dtype=float)
+        if self.camera is not None:
+            stamp, P = self.camera.epoch(float(stamp)), self.camera.covariance(P)
+        self._cams.append((float(stamp), np.asarray(q_gcrs_vf, dtype=float), P))
         return self._form_pairs()
 
     def _form_pairs(self) -> int:

@@ -272,3 +272,55 @@ if __name__ == "__main__":   # python -m strapdown_ros.config → README paramet
     for title, specs in (("imu_sim_node", IMU_SIM_PARAMS), ("sins_node", SINS_PARAMS),
                          ("star_camera_sim_node", STAR_CAMERA_PARAMS), ("calibrator_node", CALIBRATOR_PARAMS)):
         sys.stdout.write(f"\n#### {title}\n\n{markdown_table(specs)}\n")
+
+
+#: the nodes whose blocks a model file may hold (ROS 2 parameter-file schema)
+NODE_PARAMS = {"imu_sim_node": IMU_SIM_PARAMS, "sins_node": SINS_PARAMS,
+               "star_camera_sim_node": STAR_CAMERA_PARAMS, "calibrator_node": CALIBRATOR_PARAMS}
+
+
+def load_model(path: str) -> tuple[dict, dict]:
+    """A nominal model from a ROS 2 parameter file: the ``/**`` block and the blocks of the
+    package's nodes merged (``/**`` first, then imu_sim_node, star_camera_sim_node, sins_node,
+    calibrator_node), every key validated by the node that declares it.
+
+    Returns (values, raw): ``values`` holds every parameter of every node (defaults where the
+    file is silent), ``raw`` the parsed document.  Raises ValueError naming a key that no node
+    of the package knows, a block that names no node, or an invalid value."""
+    import yaml
+
+    try:
+        with open(path, "r", encoding="utf-8") as fh:
+            doc = yaml.safe_load(fh)
+    except yaml.YAMLError as exc:
+        raise ValueError(f"{path}: not valid YAML ({str(exc).splitlines()[0]})") from None
+    if doc is None:
+        doc = {}
+    if not isinstance(doc, dict):
+        raise ValueError(f"{path}: expected a ROS 2 parameter file (a mapping of node names to ros__parameters)")
+    specs: dict[str, ParamSpec] = {}
+    for lst in NODE_PARAMS.values():
+        for s in lst:
+            specs.setdefault(s.name, s)
+    merged: dict = {}
+    order = ["/**", "**"] + [n for node in NODE_PARAMS for n in (node, "/" + node)]
+    for key in doc:
+        if key not in order:
+            raise ValueError(f"{path}: block {key!r} names no node of the package "
+                             f"(known: /**, {', '.join(NODE_PARAMS)})")
+    for key in order:
+        block = doc.get(key)
+        if block is None:
+            continue
+        if not isinstance(block, dict) or not isinstance(block.get("ros__parameters", {}), dict):
+            raise ValueError(f"{path}: block {key!r} must hold a 'ros__parameters' mapping")
+        for name, value in (block.get("ros__parameters") or {}).items():
+            if name not in specs:
+                raise ValueError(f"{path}: model key {name!r} is not a parameter of any node of the package")
+            err = specs[name].check(specs[name].normalise(value))
+            if err:
+                raise ValueError(f"{path}: {err}")
+            merged[name] = specs[name].normalise(value)
+    values = {n: s.default for n, s in specs.items()}
+    values.update(merged)
+    return values, doc

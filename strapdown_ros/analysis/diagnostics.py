@@ -92,7 +92,7 @@ def describe_remaining(series: dict, lin=None) -> dict:
 
 # ----------------------------------------------------------------------------- Allan deviation
 def static_segments(stamps: np.ndarray, delta_theta: np.ndarray, rate_limit: float = 2e-4,
-                    min_duration: float = 30.0) -> list[tuple[int, int]]:
+                    min_duration: float = 15.0) -> list[tuple[int, int]]:
     """Index ranges [i, j) where the body is at rest: every increment's rate below ``rate_limit``
     (rad/s; Earth rate is 7.3e-5) for at least ``min_duration`` seconds."""
     st = np.asarray(stamps, dtype=float)
@@ -133,7 +133,7 @@ def allan_comparison(stamps, delta_theta, params_before: dict, params_after: dic
     ``segments`` of them, each axis, averaged over axes and segments) against the same for the
     model simulated on the same segments: the measured mean rate plus the model's random walk,
     quantization and bias drift, fed through the package's own sensor model.  None when the
-    recording has no static segment of 30 s."""
+    recording has no static segment of 15 s."""
     from ..sensors.effects import GyroEffects
     from ..sensors.model import PulseQuantizer
 

@@ -46,7 +46,7 @@ from . import diagnostics
 from .linear_model import Whitener, band_covariance, fit
 from .pairs import GyroRecord, PairSet, build_pairs, pair_integral, pair_residuals
 
-__all__ = ["Recording", "analyse", "DiscrepancyResult", "RHO_MAX", "DEFAULT_ALPHA", "MIN_PAIRS",
+__all__ = ["Recording", "analyse", "json_clean", "DiscrepancyResult", "RHO_MAX", "DEFAULT_ALPHA", "MIN_PAIRS",
            "InputError"]
 
 DEFAULT_ALPHA = 0.01
@@ -111,22 +111,15 @@ class Linearisation:
             cols.append((pair_residuals(C @ rotvec_to_dcm(d), self.pairs)
                          - pair_residuals(C @ rotvec_to_dcm(-d), self.pairs)).reshape(-1) / (2 * h))
         self.col_boresight = np.array(cols).T
-        # gyro-effect signatures: ∂r/∂θ_model = −Cᵀ ε-signature
+        # gyro-effect signatures ∂r/∂θ_model = −Cᵀ ε-signature: computed when first asked for
         self._sig = {}
-        for name in ("gyro_bias", "gyro_bias_drift", "gyro_scale_factor", "gyro_scale_asymmetry",
-                     "gyro_misalignment"):
-            e = EFFECTS[name]
-            t_of = self._times
-            eps = pair_integral(self.gyro, self.pairs,
-                                lambda r_, T_, sl, e=e, t_of=t_of: e.increment_jacobian(r_, T_, t_of(sl)))
-            self._sig[name] = -np.einsum("ji,njp->nip", C, eps).reshape(3 * N, -1)
         # time offset: ∂r/∂τ_model = Cᵀ (ΔSᵀ ω_s − ω_e)
         w_s = self.gyro.rate_at(self.pairs.k_start)
         w_e = self.gyro.rate_at(self.pairs.k_end)
         E = np.einsum("nji,nj->ni", self.R_imu, w_s) - w_e
         self._sig["time_offset"] = (E @ C).reshape(3 * N, 1)
         # nominal random constants (prior) U
-        self.U = np.hstack([-self._sig[n] for n, _ in _PRIOR_EFFECTS])
+        self.U = np.hstack([-self.signature(n) for n, _ in _PRIOR_EFFECTS])
         self.prior_var = np.concatenate([np.full(EFFECTS[n].size, float(params.get(s, 0.0)) ** 2)
                                          for n, s in _PRIOR_EFFECTS])
         self.random_walk = float(params.get("gyro_random_walk", 0.0))
@@ -143,9 +136,18 @@ class Linearisation:
         return st[sl] - 0.5 * (st[sl] - st[sl - 1]) - self.epoch
 
     # ---- columns -----------------------------------------------------------------------
+    def signature(self, name: str) -> np.ndarray:
+        """∂r/∂θ_model of a systematic effect's parameters, (3N, size)."""
+        if name not in self._sig:
+            e = EFFECTS[name]
+            eps = pair_integral(self.gyro, self.pairs,
+                                lambda r_, T_, sl: e.increment_jacobian(r_, T_, self._times(sl)))
+            self._sig[name] = -np.einsum("ji,njp->nip", self.C, eps).reshape(3 * len(self.pairs), -1)
+        return self._sig[name]
+
     def columns(self, name: str) -> np.ndarray:
         """∂r/∂(fit combinations) of a systematic effect, (3N, q)."""
-        col = self._sig[name]
+        col = self.signature(name)
         S = get_effect(name).fit_basis()
         return col if S is None else col @ S
 
@@ -247,6 +249,22 @@ def _fit_noise(lin: Linearisation, free, noise: dict, name: str, mask=None):
 
 
 # ----------------------------------------------------------------------------- results
+def json_clean(v):
+    """Plain JSON values: numpy scalars and arrays to Python, non-finite floats to None."""
+    if isinstance(v, dict):
+        return {k: json_clean(x) for k, x in v.items()}
+    if isinstance(v, (list, tuple)):
+        return [json_clean(x) for x in v]
+    if isinstance(v, np.ndarray):
+        return json_clean(v.tolist())
+    if isinstance(v, (bool, np.bool_)):
+        return bool(v)
+    if isinstance(v, (np.floating, float)):
+        return float(v) if np.isfinite(v) else None
+    if isinstance(v, np.integer):
+        return int(v)
+    return v
+
 @dataclass
 class Step:
     effect: str
@@ -286,19 +304,7 @@ class DiscrepancyResult:
     rejected: list = field(default_factory=list)
 
     def as_json(self) -> dict:
-        def clean(v):
-            if isinstance(v, dict):
-                return {k: clean(x) for k, x in v.items()}
-            if isinstance(v, (list, tuple)):
-                return [clean(x) for x in v]
-            if isinstance(v, (np.floating, float)):
-                return float(v) if np.isfinite(v) else None
-            if isinstance(v, np.integer):
-                return int(v)
-            if isinstance(v, np.ndarray):
-                return clean(v.tolist())
-            return v
-        return clean({
+        return json_clean({
             "verdict": self.verdict, "rms_before": self.rms_before, "rms_after": self.rms_after,
             "heldout_rms_before": self.heldout_rms_before, "heldout_rms_after": self.heldout_rms_after,
             "steps": [s.as_dict() for s in self.steps], "not_separable": self.not_separable,
@@ -313,15 +319,23 @@ class DiscrepancyResult:
 
 
 # ----------------------------------------------------------------------------- the workflow
-def _blocks(lin: Linearisation, blocks: int):
-    t = lin.pairs.t_end
-    edges = np.linspace(t[0], t[-1] + 1e-9, blocks + 1)
-    b = np.clip(np.searchsorted(edges, t, side="right") - 1, 0, blocks - 1)
-    return b % 2 == 0, b % 2 == 1
+class _Split:
+    """Time-blocked split: ``blocks`` equal spans of the record; even blocks fit, odd ones judge.
+    Fixed in time, so it applies to any linearisation (the pairs may change with a time offset)."""
+
+    def __init__(self, lin: Linearisation, blocks: int):
+        t = lin.pairs.t_end
+        self.edges = np.linspace(t[0], t[-1] + 1e-9, blocks + 1)
+        self.blocks = blocks
+
+    def masks(self, lin: Linearisation):
+        b = np.clip(np.searchsorted(self.edges, lin.pairs.t_end, side="right") - 1, 0, self.blocks - 1)
+        return b % 2 == 0, b % 2 == 1
 
 
-def _heldout(lin, free, noise, train, test):
+def _heldout(lin, free, noise, split):
     """Fit on the training blocks, judge on the held-out ones: (−2 log L per residual, whitened RMS)."""
+    train, test = split.masks(lin)
     f_tr = lin.evaluate(free, noise, train)
     rows = lin.rows(test)
     J = lin.design(free)[rows]
@@ -400,11 +414,16 @@ def _score(lin, free, noise, base, name):
     return dict(effect=name, statistic=stat, dof=dof, p_value=float(chi2.sf(stat, dof)))
 
 
-def _refine(rec, params, C, epoch, free, noise, iterations=4):
-    """Gauss–Newton on the boresight and the free systematic effects (values in ``params``)."""
+def _refine(rec, params, C, epoch, free, noise, iterations=6):
+    """Gauss–Newton on the boresight and the free systematic effects (values in ``params``),
+    until a step improves χ² by less than 1e-3 (or ``iterations``)."""
+    last = np.inf
     for _ in range(iterations):
         lin = Linearisation(rec, params, C, epoch)
         f = lin.evaluate(free, noise)
+        if last - f.chi2 < 1e-3 and np.max(np.abs(f.z)) < 1e-6:
+            break
+        last = f.chi2
         z = -f.z                                     # r + J z = 0: model += −(GLS of r on J)
         C = C @ rotvec_to_dcm(z[:3])
         k = 3
@@ -417,8 +436,6 @@ def _refine(rec, params, C, epoch, free, noise, iterations=4):
             p = e.value_parameter
             v = e.value(params) + (dz if S is None else S @ dz)
             params[p.name] = v.tolist() if p.size > 1 else float(v[0])
-        if np.max(np.abs(z)) < 1e-12:
-            break
     return params, C
 
 
@@ -469,8 +486,8 @@ def analyse(rec: Recording, params: dict, alpha: float = DEFAULT_ALPHA, blocks: 
                          f"consecutive camera fixes without gaps")
     lags = lags or int(min(20, max(2, len(lin0.pairs) // 10)))
     base0 = lin0.evaluate([], noise)
-    train, test = _blocks(lin0, blocks)
-    ho_before = _heldout(lin0, [], noise, train, test)
+    split = _Split(lin0, blocks)
+    ho_before = _heldout(lin0, [], noise, split)
     tests_before = diagnostics.verdict_tests(base0.whitened, len(lin0.pairs), alpha, lags)
     series_before = _series(lin0, base0, [])
 
@@ -517,12 +534,12 @@ def analyse(rec: Recording, params: dict, alpha: float = DEFAULT_ALPHA, blocks: 
         trial_noise = dict(noise)
         trial_free = list(free)
         if EFFECTS[name].kind == "noise":
-            theta_tr, _, _ = _fit_noise(lin, free, noise, name, train)
+            theta_tr, _, _ = _fit_noise(lin, free, noise, name, split.masks(lin)[0])
             trial_noise[name] = theta_tr.tolist()
         else:
             trial_free.append(name)
-        ho_b = _heldout(lin, free, noise, train, test)
-        ho_a = _heldout(lin, trial_free, trial_noise, train, test)
+        ho_b = _heldout(lin, free, noise, split)
+        ho_a = _heldout(lin, trial_free, trial_noise, split)
         gain = ho_b[0] - ho_a[0]
         if not gain > 0:
             rejected.append({"effect": name, "p_value": best["p_value"], "heldout_gain": gain,
@@ -585,7 +602,7 @@ def analyse(rec: Recording, params: dict, alpha: float = DEFAULT_ALPHA, blocks: 
             _, _, sig = _fit_noise(lin, free, noise, s.effect)
             s.parameters, s.sigma = _values_json(s.effect, params, theta=noise[s.effect], sigma=sig)
     tests_after = diagnostics.verdict_tests(final.whitened, len(lin.pairs), alpha, lags)
-    ho_after = _heldout(lin, free, noise, train, test) if steps else ho_before
+    ho_after = _heldout(lin, free, noise, split) if steps else ho_before
     passed = tests_after["passed"]
     verdict = ("model_adequate" if not steps else "explained") if passed else "unexplained_structure"
     series_after = _series(lin, final, free)

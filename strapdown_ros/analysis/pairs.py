@@ -22,7 +22,7 @@ import numpy as np
 from ..boresight import r_partial
 from ..rotation import quat_conjugate, quat_cumprod, quat_multiply, quat_normalize, quat_to_dcm
 
-__all__ = ["GyroRecord", "PairSet", "build_pairs", "pair_residuals", "pair_integral", "ANGLE_LIMIT"]
+__all__ = ["GyroRecord", "PairSet", "build_pairs", "pair_residuals", "pair_integral", "gaps_from_stamps", "ANGLE_LIMIT"]
 
 ANGLE_LIMIT = np.pi * 0.999          # increments beyond this are not formed (ambiguous rotation)
 
@@ -39,6 +39,14 @@ class GyroRecord:
         self.period = np.diff(self.stamps)                         # T_k of interval k ≥ 1
         q = quat_cumprod(np.array([1.0, 0.0, 0.0, 0.0]), _exp(self.rho))
         self.attitude = q                                          # A at the end of interval k
+        self._dcm = None
+
+    @property
+    def dcm(self) -> np.ndarray:
+        """DCMs of :attr:`attitude` (computed once)."""
+        if self._dcm is None:
+            self._dcm = quat_to_dcm(self.attitude)
+        return self._dcm
 
     def locate(self, tau: np.ndarray):
         """Interval index k (t_{k−1} < τ ≤ t_k) and fraction x of each epoch; valid mask."""
@@ -143,7 +151,7 @@ def pair_integral(gyro: GyroRecord, pairs: PairSet, jacobian, chunk: int = 100_0
         hi = min(n, lo + chunk)
         sl = np.arange(lo, hi)
         D = jacobian(gyro.rho[sl], gyro.stamps[sl] - gyro.stamps[sl - 1], sl)
-        Cm = quat_to_dcm(gyro.attitude[sl])
+        Cm = gyro.dcm[sl]
         Y = np.einsum("kij,kjp->kip", Cm, D)
         Z = np.cumsum(Y, axis=0)
         if carry is not None:
@@ -164,3 +172,17 @@ def pair_integral(gyro: GyroRecord, pairs: PairSet, jacobian, chunk: int = 100_0
     total = Ze - Zs + (1.0 - pairs.x_start)[:, None, None] * Ys + pairs.x_end[:, None, None] * Ye
     Cend = quat_to_dcm(gyro.attitude_at(Ke, pairs.x_end))
     return np.einsum("nji,njp->nip", Cend, total)
+
+
+def gaps_from_stamps(stamps: np.ndarray, factor: float = 1.5) -> tuple[list, float, int]:
+    """Gaps of a gyro stream judged against its own rate: the median step of the stamps is the
+    period; a step above ``factor`` periods is a gap (increments missing, their rotation lost).
+    Returns (gaps [(a, b)], period, missing increments)."""
+    st = np.asarray(stamps, dtype=float)
+    if len(st) < 3:
+        return [], float("nan"), 0
+    d = np.diff(st)
+    period = float(np.median(d))
+    idx = np.where(d > factor * period)[0]
+    missing = int(np.sum(np.round(d[idx] / period) - 1))
+    return [(float(st[i]), float(st[i + 1])) for i in idx], period, missing

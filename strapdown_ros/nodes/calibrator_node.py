@@ -65,8 +65,8 @@ from geometry_msgs.msg import PoseWithCovarianceStamped, QuaternionStamped, Vect
 from rclpy.node import Node
 
 from ..boresight import imu_attitude_from_camera
+from ..config import CALIBRATOR_PARAMS
 from ..calibrator import BoresightCalibrator
-from ..config import CALIBRATOR_PARAMS, sigmas_from
 from . import ros_io
 from .sins_node import StreamCheck
 from .ros_io import camera_qos, latched_qos, pose_with_covariance, rotation_block
@@ -82,11 +82,7 @@ class CalibratorNode(Node):
         self.p = ros_io.declare_validated(self, CALIBRATOR_PARAMS, on_change=self._on_change)
         p = self.p
         self.gyro_period = 1.0 / float(p["gyro_rate"])
-        self.cal = BoresightCalibrator(
-            gyro=sigmas_from(p, "gyro"), covariance_model=p["covariance_model"], weighted=bool(p["weighted"]),
-            initial_boresight=np.asarray(p["initial_boresight"], dtype=float),
-            min_rotation=math.radians(float(p["min_rotation_deg"])), max_sigma=float(p["max_sigma"]),
-            max_pairs=int(p["max_pairs"]))
+        self.cal = BoresightCalibrator.from_params(p)     # as calibrate_bag builds it (effects compensated)
         sxy, sz = float(p["camera_sigma_xy"]), float(p["camera_sigma_z"])
         self.default_p_avu = np.diag([sxy ** 2, sxy ** 2, sz ** 2])
         self.gyro_check = StreamCheck(self.gyro_period)

@@ -32,6 +32,7 @@ from sensor_msgs.msg import Imu
 from ..config import SINS_PARAMS, sigmas_from
 from ..integrator import AttitudeIntegrator, IncrementAccumulator
 from ..rotation import from_ros_xyzw
+from ..sensors.effects import GyroEffects
 from . import ros_io
 
 NODE_NAME = "sins_node"
@@ -96,6 +97,10 @@ class SinsNode(Node):
             p["coning_algorithm"], initial_attitude=from_ros_xyzw(q0_xyzw), nominal_period=period,
             gyro=sigmas_from(p, "gyro"), initial_sigma=float(p["initial_attitude_sigma"]),
             covariance_model=p["covariance_model"], quantization_correction=bool(p["quantization_correction"]))
+        # known systematic gyro effects of the model (sensors.effects), compensated per increment
+        self.gyro_effects = GyroEffects(p)
+        self.compensating = self.gyro_effects.names()
+        self._last_gyro_t: float | None = None
         self.gyro_check = StreamCheck(period)
         self.accel_check = StreamCheck(1.0 / float(p["accel_rate"]))
         self.accel = IncrementAccumulator()
@@ -116,7 +121,8 @@ class SinsNode(Node):
         self._wall_start = time.monotonic()
         self.get_logger().info(
             f"started: coning_algorithm={p['coning_algorithm']} "
-            f"({self.integrator.algorithm.samples} samples/update), covariance_model={p['covariance_model']}")
+            f"({self.integrator.algorithm.samples} samples/update), covariance_model={p['covariance_model']}, "
+            f"compensating: {', '.join(self.compensating) or 'none'}")
         if self.initial_normalised:
             self.get_logger().warn("initial_orientation was not a unit quaternion; normalised")
 
@@ -145,7 +151,13 @@ class SinsNode(Node):
         v = (msg.vector.x, msg.vector.y, msg.vector.z)
         if not self.gyro_check.accept(ns, v):
             return
-        batch = self.integrator.push(np.array([v]), np.array([self._rel(ns)]))
+        t = self._rel(ns)
+        inc = np.array([v])
+        if self.compensating:
+            T = t - self._last_gyro_t if self._last_gyro_t is not None else self.integrator.nominal_period
+            inc = self.gyro_effects.compensate(inc, np.array([t]), T)
+        self._last_gyro_t = t
+        batch = self.integrator.push(inc, np.array([t]))
         for k in range(len(batch)):
             st = ros_io.ns_to_stamp(self.origin_ns + int(round(batch.stamps[k] * 1e9)))
             self.pub_att.publish(ros_io.quaternion_stamped(st, self.ref_frame, batch.attitude[k]))
@@ -216,6 +228,7 @@ class SinsNode(Node):
                   "attitude_published": self.published["attitude"], "imu_published": self.published["imu"],
                   "imu_published_without_accel": self.published["imu_without_accel"],
                   "algorithm_changes": self.algorithm_changes,
+                  "compensated_effects": ", ".join(self.compensating) or "none",
                   "initial_orientation_normalised": self.initial_normalised}
         if self.integrator.time is not None:
             sig = np.sqrt(np.diag(self.integrator.covariance()))

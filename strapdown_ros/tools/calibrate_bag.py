@@ -37,7 +37,7 @@ from pathlib import Path
 import numpy as np
 
 from ..calibrator import BoresightCalibrator
-from ..config import CALIBRATOR_PARAMS, check_all, load_parameter_file, sigmas_from
+from ..config import CALIBRATOR_PARAMS, check_all, load_parameter_file
 from ..rotation import from_ros_xyzw, to_ros_xyzw
 from .record_sim import parse_overrides
 
@@ -68,11 +68,7 @@ def calibrator_parameters(params_file: str | None = None, overrides: dict | None
 
 def make_calibrator(p: dict) -> BoresightCalibrator:
     """The calibrator exactly as built from calibrator_node parameters."""
-    return BoresightCalibrator(gyro=sigmas_from(p, "gyro"), covariance_model=p["covariance_model"],
-                               weighted=bool(p["weighted"]),
-                               initial_boresight=np.asarray(p["initial_boresight"], dtype=float),
-                               min_rotation=np.radians(float(p["min_rotation_deg"])),
-                               max_sigma=float(p["max_sigma"]), max_pairs=int(p["max_pairs"]))
+    return BoresightCalibrator.from_params(p)
 
 
 # --- bag ------------------------------------------------------------------------------------------

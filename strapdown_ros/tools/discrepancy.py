@@ -1,0 +1,238 @@
+"""discrepancy: where a recording and its model disagree, which effect is missing, and how much
+the disagreement shrinks once it is added.
+
+    discrepancy BAG --model MODEL.yaml [--json FILE] [--report DIR] [--write-model OUT.yaml]
+
+BAG: a rosbag2 recording (MCAP or sqlite3) of ``imu/delta_theta`` (geometry_msgs/Vector3Stamped)
+and the star camera, ``star_camera/attitude_with_covariance`` (its covariance is used) or
+``star_camera/attitude`` (then ``camera_sigma_xy``/``camera_sigma_z`` of the model), at any gyro
+rate (taken from the stamps), any length and any stamp origin; no truth topics are needed.
+MODEL: a ROS 2 parameter file in the schema of the package's nodes (``/**`` and per-node
+blocks; any parameter of any node).  The known effects it states (``gyro_bias``,
+``camera_time_offset``, …) are compensated before the search, as ``sins_node`` and
+``calibrator_node`` compensate them.
+
+Method (``strapdown_ros.analysis.discrepancy``): increment residuals of consecutive camera
+fixes (004 eq. 5–6) whitened by the calibrator's correlated covariance, the boresight always
+estimated; likelihood-ratio selection over the effect library at a Bonferroni-corrected level,
+confirmed on held-out time blocks; verdict ``model_adequate``, ``explained`` or
+``unexplained_structure``.  The Allan deviation of the gyro on static segments is set beside
+that of the model simulated on the same segments (allantools).
+
+Output: a summary on stdout; ``--json`` the full result (schema in the README); ``--report DIR``
+``report.md`` with PNG plots; ``--write-model`` the model with the found effects and the
+estimated boresight.  Exit status 0 for every verdict; 2, with one line on stderr, for unusable
+input (missing or malformed bag or model, no camera topic, too few fixes, a model key no node
+of the package knows).
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+__all__ = ["main", "load_recording", "write_model"]
+
+ARCSEC_PER_RAD = 180.0 / np.pi * 3600.0
+
+
+class _Usage(Exception):
+    pass
+
+
+def _check_output(path: str | None, what: str, directory: bool = False) -> None:
+    if not path:
+        return
+    p = Path(path)
+    if directory:
+        if p.exists() and not p.is_dir():
+            raise _Usage(f"{what} {path} exists and is not a directory")
+        parent = p if p.exists() else p.parent
+    else:
+        if p.is_dir():
+            raise _Usage(f"{what} {path} is a directory")
+        parent = p.parent
+    parent = parent if str(parent) else Path(".")
+    if not parent.exists():
+        raise _Usage(f"{what} {path}: directory {parent} does not exist")
+    if not os.access(parent, os.W_OK):
+        raise _Usage(f"{what} {path}: directory {parent} is not writable")
+
+
+def load_recording(bag: str, model: dict, namespace: str = ""):
+    """The recording as the core's :class:`Recording`, with what reading it found (drops, gaps,
+    topics, the gyro rate from the stamps).  Raises BagError / ValueError."""
+    from ..analysis.discrepancy import Recording
+    from ..analysis.pairs import gaps_from_stamps
+    from .calibrate_bag import BagError, read_bag
+
+    sig = (model["camera_sigma_xy"], model["camera_sigma_xy"], model["camera_sigma_z"])
+    data = read_bag(bag, namespace, True, sig, 1.0 / float(model["gyro_rate"]))
+    g, c = data["gyro"], data["camera"]
+    if len(g.stamps) < 10:
+        raise BagError(f"{bag}: {len(g.stamps)} usable gyro increments on {data['gyro_topic']}")
+    origin = min(g.stamps[0], c.stamps[0]) if c.stamps else g.stamps[0]
+    t_g = (np.asarray(g.stamps, dtype=np.int64) - origin) * 1e-9
+    t_c = (np.asarray(c.stamps, dtype=np.int64) - origin) * 1e-9
+    gaps, period, missing = gaps_from_stamps(t_g)
+    q = np.array([v[0] for v in c.values]).reshape(-1, 4)
+    P = np.array([v[1] for v in c.values]).reshape(-1, 3, 3)
+    rec = Recording(t_g, np.asarray(g.values, dtype=float), t_c, q, P, gaps)
+    info = {"gyro_topic": data["gyro_topic"], "camera_topic": data["camera_topic"],
+            "camera_covariance_from_bag": data["camera_covariance_from_bag"],
+            "gyro_messages": len(g.stamps), "camera_fixes": len(c.stamps),
+            "gyro_rate_from_stamps_hz": 1.0 / period if period > 0 else None,
+            "gyro_gaps": len(gaps), "gyro_missing": missing,
+            "dropped": {"gyro": dict(g.dropped), "camera": {**c.dropped, **{
+                k: v for k, v in data["camera_fixes"].items() if k in ("zero_quaternion", "bad_covariance")}}},
+            "stamp_origin_ns": int(origin), "duration_s": float(t_g[-1] - t_g[0])}
+    return rec, info
+
+
+def write_model(path: str, doc: dict, result) -> None:
+    """The model file with the found effects and the estimated boresight: written into ``/**``
+    (and into any node block that sets the same key, so it does not override the new value)."""
+    import yaml
+
+    doc = json.loads(json.dumps(doc or {}))                   # a deep copy of plain data
+    root = doc.setdefault("/**", {}).setdefault("ros__parameters", {})
+    updates = dict(result.model_out)
+    updates["initial_boresight"] = updates["boresight"]
+    for name, value in updates.items():
+        root[name] = json.loads(json.dumps(value))           # plain copies: no YAML anchors
+        for key, block in doc.items():
+            if key != "/**" and isinstance(block, dict) and name in (block.get("ros__parameters") or {}):
+                block["ros__parameters"][name] = json.loads(json.dumps(value))
+    tmp = f"{path}.tmp"
+    with open(tmp, "w", encoding="utf-8") as fh:
+        fh.write(f"# written by discrepancy: verdict {result.verdict}; effects added: "
+                 f"{', '.join(s.effect for s in result.steps) or 'none'}\n")
+        yaml.safe_dump(doc, fh, sort_keys=False, allow_unicode=True)
+    os.replace(tmp, path)
+
+
+def _summary(bag, info, res) -> str:
+    j = res.as_json()
+    lines = [f"discrepancy: {bag}: {info['gyro_messages']} Δθ at {info['gyro_rate_from_stamps_hz']:.6g} Hz "
+             f"(from the stamps), {info['camera_fixes']} fixes, {res.pairs} increment pairs, "
+             f"{info['duration_s']:.1f} s"]
+    if info["gyro_gaps"]:
+        lines.append(f"  gyro gaps: {info['gyro_gaps']} ({info['gyro_missing']} increments missing); pairs "
+                     f"spanning them are not used")
+    lines.append(f"  verdict: {res.verdict}")
+    lines.append(f"  whitened RMS {res.rms_before:.3g} → {res.rms_after:.3g} (1 = as the model predicts); held out "
+                 f"{res.heldout_rms_before:.3g} → {res.heldout_rms_after:.3g}")
+    for k, s in enumerate(res.steps, 1):
+        vals = "; ".join(f"{n} = {_fmt(v)} ± {_fmt(s.sigma[n])}" for n, v in s.parameters.items())
+        lines.append(f"  step {k}: {s.effect}: {vals}  (LR {s.statistic:.4g}, dof {s.dof}, p {s.p_value:.3g}, "
+                     f"held-out gain {s.heldout_gain:.3g})")
+    for a, b in res.not_separable:
+        lines.append(f"  not separable on this trajectory: {a} and {b}")
+    for r in res.rejected:
+        lines.append(f"  not added: {r['effect']}: {r['reason']}")
+    ta = j["tests_after"]
+    lines.append("  tests: " + ", ".join(f"{k} p = {ta[k]['p_value']:.3g}" for k in ("nis", "whiteness", "outliers"))
+                 + f" (level {ta['level']:.3g} each)")
+    if res.remaining:
+        rm = res.remaining
+        lines.append(f"  remaining structure: dominant period {rm.get('dominant_period_s', float('nan')):.4g} s, "
+                     f"lag-{rm.get('dominant_lag_pairs')} autocorrelation "
+                     f"{rm.get('dominant_lag_autocorrelation', float('nan')):.2f}, correlation with rate "
+                     f"{rm.get('correlation_with_rate', float('nan')):.2f}, with accumulated angle "
+                     f"{rm.get('correlation_with_accumulated_angle', float('nan')):.2f}")
+    b = np.degrees(res.boresight_rad)
+    s = np.asarray(res.boresight_sigma_rad) * ARCSEC_PER_RAD
+    lines.append(f"  boresight β = ({b[0]:.6f}, {b[1]:.6f}, {b[2]:.6f})° ± ({s[0]:.3g}, {s[1]:.3g}, {s[2]:.3g})″")
+    return "\n".join(lines)
+
+
+def _fmt(v):
+    if isinstance(v, (list, tuple)):
+        return "[" + ", ".join(f"{x:.4g}" for x in v) + "]"
+    return f"{v:.4g}"
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(prog="discrepancy", description=__doc__,
+                                 formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("bag", help="rosbag2 bag directory, or a .mcap / .db3 file")
+    ap.add_argument("--model", required=True, metavar="MODEL.yaml", help="nominal model: ROS 2 parameter file")
+    ap.add_argument("--json", metavar="FILE", help="write the result as JSON")
+    ap.add_argument("--report", metavar="DIR", help="write report.md and PNG plots into DIR (created)")
+    ap.add_argument("--write-model", metavar="OUT.yaml", help="write the model with the found effects")
+    ap.add_argument("--alpha", type=float, default=None, help="family-wise level of the selection (default 0.01)")
+    ap.add_argument("--namespace", default="", help="topic namespace, e.g. /robot1")
+    ap.add_argument("--quiet", action="store_true", help="no progress on stderr")
+    args = ap.parse_args(argv)
+    t0 = time.perf_counter()
+    from ..analysis.discrepancy import DEFAULT_ALPHA, InputError, analyse
+    from ..config import load_model
+    from .calibrate_bag import BagError
+
+    alpha = DEFAULT_ALPHA if args.alpha is None else args.alpha
+    try:
+        if not (0.0 < alpha < 0.5):
+            raise _Usage(f"--alpha must be in (0, 0.5), got {alpha}")
+        if not Path(args.bag).exists():
+            raise _Usage(f"bag {args.bag} does not exist")
+        if not Path(args.model).is_file():
+            raise _Usage(f"model {args.model} does not exist")
+        _check_output(args.json, "--json")
+        _check_output(args.write_model, "--write-model")
+        _check_output(args.report, "--report", directory=True)
+        model, doc = load_model(args.model)
+    except (_Usage, ValueError, OSError) as exc:
+        print(f"discrepancy: error: {exc}", file=sys.stderr)
+        return 2
+
+    def progress(text):
+        if not args.quiet:
+            print(f"discrepancy: [{time.perf_counter() - t0:6.1f} s] {text}", file=sys.stderr, flush=True)
+    try:
+        progress("reading the bag")
+        rec, info = load_recording(args.bag, model, args.namespace)
+        res = analyse(rec, model, alpha=alpha, progress=progress)
+    except (BagError, InputError, ValueError, OSError) as exc:
+        print(f"discrepancy: error: {exc}", file=sys.stderr)
+        return 2
+    progress("Allan deviation on static segments")
+    from ..analysis.diagnostics import allan_comparison
+    after = dict(model)
+    for s in res.steps:
+        after.update(s.parameters)
+    try:
+        allan = allan_comparison(rec.gyro_stamps, rec.delta_theta, model, after)
+    except Exception as exc:                       # noqa: BLE001 - the rest of the result stands
+        allan = {"error": str(exc)}
+    from ..analysis.discrepancy import json_clean
+    out = res.as_json()
+    out["allan"] = json_clean(allan)
+    out["input"] = json_clean(info)
+    print(_summary(args.bag, info, res))
+    try:
+        if args.json:
+            with open(args.json, "w", encoding="utf-8") as fh:
+                json.dump(out, fh, indent=1, allow_nan=False)
+                fh.write("\n")
+        if args.write_model:
+            write_model(args.write_model, doc, res)
+            print(f"  model with the found effects: {args.write_model}")
+        if args.report:
+            progress("report and plots")
+            from .discrepancy_report import write_report
+            path = write_report(args.report, res, out)
+            print(f"  report: {path}")
+    except OSError as exc:
+        print(f"discrepancy: error: {exc}", file=sys.stderr)
+        return 2
+    progress(f"done in {time.perf_counter() - t0:.1f} s")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
