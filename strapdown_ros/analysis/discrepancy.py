@@ -17,8 +17,9 @@ Selection, stated once:
   **mean before variance**: pure variance terms (which can absorb any mean structure by
   inflating the covariance) are considered only when no candidate with a mean signature passes;
 * it is accepted only if, in addition, the **held-out** −2 log L per residual improves: the
-  pairs are cut into ``blocks`` contiguous time blocks, the even ones fit, the odd ones judge
-  (never shuffled);
+  pairs are cut into ``blocks`` contiguous time blocks (never shuffled) and each block is
+  judged by parameters fitted on the others (leave-one-block-out cross-validation), so every
+  residual is judged by parameters fitted without it;
 * a candidate whose fitted whitened signature (the residual pattern it explains) has an
   |correlation| above :data:`RHO_MAX` with that of another significant one is not picked: the
   pair is reported "not separable on this trajectory";
@@ -310,7 +311,7 @@ class DiscrepancyResult:
             "steps": [s.as_dict() for s in self.steps], "not_separable": self.not_separable,
             "remaining": self.remaining, "alpha": self.alpha,
             "selection": {"test": "likelihood ratio, χ²(dof)", "correction": "Bonferroni α/m per step",
-                          "heldout": "time blocks, even fit / odd judge; gain = drop of −2 log L per residual",
+                          "heldout": "6 time blocks, leave-one-block-out; gain = drop of −2 log L per judged residual",
                           "separability_bound": RHO_MAX},
             "tests_before": self.tests_before, "tests_after": self.tests_after,
             "candidates_first_step": self.candidates_first_step, "rejected": self.rejected,
@@ -320,30 +321,39 @@ class DiscrepancyResult:
 
 # ----------------------------------------------------------------------------- the workflow
 class _Split:
-    """Time-blocked split: ``blocks`` equal spans of the record; even blocks fit, odd ones judge.
-    Fixed in time, so it applies to any linearisation (the pairs may change with a time offset)."""
+    """Time-blocked cross-validation: ``blocks`` equal spans of the record; fold k judges block k
+    with parameters fitted on the others.  Fixed in time, so it applies to any linearisation
+    (the pairs may change with a time offset)."""
 
     def __init__(self, lin: Linearisation, blocks: int):
         t = lin.pairs.t_end
         self.edges = np.linspace(t[0], t[-1] + 1e-9, blocks + 1)
         self.blocks = blocks
 
-    def masks(self, lin: Linearisation):
+    def folds(self, lin: Linearisation):
+        """[(train mask, test mask)] per block."""
         b = np.clip(np.searchsorted(self.edges, lin.pairs.t_end, side="right") - 1, 0, self.blocks - 1)
-        return b % 2 == 0, b % 2 == 1
+        return [(b != k, b == k) for k in range(self.blocks) if np.any(b == k)]
 
 
-def _heldout(lin, free, noise, split):
-    """Fit on the training blocks, judge on the held-out ones: (−2 log L per residual, whitened RMS)."""
-    train, test = split.masks(lin)
-    f_tr = lin.evaluate(free, noise, train)
-    rows = lin.rows(test)
-    J = lin.design(free)[rows]
-    W = lin.whitener(noise, test)
-    pred = lin.residual(noise)[rows] - J @ f_tr.z - lin.U[rows][:, lin.prior_var > 0] @ f_tr.x
-    w = W.apply(pred)
-    n = len(w)
-    return (float(w @ w) + W.logdet) / n, float(np.sqrt(np.mean(w ** 2)))
+def _heldout(lin, free, noise, split, noise_by_fold=None):
+    """Leave-one-block-out cross-validation over time blocks: each block is judged by parameters
+    fitted on the other blocks.  Returns (−2 log L per judged residual, whitened RMS of the
+    judged residuals).  ``noise_by_fold``: the noise terms estimated on each fold's training
+    blocks."""
+    total, sq, n = 0.0, 0.0, 0
+    for k, (train, test) in enumerate(split.folds(lin)):
+        nz = noise if noise_by_fold is None else noise_by_fold[k]
+        f_tr = lin.evaluate(free, nz, train)
+        rows = lin.rows(test)
+        J = lin.design(free)[rows]
+        W = lin.whitener(nz, test)
+        pred = lin.residual(nz)[rows] - J @ f_tr.z - lin.U[rows][:, lin.prior_var > 0] @ f_tr.x
+        w = W.apply(pred)
+        total += float(w @ w) + W.logdet
+        sq += float(w @ w)
+        n += len(w)
+    return total / n, float(np.sqrt(sq / n))
 
 
 def _span(A: np.ndarray, tol=1e-6) -> np.ndarray:
@@ -531,15 +541,17 @@ def analyse(rec: Recording, params: dict, alpha: float = DEFAULT_ALPHA, blocks: 
             excluded.add(best["effect"])
             continue
         name = best["effect"]
-        trial_noise = dict(noise)
         trial_free = list(free)
+        by_fold = None
         if EFFECTS[name].kind == "noise":
-            theta_tr, _, _ = _fit_noise(lin, free, noise, name, split.masks(lin)[0])
-            trial_noise[name] = theta_tr.tolist()
+            by_fold = []
+            for train, _ in split.folds(lin):
+                theta_tr, _, _ = _fit_noise(lin, free, noise, name, train)
+                by_fold.append({**noise, name: theta_tr.tolist()})
         else:
             trial_free.append(name)
         ho_b = _heldout(lin, free, noise, split)
-        ho_a = _heldout(lin, trial_free, trial_noise, split)
+        ho_a = _heldout(lin, trial_free, noise, split, by_fold)
         gain = ho_b[0] - ho_a[0]
         if not gain > 0:
             rejected.append({"effect": name, "p_value": best["p_value"], "heldout_gain": gain,

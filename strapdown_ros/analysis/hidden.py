@@ -17,27 +17,30 @@ from .discrepancy import Linearisation, Recording, _fit_noise, _initial_boresigh
 __all__ = ["effect_sigma", "draw_hidden_effect", "simulate_recording"]
 
 
-def effect_sigma(rec: Recording, params: dict, name: str) -> np.ndarray:
-    """Covariance (q×q) of the separable combinations of ``name`` on this recording, under the
-    model ``params`` (the effect absent)."""
-    e = EFFECTS[name]
+def effect_sigma(rec: Recording, params: dict, names) -> dict:
+    """Covariance (q×q) of the separable combinations of each effect in ``names`` on this
+    recording, under the model ``params`` (the effects absent): {name: covariance}."""
     params = dict(params)
     epoch = float(rec.gyro_stamps[0])
     noise = _noise_of(params)
     C = _initial_boresight(rec, params, epoch)
     params, C = _refine(rec, params, C, epoch, [], noise)
     lin = Linearisation(rec, params, C, epoch)
-    if e.kind == "noise":
+    out = {}
+    for name in ([names] if isinstance(names, str) else names):
+        e = EFFECTS[name]
         if name == "gyro_quantization":
             # the lag term's information at σ = 0+ (the variance term has none there)
             from .linear_model import fit
             f = fit(lin.r, np.hstack([lin.design([]), lin.quant_col[:, None]]), lin.U, lin.prior_var,
                     lin.whitener(noise))
-            return f.cov_z[3:, 3:]
-        _, _, sig = _fit_noise(lin, [], noise, name)
-        return np.diag(sig ** 2)
-    f = lin.evaluate([name], noise)
-    return f.cov_z[3:, 3:]
+            out[name] = f.cov_z[3:, 3:]
+        elif e.kind == "noise":
+            _, _, sig = _fit_noise(lin, [], noise, name)
+            out[name] = np.diag(sig ** 2)
+        else:
+            out[name] = lin.evaluate([name], noise).cov_z[3:, 3:]
+    return out
 
 
 def draw_hidden_effect(name: str, size: float, cov: np.ndarray, rng: np.random.Generator) -> dict:

@@ -1,0 +1,197 @@
+"""The discrepancy workflow on recordings with a hidden effect (record_sim → rosbag2 → discrepancy).
+
+The effect, its size and the seed are drawn inside each test (from a generator seeded by the
+effect's name, so a failure can be rerun); the model file never mentions the effect.  Truth is
+what was injected, never the workflow's own output.
+"""
+import json
+import zlib
+
+import numpy as np
+import pytest
+
+pytest.importorskip("rosbags")
+pytest.importorskip("allantools")
+
+from strapdown_ros.analysis.hidden import draw_hidden_effect, effect_sigma, simulate_recording  # noqa: E402
+from strapdown_ros.config import CALIBRATOR_PARAMS, IMU_SIM_PARAMS, STAR_CAMERA_PARAMS, check_all  # noqa: E402
+from strapdown_ros.rotation import dcm_to_quat, from_ros_xyzw, quat_angle_between, ypr_to_dcm  # noqa: E402
+from strapdown_ros.sensors.effects import CANDIDATES, EFFECTS  # noqa: E402
+from strapdown_ros.tools import calibrate_bag, discrepancy, record_sim  # noqa: E402
+
+BETA = [0.698, -0.436, 2.094]
+SCENARIO = {"profile": "bench", "bench_repeat": 3, "gyro_rate": 100.0, "camera_interval": 2.0, "boresight": BETA}
+DURATION = 470.0
+NOMINAL = {"/**": {"ros__parameters": {"gyro_rate": 100.0}}}
+
+
+def _p_args(values: dict) -> list:
+    out = []
+    for k, v in values.items():
+        out += ["-p", f"{k}:={json.dumps(v)}"]
+    return out
+
+
+def _record(path, over, duration=DURATION, params=None):
+    args = [str(path), "--no-accel", "--duration", str(duration)] + _p_args({**SCENARIO, **over})
+    if params:
+        args += ["--params", str(params)]
+    assert record_sim.main(args) == 0
+    return path
+
+
+def _model(tmp_path, doc=None, name="model.yaml"):
+    f = tmp_path / name
+    f.write_text(json.dumps(doc or NOMINAL))        # JSON is YAML
+    return f
+
+
+def _run(tmp_path, bag, model, *extra):
+    out = tmp_path / "result.json"
+    assert discrepancy.main([str(bag), "--model", str(model), "--json", str(out), "--quiet", *extra]) == 0
+    return json.loads(out.read_text())
+
+
+@pytest.fixture(scope="module")
+def sigmas():
+    """σ of every effect on this trajectory, from a null recording of the same scenario."""
+    imu_p = check_all(IMU_SIM_PARAMS, {**SCENARIO, "seed": 4242})
+    cam_p = check_all(STAR_CAMERA_PARAMS, {**SCENARIO, "seed": 4242})
+    rec = simulate_recording(imu_p, cam_p, DURATION)
+    return effect_sigma(rec, check_all(CALIBRATOR_PARAMS, {"gyro_rate": 100.0}), CANDIDATES)
+
+
+@pytest.mark.parametrize("name", CANDIDATES)
+def test_hidden_effect_at_5_sigma_is_named_and_recovered(tmp_path, sigmas, name):
+    rng = np.random.default_rng(zlib.crc32(name.encode()))
+    seed = int(rng.integers(1, 100000))
+    hidden = draw_hidden_effect(name, 5.0, sigmas[name], rng)
+    bag = _record(tmp_path / "bag", {"seed": seed, **hidden})
+    r = _run(tmp_path, bag, _model(tmp_path))
+    named = [s["effect"] for s in r["steps"]]
+    assert name in named, (hidden, r["steps"], r["candidates_first_step"])
+    step = r["steps"][named.index(name)]
+    p = EFFECTS[name].value_parameter.name
+    est, sig, true = (np.atleast_1d(np.asarray(x, dtype=float)) for x in
+                      (step["parameters"][p], step["sigma"][p], hidden[p]))
+    assert np.all(np.abs(est - true) <= 3 * sig), (est, true, sig)
+    assert step["heldout_gain"] > 0                       # −2 log L per held-out residual shrinks
+    assert r["verdict"] == "explained"
+    if EFFECTS[name].kind == "systematic":
+        assert r["heldout_rms_after"] < r["heldout_rms_before"]
+
+
+def test_null_recording_is_model_adequate(tmp_path):
+    r = _run(tmp_path, _record(tmp_path / "bag", {"seed": 777}), _model(tmp_path))
+    assert r["verdict"] == "model_adequate", (r["steps"], r["tests_after"])
+    assert r["steps"] == [] and r["rms_before"] == r["rms_after"]
+    assert 0.85 < r["rms_before"] < 1.15                  # whitened by the model: RMS ≈ 1
+
+
+def test_effect_outside_the_library_is_unexplained_structure(tmp_path):
+    hidden = {"gyro_bias_periodic": [2e-6, -2e-6, 1e-6], "gyro_bias_period": 100.0}
+    r = _run(tmp_path, _record(tmp_path / "bag", {"seed": 31, **hidden}), _model(tmp_path))
+    assert r["verdict"] == "unexplained_structure", r["steps"]
+    assert r["tests_after"]["failed"]
+    assert abs(r["remaining"]["dominant_period_s"] - 100.0) < 25.0, r["remaining"]
+
+
+def test_flagship_exposure_stamp_closing_the_loop(tmp_path):
+    """004 Fig. 2a: the camera stamps the start of a 0.1 s exposure, the attitude is mid-exposure."""
+    bag = _record(tmp_path / "bag", {"seed": 5, "camera_exposure_time": 0.1, "camera_stamp_at_exposure_start": True})
+    out_model = tmp_path / "found.yaml"
+    r = _run(tmp_path, bag, _model(tmp_path), "--write-model", str(out_model), "--report", str(tmp_path / "rep"))
+    assert [s["effect"] for s in r["steps"]][0] == "time_offset"
+    step = r["steps"][0]
+    # a fix stamped t shows the attitude at t + 0.05 = t − offset: offset = −exposure/2
+    assert abs(step["parameters"]["camera_time_offset"] + 0.05) <= 3 * step["sigma"]["camera_time_offset"]
+    assert r["tests_before"]["outliers"]["p_value"] < r["tests_before"]["level"]       # spikes at the turns
+    assert r["tests_after"]["passed"] and r["verdict"] == "explained"
+    for png in ("residuals", "fig2a", "autocorrelation", "cross_correlation", "allan"):
+        assert (tmp_path / "rep" / f"{png}.png").stat().st_size > 10000, png
+    assert "time_offset" in (tmp_path / "rep" / "report.md").read_text()
+
+    # the calibrator with the found model: the boresight error shrinks
+    def boresight_error(params):
+        f = tmp_path / "cal.json"
+        args = [str(bag), "--json", str(f)] + (["--params", str(params)] if params else [])
+        calibrate_bag.main(args)
+        q = from_ros_xyzw(np.array(json.loads(f.read_text())["q_mf_vf_xyzw"]))
+        return float(quat_angle_between(q, dcm_to_quat(ypr_to_dcm(*BETA))))
+    e_nominal, e_found = boresight_error(None), boresight_error(out_model)
+    assert e_found < 0.2 * e_nominal, (e_nominal, e_found)
+
+    # closing the loop: a new recording simulated from the written model (other seed) is adequate
+    bag2 = _record(tmp_path / "bag2", {"seed": 6}, params=out_model)
+    r2 = _run(tmp_path, bag2, out_model)
+    assert r2["verdict"] == "model_adequate", r2["steps"]
+
+
+def test_recording_made_elsewhere_200hz_own_origin_no_truth(tmp_path):
+    """A bag written without record_sim: 200 Hz gyro, fixes every 2 s without covariance, stamps
+    from an epoch origin, no truth topics; a scale-factor error is hidden in it."""
+    from rosbags.rosbag2 import Writer
+    from rosbags.typesys import Stores, get_typestore
+
+    hidden = [1.2e-4, -0.9e-4, 1.0e-4]
+    over = {**SCENARIO, "gyro_rate": 200.0, "seed": 99, "gyro_scale_factor": hidden}
+    rec = simulate_recording(check_all(IMU_SIM_PARAMS, over), check_all(STAR_CAMERA_PARAMS, over), 320.0)
+    store = get_typestore(Stores.ROS2_JAZZY)
+    T = store.types
+    origin = 1_700_000_123_456_789_000
+    bag = tmp_path / "foreign"
+
+    def header(t):
+        ns = origin + int(round(t * 1e9))
+        return T["std_msgs/msg/Header"](stamp=T["builtin_interfaces/msg/Time"](sec=ns // 10**9, nanosec=ns % 10**9),
+                                        frame_id="imu"), ns
+    with Writer(bag, version=Writer.VERSION_LATEST) as w:
+        cg = w.add_connection("/imu/delta_theta", "geometry_msgs/msg/Vector3Stamped", typestore=store)
+        cc = w.add_connection("/star_camera/attitude", "geometry_msgs/msg/QuaternionStamped", typestore=store)
+        events = [(t, 0, v) for t, v in zip(rec.gyro_stamps, rec.delta_theta)] + \
+                 [(t, 1, q) for t, q in zip(rec.fix_stamps, rec.fix_q)]
+        for t, kind, v in sorted(events, key=lambda e: (e[0], e[1])):
+            h, ns = header(t)
+            if kind == 0:
+                m = T["geometry_msgs/msg/Vector3Stamped"](header=h, vector=T["geometry_msgs/msg/Vector3"](
+                    x=float(v[0]), y=float(v[1]), z=float(v[2])))
+                w.write(cg, ns, store.serialize_cdr(m, "geometry_msgs/msg/Vector3Stamped"))
+            else:
+                q = T["geometry_msgs/msg/Quaternion"](w=float(v[0]), x=float(v[1]), y=float(v[2]), z=float(v[3]))
+                m = T["geometry_msgs/msg/QuaternionStamped"](header=h, quaternion=q)
+                w.write(cc, ns, store.serialize_cdr(m, "geometry_msgs/msg/QuaternionStamped"))
+    r = _run(tmp_path, bag, _model(tmp_path, {"/**": {"ros__parameters": {}}}))      # gyro_rate left at 100
+    assert r["input"]["gyro_rate_from_stamps_hz"] == pytest.approx(200.0, rel=1e-6)
+    assert r["input"]["camera_covariance_from_bag"] is False
+    named = [s["effect"] for s in r["steps"]]
+    assert "gyro_scale_factor" in named, r["steps"]
+    s = r["steps"][named.index("gyro_scale_factor")]
+    assert np.all(np.abs(np.array(s["parameters"]["gyro_scale_factor"]) - hidden)
+                  <= 3 * np.array(s["sigma"]["gyro_scale_factor"]))
+
+
+@pytest.mark.parametrize("case", ["no_bag", "unknown_key", "no_camera", "few_fixes", "bad_output"])
+def test_unusable_input_is_one_line_exit_2(tmp_path, capsys, case):
+    model = _model(tmp_path)
+    bag = tmp_path / "bag"
+    args = [str(bag), "--model", str(model)]
+    if case == "unknown_key":
+        _record(bag, {"seed": 1}, duration=60.0)
+        args[2] = str(_model(tmp_path, {"/**": {"ros__parameters": {"gyro_bais": [0, 0, 0]}}}, "bad.yaml"))
+    elif case == "no_camera":
+        from rosbags.rosbag2 import Writer
+        from rosbags.typesys import Stores, get_typestore
+        store = get_typestore(Stores.ROS2_JAZZY)
+        with Writer(bag, version=Writer.VERSION_LATEST) as w:
+            w.add_connection("/imu/delta_theta", "geometry_msgs/msg/Vector3Stamped", typestore=store)
+    elif case == "few_fixes":
+        _record(bag, {"seed": 1}, duration=20.0)
+    elif case == "bad_output":
+        _record(bag, {"seed": 1}, duration=20.0)
+        args += ["--json", str(tmp_path / "missing_dir" / "x.json")]
+    assert discrepancy.main(args + ["--quiet"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("discrepancy: error:"), err
+    assert "Traceback" not in err[0]
+    if case == "unknown_key":
+        assert "gyro_bais" in err[0]
