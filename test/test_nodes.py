@@ -262,3 +262,39 @@ def test_nodes_start_from_the_shipped_parameter_file(ros):
     finally:
         sim.destroy_node()
         sins.destroy_node()
+
+
+def _sins_error_with(ros, ns, effects, compensate):
+    """Final attitude error of sins_node on a graph whose gyro carries ``effects``."""
+    sim, sins = make_graph(ns, duration=2.0, extra_sim=effects, extra_sins=effects if compensate else ())
+    mon = rclpy.create_node("monitor", namespace=ns)
+    rec = Recorder(mon, [("sins/attitude", QuaternionStamped)])
+    ex = GraphExecutor()
+    for n in (sim, sins, mon):
+        ex.add_node(n)
+    try:
+        assert spin_until(ex, lambda: mon.count_publishers(f"{ns}/sins/attitude") == 1, 10.0)
+        sim._wall_start = None
+        assert spin_until(ex, lambda: sim.finished and len(rec.data["sins/attitude"]) >= 99, 30.0)
+        st = rec.stamps("sins/attitude")
+        q = from_ros_xyzw(np.array([[m.quaternion.x, m.quaternion.y, m.quaternion.z, m.quaternion.w]
+                                    for m in rec.data["sins/attitude"]]))
+        return float(quat_angle_between(q[-1], ConingProfile(ALPHA, NU).attitude(st[-1])))
+    finally:
+        ex.shutdown()
+        for n in (sim, sins, mon):
+            n.destroy_node()
+
+
+def test_sins_node_compensates_the_gyro_effects_in_its_parameters(ros):
+    """The model's known effects (sensors/effects.py) are removed from each increment: with them
+    in both the simulator and sins_node the error is the coning error; without, it is the effect's."""
+    effects = [Parameter("gyro_bias", value=[2e-4, -1e-4, 1.5e-4]),
+               Parameter("gyro_bias_drift", value=[1e-5, 0.0, -1e-5]),
+               Parameter("gyro_scale_factor", value=[1e-3, -5e-4, 2e-3]),
+               Parameter("gyro_misalignment", value=[1e-3, 0.0, 1e-3, 0.0, -2e-3, -2e-3])]
+    raw = _sins_error_with(ros, "/t_comp_off", effects, compensate=False)
+    fixed = _sins_error_with(ros, "/t_comp_on", effects, compensate=True)
+    drift = abs(theory_drift(ALGORITHMS["2"], NU * 0.02)) * ALPHA ** 2 * NU * 2.0      # coning error at 2 s
+    assert raw > 1e-4, raw                               # ≈ |b|·2 s
+    assert fixed <= 1.3 * drift + 1e-10, (fixed, drift)
