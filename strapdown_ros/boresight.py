@@ -34,12 +34,12 @@ import numpy as np
 from .observability import ObservabilityReport, analyze_information
 from .rotation import (dcm_to_ypr, quat_conjugate, quat_cumprod, quat_multiply, quat_normalize,
                        quat_to_dcm, quat_to_rotvec, ypr_error_to_rotation, ypr_to_dcm, dcm_to_quat)
-from .sensors import SensorSigmas, increment_covariance
+from .sensors import SensorSigmas
+from .sensors.covariance import constant_jacobian, constant_variances, get_covariance_model
 
 __all__ = ["IncrementPair", "gyro_increment", "camera_increment", "BoresightSolution", "solve_boresight",
            "check_observability", "imu_attitude_from_camera", "r_partial"]
 
-_DIAG9 = np.array([0, 4, 8])
 
 
 # --------------------------------------------------------------------------- §2.2 ΔS_imu
@@ -99,30 +99,19 @@ def gyro_increment(stamps: np.ndarray, delta_theta: np.ndarray, t_start: float, 
         # eq. (2) over the whole IMU intervals k0..k1 from E = 0 (004: E(t_En) ≈ E(t_I,K−1)),
         # evaluated as a sum in the axes of MF(t_start): C_k = attitude after interval k
         C = quat_to_dcm(quat_cumprod(np.array([1.0, 0.0, 0.0, 0.0]), full))
-        if covariance_model == "004":
-            Q = increment_covariance(rho, T, gyro.bias_sigma, gyro.scale_sigma, gyro.misalignment_sigma,
-                                     gyro.random_walk)
-            P = np.einsum("kij,kjl,kml->im", C, Q, C)
-        else:
-            P = gyro.random_walk ** 2 * T.sum() * np.eye(3)         # Σ C_k (σ_w² T_k I) C_kᵀ
-            if gyro.bias_sigma > 0:
-                S = np.einsum("kij,k->ij", C, T)
-                P = P + gyro.bias_sigma ** 2 * S @ S.T
-            if gyro.scale_sigma > 0 or gyro.misalignment_sigma > 0:
-                r = np.einsum("mk,ij->mikj", rho, np.eye(3)).reshape(len(rho), 3, 9)
-                J = np.einsum("kij,kjl->il", C, r)
-                var = np.full(9, gyro.misalignment_sigma ** 2)
-                var[_DIAG9] = gyro.scale_sigma ** 2
-                P = P + (J * var) @ J.T
+        model = get_covariance_model(covariance_model)
+        W = np.einsum("kij,kjl,kml->im", C, model.white(rho, T, gyro), C)      # Σ C_k Q_k C_kᵀ
+        var = model.constant_variances(gyro)
+        if np.any(var > 0) or sensitivity:
+            J = np.einsum("kij,kjl->il", C, constant_jacobian(rho, T))         # Σ C_k ∂ρ_k/∂x
+        P = W + ((J * var) @ J.T if np.any(var > 0) else 0.0)
         Cend = C[-1]
         cov = Cend.T @ P @ Cend
         cov = 0.5 * (cov + cov.T)
         if sensitivity:
-            # ε = C_endᵀ Σ_k C_k (M ρ_k + b T_k + w_k): linear in x = [b, vec M]
-            S = np.einsum("kij,k->ij", C, T)
-            r = np.einsum("mk,ij->mikj", rho, np.eye(3)).reshape(len(rho), 3, 9)
-            G = Cend.T @ np.hstack([S, np.einsum("kij,kjl->il", C, r)])
-            white = gyro.random_walk ** 2 * T.sum() * np.eye(3)
+            # ε = C_endᵀ Σ_k C_k (∂ρ_k/∂x · x + w_k): linear in the constants x = [b, vec M]
+            G = Cend.T @ J
+            white = Cend.T @ W @ Cend
     if sensitivity:
         return quat_normalize(dq), cov, G, white
     return quat_normalize(dq), cov
@@ -278,9 +267,7 @@ def _correlated_covariance(C, pairs, A_cam, E_cam, gyro: SensorSigmas) -> np.nda
             cross = -p.cov_fix_end @ A_cam[k + 1]
             Sig[sl, 3 * k + 3:3 * k + 6] = cross
             Sig[3 * k + 3:3 * k + 6, sl] = cross.T
-    var_x = np.concatenate([np.full(3, gyro.bias_sigma ** 2), np.full(9, gyro.misalignment_sigma ** 2)])
-    var_x[3 + _DIAG9] = gyro.scale_sigma ** 2
-    return Sig + (U * var_x) @ U.T
+    return Sig + (U * constant_variances(gyro)) @ U.T
 
 
 def solve_boresight(pairs, beta0=(0.0, 0.0, 0.0), weighted: bool = True, init: str = "axes",

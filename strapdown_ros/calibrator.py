@@ -27,6 +27,7 @@ import numpy as np
 
 from .boresight import BoresightSolution, IncrementPair, camera_increment, gyro_increment, solve_boresight
 from .sensors import SensorSigmas
+from .sensors.covariance import get_covariance_model
 from .sensors.effects import CameraEffects, GyroEffects
 
 __all__ = ["BoresightCalibrator"]
@@ -149,7 +150,7 @@ class BoresightCalibrator:
         and pairwise weights beyond; with 004's white model pairwise weights."""
         if not self.weighted:
             weighting = "unit"
-        elif self.covariance_model == "random_constant" and self.gyro is not None:
+        elif get_covariance_model(self.covariance_model).constants and self.gyro is not None:
             weighting = "auto"
         else:
             weighting = "pairwise"

@@ -49,12 +49,14 @@ import numpy as np
 
 from .coning import ConingAlgorithm, get_algorithm
 from .rotation import quat_cumprod, quat_normalize, quat_to_dcm, rotvec_to_quat
-from .sensors import SensorSigmas, increment_correction, increment_covariance
+from .sensors import SensorSigmas, increment_correction
+from .sensors.covariance import COVARIANCE_MODELS as _MODELS, constant_jacobian, get_covariance_model
+from .sensors.effects import EFFECTS
 
 __all__ = ["AttitudeIntegrator", "UpdateBatch", "IncrementAccumulator", "COVARIANCE_MODELS"]
 
-COVARIANCE_MODELS = ("random_constant", "004")
-_DIAG9 = np.array([0, 4, 8])        # positions of M's diagonal in column-major vec(M)
+#: names of the covariance models (the registry is strapdown_ros.sensors.covariance)
+COVARIANCE_MODELS = tuple(_MODELS)
 
 
 @dataclass
@@ -83,7 +85,7 @@ class AttitudeIntegrator:
     nominal_period: expected gyro interval T (s), used only for the first sample.
     gyro: statistics of the gyro errors for P_ρk (zeros → covariance stays at P0).
     initial_sigma: 1σ of the initial attitude error per axis (rad).
-    covariance_model: ``"random_constant"`` or ``"004"`` (see module docstring).
+    covariance_model: a name in :data:`strapdown_ros.sensors.covariance.COVARIANCE_MODELS`.
     quantization_correction: apply 000 eq. (5.6) with pulse weight ``gyro.quantum``.
     propagate_covariance: False skips the covariance (published as NaN), for benchmarks of
         the attitude algorithm alone.
@@ -94,8 +96,7 @@ class AttitudeIntegrator:
                  gyro: SensorSigmas | None = None, initial_sigma: float = 0.0,
                  covariance_model: str = "random_constant", quantization_correction: bool = False,
                  propagate_covariance: bool = True):
-        if covariance_model not in COVARIANCE_MODELS:
-            raise ValueError(f"unknown covariance_model {covariance_model!r}; valid: {', '.join(COVARIANCE_MODELS)}")
+        self.cov_model = get_covariance_model(covariance_model)
         if not (np.isfinite(nominal_period) and nominal_period > 0):
             raise ValueError(f"nominal_period must be > 0, got {nominal_period}")
         if not (np.isfinite(initial_sigma) and initial_sigma >= 0):
@@ -118,8 +119,7 @@ class AttitudeIntegrator:
         self._recent = np.zeros((0, 3))          # last few used increments (history for 6, 7)
         c0 = quat_to_dcm(self.q)
         self._p_ref = c0 @ (initial_sigma ** 2 * np.eye(3)) @ c0.T   # white + initial part
-        self._s_bias = np.zeros((3, 3))          # Σ C_j h_j
-        self._j_mis = np.zeros((3, 9))           # Σ C_j ∂(Mρ_j)/∂vec(M)
+        self._j_const = np.zeros((3, 12))        # Σ C_j ∂ρ_j/∂x, x = [b, vec M] (random constants)
         self.updates = 0
         self.samples = 0
 
@@ -144,8 +144,7 @@ class AttitudeIntegrator:
 
     def covariance(self) -> np.ndarray:
         """Current body-axis covariance (3, 3)."""
-        return self._body_covariance(quat_to_dcm(self.q)[None], self._p_ref[None],
-                                     self._s_bias[None], self._j_mis[None])[0]
+        return self._body_covariance(quat_to_dcm(self.q)[None], self._p_ref[None], self._j_const[None])[0]
 
     # -------------------------------------------------------------------------------
     def push(self, delta_theta: np.ndarray, stamps: np.ndarray) -> UpdateBatch:
@@ -194,9 +193,8 @@ class AttitudeIntegrator:
         blocks = work[:used].reshape(m, n_new, 3)
         h = work_dt[:used].reshape(m, n_new).sum(1)
         if self.propagate_covariance:
-            p_ref, s_bias, j_mis = self._accumulate_covariance(c, blocks.sum(1), blocks,
-                                                               work_dt[:used].reshape(m, n_new))
-            cov = self._body_covariance(c, p_ref, s_bias, j_mis)
+            p_ref, j_const = self._accumulate_covariance(c, blocks.sum(1), blocks, work_dt[:used].reshape(m, n_new))
+            cov = self._body_covariance(c, p_ref, j_const)
         else:                                     # attitude only (algorithm benchmarks)
             cov = np.full((m, 3, 3), np.nan)
 
@@ -211,43 +209,32 @@ class AttitudeIntegrator:
     # -------------------------------------------------------------------------------
     def _accumulate_covariance(self, c, rho_sum, blocks, dts):
         """Advance the reference-axis accumulators over m updates; return their running
-        values after every update: (m,3,3), (m,3,3), (m,3,9)."""
-        g = self.gyro
+        values after every update: (m,3,3) and (m,3,12).  What is white and what is a random
+        constant is the covariance model's (strapdown_ros.sensors.covariance)."""
+        g, model = self.gyro, self.cov_model
         blocks = np.asarray(blocks).reshape(len(c), -1, 3)
         dts = np.asarray(dts).reshape(len(c), -1)
-        if self.covariance_model == "004":
-            q_white = np.zeros((len(c), 3, 3))
-            for i in range(blocks.shape[1]):          # ≤ 5 samples per update
-                q_white += increment_covariance(blocks[:, i], dts[:, i], g.bias_sigma, g.scale_sigma,
-                                                g.misalignment_sigma, g.random_walk)
-        else:
-            q_white = (g.random_walk ** 2 * dts.sum(1))[:, None, None] * np.eye(3)
+        n_new = blocks.shape[1]
+        q_white = model.white(blocks.reshape(-1, 3), dts.reshape(-1), g).reshape(len(c), n_new, 3, 3).sum(1)
         p_ref = self._p_ref + np.cumsum(c @ q_white @ np.swapaxes(c, -1, -2), axis=0)
         self._p_ref = p_ref[-1]
-        if self.covariance_model == "random_constant":
-            s_bias = self._s_bias + np.cumsum(c * dts.sum(1)[:, None, None], axis=0)
-            # ∂(Mρ)/∂vec(M) (column-major) = [ρx I, ρy I, ρz I]
-            r = np.einsum("mk,ij->mikj", rho_sum, np.eye(3)).reshape(len(c), 3, 9)
-            j_mis = self._j_mis + np.cumsum(c @ r, axis=0)
-            self._s_bias, self._j_mis = s_bias[-1], j_mis[-1]
+        if model.constants:
+            # increments inside one update are lumped: ∂ρ/∂x of the update's sum over its length
+            j_const = self._j_const + np.cumsum(c @ constant_jacobian(rho_sum, dts.sum(1)), axis=0)
+            self._j_const = j_const[-1]
         else:
-            s_bias = np.broadcast_to(self._s_bias, (len(c), 3, 3))
-            j_mis = np.broadcast_to(self._j_mis, (len(c), 3, 9))
-        return p_ref, s_bias, j_mis
+            j_const = np.broadcast_to(self._j_const, (len(c), 3, 12))
+        return p_ref, j_const
 
-    def _body_covariance(self, c, p_ref, s_bias, j_mis):
+    def _body_covariance(self, c, p_ref, j_const):
         g = self.gyro
         total = p_ref
-        if self.covariance_model == "random_constant":
-            if g.bias_sigma > 0:
-                total = total + g.bias_sigma ** 2 * (s_bias @ np.swapaxes(s_bias, -1, -2))
-            if g.scale_sigma > 0 or g.misalignment_sigma > 0:
-                var_m = np.full(9, g.misalignment_sigma ** 2)
-                var_m[_DIAG9] = g.scale_sigma ** 2
-                total = total + (j_mis * var_m) @ np.swapaxes(j_mis, -1, -2)
+        var = self.cov_model.constant_variances(g)
+        if np.any(var > 0):
+            total = total + (j_const * var) @ np.swapaxes(j_const, -1, -2)
         cov = np.swapaxes(c, -1, -2) @ total @ c
-        if g.quantum > 0:
-            cov = cov + (g.quantum ** 2 / 12.0) * np.eye(3)
+        if g.quantum > 0:              # the remainder at this epoch (000 §5)
+            cov = EFFECTS["gyro_quantization"].fix_covariance(cov, np.array([g.quantum]))
         return 0.5 * (cov + np.swapaxes(cov, -1, -2))
 
     @staticmethod

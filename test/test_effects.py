@@ -95,3 +95,22 @@ def test_camera_noise_scale_and_time_offset():
     ce = CameraEffects({"camera_time_offset": 0.02, "camera_noise_scale": [2.0, 1.0, 0.5]})
     assert ce.epoch(10.0) == pytest.approx(9.98)
     np.testing.assert_allclose(ce.covariance(np.eye(3)), np.diag([4.0, 1.0, 0.25]))
+
+
+def test_004_white_model_from_the_registry_is_004s_printed_p_rho():
+    """P_ρk assembled from the effects' Jacobians (Σ σ_e² D_e D_eᵀ + σ_w² T I) equals 004 §2.1's
+    printed formula (sensors.model.increment_covariance)."""
+    from strapdown_ros.sensors import NAVIGATION_GRADE_GYRO as g
+    from strapdown_ros.sensors import increment_covariance
+    from strapdown_ros.sensors.covariance import COVARIANCE_MODELS, constant_jacobian
+
+    _, rho = _increments(50, 4)
+    T = np.full(50, 0.005)
+    printed = increment_covariance(rho, T, g.bias_sigma, g.scale_sigma, g.misalignment_sigma, g.random_walk)
+    np.testing.assert_allclose(COVARIANCE_MODELS["004"].white(rho, T, g), printed, rtol=1e-12, atol=0)
+    # the random constants x = [b, vec M]: ∂(Mρ)/∂M_ij = e_i ρ_j at column-major index i + 3j
+    J = constant_jacobian(rho, T)
+    M = np.arange(9.0).reshape(3, 3) * 1e-4
+    b = np.array([1e-6, -2e-6, 3e-6])
+    x = np.concatenate([b, M.reshape(-1, order="F")])
+    np.testing.assert_allclose(J @ x, rho @ M.T + b * 0.005, rtol=1e-13, atol=1e-20)

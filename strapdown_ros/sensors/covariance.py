@@ -1,0 +1,110 @@
+"""Covariance models of the gyro errors: the one registry behind the ``covariance_model``
+parameter of ``sins_node`` and ``calibrator_node``.
+
+Both models describe the same error effects of :mod:`strapdown_ros.sensors.effects` with the
+statistics of :class:`~strapdown_ros.sensors.model.SensorSigmas`; they differ in what is a
+random *constant* (common to all increments) and what is *white*:
+
+``random_constant`` (default)
+    bias, scale factor and misalignment are random constants x = [b, vec M] (column-major
+    vec M: diagonal = scale factors, off-diagonal = misalignments), as in the sensor and the
+    simulator; only the random walk (and quantization) is white.
+``004``
+    exactly 004 §2.1: every term white from one increment to the next,
+    ``P_ρk = Σ_e σ_e² D_e D_eᵀ + σ_w² T I`` with D_e the effect's increment Jacobian, which is
+    004's printed ``σ_φ² diag(ρy²+ρz², …) + σ_k² diag(ρx², …) + (σ_b T)² I + σ_w² T I``
+    (``test/test_effects.py`` checks the identity against
+    :func:`~strapdown_ros.sensors.model.increment_covariance`).
+
+Every consumer (the attitude integrator, ``boresight.gyro_increment``, the calibrator's
+weighting) asks the model object, never the model's name.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from .effects import EFFECTS, MISALIGNMENT_INDEX
+from .model import SensorSigmas
+
+__all__ = ["CovarianceModel", "COVARIANCE_MODELS", "get_covariance_model", "constant_jacobian",
+           "constant_variances"]
+
+_SIGMA_OF = {"gyro_bias": "bias_sigma", "gyro_scale_factor": "scale_sigma", "gyro_misalignment": "misalignment_sigma"}
+
+
+def constant_jacobian(rho: np.ndarray, T: np.ndarray) -> np.ndarray:
+    """∂ρ̃_k/∂x for the gyro constants x = [b (3), vec M (9, column-major)] → (n, 3, 12), assembled
+    from the effects' own increment Jacobians (bias, scale factor, misalignment)."""
+    rho = np.asarray(rho, dtype=float).reshape(-1, 3)
+    T = np.broadcast_to(np.asarray(T, dtype=float), (len(rho),))
+    t = np.zeros(len(rho))
+    out = np.zeros((len(rho), 3, 12))
+    out[:, :, :3] = EFFECTS["gyro_bias"].increment_jacobian(rho, T, t)
+    scale = EFFECTS["gyro_scale_factor"].increment_jacobian(rho, T, t)
+    mis = EFFECTS["gyro_misalignment"].increment_jacobian(rho, T, t)
+    for i in range(3):
+        out[:, :, 3 + 4 * i] = scale[:, :, i]                 # M_ii at 3 + i + 3i
+    for c, (i, j) in enumerate(MISALIGNMENT_INDEX):
+        out[:, :, 3 + i + 3 * j] = mis[:, :, c]               # M_ij at 3 + i + 3j (column-major)
+    return out
+
+
+def constant_variances(g: SensorSigmas) -> np.ndarray:
+    """Prior variances of x = [b, vec M] from the sensor statistics (all independent)."""
+    v = np.full(12, g.misalignment_sigma ** 2)
+    v[:3] = g.bias_sigma ** 2
+    v[3 + np.array([0, 4, 8])] = g.scale_sigma ** 2
+    return v
+
+
+class CovarianceModel:
+    name = ""
+    description = ""
+    #: the gyro constants are random constants common to all increments
+    constants = False
+
+    def white(self, rho: np.ndarray, T, g: SensorSigmas) -> np.ndarray:
+        """Covariance (n, 3, 3) of the part of each increment's error that is white."""
+        raise NotImplementedError
+
+    def constant_variances(self, g: SensorSigmas) -> np.ndarray:
+        """Prior variances of x = [b, vec M] treated as random constants (zeros: none)."""
+        return constant_variances(g) if self.constants else np.zeros(12)
+
+
+class RandomConstant(CovarianceModel):
+    name = "random_constant"
+    description = "bias, scale factor, misalignment random constants; random walk white"
+    constants = True
+
+    def white(self, rho, T, g):
+        T = np.broadcast_to(np.asarray(T, dtype=float), (len(np.atleast_2d(rho)),))
+        return (g.random_walk ** 2 * T)[:, None, None] * np.eye(3)
+
+
+class White004(CovarianceModel):
+    name = "004"
+    description = "004 §2.1: every term white between increments"
+
+    def white(self, rho, T, g):
+        rho = np.asarray(rho, dtype=float).reshape(-1, 3)
+        T = np.broadcast_to(np.asarray(T, dtype=float), (len(rho),))
+        t = np.zeros(len(rho))
+        out = (g.random_walk ** 2 * T)[:, None, None] * np.eye(3)
+        for name, attr in _SIGMA_OF.items():
+            s = getattr(g, attr)
+            if s > 0:
+                D = EFFECTS[name].increment_jacobian(rho, T, t)
+                out = out + s ** 2 * (D @ np.swapaxes(D, 1, 2))
+        return out
+
+
+#: the registry of covariance models, by the name the ``covariance_model`` parameter takes
+COVARIANCE_MODELS: dict[str, CovarianceModel] = {m.name: m for m in (RandomConstant(), White004())}
+
+
+def get_covariance_model(name: str) -> CovarianceModel:
+    try:
+        return COVARIANCE_MODELS[name]
+    except KeyError:
+        raise ValueError(f"unknown covariance_model {name!r}; valid: {', '.join(COVARIANCE_MODELS)}") from None
