@@ -173,7 +173,18 @@ def allan_comparison(stamps, delta_theta, params_before: dict, params_after: dic
         return np.mean(acc, axis=0)
 
     measured = curve(lambda i, j: dth[i:j])
-    out = {"taus_s": taus.tolist(), "measured": measured.tolist(),
+    # noise statistics of the rate on the static segments, each segment's mean removed, against
+    # the model's white rate noise: random walk σ_w/√T and quantization σ_q/(T√6) (the MA(1)
+    # of the carried remainder: Var = 2σ_q²/12 per increment)
+    resid = np.vstack([dth[i:j] - dth[i:j].mean(axis=0) for i, j in segs]) / T
+
+    def model_std(params):
+        rw, q = float(params.get("gyro_random_walk", 0.0)), float(params.get("gyro_quantum", 0.0))
+        return float(np.sqrt(rw ** 2 / T + q ** 2 / (6.0 * T ** 2)))
+    out = {"static_noise": {"rate_std_rad_s": resid.std(axis=0).tolist(),
+                            "model_rate_std_rad_s_before": model_std(params_before),
+                            "model_rate_std_rad_s_after": model_std(params_after or params_before)},
+           "taus_s": taus.tolist(), "measured": measured.tolist(),
            "simulated_before": curve(lambda i, j: simulate(params_before, i, j)).tolist(),
            "static_segments": len(segs), "static_seconds": float(sum(st[j - 1] - st[i] for i, j in segs))}
     if params_after is not None:

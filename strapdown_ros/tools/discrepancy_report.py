@@ -213,6 +213,15 @@ def write_report(outdir: str, res, out: dict) -> str:
                         else "."))
         else:
             L.append("The measured Allan deviation stays within 1.5× of the nominal model's at every τ.")
+        sn = allan.get("static_noise")
+        if sn:
+            m = np.asarray(sn["rate_std_rad_s"])
+            after = sn["model_rate_std_rad_s_after"]
+            L.append("")
+            L.append(f"Rate noise on the static segments (each segment's mean removed): "
+                     f"{', '.join(f'{v:.3g}' for v in m)} rad/s about x, y, z; the model predicts "
+                     f"{sn['model_rate_std_rad_s_before']:.3g} before and {sn['model_rate_std_rad_s_after']:.3g} after "
+                     f"(measured ÷ model after: {', '.join(f'{v / after:.2f}' for v in m)}).")
     elif allan and "error" in allan:
         L += ["", f"Allan deviation not computed: {allan['error']}"]
     else:
