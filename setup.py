@@ -49,6 +49,7 @@ setup(
             "calibrate_bag = strapdown_ros.tools.calibrate_bag:main",
             "boresight_bench = strapdown_ros.tools.boresight_bench:main",
             "reproduce_seeds = strapdown_ros.tools.reproduce_seeds:main",
+            "discrepancy_bench = strapdown_ros.tools.discrepancy_bench:main",
             "discrepancy = strapdown_ros.tools.discrepancy:main",
         ],
     },

@@ -3,18 +3,14 @@
 Scenario: bench profile (enough 150 s passes for --duration), gyro 200 Hz, a star-camera fix every
 2 s, boresight (0.698, −0.436, 2.094) rad; nominal model = the calibrator defaults.
 
-1. Detection against size: per effect and seed s, the effect's σ (``effect_sigma``: covariance of
-   its separable combinations on a null recording — one reference recording, the first seed, unless
-   --sigma per-seed), a hidden effect of Mahalanobis size k (``draw_hidden_effect``) injected into a
-   recording simulated with seed s + 10000, ``analyse`` with the nominal model: detected, named
-   first, estimate within 3σ (every component, the step's σ).  Seed i gets size sizes[i mod n]
-   unless --every-size.  Reference: the ideal likelihood-ratio power
-   P(χ²_q(k²) > χ²_q⁻¹(1 − α/m)), q = separable dimension, m = number of candidates.
-2. False alarms: null recordings of --null-seeds seeds; an alarm is a verdict other than
-   ``model_adequate`` (Clopper–Pearson 95 % interval).
-3. Confusion: injected × first named effect over the runs at k ≥ 5σ.
-4. Speed: the ``discrepancy`` CLI on a 900 s bag (200 Hz, 450 fixes), 5 runs; ``analyse`` on the
-   in-memory recording when strapdown_ros.tools.discrepancy does not exist.
+1. Detection against size: per effect and seed s, σ of the effect (``effect_sigma``; one reference
+   null recording, the first seed, unless --sigma per-seed), a hidden effect of Mahalanobis size k
+   (``draw_hidden_effect``; seed i gets sizes[i mod n] unless --every-size) in a recording of seed
+   s + 10000, ``analyse``: detected, named first, estimate within 3σ in every component.  Reference:
+   the ideal LRT power P(χ²_q(k²) > χ²_q⁻¹(1 − α/m)), q = separable dimension, m = candidates.
+2. False alarms: null recordings of --null-seeds seeds, verdict ≠ ``model_adequate`` (Clopper–Pearson).
+3. Confusion: injected × first named effect at k ≥ 5σ.
+4. Speed: the ``discrepancy`` CLI on a 900 s bag (200 Hz, 450 fixes), 5 runs.
 """
 from __future__ import annotations
 
@@ -83,14 +79,8 @@ def _init_worker():
 def sigma_job(names, seed: int, duration: float) -> dict:
     """{name: covariance (list)} of the effects on the null recording of ``seed``."""
     from ..analysis.hidden import effect_sigma
-    rec, model = _simulate(seed, duration), _model()
-    try:                                             # effect_sigma(rec, params, names) -> {name: cov}
-        out = effect_sigma(rec, model, list(names))
-        if isinstance(out, dict):
-            return {n: np.asarray(out[n]).tolist() for n in names}
-    except (TypeError, KeyError):                    # the one-name form: effect_sigma(rec, params, name) -> cov
-        pass
-    return {n: np.asarray(effect_sigma(rec, model, n)).tolist() for n in names}
+    out = effect_sigma(_simulate(seed, duration), _model(), list(names))
+    return {n: np.asarray(out[n]).tolist() for n in names}
 
 
 def run_job(job: dict) -> dict:
@@ -193,45 +183,33 @@ def monte_carlo(args) -> dict:
 
 
 def speed(args) -> dict:
-    """SPEED_REPEATS timings on a 900 s, 200 Hz, 450-fix recording (the CLI on a bag when it exists)."""
-    import importlib.util
+    """SPEED_REPEATS timings of the ``discrepancy`` CLI on a 900 s, 200 Hz, 450-fix bag (record_sim)."""
     import shutil
     import tempfile
-    from .record_sim import simulator_parameters
-    load = os.getloadavg()
+    from . import discrepancy as cli
+    from .record_sim import record, simulator_parameters
+    load, times, rcs, errors = os.getloadavg(), [], [], []
     imu_p, cam_p = simulator_parameters(overrides=scenario_raw(args.first_seed, SPEED_DURATION),
                                         duration=SPEED_DURATION)
-    times, rcs = [], []
-    if importlib.util.find_spec("strapdown_ros.tools.discrepancy") is not None:
-        from . import discrepancy as cli
-        from .record_sim import record
-        mode, tmp = "cli", tempfile.mkdtemp(prefix="discrepancy_bench_")
-        try:
-            bag, model = os.path.join(tmp, "bag"), os.path.join(tmp, "model.yaml")
-            fixes = record(bag, imu_p, cam_p, accel=False)["messages"].get("/star_camera/attitude_with_covariance")
-            with open(model, "w", encoding="utf-8") as fh:
-                json.dump({"/**": {"ros__parameters": {}}}, fh)          # JSON is YAML
-            for i in range(SPEED_REPEATS):
-                argv = [bag, "--model", model, "--json", os.path.join(tmp, f"r{i}.json"),
-                        "--report", os.path.join(tmp, f"report{i}")]
-                t0 = time.perf_counter()
-                with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(io.StringIO()):
-                    rcs.append(cli.main(argv))
-                times.append(time.perf_counter() - t0)
-        finally:
-            shutil.rmtree(tmp, ignore_errors=True)
-    else:
-        from ..analysis.discrepancy import analyse
-        from ..analysis.hidden import simulate_recording
-        mode = "analysis only; CLI not measured"
-        rec = simulate_recording(imu_p, cam_p, SPEED_DURATION)
-        fixes = len(rec.fix_stamps)
-        for _ in range(SPEED_REPEATS):
-            t0 = time.perf_counter()
-            analyse(rec, _model(), alpha=args.alpha)
+    tmp = tempfile.mkdtemp(prefix="discrepancy_bench_")
+    try:
+        bag, model = os.path.join(tmp, "bag"), os.path.join(tmp, "model.yaml")
+        fixes = record(bag, imu_p, cam_p, accel=False)["messages"].get("/star_camera/attitude_with_covariance")
+        with open(model, "w", encoding="utf-8") as fh:
+            json.dump({"/**": {"ros__parameters": {}}}, fh)              # JSON is YAML
+        for i in range(SPEED_REPEATS):
+            argv = [bag, "--model", model, "--json", os.path.join(tmp, f"r{i}.json"),
+                    "--report", os.path.join(tmp, f"report{i}")]
+            err, t0 = io.StringIO(), time.perf_counter()
+            with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(err):
+                rcs.append(cli.main(argv))
             times.append(time.perf_counter() - t0)
-    return {"mode": mode, "duration_s": SPEED_DURATION, "gyro_rate_hz": 200.0, "fixes": fixes, "return_codes": rcs,
-            "time_s": _med(times), "times_s": times, "load_average_at_start": list(load)}
+            if rcs[-1]:
+                errors.append((err.getvalue().strip().splitlines() or ["?"])[-1])
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
+    return {"mode": "cli", "duration_s": SPEED_DURATION, "gyro_rate_hz": 200.0, "fixes": fixes, "return_codes": rcs,
+            "cli_errors": errors, "time_s": _med(times), "times_s": times, "load_average_at_start": list(load)}
 
 
 # ----------------------------------------------------------------------------- summary
@@ -280,7 +258,8 @@ def summarise(mc: dict, args) -> dict:
     for e in args.effects:
         rs = [r for r in runs if r["effect"] == e and r["size"] >= TARGET_SIZE]
         n, d = len(rs), _count(rs, "detected")
-        targets[e] = {"n": n, "detected": d, "rate": d / n if n else None, "met": d / n >= TARGET_DETECTION if n else None}
+        targets[e] = {"n": n, "detected": d, "rate": d / n if n else None, "ci95": list(binom_ci(d, n)),
+                      "met": d / n >= TARGET_DETECTION if n else None}
     fa, nn = _count(nulls, "false_alarm"), len(nulls)
     return {"detection": det, "confusion": {"min_size": CONFUSION_MIN_SIZE, "columns": cols, "rows": conf},
             "detection_target": {"size": TARGET_SIZE, "rate": TARGET_DETECTION, "per_effect": targets},
@@ -334,8 +313,9 @@ def conclusions(res: dict) -> list[str]:
                 f"after: {', '.join(d['failed_tests'] or []) or 'none'}." for d in fa["alarms_detail"]]
     for e, v in t["per_effect"].items():
         out.append(f"{e}: no runs at k ≥ {t['size']:g}σ, detection target not assessed." if not v["n"] else
-                   f"{e}: detected in {v['detected']}/{v['n']} runs at k ≥ {t['size']:g}σ ({_pct(v['rate'])}) "
-                   f"{'≥' if v['met'] else '<'} {_pct(t['rate'])}: {'met' if v['met'] else 'not met'}.")
+                   f"{e}: detected in {v['detected']}/{v['n']} runs at k ≥ {t['size']:g}σ ({_pct(v['rate'])}, "
+                   f"95% CI {_pct(v['ci95'][0])}–{_pct(v['ci95'][1])}) {'≥' if v['met'] else '<'} {_pct(t['rate'])}: "
+                   f"{'met' if v['met'] else 'not met'}.")
     conf = sm["confusion"]["rows"]
     tot = sum(sum(r.values()) for r in conf.values())
     if tot:
@@ -349,9 +329,10 @@ def conclusions(res: dict) -> list[str]:
                    f"component.")
     sp = res.get("speed")
     if sp:
-        out.append(f"Speed ({sp['mode']}): {_span(sp['time_s'])} for {sp['duration_s']:g} s at {sp['gyro_rate_hz']:g} "
+        out.append(f"Speed of the discrepancy CLI on a bag: {_span(sp['time_s'])} for {sp['duration_s']:g} s at {sp['gyro_rate_hz']:g} "
                    f"Hz with {sp['fixes']} fixes; load average at start {sp['load_average_at_start'][0]:.2f}"
-                   + (f"; return codes {sorted(set(sp['return_codes']))}." if sp["return_codes"] else "."))
+                   + (f"; return codes {sorted(set(sp['return_codes']))}" if sp["return_codes"] else "")
+                   + (f"; CLI error: {sp['cli_errors'][0]}." if sp.get("cli_errors") else "."))
     if sm["errors"]:
         out.append(f"{len(sm['errors'])} runs raised an error (see the JSON).")
     return out
@@ -365,10 +346,12 @@ def write_plots(res: dict, outdir: str) -> list[str]:
     os.makedirs(outdir, exist_ok=True)
     sm, cfg = res["summary"], res["config"]
     fig, ax = plt.subplots(figsize=(8, 5))
-    kk = np.linspace(0.0, max(cfg["sizes"]) * 1.05, 200)
+    kk = np.linspace(0.0, max(*cfg["sizes"], TARGET_SIZE) * 1.05, 200)
+    n_e = len(sm["detection"])
     for i, (e, row) in enumerate(sm["detection"].items()):
         col = plt.get_cmap("tab10")(i % 10)
-        pts = [(float(k), c["detected"] / c["n"]) for k, c in row.items() if c["n"]]
+        dx = 0.04 * (i - (n_e - 1) / 2)              # small offsets so that equal rates stay visible
+        pts = [(float(k) + dx, c["detected"] / c["n"]) for k, c in row.items() if c["n"]]
         if pts:
             ax.plot(*zip(*pts), "o-", color=col, label=e)
         ax.plot(kk, [ideal_power(_q(e), k, cfg["alpha"]) for k in kk], "--", color=col, lw=0.8)
@@ -377,7 +360,7 @@ def write_plots(res: dict, outdir: str) -> list[str]:
             label=f"target ≥ {TARGET_DETECTION:.0%} at k ≥ {TARGET_SIZE:g}σ")
     ax.axhline(TARGET_DETECTION, color="k", lw=0.5, ls=":")
     ax.set(xlabel="injected size k (σ, Mahalanobis)", ylabel="detection rate", ylim=(-0.03, 1.03),
-           title="Detection vs effect size (dashed: ideal LRT power at α/m)")
+           title="Detection vs effect size (dashed: ideal LRT power at α/m; markers offset slightly in k)")
     ax.grid(alpha=0.3)
     ax.legend(fontsize=7, loc="lower right")
     fig.tight_layout()
@@ -425,16 +408,29 @@ def write_report(path: str, res: dict, plots: list[str]):
 
 
 # ----------------------------------------------------------------------------- arguments
+def _writable(path: str, is_dir: bool) -> bool:
+    """Really writable (os.access says yes to root even on read-only file systems)."""
+    import tempfile
+    try:
+        if is_dir:
+            tempfile.TemporaryFile(dir=path).close()
+        else:
+            open(path, "ab").close()                  # existing file: append mode, nothing changed
+        return True
+    except OSError:
+        return False
+
+
 def _check_output(ap, opt: str, path: str, is_dir: bool = False):
-    """An existing target must be writable (and of the right kind); a new one needs a writable parent."""
+    """An existing target must be writable and of the right kind; a new one needs a writable parent."""
     p = os.path.abspath(path)
     parent = os.path.dirname(p)
     if os.path.exists(p):
         if os.path.isdir(p) != is_dir:
             ap.error(f"{opt} {path!r} is {'not ' if is_dir else ''}a directory")
-        if not os.access(p, os.W_OK):
+        if not _writable(p, is_dir):
             ap.error(f"{opt} {path!r}: not writable")
-    elif not os.path.isdir(parent) or not os.access(parent, os.W_OK):
+    elif not os.path.isdir(parent) or not _writable(parent, True):
         ap.error(f"{opt} {path!r}: the directory {parent!r} must exist and be writable")
 
 
@@ -478,7 +474,7 @@ def parse_args(argv):
             ap.error("--sizes must be distinct numbers in (0, 100]")
     if isinstance(args.effects, str):
         names = list(CANDIDATES) if args.effects.strip() == "all" else [s.strip() for s in args.effects.split(",")]
-        bad = [n for n in names if n not in CANDIDATES] or [n for n in names if names.count(n) > 1]
+        bad = sorted({n for n in names if n not in CANDIDATES or names.count(n) > 1})
         if bad:
             ap.error(f"--effects: unknown or repeated {', '.join(map(repr, bad))}; valid: all, {', '.join(CANDIDATES)}")
         args.effects = names
