@@ -84,6 +84,20 @@ class BoresightCalibrator:
             del self._t[:cut], self._v[:cut]
         return new
 
+    def restart_gyro(self) -> None:
+        """The gyro stamps start a new time base (a confirmed stamp jump): the buffered increments
+        and the fix that would start the next pair are dropped, since no pair may span the jump."""
+        self._t.clear()
+        self._v.clear()
+        self._last_stamp = None
+        self._last_fix = None
+        self._cams.clear()
+
+    def restart_camera(self) -> None:
+        """The camera stamps start a new time base: no pair may span the jump."""
+        self._last_fix = None
+        self._cams.clear()
+
     #: gyro samples kept when no camera fix is pending (a bound on memory without fixes)
     MAX_BUFFER = 200_000
 

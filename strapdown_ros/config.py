@@ -149,7 +149,20 @@ IMU_SIM_PARAMS = PROFILE_PARAMS + GYRO_PARAMS + ACCEL_PARAMS + COMMON_PARAMS + [
     ParamSpec("publish_period", 0.005, "wall period of the publishing timer, s", 0.0, 1.0, exclusive_minimum=True),
 ]
 
-SINS_PARAMS = GYRO_PARAMS + ACCEL_PARAMS + COMMON_PARAMS + [
+#: input validation of the consuming nodes (strapdown_ros/streams.py)
+INPUT_PARAMS = [
+    ParamSpec("gyro_max_rate", 20.0, "gyro range, rad/s: an increment with a component beyond 2 periods at this "
+              "rate is rejected as impossible", 0.0, 1e4, exclusive_minimum=True),
+    ParamSpec("max_stamp_jump", 1.0, "a stamp step beyond this, s, forward or back, is a jump: a lone one is an "
+              "outlier, resync_count consistent ones a new timeline", 0.0, 1e6, exclusive_minimum=True),
+    ParamSpec("resync_count", 5, "consecutive messages that confirm a new timeline after a stamp jump", 1, 1000),
+]
+ACCEL_INPUT_PARAMS = [
+    ParamSpec("accel_max", 500.0, "accelerometer range, m/s²: a Δv with a component beyond 2 periods at this "
+              "is rejected as impossible", 0.0, 1e6, exclusive_minimum=True),
+]
+
+SINS_PARAMS = GYRO_PARAMS + ACCEL_PARAMS + COMMON_PARAMS + INPUT_PARAMS + ACCEL_INPUT_PARAMS + [
     ParamSpec("coning_algorithm", "2", "coning algorithm (doc/coning_derivations.md)", choices=tuple(algorithm_names())),
     ParamSpec("initial_orientation", [0.0, 0.0, 0.0, 1.0],
               "initial q_ref_body as ROS x, y, z, w (normalised if not unit)", length=4),
@@ -192,7 +205,7 @@ STAR_CAMERA_PARAMS = PROFILE_PARAMS + [
 STAR_CAMERA_PARAMS += _effect_specs("camera", STAR_CAMERA_PARAMS)
 
 
-CALIBRATOR_PARAMS = GYRO_PARAMS + [
+CALIBRATOR_PARAMS = GYRO_PARAMS + INPUT_PARAMS + [
     ParamSpec("reference_frame_id", "gcrs", "inertial reference frame id of attitudes"),
     ParamSpec("frame_id", "imu_link", "IMU frame (MF) id"),
     ParamSpec("camera_frame_id", "star_camera", "camera frame (VF) id"),

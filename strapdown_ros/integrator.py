@@ -142,6 +142,27 @@ class AttitudeIntegrator:
             self._pending_dt = np.zeros(0)
         self.algorithm = new
 
+    def restart_clock(self) -> None:
+        """The stamps start a new time base (a confirmed stamp jump or clock reset): the next
+        increment is taken as one nominal period long.  The attitude carries on; the rotation
+        during the jump is lost (the caller reports it)."""
+        self._last_stamp = None
+        self.time = None
+
+    def snapshot(self) -> tuple:
+        """The state needed to come back to this point (:meth:`restore`)."""
+        return (self.q.copy(), self.time, self._last_stamp, self._p_ref.copy(), self._j_const.copy(),
+                self.updates, self.samples)
+
+    def restore(self, snap: tuple, inflate_sigma: float = 0.0) -> None:
+        """Return to a :meth:`snapshot`, dropping the unfinished update and the history, and add
+        ``inflate_sigma``² per axis to the attitude covariance (what was skipped is unknown)."""
+        self.q, self.time, self._last_stamp, p_ref, j_const, self.updates, self.samples = snap
+        self._p_ref = p_ref + inflate_sigma ** 2 * np.eye(3)
+        self._j_const = j_const.copy()
+        self._pending, self._pending_dt = np.zeros((0, 3)), np.zeros(0)
+        self._recent = np.zeros((0, 3))
+
     def covariance(self) -> np.ndarray:
         """Current body-axis covariance (3, 3)."""
         return self._body_covariance(quat_to_dcm(self.q)[None], self._p_ref[None], self._j_const[None])[0]

@@ -427,3 +427,55 @@ def test_executables_exit_2_with_a_clear_message(module, arg, text):
                          capture_output=True, text=True, timeout=60, env=env)
     assert res.returncode == 2, res.stderr
     assert text in res.stderr
+
+
+def _node_estimate(ns, poison: bool):
+    """calibrator_node fed bench data through its own callbacks (no DDS): returns (β, node counters)."""
+    from strapdown_ros.sensors import IntegratingSensor
+    from strapdown_ros.star_camera import StarCameraModel
+    from strapdown_ros.rotation import to_ros_xyzw
+
+    prof = bench_profile()
+    gyro = IntegratingSensor(prof, "gyro", 100.0)
+    t, dth, _ = gyro.sample(int(prof.duration * 100) - 1)
+    cam = StarCameraModel(boresight=np.radians([40.0, -25.0, 120.0]), interval=5.0, seed=1)
+    fixes = cam.fixes(prof, int(prof.duration / 5.0) - 1)
+    cal = CalibratorNode(namespace=ns)
+    try:
+        def stamp(m, s):
+            ns_ = int(round((1000.0 + s) * 1e9))
+            m.header.stamp.sec, m.header.stamp.nanosec = ns_ // 10**9, ns_ % 10**9
+        events = [(s, 0, v) for s, v in zip(t, dth)] + [(f.stamp, 1, f) for f in fixes]
+        for k, (s, kind, v) in enumerate(sorted(events, key=lambda e: (e[0], e[1]))):
+            if kind == 0:
+                m = Vector3Stamped()
+                stamp(m, s)
+                m.vector.x, m.vector.y, m.vector.z = (float(c) for c in v)
+                cal._on_gyro(m)
+                if poison and k == 5000:                      # one overflowing increment, its own stamp
+                    bad = Vector3Stamped()
+                    stamp(bad, s + 0.004)
+                    bad.vector.x, bad.vector.y = 1e308, 1e308
+                    cal._on_gyro(bad)
+            else:
+                m = PoseWithCovarianceStamped()
+                stamp(m, s)
+                m.header.frame_id = "gcrs"
+                o = m.pose.pose.orientation
+                o.x, o.y, o.z, o.w = (float(c) for c in to_ros_xyzw(v.attitude))
+                c6 = np.zeros((6, 6))
+                c6[3:, 3:] = v.covariance
+                m.pose.covariance = [float(x) for x in c6.ravel()]
+                cal._on_camera_cov(m)
+        return np.array(cal.valid.beta), cal.gyro_check.out_of_range, cal.solve_failures
+    finally:
+        cal.destroy_node()
+
+
+def test_overflowing_increment_is_rejected_and_loses_nothing(ros):
+    """Issue 9 finding 2: Δθ = (1e308, 1e308, 0) used to crash the node with LinAlgError and lose
+    every pair.  Now the sensor range rejects it; the estimate is the one without it."""
+    beta_clean, _, _ = _node_estimate("/t_clean", poison=False)
+    beta, out_of_range, failures = _node_estimate("/t_poison", poison=True)
+    assert out_of_range == 1 and failures == 0
+    np.testing.assert_array_equal(beta, beta_clean)

@@ -298,3 +298,95 @@ def test_sins_node_compensates_the_gyro_effects_in_its_parameters(ros):
     drift = abs(theory_drift(ALGORITHMS["2"], NU * 0.02)) * ALPHA ** 2 * NU * 2.0      # coning error at 2 s
     assert raw > 1e-4, raw                               # ≈ |b|·2 s
     assert fixed <= 1.3 * drift + 1e-10, (fixed, drift)
+
+
+def test_impossible_increments_lone_future_stamp_and_clock_reset(ros):
+    """Issue 9 findings 3 and 4: a finite but impossible increment (1000 rad in 10 ms, 1e308) is
+    rejected by the sensor range and never reaches the state; a lone stamp far in the future is an
+    outlier that stops nothing; a clock reset is followed after resync_count messages, losing none."""
+    ns = "/t_hostile"
+    sins = SinsNode(namespace=ns, parameter_overrides=[Parameter("coning_algorithm", value="1"), *IDEAL])
+    src = rclpy.create_node("source", namespace=ns)
+    pub = src.create_publisher(Vector3Stamped, "imu/delta_theta", stream_qos())
+    got = []
+    src.create_subscription(QuaternionStamped, "sins/attitude", got.append, stream_qos(1000))
+    diags = []
+    src.create_subscription(DiagnosticArray, "/diagnostics", diags.append, 10)
+    ex = SingleThreadedExecutor()
+    for n in (sins, src):
+        ex.add_node(n)
+    try:
+        assert spin_until(ex, lambda: pub.get_subscription_count() >= 1 and sins.count_publishers(
+            f"{ns}/sins/attitude") >= 1, 10.0)
+
+        def send(sec, nsec, v=(0.001, 0.0, 0.0)):
+            m = Vector3Stamped()
+            m.header.stamp.sec, m.header.stamp.nanosec = sec, nsec
+            m.vector.x, m.vector.y, m.vector.z = v
+            pub.publish(m)
+            ex.spin_once(timeout_sec=0.005)
+        for k in range(1, 11):
+            send(100, k * 10_000_000)
+        send(100, 110_000_000, (1000.0, 0.0, 0.0))            # 1000 rad in 10 ms: impossible
+        send(100, 120_000_000, (1e308, 1e308, 0.0))           # overflows when squared
+        send(2_000_000_000, 0)                                 # a lone stamp far in the future
+        for k in range(13, 21):
+            send(100, k * 10_000_000)
+        for k in range(1, 7):                                  # the clock restarts at 5 s
+            send(5, k * 10_000_000)
+        assert spin_until(ex, lambda: sins.gyro_check.received >= 27 and len(got) >= 24, 5.0), len(got)
+        g = sins.gyro_check
+        assert (g.out_of_range, g.stamp_outliers, g.resyncs, g.out_of_order) == (2, 1, 1, 0)
+        assert g.accepted == 10 + 8 + 6 and sins.integrator.updates == 24
+        q = np.array([[m.quaternion.x, m.quaternion.y, m.quaternion.z, m.quaternion.w] for m in got])
+        assert np.all(np.isfinite(q)) and np.allclose(np.linalg.norm(q, axis=1), 1.0)
+        # the attitude is the sum of the 24 accepted increments about x (nothing impossible in it)
+        angle = 2 * np.arctan2(np.linalg.norm(q[-1, :3]), abs(q[-1, 3]))
+        assert angle == pytest.approx(24 * 0.001, rel=1e-9)
+        sins.publish_diagnostics()
+        assert spin_until(ex, lambda: any(s.name.startswith(f"{ns}/sins_node") for d in diags for s in d.status), 5.0)
+        st = [s for d in diags for s in d.status if s.name.startswith(f"{ns}/sins_node")][-1]
+        kv = {v.key: v.value for v in st.values}
+        assert st.level == b"\x02" and "jumped" in st.message, st.message          # ERROR naming the cause
+        assert (kv["gyro_dropped_out_of_range"], kv["gyro_dropped_stamp_outlier"], kv["gyro_stamp_resyncs"]) == \
+            ("2", "1", "1")
+    finally:
+        for n in (sins, src):
+            ex.remove_node(n)
+            n.destroy_node()
+
+
+def test_sins_node_never_publishes_a_non_finite_state(ros, monkeypatch):
+    """Issue 9 finding 3: should the core ever produce a non-finite update, it is not published; the
+    state returns to the last good one with an inflated σ and /diagnostics says ERROR."""
+    sins = SinsNode(namespace="/t_nonfinite", parameter_overrides=[Parameter("coning_algorithm", value="1"), *IDEAL])
+    sent = []
+    monkeypatch.setattr(sins.pub_att, "publish", sent.append)
+    try:
+        def msg(k):
+            m = Vector3Stamped()
+            m.header.stamp.sec, m.header.stamp.nanosec = 10, k * 10_000_000
+            m.vector.x = 0.001
+            return m
+        for k in range(1, 6):
+            sins._on_gyro(msg(k))
+        good_q, sigma0 = sins.integrator.q.copy(), np.sqrt(np.trace(sins.integrator.covariance()))
+        real_push = sins.integrator.push
+
+        def poisoned(*a, **kw):
+            b = real_push(*a, **kw)
+            b.attitude[:] = np.nan
+            return b
+        monkeypatch.setattr(sins.integrator, "push", poisoned)
+        sins._on_gyro(msg(6))
+        monkeypatch.setattr(sins.integrator, "push", real_push)
+        sins._on_gyro(msg(7))
+        assert len(sent) == 6 and sins.nonfinite == 1                      # update 6 never published
+        assert all(np.isfinite([m.quaternion.w for m in sent]))
+        # back at the good state after update 5, then update 7 on top: 6 increments of 0.001 rad
+        q = sins.integrator.q
+        assert 2 * np.arctan2(np.linalg.norm(q[1:]), abs(q[0])) == pytest.approx(6 * 0.001, rel=1e-9)
+        assert 2 * np.arctan2(np.linalg.norm(good_q[1:]), abs(good_q[0])) == pytest.approx(5 * 0.001, rel=1e-9)
+        assert np.sqrt(np.trace(sins.integrator.covariance())) > sigma0 + 0.009   # inflated by 0.01 rad/axis
+    finally:
+        sins.destroy_node()

@@ -22,7 +22,7 @@ import numpy as np
 from ..boresight import r_partial
 from ..rotation import quat_conjugate, quat_cumprod, quat_multiply, quat_normalize, quat_to_dcm
 
-__all__ = ["GyroRecord", "PairSet", "build_pairs", "pair_residuals", "pair_integral", "gaps_from_stamps", "ANGLE_LIMIT"]
+__all__ = ["GyroRecord", "PairSet", "build_pairs", "pair_residuals", "pair_integral", "ANGLE_LIMIT"]
 
 ANGLE_LIMIT = np.pi * 0.999          # increments beyond this are not formed (ambiguous rotation)
 
@@ -173,16 +173,3 @@ def pair_integral(gyro: GyroRecord, pairs: PairSet, jacobian, chunk: int = 100_0
     Cend = quat_to_dcm(gyro.attitude_at(Ke, pairs.x_end))
     return np.einsum("nji,njp->nip", Cend, total)
 
-
-def gaps_from_stamps(stamps: np.ndarray, factor: float = 1.5) -> tuple[list, float, int]:
-    """Gaps of a gyro stream judged against its own rate: the median step of the stamps is the
-    period; a step above ``factor`` periods is a gap (increments missing, their rotation lost).
-    Returns (gaps [(a, b)], period, missing increments)."""
-    st = np.asarray(stamps, dtype=float)
-    if len(st) < 3:
-        return [], float("nan"), 0
-    d = np.diff(st)
-    period = float(np.median(d))
-    idx = np.where(d > factor * period)[0]
-    missing = int(np.sum(np.round(d[idx] / period) - 1))
-    return [(float(st[i]), float(st[i + 1])) for i in idx], period, missing

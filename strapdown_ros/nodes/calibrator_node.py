@@ -66,13 +66,14 @@ from rclpy.node import Node
 
 from ..boresight import imu_attitude_from_camera
 from ..config import CALIBRATOR_PARAMS
+from ..streams import StreamCheck
 from ..calibrator import BoresightCalibrator
 from . import ros_io
-from .sins_node import StreamCheck
 from .ros_io import camera_qos, latched_qos, pose_with_covariance, rotation_block
 
 NODE_NAME = "calibrator_node"
 ARCSEC = math.pi / 180.0 / 3600.0
+CAMERA_JUMP_S = 3600.0     # a camera stamp step beyond this (s) is a jump
 LOG_THROTTLE_S = 30.0          # a not-observable reason that keeps its wording is repeated at most this often
 
 
@@ -85,8 +86,12 @@ class CalibratorNode(Node):
         self.cal = BoresightCalibrator.from_params(p)     # as calibrate_bag builds it (effects compensated)
         sxy, sz = float(p["camera_sigma_xy"]), float(p["camera_sigma_z"])
         self.default_p_avu = np.diag([sxy ** 2, sxy ** 2, sz ** 2])
-        self.gyro_check = StreamCheck(self.gyro_period)
-        self.camera_check = StreamCheck(math.inf)      # exposures need not be periodic: no gap test
+        jump, resync = float(p["max_stamp_jump"]), int(p["resync_count"])
+        self.gyro_check = StreamCheck(self.gyro_period, max_norm=2.0 * self.gyro_period * float(p["gyro_max_rate"]),
+                                      jump_limit=jump, resync_count=resync)
+        # exposures need not be periodic (no gap test) and are seconds apart: a jump is an hour
+        self.camera_check = StreamCheck(math.inf, jump_limit=max(jump, CAMERA_JUMP_S), resync_count=resync)
+        self.solve_failures = 0
         self.camera_counts = {"dropped_zero_quaternion": 0, "normalised": 0, "dropped_bad_covariance": 0,
                               "covariance_substituted": 0, "frame_mismatch": 0}
         self.origin_ns: int | None = None              # stamps are handled relative to the first one
@@ -149,19 +154,28 @@ class CalibratorNode(Node):
 
     def _on_gyro(self, msg: Vector3Stamped):
         ns = ros_io.stamp_to_ns(msg.header.stamp)
-        v = (msg.vector.x, msg.vector.y, msg.vector.z)
         g = self.gyro_check
-        prev_ns, gaps_before = g.last_ns, g.gaps
-        if not g.accept(ns, v):
+        prev_ns = g.last_ns
+        out = g.offer(ns, (msg.vector.x, msg.vector.y, msg.vector.z))
+        if not out:
             return
-        t = self._rel(ns)
-        if g.gaps > gaps_before:
-            # the rotation of the missing increments is lost: no pair may span (prev, t]
-            self.gaps.append(((prev_ns - self.origin_ns) * 1e-9, t))
-            self.get_logger().error(
-                f"gyro gap: {int(round((ns - prev_ns) / (self.gyro_period * 1e9))) - 1} increment(s) missing "
-                f"before stamp {ns * 1e-9:.6f} s; pairs spanning it are discarded", throttle_duration_sec=5.0)
-        self._after_input(self.cal.add_gyro([t], [v]))
+        if g.resynced:
+            self.cal.restart_gyro()
+            prev_ns = None
+            self.get_logger().error(f"gyro stamps jumped by {g.last_jump_s:.6g} s and stayed: resynchronised; no "
+                                    "increment pair spans the jump")
+        new = 0
+        for ns_i, v in out:
+            t = self._rel(ns_i)
+            if prev_ns is not None and ns_i - prev_ns > 1.5 * self.gyro_period * 1e9:
+                # the rotation of the missing increments is lost: no pair may span (prev, t]
+                self.gaps.append(((prev_ns - self.origin_ns) * 1e-9, t))
+                self.get_logger().error(
+                    f"gyro gap: {int(round((ns_i - prev_ns) / (self.gyro_period * 1e9))) - 1} increment(s) missing "
+                    f"before stamp {ns_i * 1e-9:.6f} s; pairs spanning it are discarded", throttle_duration_sec=5.0)
+            prev_ns = ns_i
+            new += self.cal.add_gyro([t], [v])
+        self._after_input(new)
 
     def _on_camera_cov(self, msg: PoseWithCovarianceStamped):
         self._on_camera(msg.header, msg.pose.pose.orientation, rotation_block(msg))
@@ -190,18 +204,23 @@ class CalibratorNode(Node):
                 self.get_logger().warn("camera fix with a covariance that is not positive semi-definite dropped",
                                        throttle_duration_sec=10.0)
                 return
-        if not c.accept(ns, list(q) + list(np.asarray(P).ravel())):
-            return
-        if abs(norm - 1.0) > 1e-9:
+        if abs(norm - 1.0) > 1e-9 and math.isfinite(norm):
             q = q / norm
             self.camera_counts["normalised"] += 1
         if header.frame_id and header.frame_id != self.ref_frame:
             self.camera_counts["frame_mismatch"] += 1
             self.get_logger().warn(f"camera attitude in frame {header.frame_id!r}, expected {self.ref_frame!r}",
                                    throttle_duration_sec=30.0)
-        self.pending_fixes.append((ns, q, np.asarray(P, dtype=float)))
-        self._after_input(self.cal.add_camera(self._rel(ns), q, P))
-        self._publish_imu_attitudes()
+        out = c.offer(ns, list(q) + list(np.asarray(P, dtype=float).ravel()))
+        if c.resynced:
+            self.cal.restart_camera()
+            self.get_logger().error(f"camera stamps jumped by {c.last_jump_s:.6g} s and stayed: resynchronised")
+        for ns_i, v in out:                        # after a resync, the held fixes too, in order
+            q_i, P_i = np.asarray(v[:4]), np.asarray(v[4:], dtype=float).reshape(3, 3)
+            self.pending_fixes.append((ns_i, q_i, P_i))
+            self._after_input(self.cal.add_camera(self._rel(ns_i), q_i, P_i))
+        if out:
+            self._publish_imu_attitudes()
 
     # --- estimate ------------------------------------------------------------------------------
     def _after_input(self, new_pairs: int):
@@ -226,7 +245,14 @@ class CalibratorNode(Node):
 
     def _solve(self):
         t0 = time.perf_counter()
-        sol = self.cal.solve()
+        try:
+            sol = self.cal.solve()
+        except (np.linalg.LinAlgError, ValueError, FloatingPointError) as exc:
+            # never lose the pairs or the latched estimate to one bad solve
+            self.solve_failures += 1
+            self.get_logger().error(f"boresight solve failed ({exc}); the last estimate stays published",
+                                    throttle_duration_sec=10.0)
+            return
         self.solve_ms = (time.perf_counter() - t0) * 1e3
         self.solves += 1
         if sol.observable and sol.converged:
@@ -298,14 +324,21 @@ class CalibratorNode(Node):
                        **g.as_dict("gyro"),
                        "camera_received": c.received, "camera_accepted": c.accepted,
                        "camera_dropped_nan": c.nan, "camera_dropped_out_of_order": c.out_of_order,
-                       "camera_dropped_duplicate": c.duplicate,
+                       "camera_dropped_duplicate": c.duplicate, "camera_dropped_stamp_outlier": c.stamp_outliers,
+                       "camera_stamp_resyncs": c.resyncs, "solve_failures": self.solve_failures,
                        **{f"camera_{k}": v for k, v in self.camera_counts.items()}})
-        g_drop = g.nan + g.out_of_order + g.duplicate
-        c_drop = c.nan + c.out_of_order + c.duplicate + self.camera_counts["dropped_zero_quaternion"] \
-            + self.camera_counts["dropped_bad_covariance"]
+        g_drop = g.dropped
+        c_drop = c.dropped + self.camera_counts["dropped_zero_quaternion"] + self.camera_counts["dropped_bad_covariance"]
         if level == ros_io.OK and (g_drop or c_drop):
             level = ros_io.WARN
             message = f"{message}; dropped {g_drop} gyro and {c_drop} camera messages"
+        if g.resyncs or c.resyncs:
+            level = ros_io.ERROR
+            message = (f"{message}; stamps jumped and were resynchronised (gyro {g.resyncs}, camera {c.resyncs}); "
+                       "no pair spans a jump")
+        if self.solve_failures:
+            level = ros_io.ERROR
+            message = f"{message}; {self.solve_failures} solve(s) failed, the last estimate stays published"
         if g.missing:
             level = ros_io.ERROR
             message = (f"{message}; {g.missing} gyro increments missing in {g.gaps} gaps: "

@@ -18,7 +18,6 @@ the integrator never sees it.
 """
 from __future__ import annotations
 
-import math
 import sys
 import time
 from collections import deque
@@ -33,54 +32,11 @@ from ..config import SINS_PARAMS, sigmas_from
 from ..integrator import AttitudeIntegrator, IncrementAccumulator
 from ..rotation import from_ros_xyzw
 from ..sensors.effects import GyroEffects
+from ..streams import StreamCheck
 from . import ros_io
 
 NODE_NAME = "sins_node"
-
-
-class StreamCheck:
-    """Validity bookkeeping of one stamped vector stream (stamps in integer ns)."""
-
-    def __init__(self, nominal_period: float):
-        self.nominal_ns = nominal_period * 1e9
-        self.last_ns: int | None = None
-        self.first_ns: int | None = None
-        self.received = self.accepted = 0
-        self.nan = self.out_of_order = self.duplicate = self.gaps = self.missing = 0
-
-    def accept(self, stamp_ns: int, v) -> bool:
-        self.received += 1
-        if not all(math.isfinite(c) for c in v):
-            self.nan += 1
-            return False
-        if self.last_ns is not None:
-            if stamp_ns == self.last_ns:
-                self.duplicate += 1
-                return False
-            if stamp_ns < self.last_ns:
-                self.out_of_order += 1
-                return False
-            step = stamp_ns - self.last_ns
-            if step > 1.5 * self.nominal_ns:
-                self.gaps += 1
-                self.missing += int(round(step / self.nominal_ns)) - 1
-        else:
-            self.first_ns = stamp_ns
-        self.last_ns = stamp_ns
-        self.accepted += 1
-        return True
-
-    def rate_hz(self) -> float:
-        if self.first_ns is None or self.last_ns == self.first_ns or self.accepted < 2:
-            return 0.0
-        return (self.accepted - 1) / ((self.last_ns - self.first_ns) * 1e-9)
-
-    def as_dict(self, prefix: str) -> dict:
-        return {f"{prefix}_received": self.received, f"{prefix}_accepted": self.accepted,
-                f"{prefix}_rate_hz_from_stamps": self.rate_hz(), f"{prefix}_dropped_nan": self.nan,
-                f"{prefix}_dropped_out_of_order": self.out_of_order,
-                f"{prefix}_dropped_duplicate": self.duplicate, f"{prefix}_gaps": self.gaps,
-                f"{prefix}_missing_samples": self.missing}
+NONFINITE_INFLATION = 0.01      # rad per axis added to σ after a non-finite update is discarded
 
 
 class SinsNode(Node):
@@ -101,8 +57,14 @@ class SinsNode(Node):
         self.gyro_effects = GyroEffects(p)
         self.compensating = self.gyro_effects.names()
         self._last_gyro_t: float | None = None
-        self.gyro_check = StreamCheck(period)
-        self.accel_check = StreamCheck(1.0 / float(p["accel_rate"]))
+        jump, resync = float(p["max_stamp_jump"]), int(p["resync_count"])
+        self.gyro_check = StreamCheck(period, max_norm=2.0 * period * float(p["gyro_max_rate"]), jump_limit=jump,
+                                      resync_count=resync)
+        a_period = 1.0 / float(p["accel_rate"])
+        self.accel_check = StreamCheck(a_period, max_norm=2.0 * a_period * float(p["accel_max"]), jump_limit=jump,
+                                       resync_count=resync)
+        self.nonfinite = 0                         # updates whose output was not finite (never published)
+        self._good = self.integrator.snapshot()
         self.accel = IncrementAccumulator()
         self.accel_seen = False
         self.origin_ns: int | None = None          # stamps are handled relative to the first one
@@ -148,31 +110,53 @@ class SinsNode(Node):
 
     def _on_gyro(self, msg: Vector3Stamped):
         ns = ros_io.stamp_to_ns(msg.header.stamp)
-        v = (msg.vector.x, msg.vector.y, msg.vector.z)
-        if not self.gyro_check.accept(ns, v):
+        out = self.gyro_check.offer(ns, (msg.vector.x, msg.vector.y, msg.vector.z))
+        if not out:
             return
+        if self.gyro_check.resynced:
+            self.integrator.restart_clock()
+            self._last_gyro_t = None
+            self.origin_ns = None
+            self.get_logger().error(f"gyro stamps jumped by {self.gyro_check.last_jump_s:.6g} s and stayed: "
+                                    "resynchronised to the new time base; the rotation during the jump is lost")
+        for ns_i, v in out:
+            self._integrate(ns_i, v)
+        self._flush_imu()
+
+    def _integrate(self, ns: int, v):
         t = self._rel(ns)
-        inc = np.array([v])
+        inc = np.array([v], dtype=float)
         if self.compensating:
             T = t - self._last_gyro_t if self._last_gyro_t is not None else self.integrator.nominal_period
             inc = self.gyro_effects.compensate(inc, np.array([t]), T)
         self._last_gyro_t = t
         batch = self.integrator.push(inc, np.array([t]))
+        if len(batch) and not (np.all(np.isfinite(batch.attitude)) and np.all(np.isfinite(batch.covariance))):
+            # never publish a non-finite state: back to the last good one, covariance inflated
+            self.nonfinite += 1
+            self.integrator.restore(self._good, inflate_sigma=NONFINITE_INFLATION)
+            self.get_logger().error("non-finite attitude: not published; state reset to the last good update "
+                                    f"with {NONFINITE_INFLATION} rad added to its σ", throttle_duration_sec=5.0)
+            return
+        if len(batch):
+            self._good = self.integrator.snapshot()
         for k in range(len(batch)):
             st = ros_io.ns_to_stamp(self.origin_ns + int(round(batch.stamps[k] * 1e9)))
             self.pub_att.publish(ros_io.quaternion_stamped(st, self.ref_frame, batch.attitude[k]))
             self.published["attitude"] += 1
             self.pending_imu.append((batch.stamps[k], batch.interval[k], st, batch.attitude[k],
                                      batch.covariance[k], batch.mean_rate[k]))
-        self._flush_imu()
 
     def _on_accel(self, msg: Vector3Stamped):
         ns = ros_io.stamp_to_ns(msg.header.stamp)
-        v = (msg.vector.x, msg.vector.y, msg.vector.z)
-        if not self.accel_check.accept(ns, v):
+        out = self.accel_check.offer(ns, (msg.vector.x, msg.vector.y, msg.vector.z))
+        if not out:
             return
+        if self.accel_check.resynced:
+            self.accel = IncrementAccumulator()           # the old time base is gone
         self.accel_seen = True
-        self.accel.add(np.array([v]), np.array([self._rel(ns)]))
+        for ns_i, v in out:
+            self.accel.add(np.array([v]), np.array([self._rel(ns_i)]))
         self._flush_imu()
 
     # --- output ------------------------------------------------------------------------------
@@ -211,16 +195,23 @@ class SinsNode(Node):
 
     def publish_diagnostics(self):
         g, a = self.gyro_check, self.accel_check
-        dropped = g.nan + g.out_of_order + g.duplicate
         level, message = ros_io.OK, "ok"
         if g.accepted == 0:
             level, message = ros_io.WARN, "no gyro increments received"
-        if dropped or a.nan + a.out_of_order + a.duplicate:
-            level, message = ros_io.WARN, f"dropped {dropped} gyro and " \
-                f"{a.nan + a.out_of_order + a.duplicate} accelerometer messages (NaN/out-of-order/duplicate)"
+        if g.dropped or a.dropped:
+            level, message = ros_io.WARN, (
+                f"dropped {g.dropped} gyro and {a.dropped} accelerometer messages (NaN {g.nan + a.nan}, out of range "
+                f"{g.out_of_range + a.out_of_range}, out of order {g.out_of_order + a.out_of_order}, duplicate "
+                f"{g.duplicate + a.duplicate}, stamp outliers {g.stamp_outliers + a.stamp_outliers})")
         if g.missing:
             level, message = ros_io.ERROR, f"{g.missing} gyro increments missing in {g.gaps} gaps: " \
                 "the rotation during the gaps is lost"
+        if g.resyncs:
+            level, message = ros_io.ERROR, (f"gyro stamps jumped {g.resyncs} time(s) (last by {g.last_jump_s:.6g} s): "
+                                            "resynchronised; the rotation during a jump is lost")
+        if self.nonfinite:
+            level, message = ros_io.ERROR, (f"{self.nonfinite} non-finite update(s) discarded (never published); "
+                                            "state reset to the last good one with inflated covariance")
         values = {"coning_algorithm": self.integrator.algorithm_name,
                   "samples_per_update": self.integrator.algorithm.samples,
                   "covariance_model": self.integrator.covariance_model,
@@ -229,7 +220,8 @@ class SinsNode(Node):
                   "imu_published_without_accel": self.published["imu_without_accel"],
                   "algorithm_changes": self.algorithm_changes,
                   "compensated_effects": ", ".join(self.compensating) or "none",
-                  "initial_orientation_normalised": self.initial_normalised}
+                  "initial_orientation_normalised": self.initial_normalised,
+                  "nonfinite_updates_discarded": self.nonfinite}
         if self.integrator.time is not None:
             sig = np.sqrt(np.diag(self.integrator.covariance()))
             values.update({"attitude_sigma_x_rad": sig[0], "attitude_sigma_y_rad": sig[1],

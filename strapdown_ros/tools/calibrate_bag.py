@@ -32,6 +32,7 @@ from __future__ import annotations
 import argparse
 import json
 import sys
+from struct import error as struct_error
 from pathlib import Path
 
 import numpy as np
@@ -39,6 +40,7 @@ import numpy as np
 from ..calibrator import BoresightCalibrator
 from ..config import CALIBRATOR_PARAMS, check_all, load_parameter_file
 from ..rotation import from_ros_xyzw, to_ros_xyzw
+from ..streams import StreamCheck, nominal_period, validate
 from .record_sim import parse_overrides
 
 __all__ = ["main", "read_bag", "calibrate", "calibrator_parameters", "make_calibrator", "solution_json", "BagError"]
@@ -91,44 +93,25 @@ def _stamp_ns(header) -> int:
     return int(header.stamp.sec) * 1_000_000_000 + int(header.stamp.nanosec)
 
 
-class _Stream:
-    """Per-topic acceptance as ``calibrator_node`` (``sins_node.StreamCheck``): finite values,
-    strictly increasing stamps (bag order); steps above 1.5 nominal periods are gaps."""
+class Accepted:
+    """One recorded stream after the nodes' input rules (strapdown_ros.streams): the accepted
+    stamps (ns) and values in order, the intervals no pair may span, and the counts."""
 
-    def __init__(self, nominal_period: float = np.inf):
-        self.nominal_ns = nominal_period * 1e9
-        self.stamps: list[int] = []
-        self.values: list = []
-        self.received = 0
-        self.dropped = {"nan": 0, "duplicate": 0, "out_of_order": 0}
-        self.gaps: list[tuple[int, int]] = []          # (last stamp before, first stamp after), ns
-        self.missing = 0
-
-    def offer(self, ns: int, value, finite: bool) -> bool:
-        self.received += 1
-        last = self.stamps[-1] if self.stamps else None
-        if not finite:
-            self.dropped["nan"] += 1
-            return False
-        if last is not None:
-            if ns == last:
-                self.dropped["duplicate"] += 1
-                return False
-            if ns < last:
-                self.dropped["out_of_order"] += 1
-                return False
-            if ns - last > 1.5 * self.nominal_ns:
-                self.gaps.append((last, ns))
-                self.missing += int(round((ns - last) / self.nominal_ns)) - 1
-        self.stamps.append(ns)
-        self.values.append(value)
-        return True
+    def __init__(self, stamps, values, gaps, check, extra_received: int = 0):
+        self.stamps, self.values, self.gaps, self.check = stamps, values, gaps, check
+        self.received = check.received + extra_received
+        self.missing = check.missing
+        self.dropped = {"nan": check.nan, "duplicate": check.duplicate, "out_of_order": check.out_of_order,
+                        "out_of_range": check.out_of_range, "stamp_outlier": check.stamp_outliers}
+        self.resyncs = check.resyncs
 
 
 def read_bag(path: str | Path, namespace: str = "", use_camera_covariance: bool = True,
-             camera_sigma=(0.0, 0.0, 0.0), gyro_period: float = 0.01) -> dict:
-    """Gyro increments and camera fixes from a bag, validated as calibrator_node validates its
-    input (drops counted); raises BagError."""
+             camera_sigma=(0.0, 0.0, 0.0), gyro_max_rate: float = 20.0, max_stamp_jump: float = 1.0,
+             resync_count: int = 5) -> dict:
+    """Gyro increments and camera fixes from a bag, validated by the rules calibrator_node applies
+    (:class:`strapdown_ros.streams.StreamCheck`, drops counted).  The gyro period is taken from
+    the stamps (the median step), not from a parameter.  Raises BagError."""
     from rosbags.highlevel import AnyReader, AnyReaderError
     from rosbags.typesys import Stores, get_typestore
 
@@ -157,7 +140,8 @@ def read_bag(path: str | Path, namespace: str = "", use_camera_covariance: bool 
                 raise BagError(f"{t} has type {topics[t]}, expected {EXPECTED_TYPES[rel]}")
         with_cov = cam_topic == cov_topic
         P_assumed = np.diag(np.asarray(camera_sigma, dtype=float) ** 2)
-        gyro, cam = _Stream(gyro_period), _Stream()        # exposures need not be periodic: no gap test
+        raw_g, raw_c = [], []
+        fix_rejected = 0
         fix_counts = {"zero_quaternion": 0, "bad_covariance": 0, "normalised": 0, "covariance_substituted": 0}
         frames = {"gyro": set(), "camera": set()}
         conns = [c for c in reader.connections if c.topic in (gyro_topic, cam_topic)]
@@ -169,8 +153,7 @@ def read_bag(path: str | Path, namespace: str = "", use_camera_covariance: bool 
             ns = _stamp_ns(msg.header)
             if conn.topic == gyro_topic:
                 frames["gyro"].add(msg.header.frame_id)
-                v = np.array([msg.vector.x, msg.vector.y, msg.vector.z], dtype=float)
-                gyro.offer(ns, v, bool(np.all(np.isfinite(v))))
+                raw_g.append((ns, (float(msg.vector.x), float(msg.vector.y), float(msg.vector.z))))
                 continue
             frames["camera"].add(msg.header.frame_id)
             if with_cov:
@@ -182,7 +165,7 @@ def read_bag(path: str | Path, namespace: str = "", use_camera_covariance: bool 
             q = from_ros_xyzw(np.array([qm.x, qm.y, qm.z, qm.w], dtype=float))
             norm = float(np.linalg.norm(q)) if np.all(np.isfinite(q)) else float("nan")
             if np.isfinite(norm) and norm < 1e-6:
-                cam.received += 1
+                fix_rejected += 1
                 fix_counts["zero_quaternion"] += 1
                 continue
             if with_cov and np.all(np.isfinite(P)):
@@ -191,40 +174,62 @@ def read_bag(path: str | Path, namespace: str = "", use_camera_covariance: bool 
                     P = P_assumed                            # all-zero covariance: "unknown" in ROS
                     fix_counts["covariance_substituted"] += 1
                 elif np.min(np.linalg.eigvalsh(P)) < -1e-12 * max(np.trace(P), 1e-300):
-                    cam.received += 1
+                    fix_rejected += 1
                     fix_counts["bad_covariance"] += 1
                     continue
             finite = bool(np.isfinite(norm) and np.all(np.isfinite(P)))
             if finite and abs(norm - 1.0) > 1e-9:
                 q = q / norm
-            if cam.offer(ns, (q, np.array(P, dtype=float)), finite) and abs(norm - 1.0) > 1e-9:
                 fix_counts["normalised"] += 1
+            raw_c.append((ns, tuple(q) + tuple(np.asarray(P, dtype=float).ravel())))
+    except (OverflowError, ValueError, struct_error) as exc:           # corrupted records
+        raise BagError(f"{path}: unreadable message data ({exc})") from None
     finally:
         reader.close()
+    # the nodes' rules, with the gyro period from the stamps
+    g_period = nominal_period([t for t, _ in raw_g])
+    g_check = StreamCheck(g_period, max_norm=2.0 * g_period * float(gyro_max_rate) if np.isfinite(g_period) else None,
+                          jump_limit=max_stamp_jump, resync_count=resync_count)
+    gyro = Accepted(*validate([t for t, _ in raw_g], [np.array(v) for _, v in raw_g], g_check), g_check)
+    c_check = StreamCheck(np.inf, jump_limit=max(max_stamp_jump, 3600.0), resync_count=resync_count)
+    ct, cv, cgaps = validate([t for t, _ in raw_c], [v for _, v in raw_c], c_check)
+    cam = Accepted(ct, [(np.array(v[:4]), np.array(v[4:]).reshape(3, 3)) for v in cv], cgaps, c_check, fix_rejected)
     return {"gyro_topic": gyro_topic, "camera_topic": cam_topic, "camera_covariance_from_bag": with_cov,
-            "gyro": gyro, "camera": cam, "camera_fixes": fix_counts,
+            "gyro": gyro, "camera": cam, "camera_fixes": fix_counts, "gyro_period_s": g_period,
             "frames": {k: sorted(v) for k, v in frames.items()}}
 
 
 def calibrate(data: dict, p: dict):
-    """Feed the calibrator as calibrator_node does and solve; returns (solution, calibrator,
-    pairs discarded over gyro gaps).  Gyro first, then the fixes in stamp order: a pair is formed
-    once the gyro covers its end, so the pairs are those of any interleaving."""
+    """Feed the calibrator as calibrator_node is fed — gyro and fixes interleaved in stamp order —
+    and solve; returns (solution, calibrator, pairs discarded over gyro gaps and stamp jumps).
+    The calibrator's buffer stays bounded on recordings of any length."""
     g, c = data["gyro"], data["camera"]
     t0 = min(g.stamps[0], c.stamps[0])                 # origin: float seconds keep ns resolution
     cal = make_calibrator(p)
-    cal.add_gyro((np.asarray(g.stamps, dtype=np.int64) - t0) * 1e-9, np.asarray(g.values))
+    tg = (np.asarray(g.stamps, dtype=np.int64) - t0) * 1e-9
+    vg = np.asarray(g.values, dtype=float).reshape(-1, 3)
     gaps = [((a - t0) * 1e-9, (b - t0) * 1e-9) for a, b in g.gaps]
-    h = 1.5 / float(p["gyro_rate"])                     # the in-interval polynomial reads the neighbours
+    period = data.get("gyro_period_s") or 1.0 / float(p["gyro_rate"])
+    h = 1.5 * period                                    # the in-interval polynomial reads the neighbours
     discarded = 0
+    k = 0
     for ns, (q, P) in zip(c.stamps, c.values):
-        new = cal.add_camera((ns - t0) * 1e-9, q, P)
+        t = (ns - t0) * 1e-9
+        k1 = int(np.searchsorted(tg, t + 3 * period + abs(float(p["camera_time_offset"])), side="right"))
+        if k1 > k:
+            new_g = cal.add_gyro(tg[k:k1], vg[k:k1])
+            k = k1
+        else:
+            new_g = 0
+        new = new_g + cal.add_camera(t, q, P)
         if new and gaps:                               # as calibrator_node._discard_pairs_over_gaps
             tail = cal.pairs[len(cal.pairs) - new:]
             keep = [pr for pr in tail if not any(pr.t_start - h < b and a < pr.t_end + h for a, b in gaps)]
             discarded += len(tail) - len(keep)
             del cal.pairs[len(cal.pairs) - new:]
             cal.pairs.extend(keep)
+    if k < len(tg):
+        cal.add_gyro(tg[k:], vg[k:])
     return cal.solve(), cal, discarded
 
 
@@ -321,7 +326,7 @@ def main(argv=None) -> int:
         p = calibrator_parameters(args.params, over)
         data = read_bag(args.bag, args.namespace, bool(p["use_camera_covariance"]),
                         (p["camera_sigma_xy"], p["camera_sigma_xy"], p["camera_sigma_z"]),
-                        1.0 / float(p["gyro_rate"]))
+                        float(p["gyro_max_rate"]), float(p["max_stamp_jump"]), int(p["resync_count"]))
     except (ValueError, OSError, BagError) as exc:
         print(f"calibrate_bag: error: {exc}", file=sys.stderr)
         return 2
@@ -335,11 +340,10 @@ def main(argv=None) -> int:
     if not g.stamps or not c.stamps:
         print(f"calibrate_bag: error: no usable {'gyro' if not g.stamps else 'camera'} messages", file=sys.stderr)
         return 2
-    if len(g.stamps) > 2:
-        step = float(np.median(np.diff(g.stamps))) * 1e-9
-        if abs(step * float(p["gyro_rate"]) - 1.0) > 0.1:
-            print(f"calibrate_bag: warning: gyro stamps are {step:.6g} s apart but gyro_rate is {p['gyro_rate']:g} Hz; "
-                  f"gaps are judged against gyro_rate (set -p gyro_rate:={1.0 / step:.6g})", file=sys.stderr)
+    step = data["gyro_period_s"]
+    if np.isfinite(step) and abs(step * float(p["gyro_rate"]) - 1.0) > 0.1:
+        print(f"calibrate_bag: note: gyro stamps are {step:.6g} s apart ({1.0 / step:.6g} Hz); gaps are judged "
+              f"against that, not gyro_rate = {p['gyro_rate']:g} Hz", file=sys.stderr)
     sol, _, discarded = calibrate(data, p)
     result = solution_json(sol, bool(p["weighted"]))
     result["covariance_model"] = p["covariance_model"]
@@ -347,6 +351,8 @@ def main(argv=None) -> int:
                          "camera": {**c.dropped, "zero_quaternion": data["camera_fixes"]["zero_quaternion"],
                                     "bad_covariance": data["camera_fixes"]["bad_covariance"]}}
     result["gyro_gaps"] = {"gaps": len(g.gaps), "missing": g.missing, "pairs_discarded": discarded}
+    result["stamp_resyncs"] = {"gyro": g.resyncs, "camera": c.resyncs}
+    result["gyro_rate_from_stamps_hz"] = _num(1.0 / data["gyro_period_s"]) if np.isfinite(data["gyro_period_s"]) else None
     result["camera_fixes"] = {k: data["camera_fixes"][k] for k in ("normalised", "covariance_substituted")}
     result["messages"] = {"gyro": len(g.stamps), "camera": len(c.stamps)}
     result["topics"] = {"gyro": data["gyro_topic"], "camera": data["camera_topic"]}

@@ -68,26 +68,28 @@ def load_recording(bag: str, model: dict, namespace: str = ""):
     """The recording as the core's :class:`Recording`, with what reading it found (drops, gaps,
     topics, the gyro rate from the stamps).  Raises BagError / ValueError."""
     from ..analysis.discrepancy import Recording
-    from ..analysis.pairs import gaps_from_stamps
     from .calibrate_bag import BagError, read_bag
 
     sig = (model["camera_sigma_xy"], model["camera_sigma_xy"], model["camera_sigma_z"])
-    data = read_bag(bag, namespace, True, sig, 1.0 / float(model["gyro_rate"]))
+    data = read_bag(bag, namespace, True, sig, float(model["gyro_max_rate"]), float(model["max_stamp_jump"]),
+                    int(model["resync_count"]))
     g, c = data["gyro"], data["camera"]
     if len(g.stamps) < 10:
         raise BagError(f"{bag}: {len(g.stamps)} usable gyro increments on {data['gyro_topic']}")
     origin = min(g.stamps[0], c.stamps[0]) if c.stamps else g.stamps[0]
     t_g = (np.asarray(g.stamps, dtype=np.int64) - origin) * 1e-9
     t_c = (np.asarray(c.stamps, dtype=np.int64) - origin) * 1e-9
-    gaps, period, missing = gaps_from_stamps(t_g)
+    gaps = [((a - origin) * 1e-9, (b - origin) * 1e-9) for a, b in g.gaps]
+    period = data["gyro_period_s"]
     q = np.array([v[0] for v in c.values]).reshape(-1, 4)
     P = np.array([v[1] for v in c.values]).reshape(-1, 3, 3)
     rec = Recording(t_g, np.asarray(g.values, dtype=float), t_c, q, P, gaps)
     info = {"gyro_topic": data["gyro_topic"], "camera_topic": data["camera_topic"],
             "camera_covariance_from_bag": data["camera_covariance_from_bag"],
             "gyro_messages": len(g.stamps), "camera_fixes": len(c.stamps),
-            "gyro_rate_from_stamps_hz": 1.0 / period if period > 0 else None,
-            "gyro_gaps": len(gaps), "gyro_missing": missing,
+            "gyro_rate_from_stamps_hz": 1.0 / period if 0 < period < np.inf else None,
+            "gyro_gaps": len(gaps), "gyro_missing": g.missing,
+            "stamp_resyncs": {"gyro": g.resyncs, "camera": c.resyncs},
             "dropped": {"gyro": dict(g.dropped), "camera": {**c.dropped, **{
                 k: v for k, v in data["camera_fixes"].items() if k in ("zero_quaternion", "bad_covariance")}}},
             "stamp_origin_ns": int(origin), "duration_s": float(t_g[-1] - t_g[0])}

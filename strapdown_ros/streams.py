@@ -1,0 +1,190 @@
+"""Input validation of a stamped stream, once for every node and tool.
+
+``sins_node``, ``calibrator_node``, ``calibrate_bag`` and ``discrepancy`` all accept messages
+through :class:`StreamCheck`, so the live and offline paths agree by construction.  The rules,
+in the order they are applied to each message (stamps in integer nanoseconds):
+
+1. **non-finite** value (NaN, ±Inf): dropped, counted ``nan``;
+2. **out of range**: a value with a component beyond ``max_norm`` (the sensor's per-axis range,
+   e.g. ``gyro_max_rate`` × 2 nominal periods for an increment) is physically impossible:
+   dropped, counted ``out_of_range`` (a finite 1e308 would otherwise overflow downstream);
+3. **duplicate** stamp: dropped, counted;
+4. **stamp jump**: a step of more than ``jump_limit`` seconds, forward or backward, is held as a
+   *candidate* new timeline (at most ``resync_count`` messages).  A following message that fits
+   the old timeline discards the candidates as **stamp outliers** (a lone stamp far in the
+   future costs one message and stops nothing); ``resync_count`` consecutive messages that fit
+   the candidate timeline confirm it: the stream **resynchronises** (counted ``resyncs``),
+   and the held messages are released in order, so nothing is lost;
+5. **out of order** (an older stamp within ``jump_limit``): dropped, counted;
+6. **gap**: a step above 1.5 nominal periods is accepted but counted (``gaps``, ``missing``):
+   the increments in between are lost.
+
+No ROS imports.
+"""
+from __future__ import annotations
+
+import math
+
+__all__ = ["StreamCheck"]
+
+
+class StreamCheck:
+    """Validity bookkeeping of one stamped vector stream.
+
+    :meth:`offer` returns the messages to process now, in order: usually ``[(stamp, value)]``
+    or ``[]``; after a confirmed resynchronisation, the held messages too.  ``resynced`` is True
+    right after one (the consumer's time base must restart).
+    """
+
+    def __init__(self, nominal_period: float = math.inf, max_norm: float | None = None,
+                 jump_limit: float = 1.0, resync_count: int = 5):
+        self.nominal_ns = nominal_period * 1e9
+        self.max_norm = max_norm
+        self.jump_ns = max(jump_limit * 1e9, 3.0 * self.nominal_ns if math.isfinite(self.nominal_ns) else 0.0)
+        self.resync_count = max(1, int(resync_count))
+        self.last_ns: int | None = None
+        self.first_ns: int | None = None
+        self.received = self.accepted = 0
+        self.nan = self.out_of_range = self.out_of_order = self.duplicate = 0
+        self.gaps = self.missing = self.stamp_outliers = self.resyncs = 0
+        self.last_jump_s: float | None = None
+        self._held: list = []          # candidate new timeline: [(stamp_ns, value)]
+        self.accepted_since = 0        # accepted since first_ns (the rate after a resync)
+        self.resynced = False
+
+    # --- the rules -------------------------------------------------------------------------
+    def _finite(self, v) -> bool:
+        return all(math.isfinite(c) for c in v)
+
+    @staticmethod
+    def _norm(v) -> float:
+        return max(abs(c) for c in v)          # per-axis range; never squares, so never overflows
+
+    def offer(self, stamp_ns: int, v):
+        self.received += 1
+        self.resynced = False
+        if not self._finite(v):
+            self.nan += 1
+            return []
+        if self.max_norm is not None and self._norm(v) > self.max_norm:
+            self.out_of_range += 1
+            return []
+        if self.last_ns is None:
+            return self._take(stamp_ns, v)
+        if self._held:
+            return self._with_candidates(stamp_ns, v)
+        step = stamp_ns - self.last_ns
+        if step == 0:
+            self.duplicate += 1
+            return []
+        if abs(step) > self.jump_ns:
+            self._held.append((stamp_ns, v))
+            return []
+        if step < 0:
+            self.out_of_order += 1
+            return []
+        return self._take(stamp_ns, v)
+
+    def _fits(self, prev_ns: int, stamp_ns: int) -> bool:
+        return 0 < stamp_ns - prev_ns <= self.jump_ns
+
+    def _with_candidates(self, stamp_ns, v):
+        if self._fits(self.last_ns, stamp_ns):             # the old timeline goes on: outliers
+            self.stamp_outliers += len(self._held)
+            self._held.clear()
+            return self._take(stamp_ns, v)
+        if self._fits(self._held[-1][0], stamp_ns):
+            self._held.append((stamp_ns, v))
+            if len(self._held) >= self.resync_count:
+                held, self._held = self._held, []
+                self.resyncs += 1
+                self.last_jump_s = (held[0][0] - self.last_ns) * 1e-9
+                self.last_ns = None                       # a new time base
+                self.first_ns, self.accepted_since = None, 0
+                out = []
+                for s, val in held:
+                    out += self._take(s, val)
+                self.resynced = True
+                return out
+            return []
+        if stamp_ns == self.last_ns or stamp_ns == self._held[-1][0]:
+            self.duplicate += 1
+            return []
+        if len(self._held) < self.resync_count:            # another stray stamp: a new candidate
+            self.stamp_outliers += len(self._held)
+            self._held = [(stamp_ns, v)]
+            return []
+        self.out_of_order += 1
+        return []
+
+    def _take(self, stamp_ns, v):
+        if self.last_ns is not None:
+            step = stamp_ns - self.last_ns
+            if math.isfinite(self.nominal_ns) and step > 1.5 * self.nominal_ns:
+                self.gaps += 1
+                self.missing += int(round(step / self.nominal_ns)) - 1
+        if self.first_ns is None:
+            self.first_ns = stamp_ns
+        self.last_ns = stamp_ns
+        self.accepted += 1
+        self.accepted_since += 1
+        return [(stamp_ns, v)]
+
+    def accept(self, stamp_ns: int, v) -> bool:
+        """Single-message form for consumers that process one message at a time: True when the
+        message itself is accepted now (messages released by a resync are not returned here)."""
+        out = self.offer(stamp_ns, v)
+        return bool(out) and out[-1][0] == stamp_ns
+
+    # --- reporting -------------------------------------------------------------------------
+    @property
+    def dropped(self) -> int:
+        return self.nan + self.out_of_range + self.out_of_order + self.duplicate + self.stamp_outliers
+
+    def rate_hz(self) -> float:
+        if self.first_ns is None or self.last_ns is None or self.last_ns <= self.first_ns or self.accepted_since < 2:
+            return 0.0
+        return (self.accepted_since - 1) / ((self.last_ns - self.first_ns) * 1e-9)
+
+    def as_dict(self, prefix: str) -> dict:
+        return {f"{prefix}_received": self.received, f"{prefix}_accepted": self.accepted,
+                f"{prefix}_rate_hz_from_stamps": self.rate_hz(), f"{prefix}_dropped_nan": self.nan,
+                f"{prefix}_dropped_out_of_range": self.out_of_range,
+                f"{prefix}_dropped_out_of_order": self.out_of_order,
+                f"{prefix}_dropped_duplicate": self.duplicate, f"{prefix}_dropped_stamp_outlier": self.stamp_outliers,
+                f"{prefix}_stamp_resyncs": self.resyncs, f"{prefix}_gaps": self.gaps,
+                f"{prefix}_missing_samples": self.missing}
+
+
+def nominal_period(stamps_ns) -> float:
+    """The period of a stream from its own stamps (s): the median of the positive steps, robust to
+    outliers, duplicates and gaps.  inf with fewer than 2 distinct stamps."""
+    import numpy as np
+    st = np.asarray(stamps_ns, dtype=np.int64)
+    d = np.diff(st)
+    d = d[d > 0]
+    return float(np.median(d)) * 1e-9 if len(d) else math.inf
+
+
+def validate(stamps_ns, values, check: StreamCheck):
+    """Run a whole recorded stream through ``check`` (the node's rules, in bag order).
+
+    Returns (stamps_ns, values, gaps): the accepted messages in order and the intervals
+    (a, b), ns, that no increment pair may span: gaps (steps above 1.5 nominal periods) and
+    confirmed stamp jumps."""
+    out_t, out_v, gaps = [], [], []
+    for ns, v in zip(stamps_ns, values):
+        prev = check.last_ns
+        got = check.offer(int(ns), v)
+        if not got:
+            continue
+        if check.resynced and out_t:
+            gaps.append((out_t[-1], got[0][0]))           # across the jump (either direction)
+            prev = None
+        for s, val in got:
+            if prev is not None and math.isfinite(check.nominal_ns) and s - prev > 1.5 * check.nominal_ns:
+                gaps.append((prev, s))
+            out_t.append(s)
+            out_v.append(val)
+            prev = s
+    return out_t, out_v, gaps
