@@ -38,13 +38,13 @@ setup(
     python_requires=">=3.10",
     entry_points={
         "console_scripts": [
-            "imu_sim_node = strapdown_ros.nodes.imu_sim_node:main",
-            "sins_node = strapdown_ros.nodes.sins_node:main",
-            "strapdown_demo = strapdown_ros.nodes.demo:main",
+            "imu_sim_node = strapdown_ros.nodes.launch:imu_sim_node",
+            "sins_node = strapdown_ros.nodes.launch:sins_node",
+            "strapdown_demo = strapdown_ros.nodes.launch:strapdown_demo",
             "sins_bench = strapdown_ros.tools.sins_bench:main",
             "coning_bench = strapdown_ros.tools.coning_bench:main",
-            "star_camera_sim_node = strapdown_ros.nodes.star_camera_sim_node:main",
-            "calibrator_node = strapdown_ros.nodes.calibrator_node:main",
+            "star_camera_sim_node = strapdown_ros.nodes.launch:star_camera_sim_node",
+            "calibrator_node = strapdown_ros.nodes.launch:calibrator_node",
             "record_sim = strapdown_ros.tools.record_sim:main",
             "calibrate_bag = strapdown_ros.tools.calibrate_bag:main",
             "boresight_bench = strapdown_ros.tools.boresight_bench:main",

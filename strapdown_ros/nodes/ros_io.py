@@ -234,25 +234,44 @@ def run_node(node_class, name: str, args=None) -> int:
     # "started" line can never land inside the executor's constructor (rclpy then prints an
     # "Exception ignored in Executor.__del__" traceback from the half-built object).
     executor = rclpy.executors.SingleThreadedExecutor()
+
+    def stopped() -> bool:
+        """A signal has shut the context down (rclpy's handlers): whatever failed, it is a stop."""
+        return not rclpy.ok()
     try:
         node = node_class()
     except (ValueError, ParameterException) as exc:   # invalid parameters: clear message, exit 2
+        if stopped():
+            return _quiet_exit(executor, rclpy)
         print(f"[{name}] error: {exc}", file=sys.stderr)
         executor.shutdown()
         rclpy.try_shutdown()
         return 2
     except KeyboardInterrupt:                          # Ctrl-C while starting up
-        executor.shutdown()
-        rclpy.try_shutdown()
-        return 0
+        return _quiet_exit(executor, rclpy)
+    except Exception:                                  # noqa: BLE001 - e.g. RCLError: context shut down
+        if stopped():                                  # by SIGINT/SIGTERM during construction
+            return _quiet_exit(executor, rclpy)
+        raise
     try:
         executor.add_node(node)
         executor.spin()
     except (KeyboardInterrupt, rclpy.executors.ExternalShutdownException):
         pass
+    except Exception:                                  # noqa: BLE001 - wait set on a shut-down context
+        if not stopped():
+            raise
     finally:
         executor.shutdown()
         node.destroy_node()
+        rclpy.try_shutdown()
+    return 0
+
+
+def _quiet_exit(executor, rclpy) -> int:
+    try:
+        executor.shutdown()
+    finally:
         rclpy.try_shutdown()
     return 0
 

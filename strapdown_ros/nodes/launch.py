@@ -1,0 +1,67 @@
+"""Entry points of the nodes (``ros2 run strapdown_ros <node>``): light on purpose.
+
+The node modules import rclpy and the message packages, which takes about half a second.  A
+signal in that window used to be lost (SIGINT is ignored in a job started with ``&`` from a
+script, and rclpy only re-arms it in ``rclpy.init``) or to print a traceback (Ctrl-C in the
+middle of an import).  Here SIGINT and SIGTERM are armed first, before any heavy import: a
+signal at any moment ends the process with status 0 and no traceback.  Once ``rclpy.init`` has
+run, rclpy's own handlers take over and ``ros_io.run_node`` shuts down cleanly.  (The only
+window left is the interpreter's own start-up, before any line of the package runs; a signal
+there ends the process by the signal's default action, and nothing can have been lost.)
+"""
+from __future__ import annotations
+
+import importlib
+import signal
+import sys
+
+__all__ = ["imu_sim_node", "sins_node", "star_camera_sim_node", "calibrator_node", "strapdown_demo"]
+
+
+_signalled = []
+
+
+def _interrupt(signum, frame):
+    _signalled.append(signum)
+    raise KeyboardInterrupt
+
+
+def _run(module: str) -> int:
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(sig, _interrupt)
+    try:
+        main = importlib.import_module(f"strapdown_ros.nodes.{module}").main
+    except KeyboardInterrupt:                # a signal while importing: a clean stop
+        return 0
+    except ImportError:
+        if _signalled:                       # interrupted inside a C extension's initialisation
+            return 0
+        raise
+    try:
+        return main()
+    except KeyboardInterrupt:                # a signal before the node was spinning
+        return 0
+
+
+def imu_sim_node():
+    return _run("imu_sim_node")
+
+
+def sins_node():
+    return _run("sins_node")
+
+
+def star_camera_sim_node():
+    return _run("star_camera_sim_node")
+
+
+def calibrator_node():
+    return _run("calibrator_node")
+
+
+def strapdown_demo():
+    return _run("demo")
+
+
+if __name__ == "__main__":
+    sys.exit(_run(sys.argv[1]))
