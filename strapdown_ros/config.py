@@ -260,8 +260,15 @@ def load_parameter_file(path: str, node_name: str) -> dict:
     and exact node names are merged, exact names win), as the nodes would see them."""
     import yaml
 
-    with open(path, "r", encoding="utf-8") as fh:
-        doc = yaml.safe_load(fh) or {}
+    try:
+        with open(path, "r", encoding="utf-8") as fh:
+            doc = yaml.safe_load(fh) or {}
+    except OSError as exc:
+        raise ValueError(f"parameter file {path}: {exc.strerror or exc}") from None
+    except yaml.YAMLError as exc:
+        raise ValueError(f"parameter file {path}: not valid YAML ({str(exc).splitlines()[0]})") from None
+    if not isinstance(doc, dict):
+        raise ValueError(f"parameter file {path}: expected a mapping of node names to ros__parameters")
     merged: dict = {}
     for key in ("/**", "**", node_name, "/" + node_name):
         block = doc.get(key)
@@ -307,6 +314,8 @@ def load_model(path: str) -> tuple[dict, dict]:
             doc = yaml.safe_load(fh)
     except yaml.YAMLError as exc:
         raise ValueError(f"{path}: not valid YAML ({str(exc).splitlines()[0]})") from None
+    except OSError as exc:
+        raise ValueError(f"{path}: {exc.strerror or exc}") from None
     if doc is None:
         doc = {}
     if not isinstance(doc, dict):

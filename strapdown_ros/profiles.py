@@ -385,8 +385,13 @@ def load_piecewise_profile(path: str) -> PiecewiseRateProfile:
     """
     import yaml  # PyYAML ships with every ROS 2 installation
 
-    with open(path, "r", encoding="utf-8") as fh:
-        doc = yaml.safe_load(fh)
+    try:
+        with open(path, "r", encoding="utf-8") as fh:
+            doc = yaml.safe_load(fh)
+    except OSError as exc:
+        raise ValueError(f"profile_file {path}: {exc.strerror or exc}") from None
+    except yaml.YAMLError as exc:
+        raise ValueError(f"profile_file {path}: not valid YAML ({str(exc).splitlines()[0]})") from None
     if isinstance(doc, dict) and "segments" not in doc:
         # ROS 2 parameter file layout: {node: {ros__parameters: {profile: {...}}}}
         for node_block in doc.values():
@@ -396,12 +401,24 @@ def load_piecewise_profile(path: str) -> PiecewiseRateProfile:
                 break
     if not isinstance(doc, dict) or "segments" not in doc:
         raise ValueError(f"{path}: expected a mapping with a 'segments' list")
+    if not isinstance(doc["segments"], list) or not doc["segments"]:
+        raise ValueError(f"{path}: 'segments' must be a non-empty list of {{duration, rate}} mappings")
     segs = []
     for i, s in enumerate(doc["segments"]):
         try:
             segs.append(Segment(float(s["duration"]), s.get("rate", [0.0, 0.0, 0.0])))
-        except (KeyError, TypeError, ValueError) as exc:
-            raise ValueError(f"{path}: segment {i}: {exc}") from exc
-    return PiecewiseRateProfile(segs, initial_attitude=doc.get("initial_attitude", (1.0, 0.0, 0.0, 0.0)),
-                                earth_rate=doc.get("earth_rate", (0.0, 0.0, 0.0)),
-                                gravity=doc.get("gravity", (0.0, 0.0, 0.0)), name="piecewise")
+        except (KeyError, TypeError, ValueError, AttributeError) as exc:
+            raise ValueError(f"{path}: segment {i}: {exc}") from None
+    try:
+        return PiecewiseRateProfile(segs, initial_attitude=doc.get("initial_attitude", (1.0, 0.0, 0.0, 0.0)),
+                                    earth_rate=_vector3(doc.get("earth_rate", (0.0, 0.0, 0.0)), "earth_rate"),
+                                    gravity=_vector3(doc.get("gravity", (0.0, 0.0, 0.0)), "gravity"), name="piecewise")
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f"{path}: {exc}") from None
+
+
+def _vector3(v, name):
+    a = np.asarray(v, dtype=float)
+    if a.shape != (3,) or not np.all(np.isfinite(a)):
+        raise ValueError(f"{name} must be 3 finite numbers, got {v!r}")
+    return a

@@ -229,7 +229,13 @@ def run_node(node_class, name: str, args=None) -> int:
     import rclpy.executors
     from rclpy.exceptions import ParameterException
 
-    rclpy.init(args=args)
+    try:
+        rclpy.init(args=args)
+    except KeyboardInterrupt:
+        return 0
+    except Exception as exc:                           # noqa: BLE001 - e.g. an unparsable --params-file
+        print(f"[{name}] error: {str(exc).splitlines()[0]}", file=sys.stderr)
+        return 2
     # The executor is built before the node announces itself, so a Ctrl-C that follows the
     # "started" line can never land inside the executor's constructor (rclpy then prints an
     # "Exception ignored in Executor.__del__" traceback from the half-built object).

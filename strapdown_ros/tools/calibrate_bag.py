@@ -32,7 +32,6 @@ from __future__ import annotations
 import argparse
 import json
 import sys
-from struct import error as struct_error
 from pathlib import Path
 
 import numpy as np
@@ -182,8 +181,10 @@ def read_bag(path: str | Path, namespace: str = "", use_camera_covariance: bool 
                 q = q / norm
                 fix_counts["normalised"] += 1
             raw_c.append((ns, tuple(q) + tuple(np.asarray(P, dtype=float).ravel())))
-    except (OverflowError, ValueError, struct_error) as exc:           # corrupted records
-        raise BagError(f"{path}: unreadable message data ({exc})") from None
+    except BagError:
+        raise
+    except Exception as exc:                  # noqa: BLE001 - a corrupted record, whatever the reader says
+        raise BagError(f"{path}: unreadable record ({type(exc).__name__}: {str(exc).splitlines()[0] if str(exc) else ''})") from None
     finally:
         reader.close()
     # the nodes' rules, with the gyro period from the stamps

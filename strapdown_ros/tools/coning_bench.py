@@ -213,6 +213,24 @@ def write_plots(res: dict, outdir: str) -> list[str]:
 
 def main(argv=None):
     args = parse_args(sys.argv[1:] if argv is None else argv)
+    from .paths import check_output_dir, check_output_file
+    try:                                       # everything that can fail, before minutes of work
+        check_output_file(args.json, "--json")
+        check_output_file(args.report, "--report")
+        check_output_dir(args.plots, "--plots")
+        if not (np.isfinite(args.duration) and args.duration > 0):
+            raise ValueError(f"--duration must be > 0, got {args.duration}")
+        for st in args.steps:
+            if not (np.isfinite(st) and 0 < st < args.duration):
+                raise ValueError(f"--step must be > 0 and below --duration, got {st}")
+        for alpha, nu in args.cases:
+            period = 2 * np.pi / nu
+            if args.duration < period:
+                raise ValueError(f"--duration {args.duration:g} s is shorter than one cone period "
+                                 f"{period:.4g} s (ν = {nu:g})")
+    except ValueError as exc:
+        print(f"coning_bench: error: {exc}", file=sys.stderr)
+        return 2
     print(f"coning_bench: {len(args.names)} algorithms, {len(args.cases)} case(s) × {len(args.steps)} step(s), "
           f"{args.duration:g} s each", file=sys.stderr)
     res = run(args)

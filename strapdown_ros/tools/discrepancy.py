@@ -41,29 +41,6 @@ __all__ = ["main", "load_recording", "write_model"]
 ARCSEC_PER_RAD = 180.0 / np.pi * 3600.0
 
 
-class _Usage(Exception):
-    pass
-
-
-def _check_output(path: str | None, what: str, directory: bool = False) -> None:
-    if not path:
-        return
-    p = Path(path)
-    if directory:
-        if p.exists() and not p.is_dir():
-            raise _Usage(f"{what} {path} exists and is not a directory")
-        parent = p if p.exists() else p.parent
-    else:
-        if p.is_dir():
-            raise _Usage(f"{what} {path} is a directory")
-        parent = p.parent
-    parent = parent if str(parent) else Path(".")
-    if not parent.exists():
-        raise _Usage(f"{what} {path}: directory {parent} does not exist")
-    if not os.access(parent, os.W_OK):
-        raise _Usage(f"{what} {path}: directory {parent} is not writable")
-
-
 def load_recording(bag: str, model: dict, namespace: str = ""):
     """The recording as the core's :class:`Recording`, with what reading it found (drops, gaps,
     topics, the gyro rate from the stamps).  Raises BagError / ValueError."""
@@ -175,20 +152,21 @@ def main(argv=None) -> int:
     from ..analysis.discrepancy import DEFAULT_ALPHA, InputError, analyse
     from ..config import load_model
     from .calibrate_bag import BagError
+    from .paths import check_output_dir, check_output_file
 
     alpha = DEFAULT_ALPHA if args.alpha is None else args.alpha
     try:
         if not (0.0 < alpha < 0.5):
-            raise _Usage(f"--alpha must be in (0, 0.5), got {alpha}")
+            raise ValueError(f"--alpha must be in (0, 0.5), got {alpha}")
         if not Path(args.bag).exists():
-            raise _Usage(f"bag {args.bag} does not exist")
+            raise ValueError(f"bag {args.bag} does not exist")
         if not Path(args.model).is_file():
-            raise _Usage(f"model {args.model} does not exist")
-        _check_output(args.json, "--json")
-        _check_output(args.write_model, "--write-model")
-        _check_output(args.report, "--report", directory=True)
+            raise ValueError(f"model {args.model} does not exist")
+        check_output_file(args.json, "--json")
+        check_output_file(args.write_model, "--write-model")
+        check_output_dir(args.report, "--report")
         model, doc = load_model(args.model)
-    except (_Usage, ValueError, OSError) as exc:
+    except (ValueError, OSError) as exc:
         print(f"discrepancy: error: {exc}", file=sys.stderr)
         return 2
 

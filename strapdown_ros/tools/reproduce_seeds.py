@@ -442,6 +442,19 @@ def main(argv=None) -> int:
     bad = [s for s in only if s not in SECTIONS]
     if bad:
         ap.error(f"unknown section(s) {', '.join(bad)}; valid: {', '.join(SECTIONS)}")
+    from .paths import check_output_dir, check_output_file
+    try:                                       # everything that can fail, before minutes of work
+        for flag, v in (("--seeds", a.seeds), ("--runs", a.runs)):
+            if v < 1:
+                raise ValueError(f"{flag} must be >= 1, got {v}")
+        if not (np.isfinite(a.coning_duration) and a.coning_duration > 0):
+            raise ValueError(f"--coning-duration must be > 0, got {a.coning_duration}")
+        check_output_file(a.json, "--json")
+        check_output_file(a.report, "--report")
+        check_output_dir(a.plots, "--plots")
+    except ValueError as exc:
+        print(f"reproduce_seeds: error: {exc}", file=sys.stderr)
+        return 2
     if a.quick:
         a.seeds, a.runs, a.coning_duration = min(a.seeds, 8), min(a.runs, 3), min(a.coning_duration, 60.0)
     res, t0 = {}, time.perf_counter()

@@ -1,0 +1,67 @@
+"""Issue 9 finding 8: bad files and arguments are refused before any work, in one line, exit 2."""
+import os
+import subprocess
+import sys
+import time
+
+import pytest
+
+BIN = os.path.dirname(sys.executable)
+
+
+def _one_line_exit_2(cmd, timeout=60):
+    t0 = time.monotonic()
+    p = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout)
+    # (rcl logs its own "[ERROR] [rcl]: Failed to parse global arguments" from C: not ours)
+    lines = [ln for ln in (p.stdout + p.stderr).splitlines() if ln.strip() and "[INFO]" not in ln and "[rcl]" not in ln]
+    assert p.returncode == 2, (cmd, p.returncode, p.stdout, p.stderr)
+    assert len(lines) == 1 and "Traceback" not in lines[0] and "error" in lines[0], lines
+    return lines[0], time.monotonic() - t0
+
+
+@pytest.mark.parametrize("args, needle", [
+    (["-p", "profile:=piecewise", "-p", "profile_file:=/nonexistent/p.yaml"], "No such file"),
+    (["-p", "profile:=piecewise", "-p", "profile_file:={bad}"], "not valid YAML"),
+    (["-p", "profile:=piecewise", "-p", "profile_file:={shape}"], "segments"),
+    (["-p", "gravity:=[1.0, 2.0]"], "gravity"),
+    (["--params-file", "{bad}"], "params file"),
+])
+def test_node_refuses_bad_files_and_parameters(tmp_path, args, needle):
+    pytest.importorskip("rclpy")
+    (tmp_path / "bad.yaml").write_text("segments: [1, 2")
+    (tmp_path / "shape.yaml").write_text("segments: {duration: 1}")
+    args = [a.format(bad=tmp_path / "bad.yaml", shape=tmp_path / "shape.yaml") for a in args]
+    line, _ = _one_line_exit_2([os.path.join(BIN, "imu_sim_node"), "--ros-args", *args])
+    assert needle in line, line
+
+
+def test_tools_check_arguments_before_work(tmp_path):
+    (tmp_path / "bad.yaml").write_text("segments: [1, 2")
+    for cmd, needle in (
+            ([os.path.join(BIN, "record_sim"), str(tmp_path / "b"), "--params", str(tmp_path / "bad.yaml")], "YAML"),
+            ([os.path.join(BIN, "coning_bench"), "--json", "/nonexistent/x.json"], "/nonexistent"),
+            ([os.path.join(BIN, "coning_bench"), "--duration", "5"], "cone period"),
+            ([os.path.join(BIN, "reproduce_seeds"), "--report", "/nonexistent/x.md"], "/nonexistent"),
+            ([os.path.join(BIN, "reproduce_seeds"), "--runs", "0"], "--runs")):
+        line, took = _one_line_exit_2(cmd)
+        assert needle in line and took < 20.0, (cmd, line, took)       # refused before minutes of work
+
+
+def test_corrupted_mcap_is_one_line_exit_2(tmp_path):
+    pytest.importorskip("rosbags")
+    from strapdown_ros.tools import record_sim
+    bag = tmp_path / "bag"
+    assert record_sim.main([str(bag), "--no-accel", "--duration", "30", "-p", "camera_interval:=2.0"]) == 0
+    f = next(bag.glob("*.mcap"))
+    data = bytearray(f.read_bytes())
+    for i in range(len(data) // 3, len(data) // 3 + 4000, 7):          # garbage in the middle
+        data[i] = 0xFF
+    f.write_bytes(bytes(data))
+    model = tmp_path / "m.yaml"
+    model.write_text("{}")
+    for cmd in ([os.path.join(BIN, "calibrate_bag"), str(bag)],
+                [os.path.join(BIN, "discrepancy"), str(bag), "--model", str(model)]):
+        p = subprocess.run(cmd, capture_output=True, text=True, timeout=60)
+        assert p.returncode == 2 and "Traceback" not in p.stderr, (cmd, p.returncode, p.stderr[-2000:])
+        errs = [ln for ln in p.stderr.splitlines() if "error" in ln]
+        assert len(errs) == 1, p.stderr
