@@ -3,7 +3,7 @@ structure remains, and the Allan deviation of the gyro on static segments (measu
 model simulated on the same segment).  No ROS imports.
 
 Verdict tests on the whitened residual w (3 per pair, ≈ iid N(0, 1) under an adequate model),
-each at α/3 (Bonferroni over the three):
+each at α/3 (Bonferroni over the three; the workflow passes its α/2 for the tests):
 
 * **NIS**: Σ w² against χ²(n) two-sided;
 * **whiteness**: Ljung–Box Q = n(n+2) Σ_{k≤h} ρ_k²/(n−k) per component, summed over the three

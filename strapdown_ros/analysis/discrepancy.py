@@ -13,7 +13,10 @@ Selection, stated once:
   by a likelihood-ratio statistic against the current model: the drop of −2 log L when its
   parameters are freed (systematic effects: GLS; noise terms: maximum likelihood), referred to
   χ² with as many degrees of freedom as the combinations the trajectory separates;
-* the smallest p-value is tested at the **Bonferroni** level α/m (m = candidates left);
+* the family-wise level α is split: **α/2 for the selection, α/2 for the verdict tests**, so that
+  a recording the model describes is called anything but ``model_adequate`` with probability
+  at most α;
+* the smallest p-value is tested at the **Bonferroni** level (α/2)/m (m = candidates left);
   **mean before variance**: pure variance terms (which can absorb any mean structure by
   inflating the covariance) are considered only when no candidate with a mean signature passes;
 * it is accepted only if, in addition, the **held-out** −2 log L per residual improves: the
@@ -26,10 +29,10 @@ Selection, stated once:
 * accepted effects are refitted jointly (Gauss–Newton on the nonlinear model) and the search
   repeats until nothing passes;
 * **backward elimination**: an added effect whose own likelihood-ratio test, given all the
-  others, no longer passes at α/k (k = effects added) is removed (it only mimicked one added
+  others, no longer passes at (α/2)/k (k = effects added) is removed (it only mimicked one added
   later), and the rest refitted.
 
-Verdict tests on the final whitened residuals (each at α/3): the NIS (χ² of the whitened
+Verdict tests on the final whitened residuals (each at (α/2)/3): the NIS (χ² of the whitened
 sum of squares), the Ljung–Box whiteness test (3 components, ``lags`` lags) and an extreme-value
 test on the largest |residual|.  ``model_adequate``: nothing added and all pass;
 ``explained``: effects added and all pass; ``unexplained_structure``: a test still fails.
@@ -313,7 +316,8 @@ class DiscrepancyResult:
             "heldout_rms_before": self.heldout_rms_before, "heldout_rms_after": self.heldout_rms_after,
             "steps": [s.as_dict() for s in self.steps], "not_separable": self.not_separable,
             "remaining": self.remaining, "alpha": self.alpha,
-            "selection": {"test": "likelihood ratio, χ²(dof)", "correction": "Bonferroni α/m per step",
+            "selection": {"test": "likelihood ratio, χ²(dof)",
+                          "correction": "α/2 for the selection (Bonferroni (α/2)/m per step), α/2 for the three tests",
                           "heldout": "6 time blocks, leave-one-block-out; gain = drop of −2 log L per judged residual",
                           "separability_bound": RHO_MAX},
             "tests_before": self.tests_before, "tests_after": self.tests_after,
@@ -501,7 +505,10 @@ def analyse(rec: Recording, params: dict, alpha: float = DEFAULT_ALPHA, blocks: 
     base0 = lin0.evaluate([], noise)
     split = _Split(lin0, blocks)
     ho_before = _heldout(lin0, [], noise, split)
-    tests_before = diagnostics.verdict_tests(base0.whitened, len(lin0.pairs), alpha, lags)
+    # the family-wise level α is split: α/2 for the selection, α/2 for the three verdict tests, so a
+    # recording the model describes is called anything but model_adequate with probability ≤ α
+    a_sel, a_tests = 0.5 * alpha, 0.5 * alpha
+    tests_before = diagnostics.verdict_tests(base0.whitened, len(lin0.pairs), a_tests, lags)
     series_before = _series(lin0, base0, [])
 
     free: list[str] = []
@@ -525,7 +532,7 @@ def analyse(rec: Recording, params: dict, alpha: float = DEFAULT_ALPHA, blocks: 
         if not first_scores:
             first_scores = [{k: v for k, v in s.items() if k in ("effect", "statistic", "dof", "p_value",
                                                                  "direct_check")} for s in scores]
-        level = alpha / len(remaining)
+        level = a_sel / len(remaining)
         scores.sort(key=lambda s: (s["p_value"], -s["statistic"]))
         significant = [s for s in scores if s["p_value"] < level]
         # mean before variance: a pure variance term can absorb any mean structure by inflating
@@ -577,7 +584,7 @@ def analyse(rec: Recording, params: dict, alpha: float = DEFAULT_ALPHA, blocks: 
         changed = False
         lin = Linearisation(rec, params, C, epoch)
         full = lin.evaluate(free, noise)
-        level = alpha / len(steps)
+        level = a_sel / len(steps)
         for st in list(reversed(steps)):
             name = st.effect
             f2 = [n for n in free if n != name]
@@ -616,7 +623,7 @@ def analyse(rec: Recording, params: dict, alpha: float = DEFAULT_ALPHA, blocks: 
         else:
             _, _, sig = _fit_noise(lin, free, noise, s.effect)
             s.parameters, s.sigma = _values_json(s.effect, params, theta=noise[s.effect], sigma=sig)
-    tests_after = diagnostics.verdict_tests(final.whitened, len(lin.pairs), alpha, lags)
+    tests_after = diagnostics.verdict_tests(final.whitened, len(lin.pairs), a_tests, lags)
     ho_after = _heldout(lin, free, noise, split) if steps else ho_before
     passed = tests_after["passed"]
     verdict = ("model_adequate" if not steps else "explained") if passed else "unexplained_structure"

@@ -158,8 +158,8 @@ def write_report(outdir: str, res, out: dict) -> str:
              f"{res.rms_before:.3g} → {res.rms_after:.3g} on all pairs and {res.heldout_rms_before:.3g} → "
              f"{res.heldout_rms_after:.3g} on the held-out blocks (1 is what the model predicts).")
     L.append("")
-    L.append(f"Selection: likelihood-ratio tests at α = {res.alpha:g} with a Bonferroni correction over the "
-             f"candidates left at each step; an effect is added only if the held-out −2 log L per residual "
+    L.append(f"Selection: likelihood-ratio tests at α/2 = {res.alpha / 2:g} with a Bonferroni correction over "
+             f"the candidates left at each step (the other α/2 goes to the tests below); an effect is added only if the held-out −2 log L per residual "
              f"also improves; signatures with |correlation| above {out['selection']['separability_bound']} are "
              f"reported as not separable.")
     L += ["", "## Steps", "", "| step | effect | parameters (SI) | σ | LR statistic | dof | p-value | held-out gain |",
@@ -181,7 +181,7 @@ def write_report(outdir: str, res, out: dict) -> str:
               + "."]
     if res.rejected:
         L += ["", "Not added: " + "; ".join(f"`{r['effect']}` ({r['reason']})" for r in res.rejected) + "."]
-    L += ["", "## Tests", "", f"Each at α/3 = {ta['level']:.3g}.", "",
+    L += ["", "## Tests", "", f"Each at (α/2)/3 = {ta['level']:.3g}.", "",
           "| test | before: statistic | p | after: statistic | p | after |", "|---|---|---|---|---|---|"]
     for k, label in (("nis", "NIS (χ²)"), ("whiteness", "Ljung–Box whiteness"), ("outliers", "largest |residual|")):
         ok = "pass" if ta[k]["p_value"] is not None and ta[k]["p_value"] >= ta["level"] else "FAIL"
