@@ -37,7 +37,7 @@ from .rotation import (dcm_to_ypr, quat_conjugate, quat_cumprod, quat_multiply, 
 from .sensors import SensorSigmas
 from .sensors.covariance import constant_jacobian, constant_variances, get_covariance_model
 
-__all__ = ["IncrementPair", "gyro_increment", "camera_increment", "BoresightSolution", "solve_boresight",
+__all__ = ["IncrementPair", "angle_consistency", "gyro_increment", "camera_increment", "BoresightSolution", "solve_boresight",
            "check_observability", "imu_attitude_from_camera", "r_partial"]
 
 
@@ -142,6 +142,20 @@ class IncrementPair:
     @property
     def angle(self) -> float:
         return float(np.linalg.norm(quat_to_rotvec(self.dq_cam)))
+
+
+def angle_consistency(pair: IncrementPair) -> tuple[float, float]:
+    """φ_avu − φ_imu of a pair and its predicted σ (rad).  Rotation angles do not depend on the
+    boresight, so this judges a pair before (and whatever) the boresight fit says (004 Fig. 2a).
+    σ² = k_avuᵀ E_avu k_avu + k_imuᵀ E_imu k_imu with k the unit rotation axes (the angle error
+    is the error component along the axis); below 1e-9 rad the mean diagonal stands in."""
+    out, var = [], 0.0
+    for dq, E in ((pair.dq_cam, pair.cov_cam), (pair.dq_imu, pair.cov_imu)):
+        rv = quat_to_rotvec(dq)
+        a = float(np.linalg.norm(rv))
+        out.append(a)
+        var += float(rv @ E @ rv) / a ** 2 if a > 1e-9 else float(np.trace(E)) / 3.0
+    return out[0] - out[1], float(np.sqrt(max(var, 0.0)))
 
 
 # ---------------------------------------------------------------------- §4 the estimate

@@ -25,7 +25,8 @@ from collections import deque
 
 import numpy as np
 
-from .boresight import BoresightSolution, IncrementPair, camera_increment, gyro_increment, solve_boresight
+from .boresight import (BoresightSolution, IncrementPair, angle_consistency, camera_increment, gyro_increment,
+                        solve_boresight)
 from .sensors import SensorSigmas
 from .sensors.covariance import get_covariance_model
 from .sensors.effects import CameraEffects, GyroEffects
@@ -37,7 +38,11 @@ class BoresightCalibrator:
     def __init__(self, gyro: SensorSigmas | None = None, covariance_model: str = "random_constant",
                  weighted: bool = True, initial_boresight=(0.0, 0.0, 0.0), min_rotation: float = np.radians(0.5),
                  max_sigma: float = 1e-3, max_pairs: int = 0, effects: GyroEffects | None = None,
-                 camera: CameraEffects | None = None):
+                 camera: CameraEffects | None = None, outlier_gate: float = 6.0):
+        self.outlier_gate = float(outlier_gate)
+        self.outlier_fixes = 0                      # camera fixes dropped by the outlier rule
+        self.outlier_stamps: deque = deque(maxlen=100)
+        self._prev_fix = None                       # the fix before _last_fix (for the skip pair)
         self.effects = effects if effects is not None and effects.active else None
         self.camera = camera
         self._last_stamp = None
@@ -61,7 +66,8 @@ class BoresightCalibrator:
         return cls(gyro=SensorSigmas.from_params(p, "gyro"), covariance_model=p["covariance_model"],
                    weighted=bool(p["weighted"]), initial_boresight=np.asarray(p["initial_boresight"], dtype=float),
                    min_rotation=np.radians(float(p["min_rotation_deg"])), max_sigma=float(p["max_sigma"]),
-                   max_pairs=int(p["max_pairs"]), effects=GyroEffects(p), camera=CameraEffects(p))
+                   max_pairs=int(p["max_pairs"]), effects=GyroEffects(p), camera=CameraEffects(p),
+                   outlier_gate=float(p["outlier_gate"]))
 
     # --- input -----------------------------------------------------------------------------
     def add_gyro(self, stamps, delta_theta) -> int:
@@ -110,6 +116,24 @@ class BoresightCalibrator:
         self._cams.append((float(stamp), np.asarray(q_gcrs_vf, dtype=float), P))
         return self._form_pairs()
 
+    def _pair(self, fix_a, fix_b):
+        """The increment pair between two fixes, or None without gyro data around them."""
+        t0, q0, P0 = fix_a
+        stamp, q, P = fix_b
+        lo = max(0, int(np.searchsorted(self._t, t0)) - 2)
+        hi = int(np.searchsorted(self._t, stamp, side="right")) + 1
+        r = gyro_increment(np.asarray(self._t[lo:hi]), np.asarray(self._v[lo:hi]), t0, stamp, self.gyro,
+                           self.covariance_model, sensitivity=self.gyro is not None)
+        if r is None:
+            return None
+        dq_c, E_c = camera_increment(q0, P0, q, P)
+        extra = dict(imu_sensitivity=r[2], cov_imu_white=r[3]) if self.gyro is not None else {}
+        return IncrementPair(t0, stamp, r[0], dq_c, r[1], E_c, cov_fix_start=P0, cov_fix_end=P, **extra)
+
+    def _inconsistent(self, pair) -> bool:
+        d, sigma = angle_consistency(pair)
+        return abs(d) > self.outlier_gate * sigma
+
     def _form_pairs(self) -> int:
         new = 0
         while self._cams:
@@ -119,27 +143,45 @@ class BoresightCalibrator:
                 continue
             if not self._t or self._t[-1] < stamp:
                 break                                   # wait for the gyro to cover t_E,n
-            t0, q0, P0 = self._last_fix
-            lo = max(0, int(np.searchsorted(self._t, t0)) - 2)
-            hi = int(np.searchsorted(self._t, stamp, side="right")) + 1
-            r = gyro_increment(np.asarray(self._t[lo:hi]), np.asarray(self._v[lo:hi]), t0, stamp, self.gyro,
-                               self.covariance_model, sensitivity=self.gyro is not None)
-            self._cams.popleft()
-            self._last_fix = (stamp, q, P)
-            if r is None:                               # not enough gyro data around t0: skip this pair
+            pair = self._pair(self._last_fix, (stamp, q, P))
+            fix = self._cams.popleft()
+            if pair is None:                            # not enough gyro data around t0: skip this pair
+                self._prev_fix, self._last_fix = None, fix
                 continue
-            dq_c, E_c = camera_increment(q0, P0, q, P)
-            extra = dict(imu_sensitivity=r[2], cov_imu_white=r[3]) if self.gyro is not None else {}
-            self.pairs.append(IncrementPair(t0, stamp, r[0], dq_c, r[1], E_c, cov_fix_start=P0, cov_fix_end=P,
-                                            **extra))
+            self.pairs.append(pair)
             new += 1
-            # drop gyro data no longer needed (keep a margin before the newest fix)
-            cut = max(0, int(np.searchsorted(self._t, stamp)) - 3)
+            self._drop_outlier_fix(fix)              # the last pair may become the skip pair: still new
+            self._prev_fix, self._last_fix = self._last_fix, fix
+            # drop gyro data no longer needed (keep a margin before the fix that may start a skip pair)
+            keep = self._prev_fix[0] if self._prev_fix is not None else stamp
+            cut = max(0, int(np.searchsorted(self._t, keep)) - 3)
             if cut > 10000:
                 del self._t[:cut], self._v[:cut]
         if self.max_pairs and len(self.pairs) > self.max_pairs:
             del self.pairs[:len(self.pairs) - self.max_pairs]
         return new
+
+    def _drop_outlier_fix(self, fix) -> int:
+        """The outlier rule: fix n (= _last_fix) is an outlier when both its pairs, (n−1, n) and
+        (n, n+1), disagree in rotation angle by more than ``outlier_gate`` σ while the pair
+        (n−1, n+1) that skips it agrees.  Then both pairs give way to the skip pair (the newest
+        pair in the list).  Returns 1 when fix n was dropped, else 0."""
+        if self.outlier_gate <= 0 or self._prev_fix is None or len(self.pairs) < 2:
+            return 0
+        a, b = self.pairs[-2], self.pairs[-1]
+        if not (a.t_end == b.t_start == self._last_fix[0] and a.t_start == self._prev_fix[0]):
+            return 0
+        if not (self._inconsistent(a) and self._inconsistent(b)):
+            return 0
+        skip = self._pair(self._prev_fix, fix)
+        if skip is None or self._inconsistent(skip):
+            return 0                                    # not one bad fix: leave it to the estimator
+        del self.pairs[-2:]
+        self.pairs.append(skip)
+        self.outlier_fixes += 1
+        self.outlier_stamps.append(self._last_fix[0])
+        self._last_fix = self._prev_fix                 # the bad fix never starts a pair
+        return 1
 
     # --- estimate ------------------------------------------------------------------------------
     def solve(self) -> BoresightSolution:

@@ -255,3 +255,41 @@ def test_overflowing_and_future_stamped_increments_in_a_bag(tmp_path):
     assert (d["out_of_range"], d["stamp_outlier"]) == (1, 1)
     assert out["dirty"]["pairs"] == out["clean"]["pairs"] == 33
     np.testing.assert_allclose(out["dirty"]["beta_rad"], out["clean"]["beta_rad"], rtol=0, atol=1e-12)
+
+
+def test_one_outlier_camera_fix_is_gated(tmp_path):
+    """Issue 9 finding 6: one fix rotated 5° used to move β by 6113″.  The outlier rule (both pairs
+    of the fix off in rotation angle, the pair skipping it consistent) drops it: β stays within 3σ
+    of the truth and one pair fewer is used."""
+    from rosbags.rosbag2 import Reader, Writer
+    from rosbags.typesys import Stores, get_typestore
+    from strapdown_ros.rotation import quat_multiply, rotvec_to_quat
+
+    clean = tmp_path / "clean"
+    assert record_sim.main([str(clean), "--no-accel", "-p", "profile:=bench", "-p", "camera_interval:=5.0",
+                            "-p", BETA_ARG]) == 0
+    store = get_typestore(Stores.ROS2_JAZZY)
+    dirty = tmp_path / "dirty"
+    bad = rotvec_to_quat(np.radians(5.0) * np.array([0.6, -0.64, 0.48]))
+    with Reader(clean) as rd, Writer(dirty, version=Writer.VERSION_LATEST) as wr:
+        conns = {c.id: wr.add_connection(c.topic, c.msgtype, typestore=store) for c in rd.connections}
+        for c, t, raw in rd.messages():
+            if c.topic.startswith("/star_camera/attitude") and t == 60 * 10**9:          # the fix at 60 s
+                m = store.deserialize_cdr(raw, c.msgtype)
+                q = m.pose.pose.orientation if hasattr(m, "pose") else m.quaternion
+                w, x, y, z = quat_multiply(np.array([q.w, q.x, q.y, q.z]), bad)
+                q.w, q.x, q.y, q.z = float(w), float(x), float(y), float(z)
+                raw = store.serialize_cdr(m, c.msgtype)
+            wr.write(conns[c.id], t, raw)
+    out = {}
+    for name, bag in (("clean", clean), ("dirty", dirty)):
+        f = tmp_path / f"{name}.json"
+        assert calibrate_bag.main([str(bag), "--json", str(f)]) == 0
+        out[name] = json.loads(f.read_text())
+    r = out["dirty"]
+    assert r["camera_fixes"]["outliers_dropped"] == 1 and r["camera_fixes"]["outlier_stamps_s"] == [pytest.approx(60.0)]
+    assert out["clean"]["camera_fixes"]["outliers_dropped"] == 0
+    assert r["pairs"] == out["clean"]["pairs"] - 1
+    q_true = dcm_to_quat(ypr_to_dcm(*BETA))
+    e = quat_error_rotvec(from_ros_xyzw(np.array(r["q_mf_vf_xyzw"])), q_true, frame="reference")
+    assert np.all(np.abs(e) < 3 * np.sqrt(np.diag(r["rotation_covariance_mf_rad2"]))), e / ARCSEC

@@ -255,6 +255,12 @@ class CalibratorNode(Node):
             return
         self.solve_ms = (time.perf_counter() - t0) * 1e3
         self.solves += 1
+        sigma = np.sqrt(np.maximum(np.diag(sol.covariance_beta), 0.0)) if sol.observable and sol.converged else None
+        if sigma is not None and np.max(sigma) > float(self.p["max_sigma"]):
+            # never publish a σ above max_sigma: the estimate is not good enough yet
+            self.valid = None
+            self._log_reason(f"published σ {np.max(sigma):.3g} rad would exceed max_sigma {self.p['max_sigma']:g}")
+            return
         if sol.observable and sol.converged:
             self.valid = sol
             self.valid_stamp_ns = self._abs_ns(self.cal.pairs[-1].t_end)
@@ -305,6 +311,11 @@ class CalibratorNode(Node):
             message = sol.message
             ok = sol.observable and sol.converged
             level = ros_io.OK if ok else ros_io.WARN
+            chi2 = sol.chi2_per_dof
+            if ok and np.isfinite(chi2) and chi2 > float(self.p["max_chi2_per_dof"]):
+                level = ros_io.WARN
+                message = (f"{message}; χ²/dof = {chi2:.3g}: the residuals exceed the model (outliers, or an "
+                           "effect the model lacks: run discrepancy on a recording)")
             values.update({"observable": sol.observable, "message": sol.message,
                            "unobservable_axes": "; ".join(sol.unobservable_axes) if sol.unobservable_axes else "none",
                            "residual_rms_rad": sol.residual_rms, "iterations": sol.iterations,
@@ -326,7 +337,12 @@ class CalibratorNode(Node):
                        "camera_dropped_nan": c.nan, "camera_dropped_out_of_order": c.out_of_order,
                        "camera_dropped_duplicate": c.duplicate, "camera_dropped_stamp_outlier": c.stamp_outliers,
                        "camera_stamp_resyncs": c.resyncs, "solve_failures": self.solve_failures,
+                       "camera_outlier_fixes": self.cal.outlier_fixes,
                        **{f"camera_{k}": v for k, v in self.camera_counts.items()}})
+        if self.cal.outlier_fixes and level == ros_io.OK:
+            level = ros_io.WARN
+            message = (f"{message}; {self.cal.outlier_fixes} camera fix(es) dropped as outliers (both pairs off by more "
+                       f"than {self.p['outlier_gate']:g} σ in rotation angle, the pair skipping it consistent)")
         g_drop = g.dropped
         c_drop = c.dropped + self.camera_counts["dropped_zero_quaternion"] + self.camera_counts["dropped_bad_covariance"]
         if level == ros_io.OK and (g_drop or c_drop):

@@ -286,7 +286,7 @@ def _summary(bag: str, data: dict, result: dict, p: dict) -> str:
     if gg["gaps"]:
         lines.append(f"  GYRO GAPS: {gg['gaps']} gap(s), {gg['missing']} increment(s) missing (rotation lost); "
                      f"{gg['pairs_discarded']} pair(s) spanning them discarded")
-    notes = [f"{n.replace('_', ' ')} {v}" for n, v in fx.items() if v]
+    notes = [f"{n.replace('_', ' ')} {v}" for n, v in fx.items() if v and not isinstance(v, list)]
     if notes:
         lines.append("  camera fixes: " + ", ".join(notes))
     chi2 = result["chi2_per_dof"]
@@ -345,7 +345,7 @@ def main(argv=None) -> int:
     if np.isfinite(step) and abs(step * float(p["gyro_rate"]) - 1.0) > 0.1:
         print(f"calibrate_bag: note: gyro stamps are {step:.6g} s apart ({1.0 / step:.6g} Hz); gaps are judged "
               f"against that, not gyro_rate = {p['gyro_rate']:g} Hz", file=sys.stderr)
-    sol, _, discarded = calibrate(data, p)
+    sol, cal, discarded = calibrate(data, p)
     result = solution_json(sol, bool(p["weighted"]))
     result["covariance_model"] = p["covariance_model"]
     result["dropped"] = {"gyro": dict(g.dropped),
@@ -355,6 +355,9 @@ def main(argv=None) -> int:
     result["stamp_resyncs"] = {"gyro": g.resyncs, "camera": c.resyncs}
     result["gyro_rate_from_stamps_hz"] = _num(1.0 / data["gyro_period_s"]) if np.isfinite(data["gyro_period_s"]) else None
     result["camera_fixes"] = {k: data["camera_fixes"][k] for k in ("normalised", "covariance_substituted")}
+    result["camera_fixes"]["outliers_dropped"] = cal.outlier_fixes
+    origin_s = min(g.stamps[0], c.stamps[0]) * 1e-9                     # calibrate()'s time origin
+    result["camera_fixes"]["outlier_stamps_s"] = [float(t) + origin_s for t in cal.outlier_stamps]
     result["messages"] = {"gyro": len(g.stamps), "camera": len(c.stamps)}
     result["topics"] = {"gyro": data["gyro_topic"], "camera": data["camera_topic"]}
     result["camera_covariance_from_bag"] = data["camera_covariance_from_bag"]
