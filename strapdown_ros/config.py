@@ -156,6 +156,8 @@ INPUT_PARAMS = [
     ParamSpec("max_stamp_jump", 1.0, "a stamp step beyond this, s, forward or back, is a jump: a lone one is an "
               "outlier, resync_count consistent ones a new timeline", 0.0, 1e6, exclusive_minimum=True),
     ParamSpec("resync_count", 5, "consecutive messages that confirm a new timeline after a stamp jump", 1, 1000),
+    ParamSpec("frame_mismatch", "reject", "a message whose header.frame_id is neither empty nor the expected frame: "
+              "reject (counted, WARN) or accept (counted, WARN)", choices=("reject", "accept")),
 ]
 ACCEL_INPUT_PARAMS = [
     ParamSpec("accel_max", 500.0, "accelerometer range, m/s²: a Δv with a component beyond 2 periods at this "

@@ -390,3 +390,21 @@ def test_sins_node_never_publishes_a_non_finite_state(ros, monkeypatch):
         assert np.sqrt(np.trace(sins.integrator.covariance())) > sigma0 + 0.009   # inflated by 0.01 rad/axis
     finally:
         sins.destroy_node()
+
+
+@pytest.mark.parametrize("rule, used", [("reject", 2), ("accept", 3)])
+def test_frame_rule(ros, rule, used):
+    """Issue 9 finding 10: an increment in another frame than frame_id is counted and WARNed, and
+    rejected by default; an empty frame_id is unspecified and used."""
+    sins = SinsNode(namespace=f"/t_frame_{rule}", parameter_overrides=[
+        Parameter("coning_algorithm", value="1"), Parameter("frame_mismatch", value=rule), *IDEAL])
+    try:
+        for k, frame in enumerate(("imu_link", "", "camera"), 1):
+            m = Vector3Stamped()
+            m.header.stamp.sec, m.header.stamp.nanosec = 10, k * 10_000_000
+            m.header.frame_id = frame
+            m.vector.x = 0.001
+            sins._on_gyro(m)
+        assert sins.frame_mismatch["gyro"] == 1 and sins.integrator.updates == used
+    finally:
+        sins.destroy_node()

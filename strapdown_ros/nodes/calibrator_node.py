@@ -92,6 +92,8 @@ class CalibratorNode(Node):
         # exposures need not be periodic (no gap test) and are seconds apart: a jump is an hour
         self.camera_check = StreamCheck(math.inf, jump_limit=max(jump, CAMERA_JUMP_S), resync_count=resync)
         self.solve_failures = 0
+        self.gyro_frame_mismatch = 0
+        self.reject_frames = p["frame_mismatch"] == "reject"
         self.camera_counts = {"dropped_zero_quaternion": 0, "normalised": 0, "dropped_bad_covariance": 0,
                               "covariance_substituted": 0, "frame_mismatch": 0}
         self.origin_ns: int | None = None              # stamps are handled relative to the first one
@@ -153,6 +155,13 @@ class CalibratorNode(Node):
         return self.origin_ns + int(round(t_rel * 1e9))
 
     def _on_gyro(self, msg: Vector3Stamped):
+        f = msg.header.frame_id
+        if f and f != self.frame_id:                   # the frame rule of sins_node
+            self.gyro_frame_mismatch += 1
+            self.get_logger().warn(f"gyro increment in frame {f!r}, expected {self.frame_id!r}: "
+                                   f"{'rejected' if self.reject_frames else 'used'}", throttle_duration_sec=10.0)
+            if self.reject_frames:
+                return
         ns = ros_io.stamp_to_ns(msg.header.stamp)
         g = self.gyro_check
         prev_ns = g.last_ns
@@ -209,8 +218,10 @@ class CalibratorNode(Node):
             self.camera_counts["normalised"] += 1
         if header.frame_id and header.frame_id != self.ref_frame:
             self.camera_counts["frame_mismatch"] += 1
-            self.get_logger().warn(f"camera attitude in frame {header.frame_id!r}, expected {self.ref_frame!r}",
-                                   throttle_duration_sec=30.0)
+            self.get_logger().warn(f"camera attitude in frame {header.frame_id!r}, expected {self.ref_frame!r}: "
+                                   f"{'rejected' if self.reject_frames else 'used'}", throttle_duration_sec=30.0)
+            if self.reject_frames:
+                return
         out = c.offer(ns, list(q) + list(np.asarray(P, dtype=float).ravel()))
         if c.resynced:
             self.cal.restart_camera()
@@ -338,7 +349,13 @@ class CalibratorNode(Node):
                        "camera_dropped_duplicate": c.duplicate, "camera_dropped_stamp_outlier": c.stamp_outliers,
                        "camera_stamp_resyncs": c.resyncs, "solve_failures": self.solve_failures,
                        "camera_outlier_fixes": self.cal.outlier_fixes,
+                       "gyro_frame_mismatch": self.gyro_frame_mismatch,
                        **{f"camera_{k}": v for k, v in self.camera_counts.items()}})
+        mism = self.gyro_frame_mismatch + self.camera_counts["frame_mismatch"]
+        if mism and level == ros_io.OK:
+            level = ros_io.WARN
+            message = (f"{message}; {mism} message(s) in an unexpected frame "
+                       f"({'rejected' if self.reject_frames else 'used'})")
         if self.cal.outlier_fixes and level == ros_io.OK:
             level = ros_io.WARN
             message = (f"{message}; {self.cal.outlier_fixes} camera fix(es) dropped as outliers (both pairs off by more "

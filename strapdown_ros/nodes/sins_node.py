@@ -64,6 +64,8 @@ class SinsNode(Node):
         self.accel_check = StreamCheck(a_period, max_norm=2.0 * a_period * float(p["accel_max"]), jump_limit=jump,
                                        resync_count=resync)
         self.nonfinite = 0                         # updates whose output was not finite (never published)
+        self.frame_mismatch = {"gyro": 0, "accel": 0}
+        self.reject_frames = p["frame_mismatch"] == "reject"
         self._good = self.integrator.snapshot()
         self.accel = IncrementAccumulator()
         self.accel_seen = False
@@ -108,7 +110,20 @@ class SinsNode(Node):
             self.origin_ns = stamp_ns
         return (stamp_ns - self.origin_ns) * 1e-9
 
+    def _wrong_frame(self, header, stream: str) -> bool:
+        """The frame rule: an empty frame_id is unspecified; another frame than ``frame_id`` is
+        counted and WARNed, and rejected unless ``frame_mismatch`` is accept."""
+        f = header.frame_id
+        if not f or f == self.frame_id:
+            return False
+        self.frame_mismatch[stream] += 1
+        self.get_logger().warn(f"{stream} message in frame {f!r}, expected {self.frame_id!r}: "
+                               f"{'rejected' if self.reject_frames else 'used'}", throttle_duration_sec=10.0)
+        return self.reject_frames
+
     def _on_gyro(self, msg: Vector3Stamped):
+        if self._wrong_frame(msg.header, "gyro"):
+            return
         ns = ros_io.stamp_to_ns(msg.header.stamp)
         out = self.gyro_check.offer(ns, (msg.vector.x, msg.vector.y, msg.vector.z))
         if not out:
@@ -148,6 +163,8 @@ class SinsNode(Node):
                                      batch.covariance[k], batch.mean_rate[k]))
 
     def _on_accel(self, msg: Vector3Stamped):
+        if self._wrong_frame(msg.header, "accel"):
+            return
         ns = ros_io.stamp_to_ns(msg.header.stamp)
         out = self.accel_check.offer(ns, (msg.vector.x, msg.vector.y, msg.vector.z))
         if not out:
@@ -203,6 +220,10 @@ class SinsNode(Node):
                 f"dropped {g.dropped} gyro and {a.dropped} accelerometer messages (NaN {g.nan + a.nan}, out of range "
                 f"{g.out_of_range + a.out_of_range}, out of order {g.out_of_order + a.out_of_order}, duplicate "
                 f"{g.duplicate + a.duplicate}, stamp outliers {g.stamp_outliers + a.stamp_outliers})")
+        if any(self.frame_mismatch.values()):
+            level, message = ros_io.WARN, (f"messages in another frame than {self.frame_id!r}: gyro "
+                                           f"{self.frame_mismatch['gyro']}, accelerometer {self.frame_mismatch['accel']} "
+                                           f"({'rejected' if self.reject_frames else 'used'})")
         if g.missing:
             level, message = ros_io.ERROR, f"{g.missing} gyro increments missing in {g.gaps} gaps: " \
                 "the rotation during the gaps is lost"
@@ -221,7 +242,9 @@ class SinsNode(Node):
                   "algorithm_changes": self.algorithm_changes,
                   "compensated_effects": ", ".join(self.compensating) or "none",
                   "initial_orientation_normalised": self.initial_normalised,
-                  "nonfinite_updates_discarded": self.nonfinite}
+                  "nonfinite_updates_discarded": self.nonfinite,
+                  "gyro_frame_mismatch": self.frame_mismatch["gyro"],
+                  "accel_frame_mismatch": self.frame_mismatch["accel"]}
         if self.integrator.time is not None:
             sig = np.sqrt(np.diag(self.integrator.covariance()))
             values.update({"attitude_sigma_x_rad": sig[0], "attitude_sigma_y_rad": sig[1],
