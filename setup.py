@@ -26,7 +26,7 @@ setup(
         "tools": ["scipy", "matplotlib", "rosbags", "pyyaml", "allantools"],
         # boresight_bench: OpenCV hand-eye peers; 5.0.0 lacks calibrateHandEye in Python (opencv#29565)
         "bench": ["opencv-python-headless>=4.8,<5"],
-        "test": ["pytest", "pytest-timeout", "colcon-core", "colcon-ros",
+        "test": ["pytest", "pytest-timeout", "hypothesis", "colcon-core", "colcon-ros",
                  "colcon-python-setup-py", "catkin_pkg"],
     },
     zip_safe=True,

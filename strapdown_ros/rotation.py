@@ -96,10 +96,10 @@ def quat_to_rotvec(q: np.ndarray) -> np.ndarray:
     v = q[..., 1:]
     s = np.linalg.norm(v, axis=-1, keepdims=True)
     angle = 2.0 * np.arctan2(s, q[..., :1])
-    # angle / s, with the s → 0 limit 2/w (w ≈ 1 there)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        factor = np.where(s > 1e-12, angle / np.where(s > 0, s, 1.0),
-                          2.0 / q[..., :1] * (1.0 + s * s / (3.0 * q[..., :1] ** 2)))
+    # angle / s, with the s → 0 limit 2/w (w ≈ 1 there); each branch sees only safe operands
+    small = s <= 1e-12
+    w = np.where(small, q[..., :1], 1.0)
+    factor = np.where(small, 2.0 / w * (1.0 + s * s / (3.0 * w ** 2)), angle / np.where(small, 1.0, s))
     return v * factor
 
 

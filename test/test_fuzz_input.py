@@ -1,0 +1,65 @@
+"""Fuzz tests of the input path (issue 9): extreme values and random bytes never crash it, never
+poison what it accepts, and every message is accounted for."""
+import math
+
+import numpy as np
+import pytest
+
+hypothesis = pytest.importorskip("hypothesis")
+from hypothesis import given, settings  # noqa: E402
+from hypothesis import strategies as st  # noqa: E402
+
+from strapdown_ros.streams import StreamCheck  # noqa: E402
+
+values = st.floats(allow_nan=True, allow_infinity=True, width=64)
+stamps = st.one_of(st.integers(0, 10**19), st.integers(10**9, 10**9 + 10**8))
+messages = st.lists(st.tuples(stamps, st.tuples(values, values, values)), max_size=200)
+
+
+@settings(max_examples=300, deadline=None)
+@given(messages)
+def test_stream_check_never_accepts_poison_and_accounts_for_every_message(msgs):
+    c = StreamCheck(0.01, max_norm=0.4, jump_limit=1.0, resync_count=5)
+    out = []
+    for s, v in msgs:
+        got = c.offer(s, v)
+        out += got
+    for _, v in out:
+        assert all(math.isfinite(x) and abs(x) <= 0.4 for x in v)
+    held = len(c._held)
+    assert c.received == c.accepted + c.nan + c.out_of_range + c.duplicate + c.out_of_order + c.stamp_outliers + held
+    assert len(out) == c.accepted
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.binary(max_size=200))
+def test_random_bytes_in_message_decoding_raise_cleanly_or_decode(raw):
+    pytest.importorskip("rosbags")
+    from rosbags.typesys import Stores, get_typestore
+    store = get_typestore(Stores.ROS2_JAZZY)
+    for typ in ("geometry_msgs/msg/Vector3Stamped", "geometry_msgs/msg/PoseWithCovarianceStamped"):
+        try:
+            m = store.deserialize_cdr(raw, typ)
+        except Exception:                        # noqa: BLE001 - read_bag turns any of these into BagError
+            continue
+        # whatever decodes goes through the same rules as a live message
+        v = (m.vector.x, m.vector.y, m.vector.z) if hasattr(m, "vector") else tuple(m.pose.covariance[:3])
+        StreamCheck(0.01, max_norm=0.4).offer(0, v)
+
+
+def test_bag_of_garbage_messages_is_a_one_line_error(tmp_path):
+    pytest.importorskip("rosbags")
+    from rosbags.rosbag2 import Writer
+    from rosbags.typesys import Stores, get_typestore
+    from strapdown_ros.tools import calibrate_bag
+    store = get_typestore(Stores.ROS2_JAZZY)
+    rng = np.random.default_rng(0)
+    with Writer(tmp_path / "bag", version=Writer.VERSION_LATEST) as w:
+        c = w.add_connection("/imu/delta_theta", "geometry_msgs/msg/Vector3Stamped", typestore=store)
+        k = w.add_connection("/star_camera/attitude", "geometry_msgs/msg/QuaternionStamped", typestore=store)
+        for i in range(50):
+            w.write(c, i, rng.bytes(int(rng.integers(0, 80))))
+            w.write(k, i, rng.bytes(int(rng.integers(0, 80))))
+    with pytest.raises(calibrate_bag.BagError):
+        calibrate_bag.read_bag(tmp_path / "bag")
+    assert calibrate_bag.main([str(tmp_path / "bag")]) == 2
