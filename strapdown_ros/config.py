@@ -36,9 +36,19 @@ class ParamSpec:
 
     def normalise(self, value):
         """Choices are strings; a name like ``2`` or ``3.1`` given unquoted on the command line
-        (``-p coning_algorithm:=2``) arrives as a number and is read as its string spelling."""
+        (``-p coning_algorithm:=2``) arrives as a number and is read as its string spelling.
+        A double array given as integers (``[0, 0, 9]``) is read as doubles; a double given as an
+        integer as a double; an integer given as an integral double (``5.0``) as an integer."""
         if self.choices is not None and isinstance(value, (int, float)) and not isinstance(value, bool):
             return format(value, "g")
+        if self.length is not None and isinstance(value, (list, tuple)) and \
+                all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in value):
+            return [float(v) for v in value]
+        if isinstance(self.default, float) and isinstance(value, int) and not isinstance(value, bool):
+            return float(value)
+        if isinstance(self.default, int) and not isinstance(self.default, bool) and isinstance(value, float) \
+                and value.is_integer():
+            return int(value)
         return value
 
     def check(self, value) -> str | None:
@@ -62,6 +72,8 @@ class ParamSpec:
         if isinstance(self.default, (int, float)):
             if isinstance(value, bool) or not isinstance(value, (int, float)):
                 return f"{self.name} must be a number, got {value!r}"
+            if isinstance(self.default, int) and not isinstance(value, int):
+                return f"{self.name} must be an integer, got {value!r}"
             if not np.isfinite(value):
                 return f"{self.name} must be finite, got {value!r}"
             return self._range_error(value)

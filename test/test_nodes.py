@@ -408,3 +408,30 @@ def test_frame_rule(ros, rule, used):
         assert sins.frame_mismatch["gyro"] == 1 and sins.integrator.updates == used
     finally:
         sins.destroy_node()
+
+
+def test_parameter_rules(ros):
+    """Issue 9 finding 9: an integer parameter given 1.5 is refused (not truncated); an integer list
+    for a double array is read as doubles; setting a parameter to its current value is no change
+    (ros2 param load of the shipped file succeeds); an unknown -p name is refused with its name;
+    changes are validated on set and applied after."""
+    from strapdown_ros.nodes.ros_io import InvalidParameter
+    with pytest.raises(InvalidParameter, match="qos_depth must be an integer"):
+        SinsNode(namespace="/t_p1", parameter_overrides=[Parameter("qos_depth", value=1.5)])
+    with pytest.raises(InvalidParameter, match="gyro_bais"):
+        SinsNode(namespace="/t_p2", parameter_overrides=[Parameter("gyro_bais", value=[0.0, 0.0, 0.0])])
+    sim = ImuSimNode(namespace="/t_p3", parameter_overrides=[Parameter("gravity", value=[0, 0, 9])])
+    try:
+        assert sim.p["gravity"] == [0.0, 0.0, 9.0] and all(isinstance(g, float) for g in sim.p["gravity"])
+    finally:
+        sim.destroy_node()
+    sins = SinsNode(namespace="/t_p4", parameter_overrides=[*IDEAL])
+    try:
+        same = sins.set_parameters([Parameter("frame_id", value="imu_link"), Parameter("qos_depth", value=500)])
+        assert all(r.successful for r in same)                          # unchanged values: no change
+        changed = sins.set_parameters([Parameter("frame_id", value="other")])
+        assert not changed[0].successful and "restart" in changed[0].reason
+        ok = sins.set_parameters([Parameter("coning_algorithm", value="4+")])
+        assert ok[0].successful and sins.integrator.algorithm_name == "4+" and sins.p["coning_algorithm"] == "4+"
+    finally:
+        sins.destroy_node()

@@ -80,7 +80,8 @@ LOG_THROTTLE_S = 30.0          # a not-observable reason that keeps its wording 
 class CalibratorNode(Node):
     def __init__(self, **kwargs):
         super().__init__(NODE_NAME, **kwargs)
-        self.p = ros_io.declare_validated(self, CALIBRATOR_PARAMS, on_change=self._on_change)
+        self.p = ros_io.declare_validated(self, CALIBRATOR_PARAMS, on_change=self._on_change,
+                                          apply=self._apply_change)
         p = self.p
         self.gyro_period = 1.0 / float(p["gyro_rate"])
         self.cal = BoresightCalibrator.from_params(p)     # as calibrate_bag builds it (effects compensated)
@@ -132,9 +133,14 @@ class CalibratorNode(Node):
 
     # --- parameters ---------------------------------------------------------------------
     def _on_change(self, new: dict) -> str | None:
+        """Validation (on-set): only the weighting may change at runtime."""
         fixed = sorted(set(new) - {"weighted"})
         if fixed:
             return "only weighted can change at runtime; restart the node to change " + ", ".join(fixed)
+        return None
+
+    def _apply_change(self, new: dict) -> None:
+        """Application (post-set), once rclpy has accepted the change."""
         w = bool(new["weighted"])
         if w != self.cal.weighted:
             self.cal.weighted = w
@@ -143,7 +149,6 @@ class CalibratorNode(Node):
             # the warm start of the previous weighting is as good a start as any: solve() keeps it
             if len(self.cal.pairs) >= 2:
                 self._solve()
-        return None
 
     # --- input ------------------------------------------------------------------------------
     def _rel(self, stamp_ns: int) -> float:

@@ -127,8 +127,9 @@ def descriptor(spec: ParamSpec) -> ParameterDescriptor:
                             additional_constraints="valid: " + spec.range_text())
     # a YAML "50" for a double parameter must not be a type error: spec.check validates it
     # and an unquoted algorithm name "2" (an integer to the YAML parser) is accepted as well
-    d.dynamic_typing = spec.choices is not None or (isinstance(spec.default, (int, float))
-                                                    and not isinstance(spec.default, bool))
+    # and an integer list for a double array ([0, 0, 9]) is read as doubles
+    d.dynamic_typing = spec.choices is not None or spec.length is not None or (
+        isinstance(spec.default, (int, float)) and not isinstance(spec.default, bool))
     return d
 
 
@@ -136,13 +137,23 @@ class InvalidParameter(ValueError):  # noqa: N818 (reads better at the call site
     """Raised at start-up for a parameter value that fails validation."""
 
 
-def declare_validated(node, specs: Sequence[ParamSpec], on_change: Callable[[dict], str | None] | None = None):
+#: parameters rclpy itself may be given (not the package's)
+ROS_OWN_PARAMETERS = ("use_sim_time", "start_type_description_service")
+
+
+def declare_validated(node, specs: Sequence[ParamSpec], on_change: Callable[[dict], str | None] | None = None,
+                      apply: Callable[[dict], None] | None = None):
     """Declare parameters with descriptors, validate the start-up values (raising
-    :class:`InvalidParameter` with the valid values in the message), and install a
-    runtime callback that rejects invalid sets.  ``on_change(values)`` may veto a
-    valid change by returning a reason (e.g. a read-only value).  Returns a dict of
-    current values.
+    :class:`InvalidParameter` with the valid values in the message), and validate every runtime
+    set in an on-set callback: ``on_change(values)`` may veto a valid change by returning a reason
+    (e.g. a read-only value); ``apply(values)`` then makes it effective in a post-set callback,
+    once rclpy has accepted it.  Setting a parameter to its current value is no change (so
+    ``ros2 param load`` of the shipped file succeeds).  A start-up override that no node of the
+    package declares is an error (a typo must not pass silently).  Returns the dict of current
+    values, kept up to date.
     """
+    from ..config import ALL_PARAMETER_NAMES
+
     by_name = {s.name: s for s in specs}
     values = {}
     for s in specs:
@@ -152,24 +163,45 @@ def declare_validated(node, specs: Sequence[ParamSpec], on_change: Callable[[dic
         if err:
             raise InvalidParameter(err)
         values[s.name] = v
+    unknown = sorted(n for n in getattr(node, "_parameter_overrides", {})
+                     if n not in ALL_PARAMETER_NAMES and n not in ROS_OWN_PARAMETERS and not n.startswith("qos_overrides."))
+    if unknown:
+        raise InvalidParameter(f"unknown parameter(s) {', '.join(map(repr, unknown))} for {node.get_name()}; "
+                               f"known: {', '.join(sorted(by_name))}")
 
-    def _callback(params: list[Parameter]) -> SetParametersResult:
+    def _changes(params: list[Parameter]):
         new = {}
         for p in params:
             spec = by_name.get(p.name)
             if spec is None:
                 continue
-            err = spec.check(p.value)
+            v = spec.normalise(p.value)
+            err = spec.check(v)
             if err:
-                return SetParametersResult(successful=False, reason=err)
-            new[p.name] = spec.normalise(p.value)
+                return None, err
+            if v != values.get(p.name):
+                new[p.name] = v
+        return new, None
+
+    def _on_set(params: list[Parameter]) -> SetParametersResult:
+        new, err = _changes(params)
+        if err:
+            return SetParametersResult(successful=False, reason=err)
         if on_change is not None and new:
             reason = on_change(new)
             if reason:
                 return SetParametersResult(successful=False, reason=reason)
         return SetParametersResult(successful=True)
 
-    node.add_on_set_parameters_callback(_callback)
+    def _post_set(params: list[Parameter]) -> None:
+        new, _ = _changes(params)
+        if new:
+            values.update(new)
+            if apply is not None:
+                apply(new)
+
+    node.add_on_set_parameters_callback(_on_set)
+    node.add_post_set_parameters_callback(_post_set)
     return values
 
 

@@ -42,7 +42,8 @@ NONFINITE_INFLATION = 0.01      # rad per axis added to σ after a non-finite up
 class SinsNode(Node):
     def __init__(self, **kwargs):
         super().__init__(NODE_NAME, **kwargs)
-        self.p = ros_io.declare_validated(self, SINS_PARAMS, on_change=self._on_change)
+        self.p = ros_io.declare_validated(self, SINS_PARAMS, on_change=self._on_change,
+                                          apply=self._apply_change)
         p = self.p
         q0_xyzw = np.asarray(p["initial_orientation"], dtype=float)
         if np.linalg.norm(q0_xyzw) < 1e-6:
@@ -92,17 +93,21 @@ class SinsNode(Node):
 
     # --- parameters ---------------------------------------------------------------------
     def _on_change(self, new: dict) -> str | None:
+        """Validation (on-set): only the coning algorithm may change at runtime."""
         fixed = sorted(set(new) - {"coning_algorithm"})
         if fixed:
             return ("only coning_algorithm can change at runtime; restart the node to change "
                     + ", ".join(fixed))
+        return None
+
+    def _apply_change(self, new: dict) -> None:
+        """Application (post-set), once rclpy has accepted the change."""
         name = new["coning_algorithm"]
         if name != self.integrator.algorithm_name:
             self.integrator.set_algorithm(name)
             self.algorithm_changes += 1
             self.p["coning_algorithm"] = name
             self.get_logger().info(f"coning_algorithm switched to {name}")
-        return None
 
     # --- input ------------------------------------------------------------------------------
     def _rel(self, stamp_ns: int) -> float:
