@@ -27,6 +27,7 @@ import numpy as np
 
 from .boresight import (BoresightSolution, IncrementPair, angle_consistency, camera_increment, gyro_increment,
                         solve_boresight)
+from .buffers import StampedBuffer
 from .sensors import SensorSigmas
 from .sensors.covariance import get_covariance_model
 from .sensors.effects import CameraEffects, GyroEffects
@@ -38,7 +39,7 @@ class BoresightCalibrator:
     def __init__(self, gyro: SensorSigmas | None = None, covariance_model: str = "random_constant",
                  weighted: bool = True, initial_boresight=(0.0, 0.0, 0.0), min_rotation: float = np.radians(0.5),
                  max_sigma: float = 1e-3, max_pairs: int = 0, effects: GyroEffects | None = None,
-                 camera: CameraEffects | None = None, outlier_gate: float = 6.0):
+                 camera: CameraEffects | None = None, outlier_gate: float = 6.0, max_buffer: int | None = None):
         self.outlier_gate = float(outlier_gate)
         self.outlier_fixes = 0                      # camera fixes dropped by the outlier rule
         self.outlier_stamps: deque = deque(maxlen=100)
@@ -53,8 +54,8 @@ class BoresightCalibrator:
         self.min_rotation = min_rotation
         self.max_sigma = max_sigma
         self.max_pairs = int(max_pairs)
-        self._t = []                    # gyro stamps (python lists: appended one at a time live)
-        self._v = []
+        # gyro history: bounded, amortised O(1) appends, trimmed to what the next pairs need
+        self._gyro = StampedBuffer(3, max_len=int(max_buffer or self.MAX_BUFFER))
         self._cams: deque = deque()     # fixes waiting for gyro coverage: (stamp, q, P)
         self._last_fix = None           # the fix that starts the next pair
         self.pairs: list[IncrementPair] = []
@@ -80,21 +81,17 @@ class BoresightCalibrator:
             v = self.effects.compensate(v, st, np.diff(np.concatenate([[prev], st])))
         if len(st):
             self._last_stamp = float(st[-1])
-        self._t.extend(st.tolist())
-        self._v.extend(v.tolist())
+        self._gyro.extend(st, v)
         new = self._form_pairs()
-        if not self._cams and len(self._t) > self.MAX_BUFFER:
-            # no fix waiting: only the data from the last fix on can still be used
-            keep_from = self._last_fix[0] if self._last_fix is not None else self._t[-1]
-            cut = max(0, min(int(np.searchsorted(self._t, keep_from)) - 3, len(self._t) - 1000))
-            del self._t[:cut], self._v[:cut]
+        if self._last_fix is None and not self._cams and len(self._gyro) > self.KEEP_WITHOUT_FIX:
+            # no fix yet: only the recent past can still start a pair
+            self._gyro.drop_first(len(self._gyro) - self.KEEP_WITHOUT_FIX)
         return new
 
     def restart_gyro(self) -> None:
         """The gyro stamps start a new time base (a confirmed stamp jump): the buffered increments
         and the fix that would start the next pair are dropped, since no pair may span the jump."""
-        self._t.clear()
-        self._v.clear()
+        self._gyro.clear()
         self._last_stamp = None
         self._last_fix = None
         self._cams.clear()
@@ -104,8 +101,11 @@ class BoresightCalibrator:
         self._last_fix = None
         self._cams.clear()
 
-    #: gyro samples kept when no camera fix is pending (a bound on memory without fixes)
-    MAX_BUFFER = 200_000
+    #: hard bound of the gyro history, samples (1e6 ≈ 24 MB: 8 min at 2 kHz, 2.8 h at 100 Hz between
+    #: two fixes); beyond it the oldest are dropped and a pair that needed them is not formed
+    MAX_BUFFER = 1_000_000
+    #: gyro samples kept while no camera fix has arrived
+    KEEP_WITHOUT_FIX = 10_000
 
     def add_camera(self, stamp: float, q_gcrs_vf, covariance) -> int:
         """Append one camera fix; returns the number of new pairs.  With camera effects the fix
@@ -120,9 +120,10 @@ class BoresightCalibrator:
         """The increment pair between two fixes, or None without gyro data around them."""
         t0, q0, P0 = fix_a
         stamp, q, P = fix_b
-        lo = max(0, int(np.searchsorted(self._t, t0)) - 2)
-        hi = int(np.searchsorted(self._t, stamp, side="right")) + 1
-        r = gyro_increment(np.asarray(self._t[lo:hi]), np.asarray(self._v[lo:hi]), t0, stamp, self.gyro,
+        t = self._gyro.stamps
+        lo = max(0, int(np.searchsorted(t, t0)) - 2)
+        hi = int(np.searchsorted(t, stamp, side="right")) + 1
+        r = gyro_increment(t[lo:hi], self._gyro.values[lo:hi], t0, stamp, self.gyro,
                            self.covariance_model, sensitivity=self.gyro is not None)
         if r is None:
             return None
@@ -141,7 +142,8 @@ class BoresightCalibrator:
             if self._last_fix is None:
                 self._last_fix = self._cams.popleft()
                 continue
-            if not self._t or self._t[-1] < stamp:
+            last = self._gyro.last_stamp
+            if last is None or last < stamp:
                 break                                   # wait for the gyro to cover t_E,n
             pair = self._pair(self._last_fix, (stamp, q, P))
             fix = self._cams.popleft()
@@ -154,9 +156,7 @@ class BoresightCalibrator:
             self._prev_fix, self._last_fix = self._last_fix, fix
             # drop gyro data no longer needed (keep a margin before the fix that may start a skip pair)
             keep = self._prev_fix[0] if self._prev_fix is not None else stamp
-            cut = max(0, int(np.searchsorted(self._t, keep)) - 3)
-            if cut > 10000:
-                del self._t[:cut], self._v[:cut]
+            self._gyro.drop_first(int(np.searchsorted(self._gyro.stamps, keep)) - 3)
         if self.max_pairs and len(self.pairs) > self.max_pairs:
             del self.pairs[:len(self.pairs) - self.max_pairs]
         return new

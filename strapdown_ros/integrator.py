@@ -49,6 +49,7 @@ import numpy as np
 
 from .coning import ConingAlgorithm, get_algorithm
 from .rotation import quat_cumprod, quat_normalize, quat_to_dcm, rotvec_to_quat
+from .buffers import StampedBuffer
 from .sensors import SensorSigmas, increment_correction
 from .sensors.covariance import COVARIANCE_MODELS as _MODELS, constant_jacobian, get_covariance_model
 from .sensors.effects import EFFECTS
@@ -266,18 +267,24 @@ class AttitudeIntegrator:
 
 class IncrementAccumulator:
     """Sums stamped increments (e.g. accelerometer Δv at 300 Hz) over arbitrary intervals
-    ``(t_a, t_b]`` (e.g. the gyro update intervals) to give mean specific force."""
+    ``(t_a, t_b]`` (e.g. the gyro update intervals) to give mean specific force.  Bounded: at
+    most ``max_len`` increments are held (the oldest dropped and counted in ``overflowed``), so
+    Δv arriving without gyro data cannot pile up."""
 
-    def __init__(self):
-        self._t = np.zeros(0)
-        self._v = np.zeros((0, 3))
+    def __init__(self, max_len: int = 100_000):
+        self._buf = StampedBuffer(3, max_len=max_len)
         self.latest = -np.inf
 
+    @property
+    def overflowed(self) -> int:
+        return self._buf.overflowed
+
+    def __len__(self) -> int:
+        return len(self._buf)
+
     def add(self, increments: np.ndarray, stamps: np.ndarray) -> None:
-        inc = np.asarray(increments, dtype=float).reshape(-1, 3)
         st = np.asarray(stamps, dtype=float).reshape(-1)
-        self._t = np.concatenate([self._t, st])
-        self._v = np.vstack([self._v, inc])
+        self._buf.extend(st, np.asarray(increments, dtype=float).reshape(-1, 3))
         if len(st):
             self.latest = max(self.latest, float(st.max()))
 
@@ -290,21 +297,22 @@ class IncrementAccumulator:
         Returns (sum (3,), count).  An increment whose interval straddles t_a or t_b is
         counted whole in the interval holding its end stamp.
         """
-        sel = (self._t > t_a) & (self._t <= t_b)
-        total = self._v[sel].sum(0) if np.any(sel) else np.zeros(3)
-        keep = self._t > t_b
-        self._t, self._v = self._t[keep], self._v[keep]
-        return total, int(sel.sum())
+        t, v = self._buf.stamps, self._buf.values
+        sel = (t > t_a) & (t <= t_b)
+        total = v[sel].sum(0) if np.any(sel) else np.zeros(3)
+        n = int(sel.sum())
+        self._buf.drop_through(t_b)
+        return total, n
 
     def take_many(self, edges: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Vectorised :meth:`take` over consecutive intervals ``(edges[i], edges[i+1]]``."""
         edges = np.asarray(edges, dtype=float)
-        idx = np.searchsorted(edges, self._t, side="left") - 1      # interval holding each stamp
+        t, v = self._buf.stamps, self._buf.values
+        idx = np.searchsorted(edges, t, side="left") - 1      # interval holding each stamp
         valid = (idx >= 0) & (idx < len(edges) - 1)
         sums = np.zeros((len(edges) - 1, 3))
         counts = np.zeros(len(edges) - 1, dtype=int)
-        np.add.at(sums, idx[valid], self._v[valid])
+        np.add.at(sums, idx[valid], v[valid])
         np.add.at(counts, idx[valid], 1)
-        keep = self._t > edges[-1]
-        self._t, self._v = self._t[keep], self._v[keep]
+        self._buf.drop_through(edges[-1])
         return sums, counts

@@ -355,6 +355,7 @@ class CalibratorNode(Node):
                        "camera_stamp_resyncs": c.resyncs, "solve_failures": self.solve_failures,
                        "camera_outlier_fixes": self.cal.outlier_fixes,
                        "gyro_frame_mismatch": self.gyro_frame_mismatch,
+                       "gyro_history_overflowed": self.cal._gyro.overflowed,
                        **{f"camera_{k}": v for k, v in self.camera_counts.items()}})
         mism = self.gyro_frame_mismatch + self.camera_counts["frame_mismatch"]
         if mism and level == ros_io.OK:

@@ -249,6 +249,7 @@ class SinsNode(Node):
                   "initial_orientation_normalised": self.initial_normalised,
                   "nonfinite_updates_discarded": self.nonfinite,
                   "gyro_frame_mismatch": self.frame_mismatch["gyro"],
+                  "accel_buffer_overflowed": self.accel.overflowed,
                   "accel_frame_mismatch": self.frame_mismatch["accel"]}
         if self.integrator.time is not None:
             sig = np.sqrt(np.diag(self.integrator.covariance()))
