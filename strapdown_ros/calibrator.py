@@ -217,3 +217,84 @@ class BoresightCalibrator:
     def common_rotation_sigma(self) -> float:
         """σ per axis of the gyro-triad rotation (antisymmetric misalignment), σ_φ/√2."""
         return self.gyro.misalignment_sigma / np.sqrt(2.0) if self.gyro is not None else 0.0
+
+
+# ----------------------------------------------------------------------------- persistence
+STATE_VERSION = 1
+_PAIR_FIELDS = ("t_start", "t_end", "dq_imu", "dq_cam", "cov_imu", "cov_cam", "imu_sensitivity", "cov_imu_white",
+                "cov_fix_start", "cov_fix_end")
+
+
+def save_state(path: str, cal: BoresightCalibrator, origin_ns: int, extra: dict | None = None) -> None:
+    """Write the calibrator's pairs, last fix and estimate to ``path`` atomically: a temporary
+    file in the same directory, flushed and fsynced, then renamed over the old one (a crash
+    leaves the old file or the new one, never half of either).  numpy .npz, no pickle."""
+    import os
+    import tempfile
+
+    arrays = {"version": np.array(STATE_VERSION), "origin_ns": np.array(int(origin_ns), dtype=np.int64),
+              "n_pairs": np.array(len(cal.pairs))}
+    for f in _PAIR_FIELDS:
+        vals = [getattr(p, f) for p in cal.pairs]
+        if vals and all(v is not None for v in vals):
+            arrays["pair_" + f] = np.array(vals, dtype=float)
+    if cal._last_fix is not None:
+        t, q, P = cal._last_fix
+        arrays["last_fix_t"], arrays["last_fix_q"], arrays["last_fix_P"] = np.array(t), np.asarray(q), np.asarray(P)
+    sol = cal.solution
+    if sol is not None and sol.observable and sol.beta is not None:
+        arrays["beta"] = np.asarray(sol.beta, dtype=float)
+    for k, v in (extra or {}).items():
+        arrays["extra_" + k] = np.asarray(v)
+    d = os.path.dirname(os.path.abspath(path))
+    fd, tmp = tempfile.mkstemp(prefix=".calibrator_state_", suffix=".npz", dir=d)
+    try:
+        with os.fdopen(fd, "wb") as fh:
+            np.savez(fh, **arrays)
+            fh.flush()
+            os.fsync(fh.fileno())
+        os.replace(tmp, path)
+        try:                                       # make the rename itself durable
+            dfd = os.open(d, os.O_RDONLY)
+            os.fsync(dfd)
+            os.close(dfd)
+        except OSError:
+            pass
+    except BaseException:
+        try:
+            os.unlink(tmp)
+        except OSError:
+            pass
+        raise
+
+
+def load_state(path: str, cal: BoresightCalibrator) -> tuple[int, dict]:
+    """Restore pairs and last fix from ``path`` into ``cal``; returns (origin_ns, extra).  Raises
+    ValueError naming what is wrong with a corrupted or incompatible file (nothing restored)."""
+    try:
+        with np.load(path, allow_pickle=False) as z:
+            data = {k: z[k] for k in z.files}
+    except Exception as exc:                       # noqa: BLE001 - any unreadable file is reported
+        raise ValueError(f"unreadable ({type(exc).__name__}: {exc})") from None
+    if int(data.get("version", -1)) != STATE_VERSION:
+        raise ValueError(f"state version {data.get('version')} is not {STATE_VERSION}")
+    n = int(data["n_pairs"])
+    shapes = {"t_start": (), "t_end": (), "dq_imu": (4,), "dq_cam": (4,), "cov_imu": (3, 3), "cov_cam": (3, 3),
+              "imu_sensitivity": (3, 12), "cov_imu_white": (3, 3), "cov_fix_start": (3, 3), "cov_fix_end": (3, 3)}
+    pairs_fields = {}
+    for f, shape in shapes.items():
+        a = data.get("pair_" + f)
+        if a is None:
+            if f in ("t_start", "t_end", "dq_imu", "dq_cam", "cov_imu", "cov_cam") and n:
+                raise ValueError(f"missing pair field {f}")
+            continue
+        if a.shape != (n,) + shape or not np.all(np.isfinite(a)):
+            raise ValueError(f"pair field {f} has shape {a.shape} (expected {(n,) + shape}) or non-finite values")
+        pairs_fields[f] = a
+    pairs = [IncrementPair(**{f: (float(a[i]) if a.ndim == 1 else a[i].copy()) for f, a in pairs_fields.items()})
+             for i in range(n)]
+    cal.pairs = pairs
+    if "last_fix_t" in data:
+        cal._last_fix = (float(data["last_fix_t"]), data["last_fix_q"].astype(float), data["last_fix_P"].astype(float))
+    extra = {k[len("extra_"):]: v for k, v in data.items() if k.startswith("extra_")}
+    return int(data["origin_ns"]), extra

@@ -236,6 +236,8 @@ CALIBRATOR_PARAMS = GYRO_PARAMS + INPUT_PARAMS + [
     ParamSpec("max_pairs", 0, "keep at most this many latest pairs (0: all)", 0, 10**7),
     ParamSpec("outlier_gate", 6.0, "a fix is an outlier when both its pairs disagree in rotation angle by more than "
               "this many σ and the pair skipping it agrees (0: off)", 0.0, 1000.0),
+    ParamSpec("state_file", "", "file the pairs and estimate persist to after every new pair (atomic), and resume "
+              "from at start-up ('' = off); a corrupted one is reported and moved aside"),
     ParamSpec("max_chi2_per_dof", 3.0, "WARN on /diagnostics when the weighted χ²/dof of the solution exceeds this",
               0.0, 1e9, exclusive_minimum=True),
     ParamSpec("use_camera_covariance", True, "read P_avu from star_camera/attitude_with_covariance "

@@ -429,7 +429,7 @@ def test_executables_exit_2_with_a_clear_message(module, arg, text):
     assert text in res.stderr
 
 
-def _node_estimate(ns, poison: bool):
+def _node_estimate(ns, poison: bool, params=(), keep=False):
     """calibrator_node fed bench data through its own callbacks (no DDS): returns (β, node counters)."""
     from strapdown_ros.sensors import IntegratingSensor
     from strapdown_ros.star_camera import StarCameraModel
@@ -440,7 +440,7 @@ def _node_estimate(ns, poison: bool):
     t, dth, _ = gyro.sample(int(prof.duration * 100) - 1)
     cam = StarCameraModel(boresight=np.radians([40.0, -25.0, 120.0]), interval=5.0, seed=1)
     fixes = cam.fixes(prof, int(prof.duration / 5.0) - 1)
-    cal = CalibratorNode(namespace=ns)
+    cal = CalibratorNode(namespace=ns, parameter_overrides=list(params))
     try:
         def stamp(m, s):
             ns_ = int(round((1000.0 + s) * 1e9))
@@ -469,7 +469,8 @@ def _node_estimate(ns, poison: bool):
                 cal._on_camera_cov(m)
         return np.array(cal.valid.beta), cal.gyro_check.out_of_range, cal.solve_failures
     finally:
-        cal.destroy_node()
+        if not keep:
+            cal.destroy_node()
 
 
 def test_overflowing_increment_is_rejected_and_loses_nothing(ros):
@@ -479,3 +480,26 @@ def test_overflowing_increment_is_rejected_and_loses_nothing(ros):
     beta, out_of_range, failures = _node_estimate("/t_poison", poison=True)
     assert out_of_range == 1 and failures == 0
     np.testing.assert_array_equal(beta, beta_clean)
+
+
+def test_restart_resumes_the_same_estimate_and_a_corrupted_state_is_moved_aside(ros, tmp_path):
+    """Issue 9, restart without loss: the pairs and estimate persist to state_file (atomic, after
+    every new pair); a restarted node resumes the same estimate and republishes it latched; a
+    corrupted file is reported and moved aside, never used."""
+    state = str(tmp_path / "calib_state.npz")
+    beta, _, _ = _node_estimate("/t_state_a", poison=False, params=[Parameter("state_file", value=state)])
+    assert os.path.exists(state) and not [f for f in os.listdir(tmp_path) if f.startswith(".calibrator_state_")]
+    node = CalibratorNode(namespace="/t_state_b", parameter_overrides=[Parameter("state_file", value=state)])
+    try:
+        assert node.state["restored_pairs"] == 32 and node.published["boresight"] == 1     # 33 fixes
+        np.testing.assert_allclose(node.valid.beta, beta, rtol=0, atol=1e-12)
+    finally:
+        node.destroy_node()
+    with open(state, "wb") as fh:
+        fh.write(b"not a state file")
+    node = CalibratorNode(namespace="/t_state_c", parameter_overrides=[Parameter("state_file", value=state)])
+    try:
+        assert node.state["errors"] == 1 and node.cal.pairs == [] and node.published["boresight"] == 0
+        assert not os.path.exists(state) and os.path.exists(state + ".corrupt")
+    finally:
+        node.destroy_node()

@@ -55,6 +55,7 @@ parameter is fixed after start-up.
 from __future__ import annotations
 
 import math
+import os
 import sys
 import time
 from collections import deque
@@ -67,7 +68,7 @@ from rclpy.node import Node
 from ..boresight import imu_attitude_from_camera
 from ..config import CALIBRATOR_PARAMS
 from ..streams import StreamCheck
-from ..calibrator import BoresightCalibrator
+from ..calibrator import BoresightCalibrator, load_state, save_state
 from . import ros_io
 from .ros_io import camera_qos, latched_qos, pose_with_covariance, rotation_block
 
@@ -126,6 +127,9 @@ class CalibratorNode(Node):
             self.create_subscription(QuaternionStamped, "star_camera/attitude", self._on_camera_plain,
                                      camera_qos(int(p["qos_depth"])))
         self.create_timer(float(p["diagnostics_period"]), self.publish_diagnostics)
+        self.state = {"file": p["state_file"], "saves": 0, "restored_pairs": 0, "errors": 0, "moved_aside": ""}
+        if p["state_file"]:
+            self._restore_state()
         camera_topic = "star_camera/attitude_with_covariance" if self.use_cov else "star_camera/attitude"
         self.get_logger().info(
             f"started: camera input {camera_topic}, weighted={p['weighted']}, covariance_model={p['covariance_model']}, "
@@ -238,6 +242,40 @@ class CalibratorNode(Node):
         if out:
             self._publish_imu_attitudes()
 
+    # --- persistence ---------------------------------------------------------------------------
+    def _restore_state(self):
+        """Resume from ``state_file``: its pairs, last fix and time origin; the estimate is solved
+        again and republished latched.  A corrupted or incompatible file is moved aside."""
+        path = self.state["file"]
+        if not os.path.exists(path):
+            return
+        try:
+            origin, _ = load_state(path, self.cal)
+        except ValueError as exc:
+            k, aside = 0, f"{path}.corrupt"
+            while os.path.exists(aside):
+                k += 1
+                aside = f"{path}.corrupt.{k}"
+            os.replace(path, aside)
+            self.state["errors"] += 1
+            self.state["moved_aside"] = aside
+            self.cal.pairs, self.cal._last_fix = [], None
+            self.get_logger().error(f"state file {path} not used: {exc}; moved aside to {aside}")
+            return
+        self.origin_ns = origin
+        self.state["restored_pairs"] = len(self.cal.pairs)
+        self.get_logger().info(f"resumed from {path}: {len(self.cal.pairs)} pairs")
+        if len(self.cal.pairs) >= 2:
+            self._solve()
+
+    def _save_state(self):
+        try:
+            save_state(self.state["file"], self.cal, self.origin_ns)
+            self.state["saves"] += 1
+        except OSError as exc:
+            self.state["errors"] += 1
+            self.get_logger().error(f"cannot write state file {self.state['file']}: {exc}", throttle_duration_sec=30.0)
+
     # --- estimate ------------------------------------------------------------------------------
     def _after_input(self, new_pairs: int):
         if new_pairs <= 0:
@@ -245,6 +283,8 @@ class CalibratorNode(Node):
         if self.gaps:
             self._discard_pairs_over_gaps(new_pairs)
         self._solve()
+        if self.state["file"]:
+            self._save_state()                      # at most once per new pair
 
     def _discard_pairs_over_gaps(self, new_pairs: int):
         pairs = self.cal.pairs              # public list of the core; the newest pairs are at its end
@@ -356,6 +396,8 @@ class CalibratorNode(Node):
                        "camera_outlier_fixes": self.cal.outlier_fixes,
                        "gyro_frame_mismatch": self.gyro_frame_mismatch,
                        "gyro_history_overflowed": self.cal._gyro.overflowed,
+                       "state_file": self.state["file"] or "off", "state_saves": self.state["saves"],
+                       "state_restored_pairs": self.state["restored_pairs"], "state_errors": self.state["errors"],
                        **{f"camera_{k}": v for k, v in self.camera_counts.items()}})
         mism = self.gyro_frame_mismatch + self.camera_counts["frame_mismatch"]
         if mism and level == ros_io.OK:
@@ -371,6 +413,10 @@ class CalibratorNode(Node):
         if level == ros_io.OK and (g_drop or c_drop):
             level = ros_io.WARN
             message = f"{message}; dropped {g_drop} gyro and {c_drop} camera messages"
+        if self.state["errors"]:
+            level = ros_io.ERROR
+            message = (f"{message}; state file: {self.state['errors']} error(s)"
+                       + (f", a bad one moved aside to {self.state['moved_aside']}" if self.state["moved_aside"] else ""))
         if g.resyncs or c.resyncs:
             level = ros_io.ERROR
             message = (f"{message}; stamps jumped and were resynchronised (gyro {g.resyncs}, camera {c.resyncs}); "
