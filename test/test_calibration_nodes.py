@@ -5,6 +5,7 @@ has its own ROS_DOMAIN_ID and LOCALHOST discovery (conftest.py), and every wait 
 The estimate is checked against the simulated truth (β and the exact profile attitude) with
 the covariance the calibrator publishes.
 """
+import json
 import math
 import os
 import re
@@ -501,5 +502,99 @@ def test_restart_resumes_the_same_estimate_and_a_corrupted_state_is_moved_aside(
     try:
         assert node.state["errors"] == 1 and node.cal.pairs == [] and node.published["boresight"] == 0
         assert not os.path.exists(state) and os.path.exists(state + ".corrupt")
+    finally:
+        node.destroy_node()
+
+
+def test_one_input_path_node_and_calibrate_bag_agree_on_a_hostile_stream(ros, tmp_path):
+    """Issue 9, one input path: the same hostile stream (NaN, duplicate, out-of-order, impossible
+    and far-future increments; a zero and a non-unit camera quaternion) fed to calibrator_node and
+    written to a bag for calibrate_bag gives the same counts and the same estimate."""
+    pytest.importorskip("rosbags")
+    from rosbags.rosbag2 import Writer
+    from rosbags.typesys import Stores, get_typestore
+    from strapdown_ros.rotation import to_ros_xyzw
+    from strapdown_ros.sensors import IntegratingSensor
+    from strapdown_ros.star_camera import StarCameraModel
+    from strapdown_ros.tools import calibrate_bag
+
+    prof = bench_profile()
+    t, dth, _ = IntegratingSensor(prof, "gyro", 100.0).sample(int(prof.duration * 100) - 1)
+    fixes = StarCameraModel(boresight=np.radians([40.0, -25.0, 120.0]), interval=5.0, seed=1).fixes(
+        prof, int(prof.duration / 5.0) - 1)
+    base = 1_000_000_000_000
+    gyro = [(base + int(round(s * 1e9)), tuple(map(float, v))) for s, v in zip(t, dth)]
+    hostile = [(gyro[100][0] + 1, (float("nan"), 0.0, 0.0)), (gyro[200][0], gyro[200][1]),       # NaN, duplicate
+               (gyro[250][0] - 30_000_000, gyro[250][1]), (gyro[300][0] + 2, (1e308, 1e308, 0.0)),   # older, huge
+               (gyro[400][0] + 10**15, gyro[400][1])]                                            # far future
+    at = {100: hostile[0], 200: hostile[1], 250: hostile[2], 300: hostile[3], 400: hostile[4]}
+    stream = []
+    for k, g in enumerate(gyro):
+        stream.append(("g", g[0], g[1]))
+        if k in at:
+            stream.append(("g",) + at[k])
+    cams = [(base + int(round(f.stamp * 1e9)), to_ros_xyzw(f.attitude), f.covariance) for f in fixes]
+    cams[5] = (cams[5][0], 2.0 * cams[5][1], cams[5][2])                                      # non-unit
+    cams.insert(9, (cams[8][0] + 1_000_000, np.zeros(4), cams[8][2]))                          # zero quaternion
+    # arrival order: the gyro stream as built (hostile messages where they arrived), the fixes merged
+    # in by stamp against the regular increments
+    events, j = [], 0
+    for k, e in enumerate(stream):
+        ref = e[1] if (e[1] in {g_[0] for g_ in gyro[max(0, k // 1 - 10):k + 10]}) else None
+        while ref is not None and j < len(cams) and cams[j][0] <= ref:
+            events.append(("c", cams[j][0], (cams[j][1], cams[j][2])))
+            j += 1
+        events.append(e)
+    events += [("c", s_, (q, P)) for s_, q, P in cams[j:]]
+    store = get_typestore(Stores.ROS2_JAZZY)
+    T = store.types
+    node = CalibratorNode(namespace="/t_equiv")
+    bag = tmp_path / "hostile"
+    try:
+        with Writer(bag, version=Writer.VERSION_LATEST) as w:
+            cg = w.add_connection("/imu/delta_theta", "geometry_msgs/msg/Vector3Stamped", typestore=store)
+            cc = w.add_connection("/star_camera/attitude_with_covariance", "geometry_msgs/msg/PoseWithCovarianceStamped",
+                                  typestore=store)
+            for i, (kind, ns, v) in enumerate(events):
+                stamp = T["builtin_interfaces/msg/Time"](sec=ns // 10**9, nanosec=ns % 10**9)
+                if kind == "g":
+                    h = T["std_msgs/msg/Header"](stamp=stamp, frame_id="imu_link")
+                    m = T["geometry_msgs/msg/Vector3Stamped"](header=h, vector=T["geometry_msgs/msg/Vector3"](
+                        x=v[0], y=v[1], z=v[2]))
+                    w.write(cg, i, store.serialize_cdr(m, "geometry_msgs/msg/Vector3Stamped"))
+                    r = Vector3Stamped()
+                    r.header.stamp.sec, r.header.stamp.nanosec = ns // 10**9, ns % 10**9
+                    r.header.frame_id = "imu_link"
+                    r.vector.x, r.vector.y, r.vector.z = v
+                    node._on_gyro(r)
+                else:
+                    q, P = v
+                    c6 = np.zeros((6, 6))
+                    c6[3:, 3:] = P
+                    h = T["std_msgs/msg/Header"](stamp=stamp, frame_id="gcrs")
+                    pose = T["geometry_msgs/msg/Pose"](position=T["geometry_msgs/msg/Point"](x=0.0, y=0.0, z=0.0),
+                                                       orientation=T["geometry_msgs/msg/Quaternion"](
+                                                           x=float(q[0]), y=float(q[1]), z=float(q[2]), w=float(q[3])))
+                    m = T["geometry_msgs/msg/PoseWithCovarianceStamped"](
+                        header=h, pose=T["geometry_msgs/msg/PoseWithCovariance"](pose=pose, covariance=c6.reshape(36)))
+                    w.write(cc, i, store.serialize_cdr(m, "geometry_msgs/msg/PoseWithCovarianceStamped"))
+                    r = PoseWithCovarianceStamped()
+                    r.header.stamp.sec, r.header.stamp.nanosec = ns // 10**9, ns % 10**9
+                    r.header.frame_id = "gcrs"
+                    o = r.pose.pose.orientation
+                    o.x, o.y, o.z, o.w = (float(c) for c in q)
+                    r.pose.covariance = [float(x) for x in c6.ravel()]
+                    node._on_camera_cov(r)
+        f = tmp_path / "r.json"
+        assert calibrate_bag.main([str(bag), "--json", str(f)]) == 0
+        r = json.loads(f.read_text())
+        g = node.gyro_check
+        assert r["dropped"]["gyro"] == {"nan": g.nan, "duplicate": g.duplicate, "out_of_order": g.out_of_order,
+                                        "out_of_range": g.out_of_range, "stamp_outlier": g.stamp_outliers}
+        assert (g.nan, g.duplicate, g.out_of_order, g.out_of_range, g.stamp_outliers) == (1, 1, 1, 1, 1)
+        assert r["dropped"]["camera"]["zero_quaternion"] == node.camera_counts["dropped_zero_quaternion"] == 1
+        assert r["camera_fixes"]["normalised"] == node.camera_counts["normalised"] == 1
+        assert r["messages"]["gyro"] == g.accepted and r["pairs"] == len(node.cal.pairs)
+        np.testing.assert_allclose(r["beta_rad"], node.valid.beta, rtol=0, atol=1e-10)
     finally:
         node.destroy_node()
