@@ -47,7 +47,8 @@ def parse_args(argv):
     ap.add_argument("--algorithms", default="1,2,6,7,4+,three_sample_optimal",
                     help="comma-separated coning algorithms (default: %(default)s)")
     ap.add_argument("--duration", type=float, default=12.0, help="simulated seconds (default 12)")
-    ap.add_argument("--time-scale", type=float, default=3.0, help="simulated seconds per wall second (default 3)")
+    ap.add_argument("--time-scale", type=float, default=1.0, help="simulated seconds per wall second (default 1: six "
+                    "SINS nodes and the simulator share one executor thread)")
     ap.add_argument("--alpha", type=float, default=0.1, help="coning half-angle, rad (default 0.1)")
     ap.add_argument("--nu", type=float, default=4 * np.pi, help="coning frequency, rad/s (default 4π: 2 Hz)")
     ap.add_argument("--errors", choices=("ideal", "navigation_grade"), default="ideal",
@@ -175,7 +176,7 @@ def run_calibration(args) -> dict:
     except ImportError:                       # pragma: no cover - older rclpy
         Executor = SingleThreadedExecutor
     beta = np.radians([float(x) for x in args.boresight_deg.split(",")])
-    time_scale = 20.0
+    time_scale = 8.0                 # four nodes and the monitor on one executor thread
     common = [Parameter("profile", value="bench"), Parameter("time_scale", value=time_scale),
               Parameter("qos_depth", value=20000), Parameter("seed", value=args.seed)]
     sim = ImuSimNode(namespace="/calib", parameter_overrides=[*common, Parameter("accel_rate", value=10.0)])
