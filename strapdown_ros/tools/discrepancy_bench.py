@@ -360,7 +360,7 @@ def write_plots(res: dict, outdir: str) -> list[str]:
             label=f"target ≥ {TARGET_DETECTION:.0%} at k ≥ {TARGET_SIZE:g}σ")
     ax.axhline(TARGET_DETECTION, color="k", lw=0.5, ls=":")
     ax.set(xlabel="injected size k (σ, Mahalanobis)", ylabel="detection rate", ylim=(-0.03, 1.03),
-           title="Detection vs effect size (dashed: ideal LRT power at α/m; markers offset slightly in k)")
+           title="Detection vs effect size (dashed: ideal LRT power at (α/2)/m; markers offset slightly in k)")
     ax.grid(alpha=0.3)
     ax.legend(fontsize=7, loc="lower right")
     fig.tight_layout()
