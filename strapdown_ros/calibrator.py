@@ -81,12 +81,8 @@ class BoresightCalibrator:
             v = self.effects.compensate(v, st, np.diff(np.concatenate([[prev], st])))
         if len(st):
             self._last_stamp = float(st[-1])
-        self._gyro.extend(st, v)
-        new = self._form_pairs()
-        if self._last_fix is None and not self._cams and len(self._gyro) > self.KEEP_WITHOUT_FIX:
-            # no fix yet: only the recent past can still start a pair
-            self._gyro.drop_first(len(self._gyro) - self.KEEP_WITHOUT_FIX)
-        return new
+        self._gyro.extend(st, v)           # bounded by MAX_BUFFER: the oldest go first
+        return self._form_pairs()
 
     def restart_gyro(self) -> None:
         """The gyro stamps start a new time base (a confirmed stamp jump): the buffered increments
@@ -104,8 +100,6 @@ class BoresightCalibrator:
     #: hard bound of the gyro history, samples (1e6 ≈ 24 MB: 8 min at 2 kHz, 2.8 h at 100 Hz between
     #: two fixes); beyond it the oldest are dropped and a pair that needed them is not formed
     MAX_BUFFER = 1_000_000
-    #: gyro samples kept while no camera fix has arrived
-    KEEP_WITHOUT_FIX = 10_000
 
     def add_camera(self, stamp: float, q_gcrs_vf, covariance) -> int:
         """Append one camera fix; returns the number of new pairs.  With camera effects the fix
