@@ -60,6 +60,18 @@ class StampedBuffer:
         self._v[self._hi:self._hi + n] = v
         self._hi += n
 
+    def append(self, stamp: float, value) -> None:
+        """One sample (the live path): scalar writes, no array conversions."""
+        if self._hi - self._lo >= self.max_len:
+            self.drop_first(1)
+            self.overflowed += 1
+        if self._hi >= len(self._t):
+            self._make_room(1)
+        i = self._hi
+        self._t[i] = stamp
+        self._v[i] = value
+        self._hi = i + 1
+
     def _make_room(self, n: int) -> None:
         live = len(self)
         need = live + n

@@ -84,6 +84,15 @@ class BoresightCalibrator:
         self._gyro.extend(st, v)           # bounded by MAX_BUFFER: the oldest go first
         return self._form_pairs()
 
+    def add_gyro_sample(self, stamp: float, delta_theta) -> int:
+        """One increment (the live path of calibrator_node): the same as :meth:`add_gyro` with
+        one sample, without its array conversions."""
+        if self.effects is not None:
+            return self.add_gyro([stamp], [delta_theta])
+        self._last_stamp = stamp
+        self._gyro.append(stamp, delta_theta)
+        return self._form_pairs() if self._cams else 0
+
     def restart_gyro(self) -> None:
         """The gyro stamps start a new time base (a confirmed stamp jump): the buffered increments
         and the fix that would start the next pair are dropped, since no pair may span the jump."""

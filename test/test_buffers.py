@@ -35,3 +35,24 @@ def test_delta_v_without_gyro_does_not_pile_up():
     assert len(acc) == 1000 and acc.overflowed == 4000
     total, n = acc.take(-1.0, 1e9)
     assert n == 1000 and len(acc) == 0 and np.all(total == 1000.0)
+
+
+def test_single_sample_path_equals_the_batch_path():
+    """calibrator_node's one-increment path gives the pairs of the batch path, to the bit."""
+    from strapdown_ros.profiles import bench_profile
+    from strapdown_ros.sensors import IntegratingSensor, NAVIGATION_GRADE_GYRO
+    from strapdown_ros.star_camera import StarCameraModel
+    prof = bench_profile()
+    t, dth, _ = IntegratingSensor(prof, "gyro", 100.0).sample(6000)
+    fixes = StarCameraModel(boresight=[0.7, -0.4, 2.1], interval=5.0, seed=2).fixes(prof, 11)
+    a, b = BoresightCalibrator(gyro=NAVIGATION_GRADE_GYRO), BoresightCalibrator(gyro=NAVIGATION_GRADE_GYRO)
+    a.add_gyro(t, dth)
+    for s, v in zip(t, dth):
+        b.add_gyro_sample(float(s), v)
+    for f in fixes:
+        a.add_camera(f.stamp, f.attitude, f.covariance)
+        b.add_camera(f.stamp, f.attitude, f.covariance)
+    assert len(a.pairs) == len(b.pairs) == 10
+    for p, q in zip(a.pairs, b.pairs):
+        np.testing.assert_array_equal(p.dq_imu, q.dq_imu)
+        np.testing.assert_array_equal(p.cov_imu, q.cov_imu)

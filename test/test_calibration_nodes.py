@@ -176,7 +176,7 @@ class Graph:
 # -------------------------------------------------------------------------------------------
 def test_bench_calibration_full_graph(ros):
     ns = "/t_calib_bench"
-    g = Graph(ns, {"profile": "bench", "bench_earth_rate": True}, time_scale=40.0,
+    g = Graph(ns, {"profile": "bench", "bench_earth_rate": True}, time_scale=25.0,
               camera=[Parameter("camera_interval", value=5.0)], plain_peer=True)
     try:
         g.run()
@@ -309,7 +309,7 @@ def test_single_axis_rotation_is_reported_not_observable(ros, tmp_path):
     for r in (0.05, -0.04, 0.03, -0.05, 0.04, -0.03):
         segs += [f"  - {{duration: 5.0, rate: [0, 0, {r}]}}", "  - {duration: 10.0}"]
     prof = _piecewise(tmp_path, "earth_rate: [0, 0, 0]\nsegments:\n" + "\n".join(segs) + "\n")   # 100 s
-    g = Graph("/t_calib_axis", prof, time_scale=40.0, camera=[Parameter("camera_interval", value=5.0)])
+    g = Graph("/t_calib_axis", prof, time_scale=25.0, camera=[Parameter("camera_interval", value=5.0)])
     try:
         st, kv = _not_observable(g)
         assert "one axis" in st.message
@@ -326,7 +326,7 @@ def test_single_axis_rotation_is_reported_not_observable(ros, tmp_path):
 
 def test_static_motion_is_reported_not_observable(ros, tmp_path):
     prof = _piecewise(tmp_path, "earth_rate: [0, 4.6e-5, 5.6e-5]\nsegments:\n  - {duration: 150.0}\n")
-    g = Graph("/t_calib_static", prof, time_scale=50.0, camera=[Parameter("camera_interval", value=5.0)])
+    g = Graph("/t_calib_static", prof, time_scale=30.0, camera=[Parameter("camera_interval", value=5.0)])
     try:
         st, kv = _not_observable(g)
         assert "static" in st.message and int(kv["pairs"]) == 29

@@ -192,7 +192,7 @@ class CalibratorNode(Node):
                     f"gyro gap: {int(round((ns_i - prev_ns) / (self.gyro_period * 1e9))) - 1} increment(s) missing "
                     f"before stamp {ns_i * 1e-9:.6f} s; pairs spanning it are discarded", throttle_duration_sec=5.0)
             prev_ns = ns_i
-            new += self.cal.add_gyro([t], [v])
+            new += self.cal.add_gyro_sample(t, v)
         self._after_input(new)
 
     def _on_camera_cov(self, msg: PoseWithCovarianceStamped):
