@@ -8,7 +8,7 @@ REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 CORE = ["rotation", "profiles", "sensors", "coning", "integrator", "config", "coning_analysis", "observability",
         "star_camera", "boresight", "calibrator", "integral_method", "tkachenko", "sensors.effects",
         "sensors.covariance", "streams", "buffers", "analysis.pairs", "analysis.linear_model",
-        "analysis.discrepancy", "analysis.diagnostics", "analysis.hidden"]
+        "analysis.discrepancy", "analysis.diagnostics", "analysis.hidden", "analysis.linearisation"]
 
 
 def test_core_imports_with_rclpy_absent():
