@@ -41,6 +41,10 @@ def _run(module: str) -> int:
         return main()
     except KeyboardInterrupt:                # a signal before the node was spinning
         return 0
+    except Exception:                        # noqa: BLE001
+        if _signalled:                       # a failure caused by the shutdown a signal started
+            return 0
+        raise
 
 
 def imu_sim_node():

@@ -282,8 +282,7 @@ def run_node(node_class, name: str, args=None) -> int:
         if stopped():
             return _quiet_exit(executor, rclpy)
         print(f"[{name}] error: {exc}", file=sys.stderr)
-        executor.shutdown()
-        rclpy.try_shutdown()
+        _quiet_exit(executor, rclpy)
         return 2
     except KeyboardInterrupt:                          # Ctrl-C while starting up
         return _quiet_exit(executor, rclpy)
@@ -300,16 +299,20 @@ def run_node(node_class, name: str, args=None) -> int:
         if not stopped():
             raise
     finally:
-        executor.shutdown()
-        node.destroy_node()
-        rclpy.try_shutdown()
+        _quiet_exit(executor, rclpy, node)
     return 0
 
 
-def _quiet_exit(executor, rclpy) -> int:
-    try:
-        executor.shutdown()
-    finally:
-        rclpy.try_shutdown()
+def _quiet_exit(executor, rclpy, node=None) -> int:
+    """Shut down the executor, the node and the context, each step on its own: rclpy's signal
+    handler may shut the context down at the same moment ("rcl_shutdown already called"), which
+    is the stop that was asked for, not an error."""
+    for step in (executor.shutdown, node.destroy_node if node is not None else None, rclpy.try_shutdown):
+        if step is None:
+            continue
+        try:
+            step()
+        except Exception:                              # noqa: BLE001 - a concurrent shutdown: already stopped
+            pass
     return 0
 
