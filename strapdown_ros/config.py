@@ -159,6 +159,8 @@ IMU_SIM_PARAMS = PROFILE_PARAMS + GYRO_PARAMS + ACCEL_PARAMS + COMMON_PARAMS + [
     ParamSpec("duration", 0.0, "simulated seconds to publish (0: the profile length, or forever)", 0.0),
     ParamSpec("start_time", 0.0, "header stamp of profile time 0, s", 0.0),
     ParamSpec("publish_period", 0.005, "wall period of the publishing timer, s", 0.0, 1.0, exclusive_minimum=True),
+    ParamSpec("wait_for_subscribers", 0, "the simulated clock starts once imu/delta_theta has this many "
+              "subscribers (0: at start-up), so that separately started consumers lose nothing", 0, 1000),
 ]
 
 #: input validation of the consuming nodes (strapdown_ros/streams.py)
@@ -204,6 +206,8 @@ STAR_CAMERA_PARAMS = PROFILE_PARAMS + [
     ParamSpec("duration", 0.0, "simulated seconds to publish (0: the profile length, or forever)", 0.0),
     ParamSpec("start_time", 0.0, "header stamp of profile time 0, s (as imu_sim_node)", 0.0),
     ParamSpec("publish_period", 0.005, "wall period of the publishing timer, s", 0.0, 1.0, exclusive_minimum=True),
+    ParamSpec("wait_for_subscribers", 0, "the simulated clock starts once the camera topics have this many "
+              "subscribers in all (0: at start-up), so that separately started consumers lose nothing", 0, 1000),
     ParamSpec("camera_interval", 20.0, "time between exposures, s", 0.0, 3600.0, exclusive_minimum=True),
     ParamSpec("camera_first_exposure", 0.0, "profile time of the first exposure, s (0: one interval)", 0.0),
     ParamSpec("camera_sigma_xy", 0.6 * ARCSEC_RAD, "1σ attitude noise about VF x and y, rad (004: 0.6″)", 0.0, 0.1),

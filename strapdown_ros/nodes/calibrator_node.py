@@ -116,16 +116,16 @@ class CalibratorNode(Node):
         self.pub_boresight = self.create_publisher(PoseWithCovarianceStamped, "calibration/boresight", latched_qos())
         self.pub_angles = self.create_publisher(Vector3Stamped, "calibration/boresight_angles", latched_qos())
         self.pub_imu_att = self.create_publisher(PoseWithCovarianceStamped, "calibration/imu_attitude_from_camera",
-                                                 camera_qos(int(p["qos_depth"])))
+                                                 camera_qos(int(p["qos_depth"])), qos_overriding_options=ros_io.QOS_OVERRIDES)
         self.pub_diag = self.create_publisher(DiagnosticArray, "/diagnostics", ros_io.DIAGNOSTICS_QOS)
         self.create_subscription(Vector3Stamped, "imu/delta_theta", self._on_gyro,
-                                 ros_io.stream_qos(int(p["qos_depth"])))
+                                 ros_io.stream_qos(int(p["qos_depth"])), qos_overriding_options=ros_io.QOS_OVERRIDES)
         if self.use_cov:
             self.create_subscription(PoseWithCovarianceStamped, "star_camera/attitude_with_covariance",
-                                     self._on_camera_cov, camera_qos(int(p["qos_depth"])))
+                                     self._on_camera_cov, camera_qos(int(p["qos_depth"])), qos_overriding_options=ros_io.QOS_OVERRIDES)
         else:
             self.create_subscription(QuaternionStamped, "star_camera/attitude", self._on_camera_plain,
-                                     camera_qos(int(p["qos_depth"])))
+                                     camera_qos(int(p["qos_depth"])), qos_overriding_options=ros_io.QOS_OVERRIDES)
         self.create_timer(float(p["diagnostics_period"]), self.publish_diagnostics)
         self.state = {"file": p["state_file"], "saves": 0, "restored_pairs": 0, "errors": 0, "moved_aside": ""}
         if p["state_file"]:

@@ -47,10 +47,10 @@ class ImuSimNode(ros_io.PacedSimulation, Node):
         self.frame_id = p["frame_id"]
         self.ref_frame = p["reference_frame_id"]
         qos = ros_io.stream_qos(int(p["qos_depth"]))
-        self.pub_dtheta = self.create_publisher(Vector3Stamped, "imu/delta_theta", qos)
-        self.pub_dv = self.create_publisher(Vector3Stamped, "imu/delta_velocity", qos)
-        self.pub_raw = self.create_publisher(Imu, "imu/data_raw", qos)
-        self.pub_truth = self.create_publisher(QuaternionStamped, "imu/truth/attitude", qos)
+        self.pub_dtheta = self.create_publisher(Vector3Stamped, "imu/delta_theta", qos, qos_overriding_options=ros_io.QOS_OVERRIDES)
+        self.pub_dv = self.create_publisher(Vector3Stamped, "imu/delta_velocity", qos, qos_overriding_options=ros_io.QOS_OVERRIDES)
+        self.pub_raw = self.create_publisher(Imu, "imu/data_raw", qos, qos_overriding_options=ros_io.QOS_OVERRIDES)
+        self.pub_truth = self.create_publisher(QuaternionStamped, "imu/truth/attitude", qos, qos_overriding_options=ros_io.QOS_OVERRIDES)
         self.pub_diag = self.create_publisher(DiagnosticArray, "/diagnostics", ros_io.DIAGNOSTICS_QOS)
         self.counts = {"delta_theta": 0, "delta_velocity": 0, "data_raw": 0}
         self._pending_dv = np.zeros(3)
@@ -68,6 +68,9 @@ class ImuSimNode(ros_io.PacedSimulation, Node):
                 "restart the node to change " + ", ".join(sorted(new)))
 
     # ---------------------------------------------------------------------------------
+    def _subscriber_count(self) -> int:
+        return self.pub_dtheta.get_subscription_count()
+
     def _on_finished(self):
         self._publish_diagnostics()
         self.get_logger().info(f"finished: published {self.counts} up to t = {self.sim_time:.3f} s")
@@ -125,7 +128,7 @@ class ImuSimNode(ros_io.PacedSimulation, Node):
                   "delta_velocity_published": self.counts["delta_velocity"],
                   "data_raw_published": self.counts["data_raw"], "finished": self.finished,
                   "profile": self.p["profile"]}
-        msg = "finished" if self.finished else "running"
+        msg = "finished" if self.finished else ("waiting for subscribers" if self._wall_start is None else "running")
         self.pub_diag.publish(ros_io.diagnostic_array(st, f"{self.get_fully_qualified_name()}: simulator", "imu_sim",
                                                       ros_io.OK, msg, values))
 

@@ -16,6 +16,7 @@ from geometry_msgs.msg import (PoseWithCovarianceStamped, Quaternion, Quaternion
 from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
 from rclpy.parameter import Parameter
 from rclpy.qos import (DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy)
+from rclpy.qos_overriding_options import QoSOverridingOptions
 
 from ..config import ParamSpec
 
@@ -29,6 +30,12 @@ def stream_qos(depth: int = 500) -> QoSProfile:
     return QoSProfile(reliability=ReliabilityPolicy.BEST_EFFORT, durability=DurabilityPolicy.VOLATILE,
                       history=HistoryPolicy.KEEP_LAST, depth=depth)
 
+
+#: Stream and camera topics take the standard ROS QoS override parameters, e.g.
+#: ``-p qos_overrides./imu/delta_theta.subscription.reliability:=reliable`` (history, depth,
+#: reliability; the topic name fully qualified).  ``/diagnostics`` and the latched outputs have
+#: fixed QoS.
+QOS_OVERRIDES = QoSOverridingOptions.with_default_policies()
 
 DIAGNOSTICS_QOS = QoSProfile(reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.VOLATILE,
                              history=HistoryPolicy.KEEP_LAST, depth=10)
@@ -232,7 +239,9 @@ class PacedSimulation:
     simulated time to ``time_scale`` × the wall time since the first tick (capped at
     ``end_time``) through the node's ``_advance_to(target)``, and calls ``_on_finished()`` once.
     Nothing downstream sees the wall clock: every stamp is simulated time.  Setting
-    ``_wall_start = None`` restarts the pacing at the next tick (used after discovery)."""
+    ``_wall_start = None`` restarts the pacing at the next tick (used after discovery).  With
+    ``wait_for_subscribers`` = N > 0 the clock starts at the first tick that sees N subscribers
+    (``_subscriber_count()``), so that consumers started as separate processes lose nothing."""
 
     _wall_start = None
     finished = False
@@ -243,6 +252,8 @@ class PacedSimulation:
             return
         now = time.monotonic()
         if self._wall_start is None:
+            if self._subscriber_count() < int(self.p.get("wait_for_subscribers", 0)):
+                return                                   # the clock has not started yet
             self._wall_start = now
         target = min((now - self._wall_start) * float(self.p["time_scale"]), self.end_time)
         self._advance_to(target)
@@ -252,55 +263,101 @@ class PacedSimulation:
 
 
 # --- process entry point -------------------------------------------------------------------
+#: environment variable that selects the executor of the node processes: ``events`` (default)
+#: or ``single`` (rclpy's SingleThreadedExecutor)
+EXECUTOR_ENV = "STRAPDOWN_EXECUTOR"
+
+
+def make_executor(kind: str | None = None):
+    """The executor of a node process.  rclpy's EventsExecutor (``rclpy.experimental``, Jazzy)
+    dispatches a message in about a tenth of the CPU time of the SingleThreadedExecutor, which
+    rebuilds its wait set on every spin (load_bench, node_rate_bench); ``single`` (or
+    ``STRAPDOWN_EXECUTOR=single``) selects the latter, and it is the fallback where the former
+    does not exist."""
+    import os
+
+    import rclpy.executors
+    kind = (kind or os.environ.get(EXECUTOR_ENV, "events")).strip().lower()
+    if kind not in ("events", "single"):
+        raise ValueError(f"{EXECUTOR_ENV} must be 'events' or 'single', got {kind!r}")
+    if kind == "events":
+        try:
+            from rclpy.experimental import EventsExecutor
+            return EventsExecutor()
+        except ImportError:                            # pragma: no cover - older rclpy
+            pass
+    return rclpy.executors.SingleThreadedExecutor()
+
+
 def run_node(node_class, name: str, args=None) -> int:
     """``main()`` of every node: init, construct (invalid parameters → message on stderr, exit 2),
-    spin until Ctrl-C or shutdown, clean up.  Returns the process exit status."""
+    spin until SIGINT/SIGTERM or shutdown, clean up.  Returns the process exit status.
+
+    Signals: the process owns SIGINT and SIGTERM (rclpy's native handlers are not installed).
+    A signal only records the request; the spin loop sees it within ``SPIN_SLICE_S`` and the
+    node is shut down from the main loop, never from inside a callback (an exception raised in a
+    callback would be logged by the events executor as FATAL, and a context shut down under a
+    running callback makes its next publish fail)."""
+    import signal
     import sys
 
     import rclpy
     import rclpy.executors
     from rclpy.exceptions import ParameterException
+    from rclpy.signals import SignalHandlerOptions
+
+    stop: list[int] = []
+
+    def request_stop(signum, frame):
+        stop.append(signum)
 
     try:
-        rclpy.init(args=args)
-    except KeyboardInterrupt:
+        for sig in (signal.SIGINT, signal.SIGTERM):
+            signal.signal(sig, request_stop)
+        rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
+    except KeyboardInterrupt:                          # the entry point's import-time handler
         return 0
     except Exception as exc:                           # noqa: BLE001 - e.g. an unparsable --params-file
         print(f"[{name}] error: {str(exc).splitlines()[0]}", file=sys.stderr)
         return 2
-    # The executor is built before the node announces itself, so a Ctrl-C that follows the
-    # "started" line can never land inside the executor's constructor (rclpy then prints an
-    # "Exception ignored in Executor.__del__" traceback from the half-built object).
-    executor = rclpy.executors.SingleThreadedExecutor()
-
-    def stopped() -> bool:
-        """A signal has shut the context down (rclpy's handlers): whatever failed, it is a stop."""
-        return not rclpy.ok()
+    try:
+        executor = make_executor()
+    except ValueError as exc:
+        print(f"[{name}] error: {exc}", file=sys.stderr)
+        rclpy.try_shutdown()
+        return 2
     try:
         node = node_class()
     except (ValueError, ParameterException) as exc:   # invalid parameters: clear message, exit 2
-        if stopped():
-            return _quiet_exit(executor, rclpy)
-        print(f"[{name}] error: {exc}", file=sys.stderr)
         _quiet_exit(executor, rclpy)
+        if stop:
+            return 0
+        print(f"[{name}] error: {exc}", file=sys.stderr)
         return 2
-    except KeyboardInterrupt:                          # Ctrl-C while starting up
-        return _quiet_exit(executor, rclpy)
-    except Exception:                                  # noqa: BLE001 - e.g. RCLError: context shut down
-        if stopped():                                  # by SIGINT/SIGTERM during construction
+    except Exception:                                  # noqa: BLE001
+        if stop:
             return _quiet_exit(executor, rclpy)
         raise
     try:
         executor.add_node(node)
-        executor.spin()
+        _spin(executor, rclpy, stop)
     except (KeyboardInterrupt, rclpy.executors.ExternalShutdownException):
         pass
-    except Exception:                                  # noqa: BLE001 - wait set on a shut-down context
-        if not stopped():
-            raise
     finally:
         _quiet_exit(executor, rclpy, node)
     return 0
+
+
+#: longest time between a signal and the start of the shutdown, s
+SPIN_SLICE_S = 0.2
+
+
+def _spin(executor, rclpy, stop: list) -> None:
+    """Spin in slices of ``SPIN_SLICE_S`` until a stop is requested or the context is shut down."""
+    from rclpy.task import Future
+    never = Future()
+    while not stop and rclpy.ok():
+        executor.spin_until_future_complete(never, timeout_sec=SPIN_SLICE_S)
 
 
 def _quiet_exit(executor, rclpy, node=None) -> int:

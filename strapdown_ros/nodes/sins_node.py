@@ -77,11 +77,11 @@ class SinsNode(Node):
         self.frame_id = p["frame_id"]
         self.ref_frame = p["reference_frame_id"]
         qos = ros_io.stream_qos(int(p["qos_depth"]))
-        self.pub_att = self.create_publisher(QuaternionStamped, "sins/attitude", qos)
-        self.pub_imu = self.create_publisher(Imu, "sins/imu", qos)
+        self.pub_att = self.create_publisher(QuaternionStamped, "sins/attitude", qos, qos_overriding_options=ros_io.QOS_OVERRIDES)
+        self.pub_imu = self.create_publisher(Imu, "sins/imu", qos, qos_overriding_options=ros_io.QOS_OVERRIDES)
         self.pub_diag = self.create_publisher(DiagnosticArray, "/diagnostics", ros_io.DIAGNOSTICS_QOS)
-        self.create_subscription(Vector3Stamped, "imu/delta_theta", self._on_gyro, qos)
-        self.create_subscription(Vector3Stamped, "imu/delta_velocity", self._on_accel, qos)
+        self.create_subscription(Vector3Stamped, "imu/delta_theta", self._on_gyro, qos, qos_overriding_options=ros_io.QOS_OVERRIDES)
+        self.create_subscription(Vector3Stamped, "imu/delta_velocity", self._on_accel, qos, qos_overriding_options=ros_io.QOS_OVERRIDES)
         self.create_timer(float(p["diagnostics_period"]), self.publish_diagnostics)
         self._wall_start = time.monotonic()
         self.get_logger().info(

@@ -69,8 +69,8 @@ class StarCameraSimNode(ros_io.PacedSimulation, Node):
         self.ref_frame = p["reference_frame_id"]
         self.camera_frame = p["camera_frame_id"]
         qos = camera_qos(int(p["qos_depth"]))
-        self.pub_att = self.create_publisher(QuaternionStamped, "star_camera/attitude", qos)
-        self.pub_cov = self.create_publisher(PoseWithCovarianceStamped, "star_camera/attitude_with_covariance", qos)
+        self.pub_att = self.create_publisher(QuaternionStamped, "star_camera/attitude", qos, qos_overriding_options=ros_io.QOS_OVERRIDES)
+        self.pub_cov = self.create_publisher(PoseWithCovarianceStamped, "star_camera/attitude_with_covariance", qos, qos_overriding_options=ros_io.QOS_OVERRIDES)
         self.pub_truth = self.create_publisher(QuaternionStamped, "star_camera/truth/boresight", latched_qos())
         self.pub_diag = self.create_publisher(DiagnosticArray, "/diagnostics", ros_io.DIAGNOSTICS_QOS)
         self.pub_truth.publish(ros_io.quaternion_stamped(ros_io.ns_to_stamp(self.start_ns), self.camera_frame,
@@ -93,6 +93,9 @@ class StarCameraSimNode(ros_io.PacedSimulation, Node):
                 "restart the node to change " + ", ".join(sorted(new)))
 
     # ---------------------------------------------------------------------------------
+    def _subscriber_count(self) -> int:
+        return self.pub_att.get_subscription_count() + self.pub_cov.get_subscription_count()
+
     def _on_finished(self):
         self.publish_diagnostics()
         self.get_logger().info(f"finished: published {self.published} fixes up to t = {self.sim_time:.3f} s")
@@ -120,7 +123,7 @@ class StarCameraSimNode(ros_io.PacedSimulation, Node):
                   "next_exposure_s": self.model.epoch(self.model.count),
                   "last_exposure_s": self.last_stamp if self.last_stamp is not None else "none",
                   "finished": self.finished, "profile": self.p["profile"]}
-        msg = "finished" if self.finished else "running"
+        msg = "finished" if self.finished else ("waiting for subscribers" if self._wall_start is None else "running")
         self.pub_diag.publish(ros_io.diagnostic_array(st, f"{self.get_fully_qualified_name()}: star camera",
                                                       "star_camera_sim", ros_io.OK, msg, values))
 
