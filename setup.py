@@ -51,6 +51,7 @@ setup(
             "reproduce_seeds = strapdown_ros.tools.reproduce_seeds:main",
             "discrepancy_bench = strapdown_ros.tools.discrepancy_bench:main",
             "discrepancy = strapdown_ros.tools.discrepancy:main",
+            "load_bench = strapdown_ros.tools.load_bench:main",
         ],
     },
 )

@@ -186,6 +186,9 @@ SINS_PARAMS = GYRO_PARAMS + ACCEL_PARAMS + COMMON_PARAMS + INPUT_PARAMS + ACCEL_
     ParamSpec("covariance_model", "random_constant", "gyro error model of the covariance", choices=COVARIANCE_MODELS),
     ParamSpec("quantization_correction", False, "apply 000 eq. (5.6) with gyro_quantum"),
     ParamSpec("accel_wait", 0.1, "how long (stamp seconds) sins/imu waits for accelerometer data", 0.0, 10.0),
+    ParamSpec("batch_period", 0.01, "increments are integrated in blocks spanning this much stamp time, and at "
+              "least every this many wall seconds (0: every message at once); outputs keep their own stamps",
+              0.0, 1.0),
 ]
 
 

@@ -164,6 +164,17 @@ class AttitudeIntegrator:
         self._pending, self._pending_dt = np.zeros((0, 3)), np.zeros(0)
         self._recent = np.zeros((0, 3))
 
+    def checkpoint(self) -> tuple:
+        """The whole state, for :meth:`rollback` (cheap: :meth:`push` replaces its arrays, it never
+        writes into them)."""
+        return (self.q, self.time, self._last_stamp, self._p_ref, self._j_const, self.updates, self.samples,
+                self._pending, self._pending_dt, self._recent, self._last_sign, self.algorithm)
+
+    def rollback(self, cp: tuple) -> None:
+        """Return exactly to a :meth:`checkpoint`, unfinished update and history included."""
+        (self.q, self.time, self._last_stamp, self._p_ref, self._j_const, self.updates, self.samples,
+         self._pending, self._pending_dt, self._recent, self._last_sign, self.algorithm) = cp
+
     def covariance(self) -> np.ndarray:
         """Current body-axis covariance (3, 3)."""
         return self._body_covariance(quat_to_dcm(self.q)[None], self._p_ref[None], self._j_const[None])[0]
@@ -303,6 +314,23 @@ class IncrementAccumulator:
         n = int(sel.sum())
         self._buf.drop_through(t_b)
         return total, n
+
+    def take_sequence(self, t_a: np.ndarray, t_b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`take` over intervals ``(t_a[i], t_b[i]]`` in increasing order, in one pass:
+        the same counts as calling :meth:`take` for each in turn (an increment already taken by
+        an earlier interval is not counted again); sums equal to round-off.  Returns (m, 3), (m,)."""
+        t_a, t_b = np.asarray(t_a, dtype=float), np.asarray(t_b, dtype=float)
+        t, v = self._buf.stamps, self._buf.values
+        hi = np.searchsorted(t, t_b, side="right")
+        lo = np.searchsorted(t, t_a, side="right")
+        lo = np.maximum(lo, np.concatenate([[0], np.maximum.accumulate(hi)[:-1]]))   # taken already
+        lo = np.minimum(lo, hi)
+        cs = np.concatenate([np.zeros((1, 3)), np.cumsum(v, axis=0)])
+        sums, counts = cs[hi] - cs[lo], hi - lo
+        sums[counts == 0] = 0.0
+        if len(t_b):
+            self._buf.drop_through(float(t_b.max()))
+        return sums, counts
 
     def take_many(self, edges: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Vectorised :meth:`take` over consecutive intervals ``(edges[i], edges[i+1]]``."""

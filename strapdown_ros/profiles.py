@@ -271,13 +271,22 @@ class PiecewiseRateProfile(MotionProfile):
         c_eb = quat_to_dcm(self.attitude_earth(np.asarray(t, dtype=float)))
         return np.einsum("...ji,j->...i", c_eb, self.reference_specific_force)
 
+    def _segments_touched(self, t0: np.ndarray, t1: np.ndarray, n: int) -> range:
+        """Indices (< n) of the segments that intervals within [min t0, max t1] can touch: the
+        others contribute exactly zero, so a short block costs a few segments, not all of them."""
+        if t0.size == 0 or t1.size == 0:
+            return range(0)
+        lo = int(np.searchsorted(self.starts, min(t0.min(), t1.min()), side="right")) - 1
+        hi = int(np.searchsorted(self.starts, max(t0.max(), t1.max()), side="left"))
+        return range(max(lo, 0), min(hi + 1, n))
+
     def _integral_of_cbe(self, t0: np.ndarray, t1: np.ndarray) -> np.ndarray:
         """``∫_{t0}^{t1} C_B_E(t) dt`` (3×3 each), exact, splitting at segment boundaries."""
         t0 = np.asarray(t0, dtype=float)
         t1 = np.asarray(t1, dtype=float)
         out = np.zeros(np.broadcast(t0, t1).shape + (3, 3))
         bounds = np.concatenate([self.starts, [np.inf]])
-        for i in range(len(self.segments) + 1):
+        for i in self._segments_touched(t0, t1, len(self.segments) + 1):
             a = np.clip(t0, bounds[i], bounds[i + 1])
             b = np.clip(t1, bounds[i], bounds[i + 1])
             active = b > a
@@ -296,7 +305,7 @@ class PiecewiseRateProfile(MotionProfile):
         t1 = np.asarray(t1, dtype=float)
         out = np.zeros(np.broadcast(t0, t1).shape + (3,))
         bounds = np.concatenate([self.starts, [np.inf]])
-        for i in range(len(self.segments)):
+        for i in self._segments_touched(t0, t1, len(self.segments)):
             a = np.clip(t0, bounds[i], bounds[i + 1])
             b = np.clip(t1, bounds[i], bounds[i + 1])
             out += np.maximum(b - a, 0.0)[..., None] * self.rates[i]

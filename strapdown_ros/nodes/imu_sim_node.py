@@ -11,6 +11,9 @@ Publishes (stamps are simulated time: ``start_time`` + profile time; each stamp 
 * ``imu/truth/attitude``  geometry_msgs/QuaternionStamped, exact q_ref_body at gyro epochs
 * ``/diagnostics``
 
+``imu/data_raw`` and ``imu/truth/attitude`` are derived topics: they are built and published
+only while they have a subscriber (each costs as much as a Δθ message).
+
 A wall-clock timer paces the output (``time_scale`` simulated seconds per wall second);
 nothing downstream depends on the wall clock.
 """
@@ -53,6 +56,8 @@ class ImuSimNode(ros_io.PacedSimulation, Node):
         self.pub_truth = self.create_publisher(QuaternionStamped, "imu/truth/attitude", qos, qos_overriding_options=ros_io.QOS_OVERRIDES)
         self.pub_diag = self.create_publisher(DiagnosticArray, "/diagnostics", ros_io.DIAGNOSTICS_QOS)
         self.counts = {"delta_theta": 0, "delta_velocity": 0, "data_raw": 0}
+        self._dtheta_out = ros_io.vector3_stamped(ros_io.ns_to_stamp(0), self.frame_id, (0.0, 0.0, 0.0))
+        self._dv_out = ros_io.vector3_stamped(ros_io.ns_to_stamp(0), self.frame_id, (0.0, 0.0, 0.0))
         self._pending_dv = np.zeros(3)
         self._wall_start = None
         self.sim_time = 0.0
@@ -82,28 +87,40 @@ class ImuSimNode(ros_io.PacedSimulation, Node):
             return
         ta, dv, _ = self.accel.sample(max(n_a, 0))
         tg, dth, _ = self.gyro.sample(max(n_g, 0))
-        q_true = self.profile.attitude(tg) if n_g > 0 else np.zeros((0, 4))
         stamp = lambda t: ros_io.ns_to_stamp(self.start_ns + int(round(t * 1e9)))  # noqa: E731
+        # one message object per topic, refilled (publish serialises at once); the derived topics
+        # are built only while somebody subscribes to them
+        raw_on = self.pub_raw.get_subscription_count() > 0
+        truth_on = self.pub_truth.get_subscription_count() > 0
+        q_true = self.profile.attitude(tg) if n_g > 0 and truth_on else np.zeros((len(tg), 4))
+        m = self._dv_out
         for t, v in zip(ta, dv):
-            self.pub_dv.publish(ros_io.vector3_stamped(stamp(t), self.frame_id, v))
+            m.header.stamp = stamp(t)
+            m.vector.x, m.vector.y, m.vector.z = float(v[0]), float(v[1]), float(v[2])
+            self.pub_dv.publish(m)
         self.counts["delta_velocity"] += len(ta)
         # mean specific force over each gyro interval, from the Δv stamped inside it
         edges = np.concatenate([[tg[0] - self.gyro.period], tg]) if n_g > 0 else np.zeros(1)
+        m = self._dtheta_out
         for k, (t, v, q) in enumerate(zip(tg, dth, q_true)):
             st = stamp(t)
-            self.pub_dtheta.publish(ros_io.vector3_stamped(st, self.frame_id, v))
+            m.header.stamp = st
+            m.vector.x, m.vector.y, m.vector.z = float(v[0]), float(v[1]), float(v[2])
+            self.pub_dtheta.publish(m)
             sel = (ta > edges[k] + 1e-9) & (ta <= t + 1e-9)          # (t_{k-1}, t_k]
             f_mean = (self._pending_dv + dv[sel].sum(0)) / self.gyro.period
             self._pending_dv = np.zeros(3)
-            self.pub_raw.publish(self._imu_raw(st, v / self.gyro.period, f_mean))
-            self.pub_truth.publish(ros_io.quaternion_stamped(st, self.ref_frame, q))
+            if raw_on:
+                self.pub_raw.publish(self._imu_raw(st, v / self.gyro.period, f_mean))
+                self.counts["data_raw"] += 1
+            if truth_on:
+                self.pub_truth.publish(ros_io.quaternion_stamped(st, self.ref_frame, q))
         if n_g > 0:
             later = ta > tg[-1] + 1e-9
             self._pending_dv += dv[later].sum(0)
         elif len(ta):
             self._pending_dv += dv.sum(0)
         self.counts["delta_theta"] += len(tg)
-        self.counts["data_raw"] += len(tg)
         self.sim_time = max(self.gyro.count * self.gyro.period, self.accel.count * self.accel.period)
 
     def _imu_raw(self, stamp, rate, f_mean) -> Imu:

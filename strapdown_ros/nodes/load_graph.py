@@ -73,6 +73,11 @@ def node_parameters(ns: str, rate_factor: float, seconds: float, reliable_stream
         "sins_node": {"gyro_rate": gyro, "accel_rate": accel},
         "calibrator_node": {"gyro_rate": gyro},
     }
+    # history of every stream endpoint: 2 s of the fastest stream, so that a process descheduled
+    # for a moment on a busy machine catches up instead of overwriting (KEEP_LAST, both ends)
+    depth = max(500, int(2 * accel))
+    for node in params:
+        params[node]["qos_depth"] = depth
     if reliable_streams:
         for node, endpoints in STREAM_ENDPOINTS.items():
             for topic, kind in endpoints:

@@ -37,6 +37,7 @@ from . import ros_io
 
 NODE_NAME = "sins_node"
 NONFINITE_INFLATION = 0.01      # rad per axis added to σ after a non-finite update is discarded
+MAX_BATCH = 4096                # a block is processed when it holds this many messages, whatever its span
 
 
 class SinsNode(Node):
@@ -75,7 +76,14 @@ class SinsNode(Node):
         self.published = {"attitude": 0, "imu": 0, "imu_without_accel": 0}
         self.algorithm_changes = 0
         self.frame_id = p["frame_id"]
+        self._own_frames = ("", self.frame_id)
+        # input batches (hot path: validate and append; process() does the numerical work)
+        self._gyro_in: list = []                   # (t, stamp_ns, (x, y, z))
+        self._accel_in: list = []                  # (t, (x, y, z))
+        self.batch_span = float(p["batch_period"])
+        self._gyro_period = 1.0 / float(p["gyro_rate"])
         self.ref_frame = p["reference_frame_id"]
+        self._make_output_messages()
         qos = ros_io.stream_qos(int(p["qos_depth"]))
         self.pub_att = self.create_publisher(QuaternionStamped, "sins/attitude", qos, qos_overriding_options=ros_io.QOS_OVERRIDES)
         self.pub_imu = self.create_publisher(Imu, "sins/imu", qos, qos_overriding_options=ros_io.QOS_OVERRIDES)
@@ -83,6 +91,8 @@ class SinsNode(Node):
         self.create_subscription(Vector3Stamped, "imu/delta_theta", self._on_gyro, qos, qos_overriding_options=ros_io.QOS_OVERRIDES)
         self.create_subscription(Vector3Stamped, "imu/delta_velocity", self._on_accel, qos, qos_overriding_options=ros_io.QOS_OVERRIDES)
         self.create_timer(float(p["diagnostics_period"]), self.publish_diagnostics)
+        if self.batch_span > 0:                    # a block is processed at least this often
+            self.create_timer(self.batch_span, self.process)
         self._wall_start = time.monotonic()
         self.get_logger().info(
             f"started: coning_algorithm={p['coning_algorithm']} "
@@ -104,6 +114,7 @@ class SinsNode(Node):
         """Application (post-set), once rclpy has accepted the change."""
         name = new["coning_algorithm"]
         if name != self.integrator.algorithm_name:
+            self.process()                         # the samples so far belong to the old algorithm
             self.integrator.set_algorithm(name)
             self.algorithm_changes += 1
             self.p["coning_algorithm"] = name
@@ -127,93 +138,162 @@ class SinsNode(Node):
         return self.reject_frames
 
     def _on_gyro(self, msg: Vector3Stamped):
-        if self._wrong_frame(msg.header, "gyro"):
+        """Hot path: validate, append to the batch; the numerical work runs in :meth:`process`."""
+        if msg.header.frame_id not in self._own_frames and self._wrong_frame(msg.header, "gyro"):
             return
-        ns = ros_io.stamp_to_ns(msg.header.stamp)
-        out = self.gyro_check.offer(ns, (msg.vector.x, msg.vector.y, msg.vector.z))
+        st = msg.header.stamp
+        v = msg.vector
+        out = self.gyro_check.offer(st.sec * 1_000_000_000 + st.nanosec, (v.x, v.y, v.z))
         if not out:
             return
         if self.gyro_check.resynced:
+            self.process()                                 # the old time base, first
             self.integrator.restart_clock()
             self._last_gyro_t = None
             self.origin_ns = None
             self.get_logger().error(f"gyro stamps jumped by {self.gyro_check.last_jump_s:.6g} s and stayed: "
                                     "resynchronised to the new time base; the rotation during the jump is lost")
-        for ns_i, v in out:
-            self._integrate(ns_i, v)
+        for ns_i, val in out:
+            t = self._rel(ns_i)
+            self._gyro_in.append((t, ns_i, val))
+        # the block covers its first sample's interval too: at 100 Hz with batch_period 0.01 every
+        # message is processed at once; at 1 kHz, blocks of 10
+        if self._gyro_in[-1][0] - self._gyro_in[0][0] + self._gyro_period >= self.batch_span - 1e-9 \
+                or len(self._gyro_in) >= MAX_BATCH:
+            self.process()
+
+    def _on_accel(self, msg: Vector3Stamped):
+        """Hot path: validate, append; folded into the accumulator by :meth:`process`."""
+        if msg.header.frame_id not in self._own_frames and self._wrong_frame(msg.header, "accel"):
+            return
+        st = msg.header.stamp
+        v = msg.vector
+        out = self.accel_check.offer(st.sec * 1_000_000_000 + st.nanosec, (v.x, v.y, v.z))
+        if not out:
+            return
+        if self.accel_check.resynced:
+            self._accel_in.clear()
+            self.accel = IncrementAccumulator()           # the old time base is gone
+        self.accel_seen = True
+        for ns_i, val in out:
+            self._accel_in.append((self._rel(ns_i), val))
+        if len(self._accel_in) >= MAX_BATCH or self.batch_span == 0.0:
+            self.process()
+
+    # --- batch processing ------------------------------------------------------------------
+    def process(self) -> None:
+        """Integrate the buffered increments as one block through the vectorised core and publish
+        every update with its own stamp.  The result equals message-by-message processing to
+        round-off (test_nodes.py::test_sins_node_batches_equal_per_message_processing)."""
+        if self._accel_in:
+            t = np.fromiter((a[0] for a in self._accel_in), float, len(self._accel_in))
+            self.accel.add(np.array([a[1] for a in self._accel_in], dtype=float), t)
+            self._accel_in.clear()
+        if self._gyro_in:
+            batch, self._gyro_in = self._gyro_in, []
+            t = np.fromiter((g[0] for g in batch), float, len(batch))
+            inc = np.array([g[2] for g in batch], dtype=float)
+            before = self.integrator.checkpoint()
+            last_t = self._last_gyro_t
+            if not self._integrate(inc, t):
+                # a non-finite update inside the block: redo it sample by sample, from the state
+                # before it, so that exactly the offending update is discarded
+                self.integrator.rollback(before)
+                self._last_gyro_t = last_t
+                for k in range(len(t)):
+                    self._integrate(inc[k:k + 1], t[k:k + 1], per_sample=True)
         self._flush_imu()
 
-    def _integrate(self, ns: int, v):
-        t = self._rel(ns)
-        inc = np.array([v], dtype=float)
+    def _integrate(self, inc: np.ndarray, t: np.ndarray, per_sample: bool = False) -> bool:
+        """Compensate, integrate and publish a block; False (nothing published) if an update is
+        not finite, unless ``per_sample``, which restores the last good state instead."""
         if self.compensating:
-            T = t - self._last_gyro_t if self._last_gyro_t is not None else self.integrator.nominal_period
-            inc = self.gyro_effects.compensate(inc, np.array([t]), T)
-        self._last_gyro_t = t
-        batch = self.integrator.push(inc, np.array([t]))
-        if len(batch) and not (np.all(np.isfinite(batch.attitude)) and np.all(np.isfinite(batch.covariance))):
+            prev = self._last_gyro_t if self._last_gyro_t is not None else t[0] - self.integrator.nominal_period
+            T = np.diff(t, prepend=prev)
+            inc = self.gyro_effects.compensate(inc, t, T)
+        self._last_gyro_t = float(t[-1])
+        batch = self.integrator.push(inc, t)
+        if len(batch) and not (np.isfinite(batch.attitude).all() and np.isfinite(batch.covariance).all()):
+            if not per_sample:
+                return False
             # never publish a non-finite state: back to the last good one, covariance inflated
             self.nonfinite += 1
             self.integrator.restore(self._good, inflate_sigma=NONFINITE_INFLATION)
             self.get_logger().error("non-finite attitude: not published; state reset to the last good update "
                                     f"with {NONFINITE_INFLATION} rad added to its σ", throttle_duration_sec=5.0)
-            return
+            return True
         if len(batch):
             self._good = self.integrator.snapshot()
+        origin = self.origin_ns
+        att = self._att_out                         # reused: publish serialises it at once
         for k in range(len(batch)):
-            st = ros_io.ns_to_stamp(self.origin_ns + int(round(batch.stamps[k] * 1e9)))
-            self.pub_att.publish(ros_io.quaternion_stamped(st, self.ref_frame, batch.attitude[k]))
+            st = ros_io.ns_to_stamp(origin + int(round(batch.stamps[k] * 1e9)))
+            q = batch.attitude[k]
+            att.header.stamp = st
+            o = att.quaternion
+            o.w, o.x, o.y, o.z = float(q[0]), float(q[1]), float(q[2]), float(q[3])
+            self.pub_att.publish(att)
             self.published["attitude"] += 1
             self.pending_imu.append((batch.stamps[k], batch.interval[k], st, batch.attitude[k],
                                      batch.covariance[k], batch.mean_rate[k]))
-
-    def _on_accel(self, msg: Vector3Stamped):
-        if self._wrong_frame(msg.header, "accel"):
-            return
-        ns = ros_io.stamp_to_ns(msg.header.stamp)
-        out = self.accel_check.offer(ns, (msg.vector.x, msg.vector.y, msg.vector.z))
-        if not out:
-            return
-        if self.accel_check.resynced:
-            self.accel = IncrementAccumulator()           # the old time base is gone
-        self.accel_seen = True
-        for ns_i, v in out:
-            self.accel.add(np.array([v]), np.array([self._rel(ns_i)]))
-        self._flush_imu()
+        return True
 
     # --- output ------------------------------------------------------------------------------
     def _flush_imu(self):
         """Publish sins/imu for updates whose interval is covered by accelerometer data, or
         that waited longer than ``accel_wait`` (stamp time) for it."""
+        if not self.pending_imu:
+            return
         wait = float(self.p["accel_wait"])
         newest = self.integrator.time if self.integrator.time is not None else -np.inf
-        while self.pending_imu:
-            t, h, st, q, cov, rate = self.pending_imu[0]
-            covered = self.accel.covered_until() >= t - 1e-9
-            if not covered and newest - t < wait:
+        covered = self.accel.covered_until() + 1e-9
+        ready = 0
+        for item in self.pending_imu:                  # stamps increase: the ready ones are a prefix
+            if item[0] > covered and newest - item[0] < wait:
                 break
-            self.pending_imu.popleft()
-            dv, n = self.accel.take(t - h - 1e-9, t + 1e-9)
-            self.pub_imu.publish(self._imu_msg(st, q, cov, rate, dv / h if n else None))
+            ready += 1
+        if not ready:
+            return
+        items = [self.pending_imu.popleft() for _ in range(ready)]
+        t = np.array([it[0] for it in items])
+        h = np.array([it[1] for it in items])
+        dv, n = self.accel.take_sequence(t - h - 1e-9, t + 1e-9)
+        for k, (_, hk, st, q, cov, rate) in enumerate(items):
+            self.pub_imu.publish(self._imu_msg(st, q, cov, rate, dv[k] / hk if n[k] else None))
 
     def _imu_msg(self, stamp, q, cov, rate, f_mean) -> Imu:
-        m = Imu()
+        """sensor_msgs/Imu of one update.  One message object is reused (publish serialises it at
+        once): constructing a new Imu costs more than the rest of the update."""
+        m = self._imu_out
         m.header.stamp = stamp
-        m.header.frame_id = self.frame_id
-        m.orientation = ros_io.quaternion_msg(q)
-        m.orientation_covariance = [float(c) for c in np.asarray(cov).reshape(9)]
-        m.angular_velocity = ros_io.vector3(rate)
-        g = self.integrator.gyro.random_walk ** 2 / max(self.integrator.nominal_period, 1e-12)
-        m.angular_velocity_covariance = [g, 0.0, 0.0, 0.0, g, 0.0, 0.0, 0.0, g]
+        o = m.orientation
+        o.w, o.x, o.y, o.z = float(q[0]), float(q[1]), float(q[2]), float(q[3])
+        m.orientation_covariance = np.ascontiguousarray(cov, dtype=np.float64).reshape(9)
+        w = m.angular_velocity
+        w.x, w.y, w.z = float(rate[0]), float(rate[1]), float(rate[2])
+        a = m.linear_acceleration
         if f_mean is None:
-            m.linear_acceleration_covariance[0] = -1.0          # no accelerometer data for this update
+            a.x = a.y = a.z = 0.0
+            m.linear_acceleration_covariance = self._no_accel_cov    # [0] = −1: no accelerometer data
             self.published["imu_without_accel"] += 1
         else:
-            m.linear_acceleration = ros_io.vector3(f_mean)
-            a = float(self.p["accel_random_walk"]) ** 2 * float(self.p["accel_rate"])
-            m.linear_acceleration_covariance = [a, 0.0, 0.0, 0.0, a, 0.0, 0.0, 0.0, a]
+            a.x, a.y, a.z = float(f_mean[0]), float(f_mean[1]), float(f_mean[2])
+            m.linear_acceleration_covariance = self._accel_cov
         self.published["imu"] += 1
         return m
+
+    def _make_output_messages(self) -> None:
+        m = Imu()
+        m.header.frame_id = self.frame_id
+        g = self.integrator.gyro.random_walk ** 2 / max(self.integrator.nominal_period, 1e-12)
+        m.angular_velocity_covariance = np.diag([g, g, g]).reshape(9)
+        a = float(self.p["accel_random_walk"]) ** 2 * float(self.p["accel_rate"])
+        self._accel_cov = np.diag([a, a, a]).reshape(9)
+        self._no_accel_cov = np.zeros(9)
+        self._no_accel_cov[0] = -1.0
+        self._imu_out = m
+        self._att_out = QuaternionStamped()
+        self._att_out.header.frame_id = self.ref_frame
 
     def publish_diagnostics(self):
         g, a = self.gyro_check, self.accel_check
