@@ -52,6 +52,7 @@ setup(
             "discrepancy_bench = strapdown_ros.tools.discrepancy_bench:main",
             "discrepancy = strapdown_ros.tools.discrepancy:main",
             "load_bench = strapdown_ros.tools.load_bench:main",
+            "node_rate_bench = strapdown_ros.tools.node_rate_bench:main",
         ],
     },
 )

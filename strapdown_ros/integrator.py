@@ -299,6 +299,10 @@ class IncrementAccumulator:
         if len(st):
             self.latest = max(self.latest, float(st.max()))
 
+    def discard_through(self, t: float) -> None:
+        """Forget the increments stamped at or before ``t`` (nobody will take them)."""
+        self._buf.drop_through(t)
+
     def covered_until(self) -> float:
         return self.latest
 

@@ -362,6 +362,7 @@ def test_sins_node_never_publishes_a_non_finite_state(ros, monkeypatch):
     sins = SinsNode(namespace="/t_nonfinite", parameter_overrides=[Parameter("coning_algorithm", value="1"), *IDEAL])
     sent = []
     monkeypatch.setattr(sins.pub_att, "publish", sent.append)
+    monkeypatch.setattr(sins.pub_att, "get_subscription_count", lambda: 1)   # outputs are built lazily
     try:
         def msg(k):
             m = Vector3Stamped()
@@ -452,6 +453,8 @@ def _captured(node, monkeypatch):
                            np.array([a.x, a.y, a.z]), float(m.linear_acceleration_covariance[0])))
     monkeypatch.setattr(node.pub_att, "publish", att)
     monkeypatch.setattr(node.pub_imu, "publish", imu)
+    for pub in (node.pub_att, node.pub_imu):               # as if subscribed: outputs are built lazily
+        monkeypatch.setattr(pub, "get_subscription_count", lambda: 1)
     return out
 
 
@@ -522,3 +525,35 @@ def test_sins_node_batches_equal_per_message_processing(ros, monkeypatch):
     # specific force: the mean over each update interval of the exact Δv
     f_true = (prof.delta_v(t_out[:200] - 2e-3, t_out[:200]) / 2e-3)
     assert np.max(np.abs(fb[:200] - f_true)) < 1e-9
+
+
+def test_stream_qos_overrides_and_simulator_waits_for_subscribers(ros):
+    """The stream topics take the standard qos_overrides parameters (load_bench makes every path
+    reliable so); a simulator with wait_for_subscribers starts its clock only once matched, so a
+    consumer started later still gets the first increment."""
+    ns = "/t_qos"
+    sins = SinsNode(namespace=ns, parameter_overrides=[
+        Parameter(f"qos_overrides.{ns}/imu/delta_theta.subscription.reliability", value="reliable")])
+    sim = ImuSimNode(namespace=ns, parameter_overrides=[
+        Parameter("wait_for_subscribers", value=2), Parameter("time_scale", value=5.0), *IDEAL,
+        Parameter(f"qos_overrides.{ns}/imu/delta_theta.publisher.reliability", value="reliable")])
+    ex = GraphExecutor()
+    probe = rclpy.create_node("probe", namespace=ns)
+    try:
+        for n in (sins, sim, probe):
+            ex.add_node(n)
+        infos = probe.get_subscriptions_info_by_topic(f"{ns}/imu/delta_theta")
+        assert [i.qos_profile.reliability for i in infos] == [ReliabilityPolicy.RELIABLE]
+        assert probe.get_publishers_info_by_topic(f"{ns}/imu/delta_theta")[0].qos_profile.reliability \
+            == ReliabilityPolicy.RELIABLE
+        spin_until(ex, lambda: False, 1.0)
+        assert sim.counts["delta_theta"] == 0 and sim._wall_start is None     # one subscriber of two
+        got = []
+        probe.create_subscription(Vector3Stamped, "imu/delta_theta", got.append, stream_qos(QUEUE))
+        assert spin_until(ex, lambda: len(got) > 20, 20.0)
+        assert stamp_to_ns(got[0].header.stamp) == 10_000_000                 # the first 100 Hz increment
+        assert sins.gyro_check.received > 0
+    finally:
+        for n in (sins, sim, probe):
+            ex.remove_node(n)
+            n.destroy_node()

@@ -15,6 +15,12 @@ Publishes at every update of the algorithm (gyro rate / samples per update):
 
 Timing comes only from header stamps.  Invalid input is dropped, counted and reported;
 the integrator never sees it.
+
+Hot path: a callback only validates a message and appends it.  The increments are integrated in
+blocks covering ``batch_period`` of stamp time (and at least every ``batch_period`` wall seconds,
+by a timer) through the vectorised core; every update is still published with its own stamp, and
+the result equals message-by-message processing (``batch_period`` 0) to round-off.  Outputs are
+built only for topics that have a subscriber (checked once per block).
 """
 from __future__ import annotations
 
@@ -82,6 +88,7 @@ class SinsNode(Node):
         self._accel_in: list = []                  # (t, (x, y, z))
         self.batch_span = float(p["batch_period"])
         self._gyro_period = 1.0 / float(p["gyro_rate"])
+        self._block_end_t: float | None = None     # stamp (relative) of the last sample processed
         self.ref_frame = p["reference_frame_id"]
         self._make_output_messages()
         qos = ros_io.stream_qos(int(p["qos_depth"]))
@@ -150,16 +157,18 @@ class SinsNode(Node):
             self.process()                                 # the old time base, first
             self.integrator.restart_clock()
             self._last_gyro_t = None
+            self._block_end_t = None
             self.origin_ns = None
             self.get_logger().error(f"gyro stamps jumped by {self.gyro_check.last_jump_s:.6g} s and stayed: "
                                     "resynchronised to the new time base; the rotation during the jump is lost")
         for ns_i, val in out:
             t = self._rel(ns_i)
             self._gyro_in.append((t, ns_i, val))
-        # the block covers its first sample's interval too: at 100 Hz with batch_period 0.01 every
-        # message is processed at once; at 1 kHz, blocks of 10
-        if self._gyro_in[-1][0] - self._gyro_in[0][0] + self._gyro_period >= self.batch_span - 1e-9 \
-                or len(self._gyro_in) >= MAX_BATCH:
+        # the stamp time the block covers, from the end of the previous block (at 100 Hz with
+        # batch_period 0.01 every message is processed at once; at 1 kHz, blocks of 10), whatever
+        # gyro_rate says
+        start = self._block_end_t if self._block_end_t is not None else self._gyro_in[0][0] - self._gyro_period
+        if self._gyro_in[-1][0] - start >= self.batch_span - 1e-9 or len(self._gyro_in) >= MAX_BATCH:
             self.process()
 
     def _on_accel(self, msg: Vector3Stamped):
@@ -191,6 +200,7 @@ class SinsNode(Node):
             self._accel_in.clear()
         if self._gyro_in:
             batch, self._gyro_in = self._gyro_in, []
+            self._block_end_t = batch[-1][0]
             t = np.fromiter((g[0] for g in batch), float, len(batch))
             inc = np.array([g[2] for g in batch], dtype=float)
             before = self.integrator.checkpoint()
@@ -224,18 +234,25 @@ class SinsNode(Node):
             return True
         if len(batch):
             self._good = self.integrator.snapshot()
+        # outputs are built only for topics somebody subscribes to (checked once per block)
+        att_on = self.pub_att.get_subscription_count() > 0
+        imu_on = self.pub_imu.get_subscription_count() > 0
         origin = self.origin_ns
         att = self._att_out                         # reused: publish serialises it at once
-        for k in range(len(batch)):
+        for k in range(len(batch) if att_on or imu_on else 0):
             st = ros_io.ns_to_stamp(origin + int(round(batch.stamps[k] * 1e9)))
-            q = batch.attitude[k]
-            att.header.stamp = st
-            o = att.quaternion
-            o.w, o.x, o.y, o.z = float(q[0]), float(q[1]), float(q[2]), float(q[3])
-            self.pub_att.publish(att)
-            self.published["attitude"] += 1
-            self.pending_imu.append((batch.stamps[k], batch.interval[k], st, batch.attitude[k],
-                                     batch.covariance[k], batch.mean_rate[k]))
+            if att_on:
+                q = batch.attitude[k]
+                att.header.stamp = st
+                o = att.quaternion
+                o.w, o.x, o.y, o.z = float(q[0]), float(q[1]), float(q[2]), float(q[3])
+                self.pub_att.publish(att)
+                self.published["attitude"] += 1
+            if imu_on:
+                self.pending_imu.append((batch.stamps[k], batch.interval[k], st, batch.attitude[k],
+                                         batch.covariance[k], batch.mean_rate[k]))
+        if not imu_on and len(batch) and not self.pending_imu:
+            self.accel.discard_through(float(batch.stamps[-1]))     # no sins/imu wants the Δv
         return True
 
     # --- output ------------------------------------------------------------------------------

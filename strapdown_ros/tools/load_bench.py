@@ -291,9 +291,9 @@ def main(argv=None) -> int:
         d = Path(args.report)
         d.mkdir(parents=True, exist_ok=True)
         write_plots(raw, d / "load_bench.png")
-        (d / "load_bench.md").write_text("# load_bench\n\n" + text.replace("\n$ ", "\n").replace("$ ", "Command: `", 1)
-                                         .replace("\n", "`\n", 1) + "\n\n![memory and latency](load_bench.png)\n",
-                                         encoding="utf-8")
+        head, _, body = text.partition("\n")
+        (d / "load_bench.md").write_text(f"# load_bench\n\nCommand: `{head[2:]}`\n\n" + body.replace("\n", "\n\n", 2)
+                                         + "\n\n![memory and latency](load_bench.png)\n", encoding="utf-8")
     return 0
 
 
