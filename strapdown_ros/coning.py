@@ -28,6 +28,8 @@ from typing import Callable
 
 import numpy as np
 
+from .rotation import cross
+
 __all__ = ["ConingAlgorithm", "ALGORITHMS", "get_algorithm", "algorithm_names", "SEED_ALGORITHMS",
            "LITERATURE_DRIFT", "spacing_coefficients", "theory_drift"]
 
@@ -54,7 +56,7 @@ class ConingAlgorithm:
 
 
 def _x(a, b):
-    return np.cross(a, b)
+    return cross(a, b)
 
 
 def _q(w, i):

@@ -248,8 +248,13 @@ class AttitudeIntegrator:
         blocks = np.asarray(blocks).reshape(len(c), -1, 3)
         dts = np.asarray(dts).reshape(len(c), -1)
         n_new = blocks.shape[1]
-        q_white = model.white(blocks.reshape(-1, 3), dts.reshape(-1), g).reshape(len(c), n_new, 3, 3).sum(1)
-        p_ref = self._p_ref + np.cumsum(c @ q_white @ np.swapaxes(c, -1, -2), axis=0)
+        if model.isotropic_white:
+            # q I in any axes: C (q I) Cᵀ = q I, no rotation needed
+            q = model.white_variance(dts.sum(1), g)
+            p_ref = self._p_ref + np.cumsum(q)[:, None, None] * np.eye(3)
+        else:
+            q_white = model.white(blocks.reshape(-1, 3), dts.reshape(-1), g).reshape(len(c), n_new, 3, 3).sum(1)
+            p_ref = self._p_ref + np.cumsum(c @ q_white @ np.swapaxes(c, -1, -2), axis=0)
         self._p_ref = p_ref[-1]
         if model.constants:
             # increments inside one update are lumped: ∂ρ/∂x of the update's sum over its length
@@ -340,11 +345,10 @@ class IncrementAccumulator:
         """Vectorised :meth:`take` over consecutive intervals ``(edges[i], edges[i+1]]``."""
         edges = np.asarray(edges, dtype=float)
         t, v = self._buf.stamps, self._buf.values
-        idx = np.searchsorted(edges, t, side="left") - 1      # interval holding each stamp
-        valid = (idx >= 0) & (idx < len(edges) - 1)
-        sums = np.zeros((len(edges) - 1, 3))
-        counts = np.zeros(len(edges) - 1, dtype=int)
-        np.add.at(sums, idx[valid], v[valid])
-        np.add.at(counts, idx[valid], 1)
+        # stamps in (edges[i], edges[i+1]] are t[lo[i]:lo[i+1]]: sums from one cumulative sum
+        pos = np.searchsorted(t, edges, side="right")
+        cs = np.concatenate([np.zeros((1, 3)), np.cumsum(v, axis=0)])
+        sums, counts = cs[pos[1:]] - cs[pos[:-1]], np.diff(pos)
+        sums[counts == 0] = 0.0
         self._buf.drop_through(edges[-1])
         return sums, counts

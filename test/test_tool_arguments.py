@@ -47,6 +47,8 @@ def test_tools_check_arguments_before_work(tmp_path):
             ([os.path.join(BIN, "load_bench"), "--report", "/nonexistent/d/e"], "/nonexistent"),
             ([os.path.join(BIN, "load_bench"), "--rate-factor", "100"], "--rate-factor"),
             ([os.path.join(BIN, "node_rate_bench"), "--algorithm", "rk4"], "rk4"),
+            ([os.path.join(BIN, "sins_bench"), "--runs", "0"], "--runs"),
+            ([os.path.join(BIN, "sins_bench"), "--json", "/nonexistent/s.json"], "/nonexistent"),
             ([os.path.join(BIN, "node_rate_bench"), "--lo", "5000", "--hi", "100"], "--lo")):
         line, took = _one_line_exit_2(cmd)
         assert needle in line and took < 20.0, (cmd, line, took)       # refused before minutes of work

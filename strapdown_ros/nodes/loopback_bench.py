@@ -30,7 +30,7 @@ def run_loopback(rate_hz: float = 2000.0, seconds: float = 60.0, algorithm: str 
     outputs = [0]
     diags = []
     node.create_subscription(QuaternionStamped, "sins/attitude", lambda m: outputs.__setitem__(0, outputs[0] + 1),
-                             stream_qos(1000))
+                             stream_qos(100000))
     node.create_subscription(DiagnosticArray, "/diagnostics",
                              lambda m: diags.extend(s for s in m.status if s.name.startswith(f"{ns}/sins_node")), 10)
     try:
@@ -47,13 +47,14 @@ def run_loopback(rate_hz: float = 2000.0, seconds: float = 60.0, algorithm: str 
         msg.vector.x, msg.vector.y, msg.vector.z = 1e-5, -2e-5, 3e-5
         start = time.monotonic()
         sent = 0
-        while sent < n_total:
+        while sent < n_total:                # bursts every 2 ms; sleeps in between (never busy-spins)
             due = min(n_total, int((time.monotonic() - start) * rate_hz) + 1)
             while sent < due:
                 sent += 1
                 msg.header.stamp = ns_to_stamp(int(round(sent * 1e9 / rate_hz)))
                 pub.publish(msg)
             rclpy.spin_once(node, timeout_sec=0.0)
+            time.sleep(max(0.0, min(0.002, start + (sent + 0.5) / rate_hz - time.monotonic())))
         send_wall = time.monotonic() - start
         # let the node drain, then read its final diagnostics
         expected_out = n_total // (2 if algorithm in ("2", "two_sample") else 1)

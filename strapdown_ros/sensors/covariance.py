@@ -62,6 +62,8 @@ class CovarianceModel:
     description = ""
     #: the gyro constants are random constants common to all increments
     constants = False
+    #: the white part is (white_variance) × I whatever the increment (no rotation to reference axes)
+    isotropic_white = False
 
     def white(self, rho: np.ndarray, T, g: SensorSigmas) -> np.ndarray:
         """Covariance (n, 3, 3) of the part of each increment's error that is white."""
@@ -76,10 +78,15 @@ class RandomConstant(CovarianceModel):
     name = "random_constant"
     description = "bias, scale factor, misalignment random constants; random walk white"
     constants = True
+    isotropic_white = True
 
     def white(self, rho, T, g):
         T = np.broadcast_to(np.asarray(T, dtype=float), (len(np.atleast_2d(rho)),))
         return (g.random_walk ** 2 * T)[:, None, None] * np.eye(3)
+
+    def white_variance(self, T, g):
+        """Per-axis variance of the white part over intervals T: random walk² · T."""
+        return g.random_walk ** 2 * np.asarray(T, dtype=float)
 
 
 class White004(CovarianceModel):
