@@ -100,7 +100,8 @@ class Harness:
 
     def __init__(self, executor_factory):
         import rclpy
-        self.node = rclpy.create_node(f"rate_bench_{os.getpid()}")
+        Harness.count = getattr(Harness, "count", 0) + 1
+        self.node = rclpy.create_node(f"rate_bench_{os.getpid()}_{Harness.count}")
         self.ex = executor_factory()
         self.ex.add_node(self.node)
         self.subjects: list[Subject] = []
