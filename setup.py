@@ -25,7 +25,8 @@ setup(
         "ros": ROS_FROM_PYPI,
         "tools": ["scipy", "matplotlib", "rosbags", "pyyaml", "allantools"],
         # boresight_bench: OpenCV hand-eye peers; 5.0.0 lacks calibrateHandEye in Python (opencv#29565)
-        # sins_bench peers: pyins (its numba kernel; numba also compiles the reference loop)
+        # sins_bench peers: pyins (its numba kernel; numba also compiles the reference loop and,
+        # when installed, strapdown_ros.attitude_kernel — optional, numpy fallback)
         "bench": ["opencv-python-headless>=4.8,<5", "python-ins==1.0.1"],
         "test": ["pytest", "pytest-timeout", "hypothesis", "colcon-core", "colcon-ros",
                  "colcon-python-setup-py", "catkin_pkg"],

@@ -47,6 +47,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from . import attitude_kernel
 from .coning import ConingAlgorithm, get_algorithm
 from .rotation import quat_cumprod, quat_normalize, quat_to_dcm, rotvec_to_quat
 from .buffers import StampedBuffer
@@ -221,15 +222,12 @@ class AttitudeIntegrator:
         windows = np.lib.stride_tricks.sliding_window_view(seq, alg.window, axis=0)[::n_new]
         windows = np.ascontiguousarray(np.moveaxis(windows, -1, 1))       # (m, window, 3)
         phi = alg.phi(windows)
-        q = quat_cumprod(self.q, rotvec_to_quat(phi))
-        c = quat_to_dcm(q)
         blocks = work[:used].reshape(m, n_new, 3)
         h = work_dt[:used].reshape(m, n_new).sum(1)
-        if self.propagate_covariance:
-            p_ref, j_const = self._accumulate_covariance(c, blocks.sum(1), blocks, work_dt[:used].reshape(m, n_new))
-            cov = self._body_covariance(c, p_ref, j_const)
-        else:                                     # attitude only (algorithm benchmarks)
-            cov = np.full((m, 3, 3), np.nan)
+        if self.propagate_covariance and attitude_kernel.available():
+            q, cov = self._compiled_update(phi, blocks, work_dt[:used].reshape(m, n_new), h)
+        else:
+            q, cov = self._vectorised_update(phi, blocks, work_dt[:used].reshape(m, n_new))
 
         self.q = q[-1]
         self.time = float(work_t[used - 1])
@@ -238,6 +236,35 @@ class AttitudeIntegrator:
         self._recent = np.vstack([self._recent, work[:used]])[-4:]
         return UpdateBatch(stamps=work_t[n_new - 1:used:n_new], attitude=q, covariance=cov,
                            rotation_vector=phi, mean_rate=blocks.sum(1) / h[:, None], interval=h)
+
+    def _compiled_update(self, phi, blocks, dts, h):
+        """The recursion of a block as one compiled loop (:mod:`strapdown_ros.attitude_kernel`)."""
+        g, model = self.gyro, self.cov_model
+        m, n_new = dts.shape
+        q_iso = q_white = jac = None
+        if model.isotropic_white:
+            q_iso = model.white_variance(h, g)
+        else:
+            q_white = model.white(blocks.reshape(-1, 3), dts.reshape(-1), g).reshape(m, n_new, 3, 3).sum(1)
+        if model.constants:
+            jac = constant_jacobian(blocks.sum(1), h)
+        q, cov, self._p_ref, self._j_const = attitude_kernel.recursion(
+            self.q, phi, self._p_ref, self._j_const, model.constant_variances(g), q_iso, q_white, jac)
+        if g.quantum > 0:              # the remainder at this epoch (000 §5)
+            cov = EFFECTS["gyro_quantization"].fix_covariance(cov, np.array([g.quantum]))
+        return q, 0.5 * (cov + np.swapaxes(cov, -1, -2))
+
+    def _vectorised_update(self, phi, blocks, dts):
+        """The recursion of a block in numpy: a blocked quaternion scan and cumulative sums."""
+        m = len(phi)
+        q = quat_cumprod(self.q, rotvec_to_quat(phi))
+        c = quat_to_dcm(q)
+        if self.propagate_covariance:
+            p_ref, j_const = self._accumulate_covariance(c, blocks.sum(1), blocks, dts)
+            cov = self._body_covariance(c, p_ref, j_const)
+        else:                                     # attitude only (algorithm benchmarks)
+            cov = np.full((m, 3, 3), np.nan)
+        return q, cov
 
     # -------------------------------------------------------------------------------
     def _accumulate_covariance(self, c, rho_sum, blocks, dts):

@@ -124,3 +124,39 @@ def test_validation_messages():
         AttitudeIntegrator("2", covariance_model="kalman")
     with pytest.raises(ValueError):
         AttitudeIntegrator("2", initial_attitude=(0.0, 0.0, 0.0, 0.0))
+
+
+@pytest.mark.parametrize("covariance_model, quantum", [("random_constant", 0.0), ("004", 0.0),
+                                                       ("random_constant", 1e-6)])
+def test_compiled_and_numpy_recursions_agree_with_each_other_and_truth(monkeypatch, covariance_model, quantum):
+    """Issue 10 item 2: the optional compiled recursion (numba) and the numpy fallback compute the
+    same attitudes and covariances, in blocks of any size, and both follow the exact coning motion."""
+    from dataclasses import replace
+
+    from strapdown_ros import attitude_kernel
+    from strapdown_ros.profiles import ConingProfile
+    from strapdown_ros.rotation import quat_angle_between
+    from strapdown_ros.sensors import NAVIGATION_GRADE_GYRO
+    prof = ConingProfile(0.087, 2.0)
+    n = 4000
+    tg = np.arange(n + 1) * 0.01
+    dth = prof.delta_theta(tg[:-1], tg[1:])
+    gyro = replace(NAVIGATION_GRADE_GYRO, quantum=quantum)
+    out = {}
+    for kernel in ("numpy", "auto"):
+        monkeypatch.setenv("STRAPDOWN_KERNEL", kernel)
+        if kernel == "auto" and not attitude_kernel.available():
+            pytest.skip("numba not installed: only the numpy path exists here")
+        integ = AttitudeIntegrator("one_plus_previous", prof.attitude(0.0), 0.0, gyro=gyro,
+                                   covariance_model=covariance_model)
+        q, cov = [], []
+        for k, block in zip(range(0, n, 7), [7] * (n // 7 + 1)):            # odd blocks
+            b = integ.push(dth[k:k + block], tg[k + 1:k + block + 1])
+            q.append(b.attitude)
+            cov.append(b.covariance)
+        out[kernel] = np.vstack(q), np.concatenate(cov)
+    (qa, ca), (qb, cb) = out["numpy"], out["auto"]
+    assert np.max(np.abs(qa - qb)) < 1e-13
+    assert np.max(np.abs(ca - cb)) <= 1e-10 * np.max(np.abs(ca))
+    assert np.all(np.linalg.eigvalsh(cb) > 0)
+    assert np.max(quat_angle_between(qb, prof.attitude(tg[1:]))) < 1e-8

@@ -34,6 +34,7 @@ from geometry_msgs.msg import QuaternionStamped, Vector3Stamped
 from rclpy.node import Node
 from sensor_msgs.msg import Imu
 
+from .. import attitude_kernel
 from ..config import SINS_PARAMS, sigmas_from
 from ..integrator import AttitudeIntegrator, IncrementAccumulator
 from ..rotation import from_ros_xyzw
@@ -91,6 +92,7 @@ class SinsNode(Node):
         self._block_end_t: float | None = None     # stamp (relative) of the last sample processed
         self.ref_frame = p["reference_frame_id"]
         self._make_output_messages()
+        attitude_kernel.warm_up()                  # compiled before the first message, if numba is there
         qos = ros_io.stream_qos(int(p["qos_depth"]))
         self.pub_att = self.create_publisher(QuaternionStamped, "sins/attitude", qos, qos_overriding_options=ros_io.QOS_OVERRIDES)
         self.pub_imu = self.create_publisher(Imu, "sins/imu", qos, qos_overriding_options=ros_io.QOS_OVERRIDES)
