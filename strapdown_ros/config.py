@@ -14,6 +14,7 @@ import numpy as np
 
 from .coning import algorithm_names
 from .integrator import COVARIANCE_MODELS
+from .navigation.gravity import GRAVITY_MODELS
 from .profiles import PROFILE_NAMES
 from .sensors import NAVIGATION_GRADE_ACCEL, NAVIGATION_GRADE_GYRO, SensorSigmas
 from .sensors.effects import effect_parameters
@@ -123,6 +124,21 @@ PROFILE_PARAMS = [
     ParamSpec("profile_file", "", "YAML with 'segments' for profile=piecewise"),
     ParamSpec("gravity", [0.0, 0.0, 0.0], "specific force at rest in reference axes, m/s² "
               "(coning and piecewise profiles; the bench uses ENU gravity)", length=3),
+    # Earth-referenced navigation profiles (static, straight_flight, coordinated_turn, sculling)
+    ParamSpec("nav_latitude_deg", 50.45, "navigation profiles: geodetic latitude of the start "
+              "(turn: of the circle's centre), degrees", -90.0, 90.0),
+    ParamSpec("nav_longitude_deg", 30.52, "navigation profiles: longitude, degrees", -180.0, 360.0),
+    ParamSpec("nav_height", 150.0, "navigation profiles: height above the PZ-90 ellipsoid, m", -1e4, 1e6),
+    ParamSpec("nav_speed", 0.0, "straight_flight / coordinated_turn speed, m/s (0: 200 straight, 100 turn)",
+              0.0, 1e4),
+    ParamSpec("nav_heading_deg", 0.0, "ENU yaw of the body (static, sculling) or of the initial velocity, "
+              "degrees counter-clockwise from east (REP-103)", -360.0, 360.0),
+    ParamSpec("turn_radius", 2000.0, "coordinated_turn radius, m", 0.0, 1e6, exclusive_minimum=True),
+    ParamSpec("sculling_angle", 0.01, "sculling angular amplitude about body x, rad", 0.0, 1.5),
+    ParamSpec("sculling_accel", 1.0, "sculling acceleration amplitude along the level y axis, m/s²", 0.0, 1e3),
+    ParamSpec("sculling_frequency", 10.0, "sculling frequency, Hz", 0.0, 1000.0, exclusive_minimum=True),
+    ParamSpec("gravity_model", "pz90_003", "normal gravity of the navigation profiles",
+              choices=tuple(GRAVITY_MODELS)),
 ]
 
 def _effect_specs(sensor: str, skip: Sequence[ParamSpec] = ()) -> list[ParamSpec]:
@@ -186,6 +202,28 @@ SINS_PARAMS = GYRO_PARAMS + ACCEL_PARAMS + COMMON_PARAMS + INPUT_PARAMS + ACCEL_
     ParamSpec("covariance_model", "random_constant", "gyro error model of the covariance", choices=COVARIANCE_MODELS),
     ParamSpec("quantization_correction", False, "apply 000 eq. (5.6) with gyro_quantum"),
     ParamSpec("accel_wait", 0.1, "how long (stamp seconds) sins/imu waits for accelerometer data", 0.0, 10.0),
+    ParamSpec("navigation", False, "navigation channel (003 §1.5): ECEF position and velocity on sins/odometry "
+              "from imu/delta_velocity; the attitude reference frame is then the inertial frame that coincides "
+              "with earth at the start (doc/navigation.md)"),
+    ParamSpec("initial_position", [50.45, 30.52, 150.0], "initial latitude °, longitude °, height m (PZ-90 "
+              "ellipsoid)", length=3),
+    ParamSpec("initial_velocity", [0.0, 0.0, 0.0], "initial velocity east, north, up, m/s", length=3),
+    ParamSpec("initial_position_sigma", 0.0, "1σ initial position error per axis, m", 0.0),
+    ParamSpec("initial_velocity_sigma", 0.0, "1σ initial velocity error per axis, m/s", 0.0),
+    ParamSpec("initial_alignment", "given", "initial attitude: given (initial_orientation = q_earth_body) or "
+              "static (coarse alignment from gravity and Earth rate over alignment_time at rest)",
+              choices=("given", "static")),
+    ParamSpec("alignment_time", 60.0, "static alignment window, stamp seconds", 0.1, 86400.0),
+    ParamSpec("velocity_update", "derived", "velocity/position update: derived (exact in the Earth's rotation) "
+              "or printed (003 eqs. 1.99–1.100 as printed, 1 gyro : 3 accelerometer samples only)",
+              choices=("derived", "printed")),
+    ParamSpec("sculling_compensation", True, "rotation and sculling from the fitted motion (false: rotation "
+              "compensation ½θ×v only)"),
+    ParamSpec("gravity_model", "pz90_003", "normal gravity model (strapdown_ros/navigation/gravity.py)",
+              choices=("pz90_003", "normal_exact", "j2")),
+    ParamSpec("navigation_covariance_period", 1.0, "propagation period of the navigation covariance, s",
+              0.001, 60.0),
+    ParamSpec("earth_frame_id", "earth", "frame id of sins/odometry (REP-105 earth: ECEF, PZ-90)"),
     ParamSpec("batch_period", 0.01, "increments are integrated in blocks spanning this much stamp time, and at "
               "least every this many wall seconds (0: every message at once); outputs keep their own stamps",
               0.0, 1.0),

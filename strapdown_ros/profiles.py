@@ -350,7 +350,9 @@ def bench_profile(latitude_deg: float = 50.45, earth_rate: bool = True,
                                 gravity=(0.0, 0.0, STANDARD_GRAVITY), name="bench")
 
 
-PROFILE_NAMES = ("coning", "tkachenko", "bench", "piecewise")
+PROFILE_NAMES = ("coning", "tkachenko", "bench", "piecewise",
+                 # Earth-referenced navigation profiles (strapdown_ros.navigation.trajectories)
+                 "static", "straight_flight", "coordinated_turn", "sculling")
 
 
 def profile_from_config(cfg: dict) -> MotionProfile:
@@ -358,11 +360,17 @@ def profile_from_config(cfg: dict) -> MotionProfile:
 
     Keys: ``profile`` (one of :data:`PROFILE_NAMES`), ``coning_alpha``, ``coning_nu``,
     ``bench_latitude_deg``, ``bench_earth_rate``, ``profile_file`` (YAML, for ``piecewise``),
-    ``gravity`` (3 floats, reference axes; used by coning and piecewise).
+    ``gravity`` (3 floats, reference axes; used by coning and piecewise).  The navigation
+    profiles (``static``, ``straight_flight``, ``coordinated_turn``, ``sculling``) are built by
+    :func:`strapdown_ros.navigation.trajectories.navigation_profile_from_config` (``nav_*``,
+    ``turn_radius``, ``sculling_*``, ``gravity_model`` keys).
     """
     name = cfg.get("profile", "coning")
     if name not in PROFILE_NAMES:
         raise ValueError(f"unknown profile {name!r}; valid profiles: {', '.join(PROFILE_NAMES)}")
+    if name in ("static", "straight_flight", "coordinated_turn", "sculling"):
+        from .navigation.trajectories import navigation_profile_from_config  # lazy: it imports this module
+        return navigation_profile_from_config(cfg)
     gravity = cfg.get("gravity", (0.0, 0.0, 0.0))
     if name == "coning":
         return ConingProfile(float(cfg.get("coning_alpha", 0.087)), float(cfg.get("coning_nu", 1.0)),

@@ -9,10 +9,16 @@ Publishes (stamps are simulated time: ``start_time`` + profile time; each stamp 
                           force over the same interval; no orientation (REP-145:
                           orientation_covariance[0] = −1)
 * ``imu/truth/attitude``  geometry_msgs/QuaternionStamped, exact q_ref_body at gyro epochs
+* ``imu/truth/odometry``  nav_msgs/Odometry at gyro epochs, only for the Earth-referenced
+                          navigation profiles (static, straight_flight, coordinated_turn,
+                          sculling): header.frame_id ``earth`` (ECEF, PZ-90), child_frame_id
+                          ``frame_id``; pose = ECEF position and q_E_B; twist in the child
+                          (body) frame: ECEF velocity rotated into body axes, and the body rate
+                          relative to the Earth; covariances zero (exact truth)
 * ``/diagnostics``
 
-``imu/data_raw`` and ``imu/truth/attitude`` are derived topics: they are built and published
-only while they have a subscriber (each costs as much as a Δθ message).
+``imu/data_raw``, ``imu/truth/attitude`` and ``imu/truth/odometry`` are derived topics: they are
+built and published only while they have a subscriber (each costs as much as a Δθ message).
 
 A wall-clock timer paces the output (``time_scale`` simulated seconds per wall second);
 nothing downstream depends on the wall clock.
@@ -25,11 +31,14 @@ import time
 import numpy as np
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import QuaternionStamped, Vector3Stamped
+from nav_msgs.msg import Odometry
 from rclpy.node import Node
 from sensor_msgs.msg import Imu
 
 from ..config import IMU_SIM_PARAMS
+from ..navigation.trajectories import EarthProfile
 from ..profiles import profile_from_config
+from ..rotation import to_ros_xyzw
 from ..sensors import simulated_imu
 from . import ros_io
 
@@ -54,6 +63,12 @@ class ImuSimNode(ros_io.PacedSimulation, Node):
         self.pub_dv = self.create_publisher(Vector3Stamped, "imu/delta_velocity", qos, qos_overriding_options=ros_io.QOS_OVERRIDES)
         self.pub_raw = self.create_publisher(Imu, "imu/data_raw", qos, qos_overriding_options=ros_io.QOS_OVERRIDES)
         self.pub_truth = self.create_publisher(QuaternionStamped, "imu/truth/attitude", qos, qos_overriding_options=ros_io.QOS_OVERRIDES)
+        # ECEF truth exists only for the Earth-referenced navigation profiles
+        self.pub_odom = (self.create_publisher(Odometry, "imu/truth/odometry", qos, qos_overriding_options=ros_io.QOS_OVERRIDES)
+                         if isinstance(self.profile, EarthProfile) else None)
+        self._odom_out = Odometry()
+        self._odom_out.header.frame_id = "earth"
+        self._odom_out.child_frame_id = self.frame_id
         self.pub_diag = self.create_publisher(DiagnosticArray, "/diagnostics", ros_io.DIAGNOSTICS_QOS)
         self.counts = {"delta_theta": 0, "delta_velocity": 0, "data_raw": 0}
         self._dtheta_out = ros_io.vector3_stamped(ros_io.ns_to_stamp(0), self.frame_id, (0.0, 0.0, 0.0))
@@ -93,6 +108,8 @@ class ImuSimNode(ros_io.PacedSimulation, Node):
         raw_on = self.pub_raw.get_subscription_count() > 0
         truth_on = self.pub_truth.get_subscription_count() > 0
         q_true = self.profile.attitude(tg) if n_g > 0 and truth_on else np.zeros((len(tg), 4))
+        odom = (self.profile.truth(tg) if n_g > 0 and self.pub_odom is not None
+                and self.pub_odom.get_subscription_count() > 0 else None)
         m = self._dv_out
         for t, v in zip(ta, dv):
             m.header.stamp = stamp(t)
@@ -115,6 +132,8 @@ class ImuSimNode(ros_io.PacedSimulation, Node):
                 self.counts["data_raw"] += 1
             if truth_on:
                 self.pub_truth.publish(ros_io.quaternion_stamped(st, self.ref_frame, q))
+            if odom is not None:
+                self.pub_odom.publish(self._odometry(st, odom, k))
         if n_g > 0:
             later = ta > tg[-1] + 1e-9
             self._pending_dv += dv[later].sum(0)
@@ -122,6 +141,19 @@ class ImuSimNode(ros_io.PacedSimulation, Node):
             self._pending_dv += dv.sum(0)
         self.counts["delta_theta"] += len(tg)
         self.sim_time = max(self.gyro.count * self.gyro.period, self.accel.count * self.accel.period)
+
+    def _odometry(self, stamp, truth: dict, k: int) -> Odometry:
+        """Entry k of EarthProfile.truth as Odometry (refilled message; covariances stay zero)."""
+        m = self._odom_out
+        m.header.stamp = stamp
+        r = truth["position"][k]
+        m.pose.pose.position.x, m.pose.pose.position.y, m.pose.pose.position.z = float(r[0]), float(r[1]), float(r[2])
+        x, y, z, w = to_ros_xyzw(truth["attitude_ecef"][k])
+        o = m.pose.pose.orientation
+        o.x, o.y, o.z, o.w = float(x), float(y), float(z), float(w)
+        m.twist.twist.linear = ros_io.vector3(truth["velocity_body"][k])
+        m.twist.twist.angular = ros_io.vector3(truth["earth_relative_rate"][k])
+        return m
 
     def _imu_raw(self, stamp, rate, f_mean) -> Imu:
         m = Imu()

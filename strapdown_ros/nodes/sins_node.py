@@ -10,6 +10,12 @@ Publishes at every update of the algorithm (gyro rate / samples per update):
                      axes, rad²), mean angular rate over the update, mean specific force
                      over the update (linear_acceleration_covariance[0] = −1 when no
                      accelerometer data arrived)
+* ``sins/odometry``  nav_msgs/Odometry (parameter ``navigation``): ECEF position and velocity of
+                     003 §1.5 with covariance; header.frame_id ``earth`` (REP-105, PZ-90),
+                     child_frame_id the body frame; pose = position, q_earth_body and the
+                     covariance of [position, attitude error ψ about earth axes]; twist.linear =
+                     velocity in body axes (REP-105 Odometry) with its covariance; twist.angular
+                     is not filled (zeros; the rate is on sins/imu)
 * ``/diagnostics``   counts of received, dropped (NaN, out-of-order, duplicate) and
                      missing (gap) messages, rates from header stamps
 
@@ -32,12 +38,15 @@ import numpy as np
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import QuaternionStamped, Vector3Stamped
 from rclpy.node import Node
+from nav_msgs.msg import Odometry
 from sensor_msgs.msg import Imu
 
 from .. import attitude_kernel
 from ..config import SINS_PARAMS, sigmas_from
 from ..integrator import AttitudeIntegrator, IncrementAccumulator
-from ..rotation import from_ros_xyzw
+from ..navigation import recursion as nav_recursion
+from ..navigation.channel import NavigationChannel
+from ..rotation import dcm_to_quat, from_ros_xyzw, quat_to_dcm
 from ..sensors.effects import GyroEffects
 from ..streams import StreamCheck
 from . import ros_io
@@ -93,9 +102,19 @@ class SinsNode(Node):
         self.ref_frame = p["reference_frame_id"]
         self._make_output_messages()
         attitude_kernel.warm_up()                  # compiled before the first message, if numba is there
+        self.nav: NavigationChannel | None = None
+        if p["navigation"]:
+            self.nav = NavigationChannel(p, sigmas_from(p, "gyro"), sigmas_from(p, "accel"), period, a_period,
+                                         self.integrator.algorithm.samples)
+            nav_recursion.warm_up()
+            self._nav_prev_q = self.integrator.q.copy()
+            self.published["odometry"] = 0
         qos = ros_io.stream_qos(int(p["qos_depth"]))
         self.pub_att = self.create_publisher(QuaternionStamped, "sins/attitude", qos, qos_overriding_options=ros_io.QOS_OVERRIDES)
         self.pub_imu = self.create_publisher(Imu, "sins/imu", qos, qos_overriding_options=ros_io.QOS_OVERRIDES)
+        if self.nav is not None:
+            self.pub_odom = self.create_publisher(Odometry, "sins/odometry", qos,
+                                                  qos_overriding_options=ros_io.QOS_OVERRIDES)
         self.pub_diag = self.create_publisher(DiagnosticArray, "/diagnostics", ros_io.DIAGNOSTICS_QOS)
         self.create_subscription(Vector3Stamped, "imu/delta_theta", self._on_gyro, qos, qos_overriding_options=ros_io.QOS_OVERRIDES)
         self.create_subscription(Vector3Stamped, "imu/delta_velocity", self._on_accel, qos, qos_overriding_options=ros_io.QOS_OVERRIDES)
@@ -114,6 +133,8 @@ class SinsNode(Node):
     def _on_change(self, new: dict) -> str | None:
         """Validation (on-set): only the coning algorithm may change at runtime."""
         fixed = sorted(set(new) - {"coning_algorithm"})
+        if self.nav is not None and "coning_algorithm" in new:
+            fixed = sorted(set(new))               # the navigation step is the algorithm's update
         if fixed:
             return ("only coning_algorithm can change at runtime; restart the node to change "
                     + ", ".join(fixed))
@@ -198,13 +219,19 @@ class SinsNode(Node):
         round-off (test_nodes.py::test_sins_node_batches_equal_per_message_processing)."""
         if self._accel_in:
             t = np.fromiter((a[0] for a in self._accel_in), float, len(self._accel_in))
-            self.accel.add(np.array([a[1] for a in self._accel_in], dtype=float), t)
+            dv = np.array([a[1] for a in self._accel_in], dtype=float)
+            self.accel.add(dv, t)
             self._accel_in.clear()
+            if self.nav is not None:
+                self.nav.add_accel(dv, t)
         if self._gyro_in:
             batch, self._gyro_in = self._gyro_in, []
             self._block_end_t = batch[-1][0]
             t = np.fromiter((g[0] for g in batch), float, len(batch))
             inc = np.array([g[2] for g in batch], dtype=float)
+            if self.nav is not None and self._navigation_start(inc, t):
+                self._flush_imu()
+                return
             before = self.integrator.checkpoint()
             last_t = self._last_gyro_t
             if not self._integrate(inc, t):
@@ -215,6 +242,68 @@ class SinsNode(Node):
                 for k in range(len(t)):
                     self._integrate(inc[k:k + 1], t[k:k + 1], per_sample=True)
         self._flush_imu()
+        self._flush_nav()
+
+    def _navigation_start(self, inc: np.ndarray, t: np.ndarray) -> bool:
+        """Before navigation runs: True when the block was consumed by the static alignment."""
+        nav = self.nav
+        if nav.navigator is not None:
+            return False
+        if nav.mode == "given":
+            nav.start(float(t[0]) - self.integrator.nominal_period, attitude_sigma=float(self.p["initial_attitude_sigma"]))
+            return False
+        comp = self.gyro_effects.compensate(inc, t, np.full(len(t), self.integrator.nominal_period)) \
+            if self.compensating else inc
+        nav.align_gyro(comp, t)
+        done, c_e_b, t_end = nav.try_align()
+        if nav.alignment is not None and not nav.alignment.ok:
+            self.get_logger().error(f"static alignment refused: {nav.alignment.reason}; trying again",
+                                    throttle_duration_sec=5.0)
+        if done:
+            sigma = float(np.sqrt(np.trace(nav.alignment.covariance) / 3.0))
+            self.integrator = AttitudeIntegrator(
+                self.p["coning_algorithm"], initial_attitude=dcm_to_quat(c_e_b), initial_time=t_end,
+                nominal_period=self.integrator.nominal_period, gyro=sigmas_from(self.p, "gyro"), initial_sigma=sigma,
+                covariance_model=self.p["covariance_model"],
+                quantization_correction=bool(self.p["quantization_correction"]))
+            self._good = self.integrator.snapshot()
+            self._nav_prev_q = self.integrator.q.copy()
+            self._last_gyro_t = t_end
+            self.get_logger().info(f"static alignment done at t = {t_end:.3f} s: tilt σ "
+                                   f"{np.degrees(nav.alignment.tilt_sigma) * 3600:.1f}″, heading σ "
+                                   f"{np.degrees(nav.alignment.heading_sigma):.4f}°")
+        return True
+
+    def _flush_nav(self) -> None:
+        if self.nav is None or self.nav.navigator is None:
+            return
+        newest = self.integrator.time if self.integrator.time is not None else -np.inf
+        nb = self.nav.process(newest, float(self.p["accel_wait"]))
+        if nb is None or not len(nb) or self.pub_odom.get_subscription_count() == 0:
+            return
+        m = self._odom_out
+        origin = self.origin_ns
+        for k in range(len(nb)):
+            m.header.stamp = ros_io.ns_to_stamp(origin + int(round(nb.stamps[k] * 1e9)))
+            pose = m.pose.pose
+            r, w, q = nb.position[k], nb.velocity[k], nb.attitude[k]
+            pose.position.x, pose.position.y, pose.position.z = float(r[0]), float(r[1]), float(r[2])
+            o = pose.orientation
+            o.w, o.x, o.y, o.z = float(q[0]), float(q[1]), float(q[2]), float(q[3])
+            p = nb.covariance[k]
+            c6 = np.zeros((6, 6))
+            c6[:3, :3], c6[:3, 3:], c6[3:, :3], c6[3:, 3:] = p[:3, :3], p[:3, 6:], p[6:, :3], p[6:, 6:]
+            m.pose.covariance = np.ascontiguousarray(c6).reshape(36)
+            c = quat_to_dcm(q)                              # C_E_B: twist in body axes
+            vb = c.T @ w
+            tw = m.twist.twist
+            tw.linear.x, tw.linear.y, tw.linear.z = float(vb[0]), float(vb[1]), float(vb[2])
+            t6 = np.zeros((6, 6))
+            t6[:3, :3] = c.T @ p[3:6, 3:6] @ c
+            t6[3:, 3:] = np.eye(3) * self.integrator.gyro.random_walk ** 2 / max(self.integrator.nominal_period, 1e-12)
+            m.twist.covariance = np.ascontiguousarray(t6).reshape(36)
+            self.pub_odom.publish(m)
+        self.published["odometry"] += len(nb)
 
     def _integrate(self, inc: np.ndarray, t: np.ndarray, per_sample: bool = False) -> bool:
         """Compensate, integrate and publish a block; False (nothing published) if an update is
@@ -236,6 +325,12 @@ class SinsNode(Node):
             return True
         if len(batch):
             self._good = self.integrator.snapshot()
+        if self.nav is not None:
+            self.nav.add_gyro(inc, t)
+            if len(batch):
+                starts = np.vstack([self._nav_prev_q[None], batch.attitude[:-1]])
+                self._nav_prev_q = batch.attitude[-1].copy()
+                self.nav.add_updates(batch.stamps, batch.interval, batch.attitude, starts)
         # outputs are built only for topics somebody subscribes to (checked once per block)
         att_on = self.pub_att.get_subscription_count() > 0
         imu_on = self.pub_imu.get_subscription_count() > 0
@@ -312,6 +407,9 @@ class SinsNode(Node):
         self._no_accel_cov[0] = -1.0
         self._imu_out = m
         self._att_out = QuaternionStamped()
+        self._odom_out = Odometry()
+        self._odom_out.header.frame_id = self.p["earth_frame_id"]
+        self._odom_out.child_frame_id = self.frame_id
         self._att_out.header.frame_id = self.ref_frame
 
     def publish_diagnostics(self):
@@ -350,6 +448,11 @@ class SinsNode(Node):
                   "gyro_frame_mismatch": self.frame_mismatch["gyro"],
                   "accel_buffer_overflowed": self.accel.overflowed,
                   "accel_frame_mismatch": self.frame_mismatch["accel"]}
+        if self.nav is not None:
+            values.update(self.nav.status())
+            values["odometry_published"] = self.published["odometry"]
+            if self.nav.alignment is not None and not self.nav.alignment.ok and self.nav.navigator is None:
+                level, message = ros_io.ERROR, f"static alignment refused: {self.nav.alignment.reason}"
         if self.integrator.time is not None:
             sig = np.sqrt(np.diag(self.integrator.covariance()))
             values.update({"attitude_sigma_x_rad": sig[0], "attitude_sigma_y_rad": sig[1],

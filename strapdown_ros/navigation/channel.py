@@ -1,0 +1,161 @@
+"""The navigation channel as ``sins_node`` and ``sins_bag`` run it: static alignment or a given
+attitude, then :class:`~.navigator.Navigator` over the attitude integrator's updates.
+
+:class:`NavigationChannel` is fed what the node has already validated: compensated gyro
+increments, accelerometer increments (both stamped, seconds relative to the stamp origin) and,
+once it is aligned, the attitude updates.  It owns the alignment state and tells its owner the
+attitude to start the integrator from.  No ROS imports.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from ..sensors.model import SensorSigmas
+from .alignment import AlignmentResult, static_alignment
+from .covariance import NavigationCovariance
+from .gravity import enu_rotation, geodetic_to_ecef
+from .navigator import Navigator, NavigationBatch
+
+__all__ = ["NavigationChannel", "ALIGNMENT_MODES", "VELOCITY_UPDATES"]
+
+ALIGNMENT_MODES = ("given", "static")
+VELOCITY_UPDATES = ("derived", "printed")
+
+
+class NavigationChannel:
+    """Parameters (the node's): ``initial_position`` (lat °, lon °, h m, PZ-90), ``initial_velocity``
+    (east, north, up m/s at that point), ``initial_position_sigma`` (m), ``initial_velocity_sigma``
+    (m/s), ``initial_alignment`` (given | static), ``alignment_time`` (s), ``velocity_update``
+    (derived | printed), ``sculling_compensation``, ``gravity_model``,
+    ``navigation_covariance_period`` (s); sensor statistics ``gyro``/``accel``; rates.
+    """
+
+    def __init__(self, p: dict, gyro: SensorSigmas, accel: SensorSigmas, gyro_period: float,
+                 accel_period: float, samples_per_update: int):
+        lat, lon, h = (float(x) for x in p["initial_position"])
+        self.position0 = geodetic_to_ecef(np.radians(lat), np.radians(lon), h)
+        self.enu = enu_rotation(np.radians(lat), np.radians(lon))
+        self.velocity0 = self.enu @ np.asarray(p["initial_velocity"], dtype=float)
+        self.p, self.gyro_sig, self.accel_sig = p, gyro, accel
+        self.gyro_period, self.accel_period = float(gyro_period), float(accel_period)
+        self.samples = int(samples_per_update)
+        self.mode = p["initial_alignment"]
+        if self.mode not in ALIGNMENT_MODES:
+            raise ValueError(f"initial_alignment must be one of {ALIGNMENT_MODES}, got {self.mode!r}")
+        if p["velocity_update"] not in VELOCITY_UPDATES:
+            raise ValueError(f"velocity_update must be one of {VELOCITY_UPDATES}")
+        self.navigator: Navigator | None = None
+        self.alignment: AlignmentResult | None = None
+        self.refusals = 0
+        self._early_accel: list = []               # accelerometer data that arrive before the start
+        self._reset_alignment()
+
+    # --- alignment ------------------------------------------------------------------------------
+    def _reset_alignment(self):
+        self._al = {"t0": None, "t1": None, "g": np.zeros(3), "a": np.zeros(3), "ga": [], "aa": []}
+
+    @property
+    def aligning(self) -> bool:
+        return self.navigator is None and self.mode == "static"
+
+    def align_gyro(self, inc: np.ndarray, t: np.ndarray) -> None:
+        al = self._al
+        if al["t0"] is None and len(t):
+            al["t0"] = float(t[0]) - self.gyro_period
+        al["g"] += inc.sum(0)
+        al["t1"] = float(t[-1]) if len(t) else al["t1"]
+        al["ga"].append(inc.sum(0) / max(len(t), 1) / self.gyro_period)
+
+    def align_accel(self, inc: np.ndarray, t: np.ndarray) -> None:
+        self._al["aa"].append((inc, t))             # selected by the gyro window in try_align
+
+    def try_align(self) -> tuple[bool, np.ndarray | None, float | None]:
+        """When the alignment window is full: (done, C_E_B, start time).  A refusal is counted,
+        kept in :attr:`alignment` with its reason, and the window starts again."""
+        al = self._al
+        if al["t0"] is None or al["t1"] is None:
+            return False, None, None
+        span = al["t1"] - al["t0"]
+        if span < float(self.p["alignment_time"]):
+            return False, None, None
+        if al["aa"]:
+            inc = np.concatenate([a[0] for a in al["aa"]])
+            t = np.concatenate([a[1] for a in al["aa"]])
+            sel = (t > al["t0"] + 1e-9) & (t <= al["t1"] + 1e-9)
+            al["a"] = inc[sel].sum(0)
+            # per-0.1 s means for the static test
+            chunks = max(1, int(sel.sum() * self.accel_period / 0.1))
+            al["aa"] = [c.sum(0) / (len(c) * self.accel_period) for c in np.array_split(inc[sel], chunks) if len(c)]
+        spread = lambda xs: float(np.sqrt(np.mean(np.sum((np.array(xs) - np.mean(xs, 0)) ** 2, 1))))  # noqa: E731
+        res = static_alignment(al["a"] / span, al["g"] / span, self.position0, span, self.gyro_sig,
+                               self.accel_sig, f_spread=spread(al["aa"]) if len(al["aa"]) > 1 else None,
+                               w_spread=None, sample_period=0.1,
+                               gravity_model=self.p["gravity_model"])
+        self.alignment = res
+        t_end = al["t1"]
+        self._reset_alignment()
+        if not res.ok:
+            self.refusals += 1
+            return False, None, None
+        self.start(t_end, res.attitude, res.covariance)
+        return True, res.attitude, t_end
+
+    # --- navigation ---------------------------------------------------------------------------
+    def start(self, t0: float, attitude_e_b: np.ndarray | None = None, attitude_cov: np.ndarray | None = None,
+              attitude_sigma: float = 0.0) -> None:
+        p = self.p
+        p0 = np.zeros((9, 9))
+        p0[0:3, 0:3] = float(p["initial_position_sigma"]) ** 2 * np.eye(3)
+        p0[3:6, 3:6] = float(p["initial_velocity_sigma"]) ** 2 * np.eye(3)
+        p0[6:9, 6:9] = attitude_cov if attitude_cov is not None else attitude_sigma ** 2 * np.eye(3)
+        derived = p["velocity_update"] == "derived"
+        form = ("exact" if p["sculling_compensation"] else "rotation_only") if derived else "printed"
+        self.navigator = Navigator(
+            self.position0, self.velocity0, t0, self.samples, max(1, int(round(self.samples * self.gyro_period
+                                                                              / self.accel_period))),
+            self.gyro_period, self.accel_period, form=form, scheme="exact" if derived else "printed",
+            gravity_model=p["gravity_model"],
+            covariance=NavigationCovariance(self.gyro_sig, self.accel_sig, p0, float(p["navigation_covariance_period"])))
+        for inc, t in self._early_accel:            # the steps' fits may reach back before t0
+            keep = t > t0 - 1.0
+            self.navigator.add_accel(inc[keep], t[keep])
+        self._early_accel.clear()
+
+    def add_gyro(self, inc, t) -> None:
+        if self.navigator is not None:
+            self.navigator.add_gyro(inc, t)
+
+    def add_accel(self, inc, t) -> None:
+        inc, t = np.asarray(inc, dtype=float).reshape(-1, 3), np.asarray(t, dtype=float).reshape(-1)
+        if self.navigator is not None:
+            self.navigator.add_accel(inc, t)
+            return
+        if self.aligning:
+            self.align_accel(inc, t)
+        # kept (bounded: the last 2 s) until the navigator starts: the first step needs them
+        self._early_accel.append((inc, t))
+        newest = t[-1] if len(t) else -np.inf
+        while self._early_accel and len(self._early_accel[0][1]) and self._early_accel[0][1][-1] < newest - 2.0:
+            self._early_accel.pop(0)
+
+    def add_updates(self, stamps, intervals, attitude_end, attitude_start) -> None:
+        if self.navigator is not None:
+            self.navigator.add_updates(stamps, intervals, attitude_end, attitude_start)
+
+    def process(self, newest: float, wait: float) -> NavigationBatch | None:
+        if self.navigator is None:
+            return None
+        return self.navigator.process(newest, wait)
+
+    def status(self) -> dict:
+        d = {"navigation_state": "aligning" if self.aligning else ("navigating" if self.navigator else "waiting"),
+             "alignment_refusals": self.refusals}
+        if self.alignment is not None:
+            d["alignment"] = self.alignment.reason
+            if self.alignment.ok:
+                d["alignment_tilt_sigma_rad"] = self.alignment.tilt_sigma
+                d["alignment_heading_sigma_rad"] = self.alignment.heading_sigma
+        if self.navigator is not None:
+            d["navigation_steps"] = self.navigator.steps
+            d["navigation_steps_accel_extrapolated"] = self.navigator.extrapolated_steps
+        return d

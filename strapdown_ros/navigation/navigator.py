@@ -1,0 +1,209 @@
+"""Streaming navigation channel: attitude updates + gyro and accelerometer increments → ECEF
+position, velocity and their covariance.  Used by ``sins_node`` and by ``sins_bag``.
+
+Frames and time (written once, here):
+
+* E: Earth-fixed, Greenwich rectangular frame PZ-90 (REP-105 ``earth``), rotating at Ω about +Z.
+* I: the inertial frame that coincides with E at the navigator's start time ``t0``; the attitude
+  integrator's reference frame.  ``C_E_I(t) = R_z(−Ω(t − t0))``.
+* B: body (IMU) frame.  The attitude integrator gives ``U = C_I_B``; the navigation attitude is
+  ``V = C_E_B = C_E_I(t) U`` (003 (1.89), V = D·U).
+* Stamps are seconds relative to the node's stamp origin; each increment is stamped at the end of
+  its interval.  A navigation step is one attitude update ``[t_{k−1}, t_k]``: its gyro increments
+  and the accelerometer increments in it (any rates; the sub-interval integrals are read from the
+  cumulative increments, exact when the accelerometer stamps divide the step, 003's 3:1 layout).
+
+No ROS imports.
+"""
+from __future__ import annotations
+
+from collections import deque
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..rotation import dcm_to_quat, quat_to_dcm
+from . import recursion
+from .covariance import NavigationCovariance
+from .update import step_layout, specific_force_integrals
+
+__all__ = ["CumulativeIncrements", "Navigator", "NavigationBatch", "earth_from_inertial"]
+
+
+def earth_from_inertial(dt: np.ndarray) -> np.ndarray:
+    """``C_E_I`` after ``dt`` seconds (..., 3, 3): a vector fixed in I turns by −Ω dt about Z in E."""
+    a = -recursion.OMEGA * np.asarray(dt, dtype=float)
+    c, s = np.cos(a), np.sin(a)
+    z, o = np.zeros_like(a), np.ones_like(a)
+    return np.stack([np.stack([c, -s, z], -1), np.stack([s, c, z], -1), np.stack([z, z, o], -1)], -2)
+
+
+class CumulativeIncrements:
+    """Running integral of a stamped increment stream, read at any time by interpolation.
+
+    ``integral(a, b)`` = the increment over ``[a, b]``: exact when a and b are stamps; linear within
+    one sample interval (constant rate) otherwise; beyond the newest stamp it extrapolates with the
+    newest sample's rate.  Bounded: :meth:`trim` forgets what lies before a time (and rebases the
+    sum so that round-off does not grow with the run).
+    """
+
+    def __init__(self, max_len: int = 200_000):
+        self.t = np.zeros(0)
+        self.s = np.zeros((0, 3))
+        self.max_len = int(max_len)
+        self.overflowed = 0
+
+    def __len__(self) -> int:
+        return len(self.t)
+
+    @property
+    def newest(self) -> float:
+        return float(self.t[-1]) if len(self.t) else -np.inf
+
+    def add(self, increments: np.ndarray, stamps: np.ndarray, period: float) -> None:
+        inc = np.asarray(increments, dtype=float).reshape(-1, 3)
+        st = np.asarray(stamps, dtype=float).reshape(-1)
+        if not len(st):
+            return
+        if not len(self.t):                         # the first sample starts one period earlier
+            self.t, self.s = np.array([st[0] - period]), np.zeros((1, 3))
+        keep = st > self.t[-1]
+        inc, st = inc[keep], st[keep]
+        self.t = np.concatenate([self.t, st])
+        self.s = np.concatenate([self.s, self.s[-1] + np.cumsum(inc, axis=0)])
+        if len(self.t) > self.max_len:
+            drop = len(self.t) - self.max_len
+            self.overflowed += drop
+            self.t, self.s = self.t[drop:], self.s[drop:] - self.s[drop]
+
+    def at(self, t: np.ndarray) -> np.ndarray:
+        t = np.asarray(t, dtype=float)
+        out = np.stack([np.interp(t, self.t, self.s[:, i]) for i in range(3)], -1)
+        if len(self.t) >= 2:
+            rate = (self.s[-1] - self.s[-2]) / (self.t[-1] - self.t[-2])
+            beyond = np.maximum(t - self.t[-1], 0.0)
+            out = out + beyond[..., None] * rate
+        return out
+
+    def trim(self, before: float) -> None:
+        i = int(np.searchsorted(self.t, before, side="right")) - 1
+        if i > 0:
+            self.t, self.s = self.t[i:], self.s[i:] - self.s[i]
+
+
+@dataclass
+class NavigationBatch:
+    stamps: np.ndarray          # (K,) s
+    position: np.ndarray        # (K, 3) ECEF, m
+    velocity: np.ndarray        # (K, 3) ECEF, m/s
+    attitude: np.ndarray        # (K, 4) q_E_B, scalar-first
+    covariance: np.ndarray      # (K, 9, 9) [δR, δW, ψ] (ψ in E axes), latest propagated
+    extrapolated: np.ndarray    # (K,) bool: accelerometer data were extrapolated for the step
+
+    def __len__(self):
+        return len(self.stamps)
+
+
+class Navigator:
+    """Position and velocity in E from the attitude integrator's updates.
+
+    Parameters: ``position``/``velocity`` ECEF at ``t0`` (the start of the attitude integrator);
+    ``gyro_per_step`` (the coning algorithm's samples per update) and ``accel_per_step``
+    (accelerometer samples per update, from the rates); ``form`` of the specific-force integral
+    (:data:`.update.FORMS`); ``scheme`` (:data:`.recursion.SCHEMES`); ``gravity_model``;
+    ``covariance``: a :class:`NavigationCovariance` or None.
+    """
+
+    def __init__(self, position, velocity, t0: float, gyro_per_step: int, accel_per_step: int,
+                 gyro_period: float, accel_period: float, form: str = "exact", scheme: str = "exact",
+                 gravity_model: str = "pz90_003", covariance: NavigationCovariance | None = None,
+                 max_pending: int = 100_000):
+        self.origin = np.asarray(position, dtype=float).reshape(3).copy()
+        if not (np.all(np.isfinite(self.origin)) and 6.0e6 < np.linalg.norm(self.origin) < 7.0e6 + 1e6):
+            raise ValueError(f"initial position must be ECEF within ±1000 km of the Earth's surface, got {position}")
+        self.offset = np.zeros(3)
+        self.velocity = np.asarray(velocity, dtype=float).reshape(3).copy()
+        self.t0 = float(t0)
+        self.layout = step_layout(gyro_per_step, accel_per_step)
+        self.form, self.scheme, self.gravity_model = form, scheme, gravity_model
+        specific_force_integrals(np.zeros((1, self.layout.gyro_window, 3)), np.zeros((1, self.layout.accel_window, 3)),
+                                 np.ones(1), self.layout, form)     # validates form against the layout
+        if scheme not in recursion.SCHEMES:
+            raise ValueError(f"unknown navigation scheme {scheme!r}; valid: {', '.join(recursion.SCHEMES)}")
+        self.gyro = CumulativeIncrements()
+        self.accel = CumulativeIncrements()
+        self.gyro_period, self.accel_period = float(gyro_period), float(accel_period)
+        self.pending: deque = deque(maxlen=max_pending)       # (t_{k-1}, t_k, q_I_B at t_{k-1}, q at t_k)
+        self.covariance = covariance
+        self.steps = 0
+        self.extrapolated_steps = 0
+        self.time = self.t0
+
+    @property
+    def position(self) -> np.ndarray:
+        return self.origin + self.offset
+
+    def add_gyro(self, increments, stamps) -> None:
+        self.gyro.add(increments, stamps, self.gyro_period)
+
+    def add_accel(self, increments, stamps) -> None:
+        self.accel.add(increments, stamps, self.accel_period)
+
+    def add_updates(self, stamps, intervals, attitude_end, attitude_start) -> None:
+        """Queue attitude updates: end stamps, lengths, q_I_B at their ends and at their starts."""
+        for t, h, qe, qs in zip(stamps, intervals, attitude_end, attitude_start):
+            self.pending.append((float(t) - float(h), float(t), qs, qe))
+
+    def ready_count(self, newest: float, wait: float) -> int:
+        covered = self.accel.newest + 1e-9
+        n = 0
+        for t_a, t_b, _, _ in self.pending:
+            if t_b > covered and newest - t_b < wait:
+                break
+            n += 1
+        return n
+
+    def process(self, newest: float = np.inf, wait: float = 0.0) -> NavigationBatch:
+        """Navigate the queued steps whose accelerometer data have arrived (or waited ``wait``)."""
+        n = self.ready_count(newest, wait)
+        if n == 0 or len(self.accel) < 2:
+            return _empty()
+        items = [self.pending.popleft() for _ in range(n)]
+        t_a = np.array([it[0] for it in items])
+        t_b = np.array([it[1] for it in items])
+        h = t_b - t_a
+        q_start = np.array([it[2] for it in items])
+        q_end = np.array([it[3] for it in items])
+        lay = self.layout
+        # sub-interval integrals of the windows ending at t_k (oldest first)
+        ge = t_b[:, None] - h[:, None] * np.arange(lay.gyro_window, -1, -1)[None, :] / lay.gyro_per_step
+        ae = t_b[:, None] - h[:, None] * np.arange(lay.accel_window, -1, -1)[None, :] / lay.accel_per_step
+        g_cum = self.gyro.at(ge)
+        a_cum = self.accel.at(ae)
+        q_win = np.diff(g_cum, axis=1)
+        u_win = np.diff(a_cum, axis=1)
+        extrap = t_b > self.accel.newest + 1e-9
+        self.extrapolated_steps += int(extrap.sum())
+        dv_b, dr_b = specific_force_integrals(q_win, u_win, h, lay, self.form)
+        v_start = earth_from_inertial(t_a - self.t0) @ quat_to_dcm(q_start)         # C_E_B at t_{k-1}
+        dv_e = np.einsum("kij,kj->ki", v_start, dv_b)
+        dr_e = np.einsum("kij,kj->ki", v_start, dr_b)
+        off, vel = recursion.run(self.origin, self.offset, self.velocity, dv_e, dr_e, h,
+                                 self.scheme, self.gravity_model)
+        self.offset, self.velocity = off[-1].copy(), vel[-1].copy()
+        v_end = earth_from_inertial(t_b - self.t0) @ quat_to_dcm(q_end)
+        if self.covariance is not None:
+            cov = self.covariance.propagate(self.origin + off, v_start, dv_b, q_win[:, -lay.gyro_per_step:].sum(1), h)
+        else:
+            cov = np.full((n, 9, 9), np.nan)
+        self.steps += n
+        self.time = float(t_b[-1])
+        keep_from = float(t_a[0]) if not self.pending else self.pending[0][0]
+        self.gyro.trim(keep_from - 4 * lay.gyro_window * self.gyro_period)
+        self.accel.trim(keep_from - 4 * lay.accel_window * self.accel_period)
+        return NavigationBatch(t_b, self.origin + off, vel, dcm_to_quat(v_end), cov, extrap)
+
+
+def _empty() -> NavigationBatch:
+    z = np.zeros((0, 3))
+    return NavigationBatch(np.zeros(0), z, z, np.zeros((0, 4)), np.zeros((0, 9, 9)), np.zeros(0, bool))

@@ -1,0 +1,290 @@
+"""Specific-force integrals of one navigation step from integrating gyros and accelerometers.
+
+003 §1.5.2 integrates the navigation equation (1.93) over one step ``[t_{k−1}, t_k]`` of length
+``h`` from the sensor *increments* (quasi-coordinates), never from rates.  The part that needs the
+increments is the integral of the specific force rotated by the body motion within the step:
+
+    Δv = ∫_0^h A(s) f(s) ds,            Δr = ∫_0^h (h − s) A(s) f(s) ds,
+
+with ``A(s)`` the body rotation since ``t_{k−1}`` (body axes at ``t_{k−1}`` ← body axes at
+``t_{k−1}+s``) and ``f(s)`` the specific force in body axes.  ``Δv`` enters the velocity, ``Δr``
+the position (:mod:`.recursion` adds gravity, Earth rotation and the frame change).
+
+The sensor model of 003 (derived and checked in doc/navigation.md):
+
+* the angular rate is linear within the step, ``ω(s) = a₁ + a₂ s`` (1.49), fitted to the
+  gyro increments ``q`` of the step and, when the step holds one, the previous one (1.52);
+* the specific force is quadratic, ``f(s) = c + d s + e s²/2`` (1.97), fitted to the
+  accelerometer increments ``u`` of the step (exact for three, 1.98; least squares for more;
+  with fewer than three the previous step's increments complete the fit);
+* the rotation vector within the step is the Bortz solution to third order,
+  ``φ(s) = a₁s + a₂s²/2 + (a₁×a₂)s³/12`` (1.57), and ``A(s) = exp([φ(s)×])`` exactly.
+
+Forms of the integral (``form``):
+
+``"exact"`` (default)
+    the integrals of the fitted model by 6-point Gauss–Legendre quadrature (exact to round-off
+    for the model: the integrand is a polynomial of degree ≤ 11 up to terms of 6th order in the
+    step's rotation angle).  Its error is the fit's: the stated order of the algorithm.
+``"series"``
+    the closed-form expansion of the same integrals in 003's basis (q_{k−1}, q_k, Q₁ = q_k + q_{k−1},
+    Q₂ = q_k − q_{k−1}, Q = q_{k−1} × q_k; u₁, u₂, u₃) with the coefficients *derived* here
+    (:func:`derived_coefficients`, exact fractions); 003 layout only (one gyro, three
+    accelerometer increments per step).
+``"printed"``
+    the same expansion with the coefficients as printed in (1.99)/(1.100) — misprints included,
+    for comparison.
+``"rotation_only"``
+    rotation compensation without sculling: ``Δv = v + ½ θ × v`` (v = Σu, θ = Σq), the classical
+    form whose sculling drift is ½AB(1 − sin(Ωh)/(Ωh)) (doc/navigation.md).
+``"none"``
+    ``Δv = v``: no rotation compensation.
+
+No ROS imports; vectorised over steps.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from fractions import Fraction
+from itertools import product
+
+import numpy as np
+
+from ..rotation import cross
+
+__all__ = ["FORMS", "StepLayout", "step_layout", "specific_force_integrals", "derived_coefficients",
+           "PRINTED_COEFFICIENTS", "coefficient_table"]
+
+FORMS = ("exact", "series", "printed", "rotation_only", "none")
+_GL_X, _GL_W = np.polynomial.legendre.leggauss(6)
+_GL_S = 0.5 * (_GL_X + 1.0)                # nodes on [0, 1]
+_GL_W = 0.5 * _GL_W
+
+
+def _fit_matrix(edges: np.ndarray, degree: int) -> np.ndarray:
+    """Least-squares map (exact when square) from sub-interval integrals over ``edges`` (σ, in
+    units of the step) to the coefficients of ``p(σ) = Σ_i p_i σ^i / i!`` (i ≤ degree)."""
+    a, b = edges[:-1], edges[1:]
+    from math import factorial
+    cols = [(b ** (i + 1) - a ** (i + 1)) / (i + 1) / factorial(i) for i in range(degree + 1)]
+    return np.linalg.pinv(np.stack(cols, 1))
+
+
+@dataclass(frozen=True)
+class StepLayout:
+    """How many sensor sub-intervals one step holds and which ones each fit uses.
+
+    ``gyro_window`` / ``accel_window``: the number of sub-intervals ending at ``t_k`` that the fits
+    take (the step's own and, when there are too few, the previous ones).
+    """
+    gyro_per_step: int
+    accel_per_step: int
+    gyro_window: int = field(init=False)
+    accel_window: int = field(init=False)
+    gyro_fit: np.ndarray = field(init=False, repr=False)     # (2, Lg): (a₁h, a₂h²) from q
+    accel_fit: np.ndarray = field(init=False, repr=False)    # (3, La): (ch, dh², eh³) from u
+
+    def __post_init__(self):
+        n, m = int(self.gyro_per_step), int(self.accel_per_step)
+        if n < 1 or m < 1:
+            raise ValueError(f"a step needs at least one gyro and one accelerometer increment, got {n} and {m}")
+        lg, la = max(n, 2), max(m, 3)
+        object.__setattr__(self, "gyro_window", lg)
+        object.__setattr__(self, "accel_window", la)
+        object.__setattr__(self, "gyro_fit", _fit_matrix(1.0 - np.arange(lg, -1, -1) / n, 1))
+        object.__setattr__(self, "accel_fit", _fit_matrix(1.0 - np.arange(la, -1, -1) / m, 2))
+
+    @property
+    def is_003(self) -> bool:
+        """One gyro and three accelerometer increments per step: the layout of 003 §1.5."""
+        return self.gyro_per_step == 1 and self.accel_per_step == 3
+
+
+def step_layout(gyro_per_step: int, accel_per_step: int) -> StepLayout:
+    return StepLayout(int(gyro_per_step), int(accel_per_step))
+
+
+def _rotate_by_rotvec(phi: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """``exp([φ×]) v`` by Rodrigues' formula, exact at any angle, broadcasting over (..., 3)."""
+    a2 = np.einsum("...i,...i->...", phi, phi)
+    a = np.sqrt(a2)
+    small = a2 < 1e-8
+    s1 = np.where(small, 1.0 - a2 / 6.0 + a2 * a2 / 120.0, np.sin(a) / np.where(small, 1.0, a))
+    s2 = np.where(small, 0.5 - a2 / 24.0 + a2 * a2 / 720.0, (1.0 - np.cos(a)) / np.where(small, 1.0, a2))
+    pv = cross(phi, v)
+    return v + s1[..., None] * pv + s2[..., None] * cross(phi, pv)
+
+
+def specific_force_integrals(gyro_window: np.ndarray, accel_window: np.ndarray, h: np.ndarray,
+                             layout: StepLayout, form: str = "exact") -> tuple[np.ndarray, np.ndarray]:
+    """``(Δv, Δr)`` of K steps, body axes at the start of each step.
+
+    gyro_window: (K, layout.gyro_window, 3) gyro increments ending at ``t_k`` (oldest first), rad.
+    accel_window: (K, layout.accel_window, 3) accelerometer increments ending at ``t_k``, m/s.
+    h: (K,) step lengths, s.  Sub-intervals are taken as equal (h / per_step).
+    """
+    if form not in FORMS:
+        raise ValueError(f"unknown specific-force form {form!r}; valid: {', '.join(FORMS)}")
+    q = np.asarray(gyro_window, dtype=float)
+    u = np.asarray(accel_window, dtype=float)
+    h = np.asarray(h, dtype=float)
+    n, m = layout.gyro_per_step, layout.accel_per_step
+    theta = q[:, -n:].sum(1)                   # the step's own increments
+    v = u[:, -m:].sum(1)
+    poly = np.einsum("ij,kjl->kil", layout.accel_fit, u)     # (K, 3, 3): c', d', e' (per unit step)
+    if form in ("series", "printed"):
+        if not layout.is_003:
+            raise ValueError(f"the {form} form is 003's: one gyro and three accelerometer increments per step, "
+                             f"got {n} and {m}")
+        return _series(q, u, h, PRINTED_COEFFICIENTS if form == "printed" else derived_coefficients())
+    # ∫_0^1 (1 − σ) f'(σ) dσ of the fit, f' = c' + d'σ + e'σ²/2  → c'/2 + d'/6 + e'/24
+    p_lin = poly[:, 0] / 2.0 + poly[:, 1] / 6.0 + poly[:, 2] / 24.0
+    if form == "none":
+        return v, h[:, None] * p_lin
+    if form == "rotation_only":
+        return v + 0.5 * cross(theta, v), h[:, None] * (p_lin + cross(theta, v) / 6.0)
+    a = np.einsum("ij,kjl->kil", layout.gyro_fit, q)          # (K, 2, 3): a₁h, a₂h²
+    a1, a2 = a[:, 0], a[:, 1]
+    s = _GL_S[None, :, None]
+    phi = a1[:, None] * s + a2[:, None] * s ** 2 / 2.0 + cross(a1, a2)[:, None] * s ** 3 / 12.0
+    f = poly[:, None, 0] + poly[:, None, 1] * s + poly[:, None, 2] * s ** 2 / 2.0     # (K, 6, 3)
+    af = _rotate_by_rotvec(phi, f)
+    dv = np.einsum("j,kjl->kl", _GL_W, af)
+    dr = h[:, None] * np.einsum("j,kjl->kl", _GL_W * (1.0 - _GL_S), af)
+    return dv, dr
+
+
+# --- the series of 003 (1.99)/(1.100) -----------------------------------------------------------
+#: terms of the expansion: (name, builder of the vector operand from q_{k−1}, q_k) — each term is
+#: ``X × (Y × w)`` or ``X × w`` or ``w`` with ``w = c₁u₁ + c₂u₂ + c₃u₃``
+_TERMS = ("u", "q_km1", "q_k", "Q1Q1", "Q1Q2", "Q2Q1", "Q2Q2", "Q", "Q1Q", "QQ1", "Q2Q", "QQ2")
+
+#: 003 (1.99) bracket (velocity) and (1.100) bracket (position, ×τ), as printed.  Terms the
+#: printed formula does not have are zero.
+PRINTED_COEFFICIENTS = {
+    "velocity": {
+        "u": (10, -17, 10),
+        "q_km1": (Fraction(11, 240), Fraction(19, 120), Fraction(11, 240)),
+        "q_k": (Fraction(19, 240), Fraction(41, 120), Fraction(199, 240)),
+        "Q1Q1": (Fraction(1, 240), Fraction(11, 480), Fraction(47, 480)),
+        "Q1Q2": (Fraction(91, 320), Fraction(-179, 320), Fraction(59, 160)),
+        "Q2Q1": (Fraction(91, 320), Fraction(-179, 320), Fraction(59, 160)),
+        "Q2Q2": (Fraction(1, 280), Fraction(-1, 140), Fraction(11, 140)),
+        "Q": (Fraction(1, 480), Fraction(-1, 480), Fraction(11, 120)),
+        "Q1Q": (Fraction(1, 960), Fraction(-179, 960), Fraction(7, 240)),
+        "Q2Q": (Fraction(11, 16128), Fraction(-17, 8064), Fraction(191, 16128)),
+    },
+    "position": {
+        "u": (2, Fraction(-7, 4), Fraction(5, 4)),
+        "q_km1": (Fraction(1, 24), Fraction(19, 240), Fraction(1, 240)),
+        "q_k": (Fraction(1, 20), Fraction(19, 80), Fraction(7, 80)),
+        "Q1Q1": (Fraction(1, 960), Fraction(19, 960), Fraction(1, 96)),
+        "Q1Q2": (Fraction(-1, 2240), Fraction(23, 2240), Fraction(1, 112)),
+        "Q2Q1": (Fraction(1, 480), Fraction(19, 480), Fraction(1, 480)),
+        "Q2Q2": (Fraction(-1, 1920), Fraction(37, 6720), Fraction(101, 13446)),
+    },
+}
+
+
+def _poly_mul(a: dict, b: dict) -> dict:
+    out: dict = {}
+    for i, x in a.items():
+        for j, y in b.items():
+            out[i + j] = out.get(i + j, 0) + x * y
+    return out
+
+
+def _poly_int01(a: dict) -> Fraction:
+    return sum((Fraction(c) / (k + 1) for k, c in a.items()), Fraction(0))
+
+
+_DERIVED: dict | None = None
+
+
+def derived_coefficients() -> dict:
+    """The coefficients of (1.99)/(1.100) derived in exact rational arithmetic (τ = 1, δτ = 1/3).
+
+    f(σ) = Σ_j γ_j(σ) u_j from the exact solution of (1.98)'s system; the rotation vector
+    φ(σ) = Q₁σ/2 + Q₂σ²/2 + Qσ³/12 (from (1.52), (1.57)); A = I + [φ×] + ½[φ×]² + …;
+    velocity coefficient of a term = ∫₀¹ (its σ-polynomial) γ_j dσ, position the same with the
+    weight (1 − σ).  Terms of third order other than those with Q (e.g. Q₁×(Q₁×(Q₁×u))) are not
+    in 003's basis and not listed.
+    """
+    global _DERIVED
+    if _DERIVED is not None:
+        return _DERIVED
+    layout = step_layout(1, 3)
+    # exact inverse of the 3×3 system (the float pinv above equals it to round-off)
+    d = Fraction(1, 3)
+    rows = [[(i + 1) * d - i * d, (((i + 1) * d) ** 2 - (i * d) ** 2) / 2, (((i + 1) * d) ** 3 - (i * d) ** 3) / 6]
+            for i in range(3)]
+    inv = _inverse3(rows)
+    gamma = [{0: inv[0][j], 1: inv[1][j], 2: inv[2][j] / 2} for j in range(3)]
+    beta = {"q_km1": {1: Fraction(1, 2), 2: Fraction(-1, 2)}, "q_k": {1: Fraction(1, 2), 2: Fraction(1, 2)},
+            "Q1": {1: Fraction(1, 2)}, "Q2": {2: Fraction(1, 2)}, "Q": {3: Fraction(1, 12)}}
+    out = {}
+    for kind, weight in (("velocity", {0: Fraction(1)}), ("position", {0: Fraction(1), 1: Fraction(-1)})):
+        table = {"u": tuple(_poly_int01(_poly_mul(weight, g)) for g in gamma)}
+        for x in ("q_km1", "q_k", "Q"):
+            table[x] = tuple(_poly_int01(_poly_mul(weight, _poly_mul(beta[x], g))) for g in gamma)
+        for x, y in product(("Q1", "Q2"), repeat=2):
+            table[x + y] = tuple(Fraction(1, 2) * _poly_int01(_poly_mul(weight, _poly_mul(_poly_mul(beta[x], beta[y]), g)))
+                                 for g in gamma)
+        for x in ("Q1", "Q2"):      # ½(X×(Q×f) + Q×(X×f)), both orders carry the same coefficient
+            c = tuple(Fraction(1, 2) * _poly_int01(_poly_mul(weight, _poly_mul(_poly_mul(beta[x], beta["Q"]), g)))
+                      for g in gamma)
+            table[x + "Q"] = c
+            table["Q" + x] = c
+        out[kind] = table
+    del layout
+    _DERIVED = out
+    return out
+
+
+def _inverse3(rows):
+    a = [list(r) + [Fraction(int(i == j)) for j in range(3)] for i, r in enumerate(rows)]
+    for c in range(3):
+        p = next(r for r in range(c, 3) if a[r][c] != 0)
+        a[c], a[p] = a[p], a[c]
+        pv = a[c][c]
+        a[c] = [x / pv for x in a[c]]
+        for r in range(3):
+            if r != c:
+                f = a[r][c]
+                a[r] = [x - f * y for x, y in zip(a[r], a[c])]
+    return [r[3:] for r in a]
+
+
+def _series(q: np.ndarray, u: np.ndarray, h: np.ndarray, coefficients: dict) -> tuple[np.ndarray, np.ndarray]:
+    qm, qk = q[:, -2], q[:, -1]
+    ops = {"q_km1": qm, "q_k": qk, "Q1": qk + qm, "Q2": qk - qm, "Q": cross(qm, qk)}
+    res = []
+    for kind in ("velocity", "position"):
+        total = np.zeros((len(q), 3))
+        for term, coef in coefficients[kind].items():
+            w = sum(float(c) * u[:, -3 + j] for j, c in enumerate(coef))
+            if term == "u":
+                total += w
+            elif term in ("q_km1", "q_k", "Q"):
+                total += cross(ops[term], w)
+            else:
+                x, y = (term[:2], term[2:]) if term[:2] in ("Q1", "Q2") else (term[:1], term[1:])
+                total += cross(ops[x], cross(ops[y], w))
+        res.append(total)
+    return res[0], h[:, None] * res[1]
+
+
+def coefficient_table() -> list[dict]:
+    """Printed against derived, term by term (the table of doc/navigation.md)."""
+    derived = derived_coefficients()
+    rows = []
+    for kind in ("velocity", "position"):
+        for term in _TERMS:
+            d = derived[kind].get(term)
+            p = PRINTED_COEFFICIENTS[kind].get(term)
+            if d is None:
+                continue
+            rows.append({"equation": "1.99" if kind == "velocity" else "1.100", "term": term,
+                         "derived": [str(x) for x in d], "printed": [str(x) for x in p] if p else None,
+                         "agrees": p is not None and all(Fraction(x) == y for x, y in zip(p, d))})
+    return rows
