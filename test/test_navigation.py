@@ -130,6 +130,7 @@ def test_static_alignment_covariance_covers_the_errors_monte_carlo():
         psi = np.array([d[2, 1], d[0, 2], d[1, 0]])
         nees.append(psi @ np.linalg.solve(res.covariance, psi))
     nees = np.array(nees)
+    print(f"alignment mean NEES {nees.mean():.2f} over 200 draws, {np.mean(nees < 14.2):.3f} within the 3σ region")
     # mean NEES of 3 dof within the χ² 95 % band for 200 draws: 3 ± 1.96·√(6/200)
     assert abs(nees.mean() - 3.0) < 1.96 * np.sqrt(6.0 / 200) * 1.2
     assert np.mean(nees < 14.2) > 0.98          # χ²₃ 99.7 %: "within 3σ"
@@ -146,3 +147,36 @@ def test_static_alignment_refuses_motion_and_the_pole():
     gp = G.normal_gravity(pole[None])[0]
     res = static_alignment(-gp, np.array([0.0, 0.0, G.OMEGA]), pole, 60.0, NAVIGATION_GRADE_GYRO, NAVIGATION_GRADE_ACCEL)
     assert not res.ok and "heading unobservable" in res.reason
+
+
+def test_navigation_covariance_is_consistent_monte_carlo():
+    """Default navigation-grade sensors (bias, scale, misalignment, random walk of gyros and
+    accelerometers drawn anew each run), static on the rotating Earth for 120 s: the mean NEES of
+    the published [δR, δW] covariance over 100 draws lies in the χ²₆ 95 % band."""
+    from strapdown_ros.navigation.trajectories import static_profile
+    from strapdown_ros.sensors.model import IntegratingSensor
+    prof = static_profile(np.radians(50.45), np.radians(30.52), 150.0, yaw=0.3)
+    r0, q0 = prof.position(0.0), prof.attitude_ecef(0.0)
+    T, tg, ta = 120.0, 0.01, 0.01 / 3
+    nees = []
+    for draw in range(100):
+        rng = np.random.default_rng(1000 + draw)
+        gyro = IntegratingSensor(prof, "gyro", 100.0, NAVIGATION_GRADE_GYRO.draw(rng), seed=2 * draw)
+        accel = IntegratingSensor(prof, "accel", 300.0, NAVIGATION_GRADE_ACCEL.draw(rng), seed=2 * draw + 1)
+        t_g, d_th, _ = gyro.sample(int(T / tg))
+        t_a, d_v, _ = accel.sample(int(round(T / ta)))
+        integ = AttitudeIntegrator("2", initial_attitude=q0, initial_time=0.0, nominal_period=tg, propagate_covariance=False)
+        nav = Navigator(r0, np.zeros(3), 0.0, 2, 6, tg, ta,
+                        covariance=NavigationCovariance(NAVIGATION_GRADE_GYRO, NAVIGATION_GRADE_ACCEL, np.zeros((9, 9))))
+        nav.add_gyro(d_th, t_g)
+        nav.add_accel(d_v, t_a)
+        b = integ.push(d_th, t_g)
+        nav.add_updates(b.stamps, b.interval, b.attitude, np.vstack([q0[None], b.attitude[:-1]]))
+        out = nav.process()
+        assert abs(out.stamps[-1] - T) < 1e-9
+        err = np.concatenate([out.position[-1] - r0, out.velocity[-1]])
+        nees.append(err @ np.linalg.solve(out.covariance[-1][:6, :6], err))
+    mean = float(np.mean(nees))
+    band = 1.96 * np.sqrt(2 * 6 / 100)                  # χ²₆/6 mean over 100 draws: 6 ± 1.96·√(12/100)
+    print(f"mean NEES {mean:.2f} over 100 draws (band 6 ± {band:.2f})")
+    assert abs(mean - 6.0) < band, (mean, band)

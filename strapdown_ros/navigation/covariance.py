@@ -24,16 +24,29 @@ attitude covariance; this one carries ψ because velocity errors depend on it.
 """
 from __future__ import annotations
 
+import math
+import os
+
 import numpy as np
 
 from ..sensors.covariance import constant_jacobian, constant_variances
 from ..sensors.model import SensorSigmas
-from ..rotation import skew
+
+
+def _skew(v) -> np.ndarray:
+    return np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
 
 __all__ = ["NavigationCovariance"]
 
 OMEGA = 7.292115e-5
 MU = 3.986004418e14
+_OM = np.array([[0.0, -OMEGA, 0.0], [OMEGA, 0.0, 0.0], [0.0, 0.0, 0.0]])
+_CENTRIFUGAL = OMEGA ** 2 * np.diag([1.0, 1.0, 0.0])
+_I9 = np.eye(9)
+_F_CONST = np.zeros((9, 9))               # the constant blocks of F
+_F_CONST[0:3, 3:6] = np.eye(3)
+_F_CONST[3:6, 3:6] = -2.0 * _OM
+_F_CONST[6:9, 6:9] = -_OM
 
 
 class NavigationCovariance:
@@ -59,50 +72,142 @@ class NavigationCovariance:
         """Feed K steps; returns (K, 9, 9): for each step the covariance of the latest epoch."""
         k_steps = len(h)
         out = np.empty((k_steps, 9, 9))
-        jg = constant_jacobian(theta, h)                       # (K, 3, 12) ∂δθ/∂[b_g, vec M_g]
-        ja = constant_jacobian(dv_body, h)                     # (K, 3, 12) ∂δv/∂[b_a, vec M_a]
-        vjg = np.einsum("kij,kjl->kil", v_start, jg)
-        vja = np.einsum("kij,kjl->kil", v_start, ja)
-        fdt = np.einsum("kij,kj->ki", v_start, dv_body)
-        cum = np.cumsum(h)
-        start = 0
-        while start < k_steps:
-            base = (cum[start - 1] if start else 0.0) - self._acc["dt"]      # time at the epoch's start
-            idx = int(np.searchsorted(cum, base + self.period - 1e-12))     # first step that reaches it
-            end = min(max(idx + 1, start + 1), k_steps)
+        if k_steps == 0:
+            return out
+        vjg = v_start @ constant_jacobian(theta, h)              # (K, 3, 12) V ∂δθ/∂[b_g, vec M_g]
+        vja = v_start @ constant_jacobian(dv_body, h)            # (K, 3, 12) V ∂δv/∂[b_a, vec M_a]
+        fdt = (v_start @ dv_body[:, :, None])[:, :, 0]
+        # epoch ends: the steps at which the accumulated time reaches the period
+        cum = self._acc["dt"] + np.cumsum(h)
+        ends, base = [], 0.0
+        while True:
+            i = int(np.searchsorted(cum, base + self.period - 1e-12))
+            if i >= k_steps:
+                break
+            ends.append(i + 1)
+            base = cum[i]
+        bounds = np.array([0] + ends + ([k_steps] if not ends or ends[-1] < k_steps else []))
+        starts = bounds[:-1]
+        sum_g = np.add.reduceat(vjg, starts, axis=0)
+        sum_a = np.add.reduceat(vja, starts, axis=0)
+        sum_f = np.add.reduceat(fdt, starts, axis=0)
+        sum_h = np.add.reduceat(h, starts)
+        n_ep = len(ends)
+        if n_ep:
+            # the epochs' recursion, compiled when numba is there (the same loop in Python otherwise)
             a = self._acc
-            a["dt"] += float(h[start:end].sum())
-            a["b"][3:6, 12:] += vja[start:end].sum(0)
-            a["b"][6:9, :12] += vjg[start:end].sum(0)
-            a["fdt"] += fdt[start:end].sum(0)
-            if a["dt"] >= self.period - 1e-12:
-                self._epoch(positions[end - 1])
-            out[start:end] = self.current
-            start = end
+            dts = sum_h[:n_ep].copy()
+            dts[0] += a["dt"]
+            fs = sum_f[:n_ep].copy()
+            fs[0] += a["fdt"]
+            bs = np.zeros((n_ep, 9, 24))
+            bs[:, 3:6, 12:] = sum_a[:n_ep]
+            bs[:, 6:9, :12] = sum_g[:n_ep]
+            bs[0] += a["b"]
+            rs = positions[np.array(ends) - 1]
+            q_rw = np.array([self.accel.random_walk ** 2, self.gyro.random_walk ** 2])
+            cur = np.empty((n_ep, 9, 9))
+            _epochs()(self.p_w, self.j, self.var, dts, fs / dts[:, None], rs, bs, q_rw, MU, OMEGA, cur)
+            self.current = cur[-1]
+            self._acc = self._zero_acc()
+            for e, (lo, hi) in enumerate(zip(bounds[:n_ep], bounds[1:n_ep + 1])):
+                out[lo:hi] = cur[e]
+        if len(bounds) - 1 > n_ep:                  # the open epoch accumulates
+            a = self._acc
+            a["dt"] += float(sum_h[-1])
+            a["b"][3:6, 12:] += sum_a[-1]
+            a["b"][6:9, :12] += sum_g[-1]
+            a["fdt"] += sum_f[-1]
+            out[bounds[-2]:] = self.current
         return out
 
-    def _epoch(self, r: np.ndarray) -> None:
-        a = self._acc
-        dt = a["dt"]
-        f = a["fdt"] / dt
-        rn = np.linalg.norm(r)
-        u = r / rn
-        gamma = MU / rn ** 3 * (3.0 * np.outer(u, u) - np.eye(3)) + OMEGA ** 2 * np.diag([1.0, 1.0, 0.0])
-        om = skew(np.array([0.0, 0.0, OMEGA]))
+
+
+def _epochs_py(p_w, j, var, dts, fs, rs, bs, q_rw, mu, omega, out):
+    """For each epoch e: F from the mean specific force fs[e] and the position rs[e];
+    Φ = I + FΔ + (FΔ)²/2 + (FΔ)³/6, G = I + FΔ/2; P_w ← Φ P_w Φᵀ + G Q Gᵀ, J ← Φ J + G B;
+    out[e] = P_w + J diag(var) Jᵀ (symmetrised).  p_w (9, 9) and j (9, 24) are updated in place."""
+    for e in range(dts.shape[0]):
+        dt = dts[e]
+        f = fs[e]
+        r = rs[e]
+        rn = math.sqrt(r[0] * r[0] + r[1] * r[1] + r[2] * r[2])
+        k = mu / (rn * rn * rn)
         F = np.zeros((9, 9))
-        F[0:3, 3:6] = np.eye(3)
-        F[3:6, 0:3] = gamma
-        F[3:6, 3:6] = -2.0 * om
-        F[3:6, 6:9] = -skew(f)
-        F[6:9, 6:9] = -om
+        for i in range(3):
+            F[i, 3 + i] = 1.0
+            for c in range(3):
+                F[3 + i, c] = k * (3.0 * r[i] * r[c] / (rn * rn) - (1.0 if i == c else 0.0))
+        F[3, 0] += omega * omega
+        F[4, 1] += omega * omega
+        F[3, 4] = 2.0 * omega           # −2[Ω×]
+        F[4, 3] = -2.0 * omega
+        F[6, 7] = omega                 # −[Ω×]
+        F[7, 6] = -omega
+        F[3, 7], F[3, 8] = f[2], -f[1]  # −[f×]
+        F[4, 6], F[4, 8] = -f[2], f[0]
+        F[5, 6], F[5, 7] = f[1], -f[0]
         fd = F * dt
-        phi = np.eye(9) + fd + fd @ fd / 2.0 + fd @ fd @ fd / 6.0
-        g = np.eye(9) + fd / 2.0
-        q = np.zeros((9, 9))
-        q[3:6, 3:6] = self.accel.random_walk ** 2 * dt * np.eye(3)
-        q[6:9, 6:9] = self.gyro.random_walk ** 2 * dt * np.eye(3)
-        self.p_w = phi @ self.p_w @ phi.T + g @ q @ g.T
-        self.j = phi @ self.j + g @ a["b"]
-        p = self.p_w + (self.j * self.var) @ self.j.T
-        self.current = 0.5 * (p + p.T)
-        self._acc = self._zero_acc()
+        fd2 = _mm(fd, fd)
+        phi = fd + fd2 / 2.0 + _mm(fd2, fd) / 6.0
+        g = fd / 2.0
+        for i in range(9):
+            phi[i, i] += 1.0
+            g[i, i] += 1.0
+        pw = _mm(_mm(phi, p_w), phi.T)
+        for i in range(9):
+            for c in range(9):
+                # G Q Gᵀ with Q = diag(0, 0, 0, qa, qa, qa, qg, qg, qg)·dt
+                acc = 0.0
+                for m in range(3, 9):
+                    acc += g[i, m] * g[c, m] * (q_rw[0] if m < 6 else q_rw[1])
+                pw[i, c] += acc * dt
+        jn = _mm(phi, j) + _mm(g, bs[e])
+        for i in range(9):
+            for c in range(9):
+                p_w[i, c] = pw[i, c]
+            for c in range(24):
+                j[i, c] = jn[i, c]
+        for i in range(9):
+            for c in range(9):
+                acc = 0.0
+                for m in range(24):
+                    acc += j[i, m] * var[m] * j[c, m]
+                out[e, i, c] = acc + 0.5 * (p_w[i, c] + p_w[c, i])
+        for i in range(9):
+            for c in range(i):
+                v = 0.5 * (out[e, i, c] + out[e, c, i])
+                out[e, i, c] = v
+                out[e, c, i] = v
+
+
+def _mm_py(a, b):
+    n, m, p = a.shape[0], a.shape[1], b.shape[1]
+    out = np.zeros((n, p))
+    for i in range(n):
+        for k in range(m):
+            x = a[i, k]
+            if x != 0.0:
+                for c in range(p):
+                    out[i, c] += x * b[k, c]
+    return out
+
+
+_mm = _mm_py
+_compiled = None
+
+
+def _epochs():
+    """The compiled epoch loop when numba is present and allowed (STRAPDOWN_KERNEL=numpy: Python)."""
+    global _compiled, _mm
+    if _compiled is None:
+        _compiled = _epochs_py
+        if os.environ.get("STRAPDOWN_KERNEL", "").lower() != "numpy":
+            try:
+                import numba
+                _mm = numba.njit(cache=True)(_mm_py)
+                _compiled = numba.njit(cache=True)(_epochs_py)
+            except Exception:                            # noqa: BLE001 - no numba, or it cannot compile
+                _mm = _mm_py
+                _compiled = _epochs_py
+    return _compiled

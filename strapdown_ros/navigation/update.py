@@ -59,15 +59,23 @@ FORMS = ("exact", "series", "printed", "rotation_only", "none")
 _GL_X, _GL_W = np.polynomial.legendre.leggauss(6)
 _GL_S = 0.5 * (_GL_X + 1.0)                # nodes on [0, 1]
 _GL_W = 0.5 * _GL_W
+_GL_WR = _GL_W * (1.0 - _GL_S)         # weights of ∫(1 − σ)·
 
 
-def _fit_matrix(edges: np.ndarray, degree: int) -> np.ndarray:
-    """Least-squares map (exact when square) from sub-interval integrals over ``edges`` (σ, in
-    units of the step) to the coefficients of ``p(σ) = Σ_i p_i σ^i / i!`` (i ≤ degree)."""
-    a, b = edges[:-1], edges[1:]
+def _fit_matrix(window: int, per_step: int, degree: int) -> np.ndarray:
+    """Least-squares map (exact when square) from the integrals over ``window`` equal
+    sub-intervals ending at σ = 1 (``per_step`` of them per unit step) to the coefficients of
+    ``p(σ) = Σ_i p_i σ^i / i!`` (i ≤ degree).  Computed in exact rational arithmetic: a float
+    pseudo-inverse carries relative errors of ~1e-13 into every step's Δv, the same each step,
+    which the vertical channel integrates (doc/navigation.md)."""
     from math import factorial
-    cols = [(b ** (i + 1) - a ** (i + 1)) / (i + 1) / factorial(i) for i in range(degree + 1)]
-    return np.linalg.pinv(np.stack(cols, 1))
+    edges = [1 - Fraction(window - j, per_step) for j in range(window + 1)]
+    rows = [[(b ** (i + 1) - a ** (i + 1)) / (i + 1) / factorial(i) for i in range(degree + 1)]
+            for a, b in zip(edges[:-1], edges[1:])]
+    n = degree + 1
+    ata = [[sum(r[i] * r[j] for r in rows) for j in range(n)] for i in range(n)]
+    inv = _inverse(ata)
+    return np.array([[float(sum(inv[i][k] * r[k] for k in range(n))) for r in rows] for i in range(n)])
 
 
 @dataclass(frozen=True)
@@ -91,8 +99,8 @@ class StepLayout:
         lg, la = max(n, 2), max(m, 3)
         object.__setattr__(self, "gyro_window", lg)
         object.__setattr__(self, "accel_window", la)
-        object.__setattr__(self, "gyro_fit", _fit_matrix(1.0 - np.arange(lg, -1, -1) / n, 1))
-        object.__setattr__(self, "accel_fit", _fit_matrix(1.0 - np.arange(la, -1, -1) / m, 2))
+        object.__setattr__(self, "gyro_fit", _fit_matrix(lg, n, 1))
+        object.__setattr__(self, "accel_fit", _fit_matrix(la, m, 2))
 
     @property
     def is_003(self) -> bool:
@@ -104,15 +112,15 @@ def step_layout(gyro_per_step: int, accel_per_step: int) -> StepLayout:
     return StepLayout(int(gyro_per_step), int(accel_per_step))
 
 
-def _rotate_by_rotvec(phi: np.ndarray, v: np.ndarray) -> np.ndarray:
-    """``exp([φ×]) v`` by Rodrigues' formula, exact at any angle, broadcasting over (..., 3)."""
+def _rotation_part(phi: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """``(exp([φ×]) − I) v`` by Rodrigues' formula, exact at any angle, broadcasting over (..., 3)."""
     a2 = np.einsum("...i,...i->...", phi, phi)
     a = np.sqrt(a2)
     small = a2 < 1e-8
     s1 = np.where(small, 1.0 - a2 / 6.0 + a2 * a2 / 120.0, np.sin(a) / np.where(small, 1.0, a))
     s2 = np.where(small, 0.5 - a2 / 24.0 + a2 * a2 / 720.0, (1.0 - np.cos(a)) / np.where(small, 1.0, a2))
     pv = cross(phi, v)
-    return v + s1[..., None] * pv + s2[..., None] * cross(phi, pv)
+    return s1[..., None] * pv + s2[..., None] * cross(phi, pv)
 
 
 def specific_force_integrals(gyro_window: np.ndarray, accel_window: np.ndarray, h: np.ndarray,
@@ -131,7 +139,7 @@ def specific_force_integrals(gyro_window: np.ndarray, accel_window: np.ndarray, 
     n, m = layout.gyro_per_step, layout.accel_per_step
     theta = q[:, -n:].sum(1)                   # the step's own increments
     v = u[:, -m:].sum(1)
-    poly = np.einsum("ij,kjl->kil", layout.accel_fit, u)     # (K, 3, 3): c', d', e' (per unit step)
+    poly = layout.accel_fit @ u                              # (K, 3, 3): c', d', e' (per unit step)
     if form in ("series", "printed"):
         if not layout.is_003:
             raise ValueError(f"the {form} form is 003's: one gyro and three accelerometer increments per step, "
@@ -143,14 +151,15 @@ def specific_force_integrals(gyro_window: np.ndarray, accel_window: np.ndarray, 
         return v, h[:, None] * p_lin
     if form == "rotation_only":
         return v + 0.5 * cross(theta, v), h[:, None] * (p_lin + cross(theta, v) / 6.0)
-    a = np.einsum("ij,kjl->kil", layout.gyro_fit, q)          # (K, 2, 3): a₁h, a₂h²
+    a = layout.gyro_fit @ q                                  # (K, 2, 3): a₁h, a₂h²
     a1, a2 = a[:, 0], a[:, 1]
     s = _GL_S[None, :, None]
     phi = a1[:, None] * s + a2[:, None] * s ** 2 / 2.0 + cross(a1, a2)[:, None] * s ** 3 / 12.0
     f = poly[:, None, 0] + poly[:, None, 1] * s + poly[:, None, 2] * s ** 2 / 2.0     # (K, 6, 3)
-    af = _rotate_by_rotvec(phi, f)
-    dv = np.einsum("j,kjl->kl", _GL_W, af)
-    dr = h[:, None] * np.einsum("j,kjl->kl", _GL_W * (1.0 - _GL_S), af)
+    af = _rotation_part(phi, f)
+    # the step's own increments summed exactly, plus the quadrature of the rotation's part only
+    dv = v + _GL_W @ af
+    dr = h[:, None] * (p_lin + _GL_WR @ af)
     return dv, dr
 
 
@@ -218,7 +227,7 @@ def derived_coefficients() -> dict:
     d = Fraction(1, 3)
     rows = [[(i + 1) * d - i * d, (((i + 1) * d) ** 2 - (i * d) ** 2) / 2, (((i + 1) * d) ** 3 - (i * d) ** 3) / 6]
             for i in range(3)]
-    inv = _inverse3(rows)
+    inv = _inverse(rows)
     gamma = [{0: inv[0][j], 1: inv[1][j], 2: inv[2][j] / 2} for j in range(3)]
     beta = {"q_km1": {1: Fraction(1, 2), 2: Fraction(-1, 2)}, "q_k": {1: Fraction(1, 2), 2: Fraction(1, 2)},
             "Q1": {1: Fraction(1, 2)}, "Q2": {2: Fraction(1, 2)}, "Q": {3: Fraction(1, 12)}}
@@ -241,18 +250,20 @@ def derived_coefficients() -> dict:
     return out
 
 
-def _inverse3(rows):
-    a = [list(r) + [Fraction(int(i == j)) for j in range(3)] for i, r in enumerate(rows)]
-    for c in range(3):
-        p = next(r for r in range(c, 3) if a[r][c] != 0)
+def _inverse(rows):
+    """Exact inverse of a small square matrix of Fractions (Gauss–Jordan)."""
+    n = len(rows)
+    a = [list(r) + [Fraction(int(i == j)) for j in range(n)] for i, r in enumerate(rows)]
+    for c in range(n):
+        p = next(r for r in range(c, n) if a[r][c] != 0)
         a[c], a[p] = a[p], a[c]
         pv = a[c][c]
         a[c] = [x / pv for x in a[c]]
-        for r in range(3):
+        for r in range(n):
             if r != c:
                 f = a[r][c]
                 a[r] = [x - f * y for x, y in zip(a[r], a[c])]
-    return [r[3:] for r in a]
+    return [r[n:] for r in a]
 
 
 def _series(q: np.ndarray, u: np.ndarray, h: np.ndarray, coefficients: dict) -> tuple[np.ndarray, np.ndarray]:
@@ -288,3 +299,21 @@ def coefficient_table() -> list[dict]:
                          "derived": [str(x) for x in d], "printed": [str(x) for x in p] if p else None,
                          "agrees": p is not None and all(Fraction(x) == y for x, y in zip(p, d))})
     return rows
+
+
+def markdown_coefficient_table() -> str:
+    """The table of doc/navigation.md: ``python -m strapdown_ros.navigation.update``."""
+    lines = ["| eq. | term | derived (u₁, u₂, u₃) | printed | |", "|---|---|---|---|---|"]
+    for r in coefficient_table():
+        printed = ", ".join(r["printed"]) if r["printed"] else "—"
+        verdict = "agrees" if r["agrees"] else ("**misprint**" if r["printed"] else "absent in 003")
+        lines.append(f"| {r['equation']} | {r['term']} | {', '.join(r['derived'])} | {printed} | {verdict} |")
+    n_bad = sum(1 for r in coefficient_table() if r["printed"] and not r["agrees"])
+    n_ok = sum(1 for r in coefficient_table() if r["agrees"])
+    lines.append("")
+    lines.append(f"{n_ok} printed coefficient triples agree with the derivation exactly; {n_bad} do not.")
+    return "\n".join(lines)
+
+
+if __name__ == "__main__":
+    print(markdown_coefficient_table())
