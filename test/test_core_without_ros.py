@@ -8,7 +8,10 @@ REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 CORE = ["rotation", "profiles", "sensors", "coning", "integrator", "config", "coning_analysis", "observability",
         "star_camera", "boresight", "calibrator", "integral_method", "tkachenko", "sensors.effects",
         "sensors.covariance", "streams", "buffers", "analysis.pairs", "analysis.linear_model",
-        "analysis.discrepancy", "analysis.diagnostics", "analysis.hidden", "analysis.linearisation"]
+        "analysis.discrepancy", "analysis.diagnostics", "analysis.hidden", "analysis.linearisation",
+        "attitude_kernel", "navigation.gravity", "navigation.trajectories", "navigation.update",
+        "navigation.recursion", "navigation.covariance", "navigation.alignment", "navigation.navigator",
+        "navigation.channel", "navigation.system", "navigation.run"]
 
 
 def test_core_imports_with_rclpy_absent():

@@ -49,6 +49,30 @@ _F_CONST[3:6, 3:6] = -2.0 * _OM
 _F_CONST[6:9, 6:9] = -_OM
 
 
+def _jacobian_basis() -> np.ndarray:
+    """``E`` (4, 3, 12): ``J(u, T) = Σ_i u_i E_i + T E_3`` for the constants' Jacobian of one
+    increment u of length T.  Built from :func:`constant_jacobian` itself (the effects' own
+    Jacobians, the one home of that model), which must be linear in (u, T): checked here."""
+    unit = constant_jacobian(np.eye(3), np.zeros(3))              # (3, 3, 12): ∂/∂ for u = e_i
+    per_t = constant_jacobian(np.zeros((1, 3)), np.ones(1))[0]    # (3, 12): T = 1
+    rng = np.random.default_rng(0)
+    u, t = rng.normal(size=(4, 3)), rng.uniform(0.1, 1.0, 4)
+    if not np.allclose(constant_jacobian(u, t), np.einsum("ki,iab->kab", u, unit) + t[:, None, None] * per_t,
+                       rtol=1e-12, atol=1e-15):
+        raise RuntimeError("constant_jacobian is not linear in (u, T); the navigation covariance assumes it is")
+    return np.concatenate([unit, per_t[None]], axis=0)
+
+
+_BASIS = _jacobian_basis()
+
+
+def _contract(w: np.ndarray) -> np.ndarray:
+    """Per-epoch sums of ``V[a, m]·[u, T]_i`` (E, 3, 12; index 4m + i) → the sums of
+    ``V J(u, T)`` (E, 3, 12)."""
+    w = w.reshape(len(w), 3, 3, 4)                                # [e, a, m, i]
+    return np.einsum("eami,imc->eac", w, _BASIS)
+
+
 class NavigationCovariance:
     def __init__(self, gyro: SensorSigmas, accel: SensorSigmas, p0: np.ndarray, period: float = 1.0):
         p0 = np.asarray(p0, dtype=float)
@@ -62,6 +86,7 @@ class NavigationCovariance:
         self.var = np.concatenate([constant_variances(gyro), constant_variances(accel)])
         self.period = float(period)
         self._acc = self._zero_acc()
+        self._elapsed = 0.0                     # step time fed so far, s
         self.current = self.p_w.copy()
 
     @staticmethod
@@ -74,22 +99,23 @@ class NavigationCovariance:
         out = np.empty((k_steps, 9, 9))
         if k_steps == 0:
             return out
-        vjg = v_start @ constant_jacobian(theta, h)              # (K, 3, 12) V ∂δθ/∂[b_g, vec M_g]
-        vja = v_start @ constant_jacobian(dv_body, h)            # (K, 3, 12) V ∂δv/∂[b_a, vec M_a]
+        # V ∂δθ/∂[b_g, vec M_g] and V ∂δv/∂[b_a, vec M_a], summed per epoch below: the Jacobian is
+        # linear in (u, T), J(u, T) = Σ_i u_i E_i + T E_T, so only the (K, 3, 4) products V·[u, T]
+        # are formed per step and the sums are multiplied by the basis E once per epoch
+        wg = np.concatenate([v_start[:, :, :, None] * theta[:, None, None, :],
+                             (v_start * h[:, None, None])[:, :, :, None]], axis=-1).reshape(k_steps, 3, 12)
+        wa = np.concatenate([v_start[:, :, :, None] * dv_body[:, None, None, :],
+                             (v_start * h[:, None, None])[:, :, :, None]], axis=-1).reshape(k_steps, 3, 12)
         fdt = (v_start @ dv_body[:, :, None])[:, :, 0]
-        # epoch ends: the steps at which the accumulated time reaches the period
-        cum = self._acc["dt"] + np.cumsum(h)
-        ends, base = [], 0.0
-        while True:
-            i = int(np.searchsorted(cum, base + self.period - 1e-12))
-            if i >= k_steps:
-                break
-            ends.append(i + 1)
-            base = cum[i]
+        # (an epoch ends at the first step reaching a multiple of the period since the start)
+        tot = self._elapsed + np.cumsum(h)
+        grid = np.floor(tot / self.period + 1e-9)
+        ends = list(np.flatnonzero(np.diff(grid, prepend=np.floor(self._elapsed / self.period + 1e-9)) > 0) + 1)
+        self._elapsed = float(tot[-1])
         bounds = np.array([0] + ends + ([k_steps] if not ends or ends[-1] < k_steps else []))
         starts = bounds[:-1]
-        sum_g = np.add.reduceat(vjg, starts, axis=0)
-        sum_a = np.add.reduceat(vja, starts, axis=0)
+        sum_g = _contract(np.add.reduceat(wg, starts, axis=0))
+        sum_a = _contract(np.add.reduceat(wa, starts, axis=0))
         sum_f = np.add.reduceat(fdt, starts, axis=0)
         sum_h = np.add.reduceat(h, starts)
         n_ep = len(ends)

@@ -49,7 +49,9 @@ class CumulativeIncrements:
 
     :meth:`increments` gives the integrals over consecutive intervals: exact when the edges are
     stamps; linear within one sample interval (constant rate) otherwise; beyond the newest stamp
-    it extrapolates with the newest sample's rate.
+    it extrapolates with the newest sample's rate, and before the oldest kept stamp with the oldest
+    sample's rate (the fits of the first steps reach before the start: a one-sample algorithm's
+    gyro fit takes the previous increment too, and reading it as zero would fake a rate jump).
 
     The running sum is kept as ``S_j = D_j + j·x̄``: cumulative *deviations* from a reference
     increment x̄ plus a sample count.  A plain cumulative sum of 300 Hz accelerometer increments
@@ -87,7 +89,6 @@ class CumulativeIncrements:
         self.t = np.concatenate([self.t, st])
         self.d = np.concatenate([self.d, self.d[-1] + np.cumsum(inc - self.xbar, axis=0)])
         self.j = np.concatenate([self.j, self.j[-1] + np.arange(1, len(st) + 1)])
-        self._last = inc[-1] if len(inc) else getattr(self, "_last", self.xbar)
         if len(self.t) > self.max_len:
             drop = len(self.t) - self.max_len
             self.overflowed += drop
@@ -97,13 +98,17 @@ class CumulativeIncrements:
         self.t, self.d, self.j = self.t[i:], self.d[i:] - self.d[i], self.j[i:] - self.j[i]
 
     def _at(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """``(D, j)`` at times ``t``: linear within a sample interval, and beyond either end the
+        first or last interval continued (that sample's constant rate)."""
         t = np.asarray(t, dtype=float)
-        d = np.stack([np.interp(t, self.t, self.d[:, i]) for i in range(3)], -1)
-        j = np.interp(t, self.t, self.j)
-        if len(self.t) >= 2:
-            frac = np.maximum(t - self.t[-1], 0.0) / (self.t[-1] - self.t[-2])
-            d = d + frac[..., None] * (self._last - self.xbar)
-            j = j + frac
+        if len(self.t) < 2:
+            return np.zeros(t.shape + (3,)), np.zeros(t.shape)
+        i = np.clip(np.searchsorted(self.t, t, side="right") - 1, 0, len(self.t) - 2)
+        t0, t1 = self.t[i], self.t[i + 1]
+        w = (t - t0) / (t1 - t0)
+        d0 = self.d[i]
+        d = d0 + w[..., None] * (self.d[i + 1] - d0)
+        j = self.j[i] + w * (self.j[i + 1] - self.j[i])
         return d, j
 
     def increments(self, edges: np.ndarray) -> np.ndarray:

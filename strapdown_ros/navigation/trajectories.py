@@ -57,7 +57,7 @@ from ..rotation import dcm_to_quat, quat_multiply, quat_normalize, quat_to_dcm
 from .gravity import OMEGA, ecef_to_geodetic, enu_rotation, geodetic_to_ecef, normal_gravity
 
 __all__ = ["EarthProfile", "static_profile", "straight_flight_profile", "coordinated_turn_profile",
-           "sculling_profile", "sculling_drift_rate", "navigation_profile_from_config",
+           "sculling_profile", "sculling_drift_rate", "gravity_sculling_term", "navigation_profile_from_config",
            "NAVIGATION_PROFILE_NAMES", "MIN_FREQUENCY"]
 
 NAVIGATION_PROFILE_NAMES = ("static", "straight_flight", "coordinated_turn", "sculling")
@@ -468,10 +468,14 @@ def sculling_profile(lat: float, lon: float, h: float = 0.0, angle_amplitude: fl
       ``−(B/w) cos(wt) y_L`` is periodic with zero mean.  The body does **not** start at rest:
       ``initial_velocity = −(B/w) y_L``.
 
-    In body axes the in-phase lateral specific force has amplitude
-    ``B_eff = B + A·g`` (gravity, tilted by the roll oscillation, adds A·g to body y; plus
-    O(A²) and Coriolis terms); ``parameters['effective_accel_amplitude']`` holds it, and it is
-    the B that enters :func:`sculling_drift_rate` for this profile.
+    In body axes the in-phase lateral specific force has amplitude ``B_eff = B + A·g`` (gravity,
+    tilted by the roll oscillation, adds A·g to body y); ``parameters['effective_accel_amplitude']``
+    holds it.  It is the B of the *first-order* sculling term ``½∫(α×f + v×ω) dt``
+    (test/test_trajectories.py).  It is **not** the B of the drift of a Δv without sculling
+    compensation: the second-order rotation of the large vertical force, ``½α×(α×g ẑ)``, cancels
+    the A·g part in body axes, so that drift is :func:`sculling_drift_rate` with the real B
+    (measured by ``nav_bench``, doc/bench/nav/), plus, in level axes, the term even in B of
+    :func:`gravity_sculling_term`.
     """
     _check_finite(lat=lat, lon=lon, h=h, angle_amplitude=angle_amplitude,
                   accel_amplitude=accel_amplitude, frequency=frequency, yaw=yaw)
@@ -559,3 +563,22 @@ def navigation_profile_from_config(cfg: dict) -> EarthProfile:
                             accel_amplitude=float(cfg.get("sculling_accel", 1.0)),
                             frequency=float(cfg.get("sculling_frequency", 10.0)), yaw=heading,
                             gravity_model=model)
+
+
+def gravity_sculling_term(angle_amplitude, g_up, omega, interval):
+    """Mean vertical drift (m/s², + = up) of ``rotation_only`` in the navigation frame caused by a
+    roll oscillation θ = A sin(wt) in gravity alone (no lateral acceleration).
+
+    To second order in A, with δ(s) = θ(t0 + s) − θ(t0), the error of Δv + ½Δθ×Δv against the
+    exact ∫C f dt, in level axes, is ``g(I₁ − ½Δh) ŷ + ½g(ΔI₁ − I₂) ẑ`` (I₁ = ∫δ, I₂ = ∫δ²,
+    Δ = δ(h)); averaged over the phase of the step, ⟨ΔI₁ − I₂⟩ = A²h(sin x/x − ½(1 + cos x)),
+    x = wh.  So the drift is ``½gA²(sin x/x − ½(1 + cos x))`` ≈ gA²x²/24 (small x), upward,
+    against the classical sculling term's downward ½AB(1 − sin x/x).  In body axes at the step
+    start the same phase average vanishes (the ŷ error, correlated with θ(t0), turns into ẑ
+    only in level axes), so a body-axis drift shows the classical term alone.
+    """
+    x = np.asarray(omega, dtype=float) * np.asarray(interval, dtype=float)
+    small = np.abs(x) < 1e-2
+    xs = np.where(small, 1.0, x)
+    bracket = np.where(small, x ** 2 / 12.0 - x ** 4 / 180.0, np.sin(xs) / xs - 0.5 * (1.0 + np.cos(xs)))
+    return 0.5 * np.asarray(g_up, dtype=float) * np.asarray(angle_amplitude, dtype=float) ** 2 * bracket

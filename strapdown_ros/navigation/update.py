@@ -44,6 +44,8 @@ No ROS imports; vectorised over steps.
 """
 from __future__ import annotations
 
+import math
+import os
 from dataclasses import dataclass, field
 from fractions import Fraction
 from itertools import product
@@ -137,6 +139,11 @@ def specific_force_integrals(gyro_window: np.ndarray, accel_window: np.ndarray, 
     u = np.asarray(accel_window, dtype=float)
     h = np.asarray(h, dtype=float)
     n, m = layout.gyro_per_step, layout.accel_per_step
+    if form == "exact" and _kernel_available() and len(h):     # the same mathematics, one compiled loop
+        dv, dr = np.empty((len(h), 3)), np.empty((len(h), 3))
+        _compiled(np.ascontiguousarray(q), np.ascontiguousarray(u), np.ascontiguousarray(h), layout.gyro_fit,
+                  layout.accel_fit, n, m, _GL_S, _GL_W, _GL_WR, dv, dr)
+        return dv, dr
     theta = q[:, -n:].sum(1)                   # the step's own increments
     v = u[:, -m:].sum(1)
     poly = layout.accel_fit @ u                              # (K, 3, 3): c', d', e' (per unit step)
@@ -161,6 +168,86 @@ def specific_force_integrals(gyro_window: np.ndarray, accel_window: np.ndarray, 
     dv = v + _GL_W @ af
     dr = h[:, None] * (p_lin + _GL_WR @ af)
     return dv, dr
+
+
+def _exact_loop(q, u, h, gyro_fit, accel_fit, n, m, gl_s, gl_w, gl_wr, dv_out, dr_out):
+    """The ``"exact"`` form step by step in scalar arithmetic: the vectorised code above, written
+    as one loop without temporaries so that numba can compile it (optional; the tests compare
+    the two paths).  ``n`` is unused (the gyro window is the fit's)."""
+    for k in range(h.shape[0]):
+        for i in range(3):                  # the fits, column by column: a₁h, a₂h²; c', d', e'
+            a1 = 0.0
+            a2 = 0.0
+            for j in range(q.shape[1]):
+                a1 += gyro_fit[0, j] * q[k, j, i]
+                a2 += gyro_fit[1, j] * q[k, j, i]
+            dv_out[k, i] = a1               # parked here until the loop below
+            dr_out[k, i] = a2
+        a1x, a1y, a1z = dv_out[k, 0], dv_out[k, 1], dv_out[k, 2]
+        a2x, a2y, a2z = dr_out[k, 0], dr_out[k, 1], dr_out[k, 2]
+        cx = cy = cz = dx = dy = dz = ex = ey = ez = vx = vy = vz = 0.0
+        for j in range(u.shape[1]):
+            ux, uy, uz = u[k, j, 0], u[k, j, 1], u[k, j, 2]
+            cx += accel_fit[0, j] * ux
+            cy += accel_fit[0, j] * uy
+            cz += accel_fit[0, j] * uz
+            dx += accel_fit[1, j] * ux
+            dy += accel_fit[1, j] * uy
+            dz += accel_fit[1, j] * uz
+            ex += accel_fit[2, j] * ux
+            ey += accel_fit[2, j] * uy
+            ez += accel_fit[2, j] * uz
+            if j >= u.shape[1] - m:
+                vx += ux
+                vy += uy
+                vz += uz
+        bx, by, bz = a1y * a2z - a1z * a2y, a1z * a2x - a1x * a2z, a1x * a2y - a1y * a2x
+        svx = svy = svz = srx = sry = srz = 0.0
+        for g in range(gl_s.shape[0]):
+            x = gl_s[g]
+            x2 = 0.5 * x * x
+            x3 = x * x * x / 12.0
+            px, py, pz = a1x * x + a2x * x2 + bx * x3, a1y * x + a2y * x2 + by * x3, a1z * x + a2z * x2 + bz * x3
+            fx, fy, fz = cx + dx * x + ex * x2, cy + dy * x + ey * x2, cz + dz * x + ez * x2
+            t2 = px * px + py * py + pz * pz
+            if t2 < 1e-8:
+                s1 = 1.0 - t2 / 6.0 + t2 * t2 / 120.0
+                s2 = 0.5 - t2 / 24.0 + t2 * t2 / 720.0
+            else:
+                t = math.sqrt(t2)
+                s1 = math.sin(t) / t
+                s2 = (1.0 - math.cos(t)) / t2
+            qx, qy, qz = py * fz - pz * fy, pz * fx - px * fz, px * fy - py * fx
+            rx, ry, rz = py * qz - pz * qy, pz * qx - px * qz, px * qy - py * qx
+            ax, ay, az = s1 * qx + s2 * rx, s1 * qy + s2 * ry, s1 * qz + s2 * rz
+            svx += gl_w[g] * ax
+            svy += gl_w[g] * ay
+            svz += gl_w[g] * az
+            srx += gl_wr[g] * ax
+            sry += gl_wr[g] * ay
+            srz += gl_wr[g] * az
+        dv_out[k, 0], dv_out[k, 1], dv_out[k, 2] = vx + svx, vy + svy, vz + svz
+        dr_out[k, 0] = h[k] * (cx / 2.0 + dx / 6.0 + ex / 24.0 + srx)
+        dr_out[k, 1] = h[k] * (cy / 2.0 + dy / 6.0 + ey / 24.0 + sry)
+        dr_out[k, 2] = h[k] * (cz / 2.0 + dz / 6.0 + ez / 24.0 + srz)
+
+
+_compiled = None
+ENV = "STRAPDOWN_KERNEL"
+
+
+def _kernel_available() -> bool:
+    """numba present, allowed (``STRAPDOWN_KERNEL`` ≠ ``numpy``) and able to compile the loop."""
+    global _compiled
+    if os.environ.get(ENV, "").lower() == "numpy":
+        return False
+    if _compiled is None:
+        try:
+            import numba
+            _compiled = numba.njit(cache=True)(_exact_loop)
+        except Exception:                                # noqa: BLE001 - no numba, or it cannot compile
+            _compiled = False
+    return _compiled is not False
 
 
 # --- the series of 003 (1.99)/(1.100) -----------------------------------------------------------

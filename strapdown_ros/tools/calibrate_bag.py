@@ -59,6 +59,22 @@ class BagError(RuntimeError):
     """The bag cannot be used (missing topics, wrong types, unreadable)."""
 
 
+def open_reader(path):
+    """An open ``rosbags`` AnyReader (Jazzy type store) for a bag directory or file; BagError when
+    it is missing or unreadable (one line)."""
+    from rosbags.highlevel import AnyReader
+    from rosbags.typesys import Stores, get_typestore
+    path = Path(path)
+    if not path.exists():
+        raise BagError(f"{path} does not exist")
+    try:
+        reader = AnyReader([path], default_typestore=get_typestore(Stores.ROS2_JAZZY))
+        reader.open()
+    except Exception as exc:                           # noqa: BLE001 - any unreadable bag is reported
+        raise BagError(f"cannot open {path}: {str(exc).splitlines()[0] if str(exc) else type(exc).__name__}") from None
+    return reader
+
+
 # --- parameters -------------------------------------------------------------------------------
 def calibrator_parameters(params_file: str | None = None, overrides: dict | None = None) -> dict:
     """calibrator_node parameters from a ROS 2 parameter YAML (+ overrides), validated."""
@@ -111,17 +127,10 @@ def read_bag(path: str | Path, namespace: str = "", use_camera_covariance: bool 
     """Gyro increments and camera fixes from a bag, validated by the rules calibrator_node applies
     (:class:`strapdown_ros.streams.StreamCheck`, drops counted).  The gyro period is taken from
     the stamps (the median step), not from a parameter.  Raises BagError."""
-    from rosbags.highlevel import AnyReader, AnyReaderError
-    from rosbags.typesys import Stores, get_typestore
+    from rosbags.highlevel import AnyReaderError
 
     path = Path(path)
-    if not path.exists():
-        raise BagError(f"{path} does not exist")
-    try:
-        reader = AnyReader([path], default_typestore=get_typestore(Stores.ROS2_JAZZY))
-        reader.open()
-    except Exception as exc:                           # noqa: BLE001 - any unreadable bag is reported
-        raise BagError(f"cannot open {path}: {exc}") from exc
+    reader = open_reader(path)
     try:
         topics = {c.topic: c.msgtype for c in reader.connections}
         gyro_topic = _resolve(topics, GYRO_TOPIC, namespace)

@@ -21,11 +21,12 @@ import argparse
 import json
 import math
 import os
-import statistics
 import sys
 import time
 
 import numpy as np
+
+from .bench_stats import median_range, stats
 
 from ..integrator import AttitudeIntegrator, IncrementAccumulator
 from ..profiles import STANDARD_GRAVITY, ConingProfile
@@ -68,19 +69,6 @@ def core_benchmark(algorithm: str = "2", hours: float = 1.0, covariance_model: s
     data = coning_data(hours)
     runs = [core_run(data, algorithm, covariance_model) for _ in range(repeats)]
     return min(runs, key=lambda r: r["wall_s"])
-
-
-def stats(values) -> dict:
-    v = [x for x in values if x is not None and math.isfinite(x)]
-    if not v:
-        return {"median": math.nan, "min": math.nan, "max": math.nan, "n": 0}
-    return {"median": statistics.median(v), "min": min(v), "max": max(v), "n": len(v)}
-
-
-def _mm(s: dict, fmt: str) -> str:
-    if s["n"] == 0:
-        return "not measured"
-    return f"{format(s['median'], fmt)} ({format(s['min'], fmt)}–{format(s['max'], fmt)})"
 
 
 class _Parser(argparse.ArgumentParser):
@@ -131,9 +119,9 @@ def main(argv=None):
     lines += ["", "| core: 360 000 gyro + 1 080 000 accel intervals | wall, s | × real time | ns per gyro interval |",
               "|---|---:|---:|---:|"]
     for m, runs in core.items():
-        lines.append(f"| algorithm {args.algorithm}, covariance `{m}` | {_mm(stats([r['wall_s'] for r in runs]), '.3f')} | "
-                     f"{_mm(stats([r['real_time_ratio'] for r in runs]), '.0f')} | "
-                     f"{_mm(stats([r['ns_per_gyro_interval'] for r in runs]), '.0f')} |")
+        lines.append(f"| algorithm {args.algorithm}, covariance `{m}` | {median_range(stats([r['wall_s'] for r in runs]), '.3f')} | "
+                     f"{median_range(stats([r['real_time_ratio'] for r in runs]), '.0f')} | "
+                     f"{median_range(stats([r['ns_per_gyro_interval'] for r in runs]), '.0f')} |")
     if not args.no_peers:
         from .core_peers import peer_runs
         prof, tg, _, dth, _ = data
@@ -149,12 +137,12 @@ def main(argv=None):
         diff = max((r.get("final_attitude_difference_rad", math.nan) for r in rows), default=math.nan)
         lines += ["", f"| {peers['intervals']} Δθ intervals, one-plus-previous coning term | wall, s | "
                       "strapdown_ros ÷ this |", "|---|---:|---:|",
-                  f"| A strapdown_ros core, covariance included | {_mm(a, '.3f')} | 1 |",
-                  f"| B pyins 1.0.1 compiled kernel (coning term in numpy, as its API computes it) | {_mm(b, '.3f')} | "
-                  f"{_mm(rb, '.2f')} |",
-                  f"| pyins public API around that kernel (pandas in and out), for information | {_mm(bapi, '.3f')} | "
-                  f"{_mm(stats([r['strapdown_ros_s'] / r['pyins_api_s'] for r in rows if math.isfinite(r['pyins_api_s'])]), '.2f')} |",
-                  f"| C compiled 20-line quaternion loop (numba) | {_mm(c, '.4f')} | {_mm(rc, '.1f')} |", ""]
+                  f"| A strapdown_ros core, covariance included | {median_range(a, '.3f')} | 1 |",
+                  f"| B pyins 1.0.1 compiled kernel (coning term in numpy, as its API computes it) | {median_range(b, '.3f')} | "
+                  f"{median_range(rb, '.2f')} |",
+                  f"| pyins public API around that kernel (pandas in and out), for information | {median_range(bapi, '.3f')} | "
+                  f"{median_range(stats([r['strapdown_ros_s'] / r['pyins_api_s'] for r in rows if math.isfinite(r['pyins_api_s'])]), '.2f')} |",
+                  f"| C compiled 20-line quaternion loop (numba) | {median_range(c, '.4f')} | {median_range(rc, '.1f')} |", ""]
         if rb["n"]:
             lines.append(f"A ÷ B median {rb['median']:.2f} — target ≤ {PYINS_RATIO_TARGET:g} "
                          f"{'met' if rb['median'] <= PYINS_RATIO_TARGET else 'NOT met'}.")
@@ -175,9 +163,9 @@ def main(argv=None):
         out = stats([n["attitude_outputs_received"] / max(n["attitude_outputs_expected"], 1) for n in nodes])
         lines += ["", f"| sins_node in its own process, {args.node_rate:g} Hz Δθ for {args.node_seconds:g} s over "
                       "loopback (paced publisher) | median (min–max) |", "|---|---:|",
-                  f"| achieved input rate, Hz | {_mm(ach, '.0f')} |",
-                  f"| messages lost (sent − accepted by the node) | {_mm(lost, '.0f')} |",
-                  f"| attitudes received back ÷ expected | {_mm(out, '.4f')} |"]
+                  f"| achieved input rate, Hz | {median_range(ach, '.0f')} |",
+                  f"| messages lost (sent − accepted by the node) | {median_range(lost, '.0f')} |",
+                  f"| attitudes received back ÷ expected | {median_range(out, '.4f')} |"]
     text = "\n".join(lines)
     print(text)
     res["text"] = text

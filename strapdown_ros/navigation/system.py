@@ -1,0 +1,488 @@
+"""The numerical core of ``sins_node``, without ROS: used by the node and by ``sins_bag``.
+
+:class:`SinsSystem` takes the node's validated parameters (:data:`strapdown_ros.config.SINS_PARAMS`)
+and the raw stream of ``imu/delta_theta`` and ``imu/delta_velocity`` values (header stamp in
+integer nanoseconds, the vector, the header frame id) and owns everything between them and the
+published numbers:
+
+* input validation: the frame rule (``frame_id``/``frame_mismatch``) and the stream rules of
+  :class:`strapdown_ros.streams.StreamCheck` (NaN, range, duplicates, out of order, stamp jumps
+  and resynchronisation, gaps), one per stream;
+* the blocks: increments are integrated in blocks covering ``batch_period`` of stamp time (or
+  :data:`MAX_BATCH` messages); :meth:`SinsSystem.offer_gyro` / :meth:`~SinsSystem.offer_accel`
+  say when a block is due, :meth:`SinsSystem.process` integrates it;
+* the :class:`~strapdown_ros.integrator.AttitudeIntegrator`, the compensation of the gyro effects
+  of the parameters (:class:`~strapdown_ros.sensors.effects.GyroEffects`), the non-finite rule
+  (an update whose attitude or covariance is not finite is never output: the block is redone
+  sample by sample from the state before it, the offending update is dropped and the state
+  returns to the last good update with :data:`NONFINITE_INFLATION` rad added to its σ);
+* the accelerometer accumulator of ``sins/imu`` (mean specific force over each update, which
+  waits up to ``accel_wait`` stamp seconds for the accelerometer data);
+* the :class:`~.channel.NavigationChannel` (parameter ``navigation``) with its start: the given
+  attitude, or the static alignment, after which the integrator restarts from the aligned
+  attitude.
+
+Outputs (:class:`SinsOutput`) are plain arrays with absolute header stamps (ns): the attitude
+updates (``sins/attitude``), the ``sins/imu`` records and the navigation steps
+(``sins/odometry``); :func:`odometry_arrays` gives the Odometry covariances and body velocity.
+Processing the same messages in the same order gives the same numbers, whoever calls it.
+
+No ROS imports.
+"""
+from __future__ import annotations
+
+import time
+from collections import deque
+from dataclasses import dataclass, fields
+from typing import Callable
+
+import numpy as np
+
+from .. import attitude_kernel
+from ..config import sigmas_from
+from ..integrator import AttitudeIntegrator, IncrementAccumulator
+from ..rotation import dcm_to_quat, from_ros_xyzw, quat_to_dcm
+from ..sensors.effects import GyroEffects
+from ..streams import StreamCheck
+from . import recursion as nav_recursion
+from .channel import NavigationChannel
+
+__all__ = ["SinsSystem", "SinsOutput", "AttitudeOutput", "ImuOutput", "NavigationOutput", "odometry_arrays",
+           "NONFINITE_INFLATION", "MAX_BATCH"]
+
+NONFINITE_INFLATION = 0.01      # rad per axis added to σ after a non-finite update is discarded
+MAX_BATCH = 4096                # a block is processed when it holds this many messages, whatever its span
+
+
+# --- outputs ------------------------------------------------------------------------------------
+class _Arrays:
+    """Concatenation and emptiness of the output records (all fields are arrays along axis 0)."""
+
+    def __len__(self) -> int:
+        return len(self.stamp_ns)
+
+    @classmethod
+    def concat(cls, parts: list):
+        if not parts:
+            return cls.EMPTY
+        if len(parts) == 1:
+            return parts[0]
+        return cls(*(np.concatenate([getattr(p, f.name) for p in parts]) for f in fields(cls)))
+
+
+@dataclass
+class AttitudeOutput(_Arrays):
+    """Attitude updates (``sins/attitude``), M of them."""
+    stamp_ns: np.ndarray        # (M,) int64 header stamp, ns (end of the update)
+    attitude: np.ndarray        # (M, 4) q_ref_body, scalar-first
+    covariance: np.ndarray      # (M, 3, 3) attitude error ε, body axes, rad²
+    mean_rate: np.ndarray       # (M, 3) mean angular rate over the update, rad/s
+    interval: np.ndarray        # (M,) update length, s
+
+    @classmethod
+    def empty(cls):
+        return cls(np.zeros(0, np.int64), np.zeros((0, 4)), np.zeros((0, 3, 3)), np.zeros((0, 3)), np.zeros(0))
+
+
+@dataclass
+class ImuOutput(_Arrays):
+    """``sins/imu`` records: the attitude updates once their accelerometer data arrived (or
+    waited ``accel_wait``).  ``specific_force`` is the mean Δv/h over the update where
+    ``has_accel``, zeros (and ``has_accel`` False) where no accelerometer data covered it."""
+    stamp_ns: np.ndarray        # (M,) int64
+    attitude: np.ndarray        # (M, 4) q_ref_body, scalar-first
+    covariance: np.ndarray      # (M, 3, 3) body axes, rad²
+    mean_rate: np.ndarray       # (M, 3) rad/s
+    specific_force: np.ndarray  # (M, 3) m/s², body axes
+    has_accel: np.ndarray       # (M,) bool
+
+    @classmethod
+    def empty(cls):
+        return cls(np.zeros(0, np.int64), np.zeros((0, 4)), np.zeros((0, 3, 3)), np.zeros((0, 3)),
+                   np.zeros((0, 3)), np.zeros(0, bool))
+
+
+@dataclass
+class NavigationOutput(_Arrays):
+    """Navigation steps (``sins/odometry``), K of them (:class:`.navigator.NavigationBatch`)."""
+    stamp_ns: np.ndarray        # (K,) int64
+    position: np.ndarray        # (K, 3) ECEF, m
+    velocity: np.ndarray        # (K, 3) ECEF, m/s
+    attitude: np.ndarray        # (K, 4) q_earth_body, scalar-first
+    covariance: np.ndarray      # (K, 9, 9) [δR, δW, ψ] (ψ about earth axes), m, m/s, rad
+    extrapolated: np.ndarray    # (K,) bool: accelerometer data were extrapolated for the step
+
+    @classmethod
+    def empty(cls):
+        return cls(np.zeros(0, np.int64), np.zeros((0, 3)), np.zeros((0, 3)), np.zeros((0, 4)),
+                   np.zeros((0, 9, 9)), np.zeros(0, bool))
+
+
+for _cls in (AttitudeOutput, ImuOutput, NavigationOutput):
+    _cls.EMPTY = _cls.empty()          # shared: zero-length arrays, never written
+
+
+@dataclass
+class SinsOutput:
+    """What one :meth:`SinsSystem.process` produced, in stamp order per stream."""
+    attitude: AttitudeOutput
+    imu: ImuOutput
+    navigation: NavigationOutput
+
+
+_NOTHING = SinsOutput(AttitudeOutput.EMPTY, ImuOutput.EMPTY, NavigationOutput.EMPTY)
+
+
+def odometry_arrays(nav: NavigationOutput, rate_variance: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The nav_msgs/Odometry numbers of navigation steps (REP-105): pose covariance (K, 36) of
+    [position, ψ about earth axes], velocity in body axes (K, 3) and the twist covariance (K, 36)
+    ([body velocity, angular rate]; the angular block ``rate_variance`` per axis: the rate itself
+    is on sins/imu, twist.angular is not filled)."""
+    k = len(nav)
+    p = nav.covariance
+    c6 = np.zeros((k, 6, 6))
+    c6[:, :3, :3], c6[:, :3, 3:], c6[:, 3:, :3], c6[:, 3:, 3:] = p[:, :3, :3], p[:, :3, 6:], p[:, 6:, :3], p[:, 6:, 6:]
+    c = quat_to_dcm(nav.attitude).reshape(k, 3, 3)              # C_E_B: twist in body axes
+    ct = np.swapaxes(c, -1, -2)
+    vb = np.einsum("kij,kj->ki", ct, nav.velocity)
+    t6 = np.zeros((k, 6, 6))
+    t6[:, :3, :3] = ct @ p[:, 3:6, 3:6] @ c
+    t6[:, 3:, 3:] = np.eye(3) * rate_variance
+    return c6.reshape(k, 36), vb, t6.reshape(k, 36)
+
+
+# --- the system ---------------------------------------------------------------------------------
+class SinsSystem:
+    """sins_node's processing.  ``params``: validated :data:`~strapdown_ros.config.SINS_PARAMS`
+    (copied); ``log(level, text)``: where messages go (level ``info``, ``warn`` or ``error``;
+    repeated warnings are throttled here); ``imu_wanted()``: asked once per block whether
+    ``sins/imu`` records are wanted (False: none are made and the accelerometer data only feed
+    the navigation).
+
+    Feeding: :meth:`offer_gyro` / :meth:`offer_accel` for every message, in arrival order; when
+    one returns True a block is due: call :meth:`process`, which integrates what is buffered and
+    returns everything produced since the last call (:class:`SinsOutput`).  :meth:`process` may
+    also be called at any other time (the node's wall-clock timer does).  :attr:`has_output`
+    tells that outputs are waiting without a block being due (a stamp resynchronisation
+    processed the old time base).  :meth:`finish` (end of a recording) releases the outputs
+    still waiting for accelerometer data, as ``accel_wait`` would.
+    """
+
+    def __init__(self, params: dict, log: Callable[[str, str], None] | None = None,
+                 imu_wanted: Callable[[], bool] | None = None):
+        p = self.p = dict(params)
+        q0_xyzw = np.asarray(p["initial_orientation"], dtype=float)
+        if np.linalg.norm(q0_xyzw) < 1e-6:
+            raise ValueError("initial_orientation must not be the zero quaternion")
+        self.initial_normalised = abs(np.linalg.norm(q0_xyzw) - 1.0) > 1e-6
+        period = 1.0 / float(p["gyro_rate"])
+        self.integrator = AttitudeIntegrator(
+            p["coning_algorithm"], initial_attitude=from_ros_xyzw(q0_xyzw), nominal_period=period,
+            gyro=sigmas_from(p, "gyro"), initial_sigma=float(p["initial_attitude_sigma"]),
+            covariance_model=p["covariance_model"], quantization_correction=bool(p["quantization_correction"]))
+        # known systematic gyro effects of the model (sensors.effects), compensated per increment
+        self.gyro_effects = GyroEffects(p)
+        self.compensating = self.gyro_effects.names()
+        self._last_gyro_t: float | None = None
+        jump, resync = float(p["max_stamp_jump"]), int(p["resync_count"])
+        self.gyro_check = StreamCheck(period, max_norm=2.0 * period * float(p["gyro_max_rate"]), jump_limit=jump,
+                                      resync_count=resync)
+        a_period = 1.0 / float(p["accel_rate"])
+        self.accel_check = StreamCheck(a_period, max_norm=2.0 * a_period * float(p["accel_max"]), jump_limit=jump,
+                                       resync_count=resync)
+        self.nonfinite = 0                         # updates whose output was not finite (never output)
+        self.frame_mismatch = {"gyro": 0, "accel": 0}
+        self.frame_id = p["frame_id"]
+        self.reject_frames = p["frame_mismatch"] == "reject"
+        self._own_frames = ("", self.frame_id)
+        self._good = self.integrator.snapshot()
+        self.accel = IncrementAccumulator()
+        self.accel_seen = False
+        self.origin_ns: int | None = None          # stamps are handled relative to the first one
+        self.pending_imu: deque = deque()          # updates waiting for accelerometer data
+        # input blocks (offer_*: validate and append; process() does the numerical work)
+        self._gyro_in: list = []                   # (t, stamp_ns, (x, y, z))
+        self._accel_in: list = []                  # (t, (x, y, z))
+        self.batch_span = float(p["batch_period"])
+        self._gyro_period = period
+        self._block_end_t: float | None = None     # stamp (relative) of the last sample processed
+        g = self.integrator.gyro.random_walk ** 2 / max(period, 1e-12)
+        self.rate_variance = g                     # per axis, (rad/s)², of the mean rate of sins/imu
+        self.accel_variance = float(p["accel_random_walk"]) ** 2 * float(p["accel_rate"])   # (m/s²)²
+        self._log_fn = log
+        self._imu_wanted = imu_wanted or (lambda: True)
+        self._throttle: dict[str, float] = {}
+        self._out: tuple[list, list, list] = ([], [], [])
+        self.has_output = False
+        attitude_kernel.warm_up()                  # compiled before the first message, if numba is there
+        self.nav: NavigationChannel | None = None
+        if p["navigation"]:
+            self.nav = NavigationChannel(p, sigmas_from(p, "gyro"), sigmas_from(p, "accel"), period, a_period,
+                                         self.integrator.algorithm.samples)
+            nav_recursion.warm_up()
+            self._nav_prev_q = self.integrator.q.copy()
+
+    # --- messages -----------------------------------------------------------------------------
+    def _log(self, level: str, text: str, throttle: float = 0.0, key: str | None = None) -> None:
+        if self._log_fn is None:
+            return
+        if throttle > 0:
+            now = time.monotonic()
+            k = key or text
+            if now - self._throttle.get(k, -np.inf) < throttle:
+                return
+            self._throttle[k] = now
+        self._log_fn(level, text)
+
+    # --- input --------------------------------------------------------------------------------
+    def _rel(self, stamp_ns: int) -> float:
+        if self.origin_ns is None:
+            self.origin_ns = stamp_ns
+        return (stamp_ns - self.origin_ns) * 1e-9
+
+    def _wrong_frame(self, frame_id: str, stream: str) -> bool:
+        """The frame rule: an empty frame_id is unspecified; another frame than ``frame_id`` is
+        counted and WARNed, and rejected unless ``frame_mismatch`` is accept."""
+        self.frame_mismatch[stream] += 1
+        self._log("warn", f"{stream} message in frame {frame_id!r}, expected {self.frame_id!r}: "
+                  f"{'rejected' if self.reject_frames else 'used'}", throttle=10.0, key="frame_" + stream)
+        return self.reject_frames
+
+    def offer_gyro(self, stamp_ns: int, value, frame_id: str = "") -> bool:
+        """One imu/delta_theta message (rad): validate and append.  True when a block is due."""
+        if frame_id not in self._own_frames and self._wrong_frame(frame_id, "gyro"):
+            return False
+        out = self.gyro_check.offer(stamp_ns, value)
+        if not out:
+            return False
+        if self.gyro_check.resynced:
+            self._run()                                    # the old time base, first
+            self.integrator.restart_clock()
+            self._last_gyro_t = None
+            self._block_end_t = None
+            self.origin_ns = None
+            self._log("error", f"gyro stamps jumped by {self.gyro_check.last_jump_s:.6g} s and stayed: "
+                      "resynchronised to the new time base; the rotation during the jump is lost")
+        for ns_i, val in out:
+            self._gyro_in.append((self._rel(ns_i), ns_i, val))
+        # the stamp time the block covers, from the end of the previous block (at 100 Hz with
+        # batch_period 0.01 every message is processed at once; at 1 kHz, blocks of 10), whatever
+        # gyro_rate says
+        start = self._block_end_t if self._block_end_t is not None else self._gyro_in[0][0] - self._gyro_period
+        return self._gyro_in[-1][0] - start >= self.batch_span - 1e-9 or len(self._gyro_in) >= MAX_BATCH
+
+    def offer_accel(self, stamp_ns: int, value, frame_id: str = "") -> bool:
+        """One imu/delta_velocity message (m/s): validate and append.  True when a block is due."""
+        if frame_id not in self._own_frames and self._wrong_frame(frame_id, "accel"):
+            return False
+        out = self.accel_check.offer(stamp_ns, value)
+        if not out:
+            return False
+        if self.accel_check.resynced:
+            self._accel_in.clear()
+            self.accel = IncrementAccumulator()           # the old time base is gone
+        self.accel_seen = True
+        for ns_i, val in out:
+            self._accel_in.append((self._rel(ns_i), val))
+        return len(self._accel_in) >= MAX_BATCH or self.batch_span == 0.0
+
+    def set_algorithm(self, name: str) -> bool:
+        """Switch the coning algorithm at runtime (attitude only; the samples buffered so far are
+        integrated with the old one first).  True when it changed."""
+        if name == self.integrator.algorithm_name:
+            return False
+        if self.nav is not None:
+            raise ValueError("the coning algorithm cannot change while navigation runs")
+        if self._gyro_in or self._accel_in:
+            self._run()
+        self.integrator.set_algorithm(name)
+        self.p["coning_algorithm"] = name
+        return True
+
+    # --- processing ---------------------------------------------------------------------------
+    def process(self) -> SinsOutput:
+        """Integrate the buffered increments as one block through the vectorised core; returns
+        every output produced since the last call.  The result equals message-by-message
+        processing to round-off (test_nodes.py::test_sins_node_batches_equal_per_message_processing)."""
+        self._run()
+        return self.take_output()
+
+    def finish(self) -> SinsOutput:
+        """End of the data: integrate what is buffered and release the updates still waiting for
+        accelerometer data, as ``accel_wait`` would once the stream had gone on (sins/imu without
+        specific force where none covered the update; navigation steps with the accelerometer
+        data extrapolated)."""
+        self._run()
+        self._flush_imu(final=True)
+        self._flush_nav(final=True)
+        return self.take_output()
+
+    def take_output(self) -> SinsOutput:
+        if not self.has_output:
+            return _NOTHING
+        att, imu, nav = self._out
+        out = SinsOutput(AttitudeOutput.concat(att), ImuOutput.concat(imu), NavigationOutput.concat(nav))
+        self._out = ([], [], [])
+        self.has_output = False
+        return out
+
+    def _run(self) -> None:
+        if self._accel_in:
+            t = np.fromiter((a[0] for a in self._accel_in), float, len(self._accel_in))
+            dv = np.array([a[1] for a in self._accel_in], dtype=float)
+            self.accel.add(dv, t)
+            self._accel_in.clear()
+            if self.nav is not None:
+                self.nav.add_accel(dv, t)
+        if self._gyro_in:
+            batch, self._gyro_in = self._gyro_in, []
+            self._block_end_t = batch[-1][0]
+            t = np.fromiter((g[0] for g in batch), float, len(batch))
+            inc = np.array([g[2] for g in batch], dtype=float)
+            if self.nav is not None and self._navigation_start(inc, t):
+                self._flush_imu()
+                return
+            before = self.integrator.checkpoint()
+            last_t = self._last_gyro_t
+            if not self._integrate(inc, t):
+                # a non-finite update inside the block: redo it sample by sample, from the state
+                # before it, so that exactly the offending update is discarded
+                self.integrator.rollback(before)
+                self._last_gyro_t = last_t
+                for k in range(len(t)):
+                    self._integrate(inc[k:k + 1], t[k:k + 1], per_sample=True)
+        self._flush_imu()
+        self._flush_nav()
+
+    def _navigation_start(self, inc: np.ndarray, t: np.ndarray) -> bool:
+        """Before navigation runs: True when the block was consumed by the static alignment."""
+        nav = self.nav
+        if nav.navigator is not None:
+            return False
+        if nav.mode == "given":
+            nav.start(float(t[0]) - self.integrator.nominal_period, attitude_sigma=float(self.p["initial_attitude_sigma"]))
+            return False
+        comp = self.gyro_effects.compensate(inc, t, np.full(len(t), self.integrator.nominal_period)) \
+            if self.compensating else inc
+        nav.align_gyro(comp, t)
+        done, c_e_b, t_end = nav.try_align()
+        if nav.alignment is not None and not nav.alignment.ok:
+            self._log("error", f"static alignment refused: {nav.alignment.reason}; trying again", throttle=5.0,
+                      key="alignment")
+        if done:
+            sigma = float(np.sqrt(np.trace(nav.alignment.covariance) / 3.0))
+            self.integrator = AttitudeIntegrator(
+                self.integrator.algorithm_name, initial_attitude=dcm_to_quat(c_e_b), initial_time=t_end,
+                nominal_period=self.integrator.nominal_period, gyro=sigmas_from(self.p, "gyro"), initial_sigma=sigma,
+                covariance_model=self.p["covariance_model"],
+                quantization_correction=bool(self.p["quantization_correction"]))
+            self._good = self.integrator.snapshot()
+            self._nav_prev_q = self.integrator.q.copy()
+            self._last_gyro_t = t_end
+            self._log("info", f"static alignment done at t = {t_end:.3f} s: tilt σ "
+                      f"{np.degrees(nav.alignment.tilt_sigma) * 3600:.1f}″, heading σ "
+                      f"{np.degrees(nav.alignment.heading_sigma):.4f}°")
+        return True
+
+    def _stamps_ns(self, t: np.ndarray) -> np.ndarray:
+        return self.origin_ns + np.rint(np.asarray(t, dtype=float) * 1e9).astype(np.int64)
+
+    def _integrate(self, inc: np.ndarray, t: np.ndarray, per_sample: bool = False) -> bool:
+        """Compensate and integrate a block, collecting its outputs; False (nothing output) if an
+        update is not finite, unless ``per_sample``, which restores the last good state instead."""
+        if self.compensating:
+            prev = self._last_gyro_t if self._last_gyro_t is not None else t[0] - self.integrator.nominal_period
+            T = np.diff(t, prepend=prev)
+            inc = self.gyro_effects.compensate(inc, t, T)
+        self._last_gyro_t = float(t[-1])
+        batch = self.integrator.push(inc, t)
+        if len(batch) and not (np.isfinite(batch.attitude).all() and np.isfinite(batch.covariance).all()):
+            if not per_sample:
+                return False
+            # never output a non-finite state: back to the last good one, covariance inflated
+            self.nonfinite += 1
+            self.integrator.restore(self._good, inflate_sigma=NONFINITE_INFLATION)
+            self._log("error", "non-finite attitude: not published; state reset to the last good update "
+                      f"with {NONFINITE_INFLATION} rad added to its σ", throttle=5.0, key="nonfinite")
+            return True
+        if len(batch):
+            self._good = self.integrator.snapshot()
+        if self.nav is not None:
+            self.nav.add_gyro(inc, t)
+            if len(batch):
+                starts = np.vstack([self._nav_prev_q[None], batch.attitude[:-1]])
+                self._nav_prev_q = batch.attitude[-1].copy()
+                self.nav.add_updates(batch.stamps, batch.interval, batch.attitude, starts)
+        imu_on = self._imu_wanted()                 # asked once per block
+        if len(batch):
+            ns = self._stamps_ns(batch.stamps)
+            self._out[0].append(AttitudeOutput(ns, batch.attitude, batch.covariance, batch.mean_rate, batch.interval))
+            self.has_output = True
+            if imu_on:
+                for k in range(len(batch)):
+                    self.pending_imu.append((batch.stamps[k], batch.interval[k], int(ns[k]), batch.attitude[k],
+                                             batch.covariance[k], batch.mean_rate[k]))
+        if not imu_on and len(batch) and not self.pending_imu:
+            self.accel.discard_through(float(batch.stamps[-1]))     # no sins/imu wants the Δv
+        return True
+
+    def _flush_imu(self, final: bool = False) -> None:
+        """sins/imu records of the updates whose interval is covered by accelerometer data, or
+        that waited longer than ``accel_wait`` (stamp time) for it (``final``: all of them)."""
+        if not self.pending_imu:
+            return
+        wait = float(self.p["accel_wait"])
+        newest = self.integrator.time if self.integrator.time is not None else -np.inf
+        covered = self.accel.covered_until() + 1e-9
+        ready = 0
+        for item in self.pending_imu:                  # stamps increase: the ready ones are a prefix
+            if not final and item[0] > covered and newest - item[0] < wait:
+                break
+            ready += 1
+        if not ready:
+            return
+        items = [self.pending_imu.popleft() for _ in range(ready)]
+        t = np.array([it[0] for it in items])
+        h = np.array([it[1] for it in items])
+        dv, n = self.accel.take_sequence(t - h - 1e-9, t + 1e-9)
+        has = n > 0
+        f = np.zeros((ready, 3))
+        f[has] = dv[has] / h[has, None]
+        self._out[1].append(ImuOutput(np.array([it[2] for it in items], dtype=np.int64),
+                                      np.array([it[3] for it in items]), np.array([it[4] for it in items]),
+                                      np.array([it[5] for it in items]), f, has))
+        self.has_output = True
+
+    def _flush_nav(self, final: bool = False) -> None:
+        if self.nav is None or self.nav.navigator is None:
+            return
+        newest = self.integrator.time if self.integrator.time is not None else -np.inf
+        nb = self.nav.process(np.inf if final else newest, float(self.p["accel_wait"]))
+        if nb is None or not len(nb):
+            return
+        self._out[2].append(NavigationOutput(self._stamps_ns(nb.stamps), nb.position, nb.velocity, nb.attitude,
+                                             nb.covariance, nb.extrapolated))
+        self.has_output = True
+
+    # --- state --------------------------------------------------------------------------------
+    def status(self) -> dict:
+        """The counters and state of the system (the node's /diagnostics values, without what the
+        node itself counts)."""
+        g, a = self.gyro_check, self.accel_check
+        values = {"coning_algorithm": self.integrator.algorithm_name,
+                  "samples_per_update": self.integrator.algorithm.samples,
+                  "covariance_model": self.integrator.covariance_model,
+                  "updates": self.integrator.updates, **g.as_dict("gyro"), **a.as_dict("accel"),
+                  "compensated_effects": ", ".join(self.compensating) or "none",
+                  "initial_orientation_normalised": self.initial_normalised,
+                  "nonfinite_updates_discarded": self.nonfinite,
+                  "gyro_frame_mismatch": self.frame_mismatch["gyro"],
+                  "accel_buffer_overflowed": self.accel.overflowed,
+                  "accel_frame_mismatch": self.frame_mismatch["accel"]}
+        if self.nav is not None:
+            values.update(self.nav.status())
+        if self.integrator.time is not None:
+            sig = np.sqrt(np.diag(self.integrator.covariance()))
+            values.update({"attitude_sigma_x_rad": sig[0], "attitude_sigma_y_rad": sig[1],
+                           "attitude_sigma_z_rad": sig[2]})
+        return values

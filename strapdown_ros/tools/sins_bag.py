@@ -1,0 +1,552 @@
+"""sins_bag: sins_node's solution from a rosbag2 recording, offline and without ROS.
+
+    sins_bag BAG [--params FILE] [-p NAME:=VALUE ...] --output OUT [--force]
+                 [--namespace NS] [--gyro-topic T] [--accel-topic T]
+
+Reads ``imu/delta_theta`` (rad) and ``imu/delta_velocity`` (m/s), both
+geometry_msgs/msg/Vector3Stamped stamped at the end of their intervals, from a bag directory or a
+single .mcap/.db3 file (MCAP or sqlite3 storage), and runs them through the numerical core of
+``sins_node`` (:class:`strapdown_ros.navigation.system.SinsSystem`: the same input rules, blocks,
+integrator, gyro-effect compensation and navigation channel), so the solution is the node's on
+the same messages.  Topic names match with or without the leading slash, under ``--namespace``
+when given; a bag with a single namespace is found without it; ``--gyro-topic``/``--accel-topic``
+name other topics (absolute, or relative to the namespace).
+
+Parameters are sins_node's: a ROS 2 parameter file (``--params``; the ``sins_node`` and ``/**``
+blocks) and ``-p name:=value`` overrides, validated as the node validates them.  ``gyro_rate``
+and ``accel_rate`` come from the stamps (1e9 / the median step in ns, rounded to the fewest
+decimals that nanosecond stamps allow) unless given with ``-p``.  The navigation channel is off
+by default, as in the node: ``-p navigation:=true`` with ``initial_position``,
+``initial_velocity`` and ``initial_orientation`` (q_earth_body) or ``initial_alignment:=static``.
+
+The two streams are merged by header stamp (each topic keeping its bag order; at equal stamps
+Δv before Δθ) and fed as the node's callbacks are.  At the end of the bag, updates still waiting
+for accelerometer data are released as ``accel_wait`` would release them.
+
+Output, by the name of OUT:
+
+* ``*.csv``: one row per navigation step (``navigation:=true``)::
+
+      stamp_s, x, y, z, vx, vy, vz, qx, qy, qz, qw,
+      sigma_x, sigma_y, sigma_z, sigma_vx, sigma_vy, sigma_vz, sigma_psi_x, sigma_psi_y, sigma_psi_z
+
+  stamp_s: header stamp, s; position and velocity ECEF (``earth``, PZ-90), m and m/s; q_earth_body
+  (ROS order x, y, z, w); the σ: square roots of the covariance diagonal of position, velocity and
+  the attitude error ψ about the earth axes X, Y, Z (rad).  Without navigation, one row per
+  attitude update: ``stamp_s, qx, qy, qz, qw, sigma_eps_x, sigma_eps_y, sigma_eps_z`` with
+  q_ref_body and the σ of the attitude error ε about the body axes (rad).
+* anything else: a rosbag2 bag directory (MCAP) with ``sins/attitude``
+  (geometry_msgs/msg/QuaternionStamped), ``sins/imu`` (sensor_msgs/msg/Imu) and, with navigation,
+  ``sins/odometry`` (nav_msgs/msg/Odometry), under the namespace of the input topics, with the
+  content and frame ids sins_node publishes; bag time = header stamp.
+
+OUT must not exist unless ``--force`` (which replaces a file, or a directory that is a rosbag2 bag).
+Exit status: 0 solution written, 2 bad arguments/parameters/bag (one line on stderr, before any
+work), 3 no solution (e.g. the static alignment never succeeded).
+"""
+from __future__ import annotations
+
+import argparse
+import math
+import os
+import shutil
+import sys
+import time
+from collections import deque
+from pathlib import Path
+
+import numpy as np
+
+from ..config import SINS_PARAMS, check_all, load_parameter_file
+from ..navigation.gravity import geodetic_to_ecef
+from ..navigation.system import SinsOutput, SinsSystem, odometry_arrays
+from ..rotation import to_ros_xyzw
+from .calibrate_bag import BagError, _resolve, open_reader
+from .record_sim import _qos, parse_overrides
+
+__all__ = ["main", "sins_parameters", "rate_from_stamps", "open_input", "run", "CSV_NAV_COLUMNS",
+           "CSV_ATTITUDE_COLUMNS", "BagError"]
+
+GYRO_TOPIC = "imu/delta_theta"
+ACCEL_TOPIC = "imu/delta_velocity"
+VECTOR3_STAMPED = "geometry_msgs/msg/Vector3Stamped"
+OUTPUT_TYPES = {"sins/attitude": "geometry_msgs/msg/QuaternionStamped", "sins/imu": "sensor_msgs/msg/Imu",
+                "sins/odometry": "nav_msgs/msg/Odometry"}
+CSV_NAV_COLUMNS = ["stamp_s", "x", "y", "z", "vx", "vy", "vz", "qx", "qy", "qz", "qw",
+                   "sigma_x", "sigma_y", "sigma_z", "sigma_vx", "sigma_vy", "sigma_vz",
+                   "sigma_psi_x", "sigma_psi_y", "sigma_psi_z"]
+CSV_ATTITUDE_COLUMNS = ["stamp_s", "qx", "qy", "qz", "qw", "sigma_eps_x", "sigma_eps_y", "sigma_eps_z"]
+RATE_SAMPLE = 20001              # stamps per topic read for the rate (the first ones)
+MERGE_LIMIT = 100_000            # a topic's queue is released without the other beyond this
+PROGRESS_PERIOD = 5.0            # wall seconds between progress lines
+
+
+# --- parameters ---------------------------------------------------------------------------------
+def sins_parameters(params_file: str | None = None, overrides: dict | None = None) -> dict:
+    """sins_node parameters from a ROS 2 parameter YAML (``sins_node`` and ``/**`` blocks) plus
+    overrides, validated by the node's specs."""
+    raw = load_parameter_file(params_file, "sins_node") if params_file else {}
+    raw.update(overrides or {})
+    return check_all(SINS_PARAMS, raw)
+
+
+def rate_from_stamps(stamps_ns) -> float | None:
+    """A stream's rate (Hz) from its stamps: 1e9 / the median positive step (ns), rounded to the
+    fewest decimals whose period is within 1 ns of that step (stamps are whole nanoseconds: a
+    300 Hz stream steps 3333333 or 3333334 ns).  None with fewer than two distinct stamps."""
+    d = np.diff(np.asarray(stamps_ns, dtype=np.int64))
+    d = d[d > 0]
+    if not len(d):
+        return None
+    step = float(np.median(d))
+    rate = 1e9 / step
+    for digits in range(0, 10):
+        r = round(rate, digits)
+        if r > 0 and abs(1e9 / r - step) <= 1.0:
+            return float(r)
+    return rate
+
+
+# --- input ----------------------------------------------------------------------------------------
+def _find_topic(topics: dict, name: str, namespace: str) -> str | None:
+    """An explicit topic (absolute, or relative to the namespace) or the default relative name
+    resolved as calibrate_bag resolves it."""
+    if name.startswith("/"):
+        for t in topics:
+            if t.strip("/") == name.strip("/"):
+                return t
+        return None
+    return _resolve(topics, name, namespace)
+
+
+class Input:
+    """The opened bag: reader, the two connections, the rates from the stamps."""
+
+    def __init__(self, reader, gyro_conn, accel_conn, gyro_rate, accel_rate, path):
+        self.reader, self.gyro_conn, self.accel_conn = reader, gyro_conn, accel_conn
+        self.gyro_rate, self.accel_rate, self.path = gyro_rate, accel_rate, path
+
+    @property
+    def namespace(self) -> str:
+        """The namespace of the gyro topic ('' or '/ns') for the output topics."""
+        t = "/" + self.gyro_conn.topic.strip("/")
+        rel = "/" + GYRO_TOPIC
+        return t[:-len(rel)] if t.endswith(rel) else ""
+
+    def close(self):
+        self.reader.close()
+
+
+def _stamp_ns(msg) -> int:
+    return int(msg.header.stamp.sec) * 1_000_000_000 + int(msg.header.stamp.nanosec)
+
+
+def open_input(bag, namespace: str = "", gyro_topic: str | None = None, accel_topic: str | None = None,
+               need_accel: bool = False) -> Input:
+    """Open the bag, find the topics (types checked), read the first stamps of each for the rates.
+    Raises BagError."""
+
+    path = Path(bag)
+    reader = open_reader(path)
+    try:
+        topics = {c.topic: c.msgtype for c in reader.connections}
+        where = f" under namespace {namespace!r}" if namespace.strip("/") else ""
+        listing = f"; topics in the bag: {', '.join(sorted(topics)) or 'none'}"
+        g = _find_topic(topics, gyro_topic or GYRO_TOPIC, namespace)
+        if g is None:
+            raise BagError(f"{path}: no {gyro_topic or GYRO_TOPIC}{where}{listing}")
+        a = _find_topic(topics, accel_topic or ACCEL_TOPIC, namespace)
+        if a is None and (need_accel or accel_topic):
+            why = " (navigation needs it)" if need_accel else ""
+            raise BagError(f"{path}: no {accel_topic or ACCEL_TOPIC}{where}{why}{listing}")
+        for t in (g, a):
+            if t is not None and topics[t] != VECTOR3_STAMPED:
+                raise BagError(f"{t} has type {topics[t]}, expected {VECTOR3_STAMPED}")
+        gc = next(c for c in reader.connections if c.topic == g)
+        ac = next((c for c in reader.connections if c.topic == a), None) if a else None
+        stamps: dict = {g: [], a: []} if a else {g: []}
+        conns = [c for c in reader.connections if c.topic in stamps]
+        for conn, _, raw in reader.messages(connections=conns):
+            lst = stamps[conn.topic]
+            if len(lst) < RATE_SAMPLE:
+                lst.append(_stamp_ns(reader.deserialize(raw, conn.msgtype)))
+            if all(len(v) >= RATE_SAMPLE for v in stamps.values()):
+                break
+    except BagError:
+        reader.close()
+        raise
+    except Exception as exc:                  # noqa: BLE001 - a corrupted record, whatever the reader says
+        reader.close()
+        raise BagError(f"{path}: unreadable record ({type(exc).__name__}: "
+                       f"{str(exc).splitlines()[0] if str(exc) else ''})") from None
+    g_rate = rate_from_stamps(stamps[g])
+    if g_rate is None:
+        reader.close()
+        raise BagError(f"{path}: {g} has {len(stamps[g])} message(s) with distinct stamps; at least 2 are needed")
+    a_rate = rate_from_stamps(stamps[a]) if a else None
+    if a and a_rate is None and need_accel:
+        reader.close()
+        raise BagError(f"{path}: {a} has fewer than 2 messages with distinct stamps; navigation needs it")
+    return Input(reader, gc, ac, g_rate, a_rate, path)
+
+
+def _messages(inp: Input, progress=None):
+    """(is_gyro, stamp_ns, (x, y, z), frame_id) of both topics, merged by header stamp (each topic
+    in its bag order; Δv first at equal stamps)."""
+    rd = inp.reader
+    conns = [inp.gyro_conn] + ([inp.accel_conn] if inp.accel_conn is not None else [])
+    qg: deque = deque()
+    qa: deque = deque()
+    both = inp.accel_conn is not None
+    deser = rd.deserialize
+    gyro_topic = inp.gyro_conn.topic
+    records = rd.messages(connections=conns)
+    while True:
+        try:
+            rec = next(records, None)
+            if rec is None:
+                break
+            conn, log_ns, raw = rec
+            m = deser(raw, conn.msgtype)
+            v = m.vector
+            item = (_stamp_ns(m), (float(v.x), float(v.y), float(v.z)), m.header.frame_id)
+        except Exception as exc:              # noqa: BLE001 - a corrupted record, whatever the reader says
+            raise BagError(f"{inp.path}: unreadable record ({type(exc).__name__}: "
+                           f"{str(exc).splitlines()[0] if str(exc) else ''})") from None
+        is_gyro = conn.topic == gyro_topic
+        if not both:
+            yield (True, *item)
+        else:
+            (qg if is_gyro else qa).append(item)
+            while qg and qa:
+                if qa[0][0] <= qg[0][0]:
+                    yield (False, *qa.popleft())
+                else:
+                    yield (True, *qg.popleft())
+            while len(qg) > MERGE_LIMIT:
+                yield (True, *qg.popleft())
+            while len(qa) > MERGE_LIMIT:
+                yield (False, *qa.popleft())
+        if progress is not None:
+            progress(log_ns)
+    while qg or qa:
+        if qa and (not qg or qa[0][0] <= qg[0][0]):
+            yield (False, *qa.popleft())
+        else:
+            yield (True, *qg.popleft())
+
+
+# --- output -----------------------------------------------------------------------------------------
+def _fmt_stamp(ns: int) -> str:
+    ns = int(ns)
+    return f"{ns // 1_000_000_000}.{ns % 1_000_000_000:09d}"
+
+
+class CsvOutput:
+    """The CSV writer (written to OUT.part, renamed at :meth:`close`)."""
+
+    def __init__(self, path: Path, navigation: bool):
+        self.path, self.navigation = Path(path), navigation
+        self.tmp = self.path.with_name(self.path.name + ".part")
+        self.fh = open(self.tmp, "w", encoding="utf-8", newline="")
+        self.fh.write(",".join(CSV_NAV_COLUMNS if navigation else CSV_ATTITUDE_COLUMNS) + "\n")
+        self.rows = 0
+
+    def write(self, out: SinsOutput) -> None:
+        g = "{:.17g}".format
+        if self.navigation:
+            nb = out.navigation
+            if not len(nb):
+                return
+            q = to_ros_xyzw(nb.attitude).reshape(-1, 4)
+            sig = np.sqrt(np.maximum(np.diagonal(nb.covariance, axis1=1, axis2=2), 0.0))
+            for k in range(len(nb)):
+                vals = [*nb.position[k], *nb.velocity[k], *q[k], *sig[k]]
+                self.fh.write(_fmt_stamp(nb.stamp_ns[k]) + "," + ",".join(g(float(x)) for x in vals) + "\n")
+            self.rows += len(nb)
+        else:
+            at = out.attitude
+            if not len(at):
+                return
+            q = to_ros_xyzw(at.attitude).reshape(-1, 4)
+            sig = np.sqrt(np.maximum(np.diagonal(at.covariance, axis1=1, axis2=2), 0.0))
+            for k in range(len(at)):
+                vals = [*q[k], *sig[k]]
+                self.fh.write(_fmt_stamp(at.stamp_ns[k]) + "," + ",".join(g(float(x)) for x in vals) + "\n")
+            self.rows += len(at)
+
+    def close(self, ok: bool = True) -> None:
+        self.fh.close()
+        if ok:
+            os.replace(self.tmp, self.path)
+        else:
+            self.tmp.unlink(missing_ok=True)
+
+    def summary(self) -> str:
+        return f"{self.path} ({self.rows} rows)"
+
+
+class McapOutput:
+    """sins/attitude, sins/imu and sins/odometry as sins_node publishes them, in an MCAP bag."""
+
+    def __init__(self, path: Path, system: SinsSystem, namespace: str):
+        from rosbags.rosbag2 import StoragePlugin, Writer
+        from rosbags.typesys import Stores, get_typestore
+
+        self.path = Path(path)
+        self.store = get_typestore(Stores.ROS2_JAZZY)
+        self.T = self.store.types
+        p = system.p
+        self.frame_id, self.ref_frame = p["frame_id"], p["reference_frame_id"]
+        self.earth_frame = p["earth_frame_id"]
+        self.rate_variance = system.rate_variance
+        g, a = system.rate_variance, system.accel_variance
+        self.rate_cov = np.diag([g, g, g]).reshape(9)
+        self.accel_cov = np.diag([a, a, a]).reshape(9)
+        self.no_accel_cov = np.zeros(9)
+        self.no_accel_cov[0] = -1.0
+        names = ["sins/attitude", "sins/imu"] + (["sins/odometry"] if system.nav is not None else [])
+        self.topics = {n: f"{namespace}/{n}" for n in names}
+        self.counts = {n: 0 for n in names}
+        self.writer = Writer(self.path, version=Writer.VERSION_LATEST, storage_plugin=StoragePlugin.MCAP)
+        self.writer.open()
+        qos = _qos("stream", int(p["qos_depth"]))
+        self.conns = {n: self.writer.add_connection(self.topics[n], OUTPUT_TYPES[n], typestore=self.store,
+                                                    offered_qos_profiles=[qos]) for n in names}
+
+    def _header(self, ns: int, frame_id: str):
+        T = self.T
+        ns = int(ns)
+        return T["std_msgs/msg/Header"](stamp=T["builtin_interfaces/msg/Time"](
+            sec=ns // 1_000_000_000, nanosec=ns % 1_000_000_000), frame_id=frame_id)
+
+    def _quat(self, q):
+        return self.T["geometry_msgs/msg/Quaternion"](x=float(q[1]), y=float(q[2]), z=float(q[3]), w=float(q[0]))
+
+    def _vec(self, v):
+        return self.T["geometry_msgs/msg/Vector3"](x=float(v[0]), y=float(v[1]), z=float(v[2]))
+
+    def _put(self, name: str, ns: int, msg) -> None:
+        self.writer.write(self.conns[name], int(ns), self.store.serialize_cdr(msg, OUTPUT_TYPES[name]))
+        self.counts[name] += 1
+
+    def write(self, out: SinsOutput) -> None:
+        T = self.T
+        at = out.attitude
+        for k in range(len(at)):
+            ns = at.stamp_ns[k]
+            self._put("sins/attitude", ns, T["geometry_msgs/msg/QuaternionStamped"](
+                header=self._header(ns, self.ref_frame), quaternion=self._quat(at.attitude[k])))
+        im = out.imu
+        for k in range(len(im)):
+            ns = im.stamp_ns[k]
+            has = bool(im.has_accel[k])
+            self._put("sins/imu", ns, T["sensor_msgs/msg/Imu"](
+                header=self._header(ns, self.frame_id), orientation=self._quat(im.attitude[k]),
+                orientation_covariance=np.ascontiguousarray(im.covariance[k], dtype=np.float64).reshape(9),
+                angular_velocity=self._vec(im.mean_rate[k]), angular_velocity_covariance=self.rate_cov,
+                linear_acceleration=self._vec(im.specific_force[k] if has else np.zeros(3)),
+                linear_acceleration_covariance=self.accel_cov if has else self.no_accel_cov))
+        nb = out.navigation
+        if len(nb):
+            pose_cov, v_body, twist_cov = odometry_arrays(nb, self.rate_variance)
+            for k in range(len(nb)):
+                ns = nb.stamp_ns[k]
+                r = nb.position[k]
+                pose = T["geometry_msgs/msg/Pose"](position=T["geometry_msgs/msg/Point"](
+                    x=float(r[0]), y=float(r[1]), z=float(r[2])), orientation=self._quat(nb.attitude[k]))
+                twist = T["geometry_msgs/msg/Twist"](linear=self._vec(v_body[k]), angular=self._vec(np.zeros(3)))
+                self._put("sins/odometry", ns, T["nav_msgs/msg/Odometry"](
+                    header=self._header(ns, self.earth_frame), child_frame_id=self.frame_id,
+                    pose=T["geometry_msgs/msg/PoseWithCovariance"](pose=pose, covariance=pose_cov[k].copy()),
+                    twist=T["geometry_msgs/msg/TwistWithCovariance"](twist=twist, covariance=twist_cov[k].copy())))
+
+    def close(self, ok: bool = True) -> None:
+        self.writer.close()
+        if not ok:
+            shutil.rmtree(self.path, ignore_errors=True)
+
+    @property
+    def rows(self) -> int:
+        return sum(self.counts.values())
+
+    def summary(self) -> str:
+        return f"{self.path} (MCAP: " + ", ".join(f"{self.topics[n]} {c}" for n, c in self.counts.items()) + ")"
+
+
+def _check_output(out: str, bag: str, force: bool) -> None:
+    """OUT can be written: not the input, absent unless --force (a file, or a directory that is a
+    rosbag2 bag or empty, may then be replaced), its directory writable."""
+    o, b = Path(out).resolve(), Path(bag).resolve()
+    if o == b or b in o.parents or o in b.parents:
+        raise ValueError(f"output {out} would overwrite the input bag {bag}")
+    p = Path(out)
+    csv = out.lower().endswith(".csv")
+    if p.exists() or p.is_symlink():
+        if not force:
+            raise ValueError(f"output {out} exists; give --force to replace it")
+        if p.is_dir() and (csv or ((not (p / "metadata.yaml").exists()) and any(p.iterdir()))):
+            raise ValueError(f"output {out} is a directory that is not a rosbag2 bag; not replacing it")
+    parent = p.parent if str(p.parent) else Path(".")
+    if not parent.is_dir():
+        raise ValueError(f"output {out}: directory {parent} does not exist")
+    if not os.access(parent, os.W_OK | os.X_OK):
+        raise ValueError(f"output {out}: directory {parent} is not writable")
+
+
+def _replace(out: str) -> None:
+    p = Path(out)
+    if p.is_dir() and not p.is_symlink():
+        shutil.rmtree(p)
+    elif p.exists() or p.is_symlink():
+        p.unlink()
+
+
+# --- the run ----------------------------------------------------------------------------------------
+def run(inp: Input, system: SinsSystem, sink, say=None) -> dict:
+    """Feed the bag through the system in stamp order and write every output to ``sink``
+    (``sink.write(SinsOutput)``).  Returns counts."""
+    rd = inp.reader
+    t0, t1 = rd.start_time, rd.end_time
+    state = {"next": time.monotonic() + PROGRESS_PERIOD}
+
+    def progress(log_ns):
+        now = time.monotonic()
+        if say is not None and now >= state["next"]:
+            state["next"] = now + PROGRESS_PERIOD
+            span = max(t1 - t0, 1)
+            say(f"{(log_ns - t0) * 1e-9:.1f} / {span * 1e-9:.1f} s of the recording ({100.0 * (log_ns - t0) / span:.0f}%)")
+
+    n = {"gyro": 0, "accel": 0}
+    offer_g, offer_a = system.offer_gyro, system.offer_accel
+    for is_gyro, ns, v, frame in _messages(inp, progress):
+        if is_gyro:
+            n["gyro"] += 1
+            if offer_g(ns, v, frame):
+                sink.write(system.process())
+            elif system.has_output:                 # a stamp resync processed the old time base
+                sink.write(system.take_output())
+        else:
+            n["accel"] += 1
+            if offer_a(ns, v, frame):
+                sink.write(system.process())
+    sink.write(system.process())
+    sink.write(system.finish())
+    return n
+
+
+def _summary(args, inp: Input, system: SinsSystem, sink, counts: dict, rates: dict) -> str:
+    st = system.status()
+    g, a = system.gyro_check, system.accel_check
+    lines = [f"sins_bag: {args.bag}: {counts['gyro']} Δθ from {inp.gyro_conn.topic}"
+             + (f", {counts['accel']} Δv from {inp.accel_conn.topic}" if inp.accel_conn is not None else ", no Δv")
+             + f"; gyro_rate {rates['gyro_rate']:g} Hz, accel_rate {rates['accel_rate']:g} Hz"]
+    drops = {k: g_ + a_ for k, g_, a_ in (("NaN", g.nan, a.nan), ("out of range", g.out_of_range, a.out_of_range),
+                                          ("out of order", g.out_of_order, a.out_of_order),
+                                          ("duplicate", g.duplicate, a.duplicate),
+                                          ("stamp outlier", g.stamp_outliers, a.stamp_outliers)) if g_ + a_}
+    fm = system.frame_mismatch
+    if fm["gyro"] or fm["accel"]:
+        drops[f"frame mismatch ({'rejected' if system.reject_frames else 'used'})"] = fm["gyro"] + fm["accel"]
+    lines.append("  dropped: " + (", ".join(f"{k} {v}" for k, v in drops.items()) if drops else "none"))
+    if g.missing or g.resyncs:
+        lines.append(f"  GYRO: {g.missing} increment(s) missing in {g.gaps} gap(s), {g.resyncs} stamp resync(s): "
+                     "the rotation during them is lost")
+    if system.nonfinite:
+        lines.append(f"  {system.nonfinite} non-finite update(s) discarded")
+    line = f"  {st['updates']} attitude updates ({st['coning_algorithm']}, {st['samples_per_update']} samples/update)"
+    if system.nav is not None:
+        line += f"; navigation {st['navigation_state']}, {st.get('navigation_steps', 0)} steps"
+        if st.get("navigation_steps_accel_extrapolated"):
+            line += f" ({st['navigation_steps_accel_extrapolated']} with Δv extrapolated)"
+        if "alignment" in st:
+            line += f"; alignment: {st['alignment']}"
+    lines.append(line)
+    lines.append(f"  wrote {sink.summary()}")
+    return "\n".join(lines)
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(prog="sins_bag", description=__doc__,
+                                 formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("bag", help="rosbag2 bag directory, or a .mcap / .db3 file")
+    ap.add_argument("--output", "-o", required=True, metavar="OUT",
+                    help="OUT.csv: the solution as CSV; otherwise an MCAP bag directory with sins/* topics")
+    ap.add_argument("--params", metavar="FILE", help="ROS 2 parameter YAML (sins_node and /** blocks)")
+    ap.add_argument("-p", "--param", action="append", default=[], metavar="NAME:=VALUE",
+                    help="sins_node parameter override (repeatable), as ros2 run -p")
+    ap.add_argument("--namespace", default="", help="topic namespace, e.g. /robot1")
+    ap.add_argument("--gyro-topic", metavar="TOPIC", help=f"Δθ topic (default {GYRO_TOPIC})")
+    ap.add_argument("--accel-topic", metavar="TOPIC", help=f"Δv topic (default {ACCEL_TOPIC})")
+    ap.add_argument("--force", action="store_true", help="replace OUT if it exists")
+    ap.add_argument("--quiet", action="store_true", help="no progress lines")
+    args = ap.parse_args(argv)
+
+    def err(text: str) -> int:
+        print(f"sins_bag: error: {text}", file=sys.stderr)
+        return 2
+
+    def say(text: str) -> None:
+        if not args.quiet:
+            print(f"sins_bag: {text}", file=sys.stderr, flush=True)
+
+    inp = None
+    try:
+        over = parse_overrides(args.param)
+        p = sins_parameters(args.params, over)              # every parameter checked before the bag
+        _check_output(args.output, args.bag, args.force)
+        inp = open_input(args.bag, args.namespace, args.gyro_topic, args.accel_topic, need_accel=bool(p["navigation"]))
+        rates = {"gyro_rate": inp.gyro_rate, "accel_rate": inp.accel_rate}
+        for name in ("gyro_rate", "accel_rate"):
+            if name in over or rates[name] is None:
+                rates[name] = p[name]
+            elif not math.isclose(rates[name], p[name], rel_tol=0.01):
+                say(f"note: {name} {rates[name]:g} Hz from the stamps (the parameters say {p[name]:g} Hz; "
+                    f"-p {name}:=... to impose one)")
+        p = sins_parameters(args.params, {**over, **rates})
+        if p["navigation"]:
+            lat, lon, h = (float(x) for x in p["initial_position"])
+            r = float(np.linalg.norm(geodetic_to_ecef(np.radians(lat), np.radians(lon), h)))
+            if not 6.0e6 < r < 8.0e6:
+                raise ValueError(f"initial_position {p['initial_position']} is not within ±1000 km of the "
+                                 "Earth's surface")
+        system = SinsSystem(p, log=lambda level, text: say(f"{level}: {text}" if level != "info" else text),
+                            imu_wanted=(lambda: True) if not args.output.lower().endswith(".csv") else (lambda: False))
+    except (ValueError, OSError, BagError) as exc:
+        if inp is not None:
+            inp.close()
+        return err(str(exc))
+    try:
+        if Path(args.output).exists() or Path(args.output).is_symlink():
+            _replace(args.output)
+        sink = CsvOutput(Path(args.output), system.nav is not None) if args.output.lower().endswith(".csv") \
+            else McapOutput(Path(args.output), system, inp.namespace)
+    except Exception as exc:                           # noqa: BLE001 - the writer's own refusal
+        inp.close()
+        return err(f"cannot write {args.output}: {exc}")
+    ok = False
+    try:
+        counts = run(inp, system, sink, say)
+        ok = True
+    except BagError as exc:
+        return err(str(exc))
+    except (KeyboardInterrupt, BrokenPipeError):
+        return 130
+    finally:
+        inp.close()
+        sink.close(ok)
+    print(_summary(args, inp, system, sink, counts, rates))
+    if system.integrator.updates == 0 or (system.nav is not None and
+                                          (system.nav.navigator is None or system.nav.navigator.steps == 0)):
+        nav = system.nav
+        why = (f"the static alignment did not complete (alignment_time {float(system.p['alignment_time']):g} s"
+               + (f"; last refusal: {nav.alignment.reason}" if nav.alignment is not None and not nav.alignment.ok
+                  else "") + ")") if nav is not None and nav.navigator is None else \
+            "no attitude update" if system.integrator.updates == 0 else "no navigation step"
+        print(f"sins_bag: no solution: {why}", file=sys.stderr)
+        return 3
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
