@@ -49,6 +49,7 @@ setup(
             "calibrator_node = strapdown_ros.nodes.launch:calibrator_node",
             "record_sim = strapdown_ros.tools.record_sim:main",
             "calibrate_bag = strapdown_ros.tools.calibrate_bag:main",
+            "calibrate_gyro_bag = strapdown_ros.tools.calibrate_gyro_bag:main",
             "sins_bag = strapdown_ros.tools.sins_bag:main",
             "boresight_bench = strapdown_ros.tools.boresight_bench:main",
             "reproduce_seeds = strapdown_ros.tools.reproduce_seeds:main",

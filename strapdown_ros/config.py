@@ -364,19 +364,23 @@ NODE_PARAMS = {"imu_sim_node": IMU_SIM_PARAMS, "sins_node": SINS_PARAMS,
                "star_camera_sim_node": STAR_CAMERA_PARAMS, "calibrator_node": CALIBRATOR_PARAMS}
 
 
-def load_model(path: str) -> tuple[dict, dict]:
+def load_model(path: str | None) -> tuple[dict, dict]:
     """A nominal model from a ROS 2 parameter file: the ``/**`` block and the blocks of the
     package's nodes merged (``/**`` first, then imu_sim_node, star_camera_sim_node, sins_node,
     calibrator_node), every key validated by the node that declares it.
 
     Returns (values, raw): ``values`` holds every parameter of every node (defaults where the
-    file is silent), ``raw`` the parsed document.  Raises ValueError naming a key that no node
-    of the package knows, a block that names no node, or an invalid value."""
+    file is silent; ``path`` None: every default), ``raw`` the parsed document.  Raises
+    ValueError naming a key that no node of the package knows, a block that names no node, or an
+    invalid value."""
     import yaml
 
     try:
-        with open(path, "r", encoding="utf-8") as fh:
-            doc = yaml.safe_load(fh)
+        if path is None:                      # no file: every default
+            doc = {}
+        else:
+            with open(path, "r", encoding="utf-8") as fh:
+                doc = yaml.safe_load(fh)
     except yaml.YAMLError as exc:
         raise ValueError(f"{path}: not valid YAML ({str(exc).splitlines()[0]})") from None
     except OSError as exc:
@@ -411,3 +415,27 @@ def load_model(path: str) -> tuple[dict, dict]:
     values = {n: s.default for n, s in specs.items()}
     values.update(merged)
     return values, doc
+
+
+def write_model(path: str, doc: dict | None, updates: dict, comment: str) -> None:
+    """Write a model file: ``doc`` (the parsed parameter document, not modified) with ``updates``
+    set in ``/**`` and in every node block that sets the same key (so the block does not
+    override the new value), atomically, under a ``# comment`` line.  Plain copies: no YAML
+    anchors."""
+    import json
+    import os
+
+    import yaml
+
+    doc = json.loads(json.dumps(doc or {}))                   # a deep copy of plain data
+    root = doc.setdefault("/**", {}).setdefault("ros__parameters", {})
+    for name, value in updates.items():
+        root[name] = json.loads(json.dumps(value))
+        for key, block in doc.items():
+            if key != "/**" and isinstance(block, dict) and name in (block.get("ros__parameters") or {}):
+                block["ros__parameters"][name] = json.loads(json.dumps(value))
+    tmp = f"{path}.tmp"
+    with open(tmp, "w", encoding="utf-8") as fh:
+        fh.write(f"# {comment}\n")
+        yaml.safe_dump(doc, fh, sort_keys=False, allow_unicode=True)
+    os.replace(tmp, path)

@@ -32,8 +32,8 @@ i.e. each step is taken as the shortest rotation.
 * Second order, the modified Euler formula with norm correction
   ``a_n = a_{n−1}∘(1 + ½V_n − ⅛|V_n|² + ½(1 − |a_{n−1}|²))``, inverted:
   **V_n = 2·vect(Δa_n)**.  Per step this misses the coning term ½∫θ×w dt and the
-  −|V|²V/24 of sin(φ/2), both O(h³), so the mean rate is accurate to **O(h²)** (measured
-  slope 2.00 on exact coning, test/test_integral_method.py).
+  −|V|²V/24 of sin(φ/2), both O(h³), so the mean rate is accurate to **O(h²)** (slope measured on exact
+  coning in test/test_integral_method.py).
 * Third order, the printed forward formula
   ``a_n = a_{n−1}∘(1 + ½V_n − ⅛|V_n|² + (1/24)[V_n × ∇V_n] − (1/48)|V_n|²V_n + ½(1 − |a_{n−1}|²))``
   with ∇V_n = V_n − V_{n−1} (the print's V²_n = V¹_n − V¹_{n−1}), so
@@ -52,7 +52,7 @@ i.e. each step is taken as the shortest rotation.
   inversion (with "12 − 0,5|V|²", "11/24", "1/96") is illegible in the scan; the formula
   above is the exact algebraic inverse of the (verified) forward formula — a round trip
   through :func:`forward_step` reproduces V to round-off (1e-15).  The mean rate is accurate to
-  **O(h³)** on any interval (measured slope 3.0 on exact coning); over whole cone periods
+  **O(h³)** on any interval (slope measured on exact coning in the tests); over whole cone periods
   the periodic terms cancel and the cone-axis error falls to O(h⁴) (the (Ωh)⁴/60 drift of the
   one-plus-previous coning algorithm, 003 table), the cross-axis error to O(h⁵).
   For the first step of a run (no V_{n−1}) the next increment is used instead:
@@ -70,16 +70,14 @@ order-2 formula ignores and the paper's order-3 correction replaces by (1/12)h²
 whatever f is: a one-off angle error of at most h²|ω_A×ω_B|/12 per jump (zero on average
 over f).  ``neighbour="adaptive"`` (not in the paper) takes the correction from the neighbour
 closer to V_n; it is exact when the jumps fall on fixes (f = 0, as in the simulated 000
-profile on a 0.1-s camera grid: w̄ error 1e-10 instead of 4e-5 rad/s next to a jump) but
-about twice as wrong as the paper on average over f (measured on the 000 profile: mean total
-angle error 3.4e-5 against 1.8e-5 rad; order 2: 1.4e-4 rad), so the paper's choice is the
-default.  On smooth motion both are of order 3.
+profile on a 0.1-s camera grid) but, averaged over f, worse than the paper's choice (both are
+measured in test/test_integral_method.py), so the paper's choice is the default.  On smooth
+motion both are of order 3.
 
-What the inversion error costs in the calibration (no noise at all, smooth 3-axis motion with
-|ω| ≤ 0.38 rad/s, 0.5-s intervals, test ``test_noise_free_bias_of_B_by_order``): largest error
-of the 12 parameters 8.0e-5 (order 2) and 1.9e-6 (order 3) at h = 0.1 s, 3.2e-4 and 1.5e-5 at
-h = 0.2 s — the orders carry over, and at these rates order 2 already biases B by about one σ
-of a 1e-5-rad camera, so order 3 is the default.
+What the inversion error costs in the calibration is measured without noise by
+``test_noise_free_bias_of_B_by_order``: the orders carry over to B and s0, and at the rates of
+the package's profiles order 2 biases B by about one σ of a 1e-5-rad camera, so order 3 is
+the default.
 
 Noise and covariance
 --------------------
@@ -94,15 +92,14 @@ generalised least squares — honest for any interval layout (Monte Carlo in the
 The residual weightings (``"residual"`` per axis, ``"pooled"``) are the textbook
 σ²(AᵀA)⁻¹ of 002's unweighted system; they assume independent, equally noisy intervals,
 which holds for disjoint intervals of equal length; with consecutive intervals they are
-conservative (the shared-boundary noise telescopes).  Monte Carlo, 50 seeds on the 000
-profile (σ_cam = 1e-5 rad at 10 Hz, ARW 1e-5 rad/√s, 0.5-s intervals): RMS error / RMS σ per
-parameter 0.86–1.10 (model, consecutive), 0.85–1.27 (residual, disjoint), 0.47–0.56
-(residual, consecutive: σ twice too large; 0.25–0.30 with 1-step intervals).  Not modelled:
+conservative (the shared-boundary noise telescopes); the Monte Carlo of the tests checks RMS
+error against the reported σ for each weighting and layout.  Not modelled:
 pulse quantization of the gyro and the partial gyro intervals at unaligned interval ends.
 
 Errors-in-variables: w̄ is a noisy regressor; the attenuation bias of B is about
 σ_w̄²/mean(w̄²) (≈ 1e-9 relative for 1e-5 rad camera noise over 1-s intervals at 0.1 rad/s),
-negligible here and not corrected.
+negligible here and not corrected.  Where 002 stands against the 000 estimator on the same data
+is measured by ``reproduce_seeds --only 002`` (doc/seeds/reproduce_seeds.md).
 
 Observability (001) is reported through :func:`~strapdown_ros.observability.analyze_information`
 on the information matrix of the 12 parameters, with s0 expressed in units of the RMS mean
@@ -124,7 +121,7 @@ from .rotation import quat_conjugate, quat_multiply, quat_normalize, quat_to_dcm
 __all__ = ["PARAMETER_LABELS", "forward_step", "invert_step", "step_increments", "interval_boundaries",
            "mean_true_rate", "mean_measured_rate", "camera_rate_covariance", "gyro_rate_covariance",
            "IntervalMeans", "IntegralResult", "integral_calibration", "calibrate_from_measurements",
-           "SimulatedMeasurements", "simulate_measurements", "design_matrix"]
+           "design_matrix"]
 
 #: parameter order of x, covariance and sigma: B row by row, then s0
 PARAMETER_LABELS = tuple(f"B{i}{j}" for i in (1, 2, 3) for j in (1, 2, 3)) + ("s0_1", "s0_2", "s0_3")
@@ -764,53 +761,3 @@ def calibrate_from_measurements(gyro_stamps: np.ndarray, delta_theta: np.ndarray
     extra["order"], extra["form"], extra["neighbour"] = order, form, neighbour
     res.extra.update(extra)
     return res
-
-
-@dataclass
-class SimulatedMeasurements:
-    """One data set that every estimator of the package can be fed (gyro + camera + truth)."""
-    gyro_stamps: np.ndarray            # (n,) end of each increment
-    delta_theta: np.ndarray            # (n, 3) measured increments
-    true_delta_theta: np.ndarray       # (n, 3) exact ∫w dt
-    camera_stamps: np.ndarray          # (N,)
-    camera_quats: np.ndarray           # (N, 4) measured q_ref_camera
-    camera_true_quats: np.ndarray      # (N, 4)
-    camera_sigma: np.ndarray           # (3,) rad, camera axes
-    gyro_random_walk: float
-    B_true: np.ndarray                 # I + M
-    s0_true: np.ndarray                # bias b, rad/s
-    errors: object = None              # the SensorErrorModel
-    profile: object = None
-
-    @property
-    def x_true(self) -> np.ndarray:
-        return np.concatenate([self.B_true.ravel(), self.s0_true])
-
-
-def simulate_measurements(profile, duration: float, errors=None, gyro_rate: float = 100.0,
-                          camera_interval: float = 0.1, camera_sigma=1e-5, seed: int = 0,
-                          camera_first: float | None = None) -> SimulatedMeasurements:
-    """Gyro increments (:class:`IntegratingSensor`) and star-camera fixes (:class:`StarCameraModel`,
-    boresight 0, so the camera attitude is the body attitude) on one exact profile.
-
-    The camera takes fixes every ``camera_interval`` s from ``camera_first`` (default: the
-    first gyro epoch at or after one camera interval) to ``duration``.
-    """
-    from .sensors import IntegratingSensor, SensorErrorModel
-    from .star_camera import StarCameraModel
-    errors = errors if errors is not None else SensorErrorModel()
-    n = int(round(duration * gyro_rate))
-    gyro = IntegratingSensor(profile, "gyro", gyro_rate, errors, seed=seed)
-    t, meas, true = gyro.sample(n)
-    first = camera_interval if camera_first is None else camera_first
-    count = int(np.floor((duration - first) / camera_interval + 1e-9)) + 1
-    cam = StarCameraModel(boresight=np.zeros(3), interval=camera_interval,
-                          sigma=np.broadcast_to(np.asarray(camera_sigma, dtype=float), (3,)).copy(),
-                          first_exposure=first, seed=seed + 7919)
-    fixes = cam.fixes(profile, count)
-    return SimulatedMeasurements(
-        gyro_stamps=t, delta_theta=meas, true_delta_theta=true,
-        camera_stamps=np.array([f.stamp for f in fixes]), camera_quats=np.array([f.attitude for f in fixes]),
-        camera_true_quats=np.array([f.true_attitude for f in fixes]), camera_sigma=cam.sigma.copy(),
-        gyro_random_walk=errors.random_walk, B_true=np.eye(3) + errors.matrix, s0_true=errors.bias.copy(),
-        errors=errors, profile=profile)

@@ -11,7 +11,8 @@ CORE = ["rotation", "profiles", "sensors", "coning", "integrator", "config", "co
         "analysis.discrepancy", "analysis.diagnostics", "analysis.hidden", "analysis.linearisation",
         "attitude_kernel", "navigation.gravity", "navigation.trajectories", "navigation.update",
         "navigation.recursion", "navigation.covariance", "navigation.alignment", "navigation.navigator",
-        "navigation.channel", "navigation.system", "navigation.run"]
+        "navigation.channel", "navigation.system", "navigation.run", "analysis.gyrocompass",
+        "analysis.steady_filter", "boresight_consistency", "gyro_calibration"]
 
 
 def test_core_imports_with_rclpy_absent():

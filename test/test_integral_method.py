@@ -19,12 +19,13 @@ import pytest
 from strapdown_ros.integral_method import (
     PARAMETER_LABELS, IntervalMeans, calibrate_from_measurements, camera_rate_covariance, forward_step,
     integral_calibration, interval_boundaries, invert_step, mean_measured_rate, mean_true_rate,
-    simulate_measurements, step_increments)
+    step_increments)
 from strapdown_ros.profiles import ConingProfile, MotionProfile, PiecewiseRateProfile, Segment, tkachenko_profile
 from strapdown_ros.rotation import (quat_angle_between, quat_conjugate, quat_cumprod, quat_multiply, quat_normalize,
                                     quat_rotate, quat_to_dcm, quat_to_rotvec, rotvec_to_quat)
 from strapdown_ros.sensors import SensorErrorModel
 from strapdown_ros.star_camera import StarCameraModel
+from strapdown_ros.tools.seeds_002 import simulate_measurements
 
 M_TRUE = np.array([[1.0e-3, 5.0e-4, -5.0e-4],
                    [-4.0e-4, -1.0e-3, 5.0e-4],

@@ -36,7 +36,6 @@ built only for topics that have a subscriber (checked once per block).
 from __future__ import annotations
 
 import sys
-import time
 
 import numpy as np
 from diagnostic_msgs.msg import DiagnosticArray

@@ -28,15 +28,13 @@ of the package knows).
 from __future__ import annotations
 
 import argparse
-import json
-import os
 import sys
 import time
 from pathlib import Path
 
 import numpy as np
 
-__all__ = ["main", "load_recording", "write_model"]
+__all__ = ["main", "load_recording", "write_model", "recording_lines"]
 
 ARCSEC_PER_RAD = 180.0 / np.pi * 3600.0
 
@@ -76,33 +74,28 @@ def load_recording(bag: str, model: dict, namespace: str = ""):
 def write_model(path: str, doc: dict, result) -> None:
     """The model file with the found effects and the estimated boresight: written into ``/**``
     (and into any node block that sets the same key, so it does not override the new value)."""
-    import yaml
+    from ..config import write_model as write_model_file
 
-    doc = json.loads(json.dumps(doc or {}))                   # a deep copy of plain data
-    root = doc.setdefault("/**", {}).setdefault("ros__parameters", {})
     updates = dict(result.model_out)
     updates["initial_boresight"] = updates["boresight"]
-    for name, value in updates.items():
-        root[name] = json.loads(json.dumps(value))           # plain copies: no YAML anchors
-        for key, block in doc.items():
-            if key != "/**" and isinstance(block, dict) and name in (block.get("ros__parameters") or {}):
-                block["ros__parameters"][name] = json.loads(json.dumps(value))
-    tmp = f"{path}.tmp"
-    with open(tmp, "w", encoding="utf-8") as fh:
-        fh.write(f"# written by discrepancy: verdict {result.verdict}; effects added: "
-                 f"{', '.join(s.effect for s in result.steps) or 'none'}\n")
-        yaml.safe_dump(doc, fh, sort_keys=False, allow_unicode=True)
-    os.replace(tmp, path)
+    write_model_file(path, doc, updates, f"written by discrepancy: verdict {result.verdict}; effects added: "
+                     f"{', '.join(s.effect for s in result.steps) or 'none'}")
+
+
+def recording_lines(prog: str, bag, info: dict, counts: str = "") -> list[str]:
+    """The first lines of a tool's summary: what :func:`load_recording` found (``counts``: more
+    figures for the first line, e.g. "448 increment pairs, ")."""
+    lines = [f"{prog}: {bag}: {info['gyro_messages']} Δθ at {info['gyro_rate_from_stamps_hz']:.6g} Hz "
+             f"(from the stamps), {info['camera_fixes']} fixes, {counts}{info['duration_s']:.1f} s"]
+    if info["gyro_gaps"]:
+        lines.append(f"  gyro gaps: {info['gyro_gaps']} ({info['gyro_missing']} increments missing); pairs "
+                     f"spanning them are not used")
+    return lines
 
 
 def _summary(bag, info, res) -> str:
     j = res.as_json()
-    lines = [f"discrepancy: {bag}: {info['gyro_messages']} Δθ at {info['gyro_rate_from_stamps_hz']:.6g} Hz "
-             f"(from the stamps), {info['camera_fixes']} fixes, {res.pairs} increment pairs, "
-             f"{info['duration_s']:.1f} s"]
-    if info["gyro_gaps"]:
-        lines.append(f"  gyro gaps: {info['gyro_gaps']} ({info['gyro_missing']} increments missing); pairs "
-                     f"spanning them are not used")
+    lines = recording_lines("discrepancy", bag, info, f"{res.pairs} increment pairs, ")
     lines.append(f"  verdict: {res.verdict}")
     lines.append(f"  whitened RMS {res.rms_before:.3g} → {res.rms_after:.3g} (1 = as the model predicts); held out "
                  f"{res.heldout_rms_before:.3g} → {res.heldout_rms_after:.3g}")
@@ -152,7 +145,7 @@ def main(argv=None) -> int:
     from ..analysis.discrepancy import DEFAULT_ALPHA, InputError, analyse
     from ..config import load_model
     from .calibrate_bag import BagError
-    from .paths import check_output_dir, check_output_file
+    from .paths import check_output_dir, check_output_file, write_json
 
     alpha = DEFAULT_ALPHA if args.alpha is None else args.alpha
     try:
@@ -196,9 +189,7 @@ def main(argv=None) -> int:
     print(_summary(args.bag, info, res))
     try:
         if args.json:
-            with open(args.json, "w", encoding="utf-8") as fh:
-                json.dump(out, fh, indent=1, allow_nan=False)
-                fh.write("\n")
+            write_json(args.json, out)
         if args.write_model:
             write_model(args.write_model, doc, res)
             print(f"  model with the found effects: {args.write_model}")

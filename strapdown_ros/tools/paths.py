@@ -2,10 +2,20 @@
 typo costs a one-line error (exit 2), not minutes of computation followed by a traceback."""
 from __future__ import annotations
 
+import argparse
 import os
+import sys
 from pathlib import Path
 
-__all__ = ["check_output_file", "check_output_dir"]
+__all__ = ["check_output_file", "check_output_dir", "OneLineParser", "write_json"]
+
+
+class OneLineParser(argparse.ArgumentParser):
+    """argparse whose errors are one line on stderr (``prog: error: ...``) and exit 2, no usage block."""
+
+    def error(self, message):
+        print(f"{self.prog}: error: {message}", file=sys.stderr)
+        sys.exit(2)
 
 
 def _writable_dir(d: Path, what: str, path) -> None:
@@ -41,3 +51,12 @@ def check_output_dir(path, what: str) -> None:
         _writable_dir(p, what, path)
     else:
         _writable_dir(p.parent, what, path)
+
+
+def write_json(path, data, indent: int = 1) -> None:
+    """A JSON result file (strict JSON: no NaN), newline-terminated."""
+    import json
+
+    with open(path, "w", encoding="utf-8") as fh:
+        json.dump(data, fh, indent=indent, allow_nan=False)
+        fh.write("\n")

@@ -1,0 +1,215 @@
+"""calibrate_gyro_bag: gyro scale factors, misalignments and biases from a recording, by 000 or 002.
+
+    calibrate_gyro_bag BAG --method integral|tkachenko [--model MODEL.yaml] [--write-model OUT.yaml]
+                       [--json FILE] [--force] [--drift] [--interval S] [--sigma-limit X]
+
+BAG: a rosbag2 recording (MCAP or sqlite3) of ``imu/delta_theta`` (geometry_msgs/Vector3Stamped)
+and the star camera — ``star_camera/attitude_with_covariance`` (geometry_msgs/PoseWithCovarianceStamped,
+its covariance is used) or ``star_camera/attitude`` (geometry_msgs/QuaternionStamped, then
+``camera_sigma_xy``/``camera_sigma_z`` of the model) — at any rates, stamps from the headers, read
+and validated as ``calibrate_bag`` and ``discrepancy`` read them (drops, gyro gaps).  No truth topic
+is needed and the boresight need not be known: it is found from the increment axes.
+
+Methods (``strapdown_ros.gyro_calibration``):
+``integral`` — 002 (Ilyushenko): mean rates over consecutive camera intervals (``--interval`` s,
+default one camera step), generalised least squares with the camera covariance and the gyro
+random walk of the model; ``tkachenko`` — 000 (Tkachenko): quaternion-increment equations at
+every fix, Gauss–Newton, then generalised least squares with the noise of the recording;
+``--drift`` also estimates a constant drift of the attitude reference (000's gyrostabilizer).
+
+Output: a summary on stdout; ``--json`` the estimates, σ, covariance and observability report;
+``--write-model`` the model (``--model``, else the defaults) with ``gyro_scale_factor``,
+``gyro_misalignment`` (symmetric) and ``gyro_bias`` replaced by the estimates — the effect
+parameters that ``sins_node`` and ``calibrator_node`` compensate (ρ = (I + M)⁻¹(ρ̃ − b·T)).  The
+model's other effects (bias drift, scale asymmetry, camera time offset, ...) are compensated
+before the estimation and kept.  Existing output files need ``--force``.
+
+Exit status: 0 estimated; 2, with one line on stderr, for bad arguments or an unusable bag or
+model; 3 when the motion does not make the gyro errors observable (the combinations are named,
+nothing is written but the JSON report).
+"""
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+__all__ = ["main", "result_json"]
+
+PROG = "calibrate_gyro_bag"
+DEG_H = np.degrees(1.0) * 3600.0                 # rad/s → °/h
+
+
+def _num(x):
+    x = float(x)
+    return x if np.isfinite(x) else None
+
+
+def result_json(cal, info: dict) -> dict:
+    """The JSON record of a :class:`~strapdown_ros.gyro_calibration.GyroCalibration`."""
+    from ..analysis.discrepancy import json_clean
+    from ..gyro_calibration import model_parameters
+
+    ok = bool(cal.observable)
+    rep = cal.observability
+    return json_clean({
+        "method": cal.method,
+        "observable": ok,
+        "labels": list(cal.labels),
+        "estimate": {n: _num(v) for n, v in zip(cal.labels, cal.x)} if ok else None,
+        "sigma": {n: _num(v) for n, v in zip(cal.labels, cal.sigma)} if ok else None,
+        "covariance": [[_num(v) for v in row] for row in cal.covariance] if ok else None,
+        "model_parameters": model_parameters(cal) if ok else None,
+        "unobservable": list(cal.unobservable),
+        "message": cal.message,
+        "observability": {"eigenvalues": [_num(v) for v in rep.eigenvalues],
+                          "predicted_sigma": [_num(v) for v in rep.predicted_sigma],
+                          "condition": _num(rep.condition), "weak": list(rep.weak),
+                          "units": f"scale and misalignment 1; bias and drift {cal.rate_scale:.6g} rad/s "
+                                   f"(the RMS rate of the recording)"},
+        "rate_scale_rad_s": cal.rate_scale,
+        "details": cal.extra,
+        "input": info,
+    })
+
+
+def _summary(bag, info, cal) -> str:
+    from .discrepancy import recording_lines
+    lines = recording_lines(PROG, bag, info)
+    lines[0] += f"; method {cal.method}"
+    d = cal.extra
+    chi2 = d.get("chi2_per_dof")
+    lines.append(f"  {'observable' if cal.observable else 'NOT observable'}"
+                 + (f", χ²/dof {chi2:.3g} (dof {d.get('dof')})" if chi2 is not None else ""))
+    if not cal.observable:
+        return "\n".join(lines)
+    for n, v, s in zip(cal.labels, cal.x, cal.sigma):
+        if n.startswith(("bias", "drift")):
+            lines.append(f"  {n:8s} {v: .6e} rad/s ± {s:.2e}   ({v * DEG_H: .5f} ± {s * DEG_H:.5f} °/h)")
+        else:
+            lines.append(f"  {n:8s} {v: .6e}       ± {s:.2e}   ({v * 1e6: .2f} ± {s * 1e6:.2f} ppm)")
+    if "triad_rotation_rad" in d:
+        r, s = np.asarray(d["triad_rotation_rad"]), np.asarray(d["triad_rotation_sigma_rad"])
+        lines.append("  triad rotation against the initial boresight (not written): "
+                     + ", ".join(f"{a * 206264.806:.3g}″ ± {b * 206264.806:.2g}″" for a, b in zip(r, s)))
+    if cal.observability.weak:
+        lines.append(f"  weakly observable: {'; '.join(cal.observability.weak)}")
+    return "\n".join(lines)
+
+
+def _parse(argv):
+    from .paths import OneLineParser
+
+    ap = OneLineParser(prog=PROG, description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("bag", help="rosbag2 bag directory, or a .mcap / .db3 file")
+    ap.add_argument("--method", required=True, choices=("integral", "tkachenko"),
+                    help="002 integral method or 000 (Tkachenko) increment equations")
+    ap.add_argument("--model", metavar="MODEL.yaml", help="model: ROS 2 parameter file (default: the defaults)")
+    ap.add_argument("--write-model", metavar="OUT.yaml", help="write the model with the estimated gyro errors")
+    ap.add_argument("--json", metavar="FILE", help="write the result as JSON")
+    ap.add_argument("--force", action="store_true", help="overwrite existing output files")
+    ap.add_argument("--drift", action="store_true", help="tkachenko: also estimate a constant drift of the reference")
+    ap.add_argument("--interval", type=float, metavar="S",
+                    help="integral: averaging interval, s (default: one camera step)")
+    ap.add_argument("--sigma-limit", type=float, default=1e-3, metavar="X",
+                    help="a combination whose predicted σ exceeds X (scale units; biases in RMS-rate units) "
+                         "counts as unobservable (default 0.001)")
+    ap.add_argument("--namespace", default="", help="topic namespace, e.g. /robot1")
+    ap.add_argument("--quiet", action="store_true", help="no progress on stderr")
+    return ap.parse_args(argv)
+
+
+def _check(args) -> None:
+    """Arguments, input files and output paths, before any work.  Raises ValueError."""
+    from .paths import check_output_file
+
+    if args.drift and args.method != "tkachenko":
+        raise ValueError("--drift needs --method tkachenko (002 has no reference drift)")
+    if args.interval is not None:
+        if args.method != "integral":
+            raise ValueError("--interval needs --method integral")
+        if not (np.isfinite(args.interval) and args.interval > 0):
+            raise ValueError(f"--interval must be > 0 s, got {args.interval}")
+    if not (np.isfinite(args.sigma_limit) and args.sigma_limit > 0):
+        raise ValueError(f"--sigma-limit must be > 0, got {args.sigma_limit}")
+    if not Path(args.bag).exists():
+        raise ValueError(f"bag {args.bag} does not exist")
+    if args.model and not Path(args.model).is_file():
+        raise ValueError(f"model {args.model} does not exist")
+    outs = [(o, p) for o, p in (("--json", args.json), ("--write-model", args.write_model)) if p]
+    if len(outs) == 2 and Path(outs[0][1]).resolve() == Path(outs[1][1]).resolve():
+        raise ValueError(f"--json and --write-model are the same file {args.json}")
+    for opt, path in outs:
+        check_output_file(path, opt)
+        if Path(path).exists() and not args.force:
+            raise ValueError(f"{opt} {path} exists (use --force to overwrite)")
+
+
+def main(argv=None) -> int:
+    args = _parse(argv)
+    t_start = time.perf_counter()
+
+    def progress(text):
+        if not args.quiet:
+            print(f"{PROG}: [{time.perf_counter() - t_start:6.1f} s] {text}", file=sys.stderr, flush=True)
+
+    def fail(msg, status=2):
+        print(f"{PROG}: error: {msg}", file=sys.stderr)
+        return status
+
+    from ..config import load_model
+    try:
+        _check(args)
+        model, doc = load_model(args.model)
+    except (ValueError, OSError) as exc:
+        return fail(exc)
+    if float(model.get("gyro_quantum", 0.0)) > 0 and not args.quiet:
+        print(f"{PROG}: warning: gyro_quantum > 0: pulse quantization (000 §5) is not modelled; the σ may be "
+              f"optimistic", file=sys.stderr)
+    from .. import gyro_calibration as gc
+    from ..analysis.discrepancy import InputError
+    from .paths import write_json
+    from .calibrate_bag import BagError
+    from .discrepancy import load_recording
+    try:
+        rec, info = load_recording(args.bag, model, args.namespace)    # (no progress line yet: an
+        if len(rec.fix_stamps) < 6:                                      # unusable bag is one line)
+            raise ValueError(f"{args.bag}: {len(rec.fix_stamps)} usable camera fixes (need at least 6)")
+        progress(f"read {info['gyro_messages']} increments and {info['camera_fixes']} camera fixes")
+        progress("compensating the model's other effects; initial boresight from the increment axes")
+        prep = gc.prepare(rec, model)
+        if args.method == "integral":
+            progress(f"002 integral method over {prep.pairs} camera steps")
+            cal = gc.calibrate_integral(prep, args.interval, args.sigma_limit)
+        else:
+            cal = gc.calibrate_tkachenko(prep, args.drift, args.sigma_limit,
+                                         progress=lambda s: progress(s.replace("tkachenko: ", "000: ")))
+    except (BagError, InputError, ValueError, OSError, np.linalg.LinAlgError) as exc:
+        return fail(str(exc).splitlines()[0] if str(exc) else type(exc).__name__)
+    out = result_json(cal, info)
+    print(_summary(args.bag, info, cal))
+    try:
+        if args.json:
+            write_json(args.json, out)
+        if cal.observable and args.write_model:
+            from ..config import write_model
+            write_model(args.write_model, doc, gc.model_parameters(cal),
+                        f"written by calibrate_gyro_bag --method {cal.method}: gyro_scale_factor, gyro_misalignment, "
+                        f"gyro_bias estimated from {Path(args.bag).name}")
+            print(f"  model with the estimated gyro errors: {args.write_model}")
+    except OSError as exc:
+        return fail(exc)
+    if not cal.observable:
+        print(f"{PROG}: gyro errors NOT observable from this bag ({cal.method}): unobservable: "
+              f"{'; '.join(cal.unobservable)}.  Record turns about three non-parallel axes, in both senses, "
+              f"and rest periods; nothing was estimated", file=sys.stderr)
+        return 3
+    progress(f"done in {time.perf_counter() - t_start:.1f} s")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
