@@ -1,9 +1,12 @@
-"""strapdown_demo: two demonstrations over real ROS 2 topics, faster than real time.
+"""strapdown_demo: three demonstrations over real ROS 2 topics, faster than real time.
 
 1. Coning: imu_sim_node → several sins_node instances on a coning profile, then a table of each
    algorithm's attitude error and cone-axis drift.
 2. Calibration (004): imu_sim_node + star_camera_sim_node + sins_node + calibrator_node on the
    bench trajectory with a large boresight, then the estimate ± σ against the truth in arcsec.
+3. Navigation (003 §1.5): imu_sim_node on a coordinated turn with navigation-grade sensor errors
+   + sins_node with ``navigation: true``; sins/odometry against imu/truth/odometry, with the
+   published σ.
 
 All nodes run in this process under one executor and talk over real ROS 2 topics:
 
@@ -37,6 +40,13 @@ from .sins_node import SinsNode
 ARCSEC = np.degrees(1.0) * 3600.0
 
 
+def _teardown(ex, nodes) -> None:
+    for n in nodes:
+        if n in ex.get_nodes():
+            ex.remove_node(n)
+        n.destroy_node()
+
+
 def namespace_for(algorithm: str) -> str:
     return "alg_" + algorithm.replace("+", "plus").replace(".", "_")
 
@@ -56,6 +66,7 @@ def parse_args(argv):
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--json", help="also write the table as JSON to this file")
     ap.add_argument("--no-calibration", action="store_true", help="skip the calibration graph (part 2)")
+    ap.add_argument("--no-navigation", action="store_true", help="skip the navigation graph (part 3)")
     ap.add_argument("--boresight-deg", default="40,-25,120", help="true boresight ψ,ϑ,γ in degrees (part 2)")
     args = ap.parse_args(argv)
     args.algorithms = [a for a in args.algorithms.split(",") if a]
@@ -141,9 +152,7 @@ def run(args) -> list[dict]:
                       "delta_velocity_published": sim.counts["delta_velocity"],
                       "delta_theta_seen_by_monitor": counts["delta_theta"]}
     finally:
-        for n in (sim, mon, *sins.values()):
-            ex.remove_node(n)
-            n.destroy_node()
+        _teardown(ex, (sim, mon, *sins.values()))
 
 
 def format_table(rows, meta, args) -> str:
@@ -221,9 +230,7 @@ def run_calibration(args) -> dict:
                         q_sins, sim.profile.attitude(sins.integrator.time), "body")) / np.radians(1 / 3600))})
         return out
     finally:
-        for n in nodes:
-            ex.remove_node(n)
-            n.destroy_node()
+        _teardown(ex, nodes)
 
 
 def format_calibration(c: dict) -> str:
@@ -244,25 +251,122 @@ def format_calibration(c: dict) -> str:
     return "\n".join(lines)
 
 
+def run_navigation(args, duration: float = 60.0) -> dict:
+    """imu_sim (coordinated turn, navigation-grade errors) + sins_node with the navigation channel."""
+    from nav_msgs.msg import Odometry
+    from ..navigation import gravity as G
+    from ..navigation.trajectories import navigation_profile_from_config
+    try:
+        from rclpy.experimental import EventsExecutor as Executor
+    except ImportError:                       # pragma: no cover - older rclpy
+        Executor = SingleThreadedExecutor
+    prof = navigation_profile_from_config({"profile": "coordinated_turn"})
+    r0, w0 = prof.position(np.array([0.0]))[0], prof.velocity(np.array([0.0]))[0]
+    lat, lon, h = G.ecef_to_geodetic(r0)
+    enu = G.enu_rotation(lat, lon)
+    time_scale = 4.0                 # best-effort streams: bursts at higher scales lose messages on 2 cores
+    sim = ImuSimNode(namespace="/nav", parameter_overrides=[
+        Parameter("profile", value="coordinated_turn"), Parameter("time_scale", value=time_scale),
+        Parameter("duration", value=duration), Parameter("qos_depth", value=20000), Parameter("seed", value=args.seed)])
+    sins = SinsNode(namespace="/nav", parameter_overrides=[
+        Parameter("navigation", value=True), Parameter("coning_algorithm", value="2"),
+        Parameter("initial_position", value=[float(np.degrees(lat)), float(np.degrees(lon)), float(h)]),
+        Parameter("initial_velocity", value=[float(x) for x in enu.T @ w0]),
+        Parameter("initial_orientation", value=[float(x) for x in to_ros_xyzw(prof.attitude_ecef(np.array([0.0]))[0])]),
+        Parameter("qos_depth", value=20000)])
+    mon = rclpy.create_node("nav_monitor", namespace="/nav")
+    got = {"sins": {}, "truth": {}}
+    mon.create_subscription(Odometry, "sins/odometry", lambda m: got["sins"].__setitem__(stamp_to_ns(m.header.stamp), m),
+                            stream_qos(20000))
+    mon.create_subscription(Odometry, "imu/truth/odometry",
+                            lambda m: got["truth"].__setitem__(stamp_to_ns(m.header.stamp), m), stream_qos(20000))
+    ex = Executor()
+    nodes = (sim, sins, mon)
+    try:
+        # discovery first, without spinning: the simulator publishes nothing before everybody listens
+        deadline = time.monotonic() + 10.0
+        while time.monotonic() < deadline and not (sins.count_subscribers("/nav/sins/odometry") >= 1
+                                                   and sim.count_subscribers("/nav/imu/delta_theta") >= 1
+                                                   and sim.count_subscribers("/nav/imu/delta_velocity") >= 1
+                                                   and sim.count_subscribers("/nav/imu/truth/odometry") >= 1):
+            time.sleep(0.05)
+        for n in nodes:
+            ex.add_node(n)
+        wall0 = time.monotonic()
+        deadline = wall0 + 3.0 * duration / time_scale + 30.0
+        last, quiet = -1, time.monotonic()
+        while time.monotonic() < deadline and not (sim.finished and len(got["sins"]) >= int(duration * 50) - 2):
+            ex.spin_once(timeout_sec=0.01)
+            if len(got["sins"]) != last:
+                last, quiet = len(got["sins"]), time.monotonic()
+            elif sim.finished and time.monotonic() - quiet > 2.0:      # nothing more is coming
+                break
+        for _ in range(50):                   # drain
+            ex.spin_once(timeout_sec=0.01)
+        common = sorted(set(got["sins"]) & set(got["truth"]))
+        out = {"simulated_s": sim.sim_time, "wall_s": time.monotonic() - wall0, "steps": len(got["sins"]),
+               "frame_id": None, "child_frame_id": None}
+        if not common:
+            return out
+        m, t = got["sins"][common[-1]], got["truth"][common[-1]]
+        p = m.pose.pose.position
+        dp = np.array([p.x, p.y, p.z]) - np.array([t.pose.pose.position.x, t.pose.pose.position.y,
+                                                   t.pose.pose.position.z])
+        cov = np.array(m.pose.covariance).reshape(6, 6)[:3, :3]
+        out.update({"frame_id": m.header.frame_id, "child_frame_id": m.child_frame_id,
+                    "t_s": (common[-1] - common[0]) * 1e-9, "position_error_m": dp.tolist(),
+                    "position_sigma_m": np.sqrt(np.diag(cov)).tolist(),
+                    "position_nees": float(dp @ np.linalg.solve(cov, dp)),
+                    "attitude_error_arcsec": float(quat_angle_between(
+                        from_ros_xyzw([m.pose.pose.orientation.x, m.pose.pose.orientation.y,
+                                       m.pose.pose.orientation.z, m.pose.pose.orientation.w]),
+                        from_ros_xyzw([t.pose.pose.orientation.x, t.pose.pose.orientation.y,
+                                       t.pose.pose.orientation.z, t.pose.pose.orientation.w])) * ARCSEC)})
+        return out
+    finally:
+        _teardown(ex, nodes)
+
+
+def format_navigation(c: dict) -> str:
+    lines = ["", "Navigation: imu_sim_node (coordinated turn, navigation-grade sensor errors) + sins_node "
+             f"(navigation: true, algorithm 2), {c['simulated_s']:.0f} simulated s in {c['wall_s']:.1f} wall s, "
+             f"{c['steps']} sins/odometry messages"]
+    if "position_error_m" not in c:
+        lines.append("  no sins/odometry matched imu/truth/odometry")
+        return "\n".join(lines)
+    lines.append(f"frames {c['frame_id']} → {c['child_frame_id']}; after {c['t_s']:.1f} s, ECEF position error "
+                 "against the truth (m) and the published 1σ:")
+    for k, ax in enumerate("XYZ"):
+        e, s_ = c["position_error_m"][k], c["position_sigma_m"][k]
+        lines.append(f"  {ax}: error {e:+9.3f}  σ {s_:8.3f}  error/σ {e / s_:+6.2f}")
+    lines.append(f"position NEES {c['position_nees']:.2f} (3 dof; one draw of the sensor errors), attitude error "
+                 f"{c['attitude_error_arcsec']:.1f}″")
+    return "\n".join(lines)
+
+
 def main(argv=None):
     args = parse_args(sys.argv[1:] if argv is None else argv)
     rclpy.init()
-    calib = None
+    calib = nav = None
     try:
         rows, meta = run(args)
         if not args.no_calibration:
             calib = run_calibration(args)
+        if not args.no_navigation:
+            nav = run_navigation(args)
     finally:
         rclpy.try_shutdown()
     print(format_table(rows, meta, args))
     if calib is not None:
         print(format_calibration(calib))
+    if nav is not None:
+        print(format_navigation(nav))
     if args.json:
         with open(args.json, "w", encoding="utf-8") as fh:
-            json.dump({"rows": rows, "meta": meta, "calibration": calib,
+            json.dump({"rows": rows, "meta": meta, "calibration": calib, "navigation": nav,
                        "args": {k: v for k, v in vars(args).items()}}, fh, indent=2, default=float)
     ok = all(r["published"] > 0 and r["dropped"] + r["missing"] == 0 for r in rows) and \
-        (calib is None or calib.get("observable", False))
+        (calib is None or calib.get("observable", False)) and (nav is None or "position_error_m" in nav)
     return 0 if ok else 1
 
 
