@@ -52,7 +52,8 @@ def _run(ns, profile, duration, sins_extra=(), sim_extra=(), expect=None):
     enu = G.enu_rotation(lat, lon)
     sim = ImuSimNode(namespace=ns, parameter_overrides=[
         Parameter("profile", value=profile), Parameter("time_scale", value=10.0),
-        Parameter("duration", value=duration), Parameter("qos_depth", value=QUEUE), *IDEAL, *sim_extra])
+        Parameter("duration", value=duration), Parameter("qos_depth", value=QUEUE),
+        Parameter("wait_for_subscribers", value=1), *IDEAL, *sim_extra])     # no start lost to discovery
     sins = SinsNode(namespace=ns, parameter_overrides=[
         Parameter("navigation", value=True), Parameter("coning_algorithm", value="one_plus_previous"),
         Parameter("initial_position", value=[float(np.degrees(lat)), float(np.degrees(lon)), float(h)]),
