@@ -22,7 +22,7 @@ import os
 
 import numpy as np
 
-__all__ = ["available", "recursion", "warm_up"]
+__all__ = ["available", "recursion", "warm_up", "kernels_allowed", "njit_optional"]
 
 ENV = "STRAPDOWN_KERNEL"
 
@@ -86,17 +86,29 @@ def _recursion_py(q0, phi, p_ref0, j0, var, q_iso, q_white, jac, use_iso, use_co
 _compiled = None
 
 
+def kernels_allowed() -> bool:
+    """False when ``STRAPDOWN_KERNEL=numpy`` switches every compiled loop of the package off."""
+    return os.environ.get(ENV, "auto").strip().lower() != "numpy"
+
+
+def njit_optional(*functions):
+    """``numba.njit(cache=True)`` of each function (a tuple), or None without numba.  The one home
+    of the optional compilation used by this module and the navigation loops."""
+    try:
+        import numba
+        return tuple(numba.njit(cache=True)(f) for f in functions)
+    except Exception:                                    # noqa: BLE001 - no numba, or it cannot compile
+        return None
+
+
 def available() -> bool:
     """True when the compiled recursion is in use (numba importable, not switched off)."""
     global _compiled
-    if os.environ.get(ENV, "auto").strip().lower() == "numpy":
+    if not kernels_allowed():
         return False
     if _compiled is None:
-        try:
-            import numba
-            _compiled = numba.njit(cache=True)(_recursion_py)
-        except Exception:                                # noqa: BLE001 - no numba, or it cannot compile
-            _compiled = False
+        got = njit_optional(_recursion_py)
+        _compiled = got[0] if got else False
     return _compiled is not False
 
 

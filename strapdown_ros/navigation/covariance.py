@@ -25,10 +25,10 @@ attitude covariance; this one carries ψ because velocity errors depend on it.
 from __future__ import annotations
 
 import math
-import os
 
 import numpy as np
 
+from ..attitude_kernel import kernels_allowed, njit_optional
 from ..sensors.covariance import constant_jacobian, constant_variances
 from ..sensors.model import SensorSigmas
 
@@ -227,13 +227,6 @@ def _epochs():
     """The compiled epoch loop when numba is present and allowed (STRAPDOWN_KERNEL=numpy: Python)."""
     global _compiled, _mm
     if _compiled is None:
-        _compiled = _epochs_py
-        if os.environ.get("STRAPDOWN_KERNEL", "").lower() != "numpy":
-            try:
-                import numba
-                _mm = numba.njit(cache=True)(_mm_py)
-                _compiled = numba.njit(cache=True)(_epochs_py)
-            except Exception:                            # noqa: BLE001 - no numba, or it cannot compile
-                _mm = _mm_py
-                _compiled = _epochs_py
+        got = njit_optional(_mm_py, _epochs_py) if kernels_allowed() else None
+        _mm, _compiled = got if got else (_mm_py, _epochs_py)
     return _compiled

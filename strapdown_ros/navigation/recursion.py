@@ -31,11 +31,11 @@ Both loops are plain Python over ``math``; with numba present the exact loop run
 from __future__ import annotations
 
 import math
-import os
 import types
 
 import numpy as np
 
+from ..attitude_kernel import kernels_allowed, njit_optional
 from . import gravity as _gravity
 
 __all__ = ["SCHEMES", "run", "OMEGA"]
@@ -104,21 +104,18 @@ def _exact_loop(origin, offset0, w0, dv, dr, h, omega, out_off, out_w):
 
 _gravity_xyz = _gravity.printed_gravity_xyz
 _compiled = None
-ENV = "STRAPDOWN_KERNEL"
 
 
 def available() -> bool:
     """numba present, allowed and able to compile the exact loop."""
     global _compiled, _gravity_xyz
-    if os.environ.get(ENV, "").lower() == "numpy":
+    if not kernels_allowed():
         return False
     if _compiled is None:
-        try:
-            import numba
-            _gravity_xyz = numba.njit(cache=True)(_gravity.printed_gravity_xyz)
-            _compiled = numba.njit(cache=True)(_exact_loop)
-        except Exception:                                # noqa: BLE001 - no numba, or it cannot compile
-            _gravity_xyz = _gravity.printed_gravity_xyz
+        got = njit_optional(_gravity.printed_gravity_xyz, _exact_loop)
+        if got:
+            _gravity_xyz, _compiled = got
+        else:
             _compiled = False
     return _compiled is not False
 

@@ -45,13 +45,13 @@ No ROS imports; vectorised over steps.
 from __future__ import annotations
 
 import math
-import os
 from dataclasses import dataclass, field
 from fractions import Fraction
 from itertools import product
 
 import numpy as np
 
+from ..attitude_kernel import kernels_allowed, njit_optional
 from ..rotation import cross
 
 __all__ = ["FORMS", "StepLayout", "step_layout", "specific_force_integrals", "derived_coefficients",
@@ -233,20 +233,16 @@ def _exact_loop(q, u, h, gyro_fit, accel_fit, n, m, gl_s, gl_w, gl_wr, dv_out, d
 
 
 _compiled = None
-ENV = "STRAPDOWN_KERNEL"
 
 
 def _kernel_available() -> bool:
     """numba present, allowed (``STRAPDOWN_KERNEL`` ≠ ``numpy``) and able to compile the loop."""
     global _compiled
-    if os.environ.get(ENV, "").lower() == "numpy":
+    if not kernels_allowed():
         return False
     if _compiled is None:
-        try:
-            import numba
-            _compiled = numba.njit(cache=True)(_exact_loop)
-        except Exception:                                # noqa: BLE001 - no numba, or it cannot compile
-            _compiled = False
+        got = njit_optional(_exact_loop)
+        _compiled = got[0] if got else False
     return _compiled is not False
 
 

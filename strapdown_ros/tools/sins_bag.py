@@ -253,27 +253,18 @@ class CsvOutput:
         self.rows = 0
 
     def write(self, out: SinsOutput) -> None:
+        """One row per navigation step (stamp, position, velocity, q, σ) or, without navigation,
+        per attitude update (stamp, q, σ)."""
         g = "{:.17g}".format
-        if self.navigation:
-            nb = out.navigation
-            if not len(nb):
-                return
-            q = to_ros_xyzw(nb.attitude).reshape(-1, 4)
-            sig = np.sqrt(np.maximum(np.diagonal(nb.covariance, axis1=1, axis2=2), 0.0))
-            for k in range(len(nb)):
-                vals = [*nb.position[k], *nb.velocity[k], *q[k], *sig[k]]
-                self.fh.write(_fmt_stamp(nb.stamp_ns[k]) + "," + ",".join(g(float(x)) for x in vals) + "\n")
-            self.rows += len(nb)
-        else:
-            at = out.attitude
-            if not len(at):
-                return
-            q = to_ros_xyzw(at.attitude).reshape(-1, 4)
-            sig = np.sqrt(np.maximum(np.diagonal(at.covariance, axis1=1, axis2=2), 0.0))
-            for k in range(len(at)):
-                vals = [*q[k], *sig[k]]
-                self.fh.write(_fmt_stamp(at.stamp_ns[k]) + "," + ",".join(g(float(x)) for x in vals) + "\n")
-            self.rows += len(at)
+        rec = out.navigation if self.navigation else out.attitude
+        if not len(rec):
+            return
+        q = to_ros_xyzw(rec.attitude).reshape(-1, 4)
+        sig = np.sqrt(np.maximum(np.diagonal(rec.covariance, axis1=1, axis2=2), 0.0))
+        for k in range(len(rec)):
+            vals = ([*rec.position[k], *rec.velocity[k]] if self.navigation else []) + [*q[k], *sig[k]]
+            self.fh.write(_fmt_stamp(rec.stamp_ns[k]) + "," + ",".join(g(float(x)) for x in vals) + "\n")
+        self.rows += len(rec)
 
     def close(self, ok: bool = True) -> None:
         self.fh.close()
