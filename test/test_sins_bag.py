@@ -119,6 +119,18 @@ def test_attitude_only_csv_and_rates_from_the_stamps(tmp_path, capsys):
     assert sins_bag.rate_from_stamps([5, 5]) is None
 
 
+def test_the_recordings_own_body_frame_unless_one_is_named(tmp_path, capsys):
+    """A recording from other software names its own body frame: sins_bag takes it from the
+    headers unless frame_id is given; given and different, every Δθ is rejected (the node's
+    rule) and the error says why."""
+    bag = _record(tmp_path / "bag_imu", "coning", "frame_id:=imu")
+    rc, stdout, err = _run_tool(capsys, bag, "--output", tmp_path / "own.csv")
+    assert rc == 0, err
+    assert len(_csv(tmp_path / "own.csv")[1]) == int(DURATION * 100) // 2
+    rc, stdout, err = _run_tool(capsys, bag, "-p", "frame_id:=imu_link", "--output", tmp_path / "named.csv")
+    assert rc == 3 and "every Δθ was rejected" in err and "frame_id 'imu_link'" in err
+
+
 def test_mcap_output_has_the_node_topics_and_types(bags, tmp_path, capsys):
     from rosbags.highlevel import AnyReader
     bag, params, prof = bags["coordinated_turn"]

@@ -122,9 +122,10 @@ def _find_topic(topics: dict, name: str, namespace: str) -> str | None:
 class Input:
     """The opened bag: reader, the two connections, the rates from the stamps."""
 
-    def __init__(self, reader, gyro_conn, accel_conn, gyro_rate, accel_rate, path):
+    def __init__(self, reader, gyro_conn, accel_conn, gyro_rate, accel_rate, path, frame_id=""):
         self.reader, self.gyro_conn, self.accel_conn = reader, gyro_conn, accel_conn
         self.gyro_rate, self.accel_rate, self.path = gyro_rate, accel_rate, path
+        self.frame_id = frame_id            # header.frame_id of the first Δθ message
 
     @property
     def namespace(self) -> str:
@@ -166,10 +167,14 @@ def open_input(bag, namespace: str = "", gyro_topic: str | None = None, accel_to
         ac = next((c for c in reader.connections if c.topic == a), None) if a else None
         stamps: dict = {g: [], a: []} if a else {g: []}
         conns = [c for c in reader.connections if c.topic in stamps]
+        frame_id = None
         for conn, _, raw in reader.messages(connections=conns):
             lst = stamps[conn.topic]
             if len(lst) < RATE_SAMPLE:
-                lst.append(_stamp_ns(reader.deserialize(raw, conn.msgtype)))
+                msg = reader.deserialize(raw, conn.msgtype)
+                lst.append(_stamp_ns(msg))
+                if frame_id is None and conn.topic == g:
+                    frame_id = msg.header.frame_id
             if all(len(v) >= RATE_SAMPLE for v in stamps.values()):
                 break
     except BagError:
@@ -187,7 +192,7 @@ def open_input(bag, namespace: str = "", gyro_topic: str | None = None, accel_to
     if a and a_rate is None and need_accel:
         reader.close()
         raise BagError(f"{path}: {a} has fewer than 2 messages with distinct stamps; navigation needs it")
-    return Input(reader, gc, ac, g_rate, a_rate, path)
+    return Input(reader, gc, ac, g_rate, a_rate, path, frame_id or "")
 
 
 def _messages(inp: Input, progress=None):
@@ -494,7 +499,13 @@ def main(argv=None) -> int:
             elif not math.isclose(rates[name], p[name], rel_tol=0.01):
                 say(f"note: {name} {rates[name]:g} Hz from the stamps (the parameters say {p[name]:g} Hz; "
                     f"-p {name}:=... to impose one)")
-        p = sins_parameters(args.params, {**over, **rates})
+        # the body frame: the recording's own, unless the parameters name one
+        named = "frame_id" in over or (args.params and "frame_id" in load_parameter_file(args.params, "sins_node"))
+        frame = {}
+        if not named and inp.frame_id and inp.frame_id != p["frame_id"]:
+            frame = {"frame_id": inp.frame_id}
+            say(f"note: frame_id {inp.frame_id!r} from the recording's headers (-p frame_id:=... to impose one)")
+        p = sins_parameters(args.params, {**over, **rates, **frame})
         if p["navigation"]:
             lat, lon, h = (float(x) for x in p["initial_position"])
             r = float(np.linalg.norm(geodetic_to_ecef(np.radians(lat), np.radians(lon), h)))
@@ -534,6 +545,9 @@ def main(argv=None) -> int:
                + (f"; last refusal: {nav.alignment.reason}" if nav.alignment is not None and not nav.alignment.ok
                   else "") + ")") if nav is not None and nav.navigator is None else \
             "no attitude update" if system.integrator.updates == 0 else "no navigation step"
+        if system.integrator.updates == 0 and system.frame_mismatch["gyro"] and system.gyro_check.accepted == 0:
+            why = (f"every Δθ was rejected: its header.frame_id is not frame_id {system.p['frame_id']!r} "
+                   "(-p frame_id:=... or -p frame_mismatch:=accept)")
         print(f"sins_bag: no solution: {why}", file=sys.stderr)
         return 3
     return 0
