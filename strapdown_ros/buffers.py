@@ -91,6 +91,8 @@ class StampedBuffer:
 
     def drop_through(self, stamp: float) -> None:
         """Drop every sample stamped at or before ``stamp``."""
+        if self._lo == self._hi:
+            return
         self.drop_first(int(np.searchsorted(self.stamps, stamp, side="right")))
 
     def clear(self) -> None:

@@ -31,7 +31,7 @@ import numpy as np
 from .rotation import cross
 
 __all__ = ["ConingAlgorithm", "ALGORITHMS", "get_algorithm", "algorithm_names", "SEED_ALGORITHMS",
-           "LITERATURE_DRIFT", "spacing_coefficients", "theory_drift"]
+           "LITERATURE_DRIFT", "spacing_coefficients", "theory_drift", "bilinear_form"]
 
 
 @dataclass(frozen=True)
@@ -266,6 +266,48 @@ def spacing_coefficients(alg: ConingAlgorithm) -> dict[int, float] | None:
             if abs(c) > 0:
                 k[j - i] = k.get(j - i, 0.0) + c
     return k
+
+
+@lru_cache(maxsize=None)
+def bilinear_form(name: str) -> tuple[np.ndarray, np.ndarray] | None:
+    """φ of algorithm ``name`` as a table: ``φ = Σ_i lin_i q_i + Σ_p k_p q_{i_p} × q_{j_p}``
+    (window slots, oldest first) → ``(lin (W,), pairs (P, 3))``, rows of pairs ``(i_p, j_p, k_p)``
+    (indices as floats), for the compiled block kernel (:mod:`strapdown_ros.attitude_kernel`),
+    which evaluates every algorithm from its table.
+
+    The table is read off ``phi`` itself (the registry stays the one home of the formulas):
+    ``lin_i`` from a unit x increment in slot i, ``k_ij`` from the z component of e_x in slot i
+    and e_y in slot j.  It is then checked on random windows, with the increments' scale from
+    1e-6 to 1 rad: the table must reproduce ``phi`` to 1e-13 relative, or None is returned
+    (a form that is not linear plus bilinear cross products is evaluated by ``phi``, in numpy)."""
+    alg = ALGORITHMS[name]
+    n = alg.window
+    lin = np.zeros(n)
+    for i in range(n):
+        w = np.zeros((1, n, 3))
+        w[0, i, 0] = 1.0
+        lin[i] = alg.phi(w)[0, 0]
+    pairs = []
+    for i in range(n):
+        for j in range(i + 1, n):
+            w = np.zeros((1, n, 3))
+            w[0, i, 0] = 1.0
+            w[0, j, 1] = 1.0
+            c = float(alg.phi(w)[0, 2])
+            if c != 0.0:
+                pairs.append((i, j, c))
+    table = np.array(pairs, dtype=float).reshape(-1, 3)
+    pi, pj, kk = table[:, 0].astype(int), table[:, 1].astype(int), table[:, 2]
+    rng = np.random.default_rng(12345)
+    for scale in (1e-6, 1e-3, 1.0):
+        w = scale * rng.normal(size=(16, n, 3))
+        rebuilt = np.einsum("i,mia->ma", lin, w) + (kk[None, :, None] * cross(w[:, pi], w[:, pj])).sum(1)
+        ref = alg.phi(w)
+        if np.max(np.abs(rebuilt - ref)) > 1e-13 * np.max(np.abs(ref)):
+            return None
+    for a in (lin, table):
+        a.setflags(write=False)
+    return lin, table
 
 
 def theory_drift(alg: ConingAlgorithm, omega_h) -> float | None:

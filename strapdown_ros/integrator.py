@@ -48,7 +48,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from . import attitude_kernel
-from .coning import ConingAlgorithm, get_algorithm
+from .coning import ConingAlgorithm, bilinear_form, get_algorithm
 from .rotation import quat_cumprod, quat_normalize, quat_to_dcm, rotvec_to_quat
 from .buffers import StampedBuffer
 from .sensors import SensorSigmas, increment_correction
@@ -59,6 +59,8 @@ __all__ = ["AttitudeIntegrator", "UpdateBatch", "IncrementAccumulator", "COVARIA
 
 #: names of the covariance models (the registry is strapdown_ros.sensors.covariance)
 COVARIANCE_MODELS = tuple(_MODELS)
+
+_NO_INCREMENTS, _NO_INTERVALS = np.zeros((0, 3)), np.zeros(0)       # shared, never written
 
 
 @dataclass
@@ -116,14 +118,20 @@ class AttitudeIntegrator:
         self.propagate_covariance = bool(propagate_covariance)
         self._last_sign = np.zeros(3)
         self._last_stamp = initial_time
-        self._pending = np.zeros((0, 3))         # increments of the update in progress
-        self._pending_dt = np.zeros(0)
+        self._pending = _NO_INCREMENTS           # increments of the update in progress
+        self._pending_dt = _NO_INTERVALS
         self._recent = np.zeros((0, 3))          # last few used increments (history for 6, 7)
         c0 = quat_to_dcm(self.q)
         self._p_ref = c0 @ (initial_sigma ** 2 * np.eye(3)) @ c0.T   # white + initial part
         self._j_const = np.zeros((3, 12))        # Σ C_j ∂ρ_j/∂x, x = [b, vec M] (random constants)
         self.updates = 0
         self.samples = 0
+        self._constant_var = self.cov_model.constant_variances(self.gyro)
+        # the isotropic white part per second of interval (the compiled kernel's form)
+        self._white_rate = (float(self.cov_model.white_variance(1.0, self.gyro))
+                            if self.cov_model.isotropic_white else None)
+        # the compiled block kernel, if numba is there and STRAPDOWN_KERNEL allows it (read once, here)
+        self._kernel = attitude_kernel.available()
 
     # -------------------------------------------------------------------------------
     @property
@@ -152,9 +160,9 @@ class AttitudeIntegrator:
         self.time = None
 
     def snapshot(self) -> tuple:
-        """The state needed to come back to this point (:meth:`restore`)."""
-        return (self.q.copy(), self.time, self._last_stamp, self._p_ref.copy(), self._j_const.copy(),
-                self.updates, self.samples)
+        """The state needed to come back to this point (:meth:`restore`).  No copies: :meth:`push`
+        and :meth:`set_algorithm` replace these arrays, they never write into them."""
+        return (self.q, self.time, self._last_stamp, self._p_ref, self._j_const, self.updates, self.samples)
 
     def restore(self, snap: tuple, inflate_sigma: float = 0.0) -> None:
         """Return to a :meth:`snapshot`, dropping the unfinished update and the history, and add
@@ -198,61 +206,78 @@ class AttitudeIntegrator:
         prev = self._last_stamp if self._last_stamp is not None else stamps[0] - self.nominal_period
         if self.time is None:
             self.time = prev
-        dt = np.diff(np.concatenate([[prev], stamps]))
+        n = len(stamps)
+        dt = np.empty(n)
+        dt[0] = stamps[0] - prev
+        np.subtract(stamps[1:], stamps[:-1], out=dt[1:])
         self._last_stamp = float(stamps[-1])
-        self.samples += len(dth)
+        self.samples += n
 
         alg = self.algorithm
         n_new, hist = alg.samples, alg.history
-        work = np.vstack([self._pending, dth])
-        work_dt = np.concatenate([self._pending_dt, dt])
-        work_t = np.concatenate([np.full(len(self._pending), np.nan), stamps])
+        if len(self._pending):       # the increments of an unfinished update come first
+            work = np.concatenate((self._pending, dth))
+            work_dt = np.concatenate((self._pending_dt, dt))
+            work_t = np.concatenate((np.full(len(self._pending), np.nan), stamps))
+        else:
+            work, work_dt, work_t = dth, dt, stamps
         m = len(work) // n_new
         used = m * n_new
-        if m == 0:
-            self._pending, self._pending_dt = work, work_dt
+        if m == 0:                   # (a copy: work may be the caller's array)
+            self._pending, self._pending_dt = work.copy(), work_dt.copy()
             return self._empty()
         # history: previous increments; at start-up repeat the first one (zero cross products)
-        if len(self._recent) >= hist:
-            recent = self._recent
+        if hist == 0:
+            seq = work[:used]
+        elif len(self._recent) >= hist:
+            seq = np.concatenate((self._recent[len(self._recent) - hist:], work[:used]))
         else:   # start-up: repeat the earliest increment seen so far
             first = self._recent[:1] if len(self._recent) else work[:1]
-            recent = np.vstack([np.repeat(first, hist - len(self._recent), axis=0), self._recent])
-        seq = np.vstack([recent[len(recent) - hist:], work[:used]]) if hist else work[:used]
-        windows = np.lib.stride_tricks.sliding_window_view(seq, alg.window, axis=0)[::n_new]
-        windows = np.ascontiguousarray(np.moveaxis(windows, -1, 1))       # (m, window, 3)
-        phi = alg.phi(windows)
-        blocks = work[:used].reshape(m, n_new, 3)
-        h = work_dt[:used].reshape(m, n_new).sum(1)
-        if self.propagate_covariance and attitude_kernel.available():
-            q, cov = self._compiled_update(phi, blocks, work_dt[:used].reshape(m, n_new), h)
+            recent = np.concatenate((np.repeat(first, hist - len(self._recent), axis=0), self._recent))
+            seq = np.concatenate((recent, work[:used]))
+        dts = work_dt[:used]
+        table = bilinear_form(alg.name)
+        if self.propagate_covariance and table is not None and self._kernel:
+            q, cov, phi, mean_rate, h = self._compiled_update(seq, dts, m, table)
         else:
-            q, cov = self._vectorised_update(phi, blocks, work_dt[:used].reshape(m, n_new))
+            phi = alg.phi(self._windows(seq, m))
+            blocks = work[:used].reshape(m, n_new, 3)
+            h = dts.reshape(m, n_new).sum(1)
+            q, cov = self._vectorised_update(phi, blocks, dts.reshape(m, n_new))
+            mean_rate = blocks.sum(1) / h[:, None]
 
         self.q = q[-1]
         self.time = float(work_t[used - 1])
         self.updates += m
-        self._pending, self._pending_dt = work[used:], work_dt[used:]
-        self._recent = np.vstack([self._recent, work[:used]])[-4:]
+        if used < len(work):
+            self._pending, self._pending_dt = work[used:].copy(), work_dt[used:].copy()
+        elif len(self._pending):
+            self._pending, self._pending_dt = _NO_INCREMENTS, _NO_INTERVALS
+        self._recent = (work[used - 4:used].copy() if used >= 4
+                        else np.concatenate((self._recent, work[:used]))[-4:])
         return UpdateBatch(stamps=work_t[n_new - 1:used:n_new], attitude=q, covariance=cov,
-                           rotation_vector=phi, mean_rate=blocks.sum(1) / h[:, None], interval=h)
+                           rotation_vector=phi, mean_rate=mean_rate, interval=h)
 
-    def _compiled_update(self, phi, blocks, dts, h):
-        """The recursion of a block as one compiled loop (:mod:`strapdown_ros.attitude_kernel`)."""
-        g, model = self.gyro, self.cov_model
-        m, n_new = dts.shape
-        q_iso = q_white = jac = None
-        if model.isotropic_white:
-            q_iso = model.white_variance(h, g)
-        else:
-            q_white = model.white(blocks.reshape(-1, 3), dts.reshape(-1), g).reshape(m, n_new, 3, 3).sum(1)
-        if model.constants:
-            jac = constant_jacobian(blocks.sum(1), h)
-        q, cov, self._p_ref, self._j_const = attitude_kernel.recursion(
-            self.q, phi, self._p_ref, self._j_const, model.constant_variances(g), q_iso, q_white, jac)
+    def _windows(self, seq: np.ndarray, m: int) -> np.ndarray:
+        """The m coning windows (m, window, 3) of a sequence of history + new increments."""
+        alg = self.algorithm
+        idx = np.arange(m)[:, None] * alg.samples + np.arange(alg.window)[None, :]
+        return seq[idx]
+
+    def _compiled_update(self, seq, dts, m, table):
+        """A block as one compiled call (:mod:`strapdown_ros.attitude_kernel`): coning term from the
+        algorithm's table, attitude, covariance, mean rate."""
+        g, model, alg = self.gyro, self.cov_model, self.algorithm
+        q_white = None
+        if not model.isotropic_white:
+            new = seq[alg.history:]
+            q_white = model.white(new, dts, g).reshape(m, alg.samples, 3, 3).sum(1)
+        q, cov, phi, rate, h, self._p_ref, self._j_const = attitude_kernel.block_update(
+            self.q, seq, dts, alg.samples, alg.history, table, self._p_ref, self._j_const, self._constant_var,
+            self._white_rate, q_white, model.constants, compiled=True)
         if g.quantum > 0:              # the remainder at this epoch (000 §5)
             cov = EFFECTS["gyro_quantization"].fix_covariance(cov, np.array([g.quantum]))
-        return q, 0.5 * (cov + np.swapaxes(cov, -1, -2))
+        return q, cov, phi, rate, h
 
     def _vectorised_update(self, phi, blocks, dts):
         """The recursion of a block in numpy: a blocked quaternion scan and cumulative sums."""

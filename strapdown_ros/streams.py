@@ -41,6 +41,7 @@ class StreamCheck:
         self.nominal_ns = nominal_period * 1e9
         self.max_norm = max_norm
         self.jump_ns = max(jump_limit * 1e9, 3.0 * self.nominal_ns if math.isfinite(self.nominal_ns) else 0.0)
+        self._gap_ns = 1.5 * self.nominal_ns   # inf without a nominal period: no gaps
         self.resync_count = max(1, int(resync_count))
         self.last_ns: int | None = None
         self.first_ns: int | None = None
@@ -66,30 +67,46 @@ class StreamCheck:
             return max(abs(v[0]), abs(v[1]), abs(v[2]))
         return max(abs(c) for c in v)
 
-    def offer(self, stamp_ns: int, v):
+    def offer(self, stamp_ns: int, v, isfinite=math.isfinite):
         self.received += 1
         self.resynced = False
-        if not self._finite(v):
-            self.nan += 1
-            return []
-        if self.max_norm is not None and self._norm(v) > self.max_norm:
-            self.out_of_range += 1
-            return []
-        if self.last_ns is None:
+        if len(v) == 3:                        # the hot path, rules 1 and 2 without calls
+            x, y, z = v
+            if not (isfinite(x) and isfinite(y) and isfinite(z)):
+                self.nan += 1
+                return []
+            if self.max_norm is not None and max(abs(x), abs(y), abs(z)) > self.max_norm:
+                self.out_of_range += 1
+                return []
+        else:
+            if not self._finite(v):
+                self.nan += 1
+                return []
+            if self.max_norm is not None and self._norm(v) > self.max_norm:
+                self.out_of_range += 1
+                return []
+        last = self.last_ns
+        if last is None:
             return self._take(stamp_ns, v)
         if self._held:
             return self._with_candidates(stamp_ns, v)
-        step = stamp_ns - self.last_ns
+        step = stamp_ns - last
+        if 0 < step <= self.jump_ns:           # the usual case: the next stamp (rule 6 inline)
+            if step > self._gap_ns:
+                self.gaps += 1
+                self.missing += int(round(step / self.nominal_ns)) - 1
+            self.last_ns = stamp_ns
+            self.accepted += 1
+            self.accepted_since += 1
+            return [(stamp_ns, v)]
         if step == 0:
             self.duplicate += 1
             return []
         if abs(step) > self.jump_ns:
             self._held.append((stamp_ns, v))
             return []
-        if step < 0:
-            self.out_of_order += 1
-            return []
-        return self._take(stamp_ns, v)
+        self.out_of_order += 1                 # step < 0 within jump_limit
+        return []
 
     def _fits(self, prev_ns: int, stamp_ns: int) -> bool:
         return 0 < stamp_ns - prev_ns <= self.jump_ns
@@ -126,7 +143,7 @@ class StreamCheck:
     def _take(self, stamp_ns, v):
         if self.last_ns is not None:
             step = stamp_ns - self.last_ns
-            if math.isfinite(self.nominal_ns) and step > 1.5 * self.nominal_ns:
+            if step > self._gap_ns:
                 self.gaps += 1
                 self.missing += int(round(step / self.nominal_ns)) - 1
         if self.first_ns is None:

@@ -160,3 +160,64 @@ def test_compiled_and_numpy_recursions_agree_with_each_other_and_truth(monkeypat
     assert np.max(np.abs(ca - cb)) <= 1e-10 * np.max(np.abs(ca))
     assert np.all(np.linalg.eigvalsh(cb) > 0)
     assert np.max(quat_angle_between(qb, prof.attitude(tg[1:]))) < 1e-8
+
+
+@pytest.mark.parametrize("covariance_model", ["random_constant", "004"])
+def test_compiled_block_kernel_equals_numpy_for_every_coning_algorithm(monkeypatch, covariance_model):
+    """Issue 10: the compiled block kernel evaluates every algorithm from its table
+    (coning.bilinear_form), history included; it must give the numpy path's attitudes, rotation
+    vectors, mean rates and covariances to round-off, in blocks of odd sizes, for every algorithm of
+    the registry."""
+    from strapdown_ros import attitude_kernel
+    from strapdown_ros.coning import algorithm_names
+    from strapdown_ros.sensors import NAVIGATION_GRADE_GYRO
+    rng = np.random.default_rng(7)
+    n = 300
+    dth = rng.normal(0.0, 2e-3, (n, 3))
+    tg = np.cumsum(rng.uniform(0.009, 0.011, n))
+    for name in algorithm_names():
+        out = {}
+        for kernel in ("numpy", "auto"):
+            monkeypatch.setenv("STRAPDOWN_KERNEL", kernel)
+            if kernel == "auto" and not attitude_kernel.available():
+                pytest.skip("numba not installed: only the numpy path exists here")
+            integ = AttitudeIntegrator(name, (0.9, 0.1, -0.3, 0.2), tg[0] - 0.01, gyro=NAVIGATION_GRADE_GYRO,
+                                       initial_sigma=1e-4, covariance_model=covariance_model)
+            parts = []
+            k = 0
+            for size in [1, 5, 2, 13, 7] * 100:
+                if k >= n:
+                    break
+                parts.append(integ.push(dth[k:k + size], tg[k:k + size]))
+                k += size
+            out[kernel] = [np.concatenate([getattr(b, f) for b in parts])
+                           for f in ("stamps", "attitude", "covariance", "rotation_vector", "mean_rate", "interval")]
+        for a, b in zip(out["numpy"], out["auto"]):
+            assert a.shape == b.shape, name
+            assert np.max(np.abs(a - b)) <= 1e-12 * max(np.max(np.abs(a)), 1e-300), name
+
+
+def test_every_coning_algorithm_has_a_table_and_the_table_is_phi():
+    """The table the compiled kernel uses is read off ``phi``; it must exist for every algorithm of
+    the registry and reproduce ``phi`` on independent random windows; a φ that is not linear plus
+    bilinear cross products must be refused (None), not approximated."""
+    from strapdown_ros import coning
+    from strapdown_ros.rotation import cross
+    rng = np.random.default_rng(3)
+    for name in coning.algorithm_names():
+        alg = coning.ALGORITHMS[name]
+        lin, pairs = coning.bilinear_form(name)
+        w = rng.normal(0.0, 0.05, (50, alg.window, 3))
+        rebuilt = np.einsum("i,mia->ma", lin, w)
+        for i, j, k in pairs:
+            rebuilt += k * cross(w[:, int(i)], w[:, int(j)])
+        assert np.max(np.abs(rebuilt - alg.phi(w))) < 1e-15, name
+    from dataclasses import replace
+    cubic = replace(coning.ALGORITHMS["2"], name="_test_cubic",
+                    phi=lambda w: w[:, 0] + w[:, 1] + 0.1 * np.sum(w[:, 0] ** 2, axis=-1, keepdims=True) * w[:, 1])
+    coning.ALGORITHMS["_test_cubic"] = cubic
+    try:
+        assert coning.bilinear_form("_test_cubic") is None
+    finally:
+        del coning.ALGORITHMS["_test_cubic"]
+        coning.bilinear_form.cache_clear()

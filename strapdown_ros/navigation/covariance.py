@@ -29,7 +29,7 @@ import math
 import numpy as np
 
 from ..attitude_kernel import kernels_allowed, njit_optional
-from ..sensors.covariance import constant_jacobian, constant_variances
+from ..sensors.covariance import constant_jacobian_basis, constant_variances
 from ..sensors.model import SensorSigmas
 
 
@@ -49,21 +49,7 @@ _F_CONST[3:6, 3:6] = -2.0 * _OM
 _F_CONST[6:9, 6:9] = -_OM
 
 
-def _jacobian_basis() -> np.ndarray:
-    """``E`` (4, 3, 12): ``J(u, T) = Σ_i u_i E_i + T E_3`` for the constants' Jacobian of one
-    increment u of length T.  Built from :func:`constant_jacobian` itself (the effects' own
-    Jacobians, the one home of that model), which must be linear in (u, T): checked here."""
-    unit = constant_jacobian(np.eye(3), np.zeros(3))              # (3, 3, 12): ∂/∂ for u = e_i
-    per_t = constant_jacobian(np.zeros((1, 3)), np.ones(1))[0]    # (3, 12): T = 1
-    rng = np.random.default_rng(0)
-    u, t = rng.normal(size=(4, 3)), rng.uniform(0.1, 1.0, 4)
-    if not np.allclose(constant_jacobian(u, t), np.einsum("ki,iab->kab", u, unit) + t[:, None, None] * per_t,
-                       rtol=1e-12, atol=1e-15):
-        raise RuntimeError("constant_jacobian is not linear in (u, T); the navigation covariance assumes it is")
-    return np.concatenate([unit, per_t[None]], axis=0)
-
-
-_BASIS = _jacobian_basis()
+_BASIS = constant_jacobian_basis()
 
 
 def _contract(w: np.ndarray) -> np.ndarray:

@@ -31,6 +31,7 @@ No ROS imports.
 """
 from __future__ import annotations
 
+import math
 import time
 from collections import deque
 from dataclasses import dataclass, fields
@@ -201,11 +202,13 @@ class SinsSystem:
         self.origin_ns: int | None = None          # stamps are handled relative to the first one
         self.pending_imu: deque = deque()          # updates waiting for accelerometer data
         # input blocks (offer_*: validate and append; process() does the numerical work)
-        self._gyro_in: list = []                   # (t, stamp_ns, (x, y, z))
+        self._gyro_in: list = []                   # (stamp_ns, (x, y, z))
         self._accel_in: list = []                  # (t, (x, y, z))
         self.batch_span = float(p["batch_period"])
         self._gyro_period = period
-        self._block_end_t: float | None = None     # stamp (relative) of the last sample processed
+        self._block_end_ns: int | None = None      # stamp of the last sample processed
+        self._batch_span_ns = int(round(self.batch_span * 1e9))
+        self._gyro_period_ns = int(round(period * 1e9))
         g = self.integrator.gyro.random_walk ** 2 / max(period, 1e-12)
         self.rate_variance = g                     # per axis, (rad/s)², of the mean rate of sins/imu
         self.accel_variance = float(p["accel_random_walk"]) ** 2 * float(p["accel_rate"])   # (m/s²)²
@@ -259,17 +262,18 @@ class SinsSystem:
             self._run()                                    # the old time base, first
             self.integrator.restart_clock()
             self._last_gyro_t = None
-            self._block_end_t = None
+            self._block_end_ns = None
             self.origin_ns = None
             self._log("error", f"gyro stamps jumped by {self.gyro_check.last_jump_s:.6g} s and stayed: "
                       "resynchronised to the new time base; the rotation during the jump is lost")
-        for ns_i, val in out:
-            self._gyro_in.append((self._rel(ns_i), ns_i, val))
+        if self.origin_ns is None:
+            self.origin_ns = out[0][0]
+        self._gyro_in += out                               # (stamp_ns, (x, y, z)); times in _run
         # the stamp time the block covers, from the end of the previous block (at 100 Hz with
         # batch_period 0.01 every message is processed at once; at 1 kHz, blocks of 10), whatever
         # gyro_rate says
-        start = self._block_end_t if self._block_end_t is not None else self._gyro_in[0][0] - self._gyro_period
-        return self._gyro_in[-1][0] - start >= self.batch_span - 1e-9 or len(self._gyro_in) >= MAX_BATCH
+        start = self._block_end_ns if self._block_end_ns is not None else self._gyro_in[0][0] - self._gyro_period_ns
+        return self._gyro_in[-1][0] - start >= self._batch_span_ns - 1 or len(self._gyro_in) >= MAX_BATCH
 
     def offer_accel(self, stamp_ns: int, value, frame_id: str = "") -> bool:
         """One imu/delta_velocity message (m/s): validate and append.  True when a block is due."""
@@ -336,9 +340,10 @@ class SinsSystem:
                 self.nav.add_accel(dv, t)
         if self._gyro_in:
             batch, self._gyro_in = self._gyro_in, []
-            self._block_end_t = batch[-1][0]
-            t = np.fromiter((g[0] for g in batch), float, len(batch))
-            inc = np.array([g[2] for g in batch], dtype=float)
+            self._block_end_ns = batch[-1][0]
+            stamps_ns, values = zip(*batch)
+            t = (np.array(stamps_ns, dtype=np.int64) - self.origin_ns) * 1e-9
+            inc = np.array(values, dtype=float)
             if self.nav is not None and self._navigation_start(inc, t):
                 self._flush_imu()
                 return
@@ -396,7 +401,8 @@ class SinsSystem:
             inc = self.gyro_effects.compensate(inc, t, T)
         self._last_gyro_t = float(t[-1])
         batch = self.integrator.push(inc, t)
-        if len(batch) and not (np.isfinite(batch.attitude).all() and np.isfinite(batch.covariance).all()):
+        # one sum per array: NaN and ±Inf propagate into it (a false alarm needs entries near 1e308)
+        if len(batch) and not math.isfinite(batch.attitude.sum() + batch.covariance.sum()):
             if not per_sample:
                 return False
             # never output a non-finite state: back to the last good one, covariance inflated

@@ -21,13 +21,15 @@ weighting) asks the model object, never the model's name.
 """
 from __future__ import annotations
 
+from functools import lru_cache
+
 import numpy as np
 
 from .effects import EFFECTS, MISALIGNMENT_INDEX
 from .model import SensorSigmas
 
 __all__ = ["CovarianceModel", "COVARIANCE_MODELS", "get_covariance_model", "constant_jacobian",
-           "constant_variances"]
+           "constant_jacobian_basis", "constant_variances"]
 
 _SIGMA_OF = {"gyro_bias": "bias_sigma", "gyro_scale_factor": "scale_sigma", "gyro_misalignment": "misalignment_sigma"}
 
@@ -49,6 +51,25 @@ def constant_jacobian(rho: np.ndarray, T: np.ndarray) -> np.ndarray:
     return out
 
 
+@lru_cache(maxsize=1)
+def constant_jacobian_basis() -> np.ndarray:
+    """``E`` (4, 3, 12): ``constant_jacobian(u, T) = Σ_i u_i E_i + T E_3`` for one increment u of
+    length T.  Read off :func:`constant_jacobian` itself (the effects' own Jacobians stay the one
+    home of the model), which must be linear in (u, T): checked here on random increments.  The
+    compiled block kernel (:mod:`strapdown_ros.attitude_kernel`) and the navigation covariance
+    contract with it instead of forming the (n, 3, 12) Jacobians."""
+    unit = constant_jacobian(np.eye(3), np.zeros(3))              # (3, 3, 12): u = e_i
+    per_t = constant_jacobian(np.zeros((1, 3)), np.ones(1))[0]    # (3, 12): T = 1
+    rng = np.random.default_rng(0)
+    u, t = rng.normal(size=(4, 3)), rng.uniform(0.1, 1.0, 4)
+    if not np.allclose(constant_jacobian(u, t), np.einsum("ki,iab->kab", u, unit) + t[:, None, None] * per_t,
+                       rtol=1e-12, atol=1e-15):
+        raise RuntimeError("constant_jacobian is not linear in (u, T); its basis does not exist")
+    out = np.concatenate([unit, per_t[None]], axis=0)
+    out.setflags(write=False)
+    return out
+
+
 def constant_variances(g: SensorSigmas) -> np.ndarray:
     """Prior variances of x = [b, vec M] from the sensor statistics (all independent)."""
     v = np.full(12, g.misalignment_sigma ** 2)
@@ -62,7 +83,8 @@ class CovarianceModel:
     description = ""
     #: the gyro constants are random constants common to all increments
     constants = False
-    #: the white part is (white_variance) × I whatever the increment (no rotation to reference axes)
+    #: the white part is (white_variance) × I whatever the increment (no rotation to reference axes),
+    #: with white_variance proportional to the interval T (the compiled kernel takes its value at T = 1)
     isotropic_white = False
 
     def white(self, rho: np.ndarray, T, g: SensorSigmas) -> np.ndarray:
