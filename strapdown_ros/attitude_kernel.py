@@ -48,10 +48,10 @@ def _block_py(q0, seq, dt, n_new, hist, lin, pairs, p_ref0, j0, var, rw2, use_is
     T = np.empty((3, 3))
     U = np.empty((3, 3))
     u = np.empty(4)
-    n_var = 0
+    use_var = False                                     # any constant with a prior variance
     for c in range(12):
         if var[c] != 0.0:
-            n_var += 1
+            use_var = True
     for k in range(m):
         b = k * n_new
         # the coning term from the algorithm's table
@@ -117,14 +117,19 @@ def _block_py(q0, seq, dt, n_new, hist, lin, pairs, p_ref0, j0, var, rw2, use_is
                 J[0, cc] += C[0, rr] * f
                 J[1, cc] += C[1, rr] * f
                 J[2, cc] += C[2, rr] * f
-        # T = P + J diag(var) Jᵀ (symmetric)
-        for i in range(3):
-            for j in range(i, 3):
-                acc = P[i, j]
-                if n_var:
-                    for c in range(12):
-                        acc += J[i, c] * var[c] * J[j, c]
-                T[i, j] = acc
+        # T = P + J diag(var) Jᵀ (symmetric): one pass over the columns of J
+        t00, t01, t02, t11, t12, t22 = P[0, 0], P[0, 1], P[0, 2], P[1, 1], P[1, 2], P[2, 2]
+        for c in range(12 if use_var else 0):
+            j0c, j1c, j2c = J[0, c], J[1, c], J[2, c]
+            v0 = var[c] * j0c
+            v1 = var[c] * j1c
+            t00 += v0 * j0c
+            t01 += v0 * j1c
+            t02 += v0 * j2c
+            t11 += v1 * j1c
+            t12 += v1 * j2c
+            t22 += var[c] * j2c * j2c
+        T[0, 0], T[0, 1], T[0, 2], T[1, 1], T[1, 2], T[2, 2] = t00, t01, t02, t11, t12, t22
         T[1, 0], T[2, 0], T[2, 1] = T[0, 1], T[0, 2], T[1, 2]
         # cov = Cᵀ T C, written symmetric
         for i in range(3):

@@ -82,6 +82,7 @@ def peer_runs(dth: np.ndarray, stamps: np.ndarray, q0: np.ndarray, runs: int = 5
         sd.Integrator(pva).integrate(sd.compute_increments_from_imu(imu.iloc[:100], "increment"))   # compile
     if loop is not None:
         loop(dth[:10], q0)                                                                          # compile
+    AttitudeIntegrator("one_plus_previous", q0, stamps[0], gyro=NAVIGATION_GRADE_GYRO).push(dth[:10], stamps[1:11])
 
     def a():
         integ = AttitudeIntegrator("one_plus_previous", q0, stamps[0], nominal_period=stamps[1] - stamps[0],

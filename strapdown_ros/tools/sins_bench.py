@@ -112,6 +112,8 @@ def main(argv=None):
              f"(min–max) of {args.runs} runs; absolute times vary from machine to machine, ratios are measured in one run"]
     data = coning_data(args.hours)
     core = {"random_constant": [], "004": []}
+    for m in core:                                   # compilation (or numba's cache) is not timed
+        core_run(coning_data(0.001), args.algorithm, m)
     for _ in range(args.runs):                       # the two covariance models alternately
         for m in core:
             core[m].append(core_run(data, args.algorithm, m))
