@@ -212,14 +212,36 @@ def rate_repeat(lo_hz: float, hi_hz: float, steps: int, seconds: float, algorith
 
 
 # --- 2. callback cost ------------------------------------------------------------------------
-def callback_cost(algorithm: str, n: int = 20000) -> dict:
-    """µs per Δθ message of sins_node called directly (1 kHz stamps, no accelerometer)."""
+def callback_cost(algorithm: str, n: int = 20000, subscribed: bool = False) -> dict:
+    """µs per Δθ message of sins_node called directly (1 kHz stamps, no accelerometer).
+
+    ``subscribed``: a second node subscribes to ``sins/imu`` and ``sins/attitude`` (it is never
+    spun; the messages are serialised and written to DDS all the same), so every update is
+    built and published; otherwise no one subscribes and no outputs are built."""
+    from geometry_msgs.msg import QuaternionStamped
     from geometry_msgs.msg import Vector3Stamped
     from rclpy.parameter import Parameter
+    from sensor_msgs.msg import Imu
 
     from .sins_node import SinsNode
-    node = SinsNode(namespace=f"/cb_{os.getpid()}", parameter_overrides=[
+    ns = f"/cb_{os.getpid()}"
+    node = SinsNode(namespace=ns, parameter_overrides=[
         Parameter("gyro_rate", value=1000.0), Parameter("coning_algorithm", value=algorithm)])
+    listener = None
+    if subscribed:
+        import rclpy
+        listener = rclpy.create_node(f"cb_listener_{os.getpid()}", namespace=ns)
+        qos = ros_io.stream_qos(10)
+        listener.create_subscription(Imu, "sins/imu", lambda m: None, qos)
+        listener.create_subscription(QuaternionStamped, "sins/attitude", lambda m: None, qos)
+        end = time.monotonic() + 10.0
+        while time.monotonic() < end and not (node.pub_imu.get_subscription_count() and
+                                              node.pub_att.get_subscription_count()):
+            time.sleep(0.01)
+        if not (node.pub_imu.get_subscription_count() and node.pub_att.get_subscription_count()):
+            node.destroy_node()
+            listener.destroy_node()
+            raise RuntimeError("the in-process subscriber of sins/imu and sins/attitude was not discovered in 10 s")
     msgs = []
     for k in range(1, n + 1):
         m = Vector3Stamped()
@@ -242,9 +264,12 @@ def callback_cost(algorithm: str, n: int = 20000) -> dict:
         node.process()
         total = time.perf_counter() - t0
         return {"amortised_us": total / n * 1e6, "hot_path_us": (total - spent[0]) / n * 1e6,
-                "updates": node.integrator.updates}
+                "updates": node.integrator.updates, "published_imu": node.published["imu"],
+                "published_attitude": node.published["attitude"]}
     finally:
         node.destroy_node()
+        if listener is not None:
+            listener.destroy_node()
 
 
 def calibrator_callback_cost(n: int = 20000) -> dict:

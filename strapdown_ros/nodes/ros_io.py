@@ -87,6 +87,11 @@ def ns_to_stamp(ns: int) -> Time:
     return Time(sec=ns // 1_000_000_000, nanosec=ns % 1_000_000_000)
 
 
+def set_stamp(stamp: Time, ns) -> None:
+    """Write ``ns`` into an existing stamp (no new message: the per-update publishing path)."""
+    stamp.sec, stamp.nanosec = divmod(int(ns), 1_000_000_000)
+
+
 def seconds_to_stamp(t: float) -> Time:
     return ns_to_stamp(int(round(t * 1e9)))
 

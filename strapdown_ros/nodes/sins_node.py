@@ -168,12 +168,12 @@ class SinsNode(Node):
             o = att.quaternion
             for k in range(len(att_out)):
                 q = att_out.attitude[k]
-                att.header.stamp = ros_io.ns_to_stamp(att_out.stamp_ns[k])
+                ros_io.set_stamp(att.header.stamp, att_out.stamp_ns[k])
                 o.w, o.x, o.y, o.z = float(q[0]), float(q[1]), float(q[2]), float(q[3])
                 self.pub_att.publish(att)
             self.published["attitude"] += len(att_out)
         for k in range(len(imu_out)):
-            self.pub_imu.publish(self._imu_msg(ros_io.ns_to_stamp(imu_out.stamp_ns[k]), imu_out.attitude[k],
+            self.pub_imu.publish(self._imu_msg(imu_out.stamp_ns[k], imu_out.attitude[k],
                                                imu_out.covariance[k], imu_out.mean_rate[k],
                                                imu_out.specific_force[k] if imu_out.has_accel[k] else None))
         if len(nav_out) and self.pub_odom.get_subscription_count() > 0:
@@ -183,7 +183,7 @@ class SinsNode(Node):
         m = self._odom_out
         pose_cov, v_body, twist_cov = odometry_arrays(nb, self.system.rate_variance)
         for k in range(len(nb)):
-            m.header.stamp = ros_io.ns_to_stamp(nb.stamp_ns[k])
+            ros_io.set_stamp(m.header.stamp, nb.stamp_ns[k])
             pose = m.pose.pose
             r, q = nb.position[k], nb.attitude[k]
             pose.position.x, pose.position.y, pose.position.z = float(r[0]), float(r[1]), float(r[2])
@@ -197,11 +197,11 @@ class SinsNode(Node):
             self.pub_odom.publish(m)
         self.published["odometry"] += len(nb)
 
-    def _imu_msg(self, stamp, q, cov, rate, f_mean) -> Imu:
+    def _imu_msg(self, stamp_ns, q, cov, rate, f_mean) -> Imu:
         """sensor_msgs/Imu of one update.  One message object is reused (publish serialises it at
         once): constructing a new Imu costs more than the rest of the update."""
         m = self._imu_out
-        m.header.stamp = stamp
+        ros_io.set_stamp(m.header.stamp, stamp_ns)
         o = m.orientation
         o.w, o.x, o.y, o.z = float(q[0]), float(q[1]), float(q[2]), float(q[3])
         m.orientation_covariance = np.ascontiguousarray(cov, dtype=np.float64).reshape(9)
