@@ -72,6 +72,9 @@ class UpdateBatch:
     rotation_vector: np.ndarray  # (M, 3) φ of each update
     mean_rate: np.ndarray       # (M, 3) Σq / h, rad/s
     interval: np.ndarray        # (M,) update interval h, s
+    #: index, in the pushed arrays, of the first update's last increment; the M updates end at
+    #: ``first_end + k·samples`` (the stamps above are those increments' stamps)
+    first_end: int = 0
 
     def __len__(self):
         return len(self.stamps)
@@ -215,6 +218,7 @@ class AttitudeIntegrator:
 
         alg = self.algorithm
         n_new, hist = alg.samples, alg.history
+        first_end = n_new - 1 - len(self._pending)
         if len(self._pending):       # the increments of an unfinished update come first
             work = np.concatenate((self._pending, dth))
             work_dt = np.concatenate((self._pending_dt, dt))
@@ -256,7 +260,7 @@ class AttitudeIntegrator:
         self._recent = (work[used - 4:used].copy() if used >= 4
                         else np.concatenate((self._recent, work[:used]))[-4:])
         return UpdateBatch(stamps=work_t[n_new - 1:used:n_new], attitude=q, covariance=cov,
-                           rotation_vector=phi, mean_rate=mean_rate, interval=h)
+                           rotation_vector=phi, mean_rate=mean_rate, interval=h, first_end=first_end)
 
     def _windows(self, seq: np.ndarray, m: int) -> np.ndarray:
         """The m coning windows (m, window, 3) of a sequence of history + new increments."""

@@ -152,6 +152,12 @@ def odometry_arrays(nav: NavigationOutput, rate_variance: float) -> tuple[np.nda
     return c6.reshape(k, 36), vb, t6.reshape(k, 36)
 
 
+def _finite_update(q: np.ndarray, cov: np.ndarray) -> bool:
+    """One update's attitude and covariance are finite (scalar reads: a block's check costs < 1 µs)."""
+    return math.isfinite(q[0] + q[1] + q[2] + q[3] + cov[0, 0] + cov[0, 1] + cov[0, 2] + cov[1, 1] + cov[1, 2]
+                         + cov[2, 2])
+
+
 # --- the system ---------------------------------------------------------------------------------
 class SinsSystem:
     """sins_node's processing.  ``params``: validated :data:`~strapdown_ros.config.SINS_PARAMS`
@@ -342,20 +348,21 @@ class SinsSystem:
             batch, self._gyro_in = self._gyro_in, []
             self._block_end_ns = batch[-1][0]
             stamps_ns, values = zip(*batch)
-            t = (np.array(stamps_ns, dtype=np.int64) - self.origin_ns) * 1e-9
+            origin = self.origin_ns
+            t = np.array([(s - origin) * 1e-9 for s in stamps_ns])
             inc = np.array(values, dtype=float)
             if self.nav is not None and self._navigation_start(inc, t):
                 self._flush_imu()
                 return
             before = self.integrator.checkpoint()
             last_t = self._last_gyro_t
-            if not self._integrate(inc, t):
+            if not self._integrate(inc, t, stamps_ns):
                 # a non-finite update inside the block: redo it sample by sample, from the state
                 # before it, so that exactly the offending update is discarded
                 self.integrator.rollback(before)
                 self._last_gyro_t = last_t
                 for k in range(len(t)):
-                    self._integrate(inc[k:k + 1], t[k:k + 1], per_sample=True)
+                    self._integrate(inc[k:k + 1], t[k:k + 1], stamps_ns[k:k + 1], per_sample=True)
         self._flush_imu()
         self._flush_nav()
 
@@ -392,17 +399,19 @@ class SinsSystem:
     def _stamps_ns(self, t: np.ndarray) -> np.ndarray:
         return self.origin_ns + np.rint(np.asarray(t, dtype=float) * 1e9).astype(np.int64)
 
-    def _integrate(self, inc: np.ndarray, t: np.ndarray, per_sample: bool = False) -> bool:
-        """Compensate and integrate a block, collecting its outputs; False (nothing output) if an
-        update is not finite, unless ``per_sample``, which restores the last good state instead."""
+    def _integrate(self, inc: np.ndarray, t: np.ndarray, stamps_ns, per_sample: bool = False) -> bool:
+        """Compensate and integrate a block (``stamps_ns``: the header stamps of ``t``), collecting
+        its outputs; False (nothing output) if an update is not finite, unless ``per_sample``, which
+        restores the last good state instead."""
         if self.compensating:
             prev = self._last_gyro_t if self._last_gyro_t is not None else t[0] - self.integrator.nominal_period
             T = np.diff(t, prepend=prev)
             inc = self.gyro_effects.compensate(inc, t, T)
         self._last_gyro_t = float(t[-1])
         batch = self.integrator.push(inc, t)
-        # one sum per array: NaN and ±Inf propagate into it (a false alarm needs entries near 1e308)
-        if len(batch) and not math.isfinite(batch.attitude.sum() + batch.covariance.sum()):
+        # a NaN or ±Inf anywhere in a block reaches its last update: q, P and J are carried from update
+        # to update, and every entry of T enters every entry of Cᵀ T C (NaN·0 and ∞·0 are NaN)
+        if len(batch) and not _finite_update(batch.attitude[-1], batch.covariance[-1]):
             if not per_sample:
                 return False
             # never output a non-finite state: back to the last good one, covariance inflated
@@ -421,7 +430,7 @@ class SinsSystem:
                 self.nav.add_updates(batch.stamps, batch.interval, batch.attitude, starts)
         imu_on = self._imu_wanted()                 # asked once per block
         if len(batch):
-            ns = self._stamps_ns(batch.stamps)
+            ns = np.array(stamps_ns[batch.first_end::self.integrator.algorithm.samples], dtype=np.int64)
             self._out[0].append(AttitudeOutput(ns, batch.attitude, batch.covariance, batch.mean_rate, batch.interval))
             self.has_output = True
             if imu_on:
