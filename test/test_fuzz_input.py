@@ -63,3 +63,41 @@ def test_bag_of_garbage_messages_is_a_one_line_error(tmp_path):
     with pytest.raises(calibrate_bag.BagError):
         calibrate_bag.read_bag(tmp_path / "bag")
     assert calibrate_bag.main([str(tmp_path / "bag")]) == 2
+
+
+@settings(max_examples=300, deadline=None)
+@given(sec=st.integers(-2 ** 31, 2 ** 31 - 1), nanosec=st.integers(0, 999_999_999),
+       frame=st.text(max_size=40), xyz=st.tuples(*[st.floats(allow_nan=True, allow_infinity=True)] * 3))
+def test_raw_decoder_reads_what_rclpy_serialized(sec, nanosec, frame, xyz):
+    """sins_node and calibrator_node subscribe to the increment streams raw and read stamp, vector
+    and frame from the bytes (ros_io.decode_vector3_stamped): for any message rclpy serializes, the
+    decoder must return exactly its fields (NaN as NaN: the stream rules drop it later)."""
+    import math
+
+    from geometry_msgs.msg import Vector3Stamped
+    from rclpy.serialization import serialize_message
+
+    from strapdown_ros.nodes.ros_io import decode_vector3_stamped
+    frame = frame.replace("\x00", "")                     # a ROS string cannot hold NUL
+    m = Vector3Stamped()
+    m.header.stamp.sec, m.header.stamp.nanosec, m.header.frame_id = sec, nanosec, frame
+    m.vector.x, m.vector.y, m.vector.z = xyz
+    ns, v, f = decode_vector3_stamped(serialize_message(m))
+    assert ns == sec * 1_000_000_000 + nanosec and f == frame
+    for got, want in zip(v, xyz):
+        assert (math.isnan(got) and math.isnan(want)) or got == want
+
+
+def test_raw_decoder_big_endian_and_garbage():
+    """Big-endian CDR goes to rclpy's deserializer (the same fields); bytes that are no message give
+    None (the node counts and drops them) instead of an exception."""
+    import struct
+
+    from strapdown_ros.nodes.ros_io import decode_vector3_stamped
+    frame = b"imu_link\x00"
+    body = struct.pack(">iII", 12, 345, len(frame)) + frame
+    body += b"\x00" * ((-len(body)) % 8) + struct.pack(">3d", 1.5, -2.0, 3.25)
+    got = decode_vector3_stamped(b"\x00\x00\x00\x00" + body)
+    assert got == (12_000_000_345, (1.5, -2.0, 3.25), "imu_link")
+    for junk in (b"\x00\x01\x00\x00" + b"\xff" * 12, b"\x07\x07", b"\x00\x01\x00\x00\x01\x00", b"", b"\x00"):
+        assert decode_vector3_stamped(junk) is None

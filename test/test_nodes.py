@@ -389,6 +389,13 @@ def test_sins_node_never_publishes_a_non_finite_state(ros, monkeypatch):
         assert 2 * np.arctan2(np.linalg.norm(q[1:]), abs(q[0])) == pytest.approx(6 * 0.001, rel=1e-9)
         assert 2 * np.arctan2(np.linalg.norm(good_q[1:]), abs(good_q[0])) == pytest.approx(5 * 0.001, rel=1e-9)
         assert np.sqrt(np.trace(sins.integrator.covariance())) > sigma0 + 0.009   # inflated by 0.01 rad/axis
+        # the raw subscription path: bytes that are no message are counted and dropped, nothing else
+        from rclpy.serialization import serialize_message
+        updates = sins.integrator.updates
+        sins._on_gyro_raw(b"\x00\x01\x00\x00garbage")
+        assert sins.undecodable == 1 and sins.integrator.updates == updates
+        sins._on_gyro_raw(serialize_message(msg(8)))
+        assert sins.integrator.updates == updates + 1 and len(sent) == 7
     finally:
         sins.destroy_node()
 

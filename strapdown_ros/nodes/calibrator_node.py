@@ -104,6 +104,7 @@ class CalibratorNode(Node):
         self.solves = 0
         self.solve_ms = float("nan")
         self.published = {"boresight": 0, "imu_attitude_from_camera": 0}
+        self.undecodable = 0                           # serialized gyro input that is not a Vector3Stamped
         self.valid = None                              # the latest observable, converged solution
         self.valid_stamp_ns: int | None = None
         self.pending_fixes: deque = deque(maxlen=int(p["qos_depth"]))   # (stamp_ns, q, P) awaiting a solution
@@ -118,8 +119,9 @@ class CalibratorNode(Node):
         self.pub_imu_att = self.create_publisher(PoseWithCovarianceStamped, "calibration/imu_attitude_from_camera",
                                                  camera_qos(int(p["qos_depth"])), qos_overriding_options=ros_io.QOS_OVERRIDES)
         self.pub_diag = self.create_publisher(DiagnosticArray, "/diagnostics", ros_io.DIAGNOSTICS_QOS)
-        self.create_subscription(Vector3Stamped, "imu/delta_theta", self._on_gyro,
-                                 ros_io.stream_qos(int(p["qos_depth"])), qos_overriding_options=ros_io.QOS_OVERRIDES)
+        self.create_subscription(Vector3Stamped, "imu/delta_theta", self._on_gyro_raw,   # raw: decoded in ros_io
+                                 ros_io.stream_qos(int(p["qos_depth"])), qos_overriding_options=ros_io.QOS_OVERRIDES,
+                                 raw=True)
         if self.use_cov:
             self.create_subscription(PoseWithCovarianceStamped, "star_camera/attitude_with_covariance",
                                      self._on_camera_cov, camera_qos(int(p["qos_depth"])), qos_overriding_options=ros_io.QOS_OVERRIDES)
@@ -163,18 +165,29 @@ class CalibratorNode(Node):
     def _abs_ns(self, t_rel: float) -> int:
         return self.origin_ns + int(round(t_rel * 1e9))
 
+    def _on_gyro_raw(self, data: bytes):
+        """The imu/delta_theta subscription: stamp, vector and frame read from the serialized bytes."""
+        got = ros_io.decode_vector3_stamped(data)
+        if got is None:
+            self.undecodable += 1
+            return
+        self._gyro(*got)
+
     def _on_gyro(self, msg: Vector3Stamped):
-        f = msg.header.frame_id
+        """The same for a message object (tests, tools)."""
+        v = msg.vector
+        self._gyro(ros_io.stamp_to_ns(msg.header.stamp), (v.x, v.y, v.z), msg.header.frame_id)
+
+    def _gyro(self, ns: int, value, f: str):
         if f and f != self.frame_id:                   # the frame rule of sins_node
             self.gyro_frame_mismatch += 1
             self.get_logger().warn(f"gyro increment in frame {f!r}, expected {self.frame_id!r}: "
                                    f"{'rejected' if self.reject_frames else 'used'}", throttle_duration_sec=10.0)
             if self.reject_frames:
                 return
-        ns = ros_io.stamp_to_ns(msg.header.stamp)
         g = self.gyro_check
         prev_ns = g.last_ns
-        out = g.offer(ns, (msg.vector.x, msg.vector.y, msg.vector.z))
+        out = g.offer(ns, value)
         if not out:
             return
         if g.resynced:
@@ -395,6 +408,7 @@ class CalibratorNode(Node):
                        "camera_stamp_resyncs": c.resyncs, "solve_failures": self.solve_failures,
                        "camera_outlier_fixes": self.cal.outlier_fixes,
                        "gyro_frame_mismatch": self.gyro_frame_mismatch,
+                       "gyro_undecodable_dropped": self.undecodable,
                        "gyro_history_overflowed": self.cal._gyro.overflowed,
                        "state_file": self.state["file"] or "off", "state_saves": self.state["saves"],
                        "state_restored_pairs": self.state["restored_pairs"], "state_errors": self.state["errors"],
@@ -404,6 +418,9 @@ class CalibratorNode(Node):
             level = ros_io.WARN
             message = (f"{message}; {mism} message(s) in an unexpected frame "
                        f"({'rejected' if self.reject_frames else 'used'})")
+        if self.undecodable and level == ros_io.OK:
+            level = ros_io.WARN
+            message = f"{message}; {self.undecodable} gyro message(s) could not be decoded: dropped"
         if self.cal.outlier_fixes and level == ros_io.OK:
             level = ros_io.WARN
             message = (f"{message}; {self.cal.outlier_fixes} camera fix(es) dropped as outliers (both pairs off by more "

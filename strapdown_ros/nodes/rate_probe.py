@@ -3,7 +3,9 @@
 ``counting_node`` is the reference: it subscribes to ``imu/delta_theta`` with exactly the QoS of
 ``sins_node`` and ``calibrator_node`` (:func:`ros_io.stream_qos` of ``qos_depth``, the same QoS
 override options), runs under the same ``ros_io.run_node`` (same executor, same spin loop), and
-does nothing in its callback but count.  It reports ``gyro_received`` on ``/diagnostics``, as
+does nothing in its callback but count.  It takes deserialized messages, as a plain rclpy
+subscriber does; with ``raw:=true`` (subject ``counting_node_raw``) it takes the serialized bytes,
+as sins_node and calibrator_node do — the fastest an rclpy subscriber can be.  It reports ``gyro_received`` on ``/diagnostics``, as
 the package's nodes do, so one harness reads every subject the same way.
 
 :class:`PacedSource` publishes Δθ at a given rate in bursts every ``slot`` seconds of wall time
@@ -26,19 +28,21 @@ from rclpy.node import Node
 from . import ros_io
 
 NODE_NAME = "counting_node"
-SUBJECTS = ("counting_node", "sins_node", "calibrator_node")
+SUBJECTS = ("counting_node", "counting_node_raw", "sins_node", "calibrator_node")
 
 
 class CountingNode(Node):
-    """Counts imu/delta_theta messages; nothing else."""
+    """Counts imu/delta_theta messages; nothing else.  Parameter ``raw``: take the serialized bytes
+    (as sins_node and calibrator_node do) instead of deserialized messages."""
 
     def __init__(self, **kwargs):
         super().__init__(NODE_NAME, **kwargs)
         depth = self.declare_parameter("qos_depth", 500).value
         period = self.declare_parameter("diagnostics_period", 0.5).value
+        raw = self.declare_parameter("raw", False).value
         self.received = 0
         self.create_subscription(Vector3Stamped, "imu/delta_theta", self._on_gyro, ros_io.stream_qos(int(depth)),
-                                 qos_overriding_options=ros_io.QOS_OVERRIDES)
+                                 qos_overriding_options=ros_io.QOS_OVERRIDES, raw=bool(raw))
         self.pub_diag = self.create_publisher(DiagnosticArray, "/diagnostics", ros_io.DIAGNOSTICS_QOS)
         self.create_timer(float(period), self._diag)
 
@@ -58,8 +62,8 @@ def main(args=None):
 class Subject:
     """One node process under test, in its own namespace, and the harness's view of it."""
 
-    MODULES = {"counting_node": "strapdown_ros.nodes.rate_probe", "sins_node": "strapdown_ros.nodes.sins_node",
-               "calibrator_node": "strapdown_ros.nodes.calibrator_node"}
+    MODULES = {"counting_node": "strapdown_ros.nodes.rate_probe", "counting_node_raw": "strapdown_ros.nodes.rate_probe",
+               "sins_node": "strapdown_ros.nodes.sins_node", "calibrator_node": "strapdown_ros.nodes.calibrator_node"}
 
     def __init__(self, harness: Node, name: str, params: dict):
         self.name = name
@@ -175,9 +179,10 @@ class Harness:
 
 # --- the harness's measurements (called by tools/node_rate_bench.py) ---------------------------------------------------------------------
 def rate_repeat(lo_hz: float, hi_hz: float, steps: int, seconds: float, algorithm: str, say) -> dict:
-    """One repeat: three fresh processes, interleaved bisections; the highest passing rates."""
+    """One repeat: a fresh process per subject, interleaved bisections; the highest passing rates."""
     h = Harness(ros_io.make_executor)
-    params = {"counting_node": {}, "sins_node": {"coning_algorithm": algorithm}, "calibrator_node": {}}
+    params = {"counting_node": {}, "counting_node_raw": {"raw": "true"}, "sins_node": {"coning_algorithm": algorithm},
+              "calibrator_node": {}}
     try:
         subj = {n: h.add(n, params[n]) for n in SUBJECTS}
         for n, s in subj.items():
@@ -191,7 +196,7 @@ def rate_repeat(lo_hz: float, hi_hz: float, steps: int, seconds: float, algorith
             passed_lo[n] = r["lost"] == 0
         trials = []
         for step in range(steps):
-            for n in SUBJECTS:                              # A, B, C in turn at every step
+            for n in SUBJECTS:                              # the subjects in turn at every step
                 if not passed_lo[n]:
                     continue
                 mid = math.sqrt(lo[n] * hi[n])
@@ -206,7 +211,9 @@ def rate_repeat(lo_hz: float, hi_hz: float, steps: int, seconds: float, algorith
         rates = {n: (lo[n] if passed_lo[n] else 0.0) for n in SUBJECTS}
         return {"rates_hz": rates, "bracket_hi_hz": hi, "trials": trials,
                 "ratio": {n: rates[n] / rates["counting_node"] if rates["counting_node"] else math.nan
-                          for n in SUBJECTS[1:]}}
+                          for n in SUBJECTS[1:]},
+                "ratio_to_raw": {n: rates[n] / rates["counting_node_raw"] if rates["counting_node_raw"] else math.nan
+                                 for n in SUBJECTS[2:]}}
     finally:
         h.close()
 
@@ -219,7 +226,6 @@ def callback_cost(algorithm: str, n: int = 20000, subscribed: bool = False) -> d
     spun; the messages are serialised and written to DDS all the same), so every update is
     built and published; otherwise no one subscribes and no outputs are built."""
     from geometry_msgs.msg import QuaternionStamped
-    from geometry_msgs.msg import Vector3Stamped
     from rclpy.parameter import Parameter
     from sensor_msgs.msg import Imu
 
@@ -242,13 +248,7 @@ def callback_cost(algorithm: str, n: int = 20000, subscribed: bool = False) -> d
             node.destroy_node()
             listener.destroy_node()
             raise RuntimeError("the in-process subscriber of sins/imu and sins/attitude was not discovered in 10 s")
-    msgs = []
-    for k in range(1, n + 1):
-        m = Vector3Stamped()
-        m.header.frame_id = "imu_link"
-        m.header.stamp.sec, m.header.stamp.nanosec = divmod(k * 1_000_000, 1_000_000_000)
-        m.vector.x, m.vector.y, m.vector.z = 1e-4 * math.sin(k * 1e-3), 1e-4 * math.cos(k * 1e-3), 2e-5
-        msgs.append(m)
+    msgs = _serialized(n, lambda k: (1e-4 * math.sin(k * 1e-3), 1e-4 * math.cos(k * 1e-3), 2e-5))
     spent = [0.0]
     real = node.process
 
@@ -260,7 +260,7 @@ def callback_cost(algorithm: str, n: int = 20000, subscribed: bool = False) -> d
     try:
         t0 = time.perf_counter()
         for m in msgs:
-            node._on_gyro(m)
+            node._on_gyro_raw(m)                    # the subscription's callback, as the executor calls it
         node.process()
         total = time.perf_counter() - t0
         return {"amortised_us": total / n * 1e6, "hot_path_us": (total - spent[0]) / n * 1e6,
@@ -273,25 +273,33 @@ def callback_cost(algorithm: str, n: int = 20000, subscribed: bool = False) -> d
 
 
 def calibrator_callback_cost(n: int = 20000) -> dict:
-    from geometry_msgs.msg import Vector3Stamped
     from rclpy.parameter import Parameter
 
     from .calibrator_node import CalibratorNode
     node = CalibratorNode(namespace=f"/cbc_{os.getpid()}", parameter_overrides=[Parameter("gyro_rate", value=1000.0)])
-    msgs = []
-    for k in range(1, n + 1):
-        m = Vector3Stamped()
-        m.header.frame_id = "imu_link"
-        m.header.stamp.sec, m.header.stamp.nanosec = divmod(k * 1_000_000, 1_000_000_000)
-        m.vector.x, m.vector.y, m.vector.z = 1e-4, -1e-4, 2e-5
-        msgs.append(m)
+    msgs = _serialized(n, lambda k: (1e-4, -1e-4, 2e-5))
     try:
         t0 = time.perf_counter()
         for m in msgs:
-            node._on_gyro(m)
+            node._on_gyro_raw(m)
         return {"amortised_us": (time.perf_counter() - t0) / n * 1e6}
     finally:
         node.destroy_node()
+
+
+def _serialized(n: int, vector) -> list:
+    """``n`` serialized imu/delta_theta messages at 1 kHz stamps, as the subscription receives them
+    (the nodes subscribe raw)."""
+    from geometry_msgs.msg import Vector3Stamped
+    from rclpy.serialization import serialize_message
+    out = []
+    m = Vector3Stamped()
+    m.header.frame_id = "imu_link"
+    for k in range(1, n + 1):
+        m.header.stamp.sec, m.header.stamp.nanosec = divmod(k * 1_000_000, 1_000_000_000)
+        m.vector.x, m.vector.y, m.vector.z = vector(k)
+        out.append(serialize_message(m))
+    return out
 
 
 def ros_init() -> None:

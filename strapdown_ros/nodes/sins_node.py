@@ -58,6 +58,7 @@ class SinsNode(Node):
                                           apply=self._apply_change)
         p = self.p
         self.published = {"attitude": 0, "imu": 0, "imu_without_accel": 0}
+        self.undecodable = 0                       # serialized input that is not a Vector3Stamped
         self.algorithm_changes = 0
         self.frame_id = p["frame_id"]
         self.ref_frame = p["reference_frame_id"]
@@ -72,8 +73,11 @@ class SinsNode(Node):
             self.pub_odom = self.create_publisher(Odometry, "sins/odometry", qos,
                                                   qos_overriding_options=ros_io.QOS_OVERRIDES)
         self.pub_diag = self.create_publisher(DiagnosticArray, "/diagnostics", ros_io.DIAGNOSTICS_QOS)
-        self.create_subscription(Vector3Stamped, "imu/delta_theta", self._on_gyro, qos, qos_overriding_options=ros_io.QOS_OVERRIDES)
-        self.create_subscription(Vector3Stamped, "imu/delta_velocity", self._on_accel, qos, qos_overriding_options=ros_io.QOS_OVERRIDES)
+        # raw: the callbacks read stamp, vector and frame from the serialized bytes (ros_io)
+        self.create_subscription(Vector3Stamped, "imu/delta_theta", self._on_gyro_raw, qos,
+                                 qos_overriding_options=ros_io.QOS_OVERRIDES, raw=True)
+        self.create_subscription(Vector3Stamped, "imu/delta_velocity", self._on_accel_raw, qos,
+                                 qos_overriding_options=ros_io.QOS_OVERRIDES, raw=True)
         self.create_timer(float(p["diagnostics_period"]), self.publish_diagnostics)
         if self.system.batch_span > 0:             # a block is processed at least this often
             self.create_timer(self.system.batch_span, self.process)
@@ -135,17 +139,39 @@ class SinsNode(Node):
             self.get_logger().info(f"coning_algorithm switched to {name}")
 
     # --- input ------------------------------------------------------------------------------
+    def _on_gyro_raw(self, data: bytes):
+        """Hot path (the imu/delta_theta subscription): decode, validate, append to the block; the
+        numerical work runs in :meth:`process`."""
+        got = ros_io.decode_vector3_stamped(data)
+        if got is None:
+            self.undecodable += 1
+            return
+        self._gyro(*got)
+
     def _on_gyro(self, msg: Vector3Stamped):
-        """Hot path: validate, append to the block; the numerical work runs in :meth:`process`."""
+        """The same for a message object (tests, tools)."""
         st = msg.header.stamp
         v = msg.vector
-        if self.system.offer_gyro(st.sec * 1_000_000_000 + st.nanosec, (v.x, v.y, v.z), msg.header.frame_id):
+        self._gyro(st.sec * 1_000_000_000 + st.nanosec, (v.x, v.y, v.z), msg.header.frame_id)
+
+    def _gyro(self, stamp_ns: int, value, frame_id: str):
+        if self.system.offer_gyro(stamp_ns, value, frame_id):
             self.process()
         elif self.system.has_output:               # a stamp resync processed the old time base
             self._publish(self.system.take_output())
 
+    def _on_accel_raw(self, data: bytes):
+        """Hot path (the imu/delta_velocity subscription): decode, validate, append; folded into the
+        accumulator by :meth:`process`."""
+        got = ros_io.decode_vector3_stamped(data)
+        if got is None:
+            self.undecodable += 1
+            return
+        if self.system.offer_accel(*got):
+            self.process()
+
     def _on_accel(self, msg: Vector3Stamped):
-        """Hot path: validate, append; folded into the accumulator by :meth:`process`."""
+        """The same for a message object (tests, tools)."""
         st = msg.header.stamp
         v = msg.vector
         if self.system.offer_accel(st.sec * 1_000_000_000 + st.nanosec, (v.x, v.y, v.z), msg.header.frame_id):
@@ -258,7 +284,10 @@ class SinsNode(Node):
             level, message = ros_io.ERROR, (f"{self.nonfinite} non-finite update(s) discarded (never published); "
                                             "state reset to the last good one with inflated covariance")
         values = self.system.status()
-        values.update({"attitude_published": self.published["attitude"], "imu_published": self.published["imu"],
+        if self.undecodable:
+            level, message = ros_io.WARN, f"{self.undecodable} input message(s) could not be decoded: dropped"
+        values.update({"undecodable_dropped": self.undecodable,
+                       "attitude_published": self.published["attitude"], "imu_published": self.published["imu"],
                        "imu_published_without_accel": self.published["imu_without_accel"],
                        "algorithm_changes": self.algorithm_changes})
         if self.nav is not None:
