@@ -28,6 +28,9 @@ setup(
         # sins_bench peers: pyins (its numba kernel; numba also compiles the reference loop and,
         # when installed, strapdown_ros.attitude_kernel — optional, numpy fallback)
         "bench": ["opencv-python-headless>=4.8,<5", "python-ins==1.0.1"],
+        # the compiled block kernel of the attitude core and the navigation loops (optional: without
+        # numba the vectorised numpy path runs, tested against it; sins_bench prints both)
+        "fast": ["numba"],
         "test": ["pytest", "pytest-timeout", "hypothesis", "colcon-core", "colcon-ros",
                  "colcon-python-setup-py", "catkin_pkg"],
     },

@@ -19,7 +19,7 @@ cd "$ROOT"
 VENV="$ROOT/.venv"
 VPY="$VENV/bin/python"
 STAMP="$VENV/.strapdown_ros_setup.stamp"
-EXTRAS="ros,tools,test,bench"
+EXTRAS="ros,tools,test,bench,fast"
 MIN_PIP="21.3"   # first pip with PEP 660 editables (console scripts land in .venv/bin)
 
 say() { printf '[setup_env] %s\n' "$*" >&2; }

@@ -390,8 +390,8 @@ def run_node(node_class, name: str, args=None) -> int:
 def _freeze_startup_objects() -> None:
     """Move every object made at start-up (modules, numba's and numpy's tables, the node) out of
     the garbage collector's reach (``gc.freeze``).  Without it each full collection walks them
-    all: in a sins_node process that is 10⁵ objects, a pause of tens of ms, in which a 15 kHz
-    stream overflows a 500-deep queue.  Cycles made later are still collected."""
+    all (about 10⁵ objects in a sins_node process) while the input streams queue up.  Cycles
+    made later are still collected."""
     import gc
     gc.collect()
     gc.freeze()

@@ -110,6 +110,10 @@ def main(argv=None):
     lines = [f"$ sins_bench {' '.join(argv)}".rstrip(),
              f"load average at start {load[0]:.2f} {load[1]:.2f} {load[2]:.2f} on {os.cpu_count()} cores; median "
              f"(min–max) of {args.runs} runs; absolute times vary from machine to machine, ratios are measured in one run"]
+    from .. import attitude_kernel
+    res["compiled_kernel"] = attitude_kernel.available()
+    lines.append("attitude core: " + ("compiled block kernel (numba)" if res["compiled_kernel"] else
+                                      "vectorised numpy path (numba absent, or STRAPDOWN_KERNEL=numpy)"))
     data = coning_data(args.hours)
     core = {"random_constant": [], "004": []}
     for m in core:                                   # compilation (or numba's cache) is not timed
