@@ -70,8 +70,9 @@ def test_bag_of_garbage_messages_is_a_one_line_error(tmp_path):
        frame=st.text(max_size=40), xyz=st.tuples(*[st.floats(allow_nan=True, allow_infinity=True)] * 3))
 def test_raw_decoder_reads_what_rclpy_serialized(sec, nanosec, frame, xyz):
     """sins_node and calibrator_node subscribe to the increment streams raw and read stamp, vector
-    and frame from the bytes (ros_io.decode_vector3_stamped): for any message rclpy serializes, the
-    decoder must return exactly its fields (NaN as NaN: the stream rules drop it later)."""
+    and frame from the bytes (ros_io.decode_vector3_stamped), as sins_bag reads bag records
+    (nodes.cdr): for any message rclpy or rosbags serializes, the decoder must return exactly its
+    fields (NaN as NaN: the stream rules drop it later)."""
     import math
 
     from geometry_msgs.msg import Vector3Stamped
@@ -86,6 +87,17 @@ def test_raw_decoder_reads_what_rclpy_serialized(sec, nanosec, frame, xyz):
     assert ns == sec * 1_000_000_000 + nanosec and f == frame
     for got, want in zip(v, xyz):
         assert (math.isnan(got) and math.isnan(want)) or got == want
+    # sins_bag reads bag records with the same decoder: rosbags writes the same bytes
+    from rosbags.typesys import Stores, get_typestore
+
+    from strapdown_ros.nodes.cdr import vector3_stamped
+    ts = get_typestore(Stores.ROS2_JAZZY)
+    t = ts.types
+    rec = t["geometry_msgs/msg/Vector3Stamped"](
+        header=t["std_msgs/msg/Header"](stamp=t["builtin_interfaces/msg/Time"](sec=sec, nanosec=nanosec), frame_id=frame),
+        vector=t["geometry_msgs/msg/Vector3"](x=xyz[0], y=xyz[1], z=xyz[2]))
+    ns2, v2, f2 = vector3_stamped(ts.serialize_cdr(rec, "geometry_msgs/msg/Vector3Stamped"))
+    assert (ns2, f2) == (ns, f) and all((math.isnan(a) and math.isnan(b)) or a == b for a, b in zip(v2, v))
 
 
 def test_raw_decoder_big_endian_and_garbage():

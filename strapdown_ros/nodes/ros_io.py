@@ -6,7 +6,6 @@ scalar-first ``[w, x, y, z]`` (:mod:`strapdown_ros.rotation`).
 """
 from __future__ import annotations
 
-import struct
 from typing import Any, Callable, Sequence
 
 import numpy as np
@@ -20,6 +19,7 @@ from rclpy.qos import (DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityP
 from rclpy.qos_overriding_options import QoSOverridingOptions
 
 from ..config import ParamSpec
+from . import cdr
 
 # --- QoS ---------------------------------------------------------------------------
 def stream_qos(depth: int = 500) -> QoSProfile:
@@ -43,28 +43,18 @@ DIAGNOSTICS_QOS = QoSProfile(reliability=ReliabilityPolicy.RELIABLE, durability=
 
 
 # --- raw (serialized) stream messages --------------------------------------------------
-_STAMP_AND_LENGTH = struct.Struct("<iII")     # header.stamp.sec, .nanosec, length of frame_id (with its NUL)
-_XYZ = struct.Struct("<3d")
-
-
 def decode_vector3_stamped(data: bytes) -> tuple[int, tuple[float, float, float], str] | None:
     """``(stamp_ns, (x, y, z), frame_id)`` of a serialized geometry_msgs/Vector3Stamped.
 
     The high-rate increment streams are subscribed raw (``raw=True``): rclpy then skips building
-    four Python message objects per message, and the node reads the few fields it needs here.
-    Plain little-endian CDR (encapsulation 0x0001, what rmw_fastrtps and rmw_cyclonedds write):
-    4 bytes of encapsulation, int32 sec, uint32 nanosec, the frame_id as uint32 length (its
-    terminating NUL included) and bytes, then x, y, z as float64 aligned to 8 bytes from the end
-    of the encapsulation.  Any other encoding is handed to rclpy's own deserializer, so nothing
-    is misread (test_nodes.py checks both against rclpy's serializer).  None when the bytes are
-    not a Vector3Stamped at all (the caller counts and drops them)."""
-    if len(data) >= 16 and data[0] == 0 and data[1] == 1:
-        sec, nanosec, n = _STAMP_AND_LENGTH.unpack_from(data, 4)
-        end = 16 + n
-        off = 4 + ((end - 4 + 7) & ~7)
-        if off + 24 <= len(data):
-            frame = data[16:end - 1].decode("utf-8", "replace") if n else ""
-            return sec * 1_000_000_000 + nanosec, _XYZ.unpack_from(data, off), frame
+    four Python message objects per message (about 18 µs), and the node reads the few fields it
+    needs from the bytes (:mod:`strapdown_ros.nodes.cdr`, shared with ``sins_bag``).  Any other
+    encoding than plain little-endian CDR is handed to rclpy's own deserializer, so nothing is
+    misread (test_fuzz_input.py checks both against rclpy's serializer).  None when the bytes
+    are not a Vector3Stamped at all (the caller counts and drops them)."""
+    got = cdr.vector3_stamped(data)
+    if got is not None:
+        return got
     from rclpy.serialization import deserialize_message
     try:
         m = deserialize_message(data, Vector3Stamped)

@@ -61,6 +61,7 @@ from ..config import SINS_PARAMS, check_all, load_parameter_file
 from ..navigation.gravity import geodetic_to_ecef
 from ..navigation.system import SinsOutput, SinsSystem, odometry_arrays
 from ..rotation import to_ros_xyzw
+from ..nodes.cdr import vector3_stamped
 from .calibrate_bag import BagError, _resolve, open_reader
 from .record_sim import _qos, parse_overrides
 
@@ -212,9 +213,11 @@ def _messages(inp: Input, progress=None):
             if rec is None:
                 break
             conn, log_ns, raw = rec
-            m = deser(raw, conn.msgtype)
-            v = m.vector
-            item = (_stamp_ns(m), (float(v.x), float(v.y), float(v.z)), m.header.frame_id)
+            item = vector3_stamped(raw)              # the node's reading of the bytes; else rosbags'
+            if item is None:
+                m = deser(raw, conn.msgtype)
+                v = m.vector
+                item = (_stamp_ns(m), (float(v.x), float(v.y), float(v.z)), m.header.frame_id)
         except Exception as exc:              # noqa: BLE001 - a corrupted record, whatever the reader says
             raise BagError(f"{inp.path}: unreadable record ({type(exc).__name__}: "
                            f"{str(exc).splitlines()[0] if str(exc) else ''})") from None
