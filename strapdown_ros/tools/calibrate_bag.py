@@ -7,7 +7,10 @@ otherwise from ``star_camera/attitude`` (geometry_msgs/msg/QuaternionStamped) wi
 ``camera_sigma_xy``/``camera_sigma_z`` — and feeds the same ``BoresightCalibrator`` as
 ``calibrator_node``, in stamp order.  Topic names match with or without the leading slash, under
 ``--namespace`` when given; a bag with a single namespace is found without it.  MCAP and
-sqlite3 storage (a bag directory or a single .mcap/.db3 file).
+sqlite3 storage (a bag directory or a single .mcap/.db3 file).  Other formats
+(``strapdown_ros.recording``): ``--gyro-topic`` of sensor_msgs/msg/Imu rates (increments by
+``--rate-rule``), ``--reference-topic`` of PoseStamped, PoseWithCovarianceStamped,
+nav_msgs/msg/Odometry or QuaternionStamped, or TF with ``--reference-frames PARENT CHILD``.
 
 Header stamps are the time base.  Input validation is ``calibrator_node``'s, per topic in bag
 order: messages with NaN/Inf values, duplicate stamps or stamps older than the previous accepted
@@ -32,47 +35,23 @@ from __future__ import annotations
 import argparse
 import json
 import sys
-from pathlib import Path
 
 import numpy as np
 
 from ..calibrator import BoresightCalibrator
 from ..config import CALIBRATOR_PARAMS, check_all, load_parameter_file
-from ..rotation import from_ros_xyzw, to_ros_xyzw
-from ..streams import StreamCheck, nominal_period, validate
+from ..rotation import to_ros_xyzw
+# the reader moved to strapdown_ros.recording; its names stay importable from here
+from ..recording import (CAMERA_COV_TOPIC, CAMERA_TOPIC, GYRO_TOPIC, Accepted,  # noqa: F401
+                         BagError, add_input_arguments, check_input_arguments, input_lines,
+                         input_options, input_summary, input_warnings, open_reader, read_bag,
+                         resolve_topic)
 from .record_sim import parse_overrides
 
 __all__ = ["main", "read_bag", "calibrate", "calibrator_parameters", "make_calibrator", "solution_json", "BagError"]
 
-GYRO_TOPIC = "imu/delta_theta"
-CAMERA_TOPIC = "star_camera/attitude"
-CAMERA_COV_TOPIC = "star_camera/attitude_with_covariance"
-EXPECTED_TYPES = {
-    GYRO_TOPIC: "geometry_msgs/msg/Vector3Stamped",
-    CAMERA_TOPIC: "geometry_msgs/msg/QuaternionStamped",
-    CAMERA_COV_TOPIC: "geometry_msgs/msg/PoseWithCovarianceStamped",
-}
 ARCSEC_PER_RAD = 180.0 / np.pi * 3600.0
-
-
-class BagError(RuntimeError):
-    """The bag cannot be used (missing topics, wrong types, unreadable)."""
-
-
-def open_reader(path):
-    """An open ``rosbags`` AnyReader (Jazzy type store) for a bag directory or file; BagError when
-    it is missing or unreadable (one line)."""
-    from rosbags.highlevel import AnyReader
-    from rosbags.typesys import Stores, get_typestore
-    path = Path(path)
-    if not path.exists():
-        raise BagError(f"{path} does not exist")
-    try:
-        reader = AnyReader([path], default_typestore=get_typestore(Stores.ROS2_JAZZY))
-        reader.open()
-    except Exception as exc:                           # noqa: BLE001 - any unreadable bag is reported
-        raise BagError(f"cannot open {path}: {str(exc).splitlines()[0] if str(exc) else type(exc).__name__}") from None
-    return reader
+_resolve = resolve_topic          # the former private name (tools/sins_bag.py imports it)
 
 
 # --- parameters -------------------------------------------------------------------------------
@@ -86,127 +65,6 @@ def calibrator_parameters(params_file: str | None = None, overrides: dict | None
 def make_calibrator(p: dict) -> BoresightCalibrator:
     """The calibrator exactly as built from calibrator_node parameters."""
     return BoresightCalibrator.from_params(p)
-
-
-# --- bag ------------------------------------------------------------------------------------------
-def _resolve(topics: dict, name: str, namespace: str) -> str | None:
-    """The bag topic for relative ``name``: ``[/]<namespace>/<name>``; without a namespace,
-    ``[/]<name>`` or else the only topic ending in ``/<name>``."""
-    ns = namespace.strip("/")
-    want = f"{ns}/{name}" if ns else name
-    for t in topics:
-        if t.strip("/") == want:
-            return t
-    if not ns:
-        cands = [t for t in topics if t.strip("/").endswith("/" + name)]
-        if len(cands) == 1:
-            return cands[0]
-    return None
-
-
-def _stamp_ns(header) -> int:
-    return int(header.stamp.sec) * 1_000_000_000 + int(header.stamp.nanosec)
-
-
-class Accepted:
-    """One recorded stream after the nodes' input rules (strapdown_ros.streams): the accepted
-    stamps (ns) and values in order, the intervals no pair may span, and the counts."""
-
-    def __init__(self, stamps, values, gaps, check, extra_received: int = 0):
-        self.stamps, self.values, self.gaps, self.check = stamps, values, gaps, check
-        self.received = check.received + extra_received
-        self.missing = check.missing
-        self.dropped = {"nan": check.nan, "duplicate": check.duplicate, "out_of_order": check.out_of_order,
-                        "out_of_range": check.out_of_range, "stamp_outlier": check.stamp_outliers}
-        self.resyncs = check.resyncs
-
-
-def read_bag(path: str | Path, namespace: str = "", use_camera_covariance: bool = True,
-             camera_sigma=(0.0, 0.0, 0.0), gyro_max_rate: float = 20.0, max_stamp_jump: float = 1.0,
-             resync_count: int = 5) -> dict:
-    """Gyro increments and camera fixes from a bag, validated by the rules calibrator_node applies
-    (:class:`strapdown_ros.streams.StreamCheck`, drops counted).  The gyro period is taken from
-    the stamps (the median step), not from a parameter.  Raises BagError."""
-    from rosbags.highlevel import AnyReaderError
-
-    path = Path(path)
-    reader = open_reader(path)
-    try:
-        topics = {c.topic: c.msgtype for c in reader.connections}
-        gyro_topic = _resolve(topics, GYRO_TOPIC, namespace)
-        cov_topic = _resolve(topics, CAMERA_COV_TOPIC, namespace)
-        cam_plain = _resolve(topics, CAMERA_TOPIC, namespace)
-        cam_topic = cov_topic if (cov_topic and use_camera_covariance) else cam_plain
-        where = f" under namespace {namespace!r}" if namespace.strip("/") else ""
-        if gyro_topic is None or cam_topic is None:
-            missing = [n for n, t in ((GYRO_TOPIC, gyro_topic), (CAMERA_TOPIC, cam_topic)) if t is None]
-            raise BagError(f"{path}: no {' and no '.join(missing)}{where}; topics in the bag: "
-                           f"{', '.join(sorted(topics)) or 'none'}")
-        for rel, t in ((GYRO_TOPIC, gyro_topic), (CAMERA_COV_TOPIC if cam_topic == cov_topic else CAMERA_TOPIC,
-                                                   cam_topic)):
-            if topics[t] != EXPECTED_TYPES[rel]:
-                raise BagError(f"{t} has type {topics[t]}, expected {EXPECTED_TYPES[rel]}")
-        with_cov = cam_topic == cov_topic
-        P_assumed = np.diag(np.asarray(camera_sigma, dtype=float) ** 2)
-        raw_g, raw_c = [], []
-        fix_rejected = 0
-        fix_counts = {"zero_quaternion": 0, "bad_covariance": 0, "normalised": 0, "covariance_substituted": 0}
-        frames = {"gyro": set(), "camera": set()}
-        conns = [c for c in reader.connections if c.topic in (gyro_topic, cam_topic)]
-        for conn, _, raw in reader.messages(connections=conns):
-            try:
-                msg = reader.deserialize(raw, conn.msgtype)
-            except AnyReaderError as exc:
-                raise BagError(f"{path}: cannot deserialize a {conn.msgtype} message on {conn.topic}: {exc}") from exc
-            ns = _stamp_ns(msg.header)
-            if conn.topic == gyro_topic:
-                frames["gyro"].add(msg.header.frame_id)
-                raw_g.append((ns, (float(msg.vector.x), float(msg.vector.y), float(msg.vector.z))))
-                continue
-            frames["camera"].add(msg.header.frame_id)
-            if with_cov:
-                qm = msg.pose.pose.orientation
-                P = np.asarray(msg.pose.covariance, dtype=float).reshape(6, 6)[3:, 3:]
-            else:
-                qm = msg.quaternion
-                P = P_assumed
-            q = from_ros_xyzw(np.array([qm.x, qm.y, qm.z, qm.w], dtype=float))
-            norm = float(np.linalg.norm(q)) if np.all(np.isfinite(q)) else float("nan")
-            if np.isfinite(norm) and norm < 1e-6:
-                fix_rejected += 1
-                fix_counts["zero_quaternion"] += 1
-                continue
-            if with_cov and np.all(np.isfinite(P)):
-                P = 0.5 * (P + P.T)
-                if not np.any(P):
-                    P = P_assumed                            # all-zero covariance: "unknown" in ROS
-                    fix_counts["covariance_substituted"] += 1
-                elif np.min(np.linalg.eigvalsh(P)) < -1e-12 * max(np.trace(P), 1e-300):
-                    fix_rejected += 1
-                    fix_counts["bad_covariance"] += 1
-                    continue
-            finite = bool(np.isfinite(norm) and np.all(np.isfinite(P)))
-            if finite and abs(norm - 1.0) > 1e-9:
-                q = q / norm
-                fix_counts["normalised"] += 1
-            raw_c.append((ns, tuple(q) + tuple(np.asarray(P, dtype=float).ravel())))
-    except BagError:
-        raise
-    except Exception as exc:                  # noqa: BLE001 - a corrupted record, whatever the reader says
-        raise BagError(f"{path}: unreadable record ({type(exc).__name__}: {str(exc).splitlines()[0] if str(exc) else ''})") from None
-    finally:
-        reader.close()
-    # the nodes' rules, with the gyro period from the stamps
-    g_period = nominal_period([t for t, _ in raw_g])
-    g_check = StreamCheck(g_period, max_norm=2.0 * g_period * float(gyro_max_rate) if np.isfinite(g_period) else None,
-                          jump_limit=max_stamp_jump, resync_count=resync_count)
-    gyro = Accepted(*validate([t for t, _ in raw_g], [np.array(v) for _, v in raw_g], g_check), g_check)
-    c_check = StreamCheck(np.inf, jump_limit=max(max_stamp_jump, 3600.0), resync_count=resync_count)
-    ct, cv, cgaps = validate([t for t, _ in raw_c], [v for _, v in raw_c], c_check)
-    cam = Accepted(ct, [(np.array(v[:4]), np.array(v[4:]).reshape(3, 3)) for v in cv], cgaps, c_check, fix_rejected)
-    return {"gyro_topic": gyro_topic, "camera_topic": cam_topic, "camera_covariance_from_bag": with_cov,
-            "gyro": gyro, "camera": cam, "camera_fixes": fix_counts, "gyro_period_s": g_period,
-            "frames": {k: sorted(v) for k, v in frames.items()}}
 
 
 def calibrate(data: dict, p: dict):
@@ -315,8 +173,10 @@ def _summary(bag: str, data: dict, result: dict, p: dict) -> str:
 
 
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(prog="calibrate_bag", description=__doc__,
-                                 formatter_class=argparse.RawDescriptionHelpFormatter)
+    from .paths import OneLineParser
+
+    ap = OneLineParser(prog="calibrate_bag", description=__doc__,
+                       formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("bag", help="rosbag2 bag directory, or a .mcap / .db3 file")
     ap.add_argument("--params", metavar="FILE", help="ROS 2 parameter YAML (calibrator_node and /** blocks)")
     ap.add_argument("--json", metavar="FILE", help="write the result as JSON")
@@ -326,8 +186,10 @@ def main(argv=None) -> int:
     ap.add_argument("--namespace", default="", help="topic namespace, e.g. /robot1")
     ap.add_argument("-p", "--param", action="append", default=[], metavar="NAME:=VALUE",
                     help="calibrator_node parameter override (repeatable)")
+    add_input_arguments(ap)
     args = ap.parse_args(argv)
     try:
+        check_input_arguments(args)
         over = parse_overrides(args.param)
         if args.unweighted:
             over["weighted"] = False
@@ -336,10 +198,13 @@ def main(argv=None) -> int:
         p = calibrator_parameters(args.params, over)
         data = read_bag(args.bag, args.namespace, bool(p["use_camera_covariance"]),
                         (p["camera_sigma_xy"], p["camera_sigma_xy"], p["camera_sigma_z"]),
-                        float(p["gyro_max_rate"]), float(p["max_stamp_jump"]), int(p["resync_count"]))
+                        float(p["gyro_max_rate"]), float(p["max_stamp_jump"]),
+                        int(p["resync_count"]), **input_options(args))
     except (ValueError, OSError, BagError) as exc:
         print(f"calibrate_bag: error: {exc}", file=sys.stderr)
         return 2
+    for line in input_warnings("calibrate_bag", data):
+        print(line, file=sys.stderr)
     for kind, want in (("gyro", p["frame_id"]), ("camera", p["reference_frame_id"])):
         other = [f for f in data["frames"][kind] if f != want]
         if other:
@@ -370,7 +235,12 @@ def main(argv=None) -> int:
     result["messages"] = {"gyro": len(g.stamps), "camera": len(c.stamps)}
     result["topics"] = {"gyro": data["gyro_topic"], "camera": data["camera_topic"]}
     result["camera_covariance_from_bag"] = data["camera_covariance_from_bag"]
+    result["input"] = input_summary(data)
+    result["unread_messages"] = dict(data["unread_messages"])
+    if data["rate_samples"]:
+        result["dropped"]["gyro_rate_samples"] = dict(data["rate_samples"]["dropped"])
     print(_summary(args.bag, data, result, p))
+    print("\n".join(input_lines(result["input"])))
     if args.json:
         try:
             with open(args.json, "w", encoding="utf-8") as fh:

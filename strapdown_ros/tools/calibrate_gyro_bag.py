@@ -8,7 +8,10 @@ and the star camera — ``star_camera/attitude_with_covariance`` (geometry_msgs/
 its covariance is used) or ``star_camera/attitude`` (geometry_msgs/QuaternionStamped, then
 ``camera_sigma_xy``/``camera_sigma_z`` of the model) — at any rates, stamps from the headers, read
 and validated as ``calibrate_bag`` and ``discrepancy`` read them (drops, gyro gaps).  No truth topic
-is needed and the boresight need not be known: it is found from the increment axes.
+is needed and the boresight need not be known: it is found from the increment axes.  Other
+formats (``strapdown_ros.recording``): ``--gyro-topic`` of sensor_msgs/msg/Imu rates (increments by
+``--rate-rule``), ``--reference-topic`` of PoseStamped, PoseWithCovarianceStamped,
+nav_msgs/msg/Odometry or QuaternionStamped, or TF with ``--reference-frames PARENT CHILD``.
 
 Methods (``strapdown_ros.gyro_calibration``):
 ``integral`` — 002 (Ilyushenko): mean rates over consecutive camera intervals (``--interval`` s,
@@ -101,6 +104,7 @@ def _summary(bag, info, cal) -> str:
 
 
 def _parse(argv):
+    from ..recording import add_input_arguments
     from .paths import OneLineParser
 
     ap = OneLineParser(prog=PROG, description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -119,13 +123,16 @@ def _parse(argv):
                          "counts as unobservable (default 0.001)")
     ap.add_argument("--namespace", default="", help="topic namespace, e.g. /robot1")
     ap.add_argument("--quiet", action="store_true", help="no progress on stderr")
+    add_input_arguments(ap)
     return ap.parse_args(argv)
 
 
 def _check(args) -> None:
     """Arguments, input files and output paths, before any work.  Raises ValueError."""
+    from ..recording import check_input_arguments
     from .paths import check_output_file
 
+    check_input_arguments(args)
     if args.drift and args.method != "tkachenko":
         raise ValueError("--drift needs --method tkachenko (002 has no reference drift)")
     if args.interval is not None:
@@ -172,11 +179,14 @@ def main(argv=None) -> int:
     from .. import gyro_calibration as gc
     from ..analysis.discrepancy import InputError
     from .paths import write_json
-    from .calibrate_bag import BagError
+    from ..recording import BagError, input_options, input_warnings
     from .discrepancy import load_recording
     try:
-        rec, info = load_recording(args.bag, model, args.namespace)    # (no progress line yet: an
-        if len(rec.fix_stamps) < 6:                                      # unusable bag is one line)
+        rec, info = load_recording(args.bag, model, args.namespace,     # (no progress line yet: an
+                                   **input_options(args))               # unusable bag is one line)
+        for line in input_warnings(PROG, info):
+            print(line, file=sys.stderr)
+        if len(rec.fix_stamps) < 6:
             raise ValueError(f"{args.bag}: {len(rec.fix_stamps)} usable camera fixes (need at least 6)")
         progress(f"read {info['gyro_messages']} increments and {info['camera_fixes']} camera fixes")
         progress("compensating the model's other effects; initial boresight from the increment axes")

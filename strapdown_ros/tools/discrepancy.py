@@ -7,6 +7,9 @@ BAG: a rosbag2 recording (MCAP or sqlite3) of ``imu/delta_theta`` (geometry_msgs
 and the star camera, ``star_camera/attitude_with_covariance`` (its covariance is used) or
 ``star_camera/attitude`` (then ``camera_sigma_xy``/``camera_sigma_z`` of the model), at any gyro
 rate (taken from the stamps), any length and any stamp origin; no truth topics are needed.
+Other formats (``strapdown_ros.recording``): ``--gyro-topic`` of sensor_msgs/msg/Imu rates
+(increments by ``--rate-rule``), ``--reference-topic`` of PoseStamped, PoseWithCovarianceStamped,
+nav_msgs/msg/Odometry or QuaternionStamped, or TF with ``--reference-frames PARENT CHILD``.
 MODEL: a ROS 2 parameter file in the schema of the package's nodes (``/**`` and per-node
 blocks; any parameter of any node).  The known effects it states (``gyro_bias``,
 ``camera_time_offset``, …) are compensated before the search, as ``sins_node`` and
@@ -39,15 +42,17 @@ __all__ = ["main", "load_recording", "write_model", "recording_lines"]
 ARCSEC_PER_RAD = 180.0 / np.pi * 3600.0
 
 
-def load_recording(bag: str, model: dict, namespace: str = ""):
+def load_recording(bag: str, model: dict, namespace: str = "", **options):
     """The recording as the core's :class:`Recording`, with what reading it found (drops, gaps,
-    topics, the gyro rate from the stamps).  Raises BagError / ValueError."""
+    topics, the gyro rate from the stamps, the input formats).  ``options``: the input options
+    of :func:`strapdown_ros.recording.read_bag` (``gyro_topic``, ``reference_topic``,
+    ``reference_frames``, ``rate_rule``).  Raises BagError / ValueError."""
     from ..analysis.discrepancy import Recording
-    from .calibrate_bag import BagError, read_bag
+    from ..recording import BagError, input_summary, read_bag
 
     sig = (model["camera_sigma_xy"], model["camera_sigma_xy"], model["camera_sigma_z"])
     data = read_bag(bag, namespace, True, sig, float(model["gyro_max_rate"]), float(model["max_stamp_jump"]),
-                    int(model["resync_count"]))
+                    int(model["resync_count"]), **options)
     g, c = data["gyro"], data["camera"]
     if len(g.stamps) < 10:
         raise BagError(f"{bag}: {len(g.stamps)} usable gyro increments on {data['gyro_topic']}")
@@ -68,6 +73,9 @@ def load_recording(bag: str, model: dict, namespace: str = ""):
             "dropped": {"gyro": dict(g.dropped), "camera": {**c.dropped, **{
                 k: v for k, v in data["camera_fixes"].items() if k in ("zero_quaternion", "bad_covariance")}}},
             "stamp_origin_ns": int(origin), "duration_s": float(t_g[-1] - t_g[0])}
+    info.update(input_summary(data))
+    if data["rate_samples"]:
+        info["dropped"]["gyro_rate_samples"] = dict(data["rate_samples"]["dropped"])
     return rec, info
 
 
@@ -90,6 +98,9 @@ def recording_lines(prog: str, bag, info: dict, counts: str = "") -> list[str]:
     if info["gyro_gaps"]:
         lines.append(f"  gyro gaps: {info['gyro_gaps']} ({info['gyro_missing']} increments missing); pairs "
                      f"spanning them are not used")
+    if "gyro_input" in info:
+        from ..recording import input_lines
+        lines += input_lines(info)
     return lines
 
 
@@ -130,8 +141,12 @@ def _fmt(v):
 
 
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(prog="discrepancy", description=__doc__,
-                                 formatter_class=argparse.RawDescriptionHelpFormatter)
+    from ..recording import (add_input_arguments, check_input_arguments, input_options,
+                             input_warnings)
+    from .paths import OneLineParser
+
+    ap = OneLineParser(prog="discrepancy", description=__doc__,
+                       formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("bag", help="rosbag2 bag directory, or a .mcap / .db3 file")
     ap.add_argument("--model", required=True, metavar="MODEL.yaml", help="nominal model: ROS 2 parameter file")
     ap.add_argument("--json", metavar="FILE", help="write the result as JSON")
@@ -140,17 +155,19 @@ def main(argv=None) -> int:
     ap.add_argument("--alpha", type=float, default=None, help="family-wise level of the selection (default 0.01)")
     ap.add_argument("--namespace", default="", help="topic namespace, e.g. /robot1")
     ap.add_argument("--quiet", action="store_true", help="no progress on stderr")
+    add_input_arguments(ap)
     args = ap.parse_args(argv)
     t0 = time.perf_counter()
     from ..analysis.discrepancy import DEFAULT_ALPHA, InputError, analyse
     from ..config import load_model
-    from .calibrate_bag import BagError
+    from ..recording import BagError
     from .paths import check_output_dir, check_output_file, write_json
 
     alpha = DEFAULT_ALPHA if args.alpha is None else args.alpha
     try:
         if not (0.0 < alpha < 0.5):
             raise ValueError(f"--alpha must be in (0, 0.5), got {alpha}")
+        check_input_arguments(args)
         if not Path(args.bag).exists():
             raise ValueError(f"bag {args.bag} does not exist")
         if not Path(args.model).is_file():
@@ -168,7 +185,9 @@ def main(argv=None) -> int:
             print(f"discrepancy: [{time.perf_counter() - t0:6.1f} s] {text}", file=sys.stderr, flush=True)
     try:
         progress("reading the bag")
-        rec, info = load_recording(args.bag, model, args.namespace)
+        rec, info = load_recording(args.bag, model, args.namespace, **input_options(args))
+        for line in input_warnings("discrepancy", info):
+            print(line, file=sys.stderr)
         res = analyse(rec, model, alpha=alpha, progress=progress)
     except (BagError, InputError, ValueError, OSError) as exc:
         print(f"discrepancy: error: {exc}", file=sys.stderr)
