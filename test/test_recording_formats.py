@@ -261,7 +261,7 @@ def test_imu_rates_at_the_stamps_with_pose_stamped_reference(tmp_path, bags, cap
     status, r = _calibrate(tmp_path, bags("rate_at_stamp", "pose"), "--gyro-topic", "/imu/data",
                            "--reference-topic", "/camera/pose")
     assert status == 0
-    _assert_boresight(r, 2.0)
+    _assert_boresight(r, 5.0)
     inp = r["input"]
     assert inp["gyro_type"] == "sensor_msgs/msg/Imu" and inp["gyro_input"] == "rates"
     assert inp["rate_rule"] == "trapezoid" and inp["reference_type"] == "geometry_msgs/msg/PoseStamped"
@@ -304,7 +304,7 @@ def test_imu_mean_rates_equal_the_delta_theta_topic(tmp_path, motion, bags):
                         "--reference-topic", "/camera/pose")
     assert s1 == s2 == 0 and r2["input"]["rate_rule"] == "mean"
     np.testing.assert_allclose(r2["beta_rad"], r1["beta_rad"], rtol=0, atol=1e-12)
-    _assert_boresight(r1, 2.0)
+    _assert_boresight(r1, 5.0)
 
 
 def test_odometry_reference_covariance_from_the_messages_or_the_model(tmp_path, motion, bags):
@@ -313,14 +313,14 @@ def test_odometry_reference_covariance_from_the_messages_or_the_model(tmp_path, 
     status, r = _calibrate(tmp_path, bags("rate_at_stamp", "odometry"), "--gyro-topic", "/imu/data",
                            "--reference-topic", "camera/odom")
     assert status == 0
-    _assert_boresight(r, 2.0)
+    _assert_boresight(r, 5.0)
     assert r["input"]["reference_type"] == "nav_msgs/msg/Odometry"
     assert r["input"]["reference_covariance"] == "from_messages" and r["camera_covariance_from_bag"] is True
     status, r0 = _calibrate(tmp_path, bags("rate_at_stamp", "odometry_zero_cov"), "--gyro-topic", "/imu/data",
                             "--reference-topic", "/camera/odom")
     assert status == 0 and r0["input"]["reference_covariance"] == "from_model"
     assert r0["camera_fixes"]["covariance_substituted"] == len(motion.fixes)
-    _assert_boresight(r0, 2.0)
+    _assert_boresight(r0, 5.0)
     np.testing.assert_allclose(r0["beta_rad"], r["beta_rad"], rtol=0, atol=1e-9)    # same σ: same fit
 
 
@@ -330,7 +330,7 @@ def test_tf_reference_among_other_frames_direct_and_inverse(tmp_path, motion, ba
     status, r = _calibrate(tmp_path, bags("rate_at_stamp", "tf"), "--gyro-topic", "/imu/data",
                            "--reference-frames", "gcrs", "star_tracker")
     assert status == 0
-    _assert_boresight(r, 2.0)
+    _assert_boresight(r, 5.0)
     inp = r["input"]
     assert inp["reference_topic"] == "/tf" and inp["reference_type"] == "tf2_msgs/msg/TFMessage"
     assert inp["reference_frames"] == {"parent": "gcrs", "child": "star_tracker", "transform": "direct"}
