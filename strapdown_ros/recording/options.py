@@ -77,10 +77,8 @@ def input_warnings(prog: str, info: dict) -> list[str]:
     if unread:
         parts = bounded_list(f"{t}: {n:+d}" for t, n in sorted(unread.items()))
         out.append(
-            f"{prog}: WARNING: the bag's index counts messages that were not read "
-            f"(index minus read: "
-            f"{parts}); a corrupt or skipped chunk: the data is incomplete and the result may be "
-            f"biased"
+            f"{prog}: WARNING: the messages read differ from the bag's own index (index − read: "
+            f"{parts}): a corrupt or skipped chunk hides data; the result may be biased"
         )
     rs = info.get("rate_samples")
     if rs:
@@ -125,7 +123,14 @@ def input_lines(info: dict) -> list[str]:
         "from_model": "σ from the model",
         "mixed": "covariance from the messages, σ from the model where they have none",
     }
-    return [f"  input: {gyro}; {ref}, {cov[info['reference_covariance']]}"]
+    lines = [f"  input: {gyro}; {ref}, {cov[info['reference_covariance']]}"]
+    if info.get("unread_messages"):
+        lines.append(
+            "  UNREAD: "
+            + bounded_list(f"{t} {n:+d}" for t, n in sorted(info["unread_messages"].items()))
+            + " message(s) in the bag's index but not returned by the reader (corrupt chunk?)"
+        )
+    return lines
 
 
 # --- command-line options ------------------------------------------------------------------------

@@ -431,6 +431,7 @@ def read_bag(
                 expected[c.topic] += int(getattr(c, "msgcount", 0) or 0)
         read = {gyro_t: 0, ref_t: 0}
         raw_g, raw_fix = [], []
+        rate_absent = 0
         frames = {"gyro": set(), "camera": set()}
         tf = _TfCollector(reference_frames) if kind == "tf" else None
         conns = [c for c in reader.connections if c.topic in (gyro_t, ref_t)]
@@ -446,6 +447,9 @@ def read_bag(
                 ) from exc
             if conn.topic == gyro_t:
                 frames["gyro"].add(msg.header.frame_id)
+                if rates and float(msg.angular_velocity_covariance[0]) == -1.0:
+                    rate_absent += 1              # ROS: covariance[0] = -1 marks the field absent
+                    continue
                 v = msg.angular_velocity if rates else msg.vector
                 raw_g.append((_stamp_ns(msg.header), (float(v.x), float(v.y), float(v.z))))
                 continue
@@ -486,6 +490,11 @@ def read_bag(
     # gyro: rate samples → increments, then the increments' rules with the period from the stamps
     rate_info = None
     if rates:
+        if rate_absent and not raw_g:
+            raise BagError(
+                f"{path}: every {IMU_TYPE} message on {bounded(gyro_t)} marks angular_velocity "
+                f"absent (angular_velocity_covariance[0] = -1)"
+            )
         r_period = nominal_period([t for t, _ in raw_g])
         r_check = StreamCheck(
             r_period,
@@ -501,7 +510,7 @@ def read_bag(
             1.5 * r_period if math.isfinite(r_period) else math.inf,
         )
         rate_info = {
-            "received": r_check.received,
+            "received": r_check.received + rate_absent,
             "accepted": len(rt),
             "dropped": {
                 "nan": r_check.nan,
@@ -509,6 +518,7 @@ def read_bag(
                 "out_of_order": r_check.out_of_order,
                 "out_of_range": r_check.out_of_range,
                 "stamp_outlier": r_check.stamp_outliers,
+                "marked_absent": rate_absent,
             },
             "intervals_not_integrated": max(len(rt) - 1 - len(inc_t), 0),
             "period_s": r_period if math.isfinite(r_period) else None,
