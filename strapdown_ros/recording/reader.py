@@ -72,8 +72,9 @@ class BagError(RuntimeError):
 
 
 def bounded(text, n: int = MAX_NAME) -> str:
-    """``text`` cut to ``n`` characters (an ellipsis marks a cut): echoed strings are bounded."""
-    text = str(text)
+    """``text`` on one line (control characters escaped) and cut to ``n`` characters (an
+    ellipsis marks a cut): every string echoed from a bag is bounded."""
+    text = "".join(c if c.isprintable() else repr(c)[1:-1] for c in str(text)[: 4 * n])
     return text if len(text) <= n else text[: n - 1] + "…"
 
 
@@ -246,13 +247,13 @@ def _select(
     kind = REFERENCE_TYPES[topics[c]]
     if kind == "tf" and not reference_frames:
         raise BagError(
-            f"{path}: reference topic {bounded(c)} is {topics[c]}: "
+            f"{path}: reference topic {bounded(c)} is {bounded(topics[c])}: "
             f"give --reference-frames PARENT CHILD"
         )
     if kind != "tf" and reference_frames:
         raise BagError(
             f"{path}: --reference-frames needs a tf2_msgs/msg/TFMessage reference topic; "
-            f"{bounded(c)} is {topics[c]}"
+            f"{bounded(c)} is {bounded(topics[c])}"
         )
     return g, c
 
@@ -340,7 +341,7 @@ class _TfCollector:
         if self.inverse:
             return [(ns, quat_conjugate(q), P) for ns, q, P in self.inverse], "inverse"
         present = bounded_list(f"{a}→{b}" for a, b in sorted(self.pairs))
-        more = f" (and more pairs)" if self.more_pairs else ""
+        more = " (and more pairs)" if self.more_pairs else ""
         raise BagError(
             f"{path}: {bounded(topic)} has no transform "
             f"{bounded(self.parent)}→{bounded(self.child)} "
@@ -441,7 +442,7 @@ def read_bag(
                 msg = reader.deserialize(raw, conn.msgtype)
             except AnyReaderError as exc:
                 raise BagError(
-                    f"{path}: cannot deserialize a {conn.msgtype} message on "
+                    f"{path}: cannot deserialize a {bounded(conn.msgtype)} message on "
                     f"{bounded(conn.topic)}: "
                     f"{_first_line(exc)}"
                 ) from exc
