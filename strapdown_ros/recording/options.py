@@ -172,7 +172,18 @@ def add_input_arguments(parser) -> None:
 
 
 def check_input_arguments(args) -> None:
-    """The input options, before any work.  Raises ValueError (one line)."""
+    """Check the input options before any work.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        Parsed options of :func:`add_input_arguments`.
+
+    Raises
+    ------
+    ValueError
+        One line: an empty topic name, empty or identical ``--reference-frames``.
+    """
     for opt, v in (("--gyro-topic", args.gyro_topic), ("--reference-topic", args.reference_topic)):
         if v is not None and not v.strip("/").strip():
             raise ValueError(f"{opt} must name a topic, got {bounded(v)!r}")
@@ -187,7 +198,18 @@ def check_input_arguments(args) -> None:
 
 
 def input_options(args) -> dict:
-    """Keyword arguments of :func:`read_bag` from the options of :func:`add_input_arguments`."""
+    """Keyword arguments of :func:`~strapdown_ros.recording.reader.read_bag` from the options.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        Parsed options of :func:`add_input_arguments`.
+
+    Returns
+    -------
+    dict
+        ``gyro_topic``, ``reference_topic``, ``reference_frames`` (tuple or None), ``rate_rule``.
+    """
     return {
         "gyro_topic": args.gyro_topic,
         "reference_topic": args.reference_topic,

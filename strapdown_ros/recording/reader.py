@@ -72,14 +72,38 @@ class BagError(RuntimeError):
 
 
 def bounded(text, n: int = MAX_NAME) -> str:
-    """``text`` on one line (control characters escaped) and cut to ``n`` characters (an
-    ellipsis marks a cut): every string echoed from a bag is bounded."""
+    """A string echoed from a bag, bounded: on one line and at most ``n`` characters.
+
+    Parameters
+    ----------
+    text : object
+        Shown as ``str(text)``; control characters escaped.
+    n : int
+        Longest result; a cut is marked by an ellipsis.
+
+    Returns
+    -------
+    str
+    """
     text = "".join(c if c.isprintable() else repr(c)[1:-1] for c in str(text)[: 4 * n])
     return text if len(text) <= n else text[: n - 1] + "…"
 
 
 def bounded_list(items, n: int = MAX_LISTED) -> str:
-    """At most ``n`` items, each bounded, comma-separated, with the count of the rest."""
+    """A bounded, comma-separated listing.
+
+    Parameters
+    ----------
+    items : iterable
+        Items to list, each shown by :func:`bounded`.
+    n : int
+        Most items named; the rest are counted ("… and k more").
+
+    Returns
+    -------
+    str
+        ``"none"`` for no items.
+    """
     items = list(items)
     head = ", ".join(bounded(i) for i in items[:n])
     return (head + (f", … and {len(items) - n} more" if len(items) > n else "")) or "none"
@@ -266,12 +290,7 @@ def _strip(frame: str) -> str:
 def _process_fixes(raw, with_cov: bool, P_assumed):
     """Quaternion and covariance rules of calibrator_node, per fix: (ns, q_wxyz, P 3×3 or None)."""
     out, rejected = [], 0
-    counts = {
-        "zero_quaternion": 0,
-        "bad_covariance": 0,
-        "normalised": 0,
-        "covariance_substituted": 0,
-    }
+    counts = {"zero_quaternion": 0, "bad_covariance": 0, "normalised": 0, "covariance_substituted": 0}
     from_messages = 0
     for ns, q, P in raw:
         norm = float(np.linalg.norm(q)) if np.all(np.isfinite(q)) else float("nan")
@@ -554,27 +573,13 @@ def read_bag(
     ref_cov = (
         "from_model" if from_messages == 0 else ("from_messages" if n_model == 0 else "mixed")
     )
-    return {
-        "gyro_topic": gyro_t,
-        "camera_topic": ref_t,
-        "camera_covariance_from_bag": with_cov,
-        "gyro": gyro,
-        "camera": cam,
-        "camera_fixes": fix_counts,
-        "gyro_period_s": g_period,
-        "frames": {k: sorted(v) for k, v in frames.items()},
-        "gyro_type": gyro_type,
-        "gyro_input": "rates" if rates else "delta_theta",
-        "rate_rule": rate_rule if rates else None,
-        "rate_samples": rate_info,
-        "reference_type": ref_type,
-        "reference_frames": (
-            {"parent": tf.parent, "child": tf.child, "transform": tf_direction}
-            if tf is not None
-            else None
-        ),
-        "reference_covariance": ref_cov,
-        "reference_covariance_from_model": n_model,
-        "unread_messages": unread,
-        "messages_in_bag_index": expected,
-    }
+    frames_used = None if tf is None else {"parent": tf.parent, "child": tf.child,
+                                           "transform": tf_direction}
+    return {"gyro_topic": gyro_t, "camera_topic": ref_t, "camera_covariance_from_bag": with_cov,
+            "gyro": gyro, "camera": cam, "camera_fixes": fix_counts, "gyro_period_s": g_period,
+            "frames": {k: sorted(v) for k, v in frames.items()}, "gyro_type": gyro_type,
+            "gyro_input": "rates" if rates else "delta_theta",
+            "rate_rule": rate_rule if rates else None, "rate_samples": rate_info,
+            "reference_type": ref_type, "reference_frames": frames_used,
+            "reference_covariance": ref_cov, "reference_covariance_from_model": n_model,
+            "unread_messages": unread, "messages_in_bag_index": expected}
