@@ -64,6 +64,27 @@ def decode_vector3_stamped(data: bytes) -> tuple[int, tuple[float, float, float]
     return stamp_to_ns(m.header.stamp), (v.x, v.y, v.z), m.header.frame_id
 
 
+def decode_imu(data: bytes):
+    """``(stamp_ns, angular_velocity, linear_acceleration | None, frame_id)`` of a serialized
+    sensor_msgs/Imu (the ``imu/data_raw`` input of ``gyro_input: imu``), read from the bytes as
+    :func:`decode_vector3_stamped` reads a Vector3Stamped (rclpy's deserialization of an Imu costs
+    tens of µs); other encodings through rclpy's deserializer.  linear_acceleration is None when
+    the message has none (REP-145: linear_acceleration_covariance[0] = −1).  None when the bytes
+    are not an Imu at all (the caller counts and drops them)."""
+    got = cdr.imu(data)
+    if got is not None:
+        return got
+    from rclpy.serialization import deserialize_message
+    from sensor_msgs.msg import Imu
+    try:
+        m = deserialize_message(data, Imu)
+    except Exception:                                  # noqa: BLE001 - malformed bytes
+        return None
+    w, a = m.angular_velocity, m.linear_acceleration
+    accel = None if m.linear_acceleration_covariance[0] == -1.0 else (a.x, a.y, a.z)
+    return stamp_to_ns(m.header.stamp), (w.x, w.y, w.z), accel, m.header.frame_id
+
+
 # --- camera and calibration messages ----------------------------------------------------
 UNKNOWN_POSITION_VARIANCE = 1e9
 
