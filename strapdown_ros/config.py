@@ -193,11 +193,13 @@ INPUT_PARAMS = [
 #: the gyro input of the consuming nodes: integrated increments, or sensor_msgs/Imu rate samples
 #: made into increments by strapdown_ros/rate_increments.py
 GYRO_INPUT_PARAMS = [
-    ParamSpec("gyro_input", "delta_theta", "gyro input: delta_theta (imu/delta_theta increments) or imu "
-              "(imu/data_raw sensor_msgs/Imu rates made into increments by imu_rate_rule)",
+    ParamSpec("gyro_input", "delta_theta",
+              "gyro input: delta_theta (imu/delta_theta increments) or imu (imu/data_raw "
+              "sensor_msgs/Imu rates made into increments by imu_rate_rule)",
               choices=("delta_theta", "imu")),
-    ParamSpec("imu_rate_rule", "trapezoid", "gyro_input imu: trapezoid (a sample is the rate at its stamp) or "
-              "mean (the mean rate over the interval ending at its stamp, as imu_sim_node's imu/data_raw)",
+    ParamSpec("imu_rate_rule", "trapezoid",
+              "gyro_input imu: trapezoid (a sample is the rate at its stamp) or mean (the mean "
+              "rate over the interval ending at its stamp, as imu_sim_node's imu/data_raw)",
               choices=RATE_RULES),
 ]
 ACCEL_INPUT_PARAMS = [

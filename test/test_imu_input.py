@@ -18,7 +18,8 @@ def _rate(t):
 
 def _exact(t0, t1):
     """∫ω dt over (t0, t1] of _rate, closed form."""
-    return np.stack([0.1 * (t1 - t0), np.zeros_like(t0), A / NU * (np.cos(NU * t0) - np.cos(NU * t1))], axis=-1)
+    z = A / NU * (np.cos(NU * t0) - np.cos(NU * t1))
+    return np.stack([0.1 * (t1 - t0), np.zeros_like(t0), z], axis=-1)
 
 
 def _feed(stream, stamps_ns, rates):
@@ -71,11 +72,13 @@ def test_bad_samples_are_dropped_counted_and_the_lost_interval_is_a_gap():
     stamps = [o[0] for o in out]
     assert s.integrator.formed == 17 and s.integrator.skipped == 1
     assert int(st[5]) not in stamps and int(st[6]) not in stamps
-    t_off, inc_off = increments_from_rates(np.delete(st, 5), np.delete(w, 5, axis=0), "trapezoid", 0.015)
+    t_off, inc_off = increments_from_rates(np.delete(st, 5), np.delete(w, 5, axis=0), "trapezoid",
+                                           0.015)
     assert stamps == list(t_off)
     np.testing.assert_array_equal(np.array([o[1] for o in out]), inc_off)
     kv = s.status("imu_gyro")
-    assert (kv["imu_gyro_dropped"], kv["imu_gyro_increments_formed"], kv["imu_gyro_increments_skipped"]) == (4, 17, 1)
+    assert (kv["imu_gyro_dropped"], kv["imu_gyro_increments_formed"],
+            kv["imu_gyro_increments_skipped"]) == (4, 17, 1)
 
 
 def test_a_stamp_resync_restarts_the_integrator():
@@ -88,7 +91,8 @@ def test_a_stamp_resync_restarts_the_integrator():
     assert s.check.resyncs == 1
     # 9 increments per timeline: no increment spans the jump, nothing of the new timeline is lost
     assert [o[0] for o in out] == list(a[1:]) + list(b[1:])
-    np.testing.assert_allclose(np.array([o[1] for o in out]), np.tile([[0, 0, 0.01]], (18, 1)), atol=1e-17)
+    np.testing.assert_allclose(np.array([o[1] for o in out]), np.tile([[0, 0, 0.01]], (18, 1)),
+                               atol=1e-17)
 
 
 @pytest.mark.parametrize("frame, accel", [("imu_link", True), ("", False), ("é" * 7, True)])
@@ -116,7 +120,9 @@ def test_the_raw_imu_decoder_reads_what_rclpy_serialized(frame, accel):
     assert f == ((9.5, -0.125, 1e300) if accel else None)
     # big-endian CDR goes to rclpy's deserializer; bytes that are no Imu give None
     body = struct.pack(">iII", 12, 345, 1) + b"\x00" + b"\x00" * 3
-    body += struct.pack(">37d", *([0.0] * 13 + [1.0, 2.0, 3.0] + [0.0] * 9 + [4.0, 5.0, 6.0] + [0.0] * 9))
-    assert decode_imu(b"\x00\x00\x00\x00" + body) == (12_000_000_345, (1.0, 2.0, 3.0), (4.0, 5.0, 6.0), "")
+    doubles = [0.0] * 13 + [1.0, 2.0, 3.0] + [0.0] * 9 + [4.0, 5.0, 6.0] + [0.0] * 9
+    body += struct.pack(">37d", *doubles)
+    assert decode_imu(b"\x00\x00\x00\x00" + body) == (12_000_000_345, (1.0, 2.0, 3.0),
+                                                      (4.0, 5.0, 6.0), "")
     for junk in (b"\x00\x01\x00\x00" + b"\xff" * 12, b"\x07\x07", data[:60], b""):
         assert decode_imu(junk) is None

@@ -12,7 +12,7 @@ import pytest
 rclpy = pytest.importorskip("rclpy")
 
 from diagnostic_msgs.msg import DiagnosticArray  # noqa: E402
-from geometry_msgs.msg import QuaternionStamped  # noqa: E402
+from geometry_msgs.msg import PoseWithCovarianceStamped, QuaternionStamped  # noqa: E402
 from rclpy.executors import SingleThreadedExecutor  # noqa: E402
 from rclpy.parameter import Parameter  # noqa: E402
 from sensor_msgs.msg import Imu  # noqa: E402
@@ -23,8 +23,8 @@ from strapdown_ros.nodes.imu_sim_node import ImuSimNode  # noqa: E402
 from strapdown_ros.nodes.ros_io import stamp_to_ns, stream_qos  # noqa: E402
 from strapdown_ros.nodes.sins_node import SinsNode  # noqa: E402
 from strapdown_ros.profiles import ConingProfile  # noqa: E402
-from strapdown_ros.rotation import (from_ros_xyzw, quat_angle_between, quat_conjugate,  # noqa: E402
-                                    quat_multiply, rotvec_to_quat, to_ros_xyzw)
+from strapdown_ros.rotation import (from_ros_xyzw, quat_angle_between,  # noqa: E402
+                                    quat_conjugate, quat_multiply, rotvec_to_quat, to_ros_xyzw)
 
 try:
     from rclpy.experimental import EventsExecutor as GraphExecutor  # noqa: E402
@@ -56,7 +56,8 @@ def spin_until(executor, predicate, timeout):
 
 def _stamped_quaternions(msgs):
     t = np.array([stamp_to_ns(m.header.stamp) for m in msgs])
-    q = from_ros_xyzw(np.array([[m.quaternion.x, m.quaternion.y, m.quaternion.z, m.quaternion.w] for m in msgs]))
+    q = from_ros_xyzw(np.array([[m.quaternion.x, m.quaternion.y, m.quaternion.z, m.quaternion.w]
+                                for m in msgs]))
     return t, q
 
 
@@ -85,12 +86,15 @@ def test_imu_mean_rule_gives_the_delta_theta_attitude_except_the_first_increment
         Parameter("duration", value=duration), Parameter("qos_depth", value=QUEUE), *IDEAL])
     common = [Parameter("coning_algorithm", value="1"), Parameter("qos_depth", value=QUEUE),
               Parameter("batch_period", value=0.0), *IDEAL]
-    sins_d = SinsNode(namespace=ns, parameter_overrides=[
-        Parameter("initial_orientation", value=[float(c) for c in to_ros_xyzw(prof.attitude(0.0))]), *common])
-    sins_i = SinsNode(namespace=ns, parameter_overrides=[
-        Parameter("initial_orientation", value=[float(c) for c in to_ros_xyzw(prof.attitude(0.01))]),
-        *IMU_MEAN, *common], cli_args=["--ros-args", "-r", "__node:=sins_imu", "-r", "sins/attitude:=sins_imu/attitude",
-                                       "-r", "sins/imu:=sins_imu/imu"])
+    def start(t):
+        q = to_ros_xyzw(prof.attitude(t))
+        return Parameter("initial_orientation", value=[float(c) for c in q])
+    sins_d = SinsNode(namespace=ns, parameter_overrides=[start(0.0), *common])
+    # the Imu-fed node starts at the first Imu stamp, from the true attitude there
+    sins_i = SinsNode(namespace=ns, parameter_overrides=[start(0.01), *IMU_MEAN, *common],
+                      cli_args=["--ros-args", "-r", "__node:=sins_imu",
+                                "-r", "sins/attitude:=sins_imu/attitude",
+                                "-r", "sins/imu:=sins_imu/imu"])
     mon = rclpy.create_node("monitor", namespace=ns)
     rec = {"sins/attitude": [], "sins_imu/attitude": [], "imu/truth/attitude": []}
     for topic, got in rec.items():
@@ -110,14 +114,15 @@ def test_imu_mean_rule_gives_the_delta_theta_attitude_except_the_first_increment
         sim._wall_start = None
         n = int(round(duration * 100))
         assert spin_until(ex, lambda: sim.finished and len(rec["sins/attitude"]) >= n
-                          and len(rec["sins_imu/attitude"]) >= n - 1 and len(rec["imu/truth/attitude"]) >= n, 30.0), \
+                          and len(rec["sins_imu/attitude"]) >= n - 1
+                          and len(rec["imu/truth/attitude"]) >= n, 30.0), \
             {k: len(v) for k, v in rec.items()}
         t_d, q_d = _stamped_quaternions(rec["sins/attitude"])
         t_i, q_i = _stamped_quaternions(rec["sins_imu/attitude"])
         t_true, q_true = _stamped_quaternions(rec["imu/truth/attitude"])
         truth = dict(zip(t_true.tolist(), q_true))
         assert len(t_d) == n and len(t_i) == n - 1
-        np.testing.assert_array_equal(t_i, t_d[1:])                  # every Imu sample but the first
+        np.testing.assert_array_equal(t_i, t_d[1:])          # every Imu sample but the first
         # the same increments from the second on: q_d = c ⊗ q_i with one constant c, to round-off
         c = quat_multiply(q_d[1:], quat_conjugate(q_i))
         assert np.max(quat_angle_between(c, c[:1])) < 1e-12
@@ -134,8 +139,10 @@ def test_imu_mean_rule_gives_the_delta_theta_attitude_except_the_first_increment
         st, kv = _status(diags, f"{ns}/sins_imu")
         assert st.level == b"\x00", st.message
         assert (kv["gyro_input"], kv["imu_rate_rule"]) == ("imu", "mean")
-        assert (int(kv["imu_gyro_received"]), int(kv["imu_gyro_accepted"]), int(kv["imu_gyro_dropped"])) == (n, n, 0)
-        assert (int(kv["imu_gyro_increments_formed"]), int(kv["imu_gyro_increments_skipped"])) == (n - 1, 0)
+        assert (kv["imu_gyro_received"], kv["imu_gyro_accepted"]) == (str(n), str(n))
+        assert kv["imu_gyro_dropped"] == "0"
+        assert kv["imu_gyro_increments_formed"] == str(n - 1)
+        assert kv["imu_gyro_increments_skipped"] == "0"
         assert int(kv["gyro_accepted"]) == n - 1 and int(kv["gyro_missing_samples"]) == 0
         assert int(kv["imu_accel_increments_formed"]) == n - 1
     finally:
@@ -164,9 +171,9 @@ def _imu_msg(k, rate, frame="imu_link", period_ns=10_000_000):
 
 
 def test_trapezoid_rule_on_sampled_rates_is_within_its_second_order_bound(ros):
-    """Rates sampled at the stamps of a fixed-axis motion (the coning algorithm is exact for it: the
-    error is the increment rule's alone).  The trapezoid rule errs by +T³ω̈/12 per increment, so the
-    angle after time t by at most t·T²·max|ω̈|/12 (rate_increments)."""
+    """Rates sampled at the stamps of a fixed-axis motion (the coning algorithm is exact for it:
+    the error is the increment rule's alone).  The trapezoid rule errs by +T³ω̈/12 per increment,
+    so the angle after time t by at most t·T²·max|ω̈|/12 (rate_increments)."""
     ns = "/t_imu_trap"
     sins = SinsNode(namespace=ns, parameter_overrides=[
         Parameter("gyro_input", value="imu"), Parameter("coning_algorithm", value="1"),
@@ -187,7 +194,8 @@ def test_trapezoid_rule_on_sampled_rates_is_within_its_second_order_bound(ros):
             t = k * 0.01
             pub.publish(_imu_msg(k, A_RATE * np.sin(NU_RATE * t) * AXIS))
             ex.spin_once(timeout_sec=0.002)
-        assert spin_until(ex, lambda: len(got) >= n - 1, 10.0), (len(got), sins.gyro_rates.check.received)
+        assert spin_until(ex, lambda: len(got) >= n - 1, 10.0), \
+            (len(got), sins.gyro_rates.check.received)
         t_ns, q = _stamped_quaternions(got)
         t = (t_ns - T0_NS) * 1e-9
         np.testing.assert_allclose(t, 0.01 * np.arange(1, n), atol=1e-12)
@@ -210,8 +218,8 @@ def test_bad_imu_input_is_dropped_counted_and_reported(ros):
     nodes, reported on /diagnostics; the interval lost to the NaN is a gap of the increments
     (ERROR: rotation lost); the nodes go on."""
     ns = "/t_imu_bad"
-    sins = SinsNode(namespace=ns, parameter_overrides=[Parameter("gyro_input", value="imu"),
-                                                        Parameter("coning_algorithm", value="1"), *IDEAL])
+    sins = SinsNode(namespace=ns, parameter_overrides=[
+        Parameter("gyro_input", value="imu"), Parameter("coning_algorithm", value="1"), *IDEAL])
     cal = CalibratorNode(namespace=ns, parameter_overrides=[Parameter("gyro_input", value="imu")])
     src = rclpy.create_node("source", namespace=ns)
     pub = src.create_publisher(Imu, "imu/data_raw", stream_qos())
@@ -231,25 +239,30 @@ def test_bad_imu_input_is_dropped_counted_and_reported(ros):
             ex.spin_once(timeout_sec=0.005)
         for k in range(1, 11):
             send(k)
-        send(11, (math.nan, 0.0, 0.0))        # NaN: dropped; the interval 10 → 12 is not integrated
+        send(11, (math.nan, 0.0, 0.0))    # NaN: dropped; the interval 10 → 12 is not integrated
         send(10)                               # duplicate stamp
         send(5)                                # out of order
         send(12, frame="camera")               # another frame: rejected (frame_mismatch reject)
         send(12)
         for k in range(13, 21):
             send(k)
-        assert spin_until(ex, lambda: sins.gyro_rates.check.received >= 22 and cal.gyro_rates.check.received >= 22, 5.0)
+        assert spin_until(ex, lambda: sins.gyro_rates.check.received >= 22
+                          and cal.gyro_rates.check.received >= 22, 5.0)
         for node in (sins, cal):
             r = node.gyro_rates
-            assert (r.check.nan, r.check.duplicate, r.check.out_of_order, r.check.accepted) == (1, 1, 1, 19)
+            c = r.check
+            assert (c.nan, c.duplicate, c.out_of_order, c.accepted) == (1, 1, 1, 19)
             assert (r.integrator.formed, r.integrator.skipped) == (17, 1)
             # the increments: 9 before the NaN, 8 after; the two over (0.10, 0.12] missing
-            assert (node.gyro_check.accepted, node.gyro_check.gaps, node.gyro_check.missing) == (17, 1, 2)
-        assert sins.integrator.updates == 17 and sins.frame_mismatch["gyro"] == 1 and cal.gyro_frame_mismatch == 1
+            g = node.gyro_check
+            assert (g.accepted, g.gaps, g.missing) == (17, 1, 2)
+        assert sins.integrator.updates == 17
+        assert sins.frame_mismatch["gyro"] == 1 and cal.gyro_frame_mismatch == 1
         # the node goes on: 1 rad/s for 0.1 s more after the bad messages
         for k in range(21, 31):
             send(k, (1.0, 0.0, 0.0))
-        assert spin_until(ex, lambda: sins.integrator.updates == 27 and cal.gyro_rates.check.received == 32, 5.0)
+        assert spin_until(ex, lambda: sins.integrator.updates == 27
+                          and cal.gyro_rates.check.received == 32, 5.0)
         sins.publish_diagnostics()
         cal.publish_diagnostics()
         assert spin_until(ex, lambda: _status(diags, f"{ns}/sins_node")[0] is not None
@@ -257,9 +270,70 @@ def test_bad_imu_input_is_dropped_counted_and_reported(ros):
         for name in ("sins_node", "calibrator_node"):
             st, kv = _status(diags, f"{ns}/{name}")
             assert st.level == b"\x02", (name, st.message)          # ERROR: rotation lost in a gap
-            assert (kv["imu_gyro_dropped_nan"], kv["imu_gyro_dropped_duplicate"],
-                    kv["imu_gyro_dropped_out_of_order"], kv["imu_gyro_dropped"]) == ("1", "1", "1", "3"), name
-            assert (kv["imu_gyro_increments_formed"], kv["imu_gyro_increments_skipped"]) == ("27", "1"), name
+            dropped = [kv[f"imu_gyro_dropped{k}"]
+                       for k in ("_nan", "_duplicate", "_out_of_order", "")]
+            assert dropped == ["1", "1", "1", "3"], name
+            formed = kv["imu_gyro_increments_formed"], kv["imu_gyro_increments_skipped"]
+            assert formed == ("27", "1"), name
             assert kv["gyro_missing_samples"] == "2", name
     finally:
         _close(ex, nodes)
+
+
+def test_calibrator_on_imu_rates_recovers_the_boresight(ros):
+    """calibration graph (test_calibration_nodes.py) with the calibrator on imu/data_raw (mean
+    rule: imu_sim_node publishes Δθ/T): the injected boresight within 3σ of the published one."""
+    from test_calibration_nodes import ARCSEC, BETA, C_TRUE, MAX_TIME_SCALE, Graph, q_of, rot_cov
+    from strapdown_ros.rotation import dcm_to_quat, quat_to_dcm, quat_to_rotvec
+
+    class ImuGraph(Graph):
+        def run(self):
+            for n in (self.calib, self.mon):
+                self.ex.add_node(n)
+            assert spin_until(self.ex, lambda: self.sim.pub_raw.get_subscription_count() >= 1
+                              and self.cam.pub_cov.get_subscription_count() >= 1, 10.0), \
+                "discovery timed out"
+            self.ex.add_node(self.sim)
+            self.ex.add_node(self.cam)
+            timeout = 1.5 * self.sim.end_time / self.sim.p["time_scale"] + 5.0
+            t0 = time.monotonic()
+            assert spin_until(self.ex, lambda: self.sim.finished and self.cam.finished, timeout)
+            self.wall = time.monotonic() - t0
+            spin_until(self.ex, self.all_received, 5.0)
+            assert self.all_received(), (self.calib.gyro_rates.check.received,
+                                         self.sim.counts["data_raw"])
+
+        def all_received(self):
+            return (self.calib.gyro_rates.check.received == self.sim.counts["data_raw"] > 0
+                    and self.calib.camera_check.received == self.cam.published)
+
+    g = ImuGraph("/t_imu_calib", {"profile": "bench", "bench_earth_rate": True},
+                 time_scale=min(40.0, MAX_TIME_SCALE),
+                 camera=[Parameter("camera_interval", value=5.0)], calibrator=IMU_MEAN)
+    try:
+        g.run()
+        cal = g.calib
+        assert cal.published["boresight"] >= 1, cal.cal.solution.message
+        sol = cal.valid
+        e = quat_to_rotvec(dcm_to_quat(quat_to_dcm(sol.q_mf_vf) @ C_TRUE.T))
+        sig = np.sqrt(np.diag(sol.rotation_covariance_mf))
+        assert np.all(np.abs(e) <= 3 * sig), (e, sig)
+        assert np.all(sig < 60 * ARCSEC)
+        got = g.late_subscriber("calibration/boresight", PoseWithCovarianceStamped, 5.0)
+        assert got
+        np.testing.assert_allclose(quat_to_dcm(q_of(got[-1])), quat_to_dcm(sol.q_mf_vf),
+                                   atol=1e-12)
+        np.testing.assert_allclose(rot_cov(got[-1]), sol.rotation_covariance_mf, rtol=1e-12)
+        r = cal.gyro_rates
+        n = g.sim.counts["data_raw"]
+        assert (r.check.accepted, r.check.dropped) == (n, 0)
+        assert (r.integrator.formed, r.integrator.skipped) == (n - 1, 0)
+        assert cal.gyro_check.accepted == n - 1 and cal.gyro_check.missing == 0
+        st, kv = g.diagnostics()
+        assert st.level == b"\x00", st.message
+        assert kv["gyro_input"] == "imu" and int(kv["imu_gyro_increments_formed"]) == n - 1
+        assert np.all(np.abs(np.asarray(sol.beta) - BETA) < 60 * ARCSEC)
+        print(f"\nimu-fed calibrator: {g.wall:.1f} s wall; error "
+              f"{np.round(e / ARCSEC, 2)}″, σ {np.round(sig / ARCSEC, 2)}″")
+    finally:
+        g.close()

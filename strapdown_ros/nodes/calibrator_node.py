@@ -126,14 +126,15 @@ class CalibratorNode(Node):
                                                  camera_qos(int(p["qos_depth"])), qos_overriding_options=ros_io.QOS_OVERRIDES)
         self.pub_diag = self.create_publisher(DiagnosticArray, "/diagnostics", ros_io.DIAGNOSTICS_QOS)
         self.imu_input = p["gyro_input"] == "imu"
-        if self.imu_input:                             # rate samples made into Δθ (the rule of sins_node)
-            self.gyro_rates = RateIncrementStream(self.gyro_period, float(p["gyro_max_rate"]), p["imu_rate_rule"],
-                                                  jump, resync)
-            self.create_subscription(Imu, "imu/data_raw", self._on_imu_raw,   # raw: decoded in ros_io
+        # raw subscriptions: stamp, vector and frame decoded from the bytes in ros_io
+        if self.imu_input:                  # rate samples made into Δθ (the rule of sins_node)
+            self.gyro_rates = RateIncrementStream(self.gyro_period, float(p["gyro_max_rate"]),
+                                                  p["imu_rate_rule"], jump, resync)
+            self.create_subscription(Imu, "imu/data_raw", self._on_imu_raw,
                                      ros_io.stream_qos(int(p["qos_depth"])),
                                      qos_overriding_options=ros_io.QOS_OVERRIDES, raw=True)
         else:
-            self.create_subscription(Vector3Stamped, "imu/delta_theta", self._on_gyro_raw,   # raw: decoded in ros_io
+            self.create_subscription(Vector3Stamped, "imu/delta_theta", self._on_gyro_raw,
                                      ros_io.stream_qos(int(p["qos_depth"])),
                                      qos_overriding_options=ros_io.QOS_OVERRIDES, raw=True)
         if self.use_cov:
@@ -147,9 +148,11 @@ class CalibratorNode(Node):
         if p["state_file"]:
             self._restore_state()
         camera_topic = "star_camera/attitude_with_covariance" if self.use_cov else "star_camera/attitude"
+        gyro_topic = (f"imu/data_raw ({p['imu_rate_rule']})" if self.imu_input
+                      else "imu/delta_theta")
         self.get_logger().info(
-            f"started: gyro input {'imu/data_raw (' + p['imu_rate_rule'] + ')' if self.imu_input else 'imu/delta_theta'}"
-            f", camera input {camera_topic}, weighted={p['weighted']}, covariance_model={p['covariance_model']}, "
+            f"started: gyro input {gyro_topic}, camera input {camera_topic}, "
+            f"weighted={p['weighted']}, covariance_model={p['covariance_model']}, "
             f"min_rotation {p['min_rotation_deg']:g}°, max_sigma {p['max_sigma']:g} rad, max_pairs {p['max_pairs']}")
 
     # --- parameters ---------------------------------------------------------------------
@@ -474,9 +477,10 @@ class CalibratorNode(Node):
                            **self.gyro_rates.status("imu_gyro")})
             if r.dropped and level == ros_io.OK:
                 level = ros_io.WARN
-                message = (f"{message}; dropped {r.dropped} angular-rate samples of imu/data_raw (NaN {r.nan}, "
-                           f"out of range {r.out_of_range}, out of order {r.out_of_order}, duplicate {r.duplicate}, "
-                           f"stamp outliers {r.stamp_outliers})")
+                message = (f"{message}; dropped {r.dropped} angular-rate samples of imu/data_raw "
+                           f"(NaN {r.nan}, out of range {r.out_of_range}, out of order "
+                           f"{r.out_of_order}, duplicate {r.duplicate}, stamp outliers "
+                           f"{r.stamp_outliers})")
         c_drop = c.dropped + self.camera_counts["dropped_zero_quaternion"] + self.camera_counts["dropped_bad_covariance"]
         if level == ros_io.OK and (g_drop or c_drop):
             level = ros_io.WARN

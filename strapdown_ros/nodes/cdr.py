@@ -42,7 +42,10 @@ _IMU_ACCEL = 25                 # linear_acceleration.x
 _IMU_ACCEL_COV = 28             # linear_acceleration_covariance[0]
 
 
-def imu(data) -> tuple[int, tuple[float, float, float], tuple[float, float, float] | None, str] | None:
+_XYZ_T = tuple[float, float, float]
+
+
+def imu(data) -> tuple[int, _XYZ_T, _XYZ_T | None, str] | None:
     """``(stamp_ns, angular_velocity, linear_acceleration, frame_id)`` from the bytes (any buffer)
     of a sensor_msgs/Imu in plain little-endian CDR; ``linear_acceleration`` is None when the
     message says it has none (REP-145: linear_acceleration_covariance[0] = −1).  None for any other

@@ -3,13 +3,15 @@
 Subscribes (stream QoS):
 * ``imu/delta_theta``     geometry_msgs/Vector3Stamped, rad, stamp = end of interval
 * ``imu/delta_velocity``  geometry_msgs/Vector3Stamped, m/s (optional)
-* ``imu/data_raw``        sensor_msgs/Imu instead of both, with ``gyro_input: imu``: each message's
-                          angular_velocity (and linear_acceleration, unless its covariance[0] is
-                          −1) is validated as a rate sample and made into Δθ (Δv) by
-                          ``imu_rate_rule`` (:class:`strapdown_ros.rate_increments.RateIncrementStream`);
-                          the increments then take the path of imu/delta_theta (delta_velocity).
+* ``imu/data_raw``        sensor_msgs/Imu instead of both, with ``gyro_input: imu``: each
+                          message's angular_velocity (and linear_acceleration, unless its
+                          covariance[0] is −1) is validated as a rate sample and made into Δθ
+                          (Δv) by ``imu_rate_rule``
+                          (:class:`strapdown_ros.rate_increments.RateIncrementStream`); the
+                          increments then take the path of imu/delta_theta (delta_velocity).
                           Its covariance fields are not used (the model's gyro_random_walk is);
-                          the Δv stream has the Imu's rate (``gyro_rate`` stands for ``accel_rate``)
+                          the Δv stream has the Imu's rate (``gyro_rate`` stands for
+                          ``accel_rate``)
 
 Publishes at every update of the algorithm (gyro rate / samples per update):
 * ``sins/attitude``  geometry_msgs/QuaternionStamped, q_ref_body (frame_id = reference frame)
@@ -74,7 +76,8 @@ class SinsNode(Node):
         # with Imu input, Δv comes from the same messages: at the Imu rate, which is gyro_rate
         sys_p = dict(p, accel_rate=p["gyro_rate"]) if self.imu_input else p
         # the numerical core; sins/imu records are made only while it has a subscriber (asked once per block)
-        self.system = SinsSystem(sys_p, log=self._log, imu_wanted=lambda: self.pub_imu.get_subscription_count() > 0)
+        self.system = SinsSystem(sys_p, log=self._log,
+                                 imu_wanted=lambda: self.pub_imu.get_subscription_count() > 0)
         self._make_output_messages()
         qos = ros_io.stream_qos(int(p["qos_depth"]))
         self.pub_att = self.create_publisher(QuaternionStamped, "sins/attitude", qos, qos_overriding_options=ros_io.QOS_OVERRIDES)
@@ -88,10 +91,11 @@ class SinsNode(Node):
         if self.imu_input:
             period = 1.0 / float(p["gyro_rate"])
             jump, resync = float(p["max_stamp_jump"]), int(p["resync_count"])
-            self.gyro_rates = RateIncrementStream(period, float(p["gyro_max_rate"]), p["imu_rate_rule"],
-                                                  jump, resync)
-            self.accel_rates = RateIncrementStream(period, float(p["accel_max"]), p["imu_rate_rule"],
-                                                   jump, resync)
+            rule = p["imu_rate_rule"]
+            self.gyro_rates = RateIncrementStream(period, float(p["gyro_max_rate"]), rule, jump,
+                                                  resync)
+            self.accel_rates = RateIncrementStream(period, float(p["accel_max"]), rule, jump,
+                                                   resync)
             self.create_subscription(Imu, "imu/data_raw", self._on_imu_raw, qos,
                                      qos_overriding_options=ros_io.QOS_OVERRIDES, raw=True)
         else:
@@ -213,7 +217,8 @@ class SinsNode(Node):
         """The same for a message object (tests, tools)."""
         w, a = msg.angular_velocity, msg.linear_acceleration
         accel = None if msg.linear_acceleration_covariance[0] == -1.0 else (a.x, a.y, a.z)
-        self._imu(ros_io.stamp_to_ns(msg.header.stamp), (w.x, w.y, w.z), accel, msg.header.frame_id)
+        self._imu(ros_io.stamp_to_ns(msg.header.stamp), (w.x, w.y, w.z), accel,
+                  msg.header.frame_id)
 
     def _imu(self, stamp_ns: int, rate, accel, frame_id: str):
         """One Imu message: the frame rule, then each rate through its RateIncrementStream
@@ -324,10 +329,11 @@ class SinsNode(Node):
         if self.imu_input and (self.gyro_rates.check.dropped or self.accel_rates.check.dropped):
             gr, ar = self.gyro_rates.check, self.accel_rates.check
             level, message = ros_io.WARN, (
-                f"dropped {gr.dropped} angular-rate and {ar.dropped} acceleration samples of imu/data_raw (NaN "
-                f"{gr.nan + ar.nan}, out of range {gr.out_of_range + ar.out_of_range}, out of order "
-                f"{gr.out_of_order + ar.out_of_order}, duplicate {gr.duplicate + ar.duplicate}, stamp outliers "
-                f"{gr.stamp_outliers + ar.stamp_outliers})")
+                f"dropped {gr.dropped} angular-rate and {ar.dropped} acceleration samples of "
+                f"imu/data_raw (NaN {gr.nan + ar.nan}, out of range "
+                f"{gr.out_of_range + ar.out_of_range}, out of order "
+                f"{gr.out_of_order + ar.out_of_order}, duplicate {gr.duplicate + ar.duplicate}, "
+                f"stamp outliers {gr.stamp_outliers + ar.stamp_outliers})")
         if any(self.frame_mismatch.values()):
             level, message = ros_io.WARN, (f"messages in another frame than {self.frame_id!r}: gyro "
                                            f"{self.frame_mismatch['gyro']}, accelerometer {self.frame_mismatch['accel']} "
@@ -350,7 +356,8 @@ class SinsNode(Node):
                        "algorithm_changes": self.algorithm_changes})
         if self.imu_input:
             values.update({"gyro_input": "imu", "imu_rate_rule": self.p["imu_rate_rule"],
-                           **self.gyro_rates.status("imu_gyro"), **self.accel_rates.status("imu_accel")})
+                           **self.gyro_rates.status("imu_gyro"),
+                           **self.accel_rates.status("imu_accel")})
         if self.nav is not None:
             values["odometry_published"] = self.published["odometry"]
             if self.nav.alignment is not None and not self.nav.alignment.ok and self.nav.navigator is None:
