@@ -176,8 +176,10 @@ IMU_SIM_PARAMS = PROFILE_PARAMS + GYRO_PARAMS + ACCEL_PARAMS + COMMON_PARAMS + [
     ParamSpec("duration", 0.0, "simulated seconds to publish (0: the profile length, or forever)", 0.0),
     ParamSpec("start_time", 0.0, "header stamp of profile time 0, s", 0.0),
     ParamSpec("publish_period", 0.005, "wall period of the publishing timer, s", 0.0, 1.0, exclusive_minimum=True),
-    ParamSpec("wait_for_subscribers", 0, "the simulated clock starts once imu/delta_theta has this many "
-              "subscribers (0: at start-up), so that separately started consumers lose nothing", 0, 1000),
+    ParamSpec("wait_for_subscribers", 0,
+              "the simulated clock starts once imu/delta_theta and imu/data_raw have this many "
+              "subscribers in all (0: at start-up), so that separately started consumers lose "
+              "nothing", 0, 1000),
 ]
 
 #: input validation of the consuming nodes (strapdown_ros/streams.py)

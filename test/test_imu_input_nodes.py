@@ -337,3 +337,76 @@ def test_calibrator_on_imu_rates_recovers_the_boresight(ros):
               f"{np.round(e / ARCSEC, 2)}″, σ {np.round(sig / ARCSEC, 2)}″")
     finally:
         g.close()
+
+
+@pytest.mark.parametrize("profile, tol_pos, tol_vel", [("static", 1e-6, 1e-6),
+                                                       ("coordinated_turn", 2e-3, 2e-3)])
+def test_navigation_from_imu_messages_matches_the_exact_truth(ros, profile, tol_pos, tol_vel):
+    """sins_node with navigation on imu/data_raw alone (Δθ and Δv from the same messages, mean
+    rule), started from the truth at the first Imu stamp: sins/odometry within the bounds of the
+    Δθ/Δv-fed node (test_navigation_nodes.py), against imu/truth/odometry."""
+    from nav_msgs.msg import Odometry
+
+    from strapdown_ros.navigation import gravity as G
+    from strapdown_ros.navigation.trajectories import navigation_profile_from_config
+
+    ns, duration, t0 = f"/t_imu_nav_{profile}", 3.0, np.array([0.01])
+    prof = navigation_profile_from_config({"profile": profile})
+    r0, v0 = prof.position(t0)[0], prof.velocity(t0)[0]
+    lat, lon, h = G.ecef_to_geodetic(r0)
+    enu = G.enu_rotation(lat, lon)
+    sim = ImuSimNode(namespace=ns, parameter_overrides=[
+        Parameter("profile", value=profile), Parameter("time_scale", value=5.0),
+        Parameter("duration", value=duration), Parameter("qos_depth", value=QUEUE),
+        Parameter("wait_for_subscribers", value=1), *IDEAL])
+    q0 = to_ros_xyzw(prof.attitude_ecef(t0)[0])
+    sins = SinsNode(namespace=ns, parameter_overrides=[
+        *IMU_MEAN, Parameter("navigation", value=True),
+        Parameter("coning_algorithm", value="one_plus_previous"),
+        Parameter("initial_position",
+                  value=[float(np.degrees(lat)), float(np.degrees(lon)), float(h)]),
+        Parameter("initial_velocity", value=[float(x) for x in enu.T @ v0]),
+        Parameter("initial_orientation", value=[float(x) for x in q0]),
+        Parameter("qos_depth", value=QUEUE), *IDEAL])
+    mon = rclpy.create_node("monitor", namespace=ns)
+    got = {"sins": [], "truth": []}
+    mon.create_subscription(Odometry, "sins/odometry", got["sins"].append, stream_qos(QUEUE))
+    mon.create_subscription(Odometry, "imu/truth/odometry", got["truth"].append, stream_qos(QUEUE))
+    ex = GraphExecutor()
+    nodes = (sim, sins, mon)
+    for n in nodes:
+        ex.add_node(n)
+    try:
+        assert spin_until(ex, lambda: mon.count_publishers(f"{ns}/sins/odometry") == 1
+                          and sim.pub_odom.get_subscription_count() >= 1, 10.0)
+        sim._wall_start = None       # the clock started on sins_node's imu/data_raw subscription
+        n_expected = int(round(duration * 100)) - 3
+        assert spin_until(ex, lambda: sim.finished and len(got["sins"]) >= n_expected
+                          and len(got["truth"]) >= n_expected, 60.0), \
+            {k: len(v) for k, v in got.items()}
+        truth = {stamp_to_ns(m.header.stamp): m for m in got["truth"]}
+        pairs = [(m, truth[stamp_to_ns(m.header.stamp)]) for m in got["sins"]
+                 if stamp_to_ns(m.header.stamp) in truth]
+        assert len(pairs) > 0.9 * len(got["sins"])
+
+        def pos(m):
+            p = m.pose.pose.position
+            return np.array([p.x, p.y, p.z])
+
+        def vel(m):
+            v = m.twist.twist.linear
+            return np.array([v.x, v.y, v.z])
+
+        def att(m):
+            o = m.pose.pose.orientation
+            return np.array([o.w, o.x, o.y, o.z])
+        dp = max(np.linalg.norm(pos(s) - pos(t)) for s, t in pairs)
+        dv = max(np.linalg.norm(vel(s) - vel(t)) for s, t in pairs)
+        da = max(quat_angle_between(att(s), att(t)) for s, t in pairs)
+        assert dp < tol_pos and dv < tol_vel and da < 1e-8, (dp, dv, da)
+        assert sins.accel_rates.integrator.formed == sins.gyro_rates.integrator.formed > 0
+        assert sins.accel_check.missing == 0 and sins.gyro_check.missing == 0
+        print(f"\n{profile} from imu/data_raw: position {dp:.3g} m, velocity {dv:.3g} m/s, "
+              f"attitude {da:.3g} rad")
+    finally:
+        _close(ex, nodes)
