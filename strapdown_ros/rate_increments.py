@@ -158,17 +158,21 @@ class RateIncrementStream:
         self.check = StreamCheck(nominal_period, max_norm=max_rate, jump_limit=jump_limit,
                                  resync_count=resync_count)
         self.integrator = RateIntegrator(rule, max_step_s=1.5 * nominal_period)
+        self._offer, self._push = self.check.offer, self.integrator.push     # the hot path
 
     def push(self, stamp_ns: int, rate) -> list:
         """One rate sample in (stamp in integer ns, rate in body axes); the increments it
         completes out, in order: ``[(stamp_ns, (x, y, z))]``, usually one, none for a dropped
         or first sample, several when a resynchronisation releases held samples."""
-        got = self.check.offer(stamp_ns, rate)
+        got = self._offer(stamp_ns, rate)
         if not got:
-            return []
+            return got
+        push = self._push
+        if len(got) == 1 and not self.check.resynced:    # the usual case: one sample, one increment
+            inc = push(*got[0])
+            return [inc] if inc is not None else []
         if self.check.resynced:
             self.integrator.reset()
-        push = self.integrator.push
         out = []
         for s, w in got:
             inc = push(s, w)
