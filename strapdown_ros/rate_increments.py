@@ -168,7 +168,7 @@ class RateIncrementStream:
         if not got:
             return got
         push = self._push
-        if len(got) == 1 and not self.check.resynced:    # the usual case: one sample, one increment
+        if len(got) == 1 and not self.check.resynced:      # the usual case: one in, one out
             inc = push(*got[0])
             return [inc] if inc is not None else []
         if self.check.resynced:

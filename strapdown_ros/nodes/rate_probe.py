@@ -224,7 +224,8 @@ def callback_cost(algorithm: str, n: int = 20000, subscribed: bool = False,
     """µs per Δθ message of sins_node called directly (1 kHz stamps, no accelerometer).
 
     ``gyro_input`` ``imu``: per sensor_msgs/Imu message on imu/data_raw instead (rate and
-    specific force, made into Δθ and Δv by the trapezoid rule), through the node's raw Imu callback.
+    specific force, made into Δθ and Δv by the trapezoid rule), through the node's raw Imu
+    callback.
 
     ``subscribed``: a second node subscribes to ``sins/imu`` and ``sins/attitude`` (it is never
     spun; the messages are serialised and written to DDS all the same), so every update is
@@ -254,10 +255,12 @@ def callback_cost(algorithm: str, n: int = 20000, subscribed: bool = False,
             listener.destroy_node()
             raise RuntimeError("the in-process subscriber of sins/imu and sins/attitude was not discovered in 10 s")
     if gyro_input == "imu":
-        msgs = _serialized_imu(n, lambda k: (0.1 * math.sin(k * 1e-3), 0.1 * math.cos(k * 1e-3), 0.02))
+        msgs = _serialized_imu(n, lambda k: (0.1 * math.sin(k * 1e-3), 0.1 * math.cos(k * 1e-3),
+                                             0.02))
         callback = node._on_imu_raw
     else:
-        msgs = _serialized(n, lambda k: (1e-4 * math.sin(k * 1e-3), 1e-4 * math.cos(k * 1e-3), 2e-5))
+        msgs = _serialized(n, lambda k: (1e-4 * math.sin(k * 1e-3), 1e-4 * math.cos(k * 1e-3),
+                                         2e-5))
         callback = node._on_gyro_raw
     spent = [0.0]
     real = node.process
@@ -270,7 +273,7 @@ def callback_cost(algorithm: str, n: int = 20000, subscribed: bool = False,
     try:
         t0 = time.perf_counter()
         for m in msgs:
-            callback(m)                             # the subscription's callback, as the executor calls it
+            callback(m)                     # the subscription's callback, as the executor calls it
         node.process()
         total = time.perf_counter() - t0
         return {"amortised_us": total / n * 1e6, "hot_path_us": (total - spent[0]) / n * 1e6,
