@@ -138,9 +138,9 @@ def main(argv=None) -> int:
                          "subscribes to the outputs, so none are built; in the last a second node subscribes to "
                          "sins/imu and sins/attitude and every update is published (an Imu and a "
                          "QuaternionStamped per update).  *_imu: per sensor_msgs/Imu message on "
-                         "imu/data_raw (gyro_input imu; sins_node makes its rate and specific force "
-                         "into a Δθ and a Δv, the work of two increment messages; the target is for "
-                         "Δθ messages).")
+                         "imu/data_raw (gyro_input imu; sins_node makes its rate and specific "
+                         "force into a Δθ and a Δv, the work of two increment messages; the "
+                         "target is for Δθ messages).")
         if not args.no_rate:
             reps = []
             for k in range(args.repeats):
