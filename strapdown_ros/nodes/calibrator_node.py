@@ -130,6 +130,7 @@ class CalibratorNode(Node):
         if self.imu_input:                  # rate samples made into Δθ (the rule of sins_node)
             self.gyro_rates = RateIncrementStream(self.gyro_period, float(p["gyro_max_rate"]),
                                                   p["imu_rate_rule"], jump, resync)
+            self.last_imu = None                       # the latest Imu (bytes or message)
             self.create_subscription(Imu, "imu/data_raw", self._on_imu_raw,
                                      ros_io.stream_qos(int(p["qos_depth"])),
                                      qos_overriding_options=ros_io.QOS_OVERRIDES, raw=True)
@@ -203,11 +204,13 @@ class CalibratorNode(Node):
         if got is None:
             self.undecodable += 1
             return
+        self.last_imu = data                   # its stated covariance: read for /diagnostics
         self._imu(got[0], got[1], got[3])
 
     def _on_imu(self, msg: Imu):
         """The same for a message object (tests, tools)."""
         w = msg.angular_velocity
+        self.last_imu = msg
         self._imu(ros_io.stamp_to_ns(msg.header.stamp), (w.x, w.y, w.z), msg.header.frame_id)
 
     def _imu(self, ns: int, rate, f: str):
@@ -474,6 +477,9 @@ class CalibratorNode(Node):
         if self.imu_input:
             r = self.gyro_rates.check
             values.update({"gyro_input": "imu", "imu_rate_rule": self.p["imu_rate_rule"],
+                           "imu_stated_rate_variance": ros_io.stated_rate_variance(self.last_imu),
+                           "model_rate_variance": float(self.p["gyro_random_walk"]) ** 2
+                           / self.gyro_period,
                            **self.gyro_rates.status("imu_gyro")})
             if r.dropped and level == ros_io.OK:
                 level = ros_io.WARN

@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import struct
 
-__all__ = ["vector3_stamped", "imu"]
+__all__ = ["vector3_stamped", "imu", "imu_rate_covariance"]
 
 _STAMP_AND_LENGTH = struct.Struct("<iII")     # header.stamp.sec, .nanosec, length of frame_id (with its NUL)
 _XYZ = struct.Struct("<3d")
@@ -38,6 +38,7 @@ def vector3_stamped(data) -> tuple[int, tuple[float, float, float], str] | None:
 
 _IMU_DOUBLES = 37
 _IMU_RATE = 13                  # index of angular_velocity.x among the 37 float64
+_IMU_RATE_COV = 16              # angular_velocity_covariance[0]
 _IMU_ACCEL = 25                 # linear_acceleration.x
 _IMU_ACCEL_COV = 28             # linear_acceleration_covariance[0]
 
@@ -61,4 +62,18 @@ def imu(data) -> tuple[int, _XYZ_T, _XYZ_T | None, str] | None:
             if _F64.unpack_from(data, off + 8 * _IMU_ACCEL_COV)[0] != -1.0:
                 accel = _XYZ.unpack_from(data, off + 8 * _IMU_ACCEL)
             return sec * 1_000_000_000 + nanosec, rate, accel, frame
+    return None
+
+
+_COV = struct.Struct("<9d")
+
+
+def imu_rate_covariance(data) -> tuple | None:
+    """angular_velocity_covariance (9 float64, row-major, (rad/s)²) from the bytes of a
+    sensor_msgs/Imu in plain little-endian CDR; None for any other encoding or short bytes."""
+    if len(data) >= 16 and data[0] == 0 and data[1] == 1:
+        n = _STAMP_AND_LENGTH.unpack_from(data, 4)[2]
+        off = 4 + ((16 + n - 4 + 7) & ~7)
+        if off + 8 * _IMU_DOUBLES <= len(data):
+            return _COV.unpack_from(data, off + 8 * _IMU_RATE_COV)
     return None

@@ -85,6 +85,32 @@ def decode_imu(data: bytes):
     return stamp_to_ns(m.header.stamp), (w.x, w.y, w.z), accel, m.header.frame_id
 
 
+def stated_rate_variance(last_imu) -> str:
+    """What the latest Imu says of its rate noise, for /diagnostics (the nodes do not use it:
+    their covariance comes from the model's gyro_random_walk): the diagonal of
+    angular_velocity_covariance, (rad/s)², as text; ``unknown`` when it is all zero (the ROS
+    convention), ``not provided`` when element 0 is −1, ``none received`` before any Imu.
+    ``last_imu``: the serialized bytes of the raw subscription, or a message object."""
+    if last_imu is None:
+        return "none received"
+    if isinstance(last_imu, (bytes, bytearray, memoryview)):
+        cov = cdr.imu_rate_covariance(last_imu)
+        if cov is None:
+            from rclpy.serialization import deserialize_message
+            from sensor_msgs.msg import Imu
+            try:
+                cov = tuple(deserialize_message(last_imu, Imu).angular_velocity_covariance)
+            except Exception:                          # noqa: BLE001 - malformed bytes
+                return "undecodable"
+    else:
+        cov = tuple(last_imu.angular_velocity_covariance)
+    if cov[0] == -1.0:
+        return "not provided"
+    if not any(cov):
+        return "unknown"
+    return ", ".join(f"{cov[k]:.6g}" for k in (0, 4, 8))
+
+
 # --- camera and calibration messages ----------------------------------------------------
 UNKNOWN_POSITION_VARIANCE = 1e9
 

@@ -96,6 +96,7 @@ class SinsNode(Node):
                                                   resync)
             self.accel_rates = RateIncrementStream(period, float(p["accel_max"]), rule, jump,
                                                    resync)
+            self.last_imu = None                   # the latest Imu (bytes or message)
             self.create_subscription(Imu, "imu/data_raw", self._on_imu_raw, qos,
                                      qos_overriding_options=ros_io.QOS_OVERRIDES, raw=True)
         else:
@@ -211,12 +212,14 @@ class SinsNode(Node):
         if got is None:
             self.undecodable += 1
             return
+        self.last_imu = data                       # its stated covariance: read for /diagnostics
         self._imu(*got)
 
     def _on_imu(self, msg: Imu):
         """The same for a message object (tests, tools)."""
         w, a = msg.angular_velocity, msg.linear_acceleration
         accel = None if msg.linear_acceleration_covariance[0] == -1.0 else (a.x, a.y, a.z)
+        self.last_imu = msg
         self._imu(ros_io.stamp_to_ns(msg.header.stamp), (w.x, w.y, w.z), accel,
                   msg.header.frame_id)
 
@@ -356,6 +359,8 @@ class SinsNode(Node):
                        "algorithm_changes": self.algorithm_changes})
         if self.imu_input:
             values.update({"gyro_input": "imu", "imu_rate_rule": self.p["imu_rate_rule"],
+                           "imu_stated_rate_variance": ros_io.stated_rate_variance(self.last_imu),
+                           "model_rate_variance": self.system.rate_variance,
                            **self.gyro_rates.status("imu_gyro"),
                            **self.accel_rates.status("imu_accel")})
         if self.nav is not None:
