@@ -298,9 +298,12 @@ def test_calibrator_on_imu_rates_recovers_the_boresight(ros):
                 "discovery timed out"
             self.ex.add_node(self.sim)
             self.ex.add_node(self.cam)
-            timeout = 1.5 * self.sim.end_time / self.sim.p["time_scale"] + 5.0
+            # a bound, not the expected time: on a loaded machine the simulator building an Imu
+            # per sample falls behind its time scale (one run in six at load 9)
+            timeout = 3.0 * self.sim.end_time / self.sim.p["time_scale"] + 10.0
             t0 = time.monotonic()
-            assert spin_until(self.ex, lambda: self.sim.finished and self.cam.finished, timeout)
+            assert spin_until(self.ex, lambda: self.sim.finished and self.cam.finished, timeout), \
+                (self.sim.sim_time, self.cam.sim_time)
             self.wall = time.monotonic() - t0
             spin_until(self.ex, self.all_received, 5.0)
             assert self.all_received(), (self.calib.gyro_rates.check.received,
