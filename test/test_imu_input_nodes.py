@@ -298,8 +298,8 @@ def test_calibrator_on_imu_rates_recovers_the_boresight(ros):
                 "discovery timed out"
             self.ex.add_node(self.sim)
             self.ex.add_node(self.cam)
-            # a bound, not the expected time: on a loaded machine the simulator building an Imu
-            # per sample falls behind its time scale (one run in six at load 9)
+            # a bound, not the expected time: a loaded machine slows the simulator, which builds
+            # an Imu per sample
             timeout = 3.0 * self.sim.end_time / self.sim.p["time_scale"] + 10.0
             t0 = time.monotonic()
             assert spin_until(self.ex, lambda: self.sim.finished and self.cam.finished, timeout), \
