@@ -118,6 +118,16 @@ def test_the_raw_imu_decoder_reads_what_rclpy_serialized(frame, accel):
     assert ns == 1234_567_890_123 and fr == frame
     assert w[:2] == (0.25, -1.5) and math.isnan(w[2])
     assert f == ((9.5, -0.125, 1e300) if accel else None)
+    # the stated covariance, read only for /diagnostics
+    from strapdown_ros.nodes.cdr import imu_rate_covariance
+    from strapdown_ros.nodes.ros_io import stated_rate_variance
+    assert imu_rate_covariance(data) == tuple(float(k) for k in range(9))
+    assert stated_rate_variance(data) == stated_rate_variance(m) == "0, 4, 8"
+    m.angular_velocity_covariance = [0.0] * 9
+    assert stated_rate_variance(serialize_message(m)) == "unknown"
+    m.angular_velocity_covariance[0] = -1.0
+    assert stated_rate_variance(serialize_message(m)) == "not provided"
+    assert stated_rate_variance(None) == "none received"
     # big-endian CDR goes to rclpy's deserializer; bytes that are no Imu give None
     body = struct.pack(">iII", 12, 345, 1) + b"\x00" + b"\x00" * 3
     doubles = [0.0] * 13 + [1.0, 2.0, 3.0] + [0.0] * 9 + [4.0, 5.0, 6.0] + [0.0] * 9
