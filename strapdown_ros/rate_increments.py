@@ -29,6 +29,8 @@ it is unknown, the increment is not formed, and the increment stream downstream 
 its missing increments counted, exactly as for a Δθ stream with a dropout.  Samples must be
 validated first (finite, in range, in order: :class:`strapdown_ros.streams.StreamCheck`); after
 a stamp resynchronisation the integrator is restarted (:meth:`RateIntegrator.reset`).
+:class:`RateIncrementStream` is that whole input rule for one stream (validation, integration,
+counters), as ``sins_node`` and ``calibrator_node`` use it with ``gyro_input: imu``.
 
 No ROS imports.
 """
