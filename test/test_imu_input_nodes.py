@@ -425,3 +425,23 @@ def test_navigation_from_imu_messages_matches_the_exact_truth(ros, profile, tol_
               f"attitude {da:.3g} rad")
     finally:
         _close(ex, nodes)
+
+
+@pytest.mark.parametrize("node_class", [SinsNode, CalibratorNode])
+def test_gyro_input_parameters_are_validated_and_fixed_at_runtime(ros, node_class):
+    from strapdown_ros.nodes.ros_io import InvalidParameter
+    for name, bad, valid in (("gyro_input", "rates", "delta_theta, imu"),
+                             ("imu_rate_rule", "simpson", "trapezoid, mean")):
+        with pytest.raises(InvalidParameter, match=valid):
+            node_class(namespace="/t_imu_params", parameter_overrides=[Parameter(name, value=bad)])
+    node = node_class(namespace="/t_imu_params", parameter_overrides=[
+        Parameter("gyro_input", value="imu")])
+    try:
+        topics = dict(node.get_subscriber_names_and_types_by_node(node.get_name(), "/t_imu_params"))
+        assert topics.get("/t_imu_params/imu/data_raw") == ["sensor_msgs/msg/Imu"]
+        assert "/t_imu_params/imu/delta_theta" not in topics
+        assert "/t_imu_params/imu/delta_velocity" not in topics
+        res = node.set_parameters([Parameter("gyro_input", value="delta_theta")])[0]
+        assert not res.successful and "gyro_input" in res.reason
+    finally:
+        node.destroy_node()
