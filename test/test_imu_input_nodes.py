@@ -437,7 +437,8 @@ def test_gyro_input_parameters_are_validated_and_fixed_at_runtime(ros, node_clas
     node = node_class(namespace="/t_imu_params", parameter_overrides=[
         Parameter("gyro_input", value="imu")])
     try:
-        topics = dict(node.get_subscriber_names_and_types_by_node(node.get_name(), "/t_imu_params"))
+        topics = dict(node.get_subscriber_names_and_types_by_node(node.get_name(),
+                                                                  "/t_imu_params"))
         assert topics.get("/t_imu_params/imu/data_raw") == ["sensor_msgs/msg/Imu"]
         assert "/t_imu_params/imu/delta_theta" not in topics
         assert "/t_imu_params/imu/delta_velocity" not in topics
