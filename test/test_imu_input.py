@@ -136,3 +136,33 @@ def test_the_raw_imu_decoder_reads_what_rclpy_serialized(frame, accel):
                                                       (4.0, 5.0, 6.0), "")
     for junk in (b"\x00\x01\x00\x00" + b"\xff" * 12, b"\x07\x07", data[:60], b""):
         assert decode_imu(junk) is None
+
+
+def test_the_raw_imu_decoder_for_any_frame_length_and_values():
+    """Every padding of the float64 block (frame_id lengths 0..40, multi-byte characters) and any
+    values: the decoder returns exactly what rclpy serialized."""
+    hypothesis = pytest.importorskip("hypothesis")
+    pytest.importorskip("rclpy")
+    from hypothesis import strategies as st
+    from rclpy.serialization import serialize_message
+    from sensor_msgs.msg import Imu
+
+    from strapdown_ros.nodes.cdr import imu, imu_rate_covariance
+    f64 = st.floats(allow_nan=False, allow_infinity=True, width=64)
+
+    @hypothesis.settings(max_examples=200, deadline=None)
+    @hypothesis.given(sec=st.integers(-2 ** 31, 2 ** 31 - 1), nanosec=st.integers(0, 999_999_999),
+                      frame=st.text(max_size=40), w=st.tuples(f64, f64, f64),
+                      a=st.tuples(f64, f64, f64), cov=st.lists(f64, min_size=9, max_size=9))
+    def check(sec, nanosec, frame, w, a, cov):
+        frame = frame.replace("\x00", "")                  # a ROS string cannot hold NUL
+        m = Imu()
+        m.header.stamp.sec, m.header.stamp.nanosec, m.header.frame_id = sec, nanosec, frame
+        m.angular_velocity.x, m.angular_velocity.y, m.angular_velocity.z = w
+        m.linear_acceleration.x, m.linear_acceleration.y, m.linear_acceleration.z = a
+        m.angular_velocity_covariance = cov
+        data = serialize_message(m)
+        ns, w2, a2, f2 = imu(data)
+        assert (ns, w2, a2, f2) == (sec * 1_000_000_000 + nanosec, w, a, frame)
+        assert imu_rate_covariance(data) == tuple(cov)
+    check()
