@@ -150,7 +150,7 @@ def test_the_raw_imu_decoder_for_any_frame_length_and_values():
     from strapdown_ros.nodes.cdr import imu, imu_rate_covariance
     f64 = st.floats(allow_nan=False, allow_infinity=True, width=64)
 
-    @hypothesis.settings(max_examples=200, deadline=None)
+    @hypothesis.settings(max_examples=100, deadline=None)
     @hypothesis.given(sec=st.integers(-2 ** 31, 2 ** 31 - 1), nanosec=st.integers(0, 999_999_999),
                       frame=st.text(max_size=40), w=st.tuples(f64, f64, f64),
                       a=st.tuples(f64, f64, f64), cov=st.lists(f64, min_size=9, max_size=9))
