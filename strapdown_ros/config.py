@@ -16,6 +16,7 @@ from .coning import algorithm_names
 from .integrator import COVARIANCE_MODELS
 from .navigation.gravity import GRAVITY_MODELS
 from .profiles import PROFILE_NAMES
+from .rate_increments import RATE_RULES
 from .sensors import NAVIGATION_GRADE_ACCEL, NAVIGATION_GRADE_GYRO, SensorSigmas
 from .sensors.effects import effect_parameters
 
@@ -175,8 +176,10 @@ IMU_SIM_PARAMS = PROFILE_PARAMS + GYRO_PARAMS + ACCEL_PARAMS + COMMON_PARAMS + [
     ParamSpec("duration", 0.0, "simulated seconds to publish (0: the profile length, or forever)", 0.0),
     ParamSpec("start_time", 0.0, "header stamp of profile time 0, s", 0.0),
     ParamSpec("publish_period", 0.005, "wall period of the publishing timer, s", 0.0, 1.0, exclusive_minimum=True),
-    ParamSpec("wait_for_subscribers", 0, "the simulated clock starts once imu/delta_theta has this many "
-              "subscribers (0: at start-up), so that separately started consumers lose nothing", 0, 1000),
+    ParamSpec("wait_for_subscribers", 0,
+              "the simulated clock starts once imu/delta_theta and imu/data_raw have this many "
+              "subscribers in all (0: at start-up), so that separately started consumers lose "
+              "nothing", 0, 1000),
 ]
 
 #: input validation of the consuming nodes (strapdown_ros/streams.py)
@@ -189,12 +192,25 @@ INPUT_PARAMS = [
     ParamSpec("frame_mismatch", "reject", "a message whose header.frame_id is neither empty nor the expected frame: "
               "reject (counted, WARN) or accept (counted, WARN)", choices=("reject", "accept")),
 ]
+#: the gyro input of the consuming nodes: integrated increments, or sensor_msgs/Imu rate samples
+#: made into increments by strapdown_ros/rate_increments.py
+GYRO_INPUT_PARAMS = [
+    ParamSpec("gyro_input", "delta_theta",
+              "gyro input: delta_theta (imu/delta_theta increments) or imu (imu/data_raw "
+              "sensor_msgs/Imu rates made into increments by imu_rate_rule)",
+              choices=("delta_theta", "imu")),
+    ParamSpec("imu_rate_rule", "trapezoid",
+              "gyro_input imu: trapezoid (a sample is the rate at its stamp) or mean (the mean "
+              "rate over the interval ending at its stamp, as imu_sim_node's imu/data_raw)",
+              choices=RATE_RULES),
+]
 ACCEL_INPUT_PARAMS = [
     ParamSpec("accel_max", 500.0, "accelerometer range, m/s²: a Δv with a component beyond 2 periods at this "
               "is rejected as impossible", 0.0, 1e6, exclusive_minimum=True),
 ]
 
-SINS_PARAMS = GYRO_PARAMS + ACCEL_PARAMS + COMMON_PARAMS + INPUT_PARAMS + ACCEL_INPUT_PARAMS + [
+SINS_PARAMS = GYRO_PARAMS + ACCEL_PARAMS + COMMON_PARAMS + INPUT_PARAMS + ACCEL_INPUT_PARAMS + \
+    GYRO_INPUT_PARAMS + [
     ParamSpec("coning_algorithm", "2", "coning algorithm (doc/coning_derivations.md)", choices=tuple(algorithm_names())),
     ParamSpec("initial_orientation", [0.0, 0.0, 0.0, 1.0],
               "initial q_ref_body as ROS x, y, z, w (normalised if not unit)", length=4),
@@ -264,7 +280,7 @@ STAR_CAMERA_PARAMS = PROFILE_PARAMS + [
 STAR_CAMERA_PARAMS += _effect_specs("camera", STAR_CAMERA_PARAMS)
 
 
-CALIBRATOR_PARAMS = GYRO_PARAMS + INPUT_PARAMS + [
+CALIBRATOR_PARAMS = GYRO_PARAMS + INPUT_PARAMS + GYRO_INPUT_PARAMS + [
     ParamSpec("reference_frame_id", "gcrs", "inertial reference frame id of attitudes"),
     ParamSpec("frame_id", "imu_link", "IMU frame (MF) id"),
     ParamSpec("camera_frame_id", "star_camera", "camera frame (VF) id"),

@@ -29,6 +29,8 @@ it is unknown, the increment is not formed, and the increment stream downstream 
 its missing increments counted, exactly as for a Δθ stream with a dropout.  Samples must be
 validated first (finite, in range, in order: :class:`strapdown_ros.streams.StreamCheck`); after
 a stamp resynchronisation the integrator is restarted (:meth:`RateIntegrator.reset`).
+:class:`RateIncrementStream` is that whole input rule for one stream (validation, integration,
+counters), as ``sins_node`` and ``calibrator_node`` use it with ``gyro_input: imu``.
 
 No ROS imports.
 """
@@ -38,7 +40,9 @@ import math
 
 import numpy as np
 
-__all__ = ["RATE_RULES", "increments_from_rates", "RateIntegrator"]
+from .streams import StreamCheck
+
+__all__ = ["RATE_RULES", "increments_from_rates", "RateIntegrator", "RateIncrementStream"]
 
 #: the rules that make increments from rate samples (see the module docstring)
 RATE_RULES = ("trapezoid", "mean")
@@ -124,3 +128,66 @@ class RateIntegrator:
             return int(stamp_ns), (0.5 * (w_prev[0] + x) * dt, 0.5 * (w_prev[1] + y) * dt,
                                    0.5 * (w_prev[2] + z) * dt)
         return int(stamp_ns), (x * dt, y * dt, z * dt)
+
+
+class RateIncrementStream:
+    """The whole input rule of a rate stream, once for every node: validate, integrate, count.
+
+    Each rate sample goes through :class:`strapdown_ros.streams.StreamCheck` (non-finite,
+    per-axis range ``max_rate``, duplicate, out of order, stamp jump and resynchronisation, gap)
+    and each accepted sample through :class:`RateIntegrator` with ``max_step`` = 1.5 nominal
+    periods; after a confirmed resynchronisation the integrator restarts (the first sample of the
+    new timeline gives no increment).  The increments returned are what an integrating sensor
+    would publish; they enter the consumer's increment path unchanged, so an interval that could
+    not be integrated shows there as a gap with its missing increments counted.
+
+    Parameters
+    ----------
+    nominal_period : float
+        Nominal sample period, s (1 / rate).
+    max_rate : float
+        Sensor range per axis: rad/s for a gyro, m/s² for an accelerometer.
+    rule : {'trapezoid', 'mean'}
+        How a sample stands for the rate (module docstring).
+    jump_limit : float
+        Stamp step, s, beyond which a sample starts a candidate new timeline (StreamCheck).
+    resync_count : int
+        Consecutive samples that confirm a new timeline (StreamCheck).
+    """
+
+    def __init__(self, nominal_period: float, max_rate: float, rule: str = "trapezoid",
+                 jump_limit: float = 1.0, resync_count: int = 5):
+        self.check = StreamCheck(nominal_period, max_norm=max_rate, jump_limit=jump_limit,
+                                 resync_count=resync_count)
+        self.integrator = RateIntegrator(rule, max_step_s=1.5 * nominal_period)
+        self._offer, self._push = self.check.offer, self.integrator.push     # the hot path
+
+    def push(self, stamp_ns: int, rate) -> list:
+        """One rate sample in (stamp in integer ns, rate in body axes); the increments it
+        completes out, in order: ``[(stamp_ns, (x, y, z))]``, usually one, none for a dropped
+        or first sample, several when a resynchronisation releases held samples."""
+        got = self._offer(stamp_ns, rate)
+        if not got:
+            return got
+        push = self._push
+        if len(got) == 1 and not self.check.resynced:      # the usual case: one in, one out
+            inc = push(*got[0])
+            return [inc] if inc is not None else []
+        if self.check.resynced:
+            self.integrator.reset()
+        out = []
+        for s, w in got:
+            inc = push(s, w)
+            if inc is not None:
+                out.append(inc)
+        return out
+
+    def status(self, prefix: str) -> dict:
+        """Counters for /diagnostics: the StreamCheck counters of the rate samples
+        (``<prefix>_received``, ``_accepted``, ``_dropped_*``, …) and the increments formed and
+        skipped (an interval longer than 1.5 nominal periods, or the restart after a jump)."""
+        out = self.check.as_dict(prefix)
+        out[f"{prefix}_dropped"] = self.check.dropped
+        out[f"{prefix}_increments_formed"] = self.integrator.formed
+        out[f"{prefix}_increments_skipped"] = self.integrator.skipped
+        return out

@@ -257,6 +257,13 @@ class SinsSystem:
                   f"{'rejected' if self.reject_frames else 'used'}", throttle=10.0, key="frame_" + stream)
         return self.reject_frames
 
+    def frame_accepted(self, frame_id: str, stream: str = "gyro") -> bool:
+        """The frame rule alone, for input checked before it reaches :meth:`offer_gyro` (a
+        ``sensor_msgs/Imu`` rate sample, before it is made into increments): True when
+        ``frame_id`` is empty or ``frame_id``, or another frame counted under ``stream`` and
+        accepted (``frame_mismatch`` accept)."""
+        return frame_id in self._own_frames or not self._wrong_frame(frame_id, stream)
+
     def offer_gyro(self, stamp_ns: int, value, frame_id: str = "") -> bool:
         """One imu/delta_theta message (rad): validate and append.  True when a block is due."""
         if frame_id not in self._own_frames and self._wrong_frame(frame_id, "gyro"):

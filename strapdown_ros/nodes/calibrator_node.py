@@ -5,7 +5,11 @@ object ``calibrate_bag`` uses offline, so live and offline answers agree).
 
 Subscribes:
 
-* ``imu/delta_theta``  geometry_msgs/Vector3Stamped, rad, stamp = end of interval (stream QoS).
+* ``imu/delta_theta``  geometry_msgs/Vector3Stamped, rad, stamp = end of interval (stream QoS);
+  with ``gyro_input: imu`` instead ``imu/data_raw`` sensor_msgs/Imu (stream QoS): each
+  angular_velocity is validated as a rate sample and made into Δθ by ``imu_rate_rule``
+  (:class:`strapdown_ros.rate_increments.RateIncrementStream`, as ``sins_node``); the increments
+  take the path of imu/delta_theta.  Covariance fields and linear_acceleration are not used.
 * ``star_camera/attitude_with_covariance``  geometry_msgs/PoseWithCovarianceStamped (when
   ``use_camera_covariance``: P_avu = the rotation block, rows/cols 3..5, VF axes, rad²), or
   ``star_camera/attitude``  geometry_msgs/QuaternionStamped (otherwise: P_avu =
@@ -64,11 +68,13 @@ import numpy as np
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import PoseWithCovarianceStamped, QuaternionStamped, Vector3Stamped
 from rclpy.node import Node
+from sensor_msgs.msg import Imu
 
 from ..boresight import imu_attitude_from_camera
 from ..config import CALIBRATOR_PARAMS
 from ..streams import StreamCheck
 from ..calibrator import BoresightCalibrator, load_state, save_state
+from ..rate_increments import RateIncrementStream
 from . import ros_io
 from .ros_io import camera_qos, latched_qos, pose_with_covariance, rotation_block
 
@@ -119,9 +125,19 @@ class CalibratorNode(Node):
         self.pub_imu_att = self.create_publisher(PoseWithCovarianceStamped, "calibration/imu_attitude_from_camera",
                                                  camera_qos(int(p["qos_depth"])), qos_overriding_options=ros_io.QOS_OVERRIDES)
         self.pub_diag = self.create_publisher(DiagnosticArray, "/diagnostics", ros_io.DIAGNOSTICS_QOS)
-        self.create_subscription(Vector3Stamped, "imu/delta_theta", self._on_gyro_raw,   # raw: decoded in ros_io
-                                 ros_io.stream_qos(int(p["qos_depth"])), qos_overriding_options=ros_io.QOS_OVERRIDES,
-                                 raw=True)
+        self.imu_input = p["gyro_input"] == "imu"
+        # raw subscriptions: stamp, vector and frame decoded from the bytes in ros_io
+        if self.imu_input:                  # rate samples made into Δθ (the rule of sins_node)
+            self.gyro_rates = RateIncrementStream(self.gyro_period, float(p["gyro_max_rate"]),
+                                                  p["imu_rate_rule"], jump, resync)
+            self.last_imu = None                       # the latest Imu (bytes or message)
+            self.create_subscription(Imu, "imu/data_raw", self._on_imu_raw,
+                                     ros_io.stream_qos(int(p["qos_depth"])),
+                                     qos_overriding_options=ros_io.QOS_OVERRIDES, raw=True)
+        else:
+            self.create_subscription(Vector3Stamped, "imu/delta_theta", self._on_gyro_raw,
+                                     ros_io.stream_qos(int(p["qos_depth"])),
+                                     qos_overriding_options=ros_io.QOS_OVERRIDES, raw=True)
         if self.use_cov:
             self.create_subscription(PoseWithCovarianceStamped, "star_camera/attitude_with_covariance",
                                      self._on_camera_cov, camera_qos(int(p["qos_depth"])), qos_overriding_options=ros_io.QOS_OVERRIDES)
@@ -133,8 +149,11 @@ class CalibratorNode(Node):
         if p["state_file"]:
             self._restore_state()
         camera_topic = "star_camera/attitude_with_covariance" if self.use_cov else "star_camera/attitude"
+        gyro_topic = (f"imu/data_raw ({p['imu_rate_rule']})" if self.imu_input
+                      else "imu/delta_theta")
         self.get_logger().info(
-            f"started: camera input {camera_topic}, weighted={p['weighted']}, covariance_model={p['covariance_model']}, "
+            f"started: gyro input {gyro_topic}, camera input {camera_topic}, "
+            f"weighted={p['weighted']}, covariance_model={p['covariance_model']}, "
             f"min_rotation {p['min_rotation_deg']:g}°, max_sigma {p['max_sigma']:g} rad, max_pairs {p['max_pairs']}")
 
     # --- parameters ---------------------------------------------------------------------
@@ -178,13 +197,42 @@ class CalibratorNode(Node):
         v = msg.vector
         self._gyro(ros_io.stamp_to_ns(msg.header.stamp), (v.x, v.y, v.z), msg.header.frame_id)
 
-    def _gyro(self, ns: int, value, f: str):
+    def _on_imu_raw(self, data: bytes):
+        """The imu/data_raw subscription (``gyro_input: imu``): stamp, rate and frame read from the
+        serialized bytes, then :meth:`_imu`."""
+        got = ros_io.decode_imu(data)
+        if got is None:
+            self.undecodable += 1
+            return
+        self.last_imu = data                   # its stated covariance: read for /diagnostics
+        self._imu(got[0], got[1], got[3])
+
+    def _on_imu(self, msg: Imu):
+        """The same for a message object (tests, tools)."""
+        w = msg.angular_velocity
+        self.last_imu = msg
+        self._imu(ros_io.stamp_to_ns(msg.header.stamp), (w.x, w.y, w.z), msg.header.frame_id)
+
+    def _imu(self, ns: int, rate, f: str):
+        """One rate sample: the frame rule, then validation and the increment rule
+        (RateIncrementStream); each increment formed enters the Δθ path (:meth:`_gyro`)."""
+        if not self._gyro_frame_ok(f):
+            return
+        for ns_i, dth in self.gyro_rates.push(ns, rate):
+            self._gyro(ns_i, dth, "")
+
+    def _gyro_frame_ok(self, f: str) -> bool:
         if f and f != self.frame_id:                   # the frame rule of sins_node
             self.gyro_frame_mismatch += 1
             self.get_logger().warn(f"gyro increment in frame {f!r}, expected {self.frame_id!r}: "
                                    f"{'rejected' if self.reject_frames else 'used'}", throttle_duration_sec=10.0)
             if self.reject_frames:
-                return
+                return False
+        return True
+
+    def _gyro(self, ns: int, value, f: str):
+        if not self._gyro_frame_ok(f):
+            return
         g = self.gyro_check
         prev_ns = g.last_ns
         out = g.offer(ns, value)
@@ -426,6 +474,19 @@ class CalibratorNode(Node):
             message = (f"{message}; {self.cal.outlier_fixes} camera fix(es) dropped as outliers (both pairs off by more "
                        f"than {self.p['outlier_gate']:g} σ in rotation angle, the pair skipping it consistent)")
         g_drop = g.dropped
+        if self.imu_input:
+            r = self.gyro_rates.check
+            values.update({"gyro_input": "imu", "imu_rate_rule": self.p["imu_rate_rule"],
+                           "imu_stated_rate_variance": ros_io.stated_rate_variance(self.last_imu),
+                           "model_rate_variance": float(self.p["gyro_random_walk"]) ** 2
+                           / self.gyro_period,
+                           **self.gyro_rates.status("imu_gyro")})
+            if r.dropped and level == ros_io.OK:
+                level = ros_io.WARN
+                message = (f"{message}; dropped {r.dropped} angular-rate samples of imu/data_raw "
+                           f"(NaN {r.nan}, out of range {r.out_of_range}, out of order "
+                           f"{r.out_of_order}, duplicate {r.duplicate}, stamp outliers "
+                           f"{r.stamp_outliers})")
         c_drop = c.dropped + self.camera_counts["dropped_zero_quaternion"] + self.camera_counts["dropped_bad_covariance"]
         if level == ros_io.OK and (g_drop or c_drop):
             level = ros_io.WARN

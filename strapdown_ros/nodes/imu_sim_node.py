@@ -89,7 +89,8 @@ class ImuSimNode(ros_io.PacedSimulation, Node):
 
     # ---------------------------------------------------------------------------------
     def _subscriber_count(self) -> int:
-        return self.pub_dtheta.get_subscription_count()
+        """Consumers of the gyro data: imu/delta_theta and imu/data_raw (``gyro_input: imu``)."""
+        return self.pub_dtheta.get_subscription_count() + self.pub_raw.get_subscription_count()
 
     def _on_finished(self):
         self._publish_diagnostics()

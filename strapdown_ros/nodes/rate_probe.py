@@ -219,8 +219,13 @@ def rate_repeat(lo_hz: float, hi_hz: float, steps: int, seconds: float, algorith
 
 
 # --- 2. callback cost ------------------------------------------------------------------------
-def callback_cost(algorithm: str, n: int = 20000, subscribed: bool = False) -> dict:
+def callback_cost(algorithm: str, n: int = 20000, subscribed: bool = False,
+                  gyro_input: str = "delta_theta") -> dict:
     """µs per Δθ message of sins_node called directly (1 kHz stamps, no accelerometer).
+
+    ``gyro_input`` ``imu``: per sensor_msgs/Imu message on imu/data_raw instead (rate and
+    specific force, made into Δθ and Δv by the trapezoid rule), through the node's raw Imu
+    callback.
 
     ``subscribed``: a second node subscribes to ``sins/imu`` and ``sins/attitude`` (it is never
     spun; the messages are serialised and written to DDS all the same), so every update is
@@ -232,7 +237,8 @@ def callback_cost(algorithm: str, n: int = 20000, subscribed: bool = False) -> d
     from .sins_node import SinsNode
     ns = f"/cb_{os.getpid()}"
     node = SinsNode(namespace=ns, parameter_overrides=[
-        Parameter("gyro_rate", value=1000.0), Parameter("coning_algorithm", value=algorithm)])
+        Parameter("gyro_rate", value=1000.0), Parameter("coning_algorithm", value=algorithm),
+        Parameter("gyro_input", value=gyro_input)])
     listener = None
     if subscribed:
         import rclpy
@@ -248,7 +254,14 @@ def callback_cost(algorithm: str, n: int = 20000, subscribed: bool = False) -> d
             node.destroy_node()
             listener.destroy_node()
             raise RuntimeError("the in-process subscriber of sins/imu and sins/attitude was not discovered in 10 s")
-    msgs = _serialized(n, lambda k: (1e-4 * math.sin(k * 1e-3), 1e-4 * math.cos(k * 1e-3), 2e-5))
+    if gyro_input == "imu":
+        msgs = _serialized_imu(n, lambda k: (0.1 * math.sin(k * 1e-3), 0.1 * math.cos(k * 1e-3),
+                                             0.02))
+        callback = node._on_imu_raw
+    else:
+        msgs = _serialized(n, lambda k: (1e-4 * math.sin(k * 1e-3), 1e-4 * math.cos(k * 1e-3),
+                                         2e-5))
+        callback = node._on_gyro_raw
     spent = [0.0]
     real = node.process
 
@@ -260,7 +273,7 @@ def callback_cost(algorithm: str, n: int = 20000, subscribed: bool = False) -> d
     try:
         t0 = time.perf_counter()
         for m in msgs:
-            node._on_gyro_raw(m)                    # the subscription's callback, as the executor calls it
+            callback(m)                     # the subscription's callback, as the executor calls it
         node.process()
         total = time.perf_counter() - t0
         return {"amortised_us": total / n * 1e6, "hot_path_us": (total - spent[0]) / n * 1e6,
@@ -272,16 +285,22 @@ def callback_cost(algorithm: str, n: int = 20000, subscribed: bool = False) -> d
             listener.destroy_node()
 
 
-def calibrator_callback_cost(n: int = 20000) -> dict:
+def calibrator_callback_cost(n: int = 20000, gyro_input: str = "delta_theta") -> dict:
+    """µs per gyro message of calibrator_node called directly (1 kHz stamps): a Δθ, or with
+    ``gyro_input`` ``imu`` a sensor_msgs/Imu rate sample."""
     from rclpy.parameter import Parameter
 
     from .calibrator_node import CalibratorNode
-    node = CalibratorNode(namespace=f"/cbc_{os.getpid()}", parameter_overrides=[Parameter("gyro_rate", value=1000.0)])
-    msgs = _serialized(n, lambda k: (1e-4, -1e-4, 2e-5))
+    node = CalibratorNode(namespace=f"/cbc_{os.getpid()}", parameter_overrides=[
+        Parameter("gyro_rate", value=1000.0), Parameter("gyro_input", value=gyro_input)])
+    if gyro_input == "imu":
+        msgs, callback = _serialized_imu(n, lambda k: (0.1, -0.1, 0.02)), node._on_imu_raw
+    else:
+        msgs, callback = _serialized(n, lambda k: (1e-4, -1e-4, 2e-5)), node._on_gyro_raw
     try:
         t0 = time.perf_counter()
         for m in msgs:
-            node._on_gyro_raw(m)
+            callback(m)
         return {"amortised_us": (time.perf_counter() - t0) / n * 1e6}
     finally:
         node.destroy_node()
@@ -298,6 +317,23 @@ def _serialized(n: int, vector) -> list:
     for k in range(1, n + 1):
         m.header.stamp.sec, m.header.stamp.nanosec = divmod(k * 1_000_000, 1_000_000_000)
         m.vector.x, m.vector.y, m.vector.z = vector(k)
+        out.append(serialize_message(m))
+    return out
+
+
+def _serialized_imu(n: int, rate) -> list:
+    """``n`` serialized imu/data_raw messages (sensor_msgs/Imu: rate, specific force 9.8 m/s² on
+    z, no orientation) at 1 kHz stamps."""
+    from rclpy.serialization import serialize_message
+    from sensor_msgs.msg import Imu
+    out = []
+    m = Imu()
+    m.header.frame_id = "imu_link"
+    m.orientation_covariance[0] = -1.0
+    m.linear_acceleration.z = 9.80665
+    for k in range(1, n + 1):
+        m.header.stamp.sec, m.header.stamp.nanosec = divmod(k * 1_000_000, 1_000_000_000)
+        m.angular_velocity.x, m.angular_velocity.y, m.angular_velocity.z = rate(k)
         out.append(serialize_message(m))
     return out
 

@@ -64,6 +64,53 @@ def decode_vector3_stamped(data: bytes) -> tuple[int, tuple[float, float, float]
     return stamp_to_ns(m.header.stamp), (v.x, v.y, v.z), m.header.frame_id
 
 
+def decode_imu(data: bytes):
+    """``(stamp_ns, angular_velocity, linear_acceleration | None, frame_id)`` of a serialized
+    sensor_msgs/Imu (the ``imu/data_raw`` input of ``gyro_input: imu``), read from the bytes as
+    :func:`decode_vector3_stamped` reads a Vector3Stamped (rclpy's deserialization of an Imu costs
+    tens of µs); other encodings through rclpy's deserializer.  linear_acceleration is None when
+    the message has none (REP-145: linear_acceleration_covariance[0] = −1).  None when the bytes
+    are not an Imu at all (the caller counts and drops them)."""
+    got = cdr.imu(data)
+    if got is not None:
+        return got
+    from rclpy.serialization import deserialize_message
+    from sensor_msgs.msg import Imu
+    try:
+        m = deserialize_message(data, Imu)
+    except Exception:                                  # noqa: BLE001 - malformed bytes
+        return None
+    w, a = m.angular_velocity, m.linear_acceleration
+    accel = None if m.linear_acceleration_covariance[0] == -1.0 else (a.x, a.y, a.z)
+    return stamp_to_ns(m.header.stamp), (w.x, w.y, w.z), accel, m.header.frame_id
+
+
+def stated_rate_variance(last_imu) -> str:
+    """What the latest Imu says of its rate noise, for /diagnostics (the nodes do not use it:
+    their covariance comes from the model's gyro_random_walk): the diagonal of
+    angular_velocity_covariance, (rad/s)², as text; ``unknown`` when it is all zero (the ROS
+    convention), ``not provided`` when element 0 is −1, ``none received`` before any Imu.
+    ``last_imu``: the serialized bytes of the raw subscription, or a message object."""
+    if last_imu is None:
+        return "none received"
+    if isinstance(last_imu, (bytes, bytearray, memoryview)):
+        cov = cdr.imu_rate_covariance(last_imu)
+        if cov is None:
+            from rclpy.serialization import deserialize_message
+            from sensor_msgs.msg import Imu
+            try:
+                cov = tuple(deserialize_message(last_imu, Imu).angular_velocity_covariance)
+            except Exception:                          # noqa: BLE001 - malformed bytes
+                return "undecodable"
+    else:
+        cov = tuple(last_imu.angular_velocity_covariance)
+    if cov[0] == -1.0:
+        return "not provided"
+    if not any(cov):
+        return "unknown"
+    return ", ".join(f"{cov[k]:.6g}" for k in (0, 4, 8))
+
+
 # --- camera and calibration messages ----------------------------------------------------
 UNKNOWN_POSITION_VARIANCE = 1e9
 

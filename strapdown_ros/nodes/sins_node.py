@@ -3,6 +3,15 @@
 Subscribes (stream QoS):
 * ``imu/delta_theta``     geometry_msgs/Vector3Stamped, rad, stamp = end of interval
 * ``imu/delta_velocity``  geometry_msgs/Vector3Stamped, m/s (optional)
+* ``imu/data_raw``        sensor_msgs/Imu instead of both, with ``gyro_input: imu``: each
+                          message's angular_velocity (and linear_acceleration, unless its
+                          covariance[0] is −1) is validated as a rate sample and made into Δθ
+                          (Δv) by ``imu_rate_rule``
+                          (:class:`strapdown_ros.rate_increments.RateIncrementStream`); the
+                          increments then take the path of imu/delta_theta (delta_velocity).
+                          Its covariance fields are not used (the model's gyro_random_walk is);
+                          the Δv stream has the Imu's rate (``gyro_rate`` stands for
+                          ``accel_rate``)
 
 Publishes at every update of the algorithm (gyro rate / samples per update):
 * ``sins/attitude``  geometry_msgs/QuaternionStamped, q_ref_body (frame_id = reference frame)
@@ -46,6 +55,7 @@ from sensor_msgs.msg import Imu
 
 from ..config import SINS_PARAMS
 from ..navigation.system import SinsOutput, SinsSystem, odometry_arrays
+from ..rate_increments import RateIncrementStream
 from . import ros_io
 
 NODE_NAME = "sins_node"
@@ -62,8 +72,12 @@ class SinsNode(Node):
         self.algorithm_changes = 0
         self.frame_id = p["frame_id"]
         self.ref_frame = p["reference_frame_id"]
+        self.imu_input = p["gyro_input"] == "imu"
+        # with Imu input, Δv comes from the same messages: at the Imu rate, which is gyro_rate
+        sys_p = dict(p, accel_rate=p["gyro_rate"]) if self.imu_input else p
         # the numerical core; sins/imu records are made only while it has a subscriber (asked once per block)
-        self.system = SinsSystem(p, log=self._log, imu_wanted=lambda: self.pub_imu.get_subscription_count() > 0)
+        self.system = SinsSystem(sys_p, log=self._log,
+                                 imu_wanted=lambda: self.pub_imu.get_subscription_count() > 0)
         self._make_output_messages()
         qos = ros_io.stream_qos(int(p["qos_depth"]))
         self.pub_att = self.create_publisher(QuaternionStamped, "sins/attitude", qos, qos_overriding_options=ros_io.QOS_OVERRIDES)
@@ -74,15 +88,29 @@ class SinsNode(Node):
                                                   qos_overriding_options=ros_io.QOS_OVERRIDES)
         self.pub_diag = self.create_publisher(DiagnosticArray, "/diagnostics", ros_io.DIAGNOSTICS_QOS)
         # raw: the callbacks read stamp, vector and frame from the serialized bytes (ros_io)
-        self.create_subscription(Vector3Stamped, "imu/delta_theta", self._on_gyro_raw, qos,
-                                 qos_overriding_options=ros_io.QOS_OVERRIDES, raw=True)
-        self.create_subscription(Vector3Stamped, "imu/delta_velocity", self._on_accel_raw, qos,
-                                 qos_overriding_options=ros_io.QOS_OVERRIDES, raw=True)
+        if self.imu_input:
+            period = 1.0 / float(p["gyro_rate"])
+            jump, resync = float(p["max_stamp_jump"]), int(p["resync_count"])
+            rule = p["imu_rate_rule"]
+            self.gyro_rates = RateIncrementStream(period, float(p["gyro_max_rate"]), rule, jump,
+                                                  resync)
+            self.accel_rates = RateIncrementStream(period, float(p["accel_max"]), rule, jump,
+                                                   resync)
+            self.last_imu = None                   # the latest Imu (bytes or message)
+            self.create_subscription(Imu, "imu/data_raw", self._on_imu_raw, qos,
+                                     qos_overriding_options=ros_io.QOS_OVERRIDES, raw=True)
+        else:
+            self.create_subscription(Vector3Stamped, "imu/delta_theta", self._on_gyro_raw, qos,
+                                     qos_overriding_options=ros_io.QOS_OVERRIDES, raw=True)
+            self.create_subscription(Vector3Stamped, "imu/delta_velocity", self._on_accel_raw, qos,
+                                     qos_overriding_options=ros_io.QOS_OVERRIDES, raw=True)
         self.create_timer(float(p["diagnostics_period"]), self.publish_diagnostics)
         if self.system.batch_span > 0:             # a block is processed at least this often
             self.create_timer(self.system.batch_span, self.process)
         self.get_logger().info(
-            f"started: coning_algorithm={p['coning_algorithm']} "
+            f"started: gyro_input={p['gyro_input']}"
+            + (f" ({p['imu_rate_rule']}; Δv at gyro_rate)" if self.imu_input else "")
+            + f", coning_algorithm={p['coning_algorithm']} "
             f"({self.integrator.algorithm.samples} samples/update), covariance_model={p['covariance_model']}, "
             f"compensating: {', '.join(self.system.compensating) or 'none'}")
         if self.system.initial_normalised:
@@ -177,6 +205,37 @@ class SinsNode(Node):
         if self.system.offer_accel(st.sec * 1_000_000_000 + st.nanosec, (v.x, v.y, v.z), msg.header.frame_id):
             self.process()
 
+    def _on_imu_raw(self, data: bytes):
+        """Hot path (the imu/data_raw subscription, ``gyro_input: imu``): decode, then
+        :meth:`_imu`."""
+        got = ros_io.decode_imu(data)
+        if got is None:
+            self.undecodable += 1
+            return
+        self.last_imu = data                       # its stated covariance: read for /diagnostics
+        self._imu(*got)
+
+    def _on_imu(self, msg: Imu):
+        """The same for a message object (tests, tools)."""
+        w, a = msg.angular_velocity, msg.linear_acceleration
+        accel = None if msg.linear_acceleration_covariance[0] == -1.0 else (a.x, a.y, a.z)
+        self.last_imu = msg
+        self._imu(ros_io.stamp_to_ns(msg.header.stamp), (w.x, w.y, w.z), accel,
+                  msg.header.frame_id)
+
+    def _imu(self, stamp_ns: int, rate, accel, frame_id: str):
+        """One Imu message: the frame rule, then each rate through its RateIncrementStream
+        (validation, then the increment rule); the increments formed enter the Δθ/Δv path.  The
+        Δv goes first, so that the update of the same stamp finds its specific force."""
+        if not self.system.frame_accepted(frame_id, "gyro"):
+            return
+        if accel is not None:
+            for s, dv in self.accel_rates.push(stamp_ns, accel):
+                if self.system.offer_accel(s, dv):
+                    self.process()
+        for s, dth in self.gyro_rates.push(stamp_ns, rate):
+            self._gyro(s, dth, "")
+
     # --- batch processing ------------------------------------------------------------------
     def process(self) -> None:
         """Integrate the buffered increments as one block through the vectorised core and publish
@@ -270,6 +329,14 @@ class SinsNode(Node):
                 f"dropped {g.dropped} gyro and {a.dropped} accelerometer messages (NaN {g.nan + a.nan}, out of range "
                 f"{g.out_of_range + a.out_of_range}, out of order {g.out_of_order + a.out_of_order}, duplicate "
                 f"{g.duplicate + a.duplicate}, stamp outliers {g.stamp_outliers + a.stamp_outliers})")
+        if self.imu_input and (self.gyro_rates.check.dropped or self.accel_rates.check.dropped):
+            gr, ar = self.gyro_rates.check, self.accel_rates.check
+            level, message = ros_io.WARN, (
+                f"dropped {gr.dropped} angular-rate and {ar.dropped} acceleration samples of "
+                f"imu/data_raw (NaN {gr.nan + ar.nan}, out of range "
+                f"{gr.out_of_range + ar.out_of_range}, out of order "
+                f"{gr.out_of_order + ar.out_of_order}, duplicate {gr.duplicate + ar.duplicate}, "
+                f"stamp outliers {gr.stamp_outliers + ar.stamp_outliers})")
         if any(self.frame_mismatch.values()):
             level, message = ros_io.WARN, (f"messages in another frame than {self.frame_id!r}: gyro "
                                            f"{self.frame_mismatch['gyro']}, accelerometer {self.frame_mismatch['accel']} "
@@ -290,6 +357,12 @@ class SinsNode(Node):
                        "attitude_published": self.published["attitude"], "imu_published": self.published["imu"],
                        "imu_published_without_accel": self.published["imu_without_accel"],
                        "algorithm_changes": self.algorithm_changes})
+        if self.imu_input:
+            values.update({"gyro_input": "imu", "imu_rate_rule": self.p["imu_rate_rule"],
+                           "imu_stated_rate_variance": ros_io.stated_rate_variance(self.last_imu),
+                           "model_rate_variance": self.system.rate_variance,
+                           **self.gyro_rates.status("imu_gyro"),
+                           **self.accel_rates.status("imu_accel")})
         if self.nav is not None:
             values["odometry_published"] = self.published["odometry"]
             if self.nav.alignment is not None and not self.nav.alignment.ok and self.nav.navigator is None:
