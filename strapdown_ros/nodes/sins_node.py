@@ -49,11 +49,16 @@ from ..navigation.system import SinsOutput, SinsSystem, odometry_arrays
 from . import ros_io
 
 NODE_NAME = "sins_node"
+#: the accelerometer stall is an ERROR beyond this factor × accel_wait, and at least this many
+#: stamp seconds (a WARN beyond accel_wait)
+ACCEL_STALL_ERROR_FACTOR = 10.0
+ACCEL_STALL_ERROR_MIN_S = 1.0
 
 
 class SinsNode(Node):
     def __init__(self, **kwargs):
         super().__init__(NODE_NAME, **kwargs)
+        self.log = ros_io.NodeLog(self.get_logger())   # the one logging helper (every severity safe)
         self.p = ros_io.declare_validated(self, SINS_PARAMS, on_change=self._on_change,
                                           apply=self._apply_change)
         p = self.p
@@ -63,7 +68,7 @@ class SinsNode(Node):
         self.frame_id = p["frame_id"]
         self.ref_frame = p["reference_frame_id"]
         # the numerical core; sins/imu records are made only while it has a subscriber (asked once per block)
-        self.system = SinsSystem(p, log=self._log, imu_wanted=lambda: self.pub_imu.get_subscription_count() > 0)
+        self.system = SinsSystem(p, log=self.log, imu_wanted=lambda: self.pub_imu.get_subscription_count() > 0)
         self._make_output_messages()
         qos = ros_io.stream_qos(int(p["qos_depth"]))
         self.pub_att = self.create_publisher(QuaternionStamped, "sins/attitude", qos, qos_overriding_options=ros_io.QOS_OVERRIDES)
@@ -81,12 +86,12 @@ class SinsNode(Node):
         self.create_timer(float(p["diagnostics_period"]), self.publish_diagnostics)
         if self.system.batch_span > 0:             # a block is processed at least this often
             self.create_timer(self.system.batch_span, self.process)
-        self.get_logger().info(
+        self.log.info(
             f"started: coning_algorithm={p['coning_algorithm']} "
             f"({self.integrator.algorithm.samples} samples/update), covariance_model={p['covariance_model']}, "
             f"compensating: {', '.join(self.system.compensating) or 'none'}")
         if self.system.initial_normalised:
-            self.get_logger().warn("initial_orientation was not a unit quaternion; normalised")
+            self.log.warn("initial_orientation was not a unit quaternion; normalised")
 
     # --- the core's state, as the node's (diagnostics, tests, tools) --------------------------
     @property
@@ -113,16 +118,15 @@ class SinsNode(Node):
     def frame_mismatch(self) -> dict:
         return self.system.frame_mismatch
 
-    def _log(self, level: str, text: str) -> None:
-        lg = self.get_logger()
-        (lg.error if level == "error" else lg.warning if level == "warn" else lg.info)(text)
 
     # --- parameters ---------------------------------------------------------------------
     def _on_change(self, new: dict) -> str | None:
-        """Validation (on-set): only the coning algorithm may change at runtime."""
+        """Validation (on-set): only the coning algorithm may change at runtime, and only while
+        navigation is off (the navigation step is the algorithm's update)."""
+        if self.nav is not None:
+            return ("no parameter can change at runtime while navigation is on (the navigation step is "
+                    "the coning algorithm's update); restart the node to change " + ", ".join(sorted(new)))
         fixed = sorted(set(new) - {"coning_algorithm"})
-        if self.nav is not None and "coning_algorithm" in new:
-            fixed = sorted(set(new))               # the navigation step is the algorithm's update
         if fixed:
             return ("only coning_algorithm can change at runtime; restart the node to change "
                     + ", ".join(fixed))
@@ -136,7 +140,7 @@ class SinsNode(Node):
             self.system.set_algorithm(name)
             self.algorithm_changes += 1
             self.p["coning_algorithm"] = name
-            self.get_logger().info(f"coning_algorithm switched to {name}")
+            self.log.info(f"coning_algorithm switched to {name}")
 
     # --- input ------------------------------------------------------------------------------
     def _on_gyro_raw(self, data: bytes):
@@ -260,44 +264,79 @@ class SinsNode(Node):
         self._odom_out.child_frame_id = self.frame_id
         self._att_out.header.frame_id = self.ref_frame
 
-    def publish_diagnostics(self):
+    def accel_stall_s(self) -> float | None:
+        """Stamp seconds the gyro stream has run beyond the newest accepted Δv (the first gyro
+        stamp when none arrived); None when no accelerometer stream is expected yet (none seen and
+        navigation off) or no gyro data arrived."""
         g, a = self.gyro_check, self.accel_check
-        level, message = ros_io.OK, "ok"
+        if g.last_ns is None or (not self.system.accel_seen and self.nav is None):
+            return None
+        ref = a.last_ns if a.last_ns is not None else g.first_ns
+        return None if ref is None else max(0.0, (g.last_ns - ref) * 1e-9)
+
+    def accel_stall_limits(self) -> tuple[float, float]:
+        """(WARN, ERROR) thresholds of the accelerometer stall, stamp seconds: ``accel_wait``
+        (sins/imu stops waiting for Δv) and ``ACCEL_STALL_ERROR_FACTOR`` × that, at least
+        ``ACCEL_STALL_ERROR_MIN_S``."""
+        wait = float(self.p["accel_wait"])
+        return wait, max(ACCEL_STALL_ERROR_MIN_S, ACCEL_STALL_ERROR_FACTOR * wait)
+
+    def diagnostic_conditions(self) -> ros_io.Conditions:
+        """Every current condition of the node with its level (the status level is the worst)."""
+        g, a = self.gyro_check, self.accel_check
+        c = ros_io.Conditions()
         if g.accepted == 0:
-            level, message = ros_io.WARN, "no gyro increments received"
+            c.add(ros_io.WARN, "no gyro increments received")
         if g.dropped or a.dropped:
-            level, message = ros_io.WARN, (
-                f"dropped {g.dropped} gyro and {a.dropped} accelerometer messages (NaN {g.nan + a.nan}, out of range "
-                f"{g.out_of_range + a.out_of_range}, out of order {g.out_of_order + a.out_of_order}, duplicate "
-                f"{g.duplicate + a.duplicate}, stamp outliers {g.stamp_outliers + a.stamp_outliers})")
+            c.add(ros_io.WARN, f"dropped {g.dropped} gyro and {a.dropped} accelerometer messages (NaN "
+                  f"{g.nan + a.nan}, out of range {g.out_of_range + a.out_of_range}, out of order "
+                  f"{g.out_of_order + a.out_of_order}, duplicate {g.duplicate + a.duplicate}, stamp "
+                  f"outliers {g.stamp_outliers + a.stamp_outliers})")
         if any(self.frame_mismatch.values()):
-            level, message = ros_io.WARN, (f"messages in another frame than {self.frame_id!r}: gyro "
-                                           f"{self.frame_mismatch['gyro']}, accelerometer {self.frame_mismatch['accel']} "
-                                           f"({'rejected' if self.system.reject_frames else 'used'})")
-        if g.missing:
-            level, message = ros_io.ERROR, f"{g.missing} gyro increments missing in {g.gaps} gaps: " \
-                "the rotation during the gaps is lost"
-        if g.resyncs:
-            level, message = ros_io.ERROR, (f"gyro stamps jumped {g.resyncs} time(s) (last by {g.last_jump_s:.6g} s): "
-                                            "resynchronised; the rotation during a jump is lost")
-        if self.nonfinite:
-            level, message = ros_io.ERROR, (f"{self.nonfinite} non-finite update(s) discarded (never published); "
-                                            "state reset to the last good one with inflated covariance")
-        values = self.system.status()
+            c.add(ros_io.WARN, f"messages in another frame than {ros_io.bounded(self.frame_id, 80)!r}: gyro "
+                  f"{self.frame_mismatch['gyro']}, accelerometer {self.frame_mismatch['accel']} "
+                  f"({'rejected' if self.system.reject_frames else 'used'})")
         if self.undecodable:
-            level, message = ros_io.WARN, f"{self.undecodable} input message(s) could not be decoded: dropped"
+            c.add(ros_io.WARN, f"{self.undecodable} input message(s) could not be decoded: dropped")
+        stall = self.accel_stall_s()
+        warn_s, error_s = self.accel_stall_limits()
+        if stall is not None and stall > warn_s:
+            what = "no accelerometer increments received" if a.last_ns is None else \
+                "accelerometer increments (imu/delta_velocity) stopped"
+            effect = "sins/odometry stalls" if self.nav is not None else "sins/imu has no specific force"
+            c.add(ros_io.ERROR if stall > error_s else ros_io.WARN,
+                  f"{what}: the gyro stream ran {stall:.3g} s beyond the last Δv; {effect} "
+                  f"(WARN beyond {warn_s:g} s, ERROR beyond {error_s:g} s)")
+        if g.missing:
+            c.add(ros_io.ERROR, f"{g.missing} gyro increments missing in {g.gaps} gaps: "
+                  "the rotation during the gaps is lost")
+        if g.resyncs:
+            c.add(ros_io.ERROR, f"gyro stamps jumped {g.resyncs} time(s) (last by {g.last_jump_s:.6g} s): "
+                  "resynchronised; the rotation during a jump is lost")
+        if self.nonfinite:
+            c.add(ros_io.ERROR, f"{self.nonfinite} non-finite update(s) discarded (never published); "
+                  "state reset to the last good one with inflated covariance")
+        if self.nav is not None and self.nav.alignment is not None and not self.nav.alignment.ok \
+                and self.nav.navigator is None:
+            c.add(ros_io.ERROR, f"static alignment refused: {self.nav.alignment.reason}")
+        return c
+
+    def publish_diagnostics(self):
+        g = self.gyro_check
+        c = self.diagnostic_conditions()
+        values = self.system.status()
         values.update({"undecodable_dropped": self.undecodable,
                        "attitude_published": self.published["attitude"], "imu_published": self.published["imu"],
                        "imu_published_without_accel": self.published["imu_without_accel"],
                        "algorithm_changes": self.algorithm_changes})
+        stall = self.accel_stall_s()
+        if stall is not None:
+            values["accel_stall_s"] = stall
         if self.nav is not None:
             values["odometry_published"] = self.published["odometry"]
-            if self.nav.alignment is not None and not self.nav.alignment.ok and self.nav.navigator is None:
-                level, message = ros_io.ERROR, f"static alignment refused: {self.nav.alignment.reason}"
         stamp_ns = g.last_ns if g.last_ns is not None else 0
         self.pub_diag.publish(ros_io.diagnostic_array(ros_io.ns_to_stamp(stamp_ns), f"{self.get_fully_qualified_name()}: attitude",
-                                                      "sins", level, message, values))
-
+                                                      "sins", c.level, c.message(), values))
 
 def main(args=None):
     return ros_io.run_node(SinsNode, NODE_NAME, args)
