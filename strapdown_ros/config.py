@@ -489,9 +489,10 @@ def write_model(path: str, doc: dict | None, updates: dict, comment: str) -> Non
     override the new value), atomically, under a ``# comment`` line.  Plain copies: no YAML
     anchors."""
     import json
-    import os
 
     import yaml
+
+    from .files import atomic_write_text
 
     doc = json.loads(json.dumps(doc or {}))                   # a deep copy of plain data
     root = doc.setdefault("/**", {}).setdefault("ros__parameters", {})
@@ -500,8 +501,4 @@ def write_model(path: str, doc: dict | None, updates: dict, comment: str) -> Non
         for key, block in doc.items():
             if key != "/**" and isinstance(block, dict) and name in (block.get("ros__parameters") or {}):
                 block["ros__parameters"][name] = json.loads(json.dumps(value))
-    tmp = f"{path}.tmp"
-    with open(tmp, "w", encoding="utf-8") as fh:
-        fh.write(f"# {comment}\n")
-        yaml.safe_dump(doc, fh, sort_keys=False, allow_unicode=True)
-    os.replace(tmp, path)
+    atomic_write_text(path, f"# {comment}\n" + yaml.safe_dump(doc, sort_keys=False, allow_unicode=True))
