@@ -149,3 +149,24 @@ def test_atomic_write_leaves_the_old_file_when_the_write_fails(tmp_path):
         write_json(tmp_path / "missing" / "r.json", {})    # the error names the target, not a .tmp
     write_json(out, {"x": 1})
     assert out.read_text() == '{\n "x": 1\n}\n' and os.listdir(tmp_path) == ["r.json"]
+
+
+@pytest.mark.parametrize("body, needle", [
+    ("gyro_bias_sigma: 1.0e300", "gyro_bias_sigma=1e+300 is out of range; valid: >= 0 and <= 100"),
+    ("gyro_random_walk: 1.0e300", "valid: >= 0 and <= 1"),
+    ("gyro_quantum: 1.0e300", "valid: >= 0 and <= 0.1"),
+    ("gyro_scale_factor: [1.0e10, 0, 0]", "valid: >= -0.5 and <= 0.5"),
+    ("gyro_misalignment: [0.6, 0, 0, 0, 0, 0]", "valid: >= -0.5 and <= 0.5"),
+    ("frame_id: 2024-01-01", "frame_id must be a string, got date"),
+])
+def test_model_values_out_of_physical_range_or_type_are_refused_before_work(tmp_path, body, needle):
+    """Finding 13 (parameter part): huge in-range values overflowed later, a YAML date for a
+    string failed after the JSON was written; now each is one line, exit 2, nothing written."""
+    bag = tmp_path / "bag"
+    bag.mkdir()                                   # never read: the model is refused first
+    (bag / "metadata.yaml").write_text("rosbag2_bagfile_information: {}\n")
+    model = tmp_path / "m.yaml"
+    model.write_text(f"/**:\n  ros__parameters:\n    {body}\n")
+    line, _ = _one_line_exit_2([os.path.join(BIN, "discrepancy"), str(bag), "--model", str(model),
+                                "--json", str(tmp_path / "out.json")])
+    assert needle in line and not (tmp_path / "out.json").exists(), line
