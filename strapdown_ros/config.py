@@ -49,7 +49,8 @@ class ParamSpec:
         read as one (``1.0e9``: YAML 1.1 wants ``1.0e+9``) as that number."""
         if self.choices is not None and isinstance(value, (int, float)) and not isinstance(value, bool):
             return str(value)
-        if self.length is not None and not isinstance(value, (str, bytes, dict)) and hasattr(value, "__len__") \
+        if self.length is not None and not isinstance(value, (str, bytes, dict)) \
+                and hasattr(value, "__len__") \
                 and all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in value):
             return [float(v) for v in value]
         if isinstance(self.default, (int, float)) and not isinstance(self.default, bool) and \
@@ -97,7 +98,8 @@ class ParamSpec:
                 return f"{self.name} must be finite, got {value!r}"
             return self._range_error(value)
         if isinstance(self.default, str) and not isinstance(value, str):
-            return (f"{self.name} must be a string, got {type(value).__name__} {str(value)[:80]!r} "
+            return (f"{self.name} must be a string, got {type(value).__name__} "
+                    f"{str(value)[:80]!r} "
                     "(quote it in YAML)")
         return None
 
@@ -115,7 +117,8 @@ class ParamSpec:
         parts = []
         if self.element_ranges is not None:
             names = self.element_names or tuple(f"[{k}]" for k in range(len(self.element_ranges)))
-            return ", ".join(f"{n} in [{num(lo)}, {num(hi)}]" for n, (lo, hi) in zip(names, self.element_ranges))
+            return ", ".join(f"{n} in [{num(lo)}, {num(hi)}]"
+                             for n, (lo, hi) in zip(names, self.element_ranges))
         if self.minimum is not None:
             parts.append(("> " if self.exclusive_minimum else ">= ") + num(self.minimum))
         if self.maximum is not None:
@@ -135,13 +138,13 @@ def _sensor_params(prefix: str, grade: SensorSigmas, rate: float, unit: str, rw_
     b = SENSOR_BOUNDS[prefix]
     return [
         ParamSpec(f"{prefix}_rate", rate, f"{prefix} output rate, Hz", 0.0, 10000.0, exclusive_minimum=True),
-        ParamSpec(f"{prefix}_bias_sigma", grade.bias_sigma, f"1σ of the constant bias per axis, {unit}", 0.0,
-                  b["bias"]),
+        ParamSpec(f"{prefix}_bias_sigma", grade.bias_sigma,
+                  f"1σ of the constant bias per axis, {unit}", 0.0, b["bias"]),
         ParamSpec(f"{prefix}_scale_sigma", grade.scale_sigma, "1σ of each scale-factor error (relative)", 0.0, 0.1),
         ParamSpec(f"{prefix}_misalignment_sigma", grade.misalignment_sigma,
                   "1σ of each axis misalignment (off-diagonal of M), rad", 0.0, 0.1),
-        ParamSpec(f"{prefix}_random_walk", grade.random_walk, f"white-noise random walk, {rw_unit}", 0.0,
-                  b["random_walk"]),
+        ParamSpec(f"{prefix}_random_walk", grade.random_walk,
+                  f"white-noise random walk, {rw_unit}", 0.0, b["random_walk"]),
         ParamSpec(f"{prefix}_quantum", 0.0, f"pulse weight σ of level quantization (0 = off), "
                   f"{'rad' if prefix == 'gyro' else 'm/s'}", 0.0, b["quantum"]),
     ]
@@ -228,7 +231,8 @@ ACCEL_INPUT_PARAMS = [
               "is rejected as impossible", 0.0, 1e6, exclusive_minimum=True),
 ]
 
-#: largest velocity component of the navigation, m/s (above any aircraft; orbital speed is 7.9 km/s)
+#: largest velocity component of the navigation, m/s (above any aircraft; orbital speed is
+#: 7.9 km/s)
 MAX_SPEED = 1e4
 
 SINS_PARAMS = GYRO_PARAMS + ACCEL_PARAMS + COMMON_PARAMS + INPUT_PARAMS + ACCEL_INPUT_PARAMS + [
@@ -245,8 +249,8 @@ SINS_PARAMS = GYRO_PARAMS + ACCEL_PARAMS + COMMON_PARAMS + INPUT_PARAMS + ACCEL_
     ParamSpec("initial_position", [50.45, 30.52, 150.0], "initial latitude °, longitude °, height m (PZ-90 "
               "ellipsoid)", length=3, element_ranges=((-90.0, 90.0), (-180.0, 360.0), (-1e4, 1e6)),
               element_names=("latitude °", "longitude °", "height m")),
-    ParamSpec("initial_velocity", [0.0, 0.0, 0.0], "initial velocity east, north, up, m/s", -MAX_SPEED,
-              MAX_SPEED, length=3),
+    ParamSpec("initial_velocity", [0.0, 0.0, 0.0], "initial velocity east, north, up, m/s",
+              -MAX_SPEED, MAX_SPEED, length=3),
     ParamSpec("initial_position_sigma", 0.0, "1σ initial position error per axis, m", 0.0),
     ParamSpec("initial_velocity_sigma", 0.0, "1σ initial velocity error per axis, m/s", 0.0),
     ParamSpec("initial_alignment", "given", "initial attitude: given (initial_orientation = q_earth_body) or "
@@ -258,8 +262,9 @@ SINS_PARAMS = GYRO_PARAMS + ACCEL_PARAMS + COMMON_PARAMS + INPUT_PARAMS + ACCEL_
               choices=("derived", "printed")),
     ParamSpec("sculling_compensation", True, "rotation and sculling from the fitted motion (false: rotation "
               "compensation ½θ×v only)"),
-    ParamSpec("gravity_model", "normal_exact", "normal gravity model (strapdown_ros/navigation/gravity.py; "
-              "pz90_003: 003's formula corrected, 3.2″ and 35 mGal from normal_exact)",
+    ParamSpec("gravity_model", "normal_exact", "normal gravity model "
+              "(strapdown_ros/navigation/gravity.py; pz90_003: 003's formula corrected, 3.2″ and "
+              "35 mGal from normal_exact)",
               choices=("pz90_003", "normal_exact", "j2")),
     ParamSpec("navigation_covariance_period", 1.0, "propagation period of the navigation covariance, s",
               0.001, 60.0),
@@ -349,16 +354,19 @@ def combination_error(values: dict) -> str | None:
       ``accel_rate`` = 3 × ``gyro_rate``.
     """
     need = ("navigation", "velocity_update", "coning_algorithm", "gyro_rate", "accel_rate")
-    if all(n in values for n in need) and values["navigation"] and values["velocity_update"] == "printed":
+    if all(n in values for n in need) and values["navigation"] \
+            and values["velocity_update"] == "printed":
         samples = ALGORITHMS[str(values["coning_algorithm"])].samples
-        accel_per_step = max(1, int(round(samples * float(values["accel_rate"]) / float(values["gyro_rate"]))))
+        ratio = float(values["accel_rate"]) / float(values["gyro_rate"])
+        accel_per_step = max(1, int(round(samples * ratio)))
         if samples != 1 or accel_per_step != 3:
             one = ", ".join(n for n in algorithm_names() if ALGORITHMS[n].samples == 1)
-            return (f"velocity_update=printed is 003's scheme: 1 gyro and 3 accelerometer increments per step, "
-                    f"got coning_algorithm={values['coning_algorithm']} ({samples} sample(s) per update) with "
-                    f"accel_rate/gyro_rate = {float(values['accel_rate']) / float(values['gyro_rate']):.6g} "
-                    f"({accel_per_step} accelerometer increment(s) per step); valid: coning_algorithm one of {one} "
-                    f"with accel_rate = 3 × gyro_rate, or velocity_update=derived (any combination)")
+            return (f"velocity_update=printed is 003's scheme: 1 gyro and 3 accelerometer "
+                    f"increments per step, got coning_algorithm={values['coning_algorithm']} "
+                    f"({samples} sample(s) per update) with accel_rate/gyro_rate = {ratio:.6g} "
+                    f"({accel_per_step} accelerometer increment(s) per step); valid: "
+                    f"coning_algorithm one of {one} with accel_rate = 3 × gyro_rate, or "
+                    f"velocity_update=derived (any combination)")
     return None
 
 
@@ -501,4 +509,5 @@ def write_model(path: str, doc: dict | None, updates: dict, comment: str) -> Non
         for key, block in doc.items():
             if key != "/**" and isinstance(block, dict) and name in (block.get("ros__parameters") or {}):
                 block["ros__parameters"][name] = json.loads(json.dumps(value))
-    atomic_write_text(path, f"# {comment}\n" + yaml.safe_dump(doc, sort_keys=False, allow_unicode=True))
+    atomic_write_text(path, f"# {comment}\n"
+                      + yaml.safe_dump(doc, sort_keys=False, allow_unicode=True))

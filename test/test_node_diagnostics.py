@@ -57,8 +57,8 @@ class Diagnostics:
         return self.got[-1]
 
 
-def _feed(node, t0_ns, seconds, gyro_rate=100.0, accel_rate=300.0, accel=True, skip=(), frame_accel="",
-          profile=None):
+def _feed(node, t0_ns, seconds, gyro_rate=100.0, accel_rate=300.0, accel=True, skip=(),
+          frame_accel="", profile=None):
     """Interleaved Δθ and Δv of a body at rest (static profile: Earth rate and gravity exact),
     stamped from ``t0_ns`` on; gyro sample indices in ``skip`` are not sent."""
     prof = profile or static_profile(np.radians(50.45), np.radians(30.52), 150.0)
@@ -66,7 +66,8 @@ def _feed(node, t0_ns, seconds, gyro_rate=100.0, accel_rate=300.0, accel=True, s
     ta = np.arange(1, int(round(seconds * accel_rate)) + 1) / accel_rate if accel else np.zeros(0)
     dth = prof.delta_theta(tg - 1 / gyro_rate, tg)
     dv = prof.delta_v(ta - 1 / accel_rate, ta) if accel else np.zeros((0, 3))
-    events = [(t, 0, k) for k, t in enumerate(tg) if k not in skip] + [(t, 1, k) for k, t in enumerate(ta)]
+    events = [(t, 0, k) for k, t in enumerate(tg) if k not in skip]
+    events += [(t, 1, k) for k, t in enumerate(ta)]
     for t, kind, k in sorted(events):
         ns = t0_ns + int(round(t * 1e9))
         if kind == 0:
@@ -109,12 +110,13 @@ def test_no_node_selects_a_logger_method_at_run_time():
                 bad.append(f"{path.name}:{call.lineno}: severity chosen at run time")
             if isinstance(f, ast.Attribute) and f.attr in methods:
                 for kw in call.keywords:
-                    if kw.arg == "throttle_duration_sec" and not isinstance(kw.value, ast.Constant):
+                    if kw.arg == "throttle_duration_sec" \
+                            and not isinstance(kw.value, ast.Constant):
                         bad.append(f"{path.name}:{call.lineno}: variable rclpy throttle")
     assert not bad, bad
 
 
-def test_static_alignment_then_stamps_step_back_and_foreign_frames_keep_the_node_alive(ros, monkeypatch):
+def test_static_alignment_then_stamps_step_back_and_foreign_frames_keep_it_alive(ros, monkeypatch):
     """Finding 1, the repro: navigation with a static alignment; after it (info), the stamps step
     back 10 s (errors: jump, resynchronisation) and Δv arrive in another frame (warn).  Before the
     fix the second severity at sins_node's one log call site raised inside the callback."""
@@ -125,13 +127,15 @@ def test_static_alignment_then_stamps_step_back_and_foreign_frames_keep_the_node
     diag = Diagnostics(sins, monkeypatch)
     try:
         t = _feed(sins, 100_000_000_000, 1.5)
-        assert sins.nav.alignment is not None and sins.nav.alignment.ok and sins.nav.navigator is not None
+        assert sins.nav.alignment is not None and sins.nav.alignment.ok
+        assert sins.nav.navigator is not None
         level, message, values = diag.now()
         assert level == ros_io.OK and values["navigation_state"] == "navigating", message
         _feed(sins, t - 10_000_000_000, 0.5)                        # 10 s back, and it stays there
         _feed(sins, t - 9_500_000_000, 0.3, frame_accel="elsewhere")
         level, message, values = diag.now()
-        assert level == ros_io.ERROR and "jumped" in message and "another frame" in message, message
+        assert level == ros_io.ERROR, message
+        assert "jumped" in message and "another frame" in message, message
         assert sins.frame_mismatch["accel"] > 0 and sins.gyro_check.resyncs >= 1
     finally:
         sins.destroy_node()
@@ -154,19 +158,22 @@ def test_every_diagnostic_transition_of_sins_node(ros, monkeypatch):
         assert (warn_s, error_s) == (0.1, 1.0)
         t = _feed(sins, t, 0.3, accel=False)                          # Δv stop, Δθ runs on 0.3 s
         level, message, values = diag.now()
-        assert level == ros_io.WARN and "accelerometer increments (imu/delta_velocity) stopped" in message
-        assert "WARN beyond 0.1 s, ERROR beyond 1 s" in message and float(values["accel_stall_s"]) == \
-            pytest.approx(0.3, abs=0.011)
-        t = _feed(sins, t, 0.3)                                       # Δv back (within max_stamp_jump)
+        assert level == ros_io.WARN, message
+        assert "accelerometer increments (imu/delta_velocity) stopped" in message
+        assert "WARN beyond 0.1 s, ERROR beyond 1 s" in message
+        assert float(values["accel_stall_s"]) == pytest.approx(0.3, abs=0.011)
+        t = _feed(sins, t, 0.3)                             # Δv back (within max_stamp_jump)
         assert diag.now()[:2] == (ros_io.OK, "ok")
         for _ in range(3):
             sins._on_gyro_raw(b"\x00\x01garbage")
         level, message, _ = diag.now()
-        assert level == ros_io.WARN and message == "3 input message(s) could not be decoded: dropped"
+        assert level == ros_io.WARN
+        assert message == "3 input message(s) could not be decoded: dropped"
         t = _feed(sins, t, 1.0, skip=range(20, 70))                   # 50 gyro increments missing
         level, message, _ = diag.now()
         assert level == ros_io.ERROR, message
-        assert message.startswith("50 gyro increments missing in 1 gaps") and "could not be decoded" in message
+        assert message.startswith("50 gyro increments missing in 1 gaps")
+        assert "could not be decoded" in message
         t = _feed(sins, t, 1.5, accel=False)                          # Δv stalled beyond 1 s
         level, message, values = diag.now()
         assert level == ros_io.ERROR and "stopped" in message and "missing" in message
@@ -223,14 +230,16 @@ def test_runtime_parameters(ros):
     shipped = pathlib.Path(__file__).resolve().parents[1] / "config" / "coning.yaml"
     doc = yaml.safe_load(shipped.read_text())
     block = {**doc["/**"]["ros__parameters"], **doc["sins_node"]["ros__parameters"]}
-    sins = SinsNode(namespace="/t_rt", parameter_overrides=[Parameter(k, value=v) for k, v in block.items()])
+    sins = SinsNode(namespace="/t_rt",
+                    parameter_overrides=[Parameter(k, value=v) for k, v in block.items()])
     try:
         def over_the_wire(name, value):       # what the SetParameters service hands the node
             return Parameter.from_parameter_msg(Parameter(name, value=value).to_parameter_msg())
 
         # ros2 param load: the file's values arrive again, arrays as array('d')
         same = [over_the_wire(k, v) for k, v in block.items() if sins.has_parameter(k)]
-        assert type(same[[p.name for p in same].index("initial_orientation")].value).__name__ == "array"
+        orientation = next(p for p in same if p.name == "initial_orientation")
+        assert type(orientation.value).__name__ == "array"
         res = sins.set_parameters(same)
         assert all(r.successful for r in res), [r.reason for r in res]
         for name in ("initial_orientation", "initial_position", "gyro_bias"):
@@ -241,21 +250,27 @@ def test_runtime_parameters(ros):
         assert sins.get_parameter("coning_algorithm").value == "2"
     finally:
         sins.destroy_node()
-    nav = SinsNode(namespace="/t_rt_nav", parameter_overrides=[Parameter("navigation", value=True), *IDEAL])
+    nav = SinsNode(namespace="/t_rt_nav",
+                   parameter_overrides=[Parameter("navigation", value=True), *IDEAL])
     try:
         res = nav.set_parameters([Parameter("coning_algorithm", value="1")])[0]
-        assert not res.successful and "no parameter can change at runtime while navigation is on" in res.reason
+        assert not res.successful
+        assert "no parameter can change at runtime while navigation is on" in res.reason
         assert "only coning_algorithm" not in res.reason
         res = nav.set_parameters([Parameter("velocity_update", value="printed")])[0]
         assert not res.successful
     finally:
         nav.destroy_node()
-    with pytest.raises(ros_io.InvalidParameter, match=r"batch_period=1000000000.0 is out of range"):
-        SinsNode(namespace="/t_rt_b", parameter_overrides=[Parameter("batch_period", value="1.0e9")])
+    refused = ros_io.InvalidParameter
+    with pytest.raises(refused, match=r"batch_period=1000000000.0 is out of range"):
+        SinsNode(namespace="/t_rt_b",
+                 parameter_overrides=[Parameter("batch_period", value="1.0e9")])
     with pytest.raises(ros_io.InvalidParameter, match=r"latitude ° in \[-90, 90\]"):
-        SinsNode(namespace="/t_rt_lat", parameter_overrides=[Parameter("initial_position", value=[95.0, 0.0, 0.0])])
-    with pytest.raises(ros_io.InvalidParameter, match=r"initial_velocity=100000000.0 is out of range"):
-        SinsNode(namespace="/t_rt_v", parameter_overrides=[Parameter("initial_velocity", value=[1e8, 0.0, 0.0])])
+        SinsNode(namespace="/t_rt_lat",
+                 parameter_overrides=[Parameter("initial_position", value=[95.0, 0.0, 0.0])])
+    with pytest.raises(refused, match=r"initial_velocity=100000000.0 is out of range"):
+        SinsNode(namespace="/t_rt_v",
+                 parameter_overrides=[Parameter("initial_velocity", value=[1e8, 0.0, 0.0])])
     with pytest.raises(ros_io.InvalidParameter, match="valid: coning_algorithm one of 1, 6, 7"):
         SinsNode(namespace="/t_rt_pr", parameter_overrides=[
             Parameter("navigation", value=True), Parameter("velocity_update", value="printed")])

@@ -86,14 +86,16 @@ def _digest(paths):
 
 
 def test_no_output_overwrites_an_input(tmp_path):
-    """Issue "second pass" finding 5: one output rule for every tool (tools/paths.py::check_outputs):
-    no output may be an input (a file inside the input bag directory included) or another output,
-    an existing one needs --force, the target directory must take a real write (/proc: os.access
-    says yes as root); each refusal is one line, exit 2, and the inputs are untouched."""
+    """Issue "second pass" finding 5: one output rule for every tool
+    (tools/paths.py::check_outputs): no output may be an input (a file inside the input bag
+    directory included) or another output, an existing one needs --force, the target directory
+    must take a real write (/proc: os.access says yes as root); each refusal is one line, exit 2,
+    and the inputs are untouched."""
     pytest.importorskip("rosbags")
     from strapdown_ros.tools import record_sim
     bag = tmp_path / "bag"
-    assert record_sim.main([str(bag), "--no-accel", "--duration", "10", "-p", "camera_interval:=2.0"]) == 0
+    assert record_sim.main([str(bag), "--no-accel", "--duration", "10",
+                            "-p", "camera_interval:=2.0"]) == 0
     mcap = next(bag.glob("*.mcap"))
     model = tmp_path / "m.yaml"
     model.write_text("# the user's comment\n/**:\n  ros__parameters:\n    gyro_rate: 100.0\n")
@@ -107,21 +109,26 @@ def test_no_output_overwrites_an_input(tmp_path):
         ([b("calibrate_bag"), str(bag), "--json", str(old)], "--force"),
         ([b("calibrate_bag"), str(bag), "--json", "/proc/strapdown_probe.json"], "not writable"),
         ([b("discrepancy"), str(bag), "--model", str(model), "--json", str(mcap)], "input bag"),
-        ([b("discrepancy"), str(bag), "--model", str(model), "--json", str(model)], "input --model"),
-        ([b("discrepancy"), str(bag), "--model", str(model), "--write-model", str(model)], "input --model"),
+        ([b("discrepancy"), str(bag), "--model", str(model), "--json", str(model)],
+         "input --model"),
+        ([b("discrepancy"), str(bag), "--model", str(model), "--write-model", str(model)],
+         "input --model"),
         ([b("discrepancy"), str(bag), "--model", str(model), "--report", str(bag)], "input bag"),
         ([b("discrepancy"), str(bag), "--model", str(model), "--json", str(tmp_path / "o.yaml"),
           "--write-model", str(tmp_path / "." / "o.yaml")], "same output"),
-        ([b("discrepancy"), str(bag), "--model", str(model), "--write-model", str(old)], "--force"),
+        ([b("discrepancy"), str(bag), "--model", str(model), "--write-model", str(old)],
+         "--force"),
         ([b("calibrate_gyro_bag"), str(bag), "--method", "integral", "--model", str(model),
           "--write-model", str(model)], "input --model"),
         ([b("sins_bag"), str(bag), "--output", str(bag)], "input bag"),
         ([b("sins_bag"), str(bag), "--output", str(mcap)], "input bag"),
-        ([b("sins_bag"), str(bag), "--params", str(model), "--output", str(model)], "input --params"),
+        ([b("sins_bag"), str(bag), "--params", str(model), "--output", str(model)],
+         "input --params"),
         ([b("sins_bag"), str(bag), "--output", str(old)], "--force"),
         ([b("record_sim"), str(bag)], "--force"),
         ([b("record_sim"), str(model), "--params", str(model)], "input --params"),
-        ([b("reproduce_seeds"), "--json", str(tmp_path / "r"), "--report", str(tmp_path / "r")], "same output"),
+        ([b("reproduce_seeds"), "--json", str(tmp_path / "r"), "--report", str(tmp_path / "r")],
+         "same output"),
         ([b("reproduce_seeds"), "--json", str(old)], "--force"),
     ]
     for cmd, needle in cases:
@@ -130,8 +137,8 @@ def test_no_output_overwrites_an_input(tmp_path):
         assert _digest([bag, model, old]) == before, cmd
     assert not list(tmp_path.glob(".*.tmp")) and not list(tmp_path.glob("*.tmp"))
     # --force replaces an existing output, atomically (no temporary file left), with valid JSON
-    p = subprocess.run([b("calibrate_bag"), str(bag), "--json", str(old), "--force"], capture_output=True,
-                       text=True, timeout=120)
+    p = subprocess.run([b("calibrate_bag"), str(bag), "--json", str(old), "--force"],
+                       capture_output=True, text=True, timeout=120)
     assert p.returncode in (0, 3), p.stderr                # 3: this static bag is unobservable
     import json
     assert "observable" in json.loads(old.read_text())
@@ -159,7 +166,7 @@ def test_atomic_write_leaves_the_old_file_when_the_write_fails(tmp_path):
     ("gyro_misalignment: [0.6, 0, 0, 0, 0, 0]", "valid: >= -0.5 and <= 0.5"),
     ("frame_id: 2024-01-01", "frame_id must be a string, got date"),
 ])
-def test_model_values_out_of_physical_range_or_type_are_refused_before_work(tmp_path, body, needle):
+def test_model_values_beyond_physics_or_of_wrong_type_are_refused_first(tmp_path, body, needle):
     """Finding 13 (parameter part): huge in-range values overflowed later, a YAML date for a
     string failed after the JSON was written; now each is one line, exit 2, nothing written."""
     bag = tmp_path / "bag"

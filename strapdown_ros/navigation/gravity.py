@@ -255,7 +255,8 @@ def normal_exact_xyz(x, y, z):
     else:
         at = math.atan(t)
         q = 0.5 * ((1.0 + 3.0 / (t * t)) * at - 3.0 / t)
-        dq = 0.5 * (6.0 * u / _E2L * at - (_E2L + 3.0 * u * u) / (_EL * (u * u + _E2L)) - 3.0 / _EL)
+        dq = 0.5 * (6.0 * u / _E2L * at - (_E2L + 3.0 * u * u) / (_EL * (u * u + _E2L))
+                    - 3.0 / _EL)
     w2a2 = OMEGA * OMEGA * A * A
     vu = -GM / (u * u + _E2L) + 0.5 * w2a2 * dq / _Q0 * (sb * sb - 1.0 / 3.0)
     vb = w2a2 * q / _Q0

@@ -414,7 +414,7 @@ class CalibratorNode(Node):
                        "state_restored_pairs": self.state["restored_pairs"], "state_errors": self.state["errors"],
                        **{f"camera_{k}": v for k, v in self.camera_counts.items()}})
         mism = self.gyro_frame_mismatch + self.camera_counts["frame_mismatch"]
-        if mism:                                       # every condition listed, the level the worst
+        if mism:                              # every condition listed, the level the worst
             level = max(level, ros_io.WARN)
             message = (f"{message}; {mism} message(s) in an unexpected frame "
                        f"({'rejected' if self.reject_frames else 'used'})")

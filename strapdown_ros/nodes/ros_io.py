@@ -279,7 +279,8 @@ class NodeLog:
         self._clock = time.monotonic
         self._last: dict[str, float] = {}
 
-    def __call__(self, level: str, text: str, throttle: float = 0.0, key: str | None = None) -> bool:
+    def __call__(self, level: str, text: str, throttle: float = 0.0,
+                 key: str | None = None) -> bool:
         """Log ``text`` at ``level`` (debug, info, warn or error); returns False when throttled.
 
         Parameters

@@ -58,7 +58,7 @@ ACCEL_STALL_ERROR_MIN_S = 1.0
 class SinsNode(Node):
     def __init__(self, **kwargs):
         super().__init__(NODE_NAME, **kwargs)
-        self.log = ros_io.NodeLog(self.get_logger())   # the one logging helper (every severity safe)
+        self.log = ros_io.NodeLog(self.get_logger())   # the one logging helper (any severity)
         self.p = ros_io.declare_validated(self, SINS_PARAMS, on_change=self._on_change,
                                           apply=self._apply_change)
         p = self.p
@@ -68,7 +68,8 @@ class SinsNode(Node):
         self.frame_id = p["frame_id"]
         self.ref_frame = p["reference_frame_id"]
         # the numerical core; sins/imu records are made only while it has a subscriber (asked once per block)
-        self.system = SinsSystem(p, log=self.log, imu_wanted=lambda: self.pub_imu.get_subscription_count() > 0)
+        self.system = SinsSystem(p, log=self.log,
+                                 imu_wanted=lambda: self.pub_imu.get_subscription_count() > 0)
         self._make_output_messages()
         qos = ros_io.stream_qos(int(p["qos_depth"]))
         self.pub_att = self.create_publisher(QuaternionStamped, "sins/attitude", qos, qos_overriding_options=ros_io.QOS_OVERRIDES)
@@ -124,8 +125,9 @@ class SinsNode(Node):
         """Validation (on-set): only the coning algorithm may change at runtime, and only while
         navigation is off (the navigation step is the algorithm's update)."""
         if self.nav is not None:
-            return ("no parameter can change at runtime while navigation is on (the navigation step is "
-                    "the coning algorithm's update); restart the node to change " + ", ".join(sorted(new)))
+            return ("no parameter can change at runtime while navigation is on (the navigation "
+                    "step is the coning algorithm's update); restart the node to change "
+                    + ", ".join(sorted(new)))
         fixed = sorted(set(new) - {"coning_algorithm"})
         if fixed:
             return ("only coning_algorithm can change at runtime; restart the node to change "
@@ -288,22 +290,26 @@ class SinsNode(Node):
         if g.accepted == 0:
             c.add(ros_io.WARN, "no gyro increments received")
         if g.dropped or a.dropped:
-            c.add(ros_io.WARN, f"dropped {g.dropped} gyro and {a.dropped} accelerometer messages (NaN "
-                  f"{g.nan + a.nan}, out of range {g.out_of_range + a.out_of_range}, out of order "
-                  f"{g.out_of_order + a.out_of_order}, duplicate {g.duplicate + a.duplicate}, stamp "
-                  f"outliers {g.stamp_outliers + a.stamp_outliers})")
+            c.add(ros_io.WARN, f"dropped {g.dropped} gyro and {a.dropped} accelerometer messages "
+                  f"(NaN {g.nan + a.nan}, out of range {g.out_of_range + a.out_of_range}, out of "
+                  f"order {g.out_of_order + a.out_of_order}, duplicate "
+                  f"{g.duplicate + a.duplicate}, stamp outliers "
+                  f"{g.stamp_outliers + a.stamp_outliers})")
         if any(self.frame_mismatch.values()):
-            c.add(ros_io.WARN, f"messages in another frame than {ros_io.bounded(self.frame_id, 80)!r}: gyro "
-                  f"{self.frame_mismatch['gyro']}, accelerometer {self.frame_mismatch['accel']} "
+            c.add(ros_io.WARN, f"messages in another frame than "
+                  f"{ros_io.bounded(self.frame_id, 80)!r}: gyro {self.frame_mismatch['gyro']}, "
+                  f"accelerometer {self.frame_mismatch['accel']} "
                   f"({'rejected' if self.system.reject_frames else 'used'})")
         if self.undecodable:
-            c.add(ros_io.WARN, f"{self.undecodable} input message(s) could not be decoded: dropped")
+            c.add(ros_io.WARN,
+                  f"{self.undecodable} input message(s) could not be decoded: dropped")
         stall = self.accel_stall_s()
         warn_s, error_s = self.accel_stall_limits()
         if stall is not None and stall > warn_s:
             what = "no accelerometer increments received" if a.last_ns is None else \
                 "accelerometer increments (imu/delta_velocity) stopped"
-            effect = "sins/odometry stalls" if self.nav is not None else "sins/imu has no specific force"
+            effect = "sins/odometry stalls" if self.nav is not None \
+                else "sins/imu has no specific force"
             c.add(ros_io.ERROR if stall > error_s else ros_io.WARN,
                   f"{what}: the gyro stream ran {stall:.3g} s beyond the last Δv; {effect} "
                   f"(WARN beyond {warn_s:g} s, ERROR beyond {error_s:g} s)")
@@ -311,11 +317,11 @@ class SinsNode(Node):
             c.add(ros_io.ERROR, f"{g.missing} gyro increments missing in {g.gaps} gaps: "
                   "the rotation during the gaps is lost")
         if g.resyncs:
-            c.add(ros_io.ERROR, f"gyro stamps jumped {g.resyncs} time(s) (last by {g.last_jump_s:.6g} s): "
-                  "resynchronised; the rotation during a jump is lost")
+            c.add(ros_io.ERROR, f"gyro stamps jumped {g.resyncs} time(s) (last by "
+                  f"{g.last_jump_s:.6g} s): resynchronised; the rotation during a jump is lost")
         if self.nonfinite:
-            c.add(ros_io.ERROR, f"{self.nonfinite} non-finite update(s) discarded (never published); "
-                  "state reset to the last good one with inflated covariance")
+            c.add(ros_io.ERROR, f"{self.nonfinite} non-finite update(s) discarded (never "
+                  "published); state reset to the last good one with inflated covariance")
         if self.nav is not None and self.nav.alignment is not None and not self.nav.alignment.ok \
                 and self.nav.navigator is None:
             c.add(ros_io.ERROR, f"static alignment refused: {self.nav.alignment.reason}")

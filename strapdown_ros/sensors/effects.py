@@ -147,7 +147,8 @@ class Effect:
 class GyroBias(Effect):
     name = "gyro_bias"
     parameters = (EffectParameter("gyro_bias", "rad/s", 3, [0.0, 0.0, 0.0],
-                                  "known constant gyro bias b, body axes, rad/s (simulated and compensated)",
+                                  "known constant gyro bias b, body axes, rad/s (simulated and "
+                                  "compensated)",
                                   -MAX_BIAS_RATE, MAX_BIAS_RATE),)
     sigma_parameter = "gyro_bias_sigma"
     summary = "constant rate bias"
@@ -163,7 +164,8 @@ class GyroBias(Effect):
 class GyroBiasDrift(Effect):
     name = "gyro_bias_drift"
     parameters = (EffectParameter("gyro_bias_drift", "rad/s²", 3, [0.0, 0.0, 0.0],
-                                  "linear bias ramp d: bias b + d·(t − t0), t0 = first gyro stamp, rad/s²",
+                                  "linear bias ramp d: bias b + d·(t − t0), t0 = first gyro "
+                                  "stamp, rad/s²",
                                   -MAX_BIAS_DRIFT, MAX_BIAS_DRIFT),)
     summary = "bias growing linearly with time"
     signature_text = "as gyro_bias, weighted by the time since the first gyro stamp"
@@ -219,7 +221,8 @@ class GyroScaleFactor(Effect):
 class GyroScaleAsymmetry(Effect):
     name = "gyro_scale_asymmetry"
     parameters = (EffectParameter("gyro_scale_asymmetry", "1", 3, [0.0, 0.0, 0.0],
-                                  "scale asymmetry a: scale 1 + s + a for positive, 1 + s − a for negative rates",
+                                  "scale asymmetry a: scale 1 + s + a for positive, 1 + s − a for "
+                                  "negative rates",
                                   -MAX_RELATIVE_ERROR, MAX_RELATIVE_ERROR),)
     summary = "different scale factor for positive and negative rates"
     signature_text = "ε ∝ |rotation| about each axis: Σ C_k diag(|ρ_k|) a (needs turns of both senses to tell from scale)"
@@ -240,7 +243,8 @@ class GyroScaleAsymmetry(Effect):
 class GyroMisalignment(Effect):
     name = "gyro_misalignment"
     parameters = (EffectParameter("gyro_misalignment", "rad", 6, [0.0] * 6,
-                                  "known axis misalignments: off-diagonal M_xy, M_xz, M_yx, M_yz, M_zx, M_zy, rad",
+                                  "known axis misalignments: off-diagonal M_xy, M_xz, M_yx, M_yz, "
+                                  "M_zx, M_zy, rad",
                                   -MAX_MISALIGNMENT, MAX_MISALIGNMENT),)
     sigma_parameter = "gyro_misalignment_sigma"
     summary = "non-orthogonal gyro axes (off-diagonal M)"
@@ -286,7 +290,8 @@ class GyroQuantization(Effect):
     kind = "noise"
     compensable = False
     parameters = (EffectParameter("gyro_quantum", "rad", 1, 0.0,
-                                  "pulse weight σ of level quantization (0 = off), rad", 0.0, MAX_QUANTUM),)
+                                  "pulse weight σ of level quantization (0 = off), rad", 0.0,
+                                  MAX_QUANTUM),)
     summary = "pulse quantization with carried remainder (000 §5), uncompensated"
     signature_text = ("the output lags the integral by the carried remainder: a mean σ/2 in the sense of the "
                       "motion on each axis (000 §5.3), seen where a pair starts and ends in different motion, "
@@ -340,7 +345,8 @@ class CameraNoiseAnisotropy(Effect):
     neutral = 1.0
     parameters = (EffectParameter("camera_noise_scale", "1", 3, [1.0, 1.0, 1.0],
                                   "true camera noise σ about VF x, y, z ÷ the σ the camera reports (or "
-                                  "camera_sigma_*): simulated, and applied to P_avu by the calibrator", 0.0,
+                                  "camera_sigma_*): simulated, and applied to P_avu by the "
+                                  "calibrator", 0.0,
                                   MAX_CAMERA_NOISE_SCALE),)
     summary = "camera noise about its axes differs from its stated covariance"
     signature_text = "no mean; scales each VF axis of the camera-fix covariance: P → K P K, K = diag(k)"

@@ -336,7 +336,8 @@ def main(argv=None) -> int:
         if args.covariance_model:
             over["covariance_model"] = args.covariance_model
         p = calibrator_parameters(args.params, over)
-        check_outputs([("--json", args.json, FILE)], [("bag", args.bag), ("--params", args.params)], args.force)
+        check_outputs([("--json", args.json, FILE)],
+                      [("bag", args.bag), ("--params", args.params)], args.force)
         data = read_bag(args.bag, args.namespace, bool(p["use_camera_covariance"]),
                         (p["camera_sigma_xy"], p["camera_sigma_xy"], p["camera_sigma_z"]),
                         float(p["gyro_max_rate"]), float(p["max_stamp_jump"]), int(p["resync_count"]))

@@ -1,7 +1,8 @@
 """discrepancy: where a recording and its model disagree, which effect is missing, and how much
 the disagreement shrinks once it is added.
 
-    discrepancy BAG --model MODEL.yaml [--json FILE] [--report DIR] [--write-model OUT.yaml] [--force]
+    discrepancy BAG --model MODEL.yaml [--json FILE] [--report DIR] [--write-model OUT.yaml]
+                [--force]
 
 BAG: a rosbag2 recording (MCAP or sqlite3) of ``imu/delta_theta`` (geometry_msgs/Vector3Stamped)
 and the star camera, ``star_camera/attitude_with_covariance`` (its covariance is used) or
@@ -22,7 +23,8 @@ that of the model simulated on the same segments (allantools).
 Output: a summary on stdout; ``--json`` the full result (schema in the README); ``--report DIR``
 ``report.md`` with PNG plots; ``--write-model`` the model with the found effects and the
 estimated boresight.  No output may be an input (the bag, the model) or another output; an
-existing one needs ``--force``; the files are written atomically.  Exit status 0 for every verdict; 2, with one line on stderr, for unusable
+existing one needs ``--force``; the files are written atomically.  Exit status 0 for every
+verdict; 2, with one line on stderr, for unusable
 input (missing or malformed bag or model, no camera topic, too few fixes, a model key no node
 of the package knows).
 """
@@ -140,8 +142,8 @@ def main(argv=None) -> int:
     ap.add_argument("--json", metavar="FILE", help="write the result as JSON")
     ap.add_argument("--report", metavar="DIR", help="write report.md and PNG plots into DIR (created)")
     ap.add_argument("--write-model", metavar="OUT.yaml", help="write the model with the found effects")
-    ap.add_argument("--force", action="store_true", help="overwrite existing outputs (--json, --write-model, "
-                    "a non-empty --report directory)")
+    ap.add_argument("--force", action="store_true", help="overwrite existing outputs (--json, "
+                    "--write-model, a non-empty --report directory)")
     ap.add_argument("--alpha", type=float, default=None, help="family-wise level of the selection (default 0.01)")
     ap.add_argument("--namespace", default="", help="topic namespace, e.g. /robot1")
     ap.add_argument("--quiet", action="store_true", help="no progress on stderr")

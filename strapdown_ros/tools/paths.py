@@ -45,7 +45,8 @@ def _writable_dir(d: Path, what: str, path) -> None:
 
 
 def check_output_file(path, what: str) -> None:
-    """``path`` can be written as a file: its directory exists and takes a write, it is no directory."""
+    """``path`` can be written as a file: its directory exists and takes a write, it is no
+    directory."""
     if not path:
         return
     p = Path(path)
@@ -94,7 +95,8 @@ def check_outputs(outputs: Iterable[Sequence], inputs: Iterable[Sequence], force
                 raise ValueError(f"{opt} {path} would overwrite the input {what} {ipath}")
     for i, (opt, path, kind, r) in enumerate(outs):
         for opt2, path2, kind2, r2 in outs[i + 1:]:
-            if r == r2 or (kind2 == REPLACED and r2 in r.parents) or (kind == REPLACED and r in r2.parents):
+            if r == r2 or (kind2 == REPLACED and r2 in r.parents) \
+                    or (kind == REPLACED and r in r2.parents):
                 raise ValueError(f"{opt} {path} and {opt2} {path2} are the same output")
     for opt, path, kind, r in outs:
         p = Path(path)
@@ -109,7 +111,8 @@ def check_outputs(outputs: Iterable[Sequence], inputs: Iterable[Sequence], force
             if exists and not p.is_dir():
                 raise ValueError(f"{opt} {path} exists and is not a directory")
             if exists and any(p.iterdir()) and not force:
-                raise ValueError(f"{opt} {path} exists and is not empty (use --force to write into it)")
+                raise ValueError(f"{opt} {path} exists and is not empty "
+                                 "(use --force to write into it)")
             _writable_dir(p if exists else p.parent, opt, path)
         else:
             if exists and not force:

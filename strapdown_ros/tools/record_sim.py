@@ -274,11 +274,13 @@ def main(argv=None) -> int:
     try:
         imu_p, cam_p = simulator_parameters(args.params, parse_overrides(args.param), args.duration)
         check_outputs([("bag", args.bag, REPLACED)],
-                      [("--params", args.params), ("profile_file", imu_p.get("profile_file"))], args.force)
+                      [("--params", args.params), ("profile_file", imu_p.get("profile_file"))],
+                      args.force)
         out = Path(args.bag)
         if out.is_dir() and not out.is_symlink():
             if not (out / "metadata.yaml").exists() and any(out.iterdir()):
-                raise ValueError(f"bag {args.bag} is a directory that is not a rosbag2 bag; not replacing it")
+                raise ValueError(f"bag {args.bag} is a directory that is not a rosbag2 bag; "
+                                 "not replacing it")
             shutil.rmtree(out)
         elif out.exists() or out.is_symlink():
             raise ValueError(f"bag {args.bag} is not a directory; not replacing it")

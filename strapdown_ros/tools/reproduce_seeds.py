@@ -291,8 +291,8 @@ def main(argv=None) -> int:
                 raise ValueError(f"{flag} must be >= 1, got {v}")
         if not (np.isfinite(a.coning_duration) and a.coning_duration > 0):
             raise ValueError(f"--coning-duration must be > 0, got {a.coning_duration}")
-        check_outputs([("--json", a.json, FILE), ("--report", a.report, FILE), ("--plots", a.plots, DIRECTORY)],
-                      [], a.force)
+        check_outputs([("--json", a.json, FILE), ("--report", a.report, FILE),
+                       ("--plots", a.plots, DIRECTORY)], [], a.force)
     except ValueError as exc:
         print(f"reproduce_seeds: error: {exc}", file=sys.stderr)
         return 2

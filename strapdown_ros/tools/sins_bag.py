@@ -374,15 +374,17 @@ class McapOutput:
 
 
 def _check_output(out: str, bag: str, force: bool, params: str | None = None) -> None:
-    """OUT can be written (the tools' one output rule, :func:`~strapdown_ros.tools.paths.check_outputs`:
-    not an input, absent unless --force, its directory takes a write); a directory is replaced
-    only when it is a rosbag2 bag or empty."""
+    """OUT can be written (the tools' one output rule,
+    :func:`~strapdown_ros.tools.paths.check_outputs`: not an input, absent unless --force, its
+    directory takes a write); a directory is replaced only when it is a rosbag2 bag or empty."""
     from .paths import REPLACED, check_outputs
 
     check_outputs([("--output", out, REPLACED)], [("bag", bag), ("--params", params)], force)
     p = Path(out)
-    if p.is_dir() and (out.lower().endswith(".csv") or ((not (p / "metadata.yaml").exists()) and any(p.iterdir()))):
-        raise ValueError(f"--output {out} is a directory that is not a rosbag2 bag; not replacing it")
+    not_a_bag = (not (p / "metadata.yaml").exists()) and any(p.iterdir()) if p.is_dir() else False
+    if p.is_dir() and (out.lower().endswith(".csv") or not_a_bag):
+        raise ValueError(f"--output {out} is a directory that is not a rosbag2 bag; "
+                         "not replacing it")
 
 
 def _replace(out: str) -> None:
