@@ -352,6 +352,16 @@ def combination_error(values: dict) -> str | None:
     * ``velocity_update: printed`` (with ``navigation``) is 003's scheme: one gyro and three
       accelerometer increments per step, so a coning algorithm with 1 sample per update and
       ``accel_rate`` = 3 × ``gyro_rate``.
+
+    Parameters
+    ----------
+    values : dict
+        Parameter values (normalised), any subset of any node's.
+
+    Returns
+    -------
+    str or None
+        The error message, or None when every applicable rule holds.
     """
     need = ("navigation", "velocity_update", "coning_algorithm", "gyro_rate", "accel_rate")
     if all(n in values for n in need) and values["navigation"] \

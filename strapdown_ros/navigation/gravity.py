@@ -238,7 +238,18 @@ def normal_exact_xyz(x, y, z):
     """The exact normal gravity of the PZ-90.11 level ellipsoid (:func:`_normal_exact`) at one
     ECEF position (m) → (g_X, g_Y, g_Z), m/s²; pure ``math`` on scalars (the series and closed
     form of :func:`_q` inlined) so that numba compiles it into the navigation loop
-    (``recursion.run``)."""
+    (``recursion.run``).
+
+    Parameters
+    ----------
+    x, y, z : float
+        ECEF position (PZ-90), m.
+
+    Returns
+    -------
+    tuple of float
+        (g_X, g_Y, g_Z): gravitation + centrifugal, ECEF axes, m/s².
+    """
     d = x * x + y * y + z * z - _E2L
     u = math.sqrt(0.5 * (d + math.sqrt(d * d + 4.0 * _E2L * z * z)))
     sb = z / u
