@@ -17,7 +17,11 @@ Publishes at every update of the algorithm (gyro rate / samples per update):
                      velocity in body axes (REP-105 Odometry) with its covariance; twist.angular
                      is not filled (zeros; the rate is on sins/imu)
 * ``/diagnostics``   counts of received, dropped (NaN, out-of-order, duplicate) and
-                     missing (gap) messages, rates from header stamps
+                     missing (gap) messages, rates from header stamps; the level is the worst
+                     of all current conditions and the message lists each, worst first
+                     (:class:`~strapdown_ros.nodes.ros_io.Conditions`); a Δv stream that stops
+                     while Δθ runs on is WARN beyond ``accel_wait`` and ERROR beyond
+                     max(1 s, 10 ``accel_wait``) of stamp time
 
 Timing comes only from header stamps.  Invalid input is dropped, counted and reported;
 the integrator never sees it.
