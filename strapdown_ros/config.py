@@ -12,7 +12,7 @@ from typing import Any, Sequence
 
 import numpy as np
 
-from .coning import algorithm_names
+from .coning import ALGORITHMS, algorithm_names
 from .integrator import COVARIANCE_MODELS
 from .navigation.gravity import GRAVITY_MODELS
 from .profiles import PROFILE_NAMES
@@ -35,17 +35,31 @@ class ParamSpec:
     choices: Sequence[str] | None = None
     exclusive_minimum: bool = False
     length: int | None = None            # arrays of fixed length
+    #: arrays: (minimum, maximum) of each element (None: no bound), instead of minimum/maximum
+    element_ranges: tuple | None = None
+    #: the unit of the element ranges' text (e.g. ("°", "°", "m"))
+    element_names: tuple | None = None
 
     def normalise(self, value):
         """Choices are strings; a name like ``2`` or ``3.1`` given unquoted on the command line
-        (``-p coning_algorithm:=2``) arrives as a number and is read as its string spelling.
-        A double array given as integers (``[0, 0, 9]``) is read as doubles; a double given as an
-        integer as a double; an integer given as an integral double (``5.0``) as an integer."""
+        (``-p coning_algorithm:=2``) arrives as a number and is read as its spelling (``2.0``
+        stays ``"2.0"``, which is no name: refused, as an integer given a fraction is).
+        A double array given as integers (``[0, 0, 9]``) or as the ``array('d')`` rclpy returns
+        is read as a list of doubles; a double given as an integer as a double; an integer given
+        as an integral double (``5.0``) as an integer; a number given as text that YAML did not
+        read as one (``1.0e9``: YAML 1.1 wants ``1.0e+9``) as that number."""
         if self.choices is not None and isinstance(value, (int, float)) and not isinstance(value, bool):
-            return format(value, "g")
-        if self.length is not None and isinstance(value, (list, tuple)) and \
-                all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in value):
+            return str(value)
+        if self.length is not None and not isinstance(value, (str, bytes, dict)) \
+                and hasattr(value, "__len__") \
+                and all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in value):
             return [float(v) for v in value]
+        if isinstance(self.default, (int, float)) and not isinstance(self.default, bool) and \
+                isinstance(value, str):
+            try:
+                value = float(value.strip())
+            except ValueError:
+                return value
         if isinstance(self.default, float) and isinstance(value, int) and not isinstance(value, bool):
             return float(value)
         if isinstance(self.default, int) and not isinstance(self.default, bool) and isinstance(value, float) \
@@ -67,6 +81,11 @@ class ParamSpec:
                 return f"{self.name} must be a list of {self.length} numbers, got {value!r}"
             if arr.shape != (self.length,) or not np.all(np.isfinite(arr)):
                 return f"{self.name} must be a list of {self.length} finite numbers, got {value!r}"
+            if self.element_ranges is not None:
+                for v, (lo, hi) in zip(arr, self.element_ranges):
+                    if (lo is not None and v < lo) or (hi is not None and v > hi):
+                        return f"{self.name}={value!r} is out of range; valid: {self.range_text()}"
+                return None
             bad = [v for v in arr if self._range_error(float(v))]
             return self._range_error(float(bad[0])) if bad else None
         if isinstance(self.default, bool):
@@ -79,6 +98,10 @@ class ParamSpec:
             if not np.isfinite(value):
                 return f"{self.name} must be finite, got {value!r}"
             return self._range_error(value)
+        if isinstance(self.default, str) and not isinstance(value, str):
+            return (f"{self.name} must be a string, got {type(value).__name__} "
+                    f"{str(value)[:80]!r} "
+                    "(quote it in YAML)")
         return None
 
     def _range_error(self, value) -> str | None:
@@ -93,6 +116,10 @@ class ParamSpec:
         def num(v):
             return str(v) if isinstance(v, int) else f"{v:g}"
         parts = []
+        if self.element_ranges is not None:
+            names = self.element_names or tuple(f"[{k}]" for k in range(len(self.element_ranges)))
+            return ", ".join(f"{n} in [{num(lo)}, {num(hi)}]"
+                             for n, (lo, hi) in zip(names, self.element_ranges))
         if self.minimum is not None:
             parts.append(("> " if self.exclusive_minimum else ">= ") + num(self.minimum))
         if self.maximum is not None:
@@ -102,16 +129,25 @@ class ParamSpec:
         return " and ".join(parts) if parts else "any"
 
 
+#: physical bounds of the sensor statistics (a value beyond is no sensor, and overflows squares):
+#: bias σ (rad/s, m/s²), random walk (rad/√s, m/s/√s), quantum (rad, m/s)
+SENSOR_BOUNDS = {"gyro": {"bias": 100.0, "random_walk": 1.0, "quantum": 0.1},
+                 "accel": {"bias": 1000.0, "random_walk": 100.0, "quantum": 10.0}}
+
+
 def _sensor_params(prefix: str, grade: SensorSigmas, rate: float, unit: str, rw_unit: str) -> list[ParamSpec]:
+    b = SENSOR_BOUNDS[prefix]
     return [
         ParamSpec(f"{prefix}_rate", rate, f"{prefix} output rate, Hz", 0.0, 10000.0, exclusive_minimum=True),
-        ParamSpec(f"{prefix}_bias_sigma", grade.bias_sigma, f"1σ of the constant bias per axis, {unit}", 0.0),
+        ParamSpec(f"{prefix}_bias_sigma", grade.bias_sigma,
+                  f"1σ of the constant bias per axis, {unit}", 0.0, b["bias"]),
         ParamSpec(f"{prefix}_scale_sigma", grade.scale_sigma, "1σ of each scale-factor error (relative)", 0.0, 0.1),
         ParamSpec(f"{prefix}_misalignment_sigma", grade.misalignment_sigma,
                   "1σ of each axis misalignment (off-diagonal of M), rad", 0.0, 0.1),
-        ParamSpec(f"{prefix}_random_walk", grade.random_walk, f"white-noise random walk, {rw_unit}", 0.0),
+        ParamSpec(f"{prefix}_random_walk", grade.random_walk,
+                  f"white-noise random walk, {rw_unit}", 0.0, b["random_walk"]),
         ParamSpec(f"{prefix}_quantum", 0.0, f"pulse weight σ of level quantization (0 = off), "
-                  f"{'rad' if prefix == 'gyro' else 'm/s'}", 0.0),
+                  f"{'rad' if prefix == 'gyro' else 'm/s'}", 0.0, b["quantum"]),
     ]
 
 
@@ -138,7 +174,8 @@ PROFILE_PARAMS = [
     ParamSpec("sculling_angle", 0.01, "sculling angular amplitude about body x, rad", 0.0, 1.5),
     ParamSpec("sculling_accel", 1.0, "sculling acceleration amplitude along the level y axis, m/s²", 0.0, 1e3),
     ParamSpec("sculling_frequency", 10.0, "sculling frequency, Hz", 0.0, 1000.0, exclusive_minimum=True),
-    ParamSpec("gravity_model", "pz90_003", "normal gravity of the navigation profiles",
+    ParamSpec("gravity_model", "normal_exact", "normal gravity of the navigation profiles "
+              "(pz90_003: 003's formula corrected, 3.2″ and 35 mGal from normal_exact)",
               choices=tuple(GRAVITY_MODELS)),
 ]
 
@@ -209,6 +246,10 @@ ACCEL_INPUT_PARAMS = [
               "is rejected as impossible", 0.0, 1e6, exclusive_minimum=True),
 ]
 
+#: largest velocity component of the navigation, m/s (above any aircraft; orbital speed is
+#: 7.9 km/s)
+MAX_SPEED = 1e4
+
 SINS_PARAMS = GYRO_PARAMS + ACCEL_PARAMS + COMMON_PARAMS + INPUT_PARAMS + ACCEL_INPUT_PARAMS + \
     GYRO_INPUT_PARAMS + [
     ParamSpec("coning_algorithm", "2", "coning algorithm (doc/coning_derivations.md)", choices=tuple(algorithm_names())),
@@ -222,8 +263,10 @@ SINS_PARAMS = GYRO_PARAMS + ACCEL_PARAMS + COMMON_PARAMS + INPUT_PARAMS + ACCEL_
               "from imu/delta_velocity; the attitude reference frame is then the inertial frame that coincides "
               "with earth at the start (doc/navigation.md)"),
     ParamSpec("initial_position", [50.45, 30.52, 150.0], "initial latitude °, longitude °, height m (PZ-90 "
-              "ellipsoid)", length=3),
-    ParamSpec("initial_velocity", [0.0, 0.0, 0.0], "initial velocity east, north, up, m/s", length=3),
+              "ellipsoid)", length=3, element_ranges=((-90.0, 90.0), (-180.0, 360.0), (-1e4, 1e6)),
+              element_names=("latitude °", "longitude °", "height m")),
+    ParamSpec("initial_velocity", [0.0, 0.0, 0.0], "initial velocity east, north, up, m/s",
+              -MAX_SPEED, MAX_SPEED, length=3),
     ParamSpec("initial_position_sigma", 0.0, "1σ initial position error per axis, m", 0.0),
     ParamSpec("initial_velocity_sigma", 0.0, "1σ initial velocity error per axis, m/s", 0.0),
     ParamSpec("initial_alignment", "given", "initial attitude: given (initial_orientation = q_earth_body) or "
@@ -235,7 +278,9 @@ SINS_PARAMS = GYRO_PARAMS + ACCEL_PARAMS + COMMON_PARAMS + INPUT_PARAMS + ACCEL_
               choices=("derived", "printed")),
     ParamSpec("sculling_compensation", True, "rotation and sculling from the fitted motion (false: rotation "
               "compensation ½θ×v only)"),
-    ParamSpec("gravity_model", "pz90_003", "normal gravity model (strapdown_ros/navigation/gravity.py)",
+    ParamSpec("gravity_model", "normal_exact", "normal gravity model "
+              "(strapdown_ros/navigation/gravity.py; pz90_003: 003's formula corrected, 3.2″ and "
+              "35 mGal from normal_exact)",
               choices=("pz90_003", "normal_exact", "j2")),
     ParamSpec("navigation_covariance_period", 1.0, "propagation period of the navigation covariance, s",
               0.001, 60.0),
@@ -315,6 +360,42 @@ ALL_PARAMETER_NAMES = frozenset(s.name for s in IMU_SIM_PARAMS + SINS_PARAMS + S
                                 + CALIBRATOR_PARAMS)
 
 
+def combination_error(values: dict) -> str | None:
+    """The rules between parameters, in one place (nodes at start-up and on set, tools through
+    :func:`check_all`); each rule applies when ``values`` holds all its parameters.  Returns an
+    error message naming the valid combinations, or None.
+
+    * ``velocity_update: printed`` (with ``navigation``) is 003's scheme: one gyro and three
+      accelerometer increments per step, so a coning algorithm with 1 sample per update and
+      ``accel_rate`` = 3 × ``gyro_rate``.
+
+    Parameters
+    ----------
+    values : dict
+        Parameter values (normalised), any subset of any node's.
+
+    Returns
+    -------
+    str or None
+        The error message, or None when every applicable rule holds.
+    """
+    need = ("navigation", "velocity_update", "coning_algorithm", "gyro_rate", "accel_rate")
+    if all(n in values for n in need) and values["navigation"] \
+            and values["velocity_update"] == "printed":
+        samples = ALGORITHMS[str(values["coning_algorithm"])].samples
+        ratio = float(values["accel_rate"]) / float(values["gyro_rate"])
+        accel_per_step = max(1, int(round(samples * ratio)))
+        if samples != 1 or accel_per_step != 3:
+            one = ", ".join(n for n in algorithm_names() if ALGORITHMS[n].samples == 1)
+            return (f"velocity_update=printed is 003's scheme: 1 gyro and 3 accelerometer "
+                    f"increments per step, got coning_algorithm={values['coning_algorithm']} "
+                    f"({samples} sample(s) per update) with accel_rate/gyro_rate = {ratio:.6g} "
+                    f"({accel_per_step} accelerometer increment(s) per step); valid: "
+                    f"coning_algorithm one of {one} with accel_rate = 3 × gyro_rate, or "
+                    f"velocity_update=derived (any combination)")
+    return None
+
+
 def check_all(specs: Sequence[ParamSpec], values: dict) -> dict:
     """Fill defaults and validate; raises ValueError listing the valid values.
 
@@ -333,6 +414,9 @@ def check_all(specs: Sequence[ParamSpec], values: dict) -> dict:
         if err:
             raise ValueError(err)
         out[s.name] = v
+    err = combination_error(out)
+    if err:
+        raise ValueError(err)
     return out
 
 
@@ -439,9 +523,10 @@ def write_model(path: str, doc: dict | None, updates: dict, comment: str) -> Non
     override the new value), atomically, under a ``# comment`` line.  Plain copies: no YAML
     anchors."""
     import json
-    import os
 
     import yaml
+
+    from .files import atomic_write_text
 
     doc = json.loads(json.dumps(doc or {}))                   # a deep copy of plain data
     root = doc.setdefault("/**", {}).setdefault("ros__parameters", {})
@@ -450,8 +535,5 @@ def write_model(path: str, doc: dict | None, updates: dict, comment: str) -> Non
         for key, block in doc.items():
             if key != "/**" and isinstance(block, dict) and name in (block.get("ros__parameters") or {}):
                 block["ros__parameters"][name] = json.loads(json.dumps(value))
-    tmp = f"{path}.tmp"
-    with open(tmp, "w", encoding="utf-8") as fh:
-        fh.write(f"# {comment}\n")
-        yaml.safe_dump(doc, fh, sort_keys=False, allow_unicode=True)
-    os.replace(tmp, path)
+    atomic_write_text(path, f"# {comment}\n"
+                      + yaml.safe_dump(doc, sort_keys=False, allow_unicode=True))

@@ -182,7 +182,7 @@ def test_arguments_and_files_are_checked_before_work(tmp_path, capsys, recording
         ([str(bag), "--method", "integral", "--json", "/nonexistent/r.json"], "/nonexistent"),
         ([str(bag), "--method", "integral", "--write-model", str(tmp_path)], "directory"),
         ([str(bag), "--method", "integral", "--json", str(tmp_path / "a"), "--write-model", str(tmp_path / "a")],
-         "same file"),
+         "same output"),
         ([str(not_a_bag), "--method", "integral"], "notabag"),
     ]
     for argv, needle in cases:

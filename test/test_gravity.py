@@ -196,3 +196,28 @@ def test_enu_rotation():
     assert np.allclose(c[..., :, 2], n / np.linalg.norm(n, axis=-1)[..., None], atol=1e-15)
     east = np.cross([0.0, 0.0, 1.0], c[..., :, 2])
     assert np.allclose(c[..., :, 0], east / np.linalg.norm(east, axis=-1)[..., None], atol=1e-15)
+
+
+def test_scalar_exact_field_and_the_compiled_loop_equal_the_vectorised_field():
+    """gravity_model normal_exact is the default: its scalar form (compiled into the navigation
+    loop) equals the vectorised closed form (independent code: arrays, series by np.where), and
+    the loop run with it equals the same loop run with the vectorised field."""
+    from strapdown_ros.navigation import recursion as R
+    rng = np.random.default_rng(3)
+    r = G.geodetic_to_ecef(rng.uniform(-np.pi / 2, np.pi / 2, 300),
+                           rng.uniform(-np.pi, np.pi, 300), rng.uniform(-1e4, 1e6, 300))
+    r = np.vstack([r, [[0.0, 0.0, 6356752.0], [6378136.0, 0.0, 0.0], [0.0, 0.0, -7.0e6]]])
+    scalar = np.array([G.normal_exact_xyz(*x) for x in r])
+    np.testing.assert_allclose(scalar, G.normal_gravity(r, "normal_exact"), rtol=0, atol=1e-14)
+    k = 400
+    o = G.geodetic_to_ecef(np.radians(50.45), np.radians(30.52), 150.0)
+    dv = np.tile([0.0, 0.0, 0.0981], (k, 1))
+    h = np.full(k, 0.01)
+    w0 = np.array([1.0, 2.0, 3.0])
+    got = R.run(o, np.zeros(3), w0, dv, dv * 0.005, h, gravity_model="normal_exact")
+    ref = R._exact_generic(o, np.zeros(3), w0, dv, dv * 0.005, h, "normal_exact")
+    np.testing.assert_allclose(got[0], ref[0], rtol=0, atol=1e-8)
+    np.testing.assert_allclose(got[1], ref[1], rtol=0, atol=1e-11)
+    from strapdown_ros.config import PROFILE_PARAMS, SINS_PARAMS
+    defaults = {s.default for s in PROFILE_PARAMS + SINS_PARAMS if s.name == "gravity_model"}
+    assert defaults == {"normal_exact"}

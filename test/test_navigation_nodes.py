@@ -45,7 +45,10 @@ def spin_until(ex, predicate, timeout):
 
 
 def _run(ns, profile, duration, sins_extra=(), sim_extra=(), expect=None):
-    cfg = {"profile": profile}
+    from strapdown_ros.config import PROFILE_PARAMS
+    # the truth of the simulator's own parameters (its default gravity_model included: the turn is
+    # coordinated with that model's vertical, and the initial state must be that profile's)
+    cfg = {**{s.name: s.default for s in PROFILE_PARAMS}, "profile": profile}
     prof = navigation_profile_from_config(cfg)
     r0, w0 = prof.position(np.array([0.0]))[0], prof.velocity(np.array([0.0]))[0]
     lat, lon, h = G.ecef_to_geodetic(r0)

@@ -227,7 +227,59 @@ def level_ellipsoid_j2(ell=PZ90_11):
     return (e / ell.a) ** 2 / 3.0 * (1.0 - 2.0 * mm * (e / b) / (15.0 * _q(b, e)[0]))
 
 
+# --- the exact normal field, scalar (pure math: numba.njit-able) -----------------------------
+_B = A * (1.0 - F)                                    # PZ-90.11 semi-minor axis, m
+_E2L = A * A - _B * _B                                # linear eccentricity squared E², m²
+_EL = math.sqrt(_E2L)
+_Q0 = float(_q(_B, _EL)[0])                          # q at the ellipsoid (u = b)
+
+
+def normal_exact_xyz(x, y, z):
+    """The exact normal gravity of the PZ-90.11 level ellipsoid (:func:`_normal_exact`) at one
+    ECEF position (m) → (g_X, g_Y, g_Z), m/s²; pure ``math`` on scalars (the series and closed
+    form of :func:`_q` inlined) so that numba compiles it into the navigation loop
+    (``recursion.run``).
+
+    Parameters
+    ----------
+    x, y, z : float
+        ECEF position (PZ-90), m.
+
+    Returns
+    -------
+    tuple of float
+        (g_X, g_Y, g_Z): gravitation + centrifugal, ECEF axes, m/s².
+    """
+    d = x * x + y * y + z * z - _E2L
+    u = math.sqrt(0.5 * (d + math.sqrt(d * d + 4.0 * _E2L * z * z)))
+    sb = z / u
+    t = _EL / u                                       # q(u) and dq/du as in _q
+    if t <= 0.5:
+        t2 = t * t
+        sq = 0.0
+        sd = 0.0
+        for k in range(30, 0, -1):
+            sgn = 1.0 if k % 2 else -1.0
+            sq = sgn * 2.0 * k / ((2.0 * k + 1.0) * (2.0 * k + 3.0)) + t2 * sq
+            sd = sgn * 2.0 * k / (2.0 * k + 3.0) + t2 * sd
+        q, dq = t ** 3 * sq, -t ** 3 * sd / u
+    else:
+        at = math.atan(t)
+        q = 0.5 * ((1.0 + 3.0 / (t * t)) * at - 3.0 / t)
+        dq = 0.5 * (6.0 * u / _E2L * at - (_E2L + 3.0 * u * u) / (_EL * (u * u + _E2L))
+                    - 3.0 / _EL)
+    w2a2 = OMEGA * OMEGA * A * A
+    vu = -GM / (u * u + _E2L) + 0.5 * w2a2 * dq / _Q0 * (sb * sb - 1.0 / 3.0)
+    vb = w2a2 * q / _Q0
+    den = u * u + _E2L * sb * sb
+    cu, cb = vu / den, vb / den
+    radial = cu * u - cb * sb * sb + OMEGA * OMEGA
+    return radial * x, radial * y, cu * (u * u + _E2L) * sb + cb * u * sb * (1.0 - sb * sb)
+
+
 GRAVITY_MODELS = {"pz90_003": _pz90_003, "normal_exact": _normal_exact, "j2": _j2}
+#: scalar forms of the models (numba-compilable) that the navigation loop can run compiled
+SCALAR_GRAVITY = {"pz90_003": printed_gravity_xyz, "normal_exact": normal_exact_xyz}
 
 
 def get_gravity_model(name):

@@ -44,14 +44,25 @@ SCHEMES = ("exact", "printed")
 OMEGA = _gravity.OMEGA
 
 
-def _exact_loop(origin, offset0, w0, dv, dr, h, omega, out_off, out_w):
-    """The exact scheme with the 003 normal gravity (printed_gravity_xyz) inside."""
+def _model_gravity_xyz(model, x, y, z):
+    """Gravity of the compiled models: ``model`` 1 the exact normal field, else 003's formula."""
+    if model == 1:
+        return _normal_exact_xyz(x, y, z)
+    return _gravity_xyz(x, y, z)
+
+
+#: the models the compiled loop has built in, by the integer it is given
+COMPILED_MODELS = {"pz90_003": 0, "normal_exact": 1}
+
+
+def _exact_loop(origin, offset0, w0, dv, dr, h, omega, out_off, out_w, model):
+    """The exact scheme with the gravity of ``model`` (:data:`COMPILED_MODELS`) inside."""
     ox, oy, oz = origin[0], origin[1], origin[2]
     px, py, pz = offset0[0], offset0[1], offset0[2]
     wx, wy, wz = w0[0], w0[1], w0[2]
     w2 = omega * omega
     rx, ry, rz = ox + px, oy + py, oz + pz
-    gx, gy, gz = _gravity_xyz(rx, ry, rz)
+    gx, gy, gz = _model_gravity_xyz(model, rx, ry, rz)
     g0x, g0y = gx - w2 * rx, gy - w2 * ry            # gravitation G = g + Ω×(Ω×r) = g − Ω²(x, y, 0)
     g0z = gz
     for k in range(dv.shape[0]):
@@ -63,7 +74,7 @@ def _exact_loop(origin, offset0, w0, dv, dr, h, omega, out_off, out_w):
         qy = ry + vy * hk + dr[k, 1] + 0.5 * g0y * hk * hk
         qz = rz + vz * hk + dr[k, 2] + 0.5 * g0z * hk * hk
         ex, ey = qx + c1 * qx + s * qy, qy - s * qx + c1 * qy
-        gx, gy, gz = _gravity_xyz(ex, ey, qz)
+        gx, gy, gz = _model_gravity_xyz(model, ex, ey, qz)
         gx, gy = gx - w2 * ex, gy - w2 * ey                     # gravitation at the end, E axes
         g1x, g1y, g1z = gx + c1 * gx - s * gy, gy + s * gx + c1 * gy, gz     # back to I: D_hᵀ
         # increments in I
@@ -96,40 +107,44 @@ def _exact_loop(origin, offset0, w0, dv, dr, h, omega, out_off, out_w):
         wz = az
         rx, ry, rz = ox + px, oy + py, oz + pz
         # gravitation at R_k for the next step (fresh, not the predicted one)
-        gx, gy, gz = _gravity_xyz(rx, ry, rz)
+        gx, gy, gz = _model_gravity_xyz(model, rx, ry, rz)
         g0x, g0y, g0z = gx - w2 * rx, gy - w2 * ry, gz
         out_off[k, 0], out_off[k, 1], out_off[k, 2] = px, py, pz
         out_w[k, 0], out_w[k, 1], out_w[k, 2] = wx, wy, wz
 
 
 _gravity_xyz = _gravity.printed_gravity_xyz
+_normal_exact_xyz = _gravity.normal_exact_xyz
 _compiled = None
 
 
 def available() -> bool:
     """numba present, allowed and able to compile the exact loop."""
-    global _compiled, _gravity_xyz
+    global _compiled, _gravity_xyz, _normal_exact_xyz, _model_gravity_xyz
     if not kernels_allowed():
         return False
     if _compiled is None:
-        got = njit_optional(_gravity.printed_gravity_xyz, _exact_loop)
+        got = njit_optional(_gravity.printed_gravity_xyz, _gravity.normal_exact_xyz)
         if got:
-            _gravity_xyz, _compiled = got
-        else:
-            _compiled = False
+            _gravity_xyz, _normal_exact_xyz = got
+            got = njit_optional(_model_gravity_xyz)
+        if got:
+            _model_gravity_xyz = got[0]
+            got = njit_optional(_exact_loop)
+        _compiled = got[0] if got else False
     return _compiled is not False
 
 
 def _exact_generic(origin, offset, w, dv, dr, h, model):
     """The exact scheme with any gravity model of the registry: the same loop, run by Python with
     that model's gravity (slow; the compiled loop has the 003 model built in)."""
-    def grav(x, y, z):
+    def grav(_model, x, y, z):
         g = _gravity.normal_gravity(np.array([x, y, z]), model)
         return float(g[0]), float(g[1]), float(g[2])
-    loop = types.FunctionType(_exact_loop.__code__, {**globals(), "_gravity_xyz": grav})
+    loop = types.FunctionType(_exact_loop.__code__, {**globals(), "_model_gravity_xyz": grav})
     out_off = np.empty_like(dv)
     out_w = np.empty_like(dv)
-    loop(origin, offset, w, dv, dr, h, OMEGA, out_off, out_w)
+    loop(origin, offset, w, dv, dr, h, OMEGA, out_off, out_w, -1)
     return out_off, out_w
 
 
@@ -161,12 +176,12 @@ def run(origin, offset, velocity, dv_e, dr_e, h, scheme: str = "exact", gravity_
     args = [np.ascontiguousarray(x, dtype=float) for x in (origin, offset, velocity, dv_e, dr_e, h)]
     if scheme == "printed":
         return _printed(*args, gravity_model)
-    if gravity_model != "pz90_003":
+    if gravity_model not in COMPILED_MODELS:
         return _exact_generic(*args, gravity_model)
     out_off = np.empty_like(args[3])
     out_w = np.empty_like(args[3])
     fn = _compiled if available() else _exact_loop
-    fn(*args, OMEGA, out_off, out_w)
+    fn(*args, OMEGA, out_off, out_w, COMPILED_MODELS[gravity_model])
     return out_off, out_w
 
 

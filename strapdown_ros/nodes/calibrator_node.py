@@ -462,15 +462,15 @@ class CalibratorNode(Node):
                        "state_restored_pairs": self.state["restored_pairs"], "state_errors": self.state["errors"],
                        **{f"camera_{k}": v for k, v in self.camera_counts.items()}})
         mism = self.gyro_frame_mismatch + self.camera_counts["frame_mismatch"]
-        if mism and level == ros_io.OK:
-            level = ros_io.WARN
+        if mism:                              # every condition listed, the level the worst
+            level = max(level, ros_io.WARN)
             message = (f"{message}; {mism} message(s) in an unexpected frame "
                        f"({'rejected' if self.reject_frames else 'used'})")
-        if self.undecodable and level == ros_io.OK:
-            level = ros_io.WARN
+        if self.undecodable:
+            level = max(level, ros_io.WARN)
             message = f"{message}; {self.undecodable} gyro message(s) could not be decoded: dropped"
-        if self.cal.outlier_fixes and level == ros_io.OK:
-            level = ros_io.WARN
+        if self.cal.outlier_fixes:
+            level = max(level, ros_io.WARN)
             message = (f"{message}; {self.cal.outlier_fixes} camera fix(es) dropped as outliers (both pairs off by more "
                        f"than {self.p['outlier_gate']:g} σ in rotation angle, the pair skipping it consistent)")
         g_drop = g.dropped
@@ -488,8 +488,8 @@ class CalibratorNode(Node):
                            f"{r.out_of_order}, duplicate {r.duplicate}, stamp outliers "
                            f"{r.stamp_outliers})")
         c_drop = c.dropped + self.camera_counts["dropped_zero_quaternion"] + self.camera_counts["dropped_bad_covariance"]
-        if level == ros_io.OK and (g_drop or c_drop):
-            level = ros_io.WARN
+        if g_drop or c_drop:
+            level = max(level, ros_io.WARN)
             message = f"{message}; dropped {g_drop} gyro and {c_drop} camera messages"
         if self.state["errors"]:
             level = ros_io.ERROR

@@ -260,7 +260,11 @@ def run_navigation(args, duration: float = 60.0) -> dict:
         from rclpy.experimental import EventsExecutor as Executor
     except ImportError:                       # pragma: no cover - older rclpy
         Executor = SingleThreadedExecutor
-    prof = navigation_profile_from_config({"profile": "coordinated_turn"})
+    from ..config import PROFILE_PARAMS
+    # the simulator's own parameters (its defaults: gravity_model included), so that the
+    # initial state given to sins_node is the simulated one
+    prof = navigation_profile_from_config({**{s.name: s.default for s in PROFILE_PARAMS},
+                                           "profile": "coordinated_turn"})
     r0, w0 = prof.position(np.array([0.0]))[0], prof.velocity(np.array([0.0]))[0]
     lat, lon, h = G.ecef_to_geodetic(r0)
     enu = G.enu_rotation(lat, lon)

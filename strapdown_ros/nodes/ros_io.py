@@ -234,7 +234,7 @@ def declare_validated(node, specs: Sequence[ParamSpec], on_change: Callable[[dic
     package declares is an error (a typo must not pass silently).  Returns the dict of current
     values, kept up to date.
     """
-    from ..config import ALL_PARAMETER_NAMES
+    from ..config import ALL_PARAMETER_NAMES, combination_error
 
     by_name = {s.name: s for s in specs}
     values = {}
@@ -245,6 +245,9 @@ def declare_validated(node, specs: Sequence[ParamSpec], on_change: Callable[[dic
         if err:
             raise InvalidParameter(err)
         values[s.name] = v
+    err = combination_error(values)
+    if err:
+        raise InvalidParameter(err)
     unknown = sorted(n for n in getattr(node, "_parameter_overrides", {})
                      if n not in ALL_PARAMETER_NAMES and n not in ROS_OWN_PARAMETERS and not n.startswith("qos_overrides."))
     if unknown:
@@ -263,7 +266,8 @@ def declare_validated(node, specs: Sequence[ParamSpec], on_change: Callable[[dic
                 return None, err
             if v != values.get(p.name):
                 new[p.name] = v
-        return new, None
+        err = combination_error({**values, **new}) if new else None
+        return (None, err) if err else (new, None)
 
     def _on_set(params: list[Parameter]) -> SetParametersResult:
         new, err = _changes(params)
@@ -287,6 +291,90 @@ def declare_validated(node, specs: Sequence[ParamSpec], on_change: Callable[[dic
     return values
 
 
+# --- logging -----------------------------------------------------------------------------
+#: longest text a node logs or puts in a diagnostic message, characters (echoed input is bounded)
+MAX_TEXT = 400
+
+
+def bounded(text: str, limit: int = MAX_TEXT) -> str:
+    """``text`` cut to ``limit`` characters (an ellipsis marks the cut)."""
+    text = str(text)
+    return text if len(text) <= limit else text[:limit - 1] + "…"
+
+
+class NodeLog:
+    """The one logging helper of the nodes: ``log(level, text, throttle=0.0, key=None)``.
+
+    rclpy's logger keeps one context per call site (function, file, line) and raises
+    ``ValueError('Logger severity cannot be changed between calls.')`` when one call site logs
+    at another severity than before, and likewise when its throttle changes.  Every severity
+    here has its own call site, and throttling is done here (``throttle`` wall seconds per
+    ``key``, default the text), never through rclpy's filters, so any sequence of levels and
+    throttles at one caller is safe.  Texts are bounded to :data:`MAX_TEXT` characters.
+
+    Parameters
+    ----------
+    logger
+        The node's rclpy logger (``node.get_logger()``).
+    """
+
+    LEVELS = ("debug", "info", "warn", "error")
+
+    def __init__(self, logger):
+        import time
+        self._logger = logger
+        self._clock = time.monotonic
+        self._last: dict[str, float] = {}
+
+    def __call__(self, level: str, text: str, throttle: float = 0.0,
+                 key: str | None = None) -> bool:
+        """Log ``text`` at ``level`` (debug, info, warn or error); returns False when throttled.
+
+        Parameters
+        ----------
+        level : str
+            ``debug``, ``info``, ``warn`` (or ``warning``) or ``error``.
+        text : str
+            The message (bounded to :data:`MAX_TEXT` characters).
+        throttle : float
+            Minimum wall seconds between two messages of the same ``key`` (0: every one).
+        key : str, optional
+            What the throttle counts (default: the text).
+        """
+        if level == "warning":
+            level = "warn"
+        if level not in self.LEVELS:
+            raise ValueError(f"unknown log level {level!r}; valid: {', '.join(self.LEVELS)}")
+        if throttle > 0:
+            k = key or text
+            now = self._clock()
+            if now - self._last.get(k, -float("inf")) < throttle:
+                return False
+            self._last[k] = now
+        text = bounded(text)
+        if level == "error":                      # one call site per severity (see the class doc)
+            self._logger.error(text)
+        elif level == "warn":
+            self._logger.warning(text)
+        elif level == "info":
+            self._logger.info(text)
+        else:
+            self._logger.debug(text)
+        return True
+
+    def error(self, text: str, throttle: float = 0.0, key: str | None = None) -> bool:
+        """``log("error", ...)``."""
+        return self("error", text, throttle, key)
+
+    def warn(self, text: str, throttle: float = 0.0, key: str | None = None) -> bool:
+        """``log("warn", ...)``."""
+        return self("warn", text, throttle, key)
+
+    def info(self, text: str, throttle: float = 0.0, key: str | None = None) -> bool:
+        """``log("info", ...)``."""
+        return self("info", text, throttle, key)
+
+
 # --- diagnostics -------------------------------------------------------------------------
 def diagnostic_array(stamp: Time, name: str, hardware_id: str, level: int, message: str,
                      values: dict[str, Any]) -> DiagnosticArray:
@@ -306,6 +394,46 @@ def _fmt(v) -> str:
 
 
 OK, WARN, ERROR = 0, 1, 2
+
+
+class Conditions:
+    """The current conditions of a node's /diagnostics status: the level is the worst of all of
+    them, and the message lists every one, worst first (in the order added within a level),
+    bounded to ``limit`` characters with the number of conditions cut off.  A lower-level
+    condition never masks a higher one (an undecodable message does not hide a gyro gap).
+
+    Parameters
+    ----------
+    limit : int
+        Longest message, characters.
+    """
+
+    def __init__(self, limit: int = MAX_TEXT):
+        self.limit = int(limit)
+        self.items: list[tuple[int, str]] = []
+
+    def add(self, level: int, text: str) -> None:
+        """One condition at ``level`` (:data:`OK`, :data:`WARN` or :data:`ERROR`)."""
+        self.items.append((int(level), str(text)))
+
+    @property
+    def level(self) -> int:
+        """The worst level of all conditions (:data:`OK` when there are none)."""
+        return max((lv for lv, _ in self.items), default=OK)
+
+    def message(self, ok_text: str = "ok") -> str:
+        """Every condition's text, worst first, joined by ``; `` and bounded; ``ok_text`` when
+        there is none."""
+        texts = [t for _, t in sorted(self.items, key=lambda it: -it[0])]
+        if not texts:
+            return bounded(ok_text, self.limit)
+        out = texts[0]
+        for k, t in enumerate(texts[1:], 1):
+            more = f" (+{len(texts) - k} more)"
+            if len(out) + 2 + len(t) + len(more) > self.limit:
+                return bounded(out, self.limit - len(more)) + more
+            out += "; " + t
+        return bounded(out, self.limit)
 
 
 # --- simulators ------------------------------------------------------------------------------

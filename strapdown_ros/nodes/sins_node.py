@@ -26,7 +26,11 @@ Publishes at every update of the algorithm (gyro rate / samples per update):
                      velocity in body axes (REP-105 Odometry) with its covariance; twist.angular
                      is not filled (zeros; the rate is on sins/imu)
 * ``/diagnostics``   counts of received, dropped (NaN, out-of-order, duplicate) and
-                     missing (gap) messages, rates from header stamps
+                     missing (gap) messages, rates from header stamps; the level is the worst
+                     of all current conditions and the message lists each, worst first
+                     (:class:`~strapdown_ros.nodes.ros_io.Conditions`); a Δv stream that stops
+                     while Δθ runs on is WARN beyond ``accel_wait`` and ERROR beyond
+                     max(1 s, 10 ``accel_wait``) of stamp time
 
 Timing comes only from header stamps.  Invalid input is dropped, counted and reported;
 the integrator never sees it.
@@ -59,11 +63,16 @@ from ..rate_increments import RateIncrementStream
 from . import ros_io
 
 NODE_NAME = "sins_node"
+#: the accelerometer stall is an ERROR beyond this factor × accel_wait, and at least this many
+#: stamp seconds (a WARN beyond accel_wait)
+ACCEL_STALL_ERROR_FACTOR = 10.0
+ACCEL_STALL_ERROR_MIN_S = 1.0
 
 
 class SinsNode(Node):
     def __init__(self, **kwargs):
         super().__init__(NODE_NAME, **kwargs)
+        self.log = ros_io.NodeLog(self.get_logger())   # the one logging helper (any severity)
         self.p = ros_io.declare_validated(self, SINS_PARAMS, on_change=self._on_change,
                                           apply=self._apply_change)
         p = self.p
@@ -76,7 +85,7 @@ class SinsNode(Node):
         # with Imu input, Δv comes from the same messages: at the Imu rate, which is gyro_rate
         sys_p = dict(p, accel_rate=p["gyro_rate"]) if self.imu_input else p
         # the numerical core; sins/imu records are made only while it has a subscriber (asked once per block)
-        self.system = SinsSystem(sys_p, log=self._log,
+        self.system = SinsSystem(sys_p, log=self.log,
                                  imu_wanted=lambda: self.pub_imu.get_subscription_count() > 0)
         self._make_output_messages()
         qos = ros_io.stream_qos(int(p["qos_depth"]))
@@ -107,14 +116,14 @@ class SinsNode(Node):
         self.create_timer(float(p["diagnostics_period"]), self.publish_diagnostics)
         if self.system.batch_span > 0:             # a block is processed at least this often
             self.create_timer(self.system.batch_span, self.process)
-        self.get_logger().info(
+        self.log.info(
             f"started: gyro_input={p['gyro_input']}"
             + (f" ({p['imu_rate_rule']}; Δv at gyro_rate)" if self.imu_input else "")
             + f", coning_algorithm={p['coning_algorithm']} "
             f"({self.integrator.algorithm.samples} samples/update), covariance_model={p['covariance_model']}, "
             f"compensating: {', '.join(self.system.compensating) or 'none'}")
         if self.system.initial_normalised:
-            self.get_logger().warn("initial_orientation was not a unit quaternion; normalised")
+            self.log.warn("initial_orientation was not a unit quaternion; normalised")
 
     # --- the core's state, as the node's (diagnostics, tests, tools) --------------------------
     @property
@@ -141,16 +150,16 @@ class SinsNode(Node):
     def frame_mismatch(self) -> dict:
         return self.system.frame_mismatch
 
-    def _log(self, level: str, text: str) -> None:
-        lg = self.get_logger()
-        (lg.error if level == "error" else lg.warning if level == "warn" else lg.info)(text)
 
     # --- parameters ---------------------------------------------------------------------
     def _on_change(self, new: dict) -> str | None:
-        """Validation (on-set): only the coning algorithm may change at runtime."""
+        """Validation (on-set): only the coning algorithm may change at runtime, and only while
+        navigation is off (the navigation step is the algorithm's update)."""
+        if self.nav is not None:
+            return ("no parameter can change at runtime while navigation is on (the navigation "
+                    "step is the coning algorithm's update); restart the node to change "
+                    + ", ".join(sorted(new)))
         fixed = sorted(set(new) - {"coning_algorithm"})
-        if self.nav is not None and "coning_algorithm" in new:
-            fixed = sorted(set(new))               # the navigation step is the algorithm's update
         if fixed:
             return ("only coning_algorithm can change at runtime; restart the node to change "
                     + ", ".join(fixed))
@@ -164,7 +173,7 @@ class SinsNode(Node):
             self.system.set_algorithm(name)
             self.algorithm_changes += 1
             self.p["coning_algorithm"] = name
-            self.get_logger().info(f"coning_algorithm switched to {name}")
+            self.log.info(f"coning_algorithm switched to {name}")
 
     # --- input ------------------------------------------------------------------------------
     def _on_gyro_raw(self, data: bytes):
@@ -319,40 +328,78 @@ class SinsNode(Node):
         self._odom_out.child_frame_id = self.frame_id
         self._att_out.header.frame_id = self.ref_frame
 
-    def publish_diagnostics(self):
+    def accel_stall_s(self) -> float | None:
+        """Stamp seconds the gyro stream has run beyond the newest accepted Δv (the first gyro
+        stamp when none arrived); None when no accelerometer stream is expected yet (none seen and
+        navigation off) or no gyro data arrived."""
         g, a = self.gyro_check, self.accel_check
-        level, message = ros_io.OK, "ok"
+        if g.last_ns is None or (not self.system.accel_seen and self.nav is None):
+            return None
+        ref = a.last_ns if a.last_ns is not None else g.first_ns
+        return None if ref is None else max(0.0, (g.last_ns - ref) * 1e-9)
+
+    def accel_stall_limits(self) -> tuple[float, float]:
+        """(WARN, ERROR) thresholds of the accelerometer stall, stamp seconds: ``accel_wait``
+        (sins/imu stops waiting for Δv) and ``ACCEL_STALL_ERROR_FACTOR`` × that, at least
+        ``ACCEL_STALL_ERROR_MIN_S``."""
+        wait = float(self.p["accel_wait"])
+        return wait, max(ACCEL_STALL_ERROR_MIN_S, ACCEL_STALL_ERROR_FACTOR * wait)
+
+    def diagnostic_conditions(self) -> ros_io.Conditions:
+        """Every current condition of the node with its level (the status level is the worst)."""
+        g, a = self.gyro_check, self.accel_check
+        c = ros_io.Conditions()
         if g.accepted == 0:
-            level, message = ros_io.WARN, "no gyro increments received"
+            c.add(ros_io.WARN, "no gyro increments received")
         if g.dropped or a.dropped:
-            level, message = ros_io.WARN, (
-                f"dropped {g.dropped} gyro and {a.dropped} accelerometer messages (NaN {g.nan + a.nan}, out of range "
-                f"{g.out_of_range + a.out_of_range}, out of order {g.out_of_order + a.out_of_order}, duplicate "
-                f"{g.duplicate + a.duplicate}, stamp outliers {g.stamp_outliers + a.stamp_outliers})")
+            c.add(ros_io.WARN, f"dropped {g.dropped} gyro and {a.dropped} accelerometer messages "
+                  f"(NaN {g.nan + a.nan}, out of range {g.out_of_range + a.out_of_range}, out of "
+                  f"order {g.out_of_order + a.out_of_order}, duplicate "
+                  f"{g.duplicate + a.duplicate}, stamp outliers "
+                  f"{g.stamp_outliers + a.stamp_outliers})")
         if self.imu_input and (self.gyro_rates.check.dropped or self.accel_rates.check.dropped):
             gr, ar = self.gyro_rates.check, self.accel_rates.check
-            level, message = ros_io.WARN, (
-                f"dropped {gr.dropped} angular-rate and {ar.dropped} acceleration samples of "
-                f"imu/data_raw (NaN {gr.nan + ar.nan}, out of range "
-                f"{gr.out_of_range + ar.out_of_range}, out of order "
-                f"{gr.out_of_order + ar.out_of_order}, duplicate {gr.duplicate + ar.duplicate}, "
-                f"stamp outliers {gr.stamp_outliers + ar.stamp_outliers})")
+            c.add(ros_io.WARN, f"dropped {gr.dropped} angular-rate and {ar.dropped} acceleration "
+                  f"samples of imu/data_raw (NaN {gr.nan + ar.nan}, out of range "
+                  f"{gr.out_of_range + ar.out_of_range}, out of order "
+                  f"{gr.out_of_order + ar.out_of_order}, duplicate {gr.duplicate + ar.duplicate}, "
+                  f"stamp outliers {gr.stamp_outliers + ar.stamp_outliers})")
         if any(self.frame_mismatch.values()):
-            level, message = ros_io.WARN, (f"messages in another frame than {self.frame_id!r}: gyro "
-                                           f"{self.frame_mismatch['gyro']}, accelerometer {self.frame_mismatch['accel']} "
-                                           f"({'rejected' if self.system.reject_frames else 'used'})")
-        if g.missing:
-            level, message = ros_io.ERROR, f"{g.missing} gyro increments missing in {g.gaps} gaps: " \
-                "the rotation during the gaps is lost"
-        if g.resyncs:
-            level, message = ros_io.ERROR, (f"gyro stamps jumped {g.resyncs} time(s) (last by {g.last_jump_s:.6g} s): "
-                                            "resynchronised; the rotation during a jump is lost")
-        if self.nonfinite:
-            level, message = ros_io.ERROR, (f"{self.nonfinite} non-finite update(s) discarded (never published); "
-                                            "state reset to the last good one with inflated covariance")
-        values = self.system.status()
+            c.add(ros_io.WARN, f"messages in another frame than "
+                  f"{ros_io.bounded(self.frame_id, 80)!r}: gyro {self.frame_mismatch['gyro']}, "
+                  f"accelerometer {self.frame_mismatch['accel']} "
+                  f"({'rejected' if self.system.reject_frames else 'used'})")
         if self.undecodable:
-            level, message = ros_io.WARN, f"{self.undecodable} input message(s) could not be decoded: dropped"
+            c.add(ros_io.WARN,
+                  f"{self.undecodable} input message(s) could not be decoded: dropped")
+        stall = self.accel_stall_s()
+        warn_s, error_s = self.accel_stall_limits()
+        if stall is not None and stall > warn_s:
+            what = "no accelerometer increments received" if a.last_ns is None else \
+                "accelerometer increments (imu/delta_velocity) stopped"
+            effect = "sins/odometry stalls" if self.nav is not None \
+                else "sins/imu has no specific force"
+            c.add(ros_io.ERROR if stall > error_s else ros_io.WARN,
+                  f"{what}: the gyro stream ran {stall:.3g} s beyond the last Δv; {effect} "
+                  f"(WARN beyond {warn_s:g} s, ERROR beyond {error_s:g} s)")
+        if g.missing:
+            c.add(ros_io.ERROR, f"{g.missing} gyro increments missing in {g.gaps} gaps: "
+                  "the rotation during the gaps is lost")
+        if g.resyncs:
+            c.add(ros_io.ERROR, f"gyro stamps jumped {g.resyncs} time(s) (last by "
+                  f"{g.last_jump_s:.6g} s): resynchronised; the rotation during a jump is lost")
+        if self.nonfinite:
+            c.add(ros_io.ERROR, f"{self.nonfinite} non-finite update(s) discarded (never "
+                  "published); state reset to the last good one with inflated covariance")
+        if self.nav is not None and self.nav.alignment is not None and not self.nav.alignment.ok \
+                and self.nav.navigator is None:
+            c.add(ros_io.ERROR, f"static alignment refused: {self.nav.alignment.reason}")
+        return c
+
+    def publish_diagnostics(self):
+        g = self.gyro_check
+        c = self.diagnostic_conditions()
+        values = self.system.status()
         values.update({"undecodable_dropped": self.undecodable,
                        "attitude_published": self.published["attitude"], "imu_published": self.published["imu"],
                        "imu_published_without_accel": self.published["imu_without_accel"],
@@ -363,14 +410,14 @@ class SinsNode(Node):
                            "model_rate_variance": self.system.rate_variance,
                            **self.gyro_rates.status("imu_gyro"),
                            **self.accel_rates.status("imu_accel")})
+        stall = self.accel_stall_s()
+        if stall is not None:
+            values["accel_stall_s"] = stall
         if self.nav is not None:
             values["odometry_published"] = self.published["odometry"]
-            if self.nav.alignment is not None and not self.nav.alignment.ok and self.nav.navigator is None:
-                level, message = ros_io.ERROR, f"static alignment refused: {self.nav.alignment.reason}"
         stamp_ns = g.last_ns if g.last_ns is not None else 0
         self.pub_diag.publish(ros_io.diagnostic_array(ros_io.ns_to_stamp(stamp_ns), f"{self.get_fully_qualified_name()}: attitude",
-                                                      "sins", level, message, values))
-
+                                                      "sins", c.level, c.message(), values))
 
 def main(args=None):
     return ros_io.run_node(SinsNode, NODE_NAME, args)

@@ -55,6 +55,18 @@ class EffectParameter:
     exclusive_minimum: bool = False
 
 
+#: physical bounds of the effect parameters (each element): a rate beyond 100 rad/s is no bias, a
+#: relative scale error beyond 0.5 and an axis misalignment beyond 0.5 rad are no small error,
+#: and values beyond overflow the squares of the error models
+MAX_BIAS_RATE = 100.0            # rad/s
+MAX_BIAS_DRIFT = 0.01            # rad/s² (100 rad/s after 3 h)
+MAX_RELATIVE_ERROR = 0.5         # scale factor, scale asymmetry
+MAX_MISALIGNMENT = 0.5           # rad
+MAX_RANDOM_WALK = 1.0            # rad/√s
+MAX_QUANTUM = 0.1                # rad
+MAX_CAMERA_NOISE_SCALE = 1000.0
+
+
 #: order of the 6 off-diagonal elements of the gyro misalignment matrix M (row, column):
 #: ρ̃_i = ρ_i + Σ_j M_ij ρ_j, i ≠ j
 MISALIGNMENT_INDEX = ((0, 1), (0, 2), (1, 0), (1, 2), (2, 0), (2, 1))
@@ -135,7 +147,9 @@ class Effect:
 class GyroBias(Effect):
     name = "gyro_bias"
     parameters = (EffectParameter("gyro_bias", "rad/s", 3, [0.0, 0.0, 0.0],
-                                  "known constant gyro bias b, body axes, rad/s (simulated and compensated)"),)
+                                  "known constant gyro bias b, body axes, rad/s (simulated and "
+                                  "compensated)",
+                                  -MAX_BIAS_RATE, MAX_BIAS_RATE),)
     sigma_parameter = "gyro_bias_sigma"
     summary = "constant rate bias"
     signature_text = "ε grows with the pair duration: Σ C_k T_k b"
@@ -150,7 +164,9 @@ class GyroBias(Effect):
 class GyroBiasDrift(Effect):
     name = "gyro_bias_drift"
     parameters = (EffectParameter("gyro_bias_drift", "rad/s²", 3, [0.0, 0.0, 0.0],
-                                  "linear bias ramp d: bias b + d·(t − t0), t0 = first gyro stamp, rad/s²"),)
+                                  "linear bias ramp d: bias b + d·(t − t0), t0 = first gyro "
+                                  "stamp, rad/s²",
+                                  -MAX_BIAS_DRIFT, MAX_BIAS_DRIFT),)
     summary = "bias growing linearly with time"
     signature_text = "as gyro_bias, weighted by the time since the first gyro stamp"
 
@@ -168,7 +184,7 @@ class GyroBiasPeriodic(Effect):
     candidate = False
     parameters = (EffectParameter("gyro_bias_periodic", "rad/s", 3, [0.0, 0.0, 0.0],
                                   "amplitude A of a periodic bias A·sin(2π(t − t0)/P), rad/s (outside the "
-                                  "discrepancy library)"),
+                                  "discrepancy library)", -MAX_BIAS_RATE, MAX_BIAS_RATE),
                   EffectParameter("gyro_bias_period", "s", 1, 600.0, "period P of gyro_bias_periodic, s",
                                   0.0, 1e7, exclusive_minimum=True))
     summary = "bias oscillating with period P"
@@ -186,7 +202,8 @@ class GyroBiasPeriodic(Effect):
 class GyroScaleFactor(Effect):
     name = "gyro_scale_factor"
     parameters = (EffectParameter("gyro_scale_factor", "1", 3, [0.0, 0.0, 0.0],
-                                  "known scale-factor errors s (relative), diagonal of M"),)
+                                  "known scale-factor errors s (relative), diagonal of M",
+                                  -MAX_RELATIVE_ERROR, MAX_RELATIVE_ERROR),)
     sigma_parameter = "gyro_scale_sigma"
     summary = "scale-factor error, same for both rotation senses"
     signature_text = "ε ∝ rotation about each gyro axis: Σ C_k diag(ρ_k) s"
@@ -204,7 +221,9 @@ class GyroScaleFactor(Effect):
 class GyroScaleAsymmetry(Effect):
     name = "gyro_scale_asymmetry"
     parameters = (EffectParameter("gyro_scale_asymmetry", "1", 3, [0.0, 0.0, 0.0],
-                                  "scale asymmetry a: scale 1 + s + a for positive, 1 + s − a for negative rates"),)
+                                  "scale asymmetry a: scale 1 + s + a for positive, 1 + s − a for "
+                                  "negative rates",
+                                  -MAX_RELATIVE_ERROR, MAX_RELATIVE_ERROR),)
     summary = "different scale factor for positive and negative rates"
     signature_text = "ε ∝ |rotation| about each axis: Σ C_k diag(|ρ_k|) a (needs turns of both senses to tell from scale)"
 
@@ -224,7 +243,9 @@ class GyroScaleAsymmetry(Effect):
 class GyroMisalignment(Effect):
     name = "gyro_misalignment"
     parameters = (EffectParameter("gyro_misalignment", "rad", 6, [0.0] * 6,
-                                  "known axis misalignments: off-diagonal M_xy, M_xz, M_yx, M_yz, M_zx, M_zy, rad"),)
+                                  "known axis misalignments: off-diagonal M_xy, M_xz, M_yx, M_yz, "
+                                  "M_zx, M_zy, rad",
+                                  -MAX_MISALIGNMENT, MAX_MISALIGNMENT),)
     sigma_parameter = "gyro_misalignment_sigma"
     summary = "non-orthogonal gyro axes (off-diagonal M)"
     signature_text = ("ε ∝ cross-axis rotation: Σ C_k M ρ_k; the antisymmetric part of M is a rotation of the "
@@ -260,7 +281,7 @@ class GyroRandomWalk(Effect):
     candidate = False
     compensable = False
     parameters = (EffectParameter("gyro_random_walk", "rad/√s", 1, NAVIGATION_GRADE_GYRO.random_walk,
-                                  "white-noise random walk, rad/√s", 0.0),)
+                                  "white-noise random walk, rad/√s", 0.0, MAX_RANDOM_WALK),)
     summary = "angle random walk (white rate noise)"
 
 
@@ -269,7 +290,8 @@ class GyroQuantization(Effect):
     kind = "noise"
     compensable = False
     parameters = (EffectParameter("gyro_quantum", "rad", 1, 0.0,
-                                  "pulse weight σ of level quantization (0 = off), rad", 0.0),)
+                                  "pulse weight σ of level quantization (0 = off), rad", 0.0,
+                                  MAX_QUANTUM),)
     summary = "pulse quantization with carried remainder (000 §5), uncompensated"
     signature_text = ("the output lags the integral by the carried remainder: a mean σ/2 in the sense of the "
                       "motion on each axis (000 §5.3), seen where a pair starts and ends in different motion, "
@@ -323,7 +345,9 @@ class CameraNoiseAnisotropy(Effect):
     neutral = 1.0
     parameters = (EffectParameter("camera_noise_scale", "1", 3, [1.0, 1.0, 1.0],
                                   "true camera noise σ about VF x, y, z ÷ the σ the camera reports (or "
-                                  "camera_sigma_*): simulated, and applied to P_avu by the calibrator", 0.0),)
+                                  "camera_sigma_*): simulated, and applied to P_avu by the "
+                                  "calibrator", 0.0,
+                                  MAX_CAMERA_NOISE_SCALE),)
     summary = "camera noise about its axes differs from its stated covariance"
     signature_text = "no mean; scales each VF axis of the camera-fix covariance: P → K P K, K = diag(k)"
 

@@ -33,7 +33,6 @@ Exit status: 0 solved, 2 bad arguments/parameters/bag, 3 not observable, 4 no co
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 
 import numpy as np
@@ -173,13 +172,14 @@ def _summary(bag: str, data: dict, result: dict, p: dict) -> str:
 
 
 def main(argv=None) -> int:
-    from .paths import OneLineParser
+    from .paths import FILE, OneLineParser, check_outputs, write_json
 
     ap = OneLineParser(prog="calibrate_bag", description=__doc__,
                        formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("bag", help="rosbag2 bag directory, or a .mcap / .db3 file")
     ap.add_argument("--params", metavar="FILE", help="ROS 2 parameter YAML (calibrator_node and /** blocks)")
     ap.add_argument("--json", metavar="FILE", help="write the result as JSON")
+    ap.add_argument("--force", action="store_true", help="overwrite an existing --json file")
     ap.add_argument("--unweighted", action="store_true", help="unit weights, covariance from the residuals (004)")
     ap.add_argument("--covariance-model", choices=("004", "random_constant"),
                     help="gyro error model of E_imu (default: the parameter, random_constant)")
@@ -196,6 +196,8 @@ def main(argv=None) -> int:
         if args.covariance_model:
             over["covariance_model"] = args.covariance_model
         p = calibrator_parameters(args.params, over)
+        check_outputs([("--json", args.json, FILE)],
+                      [("bag", args.bag), ("--params", args.params)], args.force)
         data = read_bag(args.bag, args.namespace, bool(p["use_camera_covariance"]),
                         (p["camera_sigma_xy"], p["camera_sigma_xy"], p["camera_sigma_z"]),
                         float(p["gyro_max_rate"]), float(p["max_stamp_jump"]),
@@ -243,11 +245,9 @@ def main(argv=None) -> int:
     print("\n".join(input_lines(result["input"])))
     if args.json:
         try:
-            with open(args.json, "w", encoding="utf-8") as fh:
-                json.dump(result, fh, indent=2)
-                fh.write("\n")
-        except OSError as exc:
-            print(f"calibrate_bag: error: cannot write {args.json}: {exc}", file=sys.stderr)
+            write_json(args.json, result, indent=2)
+        except (OSError, ValueError) as exc:
+            print(f"calibrate_bag: error: {exc}", file=sys.stderr)
             return 2
     if not result["observable"]:
         advice = ("Record rotations about at least two non-parallel axes between camera exposures."

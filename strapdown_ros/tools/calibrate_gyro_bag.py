@@ -130,7 +130,7 @@ def _parse(argv):
 def _check(args) -> None:
     """Arguments, input files and output paths, before any work.  Raises ValueError."""
     from ..recording import check_input_arguments
-    from .paths import check_output_file
+    from .paths import FILE, check_outputs
 
     check_input_arguments(args)
     if args.drift and args.method != "tkachenko":
@@ -146,13 +146,8 @@ def _check(args) -> None:
         raise ValueError(f"bag {args.bag} does not exist")
     if args.model and not Path(args.model).is_file():
         raise ValueError(f"model {args.model} does not exist")
-    outs = [(o, p) for o, p in (("--json", args.json), ("--write-model", args.write_model)) if p]
-    if len(outs) == 2 and Path(outs[0][1]).resolve() == Path(outs[1][1]).resolve():
-        raise ValueError(f"--json and --write-model are the same file {args.json}")
-    for opt, path in outs:
-        check_output_file(path, opt)
-        if Path(path).exists() and not args.force:
-            raise ValueError(f"{opt} {path} exists (use --force to overwrite)")
+    check_outputs([("--json", args.json, FILE), ("--write-model", args.write_model, FILE)],
+                  [("bag", args.bag), ("--model", args.model)], args.force)
 
 
 def main(argv=None) -> int:

@@ -2,6 +2,7 @@
 the disagreement shrinks once it is added.
 
     discrepancy BAG --model MODEL.yaml [--json FILE] [--report DIR] [--write-model OUT.yaml]
+                [--force]
 
 BAG: a rosbag2 recording (MCAP or sqlite3) of ``imu/delta_theta`` (geometry_msgs/Vector3Stamped)
 and the star camera, ``star_camera/attitude_with_covariance`` (its covariance is used) or
@@ -24,7 +25,9 @@ that of the model simulated on the same segments (allantools).
 
 Output: a summary on stdout; ``--json`` the full result (schema in the README); ``--report DIR``
 ``report.md`` with PNG plots; ``--write-model`` the model with the found effects and the
-estimated boresight.  Exit status 0 for every verdict; 2, with one line on stderr, for unusable
+estimated boresight.  No output may be an input (the bag, the model) or another output; an
+existing one needs ``--force``; the files are written atomically.  Exit status 0 for every
+verdict; 2, with one line on stderr, for unusable
 input (missing or malformed bag or model, no camera topic, too few fixes, a model key no node
 of the package knows).
 """
@@ -143,7 +146,7 @@ def _fmt(v):
 def main(argv=None) -> int:
     from ..recording import (add_input_arguments, check_input_arguments, input_options,
                              input_warnings)
-    from .paths import OneLineParser
+    from .paths import DIRECTORY, FILE, OneLineParser, check_outputs, write_json
 
     ap = OneLineParser(prog="discrepancy", description=__doc__,
                        formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -152,6 +155,8 @@ def main(argv=None) -> int:
     ap.add_argument("--json", metavar="FILE", help="write the result as JSON")
     ap.add_argument("--report", metavar="DIR", help="write report.md and PNG plots into DIR (created)")
     ap.add_argument("--write-model", metavar="OUT.yaml", help="write the model with the found effects")
+    ap.add_argument("--force", action="store_true", help="overwrite existing outputs (--json, "
+                    "--write-model, a non-empty --report directory)")
     ap.add_argument("--alpha", type=float, default=None, help="family-wise level of the selection (default 0.01)")
     ap.add_argument("--namespace", default="", help="topic namespace, e.g. /robot1")
     ap.add_argument("--quiet", action="store_true", help="no progress on stderr")
@@ -161,7 +166,6 @@ def main(argv=None) -> int:
     from ..analysis.discrepancy import DEFAULT_ALPHA, InputError, analyse
     from ..config import load_model
     from ..recording import BagError
-    from .paths import check_output_dir, check_output_file, write_json
 
     alpha = DEFAULT_ALPHA if args.alpha is None else args.alpha
     try:
@@ -172,9 +176,9 @@ def main(argv=None) -> int:
             raise ValueError(f"bag {args.bag} does not exist")
         if not Path(args.model).is_file():
             raise ValueError(f"model {args.model} does not exist")
-        check_output_file(args.json, "--json")
-        check_output_file(args.write_model, "--write-model")
-        check_output_dir(args.report, "--report")
+        check_outputs([("--json", args.json, FILE), ("--write-model", args.write_model, FILE),
+                       ("--report", args.report, DIRECTORY)],
+                      [("bag", args.bag), ("--model", args.model)], args.force)
         model, doc = load_model(args.model)
     except (ValueError, OSError) as exc:
         print(f"discrepancy: error: {exc}", file=sys.stderr)

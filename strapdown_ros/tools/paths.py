@@ -1,13 +1,28 @@
 """Argument checks shared by the offline tools: output paths are checked before any work, so a
-typo costs a one-line error (exit 2), not minutes of computation followed by a traceback."""
+typo costs a one-line error (exit 2), not minutes of computation followed by a traceback.
+
+:func:`check_outputs` is THE output rule of every tool that writes: no output may be an input
+(resolved paths; a file inside an input bag directory counts as the input), outputs differ from
+each other, an existing output needs ``--force``, and the target directory takes a real write
+(a probe file is created and removed there, before the work).  The writes themselves are atomic
+(:func:`write_json`, :func:`write_text`: a temporary file in the same directory, then
+``os.replace``)."""
 from __future__ import annotations
 
 import argparse
-import os
+import json
 import sys
 from pathlib import Path
+from typing import Iterable, Sequence
 
-__all__ = ["check_output_file", "check_output_dir", "OneLineParser", "write_json"]
+from ..files import atomic_write_text, probe_writable
+
+__all__ = ["check_output_file", "check_output_dir", "check_outputs", "OneLineParser", "write_json",
+           "write_text", "FILE", "DIRECTORY", "REPLACED"]
+
+#: kinds of output: a file; a directory files are written into (created if absent); a file or a
+#: directory (a bag) that the tool replaces as a whole
+FILE, DIRECTORY, REPLACED = "file", "directory", "replaced"
 
 
 class OneLineParser(argparse.ArgumentParser):
@@ -24,24 +39,24 @@ def _writable_dir(d: Path, what: str, path) -> None:
         raise ValueError(f"{what} {path}: directory {d} does not exist")
     if not d.is_dir():
         raise ValueError(f"{what} {path}: {d} is not a directory")
-    if not os.access(d, os.W_OK | os.X_OK):
-        raise ValueError(f"{what} {path}: directory {d} is not writable")
+    why = probe_writable(d)
+    if why:
+        raise ValueError(f"{what} {path}: directory {d} is not writable ({why})")
 
 
 def check_output_file(path, what: str) -> None:
-    """``path`` can be written as a file: its directory exists and is writable, it is no directory."""
+    """``path`` can be written as a file: its directory exists and takes a write, it is no
+    directory."""
     if not path:
         return
     p = Path(path)
     if p.is_dir():
         raise ValueError(f"{what} {path} is a directory")
-    if p.exists() and not os.access(p, os.W_OK):
-        raise ValueError(f"{what} {path} is not writable")
     _writable_dir(p.parent, what, path)
 
 
 def check_output_dir(path, what: str) -> None:
-    """``path`` is a writable directory or can be created in a writable one."""
+    """``path`` is a directory that takes a write, or can be created in one."""
     if not path:
         return
     p = Path(path)
@@ -53,10 +68,63 @@ def check_output_dir(path, what: str) -> None:
         _writable_dir(p.parent, what, path)
 
 
-def write_json(path, data, indent: int = 1) -> None:
-    """A JSON result file (strict JSON: no NaN), newline-terminated."""
-    import json
+def _inside(a: Path, b: Path) -> bool:
+    """``a`` is ``b`` or below it (resolved paths)."""
+    return a == b or b in a.parents
 
-    with open(path, "w", encoding="utf-8") as fh:
-        json.dump(data, fh, indent=indent, allow_nan=False)
-        fh.write("\n")
+
+def check_outputs(outputs: Iterable[Sequence], inputs: Iterable[Sequence], force: bool) -> None:
+    """The output rule of every tool, before any work.  Raises ValueError (one line).
+
+    Parameters
+    ----------
+    outputs : iterable of (option, path, kind)
+        Each output: the option that names it (``--json``), its path (None or '' = not asked
+        for) and its kind: :data:`FILE`, :data:`DIRECTORY` (files are written into it) or
+        :data:`REPLACED` (a file or a bag directory replaced as a whole).
+    inputs : iterable of (what, path)
+        Every file or directory the tool reads (None or '' skipped).
+    force : bool
+        ``--force`` was given: an existing output may be replaced.
+    """
+    outs = [(o, str(p), k, Path(p).resolve()) for o, p, k in outputs if p]
+    ins = [(w, str(p), Path(p).resolve()) for w, p in inputs if p]
+    for opt, path, kind, r in outs:
+        for what, ipath, ir in ins:
+            if _inside(r, ir) or (kind == REPLACED and ir in r.parents):
+                raise ValueError(f"{opt} {path} would overwrite the input {what} {ipath}")
+    for i, (opt, path, kind, r) in enumerate(outs):
+        for opt2, path2, kind2, r2 in outs[i + 1:]:
+            if r == r2 or (kind2 == REPLACED and r2 in r.parents) \
+                    or (kind == REPLACED and r in r2.parents):
+                raise ValueError(f"{opt} {path} and {opt2} {path2} are the same output")
+    for opt, path, kind, r in outs:
+        p = Path(path)
+        exists = p.exists() or p.is_symlink()
+        if kind == FILE:
+            if p.is_dir():
+                raise ValueError(f"{opt} {path} is a directory")
+            if exists and not force:
+                raise ValueError(f"{opt} {path} exists (use --force to overwrite)")
+            _writable_dir(p.parent, opt, path)
+        elif kind == DIRECTORY:
+            if exists and not p.is_dir():
+                raise ValueError(f"{opt} {path} exists and is not a directory")
+            if exists and any(p.iterdir()) and not force:
+                raise ValueError(f"{opt} {path} exists and is not empty "
+                                 "(use --force to write into it)")
+            _writable_dir(p if exists else p.parent, opt, path)
+        else:
+            if exists and not force:
+                raise ValueError(f"{opt} {path} exists (use --force to replace it)")
+            _writable_dir(p.parent, opt, path)
+
+
+def write_text(path, text: str) -> None:
+    """A text file, written atomically (OSError names ``path``)."""
+    atomic_write_text(path, text)
+
+
+def write_json(path, data, indent: int = 1) -> None:
+    """A JSON result file (strict JSON: no NaN), newline-terminated, written atomically."""
+    atomic_write_text(path, json.dumps(data, indent=indent, allow_nan=False) + "\n")

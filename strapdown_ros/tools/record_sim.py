@@ -26,10 +26,13 @@ overrides, validated as the nodes validate them.  Defaults: profile ``bench``, n
 gyro (004 §6), camera every 20 s with 0.6″/0.6″/6″ noise.
 
 No rclpy and no message packages: messages are built and serialised with ``rosbags``.
+The output bag must not exist unless ``--force`` (which replaces a rosbag2 bag or an empty
+directory, never anything else), nor be an input (``--params``, ``profile_file``).
 """
 from __future__ import annotations
 
 import argparse
+import shutil
 import sys
 from pathlib import Path
 
@@ -251,9 +254,12 @@ def record(bag: str | Path, imu_p: dict, cam_p: dict, storage: str = "mcap", acc
 
 
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(prog="record_sim", description=__doc__,
-                                 formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("bag", help="output bag directory (must not exist)")
+    from .paths import REPLACED, OneLineParser, check_outputs
+
+    ap = OneLineParser(prog="record_sim", description=__doc__,
+                       formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("bag", help="output bag directory (must not exist unless --force)")
+    ap.add_argument("--force", action="store_true", help="replace an existing output bag")
     ap.add_argument("--params", metavar="FILE", help="ROS 2 parameter YAML (imu_sim_node, star_camera_sim_node, /**)")
     ap.add_argument("--duration", type=float, metavar="S",
                     help="simulated seconds (default: the parameter 'duration', 0 = the profile length)")
@@ -267,6 +273,17 @@ def main(argv=None) -> int:
 
     try:
         imu_p, cam_p = simulator_parameters(args.params, parse_overrides(args.param), args.duration)
+        check_outputs([("bag", args.bag, REPLACED)],
+                      [("--params", args.params), ("profile_file", imu_p.get("profile_file"))],
+                      args.force)
+        out = Path(args.bag)
+        if out.is_dir() and not out.is_symlink():
+            if not (out / "metadata.yaml").exists() and any(out.iterdir()):
+                raise ValueError(f"bag {args.bag} is a directory that is not a rosbag2 bag; "
+                                 "not replacing it")
+            shutil.rmtree(out)
+        elif out.exists() or out.is_symlink():
+            raise ValueError(f"bag {args.bag} is not a directory; not replacing it")
         summary = record(args.bag, imu_p, cam_p, storage=args.storage, accel=not args.no_accel,
                          namespace=args.namespace)
     except (ValueError, OSError, WriterError) as exc:          # WriterError: the bag exists already, ...

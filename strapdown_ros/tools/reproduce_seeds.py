@@ -278,21 +278,21 @@ def main(argv=None) -> int:
     ap.add_argument("--json", help="write the results as JSON")
     ap.add_argument("--report", help="write a Markdown report")
     ap.add_argument("--plots", help="write PNG figures to this directory (needs matplotlib)")
+    ap.add_argument("--force", action="store_true", help="overwrite existing outputs")
     a = ap.parse_args(argv)
     only = [s.strip() for s in a.only.split(",") if s.strip()]
     bad = [s for s in only if s not in names]
     if bad:
         ap.error(f"unknown section(s) {', '.join(bad)}; valid: {', '.join(names)}")
-    from .paths import check_output_dir, check_output_file
+    from .paths import DIRECTORY, FILE, check_outputs, write_text
     try:                                       # everything that can fail, before minutes of work
         for flag, v in (("--seeds", a.seeds), ("--runs", a.runs)):
             if v < 1:
                 raise ValueError(f"{flag} must be >= 1, got {v}")
         if not (np.isfinite(a.coning_duration) and a.coning_duration > 0):
             raise ValueError(f"--coning-duration must be > 0, got {a.coning_duration}")
-        check_output_file(a.json, "--json")
-        check_output_file(a.report, "--report")
-        check_output_dir(a.plots, "--plots")
+        check_outputs([("--json", a.json, FILE), ("--report", a.report, FILE),
+                       ("--plots", a.plots, DIRECTORY)], [], a.force)
     except ValueError as exc:
         print(f"reproduce_seeds: error: {exc}", file=sys.stderr)
         return 2
@@ -313,12 +313,14 @@ def main(argv=None) -> int:
         text += "\n## Figures\n\n" + "\n".join(
             f"![{os.path.basename(pth)}]({os.path.relpath(os.path.abspath(pth), base)})" for pth in pngs) + "\n"
     print(text)
-    if a.json:
-        with open(a.json, "w", encoding="utf-8") as fh:
-            json.dump(res, fh, indent=1, default=float)
-    if a.report:
-        with open(a.report, "w", encoding="utf-8") as fh:
-            fh.write(text)
+    try:
+        if a.json:
+            write_text(a.json, json.dumps(res, indent=1, default=float))
+        if a.report:
+            write_text(a.report, text)
+    except OSError as exc:
+        print(f"reproduce_seeds: error: {exc}", file=sys.stderr)
+        return 2
     print(f"[reproduce_seeds] total {time.perf_counter() - t0:.1f} s", file=sys.stderr)
     return 0
 

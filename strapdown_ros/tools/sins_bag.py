@@ -373,24 +373,18 @@ class McapOutput:
         return f"{self.path} (MCAP: " + ", ".join(f"{self.topics[n]} {c}" for n, c in self.counts.items()) + ")"
 
 
-def _check_output(out: str, bag: str, force: bool) -> None:
-    """OUT can be written: not the input, absent unless --force (a file, or a directory that is a
-    rosbag2 bag or empty, may then be replaced), its directory writable."""
-    o, b = Path(out).resolve(), Path(bag).resolve()
-    if o == b or b in o.parents or o in b.parents:
-        raise ValueError(f"output {out} would overwrite the input bag {bag}")
+def _check_output(out: str, bag: str, force: bool, params: str | None = None) -> None:
+    """OUT can be written (the tools' one output rule,
+    :func:`~strapdown_ros.tools.paths.check_outputs`: not an input, absent unless --force, its
+    directory takes a write); a directory is replaced only when it is a rosbag2 bag or empty."""
+    from .paths import REPLACED, check_outputs
+
+    check_outputs([("--output", out, REPLACED)], [("bag", bag), ("--params", params)], force)
     p = Path(out)
-    csv = out.lower().endswith(".csv")
-    if p.exists() or p.is_symlink():
-        if not force:
-            raise ValueError(f"output {out} exists; give --force to replace it")
-        if p.is_dir() and (csv or ((not (p / "metadata.yaml").exists()) and any(p.iterdir()))):
-            raise ValueError(f"output {out} is a directory that is not a rosbag2 bag; not replacing it")
-    parent = p.parent if str(p.parent) else Path(".")
-    if not parent.is_dir():
-        raise ValueError(f"output {out}: directory {parent} does not exist")
-    if not os.access(parent, os.W_OK | os.X_OK):
-        raise ValueError(f"output {out}: directory {parent} is not writable")
+    not_a_bag = (not (p / "metadata.yaml").exists()) and any(p.iterdir()) if p.is_dir() else False
+    if p.is_dir() and (out.lower().endswith(".csv") or not_a_bag):
+        raise ValueError(f"--output {out} is a directory that is not a rosbag2 bag; "
+                         "not replacing it")
 
 
 def _replace(out: str) -> None:
@@ -493,7 +487,7 @@ def main(argv=None) -> int:
     try:
         over = parse_overrides(args.param)
         p = sins_parameters(args.params, over)              # every parameter checked before the bag
-        _check_output(args.output, args.bag, args.force)
+        _check_output(args.output, args.bag, args.force, args.params)
         inp = open_input(args.bag, args.namespace, args.gyro_topic, args.accel_topic, need_accel=bool(p["navigation"]))
         rates = {"gyro_rate": inp.gyro_rate, "accel_rate": inp.accel_rate}
         for name in ("gyro_rate", "accel_rate"):
