@@ -127,6 +127,43 @@ class Effect:
         """∂ρ̃/∂θ at θ = 0: (n, 3, size), for true increments ρ (n, 3), lengths T (n,), times t (n,)."""
         raise NotImplementedError
 
+    # the attitude filter's view of an effect (strapdown_ros.estimation) ------------------
+    #: name of the filter parameter giving the white-noise density that drives the filter
+    #: states of this effect as a random walk (None: a random constant, no process noise)
+    filter_noise_parameter: str | None = None
+
+    def filter_size(self) -> int:
+        """Number of filter states: the separable combinations (:meth:`fit_basis`), else size."""
+        S = self.fit_basis()
+        return self.size if S is None else S.shape[1]
+
+    def filter_values(self, states: np.ndarray) -> np.ndarray:
+        """The effect's parameter vector (size,) from its filter states (filter_size,)."""
+        S = self.fit_basis()
+        states = np.asarray(states, dtype=float).reshape(self.filter_size())
+        return states if S is None else S @ states
+
+    def filter_partials(self, rho: np.ndarray, T: np.ndarray, t: np.ndarray) -> np.ndarray:
+        """∂ρ̃/∂c of the increments with respect to the filter states c: (n, 3, filter_size),
+        for increments ρ (n, 3) of lengths T (n,) at times t (n,) since the effect epoch
+        (:meth:`increment_jacobian` mapped through :meth:`fit_basis`)."""
+        J = self.increment_jacobian(np.asarray(rho, dtype=float).reshape(-1, 3),
+                                    np.asarray(T, dtype=float).reshape(-1),
+                                    np.asarray(t, dtype=float).reshape(-1))
+        S = self.fit_basis()
+        return J if S is None else J @ S
+
+    def filter_process_noise(self, noise: dict | None = None) -> np.ndarray:
+        """White-noise density (filter_size,) driving the filter states, from a dict of filter
+        noise parameters: ``noise[filter_noise_parameter]²`` per state, 0 (random constant)
+        when the effect has no such parameter or the dict does not give it."""
+        value = 0.0
+        if self.filter_noise_parameter is not None and noise:
+            value = float(noise.get(self.filter_noise_parameter, 0.0))
+            if not (np.isfinite(value) and value >= 0.0):
+                raise ValueError(f"{self.filter_noise_parameter} must be finite and >= 0")
+        return np.full(self.filter_size(), value ** 2)
+
     def __repr__(self):
         return f"<effect {self.name}>"
 
@@ -137,6 +174,8 @@ class GyroBias(Effect):
     parameters = (EffectParameter("gyro_bias", "rad/s", 3, [0.0, 0.0, 0.0],
                                   "known constant gyro bias b, body axes, rad/s (simulated and compensated)"),)
     sigma_parameter = "gyro_bias_sigma"
+    #: bias random walk (rate random walk) σ_u, rad/s/√s, of the attitude filter
+    filter_noise_parameter = "gyro_bias_random_walk"
     summary = "constant rate bias"
     signature_text = "ε grows with the pair duration: Σ C_k T_k b"
 
@@ -340,6 +379,13 @@ class TimeOffset(Effect):
     summary = "camera–IMU timestamp offset"
     signature_text = ("ε = (ΔSᵀ ω(t_start) − ω(t_end))·τ: only fixes taken while turning see it, so it shows as "
                       "spikes at the rotations (004 Fig. 2a)")
+
+    def fix_jacobian(self, rate_body: np.ndarray, c_vf_mf: np.ndarray) -> np.ndarray:
+        """∂z/∂δτ (3, 1) of a camera-fix residual z (VF axes, predicted minus measured) with
+        respect to the error δτ = τ̂ − τ of the estimated offset: the camera saw the attitude
+        δτ later than the epoch the fix is applied at, q(t + δτ) ≈ q(t) ⊗ exp(ω δτ), so
+        ∂z/∂δτ = −C_VF^MF ω (ω the body rate at the fix, rad/s, body axes)."""
+        return -(np.asarray(c_vf_mf, dtype=float) @ np.asarray(rate_body, dtype=float).reshape(3))[:, None]
 
 
 #: the registry: every effect, by name
