@@ -31,6 +31,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..analysis.steady_filter import discretize, steady_state_gain
+
 __all__ = ["SteadyState", "farrenkopf_steady_state", "riccati_steady_state", "bias_filter_model"]
 
 
@@ -77,26 +79,23 @@ def farrenkopf_steady_state(sigma_n: float, sigma_v: float, sigma_u: float, dt: 
 
 def bias_filter_model(sigma_v: float, sigma_u: float, dt: float) -> tuple[np.ndarray, np.ndarray]:
     """Exact discrete model of one axis over dt: transition Φ (2, 2) and process noise Q (2, 2)
-    of x = [θ error, bias error] with ``θ̇ = −b + η_v``, ``ḃ = η_u``."""
-    phi = np.array([[1.0, -dt], [0.0, 1.0]])
-    q = np.array([[sigma_v ** 2 * dt + sigma_u ** 2 * dt ** 3 / 3.0, -sigma_u ** 2 * dt ** 2 / 2.0],
-                  [-sigma_u ** 2 * dt ** 2 / 2.0, sigma_u ** 2 * dt]])
-    return phi, q
+    of x = [θ error, bias error] with ``θ̇ = −b + η_v``, ``ḃ = η_u``, from the continuous model
+    by Van Loan's method (:func:`strapdown_ros.analysis.steady_filter.discretize`); equal to
+    ``Q = [[σ_v²Δt + σ_u²Δt³/3, −σ_u²Δt²/2], [−σ_u²Δt²/2, σ_u²Δt]]``."""
+    A = np.array([[0.0, -1.0], [0.0, 0.0]])
+    return discretize(A, np.diag([sigma_v ** 2, sigma_u ** 2]), dt)
 
 
-def riccati_steady_state(sigma_n: float, sigma_v: float, sigma_u: float, dt: float,
-                         iterations: int = 200_000, tol: float = 1e-15) -> SteadyState:
-    """Steady state of the same single-axis model by iterating the discrete Riccati equation
-    (numerical, independent of the closed form).
+def riccati_steady_state(sigma_n: float, sigma_v: float, sigma_u: float, dt: float) -> SteadyState:
+    """Steady state of the same single-axis model from the discrete algebraic Riccati equation
+    (:func:`strapdown_ros.analysis.steady_filter.steady_state_gain`: numerical, independent of
+    the closed form).
 
     Parameters
     ----------
     sigma_n, sigma_v, sigma_u, dt : float
-        As :func:`farrenkopf_steady_state`.
-    iterations : int
-        Maximum number of measurement cycles.
-    tol : float
-        Relative change of the pre-update covariance that ends the iteration.
+        As :func:`farrenkopf_steady_state` (sigma_u > 0: with a random-constant bias the
+        steady state has a bias variance of zero and the doubling iteration does not end).
 
     Returns
     -------
@@ -104,20 +103,6 @@ def riccati_steady_state(sigma_n: float, sigma_v: float, sigma_u: float, dt: flo
         Attitude and bias σ before and after the update.
     """
     phi, q = bias_filter_model(sigma_v, sigma_u, dt)
-    h = np.array([1.0, 0.0])
-    r = sigma_n ** 2
-    m = np.diag([r, (r / dt ** 2)])
-    for _ in range(iterations):
-        k = m @ h / (h @ m @ h + r)
-        a = np.eye(2) - np.outer(k, h)
-        p = a @ m @ a.T + r * np.outer(k, k)
-        m_new = phi @ p @ phi.T + q
-        if np.max(np.abs(m_new - m) / np.abs(np.diag(m_new)).max()) < tol:
-            m = m_new
-            break
-        m = m_new
-    k = m @ h / (h @ m @ h + r)
-    a = np.eye(2) - np.outer(k, h)
-    p = a @ m @ a.T + r * np.outer(k, k)
+    m, _, p = steady_state_gain(phi, np.array([[1.0, 0.0]]), q, np.array([[sigma_n ** 2]]))
     return SteadyState(float(np.sqrt(m[0, 0])), float(np.sqrt(p[0, 0])),
                        float(np.sqrt(m[1, 1])), float(np.sqrt(p[1, 1])))
