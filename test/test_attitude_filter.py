@@ -90,6 +90,9 @@ def test_bias_only_filter_reaches_farrenkopf_steady_state():
         np.testing.assert_allclose(post, theory.attitude_post, rtol=1e-6)
         assert_spd(f.P)
     rms = np.sqrt(np.mean(np.square(errors)))
+    print(f"\nFARRENKOPF sigma_pre {theory.attitude_pre:.4e} post {theory.attitude_post:.4e} rad; "
+          f"filter pre {pre[0]:.4e} post {post[0]:.4e}; actual post-update rms {rms:.4e} "
+          f"({rms / theory.attitude_post - 1:+.2%}, {len(errors) * 3} samples)")
     assert rms == pytest.approx(theory.attitude_post, rel=0.05)
 
 
@@ -136,6 +139,8 @@ def test_nees_of_attitude_and_bias_over_100_runs():
                             e[3:] @ np.linalg.solve(P[3:, 3:], e[3:]))
         assert_spd(f.P)
     anees = nees.mean(axis=0)                                # (fixes, 3)
+    print(f"\nNEES runs {runs}: mean ANEES (joint 6, attitude 3, bias 3) {anees.mean(0).round(3)}, "
+          f"final epoch {anees[-1].round(3)}, mean NIS {np.mean(nis):.3f} over {len(nis)} fixes")
     for c, dim in enumerate((6, 3, 3)):
         lo, hi = _chi2_band(dim * runs, 0.025) / runs, _chi2_band(dim * runs, 0.975) / runs
         inside = np.mean((anees[:, c] > lo) & (anees[:, c] < hi))
@@ -206,6 +211,11 @@ def test_recovery_of_bias_scale_misalignment_boresight_time_offset():
         assert np.all(np.abs(err) < 3.0 * f.sigma(name)), (name, err, f.sigma(name))
         assert np.all(np.abs(err) < 0.2 * np.abs(truth[name])), name      # and really estimated
     eta = attitude_error(truth["boresight"], f.estimate("boresight"))
+    print()
+    for name in ("gyro_bias", "gyro_scale_factor", "gyro_misalignment", "time_offset", "boresight"):
+        err = eta if name == "boresight" else f.estimate(name) - truth[name]
+        print(f"RECOVERY {name}: error/sigma {(err / f.sigma(name)).round(2)}, sigma {f.sigma(name)}, "
+              f"sigma(360 s)/sigma(1440 s) {(marks[360.0][name] / marks[1440.0][name]).round(3)}")
     assert np.all(np.abs(eta) < 3.0 * f.sigma("boresight")), (eta, f.sigma("boresight"))
     assert np.all(np.abs(attitude_error(truth["attitude"], f.attitude)) < 3.0 * f.sigma("attitude"))
     # random constants seen through white noise, the motion repeating: σ ∝ 1/√t, so σ(t)/σ(4t) ≈ 2
@@ -240,6 +250,8 @@ def test_bounded_attitude_error_over_two_hours_while_open_loop_drifts():
         sig.append(f.sigma("attitude"))
     filt_err, ol_err, sig = map(np.asarray, (filt_err, ol_err, sig))
     late = slice(len(filt_err) // 2, None)                    # the second hour
+    print(f"\nLONG RUN 2 h: filter max |err| 2nd hour {np.max(np.linalg.norm(filt_err[late], axis=1)):.3e} rad "
+          f"(max sigma {np.max(sig[late]):.3e}); open loop at 2 h {np.linalg.norm(ol_err[-1]):.3e} rad")
     assert np.max(np.abs(filt_err[late])) < 4.0 * np.max(sig[late])
     assert np.max(np.linalg.norm(filt_err[late], axis=1)) < 2e-5
     assert np.linalg.norm(ol_err[-1]) > 100 * np.max(np.linalg.norm(filt_err[late], axis=1))
@@ -283,6 +295,8 @@ def test_late_fix_gives_the_same_state_as_in_order_processing():
     assert f1.counters.max_lateness == pytest.approx(0.6, abs=0.13)
     assert f1.counters.reprocessed_increments > 0
     assert f0.counters.applied == f1.counters.applied == 60
+    print(f"\nLATE 0.6 s x 60 fixes: max |dq| {np.max(np.abs(f1.attitude - f0.attitude)):.1e}, max |dP|/max|P| "
+          f"{np.max(np.abs(f1.P - f0.P)) / np.max(np.abs(f0.P)):.1e}, reprocessed {f1.counters.reprocessed_increments}")
     np.testing.assert_allclose(f1.attitude, f0.attitude, rtol=0, atol=1e-13)
     np.testing.assert_allclose(f1.x, f0.x, rtol=1e-9, atol=1e-16)
     np.testing.assert_allclose(f1.P, f0.P, rtol=1e-8, atol=1e-24)
