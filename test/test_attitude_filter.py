@@ -342,3 +342,23 @@ def test_registry_supplies_the_filter_partials():
     np.testing.assert_array_equal(EFFECTS["gyro_bias"].filter_partials(rho, T, t)[0], 0.01 * np.eye(3))
     assert EFFECTS["gyro_bias"].filter_process_noise({"gyro_bias_random_walk": 2.0}).tolist() == [4.0] * 3
     assert EFFECTS["gyro_scale_factor"].filter_process_noise({"gyro_bias_random_walk": 2.0}).tolist() == [0.0] * 3
+
+
+def test_covariance_stays_symmetric_and_positive_with_an_extremely_precise_camera():
+    """Prior 1e-2 rad, fixes with σ = 1e-11 rad (a dynamic range of 1e18 in P): P, kept as a
+    square-root factor (P = SSᵀ, the Joseph update as a QR of [(I − KH)S, KR^½]), stays exactly
+    symmetric and positive semi-definite down to the round-off of its eigenvalues."""
+    q0 = rotvec_to_quat(np.array([0.1, 0.2, 0.3]))
+    f = AttitudeFilter(q0, 0.0, gyro_random_walk=1e-9, initial_sigma=1e-2, bias_sigma=1e-3,
+                       augment=("gyro_scale_factor",), augment_sigma={"gyro_scale_factor": 1e-2})
+    T, w = 0.01, np.array([0.3, -0.2, 0.1])
+    for j in range(200):
+        st = (j * 10 + np.arange(1, 11)) * T
+        f.propagate(np.tile(w * T, (10, 1)), st)
+        q = quat_multiply(q0, rotvec_to_quat(w * st[-1]))
+        assert f.update(st[-1], q, 1e-22 * np.eye(3)).status == "applied"
+        P = f.P
+        assert np.array_equal(P, P.T)
+        ev = np.linalg.eigvalsh(P)
+        assert ev[0] >= -1e-12 * ev[-1]
+    assert np.all(f.sigma("attitude") < 1e-9)

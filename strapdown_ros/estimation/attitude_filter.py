@@ -29,7 +29,8 @@ random walk); a gyro state with a random-walk density s has the exact per-step c
 Update at a fix (camera attitude ``q_GCRS_VF``, covariance R in VF axes) applied at its epoch
 ``stamp − τ̂``: residual ``z = log(q_meas⁻¹ ⊗ q̂_ref_body ⊗ q̂_MF_VF)`` (VF axes, predicted minus
 measured) ≈ ``C_VF^MF ε + η − C_VF^MF ω δτ − θ_noise``; gate on the NIS ``zᵀS⁻¹z`` against the
-χ²(3) quantile of ``gate_probability``; Joseph-form covariance update, symmetrised.
+χ²(3) quantile of ``gate_probability``; Joseph-form covariance update on a square-root factor
+(P = SSᵀ, QR of [(I − KH)S, KR^½]): symmetric and positive semi-definite by construction.
 
 Late fixes: a bounded history of increments (as processed, split at fix epochs) and of
 checkpoints (integrator, estimates, covariance) lets a fix whose epoch is older than the newest
@@ -81,6 +82,20 @@ def chi2_3_quantile(probability: float) -> float:
     return 0.5 * (lo + hi)
 
 
+def _triangular(*blocks: np.ndarray) -> np.ndarray:
+    """A square factor S (n, n) with S Sᵀ = Σ B Bᵀ over the blocks (n, ·): from the QR
+    factorisation of [B₁ B₂ …]ᵀ."""
+    r = np.linalg.qr(np.hstack(blocks).T, mode="r")
+    return r.T
+
+
+def _psd_sqrt(Q: np.ndarray) -> np.ndarray:
+    """A factor B with B Bᵀ = Q for a symmetric positive semi-definite Q (eigenvalues below
+    zero by round-off are taken as zero)."""
+    w, v = np.linalg.eigh(0.5 * (Q + Q.T))
+    return v * np.sqrt(np.clip(w, 0.0, None))
+
+
 @dataclass
 class FixResult:
     """Outcome of one camera fix."""
@@ -125,7 +140,7 @@ class _Checkpoint:
     integrator: tuple
     states: np.ndarray
     boresight: np.ndarray
-    covariance: np.ndarray
+    covariance: np.ndarray       # square-root factor of P (never written into)
     open_rho: np.ndarray
     open_dt: np.ndarray
     last_rate: np.ndarray
@@ -227,7 +242,7 @@ class AttitudeFilter:
             self.x[sl] = np.asarray(v, dtype=float).reshape(sl.stop - sl.start)
         if not np.all(np.isfinite(p0)) or np.any(p0 < 0):
             raise ValueError("prior sigmas must be finite and >= 0")
-        self.P = np.diag(p0)
+        self._sqrt_p = np.diag(np.sqrt(p0))          # P = S Sᵀ (square-root form)
         self._g_noise = np.concatenate([e.filter_process_noise(self.noise) for e, _ in self.layout.gyro])
         self.counters = FilterCounters()
         self.results: deque = deque(maxlen=1000)       # the last fix results (bounded)
@@ -319,6 +334,13 @@ class AttitudeFilter:
         if sl is None:
             raise ValueError(f"{name!r} is not a state of this filter")
         return np.sqrt(np.diag(self.P)[sl])
+
+    @property
+    def P(self) -> np.ndarray:
+        """Error-state covariance (n, n): ``S Sᵀ`` of the square-root factor the filter keeps,
+        symmetric and positive semi-definite by construction."""
+        P = self._sqrt_p @ self._sqrt_p.T
+        return 0.5 * (P + P.T)
 
     def _gyro_effects(self) -> GyroEffects:
         values = {e.name: e.filter_values(self.x[sl]) for e, sl in self.layout.gyro}
@@ -475,8 +497,7 @@ class AttitudeFilter:
             Q[:3, gi] = ce @ Q_eg
             Q[gi, :3] = Q[:3, gi].T
             Q[gi, gi] = np.diag(sh.sum(0))
-        P = phi @ self.P @ phi.T + Q
-        self.P = 0.5 * (P + P.T)
+        self._sqrt_p = _triangular(phi @ self._sqrt_p, _psd_sqrt(Q))     # P ← ΦPΦᵀ + Q
 
     def _apply(self, fix: _Fix) -> FixResult:
         """Measurement update at the newest stamp (= the fix epoch)."""
@@ -491,7 +512,8 @@ class AttitudeFilter:
             H[:, lay.boresight] = np.eye(3)
         if lay.time_offset is not None:
             H[:, lay.time_offset] = EFFECTS["time_offset"].fix_jacobian(self._last_rate, c_bv.T)
-        S = H @ self.P @ H.T + fix.covariance
+        P = self.P
+        S = H @ P @ H.T + fix.covariance
         S = 0.5 * (S + S.T)
         nis = float(z @ np.linalg.solve(S, z))
         self._applied.append(fix)
@@ -505,11 +527,11 @@ class AttitudeFilter:
             fix.counted = True
             self._checkpoint()
             return res
-        K = np.linalg.solve(S, H @ self.P).T
+        K = np.linalg.solve(S, H @ P).T
         dx = K @ z
         IKH = np.eye(lay.size) - K @ H
-        P = IKH @ self.P @ IKH.T + K @ fix.covariance @ K.T
-        self.P = 0.5 * (P + P.T)
+        # Joseph form P ← (I − KH)P(I − KH)ᵀ + KRKᵀ, as the factor of [(I − KH)S, K R^½]
+        self._sqrt_p = _triangular(IKH @ self._sqrt_p, K @ np.linalg.cholesky(fix.covariance))
         self.integrator.q = quat_normalize(quat_multiply(self.integrator.q, rotvec_to_quat(-dx[:3])))
         self.x[3:] -= dx[3:]
         if lay.boresight is not None:
@@ -551,7 +573,7 @@ class AttitudeFilter:
     def _checkpoint(self) -> None:
         self._checkpoints.append(_Checkpoint(
             self._last_stamp, self._n, self._order,
-            self.integrator.checkpoint(), self.x.copy(), self.boresight.copy(), self.P.copy(),
+            self.integrator.checkpoint(), self.x.copy(), self.boresight.copy(), self._sqrt_p,
             self._open_rho, self._open_dt, self._last_rate, self._last_stamp))
 
     def _late(self, fix: _Fix) -> FixResult:
@@ -573,7 +595,7 @@ class AttitudeFilter:
         self.counters.reprocessed_increments += len(t)
         # back to the checkpoint
         self.integrator.rollback(cp.integrator)
-        self.x, self.boresight, self.P = cp.states.copy(), cp.boresight.copy(), cp.covariance.copy()
+        self.x, self.boresight, self._sqrt_p = cp.states.copy(), cp.boresight.copy(), cp.covariance
         self._open_rho, self._open_dt, self._last_rate = cp.open_rho, cp.open_dt, cp.last_rate
         self._last_stamp, self._n = cp.last_stamp, cp.pieces
         while self._checkpoints and self._checkpoints[-1] is not cp:
