@@ -60,7 +60,8 @@ def test_farrenkopf_closed_form_equals_riccati():
     sn, sv, dt = 1e-5, 1e-5, 2.0
     q = sv ** 2 * dt
     m = 0.5 * (q + np.sqrt(q * q + 4 * q * sn ** 2))
-    assert farrenkopf_steady_state(sn, sv, 0.0, dt).attitude_pre == pytest.approx(np.sqrt(m), rel=1e-12)
+    pre = farrenkopf_steady_state(sn, sv, 0.0, dt).attitude_pre
+    assert pre == pytest.approx(np.sqrt(m), rel=1e-12)
 
 
 def test_bias_only_filter_reaches_farrenkopf_steady_state():
@@ -139,7 +140,8 @@ def test_nees_of_attitude_and_bias_over_100_runs():
                             e[3:] @ np.linalg.solve(P[3:, 3:], e[3:]))
         assert_spd(f.P)
     anees = nees.mean(axis=0)                                # (fixes, 3)
-    print(f"\nNEES runs {runs}: mean ANEES (joint 6, attitude 3, bias 3) {anees.mean(0).round(3)}, "
+    print(f"\nNEES runs {runs}: mean ANEES (joint 6, attitude 3, bias 3) "
+          f"{anees.mean(0).round(3)}, "
           f"final epoch {anees[-1].round(3)}, mean NIS {np.mean(nis):.3f} over {len(nis)} fixes")
     for c, dim in enumerate((6, 3, 3)):
         lo, hi = _chi2_band(dim * runs, 0.025) / runs, _chi2_band(dim * runs, 0.975) / runs
@@ -158,7 +160,8 @@ def _calibration_motion():
         w = np.zeros(3)
         w[axis] = sign * rate
         segs += [Segment(20.0, w), Segment(10.0)]
-    return PiecewiseRateProfile(segs * 10, initial_attitude=rotvec_to_quat(np.array([0.2, -0.4, 0.9])))
+    q0 = rotvec_to_quat(np.array([0.2, -0.4, 0.9]))
+    return PiecewiseRateProfile(segs * 10, initial_attitude=q0)
 
 
 def _run_calibration(duration_marks, augment, seed=3):
@@ -168,33 +171,35 @@ def _run_calibration(duration_marks, augment, seed=3):
     T = 0.25
     bias = np.array([2e-6, -1e-6, 1.5e-6])
     scale = np.array([3e-4, -2e-4, 1e-4])
-    sym = np.array([1e-4, -5e-5, 8e-5])                       # M_xy = M_yx, M_xz = M_zx, M_yz = M_zy
+    sym = np.array([1e-4, -5e-5, 8e-5])          # M_xy = M_yx, M_xz = M_zx, M_yz = M_zy
     mis = np.zeros((3, 3))
     mis[0, 1] = mis[1, 0] = sym[0]
     mis[0, 2] = mis[2, 0] = sym[1]
     mis[1, 2] = mis[2, 1] = sym[2]
     sv, tau = 2e-6, 0.03
     beta = np.array([200.0, -150.0, 300.0]) * ARCSEC
-    gyro = IntegratingSensor(profile, "gyro", 1.0 / T, SensorErrorModel(bias, scale, mis, random_walk=sv),
-                             seed=seed)
+    gyro = IntegratingSensor(profile, "gyro", 1.0 / T,
+                             SensorErrorModel(bias, scale, mis, random_walk=sv), seed=seed)
     cam = StarCameraModel(boresight=beta, interval=1.0, sigma=np.array([1.0, 1.0, 5.0]) * ARCSEC,
                           time_offset=tau, seed=seed + 1)
     rng = np.random.default_rng(seed + 2)
     q0 = quat_multiply(profile.attitude(0.0), rotvec_to_quat(rng.normal(0, 1e-4, 3)))
-    sig = {"gyro_scale_factor": 1e-3, "gyro_misalignment": 1e-3, "time_offset": 0.1, "boresight": 3e-3}
+    sig = {"gyro_scale_factor": 1e-3, "gyro_misalignment": 1e-3, "time_offset": 0.1,
+           "boresight": 3e-3}
     f = AttitudeFilter(q0, 0.0, gyro_random_walk=sv, initial_sigma=1e-4, bias_sigma=1e-5,
                        augment=augment, augment_sigma={a: sig[a] for a in augment})
     marks = {}
     t_end = max(duration_marks)
     fixes = cam.fixes(profile, int(t_end))
-    for fx in fixes:                 # the fix arrives first, the increments past it next (in order)
+    for fx in fixes:                 # the fix arrives first, then the increments past it
         assert f.update(fx.stamp, fx.attitude, fx.covariance).status == "pending"
         n = int(round((fx.stamp + 0.5 - gyro.epochs(1)[0]) / T)) + 1
         st, meas, _ = gyro.sample(n)
         assert [r.status for r in f.propagate(meas, st)] == ["applied"]
         for m in duration_marks:
             if abs(fx.stamp - m) < 1e-9:
-                marks[m] = {a: f.sigma(a).copy() for a in ("attitude", "gyro_bias") + tuple(augment)}
+                names = ("attitude", "gyro_bias") + tuple(augment)
+                marks[m] = {a: f.sigma(a).copy() for a in names}
         assert_spd(f.P)
     truth = {"gyro_bias": bias, "gyro_scale_factor": scale, "gyro_misalignment": sym,
              "time_offset": np.array([tau]), "boresight": cam.q_mf_vf,
@@ -212,14 +217,17 @@ def test_recovery_of_bias_scale_misalignment_boresight_time_offset():
         assert np.all(np.abs(err) < 0.2 * np.abs(truth[name])), name      # and really estimated
     eta = attitude_error(truth["boresight"], f.estimate("boresight"))
     print()
-    for name in ("gyro_bias", "gyro_scale_factor", "gyro_misalignment", "time_offset", "boresight"):
+    names = ("gyro_bias", "gyro_scale_factor", "gyro_misalignment", "time_offset", "boresight")
+    for name in names:
         err = eta if name == "boresight" else f.estimate(name) - truth[name]
-        print(f"RECOVERY {name}: error/sigma {(err / f.sigma(name)).round(2)}, sigma {f.sigma(name)}, "
+        print(f"RECOVERY {name}: error/sigma {(err / f.sigma(name)).round(2)}, "
+              f"sigma {f.sigma(name)}, "
               f"sigma(360 s)/sigma(1440 s) {(marks[360.0][name] / marks[1440.0][name]).round(3)}")
     assert np.all(np.abs(eta) < 3.0 * f.sigma("boresight")), (eta, f.sigma("boresight"))
-    assert np.all(np.abs(attitude_error(truth["attitude"], f.attitude)) < 3.0 * f.sigma("attitude"))
+    att = attitude_error(truth["attitude"], f.attitude)
+    assert np.all(np.abs(att) < 3.0 * f.sigma("attitude"))
     # random constants seen through white noise, the motion repeating: σ ∝ 1/√t, so σ(t)/σ(4t) ≈ 2
-    for name in ("gyro_scale_factor", "gyro_misalignment", "time_offset", "boresight", "gyro_bias"):
+    for name in names:
         ratio = marks[360.0][name] / marks[1440.0][name]
         assert np.all((ratio > 1.7) & (ratio < 2.4)), (name, ratio)
 
@@ -250,8 +258,9 @@ def test_bounded_attitude_error_over_two_hours_while_open_loop_drifts():
         sig.append(f.sigma("attitude"))
     filt_err, ol_err, sig = map(np.asarray, (filt_err, ol_err, sig))
     late = slice(len(filt_err) // 2, None)                    # the second hour
-    print(f"\nLONG RUN 2 h: filter max |err| 2nd hour {np.max(np.linalg.norm(filt_err[late], axis=1)):.3e} rad "
-          f"(max sigma {np.max(sig[late]):.3e}); open loop at 2 h {np.linalg.norm(ol_err[-1]):.3e} rad")
+    worst = np.max(np.linalg.norm(filt_err[late], axis=1))
+    print(f"\nLONG RUN 2 h: filter max |err| 2nd hour {worst:.3e} rad (max sigma "
+          f"{np.max(sig[late]):.3e}); open loop at 2 h {np.linalg.norm(ol_err[-1]):.3e} rad")
     assert np.max(np.abs(filt_err[late])) < 4.0 * np.max(sig[late])
     assert np.max(np.linalg.norm(filt_err[late], axis=1)) < 2e-5
     assert np.linalg.norm(ol_err[-1]) > 100 * np.max(np.linalg.norm(filt_err[late], axis=1))
@@ -266,12 +275,14 @@ def _stream(lateness, fixes=60, history=20_000, algorithm="2"):
     ``lateness`` seconds after the increments passed its epoch."""
     profile = _calibration_motion()
     T = 0.125
-    gyro = IntegratingSensor(profile, "gyro", 1.0 / T, SensorErrorModel(np.array([1e-6, 2e-6, -1e-6]),
-                             np.array([1e-4, 0, 0]), random_walk=2e-6), seed=5)
+    errors = SensorErrorModel(np.array([1e-6, 2e-6, -1e-6]), np.array([1e-4, 0, 0]),
+                              random_walk=2e-6)
+    gyro = IntegratingSensor(profile, "gyro", 1.0 / T, errors, seed=5)
     cam = StarCameraModel(interval=1.0, first_exposure=5.55, sigma=np.full(3, 2 * ARCSEC),
                           time_offset=0.01, seed=6)
     f = AttitudeFilter(profile.attitude(0.0), 0.0, algorithm=algorithm, gyro_random_walk=2e-6,
-                       initial_sigma=1e-4, bias_sigma=1e-5, augment=("gyro_scale_factor", "time_offset"),
+                       initial_sigma=1e-4, bias_sigma=1e-5,
+                       augment=("gyro_scale_factor", "time_offset"),
                        augment_sigma={"gyro_scale_factor": 1e-3, "time_offset": 0.05},
                        initial_values={"time_offset": [0.01]}, history=history)
     results = []
@@ -291,13 +302,15 @@ def _stream(lateness, fixes=60, history=20_000, algorithm="2"):
 @pytest.mark.parametrize("algorithm", ["2", "4", "7"])
 def test_late_fix_gives_the_same_state_as_in_order_processing(algorithm):
     f0, r0 = _stream(0.0, algorithm=algorithm)
-    f1, r1 = _stream(0.6, algorithm=algorithm)                # fix epochs 0.6 s behind the increments
+    f1, r1 = _stream(0.6, algorithm=algorithm)   # fix epochs 0.6 s behind the increments
     assert f0.counters.late == 0 and f1.counters.late == 60
     assert f1.counters.max_lateness == pytest.approx(0.6, abs=0.13)
     assert f1.counters.reprocessed_increments > 0
     assert f0.counters.applied == f1.counters.applied == 60
-    print(f"\nLATE 0.6 s x 60 fixes: max |dq| {np.max(np.abs(f1.attitude - f0.attitude)):.1e}, max |dP|/max|P| "
-          f"{np.max(np.abs(f1.P - f0.P)) / np.max(np.abs(f0.P)):.1e}, reprocessed {f1.counters.reprocessed_increments}")
+    print(f"\nLATE 0.6 s x 60 fixes ({algorithm}): max |dq| "
+          f"{np.max(np.abs(f1.attitude - f0.attitude)):.1e}, max |dP|/max|P| "
+          f"{np.max(np.abs(f1.P - f0.P)) / np.max(np.abs(f0.P)):.1e}, "
+          f"reprocessed {f1.counters.reprocessed_increments}")
     np.testing.assert_allclose(f1.attitude, f0.attitude, rtol=0, atol=1e-13)
     assert np.all(np.abs(f1.x - f0.x) <= 1e-8 * np.sqrt(np.diag(f0.P)))   # round-off against σ
     np.testing.assert_allclose(f1.P, f0.P, rtol=1e-8, atol=1e-24)
@@ -329,7 +342,11 @@ def test_outlier_is_gated_and_old_fix_dropped_and_counted():
     with pytest.raises(ValueError):
         AttitudeFilter(q_before, 0.0, augment=("camera_noise_anisotropy",))
     with pytest.raises(ValueError):
-        f.propagate(np.zeros((1, 3)), [t])                              # not after the newest stamp
+        f.propagate(np.zeros((1, 3)), [t])                # not after the newest stamp
+    with pytest.raises(ValueError):                                     # estimated, not given here
+        AttitudeFilter(q_before, 0.0, augment=("boresight",), augment_sigma={"boresight": 1e-3}
+                       ).update(1.0, q_before, np.eye(3), boresight=q_before)
+    assert f.implausible() == [] and f.counters.implausible == 0
 
 
 def test_registry_supplies_the_filter_partials():
@@ -339,9 +356,11 @@ def test_registry_supplies_the_filter_partials():
     assert mis.filter_size() == 3
     np.testing.assert_array_equal(mis.filter_partials(rho, T, t),
                                   mis.increment_jacobian(rho, T, t) @ mis.fit_basis())
-    np.testing.assert_array_equal(EFFECTS["gyro_bias"].filter_partials(rho, T, t)[0], 0.01 * np.eye(3))
-    assert EFFECTS["gyro_bias"].filter_process_noise({"gyro_bias_random_walk": 2.0}).tolist() == [4.0] * 3
-    assert EFFECTS["gyro_scale_factor"].filter_process_noise({"gyro_bias_random_walk": 2.0}).tolist() == [0.0] * 3
+    bias, scale = EFFECTS["gyro_bias"], EFFECTS["gyro_scale_factor"]
+    np.testing.assert_array_equal(bias.filter_partials(rho, T, t)[0], 0.01 * np.eye(3))
+    noise = {"gyro_bias_random_walk": 2.0}
+    assert bias.filter_process_noise(noise).tolist() == [4.0] * 3
+    assert scale.filter_process_noise(noise).tolist() == [0.0] * 3
 
 
 def test_covariance_stays_symmetric_and_positive_with_an_extremely_precise_camera():

@@ -39,85 +39,23 @@ lateness is reported; a fix older than the history is dropped and counted.
 """
 from __future__ import annotations
 
-import math
 from collections import deque
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from ..integrator import AttitudeIntegrator
-from ..rotation import quat_conjugate, quat_multiply, quat_normalize, quat_to_dcm, quat_to_rotvec, \
-    rotvec_to_quat
+from ..rotation import (quat_conjugate, quat_multiply, quat_normalize, quat_to_dcm,
+                        quat_to_rotvec, rotvec_to_quat)
 from ..sensors.effects import EFFECTS, GyroEffects
+from .filter_support import (FilterCounters, FixResult, chi2_3_quantile, psd_factor,
+                             triangular_factor)
 
-__all__ = ["AttitudeFilter", "FixResult", "FilterCounters", "chi2_3_quantile", "FILTER_STATE_NAMES"]
+__all__ = ["AttitudeFilter", "FixResult", "FilterCounters", "chi2_3_quantile",
+           "FILTER_STATE_NAMES"]
 
 #: names the ``augment`` argument accepts besides the registry's systematic gyro effects
 FILTER_STATE_NAMES = ("time_offset", "boresight")
-
-
-def chi2_3_quantile(probability: float) -> float:
-    """Quantile of the χ² distribution with 3 degrees of freedom (bisection on its CDF
-    ``erf(√(x/2)) − √(2x/π) e^{−x/2}``).
-
-    Parameters
-    ----------
-    probability : float
-        In (0, 1).
-
-    Returns
-    -------
-    float
-        x with P(χ²₃ ≤ x) = probability.
-    """
-    if not 0.0 < probability < 1.0:
-        raise ValueError(f"probability must be in (0, 1), got {probability}")
-
-    def cdf(x):
-        return math.erf(math.sqrt(x / 2.0)) - math.sqrt(2.0 * x / math.pi) * math.exp(-x / 2.0)
-    lo, hi = 0.0, 200.0
-    for _ in range(200):
-        mid = 0.5 * (lo + hi)
-        lo, hi = (mid, hi) if cdf(mid) < probability else (lo, mid)
-    return 0.5 * (lo + hi)
-
-
-def _triangular(*blocks: np.ndarray) -> np.ndarray:
-    """A square factor S (n, n) with S Sᵀ = Σ B Bᵀ over the blocks (n, ·): from the QR
-    factorisation of [B₁ B₂ …]ᵀ."""
-    r = np.linalg.qr(np.hstack(blocks).T, mode="r")
-    return r.T
-
-
-def _psd_sqrt(Q: np.ndarray) -> np.ndarray:
-    """A factor B with B Bᵀ = Q for a symmetric positive semi-definite Q (eigenvalues below
-    zero by round-off are taken as zero)."""
-    w, v = np.linalg.eigh(0.5 * (Q + Q.T))
-    return v * np.sqrt(np.clip(w, 0.0, None))
-
-
-@dataclass
-class FixResult:
-    """Outcome of one camera fix."""
-    stamp: float                 # header stamp of the fix, s
-    epoch: float                 # IMU-clock epoch it was applied at (stamp − τ̂), s
-    status: str                  # 'applied', 'gated', 'pending', 'too_old', 'overflow'
-    lateness: float = 0.0        # newest increment stamp − epoch at arrival (0: not late), s
-    residual: np.ndarray | None = None     # z (3,), VF axes, rad
-    nis: float | None = None     # zᵀ S⁻¹ z
-
-
-@dataclass
-class FilterCounters:
-    """Counts of what the filter did (reported; a node puts them on /diagnostics)."""
-    applied: int = 0
-    gated: int = 0
-    late: int = 0
-    too_old: int = 0
-    pending_overflow: int = 0
-    reprocessed_increments: int = 0
-    max_lateness: float = 0.0
-    last_lateness: float = 0.0
 
 
 @dataclass
@@ -205,14 +143,16 @@ class AttitudeFilter:
                  gate_probability: float = 0.9999, history: int = 20_000, max_pending: int = 256,
                  checkpoint_interval: float = 1.0):
         for name, v in (("gyro_random_walk", gyro_random_walk), ("initial_sigma", initial_sigma),
-                        ("bias_sigma", bias_sigma), ("gyro_bias_random_walk", gyro_bias_random_walk)):
+                        ("bias_sigma", bias_sigma),
+                        ("gyro_bias_random_walk", gyro_bias_random_walk)):
             if not (np.isfinite(v) and v >= 0):
                 raise ValueError(f"{name} must be finite and >= 0, got {v}")
         if not np.isfinite(initial_time):
             raise ValueError("initial_time must be finite")
         if int(history) < 16 or int(max_pending) < 1:
             raise ValueError("history must be >= 16 and max_pending >= 1")
-        self.integrator = AttitudeIntegrator(algorithm, initial_attitude, initial_time=initial_time,
+        self.integrator = AttitudeIntegrator(algorithm, initial_attitude,
+                                             initial_time=initial_time,
                                              propagate_covariance=False)
         self.sigma_v = float(gyro_random_walk)
         self.noise = dict(process_noise or {})
@@ -234,7 +174,8 @@ class AttitudeFilter:
                 continue
             if name not in sig:
                 raise ValueError(f"augment_sigma needs the prior 1σ of {name!r}")
-            p0[sl] = np.broadcast_to(np.asarray(sig[name], dtype=float), (sl.stop - sl.start,)) ** 2
+            width = (sl.stop - sl.start,)
+            p0[sl] = np.broadcast_to(np.asarray(sig[name], dtype=float), width) ** 2
         for name, v in (initial_values or {}).items():
             sl = dict(self._named_slices()).get(name)
             if sl is None:
@@ -243,7 +184,8 @@ class AttitudeFilter:
         if not np.all(np.isfinite(p0)) or np.any(p0 < 0):
             raise ValueError("prior sigmas must be finite and >= 0")
         self._sqrt_p = np.diag(np.sqrt(p0))          # P = S Sᵀ (square-root form)
-        self._g_noise = np.concatenate([e.filter_process_noise(self.noise) for e, _ in self.layout.gyro])
+        self._g_noise = np.concatenate([e.filter_process_noise(self.noise)
+                                        for e, _ in self.layout.gyro])
         self.counters = FilterCounters()
         self.results: deque = deque(maxlen=1000)       # the last fix results (bounded)
         self.history = int(history)
@@ -279,12 +221,14 @@ class AttitudeFilter:
             elif name == "time_offset":
                 lay.time_offset = slice(lay.size, lay.size + 1)
                 lay.size += 1
-            elif name in EFFECTS and EFFECTS[name].sensor == "gyro" and EFFECTS[name].kind == "systematic":
+            elif (name in EFFECTS and EFFECTS[name].sensor == "gyro"
+                  and EFFECTS[name].kind == "systematic"):
                 e = EFFECTS[name]
                 lay.gyro.append((e, slice(lay.size, lay.size + e.filter_size())))
                 lay.size += e.filter_size()
             else:
-                ok = [n for n, e in EFFECTS.items() if e.sensor == "gyro" and e.kind == "systematic"]
+                ok = [n for n, e in EFFECTS.items()
+                      if e.sensor == "gyro" and e.kind == "systematic"]
                 raise ValueError(f"augment: unknown or unsupported state {name!r}; valid: "
                                  f"{', '.join(ok + list(FILTER_STATE_NAMES))}")
         return lay
@@ -342,6 +286,21 @@ class AttitudeFilter:
         P = self._sqrt_p @ self._sqrt_p.T
         return 0.5 * (P + P.T)
 
+    def implausible(self) -> list[str]:
+        """Names of the estimates outside the valid range of their registry parameter (a
+        diverging filter; reported, not clamped)."""
+        out = []
+        named = [(e, sl) for e, sl in self.layout.gyro]
+        if self.layout.time_offset is not None:
+            named.append((EFFECTS["time_offset"], self.layout.time_offset))
+        for e, sl in named:
+            v = e.filter_values(self.x[sl]) if e.sensor == "gyro" else self.x[sl]
+            p = e.value_parameter
+            if (p.minimum is not None and np.any(v < p.minimum)) or \
+                    (p.maximum is not None and np.any(v > p.maximum)):
+                out.append(e.name)
+        return out
+
     def _gyro_effects(self) -> GyroEffects:
         values = {e.name: e.filter_values(self.x[sl]) for e, sl in self.layout.gyro}
         return GyroEffects(values=values, epoch=self.epoch)
@@ -373,13 +332,16 @@ class AttitudeFilter:
         if t[0] <= self._last_stamp or np.any(np.diff(t) <= 0):
             raise ValueError("stamps must increase strictly and follow the newest stamp")
         out = self._advance(d, t)
-        if not self._checkpoints or self._last_stamp - self._checkpoints[-1].epoch >= self.checkpoint_interval:
+        if (not self._checkpoints
+                or self._last_stamp - self._checkpoints[-1].epoch >= self.checkpoint_interval):
             self._checkpoint()
         return out
 
-    def update(self, stamp: float, attitude, covariance) -> FixResult:
+    def update(self, stamp: float, attitude, covariance, boresight=None) -> FixResult:
         """A star-camera fix: measured ``q_GCRS_VF`` (scalar-first) and its 3×3 covariance in
-        VF axes (rad²), stamped ``stamp`` (camera clock, s).
+        VF axes (rad²), stamped ``stamp`` (camera clock, s).  ``boresight``: a new known
+        ``q_MF_VF`` (e.g. from the calibrator) for this and later fixes; only when the boresight
+        is not a filter state.
 
         Applied at the epoch ``stamp − τ̂``: now when the increments end exactly there, later
         (status 'pending', the result comes from :meth:`propagate`) when they have not reached
@@ -395,6 +357,14 @@ class AttitudeFilter:
             raise ValueError("the fix covariance must be positive definite")
         if not np.isfinite(stamp):
             raise ValueError("the fix stamp must be finite")
+        if boresight is not None:
+            if self.layout.boresight is not None:
+                raise ValueError("the boresight is a filter state here: estimated, not given")
+            q_bv = np.asarray(boresight, dtype=float)
+            if (q_bv.shape != (4,) or not np.all(np.isfinite(q_bv))
+                    or abs(np.linalg.norm(q_bv) - 1) > 1e-3):
+                raise ValueError("boresight must be a finite unit quaternion [w, x, y, z]")
+            self.boresight = quat_normalize(q_bv)
         fix = _Fix(self._seq, float(stamp), float(stamp) - self.time_offset, quat_normalize(q), R)
         self._seq += 1
         if fix.epoch > self._last_stamp:
@@ -461,7 +431,7 @@ class AttitudeFilter:
 
     def _flush(self) -> None:
         """Complete the unfinished update (its increments applied one by one, the integrator's
-        rule when the algorithm changes) so that attitude and covariance are at the newest stamp."""
+        rule when the algorithm changes): attitude and covariance are then at the newest stamp."""
         if len(self._open_rho) == 0:
             return
         q_before = self.integrator.q
@@ -490,14 +460,15 @@ class AttitudeFilter:
         if np.any(s > 0):
             sh = s[None, :] * h[:, None]                                   # (m, ng)
             G = np.cumsum(A[::-1], axis=0)[::-1] - 0.5 * A                 # Σ_{j>i} A_j + ½ A_i
-            Q_ee = np.einsum("mik,mk,mjk->ij", G, sh, G) + np.einsum("mik,mk,mjk->ij", A, sh, A) / 12.0
+            Q_ee = (np.einsum("mik,mk,mjk->ij", G, sh, G)
+                    + np.einsum("mik,mk,mjk->ij", A, sh, A) / 12.0)
             Q_eg = -np.einsum("mik,mk->ik", G, sh)
             ce = c[-1].T
             Q[:3, :3] += ce @ Q_ee @ ce.T
             Q[:3, gi] = ce @ Q_eg
             Q[gi, :3] = Q[:3, gi].T
             Q[gi, gi] = np.diag(sh.sum(0))
-        self._sqrt_p = _triangular(phi @ self._sqrt_p, _psd_sqrt(Q))     # P ← ΦPΦᵀ + Q
+        self._sqrt_p = triangular_factor(phi @ self._sqrt_p, psd_factor(Q))     # P ← ΦPΦᵀ + Q
 
     def _apply(self, fix: _Fix) -> FixResult:
         """Measurement update at the newest stamp (= the fix epoch)."""
@@ -529,10 +500,15 @@ class AttitudeFilter:
             return res
         K = np.linalg.solve(S, H @ P).T
         dx = K @ z
+        if not (np.all(np.isfinite(K)) and np.all(np.isfinite(dx))):
+            raise FloatingPointError("attitude filter: non-finite gain in the update (numerical "
+                                     "failure, not bad input); the state is not corrected")
         IKH = np.eye(lay.size) - K @ H
         # Joseph form P ← (I − KH)P(I − KH)ᵀ + KRKᵀ, as the factor of [(I − KH)S, K R^½]
-        self._sqrt_p = _triangular(IKH @ self._sqrt_p, K @ np.linalg.cholesky(fix.covariance))
-        self.integrator.q = quat_normalize(quat_multiply(self.integrator.q, rotvec_to_quat(-dx[:3])))
+        self._sqrt_p = triangular_factor(IKH @ self._sqrt_p,
+                                         K @ np.linalg.cholesky(fix.covariance))
+        self.integrator.q = quat_normalize(quat_multiply(self.integrator.q,
+                                                         rotvec_to_quat(-dx[:3])))
         self.x[3:] -= dx[3:]
         if lay.boresight is not None:
             self.boresight = quat_normalize(quat_multiply(self.boresight,
@@ -540,6 +516,8 @@ class AttitudeFilter:
             self.x[lay.boresight] = 0.0          # the boresight estimate lives in the quaternion
         if not fix.counted:
             self.counters.applied += 1
+            if self.implausible():
+                self.counters.implausible += 1
         fix.counted = True
         res = self._record(fix, "applied", z, nis)
         self._checkpoint()
@@ -564,7 +542,8 @@ class AttitudeFilter:
         if hi + k > len(self._log_t):           # compact: keep the newest `history - k` pieces
             keep = min(self._n - self._base, self.history - k)
             src = slice(hi - keep, hi)
-            self._log_t[:keep], self._log_d[:keep] = self._log_t[src].copy(), self._log_d[src].copy()
+            self._log_t[:keep] = self._log_t[src].copy()
+            self._log_d[:keep] = self._log_d[src].copy()
             self._base = self._n - keep
             self._log_lo, hi = 0, keep
         self._log_t[hi:hi + k], self._log_d[hi:hi + k] = t, d
@@ -609,7 +588,7 @@ class AttitudeFilter:
         return mine[-1] if mine else FixResult(fix.stamp, fix.epoch, "pending", fix.lateness)
 
     def _trim_applied(self) -> None:
-        """Forget applied fixes older than every usable checkpoint (they cannot be re-processed)."""
+        """Forget applied fixes older than every usable checkpoint (no longer re-processable)."""
         oldest = next((c.epoch for c in self._checkpoints if c.pieces >= self._base), np.inf)
         while self._applied and self._applied[0].epoch < oldest:
             self._applied.popleft()

@@ -45,7 +45,8 @@ class SteadyState:
     bias_post: float | None = None
 
 
-def farrenkopf_steady_state(sigma_n: float, sigma_v: float, sigma_u: float, dt: float) -> SteadyState:
+def farrenkopf_steady_state(sigma_n: float, sigma_v: float, sigma_u: float,
+                            dt: float) -> SteadyState:
     """Analytic steady-state attitude σ of the bias-only filter (Farrenkopf 1978).
 
     Parameters

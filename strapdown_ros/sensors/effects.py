@@ -385,7 +385,8 @@ class TimeOffset(Effect):
         respect to the error δτ = τ̂ − τ of the estimated offset: the camera saw the attitude
         δτ later than the epoch the fix is applied at, q(t + δτ) ≈ q(t) ⊗ exp(ω δτ), so
         ∂z/∂δτ = −C_VF^MF ω (ω the body rate at the fix, rad/s, body axes)."""
-        return -(np.asarray(c_vf_mf, dtype=float) @ np.asarray(rate_body, dtype=float).reshape(3))[:, None]
+        rate = np.asarray(rate_body, dtype=float).reshape(3)
+        return -(np.asarray(c_vf_mf, dtype=float) @ rate)[:, None]
 
 
 #: the registry: every effect, by name
