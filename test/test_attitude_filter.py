@@ -109,6 +109,92 @@ def _chi2_band(k, p):
     return k * (1.0 - 2.0 / (9.0 * k) + z * np.sqrt(2.0 / (9.0 * k))) ** 3
 
 
+def bias_markov_increments(rng, T, n, sigma_v, density, tau, b0):
+    """As :func:`bias_walk_increments` for a first-order Gauss–Markov bias
+    (db = −b/τ dt + dη, density q): exact joint law of b(t+T) and ∫b over the interval."""
+    lam, a = 1.0 / tau, np.exp(-T / tau)
+    v1 = density * (1 - a * a) / (2 * lam)
+    v2 = density / lam ** 2 * (T - 2 * (1 - a) / lam + (1 - a * a) / (2 * lam))
+    c12 = density * (1 - a) ** 2 / (2 * lam ** 2)
+    L = np.linalg.cholesky(np.array([[v1, c12], [c12, v2]]))
+    u = np.einsum("ij,njk->nik", L, rng.normal(size=(n, 2, 3)))
+    b, out_b, integral = np.array(b0, dtype=float), np.empty((n, 3)), np.empty((n, 3))
+    for k in range(n):
+        integral[k] = b * (1 - a) / lam + u[k, 1]
+        b = a * b + u[k, 0]
+        out_b[k] = b
+    return integral + rng.normal(0.0, sigma_v * np.sqrt(T), (n, 3)), out_b
+
+
+def _nees_monte_carlo(runs, tau=None, gap=0.0, model_tau=True):
+    """Run-averaged NEES (fixes, 3: joint, attitude, bias) and all NIS of the bias filter, 60 s
+    runs with a slow constant rotation, a bias random walk (tau None) or a Gauss–Markov bias
+    of correlation time tau, initial errors from the prior; then ``gap`` s without fixes, and
+    the NEES (runs, 3) at its end (``model_tau`` False: the filter is not told τ)."""
+    T, dt, sn, sv, s0 = 0.25, 2.0, 10e-6, 3e-6, 2e-4
+    if tau is None:
+        su, sb, extra = 3e-7, 2e-5, {}
+    else:                                    # steady σ_b = σ_u √(τ/2) = 2e-5 rad/s
+        sb = 2e-5
+        su = sb * np.sqrt(2.0 / tau)
+        extra = {"gyro_bias_correlation_time": tau} if model_tau else {}
+    k, fixes = int(dt / T), 30
+    n = k * fixes + int(round(gap / T))
+    rate = np.array([0.01, -0.02, 0.015])
+    stamps = T * np.arange(1, n + 1)
+    q_start = rotvec_to_quat(np.array([0.4, 0.1, -0.7]))
+    nees = np.zeros((runs, fixes, 3))
+    nees_gap = np.zeros((runs, 3))
+    nis = []
+    for run in range(runs):
+        rng = np.random.default_rng(20000 + run)
+        b0 = rng.normal(0, sb, 3)
+        if tau is None:
+            d, b = bias_walk_increments(rng, T, n, sv, su, b0)
+        else:
+            d, b = bias_markov_increments(rng, T, n, sv, su ** 2, tau, b0)
+        d = d + rate * T                                     # exact increments of the motion
+        f = AttitudeFilter(quat_multiply(q_start, rotvec_to_quat(rng.normal(0, s0, 3))), 0.0,
+                           gyro_random_walk=sv, gyro_bias_random_walk=su, initial_sigma=s0,
+                           bias_sigma=sb, **extra)
+        for j in range(fixes):
+            f.propagate(d[j * k:(j + 1) * k], stamps[j * k:(j + 1) * k])
+            t = stamps[(j + 1) * k - 1]
+            q_true = quat_multiply(q_start, rotvec_to_quat(rate * t))
+            nis.append(f.update(t, camera_fix(rng, q_true, sn), sn ** 2 * np.eye(3)).nis)
+            e = np.concatenate([attitude_error(q_true, f.attitude),
+                                f.estimate("gyro_bias") - b[(j + 1) * k - 1]])
+            nees[run, j] = _nees(e, f.P[:6, :6])
+        if gap > 0:
+            f.propagate(d[k * fixes:], stamps[k * fixes:])
+            q_true = quat_multiply(q_start, rotvec_to_quat(rate * stamps[-1]))
+            e = np.concatenate([attitude_error(q_true, f.attitude), f.estimate("gyro_bias") - b[-1]])
+            nees_gap[run] = _nees(e, f.P[:6, :6])
+        assert_spd(f.P)
+    if gap > 0:
+        return nees.mean(axis=0), np.array(nis), nees_gap.mean(axis=0)
+    return nees.mean(axis=0), np.array(nis)
+
+
+def _nees(e, P):
+    """NEES of [ε, δb] (6), of ε (3) and of δb (3)."""
+    return (e @ np.linalg.solve(P, e), e[:3] @ np.linalg.solve(P[:3, :3], e[:3]),
+            e[3:] @ np.linalg.solve(P[3:, 3:], e[3:]))
+
+
+def _assert_consistent(anees, nis, runs, label):
+    print(f"\nNEES {label}, runs {runs}: mean ANEES (joint 6, attitude 3, bias 3) "
+          f"{anees.mean(0).round(3)}, final epoch {anees[-1].round(3)}, mean NIS "
+          f"{np.mean(nis):.3f} over {len(nis)} fixes")
+    for c, dim in enumerate((6, 3, 3)):
+        lo, hi = _chi2_band(dim * runs, 0.025) / runs, _chi2_band(dim * runs, 0.975) / runs
+        inside = np.mean((anees[:, c] > lo) & (anees[:, c] < hi))
+        assert inside >= 0.8, (dim, anees[:, c].round(2))
+        assert anees[:, c].mean() == pytest.approx(dim, rel=0.1)
+    m = len(nis)
+    assert _chi2_band(3 * m, 0.025) / m < np.mean(nis) < _chi2_band(3 * m, 0.975) / m
+
+
 def test_nees_of_attitude_and_bias_over_100_runs():
     """100 runs of 60 s, slow constant rotation, bias random walk, initial errors from the prior.
 
@@ -117,44 +203,23 @@ def test_nees_of_attitude_and_bias_over_100_runs():
     consistent filter has ~95 % of the epochs inside (the epochs are correlated, so ≥ 80 % is
     asked), and its time-and-run average near the dimension.  The normalised innovations are
     white for a consistent filter: their mean over all 3000 fixes is checked against its band."""
-    runs, T, dt, sn, sv, su, s0, sb = 100, 0.25, 2.0, 10e-6, 3e-6, 3e-7, 2e-4, 2e-5
-    k, fixes = int(dt / T), 30
-    n = k * fixes
-    rate = np.array([0.01, -0.02, 0.015])
-    stamps = T * np.arange(1, n + 1)
-    q_start = rotvec_to_quat(np.array([0.4, 0.1, -0.7]))
-    nees = np.zeros((runs, fixes, 3))
-    nis = []
-    for run in range(runs):
-        rng = np.random.default_rng(20000 + run)
-        b0 = rng.normal(0, sb, 3)
-        d, b = bias_walk_increments(rng, T, n, sv, su, b0)
-        d = d + rate * T                                     # exact increments of the motion
-        f = AttitudeFilter(quat_multiply(q_start, rotvec_to_quat(rng.normal(0, s0, 3))), 0.0,
-                           gyro_random_walk=sv, gyro_bias_random_walk=su, initial_sigma=s0,
-                           bias_sigma=sb)
-        for j in range(fixes):
-            f.propagate(d[j * k:(j + 1) * k], stamps[j * k:(j + 1) * k])
-            t = stamps[(j + 1) * k - 1]
-            q_true = quat_multiply(q_start, rotvec_to_quat(rate * t))
-            nis.append(f.update(t, camera_fix(rng, q_true, sn), sn ** 2 * np.eye(3)).nis)
-            e = np.concatenate([attitude_error(q_true, f.attitude),
-                                f.estimate("gyro_bias") - b[(j + 1) * k - 1]])
-            P = f.P[:6, :6]
-            nees[run, j] = (e @ np.linalg.solve(P, e), e[:3] @ np.linalg.solve(P[:3, :3], e[:3]),
-                            e[3:] @ np.linalg.solve(P[3:, 3:], e[3:]))
-        assert_spd(f.P)
-    anees = nees.mean(axis=0)                                # (fixes, 3)
-    print(f"\nNEES runs {runs}: mean ANEES (joint 6, attitude 3, bias 3) "
-          f"{anees.mean(0).round(3)}, "
-          f"final epoch {anees[-1].round(3)}, mean NIS {np.mean(nis):.3f} over {len(nis)} fixes")
-    for c, dim in enumerate((6, 3, 3)):
-        lo, hi = _chi2_band(dim * runs, 0.025) / runs, _chi2_band(dim * runs, 0.975) / runs
-        inside = np.mean((anees[:, c] > lo) & (anees[:, c] < hi))
-        assert inside >= 0.8, (dim, anees[:, c].round(2))
-        assert anees[:, c].mean() == pytest.approx(dim, rel=0.1)
-    m = len(nis)
-    assert _chi2_band(3 * m, 0.025) / m < np.mean(nis) < _chi2_band(3 * m, 0.975) / m
+    anees, nis = _nees_monte_carlo(100)
+    _assert_consistent(anees, nis, 100, "bias random walk")
+
+
+def test_nees_with_a_gauss_markov_bias_instability():
+    """The same with a first-order Gauss–Markov bias (τ = 30 s, steady σ 2e-5 rad/s), truth
+    sampled from its exact law, the filter given the correlation time; then 90 s without fixes:
+    at its end the bias NEES is in its 95 % band (the state has returned to its steady law),
+    while a filter told a plain random walk of the same density is far outside it."""
+    anees, nis, gap = _nees_monte_carlo(100, tau=30.0, gap=90.0)
+    _assert_consistent(anees, nis, 100, "Gauss-Markov bias, tau 30 s")
+    _, _, gap_rw = _nees_monte_carlo(30, tau=30.0, gap=90.0, model_tau=False)   # 30 runs: far
+    lo, hi = _chi2_band(300, 0.025) / 100, _chi2_band(300, 0.975) / 100
+    print(f"after a 90 s gap: bias NEES {gap[2]:.3f} (Gauss-Markov filter), {gap_rw[2]:.3f} "
+          f"(random-walk filter); band {lo:.2f}..{hi:.2f}")
+    assert lo < gap[2] < hi and lo < gap[1] < hi
+    assert gap_rw[2] < lo
 
 
 # ----------------------------------------------------------------------------- (c) calibration

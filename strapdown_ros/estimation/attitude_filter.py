@@ -48,6 +48,7 @@ from ..integrator import AttitudeIntegrator
 from ..rotation import (quat_conjugate, quat_multiply, quat_normalize, quat_to_dcm,
                         quat_to_rotvec, rotvec_to_quat)
 from ..sensors.effects import EFFECTS, GyroEffects
+from .error_model import block_transition
 from .filter_support import (FilterCounters, FixResult, chi2_3_quantile, psd_factor,
                              triangular_factor)
 
@@ -108,6 +109,9 @@ class AttitudeFilter:
         Angle random walk σ_v, rad/√s.
     gyro_bias_random_walk : float
         Bias random walk σ_u, rad/s/√s (0: the bias is a random constant).
+    gyro_bias_correlation_time : float
+        τ > 0 makes the bias first-order Gauss–Markov (bias instability) driven by the same
+        density: steady σ_b = σ_u √(τ/2), s (0: a random walk).
     initial_sigma : float
         Prior 1σ of the attitude error per axis, rad.
     bias_sigma : float
@@ -137,6 +141,7 @@ class AttitudeFilter:
 
     def __init__(self, initial_attitude, initial_time: float, *, algorithm: str = "2",
                  gyro_random_walk: float = 0.0, gyro_bias_random_walk: float = 0.0,
+                 gyro_bias_correlation_time: float = 0.0,
                  initial_sigma: float = 1e-3, bias_sigma: float = 1e-5, augment=(),
                  augment_sigma: dict | None = None, initial_values: dict | None = None,
                  boresight=(1.0, 0.0, 0.0, 0.0), process_noise: dict | None = None,
@@ -157,6 +162,7 @@ class AttitudeFilter:
         self.sigma_v = float(gyro_random_walk)
         self.noise = dict(process_noise or {})
         self.noise["gyro_bias_random_walk"] = float(gyro_bias_random_walk)
+        self.noise["gyro_bias_correlation_time"] = float(gyro_bias_correlation_time)
         self.epoch = float(initial_time)               # effect epoch of the time-dependent effects
         self.gate = chi2_3_quantile(gate_probability)
         self.gate_probability = float(gate_probability)
@@ -186,6 +192,8 @@ class AttitudeFilter:
         self._sqrt_p = np.diag(np.sqrt(p0))          # P = S Sᵀ (square-root form)
         self._g_noise = np.concatenate([e.filter_process_noise(self.noise)
                                         for e, _ in self.layout.gyro])
+        self._g_tau = np.concatenate([e.filter_correlation_time(self.noise)
+                                      for e, _ in self.layout.gyro])
         self.counters = FilterCounters()
         self.results: deque = deque(maxlen=1000)       # the last fix results (bounded)
         self.history = int(history)
@@ -407,9 +415,21 @@ class AttitudeFilter:
         return out
 
     def _push(self, d: np.ndarray, t: np.ndarray) -> None:
-        """Compensate, integrate and propagate the covariance over increments (pieces)."""
+        """Compensate, integrate and propagate the covariance over increments (pieces); with
+        Gauss–Markov states in blocks of at most 1 % of the shortest correlation time (the
+        compensation uses the estimate at the start of a block, the estimate decays after it)."""
         if len(t) == 0:
             return
+        step = 0.01 * float(np.min(self._g_tau))
+        if np.isfinite(step) and t[-1] - self._last_stamp > step:
+            k = np.floor((t - self._last_stamp) / step)
+            cuts = np.flatnonzero(np.diff(k)) + 1
+            for dd, tt in zip(np.split(d, cuts), np.split(t, cuts)):
+                self._push_block(dd, tt)
+            return
+        self._push_block(d, t)
+
+    def _push_block(self, d: np.ndarray, t: np.ndarray) -> None:
         self._log(d, t)
         dt = np.diff(np.concatenate([[self._last_stamp], t]))
         rho = self._gyro_effects().compensate(d, t, dt)
@@ -445,29 +465,17 @@ class AttitudeFilter:
 
     def _propagate_covariance(self, c0, c, rho, h, t_mid) -> None:
         """P over m updates: attitudes C_j (m,3,3), lumped increments ρ_j, lengths h_j, times
-        since the effect epoch.  Reference-axis form e = C ε, then back to body axes."""
+        since the effect epoch (:func:`~strapdown_ros.estimation.error_model.block_transition`)."""
         lay = self.layout
         A = np.concatenate([c @ e.filter_partials(rho, h, t_mid) for e, _ in lay.gyro], axis=2)
-        ng = A.shape[2]
-        gi = slice(3, 3 + ng)                     # the gyro states are contiguous after ε
-        n = lay.size
-        phi = np.eye(n)
-        phi[:3, :3] = c[-1].T @ c0
-        phi[:3, gi] = -c[-1].T @ A.sum(0)
-        Q = np.zeros((n, n))
-        Q[:3, :3] = self.sigma_v ** 2 * h.sum() * np.eye(3)
-        s = self._g_noise
-        if np.any(s > 0):
-            sh = s[None, :] * h[:, None]                                   # (m, ng)
-            G = np.cumsum(A[::-1], axis=0)[::-1] - 0.5 * A                 # Σ_{j>i} A_j + ½ A_i
-            Q_ee = (np.einsum("mik,mk,mjk->ij", G, sh, G)
-                    + np.einsum("mik,mk,mjk->ij", A, sh, A) / 12.0)
-            Q_eg = -np.einsum("mik,mk->ik", G, sh)
-            ce = c[-1].T
-            Q[:3, :3] += ce @ Q_ee @ ce.T
-            Q[:3, gi] = ce @ Q_eg
-            Q[gi, :3] = Q[:3, gi].T
-            Q[gi, gi] = np.diag(sh.sum(0))
+        k = 3 + A.shape[2]                        # ε and the gyro states, contiguous
+        phi_k, q_k, decay = block_transition(c0, c, A, h, self.sigma_v, self._g_noise,
+                                             self._g_tau)
+        phi = np.eye(lay.size)
+        phi[:k, :k] = phi_k
+        Q = np.zeros((lay.size, lay.size))
+        Q[:k, :k] = q_k
+        self.x[3:k] = self.x[3:k] * decay         # a Gauss–Markov estimate decays as the state
         self._sqrt_p = triangular_factor(phi @ self._sqrt_p, psd_factor(Q))     # P ← ΦPΦᵀ + Q
 
     def _apply(self, fix: _Fix) -> FixResult:

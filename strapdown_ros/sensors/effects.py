@@ -131,6 +131,9 @@ class Effect:
     #: name of the filter parameter giving the white-noise density that drives the filter
     #: states of this effect as a random walk (None: a random constant, no process noise)
     filter_noise_parameter: str | None = None
+    #: name of the filter parameter giving the correlation time of a Gauss–Markov state (None or
+    #: 0: no decay)
+    filter_correlation_parameter: str | None = None
 
     def filter_size(self) -> int:
         """Number of filter states: the separable combinations (:meth:`fit_basis`), else size."""
@@ -152,6 +155,19 @@ class Effect:
                                     np.asarray(t, dtype=float).reshape(-1))
         S = self.fit_basis()
         return J if S is None else J @ S
+
+    def filter_correlation_time(self, noise: dict | None = None) -> np.ndarray:
+        """Correlation time (filter_size,) of the filter states, s: ``noise[
+        filter_correlation_parameter]`` makes the states first-order Gauss–Markov (driven by
+        :meth:`filter_process_noise`, steady σ² = density·τ/2: a bias instability); inf (a random
+        walk, or a random constant without noise) when not given or 0."""
+        value = np.inf
+        if self.filter_correlation_parameter is not None and noise:
+            v = float(noise.get(self.filter_correlation_parameter, 0.0))
+            if not (np.isfinite(v) and v >= 0.0):
+                raise ValueError(f"{self.filter_correlation_parameter} must be finite and >= 0")
+            value = v if v > 0 else np.inf
+        return np.full(self.filter_size(), value)
 
     def filter_process_noise(self, noise: dict | None = None) -> np.ndarray:
         """White-noise density (filter_size,) driving the filter states, from a dict of filter
@@ -176,6 +192,8 @@ class GyroBias(Effect):
     sigma_parameter = "gyro_bias_sigma"
     #: bias random walk (rate random walk) σ_u, rad/s/√s, of the attitude filter
     filter_noise_parameter = "gyro_bias_random_walk"
+    #: bias instability as a first-order Gauss–Markov bias with this correlation time, s
+    filter_correlation_parameter = "gyro_bias_correlation_time"
     summary = "constant rate bias"
     signature_text = "ε grows with the pair duration: Σ C_k T_k b"
 
