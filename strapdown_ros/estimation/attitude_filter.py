@@ -2,8 +2,7 @@
 
 Lefferts, Markley & Shuster (1982), "Kalman filtering for spacecraft attitude estimation",
 J. Guidance 5(5); Markley & Crassidis (2014), *Fundamentals of Spacecraft Attitude
-Determination and Control*, ch. 6.  ``doc/attitude_filter.md`` states the model, the equations
-and their sources; this docstring is the summary.
+Determination and Control*, ch. 6.  Model, equations and sources: ``doc/attitude_filter.md``.
 
 Nominal state: the SINS attitude ``q_ref_body`` propagated by the package's own integrator
 (:class:`~strapdown_ros.integrator.AttitudeIntegrator`, the selected coning algorithm) from
@@ -20,11 +19,8 @@ Error state x (all "estimate minus truth"):
   ``time_offset`` (1, s, the registry's camera effect, ``fix_jacobian``); and ``boresight``
   (3, rad, VF axes, ``q_MF_VF,true = q_MF_VF,est ⊗ exp(−η)``: the camera mounting error).
 
-Propagation over updates j of the integrator (attitude C_j, lumped increment ρ_j, length h_j),
-written in reference axes e = C ε where the recursion is a sum:
-``e_m = e_0 − Σ_j C_j J_j δc + Σ_j C_j w_j`` (J_j = ∂ρ̃/∂c of the gyro states c, w the angle
-random walk); a gyro state with a random-walk density s has the exact per-step covariance
-(``σ_u² h³/3`` on the angle, ``−σ_u² h²/2`` across).
+Propagation: :func:`~strapdown_ros.estimation.error_model.block_transition` (angle random walk;
+gyro states constant, random walks or Gauss–Markov, as each effect says).
 
 Update at a fix (camera attitude ``q_GCRS_VF``, covariance R in VF axes) applied at its epoch
 ``stamp − τ̂``: residual ``z = log(q_meas⁻¹ ⊗ q̂_ref_body ⊗ q̂_MF_VF)`` (VF axes, predicted minus
@@ -52,11 +48,10 @@ from .error_model import block_transition
 from .filter_support import (FilterCounters, FixResult, chi2_3_quantile, psd_factor,
                              triangular_factor)
 
-__all__ = ["AttitudeFilter", "FixResult", "FilterCounters", "chi2_3_quantile",
-           "FILTER_STATE_NAMES"]
+__all__ = ["AttitudeFilter", "FixResult", "FilterCounters", "chi2_3_quantile", "FILTER_STATES"]
 
 #: names the ``augment`` argument accepts besides the registry's systematic gyro effects
-FILTER_STATE_NAMES = ("time_offset", "boresight")
+FILTER_STATES = ("time_offset", "boresight")
 
 
 @dataclass
@@ -238,7 +233,7 @@ class AttitudeFilter:
                 ok = [n for n, e in EFFECTS.items()
                       if e.sensor == "gyro" and e.kind == "systematic"]
                 raise ValueError(f"augment: unknown or unsupported state {name!r}; valid: "
-                                 f"{', '.join(ok + list(FILTER_STATE_NAMES))}")
+                                 f"{', '.join(ok + list(FILTER_STATES))}")
         return lay
 
     def _named_slices(self):
