@@ -168,7 +168,8 @@ def _nees_monte_carlo(runs, tau=None, gap=0.0, model_tau=True):
         if gap > 0:
             f.propagate(d[k * fixes:], stamps[k * fixes:])
             q_true = quat_multiply(q_start, rotvec_to_quat(rate * stamps[-1]))
-            e = np.concatenate([attitude_error(q_true, f.attitude), f.estimate("gyro_bias") - b[-1]])
+            e = np.concatenate([attitude_error(q_true, f.attitude),
+                                f.estimate("gyro_bias") - b[-1]])
             nees_gap[run] = _nees(e, f.P[:6, :6])
         assert_spd(f.P)
     if gap > 0:

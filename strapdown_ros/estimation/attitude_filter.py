@@ -4,10 +4,9 @@ Lefferts, Markley & Shuster (1982), "Kalman filtering for spacecraft attitude es
 J. Guidance 5(5); Markley & Crassidis (2014), *Fundamentals of Spacecraft Attitude
 Determination and Control*, ch. 6.  Model, equations and sources: ``doc/attitude_filter.md``.
 
-Nominal state: the SINS attitude ``q_ref_body`` propagated by the package's own integrator
-(:class:`~strapdown_ros.integrator.AttitudeIntegrator`, the selected coning algorithm) from
-increments compensated with the current estimates of the gyro effects; the estimated
-boresight ``q_MF_VF``; the estimated camera time offset.
+Nominal state: the SINS attitude ``q_ref_body`` from the package's own integrator
+(:class:`~strapdown_ros.integrator.AttitudeIntegrator`, the selected coning algorithm) on
+increments compensated with the estimated gyro effects; the boresight ``q_MF_VF``; τ̂.
 
 Error state x (all "estimate minus truth"):
 
@@ -266,8 +265,7 @@ class AttitudeFilter:
         return 0.0 if sl is None else float(self.x[sl][0])
 
     def estimate(self, name: str) -> np.ndarray:
-        """The filter states of one name (``gyro_bias``, an augmented effect, ``time_offset``);
-        for ``boresight`` the quaternion ``q_MF_VF``."""
+        """Estimate of a state group (``boresight``: the quaternion ``q_MF_VF``)."""
         if name == "boresight":
             return self.boresight.copy()
         sl = dict(self._named_slices()).get(name)
@@ -304,8 +302,11 @@ class AttitudeFilter:
                 out.append(e.name)
         return out
 
-    def _gyro_effects(self) -> GyroEffects:
-        values = {e.name: e.filter_values(self.x[sl]) for e, sl in self.layout.gyro}
+    def _gyro_effects(self, decay_time: float = 0.0) -> GyroEffects:
+        """The estimated gyro effects, Gauss–Markov states decayed over ``decay_time`` s."""
+        x = self.x.copy()
+        x[3:3 + len(self._g_tau)] *= np.exp(-decay_time / self._g_tau)
+        values = {e.name: e.filter_values(x[sl]) for e, sl in self.layout.gyro}
         return GyroEffects(values=values, epoch=self.epoch)
 
     # ------------------------------------------------------------------ public stream interface
@@ -411,11 +412,11 @@ class AttitudeFilter:
 
     def _push(self, d: np.ndarray, t: np.ndarray) -> None:
         """Compensate, integrate and propagate the covariance over increments (pieces); with
-        Gauss–Markov states in blocks of at most 1 % of the shortest correlation time (the
-        compensation uses the estimate at the start of a block, the estimate decays after it)."""
+        Gauss–Markov states in blocks of at most 5 % of the shortest correlation time (the
+        compensation uses the estimate decayed to the middle of a block)."""
         if len(t) == 0:
             return
-        step = 0.01 * float(np.min(self._g_tau))
+        step = 0.05 * float(np.min(self._g_tau))
         if np.isfinite(step) and t[-1] - self._last_stamp > step:
             k = np.floor((t - self._last_stamp) / step)
             cuts = np.flatnonzero(np.diff(k)) + 1
@@ -427,7 +428,7 @@ class AttitudeFilter:
     def _push_block(self, d: np.ndarray, t: np.ndarray) -> None:
         self._log(d, t)
         dt = np.diff(np.concatenate([[self._last_stamp], t]))
-        rho = self._gyro_effects().compensate(d, t, dt)
+        rho = self._gyro_effects(0.5 * (t[-1] - self._last_stamp)).compensate(d, t, dt)
         self._last_rate = rho[-1] / dt[-1]
         self._last_stamp = float(t[-1])
         q_before = self.integrator.q
