@@ -27,10 +27,9 @@ measured) ≈ ``C_VF^MF ε + η − C_VF^MF ω δτ − θ_noise``; gate on the 
 χ²(3) quantile of ``gate_probability``; Joseph-form covariance update on a square-root factor
 (P = SSᵀ, QR of [(I − KH)S, KR^½]): symmetric and positive semi-definite by construction.
 
-Late fixes: a bounded history of increments (as processed, split at fix epochs) and of
-checkpoints (integrator, estimates, covariance) lets a fix whose epoch is older than the newest
-increment be applied at its epoch and the later increments (and later fixes) re-processed; its
-lateness is reported; a fix older than the history is dropped and counted.
+Late fixes: a bounded history of increments (split at fix epochs) and checkpoints lets a fix
+older than the newest increment be applied at its epoch, the later increments and fixes
+re-processed; lateness reported; a fix older than the history dropped and counted.
 """
 from __future__ import annotations
 
