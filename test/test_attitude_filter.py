@@ -341,7 +341,8 @@ def test_bounded_attitude_error_over_two_hours_while_open_loop_drifts():
 
 
 # ----------------------------------------------------------------------------- (e) stamps, gate
-def _stream(lateness, fixes=60, history=20_000, algorithm="2"):
+def _stream(lateness, fixes=60, history=20_000, algorithm="2",
+            augment=("gyro_scale_factor", "time_offset")):
     """Camera epochs off the gyro grid (time offset and first exposure), a fix delivered
     ``lateness`` seconds after the increments passed its epoch."""
     profile = _calibration_motion()
@@ -353,7 +354,7 @@ def _stream(lateness, fixes=60, history=20_000, algorithm="2"):
                           time_offset=0.01, seed=6)
     f = AttitudeFilter(profile.attitude(0.0), 0.0, algorithm=algorithm, gyro_random_walk=2e-6,
                        initial_sigma=1e-4, bias_sigma=1e-5,
-                       augment=("gyro_scale_factor", "time_offset"),
+                       augment=augment,
                        augment_sigma={"gyro_scale_factor": 1e-3, "time_offset": 0.05},
                        initial_values={"time_offset": [0.01]}, history=history)
     results = []
@@ -509,3 +510,11 @@ def test_fixes_out_of_order_give_the_in_order_state():
     np.testing.assert_allclose(f1.attitude, f0.attitude, rtol=0, atol=1e-12)
     assert np.all(np.abs(f1.x - f0.x) <= 1e-8 * np.sqrt(np.diag(f0.P)))
     np.testing.assert_allclose(f1.P, f0.P, rtol=1e-7, atol=1e-22)
+
+
+def test_order_of_augmented_names_does_not_matter():
+    f0, _ = _stream(0.0, fixes=15)
+    f1, _ = _stream(0.0, fixes=15, augment=("time_offset", "gyro_scale_factor"))
+    for name in ("gyro_bias", "gyro_scale_factor", "time_offset"):
+        np.testing.assert_array_equal(f1.estimate(name), f0.estimate(name))
+        np.testing.assert_array_equal(f1.sigma(name), f0.sigma(name))

@@ -210,28 +210,26 @@ class AttitudeFilter:
 
     # ------------------------------------------------------------------ layout and estimates
     def _make_layout(self, augment) -> _Layout:
+        """Layout: ε, the gyro states contiguous (bias first), time offset, boresight."""
         lay = _Layout(gyro=[(EFFECTS["gyro_bias"], slice(3, 6))], size=6)
-        seen = set()
+        gyro = [n for n, e in EFFECTS.items() if e.sensor == "gyro" and e.kind == "systematic"]
+        if len(set(augment)) != len(augment) or "gyro_bias" in augment:
+            raise ValueError("augment: a name given twice (the bias is always a state)")
+        valid = [n for n in gyro + list(FILTER_STATES) if n != "gyro_bias"]
         for name in augment:
-            if name in seen or name == "gyro_bias":
-                raise ValueError(f"augment: {name!r} given twice (the bias is always a state)")
-            seen.add(name)
-            if name == "boresight":
-                lay.boresight = slice(lay.size, lay.size + 3)
-                lay.size += 3
-            elif name == "time_offset":
-                lay.time_offset = slice(lay.size, lay.size + 1)
-                lay.size += 1
-            elif (name in EFFECTS and EFFECTS[name].sensor == "gyro"
-                  and EFFECTS[name].kind == "systematic"):
-                e = EFFECTS[name]
-                lay.gyro.append((e, slice(lay.size, lay.size + e.filter_size())))
-                lay.size += e.filter_size()
-            else:
-                ok = [n for n, e in EFFECTS.items()
-                      if e.sensor == "gyro" and e.kind == "systematic"]
+            if name not in valid:
                 raise ValueError(f"augment: unknown or unsupported state {name!r}; valid: "
-                                 f"{', '.join(ok + list(FILTER_STATES))}")
+                                 f"{', '.join(valid)}")
+        for name in (n for n in augment if n in gyro):
+            e = EFFECTS[name]
+            lay.gyro.append((e, slice(lay.size, lay.size + e.filter_size())))
+            lay.size += e.filter_size()
+        if "time_offset" in augment:
+            lay.time_offset = slice(lay.size, lay.size + 1)
+            lay.size += 1
+        if "boresight" in augment:
+            lay.boresight = slice(lay.size, lay.size + 3)
+            lay.size += 3
         return lay
 
     def _named_slices(self):
