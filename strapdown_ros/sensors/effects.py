@@ -139,6 +139,59 @@ class Effect:
         """∂ρ̃/∂θ at θ = 0: (n, 3, size), for true increments ρ (n, 3), lengths T (n,), times t (n,)."""
         raise NotImplementedError
 
+    # the attitude filter's view of an effect (strapdown_ros.estimation) ------------------
+    #: name of the filter parameter giving the white-noise density that drives the filter
+    #: states of this effect as a random walk (None: a random constant, no process noise)
+    filter_noise_parameter: str | None = None
+    #: name of the filter parameter giving the correlation time of a Gauss–Markov state (None or
+    #: 0: no decay)
+    filter_correlation_parameter: str | None = None
+
+    def filter_size(self) -> int:
+        """Number of filter states: the separable combinations (:meth:`fit_basis`), else size."""
+        S = self.fit_basis()
+        return self.size if S is None else S.shape[1]
+
+    def filter_values(self, states: np.ndarray) -> np.ndarray:
+        """The effect's parameter vector (size,) from its filter states (filter_size,)."""
+        S = self.fit_basis()
+        states = np.asarray(states, dtype=float).reshape(self.filter_size())
+        return states if S is None else S @ states
+
+    def filter_partials(self, rho: np.ndarray, T: np.ndarray, t: np.ndarray) -> np.ndarray:
+        """∂ρ̃/∂c of the increments with respect to the filter states c: (n, 3, filter_size),
+        for increments ρ (n, 3) of lengths T (n,) at times t (n,) since the effect epoch
+        (:meth:`increment_jacobian` mapped through :meth:`fit_basis`)."""
+        J = self.increment_jacobian(np.asarray(rho, dtype=float).reshape(-1, 3),
+                                    np.asarray(T, dtype=float).reshape(-1),
+                                    np.asarray(t, dtype=float).reshape(-1))
+        S = self.fit_basis()
+        return J if S is None else J @ S
+
+    def filter_correlation_time(self, noise: dict | None = None) -> np.ndarray:
+        """Correlation time (filter_size,) of the filter states, s: ``noise[
+        filter_correlation_parameter]`` makes the states first-order Gauss–Markov (driven by
+        :meth:`filter_process_noise`, steady σ² = density·τ/2: a bias instability); inf (a random
+        walk, or a random constant without noise) when not given or 0."""
+        value = np.inf
+        if self.filter_correlation_parameter is not None and noise:
+            v = float(noise.get(self.filter_correlation_parameter, 0.0))
+            if not (np.isfinite(v) and v >= 0.0):
+                raise ValueError(f"{self.filter_correlation_parameter} must be finite and >= 0")
+            value = v if v > 0 else np.inf
+        return np.full(self.filter_size(), value)
+
+    def filter_process_noise(self, noise: dict | None = None) -> np.ndarray:
+        """White-noise density (filter_size,) driving the filter states, from a dict of filter
+        noise parameters: ``noise[filter_noise_parameter]²`` per state, 0 (random constant)
+        when the effect has no such parameter or the dict does not give it."""
+        value = 0.0
+        if self.filter_noise_parameter is not None and noise:
+            value = float(noise.get(self.filter_noise_parameter, 0.0))
+            if not (np.isfinite(value) and value >= 0.0):
+                raise ValueError(f"{self.filter_noise_parameter} must be finite and >= 0")
+        return np.full(self.filter_size(), value ** 2)
+
     def __repr__(self):
         return f"<effect {self.name}>"
 
@@ -151,6 +204,10 @@ class GyroBias(Effect):
                                   "compensated)",
                                   -MAX_BIAS_RATE, MAX_BIAS_RATE),)
     sigma_parameter = "gyro_bias_sigma"
+    #: bias random walk (rate random walk) σ_u, rad/s/√s, of the attitude filter
+    filter_noise_parameter = "gyro_bias_random_walk"
+    #: bias instability as a first-order Gauss–Markov bias with this correlation time, s
+    filter_correlation_parameter = "gyro_bias_correlation_time"
     summary = "constant rate bias"
     signature_text = "ε grows with the pair duration: Σ C_k T_k b"
 
@@ -364,6 +421,14 @@ class TimeOffset(Effect):
     summary = "camera–IMU timestamp offset"
     signature_text = ("ε = (ΔSᵀ ω(t_start) − ω(t_end))·τ: only fixes taken while turning see it, so it shows as "
                       "spikes at the rotations (004 Fig. 2a)")
+
+    def fix_jacobian(self, rate_body: np.ndarray, c_vf_mf: np.ndarray) -> np.ndarray:
+        """∂z/∂δτ (3, 1) of a camera-fix residual z (VF axes, predicted minus measured) with
+        respect to the error δτ = τ̂ − τ of the estimated offset: the camera saw the attitude
+        δτ later than the epoch the fix is applied at, q(t + δτ) ≈ q(t) ⊗ exp(ω δτ), so
+        ∂z/∂δτ = −C_VF^MF ω (ω the body rate at the fix, rad/s, body axes)."""
+        rate = np.asarray(rate_body, dtype=float).reshape(3)
+        return -(np.asarray(c_vf_mf, dtype=float) @ rate)[:, None]
 
 
 #: the registry: every effect, by name

@@ -1,0 +1,597 @@
+"""Star-camera-aided attitude filter: the multiplicative error-state Kalman filter (MEKF).
+
+Lefferts, Markley & Shuster (1982), "Kalman filtering for spacecraft attitude estimation",
+J. Guidance 5(5); Markley & Crassidis (2014), *Fundamentals of Spacecraft Attitude
+Determination and Control*, ch. 6.  Model, equations and sources: ``doc/attitude_filter.md``.
+
+Nominal state: the SINS attitude ``q_ref_body`` from the package's own integrator
+(:class:`~strapdown_ros.integrator.AttitudeIntegrator`, the selected coning algorithm) on
+increments compensated with the estimated gyro effects; the boresight ``q_MF_VF``; τ̂.
+
+Error state x (all "estimate minus truth"):
+
+* ε (3): attitude error in body axes, ``C_est = C_true (I + [ε×])`` (README "Conventions");
+* δb (3): gyro bias error, rad/s, body axes (the registry's ``gyro_bias``);
+* optional, by name from the effect registry (:mod:`strapdown_ros.sensors.effects`): any
+  systematic gyro effect (``gyro_scale_factor`` 3, ``gyro_misalignment`` 3 = its separable
+  symmetric part, ...) through the effect's own ``filter_partials`` / ``filter_process_noise``;
+  ``time_offset`` (1, s, the registry's camera effect, ``fix_jacobian``); and ``boresight``
+  (3, rad, VF axes, ``q_MF_VF,true = q_MF_VF,est ⊗ exp(−η)``: the camera mounting error).
+
+Propagation: :func:`~strapdown_ros.estimation.error_model.block_transition` (angle random walk;
+gyro states constant, random walks or Gauss–Markov, as each effect says).
+
+Update at a fix (camera attitude ``q_GCRS_VF``, covariance R in VF axes) applied at its epoch
+``stamp − τ̂``: residual ``z = log(q_meas⁻¹ ⊗ q̂_ref_body ⊗ q̂_MF_VF)`` (VF axes, predicted minus
+measured) ≈ ``C_VF^MF ε + η − C_VF^MF ω δτ − θ_noise``; gate on the NIS ``zᵀS⁻¹z`` against the
+χ²(3) quantile of ``gate_probability``; Joseph-form covariance update on a square-root factor
+(P = SSᵀ, QR of [(I − KH)S, KR^½]): symmetric and positive semi-definite by construction.
+
+Late fixes: a bounded history of increments (split at fix epochs) and checkpoints lets a fix
+older than the newest increment be applied at its epoch, the later increments and fixes
+re-processed; lateness reported; a fix older than the history dropped and counted.
+"""
+from __future__ import annotations
+
+from collections import deque
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..integrator import AttitudeIntegrator
+from ..rotation import (quat_conjugate, quat_multiply, quat_normalize, quat_to_dcm,
+                        quat_to_rotvec, rotvec_to_quat)
+from ..sensors.effects import EFFECTS, GyroEffects
+from .error_model import block_transition
+from .filter_support import (FilterCounters, FixResult, chi2_3_quantile, psd_factor,
+                             triangular_factor)
+
+__all__ = ["AttitudeFilter", "FixResult", "FilterCounters", "chi2_3_quantile", "FILTER_STATES"]
+
+#: names the ``augment`` argument accepts besides the registry's systematic gyro effects
+FILTER_STATES = ("time_offset", "boresight")
+
+
+@dataclass
+class _Fix:
+    seq: int
+    stamp: float
+    epoch: float
+    attitude: np.ndarray
+    covariance: np.ndarray
+    lateness: float = 0.0
+    counted: bool = False
+    order: int = -1              # rank in the order fixes were processed (re-processing renews it)
+
+
+@dataclass
+class _Checkpoint:
+    epoch: float
+    pieces: int                  # global index of the next piece in the log
+    order: int                   # fixes processed after the checkpoint have order >= this
+    integrator: tuple
+    states: np.ndarray
+    boresight: np.ndarray
+    covariance: np.ndarray       # square-root factor of P (never written into)
+    open_rho: np.ndarray
+    open_dt: np.ndarray
+    last_rate: np.ndarray
+    last_stamp: float
+
+
+@dataclass
+class _Layout:
+    gyro: list = field(default_factory=list)     # (effect, slice) of the gyro states, bias first
+    time_offset: slice | None = None
+    boresight: slice | None = None
+    size: int = 6
+
+
+class AttitudeFilter:
+    """Multiplicative error-state Kalman filter of the SINS attitude with star-camera fixes.
+
+    Parameters
+    ----------
+    initial_attitude : array_like (4,)
+        ``q_ref_body`` at ``initial_time``, scalar-first.
+    initial_time : float
+        Stamp of the initial attitude (the start of the first increment), s.
+    algorithm : str
+        Coning algorithm (:data:`strapdown_ros.coning.ALGORITHMS`) of the integrator.
+    gyro_random_walk : float
+        Angle random walk σ_v, rad/√s.
+    gyro_bias_random_walk : float
+        Bias random walk σ_u, rad/s/√s (0: the bias is a random constant).
+    gyro_bias_correlation_time : float
+        τ > 0 makes the bias first-order Gauss–Markov (bias instability) driven by the same
+        density: steady σ_b = σ_u √(τ/2), s (0: a random walk).
+    initial_sigma : float
+        Prior 1σ of the attitude error per axis, rad.
+    bias_sigma : float
+        Prior 1σ of the bias error per axis, rad/s.
+    augment : sequence of str
+        Further states: names of systematic gyro effects of the registry, ``time_offset``,
+        ``boresight``.
+    augment_sigma : dict
+        Prior 1σ per augmented name (scalar: every component), in the effect's units.
+    initial_values : dict
+        Initial estimates per name: the effect's filter states (``gyro_bias`` rad/s;
+        ``time_offset`` s); ``boresight`` is given by ``boresight`` below.
+    boresight : array_like (4,)
+        Initial estimate of ``q_MF_VF`` (maps VF coordinates to MF), scalar-first.
+    process_noise : dict
+        Further filter noise densities by the effects' ``filter_noise_parameter`` names.
+    gate_probability : float
+        A fix whose NIS exceeds the χ²(3) quantile of this probability is gated (not applied)
+        and counted.
+    history : int
+        Increments kept for late fixes (pieces as processed).
+    max_pending : int
+        Fixes waiting for increments to reach their epoch; more are dropped and counted.
+    checkpoint_interval : float
+        Minimum time between the checkpoints taken at the end of :meth:`propagate`, s.
+    """
+
+    def __init__(self, initial_attitude, initial_time: float, *, algorithm: str = "2",
+                 gyro_random_walk: float = 0.0, gyro_bias_random_walk: float = 0.0,
+                 gyro_bias_correlation_time: float = 0.0,
+                 initial_sigma: float = 1e-3, bias_sigma: float = 1e-5, augment=(),
+                 augment_sigma: dict | None = None, initial_values: dict | None = None,
+                 boresight=(1.0, 0.0, 0.0, 0.0), process_noise: dict | None = None,
+                 gate_probability: float = 0.9999, history: int = 20_000, max_pending: int = 256,
+                 checkpoint_interval: float = 1.0):
+        for name, v in (("gyro_random_walk", gyro_random_walk), ("initial_sigma", initial_sigma),
+                        ("bias_sigma", bias_sigma),
+                        ("gyro_bias_random_walk", gyro_bias_random_walk)):
+            if not (np.isfinite(v) and v >= 0):
+                raise ValueError(f"{name} must be finite and >= 0, got {v}")
+        if not np.isfinite(initial_time):
+            raise ValueError("initial_time must be finite")
+        if int(history) < 16 or int(max_pending) < 1:
+            raise ValueError("history must be >= 16 and max_pending >= 1")
+        self.integrator = AttitudeIntegrator(algorithm, initial_attitude,
+                                             initial_time=initial_time,
+                                             propagate_covariance=False)
+        self.sigma_v = float(gyro_random_walk)
+        self.noise = dict(process_noise or {})
+        self.noise["gyro_bias_random_walk"] = float(gyro_bias_random_walk)
+        self.noise["gyro_bias_correlation_time"] = float(gyro_bias_correlation_time)
+        self.epoch = float(initial_time)               # effect epoch of the time-dependent effects
+        self.gate = chi2_3_quantile(gate_probability)
+        self.gate_probability = float(gate_probability)
+        self.layout = self._make_layout(tuple(augment))
+        self.x = np.zeros(self.layout.size)            # the estimates (filter states), not errors
+        q_bv = np.asarray(boresight, dtype=float)
+        if q_bv.shape != (4,) or not np.all(np.isfinite(q_bv)) or np.linalg.norm(q_bv) < 0.5:
+            raise ValueError("boresight must be a finite quaternion [w, x, y, z]")
+        self.boresight = quat_normalize(q_bv)
+        p0 = np.zeros(self.layout.size)
+        p0[:3], p0[3:6] = initial_sigma ** 2, bias_sigma ** 2
+        sig = dict(augment_sigma or {})
+        for name, sl in self._named_slices():
+            if name in ("gyro_bias",):
+                continue
+            if name not in sig:
+                raise ValueError(f"augment_sigma needs the prior 1σ of {name!r}")
+            width = (sl.stop - sl.start,)
+            p0[sl] = np.broadcast_to(np.asarray(sig[name], dtype=float), width) ** 2
+        for name, v in (initial_values or {}).items():
+            sl = dict(self._named_slices()).get(name)
+            if sl is None:
+                raise ValueError(f"initial_values: {name!r} is not a state of this filter")
+            self.x[sl] = np.asarray(v, dtype=float).reshape(sl.stop - sl.start)
+        if not np.all(np.isfinite(p0)) or np.any(p0 < 0):
+            raise ValueError("prior sigmas must be finite and >= 0")
+        self._sqrt_p = np.diag(np.sqrt(p0))          # P = S Sᵀ (square-root form)
+        self._g_noise = np.concatenate([e.filter_process_noise(self.noise)
+                                        for e, _ in self.layout.gyro])
+        self._g_tau = np.concatenate([e.filter_correlation_time(self.noise)
+                                      for e, _ in self.layout.gyro])
+        self.counters = FilterCounters()
+        self.results: deque = deque(maxlen=1000)       # the last fix results (bounded)
+        self.history = int(history)
+        self.max_pending = int(max_pending)
+        self.checkpoint_interval = float(checkpoint_interval)
+        self._log_t = np.empty(2 * self.history)
+        self._log_d = np.empty((2 * self.history, 3))
+        self._log_lo = 0              # buffer row of global piece _base
+        self._base = 0                # global index of the oldest piece kept
+        self._n = 0                   # global index of the next piece
+        self._open_rho = np.zeros((0, 3))      # compensated pieces not yet in a completed update
+        self._open_dt = np.zeros(0)
+        self._last_rate = np.zeros(3)
+        self._last_stamp = float(initial_time)  # newest piece stamp
+        self._pending: list[_Fix] = []
+        self._applied: deque = deque()         # fixes applied (or gated), for re-processing
+        self._seq = 0
+        self._order = 0
+        self._checkpoints: deque = deque(maxlen=512)
+        self._checkpoint()
+
+    # ------------------------------------------------------------------ layout and estimates
+    def _make_layout(self, augment) -> _Layout:
+        """Layout: ε, the gyro states contiguous (bias first), time offset, boresight."""
+        lay = _Layout(gyro=[(EFFECTS["gyro_bias"], slice(3, 6))], size=6)
+        gyro = [n for n, e in EFFECTS.items() if e.sensor == "gyro" and e.kind == "systematic"]
+        if len(set(augment)) != len(augment) or "gyro_bias" in augment:
+            raise ValueError("augment: a name given twice (the bias is always a state)")
+        valid = [n for n in gyro + list(FILTER_STATES) if n != "gyro_bias"]
+        for name in augment:
+            if name not in valid:
+                raise ValueError(f"augment: unknown or unsupported state {name!r}; valid: "
+                                 f"{', '.join(valid)}")
+        for name in (n for n in augment if n in gyro):
+            e = EFFECTS[name]
+            lay.gyro.append((e, slice(lay.size, lay.size + e.filter_size())))
+            lay.size += e.filter_size()
+        if "time_offset" in augment:
+            lay.time_offset = slice(lay.size, lay.size + 1)
+            lay.size += 1
+        if "boresight" in augment:
+            lay.boresight = slice(lay.size, lay.size + 3)
+            lay.size += 3
+        return lay
+
+    def _named_slices(self):
+        out = [(e.name, sl) for e, sl in self.layout.gyro]
+        if self.layout.time_offset is not None:
+            out.append(("time_offset", self.layout.time_offset))
+        if self.layout.boresight is not None:
+            out.append(("boresight", self.layout.boresight))
+        return out
+
+    @property
+    def attitude(self) -> np.ndarray:
+        """Current estimate of ``q_ref_body`` (at :attr:`time`)."""
+        return self.integrator.q
+
+    @property
+    def time(self) -> float:
+        """Time of the attitude and covariance: the end of the last completed update, s."""
+        return float(self.integrator.time)
+
+    @property
+    def newest_stamp(self) -> float:
+        """Stamp of the newest increment processed, s."""
+        return self._last_stamp
+
+    @property
+    def time_offset(self) -> float:
+        """Estimated camera time offset τ̂ (camera clock minus IMU clock), s."""
+        sl = self.layout.time_offset
+        return 0.0 if sl is None else float(self.x[sl][0])
+
+    def estimate(self, name: str) -> np.ndarray:
+        """Estimate of a state group (``boresight``: the quaternion ``q_MF_VF``)."""
+        if name == "boresight":
+            return self.boresight.copy()
+        sl = dict(self._named_slices()).get(name)
+        if sl is None:
+            raise ValueError(f"{name!r} is not a state of this filter")
+        return self.x[sl].copy()
+
+    def sigma(self, name: str) -> np.ndarray:
+        """1σ of the error of one group of states (``attitude`` too), from the covariance."""
+        sl = slice(0, 3) if name == "attitude" else dict(self._named_slices()).get(name)
+        if sl is None:
+            raise ValueError(f"{name!r} is not a state of this filter")
+        return np.sqrt(np.diag(self.P)[sl])
+
+    @property
+    def P(self) -> np.ndarray:
+        """Error-state covariance (n, n): ``S Sᵀ`` of the square-root factor the filter keeps,
+        symmetric and positive semi-definite by construction."""
+        P = self._sqrt_p @ self._sqrt_p.T
+        return 0.5 * (P + P.T)
+
+    def implausible(self) -> list[str]:
+        """Names of the estimates outside the valid range of their registry parameter (a
+        diverging filter; reported, not clamped)."""
+        out = []
+        named = [(e, sl) for e, sl in self.layout.gyro]
+        if self.layout.time_offset is not None:
+            named.append((EFFECTS["time_offset"], self.layout.time_offset))
+        for e, sl in named:
+            v = e.filter_values(self.x[sl]) if e.sensor == "gyro" else self.x[sl]
+            p = e.value_parameter
+            if (p.minimum is not None and np.any(v < p.minimum)) or \
+                    (p.maximum is not None and np.any(v > p.maximum)):
+                out.append(e.name)
+        return out
+
+    def _gyro_effects(self, decay_time: float = 0.0) -> GyroEffects:
+        """The estimated gyro effects, Gauss–Markov states decayed over ``decay_time`` s."""
+        x = self.x.copy()
+        x[3:3 + len(self._g_tau)] *= np.exp(-decay_time / self._g_tau)
+        values = {e.name: e.filter_values(x[sl]) for e, sl in self.layout.gyro}
+        return GyroEffects(values=values, epoch=self.epoch)
+
+    # ------------------------------------------------------------------ public stream interface
+    def propagate(self, delta_theta, stamps) -> list[FixResult]:
+        """Consume gyro increments and apply the waiting fixes whose epochs they reach.
+
+        Parameters
+        ----------
+        delta_theta : array_like (n, 3)
+            Measured increments, rad, body axes.
+        stamps : array_like (n,)
+            End stamps, s, strictly increasing and after :attr:`newest_stamp`.
+
+        Returns
+        -------
+        list of FixResult
+            The fixes applied (or gated) during this call.
+        """
+        d = np.asarray(delta_theta, dtype=float).reshape(-1, 3)
+        t = np.asarray(stamps, dtype=float).reshape(-1)
+        if len(d) != len(t):
+            raise ValueError("delta_theta and stamps must have the same length")
+        if len(t) == 0:
+            return []
+        if not (np.all(np.isfinite(d)) and np.all(np.isfinite(t))):
+            raise ValueError("increments and stamps must be finite")
+        if t[0] <= self._last_stamp or np.any(np.diff(t) <= 0):
+            raise ValueError("stamps must increase strictly and follow the newest stamp")
+        out = self._advance(d, t)
+        if (not self._checkpoints
+                or self._last_stamp - self._checkpoints[-1].epoch >= self.checkpoint_interval):
+            self._checkpoint()
+        return out
+
+    def update(self, stamp: float, attitude, covariance, boresight=None) -> FixResult:
+        """A star-camera fix: measured ``q_GCRS_VF`` (scalar-first) and its 3×3 covariance in
+        VF axes (rad²), stamped ``stamp`` (camera clock, s).  ``boresight``: a new known
+        ``q_MF_VF`` (e.g. from the calibrator) for this and later fixes; only when the boresight
+        is not a filter state.
+
+        Applied at the epoch ``stamp − τ̂``: now when the increments end exactly there, later
+        (status 'pending', the result comes from :meth:`propagate`) when they have not reached
+        it, and by re-processing the history when they have passed it (counted as late)."""
+        q = np.asarray(attitude, dtype=float)
+        R = np.asarray(covariance, dtype=float)
+        if q.shape != (4,) or not np.all(np.isfinite(q)) or abs(np.linalg.norm(q) - 1.0) > 1e-3:
+            raise ValueError("the fix attitude must be a finite unit quaternion [w, x, y, z]")
+        if R.shape != (3, 3) or not np.all(np.isfinite(R)):
+            raise ValueError("the fix covariance must be a finite 3x3 matrix")
+        R = 0.5 * (R + R.T)
+        if np.linalg.eigvalsh(R)[0] <= 0:
+            raise ValueError("the fix covariance must be positive definite")
+        if not np.isfinite(stamp):
+            raise ValueError("the fix stamp must be finite")
+        if boresight is not None:
+            if self.layout.boresight is not None:
+                raise ValueError("the boresight is a filter state here: estimated, not given")
+            q_bv = np.asarray(boresight, dtype=float)
+            if (q_bv.shape != (4,) or not np.all(np.isfinite(q_bv))
+                    or abs(np.linalg.norm(q_bv) - 1) > 1e-3):
+                raise ValueError("boresight must be a finite unit quaternion [w, x, y, z]")
+            self.boresight = quat_normalize(q_bv)
+        fix = _Fix(self._seq, float(stamp), float(stamp) - self.time_offset, quat_normalize(q), R)
+        self._seq += 1
+        if fix.epoch > self._last_stamp:
+            if len(self._pending) >= self.max_pending:
+                self.counters.pending_overflow += 1
+                return self._record(fix, "overflow")
+            self._pending.append(fix)
+            self._pending.sort(key=lambda f: (f.epoch, f.seq))
+            return FixResult(fix.stamp, fix.epoch, "pending")
+        if fix.epoch == self._last_stamp:
+            return self._apply(fix)
+        return self._late(fix)
+
+    # ------------------------------------------------------------------ processing
+    def _advance(self, d: np.ndarray, t: np.ndarray) -> list[FixResult]:
+        out = []
+        start = self._last_stamp
+        while True:
+            while self._pending and self._pending[0].epoch <= start:   # due at the newest stamp
+                out.append(self._apply(self._pending.pop(0)))
+            if len(t) == 0:
+                break
+            if not self._pending or self._pending[0].epoch > t[-1]:
+                self._push(d, t)
+                break
+            fix = self._pending.pop(0)
+            i = int(np.searchsorted(t, fix.epoch, side="left"))      # t[i] >= epoch
+            t_prev = t[i - 1] if i > 0 else start
+            if t[i] == fix.epoch:
+                self._push(d[:i + 1], t[:i + 1])
+                d, t = d[i + 1:], t[i + 1:]
+            else:                    # split the increment at the epoch (constant rate inside it)
+                frac = (fix.epoch - t_prev) / (t[i] - t_prev)
+                head_d = np.vstack([d[:i], frac * d[i:i + 1]])
+                self._push(head_d, np.append(t[:i], fix.epoch))
+                d = np.vstack([(1.0 - frac) * d[i:i + 1], d[i + 1:]])
+                t = t[i:]
+            start = fix.epoch
+            out.append(self._apply(fix))
+        return out
+
+    def _push(self, d: np.ndarray, t: np.ndarray) -> None:
+        """Compensate, integrate and propagate the covariance over increments (pieces); with
+        Gauss–Markov states in blocks of at most 5 % of the shortest correlation time (the
+        compensation uses the estimate decayed to the middle of a block)."""
+        if len(t) == 0:
+            return
+        step = 0.05 * float(np.min(self._g_tau))
+        if np.isfinite(step) and t[-1] - self._last_stamp > step:
+            k = np.floor((t - self._last_stamp) / step)
+            cuts = np.flatnonzero(np.diff(k)) + 1
+            for dd, tt in zip(np.split(d, cuts), np.split(t, cuts)):
+                self._push_block(dd, tt)
+            return
+        self._push_block(d, t)
+
+    def _push_block(self, d: np.ndarray, t: np.ndarray) -> None:
+        self._log(d, t)
+        dt = np.diff(np.concatenate([[self._last_stamp], t]))
+        rho = self._gyro_effects(0.5 * (t[-1] - self._last_stamp)).compensate(d, t, dt)
+        self._last_rate = rho[-1] / dt[-1]
+        self._last_stamp = float(t[-1])
+        q_before = self.integrator.q
+        batch = self.integrator.push(rho, t)
+        n_new = self.integrator.algorithm.samples
+        open_rho = np.concatenate([self._open_rho, rho])
+        open_dt = np.concatenate([self._open_dt, dt])
+        m = len(batch)
+        used = m * n_new
+        self._open_rho, self._open_dt = open_rho[used:], open_dt[used:]
+        if m:
+            c = quat_to_dcm(batch.attitude)
+            rho_sum = batch.mean_rate * batch.interval[:, None]
+            self._propagate_covariance(quat_to_dcm(q_before), c, rho_sum, batch.interval,
+                                       batch.stamps - 0.5 * batch.interval - self.epoch)
+
+    def _flush(self) -> None:
+        """Complete the unfinished update (its increments applied one by one, the integrator's
+        rule when the algorithm changes): attitude and covariance are then at the newest stamp."""
+        if len(self._open_rho) == 0:
+            return
+        q_before = self.integrator.q
+        self.integrator.set_algorithm(self.integrator.algorithm_name)
+        h = np.array([self._open_dt.sum()])
+        self._propagate_covariance(quat_to_dcm(q_before), quat_to_dcm(self.integrator.q)[None],
+                                   self._open_rho.sum(0)[None], h,
+                                   np.array([self._last_stamp - 0.5 * h[0] - self.epoch]))
+        self.integrator.time = self._last_stamp
+        self._open_rho, self._open_dt = np.zeros((0, 3)), np.zeros(0)
+
+    def _propagate_covariance(self, c0, c, rho, h, t_mid) -> None:
+        """P over m updates: attitudes C_j (m,3,3), lumped increments ρ_j, lengths h_j, times
+        since the effect epoch (:func:`~strapdown_ros.estimation.error_model.block_transition`)."""
+        lay = self.layout
+        A = np.concatenate([c @ e.filter_partials(rho, h, t_mid) for e, _ in lay.gyro], axis=2)
+        k = 3 + A.shape[2]                        # ε and the gyro states, contiguous
+        phi_k, q_k, decay = block_transition(c0, c, A, h, self.sigma_v, self._g_noise,
+                                             self._g_tau)
+        phi = np.eye(lay.size)
+        phi[:k, :k] = phi_k
+        Q = np.zeros((lay.size, lay.size))
+        Q[:k, :k] = q_k
+        self.x[3:k] = self.x[3:k] * decay         # a Gauss–Markov estimate decays as the state
+        self._sqrt_p = triangular_factor(phi @ self._sqrt_p, psd_factor(Q))     # P ← ΦPΦᵀ + Q
+
+    def _apply(self, fix: _Fix) -> FixResult:
+        """Measurement update at the newest stamp (= the fix epoch)."""
+        self._flush()
+        lay = self.layout
+        c_bv = quat_to_dcm(self.boresight)                 # C_MF^VF
+        q_pred = quat_multiply(self.integrator.q, self.boresight)
+        z = quat_to_rotvec(quat_multiply(quat_conjugate(fix.attitude), q_pred))
+        H = np.zeros((3, lay.size))
+        H[:, :3] = c_bv.T
+        if lay.boresight is not None:
+            H[:, lay.boresight] = np.eye(3)
+        if lay.time_offset is not None:
+            H[:, lay.time_offset] = EFFECTS["time_offset"].fix_jacobian(self._last_rate, c_bv.T)
+        P = self.P
+        S = H @ P @ H.T + fix.covariance
+        S = 0.5 * (S + S.T)
+        nis = float(z @ np.linalg.solve(S, z))
+        self._applied.append(fix)
+        fix.order = self._order
+        self._order += 1
+        self._trim_applied()
+        if not nis <= self.gate:
+            res = self._record(fix, "gated", z, nis)
+            if not fix.counted:
+                self.counters.gated += 1
+            fix.counted = True
+            self._checkpoint()
+            return res
+        K = np.linalg.solve(S, H @ P).T
+        dx = K @ z
+        if not (np.all(np.isfinite(K)) and np.all(np.isfinite(dx))):
+            raise FloatingPointError("attitude filter: non-finite gain in the update (numerical "
+                                     "failure, not bad input); the state is not corrected")
+        IKH = np.eye(lay.size) - K @ H
+        # Joseph form P ← (I − KH)P(I − KH)ᵀ + KRKᵀ, as the factor of [(I − KH)S, K R^½]
+        self._sqrt_p = triangular_factor(IKH @ self._sqrt_p,
+                                         K @ np.linalg.cholesky(fix.covariance))
+        self.integrator.q = quat_normalize(quat_multiply(self.integrator.q,
+                                                         rotvec_to_quat(-dx[:3])))
+        self.x[3:] -= dx[3:]
+        if lay.boresight is not None:
+            self.boresight = quat_normalize(quat_multiply(self.boresight,
+                                                          rotvec_to_quat(-dx[lay.boresight])))
+            self.x[lay.boresight] = 0.0          # the boresight estimate lives in the quaternion
+        if not fix.counted:
+            self.counters.applied += 1
+            if self.implausible():
+                self.counters.implausible += 1
+        fix.counted = True
+        res = self._record(fix, "applied", z, nis)
+        self._checkpoint()
+        return res
+
+    def _record(self, fix: _Fix, status: str, z=None, nis=None) -> FixResult:
+        res = FixResult(fix.stamp, fix.epoch, status, fix.lateness, z, nis)
+        self.results.append(res)
+        return res
+
+    # ------------------------------------------------------------------ history
+    def _log(self, d: np.ndarray, t: np.ndarray) -> None:
+        k = len(t)
+        if k > self.history:                     # keep only the newest pieces
+            drop = k - self.history
+            d, t = d[drop:], t[drop:]
+            self._n += drop
+            self._base = self._n
+            self._log_lo = 0
+            k = len(t)
+        hi = self._log_lo + (self._n - self._base)
+        if hi + k > len(self._log_t):           # compact: keep the newest `history - k` pieces
+            keep = min(self._n - self._base, self.history - k)
+            src = slice(hi - keep, hi)
+            self._log_t[:keep] = self._log_t[src].copy()
+            self._log_d[:keep] = self._log_d[src].copy()
+            self._base = self._n - keep
+            self._log_lo, hi = 0, keep
+        self._log_t[hi:hi + k], self._log_d[hi:hi + k] = t, d
+        self._n += k
+
+    def _checkpoint(self) -> None:
+        self._checkpoints.append(_Checkpoint(
+            self._last_stamp, self._n, self._order,
+            self.integrator.checkpoint(), self.x.copy(), self.boresight.copy(), self._sqrt_p,
+            self._open_rho, self._open_dt, self._last_rate, self._last_stamp))
+
+    def _late(self, fix: _Fix) -> FixResult:
+        fix.lateness = self._last_stamp - fix.epoch
+        cp = None
+        for c in reversed(self._checkpoints):
+            if c.pieces >= self._base and c.epoch <= fix.epoch:
+                cp = c
+                break
+        if cp is None:
+            self.counters.too_old += 1
+            return self._record(fix, "too_old")
+        self.counters.late += 1
+        self.counters.last_lateness = fix.lateness
+        self.counters.max_lateness = max(self.counters.max_lateness, fix.lateness)
+        lo = self._log_lo + (cp.pieces - self._base)
+        hi = self._log_lo + (self._n - self._base)
+        d, t = self._log_d[lo:hi].copy(), self._log_t[lo:hi].copy()
+        self.counters.reprocessed_increments += len(t)
+        # back to the checkpoint
+        self.integrator.rollback(cp.integrator)
+        self.x, self.boresight, self._sqrt_p = cp.states.copy(), cp.boresight.copy(), cp.covariance
+        self._open_rho, self._open_dt, self._last_rate = cp.open_rho, cp.open_dt, cp.last_rate
+        self._last_stamp, self._n = cp.last_stamp, cp.pieces
+        while self._checkpoints and self._checkpoints[-1] is not cp:
+            self._checkpoints.pop()
+        redo = [f for f in self._applied if f.order >= cp.order]
+        self._applied = deque(f for f in self._applied if f not in redo)
+        self._pending = sorted(self._pending + redo + [fix], key=lambda f: (f.epoch, f.seq))
+        self._trim_applied()
+        out = self._advance(d, t)
+        mine = [r for r in out if r.stamp == fix.stamp and r.epoch == fix.epoch]
+        return mine[-1] if mine else FixResult(fix.stamp, fix.epoch, "pending", fix.lateness)
+
+    def _trim_applied(self) -> None:
+        """Forget applied fixes older than every usable checkpoint (no longer re-processable)."""
+        oldest = next((c.epoch for c in self._checkpoints if c.pieces >= self._base), np.inf)
+        while self._applied and self._applied[0].epoch < oldest:
+            self._applied.popleft()
+        while len(self._applied) > 4 * self.max_pending + 1024:
+            self._applied.popleft()

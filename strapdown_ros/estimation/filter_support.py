@@ -1,0 +1,95 @@
+"""Small parts of the attitude filter (:mod:`strapdown_ros.estimation.attitude_filter`): the
+χ²(3) gate quantile, the square-root covariance factors, and the result and counter records."""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+__all__ = ["chi2_3_quantile", "triangular_factor", "psd_factor", "FixResult", "FilterCounters"]
+
+
+def chi2_3_quantile(probability: float) -> float:
+    """Quantile of the χ² distribution with 3 degrees of freedom (bisection on its CDF
+    ``erf(√(x/2)) − √(2x/π) e^{−x/2}``).
+
+    Parameters
+    ----------
+    probability : float
+        In (0, 1).
+
+    Returns
+    -------
+    float
+        x with P(χ²₃ ≤ x) = probability.
+    """
+    if not 0.0 < probability < 1.0:
+        raise ValueError(f"probability must be in (0, 1), got {probability}")
+
+    def cdf(x):
+        return math.erf(math.sqrt(x / 2.0)) - math.sqrt(2.0 * x / math.pi) * math.exp(-x / 2.0)
+    lo, hi = 0.0, 200.0
+    for _ in range(200):
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if cdf(mid) < probability else (lo, mid)
+    return 0.5 * (lo + hi)
+
+
+def triangular_factor(*blocks: np.ndarray) -> np.ndarray:
+    """A square factor S with S Sᵀ = Σ B Bᵀ, from the QR factorisation of [B₁ B₂ …]ᵀ.
+
+    Parameters
+    ----------
+    *blocks : ndarray (n, k_i)
+        Factors of the terms of a sum of covariances.
+
+    Returns
+    -------
+    ndarray (n, n)
+        S (lower triangular), so that S Sᵀ is positive semi-definite by construction.
+    """
+    r = np.linalg.qr(np.hstack(blocks).T, mode="r")
+    return r.T
+
+
+def psd_factor(Q: np.ndarray) -> np.ndarray:
+    """A factor B with B Bᵀ = Q of a symmetric positive semi-definite Q.
+
+    Parameters
+    ----------
+    Q : ndarray (n, n)
+        Covariance; eigenvalues below zero by round-off are taken as zero.
+
+    Returns
+    -------
+    ndarray (n, n)
+        B = V diag(√λ).
+    """
+    w, v = np.linalg.eigh(0.5 * (Q + Q.T))
+    return v * np.sqrt(np.clip(w, 0.0, None))
+
+
+@dataclass
+class FixResult:
+    """Outcome of one camera fix."""
+    stamp: float                 # header stamp of the fix, s
+    epoch: float                 # IMU-clock epoch it was applied at (stamp − τ̂), s
+    status: str                  # 'applied', 'gated', 'pending', 'too_old', 'overflow'
+    lateness: float = 0.0        # newest increment stamp − epoch at arrival (0: not late), s
+    residual: np.ndarray | None = None     # z (3,), VF axes, rad
+    nis: float | None = None     # zᵀ S⁻¹ z
+
+
+@dataclass
+class FilterCounters:
+    """Counts of what the filter did (reported; a node puts them on /diagnostics)."""
+    applied: int = 0
+    gated: int = 0
+    late: int = 0
+    too_old: int = 0
+    pending_overflow: int = 0
+    reprocessed_increments: int = 0
+    max_lateness: float = 0.0
+    last_lateness: float = 0.0
+    implausible: int = 0         # updates after which an estimate left its registry range
