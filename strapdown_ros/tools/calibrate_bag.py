@@ -39,7 +39,7 @@ import numpy as np
 from ..calibrator import BoresightCalibrator
 from ..config import CALIBRATOR_PARAMS, check_all, load_parameter_file
 from ..rotation import from_ros_xyzw, to_ros_xyzw
-from ..streams import StreamCheck, nominal_period, validate
+from ..streams import StreamCheck, nominal_period, segments, validate
 from .record_sim import parse_overrides
 
 __all__ = ["main", "read_bag", "calibrate", "calibrator_parameters", "make_calibrator", "solution_json", "BagError"]
@@ -212,34 +212,68 @@ def read_bag(path: str | Path, namespace: str = "", use_camera_covariance: bool 
 def calibrate(data: dict, p: dict):
     """Feed the calibrator as calibrator_node is fed — gyro and fixes interleaved in stamp order —
     and solve; returns (solution, calibrator, pairs discarded over gyro gaps and stamp jumps).
-    The calibrator's buffer stays bounded on recordings of any length."""
+    The calibrator's buffer stays bounded on recordings of any length.
+
+    Each stream is split into its time bases (``strapdown_ros.streams.segments``: a confirmed
+    resynchronisation starts a new one; a burst that returned has already been removed by
+    ``validate``).  Gyro and camera segments are matched in order by overlapping stamp ranges;
+    the calibrator restarts its gyro history (``restart_gyro``, as calibrator_node does on a
+    resynchronisation) at every gyro segment and its fix chain at every camera segment, so no
+    pair spans a jump and no stamp array handed to the search is out of order."""
     g, c = data["gyro"], data["camera"]
     t0 = min(g.stamps[0], c.stamps[0])                 # origin: float seconds keep ns resolution
     cal = make_calibrator(p)
     tg = (np.asarray(g.stamps, dtype=np.int64) - t0) * 1e-9
     vg = np.asarray(g.values, dtype=float).reshape(-1, 3)
-    gaps = [((a - t0) * 1e-9, (b - t0) * 1e-9) for a, b in g.gaps]
+    tc = (np.asarray(c.stamps, dtype=np.int64) - t0) * 1e-9
     period = data.get("gyro_period_s") or 1.0 / float(p["gyro_rate"])
     h = 1.5 * period                                    # the in-interval polynomial reads the neighbours
+    lead = 3 * period + abs(float(p["camera_time_offset"]))
+    g_segs = segments(g.stamps, getattr(g.check, "segment_starts", []))
+    c_segs = segments(c.stamps, getattr(c.check, "segment_starts", []))
     discarded = 0
-    k = 0
-    for ns, (q, P) in zip(c.stamps, c.values):
-        t = (ns - t0) * 1e-9
-        k1 = int(np.searchsorted(tg, t + 3 * period + abs(float(p["camera_time_offset"])), side="right"))
-        if k1 > k:
-            new_g = cal.add_gyro(tg[k:k1], vg[k:k1])
-            k = k1
-        else:
-            new_g = 0
-        new = new_g + cal.add_camera(t, q, P)
-        if new and gaps:                               # as calibrator_node._discard_pairs_over_gaps
-            tail = cal.pairs[len(cal.pairs) - new:]
-            keep = [pr for pr in tail if not any(pr.t_start - h < b and a < pr.t_end + h for a, b in gaps)]
-            discarded += len(tail) - len(keep)
-            del cal.pairs[len(cal.pairs) - new:]
-            cal.pairs.extend(keep)
-    if k < len(tg):
-        cal.add_gyro(tg[k:], vg[k:])
+    i = j = 0
+    cur_g = cur_c = None                               # segments the calibrator is fed from
+    k = 0                                              # gyro samples of segment cur_g fed so far
+    while i < len(g_segs) and j < len(c_segs):
+        (ga, gb), (ca, cb) = g_segs[i], c_segs[j]
+        seg_t, seg_v = tg[ga:gb], vg[ga:gb]
+        g_hi, c_hi = seg_t[-1], tc[cb - 1]
+        if g_hi >= tc[ca] and c_hi >= seg_t[0]:       # the two time bases overlap: pair them up
+            if cur_g != i:
+                if cur_g is not None:
+                    cal.restart_gyro()
+                cur_g, k = i, 0
+            if cur_c is not None and cur_c != j:
+                cal.restart_camera()
+            cur_c = j
+            gaps = [(seg_t[n], seg_t[n + 1]) for n in np.flatnonzero(np.diff(seg_t) > 1.5 * period)]
+            for t, (q, P) in zip(tc[ca:cb], c.values[ca:cb]):
+                if t < seg_t[0] or t > g_hi:
+                    continue                           # outside the gyro segment: no pair can use it
+                k1 = int(np.searchsorted(seg_t, t + lead, side="right"))
+                new = 0
+                if k1 > k:
+                    new = cal.add_gyro(seg_t[k:k1], seg_v[k:k1])
+                    k = k1
+                new += cal.add_camera(t, q, P)
+                if new and gaps:                       # as calibrator_node._discard_pairs_over_gaps
+                    tail = cal.pairs[len(cal.pairs) - new:]
+                    keep = [pr for pr in tail if not any(pr.t_start - h < b and a < pr.t_end + h for a, b in gaps)]
+                    discarded += len(tail) - len(keep)
+                    del cal.pairs[len(cal.pairs) - new:]
+                    cal.pairs.extend(keep)
+        if g_hi <= c_hi:                               # the segment that ends first is done
+            if cur_g == i and k < len(seg_t):
+                cal.add_gyro(seg_t[k:], seg_v[k:])
+                k = len(seg_t)
+            i += 1
+        if c_hi <= g_hi:
+            j += 1
+    if cur_g is not None and cur_g == i < len(g_segs):  # fixes still waiting for gyro coverage
+        ga, gb = g_segs[i]
+        if ga + k < gb:
+            cal.add_gyro(tg[ga + k:gb], vg[ga + k:gb])
     return cal.solve(), cal, discarded
 
 
