@@ -193,8 +193,13 @@ class CalibratorNode(Node):
         if g.resynced:
             self.cal.restart_gyro()
             prev_ns = None
-            self.get_logger().error(f"gyro stamps jumped by {g.last_jump_s:.6g} s and stayed: resynchronised; no "
-                                    "increment pair spans the jump")
+            if g.returned:
+                self.get_logger().error(f"{g.retracted} gyro increment(s) carried stamps off their timeline and the "
+                                        "stream came back to it: dropped as a stamp burst; the pairs containing "
+                                        "the burst are lost")
+            else:
+                self.get_logger().error(f"gyro stamps jumped by {g.last_jump_s:.6g} s and stayed: resynchronised; "
+                                        "no increment pair spans the jump")
         new = 0
         for ns_i, v in out:
             t = self._rel(ns_i)
@@ -434,6 +439,10 @@ class CalibratorNode(Node):
             level = ros_io.ERROR
             message = (f"{message}; state file: {self.state['errors']} error(s)"
                        + (f", a bad one moved aside to {self.state['moved_aside']}" if self.state["moved_aside"] else ""))
+        if g.bursts:
+            level = ros_io.ERROR
+            message = (f"{message}; {g.burst_messages} gyro increment(s) in {g.bursts} burst(s) stamped off the "
+                       "timeline, dropped; the pairs containing them are lost")
         if g.resyncs or c.resyncs:
             level = ros_io.ERROR
             message = (f"{message}; stamps jumped and were resynchronised (gyro {g.resyncs}, camera {c.resyncs}); "

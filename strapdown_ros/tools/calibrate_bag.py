@@ -117,7 +117,8 @@ class Accepted:
         self.received = check.received + extra_received
         self.missing = check.missing
         self.dropped = {"nan": check.nan, "duplicate": check.duplicate, "out_of_order": check.out_of_order,
-                        "out_of_range": check.out_of_range, "stamp_outlier": check.stamp_outliers}
+                        "out_of_range": check.out_of_range, "stamp_outlier": check.stamp_outliers,
+                        "stamp_burst": check.burst_messages}
         self.resyncs = check.resyncs
 
 
@@ -327,7 +328,10 @@ def _summary(bag: str, data: dict, result: dict, p: dict) -> str:
     lines.append("  dropped: " + (", ".join(f"{k} {v}" for k, v in drops.items()) if drops else "none"))
     gg, fx = result["gyro_gaps"], result["camera_fixes"]
     if gg["gaps"]:
-        lines.append(f"  GYRO GAPS: {gg['gaps']} gap(s), {gg['missing']} increment(s) missing (rotation lost); "
+        extra = [f"{gg[k]} {w}" for k, w in (("dropouts", "dropout(s) beyond max_stamp_jump"),
+                                             ("stamp_bursts", "stamp burst(s)")) if gg.get(k)]
+        lines.append(f"  GYRO GAPS: {gg['gaps']} gap(s){' (' + ', '.join(extra) + ')' if extra else ''}, "
+                     f"{gg['missing']} increment(s) missing (rotation lost); "
                      f"{gg['pairs_discarded']} pair(s) spanning them discarded")
     notes = [f"{n.replace('_', ' ')} {v}" for n, v in fx.items() if v and not isinstance(v, list)]
     if notes:
@@ -394,7 +398,8 @@ def main(argv=None) -> int:
     result["dropped"] = {"gyro": dict(g.dropped),
                          "camera": {**c.dropped, "zero_quaternion": data["camera_fixes"]["zero_quaternion"],
                                     "bad_covariance": data["camera_fixes"]["bad_covariance"]}}
-    result["gyro_gaps"] = {"gaps": len(g.gaps), "missing": g.missing, "pairs_discarded": discarded}
+    result["gyro_gaps"] = {"gaps": g.check.gaps, "missing": g.missing, "pairs_discarded": discarded,
+                           "dropouts": g.check.dropouts, "stamp_bursts": g.check.bursts}
     result["stamp_resyncs"] = {"gyro": g.resyncs, "camera": c.resyncs}
     result["gyro_rate_from_stamps_hz"] = _num(1.0 / data["gyro_period_s"]) if np.isfinite(data["gyro_period_s"]) else None
     result["camera_fixes"] = {k: data["camera_fixes"][k] for k in ("normalised", "covariance_substituted")}
