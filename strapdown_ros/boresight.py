@@ -38,7 +38,7 @@ from .rotation import (dcm_to_ypr, quat_conjugate, quat_cumprod, quat_multiply, 
 from .sensors import SensorSigmas
 from .sensors.covariance import constant_jacobian, constant_variances, get_covariance_model
 
-__all__ = ["IncrementPair", "angle_consistency", "gyro_increment", "camera_increment", "BoresightSolution", "solve_boresight",
+__all__ = ["IncrementPair", "angle_consistency", "chi2_band", "FIT_LEVEL", "gyro_increment", "camera_increment", "BoresightSolution", "solve_boresight",
            "check_observability", "imu_attitude_from_camera", "r_partial"]
 
 
@@ -159,6 +159,30 @@ def angle_consistency(pair: IncrementPair) -> tuple[float, float]:
     return out[0] - out[1], float(np.sqrt(max(var, 0.0)))
 
 
+# ------------------------------------------------------------------ fit consistency
+#: two-sided level of the χ²/dof acceptance band: a consistent fit falls outside it with
+#: probability FIT_LEVEL
+FIT_LEVEL = 0.01
+
+
+def chi2_band(dof: int, level: float = FIT_LEVEL) -> tuple[float, float]:
+    """The two-sided acceptance band of χ²/dof for ``dof`` degrees of freedom at ``level``:
+    (χ²_{level/2}(dof)/dof, χ²_{1−level/2}(dof)/dof).  A weighted least-squares fit whose
+    stated noise is right lands inside with probability 1 − level.  scipy's quantiles when
+    scipy is installed, else the Wilson–Hilferty approximation (relative error < 1% of the
+    quantile for dof ≥ 3).  (nan, nan) for dof < 1."""
+    if dof < 1:
+        return float("nan"), float("nan")
+    try:
+        from scipy.stats import chi2
+        return float(chi2.ppf(level / 2, dof)) / dof, float(chi2.ppf(1 - level / 2, dof)) / dof
+    except ImportError:                              # numpy-only install: Wilson–Hilferty
+        from statistics import NormalDist
+        z = NormalDist().inv_cdf(1 - level / 2)
+        c = 2.0 / (9.0 * dof)
+        return tuple(max(0.0, 1 - c + sgn * z * np.sqrt(c)) ** 3 for sgn in (-1.0, 1.0))
+
+
 # ---------------------------------------------------------------------- §4 the estimate
 @dataclass
 class BoresightSolution:
@@ -175,7 +199,13 @@ class BoresightSolution:
     iterations: int = 0
     converged: bool = False
     residual_rms: float = float("nan")             # rad, RMS of the residual components
-    chi2_per_dof: float = float("nan")             # weighted only
+    chi2_per_dof: float = float("nan")             # Σ fᵀ W f / dof with the stated noise (any weighting)
+    dof: int = 0                                   # 3n − 3
+    chi2_band: tuple = (float("nan"), float("nan"))   # chi2_band(dof, FIT_LEVEL)
+    #: χ²/dof inside its band: the stated noise explains the residuals.  False: the stated noise
+    #: is wrong or the model lacks an effect, and covariance_beta is scaled by χ²/dof when > 1
+    fit_consistent: bool | None = None
+    covariance_beta_stated: np.ndarray | None = None   # P_β from the stated noise alone (unscaled)
     pairs: int = 0
     observability: ObservabilityReport | None = None
     unobservable_axes: list = field(default_factory=list)
@@ -381,7 +411,14 @@ def solve_boresight(pairs, beta0=(0.0, 0.0, 0.0), weighted: bool = True, init: s
     Ninv_u = np.linalg.inv(Hu.T @ Hu)
     P_res = Ninv_u @ np.einsum("nji,jk,nkl->il", H, P_S, H) @ Ninv_u
     P_model = np.linalg.inv(N) if weighted else None
-    chi2 = wss / max(3 * n - 3, 1) if weighted else float("nan")
+    dof = 3 * n - 3
+    if not weighted:                                 # 004's unit weights: χ² with the stated noise
+        cov = np.swapaxes(C, 0, 1)[None] @ E_imu @ C[None] + E_cam
+        ok_cov = np.all(np.linalg.eigvalsh(cov) > 0)
+        wss = float(np.einsum("ni,nij,nj->", f, np.linalg.inv(cov), f)) if ok_cov else float("nan")
+    chi2 = wss / max(dof, 1)
+    band = chi2_band(dof)
+    consistent = bool(band[0] <= chi2 <= band[1]) if np.isfinite(chi2) and dof >= 1 else None
     if weighted:
         P = P_model * max(1.0, chi2)                 # inflate if the residuals exceed the model
     else:
@@ -398,6 +435,7 @@ def solve_boresight(pairs, beta0=(0.0, 0.0, 0.0), weighted: bool = True, init: s
         covariance_beta_model=P_model, rotation_covariance_mf=D2 @ P @ D2.T, weighted=weighted,
         weighting=weighting,
         iterations=it, converged=converged, residual_rms=float(np.sqrt(np.mean(f ** 2))), chi2_per_dof=chi2,
+        dof=dof, chi2_band=band, fit_consistent=consistent, covariance_beta_stated=P_model,
         pairs=n, observability=rep)
     return sol
 

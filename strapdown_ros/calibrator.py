@@ -43,6 +43,7 @@ class BoresightCalibrator:
         self.outlier_gate = float(outlier_gate)
         self.outlier_fixes = 0                      # camera fixes dropped by the outlier rule
         self.outlier_stamps: deque = deque(maxlen=100)
+        self._angle_ratios: deque = deque(maxlen=self.ROBUST_WINDOW)   # normalised angle residuals
         self._prev_fix = None                       # the fix before _last_fix (for the skip pair)
         self.effects = effects if effects is not None and effects.active else None
         self.camera = camera
@@ -134,9 +135,24 @@ class BoresightCalibrator:
         extra = dict(imu_sensitivity=r[2], cov_imu_white=r[3]) if self.gyro is not None else {}
         return IncrementPair(t0, stamp, r[0], dq_c, r[1], E_c, cov_fix_start=P0, cov_fix_end=P, **extra)
 
-    def _inconsistent(self, pair) -> bool:
+    #: the robust scale of the outlier gate is taken over at most this many of the latest pairs
+    ROBUST_WINDOW = 200
+    #: ... and only once this many pairs exist: before, the scatter is unknown and no fix is gated
+    ROBUST_MIN_PAIRS = 5
+
+    def angle_scale(self) -> float:
+        """Robust scale s of the normalised angle residuals r = (φ_avu − φ_imu)/σ of the latest
+        pairs: 1.4826 · median |r − median r| (the MAD, σ for Gaussian r), at least 1.  With the
+        stated noise right, s ≈ 1; with the camera σ stated 100× too small, s ≈ 100.  inf (no
+        gate) with fewer than ``ROBUST_MIN_PAIRS`` pairs."""
+        r = np.asarray(self._angle_ratios, dtype=float)
+        if len(r) < self.ROBUST_MIN_PAIRS:
+            return float("inf")
+        return max(1.0, 1.4826 * float(np.median(np.abs(r - np.median(r)))))
+
+    def _inconsistent(self, pair, scale: float = 1.0) -> bool:
         d, sigma = angle_consistency(pair)
-        return abs(d) > self.outlier_gate * sigma
+        return abs(d) > self.outlier_gate * scale * sigma
 
     def _form_pairs(self) -> int:
         new = 0
@@ -154,6 +170,8 @@ class BoresightCalibrator:
                 self._prev_fix, self._last_fix = None, fix
                 continue
             self.pairs.append(pair)
+            d, sig = angle_consistency(pair)
+            self._angle_ratios.append(d / sig if sig > 0 else 0.0)
             new += 1
             self._drop_outlier_fix(fix)              # the last pair may become the skip pair: still new
             self._prev_fix, self._last_fix = self._last_fix, fix
@@ -166,18 +184,26 @@ class BoresightCalibrator:
 
     def _drop_outlier_fix(self, fix) -> int:
         """The outlier rule: fix n (= _last_fix) is an outlier when both its pairs, (n−1, n) and
-        (n, n+1), disagree in rotation angle by more than ``outlier_gate`` σ while the pair
-        (n−1, n+1) that skips it agrees.  Then both pairs give way to the skip pair (the newest
+        (n, n+1), disagree in rotation angle by more than the gate while the pair (n−1, n+1)
+        that skips it agrees.  The gate is ``outlier_gate`` × max(1, s) × the stated σ of the
+        angle difference, s the robust scale of the normalised angle residuals of the latest
+        pairs (:meth:`angle_scale`): when the stated noise is right s ≈ 1 and the gate is
+        ``outlier_gate`` σ; when the stated σ is too small by a factor s, the gate widens by s,
+        so a wrong σ never turns good fixes into outliers while a fix off by far more than the
+        actual scatter is still gated.  Then both pairs give way to the skip pair (the newest
         pair in the list).  Returns 1 when fix n was dropped, else 0."""
         if self.outlier_gate <= 0 or self._prev_fix is None or len(self.pairs) < 2:
             return 0
         a, b = self.pairs[-2], self.pairs[-1]
         if not (a.t_end == b.t_start == self._last_fix[0] and a.t_start == self._prev_fix[0]):
             return 0
-        if not (self._inconsistent(a) and self._inconsistent(b)):
+        scale = self.angle_scale()
+        if not np.isfinite(scale):
+            return 0                                    # too few pairs to know the scatter
+        if not (self._inconsistent(a, scale) and self._inconsistent(b, scale)):
             return 0
         skip = self._pair(self._prev_fix, fix)
-        if skip is None or self._inconsistent(skip):
+        if skip is None or self._inconsistent(skip, scale):
             return 0                                    # not one bad fix: leave it to the estimator
         del self.pairs[-2:]
         self.pairs.append(skip)

@@ -36,6 +36,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..boresight import FIT_LEVEL
 from ..calibrator import BoresightCalibrator
 from ..config import CALIBRATOR_PARAMS, check_all, load_parameter_file
 from ..rotation import from_ros_xyzw, to_ros_xyzw
@@ -311,6 +312,13 @@ def solution_json(sol, weighted: bool) -> dict:
         "converged": bool(sol.converged),
         "iterations": int(sol.iterations),
         "chi2_per_dof": _num(sol.chi2_per_dof),
+        "fit_consistent": None if sol.fit_consistent is None else bool(sol.fit_consistent),
+        "chi2_per_dof_band": [_num(b) for b in sol.chi2_band] if ok else None,
+        "chi2_level": FIT_LEVEL,
+        "dof": int(sol.dof),
+        # σ from the stated noise alone; beta_sigma_rad is it scaled by √(χ²/dof) when χ²/dof > 1
+        "beta_sigma_stated_noise_rad": ([float(v) for v in np.sqrt(np.diag(sol.covariance_beta_stated))]
+                                        if ok and sol.covariance_beta_stated is not None else None),
     }
     rep = sol.observability
     if rep is not None:
@@ -318,6 +326,14 @@ def solution_json(sol, weighted: bool) -> dict:
                                 "predicted_sigma_rad": [_num(v) for v in rep.predicted_sigma],
                                 "condition": _num(rep.condition), "weak": list(rep.weak)}
     return out
+
+
+def _band_text(result: dict) -> str:
+    band = result.get("chi2_per_dof_band")
+    if result.get("fit_consistent") is None or not band:
+        return ""
+    verdict = "consistent" if result["fit_consistent"] else "INCONSISTENT"
+    return f" ({verdict}: band [{band[0]:.3g}, {band[1]:.3g}] at level {result['chi2_level']:g})"
 
 
 def _summary(bag: str, data: dict, result: dict, p: dict) -> str:
@@ -341,15 +357,36 @@ def _summary(bag: str, data: dict, result: dict, p: dict) -> str:
                  f"covariance model {p['covariance_model']}, "
                  + (f"{'converged' if result['converged'] else 'NOT converged'} in {result['iterations']} iterations, "
                     f"residual RMS {result['residual_rms_rad'] * ARCSEC_PER_RAD:.3g}″"
-                    + (f", χ²/dof {chi2:.3g}" if chi2 is not None else "") if result["observable"] else "not observable"))
+                    + (f", χ²/dof {chi2:.3g}" + _band_text(result) if chi2 is not None else "")
+                    if result["observable"] else "not observable"))
     if result["observable"]:
         names = ("heading ψ", "pitch ϑ", "roll γ")
-        lines.append("  β: " + ", ".join(f"{n} {np.degrees(b):.6f}° ± {s * ARCSEC_PER_RAD:.3g}″"
+        untrusted = "UNTRUSTED (fit inconsistent with the stated noise) " if result["fit_consistent"] is False else ""
+        lines.append(f"  {untrusted}β: " + ", ".join(f"{n} {np.degrees(b):.6f}° ± {s * ARCSEC_PER_RAD:.3g}″"
                                         for n, b, s in zip(names, result["beta_rad"], result["beta_sigma_rad"])))
         sig_mf = np.sqrt(np.diag(result["rotation_covariance_mf_rad2"])) * ARCSEC_PER_RAD
-        lines.append(f"  q_mf_vf (x, y, z, w) = [{', '.join(f'{v:.9f}' for v in result['q_mf_vf_xyzw'])}], "
+        lines.append(f"  {untrusted}q_mf_vf (x, y, z, w) = [{', '.join(f'{v:.9f}' for v in result['q_mf_vf_xyzw'])}], "
                      f"σ about MF x, y, z = {', '.join(f'{s:.3g}' for s in sig_mf)}″")
     return "\n".join(lines)
+
+
+def consistency_warning(result: dict) -> str | None:
+    """The ``WARNING:`` line of a fit whose χ²/dof is outside its band (None when inside or
+    not judged): χ²/dof, the band, what it means, and which σ is reported."""
+    if result.get("fit_consistent") is not False:
+        return None
+    chi2, (lo, hi) = result["chi2_per_dof"], result["chi2_per_dof_band"]
+    band = f"its {100 * (1 - result['chi2_level']):g}% band [{lo:.3g}, {hi:.3g}] (dof {result['dof']})"
+    if chi2 > hi:
+        scale = float(np.sqrt(chi2))
+        stated = result.get("beta_sigma_stated_noise_rad")
+        shown = ("; σ with the stated noise " + ", ".join(f"{v * ARCSEC_PER_RAD:.3g}″" for v in stated)
+                 if stated and result["weighted"] else "")
+        return (f"WARNING: χ²/dof = {chi2:.3g} is above {band}: the stated noise is too small or the model "
+                f"lacks an effect (outliers, an unmodelled error); the σ reported for β are scaled by "
+                f"√(χ²/dof) = {scale:.3g}{shown}.  Do not use the estimate as calibrated.")
+    return (f"WARNING: χ²/dof = {chi2:.3g} is below {band}: the stated noise is too large (the σ "
+            f"reported for β, from the stated noise, are pessimistic; not scaled down).")
 
 
 def main(argv=None) -> int:
@@ -410,6 +447,9 @@ def main(argv=None) -> int:
     result["topics"] = {"gyro": data["gyro_topic"], "camera": data["camera_topic"]}
     result["camera_covariance_from_bag"] = data["camera_covariance_from_bag"]
     print(_summary(args.bag, data, result, p))
+    warning = consistency_warning(result) if result["observable"] else None
+    if warning:
+        print(warning, file=sys.stderr)
     if args.json:
         try:
             with open(args.json, "w", encoding="utf-8") as fh:
