@@ -330,3 +330,69 @@ def test_dropout_and_stamp_burst_cost_only_the_pairs_containing_them(tmp_path, c
     q_true = dcm_to_quat(ypr_to_dcm(*BETA))
     e = quat_error_rotvec(from_ros_xyzw(np.array(r["q_mf_vf_xyzw"])), q_true, frame="reference")
     assert np.all(np.abs(e) < 3 * np.sqrt(np.diag(r["rotation_covariance_mf_rad2"]))), e / ARCSEC
+
+
+def _noisy_bench(tmp_path, name, scale):
+    """bench bag whose camera noise is ``scale`` × the σ its covariance states (injected)."""
+    bag = tmp_path / name
+    assert record_sim.main([str(bag), "--no-accel", "-p", "profile:=bench", "-p", "camera_interval:=5.0",
+                            "-p", BETA_ARG, "-p", f"camera_noise_scale:=[{scale}, {scale}, {scale}]"]) == 0
+    return bag
+
+
+@pytest.mark.parametrize("scale", [1.0, 100.0])
+def test_fit_consistency_is_judged_and_a_wrong_sigma_drops_no_good_fix(tmp_path, capsys, scale):
+    """Real recordings item 4: camera noise 100× the stated σ → fit_consistent false, a WARNING
+    line on stderr, exit 0, no good fix dropped as an outlier (the gate widens with the robust
+    scatter), β within 3 scaled σ of the injected truth.  Consistent noise → no warning."""
+    bag = _noisy_bench(tmp_path, f"s{scale:g}", scale)
+    capsys.readouterr()
+    f = tmp_path / "r.json"
+    assert calibrate_bag.main([str(bag), "--json", str(f)]) == 0
+    cap = capsys.readouterr()
+    r = json.loads(f.read_text())
+    lo, hi = r["chi2_per_dof_band"]
+    assert r["dof"] == 3 * r["pairs"] - 3 and lo < 1.0 < hi
+    assert r["camera_fixes"]["outliers_dropped"] == 0 and r["pairs"] == 33
+    q_true = dcm_to_quat(ypr_to_dcm(*BETA))
+    e = quat_error_rotvec(from_ros_xyzw(np.array(r["q_mf_vf_xyzw"])), q_true, frame="reference")
+    sigma = np.sqrt(np.diag(r["rotation_covariance_mf_rad2"]))
+    assert np.all(np.abs(e) < 3 * sigma), e / sigma
+    if scale == 1.0:
+        assert r["fit_consistent"] is True and lo <= r["chi2_per_dof"] <= hi
+        assert "WARNING" not in cap.err and "UNTRUSTED" not in cap.out
+    else:
+        assert r["fit_consistent"] is False and r["chi2_per_dof"] > 100 * hi
+        warn = [ln for ln in cap.err.splitlines() if ln.startswith("WARNING:")]
+        assert len(warn) == 1 and "χ²/dof" in warn[0] and "band" in warn[0] and "scaled" in warn[0]
+        assert "UNTRUSTED" in cap.out
+        # the published σ is the stated-noise σ scaled by √(χ²/dof)
+        np.testing.assert_allclose(r["beta_sigma_rad"], np.array(r["beta_sigma_stated_noise_rad"])
+                                   * np.sqrt(r["chi2_per_dof"]), rtol=0.05)
+
+
+def test_an_outlier_fix_is_still_gated_when_the_sigma_is_wrong(tmp_path):
+    """The robust gate still drops a fix rotated 5° when the stated σ is 100× too small."""
+    from rosbags.rosbag2 import Reader, Writer
+    from rosbags.typesys import Stores, get_typestore
+    from strapdown_ros.rotation import quat_multiply, rotvec_to_quat
+
+    clean = _noisy_bench(tmp_path, "clean", 100.0)
+    store = get_typestore(Stores.ROS2_JAZZY)
+    dirty = tmp_path / "dirty"
+    bad = rotvec_to_quat(np.radians(5.0) * np.array([0.6, -0.64, 0.48]))
+    with Reader(clean) as rd, Writer(dirty, version=Writer.VERSION_LATEST) as wr:
+        conns = {c.id: wr.add_connection(c.topic, c.msgtype, typestore=store) for c in rd.connections}
+        for c, t, raw in rd.messages():
+            if c.topic.startswith("/star_camera/attitude") and t == 60 * 10**9:
+                m = store.deserialize_cdr(raw, c.msgtype)
+                q = m.pose.pose.orientation if hasattr(m, "pose") else m.quaternion
+                w, x, y, z = quat_multiply(np.array([q.w, q.x, q.y, q.z]), bad)
+                q.w, q.x, q.y, q.z = float(w), float(x), float(y), float(z)
+                raw = store.serialize_cdr(m, c.msgtype)
+            wr.write(conns[c.id], t, raw)
+    f = tmp_path / "r.json"
+    assert calibrate_bag.main([str(dirty), "--json", str(f)]) == 0
+    r = json.loads(f.read_text())
+    assert r["camera_fixes"]["outliers_dropped"] == 1
+    assert r["camera_fixes"]["outlier_stamps_s"] == [pytest.approx(60.0)] and r["pairs"] == 32

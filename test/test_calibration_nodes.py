@@ -430,7 +430,7 @@ def test_executables_exit_2_with_a_clear_message(module, arg, text):
     assert text in res.stderr
 
 
-def _node_estimate(ns, poison: bool, params=(), keep=False):
+def _node_estimate(ns, poison: bool, params=(), keep=False, noise_scale=1.0):
     """calibrator_node fed bench data through its own callbacks (no DDS): returns (β, node counters)."""
     from strapdown_ros.sensors import IntegratingSensor
     from strapdown_ros.star_camera import StarCameraModel
@@ -439,7 +439,8 @@ def _node_estimate(ns, poison: bool, params=(), keep=False):
     prof = bench_profile()
     gyro = IntegratingSensor(prof, "gyro", 100.0)
     t, dth, _ = gyro.sample(int(prof.duration * 100) - 1)
-    cam = StarCameraModel(boresight=np.radians([40.0, -25.0, 120.0]), interval=5.0, seed=1)
+    cam = StarCameraModel(boresight=np.radians([40.0, -25.0, 120.0]), interval=5.0, seed=1,
+                          noise_scale=np.full(3, noise_scale))
     fixes = cam.fixes(prof, int(prof.duration / 5.0) - 1)
     cal = CalibratorNode(namespace=ns, parameter_overrides=list(params))
     try:
@@ -468,6 +469,8 @@ def _node_estimate(ns, poison: bool, params=(), keep=False):
                 c6[3:, 3:] = v.covariance
                 m.pose.covariance = [float(x) for x in c6.ravel()]
                 cal._on_camera_cov(m)
+        if keep:
+            return cal
         return np.array(cal.valid.beta), cal.gyro_check.out_of_range, cal.solve_failures
     finally:
         if not keep:
@@ -481,6 +484,33 @@ def test_overflowing_increment_is_rejected_and_loses_nothing(ros):
     beta, out_of_range, failures = _node_estimate("/t_poison", poison=True)
     assert out_of_range == 1 and failures == 0
     np.testing.assert_array_equal(beta, beta_clean)
+
+
+def test_inconsistent_noise_is_a_warn_with_the_reason(ros):
+    """Real recordings item 4: camera noise 100× the σ its covariance states: /diagnostics WARN
+    saying the fit is inconsistent (χ²/dof outside its band), fit_consistent False; no good fix
+    dropped as an outlier.  With the stated noise right: fit_consistent True."""
+    for scale in (1.0, 100.0):
+        # the simulated gyro is ideal: so is the stated gyro model, the camera σ is the one judged
+        ideal = [Parameter(f"gyro_{k}", value=0.0)
+                 for k in ("bias_sigma", "scale_sigma", "misalignment_sigma", "random_walk")]
+        node = _node_estimate(f"/t_fit_{int(scale)}", poison=False, keep=True, noise_scale=scale, params=ideal)
+        try:
+            sent = []
+            node.pub_diag.publish = sent.append
+            node.publish_diagnostics()
+            st = sent[-1].status[0]
+            kv = {v.key: v.value for v in st.values}
+            assert kv["camera_outlier_fixes"] == "0" and kv["pairs"] == "32"
+            lo, hi, chi2 = (float(kv[k]) for k in ("chi2_per_dof_band_low", "chi2_per_dof_band_high", "chi2_per_dof"))
+            if scale == 1.0:
+                assert kv["fit_consistent"] == "True" and lo <= chi2 <= hi
+                assert "INCONSISTENT" not in st.message
+            else:
+                assert kv["fit_consistent"] == "False" and chi2 > 100 * hi
+                assert st.level == b"\x01" and "FIT INCONSISTENT" in st.message and "band" in st.message, st.message
+        finally:
+            node.destroy_node()
 
 
 def test_restart_resumes_the_same_estimate_and_a_corrupted_state_is_moved_aside(ros, tmp_path):

@@ -65,7 +65,7 @@ from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import PoseWithCovarianceStamped, QuaternionStamped, Vector3Stamped
 from rclpy.node import Node
 
-from ..boresight import imu_attitude_from_camera
+from ..boresight import FIT_LEVEL, imu_attitude_from_camera
 from ..config import CALIBRATOR_PARAMS
 from ..streams import StreamCheck
 from ..calibrator import BoresightCalibrator, load_state, save_state
@@ -386,10 +386,20 @@ class CalibratorNode(Node):
             ok = sol.observable and sol.converged
             level = ros_io.OK if ok else ros_io.WARN
             chi2 = sol.chi2_per_dof
-            if ok and np.isfinite(chi2) and chi2 > float(self.p["max_chi2_per_dof"]):
+            lo, hi = sol.chi2_band
+            if ok and sol.fit_consistent is False:
+                level = ros_io.WARN
+                what = ("the stated noise is too small or the model lacks an effect (outliers, an unmodelled "
+                        f"error: run discrepancy on a recording); the published σ is scaled by √(χ²/dof) = "
+                        f"{math.sqrt(chi2):.3g}" if chi2 > hi else "the stated noise is too large (σ pessimistic)")
+                message = (f"{message}; FIT INCONSISTENT: χ²/dof = {chi2:.3g} outside its band [{lo:.3g}, {hi:.3g}] "
+                           f"(dof {sol.dof}, level {FIT_LEVEL:g}): {what}")
+            elif ok and np.isfinite(chi2) and chi2 > float(self.p["max_chi2_per_dof"]):
                 level = ros_io.WARN
                 message = (f"{message}; χ²/dof = {chi2:.3g}: the residuals exceed the model (outliers, or an "
                            "effect the model lacks: run discrepancy on a recording)")
+            values.update({"fit_consistent": sol.fit_consistent, "chi2_per_dof_band_low": lo,
+                           "chi2_per_dof_band_high": hi, "dof": sol.dof})
             values.update({"observable": sol.observable, "message": sol.message,
                            "unobservable_axes": "; ".join(sol.unobservable_axes) if sol.unobservable_axes else "none",
                            "residual_rms_rad": sol.residual_rms, "iterations": sol.iterations,
