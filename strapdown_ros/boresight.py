@@ -389,22 +389,43 @@ def solve_boresight(pairs, beta0=(0.0, 0.0, 0.0), weighted: bool = True, init: s
             WH_Wf = np.linalg.solve(Sig, np.hstack([Hs, f.reshape(-1, 1)]))
             N = Hs.T @ WH_Wf[:, :3]
             g = Hs.T @ WH_Wf[:, 3]
-            return C, f, H, None, None, N, g, float(f.reshape(-1) @ WH_Wf[:, 3])
+            return C, f, H, Sig, None, N, g, float(f.reshape(-1) @ WH_Wf[:, 3])
         W = weights(C)
         HtW = np.einsum("nji,njk->nik", H, W)
         g = np.einsum("nij,nj->i", HtW, f)
         return C, f, H, W, HtW, np.einsum("nij,njk->ik", HtW, H), g, float(np.einsum("ni,nij,nj->", f, W, f))
 
+    def frozen_cost(lin, f_t):
+        """fᵀ W f of residuals f_t with the weights of the linearisation ``lin`` (the cost the
+        Gauss–Newton step of ``lin`` descends)."""
+        if weighting == "correlated":
+            return float(f_t.reshape(-1) @ np.linalg.solve(lin[3], f_t.reshape(-1)))
+        return float(np.einsum("ni,nij,nj->", f_t, lin[3], f_t))
+
     converged = False
     it = 0
+    lin = linearise(beta)
     for it in range(1, max_iterations + 1):
-        _, f, _, _, _, N, g, _ = linearise(beta)
+        N, g, cost = lin[5], lin[6], lin[7]
         step = -np.linalg.solve(N, g)
-        beta = beta + step
-        if np.linalg.norm(step) <= tolerance:
+        # converged: the step is below ``tolerance``, or below 1e-4 of the residual-scaled σ of β —
+        # with large residuals the finite-difference Jacobian cannot resolve 1e-9 rad
+        scale = cost / max(3 * n - 3, 1)            # residual variance per unit weight
+        if np.linalg.norm(step) <= tolerance or float(step @ N @ step) <= 1e-8 * scale:
+            beta = beta + step
+            lin = linearise(beta)
             converged = True
             break
-    C, f, H, W, HtW, N, g, wss = linearise(beta)
+        # Gauss–Newton step; halved while it raises the weighted cost (large residuals, e.g. a
+        # stated σ far too small, make the full step overshoot and oscillate)
+        for _ in range(30):
+            f_t = _residuals(ypr_to_dcm(*(beta + step)), A_imu, A_cam)
+            if frozen_cost(lin, f_t) <= cost * (1.0 + 1e-12):
+                break
+            step = 0.5 * step
+        beta = beta + step
+        lin = linearise(beta)
+    C, f, H, W, HtW, N, g, wss = lin
     # 004 §4.3: residual block P_S from the residuals, the same for every pair
     P_S = f.T @ f / max(n - 1, 1)
     Hu = H.reshape(-1, 3)
