@@ -60,6 +60,8 @@ class BoresightCalibrator:
         self._cams: deque = deque()     # fixes waiting for gyro coverage: (stamp, q, P)
         self._last_fix = None           # the fix that starts the next pair
         self.pairs: list[IncrementPair] = []
+        self._pair_keys: set = set()    # (t_start, t_end) in ns of the pairs held: a replay adds none
+        self.replayed_pairs = 0         # pairs not added because a pair with their stamps is held
         self.solution: BoresightSolution | None = None
 
     @classmethod
@@ -169,6 +171,12 @@ class BoresightCalibrator:
             if pair is None:                            # not enough gyro data around t0: skip this pair
                 self._prev_fix, self._last_fix = None, fix
                 continue
+            key = self.pair_key(pair)
+            if key in self._pair_keys:                  # the same stamps again (a replay): nothing new
+                self.replayed_pairs += 1
+                self._prev_fix, self._last_fix = None, fix
+                continue
+            self._pair_keys.add(key)
             self.pairs.append(pair)
             d, sig = angle_consistency(pair)
             self._angle_ratios.append(d / sig if sig > 0 else 0.0)
@@ -180,7 +188,30 @@ class BoresightCalibrator:
             self._gyro.drop_first(int(np.searchsorted(self._gyro.stamps, keep)) - 3)
         if self.max_pairs and len(self.pairs) > self.max_pairs:
             del self.pairs[:len(self.pairs) - self.max_pairs]
+        if len(self._pair_keys) > 2 * len(self.pairs) + 1000:    # bounded: the keys of pairs held
+            self._pair_keys = {self.pair_key(pr) for pr in self.pairs}
         return new
+
+    # --- identity of pairs and the fix chain (the state file) -----------------------------------
+    @staticmethod
+    def pair_key(pair: IncrementPair) -> tuple[int, int]:
+        """(t_start, t_end) of a pair in integer ns: the identity of a pair across restarts."""
+        return int(round(pair.t_start * 1e9)), int(round(pair.t_end * 1e9))
+
+    def add_pair_keys(self, pairs) -> None:
+        """Hold the keys of ``pairs`` (restored from a state file): pairs with the same stamps
+        are not formed again."""
+        self._pair_keys.update(self.pair_key(pr) for pr in pairs)
+
+    @property
+    def last_fix(self):
+        """(stamp s, q_GCRS_VF, P) of the fix that starts the next pair, or None."""
+        return self._last_fix
+
+    def restore_last_fix(self, stamp: float, q_gcrs_vf, covariance) -> None:
+        """Resume the fix chain from a stored fix (the state file)."""
+        self._last_fix = (float(stamp), np.asarray(q_gcrs_vf, dtype=float), np.asarray(covariance, dtype=float))
+        self._prev_fix = None
 
     def _drop_outlier_fix(self, fix) -> int:
         """The outlier rule: fix n (= _last_fix) is an outlier when both its pairs, (n−1, n) and
@@ -207,6 +238,7 @@ class BoresightCalibrator:
             return 0                                    # not one bad fix: leave it to the estimator
         del self.pairs[-2:]
         self.pairs.append(skip)
+        self._pair_keys.add(self.pair_key(skip))
         self.outlier_fixes += 1
         self.outlier_stamps.append(self._last_fix[0])
         self._last_fix = self._prev_fix                 # the bad fix never starts a pair
@@ -246,84 +278,3 @@ class BoresightCalibrator:
     def common_rotation_sigma(self) -> float:
         """σ per axis of the gyro-triad rotation (antisymmetric misalignment), σ_φ/√2."""
         return self.gyro.misalignment_sigma / np.sqrt(2.0) if self.gyro is not None else 0.0
-
-
-# ----------------------------------------------------------------------------- persistence
-STATE_VERSION = 1
-_PAIR_FIELDS = ("t_start", "t_end", "dq_imu", "dq_cam", "cov_imu", "cov_cam", "imu_sensitivity", "cov_imu_white",
-                "cov_fix_start", "cov_fix_end")
-
-
-def save_state(path: str, cal: BoresightCalibrator, origin_ns: int, extra: dict | None = None) -> None:
-    """Write the calibrator's pairs, last fix and estimate to ``path`` atomically: a temporary
-    file in the same directory, flushed and fsynced, then renamed over the old one (a crash
-    leaves the old file or the new one, never half of either).  numpy .npz, no pickle."""
-    import os
-    import tempfile
-
-    arrays = {"version": np.array(STATE_VERSION), "origin_ns": np.array(int(origin_ns), dtype=np.int64),
-              "n_pairs": np.array(len(cal.pairs))}
-    for f in _PAIR_FIELDS:
-        vals = [getattr(p, f) for p in cal.pairs]
-        if vals and all(v is not None for v in vals):
-            arrays["pair_" + f] = np.array(vals, dtype=float)
-    if cal._last_fix is not None:
-        t, q, P = cal._last_fix
-        arrays["last_fix_t"], arrays["last_fix_q"], arrays["last_fix_P"] = np.array(t), np.asarray(q), np.asarray(P)
-    sol = cal.solution
-    if sol is not None and sol.observable and sol.beta is not None:
-        arrays["beta"] = np.asarray(sol.beta, dtype=float)
-    for k, v in (extra or {}).items():
-        arrays["extra_" + k] = np.asarray(v)
-    d = os.path.dirname(os.path.abspath(path))
-    fd, tmp = tempfile.mkstemp(prefix=".calibrator_state_", suffix=".npz", dir=d)
-    try:
-        with os.fdopen(fd, "wb") as fh:
-            np.savez(fh, **arrays)
-            fh.flush()
-            os.fsync(fh.fileno())
-        os.replace(tmp, path)
-        try:                                       # make the rename itself durable
-            dfd = os.open(d, os.O_RDONLY)
-            os.fsync(dfd)
-            os.close(dfd)
-        except OSError:
-            pass
-    except BaseException:
-        try:
-            os.unlink(tmp)
-        except OSError:
-            pass
-        raise
-
-
-def load_state(path: str, cal: BoresightCalibrator) -> tuple[int, dict]:
-    """Restore pairs and last fix from ``path`` into ``cal``; returns (origin_ns, extra).  Raises
-    ValueError naming what is wrong with a corrupted or incompatible file (nothing restored)."""
-    try:
-        with np.load(path, allow_pickle=False) as z:
-            data = {k: z[k] for k in z.files}
-    except Exception as exc:                       # noqa: BLE001 - any unreadable file is reported
-        raise ValueError(f"unreadable ({type(exc).__name__}: {exc})") from None
-    if int(data.get("version", -1)) != STATE_VERSION:
-        raise ValueError(f"state version {data.get('version')} is not {STATE_VERSION}")
-    n = int(data["n_pairs"])
-    shapes = {"t_start": (), "t_end": (), "dq_imu": (4,), "dq_cam": (4,), "cov_imu": (3, 3), "cov_cam": (3, 3),
-              "imu_sensitivity": (3, 12), "cov_imu_white": (3, 3), "cov_fix_start": (3, 3), "cov_fix_end": (3, 3)}
-    pairs_fields = {}
-    for f, shape in shapes.items():
-        a = data.get("pair_" + f)
-        if a is None:
-            if f in ("t_start", "t_end", "dq_imu", "dq_cam", "cov_imu", "cov_cam") and n:
-                raise ValueError(f"missing pair field {f}")
-            continue
-        if a.shape != (n,) + shape or not np.all(np.isfinite(a)):
-            raise ValueError(f"pair field {f} has shape {a.shape} (expected {(n,) + shape}) or non-finite values")
-        pairs_fields[f] = a
-    pairs = [IncrementPair(**{f: (float(a[i]) if a.ndim == 1 else a[i].copy()) for f, a in pairs_fields.items()})
-             for i in range(n)]
-    cal.pairs = pairs
-    if "last_fix_t" in data:
-        cal._last_fix = (float(data["last_fix_t"]), data["last_fix_q"].astype(float), data["last_fix_P"].astype(float))
-    extra = {k[len("extra_"):]: v for k, v in data.items() if k.startswith("extra_")}
-    return int(data["origin_ns"]), extra

@@ -515,25 +515,79 @@ def test_inconsistent_noise_is_a_warn_with_the_reason(ros):
 
 def test_restart_resumes_the_same_estimate_and_a_corrupted_state_is_moved_aside(ros, tmp_path):
     """Issue 9, restart without loss: the pairs and estimate persist to state_file (atomic, after
-    every new pair); a restarted node resumes the same estimate and republishes it latched; a
-    corrupted file is reported and moved aside, never used."""
+    every new pair); a restarted node resumes the same estimate and republishes it latched;
+    replaying the same recording into it adds no pair (Reliability finding 8); a corrupted file
+    is reported and moved aside, never used; no temporary is left behind."""
     state = str(tmp_path / "calib_state.npz")
-    beta, _, _ = _node_estimate("/t_state_a", poison=False, params=[Parameter("state_file", value=state)])
-    assert os.path.exists(state) and not [f for f in os.listdir(tmp_path) if f.startswith(".calibrator_state_")]
-    node = CalibratorNode(namespace="/t_state_b", parameter_overrides=[Parameter("state_file", value=state)])
+    beta, _, _ = _node_estimate("/t_state", poison=False, params=[Parameter("state_file", value=state)])
+    assert sorted(os.listdir(tmp_path)) == ["calib_state.npz", "calib_state.npz.lock"]
+    node = CalibratorNode(namespace="/t_state", parameter_overrides=[Parameter("state_file", value=state)])
     try:
         assert node.state["restored_pairs"] == 32 and node.published["boresight"] == 1     # 33 fixes
         np.testing.assert_allclose(node.valid.beta, beta, rtol=0, atol=1e-12)
     finally:
         node.destroy_node()
+    node = _node_estimate("/t_state", poison=False, params=[Parameter("state_file", value=state)], keep=True)
+    try:                                          # the same recording replayed into the resumed node
+        assert len(node.cal.pairs) == 32 and node.cal.replayed_pairs == 32 and node.state["errors"] == 0
+        np.testing.assert_allclose(node.valid.beta, beta, rtol=0, atol=1e-12)
+    finally:
+        node.destroy_node()
     with open(state, "wb") as fh:
         fh.write(b"not a state file")
-    node = CalibratorNode(namespace="/t_state_c", parameter_overrides=[Parameter("state_file", value=state)])
+    node = CalibratorNode(namespace="/t_state", parameter_overrides=[Parameter("state_file", value=state)])
     try:
         assert node.state["errors"] == 1 and node.cal.pairs == [] and node.published["boresight"] == 0
         assert not os.path.exists(state) and os.path.exists(state + ".corrupt")
     finally:
         node.destroy_node()
+
+
+def test_state_file_identity_lock_and_paths(ros, tmp_path):
+    """Reliability finding 8 in the node: a state of another calibration (another camera frame)
+    is refused with the reason and left as it is; a second node on the same file gets an ERROR
+    and runs without persistence; a directory (with or without a trailing slash) is refused and
+    never moved."""
+    state = str(tmp_path / "s.npz")
+    _node_estimate("/t_sid", poison=False, params=[Parameter("state_file", value=state)])
+    before = open(state, "rb").read()
+
+    def diag(node):
+        sent = []
+        node.pub_diag.publish = sent.append
+        node.publish_diagnostics()
+        st = sent[-1].status[0]
+        return st, {v.key: v.value for v in st.values}
+
+    other = CalibratorNode(namespace="/t_sid", parameter_overrides=[
+        Parameter("state_file", value=state), Parameter("camera_frame_id", value="camera2")])
+    try:
+        st, kv = diag(other)
+        assert other.cal.pairs == [] and kv["state_persisting"] == "False" and st.level == b"\x02"
+        assert "refused" in st.message and "camera_frame_id" in st.message
+    finally:
+        other.destroy_node()
+    assert open(state, "rb").read() == before
+    first = CalibratorNode(namespace="/t_sid", parameter_overrides=[Parameter("state_file", value=state)])
+    second = CalibratorNode(namespace="/t_sid", parameter_overrides=[Parameter("state_file", value=state)])
+    try:
+        assert first.state["persisting"] and first.state["restored_pairs"] == 32
+        st, kv = diag(second)
+        assert kv["state_persisting"] == "False" and st.level == b"\x02" and "in use" in st.message
+        assert second.cal.pairs == []
+    finally:
+        second.destroy_node()
+        first.destroy_node()
+    d = tmp_path / "adir"
+    d.mkdir()
+    for path in (str(d), str(d) + "/"):
+        node = CalibratorNode(namespace="/t_sid", parameter_overrides=[Parameter("state_file", value=path)])
+        try:
+            st, kv = diag(node)
+            assert kv["state_persisting"] == "False" and ("directory" in st.message or "separator" in st.message)
+        finally:
+            node.destroy_node()
+    assert d.is_dir() and not [f for f in os.listdir(tmp_path) if "corrupt" in f]
 
 
 def test_one_input_path_node_and_calibrate_bag_agree_on_a_hostile_stream(ros, tmp_path):

@@ -68,7 +68,8 @@ from rclpy.node import Node
 from ..boresight import FIT_LEVEL, imu_attitude_from_camera
 from ..config import CALIBRATOR_PARAMS
 from ..streams import StreamCheck
-from ..calibrator import BoresightCalibrator, load_state, save_state
+from ..calibrator import BoresightCalibrator
+from ..calibrator_state import CalibratorStateFile, StateFileError, state_identity
 from . import ros_io
 from .ros_io import camera_qos, latched_qos, pose_with_covariance, rotation_block
 
@@ -129,10 +130,14 @@ class CalibratorNode(Node):
             self.create_subscription(QuaternionStamped, "star_camera/attitude", self._on_camera_plain,
                                      camera_qos(int(p["qos_depth"])), qos_overriding_options=ros_io.QOS_OVERRIDES)
         self.create_timer(float(p["diagnostics_period"]), self.publish_diagnostics)
-        self.state = {"file": p["state_file"], "saves": 0, "restored_pairs": 0, "errors": 0, "moved_aside": ""}
-        if p["state_file"]:
-            self._restore_state()
+        self.state = {"file": p["state_file"], "saves": 0, "restored_pairs": 0, "errors": 0, "moved_aside": "",
+                      "problem": "", "persisting": False}
+        self.state_file: CalibratorStateFile | None = None
         camera_topic = "star_camera/attitude_with_covariance" if self.use_cov else "star_camera/attitude"
+        if p["state_file"]:
+            streams = {"gyro": self.resolve_topic_name("imu/delta_theta"),
+                       "camera": self.resolve_topic_name(camera_topic)}
+            self._restore_state(state_identity(dict(p), streams))
         self.get_logger().info(
             f"started: camera input {camera_topic}, weighted={p['weighted']}, covariance_model={p['covariance_model']}, "
             f"min_rotation {p['min_rotation_deg']:g}°, max_sigma {p['max_sigma']:g} rad, max_pairs {p['max_pairs']}")
@@ -261,24 +266,33 @@ class CalibratorNode(Node):
             self._publish_imu_attitudes()
 
     # --- persistence ---------------------------------------------------------------------------
-    def _restore_state(self):
-        """Resume from ``state_file``: its pairs, last fix and time origin; the estimate is solved
-        again and republished latched.  A corrupted or incompatible file is moved aside."""
+    def _restore_state(self, identity: dict):
+        """Resume from ``state_file`` (strapdown_ros.calibrator_state: identity, lock, atomic
+        writes): its pairs, last fix and time origin; the estimate is solved again and
+        republished latched.  A file that cannot be used is reported (ERROR) and the node runs
+        without persistence; only an unreadable regular file is moved aside."""
         path = self.state["file"]
-        if not os.path.exists(path):
+        sf = CalibratorStateFile(path, identity)
+        try:
+            sf.open()
+        except StateFileError as exc:
+            self._state_problem(str(exc))
             return
         try:
-            origin, _ = load_state(path, self.cal)
-        except ValueError as exc:
-            k, aside = 0, f"{path}.corrupt"
-            while os.path.exists(aside):
-                k += 1
-                aside = f"{path}.corrupt.{k}"
-            os.replace(path, aside)
-            self.state["errors"] += 1
-            self.state["moved_aside"] = aside
-            self.cal.pairs, self.cal._last_fix = [], None
-            self.get_logger().error(f"state file {path} not used: {exc}; moved aside to {aside}")
+            origin = sf.load(self.cal)
+        except StateFileError as exc:
+            if exc.kind == "corrupt":
+                aside = sf.move_aside()
+                self.state["moved_aside"] = aside
+                self._state_problem(f"state file {path} not used: {exc}; moved aside to {aside}; starting afresh")
+                self.state_file, self.state["persisting"] = sf, True
+            else:
+                sf.close()
+                self._state_problem(f"state file {path} refused: {exc}; running without persistence "
+                                    "(remove the file or point state_file elsewhere)")
+            return
+        self.state_file, self.state["persisting"] = sf, True
+        if origin is None:
             return
         self.origin_ns = origin
         self.state["restored_pairs"] = len(self.cal.pairs)
@@ -286,13 +300,27 @@ class CalibratorNode(Node):
         if len(self.cal.pairs) >= 2:
             self._solve()
 
+    def _state_problem(self, message: str):
+        self.state["errors"] += 1
+        self.state["problem"] = message[:300]
+        self.get_logger().error(message)
+
     def _save_state(self):
+        if self.state_file is None:
+            return
         try:
-            save_state(self.state["file"], self.cal, self.origin_ns)
+            self.state_file.save(self.cal, self.origin_ns)
             self.state["saves"] += 1
         except OSError as exc:
             self.state["errors"] += 1
+            self.state["problem"] = f"cannot write state file {self.state['file']}: {exc}"[:300]
             self.get_logger().error(f"cannot write state file {self.state['file']}: {exc}", throttle_duration_sec=30.0)
+
+    def destroy_node(self):
+        if self.state_file is not None:
+            self.state_file.close()
+            self.state_file = None
+        return super().destroy_node()
 
     # --- estimate ------------------------------------------------------------------------------
     def _after_input(self, new_pairs: int):
@@ -301,7 +329,7 @@ class CalibratorNode(Node):
         if self.gaps:
             self._discard_pairs_over_gaps(new_pairs)
         self._solve()
-        if self.state["file"]:
+        if self.state_file is not None:
             self._save_state()                      # at most once per new pair
 
     def _discard_pairs_over_gaps(self, new_pairs: int):
@@ -427,6 +455,8 @@ class CalibratorNode(Node):
                        "gyro_history_overflowed": self.cal._gyro.overflowed,
                        "state_file": self.state["file"] or "off", "state_saves": self.state["saves"],
                        "state_restored_pairs": self.state["restored_pairs"], "state_errors": self.state["errors"],
+                       "state_persisting": self.state["persisting"], "state_problem": self.state["problem"] or "none",
+                       "pairs_replayed_not_added": self.cal.replayed_pairs,
                        **{f"camera_{k}": v for k, v in self.camera_counts.items()}})
         mism = self.gyro_frame_mismatch + self.camera_counts["frame_mismatch"]
         if mism and level == ros_io.OK:
@@ -447,8 +477,8 @@ class CalibratorNode(Node):
             message = f"{message}; dropped {g_drop} gyro and {c_drop} camera messages"
         if self.state["errors"]:
             level = ros_io.ERROR
-            message = (f"{message}; state file: {self.state['errors']} error(s)"
-                       + (f", a bad one moved aside to {self.state['moved_aside']}" if self.state["moved_aside"] else ""))
+            message = (f"{message}; state file: {self.state['errors']} error(s): {self.state['problem']}"
+                       + ("" if self.state["persisting"] else " (no persistence)"))
         if g.bursts:
             level = ros_io.ERROR
             message = (f"{message}; {g.burst_messages} gyro increment(s) in {g.bursts} burst(s) stamped off the "
