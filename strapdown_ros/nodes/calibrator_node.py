@@ -31,7 +31,9 @@ Publishes, only while the boresight is observable and the solver converged:
 * ``/diagnostics``  every ``diagnostics_period``: the frames (``camera_frame_id`` in
   ``frame_id``: the pose message has no child-frame field, and no tf is broadcast), pairs,
   observability (level WARN and the solver's reason when not observable), residual RMS,
-  iterations, χ²/dof, β and its σ, the processing time of the last solve (perf_counter, ms;
+  iterations, χ²/dof with its two-sided band at level 0.01 and ``fit_consistent`` (WARN
+  ``FIT INCONSISTENT`` outside the band: the stated noise is wrong or the model lacks an
+  effect), β and its σ, the processing time of the last solve (perf_counter, ms;
   not used for timing), and the input counters.
 
 When the boresight is not observable nothing is published on the calibration topics; the
@@ -49,13 +51,17 @@ covariance whose rotation block is all zero (the ROS "unknown") is replaced by t
 is dropped.  Stamps are handled in integer nanoseconds relative to the first stamp seen on
 any input; timing comes only from header stamps.
 
+``state_file`` (strapdown_ros.calibrator_state): the pairs persist with their identity (the
+parameters that define the estimate, the frames, the resolved topics); a file of another
+calibration is refused and left as it is; a replay adds no pair (pairs keyed by stamps); a lock
+file keeps a second node off it (ERROR, no persistence); a directory is refused, never moved.
+
 Only ``weighted`` may change at runtime (the estimate is recomputed at once); every other
 parameter is fixed after start-up.
 """
 from __future__ import annotations
 
 import math
-import os
 import sys
 import time
 from collections import deque

@@ -25,6 +25,13 @@ Output (``--json FILE``, also printed as a human summary)::
 ``q_mf_vf_xyzw`` is C_MF^VF (maps VF coordinates to MF coordinates) as a ROS quaternion;
 ``rotation_covariance_mf_rad2`` is the covariance of its error in MF axes (004 eq. 8);
 ``covariance_rad2`` that of β.  Not observable: those are null and the exit status is 3.
+``chi2_per_dof`` (stated noise, dof 3n − 3) is judged against its two-sided band at level 0.01
+(``chi2_per_dof_band``): ``fit_consistent``.  When false, a line starting ``WARNING:`` goes to
+stderr (χ²/dof, band, meaning; ``beta_sigma_rad`` is ``beta_sigma_stated_noise_rad`` scaled by
+√(χ²/dof)) and the summary lines of β are prefixed ``UNTRUSTED``; the exit status stays 0.
+Stamp faults are the nodes' (``strapdown_ros.streams``): dropouts and stamp bursts are gaps
+(``gyro_gaps``), a burst's messages are removed (``dropped.gyro.stamp_burst``), each time base
+after a resynchronisation is calibrated separately.
 Exit status: 0 solved, 2 bad arguments/parameters/bag, 3 not observable, 4 no convergence.
 """
 from __future__ import annotations
