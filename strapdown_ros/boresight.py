@@ -28,6 +28,7 @@ Two remarks on the printed formulas, with evidence in ``test/test_boresight.py``
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -165,22 +166,65 @@ def angle_consistency(pair: IncrementPair) -> tuple[float, float]:
 FIT_LEVEL = 0.01
 
 
+def _gamma_p(a: float, x: float) -> float:
+    """Regularised lower incomplete gamma P(a, x): the series below a + 1, Lentz's continued
+    fraction for Q = 1 − P above (Numerical Recipes §6.2)."""
+    if x <= 0.0:
+        return 0.0
+    log_pre = a * math.log(x) - x - math.lgamma(a)
+    if x < a + 1.0:
+        term = total = 1.0 / a
+        ap = a
+        for _ in range(100000):
+            ap += 1.0
+            term *= x / ap
+            total += term
+            if abs(term) < abs(total) * 1e-15:
+                break
+        return min(1.0, total * math.exp(log_pre))
+    tiny = 1e-300
+    b = x + 1.0 - a
+    c, d = 1.0 / tiny, 1.0 / b
+    h = d
+    for k in range(1, 100000):
+        an = -k * (k - a)
+        b += 2.0
+        d = an * d + b
+        d = tiny if abs(d) < tiny else d
+        c = b + an / c
+        c = tiny if abs(c) < tiny else c
+        d = 1.0 / d
+        h *= d * c
+        if abs(d * c - 1.0) < 1e-15:
+            break
+    return max(0.0, 1.0 - math.exp(log_pre) * h)
+
+
+def _chi2_quantile(p: float, dof: int) -> float:
+    """x with P(χ²_dof ≤ x) = p: Newton's method on the exact distribution function from the
+    Wilson–Hilferty start (no scipy: the node must not pay its import inside a callback)."""
+    from statistics import NormalDist
+    a = 0.5 * dof
+    c = 2.0 / (9.0 * dof)
+    x = dof * max(1e-3, 1.0 - c + NormalDist().inv_cdf(p) * math.sqrt(c)) ** 3
+    for _ in range(50):
+        log_pdf = (a - 1.0) * math.log(x) - 0.5 * x - a * math.log(2.0) - math.lgamma(a)
+        step = (_gamma_p(a, 0.5 * x) - p) / math.exp(log_pdf)
+        x_new = x - step if x - step > 0 else 0.5 * x
+        if abs(x_new - x) <= 1e-12 * x:
+            return x_new
+        x = x_new
+    return x
+
+
 def chi2_band(dof: int, level: float = FIT_LEVEL) -> tuple[float, float]:
     """The two-sided acceptance band of χ²/dof for ``dof`` degrees of freedom at ``level``:
     (χ²_{level/2}(dof)/dof, χ²_{1−level/2}(dof)/dof).  A weighted least-squares fit whose
-    stated noise is right lands inside with probability 1 − level.  scipy's quantiles when
-    scipy is installed, else the Wilson–Hilferty approximation (relative error < 1% of the
-    quantile for dof ≥ 3).  (nan, nan) for dof < 1."""
+    stated noise is right lands inside with probability 1 − level.  Exact quantiles (numpy
+    only, checked against scipy in test_boresight.py).  (nan, nan) for dof < 1."""
     if dof < 1:
         return float("nan"), float("nan")
-    try:
-        from scipy.stats import chi2
-        return float(chi2.ppf(level / 2, dof)) / dof, float(chi2.ppf(1 - level / 2, dof)) / dof
-    except ImportError:                              # numpy-only install: Wilson–Hilferty
-        from statistics import NormalDist
-        z = NormalDist().inv_cdf(1 - level / 2)
-        c = 2.0 / (9.0 * dof)
-        return tuple(max(0.0, 1 - c + sgn * z * np.sqrt(c)) ** 3 for sgn in (-1.0, 1.0))
+    return _chi2_quantile(level / 2, dof) / dof, _chi2_quantile(1 - level / 2, dof) / dof
 
 
 # ---------------------------------------------------------------------- §4 the estimate
