@@ -396,3 +396,34 @@ def test_an_outlier_fix_is_still_gated_when_the_sigma_is_wrong(tmp_path):
     r = json.loads(f.read_text())
     assert r["camera_fixes"]["outliers_dropped"] == 1
     assert r["camera_fixes"]["outlier_stamps_s"] == [pytest.approx(60.0)] and r["pairs"] == 32
+
+
+def test_a_clock_reset_of_both_streams_calibrates_each_time_base(tmp_path):
+    """A confirmed resynchronisation offline: both clocks jump 5000 s ahead at t = 85 s (beyond
+    3600 s: a clock change, not a dropout).  Each time base is calibrated on its own, as
+    calibrator_node restarts its gyro history: no pair spans the reset, none is lost but the one
+    across it, and β is the truth's."""
+    from rosbags.rosbag2 import Reader, Writer
+    from rosbags.typesys import Stores, get_typestore
+
+    clean = tmp_path / "clean"
+    assert record_sim.main([str(clean), "--no-accel", "-p", "profile:=bench", "-p", "camera_interval:=5.0",
+                            "-p", BETA_ARG]) == 0
+    store = get_typestore(Stores.ROS2_JAZZY)
+    reset = tmp_path / "reset"
+    with Reader(clean) as rd, Writer(reset, version=Writer.VERSION_LATEST) as wr:
+        conns = {c.id: wr.add_connection(c.topic, c.msgtype, typestore=store) for c in rd.connections}
+        for c, t, raw in rd.messages():
+            if t > 85 * 10**9 - 5_000_000 and c.topic in ("/imu/delta_theta", "/star_camera/attitude_with_covariance"):
+                m = store.deserialize_cdr(raw, c.msgtype)
+                m.header.stamp.sec += 5000
+                raw = store.serialize_cdr(m, c.msgtype)
+            wr.write(conns[c.id], t, raw)
+    f = tmp_path / "r.json"
+    assert calibrate_bag.main([str(reset), "--json", str(f)]) == 0
+    r = json.loads(f.read_text())
+    assert r["stamp_resyncs"] == {"gyro": 1, "camera": 1}
+    assert r["pairs"] == 33 - 1                      # fixes 5..80 s and 85..170 s: 15 + 17 pairs
+    q_true = dcm_to_quat(ypr_to_dcm(*BETA))
+    e = quat_error_rotvec(from_ros_xyzw(np.array(r["q_mf_vf_xyzw"])), q_true, frame="reference")
+    assert np.all(np.abs(e) < 3 * np.sqrt(np.diag(r["rotation_covariance_mf_rad2"]))), e / ARCSEC

@@ -218,6 +218,25 @@ def read_bag(path: str | Path, namespace: str = "", use_camera_covariance: bool 
             "frames": {k: sorted(v) for k, v in frames.items()}}
 
 
+def _match_segments(tg, g_segs, tc, c_segs) -> list[tuple[int, int]]:
+    """Which gyro time base goes with which camera time base, in order.  As many of each (a
+    clock reset of both streams, the usual case): the k-th with the k-th.  Otherwise (one
+    stream resynchronised alone) by overlapping stamp ranges, walking both lists forward."""
+    if len(g_segs) == len(c_segs):
+        return [(k, k) for k in range(len(g_segs))]
+    out, i, j = [], 0, 0
+    while i < len(g_segs) and j < len(c_segs):
+        g_lo, g_hi = tg[g_segs[i][0]], tg[g_segs[i][1] - 1]
+        c_lo, c_hi = tc[c_segs[j][0]], tc[c_segs[j][1] - 1]
+        if g_hi >= c_lo and c_hi >= g_lo:
+            out.append((i, j))
+        if g_hi <= c_hi:                               # the segment that ends first is done
+            i += 1
+        if c_hi <= g_hi:
+            j += 1
+    return out
+
+
 def calibrate(data: dict, p: dict):
     """Feed the calibrator as calibrator_node is fed — gyro and fixes interleaved in stamp order —
     and solve; returns (solution, calibrator, pairs discarded over gyro gaps and stamp jumps).
@@ -225,10 +244,11 @@ def calibrate(data: dict, p: dict):
 
     Each stream is split into its time bases (``strapdown_ros.streams.segments``: a confirmed
     resynchronisation starts a new one; a burst that returned has already been removed by
-    ``validate``).  Gyro and camera segments are matched in order by overlapping stamp ranges;
+    ``validate``).  Gyro and camera segments are matched in order (the k-th with the k-th);
     the calibrator restarts its gyro history (``restart_gyro``, as calibrator_node does on a
     resynchronisation) at every gyro segment and its fix chain at every camera segment, so no
-    pair spans a jump and no stamp array handed to the search is out of order."""
+    pair spans a jump and no stamp array handed to the search is out of order (segments matched
+    by :func:`_match_segments`)."""
     g, c = data["gyro"], data["camera"]
     t0 = min(g.stamps[0], c.stamps[0])                 # origin: float seconds keep ns resolution
     cal = make_calibrator(p)
@@ -241,48 +261,37 @@ def calibrate(data: dict, p: dict):
     g_segs = segments(g.stamps, getattr(g.check, "segment_starts", []))
     c_segs = segments(c.stamps, getattr(c.check, "segment_starts", []))
     discarded = 0
-    i = j = 0
     cur_g = cur_c = None                               # segments the calibrator is fed from
     k = 0                                              # gyro samples of segment cur_g fed so far
-    while i < len(g_segs) and j < len(c_segs):
+    for i, j in _match_segments(tg, g_segs, tc, c_segs):
         (ga, gb), (ca, cb) = g_segs[i], c_segs[j]
         seg_t, seg_v = tg[ga:gb], vg[ga:gb]
-        g_hi, c_hi = seg_t[-1], tc[cb - 1]
-        if g_hi >= tc[ca] and c_hi >= seg_t[0]:       # the two time bases overlap: pair them up
-            if cur_g != i:
-                if cur_g is not None:
-                    cal.restart_gyro()
-                cur_g, k = i, 0
-            if cur_c is not None and cur_c != j:
-                cal.restart_camera()
-            cur_c = j
-            gaps = [(seg_t[n], seg_t[n + 1]) for n in np.flatnonzero(np.diff(seg_t) > 1.5 * period)]
-            for t, (q, P) in zip(tc[ca:cb], c.values[ca:cb]):
-                if t < seg_t[0] or t > g_hi:
-                    continue                           # outside the gyro segment: no pair can use it
-                k1 = int(np.searchsorted(seg_t, t + lead, side="right"))
-                new = 0
-                if k1 > k:
-                    new = cal.add_gyro(seg_t[k:k1], seg_v[k:k1])
-                    k = k1
-                new += cal.add_camera(t, q, P)
-                if new and gaps:                       # as calibrator_node._discard_pairs_over_gaps
-                    tail = cal.pairs[len(cal.pairs) - new:]
-                    keep = [pr for pr in tail if not any(pr.t_start - h < b and a < pr.t_end + h for a, b in gaps)]
-                    discarded += len(tail) - len(keep)
-                    del cal.pairs[len(cal.pairs) - new:]
-                    cal.pairs.extend(keep)
-        if g_hi <= c_hi:                               # the segment that ends first is done
-            if cur_g == i and k < len(seg_t):
-                cal.add_gyro(seg_t[k:], seg_v[k:])
-                k = len(seg_t)
-            i += 1
-        if c_hi <= g_hi:
-            j += 1
-    if cur_g is not None and cur_g == i < len(g_segs):  # fixes still waiting for gyro coverage
-        ga, gb = g_segs[i]
-        if ga + k < gb:
-            cal.add_gyro(tg[ga + k:gb], vg[ga + k:gb])
+        if cur_g != i:
+            if cur_g is not None:
+                cal.restart_gyro()
+            cur_g, k = i, 0
+        if cur_c is not None and cur_c != j:
+            cal.restart_camera()
+        cur_c = j
+        gaps = [(seg_t[n], seg_t[n + 1]) for n in np.flatnonzero(np.diff(seg_t) > 1.5 * period)]
+        for t, (q, P) in zip(tc[ca:cb], c.values[ca:cb]):
+            if t < seg_t[0] or t > seg_t[-1]:
+                continue                               # outside the gyro segment: no pair can use it
+            k1 = int(np.searchsorted(seg_t, t + lead, side="right"))
+            new = 0
+            if k1 > k:
+                new = cal.add_gyro(seg_t[k:k1], seg_v[k:k1])
+                k = k1
+            new += cal.add_camera(t, q, P)
+            if new and gaps:                           # as calibrator_node._discard_pairs_over_gaps
+                tail = cal.pairs[len(cal.pairs) - new:]
+                keep = [pr for pr in tail if not any(pr.t_start - h < b and a < pr.t_end + h for a, b in gaps)]
+                discarded += len(tail) - len(keep)
+                del cal.pairs[len(cal.pairs) - new:]
+                cal.pairs.extend(keep)
+        if k < len(seg_t):                             # fixes still waiting for gyro coverage
+            cal.add_gyro(seg_t[k:], seg_v[k:])
+            k = len(seg_t)
     return cal.solve(), cal, discarded
 
 
