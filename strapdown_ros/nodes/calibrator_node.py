@@ -423,9 +423,11 @@ class CalibratorNode(Node):
             lo, hi = sol.chi2_band
             if ok and sol.fit_consistent is False:
                 level = ros_io.WARN
+                sig = (f"the published σ is scaled by √(χ²/dof) = {math.sqrt(chi2):.3g}" if sol.weighted else
+                       "the published σ comes from the residual scatter (unweighted)")
                 what = ("the stated noise is too small or the model lacks an effect (outliers, an unmodelled "
-                        f"error: run discrepancy on a recording); the published σ is scaled by √(χ²/dof) = "
-                        f"{math.sqrt(chi2):.3g}" if chi2 > hi else "the stated noise is too large (σ pessimistic)")
+                        f"error: run discrepancy on a recording); {sig}" if chi2 > hi else
+                        "the stated noise is too large (σ pessimistic)")
                 message = (f"{message}; FIT INCONSISTENT: χ²/dof = {chi2:.3g} outside its band [{lo:.3g}, {hi:.3g}] "
                            f"(dof {sol.dof}, level {FIT_LEVEL:g}): {what}")
             elif ok and np.isfinite(chi2) and chi2 > float(self.p["max_chi2_per_dof"]):

@@ -365,6 +365,10 @@ def _summary(bag: str, data: dict, result: dict, p: dict) -> str:
         lines.append(f"  GYRO GAPS: {gg['gaps']} gap(s){' (' + ', '.join(extra) + ')' if extra else ''}, "
                      f"{gg['missing']} increment(s) missing (rotation lost); "
                      f"{gg['pairs_discarded']} pair(s) spanning them discarded")
+    rs = result.get("stamp_resyncs", {})
+    if any(rs.values()):
+        lines.append(f"  STAMP RESYNCS: gyro {rs.get('gyro', 0)}, camera {rs.get('camera', 0)} (clock resets): each "
+                     "time base calibrated on its own, no pair spans a reset")
     notes = [f"{n.replace('_', ' ')} {v}" for n, v in fx.items() if v and not isinstance(v, list)]
     if notes:
         lines.append("  camera fixes: " + ", ".join(notes))
@@ -396,11 +400,16 @@ def consistency_warning(result: dict) -> str | None:
     if chi2 > hi:
         scale = float(np.sqrt(chi2))
         stated = result.get("beta_sigma_stated_noise_rad")
-        shown = ("; σ with the stated noise " + ", ".join(f"{v * ARCSEC_PER_RAD:.3g}″" for v in stated)
-                 if stated and result["weighted"] else "")
+        if result["weighted"]:
+            shown = (f"the σ reported for β are scaled by √(χ²/dof) = {scale:.3g}"
+                     + ("; σ with the stated noise " + ", ".join(f"{v * ARCSEC_PER_RAD:.3g}″" for v in stated)
+                        if stated else ""))
+        else:
+            shown = (f"the σ reported for β come from the residual scatter (004 §4.3, unweighted), "
+                     f"a scatter √(χ²/dof) = {scale:.3g} times the stated noise")
         return (f"WARNING: χ²/dof = {chi2:.3g} is above {band}: the stated noise is too small or the model "
-                f"lacks an effect (outliers, an unmodelled error); the σ reported for β are scaled by "
-                f"√(χ²/dof) = {scale:.3g}{shown}.  Do not use the estimate as calibrated.")
+                f"lacks an effect (outliers, an unmodelled error); {shown}.  Do not use the estimate as "
+                f"calibrated.")
     return (f"WARNING: χ²/dof = {chi2:.3g} is below {band}: the stated noise is too large (the σ "
             f"reported for β, from the stated noise, are pessimistic; not scaled down).")
 
@@ -454,6 +463,7 @@ def main(argv=None) -> int:
     result["gyro_gaps"] = {"gaps": g.check.gaps, "missing": g.missing, "pairs_discarded": discarded,
                            "dropouts": g.check.dropouts, "stamp_bursts": g.check.bursts}
     result["stamp_resyncs"] = {"gyro": g.resyncs, "camera": c.resyncs}
+    result["pairs_replayed_not_added"] = cal.replayed_pairs         # stamps of a pair already held
     result["gyro_rate_from_stamps_hz"] = _num(1.0 / data["gyro_period_s"]) if np.isfinite(data["gyro_period_s"]) else None
     result["camera_fixes"] = {k: data["camera_fixes"][k] for k in ("normalised", "covariance_substituted")}
     result["camera_fixes"]["outliers_dropped"] = cal.outlier_fixes
