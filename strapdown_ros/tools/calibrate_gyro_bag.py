@@ -24,6 +24,11 @@ parameters that ``sins_node`` and ``calibrator_node`` compensate (ρ = (I + M)�
 model's other effects (bias drift, scale asymmetry, camera time offset, ...) are compensated
 before the estimation and kept.  Existing output files need ``--force``.
 
+The fit is judged against its stated noise (camera covariance, gyro random walk): χ²/dof and its
+two-sided band at level 0.01 (``chi2_per_dof_band``), ``fit_consistent``.  Outside the band a
+line starting ``WARNING:`` goes to stderr and the summary says ``UNTRUSTED``; ``sigma`` is
+``sigma_stated_noise`` scaled by √max(1, χ²/dof) (both methods); the exit status stays 0.
+
 Exit status: 0 estimated; 2, with one line on stderr, for bad arguments or an unusable bag or
 model; 3 when the motion does not make the gyro errors observable (the combinations are named,
 nothing is written but the JSON report).
