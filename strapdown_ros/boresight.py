@@ -39,7 +39,8 @@ from .rotation import (dcm_to_ypr, quat_conjugate, quat_cumprod, quat_multiply, 
 from .sensors import SensorSigmas
 from .sensors.covariance import constant_jacobian, constant_variances, get_covariance_model
 
-__all__ = ["IncrementPair", "angle_consistency", "chi2_band", "FIT_LEVEL", "gyro_increment", "camera_increment", "BoresightSolution", "solve_boresight",
+__all__ = ["IncrementPair", "angle_consistency", "chi2_band", "FIT_LEVEL",
+           "gyro_increment", "camera_increment", "BoresightSolution", "solve_boresight",
            "check_observability", "imu_attitude_from_camera", "r_partial"]
 
 
@@ -243,7 +244,7 @@ class BoresightSolution:
     iterations: int = 0
     converged: bool = False
     residual_rms: float = float("nan")             # rad, RMS of the residual components
-    chi2_per_dof: float = float("nan")             # Σ fᵀ W f / dof with the stated noise (any weighting)
+    chi2_per_dof: float = float("nan")             # Σ fᵀ W f / dof, stated noise, any weighting
     dof: int = 0                                   # 3n − 3
     chi2_band: tuple = (float("nan"), float("nan"))   # chi2_band(dof, FIT_LEVEL)
     #: χ²/dof inside its band: the stated noise explains the residuals.  False: the stated noise

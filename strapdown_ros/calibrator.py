@@ -60,7 +60,7 @@ class BoresightCalibrator:
         self._cams: deque = deque()     # fixes waiting for gyro coverage: (stamp, q, P)
         self._last_fix = None           # the fix that starts the next pair
         self.pairs: list[IncrementPair] = []
-        self._pair_keys: set = set()    # (t_start, t_end) in ns of the pairs held: a replay adds none
+        self._pair_keys: set = set()    # (t_start, t_end), ns, of the pairs held
         self.replayed_pairs = 0         # pairs not added because a pair with their stamps is held
         self.solution: BoresightSolution | None = None
 
@@ -172,7 +172,7 @@ class BoresightCalibrator:
                 self._prev_fix, self._last_fix = None, fix
                 continue
             key = self.pair_key(pair)
-            if key in self._pair_keys:                  # the same stamps again (a replay): nothing new
+            if key in self._pair_keys:                  # the same stamps again (a replay)
                 self.replayed_pairs += 1
                 self._prev_fix, self._last_fix = None, fix
                 continue
@@ -210,7 +210,8 @@ class BoresightCalibrator:
 
     def restore_last_fix(self, stamp: float, q_gcrs_vf, covariance) -> None:
         """Resume the fix chain from a stored fix (the state file)."""
-        self._last_fix = (float(stamp), np.asarray(q_gcrs_vf, dtype=float), np.asarray(covariance, dtype=float))
+        self._last_fix = (float(stamp), np.asarray(q_gcrs_vf, dtype=float),
+                          np.asarray(covariance, dtype=float))
         self._prev_fix = None
 
     def _drop_outlier_fix(self, fix) -> int:

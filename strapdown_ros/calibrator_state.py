@@ -30,17 +30,18 @@ import numpy as np
 
 from .boresight import IncrementPair
 
-__all__ = ["CalibratorStateFile", "StateFileError", "state_identity", "OPERATIONAL", "STATE_VERSION"]
+__all__ = ["CalibratorStateFile", "StateFileError", "state_identity", "OPERATIONAL",
+           "STATE_VERSION"]
 
 STATE_VERSION = 2
 #: parameters that do not change the pairs or their estimate (not part of the identity)
 OPERATIONAL = frozenset({"qos_depth", "diagnostics_period", "state_file", "weighted", "max_sigma",
-                         "max_chi2_per_dof", "max_pairs", "frame_mismatch", "max_stamp_jump", "resync_count",
-                         "gyro_max_rate", "min_rotation_deg", "initial_boresight"})
-_PAIR_FIELDS = ("t_start", "t_end", "dq_imu", "dq_cam", "cov_imu", "cov_cam", "imu_sensitivity", "cov_imu_white",
-                "cov_fix_start", "cov_fix_end")
-_SHAPES = {"t_start": (), "t_end": (), "dq_imu": (4,), "dq_cam": (4,), "cov_imu": (3, 3), "cov_cam": (3, 3),
-           "imu_sensitivity": (3, 12), "cov_imu_white": (3, 3), "cov_fix_start": (3, 3), "cov_fix_end": (3, 3)}
+                         "max_chi2_per_dof", "max_pairs", "frame_mismatch", "max_stamp_jump",
+                         "resync_count", "gyro_max_rate", "min_rotation_deg", "initial_boresight"})
+_SHAPES = {"t_start": (), "t_end": (), "dq_imu": (4,), "dq_cam": (4,), "cov_imu": (3, 3),
+           "cov_cam": (3, 3), "imu_sensitivity": (3, 12), "cov_imu_white": (3, 3),
+           "cov_fix_start": (3, 3), "cov_fix_end": (3, 3)}
+_PAIR_FIELDS = tuple(_SHAPES)
 _REQUIRED = ("t_start", "t_end", "dq_imu", "dq_cam", "cov_imu", "cov_cam")
 
 
@@ -68,7 +69,8 @@ def _plain(v):
 def state_identity(params: dict, streams: dict) -> dict:
     """The identity of a calibrator state: the parameters that define the estimate (all but
     :data:`OPERATIONAL`) and the streams (e.g. ``{"gyro": "/robot/imu/delta_theta", ...}``)."""
-    return {"parameters": {k: _plain(v) for k, v in sorted(params.items()) if k not in OPERATIONAL},
+    return {"parameters": {k: _plain(v) for k, v in sorted(params.items())
+                           if k not in OPERATIONAL},
             "streams": {k: str(v) for k, v in sorted(streams.items())}}
 
 
@@ -78,7 +80,8 @@ def _differences(stored: dict, current: dict) -> list[str]:
         a, b = stored.get(part, {}), current.get(part, {})
         for k in sorted(set(a) | set(b)):
             if a.get(k, "<absent>") != b.get(k, "<absent>"):
-                out.append(f"{k} {str(a.get(k, '<absent>'))[:60]} → {str(b.get(k, '<absent>'))[:60]}")
+                was, now = str(a.get(k, "<absent>"))[:60], str(b.get(k, "<absent>"))[:60]
+                out.append(f"{k} {was} → {now}")
     return out
 
 
@@ -112,7 +115,8 @@ class CalibratorStateFile:
 
         p = self.path
         if p.endswith(os.sep) or (os.altsep and p.endswith(os.altsep)):
-            raise StateFileError("path", f"state_file {p!r} ends with a path separator: it must name a file")
+            raise StateFileError("path", f"state_file {p!r} ends with a path separator: "
+                                         "it must name a file")
         if os.path.isdir(p):
             raise StateFileError("path", f"state_file {p!r} is a directory: it must name a file")
         if os.path.exists(p) and not os.path.isfile(p):
@@ -122,13 +126,15 @@ class CalibratorStateFile:
         try:
             fd = os.open(self.lock_path, os.O_RDWR | os.O_CREAT, 0o644)
         except OSError as exc:
-            raise StateFileError("path", f"cannot create the lock file {self.lock_path}: {exc.strerror}") from None
+            raise StateFileError("path", f"cannot create the lock file {self.lock_path}: "
+                                         f"{exc.strerror}") from None
         try:
             fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except OSError:
             os.close(fd)
-            raise StateFileError("locked", f"state_file {p} is in use by another process (lock {self.lock_path} "
-                                           "held): running without persistence") from None
+            raise StateFileError("locked", f"state_file {p} is in use by another process "
+                                           f"(lock {self.lock_path} held): running without "
+                                           "persistence") from None
         self._lock_fd = fd
         try:
             os.unlink(self.tmp)                 # a writer killed between write and rename
@@ -156,18 +162,21 @@ class CalibratorStateFile:
             with np.load(self.path, allow_pickle=False) as z:
                 data = {k: z[k] for k in z.files}
         except Exception as exc:                   # noqa: BLE001 - any unreadable file is reported
-            raise StateFileError("corrupt", f"unreadable ({type(exc).__name__}: {str(exc)[:120]})") from None
+            why = f"unreadable ({type(exc).__name__}: {str(exc)[:120]})"
+            raise StateFileError("corrupt", why) from None
         if int(data.get("version", -1)) != STATE_VERSION:
-            raise StateFileError("identity", f"state version {data.get('version')} is not {STATE_VERSION} "
-                                             "(written by another version of the package)")
+            raise StateFileError("identity", f"state version {data.get('version')} is not "
+                                             f"{STATE_VERSION} (written by another version of "
+                                             "the package)")
         try:
             stored = json.loads(str(data["identity"]))
         except Exception:                          # noqa: BLE001
             raise StateFileError("corrupt", "identity record unreadable") from None
         diff = _differences(stored, self.identity)
         if diff:
-            raise StateFileError("identity", "written for another calibration: " + "; ".join(diff[:8])
-                                 + (f"; and {len(diff) - 8} more" if len(diff) > 8 else ""))
+            more = f"; and {len(diff) - 8} more" if len(diff) > 8 else ""
+            raise StateFileError("identity", "written for another calibration: "
+                                 + "; ".join(diff[:8]) + more)
         try:
             n = int(data["n_pairs"])
             fields = {}
@@ -178,14 +187,14 @@ class CalibratorStateFile:
                         raise ValueError(f"missing pair field {f}")
                     continue
                 if a.shape != (n,) + shape or not np.all(np.isfinite(a)):
-                    raise ValueError(f"pair field {f} has shape {a.shape}, expected {(n,) + shape}, "
-                                     "or non-finite values")
+                    raise ValueError(f"pair field {f} has shape {a.shape}, expected "
+                                     f"{(n,) + shape}, or non-finite values")
                 fields[f] = a
             origin = int(data["origin_ns"])
         except (KeyError, ValueError, TypeError) as exc:
             raise StateFileError("corrupt", str(exc)) from None
-        cal.pairs = [IncrementPair(**{f: (float(a[i]) if a.ndim == 1 else a[i].copy()) for f, a in fields.items()})
-                     for i in range(n)]
+        cal.pairs = [IncrementPair(**{f: (float(a[i]) if a.ndim == 1 else a[i].copy())
+                                      for f, a in fields.items()}) for i in range(n)]
         cal.add_pair_keys(cal.pairs)
         if "last_fix_t" in data:
             cal.restore_last_fix(float(data["last_fix_t"]), data["last_fix_q"].astype(float),
@@ -206,8 +215,10 @@ class CalibratorStateFile:
     def save(self, cal, origin_ns: int) -> None:
         """Write pairs, last fix, estimate and identity atomically (module docstring).  OSError
         when the file system refuses."""
-        arrays = {"version": np.array(STATE_VERSION), "origin_ns": np.array(int(origin_ns), dtype=np.int64),
-                  "n_pairs": np.array(len(cal.pairs)), "identity": np.array(json.dumps(self.identity))}
+        arrays = {"version": np.array(STATE_VERSION),
+                  "origin_ns": np.array(int(origin_ns), dtype=np.int64),
+                  "n_pairs": np.array(len(cal.pairs)),
+                  "identity": np.array(json.dumps(self.identity))}
         for f in _PAIR_FIELDS:
             vals = [getattr(p, f) for p in cal.pairs]
             if vals and all(v is not None for v in vals):

@@ -213,7 +213,7 @@ def calibrate_integral(prep: Prepared, interval: float | None = None, sigma_limi
                                       q_body_camera=dcm_to_quat(prep.C), sigma_limit=sigma_limit)
     extra = {"intervals": int(len(iv)), "chi2_per_dof": float(res.chi2_per_dof), "dof": int(res.dof),
              "library_message": res.message}
-    _judge_fit(extra)                         # the library already scales its covariance by max(1, χ²/dof)
+    _judge_fit(extra)                         # the library scales its covariance by max(1, χ²/dof)
     labels = COMMON_LABELS
     if not res.observable:
         names = list(res.observability.unobservable)

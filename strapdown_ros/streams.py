@@ -77,7 +77,8 @@ class StreamCheck:
         self._held: list = []          # candidate new timeline: [(stamp_ns, value)]
         self.accepted_since = 0        # accepted since first_ns (the rate after a resync)
         self.resynced = False
-        self.max_dropout_ns = (self.MAX_DROPOUT_S if max_dropout is None else float(max_dropout)) * 1e9
+        dropout_s = self.MAX_DROPOUT_S if max_dropout is None else float(max_dropout)
+        self.max_dropout_ns = dropout_s * 1e9
         self.max_burst = int(self.MAX_BURST if max_burst is None else max_burst)
         self.dropouts = self.bursts = self.burst_messages = 0
         self.returned = False          # the last offer ended a burst (rule 4c)
@@ -165,7 +166,8 @@ class StreamCheck:
         return []
 
     def _snapshot(self) -> dict:
-        return {"last_ns": self.last_ns, "first_ns": self.first_ns, "accepted_since": self.accepted_since,
+        return {"last_ns": self.last_ns, "first_ns": self.first_ns,
+                "accepted_since": self.accepted_since,
                 "gaps": self.gaps, "missing": self.missing, "resyncs": self.resyncs,
                 "dropouts": self.dropouts, "accepted": self.accepted, "received": self.received}
 
@@ -252,7 +254,8 @@ class StreamCheck:
                 f"{prefix}_dropped_duplicate": self.duplicate, f"{prefix}_dropped_stamp_outlier": self.stamp_outliers,
                 f"{prefix}_stamp_resyncs": self.resyncs, f"{prefix}_gaps": self.gaps,
                 f"{prefix}_missing_samples": self.missing, f"{prefix}_dropouts": self.dropouts,
-                f"{prefix}_stamp_bursts": self.bursts, f"{prefix}_stamp_burst_messages": self.burst_messages}
+                f"{prefix}_stamp_bursts": self.bursts,
+                f"{prefix}_stamp_burst_messages": self.burst_messages}
 
 
 def nominal_period(stamps_ns) -> float:

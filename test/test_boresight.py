@@ -247,7 +247,8 @@ def test_a_stated_sigma_far_too_small_still_converges_to_the_boresight(noise_sca
     beta = np.radians([40.0, -25.0, 120.0])
     prof = bench_profile()
     t, dth, _ = IntegratingSensor(prof, "gyro", 100.0).sample(int(prof.duration * 100) - 1)
-    cam = StarCameraModel(boresight=beta, interval=5.0, seed=1, noise_scale=np.full(3, noise_scale))
+    cam = StarCameraModel(boresight=beta, interval=5.0, seed=1,
+                          noise_scale=np.full(3, noise_scale))
     cal = BoresightCalibrator(gyro=NAVIGATION_GRADE_GYRO)
     cal.add_gyro(t, dth)
     for f in cam.fixes(prof, int(prof.duration / 5.0) - 1):

@@ -15,6 +15,7 @@ from strapdown_ros.tools import calibrate_bag, record_sim  # noqa: E402
 
 BETA = np.radians([40.0, -25.0, 120.0])
 BETA_ARG = "boresight:=[" + ", ".join(repr(float(b)) for b in BETA) + "]"
+NO_GAPS = {"gaps": 0, "missing": 0, "pairs_discarded": 0, "dropouts": 0, "stamp_bursts": 0}
 KEYS = ["q_mf_vf_xyzw", "rotation_covariance_mf_rad2", "beta_rad", "beta_sigma_rad", "covariance_rad2", "pairs",
         "observable", "unobservable_axes", "residual_rms_rad", "weighted"]
 
@@ -50,7 +51,7 @@ def test_round_trip_bench(tmp_path, storage, capsys):
     assert r["observable"] is True and r["unobservable_axes"] == [] and r["weighted"] is True
     assert isinstance(r["residual_rms_rad"], float)
     assert set(r["dropped"]["gyro"].values()) == {0}
-    assert r["gyro_gaps"] == {"gaps": 0, "missing": 0, "pairs_discarded": 0, "dropouts": 0, "stamp_bursts": 0}
+    assert r["gyro_gaps"] == NO_GAPS
     assert r["camera_covariance_from_bag"] is True
 
     # C_MF^VF error as a rotation in MF axes (q_est = exp(e) ⊗ q_true) within 3σ of P^clb per axis
@@ -155,11 +156,11 @@ def test_nan_and_duplicate_are_dropped_and_counted(tmp_path, capsys):
     out = capsys.readouterr().out
     assert "gyro nan 1" in out and "gyro duplicate 1" in out and "GYRO GAPS" in out
     r = json.loads(f.read_text())
-    assert r["dropped"]["gyro"] == {"nan": 1, "duplicate": 1, "out_of_order": 0, "out_of_range": 0, "stamp_outlier": 0,
-                                    "stamp_burst": 0}
+    assert r["dropped"]["gyro"] == {"nan": 1, "duplicate": 1, "out_of_order": 0, "out_of_range": 0,
+                                    "stamp_outlier": 0, "stamp_burst": 0}
     assert r["messages"]["gyro"] == len(msgs) - 2
     # the dropped NaN increment is a gap (its rotation is lost): the pair spanning it is discarded
-    assert r["gyro_gaps"] == {"gaps": 1, "missing": 1, "pairs_discarded": 1, "dropouts": 0, "stamp_bursts": 0}
+    assert r["gyro_gaps"] == {**NO_GAPS, "gaps": 1, "missing": 1, "pairs_discarded": 1}
     assert r["pairs"] == len(fixes) - 2
     assert r["camera_covariance_from_bag"] is False          # no attitude_with_covariance: assumed σ
     assert r["observable"] is True
@@ -213,8 +214,7 @@ def test_long_recording_keeps_every_pair_and_takes_the_rate_from_the_stamps(tmp_
     assert calibrate_bag.main([str(bag), "--json", str(f)]) == 0
     r = json.loads(f.read_text())
     assert r["messages"]["gyro"] == 210000 and r["messages"]["camera"] == 52
-    assert r["pairs"] == 51 and r["gyro_gaps"] == {"gaps": 0, "missing": 0, "pairs_discarded": 0,
-                                                   "dropouts": 0, "stamp_bursts": 0}
+    assert r["pairs"] == 51 and r["gyro_gaps"] == NO_GAPS
     assert r["gyro_rate_from_stamps_hz"] == pytest.approx(200.0, rel=1e-9)
     assert "200 Hz" in capsys.readouterr().err
     q_true = dcm_to_quat(ypr_to_dcm(*BETA))
@@ -305,12 +305,13 @@ def test_dropout_and_stamp_burst_cost_only_the_pairs_containing_them(tmp_path, c
     from rosbags.typesys import Stores, get_typestore
 
     clean = tmp_path / "clean"
-    assert record_sim.main([str(clean), "--no-accel", "-p", "profile:=bench", "-p", "camera_interval:=5.0",
-                            "-p", BETA_ARG]) == 0
+    assert record_sim.main([str(clean), "--no-accel", "-p", "profile:=bench", "-p",
+                            "camera_interval:=5.0", "-p", BETA_ARG]) == 0
     store = get_typestore(Stores.ROS2_JAZZY)
     dirty = tmp_path / "dirty"
     with Reader(clean) as rd, Writer(dirty, version=Writer.VERSION_LATEST) as wr:
-        conns = {c.id: wr.add_connection(c.topic, c.msgtype, typestore=store) for c in rd.connections}
+        conns = {c.id: wr.add_connection(c.topic, c.msgtype, typestore=store)
+                 for c in rd.connections}
         for c, t, raw in rd.messages():
             if c.topic == "/imu/delta_theta":
                 if 62_500_000_000 < t <= 64_500_000_000:
@@ -323,10 +324,12 @@ def test_dropout_and_stamp_burst_cost_only_the_pairs_containing_them(tmp_path, c
     f = tmp_path / "r.json"
     assert calibrate_bag.main([str(dirty), "--json", str(f)]) == 0
     r = json.loads(f.read_text())
-    assert r["gyro_gaps"] == {"gaps": 2, "missing": 205, "pairs_discarded": 2, "dropouts": 1, "stamp_bursts": 1}
+    assert r["gyro_gaps"] == {"gaps": 2, "missing": 205, "pairs_discarded": 2, "dropouts": 1,
+                              "stamp_bursts": 1}
     assert r["dropped"]["gyro"]["stamp_burst"] == 5 and r["stamp_resyncs"]["gyro"] == 0
     assert r["pairs"] == 31
-    assert "2 gap(s) (1 dropout(s) beyond max_stamp_jump, 1 stamp burst(s)), 205 increment(s) missing" in capsys.readouterr().out
+    assert ("2 gap(s) (1 dropout(s) beyond max_stamp_jump, 1 stamp burst(s)), 205 increment(s) "
+            "missing") in capsys.readouterr().out
     q_true = dcm_to_quat(ypr_to_dcm(*BETA))
     e = quat_error_rotvec(from_ros_xyzw(np.array(r["q_mf_vf_xyzw"])), q_true, frame="reference")
     assert np.all(np.abs(e) < 3 * np.sqrt(np.diag(r["rotation_covariance_mf_rad2"]))), e / ARCSEC
@@ -335,8 +338,9 @@ def test_dropout_and_stamp_burst_cost_only_the_pairs_containing_them(tmp_path, c
 def _noisy_bench(tmp_path, name, scale):
     """bench bag whose camera noise is ``scale`` × the σ its covariance states (injected)."""
     bag = tmp_path / name
-    assert record_sim.main([str(bag), "--no-accel", "-p", "profile:=bench", "-p", "camera_interval:=5.0",
-                            "-p", BETA_ARG, "-p", f"camera_noise_scale:=[{scale}, {scale}, {scale}]"]) == 0
+    assert record_sim.main([str(bag), "--no-accel", "-p", "profile:=bench", "-p",
+                            "camera_interval:=5.0", "-p", BETA_ARG, "-p",
+                            f"camera_noise_scale:=[{scale}, {scale}, {scale}]"]) == 0
     return bag
 
 
@@ -382,7 +386,8 @@ def test_an_outlier_fix_is_still_gated_when_the_sigma_is_wrong(tmp_path):
     dirty = tmp_path / "dirty"
     bad = rotvec_to_quat(np.radians(5.0) * np.array([0.6, -0.64, 0.48]))
     with Reader(clean) as rd, Writer(dirty, version=Writer.VERSION_LATEST) as wr:
-        conns = {c.id: wr.add_connection(c.topic, c.msgtype, typestore=store) for c in rd.connections}
+        conns = {c.id: wr.add_connection(c.topic, c.msgtype, typestore=store)
+                 for c in rd.connections}
         for c, t, raw in rd.messages():
             if c.topic.startswith("/star_camera/attitude") and t == 60 * 10**9:
                 m = store.deserialize_cdr(raw, c.msgtype)
@@ -407,14 +412,16 @@ def test_a_clock_reset_of_both_streams_calibrates_each_time_base(tmp_path):
     from rosbags.typesys import Stores, get_typestore
 
     clean = tmp_path / "clean"
-    assert record_sim.main([str(clean), "--no-accel", "-p", "profile:=bench", "-p", "camera_interval:=5.0",
-                            "-p", BETA_ARG]) == 0
+    assert record_sim.main([str(clean), "--no-accel", "-p", "profile:=bench", "-p",
+                            "camera_interval:=5.0", "-p", BETA_ARG]) == 0
     store = get_typestore(Stores.ROS2_JAZZY)
     reset = tmp_path / "reset"
     with Reader(clean) as rd, Writer(reset, version=Writer.VERSION_LATEST) as wr:
-        conns = {c.id: wr.add_connection(c.topic, c.msgtype, typestore=store) for c in rd.connections}
+        conns = {c.id: wr.add_connection(c.topic, c.msgtype, typestore=store)
+                 for c in rd.connections}
         for c, t, raw in rd.messages():
-            if t > 85 * 10**9 - 5_000_000 and c.topic in ("/imu/delta_theta", "/star_camera/attitude_with_covariance"):
+            if t > 85 * 10**9 - 5_000_000 and c.topic in (
+                    "/imu/delta_theta", "/star_camera/attitude_with_covariance"):
                 m = store.deserialize_cdr(raw, c.msgtype)
                 m.header.stamp.sec += 5000
                 raw = store.serialize_cdr(m, c.msgtype)

@@ -260,7 +260,8 @@ def test_camera_noise_100x_the_stated_sigma_is_an_inconsistent_fit(tmp_path, cap
     model.write_text(json.dumps(NOMINAL))
     js = tmp_path / "r.json"
     capsys.readouterr()
-    assert _run(bag, "--method", "integral", "--model", model, "--json", js, "--sigma-limit", "1") == 0
+    assert _run(bag, "--method", "integral", "--model", model, "--json", js,
+                "--sigma-limit", "1") == 0
     cap = capsys.readouterr()
     r = json.loads(js.read_text())
     lo, hi = r["chi2_per_dof_band"]

@@ -494,7 +494,8 @@ def test_inconsistent_noise_is_a_warn_with_the_reason(ros):
         # the simulated gyro is ideal: so is the stated gyro model, the camera σ is the one judged
         ideal = [Parameter(f"gyro_{k}", value=0.0)
                  for k in ("bias_sigma", "scale_sigma", "misalignment_sigma", "random_walk")]
-        node = _node_estimate(f"/t_fit_{int(scale)}", poison=False, keep=True, noise_scale=scale, params=ideal)
+        node = _node_estimate(f"/t_fit_{int(scale)}", poison=False, keep=True, noise_scale=scale,
+                              params=ideal)
         try:
             sent = []
             node.pub_diag.publish = sent.append
@@ -502,13 +503,15 @@ def test_inconsistent_noise_is_a_warn_with_the_reason(ros):
             st = sent[-1].status[0]
             kv = {v.key: v.value for v in st.values}
             assert kv["camera_outlier_fixes"] == "0" and kv["pairs"] == "32"
-            lo, hi, chi2 = (float(kv[k]) for k in ("chi2_per_dof_band_low", "chi2_per_dof_band_high", "chi2_per_dof"))
+            lo, hi, chi2 = (float(kv[k]) for k in ("chi2_per_dof_band_low",
+                                                   "chi2_per_dof_band_high", "chi2_per_dof"))
             if scale == 1.0:
                 assert kv["fit_consistent"] == "True" and lo <= chi2 <= hi
                 assert "INCONSISTENT" not in st.message
             else:
                 assert kv["fit_consistent"] == "False" and chi2 > 100 * hi
-                assert st.level == b"\x01" and "FIT INCONSISTENT" in st.message and "band" in st.message, st.message
+                assert st.level == b"\x01", st.message
+                assert "FIT INCONSISTENT" in st.message and "band" in st.message, st.message
         finally:
             node.destroy_node()
 
@@ -519,23 +522,25 @@ def test_restart_resumes_the_same_estimate_and_a_corrupted_state_is_moved_aside(
     replaying the same recording into it adds no pair (Reliability finding 8); a corrupted file
     is reported and moved aside, never used; no temporary is left behind."""
     state = str(tmp_path / "calib_state.npz")
-    beta, _, _ = _node_estimate("/t_state", poison=False, params=[Parameter("state_file", value=state)])
+    sf = [Parameter("state_file", value=state)]
+    beta, _, _ = _node_estimate("/t_state", poison=False, params=sf)
     assert sorted(os.listdir(tmp_path)) == ["calib_state.npz", "calib_state.npz.lock"]
-    node = CalibratorNode(namespace="/t_state", parameter_overrides=[Parameter("state_file", value=state)])
+    node = CalibratorNode(namespace="/t_state", parameter_overrides=sf)
     try:
         assert node.state["restored_pairs"] == 32 and node.published["boresight"] == 1     # 33 fixes
         np.testing.assert_allclose(node.valid.beta, beta, rtol=0, atol=1e-12)
     finally:
         node.destroy_node()
-    node = _node_estimate("/t_state", poison=False, params=[Parameter("state_file", value=state)], keep=True)
-    try:                                          # the same recording replayed into the resumed node
-        assert len(node.cal.pairs) == 32 and node.cal.replayed_pairs == 32 and node.state["errors"] == 0
+    node = _node_estimate("/t_state", poison=False, params=sf, keep=True)
+    try:                                          # the same recording replayed into it
+        assert len(node.cal.pairs) == 32 and node.cal.replayed_pairs == 32
+        assert node.state["errors"] == 0
         np.testing.assert_allclose(node.valid.beta, beta, rtol=0, atol=1e-12)
     finally:
         node.destroy_node()
     with open(state, "wb") as fh:
         fh.write(b"not a state file")
-    node = CalibratorNode(namespace="/t_state", parameter_overrides=[Parameter("state_file", value=state)])
+    node = CalibratorNode(namespace="/t_state", parameter_overrides=sf)
     try:
         assert node.state["errors"] == 1 and node.cal.pairs == [] and node.published["boresight"] == 0
         assert not os.path.exists(state) and os.path.exists(state + ".corrupt")
@@ -568,8 +573,9 @@ def test_state_file_identity_lock_and_paths(ros, tmp_path):
     finally:
         other.destroy_node()
     assert open(state, "rb").read() == before
-    first = CalibratorNode(namespace="/t_sid", parameter_overrides=[Parameter("state_file", value=state)])
-    second = CalibratorNode(namespace="/t_sid", parameter_overrides=[Parameter("state_file", value=state)])
+    sf = [Parameter("state_file", value=state)]
+    first = CalibratorNode(namespace="/t_sid", parameter_overrides=sf)
+    second = CalibratorNode(namespace="/t_sid", parameter_overrides=sf)
     try:
         assert first.state["persisting"] and first.state["restored_pairs"] == 32
         st, kv = diag(second)
@@ -581,10 +587,12 @@ def test_state_file_identity_lock_and_paths(ros, tmp_path):
     d = tmp_path / "adir"
     d.mkdir()
     for path in (str(d), str(d) + "/"):
-        node = CalibratorNode(namespace="/t_sid", parameter_overrides=[Parameter("state_file", value=path)])
+        node = CalibratorNode(namespace="/t_sid",
+                              parameter_overrides=[Parameter("state_file", value=path)])
         try:
             st, kv = diag(node)
-            assert kv["state_persisting"] == "False" and ("directory" in st.message or "separator" in st.message)
+            assert kv["state_persisting"] == "False"
+            assert "directory" in st.message or "separator" in st.message
         finally:
             node.destroy_node()
     assert d.is_dir() and not [f for f in os.listdir(tmp_path) if "corrupt" in f]
@@ -678,7 +686,8 @@ def test_one_input_path_node_and_calibrate_bag_agree_on_a_hostile_stream(ros, tm
         r = json.loads(f.read_text())
         g = node.gyro_check
         assert r["dropped"]["gyro"] == {"nan": g.nan, "duplicate": g.duplicate, "out_of_order": g.out_of_order,
-                                        "out_of_range": g.out_of_range, "stamp_outlier": g.stamp_outliers,
+                                        "out_of_range": g.out_of_range,
+                                        "stamp_outlier": g.stamp_outliers,
                                         "stamp_burst": g.burst_messages}
         assert (g.nan, g.duplicate, g.out_of_order, g.out_of_range, g.stamp_outliers) == (1, 1, 1, 1, 1)
         # the burst: 5 increments lost in one gap, no resynchronisation left standing; it costs the
@@ -688,7 +697,7 @@ def test_one_input_path_node_and_calibrate_bag_agree_on_a_hostile_stream(ros, tm
         assert r["pairs"] == len(node.cal.pairs) == len(fixes) - 1 - 1
         assert r["dropped"]["camera"]["zero_quaternion"] == node.camera_counts["dropped_zero_quaternion"] == 1
         assert r["camera_fixes"]["normalised"] == node.camera_counts["normalised"] == 1
-        assert r["messages"]["gyro"] == g.accepted - g.burst_messages     # offline the burst is removed
+        assert r["messages"]["gyro"] == g.accepted - g.burst_messages   # offline: burst removed
         np.testing.assert_allclose(r["beta_rad"], node.valid.beta, rtol=0, atol=1e-10)
     finally:
         node.destroy_node()

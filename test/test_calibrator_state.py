@@ -19,8 +19,8 @@ STREAMS = {"gyro": "/imu/delta_theta", "camera": "/star_camera/attitude_with_cov
 def recording():
     prof = bench_profile()
     t, dth, _ = IntegratingSensor(prof, "gyro", 100.0).sample(int(prof.duration * 100) - 1)
-    fixes = StarCameraModel(boresight=np.radians([40.0, -25.0, 120.0]), interval=5.0, seed=1).fixes(
-        prof, int(prof.duration / 5.0) - 1)
+    cam = StarCameraModel(boresight=np.radians([40.0, -25.0, 120.0]), interval=5.0, seed=1)
+    fixes = cam.fixes(prof, int(prof.duration / 5.0) - 1)
     return t, dth, fixes
 
 
@@ -66,7 +66,8 @@ def test_replaying_the_same_recording_adds_nothing(tmp_path, recording):
     assert sorted(os.listdir(tmp_path)) == ["state.npz", "state.npz.lock"]    # no temporaries
 
 
-@pytest.mark.parametrize("change", [{"camera_frame_id": "camera2"}, {"gyro_scale_factor": [1e-3, 0.0, 0.0]},
+@pytest.mark.parametrize("change", [{"camera_frame_id": "camera2"},
+                                    {"gyro_scale_factor": [1e-3, 0.0, 0.0]},
                                     {"covariance_model": "004"}, "stream"])
 def test_a_state_of_another_calibration_is_refused_and_left_as_it_is(tmp_path, recording, change):
     p = _params()
@@ -79,7 +80,8 @@ def test_a_state_of_another_calibration_is_refused_and_left_as_it_is(tmp_path, r
     sf.close()
     before = open(path, "rb").read()
     if change == "stream":
-        q, ident, name = p, state_identity(p, {**STREAMS, "gyro": "/robot2/imu/delta_theta"}), "gyro"
+        q, name = p, "gyro"
+        ident = state_identity(p, {**STREAMS, "gyro": "/robot2/imu/delta_theta"})
     else:
         q = _params(**change)
         ident, name = state_identity(q, STREAMS), next(iter(change))
@@ -111,15 +113,17 @@ def test_a_directory_is_never_moved_and_a_trailing_slash_is_an_error(tmp_path):
     d = tmp_path / "mydir"
     d.mkdir()
     (d / "keep.txt").write_text("user data")
-    for path in (str(d), str(tmp_path / "state.npz") + os.sep, str(tmp_path / "missing" / "state.npz")):
+    for path in (str(d), str(tmp_path / "state.npz") + os.sep,
+                 str(tmp_path / "missing" / "state.npz")):
         sf = CalibratorStateFile(path, state_identity(_params(), STREAMS))
         with pytest.raises(StateFileError) as err:
             sf.open()
         assert err.value.kind == "path", path
-    assert (d / "keep.txt").read_text() == "user data" and sorted(os.listdir(tmp_path)) == ["mydir"]
+    assert (d / "keep.txt").read_text() == "user data"
+    assert sorted(os.listdir(tmp_path)) == ["mydir"]
 
 
-def test_a_temporary_left_by_kill_9_is_removed_at_the_next_start_and_corrupt_files_are_moved(tmp_path, recording):
+def test_kill_9_temporary_removed_at_next_start_and_corrupt_file_moved(tmp_path):
     import signal
     import subprocess
     import sys
@@ -131,7 +135,8 @@ def test_a_temporary_left_by_kill_9_is_removed_at_the_next_start_and_corrupt_fil
         sys.path.insert(0, {os.path.dirname(os.path.dirname(os.path.abspath(__file__)))!r})
         from strapdown_ros.calibrator_state import CalibratorStateFile, state_identity
         from strapdown_ros.config import CALIBRATOR_PARAMS, check_all
-        sf = CalibratorStateFile({path!r}, state_identity(check_all(CALIBRATOR_PARAMS, {{}}), {STREAMS!r}))
+        ident = state_identity(check_all(CALIBRATOR_PARAMS, {{}}), {STREAMS!r})
+        sf = CalibratorStateFile({path!r}, ident)
         sf.open()
         os.replace = lambda a, b: (print("written", flush=True), os.kill(os.getpid(), 9))
         from strapdown_ros.calibrator import BoresightCalibrator
@@ -141,7 +146,7 @@ def test_a_temporary_left_by_kill_9_is_removed_at_the_next_start_and_corrupt_fil
     assert res.returncode == -signal.SIGKILL and "written" in res.stdout, res.stderr
     assert ".state.npz.tmp" in os.listdir(tmp_path)
     sf = CalibratorStateFile(path, state_identity(_params(), STREAMS))
-    sf.open()                                      # the lock is free again: the killed process is gone
+    sf.open()                                      # the lock is free: the killed process is gone
     assert ".state.npz.tmp" not in os.listdir(tmp_path)
     with open(path, "wb") as fh:
         fh.write(b"not a state file")

@@ -65,7 +65,8 @@ def test_burst_of_past_stamps_costs_only_itself():
         t, v, gaps = validate(bad, [(0.0, 0.0, 0.0)] * len(bad), c)
         assert t == st[:500] + st[505:]
         assert gaps == [(st[499], st[505])] and c.segment_starts == []
-        assert (c.bursts, c.burst_messages, c.resyncs, c.dropouts, c.gaps, c.missing) == (1, 5, 0, 0, 1, 5)
+        counts = (c.bursts, c.burst_messages, c.resyncs, c.dropouts, c.gaps, c.missing)
+        assert counts == (1, 5, 0, 0, 1, 5)
 
 
 def test_dropout_beyond_the_jump_limit_counts_its_missing_increments():
@@ -78,7 +79,8 @@ def test_dropout_beyond_the_jump_limit_counts_its_missing_increments():
     t, _, gaps = validate(kept, [(0.001, 0.0, 0.0)] * len(kept), c)
     assert t == kept and gaps == [(300 * MS, 501 * MS)]
     assert (c.dropouts, c.resyncs, c.gaps, c.missing) == (1, 0, 1, 200)
-    vals = [(0.5, 0.0, 0.0) if 600 * MS < s <= 701 * MS else (0.001, 0.0, 0.0) for s in st]   # saturated 1.01 s
+    # saturated for 1.01 s: values beyond the range, dropped
+    vals = [(0.5, 0.0, 0.0) if 600 * MS < s <= 701 * MS else (0.001, 0.0, 0.0) for s in st]
     c = StreamCheck(0.01, max_norm=2 * 0.01 * 20.0, jump_limit=1.0, resync_count=5)
     t, _, gaps = validate(st, vals, c)
     assert (c.out_of_range, c.dropouts, c.resyncs, c.gaps, c.missing) == (101, 1, 0, 1, 101)

@@ -136,8 +136,8 @@ class CalibratorNode(Node):
             self.create_subscription(QuaternionStamped, "star_camera/attitude", self._on_camera_plain,
                                      camera_qos(int(p["qos_depth"])), qos_overriding_options=ros_io.QOS_OVERRIDES)
         self.create_timer(float(p["diagnostics_period"]), self.publish_diagnostics)
-        self.state = {"file": p["state_file"], "saves": 0, "restored_pairs": 0, "errors": 0, "moved_aside": "",
-                      "problem": "", "persisting": False}
+        self.state = {"file": p["state_file"], "saves": 0, "restored_pairs": 0, "errors": 0,
+                      "moved_aside": "", "problem": "", "persisting": False}
         self.state_file: CalibratorStateFile | None = None
         camera_topic = "star_camera/attitude_with_covariance" if self.use_cov else "star_camera/attitude"
         if p["state_file"]:
@@ -205,12 +205,14 @@ class CalibratorNode(Node):
             self.cal.restart_gyro()
             prev_ns = None
             if g.returned:
-                self.get_logger().error(f"{g.retracted} gyro increment(s) carried stamps off their timeline and the "
-                                        "stream came back to it: dropped as a stamp burst; the pairs containing "
-                                        "the burst are lost")
+                self.get_logger().error(
+                    f"{g.retracted} gyro increment(s) carried stamps off their timeline and the "
+                    "stream came back to it: dropped as a stamp burst; the pairs containing the "
+                    "burst are lost")
             else:
-                self.get_logger().error(f"gyro stamps jumped by {g.last_jump_s:.6g} s and stayed: resynchronised; "
-                                        "no increment pair spans the jump")
+                self.get_logger().error(
+                    f"gyro stamps jumped by {g.last_jump_s:.6g} s and stayed: resynchronised; no "
+                    "increment pair spans the jump")
         new = 0
         for ns_i, v in out:
             t = self._rel(ns_i)
@@ -290,12 +292,13 @@ class CalibratorNode(Node):
             if exc.kind == "corrupt":
                 aside = sf.move_aside()
                 self.state["moved_aside"] = aside
-                self._state_problem(f"state file {path} not used: {exc}; moved aside to {aside}; starting afresh")
+                self._state_problem(f"state file {path} not used: {exc}; moved aside to {aside}; "
+                                    "starting afresh")
                 self.state_file, self.state["persisting"] = sf, True
             else:
                 sf.close()
-                self._state_problem(f"state file {path} refused: {exc}; running without persistence "
-                                    "(remove the file or point state_file elsewhere)")
+                self._state_problem(f"state file {path} refused: {exc}; running without "
+                                    "persistence (remove the file or point state_file elsewhere)")
             return
         self.state_file, self.state["persisting"] = sf, True
         if origin is None:
@@ -423,13 +426,14 @@ class CalibratorNode(Node):
             lo, hi = sol.chi2_band
             if ok and sol.fit_consistent is False:
                 level = ros_io.WARN
-                sig = (f"the published σ is scaled by √(χ²/dof) = {math.sqrt(chi2):.3g}" if sol.weighted else
+                sig = (f"the published σ is scaled by √(χ²/dof) = {math.sqrt(chi2):.3g}"
+                       if sol.weighted else
                        "the published σ comes from the residual scatter (unweighted)")
-                what = ("the stated noise is too small or the model lacks an effect (outliers, an unmodelled "
-                        f"error: run discrepancy on a recording); {sig}" if chi2 > hi else
-                        "the stated noise is too large (σ pessimistic)")
-                message = (f"{message}; FIT INCONSISTENT: χ²/dof = {chi2:.3g} outside its band [{lo:.3g}, {hi:.3g}] "
-                           f"(dof {sol.dof}, level {FIT_LEVEL:g}): {what}")
+                what = ("the stated noise is too small or the model lacks an effect (outliers, an "
+                        f"unmodelled error: run discrepancy on a recording); {sig}" if chi2 > hi
+                        else "the stated noise is too large (σ pessimistic)")
+                message = (f"{message}; FIT INCONSISTENT: χ²/dof = {chi2:.3g} outside its band "
+                           f"[{lo:.3g}, {hi:.3g}] (dof {sol.dof}, level {FIT_LEVEL:g}): {what}")
             elif ok and np.isfinite(chi2) and chi2 > float(self.p["max_chi2_per_dof"]):
                 level = ros_io.WARN
                 message = (f"{message}; χ²/dof = {chi2:.3g}: the residuals exceed the model (outliers, or an "
@@ -463,7 +467,8 @@ class CalibratorNode(Node):
                        "gyro_history_overflowed": self.cal._gyro.overflowed,
                        "state_file": self.state["file"] or "off", "state_saves": self.state["saves"],
                        "state_restored_pairs": self.state["restored_pairs"], "state_errors": self.state["errors"],
-                       "state_persisting": self.state["persisting"], "state_problem": self.state["problem"] or "none",
+                       "state_persisting": self.state["persisting"],
+                       "state_problem": self.state["problem"] or "none",
                        "pairs_replayed_not_added": self.cal.replayed_pairs,
                        **{f"camera_{k}": v for k, v in self.camera_counts.items()}})
         mism = self.gyro_frame_mismatch + self.camera_counts["frame_mismatch"]
@@ -485,12 +490,13 @@ class CalibratorNode(Node):
             message = f"{message}; dropped {g_drop} gyro and {c_drop} camera messages"
         if self.state["errors"]:
             level = ros_io.ERROR
-            message = (f"{message}; state file: {self.state['errors']} error(s): {self.state['problem']}"
+            message = (f"{message}; state file: {self.state['errors']} error(s): "
+                       f"{self.state['problem']}"
                        + ("" if self.state["persisting"] else " (no persistence)"))
         if g.bursts:
             level = ros_io.ERROR
-            message = (f"{message}; {g.burst_messages} gyro increment(s) in {g.bursts} burst(s) stamped off the "
-                       "timeline, dropped; the pairs containing them are lost")
+            message = (f"{message}; {g.burst_messages} gyro increment(s) in {g.bursts} burst(s) "
+                       "stamped off the timeline, dropped; the pairs containing them are lost")
         if g.resyncs or c.resyncs:
             level = ros_io.ERROR
             message = (f"{message}; stamps jumped and were resynchronised (gyro {g.resyncs}, camera {c.resyncs}); "

@@ -276,16 +276,17 @@ def calibrate(data: dict, p: dict):
         gaps = [(seg_t[n], seg_t[n + 1]) for n in np.flatnonzero(np.diff(seg_t) > 1.5 * period)]
         for t, (q, P) in zip(tc[ca:cb], c.values[ca:cb]):
             if t < seg_t[0] or t > seg_t[-1]:
-                continue                               # outside the gyro segment: no pair can use it
+                continue                               # outside the gyro segment: no pair
             k1 = int(np.searchsorted(seg_t, t + lead, side="right"))
             new = 0
             if k1 > k:
                 new = cal.add_gyro(seg_t[k:k1], seg_v[k:k1])
                 k = k1
             new += cal.add_camera(t, q, P)
-            if new and gaps:                           # as calibrator_node._discard_pairs_over_gaps
+            if new and gaps:                           # as calibrator_node discards them
                 tail = cal.pairs[len(cal.pairs) - new:]
-                keep = [pr for pr in tail if not any(pr.t_start - h < b and a < pr.t_end + h for a, b in gaps)]
+                keep = [pr for pr in tail
+                        if not any(pr.t_start - h < b and a < pr.t_end + h for a, b in gaps)]
                 discarded += len(tail) - len(keep)
                 del cal.pairs[len(cal.pairs) - new:]
                 cal.pairs.extend(keep)
@@ -333,8 +334,9 @@ def solution_json(sol, weighted: bool) -> dict:
         "chi2_level": FIT_LEVEL,
         "dof": int(sol.dof),
         # σ from the stated noise alone; beta_sigma_rad is it scaled by √(χ²/dof) when χ²/dof > 1
-        "beta_sigma_stated_noise_rad": ([float(v) for v in np.sqrt(np.diag(sol.covariance_beta_stated))]
-                                        if ok and sol.covariance_beta_stated is not None else None),
+        "beta_sigma_stated_noise_rad": (
+            [float(v) for v in np.sqrt(np.diag(sol.covariance_beta_stated))]
+            if ok and sol.covariance_beta_stated is not None else None),
     }
     rep = sol.observability
     if rep is not None:
@@ -362,13 +364,14 @@ def _summary(bag: str, data: dict, result: dict, p: dict) -> str:
     if gg["gaps"]:
         extra = [f"{gg[k]} {w}" for k, w in (("dropouts", "dropout(s) beyond max_stamp_jump"),
                                              ("stamp_bursts", "stamp burst(s)")) if gg.get(k)]
-        lines.append(f"  GYRO GAPS: {gg['gaps']} gap(s){' (' + ', '.join(extra) + ')' if extra else ''}, "
+        kinds = " (" + ", ".join(extra) + ")" if extra else ""
+        lines.append(f"  GYRO GAPS: {gg['gaps']} gap(s){kinds}, "
                      f"{gg['missing']} increment(s) missing (rotation lost); "
                      f"{gg['pairs_discarded']} pair(s) spanning them discarded")
     rs = result.get("stamp_resyncs", {})
     if any(rs.values()):
-        lines.append(f"  STAMP RESYNCS: gyro {rs.get('gyro', 0)}, camera {rs.get('camera', 0)} (clock resets): each "
-                     "time base calibrated on its own, no pair spans a reset")
+        lines.append(f"  STAMP RESYNCS: gyro {rs.get('gyro', 0)}, camera {rs.get('camera', 0)} "
+                     "(clock resets): each time base calibrated on its own, no pair spans a reset")
     notes = [f"{n.replace('_', ' ')} {v}" for n, v in fx.items() if v and not isinstance(v, list)]
     if notes:
         lines.append("  camera fixes: " + ", ".join(notes))
@@ -381,11 +384,14 @@ def _summary(bag: str, data: dict, result: dict, p: dict) -> str:
                     if result["observable"] else "not observable"))
     if result["observable"]:
         names = ("heading ψ", "pitch ϑ", "roll γ")
-        untrusted = "UNTRUSTED (fit inconsistent with the stated noise) " if result["fit_consistent"] is False else ""
-        lines.append(f"  {untrusted}β: " + ", ".join(f"{n} {np.degrees(b):.6f}° ± {s * ARCSEC_PER_RAD:.3g}″"
+        untrusted = ("UNTRUSTED (fit inconsistent with the stated noise) "
+                     if result["fit_consistent"] is False else "")
+        lines.append(f"  {untrusted}β: " + ", ".join(
+            f"{n} {np.degrees(b):.6f}° ± {s * ARCSEC_PER_RAD:.3g}″"
                                         for n, b, s in zip(names, result["beta_rad"], result["beta_sigma_rad"])))
         sig_mf = np.sqrt(np.diag(result["rotation_covariance_mf_rad2"])) * ARCSEC_PER_RAD
-        lines.append(f"  {untrusted}q_mf_vf (x, y, z, w) = [{', '.join(f'{v:.9f}' for v in result['q_mf_vf_xyzw'])}], "
+        q_text = ", ".join(f"{v:.9f}" for v in result["q_mf_vf_xyzw"])
+        lines.append(f"  {untrusted}q_mf_vf (x, y, z, w) = [{q_text}], "
                      f"σ about MF x, y, z = {', '.join(f'{s:.3g}' for s in sig_mf)}″")
     return "\n".join(lines)
 
@@ -396,20 +402,21 @@ def consistency_warning(result: dict) -> str | None:
     if result.get("fit_consistent") is not False:
         return None
     chi2, (lo, hi) = result["chi2_per_dof"], result["chi2_per_dof_band"]
-    band = f"its {100 * (1 - result['chi2_level']):g}% band [{lo:.3g}, {hi:.3g}] (dof {result['dof']})"
+    band = (f"its {100 * (1 - result['chi2_level']):g}% band [{lo:.3g}, {hi:.3g}] "
+            f"(dof {result['dof']})")
     if chi2 > hi:
         scale = float(np.sqrt(chi2))
         stated = result.get("beta_sigma_stated_noise_rad")
         if result["weighted"]:
+            stated_text = ", ".join(f"{v * ARCSEC_PER_RAD:.3g}″" for v in stated or [])
             shown = (f"the σ reported for β are scaled by √(χ²/dof) = {scale:.3g}"
-                     + ("; σ with the stated noise " + ", ".join(f"{v * ARCSEC_PER_RAD:.3g}″" for v in stated)
-                        if stated else ""))
+                     + (f"; σ with the stated noise {stated_text}" if stated else ""))
         else:
-            shown = (f"the σ reported for β come from the residual scatter (004 §4.3, unweighted), "
+            shown = ("the σ reported for β come from the residual scatter (004 §4.3, unweighted), "
                      f"a scatter √(χ²/dof) = {scale:.3g} times the stated noise")
-        return (f"WARNING: χ²/dof = {chi2:.3g} is above {band}: the stated noise is too small or the model "
-                f"lacks an effect (outliers, an unmodelled error); {shown}.  Do not use the estimate as "
-                f"calibrated.")
+        return (f"WARNING: χ²/dof = {chi2:.3g} is above {band}: the stated noise is too small "
+                f"or the model lacks an effect (outliers, an unmodelled error); {shown}.  Do not "
+                "use the estimate as calibrated.")
     return (f"WARNING: χ²/dof = {chi2:.3g} is below {band}: the stated noise is too large (the σ "
             f"reported for β, from the stated noise, are pessimistic; not scaled down).")
 
@@ -460,7 +467,8 @@ def main(argv=None) -> int:
     result["dropped"] = {"gyro": dict(g.dropped),
                          "camera": {**c.dropped, "zero_quaternion": data["camera_fixes"]["zero_quaternion"],
                                     "bad_covariance": data["camera_fixes"]["bad_covariance"]}}
-    result["gyro_gaps"] = {"gaps": g.check.gaps, "missing": g.missing, "pairs_discarded": discarded,
+    result["gyro_gaps"] = {"gaps": g.check.gaps, "missing": g.missing,
+                           "pairs_discarded": discarded,
                            "dropouts": g.check.dropouts, "stamp_bursts": g.check.bursts}
     result["stamp_resyncs"] = {"gyro": g.resyncs, "camera": c.resyncs}
     result["pairs_replayed_not_added"] = cal.replayed_pairs         # stamps of a pair already held

@@ -94,15 +94,16 @@ def _summary(bag, info, cal) -> str:
     d = cal.extra
     chi2 = d.get("chi2_per_dof")
     band = d.get("chi2_per_dof_band")
-    verdict = ("" if d.get("fit_consistent") is None or band is None else
-               f", {'consistent' if d['fit_consistent'] else 'INCONSISTENT'}: band [{band[0]:.3g}, {band[1]:.3g}] "
-               f"at level {d['chi2_level']:g}")
-    lines.append(f"  {'observable' if cal.observable else 'NOT observable'}"
-                 + (f", χ²/dof {chi2:.3g} (dof {d.get('dof')}{verdict})" if chi2 is not None else ""))
+    verdict = ""
+    if d.get("fit_consistent") is not None and band is not None:
+        verdict = (f", {'consistent' if d['fit_consistent'] else 'INCONSISTENT'}: "
+                   f"band [{band[0]:.3g}, {band[1]:.3g}] at level {d['chi2_level']:g}")
+    chi2_text = f", χ²/dof {chi2:.3g} (dof {d.get('dof')}{verdict})" if chi2 is not None else ""
+    lines.append(f"  {'observable' if cal.observable else 'NOT observable'}{chi2_text}")
     if not cal.observable:
         return "\n".join(lines)
     if d.get("fit_consistent") is False:
-        lines.append("  UNTRUSTED: the fit is inconsistent with the stated noise (see the WARNING)")
+        lines.append("  UNTRUSTED: the fit is inconsistent with the stated noise (the WARNING)")
     for n, v, s in zip(cal.labels, cal.x, cal.sigma):
         if n.startswith(("bias", "drift")):
             lines.append(f"  {n:8s} {v: .6e} rad/s ± {s:.2e}   ({v * DEG_H: .5f} ± {s * DEG_H:.5f} °/h)")
@@ -124,12 +125,12 @@ def consistency_warning(out: dict) -> str | None:
     chi2, (lo, hi), d = out["chi2_per_dof"], out["chi2_per_dof_band"], out["details"]
     band = f"its {100 * (1 - d['chi2_level']):g}% band [{lo:.3g}, {hi:.3g}] (dof {d['dof']})"
     if chi2 > hi:
-        return (f"WARNING: χ²/dof = {chi2:.3g} is above {band}: the stated noise (camera covariance, gyro random "
-                f"walk) is too small or the model lacks an effect; the σ reported are scaled by √(χ²/dof) = "
-                f"{np.sqrt(chi2):.3g} (sigma_stated_noise in the JSON: unscaled).  Do not use the estimate as "
-                f"calibrated.")
-    return (f"WARNING: χ²/dof = {chi2:.3g} is below {band}: the stated noise is too large (the σ reported, from "
-            f"the stated noise, are pessimistic; not scaled down).")
+        return (f"WARNING: χ²/dof = {chi2:.3g} is above {band}: the stated noise (camera "
+                "covariance, gyro random walk) is too small or the model lacks an effect; the σ "
+                f"reported are scaled by √(χ²/dof) = {np.sqrt(chi2):.3g} (sigma_stated_noise in "
+                "the JSON: unscaled).  Do not use the estimate as calibrated.")
+    return (f"WARNING: χ²/dof = {chi2:.3g} is below {band}: the stated noise is too large (the "
+            "σ reported, from the stated noise, are pessimistic; not scaled down).")
 
 
 def _parse(argv):
