@@ -26,8 +26,9 @@ in the order they are applied to each message (stamps in integer nanoseconds):
    c. **burst that returns** — when, within ``max_burst`` accepted messages after a dropout or
       resynchronisation, a second confirmed jump lands back on the timeline from before it
       (the first new stamp lies after the last stamp of the old timeline by no more than
-      ``jump_limit`` plus 2 nominal periods per message received since), the messages in
-      between carried wrong stamps (e.g. 5 increments stamped 1000 s in the past).  They are
+      ``jump_limit`` plus 2 nominal periods per message received since) while the messages in
+      between lie off it (before its last stamp or after the new one: not a dropout), they
+      carried wrong stamps (e.g. 5 increments stamped 1000 s in the past).  They are
       counted ``burst_messages`` (one ``bursts``), the first jump is no longer counted as a
       resynchronisation or dropout, and the old timeline continues with a gap (rule 6) over
       the burst.  Live consumers already received those messages: ``returned`` (with
@@ -180,7 +181,9 @@ class StreamCheck:
         nominal = self.nominal_ns if math.isfinite(self.nominal_ns) else 0.0
         if before is not None and self.accepted - before["accepted"] <= self.max_burst:
             since = self.received - before["received"]
-            if 0 < first - before["last_ns"] <= self.jump_ns + 2.0 * nominal * since:
+            back = first - before["last_ns"]
+            off_timeline = not before["last_ns"] < self.last_ns < first   # not a dropout before
+            if off_timeline and 0 < back <= self.jump_ns + 2.0 * nominal * since:
                 return self._return_from_burst(held, before)
         self._before_jump = self._snapshot()
         step = first - self.last_ns

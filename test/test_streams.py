@@ -95,3 +95,13 @@ def test_clock_reset_offline_gives_monotonic_segments():
     assert c.resyncs == 1 and c.segment_starts == [100]
     for a, b in segments(t, c.segment_starts):
         assert all(y > x for x, y in zip(t[a:b - 1], t[a + 1:b]))
+
+
+def test_two_dropouts_close_together_are_not_a_burst():
+    """Two forward dropouts 500 messages apart: both stay on the timeline, nothing is retracted."""
+    st = [k * MS for k in range(1, 2001)]
+    kept = [s for s in st if not (300 * MS < s <= 500 * MS or 1000 * MS < s <= 1150 * MS)]
+    c = StreamCheck(0.01, jump_limit=1.0, resync_count=5)
+    t, _, gaps = validate(kept, [(0.0, 0.0, 0.0)] * len(kept), c)
+    assert t == kept and gaps == [(300 * MS, 501 * MS), (1000 * MS, 1151 * MS)]
+    assert (c.dropouts, c.bursts, c.resyncs, c.gaps, c.missing) == (2, 0, 0, 2, 350)
