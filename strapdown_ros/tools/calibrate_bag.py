@@ -257,7 +257,8 @@ def calibrate(data: dict, p: dict):
     tc = (np.asarray(c.stamps, dtype=np.int64) - t0) * 1e-9
     period = data.get("gyro_period_s") or 1.0 / float(p["gyro_rate"])
     h = 1.5 * period                                    # the in-interval polynomial reads the neighbours
-    lead = 3 * period + abs(float(p["camera_time_offset"]))
+    offset = abs(float(p["camera_time_offset"]))      # a fix's epoch is its stamp − offset
+    lead = 3 * period + offset
     g_segs = segments(g.stamps, getattr(g.check, "segment_starts", []))
     c_segs = segments(c.stamps, getattr(c.check, "segment_starts", []))
     discarded = 0
@@ -275,7 +276,7 @@ def calibrate(data: dict, p: dict):
         cur_c = j
         gaps = [(seg_t[n], seg_t[n + 1]) for n in np.flatnonzero(np.diff(seg_t) > 1.5 * period)]
         for t, (q, P) in zip(tc[ca:cb], c.values[ca:cb]):
-            if t < seg_t[0] or t > seg_t[-1]:
+            if t < seg_t[0] - offset or t > seg_t[-1] + offset:
                 continue                               # outside the gyro segment: no pair
             k1 = int(np.searchsorted(seg_t, t + lead, side="right"))
             new = 0
