@@ -28,6 +28,7 @@ Two remarks on the printed formulas, with evidence in ``test/test_boresight.py``
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -38,7 +39,8 @@ from .rotation import (dcm_to_ypr, quat_conjugate, quat_cumprod, quat_multiply, 
 from .sensors import SensorSigmas
 from .sensors.covariance import constant_jacobian, constant_variances, get_covariance_model
 
-__all__ = ["IncrementPair", "angle_consistency", "gyro_increment", "camera_increment", "BoresightSolution", "solve_boresight",
+__all__ = ["IncrementPair", "angle_consistency", "chi2_band", "FIT_LEVEL",
+           "gyro_increment", "camera_increment", "BoresightSolution", "solve_boresight",
            "check_observability", "imu_attitude_from_camera", "r_partial"]
 
 
@@ -159,6 +161,73 @@ def angle_consistency(pair: IncrementPair) -> tuple[float, float]:
     return out[0] - out[1], float(np.sqrt(max(var, 0.0)))
 
 
+# ------------------------------------------------------------------ fit consistency
+#: two-sided level of the χ²/dof acceptance band: a consistent fit falls outside it with
+#: probability FIT_LEVEL
+FIT_LEVEL = 0.01
+
+
+def _gamma_p(a: float, x: float) -> float:
+    """Regularised lower incomplete gamma P(a, x): the series below a + 1, Lentz's continued
+    fraction for Q = 1 − P above (Numerical Recipes §6.2)."""
+    if x <= 0.0:
+        return 0.0
+    log_pre = a * math.log(x) - x - math.lgamma(a)
+    if x < a + 1.0:
+        term = total = 1.0 / a
+        ap = a
+        for _ in range(100000):
+            ap += 1.0
+            term *= x / ap
+            total += term
+            if abs(term) < abs(total) * 1e-15:
+                break
+        return min(1.0, total * math.exp(log_pre))
+    tiny = 1e-300
+    b = x + 1.0 - a
+    c, d = 1.0 / tiny, 1.0 / b
+    h = d
+    for k in range(1, 100000):
+        an = -k * (k - a)
+        b += 2.0
+        d = an * d + b
+        d = tiny if abs(d) < tiny else d
+        c = b + an / c
+        c = tiny if abs(c) < tiny else c
+        d = 1.0 / d
+        h *= d * c
+        if abs(d * c - 1.0) < 1e-15:
+            break
+    return max(0.0, 1.0 - math.exp(log_pre) * h)
+
+
+def _chi2_quantile(p: float, dof: int) -> float:
+    """x with P(χ²_dof ≤ x) = p: Newton's method on the exact distribution function from the
+    Wilson–Hilferty start (no scipy: the node must not pay its import inside a callback)."""
+    from statistics import NormalDist
+    a = 0.5 * dof
+    c = 2.0 / (9.0 * dof)
+    x = dof * max(1e-3, 1.0 - c + NormalDist().inv_cdf(p) * math.sqrt(c)) ** 3
+    for _ in range(50):
+        log_pdf = (a - 1.0) * math.log(x) - 0.5 * x - a * math.log(2.0) - math.lgamma(a)
+        step = (_gamma_p(a, 0.5 * x) - p) / math.exp(log_pdf)
+        x_new = x - step if x - step > 0 else 0.5 * x
+        if abs(x_new - x) <= 1e-12 * x:
+            return x_new
+        x = x_new
+    return x
+
+
+def chi2_band(dof: int, level: float = FIT_LEVEL) -> tuple[float, float]:
+    """The two-sided acceptance band of χ²/dof for ``dof`` degrees of freedom at ``level``:
+    (χ²_{level/2}(dof)/dof, χ²_{1−level/2}(dof)/dof).  A weighted least-squares fit whose
+    stated noise is right lands inside with probability 1 − level.  Exact quantiles (numpy
+    only, checked against scipy in test_boresight.py).  (nan, nan) for dof < 1."""
+    if dof < 1:
+        return float("nan"), float("nan")
+    return _chi2_quantile(level / 2, dof) / dof, _chi2_quantile(1 - level / 2, dof) / dof
+
+
 # ---------------------------------------------------------------------- §4 the estimate
 @dataclass
 class BoresightSolution:
@@ -175,7 +244,13 @@ class BoresightSolution:
     iterations: int = 0
     converged: bool = False
     residual_rms: float = float("nan")             # rad, RMS of the residual components
-    chi2_per_dof: float = float("nan")             # weighted only
+    chi2_per_dof: float = float("nan")             # Σ fᵀ W f / dof, stated noise, any weighting
+    dof: int = 0                                   # 3n − 3
+    chi2_band: tuple = (float("nan"), float("nan"))   # chi2_band(dof, FIT_LEVEL)
+    #: χ²/dof inside its band: the stated noise explains the residuals.  False: the stated noise
+    #: is wrong or the model lacks an effect, and covariance_beta is scaled by χ²/dof when > 1
+    fit_consistent: bool | None = None
+    covariance_beta_stated: np.ndarray | None = None   # P_β from the stated noise alone (unscaled)
     pairs: int = 0
     observability: ObservabilityReport | None = None
     unobservable_axes: list = field(default_factory=list)
@@ -359,29 +434,57 @@ def solve_boresight(pairs, beta0=(0.0, 0.0, 0.0), weighted: bool = True, init: s
             WH_Wf = np.linalg.solve(Sig, np.hstack([Hs, f.reshape(-1, 1)]))
             N = Hs.T @ WH_Wf[:, :3]
             g = Hs.T @ WH_Wf[:, 3]
-            return C, f, H, None, None, N, g, float(f.reshape(-1) @ WH_Wf[:, 3])
+            return C, f, H, Sig, None, N, g, float(f.reshape(-1) @ WH_Wf[:, 3])
         W = weights(C)
         HtW = np.einsum("nji,njk->nik", H, W)
         g = np.einsum("nij,nj->i", HtW, f)
         return C, f, H, W, HtW, np.einsum("nij,njk->ik", HtW, H), g, float(np.einsum("ni,nij,nj->", f, W, f))
 
+    def frozen_cost(lin, f_t):
+        """fᵀ W f of residuals f_t with the weights of the linearisation ``lin`` (the cost the
+        Gauss–Newton step of ``lin`` descends)."""
+        if weighting == "correlated":
+            return float(f_t.reshape(-1) @ np.linalg.solve(lin[3], f_t.reshape(-1)))
+        return float(np.einsum("ni,nij,nj->", f_t, lin[3], f_t))
+
     converged = False
     it = 0
+    lin = linearise(beta)
     for it in range(1, max_iterations + 1):
-        _, f, _, _, _, N, g, _ = linearise(beta)
+        N, g, cost = lin[5], lin[6], lin[7]
         step = -np.linalg.solve(N, g)
-        beta = beta + step
-        if np.linalg.norm(step) <= tolerance:
+        # converged: the step is below ``tolerance``, or below 1e-4 of the residual-scaled σ of β —
+        # with large residuals the finite-difference Jacobian cannot resolve 1e-9 rad
+        scale = cost / max(3 * n - 3, 1)            # residual variance per unit weight
+        if np.linalg.norm(step) <= tolerance or float(step @ N @ step) <= 1e-8 * scale:
+            beta = beta + step
+            lin = linearise(beta)
             converged = True
             break
-    C, f, H, W, HtW, N, g, wss = linearise(beta)
+        # Gauss–Newton step; halved while it raises the weighted cost (large residuals, e.g. a
+        # stated σ far too small, make the full step overshoot and oscillate)
+        for _ in range(30):
+            f_t = _residuals(ypr_to_dcm(*(beta + step)), A_imu, A_cam)
+            if frozen_cost(lin, f_t) <= cost * (1.0 + 1e-12):
+                break
+            step = 0.5 * step
+        beta = beta + step
+        lin = linearise(beta)
+    C, f, H, W, HtW, N, g, wss = lin
     # 004 §4.3: residual block P_S from the residuals, the same for every pair
     P_S = f.T @ f / max(n - 1, 1)
     Hu = H.reshape(-1, 3)
     Ninv_u = np.linalg.inv(Hu.T @ Hu)
     P_res = Ninv_u @ np.einsum("nji,jk,nkl->il", H, P_S, H) @ Ninv_u
     P_model = np.linalg.inv(N) if weighted else None
-    chi2 = wss / max(3 * n - 3, 1) if weighted else float("nan")
+    dof = 3 * n - 3
+    if not weighted:                                 # 004's unit weights: χ² with the stated noise
+        cov = np.swapaxes(C, 0, 1)[None] @ E_imu @ C[None] + E_cam
+        ok_cov = np.all(np.linalg.eigvalsh(cov) > 0)
+        wss = float(np.einsum("ni,nij,nj->", f, np.linalg.inv(cov), f)) if ok_cov else float("nan")
+    chi2 = wss / max(dof, 1)
+    band = chi2_band(dof)
+    consistent = bool(band[0] <= chi2 <= band[1]) if np.isfinite(chi2) and dof >= 1 else None
     if weighted:
         P = P_model * max(1.0, chi2)                 # inflate if the residuals exceed the model
     else:
@@ -398,6 +501,7 @@ def solve_boresight(pairs, beta0=(0.0, 0.0, 0.0), weighted: bool = True, init: s
         covariance_beta_model=P_model, rotation_covariance_mf=D2 @ P @ D2.T, weighted=weighted,
         weighting=weighting,
         iterations=it, converged=converged, residual_rms=float(np.sqrt(np.mean(f ** 2))), chi2_per_dof=chi2,
+        dof=dof, chi2_band=band, fit_consistent=consistent, covariance_beta_stated=P_model,
         pairs=n, observability=rep)
     return sol
 

@@ -43,6 +43,7 @@ class BoresightCalibrator:
         self.outlier_gate = float(outlier_gate)
         self.outlier_fixes = 0                      # camera fixes dropped by the outlier rule
         self.outlier_stamps: deque = deque(maxlen=100)
+        self._angle_ratios: deque = deque(maxlen=self.ROBUST_WINDOW)   # normalised angle residuals
         self._prev_fix = None                       # the fix before _last_fix (for the skip pair)
         self.effects = effects if effects is not None and effects.active else None
         self.camera = camera
@@ -59,6 +60,8 @@ class BoresightCalibrator:
         self._cams: deque = deque()     # fixes waiting for gyro coverage: (stamp, q, P)
         self._last_fix = None           # the fix that starts the next pair
         self.pairs: list[IncrementPair] = []
+        self._pair_keys: set = set()    # (t_start, t_end), ns, of the pairs held
+        self.replayed_pairs = 0         # pairs not added because a pair with their stamps is held
         self.solution: BoresightSolution | None = None
 
     @classmethod
@@ -134,9 +137,24 @@ class BoresightCalibrator:
         extra = dict(imu_sensitivity=r[2], cov_imu_white=r[3]) if self.gyro is not None else {}
         return IncrementPair(t0, stamp, r[0], dq_c, r[1], E_c, cov_fix_start=P0, cov_fix_end=P, **extra)
 
-    def _inconsistent(self, pair) -> bool:
+    #: the robust scale of the outlier gate is taken over at most this many of the latest pairs
+    ROBUST_WINDOW = 200
+    #: ... and only once this many pairs exist: before, the scatter is unknown and no fix is gated
+    ROBUST_MIN_PAIRS = 5
+
+    def angle_scale(self) -> float:
+        """Robust scale s of the normalised angle residuals r = (φ_avu − φ_imu)/σ of the latest
+        pairs: 1.4826 · median |r − median r| (the MAD, σ for Gaussian r), at least 1.  With the
+        stated noise right, s ≈ 1; with the camera σ stated 100× too small, s ≈ 100.  inf (no
+        gate) with fewer than ``ROBUST_MIN_PAIRS`` pairs."""
+        r = np.asarray(self._angle_ratios, dtype=float)
+        if len(r) < self.ROBUST_MIN_PAIRS:
+            return float("inf")
+        return max(1.0, 1.4826 * float(np.median(np.abs(r - np.median(r)))))
+
+    def _inconsistent(self, pair, scale: float = 1.0) -> bool:
         d, sigma = angle_consistency(pair)
-        return abs(d) > self.outlier_gate * sigma
+        return abs(d) > self.outlier_gate * scale * sigma
 
     def _form_pairs(self) -> int:
         new = 0
@@ -153,7 +171,15 @@ class BoresightCalibrator:
             if pair is None:                            # not enough gyro data around t0: skip this pair
                 self._prev_fix, self._last_fix = None, fix
                 continue
+            key = self.pair_key(pair)
+            if key in self._pair_keys:                  # the same stamps again (a replay)
+                self.replayed_pairs += 1
+                self._prev_fix, self._last_fix = None, fix
+                continue
+            self._pair_keys.add(key)
             self.pairs.append(pair)
+            d, sig = angle_consistency(pair)
+            self._angle_ratios.append(d / sig if sig > 0 else 0.0)
             new += 1
             self._drop_outlier_fix(fix)              # the last pair may become the skip pair: still new
             self._prev_fix, self._last_fix = self._last_fix, fix
@@ -162,25 +188,58 @@ class BoresightCalibrator:
             self._gyro.drop_first(int(np.searchsorted(self._gyro.stamps, keep)) - 3)
         if self.max_pairs and len(self.pairs) > self.max_pairs:
             del self.pairs[:len(self.pairs) - self.max_pairs]
+        if len(self._pair_keys) > 2 * len(self.pairs) + 1000:    # bounded: the keys of pairs held
+            self._pair_keys = {self.pair_key(pr) for pr in self.pairs}
         return new
+
+    # --- identity of pairs and the fix chain (the state file) -----------------------------------
+    @staticmethod
+    def pair_key(pair: IncrementPair) -> tuple[int, int]:
+        """(t_start, t_end) of a pair in integer ns: the identity of a pair across restarts."""
+        return int(round(pair.t_start * 1e9)), int(round(pair.t_end * 1e9))
+
+    def add_pair_keys(self, pairs) -> None:
+        """Hold the keys of ``pairs`` (restored from a state file): pairs with the same stamps
+        are not formed again."""
+        self._pair_keys.update(self.pair_key(pr) for pr in pairs)
+
+    @property
+    def last_fix(self):
+        """(stamp s, q_GCRS_VF, P) of the fix that starts the next pair, or None."""
+        return self._last_fix
+
+    def restore_last_fix(self, stamp: float, q_gcrs_vf, covariance) -> None:
+        """Resume the fix chain from a stored fix (the state file)."""
+        self._last_fix = (float(stamp), np.asarray(q_gcrs_vf, dtype=float),
+                          np.asarray(covariance, dtype=float))
+        self._prev_fix = None
 
     def _drop_outlier_fix(self, fix) -> int:
         """The outlier rule: fix n (= _last_fix) is an outlier when both its pairs, (n−1, n) and
-        (n, n+1), disagree in rotation angle by more than ``outlier_gate`` σ while the pair
-        (n−1, n+1) that skips it agrees.  Then both pairs give way to the skip pair (the newest
+        (n, n+1), disagree in rotation angle by more than the gate while the pair (n−1, n+1)
+        that skips it agrees.  The gate is ``outlier_gate`` × max(1, s) × the stated σ of the
+        angle difference, s the robust scale of the normalised angle residuals of the latest
+        pairs (:meth:`angle_scale`): when the stated noise is right s ≈ 1 and the gate is
+        ``outlier_gate`` σ; when the stated σ is too small by a factor s, the gate widens by s,
+        so a wrong σ never turns good fixes into outliers while a fix off by far more than the
+        actual scatter is still gated.  Then both pairs give way to the skip pair (the newest
         pair in the list).  Returns 1 when fix n was dropped, else 0."""
         if self.outlier_gate <= 0 or self._prev_fix is None or len(self.pairs) < 2:
             return 0
         a, b = self.pairs[-2], self.pairs[-1]
         if not (a.t_end == b.t_start == self._last_fix[0] and a.t_start == self._prev_fix[0]):
             return 0
-        if not (self._inconsistent(a) and self._inconsistent(b)):
+        scale = self.angle_scale()
+        if not np.isfinite(scale):
+            return 0                                    # too few pairs to know the scatter
+        if not (self._inconsistent(a, scale) and self._inconsistent(b, scale)):
             return 0
         skip = self._pair(self._prev_fix, fix)
-        if skip is None or self._inconsistent(skip):
+        if skip is None or self._inconsistent(skip, scale):
             return 0                                    # not one bad fix: leave it to the estimator
         del self.pairs[-2:]
         self.pairs.append(skip)
+        self._pair_keys.add(self.pair_key(skip))
         self.outlier_fixes += 1
         self.outlier_stamps.append(self._last_fix[0])
         self._last_fix = self._prev_fix                 # the bad fix never starts a pair
@@ -220,84 +279,3 @@ class BoresightCalibrator:
     def common_rotation_sigma(self) -> float:
         """σ per axis of the gyro-triad rotation (antisymmetric misalignment), σ_φ/√2."""
         return self.gyro.misalignment_sigma / np.sqrt(2.0) if self.gyro is not None else 0.0
-
-
-# ----------------------------------------------------------------------------- persistence
-STATE_VERSION = 1
-_PAIR_FIELDS = ("t_start", "t_end", "dq_imu", "dq_cam", "cov_imu", "cov_cam", "imu_sensitivity", "cov_imu_white",
-                "cov_fix_start", "cov_fix_end")
-
-
-def save_state(path: str, cal: BoresightCalibrator, origin_ns: int, extra: dict | None = None) -> None:
-    """Write the calibrator's pairs, last fix and estimate to ``path`` atomically: a temporary
-    file in the same directory, flushed and fsynced, then renamed over the old one (a crash
-    leaves the old file or the new one, never half of either).  numpy .npz, no pickle."""
-    import os
-    import tempfile
-
-    arrays = {"version": np.array(STATE_VERSION), "origin_ns": np.array(int(origin_ns), dtype=np.int64),
-              "n_pairs": np.array(len(cal.pairs))}
-    for f in _PAIR_FIELDS:
-        vals = [getattr(p, f) for p in cal.pairs]
-        if vals and all(v is not None for v in vals):
-            arrays["pair_" + f] = np.array(vals, dtype=float)
-    if cal._last_fix is not None:
-        t, q, P = cal._last_fix
-        arrays["last_fix_t"], arrays["last_fix_q"], arrays["last_fix_P"] = np.array(t), np.asarray(q), np.asarray(P)
-    sol = cal.solution
-    if sol is not None and sol.observable and sol.beta is not None:
-        arrays["beta"] = np.asarray(sol.beta, dtype=float)
-    for k, v in (extra or {}).items():
-        arrays["extra_" + k] = np.asarray(v)
-    d = os.path.dirname(os.path.abspath(path))
-    fd, tmp = tempfile.mkstemp(prefix=".calibrator_state_", suffix=".npz", dir=d)
-    try:
-        with os.fdopen(fd, "wb") as fh:
-            np.savez(fh, **arrays)
-            fh.flush()
-            os.fsync(fh.fileno())
-        os.replace(tmp, path)
-        try:                                       # make the rename itself durable
-            dfd = os.open(d, os.O_RDONLY)
-            os.fsync(dfd)
-            os.close(dfd)
-        except OSError:
-            pass
-    except BaseException:
-        try:
-            os.unlink(tmp)
-        except OSError:
-            pass
-        raise
-
-
-def load_state(path: str, cal: BoresightCalibrator) -> tuple[int, dict]:
-    """Restore pairs and last fix from ``path`` into ``cal``; returns (origin_ns, extra).  Raises
-    ValueError naming what is wrong with a corrupted or incompatible file (nothing restored)."""
-    try:
-        with np.load(path, allow_pickle=False) as z:
-            data = {k: z[k] for k in z.files}
-    except Exception as exc:                       # noqa: BLE001 - any unreadable file is reported
-        raise ValueError(f"unreadable ({type(exc).__name__}: {exc})") from None
-    if int(data.get("version", -1)) != STATE_VERSION:
-        raise ValueError(f"state version {data.get('version')} is not {STATE_VERSION}")
-    n = int(data["n_pairs"])
-    shapes = {"t_start": (), "t_end": (), "dq_imu": (4,), "dq_cam": (4,), "cov_imu": (3, 3), "cov_cam": (3, 3),
-              "imu_sensitivity": (3, 12), "cov_imu_white": (3, 3), "cov_fix_start": (3, 3), "cov_fix_end": (3, 3)}
-    pairs_fields = {}
-    for f, shape in shapes.items():
-        a = data.get("pair_" + f)
-        if a is None:
-            if f in ("t_start", "t_end", "dq_imu", "dq_cam", "cov_imu", "cov_cam") and n:
-                raise ValueError(f"missing pair field {f}")
-            continue
-        if a.shape != (n,) + shape or not np.all(np.isfinite(a)):
-            raise ValueError(f"pair field {f} has shape {a.shape} (expected {(n,) + shape}) or non-finite values")
-        pairs_fields[f] = a
-    pairs = [IncrementPair(**{f: (float(a[i]) if a.ndim == 1 else a[i].copy()) for f, a in pairs_fields.items()})
-             for i in range(n)]
-    cal.pairs = pairs
-    if "last_fix_t" in data:
-        cal._last_fix = (float(data["last_fix_t"]), data["last_fix_q"].astype(float), data["last_fix_P"].astype(float))
-    extra = {k[len("extra_"):]: v for k, v in data.items() if k.startswith("extra_")}
-    return int(data["origin_ns"]), extra

@@ -172,6 +172,20 @@ def _polar(B):
     return U @ np.diag(s) @ U.T, U @ Vt
 
 
+def _judge_fit(extra: dict) -> float:
+    """χ²/dof against its two-sided band (:func:`~strapdown_ros.boresight.chi2_band`, level
+    FIT_LEVEL): ``fit_consistent``, ``chi2_per_dof_band`` and ``chi2_level`` added to ``extra``.
+    Returns the factor max(1, χ²/dof) by which the published covariance is scaled."""
+    from .boresight import FIT_LEVEL, chi2_band
+    chi2, dof = extra.get("chi2_per_dof"), int(extra.get("dof", 0))
+    band = chi2_band(dof, FIT_LEVEL)
+    ok = chi2 is not None and np.isfinite(chi2) and dof >= 1
+    extra.update({"fit_consistent": bool(band[0] <= chi2 <= band[1]) if ok else None,
+                  "chi2_per_dof_band": list(band), "chi2_level": FIT_LEVEL,
+                  "covariance_scale": float(max(1.0, chi2)) if ok else 1.0})
+    return extra["covariance_scale"]
+
+
 def _integral_common(x12):
     P, R = _polar(x12[:9].reshape(3, 3))
     return np.concatenate([np.diag(P) - 1.0, [P[i, j] for i, j in _SYM], x12[9:], quat_to_rotvec(dcm_to_quat(R))])
@@ -199,6 +213,7 @@ def calibrate_integral(prep: Prepared, interval: float | None = None, sigma_limi
                                       q_body_camera=dcm_to_quat(prep.C), sigma_limit=sigma_limit)
     extra = {"intervals": int(len(iv)), "chi2_per_dof": float(res.chi2_per_dof), "dof": int(res.dof),
              "library_message": res.message}
+    _judge_fit(extra)                         # the library scales its covariance by max(1, χ²/dof)
     labels = COMMON_LABELS
     if not res.observable:
         names = list(res.observability.unobservable)
@@ -358,7 +373,9 @@ def calibrate_tkachenko(prep: Prepared, drift: bool = False, sigma_limit: float 
     dof = max(len(zw) - len(x), 1)
     cov_full = np.linalg.pinv(info, hermitian=True)
     extra.update({"iterations": sol.iterations, "chi2_per_dof": float(np.sum((zw - Uw @ step) ** 2)) / dof,
-                  "dof": int(dof), "w0": x[:3].tolist(), "w0_sigma": np.sqrt(np.diag(cov_full[:3, :3])).tolist()})
+                  "dof": int(dof)})
+    cov_full = cov_full * _judge_fit(extra)   # as the 002 library: scaled by max(1, χ²/dof)
+    extra.update({"w0": x[:3].tolist(), "w0_sigma": np.sqrt(np.diag(cov_full[:3, :3])).tolist()})
     if names:
         return GyroCalibration("tkachenko", False, rep.message, np.full(len(labels), np.nan),
                                np.full((len(labels),) * 2, np.nan), labels, rep, names, rate, extra)

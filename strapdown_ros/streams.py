@@ -13,8 +13,28 @@ in the order they are applied to each message (stamps in integer nanoseconds):
    *candidate* new timeline (at most ``resync_count`` messages).  A following message that fits
    the old timeline discards the candidates as **stamp outliers** (a lone stamp far in the
    future costs one message and stops nothing); ``resync_count`` consecutive messages that fit
-   the candidate timeline confirm it: the stream **resynchronises** (counted ``resyncs``),
-   and the held messages are released in order, so nothing is lost;
+   the candidate timeline confirm it, and the held messages are released in order, so nothing
+   is lost.  What the confirmed jump is:
+
+   a. **dropout** — a *forward* jump of at most ``max_dropout`` seconds on a stream with a
+      nominal period: the stamps go on on the same timeline, messages were simply not
+      received (a driver stall, a saturated sensor whose values were dropped).  Counted as a
+      gap (rule 6) with ``round(step / period) − 1`` increments missing; no new time base;
+   b. **resynchronisation** — a backward jump, or a forward one beyond ``max_dropout`` (or on
+      a stream without a nominal period): a clock reset.  Counted ``resyncs``; ``resynced``
+      tells the consumer to restart its time base;
+   c. **burst that returns** — when, within ``max_burst`` accepted messages after a dropout or
+      resynchronisation, a second confirmed jump lands back on the timeline from before it
+      (the first new stamp lies after the last stamp of the old timeline by no more than
+      ``jump_limit`` plus 2 nominal periods per message received since) while the messages in
+      between lie off it (before its last stamp or after the new one: not a dropout), they
+      carried wrong stamps (e.g. 5 increments stamped 1000 s in the past).  They are
+      counted ``burst_messages`` (one ``bursts``), the first jump is no longer counted as a
+      resynchronisation or dropout, and the old timeline continues with a gap (rule 6) over
+      the burst.  Live consumers already received those messages: ``returned`` (with
+      ``resynced``) tells them to restart their time base, ``retracted`` how many of the
+      latest delivered messages were the burst; offline, :func:`validate` removes them from
+      its output, so a burst of k wrong stamps costs only the pairs that contain it;
 5. **out of order** (an older stamp within ``jump_limit``): dropped, counted;
 6. **gap**: a step above 1.5 nominal periods is accepted but counted (``gaps``, ``missing``):
    the increments in between are lost.
@@ -25,7 +45,7 @@ from __future__ import annotations
 
 import math
 
-__all__ = ["StreamCheck"]
+__all__ = ["StreamCheck", "nominal_period", "validate", "segments"]
 
 
 class StreamCheck:
@@ -36,8 +56,14 @@ class StreamCheck:
     right after one (the consumer's time base must restart).
     """
 
+    #: a confirmed forward jump up to this, s, is a dropout (rule 4a), not a clock reset
+    MAX_DROPOUT_S = 3600.0
+    #: a jump back to the old timeline within this many accepted messages makes a burst (rule 4c)
+    MAX_BURST = 1000
+
     def __init__(self, nominal_period: float = math.inf, max_norm: float | None = None,
-                 jump_limit: float = 1.0, resync_count: int = 5):
+                 jump_limit: float = 1.0, resync_count: int = 5, max_dropout: float | None = None,
+                 max_burst: int | None = None):
         self.nominal_ns = nominal_period * 1e9
         self.max_norm = max_norm
         self.jump_ns = max(jump_limit * 1e9, 3.0 * self.nominal_ns if math.isfinite(self.nominal_ns) else 0.0)
@@ -52,6 +78,14 @@ class StreamCheck:
         self._held: list = []          # candidate new timeline: [(stamp_ns, value)]
         self.accepted_since = 0        # accepted since first_ns (the rate after a resync)
         self.resynced = False
+        dropout_s = self.MAX_DROPOUT_S if max_dropout is None else float(max_dropout)
+        self.max_dropout_ns = dropout_s * 1e9
+        self.max_burst = int(self.MAX_BURST if max_burst is None else max_burst)
+        self.dropouts = self.bursts = self.burst_messages = 0
+        self.returned = False          # the last offer ended a burst (rule 4c)
+        self.retracted = 0             # ... and the latest this many delivered messages were it
+        self._before_jump: dict | None = None   # the state before the last dropout/resync
+        self.segment_starts: list[int] = []      # set by validate()
 
     # --- the rules -------------------------------------------------------------------------
     @staticmethod
@@ -69,7 +103,8 @@ class StreamCheck:
 
     def offer(self, stamp_ns: int, v, isfinite=math.isfinite):
         self.received += 1
-        self.resynced = False
+        self.resynced = self.returned = False
+        self.retracted = 0
         if len(v) == 3:                        # the hot path, rules 1 and 2 without calls
             x, y, z = v
             if not (isfinite(x) and isfinite(y) and isfinite(z)):
@@ -119,16 +154,7 @@ class StreamCheck:
         if self._fits(self._held[-1][0], stamp_ns):
             self._held.append((stamp_ns, v))
             if len(self._held) >= self.resync_count:
-                held, self._held = self._held, []
-                self.resyncs += 1
-                self.last_jump_s = (held[0][0] - self.last_ns) * 1e-9
-                self.last_ns = None                       # a new time base
-                self.first_ns, self.accepted_since = None, 0
-                out = []
-                for s, val in held:
-                    out += self._take(s, val)
-                self.resynced = True
-                return out
+                return self._confirm_jump()
             return []
         if stamp_ns == self.last_ns or stamp_ns == self._held[-1][0]:
             self.duplicate += 1
@@ -139,6 +165,60 @@ class StreamCheck:
             return []
         self.out_of_order += 1
         return []
+
+    def _snapshot(self) -> dict:
+        return {"last_ns": self.last_ns, "first_ns": self.first_ns,
+                "accepted_since": self.accepted_since,
+                "gaps": self.gaps, "missing": self.missing, "resyncs": self.resyncs,
+                "dropouts": self.dropouts, "accepted": self.accepted, "received": self.received}
+
+    def _confirm_jump(self):
+        """``resync_count`` held messages agree on a new timeline: a return from a burst, a
+        dropout or a resynchronisation (rule 4), in that order of precedence."""
+        held, self._held = self._held, []
+        first = held[0][0]
+        before = self._before_jump
+        nominal = self.nominal_ns if math.isfinite(self.nominal_ns) else 0.0
+        if before is not None and self.accepted - before["accepted"] <= self.max_burst:
+            since = self.received - before["received"]
+            back = first - before["last_ns"]
+            off_timeline = not before["last_ns"] < self.last_ns < first   # not a dropout before
+            if off_timeline and 0 < back <= self.jump_ns + 2.0 * nominal * since:
+                return self._return_from_burst(held, before)
+        self._before_jump = self._snapshot()
+        step = first - self.last_ns
+        self.last_jump_s = step * 1e-9
+        if math.isfinite(self.nominal_ns) and 0 < step <= self.max_dropout_ns:
+            self.dropouts += 1                          # the same timeline, messages not received
+            out = []
+            for s, val in held:
+                out += self._take(s, val)               # counts the gap and the missing increments
+            return out
+        self.resyncs += 1
+        self.last_ns = None                             # a new time base
+        self.first_ns, self.accepted_since = None, 0
+        out = []
+        for s, val in held:
+            out += self._take(s, val)
+        self.resynced = True
+        return out
+
+    def _return_from_burst(self, held, before):
+        n = self.accepted - before["accepted"]          # delivered since the first jump: the burst
+        self.bursts += 1
+        self.burst_messages += n
+        self.last_jump_s = (held[0][0] - self.last_ns) * 1e-9
+        self.gaps, self.missing = before["gaps"], before["missing"]
+        self.resyncs, self.dropouts = before["resyncs"], before["dropouts"]
+        self.last_ns, self.first_ns = before["last_ns"], before["first_ns"]
+        self.accepted_since = before["accepted_since"]
+        self._before_jump = None
+        out = []
+        for s, val in held:
+            out += self._take(s, val)                   # the gap over the burst is counted here
+        self.resynced = self.returned = True
+        self.retracted = n
+        return out
 
     def _take(self, stamp_ns, v):
         if self.last_ns is not None:
@@ -176,7 +256,9 @@ class StreamCheck:
                 f"{prefix}_dropped_out_of_order": self.out_of_order,
                 f"{prefix}_dropped_duplicate": self.duplicate, f"{prefix}_dropped_stamp_outlier": self.stamp_outliers,
                 f"{prefix}_stamp_resyncs": self.resyncs, f"{prefix}_gaps": self.gaps,
-                f"{prefix}_missing_samples": self.missing}
+                f"{prefix}_missing_samples": self.missing, f"{prefix}_dropouts": self.dropouts,
+                f"{prefix}_stamp_bursts": self.bursts,
+                f"{prefix}_stamp_burst_messages": self.burst_messages}
 
 
 def nominal_period(stamps_ns) -> float:
@@ -193,21 +275,44 @@ def validate(stamps_ns, values, check: StreamCheck):
     """Run a whole recorded stream through ``check`` (the node's rules, in bag order).
 
     Returns (stamps_ns, values, gaps): the accepted messages in order and the intervals
-    (a, b), ns, that no increment pair may span: gaps (steps above 1.5 nominal periods) and
-    confirmed stamp jumps."""
+    (a, b), ns, that no increment pair may span: gaps (steps above 1.5 nominal periods,
+    dropouts and returns from a burst included) and confirmed resynchronisations (a, b) = (last
+    stamp before, first after; b < a for a backward jump).  A burst that returned (rule 4c) is
+    removed from the output: the stamps of each time base are strictly increasing.  The index in
+    the output where each time base after a resynchronisation starts is left in
+    ``check.segment_starts`` (empty without a resynchronisation): split there, every segment is
+    strictly increasing."""
     out_t, out_v, gaps = [], [], []
+    starts: list[int] = []
+    marks: list[tuple[int, int, int]] = []       # (len(out_t), len(gaps), len(starts)) per jump
     for ns, v in zip(stamps_ns, values):
         prev = check.last_ns
         got = check.offer(int(ns), v)
         if not got:
             continue
-        if check.resynced and out_t:
-            gaps.append((out_t[-1], got[0][0]))           # across the jump (either direction)
-            prev = None
+        if check.returned:
+            n_out, n_gaps, n_starts = marks.pop() if marks else (len(out_t) - check.retracted,
+                                                               len(gaps), len(starts))
+            del out_t[n_out:], out_v[n_out:], gaps[n_gaps:], starts[n_starts:]
+            prev = out_t[-1] if out_t else None
+        elif check.resynced or (prev is not None and got[0][0] - prev > check.jump_ns):
+            marks = [(len(out_t), len(gaps), len(starts))]    # the state a return goes back to
+            if check.resynced and out_t:
+                gaps.append((out_t[-1], got[0][0]))         # across the jump (either direction)
+                starts.append(len(out_t))
+                prev = None
         for s, val in got:
             if prev is not None and math.isfinite(check.nominal_ns) and s - prev > 1.5 * check.nominal_ns:
                 gaps.append((prev, s))
             out_t.append(s)
             out_v.append(val)
             prev = s
+    check.segment_starts = starts
     return out_t, out_v, gaps
+
+
+def segments(stamps_ns, starts) -> list[tuple[int, int]]:
+    """(lo, hi) index ranges of the time bases of an accepted stream (``validate``'s output and
+    ``check.segment_starts``): within each, the stamps are strictly increasing."""
+    bounds = [0] + [int(k) for k in starts] + [len(stamps_ns)]
+    return [(a, b) for a, b in zip(bounds[:-1], bounds[1:]) if b > a]

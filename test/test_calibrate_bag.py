@@ -15,6 +15,7 @@ from strapdown_ros.tools import calibrate_bag, record_sim  # noqa: E402
 
 BETA = np.radians([40.0, -25.0, 120.0])
 BETA_ARG = "boresight:=[" + ", ".join(repr(float(b)) for b in BETA) + "]"
+NO_GAPS = {"gaps": 0, "missing": 0, "pairs_discarded": 0, "dropouts": 0, "stamp_bursts": 0}
 KEYS = ["q_mf_vf_xyzw", "rotation_covariance_mf_rad2", "beta_rad", "beta_sigma_rad", "covariance_rad2", "pairs",
         "observable", "unobservable_axes", "residual_rms_rad", "weighted"]
 
@@ -50,7 +51,7 @@ def test_round_trip_bench(tmp_path, storage, capsys):
     assert r["observable"] is True and r["unobservable_axes"] == [] and r["weighted"] is True
     assert isinstance(r["residual_rms_rad"], float)
     assert set(r["dropped"]["gyro"].values()) == {0}
-    assert r["gyro_gaps"] == {"gaps": 0, "missing": 0, "pairs_discarded": 0}
+    assert r["gyro_gaps"] == NO_GAPS
     assert r["camera_covariance_from_bag"] is True
 
     # C_MF^VF error as a rotation in MF axes (q_est = exp(e) ⊗ q_true) within 3σ of P^clb per axis
@@ -155,10 +156,11 @@ def test_nan_and_duplicate_are_dropped_and_counted(tmp_path, capsys):
     out = capsys.readouterr().out
     assert "gyro nan 1" in out and "gyro duplicate 1" in out and "GYRO GAPS" in out
     r = json.loads(f.read_text())
-    assert r["dropped"]["gyro"] == {"nan": 1, "duplicate": 1, "out_of_order": 0, "out_of_range": 0, "stamp_outlier": 0}
+    assert r["dropped"]["gyro"] == {"nan": 1, "duplicate": 1, "out_of_order": 0, "out_of_range": 0,
+                                    "stamp_outlier": 0, "stamp_burst": 0}
     assert r["messages"]["gyro"] == len(msgs) - 2
     # the dropped NaN increment is a gap (its rotation is lost): the pair spanning it is discarded
-    assert r["gyro_gaps"] == {"gaps": 1, "missing": 1, "pairs_discarded": 1}
+    assert r["gyro_gaps"] == {**NO_GAPS, "gaps": 1, "missing": 1, "pairs_discarded": 1}
     assert r["pairs"] == len(fixes) - 2
     assert r["camera_covariance_from_bag"] is False          # no attitude_with_covariance: assumed σ
     assert r["observable"] is True
@@ -212,7 +214,7 @@ def test_long_recording_keeps_every_pair_and_takes_the_rate_from_the_stamps(tmp_
     assert calibrate_bag.main([str(bag), "--json", str(f)]) == 0
     r = json.loads(f.read_text())
     assert r["messages"]["gyro"] == 210000 and r["messages"]["camera"] == 52
-    assert r["pairs"] == 51 and r["gyro_gaps"] == {"gaps": 0, "missing": 0, "pairs_discarded": 0}
+    assert r["pairs"] == 51 and r["gyro_gaps"] == NO_GAPS
     assert r["gyro_rate_from_stamps_hz"] == pytest.approx(200.0, rel=1e-9)
     assert "200 Hz" in capsys.readouterr().err
     q_true = dcm_to_quat(ypr_to_dcm(*BETA))
@@ -290,6 +292,145 @@ def test_one_outlier_camera_fix_is_gated(tmp_path):
     assert r["camera_fixes"]["outliers_dropped"] == 1 and r["camera_fixes"]["outlier_stamps_s"] == [pytest.approx(60.0)]
     assert out["clean"]["camera_fixes"]["outliers_dropped"] == 0
     assert r["pairs"] == out["clean"]["pairs"] - 1
+    q_true = dcm_to_quat(ypr_to_dcm(*BETA))
+    e = quat_error_rotvec(from_ros_xyzw(np.array(r["q_mf_vf_xyzw"])), q_true, frame="reference")
+    assert np.all(np.abs(e) < 3 * np.sqrt(np.diag(r["rotation_covariance_mf_rad2"]))), e / ARCSEC
+
+
+def test_dropout_and_stamp_burst_cost_only_the_pairs_containing_them(tmp_path, capsys):
+    """Reliability findings 2 and 3 offline: 2 s without increments (t in (62.5, 64.5] s) and 5
+    increments stamped 1000 s in the past (t = 102.5 s) each cost the one pair that contains
+    them (33 → 31); the dropout reports its 200 missing increments, the burst its 5."""
+    from rosbags.rosbag2 import Reader, Writer
+    from rosbags.typesys import Stores, get_typestore
+
+    clean = tmp_path / "clean"
+    assert record_sim.main([str(clean), "--no-accel", "-p", "profile:=bench", "-p",
+                            "camera_interval:=5.0", "-p", BETA_ARG]) == 0
+    store = get_typestore(Stores.ROS2_JAZZY)
+    dirty = tmp_path / "dirty"
+    with Reader(clean) as rd, Writer(dirty, version=Writer.VERSION_LATEST) as wr:
+        conns = {c.id: wr.add_connection(c.topic, c.msgtype, typestore=store)
+                 for c in rd.connections}
+        for c, t, raw in rd.messages():
+            if c.topic == "/imu/delta_theta":
+                if 62_500_000_000 < t <= 64_500_000_000:
+                    continue                                          # the dropout
+                if 102_500_000_000 <= t < 102_550_000_000:            # the burst
+                    m = store.deserialize_cdr(raw, c.msgtype)
+                    m.header.stamp.sec -= 1000
+                    raw = store.serialize_cdr(m, c.msgtype)
+            wr.write(conns[c.id], t, raw)
+    f = tmp_path / "r.json"
+    assert calibrate_bag.main([str(dirty), "--json", str(f)]) == 0
+    r = json.loads(f.read_text())
+    assert r["gyro_gaps"] == {"gaps": 2, "missing": 205, "pairs_discarded": 2, "dropouts": 1,
+                              "stamp_bursts": 1}
+    assert r["dropped"]["gyro"]["stamp_burst"] == 5 and r["stamp_resyncs"]["gyro"] == 0
+    assert r["pairs"] == 31
+    assert ("2 gap(s) (1 dropout(s) beyond max_stamp_jump, 1 stamp burst(s)), 205 increment(s) "
+            "missing") in capsys.readouterr().out
+    q_true = dcm_to_quat(ypr_to_dcm(*BETA))
+    e = quat_error_rotvec(from_ros_xyzw(np.array(r["q_mf_vf_xyzw"])), q_true, frame="reference")
+    assert np.all(np.abs(e) < 3 * np.sqrt(np.diag(r["rotation_covariance_mf_rad2"]))), e / ARCSEC
+
+
+def _noisy_bench(tmp_path, name, scale):
+    """bench bag whose camera noise is ``scale`` × the σ its covariance states (injected)."""
+    bag = tmp_path / name
+    assert record_sim.main([str(bag), "--no-accel", "-p", "profile:=bench", "-p",
+                            "camera_interval:=5.0", "-p", BETA_ARG, "-p",
+                            f"camera_noise_scale:=[{scale}, {scale}, {scale}]"]) == 0
+    return bag
+
+
+@pytest.mark.parametrize("scale", [1.0, 100.0])
+def test_fit_consistency_is_judged_and_a_wrong_sigma_drops_no_good_fix(tmp_path, capsys, scale):
+    """Real recordings item 4: camera noise 100× the stated σ → fit_consistent false, a WARNING
+    line on stderr, exit 0, no good fix dropped as an outlier (the gate widens with the robust
+    scatter), β within 3 scaled σ of the injected truth.  Consistent noise → no warning."""
+    bag = _noisy_bench(tmp_path, f"s{scale:g}", scale)
+    capsys.readouterr()
+    f = tmp_path / "r.json"
+    assert calibrate_bag.main([str(bag), "--json", str(f)]) == 0
+    cap = capsys.readouterr()
+    r = json.loads(f.read_text())
+    lo, hi = r["chi2_per_dof_band"]
+    assert r["dof"] == 3 * r["pairs"] - 3 and lo < 1.0 < hi
+    assert r["camera_fixes"]["outliers_dropped"] == 0 and r["pairs"] == 33
+    q_true = dcm_to_quat(ypr_to_dcm(*BETA))
+    e = quat_error_rotvec(from_ros_xyzw(np.array(r["q_mf_vf_xyzw"])), q_true, frame="reference")
+    sigma = np.sqrt(np.diag(r["rotation_covariance_mf_rad2"]))
+    assert np.all(np.abs(e) < 3 * sigma), e / sigma
+    if scale == 1.0:
+        assert r["fit_consistent"] is True and lo <= r["chi2_per_dof"] <= hi
+        assert "WARNING" not in cap.err and "UNTRUSTED" not in cap.out
+    else:
+        assert r["fit_consistent"] is False and r["chi2_per_dof"] > 100 * hi
+        warn = [ln for ln in cap.err.splitlines() if ln.startswith("WARNING:")]
+        assert len(warn) == 1 and "χ²/dof" in warn[0] and "band" in warn[0] and "scaled" in warn[0]
+        assert "UNTRUSTED" in cap.out
+        # the published σ is the stated-noise σ scaled by √(χ²/dof)
+        np.testing.assert_allclose(r["beta_sigma_rad"], np.array(r["beta_sigma_stated_noise_rad"])
+                                   * np.sqrt(r["chi2_per_dof"]), rtol=0.05)
+
+
+def test_an_outlier_fix_is_still_gated_when_the_sigma_is_wrong(tmp_path):
+    """The robust gate still drops a fix rotated 5° when the stated σ is 100× too small."""
+    from rosbags.rosbag2 import Reader, Writer
+    from rosbags.typesys import Stores, get_typestore
+    from strapdown_ros.rotation import quat_multiply, rotvec_to_quat
+
+    clean = _noisy_bench(tmp_path, "clean", 100.0)
+    store = get_typestore(Stores.ROS2_JAZZY)
+    dirty = tmp_path / "dirty"
+    bad = rotvec_to_quat(np.radians(5.0) * np.array([0.6, -0.64, 0.48]))
+    with Reader(clean) as rd, Writer(dirty, version=Writer.VERSION_LATEST) as wr:
+        conns = {c.id: wr.add_connection(c.topic, c.msgtype, typestore=store)
+                 for c in rd.connections}
+        for c, t, raw in rd.messages():
+            if c.topic.startswith("/star_camera/attitude") and t == 60 * 10**9:
+                m = store.deserialize_cdr(raw, c.msgtype)
+                q = m.pose.pose.orientation if hasattr(m, "pose") else m.quaternion
+                w, x, y, z = quat_multiply(np.array([q.w, q.x, q.y, q.z]), bad)
+                q.w, q.x, q.y, q.z = float(w), float(x), float(y), float(z)
+                raw = store.serialize_cdr(m, c.msgtype)
+            wr.write(conns[c.id], t, raw)
+    f = tmp_path / "r.json"
+    assert calibrate_bag.main([str(dirty), "--json", str(f)]) == 0
+    r = json.loads(f.read_text())
+    assert r["camera_fixes"]["outliers_dropped"] == 1
+    assert r["camera_fixes"]["outlier_stamps_s"] == [pytest.approx(60.0)] and r["pairs"] == 32
+
+
+def test_a_clock_reset_of_both_streams_calibrates_each_time_base(tmp_path):
+    """A confirmed resynchronisation offline: both clocks jump 5000 s ahead at t = 85 s (beyond
+    3600 s: a clock change, not a dropout).  Each time base is calibrated on its own, as
+    calibrator_node restarts its gyro history: no pair spans the reset, none is lost but the one
+    across it, and β is the truth's."""
+    from rosbags.rosbag2 import Reader, Writer
+    from rosbags.typesys import Stores, get_typestore
+
+    clean = tmp_path / "clean"
+    assert record_sim.main([str(clean), "--no-accel", "-p", "profile:=bench", "-p",
+                            "camera_interval:=5.0", "-p", BETA_ARG]) == 0
+    store = get_typestore(Stores.ROS2_JAZZY)
+    reset = tmp_path / "reset"
+    with Reader(clean) as rd, Writer(reset, version=Writer.VERSION_LATEST) as wr:
+        conns = {c.id: wr.add_connection(c.topic, c.msgtype, typestore=store)
+                 for c in rd.connections}
+        for c, t, raw in rd.messages():
+            if t > 85 * 10**9 - 5_000_000 and c.topic in (
+                    "/imu/delta_theta", "/star_camera/attitude_with_covariance"):
+                m = store.deserialize_cdr(raw, c.msgtype)
+                m.header.stamp.sec += 5000
+                raw = store.serialize_cdr(m, c.msgtype)
+            wr.write(conns[c.id], t, raw)
+    f = tmp_path / "r.json"
+    assert calibrate_bag.main([str(reset), "--json", str(f)]) == 0
+    r = json.loads(f.read_text())
+    assert r["stamp_resyncs"] == {"gyro": 1, "camera": 1}
+    assert r["pairs"] == 33 - 1                      # fixes 5..80 s and 85..170 s: 15 + 17 pairs
     q_true = dcm_to_quat(ypr_to_dcm(*BETA))
     e = quat_error_rotvec(from_ros_xyzw(np.array(r["q_mf_vf_xyzw"])), q_true, frame="reference")
     assert np.all(np.abs(e) < 3 * np.sqrt(np.diag(r["rotation_covariance_mf_rad2"]))), e / ARCSEC

@@ -73,6 +73,8 @@ def test_injected_errors_recovered_within_3_sigma(calibrated):
     cov = np.array(r["covariance"])
     assert np.allclose(np.sqrt(np.diag(cov)), [sig[n] for n in r["labels"]])
     assert 0.7 < r["details"]["chi2_per_dof"] < 1.4                      # the noise model fits the data
+    lo, hi = r["chi2_per_dof_band"]
+    assert r["fit_consistent"] is True and lo <= r["chi2_per_dof"] <= hi
 
 
 def test_written_model_compensates_with_the_right_sign(calibrated, recording):
@@ -246,3 +248,27 @@ def test_gyro_gap_is_not_spanned_and_both_methods_still_recover(recording):
         assert r.observable, r.message
         assert np.all(np.abs(r.x - truth) <= 3 * r.sigma), (r.method, np.round((r.x - truth) / r.sigma, 2))
     assert r.extra["segment_s"][0] > b                                # 000: the stretch after the gap
+
+
+def test_camera_noise_100x_the_stated_sigma_is_an_inconsistent_fit(tmp_path, capsys):
+    """Real recordings item 4 for 002: the camera noise 100× what its covariance states → χ²/dof
+    far above its band, fit_consistent false, one WARNING line, exit 0; σ scaled by √(χ²/dof),
+    the injected errors within 3 of those σ."""
+    bag = _record(tmp_path / "bag", {**SCENARIO, **INJECTED, "camera_interval": 0.5, "seed": 11,
+                                     "camera_noise_scale": [100.0, 100.0, 100.0]}, 170.0)
+    model = tmp_path / "nominal.yaml"
+    model.write_text(json.dumps(NOMINAL))
+    js = tmp_path / "r.json"
+    capsys.readouterr()
+    assert _run(bag, "--method", "integral", "--model", model, "--json", js,
+                "--sigma-limit", "1") == 0
+    cap = capsys.readouterr()
+    r = json.loads(js.read_text())
+    lo, hi = r["chi2_per_dof_band"]
+    assert r["fit_consistent"] is False and r["chi2_per_dof"] > 10 * hi
+    warn = [ln for ln in cap.err.splitlines() if ln.startswith("WARNING:")]
+    assert len(warn) == 1 and "band" in warn[0] and "scaled" in warn[0] and "UNTRUSTED" in cap.out
+    k = np.sqrt(r["chi2_per_dof"])
+    for name, true in TRUTH.items():
+        assert abs(r["sigma"][name] - k * r["sigma_stated_noise"][name]) <= 1e-6 * r["sigma"][name]
+        assert abs(r["estimate"][name] - true) <= 3 * r["sigma"][name], name

@@ -430,7 +430,7 @@ def test_executables_exit_2_with_a_clear_message(module, arg, text):
     assert text in res.stderr
 
 
-def _node_estimate(ns, poison: bool, params=(), keep=False):
+def _node_estimate(ns, poison: bool, params=(), keep=False, noise_scale=1.0):
     """calibrator_node fed bench data through its own callbacks (no DDS): returns (β, node counters)."""
     from strapdown_ros.sensors import IntegratingSensor
     from strapdown_ros.star_camera import StarCameraModel
@@ -439,7 +439,8 @@ def _node_estimate(ns, poison: bool, params=(), keep=False):
     prof = bench_profile()
     gyro = IntegratingSensor(prof, "gyro", 100.0)
     t, dth, _ = gyro.sample(int(prof.duration * 100) - 1)
-    cam = StarCameraModel(boresight=np.radians([40.0, -25.0, 120.0]), interval=5.0, seed=1)
+    cam = StarCameraModel(boresight=np.radians([40.0, -25.0, 120.0]), interval=5.0, seed=1,
+                          noise_scale=np.full(3, noise_scale))
     fixes = cam.fixes(prof, int(prof.duration / 5.0) - 1)
     cal = CalibratorNode(namespace=ns, parameter_overrides=list(params))
     try:
@@ -468,6 +469,8 @@ def _node_estimate(ns, poison: bool, params=(), keep=False):
                 c6[3:, 3:] = v.covariance
                 m.pose.covariance = [float(x) for x in c6.ravel()]
                 cal._on_camera_cov(m)
+        if keep:
+            return cal
         return np.array(cal.valid.beta), cal.gyro_check.out_of_range, cal.solve_failures
     finally:
         if not keep:
@@ -483,27 +486,116 @@ def test_overflowing_increment_is_rejected_and_loses_nothing(ros):
     np.testing.assert_array_equal(beta, beta_clean)
 
 
+def test_inconsistent_noise_is_a_warn_with_the_reason(ros):
+    """Real recordings item 4: camera noise 100× the σ its covariance states: /diagnostics WARN
+    saying the fit is inconsistent (χ²/dof outside its band), fit_consistent False; no good fix
+    dropped as an outlier.  With the stated noise right: fit_consistent True."""
+    for scale in (1.0, 100.0):
+        # the simulated gyro is ideal: so is the stated gyro model, the camera σ is the one judged
+        ideal = [Parameter(f"gyro_{k}", value=0.0)
+                 for k in ("bias_sigma", "scale_sigma", "misalignment_sigma", "random_walk")]
+        node = _node_estimate(f"/t_fit_{int(scale)}", poison=False, keep=True, noise_scale=scale,
+                              params=ideal)
+        try:
+            sent = []
+            node.pub_diag.publish = sent.append
+            node.publish_diagnostics()
+            st = sent[-1].status[0]
+            kv = {v.key: v.value for v in st.values}
+            assert kv["camera_outlier_fixes"] == "0" and kv["pairs"] == "32"
+            lo, hi, chi2 = (float(kv[k]) for k in ("chi2_per_dof_band_low",
+                                                   "chi2_per_dof_band_high", "chi2_per_dof"))
+            if scale == 1.0:
+                assert kv["fit_consistent"] == "True" and lo <= chi2 <= hi
+                assert "INCONSISTENT" not in st.message
+            else:
+                assert kv["fit_consistent"] == "False" and chi2 > 100 * hi
+                assert st.level == b"\x01", st.message
+                assert "FIT INCONSISTENT" in st.message and "band" in st.message, st.message
+        finally:
+            node.destroy_node()
+
+
 def test_restart_resumes_the_same_estimate_and_a_corrupted_state_is_moved_aside(ros, tmp_path):
     """Issue 9, restart without loss: the pairs and estimate persist to state_file (atomic, after
-    every new pair); a restarted node resumes the same estimate and republishes it latched; a
-    corrupted file is reported and moved aside, never used."""
+    every new pair); a restarted node resumes the same estimate and republishes it latched;
+    replaying the same recording into it adds no pair (Reliability finding 8); a corrupted file
+    is reported and moved aside, never used; no temporary is left behind."""
     state = str(tmp_path / "calib_state.npz")
-    beta, _, _ = _node_estimate("/t_state_a", poison=False, params=[Parameter("state_file", value=state)])
-    assert os.path.exists(state) and not [f for f in os.listdir(tmp_path) if f.startswith(".calibrator_state_")]
-    node = CalibratorNode(namespace="/t_state_b", parameter_overrides=[Parameter("state_file", value=state)])
+    sf = [Parameter("state_file", value=state)]
+    beta, _, _ = _node_estimate("/t_state", poison=False, params=sf)
+    assert sorted(os.listdir(tmp_path)) == ["calib_state.npz", "calib_state.npz.lock"]
+    node = CalibratorNode(namespace="/t_state", parameter_overrides=sf)
     try:
         assert node.state["restored_pairs"] == 32 and node.published["boresight"] == 1     # 33 fixes
         np.testing.assert_allclose(node.valid.beta, beta, rtol=0, atol=1e-12)
     finally:
         node.destroy_node()
+    node = _node_estimate("/t_state", poison=False, params=sf, keep=True)
+    try:                                          # the same recording replayed into it
+        assert len(node.cal.pairs) == 32 and node.cal.replayed_pairs == 32
+        assert node.state["errors"] == 0
+        np.testing.assert_allclose(node.valid.beta, beta, rtol=0, atol=1e-12)
+    finally:
+        node.destroy_node()
     with open(state, "wb") as fh:
         fh.write(b"not a state file")
-    node = CalibratorNode(namespace="/t_state_c", parameter_overrides=[Parameter("state_file", value=state)])
+    node = CalibratorNode(namespace="/t_state", parameter_overrides=sf)
     try:
         assert node.state["errors"] == 1 and node.cal.pairs == [] and node.published["boresight"] == 0
         assert not os.path.exists(state) and os.path.exists(state + ".corrupt")
     finally:
         node.destroy_node()
+
+
+def test_state_file_identity_lock_and_paths(ros, tmp_path):
+    """Reliability finding 8 in the node: a state of another calibration (another camera frame)
+    is refused with the reason and left as it is; a second node on the same file gets an ERROR
+    and runs without persistence; a directory (with or without a trailing slash) is refused and
+    never moved."""
+    state = str(tmp_path / "s.npz")
+    _node_estimate("/t_sid", poison=False, params=[Parameter("state_file", value=state)])
+    before = open(state, "rb").read()
+
+    def diag(node):
+        sent = []
+        node.pub_diag.publish = sent.append
+        node.publish_diagnostics()
+        st = sent[-1].status[0]
+        return st, {v.key: v.value for v in st.values}
+
+    other = CalibratorNode(namespace="/t_sid", parameter_overrides=[
+        Parameter("state_file", value=state), Parameter("camera_frame_id", value="camera2")])
+    try:
+        st, kv = diag(other)
+        assert other.cal.pairs == [] and kv["state_persisting"] == "False" and st.level == b"\x02"
+        assert "refused" in st.message and "camera_frame_id" in st.message
+    finally:
+        other.destroy_node()
+    assert open(state, "rb").read() == before
+    sf = [Parameter("state_file", value=state)]
+    first = CalibratorNode(namespace="/t_sid", parameter_overrides=sf)
+    second = CalibratorNode(namespace="/t_sid", parameter_overrides=sf)
+    try:
+        assert first.state["persisting"] and first.state["restored_pairs"] == 32
+        st, kv = diag(second)
+        assert kv["state_persisting"] == "False" and st.level == b"\x02" and "in use" in st.message
+        assert second.cal.pairs == []
+    finally:
+        second.destroy_node()
+        first.destroy_node()
+    d = tmp_path / "adir"
+    d.mkdir()
+    for path in (str(d), str(d) + "/"):
+        node = CalibratorNode(namespace="/t_sid",
+                              parameter_overrides=[Parameter("state_file", value=path)])
+        try:
+            st, kv = diag(node)
+            assert kv["state_persisting"] == "False"
+            assert "directory" in st.message or "separator" in st.message
+        finally:
+            node.destroy_node()
+    assert d.is_dir() and not [f for f in os.listdir(tmp_path) if "corrupt" in f]
 
 
 def test_one_input_path_node_and_calibrate_bag_agree_on_a_hostile_stream(ros, tmp_path):
@@ -524,6 +616,10 @@ def test_one_input_path_node_and_calibrate_bag_agree_on_a_hostile_stream(ros, tm
         prof, int(prof.duration / 5.0) - 1)
     base = 1_000_000_000_000
     gyro = [(base + int(round(s * 1e9)), tuple(map(float, v))) for s, v in zip(t, dth)]
+    # Reliability finding 2: a burst of 5 increments stamped 1000 s in the past at t = 62.5 s
+    # (inside the pair of the fixes at 60 and 65 s); then the stream returns to its timeline
+    for k in range(6250, 6255):
+        gyro[k] = (gyro[k][0] - 1000 * 10**9, gyro[k][1])
     hostile = [(gyro[100][0] + 1, (float("nan"), 0.0, 0.0)), (gyro[200][0], gyro[200][1]),       # NaN, duplicate
                (gyro[250][0] - 30_000_000, gyro[250][1]), (gyro[300][0] + 2, (1e308, 1e308, 0.0)),   # older, huge
                (gyro[400][0] + 10**15, gyro[400][1])]                                            # far future
@@ -590,11 +686,18 @@ def test_one_input_path_node_and_calibrate_bag_agree_on_a_hostile_stream(ros, tm
         r = json.loads(f.read_text())
         g = node.gyro_check
         assert r["dropped"]["gyro"] == {"nan": g.nan, "duplicate": g.duplicate, "out_of_order": g.out_of_order,
-                                        "out_of_range": g.out_of_range, "stamp_outlier": g.stamp_outliers}
+                                        "out_of_range": g.out_of_range,
+                                        "stamp_outlier": g.stamp_outliers,
+                                        "stamp_burst": g.burst_messages}
         assert (g.nan, g.duplicate, g.out_of_order, g.out_of_range, g.stamp_outliers) == (1, 1, 1, 1, 1)
+        # the burst: 5 increments lost in one gap, no resynchronisation left standing; it costs the
+        # one pair that contains it (the hostile extras above have their own stamps: no gap)
+        assert (g.bursts, g.burst_messages, g.resyncs, g.gaps, g.missing) == (1, 5, 0, 1, 5)
+        assert r["gyro_gaps"]["stamp_bursts"] == 1 and r["gyro_gaps"]["missing"] == 5
+        assert r["pairs"] == len(node.cal.pairs) == len(fixes) - 1 - 1
         assert r["dropped"]["camera"]["zero_quaternion"] == node.camera_counts["dropped_zero_quaternion"] == 1
         assert r["camera_fixes"]["normalised"] == node.camera_counts["normalised"] == 1
-        assert r["messages"]["gyro"] == g.accepted and r["pairs"] == len(node.cal.pairs)
+        assert r["messages"]["gyro"] == g.accepted - g.burst_messages   # offline: burst removed
         np.testing.assert_allclose(r["beta_rad"], node.valid.beta, rtol=0, atol=1e-10)
     finally:
         node.destroy_node()

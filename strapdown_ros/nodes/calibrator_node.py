@@ -35,7 +35,9 @@ Publishes, only while the boresight is observable and the solver converged:
 * ``/diagnostics``  every ``diagnostics_period``: the frames (``camera_frame_id`` in
   ``frame_id``: the pose message has no child-frame field, and no tf is broadcast), pairs,
   observability (level WARN and the solver's reason when not observable), residual RMS,
-  iterations, χ²/dof, β and its σ, the processing time of the last solve (perf_counter, ms;
+  iterations, χ²/dof with its two-sided band at level 0.01 and ``fit_consistent`` (WARN
+  ``FIT INCONSISTENT`` outside the band: the stated noise is wrong or the model lacks an
+  effect), β and its σ, the processing time of the last solve (perf_counter, ms;
   not used for timing), and the input counters.
 
 When the boresight is not observable nothing is published on the calibration topics; the
@@ -53,13 +55,17 @@ covariance whose rotation block is all zero (the ROS "unknown") is replaced by t
 is dropped.  Stamps are handled in integer nanoseconds relative to the first stamp seen on
 any input; timing comes only from header stamps.
 
+``state_file`` (strapdown_ros.calibrator_state): the pairs persist with their identity (the
+parameters that define the estimate, the frames, the resolved topics); a file of another
+calibration is refused and left as it is; a replay adds no pair (pairs keyed by stamps); a lock
+file keeps a second node off it (ERROR, no persistence); a directory is refused, never moved.
+
 Only ``weighted`` may change at runtime (the estimate is recomputed at once); every other
 parameter is fixed after start-up.
 """
 from __future__ import annotations
 
 import math
-import os
 import sys
 import time
 from collections import deque
@@ -70,10 +76,11 @@ from geometry_msgs.msg import PoseWithCovarianceStamped, QuaternionStamped, Vect
 from rclpy.node import Node
 from sensor_msgs.msg import Imu
 
-from ..boresight import imu_attitude_from_camera
+from ..boresight import FIT_LEVEL, imu_attitude_from_camera
 from ..config import CALIBRATOR_PARAMS
 from ..streams import StreamCheck
-from ..calibrator import BoresightCalibrator, load_state, save_state
+from ..calibrator import BoresightCalibrator
+from ..calibrator_state import CalibratorStateFile, StateFileError, state_identity
 from ..rate_increments import RateIncrementStream
 from . import ros_io
 from .ros_io import camera_qos, latched_qos, pose_with_covariance, rotation_block
@@ -145,12 +152,17 @@ class CalibratorNode(Node):
             self.create_subscription(QuaternionStamped, "star_camera/attitude", self._on_camera_plain,
                                      camera_qos(int(p["qos_depth"])), qos_overriding_options=ros_io.QOS_OVERRIDES)
         self.create_timer(float(p["diagnostics_period"]), self.publish_diagnostics)
-        self.state = {"file": p["state_file"], "saves": 0, "restored_pairs": 0, "errors": 0, "moved_aside": ""}
-        if p["state_file"]:
-            self._restore_state()
+        self.state = {"file": p["state_file"], "saves": 0, "restored_pairs": 0, "errors": 0,
+                      "moved_aside": "", "problem": "", "persisting": False}
+        self.state_file: CalibratorStateFile | None = None
         camera_topic = "star_camera/attitude_with_covariance" if self.use_cov else "star_camera/attitude"
         gyro_topic = (f"imu/data_raw ({p['imu_rate_rule']})" if self.imu_input
                       else "imu/delta_theta")
+        if p["state_file"]:
+            streams = {"gyro": self.resolve_topic_name(
+                "imu/data_raw" if self.imu_input else "imu/delta_theta"),
+                       "camera": self.resolve_topic_name(camera_topic)}
+            self._restore_state(state_identity(dict(p), streams))
         self.get_logger().info(
             f"started: gyro input {gyro_topic}, camera input {camera_topic}, "
             f"weighted={p['weighted']}, covariance_model={p['covariance_model']}, "
@@ -241,8 +253,15 @@ class CalibratorNode(Node):
         if g.resynced:
             self.cal.restart_gyro()
             prev_ns = None
-            self.get_logger().error(f"gyro stamps jumped by {g.last_jump_s:.6g} s and stayed: resynchronised; no "
-                                    "increment pair spans the jump")
+            if g.returned:
+                self.get_logger().error(
+                    f"{g.retracted} gyro increment(s) carried stamps off their timeline and the "
+                    "stream came back to it: dropped as a stamp burst; the pairs containing the "
+                    "burst are lost")
+            else:
+                self.get_logger().error(
+                    f"gyro stamps jumped by {g.last_jump_s:.6g} s and stayed: resynchronised; no "
+                    "increment pair spans the jump")
         new = 0
         for ns_i, v in out:
             t = self._rel(ns_i)
@@ -304,24 +323,34 @@ class CalibratorNode(Node):
             self._publish_imu_attitudes()
 
     # --- persistence ---------------------------------------------------------------------------
-    def _restore_state(self):
-        """Resume from ``state_file``: its pairs, last fix and time origin; the estimate is solved
-        again and republished latched.  A corrupted or incompatible file is moved aside."""
+    def _restore_state(self, identity: dict):
+        """Resume from ``state_file`` (strapdown_ros.calibrator_state: identity, lock, atomic
+        writes): its pairs, last fix and time origin; the estimate is solved again and
+        republished latched.  A file that cannot be used is reported (ERROR) and the node runs
+        without persistence; only an unreadable regular file is moved aside."""
         path = self.state["file"]
-        if not os.path.exists(path):
+        sf = CalibratorStateFile(path, identity)
+        try:
+            sf.open()
+        except StateFileError as exc:
+            self._state_problem(str(exc))
             return
         try:
-            origin, _ = load_state(path, self.cal)
-        except ValueError as exc:
-            k, aside = 0, f"{path}.corrupt"
-            while os.path.exists(aside):
-                k += 1
-                aside = f"{path}.corrupt.{k}"
-            os.replace(path, aside)
-            self.state["errors"] += 1
-            self.state["moved_aside"] = aside
-            self.cal.pairs, self.cal._last_fix = [], None
-            self.get_logger().error(f"state file {path} not used: {exc}; moved aside to {aside}")
+            origin = sf.load(self.cal)
+        except StateFileError as exc:
+            if exc.kind == "corrupt":
+                aside = sf.move_aside()
+                self.state["moved_aside"] = aside
+                self._state_problem(f"state file {path} not used: {exc}; moved aside to {aside}; "
+                                    "starting afresh")
+                self.state_file, self.state["persisting"] = sf, True
+            else:
+                sf.close()
+                self._state_problem(f"state file {path} refused: {exc}; running without "
+                                    "persistence (remove the file or point state_file elsewhere)")
+            return
+        self.state_file, self.state["persisting"] = sf, True
+        if origin is None:
             return
         self.origin_ns = origin
         self.state["restored_pairs"] = len(self.cal.pairs)
@@ -329,13 +358,27 @@ class CalibratorNode(Node):
         if len(self.cal.pairs) >= 2:
             self._solve()
 
+    def _state_problem(self, message: str):
+        self.state["errors"] += 1
+        self.state["problem"] = message[:300]
+        self.get_logger().error(message)
+
     def _save_state(self):
+        if self.state_file is None:
+            return
         try:
-            save_state(self.state["file"], self.cal, self.origin_ns)
+            self.state_file.save(self.cal, self.origin_ns)
             self.state["saves"] += 1
         except OSError as exc:
             self.state["errors"] += 1
+            self.state["problem"] = f"cannot write state file {self.state['file']}: {exc}"[:300]
             self.get_logger().error(f"cannot write state file {self.state['file']}: {exc}", throttle_duration_sec=30.0)
+
+    def destroy_node(self):
+        if self.state_file is not None:
+            self.state_file.close()
+            self.state_file = None
+        return super().destroy_node()
 
     # --- estimate ------------------------------------------------------------------------------
     def _after_input(self, new_pairs: int):
@@ -344,7 +387,7 @@ class CalibratorNode(Node):
         if self.gaps:
             self._discard_pairs_over_gaps(new_pairs)
         self._solve()
-        if self.state["file"]:
+        if self.state_file is not None:
             self._save_state()                      # at most once per new pair
 
     def _discard_pairs_over_gaps(self, new_pairs: int):
@@ -429,10 +472,23 @@ class CalibratorNode(Node):
             ok = sol.observable and sol.converged
             level = ros_io.OK if ok else ros_io.WARN
             chi2 = sol.chi2_per_dof
-            if ok and np.isfinite(chi2) and chi2 > float(self.p["max_chi2_per_dof"]):
+            lo, hi = sol.chi2_band
+            if ok and sol.fit_consistent is False:
+                level = ros_io.WARN
+                sig = (f"the published σ is scaled by √(χ²/dof) = {math.sqrt(chi2):.3g}"
+                       if sol.weighted else
+                       "the published σ comes from the residual scatter (unweighted)")
+                what = ("the stated noise is too small or the model lacks an effect (outliers, an "
+                        f"unmodelled error: run discrepancy on a recording); {sig}" if chi2 > hi
+                        else "the stated noise is too large (σ pessimistic)")
+                message = (f"{message}; FIT INCONSISTENT: χ²/dof = {chi2:.3g} outside its band "
+                           f"[{lo:.3g}, {hi:.3g}] (dof {sol.dof}, level {FIT_LEVEL:g}): {what}")
+            elif ok and np.isfinite(chi2) and chi2 > float(self.p["max_chi2_per_dof"]):
                 level = ros_io.WARN
                 message = (f"{message}; χ²/dof = {chi2:.3g}: the residuals exceed the model (outliers, or an "
                            "effect the model lacks: run discrepancy on a recording)")
+            values.update({"fit_consistent": sol.fit_consistent, "chi2_per_dof_band_low": lo,
+                           "chi2_per_dof_band_high": hi, "dof": sol.dof})
             values.update({"observable": sol.observable, "message": sol.message,
                            "unobservable_axes": "; ".join(sol.unobservable_axes) if sol.unobservable_axes else "none",
                            "residual_rms_rad": sol.residual_rms, "iterations": sol.iterations,
@@ -460,6 +516,9 @@ class CalibratorNode(Node):
                        "gyro_history_overflowed": self.cal._gyro.overflowed,
                        "state_file": self.state["file"] or "off", "state_saves": self.state["saves"],
                        "state_restored_pairs": self.state["restored_pairs"], "state_errors": self.state["errors"],
+                       "state_persisting": self.state["persisting"],
+                       "state_problem": self.state["problem"] or "none",
+                       "pairs_replayed_not_added": self.cal.replayed_pairs,
                        **{f"camera_{k}": v for k, v in self.camera_counts.items()}})
         mism = self.gyro_frame_mismatch + self.camera_counts["frame_mismatch"]
         if mism:                              # every condition listed, the level the worst
@@ -493,8 +552,13 @@ class CalibratorNode(Node):
             message = f"{message}; dropped {g_drop} gyro and {c_drop} camera messages"
         if self.state["errors"]:
             level = ros_io.ERROR
-            message = (f"{message}; state file: {self.state['errors']} error(s)"
-                       + (f", a bad one moved aside to {self.state['moved_aside']}" if self.state["moved_aside"] else ""))
+            message = (f"{message}; state file: {self.state['errors']} error(s): "
+                       f"{self.state['problem']}"
+                       + ("" if self.state["persisting"] else " (no persistence)"))
+        if g.bursts:
+            level = ros_io.ERROR
+            message = (f"{message}; {g.burst_messages} gyro increment(s) in {g.bursts} burst(s) "
+                       "stamped off the timeline, dropped; the pairs containing them are lost")
         if g.resyncs or c.resyncs:
             level = ros_io.ERROR
             message = (f"{message}; stamps jumped and were resynchronised (gyro {g.resyncs}, camera {c.resyncs}); "

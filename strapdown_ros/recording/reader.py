@@ -221,6 +221,7 @@ class Accepted:
             "out_of_order": check.out_of_order,
             "out_of_range": check.out_of_range,
             "stamp_outlier": check.stamp_outliers,
+            "stamp_burst": check.burst_messages,
         }
         self.resyncs = check.resyncs
 

@@ -28,6 +28,13 @@ Output (``--json FILE``, also printed as a human summary)::
 ``q_mf_vf_xyzw`` is C_MF^VF (maps VF coordinates to MF coordinates) as a ROS quaternion;
 ``rotation_covariance_mf_rad2`` is the covariance of its error in MF axes (004 eq. 8);
 ``covariance_rad2`` that of β.  Not observable: those are null and the exit status is 3.
+``chi2_per_dof`` (stated noise, dof 3n − 3) is judged against its two-sided band at level 0.01
+(``chi2_per_dof_band``): ``fit_consistent``.  When false, a line starting ``WARNING:`` goes to
+stderr (χ²/dof, band, meaning; ``beta_sigma_rad`` is ``beta_sigma_stated_noise_rad`` scaled by
+√(χ²/dof)) and the summary lines of β are prefixed ``UNTRUSTED``; the exit status stays 0.
+Stamp faults are the nodes' (``strapdown_ros.streams``): dropouts and stamp bursts are gaps
+(``gyro_gaps``), a burst's messages are removed (``dropped.gyro.stamp_burst``), each time base
+after a resynchronisation is calibrated separately.
 Exit status: 0 solved, 2 bad arguments/parameters/bag, 3 not observable, 4 no convergence.
 """
 from __future__ import annotations
@@ -37,6 +44,7 @@ import sys
 
 import numpy as np
 
+from ..boresight import FIT_LEVEL
 from ..calibrator import BoresightCalibrator
 from ..config import CALIBRATOR_PARAMS, check_all, load_parameter_file
 from ..rotation import to_ros_xyzw
@@ -45,6 +53,7 @@ from ..recording import (CAMERA_COV_TOPIC, CAMERA_TOPIC, GYRO_TOPIC, Accepted,  
                          BagError, add_input_arguments, check_input_arguments, input_lines,
                          input_options, input_summary, input_warnings, open_reader, read_bag,
                          resolve_topic)
+from ..streams import segments
 from .record_sim import parse_overrides
 
 __all__ = ["main", "read_bag", "calibrate", "calibrator_parameters", "make_calibrator", "solution_json", "BagError"]
@@ -69,34 +78,60 @@ def make_calibrator(p: dict) -> BoresightCalibrator:
 def calibrate(data: dict, p: dict):
     """Feed the calibrator as calibrator_node is fed — gyro and fixes interleaved in stamp order —
     and solve; returns (solution, calibrator, pairs discarded over gyro gaps and stamp jumps).
-    The calibrator's buffer stays bounded on recordings of any length."""
+    The calibrator's buffer stays bounded on recordings of any length.
+
+    Each stream is split into its time bases (``strapdown_ros.streams.segments``: a confirmed
+    resynchronisation starts a new one; a burst that returned has already been removed by
+    ``validate``).  Gyro and camera segments are matched in order (the k-th with the k-th);
+    the calibrator restarts its gyro history (``restart_gyro``, as calibrator_node does on a
+    resynchronisation) at every gyro segment and its fix chain at every camera segment, so no
+    pair spans a jump and no stamp array handed to the search is out of order (segments matched
+    by :func:`_match_segments`)."""
     g, c = data["gyro"], data["camera"]
     t0 = min(g.stamps[0], c.stamps[0])                 # origin: float seconds keep ns resolution
     cal = make_calibrator(p)
     tg = (np.asarray(g.stamps, dtype=np.int64) - t0) * 1e-9
     vg = np.asarray(g.values, dtype=float).reshape(-1, 3)
-    gaps = [((a - t0) * 1e-9, (b - t0) * 1e-9) for a, b in g.gaps]
+    tc = (np.asarray(c.stamps, dtype=np.int64) - t0) * 1e-9
     period = data.get("gyro_period_s") or 1.0 / float(p["gyro_rate"])
     h = 1.5 * period                                    # the in-interval polynomial reads the neighbours
+    offset = abs(float(p["camera_time_offset"]))      # a fix's epoch is its stamp − offset
+    lead = 3 * period + offset
+    g_segs = segments(g.stamps, getattr(g.check, "segment_starts", []))
+    c_segs = segments(c.stamps, getattr(c.check, "segment_starts", []))
     discarded = 0
-    k = 0
-    for ns, (q, P) in zip(c.stamps, c.values):
-        t = (ns - t0) * 1e-9
-        k1 = int(np.searchsorted(tg, t + 3 * period + abs(float(p["camera_time_offset"])), side="right"))
-        if k1 > k:
-            new_g = cal.add_gyro(tg[k:k1], vg[k:k1])
-            k = k1
-        else:
-            new_g = 0
-        new = new_g + cal.add_camera(t, q, P)
-        if new and gaps:                               # as calibrator_node._discard_pairs_over_gaps
-            tail = cal.pairs[len(cal.pairs) - new:]
-            keep = [pr for pr in tail if not any(pr.t_start - h < b and a < pr.t_end + h for a, b in gaps)]
-            discarded += len(tail) - len(keep)
-            del cal.pairs[len(cal.pairs) - new:]
-            cal.pairs.extend(keep)
-    if k < len(tg):
-        cal.add_gyro(tg[k:], vg[k:])
+    cur_g = cur_c = None                               # segments the calibrator is fed from
+    k = 0                                              # gyro samples of segment cur_g fed so far
+    for i, j in _match_segments(tg, g_segs, tc, c_segs):
+        (ga, gb), (ca, cb) = g_segs[i], c_segs[j]
+        seg_t, seg_v = tg[ga:gb], vg[ga:gb]
+        if cur_g != i:
+            if cur_g is not None:
+                cal.restart_gyro()
+            cur_g, k = i, 0
+        if cur_c is not None and cur_c != j:
+            cal.restart_camera()
+        cur_c = j
+        gaps = [(seg_t[n], seg_t[n + 1]) for n in np.flatnonzero(np.diff(seg_t) > 1.5 * period)]
+        for t, (q, P) in zip(tc[ca:cb], c.values[ca:cb]):
+            if t < seg_t[0] - offset or t > seg_t[-1] + offset:
+                continue                               # outside the gyro segment: no pair
+            k1 = int(np.searchsorted(seg_t, t + lead, side="right"))
+            new = 0
+            if k1 > k:
+                new = cal.add_gyro(seg_t[k:k1], seg_v[k:k1])
+                k = k1
+            new += cal.add_camera(t, q, P)
+            if new and gaps:                           # as calibrator_node discards them
+                tail = cal.pairs[len(cal.pairs) - new:]
+                keep = [pr for pr in tail
+                        if not any(pr.t_start - h < b and a < pr.t_end + h for a, b in gaps)]
+                discarded += len(tail) - len(keep)
+                del cal.pairs[len(cal.pairs) - new:]
+                cal.pairs.extend(keep)
+        if k < len(seg_t):                             # fixes still waiting for gyro coverage
+            cal.add_gyro(seg_t[k:], seg_v[k:])
+            k = len(seg_t)
     return cal.solve(), cal, discarded
 
 
@@ -133,6 +168,14 @@ def solution_json(sol, weighted: bool) -> dict:
         "converged": bool(sol.converged),
         "iterations": int(sol.iterations),
         "chi2_per_dof": _num(sol.chi2_per_dof),
+        "fit_consistent": None if sol.fit_consistent is None else bool(sol.fit_consistent),
+        "chi2_per_dof_band": [_num(b) for b in sol.chi2_band] if ok else None,
+        "chi2_level": FIT_LEVEL,
+        "dof": int(sol.dof),
+        # σ from the stated noise alone; beta_sigma_rad is it scaled by √(χ²/dof) when χ²/dof > 1
+        "beta_sigma_stated_noise_rad": (
+            [float(v) for v in np.sqrt(np.diag(sol.covariance_beta_stated))]
+            if ok and sol.covariance_beta_stated is not None else None),
     }
     rep = sol.observability
     if rep is not None:
@@ -140,6 +183,14 @@ def solution_json(sol, weighted: bool) -> dict:
                                 "predicted_sigma_rad": [_num(v) for v in rep.predicted_sigma],
                                 "condition": _num(rep.condition), "weak": list(rep.weak)}
     return out
+
+
+def _band_text(result: dict) -> str:
+    band = result.get("chi2_per_dof_band")
+    if result.get("fit_consistent") is None or not band:
+        return ""
+    verdict = "consistent" if result["fit_consistent"] else "INCONSISTENT"
+    return f" ({verdict}: band [{band[0]:.3g}, {band[1]:.3g}] at level {result['chi2_level']:g})"
 
 
 def _summary(bag: str, data: dict, result: dict, p: dict) -> str:
@@ -150,8 +201,16 @@ def _summary(bag: str, data: dict, result: dict, p: dict) -> str:
     lines.append("  dropped: " + (", ".join(f"{k} {v}" for k, v in drops.items()) if drops else "none"))
     gg, fx = result["gyro_gaps"], result["camera_fixes"]
     if gg["gaps"]:
-        lines.append(f"  GYRO GAPS: {gg['gaps']} gap(s), {gg['missing']} increment(s) missing (rotation lost); "
+        extra = [f"{gg[k]} {w}" for k, w in (("dropouts", "dropout(s) beyond max_stamp_jump"),
+                                             ("stamp_bursts", "stamp burst(s)")) if gg.get(k)]
+        kinds = " (" + ", ".join(extra) + ")" if extra else ""
+        lines.append(f"  GYRO GAPS: {gg['gaps']} gap(s){kinds}, "
+                     f"{gg['missing']} increment(s) missing (rotation lost); "
                      f"{gg['pairs_discarded']} pair(s) spanning them discarded")
+    rs = result.get("stamp_resyncs", {})
+    if any(rs.values()):
+        lines.append(f"  STAMP RESYNCS: gyro {rs.get('gyro', 0)}, camera {rs.get('camera', 0)} "
+                     "(clock resets): each time base calibrated on its own, no pair spans a reset")
     notes = [f"{n.replace('_', ' ')} {v}" for n, v in fx.items() if v and not isinstance(v, list)]
     if notes:
         lines.append("  camera fixes: " + ", ".join(notes))
@@ -160,15 +219,45 @@ def _summary(bag: str, data: dict, result: dict, p: dict) -> str:
                  f"covariance model {p['covariance_model']}, "
                  + (f"{'converged' if result['converged'] else 'NOT converged'} in {result['iterations']} iterations, "
                     f"residual RMS {result['residual_rms_rad'] * ARCSEC_PER_RAD:.3g}″"
-                    + (f", χ²/dof {chi2:.3g}" if chi2 is not None else "") if result["observable"] else "not observable"))
+                    + (f", χ²/dof {chi2:.3g}" + _band_text(result) if chi2 is not None else "")
+                    if result["observable"] else "not observable"))
     if result["observable"]:
         names = ("heading ψ", "pitch ϑ", "roll γ")
-        lines.append("  β: " + ", ".join(f"{n} {np.degrees(b):.6f}° ± {s * ARCSEC_PER_RAD:.3g}″"
+        untrusted = ("UNTRUSTED (fit inconsistent with the stated noise) "
+                     if result["fit_consistent"] is False else "")
+        lines.append(f"  {untrusted}β: " + ", ".join(
+            f"{n} {np.degrees(b):.6f}° ± {s * ARCSEC_PER_RAD:.3g}″"
                                         for n, b, s in zip(names, result["beta_rad"], result["beta_sigma_rad"])))
         sig_mf = np.sqrt(np.diag(result["rotation_covariance_mf_rad2"])) * ARCSEC_PER_RAD
-        lines.append(f"  q_mf_vf (x, y, z, w) = [{', '.join(f'{v:.9f}' for v in result['q_mf_vf_xyzw'])}], "
+        q_text = ", ".join(f"{v:.9f}" for v in result["q_mf_vf_xyzw"])
+        lines.append(f"  {untrusted}q_mf_vf (x, y, z, w) = [{q_text}], "
                      f"σ about MF x, y, z = {', '.join(f'{s:.3g}' for s in sig_mf)}″")
     return "\n".join(lines)
+
+
+def consistency_warning(result: dict) -> str | None:
+    """The ``WARNING:`` line of a fit whose χ²/dof is outside its band (None when inside or
+    not judged): χ²/dof, the band, what it means, and which σ is reported."""
+    if result.get("fit_consistent") is not False:
+        return None
+    chi2, (lo, hi) = result["chi2_per_dof"], result["chi2_per_dof_band"]
+    band = (f"its {100 * (1 - result['chi2_level']):g}% band [{lo:.3g}, {hi:.3g}] "
+            f"(dof {result['dof']})")
+    if chi2 > hi:
+        scale = float(np.sqrt(chi2))
+        stated = result.get("beta_sigma_stated_noise_rad")
+        if result["weighted"]:
+            stated_text = ", ".join(f"{v * ARCSEC_PER_RAD:.3g}″" for v in stated or [])
+            shown = (f"the σ reported for β are scaled by √(χ²/dof) = {scale:.3g}"
+                     + (f"; σ with the stated noise {stated_text}" if stated else ""))
+        else:
+            shown = ("the σ reported for β come from the residual scatter (004 §4.3, unweighted), "
+                     f"a scatter √(χ²/dof) = {scale:.3g} times the stated noise")
+        return (f"WARNING: χ²/dof = {chi2:.3g} is above {band}: the stated noise is too small "
+                f"or the model lacks an effect (outliers, an unmodelled error); {shown}.  Do not "
+                "use the estimate as calibrated.")
+    return (f"WARNING: χ²/dof = {chi2:.3g} is below {band}: the stated noise is too large (the σ "
+            f"reported for β, from the stated noise, are pessimistic; not scaled down).")
 
 
 def main(argv=None) -> int:
@@ -227,8 +316,11 @@ def main(argv=None) -> int:
     result["dropped"] = {"gyro": dict(g.dropped),
                          "camera": {**c.dropped, "zero_quaternion": data["camera_fixes"]["zero_quaternion"],
                                     "bad_covariance": data["camera_fixes"]["bad_covariance"]}}
-    result["gyro_gaps"] = {"gaps": len(g.gaps), "missing": g.missing, "pairs_discarded": discarded}
+    result["gyro_gaps"] = {"gaps": g.check.gaps, "missing": g.missing,
+                           "pairs_discarded": discarded,
+                           "dropouts": g.check.dropouts, "stamp_bursts": g.check.bursts}
     result["stamp_resyncs"] = {"gyro": g.resyncs, "camera": c.resyncs}
+    result["pairs_replayed_not_added"] = cal.replayed_pairs         # stamps of a pair already held
     result["gyro_rate_from_stamps_hz"] = _num(1.0 / data["gyro_period_s"]) if np.isfinite(data["gyro_period_s"]) else None
     result["camera_fixes"] = {k: data["camera_fixes"][k] for k in ("normalised", "covariance_substituted")}
     result["camera_fixes"]["outliers_dropped"] = cal.outlier_fixes
@@ -243,6 +335,9 @@ def main(argv=None) -> int:
         result["dropped"]["gyro_rate_samples"] = dict(data["rate_samples"]["dropped"])
     print(_summary(args.bag, data, result, p))
     print("\n".join(input_lines(result["input"])))
+    warning = consistency_warning(result) if result["observable"] else None
+    if warning:
+        print(warning, file=sys.stderr)
     if args.json:
         try:
             write_json(args.json, result, indent=2)

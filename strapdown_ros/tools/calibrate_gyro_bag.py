@@ -27,6 +27,11 @@ parameters that ``sins_node`` and ``calibrator_node`` compensate (ρ = (I + M)�
 model's other effects (bias drift, scale asymmetry, camera time offset, ...) are compensated
 before the estimation and kept.  Existing output files need ``--force``.
 
+The fit is judged against its stated noise (camera covariance, gyro random walk): χ²/dof and its
+two-sided band at level 0.01 (``chi2_per_dof_band``), ``fit_consistent``.  Outside the band a
+line starting ``WARNING:`` goes to stderr and the summary says ``UNTRUSTED``; ``sigma`` is
+``sigma_stated_noise`` scaled by √max(1, χ²/dof) (both methods); the exit status stays 0.
+
 Exit status: 0 estimated; 2, with one line on stderr, for bad arguments or an unusable bag or
 model; 3 when the motion does not make the gyro errors observable (the combinations are named,
 nothing is written but the JSON report).
@@ -73,6 +78,12 @@ def result_json(cal, info: dict) -> dict:
                           "condition": _num(rep.condition), "weak": list(rep.weak),
                           "units": f"scale and misalignment 1; bias and drift {cal.rate_scale:.6g} rad/s "
                                    f"(the RMS rate of the recording)"},
+        "fit_consistent": cal.extra.get("fit_consistent"),
+        "chi2_per_dof": _num(cal.extra["chi2_per_dof"]) if "chi2_per_dof" in cal.extra else None,
+        "chi2_per_dof_band": cal.extra.get("chi2_per_dof_band"),
+        # sigma is scaled by √max(1, χ²/dof); this is the σ of the stated noise alone
+        "sigma_stated_noise": ({n: _num(v / np.sqrt(cal.extra.get("covariance_scale", 1.0)))
+                                for n, v in zip(cal.labels, cal.sigma)} if ok else None),
         "rate_scale_rad_s": cal.rate_scale,
         "details": cal.extra,
         "input": info,
@@ -85,10 +96,17 @@ def _summary(bag, info, cal) -> str:
     lines[0] += f"; method {cal.method}"
     d = cal.extra
     chi2 = d.get("chi2_per_dof")
-    lines.append(f"  {'observable' if cal.observable else 'NOT observable'}"
-                 + (f", χ²/dof {chi2:.3g} (dof {d.get('dof')})" if chi2 is not None else ""))
+    band = d.get("chi2_per_dof_band")
+    verdict = ""
+    if d.get("fit_consistent") is not None and band is not None:
+        verdict = (f", {'consistent' if d['fit_consistent'] else 'INCONSISTENT'}: "
+                   f"band [{band[0]:.3g}, {band[1]:.3g}] at level {d['chi2_level']:g}")
+    chi2_text = f", χ²/dof {chi2:.3g} (dof {d.get('dof')}{verdict})" if chi2 is not None else ""
+    lines.append(f"  {'observable' if cal.observable else 'NOT observable'}{chi2_text}")
     if not cal.observable:
         return "\n".join(lines)
+    if d.get("fit_consistent") is False:
+        lines.append("  UNTRUSTED: the fit is inconsistent with the stated noise (the WARNING)")
     for n, v, s in zip(cal.labels, cal.x, cal.sigma):
         if n.startswith(("bias", "drift")):
             lines.append(f"  {n:8s} {v: .6e} rad/s ± {s:.2e}   ({v * DEG_H: .5f} ± {s * DEG_H:.5f} °/h)")
@@ -101,6 +119,21 @@ def _summary(bag, info, cal) -> str:
     if cal.observability.weak:
         lines.append(f"  weakly observable: {'; '.join(cal.observability.weak)}")
     return "\n".join(lines)
+
+
+def consistency_warning(out: dict) -> str | None:
+    """The ``WARNING:`` line of an estimate whose χ²/dof is outside its band, else None."""
+    if out.get("fit_consistent") is not False or not out.get("observable"):
+        return None
+    chi2, (lo, hi), d = out["chi2_per_dof"], out["chi2_per_dof_band"], out["details"]
+    band = f"its {100 * (1 - d['chi2_level']):g}% band [{lo:.3g}, {hi:.3g}] (dof {d['dof']})"
+    if chi2 > hi:
+        return (f"WARNING: χ²/dof = {chi2:.3g} is above {band}: the stated noise (camera "
+                "covariance, gyro random walk) is too small or the model lacks an effect; the σ "
+                f"reported are scaled by √(χ²/dof) = {np.sqrt(chi2):.3g} (sigma_stated_noise in "
+                "the JSON: unscaled).  Do not use the estimate as calibrated.")
+    return (f"WARNING: χ²/dof = {chi2:.3g} is below {band}: the stated noise is too large (the "
+            "σ reported, from the stated noise, are pessimistic; not scaled down).")
 
 
 def _parse(argv):
@@ -196,6 +229,9 @@ def main(argv=None) -> int:
         return fail(str(exc).splitlines()[0] if str(exc) else type(exc).__name__)
     out = result_json(cal, info)
     print(_summary(args.bag, info, cal))
+    warning = consistency_warning(out)
+    if warning:
+        print(warning, file=sys.stderr)
     try:
         if args.json:
             write_json(args.json, out)
