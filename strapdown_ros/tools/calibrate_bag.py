@@ -75,6 +75,25 @@ def make_calibrator(p: dict) -> BoresightCalibrator:
     return BoresightCalibrator.from_params(p)
 
 
+def _match_segments(tg, g_segs, tc, c_segs) -> list[tuple[int, int]]:
+    """Which gyro time base goes with which camera time base, in order.  As many of each (a
+    clock reset of both streams, the usual case): the k-th with the k-th.  Otherwise (one
+    stream resynchronised alone) by overlapping stamp ranges, walking both lists forward."""
+    if len(g_segs) == len(c_segs):
+        return [(k, k) for k in range(len(g_segs))]
+    out, i, j = [], 0, 0
+    while i < len(g_segs) and j < len(c_segs):
+        g_lo, g_hi = tg[g_segs[i][0]], tg[g_segs[i][1] - 1]
+        c_lo, c_hi = tc[c_segs[j][0]], tc[c_segs[j][1] - 1]
+        if g_hi >= c_lo and c_hi >= g_lo:
+            out.append((i, j))
+        if g_hi <= c_hi:                               # the segment that ends first is done
+            i += 1
+        if c_hi <= g_hi:
+            j += 1
+    return out
+
+
 def calibrate(data: dict, p: dict):
     """Feed the calibrator as calibrator_node is fed — gyro and fixes interleaved in stamp order —
     and solve; returns (solution, calibrator, pairs discarded over gyro gaps and stamp jumps).
