@@ -167,7 +167,8 @@ def static_segments(stamps: np.ndarray, delta_theta: np.ndarray, params: dict | 
     (:func:`white_rate_variance` of ``params``) or, when the data are noisier than the model
     says, the data's own floor: the smallest window variance over the χ²(n−1) quantile at
     1/(number of windows), i.e. what the quietest window implies.  A segment: consecutive
-    passing windows covering at least ``min_duration`` seconds.
+    passing windows whose means agree (|difference| within the normal bound at ``alpha`` of
+    √(2·ref/n)), covering at least ``min_duration`` seconds.
 
     Parameters
     ----------
@@ -188,7 +189,7 @@ def static_segments(stamps: np.ndarray, delta_theta: np.ndarray, params: dict | 
     -------
     list of (int, int)
     """
-    from scipy.stats import chi2
+    from scipy.stats import chi2, norm
 
     st = np.asarray(stamps, dtype=float)
     dth = np.asarray(delta_theta, dtype=float).reshape(-1, 3)
@@ -210,14 +211,18 @@ def static_segments(stamps: np.ndarray, delta_theta: np.ndarray, params: dict | 
         info["reference"] = "model" if np.all(model_var >= floor) else "data"
     bound = ref * chi2.isf(alpha, nu) / nu
     still = np.all(var <= bound, axis=1)
+    # the same constant rate in consecutive windows: their means agree within √(2·ref/n)
+    mean = W.mean(axis=1)
+    jump = np.zeros(m, dtype=bool)
+    jump[1:] = np.any(np.abs(np.diff(mean, axis=0)) > norm.isf(0.5 * alpha) * np.sqrt(2.0 * ref / n), axis=1)
     out = []
     i = 0
     while i < m:
         if not still[i]:
             i += 1
             continue
-        j = i
-        while j < m and still[j]:
+        j = i + 1
+        while j < m and still[j] and not jump[j]:
             j += 1
         a, b = i * n, j * n
         if st[b - 1] - st[a] >= min_duration:

@@ -656,7 +656,9 @@ def _analyse(rec, params, alpha, blocks, lags, max_steps, candidates, say, stage
     series_after = _series(lin, final, free)
     remaining = {} if passed else diagnostics.describe_remaining(series_after, lin)
     if not passed:
-        remaining.update(diagnostics.axis_swap_check(_rotvec(lin.pairs.dq_imu), _rotvec(lin.pairs.dq_cam)))
+        # on the increments of the nominal model: the effects fitted since may have bent to a wiring fault
+        p0 = _initial_pairs(rec, original, epoch)
+        remaining.update(diagnostics.axis_swap_check(_rotvec(p0.dq_imu), _rotvec(p0.dq_cam)))
     beta = dcm_to_ypr(C)
     from ..rotation import ypr_error_to_rotation
     _, D2 = ypr_error_to_rotation(*beta)

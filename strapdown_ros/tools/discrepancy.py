@@ -125,8 +125,11 @@ def _summary(bag, info, res) -> str:
             "no_candidates_left": "search stopped: every candidate was added, excluded or failed",
             "iteration_limit": "search stopped by its turn limit"}.get(res.stopped_by, f"{res.stopped_by}")
     lines.append(f"  {stop}")
-    for f in res.failed_candidates:
-        lines.append(f"  failed numerically (dropped at step {f['step']}): {f['effect']}: {f['reason']}")
+    seen: dict = {}
+    for f in res.failed_candidates:                  # one line per effect and reason
+        seen.setdefault((f["effect"], f["reason"]), []).append(str(f["step"]))
+    for (effect, reason), at in seen.items():
+        lines.append(f"  not fitted (dropped at step {', '.join(at)}): {effect}: {reason}")
     for a, b in res.not_separable:
         lines.append(f"  not separable on this trajectory: {a} and {b}")
     for r in res.rejected:
