@@ -32,10 +32,21 @@ Selection, stated once:
   others, no longer passes at (α/2)/k (k = effects added) is removed (it only mimicked one added
   later), and the rest refitted.
 
+Limits and failures, said out loud: ``max_steps`` counts accepted effects and ``stopped_by``
+(:data:`STOPPED_BY`) says what ended the search; a candidate whose own fit fails numerically (or
+whose noise scale lands on the end of its stated range) is dropped from that step and listed in
+``failed_candidates``; a fit without any candidate that fails raises :class:`AnalysisError` (not
+a ValueError: never "bad input").  The boresight must be observable by the rule of
+``calibrate_bag`` (:func:`boresight_observability`), else :class:`BoresightUnobservable`.
+
 Verdict tests on the final whitened residuals (each at (α/2)/3): the NIS (χ² of the whitened
 sum of squares), the Ljung–Box whiteness test (3 components, ``lags`` lags) and an extreme-value
 test on the largest |residual|.  ``model_adequate``: nothing added and all pass;
 ``explained``: effects added and all pass; ``unexplained_structure``: a test still fails.
+``fit_consistent``: the NIS test passes (χ²/dof inside its band).  When the NIS or whiteness test
+fails, every σ is the Newey–West sandwich (:func:`.linear_model.hac_covariance`; noise terms: the
+leave-one-block-out jackknife), never below the model's, and ``sigma_method`` is ``"hac"``.
+Each effect's leave-one-block-out estimates must scatter as its σ says (``repeatable``).
 No ROS imports.
 """
 from __future__ import annotations
@@ -63,6 +74,31 @@ DEFAULT_ALPHA = 0.01
 #: canonical correlation above which two whitened signatures are called not separable
 RHO_MAX = 0.95
 MIN_PAIRS = 12
+#: largest |value| of a fitted dimensionless gyro effect (scale factor, asymmetry, misalignment
+#: in rad) the linearised workflow reports; beyond it the model is not a small correction (a
+#: wiring fault, a wrong unit) and the candidate fails with that reason.  Parameters with a
+#: stated range (camera_time_offset: ±10 s) are held to it.
+PLAUSIBLE_MAX = {"gyro_scale_factor": 0.1, "gyro_scale_asymmetry": 0.1, "gyro_misalignment": 0.1}
+
+
+def _check_plausible(name: str, params: dict) -> None:
+    e = EFFECTS[name]
+    p = e.value_parameter
+    v = np.atleast_1d(np.asarray(e.value(params), dtype=float))
+    hi = PLAUSIBLE_MAX.get(name)
+    lo_p, hi_p = p.minimum, p.maximum
+    if not np.all(np.isfinite(v)):
+        raise NumericalFailure(f"a non-finite {p.name}")
+    if hi is not None and np.max(np.abs(v)) > hi:
+        raise NumericalFailure(f"|{p.name}| = {np.max(np.abs(v)):.3g} > {hi:g}: not a small "
+                               f"correction, outside what the linearised workflow reports")
+    if (lo_p is not None and np.min(v) < lo_p) or (hi_p is not None and np.max(v) > hi_p):
+        raise NumericalFailure(f"{p.name} = {_short(v)} outside its range "
+                               f"[{lo_p}, {hi_p}]")
+
+
+def _short(v):
+    return np.round(np.asarray(v, dtype=float), 6).tolist()
 # ----------------------------------------------------------------------------- results
 def json_clean(v):
     """Plain JSON values: numpy scalars and arrays to Python, non-finite floats to None."""
@@ -392,13 +428,18 @@ def analyse(rec: Recording, params: dict, alpha: float = DEFAULT_ALPHA, blocks: 
     """
     if len(rec.fix_stamps) < MIN_PAIRS + 1:
         raise InputError(f"{len(rec.fix_stamps)} camera fixes: the workflow needs at least {MIN_PAIRS + 1}")
-    stage = ["observability"]
+    stage = ["observability", False]        # what is being computed; the base fit is done
     try:
         return _analyse(rec, dict(params), alpha, blocks, lags, max_steps, candidates,
                         progress or (lambda s: None), stage)
     except NUMERICAL_ERRORS as exc:
         raise AnalysisError(f"the analysis cannot be computed: {stage[0]} failed numerically "
                             f"({_reason(exc)})") from exc
+    except InputError as exc:
+        if not stage[1]:
+            raise
+        # the input was usable (the base fit ran): a fitted value moved the pairs off the data
+        raise AnalysisError(f"the analysis cannot be computed: {stage[0]} failed ({exc})") from exc
 
 
 def _reason(exc) -> str:
@@ -432,6 +473,9 @@ def _analyse(rec, params, alpha, blocks, lags, max_steps, candidates, say, stage
     a_sel, a_tests = 0.5 * alpha, 0.5 * alpha
     tests_before = diagnostics.verdict_tests(base0.whitened, len(lin0.pairs), a_tests, lags)
     series_before = _series(lin0, base0, [])
+    stage[1] = True
+    # a candidate's own fit may fail: numerically, or by moving the pairs off the data
+    candidate_errors = NUMERICAL_ERRORS + (InputError,)
 
     free: list[str] = []
     steps: list[Step] = []
@@ -464,7 +508,7 @@ def _analyse(rec, params, alpha, blocks, lags, max_steps, candidates, say, stage
         for c in remaining:
             try:
                 sc = _score(lin, free, noise, base, c)
-            except NUMERICAL_ERRORS as exc:
+            except candidate_errors as exc:
                 failed.append({"effect": c, "step": len(steps) + 1, "reason": _reason(exc)})
                 failed_now.add(c)
                 continue
@@ -514,7 +558,7 @@ def _analyse(rec, params, alpha, blocks, lags, max_steps, candidates, say, stage
                 trial_free.append(name)
             ho_b = _heldout(lin, free, noise, split)
             ho_a = _heldout(lin, trial_free, noise, split, by_fold)
-        except NUMERICAL_ERRORS as exc:
+        except candidate_errors as exc:
             failed.append({"effect": name, "step": len(steps) + 1, "reason": "held-out check: " + _reason(exc)})
             failed_now.add(name)
             continue
@@ -534,8 +578,10 @@ def _analyse(rec, params, alpha, blocks, lags, max_steps, candidates, say, stage
             t_free.append(name)
         try:
             t_params, t_C = _refine(rec, t_params, C, epoch, t_free, t_noise)
+            for n_ in t_free:
+                _check_plausible(n_, t_params)
             Linearisation(rec, t_params, t_C, epoch).evaluate(t_free, t_noise)
-        except NUMERICAL_ERRORS as exc:
+        except candidate_errors as exc:
             failed.append({"effect": name, "step": len(steps) + 1, "reason": "joint refit: " + _reason(exc)})
             failed_now.add(name)
             continue
@@ -563,7 +609,7 @@ def _analyse(rec, params, alpha, blocks, lags, max_steps, candidates, say, stage
             try:
                 lin2 = Linearisation(rec, p_without, C, epoch)
                 reduced = lin2.evaluate(f2, n2)
-            except NUMERICAL_ERRORS as exc:
+            except candidate_errors as exc:
                 failed.append({"effect": name, "step": "backward elimination",
                                "reason": "kept: the model without it cannot be fitted: " + _reason(exc)})
                 continue
@@ -572,7 +618,7 @@ def _analyse(rec, params, alpha, blocks, lags, max_steps, candidates, say, stage
                 say(f"backward elimination: removing {name} (p = {_chi2.sf(stat, st.dof):.3g} given the others)")
                 try:
                     new_params, new_C = _refine(rec, p_without, C, epoch, f2, n2)
-                except NUMERICAL_ERRORS as exc:
+                except candidate_errors as exc:
                     failed.append({"effect": name, "step": "backward elimination",
                                    "reason": "kept: the refit without it failed: " + _reason(exc)})
                     continue

@@ -94,6 +94,8 @@ def fit(r: np.ndarray, J: np.ndarray, U: np.ndarray, prior_var: np.ndarray, W: W
 
     Columns of U with zero prior variance are dropped (a constant the model says is exactly 0).
     """
+    if not (np.all(np.isfinite(r)) and np.all(np.isfinite(J)) and np.all(np.isfinite(U))):
+        raise np.linalg.LinAlgError("the residuals or their columns have non-finite values")
     keep = prior_var > 0
     U, pv = U[:, keep], prior_var[keep]
     nz, nx = J.shape[1], U.shape[1]
