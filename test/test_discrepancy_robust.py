@@ -166,3 +166,18 @@ def test_correct_wiring_names_no_swap():
     if r.remaining:
         assert not r.remaining["gyro_axis_swap_sign"]["explains"]
         assert "gyro axis swap/sign" not in r.remaining.get("candidate_explanations", [])
+
+
+def test_bias_that_changes_half_way_is_not_repeatable():
+    """A bias step of 2e-6 rad/s at half time (outside the library: the bias is constant in the
+    model): the bias found is flagged not repeatable across the time blocks, with its spread."""
+    rec = _recording(seed=13, interval=2.0)
+    late = rec.gyro_stamps > 150.0
+    rec.delta_theta[late] += np.array([2e-6, -2e-6, 1e-6]) * 0.01
+    r = analyse(rec, _model())
+    steps = {s.effect: s for s in r.steps}
+    assert "gyro_bias" in steps, list(steps)
+    s = steps["gyro_bias"]
+    assert s.repeatable is False and s.spread_ratio > r.repeatability_bound
+    assert len(s.fold_values) == 6 and np.all(np.asarray(s.spread["gyro_bias"]) > 0)
+    assert s.as_dict()["repeatable"] is False
