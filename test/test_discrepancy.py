@@ -243,11 +243,11 @@ def test_static_recording_boresight_unobservable_exit_3(tmp_path, capsys, earth_
     """19 s at rest (the bench's first hold), a fix a second: no rotation (or Earth rate only,
     0.08° in 19 s) between exposures, so the boresight is not observable: exit 3 as calibrate_bag,
     nothing written to --write-model."""
-    bag = _record(tmp_path / "bag", {"seed": 3, "camera_interval": 1.0, "bench_earth_rate": earth_rate},
-                  duration=19.0)
+    bag = _record(tmp_path / "bag", {"seed": 3, "camera_interval": 1.0,
+                                     "bench_earth_rate": earth_rate}, duration=19.0)
     out_model, out_json = tmp_path / "found.yaml", tmp_path / "r.json"
-    rc = discrepancy.main([str(bag), "--model", str(_model(tmp_path)), "--write-model", str(out_model),
-                           "--json", str(out_json), "--quiet"])
+    rc = discrepancy.main([str(bag), "--model", str(_model(tmp_path)), "--write-model",
+                           str(out_model), "--json", str(out_json), "--quiet"])
     assert rc == 3
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "NOT observable" in err[0] and "rotation about VF axis" in err[0], err
@@ -263,7 +263,8 @@ def test_analysis_failure_is_exit_4_not_bad_input(tmp_path, capsys, monkeypatch)
     bag = _record(tmp_path / "bag", {"seed": 1}, duration=60.0)
 
     def fail(*a, **k):
-        raise core.AnalysisError("the analysis cannot be computed: the base fit failed numerically (test)")
+        raise core.AnalysisError("the analysis cannot be computed: the base fit failed "
+                                 "numerically (test)")
     monkeypatch.setattr(core, "analyse", fail)
     assert discrepancy.main([str(bag), "--model", str(_model(tmp_path)), "--quiet"]) == 4
     err = capsys.readouterr().err.strip().splitlines()
@@ -273,7 +274,8 @@ def test_analysis_failure_is_exit_4_not_bad_input(tmp_path, capsys, monkeypatch)
 def test_inconsistent_fit_is_flagged_and_sigma_is_sandwiched(tmp_path, capsys):
     """A periodic bias of 20°/h (outside the library): the final χ²/dof is outside its band, the
     summary says WARNING (exit 0), σ is the Newey–West sandwich, every JSON field is there."""
-    bag = _record(tmp_path / "bag", {"seed": 31, "camera_interval": 1.0, "gyro_bias_periodic": [1e-4, -1e-4, 5e-5],
+    bag = _record(tmp_path / "bag", {"seed": 31, "camera_interval": 1.0,
+                                     "gyro_bias_periodic": [1e-4, -1e-4, 5e-5],
                                      "gyro_bias_period": 30.0}, duration=300.0)
     r = _run(tmp_path, bag, _model(tmp_path))
     out = capsys.readouterr().out

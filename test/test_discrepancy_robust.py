@@ -12,8 +12,8 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from strapdown_ros.analysis.diagnostics import allan_comparison, static_segments
-from strapdown_ros.analysis.discrepancy import (STOPPED_BY, AnalysisError, InputError, Recording, analyse,
-                                                json_clean)
+from strapdown_ros.analysis.discrepancy import (STOPPED_BY, AnalysisError, InputError, Recording,
+                                                analyse, json_clean)
 from strapdown_ros.analysis.hidden import simulate_recording
 from strapdown_ros.analysis.pairs import GyroRecord
 from strapdown_ros.config import CALIBRATOR_PARAMS, IMU_SIM_PARAMS, STAR_CAMERA_PARAMS, check_all
@@ -24,9 +24,10 @@ VERDICTS = ("model_adequate", "explained", "unexplained_structure")
 
 
 def _recording(duration=300.0, rate=100.0, interval=1.0, seed=3, repeat=2, **over):
-    sc = {"profile": "bench", "bench_repeat": repeat, "gyro_rate": rate, "camera_interval": interval,
-          "boresight": BETA, "seed": seed, **over}
-    return simulate_recording(check_all(IMU_SIM_PARAMS, sc), check_all(STAR_CAMERA_PARAMS, sc), duration)
+    sc = {"profile": "bench", "bench_repeat": repeat, "gyro_rate": rate,
+          "camera_interval": interval, "boresight": BETA, "seed": seed, **over}
+    return simulate_recording(check_all(IMU_SIM_PARAMS, sc), check_all(STAR_CAMERA_PARAMS, sc),
+                              duration)
 
 
 def _model(rate=100.0, **over):
@@ -54,8 +55,9 @@ def test_reference_noisier_in_motion_never_crashes(extra_sigma):
     js = json.loads(json.dumps(r.as_json()))
     for f in js["failed_candidates"]:
         assert set(f) == {"effect", "step", "reason"} and f["reason"]
-    if extra_sigma >= 3e-4:                   # far beyond the stated noise: never "explained" plainly
-        assert r.verdict == "unexplained_structure" or not r.fit_consistent or r.sigma_method == "hac"
+    if extra_sigma >= 3e-4:           # far beyond the stated noise: never "explained" plainly
+        assert (r.verdict == "unexplained_structure" or not r.fit_consistent
+                or r.sigma_method == "hac")
     for s in r.steps:                          # every reported σ finite or openly null
         for v in np.atleast_1d(list(s.sigma.values())[0]):
             assert v is None or v >= 0
@@ -65,7 +67,8 @@ def test_reference_noisier_in_motion_never_crashes(extra_sigma):
 @given(seed=st.integers(1, 10_000), bias=st.floats(-2e-5, 2e-5), scale=st.floats(-3e-3, 3e-3),
        rw=st.floats(1e-8, 3e-6), offset=st.floats(-0.08, 0.08), cam=st.floats(1e-6, 3e-4),
        interval=st.sampled_from([1.0, 2.0]))
-def test_random_small_recordings_return_or_raise_only_stated_errors(seed, bias, scale, rw, offset, cam, interval):
+def test_random_small_recordings_return_or_raise_only_stated_errors(seed, bias, scale, rw, offset,
+                                                                    cam, interval):
     rec = _recording(duration=80.0, rate=50.0, interval=interval, seed=seed, repeat=1,
                      gyro_bias=[bias, -bias, 0.5 * bias], gyro_scale_factor=[scale, 0.0, -scale],
                      gyro_random_walk=rw, camera_time_offset=offset)
@@ -92,7 +95,8 @@ def test_step_limit_counts_accepted_effects_and_is_said():
 
 def _mems(rate=286.0, bias_deg_s=0.2, seed=0):
     """A MEMS-like gyro record: 0.2 °/s bias on every axis, white noise, rest 0–30 s, a varying
-    turn 30–50 s, rest 50–85 s, a turn 85–95 s, rest 95–110 s (too short: 15 s minus a window)."""
+    turn 30–50 s, rest 50–85 s, a turn 85–95 s, rest 95–110 s (too short: 15 s less a
+    window)."""
     rng = np.random.default_rng(seed)
     T = 1.0 / rate
     t = T * np.arange(1, int(110.0 * rate) + 1)
@@ -134,8 +138,8 @@ def test_sigma_honest_when_structure_is_unmodelled():
                      gyro_bias_periodic=[1e-4, -1e-4, 5e-5], gyro_bias_period=30.0)
     est = []
     for sub in (1, 2):
-        r = analyse(Recording(rec.gyro_stamps, rec.delta_theta, rec.fix_stamps[::sub], rec.fix_q[::sub],
-                              rec.fix_P[::sub]), _model())
+        r = analyse(Recording(rec.gyro_stamps, rec.delta_theta, rec.fix_stamps[::sub],
+                              rec.fix_q[::sub], rec.fix_P[::sub]), _model())
         assert r.verdict == "unexplained_structure" and r.sigma_method == "hac"
         assert not r.fit_consistent or r.tests_after["failed"]
         s = {x.effect: x for x in r.steps}["time_offset"]
@@ -151,7 +155,8 @@ def test_sigma_honest_when_structure_is_unmodelled():
 @pytest.mark.parametrize("fault", ["swap_xy", "negate_z"])
 def test_gyro_wiring_fault_is_unexplained_and_named(fault):
     rec = _recording(seed=11, interval=2.0)
-    rec.delta_theta = rec.delta_theta[:, [1, 0, 2]] if fault == "swap_xy" else rec.delta_theta * [1, 1, -1]
+    rec.delta_theta = (rec.delta_theta[:, [1, 0, 2]] if fault == "swap_xy"
+                       else rec.delta_theta * [1, 1, -1])
     r = analyse(rec, _model())
     assert r.verdict == "unexplained_structure"
     assert "gyro axis swap/sign" in r.remaining["candidate_explanations"]

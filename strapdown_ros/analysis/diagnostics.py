@@ -15,8 +15,8 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["verdict_tests", "autocorrelation", "describe_remaining", "static_segments", "allan_comparison",
-           "axis_swap_check", "white_rate_variance", "SWAP_RATIO"]
+__all__ = ["verdict_tests", "autocorrelation", "describe_remaining", "static_segments",
+           "allan_comparison", "axis_swap_check", "white_rate_variance", "SWAP_RATIO"]
 
 #: a signed permutation of the gyro axes "explains" the residual when the axis-alignment RMS with
 #: it is below this fraction of the RMS with the axes as wired
@@ -141,7 +141,8 @@ def axis_swap_check(rotvec_imu: np.ndarray, rotvec_cam: np.ndarray) -> dict:
     ratio = best / wired if wired > 0 else 1.0
     explains = bool(ratio < SWAP_RATIO)
     out = {"gyro_axis_swap_sign": {"explains": explains, "permutation": best_P.tolist(),
-                                   "rms_as_wired_rad": wired, "rms_best_rad": best, "ratio": ratio}}
+                                   "rms_as_wired_rad": wired, "rms_best_rad": best,
+                                   "ratio": ratio}}
     if explains:
         out["candidate_explanations"] = ["gyro axis swap/sign"]
     return out
@@ -214,7 +215,8 @@ def static_segments(stamps: np.ndarray, delta_theta: np.ndarray, params: dict | 
     # the same constant rate in consecutive windows: their means agree within √(2·ref/n)
     mean = W.mean(axis=1)
     jump = np.zeros(m, dtype=bool)
-    jump[1:] = np.any(np.abs(np.diff(mean, axis=0)) > norm.isf(0.5 * alpha) * np.sqrt(2.0 * ref / n), axis=1)
+    step_bound = norm.isf(0.5 * alpha) * np.sqrt(2.0 * ref / n)
+    jump[1:] = np.any(np.abs(np.diff(mean, axis=0)) > step_bound, axis=1)
     out = []
     i = 0
     while i < m:
@@ -299,9 +301,11 @@ def allan_comparison(stamps, delta_theta, params_before: dict, params_after: dic
                             "model_rate_std_rad_s_after": model_std(params_after or params_before)},
            "taus_s": taus.tolist(), "measured": measured.tolist(),
            "simulated_before": curve(lambda i, j: simulate(params_before, i, j)).tolist(),
-           "static_segments": len(segs), "static_seconds": float(sum(st[j - 1] - st[i] for i, j in segs)),
-           "static_detection": {"rule": "window variance of the increments ≤ χ² bound of the white rate "
-                                        "noise (1 s windows, α = 1e-3 per window and axis)", **found}}
+           "static_segments": len(segs),
+           "static_seconds": float(sum(st[j - 1] - st[i] for i, j in segs)),
+           "static_detection": {"rule": "window variance of the increments ≤ χ² bound of the "
+                                        "white rate noise, window means agree (1 s windows, "
+                                        "α = 1e-3 per window and axis)", **found}}
     if params_after is not None:
         out["simulated_after"] = curve(lambda i, j: simulate(params_after, i, j)).tolist()
     ratio = measured / np.maximum(np.asarray(out["simulated_before"]), 1e-300)

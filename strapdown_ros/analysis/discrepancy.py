@@ -59,15 +59,16 @@ from ..rotation import dcm_to_ypr, quat_to_dcm, rotvec_to_dcm
 from ..sensors.effects import CANDIDATES, EFFECTS, GyroEffects
 from . import diagnostics
 from .linear_model import hac_covariance
-from .linearisation import (NUMERICAL_ERRORS, AnalysisError, BoresightUnobservable, InputError, Linearisation,
-                            NumericalFailure, Recording, _fit_noise, _noise_of)
+from .linearisation import (NUMERICAL_ERRORS, AnalysisError, BoresightUnobservable, InputError,
+                            Linearisation, NumericalFailure, Recording, _fit_noise, _noise_of)
 from .pairs import GyroRecord, build_pairs
 
 __all__ = ["Recording", "analyse", "json_clean", "DiscrepancyResult", "RHO_MAX", "DEFAULT_ALPHA", "MIN_PAIRS",
-           "InputError", "AnalysisError", "BoresightUnobservable", "boresight_observability", "STOPPED_BY"]
+           "InputError", "AnalysisError", "BoresightUnobservable", "boresight_observability",
+           "STOPPED_BY", "PLAUSIBLE_MAX"]
 
-#: why the search stopped: the step limit (accepted effects), no candidate passing its test, none left
-#: to try (all added, excluded or failed numerically), or the safety bound on search turns
+#: why the search stopped: the step limit (accepted effects), no candidate passing its test,
+#: none left to try (all added, excluded or failed numerically), or the safety bound on turns
 STOPPED_BY = ("max_steps", "no_significant_candidate", "no_candidates_left", "iteration_limit")
 
 DEFAULT_ALPHA = 0.01
@@ -134,9 +135,10 @@ class Step:
 
     def as_dict(self):
         return {"effect": self.effect, "parameters": self.parameters, "sigma": self.sigma,
-                "sigma_model": self.sigma_model, "statistic": self.statistic, "p_value": self.p_value,
-                "heldout_gain": self.heldout_gain, "dof": self.dof, "repeatable": self.repeatable,
-                "spread": self.spread, "spread_ratio": self.spread_ratio, "fold_values": self.fold_values}
+                "sigma_model": self.sigma_model, "statistic": self.statistic,
+                "p_value": self.p_value, "heldout_gain": self.heldout_gain, "dof": self.dof,
+                "repeatable": self.repeatable, "spread": self.spread,
+                "spread_ratio": self.spread_ratio, "fold_values": self.fold_values}
 
 
 @dataclass
@@ -185,7 +187,8 @@ class DiscrepancyResult:
             "tests_before": self.tests_before, "tests_after": self.tests_after,
             "candidates_first_step": self.candidates_first_step, "rejected": self.rejected,
             "boresight_rad": self.boresight_rad, "boresight_sigma_rad": self.boresight_sigma_rad,
-            "boresight_sigma_model_rad": self.boresight_sigma_model_rad, "observable": self.observable,
+            "boresight_sigma_model_rad": self.boresight_sigma_model_rad,
+            "observable": self.observable,
             "failed_candidates": self.failed_candidates, "stopped_by": self.stopped_by,
             "max_steps": self.max_steps, "fit_consistent": self.fit_consistent,
             "chi2_per_dof": self.chi2_per_dof, "chi2_per_dof_band": self.chi2_per_dof_band,
@@ -370,7 +373,8 @@ def boresight_observability(rec: Recording, params: dict, epoch: float | None = 
     P = rec.fix_P
     items = [SimpleNamespace(dq_cam=pairs.dq_cam[n], dq_imu=pairs.dq_imu[n],
                              cov_cam=P[pairs.fix_start[n]] + P[pairs.fix_end[n]],
-                             cov_imu=rw2 * float(pairs.duration[n]) * np.eye(3)) for n in range(len(pairs))]
+                             cov_imu=rw2 * float(pairs.duration[n]) * np.eye(3))
+             for n in range(len(pairs))]
     return check_observability(items)
 
 
@@ -498,8 +502,8 @@ def _analyse(rec, params, alpha, blocks, lags, max_steps, candidates, say, stage
         stage[0] = f"the fit of the model with {', '.join(free + list(noise)) or 'no effects'}"
         lin = Linearisation(rec, params, C, epoch)
         base = lin.evaluate(free, noise)
-        remaining = [c for c in candidates if c not in free and c not in noise and c not in excluded
-                     and c not in failed_now]
+        remaining = [c for c in candidates if c not in free and c not in noise
+                     and c not in excluded and c not in failed_now]
         if not remaining:
             stopped_by = "no_candidates_left"
             break
@@ -512,7 +516,8 @@ def _analyse(rec, params, alpha, blocks, lags, max_steps, candidates, say, stage
                 failed.append({"effect": c, "step": len(steps) + 1, "reason": _reason(exc)})
                 failed_now.add(c)
                 continue
-            why = EFFECTS[c].direct_check(rec.delta_theta, sc.get("theta"))   # its test on the raw data
+            # the effect's own test on the raw increments
+            why = EFFECTS[c].direct_check(rec.delta_theta, sc.get("theta"))
             if why:
                 sc["p_value"], sc["direct_check"] = 1.0, why
             scores.append(sc)
@@ -559,7 +564,8 @@ def _analyse(rec, params, alpha, blocks, lags, max_steps, candidates, say, stage
             ho_b = _heldout(lin, free, noise, split)
             ho_a = _heldout(lin, trial_free, noise, split, by_fold)
         except candidate_errors as exc:
-            failed.append({"effect": name, "step": len(steps) + 1, "reason": "held-out check: " + _reason(exc)})
+            failed.append({"effect": name, "step": len(steps) + 1,
+                           "reason": "held-out check: " + _reason(exc)})
             failed_now.add(name)
             continue
         gain = ho_b[0] - ho_a[0]
@@ -582,12 +588,14 @@ def _analyse(rec, params, alpha, blocks, lags, max_steps, candidates, say, stage
                 _check_plausible(n_, t_params)
             Linearisation(rec, t_params, t_C, epoch).evaluate(t_free, t_noise)
         except candidate_errors as exc:
-            failed.append({"effect": name, "step": len(steps) + 1, "reason": "joint refit: " + _reason(exc)})
+            failed.append({"effect": name, "step": len(steps) + 1,
+                           "reason": "joint refit: " + _reason(exc)})
             failed_now.add(name)
             continue
         noise, params, free, C = t_noise, t_params, t_free, t_C
         folds = [d[name] for d in by_fold] if by_fold else None
-        steps.append(Step(name, {}, {}, best["statistic"], best["p_value"], gain, best["dof"], fold_theta=folds))
+        steps.append(Step(name, {}, {}, best["statistic"], best["p_value"], gain, best["dof"],
+                          fold_theta=folds))
         failed_now.clear()
     # backward elimination: drop an added effect that the others have made unnecessary
     changed = True
@@ -611,7 +619,8 @@ def _analyse(rec, params, alpha, blocks, lags, max_steps, candidates, say, stage
                 reduced = lin2.evaluate(f2, n2)
             except candidate_errors as exc:
                 failed.append({"effect": name, "step": "backward elimination",
-                               "reason": "kept: the model without it cannot be fitted: " + _reason(exc)})
+                               "reason": "kept: the model without it cannot be fitted: "
+                                         + _reason(exc)})
                 continue
             stat = max(reduced.nll - full.nll, 0.0)
             if _chi2.sf(stat, st.dof) >= level:
@@ -658,8 +667,10 @@ def _analyse(rec, params, alpha, blocks, lags, max_steps, candidates, say, stage
     folds = split.folds(lin)
     kf = len(folds)
     # repeatability: the leave-one-block-out estimates scatter about as the stated σ says
-    # (jackknife σ = √((K−1)/K Σ(θ_k − θ̄)²) ≈ σ); a ratio beyond the χ²(K−1) bound at the test level
-    rep_bound = float(np.sqrt(_chi2.ppf(1.0 - tests_after["level"], max(kf - 1, 1)) / max(kf - 1, 1)))
+    # (jackknife σ = √((K−1)/K Σ(θ_k − θ̄)²) ≈ σ); a ratio beyond the χ²(K−1) bound at the test
+    # level is not
+    dof_k = max(kf - 1, 1)
+    rep_bound = float(np.sqrt(_chi2.ppf(1.0 - tests_after["level"], dof_k) / dof_k))
     for s in steps:
         if s.effect in offsets:
             a, q = offsets[s.effect]
@@ -677,7 +688,8 @@ def _analyse(rec, params, alpha, blocks, lags, max_steps, candidates, say, stage
                 s.fold_values = [v.tolist() for v in vals]
                 jk = np.sqrt((kf - 1) / kf * np.sum((zf - zf.mean(axis=0)) ** 2, axis=0))
                 s.spread_ratio = float(np.max(jk / np.where(sd > 0, sd, np.inf)))
-                full_jk = np.sqrt((kf - 1) / kf * np.sum((np.array(vals) - np.mean(vals, axis=0)) ** 2, axis=0))
+                dev = np.array(vals) - np.mean(vals, axis=0)
+                full_jk = np.sqrt((kf - 1) / kf * np.sum(dev ** 2, axis=0))
                 s.spread = _values_json(s.effect, params, theta=v0, sigma=full_jk)[1]
         else:
             try:
@@ -702,7 +714,8 @@ def _analyse(rec, params, alpha, blocks, lags, max_steps, candidates, say, stage
     series_after = _series(lin, final, free)
     remaining = {} if passed else diagnostics.describe_remaining(series_after, lin)
     if not passed:
-        # on the increments of the nominal model: the effects fitted since may have bent to a wiring fault
+        # on the increments of the nominal model: the effects fitted since may have bent to a
+        # wiring fault
         p0 = _initial_pairs(rec, original, epoch)
         remaining.update(diagnostics.axis_swap_check(_rotvec(p0.dq_imu), _rotvec(p0.dq_cam)))
     beta = dcm_to_ypr(C)
@@ -717,7 +730,8 @@ def _analyse(rec, params, alpha, blocks, lags, max_steps, candidates, say, stage
     model_out["boresight"] = beta.tolist()
     nis = tests_after["nis"]
     n = nis["dof"]
-    band = [float(_chi2.ppf(0.5 * tests_after["level"], n) / n), float(_chi2.isf(0.5 * tests_after["level"], n) / n)]
+    half = 0.5 * tests_after["level"]
+    band = [float(_chi2.ppf(half, n) / n), float(_chi2.isf(half, n) / n)]
     return DiscrepancyResult(
         verdict=verdict, rms_before=float(np.sqrt(np.mean(base0.whitened ** 2))),
         rms_after=float(np.sqrt(np.mean(final.whitened ** 2))), heldout_rms_before=ho_before[1],
@@ -727,8 +741,9 @@ def _analyse(rec, params, alpha, blocks, lags, max_steps, candidates, say, stage
         fixes=len(rec.fix_stamps), model_out=model_out,
         series={"before": series_before, "after": series_after}, rejected=rejected,
         failed_candidates=failed, stopped_by=stopped_by, max_steps=max_steps,
-        fit_consistent=bool(nis["p_value"] >= tests_after["level"]), chi2_per_dof=float(nis["per_dof"]),
-        chi2_per_dof_band=band, sigma_method=sigma_method, hac_lags=hac_lags if sigma_method == "hac" else None,
+        fit_consistent=bool(nis["p_value"] >= tests_after["level"]),
+        chi2_per_dof=float(nis["per_dof"]), chi2_per_dof_band=band, sigma_method=sigma_method,
+        hac_lags=hac_lags if sigma_method == "hac" else None,
         boresight_sigma_model_rad=sig_beta_model.tolist(), repeatability_bound=rep_bound)
 
 

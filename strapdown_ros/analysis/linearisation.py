@@ -246,8 +246,8 @@ def _fit_noise(lin: Linearisation, free, noise: dict, name: str, mask=None):
         raise NumericalFailure(f"no value in its range gives a positive-definite covariance")
     at_bound = (best.x >= hi - 1e-3) | ((best.x <= lo + 1e-3) & (name != "gyro_quantization"))
     if np.any(at_bound):
-        rng = (f"{NOISE_SCALE_RANGE[0]:g} to {NOISE_SCALE_RANGE[1]:g}" if name != "gyro_quantization"
-               else f"up to {unit * hi:.3g} rad")
+        rng = (f"{NOISE_SCALE_RANGE[0]:g} to {NOISE_SCALE_RANGE[1]:g}"
+               if name != "gyro_quantization" else f"up to {unit * hi:.3g} rad")
         raise NumericalFailure(f"the likelihood is largest at the bound of its range ({rng}): "
                                f"{np.round(theta_of(best.x), 6).tolist()}")
     theta = theta_of(best.x)

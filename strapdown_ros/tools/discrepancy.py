@@ -104,8 +104,9 @@ def _summary(bag, info, res) -> str:
     lines.append(f"  verdict: {res.verdict}")
     if not res.fit_consistent:
         lo, hi = res.chi2_per_dof_band
-        lines.append(f"WARNING: the fit is not consistent with its stated noise: χ²/dof {res.chi2_per_dof:.4g} outside "
-                     f"[{lo:.3g}, {hi:.3g}] at the test level; the values below are not plain results")
+        lines.append(f"WARNING: the fit is not consistent with its stated noise: χ²/dof "
+                     f"{res.chi2_per_dof:.4g} outside [{lo:.3g}, {hi:.3g}] at the test level; the "
+                     f"values below are not plain results")
     if res.sigma_method != "model":
         lines.append(f"  σ: Newey–West sandwich over {res.hac_lags} pairs (the residuals fail "
                      f"{', '.join(res.tests_after['failed'])}: the model's σ would be too small)")
@@ -119,11 +120,12 @@ def _summary(bag, info, res) -> str:
             lines.append(f"    not repeatable across time blocks: leave-one-block-out spread "
                          f"{'; '.join(f'{n} ± {_fmt(v)}' for n, v in s.spread.items())} "
                          f"({s.spread_ratio:.3g}× the σ above): not a plain finding")
-    stop = {"max_steps": f"the step limit ({res.max_steps} accepted effects) stopped the search; more may "
-                         f"be missing",
+    stop = {"max_steps": f"the step limit ({res.max_steps} accepted effects) stopped the search; "
+                         f"more may be missing",
             "no_significant_candidate": "search stopped: no candidate left passes its test",
             "no_candidates_left": "search stopped: every candidate was added, excluded or failed",
-            "iteration_limit": "search stopped by its turn limit"}.get(res.stopped_by, f"{res.stopped_by}")
+            "iteration_limit": "search stopped by its turn limit"}.get(res.stopped_by,
+                                                                        f"{res.stopped_by}")
     lines.append(f"  {stop}")
     seen: dict = {}
     for f in res.failed_candidates:                  # one line per effect and reason
@@ -147,8 +149,8 @@ def _summary(bag, info, res) -> str:
         for c in rm.get("candidate_explanations", []):
             sw = rm.get("gyro_axis_swap_sign", {})
             lines.append(f"  candidate explanation outside the library: {c} (gyro axes mapped by "
-                         f"{sw.get('permutation')} cut the axis-alignment RMS to {sw.get('ratio', float('nan')):.2g}× "
-                         f"that of the axes as wired)")
+                         f"{sw.get('permutation')} cut the axis-alignment RMS to "
+                         f"{sw.get('ratio', float('nan')):.2g}× that of the axes as wired)")
     b = np.degrees(res.boresight_rad)
     s = np.asarray(res.boresight_sigma_rad) * ARCSEC_PER_RAD
     lines.append(f"  boresight β = ({b[0]:.6f}, {b[1]:.6f}, {b[2]:.6f})° ± ({s[0]:.3g}, {s[1]:.3g}, {s[2]:.3g})″")
@@ -174,8 +176,8 @@ def main(argv=None) -> int:
     ap.add_argument("--quiet", action="store_true", help="no progress on stderr")
     args = ap.parse_args(argv)
     t0 = time.perf_counter()
-    from ..analysis.discrepancy import (DEFAULT_ALPHA, AnalysisError, BoresightUnobservable, InputError, analyse,
-                                        json_clean)
+    from ..analysis.discrepancy import (DEFAULT_ALPHA, AnalysisError, BoresightUnobservable,
+                                        InputError, analyse, json_clean)
     from ..config import load_model
     from .calibrate_bag import BagError
     from .paths import check_output_dir, check_output_file, write_json
@@ -207,14 +209,15 @@ def main(argv=None) -> int:
         unobs = list(exc.report.unobservable) if exc.report is not None else []
         if args.json:
             try:
-                write_json(args.json, json_clean({"observable": False, "message": str(exc), "unobservable": unobs,
-                                                  "verdict": None, "input": info}))
+                write_json(args.json, json_clean({"observable": False, "message": str(exc),
+                                                  "unobservable": unobs, "verdict": None,
+                                                  "input": info}))
             except OSError as exc2:
                 print(f"discrepancy: error: {exc2}", file=sys.stderr)
                 return 2
-        print(f"discrepancy: boresight NOT observable from this bag: {exc}; unobservable: {'; '.join(unobs)}.  "
-              f"Record rotations about at least two non-parallel axes between camera exposures; no model "
-              f"written.", file=sys.stderr)
+        print(f"discrepancy: boresight NOT observable from this bag: {exc}; unobservable: "
+              f"{'; '.join(unobs)}.  Record rotations about at least two non-parallel axes "
+              f"between camera exposures; no model written.", file=sys.stderr)
         return 3
     except AnalysisError as exc:
         print(f"discrepancy: analysis failed: {exc}", file=sys.stderr)

@@ -71,8 +71,8 @@ def _residuals(plt, res, path):
                               f"after: with {_effects_words(res)}", fontsize=10)
         axs[0, col].legend(loc="upper right", fontsize=8)
         axs[-1, col].set_xlabel("time, s")
-    fig.suptitle("Residual of each increment pair (camera vs gyro) before and after adding the found "
-                 f"effects — verdict: {res.verdict.replace('_', ' ')}", fontsize=11)
+    fig.suptitle("Residual of each increment pair (camera vs gyro) before and after adding the "
+                 f"found effects — verdict: {res.verdict.replace('_', ' ')}", fontsize=11)
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)
@@ -92,7 +92,8 @@ def _autocorrelation(plt, res, path):
     ax.axhline(0, color="k", lw=0.5)
     ax.set_xlabel("lag, pairs")
     ax.set_ylabel("autocorrelation (mean of 3 axes)")
-    ax.set_title("Does a residual predict the next ones? (normalised residuals; inside the band: no)",
+    ax.set_title("Does a residual predict the next ones? "
+                 "(normalised residuals; inside the band: no)",
                  fontsize=10)
     ax.legend(fontsize=8)
     fig.tight_layout()
@@ -136,12 +137,12 @@ def _fig2a(plt, res, path):
         ax.plot(np.degrees(s["phi_cam"][order]), -3 * sig[order] * k, color="C1", lw=1)
         ax.set_xlabel("angle the camera turned between the two fixes, °")
         ax.set_ylabel(f"camera angle − gyro angle, {unit}")
-        ax.set_title("before: the nominal model" if name == "before" else f"after: with {_effects_words(res)}",
-                     fontsize=10)
+        ax.set_title("before: the nominal model" if name == "before"
+                     else f"after: with {_effects_words(res)}", fontsize=10)
         ax.grid(True, alpha=0.3)
         ax.legend(fontsize=8)
-    fig.suptitle("Does the gyro turn by the angle the camera saw? Difference per pair against the angle "
-                 "turned", fontsize=11)
+    fig.suptitle("Does the gyro turn by the angle the camera saw? Difference per pair against "
+                 "the angle turned", fontsize=11)
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)
@@ -158,8 +159,8 @@ def _allan(plt, allan, path) -> bool:
         ax.loglog(t, np.asarray(allan["simulated_after"]), "-", color="C2", label="model, after")
     ax.set_xlabel("τ, s")
     ax.set_ylabel("Allan deviation of the rate, rad/s")
-    ax.set_title(f"Gyro noise at rest ({allan['static_segments']} segment(s), {allan['static_seconds']:.0f} s): "
-                 f"measured vs the model", fontsize=10)
+    ax.set_title(f"Gyro noise at rest ({allan['static_segments']} segment(s), "
+                 f"{allan['static_seconds']:.0f} s): measured vs the model", fontsize=10)
     ax.legend(fontsize=8)
     ax.grid(True, which="both", alpha=0.3)
     fig.tight_layout()
@@ -204,17 +205,20 @@ def write_report(outdir: str, res, out: dict) -> str:
     if not out.get("fit_consistent", True):
         lo, hi = out["chi2_per_dof_band"]
         L += ["", f"**WARNING: the fit is not consistent with its stated noise** (χ²/dof "
-              f"{out['chi2_per_dof']:.4g}, outside [{lo:.3g}, {hi:.3g}] at the test level): the values "
-              f"below are not plain results."]
+              f"{out['chi2_per_dof']:.4g}, outside [{lo:.3g}, {hi:.3g}] at the test level): the "
+              f"values below are not plain results."]
     if out.get("sigma_method") == "hac":
-        L += ["", f"σ: the residuals fail {', '.join(out['tests_after']['failed'])}, so every σ is the "
-              f"Newey–West sandwich over {out['hac_lags']} pairs (never below the model's σ; noise terms: "
-              f"the leave-one-block-out jackknife)."]
-    stop = {"max_steps": f"the step limit ({out.get('max_steps')} accepted effects) stopped the search: more "
-                         f"effects may be missing",
-            "no_significant_candidate": "the search stopped because no candidate left passes its test",
-            "no_candidates_left": "the search stopped because every candidate was added, excluded or failed",
-            "iteration_limit": "the search stopped at its turn limit"}.get(out.get("stopped_by"), "")
+        L += ["", f"σ: the residuals fail {', '.join(out['tests_after']['failed'])}, so every σ "
+              f"is the Newey–West sandwich over {out['hac_lags']} pairs (never below the model's "
+              f"σ; noise terms: the leave-one-block-out jackknife)."]
+    stop = {"max_steps": f"the step limit ({out.get('max_steps')} accepted effects) stopped the "
+                         f"search: more effects may be missing",
+            "no_significant_candidate": "the search stopped because no candidate left passes its "
+                                        "test",
+            "no_candidates_left": "the search stopped because every candidate was added, excluded "
+                                  "or failed",
+            "iteration_limit": "the search stopped at its turn limit"}.get(out.get("stopped_by"),
+                                                                           "")
     if stop:
         L += ["", stop[0].upper() + stop[1:] + "."]
     L += ["", "## Steps", "", "| step | effect | parameters (SI) | σ | LR statistic | dof | p-value | held-out gain |",
@@ -268,9 +272,9 @@ def write_report(outdir: str, res, out: dict) -> str:
                 L.append(f"- correlation of the squared residual with the {label}: {rm[key]:.2f};")
         sw = rm.get("gyro_axis_swap_sign")
         if sw and sw.get("explains"):
-            L.append(f"- candidate explanation outside the library: **gyro axis swap/sign** — the gyro axes "
-                     f"mapped by {sw['permutation']} cut the axis-alignment RMS to {sw['ratio']:.2g}× that of "
-                     f"the axes as wired;")
+            L.append(f"- candidate explanation outside the library: **gyro axis swap/sign** — "
+                     f"the gyro axes mapped by {sw['permutation']} cut the axis-alignment RMS to "
+                     f"{sw['ratio']:.2g}× that of the axes as wired;")
         L.append("- largest whitened residuals at t = " + ", ".join(f"{t:.1f}" for t in rm["largest_whitened_at_s"])
                  + " s.")
     allan = out.get("allan")
@@ -302,11 +306,11 @@ def write_report(outdir: str, res, out: dict) -> str:
     L += ["", "## Boresight (estimated in every fit)", "",
           f"β = ({b[0]:.6f}°, {b[1]:.6f}°, {b[2]:.6f}°) ± ({s[0]:.3g}″, {s[1]:.3g}″, {s[2]:.3g}″).", "",
           "## Plots", "",
-          "Residual of each increment pair (camera vs gyro) against time, before and after adding the "
-          "found effects; the shaded band is ±3σ of what the model expects:", "",
+          "Residual of each increment pair (camera vs gyro) against time, before and after "
+          "adding the found effects; the shaded band is ±3σ of what the model expects:", "",
           "![residual against time](residuals.png)", "",
-          "Difference of the angles the camera and the gyro turned between two fixes, against that "
-          "angle (004 Fig. 2a):", "", "![angle difference against angle](fig2a.png)", "",
+          "Difference of the angles the camera and the gyro turned between two fixes, against "
+          "that angle (004 Fig. 2a):", "", "![angle difference against angle](fig2a.png)", "",
           "Autocorrelation of the normalised residuals (white: inside the band):", "",
           "![autocorrelation](autocorrelation.png)", "",
           "Normalised residual against the turning rate and the angle turned so far:", "",
