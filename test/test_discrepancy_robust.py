@@ -63,7 +63,8 @@ def test_reference_noisier_in_motion_never_crashes(extra_sigma):
             assert v is None or v >= 0
 
 
-@settings(max_examples=6, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@settings(max_examples=6, deadline=None, derandomize=True,
+          suppress_health_check=[HealthCheck.too_slow])
 @given(seed=st.integers(1, 10_000), bias=st.floats(-2e-5, 2e-5), scale=st.floats(-3e-3, 3e-3),
        rw=st.floats(1e-8, 3e-6), offset=st.floats(-0.08, 0.08), cam=st.floats(1e-6, 3e-4),
        interval=st.sampled_from([1.0, 2.0]))

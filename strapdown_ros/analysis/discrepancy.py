@@ -355,7 +355,8 @@ def boresight_observability(rec: Recording, params: dict, epoch: float | None = 
     rec : Recording
         The recording.
     params : dict
-        The nominal model (its effects compensated, its time offset applied).
+        The nominal model (its effects compensated, its time offset applied; the calibrator's
+        ``min_rotation_deg`` and ``max_sigma`` as there, defaults 0.5° and 1e-3 rad).
     epoch : float, optional
         Origin of the effects' time (default: the first gyro stamp), s.
 
@@ -375,7 +376,9 @@ def boresight_observability(rec: Recording, params: dict, epoch: float | None = 
                              cov_cam=P[pairs.fix_start[n]] + P[pairs.fix_end[n]],
                              cov_imu=rw2 * float(pairs.duration[n]) * np.eye(3))
              for n in range(len(pairs))]
-    return check_observability(items)
+    return check_observability(items,
+                               min_rotation=np.radians(float(params.get("min_rotation_deg", 0.5))),
+                               max_sigma=float(params.get("max_sigma", 1e-3)))
 
 
 def _values_json(name, params, cov=None, theta=None, sigma=None):
