@@ -237,9 +237,28 @@ def _fit_noise(lin: Linearisation, free, noise: dict, name: str, mask=None):
     # −2 log L to 0.01 is ample for a test at α/m; quantization gets a second start near zero
     # (its first may sit on the boundary σ = 0)
     starts = (u0, np.array([0.05])) if name == "gyro_quantization" else (u0,)
+    simplex = None
+    if name != "gyro_quantization":
+        # a common scale on a coarse log grid first (a simplex that has to grow from a tiny
+        # step toward a far optimum gets clipped flat against the bound and stops there),
+        # then one sweep axis by axis on the same grid
+        grid = np.linspace(lo, hi, 13)
+        vals = [nll(np.full(e.size, g)) for g in grid]
+        if np.isfinite(np.min(vals)) and np.min(vals) < nll(u0):
+            u0 = np.full(e.size, grid[int(np.argmin(vals))])
+            for i in range(e.size):
+                trial_u = [np.where(np.arange(e.size) == i, g, u0) for g in grid]
+                u0 = trial_u[int(np.argmin([nll(u) for u in trial_u]))]
+            u0 = np.clip(u0, lo + 1e-6, hi - 1e-6)
+            starts = (u0,)
+        step = np.log(10.0) / 4.0
+        simplex = np.vstack([u0] + [u0 + np.where(np.arange(e.size) == i,
+                                                  step if u0[i] + step <= hi else -step, 0.0)
+                                    for i in range(e.size)])
     for s0 in starts:
         res = minimize(nll, s0, method="Nelder-Mead", bounds=bounds,
-                       options={"xatol": 1e-3, "fatol": 1e-2, "maxiter": 60 * e.size})
+                       options={"xatol": 1e-3, "fatol": 1e-2, "maxiter": 60 * e.size,
+                                "initial_simplex": simplex})
         if best is None or res.fun < best.fun:
             best = res
     if not np.isfinite(best.fun):
