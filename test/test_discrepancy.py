@@ -272,9 +272,12 @@ def test_analysis_failure_is_exit_4_not_bad_input(tmp_path, capsys, monkeypatch)
 
 
 def test_inconsistent_fit_is_flagged_and_sigma_is_sandwiched(tmp_path, capsys):
-    """A periodic bias of 20°/h (outside the library): the final χ²/dof is outside its band, the
-    summary says WARNING (exit 0), σ is the Newey–West sandwich, every JSON field is there."""
+    """A camera 3000× noisier than its reported covariance (beyond the camera-noise term's range
+    of 0.001–1000) and a periodic bias of 20°/h (outside the library): the final χ²/dof is outside
+    its band, the summary says WARNING (exit 0), σ is the Newey–West sandwich, the camera-noise
+    term is named as not fitted, every JSON field is there."""
     bag = _record(tmp_path / "bag", {"seed": 31, "camera_interval": 1.0,
+                                     "camera_noise_scale": [3000.0, 3000.0, 3000.0],
                                      "gyro_bias_periodic": [1e-4, -1e-4, 5e-5],
                                      "gyro_bias_period": 30.0}, duration=300.0)
     r = _run(tmp_path, bag, _model(tmp_path))
@@ -283,6 +286,8 @@ def test_inconsistent_fit_is_flagged_and_sigma_is_sandwiched(tmp_path, capsys):
     lo, hi = r["chi2_per_dof_band"]
     assert not (lo <= r["chi2_per_dof"] <= hi)
     assert r["sigma_method"] == "hac" and r["verdict"] == "unexplained_structure"
+    assert "camera_noise_anisotropy" in {f["effect"] for f in r["failed_candidates"]}
+    assert "not fitted" in out and "bound of its range" in out
     assert r["stopped_by"] in ("max_steps", "no_significant_candidate", "no_candidates_left")
     for s in r["steps"]:
         assert s["repeatable"] in (True, False) and "spread" in s
