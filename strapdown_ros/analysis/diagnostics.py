@@ -103,7 +103,8 @@ def axis_swap_check(rotvec_imu: np.ndarray, rotvec_cam: np.ndarray) -> dict:
     of the gyro pair increments u, their axes mapped by each of the 47 non-identity signed
     permutations P, to the camera increments v, and compares the RMS misfit with that of the
     axes as wired.  A proper P is a rotation the boresight absorbs; an improper one (a swap or a
-    single sign) is what no boresight can.
+    single sign) is what no boresight can; which axis is at fault the camera cannot tell (all
+    improper mappings are equal up to a rotation), only that the triad as wired is left-handed.
 
     Parameters
     ----------
@@ -113,8 +114,10 @@ def axis_swap_check(rotvec_imu: np.ndarray, rotvec_cam: np.ndarray) -> dict:
     Returns
     -------
     dict
-        ``gyro_axis_swap_sign``: {``explains``, ``permutation`` (rows: new axis from old, signed),
-        ``rms_as_wired_rad``, ``rms_best_rad``, ``ratio``}; when it explains,
+        ``gyro_axis_swap_sign``: {``explains``, ``permutation`` (rows: new axis from old, signed;
+        of the mappings equal up to a rotation, the one with the fewest axes changed),
+        ``mapping`` (in words, e.g. "x ← +y, y ← +x, z ← +z"), ``rms_as_wired_rad``,
+        ``rms_best_rad``, ``ratio``}; when it explains,
         ``candidate_explanations`` = ["gyro axis swap/sign"].
     """
     import itertools
@@ -128,21 +131,27 @@ def axis_swap_check(rotvec_imu: np.ndarray, rotvec_cam: np.ndarray) -> dict:
         C = U @ np.diag([1.0, 1.0, d]) @ Vt           # v ≈ C x
         return float(np.sqrt(np.mean(np.sum((x @ C.T - v) ** 2, axis=1))))
     wired = misfit(u)
-    best, best_P = np.inf, None
+    tried = []
     for perm in itertools.permutations(range(3)):
         for signs in itertools.product((1.0, -1.0), repeat=3):
             P = np.zeros((3, 3))
             P[range(3), perm] = signs
-            if np.allclose(P, np.eye(3)):
-                continue
-            m = misfit(u @ P.T)
-            if m < best:
-                best, best_P = m, P
+            if not np.allclose(P, np.eye(3)):
+                tried.append((misfit(u @ P.T), P))
+    best = min(m for m, _ in tried)
+    # mappings that differ by a rotation fit equally well (the boresight absorbs it), so the
+    # camera cannot tell a swap of two axes from a sign: every improper mapping is one of them
+    # times a rotation.  Named: one closest to the wiring as it is (largest trace)
+    ties = [(m, P) for m, P in tried if m <= 1.01 * best + 1e-15]
+    best, best_P = max(ties, key=lambda t: (np.trace(t[1]), -t[0]))
     ratio = best / wired if wired > 0 else 1.0
     explains = bool(ratio < SWAP_RATIO)
+    names = "xyz"
+    words = ", ".join(f"{names[i]} ← {'+' if best_P[i].sum() > 0 else '−'}"
+                      f"{names[int(np.argmax(np.abs(best_P[i])))]}" for i in range(3))
     out = {"gyro_axis_swap_sign": {"explains": explains, "permutation": best_P.tolist(),
-                                   "rms_as_wired_rad": wired, "rms_best_rad": best,
-                                   "ratio": ratio}}
+                                   "mapping": words, "rms_as_wired_rad": wired,
+                                   "rms_best_rad": best, "ratio": ratio}}
     if explains:
         out["candidate_explanations"] = ["gyro axis swap/sign"]
     return out

@@ -148,9 +148,10 @@ def _summary(bag, info, res) -> str:
                      f"{rm.get('correlation_with_accumulated_angle', float('nan')):.2f}")
         for c in rm.get("candidate_explanations", []):
             sw = rm.get("gyro_axis_swap_sign", {})
-            lines.append(f"  candidate explanation outside the library: {c} (gyro axes mapped by "
-                         f"{sw.get('permutation')} cut the axis-alignment RMS to "
-                         f"{sw.get('ratio', float('nan')):.2g}× that of the axes as wired)")
+            lines.append(f"  candidate explanation outside the library: {c}: the gyro triad as "
+                         f"wired is left-handed; read as e.g. {sw.get('mapping')} the axis-alignment "
+                         f"RMS drops to {sw.get('ratio', float('nan')):.2g}× (which axis, the camera "
+                         f"cannot tell: a rotation goes into the boresight)")
     b = np.degrees(res.boresight_rad)
     s = np.asarray(res.boresight_sigma_rad) * ARCSEC_PER_RAD
     lines.append(f"  boresight β = ({b[0]:.6f}, {b[1]:.6f}, {b[2]:.6f})° ± ({s[0]:.3g}, {s[1]:.3g}, {s[2]:.3g})″")

@@ -273,8 +273,10 @@ def write_report(outdir: str, res, out: dict) -> str:
         sw = rm.get("gyro_axis_swap_sign")
         if sw and sw.get("explains"):
             L.append(f"- candidate explanation outside the library: **gyro axis swap/sign** — "
-                     f"the gyro axes mapped by {sw['permutation']} cut the axis-alignment RMS to "
-                     f"{sw['ratio']:.2g}× that of the axes as wired;")
+                     f"the gyro triad as wired is left-handed: read as e.g. {sw['mapping']}, the "
+                     f"axis-alignment RMS drops to {sw['ratio']:.2g}× that of the axes as wired "
+                     f"(which axis is swapped or reversed the camera cannot tell: any rotation "
+                     f"of the triad goes into the boresight);")
         L.append("- largest whitened residuals at t = " + ", ".join(f"{t:.1f}" for t in rm["largest_whitened_at_s"])
                  + " s.")
     allan = out.get("allan")
