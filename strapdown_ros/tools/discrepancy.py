@@ -148,10 +148,11 @@ def _summary(bag, info, res) -> str:
                      f"{rm.get('correlation_with_accumulated_angle', float('nan')):.2f}")
         for c in rm.get("candidate_explanations", []):
             sw = rm.get("gyro_axis_swap_sign", {})
-            lines.append(f"  candidate explanation outside the library: {c}: the gyro triad as "
-                         f"wired is left-handed; read as e.g. {sw.get('mapping')} the axis-alignment "
-                         f"RMS drops to {sw.get('ratio', float('nan')):.2g}× (which axis, the camera "
-                         f"cannot tell: a rotation goes into the boresight)")
+            lines.append(f"  candidate explanation outside the library: {c}: the gyro triad "
+                         f"as wired is left-handed; read as e.g. {sw.get('mapping')} the "
+                         f"axis-alignment RMS drops to {sw.get('ratio', float('nan')):.2g}× "
+                         f"(which axis, the camera cannot tell: a rotation goes into the "
+                         f"boresight)")
     b = np.degrees(res.boresight_rad)
     s = np.asarray(res.boresight_sigma_rad) * ARCSEC_PER_RAD
     lines.append(f"  boresight β = ({b[0]:.6f}, {b[1]:.6f}, {b[2]:.6f})° ± ({s[0]:.3g}, {s[1]:.3g}, {s[2]:.3g})″")
