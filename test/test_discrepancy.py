@@ -309,3 +309,4 @@ def test_effect_not_repeatable_across_time_blocks_is_said(tmp_path, capsys):
         assert s["spread_ratio"] > r["repeatability_bound"] and len(s["fold_values"]) == 6
     assert out.count("not repeatable across time blocks") == len(flagged)
     assert r["verdict"] == "unexplained_structure"
+    assert r["stopped_by"] == "no_significant_candidate" and "search stopped: no candidate" in out
