@@ -236,3 +236,77 @@ def test_sins_drift_shrinks_when_the_found_effect_is_compensated(tmp_path):
         return float(quat_angle_between(b.attitude[-1], truth[truth[:, 0] == b.stamps[-1]][0, 1:]))
     nominal, found = final_error(load_model(str(_model(tmp_path)))[0]), final_error(load_model(str(out_model))[0])
     assert found < 0.3 * nominal, (nominal, found)
+
+
+@pytest.mark.parametrize("earth_rate", [False, True])
+def test_static_recording_boresight_unobservable_exit_3(tmp_path, capsys, earth_rate):
+    """19 s at rest (the bench's first hold), a fix a second: no rotation (or Earth rate only,
+    0.08° in 19 s) between exposures, so the boresight is not observable: exit 3 as calibrate_bag,
+    nothing written to --write-model."""
+    bag = _record(tmp_path / "bag", {"seed": 3, "camera_interval": 1.0,
+                                     "bench_earth_rate": earth_rate}, duration=19.0)
+    out_model, out_json = tmp_path / "found.yaml", tmp_path / "r.json"
+    rc = discrepancy.main([str(bag), "--model", str(_model(tmp_path)), "--write-model",
+                           str(out_model), "--json", str(out_json), "--quiet"])
+    assert rc == 3
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "NOT observable" in err[0] and "rotation about VF axis" in err[0], err
+    assert not out_model.exists()
+    j = json.loads(out_json.read_text())
+    assert j["observable"] is False and j["unobservable"]
+    assert calibrate_bag.main([str(bag)]) == 3                     # the same rule as calibrate_bag
+
+
+def test_analysis_failure_is_exit_4_not_bad_input(tmp_path, capsys, monkeypatch):
+    from strapdown_ros.analysis import discrepancy as core
+    assert not issubclass(core.AnalysisError, ValueError)
+    bag = _record(tmp_path / "bag", {"seed": 1}, duration=60.0)
+
+    def fail(*a, **k):
+        raise core.AnalysisError("the analysis cannot be computed: the base fit failed "
+                                 "numerically (test)")
+    monkeypatch.setattr(core, "analyse", fail)
+    assert discrepancy.main([str(bag), "--model", str(_model(tmp_path)), "--quiet"]) == 4
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("discrepancy: analysis failed:"), err
+
+
+def test_inconsistent_fit_is_flagged_and_sigma_is_sandwiched(tmp_path, capsys):
+    """A camera 3000× noisier than its reported covariance (beyond the camera-noise term's range
+    of 0.001–1000) and a periodic bias of 20°/h (outside the library): the final χ²/dof is outside
+    its band, the summary says WARNING (exit 0), σ is the Newey–West sandwich, the camera-noise
+    term is named as not fitted, every JSON field is there."""
+    bag = _record(tmp_path / "bag", {"seed": 31, "camera_interval": 1.0,
+                                     "camera_noise_scale": [3000.0, 3000.0, 3000.0],
+                                     "gyro_bias_periodic": [1e-4, -1e-4, 5e-5],
+                                     "gyro_bias_period": 30.0}, duration=300.0)
+    r = _run(tmp_path, bag, _model(tmp_path))
+    out = capsys.readouterr().out
+    assert r["fit_consistent"] is False and "WARNING:" in out
+    lo, hi = r["chi2_per_dof_band"]
+    assert not (lo <= r["chi2_per_dof"] <= hi)
+    assert r["sigma_method"] == "hac" and r["verdict"] == "unexplained_structure"
+    assert "camera_noise_anisotropy" in {f["effect"] for f in r["failed_candidates"]}
+    assert "not fitted" in out and "bound of its range" in out
+    assert r["stopped_by"] in ("max_steps", "no_significant_candidate", "no_candidates_left")
+    for s in r["steps"]:
+        assert s["repeatable"] in (True, False) and "spread" in s
+        if s["repeatable"] is False:
+            assert "not repeatable across time blocks" in out
+
+
+def test_effect_not_repeatable_across_time_blocks_is_said(tmp_path, capsys):
+    """A slow periodic bias (400 s, outside the library) on a 300-s recording: whatever absorbs it
+    (here the camera-noise term, as on a real recording with a noisy reference) does not repeat
+    across the time blocks; the summary says so instead of presenting it as a plain finding."""
+    bag = _record(tmp_path / "bag", {"seed": 13, "gyro_bias_periodic": [2e-6, -2e-6, 1e-6],
+                                     "gyro_bias_period": 400.0}, duration=300.0)
+    r = _run(tmp_path, bag, _model(tmp_path))
+    out = capsys.readouterr().out
+    flagged = [s for s in r["steps"] if s["repeatable"] is False]
+    assert flagged, r["steps"]
+    for s in flagged:
+        assert s["spread_ratio"] > r["repeatability_bound"] and len(s["fold_values"]) == 6
+    assert out.count("not repeatable across time blocks") == len(flagged)
+    assert r["verdict"] == "unexplained_structure"
+    assert r["stopped_by"] == "no_significant_candidate" and "search stopped: no candidate" in out

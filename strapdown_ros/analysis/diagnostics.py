@@ -15,7 +15,12 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["verdict_tests", "autocorrelation", "describe_remaining", "static_segments", "allan_comparison"]
+__all__ = ["verdict_tests", "autocorrelation", "describe_remaining", "static_segments",
+           "allan_comparison", "axis_swap_check", "white_rate_variance", "SWAP_RATIO"]
+
+#: a signed permutation of the gyro axes "explains" the residual when the axis-alignment RMS with
+#: it is below this fraction of the RMS with the axes as wired
+SWAP_RATIO = 0.3
 
 
 def autocorrelation(x: np.ndarray, lags: int) -> np.ndarray:
@@ -91,32 +96,148 @@ def describe_remaining(series: dict, lin=None) -> dict:
 
 
 # ----------------------------------------------------------------------------- Allan deviation
-def static_segments(stamps: np.ndarray, delta_theta: np.ndarray, rate_limit: float = 2e-4,
-                    min_duration: float = 15.0) -> list[tuple[int, int]]:
-    """Index ranges [i, j) where the body is at rest: every increment's rate below ``rate_limit``
-    (rad/s; Earth rate is 7.3e-5) for at least ``min_duration`` seconds."""
+def axis_swap_check(rotvec_imu: np.ndarray, rotvec_cam: np.ndarray) -> dict:
+    """Would a wiring fault of the gyro (axes swapped or a sign reversed) explain the residual?
+
+    Re-fits the closed-form axis alignment (Wahba/SVD, a proper rotation C: min Σ|C·P·u − v|²)
+    of the gyro pair increments u, their axes mapped by each of the 47 non-identity signed
+    permutations P, to the camera increments v, and compares the RMS misfit with that of the
+    axes as wired.  A proper P is a rotation the boresight absorbs; an improper one (a swap or a
+    single sign) is what no boresight can; which axis is at fault the camera cannot tell (all
+    improper mappings are equal up to a rotation), only that the triad as wired is left-handed.
+
+    Parameters
+    ----------
+    rotvec_imu, rotvec_cam : numpy.ndarray
+        (N, 3) rotation vectors of the gyro (MF axes) and camera (VF axes) pair increments, rad.
+
+    Returns
+    -------
+    dict
+        ``gyro_axis_swap_sign``: {``explains``, ``permutation`` (rows: new axis from old, signed;
+        of the mappings equal up to a rotation, the one with the fewest axes changed),
+        ``mapping`` (in words, e.g. "x ← +y, y ← +x, z ← +z"), ``rms_as_wired_rad``,
+        ``rms_best_rad``, ``ratio``}; when it explains,
+        ``candidate_explanations`` = ["gyro axis swap/sign"].
+    """
+    import itertools
+
+    u = np.asarray(rotvec_imu, dtype=float)
+    v = np.asarray(rotvec_cam, dtype=float)
+
+    def misfit(x):
+        U, _, Vt = np.linalg.svd(v.T @ x)
+        d = np.sign(np.linalg.det(U @ Vt)) or 1.0
+        C = U @ np.diag([1.0, 1.0, d]) @ Vt           # v ≈ C x
+        return float(np.sqrt(np.mean(np.sum((x @ C.T - v) ** 2, axis=1))))
+    wired = misfit(u)
+    tried = []
+    for perm in itertools.permutations(range(3)):
+        for signs in itertools.product((1.0, -1.0), repeat=3):
+            P = np.zeros((3, 3))
+            P[range(3), perm] = signs
+            if not np.allclose(P, np.eye(3)):
+                tried.append((misfit(u @ P.T), P))
+    best = min(m for m, _ in tried)
+    # mappings that differ by a rotation fit equally well (the boresight absorbs it), so the
+    # camera cannot tell a swap of two axes from a sign: every improper mapping is one of them
+    # times a rotation.  Named: one closest to the wiring as it is (largest trace)
+    ties = [(m, P) for m, P in tried if m <= 1.01 * best + 1e-15]
+    best, best_P = max(ties, key=lambda t: (np.trace(t[1]), -t[0]))
+    ratio = best / wired if wired > 0 else 1.0
+    explains = bool(ratio < SWAP_RATIO)
+    names = "xyz"
+    words = ", ".join(f"{names[i]} ← {'+' if best_P[i].sum() > 0 else '−'}"
+                      f"{names[int(np.argmax(np.abs(best_P[i])))]}" for i in range(3))
+    out = {"gyro_axis_swap_sign": {"explains": explains, "permutation": best_P.tolist(),
+                                   "mapping": words, "rms_as_wired_rad": wired,
+                                   "rms_best_rad": best, "ratio": ratio}}
+    if explains:
+        out["candidate_explanations"] = ["gyro axis swap/sign"]
+    return out
+
+
+# ----------------------------------------------------------------------------- Allan deviation
+def white_rate_variance(params: dict, period: float) -> float:
+    """Variance of one increment (rad²) of the model's white rate noise: the random walk
+    N²·T plus the quantization remainder's σ_q²/6 (the MA(1) of the carried remainder)."""
+    rw, q = float(params.get("gyro_random_walk", 0.0)), float(params.get("gyro_quantum", 0.0))
+    return rw ** 2 * period + q ** 2 / 6.0
+
+
+def static_segments(stamps: np.ndarray, delta_theta: np.ndarray, params: dict | None = None,
+                    min_duration: float = 15.0, window: float = 1.0, alpha: float = 1e-3,
+                    info: dict | None = None) -> list[tuple[int, int]]:
+    """Index ranges [i, j) where the rate is constant within the noise, whatever its mean (a
+    gyro bias of any size, Earth rate): rest on a bench, or a constant-rate turn.
+
+    Windows of ``window`` seconds: the sample variance of the increments in a window, its mean
+    removed, about each axis, against the white rate noise of one increment with a χ²(n−1)
+    bound at ``alpha`` per window and axis.  The reference variance is the model's
+    (:func:`white_rate_variance` of ``params``) or, when the data are noisier than the model
+    says, the data's own floor: the smallest window variance over the χ²(n−1) quantile at
+    1/(number of windows), i.e. what the quietest window implies.  A segment: consecutive
+    passing windows whose means agree (|difference| within the normal bound at ``alpha`` of
+    √(2·ref/n)), covering at least ``min_duration`` seconds.
+
+    Parameters
+    ----------
+    stamps : numpy.ndarray
+        (n,) increment end stamps, s.
+    delta_theta : numpy.ndarray
+        (n, 3) increments, rad.
+    params : dict, optional
+        The model (``gyro_random_walk``, ``gyro_quantum``); None: the data floor alone.
+    min_duration, window : float
+        Seconds.
+    alpha : float
+        Level of the variance test per window and axis.
+    info : dict, optional
+        Filled with ``reference_variance_rad2`` (per axis) and ``reference`` ("model"/"data").
+
+    Returns
+    -------
+    list of (int, int)
+    """
+    from scipy.stats import chi2, norm
+
     st = np.asarray(stamps, dtype=float)
+    dth = np.asarray(delta_theta, dtype=float).reshape(-1, 3)
     if len(st) < 3:
         return []
-    T = np.diff(st, prepend=st[0] - (st[1] - st[0]))
-    # smooth over ~0.1 s so noise does not break a segment
-    rate = np.linalg.norm(delta_theta, axis=1) / T
-    n = max(1, int(round(0.1 / max(float(np.median(T)), 1e-6))))
-    if n > 1:
-        rate = np.convolve(rate, np.ones(n) / n, mode="same")
-    still = rate < rate_limit
+    T = float(np.median(np.diff(st)))
+    n = max(8, int(round(window / max(T, 1e-9))))
+    m = len(st) // n
+    if m < 1:
+        return []
+    W = dth[: m * n].reshape(m, n, 3)
+    var = W.var(axis=1, ddof=1)                              # (m, 3)
+    nu = n - 1
+    model_var = white_rate_variance(params or {}, T)
+    floor = var.min(axis=0) / (chi2.ppf(1.0 / max(m, 2), nu) / nu)
+    ref = np.maximum(model_var, floor)
+    if info is not None:
+        info["reference_variance_rad2"] = ref.tolist()
+        info["reference"] = "model" if np.all(model_var >= floor) else "data"
+    bound = ref * chi2.isf(alpha, nu) / nu
+    still = np.all(var <= bound, axis=1)
+    # the same constant rate in consecutive windows: their means agree within √(2·ref/n)
+    mean = W.mean(axis=1)
+    jump = np.zeros(m, dtype=bool)
+    step_bound = norm.isf(0.5 * alpha) * np.sqrt(2.0 * ref / n)
+    jump[1:] = np.any(np.abs(np.diff(mean, axis=0)) > step_bound, axis=1)
     out = []
     i = 0
-    N = len(st)
-    while i < N:
+    while i < m:
         if not still[i]:
             i += 1
             continue
-        j = i
-        while j < N and still[j]:
+        j = i + 1
+        while j < m and still[j] and not jump[j]:
             j += 1
-        if st[j - 1] - st[i] >= min_duration:
-            out.append((i, j))
+        a, b = i * n, j * n
+        if st[b - 1] - st[a] >= min_duration:
+            out.append((a, b))
         i = j
     return out
 
@@ -132,14 +253,17 @@ def allan_comparison(stamps, delta_theta, params_before: dict, params_after: dic
     """Overlapping Allan deviation of the measured gyro rate on the static segments (the longest
     ``segments`` of them, each axis, averaged over axes and segments) against the same for the
     model simulated on the same segments: the measured mean rate plus the model's random walk,
-    quantization and bias drift, fed through the package's own sensor model.  None when the
-    recording has no static segment of 15 s."""
+    quantization and bias drift, fed through the package's own sensor model.  Segments: where the
+    rate is constant within the noise (:func:`static_segments`, from the data: a gyro bias of
+    any size does not hide them).  None when the recording has no such segment of 15 s."""
     from ..sensors.effects import GyroEffects
     from ..sensors.model import PulseQuantizer
 
     st = np.asarray(stamps, dtype=float)
     dth = np.asarray(delta_theta, dtype=float)
-    segs = sorted(static_segments(st, dth), key=lambda s: s[1] - s[0], reverse=True)[:segments]
+    found: dict = {}
+    segs = sorted(static_segments(st, dth, params_before, info=found), key=lambda s: s[1] - s[0],
+                  reverse=True)[:segments]
     if not segs:
         return None
     T = float(np.median(np.diff(st)))
@@ -186,7 +310,11 @@ def allan_comparison(stamps, delta_theta, params_before: dict, params_after: dic
                             "model_rate_std_rad_s_after": model_std(params_after or params_before)},
            "taus_s": taus.tolist(), "measured": measured.tolist(),
            "simulated_before": curve(lambda i, j: simulate(params_before, i, j)).tolist(),
-           "static_segments": len(segs), "static_seconds": float(sum(st[j - 1] - st[i] for i, j in segs))}
+           "static_segments": len(segs),
+           "static_seconds": float(sum(st[j - 1] - st[i] for i, j in segs)),
+           "static_detection": {"rule": "window variance of the increments ≤ χ² bound of the "
+                                        "white rate noise, window means agree (1 s windows, "
+                                        "α = 1e-3 per window and axis)", **found}}
     if params_after is not None:
         out["simulated_after"] = curve(lambda i, j: simulate(params_after, i, j)).tolist()
     ratio = measured / np.maximum(np.asarray(out["simulated_before"]), 1e-300)

@@ -23,7 +23,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["band_covariance", "Whitener", "Fit", "fit"]
+__all__ = ["band_covariance", "Whitener", "Fit", "fit", "hac_covariance"]
 
 
 def band_covariance(fix_P: np.ndarray, R_cam: np.ndarray, adjacent: np.ndarray, white_diag: np.ndarray):
@@ -52,13 +52,21 @@ def band_covariance(fix_P: np.ndarray, R_cam: np.ndarray, adjacent: np.ndarray, 
 
 
 class Whitener:
-    """Banded Cholesky factor L of B (B = L Lᵀ): ``apply(X)`` = L⁻¹ X, ``logdet`` = log det B."""
+    """Banded Cholesky factor L of B (B = L Lᵀ): ``apply(X)`` = L⁻¹ X, ``logdet`` = log det B.
+
+    Raises ``numpy.linalg.LinAlgError`` when B has non-finite entries, is not positive
+    definite, or its factor has a diagonal so small that L⁻¹ is not finite."""
 
     def __init__(self, band_lower: np.ndarray):
         from scipy.linalg import cholesky_banded
 
+        if not np.all(np.isfinite(band_lower)):
+            raise np.linalg.LinAlgError("residual covariance has non-finite entries")
         self.L = cholesky_banded(band_lower, lower=True)
-        self.logdet = 2.0 * float(np.sum(np.log(self.L[0])))
+        d = self.L[0]
+        if not np.all(d > 1e-150 * max(float(np.max(d)), 1e-300)):
+            raise np.linalg.LinAlgError("residual covariance is numerically singular")
+        self.logdet = 2.0 * float(np.sum(np.log(d)))
         self.n = band_lower.shape[1]
 
     def apply(self, X: np.ndarray) -> np.ndarray:
@@ -76,6 +84,9 @@ class Fit:
     chi2: float                   # |whitened|² + xᵀ P⁻¹ x
     nll: float                    # χ² + log det Σ  (−2 log-likelihood up to a constant)
     dof: int
+    design: np.ndarray | None = None       # L⁻¹ [J U] (3N, nz + nx), for the sandwich
+    cov_all: np.ndarray | None = None      # posterior covariance of (z, x)
+    prior_precision: np.ndarray | None = None   # 1 / prior variance of x
 
 
 def fit(r: np.ndarray, J: np.ndarray, U: np.ndarray, prior_var: np.ndarray, W: Whitener) -> Fit:
@@ -83,6 +94,8 @@ def fit(r: np.ndarray, J: np.ndarray, U: np.ndarray, prior_var: np.ndarray, W: W
 
     Columns of U with zero prior variance are dropped (a constant the model says is exactly 0).
     """
+    if not (np.all(np.isfinite(r)) and np.all(np.isfinite(J)) and np.all(np.isfinite(U))):
+        raise np.linalg.LinAlgError("the residuals or their columns have non-finite values")
     keep = prior_var > 0
     U, pv = U[:, keep], prior_var[keep]
     nz, nx = J.shape[1], U.shape[1]
@@ -104,6 +117,43 @@ def fit(r: np.ndarray, J: np.ndarray, U: np.ndarray, prior_var: np.ndarray, W: W
         logdet = W.logdet + float(np.linalg.slogdet(Sx)[1])
     else:
         logdet = W.logdet
+    if not (np.isfinite(chi2) and np.isfinite(logdet) and np.all(np.isfinite(z))):
+        raise np.linalg.LinAlgError("the fit has non-finite values")
     rank = int(np.linalg.matrix_rank(Aj)) if nz else 0
     return Fit(z=z, x=x, cov_z=cov[:nz, :nz], whitened=white, chi2=chi2, nll=chi2 + logdet,
-               dof=len(r) - rank)
+               dof=len(r) - rank, design=A[:, :nz + nx], cov_all=cov, prior_precision=1.0 / pv)
+
+
+def hac_covariance(f: Fit, lags: int) -> np.ndarray:
+    """Newey–West (Bartlett-kernel HAC) sandwich covariance of the free parameters z of a fit.
+
+    The model covariance (HᵀH)⁻¹ assumes the whitened residual is white with unit variance.  The
+    sandwich H⁻¹ S H⁻¹ does not: S = Σ_{|l| ≤ L} (1 − |l|/(L+1)) Σ_n g_n g_{n−l}ᵀ, with
+    g_n = A_nᵀ w_n the score of pair n (A_n its three rows of the whitened design, w_n its
+    whitened residual), plus the prior precision of the gyro constants as the model states it.
+    When the residuals are white with unit variance S ≈ HᵀH and the two agree.
+
+    Parameters
+    ----------
+    f : Fit
+        A fit from :func:`fit` (it carries the whitened design).
+    lags : int
+        Bandwidth L in pairs (≥ 0).
+
+    Returns
+    -------
+    numpy.ndarray
+        (nz, nz) covariance of z, in the units of z.
+    """
+    nz = len(f.z)
+    A, w = f.design, f.whitened
+    N = len(w) // 3
+    g = (A * w[:, None]).reshape(N, 3, -1).sum(axis=1)
+    S = g.T @ g
+    for lag in range(1, min(int(lags), N - 1) + 1):
+        G = g[lag:].T @ g[:-lag]
+        S += (1.0 - lag / (lags + 1.0)) * (G + G.T)
+    if len(f.prior_precision):
+        S[nz:, nz:] += np.diag(f.prior_precision)
+    C = f.cov_all @ S @ f.cov_all
+    return 0.5 * (C[:nz, :nz] + C[:nz, :nz].T)

@@ -14,7 +14,15 @@ from ..sensors.effects import EFFECTS, GyroEffects, get_effect
 from .linear_model import Whitener, band_covariance, fit
 from .pairs import GyroRecord, PairSet, build_pairs, pair_integral, pair_residuals
 
-__all__ = ["Recording", "InputError", "Linearisation"]
+__all__ = ["Recording", "InputError", "AnalysisError", "BoresightUnobservable", "NumericalFailure",
+           "NUMERICAL_ERRORS", "Linearisation", "NOISE_SCALE_RANGE", "QUANTUM_RANGE"]
+
+#: range of a fitted camera-noise scale k (true σ ÷ stated σ per VF axis): an estimate at either
+#: end is not reported as a value (the candidate fails with that reason)
+NOISE_SCALE_RANGE = (1e-3, 1e3)
+#: range of a fitted pulse weight σ_q, in units of √12 × the RMS stated fix σ (the remainder
+#: variance σ_q²/12 from 0 to 900 times the mean stated fix variance)
+QUANTUM_RANGE = (0.0, 30.0)
 
 _PRIOR_EFFECTS = (("gyro_bias", "gyro_bias_sigma"), ("gyro_scale_factor", "gyro_scale_sigma"),
                   ("gyro_misalignment", "gyro_misalignment_sigma"))
@@ -22,6 +30,31 @@ _PRIOR_EFFECTS = (("gyro_bias", "gyro_bias_sigma"), ("gyro_scale_factor", "gyro_
 
 class InputError(ValueError):
     """The recording cannot be analysed (too few fixes, no overlap, ...)."""
+
+
+class AnalysisError(Exception):
+    """A usable recording whose analysis cannot be computed (a base fit failed numerically).
+
+    Deliberately NOT a ValueError: a numerical failure is never reported as bad input."""
+
+
+class BoresightUnobservable(Exception):
+    """The recording's motion does not determine the boresight (004 §4.1 and the conditioning,
+    the rule of :func:`strapdown_ros.boresight.check_observability`); ``report`` holds the
+    :class:`~strapdown_ros.observability.ObservabilityReport`."""
+
+    def __init__(self, message: str, report=None):
+        super().__init__(message)
+        self.report = report
+
+
+class NumericalFailure(ArithmeticError):
+    """One fit failed numerically (a covariance not positive definite, a non-finite result, an
+    estimate at the bound of its range).  Caught per candidate by the selection."""
+
+
+#: the exceptions that mean "this fit cannot be computed", never "bad input"
+NUMERICAL_ERRORS = (np.linalg.LinAlgError, FloatingPointError, NumericalFailure, OverflowError)
 
 
 @dataclass
@@ -162,7 +195,15 @@ def _noise_of(params: dict) -> dict:
 
 # ----------------------------------------------------------------------------- noise ML
 def _fit_noise(lin: Linearisation, free, noise: dict, name: str, mask=None):
-    """Maximum-likelihood value of a noise term (others fixed); returns (theta, fit, sigma)."""
+    """Maximum-likelihood value of a noise term (others fixed); returns (theta, fit, sigma).
+
+    Bounded parametrisations (the stated ranges :data:`NOISE_SCALE_RANGE`,
+    :data:`QUANTUM_RANGE`): the camera-noise scales as u = log k, the pulse weight as
+    σ_q = √(12·v̄)·u with v̄ the mean stated fix variance; bounded Nelder–Mead.  A trial point
+    whose covariance is not positive definite counts as −2 log L = ∞.  An optimum at a bound of
+    the range, or a fit that fails there, raises :class:`NumericalFailure`.  σ: from the
+    curvature of −2 log L in θ (Fisher), ∞ where the curvature is not positive or not finite.
+    """
     from scipy.optimize import minimize
 
     e = EFFECTS[name]
@@ -170,35 +211,70 @@ def _fit_noise(lin: Linearisation, free, noise: dict, name: str, mask=None):
     if name == "gyro_quantization":
         # parametrise by the remainder variance σ²/12 relative to the mean fix variance
         ref = float(np.mean(np.trace(lin.rec.fix_P, axis1=1, axis2=2)) / 3.0)
+        unit = np.sqrt(12.0 * max(ref, 1e-300))
+        lo, hi = QUANTUM_RANGE
 
         def theta_of(u):
-            return np.array([np.sqrt(12.0 * ref) * abs(u[0])])
-        u0 = np.array([max(start[0], 0.0) / np.sqrt(12.0 * ref) + 0.3])
+            return np.array([unit * abs(u[0])])
+        u0 = np.clip(np.array([max(start[0], 0.0) / unit + 0.3]), lo, hi)
     else:
+        lo, hi = np.log(NOISE_SCALE_RANGE[0]), np.log(NOISE_SCALE_RANGE[1])
+
         def theta_of(u):
-            return np.exp(u)
-        u0 = np.log(np.maximum(start, 1e-3))
+            return np.exp(np.clip(u, lo, hi))
+        u0 = np.clip(np.log(np.maximum(start, NOISE_SCALE_RANGE[0])), lo, hi)
+    bounds = [(lo, hi)] * len(u0)
 
     def nll(u):
         trial = dict(noise)
         trial[name] = theta_of(u).tolist()
         try:
-            return lin.evaluate(free, trial, mask).nll
-        except np.linalg.LinAlgError:
+            v = lin.evaluate(free, trial, mask).nll
+        except NUMERICAL_ERRORS:
             return np.inf
+        return v if np.isfinite(v) else np.inf
     best = None
     # −2 log L to 0.01 is ample for a test at α/m; quantization gets a second start near zero
     # (its first may sit on the boundary σ = 0)
     starts = (u0, np.array([0.05])) if name == "gyro_quantization" else (u0,)
+    simplex = None
+    if name != "gyro_quantization":
+        # a common scale on a coarse log grid first (a simplex that has to grow from a tiny
+        # step toward a far optimum gets clipped flat against the bound and stops there),
+        # then one sweep axis by axis on the same grid
+        grid = np.linspace(lo, hi, 13)
+        vals = [nll(np.full(e.size, g)) for g in grid]
+        if np.isfinite(np.min(vals)) and np.min(vals) < nll(u0):
+            u0 = np.full(e.size, grid[int(np.argmin(vals))])
+            for i in range(e.size):
+                trial_u = [np.where(np.arange(e.size) == i, g, u0) for g in grid]
+                u0 = trial_u[int(np.argmin([nll(u) for u in trial_u]))]
+            u0 = np.clip(u0, lo + 1e-6, hi - 1e-6)
+            starts = (u0,)
+        step = np.log(10.0) / 4.0
+        simplex = np.vstack([u0] + [u0 + np.where(np.arange(e.size) == i,
+                                                  step if u0[i] + step <= hi else -step, 0.0)
+                                    for i in range(e.size)])
     for s0 in starts:
-        res = minimize(nll, s0, method="Nelder-Mead", options={"xatol": 1e-3, "fatol": 1e-2, "maxiter": 60 * e.size})
+        res = minimize(nll, s0, method="Nelder-Mead", bounds=bounds,
+                       options={"xatol": 1e-3, "fatol": 1e-2, "maxiter": 60 * e.size,
+                                "initial_simplex": simplex})
         if best is None or res.fun < best.fun:
             best = res
+    if not np.isfinite(best.fun):
+        raise NumericalFailure(f"no value in its range gives a positive-definite covariance")
+    at_bound = (best.x >= hi - 1e-3) | ((best.x <= lo + 1e-3) & (name != "gyro_quantization"))
+    if np.any(at_bound):
+        rng = (f"{NOISE_SCALE_RANGE[0]:g} to {NOISE_SCALE_RANGE[1]:g}"
+               if name != "gyro_quantization" else f"up to {unit * hi:.3g} rad")
+        raise NumericalFailure(f"the likelihood is largest at the bound of its range ({rng}): "
+                               f"{np.round(theta_of(best.x), 6).tolist()}")
     theta = theta_of(best.x)
     trial = dict(noise)
     trial[name] = theta.tolist()
     f = lin.evaluate(free, trial, mask)
-    # σ from the curvature of −2 log L in θ (Fisher: σ² = 2 / d²(−2 log L)/dθ²)
+    # σ from the curvature of −2 log L in θ (Fisher: σ² = 2 / d²(−2 log L)/dθ²); a curvature
+    # that is not positive and finite (or a neighbour that cannot be evaluated) gives σ = ∞
     sig = np.zeros(e.size)
     for i in range(e.size):
         h = max(1e-3 * abs(theta[i]), 1e-9 if name == "gyro_quantization" else 1e-4)
@@ -209,6 +285,9 @@ def _fit_noise(lin: Linearisation, free, noise: dict, name: str, mask=None):
             tr = dict(noise)
             tr[name] = t2.tolist()
             return lin.evaluate(free, tr, mask).nll
-        c = (at(h) - 2 * f.nll + at(-h)) / h ** 2
-        sig[i] = np.sqrt(2.0 / c) if c > 0 else np.inf
+        try:
+            c = (at(h) - 2 * f.nll + at(-h)) / h ** 2
+        except NUMERICAL_ERRORS:
+            c = np.nan
+        sig[i] = np.sqrt(2.0 / c) if np.isfinite(c) and c > 0 else np.inf
     return theta, f, sig

@@ -26,10 +26,14 @@ that of the model simulated on the same segments (allantools).
 Output: a summary on stdout; ``--json`` the full result (schema in the README); ``--report DIR``
 ``report.md`` with PNG plots; ``--write-model`` the model with the found effects and the
 estimated boresight.  No output may be an input (the bag, the model) or another output; an
-existing one needs ``--force``; the files are written atomically.  Exit status 0 for every
-verdict; 2, with one line on stderr, for unusable
-input (missing or malformed bag or model, no camera topic, too few fixes, a model key no node
-of the package knows).
+existing one needs ``--force``; the files are written atomically.
+
+Exit status: 0 for every verdict (a fit inconsistent with its stated noise is printed with a line
+starting ``WARNING:``); 2, with one line on stderr, for unusable input (missing or malformed bag
+or model, no camera topic, too few fixes, a model key no node of the package knows); 3 when the
+motion does not determine the boresight (the rule of ``calibrate_bag``; no model is written, the
+JSON says ``"observable": false``); 4 when a usable recording cannot be analysed because a base
+fit fails numerically (one line on stderr: ``discrepancy: analysis failed: ...``).
 """
 from __future__ import annotations
 
@@ -111,12 +115,36 @@ def _summary(bag, info, res) -> str:
     j = res.as_json()
     lines = recording_lines("discrepancy", bag, info, f"{res.pairs} increment pairs, ")
     lines.append(f"  verdict: {res.verdict}")
+    if not res.fit_consistent:
+        lo, hi = res.chi2_per_dof_band
+        lines.append(f"WARNING: the fit is not consistent with its stated noise: χ²/dof "
+                     f"{res.chi2_per_dof:.4g} outside [{lo:.3g}, {hi:.3g}] at the test level; the "
+                     f"values below are not plain results")
+    if res.sigma_method != "model":
+        lines.append(f"  σ: Newey–West sandwich over {res.hac_lags} pairs (the residuals fail "
+                     f"{', '.join(res.tests_after['failed'])}: the model's σ would be too small)")
     lines.append(f"  whitened RMS {res.rms_before:.3g} → {res.rms_after:.3g} (1 = as the model predicts); held out "
                  f"{res.heldout_rms_before:.3g} → {res.heldout_rms_after:.3g}")
     for k, s in enumerate(res.steps, 1):
         vals = "; ".join(f"{n} = {_fmt(v)} ± {_fmt(s.sigma[n])}" for n, v in s.parameters.items())
         lines.append(f"  step {k}: {s.effect}: {vals}  (LR {s.statistic:.4g}, dof {s.dof}, p {s.p_value:.3g}, "
                      f"held-out gain {s.heldout_gain:.3g})")
+        if s.repeatable is False:
+            lines.append(f"    not repeatable across time blocks: leave-one-block-out spread "
+                         f"{'; '.join(f'{n} ± {_fmt(v)}' for n, v in s.spread.items())} "
+                         f"({s.spread_ratio:.3g}× the σ above): not a plain finding")
+    stop = {"max_steps": f"the step limit ({res.max_steps} accepted effects) stopped the search; "
+                         f"more may be missing",
+            "no_significant_candidate": "search stopped: no candidate left passes its test",
+            "no_candidates_left": "search stopped: every candidate was added, excluded or failed",
+            "iteration_limit": "search stopped by its turn limit"}.get(res.stopped_by,
+                                                                        f"{res.stopped_by}")
+    lines.append(f"  {stop}")
+    seen: dict = {}
+    for f in res.failed_candidates:                  # one line per effect and reason
+        seen.setdefault((f["effect"], f["reason"]), []).append(str(f["step"]))
+    for (effect, reason), at in seen.items():
+        lines.append(f"  not fitted (dropped at step {', '.join(at)}): {effect}: {reason}")
     for a, b in res.not_separable:
         lines.append(f"  not separable on this trajectory: {a} and {b}")
     for r in res.rejected:
@@ -131,6 +159,13 @@ def _summary(bag, info, res) -> str:
                      f"{rm.get('dominant_lag_autocorrelation', float('nan')):.2f}, correlation with rate "
                      f"{rm.get('correlation_with_rate', float('nan')):.2f}, with accumulated angle "
                      f"{rm.get('correlation_with_accumulated_angle', float('nan')):.2f}")
+        for c in rm.get("candidate_explanations", []):
+            sw = rm.get("gyro_axis_swap_sign", {})
+            lines.append(f"  candidate explanation outside the library: {c}: the gyro triad "
+                         f"as wired is left-handed; read as e.g. {sw.get('mapping')} the "
+                         f"axis-alignment RMS drops to {sw.get('ratio', float('nan')):.2g}× "
+                         f"(which axis, the camera cannot tell: a rotation goes into the "
+                         f"boresight)")
     b = np.degrees(res.boresight_rad)
     s = np.asarray(res.boresight_sigma_rad) * ARCSEC_PER_RAD
     lines.append(f"  boresight β = ({b[0]:.6f}, {b[1]:.6f}, {b[2]:.6f})° ± ({s[0]:.3g}, {s[1]:.3g}, {s[2]:.3g})″")
@@ -163,7 +198,8 @@ def main(argv=None) -> int:
     add_input_arguments(ap)
     args = ap.parse_args(argv)
     t0 = time.perf_counter()
-    from ..analysis.discrepancy import DEFAULT_ALPHA, InputError, analyse
+    from ..analysis.discrepancy import (DEFAULT_ALPHA, AnalysisError, BoresightUnobservable,
+                                        InputError, analyse, json_clean)
     from ..config import load_model
     from ..recording import BagError
 
@@ -193,6 +229,25 @@ def main(argv=None) -> int:
         for line in input_warnings("discrepancy", info):
             print(line, file=sys.stderr)
         res = analyse(rec, model, alpha=alpha, progress=progress)
+    except BoresightUnobservable as exc:
+        unobs = list(exc.report.unobservable) if exc.report is not None else []
+        if args.json:
+            try:
+                write_json(args.json, json_clean({"observable": False, "message": str(exc),
+                                                  "unobservable": unobs, "verdict": None,
+                                                  "input": info}))
+            except OSError as exc2:
+                print(f"discrepancy: error: {exc2}", file=sys.stderr)
+                return 2
+        print(f"discrepancy: boresight NOT observable from this bag: {exc}; unobservable: "
+              f"{'; '.join(unobs)}.  Record rotations about at least two non-parallel axes "
+              f"between camera exposures; no model written.", file=sys.stderr)
+        return 3
+    except (AnalysisError, np.linalg.LinAlgError, FloatingPointError, OverflowError) as exc:
+        # a numerical failure is never reported as bad input (LinAlgError is a ValueError)
+        msg = str(exc).splitlines()[0][:300] if str(exc) else type(exc).__name__
+        print(f"discrepancy: analysis failed: {msg}", file=sys.stderr)
+        return 4
     except (BagError, InputError, ValueError, OSError) as exc:
         print(f"discrepancy: error: {exc}", file=sys.stderr)
         return 2
@@ -205,7 +260,6 @@ def main(argv=None) -> int:
         allan = allan_comparison(rec.gyro_stamps, rec.delta_theta, model, after)
     except Exception as exc:                       # noqa: BLE001 - the rest of the result stands
         allan = {"error": str(exc)}
-    from ..analysis.discrepancy import json_clean
     out = res.as_json()
     out["allan"] = json_clean(allan)
     out["input"] = json_clean(info)

@@ -3,11 +3,14 @@ result it describes.
 
 Plots (before = the nominal model, after = with the effects found):
 
-* ``residuals.png``: the increment residuals per VF axis with the model's ±3σ;
+* ``residuals.png`` (the main plot): the residual of each increment pair against time, per VF
+  axis, before and after on separate axes, each in ″, ′ or ° as fits its size, with the model's
+  ±3σ;
 * ``autocorrelation.png``: autocorrelation of the whitened residuals with the 95% band;
 * ``cross_correlation.png``: squared whitened residual against the body rate at the fix epochs
   and against the accumulated rotation angle;
-* ``fig2a.png``: 004 Fig. 2a — φ_avu − φ_imu against the rotation angle of the increment;
+* ``fig2a.png``: the difference of the angles turned (camera − gyro) against the angle turned
+  (004 Fig. 2a), before and after on separate axes;
 * ``allan.png``: Allan deviation of the gyro on static segments, measured against the model
   simulated on the same segments.
 """
@@ -30,19 +33,46 @@ def _plt():
     return plt
 
 
+def angle_unit(values_rad) -> tuple[float, str]:
+    """A unit that fits the size of the angles: (factor from rad, symbol) — arcseconds below
+    10′, arcminutes below 10°, degrees above (judged on the 99th percentile of |value|)."""
+    v = np.abs(np.asarray(values_rad, dtype=float))
+    v = v[np.isfinite(v)]
+    big = float(np.percentile(v, 99)) if v.size else 0.0
+    deg = float(np.degrees(big))
+    if deg < 10.0 / 60.0:
+        return ARCSEC, "″"
+    if deg < 10.0:
+        return ARCSEC / 60.0, "′"
+    return 180.0 / np.pi, "°"
+
+
+def _effects_words(res) -> str:
+    return ", ".join(s.effect for s in res.steps) or "nothing added"
+
+
 def _residuals(plt, res, path):
-    fig, axs = plt.subplots(3, 1, figsize=(10, 7.5), sharex=True)
-    for name, col, alpha in (("before", "0.55", 0.9), ("after", "C0", 0.9)):
+    """Main plot: residual of each pair against time, before and after on separate axes, each in
+    a unit that fits its size."""
+    fig, axs = plt.subplots(3, 2, figsize=(12, 7.5), sharex=True)
+    for col, (name, colour) in enumerate((("before", "0.35"), ("after", "C0"))):
         s = res.series[name]
-        for c, ax in enumerate(axs):
-            ax.plot(s["t"], s["residual"][:, c] * ARCSEC, ".", ms=3, color=col, alpha=alpha, label=name)
-            if name == "after":
-                ax.fill_between(s["t"], -3 * s["sigma"][:, c] * ARCSEC, 3 * s["sigma"][:, c] * ARCSEC,
-                                color="C1", alpha=0.15, label="model ±3σ")
-            ax.set_ylabel(f"{AXES[c]}, ″")
-    axs[0].legend(loc="upper right", fontsize=8)
-    axs[0].set_title(f"Increment residuals f_n (004 eq. 5–6): verdict {res.verdict}")
-    axs[-1].set_xlabel("time of the pair's end fix, s")
+        k, unit = angle_unit(s["residual"])
+        for c in range(3):
+            ax = axs[c, col]
+            ax.plot(s["t"], s["residual"][:, c] * k, ".", ms=3, color=colour,
+                    label="residual" if c == 0 else None)
+            band = 3 * s["sigma"][:, c] * k
+            ax.fill_between(s["t"], -band, band, color="C1", alpha=0.2,
+                            label="±3σ the model expects" if c == 0 else None)
+            ax.set_ylabel(f"about {AXES[c]}, {unit}")
+            ax.grid(True, alpha=0.3)
+        axs[0, col].set_title("before: the nominal model" if name == "before" else
+                              f"after: with {_effects_words(res)}", fontsize=10)
+        axs[0, col].legend(loc="upper right", fontsize=8)
+        axs[-1, col].set_xlabel("time, s")
+    fig.suptitle("Residual of each increment pair (camera vs gyro) before and after adding the "
+                 f"found effects — verdict: {res.verdict.replace('_', ' ')}", fontsize=11)
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)
@@ -62,7 +92,9 @@ def _autocorrelation(plt, res, path):
     ax.axhline(0, color="k", lw=0.5)
     ax.set_xlabel("lag, pairs")
     ax.set_ylabel("autocorrelation (mean of 3 axes)")
-    ax.set_title("Whitened residual autocorrelation")
+    ax.set_title("Does a residual predict the next ones? "
+                 "(normalised residuals; inside the band: no)",
+                 fontsize=10)
     ax.legend(fontsize=8)
     fig.tight_layout()
     fig.savefig(path, dpi=110)
@@ -81,29 +113,36 @@ def _cross(plt, res, path):
             ax.semilogy(x, np.maximum(y, 1e-6), ".", ms=3, color=col, label=f"{name} (r = {r:.2f})")
         ax.axhline(1.0, color="C1", lw=1)
         ax.set_xlabel(label)
-        ax.set_ylabel("whitened residual², mean of 3 axes")
+        ax.set_ylabel("residual² ÷ expected (mean of 3 axes)")
         ax.legend(fontsize=8)
-    fig.suptitle("Residual against angular rate and accumulated angle")
+    fig.suptitle("Does the residual grow with the turning rate or with the angle turned so far?")
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)
 
 
 def _fig2a(plt, res, path):
-    fig, ax = plt.subplots(figsize=(8, 4.5))
-    for name, col in (("before", "0.5"), ("after", "C0")):
+    """Difference of the rotation angles (camera − gyro) of each pair against its rotation
+    angle (004 Fig. 2a), before and after on separate axes, each in a unit that fits."""
+    fig, axs = plt.subplots(1, 2, figsize=(12, 4.5))
+    for ax, (name, colour) in zip(axs, (("before", "0.35"), ("after", "C0"))):
         s = res.series[name]
-        ax.plot(np.degrees(s["phi_cam"]), (s["phi_cam"] - s["phi_imu"]) * ARCSEC, ".", ms=4, color=col, label=name)
-    s = res.series["after"]
-    sig = np.sqrt(np.sum(s["sigma"] ** 2, axis=1) / 3.0) * ARCSEC
-    order = np.argsort(s["phi_cam"])
-    ax.plot(np.degrees(s["phi_cam"][order]), 3 * sig[order], color="C1", lw=1, label="±3σ (model)")
-    ax.plot(np.degrees(s["phi_cam"][order]), -3 * sig[order], color="C1", lw=1)
-    ax.axvline(0.5, color="k", lw=0.5, ls=":")
-    ax.set_xlabel("rotation angle of the camera increment φ_avu, °")
-    ax.set_ylabel("φ_avu − φ_imu, ″")
-    ax.set_title("004 Fig. 2a: increment-angle difference against rotation angle")
-    ax.legend(fontsize=8)
+        d = s["phi_cam"] - s["phi_imu"]
+        sig = np.sqrt(np.sum(s["sigma"] ** 2, axis=1) / 3.0)
+        k, unit = angle_unit(np.concatenate([d, 3 * sig]))
+        ax.plot(np.degrees(s["phi_cam"]), d * k, ".", ms=4, color=colour, label="pairs")
+        order = np.argsort(s["phi_cam"])
+        ax.plot(np.degrees(s["phi_cam"][order]), 3 * sig[order] * k, color="C1", lw=1,
+                label="±3σ the model expects")
+        ax.plot(np.degrees(s["phi_cam"][order]), -3 * sig[order] * k, color="C1", lw=1)
+        ax.set_xlabel("angle the camera turned between the two fixes, °")
+        ax.set_ylabel(f"camera angle − gyro angle, {unit}")
+        ax.set_title("before: the nominal model" if name == "before"
+                     else f"after: with {_effects_words(res)}", fontsize=10)
+        ax.grid(True, alpha=0.3)
+        ax.legend(fontsize=8)
+    fig.suptitle("Does the gyro turn by the angle the camera saw? Difference per pair against "
+                 "the angle turned", fontsize=11)
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)
@@ -120,7 +159,8 @@ def _allan(plt, allan, path) -> bool:
         ax.loglog(t, np.asarray(allan["simulated_after"]), "-", color="C2", label="model, after")
     ax.set_xlabel("τ, s")
     ax.set_ylabel("Allan deviation of the rate, rad/s")
-    ax.set_title(f"Gyro on {allan['static_segments']} static segment(s), {allan['static_seconds']:.0f} s")
+    ax.set_title(f"Gyro noise at rest ({allan['static_segments']} segment(s), "
+                 f"{allan['static_seconds']:.0f} s): measured vs the model", fontsize=10)
     ax.legend(fontsize=8)
     ax.grid(True, which="both", alpha=0.3)
     fig.tight_layout()
@@ -162,6 +202,25 @@ def write_report(outdir: str, res, out: dict) -> str:
              f"the candidates left at each step (the other α/2 goes to the tests below); an effect is added only if the held-out −2 log L per residual "
              f"also improves; signatures with |correlation| above {out['selection']['separability_bound']} are "
              f"reported as not separable.")
+    if not out.get("fit_consistent", True):
+        lo, hi = out["chi2_per_dof_band"]
+        L += ["", f"**WARNING: the fit is not consistent with its stated noise** (χ²/dof "
+              f"{out['chi2_per_dof']:.4g}, outside [{lo:.3g}, {hi:.3g}] at the test level): the "
+              f"values below are not plain results."]
+    if out.get("sigma_method") == "hac":
+        L += ["", f"σ: the residuals fail {', '.join(out['tests_after']['failed'])}, so every σ "
+              f"is the Newey–West sandwich over {out['hac_lags']} pairs (never below the model's "
+              f"σ; noise terms: the leave-one-block-out jackknife)."]
+    stop = {"max_steps": f"the step limit ({out.get('max_steps')} accepted effects) stopped the "
+                         f"search: more effects may be missing",
+            "no_significant_candidate": "the search stopped because no candidate left passes its "
+                                        "test",
+            "no_candidates_left": "the search stopped because every candidate was added, excluded "
+                                  "or failed",
+            "iteration_limit": "the search stopped at its turn limit"}.get(out.get("stopped_by"),
+                                                                           "")
+    if stop:
+        L += ["", stop[0].upper() + stop[1:] + "."]
     L += ["", "## Steps", "", "| step | effect | parameters (SI) | σ | LR statistic | dof | p-value | held-out gain |",
           "|---|---|---|---|---|---|---|---|"]
     for k, s in enumerate(res.steps, 1):
@@ -171,6 +230,17 @@ def write_report(outdir: str, res, out: dict) -> str:
                  f"{s.heldout_gain:.3g} |")
     if not res.steps:
         L.append("| – | none passed | | | | | | |")
+    for k, s in enumerate(res.steps, 1):
+        if s.repeatable is False:
+            L += ["", f"Step {k} (`{s.effect}`) is **not repeatable across time blocks**: the "
+                  f"leave-one-block-out estimates spread {s.spread_ratio:.3g}× its σ (bound "
+                  f"{out['repeatability_bound']:.3g}); not a plain finding."]
+    if out.get("failed_candidates"):
+        seen: dict = {}
+        for f in out["failed_candidates"]:
+            seen.setdefault((f["effect"], f["reason"]), []).append(str(f["step"]))
+        L += ["", "Not fitted (dropped from the step named): " + "; ".join(
+            f"`{e}` at step {', '.join(at)}: {r}" for (e, r), at in seen.items()) + "."]
     L += ["", "First-step scores of every candidate:", "", "| candidate | LR statistic | dof | p-value | note |",
           "|---|---|---|---|---|"]
     for c in out["candidates_first_step"]:
@@ -200,6 +270,13 @@ def write_report(outdir: str, res, out: dict) -> str:
                            ("correlation_with_rotation_angle", "rotation angle of the increment")):
             if key in rm:
                 L.append(f"- correlation of the squared residual with the {label}: {rm[key]:.2f};")
+        sw = rm.get("gyro_axis_swap_sign")
+        if sw and sw.get("explains"):
+            L.append(f"- candidate explanation outside the library: **gyro axis swap/sign** — "
+                     f"the gyro triad as wired is left-handed: read as e.g. {sw['mapping']}, the "
+                     f"axis-alignment RMS drops to {sw['ratio']:.2g}× that of the axes as wired "
+                     f"(which axis is swapped or reversed the camera cannot tell: any rotation "
+                     f"of the triad goes into the boresight);")
         L.append("- largest whitened residuals at t = " + ", ".join(f"{t:.1f}" for t in rm["largest_whitened_at_s"])
                  + " s.")
     allan = out.get("allan")
@@ -230,10 +307,19 @@ def write_report(outdir: str, res, out: dict) -> str:
     s = np.asarray(res.boresight_sigma_rad) * ARCSEC
     L += ["", "## Boresight (estimated in every fit)", "",
           f"β = ({b[0]:.6f}°, {b[1]:.6f}°, {b[2]:.6f}°) ± ({s[0]:.3g}″, {s[1]:.3g}″, {s[2]:.3g}″).", "",
-          "## Plots", "", "![residuals](residuals.png)", "", "![004 Fig. 2a](fig2a.png)", "",
-          "![autocorrelation](autocorrelation.png)", "", "![cross-correlation](cross_correlation.png)", ""]
+          "## Plots", "",
+          "Residual of each increment pair (camera vs gyro) against time, before and after "
+          "adding the found effects; the shaded band is ±3σ of what the model expects:", "",
+          "![residual against time](residuals.png)", "",
+          "Difference of the angles the camera and the gyro turned between two fixes, against "
+          "that angle (004 Fig. 2a):", "", "![angle difference against angle](fig2a.png)", "",
+          "Autocorrelation of the normalised residuals (white: inside the band):", "",
+          "![autocorrelation](autocorrelation.png)", "",
+          "Normalised residual against the turning rate and the angle turned so far:", "",
+          "![cross-correlation](cross_correlation.png)", ""]
     if has_allan:
-        L += ["![Allan deviation](allan.png)", ""]
+        L += ["Allan deviation of the gyro at rest, measured and simulated from the model:", "",
+              "![Allan deviation](allan.png)", ""]
     path = d / "report.md"
     path.write_text("\n".join(L) + "\n", encoding="utf-8")
     return str(path)
