@@ -52,7 +52,7 @@ from .channel import NavigationChannel
 
 __all__ = ["SinsSystem", "SinsOutput", "AttitudeOutput", "ImuOutput", "NavigationOutput", "odometry_arrays",
            "NONFINITE_INFLATION", "MAX_BATCH",
-           "FEED_BLOCK", "FEED_ACCEL_BLOCK"]
+           "FEED_BLOCK", "FEED_ACCEL_BLOCK", "screen_stream"]
 
 NONFINITE_INFLATION = 0.01      # rad per axis added to σ after a non-finite update is discarded
 MAX_BATCH = 4096                # a block is processed when it holds this many messages, whatever its span
@@ -163,6 +163,55 @@ def _finite_update(q: np.ndarray, cov: np.ndarray) -> bool:
                          + cov[2, 2])
 
 
+def screen_stream(check: StreamCheck, stamps_ns: np.ndarray, values: np.ndarray) -> list:
+    """A whole recorded stream through ``check`` in order: :meth:`StreamCheck.offer_many` over the
+    regular stretches, :meth:`StreamCheck.offer` for each message that is not (so the counters
+    and the accepted messages are those of offering every message in turn).
+
+    Parameters
+    ----------
+    check : StreamCheck
+        The stream's rules and counters (updated).
+    stamps_ns : ndarray (n,) int64
+        Stamps, ns, in bag order.
+    values : ndarray (n, 3)
+        The vectors.
+
+    Returns
+    -------
+    list of (stamps_ns (m,) int64, values (m, 3))
+        The accepted messages per time base: a new element starts at each stamp
+        resynchronisation (``check.resynced``), so each element's stamps strictly increase.
+    """
+    segments: list = []
+    parts_t: list = []
+    parts_v: list = []
+    i, n, width = 0, len(stamps_ns), 64
+    while i < n:
+        k = check.offer_many(stamps_ns[i:i + width], values[i:i + width])
+        if k:
+            full = k == min(width, n - i)
+            parts_t.append(stamps_ns[i:i + k])
+            parts_v.append(values[i:i + k])
+            i += k
+            width = min(2 * width, 1 << 16) if full else 64
+            continue
+        width = 64
+        v = values[i]
+        got = check.offer(int(stamps_ns[i]), (float(v[0]), float(v[1]), float(v[2])))
+        if got and check.resynced and parts_t:
+            segments.append((np.concatenate(parts_t), np.concatenate(parts_v)))
+            parts_t, parts_v = [], []
+        if got:
+            parts_t.append(np.array([g[0] for g in got], dtype=np.int64))
+            parts_v.append(np.array([g[1] for g in got], dtype=float).reshape(-1, 3))
+        i += 1
+    if parts_t or not segments:
+        segments.append((np.concatenate(parts_t) if parts_t else np.zeros(0, np.int64),
+                         np.concatenate(parts_v) if parts_v else np.zeros((0, 3))))
+    return segments
+
+
 # --- the system ---------------------------------------------------------------------------------
 class SinsSystem:
     """sins_node's processing.  ``params``: validated :data:`~strapdown_ros.config.SINS_PARAMS`
@@ -203,6 +252,7 @@ class SinsSystem:
         self.accel_check = StreamCheck(a_period, max_norm=2.0 * a_period * float(p["accel_max"]), jump_limit=jump,
                                        resync_count=resync)
         self.nonfinite = 0                         # updates whose output was not finite (never output)
+        self.rate_checks: dict = {}                # sensor_msgs/Imu rate samples (screen_imu)
         self.frame_mismatch = {"gyro": 0, "accel": 0}
         self.frame_id = p["frame_id"]
         self.reject_frames = p["frame_mismatch"] == "reject"
@@ -309,6 +359,11 @@ class SinsSystem:
             self._accel_in.append((self._rel(ns_i), val))
         return len(self._accel_in) >= MAX_BATCH or self.batch_span == 0.0
 
+    @property
+    def processed_until_ns(self) -> int | None:
+        """Header stamp (ns) of the last Δθ integrated (None before the first block)."""
+        return self._block_end_ns
+
     # --- a whole recording at once -------------------------------------------------------------
     def screen(self, stream: str, stamps_ns, values, frame_index=None, frame_names=()):
         """The input rules of :meth:`offer_gyro` / :meth:`offer_accel` applied to a whole recorded
@@ -348,24 +403,9 @@ class SinsSystem:
                 first = frame_names[int(codes[np.argmax(mask)])]
                 if self.reject_frames:
                     st, v = st[~mask], v[~mask]
-        parts_t, parts_v = [], []
-        i, n, width = 0, len(st), 64
-        while i < n:
-            k = check.offer_many(st[i:i + width], v[i:i + width])
-            if k:
-                parts_t.append(st[i:i + k])
-                parts_v.append(v[i:i + k])
-                i += k
-                width = min(2 * width, 1 << 16) if k == min(width, n - i + k) else 64
-                continue
-            width = 64
-            got = check.offer(int(st[i]), (float(v[i, 0]), float(v[i, 1]), float(v[i, 2])))
-            if check.resynced:
-                return None
-            if got:
-                parts_t.append(np.array([g[0] for g in got], dtype=np.int64))
-                parts_v.append(np.array([g[1] for g in got], dtype=float).reshape(-1, 3))
-            i += 1
+        segments = screen_stream(check, st, v)
+        if len(segments) > 1:
+            return None
         if stream == "gyro":
             self.gyro_check = check
         else:
@@ -373,9 +413,74 @@ class SinsSystem:
         if wrong:
             self.frame_mismatch[stream] += wrong
             self._log("warn", lambda: self._frame_text(stream, first, wrong), throttle=10.0, key="frame_" + stream)
-        if not parts_t:
-            return np.zeros(0, np.int64), np.zeros((0, 3))
-        return np.concatenate(parts_t), np.concatenate(parts_v)
+        return segments[0]
+
+    def screen_imu(self, stamps_ns, angular_velocity, linear_acceleration=None, frame_index=None,
+                   frame_names=(), rule: str = "trapezoid"):
+        """sensor_msgs/Imu rate samples of a whole recording made into Δθ and Δv as ``gyro_input:
+        imu`` makes them: the frame rule (counted under ``gyro``), each rate stream validated by
+        a :class:`~strapdown_ros.streams.StreamCheck` (per-axis range ``gyro_max_rate`` rad/s or
+        ``accel_max`` m/s², period 1 / ``gyro_rate``), then
+        :func:`strapdown_ros.rate_increments.increments_from_rates` with ``rule`` and a longest
+        step of 1.5 periods, restarted at each stamp resynchronisation.  The checks are kept in
+        :attr:`rate_checks`.
+
+        Parameters
+        ----------
+        stamps_ns : array_like (n,) int
+            Header stamps, ns, bag order.
+        angular_velocity : array_like (n, 3)
+            rad/s, body axes.
+        linear_acceleration : array_like (n, 3), optional
+            m/s², body axes; a row of NaN where the message has none (covariance[0] = −1).
+        frame_index, frame_names : as :meth:`screen`.
+        rule : {'trapezoid', 'mean'}
+            :data:`strapdown_ros.rate_increments.RATE_RULES`.
+
+        Returns
+        -------
+        gyro : (stamps_ns (m,) int64, Δθ (m, 3))
+        accel : (stamps_ns (k,) int64, Δv (k, 3)) or None
+            Increments stamped at the end of their intervals, for :meth:`screen`.
+        """
+        from ..rate_increments import increments_from_rates
+        st = np.asarray(stamps_ns, dtype=np.int64).reshape(-1)
+        w = np.asarray(angular_velocity, dtype=float).reshape(-1, 3)
+        f = None if linear_acceleration is None else np.asarray(linear_acceleration, dtype=float).reshape(-1, 3)
+        if frame_index is not None and len(st):
+            codes = np.asarray(frame_index, dtype=np.int64)
+            foreign = np.array([name not in self._own_frames for name in frame_names], dtype=bool)
+            mask = foreign[codes] if len(foreign) else np.zeros(len(st), bool)
+            wrong = int(mask.sum())
+            if wrong:
+                first = frame_names[int(codes[np.argmax(mask)])]
+                self.frame_mismatch["gyro"] += wrong
+                self._log("warn", lambda: self._frame_text("gyro", first, wrong), throttle=10.0, key="frame_gyro")
+                if self.reject_frames:
+                    keep = ~mask
+                    st, w, f = st[keep], w[keep], (None if f is None else f[keep])
+        p = self.p
+        period = 1.0 / float(p["gyro_rate"])
+        jump, resync = float(p["max_stamp_jump"]), int(p["resync_count"])
+        out = []
+        for name, values, max_rate in (("gyro", w, float(p["gyro_max_rate"])), ("accel", f, float(p["accel_max"]))):
+            if values is None:
+                out.append(None)
+                continue
+            if name == "accel":                           # messages without acceleration: not offered
+                has = ~np.all(np.isnan(values), axis=1)
+                s_n, values = st[has], values[has]
+                if not len(s_n):
+                    out.append(None)
+                    continue
+            else:
+                s_n = st
+            check = StreamCheck(period, max_norm=max_rate, jump_limit=jump, resync_count=resync)
+            self.rate_checks[name] = check
+            pieces = [increments_from_rates(a, b, rule, max_step_s=1.5 * period)
+                      for a, b in screen_stream(check, s_n, values)]
+            out.append((np.concatenate([x[0] for x in pieces]), np.concatenate([x[1] for x in pieces])))
+        return out[0], out[1]
 
     def feed(self, gyro, accel=None, block: int = FEED_BLOCK, accel_block: int = FEED_ACCEL_BLOCK):
         """Run screened streams (:meth:`screen`'s output) through the system in blocks, as the
