@@ -61,6 +61,7 @@ setup(
             "load_bench = strapdown_ros.tools.load_bench:main",
             "node_rate_bench = strapdown_ros.tools.node_rate_bench:main",
             "nav_bench = strapdown_ros.tools.nav_bench:main",
+            "sins_bag_bench = strapdown_ros.tools.sins_bag_bench:main",
         ],
     },
 )

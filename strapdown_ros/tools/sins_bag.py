@@ -52,6 +52,7 @@ import os
 import shutil
 import sys
 import time
+from itertools import islice
 from pathlib import Path
 
 import numpy as np
@@ -186,6 +187,7 @@ def _decode(reader, conn, records: list):
     layout (nodes/cdr.py), rosbags' deserializer for any record in another encoding."""
     imu = conn.msgtype == IMU
     st, vals, idx, names, bad = stamped_doubles(records, IMU_DOUBLES if imu else 3)
+    known = {n: k for k, n in enumerate(names)}
     for i in bad.tolist():
         m = reader.deserialize(records[i], conn.msgtype)
         st[i] = _stamp_ns(m)
@@ -197,37 +199,44 @@ def _decode(reader, conn, records: list):
         else:
             vals[i] = (m.vector.x, m.vector.y, m.vector.z)
         name = m.header.frame_id
-        if name not in names:
+        if name not in known:
+            known[name] = len(names)
             names.append(name)
-        idx[i] = names.index(name)
+        idx[i] = known[name]
     return st, vals, idx, names
 
 
-def _read_streams(reader, conns: list, path, progress=None) -> dict:
-    """Every record of the connections, decoded in chunks: {topic: Stream}."""
-    t0, t1 = reader.start_time, reader.end_time
-    pending: dict = {c.topic: [] for c in conns}
-    parts: dict = {c.topic: [] for c in conns}
-    by_id = {id(c): c.topic for c in conns}
-    conn_of = {c.topic: c for c in conns}
+def _records(reader, conns: list):
+    """(connection, log time, raw) of the connections in bag order: the bag's own reader when
+    there is one bag (rosbags' AnyReader merges several bags by time, at a cost per record)."""
+    owners = {id(getattr(c, "owner", None)) for c in conns}
+    inner = getattr(reader, "readers", None)
+    if inner is not None and len(inner) == 1 and owners == {id(inner[0])}:
+        return inner[0].messages(connections=conns)
+    return reader.messages(connections=conns)
 
-    def flush(topic):
-        recs = pending[topic]
-        if recs:
-            parts[topic].append(_decode(reader, conn_of[topic], recs))
-            pending[topic] = []
-    n = 0
+
+def _read_streams(reader, conns: list, path, progress=None) -> dict:
+    """Every record of the connections, decoded in chunks of :data:`READ_CHUNK`: {topic: Stream}."""
+    t0, t1 = reader.start_time, reader.end_time
+    conn_of = {c.topic: c for c in conns}
+    parts: dict = {c.topic: [] for c in conns}
+    state = {"next": time.monotonic() + PROGRESS_PERIOD}
     try:
-        for conn, log_ns, raw in reader.messages(connections=conns):
-            lst = pending[by_id.get(id(conn)) or conn.topic]
-            lst.append(raw)
-            n += 1
-            if len(lst) >= READ_CHUNK:
-                flush(conn.topic)
-                if progress is not None:
-                    progress(log_ns, t0, t1)
-        for topic in pending:
-            flush(topic)
+        records = _records(reader, conns)
+        while True:
+            chunk = list(islice(records, READ_CHUNK))
+            if not chunk:
+                break
+            for topic, conn in conn_of.items():
+                raws = [r for c, _, r in chunk if c.topic == topic] if len(conn_of) > 1 else \
+                    [r for _, _, r in chunk]
+                if raws:
+                    parts[topic].append(_decode(reader, conn, raws))
+            now = time.monotonic()
+            if progress is not None and now >= state["next"]:
+                state["next"] = now + PROGRESS_PERIOD
+                progress(chunk[-1][1], t0, t1)
     except BagError:
         raise
     except Exception as exc:                  # noqa: BLE001 - a corrupted record, whatever the reader says
@@ -236,10 +245,11 @@ def _read_streams(reader, conns: list, path, progress=None) -> dict:
     for topic, chunks in parts.items():
         conn = conn_of[topic]
         names: list = []
+        known: dict = {}
         st_l, v_l, i_l = [], [], []
         for st, vals, idx, nm in chunks:
-            remap = np.array([names.index(x) if x in names else (names.append(x) or len(names) - 1) for x in nm]
-                             or [0], dtype=np.int64)
+            remap = np.array([known.setdefault(x, len(known)) for x in nm] or [0], dtype=np.int64)
+            names = list(known)
             st_l.append(st)
             v_l.append(vals)
             i_l.append(remap[idx])
@@ -357,12 +367,25 @@ class CsvOutput:
         q = to_ros_xyzw(rec.attitude).reshape(-1, 4)
         sig = np.sqrt(np.maximum(np.diagonal(rec.covariance, axis1=1, axis2=2), 0.0))
         sec, nsec = np.divmod(np.asarray(rec.stamp_ns, dtype=np.int64), 1_000_000_000)
-        cols = [sec[:, None], nsec[:, None]] + ([rec.position, rec.velocity] if self.navigation else []) + [q, sig]
+        cols = [sec[:, None], nsec[:, None]] + ([rec.position, rec.velocity] if self.navigation else []) + [q]
         table = np.hstack([np.asarray(c, dtype=float) for c in cols])     # sec, ns exact in float64
-        row = "%d.%09d" + ",%.17g" * (table.shape[1] - 2) + "\n"           # = "{:.17g}" per value
+        head = "%d.%09d" + ",%.17g" * (table.shape[1] - 2)                 # = "{:.17g}" per value
+        tail = ",%.17g" * sig.shape[1]
         for a in range(0, k, 4096):
-            part = table[a:a + 4096]
-            self.fh.write((row * len(part)) % tuple(part.ravel().tolist()))
+            part, s_part = table[a:a + 4096], sig[a:a + 4096]
+            m = len(part)
+            new = np.ones(m, bool)
+            new[1:] = np.any(s_part[1:] != s_part[:-1], axis=1)
+            runs = np.flatnonzero(new)
+            if len(runs) * 4 > m:                     # the σ change at every row: one format
+                self.fh.write(((head + tail + "\n") * m) % tuple(np.hstack([part, s_part]).ravel().tolist()))
+                continue
+            # the navigation σ change once per covariance epoch: each distinct row formatted once
+            texts = ((tail + "\n") * len(runs) % tuple(s_part[runs].ravel().tolist())).split("\n")[:-1]
+            rows = np.empty((m, part.shape[1] + 1), dtype=object)
+            rows[:, :-1] = part
+            rows[:, -1] = np.array(texts, dtype=object)[np.cumsum(new) - 1]
+            self.fh.write(((head + "%s\n") * m) % tuple(rows.ravel().tolist()))
         self.rows += k
 
     def close(self, ok: bool = True) -> None:
@@ -493,9 +516,10 @@ def _replace(out: str) -> None:
 
 
 # --- the run ----------------------------------------------------------------------------------------
-def run(inp: Input, make_system, sink, say=None, rate_rule: str = "trapezoid"):
+def run(inp: Input, make_system, sink, say=None, rate_rule: str = "trapezoid", system: SinsSystem | None = None):
     """Feed the bag's streams through a system made by ``make_system()`` and write every output
-    to ``sink`` (``sink.write(SinsOutput)``).  Returns (counts, system).
+    to ``sink`` (``sink.write(SinsOutput)``); ``system``: a fresh one already made.  Returns
+    (counts, system).
 
     The streams are screened whole by the node's rules (:meth:`SinsSystem.screen`, vectorised)
     and fed in large blocks (:meth:`SinsSystem.feed`); when a stream's stamps resynchronise, a
@@ -530,7 +554,7 @@ def run(inp: Input, make_system, sink, say=None, rate_rule: str = "trapezoid"):
         return ((g.stamps_ns, g.values, g.frame_index, g.frame_names),
                 None if a is None else (a.stamps_ns, a.values, a.frame_index, a.frame_names))
 
-    system = make_system()
+    system = system if system is not None else make_system()
     gyro_in, accel_in = streams(system)
     sg = system.screen("gyro", *gyro_in)
     sa = system.screen("accel", *accel_in) if accel_in is not None and sg is not None else None
@@ -693,7 +717,7 @@ def main(argv=None) -> int:
         return err(f"cannot write {args.output}: {exc}")
     ok = False
     try:
-        counts, system = run(inp, make_system, sink, say, args.rate_rule)
+        counts, system = run(inp, make_system, sink, say, args.rate_rule, system)
         ok = True
     except BagError as exc:
         return err(str(exc))
