@@ -49,8 +49,10 @@ def test_stamped_doubles_equals_the_one_message_decoder():
         frame = ["", "imu_link", "a", "x" * 7, "y" * 8, "é", "imu_link2"][k % 7]
         m = T["geometry_msgs/msg/Vector3Stamped"](
             header=T["std_msgs/msg/Header"](stamp=T["builtin_interfaces/msg/Time"](
-                sec=int(rng.integers(-5, 2**31 - 1)), nanosec=int(rng.integers(0, 10**9))), frame_id=frame),
-            vector=T["geometry_msgs/msg/Vector3"](x=float(rng.normal()), y=float(rng.normal()), z=1e300))
+                sec=int(rng.integers(-5, 2**31 - 1)), nanosec=int(rng.integers(0, 10**9))),
+                frame_id=frame),
+            vector=T["geometry_msgs/msg/Vector3"](x=float(rng.normal()), y=float(rng.normal()),
+                                                  z=1e300))
         recs.append(bytes(ts.serialize_cdr(m, "geometry_msgs/msg/Vector3Stamped")))
     recs += [b"\x00\x00" + recs[0][2:], recs[1][:20]]                # other encoding, truncated
     st, v, idx, names, bad = stamped_doubles(recs, 3)
@@ -110,7 +112,8 @@ def test_screen_and_feed_equal_the_node_path(navigation):
     names = ["imu_link", "stray"]
     kw = {}
     if navigation:
-        kw = {"navigation": True, "initial_position": [50.45, 30.52, 150.0], "initial_velocity": [0.0, 0.0, 0.0]}
+        kw = {"navigation": True, "initial_position": [50.45, 30.52, 150.0],
+              "initial_velocity": [0.0, 0.0, 0.0]}
     p = _params(**kw)
     node = SinsSystem(p, imu_wanted=lambda: True)
     outs_node = []
@@ -142,7 +145,7 @@ def test_screen_and_feed_equal_the_node_path(navigation):
     assert np.array_equal(a[0], b[0]) and len(a[0]) > 1000
     assert np.array_equal(a[1], b[1])                            # attitude: to the bit
     assert np.array_equal(a[2], b[2])
-    assert np.array_equal(a[5], b[5])                            # sins/imu specific force: to the bit
+    assert np.array_equal(a[5], b[5])                            # sins/imu specific force
     if navigation:
         assert np.array_equal(a[4], b[4]) and len(a[4]) > 1000
         print("navigation: max |Δposition|", np.max(np.abs(a[3] - b[3])), "m")

@@ -292,7 +292,7 @@ def test_argument_errors_are_one_line_exit_2_before_any_work(bags, tmp_path, cap
     assert rc == 0 and "no Δv" in out, err
 
 
-# --- frames, bounded echoes, sensor_msgs/Imu input (issue "Reliability and speed, second pass") -----
+# --- frames, bounded echoes, sensor_msgs/Imu input (issue "Reliability and speed, 2nd pass") ---
 def _read_vectors(bag, topic):
     """(stamp_ns, (x, y, z), frame) of a Vector3Stamped topic of a bag, in bag order."""
     from rosbags.highlevel import AnyReader
@@ -302,7 +302,8 @@ def _read_vectors(bag, topic):
         for c, _, raw in rd.messages(connections=conns):
             m = rd.deserialize(raw, c.msgtype)
             v = m.vector
-            out.append((m.header.stamp.sec * 10**9 + m.header.stamp.nanosec, (v.x, v.y, v.z), m.header.frame_id))
+            ns = m.header.stamp.sec * 10**9 + m.header.stamp.nanosec
+            out.append((ns, (v.x, v.y, v.z), m.header.frame_id))
     return out
 
 
@@ -313,19 +314,26 @@ def _write_bag(path, topics: dict):
     store = get_typestore(Stores.ROS2_JAZZY)
     with Writer(path, version=Writer.VERSION_LATEST, storage_plugin=StoragePlugin.MCAP) as w:
         conns = {t: w.add_connection(t, mt, typestore=store) for t, (mt, _) in topics.items()}
-        items = sorted(((ns, t, m) for t, (mt, msgs) in topics.items() for ns, m in msgs), key=lambda x: x[0])
+        items = sorted(((ns, t, m) for t, (mt, msgs) in topics.items() for ns, m in msgs),
+                       key=lambda x: x[0])
         for ns, t, m in items:
             w.write(conns[t], ns, store.serialize_cdr(m, topics[t][0]))
     return path
+
+
+def _header(T, ns, frame):
+    return T["std_msgs/msg/Header"](
+        stamp=T["builtin_interfaces/msg/Time"](sec=ns // 10**9, nanosec=ns % 10**9),
+        frame_id=frame)
 
 
 def _vector_msgs(items, frame=None):
     from rosbags.typesys import Stores, get_typestore
     T = get_typestore(Stores.ROS2_JAZZY).types
     return [(ns, T["geometry_msgs/msg/Vector3Stamped"](
-        header=T["std_msgs/msg/Header"](stamp=T["builtin_interfaces/msg/Time"](sec=ns // 10**9, nanosec=ns % 10**9),
-                                        frame_id=frame(k, f) if frame else f),
-        vector=T["geometry_msgs/msg/Vector3"](x=v[0], y=v[1], z=v[2]))) for k, (ns, v, f) in enumerate(items)]
+        header=_header(T, ns, frame(k, f) if frame else f),
+        vector=T["geometry_msgs/msg/Vector3"](x=v[0], y=v[1], z=v[2])))
+        for k, (ns, v, f) in enumerate(items)]
 
 
 def test_body_frame_of_the_majority_and_the_rest_reported(tmp_path, capsys):
@@ -371,7 +379,8 @@ def test_huge_frame_ids_are_cheap_and_every_echo_is_bounded(tmp_path, capsys):
     huge = {5, 6, 300}
     bag = _write_bag(tmp_path / "huge", {
         "/imu/delta_theta": ("geometry_msgs/msg/Vector3Stamped",
-                             _vector_msgs(g, lambda k, f: ("h" * 2_000_000 + str(k)) if k in huge else f)),
+                             _vector_msgs(g, lambda k, f: "h" * 2_000_000 + str(k) if k in huge
+                                          else f)),
         "/imu/delta_velocity": ("geometry_msgs/msg/Vector3Stamped", _vector_msgs(a))})
     t0 = _time.perf_counter()
     rc = sins_bag.main([str(bag), "--output", str(tmp_path / "huge.csv")])
@@ -382,7 +391,8 @@ def test_huge_frame_ids_are_cheap_and_every_echo_is_bounded(tmp_path, capsys):
     assert "chars)" in cap.err and "frame mismatch (rejected) 3" in cap.out
     assert wall < 20.0, wall                                     # ~1 s; 86 s before the fix
     # a 2 MB frame id named as the body frame: one bounded line as well
-    rc = sins_bag.main([str(bag), "-p", "frame_id:=" + "z" * 2_000_000, "--output", str(tmp_path / "z.csv")])
+    rc = sins_bag.main([str(bag), "-p", "frame_id:=" + "z" * 2_000_000,
+                        "--output", str(tmp_path / "z.csv")])
     cap = capsys.readouterr()
     assert rc == 3 and len(cap.out) + len(cap.err) < 3000
 
@@ -404,12 +414,12 @@ def _imu_bag(path, g, a):
             f = tuple(x / dt for x in a[k - 1][1])
         v3 = T["geometry_msgs/msg/Vector3"]
         msgs.append((ns, T["sensor_msgs/msg/Imu"](
-            header=T["std_msgs/msg/Header"](stamp=T["builtin_interfaces/msg/Time"](sec=ns // 10**9, nanosec=ns % 10**9),
-                                            frame_id="imu_link"),
+            header=_header(T, ns, "imu_link"),
             orientation=T["geometry_msgs/msg/Quaternion"](x=0.0, y=0.0, z=0.0, w=1.0),
             orientation_covariance=np.full(9, -1.0) * np.eye(3).reshape(9),
             angular_velocity=v3(x=w[0], y=w[1], z=w[2]), angular_velocity_covariance=np.zeros(9),
-            linear_acceleration=v3(x=f[0], y=f[1], z=f[2]), linear_acceleration_covariance=np.zeros(9))))
+            linear_acceleration=v3(x=f[0], y=f[1], z=f[2]),
+            linear_acceleration_covariance=np.zeros(9))))
     return _write_bag(path, {"/imu/data_raw": ("sensor_msgs/msg/Imu", msgs)})
 
 

@@ -2,6 +2,7 @@
 
     sins_bag BAG [--params FILE] [-p NAME:=VALUE ...] --output OUT [--force]
                  [--namespace NS] [--gyro-topic T] [--accel-topic T]
+                 [--imu-topic T [--rate-rule trapezoid|mean]]
 
 Reads ``imu/delta_theta`` (rad) and ``imu/delta_velocity`` (m/s), both
 geometry_msgs/msg/Vector3Stamped stamped at the end of their intervals, from a bag directory or a
@@ -10,17 +11,28 @@ single .mcap/.db3 file (MCAP or sqlite3 storage), and runs them through the nume
 integrator, gyro-effect compensation and navigation channel), so the solution is the node's on
 the same messages.  Topic names match with or without the leading slash, under ``--namespace``
 when given; a bag with a single namespace is found without it; ``--gyro-topic``/``--accel-topic``
-name other topics (absolute, or relative to the namespace).
+name other topics (absolute, or relative to the namespace).  ``--imu-topic`` (or a
+``--gyro-topic`` of that type) reads sensor_msgs/msg/Imu instead: angular_velocity and
+linear_acceleration are rate samples, checked by the node's rules and made into Δθ and Δv by
+:mod:`strapdown_ros.rate_increments` (``--rate-rule``), as sins_node's ``gyro_input: imu``
+does (:meth:`SinsSystem.screen_imu`); a message whose linear_acceleration_covariance[0] is −1
+has no Δv.
 
 Parameters are sins_node's: a ROS 2 parameter file (``--params``; the ``sins_node`` and ``/**``
 blocks) and ``-p name:=value`` overrides, validated as the node validates them.  ``gyro_rate``
 and ``accel_rate`` come from the stamps (1e9 / the median step in ns, rounded to the fewest
-decimals that nanosecond stamps allow) unless given with ``-p``.  The navigation channel is off
+decimals that nanosecond stamps allow) unless given with ``-p``.  ``frame_id`` is the most
+frequent non-empty header.frame_id of the Δθ messages unless the parameters name one; messages
+in other frames are named, counted and rejected by the frame rule.  The navigation channel is off
 by default, as in the node: ``-p navigation:=true`` with ``initial_position``,
 ``initial_velocity`` and ``initial_orientation`` (q_earth_body) or ``initial_alignment:=static``.
 
-The two streams are merged by header stamp (each topic keeping its bag order; at equal stamps
-Δv before Δθ) and fed as the node's callbacks are.  At the end of the bag, updates still waiting
+Each stream is read whole (records decoded with numpy: :func:`strapdown_ros.nodes.cdr.stamped_doubles`),
+checked by the node's rules (:meth:`SinsSystem.screen`) and fed to the core in large blocks, each
+with the Δv stamped up to its last Δθ (:meth:`SinsSystem.feed`): the numbers are those of the node
+fed the messages by header stamp (at equal stamps Δv before Δθ), the attitude to the bit.  When a
+stream's stamps resynchronise, the messages go one by one through the node's path instead (merged
+by header stamp, each topic keeping its bag order).  At the end of the bag, updates still waiting
 for accelerometer data are released as ``accel_wait`` would release them.
 
 Output, by the name of OUT:

@@ -65,7 +65,8 @@ def navigation_parameters(profile: str, path: Path) -> Path:
     from ..navigation.trajectories import navigation_profile_from_config
     from ..rotation import to_ros_xyzw
     prof = navigation_profile_from_config({"profile": profile})
-    r0, w0 = prof.position(np.array([0.0]))[0], prof.velocity(np.array([0.0]))[0]
+    t0 = np.zeros(1)
+    r0, w0 = prof.position(t0)[0], prof.velocity(t0)[0]
     lat, lon, h = G.ecef_to_geodetic(r0)
     enu = G.enu_rotation(lat, lon)
 
@@ -74,14 +75,15 @@ def navigation_parameters(profile: str, path: Path) -> Path:
     path.write_text("sins_node:\n  ros__parameters:\n    navigation: true\n"
                     f"    initial_position: {fl([np.degrees(lat), np.degrees(lon), h])}\n"
                     f"    initial_velocity: {fl(enu.T @ w0)}\n"
-                    f"    initial_orientation: {fl(to_ros_xyzw(prof.attitude_ecef(np.array([0.0]))[0]))}\n")
+                    f"    initial_orientation: {fl(to_ros_xyzw(prof.attitude_ecef(t0)[0]))}\n")
     return path
 
 
 def raw_read(bag: str) -> dict:
     """One raw-read process: records, iteration time, in-process total, whole wall time."""
     t0 = time.perf_counter()
-    out = subprocess.run([sys.executable, "-c", RAW_READ, bag], capture_output=True, text=True, check=True)
+    out = subprocess.run([sys.executable, "-c", RAW_READ, bag], capture_output=True, text=True,
+                         check=True)
     wall = time.perf_counter() - t0
     n, it, total = out.stdout.split()
     return {"records": int(n), "iteration_s": float(it), "process_s": float(total), "wall_s": wall}
@@ -89,8 +91,9 @@ def raw_read(bag: str) -> dict:
 
 def sins_bag_run(bag: str, args: list, out: Path, env: dict | None = None) -> dict:
     """One whole sins_bag command (CSV output): wall time, exit status, the summary line."""
-    script = Path(sys.executable).parent / "sins_bag"            # the console script, as a user runs it
-    head = [str(script)] if script.exists() else [sys.executable, "-m", "strapdown_ros.tools.sins_bag"]
+    script = Path(sys.executable).parent / "sins_bag"       # the console script, as a user runs it
+    head = ([str(script)] if script.exists()
+            else [sys.executable, "-m", "strapdown_ros.tools.sins_bag"])
     cmd = head + [bag, "--output", str(out), "--force", "--quiet"] + args
     t0 = time.perf_counter()
     res = subprocess.run(cmd, capture_output=True, text=True, env=env)
@@ -113,15 +116,16 @@ def attitude_only_runs(runs: int) -> dict:
     q0 = prof.attitude(t[:1])[0]
     before = os.environ.get(attitude_kernel.ENV)
     attitude_kernel.warm_up()                     # numba's cache loaded before the clock starts
-    res: dict = {"attitude_only_compiled_s": [], "attitude_only_numpy_s": [], "with_covariance_compiled_s": []}
+    res: dict = {"attitude_only_compiled_s": [], "attitude_only_numpy_s": [],
+                 "with_covariance_compiled_s": []}
     try:
         for _ in range(runs):
             for key, kernel, cov in (("attitude_only_compiled_s", "auto", False),
                                      ("attitude_only_numpy_s", "numpy", False),
                                      ("with_covariance_compiled_s", "auto", True)):
                 os.environ[attitude_kernel.ENV] = kernel
-                integ = AttitudeIntegrator("2", q0, 0.0, nominal_period=0.01, gyro=NAVIGATION_GRADE_GYRO,
-                                           propagate_covariance=cov)
+                integ = AttitudeIntegrator("2", q0, 0.0, nominal_period=0.01,
+                                           gyro=NAVIGATION_GRADE_GYRO, propagate_covariance=cov)
                 t0 = time.perf_counter()
                 integ.push(inc, t[1:])
                 res[key].append(time.perf_counter() - t0)
@@ -134,6 +138,14 @@ def attitude_only_runs(runs: int) -> dict:
     return res
 
 
+def bag_bytes(bag) -> int:
+    """Size of a bag (a directory: all its files), bytes."""
+    p = Path(bag)
+    if p.is_dir():
+        return sum(f.stat().st_size for f in p.rglob("*") if f.is_file())
+    return p.stat().st_size
+
+
 class _Parser(argparse.ArgumentParser):
     def error(self, message):                    # one line, exit 2
         print(f"sins_bag_bench: error: {message}", file=sys.stderr)
@@ -141,15 +153,18 @@ class _Parser(argparse.ArgumentParser):
 
 
 def main(argv=None) -> int:
-    ap = _Parser(prog="sins_bag_bench", description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("bag", help="rosbag2 bag (e.g. record_sim OUT --duration 3600 -p profile:=coordinated_turn)")
+    ap = _Parser(prog="sins_bag_bench", description=__doc__,
+                 formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("bag", help="rosbag2 bag (e.g. record_sim OUT --duration 3600 "
+                                "-p profile:=coordinated_turn)")
     ap.add_argument("--navigation-profile", metavar="NAME",
                     help="navigation on, initial state of this record_sim profile")
     ap.add_argument("--params", metavar="FILE", help="sins_node parameter YAML for sins_bag")
     ap.add_argument("-p", "--param", action="append", default=[], metavar="NAME:=VALUE",
                     help="sins_bag parameter override (repeatable)")
     ap.add_argument("--runs", type=int, default=5, help="alternating runs (default 5)")
-    ap.add_argument("--cold", action="store_true", help="one more sins_bag run with an empty numba cache")
+    ap.add_argument("--cold", action="store_true",
+                    help="one more sins_bag run with an empty numba cache")
     ap.add_argument("--json", metavar="FILE", help="write the figures to this JSON file")
     args = ap.parse_args(argv)
     if args.runs < 1:
@@ -162,15 +177,17 @@ def main(argv=None) -> int:
         ap.error(f"{args.params} does not exist")
     load = os.getloadavg() if hasattr(os, "getloadavg") else (math.nan,) * 3
     cpus = os.cpu_count()
+    busy = load[0] > 0.5 * (cpus or 1)
     print(f"sins_bag_bench: load average at start {load[0]:.2f} {load[1]:.2f} {load[2]:.2f} "
-          f"({cpus} CPUs){' — the machine is busy: absolute times are inflated' if load[0] > 0.5 * (cpus or 1) else ''}",
+          f"({cpus} CPUs){' — the machine is busy: absolute times are inflated' if busy else ''}",
           file=sys.stderr, flush=True)
     with tempfile.TemporaryDirectory(prefix="sins_bag_bench_") as tmp:
         tmp = Path(tmp)
         extra = []
         if args.navigation_profile:
             try:
-                extra = ["--params", str(navigation_parameters(args.navigation_profile, tmp / "nav.yaml"))]
+                nav = navigation_parameters(args.navigation_profile, tmp / "nav.yaml")
+                extra = ["--params", str(nav)]
             except ValueError as exc:
                 ap.error(str(exc))
         elif args.params:
@@ -179,7 +196,7 @@ def main(argv=None) -> int:
             extra += ["-p", item]
         out = tmp / "out.csv"
         try:
-            sins_bag_run(args.bag, extra, out)                   # warm: numba's cache, the page cache
+            sins_bag_run(args.bag, extra, out)          # warm: numba's cache, the page cache
         except RuntimeError as exc:
             ap.error(str(exc))
         raw_read(args.bag)
@@ -201,8 +218,7 @@ def main(argv=None) -> int:
         rows = sum(1 for _ in open(out, encoding="utf-8")) - 1
     att = attitude_only_runs(args.runs)
     res = {
-        "bag": str(args.bag), "bag_bytes": sum(f.stat().st_size for f in Path(args.bag).rglob("*") if f.is_file())
-        if Path(args.bag).is_dir() else Path(args.bag).stat().st_size,
+        "bag": str(args.bag), "bag_bytes": bag_bytes(args.bag),
         "sins_bag_args": extra, "load_average_start": list(load), "cpus": cpus, "runs": args.runs,
         "records": raws[0]["records"], "csv_rows": rows, "summary": sins[0]["summary"],
         "raw_iteration_s": stats([r["iteration_s"] for r in raws]),
@@ -234,20 +250,23 @@ def render(res: dict) -> str:
         "",
         "| command | wall time, s |",
         "|---|---|",
-        f"| raw read: rosbags AnyReader over every record (iteration) | {median_range(res['raw_iteration_s'], '.2f')} |",
+        "| raw read: rosbags AnyReader over every record (iteration) | "
+        f"{median_range(res['raw_iteration_s'], '.2f')} |",
         f"| raw read: the whole process | {median_range(res['raw_process_s'], '.2f')} |",
         f"| `sins_bag {' '.join(res['sins_bag_args'])} --output OUT.csv` (whole command) | "
         f"{median_range(res['sins_bag_s'], '.2f')} |",
     ]
     if res["cold_sins_bag_s"] is not None:
-        lines.append(f"| sins_bag, empty numba cache (first run after install) | {res['cold_sins_bag_s']:.2f} |")
+        lines.append("| sins_bag, empty numba cache (first run after install) | "
+                     f"{res['cold_sins_bag_s']:.2f} |")
     r = res["ratio_to_iteration"]
     per = res["ratios_per_run"]
     lines += [
         "",
-        f"sins_bag / raw read: **{r:.2f}×** the iteration (per run {min(per):.2f}–{max(per):.2f}×), "
-        f"{res['ratio_to_process']:.2f}× the raw-read process; the target ≤ {res['target_ratio']:g}× the raw "
-        f"read is {'met' if res['meets_target'] else 'NOT met'}.",
+        f"sins_bag / raw read: **{r:.2f}×** the iteration (per run {min(per):.2f}–"
+        f"{max(per):.2f}×), {res['ratio_to_process']:.2f}× the raw-read process; the target "
+        f"≤ {res['target_ratio']:g}× the raw read is "
+        f"{'met' if res['meets_target'] else 'NOT met'}.",
         "",
         f"sins_bag's summary: {res['summary']}",
         "",
@@ -257,13 +276,16 @@ def render(res: dict) -> str:
         "| path | s |",
         "|---|---|",
         f"| attitude only, compiled | {median_range(a['attitude_only_compiled_s'], '.3f')} |",
-        f"| attitude only, numpy (STRAPDOWN_KERNEL=numpy) | {median_range(a['attitude_only_numpy_s'], '.3f')} |",
+        "| attitude only, numpy (STRAPDOWN_KERNEL=numpy) | "
+        f"{median_range(a['attitude_only_numpy_s'], '.3f')} |",
         f"| with covariance, compiled | {median_range(a['with_covariance_compiled_s'], '.3f')} |",
     ]
     c, n = a["attitude_only_compiled_s"]["median"], a["with_covariance_compiled_s"]["median"]
-    lines += ["", f"The attitude-only path takes {c / n:.2f}× the time of the path with covariance "
-              f"({'faster' if c < n else 'not faster'}), {a['attitude_only_numpy_s']['median'] / c:.1f}× "
-              "faster than its numpy form."]
+    speedup = a["attitude_only_numpy_s"]["median"] / c
+    lines += ["", f"The attitude-only path takes {c / n:.2f}× the time of the path with "
+              "covariance "
+              f"({'faster' if c < n else 'not faster'}); the numpy form takes {speedup:.1f}× "
+              "the compiled one's time."]
     return "\n".join(lines)
 
 
