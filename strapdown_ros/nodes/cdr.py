@@ -39,8 +39,9 @@ def stamped_doubles(records, count: int):
 
     Parameters
     ----------
-    records : sequence of bytes-like
-        The serialized messages (rosbag2 records), in bag order.
+    records : sequence of bytes-like, or ndarray (n, L) uint8
+        The serialized messages (rosbag2 records), in bag order; or n records of L bytes each
+        as the rows of an array.
     count : int
         Number of float64 fields after the header.
 
@@ -69,15 +70,22 @@ def stamped_doubles(records, count: int):
     known: dict[str, int] = {}
     if n == 0:
         return stamps, values, index, names, np.zeros(0, np.int64)
-    lengths = np.fromiter(map(len, records), np.int64, n)
-    same = bool(np.all(lengths == lengths[0]))
-    groups = [(int(lengths[0]), None)] if same else [(int(L), np.flatnonzero(lengths == L))
-                                                     for L in np.unique(lengths)]
+    table = isinstance(records, np.ndarray) and records.ndim == 2      # rows of equal length
+    if table:
+        groups = [(records.shape[1], None)]
+    else:
+        lengths = np.fromiter(map(len, records), np.int64, n)
+        same = bool(np.all(lengths == lengths[0]))
+        groups = [(int(lengths[0]), None)] if same else [(int(L), np.flatnonzero(lengths == L))
+                                                         for L in np.unique(lengths)]
     for length, rows in groups:
         if length < 16:
             continue
-        part = records if rows is None else [records[i] for i in rows]
-        buf = np.frombuffer(b"".join(part), np.uint8).reshape(len(part), length)
+        if table:
+            buf = records
+        else:
+            part = records if rows is None else [records[i] for i in rows]
+            buf = np.frombuffer(b"".join(part), np.uint8).reshape(len(part), length)
         rows = np.arange(n) if rows is None else rows
         ok = (buf[:, 0] == 0) & (buf[:, 1] == 1)
         head = np.ascontiguousarray(buf[:, 4:16]).view("<u4")       # sec, nanosec, len(frame_id)

@@ -77,6 +77,7 @@ from ..rotation import to_ros_xyzw
 from ..nodes.cdr import stamped_doubles
 from ..text import bounded
 from .calibrate_bag import BagError, _resolve, open_reader
+from .mcap_records import channel_ids, indexed_mcap, read_topics
 from .record_sim import _qos, parse_overrides
 
 __all__ = ["main", "sins_parameters", "rate_from_stamps", "open_input", "run", "CSV_NAV_COLUMNS",
@@ -201,7 +202,8 @@ def _decode(reader, conn, records: list):
     st, vals, idx, names, bad = stamped_doubles(records, IMU_DOUBLES if imu else 3)
     known = {n: k for k, n in enumerate(names)}
     for i in bad.tolist():
-        m = reader.deserialize(records[i], conn.msgtype)
+        rec = records[i]
+        m = reader.deserialize(rec.tobytes() if isinstance(rec, np.ndarray) else rec, conn.msgtype)
         st[i] = _stamp_ns(m)
         if imu:
             w, f = m.angular_velocity, m.linear_acceleration
@@ -233,9 +235,22 @@ def _read_streams(reader, conns: list, path, progress=None) -> dict:
     t0, t1 = reader.start_time, reader.end_time
     conn_of = {c.topic: c for c in conns}
     parts: dict = {c.topic: [] for c in conns}
+    order: dict = {c.topic: [] for c in conns}          # (log times, chunk) of the fast path
     state = {"next": time.monotonic() + PROGRESS_PERIOD}
+    storage = indexed_mcap(reader)
     try:
-        records = _records(reader, conns)
+        if storage is not None:                       # one MCAP file with a chunk index
+            ids = channel_ids(storage, conns)
+            for k, chunk in enumerate(read_topics(storage, ids)):
+                for topic, got in chunk.items():
+                    parts[topic].append(_decode(reader, conn_of[topic],
+                                                got.rows if got.rows is not None else got.records))
+                    order[topic].append((got.log_ns, k))
+                now = time.monotonic()
+                if progress is not None and now >= state["next"] and chunk:
+                    state["next"] = now + PROGRESS_PERIOD
+                    progress(int(max(int(g.log_ns[-1]) for g in chunk.values())), t0, t1)
+        records = _records(reader, conns) if storage is None else iter(())
         while True:
             chunk = list(islice(records, READ_CHUNK))
             if not chunk:
@@ -269,6 +284,14 @@ def _read_streams(reader, conns: list, path, progress=None) -> dict:
         st = np.concatenate(st_l) if st_l else np.zeros(0, np.int64)
         vals = np.concatenate(v_l) if v_l else np.zeros((0, width))
         idx = np.concatenate(i_l) if i_l else np.zeros(0, np.int64)
+        if order[topic]:
+            # rosbags' order: by log time, then chunk, then within the chunk (chunks overlapping
+            # in time interleave); usually the chunks follow each other and this is the identity
+            log_ns = np.concatenate([o[0] for o in order[topic]])
+            chunk = np.concatenate([np.full(len(o[0]), o[1]) for o in order[topic]])
+            if not np.all(np.diff(log_ns) >= 0):
+                perm = np.lexsort((np.arange(len(log_ns)), chunk, log_ns))
+                st, vals, idx = st[perm], vals[perm], idx[perm]
         if conn.msgtype == IMU:
             accel = vals[:, IMU_ACCEL:IMU_ACCEL + 3].copy()
             accel[vals[:, IMU_ACCEL_COV] == -1.0] = np.nan          # REP-145: no acceleration
