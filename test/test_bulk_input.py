@@ -181,3 +181,75 @@ def test_frame_warning_is_built_only_when_emitted_and_bounded():
     assert s.frame_mismatch["gyro"] == 2000
     assert len(logged) == 1 and len(logged[0]) < 300 and "2000000 chars" in logged[0]
     assert math.isfinite(s.status()["gyro_received"])
+
+
+def test_mcap_chunk_reader_gives_rosbags_records_in_rosbags_order(tmp_path):
+    """sins_bag's chunk reader (tools/mcap_records.py, compiled scan and its plain form) against
+    rosbags' reader on an MCAP file of several chunks overlapping in log time, with frame ids
+    of several lengths: the same records in the same order, the same decoded numbers."""
+    pytest.importorskip("rosbags")
+    from rosbags.rosbag2 import StoragePlugin, Writer
+    from rosbags.typesys import Stores, get_typestore
+    from strapdown_ros.tools import mcap_records
+    from strapdown_ros.tools.calibrate_bag import open_reader
+    from strapdown_ros.tools.sins_bag import _read_streams
+    store = get_typestore(Stores.ROS2_JAZZY)
+    T = store.types
+    rng = np.random.default_rng(9)
+    n = 40_000
+    log = (np.arange(n) + 100) * 1_000_000
+    log = log + rng.integers(-30, 30, n) * 1_000_000              # out of order: chunks overlap
+    path = tmp_path / "chunks"
+    with Writer(path, version=Writer.VERSION_LATEST, storage_plugin=StoragePlugin.MCAP) as w:
+        conns = [w.add_connection(t, "geometry_msgs/msg/Vector3Stamped", typestore=store)
+                 for t in ("/imu/delta_theta", "/imu/delta_velocity")]
+        for k in range(n):
+            ns = int(log[k])
+            frame = "imu_link" if k % 97 else "imu_link_long"
+            m = T["geometry_msgs/msg/Vector3Stamped"](
+                header=T["std_msgs/msg/Header"](stamp=T["builtin_interfaces/msg/Time"](
+                    sec=ns // 10**9, nanosec=ns % 10**9), frame_id=frame),
+                vector=T["geometry_msgs/msg/Vector3"](x=float(k), y=float(rng.normal()), z=0.5))
+            w.write(conns[k % 2], ns, store.serialize_cdr(m, "geometry_msgs/msg/Vector3Stamped"))
+    rd = open_reader(path)
+    try:
+        storage = mcap_records.indexed_mcap(rd)
+        assert storage is not None and len(storage.chunks) >= 3
+        sel = [c for c in rd.connections]
+        ref = {c.topic: [] for c in sel}
+        for c, _, raw in rd.messages(connections=sel):
+            ref[c.topic].append(vector3_stamped(raw))
+        got = _read_streams(rd, sel, path)
+        ids = mcap_records.channel_ids(storage, sel)
+        plain = [mcap_records._scan_plain(np.frombuffer(b"\x05" + bytes(8), np.uint8),
+                                          np.ones(3, bool))]
+    finally:
+        rd.close()
+    assert plain[0][1] and len(ids) == 2
+    for topic, items in ref.items():
+        s = got[topic]
+        assert len(s) == len(items) == n // 2
+        assert s.stamps_ns.tolist() == [x[0] for x in items]
+        assert np.array_equal(s.values, np.array([x[1] for x in items]))
+        assert [s.frame_names[i] for i in s.frame_index] == [x[2] for x in items]
+
+
+def test_mcap_scan_compiled_and_plain_agree():
+    from strapdown_ros.tools import mcap_records
+    rng = np.random.default_rng(2)
+    parts = []
+    for k in range(300):
+        body = bytes(rng.integers(0, 256, int(rng.integers(22, 80)), dtype=np.uint8))
+        op = 0x05 if k % 5 else 0x06
+        ch = int(rng.integers(0, 4))
+        rec = ch.to_bytes(2, "little") + body[2:] if op == 0x05 else body
+        parts.append(bytes([op]) + len(rec).to_bytes(8, "little") + rec)
+    buf = np.frombuffer(b"".join(parts), np.uint8)
+    wanted = np.array([True, False, True, True])
+    a, whole_a = mcap_records._scan_py(buf, wanted)
+    b, whole_b = mcap_records._scan_plain(buf, wanted)
+    c, whole_c = mcap_records._scanner()(buf, wanted)
+    assert whole_a and whole_b and whole_c and len(a) > 100
+    assert np.array_equal(a, b) and np.array_equal(a, c)
+    _, whole = mcap_records._scan_plain(buf[:-3], wanted)
+    assert not whole                                                  # a record cut short

@@ -453,3 +453,27 @@ def test_imu_input_with_mean_rates_gives_the_increment_solution(tmp_path, capsys
     rc, out, err = _run_tool(capsys, imu, "--params", params, "--imu-topic", "/imu/data_raw",
                              "--output", tmp_path / "trap.csv")
     assert rc == 0 and "rule trapezoid" in out, err
+
+
+def test_a_damaged_mcap_chunk_is_one_line_exit_2(tmp_path, capsys):
+    """The chunk reader refuses a chunk whose record runs past its end (or whose checksum fails):
+    one line on stderr, exit 2, no output file."""
+    from strapdown_ros.tools import mcap_records
+    from strapdown_ros.tools.calibrate_bag import open_reader
+    bag = _record(tmp_path / "dmg", "coning")
+    rd = open_reader(bag)
+    try:
+        chunk = mcap_records.indexed_mcap(rd).chunks[0]
+    finally:
+        rd.close()
+    mcap = next(bag.glob("*.mcap"))
+    data = bytearray(mcap.read_bytes())
+    first = chunk.chunk_start_offset + 9 + 40 + len(chunk.compression)
+    assert chunk.compression == "" and 0x01 <= data[first] <= 0x10        # a record opcode
+    data[first + 1:first + 9] = (2**40).to_bytes(8, "little")           # a record longer than the chunk
+    mcap.write_bytes(bytes(data))
+    capsys.readouterr()
+    rc, out, err = _run_tool(capsys, bag, "--output", tmp_path / "x.csv")
+    lines = [ln for ln in (out + err).splitlines() if ln.strip()]
+    assert rc == 2 and len(lines) == 1 and lines[0].startswith("sins_bag: error:"), (out, err)
+    assert not (tmp_path / "x.csv").exists()

@@ -67,7 +67,7 @@ def _scanner():
 
 
 _HEAD = struct.Struct("<BQ")
-_MSG = struct.Struct("<HIQ")
+_MSG = struct.Struct("<HIq")          # log time as int64, as the compiled scan reads it
 
 
 def _scan_plain(raw, wanted):
