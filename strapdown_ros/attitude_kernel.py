@@ -33,8 +33,8 @@ __all__ = ["available", "block_update", "warm_up", "kernels_allowed", "njit_opti
 ENV = "STRAPDOWN_KERNEL"
 
 
-def _block_py(q0, seq, dt, n_new, hist, lin, pairs, p_ref0, j0, var, rw2, use_iso, q_white, use_const, basis,
-              with_cov):
+def _block_py(q0, seq, dt, n_new, hist, lin, pairs, p_ref0, j0, var, rw2, use_iso, q_white,
+              use_const, basis, with_cov):
     m = dt.shape[0] // n_new
     width = hist + n_new
     q_out = np.empty((m, 4))

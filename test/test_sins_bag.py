@@ -469,8 +469,8 @@ def test_a_damaged_mcap_chunk_is_one_line_exit_2(tmp_path, capsys):
     mcap = next(bag.glob("*.mcap"))
     data = bytearray(mcap.read_bytes())
     first = chunk.chunk_start_offset + 9 + 40 + len(chunk.compression)
-    assert chunk.compression == "" and 0x01 <= data[first] <= 0x10        # a record opcode
-    data[first + 1:first + 9] = (2**40).to_bytes(8, "little")           # a record longer than the chunk
+    assert chunk.compression == "" and 0x01 <= data[first] <= 0x10     # a record opcode
+    data[first + 1:first + 9] = (2**40).to_bytes(8, "little")     # a record longer than its chunk
     mcap.write_bytes(bytes(data))
     capsys.readouterr()
     rc, out, err = _run_tool(capsys, bag, "--output", tmp_path / "x.csv")

@@ -312,7 +312,8 @@ class SinsSystem:
         """The frame rule: an empty frame_id is unspecified; another frame than ``frame_id`` is
         counted and WARNed, and rejected unless ``frame_mismatch`` is accept."""
         self.frame_mismatch[stream] += 1
-        self._log("warn", lambda: self._frame_text(stream, frame_id), throttle=10.0, key="frame_" + stream)
+        self._log("warn", lambda: self._frame_text(stream, frame_id), throttle=10.0,
+                  key="frame_" + stream)
         return self.reject_frames
 
     def _frame_text(self, stream: str, frame_id: str, count: int = 1) -> str:
@@ -412,7 +413,8 @@ class SinsSystem:
             self.accel_check = check
         if wrong:
             self.frame_mismatch[stream] += wrong
-            self._log("warn", lambda: self._frame_text(stream, first, wrong), throttle=10.0, key="frame_" + stream)
+            self._log("warn", lambda: self._frame_text(stream, first, wrong), throttle=10.0,
+                      key="frame_" + stream)
         return segments[0]
 
     def screen_imu(self, stamps_ns, angular_velocity, linear_acceleration=None, frame_index=None,
@@ -446,7 +448,8 @@ class SinsSystem:
         from ..rate_increments import increments_from_rates
         st = np.asarray(stamps_ns, dtype=np.int64).reshape(-1)
         w = np.asarray(angular_velocity, dtype=float).reshape(-1, 3)
-        f = None if linear_acceleration is None else np.asarray(linear_acceleration, dtype=float).reshape(-1, 3)
+        f = None if linear_acceleration is None else \
+            np.asarray(linear_acceleration, dtype=float).reshape(-1, 3)
         if frame_index is not None and len(st):
             codes = np.asarray(frame_index, dtype=np.int64)
             foreign = np.array([name not in self._own_frames for name in frame_names], dtype=bool)
@@ -455,7 +458,8 @@ class SinsSystem:
             if wrong:
                 first = frame_names[int(codes[np.argmax(mask)])]
                 self.frame_mismatch["gyro"] += wrong
-                self._log("warn", lambda: self._frame_text("gyro", first, wrong), throttle=10.0, key="frame_gyro")
+                self._log("warn", lambda: self._frame_text("gyro", first, wrong), throttle=10.0,
+                          key="frame_gyro")
                 if self.reject_frames:
                     keep = ~mask
                     st, w, f = st[keep], w[keep], (None if f is None else f[keep])
@@ -463,11 +467,12 @@ class SinsSystem:
         period = 1.0 / float(p["gyro_rate"])
         jump, resync = float(p["max_stamp_jump"]), int(p["resync_count"])
         out = []
-        for name, values, max_rate in (("gyro", w, float(p["gyro_max_rate"])), ("accel", f, float(p["accel_max"]))):
+        for name, values, max_rate in (("gyro", w, float(p["gyro_max_rate"])),
+                                       ("accel", f, float(p["accel_max"]))):
             if values is None:
                 out.append(None)
                 continue
-            if name == "accel":                           # messages without acceleration: not offered
+            if name == "accel":                   # messages without acceleration: not offered
                 has = ~np.all(np.isnan(values), axis=1)
                 s_n, values = st[has], values[has]
                 if not len(s_n):
@@ -479,7 +484,8 @@ class SinsSystem:
             self.rate_checks[name] = check
             pieces = [increments_from_rates(a, b, rule, max_step_s=1.5 * period)
                       for a, b in screen_stream(check, s_n, values)]
-            out.append((np.concatenate([x[0] for x in pieces]), np.concatenate([x[1] for x in pieces])))
+            out.append((np.concatenate([x[0] for x in pieces]),
+                        np.concatenate([x[1] for x in pieces])))
         return out[0], out[1]
 
     def feed(self, gyro, accel=None, block: int = FEED_BLOCK, accel_block: int = FEED_ACCEL_BLOCK):
@@ -514,7 +520,8 @@ class SinsSystem:
         gi = ai = 0
         while gi < len(g_ns):
             if self.nav is not None and self.nav.navigator is None:     # the node's blocks
-                start = self._block_end_ns if self._block_end_ns is not None else int(g_ns[gi]) - self._gyro_period_ns
+                start = self._block_end_ns if self._block_end_ns is not None else \
+                    int(g_ns[gi]) - self._gyro_period_ns
                 end = int(np.searchsorted(g_ns, start + self._batch_span_ns - 1, side="left")) + 1
                 end = max(gi + 1, min(end, gi + MAX_BATCH, len(g_ns)))
             else:
@@ -522,7 +529,8 @@ class SinsSystem:
                 a_end = ai + accel_block
                 if a_end < len(a_ns) and a_ns[a_end - 1] < g_ns[end - 1]:
                     end = max(gi + 1, int(np.searchsorted(g_ns, a_ns[a_end - 1], side="right")))
-            aj = int(np.searchsorted(a_ns, g_ns[end - 1], side="right")) if end < len(g_ns) else len(a_ns)
+            aj = int(np.searchsorted(a_ns, g_ns[end - 1], side="right")) if end < len(g_ns) \
+                else len(a_ns)
             if aj > ai:
                 self._accel_blocks.append(((a_ns[ai:aj] - self.origin_ns) * 1e-9, a_v[ai:aj]))
             self._gyro_blocks.append((g_ns[gi:end], g_v[gi:end]))
@@ -574,7 +582,7 @@ class SinsSystem:
         return out
 
     def _take_accel(self):
-        """The buffered Δv as arrays (t (n,), s from the origin; values (n, 3)), buffers emptied."""
+        """The buffered Δv as arrays (t (n,), s from the origin; values (n, 3)); emptied."""
         if self._accel_in:
             n = len(self._accel_in)
             self._accel_blocks.append((np.fromiter((a[0] for a in self._accel_in), float, n),
@@ -586,7 +594,7 @@ class SinsSystem:
         return np.concatenate([b[0] for b in blocks]), np.concatenate([b[1] for b in blocks])
 
     def _take_gyro(self):
-        """The buffered Δθ as arrays (header stamps (n,) int64 ns; values (n, 3)), buffers emptied."""
+        """The buffered Δθ as arrays (header stamps (n,) int64 ns; values (n, 3)); emptied."""
         if self._gyro_in:
             n = len(self._gyro_in)
             self._gyro_blocks.append((np.fromiter((g[0] for g in self._gyro_in), np.int64, n),

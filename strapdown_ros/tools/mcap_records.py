@@ -101,8 +101,8 @@ def indexed_mcap(reader):
         return None
     storage = getattr(inner[0], "storage", None)
     if isinstance(storage, DirectoryReader):
-        if getattr(storage, "metadata", None) is None or storage.metadata.compression_mode == "message" \
-                or len(storage.storages) != 1:
+        meta = getattr(storage, "metadata", None)
+        if meta is None or meta.compression_mode == "message" or len(storage.storages) != 1:
             return None
         storage = storage.storages[0]
     if not isinstance(storage, McapReader) or not getattr(storage, "chunks", None) \
@@ -164,8 +164,8 @@ def read_topics(storage, channel_ids: dict, progress=None):
                 rows = buf[starts[:, None] + np.arange(int(lengths[0]))[None, :]]
                 out[topic] = TopicRecords(sel[:, 4], rows=rows)
             else:
-                out[topic] = TopicRecords(sel[:, 4], records=[raw[s:s + n] for s, n in
-                                                              zip(starts.tolist(), lengths.tolist())])
+                recs = [raw[s:s + n] for s, n in zip(starts.tolist(), lengths.tolist())]
+                out[topic] = TopicRecords(sel[:, 4], records=recs)
         if progress is not None and out:
             progress(int(chunk.message_end_time))
         yield out

@@ -27,10 +27,11 @@ in other frames are named, counted and rejected by the frame rule.  The navigati
 by default, as in the node: ``-p navigation:=true`` with ``initial_position``,
 ``initial_velocity`` and ``initial_orientation`` (q_earth_body) or ``initial_alignment:=static``.
 
-Each stream is read whole (records decoded with numpy: :func:`strapdown_ros.nodes.cdr.stamped_doubles`),
-checked by the node's rules (:meth:`SinsSystem.screen`) and fed to the core in large blocks, each
-with the Δv stamped up to its last Δθ (:meth:`SinsSystem.feed`): the numbers are those of the node
-fed the messages by header stamp (at equal stamps Δv before Δθ), the attitude to the bit.  When a
+Each stream is read whole (an indexed MCAP file a chunk at a time, :mod:`.mcap_records`; the
+records decoded with numpy, :func:`strapdown_ros.nodes.cdr.stamped_doubles`), checked by the
+node's rules (:meth:`SinsSystem.screen`) and fed to the core in large blocks, each with the Δv
+stamped up to its last Δθ (:meth:`SinsSystem.feed`): the numbers are those of the node fed the
+messages by header stamp (at equal stamps Δv before Δθ), the attitude to the bit.  When a
 stream's stamps resynchronise, the messages go one by one through the node's path instead (merged
 by header stamp, each topic keeping its bag order).  At the end of the bag, updates still waiting
 for accelerometer data are released as ``accel_wait`` would release them.
@@ -136,8 +137,8 @@ def _find_topic(topics: dict, name: str, namespace: str) -> str | None:
 
 
 IMU = "sensor_msgs/msg/Imu"
-IMU_DOUBLES = 37                 # float64 fields of sensor_msgs/Imu after its header (nodes/cdr.py)
-IMU_RATE, IMU_ACCEL, IMU_ACCEL_COV = 13, 25, 28      # angular_velocity, linear_acceleration, its cov[0]
+IMU_DOUBLES = 37                 # float64 fields of sensor_msgs/Imu after its header (cdr.py)
+IMU_RATE, IMU_ACCEL, IMU_ACCEL_COV = 13, 25, 28     # angular_velocity, linear_acceleration, cov[0]
 READ_CHUNK = 200_000             # records decoded at once
 
 
@@ -157,8 +158,11 @@ class Stream:
 
     def frames(self) -> list[tuple[str, int]]:
         """(frame id, count) of the messages, most frequent first."""
-        counts = np.bincount(self.frame_index, minlength=len(self.frame_names)) if len(self) else []
-        return sorted(((n, int(c)) for n, c in zip(self.frame_names, counts) if c), key=lambda x: -x[1])
+        if not len(self):
+            return []
+        counts = np.bincount(self.frame_index, minlength=len(self.frame_names))
+        return sorted(((n, int(c)) for n, c in zip(self.frame_names, counts) if c),
+                      key=lambda x: -x[1])
 
 
 class Input:
@@ -231,7 +235,7 @@ def _records(reader, conns: list):
 
 
 def _read_streams(reader, conns: list, path, progress=None) -> dict:
-    """Every record of the connections, decoded in chunks of :data:`READ_CHUNK`: {topic: Stream}."""
+    """Every record of the connections, decoded a chunk at a time: {topic: Stream}."""
     t0, t1 = reader.start_time, reader.end_time
     conn_of = {c.topic: c for c in conns}
     parts: dict = {c.topic: [] for c in conns}
@@ -266,7 +270,7 @@ def _read_streams(reader, conns: list, path, progress=None) -> dict:
                 progress(chunk[-1][1], t0, t1)
     except BagError:
         raise
-    except Exception as exc:                  # noqa: BLE001 - a corrupted record, whatever the reader says
+    except Exception as exc:                  # noqa: BLE001 - a corrupted record, whatever says so
         raise _unreadable(path, exc) from None
     out = {}
     for topic, chunks in parts.items():
@@ -295,8 +299,8 @@ def _read_streams(reader, conns: list, path, progress=None) -> dict:
         if conn.msgtype == IMU:
             accel = vals[:, IMU_ACCEL:IMU_ACCEL + 3].copy()
             accel[vals[:, IMU_ACCEL_COV] == -1.0] = np.nan          # REP-145: no acceleration
-            out[topic] = Stream(topic, "rates", st, np.ascontiguousarray(vals[:, IMU_RATE:IMU_RATE + 3]),
-                                idx, names, accel)
+            rate = np.ascontiguousarray(vals[:, IMU_RATE:IMU_RATE + 3])
+            out[topic] = Stream(topic, "rates", st, rate, idx, names, accel)
         else:
             out[topic] = Stream(topic, "increments", st, vals, idx, names)
     return out
@@ -320,16 +324,19 @@ def open_input(bag, namespace: str = "", gyro_topic: str | None = None, accel_to
         if g is None:
             raise BagError(f"{path}: no {bounded(gyro_topic or GYRO_TOPIC)}{where}{listing}")
         if topics[g] not in (VECTOR3_STAMPED, IMU):
-            raise BagError(f"{bounded(g)} has type {bounded(topics[g])}, expected {VECTOR3_STAMPED} or {IMU}")
+            raise BagError(f"{bounded(g)} has type {bounded(topics[g])}, expected "
+                           f"{VECTOR3_STAMPED} or {IMU}")
         if topics[g] == IMU and not accel_topic:
             accel_topic = g                           # Δv from the same Imu messages
         a = _find_topic(topics, accel_topic or ACCEL_TOPIC, namespace)
         if a is None and (need_accel or accel_topic):
             why = " (navigation needs it)" if need_accel else ""
-            raise BagError(f"{path}: no {bounded(accel_topic or ACCEL_TOPIC)}{where}{why}{listing}")
+            name = bounded(accel_topic or ACCEL_TOPIC)
+            raise BagError(f"{path}: no {name}{where}{why}{listing}")
         if a is not None and a != g and topics[a] != VECTOR3_STAMPED:
-            raise BagError(f"{bounded(a)} has type {bounded(topics[a])}, expected {VECTOR3_STAMPED}"
-                           + (f" (or the Imu topic {bounded(g)} itself)" if topics[g] == IMU else ""))
+            also = f" (or the Imu topic {bounded(g)} itself)" if topics[g] == IMU else ""
+            raise BagError(f"{bounded(a)} has type {bounded(topics[a])}, expected "
+                           f"{VECTOR3_STAMPED}{also}")
         if a is not None and a == g and topics[g] != IMU:
             raise BagError(f"{bounded(g)} cannot be both the Δθ and the Δv topic")
         gc = next(c for c in reader.connections if c.topic == g)
@@ -344,7 +351,8 @@ def open_input(bag, namespace: str = "", gyro_topic: str | None = None, accel_to
     g_rate = rate_from_stamps(gs.stamps_ns[:RATE_SAMPLE])
     if g_rate is None:
         reader.close()
-        raise BagError(f"{path}: {bounded(g)} has {len(gs)} message(s) with distinct stamps; at least 2 are needed")
+        raise BagError(f"{path}: {bounded(g)} has {len(gs)} message(s) with distinct stamps; "
+                       "at least 2 are needed")
     if a is None:
         a_rate = None
     elif a == g:
@@ -354,7 +362,8 @@ def open_input(bag, namespace: str = "", gyro_topic: str | None = None, accel_to
         a_rate = rate_from_stamps(accel_stream.stamps_ns[:RATE_SAMPLE])
     if a and a_rate is None and need_accel:
         reader.close()
-        raise BagError(f"{path}: {bounded(a)} has fewer than 2 messages with distinct stamps (or no "
+        raise BagError(f"{path}: {bounded(a)} has fewer than 2 messages with distinct stamps (or "
+                       "no "
                        "acceleration); navigation needs it")
     named = [(n, c) for n, c in gs.frames() if n]
     frame_id = named[0][0] if named else ""
@@ -402,8 +411,9 @@ class CsvOutput:
         q = to_ros_xyzw(rec.attitude).reshape(-1, 4)
         sig = np.sqrt(np.maximum(np.diagonal(rec.covariance, axis1=1, axis2=2), 0.0))
         sec, nsec = np.divmod(np.asarray(rec.stamp_ns, dtype=np.int64), 1_000_000_000)
-        cols = [sec[:, None], nsec[:, None]] + ([rec.position, rec.velocity] if self.navigation else []) + [q]
-        table = np.hstack([np.asarray(c, dtype=float) for c in cols])     # sec, ns exact in float64
+        cols = [sec[:, None], nsec[:, None]] + ([rec.position, rec.velocity] if self.navigation
+                                                else []) + [q]
+        table = np.hstack([np.asarray(c, dtype=float) for c in cols])   # sec, ns exact in float64
         head = "%d.%09d" + ",%.17g" * (table.shape[1] - 2)                 # = "{:.17g}" per value
         tail = ",%.17g" * sig.shape[1]
         for a in range(0, k, 4096):
@@ -413,10 +423,12 @@ class CsvOutput:
             new[1:] = np.any(s_part[1:] != s_part[:-1], axis=1)
             runs = np.flatnonzero(new)
             if len(runs) * 4 > m:                     # the σ change at every row: one format
-                self.fh.write(((head + tail + "\n") * m) % tuple(np.hstack([part, s_part]).ravel().tolist()))
+                flat = np.hstack([part, s_part]).ravel().tolist()
+                self.fh.write(((head + tail + "\n") * m) % tuple(flat))
                 continue
             # the navigation σ change once per covariance epoch: each distinct row formatted once
-            texts = ((tail + "\n") * len(runs) % tuple(s_part[runs].ravel().tolist())).split("\n")[:-1]
+            flat = s_part[runs].ravel().tolist()
+            texts = ((tail + "\n") * len(runs) % tuple(flat)).split("\n")[:-1]
             rows = np.empty((m, part.shape[1] + 1), dtype=object)
             rows[:, :-1] = part
             rows[:, -1] = np.array(texts, dtype=object)[np.cumsum(new) - 1]
@@ -551,7 +563,8 @@ def _replace(out: str) -> None:
 
 
 # --- the run ----------------------------------------------------------------------------------------
-def run(inp: Input, make_system, sink, say=None, rate_rule: str = "trapezoid", system: SinsSystem | None = None):
+def run(inp: Input, make_system, sink, say=None, rate_rule: str = "trapezoid",
+        system: SinsSystem | None = None):
     """Feed the bag's streams through a system made by ``make_system()`` and write every output
     to ``sink`` (``sink.write(SinsOutput)``); ``system``: a fresh one already made.  Returns
     (counts, system).
@@ -571,7 +584,8 @@ def run(inp: Input, make_system, sink, say=None, rate_rule: str = "trapezoid", s
         if say is not None and now >= state["next"] and origin is not None:
             state["next"] = now + PROGRESS_PERIOD
             done = (ns - origin) * 1e-9
-            say(f"{done:.1f} / {span * 1e-9:.1f} s of the recording ({100.0 * done / (span * 1e-9):.0f}%)")
+            total = span * 1e-9
+            say(f"{done:.1f} / {total:.1f} s of the recording ({100.0 * done / total:.0f}%)")
 
     def streams(system):
         """(gyro (stamps, values, frame_index, frame_names), accel (...) or None) as increments."""
@@ -610,13 +624,15 @@ def run(inp: Input, make_system, sink, say=None, rate_rule: str = "trapezoid", s
     for is_gyro, k in _merged(gyro_in[0], accel_in[0] if accel_in is not None else None):
         if is_gyro:
             v = gyro_in[1][k]
-            if offer_g(int(gyro_in[0][k]), (float(v[0]), float(v[1]), float(v[2])), frame(gyro_in, k)):
+            vec = (float(v[0]), float(v[1]), float(v[2]))
+            if offer_g(int(gyro_in[0][k]), vec, frame(gyro_in, k)):
                 sink.write(system.process())
             elif system.has_output:                 # a stamp resync processed the old time base
                 sink.write(system.take_output())
         else:
             v = accel_in[1][k]
-            if offer_a(int(accel_in[0][k]), (float(v[0]), float(v[1]), float(v[2])), frame(accel_in, k)):
+            vec = (float(v[0]), float(v[1]), float(v[2]))
+            if offer_a(int(accel_in[0][k]), vec, frame(accel_in, k)):
                 sink.write(system.process())
     sink.write(system.process())
     sink.write(system.finish())
@@ -626,19 +642,26 @@ def run(inp: Input, make_system, sink, say=None, rate_rule: str = "trapezoid", s
 def _summary(args, inp: Input, system: SinsSystem, sink, counts: dict, rates: dict) -> str:
     st = system.status()
     g, a = system.gyro_check, system.accel_check
-    if inp.imu_input:
-        head = (f"sins_bag: {args.bag}: {counts['gyro']} sensor_msgs/Imu from {inp.gyro_conn.topic} "
-                f"(rates → increments, rule {args.rate_rule})"
-                + (f", {counts['accel']} Δv from {inp.accel_conn.topic}" if inp.accel is not None
-                   else f", {counts['accel']} with linear acceleration" if inp.accel_conn is not None else ", no Δv"))
+    g_topic = bounded(inp.gyro_conn.topic)
+    a_topic = bounded(inp.accel_conn.topic) if inp.accel_conn is not None else ""
+    if inp.accel_conn is None:
+        tail = ", no Δv"
+    elif inp.imu_input and inp.accel is None:
+        tail = f", {counts['accel']} with linear acceleration"
     else:
-        head = (f"sins_bag: {args.bag}: {counts['gyro']} Δθ from {inp.gyro_conn.topic}"
-                + (f", {counts['accel']} Δv from {inp.accel_conn.topic}" if inp.accel_conn is not None else ", no Δv"))
-    lines = [head + f"; gyro_rate {rates['gyro_rate']:g} Hz, accel_rate {rates['accel_rate']:g} Hz"]
+        tail = f", {counts['accel']} Δv from {a_topic}"
+    if inp.imu_input:
+        head = (f"sins_bag: {args.bag}: {counts['gyro']} sensor_msgs/Imu from {g_topic} "
+                f"(rates → increments, rule {args.rate_rule})")
+    else:
+        head = f"sins_bag: {args.bag}: {counts['gyro']} Δθ from {g_topic}"
+    lines = [head + tail + f"; gyro_rate {rates['gyro_rate']:g} Hz, "
+             f"accel_rate {rates['accel_rate']:g} Hz"]
     checks = [g, a] + list(system.rate_checks.values())
     drops = {k: sum(getattr(c, attr) for c in checks)
-             for k, attr in (("NaN", "nan"), ("out of range", "out_of_range"), ("out of order", "out_of_order"),
-                             ("duplicate", "duplicate"), ("stamp outlier", "stamp_outliers"))}
+             for k, attr in (("NaN", "nan"), ("out of range", "out_of_range"),
+                             ("out of order", "out_of_order"), ("duplicate", "duplicate"),
+                             ("stamp outlier", "stamp_outliers"))}
     drops = {k: v for k, v in drops.items() if v}
     fm = system.frame_mismatch
     if fm["gyro"] or fm["accel"]:
@@ -677,8 +700,8 @@ def main(argv=None) -> int:
                     help="a sensor_msgs/msg/Imu topic giving both Δθ (angular_velocity) and Δv "
                          "(linear_acceleration) by --rate-rule")
     ap.add_argument("--rate-rule", choices=RATE_RULES, default="trapezoid",
-                    help="how an Imu rate sample becomes an increment (strapdown_ros.rate_increments; "
-                         "default trapezoid)")
+                    help="how an Imu rate sample becomes an increment "
+                         "(strapdown_ros.rate_increments; default trapezoid)")
     ap.add_argument("--force", action="store_true", help="replace OUT if it exists")
     ap.add_argument("--quiet", action="store_true", help="no progress lines")
     args = ap.parse_args(argv)
@@ -700,9 +723,11 @@ def main(argv=None) -> int:
             raise ValueError("--imu-topic gives both streams: not with --gyro-topic/--accel-topic")
 
         def reading(ns, t0, t1):
-            say(f"reading: {(ns - t0) * 1e-9:.1f} / {max(t1 - t0, 1) * 1e-9:.1f} s of the recording")
+            span = max(t1 - t0, 1) * 1e-9
+            say(f"reading: {(ns - t0) * 1e-9:.1f} / {span:.1f} s of the recording")
         inp = open_input(args.bag, args.namespace, args.gyro_topic, args.accel_topic,
-                         need_accel=bool(p["navigation"]), imu_topic=args.imu_topic, progress=reading)
+                         need_accel=bool(p["navigation"]), imu_topic=args.imu_topic,
+                         progress=reading)
         if inp.imu_input and "accel_rate" not in over and inp.accel is None:
             inp.accel_rate = inp.gyro_rate            # Δv from the same Imu messages
         rates = {"gyro_rate": inp.gyro_rate, "accel_rate": inp.accel_rate}
@@ -717,14 +742,16 @@ def main(argv=None) -> int:
         frame = {}
         if not named and inp.frame_id and inp.frame_id != p["frame_id"]:
             frame = {"frame_id": inp.frame_id}
-            say(f"note: frame_id {bounded(inp.frame_id)!r} from the recording's headers (-p frame_id:=... to "
-                "impose one)")
+            say(f"note: frame_id {bounded(inp.frame_id)!r} from the recording's headers "
+                "(-p frame_id:=... to impose one)")
         others = [(f, c) for f, c in inp.gyro.frames() if f and f != (frame or p).get("frame_id")]
         if others and not named:
             total = len(inp.gyro)
-            say(f"note: {sum(c for _, c in others)} of {total} {'Imu' if inp.imu_input else 'Δθ'} message(s) "
+            kind = "Imu" if inp.imu_input else "Δθ"
+            listed = ", ".join(f"{bounded(f)!r} ({c})" for f, c in others[:3])
+            say(f"note: {sum(c for _, c in others)} of {total} {kind} message(s) "
                 "name another frame than the body frame and are rejected by the frame rule: "
-                + ", ".join(f"{bounded(f)!r} ({c})" for f, c in others[:3]) + (", …" if len(others) > 3 else ""))
+                + listed + (", …" if len(others) > 3 else ""))
         p = sins_parameters(args.params, {**over, **rates, **frame})
         if p["navigation"]:
             lat, lon, h = (float(x) for x in p["initial_position"])
@@ -735,7 +762,8 @@ def main(argv=None) -> int:
         csv_out = args.output.lower().endswith(".csv")
 
         def make_system():
-            return SinsSystem(p, log=lambda level, text: say(f"{level}: {text}" if level != "info" else text),
+            return SinsSystem(p, log=lambda level, text: say(text if level == "info" else
+                                                             f"{level}: {text}"),
                               imu_wanted=(lambda: not csv_out))
         system = make_system()                          # parameters checked by the core now
     except (ValueError, OSError, BagError) as exc:
@@ -770,7 +798,8 @@ def main(argv=None) -> int:
                   else "") + ")") if nav is not None and nav.navigator is None else \
             "no attitude update" if system.integrator.updates == 0 else "no navigation step"
         if system.integrator.updates == 0 and system.frame_mismatch["gyro"] and system.gyro_check.accepted == 0:
-            why = (f"every Δθ was rejected: its header.frame_id is not frame_id {bounded(system.p['frame_id'])!r} "
+            why = ("every Δθ was rejected: its header.frame_id is not frame_id "
+                   f"{bounded(system.p['frame_id'])!r} "
                    "(-p frame_id:=... or -p frame_mismatch:=accept)")
         print(f"sins_bag: no solution: {why}", file=sys.stderr)
         return 3
