@@ -94,7 +94,6 @@ CSV_NAV_COLUMNS = ["stamp_s", "x", "y", "z", "vx", "vy", "vz", "qx", "qy", "qz",
                    "sigma_psi_x", "sigma_psi_y", "sigma_psi_z"]
 CSV_ATTITUDE_COLUMNS = ["stamp_s", "qx", "qy", "qz", "qw", "sigma_eps_x", "sigma_eps_y", "sigma_eps_z"]
 RATE_SAMPLE = 20001              # stamps per topic read for the rate (the first ones)
-MERGE_LIMIT = 100_000            # a topic's queue is released without the other beyond this
 PROGRESS_PERIOD = 5.0            # wall seconds between progress lines
 
 
@@ -386,11 +385,6 @@ def _merged(g_stamps, a_stamps):
 
 
 # --- output -----------------------------------------------------------------------------------------
-def _fmt_stamp(ns: int) -> str:
-    ns = int(ns)
-    return f"{ns // 1_000_000_000}.{ns % 1_000_000_000:09d}"
-
-
 class CsvOutput:
     """The CSV writer (written to OUT.part, renamed at :meth:`close`)."""
 

@@ -220,6 +220,8 @@ def main(argv=None) -> int:
     res = {
         "bag": str(args.bag), "bag_bytes": bag_bytes(args.bag),
         "sins_bag_args": extra, "load_average_start": list(load), "cpus": cpus, "runs": args.runs,
+        "sins_bag_shown": (f"--params <{args.navigation_profile} initial state>"
+                           if args.navigation_profile else " ".join(extra)),
         "records": raws[0]["records"], "csv_rows": rows, "summary": sins[0]["summary"],
         "raw_iteration_s": stats([r["iteration_s"] for r in raws]),
         "raw_process_s": stats([r["wall_s"] for r in raws]),
@@ -253,7 +255,7 @@ def render(res: dict) -> str:
         "| raw read: rosbags AnyReader over every record (iteration) | "
         f"{median_range(res['raw_iteration_s'], '.2f')} |",
         f"| raw read: the whole process | {median_range(res['raw_process_s'], '.2f')} |",
-        f"| `sins_bag {' '.join(res['sins_bag_args'])} --output OUT.csv` (whole command) | "
+        f"| `sins_bag BAG {res['sins_bag_shown']} --output OUT.csv` (whole command) | "
         f"{median_range(res['sins_bag_s'], '.2f')} |",
     ]
     if res["cold_sins_bag_s"] is not None:
