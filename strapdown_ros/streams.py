@@ -179,7 +179,9 @@ class StreamCheck:
             self.accepted += k
             self.accepted_since += k
             self.last_ns = int(st[k - 1])
-            self.resynced = False
+            self.resynced = False                   # the flags offer() clears for every message
+            if hasattr(self, "retracted"):          # (the burst flags, where the rules have them)
+                self.returned, self.retracted = False, 0
         return k
 
     def accept(self, stamp_ns: int, v) -> bool:
