@@ -303,6 +303,12 @@ class SinsSystem:
         self._log_fn(level, text() if callable(text) else text)
 
     # --- input --------------------------------------------------------------------------------
+    def _frame_text(self, stream: str, frame_id: str, count: int = 1) -> str:
+        """The frame-mismatch warning, frame ids bounded (built only when emitted)."""
+        many = f"{count} {stream} messages" if count > 1 else f"{stream} message"
+        return (f"{many} in frame {bounded(frame_id)!r}, expected {bounded(self.frame_id)!r}: "
+                f"{'rejected' if self.reject_frames else 'used'}")
+
     def _rel(self, stamp_ns: int) -> float:
         if self.origin_ns is None:
             self.origin_ns = stamp_ns
@@ -315,11 +321,6 @@ class SinsSystem:
         self._log("warn", lambda: self._frame_text(stream, frame_id), throttle=10.0,
                   key="frame_" + stream)
         return self.reject_frames
-
-    def _frame_text(self, stream: str, frame_id: str, count: int = 1) -> str:
-        many = f"{count} {stream} messages" if count > 1 else f"{stream} message"
-        return (f"{many} in frame {bounded(frame_id)!r}, expected {bounded(self.frame_id)!r}: "
-                f"{'rejected' if self.reject_frames else 'used'}")
 
     def offer_gyro(self, stamp_ns: int, value, frame_id: str = "") -> bool:
         """One imu/delta_theta message (rad): validate and append.  True when a block is due."""
