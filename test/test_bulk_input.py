@@ -93,7 +93,8 @@ def _collect(outs):
             np.concatenate([a.covariance for a in att]),
             np.concatenate([b.position for b in nav]) if nav else np.zeros((0, 3)),
             np.concatenate([b.stamp_ns for b in nav]) if nav else np.zeros(0, np.int64),
-            np.concatenate([b.specific_force for b in imu]) if imu else np.zeros((0, 3)))
+            np.concatenate([b.specific_force for b in imu]) if imu else np.zeros((0, 3)),
+            np.concatenate([b.covariance for b in nav]) if nav else np.zeros((0, 9, 9)))
 
 
 @pytest.mark.parametrize("navigation", [False, True])
@@ -150,6 +151,10 @@ def test_screen_and_feed_equal_the_node_path(navigation):
         assert np.array_equal(a[4], b[4]) and len(a[4]) > 1000
         print("navigation: max |Δposition|", np.max(np.abs(a[3] - b[3])), "m")
         assert np.max(np.abs(a[3] - b[3])) <= 1e-6             # round-off (m; achieved: 0)
+        # each step carries the covariance of the latest epoch completed at it, whatever the
+        # blocks (navigation/covariance.py)
+        scale = np.max(np.abs(a[6]))
+        assert scale > 0 and np.max(np.abs(a[6] - b[6])) <= 1e-12 * scale
 
 
 def test_screen_returns_none_at_a_resync_and_changes_nothing():
