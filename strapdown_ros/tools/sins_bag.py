@@ -467,6 +467,25 @@ class McapOutput:
         qos = _qos("stream", int(p["qos_depth"]))
         self.conns = {n: self.writer.add_connection(self.topics[n], OUTPUT_TYPES[n], typestore=self.store,
                                                     offered_qos_profiles=[qos]) for n in names}
+        # one message of each topic, serialised by rosbags: the template of its CDR rows
+        T, z3 = self.T, np.zeros(3)
+        self.templates: dict = {}
+        self._template("sins/attitude", T["geometry_msgs/msg/QuaternionStamped"](
+            header=self._header(0, self.ref_frame), quaternion=self._quat(np.zeros(4))), 4)
+        self._template("sins/imu", T["sensor_msgs/msg/Imu"](
+            header=self._header(0, self.frame_id), orientation=self._quat(np.zeros(4)),
+            orientation_covariance=np.zeros(9), angular_velocity=self._vec(z3),
+            angular_velocity_covariance=np.zeros(9), linear_acceleration=self._vec(z3),
+            linear_acceleration_covariance=np.zeros(9)), 37)
+        if "sins/odometry" in self.conns:
+            point = T["geometry_msgs/msg/Point"](x=0.0, y=0.0, z=0.0)
+            pose = T["geometry_msgs/msg/Pose"](position=point, orientation=self._quat(np.zeros(4)))
+            twist = T["geometry_msgs/msg/Twist"](linear=self._vec(z3), angular=self._vec(z3))
+            self._template("sins/odometry", T["nav_msgs/msg/Odometry"](
+                header=self._header(0, self.earth_frame), child_frame_id=self.frame_id,
+                pose=T["geometry_msgs/msg/PoseWithCovariance"](pose=pose, covariance=np.zeros(36)),
+                twist=T["geometry_msgs/msg/TwistWithCovariance"](twist=twist,
+                                                                 covariance=np.zeros(36))), 85)
 
     def _header(self, ns: int, frame_id: str):
         T = self.T
@@ -480,40 +499,56 @@ class McapOutput:
     def _vec(self, v):
         return self.T["geometry_msgs/msg/Vector3"](x=float(v[0]), y=float(v[1]), z=float(v[2]))
 
-    def _put(self, name: str, ns: int, msg) -> None:
-        self.writer.write(self.conns[name], int(ns), self.store.serialize_cdr(msg, OUTPUT_TYPES[name]))
-        self.counts[name] += 1
+    def _template(self, name: str, msg, doubles: int) -> None:
+        """The CDR bytes of one message of the topic (its constant frame ids), from which every
+        message is made by writing its stamp and its float64 fields (:meth:`_rows`)."""
+        raw = np.frombuffer(bytes(self.store.serialize_cdr(msg, OUTPUT_TYPES[name])), np.uint8)
+        self.templates[name] = (raw, len(raw) - 8 * doubles)
+
+    def _rows(self, name: str, stamps_ns, fields: np.ndarray) -> np.ndarray:
+        """(n, L) uint8: the messages of a topic in CDR (header stamp, then the float64 fields
+        after the constant part); the same bytes as rosbags' serializer gives."""
+        raw, off = self.templates[name]
+        n = len(stamps_ns)
+        rows = np.empty((n, len(raw)), np.uint8)
+        rows[:] = raw
+        sec, nsec = np.divmod(np.asarray(stamps_ns, dtype=np.int64), 1_000_000_000)
+        rows[:, 4:8] = sec.astype("<i4").view(np.uint8).reshape(n, 4)
+        rows[:, 8:12] = nsec.astype("<u4").view(np.uint8).reshape(n, 4)
+        rows[:, off:] = np.ascontiguousarray(fields, dtype="<f8").view(np.uint8).reshape(n, -1)
+        return rows
+
+    def _put_rows(self, name: str, stamps_ns, rows: np.ndarray) -> None:
+        conn, write = self.conns[name], self.writer.write
+        for ns, row in zip(np.asarray(stamps_ns, dtype=np.int64).tolist(), rows):
+            write(conn, ns, row.tobytes())
+        self.counts[name] += len(rows)
 
     def write(self, out: SinsOutput) -> None:
-        T = self.T
+        """The block's messages, as sins_node publishes them."""
         at = out.attitude
-        for k in range(len(at)):
-            ns = at.stamp_ns[k]
-            self._put("sins/attitude", ns, T["geometry_msgs/msg/QuaternionStamped"](
-                header=self._header(ns, self.ref_frame), quaternion=self._quat(at.attitude[k])))
+        if len(at):
+            q = to_ros_xyzw(at.attitude).reshape(-1, 4)
+            rows = self._rows("sins/attitude", at.stamp_ns, q)
+            self._put_rows("sins/attitude", at.stamp_ns, rows)
         im = out.imu
-        for k in range(len(im)):
-            ns = im.stamp_ns[k]
-            has = bool(im.has_accel[k])
-            self._put("sins/imu", ns, T["sensor_msgs/msg/Imu"](
-                header=self._header(ns, self.frame_id), orientation=self._quat(im.attitude[k]),
-                orientation_covariance=np.ascontiguousarray(im.covariance[k], dtype=np.float64).reshape(9),
-                angular_velocity=self._vec(im.mean_rate[k]), angular_velocity_covariance=self.rate_cov,
-                linear_acceleration=self._vec(im.specific_force[k] if has else np.zeros(3)),
-                linear_acceleration_covariance=self.accel_cov if has else self.no_accel_cov))
+        m = len(im)
+        if m:
+            has = np.asarray(im.has_accel, dtype=bool)
+            fields = np.hstack([to_ros_xyzw(im.attitude).reshape(-1, 4),
+                                im.covariance.reshape(m, 9), im.mean_rate,
+                                np.broadcast_to(self.rate_cov, (m, 9)),
+                                np.where(has[:, None], im.specific_force, 0.0),
+                                np.where(has[:, None], self.accel_cov, self.no_accel_cov)])
+            self._put_rows("sins/imu", im.stamp_ns, self._rows("sins/imu", im.stamp_ns, fields))
         nb = out.navigation
-        if len(nb):
+        k = len(nb)
+        if k:
             pose_cov, v_body, twist_cov = odometry_arrays(nb, self.rate_variance)
-            for k in range(len(nb)):
-                ns = nb.stamp_ns[k]
-                r = nb.position[k]
-                pose = T["geometry_msgs/msg/Pose"](position=T["geometry_msgs/msg/Point"](
-                    x=float(r[0]), y=float(r[1]), z=float(r[2])), orientation=self._quat(nb.attitude[k]))
-                twist = T["geometry_msgs/msg/Twist"](linear=self._vec(v_body[k]), angular=self._vec(np.zeros(3)))
-                self._put("sins/odometry", ns, T["nav_msgs/msg/Odometry"](
-                    header=self._header(ns, self.earth_frame), child_frame_id=self.frame_id,
-                    pose=T["geometry_msgs/msg/PoseWithCovariance"](pose=pose, covariance=pose_cov[k].copy()),
-                    twist=T["geometry_msgs/msg/TwistWithCovariance"](twist=twist, covariance=twist_cov[k].copy())))
+            fields = np.hstack([nb.position, to_ros_xyzw(nb.attitude).reshape(-1, 4), pose_cov,
+                                v_body, np.zeros((k, 3)), twist_cov])
+            rows = self._rows("sins/odometry", nb.stamp_ns, fields)
+            self._put_rows("sins/odometry", nb.stamp_ns, rows)
 
     def close(self, ok: bool = True) -> None:
         self.writer.close()
