@@ -33,7 +33,8 @@ __all__ = ["available", "block_update", "warm_up", "kernels_allowed", "njit_opti
 ENV = "STRAPDOWN_KERNEL"
 
 
-def _block_py(q0, seq, dt, n_new, hist, lin, pairs, p_ref0, j0, var, rw2, use_iso, q_white, use_const, basis):
+def _block_py(q0, seq, dt, n_new, hist, lin, pairs, p_ref0, j0, var, rw2, use_iso, q_white,
+              use_const, basis, with_cov):
     m = dt.shape[0] // n_new
     width = hist + n_new
     q_out = np.empty((m, 4))
@@ -87,6 +88,11 @@ def _block_py(q0, seq, dt, n_new, hist, lin, pairs, p_ref0, j0, var, rw2, use_is
         r = 1.0 / math.sqrt(w * w + x * x + y * y + z * z)
         w, x, y, z = w * r, x * r, y * r, z * r
         q_out[k, 0], q_out[k, 1], q_out[k, 2], q_out[k, 3] = w, x, y, z
+        if not with_cov:                                # attitude only: the covariance is NaN
+            for i in range(3):
+                for j in range(3):
+                    cov[k, i, j] = math.nan
+            continue
         C[0, 0], C[0, 1], C[0, 2] = 1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)
         C[1, 0], C[1, 1], C[1, 2] = 2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)
         C[2, 0], C[2, 1], C[2, 2] = 2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)
@@ -204,7 +210,7 @@ def warm_up() -> None:
 
 
 def block_update(q0, seq, dt, n_new, hist, table, p_ref0, j0, var, rw2=None, q_white=None, constants=False,
-                 compiled=None):
+                 compiled=None, covariance=True):
     """Run one block (compiled when :func:`available`, else the same loop in Python — slow, for
     tests).  ``seq`` (hist + m·n_new, 3): the ``hist`` previous increments, then the new ones;
     ``dt`` (m·n_new,) their intervals; ``table`` = (lin, pairs) from
@@ -212,8 +218,9 @@ def block_update(q0, seq, dt, n_new, hist, table, p_ref0, j0, var, rw2=None, q_w
     ``q_white`` (m, 3, 3); ``constants``: propagate J.  Every array float64, C-contiguous (another
     layout is still right, numba just compiles it once more).  Returns q (m, 4), cov (m, 3, 3),
     φ (m, 3), mean rate (m, 3), h (m,) and the final P and J.  ``compiled``: the caller's
-    :func:`available` (None: asked here)."""
+    :func:`available` (None: asked here).  ``covariance`` False: the attitude alone (cov NaN, P
+    and J returned unchanged)."""
     use_iso = q_white is None
     fn = _compiled if (available() if compiled is None else compiled) else _block_py
     return fn(q0, seq, dt, n_new, hist, table[0], table[1], p_ref0, j0, var, 0.0 if rw2 is None else rw2, use_iso,
-              _NO_WHITE if use_iso else q_white, constants, _sparse_basis())
+              _NO_WHITE if use_iso else q_white, constants, _sparse_basis(), bool(covariance))

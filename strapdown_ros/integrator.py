@@ -241,7 +241,7 @@ class AttitudeIntegrator:
             seq = np.concatenate((recent, work[:used]))
         dts = work_dt[:used]
         table = bilinear_form(alg.name)
-        if self.propagate_covariance and table is not None and self._kernel:
+        if table is not None and self._kernel:            # with or without the covariance
             q, cov, phi, mean_rate, h = self._compiled_update(seq, dts, m, table)
         else:
             phi = alg.phi(self._windows(seq, m))
@@ -270,16 +270,18 @@ class AttitudeIntegrator:
 
     def _compiled_update(self, seq, dts, m, table):
         """A block as one compiled call (:mod:`strapdown_ros.attitude_kernel`): coning term from the
-        algorithm's table, attitude, covariance, mean rate."""
+        algorithm's table, attitude, covariance (NaN without ``propagate_covariance``), mean
+        rate."""
         g, model, alg = self.gyro, self.cov_model, self.algorithm
         q_white = None
-        if not model.isotropic_white:
+        cov_on = self.propagate_covariance
+        if cov_on and not model.isotropic_white:
             new = seq[alg.history:]
             q_white = model.white(new, dts, g).reshape(m, alg.samples, 3, 3).sum(1)
         q, cov, phi, rate, h, self._p_ref, self._j_const = attitude_kernel.block_update(
             self.q, seq, dts, alg.samples, alg.history, table, self._p_ref, self._j_const, self._constant_var,
-            self._white_rate, q_white, model.constants, compiled=True)
-        if g.quantum > 0:              # the remainder at this epoch (000 §5)
+            self._white_rate, q_white, model.constants, compiled=True, covariance=cov_on)
+        if cov_on and g.quantum > 0:   # the remainder at this epoch (000 §5)
             cov = EFFECTS["gyro_quantization"].fix_covariance(cov, np.array([g.quantum]))
         return q, cov, phi, rate, h
 
@@ -383,16 +385,24 @@ class IncrementAccumulator:
     def take_sequence(self, t_a: np.ndarray, t_b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """:meth:`take` over intervals ``(t_a[i], t_b[i]]`` in increasing order, in one pass:
         the same counts as calling :meth:`take` for each in turn (an increment already taken by
-        an earlier interval is not counted again); sums equal to round-off.  Returns (m, 3), (m,)."""
+        an earlier interval is not counted again); each sum is over its interval's increments
+        alone, so it does not depend on how the data were blocked.  Returns (m, 3), (m,)."""
         t_a, t_b = np.asarray(t_a, dtype=float), np.asarray(t_b, dtype=float)
         t, v = self._buf.stamps, self._buf.values
         hi = np.searchsorted(t, t_b, side="right")
         lo = np.searchsorted(t, t_a, side="right")
         lo = np.maximum(lo, np.concatenate([[0], np.maximum.accumulate(hi)[:-1]]))   # taken already
         lo = np.minimum(lo, hi)
-        cs = np.concatenate([np.zeros((1, 3)), np.cumsum(v, axis=0)])
-        sums, counts = cs[hi] - cs[lo], hi - lo
-        sums[counts == 0] = 0.0
+        counts = hi - lo
+        sums = np.zeros((len(t_b), 3))
+        has = counts > 0
+        if has.any():
+            # each interval summed over its own increments (reduceat over [lo, hi) pairs): the
+            # sum does not depend on what else the buffer holds, so any blocking of the same
+            # data gives the same bits
+            edges = np.column_stack([lo[has], hi[has]]).ravel()
+            padded = np.concatenate([v, np.zeros((1, 3))])
+            sums[has] = np.add.reduceat(padded, edges, axis=0)[::2]
         if len(t_b):
             self._buf.drop_through(float(t_b.max()))
         return sums, counts

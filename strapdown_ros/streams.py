@@ -233,6 +233,37 @@ class StreamCheck:
         self.accepted_since += 1
         return [(stamp_ns, v)]
 
+    def offer_many(self, stamps_ns, values) -> int:
+        """Vectorised :meth:`offer` of the usual case only: the longest prefix of ``stamps_ns``
+        (int64, ns) / ``values`` (n, 3) whose messages are finite, within ``max_norm`` and each one
+        step of (0, ``jump_limit``] after the last accepted stamp, with no candidate timeline
+        held.  Those messages are accepted with the counters :meth:`offer` would give (gaps
+        included); the count k is returned and the message k (if any) must go through
+        :meth:`offer`.  0 when the first message is not the usual case (or none was accepted
+        yet)."""
+        import numpy as np
+        if self.last_ns is None or self._held or not len(stamps_ns):
+            return 0
+        st = np.asarray(stamps_ns, dtype=np.int64)
+        v = np.asarray(values, dtype=float)
+        steps = np.diff(st, prepend=np.int64(self.last_ns))
+        ok = (steps > 0) & (steps <= self.jump_ns) & np.isfinite(v).all(axis=1)
+        if self.max_norm is not None:
+            ok &= np.abs(v).max(axis=1) <= self.max_norm
+        k = int(np.argmin(ok)) if not ok.all() else len(st)
+        if k:
+            for step in steps[:k][steps[:k] > self._gap_ns].tolist():   # rule 6, as in offer
+                self.gaps += 1
+                self.missing += int(round(step / self.nominal_ns)) - 1
+            self.received += k
+            self.accepted += k
+            self.accepted_since += k
+            self.last_ns = int(st[k - 1])
+            self.resynced = False                   # the flags offer() clears for every message
+            if hasattr(self, "retracted"):          # (the burst flags, where the rules have them)
+                self.returned, self.retracted = False, 0
+        return k
+
     def accept(self, stamp_ns: int, v) -> bool:
         """Single-message form for consumers that process one message at a time: True when the
         message itself is accepted now (messages released by a resync are not returned here)."""

@@ -197,6 +197,55 @@ def test_compiled_block_kernel_equals_numpy_for_every_coning_algorithm(monkeypat
             assert np.max(np.abs(a - b)) <= 1e-12 * max(np.max(np.abs(a)), 1e-300), name
 
 
+def test_attitude_only_path_is_compiled_and_equals_numpy(monkeypatch):
+    """Speed issue: the attitude-only path (propagate_covariance False) runs the compiled kernel
+    too; its attitudes, rotation vectors, mean rates and intervals equal the numpy path's to
+    1e-12 for every algorithm, blocks of odd sizes, and its covariance is NaN in both; against
+    the exact attitude of a coning motion it is as good as the path with covariance."""
+    from strapdown_ros import attitude_kernel
+    from strapdown_ros.coning import algorithm_names
+    monkeypatch.setenv("STRAPDOWN_KERNEL", "auto")
+    if not attitude_kernel.available():
+        pytest.skip("numba not installed: only the numpy path exists here")
+    calls = []
+    real = attitude_kernel.block_update
+    monkeypatch.setattr(attitude_kernel, "block_update",
+                        lambda *a, **k: calls.append(k) or real(*a, **k))
+    rng = np.random.default_rng(11)
+    n = 300
+    dth = rng.normal(0.0, 2e-3, (n, 3))
+    tg = np.cumsum(rng.uniform(0.009, 0.011, n))
+    for name in algorithm_names():
+        out = {}
+        for kernel in ("numpy", "auto"):
+            monkeypatch.setenv("STRAPDOWN_KERNEL", kernel)
+            integ = AttitudeIntegrator(name, (0.9, 0.1, -0.3, 0.2), tg[0] - 0.01,
+                                       propagate_covariance=False)
+            parts, k = [], 0
+            for size in [1, 5, 2, 13, 7] * 100:
+                if k >= n:
+                    break
+                parts.append(integ.push(dth[k:k + size], tg[k:k + size]))
+                k += size
+            out[kernel] = [np.concatenate([getattr(b, f) for b in parts])
+                           for f in ("stamps", "attitude", "rotation_vector", "mean_rate",
+                                     "interval", "covariance")]
+        for a, b in zip(out["numpy"][:-1], out["auto"][:-1]):
+            assert a.shape == b.shape and len(a), name
+            assert np.max(np.abs(a - b)) <= 1e-12 * max(np.max(np.abs(a)), 1e-300), name
+        assert np.all(np.isnan(out["numpy"][-1])) and np.all(np.isnan(out["auto"][-1]))
+    assert calls and all(c.get("covariance") is False for c in calls)   # the compiled kernel ran
+    # exact truth: a coning motion, attitude only, compiled
+    prof = ConingProfile(0.087, 2.0)
+    t = np.arange(0, 2001) * 0.01
+    q_true = prof.attitude(t)
+    inc = prof.delta_theta(t[:-1], t[1:])
+    integ = AttitudeIntegrator("2", q_true[0], 0.0, nominal_period=0.01,
+                               propagate_covariance=False)
+    b = integ.push(inc, t[1:])
+    assert np.max(quat_angle_between(b.attitude, prof.attitude(b.stamps))) < 1e-8
+
+
 def test_every_coning_algorithm_has_a_table_and_the_table_is_phi():
     """The table the compiled kernel uses is read off ``phi``; it must exist for every algorithm of
     the registry and reproduce ``phi`` on independent random windows; a φ that is not linear plus

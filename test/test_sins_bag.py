@@ -155,6 +155,22 @@ def test_mcap_output_has_the_node_topics_and_types(bags, tmp_path, capsys):
     assert np.all(np.isfinite(cov)) and np.allclose(cov, cov.T)
 
 
+def test_mcap_output_bytes_are_rosbags_serialization(bags, tmp_path, capsys):
+    """sins_bag writes its messages as CDR rows made with numpy from one serialised message per
+    topic: every record must be exactly what rosbags' serializer makes of the message it holds."""
+    from rosbags.highlevel import AnyReader
+    bag, params, _ = bags["coordinated_turn"]
+    out = tmp_path / "bytes_out"
+    assert _run_tool(capsys, bag, "--params", params, "--output", out)[0] == 0
+    with AnyReader([out]) as rd:
+        n = 0
+        for c, _, raw in rd.messages():
+            msg = rd.deserialize(raw, c.msgtype)
+            assert bytes(rd.typestore.serialize_cdr(msg, c.msgtype)) == bytes(raw), c.topic
+            n += 1
+    assert n == 1500
+
+
 def test_namespaced_topics_and_force(tmp_path, capsys):
     bag = tmp_path / "ns_bag"
     assert record_sim.main([str(bag), "--duration", "1", "--namespace", "/robot1", "-p", "profile:=coning"]) == 0
@@ -290,3 +306,190 @@ def test_argument_errors_are_one_line_exit_2_before_any_work(bags, tmp_path, cap
     # the attitude alone needs no accelerometer
     rc, out, err = _run_tool(capsys, no_accel, "-o", tmp_path / "att.csv")
     assert rc == 0 and "no Δv" in out, err
+
+
+# --- frames, bounded echoes, sensor_msgs/Imu input (issue "Reliability and speed, 2nd pass") ---
+def _read_vectors(bag, topic):
+    """(stamp_ns, (x, y, z), frame) of a Vector3Stamped topic of a bag, in bag order."""
+    from rosbags.highlevel import AnyReader
+    with AnyReader([bag]) as rd:
+        conns = [c for c in rd.connections if c.topic == topic]
+        out = []
+        for c, _, raw in rd.messages(connections=conns):
+            m = rd.deserialize(raw, c.msgtype)
+            v = m.vector
+            ns = m.header.stamp.sec * 10**9 + m.header.stamp.nanosec
+            out.append((ns, (v.x, v.y, v.z), m.header.frame_id))
+    return out
+
+
+def _write_bag(path, topics: dict):
+    """A rosbag2 MCAP bag: {topic: (msgtype, [(stamp_ns, message)])}."""
+    from rosbags.rosbag2 import StoragePlugin, Writer
+    from rosbags.typesys import Stores, get_typestore
+    store = get_typestore(Stores.ROS2_JAZZY)
+    with Writer(path, version=Writer.VERSION_LATEST, storage_plugin=StoragePlugin.MCAP) as w:
+        conns = {t: w.add_connection(t, mt, typestore=store) for t, (mt, _) in topics.items()}
+        items = sorted(((ns, t, m) for t, (mt, msgs) in topics.items() for ns, m in msgs),
+                       key=lambda x: x[0])
+        for ns, t, m in items:
+            w.write(conns[t], ns, store.serialize_cdr(m, topics[t][0]))
+    return path
+
+
+def _header(T, ns, frame):
+    return T["std_msgs/msg/Header"](
+        stamp=T["builtin_interfaces/msg/Time"](sec=ns // 10**9, nanosec=ns % 10**9),
+        frame_id=frame)
+
+
+def _vector_msgs(items, frame=None):
+    from rosbags.typesys import Stores, get_typestore
+    T = get_typestore(Stores.ROS2_JAZZY).types
+    return [(ns, T["geometry_msgs/msg/Vector3Stamped"](
+        header=_header(T, ns, frame(k, f) if frame else f),
+        vector=T["geometry_msgs/msg/Vector3"](x=v[0], y=v[1], z=v[2])))
+        for k, (ns, v, f) in enumerate(items)]
+
+
+def test_body_frame_of_the_majority_and_the_rest_reported(tmp_path, capsys):
+    """Finding 9: one stray first Δθ in another frame no longer rejects the recording: the body
+    frame is the most frequent one, the stray messages are named, counted and rejected, and the
+    solution is that of the recording without them."""
+    src = _record(tmp_path / "src", "coning", "frame_id:=imu")
+    g = _read_vectors(src, "/imu/delta_theta")
+    a = _read_vectors(src, "/imu/delta_velocity")
+    stray = {0, 7}
+    bag = _write_bag(tmp_path / "stray", {
+        "/imu/delta_theta": ("geometry_msgs/msg/Vector3Stamped",
+                             _vector_msgs(g, lambda k, f: "camera" if k in stray else f)),
+        "/imu/delta_velocity": ("geometry_msgs/msg/Vector3Stamped", _vector_msgs(a))})
+    ref = _write_bag(tmp_path / "clean", {
+        "/imu/delta_theta": ("geometry_msgs/msg/Vector3Stamped",
+                             _vector_msgs([x for k, x in enumerate(g) if k not in stray])),
+        "/imu/delta_velocity": ("geometry_msgs/msg/Vector3Stamped", _vector_msgs(a))})
+    rc = sins_bag.main([str(bag), "--output", str(tmp_path / "stray.csv")])
+    cap = capsys.readouterr()
+    assert rc == 0, cap.err
+    assert "frame_id 'imu' from the recording's headers" in cap.err
+    assert "2 of 500 Δθ message(s) name another frame" in cap.err and "'camera' (2)" in cap.err
+    assert "frame mismatch (rejected) 2" in cap.out
+    assert _run_tool(capsys, ref, "--output", tmp_path / "clean.csv")[0] == 0
+    d_stray, d_clean = _csv(tmp_path / "stray.csv"), _csv(tmp_path / "clean.csv")
+    # the first Δθ is missing from the stray bag: its solution starts one increment later; from
+    # the second update on it equals the clean recording's (same increments, same stamps)
+    common = np.intersect1d(d_stray[2], d_clean[2])
+    assert len(common) >= len(d_clean[2]) - 5
+    i = np.searchsorted(d_stray[2], common[-1])
+    j = np.searchsorted(d_clean[2], common[-1])
+    assert np.max(np.abs(d_stray[1][i, 1:5] - d_clean[1][j, 1:5])) < 1e-6      # the same motion
+
+
+def test_huge_frame_ids_are_cheap_and_every_echo_is_bounded(tmp_path, capsys):
+    """Finding 10: three Δθ with 2 MB frame ids cost no time (86 s before) and the output stays
+    short: every echoed frame id is cut to 64 characters."""
+    import time as _time
+    src = _record(tmp_path / "src", "coning")
+    g = _read_vectors(src, "/imu/delta_theta")
+    a = _read_vectors(src, "/imu/delta_velocity")
+    huge = {5, 6, 300}
+    bag = _write_bag(tmp_path / "huge", {
+        "/imu/delta_theta": ("geometry_msgs/msg/Vector3Stamped",
+                             _vector_msgs(g, lambda k, f: "h" * 2_000_000 + str(k) if k in huge
+                                          else f)),
+        "/imu/delta_velocity": ("geometry_msgs/msg/Vector3Stamped", _vector_msgs(a))})
+    t0 = _time.perf_counter()
+    rc = sins_bag.main([str(bag), "--output", str(tmp_path / "huge.csv")])
+    wall = _time.perf_counter() - t0
+    cap = capsys.readouterr()
+    assert rc == 0, cap.err[:500]
+    assert len(cap.out) + len(cap.err) < 3000, (len(cap.out), len(cap.err))
+    assert "chars)" in cap.err and "frame mismatch (rejected) 3" in cap.out
+    assert wall < 20.0, wall                                     # ~1 s; 86 s before the fix
+    # a 2 MB frame id named as the body frame: one bounded line as well
+    rc = sins_bag.main([str(bag), "-p", "frame_id:=" + "z" * 2_000_000,
+                        "--output", str(tmp_path / "z.csv")])
+    cap = capsys.readouterr()
+    assert rc == 3 and len(cap.out) + len(cap.err) < 3000
+
+
+def _imu_bag(path, g, a):
+    """sensor_msgs/Imu messages with the exact mean rates of the Δθ/Δv increments (the mean rule:
+    rate_k = Δ_k / (t_k − t_{k−1})), one extra sample at the start of the first interval."""
+    from rosbags.typesys import Stores, get_typestore
+    T = get_typestore(Stores.ROS2_JAZZY).types
+    assert [s for s, _, _ in g] == [s for s, _, _ in a]
+    stamps = [g[0][0] - (g[1][0] - g[0][0])] + [s for s, _, _ in g]
+    msgs = []
+    for k, ns in enumerate(stamps):
+        if k == 0:
+            w = f = (0.0, 0.0, 0.0)
+        else:
+            dt = (stamps[k] - stamps[k - 1]) * 1e-9
+            w = tuple(x / dt for x in g[k - 1][1])
+            f = tuple(x / dt for x in a[k - 1][1])
+        v3 = T["geometry_msgs/msg/Vector3"]
+        msgs.append((ns, T["sensor_msgs/msg/Imu"](
+            header=_header(T, ns, "imu_link"),
+            orientation=T["geometry_msgs/msg/Quaternion"](x=0.0, y=0.0, z=0.0, w=1.0),
+            orientation_covariance=np.full(9, -1.0) * np.eye(3).reshape(9),
+            angular_velocity=v3(x=w[0], y=w[1], z=w[2]), angular_velocity_covariance=np.zeros(9),
+            linear_acceleration=v3(x=f[0], y=f[1], z=f[2]),
+            linear_acceleration_covariance=np.zeros(9))))
+    return _write_bag(path, {"/imu/data_raw": ("sensor_msgs/msg/Imu", msgs)})
+
+
+def test_imu_input_with_mean_rates_gives_the_increment_solution(tmp_path, capsys):
+    """sensor_msgs/Imu input: a bag of Imu messages whose rates are the exact means over their
+    intervals gives, with --rate-rule mean, the solution of the Δθ/Δv bag to round-off
+    (navigation, 100 Hz gyro and accelerometer)."""
+    src = _record(tmp_path / "src", "coordinated_turn", "accel_rate:=100.0")
+    params, prof = _sins_params(tmp_path / "p.yaml", "coordinated_turn")
+    g = _read_vectors(src, "/imu/delta_theta")
+    a = _read_vectors(src, "/imu/delta_velocity")
+    imu = _imu_bag(tmp_path / "imu", g, a)
+    rc, out, err = _run_tool(capsys, src, "--params", params, "--output", tmp_path / "inc.csv")
+    assert rc == 0, err
+    rc, out, err = _run_tool(capsys, imu, "--params", params, "--imu-topic", "/imu/data_raw",
+                             "--rate-rule", "mean", "--output", tmp_path / "imu.csv")
+    assert rc == 0, err
+    assert "501 sensor_msgs/Imu from /imu/data_raw" in out and "rule mean" in out
+    assert "gyro_rate 100 Hz, accel_rate 100 Hz" in out and "dropped: none" in out
+    _, d_inc, ns_inc = _csv(tmp_path / "inc.csv")
+    _, d_imu, ns_imu = _csv(tmp_path / "imu.csv")
+    assert np.array_equal(ns_inc, ns_imu) and len(ns_inc) == int(DURATION * 100)
+    dr = np.max(np.abs(d_imu[:, 1:4] - d_inc[:, 1:4]))
+    dv = np.max(np.abs(d_imu[:, 4:7] - d_inc[:, 4:7]))
+    dq = np.max(np.abs(d_imu[:, 7:11] - d_inc[:, 7:11]))
+    assert dr < 1e-6 and dv < 1e-8 and dq < 1e-12, (dr, dv, dq)
+    # and both against the exact truth
+    t = ns_imu * 1e-9
+    assert np.max(np.linalg.norm(d_imu[:, 1:4] - prof.position(t), axis=1)) < 1e-2
+    # the trapezoid rule on the same samples is a different (second-order) reading of them
+    rc, out, err = _run_tool(capsys, imu, "--params", params, "--imu-topic", "/imu/data_raw",
+                             "--output", tmp_path / "trap.csv")
+    assert rc == 0 and "rule trapezoid" in out, err
+
+
+def test_a_damaged_mcap_chunk_is_one_line_exit_2(tmp_path, capsys):
+    """The chunk reader refuses a chunk whose record runs past its end (or whose checksum fails):
+    one line on stderr, exit 2, no output file."""
+    from strapdown_ros.tools import mcap_records
+    from strapdown_ros.tools.calibrate_bag import open_reader
+    bag = _record(tmp_path / "dmg", "coning")
+    rd = open_reader(bag)
+    try:
+        chunk = mcap_records.indexed_mcap(rd).chunks[0]
+    finally:
+        rd.close()
+    mcap = next(bag.glob("*.mcap"))
+    data = bytearray(mcap.read_bytes())
+    first = chunk.chunk_start_offset + 9 + 40 + len(chunk.compression)
+    assert chunk.compression == "" and 0x01 <= data[first] <= 0x10     # a record opcode
+    data[first + 1:first + 9] = (2**40).to_bytes(8, "little")     # a record longer than its chunk
+    mcap.write_bytes(bytes(data))
+    capsys.readouterr()
+    rc, out, err = _run_tool(capsys, bag, "--output", tmp_path / "x.csv")
+    lines = [ln for ln in (out + err).splitlines() if ln.strip()]
+    assert rc == 2 and len(lines) == 1 and lines[0].startswith("sins_bag: error:"), (out, err)
+    assert not (tmp_path / "x.csv").exists()

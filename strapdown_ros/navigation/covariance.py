@@ -80,7 +80,8 @@ class NavigationCovariance:
         return {"dt": 0.0, "b": np.zeros((9, 24)), "fdt": np.zeros(3)}
 
     def propagate(self, positions, v_start, dv_body, theta, h) -> np.ndarray:
-        """Feed K steps; returns (K, 9, 9): for each step the covariance of the latest epoch."""
+        """Feed K steps; returns (K, 9, 9): for each step the covariance of the latest epoch
+        completed at that step (independent of how the steps are blocked)."""
         k_steps = len(h)
         out = np.empty((k_steps, 9, 9))
         if k_steps == 0:
@@ -120,10 +121,14 @@ class NavigationCovariance:
             q_rw = np.array([self.accel.random_walk ** 2, self.gyro.random_walk ** 2])
             cur = np.empty((n_ep, 9, 9))
             _epochs()(self.p_w, self.j, self.var, dts, fs / dts[:, None], rs, bs, q_rw, MU, OMEGA, cur)
+            # each step carries the latest epoch completed at it (the one it ends, or the one
+            # before): the same whatever the blocks the steps arrive in
+            before = self.current
             self.current = cur[-1]
             self._acc = self._zero_acc()
             for e, (lo, hi) in enumerate(zip(bounds[:n_ep], bounds[1:n_ep + 1])):
-                out[lo:hi] = cur[e]
+                out[lo:hi - 1] = cur[e - 1] if e else before
+                out[hi - 1] = cur[e]
         if len(bounds) - 1 > n_ep:                  # the open epoch accumulates
             a = self._acc
             a["dt"] += float(sum_h[-1])

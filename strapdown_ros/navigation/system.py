@@ -31,6 +31,7 @@ No ROS imports.
 """
 from __future__ import annotations
 
+import copy
 import math
 import time
 from collections import deque
@@ -45,14 +46,18 @@ from ..integrator import AttitudeIntegrator, IncrementAccumulator
 from ..rotation import dcm_to_quat, from_ros_xyzw, quat_to_dcm
 from ..sensors.effects import GyroEffects
 from ..streams import StreamCheck
+from ..text import bounded
 from . import recursion as nav_recursion
 from .channel import NavigationChannel
 
 __all__ = ["SinsSystem", "SinsOutput", "AttitudeOutput", "ImuOutput", "NavigationOutput", "odometry_arrays",
-           "NONFINITE_INFLATION", "MAX_BATCH"]
+           "NONFINITE_INFLATION", "MAX_BATCH",
+           "FEED_BLOCK", "FEED_ACCEL_BLOCK", "screen_stream"]
 
 NONFINITE_INFLATION = 0.01      # rad per axis added to σ after a non-finite update is discarded
 MAX_BATCH = 4096                # a block is processed when it holds this many messages, whatever its span
+FEED_BLOCK = 16384              # Δθ per block of a whole recording (feed)
+FEED_ACCEL_BLOCK = 32768        # Δv per block of a whole recording (below the accumulator's bound)
 
 
 # --- outputs ------------------------------------------------------------------------------------
@@ -158,6 +163,55 @@ def _finite_update(q: np.ndarray, cov: np.ndarray) -> bool:
                          + cov[2, 2])
 
 
+def screen_stream(check: StreamCheck, stamps_ns: np.ndarray, values: np.ndarray) -> list:
+    """A whole recorded stream through ``check`` in order: :meth:`StreamCheck.offer_many` over the
+    regular stretches, :meth:`StreamCheck.offer` for each message that is not (so the counters
+    and the accepted messages are those of offering every message in turn).
+
+    Parameters
+    ----------
+    check : StreamCheck
+        The stream's rules and counters (updated).
+    stamps_ns : ndarray (n,) int64
+        Stamps, ns, in bag order.
+    values : ndarray (n, 3)
+        The vectors.
+
+    Returns
+    -------
+    list of (stamps_ns (m,) int64, values (m, 3))
+        The accepted messages per time base: a new element starts at each stamp
+        resynchronisation (``check.resynced``), so each element's stamps strictly increase.
+    """
+    segments: list = []
+    parts_t: list = []
+    parts_v: list = []
+    i, n, width = 0, len(stamps_ns), 64
+    while i < n:
+        k = check.offer_many(stamps_ns[i:i + width], values[i:i + width])
+        if k:
+            full = k == min(width, n - i)
+            parts_t.append(stamps_ns[i:i + k])
+            parts_v.append(values[i:i + k])
+            i += k
+            width = min(2 * width, 1 << 16) if full else 64
+            continue
+        width = 64
+        v = values[i]
+        got = check.offer(int(stamps_ns[i]), (float(v[0]), float(v[1]), float(v[2])))
+        if got and check.resynced and parts_t:
+            segments.append((np.concatenate(parts_t), np.concatenate(parts_v)))
+            parts_t, parts_v = [], []
+        if got:
+            parts_t.append(np.array([g[0] for g in got], dtype=np.int64))
+            parts_v.append(np.array([g[1] for g in got], dtype=float).reshape(-1, 3))
+        i += 1
+    if parts_t or not segments:
+        segments.append((np.concatenate(parts_t) if parts_t else np.zeros(0, np.int64),
+                         np.concatenate(parts_v) if parts_v else np.zeros((0, 3))))
+    return segments
+
+
 # --- the system ---------------------------------------------------------------------------------
 class SinsSystem:
     """sins_node's processing.  ``params``: validated :data:`~strapdown_ros.config.SINS_PARAMS`
@@ -198,6 +252,7 @@ class SinsSystem:
         self.accel_check = StreamCheck(a_period, max_norm=2.0 * a_period * float(p["accel_max"]), jump_limit=jump,
                                        resync_count=resync)
         self.nonfinite = 0                         # updates whose output was not finite (never output)
+        self.rate_checks: dict = {}                # sensor_msgs/Imu rate samples (screen_imu)
         self.frame_mismatch = {"gyro": 0, "accel": 0}
         self.frame_id = p["frame_id"]
         self.reject_frames = p["frame_mismatch"] == "reject"
@@ -210,6 +265,8 @@ class SinsSystem:
         # input blocks (offer_*: validate and append; process() does the numerical work)
         self._gyro_in: list = []                   # (stamp_ns, (x, y, z))
         self._accel_in: list = []                  # (t, (x, y, z))
+        self._gyro_blocks: list = []               # screened arrays (feed): (stamps_ns, values)
+        self._accel_blocks: list = []              # (t, values)
         self.batch_span = float(p["batch_period"])
         self._gyro_period = period
         self._block_end_ns: int | None = None      # stamp of the last sample processed
@@ -232,7 +289,9 @@ class SinsSystem:
             self._nav_prev_q = self.integrator.q.copy()
 
     # --- messages -----------------------------------------------------------------------------
-    def _log(self, level: str, text: str, throttle: float = 0.0, key: str | None = None) -> None:
+    def _log(self, level: str, text, throttle: float = 0.0, key: str | None = None) -> None:
+        """Emit ``text`` (a str, or a callable making it: built only when emitted), at most once
+        per ``throttle`` seconds per ``key``."""
         if self._log_fn is None:
             return
         if throttle > 0:
@@ -241,9 +300,15 @@ class SinsSystem:
             if now - self._throttle.get(k, -np.inf) < throttle:
                 return
             self._throttle[k] = now
-        self._log_fn(level, text)
+        self._log_fn(level, text() if callable(text) else text)
 
     # --- input --------------------------------------------------------------------------------
+    def _frame_text(self, stream: str, frame_id: str, count: int = 1) -> str:
+        """The frame-mismatch warning, frame ids bounded (built only when emitted)."""
+        many = f"{count} {stream} messages" if count > 1 else f"{stream} message"
+        return (f"{many} in frame {bounded(frame_id)!r}, expected {bounded(self.frame_id)!r}: "
+                f"{'rejected' if self.reject_frames else 'used'}")
+
     def _rel(self, stamp_ns: int) -> float:
         if self.origin_ns is None:
             self.origin_ns = stamp_ns
@@ -253,8 +318,8 @@ class SinsSystem:
         """The frame rule: an empty frame_id is unspecified; another frame than ``frame_id`` is
         counted and WARNed, and rejected unless ``frame_mismatch`` is accept."""
         self.frame_mismatch[stream] += 1
-        self._log("warn", f"{stream} message in frame {frame_id!r}, expected {self.frame_id!r}: "
-                  f"{'rejected' if self.reject_frames else 'used'}", throttle=10.0, key="frame_" + stream)
+        self._log("warn", lambda: self._frame_text(stream, frame_id), throttle=10.0,
+                  key="frame_" + stream)
         return self.reject_frames
 
     def frame_accepted(self, frame_id: str, stream: str = "gyro") -> bool:
@@ -303,6 +368,187 @@ class SinsSystem:
             self._accel_in.append((self._rel(ns_i), val))
         return len(self._accel_in) >= MAX_BATCH or self.batch_span == 0.0
 
+    @property
+    def processed_until_ns(self) -> int | None:
+        """Header stamp (ns) of the last Δθ integrated (None before the first block)."""
+        return self._block_end_ns
+
+    # --- a whole recording at once -------------------------------------------------------------
+    def screen(self, stream: str, stamps_ns, values, frame_index=None, frame_names=()):
+        """The input rules of :meth:`offer_gyro` / :meth:`offer_accel` applied to a whole recorded
+        stream in bag order, vectorised where the stream is regular.
+
+        Parameters
+        ----------
+        stream : {'gyro', 'accel'}
+            Δθ (rad) or Δv (m/s).
+        stamps_ns : array_like (n,) int
+            Header stamps, ns, in bag order.
+        values : array_like (n, 3)
+            The increments, body axes.
+        frame_index : array_like (n,) int, optional
+            Index of each message's header.frame_id in ``frame_names`` (None: all unspecified).
+        frame_names : sequence of str
+            The distinct frame ids.
+
+        Returns
+        -------
+        (stamps_ns (m,) int64, values (m, 3)) or None
+            The accepted messages, exactly those :meth:`offer_gyro` / :meth:`offer_accel` would
+            accept one by one, with the same counters (frame mismatches, drops, gaps).  None when
+            the stream's time base restarts (a stamp resynchronisation): nothing is changed
+            then, and the stream must go through the one-message methods.
+        """
+        check = copy.deepcopy(self.gyro_check if stream == "gyro" else self.accel_check)
+        st = np.asarray(stamps_ns, dtype=np.int64).reshape(-1)
+        v = np.asarray(values, dtype=float).reshape(-1, 3)
+        wrong = 0
+        if frame_index is not None and len(st):
+            codes = np.asarray(frame_index, dtype=np.int64)
+            foreign = np.array([name not in self._own_frames for name in frame_names], dtype=bool)
+            mask = foreign[codes] if len(foreign) else np.zeros(len(st), bool)
+            wrong = int(mask.sum())
+            if wrong:
+                first = frame_names[int(codes[np.argmax(mask)])]
+                if self.reject_frames:
+                    st, v = st[~mask], v[~mask]
+        segments = screen_stream(check, st, v)
+        if len(segments) > 1:
+            return None
+        if stream == "gyro":
+            self.gyro_check = check
+        else:
+            self.accel_check = check
+        if wrong:
+            self.frame_mismatch[stream] += wrong
+            self._log("warn", lambda: self._frame_text(stream, first, wrong), throttle=10.0,
+                      key="frame_" + stream)
+        return segments[0]
+
+    def screen_imu(self, stamps_ns, angular_velocity, linear_acceleration=None, frame_index=None,
+                   frame_names=(), rule: str = "trapezoid"):
+        """sensor_msgs/Imu rate samples of a whole recording made into Δθ and Δv as ``gyro_input:
+        imu`` makes them: the frame rule (counted under ``gyro``), each rate stream validated by
+        a :class:`~strapdown_ros.streams.StreamCheck` (per-axis range ``gyro_max_rate`` rad/s or
+        ``accel_max`` m/s², period 1 / ``gyro_rate``), then
+        :func:`strapdown_ros.rate_increments.increments_from_rates` with ``rule`` and a longest
+        step of 1.5 periods, restarted at each stamp resynchronisation.  The checks are kept in
+        :attr:`rate_checks`.
+
+        Parameters
+        ----------
+        stamps_ns : array_like (n,) int
+            Header stamps, ns, bag order.
+        angular_velocity : array_like (n, 3)
+            rad/s, body axes.
+        linear_acceleration : array_like (n, 3), optional
+            m/s², body axes; a row of NaN where the message has none (covariance[0] = −1).
+        frame_index, frame_names : as :meth:`screen`.
+        rule : {'trapezoid', 'mean'}
+            :data:`strapdown_ros.rate_increments.RATE_RULES`.
+
+        Returns
+        -------
+        gyro : (stamps_ns (m,) int64, Δθ (m, 3))
+        accel : (stamps_ns (k,) int64, Δv (k, 3)) or None
+            Increments stamped at the end of their intervals, for :meth:`screen`.
+        """
+        from ..rate_increments import increments_from_rates
+        st = np.asarray(stamps_ns, dtype=np.int64).reshape(-1)
+        w = np.asarray(angular_velocity, dtype=float).reshape(-1, 3)
+        f = None if linear_acceleration is None else \
+            np.asarray(linear_acceleration, dtype=float).reshape(-1, 3)
+        if frame_index is not None and len(st):
+            codes = np.asarray(frame_index, dtype=np.int64)
+            foreign = np.array([name not in self._own_frames for name in frame_names], dtype=bool)
+            mask = foreign[codes] if len(foreign) else np.zeros(len(st), bool)
+            wrong = int(mask.sum())
+            if wrong:
+                first = frame_names[int(codes[np.argmax(mask)])]
+                self.frame_mismatch["gyro"] += wrong
+                self._log("warn", lambda: self._frame_text("gyro", first, wrong), throttle=10.0,
+                          key="frame_gyro")
+                if self.reject_frames:
+                    keep = ~mask
+                    st, w, f = st[keep], w[keep], (None if f is None else f[keep])
+        p = self.p
+        period = 1.0 / float(p["gyro_rate"])
+        jump, resync = float(p["max_stamp_jump"]), int(p["resync_count"])
+        out = []
+        for name, values, max_rate in (("gyro", w, float(p["gyro_max_rate"])),
+                                       ("accel", f, float(p["accel_max"]))):
+            if values is None:
+                out.append(None)
+                continue
+            if name == "accel":                   # messages without acceleration: not offered
+                has = ~np.all(np.isnan(values), axis=1)
+                s_n, values = st[has], values[has]
+                if not len(s_n):
+                    out.append(None)
+                    continue
+            else:
+                s_n = st
+            check = StreamCheck(period, max_norm=max_rate, jump_limit=jump, resync_count=resync)
+            self.rate_checks[name] = check
+            pieces = [increments_from_rates(a, b, rule, max_step_s=1.5 * period)
+                      for a, b in screen_stream(check, s_n, values)]
+            out.append((np.concatenate([x[0] for x in pieces]),
+                        np.concatenate([x[1] for x in pieces])))
+        return out[0], out[1]
+
+    def feed(self, gyro, accel=None, block: int = FEED_BLOCK, accel_block: int = FEED_ACCEL_BLOCK):
+        """Run screened streams (:meth:`screen`'s output) through the system in blocks, as the
+        messages in stamp order (Δv first at equal stamps) would have run, and finish.
+
+        Parameters
+        ----------
+        gyro : (stamps_ns (n,) int64, values (n, 3))
+            Accepted Δθ, strictly increasing stamps.
+        accel : (stamps_ns (k,) int64, values (k, 3)) or None
+            Accepted Δv, strictly increasing stamps.
+        block, accel_block : int
+            At most this many Δθ / Δv per block (each block carries the Δv stamped up to its
+            last Δθ, so no update waits for accelerometer data that the recording holds).  Before
+            the navigation has started from a static alignment, blocks are the node's
+            (``batch_period``), so the alignment ends where the node's does.
+
+        Yields
+        ------
+        SinsOutput
+            What each block produced; the last one is :meth:`finish`'s.  The numbers equal the
+            node's on the same messages to round-off (the attitude to the bit).
+        """
+        g_ns, g_v = gyro
+        a_ns, a_v = accel if accel is not None else (np.zeros(0, np.int64), np.zeros((0, 3)))
+        firsts = [int(x[0]) for x in (a_ns, g_ns) if len(x)]
+        if self.origin_ns is None and firsts:
+            self.origin_ns = min(firsts)
+        if len(a_ns):
+            self.accel_seen = True
+        gi = ai = 0
+        while gi < len(g_ns):
+            if self.nav is not None and self.nav.navigator is None:     # the node's blocks
+                start = self._block_end_ns if self._block_end_ns is not None else \
+                    int(g_ns[gi]) - self._gyro_period_ns
+                end = int(np.searchsorted(g_ns, start + self._batch_span_ns - 1, side="left")) + 1
+                end = max(gi + 1, min(end, gi + MAX_BATCH, len(g_ns)))
+            else:
+                end = min(gi + block, len(g_ns))
+                a_end = ai + accel_block
+                if a_end < len(a_ns) and a_ns[a_end - 1] < g_ns[end - 1]:
+                    end = max(gi + 1, int(np.searchsorted(g_ns, a_ns[a_end - 1], side="right")))
+            aj = int(np.searchsorted(a_ns, g_ns[end - 1], side="right")) if end < len(g_ns) \
+                else len(a_ns)
+            if aj > ai:
+                self._accel_blocks.append(((a_ns[ai:aj] - self.origin_ns) * 1e-9, a_v[ai:aj]))
+            self._gyro_blocks.append((g_ns[gi:end], g_v[gi:end]))
+            gi, ai = end, aj
+            yield self.process()
+        if ai < len(a_ns):
+            self._accel_blocks.append(((a_ns[ai:] - self.origin_ns) * 1e-9, a_v[ai:]))
+            yield self.process()
+        yield self.finish()
+
     def set_algorithm(self, name: str) -> bool:
         """Switch the coning algorithm at runtime (attitude only; the samples buffered so far are
         integrated with the old one first).  True when it changed."""
@@ -310,7 +556,7 @@ class SinsSystem:
             return False
         if self.nav is not None:
             raise ValueError("the coning algorithm cannot change while navigation runs")
-        if self._gyro_in or self._accel_in:
+        if self._gyro_in or self._accel_in or self._gyro_blocks or self._accel_blocks:
             self._run()
         self.integrator.set_algorithm(name)
         self.p["coning_algorithm"] = name
@@ -343,21 +589,40 @@ class SinsSystem:
         self.has_output = False
         return out
 
-    def _run(self) -> None:
+    def _take_accel(self):
+        """The buffered Δv as arrays (t (n,), s from the origin; values (n, 3)); emptied."""
         if self._accel_in:
-            t = np.fromiter((a[0] for a in self._accel_in), float, len(self._accel_in))
-            dv = np.array([a[1] for a in self._accel_in], dtype=float)
-            self.accel.add(dv, t)
+            n = len(self._accel_in)
+            self._accel_blocks.append((np.fromiter((a[0] for a in self._accel_in), float, n),
+                                       np.array([a[1] for a in self._accel_in], dtype=float)))
             self._accel_in.clear()
+        blocks, self._accel_blocks = self._accel_blocks, []
+        if len(blocks) == 1:
+            return blocks[0]
+        return np.concatenate([b[0] for b in blocks]), np.concatenate([b[1] for b in blocks])
+
+    def _take_gyro(self):
+        """The buffered Δθ as arrays (header stamps (n,) int64 ns; values (n, 3)); emptied."""
+        if self._gyro_in:
+            n = len(self._gyro_in)
+            self._gyro_blocks.append((np.fromiter((g[0] for g in self._gyro_in), np.int64, n),
+                                      np.array([g[1] for g in self._gyro_in], dtype=float)))
+            self._gyro_in = []
+        blocks, self._gyro_blocks = self._gyro_blocks, []
+        if len(blocks) == 1:
+            return blocks[0]
+        return np.concatenate([b[0] for b in blocks]), np.concatenate([b[1] for b in blocks])
+
+    def _run(self) -> None:
+        if self._accel_in or self._accel_blocks:
+            t, dv = self._take_accel()
+            self.accel.add(dv, t)
             if self.nav is not None:
                 self.nav.add_accel(dv, t)
-        if self._gyro_in:
-            batch, self._gyro_in = self._gyro_in, []
-            self._block_end_ns = batch[-1][0]
-            stamps_ns, values = zip(*batch)
-            origin = self.origin_ns
-            t = np.array([(s - origin) * 1e-9 for s in stamps_ns])
-            inc = np.array(values, dtype=float)
+        if self._gyro_in or self._gyro_blocks:
+            stamps_ns, inc = self._take_gyro()
+            self._block_end_ns = int(stamps_ns[-1])
+            t = (stamps_ns - self.origin_ns) * 1e-9          # as (s - origin) * 1e-9 per message
             if self.nav is not None and self._navigation_start(inc, t):
                 self._flush_imu()
                 return

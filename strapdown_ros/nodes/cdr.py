@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import struct
 
-__all__ = ["vector3_stamped", "imu", "imu_rate_covariance"]
+__all__ = ["vector3_stamped", "imu", "imu_rate_covariance", "stamped_doubles"]
 
 _STAMP_AND_LENGTH = struct.Struct("<iII")     # header.stamp.sec, .nanosec, length of frame_id (with its NUL)
 _XYZ = struct.Struct("<3d")
@@ -77,3 +77,93 @@ def imu_rate_covariance(data) -> tuple | None:
         if off + 8 * _IMU_DOUBLES <= len(data):
             return _COV.unpack_from(data, off + 8 * _IMU_RATE_COV)
     return None
+
+
+def stamped_doubles(records, count: int):
+    """Many stamped messages at once: a std_msgs/Header followed by ``count`` float64 fields in
+    plain little-endian CDR (geometry_msgs/Vector3Stamped: 3; sensor_msgs/Imu: 37 — orientation 4,
+    its covariance 9, angular_velocity 3, its covariance 9, linear_acceleration 3, its covariance
+    9), decoded with numpy over records grouped by length and frame-id length.
+
+    Parameters
+    ----------
+    records : sequence of bytes-like, or ndarray (n, L) uint8
+        The serialized messages (rosbag2 records), in bag order; or n records of L bytes each
+        as the rows of an array.
+    count : int
+        Number of float64 fields after the header.
+
+    Returns
+    -------
+    stamps_ns : ndarray (n,) int64
+        header.stamp, ns (0 where not decoded).
+    values : ndarray (n, count) float64
+        The fields (NaN where not decoded).
+    frame_index : ndarray (n,) int64
+        Index of each record's header.frame_id in ``frame_names``; -1 where not decoded.
+    frame_names : list of str
+        The distinct frame ids, in order of first appearance by group.
+    undecoded : ndarray of int
+        Indices of the records in another encoding or too short for the layout: the caller
+        hands them to a deserializer.  Every decoded record equals :func:`vector3_stamped`'s
+        reading of it (for ``count`` 3).
+    """
+    import numpy as np
+
+    n = len(records)
+    stamps = np.zeros(n, np.int64)
+    values = np.full((n, count), np.nan)
+    index = np.full(n, -1, np.int64)
+    names: list[str] = []
+    known: dict[str, int] = {}
+    if n == 0:
+        return stamps, values, index, names, np.zeros(0, np.int64)
+    table = isinstance(records, np.ndarray) and records.ndim == 2      # rows of equal length
+    if table:
+        groups = [(records.shape[1], None)]
+    else:
+        lengths = np.fromiter(map(len, records), np.int64, n)
+        same = bool(np.all(lengths == lengths[0]))
+        groups = [(int(lengths[0]), None)] if same else [(int(L), np.flatnonzero(lengths == L))
+                                                         for L in np.unique(lengths)]
+    for length, rows in groups:
+        if length < 16:
+            continue
+        if table:
+            buf = records
+        else:
+            part = records if rows is None else [records[i] for i in rows]
+            buf = np.frombuffer(b"".join(part), np.uint8).reshape(len(part), length)
+        rows = np.arange(n) if rows is None else rows
+        ok = (buf[:, 0] == 0) & (buf[:, 1] == 1)
+        head = np.ascontiguousarray(buf[:, 4:16]).view("<u4")       # sec, nanosec, len(frame_id)
+        slen = head[:, 2]
+        sizes = [int(slen[0])] if ok.all() and np.all(slen == slen[0]) else \
+            [int(s) for s in np.unique(slen[ok])]
+        for s in sizes:
+            end = 16 + s
+            off = 4 + ((end - 4 + 7) & ~7)
+            if off + 8 * count > length:
+                continue
+            sel = ok & (slen == s) if len(sizes) > 1 or not ok.all() else slice(None)
+            sub, hd, dst = buf[sel], head[sel], rows[sel]
+            stamps[dst] = hd[:, 0].view("<i4").astype(np.int64) * 1_000_000_000 + hd[:, 1]
+            values[dst] = np.ascontiguousarray(sub[:, off:off + 8 * count]).view("<f8")
+            if s <= 1:
+                frames, inverse = [b""], np.zeros(len(dst), np.int64)
+            else:
+                raw = np.ascontiguousarray(sub[:, 16:end - 1])
+                if np.all(raw == raw[0]):
+                    frames, inverse = [raw[0].tobytes()], np.zeros(len(dst), np.int64)
+                else:
+                    uniq, inverse = np.unique(raw.view(f"V{s - 1}").ravel(), return_inverse=True)
+                    frames = [u.tobytes() for u in uniq]
+            codes = []
+            for f in frames:
+                name = f.decode("utf-8", "replace")
+                if name not in known:
+                    known[name] = len(names)
+                    names.append(name)
+                codes.append(known[name])
+            index[dst] = np.asarray(codes, np.int64)[inverse.ravel()]
+    return stamps, values, index, names, np.flatnonzero(index < 0)

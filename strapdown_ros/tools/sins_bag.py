@@ -2,6 +2,7 @@
 
     sins_bag BAG [--params FILE] [-p NAME:=VALUE ...] --output OUT [--force]
                  [--namespace NS] [--gyro-topic T] [--accel-topic T]
+                 [--imu-topic T [--rate-rule trapezoid|mean]]
 
 Reads ``imu/delta_theta`` (rad) and ``imu/delta_velocity`` (m/s), both
 geometry_msgs/msg/Vector3Stamped stamped at the end of their intervals, from a bag directory or a
@@ -10,17 +11,29 @@ single .mcap/.db3 file (MCAP or sqlite3 storage), and runs them through the nume
 integrator, gyro-effect compensation and navigation channel), so the solution is the node's on
 the same messages.  Topic names match with or without the leading slash, under ``--namespace``
 when given; a bag with a single namespace is found without it; ``--gyro-topic``/``--accel-topic``
-name other topics (absolute, or relative to the namespace).
+name other topics (absolute, or relative to the namespace).  ``--imu-topic`` (or a
+``--gyro-topic`` of that type) reads sensor_msgs/msg/Imu instead: angular_velocity and
+linear_acceleration are rate samples, checked by the node's rules and made into Δθ and Δv by
+:mod:`strapdown_ros.rate_increments` (``--rate-rule``), as sins_node's ``gyro_input: imu``
+does (:meth:`SinsSystem.screen_imu`); a message whose linear_acceleration_covariance[0] is −1
+has no Δv.
 
 Parameters are sins_node's: a ROS 2 parameter file (``--params``; the ``sins_node`` and ``/**``
 blocks) and ``-p name:=value`` overrides, validated as the node validates them.  ``gyro_rate``
 and ``accel_rate`` come from the stamps (1e9 / the median step in ns, rounded to the fewest
-decimals that nanosecond stamps allow) unless given with ``-p``.  The navigation channel is off
+decimals that nanosecond stamps allow) unless given with ``-p``.  ``frame_id`` is the most
+frequent non-empty header.frame_id of the Δθ messages unless the parameters name one; messages
+in other frames are named, counted and rejected by the frame rule.  The navigation channel is off
 by default, as in the node: ``-p navigation:=true`` with ``initial_position``,
 ``initial_velocity`` and ``initial_orientation`` (q_earth_body) or ``initial_alignment:=static``.
 
-The two streams are merged by header stamp (each topic keeping its bag order; at equal stamps
-Δv before Δθ) and fed as the node's callbacks are.  At the end of the bag, updates still waiting
+Each stream is read whole (an indexed MCAP file a chunk at a time, :mod:`.mcap_records`; the
+records decoded with numpy, :func:`strapdown_ros.nodes.cdr.stamped_doubles`), checked by the
+node's rules (:meth:`SinsSystem.screen`) and fed to the core in large blocks, each with the Δv
+stamped up to its last Δθ (:meth:`SinsSystem.feed`): the numbers are those of the node fed the
+messages by header stamp (at equal stamps Δv before Δθ), the attitude to the bit.  When a
+stream's stamps resynchronise, the messages go one by one through the node's path instead (merged
+by header stamp, each topic keeping its bag order).  At the end of the bag, updates still waiting
 for accelerometer data are released as ``accel_wait`` would release them.
 
 Output, by the name of OUT:
@@ -52,7 +65,7 @@ import os
 import shutil
 import sys
 import time
-from collections import deque
+from itertools import islice
 from pathlib import Path
 
 import numpy as np
@@ -60,9 +73,12 @@ import numpy as np
 from ..config import SINS_PARAMS, check_all, load_parameter_file
 from ..navigation.gravity import geodetic_to_ecef
 from ..navigation.system import SinsOutput, SinsSystem, odometry_arrays
+from ..rate_increments import RATE_RULES
 from ..rotation import to_ros_xyzw
-from ..nodes.cdr import vector3_stamped
+from ..nodes.cdr import stamped_doubles
+from ..text import bounded
 from .calibrate_bag import BagError, _resolve, open_reader
+from .mcap_records import channel_ids, indexed_mcap, read_topics
 from .record_sim import _qos, parse_overrides
 
 __all__ = ["main", "sins_parameters", "rate_from_stamps", "open_input", "run", "CSV_NAV_COLUMNS",
@@ -78,7 +94,6 @@ CSV_NAV_COLUMNS = ["stamp_s", "x", "y", "z", "vx", "vy", "vz", "qx", "qy", "qz",
                    "sigma_psi_x", "sigma_psi_y", "sigma_psi_z"]
 CSV_ATTITUDE_COLUMNS = ["stamp_s", "qx", "qy", "qz", "qw", "sigma_eps_x", "sigma_eps_y", "sigma_eps_z"]
 RATE_SAMPLE = 20001              # stamps per topic read for the rate (the first ones)
-MERGE_LIMIT = 100_000            # a topic's queue is released without the other beyond this
 PROGRESS_PERIOD = 5.0            # wall seconds between progress lines
 
 
@@ -120,13 +135,44 @@ def _find_topic(topics: dict, name: str, namespace: str) -> str | None:
     return _resolve(topics, name, namespace)
 
 
-class Input:
-    """The opened bag: reader, the two connections, the rates from the stamps."""
+IMU = "sensor_msgs/msg/Imu"
+IMU_DOUBLES = 37                 # float64 fields of sensor_msgs/Imu after its header (cdr.py)
+IMU_RATE, IMU_ACCEL, IMU_ACCEL_COV = 13, 25, 28     # angular_velocity, linear_acceleration, cov[0]
+READ_CHUNK = 200_000             # records decoded at once
 
-    def __init__(self, reader, gyro_conn, accel_conn, gyro_rate, accel_rate, path, frame_id=""):
+
+class Stream:
+    """One input topic read whole, in bag order: header stamps (ns), the vectors and the header
+    frame ids (``frame_index`` into ``frame_names``).  ``kind``: ``increments`` (Vector3Stamped
+    Δθ/Δv) or ``rates`` (sensor_msgs/Imu: ``values`` the angular velocity, ``accel`` the linear
+    acceleration, NaN where the message has none)."""
+
+    def __init__(self, topic, kind, stamps_ns, values, frame_index, frame_names, accel=None):
+        self.topic, self.kind = topic, kind
+        self.stamps_ns, self.values, self.accel = stamps_ns, values, accel
+        self.frame_index, self.frame_names = frame_index, frame_names
+
+    def __len__(self) -> int:
+        return len(self.stamps_ns)
+
+    def frames(self) -> list[tuple[str, int]]:
+        """(frame id, count) of the messages, most frequent first."""
+        if not len(self):
+            return []
+        counts = np.bincount(self.frame_index, minlength=len(self.frame_names))
+        return sorted(((n, int(c)) for n, c in zip(self.frame_names, counts) if c),
+                      key=lambda x: -x[1])
+
+
+class Input:
+    """The opened bag: the connections, the streams read whole, the rates from the stamps."""
+
+    def __init__(self, reader, gyro_conn, accel_conn, gyro_rate, accel_rate, path, frame_id="",
+                 gyro=None, accel=None):
         self.reader, self.gyro_conn, self.accel_conn = reader, gyro_conn, accel_conn
         self.gyro_rate, self.accel_rate, self.path = gyro_rate, accel_rate, path
-        self.frame_id = frame_id            # header.frame_id of the first Δθ message
+        self.frame_id = frame_id            # header.frame_id of most Δθ messages (non-empty)
+        self.gyro, self.accel = gyro, accel  # Stream (accel None: none, or from the Imu of gyro)
 
     @property
     def namespace(self) -> str:
@@ -134,6 +180,10 @@ class Input:
         t = "/" + self.gyro_conn.topic.strip("/")
         rel = "/" + GYRO_TOPIC
         return t[:-len(rel)] if t.endswith(rel) else ""
+
+    @property
+    def imu_input(self) -> bool:
+        return self.gyro is not None and self.gyro.kind == "rates"
 
     def close(self):
         self.reader.close()
@@ -143,113 +193,198 @@ def _stamp_ns(msg) -> int:
     return int(msg.header.stamp.sec) * 1_000_000_000 + int(msg.header.stamp.nanosec)
 
 
+def _unreadable(path, exc) -> BagError:
+    return BagError(f"{path}: unreadable record ({type(exc).__name__}: "
+                    f"{bounded(str(exc).splitlines()[0]) if str(exc) else ''})")
+
+
+def _decode(reader, conn, records: list):
+    """Stamps, the float64 fields and the frames of a chunk of records: numpy over the plain CDR
+    layout (nodes/cdr.py), rosbags' deserializer for any record in another encoding."""
+    imu = conn.msgtype == IMU
+    st, vals, idx, names, bad = stamped_doubles(records, IMU_DOUBLES if imu else 3)
+    known = {n: k for k, n in enumerate(names)}
+    for i in bad.tolist():
+        rec = records[i]
+        m = reader.deserialize(rec.tobytes() if isinstance(rec, np.ndarray) else rec, conn.msgtype)
+        st[i] = _stamp_ns(m)
+        if imu:
+            w, f = m.angular_velocity, m.linear_acceleration
+            vals[i, IMU_RATE:IMU_RATE + 3] = (w.x, w.y, w.z)
+            vals[i, IMU_ACCEL:IMU_ACCEL + 3] = (f.x, f.y, f.z)
+            vals[i, IMU_ACCEL_COV] = m.linear_acceleration_covariance[0]
+        else:
+            vals[i] = (m.vector.x, m.vector.y, m.vector.z)
+        name = m.header.frame_id
+        if name not in known:
+            known[name] = len(names)
+            names.append(name)
+        idx[i] = known[name]
+    return st, vals, idx, names
+
+
+def _records(reader, conns: list):
+    """(connection, log time, raw) of the connections in bag order: the bag's own reader when
+    there is one bag (rosbags' AnyReader merges several bags by time, at a cost per record)."""
+    owners = {id(getattr(c, "owner", None)) for c in conns}
+    inner = getattr(reader, "readers", None)
+    if inner is not None and len(inner) == 1 and owners == {id(inner[0])}:
+        return inner[0].messages(connections=conns)
+    return reader.messages(connections=conns)
+
+
+def _read_streams(reader, conns: list, path, progress=None) -> dict:
+    """Every record of the connections, decoded a chunk at a time: {topic: Stream}."""
+    t0, t1 = reader.start_time, reader.end_time
+    conn_of = {c.topic: c for c in conns}
+    parts: dict = {c.topic: [] for c in conns}
+    order: dict = {c.topic: [] for c in conns}          # (log times, chunk) of the fast path
+    state = {"next": time.monotonic() + PROGRESS_PERIOD}
+    storage = indexed_mcap(reader)
+    try:
+        if storage is not None:                       # one MCAP file with a chunk index
+            ids = channel_ids(storage, conns)
+            for k, chunk in enumerate(read_topics(storage, ids)):
+                for topic, got in chunk.items():
+                    parts[topic].append(_decode(reader, conn_of[topic],
+                                                got.rows if got.rows is not None else got.records))
+                    order[topic].append((got.log_ns, k))
+                now = time.monotonic()
+                if progress is not None and now >= state["next"] and chunk:
+                    state["next"] = now + PROGRESS_PERIOD
+                    progress(int(max(int(g.log_ns[-1]) for g in chunk.values())), t0, t1)
+        records = _records(reader, conns) if storage is None else iter(())
+        while True:
+            chunk = list(islice(records, READ_CHUNK))
+            if not chunk:
+                break
+            for topic, conn in conn_of.items():
+                raws = [r for c, _, r in chunk if c.topic == topic] if len(conn_of) > 1 else \
+                    [r for _, _, r in chunk]
+                if raws:
+                    parts[topic].append(_decode(reader, conn, raws))
+            now = time.monotonic()
+            if progress is not None and now >= state["next"]:
+                state["next"] = now + PROGRESS_PERIOD
+                progress(chunk[-1][1], t0, t1)
+    except BagError:
+        raise
+    except Exception as exc:                  # noqa: BLE001 - a corrupted record, whatever says so
+        raise _unreadable(path, exc) from None
+    out = {}
+    for topic, chunks in parts.items():
+        conn = conn_of[topic]
+        names: list = []
+        known: dict = {}
+        st_l, v_l, i_l = [], [], []
+        for st, vals, idx, nm in chunks:
+            remap = np.array([known.setdefault(x, len(known)) for x in nm] or [0], dtype=np.int64)
+            names = list(known)
+            st_l.append(st)
+            v_l.append(vals)
+            i_l.append(remap[idx])
+        width = IMU_DOUBLES if conn.msgtype == IMU else 3
+        st = np.concatenate(st_l) if st_l else np.zeros(0, np.int64)
+        vals = np.concatenate(v_l) if v_l else np.zeros((0, width))
+        idx = np.concatenate(i_l) if i_l else np.zeros(0, np.int64)
+        if order[topic]:
+            # rosbags' order: by log time, then chunk, then within the chunk (chunks overlapping
+            # in time interleave); usually the chunks follow each other and this is the identity
+            log_ns = np.concatenate([o[0] for o in order[topic]])
+            chunk = np.concatenate([np.full(len(o[0]), o[1]) for o in order[topic]])
+            if not np.all(np.diff(log_ns) >= 0):
+                perm = np.lexsort((np.arange(len(log_ns)), chunk, log_ns))
+                st, vals, idx = st[perm], vals[perm], idx[perm]
+        if conn.msgtype == IMU:
+            accel = vals[:, IMU_ACCEL:IMU_ACCEL + 3].copy()
+            accel[vals[:, IMU_ACCEL_COV] == -1.0] = np.nan          # REP-145: no acceleration
+            rate = np.ascontiguousarray(vals[:, IMU_RATE:IMU_RATE + 3])
+            out[topic] = Stream(topic, "rates", st, rate, idx, names, accel)
+        else:
+            out[topic] = Stream(topic, "increments", st, vals, idx, names)
+    return out
+
+
 def open_input(bag, namespace: str = "", gyro_topic: str | None = None, accel_topic: str | None = None,
-               need_accel: bool = False) -> Input:
-    """Open the bag, find the topics (types checked), read the first stamps of each for the rates.
-    Raises BagError."""
+               need_accel: bool = False, imu_topic: str | None = None, progress=None) -> Input:
+    """Open the bag, find the topics (types checked), read the two streams whole (or the one
+    sensor_msgs/Imu stream), take the rates from their first stamps and the body frame from
+    the Δθ headers (the most frequent non-empty frame id).  Raises BagError."""
 
     path = Path(bag)
     reader = open_reader(path)
     try:
         topics = {c.topic: c.msgtype for c in reader.connections}
-        where = f" under namespace {namespace!r}" if namespace.strip("/") else ""
-        listing = f"; topics in the bag: {', '.join(sorted(topics)) or 'none'}"
+        where = f" under namespace {bounded(namespace)!r}" if namespace.strip("/") else ""
+        listing = f"; topics in the bag: {bounded(', '.join(sorted(topics)) or 'none', 400)}"
+        if imu_topic:
+            gyro_topic = accel_topic = imu_topic
         g = _find_topic(topics, gyro_topic or GYRO_TOPIC, namespace)
         if g is None:
-            raise BagError(f"{path}: no {gyro_topic or GYRO_TOPIC}{where}{listing}")
+            raise BagError(f"{path}: no {bounded(gyro_topic or GYRO_TOPIC)}{where}{listing}")
+        if topics[g] not in (VECTOR3_STAMPED, IMU):
+            raise BagError(f"{bounded(g)} has type {bounded(topics[g])}, expected "
+                           f"{VECTOR3_STAMPED} or {IMU}")
+        if topics[g] == IMU and not accel_topic:
+            accel_topic = g                           # Δv from the same Imu messages
         a = _find_topic(topics, accel_topic or ACCEL_TOPIC, namespace)
         if a is None and (need_accel or accel_topic):
             why = " (navigation needs it)" if need_accel else ""
-            raise BagError(f"{path}: no {accel_topic or ACCEL_TOPIC}{where}{why}{listing}")
-        for t in (g, a):
-            if t is not None and topics[t] != VECTOR3_STAMPED:
-                raise BagError(f"{t} has type {topics[t]}, expected {VECTOR3_STAMPED}")
+            name = bounded(accel_topic or ACCEL_TOPIC)
+            raise BagError(f"{path}: no {name}{where}{why}{listing}")
+        if a is not None and a != g and topics[a] != VECTOR3_STAMPED:
+            also = f" (or the Imu topic {bounded(g)} itself)" if topics[g] == IMU else ""
+            raise BagError(f"{bounded(a)} has type {bounded(topics[a])}, expected "
+                           f"{VECTOR3_STAMPED}{also}")
+        if a is not None and a == g and topics[g] != IMU:
+            raise BagError(f"{bounded(g)} cannot be both the Δθ and the Δv topic")
         gc = next(c for c in reader.connections if c.topic == g)
         ac = next((c for c in reader.connections if c.topic == a), None) if a else None
-        stamps: dict = {g: [], a: []} if a else {g: []}
-        conns = [c for c in reader.connections if c.topic in stamps]
-        frame_id = None
-        for conn, _, raw in reader.messages(connections=conns):
-            lst = stamps[conn.topic]
-            if len(lst) < RATE_SAMPLE:
-                msg = reader.deserialize(raw, conn.msgtype)
-                lst.append(_stamp_ns(msg))
-                if frame_id is None and conn.topic == g:
-                    frame_id = msg.header.frame_id
-            if all(len(v) >= RATE_SAMPLE for v in stamps.values()):
-                break
+        conns = [c for c in reader.connections if c.topic in {g, a}]
+        streams = _read_streams(reader, conns, path, progress)
     except BagError:
         reader.close()
         raise
-    except Exception as exc:                  # noqa: BLE001 - a corrupted record, whatever the reader says
-        reader.close()
-        raise BagError(f"{path}: unreadable record ({type(exc).__name__}: "
-                       f"{str(exc).splitlines()[0] if str(exc) else ''})") from None
-    g_rate = rate_from_stamps(stamps[g])
+    gs = streams[g]
+    accel_stream = None if a is None else (None if a == g else streams[a])
+    g_rate = rate_from_stamps(gs.stamps_ns[:RATE_SAMPLE])
     if g_rate is None:
         reader.close()
-        raise BagError(f"{path}: {g} has {len(stamps[g])} message(s) with distinct stamps; at least 2 are needed")
-    a_rate = rate_from_stamps(stamps[a]) if a else None
+        raise BagError(f"{path}: {bounded(g)} has {len(gs)} message(s) with distinct stamps; "
+                       "at least 2 are needed")
+    if a is None:
+        a_rate = None
+    elif a == g:
+        has = ~np.all(np.isnan(gs.accel[:RATE_SAMPLE]), axis=1)
+        a_rate = g_rate if has.any() else None
+    else:
+        a_rate = rate_from_stamps(accel_stream.stamps_ns[:RATE_SAMPLE])
     if a and a_rate is None and need_accel:
         reader.close()
-        raise BagError(f"{path}: {a} has fewer than 2 messages with distinct stamps; navigation needs it")
-    return Input(reader, gc, ac, g_rate, a_rate, path, frame_id or "")
+        raise BagError(f"{path}: {bounded(a)} has fewer than 2 messages with distinct stamps (or "
+                       "no "
+                       "acceleration); navigation needs it")
+    named = [(n, c) for n, c in gs.frames() if n]
+    frame_id = named[0][0] if named else ""
+    return Input(reader, gc, ac, g_rate, a_rate, path, frame_id, gs, accel_stream)
 
 
-def _messages(inp: Input, progress=None):
-    """(is_gyro, stamp_ns, (x, y, z), frame_id) of both topics, merged by header stamp (each topic
-    in its bag order; Δv first at equal stamps)."""
-    rd = inp.reader
-    conns = [inp.gyro_conn] + ([inp.accel_conn] if inp.accel_conn is not None else [])
-    qg: deque = deque()
-    qa: deque = deque()
-    both = inp.accel_conn is not None
-    deser = rd.deserialize
-    gyro_topic = inp.gyro_conn.topic
-    records = rd.messages(connections=conns)
-    while True:
-        try:
-            rec = next(records, None)
-            if rec is None:
-                break
-            conn, log_ns, raw = rec
-            item = vector3_stamped(raw)              # the node's reading of the bytes; else rosbags'
-            if item is None:
-                m = deser(raw, conn.msgtype)
-                v = m.vector
-                item = (_stamp_ns(m), (float(v.x), float(v.y), float(v.z)), m.header.frame_id)
-        except Exception as exc:              # noqa: BLE001 - a corrupted record, whatever the reader says
-            raise BagError(f"{inp.path}: unreadable record ({type(exc).__name__}: "
-                           f"{str(exc).splitlines()[0] if str(exc) else ''})") from None
-        is_gyro = conn.topic == gyro_topic
-        if not both:
-            yield (True, *item)
+def _merged(g_stamps, a_stamps):
+    """(is_gyro, index) of two streams merged by stamp, each in its own (bag) order, Δv first at
+    equal stamps (the order sins_node is fed in; the one-message path)."""
+    g_ns = g_stamps.tolist()
+    a_ns = a_stamps.tolist() if a_stamps is not None else []
+    i = j = 0
+    while i < len(g_ns) or j < len(a_ns):
+        if j < len(a_ns) and (i >= len(g_ns) or a_ns[j] <= g_ns[i]):
+            yield False, j
+            j += 1
         else:
-            (qg if is_gyro else qa).append(item)
-            while qg and qa:
-                if qa[0][0] <= qg[0][0]:
-                    yield (False, *qa.popleft())
-                else:
-                    yield (True, *qg.popleft())
-            while len(qg) > MERGE_LIMIT:
-                yield (True, *qg.popleft())
-            while len(qa) > MERGE_LIMIT:
-                yield (False, *qa.popleft())
-        if progress is not None:
-            progress(log_ns)
-    while qg or qa:
-        if qa and (not qg or qa[0][0] <= qg[0][0]):
-            yield (False, *qa.popleft())
-        else:
-            yield (True, *qg.popleft())
+            yield True, i
+            i += 1
 
 
 # --- output -----------------------------------------------------------------------------------------
-def _fmt_stamp(ns: int) -> str:
-    ns = int(ns)
-    return f"{ns // 1_000_000_000}.{ns % 1_000_000_000:09d}"
-
-
 class CsvOutput:
     """The CSV writer (written to OUT.part, renamed at :meth:`close`)."""
 
@@ -263,16 +398,36 @@ class CsvOutput:
     def write(self, out: SinsOutput) -> None:
         """One row per navigation step (stamp, position, velocity, q, σ) or, without navigation,
         per attitude update (stamp, q, σ)."""
-        g = "{:.17g}".format
         rec = out.navigation if self.navigation else out.attitude
-        if not len(rec):
+        k = len(rec)
+        if not k:
             return
         q = to_ros_xyzw(rec.attitude).reshape(-1, 4)
         sig = np.sqrt(np.maximum(np.diagonal(rec.covariance, axis1=1, axis2=2), 0.0))
-        for k in range(len(rec)):
-            vals = ([*rec.position[k], *rec.velocity[k]] if self.navigation else []) + [*q[k], *sig[k]]
-            self.fh.write(_fmt_stamp(rec.stamp_ns[k]) + "," + ",".join(g(float(x)) for x in vals) + "\n")
-        self.rows += len(rec)
+        sec, nsec = np.divmod(np.asarray(rec.stamp_ns, dtype=np.int64), 1_000_000_000)
+        cols = [sec[:, None], nsec[:, None]] + ([rec.position, rec.velocity] if self.navigation
+                                                else []) + [q]
+        table = np.hstack([np.asarray(c, dtype=float) for c in cols])   # sec, ns exact in float64
+        head = "%d.%09d" + ",%.17g" * (table.shape[1] - 2)                 # = "{:.17g}" per value
+        tail = ",%.17g" * sig.shape[1]
+        for a in range(0, k, 4096):
+            part, s_part = table[a:a + 4096], sig[a:a + 4096]
+            m = len(part)
+            new = np.ones(m, bool)
+            new[1:] = np.any(s_part[1:] != s_part[:-1], axis=1)
+            runs = np.flatnonzero(new)
+            if len(runs) * 4 > m:                     # the σ change at every row: one format
+                flat = np.hstack([part, s_part]).ravel().tolist()
+                self.fh.write(((head + tail + "\n") * m) % tuple(flat))
+                continue
+            # the navigation σ change once per covariance epoch: each distinct row formatted once
+            flat = s_part[runs].ravel().tolist()
+            texts = ((tail + "\n") * len(runs) % tuple(flat)).split("\n")[:-1]
+            rows = np.empty((m, part.shape[1] + 1), dtype=object)
+            rows[:, :-1] = part
+            rows[:, -1] = np.array(texts, dtype=object)[np.cumsum(new) - 1]
+            self.fh.write(((head + "%s\n") * m) % tuple(rows.ravel().tolist()))
+        self.rows += k
 
     def close(self, ok: bool = True) -> None:
         self.fh.close()
@@ -312,6 +467,25 @@ class McapOutput:
         qos = _qos("stream", int(p["qos_depth"]))
         self.conns = {n: self.writer.add_connection(self.topics[n], OUTPUT_TYPES[n], typestore=self.store,
                                                     offered_qos_profiles=[qos]) for n in names}
+        # one message of each topic, serialised by rosbags: the template of its CDR rows
+        T, z3 = self.T, np.zeros(3)
+        self.templates: dict = {}
+        self._template("sins/attitude", T["geometry_msgs/msg/QuaternionStamped"](
+            header=self._header(0, self.ref_frame), quaternion=self._quat(np.zeros(4))), 4)
+        self._template("sins/imu", T["sensor_msgs/msg/Imu"](
+            header=self._header(0, self.frame_id), orientation=self._quat(np.zeros(4)),
+            orientation_covariance=np.zeros(9), angular_velocity=self._vec(z3),
+            angular_velocity_covariance=np.zeros(9), linear_acceleration=self._vec(z3),
+            linear_acceleration_covariance=np.zeros(9)), 37)
+        if "sins/odometry" in self.conns:
+            point = T["geometry_msgs/msg/Point"](x=0.0, y=0.0, z=0.0)
+            pose = T["geometry_msgs/msg/Pose"](position=point, orientation=self._quat(np.zeros(4)))
+            twist = T["geometry_msgs/msg/Twist"](linear=self._vec(z3), angular=self._vec(z3))
+            self._template("sins/odometry", T["nav_msgs/msg/Odometry"](
+                header=self._header(0, self.earth_frame), child_frame_id=self.frame_id,
+                pose=T["geometry_msgs/msg/PoseWithCovariance"](pose=pose, covariance=np.zeros(36)),
+                twist=T["geometry_msgs/msg/TwistWithCovariance"](twist=twist,
+                                                                 covariance=np.zeros(36))), 85)
 
     def _header(self, ns: int, frame_id: str):
         T = self.T
@@ -325,40 +499,56 @@ class McapOutput:
     def _vec(self, v):
         return self.T["geometry_msgs/msg/Vector3"](x=float(v[0]), y=float(v[1]), z=float(v[2]))
 
-    def _put(self, name: str, ns: int, msg) -> None:
-        self.writer.write(self.conns[name], int(ns), self.store.serialize_cdr(msg, OUTPUT_TYPES[name]))
-        self.counts[name] += 1
+    def _template(self, name: str, msg, doubles: int) -> None:
+        """The CDR bytes of one message of the topic (its constant frame ids), from which every
+        message is made by writing its stamp and its float64 fields (:meth:`_rows`)."""
+        raw = np.frombuffer(bytes(self.store.serialize_cdr(msg, OUTPUT_TYPES[name])), np.uint8)
+        self.templates[name] = (raw, len(raw) - 8 * doubles)
+
+    def _rows(self, name: str, stamps_ns, fields: np.ndarray) -> np.ndarray:
+        """(n, L) uint8: the messages of a topic in CDR (header stamp, then the float64 fields
+        after the constant part); the same bytes as rosbags' serializer gives."""
+        raw, off = self.templates[name]
+        n = len(stamps_ns)
+        rows = np.empty((n, len(raw)), np.uint8)
+        rows[:] = raw
+        sec, nsec = np.divmod(np.asarray(stamps_ns, dtype=np.int64), 1_000_000_000)
+        rows[:, 4:8] = sec.astype("<i4").view(np.uint8).reshape(n, 4)
+        rows[:, 8:12] = nsec.astype("<u4").view(np.uint8).reshape(n, 4)
+        rows[:, off:] = np.ascontiguousarray(fields, dtype="<f8").view(np.uint8).reshape(n, -1)
+        return rows
+
+    def _put_rows(self, name: str, stamps_ns, rows: np.ndarray) -> None:
+        conn, write = self.conns[name], self.writer.write
+        for ns, row in zip(np.asarray(stamps_ns, dtype=np.int64).tolist(), rows):
+            write(conn, ns, row.tobytes())
+        self.counts[name] += len(rows)
 
     def write(self, out: SinsOutput) -> None:
-        T = self.T
+        """The block's messages, as sins_node publishes them."""
         at = out.attitude
-        for k in range(len(at)):
-            ns = at.stamp_ns[k]
-            self._put("sins/attitude", ns, T["geometry_msgs/msg/QuaternionStamped"](
-                header=self._header(ns, self.ref_frame), quaternion=self._quat(at.attitude[k])))
+        if len(at):
+            q = to_ros_xyzw(at.attitude).reshape(-1, 4)
+            rows = self._rows("sins/attitude", at.stamp_ns, q)
+            self._put_rows("sins/attitude", at.stamp_ns, rows)
         im = out.imu
-        for k in range(len(im)):
-            ns = im.stamp_ns[k]
-            has = bool(im.has_accel[k])
-            self._put("sins/imu", ns, T["sensor_msgs/msg/Imu"](
-                header=self._header(ns, self.frame_id), orientation=self._quat(im.attitude[k]),
-                orientation_covariance=np.ascontiguousarray(im.covariance[k], dtype=np.float64).reshape(9),
-                angular_velocity=self._vec(im.mean_rate[k]), angular_velocity_covariance=self.rate_cov,
-                linear_acceleration=self._vec(im.specific_force[k] if has else np.zeros(3)),
-                linear_acceleration_covariance=self.accel_cov if has else self.no_accel_cov))
+        m = len(im)
+        if m:
+            has = np.asarray(im.has_accel, dtype=bool)
+            fields = np.hstack([to_ros_xyzw(im.attitude).reshape(-1, 4),
+                                im.covariance.reshape(m, 9), im.mean_rate,
+                                np.broadcast_to(self.rate_cov, (m, 9)),
+                                np.where(has[:, None], im.specific_force, 0.0),
+                                np.where(has[:, None], self.accel_cov, self.no_accel_cov)])
+            self._put_rows("sins/imu", im.stamp_ns, self._rows("sins/imu", im.stamp_ns, fields))
         nb = out.navigation
-        if len(nb):
+        k = len(nb)
+        if k:
             pose_cov, v_body, twist_cov = odometry_arrays(nb, self.rate_variance)
-            for k in range(len(nb)):
-                ns = nb.stamp_ns[k]
-                r = nb.position[k]
-                pose = T["geometry_msgs/msg/Pose"](position=T["geometry_msgs/msg/Point"](
-                    x=float(r[0]), y=float(r[1]), z=float(r[2])), orientation=self._quat(nb.attitude[k]))
-                twist = T["geometry_msgs/msg/Twist"](linear=self._vec(v_body[k]), angular=self._vec(np.zeros(3)))
-                self._put("sins/odometry", ns, T["nav_msgs/msg/Odometry"](
-                    header=self._header(ns, self.earth_frame), child_frame_id=self.frame_id,
-                    pose=T["geometry_msgs/msg/PoseWithCovariance"](pose=pose, covariance=pose_cov[k].copy()),
-                    twist=T["geometry_msgs/msg/TwistWithCovariance"](twist=twist, covariance=twist_cov[k].copy())))
+            fields = np.hstack([nb.position, to_ros_xyzw(nb.attitude).reshape(-1, 4), pose_cov,
+                                v_body, np.zeros((k, 3)), twist_cov])
+            rows = self._rows("sins/odometry", nb.stamp_ns, fields)
+            self._put_rows("sins/odometry", nb.stamp_ns, rows)
 
     def close(self, ok: bool = True) -> None:
         self.writer.close()
@@ -396,48 +586,106 @@ def _replace(out: str) -> None:
 
 
 # --- the run ----------------------------------------------------------------------------------------
-def run(inp: Input, system: SinsSystem, sink, say=None) -> dict:
-    """Feed the bag through the system in stamp order and write every output to ``sink``
-    (``sink.write(SinsOutput)``).  Returns counts."""
-    rd = inp.reader
-    t0, t1 = rd.start_time, rd.end_time
+def run(inp: Input, make_system, sink, say=None, rate_rule: str = "trapezoid",
+        system: SinsSystem | None = None):
+    """Feed the bag's streams through a system made by ``make_system()`` and write every output
+    to ``sink`` (``sink.write(SinsOutput)``); ``system``: a fresh one already made.  Returns
+    (counts, system).
+
+    The streams are screened whole by the node's rules (:meth:`SinsSystem.screen`, vectorised)
+    and fed in large blocks (:meth:`SinsSystem.feed`); when a stream's stamps resynchronise, a
+    fresh system takes every message one by one in stamp order instead (sins_node's path)."""
+    g = inp.gyro
+    n = {"gyro": len(g), "accel": len(inp.accel) if inp.accel is not None else 0}
+    if inp.imu_input and inp.accel is None and inp.accel_conn is not None:
+        n["accel"] = int(np.sum(~np.all(np.isnan(g.accel), axis=1)))      # Imu messages with Δv
+    span = max(inp.reader.end_time - inp.reader.start_time, 1)
     state = {"next": time.monotonic() + PROGRESS_PERIOD}
 
-    def progress(log_ns):
+    def progress(ns, origin):
         now = time.monotonic()
-        if say is not None and now >= state["next"]:
+        if say is not None and now >= state["next"] and origin is not None:
             state["next"] = now + PROGRESS_PERIOD
-            span = max(t1 - t0, 1)
-            say(f"{(log_ns - t0) * 1e-9:.1f} / {span * 1e-9:.1f} s of the recording ({100.0 * (log_ns - t0) / span:.0f}%)")
+            done = (ns - origin) * 1e-9
+            total = span * 1e-9
+            say(f"{done:.1f} / {total:.1f} s of the recording ({100.0 * done / total:.0f}%)")
 
-    n = {"gyro": 0, "accel": 0}
+    def streams(system):
+        """(gyro (stamps, values, frame_index, frame_names), accel (...) or None) as increments."""
+        if inp.imu_input:
+            use_accel = inp.accel_conn is not None and inp.accel_conn.topic == g.topic
+            gi, ai = system.screen_imu(g.stamps_ns, g.values, g.accel if use_accel else None,
+                                       g.frame_index, g.frame_names, rate_rule)
+            if inp.accel is not None:
+                a = inp.accel
+                ai = (a.stamps_ns, a.values, a.frame_index, a.frame_names)
+            elif ai is not None:
+                ai = (ai[0], ai[1], None, ())
+            return (gi[0], gi[1], None, ()), ai
+        a = inp.accel
+        return ((g.stamps_ns, g.values, g.frame_index, g.frame_names),
+                None if a is None else (a.stamps_ns, a.values, a.frame_index, a.frame_names))
+
+    system = system if system is not None else make_system()
+    gyro_in, accel_in = streams(system)
+    sg = system.screen("gyro", *gyro_in)
+    sa = system.screen("accel", *accel_in) if accel_in is not None and sg is not None else None
+    if sg is not None and (accel_in is None or sa is not None):
+        for out in system.feed(sg, sa):
+            sink.write(out)
+            progress(system.processed_until_ns or 0, system.origin_ns)
+        return n, system
+    # a stamp resynchronisation: the node's path, message by message, from a fresh system
+    if say is not None:
+        say("note: the stamps resynchronise: processing message by message")
+    system = make_system()
+    gyro_in, accel_in = streams(system)
     offer_g, offer_a = system.offer_gyro, system.offer_accel
-    for is_gyro, ns, v, frame in _messages(inp, progress):
+
+    def frame(s, k):
+        return s[3][s[2][k]] if s[2] is not None else ""
+    for is_gyro, k in _merged(gyro_in[0], accel_in[0] if accel_in is not None else None):
         if is_gyro:
-            n["gyro"] += 1
-            if offer_g(ns, v, frame):
+            v = gyro_in[1][k]
+            vec = (float(v[0]), float(v[1]), float(v[2]))
+            if offer_g(int(gyro_in[0][k]), vec, frame(gyro_in, k)):
                 sink.write(system.process())
             elif system.has_output:                 # a stamp resync processed the old time base
                 sink.write(system.take_output())
         else:
-            n["accel"] += 1
-            if offer_a(ns, v, frame):
+            v = accel_in[1][k]
+            vec = (float(v[0]), float(v[1]), float(v[2]))
+            if offer_a(int(accel_in[0][k]), vec, frame(accel_in, k)):
                 sink.write(system.process())
     sink.write(system.process())
     sink.write(system.finish())
-    return n
+    return n, system
 
 
 def _summary(args, inp: Input, system: SinsSystem, sink, counts: dict, rates: dict) -> str:
     st = system.status()
     g, a = system.gyro_check, system.accel_check
-    lines = [f"sins_bag: {args.bag}: {counts['gyro']} Δθ from {inp.gyro_conn.topic}"
-             + (f", {counts['accel']} Δv from {inp.accel_conn.topic}" if inp.accel_conn is not None else ", no Δv")
-             + f"; gyro_rate {rates['gyro_rate']:g} Hz, accel_rate {rates['accel_rate']:g} Hz"]
-    drops = {k: g_ + a_ for k, g_, a_ in (("NaN", g.nan, a.nan), ("out of range", g.out_of_range, a.out_of_range),
-                                          ("out of order", g.out_of_order, a.out_of_order),
-                                          ("duplicate", g.duplicate, a.duplicate),
-                                          ("stamp outlier", g.stamp_outliers, a.stamp_outliers)) if g_ + a_}
+    g_topic = bounded(inp.gyro_conn.topic)
+    a_topic = bounded(inp.accel_conn.topic) if inp.accel_conn is not None else ""
+    if inp.accel_conn is None:
+        tail = ", no Δv"
+    elif inp.imu_input and inp.accel is None:
+        tail = f", {counts['accel']} with linear acceleration"
+    else:
+        tail = f", {counts['accel']} Δv from {a_topic}"
+    if inp.imu_input:
+        head = (f"sins_bag: {args.bag}: {counts['gyro']} sensor_msgs/Imu from {g_topic} "
+                f"(rates → increments, rule {args.rate_rule})")
+    else:
+        head = f"sins_bag: {args.bag}: {counts['gyro']} Δθ from {g_topic}"
+    lines = [head + tail + f"; gyro_rate {rates['gyro_rate']:g} Hz, "
+             f"accel_rate {rates['accel_rate']:g} Hz"]
+    checks = [g, a] + list(system.rate_checks.values())
+    drops = {k: sum(getattr(c, attr) for c in checks)
+             for k, attr in (("NaN", "nan"), ("out of range", "out_of_range"),
+                             ("out of order", "out_of_order"), ("duplicate", "duplicate"),
+                             ("stamp outlier", "stamp_outliers"))}
+    drops = {k: v for k, v in drops.items() if v}
     fm = system.frame_mismatch
     if fm["gyro"] or fm["accel"]:
         drops[f"frame mismatch ({'rejected' if system.reject_frames else 'used'})"] = fm["gyro"] + fm["accel"]
@@ -471,6 +719,12 @@ def main(argv=None) -> int:
     ap.add_argument("--namespace", default="", help="topic namespace, e.g. /robot1")
     ap.add_argument("--gyro-topic", metavar="TOPIC", help=f"Δθ topic (default {GYRO_TOPIC})")
     ap.add_argument("--accel-topic", metavar="TOPIC", help=f"Δv topic (default {ACCEL_TOPIC})")
+    ap.add_argument("--imu-topic", metavar="TOPIC",
+                    help="a sensor_msgs/msg/Imu topic giving both Δθ (angular_velocity) and Δv "
+                         "(linear_acceleration) by --rate-rule")
+    ap.add_argument("--rate-rule", choices=RATE_RULES, default="trapezoid",
+                    help="how an Imu rate sample becomes an increment "
+                         "(strapdown_ros.rate_increments; default trapezoid)")
     ap.add_argument("--force", action="store_true", help="replace OUT if it exists")
     ap.add_argument("--quiet", action="store_true", help="no progress lines")
     args = ap.parse_args(argv)
@@ -488,7 +742,17 @@ def main(argv=None) -> int:
         over = parse_overrides(args.param)
         p = sins_parameters(args.params, over)              # every parameter checked before the bag
         _check_output(args.output, args.bag, args.force, args.params)
-        inp = open_input(args.bag, args.namespace, args.gyro_topic, args.accel_topic, need_accel=bool(p["navigation"]))
+        if args.imu_topic and (args.gyro_topic or args.accel_topic):
+            raise ValueError("--imu-topic gives both streams: not with --gyro-topic/--accel-topic")
+
+        def reading(ns, t0, t1):
+            span = max(t1 - t0, 1) * 1e-9
+            say(f"reading: {(ns - t0) * 1e-9:.1f} / {span:.1f} s of the recording")
+        inp = open_input(args.bag, args.namespace, args.gyro_topic, args.accel_topic,
+                         need_accel=bool(p["navigation"]), imu_topic=args.imu_topic,
+                         progress=reading)
+        if inp.imu_input and "accel_rate" not in over and inp.accel is None:
+            inp.accel_rate = inp.gyro_rate            # Δv from the same Imu messages
         rates = {"gyro_rate": inp.gyro_rate, "accel_rate": inp.accel_rate}
         for name in ("gyro_rate", "accel_rate"):
             if name in over or rates[name] is None:
@@ -501,7 +765,16 @@ def main(argv=None) -> int:
         frame = {}
         if not named and inp.frame_id and inp.frame_id != p["frame_id"]:
             frame = {"frame_id": inp.frame_id}
-            say(f"note: frame_id {inp.frame_id!r} from the recording's headers (-p frame_id:=... to impose one)")
+            say(f"note: frame_id {bounded(inp.frame_id)!r} from the recording's headers "
+                "(-p frame_id:=... to impose one)")
+        others = [(f, c) for f, c in inp.gyro.frames() if f and f != (frame or p).get("frame_id")]
+        if others and not named:
+            total = len(inp.gyro)
+            kind = "Imu" if inp.imu_input else "Δθ"
+            listed = ", ".join(f"{bounded(f)!r} ({c})" for f, c in others[:3])
+            say(f"note: {sum(c for _, c in others)} of {total} {kind} message(s) "
+                "name another frame than the body frame and are rejected by the frame rule: "
+                + listed + (", …" if len(others) > 3 else ""))
         p = sins_parameters(args.params, {**over, **rates, **frame})
         if p["navigation"]:
             lat, lon, h = (float(x) for x in p["initial_position"])
@@ -509,8 +782,13 @@ def main(argv=None) -> int:
             if not 6.0e6 < r < 8.0e6:
                 raise ValueError(f"initial_position {p['initial_position']} is not within ±1000 km of the "
                                  "Earth's surface")
-        system = SinsSystem(p, log=lambda level, text: say(f"{level}: {text}" if level != "info" else text),
-                            imu_wanted=(lambda: True) if not args.output.lower().endswith(".csv") else (lambda: False))
+        csv_out = args.output.lower().endswith(".csv")
+
+        def make_system():
+            return SinsSystem(p, log=lambda level, text: say(text if level == "info" else
+                                                             f"{level}: {text}"),
+                              imu_wanted=(lambda: not csv_out))
+        system = make_system()                          # parameters checked by the core now
     except (ValueError, OSError, BagError) as exc:
         if inp is not None:
             inp.close()
@@ -525,7 +803,7 @@ def main(argv=None) -> int:
         return err(f"cannot write {args.output}: {exc}")
     ok = False
     try:
-        counts = run(inp, system, sink, say)
+        counts, system = run(inp, make_system, sink, say, args.rate_rule, system)
         ok = True
     except BagError as exc:
         return err(str(exc))
@@ -543,7 +821,8 @@ def main(argv=None) -> int:
                   else "") + ")") if nav is not None and nav.navigator is None else \
             "no attitude update" if system.integrator.updates == 0 else "no navigation step"
         if system.integrator.updates == 0 and system.frame_mismatch["gyro"] and system.gyro_check.accepted == 0:
-            why = (f"every Δθ was rejected: its header.frame_id is not frame_id {system.p['frame_id']!r} "
+            why = ("every Δθ was rejected: its header.frame_id is not frame_id "
+                   f"{bounded(system.p['frame_id'])!r} "
                    "(-p frame_id:=... or -p frame_mismatch:=accept)")
         print(f"sins_bag: no solution: {why}", file=sys.stderr)
         return 3

@@ -1,0 +1,33 @@
+"""Bounded text: every string a node or tool echoes (a frame id, a topic name, a reason read from
+the input) goes through :func:`bounded`, so that hostile or broken input (a 2 MB header.frame_id)
+can neither flood a log nor cost time in formatting.  No ROS imports."""
+from __future__ import annotations
+
+__all__ = ["bounded", "ECHO_LIMIT"]
+
+#: default number of characters of an echoed input string
+ECHO_LIMIT = 64
+
+
+def bounded(text, limit: int = ECHO_LIMIT) -> str:
+    """``text`` (made a str) cut to at most ``limit`` characters, the cut marked by an ellipsis
+    and the original length.
+
+    Parameters
+    ----------
+    text : object
+        The string to echo (anything else is converted with ``str``).
+    limit : int
+        Maximum number of characters kept from ``text`` (≥ 1).
+
+    Returns
+    -------
+    str
+        ``text`` itself when it is short enough; otherwise its first ``limit`` characters,
+        ``…`` and ``(N chars)``, so the result is at most ``limit`` + 20 characters long.
+    """
+    s = text if isinstance(text, str) else str(text)
+    limit = max(1, int(limit))
+    if len(s) <= limit:
+        return s
+    return f"{s[:limit]}…({len(s)} chars)"
