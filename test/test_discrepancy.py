@@ -6,6 +6,7 @@ what was injected, never the workflow's own output.
 """
 import json
 import zlib
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -47,8 +48,9 @@ def _model(tmp_path, doc=None, name="model.yaml"):
 
 
 def _run(tmp_path, bag, model, *extra):
-    out = tmp_path / "result.json"
-    assert discrepancy.main([str(bag), "--model", str(model), "--json", str(out), "--quiet", *extra]) == 0
+    out = tmp_path / f"result_{Path(str(bag)).name}.json"       # one result per recording
+    assert discrepancy.main([str(bag), "--model", str(model), "--json", str(out), "--quiet",
+                             "--force", *extra]) == 0
     return json.loads(out.read_text())
 
 
@@ -113,9 +115,9 @@ def test_flagship_exposure_stamp_closing_the_loop(tmp_path):
 
     # the calibrator with the found model: the boresight error shrinks
     def boresight_error(params):
-        f = tmp_path / "cal.json"
+        f = tmp_path / f"cal_{'found' if params else 'nominal'}.json"
         args = [str(bag), "--json", str(f)] + (["--params", str(params)] if params else [])
-        calibrate_bag.main(args)
+        assert calibrate_bag.main(args) == 0
         q = from_ros_xyzw(np.array(json.loads(f.read_text())["q_mf_vf_xyzw"]))
         return float(quat_angle_between(q, dcm_to_quat(ypr_to_dcm(*BETA))))
     e_nominal, e_found = boresight_error(None), boresight_error(out_model)
