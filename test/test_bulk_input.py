@@ -160,8 +160,8 @@ def test_screen_and_feed_equal_the_node_path(navigation):
 def test_screen_returns_none_at_a_resync_and_changes_nothing():
     p = _params()
     sys_ = SinsSystem(p)
-    st = np.arange(1, 101, dtype=np.int64) * 10_000_000
-    st[50:] += 100 * 10**9                                        # a clock reset that stays
+    st = np.arange(1, 101, dtype=np.int64) * 10_000_000 + 1000 * 10**9
+    st[50:] -= 100 * 10**9          # a clock reset that stays (back; a forward jump is a dropout)
     before = sys_.gyro_check.as_dict("g")
     assert sys_.screen("gyro", st, np.zeros((100, 3))) is None
     assert sys_.gyro_check.as_dict("g") == before
