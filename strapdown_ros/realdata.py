@@ -47,7 +47,7 @@ from .rotation import quat_normalize, to_ros_xyzw
 
 __all__ = ["ImuTrial", "read_repoimu_csv", "repoimu_trials", "find_repoimu", "reference_indices",
            "write_bag", "extract_git_snapshot", "REALDATA_ENV", "TOPICS", "GYRO_FORMATS",
-           "REFERENCE_FORMATS"]
+           "REFERENCE_FORMATS", "rest_mean_rate", "xcorr_lag_s"]
 
 #: environment variable naming a directory with RepoIMU's ``TStick/`` and ``Pendulum/`` folders
 REALDATA_ENV = "STRAPDOWN_REALDATA"
@@ -390,3 +390,98 @@ def write_bag(bag, trial: ImuTrial, gyro_format: str = "imu", reference_format: 
             "reference_fixes": int(len(ref_k)),
             "frames": {"imu": trial.imu_frame, "reference": trial.reference_frame,
                        "marker": trial.marker_frame}}
+
+
+def rest_mean_rate(trial: ImuTrial, angle_deg: float = 0.5, margin_s: float = 0.5) -> dict:
+    """Mean gyro rate over the rest at the start of a trial, the rest found from the reference.
+
+    The rest ends ``margin_s`` before the reference attitude first departs more than
+    ``angle_deg`` from its first value; the gyro is not used to find it.
+
+    Parameters
+    ----------
+    trial : ImuTrial
+        The recording.
+    angle_deg : float
+        Departure from the first reference attitude that ends the rest, degrees.
+    margin_s : float
+        Time taken off the end of the rest, s.
+
+    Returns
+    -------
+    dict
+        ``samples`` (gyro samples at rest), ``end_s`` (s after the first IMU stamp),
+        ``mean_rad_s`` and ``sigma_rad_s`` (standard error of the mean, per axis), rad/s.
+    """
+    from .rotation import quat_angle_between
+
+    q = trial.q_reference_marker
+    ang = quat_angle_between(q, np.broadcast_to(q[0], q.shape))
+    moving = np.flatnonzero(ang > np.radians(angle_deg))
+    end = int(trial.reference_stamps_ns[moving[0]] if len(moving) else trial.reference_stamps_ns[-1])
+    end -= int(round(margin_s * _NS))
+    rest = trial.stamps_ns < end
+    n = int(rest.sum())
+    out = {"samples": n, "end_s": float(end - int(trial.stamps_ns[0])) / _NS,
+           "mean_rad_s": None, "sigma_rad_s": None}
+    if n >= 2:
+        g = trial.gyro[rest]
+        out["mean_rad_s"] = g.mean(axis=0).tolist()
+        out["sigma_rad_s"] = (g.std(axis=0, ddof=1) / np.sqrt(n)).tolist()
+    return out
+
+
+def xcorr_lag_s(trial: ImuTrial, max_lag_s: float = 0.3) -> float:
+    """Lag of the gyro behind the reference from the cross-correlation of rate magnitudes, s.
+
+    |ω| of the gyro and of the reference attitude differentiated (body increments
+    q_{k−1}* ⊗ q_k over consecutive distinct stamps) are put on one uniform grid (the median
+    IMU period, linear interpolation); the peak of their cross-correlation is refined by a
+    parabola.  Positive: the gyro shows a motion later than the reference.
+
+    Parameters
+    ----------
+    trial : ImuTrial
+        The recording.
+    max_lag_s : float
+        Largest lag searched, s.
+
+    Returns
+    -------
+    float
+        Lag, s.
+
+    Raises
+    ------
+    ValueError
+        Too few samples, or the peak lies at the edge of the search.
+    """
+    from .rotation import quat_conjugate, quat_multiply, quat_to_rotvec
+
+    ti, tr = trial.stamps_ns, trial.reference_stamps_ns
+    keep_i = np.r_[True, np.diff(ti) > 0]
+    keep_r = np.r_[True, np.diff(tr) > 0]
+    ti, gi = ti[keep_i], trial.gyro[keep_i]
+    tr, q = tr[keep_r], trial.q_reference_marker[keep_r]
+    if len(ti) < 10 or len(tr) < 10:
+        raise ValueError(f"{trial.name}: too few samples for a cross-correlation")
+    period = float(np.median(np.diff(ti)))
+    dq = quat_multiply(quat_conjugate(q[:-1]), q[1:])
+    w_ref = np.linalg.norm(quat_to_rotvec(dq), axis=1) / (np.diff(tr) / _NS)
+    t_ref = 0.5 * (tr[:-1] + tr[1:]).astype(float)
+    lo, hi = max(ti[0], t_ref[0]), min(ti[-1], t_ref[-1])
+    grid = np.arange(lo, hi, period)
+    a = np.interp(grid, ti.astype(float), np.linalg.norm(gi, axis=1))
+    b = np.interp(grid, t_ref, w_ref)
+    a, b = a - a.mean(), b - b.mean()
+    m = int(round(max_lag_s * _NS / period))
+    lags = np.arange(-m, m + 1)
+    cc = np.array([np.dot(a[max(0, L):len(a) + min(0, L)], b[max(0, -L):len(b) - max(0, L)])
+                   for L in lags])
+    k = int(np.argmax(cc))
+    if k == 0 or k == len(lags) - 1:
+        raise ValueError(f"{trial.name}: cross-correlation peak at the edge of ±{max_lag_s} s")
+    y0, y1, y2 = cc[k - 1], cc[k], cc[k + 1]
+    den = y0 - 2.0 * y1 + y2
+    frac = 0.5 * (y0 - y2) / den if den != 0 else 0.0
+    return float((lags[k] + frac) * period / _NS)
