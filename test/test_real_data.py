@@ -16,6 +16,7 @@ through the library call ``analyse(..., candidates=...)``; the full library runs
 from __future__ import annotations
 
 import dataclasses
+import inspect
 import json
 import subprocess
 import sys
@@ -25,6 +26,7 @@ import numpy as np
 import pytest
 
 from strapdown_ros.realdata import find_repoimu, read_repoimu_csv, write_bag
+from strapdown_ros.tools.realdata_report import NOMINAL_MODEL
 from strapdown_ros.rotation import (quat_angle_between, quat_conjugate, quat_multiply,
                                     quat_to_dcm, quat_to_rotvec, rotvec_to_quat, ypr_to_dcm)
 
@@ -32,16 +34,6 @@ pytest.importorskip("rosbags")
 
 TRIAL = "TStick/TStick_Test08_Trial1.csv"
 CANDIDATES = ("time_offset", "gyro_bias")
-NOMINAL = """/**:
-  ros__parameters:
-    gyro_rate: 100.0
-    gyro_random_walk: 0.0006
-    gyro_bias_sigma: 0.0
-    gyro_scale_sigma: 0.0
-    gyro_misalignment_sigma: 0.0
-    camera_sigma_xy: 0.005
-    camera_sigma_z: 0.005
-"""
 DEG = np.pi / 180.0
 
 
@@ -62,27 +54,43 @@ def trial(workdir):
 @pytest.fixture(scope="module")
 def model_file(workdir):
     p = workdir / "nominal.yaml"
-    p.write_text(NOMINAL)
+    p.write_text(NOMINAL_MODEL)
     return p
 
 
 _runs = {}
+REAL_TOPICS = {"gyro_topic": "/imu/data", "reference_topic": "/mocap/pose"}
 
 
-def _analyse(trial, workdir, model_file, tag):
-    """Write the trial as an own-format bag, read it as discrepancy does, run the workflow."""
-    if tag in _runs:
-        return _runs[tag]
+def _reads_real_formats() -> bool:
+    """discrepancy's reader takes --gyro-topic/--reference-topic (sensor_msgs/Imu, PoseStamped)."""
+    from strapdown_ros.tools.discrepancy import load_recording
+    params = inspect.signature(load_recording).parameters.values()
+    return any(p.kind is p.VAR_KEYWORD or p.name == "gyro_topic" for p in params)
+
+
+def _analyse(trial, workdir, model_file, tag, real=None):
+    """Write the trial as a bag, read it as discrepancy does, run the workflow.
+
+    The bag is in the real formats (sensor_msgs/Imu + PoseStamped) when the installed tools read
+    them, else in the package's own (Δθ + QuaternionStamped); ``real`` forces one."""
+    real = _reads_real_formats() if real is None else real
+    key = (tag, real)
+    if key in _runs:
+        return _runs[key]
     from strapdown_ros.analysis.discrepancy import analyse
     from strapdown_ros.config import load_model
     from strapdown_ros.tools.discrepancy import load_recording
 
-    bag = workdir / f"bag_{tag}"
-    write_bag(bag, trial, gyro_format="delta_theta", reference_format="quaternion")
+    bag = workdir / f"bag_{tag}_{'real' if real else 'own'}"
+    if real:
+        write_bag(bag, trial, gyro_format="imu", reference_format="pose")
+    else:
+        write_bag(bag, trial, gyro_format="delta_theta", reference_format="quaternion")
     model, _ = load_model(str(model_file))
-    rec, _ = load_recording(str(bag), model)
+    rec, _ = load_recording(str(bag), model, **(REAL_TOPICS if real else {}))
     res = analyse(rec, model, candidates=CANDIDATES)
-    _runs[tag] = res
+    _runs[key] = res
     return res
 
 
@@ -132,8 +140,12 @@ def test_discrepancy_cli_runs_on_the_real_bags(trial, workdir, model_file):
     exe = Path(sys.executable).with_name("discrepancy")
     out = workdir / "cli.json"
     found = workdir / "found.yaml"
+    topics = []
+    if _reads_real_formats():
+        topics = ["--gyro-topic", REAL_TOPICS["gyro_topic"],
+                  "--reference-topic", REAL_TOPICS["reference_topic"]]
     r = subprocess.run([str(exe), str(bag), "--model", str(model_file), "--json", str(out),
-                        "--write-model", str(found), "--quiet"],
+                        "--write-model", str(found), "--quiet"] + topics,
                        capture_output=True, text=True, timeout=120)
     assert r.returncode == 0, r.stderr
     j = json.loads(out.read_text())
@@ -206,3 +218,19 @@ def test_injected_boresight_recovered(trial, workdir, model_file):
     sigma = float(np.linalg.norm(res.boresight_sigma_rad))
     print(f"boresight recovered to {angle / DEG:.4f}° (3σ = {3 * sigma / DEG:.3f}°)")
     assert angle <= max(3.0 * sigma, 0.2 * DEG)
+
+
+def test_real_and_own_format_bags_give_the_same_result(trial, workdir, model_file):
+    """sensor_msgs/Imu rates + PoseStamped read by the tools (trapezoid rule) give what the
+    package's own Δθ + QuaternionStamped bag of the same trial gives."""
+    if not _reads_real_formats():
+        pytest.skip("the installed discrepancy reads no sensor_msgs/Imu + PoseStamped bag yet "
+                    "(--gyro-topic/--reference-topic)")
+    real = _analyse(trial, workdir, model_file, "base", real=True)
+    own = _analyse(trial, workdir, model_file, "base", real=False)
+    assert real.verdict == own.verdict
+    assert [s.effect for s in real.steps] == [s.effect for s in own.steps]
+    for a, b in zip(real.steps, own.steps):
+        for name, v in a.parameters.items():
+            np.testing.assert_allclose(v, b.parameters[name], rtol=1e-6, atol=1e-12)
+    np.testing.assert_allclose(real.boresight_rad, own.boresight_rad, atol=1e-9)
