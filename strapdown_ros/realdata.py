@@ -418,7 +418,8 @@ def rest_mean_rate(trial: ImuTrial, angle_deg: float = 0.5, margin_s: float = 0.
     q = trial.q_reference_marker
     ang = quat_angle_between(q, np.broadcast_to(q[0], q.shape))
     moving = np.flatnonzero(ang > np.radians(angle_deg))
-    end = int(trial.reference_stamps_ns[moving[0]] if len(moving) else trial.reference_stamps_ns[-1])
+    stamps = trial.reference_stamps_ns
+    end = int(stamps[moving[0]] if len(moving) else stamps[-1])
     end -= int(round(margin_s * _NS))
     rest = trial.stamps_ns < end
     n = int(rest.sum())

@@ -114,7 +114,8 @@ def _rest_end(trial, angle_deg=0.5, margin_s=0.5):
 
 def _xcorr_lag_s(trial):
     """Lag of the gyro behind the reference, s: peak of the cross-correlation of |ω_gyro| with
-    |ω_ref| (the Vicon attitude differentiated, body-frame increments), parabolic interpolation."""
+    |ω_ref| (the Vicon attitude differentiated, body-frame increments), parabolic
+    interpolation."""
     assert np.array_equal(trial.stamps_ns, trial.reference_stamps_ns)  # one time base in RepoIMU
     t = trial.stamps_ns * 1e-9
     q = trial.q_reference_marker

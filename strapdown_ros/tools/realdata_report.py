@@ -1,7 +1,7 @@
 """realdata_report: the discrepancy workflow and calibrate_bag over every trial of a real data set.
 
-    realdata_report [--data DIR] [--kinds TStick,Pendulum] [--model MODEL.yaml] [--out doc/realdata]
-                    [--limit N] [--force]
+    realdata_report [--data DIR] [--kinds TStick,Pendulum] [--model MODEL.yaml]
+                    [--out doc/realdata] [--limit N] [--force]
 
 DIR: a RepoIMU copy (``TStick/`` and ``Pendulum/``; default ``$STRAPDOWN_REALDATA``).  Each trial
 is written as a bag (:func:`strapdown_ros.realdata.write_bag`: Δθ increments and the Vicon
@@ -40,10 +40,10 @@ __all__ = ["main", "analyse_trial", "markdown", "NOMINAL_MODEL"]
 
 DEG = np.pi / 180.0
 #: the nominal model of a MEMS IMU under Vicon: noise from the rest data, no known error
-NOMINAL_MODEL = """# Nominal model for RepoIMU (MEMS IMU, 100 Hz; Vicon reference as ~1 Hz fixes): angle random
-# walk from the rest segments (std of the rate x sqrt(0.01 s)); no error effect assumed known;
-# calibrate_bag publishes the boresight when every direction is known to 0.05 rad (2.9 deg), a
-# motion-capture requirement (a star camera's default is 1e-3 rad).
+NOMINAL_MODEL = """# Nominal model for RepoIMU (MEMS IMU, 100 Hz; Vicon reference as ~1 Hz fixes):
+# angle random walk from the rest segments (std of the rate x sqrt(0.01 s)); no error effect
+# assumed known; calibrate_bag publishes the boresight when every direction is known to
+# 0.05 rad (2.9 deg), a motion-capture requirement (a star camera's default is 1e-3 rad).
 /**:
   ros__parameters:
     gyro_rate: 100.0
@@ -110,7 +110,8 @@ def analyse_trial(csv: Path, model_file: Path, work: Path) -> dict:
             if k in j:
                 out["discrepancy"][k] = j[k]
     else:
-        out["discrepancy"] = {"error": (r.stderr.strip().splitlines() or ["exit %d" % r.returncode])[-1]}
+        last = (r.stderr.strip().splitlines() or [f"exit {r.returncode}"])[-1]
+        out["discrepancy"] = {"error": last[:300], "exit": r.returncode}
     try:
         model, _ = load_model(str(model_file))
         rec, _ = load_recording(str(bag), model)
@@ -118,7 +119,8 @@ def analyse_trial(csv: Path, model_file: Path, work: Path) -> dict:
         two = {"verdict": res.verdict, "rms_after": res.rms_after, "named": [], "values": {}}
         for s in res.steps:
             two["named"].append(s.effect)
-            two["values"].update({n: {"value": v, "sigma": s.sigma[n]} for n, v in s.parameters.items()})
+            two["values"].update({n: {"value": v, "sigma": s.sigma[n]}
+                                  for n, v in s.parameters.items()})
         two["rejected"] = [r2["effect"] + ": " + r2["reason"] for r2 in res.rejected]
         two["not_separable"] = [list(p) for p in res.not_separable]
         out["two_effects"] = two
@@ -142,7 +144,9 @@ def analyse_trial(csv: Path, model_file: Path, work: Path) -> dict:
 def _pm(v, s, scale=1.0, fmt="{:.3g}"):
     if v is None:
         return "—"
-    return (fmt + " ± " + fmt).format(v * scale, s * scale) if s is not None else fmt.format(v * scale)
+    if s is None:
+        return fmt.format(v * scale)
+    return (fmt + " ± " + fmt).format(v * scale, s * scale)
 
 
 def _row(t: dict) -> str:
@@ -159,7 +163,8 @@ def _row(t: dict) -> str:
     cb_txt = ("observable" if cb.get("observable") else "not observable") if "error" not in cb \
         else "error"
     rest = t["rest"]
-    rest_txt = "—" if rest["samples"] < 2 else ", ".join(f"{m / DEG:.3f}" for m in rest["mean_rad_s"])
+    rest_txt = ("—" if rest["samples"] < 2
+                else ", ".join(f"{m / DEG:.3f}" for m in rest["mean_rad_s"]))
     xl = t.get("xcorr_lag_s")
     rms = d.get("rms_after")
     return (f"| {t['trial']} | {t['duration_s']:.1f} | {d.get('verdict', '—')} | "
@@ -204,15 +209,17 @@ def markdown(trials: list, meta: dict) -> str:
            f"; INCOMPLETE: {meta['trials_done']} of {meta['trials_listed']} trials so far.")
         , "",
         "Columns: **lag** = `camera_time_offset` (ms) and **bias** (°/s, x, y, z) from the "
-        "workflow restricted to `time_offset` and `gyro_bias` (— = not named by it); **−xcorr lag** = minus the lag of "
-        "|ω_gyro| behind |ω_Vicon| from their cross-correlation (ms; the same sign convention as "
-        "the offset); **rest mean** = mean gyro rate (°/s) over the rest at the start (found from "
+        "workflow restricted to `time_offset` and `gyro_bias` (— = not named by it); "
+        "**−xcorr lag** = minus the lag of |ω_gyro| behind |ω_Vicon| from their "
+        "cross-correlation (ms; the same sign convention as the offset); **rest mean** = mean "
+        "gyro rate (°/s) over the rest at the start (found from "
         "the Vicon attitude); **verdict** and **effects named** from `discrepancy` with the full "
         "library; **calibrate_bag**: boresight observability; **fit consistent**, **χ²/dof "
         "(cal)** when calibrate_bag reports them; **RMS² after** = squared whitened residual "
         "RMS of `discrepancy` after its effects (1 = as the model predicts).", "",
-        "| trial | s | verdict | lag ± σ (ms) | −xcorr lag (ms) | bias ± σ (°/s) | rest mean "
-        "(°/s) | effects named | calibrate_bag | fit consistent | χ²/dof (cal) | RMS² after |",
+        "| trial | s | verdict | lag ± σ (ms) | −xcorr lag (ms) | bias ± σ (°/s) "
+        "| rest mean (°/s) | effects named | calibrate_bag | fit consistent | χ²/dof (cal) "
+        "| RMS² after |",
         "|---|---|---|---|---|---|---|---|---|---|---|---|"]
     lines += [_row(t) for t in trials]
     lines += ["", "## What the numbers say", ""]
@@ -238,9 +245,10 @@ def markdown(trials: list, meta: dict) -> str:
             zs.append(np.max(np.abs(np.asarray(b["value"]) - np.asarray(r["mean_rad_s"])) / s))
     if zs:
         z = np.asarray(zs)
-        lines.append(f"Bias against the mean rate at rest, {len(z)} trials with > 0.5 s of rest: "
-                     f"worst axis within 3σ (σ of both combined) on {int(np.sum(z <= 3))}/{len(z)}; "
-                     f"median worst-axis |z| {np.median(z):.2g}.")
+        lines.append(f"Bias against the mean rate at rest, {len(z)} trials with > 0.5 s of "
+                     f"rest: worst axis within 3σ (σ of both combined) on "
+                     f"{int(np.sum(z <= 3))}/{len(z)}; median worst-axis |z| "
+                     f"{np.median(z):.2g}.")
     obs = sum(1 for t in trials if t.get("calibrate_bag", {}).get("observable"))
     lines.append(f"calibrate_bag found the boresight observable on {obs}/{n} trials.")
     lines += ["", "Nominal model:", "", "```yaml", NOMINAL_MODEL.strip(), "```", ""]
