@@ -235,3 +235,101 @@ def test_real_and_own_format_bags_give_the_same_result(trial, workdir, model_fil
         for name, v in a.parameters.items():
             np.testing.assert_allclose(v, b.parameters[name], rtol=1e-6, atol=1e-12)
     np.testing.assert_allclose(real.boresight_rad, own.boresight_rad, atol=1e-9)
+
+
+# --- the converter and the tools' arguments, without the data set (these run everywhere) -------
+def _synthetic_csv(path, n=501, period=0.01, t0=0.08):
+    """A file in RepoIMU's layout: a rest, then a turn at 0.5 rad/s about z; Vicon = exact."""
+    t = t0 + period * np.arange(n)
+    w = np.where(t > t0 + 1.0, 0.5, 0.0)
+    angle = np.concatenate([[0.0], np.cumsum(0.5 * (w[1:] + w[:-1]) * period)])
+    q = np.stack([np.cos(angle / 2), 0 * angle, 0 * angle, np.sin(angle / 2)], axis=1)
+    gyro = np.stack([0.001 + 0 * t, -0.002 + 0 * t, w], axis=1)
+    acc = np.tile([0.0, 0.0, 9.81], (n, 1))
+    mag = np.tile([0.3, 0.0, -0.8], (n, 1))
+    rows = np.column_stack([t, q, acc, gyro, mag])
+    with open(path, "w", encoding="utf-8") as fh:
+        fh.write("Time (s);Vicon Orientation;;;;IMU Acceleration;;;IMU Gyroscope;;;"
+                 "IMU Magnetometer;;;\n;W;X;Y;Z;X;Y;Z;X;Y;Z;X;Y;Z;\n")
+        for r in rows:
+            fh.write(";".join(f"{v:.9g}" for v in r) + "\n")
+    return t, q, gyro, acc
+
+
+def _read_bag(bag):
+    from rosbags.highlevel import AnyReader
+    from rosbags.typesys import Stores, get_typestore
+
+    out = {}
+    with AnyReader([Path(bag)], default_typestore=get_typestore(Stores.ROS2_JAZZY)) as r:
+        for conn, ts, raw in r.messages():
+            out.setdefault(conn.topic, []).append((ts, r.deserialize(raw, conn.msgtype)))
+    return out
+
+
+def test_converter_writes_what_the_file_says(tmp_path):
+    t, q, gyro, acc = _synthetic_csv(tmp_path / "Synthetic_Trial.csv")
+    trial = read_repoimu_csv(tmp_path / "Synthetic_Trial.csv")
+    assert trial.name == "Synthetic_Trial"
+    np.testing.assert_array_equal(trial.stamps_ns, np.round(t * 1e9).astype(np.int64))
+    summary = write_bag(tmp_path / "bag", trial, gyro_format="both", reference_format="both")
+    msgs = _read_bag(tmp_path / "bag")
+    imu = msgs["/imu/data"]
+    assert len(imu) == len(t) and summary["gyro_rate_hz"] == pytest.approx(100.0)
+    for k in (0, 250, len(t) - 1):
+        ts, m = imu[k]
+        ns = m.header.stamp.sec * 1_000_000_000 + m.header.stamp.nanosec
+        assert ns == ts == int(round(t[k] * 1e9))
+        assert m.header.frame_id == "repoimu_imu"
+        np.testing.assert_allclose([m.angular_velocity.x, m.angular_velocity.y,
+                                    m.angular_velocity.z], gyro[k], rtol=1e-8, atol=1e-12)
+        np.testing.assert_allclose([m.linear_acceleration.x, m.linear_acceleration.y,
+                                    m.linear_acceleration.z], acc[k], rtol=1e-8)
+        assert m.orientation_covariance[0] == -1.0               # REP-145: no orientation
+    # the reference: one fix per second of the data set's own stamps, q_vicon_marker as x,y,z,w
+    pose = msgs["/mocap/pose"]
+    assert len(pose) == len(msgs["/star_camera/attitude"]) == 6      # 0, 1, …, 5 s
+    stamps = np.array([p.header.stamp.sec * 1e9 + p.header.stamp.nanosec for _, p in pose])
+    np.testing.assert_allclose(np.diff(stamps), 1e9, atol=1.0)
+    for _, p in pose:
+        k = int(np.argmin(np.abs(t * 1e9 - (p.header.stamp.sec * 1e9 + p.header.stamp.nanosec))))
+        o = p.pose.orientation
+        np.testing.assert_allclose([o.w, o.x, o.y, o.z], q[k], atol=1e-8)
+        assert p.header.frame_id == "repoimu_vicon"
+    # Δθ: the trapezoid rule over consecutive samples, stamped at the end of the interval
+    dth = msgs["/imu/delta_theta"]
+    assert len(dth) == len(t) - 1
+    k = 300
+    ts, m = dth[k - 1]
+    assert ts == int(round(t[k] * 1e9))
+    np.testing.assert_allclose([m.vector.x, m.vector.y, m.vector.z],
+                               0.5 * (gyro[k] + gyro[k - 1]) * 0.01, rtol=1e-6)
+
+
+def test_rest_and_cross_correlation_on_exact_data(tmp_path):
+    """The library's rest-segment mean and cross-correlation lag (used by realdata_report) on a
+    file whose answers are known: rest 1 s then a turn; the gyro then delayed by 30 ms."""
+    from strapdown_ros.realdata import rest_mean_rate, xcorr_lag_s
+
+    _synthetic_csv(tmp_path / "T.csv", n=1001)
+    trial = read_repoimu_csv(tmp_path / "T.csv")
+    rest = rest_mean_rate(trial)
+    np.testing.assert_allclose(rest["mean_rad_s"], [0.001, -0.002, 0.0], atol=1e-12)
+    # a turn that starts and stops so the rate magnitude has structure; gyro delayed by 30 ms
+    t = trial.stamps_ns * 1e-9
+    w = 0.5 * np.sin(2 * np.pi * 0.7 * t) * (t > t[0] + 1.0)
+    angle = np.concatenate([[0.0], np.cumsum(0.5 * (w[1:] + w[:-1]) * 0.01)])
+    q = np.stack([np.cos(angle / 2), 0 * angle, 0 * angle, np.sin(angle / 2)], axis=1)
+    delayed = np.interp(t - 0.030, t, np.abs(w))
+    g = np.stack([0 * t, 0 * t, delayed], axis=1)
+    tr = dataclasses.replace(trial, gyro=g, q_reference_marker=q)
+    assert xcorr_lag_s(tr) == pytest.approx(0.030, abs=0.002)
+
+
+def test_realdata_tools_refuse_bad_arguments_in_one_line(tmp_path):
+    for args in (["realdata_report", "--data", str(tmp_path / "none")],
+                 ["realdata_bag", str(tmp_path / "none.csv"), str(tmp_path / "bag")]):
+        exe = Path(sys.executable).with_name(args[0])
+        r = subprocess.run([str(exe)] + args[1:], capture_output=True, text=True, timeout=60)
+        assert r.returncode == 2
+        assert len(r.stderr.strip().splitlines()) == 1 and "error" in r.stderr
