@@ -4,8 +4,9 @@
                     [--out doc/realdata] [--limit N] [--force]
 
 DIR: a RepoIMU copy (``TStick/`` and ``Pendulum/``; default ``$STRAPDOWN_REALDATA``).  Each trial
-is written as a bag (:func:`strapdown_ros.realdata.write_bag`: Δθ increments and the Vicon
-attitude decimated to one fix per second) and analysed three ways:
+is written as a bag (:func:`strapdown_ros.realdata.write_bag`: sensor_msgs/Imu + PoseStamped
+when the installed tools read them, else Δθ increments + QuaternionStamped; the Vicon attitude
+decimated to one fix per second) and analysed three ways:
 
 * ``discrepancy`` (the CLI) with the full effect library: verdict, effects named, whitened RMS;
 * the workflow restricted to ``time_offset`` and ``gyro_bias`` (library call): the lag and the
@@ -22,6 +23,7 @@ arguments (no data set, output exists without ``--force``).
 from __future__ import annotations
 
 import argparse
+import inspect
 import json
 import os
 import subprocess
@@ -58,6 +60,15 @@ NOMINAL_MODEL = """# Nominal model for RepoIMU (MEMS IMU, 100 Hz; Vicon referenc
     reference_frame_id: repoimu_vicon
 """
 TWO_EFFECTS = ("time_offset", "gyro_bias")
+REAL_TOPICS = {"gyro_topic": "/imu/data", "reference_topic": "/mocap/pose"}
+
+
+def reads_real_formats() -> bool:
+    """True when the installed bag reader takes sensor_msgs/Imu + PoseStamped topics
+    (``load_recording(..., gyro_topic=..., reference_topic=...)``, ``--gyro-topic``)."""
+    from .discrepancy import load_recording
+    params = inspect.signature(load_recording).parameters.values()
+    return any(p.kind is p.VAR_KEYWORD or p.name == "gyro_topic" for p in params)
 
 
 def _exe(name: str) -> str:
@@ -96,17 +107,25 @@ def analyse_trial(csv: Path, model_file: Path, work: Path) -> dict:
         out["xcorr_lag_s"] = None
         out["xcorr_error"] = str(exc)
     bag = work / csv.stem
-    write_bag(bag, trial, gyro_format="delta_theta", reference_format="quaternion")
+    real = reads_real_formats()
+    if real:                                     # sensor_msgs/Imu + PoseStamped, as recorded
+        write_bag(bag, trial, gyro_format="imu", reference_format="pose")
+        topics = ["--gyro-topic", REAL_TOPICS["gyro_topic"],
+                  "--reference-topic", REAL_TOPICS["reference_topic"]]
+    else:                                        # the package's own Δθ + QuaternionStamped
+        write_bag(bag, trial, gyro_format="delta_theta", reference_format="quaternion")
+        topics = []
+    out["bag_format"] = "Imu+PoseStamped" if real else "delta_theta+QuaternionStamped"
     js = work / f"{csv.stem}.discrepancy.json"
     r = subprocess.run([_exe("discrepancy"), str(bag), "--model", str(model_file), "--json",
-                        str(js), "--quiet"], capture_output=True, text=True, timeout=900)
+                        str(js), "--quiet"] + topics, capture_output=True, text=True, timeout=900)
     if r.returncode == 0:
         j = json.loads(js.read_text())
         out["discrepancy"] = {k: j.get(k) for k in ("verdict", "rms_before", "rms_after",
                                                       "heldout_rms_before", "heldout_rms_after",
                                                       "steps", "not_separable", "pairs",
                                                       "boresight_rad", "boresight_sigma_rad")}
-        for k in ("fit_consistent", "chi2_per_dof"):         # when the installed version has them
+        for k in ("fit_consistent", "chi2_per_dof", "observable"):     # when the version has them
             if k in j:
                 out["discrepancy"][k] = j[k]
     else:
@@ -114,7 +133,7 @@ def analyse_trial(csv: Path, model_file: Path, work: Path) -> dict:
         out["discrepancy"] = {"error": last[:300], "exit": r.returncode}
     try:
         model, _ = load_model(str(model_file))
-        rec, _ = load_recording(str(bag), model)
+        rec, _ = load_recording(str(bag), model, **(REAL_TOPICS if real else {}))
         res = analyse(rec, model, candidates=TWO_EFFECTS)
         two = {"verdict": res.verdict, "rms_after": res.rms_after, "named": [], "values": {}}
         for s in res.steps:
@@ -128,7 +147,7 @@ def analyse_trial(csv: Path, model_file: Path, work: Path) -> dict:
         out["two_effects"] = {"error": f"{type(exc).__name__}: {exc}"[:300]}
     cj = work / f"{csv.stem}.calibrate.json"
     r = subprocess.run([_exe("calibrate_bag"), str(bag), "--params", str(model_file), "--json",
-                        str(cj)], capture_output=True, text=True, timeout=900)
+                        str(cj)] + topics, capture_output=True, text=True, timeout=900)
     if cj.is_file():
         j = json.loads(cj.read_text())
         out["calibrate_bag"] = {k: j.get(k) for k in ("observable", "converged", "beta_rad",
@@ -159,7 +178,8 @@ def _row(t: dict) -> str:
     named = ", ".join(s["effect"] for s in d.get("steps") or []) or ("error: " + d["error"]
                                                                       if "error" in d else "none")
     chi = cb.get("chi2_per_dof")
-    fc = cb.get("fit_consistent")
+    fc = " / ".join("—" if x.get("fit_consistent") is None else str(x["fit_consistent"])
+                    for x in (d, cb))
     cb_txt = ("observable" if cb.get("observable") else "not observable") if "error" not in cb \
         else "error"
     rest = t["rest"]
@@ -170,7 +190,7 @@ def _row(t: dict) -> str:
     return (f"| {t['trial']} | {t['duration_s']:.1f} | {d.get('verdict', '—')} | "
             f"{_pm(lag['value'] if lag else None, lag['sigma'] if lag else None, 1e3)} | "
             f"{'—' if xl is None else f'{-xl * 1e3:.2f}'} | {bias_txt} | {rest_txt} | {named} | "
-            f"{cb_txt} | {'—' if fc is None else fc} | "
+            f"{cb_txt} | {fc} | "
             f"{'—' if chi is None else f'{chi:.3g}'} | "
             f"{'—' if rms is None else f'{rms ** 2:.3g}'} |")
 
@@ -202,8 +222,9 @@ def markdown(trials: list, meta: dict) -> str:
     lines = [
         "# RepoIMU: the discrepancy workflow on every trial (generated by `realdata_report`)", "",
         f"Data: RepoIMU (Szczęsna et al., ICCVG 2016; see test/data/README.md), {n} trials; "
-        f"nominal model `{meta['model']}` (below).  Each trial: Δθ from the gyro rate samples "
-        "(trapezoid rule), the Vicon attitude as one fix per second.  Run time "
+        f"nominal model `{meta['model']}` (below).  Each trial as a bag of "
+        f"{', '.join(sorted({t.get('bag_format', '?') for t in trials}))} (Δθ from the rate "
+        "samples by the trapezoid rule), the Vicon attitude as one fix per second.  Run time "
         f"{meta['seconds']:.0f} s"
         + ("." if meta.get("complete", True) else
            f"; INCOMPLETE: {meta['trials_done']} of {meta['trials_listed']} trials so far.")
@@ -214,11 +235,13 @@ def markdown(trials: list, meta: dict) -> str:
         "cross-correlation (ms; the same sign convention as the offset); **rest mean** = mean "
         "gyro rate (°/s) over the rest at the start (found from "
         "the Vicon attitude); **verdict** and **effects named** from `discrepancy` with the full "
-        "library; **calibrate_bag**: boresight observability; **fit consistent**, **χ²/dof "
-        "(cal)** when calibrate_bag reports them; **RMS² after** = squared whitened residual "
-        "RMS of `discrepancy` after its effects (1 = as the model predicts).", "",
+        "library; **calibrate_bag**: boresight observability; **fit consistent** (discrepancy / "
+        "calibrate_bag) and **χ²/dof (cal)** when the installed tools report them (— = not); "
+        "**RMS² after** = squared whitened residual RMS of `discrepancy` after its effects "
+        "(1 = as the model predicts).", "",
         "| trial | s | verdict | lag ± σ (ms) | −xcorr lag (ms) | bias ± σ (°/s) "
-        "| rest mean (°/s) | effects named | calibrate_bag | fit consistent | χ²/dof (cal) "
+        "| rest mean (°/s) | effects named | calibrate_bag | fit consistent (disc / cal) "
+        "| χ²/dof (cal) "
         "| RMS² after |",
         "|---|---|---|---|---|---|---|---|---|---|---|---|"]
     lines += [_row(t) for t in trials]
