@@ -212,8 +212,10 @@ def extract_git_snapshot(git_dir, dest) -> Path:
 def find_repoimu(scratch=None) -> Path | None:
     """Where a RepoIMU copy is on this machine, or None.
 
-    ``$STRAPDOWN_REALDATA`` (a directory with ``TStick/``) first; else a git snapshot under
-    ``/work/.mirror/agnieszkaszczesna+RepoIMU/repo``, extracted into ``scratch`` when given.
+    ``$STRAPDOWN_REALDATA`` (a directory with ``TStick/``) first; else ``shared/RepoIMU`` beside
+    the repository or ``/work/shared/RepoIMU`` (the project's shared data folder); else a git
+    snapshot under ``/work/.mirror/agnieszkaszczesna+RepoIMU/repo``, extracted into ``scratch``
+    when given.
 
     Parameters
     ----------
@@ -229,6 +231,10 @@ def find_repoimu(scratch=None) -> Path | None:
     if env:
         p = Path(env)
         return p if (p / "TStick").is_dir() else None
+    repo_root = Path(__file__).resolve().parents[1]
+    for shared in (repo_root.parent / "shared" / "RepoIMU", Path("/work/shared/RepoIMU")):
+        if (shared / "TStick").is_dir():
+            return shared
     git_dir = Path("/work/.mirror/agnieszkaszczesna+RepoIMU/repo")
     if scratch is None or not (git_dir / "HEAD").is_file():
         return None

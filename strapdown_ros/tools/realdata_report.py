@@ -3,10 +3,10 @@
     realdata_report [--data DIR] [--kinds TStick,Pendulum] [--model MODEL.yaml]
                     [--out doc/realdata] [--limit N] [--force]
 
-DIR: a RepoIMU copy (``TStick/`` and ``Pendulum/``; default ``$STRAPDOWN_REALDATA``).  Each trial
-is written as a bag (:func:`strapdown_ros.realdata.write_bag`: sensor_msgs/Imu + PoseStamped
-when the installed tools read them, else Δθ increments + QuaternionStamped; the Vicon attitude
-decimated to one fix per second) and analysed three ways:
+DIR: a RepoIMU copy (``TStick/`` and ``Pendulum/``; default ``$STRAPDOWN_REALDATA``, else
+``shared/RepoIMU``).  Each trial is written as a bag (:func:`strapdown_ros.realdata.write_bag`:
+sensor_msgs/Imu + PoseStamped when the installed tools read them, else Δθ increments +
+QuaternionStamped; the Vicon attitude decimated to one fix per second) and analysed three ways:
 
 * ``discrepancy`` (the CLI) with the full effect library: verdict, effects named, whitened RMS;
 * the workflow restricted to ``time_offset`` and ``gyro_bias`` (library call): the lag and the
@@ -34,8 +34,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ..realdata import (REALDATA_ENV, read_repoimu_csv, repoimu_trials, rest_mean_rate,
-                        xcorr_lag_s, write_bag)
+from ..realdata import (REALDATA_ENV, find_repoimu, read_repoimu_csv, repoimu_trials,
+                        rest_mean_rate, xcorr_lag_s, write_bag)
 from .paths import check_output_dir, write_json
 
 __all__ = ["main", "analyse_trial", "markdown", "NOMINAL_MODEL"]
@@ -282,8 +282,8 @@ def main(argv=None) -> int:
     from .paths import OneLineParser
     ap = OneLineParser(prog="realdata_report", description=__doc__,
                        formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--data", default=os.environ.get(REALDATA_ENV, ""),
-                    help=f"RepoIMU directory (default ${REALDATA_ENV})")
+    ap.add_argument("--data", default="", help=f"RepoIMU directory (default ${REALDATA_ENV}, "
+                                               "else shared/RepoIMU)")
     ap.add_argument("--kinds", default="TStick,Pendulum", help="sub-directories to run")
     ap.add_argument("--model", help="nominal model YAML (default: the built-in one, printed in "
                                     "the report)")
@@ -293,9 +293,10 @@ def main(argv=None) -> int:
     ap.add_argument("--force", action="store_true", help="overwrite existing outputs")
     args = ap.parse_args(argv)
     try:
-        root = Path(args.data) if args.data else None
+        root = Path(args.data) if args.data else find_repoimu()
         if root is None or not root.is_dir():
-            raise ValueError(f"no data set: give --data DIR or set {REALDATA_ENV}")
+            raise ValueError(f"no data set: give --data DIR, set {REALDATA_ENV} or place "
+                             "RepoIMU in shared/RepoIMU")
         trials = repoimu_trials(root, tuple(k for k in args.kinds.split(",") if k))
         if not trials:
             raise ValueError(f"{root}: no trial CSV under {args.kinds}")
