@@ -1,9 +1,10 @@
 """Real recordings: a public IMU + optical-motion-capture data set turned into rosbag2 bags.
 
 The data set read here is **RepoIMU** (Szczęsna et al., 2016; see ``test/data/README.md``): an
-IMU (accelerometer, gyroscope, magnetometer, 100 Hz) on a T-shaped wand ("TStick") or on the
-segments of a three-segment pendulum, with the orientation of the same rigid body from a Vicon
-optical motion-capture system, synchronised and resampled by the authors onto the IMU's time base.
+IMU (accelerometer, gyroscope, magnetometer) on a T-shaped wand ("TStick", 100 Hz) or on the
+segments of a three-segment pendulum (irregular stamps, mostly 6 ms apart), with the orientation
+of the same rigid body from a Vicon optical motion-capture system, synchronised by the authors
+onto the IMU's time base.
 One trial is one ``;``-separated CSV file: time (s), Vicon quaternion w, x, y, z, then the IMU's
 acceleration (m/s²), angular rate (rad/s) and magnetic field, body axes.
 
