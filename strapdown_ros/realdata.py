@@ -48,7 +48,8 @@ from .rotation import quat_normalize, to_ros_xyzw
 
 __all__ = ["ImuTrial", "read_repoimu_csv", "repoimu_trials", "find_repoimu", "reference_indices",
            "write_bag", "extract_git_snapshot", "REALDATA_ENV", "TOPICS", "GYRO_FORMATS",
-           "REFERENCE_FORMATS", "rest_mean_rate", "xcorr_lag_s"]
+           "REFERENCE_FORMATS", "rest_mean_rate", "xcorr_lag_s",
+           "rate_plateau_samples"]
 
 #: environment variable naming a directory with RepoIMU's ``TStick/`` and ``Pendulum/`` folders
 REALDATA_ENV = "STRAPDOWN_REALDATA"
@@ -493,3 +494,26 @@ def xcorr_lag_s(trial: ImuTrial, max_lag_s: float = 0.3) -> float:
     den = y0 - 2.0 * y1 + y2
     frac = 0.5 * (y0 - y2) / den if den != 0 else 0.0
     return float((lags[k] + frac) * period / _NS)
+
+
+def rate_plateau_samples(trial: ImuTrial, rel: float = 0.999) -> list:
+    """Per gyro axis, the samples whose |rate| lies within ``1 − rel`` of that axis' largest
+    |rate| in the trial.  A gyro that clips (saturates) sits on such a plateau for many samples;
+    an unclipped peak reaches it for one or two.
+
+    Parameters
+    ----------
+    trial : ImuTrial
+        The recording.
+    rel : float
+        Fraction of the largest |rate| that counts as the plateau.
+
+    Returns
+    -------
+    list of int
+        Counts for x, y, z.
+    """
+    g = np.abs(np.asarray(trial.gyro, dtype=float))
+    if len(g) == 0:
+        return [0, 0, 0]
+    return [int(np.sum(g[:, i] >= rel * g[:, i].max())) for i in range(3)]

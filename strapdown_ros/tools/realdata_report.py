@@ -34,8 +34,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ..realdata import (REALDATA_ENV, find_repoimu, read_repoimu_csv, repoimu_trials,
-                        rest_mean_rate, xcorr_lag_s, write_bag)
+from ..realdata import (REALDATA_ENV, find_repoimu, rate_plateau_samples, read_repoimu_csv,
+                        repoimu_trials, rest_mean_rate, xcorr_lag_s, write_bag)
 from .paths import check_output_dir, write_json
 
 __all__ = ["main", "analyse_trial", "markdown", "NOMINAL_MODEL"]
@@ -60,6 +60,8 @@ NOMINAL_MODEL = """# Nominal model for RepoIMU (MEMS IMU, 100 Hz; Vicon referenc
     reference_frame_id: repoimu_vicon
 """
 TWO_EFFECTS = ("time_offset", "gyro_bias")
+#: samples on the largest-|rate| plateau of one axis from which a trial is called clipped
+CLIPPED_SAMPLES = 10
 REAL_TOPICS = {"gyro_topic": "/imu/data", "reference_topic": "/mocap/pose"}
 
 
@@ -101,6 +103,8 @@ def analyse_trial(csv: Path, model_file: Path, work: Path) -> dict:
     out = {"trial": csv.stem, "kind": csv.parent.name, "duration_s": trial.duration_s,
            "imu_samples": int(len(trial.stamps_ns))}
     out["rest"] = rest_mean_rate(trial)
+    out["rate_plateau_samples"] = rate_plateau_samples(trial)
+    out["max_abs_rate_rad_s"] = np.abs(trial.gyro).max(axis=0).tolist()
     try:
         out["xcorr_lag_s"] = xcorr_lag_s(trial)
     except ValueError as exc:
@@ -187,7 +191,10 @@ def _row(t: dict) -> str:
                 else ", ".join(f"{m / DEG:.3f}" for m in rest["mean_rad_s"]))
     xl = t.get("xcorr_lag_s")
     rms = d.get("rms_after")
-    return (f"| {t['trial']} | {t['duration_s']:.1f} | {d.get('verdict', '—')} | "
+    plateau = t.get("rate_plateau_samples")
+    plateau_txt = "—" if plateau is None else str(max(plateau))
+    return (f"| {t['trial']} | {t['duration_s']:.1f} | {plateau_txt} | "
+            f"{d.get('verdict', '—')} | "
             f"{_pm(lag['value'] if lag else None, lag['sigma'] if lag else None, 1e3)} | "
             f"{'—' if xl is None else f'{-xl * 1e3:.2f}'} | {bias_txt} | {rest_txt} | {named} | "
             f"{cb_txt} | {fc} | "
@@ -229,7 +236,9 @@ def markdown(trials: list, meta: dict) -> str:
         + ("." if meta.get("complete", True) else
            f"; INCOMPLETE: {meta['trials_done']} of {meta['trials_listed']} trials so far.")
         , "",
-        "Columns: **lag** = `camera_time_offset` (ms) and **bias** (°/s, x, y, z) from the "
+        "Columns: **plateau** = most samples of one gyro axis within 0.1 % of its largest "
+        "|rate| in the trial (a clipping gyro sits there for many samples); **lag** = "
+        "`camera_time_offset` (ms) and **bias** (°/s, x, y, z) from the "
         "workflow restricted to `time_offset` and `gyro_bias` (— = not named by it); "
         "**−xcorr lag** = minus the lag of |ω_gyro| behind |ω_Vicon| from their "
         "cross-correlation (ms; the same sign convention as the offset); **rest mean** = mean "
@@ -239,27 +248,31 @@ def markdown(trials: list, meta: dict) -> str:
         "calibrate_bag) and **χ²/dof (cal)** when the installed tools report them (— = not); "
         "**RMS² after** = squared whitened residual RMS of `discrepancy` after its effects "
         "(1 = as the model predicts).", "",
-        "| trial | s | verdict | lag ± σ (ms) | −xcorr lag (ms) | bias ± σ (°/s) "
+        "| trial | s | plateau | verdict | lag ± σ (ms) | −xcorr lag (ms) | bias ± σ (°/s) "
         "| rest mean (°/s) | effects named | calibrate_bag | fit consistent (disc / cal) "
         "| χ²/dof (cal) "
         "| RMS² after |",
-        "|---|---|---|---|---|---|---|---|---|---|---|---|"]
+        "|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
     lines += [_row(t) for t in trials]
     lines += ["", "## What the numbers say", ""]
     lines.append("Verdicts: " + ", ".join(f"{k} {v}/{n}" for k, v in sorted(verdicts.items()))
                  + ".  Effects named by the full search: "
                  + (", ".join(f"{k} in {v}" for k, v in sorted(named.items(), key=lambda x: -x[1]))
                     or "none") + ".")
-    diffs, zs = [], []
+    diffs, zs, clipped = [], [], []
     for t in trials:
         lag = t.get("two_effects", {}).get("values", {}).get("camera_time_offset")
         if lag and t.get("xcorr_lag_s") is not None:
             diffs.append(lag["value"] + t["xcorr_lag_s"])
+            clipped.append(max(t.get("rate_plateau_samples") or [0]) >= CLIPPED_SAMPLES)
     if diffs:
-        d = np.abs(diffs) * 1e3
+        d, c = np.abs(diffs) * 1e3, np.asarray(clipped)
         lines.append(f"Lag against the cross-correlation, {len(d)} trials: |difference| median "
                      f"{np.median(d):.2f} ms, max {np.max(d):.2f} ms; within 2 ms on "
-                     f"{int(np.sum(d <= 2.0))}/{len(d)}.")
+                     f"{int(np.sum(d <= 2.0))}/{len(d)}"
+                     + (f"; on the {int(np.sum(~c))} without gyro clipping (below) within 2 ms "
+                        f"on {int(np.sum(d[~c] <= 2.0))}, max {np.max(d[~c]):.2f} ms"
+                        if np.any(c) and np.any(~c) else "") + ".")
     for t in trials:
         b = t.get("two_effects", {}).get("values", {}).get("gyro_bias")
         r = t["rest"]
@@ -272,6 +285,18 @@ def markdown(trials: list, meta: dict) -> str:
                      f"rest: worst axis within 3σ (σ of both combined) on "
                      f"{int(np.sum(z <= 3))}/{len(z)}; median worst-axis |z| "
                      f"{np.median(z):.2g}.")
+    clip = [t for t in trials if max(t.get("rate_plateau_samples") or [0]) >= CLIPPED_SAMPLES]
+    if clip:
+        chis = [t.get("calibrate_bag", {}).get("chi2_per_dof") for t in clip]
+        rest_chi = [t.get("calibrate_bag", {}).get("chi2_per_dof") for t in trials
+                    if t not in clip]
+        med = (lambda v: f"{np.median(v):.3g}" if v else "—")
+        lines.append(f"Gyro clipping: {len(clip)} trials have ≥ {CLIPPED_SAMPLES} samples on "
+                     f"the plateau of one axis (largest |rate| "
+                     f"{max(max(t['max_abs_rate_rad_s']) for t in clip):.3f} rad/s): "
+                     f"{', '.join(t['trial'] for t in clip)}; calibrate_bag's χ²/dof on them, "
+                     f"median {med([c for c in chis if c is not None])}, against "
+                     f"{med([c for c in rest_chi if c is not None])} on the other trials.")
     obs = sum(1 for t in trials if t.get("calibrate_bag", {}).get("observable"))
     lines.append(f"calibrate_bag found the boresight observable on {obs}/{n} trials.")
     lines += ["", "Nominal model:", "", "```yaml", NOMINAL_MODEL.strip(), "```", ""]
