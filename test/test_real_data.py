@@ -1,8 +1,10 @@
 """The discrepancy workflow on a real recording: RepoIMU (IMU + Vicon), one T-stick trial.
 
-The data set is not shipped (no licence to redistribute it; see test/data/README.md).  These
-tests run when a copy is found — ``$STRAPDOWN_REALDATA`` naming a directory with ``TStick/``, or
-the development snapshot under /work/.mirror — and are skipped with the reason otherwise.
+The data set is not shipped (no licence to redistribute it; see test/data/README.md).  The
+tests on it run when a copy is found — ``$STRAPDOWN_REALDATA`` naming a directory with
+``TStick/``, ``shared/RepoIMU``, or the development snapshot under /work/.mirror — and are
+skipped with the reason otherwise.  The tests at the end (the converter on a synthetic file in
+RepoIMU's layout, the tools' argument errors) need no data and run everywhere.
 
 Truth here is never the tool's own output: the gyro bias is checked against the mean rate over
 the rest segment at the start (found from the Vicon attitude, not from the gyro), the lag against
