@@ -49,7 +49,7 @@ from .rotation import quat_normalize, to_ros_xyzw
 __all__ = ["ImuTrial", "read_repoimu_csv", "repoimu_trials", "find_repoimu", "reference_indices",
            "write_bag", "extract_git_snapshot", "REALDATA_ENV", "TOPICS", "GYRO_FORMATS",
            "REFERENCE_FORMATS", "rest_mean_rate", "xcorr_lag_s",
-           "rate_plateau_samples"]
+           "rate_plateau_samples", "irregular_step_fraction"]
 
 #: environment variable naming a directory with RepoIMU's ``TStick/`` and ``Pendulum/`` folders
 REALDATA_ENV = "STRAPDOWN_REALDATA"
@@ -517,3 +517,25 @@ def rate_plateau_samples(trial: ImuTrial, rel: float = 0.999) -> list:
     if len(g) == 0:
         return [0, 0, 0]
     return [int(np.sum(g[:, i] >= rel * g[:, i].max())) for i in range(3)]
+
+
+def irregular_step_fraction(stamps_ns, tolerance: float = 0.1) -> float:
+    """Fraction of stamp steps more than ``tolerance`` (relative) away from the median step.
+
+    Parameters
+    ----------
+    stamps_ns : array_like of int
+        Stamps, ns.
+    tolerance : float
+        Relative deviation from the median step that counts as irregular.
+
+    Returns
+    -------
+    float
+        In [0, 1]; 0 for fewer than two steps.
+    """
+    d = np.diff(np.asarray(stamps_ns, dtype=np.int64)).astype(float)
+    if len(d) < 2:
+        return 0.0
+    med = float(np.median(d))
+    return float(np.mean(np.abs(d - med) > tolerance * abs(med)))

@@ -34,8 +34,9 @@ from pathlib import Path
 
 import numpy as np
 
-from ..realdata import (REALDATA_ENV, find_repoimu, rate_plateau_samples, read_repoimu_csv,
-                        repoimu_trials, rest_mean_rate, xcorr_lag_s, write_bag)
+from ..realdata import (REALDATA_ENV, find_repoimu, irregular_step_fraction,
+                        rate_plateau_samples, read_repoimu_csv, repoimu_trials, rest_mean_rate,
+                        xcorr_lag_s, write_bag)
 from .paths import check_output_dir, write_json
 
 __all__ = ["main", "analyse_trial", "markdown", "NOMINAL_MODEL"]
@@ -105,6 +106,7 @@ def analyse_trial(csv: Path, model_file: Path, work: Path) -> dict:
     out["rest"] = rest_mean_rate(trial)
     out["rate_plateau_samples"] = rate_plateau_samples(trial)
     out["max_abs_rate_rad_s"] = np.abs(trial.gyro).max(axis=0).tolist()
+    out["irregular_step_fraction"] = irregular_step_fraction(trial.stamps_ns)
     try:
         out["xcorr_lag_s"] = xcorr_lag_s(trial)
     except ValueError as exc:
@@ -297,6 +299,12 @@ def markdown(trials: list, meta: dict) -> str:
                      f"{', '.join(t['trial'] for t in clip)}; calibrate_bag's χ²/dof on them, "
                      f"median {med([c for c in chis if c is not None])}, against "
                      f"{med([c for c in rest_chi if c is not None])} on the other trials.")
+    irr = [t["irregular_step_fraction"] for t in trials if "irregular_step_fraction" in t]
+    if irr:
+        irr = np.asarray(irr)
+        lines.append(f"IMU stamps: {int(np.sum(irr > 0.05))}/{len(irr)} trials have more than "
+                     f"5 % of their steps more than 10 % away from the median step (median "
+                     f"fraction {np.median(irr):.1%}, largest {np.max(irr):.1%}).")
     obs = sum(1 for t in trials if t.get("calibrate_bag", {}).get("observable"))
     lines.append(f"calibrate_bag found the boresight observable on {obs}/{n} trials.")
     lines += ["", "Nominal model:", "", "```yaml", NOMINAL_MODEL.strip(), "```", ""]
