@@ -306,7 +306,11 @@ def markdown(trials: list, meta: dict) -> str:
                      f"5 % of their steps more than 10 % away from the median step (median "
                      f"fraction {np.median(irr):.1%}, largest {np.max(irr):.1%}).")
     obs = sum(1 for t in trials if t.get("calibrate_bag", {}).get("observable"))
-    lines.append(f"calibrate_bag found the boresight observable on {obs}/{n} trials.")
+    fc = [t["calibrate_bag"]["fit_consistent"] for t in trials
+          if t.get("calibrate_bag", {}).get("fit_consistent") is not None]
+    lines.append(f"calibrate_bag found the boresight observable on {obs}/{n} trials"
+                 + (f"; its fit consistent with the stated noise on {sum(map(bool, fc))}/"
+                    f"{len(fc)} of those it reports on" if fc else "") + ".")
     lines += ["", "Nominal model:", "", "```yaml", NOMINAL_MODEL.strip(), "```", ""]
     return "\n".join(lines)
 
