@@ -181,8 +181,10 @@ def _row(t: dict) -> str:
     bias = vals.get("gyro_bias")
     bias_txt = "—" if not bias else ", ".join(
         _pm(b, s, 1 / DEG) for b, s in zip(bias["value"], bias["sigma"]))
-    named = ", ".join(s["effect"] for s in d.get("steps") or []) or ("error: " + d["error"]
-                                                                      if "error" in d else "none")
+    if "error" in d:                             # exit 3: boresight not observable, 4: failure
+        named = f"exit {d.get('exit', '?')}: {d['error'][:60].replace('|', '/')}…"
+    else:
+        named = ", ".join(s["effect"] for s in d.get("steps") or []) or "none"
     chi = cb.get("chi2_per_dof")
     fc = " / ".join("—" if x.get("fit_consistent") is None else str(x["fit_consistent"])
                     for x in (d, cb))
