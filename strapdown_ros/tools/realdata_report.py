@@ -174,6 +174,14 @@ def _pm(v, s, scale=1.0, fmt="{:.3g}"):
     return (fmt + " ± " + fmt).format(v * scale, s * scale)
 
 
+def _verdict(d: dict) -> str:
+    """The verdict, or what the exit status of discrepancy says instead of one."""
+    if d.get("verdict"):
+        return d["verdict"]
+    return {3: "boresight_unobservable", 4: "analysis_failure", 2: "input_error"}.get(
+        d.get("exit"), "error")
+
+
 def _row(t: dict) -> str:
     d, two, cb = t.get("discrepancy", {}), t.get("two_effects", {}), t.get("calibrate_bag", {})
     vals = two.get("values", {})
@@ -198,7 +206,7 @@ def _row(t: dict) -> str:
     plateau = t.get("rate_plateau_samples")
     plateau_txt = "—" if plateau is None else str(max(plateau))
     return (f"| {t['trial']} | {t['duration_s']:.1f} | {plateau_txt} | "
-            f"{d.get('verdict', '—')} | "
+            f"{_verdict(d)} | "
             f"{_pm(lag['value'] if lag else None, lag['sigma'] if lag else None, 1e3)} | "
             f"{'—' if xl is None else f'{-xl * 1e3:.2f}'} | {bias_txt} | {rest_txt} | {named} | "
             f"{cb_txt} | {fc} | "
@@ -224,7 +232,7 @@ def markdown(trials: list, meta: dict) -> str:
     n = len(trials)
     verdicts = {}
     for t in trials:
-        v = t.get("discrepancy", {}).get("verdict", "error")
+        v = _verdict(t.get("discrepancy", {}))
         verdicts[v] = verdicts.get(v, 0) + 1
     named = {}
     for t in trials:
