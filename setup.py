@@ -62,6 +62,8 @@ setup(
             "load_bench = strapdown_ros.tools.load_bench:main",
             "node_rate_bench = strapdown_ros.tools.node_rate_bench:main",
             "nav_bench = strapdown_ros.tools.nav_bench:main",
+            "realdata_report = strapdown_ros.tools.realdata_report:main",
+            "realdata_bag = strapdown_ros.tools.realdata_bag:main",
         ],
     },
 )
