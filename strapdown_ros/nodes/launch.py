@@ -15,7 +15,8 @@ import importlib
 import signal
 import sys
 
-__all__ = ["imu_sim_node", "sins_node", "star_camera_sim_node", "calibrator_node", "strapdown_demo"]
+__all__ = ["imu_sim_node", "sins_node", "star_camera_sim_node", "calibrator_node", "strapdown_demo",
+           "signal_received"]
 
 
 _signalled = []
@@ -24,6 +25,14 @@ _signalled = []
 def _interrupt(signum, frame):
     _signalled.append(signum)
     raise KeyboardInterrupt
+
+
+def signal_received() -> bool:
+    """True once SIGINT or SIGTERM arrived before the node's own handlers took over.  The
+    KeyboardInterrupt raised for it can be swallowed when it lands in a callback of the
+    interpreter (an import-lock or weakref callback: "Exception ignored in ..."), so
+    ``ros_io.run_node`` asks here too and stops instead of spinning."""
+    return bool(_signalled)
 
 
 def _run(module: str) -> int:
@@ -37,6 +46,8 @@ def _run(module: str) -> int:
         if _signalled:                       # interrupted inside a C extension's initialisation
             return 0
         raise
+    if _signalled:                           # a signal swallowed inside an import callback
+        return 0
     try:
         return main()
     except KeyboardInterrupt:                # a signal before the node was spinning

@@ -20,6 +20,7 @@ from rclpy.qos_overriding_options import QoSOverridingOptions
 
 from ..config import ParamSpec
 from . import cdr
+from .launch import signal_received
 
 # --- QoS ---------------------------------------------------------------------------
 def stream_qos(depth: int = 500) -> QoSProfile:
@@ -517,6 +518,8 @@ def run_node(node_class, name: str, args=None) -> int:
     try:
         for sig in (signal.SIGINT, signal.SIGTERM):
             signal.signal(sig, request_stop)
+        if signal_received():                          # a signal the entry point saw first
+            return 0
         rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
     except KeyboardInterrupt:                          # the entry point's import-time handler
         return 0
