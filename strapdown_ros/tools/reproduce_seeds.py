@@ -11,13 +11,16 @@
   when present).
 * 002 (Ilyushenko 2009): the integral method against the 000 estimator on the same data
   (:mod:`.seeds_002`).
-* 003 (coning, §2.3): the three cases, the thesis's claims, values at the round-off floor marked
+* 003 (Aksyonenko 2014, coning §2.3): the three cases, the thesis's claims, values at the
+  round-off floor marked
   (:mod:`.seeds_003`).
-* 004 (boresight, §6): the σ_β pattern from a simulated experiment with 004's sensor parameters
+* 004 (Vasilyuk et al. 2024, boresight §6): the σ_β pattern from a simulated experiment with
+  004's sensor parameters
   (here; further parts from :mod:`.seeds_004` when present).
 
 Every section is one entry of :data:`REGISTRY`: a module with a run, a report and (optionally) a
-plots function.  Every comparison sentence of the report is computed from the numbers it compares.
+plots function.  Every comparison sentence of the report is computed from the numbers it compares
+and prints its threshold; each section's figures follow its text.  References: doc/references.md.
 No ROS imports.
 """
 from __future__ import annotations

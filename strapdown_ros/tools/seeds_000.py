@@ -1,4 +1,5 @@
-"""000 (Tkachenko 1983) §6 for ``reproduce_seeds``: the simulated experiment, the Monte Carlo over
+"""000 (Tkachenko 1983; paper 000) §6 for ``reproduce_seeds``: the simulated experiment, the
+Monte Carlo over
 the pulse generator's initial remainders, the ablations that look for what makes the paper's
 errors larger than ours, and the report section.  Research code: the estimator itself is
 :mod:`strapdown_ros.tkachenko`; nothing here is needed to use it.

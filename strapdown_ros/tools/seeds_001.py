@@ -1,4 +1,5 @@
-"""seeds_001: reproduce Vavilov (001) — observability in gyro-horizon-compass correction.
+"""seeds_001: reproduce Vavilov 1982 (paper 001) — observability in gyro-horizon-compass
+correction.
 
     python -m strapdown_ros.tools.seeds_001 [--quick] [--report FILE.md] [--json FILE] [--plots DIR]
 

@@ -1,4 +1,5 @@
-"""002 (Ilyushenko 2009) for ``reproduce_seeds``: simulated gyro + star-tracker data sets and the
+"""002 (Ilyushenko 2009; paper 002) for ``reproduce_seeds``: simulated gyro + star-tracker data
+sets and the
 integral method against the 000 estimator on the same data.  Research code: the method itself
 is :mod:`strapdown_ros.integral_method`.  No ROS imports.
 """

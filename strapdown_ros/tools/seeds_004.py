@@ -1,4 +1,5 @@
-"""004 extras for the seed report: the Fig. 3 θ_diff check and the §6 σ_β ablation.
+"""004 (Vasilyuk et al. 2024; paper 004) extras for the seed report: the Fig. 3 θ_diff check
+and the §6 σ_β ablation.
 
     python -m strapdown_ros.tools.seeds_004 [--quick] [--runs N] [--report FILE] [--json FILE] [--plots DIR]
 
