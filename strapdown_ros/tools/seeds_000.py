@@ -610,7 +610,7 @@ def plots_000(r: dict, outdir: str) -> list[str]:
         ax.barh(yy, [v["rms_ratio"] for v in vals],
                 color=["C0" if v["corr"] >= SAME_PATTERN else "C7" for v in vals])
         for y, v in zip(yy, vals):
-            ax.annotate(f" corr {v['corr']:+.2f}, {v['signs']}/{v['n']}", (v["rms_ratio"], y), va="center",
+            ax.annotate(f" corr {v['corr']:+.3f}, {v['signs']}/{v['n']}", (v["rms_ratio"], y), va="center",
                         fontsize=7)
         ax.axvline(1.0, color="k", lw=1)
         ax.axvspan(1 / EXPLAINS_WITHIN, EXPLAINS_WITHIN, color="C2", alpha=0.12)
