@@ -204,3 +204,19 @@ def test_registry_is_table_driven():
         assert callable(s.fn(s.run)) and callable(s.fn(s.report))
     missing = reproduce_seeds.Section("999", "999", ".no_such_seed_module", "a", "b", None, lambda a: ())
     assert not missing.available()
+
+
+def test_from_json_rerenders_the_same_report(result, tmp_path, capsys):
+    """--from-json writes the report of an earlier run without rerunning it: same text; the
+    input may not be an output (exit 2, one line)."""
+    _, text, d = result
+    again = tmp_path / "again"
+    again.mkdir()
+    assert reproduce_seeds.main(["--only", "000,002,003", "--from-json", str(d / "r.json"),
+                                 "--report", str(again / "r.md"), "--plots", str(again / "plots")]) == 0
+    assert (again / "r.md").read_text() == text
+    capsys.readouterr()
+    assert reproduce_seeds.main(["--from-json", str(d / "r.json"), "--json", str(d / "r.json"),
+                                 "--force"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("reproduce_seeds: error:")

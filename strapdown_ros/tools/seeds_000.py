@@ -470,6 +470,12 @@ def _ablation_lines(a: dict) -> list[str]:
     return L + [""]
 
 
+#: the rows of the error tables: the paper's published set first, then 000's method as printed
+ROW_NAMES = {"paper": "paper (000's published errors)", "ours_as_printed": "ours: 000's method as printed",
+             "ours": "ours: modified estimator", "ours_iterated": "ours: Gauss–Newton",
+             "ours_mc_mean": "ours: modified, Monte Carlo mean", "ours_mc_std": "ours: modified, Monte Carlo std"}
+
+
 def report_000(r: dict) -> str:
     L = ["## 000 — gyro errors against a drifting reference (Tkachenko 1983, §6)", ""]
     h = r["headline"]
@@ -498,17 +504,18 @@ def report_000(r: dict) -> str:
     L += ["", "Errors estimate − truth (w0: corrected attitude error w⁰ at t_f; dc, dd in the paper's units).", ""]
     for case, rec in r["cases"].items():
         L += [f"### {case}", "", "| | w0 ×1e-5 | δc1…δc9 | δd1…δd3 |", "|---|---|---|---|"]
-        for key in ("paper", "ours", "ours_as_printed", "ours_iterated", "ours_mc_mean", "ours_mc_std"):
+        for key in ("paper", "ours_as_printed", "ours", "ours_iterated", "ours_mc_mean", "ours_mc_std"):
             v = rec[key]
-            L.append(f"| {key} | " + " ".join(f"{x * 1e5:+.2f}" for x in v["w0"]) + " | "
+            L.append(f"| {ROW_NAMES[key]} | " + " ".join(f"{x * 1e5:+.2f}" for x in v["w0"]) + " | "
                      + " ".join(f"{x:+.1e}" for x in v["dc"]) + " | " + " ".join(f"{x:+.1e}" for x in v["dd"]) + " |")
         L.append("")
     un, hu = r["cases"]["unquantized"], h["unquantized"]
-    L += ["* 'ours' is the modified estimator: 000's first-order method — one linear least-squares solve of "
+    L += ["* 'ours: modified estimator' is 000's first-order method — one linear least-squares solve of "
           "(2.7)/(5.7), no iteration — with its coefficients moved to where the exact quaternion identity "
           "p° − q = w0 × (p° + q) puts them: the w0 columns at ½(p + p*), the c columns at the computed "
           "increment p*, the d columns at the reference p (derivation: strapdown_ros/tkachenko.py, "
-          "'Where to evaluate the coefficients'). 'ours_as_printed' evaluates everything at p, as 000 prints.",
+          "'Where to evaluate the coefficients'). '000's method as printed' evaluates everything at p, "
+          "as 000 prints.",
           f"* Unquantized, printed coefficients: the w0² term 2w0 × (w0 × p*) stays in z; RMS ratio "
           f"{hu['ours_as_printed']['rms_ratio']:.2f}, {hu['ours_as_printed']['signs']}/12 signs, δc6 = "
           f"{un['ours_as_printed']['dc'][5]:+.1e} against the paper's {un['paper']['dc'][5]:+.1e} "
