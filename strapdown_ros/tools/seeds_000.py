@@ -414,10 +414,14 @@ def ablation_verdict(k: dict, base: dict) -> tuple[str, bool]:
 
 def _ablation_lines(a: dict) -> list[str]:
     L = ["### What makes the paper's unquantized errors larger: ablations", "",
-         "One knob changed at a time on the unquantized first-order run (Δθ0 = 0), with 000's method as "
-         "printed and with the modified estimator; RMS ratio = RMS(paper)/RMS(ours) over δc, δd; corr = "
-         "cosine between our 12 errors and the paper's. Thresholds: a knob explains the paper's errors "
-         f"if its ratio is within {EXPLAINS_WITHIN:g}× of 1 and its corr ≥ {SAME_PATTERN:g} (fixed, not "
+         "One knob changed at a time on the unquantized first-order run (Δθ0 = 0), with 000's "
+         "method as "
+         "printed and with the modified estimator; RMS ratio = RMS(paper)/RMS(ours) over δc, δd; "
+         "corr = "
+         "cosine between our 12 errors and the paper's. Thresholds: a knob explains the paper's "
+         "errors "
+         f"if its ratio is within {EXPLAINS_WITHIN:g}× of 1 and its corr ≥ {SAME_PATTERN:g} "
+         "(fixed, not "
          f"the corr of either estimator); the size is unchanged if the ratio moves less than "
          f"{100 * NO_EFFECT:g}% from the same estimator without the knob.", ""]
     head = "| knob |"
@@ -443,9 +447,12 @@ def _ablation_lines(a: dict) -> list[str]:
         if noise_ok:
             explained.append(f"noise on the reference angles ({name})")
         L.append(f"* Noise, {name}: white noise on the aircraft angles raises the RMS error of δc, δd by "
-                 f"{n['rms_per_rad']:.3g} per rad of angle noise (probe {n['probe_rad']:.0e} rad, {n['seeds']} "
-                 f"seeds); the paper's RMS needs σ_φ ≈ {n['sigma_for_paper_rms_rad']:.2g} rad. At that σ the ratio "
-                 f"is {n['rms_ratio_mean']:.2f} on average, with {n['signs_mean']:.1f}/12 signs and corr "
+                 f"{n['rms_per_rad']:.3g} per rad of angle noise (probe {n['probe_rad']:.0e} rad, "
+                 f"{n['seeds']} "
+                 f"seeds); the paper's RMS needs σ_φ ≈ {n['sigma_for_paper_rms_rad']:.2g} rad. At "
+                 "that σ the ratio "
+                 f"is {n['rms_ratio_mean']:.2f} on average, with {n['signs_mean']:.1f}/12 signs "
+                 "and corr "
                  f"{n['corr_mean']:+.2f} ± {n['corr_std']:.2f}: "
                  + _verdict(noise_ok, f"explains size and pattern (corr ≥ {SAME_PATTERN:g}).",
                             f"not the pattern (corr < {SAME_PATTERN:g})."))
@@ -459,14 +466,21 @@ def _ablation_lines(a: dict) -> list[str]:
                    - 10 * max(abs(np.log(a["knobs"][ke[0]][ke[1]]["rms_ratio"])) - np.log(EXPLAINS_WITHIN), 0))
         kb = a["knobs"][best[0]][best[1]]
         L.append(f"* No knob tried, with either estimator, brings the ratio within {EXPLAINS_WITHIN:g}× of 1 with "
-                 f"corr ≥ {SAME_PATTERN:g}. 000's method as printed gives ratio {bp['rms_ratio']:.2f}, "
-                 f"{bp['signs']}/{bp['n']} signs, corr {bp['corr']:+.2f}; the modified estimator's remainder "
+                 f"corr ≥ {SAME_PATTERN:g}. 000's method as printed gives ratio "
+                 f"{bp['rms_ratio']:.2f}, "
+                 f"{bp['signs']}/{bp['n']} signs, corr {bp['corr']:+.2f}; the modified "
+                 "estimator's remainder "
                  f"(second order: w0·c and c²) has corr {bi['corr']:+.2f} with the paper but is "
-                 f"{bi['rms_ratio']:.1f}× smaller (paper ≈ {bi['scale']:.1f}·ours, {100 * bi['misfit']:.0f}% of "
-                 f"the paper's vector left over); with w0 = 0 its corr is {z['corr']:+.2f}. Closest knob by "
-                 f"these thresholds: {a['knobs'][best[0]]['label']} with the {ESTIMATORS[best[1]]} "
-                 f"(ratio {kb['rms_ratio']:.2f}, {kb['signs']}/{kb['n']} signs, corr {kb['corr']:+.2f}). "
-                 "Which step of the 1983 computation produced the paper's errors is not identified.")
+                 f"{bi['rms_ratio']:.1f}× smaller (paper ≈ {bi['scale']:.1f}·ours, "
+                 f"{100 * bi['misfit']:.0f}% of "
+                 f"the paper's vector left over); with w0 = 0 its corr is {z['corr']:+.2f}. "
+                 "Closest knob by "
+                 f"these thresholds: {a['knobs'][best[0]]['label']} with the "
+                 f"{ESTIMATORS[best[1]]} "
+                 f"(ratio {kb['rms_ratio']:.2f}, {kb['signs']}/{kb['n']} signs, corr "
+                 f"{kb['corr']:+.2f}). "
+                 "Which step of the 1983 computation produced the paper's errors is not "
+                 "identified.")
     return L + [""]
 
 
@@ -480,8 +494,10 @@ def report_000(r: dict) -> str:
     L = ["## 000 — gyro errors against a drifting reference (Tkachenko 1983, §6)", ""]
     h = r["headline"]
     L += ["Headline — first order, Δθ0 = 0 as in 000 (RMS ratio = RMS(paper)/RMS(ours) over δc1…δc9, δd1…δd3; "
-          "signs = components with the paper's sign; corr = cosine between the two 12-vectors). First 000's "
-          "method as printed (every coefficient of (5.7) at the reference increment p), then this project's "
+          "signs = components with the paper's sign; corr = cosine between the two 12-vectors). "
+          "First 000's "
+          "method as printed (every coefficient of (5.7) at the reference increment p), then this "
+          "project's "
           "modified estimator (w0 columns at ½(p + p*), c columns at p*; see below):", ""]
 
     def _agree(o: dict) -> str:
@@ -496,8 +512,10 @@ def report_000(r: dict) -> str:
         if "monte_carlo" in hc:
             m = hc["monte_carlo"]
             line += (f" Against our Monte Carlo (modified estimator) over {m['seeds']} initial remainders: paper "
-                     f"RMS / our RMS {m['rms_ratio']:.2f}, {m['within_2sigma']}/{m['n']} paper values within 2σ of "
-                     f"our mean (RMS z {m['z_rms']:.2f}; plausible if RMS z ≤ 2) — the paper's set "
+                     f"RMS / our RMS {m['rms_ratio']:.2f}, {m['within_2sigma']}/{m['n']} paper "
+                     "values within 2σ of "
+                     f"our mean (RMS z {m['z_rms']:.2f}; plausible if RMS z ≤ 2) — the paper's "
+                     "set "
                      + _verdict(m["z_rms"] <= 2.0, "is a plausible draw of the quantization noise.",
                                 "is not a plausible draw of our quantization noise."))
         L.append(line)
@@ -511,10 +529,12 @@ def report_000(r: dict) -> str:
         L.append("")
     un, hu = r["cases"]["unquantized"], h["unquantized"]
     L += ["* 'ours: modified estimator' is 000's first-order method — one linear least-squares solve of "
-          "(2.7)/(5.7), no iteration — with its coefficients moved to where the exact quaternion identity "
+          "(2.7)/(5.7), no iteration — with its coefficients moved to where the exact quaternion "
+          "identity "
           "p° − q = w0 × (p° + q) puts them: the w0 columns at ½(p + p*), the c columns at the computed "
           "increment p*, the d columns at the reference p (derivation: strapdown_ros/tkachenko.py, "
-          "'Where to evaluate the coefficients'). '000's method as printed' evaluates everything at p, "
+          "'Where to evaluate the coefficients'). '000's method as printed' evaluates everything "
+          "at p, "
           "as 000 prints.",
           f"* Unquantized, printed coefficients: the w0² term 2w0 × (w0 × p*) stays in z; RMS ratio "
           f"{hu['ours_as_printed']['rms_ratio']:.2f}, {hu['ours_as_printed']['signs']}/12 signs, δc6 = "

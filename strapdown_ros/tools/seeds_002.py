@@ -119,10 +119,14 @@ def _compare(ratios: dict) -> str:
 
 def report_002(r: dict) -> str:
     L = ["## 002 — integral method against the 000 estimator on the same data", "",
-         "The paper's claim beside ours: 002 (Ilyushenko 2009) publishes no accuracy table or figure; it "
-         "claims that the 12 parameters (B, s0) follow from at least 4 intervals of ordinary motion, with no "
-         "special manoeuvres. Ours: the 000 §6 motion (not designed for calibration), one interval per fix "
-         f"pair every {r['fix_interval_s']:g} s, and the accuracy of the estimate against the 000 estimator "
+         "The paper's claim beside ours: 002 (Ilyushenko 2009) publishes no accuracy table or "
+         "figure; it "
+         "claims that the 12 parameters (B, s0) follow from at least 4 intervals of ordinary "
+         "motion, with no "
+         "special manoeuvres. Ours: the 000 §6 motion (not designed for calibration), one "
+         "interval per fix "
+         f"pair every {r['fix_interval_s']:g} s, and the accuracy of the estimate against the 000 "
+         "estimator "
          "on the same data:", "",
          "| parameters | RMS error, 000 estimator | integral method (002 as printed) | ratio | "
          "integral method, adaptive neighbour | ratio |", "|---|---|---|---|---|---|"]

@@ -255,7 +255,8 @@ def _explain(rows: dict) -> list[str]:
             return
         ch = r["ratio"] / base["ratio"]
         verdict = ("leaves the ratio about where it was (change within 1.25×)" if 0.8 <= ch <= 1.25 else
-                   f"{'raises' if ch > 1 else 'lowers'} it {ch if ch > 1 else 1 / ch:.1f}× (beyond 1.25×)")
+                   f"{'raises' if ch > 1 else 'lowers'} it {ch if ch > 1 else 1 / ch:.1f}× "
+                   "(beyond 1.25×)")
         L.append(f"* {factor_text}: σ_ψ/σ_(ϑ,γ) {base['ratio']:.1f} → {r['ratio']:.1f}, i.e. it {verdict}.")
     cmp("camera_isotropic_0.6", "Making the camera isotropic (0.6″ about the optical axis instead of 6″)")
     cmp("camera_isotropic_6", "Making the camera isotropic at 6″")
