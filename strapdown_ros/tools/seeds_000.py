@@ -18,8 +18,8 @@ from typing import Sequence
 import numpy as np
 
 from ..profiles import PiecewiseRateProfile, Segment, tkachenko_profile
-from ..rotation import (aircraft_angles_to_quat, quat_conjugate, quat_multiply, quat_normalize, quat_to_rotvec,
-                        rotvec_to_quat)
+from ..rotation import (aircraft_angles_to_quat, quat_conjugate, quat_multiply, quat_normalize,
+                        quat_to_rotvec, rotvec_to_quat)
 from ..sensors import IntegratingSensor, SensorErrorModel
 from ..tkachenko import (PAPER_000, TKACHENKO_C, TKACHENKO_D, TKACHENKO_PHI0, TKACHENKO_STRUCTURE, TKACHENKO_W0,
                          ErrorStructure, GyrostabilizerReference, error_at_epochs, estimate, psi_matrix)
@@ -94,8 +94,8 @@ def simulate_000(quantum: float = 0.0, seed: int | None = 0, profile=None, c=TKA
 def run_tkachenko_experiment(quantum: float = 0.0, mode: str = "raw", seed: int | None = 0,
                              iterate: bool = False, weighted: bool = False, algorithm: str = "2",
                              quadrature: str = "exact", profile=None, full: bool = False,
-                             coefficients: str = "identity", precision=None, recursion: str = "float64",
-                             **kw) -> dict:
+                             coefficients: str = "identity", precision=None,
+                             recursion: str = "float64", **kw) -> dict:
     """Reproduce 000 §6 (m = 3, n = 1, D = [D_I D_II E3], G = E3, h = 0.02 s, epochs 4, 4.2 … 30 s).
 
     Returns the errors in the paper's terms: ``w0`` = w⁰, the corrected attitude error at t_f
@@ -226,7 +226,8 @@ def float32_recursion_increments(M0, meas) -> tuple[np.ndarray, np.ndarray]:
         sa = np.sin(a, dtype=f) / a if a > 0 else f(1.0)
         dq = np.concatenate([[np.cos(a, dtype=f)], half * f(sa)]).astype(f)
         w0, v0, w1, v1 = q[0], q[1:], dq[0], dq[1:]
-        q = np.concatenate([[w0 * w1 - np.dot(v0, v1)], w0 * v1 + w1 * v0 + np.cross(v0, v1)]).astype(f)
+        q = np.concatenate([[w0 * w1 - np.dot(v0, v1)],
+                            w0 * v1 + w1 * v0 + np.cross(v0, v1)]).astype(f)
         q = (q / np.sqrt(np.sum(q * q, dtype=f), dtype=f)).astype(f)
         out[k + 1] = q
     q64 = out.astype(float)
@@ -236,7 +237,8 @@ def float32_recursion_increments(M0, meas) -> tuple[np.ndarray, np.ndarray]:
 
 #: the estimators the ablations run: 000's first-order method as printed (every coefficient at
 #: the reference p) and this project's modification (coefficients moved to ½(p+p*) and p*)
-ESTIMATORS = {"printed": "000's method as printed", "identity": "modified estimator (this project)"}
+ESTIMATORS = {"printed": "000's method as printed",
+              "identity": "modified estimator (this project)"}
 
 
 def _knobs() -> dict:
@@ -253,7 +255,8 @@ def _knobs() -> dict:
         "w0_half": ("misprint: w(0) = 1e-3 read as a rotation angle (half-angle 5e-4)",
                     dict(w0=0.5 * TKACHENKO_W0)),
         "w0_double": ("misprint: w(0) twice as large (2e-3 per axis)", dict(w0=2.0 * TKACHENKO_W0)),
-        "w0_1e-2": ("misprint of the exponent: w(0) = 1e-2 per axis", dict(w0=10.0 * TKACHENKO_W0)),
+        "w0_1e-2": ("misprint of the exponent: w(0) = 1e-2 per axis",
+                    dict(w0=10.0 * TKACHENKO_W0)),
         "w0_sign": ("sign convention: w0 = −1e-3 per axis (error of the other basis)", dict(w0=-TKACHENKO_W0)),
         "c_sign": ("sign convention: c → −c (gyro error as truth − measured)", dict(c=-TKACHENKO_C)),
         "c6_sign": ("misprint: c6 = +5e-4 (c4 = c5 = c6)", dict(c=TKACHENKO_C * np.r_[1, 1, 1, 1, 1, -1, 1, 1, 1])),
@@ -277,23 +280,27 @@ def ablations_000(noise_seeds: int = 10) -> dict:
     for key, (label, kw) in _knobs().items():
         rec = {"label": label}
         for est in ESTIMATORS:
-            rec[est] = agreement(_cd(run_tkachenko_experiment(seed=None, coefficients=est, **kw)), paper)
+            run = run_tkachenko_experiment(seed=None, coefficients=est, **kw)
+            rec[est] = agreement(_cd(run), paper)
         out["knobs"][key] = rec
     out["baseline"] = out["knobs"]["none"]["identity"]
     out["baseline_printed"] = out["knobs"]["none"]["printed"]
     # diagnostic, not a candidate cause: w0 = 0 leaves the c² part of the remainder alone
-    out["w0_zero"] = {est: agreement(_cd(run_tkachenko_experiment(seed=None, w0=np.zeros(3), coefficients=est)),
-                                     paper) for est in ESTIMATORS}
+    out["w0_zero"] = {est: agreement(_cd(run_tkachenko_experiment(seed=None, w0=np.zeros(3),
+                                                                  coefficients=est)), paper)
+                      for est in ESTIMATORS}
     # noise on the reference angles: how much is needed for the paper's RMS, and its signs there
     out["noise"] = {}
     for est in ESTIMATORS:
         base_ms = float(np.mean(_cd(run_tkachenko_experiment(seed=None, coefficients=est)) ** 2))
         probe = 1e-6
-        ms = np.mean([np.mean(_cd(run_tkachenko_experiment(seed=s, angle_noise=probe, coefficients=est)) ** 2)
+        ms = np.mean([np.mean(_cd(run_tkachenko_experiment(seed=s, angle_noise=probe,
+                                                           coefficients=est)) ** 2)
                       for s in range(noise_seeds)])
-        gain = np.sqrt(max(ms - base_ms, 1e-300)) / probe            # RMS error per rad of angle noise
+        gain = np.sqrt(max(ms - base_ms, 1e-300)) / probe      # RMS error per rad of angle noise
         sigma_eq = float(np.sqrt(max(np.mean(paper ** 2) - base_ms, 0.0)) / gain)
-        ag = [agreement(_cd(run_tkachenko_experiment(seed=s, angle_noise=sigma_eq, coefficients=est)), paper)
+        ag = [agreement(_cd(run_tkachenko_experiment(seed=s, angle_noise=sigma_eq,
+                                                     coefficients=est)), paper)
               for s in range(noise_seeds)]
         out["noise"][est] = {"seeds": noise_seeds, "probe_rad": probe, "rms_per_rad": float(gain),
                              "sigma_for_paper_rms_rad": sigma_eq,
@@ -434,7 +441,8 @@ def _ablation_lines(a: dict) -> list[str]:
         row = f"| {k['label']} |"
         for est, name in ESTIMATORS.items():
             v = k[est]
-            verdict, ok = ("— (reference row)", False) if key == "none" else ablation_verdict(v, base[est])
+            verdict, ok = (("— (reference row)", False) if key == "none"
+                           else ablation_verdict(v, base[est]))
             if ok:
                 explained.append(f"{k['label']} ({name})")
             row += f" {v['rms_ratio']:.2f} | {v['signs']}/{v['n']} | {v['corr']:+.3f} | {verdict} |"
