@@ -45,12 +45,14 @@ def test_000_headline_is_rms_ratio_and_signs(result):
         assert h["signs"] == int(np.sum(np.sign(ours) == np.sign(paper)))
         hp = res["000"]["headline"][name]["ours_as_printed"]
         printed = _cd(case["ours_as_printed"])
-        assert hp["rms_ratio"] == pytest.approx(np.sqrt(np.mean(paper ** 2) / np.mean(printed ** 2)), rel=1e-12)
+        ratio = np.sqrt(np.mean(paper ** 2) / np.mean(printed ** 2))
+        assert hp["rms_ratio"] == pytest.approx(ratio, rel=1e-12)
         assert hp["signs"] == int(np.sum(np.sign(printed) == np.sign(paper)))
-        assert hp["corr"] == pytest.approx(printed @ paper / np.linalg.norm(printed) / np.linalg.norm(paper))
+        cosine = printed @ paper / np.linalg.norm(printed) / np.linalg.norm(paper)
+        assert hp["corr"] == pytest.approx(cosine)
         # 000's method as printed is stated first, then the modified estimator
-        first = (f"**{name}**, 000's method as printed: the paper's errors are {hp['rms_ratio']:.3g}× ours "
-                 f"in RMS")
+        first = (f"**{name}**, 000's method as printed: the paper's errors are "
+                 f"{hp['rms_ratio']:.3g}× ours in RMS")
         assert first in text
         second = f"Modified estimator: the paper's errors are {h['rms_ratio']:.3g}× ours in RMS"
         assert text.index(first) < text.index(second)
@@ -58,7 +60,8 @@ def test_000_headline_is_rms_ratio_and_signs(result):
     un = res["000"]["headline"]["unquantized"]["ours"]
     assert un["rms_ratio"] > 5 and un["signs"] >= 9          # ~15× smaller, same signs mostly
     up = res["000"]["headline"]["unquantized"]["ours_as_printed"]
-    assert 1.2 < up["rms_ratio"] < 2 and up["signs"] <= 6 and up["corr"] < 0.7   # audit: 1.53, 5/12, 0.58
+    # the audit's numbers for 000's method as printed: 1.53, 5/12, 0.58
+    assert 1.2 < up["rms_ratio"] < 2 and up["signs"] <= 6 and up["corr"] < 0.7
     assert "within 2.9×" not in text
 
 
@@ -78,21 +81,22 @@ def test_000_ablations_verdicts_follow_fixed_thresholds(result):
     res, text, _ = result
     a = res["000"]["ablations"]
     h = res["000"]["headline"]["unquantized"]
-    assert a["knobs"]["none"]["identity"]["rms_ratio"] == pytest.approx(h["ours"]["rms_ratio"], rel=1e-12)
-    assert a["knobs"]["none"]["printed"]["rms_ratio"] == pytest.approx(h["ours_as_printed"]["rms_ratio"],
-                                                                       rel=1e-12)
+    none = a["knobs"]["none"]
+    assert none["identity"]["rms_ratio"] == pytest.approx(h["ours"]["rms_ratio"], rel=1e-12)
+    assert none["printed"]["rms_ratio"] == pytest.approx(h["ours_as_printed"]["rms_ratio"], rel=1e-12)
     # the paper's own method is the reference column, not a knob that is "ruled out"
     assert "coefficients_printed" not in a["knobs"] and "ruled out" not in text
     # the profile's rates are constant on each step, so the integration scheme cannot matter
     for key in ("algorithm_1", "algorithm_4", "quadrature_trapezoid"):
         for est in ("printed", "identity"):
-            change = abs(a["knobs"][key][est]["rms_ratio"] / a["knobs"]["none"][est]["rms_ratio"] - 1)
+            change = abs(a["knobs"][key][est]["rms_ratio"] / none[est]["rms_ratio"] - 1)
             assert change < 0.05
             assert f"size unchanged: ratio moves {100 * change:.1f}%" in text
     for key, k in a["knobs"].items():
         for est in ("printed", "identity"):
             v = k[est]
-            explains = abs(np.log(v["rms_ratio"])) <= np.log(EXPLAINS_WITHIN) and v["corr"] >= SAME_PATTERN
+            explains = (abs(np.log(v["rms_ratio"])) <= np.log(EXPLAINS_WITHIN)
+                        and v["corr"] >= SAME_PATTERN)
             if explains:
                 assert "explains size and pattern" in text
     assert f"within {EXPLAINS_WITHIN:g}× of 1 and its corr ≥ {SAME_PATTERN:g}" in text
@@ -123,14 +127,16 @@ def test_000_new_ablations_compute_what_the_text_says(result):
     assert np.allclose(TKACHENKO_W0 * 10, 1e-2)
     # audit's numbers for the exponent misprint with the modified estimator: 1.66, 0.79, 9/12
     v = a["w0_1e-2"]["identity"]
-    assert v["rms_ratio"] == pytest.approx(1.66, abs=0.01) and v["corr"] == pytest.approx(0.79, abs=0.01)
+    assert v["rms_ratio"] == pytest.approx(1.66, abs=0.01)
+    assert v["corr"] == pytest.approx(0.79, abs=0.01)
     assert v["signs"] == 9
 
 
 def test_float32_recursion_is_single_precision_roundoff():
     """The float32 recursion's attitude differs from the float64 one by float32 round-off
     (≫ float64's, ≪ the increments), and its equivalent increments reproduce it."""
-    from strapdown_ros.rotation import quat_conjugate, quat_multiply, quat_to_rotvec, rotvec_to_quat
+    from strapdown_ros.rotation import (quat_conjugate, quat_multiply, quat_to_rotvec,
+                                        rotvec_to_quat)
     from strapdown_ros.tools.seeds_000 import float32_recursion_increments
 
     rng = np.random.default_rng(1)
@@ -212,8 +218,9 @@ def test_from_json_rerenders_the_same_report(result, tmp_path, capsys):
     _, text, d = result
     again = tmp_path / "again"
     again.mkdir()
-    assert reproduce_seeds.main(["--only", "000,002,003", "--from-json", str(d / "r.json"),
-                                 "--report", str(again / "r.md"), "--plots", str(again / "plots")]) == 0
+    argv = ["--only", "000,002,003", "--from-json", str(d / "r.json"),
+            "--report", str(again / "r.md"), "--plots", str(again / "plots")]
+    assert reproduce_seeds.main(argv) == 0
     assert (again / "r.md").read_text() == text
     capsys.readouterr()
     assert reproduce_seeds.main(["--from-json", str(d / "r.json"), "--json", str(d / "r.json"),

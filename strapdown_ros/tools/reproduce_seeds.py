@@ -264,8 +264,9 @@ def report(res: dict, figures: dict | None = None, base: str = ".") -> str:
             L += [s.fn(s.report)(res[s.key]), ""]
             paths = (figures or {}).get(s.key, [])
             if paths:
-                L += ["Figures of this section: " + ", ".join(f"`{os.path.basename(p)}`" for p in paths), ""]
-                L += [f"![{os.path.basename(p)}]({os.path.relpath(os.path.abspath(p), base)})" for p in paths]
+                names = [os.path.basename(p) for p in paths]
+                L += ["Figures of this section: " + ", ".join(f"`{n}`" for n in names), ""]
+                L += [f"![{n}]({os.path.relpath(os.path.abspath(p), base)})" for n, p in zip(names, paths)]
                 L.append("")
     return "\n".join(L)
 
@@ -295,7 +296,7 @@ def main(argv=None) -> int:
     ap.add_argument("--plots", help="write PNG figures to this directory (needs matplotlib)")
     ap.add_argument("--force", action="store_true", help="overwrite existing outputs")
     ap.add_argument("--from-json", metavar="FILE",
-                    help="no runs: write the report and figures from the results of an earlier --json")
+                    help="no runs: write the report and figures from an earlier run's --json")
     a = ap.parse_args(argv)
     only = [s.strip() for s in a.only.split(",") if s.strip()]
     bad = [s for s in only if s not in names]

@@ -5,8 +5,8 @@ into doc/seeds/observability_001.md by :mod:`strapdown_ros.tools.seeds_001`."""
 DERIVATIONS_001 = r"""
 ## Derivations (001, Vavilov 1982) — derivation text, not computed
 
-Everything below this heading is fixed text written by hand (`strapdown_ros/tools/seeds_001_text.py`),
-not generated from the run above. It states mathematics, not measurements; each part names the
+Everything below this heading is fixed text written by hand
+(`strapdown_ros/tools/seeds_001_text.py`), not generated from the run above. It states mathematics, not measurements; each part names the
 command of the test that checks it against exact computations. 001 prints orders of magnitude
 (1, μ sin φ, λ1μ1), not numbers; "agrees with 001" below means agrees with those orders.
 
@@ -32,7 +32,8 @@ x = (α1, α2, μω2α3, Δω2/ω0). From (2.5) and (2.6):
 This is (2.9): ẋ = (B1 + λω3B2)x + bΔ with B1, B2 as printed and b = (−ω̇2/ω2, −λω3, 0, 0).
 Every printed entry of B1, B2, b agrees.
 
-*Check:* `.venv/bin/python -m pytest test/test_gyrocompass.py -k 'measurement_linearisation or change_of_variables'`
+*Check:*
+`.venv/bin/python -m pytest test/test_gyrocompass.py -k 'measurement_linearisation or change_of_variables'`
 
 ### 2. Measurement (3.1)–(3.7)
 
@@ -53,7 +54,8 @@ misprint. Substituting −cos²φ = (s_c + μ1z)² − 1 gives σ = ½μ[μ1²V�
 same μ1μ1 misprint. The tests check the corrected forms against the exact nonlinear σ (residual
 O(ε²)) and show the printed coefficients off by 45 % (μ1/μ ≈ 0.55).
 
-*Check:* `.venv/bin/python -m pytest test/test_gyrocompass.py -k 'measurement_linearisation or printed_coefficients_fail'`
+*Check:*
+`.venv/bin/python -m pytest test/test_gyrocompass.py -k 'measurement_linearisation or printed_coefficients_fail'`
 
 ### 3. Orthodrome and the change of variables (4.1)–(4.4)
 
@@ -64,7 +66,8 @@ round-off. (4.2): y = G1x, z = G2x with G_i = [h_i, B1ᵀh_i, −B2ᵀh_i, B2ᵀ
 μ sin φ·μ1z is the 4-vector G2x; the z of (4.4) is the scalar latitude error, ż = z1), with
 b1 = (0, v − μ1²V²/v, 0, 2μ1V2), b2 = (0, −V2, 0, −V1 − μ1V²/v) as printed.
 
-*Check:* `.venv/bin/python -m pytest test/test_gyrocompass.py -k 'orthodrome_kinematics or change_of_variables'`
+*Check:*
+`.venv/bin/python -m pytest test/test_gyrocompass.py -k 'orthodrome_kinematics or change_of_variables'`
 
 ### 4. Measure of observability — two readings
 
@@ -100,7 +103,8 @@ m(y1) = 1, m(y2) = 2/√10, m(y3) = m(y4) = √2·c, m(Δ) = cb/√6 —
 001's “1 for y1, y2; μ sin φ for y3, y4, Δ” as orders. The accuracy Δσ/(μ sin φ) ≈ 0.1x°/sin φ follows
 with Δσ ≈ 0.1μx° (4.5).
 
-*Check:* `.venv/bin/python -m pytest test/test_gyrocompass.py -k 'ship_measures or ship_reduction'`
+*Check:*
+`.venv/bin/python -m pytest test/test_gyrocompass.py -k 'ship_measures or ship_reduction'`
 
 ### 6. Aircraft (4.7)–(4.8)
 
@@ -112,7 +116,8 @@ by 2c(1 − μ1)z1 — (4.7)–(4.8) are the μ1 = 1 case. Rows 4–5 omit O(c) 
 ṡ4 = −s5 + c(y1 + (1 + μ1)z3) (similarly ṡ5); they reach σ only at O(c²), so the measures are
 unaffected at leading order.
 
-*Check:* `.venv/bin/python -m pytest test/test_gyrocompass.py -k aircraft`
+*Check:*
+`.venv/bin/python -m pytest test/test_gyrocompass.py -k aircraft`
 
 ### 7. Circulation (4.9)–(4.11)
 
@@ -123,7 +128,8 @@ y1′ = λ1y2, y2′ = −λ1y1 + μ1p1, p1′ = −p2, p2′ = p1 on τ1 ∈ (0
 σ″ = −λ1²σ + λ1μ1p1, σ‴ = −λ1²σ′ − λ1μ1p2 (T = 1) gives m(p1) = m(p2) = λ1μ1/√(1 + λ1⁴), 001's λ1μ1;
 on T = 1/λ1 (time rescaled by T) m(p1) = μ1/(√2λ1), m(p2) = μ1/(√2λ1²).
 
-*Check:* `.venv/bin/python -m pytest test/test_gyrocompass.py -k circulation`
+*Check:*
+`.venv/bin/python -m pytest test/test_gyrocompass.py -k circulation`
 
 ### 8. Stationary filters
 
@@ -137,5 +143,6 @@ on T = 1/λ1 (time rescaled by T) m(p1) = μ1/(√2λ1), m(p2) = μ1/(√2λ1²)
   For a scalar random walk of intensity q observed with measure m the steady σ is √(qΔσ/m) and
   the time constant Δσ/(qm): the latitude dependence of the weak variables tests these powers.
 
-*Check:* `.venv/bin/python -m pytest test/test_gyrocompass.py -k 'asymptotic_observer or steady_state_kalman'`
+*Check:*
+`.venv/bin/python -m pytest test/test_gyrocompass.py -k 'asymptotic_observer or steady_state_kalman'`
 """
