@@ -421,7 +421,7 @@ def main(argv=None) -> int:
             _error(f"directory does not exist: {os.path.dirname(path)}")
     from .seeds_001_text import DERIVATIONS_001
     res = section_001(quick=args.quick)
-    text = "# 001 — observability, reproduced\n\n" + report_001(res)
+    text = "# 001 (Vavilov 1982) — observability, reproduced\n\n" + report_001(res)
     if args.plots:
         for f in plots_001(res, args.plots):
             text += f"\n![{os.path.basename(f)}]({os.path.relpath(f, os.path.dirname(args.report) or '.') if args.report else f})\n"
