@@ -227,3 +227,25 @@ def test_from_json_rerenders_the_same_report(result, tmp_path, capsys):
                                  "--force"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and err[0].startswith("reproduce_seeds: error:")
+
+
+def test_estimator_integration_reproduces_the_float32_recursion():
+    """Fed the equivalent increments, the estimator's own 1-sample integration gives the float32
+    attitudes (their exact product) to float64 round-off, so the ablation tests the recursion."""
+    from strapdown_ros.rotation import (quat_conjugate, quat_multiply, quat_to_rotvec,
+                                        rotvec_to_quat)
+    from strapdown_ros.tkachenko import integrate_attitude
+    from strapdown_ros.tools.seeds_000 import float32_recursion_increments, simulate_000
+
+    sim = simulate_000(seed=None)
+    q0, inc = float32_recursion_increments(sim.M0, sim.meas)
+    q = integrate_attitude(q0, inc, sim.h, "1")
+    m = [q0]
+    for t in inc:
+        m.append(quat_multiply(m[-1], rotvec_to_quat(t)))
+    err = quat_to_rotvec(quat_multiply(quat_conjugate(np.array(m)), q))
+    assert np.abs(err).max() < 1e-12
+    # and the float32 attitude really is off the float64 one by single-precision round-off
+    q64 = integrate_attitude(sim.M0, sim.meas, sim.h, "1")
+    drift = np.abs(quat_to_rotvec(quat_multiply(quat_conjugate(q64), q))).max()
+    assert 1e-8 < drift < 1e-4
