@@ -1,4 +1,5 @@
-"""Boresight of a star camera (VF) relative to the IMU (MF) from attitude increments (004).
+"""Boresight of a star camera (VF) relative to the IMU (MF) from attitude increments
+(Vasilyuk et al. 2024; paper 004).
 
 Pipeline (004 §2–§5):
 

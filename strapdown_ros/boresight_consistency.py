@@ -1,4 +1,5 @@
-"""Consistency of camera-derived and inertial attitudes: 004 §5 eq. (8) and the Fig. 3 check.
+"""Consistency of camera-derived and inertial attitudes: 004 §5 eq. (8) and the Fig. 3 check
+(Vasilyuk et al. 2024; paper 004).
 
 After the boresight β (C = C_MF^VF, VF → MF) has been estimated with covariance P_β, each star
 camera fix S_GCRS^VF gives an IMU attitude (004 §5)

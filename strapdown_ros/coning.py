@@ -1,5 +1,6 @@
 """The coning-algorithm family: how the body rotation vector φ of one attitude update is
-formed from integrating-gyro increments q_i (003 §1.4, §2.2, and the literature).
+formed from integrating-gyro increments q_i (Aksyonenko 2014; paper 003, §1.4, §2.2; and the
+literature: Miller 1983, Savage 1998, Bortz 1971 — doc/references.md).
 
 Every algorithm has the form ``φ = Σ q_i + Σ k_ij q_i × q_j`` over a *window* of
 increments, oldest first.  A window holds ``history`` previous increments (already

@@ -1,4 +1,5 @@
-"""Gyro scale factors, misalignments and biases from a recording: 000 and 002 on real data.
+"""Gyro scale factors, misalignments and biases from a recording: 000 and 002 on real data
+(Tkachenko 1983; Ilyushenko 2009).
 
 The numerical core of ``calibrate_gyro_bag`` (no ROS imports).  The input is a
 :class:`~strapdown_ros.analysis.linearisation.Recording` — gyro increments and star-camera

@@ -1,4 +1,4 @@
-"""Integral method of gyro calibration from star-tracker attitudes (002, Ilyushenko 2009).
+"""Integral method of gyro calibration from star-tracker attitudes (Ilyushenko 2009; paper 002).
 
 Sensor model (002, "Модель ДУС")::
 

@@ -18,7 +18,8 @@ Dynamic (linear time-varying) case — :func:`observability_gramian`, :func:`mea
     For ``ẋ = F(t) x``, ``σ(t) = H(t) x + r(t)`` on ``[t0, t1]`` the observability Gramian is
     ``W = ∫ Φ(t,t0)ᵀ H(t)ᵀ H(t) Φ(t,t0) dt``; x(t0) is observable on the interval iff W > 0.
 
-Measure of observability (Vavilov 001, §4.1 after eq. (4.6), citing Parusnikov, Kalenova, Morozov,
+Measure of observability (Vavilov 1982; paper 001, §4.1 after eq. (4.6), citing Parusnikov,
+Kalenova, Morozov,
 Shakot'ko 1980 = 001's ref. [6]).  001 uses it as: *a variable observable with measure m is
 estimated with accuracy of order Δσ/m*, Δσ the level of the measurement error (so a variable
 measured directly has measure 1).  Reference [6] itself is not available to us; we implement two

@@ -1,6 +1,7 @@
 """Star camera (astro-visual unit, AVU) model: attitude of the camera frame VF at exposure epochs.
 
-Frames (004 §1): MF is the IMU frame (the body frame of the SINS), VF the camera frame, GCRS
+Frames (Vasilyuk et al. 2024; paper 004, §1): MF is the IMU frame (the body frame of the SINS),
+VF the camera frame, GCRS
 the inertial reference.  The boresight ``C_MF^VF`` maps VF coordinates to MF coordinates,
 ``C_MF^VF = R_z(−ψ) R_x(ϑ) R_y(γ)`` with β = (ψ, ϑ, γ) (:func:`~strapdown_ros.rotation.ypr_to_dcm`),
 so ``S_GCRS^VF = S_GCRS^MF · C_MF^VF`` and, as quaternions, ``q_GCRS_VF = q_GCRS_MF ⊗ q_MF_VF``.

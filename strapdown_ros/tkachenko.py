@@ -1,4 +1,5 @@
-"""Correction of the system "spatial angular-rate meter — gyrostabilizer" (000, Tkachenko 1983).
+"""Correction of the system "spatial angular-rate meter — gyrostabilizer"
+(Tkachenko 1983; paper 000).
 
 A strapdown gyro triad (body basis E) is integrated into an attitude M; a gyrostabilizer, whose
 stabilised basis L drifts slowly away from the inertial basis I, reads the aircraft angles φ of a

@@ -263,3 +263,25 @@ def test_seeds_001_tool_quick(tmp_path, capsys):
     assert e.value.code == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and err[0].startswith("seeds_001: error:")
+
+
+def test_001_derivation_text_is_labelled_and_its_checks_exist():
+    """The hand-written derivations say so, claim orders (001 prints no numbers), and every
+    check command they name selects existing tests."""
+    import pathlib
+    import re
+
+    from strapdown_ros.tools import seeds_001
+    from strapdown_ros.tools.seeds_001_text import DERIVATIONS_001
+    assert "derivation text, not computed" in DERIVATIONS_001
+    assert "reproduces 001's numbers" not in DERIVATIONS_001
+    checks = re.findall(r"pytest (test/\S+\.py) -k '?([^'`]+)'?`", DERIVATIONS_001)
+    assert len(checks) >= 8
+    root = pathlib.Path(__file__).resolve().parent.parent
+    for path, expr in checks:
+        names = re.findall(r"^def (test_\w+)", (root / path).read_text(), re.M)
+        for token in expr.split(" or "):
+            assert any(token.strip() in n for n in names), (path, token)
+    # verdicts print their threshold beside them
+    assert seeds_001._order(0.82, 1.0) == "same order (×0.82, within 10×)"
+    assert seeds_001._order(0.05, 1.0) == "smaller by ×0.05 (not within 10×)"

@@ -1,4 +1,5 @@
-"""Vavilov (001): the gyro-horizon-compass error model, the Doppler-log measurement and their
+"""Vavilov 1982 (paper 001): the gyro-horizon-compass error model, the Doppler-log measurement
+and their
 observability, as a linear time-varying system in the paper's dimensionless variables.
 
 Variables (001 §2, §3).  Time τ = ω0·t with the Schuler frequency ω0 = √(g/R).

@@ -1,6 +1,7 @@
 """Steady-state (constant-gain) Kalman filter of a stationary linear system, numpy only.
 
-001 §4.1 proposes a *stationary asymptotic filter* for the ship case (4.6).  Here it is the
+001 (Vavilov 1982) §4.1 proposes a *stationary asymptotic filter* for the ship case (4.6).
+Here it is the
 steady-state Kalman filter of the sampled system
 
     y_{k+1} = Φ y_k + w_k,   w_k ~ N(0, Q),      σ_k = H y_k + r_k,   r_k ~ N(0, R),

@@ -1,4 +1,5 @@
-"""Normal gravity in the Earth-fixed frame (003 §1.5.2) and geodetic conversions.
+"""Normal gravity in the Earth-fixed frame (Aksyonenko 2014; paper 003, §1.5.2) and geodetic
+conversions.
 
 Conventions: ECEF = the PZ-90 Greenwich rectangular frame (REP-105 frame ``earth``), Earth
 rotation +Z, SI units (m, m/s², rad).  "Gravity" is gravitation + centrifugal, the vector a

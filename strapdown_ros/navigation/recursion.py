@@ -1,4 +1,5 @@
-"""Velocity and position recursion in the Earth-fixed frame E (PZ-90), 003 (1.93), (1.99)–(1.100).
+"""Velocity and position recursion in the Earth-fixed frame E (PZ-90), 003 (1.93), (1.99)–(1.100)
+(Aksyonenko 2014; paper 003).
 
 Inputs per step k (``[t_{k−1}, t_k]``, length h): the specific-force integrals ``Δv_E = V_{k−1} Δv``
 and ``Δr_E = V_{k−1} Δr`` (:mod:`.update`, rotated by the attitude ``V_{k−1}`` = C_E_B at

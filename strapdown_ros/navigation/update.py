@@ -1,6 +1,7 @@
 """Specific-force integrals of one navigation step from integrating gyros and accelerometers.
 
-003 §1.5.2 integrates the navigation equation (1.93) over one step ``[t_{k−1}, t_k]`` of length
+003 (Aksyonenko 2014) §1.5.2 integrates the navigation equation (1.93) over one step
+``[t_{k−1}, t_k]`` of length
 ``h`` from the sensor *increments* (quasi-coordinates), never from rates.  The part that needs the
 increments is the integral of the specific force rotated by the body motion within the step:
 

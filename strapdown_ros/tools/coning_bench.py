@@ -1,5 +1,6 @@
 """coning_bench: drift, order of accuracy and cost of every coning algorithm on exact coning
-motion, set beside the analytic theory, an independent ODE reference and the claims of 003.
+motion, set beside the analytic theory, an independent ODE reference and the claims of 003
+(Aksyonenko 2014).
 
 With no options it runs the three cases of 003 §2.3 — (α, ν) = (0.087, 1), (0.5, 1),
 (0.087, 0.5), 3600 s — at τ = 0.01 s and τ = 0.001 s, an order sweep per algorithm at small

@@ -1,4 +1,5 @@
-"""seeds_001: reproduce Vavilov (001) — observability in gyro-horizon-compass correction.
+"""seeds_001: reproduce Vavilov 1982 (paper 001) — observability in gyro-horizon-compass
+correction.
 
     python -m strapdown_ros.tools.seeds_001 [--quick] [--report FILE.md] [--json FILE] [--plots DIR]
 
@@ -6,7 +7,9 @@ Computes, from :mod:`strapdown_ros.analysis.gyrocompass` and :mod:`strapdown_ros
 the misprint checks of §3, the checks of (4.1)/(4.3) against exact geometry, the measures of
 observability of the ship case (4.6), the aircraft case (4.8) and the circulation (4.11) beside the
 paper's statements, the full time-varying model's Gramian, and the steady-state filter of the ship
-case with a Monte Carlo of its NEES.  Every sentence of the report is computed from the numbers.
+case with a Monte Carlo of its NEES.  Every sentence of the report is computed from the numbers,
+except the derivation text appended from :mod:`.seeds_001_text`, which is labelled as such and
+names the test command that checks each part.
 
 For reproduce_seeds: ``section_001(quick) -> dict``, ``report_001(res) -> str``,
 ``plots_001(res, outdir) -> list[str]``.  No ROS imports; matplotlib only inside plots_001.
@@ -232,15 +235,15 @@ def section_001(quick: bool = False) -> dict:
 
 # ----------------------------------------------------------------------------- report
 def _order(m: float, ref: float) -> str:
-    """Words for m against the paper's order ref: same order if within a factor 10."""
+    """Words for m against the paper's order ref, with the threshold: same order if within 10×."""
     r = m / ref
     if 0.1 <= r <= 10:
-        return f"same order (×{r:.2g})"
-    return f"{'smaller' if r < 1 else 'larger'} by ×{r:.2g}"
+        return f"same order (×{r:.2g}, within 10×)"
+    return f"{'smaller' if r < 1 else 'larger'} by ×{r:.2g} (not within 10×)"
 
 
-def _table(names, paper, columns: dict) -> list[str]:
-    head = "| variable | paper | " + " | ".join(columns) + " |"
+def _table(names, paper, columns: dict, paper_label: str = "paper") -> list[str]:
+    head = f"| variable | {paper_label} | " + " | ".join(columns) + " |"
     lines = [head, "|" + "---|" * (2 + len(columns))]
     for i, n in enumerate(names):
         lines.append(f"| {n} | {paper[i]:.3g} | " + " | ".join(f"{col[i]:.3g}" for col in columns.values()) + " |")
@@ -267,7 +270,8 @@ def report_001(res: dict) -> str:
     names = ["y1", "y2", "y3", "y4", "Δ"]
     L += _table(names, s["paper"], {"derivative measure": s["derivative"], "closed form": s["closed_form"],
                                     "Gramian, τ∈(0,1)": s["gramian_unit"], "Gramian, τ∈(0,2π)": s["gramian_period"],
-                                    "full LTV, z known, (0,2π)": s["full_period_z_known"]})
+                                    "full LTV, z known, (0,2π)": s["full_period_z_known"]},
+                  f"001: order (1 or μ sin φ) at {p['latitude_deg']:g}°")
     c = s["c"]
     dm = s["derivative"]
     L.append("")
@@ -289,7 +293,8 @@ def report_001(res: dict) -> str:
     L += ["", "### Aircraft, (4.8), μ1 = 1", ""]
     L += _table(["s1", "s2", "s3", "s4", "s5"], a["paper"], {"derivative measure": a["derivative"],
                                                              "closed form": a["closed_form"],
-                                                             "Gramian, τ∈(0,2π)": a["gramian_period"]})
+                                                             "Gramian, τ∈(0,2π)": a["gramian_period"]},
+                  f"001: order (1 or μ sin φ) at {p['latitude_deg']:g}°")
     L.append("")
     L.append(f"s1–s3: {', '.join(_order(x, 1) for x in a['derivative'][:3])}; s4, s5 against μ sinφ = {a['c']:.4f}: "
              f"{', '.join(_order(x, a['c']) for x in a['derivative'][3:])}.")
@@ -416,7 +421,7 @@ def main(argv=None) -> int:
             _error(f"directory does not exist: {os.path.dirname(path)}")
     from .seeds_001_text import DERIVATIONS_001
     res = section_001(quick=args.quick)
-    text = "# 001 — observability, reproduced\n\n" + report_001(res)
+    text = "# 001 (Vavilov 1982) — observability, reproduced\n\n" + report_001(res)
     if args.plots:
         for f in plots_001(res, args.plots):
             text += f"\n![{os.path.basename(f)}]({os.path.relpath(f, os.path.dirname(args.report) or '.') if args.report else f})\n"

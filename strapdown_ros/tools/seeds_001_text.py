@@ -1,8 +1,14 @@
-"""The derivations behind the 001 section (fixed mathematics, no measured claims); written into
-doc/seeds/observability_001.md by :mod:`strapdown_ros.tools.seeds_001`."""
+"""The derivations behind the 001 section: fixed derivation text written by hand (mathematics, no
+measured claims), not computed from the run; each part names the test that checks it.  Written
+into doc/seeds/observability_001.md by :mod:`strapdown_ros.tools.seeds_001`."""
 
 DERIVATIONS_001 = r"""
-## Derivations (001, Vavilov 1982)
+## Derivations (001, Vavilov 1982) — derivation text, not computed
+
+Everything below this heading is fixed text written by hand
+(`strapdown_ros/tools/seeds_001_text.py`), not generated from the run above. It states mathematics, not measurements; each part names the
+command of the test that checks it against exact computations. 001 prints orders of magnitude
+(1, μ sin φ, λ1μ1), not numbers; "agrees with 001" below means agrees with those orders.
 
 Code: `strapdown_ros/analysis/gyrocompass.py` (model), `strapdown_ros/observability.py` (Gramian and
 measures), `strapdown_ros/analysis/steady_filter.py` (filters). Tests: `test/test_gyrocompass.py`,
@@ -26,6 +32,9 @@ x = (α1, α2, μω2α3, Δω2/ω0). From (2.5) and (2.6):
 This is (2.9): ẋ = (B1 + λω3B2)x + bΔ with B1, B2 as printed and b = (−ω̇2/ω2, −λω3, 0, 0).
 Every printed entry of B1, B2, b agrees.
 
+*Check:*
+`.venv/bin/python -m pytest test/test_gyrocompass.py -k 'measurement_linearisation or change_of_variables'`
+
 ### 2. Measurement (3.1)–(3.7)
 
 Velocities in units of Ru (V_i in units of V0, μ1 = V0/(Ru)); the compass signal ω2′ = ω2 + Δω2
@@ -45,6 +54,9 @@ misprint. Substituting −cos²φ = (s_c + μ1z)² − 1 gives σ = ½μ[μ1²V�
 same μ1μ1 misprint. The tests check the corrected forms against the exact nonlinear σ (residual
 O(ε²)) and show the printed coefficients off by 45 % (μ1/μ ≈ 0.55).
 
+*Check:*
+`.venv/bin/python -m pytest test/test_gyrocompass.py -k 'measurement_linearisation or printed_coefficients_fail'`
+
 ### 3. Orthodrome and the change of variables (4.1)–(4.4)
 
 (4.1) is checked against the exact geometry of a great circle on the rotating sphere
@@ -54,6 +66,9 @@ round-off. (4.2): y = G1x, z = G2x with G_i = [h_i, B1ᵀh_i, −B2ᵀh_i, B2ᵀ
 μ sin φ·μ1z is the 4-vector G2x; the z of (4.4) is the scalar latitude error, ż = z1), with
 b1 = (0, v − μ1²V²/v, 0, 2μ1V2), b2 = (0, −V2, 0, −V1 − μ1V²/v) as printed.
 
+*Check:*
+`.venv/bin/python -m pytest test/test_gyrocompass.py -k 'orthodrome_kinematics or change_of_variables'`
+
 ### 4. Measure of observability — two readings
 
 001 uses the measure of [6] (not available) as: *a variable observable with measure m is
@@ -61,7 +76,8 @@ estimated with accuracy ≈ Δσ/m*, measure 1 for a variable measured directly.
 
 * **Derivative reading** (stationary systems, interval normalised to 1): the derivatives
   σ, σ′, …, σ⁽ⁿ⁻¹⁾ are taken as known to accuracy Δσ; x = O⁻¹(σ, σ′, …) with O = [H; HA; …];
-  m_i = 1/‖row_i O⁻¹‖. This reproduces 001's numbers (below).
+  m_i = 1/‖row_i O⁻¹‖. This reading gives 001's orders (1 for y1, y2; μ sin φ for y3, y4, Δ;
+  §5 below) — 001 prints orders, not numbers.
 * **Gramian reading** (any LTV system): m(a) = 1/√(aᵀW̄⁻¹a), W̄ = (1/T)∫Φᵀ HᵀHΦ dτ — with
   σ sampled n times on the interval with independent errors Δσ, the least-squares σ of aᵀx(0)
   is Δσ/(m√n). Exact for any interval, but stricter than the derivative reading on short
@@ -72,6 +88,8 @@ the information matrix N = Σ HᵀR⁻¹H; 001's measure of a given combination 
 √λ only when a is an eigenvector, and normalised per sample (W̄ ≈ N·Δσ²/n). The module now reports
 `parameter_sigma` = √diag N⁻¹ and `combination_sigma` for any a; the old docstring's claim that
 1/√λ *is* 001's measure was corrected.
+
+*Check:* `.venv/bin/python -m pytest test/test_observability.py -k 'measure or gramian'`
 
 ### 5. Ship (4.6): closed form of the derivative measures
 
@@ -85,6 +103,9 @@ m(y1) = 1, m(y2) = 2/√10, m(y3) = m(y4) = √2·c, m(Δ) = cb/√6 —
 001's “1 for y1, y2; μ sin φ for y3, y4, Δ” as orders. The accuracy Δσ/(μ sin φ) ≈ 0.1x°/sin φ follows
 with Δσ ≈ 0.1μx° (4.5).
 
+*Check:*
+`.venv/bin/python -m pytest test/test_gyrocompass.py -k 'ship_measures or ship_reduction'`
+
 ### 6. Aircraft (4.7)–(4.8)
 
 For D exactly: σ′ = s2 + cs4, σ″ = s3 − cs5, σ‴ = −s2 + cs4, σ⁗ = −s3 − cs5, so s2 = (σ′ − σ‴)/2,
@@ -95,6 +116,9 @@ by 2c(1 − μ1)z1 — (4.7)–(4.8) are the μ1 = 1 case. Rows 4–5 omit O(c) 
 ṡ4 = −s5 + c(y1 + (1 + μ1)z3) (similarly ṡ5); they reach σ only at O(c²), so the measures are
 unaffected at leading order.
 
+*Check:*
+`.venv/bin/python -m pytest test/test_gyrocompass.py -k aircraft`
+
 ### 7. Circulation (4.9)–(4.11)
 
 On an exact circulation (small circle, period 7 min) the transformed system is
@@ -103,6 +127,9 @@ y′ = λ1B2y + μ1dΔ (time τ1 = Ωt) up to terms of order λ1μ — the c·B1
 y1′ = λ1y2, y2′ = −λ1y1 + μ1p1, p1′ = −p2, p2′ = p1 on τ1 ∈ (0, T):
 σ″ = −λ1²σ + λ1μ1p1, σ‴ = −λ1²σ′ − λ1μ1p2 (T = 1) gives m(p1) = m(p2) = λ1μ1/√(1 + λ1⁴), 001's λ1μ1;
 on T = 1/λ1 (time rescaled by T) m(p1) = μ1/(√2λ1), m(p2) = μ1/(√2λ1²).
+
+*Check:*
+`.venv/bin/python -m pytest test/test_gyrocompass.py -k circulation`
 
 ### 8. Stationary filters
 
@@ -115,4 +142,7 @@ on T = 1/λ1 (time rescaled by T) m(p1) = μ1/(√2λ1), m(p2) = μ1/(√2λ1²)
   Monte Carlo NEES is compared with the χ² band of its run-mean (Wilson–Hilferty quantiles).
   For a scalar random walk of intensity q observed with measure m the steady σ is √(qΔσ/m) and
   the time constant Δσ/(qm): the latitude dependence of the weak variables tests these powers.
+
+*Check:*
+`.venv/bin/python -m pytest test/test_gyrocompass.py -k 'asymptotic_observer or steady_state_kalman'`
 """

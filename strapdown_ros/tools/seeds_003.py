@@ -1,4 +1,5 @@
-"""003 (coning, §2.3) for ``reproduce_seeds``: the three cases and the thesis's claims against our
+"""003 (Aksyonenko 2014; paper 003, coning §2.3) for ``reproduce_seeds``: the three cases and
+the thesis's claims against our
 measured drift, each value marked where it is below the float64 round-off floor of its algorithm
 (the rule of doc/coning.md).  The full comparison is ``coning_bench`` → doc/coning.md.  No ROS imports.
 """
