@@ -363,8 +363,11 @@ def render(res: dict) -> str:
                      f"{median_range(stats(row['us_per_fix']), '.0f')} |")
     rd = res.get("realdata")
     L += ["", "## Real data", ""]
-    if not rd or not rd.get("available"):
-        L.append("real data: not available (set STRAPDOWN_REALDATA)")
+    if rd and rd.get("reason") == "--no-realdata":
+        L.append("real data: skipped (--no-realdata)")
+    elif not rd or not rd.get("available"):
+        L.append("real data: not available (set STRAPDOWN_REALDATA)"
+                 + (f"; {rd['reason']}" if rd and rd.get("reason") else ""))
     else:
         deg = 180 / math.pi
         L += [f"{rd['trial']} ({rd['duration_s']:.1f} s): {rd['applied']}/{rd['fixes']} fixes "
