@@ -619,7 +619,8 @@ class AttitudeFilter:
         self.counters.reprocessed_increments += len(t)
         # back to the checkpoint
         self.integrator.rollback(cp.integrator)
-        self._x, self.boresight, self._sqrt_p = cp.states.copy(), cp.boresight.copy(), cp.covariance
+        self._x, self.boresight = cp.states.copy(), cp.boresight.copy()
+        self._sqrt_p = cp.covariance
         self._open_rho, self._open_dt, self._last_rate = cp.open_rho, cp.open_dt, cp.last_rate
         self._last_stamp, self._n = cp.last_stamp, cp.pieces
         while self._checkpoints and self._checkpoints[-1] is not cp:

@@ -41,7 +41,8 @@ import numpy as np
 from ..analysis.steady_filter import discretize
 from ..estimation import AttitudeFilter, chi2_3_quantile
 from ..rotation import quat_conjugate, quat_multiply, quat_to_rotvec, rotvec_to_quat
-from .bench_stats import chi2_band, median_range, pcrb_filter_smoother, stats
+from .bench_stats import (chi2_band, median_range, pcrb_filter_smoother, rts_smooth,
+                          simulate_increments, stats)
 from .paths import DIRECTORY, FILE, OneLineParser, check_outputs, write_json, write_text
 
 RATE = np.array([0.01, -0.02, 0.015])           # body rate of the Monte Carlo motion, rad/s
@@ -53,48 +54,6 @@ TARGET_US = 50.0
 def attitude_error(q_true, q_est):
     """ε of the package convention, ``q_true = q_est ⊗ exp(−ε)`` (body axes), rad."""
     return quat_to_rotvec(quat_multiply(quat_conjugate(q_true), q_est))
-
-
-def simulate_increments(rng, T, n, sigma_v, sigma_u, b0):
-    """Gyro errors at exact truth: ∫b dt over each interval plus white angle noise σ_v²T, and b
-    at its end; b a Wiener process of density σ_u² from b0, sampled from the exact joint law of
-    (b(t+T) − b(t), ∫(t+T−s) db(s)) (as ``test/test_attitude_filter.py``)."""
-    cov = sigma_u ** 2 * np.array([[T, T * T / 2.0], [T * T / 2.0, T ** 3 / 3.0]])
-    L = np.linalg.cholesky(cov) if sigma_u > 0 else np.zeros((2, 2))
-    u = np.einsum("ij,njk->nik", L, rng.normal(size=(n, 2, 3)))
-    b_end = b0 + np.cumsum(u[:, 0], axis=0)
-    b_start = np.vstack([b0[None], b_end[:-1]])
-    return T * b_start + u[:, 1] + rng.normal(0.0, sigma_v * np.sqrt(T), (n, 3)), b_end
-
-
-def rts_smooth(pre, post, P_pre, P_post, Phi):
-    """Multiplicative RTS smoother on the filter's output at the fixes: with
-    ``G_k = P⁺_k Φᵀ (P⁻_{k+1})⁻¹`` and Δ the error state "estimate minus smoothed",
-    ``Δ_k = G_k Δ⁻_{k+1}``, ``q^s_k = q̂⁺_k ⊗ exp(−Δ_ε)``, ``b^s_k = b̂⁺_k − Δ_b``.
-
-    Parameters
-    ----------
-    pre, post : list of (q (4,), b (3,))
-        The filter's estimates before and after each update.
-    P_pre, P_post : list of ndarray (6, 6)
-        Its covariances there.
-    Phi : ndarray (6, 6)
-        Error-state transition between fixes.
-
-    Returns
-    -------
-    list of (q, b)
-        Smoothed attitude and bias at each fix.
-    """
-    out = [None] * len(post)
-    out[-1] = post[-1]
-    for k in range(len(post) - 2, -1, -1):
-        q_s, b_s = out[k + 1]
-        d_next = np.concatenate([attitude_error(q_s, pre[k + 1][0]), pre[k + 1][1] - b_s])
-        G = np.linalg.solve(P_pre[k + 1], Phi @ P_post[k]).T
-        d = G @ d_next
-        out[k] = (quat_multiply(post[k][0], rotvec_to_quat(-d[:3])), post[k][1] - d[3:])
-    return out
 
 
 def run_timing(seconds: float, runs: int, blocks) -> dict:
@@ -316,7 +275,8 @@ def realdata_run(a, progress) -> dict:
             "rest_mean_rad_s": rm.tolist(), "rest_sigma_rad_s": rs.tolist(),
             "rest_samples": rest["samples"],
             "bias_z": ((bias - rm) / np.sqrt(sb ** 2 + rs ** 2)).tolist(),
-            "time_offset_s": f.time_offset, "time_offset_sigma_s": float(f.sigma("time_offset")[0]),
+            "time_offset_s": f.time_offset,
+            "time_offset_sigma_s": float(f.sigma("time_offset")[0]),
             "minus_xcorr_lag_s": -lag, "mean_nis": float(np.mean(nis)) if nis else None}
 
 
@@ -355,7 +315,8 @@ def render(res: dict) -> str:
                  f"{v['band_per_fix'][1]:.2f} | {v['fraction_of_fixes_inside']:.0%} |")
     n = s["nis"]
     L.append(f"| NIS (3), all {n['fixes']} fixes ({n['gated']} gated at the χ²₃ 0.9999 quantile "
-             f"{chi2_3_quantile(0.9999):.2f}, the filter's default) | {n['mean']:.3f} | {n['band'][0]:.3f}–"
+             f"{chi2_3_quantile(0.9999):.2f}, the filter's default) | {n['mean']:.3f} | "
+             f"{n['band'][0]:.3f}–"
              f"{n['band'][1]:.3f} (mean) | {n['fraction_single_inside_95']:.1%} single NIS in "
              f"χ²₃ 95 % |")
     tm = res.get("timing")
@@ -386,7 +347,8 @@ def render(res: dict) -> str:
         for i, ax in enumerate("xyz"):
             L.append(f"| bias {ax}, °/s | {rd['bias_rad_s'][i] * deg:.3f} ± "
                      f"{rd['bias_sigma_rad_s'][i] * deg:.3f} | rest mean "
-                     f"{rd['rest_mean_rad_s'][i] * deg:.3f} ± {rd['rest_sigma_rad_s'][i] * deg:.3f}"
+                     f"{rd['rest_mean_rad_s'][i] * deg:.3f} ± "
+                     f"{rd['rest_sigma_rad_s'][i] * deg:.3f}"
                      f" | {rd['bias_z'][i]:+.2f} |")
         z_t = (rd["time_offset_s"] - rd["minus_xcorr_lag_s"]) / rd["time_offset_sigma_s"]
         L.append(f"| time offset, ms | {rd['time_offset_s'] * 1e3:.2f} ± "
@@ -477,7 +439,8 @@ def write_plots(outdir: str, mc: dict) -> list[str]:
     ax.plot(t, mc["nis"][0], "C0.", label="NIS, run 0")
     ax.axhline(chi2_3_quantile(0.9999), color="C3", ls="--", lw=1,
                label="gate (χ²₃ 0.9999): above it a fix is not applied")
-    ax.axhspan(lo / runs, hi / runs, color="C1", alpha=0.3, label=f"95 % band of the mean of {runs}")
+    ax.axhspan(lo / runs, hi / runs, color="C1", alpha=0.3,
+               label=f"95 % band of the mean of {runs}")
     ax.plot(t, np.nanmean(mc["nis"], axis=0), "C1.-", label=f"mean NIS over {runs} runs")
     ax.set_xlabel("time, s")
     ax.set_ylabel("NIS")
