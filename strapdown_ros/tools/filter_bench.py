@@ -59,7 +59,8 @@ def attitude_error(q_true, q_est):
 def run_timing(seconds: float, runs: int, blocks) -> dict:
     """µs per increment (all work: increments and fixes) at 1 kHz Δθ, a fix every second
     delivered before its epoch (in order) or 0.1 s after it (late: re-processing), ``blocks``
-    increments per call; and µs per fix applied at the newest stamp."""
+    increments per call; and µs per fix applied at the newest stamp.  The last row: one increment
+    per call with the input queue off (``max_queued=0``), on at most 3 s of the data."""
     T, n = 1e-3, int(round(seconds * 1000))
     rng = np.random.default_rng(1)
     w = np.array([0.3, -0.2, 0.1])
@@ -68,27 +69,29 @@ def run_timing(seconds: float, runs: int, blocks) -> dict:
     fixes = [(float(t), quat_multiply(Q_START, rotvec_to_quat(w * t))) for t in st[999::1000]]
     R = 1e-10 * np.eye(3)
     rows = []
-    for block in blocks:
-        for mode in ("in order", "0.1 s late"):
-            per_inc, per_fix = [], []
-            for _ in range(runs):
-                f = AttitudeFilter(Q_START, 0.0, gyro_random_walk=1e-6,
-                                   gyro_bias_random_walk=1e-8, initial_sigma=1e-4,
-                                   bias_sigma=1e-5)
-                lag = 0 if mode == "in order" else 100
-                fx, total = 0, time.perf_counter()
-                for i in range(0, n, block):
-                    j = min(n, i + block)
-                    while fx < len(fixes) and (lag == 0 and fixes[fx][0] <= st[j - 1]
-                                               or lag and fixes[fx][0] + lag * T <= st[i]):
-                        f.update(fixes[fx][0], fixes[fx][1], R)
-                        fx += 1
-                    f.propagate(d[i:j], st[i:j])
-                total = time.perf_counter() - total
-                per_inc.append(total / n * 1e6)
-                per_fix.append(_time_fix_now(f, w, R, 20))
-            rows.append({"block": block, "fix": mode, "us_per_increment": per_inc,
-                         "us_per_fix": per_fix})
+    n_all = n
+    for block, mode, queue in ([(b, m, 1024) for b in blocks for m in ("in order", "0.1 s late")]
+                               + [(1, "in order", 0)]):
+        n = n_all if queue else min(n_all, 3000)
+        per_inc, per_fix = [], []
+        for _ in range(runs):
+            f = AttitudeFilter(Q_START, 0.0, gyro_random_walk=1e-6,
+                               gyro_bias_random_walk=1e-8, initial_sigma=1e-4,
+                               bias_sigma=1e-5, max_queued=queue)
+            lag = 0 if mode == "in order" else 100
+            fx, total = 0, time.perf_counter()
+            for i in range(0, n, block):
+                j = min(n, i + block)
+                while fx < len(fixes) and (lag == 0 and fixes[fx][0] <= st[j - 1]
+                                           or lag and fixes[fx][0] + lag * T <= st[i]):
+                    f.update(fixes[fx][0], fixes[fx][1], R)
+                    fx += 1
+                f.propagate(d[i:j], st[i:j])
+            total = time.perf_counter() - total
+            per_inc.append(total / n * 1e6)
+            per_fix.append(_time_fix_now(f, w, R, 20))
+        rows.append({"block": block, "fix": mode, "max_queued": queue, "seconds": n / 1000,
+                     "us_per_increment": per_inc, "us_per_fix": per_fix})
     return {"seconds": seconds, "runs": runs, "rows": rows}
 
 
@@ -325,10 +328,11 @@ def render(res: dict) -> str:
               "", f"median (min–max) of {tm['runs']} runs; one process, one thread; load average "
               f"at the start {' '.join(f'{x:.2f}' for x in res['load_at_start'])} on "
               f"{res['cpu_count']} cores; data generation not timed", "",
-              f"| increments per propagate call | fix | µs per increment, all work (target ≤ "
-              f"{TARGET_US:g}) | µs per fix |", "|---|---|---:|---:|"]
+              f"| increments per propagate call | fix | input queue | µs per increment, all work "
+              f"(target ≤ {TARGET_US:g}) | µs per fix |", "|---|---|---|---:|---:|"]
         for row in tm["rows"]:
-            L.append(f"| {row['block']} | {row['fix']} | "
+            q = f"{row['max_queued']}" if row["max_queued"] else f"off ({row['seconds']:g} s)"
+            L.append(f"| {row['block']} | {row['fix']} | {q} | "
                      f"{median_range(stats(row['us_per_increment']), '.1f')} | "
                      f"{median_range(stats(row['us_per_fix']), '.0f')} |")
     rd = res.get("realdata")
@@ -374,7 +378,7 @@ def conclusions(res: dict) -> list[str]:
                   else "outside") + " its 95 % band.")
     tm = res.get("timing")
     if tm:
-        one = next((r for r in tm["rows"] if r["block"] == 1), None)
+        one = next((r for r in tm["rows"] if r["block"] == 1 and r["max_queued"]), None)
         if one:
             med = stats(one["us_per_increment"])["median"]
             out.append(f"One increment per call costs {med:.1f} µs per increment (median, all "
