@@ -543,8 +543,14 @@ def main(argv=None) -> int:
     if a.timing_seconds > 0:
         progress("timing")
         res["timing"] = run_timing(a.timing_seconds, a.timing_runs, blocks)
-    res["realdata"] = {"available": False, "reason": "--no-realdata"} if a.no_realdata \
-        else realdata_run(a, progress)
+    if a.no_realdata:
+        res["realdata"] = {"available": False, "reason": "--no-realdata"}
+    else:
+        try:
+            res["realdata"] = realdata_run(a, progress)
+        except (ValueError, OSError) as exc:          # a data problem: reported, not a crash
+            res["realdata"] = {"available": False, "reason": f"{type(exc).__name__}: "
+                                                            f"{str(exc)[:200]}"}
     res["conclusions"] = conclusions(res)
     text = render(res)
     print(text)
