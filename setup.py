@@ -64,6 +64,7 @@ setup(
             "nav_bench = strapdown_ros.tools.nav_bench:main",
             "realdata_report = strapdown_ros.tools.realdata_report:main",
             "realdata_bag = strapdown_ros.tools.realdata_bag:main",
+            "filter_bench = strapdown_ros.tools.filter_bench:main",
         ],
     },
 )
