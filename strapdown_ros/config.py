@@ -1,6 +1,6 @@
 """Parameters of every node and tool: one declaration, used by the ROS nodes (as validated
 ROS parameters), by offline tools (read from the same ROS 2 parameter YAML file), and
-by the README tables (``python -m strapdown_ros.config`` prints them as Markdown).
+by the tables of doc/nodes.md (``python -m strapdown_ros.config`` prints them as Markdown).
 
 No ROS imports here.
 """

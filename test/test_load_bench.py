@@ -1,6 +1,6 @@
 """load_bench end to end, short: the graph as separate processes, counts from each node's own
 /diagnostics, and the simulators' clocks held until every consumer is matched, so that nothing is
-lost to discovery (the 10-minute run at 10× is a benchmark: README, doc/bench/load/)."""
+lost to discovery (the 10-minute run at 10× is a benchmark: doc/benchmarks.md, doc/bench/load/)."""
 import json
 import os
 import sys

@@ -10,7 +10,7 @@ increments compensated with the estimated gyro effects; the boresight ``q_MF_VF`
 
 Error state x (all "estimate minus truth"):
 
-* ε (3): attitude error in body axes, ``C_est = C_true (I + [ε×])`` (README "Conventions");
+* ε (3): attitude error in body axes, ``C_est = C_true (I + [ε×])`` (doc/conventions.md);
 * δb (3): gyro bias error, rad/s, body axes (the registry's ``gyro_bias``);
 * optional, by name from the effect registry (:mod:`strapdown_ros.sensors.effects`): any
   systematic gyro effect (``gyro_scale_factor`` 3, ``gyro_misalignment`` 3 = its separable

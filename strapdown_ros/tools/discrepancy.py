@@ -23,7 +23,7 @@ confirmed on held-out time blocks; verdict ``model_adequate``, ``explained`` or
 ``unexplained_structure``.  The Allan deviation of the gyro on static segments is set beside
 that of the model simulated on the same segments (allantools).
 
-Output: a summary on stdout; ``--json`` the full result (schema in the README); ``--report DIR``
+Output: a summary on stdout; ``--json`` the full result (doc/discrepancy.md); ``--report DIR``
 ``report.md`` with PNG plots; ``--write-model`` the model with the found effects and the
 estimated boresight.  No output may be an input (the bag, the model) or another output; an
 existing one needs ``--force``; the files are written atomically.
