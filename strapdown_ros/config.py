@@ -82,12 +82,16 @@ class ParamSpec:
             if arr.shape != (self.length,) or not np.all(np.isfinite(arr)):
                 return f"{self.name} must be a list of {self.length} finite numbers, got {value!r}"
             if self.element_ranges is not None:
-                for v, (lo, hi) in zip(arr, self.element_ranges):
+                for i, (v, (lo, hi)) in enumerate(zip(arr, self.element_ranges)):
                     if (lo is not None and v < lo) or (hi is not None and v > hi):
-                        return f"{self.name}={value!r} is out of range; valid: {self.range_text()}"
+                        return (f"{self.name}[{i}]={float(v):.6g} is out of range; "
+                                f"valid: {self.range_text()}")
                 return None
-            bad = [v for v in arr if self._range_error(float(v))]
-            return self._range_error(float(bad[0])) if bad else None
+            for i, v in enumerate(arr):                 # one range for every element
+                err = self._range_error(float(v), f"{self.name}[{i}]")
+                if err:
+                    return err
+            return None
         if isinstance(self.default, bool):
             return None if isinstance(value, bool) else f"{self.name} must be true or false, got {value!r}"
         if isinstance(self.default, (int, float)):
@@ -104,11 +108,14 @@ class ParamSpec:
                     "(quote it in YAML)")
         return None
 
-    def _range_error(self, value) -> str | None:
+    def _range_error(self, value, label: str | None = None) -> str | None:
         lo, hi = self.minimum, self.maximum
         bad = (lo is not None and (value < lo or (self.exclusive_minimum and value <= lo))) or \
               (hi is not None and value > hi)
-        return f"{self.name}={value!r} is out of range; valid: {self.range_text()}" if bad else None
+        if not bad:
+            return None
+        shown = f"{label}={value:.6g}" if label else f"{self.name}={value!r}"
+        return f"{shown} is out of range; valid: {self.range_text()}"
 
     def range_text(self) -> str:
         if self.choices is not None:
