@@ -15,6 +15,7 @@ rclpy = pytest.importorskip("rclpy")
 from geometry_msgs.msg import Vector3Stamped  # noqa: E402
 from rclpy.parameter import Parameter  # noqa: E402
 
+from strapdown_ros.navigation.system import accel_stall_limits  # noqa: E402
 from strapdown_ros.navigation.trajectories import static_profile  # noqa: E402
 from strapdown_ros.nodes import ros_io  # noqa: E402
 from strapdown_ros.nodes.calibrator_node import CalibratorNode  # noqa: E402
@@ -184,7 +185,7 @@ def test_every_diagnostic_transition_of_sins_node(ros, monkeypatch):
         assert (level, message) == (ros_io.WARN, "no gyro increments received")
         t = _feed(sins, 50_000_000_000, 0.5)
         assert diag.now()[:2] == (ros_io.OK, "ok")
-        warn_s, error_s = sins.accel_stall_limits()
+        warn_s, error_s = accel_stall_limits(sins.p["accel_wait"])     # the core's rule
         assert (warn_s, error_s) == (0.1, 1.0)
         t = _feed(sins, t, 0.3, accel=False)                          # Δv stop, Δθ runs on 0.3 s
         level, message, values = diag.now()

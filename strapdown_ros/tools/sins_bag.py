@@ -698,6 +698,9 @@ def _summary(args, inp: Input, system: SinsSystem, sink, counts: dict, rates: di
                      "the rotation during them is lost")
     if system.nonfinite:
         lines.append(f"  {system.nonfinite} non-finite update(s) discarded")
+    stall = system.accel_stall(a_topic or "imu/delta_velocity")   # sins_node's /diagnostics rule
+    if stall is not None:
+        lines.append(f"  WARNING: {stall.text}; sins_node's /diagnostics: {stall.level.upper()}")
     line = f"  {st['updates']} attitude updates ({st['coning_algorithm']}, {st['samples_per_update']} samples/update)"
     if system.nav is not None:
         line += f"; navigation {st['navigation_state']}, {st.get('navigation_steps', 0)} steps"
@@ -705,6 +708,8 @@ def _summary(args, inp: Input, system: SinsSystem, sink, counts: dict, rates: di
             line += f" ({st['navigation_steps_accel_extrapolated']} with Δv extrapolated)"
         if "alignment" in st:
             line += f"; alignment: {st['alignment']}"
+    if stall is not None:
+        line += f"; accel stall {stall.seconds:.3g} s"
     lines.append(line)
     lines.append(f"  wrote {sink.summary()}")
     return "\n".join(lines)
