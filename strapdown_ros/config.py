@@ -14,7 +14,7 @@ import numpy as np
 
 from .coning import ALGORITHMS, algorithm_names
 from .integrator import COVARIANCE_MODELS
-from .navigation.gravity import GRAVITY_MODELS
+from .navigation.gravity import DEFAULT_GRAVITY_MODEL, GRAVITY_MODELS
 from .profiles import PROFILE_NAMES
 from .rate_increments import RATE_RULES
 from .sensors import NAVIGATION_GRADE_ACCEL, NAVIGATION_GRADE_GYRO, SensorSigmas
@@ -181,7 +181,7 @@ PROFILE_PARAMS = [
     ParamSpec("sculling_angle", 0.01, "sculling angular amplitude about body x, rad", 0.0, 1.5),
     ParamSpec("sculling_accel", 1.0, "sculling acceleration amplitude along the level y axis, m/s²", 0.0, 1e3),
     ParamSpec("sculling_frequency", 10.0, "sculling frequency, Hz", 0.0, 1000.0, exclusive_minimum=True),
-    ParamSpec("gravity_model", "normal_exact", "normal gravity of the navigation profiles "
+    ParamSpec("gravity_model", DEFAULT_GRAVITY_MODEL, "normal gravity of the navigation profiles "
               "(pz90_003: 003's formula corrected, 3.2″ and 35 mGal from normal_exact)",
               choices=tuple(GRAVITY_MODELS)),
 ]
@@ -285,7 +285,7 @@ SINS_PARAMS = GYRO_PARAMS + ACCEL_PARAMS + COMMON_PARAMS + INPUT_PARAMS + ACCEL_
               choices=("derived", "printed")),
     ParamSpec("sculling_compensation", True, "rotation and sculling from the fitted motion (false: rotation "
               "compensation ½θ×v only)"),
-    ParamSpec("gravity_model", "normal_exact", "normal gravity model "
+    ParamSpec("gravity_model", DEFAULT_GRAVITY_MODEL, "normal gravity model "
               "(strapdown_ros/navigation/gravity.py; pz90_003: 003's formula corrected, 3.2″ and "
               "35 mGal from normal_exact)",
               choices=("pz90_003", "normal_exact", "j2")),
