@@ -309,3 +309,22 @@ def test_runtime_parameters(ros):
         Parameter("navigation", value=True), Parameter("velocity_update", value="printed"),
         Parameter("coning_algorithm", value="1"), Parameter("accel_rate", value=300.0)])
     ok.destroy_node()
+
+
+def test_a_number_given_as_text_is_stored_with_its_type(ros):
+    """Issue "second pass", leftover 5: a quoted number for a double ("0.05", as YAML files may
+    quote it) or an integer for a double is used as the double AND stored as one, so
+    `ros2 param get` shows what the node uses; text that is no number is still refused."""
+    node = SinsNode(namespace="/t_text_num", parameter_overrides=[
+        Parameter("batch_period", value="0.05"), Parameter("accel_wait", value=1)])
+    try:
+        p = node.get_parameter("batch_period")
+        assert p.type_ == Parameter.Type.DOUBLE and p.value == 0.05
+        assert node.p["batch_period"] == 0.05
+        p = node.get_parameter("accel_wait")
+        assert p.type_ == Parameter.Type.DOUBLE and p.value == 1.0
+    finally:
+        node.destroy_node()
+    with pytest.raises(ros_io.InvalidParameter, match="batch_period must be a number"):
+        SinsNode(namespace="/t_text_bad",
+                 parameter_overrides=[Parameter("batch_period", value="fast")])
