@@ -383,7 +383,8 @@ def straight_flight_profile(lat: float, lon: float, h: float = 0.0, speed: float
 
 def coordinated_turn_profile(lat: float, lon: float, h: float = 0.0, speed: float = 100.0,
                              radius: float = 2000.0, heading: float = 0.0, bank: float | None = None,
-                             gravity_model: str = DEFAULT_GRAVITY_MODEL, duration: float = np.inf) -> EarthProfile:
+                             gravity_model: str = DEFAULT_GRAVITY_MODEL,
+                             duration: float = np.inf) -> EarthProfile:
     """Constant-speed left (counter-clockwise from above) turn on a circle in a tangent plane.
 
     The circle has radius ρ = ``radius`` and centre R_c = geodetic (lat, lon, h), in the plane
@@ -457,7 +458,8 @@ def coordinated_turn_profile(lat: float, lon: float, h: float = 0.0, speed: floa
 
 def sculling_profile(lat: float, lon: float, h: float = 0.0, angle_amplitude: float = 0.01,
                      accel_amplitude: float = 1.0, frequency: float = 10.0, yaw: float = 0.0,
-                     gravity_model: str = DEFAULT_GRAVITY_MODEL, duration: float = np.inf) -> EarthProfile:
+                     gravity_model: str = DEFAULT_GRAVITY_MODEL,
+                     duration: float = np.inf) -> EarthProfile:
     """Classical sculling about a level attitude at geodetic (lat, lon, h).
 
     Level frame L = ENU rotated by ``yaw`` (REP-103) about up.  With w = 2π·``frequency``:

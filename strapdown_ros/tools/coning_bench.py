@@ -218,7 +218,8 @@ def main(argv=None):
     from .paths import DIRECTORY, FILE, check_outputs
     try:                                       # everything that can fail, before minutes of work
         check_outputs([("--json", args.json, FILE), ("--report", args.report, FILE),
-                       ("--plots", args.plots, DIRECTORY, ("coning_drift.png", "coning_order.png"))],
+                       ("--plots", args.plots, DIRECTORY,
+                        ("coning_drift.png", "coning_order.png"))],
                       [], args.force)
         if not (np.isfinite(args.duration) and args.duration > 0):
             raise ValueError(f"--duration must be > 0, got {args.duration}")

@@ -477,7 +477,8 @@ def main(argv=None) -> int:
               f"report included: median {t['median']:.2f} s (min {t['min']:.2f}, max {t['max']:.2f}) over "
               f"{len(sp['times_s'])} runs; load average at start {load[0]:.2f}; exit codes {sp['return_codes']}")
         if args.json:
-            write_text(args.json, json.dumps({"command": f"{PROG} " + " ".join(argv), "speed": sp}, indent=1, default=float))
+            write_text(args.json, json.dumps({"command": f"{PROG} " + " ".join(argv),
+                                              "speed": sp}, indent=1, default=float))
         return 0
     n_jobs = len(args.effects) * args.seeds * (len(args.sizes) if args.every_size else 1) + args.null_seeds
     print(f"{PROG}: {len(args.effects)} effects × {args.seeds} seeds, sizes "

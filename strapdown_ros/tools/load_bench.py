@@ -295,7 +295,8 @@ def main(argv=None) -> int:
         d.mkdir(parents=True, exist_ok=True)
         write_plots(raw, d / "load_bench.png")
         head, _, body = text.partition("\n")
-        write_text(d / "load_bench.md", f"# load_bench\n\nCommand: `{head[2:]}`\n\n" + body.replace("\n", "\n\n", 2)
+        write_text(d / "load_bench.md", f"# load_bench\n\nCommand: `{head[2:]}`\n\n"
+                   + body.replace("\n", "\n\n", 2)
                    + "\n\n![memory and latency](load_bench.png)\n")
     return 0
 

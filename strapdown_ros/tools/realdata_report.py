@@ -352,7 +352,7 @@ def main(argv=None) -> int:
         check_output_dir(args.out, "--out")
         out = Path(args.out)
         if out.is_dir():                   # the one output rule (no output is an input, --force)
-            check_outputs([("--out", out / name, FILE) for name in ("realdata.json", "realdata.md")],
+            check_outputs([("--out", out / n, FILE) for n in ("realdata.json", "realdata.md")],
                           [("--data", root), ("--model", args.model)], args.force)
         elif root.resolve() in out.resolve().parents or out.resolve() == root.resolve():
             raise ValueError(f"--out {args.out} is inside the input --data {root}")

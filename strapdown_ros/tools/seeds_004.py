@@ -450,7 +450,7 @@ def main(argv=None) -> int:
                        ("--plots", a.plots, DIRECTORY, ("seeds_004_theta_diff.png",
                                                         "seeds_004_ablation.png"))], [], a.force)
     except ValueError as e:
-        print(f"seeds_004: {e}", file=sys.stderr)
+        print(f"seeds_004: error: {e}", file=sys.stderr)
         return 2
     res = section_004_extras(a.quick, a.runs)
     text = report_004_extras(res)

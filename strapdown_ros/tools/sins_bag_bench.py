@@ -175,8 +175,8 @@ def main(argv=None) -> int:
         ap.error(f"{args.bag} does not exist")
     from .paths import FILE, check_outputs
     try:                                        # the tools' one output rule
-        check_outputs([("--json", args.json, FILE)], [("bag", args.bag), ("--params", args.params)],
-                      args.force)
+        check_outputs([("--json", args.json, FILE)],
+                      [("bag", args.bag), ("--params", args.params)], args.force)
     except ValueError as exc:
         ap.error(str(exc))
     if args.navigation_profile and args.params:
