@@ -448,9 +448,6 @@ class McapOutput:
         from rosbags.typesys import Stores, get_typestore
 
         self.path = Path(path)
-        # written into a hidden sibling, renamed into place by close(): no half bag on a failure,
-        # an old bag (--force) replaced only by a complete one
-        self.staged = stage_directory(self.path)
         self.store = get_typestore(Stores.ROS2_JAZZY)
         self.T = self.store.types
         p = system.p
@@ -465,6 +462,9 @@ class McapOutput:
         names = ["sins/attitude", "sins/imu"] + (["sins/odometry"] if system.nav is not None else [])
         self.topics = {n: f"{namespace}/{n}" for n in names}
         self.counts = {n: 0 for n in names}
+        # written into a hidden sibling, renamed into place by close(): no half bag on a failure,
+        # an old bag (--force) replaced only by a complete one
+        self.staged = stage_directory(self.path)
         try:
             self.writer = Writer(self.staged, version=Writer.VERSION_LATEST,
                                  storage_plugin=StoragePlugin.MCAP)
