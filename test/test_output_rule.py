@@ -196,3 +196,20 @@ def test_figures_are_written_atomically(tmp_path):
         write_figure(fig, tmp_path / "missing" / "f.png")
     plt.close(fig)
     assert os.listdir(tmp_path) == ["f.png"]
+
+
+def test_sins_bag_interrupted_keeps_the_old_output_bag(files, tmp_path, monkeypatch):
+    """sins_bag's MCAP output is staged too: an interruption half-way (--force over an old
+    output) leaves the old bag and no staging directory."""
+    from strapdown_ros.tools import sins_bag
+    out = tmp_path / "out"
+    assert sins_bag.main([str(files["bag"]), "--output", str(out), "--quiet"]) == 0
+    before = _snapshot(out)
+    real = sins_bag.run
+
+    def interrupted(inp, make_system, sink, *a, **k):
+        real(inp, make_system, sink, *a, **k)
+        raise KeyboardInterrupt
+    monkeypatch.setattr(sins_bag, "run", interrupted)
+    assert sins_bag.main([str(files["bag"]), "--output", str(out), "--force", "--quiet"]) == 130
+    assert _snapshot(out) == before and sorted(os.listdir(tmp_path)) == ["out"]
