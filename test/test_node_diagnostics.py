@@ -323,6 +323,10 @@ def test_a_number_given_as_text_is_stored_with_its_type(ros):
         assert node.p["batch_period"] == 0.05
         p = node.get_parameter("accel_wait")
         assert p.type_ == Parameter.Type.DOUBLE and p.value == 1.0
+        # at run time text is refused with a clear reason (it would stay text otherwise)
+        res = node.set_parameters([Parameter("accel_wait", value="0.2")])[0]
+        assert not res.successful and "accel_wait must be set as a number" in res.reason
+        assert node.get_parameter("accel_wait").value == 1.0
     finally:
         node.destroy_node()
     with pytest.raises(ros_io.InvalidParameter, match="batch_period must be a number"):

@@ -274,6 +274,12 @@ def declare_validated(node, specs: Sequence[ParamSpec], on_change: Callable[[dic
             err = spec.check(v)
             if err:
                 return None, err
+            if isinstance(p.value, str) and _retyped(p.value, v):
+                # at run time a number given as text would stay text in `ros2 param get`
+                # (it cannot be re-set from inside the set callback): refused, as rclpy
+                # refuses text for a typed double
+                return None, (f"{p.name} must be set as a number, not as text "
+                              f"{bounded(repr(p.value), 80)}")
             if v != values.get(p.name):
                 new[p.name] = v
         err = combination_error({**values, **new}) if new else None
