@@ -127,5 +127,32 @@ for exe in imu_sim_node sins_node strapdown_demo sins_bench coning_bench; do
     [[ -x "$VENV/bin/$exe" ]] || die ".venv/bin/$exe missing after install (legacy 'setup.py develop' editable? need pip >= $MIN_PIP and setuptools >= 64)"
 done
 
+# numba's on-disk cache (njit(cache=True), strapdown_ros/__pycache__): one tiny sins_bag run with
+# navigation compiles every kernel the offline tools and the nodes use, so the first real run
+# after an install loads them instead of compiling (~35 s).  Optional: a failure only means that
+# the first run compiles; STRAPDOWN_SKIP_WARMUP=1 skips it.
+warm_kernels() {
+    local d rc=1
+    d="$(mktemp -d)" || return 1
+    if "$VENV/bin/record_sim" "$d/bag" --duration 2 -p profile:=coordinated_turn >/dev/null 2>&1 \
+        && "$VENV/bin/python" -c "import sys, pathlib
+from strapdown_ros.tools.sins_bag_bench import navigation_parameters
+navigation_parameters('coordinated_turn', pathlib.Path(sys.argv[1]))" "$d/p.yaml" \
+        && "$VENV/bin/sins_bag" "$d/bag" --params "$d/p.yaml" --output "$d/o.csv" --quiet \
+            >/dev/null 2>&1; then
+        rc=0
+    fi
+    rm -rf "$d"
+    return $rc
+}
+if [[ "${STRAPDOWN_SKIP_WARMUP:-0}" != 1 ]] && "$VENV/bin/python" -c "import numba" 2>/dev/null; then
+    t0=$SECONDS
+    if warm_kernels; then
+        say "numba kernel cache warm in $((SECONDS - t0)) s"
+    else
+        say "numba kernel warm-up skipped (the first sins_bag run compiles its kernels)"
+    fi
+fi
+
 echo "$WANT" >"$STAMP"
 say "ready: $VENV"

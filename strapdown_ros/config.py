@@ -14,7 +14,7 @@ import numpy as np
 
 from .coning import ALGORITHMS, algorithm_names
 from .integrator import COVARIANCE_MODELS
-from .navigation.gravity import GRAVITY_MODELS
+from .navigation.gravity import DEFAULT_GRAVITY_MODEL, GRAVITY_MODELS
 from .profiles import PROFILE_NAMES
 from .rate_increments import RATE_RULES
 from .sensors import NAVIGATION_GRADE_ACCEL, NAVIGATION_GRADE_GYRO, SensorSigmas
@@ -82,12 +82,16 @@ class ParamSpec:
             if arr.shape != (self.length,) or not np.all(np.isfinite(arr)):
                 return f"{self.name} must be a list of {self.length} finite numbers, got {value!r}"
             if self.element_ranges is not None:
-                for v, (lo, hi) in zip(arr, self.element_ranges):
+                for i, (v, (lo, hi)) in enumerate(zip(arr, self.element_ranges)):
                     if (lo is not None and v < lo) or (hi is not None and v > hi):
-                        return f"{self.name}={value!r} is out of range; valid: {self.range_text()}"
+                        return (f"{self.name}[{i}]={float(v):.6g} is out of range; "
+                                f"valid: {self.range_text()}")
                 return None
-            bad = [v for v in arr if self._range_error(float(v))]
-            return self._range_error(float(bad[0])) if bad else None
+            for i, v in enumerate(arr):                 # one range for every element
+                err = self._range_error(float(v), f"{self.name}[{i}]")
+                if err:
+                    return err
+            return None
         if isinstance(self.default, bool):
             return None if isinstance(value, bool) else f"{self.name} must be true or false, got {value!r}"
         if isinstance(self.default, (int, float)):
@@ -104,11 +108,14 @@ class ParamSpec:
                     "(quote it in YAML)")
         return None
 
-    def _range_error(self, value) -> str | None:
+    def _range_error(self, value, label: str | None = None) -> str | None:
         lo, hi = self.minimum, self.maximum
         bad = (lo is not None and (value < lo or (self.exclusive_minimum and value <= lo))) or \
               (hi is not None and value > hi)
-        return f"{self.name}={value!r} is out of range; valid: {self.range_text()}" if bad else None
+        if not bad:
+            return None
+        shown = f"{label}={value:.6g}" if label else f"{self.name}={value!r}"
+        return f"{shown} is out of range; valid: {self.range_text()}"
 
     def range_text(self) -> str:
         if self.choices is not None:
@@ -174,7 +181,7 @@ PROFILE_PARAMS = [
     ParamSpec("sculling_angle", 0.01, "sculling angular amplitude about body x, rad", 0.0, 1.5),
     ParamSpec("sculling_accel", 1.0, "sculling acceleration amplitude along the level y axis, m/s²", 0.0, 1e3),
     ParamSpec("sculling_frequency", 10.0, "sculling frequency, Hz", 0.0, 1000.0, exclusive_minimum=True),
-    ParamSpec("gravity_model", "normal_exact", "normal gravity of the navigation profiles "
+    ParamSpec("gravity_model", DEFAULT_GRAVITY_MODEL, "normal gravity of the navigation profiles "
               "(pz90_003: 003's formula corrected, 3.2″ and 35 mGal from normal_exact)",
               choices=tuple(GRAVITY_MODELS)),
 ]
@@ -278,7 +285,7 @@ SINS_PARAMS = GYRO_PARAMS + ACCEL_PARAMS + COMMON_PARAMS + INPUT_PARAMS + ACCEL_
               choices=("derived", "printed")),
     ParamSpec("sculling_compensation", True, "rotation and sculling from the fitted motion (false: rotation "
               "compensation ½θ×v only)"),
-    ParamSpec("gravity_model", "normal_exact", "normal gravity model "
+    ParamSpec("gravity_model", DEFAULT_GRAVITY_MODEL, "normal gravity model "
               "(strapdown_ros/navigation/gravity.py; pz90_003: 003's formula corrected, 3.2″ and "
               "35 mGal from normal_exact)",
               choices=("pz90_003", "normal_exact", "j2")),

@@ -8,10 +8,12 @@ failure leaves the old file as it was.  Errors name the target, never the tempor
 from __future__ import annotations
 
 import os
+import shutil
 import tempfile
 from pathlib import Path
 
-__all__ = ["atomic_write_text", "probe_writable"]
+__all__ = ["atomic_write_text", "atomic_savefig", "stage_directory", "commit_directory",
+           "discard_directory", "probe_writable"]
 
 
 def _directory(path) -> Path:
@@ -52,6 +54,92 @@ def atomic_write_text(path, text: str) -> None:
                 os.unlink(tmp)
             except OSError:
                 pass
+
+
+def atomic_savefig(fig, path, **kwargs) -> None:
+    """``fig.savefig(path, **kwargs)`` atomically: matplotlib writes a temporary file with the
+    same extension (it picks the format from it) in the target's directory, then ``os.replace``.
+
+    Parameters
+    ----------
+    fig : matplotlib.figure.Figure
+        The figure.
+    path : str or os.PathLike
+        The target image (PNG, SVG, ...); its directory must exist.
+    **kwargs
+        Passed to ``savefig`` (``dpi``, ...).
+    """
+    p = Path(path)
+    tmp = None
+    try:
+        fd, tmp = tempfile.mkstemp(dir=_directory(p), prefix=f".{p.name}.", suffix=p.suffix)
+        os.close(fd)
+        fig.savefig(tmp, **kwargs)
+        os.replace(tmp, p)
+        tmp = None
+    except OSError as exc:
+        raise OSError(exc.errno, f"cannot write {path}: {exc.strerror or exc}") from None
+    finally:
+        if tmp is not None:
+            try:
+                os.unlink(tmp)
+            except OSError:
+                pass
+
+
+def stage_directory(path) -> Path:
+    """Where to write a directory output (a bag) before it is complete: ``path``'s name inside
+    a new hidden temporary directory beside it (same file system, so the final move is a
+    rename; the files inside keep the names they will have).  Not created itself.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The final directory.
+
+    Returns
+    -------
+    pathlib.Path
+        The staging path; hand it to :func:`commit_directory` or :func:`discard_directory`.
+    """
+    p = Path(path)
+    holder = tempfile.mkdtemp(dir=_directory(p), prefix=f".{p.name}.", suffix=".part")
+    return Path(holder) / p.name
+
+
+def commit_directory(staged, path) -> None:
+    """Move the complete directory ``staged`` (from :func:`stage_directory`) to ``path``.  An
+    existing ``path`` (the caller checked --force) is moved aside first and removed only after
+    the new one is in place; if the move fails, it is put back.
+
+    Parameters
+    ----------
+    staged : pathlib.Path
+        The complete directory.
+    path : str or os.PathLike
+        The target.
+    """
+    staged, p = Path(staged), Path(path)
+    old = staged.parent / ".old"
+    moved = False
+    try:
+        if p.is_symlink() or p.is_file():
+            os.replace(p, old)
+            moved = True
+        elif p.exists():
+            os.rename(p, old)
+            moved = True
+        os.rename(staged, p)
+    except OSError as exc:
+        if moved and not p.exists():
+            os.rename(old, p)
+        raise OSError(exc.errno, f"cannot write {path}: {exc.strerror or exc}") from None
+    shutil.rmtree(staged.parent, ignore_errors=True)
+
+
+def discard_directory(staged) -> None:
+    """Remove a staged directory (a failed or interrupted run); the target is untouched."""
+    shutil.rmtree(Path(staged).parent, ignore_errors=True)
 
 
 def probe_writable(directory) -> str | None:

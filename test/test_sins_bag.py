@@ -493,3 +493,48 @@ def test_a_damaged_mcap_chunk_is_one_line_exit_2(tmp_path, capsys):
     lines = [ln for ln in (out + err).splitlines() if ln.strip()]
     assert rc == 2 and len(lines) == 1 and lines[0].startswith("sins_bag: error:"), (out, err)
     assert not (tmp_path / "x.csv").exists()
+
+
+def _drop_accel_after(src, dst, t_stop):
+    """A copy of the bag ``src`` whose Δv stop ``t_stop`` seconds after its start."""
+    from rosbags.rosbag2 import Reader, StoragePlugin, Writer
+    with Reader(src) as r, Writer(dst, version=Writer.VERSION_LATEST,
+                                  storage_plugin=StoragePlugin.MCAP) as w:
+        conns = {c.id: w.add_connection(c.topic, c.msgtype, typestore=None,
+                                        serialization_format=c.ext.serialization_format,
+                                        offered_qos_profiles=c.ext.offered_qos_profiles,
+                                        msgdef=c.msgdef.data, rihs01=c.digest)
+                 for c in r.connections}
+        stop = r.start_time + int(t_stop * 1e9)
+        for c, t, raw in r.messages():
+            if c.topic.endswith("delta_velocity") and t > stop:
+                continue
+            w.write(conns[c.id], t, raw)
+    return dst
+
+
+@pytest.mark.parametrize("accel_wait, level", [(0.1, "ERROR"), (0.5, "WARN")])
+def test_accelerometer_stall_is_reported_by_the_nodes_rule(tmp_path, capsys, accel_wait, level):
+    """Issue "second pass", leftover 3: Δv stop half-way through the recording while Δθ run on;
+    sins_bag reports it as sins_node does on /diagnostics (the core's rule,
+    SinsSystem.accel_stall: WARN beyond accel_wait, ERROR beyond max(1 s, 10 accel_wait)),
+    naming the stalled stream, with the stall's length in the summary counts."""
+    from strapdown_ros.navigation.system import accel_stall_limits
+    full = _record(tmp_path / "full", "static")
+    bag = _drop_accel_after(full, tmp_path / "half", DURATION / 2)
+    rc, out, err = _run_tool(capsys, bag, "-o", tmp_path / "a.csv",
+                             "-p", f"accel_wait:={accel_wait}")
+    assert rc == 0, err
+    warn = [ln for ln in out.splitlines() if "WARNING:" in ln]
+    assert len(warn) == 1, out
+    assert "accelerometer increments (/imu/delta_velocity) stopped" in warn[0] \
+        or "accelerometer increments (imu/delta_velocity) stopped" in warn[0], warn
+    assert warn[0].rstrip().endswith(level), warn
+    warn_s, error_s = accel_stall_limits(accel_wait)
+    assert f"WARN beyond {warn_s:g} s, ERROR beyond {error_s:g} s" in warn[0]
+    import re
+    stall = float(re.search(r"accel stall ([\d.e+-]+) s", out).group(1))
+    assert stall == pytest.approx(DURATION / 2, abs=0.02)           # the gyro ran on 2.5 s
+    rc, out, err = _run_tool(capsys, full, "-o", tmp_path / "b.csv",
+                             "-p", f"accel_wait:={accel_wait}")
+    assert rc == 0 and "WARNING" not in out and "accel stall" not in out, out

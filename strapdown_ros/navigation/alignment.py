@@ -31,6 +31,7 @@ import numpy as np
 
 from ..sensors.model import SensorSigmas
 from . import gravity as _gravity
+from .gravity import DEFAULT_GRAVITY_MODEL
 
 __all__ = ["AlignmentResult", "static_alignment", "triad"]
 
@@ -62,7 +63,8 @@ def triad(f_body: np.ndarray, w_body: np.ndarray, f_earth: np.ndarray, w_earth: 
 def static_alignment(f_mean: np.ndarray, w_mean: np.ndarray, position: np.ndarray, duration: float,
                      gyro: SensorSigmas, accel: SensorSigmas, f_spread: float | None = None,
                      w_spread: float | None = None, sample_period: float = 0.01,
-                     gravity_model: str = "pz90_003", max_specific_force_error: float = 0.05,
+                     gravity_model: str = DEFAULT_GRAVITY_MODEL,
+                     max_specific_force_error: float = 0.05,
                      max_rate: float = 1e-3, max_latitude_deg: float = 85.0,
                      max_heading_sigma: float = np.radians(10.0)) -> AlignmentResult:
     """Align from the mean specific force (m/s²) and angular rate (rad/s) over ``duration`` s.

@@ -278,6 +278,11 @@ def normal_exact_xyz(x, y, z):
     return radial * x, radial * y, cu * (u * u + _E2L) * sb + cb * u * sb * (1.0 - sb * sb)
 
 
+#: the default normal-gravity model of the whole package (core functions, node and tool
+#: parameters): the exact normal gravity of the level ellipsoid; "pz90_003" (003's formula,
+#: corrected) stays selectable by name
+DEFAULT_GRAVITY_MODEL = "normal_exact"
+
 GRAVITY_MODELS = {"pz90_003": _pz90_003, "normal_exact": _normal_exact, "j2": _j2}
 #: scalar forms of the models (numba-compilable) that the navigation loop can run compiled
 SCALAR_GRAVITY = {"pz90_003": printed_gravity_xyz, "normal_exact": normal_exact_xyz}
@@ -291,7 +296,7 @@ def get_gravity_model(name):
         raise ValueError(f"unknown gravity model {name!r}; valid: {sorted(GRAVITY_MODELS)}") from None
 
 
-def normal_gravity(r, model="pz90_003"):
+def normal_gravity(r, model=DEFAULT_GRAVITY_MODEL):
     """ECEF gravity vector (gravitation + centrifugal), m/s², at ECEF positions r (..., 3), m."""
     return get_gravity_model(model)(np.asarray(r, dtype=np.float64))
 

@@ -23,6 +23,7 @@ import numpy as np
 
 from ..rotation import quat_multiply, quat_to_dcm
 from . import recursion
+from .gravity import DEFAULT_GRAVITY_MODEL
 from .covariance import NavigationCovariance
 from .update import step_layout, specific_force_integrals
 
@@ -147,7 +148,8 @@ class Navigator:
 
     def __init__(self, position, velocity, t0: float, gyro_per_step: int, accel_per_step: int,
                  gyro_period: float, accel_period: float, form: str = "exact", scheme: str = "exact",
-                 gravity_model: str = "pz90_003", covariance: NavigationCovariance | None = None,
+                 gravity_model: str = DEFAULT_GRAVITY_MODEL,
+                 covariance: NavigationCovariance | None = None,
                  max_pending: int = 100_000):
         self.origin = np.asarray(position, dtype=float).reshape(3).copy()
         if not (np.all(np.isfinite(self.origin)) and 6.0e6 < np.linalg.norm(self.origin) < 7.0e6 + 1e6):

@@ -38,6 +38,7 @@ import numpy as np
 
 from ..attitude_kernel import kernels_allowed, njit_optional
 from . import gravity as _gravity
+from .gravity import DEFAULT_GRAVITY_MODEL
 
 __all__ = ["SCHEMES", "run", "OMEGA"]
 
@@ -167,7 +168,8 @@ def _printed(origin, offset, w, dv, dr, h, model):
     return out_off, out_w
 
 
-def run(origin, offset, velocity, dv_e, dr_e, h, scheme: str = "exact", gravity_model: str = "pz90_003"):
+def run(origin, offset, velocity, dv_e, dr_e, h, scheme: str = "exact",
+        gravity_model: str = DEFAULT_GRAVITY_MODEL):
     """Run K steps.  Returns ``(offset (K, 3), velocity (K, 3))``; position = origin + offset.
 
     ``dv_e``/``dr_e``: specific-force integrals already rotated into E axes at ``t_{k−1}``.

@@ -52,7 +52,8 @@ from .channel import NavigationChannel
 
 __all__ = ["SinsSystem", "SinsOutput", "AttitudeOutput", "ImuOutput", "NavigationOutput", "odometry_arrays",
            "NONFINITE_INFLATION", "MAX_BATCH",
-           "FEED_BLOCK", "FEED_ACCEL_BLOCK", "screen_stream"]
+           "FEED_BLOCK", "FEED_ACCEL_BLOCK", "screen_stream", "ACCEL_STALL_ERROR_FACTOR",
+           "ACCEL_STALL_ERROR_MIN_S", "accel_stall_limits", "AccelStall"]
 
 NONFINITE_INFLATION = 0.01      # rad per axis added to σ after a non-finite update is discarded
 MAX_BATCH = 4096                # a block is processed when it holds this many messages, whatever its span
@@ -155,6 +156,51 @@ def odometry_arrays(nav: NavigationOutput, rate_variance: float) -> tuple[np.nda
     t6[:, :3, :3] = ct @ p[:, 3:6, 3:6] @ c
     t6[:, 3:, 3:] = np.eye(3) * rate_variance
     return c6.reshape(k, 36), vb, t6.reshape(k, 36)
+
+
+#: the accelerometer stall is an ERROR beyond this factor × accel_wait, and at least this many
+#: stamp seconds (a WARN beyond accel_wait): the one rule of sins_node's /diagnostics and
+#: sins_bag's summary
+ACCEL_STALL_ERROR_FACTOR = 10.0
+ACCEL_STALL_ERROR_MIN_S = 1.0
+
+
+def accel_stall_limits(accel_wait: float) -> tuple[float, float]:
+    """(WARN, ERROR) thresholds of the accelerometer stall, stamp seconds.
+
+    Parameters
+    ----------
+    accel_wait : float
+        The parameter ``accel_wait``, s: how long sins/imu waits for Δv.
+
+    Returns
+    -------
+    (float, float)
+        ``accel_wait`` and max(:data:`ACCEL_STALL_ERROR_MIN_S`,
+        :data:`ACCEL_STALL_ERROR_FACTOR` × ``accel_wait``).
+    """
+    wait = float(accel_wait)
+    return wait, max(ACCEL_STALL_ERROR_MIN_S, ACCEL_STALL_ERROR_FACTOR * wait)
+
+
+@dataclass(frozen=True)
+class AccelStall:
+    """The accelerometer stream has stopped while the gyro stream runs on.
+
+    Attributes
+    ----------
+    seconds : float
+        Stamp seconds the gyro stream ran beyond the newest accepted Δv (or its first stamp
+        when no Δv arrived).
+    level : str
+        ``"warn"`` (beyond ``accel_wait``) or ``"error"`` (beyond the ERROR limit).
+    text : str
+        The sentence of /diagnostics and of sins_bag's ``WARNING:`` line, naming the stream.
+    """
+
+    seconds: float
+    level: str
+    text: str
 
 
 def _finite_update(q: np.ndarray, cov: np.ndarray) -> bool:
@@ -752,6 +798,37 @@ class SinsSystem:
         self.has_output = True
 
     # --- state --------------------------------------------------------------------------------
+    def accel_stall_s(self) -> float | None:
+        """Stamp seconds the gyro stream has run beyond the newest accepted Δv (the first gyro
+        stamp when none arrived); None when no accelerometer stream is expected (none seen and
+        navigation off) or no gyro data arrived."""
+        g, a = self.gyro_check, self.accel_check
+        if g.last_ns is None or (not self.accel_seen and self.nav is None):
+            return None
+        ref = a.last_ns if a.last_ns is not None else g.first_ns
+        return None if ref is None else max(0.0, (g.last_ns - ref) * 1e-9)
+
+    def accel_stall(self, accel_topic: str = "imu/delta_velocity") -> AccelStall | None:
+        """The accelerometer stall by the rule of :func:`accel_stall_limits` (WARN beyond
+        ``accel_wait``, ERROR beyond max(1 s, 10 ``accel_wait``)), or None when there is none.
+
+        Parameters
+        ----------
+        accel_topic : str
+            The name of the accelerometer stream in the text.
+        """
+        stall = self.accel_stall_s()
+        warn_s, error_s = accel_stall_limits(self.p["accel_wait"])
+        if stall is None or not stall > warn_s:
+            return None
+        what = "no accelerometer increments received" if self.accel_check.last_ns is None else \
+            f"accelerometer increments ({bounded(accel_topic, 80)}) stopped"
+        effect = "sins/odometry stalls" if self.nav is not None \
+            else "sins/imu has no specific force"
+        return AccelStall(stall, "error" if stall > error_s else "warn",
+                          f"{what}: the gyro stream ran {stall:.3g} s beyond the last Δv; "
+                          f"{effect} (WARN beyond {warn_s:g} s, ERROR beyond {error_s:g} s)")
+
     def status(self) -> dict:
         """The counters and state of the system (the node's /diagnostics values, without what the
         node itself counts)."""

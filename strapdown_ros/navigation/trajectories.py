@@ -54,7 +54,8 @@ import numpy as np
 
 from ..profiles import MotionProfile
 from ..rotation import dcm_to_quat, quat_multiply, quat_normalize, quat_to_dcm
-from .gravity import OMEGA, ecef_to_geodetic, enu_rotation, geodetic_to_ecef, normal_gravity
+from .gravity import (DEFAULT_GRAVITY_MODEL, OMEGA, ecef_to_geodetic, enu_rotation,
+                      geodetic_to_ecef, normal_gravity)
 
 __all__ = ["EarthProfile", "static_profile", "straight_flight_profile", "coordinated_turn_profile",
            "sculling_profile", "sculling_drift_rate", "gravity_sculling_term", "navigation_profile_from_config",
@@ -142,7 +143,7 @@ class EarthProfile(MotionProfile):
 
     def __init__(self, position, velocity, acceleration, attitude_ecef, earth_relative_rate, *,
                  frequency: float = 0.0, duration: float = np.inf, name: str = "earth",
-                 gravity_model: str = "pz90_003", parameters: dict | None = None):
+                 gravity_model: str = DEFAULT_GRAVITY_MODEL, parameters: dict | None = None):
         self._position = position
         self._velocity = velocity
         self._acceleration = acceleration
@@ -316,7 +317,7 @@ def _check_finite(**kw):
 
 
 def static_profile(lat: float, lon: float, h: float = 0.0, yaw: float = 0.0, pitch: float = 0.0,
-                   roll: float = 0.0, gravity_model: str = "pz90_003",
+                   roll: float = 0.0, gravity_model: str = DEFAULT_GRAVITY_MODEL,
                    duration: float = np.inf) -> EarthProfile:
     """At rest on the rotating Earth at geodetic (lat, lon, h) (radians, m).
 
@@ -333,7 +334,7 @@ def static_profile(lat: float, lon: float, h: float = 0.0, yaw: float = 0.0, pit
 
 
 def straight_flight_profile(lat: float, lon: float, h: float = 0.0, speed: float = 200.0,
-                            heading: float = 0.0, gravity_model: str = "pz90_003",
+                            heading: float = 0.0, gravity_model: str = DEFAULT_GRAVITY_MODEL,
                             duration: float = np.inf) -> EarthProfile:
     """Constant speed along a great circle of the geocentric sphere of radius r = |R0|.
 
@@ -382,7 +383,8 @@ def straight_flight_profile(lat: float, lon: float, h: float = 0.0, speed: float
 
 def coordinated_turn_profile(lat: float, lon: float, h: float = 0.0, speed: float = 100.0,
                              radius: float = 2000.0, heading: float = 0.0, bank: float | None = None,
-                             gravity_model: str = "pz90_003", duration: float = np.inf) -> EarthProfile:
+                             gravity_model: str = DEFAULT_GRAVITY_MODEL,
+                             duration: float = np.inf) -> EarthProfile:
     """Constant-speed left (counter-clockwise from above) turn on a circle in a tangent plane.
 
     The circle has radius ρ = ``radius`` and centre R_c = geodetic (lat, lon, h), in the plane
@@ -456,7 +458,8 @@ def coordinated_turn_profile(lat: float, lon: float, h: float = 0.0, speed: floa
 
 def sculling_profile(lat: float, lon: float, h: float = 0.0, angle_amplitude: float = 0.01,
                      accel_amplitude: float = 1.0, frequency: float = 10.0, yaw: float = 0.0,
-                     gravity_model: str = "pz90_003", duration: float = np.inf) -> EarthProfile:
+                     gravity_model: str = DEFAULT_GRAVITY_MODEL,
+                     duration: float = np.inf) -> EarthProfile:
     """Classical sculling about a level attitude at geodetic (lat, lon, h).
 
     Level frame L = ENU rotated by ``yaw`` (REP-103) about up.  With w = 2π·``frequency``:
@@ -540,7 +543,7 @@ def navigation_profile_from_config(cfg: dict) -> EarthProfile:
     default, 200 straight flight / 100 turn), ``nav_heading_deg`` (ENU yaw of the body /
     initial velocity, degrees counter-clockwise from east; 0), ``turn_radius`` (2000 m),
     ``sculling_angle`` (0.01 rad), ``sculling_accel`` (1.0 m/s²), ``sculling_frequency``
-    (10 Hz), ``gravity_model`` ("pz90_003").
+    (10 Hz), ``gravity_model`` (:data:`~.gravity.DEFAULT_GRAVITY_MODEL`).
     """
     name = cfg.get("profile", "static")
     if name not in NAVIGATION_PROFILE_NAMES:
@@ -550,7 +553,7 @@ def navigation_profile_from_config(cfg: dict) -> EarthProfile:
     h = float(cfg.get("nav_height", 150.0))
     heading = np.radians(float(cfg.get("nav_heading_deg", 0.0)))
     speed = float(cfg.get("nav_speed", 0.0))
-    model = str(cfg.get("gravity_model", "pz90_003"))
+    model = str(cfg.get("gravity_model", DEFAULT_GRAVITY_MODEL))
     if name == "static":
         return static_profile(lat, lon, h, yaw=heading, gravity_model=model)
     if name == "straight_flight":

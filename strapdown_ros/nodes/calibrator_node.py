@@ -94,6 +94,7 @@ LOG_THROTTLE_S = 30.0          # a not-observable reason that keeps its wording 
 class CalibratorNode(Node):
     def __init__(self, **kwargs):
         super().__init__(NODE_NAME, **kwargs)
+        self.log = ros_io.NodeLog(self.get_logger())   # the one logging helper of the nodes
         self.p = ros_io.declare_validated(self, CALIBRATOR_PARAMS, on_change=self._on_change,
                                           apply=self._apply_change)
         p = self.p
@@ -163,7 +164,7 @@ class CalibratorNode(Node):
                 "imu/data_raw" if self.imu_input else "imu/delta_theta"),
                        "camera": self.resolve_topic_name(camera_topic)}
             self._restore_state(state_identity(dict(p), streams))
-        self.get_logger().info(
+        self.log.info(
             f"started: gyro input {gyro_topic}, camera input {camera_topic}, "
             f"weighted={p['weighted']}, covariance_model={p['covariance_model']}, "
             f"min_rotation {p['min_rotation_deg']:g}°, max_sigma {p['max_sigma']:g} rad, max_pairs {p['max_pairs']}")
@@ -182,7 +183,7 @@ class CalibratorNode(Node):
         if w != self.cal.weighted:
             self.cal.weighted = w
             self.p["weighted"] = w
-            self.get_logger().info(f"weighted switched to {w}; re-solving")
+            self.log.info(f"weighted switched to {w}; re-solving")
             # the warm start of the previous weighting is as good a start as any: solve() keeps it
             if len(self.cal.pairs) >= 2:
                 self._solve()
@@ -236,8 +237,9 @@ class CalibratorNode(Node):
     def _gyro_frame_ok(self, f: str) -> bool:
         if f and f != self.frame_id:                   # the frame rule of sins_node
             self.gyro_frame_mismatch += 1
-            self.get_logger().warn(f"gyro increment in frame {f!r}, expected {self.frame_id!r}: "
-                                   f"{'rejected' if self.reject_frames else 'used'}", throttle_duration_sec=10.0)
+            self.log.warn(f"gyro increment in frame {f!r}, expected {self.frame_id!r}: "
+                          f"{'rejected' if self.reject_frames else 'used'}",
+                          throttle=10.0, key="gyro_frame")
             if self.reject_frames:
                 return False
         return True
@@ -254,12 +256,12 @@ class CalibratorNode(Node):
             self.cal.restart_gyro()
             prev_ns = None
             if g.returned:
-                self.get_logger().error(
+                self.log.error(
                     f"{g.retracted} gyro increment(s) carried stamps off their timeline and the "
                     "stream came back to it: dropped as a stamp burst; the pairs containing the "
                     "burst are lost")
             else:
-                self.get_logger().error(
+                self.log.error(
                     f"gyro stamps jumped by {g.last_jump_s:.6g} s and stayed: resynchronised; no "
                     "increment pair spans the jump")
         new = 0
@@ -268,9 +270,10 @@ class CalibratorNode(Node):
             if prev_ns is not None and ns_i - prev_ns > 1.5 * self.gyro_period * 1e9:
                 # the rotation of the missing increments is lost: no pair may span (prev, t]
                 self.gaps.append(((prev_ns - self.origin_ns) * 1e-9, t))
-                self.get_logger().error(
+                self.log.error(
                     f"gyro gap: {int(round((ns_i - prev_ns) / (self.gyro_period * 1e9))) - 1} increment(s) missing "
-                    f"before stamp {ns_i * 1e-9:.6f} s; pairs spanning it are discarded", throttle_duration_sec=5.0)
+                    f"before stamp {ns_i * 1e-9:.6f} s; pairs spanning it are discarded",
+                    throttle=5.0, key="gyro_gap")
             prev_ns = ns_i
             new += self.cal.add_gyro_sample(t, v)
         self._after_input(new)
@@ -289,7 +292,8 @@ class CalibratorNode(Node):
         if math.isfinite(norm) and norm < 1e-6:
             c.received += 1
             self.camera_counts["dropped_zero_quaternion"] += 1
-            self.get_logger().warn("camera fix with a zero quaternion dropped", throttle_duration_sec=10.0)
+            self.log.warn("camera fix with a zero quaternion dropped",
+                          throttle=10.0, key="zero_quaternion")
             return
         if np.all(np.isfinite(P)) and self.use_cov:
             P = 0.5 * (P + P.T)
@@ -299,22 +303,25 @@ class CalibratorNode(Node):
             elif np.min(np.linalg.eigvalsh(P)) < -1e-12 * max(np.trace(P), 1e-300):
                 c.received += 1
                 self.camera_counts["dropped_bad_covariance"] += 1
-                self.get_logger().warn("camera fix with a covariance that is not positive semi-definite dropped",
-                                       throttle_duration_sec=10.0)
+                self.log.warn("camera fix with a covariance that is not positive semi-definite "
+                              "dropped", throttle=10.0, key="camera_covariance")
                 return
         if abs(norm - 1.0) > 1e-9 and math.isfinite(norm):
             q = q / norm
             self.camera_counts["normalised"] += 1
         if header.frame_id and header.frame_id != self.ref_frame:
             self.camera_counts["frame_mismatch"] += 1
-            self.get_logger().warn(f"camera attitude in frame {header.frame_id!r}, expected {self.ref_frame!r}: "
-                                   f"{'rejected' if self.reject_frames else 'used'}", throttle_duration_sec=30.0)
+            self.log.warn(f"camera attitude in frame {header.frame_id!r}, "
+                          f"expected {self.ref_frame!r}: "
+                          f"{'rejected' if self.reject_frames else 'used'}",
+                          throttle=30.0, key="camera_frame")
             if self.reject_frames:
                 return
         out = c.offer(ns, list(q) + list(np.asarray(P, dtype=float).ravel()))
         if c.resynced:
             self.cal.restart_camera()
-            self.get_logger().error(f"camera stamps jumped by {c.last_jump_s:.6g} s and stayed: resynchronised")
+            self.log.error(f"camera stamps jumped by {c.last_jump_s:.6g} s and stayed: "
+                           "resynchronised")
         for ns_i, v in out:                        # after a resync, the held fixes too, in order
             q_i, P_i = np.asarray(v[:4]), np.asarray(v[4:], dtype=float).reshape(3, 3)
             self.pending_fixes.append((ns_i, q_i, P_i))
@@ -354,14 +361,14 @@ class CalibratorNode(Node):
             return
         self.origin_ns = origin
         self.state["restored_pairs"] = len(self.cal.pairs)
-        self.get_logger().info(f"resumed from {path}: {len(self.cal.pairs)} pairs")
+        self.log.info(f"resumed from {path}: {len(self.cal.pairs)} pairs")
         if len(self.cal.pairs) >= 2:
             self._solve()
 
     def _state_problem(self, message: str):
         self.state["errors"] += 1
         self.state["problem"] = message[:300]
-        self.get_logger().error(message)
+        self.log.error(message)
 
     def _save_state(self):
         if self.state_file is None:
@@ -372,7 +379,8 @@ class CalibratorNode(Node):
         except OSError as exc:
             self.state["errors"] += 1
             self.state["problem"] = f"cannot write state file {self.state['file']}: {exc}"[:300]
-            self.get_logger().error(f"cannot write state file {self.state['file']}: {exc}", throttle_duration_sec=30.0)
+            self.log.error(f"cannot write state file {self.state['file']}: {exc}",
+                           throttle=30.0, key="state_file")
 
     def destroy_node(self):
         if self.state_file is not None:
@@ -410,8 +418,8 @@ class CalibratorNode(Node):
         except (np.linalg.LinAlgError, ValueError, FloatingPointError) as exc:
             # never lose the pairs or the latched estimate to one bad solve
             self.solve_failures += 1
-            self.get_logger().error(f"boresight solve failed ({exc}); the last estimate stays published",
-                                    throttle_duration_sec=10.0)
+            self.log.error(f"boresight solve failed ({exc}); the last estimate stays published",
+                           throttle=10.0, key="solve_failed")
             return
         self.solve_ms = (time.perf_counter() - t0) * 1e3
         self.solves += 1
@@ -427,8 +435,8 @@ class CalibratorNode(Node):
             self._publish_solution()
             self._publish_imu_attitudes()
             if self._last_reason is not None or self.published["boresight"] == 1:
-                self.get_logger().info(f"boresight observable from {sol.pairs} pairs: publishing β = "
-                                       f"{np.round(np.degrees(sol.beta), 5).tolist()}°")
+                self.log.info(f"boresight observable from {sol.pairs} pairs: publishing β = "
+                              f"{np.round(np.degrees(sol.beta), 5).tolist()}°")
             self._last_reason = None
         else:
             # the published estimate stays what it was (transient-local); no new output
@@ -439,7 +447,7 @@ class CalibratorNode(Node):
         key = message.split(":", 1)[-1].strip()        # the "why" part; the axis numbers may jitter
         now = time.monotonic()
         if key != self._last_reason or now - self._last_reason_log >= LOG_THROTTLE_S:
-            self.get_logger().warn(f"boresight not published: {message}")
+            self.log.warn(f"boresight not published: {message}")
             self._last_reason = key
             self._last_reason_log = now
 

@@ -48,6 +48,7 @@ NODE_NAME = "imu_sim_node"
 class ImuSimNode(ros_io.PacedSimulation, Node):
     def __init__(self, **kwargs):
         super().__init__(NODE_NAME, **kwargs)
+        self.log = ros_io.NodeLog(self.get_logger())   # the one logging helper of the nodes
         self.p = ros_io.declare_validated(self, IMU_SIM_PARAMS, on_change=self._reject_changes)
         p = self.p
         self.profile = profile_from_config(p)
@@ -79,7 +80,7 @@ class ImuSimNode(ros_io.PacedSimulation, Node):
         self.finished = False
         self.timer = self.create_timer(float(p["publish_period"]), self._tick)
         self.diag_timer = self.create_timer(float(p["diagnostics_period"]), self._publish_diagnostics)
-        self.get_logger().info(
+        self.log.info(
             f"started: profile={p['profile']} gyro {p['gyro_rate']} Hz, accel {p['accel_rate']} Hz, "
             f"time_scale {p['time_scale']}, duration {self.end_time:g} s")
 
@@ -94,7 +95,7 @@ class ImuSimNode(ros_io.PacedSimulation, Node):
 
     def _on_finished(self):
         self._publish_diagnostics()
-        self.get_logger().info(f"finished: published {self.counts} up to t = {self.sim_time:.3f} s")
+        self.log.info(f"finished: published {self.counts} up to t = {self.sim_time:.3f} s")
 
     def _advance_to(self, target: float):
         n_g = int(np.floor(target / self.gyro.period + 1e-9)) - self.gyro.count

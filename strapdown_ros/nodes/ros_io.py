@@ -224,6 +224,12 @@ class InvalidParameter(ValueError):  # noqa: N818 (reads better at the call site
 ROS_OWN_PARAMETERS = ("use_sim_time", "start_type_description_service")
 
 
+def _retyped(given, used) -> bool:
+    """The start-up value ``given`` was read as the number ``used`` of another type."""
+    return isinstance(used, (int, float)) and not isinstance(used, bool) \
+        and type(given) is not type(used)
+
+
 def declare_validated(node, specs: Sequence[ParamSpec], on_change: Callable[[dict], str | None] | None = None,
                       apply: Callable[[dict], None] | None = None):
     """Declare parameters with descriptors, validate the start-up values (raising
@@ -246,6 +252,10 @@ def declare_validated(node, specs: Sequence[ParamSpec], on_change: Callable[[dic
         if err:
             raise InvalidParameter(err)
         values[s.name] = v
+        if _retyped(p.value, v):
+            # a number given as text ("0.05", a quoted YAML value) or a double given as an
+            # integer: stored with its proper type, so `ros2 param get` shows what is used
+            node.set_parameters([Parameter(s.name, value=v)])
     err = combination_error(values)
     if err:
         raise InvalidParameter(err)
@@ -265,6 +275,12 @@ def declare_validated(node, specs: Sequence[ParamSpec], on_change: Callable[[dic
             err = spec.check(v)
             if err:
                 return None, err
+            if isinstance(p.value, str) and _retyped(p.value, v):
+                # at run time a number given as text would stay text in `ros2 param get`
+                # (it cannot be re-set from inside the set callback): refused, as rclpy
+                # refuses text for a typed double
+                return None, (f"{p.name} must be set as a number, not as text "
+                              f"{bounded(repr(p.value), 80)}")
             if v != values.get(p.name):
                 new[p.name] = v
         err = combination_error({**values, **new}) if new else None

@@ -63,10 +63,6 @@ from ..rate_increments import RateIncrementStream
 from . import ros_io
 
 NODE_NAME = "sins_node"
-#: the accelerometer stall is an ERROR beyond this factor × accel_wait, and at least this many
-#: stamp seconds (a WARN beyond accel_wait)
-ACCEL_STALL_ERROR_FACTOR = 10.0
-ACCEL_STALL_ERROR_MIN_S = 1.0
 
 
 class SinsNode(Node):
@@ -329,21 +325,9 @@ class SinsNode(Node):
         self._att_out.header.frame_id = self.ref_frame
 
     def accel_stall_s(self) -> float | None:
-        """Stamp seconds the gyro stream has run beyond the newest accepted Δv (the first gyro
-        stamp when none arrived); None when no accelerometer stream is expected yet (none seen and
-        navigation off) or no gyro data arrived."""
-        g, a = self.gyro_check, self.accel_check
-        if g.last_ns is None or (not self.system.accel_seen and self.nav is None):
-            return None
-        ref = a.last_ns if a.last_ns is not None else g.first_ns
-        return None if ref is None else max(0.0, (g.last_ns - ref) * 1e-9)
-
-    def accel_stall_limits(self) -> tuple[float, float]:
-        """(WARN, ERROR) thresholds of the accelerometer stall, stamp seconds: ``accel_wait``
-        (sins/imu stops waiting for Δv) and ``ACCEL_STALL_ERROR_FACTOR`` × that, at least
-        ``ACCEL_STALL_ERROR_MIN_S``."""
-        wait = float(self.p["accel_wait"])
-        return wait, max(ACCEL_STALL_ERROR_MIN_S, ACCEL_STALL_ERROR_FACTOR * wait)
+        """Stamp seconds the gyro stream ran beyond the newest Δv (the core's rule,
+        :meth:`SinsSystem.accel_stall_s`)."""
+        return self.system.accel_stall_s()
 
     def diagnostic_conditions(self) -> ros_io.Conditions:
         """Every current condition of the node with its level (the status level is the worst)."""
@@ -372,16 +356,10 @@ class SinsNode(Node):
         if self.undecodable:
             c.add(ros_io.WARN,
                   f"{self.undecodable} input message(s) could not be decoded: dropped")
-        stall = self.accel_stall_s()
-        warn_s, error_s = self.accel_stall_limits()
-        if stall is not None and stall > warn_s:
-            what = "no accelerometer increments received" if a.last_ns is None else \
-                "accelerometer increments (imu/delta_velocity) stopped"
-            effect = "sins/odometry stalls" if self.nav is not None \
-                else "sins/imu has no specific force"
-            c.add(ros_io.ERROR if stall > error_s else ros_io.WARN,
-                  f"{what}: the gyro stream ran {stall:.3g} s beyond the last Δv; {effect} "
-                  f"(WARN beyond {warn_s:g} s, ERROR beyond {error_s:g} s)")
+        stall = self.system.accel_stall("imu/data_raw" if self.imu_input
+                                        else "imu/delta_velocity")
+        if stall is not None:                     # the core's rule, shared with sins_bag
+            c.add(ros_io.ERROR if stall.level == "error" else ros_io.WARN, stall.text)
         if g.missing:
             c.add(ros_io.ERROR, f"{g.missing} gyro increments missing in {g.gaps} gaps: "
                   "the rotation during the gaps is lost")

@@ -58,6 +58,7 @@ NODE_NAME = "star_camera_sim_node"
 class StarCameraSimNode(ros_io.PacedSimulation, Node):
     def __init__(self, **kwargs):
         super().__init__(NODE_NAME, **kwargs)
+        self.log = ros_io.NodeLog(self.get_logger())   # the one logging helper of the nodes
         self.p = ros_io.declare_validated(self, STAR_CAMERA_PARAMS, on_change=self._reject_changes)
         p = self.p
         self.profile = profile_from_config(p)
@@ -82,7 +83,7 @@ class StarCameraSimNode(ros_io.PacedSimulation, Node):
         self.finished = False
         self.timer = self.create_timer(float(p["publish_period"]), self._tick)
         self.diag_timer = self.create_timer(float(p["diagnostics_period"]), self.publish_diagnostics)
-        self.get_logger().info(
+        self.log.info(
             f"started: profile={p['profile']}, exposure every {p['camera_interval']:g} s from "
             f"{self.model.epoch(0):g} s, σ = ({sxy:.3g}, {sxy:.3g}, {sz:.3g}) rad, boresight β = "
             f"{np.round(np.degrees(self.model.boresight), 6).tolist()}°, time_scale {p['time_scale']}, "
@@ -98,7 +99,8 @@ class StarCameraSimNode(ros_io.PacedSimulation, Node):
 
     def _on_finished(self):
         self.publish_diagnostics()
-        self.get_logger().info(f"finished: published {self.published} fixes up to t = {self.sim_time:.3f} s")
+        self.log.info(f"finished: published {self.published} fixes up to "
+                      f"t = {self.sim_time:.3f} s")
 
     def _advance_to(self, target: float):
         n = 0

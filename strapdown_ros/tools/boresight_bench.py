@@ -42,6 +42,7 @@ from ..rotation import (dcm_to_quat, dcm_to_ypr, quat_conjugate, quat_cumprod, q
                         rotvec_to_quat, ypr_error_to_rotation, ypr_to_dcm)
 from ..sensors import ARCSEC, IntegratingSensor, NAVIGATION_GRADE_GYRO, SensorErrorModel, SensorSigmas
 from ..star_camera import StarCameraModel
+from .paths import write_text, write_figure
 
 ANGLES = ("psi", "theta", "gamma")
 ANGLE_LABELS = ("ψ (yaw)", "ϑ (pitch)", "γ (roll)")
@@ -780,7 +781,7 @@ def make_plots(sc: Scenario, bnd: dict, mc: dict, summary: dict, outdir: str) ->
     fig.suptitle(f"Boresight errors over {len(mc['chi2'])} Monte Carlo runs, β = {BETA_DEG}°")
     fig.tight_layout()
     p = os.path.join(outdir, "boresight_errors.png")
-    fig.savefig(p, dpi=110)
+    write_figure(fig, p, dpi=110)
     plt.close(fig)
     files.append(p)
 
@@ -806,7 +807,7 @@ def make_plots(sc: Scenario, bnd: dict, mc: dict, summary: dict, outdir: str) ->
     axes[1, 0].set_ylabel("density")
     fig.tight_layout()
     p = os.path.join(outdir, "boresight_nees.png")
-    fig.savefig(p, dpi=110)
+    write_figure(fig, p, dpi=110)
     plt.close(fig)
     files.append(p)
 
@@ -829,7 +830,7 @@ def make_plots(sc: Scenario, bnd: dict, mc: dict, summary: dict, outdir: str) ->
     axes[0].legend(fontsize=8)
     fig.tight_layout()
     p = os.path.join(outdir, "boresight_ratios.png")
-    fig.savefig(p, dpi=110)
+    write_figure(fig, p, dpi=110)
     plt.close(fig)
     files.append(p)
     return files
@@ -996,8 +997,7 @@ def write_report(path: str, res: dict, plots: list[str]):
         for p in plots:
             L.append(f"![{os.path.basename(p)}]({os.path.relpath(os.path.abspath(p), base)})")
         L.append("")
-    with open(path, "w", encoding="utf-8") as fh:
-        fh.write("\n".join(L))
+    write_text(path, "\n".join(L))
 
 
 def findings(sm: dict) -> list[str]:
@@ -1049,10 +1049,21 @@ def main(argv=None) -> int:
     ap.add_argument("--plots", help="write PNG plots into this directory")
     ap.add_argument("--report", help="write a markdown report to this file")
     ap.add_argument("--quick", action="store_true", help="fewer runs and repeats (for tests)")
+    ap.add_argument("--force", action="store_true", help="overwrite existing outputs")
     ap.add_argument("--perf-pairs", type=int, default=1000, help="pairs accumulated for the timing of solve()")
     ap.add_argument("--jobs", type=int, default=None,
                     help="worker processes for the Monte Carlo (default: 2 cores at most; 1 with --quick)")
     args = ap.parse_args(argv)
+    from .paths import DIRECTORY, FILE, check_outputs
+    try:                                        # the output rule, before any work
+        check_outputs([("--json", args.json, FILE), ("--report", args.report, FILE),
+                       ("--plots", args.plots, DIRECTORY, ("boresight_errors.png",
+                                                           "boresight_nees.png",
+                                                           "boresight_ratios.png"))],
+                      [], args.force)
+    except ValueError as exc:
+        print(f"boresight_bench: error: {exc}", file=sys.stderr)
+        return 2
     runs = args.runs if args.runs is not None else (24 if args.quick else 200)
     if runs < 2 or (runs < 100 and not args.quick):
         ap.error(f"--runs must be >= 100 (or >= 2 with --quick), got {runs}")
@@ -1160,8 +1171,7 @@ def main(argv=None) -> int:
         write_report(args.report, res, plots)
     if args.json:
         os.makedirs(os.path.dirname(os.path.abspath(args.json)), exist_ok=True)
-        with open(args.json, "w", encoding="utf-8") as fh:
-            json.dump(res, fh, indent=1, default=float)
+        write_text(args.json, json.dumps(res, indent=1, default=float))
     print(f"total {res['timing']['total_s']:.1f} s")
     return 0
 

@@ -27,6 +27,7 @@ from ..coning_analysis import cost_per_update, measure_case, order_sweep
 from ..profiles import ConingProfile
 from ..rotation import quat_to_dcm, rotvec_to_dcm
 from ..sensors import DEG_PER_HOUR
+from .paths import write_text, write_figure
 
 THESIS_CASES = [(0.087, 1.0), (0.5, 1.0), (0.087, 0.5)]
 THESIS_STEPS = [0.01, 0.001]
@@ -46,6 +47,7 @@ def parse_args(argv):
     ap.add_argument("--json", help="write the results to this JSON file")
     ap.add_argument("--plots", help="write PNG plots into this directory")
     ap.add_argument("--report", help="write the Markdown report to this file (e.g. doc/coning.md)")
+    ap.add_argument("--force", action="store_true", help="overwrite existing outputs")
     ap.add_argument("--no-ode", action="store_true", help="skip the ODE peer reference")
     ap.add_argument("--sweep-periods", type=int, default=20, help="cone periods per order-sweep point")
     args = ap.parse_args(argv)
@@ -182,7 +184,7 @@ def write_plots(res: dict, outdir: str) -> list[str]:
         ax.legend(fontsize=7, loc="upper right")
     fig.tight_layout()
     f = os.path.join(outdir, "coning_drift.png")
-    fig.savefig(f, dpi=110)
+    write_figure(fig, f, dpi=110)
     plt.close(fig)
     files.append(f)
 
@@ -206,7 +208,7 @@ def write_plots(res: dict, outdir: str) -> list[str]:
     ax.grid(True, which="both", alpha=0.3)
     fig.tight_layout()
     f = os.path.join(outdir, "coning_order.png")
-    fig.savefig(f, dpi=110)
+    write_figure(fig, f, dpi=110)
     plt.close(fig)
     files.append(f)
     return files
@@ -214,11 +216,12 @@ def write_plots(res: dict, outdir: str) -> list[str]:
 
 def main(argv=None):
     args = parse_args(sys.argv[1:] if argv is None else argv)
-    from .paths import check_output_dir, check_output_file
+    from .paths import DIRECTORY, FILE, check_outputs
     try:                                       # everything that can fail, before minutes of work
-        check_output_file(args.json, "--json")
-        check_output_file(args.report, "--report")
-        check_output_dir(args.plots, "--plots")
+        check_outputs([("--json", args.json, FILE), ("--report", args.report, FILE),
+                       ("--plots", args.plots, DIRECTORY,
+                        ("coning_drift.png", "coning_order.png"))],
+                      [], args.force)
         if not (np.isfinite(args.duration) and args.duration > 0):
             raise ValueError(f"--duration must be > 0, got {args.duration}")
         for st in args.steps:
@@ -237,8 +240,7 @@ def main(argv=None):
     res = run(args)
     print(summary_table(res, args))
     if args.json:
-        with open(args.json, "w", encoding="utf-8") as fh:
-            json.dump(res, fh, indent=1)
+        write_text(args.json, json.dumps(res, indent=1))
     plots = write_plots(res, args.plots) if args.plots else []
     if args.report:
         from .coning_report import write_report

@@ -10,6 +10,7 @@ import numpy as np
 from ..coning import ALGORITHMS, LITERATURE_DRIFT, SEED_ALGORITHMS
 from ..sensors import DEG_PER_HOUR
 from .coning_bench import THESIS_RANKING, fmt
+from .paths import write_text
 
 # Printed formula, corrected formula and derivation, per thesis equation (doc/coning_derivations.md
 # has the full algebra).  The measured evidence is filled in from the run.
@@ -372,5 +373,4 @@ def write_report(res: dict, args, path: str, plots: list[str]) -> None:
         for p in plots:
             L.append(f"![{os.path.basename(p)}]({os.path.relpath(os.path.abspath(p), rel)})")
         L.append("")
-    with open(path, "w", encoding="utf-8") as fh:
-        fh.write("\n".join(L))
+    write_text(path, "\n".join(L))

@@ -27,6 +27,7 @@ from collections import Counter
 import numpy as np
 
 from ..sensors.effects import CANDIDATES, EFFECTS
+from .paths import write_text, write_figure
 
 PROG = "discrepancy_bench"
 BORESIGHT = [0.698, -0.436, 2.094]
@@ -365,7 +366,7 @@ def write_plots(res: dict, outdir: str) -> list[str]:
     ax.legend(fontsize=7, loc="lower right")
     fig.tight_layout()
     files = [os.path.join(outdir, "discrepancy_detection.png")]
-    fig.savefig(files[-1], dpi=110)
+    write_figure(fig, files[-1], dpi=110)
     plt.close(fig)
     c = sm["confusion"]
     rows, cols = list(c["rows"]), c["columns"]
@@ -381,7 +382,7 @@ def write_plots(res: dict, outdir: str) -> list[str]:
     fig.colorbar(im, ax=ax, label="fraction of row")
     fig.tight_layout()
     files.append(os.path.join(outdir, "discrepancy_confusion.png"))
-    fig.savefig(files[-1], dpi=110)
+    write_figure(fig, files[-1], dpi=110)
     plt.close(fig)
     return files
 
@@ -403,37 +404,10 @@ def write_report(path: str, res: dict, plots: list[str]):
         L += ["", f"Analysis time per run: {_span(sm['analysis_s'])}."]
     L += [""] + [f"![{os.path.basename(p)}]({os.path.relpath(p, os.path.dirname(os.path.abspath(path)))})"
                  for p in plots]
-    with open(path, "w", encoding="utf-8") as fh:
-        fh.write("\n".join(L) + "\n")
+    write_text(path, "\n".join(L) + "\n")
 
 
 # ----------------------------------------------------------------------------- arguments
-def _writable(path: str, is_dir: bool) -> bool:
-    """Really writable (os.access says yes to root even on read-only file systems)."""
-    import tempfile
-    try:
-        if is_dir:
-            tempfile.TemporaryFile(dir=path).close()
-        else:
-            open(path, "ab").close()                  # existing file: append mode, nothing changed
-        return True
-    except OSError:
-        return False
-
-
-def _check_output(ap, opt: str, path: str, is_dir: bool = False):
-    """An existing target must be writable and of the right kind; a new one needs a writable parent."""
-    p = os.path.abspath(path)
-    parent = os.path.dirname(p)
-    if os.path.exists(p):
-        if os.path.isdir(p) != is_dir:
-            ap.error(f"{opt} {path!r} is {'not ' if is_dir else ''}a directory")
-        if not _writable(p, is_dir):
-            ap.error(f"{opt} {path!r}: not writable")
-    elif not os.path.isdir(parent) or not _writable(parent, True):
-        ap.error(f"{opt} {path!r}: the directory {parent!r} must exist and be writable")
-
-
 def parse_args(argv):
     ap = _Parser(prog=PROG, description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--seeds", type=int, help="seeds per effect (default 50)")
@@ -450,6 +424,7 @@ def parse_args(argv):
     ap.add_argument("--json", help="write all records and tables to this JSON file")
     ap.add_argument("--plots", help="write discrepancy_detection.png and discrepancy_confusion.png here")
     ap.add_argument("--report", help="write the markdown report to this file")
+    ap.add_argument("--force", action="store_true", help="overwrite existing outputs")
     ap.add_argument("--speed-only", action="store_true",
                     help="only the speed measurement (5 runs of the discrepancy CLI on a 15-minute bag)")
     ap.add_argument("--speed", action=argparse.BooleanOptionalAction, default=None,
@@ -480,9 +455,14 @@ def parse_args(argv):
         if bad:
             ap.error(f"--effects: unknown or repeated {', '.join(map(repr, bad))}; valid: all, {', '.join(CANDIDATES)}")
         args.effects = names
-    for opt in ("json", "report", "plots"):
-        if getattr(args, opt):
-            _check_output(ap, f"--{opt}", getattr(args, opt), opt == "plots")
+    from .paths import DIRECTORY, FILE, check_outputs
+    try:                                        # the tools' one output rule
+        check_outputs([("--json", args.json, FILE), ("--report", args.report, FILE),
+                       ("--plots", args.plots, DIRECTORY, ("discrepancy_detection.png",
+                                                           "discrepancy_confusion.png"))],
+                      [], args.force)
+    except ValueError as exc:
+        ap.error(str(exc))
     return args
 
 
@@ -497,8 +477,8 @@ def main(argv=None) -> int:
               f"report included: median {t['median']:.2f} s (min {t['min']:.2f}, max {t['max']:.2f}) over "
               f"{len(sp['times_s'])} runs; load average at start {load[0]:.2f}; exit codes {sp['return_codes']}")
         if args.json:
-            with open(args.json, "w", encoding="utf-8") as fh:
-                json.dump({"command": f"{PROG} " + " ".join(argv), "speed": sp}, fh, indent=1, default=float)
+            write_text(args.json, json.dumps({"command": f"{PROG} " + " ".join(argv),
+                                              "speed": sp}, indent=1, default=float))
         return 0
     n_jobs = len(args.effects) * args.seeds * (len(args.sizes) if args.every_size else 1) + args.null_seeds
     print(f"{PROG}: {len(args.effects)} effects × {args.seeds} seeds, sizes "
@@ -526,8 +506,7 @@ def main(argv=None) -> int:
     if args.report:
         write_report(args.report, res, res["plots"])
     if args.json:
-        with open(args.json, "w", encoding="utf-8") as fh:
-            json.dump(res, fh, indent=1, default=float)
+        write_text(args.json, json.dumps(res, indent=1, default=float))
     return 0
 
 

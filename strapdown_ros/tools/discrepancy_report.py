@@ -20,6 +20,8 @@ from pathlib import Path
 
 import numpy as np
 
+from .paths import write_text, write_figure
+
 __all__ = ["write_report"]
 
 ARCSEC = 180.0 / np.pi * 3600.0
@@ -74,7 +76,7 @@ def _residuals(plt, res, path):
     fig.suptitle("Residual of each increment pair (camera vs gyro) before and after adding the "
                  f"found effects — verdict: {res.verdict.replace('_', ' ')}", fontsize=11)
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
+    write_figure(fig, path, dpi=110)
     plt.close(fig)
 
 
@@ -97,7 +99,7 @@ def _autocorrelation(plt, res, path):
                  fontsize=10)
     ax.legend(fontsize=8)
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
+    write_figure(fig, path, dpi=110)
     plt.close(fig)
 
 
@@ -117,7 +119,7 @@ def _cross(plt, res, path):
         ax.legend(fontsize=8)
     fig.suptitle("Does the residual grow with the turning rate or with the angle turned so far?")
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
+    write_figure(fig, path, dpi=110)
     plt.close(fig)
 
 
@@ -144,7 +146,7 @@ def _fig2a(plt, res, path):
     fig.suptitle("Does the gyro turn by the angle the camera saw? Difference per pair against "
                  "the angle turned", fontsize=11)
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
+    write_figure(fig, path, dpi=110)
     plt.close(fig)
 
 
@@ -164,7 +166,7 @@ def _allan(plt, allan, path) -> bool:
     ax.legend(fontsize=8)
     ax.grid(True, which="both", alpha=0.3)
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
+    write_figure(fig, path, dpi=110)
     plt.close(fig)
     return True
 
@@ -321,5 +323,5 @@ def write_report(outdir: str, res, out: dict) -> str:
         L += ["Allan deviation of the gyro at rest, measured and simulated from the model:", "",
               "![Allan deviation](allan.png)", ""]
     path = d / "report.md"
-    path.write_text("\n".join(L) + "\n", encoding="utf-8")
+    write_text(path, "\n".join(L) + "\n")
     return str(path)

@@ -3,6 +3,8 @@ from __future__ import annotations
 
 import os
 
+from ..files import atomic_savefig
+
 __all__ = ["save_figure"]
 
 
@@ -12,6 +14,6 @@ def save_figure(fig, outdir: str, name: str) -> str:
 
     fig.tight_layout()
     path = os.path.join(outdir, name)
-    fig.savefig(path, dpi=110)
+    atomic_savefig(fig, path, dpi=110)             # a temporary file, then os.replace
     plt.close(fig)
     return path

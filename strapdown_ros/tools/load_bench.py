@@ -29,6 +29,8 @@ import time
 
 import numpy as np
 
+from .paths import write_text, write_figure
+
 RSS_GROWTH_TARGET = 0.10
 
 
@@ -50,8 +52,9 @@ def parse_args(argv):
     ap.add_argument("--json", metavar="FILE", help="write the figures as JSON")
     ap.add_argument("--report", metavar="DIR", help="write load_bench.md and load_bench.png into DIR (created)")
     ap.add_argument("--quiet", action="store_true", help="no progress on stderr")
+    ap.add_argument("--force", action="store_true", help="overwrite existing outputs")
     args = ap.parse_args(argv)
-    from .paths import check_output_dir, check_output_file
+    from .paths import DIRECTORY, FILE, check_outputs
     if not (math.isfinite(args.seconds) and 10.0 <= args.seconds <= 86400.0):
         ap.error(f"--seconds must be in [10, 86400], got {args.seconds}")
     if not (math.isfinite(args.rate_factor) and 0.01 <= args.rate_factor <= 30.0):
@@ -60,8 +63,9 @@ def parse_args(argv):
     if not (math.isfinite(args.warmup) and 0.0 <= args.warmup < args.seconds):
         ap.error(f"--warmup must be in [0, --seconds), got {args.warmup}")
     try:
-        check_output_file(args.json, "--json")
-        check_output_dir(args.report, "--report")
+        check_outputs([("--json", args.json, FILE),
+                       ("--report", args.report, DIRECTORY, ("load_bench.md", "load_bench.png"))],
+                      [], args.force)
     except ValueError as exc:
         ap.error(str(exc))
     return args
@@ -258,7 +262,7 @@ def write_plots(raw: dict, path) -> None:
     a2.set_title("end-to-end latency (complementary CDF)")
     a2.legend(fontsize=8)
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
+    write_figure(fig, path, dpi=110)
     plt.close(fig)
 
 
@@ -285,15 +289,15 @@ def main(argv=None) -> int:
     jraw = {k: v for k, v in raw.items() if k not in ("latency_ns", "rss_kib")}
     jraw["rss_kib"] = {k: np.asarray(v).tolist() for k, v in raw["rss_kib"].items()}
     if args.json:
-        with open(args.json, "w", encoding="utf-8") as fh:
-            json.dump({"summary": s, "raw": jraw}, fh, indent=2, default=float)
+        write_text(args.json, json.dumps({"summary": s, "raw": jraw}, indent=2, default=float))
     if args.report:
         d = Path(args.report)
         d.mkdir(parents=True, exist_ok=True)
         write_plots(raw, d / "load_bench.png")
         head, _, body = text.partition("\n")
-        (d / "load_bench.md").write_text(f"# load_bench\n\nCommand: `{head[2:]}`\n\n" + body.replace("\n", "\n\n", 2)
-                                         + "\n\n![memory and latency](load_bench.png)\n", encoding="utf-8")
+        write_text(d / "load_bench.md", f"# load_bench\n\nCommand: `{head[2:]}`\n\n"
+                   + body.replace("\n", "\n\n", 2)
+                   + "\n\n![memory and latency](load_bench.png)\n")
     return 0
 
 

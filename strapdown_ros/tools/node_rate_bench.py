@@ -33,6 +33,8 @@ import statistics
 import sys
 import time
 
+from .paths import write_text
+
 RATIO_TARGET = 0.9
 CALLBACK_TARGET_US = 15.0
 
@@ -55,9 +57,10 @@ def parse_args(argv):
     ap.add_argument("--no-rate", action="store_true", help="skip the sustained-rate part")
     ap.add_argument("--json", metavar="FILE", help="write the figures as JSON")
     ap.add_argument("--quiet", action="store_true", help="no progress on stderr")
+    ap.add_argument("--force", action="store_true", help="overwrite existing outputs")
     args = ap.parse_args(argv)
     from ..coning import algorithm_names
-    from .paths import check_output_file
+    from .paths import FILE, check_outputs
     if not (math.isfinite(args.seconds) and 0.5 <= args.seconds <= 600):
         ap.error(f"--seconds must be in [0.5, 600], got {args.seconds}")
     if not 1 <= args.steps <= 20:
@@ -71,7 +74,7 @@ def parse_args(argv):
     if args.algorithm not in algorithm_names():
         ap.error(f"--algorithm {args.algorithm!r} is not valid; valid values: {', '.join(algorithm_names())}")
     try:
-        check_output_file(args.json, "--json")
+        check_outputs([("--json", args.json, FILE)], [], args.force)
     except ValueError as exc:
         ap.error(str(exc))
     return args
@@ -176,8 +179,7 @@ def main(argv=None) -> int:
     print(text)
     out["text"] = text
     if args.json:
-        with open(args.json, "w", encoding="utf-8") as fh:
-            json.dump(out, fh, indent=2, default=float)
+        write_text(args.json, json.dumps(out, indent=2, default=float))
     return 0
 
 

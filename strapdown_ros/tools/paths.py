@@ -15,10 +15,10 @@ import sys
 from pathlib import Path
 from typing import Iterable, Sequence
 
-from ..files import atomic_write_text, probe_writable
+from ..files import atomic_savefig, atomic_write_text, probe_writable
 
 __all__ = ["check_output_file", "check_output_dir", "check_outputs", "OneLineParser", "write_json",
-           "write_text", "FILE", "DIRECTORY", "REPLACED"]
+           "write_text", "write_figure", "FILE", "DIRECTORY", "REPLACED"]
 
 #: kinds of output: a file; a directory files are written into (created if absent); a file or a
 #: directory (a bag) that the tool replaces as a whole
@@ -78,17 +78,26 @@ def check_outputs(outputs: Iterable[Sequence], inputs: Iterable[Sequence], force
 
     Parameters
     ----------
-    outputs : iterable of (option, path, kind)
+    outputs : iterable of (option, path, kind) or (option, path, DIRECTORY, names)
         Each output: the option that names it (``--json``), its path (None or '' = not asked
         for) and its kind: :data:`FILE`, :data:`DIRECTORY` (files are written into it) or
-        :data:`REPLACED` (a file or a bag directory replaced as a whole).
+        :data:`REPLACED` (a file or a bag directory replaced as a whole).  A DIRECTORY with
+        ``names`` (the files the tool writes there, e.g. its PNG plots) needs --force only when
+        one of those files exists (else: when the directory is not empty).
     inputs : iterable of (what, path)
         Every file or directory the tool reads (None or '' skipped).
     force : bool
         ``--force`` was given: an existing output may be replaced.
     """
-    outs = [(o, str(p), k, Path(p).resolve()) for o, p, k in outputs if p]
+    outputs = [tuple(o) for o in outputs]
+    named = {str(o[1]): tuple(o[3]) for o in outputs if o[1] and len(o) > 3}
+    outs = [(o[0], str(o[1]), o[2], Path(o[1]).resolve()) for o in outputs if o[1]]
     ins = [(w, str(p), Path(p).resolve()) for w, p in inputs if p]
+    for opt, path, _, r in outs:
+        for name in named.get(path, ()):
+            for what, ipath, ir in ins:
+                if r / name == ir:
+                    raise ValueError(f"{opt} {path} would overwrite the input {what} {ipath}")
     for opt, path, kind, r in outs:
         for what, ipath, ir in ins:
             if _inside(r, ir) or (kind == REPLACED and ir in r.parents):
@@ -110,7 +119,12 @@ def check_outputs(outputs: Iterable[Sequence], inputs: Iterable[Sequence], force
         elif kind == DIRECTORY:
             if exists and not p.is_dir():
                 raise ValueError(f"{opt} {path} exists and is not a directory")
-            if exists and any(p.iterdir()) and not force:
+            if path in named:
+                there = [n for n in named[path] if exists and (p / n).exists()]
+                if there and not force:
+                    raise ValueError(f"{opt} {path}: {there[0]} exists "
+                                     "(use --force to overwrite)")
+            elif exists and any(p.iterdir()) and not force:
                 raise ValueError(f"{opt} {path} exists and is not empty "
                                  "(use --force to write into it)")
             _writable_dir(p if exists else p.parent, opt, path)
@@ -128,3 +142,9 @@ def write_text(path, text: str) -> None:
 def write_json(path, data, indent: int = 1) -> None:
     """A JSON result file (strict JSON: no NaN), newline-terminated, written atomically."""
     atomic_write_text(path, json.dumps(data, indent=indent, allow_nan=False) + "\n")
+
+
+def write_figure(fig, path, **kwargs) -> None:
+    """A matplotlib figure saved atomically (a temporary file with the same extension in the
+    same directory, then ``os.replace``); ``kwargs`` go to ``savefig`` (``dpi``)."""
+    atomic_savefig(fig, path, **kwargs)

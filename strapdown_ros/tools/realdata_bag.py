@@ -17,7 +17,8 @@ import sys
 from pathlib import Path
 
 from ..realdata import GYRO_FORMATS, REFERENCE_FORMATS, read_repoimu_csv, write_bag
-from .paths import OneLineParser
+from ..files import commit_directory, discard_directory, stage_directory
+from .paths import REPLACED, OneLineParser, check_outputs
 
 __all__ = ["main"]
 
@@ -26,7 +27,8 @@ def main(argv=None) -> int:
     ap = OneLineParser(prog="realdata_bag", description=__doc__,
                        formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("trial", help="RepoIMU trial CSV")
-    ap.add_argument("bag", help="output bag directory (must not exist)")
+    ap.add_argument("bag", help="output bag directory (must not exist unless --force)")
+    ap.add_argument("--force", action="store_true", help="replace an existing output bag")
     ap.add_argument("--gyro-format", choices=tuple(GYRO_FORMATS), default="imu")
     ap.add_argument("--reference-format", choices=tuple(REFERENCE_FORMATS), default="pose")
     ap.add_argument("--reference-interval", type=float, default=1.0, metavar="S",
@@ -40,18 +42,33 @@ def main(argv=None) -> int:
     try:
         if not Path(args.trial).is_file():
             raise ValueError(f"trial {args.trial} does not exist")
-        if Path(args.bag).exists():
-            raise ValueError(f"bag {args.bag} exists")
+        check_outputs([("bag", args.bag, REPLACED)], [("trial", args.trial)], args.force)
+        if Path(args.bag).is_dir() and not (Path(args.bag) / "metadata.yaml").exists() \
+                and any(Path(args.bag).iterdir()):
+            raise ValueError(f"bag {args.bag} is a directory that is not a rosbag2 bag; "
+                             "not replacing it")
         if not args.reference_interval > 0:
             raise ValueError("--reference-interval must be > 0")
+    except (ValueError, OSError) as exc:
+        print(f"realdata_bag: error: {exc}", file=sys.stderr)
+        return 2
+    staged = None              # written beside the target, renamed into place when complete
+    try:
         trial = read_repoimu_csv(args.trial)
         if args.start > 0 or args.end < float("inf"):
             trial = trial.excerpt(args.start, min(args.end, trial.duration_s + 1.0))
-        s = write_bag(args.bag, trial, args.gyro_format, args.reference_format,
+        staged = stage_directory(args.bag)
+        s = write_bag(staged, trial, args.gyro_format, args.reference_format,
                       args.reference_interval, args.storage)
+        commit_directory(staged, args.bag)
+        staged = None
+        s["bag"] = str(args.bag)
     except (ValueError, OSError, WriterError) as exc:
         print(f"realdata_bag: error: {exc}", file=sys.stderr)
         return 2
+    finally:
+        if staged is not None:
+            discard_directory(staged)
     topics = ", ".join(f"{t} {n}" for t, n in s["messages"].items())
     print(f"realdata_bag: {s['bag']}: {trial.name}, {s['duration_s']:.1f} s, gyro "
           f"{s['gyro_rate_hz']:.6g} Hz (from the stamps); {topics}; frames: IMU "

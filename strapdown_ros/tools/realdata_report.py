@@ -37,7 +37,7 @@ import numpy as np
 from ..realdata import (REALDATA_ENV, find_repoimu, irregular_step_fraction,
                         rate_plateau_samples, read_repoimu_csv, repoimu_trials, rest_mean_rate,
                         xcorr_lag_s, write_bag)
-from .paths import check_output_dir, write_json
+from .paths import FILE, check_output_dir, check_outputs, write_json
 
 __all__ = ["main", "analyse_trial", "markdown", "NOMINAL_MODEL"]
 
@@ -351,9 +351,11 @@ def main(argv=None) -> int:
             raise ValueError(f"model {args.model} does not exist")
         check_output_dir(args.out, "--out")
         out = Path(args.out)
-        for name in ("realdata.json", "realdata.md"):
-            if (out / name).exists() and not args.force:
-                raise ValueError(f"{out / name} exists; use --force")
+        if out.is_dir():                   # the one output rule (no output is an input, --force)
+            check_outputs([("--out", out / n, FILE) for n in ("realdata.json", "realdata.md")],
+                          [("--data", root), ("--model", args.model)], args.force)
+        elif root.resolve() in out.resolve().parents or out.resolve() == root.resolve():
+            raise ValueError(f"--out {args.out} is inside the input --data {root}")
     except ValueError as exc:
         print(f"realdata_report: error: {exc}", file=sys.stderr)
         return 2

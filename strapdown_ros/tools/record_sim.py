@@ -32,7 +32,6 @@ directory, never anything else), nor be an input (``--params``, ``profile_file``
 from __future__ import annotations
 
 import argparse
-import shutil
 import sys
 from pathlib import Path
 
@@ -254,6 +253,7 @@ def record(bag: str | Path, imu_p: dict, cam_p: dict, storage: str = "mcap", acc
 
 
 def main(argv=None) -> int:
+    from ..files import commit_directory, discard_directory, stage_directory
     from .paths import REPLACED, OneLineParser, check_outputs
 
     ap = OneLineParser(prog="record_sim", description=__doc__,
@@ -281,14 +281,27 @@ def main(argv=None) -> int:
             if not (out / "metadata.yaml").exists() and any(out.iterdir()):
                 raise ValueError(f"bag {args.bag} is a directory that is not a rosbag2 bag; "
                                  "not replacing it")
-            shutil.rmtree(out)
         elif out.exists() or out.is_symlink():
             raise ValueError(f"bag {args.bag} is not a directory; not replacing it")
-        summary = record(args.bag, imu_p, cam_p, storage=args.storage, accel=not args.no_accel,
+    except (ValueError, OSError) as exc:
+        print(f"record_sim: error: {exc}", file=sys.stderr)
+        return 2
+    # the bag is written into a hidden sibling and renamed into place when complete: a failure
+    # or an interruption leaves no half bag and the old bag (--force) as it was
+    staged = None
+    try:
+        staged = stage_directory(args.bag)
+        summary = record(staged, imu_p, cam_p, storage=args.storage, accel=not args.no_accel,
                          namespace=args.namespace)
+        commit_directory(staged, args.bag)
+        staged = None
+        summary["bag"] = str(args.bag)
     except (ValueError, OSError, WriterError) as exc:          # WriterError: the bag exists already, ...
         print(f"record_sim: error: {exc}", file=sys.stderr)
         return 2
+    finally:
+        if staged is not None:
+            discard_directory(staged)
     beta = np.asarray(summary["boresight_rad"])
     topics = ", ".join(f"{t} {n}" for t, n in summary["messages"].items())
     print(f"record_sim: {summary['bag']} ({summary['storage']}, {summary['duration_s']:g} s): {topics}; "

@@ -29,6 +29,7 @@ from ..analysis.steady_filter import (constant_gain_covariance, discretize, pole
 from .figures import save_figure
 from ..observability import (analyze_information, measures_of_observability, observability_gramian,
                              stationary_measures)
+from .paths import write_text
 
 LATITUDE_DEG = 55.0              # "moderate latitudes"
 SHIP_SPEED = 15.0                # V0 for the ship [m/s] (001: μ1 ≈ 0.03)
@@ -410,15 +411,21 @@ def main(argv=None) -> int:
     ap.add_argument("--report", help="write the markdown section to this file")
     ap.add_argument("--json", help="write the numbers to this file")
     ap.add_argument("--plots", help="directory for seeds_001_*.png")
+    ap.add_argument("--force", action="store_true", help="overwrite existing outputs")
 
     def _error(msg):
         print(f"seeds_001: error: {msg}", file=sys.stderr)
         raise SystemExit(2)
     ap.error = _error
     args = ap.parse_args(argv)
-    for path in (args.report, args.json):
-        if path and os.path.dirname(path) and not os.path.isdir(os.path.dirname(path)):
-            _error(f"directory does not exist: {os.path.dirname(path)}")
+    from .paths import DIRECTORY, FILE, check_outputs
+    try:                                        # the tools' one output rule
+        check_outputs([("--report", args.report, FILE), ("--json", args.json, FILE),
+                       ("--plots", args.plots, DIRECTORY, ("seeds_001_measures.png",
+                                                           "seeds_001_filter.png"))],
+                      [], args.force)
+    except ValueError as exc:
+        _error(str(exc))
     from .seeds_001_text import DERIVATIONS_001
     res = section_001(quick=args.quick)
     text = "# 001 (Vavilov 1982) — observability, reproduced\n\n" + report_001(res)
@@ -427,13 +434,11 @@ def main(argv=None) -> int:
             text += f"\n![{os.path.basename(f)}]({os.path.relpath(f, os.path.dirname(args.report) or '.') if args.report else f})\n"
     text += DERIVATIONS_001
     if args.report:
-        with open(args.report, "w", encoding="utf-8") as fh:
-            fh.write(text)
+        write_text(args.report, text)
     else:
         print(text)
     if args.json:
-        with open(args.json, "w", encoding="utf-8") as fh:
-            json.dump(res, fh, indent=1)
+        write_text(args.json, json.dumps(res, indent=1))
     return 0
 
 

@@ -30,6 +30,7 @@ from ..rotation import quat_to_rotvec, ypr_to_dcm
 from ..sensors import ARCSEC, NAVIGATION_GRADE_GYRO
 from ..sensors.covariance import constant_variances
 from ..star_camera import StarCameraModel
+from .paths import write_text
 
 __all__ = ["section_004_extras", "report_004_extras", "plots_004_extras", "simulate_004", "main"]
 
@@ -432,7 +433,7 @@ class _Parser(argparse.ArgumentParser):
 
 
 def main(argv=None) -> int:
-    from .paths import check_output_dir, check_output_file
+    from .paths import DIRECTORY, FILE, check_outputs
 
     ap = _Parser(prog="seeds_004", description=__doc__.split("\n\n")[0])
     ap.add_argument("--quick", action="store_true", help="20 Hz gyro, one run per row, three rows")
@@ -440,6 +441,7 @@ def main(argv=None) -> int:
     ap.add_argument("--report", default="", help="write the markdown here")
     ap.add_argument("--json", default="", help="write the results here")
     ap.add_argument("--plots", default="", help="write PNG figures into this directory")
+    ap.add_argument("--force", action="store_true", help="overwrite existing outputs")
     try:
         a = ap.parse_args(argv)
     except SystemExit as e:
@@ -447,11 +449,11 @@ def main(argv=None) -> int:
     try:
         if a.runs is not None and a.runs < 1:
             raise ValueError(f"--runs must be >= 1, got {a.runs}")
-        check_output_file(a.report, "--report")
-        check_output_file(a.json, "--json")
-        check_output_dir(a.plots, "--plots")
+        check_outputs([("--report", a.report, FILE), ("--json", a.json, FILE),
+                       ("--plots", a.plots, DIRECTORY, ("seeds_004_theta_diff.png",
+                                                        "seeds_004_ablation.png"))], [], a.force)
     except ValueError as e:
-        print(f"seeds_004: {e}", file=sys.stderr)
+        print(f"seeds_004: error: {e}", file=sys.stderr)
         return 2
     res = section_004_extras(a.quick, a.runs)
     text = report_004_extras(res)
@@ -467,8 +469,7 @@ def main(argv=None) -> int:
     else:
         print(text)
     if a.json:
-        with open(a.json, "w") as fh:
-            json.dump(res, fh, indent=1)
+        write_text(a.json, json.dumps(res, indent=1))
     return 0
 
 

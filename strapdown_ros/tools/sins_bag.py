@@ -62,7 +62,6 @@ from __future__ import annotations
 import argparse
 import math
 import os
-import shutil
 import sys
 import time
 from itertools import islice
@@ -71,6 +70,7 @@ from pathlib import Path
 import numpy as np
 
 from ..config import SINS_PARAMS, check_all, load_parameter_file
+from ..files import commit_directory, discard_directory, stage_directory
 from ..navigation.gravity import geodetic_to_ecef
 from ..navigation.system import SinsOutput, SinsSystem, odometry_arrays
 from ..rate_increments import RATE_RULES
@@ -462,8 +462,16 @@ class McapOutput:
         names = ["sins/attitude", "sins/imu"] + (["sins/odometry"] if system.nav is not None else [])
         self.topics = {n: f"{namespace}/{n}" for n in names}
         self.counts = {n: 0 for n in names}
-        self.writer = Writer(self.path, version=Writer.VERSION_LATEST, storage_plugin=StoragePlugin.MCAP)
-        self.writer.open()
+        # written into a hidden sibling, renamed into place by close(): no half bag on a failure,
+        # an old bag (--force) replaced only by a complete one
+        self.staged = stage_directory(self.path)
+        try:
+            self.writer = Writer(self.staged, version=Writer.VERSION_LATEST,
+                                 storage_plugin=StoragePlugin.MCAP)
+            self.writer.open()
+        except BaseException:
+            discard_directory(self.staged)
+            raise
         qos = _qos("stream", int(p["qos_depth"]))
         self.conns = {n: self.writer.add_connection(self.topics[n], OUTPUT_TYPES[n], typestore=self.store,
                                                     offered_qos_profiles=[qos]) for n in names}
@@ -551,9 +559,12 @@ class McapOutput:
             self._put_rows("sins/odometry", nb.stamp_ns, rows)
 
     def close(self, ok: bool = True) -> None:
-        self.writer.close()
-        if not ok:
-            shutil.rmtree(self.path, ignore_errors=True)
+        try:
+            self.writer.close()
+            if ok:
+                commit_directory(self.staged, self.path)
+        finally:
+            discard_directory(self.staged)
 
     @property
     def rows(self) -> int:
@@ -575,14 +586,6 @@ def _check_output(out: str, bag: str, force: bool, params: str | None = None) ->
     if p.is_dir() and (out.lower().endswith(".csv") or not_a_bag):
         raise ValueError(f"--output {out} is a directory that is not a rosbag2 bag; "
                          "not replacing it")
-
-
-def _replace(out: str) -> None:
-    p = Path(out)
-    if p.is_dir() and not p.is_symlink():
-        shutil.rmtree(p)
-    elif p.exists() or p.is_symlink():
-        p.unlink()
 
 
 # --- the run ----------------------------------------------------------------------------------------
@@ -695,6 +698,9 @@ def _summary(args, inp: Input, system: SinsSystem, sink, counts: dict, rates: di
                      "the rotation during them is lost")
     if system.nonfinite:
         lines.append(f"  {system.nonfinite} non-finite update(s) discarded")
+    stall = system.accel_stall(a_topic or "imu/delta_velocity")   # sins_node's /diagnostics rule
+    if stall is not None:
+        lines.append(f"  WARNING: {stall.text}; sins_node's /diagnostics: {stall.level.upper()}")
     line = f"  {st['updates']} attitude updates ({st['coning_algorithm']}, {st['samples_per_update']} samples/update)"
     if system.nav is not None:
         line += f"; navigation {st['navigation_state']}, {st.get('navigation_steps', 0)} steps"
@@ -702,6 +708,8 @@ def _summary(args, inp: Input, system: SinsSystem, sink, counts: dict, rates: di
             line += f" ({st['navigation_steps_accel_extrapolated']} with Δv extrapolated)"
         if "alignment" in st:
             line += f"; alignment: {st['alignment']}"
+    if stall is not None:
+        line += f"; accel stall {stall.seconds:.3g} s"
     lines.append(line)
     lines.append(f"  wrote {sink.summary()}")
     return "\n".join(lines)
@@ -794,8 +802,6 @@ def main(argv=None) -> int:
             inp.close()
         return err(str(exc))
     try:
-        if Path(args.output).exists() or Path(args.output).is_symlink():
-            _replace(args.output)
         sink = CsvOutput(Path(args.output), system.nav is not None) if args.output.lower().endswith(".csv") \
             else McapOutput(Path(args.output), system, inp.namespace)
     except Exception as exc:                           # noqa: BLE001 - the writer's own refusal

@@ -40,6 +40,7 @@ from pathlib import Path
 import numpy as np
 
 from .bench_stats import median_range, stats
+from .paths import write_text
 
 TARGET_RATIO = 2.0                 # sins_bag within 2× the raw read (issue: Speed)
 
@@ -166,11 +167,18 @@ def main(argv=None) -> int:
     ap.add_argument("--cold", action="store_true",
                     help="one more sins_bag run with an empty numba cache")
     ap.add_argument("--json", metavar="FILE", help="write the figures to this JSON file")
+    ap.add_argument("--force", action="store_true", help="overwrite an existing --json")
     args = ap.parse_args(argv)
     if args.runs < 1:
         ap.error("--runs must be >= 1")
     if not Path(args.bag).exists():
         ap.error(f"{args.bag} does not exist")
+    from .paths import FILE, check_outputs
+    try:                                        # the tools' one output rule
+        check_outputs([("--json", args.json, FILE)],
+                      [("bag", args.bag), ("--params", args.params)], args.force)
+    except ValueError as exc:
+        ap.error(str(exc))
     if args.navigation_profile and args.params:
         ap.error("--navigation-profile and --params exclude each other")
     if args.params and not Path(args.params).is_file():
@@ -236,7 +244,7 @@ def main(argv=None) -> int:
     res["meets_target"] = res["ratio_to_iteration"] <= TARGET_RATIO
     print(render(res))
     if args.json:
-        Path(args.json).write_text(json.dumps(res, indent=2) + "\n", encoding="utf-8")
+        write_text(args.json, json.dumps(res, indent=2) + "\n")
     return 0
 
 

@@ -31,6 +31,7 @@ from .bench_stats import median_range, stats
 from ..integrator import AttitudeIntegrator, IncrementAccumulator
 from ..profiles import STANDARD_GRAVITY, ConingProfile
 from ..sensors import NAVIGATION_GRADE_GYRO
+from .paths import write_text
 
 PYINS_RATIO_TARGET = 1.0          # at least as fast as pyins's compiled kernel
 COMPILED_RATIO_TARGET = 5.0       # within 5× of a compiled quaternion loop
@@ -87,9 +88,10 @@ def main(argv=None):
     ap.add_argument("--node-seconds", type=float, default=20.0)
     ap.add_argument("--node-rate", type=float, default=2000.0)
     ap.add_argument("--json", help="write the figures to this JSON file")
+    ap.add_argument("--force", action="store_true", help="overwrite existing outputs")
     args = ap.parse_args(argv)
     from ..coning import algorithm_names
-    from .paths import check_output_file
+    from .paths import FILE, check_outputs
     if args.algorithm not in algorithm_names():
         ap.error(f"--algorithm {args.algorithm!r} is not valid; valid values: {', '.join(algorithm_names())}")
     if not (math.isfinite(args.hours) and 0 < args.hours <= 24):
@@ -101,7 +103,7 @@ def main(argv=None):
     if not (math.isfinite(args.node_rate) and 1 <= args.node_rate <= 100000):
         ap.error(f"--node-rate must be in [1, 100000], got {args.node_rate}")
     try:
-        check_output_file(args.json, "--json")
+        check_outputs([("--json", args.json, FILE)], [], args.force)
     except ValueError as exc:
         ap.error(str(exc))
 
@@ -176,8 +178,7 @@ def main(argv=None):
     print(text)
     res["text"] = text
     if args.json:
-        with open(args.json, "w", encoding="utf-8") as fh:
-            json.dump(res, fh, indent=2, default=float)
+        write_text(args.json, json.dumps(res, indent=2, default=float))
     return 0
 
 
