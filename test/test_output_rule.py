@@ -1,5 +1,4 @@
-"""Issue "reliability and speed, second pass", leftover 1: ONE output rule for every console
-script that writes (tools/paths.py::check_outputs): an existing output needs --force, no output
+"""One output rule for every console script that writes (tools/paths.py::check_outputs): an existing output needs --force, no output
 is an input; each refusal comes before any work, in one line, exit 2.  Writes are atomic: files
 (JSON, markdown, PNG) through a temporary file and os.replace, bag directories through a hidden
 sibling renamed into place when complete (strapdown_ros/files.py)."""
@@ -35,6 +34,7 @@ EXISTING = {
     "boresight_bench": ["--plots", "{plots}"],
     "reproduce_seeds": ["--json", "{old}"],
     "discrepancy_bench": ["--plots", "{plots}"],
+    "filter_bench": ["--json", "{old}"],
 }
 
 #: script -> argv whose output is one of its inputs
