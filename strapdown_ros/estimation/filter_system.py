@@ -269,7 +269,8 @@ class FilterSystem:
         f = self.filter
         self.counts[r.status] = self.counts.get(r.status, 0) + 1
         out = FixOutput(int(round(r.stamp * 1e9)), r.status, r.residual, r.nis, r.lateness)
-        if r.status == "applied" and self.check is not None and r.innovation_covariance is not None:
+        if r.status in ("applied", "gated") and self.check is not None \
+                and r.innovation_covariance is not None:
             c_end = quat_to_dcm(self._rot)
             sig = ([c_end.T @ s for s in self._sig] if self._sig is not None
                    else [np.zeros((3, e.filter_size())) for e in self.check.effects])
@@ -278,8 +279,9 @@ class FilterSystem:
             v = self.check.add(r.residual, r.innovation_covariance, sig, c_vf_mf,
                                self._last_rate - bias)
             out.check_text, out.check_ok = v.text(), v.ok
-        self._sig = None
-        self._rot = np.array([1.0, 0.0, 0.0, 0.0])
+        if r.status == "applied":      # a gated fix leaves the error growing: keep summing
+            self._sig = None
+            self._rot = np.array([1.0, 0.0, 0.0, 0.0])
         self.fix_outputs.append(out)
         return out
 

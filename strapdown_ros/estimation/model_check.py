@@ -1,7 +1,8 @@
 """Live model check of the attitude filter: are the innovations of the last N fixes what the
 filter's model says they are, and if not, which effect of the registry do they look like?
 
-Over a sliding window of N applied fixes (residual z_k, VF axes, with its innovation covariance
+Over a sliding window of N fixes applied or gated (a gated fix counts: an unmodelled effect
+makes the filter gate) (residual z_k, VF axes, with its innovation covariance
 S_k):
 
 * consistency: Σ NIS_k against the two-sided χ²(3N) band of probability ``1 − alpha``;
@@ -121,12 +122,12 @@ class ModelCheck:
         """Signatures (3, size) in body axes at the interval's end of each gyro candidate over
         increments ρ (n, 3) of lengths h (n,) at times t_mid (n,) since the effect epoch, with
         ``c_end_body`` (n, 3, 3) the rotation from each increment's body axes to the body axes at
-        the end of the interval."""
+        the end of the interval (since the last applied fix)."""
         return [np.einsum("nij,njk->ik", c_end_body, e.filter_partials(rho, h, t_mid))
                 for e in self.effects]
 
     def add(self, z, S, gyro_signatures, c_vf_mf, rate_body) -> ModelCheckResult:
-        """One applied fix: residual z (3,), VF axes; S (3, 3); the gyro signatures of the
+        """One applied or gated fix: residual z (3,), VF axes; S (3, 3); the gyro signatures of the
         interval before it (:meth:`signature`, body axes); C_VF^MF; the body rate at the fix.
         Returns the verdict of the window ending at this fix."""
         G = [c_vf_mf @ g for g in gyro_signatures]
@@ -158,14 +159,15 @@ class ModelCheck:
         res = ModelCheckResult(n, ok, nis, self.band, p_white)
         if ok or not self.names:
             return res
-        best = (math.inf, None, None)
+        best = (math.inf, -math.inf, None, None)
         for j, (name, size) in enumerate(zip(self.names, self._sizes)):
             A = np.vstack([np.linalg.solve(L[k], self._rows[k][2][j]) for k in range(n)])
             c, *_ = np.linalg.lstsq(A, white.reshape(-1), rcond=None)
             r = white.reshape(-1) - A @ c
             lr = nis - float(r @ r)
             p = chi2_sf(max(lr, 0.0), size)
-            if p < best[0] or best[1] is None:
-                best = (p, name, c)
-        res.best_p, res.best_effect, res.best_estimate = best
+            # the smallest p-value; where p underflows, the largest likelihood ratio per state
+            if (p, -lr / size) < (best[0], -best[1]):
+                best = (p, lr / size, name, c)
+        res.best_p, _, res.best_effect, res.best_estimate = best
         return res
