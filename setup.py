@@ -54,6 +54,7 @@ setup(
             "calibrate_bag = strapdown_ros.tools.calibrate_bag:main",
             "calibrate_gyro_bag = strapdown_ros.tools.calibrate_gyro_bag:main",
             "sins_bag = strapdown_ros.tools.sins_bag:main",
+            "filter_bag = strapdown_ros.tools.filter_bag:main",
             "sins_bag_bench = strapdown_ros.tools.sins_bag_bench:main",
             "boresight_bench = strapdown_ros.tools.boresight_bench:main",
             "reproduce_seeds = strapdown_ros.tools.reproduce_seeds:main",
