@@ -2,7 +2,8 @@
 import os
 import re
 
-from strapdown_ros.config import (CALIBRATOR_PARAMS, IMU_SIM_PARAMS, SINS_PARAMS, STAR_CAMERA_PARAMS,
+from strapdown_ros.config import (CALIBRATOR_PARAMS, FILTER_PARAMS, IMU_SIM_PARAMS, SINS_PARAMS,
+                                  STAR_CAMERA_PARAMS,
                                   markdown_table)
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
@@ -10,7 +11,8 @@ README = open(os.path.join(ROOT, "README.md"), encoding="utf-8").read()
 
 
 def test_parameter_tables_are_current():
-    for specs in (IMU_SIM_PARAMS, SINS_PARAMS, STAR_CAMERA_PARAMS, CALIBRATOR_PARAMS):
+    for specs in (IMU_SIM_PARAMS, SINS_PARAMS, STAR_CAMERA_PARAMS, CALIBRATOR_PARAMS,
+                  FILTER_PARAMS):
         assert markdown_table(specs) in README, "regenerate with: python -m strapdown_ros.config"
 
 
