@@ -50,6 +50,7 @@ setup(
             "coning_bench = strapdown_ros.tools.coning_bench:main",
             "star_camera_sim_node = strapdown_ros.nodes.launch:star_camera_sim_node",
             "calibrator_node = strapdown_ros.nodes.launch:calibrator_node",
+            "attitude_filter_node = strapdown_ros.nodes.launch:attitude_filter_node",
             "record_sim = strapdown_ros.tools.record_sim:main",
             "calibrate_bag = strapdown_ros.tools.calibrate_bag:main",
             "calibrate_gyro_bag = strapdown_ros.tools.calibrate_gyro_bag:main",

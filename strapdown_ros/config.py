@@ -532,7 +532,7 @@ def markdown_table(specs: Sequence[ParamSpec]) -> str:
 if __name__ == "__main__":   # python -m strapdown_ros.config → README parameter tables
     for title, specs in (("imu_sim_node", IMU_SIM_PARAMS), ("sins_node", SINS_PARAMS),
                          ("star_camera_sim_node", STAR_CAMERA_PARAMS), ("calibrator_node", CALIBRATOR_PARAMS),
-                         ("filter_bag", FILTER_PARAMS)):
+                         ("attitude_filter_node (and filter_bag)", FILTER_PARAMS)):
         sys.stdout.write(f"\n#### {title}\n\n{markdown_table(specs)}\n")
 
 

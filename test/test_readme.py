@@ -18,7 +18,8 @@ def test_parameter_tables_are_current():
 
 def test_every_topic_is_documented():
     topics = set()
-    for f in ("imu_sim_node.py", "sins_node.py", "star_camera_sim_node.py", "calibrator_node.py"):
+    for f in ("imu_sim_node.py", "sins_node.py", "star_camera_sim_node.py", "calibrator_node.py",
+              "attitude_filter_node.py"):
         src = open(os.path.join(ROOT, "strapdown_ros", "nodes", f), encoding="utf-8").read()
         topics |= set(re.findall(r'create_(?:publisher|subscription)\(\s*\w+,\s*"([^"]+)"', src))
     assert topics >= {"imu/delta_theta", "imu/delta_velocity", "imu/data_raw", "sins/attitude", "sins/imu",

@@ -198,6 +198,11 @@ class FilterSystem:
         if self.filter is not None and "boresight" not in self.augment:
             self.filter.boresight = q
 
+    @property
+    def buffered(self) -> int:
+        """Increments accepted and not yet processed (:meth:`process` takes them)."""
+        return len(self._buf_t)
+
     # ------------------------------------------------------------------ processing
     def process(self) -> None:
         """Propagate over the buffered increments, emitting outputs at output times and fix
