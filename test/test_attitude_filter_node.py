@@ -1,0 +1,254 @@
+"""attitude_filter_node: imu_sim_node + star_camera_sim_node + the filter spun in-process.
+
+Truth is independent: the simulator's exact attitude (imu/truth/attitude), the injected gyro
+bias and the boresight given to the camera simulator.  The node and ``filter_bag``'s core
+(:func:`strapdown_ros.tools.filter_bag.run_filter`) are fed the same messages and must agree.
+Every wait has a timeout (conftest.py isolates the ROS domain).
+"""
+import math
+import time
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+rclpy = pytest.importorskip("rclpy")
+
+from builtin_interfaces.msg import Time  # noqa: E402
+from diagnostic_msgs.msg import DiagnosticArray  # noqa: E402
+from geometry_msgs.msg import (PoseWithCovarianceStamped, Quaternion,  # noqa: E402
+                               QuaternionStamped, TwistWithCovarianceStamped, Vector3Stamped)
+from rclpy.parameter import Parameter  # noqa: E402
+from sensor_msgs.msg import Imu  # noqa: E402
+from std_msgs.msg import Header  # noqa: E402
+
+from strapdown_ros.config import FILTER_PARAMS, check_all  # noqa: E402
+from strapdown_ros.nodes import ros_io  # noqa: E402
+from strapdown_ros.nodes.attitude_filter_node import AttitudeFilterNode  # noqa: E402
+from strapdown_ros.nodes.imu_sim_node import ImuSimNode  # noqa: E402
+from strapdown_ros.nodes.star_camera_sim_node import StarCameraSimNode  # noqa: E402
+from strapdown_ros.rotation import (dcm_to_quat, from_ros_xyzw, quat_conjugate,  # noqa: E402
+                                    quat_error_rotvec, quat_multiply, ypr_to_dcm)
+from strapdown_ros.tools.filter_bag import run_filter  # noqa: E402
+
+try:
+    from rclpy.experimental import EventsExecutor as Executor  # noqa: E402
+    TIME_SCALE = 20.0
+except ImportError:                                        # older Jazzy rclpy
+    from rclpy.executors import SingleThreadedExecutor as Executor  # noqa: E402
+    TIME_SCALE = 10.0
+
+BETA = np.radians([40.0, -25.0, 120.0])
+Q_MF_VF = dcm_to_quat(ypr_to_dcm(*BETA))
+BIAS = np.array([2.0e-6, -1.0e-6, 1.5e-6])          # injected gyro bias, rad/s
+QUEUE = 20000
+
+
+@pytest.fixture(scope="module")
+def ros():
+    rclpy.init()
+    yield
+    rclpy.shutdown()
+
+
+def spin_until(executor, predicate, timeout):
+    end = time.monotonic() + timeout
+    while time.monotonic() < end:
+        executor.spin_once(timeout_sec=0.02)
+        if predicate():
+            return True
+    return False
+
+
+def q_of(m):
+    q = m.quaternion if isinstance(m, QuaternionStamped) else m.orientation
+    return from_ros_xyzw(np.array([q.x, q.y, q.z, q.w]))
+
+
+def ns_of(m):
+    return ros_io.stamp_to_ns(m.header.stamp)
+
+
+@pytest.fixture(scope="module")
+def graph(ros):
+    """One simulated bench run (170 s, a fix every second) through the filter node; a monitor
+    records what the node received and what it published."""
+    ns = "/t_filter_graph"
+    depth = Parameter("qos_depth", value=QUEUE)
+    prof = [Parameter("profile", value="bench"), Parameter("bench_earth_rate", value=True)]
+    filt = AttitudeFilterNode(namespace=ns, parameter_overrides=[
+        depth, Parameter("gyro_rate", value=100.0), Parameter("gyro_bias_sigma", value=1e-5),
+        Parameter("output_period", value=1.0), Parameter("boresight", value=list(BETA))])
+    sim = ImuSimNode(namespace=ns, parameter_overrides=[
+        *prof, depth, Parameter("gyro_rate", value=100.0), Parameter("accel_rate", value=10.0),
+        Parameter("gyro_bias_sigma", value=0.0), Parameter("gyro_scale_sigma", value=0.0),
+        Parameter("gyro_misalignment_sigma", value=0.0), Parameter("gyro_bias", value=list(BIAS)),
+        Parameter("time_scale", value=TIME_SCALE)])
+    cam = StarCameraSimNode(namespace=ns, parameter_overrides=[
+        *prof, Parameter("boresight", value=list(BETA)), Parameter("camera_interval", value=1.0),
+        Parameter("time_scale", value=TIME_SCALE)])
+    mon = rclpy.create_node("monitor", namespace=ns)
+    rec = {k: [] for k in ("dtheta", "fix", "truth", "imu", "bias", "nis", "diag")}
+    mon.create_subscription(Vector3Stamped, "imu/delta_theta", rec["dtheta"].append,
+                            ros_io.stream_qos(QUEUE))
+    mon.create_subscription(PoseWithCovarianceStamped, "star_camera/attitude_with_covariance",
+                            rec["fix"].append, ros_io.camera_qos(1000))
+    mon.create_subscription(QuaternionStamped, "imu/truth/attitude", rec["truth"].append,
+                            ros_io.stream_qos(QUEUE))
+    mon.create_subscription(Imu, "filter/imu", rec["imu"].append, ros_io.stream_qos(QUEUE))
+    mon.create_subscription(TwistWithCovarianceStamped, "filter/gyro_bias_with_covariance",
+                            rec["bias"].append, ros_io.stream_qos(QUEUE))
+    mon.create_subscription(Vector3Stamped, "filter/nis", rec["nis"].append,
+                            ros_io.camera_qos(1000))
+    mon.create_subscription(DiagnosticArray, "/diagnostics", rec["diag"].append, 50)
+    ex = Executor()
+    for n in (filt, mon):
+        ex.add_node(n)
+    try:
+        assert spin_until(ex, lambda: sim.pub_dtheta.get_subscription_count() >= 2
+                          and cam.pub_cov.get_subscription_count() >= 2, 10.0), "discovery"
+        ex.add_node(sim)
+        ex.add_node(cam)
+        timeout = 1.5 * sim.end_time / TIME_SCALE + 10.0
+        assert spin_until(ex, lambda: sim.finished and cam.finished, timeout), "simulators"
+        g, c = filt.system.gyro_check, filt.system.camera_check
+
+        def done():
+            return (g.received == sim.counts["delta_theta"] == len(rec["dtheta"])
+                    and c.received == cam.published == len(rec["fix"]))
+        assert spin_until(ex, done, 10.0), (g.received, len(rec["dtheta"]),
+                                            sim.counts["delta_theta"], c.received, cam.published)
+        filt.process()
+        spin_until(ex, lambda: False, 0.5)                # the last outputs reach the monitor
+        yield SimpleNamespace(filt=filt, rec=rec, ex=ex)
+    finally:
+        for n in (filt, sim, cam, mon):
+            n.destroy_node()
+
+
+def test_filter_tracks_the_truth_and_the_injected_bias(graph):
+    filt, rec = graph.filt, graph.rec
+    st = filt.system.status()
+    assert st["applied"] >= 150 and st["gated"] == 0 and st["restarts"] == 0, st
+    truth = {ns_of(m): q_of(m) for m in rec["truth"]}
+    imus = [m for m in rec["imu"] if ns_of(m) in truth]
+    assert len(imus) >= 150
+    last = imus[len(imus) // 2:]                         # after the bias has settled
+    ratios = []
+    for m in last:
+        eps = quat_error_rotvec(q_of(m), truth[ns_of(m)])         # body axes
+        sig = np.sqrt(np.diag(np.asarray(m.orientation_covariance).reshape(3, 3)))
+        ratios.append(np.abs(eps) / sig)
+    ratios = np.array(ratios)
+    assert np.mean(ratios < 3.0) >= 0.95 and ratios.max() < 5.0, ratios.max()
+    assert np.max(np.sqrt(np.diag(np.asarray(last[-1].orientation_covariance).reshape(3, 3)))) \
+        < 2e-5                                            # a few arcsec: the fixes hold it
+    b = rec["bias"][-1]
+    est = np.array([b.twist.twist.angular.x, b.twist.twist.angular.y, b.twist.twist.angular.z])
+    cov = np.asarray(b.twist.covariance).reshape(6, 6)
+    sb = np.sqrt(np.diag(cov[3:, 3:]))
+    assert np.all(np.abs(est - BIAS) < 3 * sb), (est, sb)
+    assert np.all(sb < 5e-7) and np.all(np.diag(cov)[:3] == -1.0)
+    nis = np.array([m.vector.x for m in rec["nis"]])
+    assert len(nis) == st["applied"] and np.all(nis <= rec["nis"][-1].vector.z)
+    assert 1.5 < nis.mean() < 4.5                        # χ²(3): mean 3
+    filt.publish_diagnostics()
+    assert spin_until(graph.ex, lambda: any(s.name.endswith("attitude filter")
+                                            for d in rec["diag"] for s in d.status), 5.0)
+    s = [s for d in rec["diag"] for s in d.status if s.name.endswith("attitude filter")][-1]
+    values = {v.key: v.value for v in s.values}
+    assert int(values["applied"]) == st["applied"] and "gyro_bias_sigma_x" in values
+
+
+def test_node_and_filter_bag_give_the_same_numbers(graph):
+    """The messages the node received, through filter_bag's driver: same attitude and bias."""
+    filt, rec = graph.filt, graph.rec
+    gyro = SimpleNamespace(stamps=[ns_of(m) for m in rec["dtheta"]],
+                           values=[(m.vector.x, m.vector.y, m.vector.z) for m in rec["dtheta"]])
+    fixes = SimpleNamespace(stamps=[ns_of(m) for m in rec["fix"]],
+                            values=[(q_of(m.pose.pose), ros_io.rotation_block(m))
+                                    for m in rec["fix"]])
+    tool = run_filter({"gyro": gyro, "camera": fixes}, dict(filt.p))
+    a, b = filt.system.filter, tool.filter
+    assert a.time == b.time
+    np.testing.assert_allclose(a.attitude * np.sign(a.attitude[0] * b.attitude[0]),
+                               b.attitude, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(a.estimate("gyro_bias"), b.estimate("gyro_bias"),
+                               rtol=0, atol=1e-9 * 1e-5)
+    np.testing.assert_allclose(a.P, b.P, rtol=1e-9, atol=1e-25)
+    assert tool.counts["applied"] == filt.system.counts["applied"]
+
+
+def test_invalid_parameters_are_refused(ros):
+    with pytest.raises(ValueError, match="augment: unknown state 'bogus'"):
+        AttitudeFilterNode(namespace="/t_filter_refuse1",
+                           parameter_overrides=[Parameter("augment", value="bogus")])
+    with pytest.raises(ValueError, match="boresight_source='tf' is not valid"):
+        AttitudeFilterNode(namespace="/t_filter_refuse2",
+                           parameter_overrides=[Parameter("boresight_source", value="tf")])
+    node = AttitudeFilterNode(namespace="/t_filter_refuse3")
+    try:
+        res = node.set_parameters([Parameter("gate_probability", value=0.99)])[0]
+        assert not res.successful and "restart the node" in res.reason
+    finally:
+        node.destroy_node()
+
+
+def _header(ns, frame="gcrs"):
+    return Header(stamp=Time(sec=ns // 10**9, nanosec=ns % 10**9), frame_id=frame)
+
+
+def test_bad_input_is_dropped_counted_and_reported(ros):
+    node = AttitudeFilterNode(namespace="/t_filter_bad", parameter_overrides=[
+        Parameter("output_period", value=0.1), Parameter("use_camera_covariance", value=False)])
+    try:
+        t0 = 10**12
+        node.fix(_header(t0), Quaternion(x=0.0, y=0.0, z=0.0, w=1.0), None)        # the start
+        for k in range(1, 101):
+            node.gyro(t0 + k * 10**7, (1e-6, 0.0, 0.0) if k != 50 else (math.nan, 0.0, 0.0))
+        node.fix(_header(t0 + 5 * 10**8), Quaternion(x=0.0, y=0.0, z=0.0, w=0.0), None)
+        node.fix(_header(t0 + 6 * 10**8), Quaternion(x=math.nan, y=0.0, z=0.0, w=1.0), None)
+        st = node.system.status()
+        assert node.system.gyro_check.nan == 1
+        assert st["dropped_zero_quaternion"] == 1 and node.system.camera_check.nan == 1
+        node.fix(_header(t0 + 10**9), Quaternion(x=0.0, y=0.0, z=0.0, w=1.0), None)
+        assert node.system.counts["restarts"] == 1        # the dropped Δθ is a gap: restart
+        for k in range(101, 201):
+            node.gyro(t0 + k * 10**7, (1e-6, 0.0, 0.0))
+        node.fix(_header(t0 + 2 * 10**9), Quaternion(x=0.0, y=0.0, z=0.0, w=1.0), None)
+        assert node.system.counts["applied"] == 1         # alive: the next fix applied
+        c = node.diagnostic_conditions(node.system.status())
+        text = c.message()
+        assert c.level == ros_io.ERROR                            # the NaN left a gap: restart
+        assert "dropped 1 gyro messages (NaN 1" in text and "zero quaternion 1" in text, text
+    finally:
+        node.destroy_node()
+
+
+def test_boresight_from_the_latched_topic(ros):
+    ns = "/t_filter_latched"
+    pub_node = rclpy.create_node("calibrator_stub", namespace=ns)
+    pub = pub_node.create_publisher(PoseWithCovarianceStamped, "calibration/boresight",
+                                    ros_io.latched_qos())
+    pub.publish(ros_io.pose_with_covariance(Time(sec=1), "imu_link", Q_MF_VF, np.eye(3) * 1e-10))
+    node = AttitudeFilterNode(namespace=ns, parameter_overrides=[
+        Parameter("boresight_source", value="topic")])
+    ex = Executor()
+    ex.add_node(pub_node)
+    ex.add_node(node)
+    try:
+        t0 = 10**12
+        node.fix(_header(t0), Quaternion(x=0.0, y=0.0, z=0.0, w=1.0), None)
+        assert node.system.counts["dropped_no_boresight"] == 1     # before it: counted
+        c = node.diagnostic_conditions(node.system.status())
+        assert "no boresight yet" in c.message()
+        assert spin_until(ex, lambda: node.system.boresight is not None, 10.0)
+        q_fix = dcm_to_quat(ypr_to_dcm(0.3, -0.2, 0.1))
+        node.fix(_header(t0 + 10**9), ros_io.quaternion_msg(q_fix), None)
+        expect = quat_multiply(q_fix, quat_conjugate(Q_MF_VF))     # q_ref_body at the start
+        got = node.system.filter.attitude
+        np.testing.assert_allclose(got * np.sign(got[0] * expect[0]), expect, atol=1e-12)
+    finally:
+        for n in (node, pub_node):
+            ex.remove_node(n)
+            n.destroy_node()
