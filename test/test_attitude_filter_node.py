@@ -19,6 +19,7 @@ from diagnostic_msgs.msg import DiagnosticArray  # noqa: E402
 from geometry_msgs.msg import (PoseWithCovarianceStamped, Quaternion,  # noqa: E402
                                QuaternionStamped, TwistWithCovarianceStamped, Vector3Stamped)
 from rclpy.parameter import Parameter  # noqa: E402
+from rclpy.qos import ReliabilityPolicy  # noqa: E402
 from sensor_msgs.msg import Imu  # noqa: E402
 from std_msgs.msg import Header  # noqa: E402
 
@@ -33,15 +34,16 @@ from strapdown_ros.tools.filter_bag import run_filter  # noqa: E402
 
 try:
     from rclpy.experimental import EventsExecutor as Executor  # noqa: E402
-    TIME_SCALE = 20.0
+    TIME_SCALE = 8.0
 except ImportError:                                        # older Jazzy rclpy
     from rclpy.executors import SingleThreadedExecutor as Executor  # noqa: E402
-    TIME_SCALE = 10.0
+    TIME_SCALE = 5.0
 
 BETA = np.radians([40.0, -25.0, 120.0])
 Q_MF_VF = dcm_to_quat(ypr_to_dcm(*BETA))
 BIAS = np.array([2.0e-6, -1.0e-6, 1.5e-6])          # injected gyro bias, rad/s
 QUEUE = 20000
+DURATION = 80.0                                      # s: holds and turns about z and x
 
 
 @pytest.fixture(scope="module")
@@ -71,26 +73,34 @@ def ns_of(m):
 
 @pytest.fixture(scope="module")
 def graph(ros):
-    """One simulated bench run (170 s, a fix every second) through the filter node; a monitor
+    """One simulated bench run (80 s, a fix every second) through the filter node; a monitor
     records what the node received and what it published."""
     ns = "/t_filter_graph"
     depth = Parameter("qos_depth", value=QUEUE)
-    prof = [Parameter("profile", value="bench"), Parameter("bench_earth_rate", value=True)]
+    # a loss-free Δθ path (reliable, deeper than the run): the test compares the node with the
+    # tool on the same increments, and three nodes share one executor here
+    over = f"qos_overrides.{ns}/imu/delta_theta"
+    rel_sub = Parameter(over + ".subscription.reliability", value="reliable")
+    prof = [Parameter("profile", value="bench"), Parameter("bench_earth_rate", value=True),
+            Parameter("duration", value=DURATION)]
     filt = AttitudeFilterNode(namespace=ns, parameter_overrides=[
         depth, Parameter("gyro_rate", value=100.0), Parameter("gyro_bias_sigma", value=1e-5),
-        Parameter("output_period", value=1.0), Parameter("boresight", value=list(BETA))])
+        Parameter("output_period", value=1.0), Parameter("boresight", value=list(BETA)),
+        rel_sub])
     sim = ImuSimNode(namespace=ns, parameter_overrides=[
         *prof, depth, Parameter("gyro_rate", value=100.0), Parameter("accel_rate", value=10.0),
         Parameter("gyro_bias_sigma", value=0.0), Parameter("gyro_scale_sigma", value=0.0),
         Parameter("gyro_misalignment_sigma", value=0.0), Parameter("gyro_bias", value=list(BIAS)),
-        Parameter("time_scale", value=TIME_SCALE)])
+        Parameter("time_scale", value=TIME_SCALE),
+        Parameter(over + ".publisher.reliability", value="reliable")])
     cam = StarCameraSimNode(namespace=ns, parameter_overrides=[
         *prof, Parameter("boresight", value=list(BETA)), Parameter("camera_interval", value=1.0),
         Parameter("time_scale", value=TIME_SCALE)])
     mon = rclpy.create_node("monitor", namespace=ns)
     rec = {k: [] for k in ("dtheta", "fix", "truth", "imu", "bias", "nis", "diag")}
-    mon.create_subscription(Vector3Stamped, "imu/delta_theta", rec["dtheta"].append,
-                            ros_io.stream_qos(QUEUE))
+    reliable = ros_io.stream_qos(QUEUE)
+    reliable.reliability = ReliabilityPolicy.RELIABLE
+    mon.create_subscription(Vector3Stamped, "imu/delta_theta", rec["dtheta"].append, reliable)
     mon.create_subscription(PoseWithCovarianceStamped, "star_camera/attitude_with_covariance",
                             rec["fix"].append, ros_io.camera_qos(1000))
     mon.create_subscription(QuaternionStamped, "imu/truth/attitude", rec["truth"].append,
@@ -116,7 +126,7 @@ def graph(ros):
         def done():
             return (g.received == sim.counts["delta_theta"] == len(rec["dtheta"])
                     and c.received == cam.published == len(rec["fix"]))
-        assert spin_until(ex, done, 10.0), (g.received, len(rec["dtheta"]),
+        assert spin_until(ex, done, 60.0), (g.received, len(rec["dtheta"]),
                                             sim.counts["delta_theta"], c.received, cam.published)
         filt.process()
         spin_until(ex, lambda: False, 0.5)                # the last outputs reach the monitor
@@ -129,10 +139,10 @@ def graph(ros):
 def test_filter_tracks_the_truth_and_the_injected_bias(graph):
     filt, rec = graph.filt, graph.rec
     st = filt.system.status()
-    assert st["applied"] >= 150 and st["gated"] == 0 and st["restarts"] == 0, st
+    assert st["applied"] >= DURATION - 2 and st["gated"] == 0 and st["restarts"] == 0, st
     truth = {ns_of(m): q_of(m) for m in rec["truth"]}
     imus = [m for m in rec["imu"] if ns_of(m) in truth]
-    assert len(imus) >= 150
+    assert len(imus) >= DURATION - 2
     last = imus[len(imus) // 2:]                         # after the bias has settled
     ratios = []
     for m in last:
@@ -160,23 +170,55 @@ def test_filter_tracks_the_truth_and_the_injected_bias(graph):
     assert int(values["applied"]) == st["applied"] and "gyro_bias_sigma_x" in values
 
 
-def test_node_and_filter_bag_give_the_same_numbers(graph):
-    """The messages the node received, through filter_bag's driver: same attitude and bias."""
-    filt, rec = graph.filt, graph.rec
+def _tool_on(rec, p):
+    """filter_bag's driver on the messages the node received."""
     gyro = SimpleNamespace(stamps=[ns_of(m) for m in rec["dtheta"]],
                            values=[(m.vector.x, m.vector.y, m.vector.z) for m in rec["dtheta"]])
     fixes = SimpleNamespace(stamps=[ns_of(m) for m in rec["fix"]],
                             values=[(q_of(m.pose.pose), ros_io.rotation_block(m))
                                     for m in rec["fix"]])
-    tool = run_filter({"gyro": gyro, "camera": fixes}, dict(filt.p))
-    a, b = filt.system.filter, tool.filter
+    return run_filter({"gyro": gyro, "camera": fixes}, p)
+
+
+def _compare(a, b, bias_atol, cov_rtol):
     assert a.time == b.time
     np.testing.assert_allclose(a.attitude * np.sign(a.attitude[0] * b.attitude[0]),
                                b.attitude, rtol=0, atol=1e-9)
-    np.testing.assert_allclose(a.estimate("gyro_bias"), b.estimate("gyro_bias"),
-                               rtol=0, atol=1e-9 * 1e-5)
-    np.testing.assert_allclose(a.P, b.P, rtol=1e-9, atol=1e-25)
+    np.testing.assert_allclose(a.estimate("gyro_bias"), b.estimate("gyro_bias"), rtol=0,
+                               atol=bias_atol)
+    np.testing.assert_allclose(a.P, b.P, rtol=cov_rtol, atol=0)
+
+
+def test_node_and_filter_bag_give_the_same_numbers(graph, ros):
+    """The messages the live node received, through filter_bag's driver and through a second
+    node fed in the tool's order (increments up to a fix's stamp, then the fix): the same
+    numbers to round-off.  Live, a fix that arrives after later increments is applied as a late
+    fix (replayed from a checkpoint): the covariance propagation is then lumped differently, and
+    the live node agrees with the tool to 1e-4 of the bias σ (measured: ~1e-5)."""
+    filt, rec = graph.filt, graph.rec
+    tool = _tool_on(rec, dict(filt.p))
     assert tool.counts["applied"] == filt.system.counts["applied"]
+    node = AttitudeFilterNode(namespace="/t_filter_paced", parameter_overrides=[
+        Parameter(s.name, value=filt.p[s.name]) for s in FILTER_PARAMS
+        if s.name in ("gyro_rate", "gyro_bias_sigma", "output_period", "boresight")])
+    try:
+        k = 0
+        for m in rec["fix"]:
+            t = ns_of(m)
+            while k < len(rec["dtheta"]) and ns_of(rec["dtheta"][k]) <= t:
+                d = rec["dtheta"][k]
+                node.gyro(ns_of(d), (d.vector.x, d.vector.y, d.vector.z), d.header.frame_id)
+                k += 1
+            node.fix(m.header, m.pose.pose.orientation, ros_io.rotation_block(m))
+        for d in rec["dtheta"][k:]:
+            node.gyro(ns_of(d), (d.vector.x, d.vector.y, d.vector.z), d.header.frame_id)
+        node.process()
+        _compare(node.system.filter, tool.filter, 1e-9 * 1e-9, 1e-9)
+        assert node.system.filter.counters.late == 0
+    finally:
+        node.destroy_node()
+    sigma = tool.filter.sigma("gyro_bias")
+    _compare(filt.system.filter, tool.filter, 1e-4 * sigma.min(), 1e-4)
 
 
 def test_invalid_parameters_are_refused(ros):
