@@ -294,3 +294,36 @@ def test_boresight_from_the_latched_topic(ros):
         for n in (node, pub_node):
             ex.remove_node(n)
             n.destroy_node()
+
+
+def test_imu_rates_input(ros):
+    """``gyro_input: imu``: sensor_msgs/Imu rates (mean rule) through the node's raw
+    subscription callback; a constant rate about a fixed axis, exact fixes every second: the
+    filtered attitude is the exact one within 3σ and every fix is applied."""
+    from rclpy.serialization import serialize_message
+    from strapdown_ros.rotation import rotvec_to_quat
+    node = AttitudeFilterNode(namespace="/t_filter_imu", parameter_overrides=[
+        Parameter("gyro_input", value="imu"), Parameter("imu_rate_rule", value="mean"),
+        Parameter("use_camera_covariance", value=False), Parameter("output_period", value=0.1)])
+    rate = np.array([0.05, -0.02, 0.01])                  # rad/s
+    try:
+        m = Imu()
+        m.header.frame_id = "imu_link"
+        m.orientation_covariance[0] = -1.0
+        m.angular_velocity.x, m.angular_velocity.y, m.angular_velocity.z = rate
+        for k in range(0, 3001):                         # 3 s at 1 kHz
+            ns = k * 10**6
+            m.header.stamp.sec, m.header.stamp.nanosec = divmod(ns, 10**9)
+            node.on_imu_raw(serialize_message(m))
+            if k % 1000 == 0:
+                node.fix(_header(ns), ros_io.quaternion_msg(rotvec_to_quat(rate * ns * 1e-9)),
+                         None)
+        node.process()
+        st = node.system.status()
+        assert st["applied"] == 3 and st["gated"] == 0, st
+        f = node.system.filter
+        eps = quat_error_rotvec(f.attitude, rotvec_to_quat(rate * f.time))
+        assert np.all(np.abs(eps) < 3 * np.sqrt(np.diag(f.P[:3, :3]))), eps
+        assert node.gyro_rates.status("imu_gyro")["imu_gyro_increments_formed"] == 3000
+    finally:
+        node.destroy_node()

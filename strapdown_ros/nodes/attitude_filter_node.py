@@ -32,7 +32,8 @@ Publishes (stream QoS unless said; every ``output_period`` of stamp time):
   = the bias, covariance rows/cols 3–5 = its covariance, (rad/s)²; the linear part is not
   estimated: 0 with −1 on its diagonal (rows/cols 0–2).
 * per fix processed (camera QoS): ``filter/innovation`` geometry_msgs/Vector3Stamped, the
-  residual z = log(q_meas⁻¹ ⊗ q̂_ref_body ⊗ q_MF_VF), VF axes, rad, frame ``camera_frame_id``,
+  residual z = log(q_meas⁻¹ ⊗ q̂_ref_body ⊗ q_MF_VF), VF axes, rad, frame
+  ``camera_frame_id``,
   stamp = the fix's; ``filter/nis`` geometry_msgs/Vector3Stamped, x = NIS, y = its degrees of
   freedom (3), z = the gate (χ²(3) quantile of ``gate_probability``); a gated fix is published
   too (x > z).
@@ -116,10 +117,10 @@ class AttitudeFilterNode(Node):
                                                   p["imu_rate_rule"], float(p["max_stamp_jump"]),
                                                   int(p["resync_count"]))
             self.last_imu = None
-            self.create_subscription(Imu, "imu/data_raw", self._on_imu_raw, qos,
+            self.create_subscription(Imu, "imu/data_raw", self.on_imu_raw, qos,
                                      qos_overriding_options=over, raw=True)
         else:
-            self.create_subscription(Vector3Stamped, "imu/delta_theta", self._on_gyro_raw, qos,
+            self.create_subscription(Vector3Stamped, "imu/delta_theta", self.on_gyro_raw, qos,
                                      qos_overriding_options=over, raw=True)
         if self.use_cov:
             self.create_subscription(PoseWithCovarianceStamped,
@@ -146,7 +147,7 @@ class AttitudeFilterNode(Node):
                 "is its state); restart the node to change " + ", ".join(sorted(new)))
 
     # --- input ------------------------------------------------------------------------------
-    def _on_gyro_raw(self, data: bytes):
+    def on_gyro_raw(self, data: bytes):
         """The imu/delta_theta subscription: stamp, vector and frame read from the bytes."""
         got = ros_io.decode_vector3_stamped(data)
         if got is None:
@@ -154,7 +155,7 @@ class AttitudeFilterNode(Node):
             return
         self.gyro(*got)
 
-    def _on_imu_raw(self, data: bytes):
+    def on_imu_raw(self, data: bytes):
         """The imu/data_raw subscription (``gyro_input: imu``)."""
         got = ros_io.decode_imu(data)
         if got is None:
