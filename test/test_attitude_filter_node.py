@@ -327,3 +327,48 @@ def test_imu_rates_input(ros):
         assert node.gyro_rates.status("imu_gyro")["imu_gyro_increments_formed"] == 3000
     finally:
         node.destroy_node()
+
+
+def test_unmodelled_scale_factor_is_a_warn_on_diagnostics(ros):
+    """An injected gyro scale factor the filter does not model: the live model check names it
+    on /diagnostics as WARN (the node does not change its model)."""
+    from strapdown_ros.profiles import PiecewiseRateProfile, Segment
+    from strapdown_ros.rotation import rotvec_to_quat
+    from strapdown_ros.sensors import ARCSEC
+    from strapdown_ros.sensors.model import IntegratingSensor, SensorErrorModel
+    from strapdown_ros.star_camera import StarCameraModel
+    rate, seconds = 50.0, 150
+    segs = []
+    for axis, sign in ((0, 1), (1, 1), (2, 1), (0, -1), (1, -1), (2, -1)):
+        w = np.zeros(3)
+        w[axis] = sign * 0.05
+        segs += [Segment(8.0, w), Segment(2.0)]
+    profile = PiecewiseRateProfile(segs * 10, initial_attitude=rotvec_to_quat([0.2, -0.4, 0.9]))
+    gyro = IntegratingSensor(profile, "gyro", rate, SensorErrorModel(
+        np.array([2e-6, -1e-6, 1.5e-6]), np.array([1e-4, -1e-4, 1e-4]), np.zeros((3, 3)),
+        random_walk=2e-6), seed=4)
+    beta = np.array([100.0, -50.0, 30.0]) * ARCSEC
+    cam = StarCameraModel(boresight=beta, interval=1.0, sigma=np.array([1.0, 1.0, 5.0]) * ARCSEC,
+                          seed=5)
+    node = AttitudeFilterNode(namespace="/t_filter_check", parameter_overrides=[
+        Parameter("gyro_rate", value=rate), Parameter("gyro_random_walk", value=2e-6),
+        Parameter("gyro_bias_sigma", value=1e-5), Parameter("boresight", value=list(beta)),
+        Parameter("output_period", value=0.5), Parameter("initial_attitude_sigma", value=1e-4),
+        Parameter("model_check_window", value=60)])
+    try:
+        st, meas, _ = gyro.sample(int(seconds * rate))
+        k = 0
+        for fx in cam.fixes(profile, seconds):
+            while k < len(st) and st[k] <= fx.stamp + 1e-9:
+                node.gyro(int(round(st[k] * 1e9)), tuple(meas[k]))
+                k += 1
+            node.fix(_header(int(round(fx.stamp * 1e9))), ros_io.quaternion_msg(fx.attitude),
+                     fx.covariance)
+        node.process()
+        c = node.diagnostic_conditions(node.system.status())
+        assert c.level == ros_io.WARN, c.message()
+        assert "live model check: " in c.message()
+        assert "innovations match gyro_scale_factor (p = " in c.message(), c.message()
+        assert node.system.augment == ()                 # the model is unchanged
+    finally:
+        node.destroy_node()
