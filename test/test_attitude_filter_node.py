@@ -23,7 +23,7 @@ from rclpy.qos import ReliabilityPolicy  # noqa: E402
 from sensor_msgs.msg import Imu  # noqa: E402
 from std_msgs.msg import Header  # noqa: E402
 
-from strapdown_ros.config import FILTER_PARAMS, check_all  # noqa: E402
+from strapdown_ros.config import FILTER_PARAMS  # noqa: E402
 from strapdown_ros.nodes import ros_io  # noqa: E402
 from strapdown_ros.nodes.attitude_filter_node import AttitudeFilterNode  # noqa: E402
 from strapdown_ros.nodes.imu_sim_node import ImuSimNode  # noqa: E402

@@ -16,7 +16,9 @@ Subscribes:
   The attitude is ``q_GCRS_VF`` in ``reference_frame_id``.
 * ``calibration/boresight``  geometry_msgs/PoseWithCovarianceStamped, latched (transient
   local), only with ``boresight_source: topic``: the orientation is ``q_MF_VF`` (as
-  ``calibrator_node`` publishes it); fixes before the first one are dropped and counted.
+  ``calibrator_node`` publishes it); fixes before the first one are dropped and counted. The
+  boresight is taken as known: its covariance is not used (``augment: boresight`` estimates a
+  mounting error on top of it).
 
 Publishes (stream QoS unless said; every ``output_period`` of stamp time):
 
@@ -65,8 +67,6 @@ from ..rate_increments import RateIncrementStream
 from . import ros_io
 
 NODE_NAME = "attitude_filter_node"
-#: the latest fix results kept for tests and diagnostics
-FIX_HISTORY = 100
 
 
 class AttitudeFilterNode(Node):
