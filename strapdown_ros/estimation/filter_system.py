@@ -37,6 +37,8 @@ __all__ = ["FilterSystem", "FilterOutput", "FixOutput"]
 CAMERA_JUMP_S = 3600.0
 #: increments lumped per step of the model check's signatures
 SIGNATURE_LUMP = 8
+#: increments held for the signatures before they are summed (bounds the buffer)
+SIGNATURE_BUFFER = 4096
 
 
 @dataclass
@@ -109,6 +111,8 @@ class FilterSystem:
         self._rate_time = 0.0
         self._last_rate = np.zeros(3)
         self._sig = None                # model check: Σ C_j J_j since the last fix (start axes)
+        self._sig_buf: list = []        # (Δθ, h, t) not yet summed into _sig
+        self._sig_len = 0
         self._rot = np.array([1.0, 0.0, 0.0, 0.0])   # body at the last fix ← body now
         self.outputs: list = []
         self.fix_outputs: list = []
@@ -184,6 +188,7 @@ class FilterSystem:
         if self.filter is None:
             self._start(stamp_ns, q_wxyz)
             return None
+        self._flush_signature()
         res = self.filter.update(t, q_wxyz, covariance)
         if res.status == "pending":
             self._pending.append(res.epoch)
@@ -233,6 +238,8 @@ class FilterSystem:
         t = t_ns * 1e-9
         h = np.diff(np.concatenate([[self._last_ns * 1e-9], t]))
         self._signature(d, h, t)
+        if self._pending:                      # a fix may be applied in this call
+            self._flush_signature()
         results = f.propagate(d, t)
         self._last_ns = int(t_ns[-1])
         self._rate_sum += d.sum(0)
@@ -250,9 +257,23 @@ class FilterSystem:
                 self._next_out += self.output_ns
 
     def _signature(self, d, h, t) -> None:
-        """Accumulate Σ C_j J_j of the model check's candidates since the last fix."""
+        """Keep the increments for the model check's signatures; they are summed in one
+        vectorised pass (:meth:`_flush_signature`) before the next fix is applied."""
         if self.check is None or not self.check.effects:
             return
+        self._sig_buf.append((d, h, t))
+        self._sig_len += len(d)
+        if self._sig_len >= SIGNATURE_BUFFER:
+            self._flush_signature()
+
+    def _flush_signature(self) -> None:
+        """Accumulate Σ C_j J_j of the model check's candidates since the last fix."""
+        if not self._sig_buf:
+            return
+        d = np.concatenate([b[0] for b in self._sig_buf])
+        h = np.concatenate([b[1] for b in self._sig_buf])
+        t = np.concatenate([b[2] for b in self._sig_buf])
+        self._sig_buf, self._sig_len = [], 0
         n = len(d) // SIGNATURE_LUMP * SIGNATURE_LUMP
         groups = [(d[:n].reshape(-1, SIGNATURE_LUMP, 3).sum(1),
                    h[:n].reshape(-1, SIGNATURE_LUMP).sum(1),
@@ -331,6 +352,7 @@ class FilterSystem:
         self._next_out = start_ns + self.output_ns
         self._pending = []
         self._sig, self._rot = None, np.array([1.0, 0.0, 0.0, 0.0])
+        self._sig_buf, self._sig_len = [], 0
 
     def _restart(self) -> None:
         if self.filter is not None:
