@@ -40,7 +40,7 @@ from .rotation import (dcm_to_ypr, quat_conjugate, quat_cumprod, quat_multiply, 
 from .sensors import SensorSigmas
 from .sensors.covariance import constant_jacobian, constant_variances, get_covariance_model
 
-__all__ = ["IncrementPair", "angle_consistency", "chi2_band", "FIT_LEVEL",
+__all__ = ["IncrementPair", "angle_consistency", "chi2_band", "chi2_sf", "FIT_LEVEL",
            "gyro_increment", "camera_increment", "BoresightSolution", "solve_boresight",
            "check_observability", "imu_attitude_from_camera", "r_partial"]
 
@@ -512,3 +512,24 @@ def imu_attitude_from_camera(q_gcrs_vf: np.ndarray, P_avu: np.ndarray, sol: Bore
     q = quat_normalize(quat_multiply(q_gcrs_vf, quat_conjugate(sol.q_mf_vf)))
     C = sol.c_mf_vf
     return q, C @ np.asarray(P_avu) @ C.T + sol.rotation_covariance_mf
+
+
+def chi2_sf(x: float, dof: int) -> float:
+    """Survival function P(χ²_dof > x) (the p-value of a χ² statistic), from the regularised
+    incomplete gamma function of this module (numpy only).
+
+    Parameters
+    ----------
+    x : float
+        Statistic, ≥ 0.
+    dof : int
+        Degrees of freedom, ≥ 1.
+
+    Returns
+    -------
+    float
+        The probability, in [0, 1].
+    """
+    if not math.isfinite(x):
+        return 0.0 if x > 0 else 1.0
+    return max(0.0, 1.0 - _gamma_p(0.5 * dof, 0.5 * max(x, 0.0)))

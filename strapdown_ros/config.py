@@ -18,10 +18,10 @@ from .navigation.gravity import DEFAULT_GRAVITY_MODEL, GRAVITY_MODELS
 from .profiles import PROFILE_NAMES
 from .rate_increments import RATE_RULES
 from .sensors import NAVIGATION_GRADE_ACCEL, NAVIGATION_GRADE_GYRO, SensorSigmas
-from .sensors.effects import effect_parameters
+from .sensors.effects import EFFECTS, effect_parameters
 
 __all__ = ["ParamSpec", "PROFILE_PARAMS", "GYRO_PARAMS", "ACCEL_PARAMS", "IMU_SIM_PARAMS",
-           "SINS_PARAMS", "STAR_CAMERA_PARAMS", "CALIBRATOR_PARAMS", "sigmas_from", "load_parameter_file", "check_all", "markdown_table"]
+           "SINS_PARAMS", "STAR_CAMERA_PARAMS", "CALIBRATOR_PARAMS", "FILTER_PARAMS", "sigmas_from", "load_parameter_file", "check_all", "markdown_table"]
 
 
 @dataclass(frozen=True)
@@ -361,10 +361,84 @@ CALIBRATOR_PARAMS = GYRO_PARAMS + INPUT_PARAMS + GYRO_INPUT_PARAMS + [
 #: camera effects the calibrator compensates (time offset of the fixes, camera noise scale)
 CALIBRATOR_PARAMS += _effect_specs("camera")
 
+#: names the filter's ``augment`` parameter accepts: the registry's systematic gyro effects
+#: (the bias is always a state), the camera time offset and the boresight
+AUGMENT_CHOICES = tuple(n for n, e in EFFECTS.items()
+                        if e.sensor == "gyro" and e.kind == "systematic" and n != "gyro_bias") \
+    + ("time_offset", "boresight")
+
+
+def augment_names(text: str) -> tuple:
+    """The names of a comma-separated ``augment`` value (blanks ignored)."""
+    return tuple(n.strip() for n in str(text).split(",") if n.strip())
+
+
+def augment_error(text: str) -> str | None:
+    """One-line error of an ``augment`` value naming the valid names, or None when valid."""
+    names = augment_names(text)
+    bad = [n for n in names if n not in AUGMENT_CHOICES]
+    if bad:
+        return (f"augment: unknown state {bad[0][:80]!r}; valid: {', '.join(AUGMENT_CHOICES)}")
+    if len(set(names)) != len(names):
+        return "augment: a name is given twice"
+    return None
+
+
+#: attitude_filter_node and filter_bag (strapdown_ros/estimation/filter_system.py)
+FILTER_PARAMS = [s for s in _GYRO_SIGMAS if s.name in ("gyro_rate", "gyro_bias_sigma",
+                                                       "gyro_random_walk")] + \
+    INPUT_PARAMS + GYRO_INPUT_PARAMS + [
+    ParamSpec("reference_frame_id", "gcrs", "inertial reference frame id of attitudes"),
+    ParamSpec("frame_id", "imu_link", "IMU frame (MF) id"),
+    ParamSpec("camera_frame_id", "star_camera", "camera frame (VF) id"),
+    ParamSpec("qos_depth", 500, "history depth of the stream QoS", 1, 100000),
+    ParamSpec("diagnostics_period", 1.0, "period of /diagnostics, wall seconds", 0.0, 3600.0,
+              exclusive_minimum=True),
+    ParamSpec("coning_algorithm", "2", "coning algorithm of the filter's integrator",
+              choices=tuple(algorithm_names())),
+    ParamSpec("gyro_bias_random_walk", 0.0, "bias random walk σ_u, rad/s/√s (0: a random "
+              "constant)", 0.0, 1.0),
+    ParamSpec("gyro_bias_correlation_time", 0.0, "τ > 0: the bias is first-order Gauss–Markov "
+              "(bias instability) driven by gyro_bias_random_walk, s (0: a random walk)",
+              0.0, 1e9),
+    ParamSpec("initial_attitude_sigma", 1e-3, "prior 1σ of the attitude error per axis, rad "
+              "(the filter starts at the first fix)", 0.0, np.pi, exclusive_minimum=True),
+    ParamSpec("scale_sigma", 1e-3, "prior 1σ of augmented gyro_scale_factor (and of other "
+              "augmented gyro effects but misalignment)", 0.0, 0.1, exclusive_minimum=True),
+    ParamSpec("misalignment_sigma", 1e-3, "prior 1σ of augmented gyro_misalignment, rad",
+              0.0, 0.1, exclusive_minimum=True),
+    ParamSpec("time_offset_sigma", 0.01, "prior 1σ of augmented time_offset, s", 0.0, 10.0,
+              exclusive_minimum=True),
+    ParamSpec("boresight_sigma", 1e-3, "prior 1σ of augmented boresight, rad", 0.0, 0.5,
+              exclusive_minimum=True),
+    ParamSpec("augment", "", "further filter states, comma-separated: registry gyro effects "
+              "(gyro_scale_factor, gyro_misalignment, ...), time_offset, boresight"),
+    ParamSpec("boresight_source", "parameter", "boresight: parameter (boresight) or topic "
+              "(the latched calibration/boresight; fixes wait for it, dropped and counted)",
+              choices=("parameter", "topic")),
+    ParamSpec("boresight", [0.0, 0.0, 0.0], "known β = (heading ψ, pitch ϑ, roll γ) of VF "
+              "relative to MF, rad", length=3),
+    ParamSpec("use_camera_covariance", True, "read the fix covariance from "
+              "star_camera/attitude_with_covariance (false: star_camera/attitude, camera σ)"),
+    ParamSpec("camera_sigma_xy", 0.6 * ARCSEC_RAD, "camera σ about VF x, y when a fix has no "
+              "covariance, rad", 0.0, 0.1, exclusive_minimum=True),
+    ParamSpec("camera_sigma_z", 6.0 * ARCSEC_RAD, "camera σ about VF z when a fix has no "
+              "covariance, rad", 0.0, 0.1, exclusive_minimum=True),
+    ParamSpec("gate_probability", 0.9999, "a fix whose NIS exceeds the χ²(3) quantile of this "
+              "is gated (not applied) and counted", 0.5, 1.0 - 1e-12),
+    ParamSpec("history", 20000, "increments kept for late fixes", 16, 10**7),
+    ParamSpec("output_period", 0.1, "filter/attitude, filter/imu and the gyro errors every "
+              "this much stamp time, s", 0.0, 3600.0, exclusive_minimum=True),
+    ParamSpec("model_check_window", 30, "fixes in the live model check's sliding window",
+              5, 10000),
+    ParamSpec("model_check_alpha", 0.001, "false-alarm probability of each live model-check "
+              "test (NIS band two-sided, whiteness)", 1e-9, 0.2),
+]
+
 
 #: every parameter name declared by any node or tool of the package
 ALL_PARAMETER_NAMES = frozenset(s.name for s in IMU_SIM_PARAMS + SINS_PARAMS + STAR_CAMERA_PARAMS
-                                + CALIBRATOR_PARAMS)
+                                + CALIBRATOR_PARAMS + FILTER_PARAMS)
 
 
 def combination_error(values: dict) -> str | None:
@@ -386,6 +460,8 @@ def combination_error(values: dict) -> str | None:
     str or None
         The error message, or None when every applicable rule holds.
     """
+    if "augment" in values and augment_error(values["augment"]):
+        return augment_error(values["augment"])
     need = ("navigation", "velocity_update", "coning_algorithm", "gyro_rate", "accel_rate")
     if all(n in values for n in need) and values["navigation"] \
             and values["velocity_update"] == "printed":
@@ -462,7 +538,8 @@ def markdown_table(specs: Sequence[ParamSpec]) -> str:
 
 if __name__ == "__main__":   # python -m strapdown_ros.config → README parameter tables
     for title, specs in (("imu_sim_node", IMU_SIM_PARAMS), ("sins_node", SINS_PARAMS),
-                         ("star_camera_sim_node", STAR_CAMERA_PARAMS), ("calibrator_node", CALIBRATOR_PARAMS)):
+                         ("star_camera_sim_node", STAR_CAMERA_PARAMS), ("calibrator_node", CALIBRATOR_PARAMS),
+                         ("attitude_filter_node (and filter_bag)", FILTER_PARAMS)):
         sys.stdout.write(f"\n#### {title}\n\n{markdown_table(specs)}\n")
 
 

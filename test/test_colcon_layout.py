@@ -25,7 +25,8 @@ import pytest
 
 REPO = Path(__file__).resolve().parent.parent
 PKG = "strapdown_ros"
-EXECUTABLES = ("imu_sim_node", "sins_node", "strapdown_demo", "sins_bench", "coning_bench")
+EXECUTABLES = ("imu_sim_node", "sins_node", "strapdown_demo", "sins_bench", "coning_bench",
+               "attitude_filter_node")
 BUILD_TIMEOUT_S = 240
 NODE_READY_TIMEOUT_S = 30
 NODE_EXIT_TIMEOUT_S = 15

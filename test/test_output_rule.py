@@ -13,7 +13,7 @@ ROOT = Path(__file__).resolve().parents[1]
 
 #: console scripts that write no file (nodes)
 NO_OUTPUT = {"imu_sim_node", "sins_node", "strapdown_demo", "star_camera_sim_node",
-             "calibrator_node"}
+             "calibrator_node", "attitude_filter_node"}
 
 #: script -> argv with an EXISTING output (and no --force); {bag}, {model}, {old}, {trial},
 #: {data}, {plots} are filled in by the test
@@ -35,6 +35,7 @@ EXISTING = {
     "reproduce_seeds": ["--json", "{old}"],
     "discrepancy_bench": ["--plots", "{plots}"],
     "filter_bench": ["--json", "{old}"],
+    "filter_bag": ["{bag}", "--output", "{old}"],
 }
 
 #: script -> argv whose output is one of its inputs
@@ -48,6 +49,7 @@ AS_INPUT = {
     "sins_bag_bench": ["{bag}", "--json", "{bag}/metadata.yaml"],
     "realdata_bag": ["{trial}", "{trial}"],
     "realdata_report": ["--data", "{data}", "--out", "{data}"],
+    "filter_bag": ["{bag}", "--output", "{bag}/metadata.yaml"],
 }
 
 

@@ -3,7 +3,7 @@ doc/nodes.md, and the README gives the two commands and the ROS 2 workflow."""
 import os
 import re
 
-from strapdown_ros.config import (CALIBRATOR_PARAMS, IMU_SIM_PARAMS, SINS_PARAMS,
+from strapdown_ros.config import (CALIBRATOR_PARAMS, FILTER_PARAMS, IMU_SIM_PARAMS, SINS_PARAMS,
                                   STAR_CAMERA_PARAMS, markdown_table)
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
@@ -20,14 +20,16 @@ LINK = re.compile(r"\]\(([^)#\s]*)(?:#([^)\s]*))?\)")
 
 
 def test_parameter_tables_are_current():
-    for specs in (IMU_SIM_PARAMS, SINS_PARAMS, STAR_CAMERA_PARAMS, CALIBRATOR_PARAMS):
+    for specs in (IMU_SIM_PARAMS, SINS_PARAMS, STAR_CAMERA_PARAMS, CALIBRATOR_PARAMS,
+                  FILTER_PARAMS):
         assert markdown_table(specs) in NODES_PAGE, \
             "regenerate the tables of doc/nodes.md with: python -m strapdown_ros.config"
 
 
 def test_every_topic_is_documented():
     topics = set()
-    for f in ("imu_sim_node.py", "sins_node.py", "star_camera_sim_node.py", "calibrator_node.py"):
+    for f in ("imu_sim_node.py", "sins_node.py", "star_camera_sim_node.py", "calibrator_node.py",
+              "attitude_filter_node.py"):
         src = _read("strapdown_ros", "nodes", f)
         topics |= set(re.findall(r'create_(?:publisher|subscription)\(\s*\w+,\s*"([^"]+)"', src))
     assert topics >= {"imu/delta_theta", "imu/delta_velocity", "imu/data_raw", "sins/attitude",

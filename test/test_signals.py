@@ -12,7 +12,8 @@ import pytest
 pytest.importorskip("rclpy")
 
 BIN = os.path.dirname(sys.executable)
-NODES = ["imu_sim_node", "sins_node", "star_camera_sim_node", "calibrator_node"]
+NODES = ["imu_sim_node", "sins_node", "star_camera_sim_node", "calibrator_node",
+         "attitude_filter_node"]
 
 
 def _ignore_sigint():

@@ -537,7 +537,7 @@ class AttitudeFilter:
         self._order += 1
         self._trim_applied()
         if not nis <= self.gate:
-            res = self._record(fix, "gated", z, nis)
+            res = self._record(fix, "gated", z, nis, S)
             if not fix.counted:
                 self.counters.gated += 1
             fix.counted = True
@@ -564,12 +564,12 @@ class AttitudeFilter:
             if self.implausible():
                 self.counters.implausible += 1
         fix.counted = True
-        res = self._record(fix, "applied", z, nis)
+        res = self._record(fix, "applied", z, nis, S)
         self._checkpoint()
         return res
 
-    def _record(self, fix: _Fix, status: str, z=None, nis=None) -> FixResult:
-        res = FixResult(fix.stamp, fix.epoch, status, fix.lateness, z, nis)
+    def _record(self, fix: _Fix, status: str, z=None, nis=None, S=None) -> FixResult:
+        res = FixResult(fix.stamp, fix.epoch, status, fix.lateness, z, nis, S)
         self.results.append(res)
         return res
 

@@ -79,6 +79,7 @@ class FixResult:
     lateness: float = 0.0        # newest increment stamp − epoch at arrival (0: not late), s
     residual: np.ndarray | None = None     # z (3,), VF axes, rad
     nis: float | None = None     # zᵀ S⁻¹ z
+    innovation_covariance: np.ndarray | None = None   # S = H P Hᵀ + R (3, 3), rad²
 
 
 @dataclass

@@ -15,8 +15,8 @@ import importlib
 import signal
 import sys
 
-__all__ = ["imu_sim_node", "sins_node", "star_camera_sim_node", "calibrator_node", "strapdown_demo",
-           "signal_received"]
+__all__ = ["imu_sim_node", "sins_node", "star_camera_sim_node", "calibrator_node",
+           "attitude_filter_node", "strapdown_demo", "signal_received"]
 
 
 _signalled = []
@@ -72,6 +72,10 @@ def star_camera_sim_node():
 
 def calibrator_node():
     return _run("calibrator_node")
+
+
+def attitude_filter_node():
+    return _run("attitude_filter_node")
 
 
 def strapdown_demo():
