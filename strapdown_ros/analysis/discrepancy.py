@@ -25,7 +25,9 @@ Selection, stated once:
   residual is judged by parameters fitted without it;
 * a candidate whose fitted whitened signature (the residual pattern it explains) has an
   |correlation| above :data:`RHO_MAX` with that of another significant one is not picked: the
-  pair is reported "not separable on this trajectory";
+  pair is reported "not separable on this trajectory" — unless the encompassing test says the
+  data tell them apart: the best candidate still passes its likelihood-ratio test at the same
+  level with the other one in the model too (systematic effects only; :func:`_adds_to`);
 * accepted effects are refitted jointly (Gauss–Newton on the nonlinear model) and the search
   repeats until nothing passes;
 * **backward elimination**: an added effect whose own likelihood-ratio test, given all the
@@ -283,6 +285,23 @@ def _separation(lin, free, noise, a: str, b: str) -> float:
     if na == 0 or nb == 0:
         return 0.0
     return float(abs(pa @ pb) / (na * nb))
+
+
+def _adds_to(lin, free, noise, a: str, b: str, level: float) -> bool:
+    """Encompassing test: does systematic effect ``a`` still explain significantly more (LR test at
+    ``level``) once ``b`` is in the model too?  Then the data tell a from b, however alike the
+    residual patterns they each fit alone.  Noise terms: False (their patterns only)."""
+    from scipy.stats import chi2
+    if EFFECTS[a].kind == "noise" or EFFECTS[b].kind == "noise":
+        return False
+    W = lin.whitener(noise)
+    both = free + [a, b]
+    dof = int(np.linalg.matrix_rank(W.apply(lin.design(both)))) - \
+        int(np.linalg.matrix_rank(W.apply(lin.design(free + [b]))))
+    if dof <= 0:
+        return False
+    stat = lin.evaluate(free + [b], noise).chi2 - lin.evaluate(both, noise).chi2
+    return bool(chi2.sf(max(stat, 0.0), dof) < level)
 
 
 def _score(lin, free, noise, base, name):
@@ -545,7 +564,8 @@ def _analyse(rec, params, alpha, blocks, lags, max_steps, candidates, say, stage
         twins = []
         for s2 in significant[1:]:
             try:
-                if _separation(lin, free, noise, best["effect"], s2["effect"]) > RHO_MAX:
+                if _separation(lin, free, noise, best["effect"], s2["effect"]) > RHO_MAX and \
+                        not _adds_to(lin, free, noise, best["effect"], s2["effect"], level):
                     twins.append(s2["effect"])
             except NUMERICAL_ERRORS:
                 pass                                     # cannot show they are twins
