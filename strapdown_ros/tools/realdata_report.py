@@ -367,6 +367,14 @@ def markdown(trials: list, meta: dict) -> str:
                  + ".  Effects named by the full search: "
                  + (", ".join(f"{k} in {v}" for k, v in sorted(named.items(), key=lambda x: -x[1]))
                     or "none") + ".")
+    pairs = {}
+    for t in trials:
+        for pr in t.get("discrepancy", {}).get("not_separable") or []:
+            pairs[" and ".join(pr)] = pairs.get(" and ".join(pr), 0) + 1
+    lines.append("Called not separable by the full search: "
+                 + (", ".join(f"{k} in {v}" for k, v in sorted(pairs.items(),
+                                                              key=lambda x: -x[1]))
+                    or "no pair") + ".")
     diffs, zs, clipped = [], [], []
     for t in trials:
         lag = t.get("two_effects", {}).get("values", {}).get("camera_time_offset")
