@@ -17,8 +17,8 @@ QuaternionStamped; the Vicon attitude decimated to one fix per second) and analy
 Beside them, figures computed from the data alone: the mean gyro rate over the rest at the start
 (rest found from the Vicon attitude) and the lag from a cross-correlation of |ω_gyro| with the
 rate of the Vicon attitude.  ``--decimation-check``: the restricted workflow again with fixes
-every 2 s, each estimate compared with the 1 s one in units of the combined σ.  Output: ``realdata.json`` and ``realdata.md`` in ``--out``;
-progress on stderr.  Not part of the test suite.  Exit 2 with one line on stderr for unusable
+every 2 s, each estimate compared with the 1 s one in units of the combined σ.  Output:
+``realdata.json`` and ``realdata.md`` in ``--out``; progress on stderr.  Not part of the test suite.  Exit 2 with one line on stderr for unusable
 arguments (no data set, output exists without ``--force``).
 """
 from __future__ import annotations
@@ -469,7 +469,12 @@ def decimation_section(trials: list) -> list:
                      f"{runs['1']['chi2_per_dof']:.3g} | {runs['1']['sigma_method']} / "
                      f"{runs['2']['sigma_method']} |")
     w = np.asarray(worst_all)
-    bad = [t["trial"] for t, x in zip(done, w) if x > 3.0]
+    bad = []
+    for t, x in zip(done, w):
+        r1 = t["decimation_check"]["runs"]["1"]
+        if x > 3.0:
+            bad.append(f"{t['trial']}: |z| {x:.2f}, χ²/dof {r1['chi2_per_dof']:.3g}"
+                       + ("" if r1["fit_consistent"] else ", fit not consistent: said so"))
     lines += ["", f"Within 3 combined σ: {within}/{total} estimates (components) over "
               f"{len(done)} trials; every estimate of a trial within 3σ on "
               f"{int(np.sum(w <= 3.0))}/{len(done)} trials"
