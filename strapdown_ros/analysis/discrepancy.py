@@ -25,7 +25,9 @@ Selection, stated once:
   residual is judged by parameters fitted without it;
 * a candidate whose fitted whitened signature (the residual pattern it explains) has an
   |correlation| above :data:`RHO_MAX` with that of another significant one is not picked: the
-  pair is reported "not separable on this trajectory";
+  pair is reported "not separable on this trajectory" — unless the encompassing test says the
+  data tell them apart: the best candidate still passes its likelihood-ratio test at the same
+  level with the other one in the model too (systematic effects only; :func:`_adds_to`);
 * accepted effects are refitted jointly (Gauss–Newton on the nonlinear model) and the search
   repeats until nothing passes;
 * **backward elimination**: an added effect whose own likelihood-ratio test, given all the
@@ -45,7 +47,9 @@ test on the largest |residual|.  ``model_adequate``: nothing added and all pass;
 ``explained``: effects added and all pass; ``unexplained_structure``: a test still fails.
 ``fit_consistent``: the NIS test passes (χ²/dof inside its band).  When the NIS or whiteness test
 fails, every σ is the Newey–West sandwich (:func:`.linear_model.hac_covariance`; noise terms: the
-leave-one-block-out jackknife), never below the model's, and ``sigma_method`` is ``"hac"``.
+leave-one-block-out jackknife), never below the model's, and ``sigma_method`` is ``"hac"``; where
+the leave-one-block-out jackknife over time is larger still (structure slower than the sandwich's
+bandwidth), the σ is raised to it and ``sigma_method`` is ``"hac_jackknife"``.
 Each effect's leave-one-block-out estimates must scatter as its σ says (``repeatable``).
 No ROS imports.
 """
@@ -168,7 +172,7 @@ class DiscrepancyResult:
     fit_consistent: bool = True           # final χ²/dof inside its band at the test level
     chi2_per_dof: float = float("nan")
     chi2_per_dof_band: list = field(default_factory=list)
-    sigma_method: str = "model"           # "model" | "hac" (Newey–West sandwich)
+    sigma_method: str = "model"           # "model" | "hac" (Newey–West) | "hac_jackknife"
     hac_lags: int | None = None
     boresight_sigma_model_rad: list = field(default_factory=list)
     repeatability_bound: float = float("nan")
@@ -281,6 +285,23 @@ def _separation(lin, free, noise, a: str, b: str) -> float:
     if na == 0 or nb == 0:
         return 0.0
     return float(abs(pa @ pb) / (na * nb))
+
+
+def _adds_to(lin, free, noise, a: str, b: str, level: float) -> bool:
+    """Encompassing test: does systematic effect ``a`` still explain significantly more (LR test at
+    ``level``) once ``b`` is in the model too?  Then the data tell a from b, however alike the
+    residual patterns they each fit alone.  Noise terms: False (their patterns only)."""
+    from scipy.stats import chi2
+    if EFFECTS[a].kind == "noise" or EFFECTS[b].kind == "noise":
+        return False
+    W = lin.whitener(noise)
+    both = free + [a, b]
+    dof = int(np.linalg.matrix_rank(W.apply(lin.design(both)))) - \
+        int(np.linalg.matrix_rank(W.apply(lin.design(free + [b]))))
+    if dof <= 0:
+        return False
+    stat = lin.evaluate(free + [b], noise).chi2 - lin.evaluate(both, noise).chi2
+    return bool(chi2.sf(max(stat, 0.0), dof) < level)
 
 
 def _score(lin, free, noise, base, name):
@@ -543,7 +564,8 @@ def _analyse(rec, params, alpha, blocks, lags, max_steps, candidates, say, stage
         twins = []
         for s2 in significant[1:]:
             try:
-                if _separation(lin, free, noise, best["effect"], s2["effect"]) > RHO_MAX:
+                if _separation(lin, free, noise, best["effect"], s2["effect"]) > RHO_MAX and \
+                        not _adds_to(lin, free, noise, best["effect"], s2["effect"], level):
                     twins.append(s2["effect"])
             except NUMERICAL_ERRORS:
                 pass                                     # cannot show they are twins
@@ -660,6 +682,15 @@ def _analyse(rec, params, alpha, blocks, lags, max_steps, candidates, say, stage
         dh = np.sqrt(np.maximum(np.diag(cov_h), 0.0))
         f_ = np.maximum(dh, d) / np.where(d > 0, d, 1.0)
         cov_z = np.where(np.outer(d, d) > 0, final.cov_z * np.outer(f_, f_), cov_h)
+    # the σ the repeatability check judges (model or sandwich); the reported σ may grow below
+    cov_judged = cov_z
+    if sigma_method == "hac":
+        # and never below the leave-one-block-out jackknife over time (the sandwich's bandwidth
+        # cannot cover structure as slow as the blocks: seen on real recordings whose χ²/dof is
+        # in the thousands)
+        cov_z, jk_used = _jackknife_floor(lin, free, noise, split, cov_z)
+        if jk_used:
+            sigma_method = "hac_jackknife"
     k = 3
     offsets = {}
     for name in free:
@@ -683,7 +714,7 @@ def _analyse(rec, params, alpha, blocks, lags, max_steps, candidates, say, stage
                 zf = np.array([lin.evaluate(free, noise, train).z[a:a + q] for train, _ in folds])
             except NUMERICAL_ERRORS:
                 zf = None
-            sd = np.sqrt(np.maximum(np.diag(cov_z[a:a + q, a:a + q]), 0.0))
+            sd = np.sqrt(np.maximum(np.diag(cov_judged[a:a + q, a:a + q]), 0.0))
             S = EFFECTS[s.effect].fit_basis()
             v0 = EFFECTS[s.effect].value(params)
             if zf is not None:
@@ -707,7 +738,7 @@ def _analyse(rec, params, alpha, blocks, lags, max_steps, candidates, say, stage
                 s.fold_values = ft.tolist()
                 s.spread = _values_json(s.effect, params, theta=theta, sigma=jk)[1]
                 s.spread_ratio = float(np.max(jk / np.where(sig > 0, sig, np.inf)))
-                if sigma_method == "hac":
+                if sigma_method in ("hac", "hac_jackknife"):
                     sig = np.maximum(sig, jk)       # noise terms: the time-block jackknife
             s.parameters, s.sigma = _values_json(s.effect, params, theta=theta, sigma=sig)
         if s.spread_ratio is not None:
@@ -746,8 +777,34 @@ def _analyse(rec, params, alpha, blocks, lags, max_steps, candidates, say, stage
         failed_candidates=failed, stopped_by=stopped_by, max_steps=max_steps,
         fit_consistent=bool(nis["p_value"] >= tests_after["level"]),
         chi2_per_dof=float(nis["per_dof"]), chi2_per_dof_band=band, sigma_method=sigma_method,
-        hac_lags=hac_lags if sigma_method == "hac" else None,
+        hac_lags=hac_lags if sigma_method != "model" else None,
         boresight_sigma_model_rad=sig_beta_model.tolist(), repeatability_bound=rep_bound)
+
+
+def _jackknife_floor(lin, free, noise, split, cov_z):
+    """Raise every σ of z to at least its leave-one-block-out jackknife σ over time.
+
+    σ_jk = √((K−1)/K Σ_k (z_k − z̄)²), z_k fitted without time block k (K = ``blocks``): a
+    delete-a-block jackknife, which needs no bandwidth and covers structure as slow as a block.
+    Correlations are kept (the matrix is rescaled by the ratio of σ's).  Returns the covariance
+    and whether any σ grew; unchanged when a fold's fit fails numerically."""
+    try:
+        zf = np.array([lin.evaluate(free, noise, train).z for train, _ in split.folds(lin)])
+    except NUMERICAL_ERRORS:
+        return cov_z, False
+    kf = len(zf)
+    if kf < 2 or zf.shape[1] != cov_z.shape[0]:
+        return cov_z, False
+    jk = np.sqrt((kf - 1) / kf * np.sum((zf - zf.mean(axis=0)) ** 2, axis=0))
+    d = np.sqrt(np.maximum(np.diag(cov_z), 0.0))
+    grow = jk > d
+    if not np.any(grow):
+        return cov_z, False
+    f_ = np.where(grow & (d > 0), jk / np.where(d > 0, d, 1.0), 1.0)
+    out = cov_z * np.outer(f_, f_)
+    zero = grow & ~(d > 0)
+    out[zero, zero] = jk[zero] ** 2
+    return out, True
 
 
 def _hac_lags(pairs: int) -> int:

@@ -121,8 +121,11 @@ def _summary(bag, info, res) -> str:
                      f"{res.chi2_per_dof:.4g} outside [{lo:.3g}, {hi:.3g}] at the test level; the "
                      f"values below are not plain results")
     if res.sigma_method != "model":
-        lines.append(f"  σ: Newey–West sandwich over {res.hac_lags} pairs (the residuals fail "
-                     f"{', '.join(res.tests_after['failed'])}: the model's σ would be too small)")
+        jk = (", raised to the leave-one-block-out jackknife where that is larger"
+              if res.sigma_method == "hac_jackknife" else "")
+        lines.append(f"  σ: Newey–West sandwich over {res.hac_lags} pairs{jk} (the residuals "
+                     f"fail {', '.join(res.tests_after['failed'])}: the model's σ would be too "
+                     f"small)")
     lines.append(f"  whitened RMS {res.rms_before:.3g} → {res.rms_after:.3g} (1 = as the model predicts); held out "
                  f"{res.heldout_rms_before:.3g} → {res.heldout_rms_after:.3g}")
     for k, s in enumerate(res.steps, 1):

@@ -209,10 +209,12 @@ def write_report(outdir: str, res, out: dict) -> str:
         L += ["", f"**WARNING: the fit is not consistent with its stated noise** (χ²/dof "
               f"{out['chi2_per_dof']:.4g}, outside [{lo:.3g}, {hi:.3g}] at the test level): the "
               f"values below are not plain results."]
-    if out.get("sigma_method") == "hac":
+    if out.get("sigma_method") in ("hac", "hac_jackknife"):
+        jk = (", raised to the leave-one-block-out jackknife over time where that is larger"
+              if out["sigma_method"] == "hac_jackknife" else "")
         L += ["", f"σ: the residuals fail {', '.join(out['tests_after']['failed'])}, so every σ "
-              f"is the Newey–West sandwich over {out['hac_lags']} pairs (never below the model's "
-              f"σ; noise terms: the leave-one-block-out jackknife)."]
+              f"is the Newey–West sandwich over {out['hac_lags']} pairs{jk} (never below the "
+              f"model's σ; noise terms: the leave-one-block-out jackknife)."]
     stop = {"max_steps": f"the step limit ({out.get('max_steps')} accepted effects) stopped the "
                          f"search: more effects may be missing",
             "no_significant_candidate": "the search stopped because no candidate left passes its "
