@@ -15,3 +15,15 @@ os.environ.setdefault("RCUTILS_LOGGING_BUFFERED_STREAM", "1")
 
 # tests import the package from the repository checkout
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+
+
+import pytest  # noqa: E402  (after the environment above, before any test imports rclpy)
+
+
+@pytest.fixture(scope="module")
+def ros():
+    """An rclpy context for one test module of node tests."""
+    import rclpy
+    rclpy.init()
+    yield
+    rclpy.shutdown()

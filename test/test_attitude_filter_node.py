@@ -6,7 +6,6 @@ bias and the boresight given to the camera simulator.  The node and ``filter_bag
 Every wait has a timeout (conftest.py isolates the ROS domain).
 """
 import math
-import time
 from types import SimpleNamespace
 
 import numpy as np
@@ -31,6 +30,7 @@ from strapdown_ros.nodes.star_camera_sim_node import StarCameraSimNode  # noqa: 
 from strapdown_ros.rotation import (dcm_to_quat, from_ros_xyzw, quat_conjugate,  # noqa: E402
                                     quat_error_rotvec, quat_multiply, ypr_to_dcm)
 from strapdown_ros.tools.filter_bag import run_filter  # noqa: E402
+from ros_helpers import spin_until  # noqa: E402
 
 try:
     from rclpy.experimental import EventsExecutor as Executor  # noqa: E402
@@ -46,20 +46,6 @@ QUEUE = 20000
 DURATION = 80.0                                      # s: holds and turns about z and x
 
 
-@pytest.fixture(scope="module")
-def ros():
-    rclpy.init()
-    yield
-    rclpy.shutdown()
-
-
-def spin_until(executor, predicate, timeout):
-    end = time.monotonic() + timeout
-    while time.monotonic() < end:
-        executor.spin_once(timeout_sec=0.02)
-        if predicate():
-            return True
-    return False
 
 
 def q_of(m):

@@ -25,6 +25,7 @@ from rclpy.executors import SingleThreadedExecutor  # noqa: E402
 from rclpy.parameter import Parameter  # noqa: E402
 from rclpy.qos import DurabilityPolicy, ReliabilityPolicy  # noqa: E402
 
+from ros_helpers import spin_until  # noqa: E402
 from strapdown_ros.nodes.calibrator_node import CalibratorNode  # noqa: E402
 from strapdown_ros.nodes.imu_sim_node import ImuSimNode  # noqa: E402
 from strapdown_ros.nodes.ros_io import stamp_to_ns, stream_qos  # noqa: E402
@@ -58,20 +59,6 @@ except ImportError:                                        # older Jazzy rclpy
 QUEUE = 20000
 
 
-@pytest.fixture(scope="module")
-def ros():
-    rclpy.init()
-    yield
-    rclpy.shutdown()
-
-
-def spin_until(executor, predicate, timeout):
-    end = time.monotonic() + timeout
-    while time.monotonic() < end:
-        executor.spin_once(timeout_sec=0.02)
-        if predicate():
-            return True
-    return False
 
 
 def q_of(msg):

@@ -17,6 +17,7 @@ from rclpy.executors import SingleThreadedExecutor  # noqa: E402
 from rclpy.parameter import Parameter  # noqa: E402
 from sensor_msgs.msg import Imu  # noqa: E402
 
+from ros_helpers import spin_until  # noqa: E402
 from strapdown_ros.coning import ALGORITHMS, theory_drift  # noqa: E402
 from strapdown_ros.nodes.calibrator_node import CalibratorNode  # noqa: E402
 from strapdown_ros.nodes.imu_sim_node import ImuSimNode  # noqa: E402
@@ -38,20 +39,6 @@ IDEAL = [Parameter(f"{s}_{k}", value=0.0) for s in ("gyro", "accel")
 IMU_MEAN = [Parameter("gyro_input", value="imu"), Parameter("imu_rate_rule", value="mean")]
 
 
-@pytest.fixture(scope="module")
-def ros():
-    rclpy.init()
-    yield
-    rclpy.shutdown()
-
-
-def spin_until(executor, predicate, timeout):
-    end = time.monotonic() + timeout
-    while time.monotonic() < end:
-        executor.spin_once(timeout_sec=0.02)
-        if predicate():
-            return True
-    return False
 
 
 def _stamped_quaternions(msgs):

@@ -1,7 +1,6 @@
 """sins_node's navigation channel in a real graph (in-process, executor, timeouts): sins/odometry
 type, frame ids and content against imu_sim_node's exact truth, for the static and turn profiles,
 and the static alignment started from the data."""
-import time
 
 import numpy as np
 import pytest
@@ -17,6 +16,7 @@ from strapdown_ros.nodes.imu_sim_node import ImuSimNode  # noqa: E402
 from strapdown_ros.nodes.ros_io import stamp_to_ns, stream_qos  # noqa: E402
 from strapdown_ros.nodes.sins_node import SinsNode  # noqa: E402
 from strapdown_ros.rotation import quat_angle_between, to_ros_xyzw  # noqa: E402
+from ros_helpers import spin_until  # noqa: E402
 
 try:
     from rclpy.experimental import EventsExecutor as GraphExecutor  # noqa: E402
@@ -28,20 +28,6 @@ IDEAL = [Parameter(f"{s}_{k}", value=0.0) for s in ("gyro", "accel")
          for k in ("bias_sigma", "scale_sigma", "misalignment_sigma", "random_walk")]
 
 
-@pytest.fixture(scope="module")
-def ros():
-    rclpy.init()
-    yield
-    rclpy.shutdown()
-
-
-def spin_until(ex, predicate, timeout):
-    end = time.monotonic() + timeout
-    while time.monotonic() < end:
-        ex.spin_once(timeout_sec=0.02)
-        if predicate():
-            return True
-    return False
 
 
 def _run(ns, profile, duration, sins_extra=(), sim_extra=(), expect=None):

@@ -26,12 +26,6 @@ IDEAL = [Parameter(f"{s}_{k}", value=0.0) for s in ("gyro", "accel")
 NODES = pathlib.Path(__file__).resolve().parents[1] / "strapdown_ros" / "nodes"
 
 
-@pytest.fixture(scope="module")
-def ros():
-    rclpy.init()
-    yield
-    rclpy.shutdown()
-
 
 def _msg(stamp_ns, v, frame=""):
     m = Vector3Stamped()

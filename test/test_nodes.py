@@ -7,7 +7,6 @@ independent truth: the closed-form coning attitude and specific force of the pro
 import os
 import subprocess
 import sys
-import time
 
 import numpy as np
 import pytest
@@ -35,17 +34,12 @@ from strapdown_ros.nodes.ros_io import stamp_to_ns, stream_qos  # noqa: E402
 from strapdown_ros.nodes.sins_node import SinsNode  # noqa: E402
 from strapdown_ros.profiles import ConingProfile  # noqa: E402
 from strapdown_ros.rotation import from_ros_xyzw, quat_angle_between, to_ros_xyzw  # noqa: E402
+from ros_helpers import spin_until  # noqa: E402
 
 ALPHA, NU = 0.1, 4 * np.pi          # 2 Hz cone: Ωh = 0.25 for the 2-sample algorithm at 100 Hz
 IDEAL = [Parameter(f"{s}_{k}", value=0.0) for s in ("gyro", "accel")
          for k in ("bias_sigma", "scale_sigma", "misalignment_sigma", "random_walk")]
 
-
-@pytest.fixture(scope="module")
-def ros():
-    rclpy.init()
-    yield
-    rclpy.shutdown()
 
 
 class Recorder:
@@ -60,14 +54,6 @@ class Recorder:
     def stamps(self, name):
         return np.array([stamp_to_ns(m.header.stamp) * 1e-9 for m in self.data[name]])
 
-
-def spin_until(executor, predicate, timeout):
-    end = time.monotonic() + timeout
-    while time.monotonic() < end:
-        executor.spin_once(timeout_sec=0.02)
-        if predicate():
-            return True
-    return False
 
 
 def make_graph(ns, algorithm="2", duration=4.0, extra_sim=(), extra_sins=()):
