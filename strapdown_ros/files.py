@@ -10,6 +10,7 @@ from __future__ import annotations
 import os
 import shutil
 import tempfile
+from contextlib import contextmanager
 from pathlib import Path
 
 __all__ = ["atomic_write_text", "atomic_savefig", "stage_directory", "commit_directory",
@@ -19,6 +20,27 @@ __all__ = ["atomic_write_text", "atomic_savefig", "stage_directory", "commit_dir
 def _directory(path) -> Path:
     d = Path(path).parent
     return d if str(d) else Path(".")
+
+
+@contextmanager
+def _replacing(path, suffix: str):
+    """A temporary file beside ``path`` (same directory, ``suffix``) for the caller to fill;
+    moved over ``path`` when the block ends, removed if it fails.  Errors name ``path``."""
+    fd, tmp = None, None
+    try:
+        fd, tmp = tempfile.mkstemp(dir=_directory(path), prefix=f".{Path(path).name}.",
+                                   suffix=suffix)
+        yield fd, tmp
+        os.replace(tmp, path)
+        tmp = None
+    except OSError as exc:
+        raise OSError(exc.errno, f"cannot write {path}: {exc.strerror or exc}") from None
+    finally:
+        if tmp is not None:
+            try:
+                os.unlink(tmp)
+            except OSError:
+                pass
 
 
 def atomic_write_text(path, text: str) -> None:
@@ -36,24 +58,11 @@ def atomic_write_text(path, text: str) -> None:
     OSError
         The write failed; the message names ``path`` and the target is unchanged.
     """
-    d = _directory(path)
-    tmp = None
-    try:
-        fd, tmp = tempfile.mkstemp(dir=d, prefix=f".{Path(path).name}.", suffix=".tmp")
+    with _replacing(path, ".tmp") as (fd, _):
         with os.fdopen(fd, "w", encoding="utf-8") as fh:
             fh.write(text)
             fh.flush()
             os.fsync(fh.fileno())
-        os.replace(tmp, path)
-        tmp = None
-    except OSError as exc:
-        raise OSError(exc.errno, f"cannot write {path}: {exc.strerror or exc}") from None
-    finally:
-        if tmp is not None:
-            try:
-                os.unlink(tmp)
-            except OSError:
-                pass
 
 
 def atomic_savefig(fig, path, **kwargs) -> None:
@@ -69,22 +78,9 @@ def atomic_savefig(fig, path, **kwargs) -> None:
     **kwargs
         Passed to ``savefig`` (``dpi``, ...).
     """
-    p = Path(path)
-    tmp = None
-    try:
-        fd, tmp = tempfile.mkstemp(dir=_directory(p), prefix=f".{p.name}.", suffix=p.suffix)
+    with _replacing(path, Path(path).suffix) as (fd, tmp):
         os.close(fd)
         fig.savefig(tmp, **kwargs)
-        os.replace(tmp, p)
-        tmp = None
-    except OSError as exc:
-        raise OSError(exc.errno, f"cannot write {path}: {exc.strerror or exc}") from None
-    finally:
-        if tmp is not None:
-            try:
-                os.unlink(tmp)
-            except OSError:
-                pass
 
 
 def stage_directory(path) -> Path:

@@ -420,6 +420,17 @@ class SinsSystem:
         return self._block_end_ns
 
     # --- a whole recording at once -------------------------------------------------------------
+    def _foreign_frames(self, frame_index, frame_names, n: int):
+        """(mask of the n records whose frame is not the body frame, the first such frame or
+        None) from per-record indices into ``frame_names`` (None: every record is ours)."""
+        if frame_index is None or not n:
+            return np.zeros(n, bool), None
+        codes = np.asarray(frame_index, dtype=np.int64)
+        foreign = np.array([name not in self._own_frames for name in frame_names], dtype=bool)
+        mask = foreign[codes] if len(foreign) else np.zeros(n, bool)
+        first = frame_names[int(codes[np.argmax(mask)])] if mask.any() else None
+        return mask, first
+
     def screen(self, stream: str, stamps_ns, values, frame_index=None, frame_names=()):
         """The input rules of :meth:`offer_gyro` / :meth:`offer_accel` applied to a whole recorded
         stream in bag order, vectorised where the stream is regular.
@@ -448,16 +459,10 @@ class SinsSystem:
         check = copy.deepcopy(self.gyro_check if stream == "gyro" else self.accel_check)
         st = np.asarray(stamps_ns, dtype=np.int64).reshape(-1)
         v = np.asarray(values, dtype=float).reshape(-1, 3)
-        wrong = 0
-        if frame_index is not None and len(st):
-            codes = np.asarray(frame_index, dtype=np.int64)
-            foreign = np.array([name not in self._own_frames for name in frame_names], dtype=bool)
-            mask = foreign[codes] if len(foreign) else np.zeros(len(st), bool)
-            wrong = int(mask.sum())
-            if wrong:
-                first = frame_names[int(codes[np.argmax(mask)])]
-                if self.reject_frames:
-                    st, v = st[~mask], v[~mask]
+        mask, first = self._foreign_frames(frame_index, frame_names, len(st))
+        wrong = int(mask.sum())
+        if wrong and self.reject_frames:
+            st, v = st[~mask], v[~mask]
         segments = screen_stream(check, st, v)
         if len(segments) > 1:
             return None
@@ -504,19 +509,15 @@ class SinsSystem:
         w = np.asarray(angular_velocity, dtype=float).reshape(-1, 3)
         f = None if linear_acceleration is None else \
             np.asarray(linear_acceleration, dtype=float).reshape(-1, 3)
-        if frame_index is not None and len(st):
-            codes = np.asarray(frame_index, dtype=np.int64)
-            foreign = np.array([name not in self._own_frames for name in frame_names], dtype=bool)
-            mask = foreign[codes] if len(foreign) else np.zeros(len(st), bool)
-            wrong = int(mask.sum())
-            if wrong:
-                first = frame_names[int(codes[np.argmax(mask)])]
-                self.frame_mismatch["gyro"] += wrong
-                self._log("warn", lambda: self._frame_text("gyro", first, wrong), throttle=10.0,
-                          key="frame_gyro")
-                if self.reject_frames:
-                    keep = ~mask
-                    st, w, f = st[keep], w[keep], (None if f is None else f[keep])
+        mask, first = self._foreign_frames(frame_index, frame_names, len(st))
+        wrong = int(mask.sum())
+        if wrong:
+            self.frame_mismatch["gyro"] += wrong
+            self._log("warn", lambda: self._frame_text("gyro", first, wrong), throttle=10.0,
+                      key="frame_gyro")
+            if self.reject_frames:
+                keep = ~mask
+                st, w, f = st[keep], w[keep], (None if f is None else f[keep])
         p = self.p
         period = 1.0 / float(p["gyro_rate"])
         jump, resync = float(p["max_stamp_jump"]), int(p["resync_count"])
