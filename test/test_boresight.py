@@ -238,7 +238,7 @@ def test_correlated_weighting_is_consistent_and_beats_pairwise():
 
 @pytest.mark.parametrize("noise_scale", [100.0, 6000.0])
 def test_a_stated_sigma_far_too_small_still_converges_to_the_boresight(noise_scale):
-    """Real recordings item 4: camera noise 100× and 6000× (≈1° per axis, a motion-capture
+    """Camera noise 100× and 6000× (≈1° per axis, a motion-capture
     reference judged with star-tracker σ) what the fixes state.  Every weighting converges (the
     Gauss–Newton step is halved while it raises the cost of its own weights; converged once the
     step is below 1e-4 of the residual-scaled σ), β lies within 3 scaled σ of the injected

@@ -1,4 +1,4 @@
-"""Bounded buffers with O(1) amortised appends (issue 9 finding 5)."""
+"""Bounded buffers with O(1) amortised appends."""
 import numpy as np
 
 from strapdown_ros.buffers import StampedBuffer

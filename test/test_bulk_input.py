@@ -175,7 +175,7 @@ def test_bounded_cuts_long_text_and_says_how_long_it_was():
 
 
 def test_frame_warning_is_built_only_when_emitted_and_bounded():
-    """Finding 10: a 2 MB frame id costs no string building per message, and the warning that
+    """A 2 MB frame id costs no string building per message, and the warning that
     is emitted carries at most the bounded id."""
     p = _params()
     logged = []

@@ -203,7 +203,7 @@ def test_tools_run_with_ros_absent(tmp_path):
 
 
 def test_long_recording_keeps_every_pair_and_takes_the_rate_from_the_stamps(tmp_path, capsys):
-    """Issue 9 finding 1: > 200 000 gyro messages (here 210 000 at 200 Hz, gyro_rate left at 100)
+    """> 200 000 gyro messages (here 210 000 at 200 Hz, gyro_rate left at 100)
     used to give 1 pair or none.  Now gyro and fixes are fed in stamp order and gaps are judged
     against the rate of the stamps."""
     bag = tmp_path / "long"
@@ -223,7 +223,7 @@ def test_long_recording_keeps_every_pair_and_takes_the_rate_from_the_stamps(tmp_
 
 
 def test_overflowing_and_future_stamped_increments_in_a_bag(tmp_path):
-    """Issue 9 findings 2 and 4 offline: a (1e308, 1e308, 0) increment and a lone stamp far in the
+    """Offline, a (1e308, 1e308, 0) increment and a lone stamp far in the
     future are dropped by the nodes' rules and counted; the estimate is the clean bag's."""
     from rosbags.rosbag2 import Reader, Writer
     from rosbags.typesys import Stores, get_typestore
@@ -260,7 +260,7 @@ def test_overflowing_and_future_stamped_increments_in_a_bag(tmp_path):
 
 
 def test_one_outlier_camera_fix_is_gated(tmp_path):
-    """Issue 9 finding 6: one fix rotated 5° used to move β by 6113″.  The outlier rule (both pairs
+    """One fix rotated 5° used to move β by 6113″.  The outlier rule (both pairs
     of the fix off in rotation angle, the pair skipping it consistent) drops it: β stays within 3σ
     of the truth and one pair fewer is used."""
     from rosbags.rosbag2 import Reader, Writer
@@ -298,7 +298,7 @@ def test_one_outlier_camera_fix_is_gated(tmp_path):
 
 
 def test_dropout_and_stamp_burst_cost_only_the_pairs_containing_them(tmp_path, capsys):
-    """Reliability findings 2 and 3 offline: 2 s without increments (t in (62.5, 64.5] s) and 5
+    """Offline, 2 s without increments (t in (62.5, 64.5] s) and 5
     increments stamped 1000 s in the past (t = 102.5 s) each cost the one pair that contains
     them (33 → 31); the dropout reports its 200 missing increments, the burst its 5."""
     from rosbags.rosbag2 import Reader, Writer
@@ -346,7 +346,7 @@ def _noisy_bench(tmp_path, name, scale):
 
 @pytest.mark.parametrize("scale", [1.0, 100.0])
 def test_fit_consistency_is_judged_and_a_wrong_sigma_drops_no_good_fix(tmp_path, capsys, scale):
-    """Real recordings item 4: camera noise 100× the stated σ → fit_consistent false, a WARNING
+    """Camera noise 100× the stated σ → fit_consistent false, a WARNING
     line on stderr, exit 0, no good fix dropped as an outlier (the gate widens with the robust
     scatter), β within 3 scaled σ of the injected truth.  Consistent noise → no warning."""
     bag = _noisy_bench(tmp_path, f"s{scale:g}", scale)

@@ -1,4 +1,4 @@
-"""calibrate_gyro_bag: 000 and 002 on recordings (issue 12 item 3).
+"""calibrate_gyro_bag: 000 and 002 on recordings.
 
 Truth is what record_sim injected through the effect parameters (the random constants of the
 simulated gyro are switched off), never the tool's own output.  The written model is judged by
@@ -251,7 +251,7 @@ def test_gyro_gap_is_not_spanned_and_both_methods_still_recover(recording):
 
 
 def test_camera_noise_100x_the_stated_sigma_is_an_inconsistent_fit(tmp_path, capsys):
-    """Real recordings item 4 for 002: the camera noise 100× what its covariance states → χ²/dof
+    """002 with the camera noise 100× what its covariance states → χ²/dof
     far above its band, fit_consistent false, one WARNING line, exit 0; σ scaled by √(χ²/dof),
     the injected errors within 3 of those σ."""
     bag = _record(tmp_path / "bag", {**SCENARIO, **INJECTED, "camera_interval": 0.5, "seed": 11,

@@ -465,7 +465,7 @@ def _node_estimate(ns, poison: bool, params=(), keep=False, noise_scale=1.0):
 
 
 def test_overflowing_increment_is_rejected_and_loses_nothing(ros):
-    """Issue 9 finding 2: Δθ = (1e308, 1e308, 0) used to crash the node with LinAlgError and lose
+    """Δθ = (1e308, 1e308, 0) used to crash the node with LinAlgError and lose
     every pair.  Now the sensor range rejects it; the estimate is the one without it."""
     beta_clean, _, _ = _node_estimate("/t_clean", poison=False)
     beta, out_of_range, failures = _node_estimate("/t_poison", poison=True)
@@ -474,7 +474,7 @@ def test_overflowing_increment_is_rejected_and_loses_nothing(ros):
 
 
 def test_inconsistent_noise_is_a_warn_with_the_reason(ros):
-    """Real recordings item 4: camera noise 100× the σ its covariance states: /diagnostics WARN
+    """Camera noise 100× the σ its covariance states: /diagnostics WARN
     saying the fit is inconsistent (χ²/dof outside its band), fit_consistent False; no good fix
     dropped as an outlier.  With the stated noise right: fit_consistent True."""
     for scale in (1.0, 100.0):
@@ -504,9 +504,9 @@ def test_inconsistent_noise_is_a_warn_with_the_reason(ros):
 
 
 def test_restart_resumes_the_same_estimate_and_a_corrupted_state_is_moved_aside(ros, tmp_path):
-    """Issue 9, restart without loss: the pairs and estimate persist to state_file (atomic, after
+    """Restart without loss: the pairs and estimate persist to state_file (atomic, after
     every new pair); a restarted node resumes the same estimate and republishes it latched;
-    replaying the same recording into it adds no pair (Reliability finding 8); a corrupted file
+    replaying the same recording into it adds no pair; a corrupted file
     is reported and moved aside, never used; no temporary is left behind."""
     state = str(tmp_path / "calib_state.npz")
     sf = [Parameter("state_file", value=state)]
@@ -536,7 +536,7 @@ def test_restart_resumes_the_same_estimate_and_a_corrupted_state_is_moved_aside(
 
 
 def test_state_file_identity_lock_and_paths(ros, tmp_path):
-    """Reliability finding 8 in the node: a state of another calibration (another camera frame)
+    """The state file in the node: a state of another calibration (another camera frame)
     is refused with the reason and left as it is; a second node on the same file gets an ERROR
     and runs without persistence; a directory (with or without a trailing slash) is refused and
     never moved."""
@@ -586,7 +586,7 @@ def test_state_file_identity_lock_and_paths(ros, tmp_path):
 
 
 def test_one_input_path_node_and_calibrate_bag_agree_on_a_hostile_stream(ros, tmp_path):
-    """Issue 9, one input path: the same hostile stream (NaN, duplicate, out-of-order, impossible
+    """One input path: the same hostile stream (NaN, duplicate, out-of-order, impossible
     and far-future increments; a zero and a non-unit camera quaternion) fed to calibrator_node and
     written to a bag for calibrate_bag gives the same counts and the same estimate."""
     pytest.importorskip("rosbags")
@@ -603,7 +603,7 @@ def test_one_input_path_node_and_calibrate_bag_agree_on_a_hostile_stream(ros, tm
         prof, int(prof.duration / 5.0) - 1)
     base = 1_000_000_000_000
     gyro = [(base + int(round(s * 1e9)), tuple(map(float, v))) for s, v in zip(t, dth)]
-    # Reliability finding 2: a burst of 5 increments stamped 1000 s in the past at t = 62.5 s
+    # a burst of 5 increments stamped 1000 s in the past at t = 62.5 s
     # (inside the pair of the fixes at 60 and 65 s); then the stream returns to its timeline
     for k in range(6250, 6255):
         gyro[k] = (gyro[k][0] - 1000 * 10**9, gyro[k][1])

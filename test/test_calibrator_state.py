@@ -1,4 +1,4 @@
-"""The calibrator's state file (Reliability finding 8): identity, replay, lock, paths, temporaries.
+"""The calibrator's state file: identity, replay, lock, paths, temporaries.
 No ROS: strapdown_ros.calibrator_state is core code; calibrator_node only calls it."""
 import os
 

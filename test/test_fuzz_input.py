@@ -1,4 +1,4 @@
-"""Fuzz tests of the input path (issue 9): extreme values and random bytes never crash it, never
+"""Fuzz tests of the input path: extreme values and random bytes never crash it, never
 poison what it accepts, and every message is accounted for."""
 import math
 

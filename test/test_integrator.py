@@ -129,7 +129,7 @@ def test_validation_messages():
 @pytest.mark.parametrize("covariance_model, quantum", [("random_constant", 0.0), ("004", 0.0),
                                                        ("random_constant", 1e-6)])
 def test_compiled_and_numpy_recursions_agree_with_each_other_and_truth(monkeypatch, covariance_model, quantum):
-    """Issue 10 item 2: the optional compiled recursion (numba) and the numpy fallback compute the
+    """The optional compiled recursion (numba) and the numpy fallback compute the
     same attitudes and covariances, in blocks of any size, and both follow the exact coning motion."""
     from dataclasses import replace
 
@@ -164,7 +164,7 @@ def test_compiled_and_numpy_recursions_agree_with_each_other_and_truth(monkeypat
 
 @pytest.mark.parametrize("covariance_model", ["random_constant", "004"])
 def test_compiled_block_kernel_equals_numpy_for_every_coning_algorithm(monkeypatch, covariance_model):
-    """Issue 10: the compiled block kernel evaluates every algorithm from its table
+    """The compiled block kernel evaluates every algorithm from its table
     (coning.bilinear_form), history included; it must give the numpy path's attitudes, rotation
     vectors, mean rates and covariances to round-off, in blocks of odd sizes, for every algorithm of
     the registry."""
@@ -198,7 +198,7 @@ def test_compiled_block_kernel_equals_numpy_for_every_coning_algorithm(monkeypat
 
 
 def test_attitude_only_path_is_compiled_and_equals_numpy(monkeypatch):
-    """Speed issue: the attitude-only path (propagate_covariance False) runs the compiled kernel
+    """The attitude-only path (propagate_covariance False) runs the compiled kernel
     too; its attitudes, rotation vectors, mean rates and intervals equal the numpy path's to
     1e-12 for every algorithm, blocks of odd sizes, and its covariance is NaN in both; against
     the exact attitude of a coning motion it is as good as the path with covariance."""

@@ -1,9 +1,9 @@
-"""Node reliability (issue "Reliability and speed, second pass", findings 1, 6, 7, 12, 14, 15):
+"""Node reliability:
 logging that survives any sequence of severities, /diagnostics that list every current condition
 at the worst level (the accelerometer stall included), and the runtime parameter rules.
 
 Nodes are constructed in-process and fed through their message entry points; their real rclpy
-loggers are used (finding 1 was an exception raised inside rclpy's logger)."""
+loggers are used (a severity change at one call site used to raise inside rclpy's logger)."""
 import ast
 import pathlib
 
@@ -74,7 +74,7 @@ def _feed(node, t0_ns, seconds, gyro_rate=100.0, accel_rate=300.0, accel=True, s
 
 
 def test_node_log_takes_any_sequence_of_severities_and_throttles(ros):
-    """Finding 1, the class: one helper call site, every severity, changing throttles."""
+    """Logging, the class: one helper call site, every severity, changing throttles."""
     node = rclpy.create_node("log_probe")
     try:
         log = ros_io.NodeLog(node.get_logger())
@@ -90,7 +90,7 @@ def test_node_log_takes_any_sequence_of_severities_and_throttles(ros):
 
 
 def test_no_node_selects_a_logger_method_at_run_time():
-    """Finding 1, the guard: rclpy's logger keeps one context per call site, so a call site must
+    """Logging, the guard: rclpy's logger keeps one context per call site, so a call site must
     not choose its severity (``(lg.error if … else lg.info)(text)``) or pass a throttle that is
     not a constant.  Every node module is scanned; ros_io.NodeLog is the way to log at a level
     chosen at run time."""
@@ -112,8 +112,8 @@ def test_no_node_selects_a_logger_method_at_run_time():
 
 
 def test_every_node_logs_through_nodelog():
-    """Issue "second pass", leftover 2: every node logs through ros_io.NodeLog (one call site per
-    severity, its own throttle, bounded texts).  Outside ros_io.py, ``get_logger()`` appears
+    """Every node logs through ros_io.NodeLog (one call site per severity,
+    its own throttle, bounded texts).  Outside ros_io.py, ``get_logger()`` appears
     only as the argument of ``NodeLog(...)``; no rclpy severity method is called on a logger,
     and no rclpy throttle is passed."""
     methods = {"debug", "info", "warn", "warning", "error", "fatal"}
@@ -142,7 +142,7 @@ def test_every_node_logs_through_nodelog():
 
 
 def test_static_alignment_then_stamps_step_back_and_foreign_frames_keep_it_alive(ros, monkeypatch):
-    """Finding 1, the repro: navigation with a static alignment; after it (info), the stamps step
+    """Logging, the repro: navigation with a static alignment; after it (info), the stamps step
     back 10 s (errors: jump, resynchronisation) and Δv arrive in another frame (warn).  Before the
     fix the second severity at sins_node's one log call site raised inside the callback."""
     sins = SinsNode(namespace="/t_diag_align", parameter_overrides=[
@@ -167,7 +167,7 @@ def test_static_alignment_then_stamps_step_back_and_foreign_frames_keep_it_alive
 
 
 def test_every_diagnostic_transition_of_sins_node(ros, monkeypatch):
-    """Findings 6 and 7: each level change of sins_node's status, with every condition listed.
+    """Each level change of sins_node's status, with every condition listed.
     OK → WARN (Δv stopped for more than accel_wait) → OK (Δv back) → WARN (undecodable) → ERROR
     (a gyro gap: not masked by the undecodable messages, both listed) → ERROR (Δv stalled beyond
     max(1 s, 10 accel_wait), named)."""
@@ -209,7 +209,7 @@ def test_every_diagnostic_transition_of_sins_node(ros, monkeypatch):
 
 
 def test_navigation_without_any_accelerometer_data_is_reported(ros, monkeypatch):
-    """Finding 6: with navigation on and no Δv at all, sins/odometry never starts: WARN, then
+    """With navigation on and no Δv at all, sins/odometry never starts: WARN, then
     ERROR, naming the missing stream."""
     sins = SinsNode(namespace="/t_diag_noacc", parameter_overrides=[
         Parameter("navigation", value=True), Parameter("accel_rate", value=300.0), *IDEAL])
@@ -226,7 +226,7 @@ def test_navigation_without_any_accelerometer_data_is_reported(ros, monkeypatch)
 
 
 def test_calibrator_lists_every_condition_at_the_worst_level(ros, monkeypatch):
-    """Finding 7 in calibrator_node: a frame mismatch and undecodable messages are listed beside
+    """In calibrator_node, a frame mismatch and undecodable messages are listed beside
     the WARN of a missing solution, and a gyro gap makes it ERROR without hiding them."""
     cal = CalibratorNode(namespace="/t_diag_cal", parameter_overrides=list(IDEAL[:4]))
     diag = Diagnostics(cal, monkeypatch)
@@ -246,11 +246,11 @@ def test_calibrator_lists_every_condition_at_the_worst_level(ros, monkeypatch):
 
 
 def test_runtime_parameters(ros):
-    """Finding 12: an array parameter set to its current value (rclpy hands back array('d')) is
+    """An array parameter set to its current value (rclpy hands back array('d')) is
     no change, so `ros2 param load` of the shipped config/coning.yaml succeeds; coning_algorithm
     2.0 is refused (no name), as an integer given a fraction is; with navigation on no parameter
     changes, and the message says so; -p numbers that YAML leaves as text (1.0e9) get the range
-    error (finding 15), and the printed velocity update needs 003's layout (finding 14)."""
+    error, and the printed velocity update needs 003's layout."""
     import yaml
     shipped = pathlib.Path(__file__).resolve().parents[1] / "config" / "coning.yaml"
     doc = yaml.safe_load(shipped.read_text())
@@ -306,7 +306,7 @@ def test_runtime_parameters(ros):
 
 
 def test_a_number_given_as_text_is_stored_with_its_type(ros):
-    """Issue "second pass", leftover 5: a quoted number for a double ("0.05", as YAML files may
+    """A quoted number for a double ("0.05", as YAML files may
     quote it) or an integer for a double is used as the double AND stored as one, so
     `ros2 param get` shows what the node uses; text that is no number is still refused."""
     node = SinsNode(namespace="/t_text_num", parameter_overrides=[

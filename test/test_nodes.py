@@ -287,7 +287,7 @@ def test_sins_node_compensates_the_gyro_effects_in_its_parameters(ros):
 
 
 def test_impossible_increments_lone_future_stamp_and_clock_reset(ros):
-    """Issue 9 findings 3 and 4: a finite but impossible increment (1000 rad in 10 ms, 1e308) is
+    """A finite but impossible increment (1000 rad in 10 ms, 1e308) is
     rejected by the sensor range and never reaches the state; a lone stamp far in the future is an
     outlier that stops nothing; a clock reset is followed after resync_count messages, losing none."""
     ns = "/t_hostile"
@@ -343,7 +343,7 @@ def test_impossible_increments_lone_future_stamp_and_clock_reset(ros):
 
 
 def test_sins_node_never_publishes_a_non_finite_state(ros, monkeypatch):
-    """Issue 9 finding 3: should the core ever produce a non-finite update, it is not published; the
+    """Should the core ever produce a non-finite update, it is not published; the
     state returns to the last good one with an inflated σ and /diagnostics says ERROR."""
     sins = SinsNode(namespace="/t_nonfinite", parameter_overrides=[Parameter("coning_algorithm", value="1"), *IDEAL])
     sent = []
@@ -388,7 +388,7 @@ def test_sins_node_never_publishes_a_non_finite_state(ros, monkeypatch):
 
 @pytest.mark.parametrize("rule, used", [("reject", 2), ("accept", 3)])
 def test_frame_rule(ros, rule, used):
-    """Issue 9 finding 10: an increment in another frame than frame_id is counted and WARNed, and
+    """An increment in another frame than frame_id is counted and WARNed, and
     rejected by default; an empty frame_id is unspecified and used."""
     sins = SinsNode(namespace=f"/t_frame_{rule}", parameter_overrides=[
         Parameter("coning_algorithm", value="1"), Parameter("frame_mismatch", value=rule), *IDEAL])
@@ -405,7 +405,7 @@ def test_frame_rule(ros, rule, used):
 
 
 def test_parameter_rules(ros):
-    """Issue 9 finding 9: an integer parameter given 1.5 is refused (not truncated); an integer list
+    """An integer parameter given 1.5 is refused (not truncated); an integer list
     for a double array is read as doubles; setting a parameter to its current value is no change
     (ros2 param load of the shipped file succeeds); an unknown -p name is refused with its name;
     changes are validated on set and applied after."""
@@ -452,7 +452,7 @@ def _captured(node, monkeypatch):
 
 
 def test_sins_node_batches_equal_per_message_processing(ros, monkeypatch):
-    """Issue 10 item 1: the hot path only validates and appends; blocks go through the vectorised
+    """The hot path only validates and appends; blocks go through the vectorised
     core.  Blocks of 50 ms (batch_period 0.05) and message-by-message processing (batch_period 0)
     publish the same updates with the same stamps, attitudes, covariances and specific forces to
     round-off — with a gyro effect compensated, the 004 covariance model, a gap, and a change of

@@ -241,7 +241,7 @@ def test_real_and_own_format_bags_give_the_same_result(trial, workdir, model_fil
 
 # --- the converter and the tools' arguments, without the data set (these run everywhere) -------
 def test_every_second_fix_agrees_with_every_fix_within_3_sigma(trial, workdir, model_file):
-    """Honest σ (issue "Real recordings"): the same trial with the reference decimated to one fix
+    """Honest σ: the same trial with the reference decimated to one fix
     every 2 s instead of every 1 s; every estimate both runs make (boresight, time offset, gyro
     bias) agrees within 3 combined σ."""
     from strapdown_ros.tools.realdata_report import estimates_by_fix_interval

@@ -657,7 +657,7 @@ def _flip_message_opcodes(mcap, channel_id, t0_ns, t1_ns) -> int:
 
 
 def test_corrupt_first_chunk_is_reported_not_silent(tmp_path, capsys):
-    """The reliability finding: a corrupt first MCAP chunk dropped 25 s of gyro data and
+    """A corrupt first MCAP chunk dropped 25 s of gyro data and
     calibrate_bag said 'dropped: none'.  Now the read counts are compared with the bag's index."""
     bag = tmp_path / "bag"
     assert (

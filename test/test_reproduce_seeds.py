@@ -1,4 +1,4 @@
-"""reproduce_seeds in quick mode: the JSON schema the issue fixes, and the comparisons it reports.
+"""reproduce_seeds in quick mode: the JSON schema it fixes, and the comparisons it reports.
 
 Every comparison the report states is recomputed here from the numbers the JSON records (the
 paper's published values and ours), independently of the report code."""

@@ -1,4 +1,4 @@
-"""Property tests of the rotation core (issue 9): composition, inverse, renormalisation,
+"""Property tests of the rotation core: composition, inverse, renormalisation,
 conversion round-trips, the angle wrap at π and the double cover — on random inputs."""
 import numpy as np
 import pytest

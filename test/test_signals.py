@@ -1,4 +1,4 @@
-"""Issue 9 finding 7: every node exits 0, without a traceback, on SIGINT or SIGTERM at any moment
+"""Every node exits 0, without a traceback, on SIGINT or SIGTERM at any moment
 after its entry point runs: during the imports, during construction, while spinning, and with
 SIGINT ignored as in a job started with ``&`` from a script."""
 import os

@@ -308,7 +308,7 @@ def test_argument_errors_are_one_line_exit_2_before_any_work(bags, tmp_path, cap
     assert rc == 0 and "no Δv" in out, err
 
 
-# --- frames, bounded echoes, sensor_msgs/Imu input (issue "Reliability and speed, 2nd pass") ---
+# --- frames, bounded echoes, sensor_msgs/Imu input ---
 def _read_vectors(bag, topic):
     """(stamp_ns, (x, y, z), frame) of a Vector3Stamped topic of a bag, in bag order."""
     from rosbags.highlevel import AnyReader
@@ -353,7 +353,7 @@ def _vector_msgs(items, frame=None):
 
 
 def test_body_frame_of_the_majority_and_the_rest_reported(tmp_path, capsys):
-    """Finding 9: one stray first Δθ in another frame no longer rejects the recording: the body
+    """One stray first Δθ in another frame no longer rejects the recording: the body
     frame is the most frequent one, the stray messages are named, counted and rejected, and the
     solution is that of the recording without them."""
     src = _record(tmp_path / "src", "coning", "frame_id:=imu")
@@ -386,7 +386,7 @@ def test_body_frame_of_the_majority_and_the_rest_reported(tmp_path, capsys):
 
 
 def test_huge_frame_ids_are_cheap_and_every_echo_is_bounded(tmp_path, capsys):
-    """Finding 10: three Δθ with 2 MB frame ids cost no time (86 s before) and the output stays
+    """Three Δθ with 2 MB frame ids cost no time (86 s before) and the output stays
     short: every echoed frame id is cut to 64 characters."""
     import time as _time
     src = _record(tmp_path / "src", "coning")
@@ -515,7 +515,7 @@ def _drop_accel_after(src, dst, t_stop):
 
 @pytest.mark.parametrize("accel_wait, level", [(0.1, "ERROR"), (0.5, "WARN")])
 def test_accelerometer_stall_is_reported_by_the_nodes_rule(tmp_path, capsys, accel_wait, level):
-    """Issue "second pass", leftover 3: Δv stop half-way through the recording while Δθ run on;
+    """Δv stop half-way through the recording while Δθ run on;
     sins_bag reports it as sins_node does on /diagnostics (the core's rule,
     SinsSystem.accel_stall: WARN beyond accel_wait, ERROR beyond max(1 s, 10 accel_wait)),
     naming the stalled stream, with the stall's length in the summary counts."""

@@ -1,4 +1,4 @@
-"""Issue 9 finding 8: bad files and arguments are refused before any work, in one line, exit 2."""
+"""Bad files and arguments are refused before any work, in one line, exit 2."""
 import os
 import subprocess
 import sys
@@ -86,7 +86,7 @@ def _digest(paths):
 
 
 def test_no_output_overwrites_an_input(tmp_path):
-    """Issue "second pass" finding 5: one output rule for every tool
+    """One output rule for every tool
     (tools/paths.py::check_outputs): no output may be an input (a file inside the input bag
     directory included) or another output, an existing one needs --force, the target directory
     must take a real write (/proc: os.access says yes as root); each refusal is one line, exit 2,
@@ -167,8 +167,8 @@ def test_atomic_write_leaves_the_old_file_when_the_write_fails(tmp_path):
     ("frame_id: 2024-01-01", "frame_id must be a string, got date"),
 ])
 def test_model_values_beyond_physics_or_of_wrong_type_are_refused_first(tmp_path, body, needle):
-    """Finding 13 (parameter part): huge in-range values overflowed later, a YAML date for a
-    string failed after the JSON was written; now each is one line, exit 2, nothing written."""
+    """Huge in-range values used to overflow later, a YAML date for a string used to fail after
+    the JSON was written; now each is one line, exit 2, nothing written."""
     bag = tmp_path / "bag"
     bag.mkdir()                                   # never read: the model is refused first
     (bag / "metadata.yaml").write_text("rosbag2_bagfile_information: {}\n")

@@ -70,7 +70,7 @@ def input_warnings(prog: str, info: dict) -> list[str]:
     Returns
     -------
     list of str
-        One line per finding, bounded in length; empty when there is nothing to say.
+        One line per problem found, bounded in length; empty when there is nothing to say.
     """
     out = []
     unread = info.get("unread_messages") or {}

@@ -42,7 +42,7 @@ import numpy as np
 from .bench_stats import median_range, stats
 from .paths import write_text
 
-TARGET_RATIO = 2.0                 # sins_bag within 2× the raw read (issue: Speed)
+TARGET_RATIO = 2.0                 # target: sins_bag within 2× the raw read
 
 RAW_READ = """
 import sys, time
