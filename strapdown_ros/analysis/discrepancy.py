@@ -61,6 +61,7 @@ import numpy as np
 
 from ..rotation import dcm_to_ypr, quat_to_dcm, rotvec_to_dcm
 from ..sensors.effects import CANDIDATES, EFFECTS, GyroEffects
+from ..text import json_clean
 from . import diagnostics
 from .linear_model import hac_covariance
 from .linearisation import (NUMERICAL_ERRORS, AnalysisError, BoresightUnobservable, InputError,
@@ -105,22 +106,6 @@ def _check_plausible(name: str, params: dict) -> None:
 def _short(v):
     return np.round(np.asarray(v, dtype=float), 6).tolist()
 # ----------------------------------------------------------------------------- results
-def json_clean(v):
-    """Plain JSON values: numpy scalars and arrays to Python, non-finite floats to None."""
-    if isinstance(v, dict):
-        return {k: json_clean(x) for k, x in v.items()}
-    if isinstance(v, (list, tuple)):
-        return [json_clean(x) for x in v]
-    if isinstance(v, np.ndarray):
-        return json_clean(v.tolist())
-    if isinstance(v, (bool, np.bool_)):
-        return bool(v)
-    if isinstance(v, (np.floating, float)):
-        return float(v) if np.isfinite(v) else None
-    if isinstance(v, np.integer):
-        return int(v)
-    return v
-
 @dataclass
 class Step:
     effect: str

@@ -41,6 +41,7 @@ import numpy as np
 from ..analysis.steady_filter import discretize
 from ..estimation import AttitudeFilter, chi2_3_quantile
 from ..rotation import quat_conjugate, quat_multiply, quat_to_rotvec, rotvec_to_quat
+from ..text import json_clean
 from .bench_stats import (chi2_band, median_range, pcrb_filter_smoother, rts_smooth,
                           simulate_increments, stats)
 from .paths import DIRECTORY, FILE, OneLineParser, check_outputs, write_json, write_text
@@ -455,20 +456,6 @@ def write_plots(outdir: str, mc: dict) -> list[str]:
     return paths
 
 
-def _jsonable(x):
-    if isinstance(x, dict):
-        return {k: _jsonable(v) for k, v in x.items()}
-    if isinstance(x, (list, tuple)):
-        return [_jsonable(v) for v in x]
-    if isinstance(x, np.ndarray):
-        return _jsonable(x.tolist())
-    if isinstance(x, (np.floating, np.integer)):
-        return x.item()
-    if isinstance(x, float) and not math.isfinite(x):
-        return None
-    return x
-
-
 def main(argv=None) -> int:
     argv = sys.argv[1:] if argv is None else list(argv)
     ap = OneLineParser(prog="filter_bench", description=__doc__.split("\n\n")[0])
@@ -558,7 +545,7 @@ def main(argv=None) -> int:
         res["plots"] = [os.path.basename(p) for p in write_plots(a.plots, mc)]
     res["wall_s"] = time.perf_counter() - t0
     if a.json:
-        write_json(a.json, _jsonable(res))
+        write_json(a.json, json_clean(res))
     if a.report:
         rel = os.path.relpath(a.plots, os.path.dirname(os.path.abspath(a.report))) \
             if a.plots else None

@@ -45,7 +45,6 @@ is computed from the numbers.  Exit 0 (a benchmark, not a test); 2 for bad argum
 from __future__ import annotations
 
 import argparse
-import json
 import math
 import os
 import sys
@@ -54,8 +53,9 @@ from pathlib import Path
 
 import numpy as np
 
+from ..text import json_clean
 from .bench_stats import median_range, stats
-from .paths import write_text, write_figure
+from .paths import write_figure, write_json, write_text
 
 GYRO_RATE = 100.0
 ACCEL_RATE = 300.0
@@ -482,18 +482,6 @@ class _Parser(argparse.ArgumentParser):
         sys.exit(2)
 
 
-def _jsonable(x):
-    if isinstance(x, dict):
-        return {k: _jsonable(v) for k, v in x.items()}
-    if isinstance(x, (list, tuple)):
-        return [_jsonable(v) for v in x]
-    if isinstance(x, np.ndarray):
-        return x.tolist()
-    if isinstance(x, (np.floating, np.integer)):
-        return x.item()
-    return x
-
-
 def main(argv=None):
     argv = sys.argv[1:] if argv is None else list(argv)
     ap = _Parser(prog="nav_bench", description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -567,7 +555,7 @@ def main(argv=None):
     res["wall_s"] = time.perf_counter() - t_start
     print(text)
     if args.json:
-        write_text(args.json, json.dumps(_jsonable(res), indent=2))
+        write_json(args.json, json_clean(res), indent=2)
     if args.report:
         path = write_report(args.report, res, series, text)
         progress(f"report {path}")
