@@ -26,7 +26,7 @@ setup(
         "tools": ["scipy", "matplotlib", "rosbags", "pyyaml", "allantools"],
         # boresight_bench: OpenCV hand-eye peers; 5.0.0 lacks calibrateHandEye in Python (opencv#29565)
         # sins_bench peers: pyins (its numba kernel; numba also compiles the reference loop and,
-        # when installed, strapdown_ros.attitude_kernel — optional, numpy fallback)
+        # when installed, strapdown_ros.attitude.kernel — optional, numpy fallback)
         "bench": ["opencv-python-headless>=4.8,<5", "python-ins==1.0.1"],
         # the compiled block kernel of the attitude core and the navigation loops (optional: without
         # numba the vectorised numpy path runs, tested against it; sins_bench prints both)
@@ -46,8 +46,8 @@ setup(
             "imu_sim_node = strapdown_ros.nodes.launch:imu_sim_node",
             "sins_node = strapdown_ros.nodes.launch:sins_node",
             "strapdown_demo = strapdown_ros.nodes.launch:strapdown_demo",
-            "sins_bench = strapdown_ros.tools.sins_bench:main",
-            "coning_bench = strapdown_ros.tools.coning_bench:main",
+            "sins_bench = strapdown_ros.bench.sins_bench:main",
+            "coning_bench = strapdown_ros.bench.coning_bench:main",
             "star_camera_sim_node = strapdown_ros.nodes.launch:star_camera_sim_node",
             "calibrator_node = strapdown_ros.nodes.launch:calibrator_node",
             "attitude_filter_node = strapdown_ros.nodes.launch:attitude_filter_node",
@@ -56,17 +56,17 @@ setup(
             "calibrate_gyro_bag = strapdown_ros.tools.calibrate_gyro_bag:main",
             "sins_bag = strapdown_ros.tools.sins_bag:main",
             "filter_bag = strapdown_ros.tools.filter_bag:main",
-            "sins_bag_bench = strapdown_ros.tools.sins_bag_bench:main",
-            "boresight_bench = strapdown_ros.tools.boresight_bench:main",
-            "reproduce_seeds = strapdown_ros.tools.reproduce_seeds:main",
-            "discrepancy_bench = strapdown_ros.tools.discrepancy_bench:main",
+            "sins_bag_bench = strapdown_ros.bench.sins_bag_bench:main",
+            "boresight_bench = strapdown_ros.bench.boresight_bench:main",
+            "reproduce_seeds = strapdown_ros.reproductions.reproduce_seeds:main",
+            "discrepancy_bench = strapdown_ros.bench.discrepancy_bench:main",
             "discrepancy = strapdown_ros.tools.discrepancy:main",
-            "load_bench = strapdown_ros.tools.load_bench:main",
-            "node_rate_bench = strapdown_ros.tools.node_rate_bench:main",
-            "nav_bench = strapdown_ros.tools.nav_bench:main",
+            "load_bench = strapdown_ros.bench.load_bench:main",
+            "node_rate_bench = strapdown_ros.bench.node_rate_bench:main",
+            "nav_bench = strapdown_ros.bench.nav_bench:main",
             "realdata_report = strapdown_ros.tools.realdata_report:main",
             "realdata_bag = strapdown_ros.tools.realdata_bag:main",
-            "filter_bench = strapdown_ros.tools.filter_bench:main",
+            "filter_bench = strapdown_ros.bench.filter_bench:main",
         ],
     },
 )

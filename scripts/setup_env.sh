@@ -136,7 +136,7 @@ warm_kernels() {
     d="$(mktemp -d)" || return 1
     if "$VENV/bin/record_sim" "$d/bag" --duration 2 -p profile:=coordinated_turn >/dev/null 2>&1 \
         && "$VENV/bin/python" -c "import sys, pathlib
-from strapdown_ros.tools.sins_bag_bench import navigation_parameters
+from strapdown_ros.bench.sins_bag_bench import navigation_parameters
 navigation_parameters('coordinated_turn', pathlib.Path(sys.argv[1]))" "$d/p.yaml" \
         && "$VENV/bin/sins_bag" "$d/bag" --params "$d/p.yaml" --output "$d/o.csv" --quiet \
             >/dev/null 2>&1; then

@@ -15,6 +15,8 @@ os.environ.setdefault("RCUTILS_LOGGING_BUFFERED_STREAM", "1")
 
 # tests import the package from the repository checkout
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+# shared test helpers (ros_helpers) for the tests in the room folders
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 
 
 import pytest  # noqa: E402  (after the environment above, before any test imports rclpy)

@@ -5,7 +5,7 @@ J. Guidance 5(5); Markley & Crassidis (2014), *Fundamentals of Spacecraft Attitu
 Determination and Control*, ch. 6.  Model, equations and sources: ``doc/attitude_filter.md``.
 
 Nominal state: the SINS attitude ``q_ref_body`` from the package's own integrator
-(:class:`~strapdown_ros.integrator.AttitudeIntegrator`, the selected coning algorithm) on
+(:class:`~strapdown_ros.attitude.integrator.AttitudeIntegrator`, the selected coning algorithm) on
 increments compensated with the estimated gyro effects; the boresight ``q_MF_VF``; τ̂.
 
 Error state x (all "estimate minus truth"):
@@ -38,13 +38,13 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..integrator import AttitudeIntegrator
-from ..rotation import (quat_conjugate, quat_multiply, quat_normalize, quat_to_dcm,
-                        quat_to_rotvec, rotvec_to_quat)
-from ..sensors.effects import EFFECTS, GyroEffects
-from .error_model import block_transition
-from .filter_support import (FilterCounters, FixResult, chi2_3_quantile, psd_factor,
-                             triangular_factor)
+from strapdown_ros.attitude.integrator import AttitudeIntegrator
+from strapdown_ros.rotation import (quat_conjugate, quat_multiply, quat_normalize, quat_to_dcm,
+    quat_to_rotvec, rotvec_to_quat)
+from strapdown_ros.sensors.effects import EFFECTS, GyroEffects
+from strapdown_ros.estimation.error_model import block_transition
+from strapdown_ros.estimation.filter_support import (FilterCounters, FixResult, chi2_3_quantile,
+    psd_factor, triangular_factor)
 
 __all__ = ["AttitudeFilter", "FixResult", "FilterCounters", "chi2_3_quantile", "FILTER_STATES"]
 
@@ -97,7 +97,7 @@ class AttitudeFilter:
     initial_time : float
         Stamp of the initial attitude (the start of the first increment), s.
     algorithm : str
-        Coning algorithm (:data:`strapdown_ros.coning.ALGORITHMS`) of the integrator.
+        Coning algorithm (:data:`strapdown_ros.attitude.coning.ALGORITHMS`) of the integrator.
     gyro_random_walk : float
         Angle random walk σ_v, rad/√s.
     gyro_bias_random_walk : float

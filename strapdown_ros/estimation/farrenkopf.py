@@ -23,7 +23,7 @@ autocovariances (units σ_n²) ``c₀ = 6 + 2S_v² + ⅔S_u²``, ``c₁ = −4 �
 from which ``cosh((λ₁ + λ₂)/2) = γ`` and ``1/(r₁r₂) = ξ²``.  The post-update variance follows
 from the scalar gain ``K = P(−) / (P(−) + σ_n²)``: ``P(+) = P(−) σ_n² / (P(−) + σ_n²)``.
 :func:`riccati_steady_state` iterates the discrete Riccati equation of the same model as an
-independent check (``test/test_attitude_filter.py``).
+independent check (``test/estimation/test_attitude_filter.py``).
 """
 from __future__ import annotations
 
@@ -31,7 +31,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..analysis.steady_filter import discretize, steady_state_gain
+from strapdown_ros.estimation.steady_filter import discretize, steady_state_gain
 
 __all__ = ["SteadyState", "farrenkopf_steady_state", "riccati_steady_state", "bias_filter_model"]
 
@@ -81,7 +81,7 @@ def farrenkopf_steady_state(sigma_n: float, sigma_v: float, sigma_u: float,
 def bias_filter_model(sigma_v: float, sigma_u: float, dt: float) -> tuple[np.ndarray, np.ndarray]:
     """Exact discrete model of one axis over dt: transition Φ (2, 2) and process noise Q (2, 2)
     of x = [θ error, bias error] with ``θ̇ = −b + η_v``, ``ḃ = η_u``, from the continuous model
-    by Van Loan's method (:func:`strapdown_ros.analysis.steady_filter.discretize`); equal to
+    by Van Loan's method (:func:`strapdown_ros.estimation.steady_filter.discretize`); equal to
     ``Q = [[σ_v²Δt + σ_u²Δt³/3, −σ_u²Δt²/2], [−σ_u²Δt²/2, σ_u²Δt]]``."""
     A = np.array([[0.0, -1.0], [0.0, 0.0]])
     return discretize(A, np.diag([sigma_v ** 2, sigma_u ** 2]), dt)
@@ -89,7 +89,7 @@ def bias_filter_model(sigma_v: float, sigma_u: float, dt: float) -> tuple[np.nda
 
 def riccati_steady_state(sigma_n: float, sigma_v: float, sigma_u: float, dt: float) -> SteadyState:
     """Steady state of the same single-axis model from the discrete algebraic Riccati equation
-    (:func:`strapdown_ros.analysis.steady_filter.steady_state_gain`: numerical, independent of
+    (:func:`strapdown_ros.estimation.steady_filter.steady_state_gain`: numerical, independent of
     the closed form).
 
     Parameters

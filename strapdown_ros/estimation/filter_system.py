@@ -1,7 +1,7 @@
 """The attitude filter between validated streams and outputs: shared by ``attitude_filter_node``
 and the offline tool ``filter_bag`` (no ROS imports).
 
-* Gyro increments pass the nodes' input rules (:class:`~strapdown_ros.streams.StreamCheck`) in
+* Gyro increments pass the nodes' input rules (:class:`~strapdown_ros.streams.checks.StreamCheck`) in
   :meth:`FilterSystem.offer_gyro` (the node) or arrive already validated by the recording reader
   (:meth:`FilterSystem.add_increments`, the tool); both then take the same path.
 * Camera fixes (``q_GCRS_VF``, covariance in VF axes or none) follow calibrator_node's rules
@@ -23,13 +23,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..rotation import (quat_conjugate, quat_cumprod, quat_multiply, quat_normalize,
-                        quat_to_dcm, rotvec_to_quat, ypr_to_dcm, dcm_to_quat)
-from ..sensors.effects import EFFECTS
-from ..streams import StreamCheck
-from ..config import augment_error, augment_names
-from .attitude_filter import AttitudeFilter
-from .model_check import ModelCheck
+from strapdown_ros.rotation import (quat_conjugate, quat_cumprod, quat_multiply, quat_normalize,
+    quat_to_dcm, rotvec_to_quat, ypr_to_dcm, dcm_to_quat)
+from strapdown_ros.sensors.effects import EFFECTS
+from strapdown_ros.streams.checks import StreamCheck
+from strapdown_ros.params import augment_error, augment_names
+from strapdown_ros.estimation.attitude_filter import AttitudeFilter
+from strapdown_ros.estimation.model_check import ModelCheck
 
 __all__ = ["FilterSystem", "FilterOutput", "FixOutput"]
 
@@ -71,7 +71,7 @@ class FilterSystem:
     Parameters
     ----------
     p : dict
-        Validated parameters of ``attitude_filter_node`` (:data:`strapdown_ros.config.
+        Validated parameters of ``attitude_filter_node`` (:data:`strapdown_ros.params.
         FILTER_PARAMS`).
     """
 

@@ -29,9 +29,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..sensors.model import SensorSigmas
-from . import gravity as _gravity
-from .gravity import DEFAULT_GRAVITY_MODEL
+from strapdown_ros.sensors.model import SensorSigmas
+from strapdown_ros import earth as _gravity
+from strapdown_ros.earth import DEFAULT_GRAVITY_MODEL
 
 __all__ = ["AlignmentResult", "static_alignment", "triad"]
 

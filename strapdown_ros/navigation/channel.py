@@ -10,11 +10,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..sensors.model import SensorSigmas
-from .alignment import AlignmentResult, static_alignment
-from .covariance import NavigationCovariance
-from .gravity import enu_rotation, geodetic_to_ecef
-from .navigator import Navigator, NavigationBatch
+from strapdown_ros.sensors.model import SensorSigmas
+from strapdown_ros.navigation.alignment import AlignmentResult, static_alignment
+from strapdown_ros.navigation.covariance import NavigationCovariance
+from strapdown_ros.earth import enu_rotation, geodetic_to_ecef
+from strapdown_ros.navigation.navigator import Navigator, NavigationBatch
 
 __all__ = ["NavigationChannel", "ALIGNMENT_MODES", "VELOCITY_UPDATES"]
 

@@ -28,9 +28,9 @@ import math
 
 import numpy as np
 
-from ..attitude_kernel import kernels_allowed, njit_optional
-from ..sensors.covariance import constant_jacobian_basis, constant_variances
-from ..sensors.model import SensorSigmas
+from strapdown_ros.attitude.kernel import kernels_allowed, njit_optional
+from strapdown_ros.sensors.covariance import constant_jacobian_basis, constant_variances
+from strapdown_ros.sensors.model import SensorSigmas
 
 
 def _skew(v) -> np.ndarray:

@@ -21,11 +21,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..rotation import quat_multiply, quat_to_dcm
-from . import recursion
-from .gravity import DEFAULT_GRAVITY_MODEL
-from .covariance import NavigationCovariance
-from .update import step_layout, specific_force_integrals
+from strapdown_ros.rotation import quat_multiply, quat_to_dcm
+from strapdown_ros.navigation import recursion
+from strapdown_ros.earth import DEFAULT_GRAVITY_MODEL
+from strapdown_ros.navigation.covariance import NavigationCovariance
+from strapdown_ros.navigation.update import step_layout, specific_force_integrals
 
 __all__ = ["CumulativeIncrements", "Navigator", "NavigationBatch", "earth_from_inertial"]
 

@@ -36,9 +36,9 @@ import types
 
 import numpy as np
 
-from ..attitude_kernel import kernels_allowed, njit_optional
-from . import gravity as _gravity
-from .gravity import DEFAULT_GRAVITY_MODEL
+from strapdown_ros.attitude.kernel import kernels_allowed, njit_optional
+from strapdown_ros import earth as _gravity
+from strapdown_ros.earth import DEFAULT_GRAVITY_MODEL
 
 __all__ = ["SCHEMES", "run", "OMEGA"]
 

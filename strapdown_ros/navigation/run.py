@@ -1,5 +1,5 @@
 """Run the whole strapdown chain over an :class:`~.trajectories.EarthProfile` and compare with its
-exact truth: increments → :class:`~strapdown_ros.integrator.AttitudeIntegrator` (attitude
+exact truth: increments → :class:`~strapdown_ros.attitude.integrator.AttitudeIntegrator` (attitude
 q_I_B, I = E at t0) → :class:`~.navigator.Navigator` (position and velocity in E) → errors.
 
 * :func:`generate_increments`: the gyro Δθ and accelerometer Δv of a profile on uniform grids,
@@ -24,16 +24,16 @@ import time
 
 import numpy as np
 
-from ..coning import get_algorithm
-from ..integrator import AttitudeIntegrator
-from ..rotation import quat_angle_between, quat_to_dcm
-from ..sensors.model import (NAVIGATION_GRADE_ACCEL, NAVIGATION_GRADE_GYRO, IntegratingSensor,
-                             SensorErrorModel, SensorSigmas)
-from . import recursion
-from .covariance import NavigationCovariance
-from .gravity import ecef_to_geodetic, enu_rotation
-from .navigator import Navigator
-from .update import step_layout, specific_force_integrals
+from strapdown_ros.attitude.coning import get_algorithm
+from strapdown_ros.attitude.integrator import AttitudeIntegrator
+from strapdown_ros.rotation import quat_angle_between, quat_to_dcm
+from strapdown_ros.sensors.model import (NAVIGATION_GRADE_ACCEL, NAVIGATION_GRADE_GYRO,
+    IntegratingSensor, SensorErrorModel, SensorSigmas)
+from strapdown_ros.navigation import recursion
+from strapdown_ros.navigation.covariance import NavigationCovariance
+from strapdown_ros.earth import ecef_to_geodetic, enu_rotation
+from strapdown_ros.navigation.navigator import Navigator
+from strapdown_ros.navigation.update import step_layout, specific_force_integrals
 
 __all__ = ["Increments", "generate_increments", "navigate", "run_profile", "summarize",
            "specific_force_drift", "steps_per_update"]

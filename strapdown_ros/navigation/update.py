@@ -52,8 +52,8 @@ from itertools import product
 
 import numpy as np
 
-from ..attitude_kernel import kernels_allowed, njit_optional
-from ..rotation import cross
+from strapdown_ros.attitude.kernel import kernels_allowed, njit_optional
+from strapdown_ros.rotation import cross
 
 __all__ = ["FORMS", "StepLayout", "step_layout", "specific_force_integrals", "derived_coefficients",
            "PRINTED_COEFFICIENTS", "coefficient_table"]

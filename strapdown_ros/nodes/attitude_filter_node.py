@@ -8,7 +8,7 @@ Subscribes:
 
 * ``imu/delta_theta``  geometry_msgs/Vector3Stamped, rad, stamp = end of interval (stream QoS);
   with ``gyro_input: imu`` instead ``imu/data_raw`` sensor_msgs/Imu rates made into Δθ by
-  ``imu_rate_rule`` (:class:`~strapdown_ros.rate_increments.RateIncrementStream`, as
+  ``imu_rate_rule`` (:class:`~strapdown_ros.streams.rate_increments.RateIncrementStream`, as
   ``sins_node``).
 * ``star_camera/attitude_with_covariance``  geometry_msgs/PoseWithCovarianceStamped
   (``use_camera_covariance``: R = the rotation block, VF axes, rad²) or ``star_camera/attitude``
@@ -60,11 +60,11 @@ from geometry_msgs.msg import (PoseWithCovarianceStamped, QuaternionStamped,
 from rclpy.node import Node
 from sensor_msgs.msg import Imu
 
-from ..config import FILTER_PARAMS
-from ..estimation.filter_support import chi2_3_quantile
-from ..estimation.filter_system import FilterSystem
-from ..rate_increments import RateIncrementStream
-from . import ros_io
+from strapdown_ros.params import FILTER_PARAMS
+from strapdown_ros.estimation.filter_support import chi2_3_quantile
+from strapdown_ros.estimation.filter_system import FilterSystem
+from strapdown_ros.streams.rate_increments import RateIncrementStream
+from strapdown_ros.nodes import ros_io
 
 NODE_NAME = "attitude_filter_node"
 

@@ -1,6 +1,6 @@
 """calibrator_node: boresight β of a star camera (VF) relative to the IMU (MF) from attitude increments (004).
 
-A thin wrapper around :class:`~strapdown_ros.calibrator.BoresightCalibrator` (the same
+A thin wrapper around :class:`~strapdown_ros.calibration.streaming.BoresightCalibrator` (the same
 object ``calibrate_bag`` uses offline, so live and offline answers agree).
 
 Subscribes:
@@ -8,7 +8,7 @@ Subscribes:
 * ``imu/delta_theta``  geometry_msgs/Vector3Stamped, rad, stamp = end of interval (stream QoS);
   with ``gyro_input: imu`` instead ``imu/data_raw`` sensor_msgs/Imu (stream QoS): each
   angular_velocity is validated as a rate sample and made into Δθ by ``imu_rate_rule``
-  (:class:`strapdown_ros.rate_increments.RateIncrementStream`, as ``sins_node``); the increments
+  (:class:`strapdown_ros.streams.rate_increments.RateIncrementStream`, as ``sins_node``); the increments
   take the path of imu/delta_theta.  Covariance fields and linear_acceleration are not used.
 * ``star_camera/attitude_with_covariance``  geometry_msgs/PoseWithCovarianceStamped (when
   ``use_camera_covariance``: P_avu = the rotation block, rows/cols 3..5, VF axes, rad²), or
@@ -55,7 +55,7 @@ covariance whose rotation block is all zero (the ROS "unknown") is replaced by t
 is dropped.  Stamps are handled in integer nanoseconds relative to the first stamp seen on
 any input; timing comes only from header stamps.
 
-``state_file`` (strapdown_ros.calibrator_state): the pairs persist with their identity (the
+``state_file`` (strapdown_ros.calibration.state): the pairs persist with their identity (the
 parameters that define the estimate, the frames, the resolved topics); a file of another
 calibration is refused and left as it is; a replay adds no pair (pairs keyed by stamps); a lock
 file keeps a second node off it (ERROR, no persistence); a directory is refused, never moved.
@@ -76,14 +76,15 @@ from geometry_msgs.msg import PoseWithCovarianceStamped, QuaternionStamped, Vect
 from rclpy.node import Node
 from sensor_msgs.msg import Imu
 
-from ..boresight import FIT_LEVEL, imu_attitude_from_camera
-from ..config import CALIBRATOR_PARAMS
-from ..streams import StreamCheck
-from ..calibrator import BoresightCalibrator
-from ..calibrator_state import CalibratorStateFile, StateFileError, state_identity
-from ..rate_increments import RateIncrementStream
-from . import ros_io
-from .ros_io import camera_qos, latched_qos, pose_with_covariance, rotation_block
+from strapdown_ros.calibration.boresight import FIT_LEVEL, imu_attitude_from_camera
+from strapdown_ros.params import CALIBRATOR_PARAMS
+from strapdown_ros.streams.checks import StreamCheck
+from strapdown_ros.calibration.streaming import BoresightCalibrator
+from strapdown_ros.calibration.state import CalibratorStateFile, StateFileError, state_identity
+from strapdown_ros.streams.rate_increments import RateIncrementStream
+from strapdown_ros.nodes import ros_io
+from strapdown_ros.nodes.ros_io import (camera_qos, latched_qos, pose_with_covariance,
+    rotation_block)
 
 NODE_NAME = "calibrator_node"
 ARCSEC = math.pi / 180.0 / 3600.0
@@ -331,7 +332,7 @@ class CalibratorNode(Node):
 
     # --- persistence ---------------------------------------------------------------------------
     def _restore_state(self, identity: dict):
-        """Resume from ``state_file`` (strapdown_ros.calibrator_state: identity, lock, atomic
+        """Resume from ``state_file`` (strapdown_ros.calibration.state: identity, lock, atomic
         writes): its pairs, last fix and time origin; the estimate is solved again and
         republished latched.  A file that cannot be used is reported (ERROR) and the node runs
         without persistence; only an unreadable regular file is moved aside."""

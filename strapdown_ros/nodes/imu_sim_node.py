@@ -35,12 +35,12 @@ from nav_msgs.msg import Odometry
 from rclpy.node import Node
 from sensor_msgs.msg import Imu
 
-from ..config import IMU_SIM_PARAMS
-from ..navigation.trajectories import EarthProfile
-from ..profiles import profile_from_config
-from ..rotation import to_ros_xyzw
-from ..sensors import simulated_imu
-from . import ros_io
+from strapdown_ros.params import IMU_SIM_PARAMS
+from strapdown_ros.motion.earth_profiles import EarthProfile
+from strapdown_ros.motion.profiles import profile_from_config
+from strapdown_ros.rotation import to_ros_xyzw
+from strapdown_ros.sensors import simulated_imu
+from strapdown_ros.nodes import ros_io
 
 NODE_NAME = "imu_sim_node"
 

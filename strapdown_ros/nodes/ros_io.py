@@ -18,9 +18,9 @@ from rclpy.parameter import Parameter
 from rclpy.qos import (DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy)
 from rclpy.qos_overriding_options import QoSOverridingOptions
 
-from ..config import ParamSpec
-from . import cdr
-from .launch import signal_received
+from strapdown_ros.params import ParamSpec
+from strapdown_ros.streams import cdr
+from strapdown_ros.nodes.launch import signal_received
 
 # --- QoS ---------------------------------------------------------------------------
 def stream_qos(depth: int = 500) -> QoSProfile:
@@ -49,9 +49,9 @@ def decode_vector3_stamped(data: bytes) -> tuple[int, tuple[float, float, float]
 
     The high-rate increment streams are subscribed raw (``raw=True``): rclpy then skips building
     four Python message objects per message (about 18 µs), and the node reads the few fields it
-    needs from the bytes (:mod:`strapdown_ros.nodes.cdr`, shared with ``sins_bag``).  Any other
+    needs from the bytes (:mod:`strapdown_ros.streams.cdr`, shared with ``sins_bag``).  Any other
     encoding than plain little-endian CDR is handed to rclpy's own deserializer, so nothing is
-    misread (test_fuzz_input.py checks both against rclpy's serializer).  None when the bytes
+    misread (test/streams/test_checks_fuzz.py checks both against rclpy's serializer).  None when the bytes
     are not a Vector3Stamped at all (the caller counts and drops them)."""
     got = cdr.vector3_stamped(data)
     if got is not None:
@@ -200,7 +200,7 @@ def quaternion_stamped(stamp: Time, frame_id: str, q_wxyz) -> QuaternionStamped:
 
 # --- parameters ---------------------------------------------------------------------------
 def descriptor(spec: ParamSpec) -> ParameterDescriptor:
-    """ROS descriptor of a core :class:`~strapdown_ros.config.ParamSpec` (``ros2 param describe``).
+    """ROS descriptor of a core :class:`~strapdown_ros.params.ParamSpec` (``ros2 param describe``).
 
     Ranges and choices are stated in ``additional_constraints`` and enforced by
     :func:`declare_validated` (one message format that lists the valid values), not by
@@ -241,7 +241,7 @@ def declare_validated(node, specs: Sequence[ParamSpec], on_change: Callable[[dic
     package declares is an error (a typo must not pass silently).  Returns the dict of current
     values, kept up to date.
     """
-    from ..config import ALL_PARAMETER_NAMES, combination_error
+    from strapdown_ros.params import ALL_PARAMETER_NAMES, combination_error
 
     by_name = {s.name: s for s in specs}
     values = {}

@@ -7,7 +7,7 @@ Subscribes (stream QoS):
                           message's angular_velocity (and linear_acceleration, unless its
                           covariance[0] is −1) is validated as a rate sample and made into Δθ
                           (Δv) by ``imu_rate_rule``
-                          (:class:`strapdown_ros.rate_increments.RateIncrementStream`); the
+                          (:class:`strapdown_ros.streams.rate_increments.RateIncrementStream`); the
                           increments then take the path of imu/delta_theta (delta_velocity).
                           Its covariance fields are not used (the model's gyro_random_walk is);
                           the Δv stream has the Imu's rate (``gyro_rate`` stands for
@@ -37,7 +37,7 @@ the integrator never sees it.
 
 The numerical processing (validation, blocks, integrator, gyro-effect compensation, the non-finite
 rule, the accelerometer accumulator and the navigation channel) is
-:class:`strapdown_ros.navigation.system.SinsSystem`, shared with the offline tool ``sins_bag``; this
+:class:`strapdown_ros.sins.SinsSystem`, shared with the offline tool ``sins_bag``; this
 node decodes messages, feeds the system and publishes what it returns.
 
 Hot path: a callback only validates a message and appends it.  The increments are integrated in
@@ -57,10 +57,10 @@ from rclpy.node import Node
 from nav_msgs.msg import Odometry
 from sensor_msgs.msg import Imu
 
-from ..config import SINS_PARAMS
-from ..navigation.system import SinsOutput, SinsSystem, odometry_arrays
-from ..rate_increments import RateIncrementStream
-from . import ros_io
+from strapdown_ros.params import SINS_PARAMS
+from strapdown_ros.sins import SinsOutput, SinsSystem, odometry_arrays
+from strapdown_ros.streams.rate_increments import RateIncrementStream
+from strapdown_ros.nodes import ros_io
 
 NODE_NAME = "sins_node"
 
@@ -245,7 +245,7 @@ class SinsNode(Node):
     def process(self) -> None:
         """Integrate the buffered increments as one block through the vectorised core and publish
         every update with its own stamp.  The result equals message-by-message processing to
-        round-off (test_nodes.py::test_sins_node_batches_equal_per_message_processing)."""
+        round-off (test/ros/test_nodes.py::test_sins_node_batches_equal_per_message_processing)."""
         self._publish(self.system.process())
 
     # --- output ------------------------------------------------------------------------------

@@ -4,7 +4,7 @@ The profile parameters and the time origin (``profile``…, ``start_time``, ``ti
 ``duration``) mean exactly what they mean for ``imu_sim_node``, so one parameter file gives
 both simulators the same truth: the camera frame VF is the IMU frame MF turned by the
 boresight β = (ψ, ϑ, γ), ``q_GCRS_VF = q_GCRS_MF ⊗ q_MF_VF`` with
-``C_MF^VF = R_z(−ψ) R_x(ϑ) R_y(γ)`` (:class:`~strapdown_ros.star_camera.StarCameraModel`).
+``C_MF^VF = R_z(−ψ) R_x(ϑ) R_y(γ)`` (:class:`~strapdown_ros.sensors.star_camera.StarCameraModel`).
 
 Publishes, one message per exposure (stamp = ``start_time`` + exposure stamp; exposures every
 ``camera_interval`` s from ``camera_first_exposure``, 0 meaning one interval after t = 0):
@@ -46,11 +46,11 @@ from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import PoseWithCovarianceStamped, QuaternionStamped
 from rclpy.node import Node
 
-from ..config import STAR_CAMERA_PARAMS
-from ..profiles import profile_from_config
-from ..star_camera import StarCameraModel
-from . import ros_io
-from .ros_io import camera_qos, latched_qos, pose_with_covariance
+from strapdown_ros.params import STAR_CAMERA_PARAMS
+from strapdown_ros.motion.profiles import profile_from_config
+from strapdown_ros.sensors.star_camera import StarCameraModel
+from strapdown_ros.nodes import ros_io
+from strapdown_ros.nodes.ros_io import camera_qos, latched_qos, pose_with_covariance
 
 NODE_NAME = "star_camera_sim_node"
 

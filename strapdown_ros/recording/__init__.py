@@ -4,10 +4,11 @@ the tools' input options and reports (:mod:`.options`).
 
 Imports rosbags (the ``tools`` extra); the numerical core never imports this package.
 """
-from .options import (add_input_arguments, check_input_arguments, input_lines, input_options,
-                      input_summary, input_warnings)
-from .reader import (CAMERA_COV_TOPIC, CAMERA_TOPIC, DELTA_THETA_TYPE, GYRO_TOPIC, IMU_TYPE,
-                     REFERENCE_TYPES, Accepted, BagError, open_reader, read_bag, resolve_topic)
+from strapdown_ros.recording.options import (add_input_arguments, check_input_arguments,
+    input_lines, input_options, input_summary, input_warnings)
+from strapdown_ros.recording.reader import (CAMERA_COV_TOPIC, CAMERA_TOPIC, DELTA_THETA_TYPE,
+    GYRO_TOPIC, IMU_TYPE, REFERENCE_TYPES, Accepted, BagError, open_reader, read_bag,
+    resolve_topic)
 
 __all__ = ["BagError", "Accepted", "open_reader", "resolve_topic", "read_bag", "input_summary",
            "input_warnings", "input_lines", "add_input_arguments", "input_options",

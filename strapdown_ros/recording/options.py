@@ -7,16 +7,9 @@ what was read and how (JSON, stdout, stderr).
 
 from __future__ import annotations
 
-from ..rate_increments import RATE_RULES
-from .reader import (
-    CAMERA_COV_TOPIC,
-    CAMERA_TOPIC,
-    DELTA_THETA_TYPE,
-    GYRO_TOPIC,
-    IMU_TYPE,
-    bounded,
-    bounded_list,
-)
+from strapdown_ros.streams.rate_increments import RATE_RULES
+from strapdown_ros.recording.reader import (CAMERA_COV_TOPIC, CAMERA_TOPIC, DELTA_THETA_TYPE,
+    GYRO_TOPIC, IMU_TYPE, bounded, bounded_list)
 
 __all__ = [
     "input_summary",

@@ -4,9 +4,9 @@ Gyro (``--gyro-topic``, default ``imu/delta_theta``), chosen by the topic's type
 
 * ``geometry_msgs/msg/Vector3Stamped``: increments Δθ (rad), stamped at the interval end;
 * ``sensor_msgs/msg/Imu``: ``angular_velocity`` rate samples (rad/s).  They are validated by
-  :class:`strapdown_ros.streams.StreamCheck` (range ``gyro_max_rate`` per axis, period the
+  :class:`strapdown_ros.streams.checks.StreamCheck` (range ``gyro_max_rate`` per axis, period the
   median step of the stamps), made into increments by
-  :func:`strapdown_ros.rate_increments.increments_from_rates` (rule ``trapezoid`` or ``mean``,
+  :func:`strapdown_ros.streams.rate_increments.increments_from_rates` (rule ``trapezoid`` or ``mean``,
   intervals above 1.5 periods not integrated), and the increments then take the same path as
   Δθ messages (validation, gaps, missing counts).
 
@@ -38,9 +38,9 @@ import numpy as np
 from rosbags.highlevel import AnyReader, AnyReaderError
 from rosbags.typesys import Stores, get_typestore
 
-from ..rate_increments import RATE_RULES, increments_from_rates
-from ..rotation import from_ros_xyzw, quat_conjugate
-from ..streams import StreamCheck, nominal_period, validate
+from strapdown_ros.streams.rate_increments import RATE_RULES, increments_from_rates
+from strapdown_ros.rotation import from_ros_xyzw, quat_conjugate
+from strapdown_ros.streams.checks import StreamCheck, nominal_period, validate
 
 __all__ = ["BagError", "Accepted", "open_reader", "resolve_topic", "read_bag", "bounded",
            "bounded_list", "GYRO_TOPIC", "CAMERA_TOPIC", "CAMERA_COV_TOPIC", "DELTA_THETA_TYPE",
@@ -197,7 +197,7 @@ def _stamp_ns(header) -> int:
 
 
 class Accepted:
-    """One recorded stream after the nodes' input rules (:mod:`strapdown_ros.streams`).
+    """One recorded stream after the nodes' input rules (:mod:`strapdown_ros.streams.checks`).
 
     Parameters
     ----------
@@ -400,7 +400,7 @@ def read_bag(
         Gyro range, rad/s per axis (rate samples above it, increments above 2 periods × it, are
         dropped).
     max_stamp_jump : float
-        Stamp jump limit, s (:class:`~strapdown_ros.streams.StreamCheck`).
+        Stamp jump limit, s (:class:`~strapdown_ros.streams.checks.StreamCheck`).
     resync_count : int
         Messages that confirm a new timeline.
     gyro_topic, reference_topic : str or None

@@ -13,7 +13,7 @@ random *constant* (common to all increments) and what is *white*:
     exactly 004 §2.1: every term white from one increment to the next,
     ``P_ρk = Σ_e σ_e² D_e D_eᵀ + σ_w² T I`` with D_e the effect's increment Jacobian, which is
     004's printed ``σ_φ² diag(ρy²+ρz², …) + σ_k² diag(ρx², …) + (σ_b T)² I + σ_w² T I``
-    (``test/test_effects.py`` checks the identity against
+    (``test/sensors/test_effects.py`` checks the identity against
     :func:`~strapdown_ros.sensors.model.increment_covariance`).
 
 Every consumer (the attitude integrator, ``boresight.gyro_increment``, the calibrator's
@@ -25,8 +25,8 @@ from functools import lru_cache
 
 import numpy as np
 
-from .effects import EFFECTS, MISALIGNMENT_INDEX
-from .model import SensorSigmas
+from strapdown_ros.sensors.effects import EFFECTS, MISALIGNMENT_INDEX
+from strapdown_ros.sensors.model import SensorSigmas
 
 __all__ = ["CovarianceModel", "COVARIANCE_MODELS", "get_covariance_model", "constant_jacobian",
            "constant_jacobian_basis", "constant_variances"]
@@ -56,7 +56,7 @@ def constant_jacobian_basis() -> np.ndarray:
     """``E`` (4, 3, 12): ``constant_jacobian(u, T) = Σ_i u_i E_i + T E_3`` for one increment u of
     length T.  Read off :func:`constant_jacobian` itself (the effects' own Jacobians stay the one
     home of the model), which must be linear in (u, T): checked here on random increments.  The
-    compiled block kernel (:mod:`strapdown_ros.attitude_kernel`) and the navigation covariance
+    compiled block kernel (:mod:`strapdown_ros.attitude.kernel`) and the navigation covariance
     contract with it instead of forming the (n, 3, 12) Jacobians."""
     unit = constant_jacobian(np.eye(3), np.zeros(3))              # (3, 3, 12): u = e_i
     per_t = constant_jacobian(np.zeros((1, 3)), np.ones(1))[0]    # (3, 12): T = 1

@@ -7,7 +7,7 @@ Every effect the package knows lives here, once.  An effect owns
 * how it **acts on simulated data** (``imu_sim_node``, ``star_camera_sim_node``, ``record_sim``);
 * its **signature**: the derivative of what it changes (a gyro increment, a camera epoch, a
   camera-fix covariance) with respect to its parameters; the discrepancy workflow turns it into
-  the Jacobian of the increment residuals (:mod:`strapdown_ros.analysis.discrepancy`);
+  the Jacobian of the increment residuals (:mod:`strapdown_ros.discrepancy.workflow`);
 * its **compensation**, where one exists (``sins_node``, ``calibrator_node``, the offline tools).
 
 Adding an effect is one new class below, one line in :data:`EFFECTS`, and its tests.
@@ -36,7 +36,7 @@ from typing import Sequence
 
 import numpy as np
 
-from .model import NAVIGATION_GRADE_GYRO
+from strapdown_ros.sensors.model import NAVIGATION_GRADE_GYRO
 
 __all__ = ["EffectParameter", "Effect", "EFFECTS", "CANDIDATES", "get_effect", "effect_parameters",
            "GyroEffects", "CameraEffects", "MISALIGNMENT_INDEX"]

@@ -260,7 +260,7 @@ def simulated_imu(p: dict, profile):
     node parameters: constants drawn gyro first, then accelerometer, from ``default_rng(seed)``;
     noise streams seed+1 (gyro) and seed+2 (accelerometer); the gyro carries the systematic
     effects of the registry.  Returns (gyro, accel) :class:`IntegratingSensor`."""
-    from .effects import GyroEffects
+    from strapdown_ros.sensors.effects import GyroEffects
 
     seed = int(p["seed"])
     rng = np.random.default_rng(seed)

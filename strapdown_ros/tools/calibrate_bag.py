@@ -32,7 +32,7 @@ Output (``--json FILE``, also printed as a human summary)::
 (``chi2_per_dof_band``): ``fit_consistent``.  When false, a line starting ``WARNING:`` goes to
 stderr (χ²/dof, band, meaning; ``beta_sigma_rad`` is ``beta_sigma_stated_noise_rad`` scaled by
 √(χ²/dof)) and the summary lines of β are prefixed ``UNTRUSTED``; the exit status stays 0.
-Stamp faults are the nodes' (``strapdown_ros.streams``): dropouts and stamp bursts are gaps
+Stamp faults are the nodes' (``strapdown_ros.streams.checks``): dropouts and stamp bursts are gaps
 (``gyro_gaps``), a burst's messages are removed (``dropped.gyro.stamp_burst``), each time base
 after a resynchronisation is calibrated separately.
 Exit status: 0 solved, 2 bad arguments/parameters/bag, 3 not observable, 4 no convergence.
@@ -44,17 +44,16 @@ import sys
 
 import numpy as np
 
-from ..boresight import FIT_LEVEL
-from ..calibrator import BoresightCalibrator
-from ..config import CALIBRATOR_PARAMS, check_all, load_parameter_file
-from ..rotation import to_ros_xyzw
+from strapdown_ros.calibration.boresight import FIT_LEVEL
+from strapdown_ros.calibration.streaming import BoresightCalibrator
+from strapdown_ros.params import CALIBRATOR_PARAMS, check_all, load_parameter_file
+from strapdown_ros.rotation import to_ros_xyzw
 # the reader moved to strapdown_ros.recording; its names stay importable from here
-from ..recording import (CAMERA_COV_TOPIC, CAMERA_TOPIC, GYRO_TOPIC, Accepted,  # noqa: F401
-                         BagError, add_input_arguments, check_input_arguments, input_lines,
-                         input_options, input_summary, input_warnings, open_reader, read_bag,
-                         resolve_topic)
-from ..streams import segments
-from .record_sim import parse_overrides
+from strapdown_ros.recording import (CAMERA_COV_TOPIC, CAMERA_TOPIC, GYRO_TOPIC, Accepted,
+    BagError, add_input_arguments, check_input_arguments, input_lines, input_options,
+    input_summary, input_warnings, open_reader, read_bag, resolve_topic)
+from strapdown_ros.streams.checks import segments
+from strapdown_ros.tools.record_sim import parse_overrides
 
 __all__ = ["main", "read_bag", "calibrate", "calibrator_parameters", "make_calibrator", "solution_json", "BagError"]
 
@@ -99,7 +98,7 @@ def calibrate(data: dict, p: dict):
     and solve; returns (solution, calibrator, pairs discarded over gyro gaps and stamp jumps).
     The calibrator's buffer stays bounded on recordings of any length.
 
-    Each stream is split into its time bases (``strapdown_ros.streams.segments``: a confirmed
+    Each stream is split into its time bases (``strapdown_ros.streams.checks.segments``: a confirmed
     resynchronisation starts a new one; a burst that returned has already been removed by
     ``validate``).  Gyro and camera segments are matched in order (the k-th with the k-th);
     the calibrator restarts its gyro history (``restart_gyro``, as calibrator_node does on a
@@ -280,7 +279,7 @@ def consistency_warning(result: dict) -> str | None:
 
 
 def main(argv=None) -> int:
-    from .paths import FILE, OneLineParser, check_outputs, write_json
+    from strapdown_ros.tools.paths import FILE, OneLineParser, check_outputs, write_json
 
     ap = OneLineParser(prog="calibrate_bag", description=__doc__,
                        formatter_class=argparse.RawDescriptionHelpFormatter)

@@ -13,7 +13,7 @@ formats (``strapdown_ros.recording``): ``--gyro-topic`` of sensor_msgs/msg/Imu r
 ``--rate-rule``), ``--reference-topic`` of PoseStamped, PoseWithCovarianceStamped,
 nav_msgs/msg/Odometry or QuaternionStamped, or TF with ``--reference-frames PARENT CHILD``.
 
-Methods (``strapdown_ros.gyro_calibration``):
+Methods (``strapdown_ros.calibration.gyro``):
 ``integral`` — 002 (Ilyushenko): mean rates over consecutive camera intervals (``--interval`` s,
 default one camera step), generalised least squares with the camera covariance and the gyro
 random walk of the model; ``tkachenko`` — 000 (Tkachenko): quaternion-increment equations at
@@ -57,9 +57,9 @@ def _num(x):
 
 
 def result_json(cal, info: dict) -> dict:
-    """The JSON record of a :class:`~strapdown_ros.gyro_calibration.GyroCalibration`."""
-    from ..analysis.discrepancy import json_clean
-    from ..gyro_calibration import model_parameters
+    """The JSON record of a :class:`~strapdown_ros.calibration.gyro.GyroCalibration`."""
+    from strapdown_ros.discrepancy.workflow import json_clean
+    from strapdown_ros.calibration.gyro import model_parameters
 
     ok = bool(cal.observable)
     rep = cal.observability
@@ -91,7 +91,7 @@ def result_json(cal, info: dict) -> dict:
 
 
 def _summary(bag, info, cal) -> str:
-    from .discrepancy import recording_lines
+    from strapdown_ros.tools.discrepancy import recording_lines
     lines = recording_lines(PROG, bag, info)
     lines[0] += f"; method {cal.method}"
     d = cal.extra
@@ -137,8 +137,8 @@ def consistency_warning(out: dict) -> str | None:
 
 
 def _parse(argv):
-    from ..recording import add_input_arguments
-    from .paths import OneLineParser
+    from strapdown_ros.recording import add_input_arguments
+    from strapdown_ros.tools.paths import OneLineParser
 
     ap = OneLineParser(prog=PROG, description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("bag", help="rosbag2 bag directory, or a .mcap / .db3 file")
@@ -162,8 +162,8 @@ def _parse(argv):
 
 def _check(args) -> None:
     """Arguments, input files and output paths, before any work.  Raises ValueError."""
-    from ..recording import check_input_arguments
-    from .paths import FILE, check_outputs
+    from strapdown_ros.recording import check_input_arguments
+    from strapdown_ros.tools.paths import FILE, check_outputs
 
     check_input_arguments(args)
     if args.drift and args.method != "tkachenko":
@@ -195,7 +195,7 @@ def main(argv=None) -> int:
         print(f"{PROG}: error: {msg}", file=sys.stderr)
         return status
 
-    from ..config import load_model
+    from strapdown_ros.params import load_model
     try:
         _check(args)
         model, doc = load_model(args.model)
@@ -204,11 +204,11 @@ def main(argv=None) -> int:
     if float(model.get("gyro_quantum", 0.0)) > 0 and not args.quiet:
         print(f"{PROG}: warning: gyro_quantum > 0: pulse quantization (000 §5) is not modelled; the σ may be "
               f"optimistic", file=sys.stderr)
-    from .. import gyro_calibration as gc
-    from ..analysis.discrepancy import InputError
-    from .paths import write_json
-    from ..recording import BagError, input_options, input_warnings
-    from .discrepancy import load_recording
+    from strapdown_ros.calibration import gyro as gc
+    from strapdown_ros.discrepancy.workflow import InputError
+    from strapdown_ros.tools.paths import write_json
+    from strapdown_ros.recording import BagError, input_options, input_warnings
+    from strapdown_ros.tools.discrepancy import load_recording
     try:
         rec, info = load_recording(args.bag, model, args.namespace,     # (no progress line yet: an
                                    **input_options(args))               # unusable bag is one line)
@@ -236,7 +236,7 @@ def main(argv=None) -> int:
         if args.json:
             write_json(args.json, out)
         if cal.observable and args.write_model:
-            from ..config import write_model
+            from strapdown_ros.params import write_model
             write_model(args.write_model, doc, gc.model_parameters(cal),
                         f"written by calibrate_gyro_bag --method {cal.method}: gyro_scale_factor, gyro_misalignment, "
                         f"gyro_bias estimated from {Path(args.bag).name}")

@@ -16,7 +16,7 @@ blocks; any parameter of any node).  The known effects it states (``gyro_bias``,
 ``camera_time_offset``, …) are compensated before the search, as ``sins_node`` and
 ``calibrator_node`` compensate them.
 
-Method (``strapdown_ros.analysis.discrepancy``): increment residuals of consecutive camera
+Method (``strapdown_ros.discrepancy.workflow``): increment residuals of consecutive camera
 fixes (004 eq. 5–6) whitened by the calibrator's correlated covariance, the boresight always
 estimated; likelihood-ratio selection over the effect library at a Bonferroni-corrected level,
 confirmed on held-out time blocks; verdict ``model_adequate``, ``explained`` or
@@ -54,8 +54,8 @@ def load_recording(bag: str, model: dict, namespace: str = "", **options):
     topics, the gyro rate from the stamps, the input formats).  ``options``: the input options
     of :func:`strapdown_ros.recording.read_bag` (``gyro_topic``, ``reference_topic``,
     ``reference_frames``, ``rate_rule``).  Raises BagError / ValueError."""
-    from ..analysis.discrepancy import Recording
-    from ..recording import BagError, input_summary, read_bag
+    from strapdown_ros.discrepancy.workflow import Recording
+    from strapdown_ros.recording import BagError, input_summary, read_bag
 
     sig = (model["camera_sigma_xy"], model["camera_sigma_xy"], model["camera_sigma_z"])
     data = read_bag(bag, namespace, True, sig, float(model["gyro_max_rate"]), float(model["max_stamp_jump"]),
@@ -89,7 +89,7 @@ def load_recording(bag: str, model: dict, namespace: str = "", **options):
 def write_model(path: str, doc: dict, result) -> None:
     """The model file with the found effects and the estimated boresight: written into ``/**``
     (and into any node block that sets the same key, so it does not override the new value)."""
-    from ..config import write_model as write_model_file
+    from strapdown_ros.params import write_model as write_model_file
 
     updates = dict(result.model_out)
     updates["initial_boresight"] = updates["boresight"]
@@ -106,7 +106,7 @@ def recording_lines(prog: str, bag, info: dict, counts: str = "") -> list[str]:
         lines.append(f"  gyro gaps: {info['gyro_gaps']} ({info['gyro_missing']} increments missing); pairs "
                      f"spanning them are not used")
     if "gyro_input" in info:
-        from ..recording import input_lines
+        from strapdown_ros.recording import input_lines
         lines += input_lines(info)
     return lines
 
@@ -182,9 +182,10 @@ def _fmt(v):
 
 
 def main(argv=None) -> int:
-    from ..recording import (add_input_arguments, check_input_arguments, input_options,
-                             input_warnings)
-    from .paths import DIRECTORY, FILE, OneLineParser, check_outputs, write_json
+    from strapdown_ros.recording import (add_input_arguments, check_input_arguments,
+        input_options, input_warnings)
+    from strapdown_ros.tools.paths import (DIRECTORY, FILE, OneLineParser, check_outputs,
+        write_json)
 
     ap = OneLineParser(prog="discrepancy", description=__doc__,
                        formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -201,10 +202,10 @@ def main(argv=None) -> int:
     add_input_arguments(ap)
     args = ap.parse_args(argv)
     t0 = time.perf_counter()
-    from ..analysis.discrepancy import (DEFAULT_ALPHA, AnalysisError, BoresightUnobservable,
-                                        InputError, analyse, json_clean)
-    from ..config import load_model
-    from ..recording import BagError
+    from strapdown_ros.discrepancy.workflow import (DEFAULT_ALPHA, AnalysisError,
+        BoresightUnobservable, InputError, analyse, json_clean)
+    from strapdown_ros.params import load_model
+    from strapdown_ros.recording import BagError
 
     alpha = DEFAULT_ALPHA if args.alpha is None else args.alpha
     try:
@@ -255,7 +256,7 @@ def main(argv=None) -> int:
         print(f"discrepancy: error: {exc}", file=sys.stderr)
         return 2
     progress("Allan deviation on static segments")
-    from ..analysis.diagnostics import allan_comparison
+    from strapdown_ros.discrepancy.diagnostics import allan_comparison
     after = dict(model)
     for s in res.steps:
         after.update(s.parameters)
@@ -275,7 +276,7 @@ def main(argv=None) -> int:
             print(f"  model with the found effects: {args.write_model}")
         if args.report:
             progress("report and plots")
-            from .discrepancy_report import write_report
+            from strapdown_ros.discrepancy.report import write_report
             path = write_report(args.report, res, out)
             print(f"  report: {path}")
     except OSError as exc:

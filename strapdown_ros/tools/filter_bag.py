@@ -19,11 +19,12 @@ from pathlib import Path
 
 import numpy as np
 
-from ..config import FILTER_PARAMS, check_all, load_parameter_file
-from ..estimation.filter_system import FilterSystem
-from ..recording.options import add_input_arguments, check_input_arguments, input_options
-from ..recording.reader import BagError, read_bag
-from .paths import FILE, OneLineParser, check_outputs, write_text
+from strapdown_ros.params import FILTER_PARAMS, check_all, load_parameter_file
+from strapdown_ros.estimation.filter_system import FilterSystem
+from strapdown_ros.recording.options import (add_input_arguments, check_input_arguments,
+    input_options)
+from strapdown_ros.recording.reader import BagError, read_bag
+from strapdown_ros.tools.paths import FILE, OneLineParser, check_outputs, write_text
 
 NODE_NAME = "attitude_filter_node"
 

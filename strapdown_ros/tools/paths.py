@@ -15,7 +15,7 @@ import sys
 from pathlib import Path
 from typing import Iterable, Sequence
 
-from ..files import atomic_savefig, atomic_write_text, probe_writable
+from strapdown_ros.files import atomic_savefig, atomic_write_text, probe_writable
 
 __all__ = ["check_output_file", "check_output_dir", "check_outputs", "OneLineParser", "write_json",
            "write_text", "write_figure", "FILE", "DIRECTORY", "REPLACED"]

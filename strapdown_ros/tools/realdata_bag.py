@@ -4,7 +4,7 @@
                  [--reference-format pose|quaternion|both] [--reference-interval S]
                  [--start S] [--end S] [--storage mcap|sqlite3]
 
-Topics and frames: :mod:`strapdown_ros.realdata` (``imu/data`` sensor_msgs/Imu and
+Topics and frames: :mod:`strapdown_ros.recording.repoimu` (``imu/data`` sensor_msgs/Imu and
 ``mocap/pose`` PoseStamped; ``imu/delta_theta`` Vector3Stamped and ``star_camera/attitude``
 QuaternionStamped, the package's own).  The data set's stamps are kept; the reference is
 decimated to one fix per ``--reference-interval`` s (default 1).  Exit 2 with one line on
@@ -16,9 +16,10 @@ import argparse
 import sys
 from pathlib import Path
 
-from ..realdata import GYRO_FORMATS, REFERENCE_FORMATS, read_repoimu_csv, write_bag
-from ..files import commit_directory, discard_directory, stage_directory
-from .paths import REPLACED, OneLineParser, check_outputs
+from strapdown_ros.recording.repoimu import (GYRO_FORMATS, REFERENCE_FORMATS, read_repoimu_csv,
+    write_bag)
+from strapdown_ros.files import commit_directory, discard_directory, stage_directory
+from strapdown_ros.tools.paths import REPLACED, OneLineParser, check_outputs
 
 __all__ = ["main"]
 

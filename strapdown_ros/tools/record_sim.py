@@ -37,11 +37,12 @@ from pathlib import Path
 
 import numpy as np
 
-from ..config import IMU_SIM_PARAMS, PROFILE_PARAMS, STAR_CAMERA_PARAMS, check_all, load_parameter_file
-from ..profiles import profile_from_config
-from ..rotation import to_ros_xyzw
-from ..sensors import simulated_imu
-from ..star_camera import StarCameraModel
+from strapdown_ros.params import (IMU_SIM_PARAMS, PROFILE_PARAMS, STAR_CAMERA_PARAMS, check_all,
+    load_parameter_file)
+from strapdown_ros.motion.profiles import profile_from_config
+from strapdown_ros.rotation import to_ros_xyzw
+from strapdown_ros.sensors import simulated_imu
+from strapdown_ros.sensors.star_camera import StarCameraModel
 
 __all__ = ["main", "record", "parse_overrides", "simulator_parameters", "TOPICS", "UNKNOWN_POSITION_VARIANCE"]
 
@@ -253,8 +254,8 @@ def record(bag: str | Path, imu_p: dict, cam_p: dict, storage: str = "mcap", acc
 
 
 def main(argv=None) -> int:
-    from ..files import commit_directory, discard_directory, stage_directory
-    from .paths import REPLACED, OneLineParser, check_outputs
+    from strapdown_ros.files import commit_directory, discard_directory, stage_directory
+    from strapdown_ros.tools.paths import REPLACED, OneLineParser, check_outputs
 
     ap = OneLineParser(prog="record_sim", description=__doc__,
                        formatter_class=argparse.RawDescriptionHelpFormatter)

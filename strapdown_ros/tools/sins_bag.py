@@ -7,14 +7,14 @@
 Reads ``imu/delta_theta`` (rad) and ``imu/delta_velocity`` (m/s), both
 geometry_msgs/msg/Vector3Stamped stamped at the end of their intervals, from a bag directory or a
 single .mcap/.db3 file (MCAP or sqlite3 storage), and runs them through the numerical core of
-``sins_node`` (:class:`strapdown_ros.navigation.system.SinsSystem`: the same input rules, blocks,
+``sins_node`` (:class:`strapdown_ros.sins.SinsSystem`: the same input rules, blocks,
 integrator, gyro-effect compensation and navigation channel), so the solution is the node's on
 the same messages.  Topic names match with or without the leading slash, under ``--namespace``
 when given; a bag with a single namespace is found without it; ``--gyro-topic``/``--accel-topic``
 name other topics (absolute, or relative to the namespace).  ``--imu-topic`` (or a
 ``--gyro-topic`` of that type) reads sensor_msgs/msg/Imu instead: angular_velocity and
 linear_acceleration are rate samples, checked by the node's rules and made into Δθ and Δv by
-:mod:`strapdown_ros.rate_increments` (``--rate-rule``), as sins_node's ``gyro_input: imu``
+:mod:`strapdown_ros.streams.rate_increments` (``--rate-rule``), as sins_node's ``gyro_input: imu``
 does (:meth:`SinsSystem.screen_imu`); a message whose linear_acceleration_covariance[0] is −1
 has no Δv.
 
@@ -28,7 +28,7 @@ by default, as in the node: ``-p navigation:=true`` with ``initial_position``,
 ``initial_velocity`` and ``initial_orientation`` (q_earth_body) or ``initial_alignment:=static``.
 
 Each stream is read whole (an indexed MCAP file a chunk at a time, :mod:`.mcap_records`; the
-records decoded with numpy, :func:`strapdown_ros.nodes.cdr.stamped_doubles`), checked by the
+records decoded with numpy, :func:`strapdown_ros.streams.cdr.stamped_doubles`), checked by the
 node's rules (:meth:`SinsSystem.screen`) and fed to the core in large blocks, each with the Δv
 stamped up to its last Δθ (:meth:`SinsSystem.feed`): the numbers are those of the node fed the
 messages by header stamp (at equal stamps Δv before Δθ), the attitude to the bit.  When a
@@ -69,17 +69,17 @@ from pathlib import Path
 
 import numpy as np
 
-from ..config import SINS_PARAMS, check_all, load_parameter_file
-from ..files import commit_directory, discard_directory, stage_directory
-from ..navigation.gravity import geodetic_to_ecef
-from ..navigation.system import SinsOutput, SinsSystem, odometry_arrays
-from ..rate_increments import RATE_RULES
-from ..rotation import to_ros_xyzw
-from ..nodes.cdr import stamped_doubles
-from ..text import bounded
-from .calibrate_bag import BagError, _resolve, open_reader
-from .mcap_records import channel_ids, indexed_mcap, read_topics
-from .record_sim import _qos, parse_overrides
+from strapdown_ros.params import SINS_PARAMS, check_all, load_parameter_file
+from strapdown_ros.files import commit_directory, discard_directory, stage_directory
+from strapdown_ros.earth import geodetic_to_ecef
+from strapdown_ros.sins import SinsOutput, SinsSystem, odometry_arrays
+from strapdown_ros.streams.rate_increments import RATE_RULES
+from strapdown_ros.rotation import to_ros_xyzw
+from strapdown_ros.streams.cdr import stamped_doubles
+from strapdown_ros.text import bounded
+from strapdown_ros.tools.calibrate_bag import BagError, _resolve, open_reader
+from strapdown_ros.recording.mcap_records import channel_ids, indexed_mcap, read_topics
+from strapdown_ros.tools.record_sim import _qos, parse_overrides
 
 __all__ = ["main", "sins_parameters", "rate_from_stamps", "open_input", "run", "CSV_NAV_COLUMNS",
            "CSV_ATTITUDE_COLUMNS", "BagError"]
@@ -200,7 +200,7 @@ def _unreadable(path, exc) -> BagError:
 
 def _decode(reader, conn, records: list):
     """Stamps, the float64 fields and the frames of a chunk of records: numpy over the plain CDR
-    layout (nodes/cdr.py), rosbags' deserializer for any record in another encoding."""
+    layout (streams/cdr.py), rosbags' deserializer for any record in another encoding."""
     imu = conn.msgtype == IMU
     st, vals, idx, names, bad = stamped_doubles(records, IMU_DOUBLES if imu else 3)
     known = {n: k for k, n in enumerate(names)}
@@ -578,7 +578,7 @@ def _check_output(out: str, bag: str, force: bool, params: str | None = None) ->
     """OUT can be written (the tools' one output rule,
     :func:`~strapdown_ros.tools.paths.check_outputs`: not an input, absent unless --force, its
     directory takes a write); a directory is replaced only when it is a rosbag2 bag or empty."""
-    from .paths import REPLACED, check_outputs
+    from strapdown_ros.tools.paths import REPLACED, check_outputs
 
     check_outputs([("--output", out, REPLACED)], [("bag", bag), ("--params", params)], force)
     p = Path(out)
@@ -732,7 +732,7 @@ def main(argv=None) -> int:
                          "(linear_acceleration) by --rate-rule")
     ap.add_argument("--rate-rule", choices=RATE_RULES, default="trapezoid",
                     help="how an Imu rate sample becomes an increment "
-                         "(strapdown_ros.rate_increments; default trapezoid)")
+                         "(strapdown_ros.streams.rate_increments; default trapezoid)")
     ap.add_argument("--force", action="store_true", help="replace OUT if it exists")
     ap.add_argument("--quiet", action="store_true", help="no progress lines")
     args = ap.parse_args(argv)

@@ -1,0 +1,1 @@
+"""Calibration: star-camera boresight, gyro calibration by the seed methods, increment pairs."""

@@ -1,0 +1,176 @@
+"""Increment pairs over a whole recording, vectorised: attitude increments from the gyro and the
+camera between consecutive fixes, their residual (004 eq. 5–6) and the signatures of the effects.
+
+This is the same computation as :func:`strapdown_ros.calibration.boresight.gyro_increment` (one-sample
+products of exp(ρ_k) with 004's in-interval polynomial at both ends), done once for all pairs:
+the gyro attitude ``A(t)`` is integrated over the whole record (one parallel-prefix scan), the
+attitude at a fix epoch τ inside interval k is ``A_{k−1} ⊗ r_k(x)``, x = fraction of interval
+k before τ, and ``ΔS_imu = A(τ_s)* ⊗ A(τ_e)``.
+
+Signatures.  A change δρ_k = D_k θ of the increments changes ΔS_imu by a right rotation
+``ε = C_eᵀ Σ_k w_k C_k D_k θ`` (MF axes at τ_e; C_k the DCM of A at the end of interval k,
+w_k the fraction of interval k inside the pair), and the residual by ``Cᵀ ε`` (VF axes), so
+the column of θ is ``Cᵀ C_eᵀ Σ_k w_k C_k D_k``.  A shift of both epochs by −τ changes ΔS_imu
+by ``ε = (ΔSᵀ ω_s − ω_e)(−τ)`` with ω the body rate at the epochs.  No ROS imports.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from strapdown_ros.calibration.boresight import r_partial
+from strapdown_ros.rotation import (quat_conjugate, quat_cumprod, quat_multiply, quat_normalize,
+    quat_to_dcm)
+
+__all__ = ["GyroRecord", "PairSet", "build_pairs", "pair_residuals", "pair_integral", "ANGLE_LIMIT"]
+
+ANGLE_LIMIT = np.pi * 0.999          # increments beyond this are not formed (ambiguous rotation)
+
+
+@dataclass
+class GyroRecord:
+    """Compensated gyro increments of a record: stamps (n,) s, increments (n, 3) rad."""
+    stamps: np.ndarray
+    rho: np.ndarray
+
+    def __post_init__(self):
+        self.stamps = np.asarray(self.stamps, dtype=float)
+        self.rho = np.asarray(self.rho, dtype=float).reshape(-1, 3)
+        self.period = np.diff(self.stamps)                         # T_k of interval k ≥ 1
+        q = quat_cumprod(np.array([1.0, 0.0, 0.0, 0.0]), _exp(self.rho))
+        self.attitude = q                                          # A at the end of interval k
+        self._dcm = None
+
+    @property
+    def dcm(self) -> np.ndarray:
+        """DCMs of :attr:`attitude` (computed once)."""
+        if self._dcm is None:
+            self._dcm = quat_to_dcm(self.attitude)
+        return self._dcm
+
+    def locate(self, tau: np.ndarray):
+        """Interval index k (t_{k−1} < τ ≤ t_k) and fraction x of each epoch; valid mask."""
+        k = np.searchsorted(self.stamps, tau, side="left")
+        valid = (k >= 2) & (k < len(self.stamps))
+        k = np.clip(k, 2, len(self.stamps) - 1)
+        T = self.stamps[k] - self.stamps[k - 1]
+        x = (tau - self.stamps[k - 1]) / T
+        return k, x, valid
+
+    def attitude_at(self, k, x) -> np.ndarray:
+        rho, drho = self.rho[k], self.rho[k] - self.rho[k - 1]
+        part = quat_normalize(r_partial(rho, drho, x))
+        return quat_normalize(quat_multiply(self.attitude[k - 1], part))
+
+    def rate_at(self, k, window: float = 0.025) -> np.ndarray:
+        """Body rate around interval k: the mean over ±``window`` s (at least ±2 increments), so
+        that one quantised or noisy increment does not stand for the rate."""
+        k = np.asarray(k)
+        n = len(self.stamps)
+        T = float(np.median(self.period)) if len(self.period) else 1.0
+        w = max(2, int(round(window / T)))
+        lo = np.clip(k - w, 1, n - 1)
+        hi = np.clip(k + w, 1, n - 1)
+        if not hasattr(self, "_cum"):
+            self._cum = np.vstack([np.zeros((1, 3)), np.cumsum(self.rho, axis=0)])
+        total = self._cum[hi + 1] - self._cum[lo]
+        return total / (self.stamps[hi] - self.stamps[lo - 1])[:, None]
+
+
+def _exp(rho):
+    from strapdown_ros.rotation import rotvec_to_quat
+    return rotvec_to_quat(rho)
+
+
+@dataclass
+class PairSet:
+    """Pairs of consecutive usable fixes (indices into the fix arrays) and their increments."""
+    fix_start: np.ndarray        # (N,) index of the first fix
+    fix_end: np.ndarray          # (N,)
+    t_start: np.ndarray          # IMU-clock epochs τ (stamp − time offset), s
+    t_end: np.ndarray
+    dq_imu: np.ndarray           # (N, 4) ΔS_imu, MF(τ_e) → MF(τ_s)
+    dq_cam: np.ndarray           # (N, 4) ΔS_avu, VF(t_e) → VF(t_s)
+    k_start: np.ndarray          # gyro interval and fraction of each epoch
+    x_start: np.ndarray
+    k_end: np.ndarray
+    x_end: np.ndarray
+    duration: np.ndarray         # τ_e − τ_s
+
+    def __len__(self):
+        return len(self.fix_start)
+
+    @property
+    def adjacent(self) -> np.ndarray:
+        """(N−1,) True where pair n+1 starts at the fix where pair n ends (they share it)."""
+        return self.fix_start[1:] == self.fix_end[:-1]
+
+    def subset(self, mask) -> "PairSet":
+        return PairSet(*(getattr(self, f)[mask] for f in self.__dataclass_fields__))
+
+
+def build_pairs(gyro: GyroRecord, fix_stamps, fix_q, time_offset: float = 0.0, gaps=()) -> PairSet:
+    """Pairs (n−1, n) of consecutive fixes whose epochs the gyro covers (one increment before the
+    first epoch's interval, as 004's polynomial needs) and whose span holds no gyro gap."""
+    tau = np.asarray(fix_stamps, dtype=float) - float(time_offset)
+    k, x, valid = gyro.locate(tau)
+    att = gyro.attitude_at(k, x)
+    idx = np.arange(len(tau))
+    s, e = idx[:-1], idx[1:]
+    ok = valid[:-1] & valid[1:] & (tau[1:] > tau[:-1])
+    if len(gaps):
+        h = 1.5 * float(np.median(gyro.period)) if len(gyro.period) else 0.0
+        for a, b in gaps:                                         # a pair may not span a gap
+            ok &= ~((tau[:-1] - h < b) & (a < tau[1:] + h))
+    s, e = s[ok], e[ok]
+    dq_imu = quat_normalize(quat_multiply(quat_conjugate(att[s]), att[e]))
+    q = np.asarray(fix_q, dtype=float)
+    dq_cam = quat_normalize(quat_multiply(quat_conjugate(q[s]), q[e]))
+    return PairSet(s, e, tau[s], tau[e], dq_imu, dq_cam, k[s], x[s], k[e], x[e], tau[e] - tau[s])
+
+
+def pair_residuals(C: np.ndarray, pairs: PairSet) -> np.ndarray:
+    """f_n of 004 (5)–(6), VF axes: the skew part of ΔS_avuᵀ Cᵀ ΔS_imu C (N, 3)."""
+    from strapdown_ros.calibration.boresight import _residuals
+    return _residuals(C, quat_to_dcm(pairs.dq_imu), quat_to_dcm(pairs.dq_cam))
+
+
+def pair_integral(gyro: GyroRecord, pairs: PairSet, jacobian, chunk: int = 100_000) -> np.ndarray:
+    """ε-signature per pair, MF axes at τ_e: ``C_eᵀ Σ_k w_k C_k D_k`` → (N, 3, p).
+
+    ``jacobian(rho, T, t_mid_index_slice)`` returns D_k (m, 3, p) for a slice of intervals; it is
+    called chunk by chunk, so memory stays bounded on recordings of hours."""
+    n = len(gyro.stamps)
+    Ks, Ke = pairs.k_start, pairs.k_end
+    # running sums Z[k] = Σ_{i ≤ k} C_i D_i, read only where pairs need them
+    need = np.unique(np.concatenate([Ks, Ke - 1]))
+    Z_at, Y_at = {}, {}
+    ys_need = np.unique(np.concatenate([Ks, Ke]))
+    carry = None
+    for lo in range(1, n, chunk):
+        hi = min(n, lo + chunk)
+        sl = np.arange(lo, hi)
+        D = jacobian(gyro.rho[sl], gyro.stamps[sl] - gyro.stamps[sl - 1], sl)
+        Cm = gyro.dcm[sl]
+        Y = np.einsum("kij,kjp->kip", Cm, D)
+        Z = np.cumsum(Y, axis=0)
+        if carry is not None:
+            Z += carry
+        carry = Z[-1].copy()
+        sel = need[(need >= lo) & (need < hi)]
+        for i, z in zip(sel, Z[sel - lo]):
+            Z_at[int(i)] = z
+        sel = ys_need[(ys_need >= lo) & (ys_need < hi)]
+        for i, y in zip(sel, Y[sel - lo]):
+            Y_at[int(i)] = y
+    p = carry.shape[-1] if carry is not None else 0
+    zero = np.zeros((3, p))
+    Zs = np.array([Z_at.get(int(i), zero) for i in Ks])
+    Ze = np.array([Z_at.get(int(i), zero) for i in Ke - 1])
+    Ys = np.array([Y_at[int(i)] for i in Ks])
+    Ye = np.array([Y_at[int(i)] for i in Ke])
+    total = Ze - Zs + (1.0 - pairs.x_start)[:, None, None] * Ys + pairs.x_end[:, None, None] * Ye
+    Cend = quat_to_dcm(gyro.attitude_at(Ke, pairs.x_end))
+    return np.einsum("nji,njp->nip", Cend, total)
+

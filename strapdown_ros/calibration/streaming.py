@@ -1,0 +1,281 @@
+"""Streaming boresight calibrator: gyro increments + camera fixes → increment pairs → estimate.
+
+Used by ``calibrator_node`` (live) and ``calibrate_bag`` (offline) alike, so both give the same
+answer on the same data.  No ROS imports.
+
+Feed it in any interleaving (stamps in seconds, any origin):
+
+* :meth:`add_gyro` — increments Δθ with the stamps of the ends of their intervals;
+* :meth:`add_camera` — a camera attitude q_GCRS_VF (scalar-first) with its 3×3 covariance
+  (VF axes).
+
+Known effects (:mod:`strapdown_ros.sensors.effects`) are compensated on the way in: the
+systematic gyro effects of ``effects`` (bias, drift, scale, asymmetry, misalignment) on the
+increments, and the camera's ``camera_time_offset`` (a fix stamped t belongs to t − offset) and
+``camera_noise_scale`` (P → K P K) on the fixes.
+
+A pair (n−1, n) is formed as soon as the gyro increment whose interval contains t_{E,n} has
+arrived.  :meth:`solve` runs the estimator over all pairs, warm-started from the previous
+solution, and returns a :class:`~strapdown_ros.calibration.boresight.BoresightSolution` (which says
+whether the boresight is observable, and why not).
+"""
+from __future__ import annotations
+
+from collections import deque
+
+import numpy as np
+
+from strapdown_ros.calibration.boresight import (BoresightSolution, IncrementPair,
+    angle_consistency, camera_increment, gyro_increment, solve_boresight)
+from strapdown_ros.streams.buffers import StampedBuffer
+from strapdown_ros.sensors import SensorSigmas
+from strapdown_ros.sensors.covariance import get_covariance_model
+from strapdown_ros.sensors.effects import CameraEffects, GyroEffects
+
+__all__ = ["BoresightCalibrator"]
+
+
+class BoresightCalibrator:
+    def __init__(self, gyro: SensorSigmas | None = None, covariance_model: str = "random_constant",
+                 weighted: bool = True, initial_boresight=(0.0, 0.0, 0.0), min_rotation: float = np.radians(0.5),
+                 max_sigma: float = 1e-3, max_pairs: int = 0, effects: GyroEffects | None = None,
+                 camera: CameraEffects | None = None, outlier_gate: float = 6.0, max_buffer: int | None = None):
+        self.outlier_gate = float(outlier_gate)
+        self.outlier_fixes = 0                      # camera fixes dropped by the outlier rule
+        self.outlier_stamps: deque = deque(maxlen=100)
+        self._angle_ratios: deque = deque(maxlen=self.ROBUST_WINDOW)   # normalised angle residuals
+        self._prev_fix = None                       # the fix before _last_fix (for the skip pair)
+        self.effects = effects if effects is not None and effects.active else None
+        self.camera = camera
+        self._last_stamp = None
+        self.gyro = gyro
+        self.covariance_model = covariance_model
+        self.weighted = weighted
+        self.initial_boresight = np.asarray(initial_boresight, dtype=float)
+        self.min_rotation = min_rotation
+        self.max_sigma = max_sigma
+        self.max_pairs = int(max_pairs)
+        # gyro history: bounded, amortised O(1) appends, trimmed to what the next pairs need
+        self._gyro = StampedBuffer(3, max_len=int(max_buffer or self.MAX_BUFFER))
+        self._cams: deque = deque()     # fixes waiting for gyro coverage: (stamp, q, P)
+        self._last_fix = None           # the fix that starts the next pair
+        self.pairs: list[IncrementPair] = []
+        self._pair_keys: set = set()    # (t_start, t_end), ns, of the pairs held
+        self.replayed_pairs = 0         # pairs not added because a pair with their stamps is held
+        self.solution: BoresightSolution | None = None
+
+    @classmethod
+    def from_params(cls, p: dict) -> "BoresightCalibrator":
+        """The calibrator of ``calibrator_node`` parameters (node and ``calibrate_bag`` alike)."""
+        return cls(gyro=SensorSigmas.from_params(p, "gyro"), covariance_model=p["covariance_model"],
+                   weighted=bool(p["weighted"]), initial_boresight=np.asarray(p["initial_boresight"], dtype=float),
+                   min_rotation=np.radians(float(p["min_rotation_deg"])), max_sigma=float(p["max_sigma"]),
+                   max_pairs=int(p["max_pairs"]), effects=GyroEffects(p), camera=CameraEffects(p),
+                   outlier_gate=float(p["outlier_gate"]))
+
+    # --- input -----------------------------------------------------------------------------
+    def add_gyro(self, stamps, delta_theta) -> int:
+        """Append increments (stamps strictly increasing); returns the number of new pairs."""
+        st = np.atleast_1d(np.asarray(stamps, dtype=float))
+        v = np.asarray(delta_theta, dtype=float).reshape(-1, 3)
+        if self.effects is not None and len(st):
+            prev = self._last_stamp if self._last_stamp is not None else (
+                st[0] - (st[1] - st[0]) if len(st) > 1 else st[0] - 0.01)
+            v = self.effects.compensate(v, st, np.diff(np.concatenate([[prev], st])))
+        if len(st):
+            self._last_stamp = float(st[-1])
+        self._gyro.extend(st, v)           # bounded by MAX_BUFFER: the oldest go first
+        return self._form_pairs()
+
+    def add_gyro_sample(self, stamp: float, delta_theta) -> int:
+        """One increment (the live path of calibrator_node): the same as :meth:`add_gyro` with
+        one sample, without its array conversions."""
+        if self.effects is not None:
+            return self.add_gyro([stamp], [delta_theta])
+        self._last_stamp = stamp
+        self._gyro.append(stamp, delta_theta)
+        return self._form_pairs() if self._cams else 0
+
+    def restart_gyro(self) -> None:
+        """The gyro stamps start a new time base (a confirmed stamp jump): the buffered increments
+        and the fix that would start the next pair are dropped, since no pair may span the jump."""
+        self._gyro.clear()
+        self._last_stamp = None
+        self._last_fix = None
+        self._cams.clear()
+
+    def restart_camera(self) -> None:
+        """The camera stamps start a new time base: no pair may span the jump."""
+        self._last_fix = None
+        self._cams.clear()
+
+    #: hard bound of the gyro history, samples (1e6 ≈ 24 MB: 8 min at 2 kHz, 2.8 h at 100 Hz between
+    #: two fixes); beyond it the oldest are dropped and a pair that needed them is not formed
+    MAX_BUFFER = 1_000_000
+
+    def add_camera(self, stamp: float, q_gcrs_vf, covariance) -> int:
+        """Append one camera fix; returns the number of new pairs.  With camera effects the fix
+        is placed at its IMU-clock epoch and its covariance corrected."""
+        P = np.asarray(covariance, dtype=float)
+        if self.camera is not None:
+            stamp, P = self.camera.epoch(float(stamp)), self.camera.covariance(P)
+        self._cams.append((float(stamp), np.asarray(q_gcrs_vf, dtype=float), P))
+        return self._form_pairs()
+
+    def _pair(self, fix_a, fix_b):
+        """The increment pair between two fixes, or None without gyro data around them."""
+        t0, q0, P0 = fix_a
+        stamp, q, P = fix_b
+        t = self._gyro.stamps
+        lo = max(0, int(np.searchsorted(t, t0)) - 2)
+        hi = int(np.searchsorted(t, stamp, side="right")) + 1
+        r = gyro_increment(t[lo:hi], self._gyro.values[lo:hi], t0, stamp, self.gyro,
+                           self.covariance_model, sensitivity=self.gyro is not None)
+        if r is None:
+            return None
+        dq_c, E_c = camera_increment(q0, P0, q, P)
+        extra = dict(imu_sensitivity=r[2], cov_imu_white=r[3]) if self.gyro is not None else {}
+        return IncrementPair(t0, stamp, r[0], dq_c, r[1], E_c, cov_fix_start=P0, cov_fix_end=P, **extra)
+
+    #: the robust scale of the outlier gate is taken over at most this many of the latest pairs
+    ROBUST_WINDOW = 200
+    #: ... and only once this many pairs exist: before, the scatter is unknown and no fix is gated
+    ROBUST_MIN_PAIRS = 5
+
+    def angle_scale(self) -> float:
+        """Robust scale s of the normalised angle residuals r = (φ_avu − φ_imu)/σ of the latest
+        pairs: 1.4826 · median |r − median r| (the MAD, σ for Gaussian r), at least 1.  With the
+        stated noise right, s ≈ 1; with the camera σ stated 100× too small, s ≈ 100.  inf (no
+        gate) with fewer than ``ROBUST_MIN_PAIRS`` pairs."""
+        r = np.asarray(self._angle_ratios, dtype=float)
+        if len(r) < self.ROBUST_MIN_PAIRS:
+            return float("inf")
+        return max(1.0, 1.4826 * float(np.median(np.abs(r - np.median(r)))))
+
+    def _inconsistent(self, pair, scale: float = 1.0) -> bool:
+        d, sigma = angle_consistency(pair)
+        return abs(d) > self.outlier_gate * scale * sigma
+
+    def _form_pairs(self) -> int:
+        new = 0
+        while self._cams:
+            stamp, q, P = self._cams[0]
+            if self._last_fix is None:
+                self._last_fix = self._cams.popleft()
+                continue
+            last = self._gyro.last_stamp
+            if last is None or last < stamp:
+                break                                   # wait for the gyro to cover t_E,n
+            pair = self._pair(self._last_fix, (stamp, q, P))
+            fix = self._cams.popleft()
+            if pair is None:                            # not enough gyro data around t0: skip this pair
+                self._prev_fix, self._last_fix = None, fix
+                continue
+            key = self.pair_key(pair)
+            if key in self._pair_keys:                  # the same stamps again (a replay)
+                self.replayed_pairs += 1
+                self._prev_fix, self._last_fix = None, fix
+                continue
+            self._pair_keys.add(key)
+            self.pairs.append(pair)
+            d, sig = angle_consistency(pair)
+            self._angle_ratios.append(d / sig if sig > 0 else 0.0)
+            new += 1
+            self._drop_outlier_fix(fix)              # the last pair may become the skip pair: still new
+            self._prev_fix, self._last_fix = self._last_fix, fix
+            # drop gyro data no longer needed (keep a margin before the fix that may start a skip pair)
+            keep = self._prev_fix[0] if self._prev_fix is not None else stamp
+            self._gyro.drop_first(int(np.searchsorted(self._gyro.stamps, keep)) - 3)
+        if self.max_pairs and len(self.pairs) > self.max_pairs:
+            del self.pairs[:len(self.pairs) - self.max_pairs]
+        if len(self._pair_keys) > 2 * len(self.pairs) + 1000:    # bounded: the keys of pairs held
+            self._pair_keys = {self.pair_key(pr) for pr in self.pairs}
+        return new
+
+    # --- identity of pairs and the fix chain (the state file) -----------------------------------
+    @staticmethod
+    def pair_key(pair: IncrementPair) -> tuple[int, int]:
+        """(t_start, t_end) of a pair in integer ns: the identity of a pair across restarts."""
+        return int(round(pair.t_start * 1e9)), int(round(pair.t_end * 1e9))
+
+    def add_pair_keys(self, pairs) -> None:
+        """Hold the keys of ``pairs`` (restored from a state file): pairs with the same stamps
+        are not formed again."""
+        self._pair_keys.update(self.pair_key(pr) for pr in pairs)
+
+    @property
+    def last_fix(self):
+        """(stamp s, q_GCRS_VF, P) of the fix that starts the next pair, or None."""
+        return self._last_fix
+
+    def restore_last_fix(self, stamp: float, q_gcrs_vf, covariance) -> None:
+        """Resume the fix chain from a stored fix (the state file)."""
+        self._last_fix = (float(stamp), np.asarray(q_gcrs_vf, dtype=float),
+                          np.asarray(covariance, dtype=float))
+        self._prev_fix = None
+
+    def _drop_outlier_fix(self, fix) -> int:
+        """The outlier rule: fix n (= _last_fix) is an outlier when both its pairs, (n−1, n) and
+        (n, n+1), disagree in rotation angle by more than the gate while the pair (n−1, n+1)
+        that skips it agrees.  The gate is ``outlier_gate`` × max(1, s) × the stated σ of the
+        angle difference, s the robust scale of the normalised angle residuals of the latest
+        pairs (:meth:`angle_scale`): when the stated noise is right s ≈ 1 and the gate is
+        ``outlier_gate`` σ; when the stated σ is too small by a factor s, the gate widens by s,
+        so a wrong σ never turns good fixes into outliers while a fix off by far more than the
+        actual scatter is still gated.  Then both pairs give way to the skip pair (the newest
+        pair in the list).  Returns 1 when fix n was dropped, else 0."""
+        if self.outlier_gate <= 0 or self._prev_fix is None or len(self.pairs) < 2:
+            return 0
+        a, b = self.pairs[-2], self.pairs[-1]
+        if not (a.t_end == b.t_start == self._last_fix[0] and a.t_start == self._prev_fix[0]):
+            return 0
+        scale = self.angle_scale()
+        if not np.isfinite(scale):
+            return 0                                    # too few pairs to know the scatter
+        if not (self._inconsistent(a, scale) and self._inconsistent(b, scale)):
+            return 0
+        skip = self._pair(self._prev_fix, fix)
+        if skip is None or self._inconsistent(skip, scale):
+            return 0                                    # not one bad fix: leave it to the estimator
+        del self.pairs[-2:]
+        self.pairs.append(skip)
+        self._pair_keys.add(self.pair_key(skip))
+        self.outlier_fixes += 1
+        self.outlier_stamps.append(self._last_fix[0])
+        self._last_fix = self._prev_fix                 # the bad fix never starts a pair
+        return 1
+
+    # --- estimate ------------------------------------------------------------------------------
+    def solve(self) -> BoresightSolution:
+        """Estimate from all pairs.  Warm start: once a converged solution exists, Gauss–Newton
+        starts from it (the closed-form axis alignment is only needed the first time)."""
+        prev = self.solution
+        if prev is not None and prev.observable and prev.converged:
+            sol = solve_boresight(self.pairs, beta0=prev.beta, init="given", **self._solver_options())
+            if not (sol.observable and sol.converged):
+                sol = self._cold()
+        else:
+            sol = self._cold()
+        self.solution = sol
+        return sol
+
+    def _cold(self) -> BoresightSolution:
+        return solve_boresight(self.pairs, beta0=self.initial_boresight, init="axes", **self._solver_options())
+
+    def _solver_options(self) -> dict:
+        """Weighting: unit when ``weighted`` is off; with the random-constant gyro model the
+        correlated solution (shared fixes, common gyro constants) up to CORRELATED_MAX_PAIRS pairs
+        and pairwise weights beyond; with 004's white model pairwise weights."""
+        if not self.weighted:
+            weighting = "unit"
+        elif get_covariance_model(self.covariance_model).constants and self.gyro is not None:
+            weighting = "auto"
+        else:
+            weighting = "pairwise"
+        return dict(weighting=weighting, gyro=self.gyro, max_sigma=self.max_sigma, min_rotation=self.min_rotation,
+                    common_rotation_sigma=self.common_rotation_sigma)
+
+    @property
+    def common_rotation_sigma(self) -> float:
+        """σ per axis of the gyro-triad rotation (antisymmetric misalignment), σ_φ/√2."""
+        return self.gyro.misalignment_sigma / np.sqrt(2.0) if self.gyro is not None else 0.0

@@ -1,0 +1,1 @@
+"""The discrepancy workflow: where a recording and its model disagree and which effect is missing."""

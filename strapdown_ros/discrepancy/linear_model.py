@@ -1,0 +1,159 @@
+"""The linear-Gaussian model of the increment residuals, with a banded whitening.
+
+Near the current model the stacked residual r (3N, VF axes) of N increment pairs is
+
+    r = J z + U x + e,     e ~ N(0, B),     x ~ N(0, P_x)
+
+* z: free parameters (boresight correction, the effects being estimated);
+* x: the gyro constants of the nominal model (bias, scale, misalignment), random constants
+  common to all pairs with the prior covariance the model's ``*_sigma`` give;
+* B: the covariance of everything white between fixes: per pair ``Cᵀ E_white C + P_n +
+  R_nᵀ P_{n−1} R_n`` on the diagonal and ``−P_n R_{n+1}`` between pairs that share fix n
+  (004 §3.3, as :func:`strapdown_ros.calibration.boresight._correlated_covariance`).  It is block
+  tridiagonal, so its Cholesky factor is banded (bandwidth 5) and whitening costs O(N).
+
+Marginalising x exactly, the residual covariance is Σ = B + U P_x Uᵀ, the calibrator's
+correlated covariance.  :func:`fit` returns the GLS estimate of z, the whitened residual and
+the Gaussian negative log-likelihood (up to a constant) that the model-selection tests compare.
+No ROS imports.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+__all__ = ["band_covariance", "Whitener", "Fit", "fit", "hac_covariance"]
+
+
+def band_covariance(fix_P: np.ndarray, R_cam: np.ndarray, adjacent: np.ndarray, white_diag: np.ndarray):
+    """Lower band storage (6, 3N) of B.
+
+    fix_P: (N, 2, 3, 3) covariances of the start and end fix of each pair (VF, rad²), after the
+    noise effects; R_cam: (N, 3, 3) ΔS_avu; adjacent: (N−1,) pairs n, n+1 share a fix;
+    white_diag: (N, 3, 3) the white gyro part Cᵀ E_white C.
+    """
+    N = len(R_cam)
+    Rt = np.swapaxes(R_cam, 1, 2)
+    diag = white_diag + fix_P[:, 1] + Rt @ fix_P[:, 0] @ R_cam
+    full_lower = np.zeros((6, 3 * N))
+    for a in range(3):                       # within-block lower triangle
+        for b in range(a + 1):
+            full_lower[a - b, b::3][:N] = diag[:, a, b]
+    if N > 1:
+        # cov(f_{n+1}, f_n) = (−P_n R_{n+1})ᵀ = −R_{n+1}ᵀ P_n: rows of pair n+1, columns of pair n
+        cross = -np.swapaxes(R_cam[1:], 1, 2) @ fix_P[1:, 0]
+        cross = cross * adjacent[:, None, None]
+        for a in range(3):
+            for b in range(3):
+                d = 3 + a - b                 # row 3(n+1)+a, column 3n+b
+                full_lower[d, 3 * np.arange(N - 1) + b] = cross[:, a, b]
+    return full_lower
+
+
+class Whitener:
+    """Banded Cholesky factor L of B (B = L Lᵀ): ``apply(X)`` = L⁻¹ X, ``logdet`` = log det B.
+
+    Raises ``numpy.linalg.LinAlgError`` when B has non-finite entries, is not positive
+    definite, or its factor has a diagonal so small that L⁻¹ is not finite."""
+
+    def __init__(self, band_lower: np.ndarray):
+        from scipy.linalg import cholesky_banded
+
+        if not np.all(np.isfinite(band_lower)):
+            raise np.linalg.LinAlgError("residual covariance has non-finite entries")
+        self.L = cholesky_banded(band_lower, lower=True)
+        d = self.L[0]
+        if not np.all(d > 1e-150 * max(float(np.max(d)), 1e-300)):
+            raise np.linalg.LinAlgError("residual covariance is numerically singular")
+        self.logdet = 2.0 * float(np.sum(np.log(d)))
+        self.n = band_lower.shape[1]
+
+    def apply(self, X: np.ndarray) -> np.ndarray:
+        from scipy.linalg import solve_banded
+
+        return solve_banded((5, 0), self.L, X)
+
+
+@dataclass
+class Fit:
+    z: np.ndarray                 # free parameters
+    x: np.ndarray                 # gyro constants (posterior mean)
+    cov_z: np.ndarray             # posterior covariance of z (x marginalised)
+    whitened: np.ndarray          # L⁻¹ (r − J z − U x), (3N,)
+    chi2: float                   # |whitened|² + xᵀ P⁻¹ x
+    nll: float                    # χ² + log det Σ  (−2 log-likelihood up to a constant)
+    dof: int
+    design: np.ndarray | None = None       # L⁻¹ [J U] (3N, nz + nx), for the sandwich
+    cov_all: np.ndarray | None = None      # posterior covariance of (z, x)
+    prior_precision: np.ndarray | None = None   # 1 / prior variance of x
+
+
+def fit(r: np.ndarray, J: np.ndarray, U: np.ndarray, prior_var: np.ndarray, W: Whitener) -> Fit:
+    """GLS of r = J z + U x + e with x ~ N(0, diag(prior_var)), e ~ N(0, B = W).
+
+    Columns of U with zero prior variance are dropped (a constant the model says is exactly 0).
+    """
+    if not (np.all(np.isfinite(r)) and np.all(np.isfinite(J)) and np.all(np.isfinite(U))):
+        raise np.linalg.LinAlgError("the residuals or their columns have non-finite values")
+    keep = prior_var > 0
+    U, pv = U[:, keep], prior_var[keep]
+    nz, nx = J.shape[1], U.shape[1]
+    A = W.apply(np.hstack([J, U, r[:, None]]))
+    Aj, Au, ar = A[:, :nz], A[:, nz:nz + nx], A[:, -1]
+    # stacked system with prior rows for x: [Aj Au; 0 P^-1/2] [z; x] ≈ [ar; 0]
+    M = np.vstack([np.hstack([Aj, Au]), np.hstack([np.zeros((nx, nz)), np.diag(1.0 / np.sqrt(pv))])])
+    y = np.concatenate([ar, np.zeros(nx)])
+    N = M.T @ M
+    g = M.T @ y
+    sol = np.linalg.lstsq(N, g, rcond=1e-13)[0]
+    z, x = sol[:nz], sol[nz:]
+    white = ar - Aj @ z - Au @ x
+    chi2 = float(white @ white + np.sum(x * x / pv))
+    cov = np.linalg.pinv(N, rcond=1e-13, hermitian=True)
+    # log det Σ = log det B + log det(I + P Uᵀ B⁻¹ U) (matrix determinant lemma)
+    if nx:
+        Sx = np.eye(nx) + (Au.T @ Au) * pv[None, :]
+        logdet = W.logdet + float(np.linalg.slogdet(Sx)[1])
+    else:
+        logdet = W.logdet
+    if not (np.isfinite(chi2) and np.isfinite(logdet) and np.all(np.isfinite(z))):
+        raise np.linalg.LinAlgError("the fit has non-finite values")
+    rank = int(np.linalg.matrix_rank(Aj)) if nz else 0
+    return Fit(z=z, x=x, cov_z=cov[:nz, :nz], whitened=white, chi2=chi2, nll=chi2 + logdet,
+               dof=len(r) - rank, design=A[:, :nz + nx], cov_all=cov, prior_precision=1.0 / pv)
+
+
+def hac_covariance(f: Fit, lags: int) -> np.ndarray:
+    """Newey–West (Bartlett-kernel HAC) sandwich covariance of the free parameters z of a fit.
+
+    The model covariance (HᵀH)⁻¹ assumes the whitened residual is white with unit variance.  The
+    sandwich H⁻¹ S H⁻¹ does not: S = Σ_{|l| ≤ L} (1 − |l|/(L+1)) Σ_n g_n g_{n−l}ᵀ, with
+    g_n = A_nᵀ w_n the score of pair n (A_n its three rows of the whitened design, w_n its
+    whitened residual), plus the prior precision of the gyro constants as the model states it.
+    When the residuals are white with unit variance S ≈ HᵀH and the two agree.
+
+    Parameters
+    ----------
+    f : Fit
+        A fit from :func:`fit` (it carries the whitened design).
+    lags : int
+        Bandwidth L in pairs (≥ 0).
+
+    Returns
+    -------
+    numpy.ndarray
+        (nz, nz) covariance of z, in the units of z.
+    """
+    nz = len(f.z)
+    A, w = f.design, f.whitened
+    N = len(w) // 3
+    g = (A * w[:, None]).reshape(N, 3, -1).sum(axis=1)
+    S = g.T @ g
+    for lag in range(1, min(int(lags), N - 1) + 1):
+        G = g[lag:].T @ g[:-lag]
+        S += (1.0 - lag / (lags + 1.0)) * (G + G.T)
+    if len(f.prior_precision):
+        S[nz:, nz:] += np.diag(f.prior_precision)
+    C = f.cov_all @ S @ f.cov_all
+    return 0.5 * (C[:nz, :nz] + C[:nz, :nz].T)

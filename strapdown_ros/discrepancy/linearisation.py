@@ -1,0 +1,294 @@
+"""The linearisation of the discrepancy workflow: a recording in the core's terms, the increment
+residuals at one model point (004 eq. 5–6) with the columns of the boresight and of every effect,
+the whitening by the calibrator's correlated covariance, and the maximum-likelihood fit of a
+noise term.  :mod:`.discrepancy` runs the selection on top of it.  No ROS imports.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from strapdown_ros.rotation import quat_to_dcm, rotvec_to_dcm
+from strapdown_ros.sensors.effects import EFFECTS, GyroEffects, get_effect
+from strapdown_ros.discrepancy.linear_model import Whitener, band_covariance, fit
+from strapdown_ros.calibration.pairs import (GyroRecord, PairSet, build_pairs, pair_integral,
+    pair_residuals)
+
+__all__ = ["Recording", "InputError", "AnalysisError", "BoresightUnobservable", "NumericalFailure",
+           "NUMERICAL_ERRORS", "Linearisation", "NOISE_SCALE_RANGE", "QUANTUM_RANGE"]
+
+#: range of a fitted camera-noise scale k (true σ ÷ stated σ per VF axis): an estimate at either
+#: end is not reported as a value (the candidate fails with that reason)
+NOISE_SCALE_RANGE = (1e-3, 1e3)
+#: range of a fitted pulse weight σ_q, in units of √12 × the RMS stated fix σ (the remainder
+#: variance σ_q²/12 from 0 to 900 times the mean stated fix variance)
+QUANTUM_RANGE = (0.0, 30.0)
+
+_PRIOR_EFFECTS = (("gyro_bias", "gyro_bias_sigma"), ("gyro_scale_factor", "gyro_scale_sigma"),
+                  ("gyro_misalignment", "gyro_misalignment_sigma"))
+
+
+class InputError(ValueError):
+    """The recording cannot be analysed (too few fixes, no overlap, ...)."""
+
+
+class AnalysisError(Exception):
+    """A usable recording whose analysis cannot be computed (a base fit failed numerically).
+
+    Deliberately NOT a ValueError: a numerical failure is never reported as bad input."""
+
+
+class BoresightUnobservable(Exception):
+    """The recording's motion does not determine the boresight (004 §4.1 and the conditioning,
+    the rule of :func:`strapdown_ros.calibration.boresight.check_observability`); ``report`` holds the
+    :class:`~strapdown_ros.estimation.observability.ObservabilityReport`."""
+
+    def __init__(self, message: str, report=None):
+        super().__init__(message)
+        self.report = report
+
+
+class NumericalFailure(ArithmeticError):
+    """One fit failed numerically (a covariance not positive definite, a non-finite result, an
+    estimate at the bound of its range).  Caught per candidate by the selection."""
+
+
+#: the exceptions that mean "this fit cannot be computed", never "bad input"
+NUMERICAL_ERRORS = (np.linalg.LinAlgError, FloatingPointError, NumericalFailure, OverflowError)
+
+
+@dataclass
+class Recording:
+    """A recording in the core's terms: stamps in seconds from an origin (any), VF covariances."""
+    gyro_stamps: np.ndarray               # (n,) end of each increment's interval
+    delta_theta: np.ndarray               # (n, 3) rad, body (MF) axes
+    fix_stamps: np.ndarray                # (m,) camera stamps (camera clock)
+    fix_q: np.ndarray                     # (m, 4) q_GCRS_VF scalar-first
+    fix_P: np.ndarray                     # (m, 3, 3) reported (or assumed) covariance, VF axes, rad²
+    gaps: list = field(default_factory=list)   # gyro gaps (a, b), s
+
+    def __post_init__(self):
+        self.gyro_stamps = np.asarray(self.gyro_stamps, dtype=float)
+        self.delta_theta = np.asarray(self.delta_theta, dtype=float).reshape(-1, 3)
+        self.fix_stamps = np.asarray(self.fix_stamps, dtype=float)
+        self.fix_q = np.asarray(self.fix_q, dtype=float).reshape(-1, 4)
+        self.fix_P = np.asarray(self.fix_P, dtype=float).reshape(-1, 3, 3)
+
+
+# ----------------------------------------------------------------------------- the linearisation
+class Linearisation:
+    """Residuals and columns of the model at one point (parameter values + boresight C)."""
+
+    def __init__(self, rec: Recording, params: dict, C: np.ndarray, epoch: float):
+        self.params, self.C = params, C
+        st, m = rec.gyro_stamps, rec.delta_theta
+        T = np.diff(st, prepend=st[0] - (st[1] - st[0]))
+        self.effects = GyroEffects(params, epoch=epoch)
+        rho = self.effects.compensate(m, st, T)
+        self.gyro = GyroRecord(st, rho)
+        self.time_offset = float(EFFECTS["time_offset"].value(params)[0])
+        self.pairs: PairSet = build_pairs(self.gyro, rec.fix_stamps, rec.fix_q, self.time_offset, rec.gaps)
+        if len(self.pairs) < 2:
+            raise InputError(f"only {len(self.pairs)} increment pair(s): the gyro data must cover consecutive "
+                             f"camera fixes")
+        self.epoch = epoch
+        self.rec = rec
+        N = len(self.pairs)
+        self.R_cam = quat_to_dcm(self.pairs.dq_cam)
+        self.R_imu = quat_to_dcm(self.pairs.dq_imu)
+        self.f = pair_residuals(C, self.pairs)
+        self.r = self.f.reshape(-1)
+        # boresight correction δ: C → C exp([δ×]) (VF axes), central differences
+        h = 1e-6
+        cols = []
+        for j in range(3):
+            d = np.zeros(3)
+            d[j] = h
+            cols.append((pair_residuals(C @ rotvec_to_dcm(d), self.pairs)
+                         - pair_residuals(C @ rotvec_to_dcm(-d), self.pairs)).reshape(-1) / (2 * h))
+        self.col_boresight = np.array(cols).T
+        # gyro-effect signatures ∂r/∂θ_model = −Cᵀ ε-signature: computed when first asked for
+        self._sig = {}
+        # time offset: ∂r/∂τ_model = Cᵀ (ΔSᵀ ω_s − ω_e)
+        w_s = self.gyro.rate_at(self.pairs.k_start)
+        w_e = self.gyro.rate_at(self.pairs.k_end)
+        E = np.einsum("nji,nj->ni", self.R_imu, w_s) - w_e
+        self._sig["time_offset"] = (E @ C).reshape(3 * N, 1)
+        # nominal random constants (prior) U
+        self.U = np.hstack([-self.signature(n) for n, _ in _PRIOR_EFFECTS])
+        self.prior_var = np.concatenate([np.full(EFFECTS[n].size, float(params.get(s, 0.0)) ** 2)
+                                         for n, s in _PRIOR_EFFECTS])
+        self.random_walk = float(params.get("gyro_random_walk", 0.0))
+        # quantization: the output lags the integral by the remainder, mean σ/2 in the sense of
+        # the motion on each axis (000 §5.3): r_mean = σ/2 · Cᵀ(ΔS_imuᵀ s_s − s_e), s = soft sign
+        # of the rate over ±0.5 s (0 where an axis is not driven past its random walk)
+        w0 = max(3.0 * self.random_walk, 1e-7)
+        s_s = np.tanh(self.gyro.rate_at(self.pairs.k_start, 0.5) / w0)
+        s_e = np.tanh(self.gyro.rate_at(self.pairs.k_end, 0.5) / w0)
+        self.quant_col = (0.5 * (np.einsum("nji,nj->ni", self.R_imu, s_s) - s_e) @ C).reshape(-1)
+
+    def _times(self, sl):
+        st = self.gyro.stamps
+        return st[sl] - 0.5 * (st[sl] - st[sl - 1]) - self.epoch
+
+    # ---- columns -----------------------------------------------------------------------
+    def signature(self, name: str) -> np.ndarray:
+        """∂r/∂θ_model of a systematic effect's parameters, (3N, size)."""
+        if name not in self._sig:
+            e = EFFECTS[name]
+            eps = pair_integral(self.gyro, self.pairs,
+                                lambda r_, T_, sl: e.increment_jacobian(r_, T_, self._times(sl)))
+            self._sig[name] = -np.einsum("ji,njp->nip", self.C, eps).reshape(3 * len(self.pairs), -1)
+        return self._sig[name]
+
+    def columns(self, name: str) -> np.ndarray:
+        """∂r/∂(fit combinations) of a systematic effect, (3N, q)."""
+        col = self.signature(name)
+        S = get_effect(name).fit_basis()
+        return col if S is None else col @ S
+
+    def design(self, names) -> np.ndarray:
+        return np.hstack([self.col_boresight] + [self.columns(n) for n in names])
+
+    # ---- noise ---------------------------------------------------------------------------
+    def fix_covariance(self, noise: dict) -> np.ndarray:
+        P = self.rec.fix_P
+        for name, theta in noise.items():
+            P = EFFECTS[name].fix_covariance(P, np.asarray(theta, dtype=float))
+        return P
+
+    def whitener(self, noise: dict, mask=None) -> Whitener:
+        pairs = self.pairs if mask is None else self.pairs.subset(mask)
+        R = self.R_cam if mask is None else self.R_cam[mask]
+        P = self.fix_covariance(noise)
+        fixP = np.stack([P[pairs.fix_start], P[pairs.fix_end]], axis=1)
+        white = (self.random_walk ** 2 * pairs.duration)[:, None, None] * np.eye(3)
+        return Whitener(band_covariance(fixP, R, pairs.adjacent, white))
+
+    def rows(self, mask) -> np.ndarray:
+        return np.repeat(np.asarray(mask, dtype=bool), 3)
+
+    def residual(self, noise) -> np.ndarray:
+        """r less the mean of the noise terms (the quantization lag)."""
+        q = noise.get("gyro_quantization")
+        return self.r if q is None else self.r - float(q[0]) * self.quant_col
+
+    def evaluate(self, free, noise, mask=None):
+        J = self.design(free)
+        r = self.residual(noise)
+        if mask is None:
+            return fit(r, J, self.U, self.prior_var, self.whitener(noise))
+        rows = self.rows(mask)
+        return fit(r[rows], J[rows], self.U[rows], self.prior_var, self.whitener(noise, mask))
+
+
+def _noise_of(params: dict) -> dict:
+    out = {}
+    q = float(params.get("gyro_quantum", 0.0))
+    if q > 0:
+        out["gyro_quantization"] = [q]
+    k = np.asarray(params.get("camera_noise_scale", (1.0, 1.0, 1.0)), dtype=float)
+    if np.any(k != 1.0):
+        out["camera_noise_anisotropy"] = k.tolist()
+    return out
+
+
+# ----------------------------------------------------------------------------- noise ML
+def _fit_noise(lin: Linearisation, free, noise: dict, name: str, mask=None):
+    """Maximum-likelihood value of a noise term (others fixed); returns (theta, fit, sigma).
+
+    Bounded parametrisations (the stated ranges :data:`NOISE_SCALE_RANGE`,
+    :data:`QUANTUM_RANGE`): the camera-noise scales as u = log k, the pulse weight as
+    σ_q = √(12·v̄)·u with v̄ the mean stated fix variance; bounded Nelder–Mead.  A trial point
+    whose covariance is not positive definite counts as −2 log L = ∞.  An optimum at a bound of
+    the range, or a fit that fails there, raises :class:`NumericalFailure`.  σ: from the
+    curvature of −2 log L in θ (Fisher), ∞ where the curvature is not positive or not finite.
+    """
+    from scipy.optimize import minimize
+
+    e = EFFECTS[name]
+    start = np.asarray(noise.get(name, [e.neutral] * e.size), dtype=float)
+    if name == "gyro_quantization":
+        # parametrise by the remainder variance σ²/12 relative to the mean fix variance
+        ref = float(np.mean(np.trace(lin.rec.fix_P, axis1=1, axis2=2)) / 3.0)
+        unit = np.sqrt(12.0 * max(ref, 1e-300))
+        lo, hi = QUANTUM_RANGE
+
+        def theta_of(u):
+            return np.array([unit * abs(u[0])])
+        u0 = np.clip(np.array([max(start[0], 0.0) / unit + 0.3]), lo, hi)
+    else:
+        lo, hi = np.log(NOISE_SCALE_RANGE[0]), np.log(NOISE_SCALE_RANGE[1])
+
+        def theta_of(u):
+            return np.exp(np.clip(u, lo, hi))
+        u0 = np.clip(np.log(np.maximum(start, NOISE_SCALE_RANGE[0])), lo, hi)
+    bounds = [(lo, hi)] * len(u0)
+
+    def nll(u):
+        trial = dict(noise)
+        trial[name] = theta_of(u).tolist()
+        try:
+            v = lin.evaluate(free, trial, mask).nll
+        except NUMERICAL_ERRORS:
+            return np.inf
+        return v if np.isfinite(v) else np.inf
+    best = None
+    # −2 log L to 0.01 is ample for a test at α/m; quantization gets a second start near zero
+    # (its first may sit on the boundary σ = 0)
+    starts = (u0, np.array([0.05])) if name == "gyro_quantization" else (u0,)
+    simplex = None
+    if name != "gyro_quantization":
+        # a common scale on a coarse log grid first (a simplex that has to grow from a tiny
+        # step toward a far optimum gets clipped flat against the bound and stops there),
+        # then one sweep axis by axis on the same grid
+        grid = np.linspace(lo, hi, 13)
+        vals = [nll(np.full(e.size, g)) for g in grid]
+        if np.isfinite(np.min(vals)) and np.min(vals) < nll(u0):
+            u0 = np.full(e.size, grid[int(np.argmin(vals))])
+            for i in range(e.size):
+                trial_u = [np.where(np.arange(e.size) == i, g, u0) for g in grid]
+                u0 = trial_u[int(np.argmin([nll(u) for u in trial_u]))]
+            u0 = np.clip(u0, lo + 1e-6, hi - 1e-6)
+            starts = (u0,)
+        step = np.log(10.0) / 4.0
+        simplex = np.vstack([u0] + [u0 + np.where(np.arange(e.size) == i,
+                                                  step if u0[i] + step <= hi else -step, 0.0)
+                                    for i in range(e.size)])
+    for s0 in starts:
+        res = minimize(nll, s0, method="Nelder-Mead", bounds=bounds,
+                       options={"xatol": 1e-3, "fatol": 1e-2, "maxiter": 60 * e.size,
+                                "initial_simplex": simplex})
+        if best is None or res.fun < best.fun:
+            best = res
+    if not np.isfinite(best.fun):
+        raise NumericalFailure(f"no value in its range gives a positive-definite covariance")
+    at_bound = (best.x >= hi - 1e-3) | ((best.x <= lo + 1e-3) & (name != "gyro_quantization"))
+    if np.any(at_bound):
+        rng = (f"{NOISE_SCALE_RANGE[0]:g} to {NOISE_SCALE_RANGE[1]:g}"
+               if name != "gyro_quantization" else f"up to {unit * hi:.3g} rad")
+        raise NumericalFailure(f"the likelihood is largest at the bound of its range ({rng}): "
+                               f"{np.round(theta_of(best.x), 6).tolist()}")
+    theta = theta_of(best.x)
+    trial = dict(noise)
+    trial[name] = theta.tolist()
+    f = lin.evaluate(free, trial, mask)
+    # σ from the curvature of −2 log L in θ (Fisher: σ² = 2 / d²(−2 log L)/dθ²); a curvature
+    # that is not positive and finite (or a neighbour that cannot be evaluated) gives σ = ∞
+    sig = np.zeros(e.size)
+    for i in range(e.size):
+        h = max(1e-3 * abs(theta[i]), 1e-9 if name == "gyro_quantization" else 1e-4)
+
+        def at(dv):
+            t2 = theta.copy()
+            t2[i] = max(t2[i] + dv, 0.0)
+            tr = dict(noise)
+            tr[name] = t2.tolist()
+            return lin.evaluate(free, tr, mask).nll
+        try:
+            c = (at(h) - 2 * f.nll + at(-h)) / h ** 2
+        except NUMERICAL_ERRORS:
+            c = np.nan
+        sig[i] = np.sqrt(2.0 / c) if np.isfinite(c) and c > 0 else np.inf
+    return theta, f, sig

@@ -1,0 +1,19 @@
+"""Figure output shared by the report tools (matplotlib imported only when a figure is saved)."""
+from __future__ import annotations
+
+import os
+
+from strapdown_ros.files import atomic_savefig
+
+__all__ = ["save_figure"]
+
+
+def save_figure(fig, outdir: str, name: str) -> str:
+    """Lay out, write ``outdir/name`` (PNG, 110 dpi) and close a figure; returns the path."""
+    import matplotlib.pyplot as plt
+
+    fig.tight_layout()
+    path = os.path.join(outdir, name)
+    atomic_savefig(fig, path, dpi=110)             # a temporary file, then os.replace
+    plt.close(fig)
+    return path

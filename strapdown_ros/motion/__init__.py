@@ -1,0 +1,1 @@
+"""Motion profiles with exact truth: body-frame profiles and Earth-referenced trajectories."""

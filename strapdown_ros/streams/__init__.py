@@ -1,0 +1,1 @@
+"""Input streams: validation rules, bounded buffers, raw CDR decoding, increments from rates (no ROS)."""
