@@ -1,4 +1,4 @@
-"""Atomic file writes and a write probe, shared by the offline tools (tools/paths.py) and the
+"""Atomic file writes and a write probe, shared by the offline tools (cli.py) and the
 model writer (config.write_model).  No ROS imports.
 
 A write goes to a temporary file in the target's own directory and is moved over the target with

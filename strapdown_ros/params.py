@@ -15,12 +15,13 @@ import numpy as np
 from strapdown_ros.attitude.coning import ALGORITHMS, algorithm_names
 from strapdown_ros.attitude.integrator import COVARIANCE_MODELS
 from strapdown_ros.earth import DEFAULT_GRAVITY_MODEL, GRAVITY_MODELS
-from strapdown_ros.motion.profiles import PROFILE_NAMES
+from strapdown_ros.motion.from_config import PROFILE_NAMES
 from strapdown_ros.streams.rate_increments import RATE_RULES
 from strapdown_ros.sensors import NAVIGATION_GRADE_ACCEL, NAVIGATION_GRADE_GYRO, SensorSigmas
+from strapdown_ros.estimation.filter_support import AUGMENT_CHOICES, augment_error
 from strapdown_ros.sensors.effects import EFFECTS, effect_parameters
 
-__all__ = ["ParamSpec", "PROFILE_PARAMS", "GYRO_PARAMS", "ACCEL_PARAMS", "IMU_SIM_PARAMS",
+__all__ = ["ParamSpec", "parse_overrides", "simulator_parameters", "PROFILE_PARAMS", "GYRO_PARAMS", "ACCEL_PARAMS", "IMU_SIM_PARAMS",
            "SINS_PARAMS", "STAR_CAMERA_PARAMS", "CALIBRATOR_PARAMS", "FILTER_PARAMS", "sigmas_from", "load_parameter_file", "check_all", "markdown_table"]
 
 
@@ -361,29 +362,6 @@ CALIBRATOR_PARAMS = GYRO_PARAMS + INPUT_PARAMS + GYRO_INPUT_PARAMS + [
 #: camera effects the calibrator compensates (time offset of the fixes, camera noise scale)
 CALIBRATOR_PARAMS += _effect_specs("camera")
 
-#: names the filter's ``augment`` parameter accepts: the registry's systematic gyro effects
-#: (the bias is always a state), the camera time offset and the boresight
-AUGMENT_CHOICES = tuple(n for n, e in EFFECTS.items()
-                        if e.sensor == "gyro" and e.kind == "systematic" and n != "gyro_bias") \
-    + ("time_offset", "boresight")
-
-
-def augment_names(text: str) -> tuple:
-    """The names of a comma-separated ``augment`` value (blanks ignored)."""
-    return tuple(n.strip() for n in str(text).split(",") if n.strip())
-
-
-def augment_error(text: str) -> str | None:
-    """One-line error of an ``augment`` value naming the valid names, or None when valid."""
-    names = augment_names(text)
-    bad = [n for n in names if n not in AUGMENT_CHOICES]
-    if bad:
-        return (f"augment: unknown state {bad[0][:80]!r}; valid: {', '.join(AUGMENT_CHOICES)}")
-    if len(set(names)) != len(names):
-        return "augment: a name is given twice"
-    return None
-
-
 #: attitude_filter_node and filter_bag (strapdown_ros/estimation/filter_system.py)
 FILTER_PARAMS = [s for s in _GYRO_SIGMAS if s.name in ("gyro_rate", "gyro_bias_sigma",
                                                        "gyro_random_walk")] + \
@@ -621,3 +599,33 @@ def write_model(path: str, doc: dict | None, updates: dict, comment: str) -> Non
                 block["ros__parameters"][name] = json.loads(json.dumps(value))
     atomic_write_text(path, f"# {comment}\n"
                       + yaml.safe_dump(doc, sort_keys=False, allow_unicode=True))
+
+
+def parse_overrides(items) -> dict:
+    """``name:=value`` strings (ROS 2 ``-p`` syntax) → dict; values parsed as YAML."""
+    import yaml   # optional extra (PyYAML ships with every ROS 2 installation)
+
+    out = {}
+    for item in items or ():
+        if ":=" not in item:
+            raise ValueError(f"parameter override {item!r} must look like name:=value")
+        name, text = item.split(":=", 1)
+        name = name.strip()
+        if not name:
+            raise ValueError(f"parameter override {item!r} has no name")
+        out[name] = yaml.safe_load(text) if text.strip() else ""
+    return out
+
+
+def simulator_parameters(params_file: str | None = None, overrides: dict | None = None,
+                         duration: float | None = None) -> tuple[dict, dict]:
+    """Validated parameters of imu_sim_node and star_camera_sim_node (defaults: profile bench)."""
+    imu_raw, cam_raw = {"profile": "bench"}, {"profile": "bench"}
+    if params_file:
+        imu_raw.update(load_parameter_file(params_file, "imu_sim_node"))
+        cam_raw.update(load_parameter_file(params_file, "star_camera_sim_node"))
+    for raw in (imu_raw, cam_raw):
+        raw.update(overrides or {})
+        if duration is not None:
+            raw["duration"] = float(duration)
+    return check_all(IMU_SIM_PARAMS, imu_raw), check_all(STAR_CAMERA_PARAMS, cam_raw)

@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 from strapdown_ros.params import IMU_SIM_PARAMS, SINS_PARAMS, check_all, load_parameter_file
-from strapdown_ros.motion.profiles import (ConingProfile, load_piecewise_profile,
-    profile_from_config)
+from strapdown_ros.motion.profiles import ConingProfile
+from strapdown_ros.motion.from_config import load_piecewise_profile, profile_from_config
 from strapdown_ros.rotation import from_ros_xyzw, quat_angle_between
 
 CONFIG = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "config")

@@ -37,6 +37,14 @@ from strapdown_ros.rotation import (quat_conjugate, quat_cumprod, quat_multiply,
 
 __all__ = ["LineFit", "ode_reference", "measure_case", "order_sweep", "cost_per_update", "CaseResult"]
 
+#: the three coning cases of 003 §2.3 (α rad, ν rad/s) and its two update periods (s)
+THESIS_CASES = [(0.087, 1.0), (0.5, 1.0), (0.087, 0.5)]
+THESIS_STEPS = [0.01, 0.001]
+THESIS_RANKING = ["7", "6", "4+", "5", "4", "3.1", "3", "2", "1"]       # best first, 003 §2.3
+#: a drift within this factor of the case's round-off floor estimate is marked ``floor``
+FLOOR_FACTOR = 3.0
+
+
 
 class LineFit:
     """Streaming least-squares line e(t) = a + b·(t − t0), with residual scatter."""

@@ -44,7 +44,7 @@ from strapdown_ros.rotation import (dcm_to_quat, dcm_to_ypr, quat_conjugate, qua
 from strapdown_ros.sensors import (ARCSEC, IntegratingSensor, NAVIGATION_GRADE_GYRO,
     SensorErrorModel, SensorSigmas)
 from strapdown_ros.sensors.star_camera import StarCameraModel
-from strapdown_ros.tools.paths import write_text, write_figure
+from strapdown_ros.cli import write_text, write_figure
 
 ANGLES = ("psi", "theta", "gamma")
 ANGLE_LABELS = ("ψ (yaw)", "ϑ (pitch)", "γ (roll)")
@@ -1056,7 +1056,7 @@ def main(argv=None) -> int:
     ap.add_argument("--jobs", type=int, default=None,
                     help="worker processes for the Monte Carlo (default: 2 cores at most; 1 with --quick)")
     args = ap.parse_args(argv)
-    from strapdown_ros.tools.paths import DIRECTORY, FILE, check_outputs
+    from strapdown_ros.cli import DIRECTORY, FILE, check_outputs
     try:                                        # the output rule, before any work
         check_outputs([("--json", args.json, FILE), ("--report", args.report, FILE),
                        ("--plots", args.plots, DIRECTORY, ("boresight_errors.png",

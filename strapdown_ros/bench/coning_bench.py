@@ -23,17 +23,15 @@ import time
 import numpy as np
 
 from strapdown_ros.attitude.coning import ALGORITHMS, theory_drift
-from strapdown_ros.attitude.coning_analysis import cost_per_update, measure_case, order_sweep
+from strapdown_ros.attitude.coning_analysis import (FLOOR_FACTOR, THESIS_CASES, THESIS_RANKING,
+                                                    THESIS_STEPS, cost_per_update, measure_case,
+                                                    order_sweep)
+from strapdown_ros.bench.coning_report import fmt, write_report
 from strapdown_ros.motion.profiles import ConingProfile
 from strapdown_ros.rotation import quat_to_dcm, rotvec_to_dcm
 from strapdown_ros.sensors import DEG_PER_HOUR
-from strapdown_ros.tools.paths import write_text, write_figure
+from strapdown_ros.cli import write_text, write_figure
 
-THESIS_CASES = [(0.087, 1.0), (0.5, 1.0), (0.087, 0.5)]
-THESIS_STEPS = [0.01, 0.001]
-THESIS_RANKING = ["7", "6", "4+", "5", "4", "3.1", "3", "2", "1"]       # best first, 003 §2.3
-#: a drift within this factor of the case's round-off floor estimate is marked ``floor``
-FLOOR_FACTOR = 3.0
 
 
 def parse_args(argv):
@@ -130,14 +128,6 @@ def model_checks() -> dict:
 
 
 # ------------------------------------------------------------------------------- output
-def fmt(x, digits=3):
-    if x is None:
-        return "—"
-    if x == 0:
-        return "0"
-    return f"{x:.{digits}g}"
-
-
 def summary_table(res: dict, args) -> str:
     recs = res["results"]
     lines = []
@@ -216,7 +206,7 @@ def write_plots(res: dict, outdir: str) -> list[str]:
 
 def main(argv=None):
     args = parse_args(sys.argv[1:] if argv is None else argv)
-    from strapdown_ros.tools.paths import DIRECTORY, FILE, check_outputs
+    from strapdown_ros.cli import DIRECTORY, FILE, check_outputs
     try:                                       # everything that can fail, before minutes of work
         check_outputs([("--json", args.json, FILE), ("--report", args.report, FILE),
                        ("--plots", args.plots, DIRECTORY,
@@ -243,7 +233,6 @@ def main(argv=None):
         write_text(args.json, json.dumps(res, indent=1))
     plots = write_plots(res, args.plots) if args.plots else []
     if args.report:
-        from strapdown_ros.bench.coning_report import write_report
         write_report(res, args, args.report, plots)
     print(f"\ntotal {res['wall_s']:.0f} s", file=sys.stderr)
     return 0

@@ -9,8 +9,8 @@ import numpy as np
 
 from strapdown_ros.attitude.coning import ALGORITHMS, LITERATURE_DRIFT, SEED_ALGORITHMS
 from strapdown_ros.sensors import DEG_PER_HOUR
-from strapdown_ros.bench.coning_bench import THESIS_RANKING, fmt
-from strapdown_ros.tools.paths import write_text
+from strapdown_ros.attitude.coning_analysis import THESIS_RANKING
+from strapdown_ros.cli import write_text
 
 # Printed formula, corrected formula and derivation, per thesis equation (doc/coning_derivations.md
 # has the full algebra).  The measured evidence is filled in from the run.
@@ -51,6 +51,14 @@ MODEL_MISPRINTS = [
      "sin α (sin νt_k − sin νt_{k−1}), sin α (cos νt_k − cos νt_{k−1})", "increments_210_printed_max_error"),
 ]
 
+
+
+def fmt(x, digits=3):
+    if x is None:
+        return "—"
+    if x == 0:
+        return "0"
+    return f"{x:.{digits}g}"
 
 def _rec(res, name, alpha, nu, step):
     for r in res["results"]:

@@ -27,7 +27,7 @@ from collections import Counter
 import numpy as np
 
 from strapdown_ros.sensors.effects import CANDIDATES, EFFECTS
-from strapdown_ros.tools.paths import write_text, write_figure
+from strapdown_ros.cli import write_text, write_figure
 
 PROG = "discrepancy_bench"
 BORESIGHT = [0.698, -0.436, 2.094]
@@ -188,7 +188,8 @@ def speed(args) -> dict:
     import shutil
     import tempfile
     from strapdown_ros.tools import discrepancy as cli
-    from strapdown_ros.tools.record_sim import record, simulator_parameters
+    from strapdown_ros.recording.writer import record
+    from strapdown_ros.params import simulator_parameters
     load, times, rcs, errors = os.getloadavg(), [], [], []
     imu_p, cam_p = simulator_parameters(overrides=scenario_raw(args.first_seed, SPEED_DURATION),
                                         duration=SPEED_DURATION)
@@ -455,7 +456,7 @@ def parse_args(argv):
         if bad:
             ap.error(f"--effects: unknown or repeated {', '.join(map(repr, bad))}; valid: all, {', '.join(CANDIDATES)}")
         args.effects = names
-    from strapdown_ros.tools.paths import DIRECTORY, FILE, check_outputs
+    from strapdown_ros.cli import DIRECTORY, FILE, check_outputs
     try:                                        # the tools' one output rule
         check_outputs([("--json", args.json, FILE), ("--report", args.report, FILE),
                        ("--plots", args.plots, DIRECTORY, ("discrepancy_detection.png",

@@ -44,7 +44,7 @@ from strapdown_ros.rotation import quat_conjugate, quat_multiply, quat_to_rotvec
 from strapdown_ros.text import json_clean
 from strapdown_ros.bench.stats import (chi2_band, median_range, pcrb_filter_smoother, rts_smooth,
     simulate_increments, stats)
-from strapdown_ros.tools.paths import (DIRECTORY, FILE, OneLineParser, check_outputs, write_json,
+from strapdown_ros.cli import (DIRECTORY, FILE, OneLineParser, check_outputs, write_json,
     write_text)
 
 RATE = np.array([0.01, -0.02, 0.015])           # body rate of the Monte Carlo motion, rad/s

@@ -29,7 +29,7 @@ import time
 
 import numpy as np
 
-from strapdown_ros.tools.paths import write_text, write_figure
+from strapdown_ros.cli import write_text, write_figure
 
 RSS_GROWTH_TARGET = 0.10
 
@@ -54,7 +54,7 @@ def parse_args(argv):
     ap.add_argument("--quiet", action="store_true", help="no progress on stderr")
     ap.add_argument("--force", action="store_true", help="overwrite existing outputs")
     args = ap.parse_args(argv)
-    from strapdown_ros.tools.paths import DIRECTORY, FILE, check_outputs
+    from strapdown_ros.cli import DIRECTORY, FILE, check_outputs
     if not (math.isfinite(args.seconds) and 10.0 <= args.seconds <= 86400.0):
         ap.error(f"--seconds must be in [10, 86400], got {args.seconds}")
     if not (math.isfinite(args.rate_factor) and 0.01 <= args.rate_factor <= 30.0):

@@ -55,7 +55,7 @@ import numpy as np
 
 from strapdown_ros.text import json_clean
 from strapdown_ros.bench.stats import median_range, stats
-from strapdown_ros.tools.paths import write_figure, write_json, write_text
+from strapdown_ros.cli import write_figure, write_json, write_text
 
 GYRO_RATE = 100.0
 ACCEL_RATE = 300.0
@@ -501,7 +501,7 @@ def main(argv=None):
     ap.add_argument("--quiet", action="store_true", help="no progress on stderr")
     ap.add_argument("--force", action="store_true", help="overwrite existing outputs")
     args = ap.parse_args(argv)
-    from strapdown_ros.tools.paths import DIRECTORY, FILE, check_outputs
+    from strapdown_ros.cli import DIRECTORY, FILE, check_outputs
     for name in ("seconds", "static_seconds"):
         v = getattr(args, name)
         if not (math.isfinite(v) and 1.0 <= v <= 86400.0):

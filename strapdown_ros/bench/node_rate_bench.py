@@ -33,7 +33,7 @@ import statistics
 import sys
 import time
 
-from strapdown_ros.tools.paths import write_text
+from strapdown_ros.cli import write_text
 
 RATIO_TARGET = 0.9
 CALLBACK_TARGET_US = 15.0
@@ -64,7 +64,7 @@ def parse_args(argv):
     ap.add_argument("--force", action="store_true", help="overwrite existing outputs")
     args = ap.parse_args(argv)
     from strapdown_ros.attitude.coning import algorithm_names
-    from strapdown_ros.tools.paths import FILE, check_outputs
+    from strapdown_ros.cli import FILE, check_outputs
     if not (math.isfinite(args.seconds) and 0.5 <= args.seconds <= 600):
         ap.error(f"--seconds must be in [0.5, 600], got {args.seconds}")
     if not 1 <= args.steps <= 20:

@@ -40,7 +40,7 @@ from pathlib import Path
 import numpy as np
 
 from strapdown_ros.bench.stats import median_range, stats
-from strapdown_ros.tools.paths import write_text
+from strapdown_ros.cli import write_text
 
 TARGET_RATIO = 2.0                 # target: sins_bag within 2× the raw read
 
@@ -173,7 +173,7 @@ def main(argv=None) -> int:
         ap.error("--runs must be >= 1")
     if not Path(args.bag).exists():
         ap.error(f"{args.bag} does not exist")
-    from strapdown_ros.tools.paths import FILE, check_outputs
+    from strapdown_ros.cli import FILE, check_outputs
     try:                                        # the tools' one output rule
         check_outputs([("--json", args.json, FILE)],
                       [("bag", args.bag), ("--params", args.params)], args.force)

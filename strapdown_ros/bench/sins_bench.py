@@ -31,7 +31,7 @@ from strapdown_ros.bench.stats import median_range, stats
 from strapdown_ros.attitude.integrator import AttitudeIntegrator, IncrementAccumulator
 from strapdown_ros.motion.profiles import STANDARD_GRAVITY, ConingProfile
 from strapdown_ros.sensors import NAVIGATION_GRADE_GYRO
-from strapdown_ros.tools.paths import write_text
+from strapdown_ros.cli import write_text
 
 PYINS_RATIO_TARGET = 1.0          # at least as fast as pyins's compiled kernel
 COMPILED_RATIO_TARGET = 5.0       # within 5× of a compiled quaternion loop
@@ -91,7 +91,7 @@ def main(argv=None):
     ap.add_argument("--force", action="store_true", help="overwrite existing outputs")
     args = ap.parse_args(argv)
     from strapdown_ros.attitude.coning import algorithm_names
-    from strapdown_ros.tools.paths import FILE, check_outputs
+    from strapdown_ros.cli import FILE, check_outputs
     if args.algorithm not in algorithm_names():
         ap.error(f"--algorithm {args.algorithm!r} is not valid; valid values: {', '.join(algorithm_names())}")
     if not (math.isfinite(args.hours) and 0 < args.hours <= 24):

@@ -175,10 +175,10 @@ def _polar(B):
 
 
 def _judge_fit(extra: dict) -> float:
-    """χ²/dof against its two-sided band (:func:`~strapdown_ros.calibration.boresight.chi2_band`, level
+    """χ²/dof against its two-sided band (:func:`~strapdown_ros.estimation.chi_square.chi2_band`, level
     FIT_LEVEL): ``fit_consistent``, ``chi2_per_dof_band`` and ``chi2_level`` added to ``extra``.
     Returns the factor max(1, χ²/dof) by which the published covariance is scaled."""
-    from strapdown_ros.calibration.boresight import FIT_LEVEL, chi2_band
+    from strapdown_ros.estimation.chi_square import FIT_LEVEL, chi2_band
     chi2, dof = extra.get("chi2_per_dof"), int(extra.get("dof", 0))
     band = chi2_band(dof, FIT_LEVEL)
     ok = chi2 is not None and np.isfinite(chi2) and dof >= 1

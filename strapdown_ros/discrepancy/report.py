@@ -20,7 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
-from strapdown_ros.tools.paths import write_text, write_figure
+from strapdown_ros.cli import write_text, write_figure
 
 __all__ = ["write_report"]
 

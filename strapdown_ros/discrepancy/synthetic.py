@@ -65,7 +65,7 @@ def draw_hidden_effect(name: str, size: float, cov: np.ndarray, rng: np.random.G
 def simulate_recording(imu_p: dict, cam_p: dict, duration: float) -> Recording:
     """In memory, what ``record_sim`` writes to a bag for the same validated parameters (same
     sensor and camera models, seeds and stamps, no accelerometer): the benchmark's fast path."""
-    from strapdown_ros.motion.profiles import profile_from_config
+    from strapdown_ros.motion.from_config import profile_from_config
     from strapdown_ros.sensors import simulated_imu
     from strapdown_ros.sensors.star_camera import StarCameraModel
 

@@ -7,7 +7,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["chi2_3_quantile", "triangular_factor", "psd_factor", "FixResult", "FilterCounters"]
+from strapdown_ros.sensors.effects import EFFECTS
+
+__all__ = ["AUGMENT_CHOICES", "augment_names", "augment_error", "chi2_3_quantile", "triangular_factor", "psd_factor", "FixResult", "FilterCounters"]
 
 
 def chi2_3_quantile(probability: float) -> float:
@@ -94,3 +96,26 @@ class FilterCounters:
     max_lateness: float = 0.0
     last_lateness: float = 0.0
     implausible: int = 0         # updates after which an estimate left its registry range
+
+
+#: names the filter's ``augment`` parameter accepts: the registry's systematic gyro effects
+#: (the bias is always a state), the camera time offset and the boresight
+AUGMENT_CHOICES = tuple(n for n, e in EFFECTS.items()
+                        if e.sensor == "gyro" and e.kind == "systematic" and n != "gyro_bias") \
+    + ("time_offset", "boresight")
+
+
+def augment_names(text: str) -> tuple:
+    """The names of a comma-separated ``augment`` value (blanks ignored)."""
+    return tuple(n.strip() for n in str(text).split(",") if n.strip())
+
+
+def augment_error(text: str) -> str | None:
+    """One-line error of an ``augment`` value naming the valid names, or None when valid."""
+    names = augment_names(text)
+    bad = [n for n in names if n not in AUGMENT_CHOICES]
+    if bad:
+        return (f"augment: unknown state {bad[0][:80]!r}; valid: {', '.join(AUGMENT_CHOICES)}")
+    if len(set(names)) != len(names):
+        return "augment: a name is given twice"
+    return None

@@ -27,7 +27,7 @@ from strapdown_ros.rotation import (quat_conjugate, quat_cumprod, quat_multiply,
     quat_to_dcm, rotvec_to_quat, ypr_to_dcm, dcm_to_quat)
 from strapdown_ros.sensors.effects import EFFECTS
 from strapdown_ros.streams.checks import StreamCheck
-from strapdown_ros.params import augment_error, augment_names
+from strapdown_ros.estimation.filter_support import augment_error, augment_names
 from strapdown_ros.estimation.attitude_filter import AttitudeFilter
 from strapdown_ros.estimation.model_check import ModelCheck
 

@@ -26,7 +26,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from strapdown_ros.calibration.boresight import chi2_band, chi2_sf
+from strapdown_ros.estimation.chi_square import chi2_band, chi2_sf
 
 __all__ = ["ModelCheck", "ModelCheckResult", "ljung_box"]
 

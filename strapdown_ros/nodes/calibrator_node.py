@@ -76,7 +76,8 @@ from geometry_msgs.msg import PoseWithCovarianceStamped, QuaternionStamped, Vect
 from rclpy.node import Node
 from sensor_msgs.msg import Imu
 
-from strapdown_ros.calibration.boresight import FIT_LEVEL, imu_attitude_from_camera
+from strapdown_ros.calibration.boresight import imu_attitude_from_camera
+from strapdown_ros.estimation.chi_square import FIT_LEVEL
 from strapdown_ros.params import CALIBRATOR_PARAMS
 from strapdown_ros.streams.checks import StreamCheck
 from strapdown_ros.calibration.streaming import BoresightCalibrator

@@ -37,7 +37,7 @@ from sensor_msgs.msg import Imu
 
 from strapdown_ros.params import IMU_SIM_PARAMS
 from strapdown_ros.motion.earth_profiles import EarthProfile
-from strapdown_ros.motion.profiles import profile_from_config
+from strapdown_ros.motion.from_config import profile_from_config
 from strapdown_ros.rotation import to_ros_xyzw
 from strapdown_ros.sensors import simulated_imu
 from strapdown_ros.nodes import ros_io

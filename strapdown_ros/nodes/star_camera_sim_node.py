@@ -47,7 +47,7 @@ from geometry_msgs.msg import PoseWithCovarianceStamped, QuaternionStamped
 from rclpy.node import Node
 
 from strapdown_ros.params import STAR_CAMERA_PARAMS
-from strapdown_ros.motion.profiles import profile_from_config
+from strapdown_ros.motion.from_config import profile_from_config
 from strapdown_ros.sensors.star_camera import StarCameraModel
 from strapdown_ros.nodes import ros_io
 from strapdown_ros.nodes.ros_io import camera_qos, latched_qos, pose_with_covariance

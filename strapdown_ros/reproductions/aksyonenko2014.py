@@ -15,7 +15,7 @@ def section_003(duration: float) -> dict:
     from strapdown_ros.attitude.coning import SEED_ALGORITHMS
     from strapdown_ros.attitude.coning_analysis import measure_case
     from strapdown_ros.sensors import DEG_PER_HOUR
-    from strapdown_ros.bench.coning_bench import FLOOR_FACTOR
+    from strapdown_ros.attitude.coning_analysis import FLOOR_FACTOR
 
     names = list(SEED_ALGORITHMS)
     out = {"duration_s": duration, "cases": []}

@@ -304,7 +304,7 @@ def main(argv=None) -> int:
     bad = [s for s in only if s not in names]
     if bad:
         ap.error(f"unknown section(s) {', '.join(bad)}; valid: {', '.join(names)}")
-    from strapdown_ros.tools.paths import DIRECTORY, FILE, check_outputs, write_text
+    from strapdown_ros.cli import DIRECTORY, FILE, check_outputs, write_text
     try:                                       # everything that can fail, before minutes of work
         for flag, v in (("--seeds", a.seeds), ("--runs", a.runs)):
             if v < 1:

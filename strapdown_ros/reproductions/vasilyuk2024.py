@@ -33,7 +33,7 @@ from strapdown_ros.rotation import quat_to_rotvec, ypr_to_dcm
 from strapdown_ros.sensors import ARCSEC, NAVIGATION_GRADE_GYRO
 from strapdown_ros.sensors.covariance import constant_variances
 from strapdown_ros.sensors.star_camera import StarCameraModel
-from strapdown_ros.tools.paths import write_text
+from strapdown_ros.cli import write_text
 
 __all__ = ["section_004_extras", "report_004_extras", "plots_004_extras", "simulate_004", "main"]
 
@@ -436,7 +436,7 @@ class _Parser(argparse.ArgumentParser):
 
 
 def main(argv=None) -> int:
-    from strapdown_ros.tools.paths import DIRECTORY, FILE, check_outputs
+    from strapdown_ros.cli import DIRECTORY, FILE, check_outputs
 
     ap = _Parser(prog="seeds_004", description=__doc__.split("\n\n")[0])
     ap.add_argument("--quick", action="store_true", help="20 Hz gyro, one run per row, three rows")

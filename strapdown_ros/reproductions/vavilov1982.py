@@ -29,7 +29,7 @@ from strapdown_ros.estimation.steady_filter import (constant_gain_covariance, di
 from strapdown_ros.figures import save_figure
 from strapdown_ros.estimation.observability import (analyze_information,
     measures_of_observability, observability_gramian, stationary_measures)
-from strapdown_ros.tools.paths import write_text
+from strapdown_ros.cli import write_text
 
 LATITUDE_DEG = 55.0              # "moderate latitudes"
 SHIP_SPEED = 15.0                # V0 for the ship [m/s] (001: μ1 ≈ 0.03)
@@ -418,7 +418,7 @@ def main(argv=None) -> int:
         raise SystemExit(2)
     ap.error = _error
     args = ap.parse_args(argv)
-    from strapdown_ros.tools.paths import DIRECTORY, FILE, check_outputs
+    from strapdown_ros.cli import DIRECTORY, FILE, check_outputs
     try:                                        # the tools' one output rule
         check_outputs([("--report", args.report, FILE), ("--json", args.json, FILE),
                        ("--plots", args.plots, DIRECTORY, ("seeds_001_measures.png",

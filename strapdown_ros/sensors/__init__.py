@@ -3,7 +3,8 @@
 calibrator compensate and the discrepancy workflow looks for."""
 from strapdown_ros.sensors.model import (ARCSEC, DEG_PER_HOUR, NAVIGATION_GRADE_ACCEL,
     NAVIGATION_GRADE_GYRO, IntegratingSensor, PulseQuantizer, SensorErrorModel, SensorSigmas,
-    increment_correction, increment_covariance, simulated_imu)
+    increment_correction, increment_covariance)
+from strapdown_ros.sensors.simulated import simulated_imu
 
 __all__ = ["SensorSigmas", "SensorErrorModel", "PulseQuantizer", "IntegratingSensor", "increment_correction",
            "increment_covariance", "simulated_imu", "DEG_PER_HOUR", "ARCSEC", "NAVIGATION_GRADE_GYRO", "NAVIGATION_GRADE_ACCEL"]

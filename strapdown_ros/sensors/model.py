@@ -34,7 +34,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-__all__ = ["SensorSigmas", "SensorErrorModel", "PulseQuantizer", "IntegratingSensor", "simulated_imu",
+__all__ = ["SensorSigmas", "SensorErrorModel", "PulseQuantizer", "IntegratingSensor",
            "increment_correction", "increment_covariance", "DEG_PER_HOUR", "ARCSEC",
            "NAVIGATION_GRADE_GYRO", "NAVIGATION_GRADE_ACCEL"]
 
@@ -253,20 +253,3 @@ def increment_covariance(increments: np.ndarray, period: float, bias_sigma: floa
     idx = np.arange(3)
     out[..., idx, idx] = d
     return out
-
-
-def simulated_imu(p: dict, profile):
-    """The gyro and accelerometer triads of ``imu_sim_node`` and ``record_sim`` from validated
-    node parameters: constants drawn gyro first, then accelerometer, from ``default_rng(seed)``;
-    noise streams seed+1 (gyro) and seed+2 (accelerometer); the gyro carries the systematic
-    effects of the registry.  Returns (gyro, accel) :class:`IntegratingSensor`."""
-    from strapdown_ros.sensors.effects import GyroEffects
-
-    seed = int(p["seed"])
-    rng = np.random.default_rng(seed)
-    gyro_errors = SensorSigmas.from_params(p, "gyro").draw(rng)
-    accel_errors = SensorSigmas.from_params(p, "accel").draw(rng)
-    gyro = IntegratingSensor(profile, "gyro", float(p["gyro_rate"]), gyro_errors, seed=seed + 1,
-                             effects=GyroEffects(p))
-    accel = IntegratingSensor(profile, "accel", float(p["accel_rate"]), accel_errors, seed=seed + 2)
-    return gyro, accel

@@ -44,7 +44,7 @@ import sys
 
 import numpy as np
 
-from strapdown_ros.calibration.boresight import FIT_LEVEL
+from strapdown_ros.estimation.chi_square import FIT_LEVEL
 from strapdown_ros.calibration.streaming import BoresightCalibrator
 from strapdown_ros.params import CALIBRATOR_PARAMS, check_all, load_parameter_file
 from strapdown_ros.rotation import to_ros_xyzw
@@ -53,12 +53,11 @@ from strapdown_ros.recording import (CAMERA_COV_TOPIC, CAMERA_TOPIC, GYRO_TOPIC,
     BagError, add_input_arguments, check_input_arguments, input_lines, input_options,
     input_summary, input_warnings, open_reader, read_bag, resolve_topic)
 from strapdown_ros.streams.checks import segments
-from strapdown_ros.tools.record_sim import parse_overrides
+from strapdown_ros.params import parse_overrides
 
 __all__ = ["main", "read_bag", "calibrate", "calibrator_parameters", "make_calibrator", "solution_json", "BagError"]
 
 ARCSEC_PER_RAD = 180.0 / np.pi * 3600.0
-_resolve = resolve_topic          # the former private name (tools/sins_bag.py imports it)
 
 
 # --- parameters -------------------------------------------------------------------------------
@@ -279,7 +278,7 @@ def consistency_warning(result: dict) -> str | None:
 
 
 def main(argv=None) -> int:
-    from strapdown_ros.tools.paths import FILE, OneLineParser, check_outputs, write_json
+    from strapdown_ros.cli import FILE, OneLineParser, check_outputs, write_json
 
     ap = OneLineParser(prog="calibrate_bag", description=__doc__,
                        formatter_class=argparse.RawDescriptionHelpFormatter)

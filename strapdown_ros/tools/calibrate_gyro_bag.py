@@ -91,7 +91,7 @@ def result_json(cal, info: dict) -> dict:
 
 
 def _summary(bag, info, cal) -> str:
-    from strapdown_ros.tools.discrepancy import recording_lines
+    from strapdown_ros.discrepancy.bag_input import recording_lines
     lines = recording_lines(PROG, bag, info)
     lines[0] += f"; method {cal.method}"
     d = cal.extra
@@ -138,7 +138,7 @@ def consistency_warning(out: dict) -> str | None:
 
 def _parse(argv):
     from strapdown_ros.recording import add_input_arguments
-    from strapdown_ros.tools.paths import OneLineParser
+    from strapdown_ros.cli import OneLineParser
 
     ap = OneLineParser(prog=PROG, description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("bag", help="rosbag2 bag directory, or a .mcap / .db3 file")
@@ -163,7 +163,7 @@ def _parse(argv):
 def _check(args) -> None:
     """Arguments, input files and output paths, before any work.  Raises ValueError."""
     from strapdown_ros.recording import check_input_arguments
-    from strapdown_ros.tools.paths import FILE, check_outputs
+    from strapdown_ros.cli import FILE, check_outputs
 
     check_input_arguments(args)
     if args.drift and args.method != "tkachenko":
@@ -206,9 +206,9 @@ def main(argv=None) -> int:
               f"optimistic", file=sys.stderr)
     from strapdown_ros.calibration import gyro as gc
     from strapdown_ros.discrepancy.workflow import InputError
-    from strapdown_ros.tools.paths import write_json
+    from strapdown_ros.cli import write_json
     from strapdown_ros.recording import BagError, input_options, input_warnings
-    from strapdown_ros.tools.discrepancy import load_recording
+    from strapdown_ros.discrepancy.bag_input import load_recording
     try:
         rec, info = load_recording(args.bag, model, args.namespace,     # (no progress line yet: an
                                    **input_options(args))               # unusable bag is one line)

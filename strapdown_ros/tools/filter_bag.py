@@ -24,7 +24,7 @@ from strapdown_ros.estimation.filter_system import FilterSystem
 from strapdown_ros.recording.options import (add_input_arguments, check_input_arguments,
     input_options)
 from strapdown_ros.recording.reader import BagError, read_bag
-from strapdown_ros.tools.paths import FILE, OneLineParser, check_outputs, write_text
+from strapdown_ros.cli import FILE, OneLineParser, check_outputs, write_text
 
 NODE_NAME = "attitude_filter_node"
 

@@ -19,7 +19,7 @@ from pathlib import Path
 from strapdown_ros.recording.repoimu import (GYRO_FORMATS, REFERENCE_FORMATS, read_repoimu_csv,
     write_bag)
 from strapdown_ros.files import commit_directory, discard_directory, stage_directory
-from strapdown_ros.tools.paths import REPLACED, OneLineParser, check_outputs
+from strapdown_ros.cli import REPLACED, OneLineParser, check_outputs
 
 __all__ = ["main"]
 

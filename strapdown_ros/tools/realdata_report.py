@@ -38,7 +38,7 @@ import numpy as np
 from strapdown_ros.recording.repoimu import (REALDATA_ENV, find_repoimu, irregular_step_fraction,
     rate_plateau_samples, read_repoimu_csv, repoimu_trials, rest_mean_rate, xcorr_lag_s,
     write_bag)
-from strapdown_ros.tools.paths import FILE, check_output_dir, check_outputs, write_json
+from strapdown_ros.cli import FILE, check_output_dir, check_outputs, write_json
 
 __all__ = ["main", "analyse_trial", "markdown", "NOMINAL_MODEL", "estimates_by_fix_interval",
            "agreement_z"]
@@ -71,7 +71,7 @@ REAL_TOPICS = {"gyro_topic": "/imu/data", "reference_topic": "/mocap/pose"}
 def reads_real_formats() -> bool:
     """True when the installed bag reader takes sensor_msgs/Imu + PoseStamped topics
     (``load_recording(..., gyro_topic=..., reference_topic=...)``, ``--gyro-topic``)."""
-    from strapdown_ros.tools.discrepancy import load_recording
+    from strapdown_ros.discrepancy.bag_input import load_recording
     params = inspect.signature(load_recording).parameters.values()
     return any(p.kind is p.VAR_KEYWORD or p.name == "gyro_topic" for p in params)
 
@@ -104,7 +104,7 @@ def analyse_trial(csv: Path, model_file: Path, work: Path,
     """
     from strapdown_ros.discrepancy.workflow import analyse
     from strapdown_ros.params import load_model
-    from strapdown_ros.tools.discrepancy import load_recording
+    from strapdown_ros.discrepancy.bag_input import load_recording
 
     trial = read_repoimu_csv(csv)
     out = {"trial": csv.stem, "kind": csv.parent.name, "duration_s": trial.duration_s,
@@ -203,7 +203,7 @@ def estimates_by_fix_interval(trial, model_file: Path, work: Path,
     """
     from strapdown_ros.discrepancy.workflow import analyse
     from strapdown_ros.params import load_model
-    from strapdown_ros.tools.discrepancy import load_recording
+    from strapdown_ros.discrepancy.bag_input import load_recording
 
     model, _ = load_model(str(model_file))
     real = reads_real_formats()
@@ -484,7 +484,7 @@ def decimation_section(trials: list) -> list:
 
 
 def main(argv=None) -> int:
-    from strapdown_ros.tools.paths import OneLineParser
+    from strapdown_ros.cli import OneLineParser
     ap = OneLineParser(prog="realdata_report", description=__doc__,
                        formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--data", default="", help=f"RepoIMU directory (default ${REALDATA_ENV}, "

@@ -77,9 +77,10 @@ from strapdown_ros.streams.rate_increments import RATE_RULES
 from strapdown_ros.rotation import to_ros_xyzw
 from strapdown_ros.streams.cdr import stamped_doubles
 from strapdown_ros.text import bounded
-from strapdown_ros.tools.calibrate_bag import BagError, _resolve, open_reader
+from strapdown_ros.recording import BagError, open_reader, resolve_topic
 from strapdown_ros.recording.mcap_records import channel_ids, indexed_mcap, read_topics
-from strapdown_ros.tools.record_sim import _qos, parse_overrides
+from strapdown_ros.recording.writer import offered_qos
+from strapdown_ros.params import parse_overrides
 
 __all__ = ["main", "sins_parameters", "rate_from_stamps", "open_input", "run", "CSV_NAV_COLUMNS",
            "CSV_ATTITUDE_COLUMNS", "BagError"]
@@ -132,7 +133,7 @@ def _find_topic(topics: dict, name: str, namespace: str) -> str | None:
             if t.strip("/") == name.strip("/"):
                 return t
         return None
-    return _resolve(topics, name, namespace)
+    return resolve_topic(topics, name, namespace)
 
 
 IMU = "sensor_msgs/msg/Imu"
@@ -472,7 +473,7 @@ class McapOutput:
         except BaseException:
             discard_directory(self.staged)
             raise
-        qos = _qos("stream", int(p["qos_depth"]))
+        qos = offered_qos("stream", int(p["qos_depth"]))
         self.conns = {n: self.writer.add_connection(self.topics[n], OUTPUT_TYPES[n], typestore=self.store,
                                                     offered_qos_profiles=[qos]) for n in names}
         # one message of each topic, serialised by rosbags: the template of its CDR rows
@@ -576,9 +577,9 @@ class McapOutput:
 
 def _check_output(out: str, bag: str, force: bool, params: str | None = None) -> None:
     """OUT can be written (the tools' one output rule,
-    :func:`~strapdown_ros.tools.paths.check_outputs`: not an input, absent unless --force, its
+    :func:`~strapdown_ros.cli.check_outputs`: not an input, absent unless --force, its
     directory takes a write); a directory is replaced only when it is a rosbag2 bag or empty."""
-    from strapdown_ros.tools.paths import REPLACED, check_outputs
+    from strapdown_ros.cli import REPLACED, check_outputs
 
     check_outputs([("--output", out, REPLACED)], [("bag", bag), ("--params", params)], force)
     p = Path(out)

@@ -243,7 +243,7 @@ def test_a_stated_sigma_far_too_small_still_converges_to_the_boresight(noise_sca
     Gauss–Newton step is halved while it raises the cost of its own weights; converged once the
     step is below 1e-4 of the residual-scaled σ), β lies within 3 scaled σ of the injected
     truth, no good fix is gated, and the fit is flagged inconsistent."""
-    from strapdown_ros.calibration.boresight import chi2_band
+    from strapdown_ros.estimation.chi_square import chi2_band
     beta = np.radians([40.0, -25.0, 120.0])
     prof = bench_profile()
     t, dth, _ = IntegratingSensor(prof, "gyro", 100.0).sample(int(prof.duration * 100) - 1)
@@ -266,7 +266,7 @@ def test_a_stated_sigma_far_too_small_still_converges_to_the_boresight(noise_sca
 def test_chi2_band_is_the_exact_two_sided_band():
     """chi2_band (numpy only, used inside node callbacks) against scipy's quantiles."""
     stats = pytest.importorskip("scipy.stats")
-    from strapdown_ros.calibration.boresight import chi2_band
+    from strapdown_ros.estimation.chi_square import chi2_band
     for dof in (1, 2, 3, 7, 93, 1000, 30000):
         lo, hi = chi2_band(dof, 0.01)
         assert lo == pytest.approx(stats.chi2.ppf(0.005, dof) / dof, rel=1e-10)

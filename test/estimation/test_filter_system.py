@@ -6,7 +6,7 @@ import pytest
 from strapdown_ros.params import FILTER_PARAMS, check_all
 from strapdown_ros.estimation.filter_system import FilterSystem
 from strapdown_ros.estimation.model_check import ljung_box
-from strapdown_ros.calibration.boresight import chi2_sf
+from strapdown_ros.estimation.chi_square import chi2_sf
 from strapdown_ros.motion.profiles import PiecewiseRateProfile, Segment
 from strapdown_ros.rotation import quat_conjugate, quat_multiply, quat_to_rotvec, rotvec_to_quat
 from strapdown_ros.sensors import ARCSEC

@@ -16,8 +16,8 @@ from strapdown_ros.earth import OMEGA, enu_rotation, geodetic_to_ecef, normal_gr
 from strapdown_ros.motion.earth_profiles import (NAVIGATION_PROFILE_NAMES, EarthProfile,
     coordinated_turn_profile, navigation_profile_from_config, sculling_drift_rate,
     sculling_profile, static_profile, straight_flight_profile)
-from strapdown_ros.motion.profiles import (PROFILE_NAMES, PiecewiseRateProfile, Segment,
-    profile_from_config)
+from strapdown_ros.motion.profiles import PiecewiseRateProfile, Segment
+from strapdown_ros.motion.from_config import PROFILE_NAMES, profile_from_config
 from strapdown_ros.rotation import (quat_angle_between, quat_conjugate, quat_multiply,
     quat_to_dcm, quat_to_rotvec)
 

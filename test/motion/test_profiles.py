@@ -8,7 +8,8 @@ import numpy as np
 import pytest
 
 from strapdown_ros.motion.profiles import (ConingProfile, PiecewiseRateProfile, Segment,
-    bench_profile, load_piecewise_profile, tkachenko_profile)
+                                           bench_profile, tkachenko_profile)
+from strapdown_ros.motion.from_config import load_piecewise_profile
 from strapdown_ros.rotation import (quat_angle_between, quat_conjugate, quat_multiply,
     quat_to_dcm, rotvec_to_dcm)
 

@@ -66,7 +66,7 @@ REAL_TOPICS = {"gyro_topic": "/imu/data", "reference_topic": "/mocap/pose"}
 
 def _reads_real_formats() -> bool:
     """discrepancy's reader takes --gyro-topic/--reference-topic (sensor_msgs/Imu, PoseStamped)."""
-    from strapdown_ros.tools.discrepancy import load_recording
+    from strapdown_ros.discrepancy.bag_input import load_recording
     params = inspect.signature(load_recording).parameters.values()
     return any(p.kind is p.VAR_KEYWORD or p.name == "gyro_topic" for p in params)
 
@@ -82,7 +82,7 @@ def _analyse(trial, workdir, model_file, tag, real=None):
         return _runs[key]
     from strapdown_ros.discrepancy.workflow import analyse
     from strapdown_ros.params import load_model
-    from strapdown_ros.tools.discrepancy import load_recording
+    from strapdown_ros.discrepancy.bag_input import load_recording
 
     bag = workdir / f"bag_{tag}_{'real' if real else 'own'}"
     if real:
@@ -271,7 +271,7 @@ def test_reference_with_added_noise_gives_no_confident_wrong_answer(trial, workd
     from strapdown_ros.discrepancy.workflow import analyse
     from strapdown_ros.params import load_model
     from strapdown_ros.recording.repoimu import rest_mean_rate
-    from strapdown_ros.tools.discrepancy import load_recording
+    from strapdown_ros.discrepancy.bag_input import load_recording
 
     rng = np.random.default_rng(20)
     q = quat_multiply(trial.q_reference_marker,

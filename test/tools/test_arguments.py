@@ -87,7 +87,7 @@ def _digest(paths):
 
 def test_no_output_overwrites_an_input(tmp_path):
     """One output rule for every tool
-    (tools/paths.py::check_outputs): no output may be an input (a file inside the input bag
+    (cli.py::check_outputs): no output may be an input (a file inside the input bag
     directory included) or another output, an existing one needs --force, the target directory
     must take a real write (/proc: os.access says yes as root); each refusal is one line, exit 2,
     and the inputs are untouched."""
@@ -146,7 +146,7 @@ def test_no_output_overwrites_an_input(tmp_path):
 
 
 def test_atomic_write_leaves_the_old_file_when_the_write_fails(tmp_path):
-    from strapdown_ros.tools.paths import write_json
+    from strapdown_ros.cli import write_json
     out = tmp_path / "r.json"
     out.write_text("old\n")
     with pytest.raises(ValueError):

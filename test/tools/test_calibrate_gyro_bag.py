@@ -15,7 +15,7 @@ import pytest
 pytest.importorskip("rosbags")
 
 from strapdown_ros.params import load_model  # noqa: E402
-from strapdown_ros.motion.profiles import profile_from_config  # noqa: E402
+from strapdown_ros.motion.from_config import profile_from_config  # noqa: E402
 from strapdown_ros.sensors.effects import GyroEffects  # noqa: E402
 from strapdown_ros.tools import calibrate_gyro_bag
 from strapdown_ros.tools import discrepancy
@@ -82,7 +82,7 @@ def test_injected_errors_recovered_within_3_sigma(calibrated):
 def test_written_model_compensates_with_the_right_sign(calibrated, recording):
     """The model's parameters, compensated as sins_node compensates (GyroEffects), turn the
     recorded increments back into the true ones (from the profile), up to the triad rotation."""
-    from strapdown_ros.tools.discrepancy import load_recording
+    from strapdown_ros.discrepancy.bag_input import load_recording
     _, out, _ = calibrated
     model, _ = load_model(str(out))
     for name in INJECTED:
@@ -236,7 +236,7 @@ def test_gyro_gap_is_not_spanned_and_both_methods_still_recover(recording):
     """Increments missing for 1.5 s in mid-turn (the rotation in them is lost): nothing is formed
     across the gap — 002 drops the intervals spanning it, 000 uses the longer gap-free stretch."""
     from strapdown_ros.calibration import gyro as gc
-    from strapdown_ros.tools.discrepancy import load_recording
+    from strapdown_ros.discrepancy.bag_input import load_recording
 
     model, _ = load_model(str(recording[2]))
     rec, _ = load_recording(str(recording[1]), model)

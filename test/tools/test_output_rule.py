@@ -1,4 +1,4 @@
-"""One output rule for every console script that writes (tools/paths.py::check_outputs): an existing output needs --force, no output
+"""One output rule for every console script that writes (cli.py::check_outputs): an existing output needs --force, no output
 is an input; each refusal comes before any work, in one line, exit 2.  Writes are atomic: files
 (JSON, markdown, PNG) through a temporary file and os.replace, bag directories through a hidden
 sibling renamed into place when complete (strapdown_ros/files.py)."""
@@ -188,7 +188,7 @@ def test_figures_are_written_atomically(tmp_path):
     matplotlib = pytest.importorskip("matplotlib")
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-    from strapdown_ros.tools.paths import write_figure
+    from strapdown_ros.cli import write_figure
     fig, ax = plt.subplots()
     ax.plot([0, 1], [1, 0])
     out = tmp_path / "f.png"

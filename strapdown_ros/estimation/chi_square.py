@@ -1,0 +1,98 @@
+"""
+The χ² statistics of fit consistency: the acceptance band of χ²/dof and the p-value.
+
+A weighted least-squares fit, or a filter's innovations, whose stated noise is right gives a
+χ² statistic with ``dof`` degrees of freedom.  These functions are exact (the regularised
+incomplete gamma function) and numpy-free, so a node pays no scipy import in a callback.
+"""
+from __future__ import annotations
+
+import math
+from statistics import NormalDist
+
+__all__ = ['FIT_LEVEL', 'chi2_band', 'chi2_sf']
+
+#: two-sided level of the χ²/dof acceptance band: a consistent fit falls outside it with
+#: probability FIT_LEVEL
+FIT_LEVEL = 0.01
+
+
+def _gamma_p(a: float, x: float) -> float:
+    """Regularised lower incomplete gamma P(a, x): the series below a + 1, Lentz's continued
+    fraction for Q = 1 − P above (Numerical Recipes §6.2)."""
+    if x <= 0.0:
+        return 0.0
+    log_pre = a * math.log(x) - x - math.lgamma(a)
+    if x < a + 1.0:
+        term = total = 1.0 / a
+        ap = a
+        for _ in range(100000):
+            ap += 1.0
+            term *= x / ap
+            total += term
+            if abs(term) < abs(total) * 1e-15:
+                break
+        return min(1.0, total * math.exp(log_pre))
+    tiny = 1e-300
+    b = x + 1.0 - a
+    c, d = 1.0 / tiny, 1.0 / b
+    h = d
+    for k in range(1, 100000):
+        an = -k * (k - a)
+        b += 2.0
+        d = an * d + b
+        d = tiny if abs(d) < tiny else d
+        c = b + an / c
+        c = tiny if abs(c) < tiny else c
+        d = 1.0 / d
+        h *= d * c
+        if abs(d * c - 1.0) < 1e-15:
+            break
+    return max(0.0, 1.0 - math.exp(log_pre) * h)
+
+
+def _chi2_quantile(p: float, dof: int) -> float:
+    """x with P(χ²_dof ≤ x) = p: Newton's method on the exact distribution function from the
+    Wilson–Hilferty start (no scipy: the node must not pay its import inside a callback)."""
+    a = 0.5 * dof
+    c = 2.0 / (9.0 * dof)
+    x = dof * max(1e-3, 1.0 - c + NormalDist().inv_cdf(p) * math.sqrt(c)) ** 3
+    for _ in range(50):
+        log_pdf = (a - 1.0) * math.log(x) - 0.5 * x - a * math.log(2.0) - math.lgamma(a)
+        step = (_gamma_p(a, 0.5 * x) - p) / math.exp(log_pdf)
+        x_new = x - step if x - step > 0 else 0.5 * x
+        if abs(x_new - x) <= 1e-12 * x:
+            return x_new
+        x = x_new
+    return x
+
+
+def chi2_band(dof: int, level: float = FIT_LEVEL) -> tuple[float, float]:
+    """The two-sided acceptance band of χ²/dof for ``dof`` degrees of freedom at ``level``:
+    (χ²_{level/2}(dof)/dof, χ²_{1−level/2}(dof)/dof).  A weighted least-squares fit whose
+    stated noise is right lands inside with probability 1 − level.  Exact quantiles (numpy
+    only, checked against scipy in test/estimation/test_chi_square.py).  (nan, nan) for dof < 1."""
+    if dof < 1:
+        return float("nan"), float("nan")
+    return _chi2_quantile(level / 2, dof) / dof, _chi2_quantile(1 - level / 2, dof) / dof
+
+
+def chi2_sf(x: float, dof: int) -> float:
+    """Survival function P(χ²_dof > x) (the p-value of a χ² statistic), from the regularised
+    incomplete gamma function of this module (numpy only).
+
+    Parameters
+    ----------
+    x : float
+        Statistic, ≥ 0.
+    dof : int
+        Degrees of freedom, ≥ 1.
+
+    Returns
+    -------
+    float
+        The probability, in [0, 1].
+    """
+    if not math.isfinite(x):
+        return 0.0 if x > 0 else 1.0
+    return max(0.0, 1.0 - _gamma_p(0.5 * dof, 0.5 * max(x, 0.0)))
