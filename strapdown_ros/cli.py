@@ -1,4 +1,5 @@
-"""Argument checks shared by the offline tools: output paths are checked before any work, so a
+"""
+Argument checks shared by the offline tools: output paths are checked before any work, so a
 typo costs a one-line error (exit 2), not minutes of computation followed by a traceback.
 
 :func:`check_outputs` is THE output rule of every tool that writes: no output may be an input
@@ -6,52 +7,55 @@ typo costs a one-line error (exit 2), not minutes of computation followed by a t
 each other, an existing output needs ``--force``, and the target directory takes a real write
 (a probe file is created and removed there, before the work).  The writes themselves are atomic
 (:func:`write_json`, :func:`write_text`: a temporary file in the same directory, then
-``os.replace``)."""
+``os.replace``).
+"""
 from __future__ import annotations
 
 import argparse
 import json
-import sys
 from pathlib import Path
+import sys
 from typing import Iterable, Sequence
 
 from strapdown_ros.files import atomic_savefig, atomic_write_text, probe_writable
 
-__all__ = ["check_output_file", "check_output_dir", "check_outputs", "OneLineParser", "write_json",
-           "write_text", "write_figure", "FILE", "DIRECTORY", "REPLACED"]
+__all__ = ['check_output_file', 'check_output_dir', 'check_outputs', 'OneLineParser', 'write_json',
+           'write_text', 'write_figure', 'FILE', 'DIRECTORY', 'REPLACED']
 
 #: kinds of output: a file; a directory files are written into (created if absent); a file or a
 #: directory (a bag) that the tool replaces as a whole
-FILE, DIRECTORY, REPLACED = "file", "directory", "replaced"
+FILE, DIRECTORY, REPLACED = 'file', 'directory', 'replaced'
 
 
 class OneLineParser(argparse.ArgumentParser):
     """argparse whose errors are one line on stderr (``prog: error: ...``) and exit 2, no usage block."""
 
     def error(self, message):
-        print(f"{self.prog}: error: {message}", file=sys.stderr)
+        print(f'{self.prog}: error: {message}', file=sys.stderr)
         sys.exit(2)
 
 
 def _writable_dir(d: Path, what: str, path) -> None:
-    d = d if str(d) else Path(".")
+    d = d if str(d) else Path('.')
     if not d.exists():
-        raise ValueError(f"{what} {path}: directory {d} does not exist")
+        raise ValueError(f'{what} {path}: directory {d} does not exist')
     if not d.is_dir():
-        raise ValueError(f"{what} {path}: {d} is not a directory")
+        raise ValueError(f'{what} {path}: {d} is not a directory')
     why = probe_writable(d)
     if why:
-        raise ValueError(f"{what} {path}: directory {d} is not writable ({why})")
+        raise ValueError(f'{what} {path}: directory {d} is not writable ({why})')
 
 
 def check_output_file(path, what: str) -> None:
-    """``path`` can be written as a file: its directory exists and takes a write, it is no
-    directory."""
+    """
+    ``path`` can be written as a file: its directory exists and takes a write, it is no
+    directory.
+    """
     if not path:
         return
     p = Path(path)
     if p.is_dir():
-        raise ValueError(f"{what} {path} is a directory")
+        raise ValueError(f'{what} {path} is a directory')
     _writable_dir(p.parent, what, path)
 
 
@@ -62,7 +66,7 @@ def check_output_dir(path, what: str) -> None:
     p = Path(path)
     if p.exists():
         if not p.is_dir():
-            raise ValueError(f"{what} {path} exists and is not a directory")
+            raise ValueError(f'{what} {path} exists and is not a directory')
         _writable_dir(p, what, path)
     else:
         _writable_dir(p.parent, what, path)
@@ -74,7 +78,8 @@ def _inside(a: Path, b: Path) -> bool:
 
 
 def check_outputs(outputs: Iterable[Sequence], inputs: Iterable[Sequence], force: bool) -> None:
-    """The output rule of every tool, before any work.  Raises ValueError (one line).
+    """
+    The output rule of every tool, before any work.  Raises ValueError (one line).
 
     Parameters
     ----------
@@ -97,40 +102,40 @@ def check_outputs(outputs: Iterable[Sequence], inputs: Iterable[Sequence], force
         for name in named.get(path, ()):
             for what, ipath, ir in ins:
                 if r / name == ir:
-                    raise ValueError(f"{opt} {path} would overwrite the input {what} {ipath}")
+                    raise ValueError(f'{opt} {path} would overwrite the input {what} {ipath}')
     for opt, path, kind, r in outs:
         for what, ipath, ir in ins:
             if _inside(r, ir) or (kind == REPLACED and ir in r.parents):
-                raise ValueError(f"{opt} {path} would overwrite the input {what} {ipath}")
+                raise ValueError(f'{opt} {path} would overwrite the input {what} {ipath}')
     for i, (opt, path, kind, r) in enumerate(outs):
         for opt2, path2, kind2, r2 in outs[i + 1:]:
             if r == r2 or (kind2 == REPLACED and r2 in r.parents) \
                     or (kind == REPLACED and r in r2.parents):
-                raise ValueError(f"{opt} {path} and {opt2} {path2} are the same output")
+                raise ValueError(f'{opt} {path} and {opt2} {path2} are the same output')
     for opt, path, kind, r in outs:
         p = Path(path)
         exists = p.exists() or p.is_symlink()
         if kind == FILE:
             if p.is_dir():
-                raise ValueError(f"{opt} {path} is a directory")
+                raise ValueError(f'{opt} {path} is a directory')
             if exists and not force:
-                raise ValueError(f"{opt} {path} exists (use --force to overwrite)")
+                raise ValueError(f'{opt} {path} exists (use --force to overwrite)')
             _writable_dir(p.parent, opt, path)
         elif kind == DIRECTORY:
             if exists and not p.is_dir():
-                raise ValueError(f"{opt} {path} exists and is not a directory")
+                raise ValueError(f'{opt} {path} exists and is not a directory')
             if path in named:
                 there = [n for n in named[path] if exists and (p / n).exists()]
                 if there and not force:
-                    raise ValueError(f"{opt} {path}: {there[0]} exists "
-                                     "(use --force to overwrite)")
+                    raise ValueError(f'{opt} {path}: {there[0]} exists '
+                                     '(use --force to overwrite)')
             elif exists and any(p.iterdir()) and not force:
-                raise ValueError(f"{opt} {path} exists and is not empty "
-                                 "(use --force to write into it)")
+                raise ValueError(f'{opt} {path} exists and is not empty '
+                                 '(use --force to write into it)')
             _writable_dir(p if exists else p.parent, opt, path)
         else:
             if exists and not force:
-                raise ValueError(f"{opt} {path} exists (use --force to replace it)")
+                raise ValueError(f'{opt} {path} exists (use --force to replace it)')
             _writable_dir(p.parent, opt, path)
 
 
@@ -141,10 +146,12 @@ def write_text(path, text: str) -> None:
 
 def write_json(path, data, indent: int = 1) -> None:
     """A JSON result file (strict JSON: no NaN), newline-terminated, written atomically."""
-    atomic_write_text(path, json.dumps(data, indent=indent, allow_nan=False) + "\n")
+    atomic_write_text(path, json.dumps(data, indent=indent, allow_nan=False) + '\n')
 
 
 def write_figure(fig, path, **kwargs) -> None:
-    """A matplotlib figure saved atomically (a temporary file with the same extension in the
-    same directory, then ``os.replace``); ``kwargs`` go to ``savefig`` (``dpi``)."""
+    """
+    A matplotlib figure saved atomically (a temporary file with the same extension in the
+    same directory, then ``os.replace``); ``kwargs`` go to ``savefig`` (``dpi``).
+    """
     atomic_savefig(fig, path, **kwargs)

@@ -1,4 +1,5 @@
-"""Normal gravity in the Earth-fixed frame (Aksyonenko 2014; paper 003, §1.5.2) and geodetic
+"""
+Normal gravity in the Earth-fixed frame (Aksyonenko 2014; paper 003, §1.5.2) and geodetic
 conversions.
 
 Conventions: ECEF = the PZ-90 Greenwich rectangular frame (REP-105 frame ``earth``), Earth
@@ -16,9 +17,9 @@ g_X = (g_r cosφ − g_n sinφ) X/m, g_Y = (…) Y/m, g_Z = g_r sinφ + g_n cos�
 See doc/navigation_gravity.md for the derivation and the numbers (``python -m
 strapdown_ros.earth`` prints them).
 """
-import math
 from collections import namedtuple
 from functools import partial
+import math
 
 import numpy as np
 
@@ -33,27 +34,28 @@ ETA_003 = 0.00346775           # 003's printed η = aΩ²/g_e (recomputed 0.0034
 GM = 398600.4418e9             # PZ-90.11 geocentric gravitational constant, m³/s²
 J2 = 1082.62575e-6             # PZ-90.11 second zonal harmonic of the normal field
 
-Ellipsoid = namedtuple("Ellipsoid", "a f gm omega")
+Ellipsoid = namedtuple('Ellipsoid', 'a f gm omega')
 PZ90_11 = Ellipsoid(A, F, GM, OMEGA)
 WGS84 = Ellipsoid(6378137.0, 1.0 / 298.257223563, 3986004.418e8, 7.292115e-5)
 
 #: Misprints of the printed formula (003 lines 1163-1176), each shown numerically in the doc.
 MISPRINTS = {
-    "g2_centrifugal_sign": "g2 = (−g_e(e²−η)(a/R)⁴ + Ω²R) sinφcosφ: the centrifugal term must be "
-                           "−Ω²R (J2 and centrifugal both pull toward the equator); with it "
-                           "as printed the direction is off by up to 722″ (vs 3.2″ corrected).",
-    "gZ_sign": "g_Z = g3 sinφ − g2 cosφ is not a rotation of (g3, g2) together with "
-               "g_X = (g3 cosφ − g2 sinφ)X/m (rows (c,−s),(s,−c) are not orthonormal); "
-               "g_Z = g3 sinφ + g2 cosφ (as printed: 902″ and 3260 mGal off).",
-    "e2_digits": "'0066934' lacks '0.': read 0.0066934 (kept). PZ-90 e² = 0.0066943662 (two "
-                 "digits swapped?) is not proven: it moves the fit only 3.20″→3.11″, 34.7→33.5 "
-                 "mGal, and e² = 0.0067 fits better still - the first-order truncation dominates.",
+    'g2_centrifugal_sign': 'g2 = (−g_e(e²−η)(a/R)⁴ + Ω²R) sinφcosφ: the centrifugal term must be '
+                           '−Ω²R (J2 and centrifugal both pull toward the equator); with it '
+                           'as printed the direction is off by up to 722″ (vs 3.2″ corrected).',
+    'gZ_sign': 'g_Z = g3 sinφ − g2 cosφ is not a rotation of (g3, g2) together with '
+               'g_X = (g3 cosφ − g2 sinφ)X/m (rows (c,−s),(s,−c) are not orthonormal); '
+               'g_Z = g3 sinφ + g2 cosφ (as printed: 902″ and 3260 mGal off).',
+    'e2_digits': "'0066934' lacks '0.': read 0.0066934 (kept). PZ-90 e² = 0.0066943662 (two "
+                 'digits swapped?) is not proven: it moves the fit only 3.20″→3.11″, 34.7→33.5 '
+                 'mGal, and e² = 0.0067 fits better still - the first-order truncation dominates.',
 }
 
 
 # --- the 003 formula (scalar, pure math: numba.njit-able) -------------------------------
 def printed_gravity_xyz(x, y, z):
-    """003 normal gravity, corrected: ECEF position (m) → ECEF gravity (g_X, g_Y, g_Z), m/s².
+    """
+    003 normal gravity, corrected: ECEF position (m) → ECEF gravity (g_X, g_Y, g_Z), m/s².
 
     Pure ``math`` on scalars so that ``numba.njit(printed_gravity_xyz)`` compiles.  As printed
     except the two proven sign misprints (:data:`MISPRINTS`); e² = 0.0066934, η = 0.00346775,
@@ -142,7 +144,8 @@ def _j2(r, gm=GM, j2=J2, a=A, omega=OMEGA):
 
 
 def _q(u, e):
-    """q(u) = ½[(1 + 3u²/E²) atan(E/u) − 3u/E] (Heiskanen & Moritz 2-57) and dq/du.
+    """
+    q(u) = ½[(1 + 3u²/E²) atan(E/u) − 3u/E] (Heiskanen & Moritz 2-57) and dq/du.
 
     For x = E/u ≤ ½ the series q = Σ_{k≥1} (−1)^{k+1} 2k x^{2k+1}/((2k+1)(2k+3)) (30 terms)
     avoids the cancellation of the closed form (~1e-11 relative at the Earth's surface).
@@ -187,7 +190,7 @@ def normal_potential(r, ell=PZ90_11):
         + 0.5 * w2 * (r[..., 0] ** 2 + r[..., 1] ** 2)
 
 
-def _normal_exact(r, ell=PZ90_11):
+def normal_gravity_exact(r, ell=PZ90_11):
     """Analytic gradient of :func:`normal_potential` through (u, β); exact at any height."""
     r = np.asarray(r, dtype=np.float64)
     u, sb, e2l, e, b = _ellipsoidal(r, ell)
@@ -236,7 +239,8 @@ _Q0 = float(_q(_B, _EL)[0])                          # q at the ellipsoid (u = b
 
 
 def normal_exact_xyz(x, y, z):
-    """The exact normal gravity of the PZ-90.11 level ellipsoid (:func:`_normal_exact`) at one
+    """
+    The exact normal gravity of the PZ-90.11 level ellipsoid (:func:`normal_gravity_exact`) at one
     ECEF position (m) → (g_X, g_Y, g_Z), m/s²; pure ``math`` on scalars (the series and closed
     form of :func:`_q` inlined) so that numba compiles it into the navigation loop
     (``recursion.run``).
@@ -281,11 +285,11 @@ def normal_exact_xyz(x, y, z):
 #: the default normal-gravity model of the whole package (core functions, node and tool
 #: parameters): the exact normal gravity of the level ellipsoid; "pz90_003" (003's formula,
 #: corrected) stays selectable by name
-DEFAULT_GRAVITY_MODEL = "normal_exact"
+DEFAULT_GRAVITY_MODEL = 'normal_exact'
 
-GRAVITY_MODELS = {"pz90_003": _pz90_003, "normal_exact": _normal_exact, "j2": _j2}
+GRAVITY_MODELS = {'pz90_003': _pz90_003, 'normal_exact': normal_gravity_exact, 'j2': _j2}
 #: scalar forms of the models (numba-compilable) that the navigation loop can run compiled
-SCALAR_GRAVITY = {"pz90_003": printed_gravity_xyz, "normal_exact": normal_exact_xyz}
+SCALAR_GRAVITY = {'pz90_003': printed_gravity_xyz, 'normal_exact': normal_exact_xyz}
 
 
 def get_gravity_model(name):
@@ -293,7 +297,7 @@ def get_gravity_model(name):
     try:
         return GRAVITY_MODELS[name]
     except KeyError:
-        raise ValueError(f"unknown gravity model {name!r}; valid: {sorted(GRAVITY_MODELS)}") from None
+        raise ValueError(f'unknown gravity model {name!r}; valid: {sorted(GRAVITY_MODELS)}') from None
 
 
 def normal_gravity(r, model=DEFAULT_GRAVITY_MODEL):
@@ -346,9 +350,10 @@ def _angle_arcsec(g1, g2):
     return np.degrees(np.arctan2(cr, np.sum(g1 * g2, axis=-1))) * 3600.0
 
 
-def compare_models(test="pz90_003", reference="normal_exact", heights=(0.0, 1e3, 1e4, 2e4, 1e5),
+def compare_models(test='pz90_003', reference='normal_exact', heights=(0.0, 1e3, 1e4, 2e4, 1e5),
                    lat_step_deg=5.0, lon_deg=(0.0, 37.0, 143.0, -100.0)):
-    """Differences of ``test`` against ``reference`` on a geodetic grid, per height.
+    """
+    Differences of ``test`` against ``reference`` on a geodetic grid, per height.
 
     ``test``/``reference`` are registry names or callables r (...,3) → g (...,3).  Returns
     {h: {"max_mag", "rms_mag" (m/s²), "max_mag_mgal", "rms_mag_mgal", "max_dir_arcsec",
@@ -360,17 +365,17 @@ def compare_models(test="pz90_003", reference="normal_exact", heights=(0.0, 1e3,
     lon = np.radians(np.asarray(lon_deg, dtype=np.float64))
     out = {}
     for h in heights:
-        la, lo = np.meshgrid(lat, lon, indexing="ij")
+        la, lo = np.meshgrid(lat, lon, indexing='ij')
         r = geodetic_to_ecef(la, lo, h)
         gt, gr = ft(r), fr(r)
         dm = np.linalg.norm(gt, axis=-1) - np.linalg.norm(gr, axis=-1)
         da = _angle_arcsec(gt, gr)
         out[float(h)] = {
-            "max_mag": float(np.max(np.abs(dm))), "rms_mag": float(np.sqrt(np.mean(dm ** 2))),
-            "max_mag_mgal": float(np.max(np.abs(dm))) * 1e5,
-            "rms_mag_mgal": float(np.sqrt(np.mean(dm ** 2))) * 1e5,
-            "max_dir_arcsec": float(np.max(da)), "rms_dir_arcsec": float(np.sqrt(np.mean(da ** 2))),
-            "worst_lat_deg": float(np.degrees(la.ravel()[np.argmax(np.abs(dm).ravel())])),
+            'max_mag': float(np.max(np.abs(dm))), 'rms_mag': float(np.sqrt(np.mean(dm ** 2))),
+            'max_mag_mgal': float(np.max(np.abs(dm))) * 1e5,
+            'rms_mag_mgal': float(np.sqrt(np.mean(dm ** 2))) * 1e5,
+            'max_dir_arcsec': float(np.max(da)), 'rms_dir_arcsec': float(np.sqrt(np.mean(da ** 2))),
+            'worst_lat_deg': float(np.degrees(la.ravel()[np.argmax(np.abs(dm).ravel())])),
         }
     return out
 
@@ -378,12 +383,12 @@ def compare_models(test="pz90_003", reference="normal_exact", heights=(0.0, 1e3,
 #: Variants of the printed formula (misprint study): name → r (...,3) → g (...,3).
 _pv = printed_gravity_variant
 PRINTED_VARIANTS = {
-    "as printed (e²=0.0066934, +Ω²R in g2, −g2·cosφ in g_Z)": partial(_pv, g2_omega_sign=1.0, gz_sign=-1.0),
-    "g2 fixed only": partial(_pv, gz_sign=-1.0),
-    "g_Z fixed only": partial(_pv, g2_omega_sign=1.0),
-    "both signs fixed (pz90_003)": _pv,
-    "both fixed, e²=0.0066943662": partial(_pv, e2=E2),
-    "both fixed, e²=0.0066943662, g_e=Somigliana PZ-90.11": partial(_pv, e2=E2, ge=float(somigliana(0.0))),
+    'as printed (e²=0.0066934, +Ω²R in g2, −g2·cosφ in g_Z)': partial(_pv, g2_omega_sign=1.0, gz_sign=-1.0),
+    'g2 fixed only': partial(_pv, gz_sign=-1.0),
+    'g_Z fixed only': partial(_pv, g2_omega_sign=1.0),
+    'both signs fixed (pz90_003)': _pv,
+    'both fixed, e²=0.0066943662': partial(_pv, e2=E2),
+    'both fixed, e²=0.0066943662, g_e=Somigliana PZ-90.11': partial(_pv, e2=E2, ge=float(somigliana(0.0))),
 }
 
 
@@ -392,28 +397,28 @@ def report(heights=(0.0, 1e3, 1e4, 2e4, 1e5)):
     ge_pz, gp_pz = float(somigliana(0.0)), float(somigliana(np.pi / 2))
     ge_w, gp_w = float(somigliana(0.0, WGS84)), float(somigliana(np.pi / 2, WGS84))
     c0, c1 = GE * (1 - 0.5 * E2_003 + 1.5 * ETA_003), GE * (E2_003 - ETA_003)
-    lines = ["### Constants", "",
-             f"* Somigliana PZ-90.11: γ_e = {ge_pz:.10f}, γ_p = {gp_pz:.10f} m/s² (003 g_e = {GE}); "
-             f"WGS-84: γ_e = {ge_w:.10f}, γ_p = {gp_w:.10f}",
-             f"* J2 of the PZ-90.11 level ellipsoid = {level_ellipsoid_j2():.10e} (published {J2:.10e})",
-             f"* η = aΩ²/g_e = {A * OMEGA ** 2 / GE:.10f} (003 prints {ETA_003})",
-             f"* first-order coefficients: g_e(1 − ½e² + 3/2η) = {c0:.6f} vs GM/a² = {GM / A ** 2:.6f}; "
-             f"g_e(e² − η) = {c1:.6f} vs 3·J2·GM/a² = {3 * J2 * GM / A ** 2:.6f} m/s²", ""]
-    head = "| h, km | max abs Δ‖g‖, mGal | RMS Δ‖g‖, mGal | max angle, ″ | RMS angle, ″ |"
-    for test, ref in (("pz90_003", "normal_exact"), ("j2", "normal_exact"), ("pz90_003", "j2")):
-        lines += [f"### {test} vs {ref}", "", head, "|---|---|---|---|---|"]
+    lines = ['### Constants', '',
+             f'* Somigliana PZ-90.11: γ_e = {ge_pz:.10f}, γ_p = {gp_pz:.10f} m/s² (003 g_e = {GE}); '
+             f'WGS-84: γ_e = {ge_w:.10f}, γ_p = {gp_w:.10f}',
+             f'* J2 of the PZ-90.11 level ellipsoid = {level_ellipsoid_j2():.10e} (published {J2:.10e})',
+             f'* η = aΩ²/g_e = {A * OMEGA ** 2 / GE:.10f} (003 prints {ETA_003})',
+             f'* first-order coefficients: g_e(1 − ½e² + 3/2η) = {c0:.6f} vs GM/a² = {GM / A ** 2:.6f}; '
+             f'g_e(e² − η) = {c1:.6f} vs 3·J2·GM/a² = {3 * J2 * GM / A ** 2:.6f} m/s²', '']
+    head = '| h, km | max abs Δ‖g‖, mGal | RMS Δ‖g‖, mGal | max angle, ″ | RMS angle, ″ |'
+    for test, ref in (('pz90_003', 'normal_exact'), ('j2', 'normal_exact'), ('pz90_003', 'j2')):
+        lines += [f'### {test} vs {ref}', '', head, '|---|---|---|---|---|']
         for h, d in compare_models(test, ref, heights).items():
             lines.append(f"| {h / 1e3:g} | {d['max_mag_mgal']:.3g} | {d['rms_mag_mgal']:.3g} | "
                          f"{d['max_dir_arcsec']:.3g} | {d['rms_dir_arcsec']:.3g} |")
-        lines.append("")
-    lines += ["### Printed-formula variants vs normal_exact, h = 0 … 20 km (worst over heights)", "",
-              "| variant | max abs Δ‖g‖, mGal | max angle, ″ | RMS angle, ″ |", "|---|---|---|---|"]
+        lines.append('')
+    lines += ['### Printed-formula variants vs normal_exact, h = 0 … 20 km (worst over heights)', '',
+              '| variant | max abs Δ‖g‖, mGal | max angle, ″ | RMS angle, ″ |', '|---|---|---|---|']
     for name, fn in PRINTED_VARIANTS.items():
-        c = compare_models(fn, "normal_exact", (0.0, 1e4, 2e4)).values()
-        worst = [max(d[k] for d in c) for k in ("max_mag_mgal", "max_dir_arcsec", "rms_dir_arcsec")]
-        lines.append(f"| {name} | " + " | ".join(f"{v:.3g}" for v in worst) + " |")
-    return "\n".join(lines)
+        c = compare_models(fn, 'normal_exact', (0.0, 1e4, 2e4)).values()
+        worst = [max(d[k] for d in c) for k in ('max_mag_mgal', 'max_dir_arcsec', 'rms_dir_arcsec')]
+        lines.append(f'| {name} | ' + ' | '.join(f'{v:.3g}' for v in worst) + ' |')
+    return '\n'.join(lines)
 
 
-if __name__ == "__main__":
+if __name__ == '__main__':
     print(report())

@@ -5,7 +5,7 @@ import os
 
 from strapdown_ros.files import atomic_savefig
 
-__all__ = ["save_figure"]
+__all__ = ['save_figure']
 
 
 def save_figure(fig, outdir: str, name: str) -> str:

@@ -1,4 +1,5 @@
-"""Atomic file writes and a write probe, shared by the offline tools (cli.py) and the
+"""
+Atomic file writes and a write probe, shared by the offline tools (cli.py) and the
 model writer (config.write_model).  No ROS imports.
 
 A write goes to a temporary file in the target's own directory and is moved over the target with
@@ -7,34 +8,36 @@ failure leaves the old file as it was.  Errors name the target, never the tempor
 """
 from __future__ import annotations
 
+from contextlib import contextmanager
 import os
+from pathlib import Path
 import shutil
 import tempfile
-from contextlib import contextmanager
-from pathlib import Path
 
-__all__ = ["atomic_write_text", "atomic_savefig", "stage_directory", "commit_directory",
-           "discard_directory", "probe_writable"]
+__all__ = ['atomic_write_text', 'atomic_savefig', 'stage_directory', 'commit_directory',
+           'discard_directory', 'probe_writable']
 
 
 def _directory(path) -> Path:
     d = Path(path).parent
-    return d if str(d) else Path(".")
+    return d if str(d) else Path('.')
 
 
 @contextmanager
 def _replacing(path, suffix: str):
-    """A temporary file beside ``path`` (same directory, ``suffix``) for the caller to fill;
-    moved over ``path`` when the block ends, removed if it fails.  Errors name ``path``."""
+    """
+    A temporary file beside ``path`` (same directory, ``suffix``) for the caller to fill;
+    moved over ``path`` when the block ends, removed if it fails.  Errors name ``path``.
+    """
     fd, tmp = None, None
     try:
-        fd, tmp = tempfile.mkstemp(dir=_directory(path), prefix=f".{Path(path).name}.",
+        fd, tmp = tempfile.mkstemp(dir=_directory(path), prefix=f'.{Path(path).name}.',
                                    suffix=suffix)
         yield fd, tmp
         os.replace(tmp, path)
         tmp = None
     except OSError as exc:
-        raise OSError(exc.errno, f"cannot write {path}: {exc.strerror or exc}") from None
+        raise OSError(exc.errno, f'cannot write {path}: {exc.strerror or exc}') from None
     finally:
         if tmp is not None:
             try:
@@ -44,7 +47,8 @@ def _replacing(path, suffix: str):
 
 
 def atomic_write_text(path, text: str) -> None:
-    """Write ``text`` (UTF-8) to ``path`` atomically.
+    """
+    Write ``text`` (UTF-8) to ``path`` atomically.
 
     Parameters
     ----------
@@ -58,15 +62,16 @@ def atomic_write_text(path, text: str) -> None:
     OSError
         The write failed; the message names ``path`` and the target is unchanged.
     """
-    with _replacing(path, ".tmp") as (fd, _):
-        with os.fdopen(fd, "w", encoding="utf-8") as fh:
+    with _replacing(path, '.tmp') as (fd, _):
+        with os.fdopen(fd, 'w', encoding='utf-8') as fh:
             fh.write(text)
             fh.flush()
             os.fsync(fh.fileno())
 
 
 def atomic_savefig(fig, path, **kwargs) -> None:
-    """``fig.savefig(path, **kwargs)`` atomically: matplotlib writes a temporary file with the
+    """
+    ``fig.savefig(path, **kwargs)`` atomically: matplotlib writes a temporary file with the
     same extension (it picks the format from it) in the target's directory, then ``os.replace``.
 
     Parameters
@@ -84,7 +89,8 @@ def atomic_savefig(fig, path, **kwargs) -> None:
 
 
 def stage_directory(path) -> Path:
-    """Where to write a directory output (a bag) before it is complete: ``path``'s name inside
+    """
+    Where to write a directory output (a bag) before it is complete: ``path``'s name inside
     a new hidden temporary directory beside it (same file system, so the final move is a
     rename; the files inside keep the names they will have).  Not created itself.
 
@@ -99,12 +105,13 @@ def stage_directory(path) -> Path:
         The staging path; hand it to :func:`commit_directory` or :func:`discard_directory`.
     """
     p = Path(path)
-    holder = tempfile.mkdtemp(dir=_directory(p), prefix=f".{p.name}.", suffix=".part")
+    holder = tempfile.mkdtemp(dir=_directory(p), prefix=f'.{p.name}.', suffix='.part')
     return Path(holder) / p.name
 
 
 def commit_directory(staged, path) -> None:
-    """Move the complete directory ``staged`` (from :func:`stage_directory`) to ``path``.  An
+    """
+    Move the complete directory ``staged`` (from :func:`stage_directory`) to ``path``.  An
     existing ``path`` (the caller checked --force) is moved aside first and removed only after
     the new one is in place; if the move fails, it is put back.
 
@@ -116,7 +123,7 @@ def commit_directory(staged, path) -> None:
         The target.
     """
     staged, p = Path(staged), Path(path)
-    old = staged.parent / ".old"
+    old = staged.parent / '.old'
     moved = False
     try:
         if p.is_symlink() or p.is_file():
@@ -129,7 +136,7 @@ def commit_directory(staged, path) -> None:
     except OSError as exc:
         if moved and not p.exists():
             os.rename(old, p)
-        raise OSError(exc.errno, f"cannot write {path}: {exc.strerror or exc}") from None
+        raise OSError(exc.errno, f'cannot write {path}: {exc.strerror or exc}') from None
     shutil.rmtree(staged.parent, ignore_errors=True)
 
 
@@ -139,7 +146,8 @@ def discard_directory(staged) -> None:
 
 
 def probe_writable(directory) -> str | None:
-    """Try what a write into ``directory`` does: create and remove a temporary file there.
+    """
+    Try what a write into ``directory`` does: create and remove a temporary file there.
     Returns None when it works, else the reason (``os.access`` is not enough: as root it says
     yes for /proc, where creating a file fails).
 
@@ -149,12 +157,12 @@ def probe_writable(directory) -> str | None:
         An existing directory.
     """
     try:
-        fd, tmp = tempfile.mkstemp(dir=directory, prefix=".write-probe.", suffix=".tmp")
+        fd, tmp = tempfile.mkstemp(dir=directory, prefix='.write-probe.', suffix='.tmp')
     except OSError as exc:
         return exc.strerror or str(exc)
     os.close(fd)
     try:
         os.unlink(tmp)
     except OSError as exc:
-        return f"a probe file could not be removed ({exc.strerror or exc})"
+        return f'a probe file could not be removed ({exc.strerror or exc})'
     return None

@@ -1,4 +1,5 @@
-"""Rotations: quaternions, direction-cosine matrices (DCM), rotation vectors, Euler angles.
+"""
+Rotations: quaternions, direction-cosine matrices (DCM), rotation vectors, Euler angles.
 
 Conventions (stated once, used everywhere in the core)
 ------------------------------------------------------
@@ -29,11 +30,11 @@ from __future__ import annotations
 import numpy as np
 
 __all__ = [
-    "skew", "quat_multiply", "quat_conjugate", "quat_normalize", "quat_identity",
-    "rotvec_to_quat", "quat_to_rotvec", "quat_to_dcm", "dcm_to_quat", "rotvec_to_dcm",
-    "quat_rotate", "quat_angle_between", "quat_error_rotvec", "quat_cumprod",
-    "to_ros_xyzw", "from_ros_xyzw", "elementary_dcm", "ypr_to_dcm", "dcm_to_ypr",
-    "aircraft_angles_to_quat", "ypr_error_to_rotation",
+    'skew', 'quat_multiply', 'quat_conjugate', 'quat_normalize', 'quat_identity',
+    'rotvec_to_quat', 'quat_to_rotvec', 'quat_to_dcm', 'dcm_to_quat', 'rotvec_to_dcm',
+    'quat_rotate', 'quat_angle_between', 'quat_error_rotvec', 'quat_cumprod',
+    'to_ros_xyzw', 'from_ros_xyzw', 'elementary_dcm', 'ypr_to_dcm', 'dcm_to_ypr',
+    'aircraft_angles_to_quat', 'ypr_error_to_rotation',
 ]
 
 
@@ -54,8 +55,10 @@ def quat_identity(shape=()) -> np.ndarray:
 
 
 def cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """``a × b`` over the last axis (length 3), broadcasting; by components (``np.cross`` spends
-    most of its time moving axes and casting, several times slower on long arrays)."""
+    """
+    ``a × b`` over the last axis (length 3), broadcasting; by components (``np.cross`` spends
+    most of its time moving axes and casting, several times slower on long arrays).
+    """
     a = np.asarray(a, dtype=float)
     b = np.asarray(b, dtype=float)
     a0, a1, a2 = a[..., 0], a[..., 1], a[..., 2]
@@ -88,7 +91,8 @@ def quat_normalize(q: np.ndarray) -> np.ndarray:
 
 
 def rotvec_to_quat(phi: np.ndarray) -> np.ndarray:
-    """``exp(φ)``: rotation vector (..., 3) → unit quaternion (..., 4).
+    """
+    ``exp(φ)``: rotation vector (..., 3) → unit quaternion (..., 4).
 
     Uses ``sin(a/2)/a = sinc(a/2π)/2`` so it is exact (to round-off) at any angle,
     including zero.
@@ -166,15 +170,16 @@ def quat_rotate(q: np.ndarray, v: np.ndarray) -> np.ndarray:
     return v + q[..., :1] * t + cross(qv, t)
 
 
-def quat_error_rotvec(q_est: np.ndarray, q_true: np.ndarray, frame: str = "body") -> np.ndarray:
-    """Attitude error as a rotation vector.
+def quat_error_rotvec(q_est: np.ndarray, q_true: np.ndarray, frame: str = 'body') -> np.ndarray:
+    """
+    Attitude error as a rotation vector.
 
     ``frame='body'``: ε with ``q_est = q_true ⊗ exp(ε)`` (body axes, 004's definition).
     ``frame='reference'``: e with ``q_est = exp(e) ⊗ q_true`` (reference axes).
     """
-    if frame == "body":
+    if frame == 'body':
         d = quat_multiply(quat_conjugate(q_true), q_est)
-    elif frame == "reference":
+    elif frame == 'reference':
         d = quat_multiply(q_est, quat_conjugate(q_true))
     else:
         raise ValueError(f"frame must be 'body' or 'reference', got {frame!r}")
@@ -188,7 +193,8 @@ def quat_angle_between(q1: np.ndarray, q2: np.ndarray) -> np.ndarray:
 
 
 def quat_cumprod(q0: np.ndarray, dq: np.ndarray) -> np.ndarray:
-    """Running attitude ``q_k = q0 ⊗ dq_1 ⊗ … ⊗ dq_k`` for k = 1..n, vectorised.
+    """
+    Running attitude ``q_k = q0 ⊗ dq_1 ⊗ … ⊗ dq_k`` for k = 1..n, vectorised.
 
     A blocked scan with O(n) work: the n factors are cut into blocks of 16; one vectorised
     pass per position runs the prefix inside every block at once (earlier factor on the
@@ -249,7 +255,7 @@ def elementary_dcm(axis: int, angle) -> np.ndarray:
     elif axis == 2:
         rows = [[c, -s, zero], [s, c, zero], [zero, zero, one]]
     else:
-        raise ValueError("axis must be 0, 1 or 2")
+        raise ValueError('axis must be 0, 1 or 2')
     return np.stack([np.stack(r, -1) for r in rows], -2)
 
 
@@ -280,8 +286,10 @@ def dcm_to_ypr(C: np.ndarray) -> np.ndarray:
 
 
 def ypr_error_to_rotation(yaw, pitch, roll) -> tuple[np.ndarray, np.ndarray]:
-    """004 §5: small-angle maps ``θ_child = D1 δβ`` and ``θ_parent = D2 δβ = C D1 δβ`` of a
-    perturbation δβ of (ψ, ϑ, γ) into the rotation error of C (``C ≈ C̆(I + [θ_child×])``)."""
+    """
+    004 §5: small-angle maps ``θ_child = D1 δβ`` and ``θ_parent = D2 δβ = C D1 δβ`` of a
+    perturbation δβ of (ψ, ϑ, γ) into the rotation error of C (``C ≈ C̆(I + [θ_child×])``).
+    """
     sy, cy = np.sin(yaw), np.cos(yaw)
     sp, cp = np.sin(pitch), np.cos(pitch)
     d2 = np.array([[0.0, cy, cp * sy], [0.0, -sy, cp * cy], [-1.0, 0.0, sp]])

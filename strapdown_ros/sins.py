@@ -1,4 +1,5 @@
-"""The numerical core of ``sins_node``, without ROS: used by the node and by ``sins_bag``.
+"""
+The numerical core of ``sins_node``, without ROS: used by the node and by ``sins_bag``.
 
 :class:`SinsSystem` takes the node's validated parameters (:data:`strapdown_ros.params.SINS_PARAMS`)
 and the raw stream of ``imu/delta_theta`` and ``imu/delta_velocity`` values (header stamp in
@@ -31,29 +32,30 @@ No ROS imports.
 """
 from __future__ import annotations
 
+from collections import deque
 import copy
+from dataclasses import dataclass, fields
 import math
 import time
-from collections import deque
-from dataclasses import dataclass, fields
 from typing import Callable
 
 import numpy as np
 
 from strapdown_ros.attitude import kernel as attitude_kernel
-from strapdown_ros.params import sigmas_from
 from strapdown_ros.attitude.integrator import AttitudeIntegrator, IncrementAccumulator
+from strapdown_ros.navigation import recursion as nav_recursion
+from strapdown_ros.navigation.channel import NavigationChannel
+from strapdown_ros.params import sigmas_from
 from strapdown_ros.rotation import dcm_to_quat, from_ros_xyzw, quat_to_dcm
 from strapdown_ros.sensors.effects import GyroEffects
 from strapdown_ros.streams.checks import StreamCheck
+from strapdown_ros.streams.rate_increments import increments_from_rates
 from strapdown_ros.text import bounded
-from strapdown_ros.navigation import recursion as nav_recursion
-from strapdown_ros.navigation.channel import NavigationChannel
 
-__all__ = ["SinsSystem", "SinsOutput", "AttitudeOutput", "ImuOutput", "NavigationOutput", "odometry_arrays",
-           "NONFINITE_INFLATION", "MAX_BATCH",
-           "FEED_BLOCK", "FEED_ACCEL_BLOCK", "screen_stream", "ACCEL_STALL_ERROR_FACTOR",
-           "ACCEL_STALL_ERROR_MIN_S", "accel_stall_limits", "AccelStall"]
+__all__ = ['SinsSystem', 'SinsOutput', 'AttitudeOutput', 'ImuOutput', 'NavigationOutput', 'odometry_arrays',
+           'NONFINITE_INFLATION', 'MAX_BATCH',
+           'FEED_BLOCK', 'FEED_ACCEL_BLOCK', 'screen_stream', 'ACCEL_STALL_ERROR_FACTOR',
+           'ACCEL_STALL_ERROR_MIN_S', 'accel_stall_limits', 'AccelStall']
 
 NONFINITE_INFLATION = 0.01      # rad per axis added to σ after a non-finite update is discarded
 MAX_BATCH = 4096                # a block is processed when it holds this many messages, whatever its span
@@ -93,9 +95,11 @@ class AttitudeOutput(_Arrays):
 
 @dataclass
 class ImuOutput(_Arrays):
-    """``sins/imu`` records: the attitude updates once their accelerometer data arrived (or
+    """
+    ``sins/imu`` records: the attitude updates once their accelerometer data arrived (or
     waited ``accel_wait``).  ``specific_force`` is the mean Δv/h over the update where
-    ``has_accel``, zeros (and ``has_accel`` False) where no accelerometer data covered it."""
+    ``has_accel``, zeros (and ``has_accel`` False) where no accelerometer data covered it.
+    """
     stamp_ns: np.ndarray        # (M,) int64
     attitude: np.ndarray        # (M, 4) q_ref_body, scalar-first
     covariance: np.ndarray      # (M, 3, 3) body axes, rad²
@@ -141,17 +145,19 @@ _NOTHING = SinsOutput(AttitudeOutput.EMPTY, ImuOutput.EMPTY, NavigationOutput.EM
 
 
 def odometry_arrays(nav: NavigationOutput, rate_variance: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The nav_msgs/Odometry numbers of navigation steps (REP-105): pose covariance (K, 36) of
+    """
+    The nav_msgs/Odometry numbers of navigation steps (REP-105): pose covariance (K, 36) of
     [position, ψ about earth axes], velocity in body axes (K, 3) and the twist covariance (K, 36)
     ([body velocity, angular rate]; the angular block ``rate_variance`` per axis: the rate itself
-    is on sins/imu, twist.angular is not filled)."""
+    is on sins/imu, twist.angular is not filled).
+    """
     k = len(nav)
     p = nav.covariance
     c6 = np.zeros((k, 6, 6))
     c6[:, :3, :3], c6[:, :3, 3:], c6[:, 3:, :3], c6[:, 3:, 3:] = p[:, :3, :3], p[:, :3, 6:], p[:, 6:, :3], p[:, 6:, 6:]
     c = quat_to_dcm(nav.attitude).reshape(k, 3, 3)              # C_E_B: twist in body axes
     ct = np.swapaxes(c, -1, -2)
-    vb = np.einsum("kij,kj->ki", ct, nav.velocity)
+    vb = np.einsum('kij,kj->ki', ct, nav.velocity)
     t6 = np.zeros((k, 6, 6))
     t6[:, :3, :3] = ct @ p[:, 3:6, 3:6] @ c
     t6[:, 3:, 3:] = np.eye(3) * rate_variance
@@ -166,7 +172,8 @@ ACCEL_STALL_ERROR_MIN_S = 1.0
 
 
 def accel_stall_limits(accel_wait: float) -> tuple[float, float]:
-    """(WARN, ERROR) thresholds of the accelerometer stall, stamp seconds.
+    """
+    (WARN, ERROR) thresholds of the accelerometer stall, stamp seconds.
 
     Parameters
     ----------
@@ -185,7 +192,8 @@ def accel_stall_limits(accel_wait: float) -> tuple[float, float]:
 
 @dataclass(frozen=True)
 class AccelStall:
-    """The accelerometer stream has stopped while the gyro stream runs on.
+    """
+    The accelerometer stream has stopped while the gyro stream runs on.
 
     Attributes
     ----------
@@ -210,7 +218,8 @@ def _finite_update(q: np.ndarray, cov: np.ndarray) -> bool:
 
 
 def screen_stream(check: StreamCheck, stamps_ns: np.ndarray, values: np.ndarray) -> list:
-    """A whole recorded stream through ``check`` in order: :meth:`StreamCheck.offer_many` over the
+    """
+    A whole recorded stream through ``check`` in order: :meth:`StreamCheck.offer_many` over the
     regular stretches, :meth:`StreamCheck.offer` for each message that is not (so the counters
     and the accepted messages are those of offering every message in turn).
 
@@ -260,7 +269,8 @@ def screen_stream(check: StreamCheck, stamps_ns: np.ndarray, values: np.ndarray)
 
 # --- the system ---------------------------------------------------------------------------------
 class SinsSystem:
-    """sins_node's processing.  ``params``: validated :data:`~strapdown_ros.params.SINS_PARAMS`
+    """
+    sins_node's processing.  ``params``: validated :data:`~strapdown_ros.params.SINS_PARAMS`
     (copied); ``log(level, text)``: where messages go (level ``info``, ``warn`` or ``error``;
     repeated warnings are throttled here); ``imu_wanted()``: asked once per block whether
     ``sins/imu`` records are wanted (False: none are made and the accelerometer data only feed
@@ -278,31 +288,31 @@ class SinsSystem:
     def __init__(self, params: dict, log: Callable[[str, str], None] | None = None,
                  imu_wanted: Callable[[], bool] | None = None):
         p = self.p = dict(params)
-        q0_xyzw = np.asarray(p["initial_orientation"], dtype=float)
+        q0_xyzw = np.asarray(p['initial_orientation'], dtype=float)
         if np.linalg.norm(q0_xyzw) < 1e-6:
-            raise ValueError("initial_orientation must not be the zero quaternion")
+            raise ValueError('initial_orientation must not be the zero quaternion')
         self.initial_normalised = abs(np.linalg.norm(q0_xyzw) - 1.0) > 1e-6
-        period = 1.0 / float(p["gyro_rate"])
+        period = 1.0 / float(p['gyro_rate'])
         self.integrator = AttitudeIntegrator(
-            p["coning_algorithm"], initial_attitude=from_ros_xyzw(q0_xyzw), nominal_period=period,
-            gyro=sigmas_from(p, "gyro"), initial_sigma=float(p["initial_attitude_sigma"]),
-            covariance_model=p["covariance_model"], quantization_correction=bool(p["quantization_correction"]))
+            p['coning_algorithm'], initial_attitude=from_ros_xyzw(q0_xyzw), nominal_period=period,
+            gyro=sigmas_from(p, 'gyro'), initial_sigma=float(p['initial_attitude_sigma']),
+            covariance_model=p['covariance_model'], quantization_correction=bool(p['quantization_correction']))
         # known systematic gyro effects of the model (sensors.effects), compensated per increment
         self.gyro_effects = GyroEffects(p)
         self.compensating = self.gyro_effects.names()
         self._last_gyro_t: float | None = None
-        jump, resync = float(p["max_stamp_jump"]), int(p["resync_count"])
-        self.gyro_check = StreamCheck(period, max_norm=2.0 * period * float(p["gyro_max_rate"]), jump_limit=jump,
+        jump, resync = float(p['max_stamp_jump']), int(p['resync_count'])
+        self.gyro_check = StreamCheck(period, max_norm=2.0 * period * float(p['gyro_max_rate']), jump_limit=jump,
                                       resync_count=resync)
-        a_period = 1.0 / float(p["accel_rate"])
-        self.accel_check = StreamCheck(a_period, max_norm=2.0 * a_period * float(p["accel_max"]), jump_limit=jump,
+        a_period = 1.0 / float(p['accel_rate'])
+        self.accel_check = StreamCheck(a_period, max_norm=2.0 * a_period * float(p['accel_max']), jump_limit=jump,
                                        resync_count=resync)
         self.nonfinite = 0                         # updates whose output was not finite (never output)
         self.rate_checks: dict = {}                # sensor_msgs/Imu rate samples (screen_imu)
-        self.frame_mismatch = {"gyro": 0, "accel": 0}
-        self.frame_id = p["frame_id"]
-        self.reject_frames = p["frame_mismatch"] == "reject"
-        self._own_frames = ("", self.frame_id)
+        self.frame_mismatch = {'gyro': 0, 'accel': 0}
+        self.frame_id = p['frame_id']
+        self.reject_frames = p['frame_mismatch'] == 'reject'
+        self._own_frames = ('', self.frame_id)
         self._good = self.integrator.snapshot()
         self.accel = IncrementAccumulator()
         self.accel_seen = False
@@ -313,14 +323,14 @@ class SinsSystem:
         self._accel_in: list = []                  # (t, (x, y, z))
         self._gyro_blocks: list = []               # screened arrays (feed): (stamps_ns, values)
         self._accel_blocks: list = []              # (t, values)
-        self.batch_span = float(p["batch_period"])
+        self.batch_span = float(p['batch_period'])
         self._gyro_period = period
         self._block_end_ns: int | None = None      # stamp of the last sample processed
         self._batch_span_ns = int(round(self.batch_span * 1e9))
         self._gyro_period_ns = int(round(period * 1e9))
         g = self.integrator.gyro.random_walk ** 2 / max(period, 1e-12)
         self.rate_variance = g                     # per axis, (rad/s)², of the mean rate of sins/imu
-        self.accel_variance = float(p["accel_random_walk"]) ** 2 * float(p["accel_rate"])   # (m/s²)²
+        self.accel_variance = float(p['accel_random_walk']) ** 2 * float(p['accel_rate'])   # (m/s²)²
         self._log_fn = log
         self._imu_wanted = imu_wanted or (lambda: True)
         self._throttle: dict[str, float] = {}
@@ -328,16 +338,18 @@ class SinsSystem:
         self.has_output = False
         attitude_kernel.warm_up()                  # compiled before the first message, if numba is there
         self.nav: NavigationChannel | None = None
-        if p["navigation"]:
-            self.nav = NavigationChannel(p, sigmas_from(p, "gyro"), sigmas_from(p, "accel"), period, a_period,
+        if p['navigation']:
+            self.nav = NavigationChannel(p, sigmas_from(p, 'gyro'), sigmas_from(p, 'accel'), period, a_period,
                                          self.integrator.algorithm.samples)
             nav_recursion.warm_up()
             self._nav_prev_q = self.integrator.q.copy()
 
     # --- messages -----------------------------------------------------------------------------
     def _log(self, level: str, text, throttle: float = 0.0, key: str | None = None) -> None:
-        """Emit ``text`` (a str, or a callable making it: built only when emitted), at most once
-        per ``throttle`` seconds per ``key``."""
+        """
+        Emit ``text`` (a str, or a callable making it: built only when emitted), at most once
+        per ``throttle`` seconds per ``key``.
+        """
         if self._log_fn is None:
             return
         if throttle > 0:
@@ -351,8 +363,8 @@ class SinsSystem:
     # --- input --------------------------------------------------------------------------------
     def _frame_text(self, stream: str, frame_id: str, count: int = 1) -> str:
         """The frame-mismatch warning, frame ids bounded (built only when emitted)."""
-        many = f"{count} {stream} messages" if count > 1 else f"{stream} message"
-        return (f"{many} in frame {bounded(frame_id)!r}, expected {bounded(self.frame_id)!r}: "
+        many = f'{count} {stream} messages' if count > 1 else f'{stream} message'
+        return (f'{many} in frame {bounded(frame_id)!r}, expected {bounded(self.frame_id)!r}: '
                 f"{'rejected' if self.reject_frames else 'used'}")
 
     def _rel(self, stamp_ns: int) -> float:
@@ -361,23 +373,27 @@ class SinsSystem:
         return (stamp_ns - self.origin_ns) * 1e-9
 
     def _wrong_frame(self, frame_id: str, stream: str) -> bool:
-        """The frame rule: an empty frame_id is unspecified; another frame than ``frame_id`` is
-        counted and WARNed, and rejected unless ``frame_mismatch`` is accept."""
+        """
+        The frame rule: an empty frame_id is unspecified; another frame than ``frame_id`` is
+        counted and WARNed, and rejected unless ``frame_mismatch`` is accept.
+        """
         self.frame_mismatch[stream] += 1
-        self._log("warn", lambda: self._frame_text(stream, frame_id), throttle=10.0,
-                  key="frame_" + stream)
+        self._log('warn', lambda: self._frame_text(stream, frame_id), throttle=10.0,
+                  key='frame_' + stream)
         return self.reject_frames
 
-    def frame_accepted(self, frame_id: str, stream: str = "gyro") -> bool:
-        """The frame rule alone, for input checked before it reaches :meth:`offer_gyro` (a
+    def frame_accepted(self, frame_id: str, stream: str = 'gyro') -> bool:
+        """
+        The frame rule alone, for input checked before it reaches :meth:`offer_gyro` (a
         ``sensor_msgs/Imu`` rate sample, before it is made into increments): True when
         ``frame_id`` is empty or ``frame_id``, or another frame counted under ``stream`` and
-        accepted (``frame_mismatch`` accept)."""
+        accepted (``frame_mismatch`` accept).
+        """
         return frame_id in self._own_frames or not self._wrong_frame(frame_id, stream)
 
-    def offer_gyro(self, stamp_ns: int, value, frame_id: str = "") -> bool:
+    def offer_gyro(self, stamp_ns: int, value, frame_id: str = '') -> bool:
         """One imu/delta_theta message (rad): validate and append.  True when a block is due."""
-        if frame_id not in self._own_frames and self._wrong_frame(frame_id, "gyro"):
+        if frame_id not in self._own_frames and self._wrong_frame(frame_id, 'gyro'):
             return False
         out = self.gyro_check.offer(stamp_ns, value)
         if not out:
@@ -388,8 +404,8 @@ class SinsSystem:
             self._last_gyro_t = None
             self._block_end_ns = None
             self.origin_ns = None
-            self._log("error", f"gyro stamps jumped by {self.gyro_check.last_jump_s:.6g} s and stayed: "
-                      "resynchronised to the new time base; the rotation during the jump is lost")
+            self._log('error', f'gyro stamps jumped by {self.gyro_check.last_jump_s:.6g} s and stayed: '
+                      'resynchronised to the new time base; the rotation during the jump is lost')
         if self.origin_ns is None:
             self.origin_ns = out[0][0]
         self._gyro_in += out                               # (stamp_ns, (x, y, z)); times in _run
@@ -399,9 +415,9 @@ class SinsSystem:
         start = self._block_end_ns if self._block_end_ns is not None else self._gyro_in[0][0] - self._gyro_period_ns
         return self._gyro_in[-1][0] - start >= self._batch_span_ns - 1 or len(self._gyro_in) >= MAX_BATCH
 
-    def offer_accel(self, stamp_ns: int, value, frame_id: str = "") -> bool:
+    def offer_accel(self, stamp_ns: int, value, frame_id: str = '') -> bool:
         """One imu/delta_velocity message (m/s): validate and append.  True when a block is due."""
-        if frame_id not in self._own_frames and self._wrong_frame(frame_id, "accel"):
+        if frame_id not in self._own_frames and self._wrong_frame(frame_id, 'accel'):
             return False
         out = self.accel_check.offer(stamp_ns, value)
         if not out:
@@ -421,8 +437,10 @@ class SinsSystem:
 
     # --- a whole recording at once -------------------------------------------------------------
     def _foreign_frames(self, frame_index, frame_names, n: int):
-        """(mask of the n records whose frame is not the body frame, the first such frame or
-        None) from per-record indices into ``frame_names`` (None: every record is ours)."""
+        """
+        (mask of the n records whose frame is not the body frame, the first such frame or
+        None) from per-record indices into ``frame_names`` (None: every record is ours).
+        """
         if frame_index is None or not n:
             return np.zeros(n, bool), None
         codes = np.asarray(frame_index, dtype=np.int64)
@@ -432,7 +450,8 @@ class SinsSystem:
         return mask, first
 
     def screen(self, stream: str, stamps_ns, values, frame_index=None, frame_names=()):
-        """The input rules of :meth:`offer_gyro` / :meth:`offer_accel` applied to a whole recorded
+        """
+        The input rules of :meth:`offer_gyro` / :meth:`offer_accel` applied to a whole recorded
         stream in bag order, vectorised where the stream is regular.
 
         Parameters
@@ -456,7 +475,7 @@ class SinsSystem:
             the stream's time base restarts (a stamp resynchronisation): nothing is changed
             then, and the stream must go through the one-message methods.
         """
-        check = copy.deepcopy(self.gyro_check if stream == "gyro" else self.accel_check)
+        check = copy.deepcopy(self.gyro_check if stream == 'gyro' else self.accel_check)
         st = np.asarray(stamps_ns, dtype=np.int64).reshape(-1)
         v = np.asarray(values, dtype=float).reshape(-1, 3)
         mask, first = self._foreign_frames(frame_index, frame_names, len(st))
@@ -466,19 +485,20 @@ class SinsSystem:
         segments = screen_stream(check, st, v)
         if len(segments) > 1:
             return None
-        if stream == "gyro":
+        if stream == 'gyro':
             self.gyro_check = check
         else:
             self.accel_check = check
         if wrong:
             self.frame_mismatch[stream] += wrong
-            self._log("warn", lambda: self._frame_text(stream, first, wrong), throttle=10.0,
-                      key="frame_" + stream)
+            self._log('warn', lambda: self._frame_text(stream, first, wrong), throttle=10.0,
+                      key='frame_' + stream)
         return segments[0]
 
     def screen_imu(self, stamps_ns, angular_velocity, linear_acceleration=None, frame_index=None,
-                   frame_names=(), rule: str = "trapezoid"):
-        """sensor_msgs/Imu rate samples of a whole recording made into Δθ and Δv as ``gyro_input:
+                   frame_names=(), rule: str = 'trapezoid'):
+        """
+        sensor_msgs/Imu rate samples of a whole recording made into Δθ and Δv as ``gyro_input:
         imu`` makes them: the frame rule (counted under ``gyro``), each rate stream validated by
         a :class:`~strapdown_ros.streams.checks.StreamCheck` (per-axis range ``gyro_max_rate`` rad/s or
         ``accel_max`` m/s², period 1 / ``gyro_rate``), then
@@ -504,7 +524,6 @@ class SinsSystem:
         accel : (stamps_ns (k,) int64, Δv (k, 3)) or None
             Increments stamped at the end of their intervals, for :meth:`screen`.
         """
-        from strapdown_ros.streams.rate_increments import increments_from_rates
         st = np.asarray(stamps_ns, dtype=np.int64).reshape(-1)
         w = np.asarray(angular_velocity, dtype=float).reshape(-1, 3)
         f = None if linear_acceleration is None else \
@@ -512,22 +531,22 @@ class SinsSystem:
         mask, first = self._foreign_frames(frame_index, frame_names, len(st))
         wrong = int(mask.sum())
         if wrong:
-            self.frame_mismatch["gyro"] += wrong
-            self._log("warn", lambda: self._frame_text("gyro", first, wrong), throttle=10.0,
-                      key="frame_gyro")
+            self.frame_mismatch['gyro'] += wrong
+            self._log('warn', lambda: self._frame_text('gyro', first, wrong), throttle=10.0,
+                      key='frame_gyro')
             if self.reject_frames:
                 keep = ~mask
                 st, w, f = st[keep], w[keep], (None if f is None else f[keep])
         p = self.p
-        period = 1.0 / float(p["gyro_rate"])
-        jump, resync = float(p["max_stamp_jump"]), int(p["resync_count"])
+        period = 1.0 / float(p['gyro_rate'])
+        jump, resync = float(p['max_stamp_jump']), int(p['resync_count'])
         out = []
-        for name, values, max_rate in (("gyro", w, float(p["gyro_max_rate"])),
-                                       ("accel", f, float(p["accel_max"]))):
+        for name, values, max_rate in (('gyro', w, float(p['gyro_max_rate'])),
+                                       ('accel', f, float(p['accel_max']))):
             if values is None:
                 out.append(None)
                 continue
-            if name == "accel":                   # messages without acceleration: not offered
+            if name == 'accel':                   # messages without acceleration: not offered
                 has = ~np.all(np.isnan(values), axis=1)
                 s_n, values = st[has], values[has]
                 if not len(s_n):
@@ -544,7 +563,8 @@ class SinsSystem:
         return out[0], out[1]
 
     def feed(self, gyro, accel=None, block: int = FEED_BLOCK, accel_block: int = FEED_ACCEL_BLOCK):
-        """Run screened streams (:meth:`screen`'s output) through the system in blocks, as the
+        """
+        Run screened streams (:meth:`screen`'s output) through the system in blocks, as the
         messages in stamp order (Δv first at equal stamps) would have run, and finish.
 
         Parameters
@@ -577,14 +597,14 @@ class SinsSystem:
             if self.nav is not None and self.nav.navigator is None:     # the node's blocks
                 start = self._block_end_ns if self._block_end_ns is not None else \
                     int(g_ns[gi]) - self._gyro_period_ns
-                end = int(np.searchsorted(g_ns, start + self._batch_span_ns - 1, side="left")) + 1
+                end = int(np.searchsorted(g_ns, start + self._batch_span_ns - 1, side='left')) + 1
                 end = max(gi + 1, min(end, gi + MAX_BATCH, len(g_ns)))
             else:
                 end = min(gi + block, len(g_ns))
                 a_end = ai + accel_block
                 if a_end < len(a_ns) and a_ns[a_end - 1] < g_ns[end - 1]:
-                    end = max(gi + 1, int(np.searchsorted(g_ns, a_ns[a_end - 1], side="right")))
-            aj = int(np.searchsorted(a_ns, g_ns[end - 1], side="right")) if end < len(g_ns) \
+                    end = max(gi + 1, int(np.searchsorted(g_ns, a_ns[a_end - 1], side='right')))
+            aj = int(np.searchsorted(a_ns, g_ns[end - 1], side='right')) if end < len(g_ns) \
                 else len(a_ns)
             if aj > ai:
                 self._accel_blocks.append(((a_ns[ai:aj] - self.origin_ns) * 1e-9, a_v[ai:aj]))
@@ -597,31 +617,37 @@ class SinsSystem:
         yield self.finish()
 
     def set_algorithm(self, name: str) -> bool:
-        """Switch the coning algorithm at runtime (attitude only; the samples buffered so far are
-        integrated with the old one first).  True when it changed."""
+        """
+        Switch the coning algorithm at runtime (attitude only; the samples buffered so far are
+        integrated with the old one first).  True when it changed.
+        """
         if name == self.integrator.algorithm_name:
             return False
         if self.nav is not None:
-            raise ValueError("the coning algorithm cannot change while navigation runs")
+            raise ValueError('the coning algorithm cannot change while navigation runs')
         if self._gyro_in or self._accel_in or self._gyro_blocks or self._accel_blocks:
             self._run()
         self.integrator.set_algorithm(name)
-        self.p["coning_algorithm"] = name
+        self.p['coning_algorithm'] = name
         return True
 
     # --- processing ---------------------------------------------------------------------------
     def process(self) -> SinsOutput:
-        """Integrate the buffered increments as one block through the vectorised core; returns
+        """
+        Integrate the buffered increments as one block through the vectorised core; returns
         every output produced since the last call.  The result equals message-by-message
-        processing to round-off (test/ros/test_nodes.py::test_sins_node_batches_equal_per_message_processing)."""
+        processing to round-off (test/ros/test_nodes.py::test_sins_node_batches_equal_per_message_processing).
+        """
         self._run()
         return self.take_output()
 
     def finish(self) -> SinsOutput:
-        """End of the data: integrate what is buffered and release the updates still waiting for
+        """
+        End of the data: integrate what is buffered and release the updates still waiting for
         accelerometer data, as ``accel_wait`` would once the stream had gone on (sins/imu without
         specific force where none covered the update; navigation steps with the accelerometer
-        data extrapolated)."""
+        data extrapolated).
+        """
         self._run()
         self._flush_imu(final=True)
         self._flush_nav(final=True)
@@ -690,38 +716,40 @@ class SinsSystem:
         nav = self.nav
         if nav.navigator is not None:
             return False
-        if nav.mode == "given":
-            nav.start(float(t[0]) - self.integrator.nominal_period, attitude_sigma=float(self.p["initial_attitude_sigma"]))
+        if nav.mode == 'given':
+            nav.start(float(t[0]) - self.integrator.nominal_period, attitude_sigma=float(self.p['initial_attitude_sigma']))
             return False
         comp = self.gyro_effects.compensate(inc, t, np.full(len(t), self.integrator.nominal_period)) \
             if self.compensating else inc
         nav.align_gyro(comp, t)
         done, c_e_b, t_end = nav.try_align()
         if nav.alignment is not None and not nav.alignment.ok:
-            self._log("error", f"static alignment refused: {nav.alignment.reason}; trying again", throttle=5.0,
-                      key="alignment")
+            self._log('error', f'static alignment refused: {nav.alignment.reason}; trying again', throttle=5.0,
+                      key='alignment')
         if done:
             sigma = float(np.sqrt(np.trace(nav.alignment.covariance) / 3.0))
             self.integrator = AttitudeIntegrator(
                 self.integrator.algorithm_name, initial_attitude=dcm_to_quat(c_e_b), initial_time=t_end,
-                nominal_period=self.integrator.nominal_period, gyro=sigmas_from(self.p, "gyro"), initial_sigma=sigma,
-                covariance_model=self.p["covariance_model"],
-                quantization_correction=bool(self.p["quantization_correction"]))
+                nominal_period=self.integrator.nominal_period, gyro=sigmas_from(self.p, 'gyro'), initial_sigma=sigma,
+                covariance_model=self.p['covariance_model'],
+                quantization_correction=bool(self.p['quantization_correction']))
             self._good = self.integrator.snapshot()
             self._nav_prev_q = self.integrator.q.copy()
             self._last_gyro_t = t_end
-            self._log("info", f"static alignment done at t = {t_end:.3f} s: tilt σ "
-                      f"{np.degrees(nav.alignment.tilt_sigma) * 3600:.1f}″, heading σ "
-                      f"{np.degrees(nav.alignment.heading_sigma):.4f}°")
+            self._log('info', f'static alignment done at t = {t_end:.3f} s: tilt σ '
+                      f'{np.degrees(nav.alignment.tilt_sigma) * 3600:.1f}″, heading σ '
+                      f'{np.degrees(nav.alignment.heading_sigma):.4f}°')
         return True
 
     def _stamps_ns(self, t: np.ndarray) -> np.ndarray:
         return self.origin_ns + np.rint(np.asarray(t, dtype=float) * 1e9).astype(np.int64)
 
     def _integrate(self, inc: np.ndarray, t: np.ndarray, stamps_ns, per_sample: bool = False) -> bool:
-        """Compensate and integrate a block (``stamps_ns``: the header stamps of ``t``), collecting
+        """
+        Compensate and integrate a block (``stamps_ns``: the header stamps of ``t``), collecting
         its outputs; False (nothing output) if an update is not finite, unless ``per_sample``, which
-        restores the last good state instead."""
+        restores the last good state instead.
+        """
         if self.compensating:
             prev = self._last_gyro_t if self._last_gyro_t is not None else t[0] - self.integrator.nominal_period
             T = np.diff(t, prepend=prev)
@@ -736,8 +764,8 @@ class SinsSystem:
             # never output a non-finite state: back to the last good one, covariance inflated
             self.nonfinite += 1
             self.integrator.restore(self._good, inflate_sigma=NONFINITE_INFLATION)
-            self._log("error", "non-finite attitude: not published; state reset to the last good update "
-                      f"with {NONFINITE_INFLATION} rad added to its σ", throttle=5.0, key="nonfinite")
+            self._log('error', 'non-finite attitude: not published; state reset to the last good update '
+                      f'with {NONFINITE_INFLATION} rad added to its σ', throttle=5.0, key='nonfinite')
             return True
         if len(batch):
             self._good = self.integrator.snapshot()
@@ -761,11 +789,13 @@ class SinsSystem:
         return True
 
     def _flush_imu(self, final: bool = False) -> None:
-        """sins/imu records of the updates whose interval is covered by accelerometer data, or
-        that waited longer than ``accel_wait`` (stamp time) for it (``final``: all of them)."""
+        """
+        sins/imu records of the updates whose interval is covered by accelerometer data, or
+        that waited longer than ``accel_wait`` (stamp time) for it (``final``: all of them).
+        """
         if not self.pending_imu:
             return
-        wait = float(self.p["accel_wait"])
+        wait = float(self.p['accel_wait'])
         newest = self.integrator.time if self.integrator.time is not None else -np.inf
         covered = self.accel.covered_until() + 1e-9
         ready = 0
@@ -791,7 +821,7 @@ class SinsSystem:
         if self.nav is None or self.nav.navigator is None:
             return
         newest = self.integrator.time if self.integrator.time is not None else -np.inf
-        nb = self.nav.process(np.inf if final else newest, float(self.p["accel_wait"]))
+        nb = self.nav.process(np.inf if final else newest, float(self.p['accel_wait']))
         if nb is None or not len(nb):
             return
         self._out[2].append(NavigationOutput(self._stamps_ns(nb.stamps), nb.position, nb.velocity, nb.attitude,
@@ -800,17 +830,20 @@ class SinsSystem:
 
     # --- state --------------------------------------------------------------------------------
     def accel_stall_s(self) -> float | None:
-        """Stamp seconds the gyro stream has run beyond the newest accepted Δv (the first gyro
+        """
+        Stamp seconds the gyro stream has run beyond the newest accepted Δv (the first gyro
         stamp when none arrived); None when no accelerometer stream is expected (none seen and
-        navigation off) or no gyro data arrived."""
+        navigation off) or no gyro data arrived.
+        """
         g, a = self.gyro_check, self.accel_check
         if g.last_ns is None or (not self.accel_seen and self.nav is None):
             return None
         ref = a.last_ns if a.last_ns is not None else g.first_ns
         return None if ref is None else max(0.0, (g.last_ns - ref) * 1e-9)
 
-    def accel_stall(self, accel_topic: str = "imu/delta_velocity") -> AccelStall | None:
-        """The accelerometer stall by the rule of :func:`accel_stall_limits` (WARN beyond
+    def accel_stall(self, accel_topic: str = 'imu/delta_velocity') -> AccelStall | None:
+        """
+        The accelerometer stall by the rule of :func:`accel_stall_limits` (WARN beyond
         ``accel_wait``, ERROR beyond max(1 s, 10 ``accel_wait``)), or None when there is none.
 
         Parameters
@@ -819,35 +852,37 @@ class SinsSystem:
             The name of the accelerometer stream in the text.
         """
         stall = self.accel_stall_s()
-        warn_s, error_s = accel_stall_limits(self.p["accel_wait"])
+        warn_s, error_s = accel_stall_limits(self.p['accel_wait'])
         if stall is None or not stall > warn_s:
             return None
-        what = "no accelerometer increments received" if self.accel_check.last_ns is None else \
-            f"accelerometer increments ({bounded(accel_topic, 80)}) stopped"
-        effect = "sins/odometry stalls" if self.nav is not None \
-            else "sins/imu has no specific force"
-        return AccelStall(stall, "error" if stall > error_s else "warn",
-                          f"{what}: the gyro stream ran {stall:.3g} s beyond the last Δv; "
-                          f"{effect} (WARN beyond {warn_s:g} s, ERROR beyond {error_s:g} s)")
+        what = 'no accelerometer increments received' if self.accel_check.last_ns is None else \
+            f'accelerometer increments ({bounded(accel_topic, 80)}) stopped'
+        effect = 'sins/odometry stalls' if self.nav is not None \
+            else 'sins/imu has no specific force'
+        return AccelStall(stall, 'error' if stall > error_s else 'warn',
+                          f'{what}: the gyro stream ran {stall:.3g} s beyond the last Δv; '
+                          f'{effect} (WARN beyond {warn_s:g} s, ERROR beyond {error_s:g} s)')
 
     def status(self) -> dict:
-        """The counters and state of the system (the node's /diagnostics values, without what the
-        node itself counts)."""
+        """
+        The counters and state of the system (the node's /diagnostics values, without what the
+        node itself counts).
+        """
         g, a = self.gyro_check, self.accel_check
-        values = {"coning_algorithm": self.integrator.algorithm_name,
-                  "samples_per_update": self.integrator.algorithm.samples,
-                  "covariance_model": self.integrator.covariance_model,
-                  "updates": self.integrator.updates, **g.as_dict("gyro"), **a.as_dict("accel"),
-                  "compensated_effects": ", ".join(self.compensating) or "none",
-                  "initial_orientation_normalised": self.initial_normalised,
-                  "nonfinite_updates_discarded": self.nonfinite,
-                  "gyro_frame_mismatch": self.frame_mismatch["gyro"],
-                  "accel_buffer_overflowed": self.accel.overflowed,
-                  "accel_frame_mismatch": self.frame_mismatch["accel"]}
+        values = {'coning_algorithm': self.integrator.algorithm_name,
+                  'samples_per_update': self.integrator.algorithm.samples,
+                  'covariance_model': self.integrator.covariance_model,
+                  'updates': self.integrator.updates, **g.as_dict('gyro'), **a.as_dict('accel'),
+                  'compensated_effects': ', '.join(self.compensating) or 'none',
+                  'initial_orientation_normalised': self.initial_normalised,
+                  'nonfinite_updates_discarded': self.nonfinite,
+                  'gyro_frame_mismatch': self.frame_mismatch['gyro'],
+                  'accel_buffer_overflowed': self.accel.overflowed,
+                  'accel_frame_mismatch': self.frame_mismatch['accel']}
         if self.nav is not None:
             values.update(self.nav.status())
         if self.integrator.time is not None:
             sig = np.sqrt(np.diag(self.integrator.covariance()))
-            values.update({"attitude_sigma_x_rad": sig[0], "attitude_sigma_y_rad": sig[1],
-                           "attitude_sigma_z_rad": sig[2]})
+            values.update({'attitude_sigma_x_rad': sig[0], 'attitude_sigma_y_rad': sig[1],
+                           'attitude_sigma_z_rad': sig[2]})
         return values

@@ -1,19 +1,22 @@
-"""Text out of the core: every string a node or tool echoes (a frame id, a topic name, a reason
+"""
+Text out of the core: every string a node or tool echoes (a frame id, a topic name, a reason
 read from the input) goes through :func:`bounded`, so that hostile or broken input (a 2 MB
 header.frame_id) can neither flood a log nor cost time in formatting; every JSON result goes
-through :func:`json_clean`.  No ROS imports."""
+through :func:`json_clean`.  No ROS imports.
+"""
 from __future__ import annotations
 
 import math
 
-__all__ = ["bounded", "ECHO_LIMIT", "json_clean"]
+__all__ = ['bounded', 'ECHO_LIMIT', 'json_clean']
 
 #: default number of characters of an echoed input string
 ECHO_LIMIT = 64
 
 
 def bounded(text, limit: int = ECHO_LIMIT) -> str:
-    """``text`` (made a str) cut to at most ``limit`` characters, the cut marked by an ellipsis
+    """
+    ``text`` (made a str) cut to at most ``limit`` characters, the cut marked by an ellipsis
     and the original length.
 
     Parameters
@@ -33,11 +36,12 @@ def bounded(text, limit: int = ECHO_LIMIT) -> str:
     limit = max(1, int(limit))
     if len(s) <= limit:
         return s
-    return f"{s[:limit]}…({len(s)} chars)"
+    return f'{s[:limit]}…({len(s)} chars)'
 
 
 def json_clean(v):
-    """Plain JSON values: numpy scalars and arrays to Python, non-finite floats to None.
+    """
+    Plain JSON values: numpy scalars and arrays to Python, non-finite floats to None.
 
     Parameters
     ----------
@@ -53,7 +57,7 @@ def json_clean(v):
         return {k: json_clean(x) for k, x in v.items()}
     if isinstance(v, (list, tuple)):
         return [json_clean(x) for x in v]
-    if hasattr(v, "tolist") and hasattr(v, "ndim"):          # numpy array or scalar
+    if hasattr(v, 'tolist') and hasattr(v, 'ndim'):          # numpy array or scalar
         return json_clean(v.tolist())
     if isinstance(v, bool):
         return v

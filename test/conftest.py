@@ -1,4 +1,5 @@
-"""Test-session isolation for ROS 2.
+"""
+Test-session isolation for ROS 2.
 
 Every pytest session gets its own ROS_DOMAIN_ID and keeps discovery on this machine
 (ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST) *before* anything imports rclpy, so parallel
@@ -8,10 +9,10 @@ import os
 import sys
 
 _DOMAIN = str(1 + (os.getpid() % 100))          # 1..100, valid on Linux
-os.environ["ROS_DOMAIN_ID"] = _DOMAIN
-os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
-os.environ.pop("ROS_STATIC_PEERS", None)
-os.environ.setdefault("RCUTILS_LOGGING_BUFFERED_STREAM", "1")
+os.environ['ROS_DOMAIN_ID'] = _DOMAIN
+os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
+os.environ.pop('ROS_STATIC_PEERS', None)
+os.environ.setdefault('RCUTILS_LOGGING_BUFFERED_STREAM', '1')
 
 # tests import the package from the repository checkout
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
@@ -22,7 +23,7 @@ sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 import pytest  # noqa: E402  (after the environment above, before any test imports rclpy)
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture(scope='module')
 def ros():
     """An rclpy context for one test module of node tests."""
     import rclpy

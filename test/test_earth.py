@@ -1,4 +1,5 @@
-"""Normal gravity (003 §1.5.2) and geodesy helpers against independent truths.
+"""
+Normal gravity (003 §1.5.2) and geodesy helpers against independent truths.
 
 Truths used: published WGS-84 / PZ-90.11 values (γ_e, γ_p, U0, J2), the level-ellipsoid
 property (gravity ⟂ ellipsoid, potential constant on it), the spherical-harmonic series of
@@ -18,7 +19,7 @@ LAT = np.radians(np.arange(-90.0, 90.0 + 1e-9, 5.0))
 
 
 def _grid(h):
-    la, lo = np.meshgrid(LAT, np.radians([0.0, 37.0, 143.0, -100.0]), indexing="ij")
+    la, lo = np.meshgrid(LAT, np.radians([0.0, 37.0, 143.0, -100.0]), indexing='ij')
     return la, lo, G.geodetic_to_ecef(la, lo, h)
 
 
@@ -57,11 +58,11 @@ def test_level_ellipsoid_constants():
 
 
 # --- the exact normal field --------------------------------------------------------------
-@pytest.mark.parametrize("ell", [G.PZ90_11, G.WGS84])
+@pytest.mark.parametrize('ell', [G.PZ90_11, G.WGS84])
 def test_normal_exact_on_ellipsoid(ell):
-    la, lo = np.meshgrid(LAT, np.radians([0.0, 75.0, -120.0]), indexing="ij")
+    la, lo = np.meshgrid(LAT, np.radians([0.0, 75.0, -120.0]), indexing='ij')
     r = G.geodetic_to_ecef(la, lo, 0.0, ell.a, ell.f)
-    g = G._normal_exact(r, ell)
+    g = G.normal_gravity_exact(r, ell)
     # magnitude = Somigliana's closed formula (a different expression)
     assert np.max(np.abs(np.linalg.norm(g, axis=-1) - G.somigliana(la, ell))) < 1e-11
     # the ellipsoid is a level surface: gravity along −(geodetic up) = −∇(X²/a²+Y²/a²+Z²/b²)
@@ -81,7 +82,7 @@ def test_normal_exact_matches_harmonic_series():
 
     for h in (0.0, 1e4, 1e5):
         r = _grid(h)[2]
-        ex, j2 = G.normal_gravity(r, "normal_exact"), G.normal_gravity(r, "j2")
+        ex, j2 = G.normal_gravity(r, 'normal_exact'), G.normal_gravity(r, 'j2')
         dif = np.linalg.norm(ex - j2, axis=-1)
         assert 5e-5 < np.max(dif) < 1.3e-4          # the J4 term, measured 1.18e-4 m/s²
         # adding J4 leaves the J6 level (J6 = 6.1e-9 → ~4e-7 m/s², measured 4.3e-7)
@@ -89,7 +90,7 @@ def test_normal_exact_matches_harmonic_series():
         assert np.max(_angle_arcsec(ex, j2)) < 1.5     # measured 1.30″
 
 
-@pytest.mark.parametrize("model,pot", [("j2", G.j2_potential), ("normal_exact", G.normal_potential)])
+@pytest.mark.parametrize('model,pot', [('j2', G.j2_potential), ('normal_exact', G.normal_potential)])
 def test_gravity_is_gradient_of_potential(model, pot):
     r = _random_points()
     g = G.normal_gravity(r, model)
@@ -107,7 +108,7 @@ def test_printed_structure_is_the_j2_field():
     e2 = 3 * G.J2 * g0 + eta
     r = _random_points(hmax=1e6)
     g = G.printed_gravity_variant(r, e2=e2, eta=eta, ge=1.0)
-    assert np.max(np.linalg.norm(g - G.normal_gravity(r, "j2"), axis=-1)) < 1e-13
+    assert np.max(np.linalg.norm(g - G.normal_gravity(r, 'j2'), axis=-1)) < 1e-13
 
 
 def test_printed_equatorial_value():
@@ -119,21 +120,21 @@ def test_printed_equatorial_value():
 def test_corrected_printed_vs_exact_and_literal_fails():
     for h in (0.0, 1e3, 1e4, 2e4):
         r = _grid(h)[2]
-        ex = G.normal_gravity(r, "normal_exact")
-        pr = G.normal_gravity(r, "pz90_003")
+        ex = G.normal_gravity(r, 'normal_exact')
+        pr = G.normal_gravity(r, 'pz90_003')
         # first-order truncation: measured 3.47e-4 m/s² (34.7 mGal), 3.20″ at h = 0
         assert np.max(np.abs(np.linalg.norm(pr, axis=-1) - np.linalg.norm(ex, axis=-1))) < 4e-4
         assert np.max(_angle_arcsec(pr, ex)) < 3.5
         lit = np.array([G.printed_gravity_as_printed(*p) for p in r.reshape(-1, 3)]).reshape(r.shape)
         assert np.max(_angle_arcsec(lit, ex)) > 600.0            # measured 694″
-        for kw in ({"g2_omega_sign": 1.0}, {"gz_sign": -1.0}):   # one fix alone is not enough
+        for kw in ({'g2_omega_sign': 1.0}, {'gz_sign': -1.0}):   # one fix alone is not enough
             assert np.max(_angle_arcsec(G.printed_gravity_variant(r, **kw), ex)) > 600.0
 
 
 def test_scalar_and_vectorised_agree():
     r = np.concatenate([_random_points(200, 1e6), [[0, 0, 6356751.0], [0, 0, -6356751.0],
                                                    [G.A, 0, 0], [0, -G.A, 0]]])
-    vec = G.normal_gravity(r, "pz90_003")
+    vec = G.normal_gravity(r, 'pz90_003')
     sca = np.array([G.printed_gravity_xyz(*p) for p in r])
     assert np.max(np.abs(sca - vec)) <= 1e-15 * np.max(np.abs(vec))
     lit = np.array([G.printed_gravity_as_printed(*p) for p in r])
@@ -143,7 +144,7 @@ def test_scalar_and_vectorised_agree():
 
 
 def test_printed_is_numba_compilable():
-    numba = pytest.importorskip("numba")
+    numba = pytest.importorskip('numba')
     f = numba.njit(G.printed_gravity_xyz)
     p = _random_points(3)[1]
     assert np.allclose(f(*p), G.printed_gravity_xyz(*p), rtol=1e-15, atol=0)
@@ -151,14 +152,14 @@ def test_printed_is_numba_compilable():
 
 # --- registry and report -------------------------------------------------------------------
 def test_registry_and_shapes():
-    with pytest.raises(ValueError, match="normal_exact"):
-        G.get_gravity_model("egm2008")
+    with pytest.raises(ValueError, match='normal_exact'):
+        G.get_gravity_model('egm2008')
     r = _random_points(8).reshape(2, 4, 3)
     for name in G.GRAVITY_MODELS:
         assert G.normal_gravity(r, name).shape == (2, 4, 3)
         assert G.normal_gravity(r[0, 0], name).shape == (3,)
     c = G.compare_models(heights=(0.0,))[0.0]
-    assert c["max_mag_mgal"] == pytest.approx(1e5 * c["max_mag"]) and c["max_dir_arcsec"] < 3.5
+    assert c['max_mag_mgal'] == pytest.approx(1e5 * c['max_mag']) and c['max_dir_arcsec'] < 3.5
 
 
 # --- geodesy ---------------------------------------------------------------------------------
@@ -199,25 +200,27 @@ def test_enu_rotation():
 
 
 def test_scalar_exact_field_and_the_compiled_loop_equal_the_vectorised_field():
-    """gravity_model normal_exact is the default: its scalar form (compiled into the navigation
+    """
+    gravity_model normal_exact is the default: its scalar form (compiled into the navigation
     loop) equals the vectorised closed form (independent code: arrays, series by np.where), and
-    the loop run with it equals the same loop run with the vectorised field."""
+    the loop run with it equals the same loop run with the vectorised field.
+    """
     from strapdown_ros.navigation import recursion as R
     rng = np.random.default_rng(3)
     r = G.geodetic_to_ecef(rng.uniform(-np.pi / 2, np.pi / 2, 300),
                            rng.uniform(-np.pi, np.pi, 300), rng.uniform(-1e4, 1e6, 300))
     r = np.vstack([r, [[0.0, 0.0, 6356752.0], [6378136.0, 0.0, 0.0], [0.0, 0.0, -7.0e6]]])
     scalar = np.array([G.normal_exact_xyz(*x) for x in r])
-    np.testing.assert_allclose(scalar, G.normal_gravity(r, "normal_exact"), rtol=0, atol=1e-14)
+    np.testing.assert_allclose(scalar, G.normal_gravity(r, 'normal_exact'), rtol=0, atol=1e-14)
     k = 400
     o = G.geodetic_to_ecef(np.radians(50.45), np.radians(30.52), 150.0)
     dv = np.tile([0.0, 0.0, 0.0981], (k, 1))
     h = np.full(k, 0.01)
     w0 = np.array([1.0, 2.0, 3.0])
-    got = R.run(o, np.zeros(3), w0, dv, dv * 0.005, h, gravity_model="normal_exact")
-    ref = R._exact_generic(o, np.zeros(3), w0, dv, dv * 0.005, h, "normal_exact")
+    got = R.run(o, np.zeros(3), w0, dv, dv * 0.005, h, gravity_model='normal_exact')
+    ref = R.exact_generic_step(o, np.zeros(3), w0, dv, dv * 0.005, h, 'normal_exact')
     np.testing.assert_allclose(got[0], ref[0], rtol=0, atol=1e-8)
     np.testing.assert_allclose(got[1], ref[1], rtol=0, atol=1e-11)
     from strapdown_ros.params import PROFILE_PARAMS, SINS_PARAMS
-    defaults = {s.default for s in PROFILE_PARAMS + SINS_PARAMS if s.name == "gravity_model"}
-    assert defaults == {"normal_exact"}
+    defaults = {s.default for s in PROFILE_PARAMS + SINS_PARAMS if s.name == 'gravity_model'}
+    assert defaults == {'normal_exact'}

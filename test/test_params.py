@@ -5,31 +5,31 @@ import os
 import numpy as np
 import pytest
 
-from strapdown_ros.params import IMU_SIM_PARAMS, SINS_PARAMS, check_all, load_parameter_file
-from strapdown_ros.motion.profiles import ConingProfile
 from strapdown_ros.motion.from_config import load_piecewise_profile, profile_from_config
+from strapdown_ros.motion.profiles import ConingProfile
+from strapdown_ros.params import check_all, IMU_SIM_PARAMS, load_parameter_file, SINS_PARAMS
 from strapdown_ros.rotation import from_ros_xyzw, quat_angle_between
 
-CONFIG = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "config")
-PARAM_FILES = [f for f in glob.glob(os.path.join(CONFIG, "*.yaml")) if "profile_example" not in f]
+CONFIG = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), 'config')
+PARAM_FILES = [f for f in glob.glob(os.path.join(CONFIG, '*.yaml')) if 'profile_example' not in f]
 
 
-@pytest.mark.parametrize("path", PARAM_FILES, ids=os.path.basename)
+@pytest.mark.parametrize('path', PARAM_FILES, ids=os.path.basename)
 def test_parameter_files_validate(path):
-    sim = check_all(IMU_SIM_PARAMS, load_parameter_file(path, "imu_sim_node"))
-    sins = check_all(SINS_PARAMS, load_parameter_file(path, "sins_node"))
+    sim = check_all(IMU_SIM_PARAMS, load_parameter_file(path, 'imu_sim_node'))
+    sins = check_all(SINS_PARAMS, load_parameter_file(path, 'sins_node'))
     prof = profile_from_config(sim)
     # the SINS initial orientation in the file is the profile's true attitude at t = 0
-    q0 = from_ros_xyzw(np.asarray(sins["initial_orientation"], dtype=float))
+    q0 = from_ros_xyzw(np.asarray(sins['initial_orientation'], dtype=float))
     assert quat_angle_between(q0 / np.linalg.norm(q0), prof.attitude(0.0)) < 1e-6
 
 
 def test_example_profile_loads():
-    p = load_piecewise_profile(os.path.join(CONFIG, "profile_example.yaml"))
+    p = load_piecewise_profile(os.path.join(CONFIG, 'profile_example.yaml'))
     assert p.duration == 40.0
 
 
 def test_unknown_parameter_is_refused_with_the_known_names():
     with pytest.raises(ValueError, match="unknown parameter 'coning_algo'; known: .*coning_algorithm"):
-        check_all(SINS_PARAMS, {"coning_algo": "2"})
+        check_all(SINS_PARAMS, {'coning_algo': '2'})
     assert isinstance(ConingProfile(0.1, 1.0).cone_period, float)

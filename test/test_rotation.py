@@ -12,7 +12,7 @@ def random_quats(n):
 
 
 def test_quaternion_dcm_matches_scipy_convention():
-    scipy_rot = pytest.importorskip("scipy.spatial.transform").Rotation
+    scipy_rot = pytest.importorskip('scipy.spatial.transform').Rotation
     q = random_quats(50)
     C = R.quat_to_dcm(q)
     # scipy: scalar-last, active rotation matrix mapping body → reference
@@ -69,11 +69,11 @@ def test_error_rotvec_definitions():
     q_true = random_quats(1)[0]
     eps = np.array([1e-4, -2e-4, 3e-4])
     q_est = R.quat_multiply(q_true, R.rotvec_to_quat(eps))
-    np.testing.assert_allclose(R.quat_error_rotvec(q_est, q_true, "body"), eps, atol=1e-15)
+    np.testing.assert_allclose(R.quat_error_rotvec(q_est, q_true, 'body'), eps, atol=1e-15)
     # C_est = C_true (I + [ε×]) to first order: the 004 §2.3 definition
     np.testing.assert_allclose(R.quat_to_dcm(q_est), R.quat_to_dcm(q_true) @ (np.eye(3) + R.skew(eps)), atol=1e-7)
     e_ref = R.quat_to_dcm(q_true) @ eps
-    np.testing.assert_allclose(R.quat_error_rotvec(q_est, q_true, "reference"), e_ref, atol=1e-15)
+    np.testing.assert_allclose(R.quat_error_rotvec(q_est, q_true, 'reference'), e_ref, atol=1e-15)
     assert R.quat_angle_between(q_est, q_true) == pytest.approx(np.linalg.norm(eps), rel=1e-9)
 
 

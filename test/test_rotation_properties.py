@@ -1,15 +1,17 @@
-"""Property tests of the rotation core: composition, inverse, renormalisation,
-conversion round-trips, the angle wrap at π and the double cover — on random inputs."""
+"""
+Property tests of the rotation core: composition, inverse, renormalisation,
+conversion round-trips, the angle wrap at π and the double cover — on random inputs.
+"""
 import numpy as np
 import pytest
 
-hypothesis = pytest.importorskip("hypothesis")
+hypothesis = pytest.importorskip('hypothesis')
 from hypothesis import given, settings  # noqa: E402
 from hypothesis import strategies as st  # noqa: E402
 
-from strapdown_ros.rotation import (dcm_to_quat, from_ros_xyzw, quat_angle_between,
-    quat_conjugate, quat_multiply, quat_normalize, quat_to_dcm, quat_to_rotvec, rotvec_to_quat,
-    to_ros_xyzw)
+from strapdown_ros.rotation import (dcm_to_quat, from_ros_xyzw, quat_angle_between, quat_conjugate,
+                                    quat_multiply, quat_normalize, quat_to_dcm, quat_to_rotvec,
+                                    rotvec_to_quat, to_ros_xyzw)
 
 finite = st.floats(-1e3, 1e3, allow_nan=False, allow_infinity=False)
 quats = st.lists(finite, min_size=4, max_size=4).filter(lambda v: np.linalg.norm(v) > 1e-3).map(

@@ -1,23 +1,27 @@
-"""The whole-recording input path of the SINS core (sins_bag's): the vectorised CDR decoder, the
+"""
+The whole-recording input path of the SINS core (sins_bag's): the vectorised CDR decoder, the
 vectorised stream rules and the block feeding give exactly what the node's one-message path
 gives — the same accepted messages and counters, the same attitude to the bit, the navigation to
 round-off — on streams with faults (NaN, out of range, duplicates, out of order, stamp outliers,
-gaps, foreign frames)."""
+gaps, foreign frames).
+"""
 import math
 
 import numpy as np
 import pytest
 
-from strapdown_ros.params import SINS_PARAMS, check_all
-from strapdown_ros.sins import SinsSystem, screen_stream
+from strapdown_ros.params import check_all, SINS_PARAMS
+from strapdown_ros.sins import screen_stream, SinsSystem
 from strapdown_ros.streams.cdr import stamped_doubles, vector3_stamped
 from strapdown_ros.streams.checks import StreamCheck
 from strapdown_ros.text import bounded
 
 
 def _faulty_stream(rng, n, period_ns, scale, arrival=False):
-    """Stamps and vectors of a stream with every kind of fault the rules handle (no resync);
-    ``arrival``: also the times the messages arrive (the stamps before the per-message faults)."""
+    """
+    Stamps and vectors of a stream with every kind of fault the rules handle (no resync);
+    ``arrival``: also the times the messages arrive (the stamps before the per-message faults).
+    """
     st = np.arange(1, n + 1, dtype=np.int64) * period_ns + 5_000
     v = rng.normal(0.0, scale, (n, 3))
     clean = st.copy()
@@ -40,21 +44,21 @@ def _faulty_stream(rng, n, period_ns, scale, arrival=False):
 
 
 def test_stamped_doubles_equals_the_one_message_decoder():
-    rosbags = pytest.importorskip("rosbags.typesys")
+    rosbags = pytest.importorskip('rosbags.typesys')
     ts = rosbags.get_typestore(rosbags.Stores.ROS2_JAZZY)
     T = ts.types
     rng = np.random.default_rng(3)
     recs = []
     for k in range(400):
-        frame = ["", "imu_link", "a", "x" * 7, "y" * 8, "é", "imu_link2"][k % 7]
-        m = T["geometry_msgs/msg/Vector3Stamped"](
-            header=T["std_msgs/msg/Header"](stamp=T["builtin_interfaces/msg/Time"](
+        frame = ['', 'imu_link', 'a', 'x' * 7, 'y' * 8, 'é', 'imu_link2'][k % 7]
+        m = T['geometry_msgs/msg/Vector3Stamped'](
+            header=T['std_msgs/msg/Header'](stamp=T['builtin_interfaces/msg/Time'](
                 sec=int(rng.integers(-5, 2**31 - 1)), nanosec=int(rng.integers(0, 10**9))),
                 frame_id=frame),
-            vector=T["geometry_msgs/msg/Vector3"](x=float(rng.normal()), y=float(rng.normal()),
+            vector=T['geometry_msgs/msg/Vector3'](x=float(rng.normal()), y=float(rng.normal()),
                                                   z=1e300))
-        recs.append(bytes(ts.serialize_cdr(m, "geometry_msgs/msg/Vector3Stamped")))
-    recs += [b"\x00\x00" + recs[0][2:], recs[1][:20]]                # other encoding, truncated
+        recs.append(bytes(ts.serialize_cdr(m, 'geometry_msgs/msg/Vector3Stamped')))
+    recs += [b'\x00\x00' + recs[0][2:], recs[1][:20]]                # other encoding, truncated
     st, v, idx, names, bad = stamped_doubles(recs, 3)
     assert bad.tolist() == [400, 401]
     for i, r in enumerate(recs[:400]):
@@ -62,7 +66,7 @@ def test_stamped_doubles_equals_the_one_message_decoder():
         assert (int(st[i]), tuple(v[i]), names[idx[i]]) == (ns, xyz, frame)
 
 
-@pytest.mark.parametrize("seed", [0, 1, 2])
+@pytest.mark.parametrize('seed', [0, 1, 2])
 def test_screen_stream_gives_the_counters_and_messages_of_offer(seed):
     rng = np.random.default_rng(seed)
     st, v = _faulty_stream(rng, 3000, 10_000_000, 1e-3)
@@ -75,12 +79,12 @@ def test_screen_stream_gives_the_counters_and_messages_of_offer(seed):
     assert len(segs) == 1
     assert segs[0][0].tolist() == [s for s, _ in got_one]
     assert np.array_equal(segs[0][1], np.array([x for _, x in got_one]))
-    assert bulk.as_dict("s") == one.as_dict("s") and bulk.dropped == one.dropped > 0
+    assert bulk.as_dict('s') == one.as_dict('s') and bulk.dropped == one.dropped > 0
     assert one.gaps > 0 and one.stamp_outliers > 0 and one.nan > 0 and one.out_of_order > 0
 
 
 def _params(**kw):
-    base = {"gyro_rate": 100.0, "accel_rate": 300.0, "gyro_random_walk": 1e-6}
+    base = {'gyro_rate': 100.0, 'accel_rate': 300.0, 'gyro_random_walk': 1e-6}
     base.update(kw)
     return check_all(SINS_PARAMS, base)
 
@@ -97,12 +101,14 @@ def _collect(outs):
             np.concatenate([b.covariance for b in nav]) if nav else np.zeros((0, 9, 9)))
 
 
-@pytest.mark.parametrize("navigation", [False, True])
+@pytest.mark.parametrize('navigation', [False, True])
 def test_screen_and_feed_equal_the_node_path(navigation):
-    """The node's path (every message offered in stamp order, a block every batch_period) and
+    """
+    The node's path (every message offered in stamp order, a block every batch_period) and
     the whole-recording path (screen, then blocks of 257 Δθ / 500 Δv) on the same faulty
     streams with foreign frames: the same counters, the same attitude and covariance to the bit,
-    the navigation positions to round-off."""
+    the navigation positions to round-off.
+    """
     rng = np.random.default_rng(5)
     n = 4000
     g_st, g_v, g_at = _faulty_stream(rng, n, 10_000_000, 2e-4, arrival=True)
@@ -110,11 +116,11 @@ def test_screen_and_feed_equal_the_node_path(navigation):
     a_v[:, 2] += 9.8 / 300
     g_frames = np.zeros(n, np.int64)
     g_frames[[3, 700, 1500]] = 1
-    names = ["imu_link", "stray"]
+    names = ['imu_link', 'stray']
     kw = {}
     if navigation:
-        kw = {"navigation": True, "initial_position": [50.45, 30.52, 150.0],
-              "initial_velocity": [0.0, 0.0, 0.0]}
+        kw = {'navigation': True, 'initial_position': [50.45, 30.52, 150.0],
+              'initial_velocity': [0.0, 0.0, 0.0]}
     p = _params(**kw)
     node = SinsSystem(p, imu_wanted=lambda: True)
     outs_node = []
@@ -129,19 +135,19 @@ def test_screen_and_feed_equal_the_node_path(navigation):
                 outs_node.append(node.process())
             elif node.has_output:
                 outs_node.append(node.take_output())
-        elif node.offer_accel(int(a_st[k]), tuple(a_v[k].tolist()), "imu_link"):
+        elif node.offer_accel(int(a_st[k]), tuple(a_v[k].tolist()), 'imu_link'):
             outs_node.append(node.process())
     outs_node += [node.process(), node.finish()]
 
     bulk = SinsSystem(p, imu_wanted=lambda: True)
-    sg = bulk.screen("gyro", g_st, g_v, g_frames, names)
-    sa = bulk.screen("accel", a_st, a_v)
+    sg = bulk.screen('gyro', g_st, g_v, g_frames, names)
+    sa = bulk.screen('accel', a_st, a_v)
     assert sg is not None and sa is not None
     outs_bulk = list(bulk.feed(sg, sa, block=257, accel_block=500))
     assert bulk.status() == node.status() if not navigation else \
-        {k: v for k, v in bulk.status().items() if "sigma" not in k} == \
-        {k: v for k, v in node.status().items() if "sigma" not in k}
-    assert bulk.frame_mismatch == node.frame_mismatch == {"gyro": 3, "accel": 0}
+        {k: v for k, v in bulk.status().items() if 'sigma' not in k} == \
+        {k: v for k, v in node.status().items() if 'sigma' not in k}
+    assert bulk.frame_mismatch == node.frame_mismatch == {'gyro': 3, 'accel': 0}
     a, b = _collect(outs_node), _collect(outs_bulk)
     assert np.array_equal(a[0], b[0]) and len(a[0]) > 1000
     assert np.array_equal(a[1], b[1])                            # attitude: to the bit
@@ -149,7 +155,7 @@ def test_screen_and_feed_equal_the_node_path(navigation):
     assert np.array_equal(a[5], b[5])                            # sins/imu specific force
     if navigation:
         assert np.array_equal(a[4], b[4]) and len(a[4]) > 1000
-        print("navigation: max |Δposition|", np.max(np.abs(a[3] - b[3])), "m")
+        print('navigation: max |Δposition|', np.max(np.abs(a[3] - b[3])), 'm')
         assert np.max(np.abs(a[3] - b[3])) <= 1e-6             # round-off (m; achieved: 0)
         # each step carries the covariance of the latest epoch completed at it, whatever the
         # blocks (navigation/covariance.py)
@@ -162,60 +168,65 @@ def test_screen_returns_none_at_a_resync_and_changes_nothing():
     sys_ = SinsSystem(p)
     st = np.arange(1, 101, dtype=np.int64) * 10_000_000 + 1000 * 10**9
     st[50:] -= 100 * 10**9          # a clock reset that stays (back; a forward jump is a dropout)
-    before = sys_.gyro_check.as_dict("g")
-    assert sys_.screen("gyro", st, np.zeros((100, 3))) is None
-    assert sys_.gyro_check.as_dict("g") == before
+    before = sys_.gyro_check.as_dict('g')
+    assert sys_.screen('gyro', st, np.zeros((100, 3))) is None
+    assert sys_.gyro_check.as_dict('g') == before
 
 
 def test_bounded_cuts_long_text_and_says_how_long_it_was():
-    assert bounded("imu_link") == "imu_link"
-    text = bounded("x" * 2_000_000)
-    assert text.startswith("x" * 64 + "…") and "2000000 chars" in text and len(text) < 100
-    assert bounded(12345, 3) == "123…(5 chars)"
+    assert bounded('imu_link') == 'imu_link'
+    text = bounded('x' * 2_000_000)
+    assert text.startswith('x' * 64 + '…') and '2000000 chars' in text and len(text) < 100
+    assert bounded(12345, 3) == '123…(5 chars)'
 
 
 def test_frame_warning_is_built_only_when_emitted_and_bounded():
-    """A 2 MB frame id costs no string building per message, and the warning that
-    is emitted carries at most the bounded id."""
+    """
+    A 2 MB frame id costs no string building per message, and the warning that
+    is emitted carries at most the bounded id.
+    """
     p = _params()
     logged = []
     s = SinsSystem(p, log=lambda level, text: logged.append(text))
-    huge = "f" * 2_000_000
+    huge = 'f' * 2_000_000
     for k in range(1, 2001):
         s.offer_gyro(k * 10_000_000, (0.0, 0.0, 0.0), huge)
-    assert s.frame_mismatch["gyro"] == 2000
-    assert len(logged) == 1 and len(logged[0]) < 300 and "2000000 chars" in logged[0]
-    assert math.isfinite(s.status()["gyro_received"])
+    assert s.frame_mismatch['gyro'] == 2000
+    assert len(logged) == 1 and len(logged[0]) < 300 and '2000000 chars' in logged[0]
+    assert math.isfinite(s.status()['gyro_received'])
 
 
 def test_mcap_chunk_reader_gives_rosbags_records_in_rosbags_order(tmp_path):
-    """sins_bag's chunk reader (recording/mcap_records.py, compiled scan and its plain form) against
+    """
+    sins_bag's chunk reader (recording/mcap_records.py, compiled scan and its plain form) against
     rosbags' reader on an MCAP file of several chunks overlapping in log time, with frame ids
-    of several lengths: the same records in the same order, the same decoded numbers."""
-    pytest.importorskip("rosbags")
+    of several lengths: the same records in the same order, the same decoded numbers.
+    """
+    pytest.importorskip('rosbags')
     from rosbags.rosbag2 import StoragePlugin, Writer
-    from rosbags.typesys import Stores, get_typestore
+    from rosbags.typesys import get_typestore, Stores
+
     from strapdown_ros.recording import mcap_records
     from strapdown_ros.tools.calibrate_bag import open_reader
-    from strapdown_ros.tools.sins_bag import _read_streams
+    from strapdown_ros.tools.sins_bag import read_streams
     store = get_typestore(Stores.ROS2_JAZZY)
     T = store.types
     rng = np.random.default_rng(9)
     n = 40_000
     log = (np.arange(n) + 100) * 1_000_000
     log = log + rng.integers(-30, 30, n) * 1_000_000              # out of order: chunks overlap
-    path = tmp_path / "chunks"
+    path = tmp_path / 'chunks'
     with Writer(path, version=Writer.VERSION_LATEST, storage_plugin=StoragePlugin.MCAP) as w:
-        conns = [w.add_connection(t, "geometry_msgs/msg/Vector3Stamped", typestore=store)
-                 for t in ("/imu/delta_theta", "/imu/delta_velocity")]
+        conns = [w.add_connection(t, 'geometry_msgs/msg/Vector3Stamped', typestore=store)
+                 for t in ('/imu/delta_theta', '/imu/delta_velocity')]
         for k in range(n):
             ns = int(log[k])
-            frame = "imu_link" if k % 97 else "imu_link_long"
-            m = T["geometry_msgs/msg/Vector3Stamped"](
-                header=T["std_msgs/msg/Header"](stamp=T["builtin_interfaces/msg/Time"](
+            frame = 'imu_link' if k % 97 else 'imu_link_long'
+            m = T['geometry_msgs/msg/Vector3Stamped'](
+                header=T['std_msgs/msg/Header'](stamp=T['builtin_interfaces/msg/Time'](
                     sec=ns // 10**9, nanosec=ns % 10**9), frame_id=frame),
-                vector=T["geometry_msgs/msg/Vector3"](x=float(k), y=float(rng.normal()), z=0.5))
-            w.write(conns[k % 2], ns, store.serialize_cdr(m, "geometry_msgs/msg/Vector3Stamped"))
+                vector=T['geometry_msgs/msg/Vector3'](x=float(k), y=float(rng.normal()), z=0.5))
+            w.write(conns[k % 2], ns, store.serialize_cdr(m, 'geometry_msgs/msg/Vector3Stamped'))
     rd = open_reader(path)
     try:
         storage = mcap_records.indexed_mcap(rd)
@@ -224,9 +235,9 @@ def test_mcap_chunk_reader_gives_rosbags_records_in_rosbags_order(tmp_path):
         ref = {c.topic: [] for c in sel}
         for c, _, raw in rd.messages(connections=sel):
             ref[c.topic].append(vector3_stamped(raw))
-        got = _read_streams(rd, sel, path)
+        got = read_streams(rd, sel, path)
         ids = mcap_records.channel_ids(storage, sel)
-        plain = [mcap_records._scan_plain(np.frombuffer(b"\x05" + bytes(8), np.uint8),
+        plain = [mcap_records.scan_plain(np.frombuffer(b'\x05' + bytes(8), np.uint8),
                                           np.ones(3, bool))]
     finally:
         rd.close()
@@ -247,14 +258,14 @@ def test_mcap_scan_compiled_and_plain_agree():
         body = bytes(rng.integers(0, 256, int(rng.integers(22, 80)), dtype=np.uint8))
         op = 0x05 if k % 5 else 0x06
         ch = int(rng.integers(0, 4))
-        rec = ch.to_bytes(2, "little") + body[2:] if op == 0x05 else body
-        parts.append(bytes([op]) + len(rec).to_bytes(8, "little") + rec)
-    buf = np.frombuffer(b"".join(parts), np.uint8)
+        rec = ch.to_bytes(2, 'little') + body[2:] if op == 0x05 else body
+        parts.append(bytes([op]) + len(rec).to_bytes(8, 'little') + rec)
+    buf = np.frombuffer(b''.join(parts), np.uint8)
     wanted = np.array([True, False, True, True])
-    a, whole_a = mcap_records._scan_py(buf, wanted)
-    b, whole_b = mcap_records._scan_plain(buf, wanted)
-    c, whole_c = mcap_records._scanner()(buf, wanted)
+    a, whole_a = mcap_records.scan_python(buf, wanted)
+    b, whole_b = mcap_records.scan_plain(buf, wanted)
+    c, whole_c = mcap_records.scanner()(buf, wanted)
     assert whole_a and whole_b and whole_c and len(a) > 100
     assert np.array_equal(a, b) and np.array_equal(a, c)
-    _, whole = mcap_records._scan_plain(buf[:-3], wanted)
+    _, whole = mcap_records.scan_plain(buf[:-3], wanted)
     assert not whole                                                  # a record cut short

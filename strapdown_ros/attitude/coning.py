@@ -1,4 +1,5 @@
-"""The coning-algorithm family: how the body rotation vector φ of one attitude update is
+"""
+The coning-algorithm family: how the body rotation vector φ of one attitude update is
 formed from integrating-gyro increments q_i (Aksyonenko 2014; paper 003, §1.4, §2.2; and the
 literature: Miller 1983, Savage 1998, Bortz 1971 — doc/references.md).
 
@@ -24,15 +25,17 @@ All ``phi`` functions are vectorised: ``window`` has shape (M, history + samples
 from __future__ import annotations
 
 from dataclasses import dataclass
+from fractions import Fraction
 from functools import lru_cache
+from math import factorial
 from typing import Callable
 
 import numpy as np
 
 from strapdown_ros.rotation import cross
 
-__all__ = ["ConingAlgorithm", "ALGORITHMS", "get_algorithm", "algorithm_names", "SEED_ALGORITHMS",
-           "LITERATURE_DRIFT", "spacing_coefficients", "theory_drift", "bilinear_form"]
+__all__ = ['ConingAlgorithm', 'ALGORITHMS', 'get_algorithm', 'algorithm_names', 'SEED_ALGORITHMS',
+           'LITERATURE_DRIFT', 'spacing_coefficients', 'theory_drift', 'bilinear_form']
 
 
 @dataclass(frozen=True)
@@ -49,7 +52,7 @@ class ConingAlgorithm:
     order_expected: int | None       # order of this form, from the moment conditions (doc/coning_derivations.md)
     source: str                      # equation reference
     formula: str                     # the formula as implemented
-    note: str = ""
+    note: str = ''
 
     @property
     def window(self) -> int:
@@ -167,83 +170,84 @@ def _four_opt(w):
     return q1 + q2 + q3 + q4 + _x((54.0 * q1 + 92.0 * q2 + 214.0 * q3) / 105.0, q4)
 
 
-_T = "003"
+_T = '003'
 ALGORITHMS: dict[str, ConingAlgorithm] = {a.name: a for a in [
-    ConingAlgorithm("1", 1, 0, _alg1, 0, 0, 0, 2, 2, f"{_T} (1.76), (2.14)", "φ = q1",
-                    "single sample; no coning correction"),
-    ConingAlgorithm("2", 2, 0, _alg2, 1, 2, 1, 4, 4, f"{_T} (1.77), (2.15)",
-                    "φ = q1 + q2 + 2/3 q1×q2", "as printed: OK; identical to two_sample"),
-    ConingAlgorithm("3", 3, 0, _alg3, 1, 3, 1, 4, 4, f"{_T} (1.78), (2.16)",
-                    "φ = q1 + q2 + q3 + 9/8 q1×q3",
-                    "printed 9/8 q3×q1 has the operands reversed (order 2); corrected form is order 4"),
-    ConingAlgorithm("3_as_printed", 3, 0, _alg3_printed, 1, 3, 1, 4, 2, f"{_T} (1.78) as printed",
-                    "φ = q1 + q2 + q3 + 9/8 q3×q1", "doubles the uncorrected drift"),
-    ConingAlgorithm("3.1", 3, 0, _alg31, 1, 5, 2, 4, 6, f"{_T} (1.79), (2.17)",
-                    "φ = q1 + q2 + q3 + 9/20 (q1 + 3/2 q2)×(q3 − q1)",
-                    "printed (q3 − q1)×(q1 + 3/2 q2) has the operands reversed (order 2); corrected form "
-                    "equals three_sample_optimal and reaches order 6 (the thesis claims 4)"),
-    ConingAlgorithm("3.1_as_printed", 3, 0, _alg31_printed, 1, 5, 2, 4, 2, f"{_T} (1.79) as printed",
-                    "φ = q1 + q2 + q3 + 9/20 (q3 − q1)×(q1 + 3/2 q2)", ""),
-    ConingAlgorithm("4", 4, 0, _alg4, 1, 4, 1, 4, 4, f"{_T} (1.80), (2.18)",
-                    "φ = Σq + 2/3 (q1 + q2)×(q3 + q4)",
-                    "as printed: OK; the 2-sample algorithm on pairs of increments"),
-    ConingAlgorithm("4+", 4, 0, _alg4plus_runge, 3, 6, 2, 5, 6, f"{_T} (1.81), (2.19); §1.4.4",
-                    "φ = Σq + 32/45 (q1×q2 + q3×q4) + 22/45 (q1 + q2)×(q3 + q4)",
-                    "printed form is garbled (sum q2+q2+q3+q3, order 2). This is the Runge (Richardson) "
-                    "extrapolation §1.4.4 describes, (16·fine − coarse)/15 with fine = two 2-sample "
-                    "updates and coarse = algorithm 4: 3 cross products, order 6 (odd orders cannot occur)"),
-    ConingAlgorithm("4+_printed_terms", 4, 0, _alg4plus, 3, 6, 2, 5, 6, f"{_T} (1.81) cross-product set",
-                    "φ = Σq + 22/15 (q1×q3 + q2×q4) − 8/15 q2×q3",
-                    "keeps the printed cross-product set and solves the two coning moment conditions; "
-                    "order 6 but a 20× larger coefficient than 4+"),
-    ConingAlgorithm("4+_as_printed", 4, 0, _alg4plus_printed, 3, 6, 1, 5, 2, f"{_T} (1.81) as printed",
-                    "φ = q2 + q2 + q3 + q3 + 4/3 [q1×q3 + q2×q3 + q2×q4]", ""),
-    ConingAlgorithm("5", 5, 0, _alg5, 4, 8, 3, 4, 6, f"{_T} (1.82), (2.20)",
-                    "φ = Σq − 1375/432 q2×q4 − 1625/864 q1×q5 + 875/216 (q1×q4 + q2×q5)",
-                    "printed later×earlier products have the operands reversed (order 2); corrected form "
-                    "reaches order 6 (the thesis claims 4)"),
-    ConingAlgorithm("5_as_printed", 5, 0, _alg5_printed, 4, 8, 3, 4, 2, f"{_T} (1.82) as printed",
-                    "φ = Σq − 1375/432 q4×q2 − 1625/864 q5×q1 + 875/216 (q4×q1 + q5×q2)", ""),
-    ConingAlgorithm("6", 1, 1, _alg6, 1, 1, 1, 3, 4, f"{_T} (1.83), (2.21)",
-                    "φ = q2 + 1/12 q1×q2 (q1 previous)",
-                    "as printed: OK; order 4, better than the claimed 3; identical to one_plus_previous"),
-    ConingAlgorithm("7", 1, 2, _alg7, 2, 2, 2, 4, 4, f"{_T} (1.84), (2.22)",
-                    "φ = q3 + 1/6 q2×q3 − 1/24 q1×q3 (q1, q2 previous)",
-                    "printed with newest-first indices; read causally it is order 4 as claimed, but its "
-                    "error coefficient is 1.5× that of algorithm 6"),
-    ConingAlgorithm("7_as_printed", 1, 2, _alg7_printed, 2, 2, 2, 4, 2, f"{_T} (1.84) as printed",
-                    "φ = q1 + 1/6 q2×q1 − 1/24 q3×q1 (q1 oldest)",
-                    "corrections of the wrong sign (order 2, twice the uncorrected drift); the attitude "
-                    "also lags by two samples"),
+    ConingAlgorithm('1', 1, 0, _alg1, 0, 0, 0, 2, 2, f'{_T} (1.76), (2.14)', 'φ = q1',
+                    'single sample; no coning correction'),
+    ConingAlgorithm('2', 2, 0, _alg2, 1, 2, 1, 4, 4, f'{_T} (1.77), (2.15)',
+                    'φ = q1 + q2 + 2/3 q1×q2', 'as printed: OK; identical to two_sample'),
+    ConingAlgorithm('3', 3, 0, _alg3, 1, 3, 1, 4, 4, f'{_T} (1.78), (2.16)',
+                    'φ = q1 + q2 + q3 + 9/8 q1×q3',
+                    'printed 9/8 q3×q1 has the operands reversed (order 2); corrected form is order 4'),
+    ConingAlgorithm('3_as_printed', 3, 0, _alg3_printed, 1, 3, 1, 4, 2, f'{_T} (1.78) as printed',
+                    'φ = q1 + q2 + q3 + 9/8 q3×q1', 'doubles the uncorrected drift'),
+    ConingAlgorithm('3.1', 3, 0, _alg31, 1, 5, 2, 4, 6, f'{_T} (1.79), (2.17)',
+                    'φ = q1 + q2 + q3 + 9/20 (q1 + 3/2 q2)×(q3 − q1)',
+                    'printed (q3 − q1)×(q1 + 3/2 q2) has the operands reversed (order 2); corrected form '
+                    'equals three_sample_optimal and reaches order 6 (the thesis claims 4)'),
+    ConingAlgorithm('3.1_as_printed', 3, 0, _alg31_printed, 1, 5, 2, 4, 2, f'{_T} (1.79) as printed',
+                    'φ = q1 + q2 + q3 + 9/20 (q3 − q1)×(q1 + 3/2 q2)', ''),
+    ConingAlgorithm('4', 4, 0, _alg4, 1, 4, 1, 4, 4, f'{_T} (1.80), (2.18)',
+                    'φ = Σq + 2/3 (q1 + q2)×(q3 + q4)',
+                    'as printed: OK; the 2-sample algorithm on pairs of increments'),
+    ConingAlgorithm('4+', 4, 0, _alg4plus_runge, 3, 6, 2, 5, 6, f'{_T} (1.81), (2.19); §1.4.4',
+                    'φ = Σq + 32/45 (q1×q2 + q3×q4) + 22/45 (q1 + q2)×(q3 + q4)',
+                    'printed form is garbled (sum q2+q2+q3+q3, order 2). This is the Runge (Richardson) '
+                    'extrapolation §1.4.4 describes, (16·fine − coarse)/15 with fine = two 2-sample '
+                    'updates and coarse = algorithm 4: 3 cross products, order 6 (odd orders cannot occur)'),
+    ConingAlgorithm('4+_printed_terms', 4, 0, _alg4plus, 3, 6, 2, 5, 6, f'{_T} (1.81) cross-product set',
+                    'φ = Σq + 22/15 (q1×q3 + q2×q4) − 8/15 q2×q3',
+                    'keeps the printed cross-product set and solves the two coning moment conditions; '
+                    'order 6 but a 20× larger coefficient than 4+'),
+    ConingAlgorithm('4+_as_printed', 4, 0, _alg4plus_printed, 3, 6, 1, 5, 2, f'{_T} (1.81) as printed',
+                    'φ = q2 + q2 + q3 + q3 + 4/3 [q1×q3 + q2×q3 + q2×q4]', ''),
+    ConingAlgorithm('5', 5, 0, _alg5, 4, 8, 3, 4, 6, f'{_T} (1.82), (2.20)',
+                    'φ = Σq − 1375/432 q2×q4 − 1625/864 q1×q5 + 875/216 (q1×q4 + q2×q5)',
+                    'printed later×earlier products have the operands reversed (order 2); corrected form '
+                    'reaches order 6 (the thesis claims 4)'),
+    ConingAlgorithm('5_as_printed', 5, 0, _alg5_printed, 4, 8, 3, 4, 2, f'{_T} (1.82) as printed',
+                    'φ = Σq − 1375/432 q4×q2 − 1625/864 q5×q1 + 875/216 (q4×q1 + q5×q2)', ''),
+    ConingAlgorithm('6', 1, 1, _alg6, 1, 1, 1, 3, 4, f'{_T} (1.83), (2.21)',
+                    'φ = q2 + 1/12 q1×q2 (q1 previous)',
+                    'as printed: OK; order 4, better than the claimed 3; identical to one_plus_previous'),
+    ConingAlgorithm('7', 1, 2, _alg7, 2, 2, 2, 4, 4, f'{_T} (1.84), (2.22)',
+                    'φ = q3 + 1/6 q2×q3 − 1/24 q1×q3 (q1, q2 previous)',
+                    'printed with newest-first indices; read causally it is order 4 as claimed, but its '
+                    'error coefficient is 1.5× that of algorithm 6'),
+    ConingAlgorithm('7_as_printed', 1, 2, _alg7_printed, 2, 2, 2, 4, 2, f'{_T} (1.84) as printed',
+                    'φ = q1 + 1/6 q2×q1 − 1/24 q3×q1 (q1 oldest)',
+                    'corrections of the wrong sign (order 2, twice the uncorrected drift); the attitude '
+                    'also lags by two samples'),
     # literature
-    ConingAlgorithm("one_plus_previous", 1, 1, _alg6, 1, 1, 1, 4, 4, "Miller 1983; Savage 1998",
-                    "φ = q_k + 1/12 q_{k−1}×q_k", "drift (Ωh)^4/60"),
-    ConingAlgorithm("two_sample", 2, 0, _alg2, 1, 2, 1, 4, 4, "Miller 1983",
-                    "φ = q1 + q2 + 2/3 q1×q2", "drift (Ωh)^4/960"),
-    ConingAlgorithm("three_sample_polynomial", 3, 0, _three_poly, 2, 5, 2, 4, 4, "Lee et al. 1990",
-                    "φ = Σq + 33/80 q1×q3 + 57/80 q2×(q3 − q1)", "drift −(Ωh)^4/6480"),
-    ConingAlgorithm("three_sample_optimal", 3, 0, _three_opt, 2, 5, 2, 6, 6, "Miller 1983",
-                    "φ = Σq + 9/20 q1×q3 + 27/40 q2×(q3 − q1)", "drift (Ωh)^6/204120"),
-    ConingAlgorithm("four_sample_optimal", 4, 0, _four_opt, 1, 6, 3, 8, 8, "Lee et al. 1990",
-                    "φ = Σq + (54 q1 + 92 q2 + 214 q3)/105 × q4", "drift (Ωh)^8/82575360"),
+    ConingAlgorithm('one_plus_previous', 1, 1, _alg6, 1, 1, 1, 4, 4, 'Miller 1983; Savage 1998',
+                    'φ = q_k + 1/12 q_{k−1}×q_k', 'drift (Ωh)^4/60'),
+    ConingAlgorithm('two_sample', 2, 0, _alg2, 1, 2, 1, 4, 4, 'Miller 1983',
+                    'φ = q1 + q2 + 2/3 q1×q2', 'drift (Ωh)^4/960'),
+    ConingAlgorithm('three_sample_polynomial', 3, 0, _three_poly, 2, 5, 2, 4, 4, 'Lee et al. 1990',
+                    'φ = Σq + 33/80 q1×q3 + 57/80 q2×(q3 − q1)', 'drift −(Ωh)^4/6480'),
+    ConingAlgorithm('three_sample_optimal', 3, 0, _three_opt, 2, 5, 2, 6, 6, 'Miller 1983',
+                    'φ = Σq + 9/20 q1×q3 + 27/40 q2×(q3 − q1)', 'drift (Ωh)^6/204120'),
+    ConingAlgorithm('four_sample_optimal', 4, 0, _four_opt, 1, 6, 3, 8, 8, 'Lee et al. 1990',
+                    'φ = Σq + (54 q1 + 92 q2 + 214 q3)/105 × q4', 'drift (Ωh)^8/82575360'),
 ]}
 
 #: the thesis's algorithms (corrected forms), in the thesis's numbering
-SEED_ALGORITHMS = ("1", "2", "3", "3.1", "4", "4+", "5", "6", "7")
+SEED_ALGORITHMS = ('1', '2', '3', '3.1', '4', '4+', '5', '6', '7')
 
 #: leading term of the cone-axis drift ε/(α²Ω) in Ωh, small α (seed-guide reference table)
 LITERATURE_DRIFT = {
-    "1": lambda x: x ** 2 / 12.0,
-    "one_plus_previous": lambda x: x ** 4 / 60.0,
-    "two_sample": lambda x: x ** 4 / 960.0,
-    "three_sample_polynomial": lambda x: -x ** 4 / 6480.0,
-    "three_sample_optimal": lambda x: x ** 6 / 204120.0,
-    "four_sample_optimal": lambda x: x ** 8 / 82575360.0,
+    '1': lambda x: x ** 2 / 12.0,
+    'one_plus_previous': lambda x: x ** 4 / 60.0,
+    'two_sample': lambda x: x ** 4 / 960.0,
+    'three_sample_polynomial': lambda x: -x ** 4 / 6480.0,
+    'three_sample_optimal': lambda x: x ** 6 / 204120.0,
+    'four_sample_optimal': lambda x: x ** 8 / 82575360.0,
 }
 
 
 def spacing_coefficients(alg: ConingAlgorithm) -> dict[int, float] | None:
-    """Net coefficient K_m of all cross products ``q_i × q_j`` with ``j − i = m`` that
+    """
+    Net coefficient K_m of all cross products ``q_i × q_j`` with ``j − i = m`` that
     involve at least one new increment.  Extracted by evaluating φ on unit vectors
     (every φ here is Σq plus a bilinear antisymmetric form).  Returns None when the
     linear part of φ is not the sum of the new increments (a garbled form).
@@ -271,7 +275,8 @@ def spacing_coefficients(alg: ConingAlgorithm) -> dict[int, float] | None:
 
 @lru_cache(maxsize=None)
 def bilinear_form(name: str) -> tuple[np.ndarray, np.ndarray] | None:
-    """φ of algorithm ``name`` as a table: ``φ = Σ_i lin_i q_i + Σ_p k_p q_{i_p} × q_{j_p}``
+    """
+    φ of algorithm ``name`` as a table: ``φ = Σ_i lin_i q_i + Σ_p k_p q_{i_p} × q_{j_p}``
     (window slots, oldest first) → ``(lin (W,), pairs (P, 3))``, rows of pairs ``(i_p, j_p, k_p)``
     (indices as floats), for the compiled block kernel (:mod:`strapdown_ros.attitude.kernel`),
     which evaluates every algorithm from its table.
@@ -280,7 +285,8 @@ def bilinear_form(name: str) -> tuple[np.ndarray, np.ndarray] | None:
     ``lin_i`` from a unit x increment in slot i, ``k_ij`` from the z component of e_x in slot i
     and e_y in slot j.  It is then checked on random windows, with the increments' scale from
     1e-6 to 1 rad: the table must reproduce ``phi`` to 1e-13 relative, or None is returned
-    (a form that is not linear plus bilinear cross products is evaluated by ``phi``, in numpy)."""
+    (a form that is not linear plus bilinear cross products is evaluated by ``phi``, in numpy).
+    """
     alg = ALGORITHMS[name]
     n = alg.window
     lin = np.zeros(n)
@@ -302,7 +308,7 @@ def bilinear_form(name: str) -> tuple[np.ndarray, np.ndarray] | None:
     rng = np.random.default_rng(12345)
     for scale in (1e-6, 1e-3, 1.0):
         w = scale * rng.normal(size=(16, n, 3))
-        rebuilt = np.einsum("i,mia->ma", lin, w) + (kk[None, :, None] * cross(w[:, pi], w[:, pj])).sum(1)
+        rebuilt = np.einsum('i,mia->ma', lin, w) + (kk[None, :, None] * cross(w[:, pi], w[:, pj])).sum(1)
         ref = alg.phi(w)
         if np.max(np.abs(rebuilt - ref)) > 1e-13 * np.max(np.abs(ref)):
             return None
@@ -312,7 +318,8 @@ def bilinear_form(name: str) -> tuple[np.ndarray, np.ndarray] | None:
 
 
 def theory_drift(alg: ConingAlgorithm, omega_h) -> float | None:
-    """Cone-axis drift ε/(α²Ω) to leading order in α, *exact* in Ωh.
+    """
+    Cone-axis drift ε/(α²Ω) to leading order in α, *exact* in Ωh.
 
     Under classical coning with x = Ωτ the z component of ``q_i × q_j`` is
     ``−sin²α·4 sin²(x/2)·sin((j−i)x)`` and Σq_z over an update of N increments exceeds
@@ -342,8 +349,6 @@ def theory_drift(alg: ConingAlgorithm, omega_h) -> float | None:
 
 @lru_cache(maxsize=None)
 def _series_coefficients(name: str, terms: int = 40):
-    from fractions import Fraction
-    from math import factorial
 
     alg = ALGORITHMS[name]
     k = spacing_coefficients(alg)
@@ -371,5 +376,5 @@ def get_algorithm(name: str) -> ConingAlgorithm:
     try:
         return ALGORITHMS[name]
     except KeyError:
-        raise ValueError(f"unknown coning algorithm {name!r}; valid names: "
+        raise ValueError(f'unknown coning algorithm {name!r}; valid names: '
                          f"{', '.join(ALGORITHMS)}") from None

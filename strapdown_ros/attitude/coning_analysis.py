@@ -1,4 +1,5 @@
-"""Measuring coning algorithms on exact coning motion: drift, round-off floor, order, cost.
+"""
+Measuring coning algorithms on exact coning motion: drift, round-off floor, order, cost.
 
 Drift
     The cone-axis (reference Z) component of the attitude error
@@ -24,8 +25,8 @@ No ROS imports; scipy only for the ODE reference.
 """
 from __future__ import annotations
 
-import time
 from dataclasses import dataclass, field
+import time
 
 import numpy as np
 
@@ -33,14 +34,14 @@ from strapdown_ros.attitude.coning import ALGORITHMS, theory_drift
 from strapdown_ros.attitude.integrator import AttitudeIntegrator
 from strapdown_ros.motion.profiles import ConingProfile
 from strapdown_ros.rotation import (quat_conjugate, quat_cumprod, quat_multiply, quat_normalize,
-    quat_to_rotvec, rotvec_to_quat)
+                                    quat_to_rotvec, rotvec_to_quat)
 
-__all__ = ["LineFit", "ode_reference", "measure_case", "order_sweep", "cost_per_update", "CaseResult"]
+__all__ = ['LineFit', 'ode_reference', 'measure_case', 'order_sweep', 'cost_per_update', 'CaseResult']
 
 #: the three coning cases of 003 §2.3 (α rad, ν rad/s) and its two update periods (s)
 THESIS_CASES = [(0.087, 1.0), (0.5, 1.0), (0.087, 0.5)]
 THESIS_STEPS = [0.01, 0.001]
-THESIS_RANKING = ["7", "6", "4+", "5", "4", "3.1", "3", "2", "1"]       # best first, 003 §2.3
+THESIS_RANKING = ['7', '6', '4+', '5', '4', '3.1', '3', '2', '1']       # best first, 003 §2.3
 #: a drift within this factor of the case's round-off floor estimate is marked ``floor``
 FLOOR_FACTOR = 3.0
 
@@ -83,10 +84,10 @@ def ode_reference(profile: ConingProfile, duration: float, rtol: float = 1e-13, 
         w = profile.body_rate(t)
         return 0.5 * quat_multiply(q, np.concatenate([[0.0], w]))
 
-    sol = solve_ivp(rhs, (0.0, duration), profile.attitude(0.0), method="DOP853", rtol=rtol, atol=atol,
+    sol = solve_ivp(rhs, (0.0, duration), profile.attitude(0.0), method='DOP853', rtol=rtol, atol=atol,
                     dense_output=True)
     if not sol.success:
-        raise RuntimeError(f"ODE reference failed: {sol.message}")
+        raise RuntimeError(f'ODE reference failed: {sol.message}')
 
     def attitude(t):
         return quat_normalize(sol.sol(np.asarray(t, dtype=float)).T)
@@ -109,7 +110,7 @@ class CaseResult:
     drift: dict = field(default_factory=dict)          # name → rad/s (analytic truth)
     drift_ode: dict = field(default_factory=dict)      # name → rad/s (ODE truth), when computed
     floor: dict = field(default_factory=dict)          # samples per update N → rad/s
-    truth_gap: float = float("nan")                    # max angle between analytic and ODE truth, rad
+    truth_gap: float = float('nan')                    # max angle between analytic and ODE truth, rad
     wall_s: float = 0.0
 
 
@@ -122,7 +123,7 @@ def measure_case(names, alpha: float, nu: float, step: float, duration: float, w
     period = prof.cone_period
     t_fit = np.floor(n_total * step / period + 1e-9) * period
     if t_fit <= 0:
-        raise ValueError(f"duration {duration} s is shorter than one cone period {period:.4g} s")
+        raise ValueError(f'duration {duration} s is shorter than one cone period {period:.4g} s')
     algs = {n: ALGORITHMS[n] for n in names}
     integ = {n: AttitudeIntegrator(n, prof.attitude(0.0), 0.0, nominal_period=step, propagate_covariance=False)
              for n in names}
@@ -171,7 +172,7 @@ def measure_case(names, alpha: float, nu: float, step: float, duration: float, w
             keep = te <= t_fit + 1e-9
             if np.any(keep):
                 floor_fit[n].add(te[keep], _cone_error(q[keep], truth[ends][keep]))
-    res = CaseResult(alpha, nu, step, duration, t_fit, truth_gap=gap if with_ode else float("nan"))
+    res = CaseResult(alpha, nu, step, duration, t_fit, truth_gap=gap if with_ode else float('nan'))
     for name in names:
         res.drift[name] = fits[name].slope()[0]
         if with_ode:
@@ -184,7 +185,8 @@ def measure_case(names, alpha: float, nu: float, step: float, duration: float, w
 
 
 def order_sweep(name: str, omega_h=None, alpha: float | None = None, periods: int = 20, nu: float = 1.0):
-    """Drift ε/(α²Ω) at several Ωh (small α), the fitted order over the points above the
+    """
+    Drift ε/(α²Ω) at several Ωh (small α), the fitted order over the points above the
     floor, and the small-α theory at the same points.
 
     Returns dict(omega_h, drift, theory, floor, used, order_measured, order_theory_fit).
@@ -208,13 +210,13 @@ def order_sweep(name: str, omega_h=None, alpha: float | None = None, periods: in
     drift, floor = np.array(drift), np.array(floor)
     used = np.abs(drift) > 10 * floor
     th = theory_drift(alg, omega_h)
-    out = {"omega_h": omega_h.tolist(), "alpha": alpha, "drift": drift.tolist(), "floor": floor.tolist(),
-           "used": used.tolist(), "theory": None if th is None else np.asarray(th).tolist(),
-           "order_measured": None, "order_theory_fit": None}
+    out = {'omega_h': omega_h.tolist(), 'alpha': alpha, 'drift': drift.tolist(), 'floor': floor.tolist(),
+           'used': used.tolist(), 'theory': None if th is None else np.asarray(th).tolist(),
+           'order_measured': None, 'order_theory_fit': None}
     if used.sum() >= 4:
-        out["order_measured"] = float(np.polyfit(np.log(omega_h[used]), np.log(np.abs(drift[used])), 1)[0])
+        out['order_measured'] = float(np.polyfit(np.log(omega_h[used]), np.log(np.abs(drift[used])), 1)[0])
         if th is not None:
-            out["order_theory_fit"] = float(np.polyfit(np.log(omega_h[used]), np.log(np.abs(np.asarray(th)[used])), 1)[0])
+            out['order_theory_fit'] = float(np.polyfit(np.log(omega_h[used]), np.log(np.abs(np.asarray(th)[used])), 1)[0])
     return out
 
 

@@ -1,4 +1,5 @@
-"""SINS attitude integrator: gyro increments → attitude and its error covariance.
+"""
+SINS attitude integrator: gyro increments → attitude and its error covariance.
 
 :class:`AttitudeIntegrator` consumes integrating-gyro increments ``Δθ_k`` (body axes,
 rad) stamped at the end of their intervals and produces, at every update of the
@@ -48,15 +49,16 @@ from dataclasses import dataclass
 import numpy as np
 
 from strapdown_ros.attitude import kernel as attitude_kernel
-from strapdown_ros.attitude.coning import ConingAlgorithm, bilinear_form, get_algorithm
+from strapdown_ros.attitude.coning import bilinear_form, ConingAlgorithm, get_algorithm
 from strapdown_ros.rotation import quat_cumprod, quat_normalize, quat_to_dcm, rotvec_to_quat
-from strapdown_ros.streams.buffers import StampedBuffer
-from strapdown_ros.sensors import SensorSigmas, increment_correction
-from strapdown_ros.sensors.covariance import (COVARIANCE_MODELS as _MODELS, constant_jacobian,
-    get_covariance_model)
+from strapdown_ros.sensors import increment_correction, SensorSigmas
+from strapdown_ros.sensors.covariance import constant_jacobian
+from strapdown_ros.sensors.covariance import COVARIANCE_MODELS as _MODELS
+from strapdown_ros.sensors.covariance import get_covariance_model
 from strapdown_ros.sensors.effects import EFFECTS
+from strapdown_ros.streams.buffers import StampedBuffer
 
-__all__ = ["AttitudeIntegrator", "UpdateBatch", "IncrementAccumulator", "COVARIANCE_MODELS"]
+__all__ = ['AttitudeIntegrator', 'UpdateBatch', 'IncrementAccumulator', 'COVARIANCE_MODELS']
 
 #: names of the covariance models (the registry is strapdown_ros.sensors.covariance)
 COVARIANCE_MODELS = tuple(_MODELS)
@@ -82,7 +84,8 @@ class UpdateBatch:
 
 
 class AttitudeIntegrator:
-    """Streaming strapdown attitude integrator (vectorised over each pushed block).
+    """
+    Streaming strapdown attitude integrator (vectorised over each pushed block).
 
     Parameters
     ----------
@@ -99,19 +102,19 @@ class AttitudeIntegrator:
         the attitude algorithm alone.
     """
 
-    def __init__(self, algorithm: str = "2", initial_attitude=(1.0, 0.0, 0.0, 0.0),
+    def __init__(self, algorithm: str = '2', initial_attitude=(1.0, 0.0, 0.0, 0.0),
                  initial_time: float | None = None, nominal_period: float = 0.01,
                  gyro: SensorSigmas | None = None, initial_sigma: float = 0.0,
-                 covariance_model: str = "random_constant", quantization_correction: bool = False,
+                 covariance_model: str = 'random_constant', quantization_correction: bool = False,
                  propagate_covariance: bool = True):
         self.cov_model = get_covariance_model(covariance_model)
         if not (np.isfinite(nominal_period) and nominal_period > 0):
-            raise ValueError(f"nominal_period must be > 0, got {nominal_period}")
+            raise ValueError(f'nominal_period must be > 0, got {nominal_period}')
         if not (np.isfinite(initial_sigma) and initial_sigma >= 0):
-            raise ValueError(f"initial_sigma must be >= 0, got {initial_sigma}")
+            raise ValueError(f'initial_sigma must be >= 0, got {initial_sigma}')
         q0 = np.asarray(initial_attitude, dtype=float)
         if q0.shape != (4,) or not np.all(np.isfinite(q0)) or np.linalg.norm(q0) < 0.5:
-            raise ValueError("initial_attitude must be a finite quaternion [w, x, y, z]")
+            raise ValueError('initial_attitude must be a finite quaternion [w, x, y, z]')
         self.algorithm: ConingAlgorithm = get_algorithm(algorithm)
         self.q = quat_normalize(q0)
         self.time = initial_time
@@ -143,8 +146,10 @@ class AttitudeIntegrator:
         return self.algorithm.name
 
     def set_algorithm(self, name: str) -> None:
-        """Switch algorithm between updates.  Increments of an unfinished update are
-        applied one by one (φ = q) so that no rotation is lost."""
+        """
+        Switch algorithm between updates.  Increments of an unfinished update are
+        applied one by one (φ = q) so that no rotation is lost.
+        """
         new = get_algorithm(name)
         if len(self._pending):
             phi = self._pending
@@ -157,20 +162,26 @@ class AttitudeIntegrator:
         self.algorithm = new
 
     def restart_clock(self) -> None:
-        """The stamps start a new time base (a confirmed stamp jump or clock reset): the next
+        """
+        The stamps start a new time base (a confirmed stamp jump or clock reset): the next
         increment is taken as one nominal period long.  The attitude carries on; the rotation
-        during the jump is lost (the caller reports it)."""
+        during the jump is lost (the caller reports it).
+        """
         self._last_stamp = None
         self.time = None
 
     def snapshot(self) -> tuple:
-        """The state needed to come back to this point (:meth:`restore`).  No copies: :meth:`push`
-        and :meth:`set_algorithm` replace these arrays, they never write into them."""
+        """
+        The state needed to come back to this point (:meth:`restore`).  No copies: :meth:`push`
+        and :meth:`set_algorithm` replace these arrays, they never write into them.
+        """
         return (self.q, self.time, self._last_stamp, self._p_ref, self._j_const, self.updates, self.samples)
 
     def restore(self, snap: tuple, inflate_sigma: float = 0.0) -> None:
-        """Return to a :meth:`snapshot`, dropping the unfinished update and the history, and add
-        ``inflate_sigma``² per axis to the attitude covariance (what was skipped is unknown)."""
+        """
+        Return to a :meth:`snapshot`, dropping the unfinished update and the history, and add
+        ``inflate_sigma``² per axis to the attitude covariance (what was skipped is unknown).
+        """
         self.q, self.time, self._last_stamp, p_ref, j_const, self.updates, self.samples = snap
         self._p_ref = p_ref + inflate_sigma ** 2 * np.eye(3)
         self._j_const = j_const.copy()
@@ -178,8 +189,10 @@ class AttitudeIntegrator:
         self._recent = np.zeros((0, 3))
 
     def checkpoint(self) -> tuple:
-        """The whole state, for :meth:`rollback` (cheap: :meth:`push` replaces its arrays, it never
-        writes into them)."""
+        """
+        The whole state, for :meth:`rollback` (cheap: :meth:`push` replaces its arrays, it never
+        writes into them).
+        """
         return (self.q, self.time, self._last_stamp, self._p_ref, self._j_const, self.updates, self.samples,
                 self._pending, self._pending_dt, self._recent, self._last_sign, self.algorithm)
 
@@ -194,7 +207,8 @@ class AttitudeIntegrator:
 
     # -------------------------------------------------------------------------------
     def push(self, delta_theta: np.ndarray, stamps: np.ndarray) -> UpdateBatch:
-        """Consume increments (n, 3) stamped at the end of their intervals (n,).
+        """
+        Consume increments (n, 3) stamped at the end of their intervals (n,).
 
         The caller guarantees finite values and strictly increasing stamps (the ROS
         node checks and counts violations before calling).
@@ -202,7 +216,7 @@ class AttitudeIntegrator:
         dth = np.asarray(delta_theta, dtype=float).reshape(-1, 3)
         stamps = np.asarray(stamps, dtype=float).reshape(-1)
         if len(dth) != len(stamps):
-            raise ValueError("delta_theta and stamps must have the same length")
+            raise ValueError('delta_theta and stamps must have the same length')
         if len(dth) == 0:
             return self._empty()
         if self.quantization_correction and self.gyro.quantum > 0:
@@ -270,9 +284,11 @@ class AttitudeIntegrator:
         return seq[idx]
 
     def _compiled_update(self, seq, dts, m, table):
-        """A block as one compiled call (:mod:`strapdown_ros.attitude.kernel`): coning term from the
+        """
+        A block as one compiled call (:mod:`strapdown_ros.attitude.kernel`): coning term from the
         algorithm's table, attitude, covariance (NaN without ``propagate_covariance``), mean
-        rate."""
+        rate.
+        """
         g, model, alg = self.gyro, self.cov_model, self.algorithm
         q_white = None
         cov_on = self.propagate_covariance
@@ -283,7 +299,7 @@ class AttitudeIntegrator:
             self.q, seq, dts, alg.samples, alg.history, table, self._p_ref, self._j_const, self._constant_var,
             self._white_rate, q_white, model.constants, compiled=True, covariance=cov_on)
         if cov_on and g.quantum > 0:   # the remainder at this epoch (000 §5)
-            cov = EFFECTS["gyro_quantization"].fix_covariance(cov, np.array([g.quantum]))
+            cov = EFFECTS['gyro_quantization'].fix_covariance(cov, np.array([g.quantum]))
         return q, cov, phi, rate, h
 
     def _vectorised_update(self, phi, blocks, dts):
@@ -300,9 +316,11 @@ class AttitudeIntegrator:
 
     # -------------------------------------------------------------------------------
     def _accumulate_covariance(self, c, rho_sum, blocks, dts):
-        """Advance the reference-axis accumulators over m updates; return their running
+        """
+        Advance the reference-axis accumulators over m updates; return their running
         values after every update: (m,3,3) and (m,3,12).  What is white and what is a random
-        constant is the covariance model's (strapdown_ros.sensors.covariance)."""
+        constant is the covariance model's (strapdown_ros.sensors.covariance).
+        """
         g, model = self.gyro, self.cov_model
         blocks = np.asarray(blocks).reshape(len(c), -1, 3)
         dts = np.asarray(dts).reshape(len(c), -1)
@@ -331,7 +349,7 @@ class AttitudeIntegrator:
             total = total + (j_const * var) @ np.swapaxes(j_const, -1, -2)
         cov = np.swapaxes(c, -1, -2) @ total @ c
         if g.quantum > 0:              # the remainder at this epoch (000 §5)
-            cov = EFFECTS["gyro_quantization"].fix_covariance(cov, np.array([g.quantum]))
+            cov = EFFECTS['gyro_quantization'].fix_covariance(cov, np.array([g.quantum]))
         return 0.5 * (cov + np.swapaxes(cov, -1, -2))
 
     @staticmethod
@@ -341,10 +359,12 @@ class AttitudeIntegrator:
 
 
 class IncrementAccumulator:
-    """Sums stamped increments (e.g. accelerometer Δv at 300 Hz) over arbitrary intervals
+    """
+    Sums stamped increments (e.g. accelerometer Δv at 300 Hz) over arbitrary intervals
     ``(t_a, t_b]`` (e.g. the gyro update intervals) to give mean specific force.  Bounded: at
     most ``max_len`` increments are held (the oldest dropped and counted in ``overflowed``), so
-    Δv arriving without gyro data cannot pile up."""
+    Δv arriving without gyro data cannot pile up.
+    """
 
     def __init__(self, max_len: int = 100_000):
         self._buf = StampedBuffer(3, max_len=max_len)
@@ -371,7 +391,8 @@ class IncrementAccumulator:
         return self.latest
 
     def take(self, t_a: float, t_b: float) -> tuple[np.ndarray, int]:
-        """Sum of increments stamped in (t_a, t_b]; drops everything up to t_b.
+        """
+        Sum of increments stamped in (t_a, t_b]; drops everything up to t_b.
 
         Returns (sum (3,), count).  An increment whose interval straddles t_a or t_b is
         counted whole in the interval holding its end stamp.
@@ -384,14 +405,16 @@ class IncrementAccumulator:
         return total, n
 
     def take_sequence(self, t_a: np.ndarray, t_b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """:meth:`take` over intervals ``(t_a[i], t_b[i]]`` in increasing order, in one pass:
+        """
+        :meth:`take` over intervals ``(t_a[i], t_b[i]]`` in increasing order, in one pass:
         the same counts as calling :meth:`take` for each in turn (an increment already taken by
         an earlier interval is not counted again); each sum is over its interval's increments
-        alone, so it does not depend on how the data were blocked.  Returns (m, 3), (m,)."""
+        alone, so it does not depend on how the data were blocked.  Returns (m, 3), (m,).
+        """
         t_a, t_b = np.asarray(t_a, dtype=float), np.asarray(t_b, dtype=float)
         t, v = self._buf.stamps, self._buf.values
-        hi = np.searchsorted(t, t_b, side="right")
-        lo = np.searchsorted(t, t_a, side="right")
+        hi = np.searchsorted(t, t_b, side='right')
+        lo = np.searchsorted(t, t_a, side='right')
         lo = np.maximum(lo, np.concatenate([[0], np.maximum.accumulate(hi)[:-1]]))   # taken already
         lo = np.minimum(lo, hi)
         counts = hi - lo
@@ -413,7 +436,7 @@ class IncrementAccumulator:
         edges = np.asarray(edges, dtype=float)
         t, v = self._buf.stamps, self._buf.values
         # stamps in (edges[i], edges[i+1]] are t[lo[i]:lo[i+1]]: sums from one cumulative sum
-        pos = np.searchsorted(t, edges, side="right")
+        pos = np.searchsorted(t, edges, side='right')
         cs = np.concatenate([np.zeros((1, 3)), np.cumsum(v, axis=0)])
         sums, counts = cs[pos[1:]] - cs[pos[:-1]], np.diff(pos)
         sums[counts == 0] = 0.0

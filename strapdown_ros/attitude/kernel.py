@@ -1,4 +1,5 @@
-"""One block of :class:`~strapdown_ros.attitude.integrator.AttitudeIntegrator` — coning term, attitude and
+"""
+One block of :class:`~strapdown_ros.attitude.integrator.AttitudeIntegrator` — coning term, attitude and
 covariance recursion — as one compiled loop; optional.
 
 With numba installed (the ``bench`` extra brings it; it is not a runtime requirement) a block of
@@ -28,9 +29,11 @@ import os
 
 import numpy as np
 
-__all__ = ["available", "block_update", "warm_up", "kernels_allowed", "njit_optional"]
+from strapdown_ros.sensors.covariance import constant_jacobian_basis
 
-ENV = "STRAPDOWN_KERNEL"
+__all__ = ['available', 'block_update', 'warm_up', 'kernels_allowed', 'njit_optional']
+
+ENV = 'STRAPDOWN_KERNEL'
 
 
 def _block_py(q0, seq, dt, n_new, hist, lin, pairs, p_ref0, j0, var, rw2, use_iso, q_white,
@@ -159,12 +162,14 @@ _compiled = None
 
 def kernels_allowed() -> bool:
     """False when ``STRAPDOWN_KERNEL=numpy`` switches every compiled loop of the package off."""
-    return os.environ.get(ENV, "auto").strip().lower() != "numpy"
+    return os.environ.get(ENV, 'auto').strip().lower() != 'numpy'
 
 
 def njit_optional(*functions):
-    """``numba.njit(cache=True)`` of each function (a tuple), or None without numba.  The one home
-    of the optional compilation used by this module and the navigation loops."""
+    """
+    ``numba.njit(cache=True)`` of each function (a tuple), or None without numba.  The one home
+    of the optional compilation used by this module and the navigation loops.
+    """
     try:
         import numba
         return tuple(numba.njit(cache=True)(f) for f in functions)
@@ -187,7 +192,6 @@ def _sparse_basis() -> np.ndarray:
     """The nonzeros of the constants' Jacobian basis E (4, 3, 12) as rows (l, row, column, value)."""
     global _BASIS
     if _BASIS is None:
-        from strapdown_ros.sensors.covariance import constant_jacobian_basis
         e = constant_jacobian_basis()
         nz = np.nonzero(e)
         _BASIS = np.ascontiguousarray(np.column_stack(nz + (e[nz],)), dtype=float)
@@ -199,8 +203,10 @@ _NO_WHITE = np.zeros((1, 3, 3))
 
 
 def warm_up() -> None:
-    """Compile (or load from numba's cache) before the first real block, so that a node does not
-    stall on its first messages."""
+    """
+    Compile (or load from numba's cache) before the first real block, so that a node does not
+    stall on its first messages.
+    """
     if available():
         for iso in (True, False):
             block_update(np.array([1.0, 0.0, 0.0, 0.0]), np.zeros((2, 3)), np.ones(1), 1, 1,
@@ -211,7 +217,8 @@ def warm_up() -> None:
 
 def block_update(q0, seq, dt, n_new, hist, table, p_ref0, j0, var, rw2=None, q_white=None, constants=False,
                  compiled=None, covariance=True):
-    """Run one block (compiled when :func:`available`, else the same loop in Python — slow, for
+    """
+    Run one block (compiled when :func:`available`, else the same loop in Python — slow, for
     tests).  ``seq`` (hist + m·n_new, 3): the ``hist`` previous increments, then the new ones;
     ``dt`` (m·n_new,) their intervals; ``table`` = (lin, pairs) from
     :func:`strapdown_ros.attitude.coning.bilinear_form`; the white part is ``rw2``·h·I (isotropic) or
@@ -219,7 +226,8 @@ def block_update(q0, seq, dt, n_new, hist, table, p_ref0, j0, var, rw2=None, q_w
     layout is still right, numba just compiles it once more).  Returns q (m, 4), cov (m, 3, 3),
     φ (m, 3), mean rate (m, 3), h (m,) and the final P and J.  ``compiled``: the caller's
     :func:`available` (None: asked here).  ``covariance`` False: the attitude alone (cov NaN, P
-    and J returned unchanged)."""
+    and J returned unchanged).
+    """
     use_iso = q_white is None
     fn = _compiled if (available() if compiled is None else compiled) else _block_py
     return fn(q0, seq, dt, n_new, hist, table[0], table[1], p_ref0, j0, var, 0.0 if rw2 is None else rw2, use_iso,

@@ -1,4 +1,5 @@
-"""coning_bench: drift, order of accuracy and cost of every coning algorithm on exact coning
+"""
+coning_bench: drift, order of accuracy and cost of every coning algorithm on exact coning
 motion, set beside the analytic theory, an independent ODE reference and the claims of 003
 (Aksyonenko 2014).
 
@@ -23,46 +24,45 @@ import time
 import numpy as np
 
 from strapdown_ros.attitude.coning import ALGORITHMS, theory_drift
-from strapdown_ros.attitude.coning_analysis import (FLOOR_FACTOR, THESIS_CASES, THESIS_RANKING,
-                                                    THESIS_STEPS, cost_per_update, measure_case,
-                                                    order_sweep)
+from strapdown_ros.attitude.coning_analysis import (cost_per_update, FLOOR_FACTOR, measure_case,
+                                                    order_sweep, THESIS_CASES, THESIS_RANKING,
+                                                    THESIS_STEPS)
 from strapdown_ros.bench.coning_report import fmt, write_report
+from strapdown_ros.cli import check_outputs, DIRECTORY, FILE, write_figure, write_text
 from strapdown_ros.motion.profiles import ConingProfile
 from strapdown_ros.rotation import quat_to_dcm, rotvec_to_dcm
 from strapdown_ros.sensors import DEG_PER_HOUR
-from strapdown_ros.cli import write_text, write_figure
-
 
 
 def parse_args(argv):
-    ap = argparse.ArgumentParser(prog="coning_bench", description=__doc__,
+    ap = argparse.ArgumentParser(prog='coning_bench', description=__doc__,
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--alpha", type=float, help="coning half-angle, rad (default: the three 003 cases)")
-    ap.add_argument("--nu", type=float, help="coning frequency, rad/s (with --alpha)")
-    ap.add_argument("--step", type=float, action="append", help="gyro interval τ, s (repeatable; default 0.01 and 0.001)")
-    ap.add_argument("--duration", type=float, default=3600.0, help="simulated seconds per case (default 3600)")
-    ap.add_argument("--algorithms", help="comma-separated names (default: all)")
-    ap.add_argument("--json", help="write the results to this JSON file")
-    ap.add_argument("--plots", help="write PNG plots into this directory")
-    ap.add_argument("--report", help="write the Markdown report to this file (e.g. doc/coning.md)")
-    ap.add_argument("--force", action="store_true", help="overwrite existing outputs")
-    ap.add_argument("--no-ode", action="store_true", help="skip the ODE peer reference")
-    ap.add_argument("--sweep-periods", type=int, default=20, help="cone periods per order-sweep point")
+    ap.add_argument('--alpha', type=float, help='coning half-angle, rad (default: the three 003 cases)')
+    ap.add_argument('--nu', type=float, help='coning frequency, rad/s (with --alpha)')
+    ap.add_argument('--step', type=float, action='append', help='gyro interval τ, s (repeatable; default 0.01 and 0.001)')
+    ap.add_argument('--duration', type=float, default=3600.0, help='simulated seconds per case (default 3600)')
+    ap.add_argument('--algorithms', help='comma-separated names (default: all)')
+    ap.add_argument('--json', help='write the results to this JSON file')
+    ap.add_argument('--plots', help='write PNG plots into this directory')
+    ap.add_argument('--report', help='write the Markdown report to this file (e.g. doc/coning.md)')
+    ap.add_argument('--force', action='store_true', help='overwrite existing outputs')
+    ap.add_argument('--no-ode', action='store_true', help='skip the ODE peer reference')
+    ap.add_argument('--sweep-periods', type=int, default=20, help='cone periods per order-sweep point')
     args = ap.parse_args(argv)
-    names = args.algorithms.split(",") if args.algorithms else list(ALGORITHMS)
+    names = args.algorithms.split(',') if args.algorithms else list(ALGORITHMS)
     bad = [n for n in names if n not in ALGORITHMS]
     if bad:
         ap.error(f"unknown algorithm(s) {', '.join(bad)}; valid names: {', '.join(ALGORITHMS)}")
     args.names = names
     if (args.alpha is None) != (args.nu is None):
-        ap.error("give --alpha and --nu together")
+        ap.error('give --alpha and --nu together')
     args.cases = [(args.alpha, args.nu)] if args.alpha is not None else THESIS_CASES
     args.steps = args.step or THESIS_STEPS
     for a, v in args.cases:
         if not (0 < a < np.pi and v > 0):
-            ap.error("need 0 < alpha < π and nu > 0")
+            ap.error('need 0 < alpha < π and nu > 0')
     if any(s <= 0 for s in args.steps) or args.duration <= 0:
-        ap.error("--step and --duration must be > 0")
+        ap.error('--step and --duration must be > 0')
     return args
 
 
@@ -72,7 +72,7 @@ def run(args) -> dict:
     for alpha, nu in args.cases:
         for step in args.steps:
             cases.append(measure_case(args.names, alpha, nu, step, args.duration, with_ode=not args.no_ode))
-            print(f"  case α={alpha:g} ν={nu:g} τ={step:g}: {cases[-1].wall_s:.1f} s", file=sys.stderr)
+            print(f'  case α={alpha:g} ν={nu:g} τ={step:g}: {cases[-1].wall_s:.1f} s', file=sys.stderr)
     sweeps = {n: order_sweep(n, periods=args.sweep_periods) for n in args.names}
     costs = {n: cost_per_update(n) for n in args.names}
     records = []
@@ -82,22 +82,22 @@ def run(args) -> dict:
             d = c.drift[n]
             th = theory_drift(a, c.nu * c.step * a.samples)
             records.append({
-                "algorithm": n, "alpha": c.alpha, "nu": c.nu, "step": c.step, "samples_per_update": a.samples,
-                "drift_rad_per_s": d, "drift_deg_per_h": d / DEG_PER_HOUR,
-                "theory_rad_per_s": None if th is None else float(th * c.alpha ** 2 * c.nu),
-                "order_measured": sweeps[n]["order_measured"], "order_theory": a.order_expected,
-                "floor": bool(abs(d) <= FLOOR_FACTOR * max(c.floor.values())), "ns_per_update": costs[n],
+                'algorithm': n, 'alpha': c.alpha, 'nu': c.nu, 'step': c.step, 'samples_per_update': a.samples,
+                'drift_rad_per_s': d, 'drift_deg_per_h': d / DEG_PER_HOUR,
+                'theory_rad_per_s': None if th is None else float(th * c.alpha ** 2 * c.nu),
+                'order_measured': sweeps[n]['order_measured'], 'order_theory': a.order_expected,
+                'floor': bool(abs(d) <= FLOOR_FACTOR * max(c.floor.values())), 'ns_per_update': costs[n],
                 # extra fields (the schema's fields come first)
-                "floor_rad_per_s": max(c.floor.values()),
-                "drift_ode_rad_per_s": c.drift_ode.get(n), "cross_products": a.cross_products,
-                "additions": a.additions, "scalings": a.scalings, "order_claimed": a.order_intended,
+                'floor_rad_per_s': max(c.floor.values()),
+                'drift_ode_rad_per_s': c.drift_ode.get(n), 'cross_products': a.cross_products,
+                'additions': a.additions, 'scalings': a.scalings, 'order_claimed': a.order_intended,
             })
-    return {"results": records,
-            "cases": [{"alpha": c.alpha, "nu": c.nu, "step": c.step, "duration": c.duration,
-                       "fitted_until_s": c.fitted_until, "floor_rad_per_s": {str(k): v for k, v in c.floor.items()},
-                       "ode_truth_max_gap_rad": c.truth_gap, "wall_s": c.wall_s} for c in cases],
-            "order_sweeps": sweeps, "model_checks": model_checks(),
-            "wall_s": time.perf_counter() - t0}
+    return {'results': records,
+            'cases': [{'alpha': c.alpha, 'nu': c.nu, 'step': c.step, 'duration': c.duration,
+                       'fitted_until_s': c.fitted_until, 'floor_rad_per_s': {str(k): v for k, v in c.floor.items()},
+                       'ode_truth_max_gap_rad': c.truth_gap, 'wall_s': c.wall_s} for c in cases],
+            'order_sweeps': sweeps, 'model_checks': model_checks(),
+            'wall_s': time.perf_counter() - t0}
 
 
 def model_checks() -> dict:
@@ -114,90 +114,90 @@ def model_checks() -> dict:
     exact = p.delta_theta(t[:-1], tk)[:, :2]
     # (2.9) vs U^T dU/dt by central differences
     h = 1e-6
-    om = np.einsum("nji,njk->nik", U, (quat_to_dcm(p.attitude(t + h)) - quat_to_dcm(p.attitude(t - h))) / (2 * h))
+    om = np.einsum('nji,njk->nik', U, (quat_to_dcm(p.attitude(t + h)) - quat_to_dcm(p.attitude(t - h))) / (2 * h))
     w_num = np.stack([om[:, 2, 1], om[:, 0, 2], om[:, 1, 0]], -1)
     rod = rotvec_to_dcm(alpha * np.stack([np.sin(v), np.cos(v), np.zeros_like(v)], -1))
-    return {"alpha": alpha, "nu": nu,
-            "U_vs_rodrigues_max": float(np.abs(U - rod).max()),
-            "u12_printed_max_error": float(np.abs(u12_printed - U[:, 0, 1]).max()),
-            "u22_printed_max_error": float(np.abs(u22_printed - U[:, 1, 1]).max()),
-            "omega_29_max_error": float(np.abs(w_num - p.body_rate(t)).max()),
-            "omega_27_row3_sign_error": float(np.abs(om[:, 2, 0] - w_num[:, 1]).max()),
-            "increments_210_printed_max_error": float(np.abs(q_printed - exact).max()),
-            "increments_210_printed_equals_minus_exact": float(np.abs(q_printed + exact).max())}
+    return {'alpha': alpha, 'nu': nu,
+            'U_vs_rodrigues_max': float(np.abs(U - rod).max()),
+            'u12_printed_max_error': float(np.abs(u12_printed - U[:, 0, 1]).max()),
+            'u22_printed_max_error': float(np.abs(u22_printed - U[:, 1, 1]).max()),
+            'omega_29_max_error': float(np.abs(w_num - p.body_rate(t)).max()),
+            'omega_27_row3_sign_error': float(np.abs(om[:, 2, 0] - w_num[:, 1]).max()),
+            'increments_210_printed_max_error': float(np.abs(q_printed - exact).max()),
+            'increments_210_printed_equals_minus_exact': float(np.abs(q_printed + exact).max())}
 
 
 # ------------------------------------------------------------------------------- output
 def summary_table(res: dict, args) -> str:
-    recs = res["results"]
+    recs = res['results']
     lines = []
-    for case in res["cases"]:
+    for case in res['cases']:
         lines.append(f"\nα = {case['alpha']:g} rad, ν = {case['nu']:g} rad/s, τ = {case['step']:g} s, "
                      f"{case['duration']:g} s (fit over {case['fitted_until_s']:.1f} s)")
         lines.append(f"{'algorithm':<24}{'drift °/h':>12}{'theory °/h':>12}{'ODE peer °/h':>14}{'order':>7}{'floor':>7}")
         for r in recs:
-            if (r["alpha"], r["nu"], r["step"]) != (case["alpha"], case["nu"], case["step"]):
+            if (r['alpha'], r['nu'], r['step']) != (case['alpha'], case['nu'], case['step']):
                 continue
-            th = None if r["theory_rad_per_s"] is None else r["theory_rad_per_s"] / DEG_PER_HOUR
-            ode = None if r["drift_ode_rad_per_s"] is None else r["drift_ode_rad_per_s"] / DEG_PER_HOUR
+            th = None if r['theory_rad_per_s'] is None else r['theory_rad_per_s'] / DEG_PER_HOUR
+            ode = None if r['drift_ode_rad_per_s'] is None else r['drift_ode_rad_per_s'] / DEG_PER_HOUR
             lines.append(f"{r['algorithm']:<24}{fmt(r['drift_deg_per_h']):>12}{fmt(th):>12}{fmt(ode):>14}"
                          f"{fmt(r['order_measured'], 2):>7}{('yes' if r['floor'] else ''):>7}")
-    return "\n".join(lines)
+    return '\n'.join(lines)
 
 
 def write_plots(res: dict, outdir: str) -> list[str]:
     import matplotlib
-    matplotlib.use("Agg")
+    matplotlib.use('Agg')
     import matplotlib.pyplot as plt
 
     os.makedirs(outdir, exist_ok=True)
     files = []
-    recs = res["results"]
-    names = list(dict.fromkeys(r["algorithm"] for r in recs))
-    fig, axes = plt.subplots(len(res["cases"]), 1, figsize=(11, 3.2 * len(res["cases"])), squeeze=False)
-    for ax, case in zip(axes[:, 0], res["cases"]):
-        rs = [r for r in recs if (r["alpha"], r["nu"], r["step"]) == (case["alpha"], case["nu"], case["step"])]
+    recs = res['results']
+    names = list(dict.fromkeys(r['algorithm'] for r in recs))
+    fig, axes = plt.subplots(len(res['cases']), 1, figsize=(11, 3.2 * len(res['cases'])), squeeze=False)
+    for ax, case in zip(axes[:, 0], res['cases']):
+        rs = [r for r in recs if (r['alpha'], r['nu'], r['step']) == (case['alpha'], case['nu'], case['step'])]
         x = np.arange(len(rs))
-        vals = np.array([abs(r["drift_deg_per_h"]) for r in rs])
-        colors = ["tab:gray" if r["floor"] else ("tab:red" if "printed" in r["algorithm"] else "tab:blue") for r in rs]
+        vals = np.array([abs(r['drift_deg_per_h']) for r in rs])
+        colors = ['tab:gray' if r['floor'] else ('tab:red' if 'printed' in r['algorithm'] else 'tab:blue') for r in rs]
         ax.bar(x, np.maximum(vals, 1e-30), color=colors)
-        th = [abs(r["theory_rad_per_s"]) / DEG_PER_HOUR if r["theory_rad_per_s"] else np.nan for r in rs]
-        ax.plot(x, th, "k_", markersize=14, label="small-α theory")
-        fl = [r["floor_rad_per_s"] / DEG_PER_HOUR for r in rs]
-        ax.plot(x, fl, "g.", label="round-off floor")
-        ax.set_yscale("log")
+        th = [abs(r['theory_rad_per_s']) / DEG_PER_HOUR if r['theory_rad_per_s'] else np.nan for r in rs]
+        ax.plot(x, th, 'k_', markersize=14, label='small-α theory')
+        fl = [r['floor_rad_per_s'] / DEG_PER_HOUR for r in rs]
+        ax.plot(x, fl, 'g.', label='round-off floor')
+        ax.set_yscale('log')
         ax.set_xticks(x)
-        ax.set_xticklabels([r["algorithm"] for r in rs], rotation=60, ha="right", fontsize=7)
-        ax.set_ylabel("|drift|, °/h")
+        ax.set_xticklabels([r['algorithm'] for r in rs], rotation=60, ha='right', fontsize=7)
+        ax.set_ylabel('|drift|, °/h')
         ax.set_title(f"α = {case['alpha']:g}, ν = {case['nu']:g} rad/s, τ = {case['step']:g} s "
-                     "(blue: algorithms, red: printed forms, gray: at the floor)", fontsize=9)
-        ax.legend(fontsize=7, loc="upper right")
+                     '(blue: algorithms, red: printed forms, gray: at the floor)', fontsize=9)
+        ax.legend(fontsize=7, loc='upper right')
     fig.tight_layout()
-    f = os.path.join(outdir, "coning_drift.png")
+    f = os.path.join(outdir, 'coning_drift.png')
     write_figure(fig, f, dpi=110)
     plt.close(fig)
     files.append(f)
 
     fig, ax = plt.subplots(figsize=(9, 6.5))
-    cmap = plt.get_cmap("tab20")
+    cmap = plt.get_cmap('tab20')
     for i, n in enumerate(names):
-        s = res["order_sweeps"][n]
-        x = np.array(s["omega_h"])
-        d = np.abs(np.array(s["drift"]))
-        used = np.array(s["used"])
-        ax.loglog(x[used], d[used], "o", color=cmap(i % 20), ms=4)
-        if s["theory"] is not None:
-            ax.loglog(x, np.abs(s["theory"]), "-", color=cmap(i % 20), lw=0.8,
+        s = res['order_sweeps'][n]
+        x = np.array(s['omega_h'])
+        d = np.abs(np.array(s['drift']))
+        used = np.array(s['used'])
+        ax.loglog(x[used], d[used], 'o', color=cmap(i % 20), ms=4)
+        if s['theory'] is not None:
+            ax.loglog(x, np.abs(s['theory']), '-', color=cmap(i % 20), lw=0.8,
                       label=f"{n} (p = {fmt(s['order_measured'], 3)})")
         else:
-            ax.loglog(x[used], d[used], ":", color=cmap(i % 20), lw=0.8, label=f"{n} (p = {fmt(s['order_measured'], 3)})")
-    ax.set_xlabel("Ωh")
-    ax.set_ylabel("|ε| / (α²Ω)")
-    ax.set_title("Order of accuracy on exact coning: measured (dots) vs small-α theory (lines)")
+            ax.loglog(x[used], d[used], ':', color=cmap(i % 20), lw=0.8, label=f"{n} (p = {fmt(s['order_measured'], 3)})")
+    ax.set_xlabel('Ωh')
+    ax.set_ylabel('|ε| / (α²Ω)')
+    ax.set_title('Order of accuracy on exact coning: measured (dots) vs small-α theory (lines)')
     ax.legend(fontsize=6, ncol=2)
-    ax.grid(True, which="both", alpha=0.3)
+    ax.grid(True, which='both', alpha=0.3)
     fig.tight_layout()
-    f = os.path.join(outdir, "coning_order.png")
+    f = os.path.join(outdir, 'coning_order.png')
     write_figure(fig, f, dpi=110)
     plt.close(fig)
     files.append(f)
@@ -206,27 +206,26 @@ def write_plots(res: dict, outdir: str) -> list[str]:
 
 def main(argv=None):
     args = parse_args(sys.argv[1:] if argv is None else argv)
-    from strapdown_ros.cli import DIRECTORY, FILE, check_outputs
     try:                                       # everything that can fail, before minutes of work
-        check_outputs([("--json", args.json, FILE), ("--report", args.report, FILE),
-                       ("--plots", args.plots, DIRECTORY,
-                        ("coning_drift.png", "coning_order.png"))],
+        check_outputs([('--json', args.json, FILE), ('--report', args.report, FILE),
+                       ('--plots', args.plots, DIRECTORY,
+                        ('coning_drift.png', 'coning_order.png'))],
                       [], args.force)
         if not (np.isfinite(args.duration) and args.duration > 0):
-            raise ValueError(f"--duration must be > 0, got {args.duration}")
+            raise ValueError(f'--duration must be > 0, got {args.duration}')
         for st in args.steps:
             if not (np.isfinite(st) and 0 < st < args.duration):
-                raise ValueError(f"--step must be > 0 and below --duration, got {st}")
+                raise ValueError(f'--step must be > 0 and below --duration, got {st}')
         for alpha, nu in args.cases:
             period = 2 * np.pi / nu
             if args.duration < period:
-                raise ValueError(f"--duration {args.duration:g} s is shorter than one cone period "
-                                 f"{period:.4g} s (ν = {nu:g})")
+                raise ValueError(f'--duration {args.duration:g} s is shorter than one cone period '
+                                 f'{period:.4g} s (ν = {nu:g})')
     except ValueError as exc:
-        print(f"coning_bench: error: {exc}", file=sys.stderr)
+        print(f'coning_bench: error: {exc}', file=sys.stderr)
         return 2
-    print(f"coning_bench: {len(args.names)} algorithms, {len(args.cases)} case(s) × {len(args.steps)} step(s), "
-          f"{args.duration:g} s each", file=sys.stderr)
+    print(f'coning_bench: {len(args.names)} algorithms, {len(args.cases)} case(s) × {len(args.steps)} step(s), '
+          f'{args.duration:g} s each', file=sys.stderr)
     res = run(args)
     print(summary_table(res, args))
     if args.json:
@@ -238,5 +237,5 @@ def main(argv=None):
     return 0
 
 
-if __name__ == "__main__":
+if __name__ == '__main__':
     sys.exit(main())

@@ -1,4 +1,5 @@
-"""The core attitude path beside its peers, for ``sins_bench``: one run times, in turn,
+"""
+The core attitude path beside its peers, for ``sins_bench``: one run times, in turn,
 
 * **A**, strapdown_ros: :class:`~strapdown_ros.attitude.integrator.AttitudeIntegrator` with the
   one-plus-previous coning term, covariance propagation included, pushed in 60 s blocks;
@@ -19,6 +20,10 @@ import math
 import time
 
 import numpy as np
+
+from strapdown_ros.attitude.integrator import AttitudeIntegrator
+from strapdown_ros.rotation import quat_angle_between
+from strapdown_ros.sensors import NAVIGATION_GRADE_GYRO
 
 
 def _reference_loop():
@@ -64,9 +69,6 @@ def _pyins():
 def peer_runs(dth: np.ndarray, stamps: np.ndarray, q0: np.ndarray, runs: int = 5, block: int = 6000,
               progress=None) -> dict:
     """``runs`` rounds of A, B, C in turn on the increments ``dth`` (n, 3) stamped ``stamps`` (n+1,)."""
-    from strapdown_ros.attitude.integrator import AttitudeIntegrator
-    from strapdown_ros.rotation import quat_angle_between
-    from strapdown_ros.sensors import NAVIGATION_GRADE_GYRO
     n = len(dth)
     loop = _reference_loop()
     pyins = _pyins()
@@ -76,16 +78,16 @@ def peer_runs(dth: np.ndarray, stamps: np.ndarray, q0: np.ndarray, runs: int = 5
         # pyins's increment convention: one extra "before" row; accelerometers zero (attitude only)
         data = np.zeros((n + 1, 6))
         data[1:, :3] = dth
-        imu = pd.DataFrame(data, index=stamps, columns=["gyro_x", "gyro_y", "gyro_z", "accel_x", "accel_y", "accel_z"])
-        pva = pd.Series({"lat": 50.45, "lon": 30.52, "alt": 0.0, "VN": 0.0, "VE": 0.0, "VD": 0.0,
-                         "roll": 0.0, "pitch": 0.0, "heading": 0.0})
-        sd.Integrator(pva).integrate(sd.compute_increments_from_imu(imu.iloc[:100], "increment"))   # compile
+        imu = pd.DataFrame(data, index=stamps, columns=['gyro_x', 'gyro_y', 'gyro_z', 'accel_x', 'accel_y', 'accel_z'])
+        pva = pd.Series({'lat': 50.45, 'lon': 30.52, 'alt': 0.0, 'VN': 0.0, 'VE': 0.0, 'VD': 0.0,
+                         'roll': 0.0, 'pitch': 0.0, 'heading': 0.0})
+        sd.Integrator(pva).integrate(sd.compute_increments_from_imu(imu.iloc[:100], 'increment'))   # compile
     if loop is not None:
         loop(dth[:10], q0)                                                                          # compile
-    AttitudeIntegrator("one_plus_previous", q0, stamps[0], gyro=NAVIGATION_GRADE_GYRO).push(dth[:10], stamps[1:11])
+    AttitudeIntegrator('one_plus_previous', q0, stamps[0], gyro=NAVIGATION_GRADE_GYRO).push(dth[:10], stamps[1:11])
 
     def a():
-        integ = AttitudeIntegrator("one_plus_previous", q0, stamps[0], nominal_period=stamps[1] - stamps[0],
+        integ = AttitudeIntegrator('one_plus_previous', q0, stamps[0], nominal_period=stamps[1] - stamps[0],
                                    gyro=NAVIGATION_GRADE_GYRO)
         t0 = time.perf_counter()
         for k in range(0, n, block):
@@ -93,8 +95,10 @@ def peer_runs(dth: np.ndarray, stamps: np.ndarray, q0: np.ndarray, runs: int = 5
         return time.perf_counter() - t0, integ.q
 
     def b():
-        """pyins's compiled kernel with the coning term computed as its compute_increments_from_imu
-        does (numpy); its DataFrame wrapping is left out."""
+        """
+        pyins's compiled kernel with the coning term computed as its compute_increments_from_imu
+        does (numpy); its DataFrame wrapping is left out.
+        """
         from pyins._numba_integrate import integrate
         t0 = time.perf_counter()
         gyro = np.vstack([np.zeros((1, 3)), dth])
@@ -110,7 +114,7 @@ def peer_runs(dth: np.ndarray, stamps: np.ndarray, q0: np.ndarray, runs: int = 5
     def b_api():
         pd, sd = pyins
         t0 = time.perf_counter()
-        sd.Integrator(pva).integrate(sd.compute_increments_from_imu(imu, "increment"))
+        sd.Integrator(pva).integrate(sd.compute_increments_from_imu(imu, 'increment'))
         return time.perf_counter() - t0
 
     def c():
@@ -126,13 +130,13 @@ def peer_runs(dth: np.ndarray, stamps: np.ndarray, q0: np.ndarray, runs: int = 5
         tb = b() if pyins is not None else math.nan
         tb_api = b_api() if pyins is not None else math.nan
         tc, qc = c() if loop is not None else (math.nan, None)
-        row = {"strapdown_ros_s": ta, "pyins_s": tb, "pyins_api_s": tb_api, "compiled_loop_s": tc,
-               "ratio_to_pyins": ta / tb if math.isfinite(tb) else math.nan,
-               "ratio_to_compiled": ta / tc if math.isfinite(tc) else math.nan}
+        row = {'strapdown_ros_s': ta, 'pyins_s': tb, 'pyins_api_s': tb_api, 'compiled_loop_s': tc,
+               'ratio_to_pyins': ta / tb if math.isfinite(tb) else math.nan,
+               'ratio_to_compiled': ta / tc if math.isfinite(tc) else math.nan}
         if qc is not None:        # the same attitude at the end (independent implementations)
-            row["final_attitude_difference_rad"] = float(quat_angle_between(qa, qc))
+            row['final_attitude_difference_rad'] = float(quat_angle_between(qa, qc))
         rows.append(row)
         if progress:
-            progress(f"peer run {r + 1}/{runs}: A {ta:.3f} s, B {tb:.3f} s (API {tb_api:.3f} s), C {tc:.4f} s")
-    return {"intervals": n, "runs": rows, "pyins_available": pyins is not None,
-            "compiled_loop_available": loop is not None}
+            progress(f'peer run {r + 1}/{runs}: A {ta:.3f} s, B {tb:.3f} s (API {tb_api:.3f} s), C {tc:.4f} s')
+    return {'intervals': n, 'runs': rows, 'pyins_available': pyins is not None,
+            'compiled_loop_available': loop is not None}

@@ -1,4 +1,5 @@
-"""sins_bag_bench: the wall time of the whole ``sins_bag`` command beside the raw read of the same
+"""
+sins_bag_bench: the wall time of the whole ``sins_bag`` command beside the raw read of the same
 bag, measured in the same run (printed; nothing is asserted).
 
     sins_bag_bench BAG [--navigation-profile NAME | --params FILE] [-p NAME:=VALUE ...]
@@ -31,16 +32,23 @@ import argparse
 import json
 import math
 import os
+from pathlib import Path
 import subprocess
 import sys
 import tempfile
 import time
-from pathlib import Path
 
 import numpy as np
 
+from strapdown_ros import earth as G
+from strapdown_ros.attitude import kernel as attitude_kernel
+from strapdown_ros.attitude.integrator import AttitudeIntegrator
 from strapdown_ros.bench.stats import median_range, stats
-from strapdown_ros.cli import write_text
+from strapdown_ros.cli import check_outputs, FILE, write_text
+from strapdown_ros.motion.earth_profiles import navigation_profile_from_config
+from strapdown_ros.motion.profiles import ConingProfile
+from strapdown_ros.rotation import to_ros_xyzw
+from strapdown_ros.sensors import NAVIGATION_GRADE_GYRO
 
 TARGET_RATIO = 2.0                 # target: sins_bag within 2× the raw read
 
@@ -60,72 +68,69 @@ print(n, t2 - t1, t2 - t0)
 
 
 def navigation_parameters(profile: str, path: Path) -> Path:
-    """sins_node parameters (ROS 2 YAML) with navigation from the exact initial state of a
-    navigation profile of :mod:`strapdown_ros.motion.earth_profiles`, written to ``path``."""
-    from strapdown_ros import earth as G
-    from strapdown_ros.motion.earth_profiles import navigation_profile_from_config
-    from strapdown_ros.rotation import to_ros_xyzw
-    prof = navigation_profile_from_config({"profile": profile})
+    """
+    sins_node parameters (ROS 2 YAML) with navigation from the exact initial state of a
+    navigation profile of :mod:`strapdown_ros.motion.earth_profiles`, written to ``path``.
+    """
+    prof = navigation_profile_from_config({'profile': profile})
     t0 = np.zeros(1)
     r0, w0 = prof.position(t0)[0], prof.velocity(t0)[0]
     lat, lon, h = G.ecef_to_geodetic(r0)
     enu = G.enu_rotation(lat, lon)
 
     def fl(xs):
-        return "[" + ", ".join(repr(float(x)) for x in xs) + "]"
-    path.write_text("sins_node:\n  ros__parameters:\n    navigation: true\n"
-                    f"    initial_position: {fl([np.degrees(lat), np.degrees(lon), h])}\n"
-                    f"    initial_velocity: {fl(enu.T @ w0)}\n"
-                    f"    initial_orientation: {fl(to_ros_xyzw(prof.attitude_ecef(t0)[0]))}\n")
+        return '[' + ', '.join(repr(float(x)) for x in xs) + ']'
+    path.write_text('sins_node:\n  ros__parameters:\n    navigation: true\n'
+                    f'    initial_position: {fl([np.degrees(lat), np.degrees(lon), h])}\n'
+                    f'    initial_velocity: {fl(enu.T @ w0)}\n'
+                    f'    initial_orientation: {fl(to_ros_xyzw(prof.attitude_ecef(t0)[0]))}\n')
     return path
 
 
 def raw_read(bag: str) -> dict:
     """One raw-read process: records, iteration time, in-process total, whole wall time."""
     t0 = time.perf_counter()
-    out = subprocess.run([sys.executable, "-c", RAW_READ, bag], capture_output=True, text=True,
+    out = subprocess.run([sys.executable, '-c', RAW_READ, bag], capture_output=True, text=True,
                          check=True)
     wall = time.perf_counter() - t0
     n, it, total = out.stdout.split()
-    return {"records": int(n), "iteration_s": float(it), "process_s": float(total), "wall_s": wall}
+    return {'records': int(n), 'iteration_s': float(it), 'process_s': float(total), 'wall_s': wall}
 
 
 def sins_bag_run(bag: str, args: list, out: Path, env: dict | None = None) -> dict:
     """One whole sins_bag command (CSV output): wall time, exit status, the summary line."""
-    script = Path(sys.executable).parent / "sins_bag"       # the console script, as a user runs it
+    script = Path(sys.executable).parent / 'sins_bag'       # the console script, as a user runs it
     head = ([str(script)] if script.exists()
-            else [sys.executable, "-m", "strapdown_ros.tools.sins_bag"])
-    cmd = head + [bag, "--output", str(out), "--force", "--quiet"] + args
+            else [sys.executable, '-m', 'strapdown_ros.tools.sins_bag'])
+    cmd = head + [bag, '--output', str(out), '--force', '--quiet'] + args
     t0 = time.perf_counter()
     res = subprocess.run(cmd, capture_output=True, text=True, env=env)
     wall = time.perf_counter() - t0
     if res.returncode != 0:
-        raise RuntimeError(f"sins_bag exited {res.returncode}: {res.stderr.strip()[-300:]}")
-    return {"wall_s": wall, "summary": res.stdout.splitlines()[0] if res.stdout else ""}
+        raise RuntimeError(f'sins_bag exited {res.returncode}: {res.stderr.strip()[-300:]}')
+    return {'wall_s': wall, 'summary': res.stdout.splitlines()[0] if res.stdout else ''}
 
 
 def attitude_only_runs(runs: int) -> dict:
-    """360 000 intervals (1 h at 100 Hz, coning motion) through AttitudeIntegrator in one push:
-    attitude only compiled, attitude only numpy, with covariance compiled; medians over runs."""
-    from strapdown_ros.attitude import kernel as attitude_kernel
-    from strapdown_ros.attitude.integrator import AttitudeIntegrator
-    from strapdown_ros.motion.profiles import ConingProfile
-    from strapdown_ros.sensors import NAVIGATION_GRADE_GYRO
+    """
+    360 000 intervals (1 h at 100 Hz, coning motion) through AttitudeIntegrator in one push:
+    attitude only compiled, attitude only numpy, with covariance compiled; medians over runs.
+    """
     t = np.arange(360_001) * 0.01
     prof = ConingProfile(0.087, 1.0)
     inc = prof.delta_theta(t[:-1], t[1:])
     q0 = prof.attitude(t[:1])[0]
     before = os.environ.get(attitude_kernel.ENV)
     attitude_kernel.warm_up()                     # numba's cache loaded before the clock starts
-    res: dict = {"attitude_only_compiled_s": [], "attitude_only_numpy_s": [],
-                 "with_covariance_compiled_s": []}
+    res: dict = {'attitude_only_compiled_s': [], 'attitude_only_numpy_s': [],
+                 'with_covariance_compiled_s': []}
     try:
         for _ in range(runs):
-            for key, kernel, cov in (("attitude_only_compiled_s", "auto", False),
-                                     ("attitude_only_numpy_s", "numpy", False),
-                                     ("with_covariance_compiled_s", "auto", True)):
+            for key, kernel, cov in (('attitude_only_compiled_s', 'auto', False),
+                                     ('attitude_only_numpy_s', 'numpy', False),
+                                     ('with_covariance_compiled_s', 'auto', True)):
                 os.environ[attitude_kernel.ENV] = kernel
-                integ = AttitudeIntegrator("2", q0, 0.0, nominal_period=0.01,
+                integ = AttitudeIntegrator('2', q0, 0.0, nominal_period=0.01,
                                            gyro=NAVIGATION_GRADE_GYRO, propagate_covariance=cov)
                 t0 = time.perf_counter()
                 integ.push(inc, t[1:])
@@ -135,7 +140,7 @@ def attitude_only_runs(runs: int) -> dict:
             os.environ.pop(attitude_kernel.ENV, None)
         else:
             os.environ[attitude_kernel.ENV] = before
-    res["compiled_available"] = attitude_kernel.available()
+    res['compiled_available'] = attitude_kernel.available()
     return res
 
 
@@ -143,66 +148,65 @@ def bag_bytes(bag) -> int:
     """Size of a bag (a directory: all its files), bytes."""
     p = Path(bag)
     if p.is_dir():
-        return sum(f.stat().st_size for f in p.rglob("*") if f.is_file())
+        return sum(f.stat().st_size for f in p.rglob('*') if f.is_file())
     return p.stat().st_size
 
 
 class _Parser(argparse.ArgumentParser):
     def error(self, message):                    # one line, exit 2
-        print(f"sins_bag_bench: error: {message}", file=sys.stderr)
+        print(f'sins_bag_bench: error: {message}', file=sys.stderr)
         sys.exit(2)
 
 
 def main(argv=None) -> int:
-    ap = _Parser(prog="sins_bag_bench", description=__doc__,
+    ap = _Parser(prog='sins_bag_bench', description=__doc__,
                  formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("bag", help="rosbag2 bag (e.g. record_sim OUT --duration 3600 "
-                                "-p profile:=coordinated_turn)")
-    ap.add_argument("--navigation-profile", metavar="NAME",
-                    help="navigation on, initial state of this record_sim profile")
-    ap.add_argument("--params", metavar="FILE", help="sins_node parameter YAML for sins_bag")
-    ap.add_argument("-p", "--param", action="append", default=[], metavar="NAME:=VALUE",
-                    help="sins_bag parameter override (repeatable)")
-    ap.add_argument("--runs", type=int, default=5, help="alternating runs (default 5)")
-    ap.add_argument("--cold", action="store_true",
-                    help="one more sins_bag run with an empty numba cache")
-    ap.add_argument("--json", metavar="FILE", help="write the figures to this JSON file")
-    ap.add_argument("--force", action="store_true", help="overwrite an existing --json")
+    ap.add_argument('bag', help='rosbag2 bag (e.g. record_sim OUT --duration 3600 '
+                                '-p profile:=coordinated_turn)')
+    ap.add_argument('--navigation-profile', metavar='NAME',
+                    help='navigation on, initial state of this record_sim profile')
+    ap.add_argument('--params', metavar='FILE', help='sins_node parameter YAML for sins_bag')
+    ap.add_argument('-p', '--param', action='append', default=[], metavar='NAME:=VALUE',
+                    help='sins_bag parameter override (repeatable)')
+    ap.add_argument('--runs', type=int, default=5, help='alternating runs (default 5)')
+    ap.add_argument('--cold', action='store_true',
+                    help='one more sins_bag run with an empty numba cache')
+    ap.add_argument('--json', metavar='FILE', help='write the figures to this JSON file')
+    ap.add_argument('--force', action='store_true', help='overwrite an existing --json')
     args = ap.parse_args(argv)
     if args.runs < 1:
-        ap.error("--runs must be >= 1")
+        ap.error('--runs must be >= 1')
     if not Path(args.bag).exists():
-        ap.error(f"{args.bag} does not exist")
-    from strapdown_ros.cli import FILE, check_outputs
+        ap.error(f'{args.bag} does not exist')
     try:                                        # the tools' one output rule
-        check_outputs([("--json", args.json, FILE)],
-                      [("bag", args.bag), ("--params", args.params)], args.force)
+        check_outputs([('--json', args.json, FILE)],
+                      [('bag', args.bag), ('--params', args.params)], args.force)
     except ValueError as exc:
         ap.error(str(exc))
     if args.navigation_profile and args.params:
-        ap.error("--navigation-profile and --params exclude each other")
+        ap.error('--navigation-profile and --params exclude each other')
     if args.params and not Path(args.params).is_file():
-        ap.error(f"{args.params} does not exist")
-    load = os.getloadavg() if hasattr(os, "getloadavg") else (math.nan,) * 3
+        ap.error(f'{args.params} does not exist')
+    load = os.getloadavg() if hasattr(os, 'getloadavg') else (math.nan,) * 3
     cpus = os.cpu_count()
     busy = load[0] > 0.5 * (cpus or 1)
-    print(f"sins_bag_bench: load average at start {load[0]:.2f} {load[1]:.2f} {load[2]:.2f} "
+    print(f'sins_bag_bench: load average at start {load[0]:.2f} {load[1]:.2f} {load[2]:.2f} '
           f"({cpus} CPUs){' — the machine is busy: absolute times are inflated' if busy else ''}",
           file=sys.stderr, flush=True)
-    with tempfile.TemporaryDirectory(prefix="sins_bag_bench_") as tmp:
+    with tempfile.TemporaryDirectory(prefix='sins_bag_bench_') as tmp:
         tmp = Path(tmp)
         extra = []
         if args.navigation_profile:
             try:
-                nav = navigation_parameters(args.navigation_profile, tmp / "nav.yaml")
-                extra = ["--params", str(nav)]
+                nav = navigation_parameters(args.navigation_profile, tmp / 'nav.yaml')
+                extra = ['--params', str(nav)]
             except ValueError as exc:
                 ap.error(str(exc))
         elif args.params:
-            extra = ["--params", args.params]
+            extra = ['--params', args.params]
         for item in args.param:
-            extra += ["-p", item]
-        out = tmp / "out.csv"
+            extra += ['-p', item]
+        out = tmp / 'out.csv'
         try:
             sins_bag_run(args.bag, extra, out)          # warm: numba's cache, the page cache
         except RuntimeError as exc:
@@ -221,83 +225,83 @@ def main(argv=None) -> int:
                   file=sys.stderr, flush=True)
         cold = None
         if args.cold:
-            env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp / "numba_cache"))
+            env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp / 'numba_cache'))
             cold = sins_bag_run(args.bag, extra, out, env=env)
-        rows = sum(1 for _ in open(out, encoding="utf-8")) - 1
+        rows = sum(1 for _ in open(out, encoding='utf-8')) - 1
     att = attitude_only_runs(args.runs)
     res = {
-        "bag": str(args.bag), "bag_bytes": bag_bytes(args.bag),
-        "sins_bag_args": extra, "load_average_start": list(load), "cpus": cpus, "runs": args.runs,
-        "sins_bag_shown": (f"--params <{args.navigation_profile} initial state>"
-                           if args.navigation_profile else " ".join(extra)),
-        "records": raws[0]["records"], "csv_rows": rows, "summary": sins[0]["summary"],
-        "raw_iteration_s": stats([r["iteration_s"] for r in raws]),
-        "raw_process_s": stats([r["wall_s"] for r in raws]),
-        "sins_bag_s": stats([r["wall_s"] for r in sins]),
-        "cold_sins_bag_s": cold["wall_s"] if cold else None,
-        "attitude_only": {k: (stats(v) if isinstance(v, list) else v) for k, v in att.items()},
+        'bag': str(args.bag), 'bag_bytes': bag_bytes(args.bag),
+        'sins_bag_args': extra, 'load_average_start': list(load), 'cpus': cpus, 'runs': args.runs,
+        'sins_bag_shown': (f'--params <{args.navigation_profile} initial state>'
+                           if args.navigation_profile else ' '.join(extra)),
+        'records': raws[0]['records'], 'csv_rows': rows, 'summary': sins[0]['summary'],
+        'raw_iteration_s': stats([r['iteration_s'] for r in raws]),
+        'raw_process_s': stats([r['wall_s'] for r in raws]),
+        'sins_bag_s': stats([r['wall_s'] for r in sins]),
+        'cold_sins_bag_s': cold['wall_s'] if cold else None,
+        'attitude_only': {k: (stats(v) if isinstance(v, list) else v) for k, v in att.items()},
     }
-    res["ratio_to_iteration"] = res["sins_bag_s"]["median"] / res["raw_iteration_s"]["median"]
-    res["ratio_to_process"] = res["sins_bag_s"]["median"] / res["raw_process_s"]["median"]
-    res["ratios_per_run"] = [s["wall_s"] / r["iteration_s"] for s, r in zip(sins, raws)]
-    res["target_ratio"] = TARGET_RATIO
-    res["meets_target"] = res["ratio_to_iteration"] <= TARGET_RATIO
+    res['ratio_to_iteration'] = res['sins_bag_s']['median'] / res['raw_iteration_s']['median']
+    res['ratio_to_process'] = res['sins_bag_s']['median'] / res['raw_process_s']['median']
+    res['ratios_per_run'] = [s['wall_s'] / r['iteration_s'] for s, r in zip(sins, raws)]
+    res['target_ratio'] = TARGET_RATIO
+    res['meets_target'] = res['ratio_to_iteration'] <= TARGET_RATIO
     print(render(res))
     if args.json:
-        write_text(args.json, json.dumps(res, indent=2) + "\n")
+        write_text(args.json, json.dumps(res, indent=2) + '\n')
     return 0
 
 
 def render(res: dict) -> str:
     """The markdown report; every conclusion computed from the numbers."""
-    a = res["attitude_only"]
+    a = res['attitude_only']
     lines = [
         f"## sins_bag on {res['bag']} ({res['records']} records, {res['bag_bytes'] / 1e6:.0f} MB; "
         f"{res['csv_rows']} CSV rows)",
-        "",
+        '',
         f"Load average at start {res['load_average_start'][0]:.2f} on {res['cpus']} CPUs; "
         f"{res['runs']} alternating runs, median (min–max).",
-        "",
-        "| command | wall time, s |",
-        "|---|---|",
-        "| raw read: rosbags AnyReader over every record (iteration) | "
+        '',
+        '| command | wall time, s |',
+        '|---|---|',
+        '| raw read: rosbags AnyReader over every record (iteration) | '
         f"{median_range(res['raw_iteration_s'], '.2f')} |",
         f"| raw read: the whole process | {median_range(res['raw_process_s'], '.2f')} |",
         f"| `sins_bag BAG {res['sins_bag_shown']} --output OUT.csv` (whole command) | "
         f"{median_range(res['sins_bag_s'], '.2f')} |",
     ]
-    if res["cold_sins_bag_s"] is not None:
-        lines.append("| sins_bag, empty numba cache (first run after install) | "
+    if res['cold_sins_bag_s'] is not None:
+        lines.append('| sins_bag, empty numba cache (first run after install) | '
                      f"{res['cold_sins_bag_s']:.2f} |")
-    r = res["ratio_to_iteration"]
-    per = res["ratios_per_run"]
+    r = res['ratio_to_iteration']
+    per = res['ratios_per_run']
     lines += [
-        "",
-        f"sins_bag / raw read: **{r:.2f}×** the iteration (per run {min(per):.2f}–"
+        '',
+        f'sins_bag / raw read: **{r:.2f}×** the iteration (per run {min(per):.2f}–'
         f"{max(per):.2f}×), {res['ratio_to_process']:.2f}× the raw-read process; the target "
         f"≤ {res['target_ratio']:g}× the raw read is "
         f"{'met' if res['meets_target'] else 'NOT met'}.",
-        "",
+        '',
         f"sins_bag's summary: {res['summary']}",
-        "",
-        "Attitude-only path of the library (360 000 intervals, algorithm 2, one push; "
+        '',
+        'Attitude-only path of the library (360 000 intervals, algorithm 2, one push; '
         f"compiled kernel {'available' if a['compiled_available'] else 'NOT available'}):",
-        "",
-        "| path | s |",
-        "|---|---|",
+        '',
+        '| path | s |',
+        '|---|---|',
         f"| attitude only, compiled | {median_range(a['attitude_only_compiled_s'], '.3f')} |",
-        "| attitude only, numpy (STRAPDOWN_KERNEL=numpy) | "
+        '| attitude only, numpy (STRAPDOWN_KERNEL=numpy) | '
         f"{median_range(a['attitude_only_numpy_s'], '.3f')} |",
         f"| with covariance, compiled | {median_range(a['with_covariance_compiled_s'], '.3f')} |",
     ]
-    c, n = a["attitude_only_compiled_s"]["median"], a["with_covariance_compiled_s"]["median"]
-    speedup = a["attitude_only_numpy_s"]["median"] / c
-    lines += ["", f"The attitude-only path takes {c / n:.2f}× the time of the path with "
-              "covariance "
+    c, n = a['attitude_only_compiled_s']['median'], a['with_covariance_compiled_s']['median']
+    speedup = a['attitude_only_numpy_s']['median'] / c
+    lines += ['', f'The attitude-only path takes {c / n:.2f}× the time of the path with '
+              'covariance '
               f"({'faster' if c < n else 'not faster'}); the numpy form takes {speedup:.1f}× "
               "the compiled one's time."]
-    return "\n".join(lines)
+    return '\n'.join(lines)
 
 
-if __name__ == "__main__":
+if __name__ == '__main__':
     sys.exit(main())

@@ -1,6 +1,8 @@
-"""Summary statistics shared by the benchmark commands: medians with their min–max over runs,
+"""
+Summary statistics shared by the benchmark commands: medians with their min–max over runs,
 χ² bands; for filter_bench the posterior Cramér–Rao bounds of a linear-Gaussian model, the
-multiplicative RTS smoother and the exact gyro-error sampler."""
+multiplicative RTS smoother and the exact gyro-error sampler.
+"""
 from __future__ import annotations
 
 import math
@@ -10,27 +12,28 @@ import numpy as np
 
 from strapdown_ros.rotation import quat_conjugate, quat_multiply, quat_to_rotvec, rotvec_to_quat
 
-__all__ = ["stats", "median_range", "chi2_band", "pcrb_filter_smoother",
-           "simulate_increments", "rts_smooth"]
+__all__ = ['stats', 'median_range', 'chi2_band', 'pcrb_filter_smoother',
+           'simulate_increments', 'rts_smooth']
 
 
 def stats(values) -> dict:
     """Median, min, max and count of the finite values (None and NaN are left out)."""
     v = [x for x in values if x is not None and math.isfinite(x)]
     if not v:
-        return {"median": math.nan, "min": math.nan, "max": math.nan, "n": 0}
-    return {"median": statistics.median(v), "min": min(v), "max": max(v), "n": len(v)}
+        return {'median': math.nan, 'min': math.nan, 'max': math.nan, 'n': 0}
+    return {'median': statistics.median(v), 'min': min(v), 'max': max(v), 'n': len(v)}
 
 
 def median_range(s: dict, fmt: str) -> str:
     """``median (min–max)`` of a :func:`stats` result, formatted with ``fmt``."""
-    if s["n"] == 0:
-        return "not measured"
+    if s['n'] == 0:
+        return 'not measured'
     return f"{format(s['median'], fmt)} ({format(s['min'], fmt)}–{format(s['max'], fmt)})"
 
 
 def chi2_band(dof: int, probability: float = 0.95) -> tuple[float, float]:
-    """Two-sided band of a χ² variable with ``dof`` degrees of freedom (Wilson–Hilferty; for
+    """
+    Two-sided band of a χ² variable with ``dof`` degrees of freedom (Wilson–Hilferty; for
     dof ≥ 30 within 0.1 % of the exact quantiles).
 
     Parameters
@@ -51,7 +54,8 @@ def chi2_band(dof: int, probability: float = 0.95) -> tuple[float, float]:
 
 
 def pcrb_filter_smoother(phi, q, p0, h, r, fixes: int):
-    """Posterior Cramér–Rao bounds of a linear-Gaussian state-space model measured at each step.
+    """
+    Posterior Cramér–Rao bounds of a linear-Gaussian state-space model measured at each step.
 
     For ``x_k = Φ x_{k−1} + w``, ``y_k = H x_k + v`` with x_0 ~ N(0, P0), the PCRB of the causal
     estimate of x_k from y_1..y_k is the Kalman filter's covariance, and that of the estimate
@@ -94,7 +98,8 @@ def pcrb_filter_smoother(phi, q, p0, h, r, fixes: int):
 
 
 def simulate_increments(rng, T, n, sigma_v, sigma_u, b0):
-    """Gyro errors at exact truth: ∫b dt over each interval plus white angle noise σ_v²T, and b
+    """
+    Gyro errors at exact truth: ∫b dt over each interval plus white angle noise σ_v²T, and b
     at its end; b a Wiener process of density σ_u² from b0, sampled from the exact joint law of
     (b(t+T) − b(t), ∫(t+T−s) db(s)) (as ``test/estimation/test_attitude_filter.py``).
 
@@ -121,14 +126,15 @@ def simulate_increments(rng, T, n, sigma_v, sigma_u, b0):
     """
     cov = sigma_u ** 2 * np.array([[T, T * T / 2.0], [T * T / 2.0, T ** 3 / 3.0]])
     L = np.linalg.cholesky(cov) if sigma_u > 0 else np.zeros((2, 2))
-    u = np.einsum("ij,njk->nik", L, rng.normal(size=(n, 2, 3)))
+    u = np.einsum('ij,njk->nik', L, rng.normal(size=(n, 2, 3)))
     b_end = b0 + np.cumsum(u[:, 0], axis=0)
     b_start = np.vstack([b0[None], b_end[:-1]])
     return T * b_start + u[:, 1] + rng.normal(0.0, sigma_v * np.sqrt(T), (n, 3)), b_end
 
 
 def rts_smooth(pre, post, P_pre, P_post, Phi):
-    """Multiplicative RTS smoother on the filter's output at the fixes: with
+    """
+    Multiplicative RTS smoother on the filter's output at the fixes: with
     ``G_k = P⁺_k Φᵀ (P⁻_{k+1})⁻¹`` and Δ the error state "estimate minus smoothed",
     ``Δ_k = G_k Δ⁻_{k+1}``, ``q^s_k = q̂⁺_k ⊗ exp(−Δ_ε)``, ``b^s_k = b̂⁺_k − Δ_b``.
 

@@ -1,4 +1,5 @@
-"""Boresight of a star camera (VF) relative to the IMU (MF) from attitude increments
+"""
+Boresight of a star camera (VF) relative to the IMU (MF) from attitude increments
 (Vasilyuk et al. 2024; paper 004).
 
 Pipeline (004 §2–§5):
@@ -33,24 +34,27 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from strapdown_ros.estimation.chi_square import FIT_LEVEL, chi2_band
-from strapdown_ros.estimation.observability import ObservabilityReport, analyze_information
-from strapdown_ros.rotation import (dcm_to_ypr, quat_conjugate, quat_cumprod, quat_multiply,
-    quat_normalize, quat_to_dcm, quat_to_rotvec, ypr_error_to_rotation, ypr_to_dcm, dcm_to_quat)
+from strapdown_ros.estimation.chi_square import chi2_band, FIT_LEVEL
+from strapdown_ros.estimation.observability import analyze_information, ObservabilityReport
+from strapdown_ros.rotation import (dcm_to_quat, dcm_to_ypr, quat_conjugate, quat_cumprod,
+                                    quat_multiply, quat_normalize, quat_to_dcm, quat_to_rotvec,
+                                    ypr_error_to_rotation, ypr_to_dcm)
 from strapdown_ros.sensors import SensorSigmas
 from strapdown_ros.sensors.covariance import (constant_jacobian, constant_variances,
-    get_covariance_model)
+                                              get_covariance_model)
 
-__all__ = ["IncrementPair", "angle_consistency",
-           "gyro_increment", "camera_increment", "BoresightSolution", "solve_boresight",
-           "check_observability", "imu_attitude_from_camera", "r_partial"]
+__all__ = ['IncrementPair', 'angle_consistency',
+           'gyro_increment', 'camera_increment', 'BoresightSolution', 'solve_boresight',
+           'check_observability', 'imu_attitude_from_camera', 'r_partial']
 
 
 
 # --------------------------------------------------------------------------- §2.2 ΔS_imu
 def r_partial(rho: np.ndarray, drho: np.ndarray, x: np.ndarray) -> np.ndarray:
-    """004 §2.2: unnormalised quaternion of the rotation over the first fraction x = τ/T of an
-    IMU interval with increment ρ (Δρ = ρ − ρ_prev), from a rate linear in time."""
+    """
+    004 §2.2: unnormalised quaternion of the rotation over the first fraction x = τ/T of an
+    IMU interval with increment ρ (Δρ = ρ − ρ_prev), from a rate linear in time.
+    """
     rho, drho = np.atleast_2d(rho), np.atleast_2d(drho)
     x = np.asarray(x, dtype=float).reshape(-1, 1)
     r2 = np.sum(rho * rho, axis=1, keepdims=True)
@@ -61,9 +65,10 @@ def r_partial(rho: np.ndarray, drho: np.ndarray, x: np.ndarray) -> np.ndarray:
 
 
 def gyro_increment(stamps: np.ndarray, delta_theta: np.ndarray, t_start: float, t_end: float,
-                   gyro: SensorSigmas | None = None, covariance_model: str = "random_constant",
+                   gyro: SensorSigmas | None = None, covariance_model: str = 'random_constant',
                    sensitivity: bool = False):
-    """ΔS_imu (quaternion, MF(t_end) → MF(t_start)) and E_imu (3×3, MF axes at t_end).
+    """
+    ΔS_imu (quaternion, MF(t_end) → MF(t_start)) and E_imu (3×3, MF axes at t_end).
 
     With ``sensitivity=True`` (and ``gyro`` given) two more items are returned: G (3×12), the
     sensitivity of the error ε_imu to the gyro constants x = [b (3), vec M (9, column-major)]
@@ -78,8 +83,8 @@ def gyro_increment(stamps: np.ndarray, delta_theta: np.ndarray, t_start: float, 
     dth = np.asarray(delta_theta, dtype=float)
     if len(stamps) < 2 or t_end <= t_start:
         return None
-    k0 = int(np.searchsorted(stamps, t_start, side="right"))       # first increment ending after t_start
-    k1 = int(np.searchsorted(stamps, t_end, side="left"))          # first increment ending at/after t_end
+    k0 = int(np.searchsorted(stamps, t_start, side='right'))       # first increment ending after t_start
+    k1 = int(np.searchsorted(stamps, t_end, side='left'))          # first increment ending at/after t_end
     if k0 < 1 or k1 >= len(stamps):
         return None                                                 # need one increment before, one after
     T = np.diff(stamps)[k0 - 1:k1]                                  # lengths of intervals k0..k1
@@ -105,10 +110,10 @@ def gyro_increment(stamps: np.ndarray, delta_theta: np.ndarray, t_start: float, 
         # evaluated as a sum in the axes of MF(t_start): C_k = attitude after interval k
         C = quat_to_dcm(quat_cumprod(np.array([1.0, 0.0, 0.0, 0.0]), full))
         model = get_covariance_model(covariance_model)
-        W = np.einsum("kij,kjl,kml->im", C, model.white(rho, T, gyro), C)      # Σ C_k Q_k C_kᵀ
+        W = np.einsum('kij,kjl,kml->im', C, model.white(rho, T, gyro), C)      # Σ C_k Q_k C_kᵀ
         var = model.constant_variances(gyro)
         if np.any(var > 0) or sensitivity:
-            J = np.einsum("kij,kjl->il", C, constant_jacobian(rho, T))         # Σ C_k ∂ρ_k/∂x
+            J = np.einsum('kij,kjl->il', C, constant_jacobian(rho, T))         # Σ C_k ∂ρ_k/∂x
         P = W + ((J * var) @ J.T if np.any(var > 0) else 0.0)
         Cend = C[-1]
         cov = Cend.T @ P @ Cend
@@ -150,10 +155,12 @@ class IncrementPair:
 
 
 def angle_consistency(pair: IncrementPair) -> tuple[float, float]:
-    """φ_avu − φ_imu of a pair and its predicted σ (rad).  Rotation angles do not depend on the
+    """
+    φ_avu − φ_imu of a pair and its predicted σ (rad).  Rotation angles do not depend on the
     boresight, so this judges a pair before (and whatever) the boresight fit says (004 Fig. 2a).
     σ² = k_avuᵀ E_avu k_avu + k_imuᵀ E_imu k_imu with k the unit rotation axes (the angle error
-    is the error component along the axis); below 1e-9 rad the mean diagonal stands in."""
+    is the error component along the axis); below 1e-9 rad the mean diagonal stands in.
+    """
     out, var = [], 0.0
     for dq, E in ((pair.dq_cam, pair.cov_cam), (pair.dq_imu, pair.cov_imu)):
         rv = quat_to_rotvec(dq)
@@ -175,13 +182,13 @@ class BoresightSolution:
     covariance_beta_model: np.ndarray | None = None      # (Hᵀ W H)⁻¹ from E_imu, E_avu
     rotation_covariance_mf: np.ndarray | None = None     # P^clb = D2 P_β D2ᵀ (MF axes)
     weighted: bool = False
-    weighting: str = "unit"
+    weighting: str = 'unit'
     iterations: int = 0
     converged: bool = False
-    residual_rms: float = float("nan")             # rad, RMS of the residual components
-    chi2_per_dof: float = float("nan")             # Σ fᵀ W f / dof, stated noise, any weighting
+    residual_rms: float = float('nan')             # rad, RMS of the residual components
+    chi2_per_dof: float = float('nan')             # Σ fᵀ W f / dof, stated noise, any weighting
     dof: int = 0                                   # 3n − 3
-    chi2_band: tuple = (float("nan"), float("nan"))   # chi2_band(dof, FIT_LEVEL)
+    chi2_band: tuple = (float('nan'), float('nan'))   # chi2_band(dof, FIT_LEVEL)
     #: χ²/dof inside its band: the stated noise explains the residuals.  False: the stated noise
     #: is wrong or the model lacks an effect, and covariance_beta is scaled by χ²/dof when > 1
     fit_consistent: bool | None = None
@@ -203,13 +210,13 @@ def _stack(pairs):
     return A_imu, A_cam, E_imu, E_cam
 
 
-def _residuals(C: np.ndarray, A_imu: np.ndarray, A_cam: np.ndarray) -> np.ndarray:
+def increment_residuals(C: np.ndarray, A_imu: np.ndarray, A_cam: np.ndarray) -> np.ndarray:
     """f_n of 004 (5)–(6): the skew part of ΔS_avuᵀ Cᵀ ΔS_imu C − I, (n, 3)."""
     F = np.swapaxes(A_cam, 1, 2) @ (C.T @ A_imu @ C)
     return 0.5 * np.stack([F[:, 2, 1] - F[:, 1, 2], F[:, 0, 2] - F[:, 2, 0], F[:, 1, 0] - F[:, 0, 1]], axis=1)
 
 
-def _axis_alignment(A_imu, A_cam) -> np.ndarray:
+def axis_alignment(A_imu, A_cam) -> np.ndarray:
     """Closed-form C from the rotation vectors: min Σ |log ΔS_imu − C log ΔS_avu|² (Wahba/SVD)."""
     u = quat_to_rotvec(dcm_to_quat(A_imu))
     v = quat_to_rotvec(dcm_to_quat(A_cam))
@@ -222,7 +229,8 @@ def _axis_alignment(A_imu, A_cam) -> np.ndarray:
 def check_observability(pairs, c_mf_vf: np.ndarray | None = None, weights: np.ndarray | None = None,
                         min_rotation: float = np.radians(0.5), axis_tolerance: float = np.radians(2.0),
                         max_sigma: float = 1e-3) -> ObservabilityReport:
-    """004 §4.1 and the conditioning of the normal matrix, in VF rotation axes.
+    """
+    004 §4.1 and the conditioning of the normal matrix, in VF rotation axes.
 
     Near the solution the residual of pair n responds to a small rotation δ of C (VF axes)
     as f_n = (I − R_nᵀ) δ with R_n = ΔS_avu,n; the normal matrix is Σ (I − R_n) W_n (I − R_nᵀ)
@@ -239,42 +247,43 @@ def check_observability(pairs, c_mf_vf: np.ndarray | None = None, weights: np.nd
         W = W / scale ** 2
     else:
         W = weights
-    N = np.einsum("nji,njk,nkl->il", H, W, H)
+    N = np.einsum('nji,njk,nkl->il', H, W, H)
 
     def describe(v):
         v = v * np.sign(v[np.argmax(np.abs(v))])
-        return f"rotation about VF axis ({v[0]:.2f}, {v[1]:.2f}, {v[2]:.2f})"
+        return f'rotation about VF axis ({v[0]:.2f}, {v[1]:.2f}, {v[2]:.2f})'
     rep = analyze_information(N, describe=describe, sigma_limit=max_sigma)
     # the necessary condition of 004 §4.1, in words
     rv = quat_to_rotvec(np.array([p.dq_cam for p in pairs]))
     ang = np.linalg.norm(rv, axis=1)
     big = ang >= min_rotation
     if not np.any(big):
-        why = f"no rotation above {np.degrees(min_rotation):.2g}° between exposures (static motion)"
+        why = f'no rotation above {np.degrees(min_rotation):.2g}° between exposures (static motion)'
     else:
         k = rv[big] / ang[big, None]
         spread = np.max(np.arccos(np.clip(np.abs(k @ k.T), -1, 1)))
-        why = "all increments share one axis" if spread < axis_tolerance else ""
+        why = 'all increments share one axis' if spread < axis_tolerance else ''
     if why and rep.observable:
         # the conditioning may pass on noise alone; the necessary condition still fails
         rep.observable = False
         rep.unobservable = [describe(rep.directions[:, 0])]
     if not rep.observable:
-        if why.startswith("no rotation"):
-            rep.message = f"boresight not observable: {why}; weakest: {rep.unobservable[0]}"
+        if why.startswith('no rotation'):
+            rep.message = f'boresight not observable: {why}; weakest: {rep.unobservable[0]}'
         else:
-            rep.message = f"{rep.unobservable[0]} not observable" + (f": {why}" if why else
-                                                                     f": predicted σ {rep.predicted_sigma[0]:.2g} rad")
+            rep.message = f'{rep.unobservable[0]} not observable' + (f': {why}' if why else
+                                                                     f': predicted σ {rep.predicted_sigma[0]:.2g} rad')
     return rep
 
 
-WEIGHTINGS = ("unit", "pairwise", "correlated", "auto")
+WEIGHTINGS = ('unit', 'pairwise', 'correlated', 'auto')
 #: "auto" uses the correlated (dense) solution up to this many pairs, pairwise weights beyond
 CORRELATED_MAX_PAIRS = 200       # a warm update stays under ~30 ms (dense 600×600 solve)
 
 
 def _correlated_covariance(C, pairs, A_cam, E_cam, gyro: SensorSigmas) -> np.ndarray:
-    """Covariance (3n×3n) of the stacked residuals f_n ≈ Cᵀε_imu,n − ε_avu,n.
+    """
+    Covariance (3n×3n) of the stacked residuals f_n ≈ Cᵀε_imu,n − ε_avu,n.
 
     * diagonal blocks: Cᵀ E_imu,white C + E_avu;
     * adjacent pairs sharing a camera fix θ_n: cov(f_n, f_{n+1}) = −P_n R_{n+1}, since
@@ -295,12 +304,13 @@ def _correlated_covariance(C, pairs, A_cam, E_cam, gyro: SensorSigmas) -> np.nda
     return Sig + (U * constant_variances(gyro)) @ U.T
 
 
-def solve_boresight(pairs, beta0=(0.0, 0.0, 0.0), weighted: bool = True, init: str = "axes",
+def solve_boresight(pairs, beta0=(0.0, 0.0, 0.0), weighted: bool = True, init: str = 'axes',
                     max_iterations: int = 50, tolerance: float = 1e-9, dx: float = 1e-7,
                     max_sigma: float = 1e-3, min_rotation: float = np.radians(0.5),
                     common_rotation_sigma: float = 0.0, weighting: str | None = None,
                     gyro: SensorSigmas | None = None) -> BoresightSolution:
-    """Estimate β and its covariance from increment pairs (004 §4), or report why not.
+    """
+    Estimate β and its covariance from increment pairs (004 §4), or report why not.
 
     init: ``"axes"`` starts Gauss–Newton from the closed-form axis alignment (independent of
     β0, 1–2 iterations); ``"given"`` starts from ``beta0`` exactly as 004 §4.2.
@@ -321,26 +331,26 @@ def solve_boresight(pairs, beta0=(0.0, 0.0, 0.0), weighted: bool = True, init: s
     pairs = list(pairs)
     n = len(pairs)
     if weighting is None:
-        weighting = "pairwise" if weighted else "unit"
+        weighting = 'pairwise' if weighted else 'unit'
     if weighting not in WEIGHTINGS:
         raise ValueError(f"weighting must be one of {', '.join(WEIGHTINGS)}, got {weighting!r}")
     can_correlate = gyro is not None and all(p.imu_sensitivity is not None for p in pairs)
-    if weighting == "auto":
-        weighting = "correlated" if can_correlate and n <= CORRELATED_MAX_PAIRS else "pairwise"
-    if weighting == "correlated" and not can_correlate:
+    if weighting == 'auto':
+        weighting = 'correlated' if can_correlate and n <= CORRELATED_MAX_PAIRS else 'pairwise'
+    if weighting == 'correlated' and not can_correlate:
         raise ValueError("weighting='correlated' needs gyro sigmas and pairs with imu_sensitivity")
-    weighted = weighting != "unit"
+    weighted = weighting != 'unit'
     if n < 2:
-        return BoresightSolution(False, f"{n} increment pair(s): need at least 2", pairs=n)
+        return BoresightSolution(False, f'{n} increment pair(s): need at least 2', pairs=n)
     A_imu, A_cam, E_imu, E_cam = _stack(pairs)
     rep = check_observability(pairs, min_rotation=min_rotation, max_sigma=max_sigma)
     if not rep.observable:
         return BoresightSolution(False, rep.message, pairs=n, observability=rep,
                                  unobservable_axes=[u for u in rep.unobservable])
     beta = np.asarray(beta0, dtype=float).copy()
-    if init == "axes":
-        beta = dcm_to_ypr(_axis_alignment(A_imu, A_cam))
-    elif init != "given":
+    if init == 'axes':
+        beta = dcm_to_ypr(axis_alignment(A_imu, A_cam))
+    elif init != 'given':
         raise ValueError(f"init must be 'axes' or 'given', got {init!r}")
 
     def weights(C):
@@ -354,16 +364,16 @@ def solve_boresight(pairs, beta0=(0.0, 0.0, 0.0), weighted: bool = True, init: s
         for j in range(3):
             d = np.zeros(3)
             d[j] = dx
-            H[:, :, j] = (_residuals(ypr_to_dcm(*(b + 0.5 * d)), A_imu, A_cam)
-                          - _residuals(ypr_to_dcm(*(b - 0.5 * d)), A_imu, A_cam)) / dx
+            H[:, :, j] = (increment_residuals(ypr_to_dcm(*(b + 0.5 * d)), A_imu, A_cam)
+                          - increment_residuals(ypr_to_dcm(*(b - 0.5 * d)), A_imu, A_cam)) / dx
         return H
 
     def linearise(b):
         """Residuals, Jacobian, weights, normal matrix Hᵀ W H and gradient Hᵀ W f at β = b."""
         C = ypr_to_dcm(*b)
         H = jacobian(b)
-        f = _residuals(C, A_imu, A_cam)
-        if weighting == "correlated":
+        f = increment_residuals(C, A_imu, A_cam)
+        if weighting == 'correlated':
             Sig = _correlated_covariance(C, pairs, A_cam, E_cam, gyro)
             Hs = H.reshape(-1, 3)
             WH_Wf = np.linalg.solve(Sig, np.hstack([Hs, f.reshape(-1, 1)]))
@@ -371,16 +381,18 @@ def solve_boresight(pairs, beta0=(0.0, 0.0, 0.0), weighted: bool = True, init: s
             g = Hs.T @ WH_Wf[:, 3]
             return C, f, H, Sig, None, N, g, float(f.reshape(-1) @ WH_Wf[:, 3])
         W = weights(C)
-        HtW = np.einsum("nji,njk->nik", H, W)
-        g = np.einsum("nij,nj->i", HtW, f)
-        return C, f, H, W, HtW, np.einsum("nij,njk->ik", HtW, H), g, float(np.einsum("ni,nij,nj->", f, W, f))
+        HtW = np.einsum('nji,njk->nik', H, W)
+        g = np.einsum('nij,nj->i', HtW, f)
+        return C, f, H, W, HtW, np.einsum('nij,njk->ik', HtW, H), g, float(np.einsum('ni,nij,nj->', f, W, f))
 
     def frozen_cost(lin, f_t):
-        """fᵀ W f of residuals f_t with the weights of the linearisation ``lin`` (the cost the
-        Gauss–Newton step of ``lin`` descends)."""
-        if weighting == "correlated":
+        """
+        fᵀ W f of residuals f_t with the weights of the linearisation ``lin`` (the cost the
+        Gauss–Newton step of ``lin`` descends).
+        """
+        if weighting == 'correlated':
             return float(f_t.reshape(-1) @ np.linalg.solve(lin[3], f_t.reshape(-1)))
-        return float(np.einsum("ni,nij,nj->", f_t, lin[3], f_t))
+        return float(np.einsum('ni,nij,nj->', f_t, lin[3], f_t))
 
     converged = False
     it = 0
@@ -399,7 +411,7 @@ def solve_boresight(pairs, beta0=(0.0, 0.0, 0.0), weighted: bool = True, init: s
         # Gauss–Newton step; halved while it raises the weighted cost (large residuals, e.g. a
         # stated σ far too small, make the full step overshoot and oscillate)
         for _ in range(30):
-            f_t = _residuals(ypr_to_dcm(*(beta + step)), A_imu, A_cam)
+            f_t = increment_residuals(ypr_to_dcm(*(beta + step)), A_imu, A_cam)
             if frozen_cost(lin, f_t) <= cost * (1.0 + 1e-12):
                 break
             step = 0.5 * step
@@ -410,13 +422,13 @@ def solve_boresight(pairs, beta0=(0.0, 0.0, 0.0), weighted: bool = True, init: s
     P_S = f.T @ f / max(n - 1, 1)
     Hu = H.reshape(-1, 3)
     Ninv_u = np.linalg.inv(Hu.T @ Hu)
-    P_res = Ninv_u @ np.einsum("nji,jk,nkl->il", H, P_S, H) @ Ninv_u
+    P_res = Ninv_u @ np.einsum('nji,jk,nkl->il', H, P_S, H) @ Ninv_u
     P_model = np.linalg.inv(N) if weighted else None
     dof = 3 * n - 3
     if not weighted:                                 # 004's unit weights: χ² with the stated noise
         cov = np.swapaxes(C, 0, 1)[None] @ E_imu @ C[None] + E_cam
         ok_cov = np.all(np.linalg.eigvalsh(cov) > 0)
-        wss = float(np.einsum("ni,nij,nj->", f, np.linalg.inv(cov), f)) if ok_cov else float("nan")
+        wss = float(np.einsum('ni,nij,nj->', f, np.linalg.inv(cov), f)) if ok_cov else float('nan')
     chi2 = wss / max(dof, 1)
     band = chi2_band(dof)
     consistent = bool(band[0] <= chi2 <= band[1]) if np.isfinite(chi2) and dof >= 1 else None
@@ -426,12 +438,12 @@ def solve_boresight(pairs, beta0=(0.0, 0.0, 0.0), weighted: bool = True, init: s
         P = P_res
     # P^clb = D2 P_β D2ᵀ in MF axes (004 eq. 8)
     _, D2 = ypr_error_to_rotation(*beta)
-    if common_rotation_sigma > 0 and weighting != "correlated":
+    if common_rotation_sigma > 0 and weighting != 'correlated':
         D2i = np.linalg.inv(D2)
         P = P + common_rotation_sigma ** 2 * D2i @ D2i.T
     beta_wrapped = dcm_to_ypr(C)                     # canonical angles of the same rotation
     sol = BoresightSolution(
-        observable=True, message="observable" if converged else f"not converged after {it} iterations",
+        observable=True, message='observable' if converged else f'not converged after {it} iterations',
         beta=beta_wrapped, c_mf_vf=C, covariance_beta=P, covariance_beta_residual=P_res,
         covariance_beta_model=P_model, rotation_covariance_mf=D2 @ P @ D2.T, weighted=weighted,
         weighting=weighting,

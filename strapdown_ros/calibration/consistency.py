@@ -1,4 +1,5 @@
-"""Consistency of camera-derived and inertial attitudes: 004 §5 eq. (8) and the Fig. 3 check
+"""
+Consistency of camera-derived and inertial attitudes: 004 §5 eq. (8) and the Fig. 3 check
 (Vasilyuk et al. 2024; paper 004).
 
 After the boresight β (C = C_MF^VF, VF → MF) has been estimated with covariance P_β, each star
@@ -46,13 +47,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from strapdown_ros.rotation import (quat_conjugate, quat_multiply, quat_normalize, quat_to_dcm,
-    quat_to_rotvec, ypr_to_dcm, dcm_to_quat)
+from strapdown_ros.rotation import (dcm_to_quat, quat_conjugate, quat_multiply, quat_normalize,
+                                    quat_to_dcm, quat_to_rotvec, ypr_to_dcm)
 
-__all__ = ["d_matrices", "d1_finite_difference", "camera_imu_attitude", "sins_from_camera", "theta_diff_check", "ThetaDiffCheck",
-           "chi2_interval", "COVARIANCE_FORMS"]
+__all__ = ['d_matrices', 'd1_finite_difference', 'camera_imu_attitude', 'sins_from_camera', 'theta_diff_check', 'ThetaDiffCheck',
+           'chi2_interval', 'COVARIANCE_FORMS']
 
-COVARIANCE_FORMS = ("derived", "printed")
+COVARIANCE_FORMS = ('derived', 'printed')
 
 
 def _vee_skew(A: np.ndarray) -> np.ndarray:
@@ -60,19 +61,21 @@ def _vee_skew(A: np.ndarray) -> np.ndarray:
     return 0.5 * np.stack([A[..., 2, 1] - A[..., 1, 2], A[..., 0, 2] - A[..., 2, 0], A[..., 1, 0] - A[..., 0, 1]], -1)
 
 
-def d_matrices(beta, form: str = "derived") -> tuple[np.ndarray, np.ndarray]:
-    """004 §5: D1 (θ^clb = D1 δβ, VF axes) and D2 = C D1 (MF axes) at β = (ψ, ϑ, γ).
+def d_matrices(beta, form: str = 'derived') -> tuple[np.ndarray, np.ndarray]:
+    """
+    004 §5: D1 (θ^clb = D1 δβ, VF axes) and D2 = C D1 (MF axes) at β = (ψ, ϑ, γ).
 
     ``form="derived"``: D2 from the Euler sequence R_z(−ψ) R_x(ϑ) R_y(γ) (columns: the MF axes of
     the three rotations, −z, R_z(−ψ)x, R_z(−ψ)R_x(ϑ)y) and D1 = Cᵀ D2.  ``form="printed"``: the
-    two matrices entry by entry as 004 prints them (β̆_γ read as β_γ)."""
+    two matrices entry by entry as 004 prints them (β̆_γ read as β_γ).
+    """
     psi, th, ga = (float(v) for v in np.asarray(beta, dtype=float).reshape(3))
     sy, cy, sp, cp, sr, cr = np.sin(psi), np.cos(psi), np.sin(th), np.cos(th), np.sin(ga), np.cos(ga)
-    if form == "printed":
+    if form == 'printed':
         D1 = np.array([[sr * cp, cr, 0.0], [-sp, 0.0, 1.0], [-cr * cp, sr, 0.0]])
         D2 = np.array([[0.0, cy, cp * sy], [0.0, -sy, cp * cy], [-1.0, 0.0, sp]])
         return D1, D2
-    if form != "derived":
+    if form != 'derived':
         raise ValueError(f"form must be 'derived' or 'printed', got {form!r}")
     Rz = np.array([[cy, sy, 0.0], [-sy, cy, 0.0], [0.0, 0.0, 1.0]])          # R_z(−ψ)
     Rx = np.array([[1.0, 0.0, 0.0], [0.0, cp, -sp], [0.0, sp, cp]])
@@ -93,10 +96,12 @@ def d1_finite_difference(beta, h: float = 1e-6) -> np.ndarray:
     return np.column_stack(cols)
 
 
-def camera_imu_attitude(q_gcrs_vf, P_avu, beta, P_beta, d_form: str = "derived"):
-    """004 §5: S̃_GCRS^MF = S_GCRS^VF Cᵀ and P^mfa = C P^avu Cᵀ + D2 P_β D2ᵀ (eq. 8), MF axes.
+def camera_imu_attitude(q_gcrs_vf, P_avu, beta, P_beta, d_form: str = 'derived'):
+    """
+    004 §5: S̃_GCRS^MF = S_GCRS^VF Cᵀ and P^mfa = C P^avu Cᵀ + D2 P_β D2ᵀ (eq. 8), MF axes.
 
-    q_gcrs_vf (N, 4) scalar-first, P_avu (N, 3, 3) or (3, 3) in VF axes; returns (q (N, 4), P (N, 3, 3))."""
+    q_gcrs_vf (N, 4) scalar-first, P_avu (N, 3, 3) or (3, 3) in VF axes; returns (q (N, 4), P (N, 3, 3)).
+    """
     q = np.atleast_2d(np.asarray(q_gcrs_vf, dtype=float))
     P_avu = np.broadcast_to(np.asarray(P_avu, dtype=float), (len(q), 3, 3))
     C = ypr_to_dcm(*np.asarray(beta, dtype=float))
@@ -109,7 +114,8 @@ def camera_imu_attitude(q_gcrs_vf, P_avu, beta, P_beta, d_form: str = "derived")
 def sins_from_camera(q_gcrs_vf, beta, dq_imu, E_imu=None, align_at: int = 0, sensitivity=None,
                      white=None, constant_variances=None, printed_alignment: bool = False,
                      return_sensitivity: bool = False):
-    """The SINS of 004 §6: aligned from camera fix ``align_at`` through C, then S_n = S_{n−1} ΔS_n.
+    """
+    The SINS of 004 §6: aligned from camera fix ``align_at`` through C, then S_n = S_{n−1} ΔS_n.
 
     dq_imu (N−1, 4): ΔS_imu of the interval ending at fix n (MF_n → MF_{n−1}), for n = 1…N−1.
     Gyro covariance P^gyro_n (MF_n axes, zero at the alignment epoch) by the interval recursion
@@ -120,12 +126,13 @@ def sins_from_camera(q_gcrs_vf, beta, dq_imu, E_imu=None, align_at: int = 0, sen
     ``printed_alignment=True`` aligns as printed, S_1^MF = S_1^VF (no boresight).
     Returns (q_gcrs_mf (N, 4), P_gyro (N, 3, 3)); epochs before ``align_at`` are NaN.  With
     ``return_sensitivity`` also J (N, 3, 12), ε_n's sensitivity to the constants, for the joint
-    covariance of :func:`theta_diff_check` (``imu_sensitivity``)."""
+    covariance of :func:`theta_diff_check` (``imu_sensitivity``).
+    """
     q_vf = np.atleast_2d(np.asarray(q_gcrs_vf, dtype=float))
     dq = np.atleast_2d(np.asarray(dq_imu, dtype=float))
     n = len(q_vf)
     if len(dq) != n - 1:
-        raise ValueError(f"need {n - 1} increments for {n} fixes, got {len(dq)}")
+        raise ValueError(f'need {n - 1} increments for {n} fixes, got {len(dq)}')
     C = ypr_to_dcm(*np.asarray(beta, dtype=float))
     q = np.full((n, 4), np.nan)
     P = np.full((n, 3, 3), np.nan)
@@ -151,9 +158,11 @@ def sins_from_camera(q_gcrs_vf, beta, dq_imu, E_imu=None, align_at: int = 0, sen
 
 
 def chi2_interval(dof: float, prob: float = 0.95) -> tuple[float, float]:
-    """Two-sided ``prob`` interval of a χ² variable with ``dof`` degrees of freedom
+    """
+    Two-sided ``prob`` interval of a χ² variable with ``dof`` degrees of freedom
     (Wilson–Hilferty: within 0.1% of the exact quantiles for dof ≥ 30; at dof 3 the lower end
-    is 16% low, the upper 0.2%)."""
+    is 16% low, the upper 0.2%).
+    """
     # upper-tail normal quantile, Abramowitz & Stegun 26.2.23 (|error| < 4.5e-4)
     p = 0.5 * (1.0 + prob)
     t = np.sqrt(-2.0 * np.log(1.0 - p))
@@ -180,15 +189,16 @@ class ThetaDiffCheck:
     sigma_avu: np.ndarray      # (N,) √tr P_avu
 
     def as_dict(self) -> dict:
-        return {"mean_nees": self.mean_nees, "joint_nees": self.joint_nees, "nees_band": list(self.nees_band),
-                "within_3sigma": self.within_3sigma, "consistent": bool(self.consistent),
-                "covariance": self.covariance, "epochs_used": int(self.used.sum())}
+        return {'mean_nees': self.mean_nees, 'joint_nees': self.joint_nees, 'nees_band': list(self.nees_band),
+                'within_3sigma': self.within_3sigma, 'consistent': bool(self.consistent),
+                'covariance': self.covariance, 'epochs_used': int(self.used.sum())}
 
 
 def theta_diff_check(q_gcrs_vf, P_avu, beta, P_beta, q_gcrs_mf_sins, P_imu=None, aligned_at: int | None = 0,
-                     covariance: str = "derived", log: str = "exact", d_form: str = "derived",
+                     covariance: str = 'derived', log: str = 'exact', d_form: str = 'derived',
                      prob: float = 0.95, imu_sensitivity=None, imu_constants_cov=None) -> ThetaDiffCheck:
-    """004 Fig. 3: θ^diff between the SINS and the camera-derived IMU attitude, its predicted
+    """
+    004 Fig. 3: θ^diff between the SINS and the camera-derived IMU attitude, its predicted
     covariance and a consistency statistic.
 
     q_gcrs_vf (N, 4): camera fixes; P_avu (N, 3, 3) or (3, 3) their covariance (VF axes);
@@ -205,23 +215,24 @@ def theta_diff_check(q_gcrs_vf, P_avu, beta, P_beta, q_gcrs_mf_sins, P_imu=None,
     taken independent, as 004 implies).  The gyro cross term assumes P_imu grows as a random
     walk unless the constants' part is given: ``imu_sensitivity`` J (N, 3, 12) and
     ``imu_constants_cov`` (12×12 or (12,)) from :func:`sins_from_camera`, when
-    cov(ε_i, ε_j) = W_i R_iᵀ R_j + J_i P_c J_jᵀ with W = P_imu − J P_c Jᵀ."""
+    cov(ε_i, ε_j) = W_i R_iᵀ R_j + J_i P_c J_jᵀ with W = P_imu − J P_c Jᵀ.
+    """
     if covariance not in COVARIANCE_FORMS:
-        raise ValueError(f"covariance must be one of {COVARIANCE_FORMS}, got {covariance!r}")
-    if log not in ("exact", "printed"):
+        raise ValueError(f'covariance must be one of {COVARIANCE_FORMS}, got {covariance!r}')
+    if log not in ('exact', 'printed'):
         raise ValueError(f"log must be 'exact' or 'printed', got {log!r}")
     q_vf = np.atleast_2d(np.asarray(q_gcrs_vf, dtype=float))
     q_ins = np.atleast_2d(np.asarray(q_gcrs_mf_sins, dtype=float))
     n = len(q_vf)
     if q_ins.shape != (n, 4):
-        raise ValueError(f"q_gcrs_mf_sins must be ({n}, 4), got {q_ins.shape}")
+        raise ValueError(f'q_gcrs_mf_sins must be ({n}, 4), got {q_ins.shape}')
     P_avu = np.broadcast_to(np.asarray(P_avu, dtype=float), (n, 3, 3))
     P_imu = np.zeros((n, 3, 3)) if P_imu is None else np.nan_to_num(np.broadcast_to(np.asarray(P_imu, dtype=float), (n, 3, 3)))
     q_cam, P_mfa = camera_imu_attitude(q_vf, P_avu, beta, P_beta, d_form)
     valid = np.all(np.isfinite(q_ins), axis=1)
     qi = np.where(valid[:, None], q_ins, np.array([1.0, 0.0, 0.0, 0.0]))
     dq = quat_normalize(quat_multiply(quat_conjugate(qi), q_cam))          # Sᵀ S̃
-    theta = quat_to_rotvec(dq) if log == "exact" else _vee_skew(quat_to_dcm(dq))
+    theta = quat_to_rotvec(dq) if log == 'exact' else _vee_skew(quat_to_dcm(dq))
     C = ypr_to_dcm(*np.asarray(beta, dtype=float))
     _, D2 = d_matrices(beta, d_form)
     P_clb = D2 @ np.asarray(P_beta, dtype=float) @ D2.T
@@ -229,7 +240,7 @@ def theta_diff_check(q_gcrs_vf, P_avu, beta, P_beta, q_gcrs_mf_sins, P_imu=None,
     R = quat_to_dcm(quat_normalize(quat_multiply(quat_conjugate(qi[a])[None], qi)))     # MF_n → MF_a
     Rt = np.swapaxes(R, 1, 2)
     CPC = C[None] @ P_avu @ C.T[None]
-    if covariance == "printed" or aligned_at is None:
+    if covariance == 'printed' or aligned_at is None:
         P_diff = P_imu + P_mfa
         A = -np.broadcast_to(np.eye(3), (n, 3, 3))             # θ^diff ∋ −D2 δβ, shared by all epochs
     else:
@@ -244,36 +255,36 @@ def theta_diff_check(q_gcrs_vf, P_avu, beta, P_beta, q_gcrs_mf_sins, P_imu=None,
     m = len(idx)
     nees = np.full(n, np.nan)
     if m:
-        nees[idx] = np.einsum("ni,ni->n", theta[idx], np.linalg.solve(P_diff[idx], theta[idx][..., None])[..., 0])
+        nees[idx] = np.einsum('ni,ni->n', theta[idx], np.linalg.solve(P_diff[idx], theta[idx][..., None])[..., 0])
     # joint covariance of all used epochs: the shared boresight error, the shared alignment fix
     # and the gyro error carried from epoch i to j > i (ε_j = R_jᵀ R_i ε_i + later terms)
     Ai, Ri, Rti, Pi = A[idx], R[idx], Rt[idx], P_imu[idx]
     blocks = np.zeros((m, m, 3, 3))
-    if covariance != "printed":
-        blocks = np.einsum("iab,jcb->ijac", Ai @ P_clb[None], Ai)
+    if covariance != 'printed':
+        blocks = np.einsum('iab,jcb->ijac', Ai @ P_clb[None], Ai)
         if aligned_at is not None:
-            blocks = blocks + np.einsum("iab,jbc->ijac", Rti @ CPC[a][None], Ri)
+            blocks = blocks + np.einsum('iab,jbc->ijac', Rti @ CPC[a][None], Ri)
             if imu_sensitivity is not None:
                 Pc = np.asarray(imu_constants_cov, dtype=float)
                 Pc = Pc if Pc.ndim == 2 else np.diag(Pc)
                 Ji = np.asarray(imu_sensitivity, dtype=float)[idx]
-                blocks = blocks + np.einsum("iab,jcb->ijac", Ji @ Pc[None], Ji)
+                blocks = blocks + np.einsum('iab,jcb->ijac', Ji @ Pc[None], Ji)
                 Pi = Pi - Ji @ Pc[None] @ np.swapaxes(Ji, 1, 2)                  # the white part
             later = (idx[:, None] < idx[None, :])[..., None, None]            # cov(ε_i, ε_j) = P_i R_iᵀ R_j, j > i
-            blocks = blocks + np.where(later, np.einsum("iab,jbc->ijac", Pi @ Rti, Ri),
-                                       np.einsum("iab,jbc->ijac", Rti, Ri @ Pi))
+            blocks = blocks + np.where(later, np.einsum('iab,jbc->ijac', Pi @ Rti, Ri),
+                                       np.einsum('iab,jbc->ijac', Rti, Ri @ Pi))
     blocks[np.arange(m), np.arange(m)] = P_diff[idx]
     joint = blocks.transpose(0, 2, 1, 3).reshape(3 * m, 3 * m)
     joint = 0.5 * (joint + joint.T)
     x = theta[idx].reshape(-1)
-    joint_nees = float(x @ np.linalg.solve(joint, x)) if m else float("nan")
-    mean_nees = float(np.mean(nees[idx])) if m else float("nan")
-    lo, hi = chi2_interval(3 * m, prob) if m else (float("nan"), float("nan"))
-    sig = np.sqrt(np.einsum("nii->ni", P_diff))
-    within = float(np.mean(np.abs(theta[idx]) <= 3 * sig[idx])) if m else float("nan")
+    joint_nees = float(x @ np.linalg.solve(joint, x)) if m else float('nan')
+    mean_nees = float(np.mean(nees[idx])) if m else float('nan')
+    lo, hi = chi2_interval(3 * m, prob) if m else (float('nan'), float('nan'))
+    sig = np.sqrt(np.einsum('nii->ni', P_diff))
+    within = float(np.mean(np.abs(theta[idx]) <= 3 * sig[idx])) if m else float('nan')
 
     def tr(P):
-        return np.sqrt(np.einsum("nii->n", P))
+        return np.sqrt(np.einsum('nii->n', P))
     return ThetaDiffCheck(theta=np.where(valid[:, None], theta, np.nan), P_mfa=P_mfa, P_diff=P_diff, nees=nees,
                           used=used, mean_nees=mean_nees, joint_nees=joint_nees, nees_band=(lo, hi),
                           within_3sigma=within, consistent=bool(m and joint_nees <= hi), covariance=covariance,

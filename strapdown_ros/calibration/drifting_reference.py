@@ -1,4 +1,5 @@
-"""Correction of the system "spatial angular-rate meter — gyrostabilizer"
+"""
+Correction of the system "spatial angular-rate meter — gyrostabilizer"
 (Tkachenko 1983; paper 000).
 
 A strapdown gyro triad (body basis E) is integrated into an attitude M; a gyrostabilizer, whose
@@ -106,26 +107,27 @@ row is stored (:class:`NormalEquations`).
 """
 from __future__ import annotations
 
-import time as _time
 from dataclasses import dataclass, field
+import time as _time
 from typing import Callable, Sequence
 
 import numpy as np
 
 from strapdown_ros.attitude.coning import get_algorithm
 from strapdown_ros.attitude.integrator import AttitudeIntegrator
-from strapdown_ros.estimation.observability import ObservabilityReport, analyze_information
+from strapdown_ros.estimation.observability import analyze_information, ObservabilityReport
 from strapdown_ros.rotation import (aircraft_angles_to_quat, dcm_to_quat, quat_conjugate,
-    quat_multiply, quat_normalize, quat_to_dcm, quat_to_rotvec, rotvec_to_quat, skew)
+                                    quat_multiply, quat_normalize, quat_to_dcm, quat_to_rotvec,
+                                    rotvec_to_quat, skew)
 from strapdown_ros.sensors import increment_correction
 
 __all__ = [
-    "PAPER_000", "TKACHENKO_STRUCTURE", "TKACHENKO_C", "TKACHENKO_D", "TKACHENKO_W0", "TKACHENKO_PHI0", "MODES",
-    "tkachenko_D", "bias_D", "identity_G", "ErrorStructure", "quat_to_aircraft_angles",
-    "GyrostabilizerReference", "psi_matrix", "integrate_attitude", "theta_quadrature",
-    "NormalEquations", "COEFFICIENTS", "measurement_rows", "quantization_covariance", "TkachenkoSolution",
-    "estimate", "predicted_reference_increments", "rank_test", "simple_case_test",
-    "error_at_epochs",
+    'PAPER_000', 'TKACHENKO_STRUCTURE', 'TKACHENKO_C', 'TKACHENKO_D', 'TKACHENKO_W0', 'TKACHENKO_PHI0', 'MODES',
+    'tkachenko_D', 'bias_D', 'identity_G', 'ErrorStructure', 'quat_to_aircraft_angles',
+    'GyrostabilizerReference', 'psi_matrix', 'integrate_attitude', 'theta_quadrature',
+    'NormalEquations', 'COEFFICIENTS', 'measurement_rows', 'quantization_covariance', 'TkachenkoSolution',
+    'estimate', 'predicted_reference_increments', 'rank_test', 'simple_case_test',
+    'error_at_epochs',
 ]
 
 # --------------------------------------------------------------------------- §6 constants
@@ -140,30 +142,31 @@ TKACHENKO_PHI0 = np.array([-0.5, 0.17, -0.6])
 
 #: 000 §6, the three published error sets, transcribed from the text (w0 = w⁰ after correction).
 PAPER_000 = {
-    "unquantized": {
-        "w0": [-0.67e-5, 0.32e-5, -1.3e-5],
-        "dc": [-5.9e-7, -5.8e-6, -1.4e-5, 6e-6, -3.7e-6, -2.4e-8, -4.1e-7, 1.4e-7, -1.5e-7],
-        "dd": [-2.2e-7, 2.1e-7, -2.5e-7],
+    'unquantized': {
+        'w0': [-0.67e-5, 0.32e-5, -1.3e-5],
+        'dc': [-5.9e-7, -5.8e-6, -1.4e-5, 6e-6, -3.7e-6, -2.4e-8, -4.1e-7, 1.4e-7, -1.5e-7],
+        'dd': [-2.2e-7, 2.1e-7, -2.5e-7],
     },
-    "quantized_raw": {       # σ = 2e-5, no centring
-        "w0": [-2e-5, 0.5e-5, -3.2e-5],
-        "dc": [9.6e-6, -2.7e-6, -9.7e-6, 1.8e-5, -1.6e-5, -2.8e-6, -1.2e-6, -2.1e-6, 1.9e-6],
-        "dd": [-6.7e-8, 2e-7, -1.4e-6],
+    'quantized_raw': {       # σ = 2e-5, no centring
+        'w0': [-2e-5, 0.5e-5, -3.2e-5],
+        'dc': [9.6e-6, -2.7e-6, -9.7e-6, 1.8e-5, -1.6e-5, -2.8e-6, -1.2e-6, -2.1e-6, 1.9e-6],
+        'dd': [-6.7e-8, 2e-7, -1.4e-6],
     },
-    "quantized_centred": {   # σ = 2e-5, centring (5.5) or (5.6)
-        "w0": [1.7e-5, 0.83e-5, -1.4e-5],
-        "dc": [4.5e-6, -9.4e-6, -1.8e-5, 4.9e-6, -5.1e-6, 8.7e-7, -3.8e-7, -1.6e-7, -1.8e-7],
-        "dd": [2.9e-7, -1.4e-7, -1.4e-7],
+    'quantized_centred': {   # σ = 2e-5, centring (5.5) or (5.6)
+        'w0': [1.7e-5, 0.83e-5, -1.4e-5],
+        'dc': [4.5e-6, -9.4e-6, -1.8e-5, 4.9e-6, -5.1e-6, 8.7e-7, -3.8e-7, -1.6e-7, -1.8e-7],
+        'dd': [2.9e-7, -1.4e-7, -1.4e-7],
     },
 }
 
-MODES = ("raw", "centred", "corrected")
-QUADRATURES = ("exact", "trapezoid")
+MODES = ('raw', 'centred', 'corrected')
+QUADRATURES = ('exact', 'trapezoid')
 
 
 # --------------------------------------------------------------------------- error structures
 def tkachenko_D(omega, t=None) -> np.ndarray:
-    """000 §6: ``D = [D_I D_II E3]``, ``D_I = diag ω``, ``D_II = [[ω2,0,ω3],[ω1,ω3,0],[0,ω2,ω1]]``.
+    """
+    000 §6: ``D = [D_I D_II E3]``, ``D_I = diag ω``, ``D_II = [[ω2,0,ω3],[ω1,ω3,0],[0,ω2,ω1]]``.
 
     ``omega`` (..., 3) → (..., 3, 9).  Linear in ω (scale factors, symmetric misalignments)
     plus a constant block (biases), the structure of :meth:`SensorErrorModel.from_tkachenko`.
@@ -193,7 +196,8 @@ def identity_G(t) -> np.ndarray:
 
 @dataclass(frozen=True)
 class ErrorStructure:
-    """The user-chosen ``D(ω, t)`` (3×3m) and ``G(t)`` (3×3n) of (1.2).
+    """
+    The user-chosen ``D(ω, t)`` (3×3m) and ``G(t)`` (3×3n) of (1.2).
 
     ``D_linear``: D is linear in ω plus a constant (true for D_I, D_II, E3); then the increment
     correction ``∫D(ω)c dt = D(θ/h)c·h`` is exact for any rate history.  ``G_constant``: G does
@@ -212,8 +216,8 @@ class ErrorStructure:
 
     @property
     def labels(self) -> list[str]:
-        return (["w0_1", "w0_2", "w0_3"] + [f"c{i + 1}" for i in range(3 * self.m)]
-                + [f"d{i + 1}" for i in range(3 * self.n)])
+        return (['w0_1', 'w0_2', 'w0_3'] + [f'c{i + 1}' for i in range(3 * self.m)]
+                + [f'd{i + 1}' for i in range(3 * self.n)])
 
     def split(self, x):
         x = np.asarray(x, dtype=float)
@@ -225,7 +229,8 @@ TKACHENKO_STRUCTURE = ErrorStructure()
 
 # --------------------------------------------------------------------------- aircraft angles
 def quat_to_aircraft_angles(q) -> np.ndarray:
-    """Inverse of :func:`strapdown_ros.rotation.aircraft_angles_to_quat` (Lurie's aircraft
+    """
+    Inverse of :func:`strapdown_ros.rotation.aircraft_angles_to_quat` (Lurie's aircraft
     angles: yaw φ1 about y, pitch φ2 about the new z, roll φ3 about the new x).
 
     ``C = R_y(φ1)R_z(φ2)R_x(φ3)``: ``C[1,0] = sin φ2``, ``C[0,0] = cos φ1 cos φ2``,
@@ -244,8 +249,10 @@ _GL3 = np.polynomial.legendre.leggauss(3)
 
 
 def psi_matrix(structure: ErrorStructure, t, t0: float, max_step: float = 0.05) -> np.ndarray:
-    """``Ψ(t, t0) = ∫_{t0}^{t} G dt`` (..., 3, 3n).  Exact for constant G; otherwise composite
-    3-point Gauss–Legendre with sub-intervals ≤ max_step (error O(step⁶) per sub-interval)."""
+    """
+    ``Ψ(t, t0) = ∫_{t0}^{t} G dt`` (..., 3, 3n).  Exact for constant G; otherwise composite
+    3-point Gauss–Legendre with sub-intervals ≤ max_step (error O(step⁶) per sub-interval).
+    """
     t = np.asarray(t, dtype=float)
     if structure.G_constant:
         g = np.asarray(structure.G(np.asarray(t0)), dtype=float)
@@ -260,13 +267,14 @@ def psi_matrix(structure: ErrorStructure, t, t0: float, max_step: float = 0.05) 
         mid = 0.5 * (edges[1:] + edges[:-1])
         nodes = mid[:, None] + half[:, None] * x
         g = np.asarray(structure.G(nodes), dtype=float)                  # (k, 3, 3, 3n)
-        out[i] = np.einsum("k,j,kjab->ab", half, wts, g)
+        out[i] = np.einsum('k,j,kjab->ab', half, wts, g)
     return out.reshape(t.shape + (3, 3 * structure.n))
 
 
 # --------------------------------------------------------------------------- reference simulator
 class GyrostabilizerReference:
-    """The attitude reference of 000: a gyrostabilizer whose basis L drifts, read as aircraft angles.
+    """
+    The attitude reference of 000: a gyrostabilizer whose basis L drifts, read as aircraft angles.
 
     * L is aligned with I at ``t_star``; its absolute rate in L axes is ``δω_L = G(t)d``, so
       ``q_I_L(t) = exp(Ψ(t, t*)d)`` — exact for constant G (rotation about a fixed axis),
@@ -314,8 +322,9 @@ class GyrostabilizerReference:
 
 
 # --------------------------------------------------------------------------- computed attitude
-def integrate_attitude(q0, increments, h: float, algorithm: str = "2", epochs: Sequence[int] = ()):
-    """Integrate increments (N, 3) from ``q0`` with :class:`AttitudeIntegrator`.
+def integrate_attitude(q0, increments, h: float, algorithm: str = '2', epochs: Sequence[int] = ()):
+    """
+    Integrate increments (N, 3) from ``q0`` with :class:`AttitudeIntegrator`.
 
     Returns ``q`` (N+1, 4): the attitude at every sample boundary.  At update ends it is the
     integrator's output; inside an update it is the last update's attitude times
@@ -356,7 +365,7 @@ def integrate_attitude(q0, increments, h: float, algorithm: str = "2", epochs: S
     anchors = np.array([anchor_q[k] for k in keys])
     cum = np.vstack([np.zeros(3), np.cumsum(inc, axis=0)])
     b = np.arange(n + 1)
-    a = keys[np.searchsorted(keys, b, side="right") - 1]
+    a = keys[np.searchsorted(keys, b, side='right') - 1]
     q = quat_multiply(anchors[np.searchsorted(keys, a)], rotvec_to_quat(cum[b] - cum[a]))
     q[keys] = anchors
     return quat_normalize(q)
@@ -376,8 +385,9 @@ def _rodrigues_integral(u: np.ndarray, h: float) -> np.ndarray:
 
 
 def theta_quadrature(q, increments, h: float, structure: ErrorStructure = TKACHENKO_STRUCTURE,
-                     method: str = "exact", samples_per_update: int = 2, t0: float = 0.0) -> np.ndarray:
-    """``Θ(t_s) = ∫_{t0}^{t_s} Bᵀ D(ω*, t) dt`` at every sample boundary s (N+1, 3, 3m).
+                     method: str = 'exact', samples_per_update: int = 2, t0: float = 0.0) -> np.ndarray:
+    """
+    ``Θ(t_s) = ∫_{t0}^{t_s} Bᵀ D(ω*, t) dt`` at every sample boundary s (N+1, 3, 3m).
 
     ``method='exact'``: per gyro interval, with ω* = θ/h constant on it,
     ``Bᵀ(t) = Bᵀ(t_{s−1})·exp([ω*×](t − t_{s−1}))`` integrates in closed form — exact for rates
@@ -390,12 +400,12 @@ def theta_quadrature(q, increments, h: float, structure: ErrorStructure = TKACHE
     n = len(inc)
     C = quat_to_dcm(q)                                       # Bᵀ = C_K_E at every boundary
     t_mid = t0 + h * (np.arange(n) + 0.5)
-    if method == "exact":
+    if method == 'exact':
         om = inc / h
         Dm = np.asarray(structure.D(om, t_mid), dtype=float)
         step = C[:-1] @ _rodrigues_integral(om, h) @ Dm
         return np.concatenate([np.zeros((1, 3, 3 * structure.m)), np.cumsum(step, axis=0)])
-    if method != "trapezoid":
+    if method != 'trapezoid':
         raise ValueError(f"unknown quadrature {method!r}; valid: {', '.join(QUADRATURES)}")
     H = samples_per_update
     k = n // H
@@ -414,7 +424,8 @@ def theta_quadrature(q, increments, h: float, structure: ErrorStructure = TKACHE
 
 # --------------------------------------------------------------------------- normal equations (5.8)
 class NormalEquations:
-    """Recursive least squares accumulation (5.8): ``(UᵀU)_s = (UᵀU)_{s−1} + u_sᵀu_s``,
+    """
+    Recursive least squares accumulation (5.8): ``(UᵀU)_s = (UᵀU)_{s−1} + u_sᵀu_s``,
     ``(UᵀZ)_s = (UᵀZ)_{s−1} + u_sᵀz_s`` — one scalar row at a time, no row is stored.
 
     A weighted block (``weight`` = R⁻¹, 3×3) is first whitened with the Cholesky factor of R⁻¹,
@@ -445,9 +456,11 @@ class NormalEquations:
             self.add_row(u_s, z_s)
 
     def solve(self, rcond: float = 1e-13) -> np.ndarray:
-        """Solution of ``UᵀU x = UᵀZ`` with column equilibration (the columns differ in units);
+        """
+        Solution of ``UᵀU x = UᵀZ`` with column equilibration (the columns differ in units);
         minimum-norm (pseudo-inverse) when the matrix is singular — an unobservable problem, which
-        the observability report flags."""
+        the observability report flags.
+        """
         s = np.sqrt(np.maximum(np.diag(self.UtU), 1e-300))
         Ns = self.UtU / np.outer(s, s)
         return np.linalg.lstsq(Ns, self.UtZ / s, rcond=rcond)[0] / s
@@ -460,12 +473,13 @@ class NormalEquations:
 
 # --------------------------------------------------------------------------- equations
 #: Where the coefficients of the first-order equations are evaluated (see the module docstring).
-COEFFICIENTS = ("identity", "printed")
+COEFFICIENTS = ('identity', 'printed')
 
 
 def measurement_rows(p_ref: np.ndarray, theta: np.ndarray, psi: np.ndarray,
                      psi0: np.ndarray | None = None, p_computed: np.ndarray | None = None) -> np.ndarray:
-    """Coefficient block of (2.7)/(5.7) for one epoch: ``[2Φ(p), ΓΘ, ΓΨ]``, Γ = ½(p0E3 − Φ(p)).
+    """
+    Coefficient block of (2.7)/(5.7) for one epoch: ``[2Φ(p), ΓΘ, ΓΨ]``, Γ = ½(p0E3 − Φ(p)).
 
     ``p_ref`` (4,) the reference increment P; ``psi0`` = Ψ(t0, t*) when t* < t0 (adds
     ``−Φ(p)Ψ(t0, t*)`` to the d columns, see the module docstring).
@@ -490,9 +504,11 @@ def measurement_rows(p_ref: np.ndarray, theta: np.ndarray, psi: np.ndarray,
 
 
 def quantization_covariance(p_ref: np.ndarray, quantum: float, angle_noise: float = 0.0) -> np.ndarray:
-    """``R(δz)`` of one equation: ``σ²/48·(E3 − ppᵀ)`` (000 §5, corrected; checked by Monte Carlo
+    """
+    ``R(δz)`` of one equation: ``σ²/48·(E3 − ppᵀ)`` (000 §5, corrected; checked by Monte Carlo
     in the tests) plus a rough isotropic term ``½·angle_noise²·E3`` for white noise of the aircraft angles
-    (half-angle errors of the two epochs; the t0 part, common to all equations, is not modelled)."""
+    (half-angle errors of the two epochs; the t0 part, common to all equations, is not modelled).
+    """
     p = p_ref[1:]
     R = quantum ** 2 / 48.0 * (np.eye(3) - np.outer(p, p))
     if angle_noise > 0:
@@ -554,7 +570,7 @@ def _correct_increments(meas, c, structure: ErrorStructure, h: float, t0: float,
     t_mid = t0 + h * (np.arange(len(meas)) + 0.5)
     th = np.array(meas, dtype=float, copy=True)
     for _ in range(iters):           # contraction |c| ~ 1e-3 per pass
-        new = meas - np.einsum("nij,j->ni", structure.D(th / h, t_mid), c) * h
+        new = meas - np.einsum('nij,j->ni', structure.D(th / h, t_mid), c) * h
         done = np.max(np.abs(new - th)) <= 1e-18
         th = new
         if done:
@@ -563,11 +579,13 @@ def _correct_increments(meas, c, structure: ErrorStructure, h: float, t0: float,
 
 
 def predicted_reference_increments(x, M0, meas, h: float, epochs, structure: ErrorStructure,
-                                   algorithm: str = "2", t0: float = 0.0, t_star: float | None = None):
-    """Exact nonlinear model of P at the epochs for parameters x:
+                                   algorithm: str = '2', t0: float = 0.0, t_star: float | None = None):
+    """
+    Exact nonlinear model of P at the epochs for parameters x:
     ``P̂ = exp(Ψ(t,t*)d)*⊗Λ̂(t)⊗Λ̂(t0)*⊗exp(Ψ(t0,t*)d)`` with Λ̂ integrated from
     ``normalize([1, w0])⊗M(t0)`` with the corrected increments.  Also returns Λ̂ at all
-    boundaries and the corrected increments."""
+    boundaries and the corrected increments.
+    """
     w0, c, d = structure.split(x)
     ts = t0 if t_star is None else t_star
     th = _correct_increments(meas, c, structure, h, t0)
@@ -582,11 +600,12 @@ def predicted_reference_increments(x, M0, meas, h: float, epochs, structure: Err
 
 
 def estimate(meas, h: float, M0, ref_q0, ref_q, epochs, structure: ErrorStructure = TKACHENKO_STRUCTURE,
-             algorithm: str = "2", quadrature: str = "exact", mode: str = "raw", quantum: float = 0.0,
+             algorithm: str = '2', quadrature: str = 'exact', mode: str = 'raw', quantum: float = 0.0,
              iterate: bool = False, weighted: bool = False, t0: float = 0.0, t_star: float | None = None,
              tol: float = 1e-13, max_iter: int = 12, angle_noise: float = 0.0, min_p0: float = 0.05,
-             noise_sigma: float | None = None, coefficients: str = "identity") -> TkachenkoSolution:
-    """Estimate x = [w0, c, d] (000 §2–§5) from gyro increments and reference quaternions.
+             noise_sigma: float | None = None, coefficients: str = 'identity') -> TkachenkoSolution:
+    """
+    Estimate x = [w0, c, d] (000 §2–§5) from gyro increments and reference quaternions.
 
     meas: measured increments θ* (N, 3) on the grid t0 + k·h (quantized or not).
     M0: the computed attitude M(t0) (with its unknown error w0).
@@ -608,15 +627,15 @@ def estimate(meas, h: float, M0, ref_q0, ref_q, epochs, structure: ErrorStructur
         raise ValueError(f"unknown quadrature {quadrature!r}; valid: {', '.join(QUADRATURES)}")
     if coefficients not in COEFFICIENTS:
         raise ValueError(f"unknown coefficients {coefficients!r}; valid: {', '.join(COEFFICIENTS)}")
-    if mode != "raw" and not quantum > 0:
-        raise ValueError(f"mode {mode!r} needs quantum > 0")
+    if mode != 'raw' and not quantum > 0:
+        raise ValueError(f'mode {mode!r} needs quantum > 0')
     if weighted and not (quantum > 0 or angle_noise > 0):
-        raise ValueError("weighted=True needs quantum > 0 or angle_noise > 0 (R(δz) would be 0)")
+        raise ValueError('weighted=True needs quantum > 0 or angle_noise > 0 (R(δz) would be 0)')
     meas = np.asarray(meas, dtype=float)
     epochs = np.asarray(epochs, dtype=int)
     ts = t0 if t_star is None else float(t_star)
     per = get_algorithm(algorithm).samples
-    if mode == "corrected":
+    if mode == 'corrected':
         meas_used, _ = increment_correction(meas, quantum)
     else:
         meas_used = meas
@@ -643,9 +662,9 @@ def estimate(meas, h: float, M0, ref_q0, ref_q, epochs, structure: ErrorStructur
             if not keep[j]:
                 continue
             U = measurement_rows(P[j], Theta[epochs[j]], psi[j], psi0,
-                                 P_hat[j] if coefficients == "identity" else None)
+                                 P_hat[j] if coefficients == 'identity' else None)
             z = P_hat[j, 1:] - P[j, 1:]
-            if mode == "centred":
+            if mode == 'centred':
                 p0j, pj = P[j, 0], P[j, 1:]
                 z = z + 0.25 * quantum * (p0j * np.eye(3) - skew(pj)) @ C_ep[j] @ signs[j]
             W = quantization_weight(P[j], quantum, angle_noise) if weighted else None
@@ -664,10 +683,10 @@ def estimate(meas, h: float, M0, ref_q0, ref_q, epochs, structure: ErrorStructur
         w_ep = np.zeros((len(epochs), 3))
     else:
         # 000 (2.4): Λ ≈ (1 + w(t))∘M(t), w(t) = w0 − ½Θ(t)c, first order, from the unrefined pass
-        w_ep = w0 - 0.5 * np.einsum("nij,j->ni", Theta[epochs], c)
+        w_ep = w0 - 0.5 * np.einsum('nij,j->ni', Theta[epochs], c)
         M_ep = Lam[epochs]
-        if mode == "centred":            # the same model as the centred residual: M ≈ (1 + ¼σBᵀρ*)M*
-            cq = 0.25 * quantum * np.einsum("nij,nj->ni", C_ep, signs)
+        if mode == 'centred':            # the same model as the centred residual: M ≈ (1 + ¼σBᵀρ*)M*
+            cq = 0.25 * quantum * np.einsum('nij,nj->ni', C_ep, signs)
             M_ep = quat_multiply(quat_normalize(np.concatenate([np.ones((len(cq), 1)), cq], 1)), M_ep)
         refined = quat_multiply(quat_normalize(np.concatenate([np.ones((len(w_ep), 1)), w_ep], 1)), M_ep)
     # statistics of the last linearisation (about the final estimate when iterated)
@@ -705,7 +724,8 @@ def error_at_epochs(refined: np.ndarray, truth: np.ndarray) -> np.ndarray:
 # --------------------------------------------------------------------------- observability (§3, §4)
 def rank_test(omegas, attitudes, times, structure: ErrorStructure = TKACHENKO_STRUCTURE,
               rel_tol: float = 1e-9) -> dict:
-    """000 (3.1): rank of the rows ``[Φ(ω_j), D(ω_j, t_j), A(t_j)G(t_j)]`` over the chosen points.
+    """
+    000 (3.1): rank of the rows ``[Φ(ω_j), D(ω_j, t_j), A(t_j)G(t_j)]`` over the chosen points.
 
     ``omegas`` (r, 3) body rates; ``attitudes`` (r, 4) ``Λ(t_j) = q_I_E`` (A = C_E_I);
     full observability ⇔ rank = 3(m + n + 1).  The columns are scaled to unit norm before the
@@ -721,12 +741,13 @@ def rank_test(omegas, attitudes, times, structure: ErrorStructure = TKACHENKO_ST
     scaled = rows / np.where(norms > 0, norms, 1.0)
     sv = np.linalg.svd(scaled, compute_uv=False)
     rank = int(np.sum(sv > rel_tol * sv[0])) if sv.size and sv[0] > 0 else 0
-    return {"rank": rank, "required": structure.size, "observable": rank == structure.size,
-            "singular_values": sv, "rows": rows}
+    return {'rank': rank, 'required': structure.size, 'observable': rank == structure.size,
+            'singular_values': sv, 'rows': rows}
 
 
 def simple_case_test(omegas, attitudes, rel_tol: float = 1e-9) -> dict:
-    """000 §4, m = n = 1, D = G = E3, four points t1..t4.
+    """
+    000 §4, m = n = 1, D = G = E3, four points t1..t4.
 
     * (4.1): rank of ``[Φ(ω_j) − Φ(ω1), A_j − A1]`` (j = 2, 3, 4) must be 6;
     * (4.2) sufficient conditions: the vectors ``ν_j × (ω_j − ω1)`` are independent (no ω ≠ 0
@@ -755,6 +776,6 @@ def simple_case_test(omegas, attitudes, rel_tol: float = 1e-9) -> dict:
         s = np.linalg.svd(m, compute_uv=False)
         return bool(s[0] > 0 and s[-1] > rel_tol * max(s[0], 1e-300) and s[-1] > 1e-14)
 
-    return {"rank_41": rank, "condition_41": rank == 6, "omega_vectors_independent": independent(vw),
-            "v_vectors_independent": independent(vv),
-            "sufficient": independent(vw) and independent(vv)}
+    return {'rank_41': rank, 'condition_41': rank == 6, 'omega_vectors_independent': independent(vw),
+            'v_vectors_independent': independent(vv),
+            'sufficient': independent(vw) and independent(vv)}

@@ -1,4 +1,5 @@
-"""Gyro scale factors, misalignments and biases from a recording: 000 and 002 on real data
+"""
+Gyro scale factors, misalignments and biases from a recording: 000 and 002 on real data
 (Tkachenko 1983; Ilyushenko 2009).
 
 The numerical core of ``calibrate_gyro_bag`` (no ROS imports).  The input is a
@@ -41,25 +42,29 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from strapdown_ros.calibration.pairs import GyroRecord, build_pairs
-from strapdown_ros.calibration.boresight import _axis_alignment
-from strapdown_ros.calibration.integral_method import (_aligned_basis,
-    calibrate_from_measurements, interval_boundaries)
-from strapdown_ros.estimation.observability import ObservabilityReport, analyze_information
-from strapdown_ros.rotation import (dcm_to_quat, quat_conjugate, quat_multiply, quat_normalize,
-    quat_to_dcm, quat_to_rotvec, skew)
-from strapdown_ros.sensors.effects import CameraEffects, GyroEffects
+from strapdown_ros.calibration.boresight import axis_alignment
 from strapdown_ros.calibration.drifting_reference import (ErrorStructure, estimate, identity_G,
-    measurement_rows, predicted_reference_increments, psi_matrix, theta_quadrature, tkachenko_D)
+                                                          measurement_rows,
+                                                          predicted_reference_increments,
+                                                          psi_matrix, theta_quadrature,
+                                                          tkachenko_D)
+from strapdown_ros.calibration.integral_method import (aligned_basis, calibrate_from_measurements,
+                                                       interval_boundaries)
+from strapdown_ros.calibration.pairs import build_pairs, GyroRecord
+from strapdown_ros.estimation.chi_square import chi2_band, FIT_LEVEL
+from strapdown_ros.estimation.observability import analyze_information, ObservabilityReport
+from strapdown_ros.rotation import (dcm_to_quat, quat_conjugate, quat_multiply, quat_normalize,
+                                    quat_to_dcm, quat_to_rotvec, skew)
+from strapdown_ros.sensors.effects import CameraEffects, GyroEffects, MISALIGNMENT_INDEX
 
-__all__ = ["COMMON_LABELS", "DRIFT_LABELS", "ESTIMATED_PARAMETERS", "GyroCalibration", "prepare",
-           "calibrate_integral", "calibrate_tkachenko", "model_parameters", "tkachenko_noise_covariance",
-           "MAX_EQUATIONS"]
+__all__ = ['COMMON_LABELS', 'DRIFT_LABELS', 'ESTIMATED_PARAMETERS', 'GyroCalibration', 'prepare',
+           'calibrate_integral', 'calibrate_tkachenko', 'model_parameters', 'tkachenko_noise_covariance',
+           'MAX_EQUATIONS']
 
-COMMON_LABELS = ("scale_x", "scale_y", "scale_z", "mis_xy", "mis_xz", "mis_yz", "bias_x", "bias_y", "bias_z")
-DRIFT_LABELS = ("drift_x", "drift_y", "drift_z")
+COMMON_LABELS = ('scale_x', 'scale_y', 'scale_z', 'mis_xy', 'mis_xz', 'mis_yz', 'bias_x', 'bias_y', 'bias_z')
+DRIFT_LABELS = ('drift_x', 'drift_y', 'drift_z')
 #: effect parameters this calibration determines (the model's values are replaced, not added to)
-ESTIMATED_PARAMETERS = ("gyro_scale_factor", "gyro_misalignment", "gyro_bias")
+ESTIMATED_PARAMETERS = ('gyro_scale_factor', 'gyro_misalignment', 'gyro_bias')
 #: at most this many equations (fixes, 002 intervals): their noise covariance is a dense matrix
 MAX_EQUATIONS = 1500
 _SYM = ((0, 1), (0, 2), (1, 2))                 # (row, column) of mis_xy, mis_xz, mis_yz
@@ -108,18 +113,19 @@ class GyroCalibration:
 
 def model_parameters(cal: GyroCalibration) -> dict:
     """The estimate as effect parameters of the registry (what sins_node compensates)."""
-    from strapdown_ros.sensors.effects import MISALIGNMENT_INDEX
     M = cal.misalignment_matrix
-    return {"gyro_scale_factor": [float(v) for v in cal.scale],
-            "gyro_misalignment": [float(M[i, j]) for i, j in MISALIGNMENT_INDEX],
-            "gyro_bias": [float(v) for v in cal.bias]}
+    return {'gyro_scale_factor': [float(v) for v in cal.scale],
+            'gyro_misalignment': [float(M[i, j]) for i, j in MISALIGNMENT_INDEX],
+            'gyro_bias': [float(v) for v in cal.bias]}
 
 
 # ----------------------------------------------------------------------------- the data
 @dataclass
 class Prepared:
-    """A recording ready for either method: other known effects compensated, fix epochs on the
-    IMU clock, the initial boresight C (MF ← VF) from the increment axes."""
+    """
+    A recording ready for either method: other known effects compensated, fix epochs on the
+    IMU clock, the initial boresight C (MF ← VF) from the increment axes.
+    """
     stamps: np.ndarray
     rho: np.ndarray
     fix_t: np.ndarray
@@ -132,10 +138,12 @@ class Prepared:
 
 
 def prepare(rec, params: dict) -> Prepared:
-    """Compensate the model's gyro effects *other* than those estimated (bias drift, scale
+    """
+    Compensate the model's gyro effects *other* than those estimated (bias drift, scale
     asymmetry, ...: values that are then kept), shift the fixes by the camera time offset, scale
     their covariance by the camera noise scale, and find the boresight by axis alignment of the
-    increment pairs (the discrepancy workflow's start).  Raises ValueError when no pair exists."""
+    increment pairs (the discrepancy workflow's start).  Raises ValueError when no pair exists.
+    """
     other = dict(params)
     for name in ESTIMATED_PARAMETERS:
         other.pop(name, None)
@@ -147,23 +155,25 @@ def prepare(rec, params: dict) -> Prepared:
     fix_P = cam.covariance(np.asarray(rec.fix_P, dtype=float))
     pairs = build_pairs(GyroRecord(st, rho), fix_t, rec.fix_q, 0.0, rec.gaps)
     if len(pairs) < 2:
-        raise ValueError(f"only {len(pairs)} camera-fix pair(s) covered by gap-free gyro data (need many)")
-    C = _axis_alignment(quat_to_dcm(pairs.dq_imu), quat_to_dcm(pairs.dq_cam))
+        raise ValueError(f'only {len(pairs)} camera-fix pair(s) covered by gap-free gyro data (need many)')
+    C = axis_alignment(quat_to_dcm(pairs.dq_imu), quat_to_dcm(pairs.dq_cam))
     return Prepared(st, rho, fix_t, quat_normalize(rec.fix_q), fix_P, list(rec.gaps), C, len(pairs),
-                    float(params.get("gyro_random_walk", 0.0)))
+                    float(params.get('gyro_random_walk', 0.0)))
 
 
 def _report(info_scaled, labels, sigma_limit, rel_tol=1e-9):
-    """Observability of the scaled information, unobservable combinations named in a
-    parameter-aligned basis."""
+    """
+    Observability of the scaled information, unobservable combinations named in a
+    parameter-aligned basis.
+    """
     rep = analyze_information(info_scaled, labels=labels, rel_tol=rel_tol, sigma_limit=sigma_limit)
     lam, vec = rep.eigenvalues, rep.directions
     bad = (lam <= rel_tol * max(float(lam[-1]), 0.0)) | (rep.predicted_sigma > sigma_limit)
     names = []
     if np.any(bad):
-        for v in _aligned_basis(vec[:, bad]).T:
+        for v in aligned_basis(vec[:, bad]).T:
             v = v * np.sign(v[np.argmax(np.abs(v))])
-            names.append(" ".join(f"{c:+.2f}·{n}" for c, n in zip(v, labels) if abs(c) >= 0.005))
+            names.append(' '.join(f'{c:+.2f}·{n}' for c, n in zip(v, labels) if abs(c) >= 0.005))
     return rep, names
 
 
@@ -175,17 +185,18 @@ def _polar(B):
 
 
 def _judge_fit(extra: dict) -> float:
-    """χ²/dof against its two-sided band (:func:`~strapdown_ros.estimation.chi_square.chi2_band`, level
+    """
+    χ²/dof against its two-sided band (:func:`~strapdown_ros.estimation.chi_square.chi2_band`, level
     FIT_LEVEL): ``fit_consistent``, ``chi2_per_dof_band`` and ``chi2_level`` added to ``extra``.
-    Returns the factor max(1, χ²/dof) by which the published covariance is scaled."""
-    from strapdown_ros.estimation.chi_square import FIT_LEVEL, chi2_band
-    chi2, dof = extra.get("chi2_per_dof"), int(extra.get("dof", 0))
+    Returns the factor max(1, χ²/dof) by which the published covariance is scaled.
+    """
+    chi2, dof = extra.get('chi2_per_dof'), int(extra.get('dof', 0))
     band = chi2_band(dof, FIT_LEVEL)
     ok = chi2 is not None and np.isfinite(chi2) and dof >= 1
-    extra.update({"fit_consistent": bool(band[0] <= chi2 <= band[1]) if ok else None,
-                  "chi2_per_dof_band": list(band), "chi2_level": FIT_LEVEL,
-                  "covariance_scale": float(max(1.0, chi2)) if ok else 1.0})
-    return extra["covariance_scale"]
+    extra.update({'fit_consistent': bool(band[0] <= chi2 <= band[1]) if ok else None,
+                  'chi2_per_dof_band': list(band), 'chi2_level': FIT_LEVEL,
+                  'covariance_scale': float(max(1.0, chi2)) if ok else 1.0})
+    return extra['covariance_scale']
 
 
 def _integral_common(x12):
@@ -194,9 +205,11 @@ def _integral_common(x12):
 
 
 def calibrate_integral(prep: Prepared, interval: float | None = None, sigma_limit: float = 1e-3) -> GyroCalibration:
-    """002 on the recording: consecutive averaging intervals of ``interval`` s (default one
+    """
+    002 on the recording: consecutive averaging intervals of ``interval`` s (default one
     camera step) that span no gyro gap, camera attitudes rotated into gyro axes by the initial
-    boresight, model weighting with the camera covariance and the gyro random walk."""
+    boresight, model weighting with the camera covariance and the gyro random walk.
+    """
     stamps = prep.fix_t
     inside = (stamps > prep.stamps[0]) & (stamps <= prep.stamps[-1])
     t, q, P = stamps[inside], prep.fix_q[inside], prep.fix_P[inside]
@@ -211,15 +224,15 @@ def calibrate_integral(prep: Prepared, interval: float | None = None, sigma_limi
             ok &= ~((t[iv[:, 0]] - h < b) & (a < t[iv[:, 1]] + h))
         iv = iv[ok]
     res = calibrate_from_measurements(prep.stamps, prep.rho, t, q, camera_covariance=P,
-                                      gyro_random_walk=prep.random_walk, intervals=iv, weighting="model",
+                                      gyro_random_walk=prep.random_walk, intervals=iv, weighting='model',
                                       q_body_camera=dcm_to_quat(prep.C), sigma_limit=sigma_limit)
-    extra = {"intervals": int(len(iv)), "chi2_per_dof": float(res.chi2_per_dof), "dof": int(res.dof),
-             "library_message": res.message}
+    extra = {'intervals': int(len(iv)), 'chi2_per_dof': float(res.chi2_per_dof), 'dof': int(res.dof),
+             'library_message': res.message}
     _judge_fit(extra)                         # the library scales its covariance by max(1, χ²/dof)
     labels = COMMON_LABELS
     if not res.observable:
         names = list(res.observability.unobservable)
-        return GyroCalibration("integral", False, res.message, np.full(9, np.nan), np.full((9, 9), np.nan),
+        return GyroCalibration('integral', False, res.message, np.full(9, np.nan), np.full((9, 9), np.nan),
                                labels, res.observability, names, res.rate_scale, extra)
     x12 = res.x
     J = np.zeros((12, 12))
@@ -235,19 +248,21 @@ def calibrate_integral(prep: Prepared, interval: float | None = None, sigma_limi
     info = np.linalg.pinv(cov9 / np.outer(D, D), hermitian=True)
     rep, names = _report(info, labels, sigma_limit)
     if names:                                 # the library's 12 parameters pass, the published nine do not
-        return GyroCalibration("integral", False, rep.message, np.full(9, np.nan), np.full((9, 9), np.nan),
+        return GyroCalibration('integral', False, rep.message, np.full(9, np.nan), np.full((9, 9), np.nan),
                                labels, rep, names, rate, extra)
-    extra["triad_rotation_rad"] = y[9:].tolist()
-    extra["triad_rotation_sigma_rad"] = np.sqrt(np.diag(cov_y[9:, 9:])).tolist()
-    extra["initial_boresight_q_mf_vf"] = dcm_to_quat(prep.C).tolist()
-    return GyroCalibration("integral", True, res.message, y[:9], cov9, labels, rep, [], rate, extra)
+    extra['triad_rotation_rad'] = y[9:].tolist()
+    extra['triad_rotation_sigma_rad'] = np.sqrt(np.diag(cov_y[9:, 9:])).tolist()
+    extra['initial_boresight_q_mf_vf'] = dcm_to_quat(prep.C).tolist()
+    return GyroCalibration('integral', True, res.message, y[:9], cov9, labels, rep, [], rate, extra)
 
 
 # ----------------------------------------------------------------------------- 000
 def _segment(prep: Prepared):
-    """The longest stretch of the gyro grid without a gap, and the fixes inside it (at least two
+    """
+    The longest stretch of the gyro grid without a gap, and the fixes inside it (at least two
     increments from either end), each carried to the nearest gyro boundary with the measured
-    increments (a fraction of one increment: an error of order (gyro error)·h/2)."""
+    increments (a fraction of one increment: an error of order (gyro error)·h/2).
+    """
     st = prep.stamps
     h = float(np.median(np.diff(st)))
     brk = np.nonzero(np.diff(st) > 1.5 * h)[0]
@@ -270,14 +285,16 @@ def _segment(prep: Prepared):
 
 
 def tkachenko_noise_covariance(P_ref, P_hat, cam_q, cam_P, t_rel, random_walk: float) -> np.ndarray:
-    """Covariance (3J × 3J) of the residuals z_j = p̂*_j − p_j of the J equations (epochs 1..J,
+    """
+    Covariance (3J × 3J) of the residuals z_j = p̂*_j − p_j of the J equations (epochs 1..J,
     reference epoch 0 = row 0 of ``cam_q``/``cam_P``; ``P_ref``/``P_hat`` (J, 4)).
 
     A camera fix N_j·exp(ε_j/2) (ε_j in VF axes, covariance ``cam_P``) turns P_j = N_j N_0* into
     exp(e_j/2)·P_j (e_j = C_j ε_j, reference axes): δz_j = −Γ(p_j)e_j, Γ = ½(p0 E3 − Φ(p)); the
     fix at t0 turns it into P_j·exp(−e_0/2): δz_j = +½(p0 E3 + Φ(p_j))e_0, the same e_0 in every
     equation.  The gyro random walk σ rotates P*_j on the left by the accumulated noise in
-    reference axes, covariance σ²·min(t_i, t_j)·E3: δz_j = Γ(p*_j)·n_j."""
+    reference axes, covariance σ²·min(t_i, t_j)·E3: δz_j = Γ(p*_j)·n_j.
+    """
     J = len(P_ref)
     C = quat_to_dcm(cam_q)
     E = C @ cam_P @ np.swapaxes(C, 1, 2)               # e covariances, reference axes
@@ -304,13 +321,15 @@ def _no_drift(t):
 
 
 def _whitened_equations(x, M0, meas, h, epochs, structure, q_b, P_b, random_walk, algorithm):
-    """The equations (2.7) linearised at x ('identity' coefficients, as :func:`estimate`), whitened
-    by :func:`tkachenko_noise_covariance`: (U_w, z_w, equations used)."""
+    """
+    The equations (2.7) linearised at x ('identity' coefficients, as :func:`estimate`), whitened
+    by :func:`tkachenko_noise_covariance`: (U_w, z_w, equations used).
+    """
     P_hat, Lam, th = predicted_reference_increments(x, M0, meas, h, epochs, structure, algorithm)
     P_ref = quat_multiply(q_b[1:], quat_conjugate(q_b[0]))
     P_ref = P_ref * np.where(np.sum(P_ref * P_hat, axis=1) < 0, -1.0, 1.0)[:, None]
     keep = np.abs(P_ref[:, 0]) >= 0.05
-    Theta = theta_quadrature(Lam, th, h, structure, "exact", 1)
+    Theta = theta_quadrature(Lam, th, h, structure, 'exact', 1)
     psi = psi_matrix(structure, h * epochs, 0.0)
     U = np.vstack([measurement_rows(P_ref[j], Theta[epochs[j]], psi[j], None, P_hat[j])
                    for j in np.nonzero(keep)[0]])
@@ -322,17 +341,19 @@ def _whitened_equations(x, M0, meas, h, epochs, structure, q_b, P_b, random_walk
     return np.linalg.solve(L, U / s[:, None]), np.linalg.solve(L, z / s), int(keep.sum())
 
 
-def calibrate_tkachenko(prep: Prepared, drift: bool = False, sigma_limit: float = 1e-3, algorithm: str = "2",
+def calibrate_tkachenko(prep: Prepared, drift: bool = False, sigma_limit: float = 1e-3, algorithm: str = '2',
                         progress=None) -> GyroCalibration:
-    """000 on the recording (module docstring): x = [w0, c, d] with c = 000 §6's nine gyro errors
+    """
+    000 on the recording (module docstring): x = [w0, c, d] with c = 000 §6's nine gyro errors
     and d (``drift``) the reference drift; w0 is a nuisance (the initial attitude error).
     Equations at every fix after the first of the longest gap-free stretch.  Observability is
     judged first, at the nominal point (x = 0): an unobservable motion is refused before any
-    estimation (Gauss–Newton would wander along the unobservable directions)."""
+    estimation (Gauss–Newton would wander along the unobservable directions).
+    """
     say = progress or (lambda s: None)
     g, h, b, q_b, P_b, _ = _segment(prep)
     if len(b) < 2:
-        raise ValueError("fewer than two camera fixes inside the gyro data")
+        raise ValueError('fewer than two camera fixes inside the gyro data')
     if len(b) > MAX_EQUATIONS + 1:            # the dense noise covariance: fixes evenly thinned
         pick = np.unique(np.round(np.linspace(0, len(b) - 1, MAX_EQUATIONS + 1)).astype(int))
         b, q_b, P_b = b[pick], q_b[pick], P_b[pick]
@@ -355,31 +376,31 @@ def calibrate_tkachenko(prep: Prepared, drift: bool = False, sigma_limit: float 
         schur = info[np.ix_(order, order)] - Nwc.T @ np.linalg.pinv(info[:3, :3]) @ Nwc
         return info, _report(D[:, None] * schur * D[None, :], labels, sigma_limit)
 
-    say(f"tkachenko: {len(meas)} increments, {len(epochs)} equations; observability at the nominal point")
+    say(f'tkachenko: {len(meas)} increments, {len(epochs)} equations; observability at the nominal point')
     Uw, zw, used = _whitened_equations(np.zeros(structure.size), *args)
     _, (rep, names) = report(Uw)
-    extra = {"equations": used, "skipped": int(len(epochs) - used), "increments": int(len(meas)),
-             "segment_s": [float(g.stamps[b0]), float(g.stamps[int(b[-1])])]}
+    extra = {'equations': used, 'skipped': int(len(epochs) - used), 'increments': int(len(meas)),
+             'segment_s': [float(g.stamps[b0]), float(g.stamps[int(b[-1])])]}
     if names:
-        return GyroCalibration("tkachenko", False, rep.message, np.full(len(labels), np.nan),
+        return GyroCalibration('tkachenko', False, rep.message, np.full(len(labels), np.nan),
                                np.full((len(labels),) * 2, np.nan), labels, rep, names, rate, extra)
-    say("tkachenko: Gauss–Newton on the full model")
+    say('tkachenko: Gauss–Newton on the full model')
     sol = estimate(meas, h, M0, q_b[0], q_b[1:], epochs, structure, algorithm=algorithm, iterate=True,
                    min_p0=0.05)
     # one generalised least-squares step about the solution, with the recording's noise covariance
-    say("tkachenko: generalised least squares (camera fixes, the fix at t0, gyro random walk)")
+    say('tkachenko: generalised least squares (camera fixes, the fix at t0, gyro random walk)')
     Uw, zw, _ = _whitened_equations(sol.x, *args)
     info, (rep, names) = report(Uw)
     step = np.linalg.lstsq(info, Uw.T @ zw, rcond=1e-14)[0]
     x = sol.x + step
     dof = max(len(zw) - len(x), 1)
     cov_full = np.linalg.pinv(info, hermitian=True)
-    extra.update({"iterations": sol.iterations, "chi2_per_dof": float(np.sum((zw - Uw @ step) ** 2)) / dof,
-                  "dof": int(dof)})
+    extra.update({'iterations': sol.iterations, 'chi2_per_dof': float(np.sum((zw - Uw @ step) ** 2)) / dof,
+                  'dof': int(dof)})
     cov_full = cov_full * _judge_fit(extra)   # as the 002 library: scaled by max(1, χ²/dof)
-    extra.update({"w0": x[:3].tolist(), "w0_sigma": np.sqrt(np.diag(cov_full[:3, :3])).tolist()})
+    extra.update({'w0': x[:3].tolist(), 'w0_sigma': np.sqrt(np.diag(cov_full[:3, :3])).tolist()})
     if names:
-        return GyroCalibration("tkachenko", False, rep.message, np.full(len(labels), np.nan),
+        return GyroCalibration('tkachenko', False, rep.message, np.full(len(labels), np.nan),
                                np.full((len(labels),) * 2, np.nan), labels, rep, names, rate, extra)
-    return GyroCalibration("tkachenko", True, rep.message, x[order], cov_full[np.ix_(order, order)], labels, rep,
+    return GyroCalibration('tkachenko', True, rep.message, x[order], cov_full[np.ix_(order, order)], labels, rep,
                            [], rate, extra)

@@ -1,4 +1,5 @@
-"""Integral method of gyro calibration from star-tracker attitudes (Ilyushenko 2009; paper 002).
+"""
+Integral method of gyro calibration from star-tracker attitudes (Ilyushenko 2009; paper 002).
 
 Sensor model (002, "Модель ДУС")::
 
@@ -117,26 +118,28 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from strapdown_ros.estimation.observability import ObservabilityReport, analyze_information
+from strapdown_ros.estimation.observability import analyze_information, ObservabilityReport
 from strapdown_ros.rotation import (quat_conjugate, quat_multiply, quat_normalize, quat_to_dcm,
-    quat_to_rotvec, skew)
+                                    quat_to_rotvec, skew)
+from strapdown_ros.sensors import SensorErrorModel
 
-__all__ = ["PARAMETER_LABELS", "forward_step", "invert_step", "step_increments", "interval_boundaries",
-           "mean_true_rate", "mean_measured_rate", "camera_rate_covariance", "gyro_rate_covariance",
-           "IntervalMeans", "IntegralResult", "integral_calibration", "calibrate_from_measurements",
-           "design_matrix"]
+__all__ = ['PARAMETER_LABELS', 'forward_step', 'invert_step', 'step_increments', 'interval_boundaries',
+           'mean_true_rate', 'mean_measured_rate', 'camera_rate_covariance', 'gyro_rate_covariance',
+           'IntervalMeans', 'IntegralResult', 'integral_calibration', 'calibrate_from_measurements',
+           'design_matrix']
 
 #: parameter order of x, covariance and sigma: B row by row, then s0
-PARAMETER_LABELS = tuple(f"B{i}{j}" for i in (1, 2, 3) for j in (1, 2, 3)) + ("s0_1", "s0_2", "s0_3")
+PARAMETER_LABELS = tuple(f'B{i}{j}' for i in (1, 2, 3) for j in (1, 2, 3)) + ('s0_1', 's0_2', 's0_3')
 
 ORDERS = (2, 3)
-FORMS = ("paper", "rotvec")
+FORMS = ('paper', 'rotvec')
 
 
 # ------------------------------------------------------------------ quaternion formulas
 def forward_step(a_prev: np.ndarray, V: np.ndarray, V_prev: np.ndarray | None = None, order: int = 2,
                  reverse_cross: bool = False) -> np.ndarray:
-    """002's modified Euler step with norm correction: a_n from a_{n−1} and V_n = ∫w dt.
+    """
+    002's modified Euler step with norm correction: a_n from a_{n−1} and V_n = ∫w dt.
 
     order 2: ``a_{n−1}∘(1 + ½V − ⅛|V|² + ½(1 − |a_{n−1}|²))``;
     order 3: adds ``(1/24)V_n × (V_n − V_{n−1}) − (1/48)|V_n|²V_n`` (needs ``V_prev``).
@@ -151,11 +154,11 @@ def forward_step(a_prev: np.ndarray, V: np.ndarray, V_prev: np.ndarray | None = 
     vec = 0.5 * V
     if order == 3:
         if V_prev is None:
-            raise ValueError("order 3 needs V_prev (the previous increment)")
+            raise ValueError('order 3 needs V_prev (the previous increment)')
         cross = np.cross(V, V - np.asarray(V_prev, dtype=float))
         vec = vec + (-cross if reverse_cross else cross) / 24.0 - v2 * V / 48.0
     elif order != 2:
-        raise ValueError(f"order must be 2 or 3, got {order!r}")
+        raise ValueError(f'order must be 2 or 3, got {order!r}')
     return quat_multiply(a_prev, np.concatenate([scal, vec], axis=-1))
 
 
@@ -168,8 +171,9 @@ def _solve_third_order(b: np.ndarray, c: np.ndarray, p: np.ndarray) -> np.ndarra
 
 
 def invert_step(delta_a: np.ndarray, V_prev: np.ndarray | None = None, order: int = 3,
-                form: str = "paper", norm2_prev=1.0) -> np.ndarray:
-    """V_n = ∫w dt from the relative quaternion Δa_n = a_{n−1}⁻¹∘a_n, vectorised.
+                form: str = 'paper', norm2_prev=1.0) -> np.ndarray:
+    """
+    V_n = ∫w dt from the relative quaternion Δa_n = a_{n−1}⁻¹∘a_n, vectorised.
 
     order 2: 2·vect(Δa).  order 3: the exact inverse of :func:`forward_step` (order 3),
     ``V = (c²b + (p·b)p − c·p×b)/(c(c² + |p|²))`` with b = 24·vect(Δa), c = 12 − ½|V|²,
@@ -179,16 +183,16 @@ def invert_step(delta_a: np.ndarray, V_prev: np.ndarray | None = None, order: in
     """
     dq = np.asarray(delta_a, dtype=float)
     if order not in ORDERS:
-        raise ValueError(f"order must be one of {ORDERS}, got {order!r}")
+        raise ValueError(f'order must be one of {ORDERS}, got {order!r}')
     if form not in FORMS:
-        raise ValueError(f"form must be one of {FORMS}, got {form!r}")
-    V0 = quat_to_rotvec(dq) if form == "rotvec" else 2.0 * dq[..., 1:]
+        raise ValueError(f'form must be one of {FORMS}, got {form!r}')
+    V0 = quat_to_rotvec(dq) if form == 'rotvec' else 2.0 * dq[..., 1:]
     if order == 2:
         return V0
     if V_prev is None:
-        raise ValueError("order 3 needs V_prev (the previous increment)")
+        raise ValueError('order 3 needs V_prev (the previous increment)')
     p = np.broadcast_to(np.asarray(V_prev, dtype=float), V0.shape)
-    if form == "rotvec":
+    if form == 'rotvec':
         return V0 - np.cross(p, V0) / 12.0
     v2 = -8.0 * dq[..., 0] + 12.0 - 4.0 * np.asarray(norm2_prev, dtype=float)
     return _solve_third_order(24.0 * dq[..., 1:], 12.0 - 0.5 * v2, p)
@@ -200,10 +204,11 @@ def _relative_quats(quats: np.ndarray) -> np.ndarray:
     return np.where(dq[:, :1] < 0.0, -dq, dq)                 # shortest rotation per step
 
 
-def step_increments(quats: np.ndarray, order: int = 3, form: str = "paper",
-                    breaks: np.ndarray | None = None, neighbour: str = "previous",
+def step_increments(quats: np.ndarray, order: int = 3, form: str = 'paper',
+                    breaks: np.ndarray | None = None, neighbour: str = 'previous',
                     max_passes: int = 30) -> np.ndarray:
-    """∫w dt over each star-tracker step, (N−1, 3), from N attitudes q_ref_body (scalar-first).
+    """
+    ∫w dt over each star-tracker step, (N−1, 3), from N attitudes q_ref_body (scalar-first).
 
     order 2: V_n = 2·vect(a_{n−1}*∘a_n); order 3: the inverse of 002's third-order formula
     (module docstring).  ``form="rotvec"`` uses log(a_{n−1}*∘a_n) instead of 2·vect and drops
@@ -217,9 +222,9 @@ def step_increments(quats: np.ndarray, order: int = 3, form: str = "paper",
     otherwise).
     """
     if order not in ORDERS:
-        raise ValueError(f"order must be one of {ORDERS}, got {order!r}")
+        raise ValueError(f'order must be one of {ORDERS}, got {order!r}')
     if form not in FORMS:
-        raise ValueError(f"form must be one of {FORMS}, got {form!r}")
+        raise ValueError(f'form must be one of {FORMS}, got {form!r}')
     dq = _relative_quats(quats)
     n = len(dq)
     if n == 0:
@@ -234,7 +239,7 @@ def step_increments(quats: np.ndarray, order: int = 3, form: str = "paper",
     has_next = np.zeros(n, dtype=bool)
     has_next[:-1] = ~brk[1:] & ~brk[:-1]
     use_next = ~has_prev & has_next
-    if neighbour == "adaptive":
+    if neighbour == 'adaptive':
         both = has_prev & has_next
         d_prev = np.full(n, np.inf)
         d_next = np.full(n, np.inf)
@@ -243,7 +248,7 @@ def step_increments(quats: np.ndarray, order: int = 3, form: str = "paper",
         swap = both & (d_next < d_prev)
         use_next |= swap
         has_prev = has_prev & ~swap
-    elif neighbour != "previous":
+    elif neighbour != 'previous':
         raise ValueError(f"neighbour must be 'adaptive' or 'previous', got {neighbour!r}")
 
     def neighbour(V):
@@ -253,7 +258,7 @@ def step_increments(quats: np.ndarray, order: int = 3, form: str = "paper",
         p[:-1][use_next[:-1]] = -V[1:][use_next[:-1]]
         return p
 
-    V = V0 if form == "rotvec" else V0 * (1.0 + 8.0 * (1.0 - dq[:, :1]) / 24.0)   # start: the |V|² term
+    V = V0 if form == 'rotvec' else V0 * (1.0 + 8.0 * (1.0 - dq[:, :1]) / 24.0)   # start: the |V|² term
     for _ in range(max(1, max_passes)):                    # fixed point of the recursion
         V_new = invert_step(dq, neighbour(V), order=3, form=form)   # p = 0 where no neighbour exists
         done = np.max(np.abs(V_new - V)) <= 1e-16 * max(float(np.max(np.abs(V_new))), 1e-300)
@@ -263,7 +268,7 @@ def step_increments(quats: np.ndarray, order: int = 3, form: str = "paper",
     return V
 
 
-def _noise_jacobians(quats: np.ndarray):
+def noise_jacobians(quats: np.ndarray):
     """∂V_n/∂θ_n and ∂V_n/∂θ_{n−1} for right-perturbations θ of the fixes (second-order form)."""
     dq = _relative_quats(quats)
     c = dq[:, 0][:, None, None]
@@ -275,7 +280,8 @@ def _noise_jacobians(quats: np.ndarray):
 # ------------------------------------------------------------------ intervals and means
 def interval_boundaries(stamps: np.ndarray, steps_per_interval: int | None = None,
                         interval_length: float | None = None, gap_factor: float = 3.0) -> np.ndarray:
-    """Consecutive averaging intervals as fix-index pairs (K, 2): interval i spans fixes a..b.
+    """
+    Consecutive averaging intervals as fix-index pairs (K, 2): interval i spans fixes a..b.
 
     Either ``steps_per_interval`` (camera steps per interval) or ``interval_length`` (s; an
     interval ends at the first fix at least that long after its start).  Steps longer than
@@ -285,10 +291,10 @@ def interval_boundaries(stamps: np.ndarray, steps_per_interval: int | None = Non
     if len(stamps) < 2:
         return np.zeros((0, 2), dtype=int)
     if (steps_per_interval is None) == (interval_length is None):
-        raise ValueError("give exactly one of steps_per_interval and interval_length")
+        raise ValueError('give exactly one of steps_per_interval and interval_length')
     dt = np.diff(stamps)
     if np.any(dt <= 0):
-        raise ValueError("camera stamps must be strictly increasing")
+        raise ValueError('camera stamps must be strictly increasing')
     gap = dt > gap_factor * np.median(dt)
     out = []
     a, n = 0, len(stamps)
@@ -310,10 +316,11 @@ def interval_boundaries(stamps: np.ndarray, steps_per_interval: int | None = Non
 
 
 def mean_true_rate(stamps: np.ndarray, quats: np.ndarray, intervals=None, order: int = 3,
-                   form: str = "paper", steps_per_interval: int | None = None,
+                   form: str = 'paper', steps_per_interval: int | None = None,
                    interval_length: float | None = None, gap_factor: float = 3.0,
-                   neighbour: str = "previous"):
-    """Mean true body rate w̄ over averaging intervals, from star-tracker attitudes.
+                   neighbour: str = 'previous'):
+    """
+    Mean true body rate w̄ over averaging intervals, from star-tracker attitudes.
 
     ``intervals``: fix-index pairs (K, 2) (default: :func:`interval_boundaries` with
     ``steps_per_interval`` or ``interval_length``; one step per interval if neither is given).
@@ -334,7 +341,7 @@ def mean_true_rate(stamps: np.ndarray, quats: np.ndarray, intervals=None, order:
     cum = np.vstack([np.zeros((1, 3)), np.cumsum(V, axis=0)])
     t0, t1 = stamps[intervals[:, 0]], stamps[intervals[:, 1]]
     if np.any(t1 <= t0):
-        raise ValueError("every interval needs t1 > t0")
+        raise ValueError('every interval needs t1 > t0')
     w = (cum[intervals[:, 1]] - cum[intervals[:, 0]]) / (t1 - t0)[:, None]
     return t0, t1, w, intervals
 
@@ -343,9 +350,9 @@ def _gyro_nodes(gyro_stamps: np.ndarray, delta_theta: np.ndarray):
     s = np.asarray(gyro_stamps, dtype=float)
     d = np.asarray(delta_theta, dtype=float).reshape(-1, 3)
     if len(s) != len(d) or len(s) < 2:
-        raise ValueError("need at least two gyro increments with one stamp each")
+        raise ValueError('need at least two gyro increments with one stamp each')
     if np.any(np.diff(s) <= 0):
-        raise ValueError("gyro stamps must be strictly increasing")
+        raise ValueError('gyro stamps must be strictly increasing')
     first = s[0] - (s[1] - s[0])              # the first increment covers one period before its stamp
     nodes = np.concatenate([[first], s])
     cum = np.vstack([np.zeros((1, 3)), np.cumsum(d, axis=0)])
@@ -353,8 +360,9 @@ def _gyro_nodes(gyro_stamps: np.ndarray, delta_theta: np.ndarray):
 
 
 def mean_measured_rate(gyro_stamps: np.ndarray, delta_theta: np.ndarray, t0, t1,
-                       interpolation: str = "linear") -> np.ndarray:
-    """s̄ = ∫s dt / T over [t0, t1] from gyro increments (stamp = end of each increment).
+                       interpolation: str = 'linear') -> np.ndarray:
+    """
+    s̄ = ∫s dt / T over [t0, t1] from gyro increments (stamp = end of each increment).
 
     The cumulative angle Θ(t) = Σ Δθ is known exactly at the gyro epochs; at t0, t1 between
     epochs it is interpolated: ``"linear"`` (rate constant within a gyro interval; error
@@ -367,21 +375,21 @@ def mean_measured_rate(gyro_stamps: np.ndarray, delta_theta: np.ndarray, t0, t1,
     t1 = np.atleast_1d(np.asarray(t1, dtype=float))
     tol = 1e-9 * (nodes[-1] - nodes[0])
     if np.any(t0 < nodes[0] - tol) or np.any(t1 > nodes[-1] + tol):
-        raise ValueError("interval outside the span of the gyro data")
+        raise ValueError('interval outside the span of the gyro data')
     return (_cumulative_angle(nodes, cum, t1, interpolation)
             - _cumulative_angle(nodes, cum, t0, interpolation)) / (t1 - t0)[:, None]
 
 
 def _cumulative_angle(nodes, cum, t, interpolation):
     t = np.clip(t, nodes[0], nodes[-1])
-    j = np.clip(np.searchsorted(nodes, t, side="right") - 1, 0, len(nodes) - 2)
+    j = np.clip(np.searchsorted(nodes, t, side='right') - 1, 0, len(nodes) - 2)
     # snap to a node within round-off (camera and gyro epochs often coincide)
     span = nodes[j + 1] - nodes[j]
     x = (t - nodes[j]) / span
     x = np.where(np.abs(x) < 1e-9, 0.0, np.where(np.abs(x - 1) < 1e-9, 1.0, x))
-    if interpolation == "linear" or len(nodes) < 3:
+    if interpolation == 'linear' or len(nodes) < 3:
         return cum[j] + x[:, None] * (cum[j + 1] - cum[j])
-    if interpolation != "quadratic":
+    if interpolation != 'quadratic':
         raise ValueError(f"interpolation must be 'linear' or 'quadratic', got {interpolation!r}")
     # three nodes k, k+1, k+2 around t: prefer the neighbour on the side of t
     k = np.where(x < 0.5, j - 1, j)
@@ -413,11 +421,12 @@ def _camera_covariances(n: int, camera_sigma=None, camera_covariance=None, c_bod
 def camera_rate_covariance(quats: np.ndarray, intervals: np.ndarray, stamps: np.ndarray,
                            camera_sigma=None, camera_covariance=None,
                            c_body_camera: np.ndarray | None = None) -> np.ndarray:
-    """Covariance (3K × 3K) of the errors of the mean true rates w̄ caused by camera noise.
+    """
+    Covariance (3K × 3K) of the errors of the mean true rates w̄ caused by camera noise.
 
     Camera noise: right-perturbations θ_n with covariance ``diag(camera_sigma²)`` (camera
     axes; scalar or (3,)) or ``camera_covariance`` ((3, 3) or (N, 3, 3)); ``c_body_camera``
-    rotates it into body axes.  Linearised through :func:`_noise_jacobians`, exact in the
+    rotates it into body axes.  Linearised through :func:`noise_jacobians`, exact in the
     interval structure: intervals sharing fixes are correlated.
     """
     quats = np.asarray(quats, dtype=float)
@@ -425,7 +434,7 @@ def camera_rate_covariance(quats: np.ndarray, intervals: np.ndarray, stamps: np.
     stamps = np.asarray(stamps, dtype=float)
     N = len(quats)
     P = _camera_covariances(N, camera_sigma, camera_covariance, c_body_camera)
-    Jp, Jm = _noise_jacobians(quats)                       # per step n = 1..N−1 at index n−1
+    Jp, Jm = noise_jacobians(quats)                       # per step n = 1..N−1 at index n−1
     K = len(intervals)
     T = stamps[intervals[:, 1]] - stamps[intervals[:, 0]]
     blocks = []
@@ -444,15 +453,17 @@ def camera_rate_covariance(quats: np.ndarray, intervals: np.ndarray, stamps: np.
             l, h = lo[jj], hi[jj]
             Gi = blocks[i][l - a_all[i]:h - a_all[i] + 1]
             Gj = blocks[j][l - a_all[j]:h - a_all[j] + 1]
-            blk = np.einsum("kab,kbc,kdc->ad", Gi, P[l:h + 1], Gj) / (T[i] * T[j])
+            blk = np.einsum('kab,kbc,kdc->ad', Gi, P[l:h + 1], Gj) / (T[i] * T[j])
             R[3 * i:3 * i + 3, 3 * j:3 * j + 3] = blk
             R[3 * j:3 * j + 3, 3 * i:3 * i + 3] = blk.T
     return R
 
 
 def gyro_rate_covariance(t0: np.ndarray, t1: np.ndarray, random_walk: float) -> np.ndarray:
-    """Covariance (3K × 3K) of the mean measured rates from angle random walk σ_rw (rad/√s):
-    σ_rw²·|overlap(i, j)|/(T_i T_j) per axis (partial gyro intervals ignored)."""
+    """
+    Covariance (3K × 3K) of the mean measured rates from angle random walk σ_rw (rad/√s):
+    σ_rw²·|overlap(i, j)|/(T_i T_j) per axis (partial gyro intervals ignored).
+    """
     t0 = np.asarray(t0, dtype=float)
     t1 = np.asarray(t1, dtype=float)
     ov = np.clip(np.minimum(t1[:, None], t1[None]) - np.maximum(t0[:, None], t0[None]), 0.0, None)
@@ -514,7 +525,6 @@ class IntegralResult:
 
     def to_error_model(self):
         """The estimate as a :class:`~strapdown_ros.sensors.SensorErrorModel` (M = B − I, b = s0)."""
-        from strapdown_ros.sensors import SensorErrorModel
         M = self.M
         return SensorErrorModel(bias=self.s0.copy(), scale_factor=np.diag(M).copy(),
                                 misalignment=M - np.diag(np.diag(M)))
@@ -540,10 +550,12 @@ def design_matrix(w_bar: np.ndarray) -> np.ndarray:
 _AXIS_PARAMS = [np.array([3 * j, 3 * j + 1, 3 * j + 2, 9 + j]) for j in range(3)]
 
 
-def _aligned_basis(V: np.ndarray) -> np.ndarray:
-    """Orthonormal basis of span(V) (12 × m) aligned greedily with the parameter axes: each
+def aligned_basis(V: np.ndarray) -> np.ndarray:
+    """
+    Orthonormal basis of span(V) (12 × m) aligned greedily with the parameter axes: each
     vector is the normalised projection of the parameter that the remaining subspace holds
-    best, so a wholly unobservable parameter comes out as itself (e.g. ``+1.00·B12``)."""
+    best, so a wholly unobservable parameter comes out as itself (e.g. ``+1.00·B12``).
+    """
     rest = V.copy()
     out = []
     for _ in range(V.shape[1]):
@@ -560,14 +572,15 @@ def _aligned_basis(V: np.ndarray) -> np.ndarray:
 
 def _describe(v: np.ndarray) -> str:
     v = v * np.sign(v[np.argmax(np.abs(v))])
-    terms = [f"{c:+.2f}·{n}" for c, n in zip(v, PARAMETER_LABELS) if abs(c) >= 0.005]
-    return " ".join(terms) if terms else "0"
+    terms = [f'{c:+.2f}·{n}' for c, n in zip(v, PARAMETER_LABELS) if abs(c) >= 0.005]
+    return ' '.join(terms) if terms else '0'
 
 
-def integral_calibration(data: IntervalMeans, weighting: str = "auto", inflate: bool = True,
+def integral_calibration(data: IntervalMeans, weighting: str = 'auto', inflate: bool = True,
                          sigma_limit: float = 1e-2, rel_tol: float = 1e-9,
                          B_nominal: np.ndarray | None = None) -> IntegralResult:
-    """Solve 002's system B·w̄_i + s0 = s̄_i over K ≥ 4 intervals by least squares.
+    """
+    Solve 002's system B·w̄_i + s0 = s̄_i over K ≥ 4 intervals by least squares.
 
     weighting:
       ``"residual"``: per axis j, A = [w̄ᵀ 1] (K × 4), unweighted LS, covariance σ_j²(AᵀA)⁻¹
@@ -585,11 +598,11 @@ def integral_calibration(data: IntervalMeans, weighting: str = "auto", inflate: 
     s = np.asarray(data.s_bar, dtype=float).reshape(-1, 3)
     K = len(w)
     has_model = data.camera_covariance is not None or data.gyro_covariance is not None
-    if weighting == "auto":
-        weighting = "model" if has_model else "residual"
-    if weighting not in ("residual", "pooled", "model"):
+    if weighting == 'auto':
+        weighting = 'model' if has_model else 'residual'
+    if weighting not in ('residual', 'pooled', 'model'):
         raise ValueError(f"weighting must be 'auto', 'residual', 'pooled' or 'model', got {weighting!r}")
-    if weighting == "model" and not has_model:
+    if weighting == 'model' and not has_model:
         raise ValueError("weighting='model' needs the camera or gyro covariance of the interval means")
     Bn = np.eye(3) if B_nominal is None else np.asarray(B_nominal, dtype=float)
     x_nom = np.concatenate([Bn.ravel(), np.zeros(3)])
@@ -603,11 +616,11 @@ def integral_calibration(data: IntervalMeans, weighting: str = "auto", inflate: 
         nan12 = np.full(12, np.nan)
         rep = analyze_information(np.zeros((12, 12)), labels=PARAMETER_LABELS)
         return IntegralResult(False, msg, Bn.copy(), np.zeros(3), np.full((12, 12), np.nan), nan12,
-                              weighting, np.full((K, 3), np.nan), float("nan"), float("nan"), 0, data, rep,
+                              weighting, np.full((K, 3), np.nan), float('nan'), float('nan'), 0, data, rep,
                               rate_scale=rate_scale)
 
     if K < 4:
-        return nan_result(f"{K} interval(s): 002 needs at least 4")
+        return nan_result(f'{K} interval(s): 002 needs at least 4')
 
     A = np.hstack([w, np.ones((K, 1))])
     AtA = A.T @ A
@@ -618,7 +631,7 @@ def integral_calibration(data: IntervalMeans, weighting: str = "auto", inflate: 
         rss[j] = r @ r
     var_res = None
     if K > 4:
-        var_res = rss / (K - 4) if weighting != "pooled" else np.full(3, rss.sum() / (3 * K - 12))
+        var_res = rss / (K - 4) if weighting != 'pooled' else np.full(3, rss.sum() / (3 * K - 12))
         floor = (1e-15 * max(float(np.max(np.abs(s))), 1e-300)) ** 2     # noise-free data
         var_res = np.maximum(var_res, floor)
     # --- whitened system for the chosen weighting
@@ -641,11 +654,11 @@ def integral_calibration(data: IntervalMeans, weighting: str = "auto", inflate: 
         info_model, g_model = Hs.T @ X[:, :12], Hs.T @ X[:, 12]
         info_model = 0.5 * (info_model + info_model.T)
         yRy_model = float(ys @ X[:, 12])
-    if weighting == "model":
+    if weighting == 'model':
         info, g, yRy = info_model, g_model, yRy_model
     else:
         if var_res is None:
-            return nan_result(f"{K} intervals: the residual weighting needs more than 4 (no residual "
+            return nan_result(f'{K} intervals: the residual weighting needs more than 4 (no residual '
                               f"degrees of freedom); use weighting='model' with the noise known")
         sd = np.tile(np.sqrt(var_res), K)
         Hw, yw = H / sd[:, None], y / sd
@@ -661,7 +674,7 @@ def integral_calibration(data: IntervalMeans, weighting: str = "auto", inflate: 
     chi2_sum = max(yRy - 2.0 * float(dx @ g) + float(dx @ info @ dx), 0.0)   # weighted RSS
     dof = 3 * K - int(np.sum(~bad))
     cov = D[:, None] * Pg * D[None, :]
-    if weighting != "model":
+    if weighting != 'model':
         cov_res = cov.copy()
     elif var_res is not None:                               # 002's unweighted σ²(AᵀA)⁻¹, for comparison
         cov_res = np.zeros((12, 12))
@@ -671,13 +684,13 @@ def integral_calibration(data: IntervalMeans, weighting: str = "auto", inflate: 
     else:
         cov_res = None
     cov_model = None
-    if weighting == "model":
-        chi2 = chi2_sum / dof if dof > 0 else float("nan")
+    if weighting == 'model':
+        chi2 = chi2_sum / dof if dof > 0 else float('nan')
         cov_model = cov.copy()
         if inflate and dof > 0:
             cov = cov * max(1.0, chi2)
     else:
-        chi2 = float("nan")
+        chi2 = float('nan')
         if info_model is not None:
             cov_model = np.linalg.pinv(info_model)
     x = x_nom + dx
@@ -689,12 +702,12 @@ def integral_calibration(data: IntervalMeans, weighting: str = "auto", inflate: 
     unobs_params = []
     if np.any(bad):
         # name the unobservable subspace in a parameter-aligned basis (eigh mixes degenerate directions)
-        basis = _aligned_basis(vec[:, bad])
+        basis = aligned_basis(vec[:, bad])
         rep.unobservable = [_describe(v) for v in basis.T]
-        rep.message = "not observable: " + "; ".join(rep.unobservable) + \
-            (f" (weakly observable: {'; '.join(rep.weak)})" if rep.weak else "")
+        rep.message = 'not observable: ' + '; '.join(rep.unobservable) + \
+            (f" (weakly observable: {'; '.join(rep.weak)})" if rep.weak else '')
     if np.any(bad) or rep.weak:
-        rep.message += f" [s0 in units of the RMS mean rate {rate_scale:.3g} rad/s]"
+        rep.message += f' [s0 in units of the RMS mean rate {rate_scale:.3g} rad/s]'
         Pu = vec[:, bad] @ vec[:, bad].T
         unobs_params = [PARAMETER_LABELS[i] for i in range(12) if Pu[i, i] > 0.99]
     return IntegralResult(
@@ -707,13 +720,14 @@ def integral_calibration(data: IntervalMeans, weighting: str = "auto", inflate: 
 # ------------------------------------------------------------------ the whole chain
 def calibrate_from_measurements(gyro_stamps: np.ndarray, delta_theta: np.ndarray, camera_stamps: np.ndarray,
                                 camera_quats: np.ndarray, camera_sigma=None, *, camera_covariance=None,
-                                gyro_random_walk: float = 0.0, order: int = 3, form: str = "paper",
+                                gyro_random_walk: float = 0.0, order: int = 3, form: str = 'paper',
                                 steps_per_interval: int | None = None, interval_length: float | None = None,
-                                intervals: np.ndarray | None = None, weighting: str = "auto",
-                                interpolation: str = "linear", q_body_camera: np.ndarray | None = None,
+                                intervals: np.ndarray | None = None, weighting: str = 'auto',
+                                interpolation: str = 'linear', q_body_camera: np.ndarray | None = None,
                                 profile=None, inflate: bool = True, sigma_limit: float = 1e-2,
-                                neighbour: str = "previous") -> IntegralResult:
-    """002 end to end: gyro increments + star-tracker fixes → B, s0 with covariance and observability.
+                                neighbour: str = 'previous') -> IntegralResult:
+    """
+    002 end to end: gyro increments + star-tracker fixes → B, s0 with covariance and observability.
 
     gyro_stamps (n,), delta_theta (n, 3): integrating-gyro output, stamped at the end of each
     increment.  camera_stamps (N,), camera_quats (N, 4): fixes q_ref_camera (scalar-first);
@@ -733,7 +747,7 @@ def calibrate_from_measurements(gyro_stamps: np.ndarray, delta_theta: np.ndarray
     if camera_covariance is not None and np.ndim(camera_covariance) == 3:
         camera_covariance = np.asarray(camera_covariance)[keep]
     if intervals is not None and not np.all(keep):
-        raise ValueError("explicit intervals need every camera fix inside the gyro data span")
+        raise ValueError('explicit intervals need every camera fix inside the gyro data span')
     cs, cq = cs[keep], cq[keep]
     C_bc = None
     if q_body_camera is not None:
@@ -756,11 +770,11 @@ def calibrate_from_measurements(gyro_stamps: np.ndarray, delta_theta: np.ndarray
     if profile is not None and len(t0):
         data.w_bar_exact = profile.delta_theta(t0, t1) / (t1 - t0)[:, None]
         err = w - data.w_bar_exact
-        extra["w_bar_error_rms"] = float(np.sqrt(np.mean(err ** 2)))
-        extra["w_bar_error_max"] = float(np.max(np.abs(err)))
+        extra['w_bar_error_rms'] = float(np.sqrt(np.mean(err ** 2)))
+        extra['w_bar_error_max'] = float(np.max(np.abs(err)))
     res = integral_calibration(data, weighting=weighting, inflate=inflate, sigma_limit=sigma_limit)
     dq = _relative_quats(cq) if len(cq) > 1 else np.zeros((0, 4))
-    extra["max_step_rotation"] = float(np.max(np.linalg.norm(quat_to_rotvec(dq), axis=1))) if len(dq) else 0.0
-    extra["order"], extra["form"], extra["neighbour"] = order, form, neighbour
+    extra['max_step_rotation'] = float(np.max(np.linalg.norm(quat_to_rotvec(dq), axis=1))) if len(dq) else 0.0
+    extra['order'], extra['form'], extra['neighbour'] = order, form, neighbour
     res.extra.update(extra)
     return res

@@ -1,4 +1,5 @@
-"""Increment pairs over a whole recording, vectorised: attitude increments from the gyro and the
+"""
+Increment pairs over a whole recording, vectorised: attitude increments from the gyro and the
 camera between consecutive fixes, their residual (004 eq. 5–6) and the signatures of the effects.
 
 This is the same computation as :func:`strapdown_ros.calibration.boresight.gyro_increment` (one-sample
@@ -19,11 +20,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from strapdown_ros.calibration.boresight import r_partial
+from strapdown_ros.calibration.boresight import increment_residuals, r_partial
 from strapdown_ros.rotation import (quat_conjugate, quat_cumprod, quat_multiply, quat_normalize,
-    quat_to_dcm)
+                                    quat_to_dcm, rotvec_to_quat)
 
-__all__ = ["GyroRecord", "PairSet", "build_pairs", "pair_residuals", "pair_integral", "ANGLE_LIMIT"]
+__all__ = ['GyroRecord', 'PairSet', 'build_pairs', 'pair_residuals', 'pair_integral', 'ANGLE_LIMIT']
 
 ANGLE_LIMIT = np.pi * 0.999          # increments beyond this are not formed (ambiguous rotation)
 
@@ -51,7 +52,7 @@ class GyroRecord:
 
     def locate(self, tau: np.ndarray):
         """Interval index k (t_{k−1} < τ ≤ t_k) and fraction x of each epoch; valid mask."""
-        k = np.searchsorted(self.stamps, tau, side="left")
+        k = np.searchsorted(self.stamps, tau, side='left')
         valid = (k >= 2) & (k < len(self.stamps))
         k = np.clip(k, 2, len(self.stamps) - 1)
         T = self.stamps[k] - self.stamps[k - 1]
@@ -64,22 +65,23 @@ class GyroRecord:
         return quat_normalize(quat_multiply(self.attitude[k - 1], part))
 
     def rate_at(self, k, window: float = 0.025) -> np.ndarray:
-        """Body rate around interval k: the mean over ±``window`` s (at least ±2 increments), so
-        that one quantised or noisy increment does not stand for the rate."""
+        """
+        Body rate around interval k: the mean over ±``window`` s (at least ±2 increments), so
+        that one quantised or noisy increment does not stand for the rate.
+        """
         k = np.asarray(k)
         n = len(self.stamps)
         T = float(np.median(self.period)) if len(self.period) else 1.0
         w = max(2, int(round(window / T)))
         lo = np.clip(k - w, 1, n - 1)
         hi = np.clip(k + w, 1, n - 1)
-        if not hasattr(self, "_cum"):
+        if not hasattr(self, '_cum'):
             self._cum = np.vstack([np.zeros((1, 3)), np.cumsum(self.rho, axis=0)])
         total = self._cum[hi + 1] - self._cum[lo]
         return total / (self.stamps[hi] - self.stamps[lo - 1])[:, None]
 
 
 def _exp(rho):
-    from strapdown_ros.rotation import rotvec_to_quat
     return rotvec_to_quat(rho)
 
 
@@ -106,13 +108,15 @@ class PairSet:
         """(N−1,) True where pair n+1 starts at the fix where pair n ends (they share it)."""
         return self.fix_start[1:] == self.fix_end[:-1]
 
-    def subset(self, mask) -> "PairSet":
+    def subset(self, mask) -> 'PairSet':
         return PairSet(*(getattr(self, f)[mask] for f in self.__dataclass_fields__))
 
 
 def build_pairs(gyro: GyroRecord, fix_stamps, fix_q, time_offset: float = 0.0, gaps=()) -> PairSet:
-    """Pairs (n−1, n) of consecutive fixes whose epochs the gyro covers (one increment before the
-    first epoch's interval, as 004's polynomial needs) and whose span holds no gyro gap."""
+    """
+    Pairs (n−1, n) of consecutive fixes whose epochs the gyro covers (one increment before the
+    first epoch's interval, as 004's polynomial needs) and whose span holds no gyro gap.
+    """
     tau = np.asarray(fix_stamps, dtype=float) - float(time_offset)
     k, x, valid = gyro.locate(tau)
     att = gyro.attitude_at(k, x)
@@ -132,15 +136,16 @@ def build_pairs(gyro: GyroRecord, fix_stamps, fix_q, time_offset: float = 0.0, g
 
 def pair_residuals(C: np.ndarray, pairs: PairSet) -> np.ndarray:
     """f_n of 004 (5)–(6), VF axes: the skew part of ΔS_avuᵀ Cᵀ ΔS_imu C (N, 3)."""
-    from strapdown_ros.calibration.boresight import _residuals
-    return _residuals(C, quat_to_dcm(pairs.dq_imu), quat_to_dcm(pairs.dq_cam))
+    return increment_residuals(C, quat_to_dcm(pairs.dq_imu), quat_to_dcm(pairs.dq_cam))
 
 
 def pair_integral(gyro: GyroRecord, pairs: PairSet, jacobian, chunk: int = 100_000) -> np.ndarray:
-    """ε-signature per pair, MF axes at τ_e: ``C_eᵀ Σ_k w_k C_k D_k`` → (N, 3, p).
+    """
+    ε-signature per pair, MF axes at τ_e: ``C_eᵀ Σ_k w_k C_k D_k`` → (N, 3, p).
 
     ``jacobian(rho, T, t_mid_index_slice)`` returns D_k (m, 3, p) for a slice of intervals; it is
-    called chunk by chunk, so memory stays bounded on recordings of hours."""
+    called chunk by chunk, so memory stays bounded on recordings of hours.
+    """
     n = len(gyro.stamps)
     Ks, Ke = pairs.k_start, pairs.k_end
     # running sums Z[k] = Σ_{i ≤ k} C_i D_i, read only where pairs need them
@@ -153,7 +158,7 @@ def pair_integral(gyro: GyroRecord, pairs: PairSet, jacobian, chunk: int = 100_0
         sl = np.arange(lo, hi)
         D = jacobian(gyro.rho[sl], gyro.stamps[sl] - gyro.stamps[sl - 1], sl)
         Cm = gyro.dcm[sl]
-        Y = np.einsum("kij,kjp->kip", Cm, D)
+        Y = np.einsum('kij,kjp->kip', Cm, D)
         Z = np.cumsum(Y, axis=0)
         if carry is not None:
             Z += carry
@@ -172,5 +177,5 @@ def pair_integral(gyro: GyroRecord, pairs: PairSet, jacobian, chunk: int = 100_0
     Ye = np.array([Y_at[int(i)] for i in Ke])
     total = Ze - Zs + (1.0 - pairs.x_start)[:, None, None] * Ys + pairs.x_end[:, None, None] * Ye
     Cend = quat_to_dcm(gyro.attitude_at(Ke, pairs.x_end))
-    return np.einsum("nji,njp->nip", Cend, total)
+    return np.einsum('nji,njp->nip', Cend, total)
 

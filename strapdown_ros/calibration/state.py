@@ -1,4 +1,5 @@
-"""The calibrator's state file: identity, lock, atomic writes (``calibrator_node`` ``state_file``).
+"""
+The calibrator's state file: identity, lock, atomic writes (``calibrator_node`` ``state_file``).
 
 No ROS imports; the node only calls :class:`CalibratorStateFile`.  The rules:
 
@@ -23,6 +24,7 @@ No ROS imports; the node only calls :class:`CalibratorStateFile`.  The rules:
 """
 from __future__ import annotations
 
+import fcntl
 import json
 import os
 
@@ -30,19 +32,19 @@ import numpy as np
 
 from strapdown_ros.calibration.boresight import IncrementPair
 
-__all__ = ["CalibratorStateFile", "StateFileError", "state_identity", "OPERATIONAL",
-           "STATE_VERSION"]
+__all__ = ['CalibratorStateFile', 'StateFileError', 'state_identity', 'OPERATIONAL',
+           'STATE_VERSION']
 
 STATE_VERSION = 2
 #: parameters that do not change the pairs or their estimate (not part of the identity)
-OPERATIONAL = frozenset({"qos_depth", "diagnostics_period", "state_file", "weighted", "max_sigma",
-                         "max_chi2_per_dof", "max_pairs", "frame_mismatch", "max_stamp_jump",
-                         "resync_count", "gyro_max_rate", "min_rotation_deg", "initial_boresight"})
-_SHAPES = {"t_start": (), "t_end": (), "dq_imu": (4,), "dq_cam": (4,), "cov_imu": (3, 3),
-           "cov_cam": (3, 3), "imu_sensitivity": (3, 12), "cov_imu_white": (3, 3),
-           "cov_fix_start": (3, 3), "cov_fix_end": (3, 3)}
+OPERATIONAL = frozenset({'qos_depth', 'diagnostics_period', 'state_file', 'weighted', 'max_sigma',
+                         'max_chi2_per_dof', 'max_pairs', 'frame_mismatch', 'max_stamp_jump',
+                         'resync_count', 'gyro_max_rate', 'min_rotation_deg', 'initial_boresight'})
+_SHAPES = {'t_start': (), 't_end': (), 'dq_imu': (4,), 'dq_cam': (4,), 'cov_imu': (3, 3),
+           'cov_cam': (3, 3), 'imu_sensitivity': (3, 12), 'cov_imu_white': (3, 3),
+           'cov_fix_start': (3, 3), 'cov_fix_end': (3, 3)}
 _PAIR_FIELDS = tuple(_SHAPES)
-_REQUIRED = ("t_start", "t_end", "dq_imu", "dq_cam", "cov_imu", "cov_cam")
+_REQUIRED = ('t_start', 't_end', 'dq_imu', 'dq_cam', 'cov_imu', 'cov_cam')
 
 
 class StateFileError(RuntimeError):
@@ -67,26 +69,29 @@ def _plain(v):
 
 
 def state_identity(params: dict, streams: dict) -> dict:
-    """The identity of a calibrator state: the parameters that define the estimate (all but
-    :data:`OPERATIONAL`) and the streams (e.g. ``{"gyro": "/robot/imu/delta_theta", ...}``)."""
-    return {"parameters": {k: _plain(v) for k, v in sorted(params.items())
+    """
+    The identity of a calibrator state: the parameters that define the estimate (all but
+    :data:`OPERATIONAL`) and the streams (e.g. ``{"gyro": "/robot/imu/delta_theta", ...}``).
+    """
+    return {'parameters': {k: _plain(v) for k, v in sorted(params.items())
                            if k not in OPERATIONAL},
-            "streams": {k: str(v) for k, v in sorted(streams.items())}}
+            'streams': {k: str(v) for k, v in sorted(streams.items())}}
 
 
 def _differences(stored: dict, current: dict) -> list[str]:
     out = []
-    for part in ("parameters", "streams"):
+    for part in ('parameters', 'streams'):
         a, b = stored.get(part, {}), current.get(part, {})
         for k in sorted(set(a) | set(b)):
-            if a.get(k, "<absent>") != b.get(k, "<absent>"):
-                was, now = str(a.get(k, "<absent>"))[:60], str(b.get(k, "<absent>"))[:60]
-                out.append(f"{k} {was} → {now}")
+            if a.get(k, '<absent>') != b.get(k, '<absent>'):
+                was, now = str(a.get(k, '<absent>'))[:60], str(b.get(k, '<absent>'))[:60]
+                out.append(f'{k} {was} → {now}')
     return out
 
 
 class CalibratorStateFile:
-    """One node's state file.  :meth:`open` first (path checks, lock, stale temporary removed),
+    """
+    One node's state file.  :meth:`open` first (path checks, lock, stale temporary removed),
     then :meth:`load` once and :meth:`save` after every new pair; :meth:`close` releases the
     lock.
 
@@ -104,37 +109,38 @@ class CalibratorStateFile:
         self._lock_fd: int | None = None
         d, name = os.path.split(os.path.abspath(self.path))
         self.directory = d
-        self.tmp = os.path.join(d, f".{name}.tmp")
-        self.lock_path = self.path + ".lock"
+        self.tmp = os.path.join(d, f'.{name}.tmp')
+        self.lock_path = self.path + '.lock'
 
     # --- start-up ---------------------------------------------------------------------------
     def open(self) -> None:
-        """Check the path, take the lock, remove a temporary left by a killed writer.  Raises
-        StateFileError ('path' or 'locked'); nothing is changed on the file system then."""
-        import fcntl
+        """
+        Check the path, take the lock, remove a temporary left by a killed writer.  Raises
+        StateFileError ('path' or 'locked'); nothing is changed on the file system then.
+        """
 
         p = self.path
         if p.endswith(os.sep) or (os.altsep and p.endswith(os.altsep)):
-            raise StateFileError("path", f"state_file {p!r} ends with a path separator: "
-                                         "it must name a file")
+            raise StateFileError('path', f'state_file {p!r} ends with a path separator: '
+                                         'it must name a file')
         if os.path.isdir(p):
-            raise StateFileError("path", f"state_file {p!r} is a directory: it must name a file")
+            raise StateFileError('path', f'state_file {p!r} is a directory: it must name a file')
         if os.path.exists(p) and not os.path.isfile(p):
-            raise StateFileError("path", f"state_file {p!r} is not a regular file")
+            raise StateFileError('path', f'state_file {p!r} is not a regular file')
         if not os.path.isdir(self.directory):
-            raise StateFileError("path", f"the directory of state_file {p!r} does not exist")
+            raise StateFileError('path', f'the directory of state_file {p!r} does not exist')
         try:
             fd = os.open(self.lock_path, os.O_RDWR | os.O_CREAT, 0o644)
         except OSError as exc:
-            raise StateFileError("path", f"cannot create the lock file {self.lock_path}: "
-                                         f"{exc.strerror}") from None
+            raise StateFileError('path', f'cannot create the lock file {self.lock_path}: '
+                                         f'{exc.strerror}') from None
         try:
             fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except OSError:
             os.close(fd)
-            raise StateFileError("locked", f"state_file {p} is in use by another process "
-                                           f"(lock {self.lock_path} held): running without "
-                                           "persistence") from None
+            raise StateFileError('locked', f'state_file {p} is in use by another process '
+                                           f'(lock {self.lock_path} held): running without '
+                                           'persistence') from None
         self._lock_fd = fd
         try:
             os.unlink(self.tmp)                 # a writer killed between write and rename
@@ -144,7 +150,6 @@ class CalibratorStateFile:
     def close(self) -> None:
         """Release the lock (the lock file stays: removing it would race a waiting node)."""
         if self._lock_fd is not None:
-            import fcntl
             try:
                 fcntl.flock(self._lock_fd, fcntl.LOCK_UN)
             finally:
@@ -153,86 +158,90 @@ class CalibratorStateFile:
 
     # --- contents ---------------------------------------------------------------------------
     def load(self, cal) -> int | None:
-        """Restore pairs and last fix into ``cal``; returns the time origin (ns), or None when
+        """
+        Restore pairs and last fix into ``cal``; returns the time origin (ns), or None when
         there is no file.  Raises StateFileError: 'identity' (the file is left as it is) or
-        'corrupt' (unreadable or malformed); nothing is restored then."""
+        'corrupt' (unreadable or malformed); nothing is restored then.
+        """
         if not os.path.exists(self.path):
             return None
         try:
             with np.load(self.path, allow_pickle=False) as z:
                 data = {k: z[k] for k in z.files}
         except Exception as exc:                   # noqa: BLE001 - any unreadable file is reported
-            why = f"unreadable ({type(exc).__name__}: {str(exc)[:120]})"
-            raise StateFileError("corrupt", why) from None
-        if int(data.get("version", -1)) != STATE_VERSION:
-            raise StateFileError("identity", f"state version {data.get('version')} is not "
-                                             f"{STATE_VERSION} (written by another version of "
-                                             "the package)")
+            why = f'unreadable ({type(exc).__name__}: {str(exc)[:120]})'
+            raise StateFileError('corrupt', why) from None
+        if int(data.get('version', -1)) != STATE_VERSION:
+            raise StateFileError('identity', f"state version {data.get('version')} is not "
+                                             f'{STATE_VERSION} (written by another version of '
+                                             'the package)')
         try:
-            stored = json.loads(str(data["identity"]))
+            stored = json.loads(str(data['identity']))
         except Exception:                          # noqa: BLE001
-            raise StateFileError("corrupt", "identity record unreadable") from None
+            raise StateFileError('corrupt', 'identity record unreadable') from None
         diff = _differences(stored, self.identity)
         if diff:
-            more = f"; and {len(diff) - 8} more" if len(diff) > 8 else ""
-            raise StateFileError("identity", "written for another calibration: "
-                                 + "; ".join(diff[:8]) + more)
+            more = f'; and {len(diff) - 8} more' if len(diff) > 8 else ''
+            raise StateFileError('identity', 'written for another calibration: '
+                                 + '; '.join(diff[:8]) + more)
         try:
-            n = int(data["n_pairs"])
+            n = int(data['n_pairs'])
             fields = {}
             for f, shape in _SHAPES.items():
-                a = data.get("pair_" + f)
+                a = data.get('pair_' + f)
                 if a is None:
                     if f in _REQUIRED and n:
-                        raise ValueError(f"missing pair field {f}")
+                        raise ValueError(f'missing pair field {f}')
                     continue
                 if a.shape != (n,) + shape or not np.all(np.isfinite(a)):
-                    raise ValueError(f"pair field {f} has shape {a.shape}, expected "
-                                     f"{(n,) + shape}, or non-finite values")
+                    raise ValueError(f'pair field {f} has shape {a.shape}, expected '
+                                     f'{(n,) + shape}, or non-finite values')
                 fields[f] = a
-            origin = int(data["origin_ns"])
+            origin = int(data['origin_ns'])
         except (KeyError, ValueError, TypeError) as exc:
-            raise StateFileError("corrupt", str(exc)) from None
+            raise StateFileError('corrupt', str(exc)) from None
         cal.pairs = [IncrementPair(**{f: (float(a[i]) if a.ndim == 1 else a[i].copy())
                                       for f, a in fields.items()}) for i in range(n)]
         cal.add_pair_keys(cal.pairs)
-        if "last_fix_t" in data:
-            cal.restore_last_fix(float(data["last_fix_t"]), data["last_fix_q"].astype(float),
-                                 data["last_fix_P"].astype(float))
+        if 'last_fix_t' in data:
+            cal.restore_last_fix(float(data['last_fix_t']), data['last_fix_q'].astype(float),
+                                 data['last_fix_P'].astype(float))
         return origin
 
     def move_aside(self) -> str:
         """Rename an unreadable regular file to ``<state_file>.corrupt[.k]``; returns the name."""
         if not os.path.isfile(self.path):
-            return ""
-        k, aside = 0, f"{self.path}.corrupt"
+            return ''
+        k, aside = 0, f'{self.path}.corrupt'
         while os.path.exists(aside):
             k += 1
-            aside = f"{self.path}.corrupt.{k}"
+            aside = f'{self.path}.corrupt.{k}'
         os.replace(self.path, aside)
         return aside
 
     def save(self, cal, origin_ns: int) -> None:
-        """Write pairs, last fix, estimate and identity atomically (module docstring).  OSError
-        when the file system refuses."""
-        arrays = {"version": np.array(STATE_VERSION),
-                  "origin_ns": np.array(int(origin_ns), dtype=np.int64),
-                  "n_pairs": np.array(len(cal.pairs)),
-                  "identity": np.array(json.dumps(self.identity))}
+        """
+        Write pairs, last fix, estimate and identity atomically (module docstring).  OSError
+        when the file system refuses.
+        """
+        arrays = {'version': np.array(STATE_VERSION),
+                  'origin_ns': np.array(int(origin_ns), dtype=np.int64),
+                  'n_pairs': np.array(len(cal.pairs)),
+                  'identity': np.array(json.dumps(self.identity))}
         for f in _PAIR_FIELDS:
             vals = [getattr(p, f) for p in cal.pairs]
             if vals and all(v is not None for v in vals):
-                arrays["pair_" + f] = np.array(vals, dtype=float)
+                arrays['pair_' + f] = np.array(vals, dtype=float)
         last = cal.last_fix
         if last is not None:
-            arrays["last_fix_t"], arrays["last_fix_q"], arrays["last_fix_P"] = (np.array(last[0]),
+            arrays['last_fix_t'], arrays['last_fix_q'], arrays['last_fix_P'] = (np.array(last[0]),
                                                                              np.asarray(last[1]),
                                                                              np.asarray(last[2]))
         sol = cal.solution
         if sol is not None and sol.observable and sol.beta is not None:
-            arrays["beta"] = np.asarray(sol.beta, dtype=float)
+            arrays['beta'] = np.asarray(sol.beta, dtype=float)
         try:
-            with open(self.tmp, "wb") as fh:
+            with open(self.tmp, 'wb') as fh:
                 np.savez(fh, **arrays)
                 fh.flush()
                 os.fsync(fh.fileno())

@@ -1,4 +1,5 @@
-"""Streaming boresight calibrator: gyro increments + camera fixes → increment pairs → estimate.
+"""
+Streaming boresight calibrator: gyro increments + camera fixes → increment pairs → estimate.
 
 Used by ``calibrator_node`` (live) and ``calibrate_bag`` (offline) alike, so both give the same
 answer on the same data.  No ROS imports.
@@ -25,18 +26,19 @@ from collections import deque
 
 import numpy as np
 
-from strapdown_ros.calibration.boresight import (BoresightSolution, IncrementPair,
-    angle_consistency, camera_increment, gyro_increment, solve_boresight)
-from strapdown_ros.streams.buffers import StampedBuffer
+from strapdown_ros.calibration.boresight import (angle_consistency, BoresightSolution,
+                                                 camera_increment, gyro_increment, IncrementPair,
+                                                 solve_boresight)
 from strapdown_ros.sensors import SensorSigmas
 from strapdown_ros.sensors.covariance import get_covariance_model
 from strapdown_ros.sensors.effects import CameraEffects, GyroEffects
+from strapdown_ros.streams.buffers import StampedBuffer
 
-__all__ = ["BoresightCalibrator"]
+__all__ = ['BoresightCalibrator']
 
 
 class BoresightCalibrator:
-    def __init__(self, gyro: SensorSigmas | None = None, covariance_model: str = "random_constant",
+    def __init__(self, gyro: SensorSigmas | None = None, covariance_model: str = 'random_constant',
                  weighted: bool = True, initial_boresight=(0.0, 0.0, 0.0), min_rotation: float = np.radians(0.5),
                  max_sigma: float = 1e-3, max_pairs: int = 0, effects: GyroEffects | None = None,
                  camera: CameraEffects | None = None, outlier_gate: float = 6.0, max_buffer: int | None = None):
@@ -65,13 +67,13 @@ class BoresightCalibrator:
         self.solution: BoresightSolution | None = None
 
     @classmethod
-    def from_params(cls, p: dict) -> "BoresightCalibrator":
+    def from_params(cls, p: dict) -> 'BoresightCalibrator':
         """The calibrator of ``calibrator_node`` parameters (node and ``calibrate_bag`` alike)."""
-        return cls(gyro=SensorSigmas.from_params(p, "gyro"), covariance_model=p["covariance_model"],
-                   weighted=bool(p["weighted"]), initial_boresight=np.asarray(p["initial_boresight"], dtype=float),
-                   min_rotation=np.radians(float(p["min_rotation_deg"])), max_sigma=float(p["max_sigma"]),
-                   max_pairs=int(p["max_pairs"]), effects=GyroEffects(p), camera=CameraEffects(p),
-                   outlier_gate=float(p["outlier_gate"]))
+        return cls(gyro=SensorSigmas.from_params(p, 'gyro'), covariance_model=p['covariance_model'],
+                   weighted=bool(p['weighted']), initial_boresight=np.asarray(p['initial_boresight'], dtype=float),
+                   min_rotation=np.radians(float(p['min_rotation_deg'])), max_sigma=float(p['max_sigma']),
+                   max_pairs=int(p['max_pairs']), effects=GyroEffects(p), camera=CameraEffects(p),
+                   outlier_gate=float(p['outlier_gate']))
 
     # --- input -----------------------------------------------------------------------------
     def add_gyro(self, stamps, delta_theta) -> int:
@@ -88,8 +90,10 @@ class BoresightCalibrator:
         return self._form_pairs()
 
     def add_gyro_sample(self, stamp: float, delta_theta) -> int:
-        """One increment (the live path of calibrator_node): the same as :meth:`add_gyro` with
-        one sample, without its array conversions."""
+        """
+        One increment (the live path of calibrator_node): the same as :meth:`add_gyro` with
+        one sample, without its array conversions.
+        """
         if self.effects is not None:
             return self.add_gyro([stamp], [delta_theta])
         self._last_stamp = stamp
@@ -97,8 +101,10 @@ class BoresightCalibrator:
         return self._form_pairs() if self._cams else 0
 
     def restart_gyro(self) -> None:
-        """The gyro stamps start a new time base (a confirmed stamp jump): the buffered increments
-        and the fix that would start the next pair are dropped, since no pair may span the jump."""
+        """
+        The gyro stamps start a new time base (a confirmed stamp jump): the buffered increments
+        and the fix that would start the next pair are dropped, since no pair may span the jump.
+        """
         self._gyro.clear()
         self._last_stamp = None
         self._last_fix = None
@@ -114,8 +120,10 @@ class BoresightCalibrator:
     MAX_BUFFER = 1_000_000
 
     def add_camera(self, stamp: float, q_gcrs_vf, covariance) -> int:
-        """Append one camera fix; returns the number of new pairs.  With camera effects the fix
-        is placed at its IMU-clock epoch and its covariance corrected."""
+        """
+        Append one camera fix; returns the number of new pairs.  With camera effects the fix
+        is placed at its IMU-clock epoch and its covariance corrected.
+        """
         P = np.asarray(covariance, dtype=float)
         if self.camera is not None:
             stamp, P = self.camera.epoch(float(stamp)), self.camera.covariance(P)
@@ -128,7 +136,7 @@ class BoresightCalibrator:
         stamp, q, P = fix_b
         t = self._gyro.stamps
         lo = max(0, int(np.searchsorted(t, t0)) - 2)
-        hi = int(np.searchsorted(t, stamp, side="right")) + 1
+        hi = int(np.searchsorted(t, stamp, side='right')) + 1
         r = gyro_increment(t[lo:hi], self._gyro.values[lo:hi], t0, stamp, self.gyro,
                            self.covariance_model, sensitivity=self.gyro is not None)
         if r is None:
@@ -143,13 +151,15 @@ class BoresightCalibrator:
     ROBUST_MIN_PAIRS = 5
 
     def angle_scale(self) -> float:
-        """Robust scale s of the normalised angle residuals r = (φ_avu − φ_imu)/σ of the latest
+        """
+        Robust scale s of the normalised angle residuals r = (φ_avu − φ_imu)/σ of the latest
         pairs: 1.4826 · median |r − median r| (the MAD, σ for Gaussian r), at least 1.  With the
         stated noise right, s ≈ 1; with the camera σ stated 100× too small, s ≈ 100.  inf (no
-        gate) with fewer than ``ROBUST_MIN_PAIRS`` pairs."""
+        gate) with fewer than ``ROBUST_MIN_PAIRS`` pairs.
+        """
         r = np.asarray(self._angle_ratios, dtype=float)
         if len(r) < self.ROBUST_MIN_PAIRS:
-            return float("inf")
+            return float('inf')
         return max(1.0, 1.4826 * float(np.median(np.abs(r - np.median(r)))))
 
     def _inconsistent(self, pair, scale: float = 1.0) -> bool:
@@ -199,8 +209,10 @@ class BoresightCalibrator:
         return int(round(pair.t_start * 1e9)), int(round(pair.t_end * 1e9))
 
     def add_pair_keys(self, pairs) -> None:
-        """Hold the keys of ``pairs`` (restored from a state file): pairs with the same stamps
-        are not formed again."""
+        """
+        Hold the keys of ``pairs`` (restored from a state file): pairs with the same stamps
+        are not formed again.
+        """
         self._pair_keys.update(self.pair_key(pr) for pr in pairs)
 
     @property
@@ -215,7 +227,8 @@ class BoresightCalibrator:
         self._prev_fix = None
 
     def _drop_outlier_fix(self, fix) -> int:
-        """The outlier rule: fix n (= _last_fix) is an outlier when both its pairs, (n−1, n) and
+        """
+        The outlier rule: fix n (= _last_fix) is an outlier when both its pairs, (n−1, n) and
         (n, n+1), disagree in rotation angle by more than the gate while the pair (n−1, n+1)
         that skips it agrees.  The gate is ``outlier_gate`` × max(1, s) × the stated σ of the
         angle difference, s the robust scale of the normalised angle residuals of the latest
@@ -223,7 +236,8 @@ class BoresightCalibrator:
         ``outlier_gate`` σ; when the stated σ is too small by a factor s, the gate widens by s,
         so a wrong σ never turns good fixes into outliers while a fix off by far more than the
         actual scatter is still gated.  Then both pairs give way to the skip pair (the newest
-        pair in the list).  Returns 1 when fix n was dropped, else 0."""
+        pair in the list).  Returns 1 when fix n was dropped, else 0.
+        """
         if self.outlier_gate <= 0 or self._prev_fix is None or len(self.pairs) < 2:
             return 0
         a, b = self.pairs[-2], self.pairs[-1]
@@ -247,11 +261,13 @@ class BoresightCalibrator:
 
     # --- estimate ------------------------------------------------------------------------------
     def solve(self) -> BoresightSolution:
-        """Estimate from all pairs.  Warm start: once a converged solution exists, Gauss–Newton
-        starts from it (the closed-form axis alignment is only needed the first time)."""
+        """
+        Estimate from all pairs.  Warm start: once a converged solution exists, Gauss–Newton
+        starts from it (the closed-form axis alignment is only needed the first time).
+        """
         prev = self.solution
         if prev is not None and prev.observable and prev.converged:
-            sol = solve_boresight(self.pairs, beta0=prev.beta, init="given", **self._solver_options())
+            sol = solve_boresight(self.pairs, beta0=prev.beta, init='given', **self._solver_options())
             if not (sol.observable and sol.converged):
                 sol = self._cold()
         else:
@@ -260,18 +276,20 @@ class BoresightCalibrator:
         return sol
 
     def _cold(self) -> BoresightSolution:
-        return solve_boresight(self.pairs, beta0=self.initial_boresight, init="axes", **self._solver_options())
+        return solve_boresight(self.pairs, beta0=self.initial_boresight, init='axes', **self._solver_options())
 
     def _solver_options(self) -> dict:
-        """Weighting: unit when ``weighted`` is off; with the random-constant gyro model the
+        """
+        Weighting: unit when ``weighted`` is off; with the random-constant gyro model the
         correlated solution (shared fixes, common gyro constants) up to CORRELATED_MAX_PAIRS pairs
-        and pairwise weights beyond; with 004's white model pairwise weights."""
+        and pairwise weights beyond; with 004's white model pairwise weights.
+        """
         if not self.weighted:
-            weighting = "unit"
+            weighting = 'unit'
         elif get_covariance_model(self.covariance_model).constants and self.gyro is not None:
-            weighting = "auto"
+            weighting = 'auto'
         else:
-            weighting = "pairwise"
+            weighting = 'pairwise'
         return dict(weighting=weighting, gyro=self.gyro, max_sigma=self.max_sigma, min_rotation=self.min_rotation,
                     common_rotation_sigma=self.common_rotation_sigma)
 

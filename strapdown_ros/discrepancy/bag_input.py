@@ -16,48 +16,52 @@ from strapdown_ros.recording import BagError, input_lines, input_summary, read_b
 __all__ = ['load_recording', 'recording_lines']
 
 
-def load_recording(bag: str, model: dict, namespace: str = "", **options):
-    """The recording as the core's :class:`Recording`, with what reading it found (drops, gaps,
+def load_recording(bag: str, model: dict, namespace: str = '', **options):
+    """
+    The recording as the core's :class:`Recording`, with what reading it found (drops, gaps,
     topics, the gyro rate from the stamps, the input formats).  ``options``: the input options
     of :func:`strapdown_ros.recording.read_bag` (``gyro_topic``, ``reference_topic``,
-    ``reference_frames``, ``rate_rule``).  Raises BagError / ValueError."""
-    sig = (model["camera_sigma_xy"], model["camera_sigma_xy"], model["camera_sigma_z"])
-    data = read_bag(bag, namespace, True, sig, float(model["gyro_max_rate"]), float(model["max_stamp_jump"]),
-                    int(model["resync_count"]), **options)
-    g, c = data["gyro"], data["camera"]
+    ``reference_frames``, ``rate_rule``).  Raises BagError / ValueError.
+    """
+    sig = (model['camera_sigma_xy'], model['camera_sigma_xy'], model['camera_sigma_z'])
+    data = read_bag(bag, namespace, True, sig, float(model['gyro_max_rate']), float(model['max_stamp_jump']),
+                    int(model['resync_count']), **options)
+    g, c = data['gyro'], data['camera']
     if len(g.stamps) < 10:
         raise BagError(f"{bag}: {len(g.stamps)} usable gyro increments on {data['gyro_topic']}")
     origin = min(g.stamps[0], c.stamps[0]) if c.stamps else g.stamps[0]
     t_g = (np.asarray(g.stamps, dtype=np.int64) - origin) * 1e-9
     t_c = (np.asarray(c.stamps, dtype=np.int64) - origin) * 1e-9
     gaps = [((a - origin) * 1e-9, (b - origin) * 1e-9) for a, b in g.gaps]
-    period = data["gyro_period_s"]
+    period = data['gyro_period_s']
     q = np.array([v[0] for v in c.values]).reshape(-1, 4)
     P = np.array([v[1] for v in c.values]).reshape(-1, 3, 3)
     rec = Recording(t_g, np.asarray(g.values, dtype=float), t_c, q, P, gaps)
-    info = {"gyro_topic": data["gyro_topic"], "camera_topic": data["camera_topic"],
-            "camera_covariance_from_bag": data["camera_covariance_from_bag"],
-            "gyro_messages": len(g.stamps), "camera_fixes": len(c.stamps),
-            "gyro_rate_from_stamps_hz": 1.0 / period if 0 < period < np.inf else None,
-            "gyro_gaps": len(gaps), "gyro_missing": g.missing,
-            "stamp_resyncs": {"gyro": g.resyncs, "camera": c.resyncs},
-            "dropped": {"gyro": dict(g.dropped), "camera": {**c.dropped, **{
-                k: v for k, v in data["camera_fixes"].items() if k in ("zero_quaternion", "bad_covariance")}}},
-            "stamp_origin_ns": int(origin), "duration_s": float(t_g[-1] - t_g[0])}
+    info = {'gyro_topic': data['gyro_topic'], 'camera_topic': data['camera_topic'],
+            'camera_covariance_from_bag': data['camera_covariance_from_bag'],
+            'gyro_messages': len(g.stamps), 'camera_fixes': len(c.stamps),
+            'gyro_rate_from_stamps_hz': 1.0 / period if 0 < period < np.inf else None,
+            'gyro_gaps': len(gaps), 'gyro_missing': g.missing,
+            'stamp_resyncs': {'gyro': g.resyncs, 'camera': c.resyncs},
+            'dropped': {'gyro': dict(g.dropped), 'camera': {**c.dropped, **{
+                k: v for k, v in data['camera_fixes'].items() if k in ('zero_quaternion', 'bad_covariance')}}},
+            'stamp_origin_ns': int(origin), 'duration_s': float(t_g[-1] - t_g[0])}
     info.update(input_summary(data))
-    if data["rate_samples"]:
-        info["dropped"]["gyro_rate_samples"] = dict(data["rate_samples"]["dropped"])
+    if data['rate_samples']:
+        info['dropped']['gyro_rate_samples'] = dict(data['rate_samples']['dropped'])
     return rec, info
 
 
-def recording_lines(prog: str, bag, info: dict, counts: str = "") -> list[str]:
-    """The first lines of a tool's summary: what :func:`load_recording` found (``counts``: more
-    figures for the first line, e.g. "448 increment pairs, ")."""
+def recording_lines(prog: str, bag, info: dict, counts: str = '') -> list[str]:
+    """
+    The first lines of a tool's summary: what :func:`load_recording` found (``counts``: more
+    figures for the first line, e.g. "448 increment pairs, ").
+    """
     lines = [f"{prog}: {bag}: {info['gyro_messages']} Δθ at {info['gyro_rate_from_stamps_hz']:.6g} Hz "
              f"(from the stamps), {info['camera_fixes']} fixes, {counts}{info['duration_s']:.1f} s"]
-    if info["gyro_gaps"]:
+    if info['gyro_gaps']:
         lines.append(f"  gyro gaps: {info['gyro_gaps']} ({info['gyro_missing']} increments missing); pairs "
-                     f"spanning them are not used")
-    if "gyro_input" in info:
+                     f'spanning them are not used')
+    if 'gyro_input' in info:
         lines += input_lines(info)
     return lines

@@ -1,4 +1,5 @@
-"""Residual diagnostics of the discrepancy workflow: the verdict tests, a description of what
+"""
+Residual diagnostics of the discrepancy workflow: the verdict tests, a description of what
 structure remains, and the Allan deviation of the gyro on static segments (measured against the
 model simulated on the same segment).  No ROS imports.
 
@@ -13,10 +14,15 @@ each at α/3 (Bonferroni over the three; the workflow passes its α/2 for the te
 """
 from __future__ import annotations
 
+import itertools
+
 import numpy as np
 
-__all__ = ["verdict_tests", "autocorrelation", "describe_remaining", "static_segments",
-           "allan_comparison", "axis_swap_check", "white_rate_variance", "SWAP_RATIO"]
+from strapdown_ros.sensors.effects import GyroEffects
+from strapdown_ros.sensors.model import PulseQuantizer
+
+__all__ = ['verdict_tests', 'autocorrelation', 'describe_remaining', 'static_segments',
+           'allan_comparison', 'axis_swap_check', 'white_rate_variance', 'SWAP_RATIO']
 
 #: a signed permutation of the gyro axes "explains" the residual when the axis-alignment RMS with
 #: it is below this fraction of the RMS with the axes as wired
@@ -49,20 +55,22 @@ def verdict_tests(whitened: np.ndarray, pairs: int, alpha: float, lags: int) -> 
     p_lb = float(chi2.sf(Q, 3 * h))
     zmax = float(np.max(np.abs(w))) if n else 0.0
     p_out = float(-np.expm1(n * np.log1p(-2.0 * norm.sf(zmax)))) if n else 1.0
-    tests = {"nis": {"statistic": s, "dof": n, "p_value": p_nis, "per_dof": s / max(n, 1)},
-             "whiteness": {"statistic": Q, "dof": 3 * h, "lags": h, "p_value": p_lb},
-             "outliers": {"statistic": zmax, "n": n, "p_value": p_out}}
-    tests["level"] = level
-    tests["passed"] = bool(all(t["p_value"] >= level for t in (tests["nis"], tests["whiteness"], tests["outliers"])))
-    tests["failed"] = [k for k in ("nis", "whiteness", "outliers") if tests[k]["p_value"] < level]
+    tests = {'nis': {'statistic': s, 'dof': n, 'p_value': p_nis, 'per_dof': s / max(n, 1)},
+             'whiteness': {'statistic': Q, 'dof': 3 * h, 'lags': h, 'p_value': p_lb},
+             'outliers': {'statistic': zmax, 'n': n, 'p_value': p_out}}
+    tests['level'] = level
+    tests['passed'] = bool(all(t['p_value'] >= level for t in (tests['nis'], tests['whiteness'], tests['outliers'])))
+    tests['failed'] = [k for k in ('nis', 'whiteness', 'outliers') if tests[k]['p_value'] < level]
     return tests
 
 
 def describe_remaining(series: dict, lin=None) -> dict:
-    """What structure is left: dominant period and lag, correlation with rate and with
-    accumulated angle, where the largest residuals are."""
-    t = np.asarray(series["t"], dtype=float)
-    w = np.asarray(series["whitened"], dtype=float)
+    """
+    What structure is left: dominant period and lag, correlation with rate and with
+    accumulated angle, where the largest residuals are.
+    """
+    t = np.asarray(series['t'], dtype=float)
+    w = np.asarray(series['whitened'], dtype=float)
     out: dict = {}
     # dominant period: Lomb–Scargle over the three components
     if len(t) >= 8 and t[-1] > t[0]:
@@ -76,28 +84,29 @@ def describe_remaining(series: dict, lin=None) -> dict:
             if np.any(y):
                 power += lombscargle(t, y, 2 * np.pi / periods, normalize=True)
         i = int(np.argmax(power))
-        out["dominant_period_s"] = float(periods[i])
-        out["dominant_period_power"] = float(power[i] / 3.0)
+        out['dominant_period_s'] = float(periods[i])
+        out['dominant_period_power'] = float(power[i] / 3.0)
     lags = max(1, min(20, len(t) // 4))
     ac = np.mean([autocorrelation(w[:, c], lags) for c in range(3)], axis=0)
     k = int(np.argmax(np.abs(ac)))
-    out["dominant_lag_pairs"] = k + 1
-    out["dominant_lag_autocorrelation"] = float(ac[k])
+    out['dominant_lag_pairs'] = k + 1
+    out['dominant_lag_autocorrelation'] = float(ac[k])
     mag = np.linalg.norm(w, axis=1)
-    for key, name in (("rate", "correlation_with_rate"), ("accumulated_angle", "correlation_with_accumulated_angle"),
-                      ("phi_cam", "correlation_with_rotation_angle")):
+    for key, name in (('rate', 'correlation_with_rate'), ('accumulated_angle', 'correlation_with_accumulated_angle'),
+                      ('phi_cam', 'correlation_with_rotation_angle')):
         x = np.asarray(series.get(key, []), dtype=float)
         if len(x) == len(mag) and np.std(x) > 0 and np.std(mag) > 0:
             out[name] = float(np.corrcoef(x, mag ** 2)[0, 1])
     big = np.argsort(mag)[::-1][:5]
-    out["largest_whitened_at_s"] = [float(t[i]) for i in big]
-    out["largest_whitened"] = [float(mag[i]) for i in big]
+    out['largest_whitened_at_s'] = [float(t[i]) for i in big]
+    out['largest_whitened'] = [float(mag[i]) for i in big]
     return out
 
 
 # ----------------------------------------------------------------------------- Allan deviation
 def axis_swap_check(rotvec_imu: np.ndarray, rotvec_cam: np.ndarray) -> dict:
-    """Would a wiring fault of the gyro (axes swapped or a sign reversed) explain the residual?
+    """
+    Would a wiring fault of the gyro (axes swapped or a sign reversed) explain the residual?
 
     Re-fits the closed-form axis alignment (Wahba/SVD, a proper rotation C: min Σ|C·P·u − v|²)
     of the gyro pair increments u, their axes mapped by each of the 47 non-identity signed
@@ -120,7 +129,6 @@ def axis_swap_check(rotvec_imu: np.ndarray, rotvec_cam: np.ndarray) -> dict:
         ``rms_best_rad``, ``ratio``}; when it explains,
         ``candidate_explanations`` = ["gyro axis swap/sign"].
     """
-    import itertools
 
     u = np.asarray(rotvec_imu, dtype=float)
     v = np.asarray(rotvec_cam, dtype=float)
@@ -146,29 +154,32 @@ def axis_swap_check(rotvec_imu: np.ndarray, rotvec_cam: np.ndarray) -> dict:
     best, best_P = max(ties, key=lambda t: (np.trace(t[1]), -t[0]))
     ratio = best / wired if wired > 0 else 1.0
     explains = bool(ratio < SWAP_RATIO)
-    names = "xyz"
-    words = ", ".join(f"{names[i]} ← {'+' if best_P[i].sum() > 0 else '−'}"
-                      f"{names[int(np.argmax(np.abs(best_P[i])))]}" for i in range(3))
-    out = {"gyro_axis_swap_sign": {"explains": explains, "permutation": best_P.tolist(),
-                                   "mapping": words, "rms_as_wired_rad": wired,
-                                   "rms_best_rad": best, "ratio": ratio}}
+    names = 'xyz'
+    words = ', '.join(f"{names[i]} ← {'+' if best_P[i].sum() > 0 else '−'}"
+                      f'{names[int(np.argmax(np.abs(best_P[i])))]}' for i in range(3))
+    out = {'gyro_axis_swap_sign': {'explains': explains, 'permutation': best_P.tolist(),
+                                   'mapping': words, 'rms_as_wired_rad': wired,
+                                   'rms_best_rad': best, 'ratio': ratio}}
     if explains:
-        out["candidate_explanations"] = ["gyro axis swap/sign"]
+        out['candidate_explanations'] = ['gyro axis swap/sign']
     return out
 
 
 # ----------------------------------------------------------------------------- Allan deviation
 def white_rate_variance(params: dict, period: float) -> float:
-    """Variance of one increment (rad²) of the model's white rate noise: the random walk
-    N²·T plus the quantization remainder's σ_q²/6 (the MA(1) of the carried remainder)."""
-    rw, q = float(params.get("gyro_random_walk", 0.0)), float(params.get("gyro_quantum", 0.0))
+    """
+    Variance of one increment (rad²) of the model's white rate noise: the random walk
+    N²·T plus the quantization remainder's σ_q²/6 (the MA(1) of the carried remainder).
+    """
+    rw, q = float(params.get('gyro_random_walk', 0.0)), float(params.get('gyro_quantum', 0.0))
     return rw ** 2 * period + q ** 2 / 6.0
 
 
 def static_segments(stamps: np.ndarray, delta_theta: np.ndarray, params: dict | None = None,
                     min_duration: float = 15.0, window: float = 1.0, alpha: float = 1e-3,
                     info: dict | None = None) -> list[tuple[int, int]]:
-    """Index ranges [i, j) where the rate is constant within the noise, whatever its mean (a
+    """
+    Index ranges [i, j) where the rate is constant within the noise, whatever its mean (a
     gyro bias of any size, Earth rate): rest on a bench, or a constant-rate turn.
 
     Windows of ``window`` seconds: the sample variance of the increments in a window, its mean
@@ -217,8 +228,8 @@ def static_segments(stamps: np.ndarray, delta_theta: np.ndarray, params: dict | 
     floor = var.min(axis=0) / (chi2.ppf(1.0 / max(m, 2), nu) / nu)
     ref = np.maximum(model_var, floor)
     if info is not None:
-        info["reference_variance_rad2"] = ref.tolist()
-        info["reference"] = "model" if np.all(model_var >= floor) else "data"
+        info['reference_variance_rad2'] = ref.tolist()
+        info['reference'] = 'model' if np.all(model_var >= floor) else 'data'
     bound = ref * chi2.isf(alpha, nu) / nu
     still = np.all(var <= bound, axis=1)
     # the same constant rate in consecutive windows: their means agree within √(2·ref/n)
@@ -244,20 +255,20 @@ def static_segments(stamps: np.ndarray, delta_theta: np.ndarray, params: dict | 
 
 def _adev(rate: np.ndarray, fs: float, taus: np.ndarray):
     import allantools
-    t2, ad, _, _ = allantools.oadev(rate, rate=fs, data_type="freq", taus=taus)
+    t2, ad, _, _ = allantools.oadev(rate, rate=fs, data_type='freq', taus=taus)
     return np.asarray(t2), np.asarray(ad)
 
 
 def allan_comparison(stamps, delta_theta, params_before: dict, params_after: dict | None = None,
                      seed: int = 0, segments: int = 5) -> dict | None:
-    """Overlapping Allan deviation of the measured gyro rate on the static segments (the longest
+    """
+    Overlapping Allan deviation of the measured gyro rate on the static segments (the longest
     ``segments`` of them, each axis, averaged over axes and segments) against the same for the
     model simulated on the same segments: the measured mean rate plus the model's random walk,
     quantization and bias drift, fed through the package's own sensor model.  Segments: where the
     rate is constant within the noise (:func:`static_segments`, from the data: a gyro bias of
-    any size does not hide them).  None when the recording has no such segment of 15 s."""
-    from strapdown_ros.sensors.effects import GyroEffects
-    from strapdown_ros.sensors.model import PulseQuantizer
+    any size does not hide them).  None when the recording has no such segment of 15 s.
+    """
 
     st = np.asarray(stamps, dtype=float)
     dth = np.asarray(delta_theta, dtype=float)
@@ -275,12 +286,12 @@ def allan_comparison(stamps, delta_theta, params_before: dict, params_after: dic
     def simulate(params, i, j):
         n = j - i
         mean = dth[i:j].mean(axis=0)
-        rw = float(params.get("gyro_random_walk", 0.0))
+        rw = float(params.get('gyro_random_walk', 0.0))
         sim = np.tile(mean, (n, 1)) + rng.normal(0.0, rw * np.sqrt(T), (n, 3))
-        eff = GyroEffects({k: v for k, v in params.items() if k in ("gyro_bias_drift",)}, epoch=float(st[0]))
+        eff = GyroEffects({k: v for k, v in params.items() if k in ('gyro_bias_drift',)}, epoch=float(st[0]))
         if eff.active:
             sim = sim + (eff.apply(np.zeros((n, 3)), st[i:j], T))
-        q = float(params.get("gyro_quantum", 0.0))
+        q = float(params.get('gyro_quantum', 0.0))
         if q > 0:
             sim = PulseQuantizer(q)(sim)
         return sim
@@ -303,21 +314,21 @@ def allan_comparison(stamps, delta_theta, params_before: dict, params_after: dic
     resid = np.vstack([dth[i:j] - dth[i:j].mean(axis=0) for i, j in segs]) / T
 
     def model_std(params):
-        rw, q = float(params.get("gyro_random_walk", 0.0)), float(params.get("gyro_quantum", 0.0))
+        rw, q = float(params.get('gyro_random_walk', 0.0)), float(params.get('gyro_quantum', 0.0))
         return float(np.sqrt(rw ** 2 / T + q ** 2 / (6.0 * T ** 2)))
-    out = {"static_noise": {"rate_std_rad_s": resid.std(axis=0).tolist(),
-                            "model_rate_std_rad_s_before": model_std(params_before),
-                            "model_rate_std_rad_s_after": model_std(params_after or params_before)},
-           "taus_s": taus.tolist(), "measured": measured.tolist(),
-           "simulated_before": curve(lambda i, j: simulate(params_before, i, j)).tolist(),
-           "static_segments": len(segs),
-           "static_seconds": float(sum(st[j - 1] - st[i] for i, j in segs)),
-           "static_detection": {"rule": "window variance of the increments ≤ χ² bound of the "
-                                        "white rate noise, window means agree (1 s windows, "
-                                        "α = 1e-3 per window and axis)", **found}}
+    out = {'static_noise': {'rate_std_rad_s': resid.std(axis=0).tolist(),
+                            'model_rate_std_rad_s_before': model_std(params_before),
+                            'model_rate_std_rad_s_after': model_std(params_after or params_before)},
+           'taus_s': taus.tolist(), 'measured': measured.tolist(),
+           'simulated_before': curve(lambda i, j: simulate(params_before, i, j)).tolist(),
+           'static_segments': len(segs),
+           'static_seconds': float(sum(st[j - 1] - st[i] for i, j in segs)),
+           'static_detection': {'rule': 'window variance of the increments ≤ χ² bound of the '
+                                        'white rate noise, window means agree (1 s windows, '
+                                        'α = 1e-3 per window and axis)', **found}}
     if params_after is not None:
-        out["simulated_after"] = curve(lambda i, j: simulate(params_after, i, j)).tolist()
-    ratio = measured / np.maximum(np.asarray(out["simulated_before"]), 1e-300)
+        out['simulated_after'] = curve(lambda i, j: simulate(params_after, i, j)).tolist()
+    ratio = measured / np.maximum(np.asarray(out['simulated_before']), 1e-300)
     hi = ratio > 1.5
     if np.any(hi):
         idx = np.where(hi)[0]
@@ -326,8 +337,8 @@ def allan_comparison(stamps, delta_theta, params_before: dict, params_after: dic
         if b > a:
             slope = float(np.polyfit(np.log(taus[sl]), np.log(measured[sl]), 1)[0])
         else:
-            slope = float("nan")
-        out["excess_region_s"] = [float(taus[a]), float(taus[b])]
-        out["excess_slope"] = slope
-        out["excess_ratio_max"] = float(ratio.max())
+            slope = float('nan')
+        out['excess_region_s'] = [float(taus[a]), float(taus[b])]
+        out['excess_slope'] = slope
+        out['excess_ratio_max'] = float(ratio.max())
     return out

@@ -1,4 +1,5 @@
-"""The linear-Gaussian model of the increment residuals, with a banded whitening.
+"""
+The linear-Gaussian model of the increment residuals, with a banded whitening.
 
 Near the current model the stacked residual r (3N, VF axes) of N increment pairs is
 
@@ -23,11 +24,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["band_covariance", "Whitener", "Fit", "fit", "hac_covariance"]
+__all__ = ['band_covariance', 'Whitener', 'Fit', 'fit', 'hac_covariance']
 
 
 def band_covariance(fix_P: np.ndarray, R_cam: np.ndarray, adjacent: np.ndarray, white_diag: np.ndarray):
-    """Lower band storage (6, 3N) of B.
+    """
+    Lower band storage (6, 3N) of B.
 
     fix_P: (N, 2, 3, 3) covariances of the start and end fix of each pair (VF, rad²), after the
     noise effects; R_cam: (N, 3, 3) ΔS_avu; adjacent: (N−1,) pairs n, n+1 share a fix;
@@ -52,20 +54,22 @@ def band_covariance(fix_P: np.ndarray, R_cam: np.ndarray, adjacent: np.ndarray, 
 
 
 class Whitener:
-    """Banded Cholesky factor L of B (B = L Lᵀ): ``apply(X)`` = L⁻¹ X, ``logdet`` = log det B.
+    """
+    Banded Cholesky factor L of B (B = L Lᵀ): ``apply(X)`` = L⁻¹ X, ``logdet`` = log det B.
 
     Raises ``numpy.linalg.LinAlgError`` when B has non-finite entries, is not positive
-    definite, or its factor has a diagonal so small that L⁻¹ is not finite."""
+    definite, or its factor has a diagonal so small that L⁻¹ is not finite.
+    """
 
     def __init__(self, band_lower: np.ndarray):
         from scipy.linalg import cholesky_banded
 
         if not np.all(np.isfinite(band_lower)):
-            raise np.linalg.LinAlgError("residual covariance has non-finite entries")
+            raise np.linalg.LinAlgError('residual covariance has non-finite entries')
         self.L = cholesky_banded(band_lower, lower=True)
         d = self.L[0]
         if not np.all(d > 1e-150 * max(float(np.max(d)), 1e-300)):
-            raise np.linalg.LinAlgError("residual covariance is numerically singular")
+            raise np.linalg.LinAlgError('residual covariance is numerically singular')
         self.logdet = 2.0 * float(np.sum(np.log(d)))
         self.n = band_lower.shape[1]
 
@@ -90,12 +94,13 @@ class Fit:
 
 
 def fit(r: np.ndarray, J: np.ndarray, U: np.ndarray, prior_var: np.ndarray, W: Whitener) -> Fit:
-    """GLS of r = J z + U x + e with x ~ N(0, diag(prior_var)), e ~ N(0, B = W).
+    """
+    GLS of r = J z + U x + e with x ~ N(0, diag(prior_var)), e ~ N(0, B = W).
 
     Columns of U with zero prior variance are dropped (a constant the model says is exactly 0).
     """
     if not (np.all(np.isfinite(r)) and np.all(np.isfinite(J)) and np.all(np.isfinite(U))):
-        raise np.linalg.LinAlgError("the residuals or their columns have non-finite values")
+        raise np.linalg.LinAlgError('the residuals or their columns have non-finite values')
     keep = prior_var > 0
     U, pv = U[:, keep], prior_var[keep]
     nz, nx = J.shape[1], U.shape[1]
@@ -118,14 +123,15 @@ def fit(r: np.ndarray, J: np.ndarray, U: np.ndarray, prior_var: np.ndarray, W: W
     else:
         logdet = W.logdet
     if not (np.isfinite(chi2) and np.isfinite(logdet) and np.all(np.isfinite(z))):
-        raise np.linalg.LinAlgError("the fit has non-finite values")
+        raise np.linalg.LinAlgError('the fit has non-finite values')
     rank = int(np.linalg.matrix_rank(Aj)) if nz else 0
     return Fit(z=z, x=x, cov_z=cov[:nz, :nz], whitened=white, chi2=chi2, nll=chi2 + logdet,
                dof=len(r) - rank, design=A[:, :nz + nx], cov_all=cov, prior_precision=1.0 / pv)
 
 
 def hac_covariance(f: Fit, lags: int) -> np.ndarray:
-    """Newey–West (Bartlett-kernel HAC) sandwich covariance of the free parameters z of a fit.
+    """
+    Newey–West (Bartlett-kernel HAC) sandwich covariance of the free parameters z of a fit.
 
     The model covariance (HᵀH)⁻¹ assumes the whitened residual is white with unit variance.  The
     sandwich H⁻¹ S H⁻¹ does not: S = Σ_{|l| ≤ L} (1 − |l|/(L+1)) Σ_n g_n g_{n−l}ᵀ, with

@@ -1,4 +1,5 @@
-"""The linearisation of the discrepancy workflow: a recording in the core's terms, the increment
+"""
+The linearisation of the discrepancy workflow: a recording in the core's terms, the increment
 residuals at one model point (004 eq. 5–6) with the columns of the boresight and of every effect,
 the whitening by the calibrator's correlated covariance, and the maximum-likelihood fit of a
 noise term.  :mod:`.discrepancy` runs the selection on top of it.  No ROS imports.
@@ -9,14 +10,14 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from strapdown_ros.calibration.pairs import (build_pairs, GyroRecord, pair_integral,
+                                             pair_residuals, PairSet)
+from strapdown_ros.discrepancy.linear_model import band_covariance, fit, Whitener
 from strapdown_ros.rotation import quat_to_dcm, rotvec_to_dcm
-from strapdown_ros.sensors.effects import EFFECTS, GyroEffects, get_effect
-from strapdown_ros.discrepancy.linear_model import Whitener, band_covariance, fit
-from strapdown_ros.calibration.pairs import (GyroRecord, PairSet, build_pairs, pair_integral,
-    pair_residuals)
+from strapdown_ros.sensors.effects import EFFECTS, get_effect, GyroEffects
 
-__all__ = ["Recording", "InputError", "AnalysisError", "BoresightUnobservable", "NumericalFailure",
-           "NUMERICAL_ERRORS", "Linearisation", "NOISE_SCALE_RANGE", "QUANTUM_RANGE"]
+__all__ = ['Recording', 'InputError', 'AnalysisError', 'BoresightUnobservable', 'NumericalFailure',
+           'NUMERICAL_ERRORS', 'Linearisation', 'NOISE_SCALE_RANGE', 'QUANTUM_RANGE']
 
 #: range of a fitted camera-noise scale k (true σ ÷ stated σ per VF axis): an estimate at either
 #: end is not reported as a value (the candidate fails with that reason)
@@ -25,8 +26,8 @@ NOISE_SCALE_RANGE = (1e-3, 1e3)
 #: variance σ_q²/12 from 0 to 900 times the mean stated fix variance)
 QUANTUM_RANGE = (0.0, 30.0)
 
-_PRIOR_EFFECTS = (("gyro_bias", "gyro_bias_sigma"), ("gyro_scale_factor", "gyro_scale_sigma"),
-                  ("gyro_misalignment", "gyro_misalignment_sigma"))
+_PRIOR_EFFECTS = (('gyro_bias', 'gyro_bias_sigma'), ('gyro_scale_factor', 'gyro_scale_sigma'),
+                  ('gyro_misalignment', 'gyro_misalignment_sigma'))
 
 
 class InputError(ValueError):
@@ -34,15 +35,19 @@ class InputError(ValueError):
 
 
 class AnalysisError(Exception):
-    """A usable recording whose analysis cannot be computed (a base fit failed numerically).
+    """
+    A usable recording whose analysis cannot be computed (a base fit failed numerically).
 
-    Deliberately NOT a ValueError: a numerical failure is never reported as bad input."""
+    Deliberately NOT a ValueError: a numerical failure is never reported as bad input.
+    """
 
 
 class BoresightUnobservable(Exception):
-    """The recording's motion does not determine the boresight (004 §4.1 and the conditioning,
+    """
+    The recording's motion does not determine the boresight (004 §4.1 and the conditioning,
     the rule of :func:`strapdown_ros.calibration.boresight.check_observability`); ``report`` holds the
-    :class:`~strapdown_ros.estimation.observability.ObservabilityReport`."""
+    :class:`~strapdown_ros.estimation.observability.ObservabilityReport`.
+    """
 
     def __init__(self, message: str, report=None):
         super().__init__(message)
@@ -50,8 +55,10 @@ class BoresightUnobservable(Exception):
 
 
 class NumericalFailure(ArithmeticError):
-    """One fit failed numerically (a covariance not positive definite, a non-finite result, an
-    estimate at the bound of its range).  Caught per candidate by the selection."""
+    """
+    One fit failed numerically (a covariance not positive definite, a non-finite result, an
+    estimate at the bound of its range).  Caught per candidate by the selection.
+    """
 
 
 #: the exceptions that mean "this fit cannot be computed", never "bad input"
@@ -87,11 +94,11 @@ class Linearisation:
         self.effects = GyroEffects(params, epoch=epoch)
         rho = self.effects.compensate(m, st, T)
         self.gyro = GyroRecord(st, rho)
-        self.time_offset = float(EFFECTS["time_offset"].value(params)[0])
+        self.time_offset = float(EFFECTS['time_offset'].value(params)[0])
         self.pairs: PairSet = build_pairs(self.gyro, rec.fix_stamps, rec.fix_q, self.time_offset, rec.gaps)
         if len(self.pairs) < 2:
-            raise InputError(f"only {len(self.pairs)} increment pair(s): the gyro data must cover consecutive "
-                             f"camera fixes")
+            raise InputError(f'only {len(self.pairs)} increment pair(s): the gyro data must cover consecutive '
+                             f'camera fixes')
         self.epoch = epoch
         self.rec = rec
         N = len(self.pairs)
@@ -113,20 +120,20 @@ class Linearisation:
         # time offset: ∂r/∂τ_model = Cᵀ (ΔSᵀ ω_s − ω_e)
         w_s = self.gyro.rate_at(self.pairs.k_start)
         w_e = self.gyro.rate_at(self.pairs.k_end)
-        E = np.einsum("nji,nj->ni", self.R_imu, w_s) - w_e
-        self._sig["time_offset"] = (E @ C).reshape(3 * N, 1)
+        E = np.einsum('nji,nj->ni', self.R_imu, w_s) - w_e
+        self._sig['time_offset'] = (E @ C).reshape(3 * N, 1)
         # nominal random constants (prior) U
         self.U = np.hstack([-self.signature(n) for n, _ in _PRIOR_EFFECTS])
         self.prior_var = np.concatenate([np.full(EFFECTS[n].size, float(params.get(s, 0.0)) ** 2)
                                          for n, s in _PRIOR_EFFECTS])
-        self.random_walk = float(params.get("gyro_random_walk", 0.0))
+        self.random_walk = float(params.get('gyro_random_walk', 0.0))
         # quantization: the output lags the integral by the remainder, mean σ/2 in the sense of
         # the motion on each axis (000 §5.3): r_mean = σ/2 · Cᵀ(ΔS_imuᵀ s_s − s_e), s = soft sign
         # of the rate over ±0.5 s (0 where an axis is not driven past its random walk)
         w0 = max(3.0 * self.random_walk, 1e-7)
         s_s = np.tanh(self.gyro.rate_at(self.pairs.k_start, 0.5) / w0)
         s_e = np.tanh(self.gyro.rate_at(self.pairs.k_end, 0.5) / w0)
-        self.quant_col = (0.5 * (np.einsum("nji,nj->ni", self.R_imu, s_s) - s_e) @ C).reshape(-1)
+        self.quant_col = (0.5 * (np.einsum('nji,nj->ni', self.R_imu, s_s) - s_e) @ C).reshape(-1)
 
     def _times(self, sl):
         st = self.gyro.stamps
@@ -139,7 +146,7 @@ class Linearisation:
             e = EFFECTS[name]
             eps = pair_integral(self.gyro, self.pairs,
                                 lambda r_, T_, sl: e.increment_jacobian(r_, T_, self._times(sl)))
-            self._sig[name] = -np.einsum("ji,njp->nip", self.C, eps).reshape(3 * len(self.pairs), -1)
+            self._sig[name] = -np.einsum('ji,njp->nip', self.C, eps).reshape(3 * len(self.pairs), -1)
         return self._sig[name]
 
     def columns(self, name: str) -> np.ndarray:
@@ -171,7 +178,7 @@ class Linearisation:
 
     def residual(self, noise) -> np.ndarray:
         """r less the mean of the noise terms (the quantization lag)."""
-        q = noise.get("gyro_quantization")
+        q = noise.get('gyro_quantization')
         return self.r if q is None else self.r - float(q[0]) * self.quant_col
 
     def evaluate(self, free, noise, mask=None):
@@ -183,20 +190,21 @@ class Linearisation:
         return fit(r[rows], J[rows], self.U[rows], self.prior_var, self.whitener(noise, mask))
 
 
-def _noise_of(params: dict) -> dict:
+def noise_of(params: dict) -> dict:
     out = {}
-    q = float(params.get("gyro_quantum", 0.0))
+    q = float(params.get('gyro_quantum', 0.0))
     if q > 0:
-        out["gyro_quantization"] = [q]
-    k = np.asarray(params.get("camera_noise_scale", (1.0, 1.0, 1.0)), dtype=float)
+        out['gyro_quantization'] = [q]
+    k = np.asarray(params.get('camera_noise_scale', (1.0, 1.0, 1.0)), dtype=float)
     if np.any(k != 1.0):
-        out["camera_noise_anisotropy"] = k.tolist()
+        out['camera_noise_anisotropy'] = k.tolist()
     return out
 
 
 # ----------------------------------------------------------------------------- noise ML
-def _fit_noise(lin: Linearisation, free, noise: dict, name: str, mask=None):
-    """Maximum-likelihood value of a noise term (others fixed); returns (theta, fit, sigma).
+def fit_noise(lin: Linearisation, free, noise: dict, name: str, mask=None):
+    """
+    Maximum-likelihood value of a noise term (others fixed); returns (theta, fit, sigma).
 
     Bounded parametrisations (the stated ranges :data:`NOISE_SCALE_RANGE`,
     :data:`QUANTUM_RANGE`): the camera-noise scales as u = log k, the pulse weight as
@@ -209,7 +217,7 @@ def _fit_noise(lin: Linearisation, free, noise: dict, name: str, mask=None):
 
     e = EFFECTS[name]
     start = np.asarray(noise.get(name, [e.neutral] * e.size), dtype=float)
-    if name == "gyro_quantization":
+    if name == 'gyro_quantization':
         # parametrise by the remainder variance σ²/12 relative to the mean fix variance
         ref = float(np.mean(np.trace(lin.rec.fix_P, axis1=1, axis2=2)) / 3.0)
         unit = np.sqrt(12.0 * max(ref, 1e-300))
@@ -237,9 +245,9 @@ def _fit_noise(lin: Linearisation, free, noise: dict, name: str, mask=None):
     best = None
     # −2 log L to 0.01 is ample for a test at α/m; quantization gets a second start near zero
     # (its first may sit on the boundary σ = 0)
-    starts = (u0, np.array([0.05])) if name == "gyro_quantization" else (u0,)
+    starts = (u0, np.array([0.05])) if name == 'gyro_quantization' else (u0,)
     simplex = None
-    if name != "gyro_quantization":
+    if name != 'gyro_quantization':
         # a common scale on a coarse log grid first (a simplex that has to grow from a tiny
         # step toward a far optimum gets clipped flat against the bound and stops there),
         # then one sweep axis by axis on the same grid
@@ -257,19 +265,19 @@ def _fit_noise(lin: Linearisation, free, noise: dict, name: str, mask=None):
                                                   step if u0[i] + step <= hi else -step, 0.0)
                                     for i in range(e.size)])
     for s0 in starts:
-        res = minimize(nll, s0, method="Nelder-Mead", bounds=bounds,
-                       options={"xatol": 1e-3, "fatol": 1e-2, "maxiter": 60 * e.size,
-                                "initial_simplex": simplex})
+        res = minimize(nll, s0, method='Nelder-Mead', bounds=bounds,
+                       options={'xatol': 1e-3, 'fatol': 1e-2, 'maxiter': 60 * e.size,
+                                'initial_simplex': simplex})
         if best is None or res.fun < best.fun:
             best = res
     if not np.isfinite(best.fun):
-        raise NumericalFailure(f"no value in its range gives a positive-definite covariance")
-    at_bound = (best.x >= hi - 1e-3) | ((best.x <= lo + 1e-3) & (name != "gyro_quantization"))
+        raise NumericalFailure(f'no value in its range gives a positive-definite covariance')
+    at_bound = (best.x >= hi - 1e-3) | ((best.x <= lo + 1e-3) & (name != 'gyro_quantization'))
     if np.any(at_bound):
-        rng = (f"{NOISE_SCALE_RANGE[0]:g} to {NOISE_SCALE_RANGE[1]:g}"
-               if name != "gyro_quantization" else f"up to {unit * hi:.3g} rad")
-        raise NumericalFailure(f"the likelihood is largest at the bound of its range ({rng}): "
-                               f"{np.round(theta_of(best.x), 6).tolist()}")
+        rng = (f'{NOISE_SCALE_RANGE[0]:g} to {NOISE_SCALE_RANGE[1]:g}'
+               if name != 'gyro_quantization' else f'up to {unit * hi:.3g} rad')
+        raise NumericalFailure(f'the likelihood is largest at the bound of its range ({rng}): '
+                               f'{np.round(theta_of(best.x), 6).tolist()}')
     theta = theta_of(best.x)
     trial = dict(noise)
     trial[name] = theta.tolist()
@@ -278,7 +286,7 @@ def _fit_noise(lin: Linearisation, free, noise: dict, name: str, mask=None):
     # that is not positive and finite (or a neighbour that cannot be evaluated) gives σ = ∞
     sig = np.zeros(e.size)
     for i in range(e.size):
-        h = max(1e-3 * abs(theta[i]), 1e-9 if name == "gyro_quantization" else 1e-4)
+        h = max(1e-3 * abs(theta[i]), 1e-9 if name == 'gyro_quantization' else 1e-4)
 
         def at(dv):
             t2 = theta.copy()

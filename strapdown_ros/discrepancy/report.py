@@ -1,4 +1,5 @@
-"""The report of ``discrepancy``: report.md and its PNG plots, every sentence computed from the
+"""
+The report of ``discrepancy``: report.md and its PNG plots, every sentence computed from the
 result it describes.
 
 Plots (before = the nominal model, after = with the effects found):
@@ -20,60 +21,65 @@ from pathlib import Path
 
 import numpy as np
 
-from strapdown_ros.cli import write_text, write_figure
+from strapdown_ros.cli import write_figure, write_text
+from strapdown_ros.discrepancy.diagnostics import autocorrelation
 
-__all__ = ["write_report"]
+__all__ = ['write_report']
 
 ARCSEC = 180.0 / np.pi * 3600.0
-AXES = ("VF x", "VF y", "VF z")
+AXES = ('VF x', 'VF y', 'VF z')
 
 
 def _plt():
     import matplotlib
-    matplotlib.use("Agg")
+    matplotlib.use('Agg')
     import matplotlib.pyplot as plt
     return plt
 
 
 def angle_unit(values_rad) -> tuple[float, str]:
-    """A unit that fits the size of the angles: (factor from rad, symbol) — arcseconds below
-    10′, arcminutes below 10°, degrees above (judged on the 99th percentile of |value|)."""
+    """
+    A unit that fits the size of the angles: (factor from rad, symbol) — arcseconds below
+    10′, arcminutes below 10°, degrees above (judged on the 99th percentile of |value|).
+    """
     v = np.abs(np.asarray(values_rad, dtype=float))
     v = v[np.isfinite(v)]
     big = float(np.percentile(v, 99)) if v.size else 0.0
     deg = float(np.degrees(big))
     if deg < 10.0 / 60.0:
-        return ARCSEC, "″"
+        return ARCSEC, '″'
     if deg < 10.0:
-        return ARCSEC / 60.0, "′"
-    return 180.0 / np.pi, "°"
+        return ARCSEC / 60.0, '′'
+    return 180.0 / np.pi, '°'
 
 
 def _effects_words(res) -> str:
-    return ", ".join(s.effect for s in res.steps) or "nothing added"
+    return ', '.join(s.effect for s in res.steps) or 'nothing added'
 
 
 def _residuals(plt, res, path):
-    """Main plot: residual of each pair against time, before and after on separate axes, each in
-    a unit that fits its size."""
+    """
+    Main plot: residual of each pair against time, before and after on separate axes, each in
+    a unit that fits its size.
+    """
     fig, axs = plt.subplots(3, 2, figsize=(12, 7.5), sharex=True)
-    for col, (name, colour) in enumerate((("before", "0.35"), ("after", "C0"))):
+    for col, (name, colour) in enumerate((('before', '0.35'), ('after', 'C0'))):
         s = res.series[name]
-        k, unit = angle_unit(s["residual"])
+        k, unit = angle_unit(s['residual'])
         for c in range(3):
             ax = axs[c, col]
-            ax.plot(s["t"], s["residual"][:, c] * k, ".", ms=3, color=colour,
-                    label="residual" if c == 0 else None)
-            band = 3 * s["sigma"][:, c] * k
-            ax.fill_between(s["t"], -band, band, color="C1", alpha=0.2,
-                            label="±3σ the model expects" if c == 0 else None)
-            ax.set_ylabel(f"about {AXES[c]}, {unit}")
+            ax.plot(s['t'], s['residual'][:, c] * k, '.', ms=3, color=colour,
+                    label='residual' if c == 0 else None)
+            band = 3 * s['sigma'][:, c] * k
+            ax.fill_between(s['t'], -band, band, color='C1', alpha=0.2,
+                            label='±3σ the model expects' if c == 0 else None)
+            ax.set_ylabel(f'about {AXES[c]}, {unit}')
             ax.grid(True, alpha=0.3)
-        axs[0, col].set_title("before: the nominal model" if name == "before" else
-                              f"after: with {_effects_words(res)}", fontsize=10)
-        axs[0, col].legend(loc="upper right", fontsize=8)
-        axs[-1, col].set_xlabel("time, s")
-    fig.suptitle("Residual of each increment pair (camera vs gyro) before and after adding the "
+        axs[0, col].set_title('before: the nominal model' if name == 'before' else
+                              f'after: with {_effects_words(res)}', fontsize=10)
+        axs[0, col].legend(loc='upper right', fontsize=8)
+        axs[-1, col].set_xlabel('time, s')
+    fig.suptitle('Residual of each increment pair (camera vs gyro) before and after adding the '
                  f"found effects — verdict: {res.verdict.replace('_', ' ')}", fontsize=11)
     fig.tight_layout()
     write_figure(fig, path, dpi=110)
@@ -81,21 +87,20 @@ def _residuals(plt, res, path):
 
 
 def _autocorrelation(plt, res, path):
-    from strapdown_ros.discrepancy.diagnostics import autocorrelation
     fig, ax = plt.subplots(figsize=(8, 4))
-    for name, col in (("before", "0.5"), ("after", "C0")):
-        w = res.series[name]["whitened"]
+    for name, col in (('before', '0.5'), ('after', 'C0')):
+        w = res.series[name]['whitened']
         lags = max(2, min(30, len(w) // 4))
         ac = np.mean([autocorrelation(w[:, c], lags) for c in range(3)], axis=0)
-        ax.plot(np.arange(1, lags + 1), ac, "o-", color=col, ms=3, label=name)
-    n = len(res.series["after"]["t"])
+        ax.plot(np.arange(1, lags + 1), ac, 'o-', color=col, ms=3, label=name)
+    n = len(res.series['after']['t'])
     band = 1.96 / np.sqrt(3 * n)
-    ax.axhspan(-band, band, color="C1", alpha=0.2, label="95% band (white)")
-    ax.axhline(0, color="k", lw=0.5)
-    ax.set_xlabel("lag, pairs")
-    ax.set_ylabel("autocorrelation (mean of 3 axes)")
-    ax.set_title("Does a residual predict the next ones? "
-                 "(normalised residuals; inside the band: no)",
+    ax.axhspan(-band, band, color='C1', alpha=0.2, label='95% band (white)')
+    ax.axhline(0, color='k', lw=0.5)
+    ax.set_xlabel('lag, pairs')
+    ax.set_ylabel('autocorrelation (mean of 3 axes)')
+    ax.set_title('Does a residual predict the next ones? '
+                 '(normalised residuals; inside the band: no)',
                  fontsize=10)
     ax.legend(fontsize=8)
     fig.tight_layout()
@@ -105,66 +110,68 @@ def _autocorrelation(plt, res, path):
 
 def _cross(plt, res, path):
     fig, axs = plt.subplots(1, 2, figsize=(11, 4))
-    for ax, key, label in ((axs[0], "rate", "body rate at the fix epochs, °/s"),
-                           (axs[1], "accumulated_angle", "accumulated rotation angle, °")):
-        for name, col in (("before", "0.55"), ("after", "C0")):
+    for ax, key, label in ((axs[0], 'rate', 'body rate at the fix epochs, °/s'),
+                           (axs[1], 'accumulated_angle', 'accumulated rotation angle, °')):
+        for name, col in (('before', '0.55'), ('after', 'C0')):
             s = res.series[name]
             x = np.degrees(s[key])
-            y = np.sum(s["whitened"] ** 2, axis=1) / 3.0
-            r = np.corrcoef(x, y)[0, 1] if np.std(x) > 0 and np.std(y) > 0 else float("nan")
-            ax.semilogy(x, np.maximum(y, 1e-6), ".", ms=3, color=col, label=f"{name} (r = {r:.2f})")
-        ax.axhline(1.0, color="C1", lw=1)
+            y = np.sum(s['whitened'] ** 2, axis=1) / 3.0
+            r = np.corrcoef(x, y)[0, 1] if np.std(x) > 0 and np.std(y) > 0 else float('nan')
+            ax.semilogy(x, np.maximum(y, 1e-6), '.', ms=3, color=col, label=f'{name} (r = {r:.2f})')
+        ax.axhline(1.0, color='C1', lw=1)
         ax.set_xlabel(label)
-        ax.set_ylabel("residual² ÷ expected (mean of 3 axes)")
+        ax.set_ylabel('residual² ÷ expected (mean of 3 axes)')
         ax.legend(fontsize=8)
-    fig.suptitle("Does the residual grow with the turning rate or with the angle turned so far?")
+    fig.suptitle('Does the residual grow with the turning rate or with the angle turned so far?')
     fig.tight_layout()
     write_figure(fig, path, dpi=110)
     plt.close(fig)
 
 
 def _fig2a(plt, res, path):
-    """Difference of the rotation angles (camera − gyro) of each pair against its rotation
-    angle (004 Fig. 2a), before and after on separate axes, each in a unit that fits."""
+    """
+    Difference of the rotation angles (camera − gyro) of each pair against its rotation
+    angle (004 Fig. 2a), before and after on separate axes, each in a unit that fits.
+    """
     fig, axs = plt.subplots(1, 2, figsize=(12, 4.5))
-    for ax, (name, colour) in zip(axs, (("before", "0.35"), ("after", "C0"))):
+    for ax, (name, colour) in zip(axs, (('before', '0.35'), ('after', 'C0'))):
         s = res.series[name]
-        d = s["phi_cam"] - s["phi_imu"]
-        sig = np.sqrt(np.sum(s["sigma"] ** 2, axis=1) / 3.0)
+        d = s['phi_cam'] - s['phi_imu']
+        sig = np.sqrt(np.sum(s['sigma'] ** 2, axis=1) / 3.0)
         k, unit = angle_unit(np.concatenate([d, 3 * sig]))
-        ax.plot(np.degrees(s["phi_cam"]), d * k, ".", ms=4, color=colour, label="pairs")
-        order = np.argsort(s["phi_cam"])
-        ax.plot(np.degrees(s["phi_cam"][order]), 3 * sig[order] * k, color="C1", lw=1,
-                label="±3σ the model expects")
-        ax.plot(np.degrees(s["phi_cam"][order]), -3 * sig[order] * k, color="C1", lw=1)
-        ax.set_xlabel("angle the camera turned between the two fixes, °")
-        ax.set_ylabel(f"camera angle − gyro angle, {unit}")
-        ax.set_title("before: the nominal model" if name == "before"
-                     else f"after: with {_effects_words(res)}", fontsize=10)
+        ax.plot(np.degrees(s['phi_cam']), d * k, '.', ms=4, color=colour, label='pairs')
+        order = np.argsort(s['phi_cam'])
+        ax.plot(np.degrees(s['phi_cam'][order]), 3 * sig[order] * k, color='C1', lw=1,
+                label='±3σ the model expects')
+        ax.plot(np.degrees(s['phi_cam'][order]), -3 * sig[order] * k, color='C1', lw=1)
+        ax.set_xlabel('angle the camera turned between the two fixes, °')
+        ax.set_ylabel(f'camera angle − gyro angle, {unit}')
+        ax.set_title('before: the nominal model' if name == 'before'
+                     else f'after: with {_effects_words(res)}', fontsize=10)
         ax.grid(True, alpha=0.3)
         ax.legend(fontsize=8)
-    fig.suptitle("Does the gyro turn by the angle the camera saw? Difference per pair against "
-                 "the angle turned", fontsize=11)
+    fig.suptitle('Does the gyro turn by the angle the camera saw? Difference per pair against '
+                 'the angle turned', fontsize=11)
     fig.tight_layout()
     write_figure(fig, path, dpi=110)
     plt.close(fig)
 
 
 def _allan(plt, allan, path) -> bool:
-    if not allan or "taus_s" not in allan:
+    if not allan or 'taus_s' not in allan:
         return False
     fig, ax = plt.subplots(figsize=(7, 4.5))
-    t = np.asarray(allan["taus_s"])
-    ax.loglog(t, np.asarray(allan["measured"]), "o-", ms=3, label="measured")
-    ax.loglog(t, np.asarray(allan["simulated_before"]), "--", color="0.5", label="model, before")
-    if allan.get("simulated_after") is not None:
-        ax.loglog(t, np.asarray(allan["simulated_after"]), "-", color="C2", label="model, after")
-    ax.set_xlabel("τ, s")
-    ax.set_ylabel("Allan deviation of the rate, rad/s")
+    t = np.asarray(allan['taus_s'])
+    ax.loglog(t, np.asarray(allan['measured']), 'o-', ms=3, label='measured')
+    ax.loglog(t, np.asarray(allan['simulated_before']), '--', color='0.5', label='model, before')
+    if allan.get('simulated_after') is not None:
+        ax.loglog(t, np.asarray(allan['simulated_after']), '-', color='C2', label='model, after')
+    ax.set_xlabel('τ, s')
+    ax.set_ylabel('Allan deviation of the rate, rad/s')
     ax.set_title(f"Gyro noise at rest ({allan['static_segments']} segment(s), "
                  f"{allan['static_seconds']:.0f} s): measured vs the model", fontsize=10)
     ax.legend(fontsize=8)
-    ax.grid(True, which="both", alpha=0.3)
+    ax.grid(True, which='both', alpha=0.3)
     fig.tight_layout()
     write_figure(fig, path, dpi=110)
     plt.close(fig)
@@ -173,8 +180,8 @@ def _allan(plt, allan, path) -> bool:
 
 def _fmt(v):
     if isinstance(v, (list, tuple)):
-        return "[" + ", ".join(f"{x:.4g}" for x in v) + "]"
-    return f"{v:.4g}"
+        return '[' + ', '.join(f'{x:.4g}' for x in v) + ']'
+    return f'{v:.4g}'
 
 
 def write_report(outdir: str, res, out: dict) -> str:
@@ -182,148 +189,148 @@ def write_report(outdir: str, res, out: dict) -> str:
     d = Path(outdir)
     d.mkdir(parents=True, exist_ok=True)
     plt = _plt()
-    _residuals(plt, res, d / "residuals.png")
-    _autocorrelation(plt, res, d / "autocorrelation.png")
-    _cross(plt, res, d / "cross_correlation.png")
-    _fig2a(plt, res, d / "fig2a.png")
-    has_allan = _allan(plt, out.get("allan"), d / "allan.png")
-    tb, ta = out["tests_before"], out["tests_after"]
-    info = out.get("input", {})
-    L = ["# Discrepancy report", ""]
+    _residuals(plt, res, d / 'residuals.png')
+    _autocorrelation(plt, res, d / 'autocorrelation.png')
+    _cross(plt, res, d / 'cross_correlation.png')
+    _fig2a(plt, res, d / 'fig2a.png')
+    has_allan = _allan(plt, out.get('allan'), d / 'allan.png')
+    tb, ta = out['tests_before'], out['tests_after']
+    info = out.get('input', {})
+    L = ['# Discrepancy report', '']
     L.append(f"Recording: {info.get('gyro_messages')} gyro increments at "
              f"{info.get('gyro_rate_from_stamps_hz') or float('nan'):.6g} Hz (from the stamps), "
              f"{info.get('camera_fixes')} camera fixes, {res.pairs} increment pairs over "
              f"{info.get('duration_s', float('nan')):.1f} s.")
-    L.append("")
-    added = ", ".join(f"`{s.effect}`" for s in res.steps) or "none"
-    L.append(f"**Verdict: `{res.verdict}`.** Effects added: {added}. Whitened residual RMS "
-             f"{res.rms_before:.3g} → {res.rms_after:.3g} on all pairs and {res.heldout_rms_before:.3g} → "
-             f"{res.heldout_rms_after:.3g} on the held-out blocks (1 is what the model predicts).")
-    L.append("")
-    L.append(f"Selection: likelihood-ratio tests at α/2 = {res.alpha / 2:g} with a Bonferroni correction over "
-             f"the candidates left at each step (the other α/2 goes to the tests below); an effect is added only if the held-out −2 log L per residual "
+    L.append('')
+    added = ', '.join(f'`{s.effect}`' for s in res.steps) or 'none'
+    L.append(f'**Verdict: `{res.verdict}`.** Effects added: {added}. Whitened residual RMS '
+             f'{res.rms_before:.3g} → {res.rms_after:.3g} on all pairs and {res.heldout_rms_before:.3g} → '
+             f'{res.heldout_rms_after:.3g} on the held-out blocks (1 is what the model predicts).')
+    L.append('')
+    L.append(f'Selection: likelihood-ratio tests at α/2 = {res.alpha / 2:g} with a Bonferroni correction over '
+             f'the candidates left at each step (the other α/2 goes to the tests below); an effect is added only if the held-out −2 log L per residual '
              f"also improves; signatures with |correlation| above {out['selection']['separability_bound']} are "
-             f"reported as not separable.")
-    if not out.get("fit_consistent", True):
-        lo, hi = out["chi2_per_dof_band"]
-        L += ["", f"**WARNING: the fit is not consistent with its stated noise** (χ²/dof "
+             f'reported as not separable.')
+    if not out.get('fit_consistent', True):
+        lo, hi = out['chi2_per_dof_band']
+        L += ['', f'**WARNING: the fit is not consistent with its stated noise** (χ²/dof '
               f"{out['chi2_per_dof']:.4g}, outside [{lo:.3g}, {hi:.3g}] at the test level): the "
-              f"values below are not plain results."]
-    if out.get("sigma_method") in ("hac", "hac_jackknife"):
-        jk = (", raised to the leave-one-block-out jackknife over time where that is larger"
-              if out["sigma_method"] == "hac_jackknife" else "")
-        L += ["", f"σ: the residuals fail {', '.join(out['tests_after']['failed'])}, so every σ "
+              f'values below are not plain results.']
+    if out.get('sigma_method') in ('hac', 'hac_jackknife'):
+        jk = (', raised to the leave-one-block-out jackknife over time where that is larger'
+              if out['sigma_method'] == 'hac_jackknife' else '')
+        L += ['', f"σ: the residuals fail {', '.join(out['tests_after']['failed'])}, so every σ "
               f"is the Newey–West sandwich over {out['hac_lags']} pairs{jk} (never below the "
               f"model's σ; noise terms: the leave-one-block-out jackknife)."]
-    stop = {"max_steps": f"the step limit ({out.get('max_steps')} accepted effects) stopped the "
-                         f"search: more effects may be missing",
-            "no_significant_candidate": "the search stopped because no candidate left passes its "
-                                        "test",
-            "no_candidates_left": "the search stopped because every candidate was added, excluded "
-                                  "or failed",
-            "iteration_limit": "the search stopped at its turn limit"}.get(out.get("stopped_by"),
-                                                                           "")
+    stop = {'max_steps': f"the step limit ({out.get('max_steps')} accepted effects) stopped the "
+                         f'search: more effects may be missing',
+            'no_significant_candidate': 'the search stopped because no candidate left passes its '
+                                        'test',
+            'no_candidates_left': 'the search stopped because every candidate was added, excluded '
+                                  'or failed',
+            'iteration_limit': 'the search stopped at its turn limit'}.get(out.get('stopped_by'),
+                                                                           '')
     if stop:
-        L += ["", stop[0].upper() + stop[1:] + "."]
-    L += ["", "## Steps", "", "| step | effect | parameters (SI) | σ | LR statistic | dof | p-value | held-out gain |",
-          "|---|---|---|---|---|---|---|---|"]
+        L += ['', stop[0].upper() + stop[1:] + '.']
+    L += ['', '## Steps', '', '| step | effect | parameters (SI) | σ | LR statistic | dof | p-value | held-out gain |',
+          '|---|---|---|---|---|---|---|---|']
     for k, s in enumerate(res.steps, 1):
-        pv = "; ".join(f"`{n}` = {_fmt(v)}" for n, v in s.parameters.items())
-        sv = "; ".join(_fmt(v) for v in s.sigma.values())
-        L.append(f"| {k} | `{s.effect}` | {pv} | {sv} | {s.statistic:.4g} | {s.dof} | {s.p_value:.3g} | "
-                 f"{s.heldout_gain:.3g} |")
+        pv = '; '.join(f'`{n}` = {_fmt(v)}' for n, v in s.parameters.items())
+        sv = '; '.join(_fmt(v) for v in s.sigma.values())
+        L.append(f'| {k} | `{s.effect}` | {pv} | {sv} | {s.statistic:.4g} | {s.dof} | {s.p_value:.3g} | '
+                 f'{s.heldout_gain:.3g} |')
     if not res.steps:
-        L.append("| – | none passed | | | | | | |")
+        L.append('| – | none passed | | | | | | |')
     for k, s in enumerate(res.steps, 1):
         if s.repeatable is False:
-            L += ["", f"Step {k} (`{s.effect}`) is **not repeatable across time blocks**: the "
-                  f"leave-one-block-out estimates spread {s.spread_ratio:.3g}× its σ (bound "
+            L += ['', f'Step {k} (`{s.effect}`) is **not repeatable across time blocks**: the '
+                  f'leave-one-block-out estimates spread {s.spread_ratio:.3g}× its σ (bound '
                   f"{out['repeatability_bound']:.3g}); not a plain finding."]
-    if out.get("failed_candidates"):
+    if out.get('failed_candidates'):
         seen: dict = {}
-        for f in out["failed_candidates"]:
-            seen.setdefault((f["effect"], f["reason"]), []).append(str(f["step"]))
-        L += ["", "Not fitted (dropped from the step named): " + "; ".join(
-            f"`{e}` at step {', '.join(at)}: {r}" for (e, r), at in seen.items()) + "."]
-    L += ["", "First-step scores of every candidate:", "", "| candidate | LR statistic | dof | p-value | note |",
-          "|---|---|---|---|---|"]
-    for c in out["candidates_first_step"]:
+        for f in out['failed_candidates']:
+            seen.setdefault((f['effect'], f['reason']), []).append(str(f['step']))
+        L += ['', 'Not fitted (dropped from the step named): ' + '; '.join(
+            f"`{e}` at step {', '.join(at)}: {r}" for (e, r), at in seen.items()) + '.']
+    L += ['', 'First-step scores of every candidate:', '', '| candidate | LR statistic | dof | p-value | note |',
+          '|---|---|---|---|---|']
+    for c in out['candidates_first_step']:
         L.append(f"| `{c['effect']}` | {c['statistic']:.4g} | {c['dof']} | {c['p_value']:.3g} | "
                  f"{c.get('direct_check', '')} |")
     if res.not_separable:
-        L += ["", "Not separable on this trajectory: " + "; ".join(f"`{a}` and `{b}`" for a, b in res.not_separable)
-              + "."]
+        L += ['', 'Not separable on this trajectory: ' + '; '.join(f'`{a}` and `{b}`' for a, b in res.not_separable)
+              + '.']
     if res.rejected:
-        L += ["", "Not added: " + "; ".join(f"`{r['effect']}` ({r['reason']})" for r in res.rejected) + "."]
-    L += ["", "## Tests", "", f"Each at (α/2)/3 = {ta['level']:.3g}.", "",
-          "| test | before: statistic | p | after: statistic | p | after |", "|---|---|---|---|---|---|"]
-    for k, label in (("nis", "NIS (χ²)"), ("whiteness", "Ljung–Box whiteness"), ("outliers", "largest |residual|")):
-        ok = "pass" if ta[k]["p_value"] is not None and ta[k]["p_value"] >= ta["level"] else "FAIL"
+        L += ['', 'Not added: ' + '; '.join(f"`{r['effect']}` ({r['reason']})" for r in res.rejected) + '.']
+    L += ['', '## Tests', '', f"Each at (α/2)/3 = {ta['level']:.3g}.", '',
+          '| test | before: statistic | p | after: statistic | p | after |', '|---|---|---|---|---|---|']
+    for k, label in (('nis', 'NIS (χ²)'), ('whiteness', 'Ljung–Box whiteness'), ('outliers', 'largest |residual|')):
+        ok = 'pass' if ta[k]['p_value'] is not None and ta[k]['p_value'] >= ta['level'] else 'FAIL'
         L.append(f"| {label} | {tb[k]['statistic']:.4g} | {tb[k]['p_value']:.3g} | {ta[k]['statistic']:.4g} | "
                  f"{ta[k]['p_value']:.3g} | {ok} |")
     if res.remaining:
         rm = res.remaining
-        L += ["", "## What remains", ""]
-        if "dominant_period_s" in rm:
+        L += ['', '## What remains', '']
+        if 'dominant_period_s' in rm:
             L.append(f"- dominant period {rm['dominant_period_s']:.4g} s (normalised periodogram power "
                      f"{rm['dominant_period_power']:.2f});")
         L.append(f"- largest autocorrelation {rm['dominant_lag_autocorrelation']:.2f} at lag {rm['dominant_lag_pairs']} "
-                 f"pair(s);")
-        for key, label in (("correlation_with_rate", "body rate"), ("correlation_with_accumulated_angle",
-                                                                    "accumulated angle"),
-                           ("correlation_with_rotation_angle", "rotation angle of the increment")):
+                 f'pair(s);')
+        for key, label in (('correlation_with_rate', 'body rate'), ('correlation_with_accumulated_angle',
+                                                                    'accumulated angle'),
+                           ('correlation_with_rotation_angle', 'rotation angle of the increment')):
             if key in rm:
-                L.append(f"- correlation of the squared residual with the {label}: {rm[key]:.2f};")
-        sw = rm.get("gyro_axis_swap_sign")
-        if sw and sw.get("explains"):
-            L.append(f"- candidate explanation outside the library: **gyro axis swap/sign** — "
+                L.append(f'- correlation of the squared residual with the {label}: {rm[key]:.2f};')
+        sw = rm.get('gyro_axis_swap_sign')
+        if sw and sw.get('explains'):
+            L.append(f'- candidate explanation outside the library: **gyro axis swap/sign** — '
                      f"the gyro triad as wired is left-handed: read as e.g. {sw['mapping']}, the "
                      f"axis-alignment RMS drops to {sw['ratio']:.2g}× that of the axes as wired "
-                     f"(which axis is swapped or reversed the camera cannot tell: any rotation "
-                     f"of the triad goes into the boresight);")
-        L.append("- largest whitened residuals at t = " + ", ".join(f"{t:.1f}" for t in rm["largest_whitened_at_s"])
-                 + " s.")
-    allan = out.get("allan")
-    if allan and "taus_s" in allan:
-        L += ["", "## Allan deviation (static segments)", ""]
-        if "excess_region_s" in allan:
-            a, b = allan["excess_region_s"]
+                     f'(which axis is swapped or reversed the camera cannot tell: any rotation '
+                     f'of the triad goes into the boresight);')
+        L.append('- largest whitened residuals at t = ' + ', '.join(f'{t:.1f}' for t in rm['largest_whitened_at_s'])
+                 + ' s.')
+    allan = out.get('allan')
+    if allan and 'taus_s' in allan:
+        L += ['', '## Allan deviation (static segments)', '']
+        if 'excess_region_s' in allan:
+            a, b = allan['excess_region_s']
             L.append(f"The measured Allan deviation exceeds the nominal model's by up to "
                      f"{allan['excess_ratio_max']:.2f}× for τ from {a:.3g} to {b:.3g} s"
-                     + (f" (log–log slope {allan['excess_slope']:.2f} there)." if allan.get("excess_slope") is not None
-                        else "."))
+                     + (f" (log–log slope {allan['excess_slope']:.2f} there)." if allan.get('excess_slope') is not None
+                        else '.'))
         else:
             L.append("The measured Allan deviation stays within 1.5× of the nominal model's at every τ.")
-        sn = allan.get("static_noise")
+        sn = allan.get('static_noise')
         if sn:
-            m = np.asarray(sn["rate_std_rad_s"])
-            after = sn["model_rate_std_rad_s_after"]
-            L.append("")
+            m = np.asarray(sn['rate_std_rad_s'])
+            after = sn['model_rate_std_rad_s_after']
+            L.append('')
             L.append(f"Rate noise on the static segments (each segment's mean removed): "
                      f"{', '.join(f'{v:.3g}' for v in m)} rad/s about x, y, z; the model predicts "
                      f"{sn['model_rate_std_rad_s_before']:.3g} before and {sn['model_rate_std_rad_s_after']:.3g} after "
                      f"(measured ÷ model after: {', '.join(f'{v / after:.2f}' for v in m)}).")
-    elif allan and "error" in allan:
-        L += ["", f"Allan deviation not computed: {allan['error']}"]
+    elif allan and 'error' in allan:
+        L += ['', f"Allan deviation not computed: {allan['error']}"]
     else:
-        L += ["", "No static segment of 15 s or more: no Allan-deviation comparison."]
+        L += ['', 'No static segment of 15 s or more: no Allan-deviation comparison.']
     b = np.degrees(res.boresight_rad)
     s = np.asarray(res.boresight_sigma_rad) * ARCSEC
-    L += ["", "## Boresight (estimated in every fit)", "",
-          f"β = ({b[0]:.6f}°, {b[1]:.6f}°, {b[2]:.6f}°) ± ({s[0]:.3g}″, {s[1]:.3g}″, {s[2]:.3g}″).", "",
-          "## Plots", "",
-          "Residual of each increment pair (camera vs gyro) against time, before and after "
-          "adding the found effects; the shaded band is ±3σ of what the model expects:", "",
-          "![residual against time](residuals.png)", "",
-          "Difference of the angles the camera and the gyro turned between two fixes, against "
-          "that angle (004 Fig. 2a):", "", "![angle difference against angle](fig2a.png)", "",
-          "Autocorrelation of the normalised residuals (white: inside the band):", "",
-          "![autocorrelation](autocorrelation.png)", "",
-          "Normalised residual against the turning rate and the angle turned so far:", "",
-          "![cross-correlation](cross_correlation.png)", ""]
+    L += ['', '## Boresight (estimated in every fit)', '',
+          f'β = ({b[0]:.6f}°, {b[1]:.6f}°, {b[2]:.6f}°) ± ({s[0]:.3g}″, {s[1]:.3g}″, {s[2]:.3g}″).', '',
+          '## Plots', '',
+          'Residual of each increment pair (camera vs gyro) against time, before and after '
+          'adding the found effects; the shaded band is ±3σ of what the model expects:', '',
+          '![residual against time](residuals.png)', '',
+          'Difference of the angles the camera and the gyro turned between two fixes, against '
+          'that angle (004 Fig. 2a):', '', '![angle difference against angle](fig2a.png)', '',
+          'Autocorrelation of the normalised residuals (white: inside the band):', '',
+          '![autocorrelation](autocorrelation.png)', '',
+          'Normalised residual against the turning rate and the angle turned so far:', '',
+          '![cross-correlation](cross_correlation.png)', '']
     if has_allan:
-        L += ["Allan deviation of the gyro at rest, measured and simulated from the model:", "",
-              "![Allan deviation](allan.png)", ""]
-    path = d / "report.md"
-    write_text(path, "\n".join(L) + "\n")
+        L += ['Allan deviation of the gyro at rest, measured and simulated from the model:', '',
+              '![Allan deviation](allan.png)', '']
+    path = d / 'report.md'
+    write_text(path, '\n'.join(L) + '\n')
     return str(path)

@@ -1,4 +1,5 @@
-"""Hidden effects for testing the discrepancy workflow: the σ with which a recording determines
+"""
+Hidden effects for testing the discrepancy workflow: the σ with which a recording determines
 an effect, and a draw of that effect at a chosen size in those σ.  Used by the tests and by
 ``discrepancy_bench`` alike.  No ROS imports.
 
@@ -11,33 +12,38 @@ from __future__ import annotations
 
 import numpy as np
 
+from strapdown_ros.discrepancy.linear_model import fit
+from strapdown_ros.discrepancy.linearisation import fit_noise, Linearisation, noise_of, Recording
+from strapdown_ros.discrepancy.workflow import initial_boresight_estimate, refine_fit
+from strapdown_ros.motion.from_config import profile_from_config
+from strapdown_ros.sensors import simulated_imu
 from strapdown_ros.sensors.effects import EFFECTS
-from strapdown_ros.discrepancy.workflow import (Linearisation, Recording, _fit_noise,
-    _initial_boresight, _noise_of, _refine)
+from strapdown_ros.sensors.star_camera import StarCameraModel
 
-__all__ = ["effect_sigma", "draw_hidden_effect", "simulate_recording"]
+__all__ = ['effect_sigma', 'draw_hidden_effect', 'simulate_recording']
 
 
 def effect_sigma(rec: Recording, params: dict, names) -> dict:
-    """Covariance (q×q) of the separable combinations of each effect in ``names`` on this
-    recording, under the model ``params`` (the effects absent): {name: covariance}."""
+    """
+    Covariance (q×q) of the separable combinations of each effect in ``names`` on this
+    recording, under the model ``params`` (the effects absent): {name: covariance}.
+    """
     params = dict(params)
     epoch = float(rec.gyro_stamps[0])
-    noise = _noise_of(params)
-    C = _initial_boresight(rec, params, epoch)
-    params, C = _refine(rec, params, C, epoch, [], noise)
+    noise = noise_of(params)
+    C = initial_boresight_estimate(rec, params, epoch)
+    params, C = refine_fit(rec, params, C, epoch, [], noise)
     lin = Linearisation(rec, params, C, epoch)
     out = {}
     for name in ([names] if isinstance(names, str) else names):
         e = EFFECTS[name]
-        if name == "gyro_quantization":
+        if name == 'gyro_quantization':
             # the lag term's information at σ = 0+ (the variance term has none there)
-            from strapdown_ros.discrepancy.linear_model import fit
             f = fit(lin.r, np.hstack([lin.design([]), lin.quant_col[:, None]]), lin.U, lin.prior_var,
                     lin.whitener(noise))
             out[name] = f.cov_z[3:, 3:]
-        elif e.kind == "noise":
-            _, _, sig = _fit_noise(lin, [], noise, name)
+        elif e.kind == 'noise':
+            _, _, sig = fit_noise(lin, [], noise, name)
             out[name] = np.diag(sig ** 2)
         else:
             out[name] = lin.evaluate([name], noise).cov_z[3:, 3:]
@@ -45,8 +51,10 @@ def effect_sigma(rec: Recording, params: dict, names) -> dict:
 
 
 def draw_hidden_effect(name: str, size: float, cov: np.ndarray, rng: np.random.Generator) -> dict:
-    """Parameter overrides that inject ``name`` at ``size`` σ (Mahalanobis) for record_sim / the
-    simulator nodes."""
+    """
+    Parameter overrides that inject ``name`` at ``size`` σ (Mahalanobis) for record_sim / the
+    simulator nodes.
+    """
     e = EFFECTS[name]
     p = e.value_parameter
     cov = np.atleast_2d(cov)
@@ -55,7 +63,7 @@ def draw_hidden_effect(name: str, size: float, cov: np.ndarray, rng: np.random.G
     u /= np.linalg.norm(u)
     w, V = np.linalg.eigh(0.5 * (cov + cov.T))
     z = size * (V * np.sqrt(np.maximum(w, 0.0))) @ u
-    if name == "gyro_quantization":
+    if name == 'gyro_quantization':
         z = np.abs(z)
     S = e.fit_basis()
     theta = (z if S is None else S @ z) + e.neutral
@@ -63,11 +71,10 @@ def draw_hidden_effect(name: str, size: float, cov: np.ndarray, rng: np.random.G
 
 
 def simulate_recording(imu_p: dict, cam_p: dict, duration: float) -> Recording:
-    """In memory, what ``record_sim`` writes to a bag for the same validated parameters (same
-    sensor and camera models, seeds and stamps, no accelerometer): the benchmark's fast path."""
-    from strapdown_ros.motion.from_config import profile_from_config
-    from strapdown_ros.sensors import simulated_imu
-    from strapdown_ros.sensors.star_camera import StarCameraModel
+    """
+    In memory, what ``record_sim`` writes to a bag for the same validated parameters (same
+    sensor and camera models, seeds and stamps, no accelerometer): the benchmark's fast path.
+    """
 
     profile = profile_from_config(imu_p)
     gyro, _ = simulated_imu(imu_p, profile)

@@ -1,4 +1,5 @@
-"""Star-camera-aided attitude filter: the multiplicative error-state Kalman filter (MEKF).
+"""
+Star-camera-aided attitude filter: the multiplicative error-state Kalman filter (MEKF).
 
 Lefferts, Markley & Shuster (1982), "Kalman filtering for spacecraft attitude estimation",
 J. Guidance 5(5); Markley & Crassidis (2014), *Fundamentals of Spacecraft Attitude
@@ -39,17 +40,17 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from strapdown_ros.attitude.integrator import AttitudeIntegrator
-from strapdown_ros.rotation import (quat_conjugate, quat_multiply, quat_normalize, quat_to_dcm,
-    quat_to_rotvec, rotvec_to_quat)
-from strapdown_ros.sensors.effects import EFFECTS, GyroEffects
 from strapdown_ros.estimation.error_model import block_transition
-from strapdown_ros.estimation.filter_support import (FilterCounters, FixResult, chi2_3_quantile,
-    psd_factor, triangular_factor)
+from strapdown_ros.estimation.filter_support import (chi2_3_quantile, FilterCounters, FixResult,
+                                                     psd_factor, triangular_factor)
+from strapdown_ros.rotation import (quat_conjugate, quat_multiply, quat_normalize, quat_to_dcm,
+                                    quat_to_rotvec, rotvec_to_quat)
+from strapdown_ros.sensors.effects import EFFECTS, GyroEffects
 
-__all__ = ["AttitudeFilter", "FixResult", "FilterCounters", "chi2_3_quantile", "FILTER_STATES"]
+__all__ = ['AttitudeFilter', 'FixResult', 'FilterCounters', 'chi2_3_quantile', 'FILTER_STATES']
 
 #: names the ``augment`` argument accepts besides the registry's systematic gyro effects
-FILTER_STATES = ("time_offset", "boresight")
+FILTER_STATES = ('time_offset', 'boresight')
 
 
 @dataclass
@@ -88,7 +89,8 @@ class _Layout:
 
 
 class AttitudeFilter:
-    """Multiplicative error-state Kalman filter of the SINS attitude with star-camera fixes.
+    """
+    Multiplicative error-state Kalman filter of the SINS attitude with star-camera fixes.
 
     Parameters
     ----------
@@ -138,7 +140,7 @@ class AttitudeFilter:
         fraction of the work (``filter_bench``).
     """
 
-    def __init__(self, initial_attitude, initial_time: float, *, algorithm: str = "2",
+    def __init__(self, initial_attitude, initial_time: float, *, algorithm: str = '2',
                  gyro_random_walk: float = 0.0, gyro_bias_random_walk: float = 0.0,
                  gyro_bias_correlation_time: float = 0.0,
                  initial_sigma: float = 1e-3, bias_sigma: float = 1e-5, augment=(),
@@ -146,23 +148,23 @@ class AttitudeFilter:
                  boresight=(1.0, 0.0, 0.0, 0.0), process_noise: dict | None = None,
                  gate_probability: float = 0.9999, history: int = 20_000, max_pending: int = 256,
                  checkpoint_interval: float = 1.0, max_queued: int = 1024):
-        for name, v in (("gyro_random_walk", gyro_random_walk), ("initial_sigma", initial_sigma),
-                        ("bias_sigma", bias_sigma),
-                        ("gyro_bias_random_walk", gyro_bias_random_walk)):
+        for name, v in (('gyro_random_walk', gyro_random_walk), ('initial_sigma', initial_sigma),
+                        ('bias_sigma', bias_sigma),
+                        ('gyro_bias_random_walk', gyro_bias_random_walk)):
             if not (np.isfinite(v) and v >= 0):
-                raise ValueError(f"{name} must be finite and >= 0, got {v}")
+                raise ValueError(f'{name} must be finite and >= 0, got {v}')
         if not np.isfinite(initial_time):
-            raise ValueError("initial_time must be finite")
+            raise ValueError('initial_time must be finite')
         if int(history) < 16 or int(max_pending) < 1 or int(max_queued) < 0:
-            raise ValueError("history must be >= 16, max_pending >= 1 and max_queued >= 0")
+            raise ValueError('history must be >= 16, max_pending >= 1 and max_queued >= 0')
         self.max_queued = int(max_queued)
         self.integrator = AttitudeIntegrator(algorithm, initial_attitude,
                                              initial_time=initial_time,
                                              propagate_covariance=False)
         self.sigma_v = float(gyro_random_walk)
         self.noise = dict(process_noise or {})
-        self.noise["gyro_bias_random_walk"] = float(gyro_bias_random_walk)
-        self.noise["gyro_bias_correlation_time"] = float(gyro_bias_correlation_time)
+        self.noise['gyro_bias_random_walk'] = float(gyro_bias_random_walk)
+        self.noise['gyro_bias_correlation_time'] = float(gyro_bias_correlation_time)
         self.epoch = float(initial_time)               # effect epoch of the time-dependent effects
         self.gate = chi2_3_quantile(gate_probability)
         self.gate_probability = float(gate_probability)
@@ -170,25 +172,25 @@ class AttitudeFilter:
         self._x = np.zeros(self.layout.size)            # the estimates (filter states), not errors
         q_bv = np.asarray(boresight, dtype=float)
         if q_bv.shape != (4,) or not np.all(np.isfinite(q_bv)) or np.linalg.norm(q_bv) < 0.5:
-            raise ValueError("boresight must be a finite quaternion [w, x, y, z]")
+            raise ValueError('boresight must be a finite quaternion [w, x, y, z]')
         self.boresight = quat_normalize(q_bv)
         p0 = np.zeros(self.layout.size)
         p0[:3], p0[3:6] = initial_sigma ** 2, bias_sigma ** 2
         sig = dict(augment_sigma or {})
         for name, sl in self._named_slices():
-            if name in ("gyro_bias",):
+            if name in ('gyro_bias',):
                 continue
             if name not in sig:
-                raise ValueError(f"augment_sigma needs the prior 1σ of {name!r}")
+                raise ValueError(f'augment_sigma needs the prior 1σ of {name!r}')
             width = (sl.stop - sl.start,)
             p0[sl] = np.broadcast_to(np.asarray(sig[name], dtype=float), width) ** 2
         for name, v in (initial_values or {}).items():
             sl = dict(self._named_slices()).get(name)
             if sl is None:
-                raise ValueError(f"initial_values: {name!r} is not a state of this filter")
+                raise ValueError(f'initial_values: {name!r} is not a state of this filter')
             self._x[sl] = np.asarray(v, dtype=float).reshape(sl.stop - sl.start)
         if not np.all(np.isfinite(p0)) or np.any(p0 < 0):
-            raise ValueError("prior sigmas must be finite and >= 0")
+            raise ValueError('prior sigmas must be finite and >= 0')
         self._sqrt_p = np.diag(np.sqrt(p0))          # P = S Sᵀ (square-root form)
         self._g_noise = np.concatenate([e.filter_process_noise(self.noise)
                                         for e, _ in self.layout.gyro])
@@ -222,23 +224,23 @@ class AttitudeFilter:
     # ------------------------------------------------------------------ layout and estimates
     def _make_layout(self, augment) -> _Layout:
         """Layout: ε, the gyro states contiguous (bias first), time offset, boresight."""
-        lay = _Layout(gyro=[(EFFECTS["gyro_bias"], slice(3, 6))], size=6)
-        gyro = [n for n, e in EFFECTS.items() if e.sensor == "gyro" and e.kind == "systematic"]
-        if len(set(augment)) != len(augment) or "gyro_bias" in augment:
-            raise ValueError("augment: a name given twice (the bias is always a state)")
-        valid = [n for n in gyro + list(FILTER_STATES) if n != "gyro_bias"]
+        lay = _Layout(gyro=[(EFFECTS['gyro_bias'], slice(3, 6))], size=6)
+        gyro = [n for n, e in EFFECTS.items() if e.sensor == 'gyro' and e.kind == 'systematic']
+        if len(set(augment)) != len(augment) or 'gyro_bias' in augment:
+            raise ValueError('augment: a name given twice (the bias is always a state)')
+        valid = [n for n in gyro + list(FILTER_STATES) if n != 'gyro_bias']
         for name in augment:
             if name not in valid:
-                raise ValueError(f"augment: unknown or unsupported state {name!r}; valid: "
+                raise ValueError(f'augment: unknown or unsupported state {name!r}; valid: '
                                  f"{', '.join(valid)}")
         for name in (n for n in augment if n in gyro):
             e = EFFECTS[name]
             lay.gyro.append((e, slice(lay.size, lay.size + e.filter_size())))
             lay.size += e.filter_size()
-        if "time_offset" in augment:
+        if 'time_offset' in augment:
             lay.time_offset = slice(lay.size, lay.size + 1)
             lay.size += 1
-        if "boresight" in augment:
+        if 'boresight' in augment:
             lay.boresight = slice(lay.size, lay.size + 3)
             lay.size += 3
         return lay
@@ -246,9 +248,9 @@ class AttitudeFilter:
     def _named_slices(self):
         out = [(e.name, sl) for e, sl in self.layout.gyro]
         if self.layout.time_offset is not None:
-            out.append(("time_offset", self.layout.time_offset))
+            out.append(('time_offset', self.layout.time_offset))
         if self.layout.boresight is not None:
-            out.append(("boresight", self.layout.boresight))
+            out.append(('boresight', self.layout.boresight))
         return out
 
     @property
@@ -284,39 +286,43 @@ class AttitudeFilter:
     def estimate(self, name: str) -> np.ndarray:
         """Estimate of a state group (``boresight``: the quaternion ``q_MF_VF``)."""
         self._drain()
-        if name == "boresight":
+        if name == 'boresight':
             return self.boresight.copy()
         sl = dict(self._named_slices()).get(name)
         if sl is None:
-            raise ValueError(f"{name!r} is not a state of this filter")
+            raise ValueError(f'{name!r} is not a state of this filter')
         return self._x[sl].copy()
 
     def sigma(self, name: str) -> np.ndarray:
         """1σ of the error of one group of states (``attitude`` too), from the covariance."""
         self._drain()
-        sl = slice(0, 3) if name == "attitude" else dict(self._named_slices()).get(name)
+        sl = slice(0, 3) if name == 'attitude' else dict(self._named_slices()).get(name)
         if sl is None:
-            raise ValueError(f"{name!r} is not a state of this filter")
+            raise ValueError(f'{name!r} is not a state of this filter')
         return np.sqrt(np.diag(self.P)[sl])
 
     @property
     def P(self) -> np.ndarray:
-        """Error-state covariance (n, n): ``S Sᵀ`` of the square-root factor the filter keeps,
-        symmetric and positive semi-definite by construction."""
+        """
+        Error-state covariance (n, n): ``S Sᵀ`` of the square-root factor the filter keeps,
+        symmetric and positive semi-definite by construction.
+        """
         self._drain()
         P = self._sqrt_p @ self._sqrt_p.T
         return 0.5 * (P + P.T)
 
     def implausible(self) -> list[str]:
-        """Names of the estimates outside the valid range of their registry parameter (a
-        diverging filter; reported, not clamped)."""
+        """
+        Names of the estimates outside the valid range of their registry parameter (a
+        diverging filter; reported, not clamped).
+        """
         self._drain()
         out = []
         named = [(e, sl) for e, sl in self.layout.gyro]
         if self.layout.time_offset is not None:
-            named.append((EFFECTS["time_offset"], self.layout.time_offset))
+            named.append((EFFECTS['time_offset'], self.layout.time_offset))
         for e, sl in named:
-            v = e.filter_values(self._x[sl]) if e.sensor == "gyro" else self._x[sl]
+            v = e.filter_values(self._x[sl]) if e.sensor == 'gyro' else self._x[sl]
             p = e.value_parameter
             if (p.minimum is not None and np.any(v < p.minimum)) or \
                     (p.maximum is not None and np.any(v > p.maximum)):
@@ -332,7 +338,8 @@ class AttitudeFilter:
 
     # ------------------------------------------------------------------ public stream interface
     def propagate(self, delta_theta, stamps) -> list[FixResult]:
-        """Consume gyro increments and apply the waiting fixes whose epochs they reach.
+        """
+        Consume gyro increments and apply the waiting fixes whose epochs they reach.
 
         Parameters
         ----------
@@ -349,13 +356,13 @@ class AttitudeFilter:
         d = np.asarray(delta_theta, dtype=float).reshape(-1, 3)
         t = np.asarray(stamps, dtype=float).reshape(-1)
         if len(d) != len(t):
-            raise ValueError("delta_theta and stamps must have the same length")
+            raise ValueError('delta_theta and stamps must have the same length')
         if len(t) == 0:
             return []
         if not (np.isfinite(d).all() and np.isfinite(t).all()):
-            raise ValueError("increments and stamps must be finite")
+            raise ValueError('increments and stamps must be finite')
         if t[0] <= self._queued_stamp or (len(t) > 1 and (np.diff(t) <= 0).any()):
-            raise ValueError("stamps must increase strictly and follow the newest stamp")
+            raise ValueError('stamps must increase strictly and follow the newest stamp')
         self._queued_stamp = float(t[-1])
         due = bool(self._pending) and self._pending[0].epoch <= t[-1]
         if (not due and self._checkpoints and self._queued + len(t) <= self.max_queued
@@ -374,51 +381,55 @@ class AttitudeFilter:
         return out
 
     def update(self, stamp: float, attitude, covariance, boresight=None) -> FixResult:
-        """A star-camera fix: measured ``q_GCRS_VF`` (scalar-first) and its 3×3 covariance in
+        """
+        A star-camera fix: measured ``q_GCRS_VF`` (scalar-first) and its 3×3 covariance in
         VF axes (rad²), stamped ``stamp`` (camera clock, s).  ``boresight``: a new known
         ``q_MF_VF`` (e.g. from the calibrator) for this and later fixes; only when the boresight
         is not a filter state.
 
         Applied at the epoch ``stamp − τ̂``: now when the increments end exactly there, later
         (status 'pending', the result comes from :meth:`propagate`) when they have not reached
-        it, and by re-processing the history when they have passed it (counted as late)."""
+        it, and by re-processing the history when they have passed it (counted as late).
+        """
         self._drain()
         q = np.asarray(attitude, dtype=float)
         R = np.asarray(covariance, dtype=float)
         if q.shape != (4,) or not np.all(np.isfinite(q)) or abs(np.linalg.norm(q) - 1.0) > 1e-3:
-            raise ValueError("the fix attitude must be a finite unit quaternion [w, x, y, z]")
+            raise ValueError('the fix attitude must be a finite unit quaternion [w, x, y, z]')
         if R.shape != (3, 3) or not np.all(np.isfinite(R)):
-            raise ValueError("the fix covariance must be a finite 3x3 matrix")
+            raise ValueError('the fix covariance must be a finite 3x3 matrix')
         R = 0.5 * (R + R.T)
         if np.linalg.eigvalsh(R)[0] <= 0:
-            raise ValueError("the fix covariance must be positive definite")
+            raise ValueError('the fix covariance must be positive definite')
         if not np.isfinite(stamp):
-            raise ValueError("the fix stamp must be finite")
+            raise ValueError('the fix stamp must be finite')
         if boresight is not None:
             if self.layout.boresight is not None:
-                raise ValueError("the boresight is a filter state here: estimated, not given")
+                raise ValueError('the boresight is a filter state here: estimated, not given')
             q_bv = np.asarray(boresight, dtype=float)
             if (q_bv.shape != (4,) or not np.all(np.isfinite(q_bv))
                     or abs(np.linalg.norm(q_bv) - 1) > 1e-3):
-                raise ValueError("boresight must be a finite unit quaternion [w, x, y, z]")
+                raise ValueError('boresight must be a finite unit quaternion [w, x, y, z]')
             self.boresight = quat_normalize(q_bv)
         fix = _Fix(self._seq, float(stamp), float(stamp) - self.time_offset, quat_normalize(q), R)
         self._seq += 1
         if fix.epoch > self._last_stamp:
             if len(self._pending) >= self.max_pending:
                 self.counters.pending_overflow += 1
-                return self._record(fix, "overflow")
+                return self._record(fix, 'overflow')
             self._pending.append(fix)
             self._pending.sort(key=lambda f: (f.epoch, f.seq))
-            return FixResult(fix.stamp, fix.epoch, "pending")
+            return FixResult(fix.stamp, fix.epoch, 'pending')
         if fix.epoch == self._last_stamp:
             return self._apply(fix)
         return self._late(fix)
 
     # ------------------------------------------------------------------ processing
     def _drain(self) -> None:
-        """Process the queued increments (none of them reaches a waiting fix: :meth:`propagate`
-        processes at once when one does, and :meth:`update` drains first)."""
+        """
+        Process the queued increments (none of them reaches a waiting fix: :meth:`propagate`
+        processes at once when one does, and :meth:`update` drains first).
+        """
         if self._queued:
             d, t = np.concatenate(self._queue_d), np.concatenate(self._queue_t)
             self._queue_d, self._queue_t, self._queued = [], [], 0
@@ -436,7 +447,7 @@ class AttitudeFilter:
                 self._push(d, t)
                 break
             fix = self._pending.pop(0)
-            i = int(np.searchsorted(t, fix.epoch, side="left"))      # t[i] >= epoch
+            i = int(np.searchsorted(t, fix.epoch, side='left'))      # t[i] >= epoch
             t_prev = t[i - 1] if i > 0 else start
             if t[i] == fix.epoch:
                 self._push(d[:i + 1], t[:i + 1])
@@ -452,9 +463,11 @@ class AttitudeFilter:
         return out
 
     def _push(self, d: np.ndarray, t: np.ndarray) -> None:
-        """Compensate, integrate and propagate the covariance over increments (pieces); with
+        """
+        Compensate, integrate and propagate the covariance over increments (pieces); with
         Gauss–Markov states in blocks of at most 5 % of the shortest correlation time (the
-        compensation uses the estimate decayed to the middle of a block)."""
+        compensation uses the estimate decayed to the middle of a block).
+        """
         if len(t) == 0:
             return
         step = 0.05 * float(np.min(self._g_tau))
@@ -487,8 +500,10 @@ class AttitudeFilter:
                                        batch.stamps - 0.5 * batch.interval - self.epoch)
 
     def _flush(self) -> None:
-        """Complete the unfinished update (its increments applied one by one, the integrator's
-        rule when the algorithm changes): attitude and covariance are then at the newest stamp."""
+        """
+        Complete the unfinished update (its increments applied one by one, the integrator's
+        rule when the algorithm changes): attitude and covariance are then at the newest stamp.
+        """
         if len(self._open_rho) == 0:
             return
         q_before = self.integrator.q
@@ -501,8 +516,10 @@ class AttitudeFilter:
         self._open_rho, self._open_dt = np.zeros((0, 3)), np.zeros(0)
 
     def _propagate_covariance(self, c0, c, rho, h, t_mid) -> None:
-        """P over m updates: attitudes C_j (m,3,3), lumped increments ρ_j, lengths h_j, times
-        since the effect epoch (:func:`~strapdown_ros.estimation.error_model.block_transition`)."""
+        """
+        P over m updates: attitudes C_j (m,3,3), lumped increments ρ_j, lengths h_j, times
+        since the effect epoch (:func:`~strapdown_ros.estimation.error_model.block_transition`).
+        """
         lay = self.layout
         A = np.concatenate([c @ e.filter_partials(rho, h, t_mid) for e, _ in lay.gyro], axis=2)
         k = 3 + A.shape[2]                        # ε and the gyro states, contiguous
@@ -527,7 +544,7 @@ class AttitudeFilter:
         if lay.boresight is not None:
             H[:, lay.boresight] = np.eye(3)
         if lay.time_offset is not None:
-            H[:, lay.time_offset] = EFFECTS["time_offset"].fix_jacobian(self._last_rate, c_bv.T)
+            H[:, lay.time_offset] = EFFECTS['time_offset'].fix_jacobian(self._last_rate, c_bv.T)
         P = self.P
         S = H @ P @ H.T + fix.covariance
         S = 0.5 * (S + S.T)
@@ -537,7 +554,7 @@ class AttitudeFilter:
         self._order += 1
         self._trim_applied()
         if not nis <= self.gate:
-            res = self._record(fix, "gated", z, nis, S)
+            res = self._record(fix, 'gated', z, nis, S)
             if not fix.counted:
                 self.counters.gated += 1
             fix.counted = True
@@ -546,8 +563,8 @@ class AttitudeFilter:
         K = np.linalg.solve(S, H @ P).T
         dx = K @ z
         if not (np.all(np.isfinite(K)) and np.all(np.isfinite(dx))):
-            raise FloatingPointError("attitude filter: non-finite gain in the update (numerical "
-                                     "failure, not bad input); the state is not corrected")
+            raise FloatingPointError('attitude filter: non-finite gain in the update (numerical '
+                                     'failure, not bad input); the state is not corrected')
         IKH = np.eye(lay.size) - K @ H
         # Joseph form P ← (I − KH)P(I − KH)ᵀ + KRKᵀ, as the factor of [(I − KH)S, K R^½]
         self._sqrt_p = triangular_factor(IKH @ self._sqrt_p,
@@ -564,7 +581,7 @@ class AttitudeFilter:
             if self.implausible():
                 self.counters.implausible += 1
         fix.counted = True
-        res = self._record(fix, "applied", z, nis, S)
+        res = self._record(fix, 'applied', z, nis, S)
         self._checkpoint()
         return res
 
@@ -609,7 +626,7 @@ class AttitudeFilter:
                 break
         if cp is None:
             self.counters.too_old += 1
-            return self._record(fix, "too_old")
+            return self._record(fix, 'too_old')
         self.counters.late += 1
         self.counters.last_lateness = fix.lateness
         self.counters.max_lateness = max(self.counters.max_lateness, fix.lateness)
@@ -631,7 +648,7 @@ class AttitudeFilter:
         self._trim_applied()
         out = self._advance(d, t)
         mine = [r for r in out if r.stamp == fix.stamp and r.epoch == fix.epoch]
-        return mine[-1] if mine else FixResult(fix.stamp, fix.epoch, "pending", fix.lateness)
+        return mine[-1] if mine else FixResult(fix.stamp, fix.epoch, 'pending', fix.lateness)
 
     def _trim_applied(self) -> None:
         """Forget applied fixes older than every usable checkpoint (no longer re-processable)."""

@@ -18,8 +18,10 @@ FIT_LEVEL = 0.01
 
 
 def _gamma_p(a: float, x: float) -> float:
-    """Regularised lower incomplete gamma P(a, x): the series below a + 1, Lentz's continued
-    fraction for Q = 1 − P above (Numerical Recipes §6.2)."""
+    """
+    Regularised lower incomplete gamma P(a, x): the series below a + 1, Lentz's continued
+    fraction for Q = 1 − P above (Numerical Recipes §6.2).
+    """
     if x <= 0.0:
         return 0.0
     log_pre = a * math.log(x) - x - math.lgamma(a)
@@ -52,8 +54,10 @@ def _gamma_p(a: float, x: float) -> float:
 
 
 def _chi2_quantile(p: float, dof: int) -> float:
-    """x with P(χ²_dof ≤ x) = p: Newton's method on the exact distribution function from the
-    Wilson–Hilferty start (no scipy: the node must not pay its import inside a callback)."""
+    """
+    x with P(χ²_dof ≤ x) = p: Newton's method on the exact distribution function from the
+    Wilson–Hilferty start (no scipy: the node must not pay its import inside a callback).
+    """
     a = 0.5 * dof
     c = 2.0 / (9.0 * dof)
     x = dof * max(1e-3, 1.0 - c + NormalDist().inv_cdf(p) * math.sqrt(c)) ** 3
@@ -68,17 +72,20 @@ def _chi2_quantile(p: float, dof: int) -> float:
 
 
 def chi2_band(dof: int, level: float = FIT_LEVEL) -> tuple[float, float]:
-    """The two-sided acceptance band of χ²/dof for ``dof`` degrees of freedom at ``level``:
+    """
+    The two-sided acceptance band of χ²/dof for ``dof`` degrees of freedom at ``level``:
     (χ²_{level/2}(dof)/dof, χ²_{1−level/2}(dof)/dof).  A weighted least-squares fit whose
     stated noise is right lands inside with probability 1 − level.  Exact quantiles (numpy
-    only, checked against scipy in test/estimation/test_chi_square.py).  (nan, nan) for dof < 1."""
+    only, checked against scipy in test/estimation/test_chi_square.py).  (nan, nan) for dof < 1.
+    """
     if dof < 1:
-        return float("nan"), float("nan")
+        return float('nan'), float('nan')
     return _chi2_quantile(level / 2, dof) / dof, _chi2_quantile(1 - level / 2, dof) / dof
 
 
 def chi2_sf(x: float, dof: int) -> float:
-    """Survival function P(χ²_dof > x) (the p-value of a χ² statistic), from the regularised
+    """
+    Survival function P(χ²_dof > x) (the p-value of a χ² statistic), from the regularised
     incomplete gamma function of this module (numpy only).
 
     Parameters

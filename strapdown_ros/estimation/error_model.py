@@ -1,4 +1,5 @@
-"""Error-state transition of the attitude filter over a block of integrator updates.
+"""
+Error-state transition of the attitude filter over a block of integrator updates.
 
 The attitude error ε (body axes, ``C_est = C_true(I + [ε×])``) and the errors δc of the gyro
 states (bias first, then the registry effects the filter carries) obey, per update j of length
@@ -12,12 +13,13 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["block_transition"]
+__all__ = ['block_transition']
 
 
 def block_transition(c0: np.ndarray, c: np.ndarray, A: np.ndarray, h: np.ndarray,
                      sigma_v: float, density: np.ndarray, tau: np.ndarray):
-    """Transition and process noise of [ε, δc] over m integrator updates.
+    """
+    Transition and process noise of [ε, δc] over m integrator updates.
 
     Parameters
     ----------
@@ -79,9 +81,9 @@ def block_transition(c0: np.ndarray, c: np.ndarray, A: np.ndarray, h: np.ndarray
                 G[i] = acc + 0.5 * A[i]
         else:
             G = np.cumsum(A[::-1], axis=0)[::-1] - 0.5 * A
-        Q_ee = (np.einsum("mik,mk,mjk->ij", G, sh, G)
-                + np.einsum("mik,mk,mjk->ij", A, sh, A) / 12.0)
-        Q_ec = -np.einsum("mik,mk->ik", G, sh * to_end)
+        Q_ee = (np.einsum('mik,mk,mjk->ij', G, sh, G)
+                + np.einsum('mik,mk,mjk->ij', A, sh, A) / 12.0)
+        Q_ec = -np.einsum('mik,mk->ik', G, sh * to_end)
         Q[:3, :3] += ce @ Q_ee @ ce.T
         Q[:3, 3:] = ce @ Q_ec
         Q[3:, :3] = Q[:3, 3:].T

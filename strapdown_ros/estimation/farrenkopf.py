@@ -1,4 +1,5 @@
-"""Farrenkopf's analytic steady state of the single-axis gyro-bias attitude filter.
+"""
+Farrenkopf's analytic steady state of the single-axis gyro-bias attitude filter.
 
 The model (Farrenkopf 1978; Markley & Crassidis 2014, *Fundamentals of Spacecraft Attitude
 Determination and Control*, ch. 6 (the steady-state analysis of the MEKF); Crassidis & Junkins,
@@ -33,7 +34,7 @@ import numpy as np
 
 from strapdown_ros.estimation.steady_filter import discretize, steady_state_gain
 
-__all__ = ["SteadyState", "farrenkopf_steady_state", "riccati_steady_state", "bias_filter_model"]
+__all__ = ['SteadyState', 'farrenkopf_steady_state', 'riccati_steady_state', 'bias_filter_model']
 
 
 @dataclass(frozen=True)
@@ -47,7 +48,8 @@ class SteadyState:
 
 def farrenkopf_steady_state(sigma_n: float, sigma_v: float, sigma_u: float,
                             dt: float) -> SteadyState:
-    """Analytic steady-state attitude σ of the bias-only filter (Farrenkopf 1978).
+    """
+    Analytic steady-state attitude σ of the bias-only filter (Farrenkopf 1978).
 
     Parameters
     ----------
@@ -65,11 +67,11 @@ def farrenkopf_steady_state(sigma_n: float, sigma_v: float, sigma_u: float,
     SteadyState
         ``attitude_pre`` and ``attitude_post`` σ, rad (the bias fields are None here).
     """
-    for name, v in (("sigma_n", sigma_n), ("sigma_v", sigma_v), ("sigma_u", sigma_u)):
+    for name, v in (('sigma_n', sigma_n), ('sigma_v', sigma_v), ('sigma_u', sigma_u)):
         if not (np.isfinite(v) and v >= 0):
-            raise ValueError(f"{name} must be finite and >= 0, got {v}")
+            raise ValueError(f'{name} must be finite and >= 0, got {v}')
     if not (np.isfinite(dt) and dt > 0) or not sigma_n > 0:
-        raise ValueError("dt and sigma_n must be > 0")
+        raise ValueError('dt and sigma_n must be > 0')
     s_v = sigma_v * np.sqrt(dt) / sigma_n
     s_u = sigma_u * dt ** 1.5 / sigma_n
     gamma = 0.25 * (s_u + np.sqrt(16.0 + 4.0 * s_v ** 2 + s_u ** 2 / 3.0))
@@ -79,16 +81,19 @@ def farrenkopf_steady_state(sigma_n: float, sigma_v: float, sigma_u: float,
 
 
 def bias_filter_model(sigma_v: float, sigma_u: float, dt: float) -> tuple[np.ndarray, np.ndarray]:
-    """Exact discrete model of one axis over dt: transition Φ (2, 2) and process noise Q (2, 2)
+    """
+    Exact discrete model of one axis over dt: transition Φ (2, 2) and process noise Q (2, 2)
     of x = [θ error, bias error] with ``θ̇ = −b + η_v``, ``ḃ = η_u``, from the continuous model
     by Van Loan's method (:func:`strapdown_ros.estimation.steady_filter.discretize`); equal to
-    ``Q = [[σ_v²Δt + σ_u²Δt³/3, −σ_u²Δt²/2], [−σ_u²Δt²/2, σ_u²Δt]]``."""
+    ``Q = [[σ_v²Δt + σ_u²Δt³/3, −σ_u²Δt²/2], [−σ_u²Δt²/2, σ_u²Δt]]``.
+    """
     A = np.array([[0.0, -1.0], [0.0, 0.0]])
     return discretize(A, np.diag([sigma_v ** 2, sigma_u ** 2]), dt)
 
 
 def riccati_steady_state(sigma_n: float, sigma_v: float, sigma_u: float, dt: float) -> SteadyState:
-    """Steady state of the same single-axis model from the discrete algebraic Riccati equation
+    """
+    Steady state of the same single-axis model from the discrete algebraic Riccati equation
     (:func:`strapdown_ros.estimation.steady_filter.steady_state_gain`: numerical, independent of
     the closed form).
 

@@ -1,19 +1,22 @@
-"""Small parts of the attitude filter (:mod:`strapdown_ros.estimation.attitude_filter`): the
-χ²(3) gate quantile, the square-root covariance factors, and the result and counter records."""
+"""
+Small parts of the attitude filter (:mod:`strapdown_ros.estimation.attitude_filter`): the
+χ²(3) gate quantile, the square-root covariance factors, and the result and counter records.
+"""
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
+import math
 
 import numpy as np
 
 from strapdown_ros.sensors.effects import EFFECTS
 
-__all__ = ["AUGMENT_CHOICES", "augment_names", "augment_error", "chi2_3_quantile", "triangular_factor", "psd_factor", "FixResult", "FilterCounters"]
+__all__ = ['AUGMENT_CHOICES', 'augment_names', 'augment_error', 'chi2_3_quantile', 'triangular_factor', 'psd_factor', 'FixResult', 'FilterCounters']
 
 
 def chi2_3_quantile(probability: float) -> float:
-    """Quantile of the χ² distribution with 3 degrees of freedom (bisection on its CDF
+    """
+    Quantile of the χ² distribution with 3 degrees of freedom (bisection on its CDF
     ``erf(√(x/2)) − √(2x/π) e^{−x/2}``).
 
     Parameters
@@ -27,7 +30,7 @@ def chi2_3_quantile(probability: float) -> float:
         x with P(χ²₃ ≤ x) = probability.
     """
     if not 0.0 < probability < 1.0:
-        raise ValueError(f"probability must be in (0, 1), got {probability}")
+        raise ValueError(f'probability must be in (0, 1), got {probability}')
 
     def cdf(x):
         return math.erf(math.sqrt(x / 2.0)) - math.sqrt(2.0 * x / math.pi) * math.exp(-x / 2.0)
@@ -39,7 +42,8 @@ def chi2_3_quantile(probability: float) -> float:
 
 
 def triangular_factor(*blocks: np.ndarray) -> np.ndarray:
-    """A square factor S with S Sᵀ = Σ B Bᵀ, from the QR factorisation of [B₁ B₂ …]ᵀ.
+    """
+    A square factor S with S Sᵀ = Σ B Bᵀ, from the QR factorisation of [B₁ B₂ …]ᵀ.
 
     Parameters
     ----------
@@ -51,12 +55,13 @@ def triangular_factor(*blocks: np.ndarray) -> np.ndarray:
     ndarray (n, n)
         S (lower triangular), so that S Sᵀ is positive semi-definite by construction.
     """
-    r = np.linalg.qr(np.hstack(blocks).T, mode="r")
+    r = np.linalg.qr(np.hstack(blocks).T, mode='r')
     return r.T
 
 
 def psd_factor(Q: np.ndarray) -> np.ndarray:
-    """A factor B with B Bᵀ = Q of a symmetric positive semi-definite Q.
+    """
+    A factor B with B Bᵀ = Q of a symmetric positive semi-definite Q.
 
     Parameters
     ----------
@@ -101,13 +106,13 @@ class FilterCounters:
 #: names the filter's ``augment`` parameter accepts: the registry's systematic gyro effects
 #: (the bias is always a state), the camera time offset and the boresight
 AUGMENT_CHOICES = tuple(n for n, e in EFFECTS.items()
-                        if e.sensor == "gyro" and e.kind == "systematic" and n != "gyro_bias") \
-    + ("time_offset", "boresight")
+                        if e.sensor == 'gyro' and e.kind == 'systematic' and n != 'gyro_bias') \
+    + ('time_offset', 'boresight')
 
 
 def augment_names(text: str) -> tuple:
     """The names of a comma-separated ``augment`` value (blanks ignored)."""
-    return tuple(n.strip() for n in str(text).split(",") if n.strip())
+    return tuple(n.strip() for n in str(text).split(',') if n.strip())
 
 
 def augment_error(text: str) -> str | None:
@@ -117,5 +122,5 @@ def augment_error(text: str) -> str | None:
     if bad:
         return (f"augment: unknown state {bad[0][:80]!r}; valid: {', '.join(AUGMENT_CHOICES)}")
     if len(set(names)) != len(names):
-        return "augment: a name is given twice"
+        return 'augment: a name is given twice'
     return None

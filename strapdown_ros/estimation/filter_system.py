@@ -1,4 +1,5 @@
-"""The attitude filter between validated streams and outputs: shared by ``attitude_filter_node``
+"""
+The attitude filter between validated streams and outputs: shared by ``attitude_filter_node``
 and the offline tool ``filter_bag`` (no ROS imports).
 
 * Gyro increments pass the nodes' input rules (:class:`~strapdown_ros.streams.checks.StreamCheck`) in
@@ -18,20 +19,20 @@ and the offline tool ``filter_bag`` (no ROS imports).
 """
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
+import math
 
 import numpy as np
 
-from strapdown_ros.rotation import (quat_conjugate, quat_cumprod, quat_multiply, quat_normalize,
-    quat_to_dcm, rotvec_to_quat, ypr_to_dcm, dcm_to_quat)
+from strapdown_ros.estimation.attitude_filter import AttitudeFilter
+from strapdown_ros.estimation.filter_support import augment_error, augment_names
+from strapdown_ros.estimation.model_check import ModelCheck
+from strapdown_ros.rotation import (dcm_to_quat, quat_conjugate, quat_cumprod, quat_multiply,
+                                    quat_normalize, quat_to_dcm, rotvec_to_quat, ypr_to_dcm)
 from strapdown_ros.sensors.effects import EFFECTS
 from strapdown_ros.streams.checks import StreamCheck
-from strapdown_ros.estimation.filter_support import augment_error, augment_names
-from strapdown_ros.estimation.attitude_filter import AttitudeFilter
-from strapdown_ros.estimation.model_check import ModelCheck
 
-__all__ = ["FilterSystem", "FilterOutput", "FixOutput"]
+__all__ = ['FilterSystem', 'FilterOutput', 'FixOutput']
 
 #: exposures are seconds apart: a camera stamp jump is an hour (calibrator_node's rule)
 CAMERA_JUMP_S = 3600.0
@@ -61,12 +62,13 @@ class FixOutput:
     innovation: np.ndarray | None   # z, VF axes, rad
     nis: float | None
     lateness: float
-    check_text: str = ""
+    check_text: str = ''
     check_ok: bool = True
 
 
 class FilterSystem:
-    """Streams → :class:`~strapdown_ros.estimation.attitude_filter.AttitudeFilter` → outputs.
+    """
+    Streams → :class:`~strapdown_ros.estimation.attitude_filter.AttitudeFilter` → outputs.
 
     Parameters
     ----------
@@ -77,31 +79,31 @@ class FilterSystem:
 
     def __init__(self, p: dict):
         self.p = p
-        err = augment_error(p["augment"])
+        err = augment_error(p['augment'])
         if err:
             raise ValueError(err)
-        self.augment = augment_names(p["augment"])
-        self.period = 1.0 / float(p["gyro_rate"])
+        self.augment = augment_names(p['augment'])
+        self.period = 1.0 / float(p['gyro_rate'])
         self.gyro_check = StreamCheck(self.period,
-                                      max_norm=2.0 * self.period * float(p["gyro_max_rate"]),
-                                      jump_limit=float(p["max_stamp_jump"]),
-                                      resync_count=int(p["resync_count"]))
+                                      max_norm=2.0 * self.period * float(p['gyro_max_rate']),
+                                      jump_limit=float(p['max_stamp_jump']),
+                                      resync_count=int(p['resync_count']))
         self.camera_check = StreamCheck(math.inf,
-                                        jump_limit=max(float(p["max_stamp_jump"]), CAMERA_JUMP_S),
-                                        resync_count=int(p["resync_count"]))
-        sxy, sz = float(p["camera_sigma_xy"]), float(p["camera_sigma_z"])
+                                        jump_limit=max(float(p['max_stamp_jump']), CAMERA_JUMP_S),
+                                        resync_count=int(p['resync_count']))
+        sxy, sz = float(p['camera_sigma_xy']), float(p['camera_sigma_z'])
         self.default_covariance = np.diag([sxy ** 2, sxy ** 2, sz ** 2])
-        self.use_covariance = bool(p["use_camera_covariance"])
+        self.use_covariance = bool(p['use_camera_covariance'])
         self.boresight = None
-        if p["boresight_source"] == "parameter":
-            self.boresight = dcm_to_quat(ypr_to_dcm(*np.asarray(p["boresight"], dtype=float)))
-        self.output_ns = int(round(float(p["output_period"]) * 1e9))
+        if p['boresight_source'] == 'parameter':
+            self.boresight = dcm_to_quat(ypr_to_dcm(*np.asarray(p['boresight'], dtype=float)))
+        self.output_ns = int(round(float(p['output_period']) * 1e9))
         self.filter: AttitudeFilter | None = None
         self.check: ModelCheck | None = None
-        self.counts = {"fixes_received": 0, "dropped_zero_quaternion": 0, "normalised": 0,
-                       "dropped_bad_covariance": 0, "covariance_substituted": 0,
-                       "dropped_no_boresight": 0, "increments_before_start": 0, "restarts": 0,
-                       "gaps": 0, "applied": 0, "gated": 0, "too_old": 0, "overflow": 0}
+        self.counts = {'fixes_received': 0, 'dropped_zero_quaternion': 0, 'normalised': 0,
+                       'dropped_bad_covariance': 0, 'covariance_substituted': 0,
+                       'dropped_no_boresight': 0, 'increments_before_start': 0, 'restarts': 0,
+                       'gaps': 0, 'applied': 0, 'gated': 0, 'too_old': 0, 'overflow': 0}
         self._buf_t: list = []          # accepted increments not yet processed (ns, value)
         self._buf_d: list = []
         self._last_ns: int | None = None   # newest increment stamp given to the filter
@@ -128,15 +130,17 @@ class FilterSystem:
             prev = None
         for ns, v in out:
             if prev is not None and ns - prev > 1.5 * self.period * 1e9:
-                self.counts["gaps"] += 1
+                self.counts['gaps'] += 1
                 self._restart()
             prev = ns
             self._buf_t.append(int(ns))
             self._buf_d.append(v)
 
     def add_increments(self, stamps_ns, values) -> None:
-        """Increments already validated (the recording reader), buffered as :meth:`offer_gyro`
-        buffers; a gap (beyond 1.5 nominal periods) restarts the filter as there."""
+        """
+        Increments already validated (the recording reader), buffered as :meth:`offer_gyro`
+        buffers; a gap (beyond 1.5 nominal periods) restarts the filter as there.
+        """
         for ns, v in zip(stamps_ns, values):
             if self._buf_t:
                 prev = self._buf_t[-1]
@@ -144,19 +148,21 @@ class FilterSystem:
                 prev = self._last_ns
             if prev is not None and ns - prev > 1.5 * self.period * 1e9:
                 self.process()
-                self.counts["gaps"] += 1
+                self.counts['gaps'] += 1
                 self._restart()
             self._buf_t.append(int(ns))
             self._buf_d.append(tuple(float(c) for c in v))
 
     def offer_fix(self, stamp_ns: int, q_wxyz, covariance=None) -> FixOutput | None:
-        """One camera fix ``q_GCRS_VF`` with its 3×3 covariance (VF axes, rad²; None: the model
-        σ).  The rules of calibrator_node, then the filter (after the buffered increments)."""
-        self.counts["fixes_received"] += 1
+        """
+        One camera fix ``q_GCRS_VF`` with its 3×3 covariance (VF axes, rad²; None: the model
+        σ).  The rules of calibrator_node, then the filter (after the buffered increments).
+        """
+        self.counts['fixes_received'] += 1
         q = np.asarray(q_wxyz, dtype=float)
-        norm = float(np.linalg.norm(q)) if np.all(np.isfinite(q)) else float("nan")
+        norm = float(np.linalg.norm(q)) if np.all(np.isfinite(q)) else float('nan')
         if math.isfinite(norm) and norm < 1e-6:
-            self.counts["dropped_zero_quaternion"] += 1
+            self.counts['dropped_zero_quaternion'] += 1
             return None
         P = self.default_covariance
         if covariance is not None and self.use_covariance:
@@ -165,13 +171,13 @@ class FilterSystem:
                 P = 0.5 * (P + P.T)
                 if not np.any(P):
                     P = self.default_covariance
-                    self.counts["covariance_substituted"] += 1
+                    self.counts['covariance_substituted'] += 1
                 elif np.min(np.linalg.eigvalsh(P)) <= 0:
-                    self.counts["dropped_bad_covariance"] += 1
+                    self.counts['dropped_bad_covariance'] += 1
                     return None
         if math.isfinite(norm) and abs(norm - 1.0) > 1e-9:
             q = q / norm
-            self.counts["normalised"] += 1
+            self.counts['normalised'] += 1
         out = self.camera_check.offer(int(stamp_ns), list(q) + list(np.ravel(P)))
         res = None
         for ns, v in out:
@@ -181,7 +187,7 @@ class FilterSystem:
     def add_fix(self, stamp_ns: int, q_wxyz, covariance) -> FixOutput | None:
         """A fix already validated (unit quaternion, positive definite covariance)."""
         if self.boresight is None:
-            self.counts["dropped_no_boresight"] += 1
+            self.counts['dropped_no_boresight'] += 1
             return None
         self.process()
         t = stamp_ns * 1e-9
@@ -190,7 +196,7 @@ class FilterSystem:
             return None
         self._flush_signature()
         res = self.filter.update(t, q_wxyz, covariance)
-        if res.status == "pending":
+        if res.status == 'pending':
             self._pending.append(res.epoch)
             self._pending.sort()
             return None
@@ -200,7 +206,7 @@ class FilterSystem:
         """A new known boresight ``q_MF_VF`` (the latched calibration/boresight)."""
         q = quat_normalize(np.asarray(q_wxyz, dtype=float))
         self.boresight = q
-        if self.filter is not None and "boresight" not in self.augment:
+        if self.filter is not None and 'boresight' not in self.augment:
             self.filter.boresight = q
 
     @property
@@ -210,15 +216,17 @@ class FilterSystem:
 
     # ------------------------------------------------------------------ processing
     def process(self) -> None:
-        """Propagate over the buffered increments, emitting outputs at output times and fix
-        results as pending fixes are reached."""
+        """
+        Propagate over the buffered increments, emitting outputs at output times and fix
+        results as pending fixes are reached.
+        """
         if not self._buf_t:
             return
         t_ns = np.asarray(self._buf_t, dtype=np.int64)
         d = np.asarray(self._buf_d, dtype=float).reshape(-1, 3)
         self._buf_t, self._buf_d = [], []
         if self.filter is None:
-            self.counts["increments_before_start"] += len(t_ns)
+            self.counts['increments_before_start'] += len(t_ns)
             self._last_ns = int(t_ns[-1])
             return
         keep = t_ns > self._last_ns
@@ -226,10 +234,10 @@ class FilterSystem:
         while len(t_ns):
             cut = len(t_ns)
             if self._next_out is not None:
-                cut = min(cut, int(np.searchsorted(t_ns, self._next_out, side="left")) + 1)
+                cut = min(cut, int(np.searchsorted(t_ns, self._next_out, side='left')) + 1)
             if self._pending:
                 cut = min(cut, int(np.searchsorted(t_ns * 1e-9, self._pending[0],
-                                                   side="left")) + 1)
+                                                   side='left')) + 1)
             self._propagate(d[:cut], t_ns[:cut])
             t_ns, d = t_ns[cut:], d[cut:]
 
@@ -257,8 +265,10 @@ class FilterSystem:
                 self._next_out += self.output_ns
 
     def _signature(self, d, h, t) -> None:
-        """Keep the increments for the model check's signatures; they are summed in one
-        vectorised pass (:meth:`_flush_signature`) before the next fix is applied."""
+        """
+        Keep the increments for the model check's signatures; they are summed in one
+        vectorised pass (:meth:`_flush_signature`) before the next fix is applied.
+        """
         if self.check is None or not self.check.effects:
             return
         self._sig_buf.append((d, h, t))
@@ -281,13 +291,13 @@ class FilterSystem:
         if n < len(d):
             groups.append((d[n:].sum(0)[None], np.array([h[n:].sum()]), t[-1:]))
         for rho, hh, te in groups:
-            comp = rho - self.filter.estimate("gyro_bias")[None] * hh[:, None]
+            comp = rho - self.filter.estimate('gyro_bias')[None] * hh[:, None]
             q = quat_cumprod(self._rot, rotvec_to_quat(comp))       # (m+1, 4) or (m, 4)
             q = q[-len(rho):]
             c = quat_to_dcm(q)                                    # start ← body at each end
             J = [e.filter_partials(comp, hh, te - 0.5 * hh - self.filter.epoch)
                  for e in self.check.effects]
-            part = [np.einsum("nij,njk->ik", c, Jk) for Jk in J]
+            part = [np.einsum('nij,njk->ik', c, Jk) for Jk in J]
             self._sig = part if self._sig is None else [a + b for a, b in zip(self._sig, part)]
             self._rot = q[-1]
 
@@ -295,17 +305,17 @@ class FilterSystem:
         f = self.filter
         self.counts[r.status] = self.counts.get(r.status, 0) + 1
         out = FixOutput(int(round(r.stamp * 1e9)), r.status, r.residual, r.nis, r.lateness)
-        if r.status in ("applied", "gated") and self.check is not None \
+        if r.status in ('applied', 'gated') and self.check is not None \
                 and r.innovation_covariance is not None:
             c_end = quat_to_dcm(self._rot)
             sig = ([c_end.T @ s for s in self._sig] if self._sig is not None
                    else [np.zeros((3, e.filter_size())) for e in self.check.effects])
             c_vf_mf = quat_to_dcm(f.boresight).T
-            bias = f.estimate("gyro_bias")
+            bias = f.estimate('gyro_bias')
             v = self.check.add(r.residual, r.innovation_covariance, sig, c_vf_mf,
                                self._last_rate - bias)
             out.check_text, out.check_ok = v.text(), v.ok
-        if r.status == "applied":      # a gated fix leaves the error growing: keep summing
+        if r.status == 'applied':      # a gated fix leaves the error growing: keep summing
             self._sig = None
             self._rot = np.array([1.0, 0.0, 0.0, 0.0])
         self.fix_outputs.append(out)
@@ -314,7 +324,7 @@ class FilterSystem:
     def _emit(self) -> None:
         f = self.filter
         P = f.P
-        bias = f.estimate("gyro_bias")
+        bias = f.estimate('gyro_bias')
         rate = (self._rate_sum / self._rate_time - bias) if self._rate_time > 0 else np.zeros(3)
         aug = {name: (f.estimate(name), f.sigma(name)) for name in self.augment}
         self.outputs.append(FilterOutput(int(round(f.time * 1e9)), f.attitude.copy(),
@@ -328,26 +338,26 @@ class FilterSystem:
             else stamp_ns
         q0 = quat_normalize(quat_multiply(np.asarray(q_fix, dtype=float),
                                           quat_conjugate(self.boresight)))
-        sig = {"gyro_scale_factor": float(p["scale_sigma"]),
-               "gyro_misalignment": float(p["misalignment_sigma"]),
-               "time_offset": float(p["time_offset_sigma"]),
-               "boresight": float(p["boresight_sigma"])}
+        sig = {'gyro_scale_factor': float(p['scale_sigma']),
+               'gyro_misalignment': float(p['misalignment_sigma']),
+               'time_offset': float(p['time_offset_sigma']),
+               'boresight': float(p['boresight_sigma'])}
         for name in self.augment:
-            sig.setdefault(name, float(p["scale_sigma"]))
+            sig.setdefault(name, float(p['scale_sigma']))
         self.filter = AttitudeFilter(
-            q0, start_ns * 1e-9, algorithm=str(p["coning_algorithm"]),
-            gyro_random_walk=float(p["gyro_random_walk"]),
-            gyro_bias_random_walk=float(p["gyro_bias_random_walk"]),
-            gyro_bias_correlation_time=float(p["gyro_bias_correlation_time"]),
-            initial_sigma=float(p["initial_attitude_sigma"]),
-            bias_sigma=float(p["gyro_bias_sigma"]), augment=self.augment,
+            q0, start_ns * 1e-9, algorithm=str(p['coning_algorithm']),
+            gyro_random_walk=float(p['gyro_random_walk']),
+            gyro_bias_random_walk=float(p['gyro_bias_random_walk']),
+            gyro_bias_correlation_time=float(p['gyro_bias_correlation_time']),
+            initial_sigma=float(p['initial_attitude_sigma']),
+            bias_sigma=float(p['gyro_bias_sigma']), augment=self.augment,
             augment_sigma={n: sig[n] for n in self.augment}, boresight=self.boresight,
-            gate_probability=float(p["gate_probability"]), history=int(p["history"]))
-        cands = [e for n, e in EFFECTS.items() if e.sensor == "gyro" and e.kind == "systematic"
-                 and n != "gyro_bias" and n not in self.augment
-                 and hasattr(e, "filter_partials")]
-        self.check = ModelCheck(int(p["model_check_window"]), float(p["model_check_alpha"]),
-                                cands, time_offset="time_offset" not in self.augment)
+            gate_probability=float(p['gate_probability']), history=int(p['history']))
+        cands = [e for n, e in EFFECTS.items() if e.sensor == 'gyro' and e.kind == 'systematic'
+                 and n != 'gyro_bias' and n not in self.augment
+                 and hasattr(e, 'filter_partials')]
+        self.check = ModelCheck(int(p['model_check_window']), float(p['model_check_alpha']),
+                                cands, time_offset='time_offset' not in self.augment)
         self._last_ns = start_ns
         self._next_out = start_ns + self.output_ns
         self._pending = []
@@ -357,7 +367,7 @@ class FilterSystem:
     def _restart(self) -> None:
         if self.filter is not None:
             self.process()
-            self.counts["restarts"] += 1
+            self.counts['restarts'] += 1
         self.filter = None
 
     def take(self) -> tuple[list, list]:
@@ -370,13 +380,13 @@ class FilterSystem:
         """Counts for /diagnostics and the tool's summary."""
         g = self.gyro_check
         out = dict(self.counts)
-        out.update(g.as_dict("gyro"))
+        out.update(g.as_dict('gyro'))
         if self.filter is not None:
             c = self.filter.counters
-            out.update({"late_fixes": c.late, "max_lateness_s": c.max_lateness,
-                        "reprocessed_increments": c.reprocessed_increments,
-                        "implausible": c.implausible})
+            out.update({'late_fixes': c.late, 'max_lateness_s': c.max_lateness,
+                        'reprocessed_increments': c.reprocessed_increments,
+                        'implausible': c.implausible})
         if self.check is not None:
-            out.update({"model_check_windows": self.check.windows,
-                        "model_check_failed": self.check.failed})
+            out.update({'model_check_windows': self.check.windows,
+                        'model_check_failed': self.check.failed})
         return out

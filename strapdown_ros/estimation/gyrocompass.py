@@ -1,4 +1,5 @@
-"""Vavilov 1982 (paper 001): the gyro-horizon-compass error model, the Doppler-log measurement
+"""
+Vavilov 1982 (paper 001): the gyro-horizon-compass error model, the Doppler-log measurement
 and their
 observability, as a linear time-varying system in the paper's dimensionless variables.
 
@@ -38,17 +39,17 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["EARTH_RATE", "EARTH_RADIUS", "GRAVITY", "SCHULER_RATE", "B1", "B2", "Parameters",
-           "SmallCircleMotion", "orthodrome", "circulation", "error_matrices", "measurement_vectors",
-           "full_system", "transform", "ship_system", "aircraft_matrix", "circulation_ship_system",
-           "exact_measurement", "linear_measurement", "STATE_LABELS"]
+__all__ = ['EARTH_RATE', 'EARTH_RADIUS', 'GRAVITY', 'SCHULER_RATE', 'B1', 'B2', 'Parameters',
+           'SmallCircleMotion', 'orthodrome', 'circulation', 'error_matrices', 'measurement_vectors',
+           'full_system', 'transform', 'ship_system', 'aircraft_matrix', 'circulation_ship_system',
+           'exact_measurement', 'linear_measurement', 'STATE_LABELS']
 
 EARTH_RATE = 7.292115e-5            # u [rad/s]
 EARTH_RADIUS = 6.371e6              # R, the paper's Earth sphere [m]
 GRAVITY = 9.81                      # g [m/s²]
 SCHULER_RATE = np.sqrt(GRAVITY / EARTH_RADIUS)     # ω0 [rad/s]
 
-STATE_LABELS = ("x1=α1", "x2=α2", "x3=μω2α3", "x4=Δω2", "z", "Δ")
+STATE_LABELS = ('x1=α1', 'x2=α2', 'x3=μω2α3', 'x4=Δω2', 'z', 'Δ')
 
 # 001 §2, the matrices of (2.9)
 B1 = np.array([[0, 0, -1, 0], [0, 0, 0, 1], [1, 0, 0, 0], [0, -1, 0, 0]], float)
@@ -77,12 +78,14 @@ class Parameters:
 
 
 class SmallCircleMotion:
-    """Uniform motion along a circle on the rotating Earth sphere, exact kinematics.
+    """
+    Uniform motion along a circle on the rotating Earth sphere, exact kinematics.
 
     Earth-fixed unit position p(t) = cos a·c + sin a (cos θ e1 + sin θ e2), θ = θ0 + θ̇ t, about
     the circle's centre c (a = π/2: a great circle, 001's orthodrome §4.1; a ≪ 1: a circulation
     §4.2).  Relative speed V = R sin a |θ̇|.  :meth:`kinematics` returns the quantities 001's
-    matrices need, computed from the geometry (not from 001's (4.1)/(4.9), which they check)."""
+    matrices need, computed from the geometry (not from 001's (4.1)/(4.9), which they check).
+    """
 
     def __init__(self, centre, e1, angular_radius: float, rate: float, phase: float, params: Parameters):
         self.c = np.asarray(centre, float) / np.linalg.norm(centre)
@@ -109,27 +112,31 @@ class SmallCircleMotion:
         x2 = np.cross(x3, x1)
         x1_dot = (a_abs - np.dot(a_abs, x1) * x1) / speed
         rel = R * vel
-        return {"omega2": speed / (R * u),                                      # 001's ω2 = v
-                "lam_omega3": float(np.dot(x1_dot, x2)) / P.schuler_rate,       # λω3
-                "omega2_rate_ratio": float(np.dot(a_abs, x1)) / speed / P.schuler_rate,   # ω̇2/ω2 per τ
-                "V1": float(np.dot(rel, x1)) / P.speed, "V2": float(np.dot(rel, x2)) / P.speed,
-                "sin_lat": float(pos[2])}
+        return {'omega2': speed / (R * u),                                      # 001's ω2 = v
+                'lam_omega3': float(np.dot(x1_dot, x2)) / P.schuler_rate,       # λω3
+                'omega2_rate_ratio': float(np.dot(a_abs, x1)) / speed / P.schuler_rate,   # ω̇2/ω2 per τ
+                'V1': float(np.dot(rel, x1)) / P.speed, 'V2': float(np.dot(rel, x2)) / P.speed,
+                'sin_lat': float(pos[2])}
 
 
 def orthodrome(params: Parameters, inclination: float, polar_angle0: float = 0.0,
                eastward: bool = True) -> SmallCircleMotion:
-    """001 §4.1: uniform motion on the great circle through Oξ1 inclined ϑ to the equator.
+    """
+    001 §4.1: uniform motion on the great circle through Oξ1 inclined ϑ to the equator.
 
-    The polar angle ψ in the great-circle plane is measured from Oξ1; latitude sin φ = sin ψ sin ϑ."""
+    The polar angle ψ in the great-circle plane is measured from Oξ1; latitude sin φ = sin ψ sin ϑ.
+    """
     c = np.array([0.0, -np.sin(inclination), np.cos(inclination)])     # pole of the plane
     rate = params.speed / params.radius * (1 if eastward else -1)
     return SmallCircleMotion(c, [1.0, 0.0, 0.0], np.pi / 2, rate, polar_angle0, params)
 
 
 def circulation(params: Parameters, latitude: float, period: float, phase0: float = 0.0) -> SmallCircleMotion:
-    """001 §4.2: circulation at constant speed with the given period [s] centred at ``latitude``.
+    """
+    001 §4.2: circulation at constant speed with the given period [s] centred at ``latitude``.
 
-    Counter-clockwise seen from above (θ from east towards north); angular radius V·period/(2πR)."""
+    Counter-clockwise seen from above (θ from east towards north); angular radius V·period/(2πR).
+    """
     c = np.array([np.cos(latitude), 0.0, np.sin(latitude)])
     east = np.array([0.0, 1.0, 0.0])
     rate = 2 * np.pi / period
@@ -155,8 +162,8 @@ def full_system(motion: SmallCircleMotion):
 
     def F(tau):
         k = motion.kinematics(tau)
-        B, b = error_matrices(k["lam_omega3"], k["omega2_rate_ratio"])
-        _, h2 = measurement_vectors(k["V1"], k["V2"], k["omega2"], mu1)
+        B, b = error_matrices(k['lam_omega3'], k['omega2_rate_ratio'])
+        _, h2 = measurement_vectors(k['V1'], k['V2'], k['omega2'], mu1)
         out = np.zeros((6, 6))
         out[:4, :4] = B
         out[:4, 5] = b
@@ -165,8 +172,8 @@ def full_system(motion: SmallCircleMotion):
 
     def H(tau):
         k = motion.kinematics(tau)
-        h1, _ = measurement_vectors(k["V1"], k["V2"], k["omega2"], mu1)
-        return np.concatenate([h1, [-mu * mu1 * k["sin_lat"], 0.0]])[None, :]
+        h1, _ = measurement_vectors(k['V1'], k['V2'], k['omega2'], mu1)
+        return np.concatenate([h1, [-mu * mu1 * k['sin_lat'], 0.0]])[None, :]
 
     return F, H
 
@@ -178,9 +185,11 @@ def transform(h: np.ndarray) -> np.ndarray:
 
 
 def ship_system(c: float, b1_2: float, b1_4: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
-    """(4.6): state (y1, y2, y3, y4, Δ), ẏ = (B2 + c B1) y + c b1 Δ, σ = y1, c = μ sin φ.
+    """
+    (4.6): state (y1, y2, y3, y4, Δ), ẏ = (B2 + c B1) y + c b1 Δ, σ = y1, c = μ sin φ.
 
-    b1 = (0, b1_2, 0, b1_4) with (4.4) b1_2 = v − μ1²V²/v, b1_4 = 2μ1V2 (→ 0 for the ship)."""
+    b1 = (0, b1_2, 0, b1_4) with (4.4) b1_2 = v − μ1²V²/v, b1_4 = 2μ1V2 (→ 0 for the ship).
+    """
     A = np.zeros((5, 5))
     A[:4, :4] = B2 + c * B1
     A[:4, 4] = c * np.array([0.0, b1_2, 0.0, b1_4])
@@ -196,9 +205,11 @@ def aircraft_matrix(c: float) -> tuple[np.ndarray, np.ndarray]:
 
 
 def circulation_ship_system(lam1: float, mu1: float) -> tuple[np.ndarray, np.ndarray]:
-    """(4.11), time τ1 = Ωt: y1' = λ1y2, y2' = −λ1y1 + μ1p1, p1' = −p2, p2' = p1, σ = y1.
+    """
+    (4.11), time τ1 = Ωt: y1' = λ1y2, y2' = −λ1y1 + μ1p1, p1' = −p2, p2' = p1, σ = y1.
 
-    State order (y1, y2, p1, p2)."""
+    State order (y1, y2, p1, p2).
+    """
     A = np.array([[0, lam1, 0, 0], [-lam1, 0, mu1, 0], [0, 0, 0, -1], [0, 0, 1, 0]], float)
     return A, np.array([[1.0, 0, 0, 0]])
 
@@ -206,11 +217,13 @@ def circulation_ship_system(lam1: float, mu1: float) -> tuple[np.ndarray, np.nda
 # ------------------------------------------------------------------ the measurement, exactly
 def exact_measurement(mu: float, mu1: float, V1: float, V2: float, omega2_true: float,
                       alpha3: float, d_omega2: float, sin_lat_true: float, z: float) -> float:
-    """001's σ computed from erroneous signals, without linearisation (checks (3.1)–(3.7)).
+    """
+    001's σ computed from erroneous signals, without linearisation (checks (3.1)–(3.7)).
 
     The log gives V in the compass frame Mz, turned by α3 from Mx; the compass signal is
     ω2' = ω2 + Δω2 (units u; Δω2 = x4/μ); the computed latitude is sin φ − μ1 z.
-    σ = ½μ[μ1²V² + sin²φ_c − 1 + ω2'² − 2μ1ω2'V1']  (our corrected (3.5))."""
+    σ = ½μ[μ1²V² + sin²φ_c − 1 + ω2'² − 2μ1ω2'V1']  (our corrected (3.5)).
+    """
     # components along Mz (small rotation by α3 about the vertical, V_z = (E + α̂)V_x)
     V1z = V1 + alpha3 * V2
     V2z = V2 - alpha3 * V1

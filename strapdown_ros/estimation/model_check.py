@@ -1,4 +1,5 @@
-"""Live model check of the attitude filter: are the innovations of the last N fixes what the
+"""
+Live model check of the attitude filter: are the innovations of the last N fixes what the
 filter's model says they are, and if not, which effect of the registry do they look like?
 
 Over a sliding window of N fixes applied or gated (a gated fix counts: an unmodelled effect
@@ -20,19 +21,20 @@ the filter's model is never changed by it.
 """
 from __future__ import annotations
 
-import math
 from collections import deque
 from dataclasses import dataclass
+import math
 
 import numpy as np
 
 from strapdown_ros.estimation.chi_square import chi2_band, chi2_sf
 
-__all__ = ["ModelCheck", "ModelCheckResult", "ljung_box"]
+__all__ = ['ModelCheck', 'ModelCheckResult', 'ljung_box']
 
 
 def ljung_box(x: np.ndarray, lags: int) -> float:
-    """Ljung–Box statistic ``n(n+2) Σ_{k=1}^{L} r_k²/(n−k)`` of one series, summed over columns.
+    """
+    Ljung–Box statistic ``n(n+2) Σ_{k=1}^{L} r_k²/(n−k)`` of one series, summed over columns.
 
     Parameters
     ----------
@@ -63,30 +65,31 @@ class ModelCheckResult:
     """Verdict of one window (None fields: not computed)."""
     fixes: int                       # fixes in the window
     ok: bool                         # True while the window passes (or is not yet full)
-    nis_sum: float = float("nan")
-    nis_band: tuple = (float("nan"), float("nan"))   # two-sided band of Σ NIS
-    whiteness_p: float = float("nan")                # p-value of the Ljung–Box statistic
+    nis_sum: float = float('nan')
+    nis_band: tuple = (float('nan'), float('nan'))   # two-sided band of Σ NIS
+    whiteness_p: float = float('nan')                # p-value of the Ljung–Box statistic
     best_effect: str | None = None   # the effect the innovations match best (failing windows)
-    best_p: float = float("nan")     # its p-value (small: the effect explains the innovations)
+    best_p: float = float('nan')     # its p-value (small: the effect explains the innovations)
     best_estimate: np.ndarray | None = None          # the fitted effect value, its units
 
     def text(self) -> str:
         """One line for /diagnostics and logs."""
         if self.fixes == 0 or (self.ok and not math.isfinite(self.nis_sum)):
-            return f"model check: {self.fixes} fix(es) in the window, not yet full"
-        head = (f"NIS sum {self.nis_sum:.4g} over {self.fixes} fixes (band "
-                f"{self.nis_band[0]:.4g}–{self.nis_band[1]:.4g}), whiteness p = "
-                f"{self.whiteness_p:.3g}")
+            return f'model check: {self.fixes} fix(es) in the window, not yet full'
+        head = (f'NIS sum {self.nis_sum:.4g} over {self.fixes} fixes (band '
+                f'{self.nis_band[0]:.4g}–{self.nis_band[1]:.4g}), whiteness p = '
+                f'{self.whiteness_p:.3g}')
         if self.ok:
-            return "innovations consistent with the model: " + head
+            return 'innovations consistent with the model: ' + head
         if self.best_effect is None:
-            return "innovations inconsistent with the model (no candidate effect): " + head
-        return (f"innovations match {self.best_effect} (p = {self.best_p:.3g}); run discrepancy "
-                f"on a recording ({head})")
+            return 'innovations inconsistent with the model (no candidate effect): ' + head
+        return (f'innovations match {self.best_effect} (p = {self.best_p:.3g}); run discrepancy '
+                f'on a recording ({head})')
 
 
 class ModelCheck:
-    """The sliding-window test of the innovations and the naming of the best-matching effect.
+    """
+    The sliding-window test of the innovations and the naming of the best-matching effect.
 
     Parameters
     ----------
@@ -102,14 +105,14 @@ class ModelCheck:
 
     def __init__(self, window: int = 30, alpha: float = 0.001, effects=(), time_offset=False):
         if int(window) < 5:
-            raise ValueError("the model-check window needs at least 5 fixes")
+            raise ValueError('the model-check window needs at least 5 fixes')
         if not 0.0 < alpha < 0.5:
-            raise ValueError("alpha must be in (0, 0.5)")
+            raise ValueError('alpha must be in (0, 0.5)')
         self.window = int(window)
         self.alpha = float(alpha)
         self.effects = list(effects)
         self.time_offset = bool(time_offset)
-        self.names = [e.name for e in self.effects] + (["time_offset"] if time_offset else [])
+        self.names = [e.name for e in self.effects] + (['time_offset'] if time_offset else [])
         self._sizes = [e.filter_size() for e in self.effects] + ([1] if time_offset else [])
         self._rows: deque = deque(maxlen=self.window)
         lo, hi = chi2_band(3 * self.window, self.alpha)
@@ -119,17 +122,21 @@ class ModelCheck:
         self.windows = self.failed = 0
 
     def signature(self, rho, h, t_mid, c_end_body) -> list[np.ndarray]:
-        """Signatures (3, size) in body axes at the interval's end of each gyro candidate over
+        """
+        Signatures (3, size) in body axes at the interval's end of each gyro candidate over
         increments ρ (n, 3) of lengths h (n,) at times t_mid (n,) since the effect epoch, with
         ``c_end_body`` (n, 3, 3) the rotation from each increment's body axes to the body axes at
-        the end of the interval (since the last applied fix)."""
-        return [np.einsum("nij,njk->ik", c_end_body, e.filter_partials(rho, h, t_mid))
+        the end of the interval (since the last applied fix).
+        """
+        return [np.einsum('nij,njk->ik', c_end_body, e.filter_partials(rho, h, t_mid))
                 for e in self.effects]
 
     def add(self, z, S, gyro_signatures, c_vf_mf, rate_body) -> ModelCheckResult:
-        """One applied or gated fix: residual z (3,), VF axes; S (3, 3); the gyro signatures of the
+        """
+        One applied or gated fix: residual z (3,), VF axes; S (3, 3); the gyro signatures of the
         interval before it (:meth:`signature`, body axes); C_VF^MF; the body rate at the fix.
-        Returns the verdict of the window ending at this fix."""
+        Returns the verdict of the window ending at this fix.
+        """
         G = [c_vf_mf @ g for g in gyro_signatures]
         if self.time_offset:
             G.append(-(c_vf_mf @ np.asarray(rate_body, dtype=float))[:, None])

@@ -1,4 +1,5 @@
-"""Observability of estimation problems: one module every estimator reports through.
+"""
+Observability of estimation problems: one module every estimator reports through.
 
 Static (least-squares) case — :func:`analyze_information`
     Given the whitened information matrix ``N = Σ Hᵀ W H`` of a least-squares problem, its
@@ -53,9 +54,9 @@ from typing import Callable, Sequence
 
 import numpy as np
 
-__all__ = ["ObservabilityReport", "analyze_information", "combination_sigma", "expm",
-           "GramianResult", "observability_gramian", "measures_of_observability",
-           "stationary_measures", "observability_matrix"]
+__all__ = ['ObservabilityReport', 'analyze_information', 'combination_sigma', 'expm',
+           'GramianResult', 'observability_gramian', 'measures_of_observability',
+           'stationary_measures', 'observability_matrix']
 
 
 @dataclass
@@ -67,16 +68,16 @@ class ObservabilityReport:
     unobservable: list[str] = field(default_factory=list)
     weak: list[str] = field(default_factory=list)
     condition: float = np.inf                   # λ_max / λ_min
-    message: str = ""
+    message: str = ''
     parameter_sigma: np.ndarray | None = None   # √(N⁻¹)_ii per parameter (inf if not observable)
 
     def as_dict(self) -> dict:
-        out = {"observable": self.observable, "eigenvalues": self.eigenvalues.tolist(),
-               "directions": self.directions.T.tolist(), "predicted_sigma": self.predicted_sigma.tolist(),
-               "unobservable": list(self.unobservable), "weak": list(self.weak),
-               "condition": float(self.condition), "message": self.message}
+        out = {'observable': self.observable, 'eigenvalues': self.eigenvalues.tolist(),
+               'directions': self.directions.T.tolist(), 'predicted_sigma': self.predicted_sigma.tolist(),
+               'unobservable': list(self.unobservable), 'weak': list(self.weak),
+               'condition': float(self.condition), 'message': self.message}
         if self.parameter_sigma is not None:
-            out["parameter_sigma"] = self.parameter_sigma.tolist()
+            out['parameter_sigma'] = self.parameter_sigma.tolist()
         return out
 
 
@@ -91,9 +92,11 @@ def _pinv_quadratic(lam: np.ndarray, vec: np.ndarray, a: np.ndarray, rel_tol: fl
 
 
 def combination_sigma(info: np.ndarray, combinations: np.ndarray, rel_tol: float = 1e-12) -> np.ndarray:
-    """Predicted σ of each combination ``aᵀx`` (rows a of ``combinations``): ``√(aᵀ N⁻¹ a)``.
+    """
+    Predicted σ of each combination ``aᵀx`` (rows a of ``combinations``): ``√(aᵀ N⁻¹ a)``.
 
-    inf for a combination the information does not determine (a component in N's null space)."""
+    inf for a combination the information does not determine (a component in N's null space).
+    """
     info = 0.5 * (np.asarray(info, float) + np.asarray(info, float).T)
     lam, vec = np.linalg.eigh(info)
     rows = np.atleast_2d(np.asarray(combinations, float))
@@ -103,7 +106,8 @@ def combination_sigma(info: np.ndarray, combinations: np.ndarray, rel_tol: float
 def analyze_information(info: np.ndarray, describe: Callable[[np.ndarray], str] | None = None,
                         labels: Sequence[str] | None = None, rel_tol: float = 1e-9,
                         sigma_limit: float | None = None, weak_ratio: float = 1e-4) -> ObservabilityReport:
-    """Classify the combinations of an information matrix.
+    """
+    Classify the combinations of an information matrix.
 
     rel_tol: λ ≤ rel_tol·λ_max counts as unobservable (the matrix is singular to working accuracy).
     sigma_limit: a predicted σ above it also counts as unobservable (too poorly determined to publish).
@@ -113,15 +117,15 @@ def analyze_information(info: np.ndarray, describe: Callable[[np.ndarray], str] 
     info = 0.5 * (np.asarray(info, dtype=float) + np.asarray(info, dtype=float).T)
     lam, vec = np.linalg.eigh(info)
     lam_max = max(float(lam[-1]), 0.0)
-    with np.errstate(divide="ignore"):
+    with np.errstate(divide='ignore'):
         sigma = np.where(lam > 0, 1.0 / np.sqrt(np.maximum(lam, 1e-300)), np.inf)
     if describe is None:
-        names = list(labels) if labels is not None else [f"x{i}" for i in range(len(lam))]
+        names = list(labels) if labels is not None else [f'x{i}' for i in range(len(lam))]
 
         def describe(v):
             v = v * np.sign(v[np.argmax(np.abs(v))])
-            terms = [f"{c:+.2f}·{n}" for c, n in zip(v, names) if abs(c) >= 0.005]
-            return " ".join(terms) if terms else "0"
+            terms = [f'{c:+.2f}·{n}' for c, n in zip(v, names) if abs(c) >= 0.005]
+            return ' '.join(terms) if terms else '0'
     unobs, weak = [], []
     for i in range(len(lam)):
         v = vec[:, i]
@@ -134,17 +138,19 @@ def analyze_information(info: np.ndarray, describe: Callable[[np.ndarray], str] 
     par_sigma = np.sqrt([_pinv_quadratic(lam, vec, e, rel_tol) for e in np.eye(len(lam))])
     rep = ObservabilityReport(observable=not unobs, eigenvalues=lam, directions=vec, predicted_sigma=sigma,
                               unobservable=unobs, weak=weak, condition=cond, parameter_sigma=par_sigma)
-    rep.message = ("observable" if not unobs else "not observable: " + "; ".join(unobs)) + \
-        (f" (weakly observable: {'; '.join(weak)})" if weak else "")
+    rep.message = ('observable' if not unobs else 'not observable: ' + '; '.join(unobs)) + \
+        (f" (weakly observable: {'; '.join(weak)})" if weak else '')
     return rep
 
 
 # ------------------------------------------------------------------------------ dynamic case
 def expm(a: np.ndarray) -> np.ndarray:
-    """Matrix exponential by scaling and squaring of a Taylor series (numpy only).
+    """
+    Matrix exponential by scaling and squaring of a Taylor series (numpy only).
 
     The matrix is scaled by 2⁻ˢ to norm ≤ 0.5; 20 Taylor terms then leave a truncation error
-    below 0.5²⁰/20! ≈ 4e-25 relative, so the result is accurate to round-off (≈1e-15·‖e^A‖·2ˢ)."""
+    below 0.5²⁰/20! ≈ 4e-25 relative, so the result is accurate to round-off (≈1e-15·‖e^A‖·2ˢ).
+    """
     a = np.asarray(a, float)
     norm = np.linalg.norm(a, 1)
     s = max(0, int(np.ceil(np.log2(norm / 0.5)))) if norm > 0.5 else 0
@@ -196,7 +202,8 @@ def _gramian_pass(F, H, t0, t1, steps):
 
 def observability_gramian(F: Callable[[float], np.ndarray], H: Callable[[float], np.ndarray],
                           t0: float, t1: float, steps: int = 200) -> GramianResult:
-    """Observability Gramian ``W = ∫_{t0}^{t1} Φ(t,t0)ᵀ H(t)ᵀ H(t) Φ(t,t0) dt`` of ẋ = F(t)x, σ = H(t)x.
+    """
+    Observability Gramian ``W = ∫_{t0}^{t1} Φ(t,t0)ᵀ H(t)ᵀ H(t) Φ(t,t0) dt`` of ẋ = F(t)x, σ = H(t)x.
 
     F and H are frozen at the midpoint of each of ``steps`` equal sub-intervals; on each the
     transition matrix and the Gramian increment are exact matrix exponentials (Van Loan's block
@@ -204,7 +211,8 @@ def observability_gramian(F: Callable[[float], np.ndarray], H: Callable[[float],
     midpoint rule's error expands in even powers of h); the returned Gramian is the Richardson
     combination (4W_h − W_{2h})/3 of passes with ``steps`` and ``steps/2`` (even ``steps``), error
     O(h⁴).  ``relative_error`` = |W_h − W_{2h}|/(3|W|) is the error estimate of the *second-order*
-    pass, a conservative bound for the returned matrix."""
+    pass, a conservative bound for the returned matrix.
+    """
     W, Phi = _gramian_pass(F, H, t0, t1, steps)
     err = 0.0
     if steps >= 2 and steps % 2 == 0:
@@ -216,12 +224,14 @@ def observability_gramian(F: Callable[[float], np.ndarray], H: Callable[[float],
 
 def measures_of_observability(mean_gramian: np.ndarray, combinations: np.ndarray,
                               rel_tol: float = 1e-12) -> np.ndarray:
-    """001's measure (Gramian reading) of each combination ``aᵀx(t0)``: ``m = 1/√(aᵀ W̄⁻¹ a)``.
+    """
+    001's measure (Gramian reading) of each combination ``aᵀx(t0)``: ``m = 1/√(aᵀ W̄⁻¹ a)``.
 
     ``mean_gramian`` is W̄ = W/(t1 − t0) (:attr:`GramianResult.mean`); rows of ``combinations`` are
-    the a's (e.g. the identity for the state variables).  0 for an unobservable combination."""
+    the a's (e.g. the identity for the state variables).  0 for an unobservable combination.
+    """
     sig = combination_sigma(mean_gramian, combinations, rel_tol)
-    with np.errstate(divide="ignore"):
+    with np.errstate(divide='ignore'):
         return np.where(np.isfinite(sig), 1.0 / sig, 0.0)
 
 
@@ -238,11 +248,13 @@ def observability_matrix(A: np.ndarray, H: np.ndarray) -> np.ndarray:
 
 def stationary_measures(A: np.ndarray, H: np.ndarray, interval: float = 1.0,
                         combinations: np.ndarray | None = None, rel_tol: float = 1e-12) -> np.ndarray:
-    """001's measure (derivative reading) for a stationary system ẋ = Ax, σ = Hx on [0, interval].
+    """
+    001's measure (derivative reading) for a stationary system ẋ = Ax, σ = Hx on [0, interval].
 
     Time is normalised to the interval (A → A·interval); σ and its derivatives are taken as known
     to the measurement accuracy, so the combination aᵀx(0) = aᵀ O⁺ (σ, σ', …) has error
-    Δσ·‖aᵀO⁺‖ and measure ``m = 1/‖aᵀ O⁺‖``.  0 for a combination outside O's row space."""
+    Δσ·‖aᵀO⁺‖ and measure ``m = 1/‖aᵀ O⁺‖``.  0 for a combination outside O's row space.
+    """
     O = observability_matrix(np.asarray(A, float) * interval, H)
     n = O.shape[1]
     rows = np.eye(n) if combinations is None else np.atleast_2d(np.asarray(combinations, float))

@@ -1,4 +1,5 @@
-"""Steady-state (constant-gain) Kalman filter of a stationary linear system, numpy only.
+"""
+Steady-state (constant-gain) Kalman filter of a stationary linear system, numpy only.
 
 001 (Vavilov 1982) §4.1 proposes a *stationary asymptotic filter* for the ship case (4.6).
 Here it is the
@@ -16,10 +17,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from strapdown_ros.estimation.observability import expm
+from strapdown_ros.estimation.observability import expm, observability_matrix
 
-__all__ = ["discretize", "steady_state_gain", "constant_gain_covariance", "simulate_constant_gain",
-           "pole_placement_gain"]
+__all__ = ['discretize', 'steady_state_gain', 'constant_gain_covariance', 'simulate_constant_gain',
+           'pole_placement_gain']
 
 
 def discretize(A: np.ndarray, Qc: np.ndarray, h: float) -> tuple[np.ndarray, np.ndarray]:
@@ -36,12 +37,14 @@ def discretize(A: np.ndarray, Qc: np.ndarray, h: float) -> tuple[np.ndarray, np.
 
 
 def steady_state_gain(Phi, H, Q, R, tol: float = 1e-14, max_iter: int = 200):
-    """Steady-state prior covariance P, gain K and posterior covariance of the filter DARE
+    """
+    Steady-state prior covariance P, gain K and posterior covariance of the filter DARE
 
         P = Φ P Φᵀ − Φ P Hᵀ (H P Hᵀ + R)⁻¹ H P Φᵀ + Q = Φ P (I + HᵀR⁻¹H P)⁻¹ Φᵀ + Q,
 
     solved by the structure-preserving doubling algorithm (Chu, Fan, Lin 2005) with
-    A₀ = Φᵀ, G₀ = HᵀR⁻¹H, H₀ = Q; H_k → P quadratically (each step doubles the horizon)."""
+    A₀ = Φᵀ, G₀ = HᵀR⁻¹H, H₀ = Q; H_k → P quadratically (each step doubles the horizon).
+    """
     H = np.atleast_2d(H)
     R = np.atleast_2d(R)
     n = Phi.shape[0]
@@ -61,16 +64,18 @@ def steady_state_gain(Phi, H, Q, R, tol: float = 1e-14, max_iter: int = 200):
         if done:
             break
     else:
-        raise RuntimeError("doubling iteration for the Riccati equation did not converge")
+        raise RuntimeError('doubling iteration for the Riccati equation did not converge')
     S = H @ X @ H.T + R
     K = X @ H.T @ np.linalg.inv(S)
     return X, K, (eye - K @ H) @ X
 
 
 def constant_gain_covariance(Phi, H, Q, R, K, P0, steps: int) -> np.ndarray:
-    """Exact posterior error covariances (steps+1, n, n) of the filter with constant gain K.
+    """
+    Exact posterior error covariances (steps+1, n, n) of the filter with constant gain K.
 
-    e⁺_k = (I − KH)(Φ e⁺_{k−1} + w) − K r  ⇒  P_k = (I−KH)(ΦP_{k−1}Φᵀ + Q)(I−KH)ᵀ + K R Kᵀ (Joseph)."""
+    e⁺_k = (I − KH)(Φ e⁺_{k−1} + w) − K r  ⇒  P_k = (I−KH)(ΦP_{k−1}Φᵀ + Q)(I−KH)ᵀ + K R Kᵀ (Joseph).
+    """
     H = np.atleast_2d(H)
     L = np.eye(len(P0)) - K @ H
     out = np.empty((steps + 1,) + P0.shape)
@@ -83,9 +88,11 @@ def constant_gain_covariance(Phi, H, Q, R, K, P0, steps: int) -> np.ndarray:
 
 
 def simulate_constant_gain(Phi, H, Q, R, K, P0, steps: int, runs: int, rng: np.random.Generator):
-    """Monte Carlo of the constant-gain filter: errors (runs, steps+1, n), all runs vectorised.
+    """
+    Monte Carlo of the constant-gain filter: errors (runs, steps+1, n), all runs vectorised.
 
-    Each run draws y0 ~ N(0, P0) (the estimate starts at 0), process and measurement noise."""
+    Each run draws y0 ~ N(0, P0) (the estimate starts at 0), process and measurement noise.
+    """
     H = np.atleast_2d(H)
     n = Phi.shape[0]
     cq = np.linalg.cholesky(Q + 1e-300 * np.eye(n)) if np.any(Q) else np.zeros((n, n))
@@ -105,13 +112,14 @@ def simulate_constant_gain(Phi, H, Q, R, K, P0, steps: int, runs: int, rng: np.r
 
 
 def pole_placement_gain(A: np.ndarray, H: np.ndarray, poles) -> np.ndarray:
-    """Gain L of the asymptotic observer ŷ' = Aŷ + L(σ − Hŷ) with the eigenvalues of A − LH at ``poles``.
+    """
+    Gain L of the asymptotic observer ŷ' = Aŷ + L(σ − Hŷ) with the eigenvalues of A − LH at ``poles``.
 
     Ackermann's formula for a single output: L = p(A) O⁻¹ eₙ, p the desired characteristic
     polynomial, O the observability matrix.  This is the "stationary asymptotic filter" of 001
     §4.1 (its ref. [5]); since O⁻¹ carries 1/m for a variable of measure m, the gains of weakly
-    observable variables grow like 1/m — 001's remark that they are ∝ 1/(μ sin φ)."""
-    from strapdown_ros.estimation.observability import observability_matrix
+    observable variables grow like 1/m — 001's remark that they are ∝ 1/(μ sin φ).
+    """
     A = np.asarray(A, float)
     n = A.shape[0]
     coeffs = np.real(np.poly(np.asarray(poles)))          # p(s) = s^n + a1 s^(n-1) + ... + an

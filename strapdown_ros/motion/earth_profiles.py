@@ -1,4 +1,5 @@
-"""Earth-referenced motion profiles with exact position, velocity and attitude truth.
+"""
+Earth-referenced motion profiles with exact position, velocity and attitude truth.
 
 An :class:`EarthProfile` is a :class:`~strapdown_ros.motion.profiles.MotionProfile` (usable wherever
 one is: the simulated sensors, the attitude benches) whose motion is given in the Earth-fixed
@@ -52,16 +53,16 @@ from typing import Callable
 
 import numpy as np
 
+from strapdown_ros.earth import (DEFAULT_GRAVITY_MODEL, ecef_to_geodetic, enu_rotation,
+                                 geodetic_to_ecef, normal_gravity, OMEGA)
 from strapdown_ros.motion.profiles import MotionProfile
 from strapdown_ros.rotation import dcm_to_quat, quat_multiply, quat_normalize, quat_to_dcm
-from strapdown_ros.earth import (DEFAULT_GRAVITY_MODEL, OMEGA, ecef_to_geodetic, enu_rotation,
-    geodetic_to_ecef, normal_gravity)
 
-__all__ = ["EarthProfile", "static_profile", "straight_flight_profile", "coordinated_turn_profile",
-           "sculling_profile", "sculling_drift_rate", "gravity_sculling_term", "navigation_profile_from_config",
-           "NAVIGATION_PROFILE_NAMES", "MIN_FREQUENCY"]
+__all__ = ['EarthProfile', 'static_profile', 'straight_flight_profile', 'coordinated_turn_profile',
+           'sculling_profile', 'sculling_drift_rate', 'gravity_sculling_term', 'navigation_profile_from_config',
+           'NAVIGATION_PROFILE_NAMES', 'MIN_FREQUENCY']
 
-NAVIGATION_PROFILE_NAMES = ("static", "straight_flight", "coordinated_turn", "sculling")
+NAVIGATION_PROFILE_NAMES = ('static', 'straight_flight', 'coordinated_turn', 'sculling')
 
 #: floor of the quadrature frequency, rad/s (gravity along the path varies far slower)
 MIN_FREQUENCY = 1e-2
@@ -129,7 +130,8 @@ def _outer(scalar: np.ndarray, vec: np.ndarray) -> np.ndarray:
 
 
 class EarthProfile(MotionProfile):
-    """Motion given in the rotating Earth frame E, with exact truth (see the module docstring).
+    """
+    Motion given in the rotating Earth frame E, with exact truth (see the module docstring).
 
     Parameters are callables of a time array ``t`` (any shape S) returning arrays of shape
     S + (3,) (S + (4,) for the attitude): ``position`` R(t) (ECEF, m), ``velocity`` Ṙ(t),
@@ -142,7 +144,7 @@ class EarthProfile(MotionProfile):
     reference_specific_force = np.zeros(3)   # not used: specific_force is computed from the motion
 
     def __init__(self, position, velocity, acceleration, attitude_ecef, earth_relative_rate, *,
-                 frequency: float = 0.0, duration: float = np.inf, name: str = "earth",
+                 frequency: float = 0.0, duration: float = np.inf, name: str = 'earth',
                  gravity_model: str = DEFAULT_GRAVITY_MODEL, parameters: dict | None = None):
         self._position = position
         self._velocity = velocity
@@ -150,7 +152,7 @@ class EarthProfile(MotionProfile):
         self._attitude_ecef = attitude_ecef
         self._rate = earth_relative_rate
         if not (np.isfinite(frequency) and frequency >= 0):
-            raise ValueError(f"frequency must be finite and ≥ 0, got {frequency}")
+            raise ValueError(f'frequency must be finite and ≥ 0, got {frequency}')
         self.frequency = max(float(frequency), MIN_FREQUENCY)
         self.duration = float(duration)
         self.name = name
@@ -209,7 +211,7 @@ class EarthProfile(MotionProfile):
         t = np.asarray(t, dtype=float)
         c_eb = quat_to_dcm(self.attitude_ecef(t))
         f_e = self._specific_force_ecef(t, self.position(t))
-        return np.einsum("...ji,...j->...i", c_eb, f_e)
+        return np.einsum('...ji,...j->...i', c_eb, f_e)
 
     def delta_theta(self, t0, t1) -> np.ndarray:
         """∫ body_rate dt over each [t0, t1] (composite Gauss–Legendre, see the module docstring)."""
@@ -229,7 +231,8 @@ class EarthProfile(MotionProfile):
 
     def integrate(self, fun, t0, t1, points: int | None = None, subintervals: int | None = None,
                   max_step: float | None = None) -> np.ndarray:
-        """``∫_{t0}^{t1} fun(t) dt`` for a vectorised ``fun(t) -> (..., 3)``, broadcasting t0, t1.
+        """
+        ``∫_{t0}^{t1} fun(t) dt`` for a vectorised ``fun(t) -> (..., 3)``, broadcasting t0, t1.
 
         ``points``/``subintervals`` override the automatic rule (used by the tests to compare
         against a finer one).
@@ -257,7 +260,7 @@ class EarthProfile(MotionProfile):
             acc = np.zeros(s0.shape + (3,))
             for j in range(0, frac.size, cols):
                 nodes = s0[:, None] + ln[:, None] * frac[None, j:j + cols]
-                acc += np.einsum("k,nkj->nj", weights[j:j + cols], fun(nodes))
+                acc += np.einsum('k,nkj->nj', weights[j:j + cols], fun(nodes))
             out[i:i + rows] = acc * ln[:, None]
         return out.reshape(shape + (3,))
 
@@ -269,7 +272,8 @@ class EarthProfile(MotionProfile):
 
     # --- everything at once ----------------------------------------------------------
     def truth(self, t) -> dict:
-        """All truth at times ``t``: a dict of arrays (leading shape of ``t``).
+        """
+        All truth at times ``t``: a dict of arrays (leading shape of ``t``).
 
         Keys: ``time``; ``position``, ``velocity``, ``acceleration`` (ECEF); ``velocity_body``
         (C_B_E Ṙ); ``latitude``, ``longitude`` (rad), ``height`` (m, geodetic, PZ-90 ellipsoid
@@ -288,17 +292,17 @@ class EarthProfile(MotionProfile):
         coriolis = np.stack([-v[..., 1], v[..., 0], np.zeros_like(v[..., 0])], -1) * (2.0 * OMEGA)
         geo = ecef_to_geodetic(r)
         lat, lon, h = (geo[..., 0], geo[..., 1], geo[..., 2]) if isinstance(geo, np.ndarray) else geo
-        to_body = lambda x: np.einsum("...ji,...j->...i", c_eb, x)  # noqa: E731
+        to_body = lambda x: np.einsum('...ji,...j->...i', c_eb, x)  # noqa: E731
         return {
-            "time": t, "position": r, "velocity": v, "acceleration": a, "velocity_body": to_body(v),
-            "latitude": np.asarray(lat), "longitude": np.asarray(lon), "height": np.asarray(h),
-            "attitude": quat_normalize(quat_multiply(_q_ie(t), q_eb)), "attitude_ecef": q_eb,
-            "earth_relative_rate": w_eb, "body_rate": w_eb + OMEGA * c_eb[..., 2, :],
-            "gravity": g, "specific_force": to_body(a + coriolis - g),
+            'time': t, 'position': r, 'velocity': v, 'acceleration': a, 'velocity_body': to_body(v),
+            'latitude': np.asarray(lat), 'longitude': np.asarray(lon), 'height': np.asarray(h),
+            'attitude': quat_normalize(quat_multiply(_q_ie(t), q_eb)), 'attitude_ecef': q_eb,
+            'earth_relative_rate': w_eb, 'body_rate': w_eb + OMEGA * c_eb[..., 2, :],
+            'gravity': g, 'specific_force': to_body(a + coriolis - g),
         }
 
     def __repr__(self) -> str:
-        return f"EarthProfile({self.name!r}, {self.parameters})"
+        return f'EarthProfile({self.name!r}, {self.parameters})'
 
 
 # --- presets ------------------------------------------------------------------------------
@@ -313,13 +317,14 @@ def _ecef(lat: float, lon: float, h: float) -> np.ndarray:
 def _check_finite(**kw):
     for k, v in kw.items():
         if not np.isfinite(v):
-            raise ValueError(f"{k} must be finite, got {v!r}")
+            raise ValueError(f'{k} must be finite, got {v!r}')
 
 
 def static_profile(lat: float, lon: float, h: float = 0.0, yaw: float = 0.0, pitch: float = 0.0,
                    roll: float = 0.0, gravity_model: str = DEFAULT_GRAVITY_MODEL,
                    duration: float = np.inf) -> EarthProfile:
-    """At rest on the rotating Earth at geodetic (lat, lon, h) (radians, m).
+    """
+    At rest on the rotating Earth at geodetic (lat, lon, h) (radians, m).
 
     ``C_ENU_B = R_z(yaw) R_y(pitch) R_x(roll)`` (tf2 ``setRPY``; yaw counter-clockwise from east,
     REP-103).  f = −C_B_E g(R) and ω = C_B_E Ω_E are constant in body axes.
@@ -329,14 +334,15 @@ def static_profile(lat: float, lon: float, h: float = 0.0, yaw: float = 0.0, pit
     c_eb = _enu(lat, lon) @ _rz(yaw) @ _ry(pitch) @ _rx(roll)
     q0 = quat_normalize(dcm_to_quat(c_eb))
     return EarthProfile(_constant(r0), _zeros3, _zeros3, _constant(q0), _zeros3,
-                        frequency=0.0, duration=duration, name="static", gravity_model=gravity_model,
+                        frequency=0.0, duration=duration, name='static', gravity_model=gravity_model,
                         parameters=dict(lat=lat, lon=lon, h=h, yaw=yaw, pitch=pitch, roll=roll))
 
 
 def straight_flight_profile(lat: float, lon: float, h: float = 0.0, speed: float = 200.0,
                             heading: float = 0.0, gravity_model: str = DEFAULT_GRAVITY_MODEL,
                             duration: float = np.inf) -> EarthProfile:
-    """Constant speed along a great circle of the geocentric sphere of radius r = |R0|.
+    """
+    Constant speed along a great circle of the geocentric sphere of radius r = |R0|.
 
     "Straight" means a great circle at constant *geocentric* radius: R(t) = Rot(n, v t/r) R0 with
     n ⟂ R0, so |R| = r exactly, while the height above the ellipsoid varies slightly with latitude
@@ -375,7 +381,7 @@ def straight_flight_profile(lat: float, lon: float, h: float = 0.0, speed: float
 
     w_eb = np.array([0.0, rate, 0.0])
     return EarthProfile(position, velocity, acceleration, attitude, _constant(w_eb),
-                        frequency=abs(rate), duration=duration, name="straight_flight",
+                        frequency=abs(rate), duration=duration, name='straight_flight',
                         gravity_model=gravity_model,
                         parameters=dict(lat=lat, lon=lon, h=h, speed=v, heading=heading, radius=r,
                                         axis=n, rate=rate))
@@ -385,7 +391,8 @@ def coordinated_turn_profile(lat: float, lon: float, h: float = 0.0, speed: floa
                              radius: float = 2000.0, heading: float = 0.0, bank: float | None = None,
                              gravity_model: str = DEFAULT_GRAVITY_MODEL,
                              duration: float = np.inf) -> EarthProfile:
-    """Constant-speed left (counter-clockwise from above) turn on a circle in a tangent plane.
+    """
+    Constant-speed left (counter-clockwise from above) turn on a circle in a tangent plane.
 
     The circle has radius ρ = ``radius`` and centre R_c = geodetic (lat, lon, h), in the plane
     ⟂ the geodetic up u of the centre: ``R = R_c + ρ(cos ψ e + sin ψ n)``, ψ = ψ0 + (v/ρ)t,
@@ -406,7 +413,7 @@ def coordinated_turn_profile(lat: float, lon: float, h: float = 0.0, speed: floa
     """
     _check_finite(lat=lat, lon=lon, h=h, speed=speed, radius=radius, heading=heading)
     if not radius > 0:
-        raise ValueError(f"radius must be > 0, got {radius}")
+        raise ValueError(f'radius must be > 0, got {radius}')
     rc = _ecef(lat, lon, h)
     enu = _enu(lat, lon)
     e1, e2, up = enu[:, 0], enu[:, 1], enu[:, 2]
@@ -449,7 +456,7 @@ def coordinated_turn_profile(lat: float, lon: float, h: float = 0.0, speed: floa
         return quat_multiply(q0, _axis_angle_quat(axis, w_norm * t))
 
     return EarthProfile(position, velocity, acceleration, attitude, _constant(w_eb),
-                        frequency=abs(psi_dot), duration=duration, name="coordinated_turn",
+                        frequency=abs(psi_dot), duration=duration, name='coordinated_turn',
                         gravity_model=gravity_model,
                         parameters=dict(lat=lat, lon=lon, h=h, speed=v, radius=rho, heading=heading,
                                         bank=bank, bank_nominal=bank_nominal, g0=g0, turn_rate=psi_dot,
@@ -460,7 +467,8 @@ def sculling_profile(lat: float, lon: float, h: float = 0.0, angle_amplitude: fl
                      accel_amplitude: float = 1.0, frequency: float = 10.0, yaw: float = 0.0,
                      gravity_model: str = DEFAULT_GRAVITY_MODEL,
                      duration: float = np.inf) -> EarthProfile:
-    """Classical sculling about a level attitude at geodetic (lat, lon, h).
+    """
+    Classical sculling about a level attitude at geodetic (lat, lon, h).
 
     Level frame L = ENU rotated by ``yaw`` (REP-103) about up.  With w = 2π·``frequency``:
 
@@ -483,7 +491,7 @@ def sculling_profile(lat: float, lon: float, h: float = 0.0, angle_amplitude: fl
     _check_finite(lat=lat, lon=lon, h=h, angle_amplitude=angle_amplitude,
                   accel_amplitude=accel_amplitude, frequency=frequency, yaw=yaw)
     if not frequency > 0:
-        raise ValueError(f"frequency must be > 0, got {frequency}")
+        raise ValueError(f'frequency must be > 0, got {frequency}')
     r0 = _ecef(lat, lon, h)
     c_el = _enu(lat, lon) @ _rz(yaw)
     y_l = c_el[:, 1]
@@ -510,7 +518,7 @@ def sculling_profile(lat: float, lon: float, h: float = 0.0, angle_amplitude: fl
 
     g_up = float(-normal_gravity(r0, model=gravity_model) @ c_el[:, 2])
     return EarthProfile(position, velocity, acceleration, attitude, rate,
-                        frequency=w * (1.0 + abs(A)), duration=duration, name="sculling",
+                        frequency=w * (1.0 + abs(A)), duration=duration, name='sculling',
                         gravity_model=gravity_model,
                         parameters=dict(lat=lat, lon=lon, h=h, yaw=yaw, angle_amplitude=A,
                                         accel_amplitude=B, frequency=float(frequency), omega=w,
@@ -518,7 +526,8 @@ def sculling_profile(lat: float, lon: float, h: float = 0.0, angle_amplitude: fl
 
 
 def sculling_drift_rate(angle_amplitude, accel_amplitude, omega, interval):
-    """Classical sculling error rate ``½·A·B·(1 − sin(wh)/(wh))`` (m/s²), w = ``omega`` (rad/s),
+    """
+    Classical sculling error rate ``½·A·B·(1 − sin(wh)/(wh))`` (m/s²), w = ``omega`` (rad/s),
     h = ``interval`` (s), B the in-phase body-y specific-force amplitude.
 
     For ω = A w cos(wt) x̂ and f = B sin(wt) ŷ, with α(t), v(t) the integrals of ω and f from
@@ -536,7 +545,8 @@ def sculling_drift_rate(angle_amplitude, accel_amplitude, omega, interval):
 
 
 def navigation_profile_from_config(cfg: dict) -> EarthProfile:
-    """Build a navigation profile from node parameters.
+    """
+    Build a navigation profile from node parameters.
 
     ``profile`` ∈ :data:`NAVIGATION_PROFILE_NAMES`; ``nav_latitude_deg`` (50.45),
     ``nav_longitude_deg`` (30.52), ``nav_height`` (150 m), ``nav_speed`` (m/s; 0 = the preset's
@@ -545,31 +555,32 @@ def navigation_profile_from_config(cfg: dict) -> EarthProfile:
     ``sculling_angle`` (0.01 rad), ``sculling_accel`` (1.0 m/s²), ``sculling_frequency``
     (10 Hz), ``gravity_model`` (:data:`~.gravity.DEFAULT_GRAVITY_MODEL`).
     """
-    name = cfg.get("profile", "static")
+    name = cfg.get('profile', 'static')
     if name not in NAVIGATION_PROFILE_NAMES:
         raise ValueError(f"unknown navigation profile {name!r}; valid: {', '.join(NAVIGATION_PROFILE_NAMES)}")
-    lat = np.radians(float(cfg.get("nav_latitude_deg", 50.45)))
-    lon = np.radians(float(cfg.get("nav_longitude_deg", 30.52)))
-    h = float(cfg.get("nav_height", 150.0))
-    heading = np.radians(float(cfg.get("nav_heading_deg", 0.0)))
-    speed = float(cfg.get("nav_speed", 0.0))
-    model = str(cfg.get("gravity_model", DEFAULT_GRAVITY_MODEL))
-    if name == "static":
+    lat = np.radians(float(cfg.get('nav_latitude_deg', 50.45)))
+    lon = np.radians(float(cfg.get('nav_longitude_deg', 30.52)))
+    h = float(cfg.get('nav_height', 150.0))
+    heading = np.radians(float(cfg.get('nav_heading_deg', 0.0)))
+    speed = float(cfg.get('nav_speed', 0.0))
+    model = str(cfg.get('gravity_model', DEFAULT_GRAVITY_MODEL))
+    if name == 'static':
         return static_profile(lat, lon, h, yaw=heading, gravity_model=model)
-    if name == "straight_flight":
+    if name == 'straight_flight':
         return straight_flight_profile(lat, lon, h, speed=speed or 200.0, heading=heading, gravity_model=model)
-    if name == "coordinated_turn":
+    if name == 'coordinated_turn':
         return coordinated_turn_profile(lat, lon, h, speed=speed or 100.0,
-                                        radius=float(cfg.get("turn_radius", 2000.0)), heading=heading,
+                                        radius=float(cfg.get('turn_radius', 2000.0)), heading=heading,
                                         gravity_model=model)
-    return sculling_profile(lat, lon, h, angle_amplitude=float(cfg.get("sculling_angle", 0.01)),
-                            accel_amplitude=float(cfg.get("sculling_accel", 1.0)),
-                            frequency=float(cfg.get("sculling_frequency", 10.0)), yaw=heading,
+    return sculling_profile(lat, lon, h, angle_amplitude=float(cfg.get('sculling_angle', 0.01)),
+                            accel_amplitude=float(cfg.get('sculling_accel', 1.0)),
+                            frequency=float(cfg.get('sculling_frequency', 10.0)), yaw=heading,
                             gravity_model=model)
 
 
 def gravity_sculling_term(angle_amplitude, g_up, omega, interval):
-    """Mean vertical drift (m/s², + = up) of ``rotation_only`` in the navigation frame caused by a
+    """
+    Mean vertical drift (m/s², + = up) of ``rotation_only`` in the navigation frame caused by a
     roll oscillation θ = A sin(wt) in gravity alone (no lateral acceleration).
 
     To second order in A, with δ(s) = θ(t0 + s) − θ(t0), the error of Δv + ½Δθ×Δv against the

@@ -1,4 +1,5 @@
-"""Motion profiles with exact truth.
+"""
+Motion profiles with exact truth.
 
 A profile gives, for any time ``t`` (seconds from the profile origin):
 
@@ -28,26 +29,26 @@ Exactness
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from math import factorial
 from typing import Sequence
 
 import numpy as np
 
 from strapdown_ros.rotation import (quat_conjugate, quat_multiply, quat_normalize, quat_rotate,
-    quat_to_dcm, rotvec_to_quat, skew)
+                                    quat_to_dcm, rotvec_to_quat, skew)
 
 EARTH_RATE = 7.2921150e-5      # rad/s, PZ-90 / WGS-84
 STANDARD_GRAVITY = 9.80665     # m/s²
 
-__all__ = ["MotionProfile", "ConingProfile", "PiecewiseRateProfile", "Segment",
-           "tkachenko_profile", "bench_profile", "profile_from_config",
-           "EARTH_RATE", "STANDARD_GRAVITY", "PROFILE_NAMES"]
+__all__ = ['MotionProfile', 'ConingProfile', 'PiecewiseRateProfile', 'Segment',
+           'tkachenko_profile', 'bench_profile', 'profile_from_config',
+           'EARTH_RATE', 'STANDARD_GRAVITY', 'PROFILE_NAMES']
 
 _GAUSS_LEGENDRE = {n: np.polynomial.legendre.leggauss(n) for n in range(2, 9)}
 
 
 def _gauss_points(x: float) -> int:
     """Smallest n with x^(2n)/(2n)! < 1e-17 (x = frequency × sub-interval length)."""
-    from math import factorial
     for n in range(2, 9):
         if x ** (2 * n) / factorial(2 * n) < 1e-17:
             return n
@@ -95,7 +96,7 @@ class MotionProfile:
             mid = 0.5 * (tb + ta)
             nodes = mid[..., None] + half[..., None] * nodes_x             # (..., n)
             f = self.specific_force(nodes)                                 # (..., n, 3)
-            total += half[..., None] * np.einsum("...k,...kj->...j", weights, f)
+            total += half[..., None] * np.einsum('...k,...kj->...j', weights, f)
         return total.reshape(shape)
 
     def _frequency(self) -> float:
@@ -107,7 +108,8 @@ class MotionProfile:
 
 
 class ConingProfile(MotionProfile):
-    """Classical coning motion, 003 §2.2.
+    """
+    Classical coning motion, 003 §2.2.
 
     The rotation vector of the body relative to the reference (in body axes, which
     coincide with reference axes for this vector) is (2.4)
@@ -125,7 +127,7 @@ class ConingProfile(MotionProfile):
     def __init__(self, alpha: float, nu: float, gravity: Sequence[float] = (0.0, 0.0, 0.0),
                  duration: float = np.inf):
         if not np.isfinite(alpha) or not np.isfinite(nu):
-            raise ValueError("coning alpha and nu must be finite")
+            raise ValueError('coning alpha and nu must be finite')
         self.alpha = float(alpha)
         self.nu = float(nu)
         self.duration = float(duration)
@@ -181,13 +183,14 @@ class Segment:
     def __post_init__(self):
         self.rate = np.asarray(self.rate, dtype=float).reshape(3)
         if not (np.isfinite(self.duration) and self.duration > 0):
-            raise ValueError(f"segment duration must be positive and finite, got {self.duration}")
+            raise ValueError(f'segment duration must be positive and finite, got {self.duration}')
         if not np.all(np.isfinite(self.rate)):
-            raise ValueError("segment rate must be finite")
+            raise ValueError('segment rate must be finite')
 
 
 def _rodrigues_integral(u: np.ndarray, s: np.ndarray) -> np.ndarray:
-    """``∫_0^s exp([u×] σ) dσ`` for constant u (3,), times s (...) → (..., 3, 3).
+    """
+    ``∫_0^s exp([u×] σ) dσ`` for constant u (3,), times s (...) → (..., 3, 3).
 
     = s·I + (1 − cos(ws))/w²·[u×] + (ws − sin(ws))/w³·[u×]², with series near w = 0.
     """
@@ -196,14 +199,15 @@ def _rodrigues_integral(u: np.ndarray, s: np.ndarray) -> np.ndarray:
     K = skew(u)
     x = w * s
     small = np.abs(x) < 1e-3
-    with np.errstate(invalid="ignore", divide="ignore"):
+    with np.errstate(invalid='ignore', divide='ignore'):
         a = np.where(small, s ** 2 * (0.5 - x ** 2 / 24.0 + x ** 4 / 720.0), (1 - np.cos(x)) / np.where(w > 0, w, 1) ** 2)
         b = np.where(small, s ** 3 * (1.0 / 6.0 - x ** 2 / 120.0 + x ** 4 / 5040.0), (x - np.sin(x)) / np.where(w > 0, w, 1) ** 3)
     return s[..., None, None] * np.eye(3) + a[..., None, None] * K + b[..., None, None] * (K @ K)
 
 
 class PiecewiseRateProfile(MotionProfile):
-    """Body rate piecewise constant relative to an Earth frame E that may rotate.
+    """
+    Body rate piecewise constant relative to an Earth frame E that may rotate.
 
     Attitude: ``q_I_B(t) = q_I_E(t) ⊗ q_E_B(t)`` with ``q_I_E(t) = exp(Ω_E·t)`` (Earth
     rotation about the fixed vector ``earth_rate`` in reference axes; zero by
@@ -219,14 +223,14 @@ class PiecewiseRateProfile(MotionProfile):
 
     def __init__(self, segments: Sequence[Segment], initial_attitude=(1.0, 0.0, 0.0, 0.0),
                  earth_rate: Sequence[float] = (0.0, 0.0, 0.0),
-                 gravity: Sequence[float] = (0.0, 0.0, 0.0), name: str = "piecewise"):
+                 gravity: Sequence[float] = (0.0, 0.0, 0.0), name: str = 'piecewise'):
         if len(segments) == 0:
-            raise ValueError("a piecewise profile needs at least one segment")
+            raise ValueError('a piecewise profile needs at least one segment')
         self.name = name
         self.segments = list(segments)
         q0 = np.asarray(initial_attitude, dtype=float)
         if q0.shape != (4,) or not np.all(np.isfinite(q0)) or np.linalg.norm(q0) < 0.5:
-            raise ValueError("initial_attitude must be a finite quaternion [w, x, y, z]")
+            raise ValueError('initial_attitude must be a finite quaternion [w, x, y, z]')
         self.q0 = quat_normalize(q0)
         self.earth_rate = np.asarray(earth_rate, dtype=float)
         self.reference_specific_force = np.asarray(gravity, dtype=float)
@@ -241,7 +245,7 @@ class PiecewiseRateProfile(MotionProfile):
 
     # --- helpers -------------------------------------------------------------------
     def _segment_index(self, t: np.ndarray) -> np.ndarray:
-        idx = np.searchsorted(self.starts, t, side="right") - 1
+        idx = np.searchsorted(self.starts, t, side='right') - 1
         return np.clip(idx, 0, len(self.segments))        # index len(segments) = hold after the end
 
     def _rate_of(self, idx: np.ndarray) -> np.ndarray:
@@ -265,19 +269,21 @@ class PiecewiseRateProfile(MotionProfile):
         t = np.asarray(t, dtype=float)
         idx = self._segment_index(t)
         c_eb = quat_to_dcm(self.attitude_earth(t))
-        return self._rate_of(idx) + np.einsum("...ji,j->...i", c_eb, self.earth_rate)
+        return self._rate_of(idx) + np.einsum('...ji,j->...i', c_eb, self.earth_rate)
 
     def specific_force(self, t) -> np.ndarray:
         c_eb = quat_to_dcm(self.attitude_earth(np.asarray(t, dtype=float)))
-        return np.einsum("...ji,j->...i", c_eb, self.reference_specific_force)
+        return np.einsum('...ji,j->...i', c_eb, self.reference_specific_force)
 
     def _segments_touched(self, t0: np.ndarray, t1: np.ndarray, n: int) -> range:
-        """Indices (< n) of the segments that intervals within [min t0, max t1] can touch: the
-        others contribute exactly zero, so a short block costs a few segments, not all of them."""
+        """
+        Indices (< n) of the segments that intervals within [min t0, max t1] can touch: the
+        others contribute exactly zero, so a short block costs a few segments, not all of them.
+        """
         if t0.size == 0 or t1.size == 0:
             return range(0)
-        lo = int(np.searchsorted(self.starts, min(t0.min(), t1.min()), side="right")) - 1
-        hi = int(np.searchsorted(self.starts, max(t0.max(), t1.max()), side="left"))
+        lo = int(np.searchsorted(self.starts, min(t0.min(), t1.min()), side='right')) - 1
+        hi = int(np.searchsorted(self.starts, max(t0.max(), t1.max()), side='left'))
         return range(max(lo, 0), min(hi + 1, n))
 
     def _integral_of_cbe(self, t0: np.ndarray, t1: np.ndarray) -> np.ndarray:
@@ -325,14 +331,15 @@ def tkachenko_profile() -> PiecewiseRateProfile:
     table = [(0.01, 0.02, -0.01), (0.02, 0.32, -0.015), (0.01, 0.01, -0.02),
              (0.16, 0.015, -0.03), (0.03, 0.017, -0.16), (0.02, 0.02, -0.02)]
     return PiecewiseRateProfile([Segment(5.0, r) for r in table],
-                                initial_attitude=(0.64, 0.48, 0.36, -0.48), name="tkachenko")
+                                initial_attitude=(0.64, 0.48, 0.36, -0.48), name='tkachenko')
 
 
 def bench_profile(latitude_deg: float = 50.45, earth_rate: bool = True,
                   hold: float = 20.0, rotation_time: float = 5.0,
                   angles_deg: Sequence[float] = (15.0, -12.0, 10.0, -15.0, 12.0, -10.0),
                   axes: Sequence[int] = (2, 0, 1, 2, 0, 1), repeat: int = 1) -> PiecewiseRateProfile:
-    """A bench sequence in the spirit of 004 §6: static holds and 10–15° rotations about
+    """
+    A bench sequence in the spirit of 004 §6: static holds and 10–15° rotations about
     the body z, x and y axes in turn, on a bench that turns with the Earth.
 
     Reference frame: inertial, coinciding with the local ENU frame at t = 0.  Earth rate in
@@ -347,4 +354,4 @@ def bench_profile(latitude_deg: float = 50.45, earth_rate: bool = True,
     lat = np.radians(latitude_deg)
     omega = EARTH_RATE * np.array([0.0, np.cos(lat), np.sin(lat)]) if earth_rate else np.zeros(3)
     return PiecewiseRateProfile(segments, earth_rate=omega,
-                                gravity=(0.0, 0.0, STANDARD_GRAVITY), name="bench")
+                                gravity=(0.0, 0.0, STANDARD_GRAVITY), name='bench')

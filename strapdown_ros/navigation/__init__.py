@@ -1,4 +1,5 @@
-"""Navigation channel of 003 §1.5 (Aksyonenko 2014; paper 003): velocity and position in the
+"""
+Navigation channel of 003 §1.5 (Aksyonenko 2014; paper 003): velocity and position in the
 Earth-fixed (PZ-90) frame.
 
 Modules: :mod:`.gravity` (normal gravity, geodetic conversions), :mod:`.trajectories`

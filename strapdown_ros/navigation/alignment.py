@@ -1,4 +1,5 @@
-"""Static coarse alignment: the attitude from the first seconds at rest (gravity and Earth rate).
+"""
+Static coarse alignment: the attitude from the first seconds at rest (gravity and Earth rate).
 
 At rest on the Earth the accelerometers measure ``f = −V_trueᵀ g(R)`` and the gyros
 ``ω = V_trueᵀ Ω_E`` (V = C_E_B).  With the known position both vectors are known in E, so the
@@ -29,11 +30,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from strapdown_ros.sensors.model import SensorSigmas
 from strapdown_ros import earth as _gravity
 from strapdown_ros.earth import DEFAULT_GRAVITY_MODEL
+from strapdown_ros.sensors.model import SensorSigmas
 
-__all__ = ["AlignmentResult", "static_alignment", "triad"]
+__all__ = ['AlignmentResult', 'static_alignment', 'triad']
 
 
 @dataclass
@@ -46,8 +47,8 @@ class AlignmentResult:
     heading_sigma: float            # rad
 
     def as_dict(self) -> dict:
-        return {"ok": self.ok, "reason": self.reason, "tilt_sigma_rad": self.tilt_sigma,
-                "heading_sigma_rad": self.heading_sigma}
+        return {'ok': self.ok, 'reason': self.reason, 'tilt_sigma_rad': self.tilt_sigma,
+                'heading_sigma_rad': self.heading_sigma}
 
 
 def triad(f_body: np.ndarray, w_body: np.ndarray, f_earth: np.ndarray, w_earth: np.ndarray) -> np.ndarray:
@@ -67,7 +68,8 @@ def static_alignment(f_mean: np.ndarray, w_mean: np.ndarray, position: np.ndarra
                      max_specific_force_error: float = 0.05,
                      max_rate: float = 1e-3, max_latitude_deg: float = 85.0,
                      max_heading_sigma: float = np.radians(10.0)) -> AlignmentResult:
-    """Align from the mean specific force (m/s²) and angular rate (rad/s) over ``duration`` s.
+    """
+    Align from the mean specific force (m/s²) and angular rate (rad/s) over ``duration`` s.
 
     ``f_spread``/``w_spread``: RMS deviation of the per-sample means from the overall mean (for the
     static test); compared with the noise expected at ``sample_period``.
@@ -83,23 +85,23 @@ def static_alignment(f_mean: np.ndarray, w_mean: np.ndarray, position: np.ndarra
         return AlignmentResult(False, reason, eye, np.full((3, 3), np.nan), np.nan, np.nan)
 
     if not (np.all(np.isfinite(f)) and np.all(np.isfinite(w)) and duration > 0):
-        return refuse("no finite data to align with")
+        return refuse('no finite data to align with')
     if abs(np.linalg.norm(f) - np.linalg.norm(g)) > max_specific_force_error:
-        return refuse(f"not static: |mean specific force| {np.linalg.norm(f):.4f} m/s² differs from gravity "
-                      f"{np.linalg.norm(g):.4f} m/s² by more than {max_specific_force_error} m/s²")
+        return refuse(f'not static: |mean specific force| {np.linalg.norm(f):.4f} m/s² differs from gravity '
+                      f'{np.linalg.norm(g):.4f} m/s² by more than {max_specific_force_error} m/s²')
     if np.linalg.norm(w) > np.linalg.norm(om) + max_rate:
-        return refuse(f"not static: mean angular rate {np.linalg.norm(w):.3e} rad/s exceeds Earth rate + {max_rate} rad/s")
+        return refuse(f'not static: mean angular rate {np.linalg.norm(w):.3e} rad/s exceeds Earth rate + {max_rate} rad/s')
     if f_spread is not None:
         expected = 5.0 * (accel.random_walk / np.sqrt(sample_period) + 1e-3)
         if f_spread > expected:
-            return refuse(f"not static: specific force varies by {f_spread:.3e} m/s² RMS (limit {expected:.3e})")
+            return refuse(f'not static: specific force varies by {f_spread:.3e} m/s² RMS (limit {expected:.3e})')
     if w_spread is not None:
         expected = 5.0 * (gyro.random_walk / np.sqrt(sample_period) + 1e-5)
         if w_spread > expected:
-            return refuse(f"not static: angular rate varies by {w_spread:.3e} rad/s RMS (limit {expected:.3e})")
+            return refuse(f'not static: angular rate varies by {w_spread:.3e} rad/s RMS (limit {expected:.3e})')
     lat = np.degrees(np.arcsin(r[2] / np.linalg.norm(r)))
     if abs(lat) > max_latitude_deg:
-        return refuse(f"heading unobservable: latitude {lat:.1f}° is within {90 - max_latitude_deg:.0f}° of a pole")
+        return refuse(f'heading unobservable: latitude {lat:.1f}° is within {90 - max_latitude_deg:.0f}° of a pole')
     c = triad(f, w, -g, om)
     # first-order covariance by central differences of the construction
     var_f = accel.bias_sigma ** 2 + accel.random_walk ** 2 / duration + (accel.scale_sigma ** 2
@@ -123,7 +125,7 @@ def static_alignment(f_mean: np.ndarray, w_mean: np.ndarray, position: np.ndarra
     heading_sigma = float(np.sqrt(up @ cov @ up))
     tilt_sigma = float(np.sqrt(max(np.trace(cov) - heading_sigma ** 2, 0.0) / 2.0))
     if heading_sigma > max_heading_sigma:
-        return refuse(f"heading unobservable: predicted heading σ {np.degrees(heading_sigma):.2f}° exceeds "
-                      f"{np.degrees(max_heading_sigma):.2f}° (latitude {lat:.1f}°, gyro bias "
-                      f"{gyro.bias_sigma:.2e} rad/s, {duration:.0f} s)")
-    return AlignmentResult(True, "aligned", c, 0.5 * (cov + cov.T), tilt_sigma, heading_sigma)
+        return refuse(f'heading unobservable: predicted heading σ {np.degrees(heading_sigma):.2f}° exceeds '
+                      f'{np.degrees(max_heading_sigma):.2f}° (latitude {lat:.1f}°, gyro bias '
+                      f'{gyro.bias_sigma:.2e} rad/s, {duration:.0f} s)')
+    return AlignmentResult(True, 'aligned', c, 0.5 * (cov + cov.T), tilt_sigma, heading_sigma)

@@ -1,4 +1,5 @@
-"""The navigation channel as ``sins_node`` and ``sins_bag`` run it: static alignment or a given
+"""
+The navigation channel as ``sins_node`` and ``sins_bag`` run it: static alignment or a given
 attitude, then :class:`~.navigator.Navigator` over the attitude integrator's updates.
 
 :class:`NavigationChannel` is fed what the node has already validated: compensated gyro
@@ -10,20 +11,21 @@ from __future__ import annotations
 
 import numpy as np
 
-from strapdown_ros.sensors.model import SensorSigmas
+from strapdown_ros.earth import enu_rotation, geodetic_to_ecef
 from strapdown_ros.navigation.alignment import AlignmentResult, static_alignment
 from strapdown_ros.navigation.covariance import NavigationCovariance
-from strapdown_ros.earth import enu_rotation, geodetic_to_ecef
-from strapdown_ros.navigation.navigator import Navigator, NavigationBatch
+from strapdown_ros.navigation.navigator import NavigationBatch, Navigator
+from strapdown_ros.sensors.model import SensorSigmas
 
-__all__ = ["NavigationChannel", "ALIGNMENT_MODES", "VELOCITY_UPDATES"]
+__all__ = ['NavigationChannel', 'ALIGNMENT_MODES', 'VELOCITY_UPDATES']
 
-ALIGNMENT_MODES = ("given", "static")
-VELOCITY_UPDATES = ("derived", "printed")
+ALIGNMENT_MODES = ('given', 'static')
+VELOCITY_UPDATES = ('derived', 'printed')
 
 
 class NavigationChannel:
-    """Parameters (the node's): ``initial_position`` (lat °, lon °, h m, PZ-90), ``initial_velocity``
+    """
+    Parameters (the node's): ``initial_position`` (lat °, lon °, h m, PZ-90), ``initial_velocity``
     (east, north, up m/s at that point), ``initial_position_sigma`` (m), ``initial_velocity_sigma``
     (m/s), ``initial_alignment`` (given | static), ``alignment_time`` (s), ``velocity_update``
     (derived | printed), ``sculling_compensation``, ``gravity_model``,
@@ -32,18 +34,18 @@ class NavigationChannel:
 
     def __init__(self, p: dict, gyro: SensorSigmas, accel: SensorSigmas, gyro_period: float,
                  accel_period: float, samples_per_update: int):
-        lat, lon, h = (float(x) for x in p["initial_position"])
+        lat, lon, h = (float(x) for x in p['initial_position'])
         self.position0 = geodetic_to_ecef(np.radians(lat), np.radians(lon), h)
         self.enu = enu_rotation(np.radians(lat), np.radians(lon))
-        self.velocity0 = self.enu @ np.asarray(p["initial_velocity"], dtype=float)
+        self.velocity0 = self.enu @ np.asarray(p['initial_velocity'], dtype=float)
         self.p, self.gyro_sig, self.accel_sig = p, gyro, accel
         self.gyro_period, self.accel_period = float(gyro_period), float(accel_period)
         self.samples = int(samples_per_update)
-        self.mode = p["initial_alignment"]
+        self.mode = p['initial_alignment']
         if self.mode not in ALIGNMENT_MODES:
-            raise ValueError(f"initial_alignment must be one of {ALIGNMENT_MODES}, got {self.mode!r}")
-        if p["velocity_update"] not in VELOCITY_UPDATES:
-            raise ValueError(f"velocity_update must be one of {VELOCITY_UPDATES}")
+            raise ValueError(f'initial_alignment must be one of {ALIGNMENT_MODES}, got {self.mode!r}')
+        if p['velocity_update'] not in VELOCITY_UPDATES:
+            raise ValueError(f'velocity_update must be one of {VELOCITY_UPDATES}')
         self.navigator: Navigator | None = None
         self.alignment: AlignmentResult | None = None
         self.refusals = 0
@@ -52,47 +54,49 @@ class NavigationChannel:
 
     # --- alignment ------------------------------------------------------------------------------
     def _reset_alignment(self):
-        self._al = {"t0": None, "t1": None, "g": np.zeros(3), "a": np.zeros(3), "ga": [], "aa": []}
+        self._al = {'t0': None, 't1': None, 'g': np.zeros(3), 'a': np.zeros(3), 'ga': [], 'aa': []}
 
     @property
     def aligning(self) -> bool:
-        return self.navigator is None and self.mode == "static"
+        return self.navigator is None and self.mode == 'static'
 
     def align_gyro(self, inc: np.ndarray, t: np.ndarray) -> None:
         al = self._al
-        if al["t0"] is None and len(t):
-            al["t0"] = float(t[0]) - self.gyro_period
-        al["g"] += inc.sum(0)
-        al["t1"] = float(t[-1]) if len(t) else al["t1"]
-        al["ga"].append(inc.sum(0) / max(len(t), 1) / self.gyro_period)
+        if al['t0'] is None and len(t):
+            al['t0'] = float(t[0]) - self.gyro_period
+        al['g'] += inc.sum(0)
+        al['t1'] = float(t[-1]) if len(t) else al['t1']
+        al['ga'].append(inc.sum(0) / max(len(t), 1) / self.gyro_period)
 
     def align_accel(self, inc: np.ndarray, t: np.ndarray) -> None:
-        self._al["aa"].append((inc, t))             # selected by the gyro window in try_align
+        self._al['aa'].append((inc, t))             # selected by the gyro window in try_align
 
     def try_align(self) -> tuple[bool, np.ndarray | None, float | None]:
-        """When the alignment window is full: (done, C_E_B, start time).  A refusal is counted,
-        kept in :attr:`alignment` with its reason, and the window starts again."""
+        """
+        When the alignment window is full: (done, C_E_B, start time).  A refusal is counted,
+        kept in :attr:`alignment` with its reason, and the window starts again.
+        """
         al = self._al
-        if al["t0"] is None or al["t1"] is None:
+        if al['t0'] is None or al['t1'] is None:
             return False, None, None
-        span = al["t1"] - al["t0"]
-        if span < float(self.p["alignment_time"]):
+        span = al['t1'] - al['t0']
+        if span < float(self.p['alignment_time']):
             return False, None, None
-        if al["aa"]:
-            inc = np.concatenate([a[0] for a in al["aa"]])
-            t = np.concatenate([a[1] for a in al["aa"]])
-            sel = (t > al["t0"] + 1e-9) & (t <= al["t1"] + 1e-9)
-            al["a"] = inc[sel].sum(0)
+        if al['aa']:
+            inc = np.concatenate([a[0] for a in al['aa']])
+            t = np.concatenate([a[1] for a in al['aa']])
+            sel = (t > al['t0'] + 1e-9) & (t <= al['t1'] + 1e-9)
+            al['a'] = inc[sel].sum(0)
             # per-0.1 s means for the static test
             chunks = max(1, int(sel.sum() * self.accel_period / 0.1))
-            al["aa"] = [c.sum(0) / (len(c) * self.accel_period) for c in np.array_split(inc[sel], chunks) if len(c)]
+            al['aa'] = [c.sum(0) / (len(c) * self.accel_period) for c in np.array_split(inc[sel], chunks) if len(c)]
         spread = lambda xs: float(np.sqrt(np.mean(np.sum((np.array(xs) - np.mean(xs, 0)) ** 2, 1))))  # noqa: E731
-        res = static_alignment(al["a"] / span, al["g"] / span, self.position0, span, self.gyro_sig,
-                               self.accel_sig, f_spread=spread(al["aa"]) if len(al["aa"]) > 1 else None,
+        res = static_alignment(al['a'] / span, al['g'] / span, self.position0, span, self.gyro_sig,
+                               self.accel_sig, f_spread=spread(al['aa']) if len(al['aa']) > 1 else None,
                                w_spread=None, sample_period=0.1,
-                               gravity_model=self.p["gravity_model"])
+                               gravity_model=self.p['gravity_model'])
         self.alignment = res
-        t_end = al["t1"]
+        t_end = al['t1']
         self._reset_alignment()
         if not res.ok:
             self.refusals += 1
@@ -105,17 +109,17 @@ class NavigationChannel:
               attitude_sigma: float = 0.0) -> None:
         p = self.p
         p0 = np.zeros((9, 9))
-        p0[0:3, 0:3] = float(p["initial_position_sigma"]) ** 2 * np.eye(3)
-        p0[3:6, 3:6] = float(p["initial_velocity_sigma"]) ** 2 * np.eye(3)
+        p0[0:3, 0:3] = float(p['initial_position_sigma']) ** 2 * np.eye(3)
+        p0[3:6, 3:6] = float(p['initial_velocity_sigma']) ** 2 * np.eye(3)
         p0[6:9, 6:9] = attitude_cov if attitude_cov is not None else attitude_sigma ** 2 * np.eye(3)
-        derived = p["velocity_update"] == "derived"
-        form = ("exact" if p["sculling_compensation"] else "rotation_only") if derived else "printed"
+        derived = p['velocity_update'] == 'derived'
+        form = ('exact' if p['sculling_compensation'] else 'rotation_only') if derived else 'printed'
         self.navigator = Navigator(
             self.position0, self.velocity0, t0, self.samples, max(1, int(round(self.samples * self.gyro_period
                                                                               / self.accel_period))),
-            self.gyro_period, self.accel_period, form=form, scheme="exact" if derived else "printed",
-            gravity_model=p["gravity_model"],
-            covariance=NavigationCovariance(self.gyro_sig, self.accel_sig, p0, float(p["navigation_covariance_period"])))
+            self.gyro_period, self.accel_period, form=form, scheme='exact' if derived else 'printed',
+            gravity_model=p['gravity_model'],
+            covariance=NavigationCovariance(self.gyro_sig, self.accel_sig, p0, float(p['navigation_covariance_period'])))
         for inc, t in self._early_accel:            # the steps' fits may reach back before t0
             keep = t > t0 - 1.0
             self.navigator.add_accel(inc[keep], t[keep])
@@ -148,14 +152,14 @@ class NavigationChannel:
         return self.navigator.process(newest, wait)
 
     def status(self) -> dict:
-        d = {"navigation_state": "aligning" if self.aligning else ("navigating" if self.navigator else "waiting"),
-             "alignment_refusals": self.refusals}
+        d = {'navigation_state': 'aligning' if self.aligning else ('navigating' if self.navigator else 'waiting'),
+             'alignment_refusals': self.refusals}
         if self.alignment is not None:
-            d["alignment"] = self.alignment.reason
+            d['alignment'] = self.alignment.reason
             if self.alignment.ok:
-                d["alignment_tilt_sigma_rad"] = self.alignment.tilt_sigma
-                d["alignment_heading_sigma_rad"] = self.alignment.heading_sigma
+                d['alignment_tilt_sigma_rad'] = self.alignment.tilt_sigma
+                d['alignment_heading_sigma_rad'] = self.alignment.heading_sigma
         if self.navigator is not None:
-            d["navigation_steps"] = self.navigator.steps
-            d["navigation_steps_accel_extrapolated"] = self.navigator.extrapolated_steps
+            d['navigation_steps'] = self.navigator.steps
+            d['navigation_steps_accel_extrapolated'] = self.navigator.extrapolated_steps
         return d

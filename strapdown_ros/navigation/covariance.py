@@ -1,4 +1,5 @@
-"""Covariance of the navigation errors, propagated from the sensor error model.
+"""
+Covariance of the navigation errors, propagated from the sensor error model.
 
 Error state (E axes): ``x = [δR, δW, ψ]`` with ``V_est = (I + [ψ×]) V_true``.  Linearised
 e-frame error equations (Groves, *Principles of GNSS, Inertial and Multisensor Integrated
@@ -36,7 +37,7 @@ from strapdown_ros.sensors.model import SensorSigmas
 def _skew(v) -> np.ndarray:
     return np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
 
-__all__ = ["NavigationCovariance"]
+__all__ = ['NavigationCovariance']
 
 OMEGA = 7.292115e-5
 MU = 3.986004418e14
@@ -52,20 +53,22 @@ _F_CONST[6:9, 6:9] = -_OM
 _BASIS = constant_jacobian_basis()
 
 
-def _contract(w: np.ndarray) -> np.ndarray:
-    """Per-epoch sums of ``V[a, m]·[u, T]_i`` (E, 3, 12; index 4m + i) → the sums of
-    ``V J(u, T)`` (E, 3, 12)."""
+def contract_blocks(w: np.ndarray) -> np.ndarray:
+    """
+    Per-epoch sums of ``V[a, m]·[u, T]_i`` (E, 3, 12; index 4m + i) → the sums of
+    ``V J(u, T)`` (E, 3, 12).
+    """
     w = w.reshape(len(w), 3, 3, 4)                                # [e, a, m, i]
-    return np.einsum("eami,imc->eac", w, _BASIS)
+    return np.einsum('eami,imc->eac', w, _BASIS)
 
 
 class NavigationCovariance:
     def __init__(self, gyro: SensorSigmas, accel: SensorSigmas, p0: np.ndarray, period: float = 1.0):
         p0 = np.asarray(p0, dtype=float)
         if p0.shape != (9, 9) or not np.all(np.isfinite(p0)):
-            raise ValueError("initial navigation covariance must be a finite 9×9 matrix")
+            raise ValueError('initial navigation covariance must be a finite 9×9 matrix')
         if not (np.isfinite(period) and period > 0):
-            raise ValueError(f"covariance period must be > 0, got {period}")
+            raise ValueError(f'covariance period must be > 0, got {period}')
         self.gyro, self.accel = gyro, accel
         self.p_w = 0.5 * (p0 + p0.T)
         self.j = np.zeros((9, 24))
@@ -77,11 +80,13 @@ class NavigationCovariance:
 
     @staticmethod
     def _zero_acc():
-        return {"dt": 0.0, "b": np.zeros((9, 24)), "fdt": np.zeros(3)}
+        return {'dt': 0.0, 'b': np.zeros((9, 24)), 'fdt': np.zeros(3)}
 
     def propagate(self, positions, v_start, dv_body, theta, h) -> np.ndarray:
-        """Feed K steps; returns (K, 9, 9): for each step the covariance of the latest epoch
-        completed at that step (independent of how the steps are blocked)."""
+        """
+        Feed K steps; returns (K, 9, 9): for each step the covariance of the latest epoch
+        completed at that step (independent of how the steps are blocked).
+        """
         k_steps = len(h)
         out = np.empty((k_steps, 9, 9))
         if k_steps == 0:
@@ -101,8 +106,8 @@ class NavigationCovariance:
         self._elapsed = float(tot[-1])
         bounds = np.array([0] + ends + ([k_steps] if not ends or ends[-1] < k_steps else []))
         starts = bounds[:-1]
-        sum_g = _contract(np.add.reduceat(wg, starts, axis=0))
-        sum_a = _contract(np.add.reduceat(wa, starts, axis=0))
+        sum_g = contract_blocks(np.add.reduceat(wg, starts, axis=0))
+        sum_a = contract_blocks(np.add.reduceat(wa, starts, axis=0))
         sum_f = np.add.reduceat(fdt, starts, axis=0)
         sum_h = np.add.reduceat(h, starts)
         n_ep = len(ends)
@@ -110,13 +115,13 @@ class NavigationCovariance:
             # the epochs' recursion, compiled when numba is there (the same loop in Python otherwise)
             a = self._acc
             dts = sum_h[:n_ep].copy()
-            dts[0] += a["dt"]
+            dts[0] += a['dt']
             fs = sum_f[:n_ep].copy()
-            fs[0] += a["fdt"]
+            fs[0] += a['fdt']
             bs = np.zeros((n_ep, 9, 24))
             bs[:, 3:6, 12:] = sum_a[:n_ep]
             bs[:, 6:9, :12] = sum_g[:n_ep]
-            bs[0] += a["b"]
+            bs[0] += a['b']
             rs = positions[np.array(ends) - 1]
             q_rw = np.array([self.accel.random_walk ** 2, self.gyro.random_walk ** 2])
             cur = np.empty((n_ep, 9, 9))
@@ -131,19 +136,21 @@ class NavigationCovariance:
                 out[hi - 1] = cur[e]
         if len(bounds) - 1 > n_ep:                  # the open epoch accumulates
             a = self._acc
-            a["dt"] += float(sum_h[-1])
-            a["b"][3:6, 12:] += sum_a[-1]
-            a["b"][6:9, :12] += sum_g[-1]
-            a["fdt"] += sum_f[-1]
+            a['dt'] += float(sum_h[-1])
+            a['b'][3:6, 12:] += sum_a[-1]
+            a['b'][6:9, :12] += sum_g[-1]
+            a['fdt'] += sum_f[-1]
             out[bounds[-2]:] = self.current
         return out
 
 
 
 def _epochs_py(p_w, j, var, dts, fs, rs, bs, q_rw, mu, omega, out):
-    """For each epoch e: F from the mean specific force fs[e] and the position rs[e];
+    """
+    For each epoch e: F from the mean specific force fs[e] and the position rs[e];
     Φ = I + FΔ + (FΔ)²/2 + (FΔ)³/6, G = I + FΔ/2; P_w ← Φ P_w Φᵀ + G Q Gᵀ, J ← Φ J + G B;
-    out[e] = P_w + J diag(var) Jᵀ (symmetrised).  p_w (9, 9) and j (9, 24) are updated in place."""
+    out[e] = P_w + J diag(var) Jᵀ (symmetrised).  p_w (9, 9) and j (9, 24) are updated in place.
+    """
     for e in range(dts.shape[0]):
         dt = dts[e]
         f = fs[e]

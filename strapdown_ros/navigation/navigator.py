@@ -1,4 +1,5 @@
-"""Streaming navigation channel: attitude updates + gyro and accelerometer increments → ECEF
+"""
+Streaming navigation channel: attitude updates + gyro and accelerometer increments → ECEF
 position, velocity and their covariance.  Used by ``sins_node`` and by ``sins_bag``.
 
 Frames and time (written once, here):
@@ -21,13 +22,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from strapdown_ros.rotation import quat_multiply, quat_to_dcm
-from strapdown_ros.navigation import recursion
 from strapdown_ros.earth import DEFAULT_GRAVITY_MODEL
+from strapdown_ros.navigation import recursion
 from strapdown_ros.navigation.covariance import NavigationCovariance
-from strapdown_ros.navigation.update import step_layout, specific_force_integrals
+from strapdown_ros.navigation.update import specific_force_integrals, step_layout
+from strapdown_ros.rotation import quat_multiply, quat_to_dcm
 
-__all__ = ["CumulativeIncrements", "Navigator", "NavigationBatch", "earth_from_inertial"]
+__all__ = ['CumulativeIncrements', 'Navigator', 'NavigationBatch', 'earth_from_inertial']
 
 
 def earth_from_inertial_quat(dt: np.ndarray) -> np.ndarray:
@@ -46,7 +47,8 @@ def earth_from_inertial(dt: np.ndarray) -> np.ndarray:
 
 
 class CumulativeIncrements:
-    """Running integral of a stamped increment stream, read at any time by interpolation.
+    """
+    Running integral of a stamped increment stream, read at any time by interpolation.
 
     :meth:`increments` gives the integrals over consecutive intervals: exact when the edges are
     stamps; linear within one sample interval (constant rate) otherwise; beyond the newest stamp
@@ -99,12 +101,14 @@ class CumulativeIncrements:
         self.t, self.d, self.j = self.t[i:], self.d[i:] - self.d[i], self.j[i:] - self.j[i]
 
     def _at(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """``(D, j)`` at times ``t``: linear within a sample interval, and beyond either end the
-        first or last interval continued (that sample's constant rate)."""
+        """
+        ``(D, j)`` at times ``t``: linear within a sample interval, and beyond either end the
+        first or last interval continued (that sample's constant rate).
+        """
         t = np.asarray(t, dtype=float)
         if len(self.t) < 2:
             return np.zeros(t.shape + (3,)), np.zeros(t.shape)
-        i = np.clip(np.searchsorted(self.t, t, side="right") - 1, 0, len(self.t) - 2)
+        i = np.clip(np.searchsorted(self.t, t, side='right') - 1, 0, len(self.t) - 2)
         t0, t1 = self.t[i], self.t[i + 1]
         w = (t - t0) / (t1 - t0)
         d0 = self.d[i]
@@ -118,7 +122,7 @@ class CumulativeIncrements:
         return np.diff(d, axis=-2) + np.diff(j, axis=-1)[..., None] * self.xbar
 
     def trim(self, before: float) -> None:
-        i = int(np.searchsorted(self.t, before, side="right")) - 1
+        i = int(np.searchsorted(self.t, before, side='right')) - 1
         if i > 0:
             self._rebase(i)
 
@@ -137,7 +141,8 @@ class NavigationBatch:
 
 
 class Navigator:
-    """Position and velocity in E from the attitude integrator's updates.
+    """
+    Position and velocity in E from the attitude integrator's updates.
 
     Parameters: ``position``/``velocity`` ECEF at ``t0`` (the start of the attitude integrator);
     ``gyro_per_step`` (the coning algorithm's samples per update) and ``accel_per_step``
@@ -147,7 +152,7 @@ class Navigator:
     """
 
     def __init__(self, position, velocity, t0: float, gyro_per_step: int, accel_per_step: int,
-                 gyro_period: float, accel_period: float, form: str = "exact", scheme: str = "exact",
+                 gyro_period: float, accel_period: float, form: str = 'exact', scheme: str = 'exact',
                  gravity_model: str = DEFAULT_GRAVITY_MODEL,
                  covariance: NavigationCovariance | None = None,
                  max_pending: int = 100_000):

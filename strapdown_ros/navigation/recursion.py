@@ -1,4 +1,5 @@
-"""Velocity and position recursion in the Earth-fixed frame E (PZ-90), 003 (1.93), (1.99)–(1.100)
+"""
+Velocity and position recursion in the Earth-fixed frame E (PZ-90), 003 (1.93), (1.99)–(1.100)
 (Aksyonenko 2014; paper 003).
 
 Inputs per step k (``[t_{k−1}, t_k]``, length h): the specific-force integrals ``Δv_E = V_{k−1} Δv``
@@ -36,13 +37,13 @@ import types
 
 import numpy as np
 
-from strapdown_ros.attitude.kernel import kernels_allowed, njit_optional
 from strapdown_ros import earth as _gravity
+from strapdown_ros.attitude.kernel import kernels_allowed, njit_optional
 from strapdown_ros.earth import DEFAULT_GRAVITY_MODEL
 
-__all__ = ["SCHEMES", "run", "OMEGA"]
+__all__ = ['SCHEMES', 'run', 'OMEGA']
 
-SCHEMES = ("exact", "printed")
+SCHEMES = ('exact', 'printed')
 OMEGA = _gravity.OMEGA
 
 
@@ -54,7 +55,7 @@ def _model_gravity_xyz(model, x, y, z):
 
 
 #: the models the compiled loop has built in, by the integer it is given
-COMPILED_MODELS = {"pz90_003": 0, "normal_exact": 1}
+COMPILED_MODELS = {'pz90_003': 0, 'normal_exact': 1}
 
 
 def _exact_loop(origin, offset0, w0, dv, dr, h, omega, out_off, out_w, model):
@@ -137,13 +138,15 @@ def available() -> bool:
     return _compiled is not False
 
 
-def _exact_generic(origin, offset, w, dv, dr, h, model):
-    """The exact scheme with any gravity model of the registry: the same loop, run by Python with
-    that model's gravity (slow; the compiled loop has the 003 model built in)."""
+def exact_generic_step(origin, offset, w, dv, dr, h, model):
+    """
+    The exact scheme with any gravity model of the registry: the same loop, run by Python with
+    that model's gravity (slow; the compiled loop has the 003 model built in).
+    """
     def grav(_model, x, y, z):
         g = _gravity.normal_gravity(np.array([x, y, z]), model)
         return float(g[0]), float(g[1]), float(g[2])
-    loop = types.FunctionType(_exact_loop.__code__, {**globals(), "_model_gravity_xyz": grav})
+    loop = types.FunctionType(_exact_loop.__code__, {**globals(), '_model_gravity_xyz': grav})
     out_off = np.empty_like(dv)
     out_w = np.empty_like(dv)
     loop(origin, offset, w, dv, dr, h, OMEGA, out_off, out_w, -1)
@@ -168,19 +171,20 @@ def _printed(origin, offset, w, dv, dr, h, model):
     return out_off, out_w
 
 
-def run(origin, offset, velocity, dv_e, dr_e, h, scheme: str = "exact",
+def run(origin, offset, velocity, dv_e, dr_e, h, scheme: str = 'exact',
         gravity_model: str = DEFAULT_GRAVITY_MODEL):
-    """Run K steps.  Returns ``(offset (K, 3), velocity (K, 3))``; position = origin + offset.
+    """
+    Run K steps.  Returns ``(offset (K, 3), velocity (K, 3))``; position = origin + offset.
 
     ``dv_e``/``dr_e``: specific-force integrals already rotated into E axes at ``t_{k−1}``.
     """
     if scheme not in SCHEMES:
         raise ValueError(f"unknown navigation scheme {scheme!r}; valid: {', '.join(SCHEMES)}")
     args = [np.ascontiguousarray(x, dtype=float) for x in (origin, offset, velocity, dv_e, dr_e, h)]
-    if scheme == "printed":
+    if scheme == 'printed':
         return _printed(*args, gravity_model)
     if gravity_model not in COMPILED_MODELS:
-        return _exact_generic(*args, gravity_model)
+        return exact_generic_step(*args, gravity_model)
     out_off = np.empty_like(args[3])
     out_w = np.empty_like(args[3])
     fn = _compiled if available() else _exact_loop

@@ -1,4 +1,5 @@
-"""Run the whole strapdown chain over an :class:`~.trajectories.EarthProfile` and compare with its
+"""
+Run the whole strapdown chain over an :class:`~.trajectories.EarthProfile` and compare with its
 exact truth: increments → :class:`~strapdown_ros.attitude.integrator.AttitudeIntegrator` (attitude
 q_I_B, I = E at t0) → :class:`~.navigator.Navigator` (position and velocity in E) → errors.
 
@@ -26,25 +27,27 @@ import numpy as np
 
 from strapdown_ros.attitude.coning import get_algorithm
 from strapdown_ros.attitude.integrator import AttitudeIntegrator
-from strapdown_ros.rotation import quat_angle_between, quat_to_dcm
-from strapdown_ros.sensors.model import (NAVIGATION_GRADE_ACCEL, NAVIGATION_GRADE_GYRO,
-    IntegratingSensor, SensorErrorModel, SensorSigmas)
+from strapdown_ros.earth import ecef_to_geodetic, enu_rotation
 from strapdown_ros.navigation import recursion
 from strapdown_ros.navigation.covariance import NavigationCovariance
-from strapdown_ros.earth import ecef_to_geodetic, enu_rotation
 from strapdown_ros.navigation.navigator import Navigator
-from strapdown_ros.navigation.update import step_layout, specific_force_integrals
+from strapdown_ros.navigation.update import specific_force_integrals, step_layout
+from strapdown_ros.rotation import quat_angle_between, quat_to_dcm
+from strapdown_ros.sensors.model import (IntegratingSensor, NAVIGATION_GRADE_ACCEL,
+                                         NAVIGATION_GRADE_GYRO, SensorErrorModel, SensorSigmas)
 
-__all__ = ["Increments", "generate_increments", "navigate", "run_profile", "summarize",
-           "specific_force_drift", "steps_per_update"]
+__all__ = ['Increments', 'generate_increments', 'navigate', 'run_profile', 'summarize',
+           'specific_force_drift', 'steps_per_update']
 
 
 _EPS = 1e-9          # stamps at or below this are before the start t0 = 0
 
 
 class Increments:
-    """Sensor increments of one run: ``tg`` (n_g,) end stamps, ``dth`` (n_g, 3) rad; ``ta``
-    (n_a,), ``dv`` (n_a, 3) m/s; the rates and the error models used."""
+    """
+    Sensor increments of one run: ``tg`` (n_g,) end stamps, ``dth`` (n_g, 3) rad; ``ta``
+    (n_a,), ``dv`` (n_a, 3) m/s; the rates and the error models used.
+    """
 
     def __init__(self, tg, dth, ta, dv, gyro_rate, accel_rate, gyro_errors, accel_errors):
         self.tg, self.dth, self.ta, self.dv = tg, dth, ta, dv
@@ -64,40 +67,44 @@ def _errors(gyro_errors, accel_errors, seed: int):
         if isinstance(e, SensorSigmas):
             e = e.draw(rng)
         elif e is not None and not isinstance(e, SensorErrorModel):
-            raise TypeError(f"sensor errors must be a SensorErrorModel, SensorSigmas or None, got {type(e).__name__}")
+            raise TypeError(f'sensor errors must be a SensorErrorModel, SensorSigmas or None, got {type(e).__name__}')
         out.append(e)
     return out
 
 
 def steps_per_update(algorithm: str, gyro_rate: float, accel_rate: float) -> tuple[int, int]:
-    """``(gyro, accelerometer)`` increments per navigation step; the accelerometer rate must be an
-    integer multiple of the gyro rate."""
+    """
+    ``(gyro, accelerometer)`` increments per navigation step; the accelerometer rate must be an
+    integer multiple of the gyro rate.
+    """
     n = get_algorithm(algorithm).samples
     ratio = accel_rate / gyro_rate
     if not (np.isfinite(ratio) and ratio >= 1 and abs(ratio - round(ratio)) < 1e-9):
-        raise ValueError(f"the accelerometer rate must be an integer multiple of the gyro rate, got "
-                         f"{accel_rate:g} and {gyro_rate:g} Hz")
+        raise ValueError(f'the accelerometer rate must be an integer multiple of the gyro rate, got '
+                         f'{accel_rate:g} and {gyro_rate:g} Hz')
     return n, n * int(round(ratio))
 
 
 def generate_increments(profile, duration: float, gyro_rate: float = 100.0, accel_rate: float = 300.0,
                         gyro_errors=None, accel_errors=None, seed: int = 0, block: int = 36000,
                         history: int = 0) -> Increments:
-    """Increments over ``[0, duration]`` sampled by two :class:`IntegratingSensor` (in blocks of
+    """
+    Increments over ``[0, duration]`` sampled by two :class:`IntegratingSensor` (in blocks of
     ``block`` gyro intervals, to bound the quadrature's memory).  ``history``: the sensors start
     that many gyro periods before t = 0 (the navigator then has the increments before its start
-    that its fits reach back to; the attitude integrator still starts at t = 0)."""
+    that its fits reach back to; the attitude integrator still starts at t = 0).
+    """
     if not (np.isfinite(duration) and duration > 0):
-        raise ValueError(f"duration must be > 0, got {duration}")
+        raise ValueError(f'duration must be > 0, got {duration}')
     ratio = accel_rate / gyro_rate
     if not (np.isfinite(ratio) and ratio >= 1 and abs(ratio - round(ratio)) < 1e-9):
-        raise ValueError(f"the accelerometer rate must be an integer multiple of the gyro rate, got "
-                         f"{accel_rate:g} and {gyro_rate:g} Hz")
+        raise ValueError(f'the accelerometer rate must be an integer multiple of the gyro rate, got '
+                         f'{accel_rate:g} and {gyro_rate:g} Hz')
     ge, ae = _errors(gyro_errors, accel_errors, seed)
     history = max(0, int(history))
     start = -history / gyro_rate
-    gyro = IntegratingSensor(profile, "gyro", gyro_rate, ge, seed=seed + 1, start_time=start)
-    accel = IntegratingSensor(profile, "accel", accel_rate, ae, seed=seed + 2, start_time=start)
+    gyro = IntegratingSensor(profile, 'gyro', gyro_rate, ge, seed=seed + 1, start_time=start)
+    accel = IntegratingSensor(profile, 'accel', accel_rate, ae, seed=seed + 2, start_time=start)
     n_g = int(round(duration * gyro_rate)) + history
     n_a = int(round(duration * accel_rate)) + history * int(round(ratio))
     ratio = max(1, int(round(accel_rate / gyro_rate)))
@@ -116,9 +123,10 @@ def generate_increments(profile, duration: float, gyro_rate: float = 100.0, acce
                       gyro_rate, accel_rate, ge, ae)
 
 
-def navigate(inc: Increments, position0, velocity0, attitude0, algorithm: str = "2", form: str = "exact",
-             scheme: str = "exact", covariance=False, block: int = 36000) -> dict:
-    """The chain over ``inc``: attitude integrator, navigator, optionally both covariances.
+def navigate(inc: Increments, position0, velocity0, attitude0, algorithm: str = '2', form: str = 'exact',
+             scheme: str = 'exact', covariance=False, block: int = 36000) -> dict:
+    """
+    The chain over ``inc``: attitude integrator, navigator, optionally both covariances.
 
     ``attitude0``: q_E_B at t0 = 0 (= q_I_B: I = E at t0).  ``covariance``: False, True
     (navigation-grade :data:`NAVIGATION_GRADE_GYRO` / ``_ACCEL`` statistics) or a pair of
@@ -143,7 +151,7 @@ def navigate(inc: Increments, position0, velocity0, attitude0, algorithm: str = 
     nav = Navigator(position0, velocity0, 0.0, n_g_step, n_a_step, 1.0 / inc.gyro_rate, 1.0 / inc.accel_rate,
                     form=form, scheme=scheme, covariance=cov)
     q_prev = integ.q.copy()
-    out = {k: [] for k in ("t", "position", "velocity", "attitude", "sigma", "attitude_sigma")}
+    out = {k: [] for k in ('t', 'position', 'velocity', 'attitude', 'sigma', 'attitude_sigma')}
     att_sig = []
     g0 = int(np.sum(inc.tg <= _EPS))                 # increments before t0: the navigator's history only
     a0 = int(np.sum(inc.ta <= _EPS))
@@ -164,25 +172,26 @@ def navigate(inc: Increments, position0, velocity0, attitude0, algorithm: str = 
             att_sig.append(np.sqrt(np.clip(np.diagonal(b.covariance, axis1=1, axis2=2), 0, None)))
         r = nav.process()
         if len(r):
-            out["t"].append(r.stamps)
-            out["position"].append(r.position)
-            out["velocity"].append(r.velocity)
-            out["attitude"].append(r.attitude)
-            out["sigma"].append(np.sqrt(np.clip(np.diagonal(r.covariance, axis1=1, axis2=2), 0, None)))
+            out['t'].append(r.stamps)
+            out['position'].append(r.position)
+            out['velocity'].append(r.velocity)
+            out['attitude'].append(r.attitude)
+            out['sigma'].append(np.sqrt(np.clip(np.diagonal(r.covariance, axis1=1, axis2=2), 0, None)))
     wall = time.perf_counter() - t0
-    res = {k: np.concatenate(v) if v else np.zeros((0,)) for k, v in out.items() if k != "attitude_sigma"}
+    res = {k: np.concatenate(v) if v else np.zeros((0,)) for k, v in out.items() if k != 'attitude_sigma'}
     a = np.concatenate(att_sig) if att_sig else np.zeros((0, 3))
-    res["attitude_sigma"] = a[:len(res["t"])]
+    res['attitude_sigma'] = a[:len(res['t'])]
     res.update(wall_s=wall, steps=nav.steps, extrapolated_steps=nav.extrapolated_steps, updates=integ.updates,
                gyro_per_step=n_g_step, accel_per_step=n_a_step)
     return res
 
 
 def run_profile(profile, duration: float, gyro_rate: float = 100.0, accel_rate: float = 300.0,
-                algorithm: str = "2", form: str = "exact", scheme: str = "exact", gyro_errors=None,
+                algorithm: str = '2', form: str = 'exact', scheme: str = 'exact', gyro_errors=None,
                 accel_errors=None, covariance=False, block: int = 36000, seed: int = 0, history: int = 0,
                 increments: Increments | None = None) -> dict:
-    """Navigate ``profile`` for ``duration`` s and compare with its truth at every update stamp.
+    """
+    Navigate ``profile`` for ``duration`` s and compare with its truth at every update stamp.
 
     Returns the arrays of :func:`navigate` plus ``true_position``, ``true_velocity``,
     ``true_attitude`` (q_E_B), ``position_error`` / ``velocity_error`` (K, 3, ECEF, estimate −
@@ -199,22 +208,22 @@ def run_profile(profile, duration: float, gyro_rate: float = 100.0, accel_rate: 
     w0 = profile.velocity(0.0)
     q0 = profile.attitude_ecef(0.0)
     res = navigate(inc, r0, w0, q0, algorithm, form, scheme, covariance, block)
-    t = res["t"]
-    res["true_position"] = profile.position(t)
-    res["true_velocity"] = profile.velocity(t)
-    res["true_attitude"] = profile.attitude_ecef(t)
-    dp = res["position"] - res["true_position"]
-    res["position_error"] = dp
-    res["velocity_error"] = res["velocity"] - res["true_velocity"]
-    res["position_error_norm"] = np.linalg.norm(dp, axis=-1)
-    res["velocity_error_norm"] = np.linalg.norm(res["velocity_error"], axis=-1)
-    lat, lon, _ = ecef_to_geodetic(res["true_position"])
+    t = res['t']
+    res['true_position'] = profile.position(t)
+    res['true_velocity'] = profile.velocity(t)
+    res['true_attitude'] = profile.attitude_ecef(t)
+    dp = res['position'] - res['true_position']
+    res['position_error'] = dp
+    res['velocity_error'] = res['velocity'] - res['true_velocity']
+    res['position_error_norm'] = np.linalg.norm(dp, axis=-1)
+    res['velocity_error_norm'] = np.linalg.norm(res['velocity_error'], axis=-1)
+    lat, lon, _ = ecef_to_geodetic(res['true_position'])
     up = enu_rotation(lat, lon)[..., :, 2]
-    vert = np.einsum("ki,ki->k", dp, up)
-    res["vertical_error"] = vert
-    res["horizontal_error"] = np.linalg.norm(dp - vert[:, None] * up, axis=-1)
-    res["attitude_error"] = quat_angle_between(res["attitude"], res["true_attitude"])
-    res.update(profile=getattr(profile, "name", "profile"), duration=inc.duration, gyro_rate=inc.gyro_rate,
+    vert = np.einsum('ki,ki->k', dp, up)
+    res['vertical_error'] = vert
+    res['horizontal_error'] = np.linalg.norm(dp - vert[:, None] * up, axis=-1)
+    res['attitude_error'] = quat_angle_between(res['attitude'], res['true_attitude'])
+    res.update(profile=getattr(profile, 'name', 'profile'), duration=inc.duration, gyro_rate=inc.gyro_rate,
                accel_rate=inc.accel_rate, algorithm=algorithm, form=form, scheme=scheme,
                covariance=bool(covariance), history=int(np.sum(inc.tg <= _EPS)))
     return res
@@ -223,23 +232,24 @@ def run_profile(profile, duration: float, gyro_rate: float = 100.0, accel_rate: 
 def summarize(res: dict) -> dict:
     """Final and maximum errors of a :func:`run_profile` result (plain floats)."""
     def fm(x):
-        return (float(x[-1]), float(np.max(np.abs(x)))) if len(x) else (float("nan"), float("nan"))
+        return (float(x[-1]), float(np.max(np.abs(x)))) if len(x) else (float('nan'), float('nan'))
     out = {}
-    for key, name in (("position_error_norm", "position_m"), ("velocity_error_norm", "velocity_m_s"),
-                      ("horizontal_error", "horizontal_m"), ("vertical_error", "vertical_m"),
-                      ("attitude_error", "attitude_rad")):
+    for key, name in (('position_error_norm', 'position_m'), ('velocity_error_norm', 'velocity_m_s'),
+                      ('horizontal_error', 'horizontal_m'), ('vertical_error', 'vertical_m'),
+                      ('attitude_error', 'attitude_rad')):
         f, m = fm(res[key])
-        out[f"final_{name}"], out[f"max_{name}"] = f, m
-    for k in ("profile", "algorithm", "form", "scheme", "duration", "steps", "extrapolated_steps", "wall_s"):
+        out[f'final_{name}'], out[f'max_{name}'] = f, m
+    for k in ('profile', 'algorithm', 'form', 'scheme', 'duration', 'steps', 'extrapolated_steps', 'wall_s'):
         out[k] = res[k]
-    if res.get("covariance") and len(res["sigma"]):
-        out["final_position_sigma_m"] = float(np.linalg.norm(res["sigma"][-1, :3]))
+    if res.get('covariance') and len(res['sigma']):
+        out['final_position_sigma_m'] = float(np.linalg.norm(res['sigma'][-1, :3]))
     return out
 
 
 def specific_force_drift(profile, duration: float, gyro_rate: float = 100.0, accel_rate: float = 300.0,
-                         gyro_per_step: int = 1, form: str = "rotation_only", skip: int = 4) -> dict:
-    """Drift of the specific-force integral Δv of ``form`` against the exact ∫C f dt.
+                         gyro_per_step: int = 1, form: str = 'rotation_only', skip: int = 4) -> dict:
+    """
+    Drift of the specific-force integral Δv of ``form`` against the exact ∫C f dt.
 
     Per navigation step ``[t_{k−1}, t_k]`` (``gyro_per_step`` gyro intervals, the accelerometer
     intervals in it): Δv_k of :func:`.update.specific_force_integrals` from the exact increments,
@@ -274,17 +284,17 @@ def specific_force_drift(profile, duration: float, gyro_rate: float = 100.0, acc
     dv_b, _ = specific_force_integrals(qw, uw, te - ts, lay, form)
 
     def c_f(t):
-        return np.einsum("...ij,...j->...i", quat_to_dcm(profile.attitude(t)), profile.specific_force(t))
+        return np.einsum('...ij,...j->...i', quat_to_dcm(profile.attitude(t)), profile.specific_force(t))
 
     exact_i = profile.integrate(c_f, ts, te)                           # ∫ C_I_B f dt, I axes
-    exact_b = np.einsum("kji,kj->ki", quat_to_dcm(profile.attitude(ts)), exact_i)
+    exact_b = np.einsum('kji,kj->ki', quat_to_dcm(profile.attitude(ts)), exact_i)
     diff_b = (dv_b - exact_b)[skip:]
-    diff_e = np.einsum("kij,kj->ki", quat_to_dcm(profile.attitude_ecef(ts[skip:])), diff_b)
+    diff_e = np.einsum('kij,kj->ki', quat_to_dcm(profile.attitude_ecef(ts[skip:])), diff_b)
     t = te[skip:]
     slope_b = np.polyfit(t, np.cumsum(diff_b, axis=0), 1)[0]
     slope_e = np.polyfit(t, np.cumsum(diff_e, axis=0), 1)[0]
     lat, lon, _ = ecef_to_geodetic(profile.position(0.0))
     up_dir = enu_rotation(lat, lon)[:, 2]
-    return {"form": form, "step": h, "steps": k_steps, "slope_earth": slope_e, "slope_up": float(slope_e @ up_dir),
-            "slope_body": slope_b, "mean_specific_force": float(np.mean(np.linalg.norm(exact_b, axis=-1)) / h),
-            "per_step_rms": float(np.sqrt(np.mean(np.sum(diff_b ** 2, -1))))}
+    return {'form': form, 'step': h, 'steps': k_steps, 'slope_earth': slope_e, 'slope_up': float(slope_e @ up_dir),
+            'slope_body': slope_b, 'mean_specific_force': float(np.mean(np.linalg.norm(exact_b, axis=-1)) / h),
+            'per_step_rms': float(np.sqrt(np.mean(np.sum(diff_b ** 2, -1))))}

@@ -1,4 +1,5 @@
-"""Specific-force integrals of one navigation step from integrating gyros and accelerometers.
+"""
+Specific-force integrals of one navigation step from integrating gyros and accelerometers.
 
 003 (Aksyonenko 2014) §1.5.2 integrates the navigation equation (1.93) over one step
 ``[t_{k−1}, t_k]`` of length
@@ -45,20 +46,21 @@ No ROS imports; vectorised over steps.
 """
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
 from fractions import Fraction
 from itertools import product
+import math
+from math import factorial
 
 import numpy as np
 
 from strapdown_ros.attitude.kernel import kernels_allowed, njit_optional
 from strapdown_ros.rotation import cross
 
-__all__ = ["FORMS", "StepLayout", "step_layout", "specific_force_integrals", "derived_coefficients",
-           "PRINTED_COEFFICIENTS", "coefficient_table"]
+__all__ = ['FORMS', 'StepLayout', 'step_layout', 'specific_force_integrals', 'derived_coefficients',
+           'PRINTED_COEFFICIENTS', 'coefficient_table']
 
-FORMS = ("exact", "series", "printed", "rotation_only", "none")
+FORMS = ('exact', 'series', 'printed', 'rotation_only', 'none')
 _GL_X, _GL_W = np.polynomial.legendre.leggauss(6)
 _GL_S = 0.5 * (_GL_X + 1.0)                # nodes on [0, 1]
 _GL_W = 0.5 * _GL_W
@@ -66,12 +68,13 @@ _GL_WR = _GL_W * (1.0 - _GL_S)         # weights of ∫(1 − σ)·
 
 
 def _fit_matrix(window: int, per_step: int, degree: int) -> np.ndarray:
-    """Least-squares map (exact when square) from the integrals over ``window`` equal
+    """
+    Least-squares map (exact when square) from the integrals over ``window`` equal
     sub-intervals ending at σ = 1 (``per_step`` of them per unit step) to the coefficients of
     ``p(σ) = Σ_i p_i σ^i / i!`` (i ≤ degree).  Computed in exact rational arithmetic: a float
     pseudo-inverse carries relative errors of ~1e-13 into every step's Δv, the same each step,
-    which the vertical channel integrates (doc/navigation.md)."""
-    from math import factorial
+    which the vertical channel integrates (doc/navigation.md).
+    """
     edges = [1 - Fraction(window - j, per_step) for j in range(window + 1)]
     rows = [[(b ** (i + 1) - a ** (i + 1)) / (i + 1) / factorial(i) for i in range(degree + 1)]
             for a, b in zip(edges[:-1], edges[1:])]
@@ -83,7 +86,8 @@ def _fit_matrix(window: int, per_step: int, degree: int) -> np.ndarray:
 
 @dataclass(frozen=True)
 class StepLayout:
-    """How many sensor sub-intervals one step holds and which ones each fit uses.
+    """
+    How many sensor sub-intervals one step holds and which ones each fit uses.
 
     ``gyro_window`` / ``accel_window``: the number of sub-intervals ending at ``t_k`` that the fits
     take (the step's own and, when there are too few, the previous ones).
@@ -98,12 +102,12 @@ class StepLayout:
     def __post_init__(self):
         n, m = int(self.gyro_per_step), int(self.accel_per_step)
         if n < 1 or m < 1:
-            raise ValueError(f"a step needs at least one gyro and one accelerometer increment, got {n} and {m}")
+            raise ValueError(f'a step needs at least one gyro and one accelerometer increment, got {n} and {m}')
         lg, la = max(n, 2), max(m, 3)
-        object.__setattr__(self, "gyro_window", lg)
-        object.__setattr__(self, "accel_window", la)
-        object.__setattr__(self, "gyro_fit", _fit_matrix(lg, n, 1))
-        object.__setattr__(self, "accel_fit", _fit_matrix(la, m, 2))
+        object.__setattr__(self, 'gyro_window', lg)
+        object.__setattr__(self, 'accel_window', la)
+        object.__setattr__(self, 'gyro_fit', _fit_matrix(lg, n, 1))
+        object.__setattr__(self, 'accel_fit', _fit_matrix(la, m, 2))
 
     @property
     def is_003(self) -> bool:
@@ -117,7 +121,7 @@ def step_layout(gyro_per_step: int, accel_per_step: int) -> StepLayout:
 
 def _rotation_part(phi: np.ndarray, v: np.ndarray) -> np.ndarray:
     """``(exp([φ×]) − I) v`` by Rodrigues' formula, exact at any angle, broadcasting over (..., 3)."""
-    a2 = np.einsum("...i,...i->...", phi, phi)
+    a2 = np.einsum('...i,...i->...', phi, phi)
     a = np.sqrt(a2)
     small = a2 < 1e-8
     s1 = np.where(small, 1.0 - a2 / 6.0 + a2 * a2 / 120.0, np.sin(a) / np.where(small, 1.0, a))
@@ -127,8 +131,9 @@ def _rotation_part(phi: np.ndarray, v: np.ndarray) -> np.ndarray:
 
 
 def specific_force_integrals(gyro_window: np.ndarray, accel_window: np.ndarray, h: np.ndarray,
-                             layout: StepLayout, form: str = "exact") -> tuple[np.ndarray, np.ndarray]:
-    """``(Δv, Δr)`` of K steps, body axes at the start of each step.
+                             layout: StepLayout, form: str = 'exact') -> tuple[np.ndarray, np.ndarray]:
+    """
+    ``(Δv, Δr)`` of K steps, body axes at the start of each step.
 
     gyro_window: (K, layout.gyro_window, 3) gyro increments ending at ``t_k`` (oldest first), rad.
     accel_window: (K, layout.accel_window, 3) accelerometer increments ending at ``t_k``, m/s.
@@ -140,7 +145,7 @@ def specific_force_integrals(gyro_window: np.ndarray, accel_window: np.ndarray, 
     u = np.asarray(accel_window, dtype=float)
     h = np.asarray(h, dtype=float)
     n, m = layout.gyro_per_step, layout.accel_per_step
-    if form == "exact" and _kernel_available() and len(h):     # the same mathematics, one compiled loop
+    if form == 'exact' and kernel_available() and len(h):     # the same mathematics, one compiled loop
         dv, dr = np.empty((len(h), 3)), np.empty((len(h), 3))
         _compiled(np.ascontiguousarray(q), np.ascontiguousarray(u), np.ascontiguousarray(h), layout.gyro_fit,
                   layout.accel_fit, n, m, _GL_S, _GL_W, _GL_WR, dv, dr)
@@ -148,16 +153,16 @@ def specific_force_integrals(gyro_window: np.ndarray, accel_window: np.ndarray, 
     theta = q[:, -n:].sum(1)                   # the step's own increments
     v = u[:, -m:].sum(1)
     poly = layout.accel_fit @ u                              # (K, 3, 3): c', d', e' (per unit step)
-    if form in ("series", "printed"):
+    if form in ('series', 'printed'):
         if not layout.is_003:
             raise ValueError(f"the {form} form is 003's: one gyro and three accelerometer increments per step, "
-                             f"got {n} and {m}")
-        return _series(q, u, h, PRINTED_COEFFICIENTS if form == "printed" else derived_coefficients())
+                             f'got {n} and {m}')
+        return _series(q, u, h, PRINTED_COEFFICIENTS if form == 'printed' else derived_coefficients())
     # ∫_0^1 (1 − σ) f'(σ) dσ of the fit, f' = c' + d'σ + e'σ²/2  → c'/2 + d'/6 + e'/24
     p_lin = poly[:, 0] / 2.0 + poly[:, 1] / 6.0 + poly[:, 2] / 24.0
-    if form == "none":
+    if form == 'none':
         return v, h[:, None] * p_lin
-    if form == "rotation_only":
+    if form == 'rotation_only':
         return v + 0.5 * cross(theta, v), h[:, None] * (p_lin + cross(theta, v) / 6.0)
     a = layout.gyro_fit @ q                                  # (K, 2, 3): a₁h, a₂h²
     a1, a2 = a[:, 0], a[:, 1]
@@ -172,9 +177,11 @@ def specific_force_integrals(gyro_window: np.ndarray, accel_window: np.ndarray, 
 
 
 def _exact_loop(q, u, h, gyro_fit, accel_fit, n, m, gl_s, gl_w, gl_wr, dv_out, dr_out):
-    """The ``"exact"`` form step by step in scalar arithmetic: the vectorised code above, written
+    """
+    The ``"exact"`` form step by step in scalar arithmetic: the vectorised code above, written
     as one loop without temporaries so that numba can compile it (optional; the tests compare
-    the two paths).  ``n`` is unused (the gyro window is the fit's)."""
+    the two paths).  ``n`` is unused (the gyro window is the fit's).
+    """
     for k in range(h.shape[0]):
         for i in range(3):                  # the fits, column by column: a₁h, a₂h²; c', d', e'
             a1 = 0.0
@@ -236,7 +243,7 @@ def _exact_loop(q, u, h, gyro_fit, accel_fit, n, m, gl_s, gl_w, gl_wr, dv_out, d
 _compiled = None
 
 
-def _kernel_available() -> bool:
+def kernel_available() -> bool:
     """numba present, allowed (``STRAPDOWN_KERNEL`` ≠ ``numpy``) and able to compile the loop."""
     global _compiled
     if not kernels_allowed():
@@ -250,31 +257,31 @@ def _kernel_available() -> bool:
 # --- the series of 003 (1.99)/(1.100) -----------------------------------------------------------
 #: terms of the expansion: (name, builder of the vector operand from q_{k−1}, q_k) — each term is
 #: ``X × (Y × w)`` or ``X × w`` or ``w`` with ``w = c₁u₁ + c₂u₂ + c₃u₃``
-_TERMS = ("u", "q_km1", "q_k", "Q1Q1", "Q1Q2", "Q2Q1", "Q2Q2", "Q", "Q1Q", "QQ1", "Q2Q", "QQ2")
+_TERMS = ('u', 'q_km1', 'q_k', 'Q1Q1', 'Q1Q2', 'Q2Q1', 'Q2Q2', 'Q', 'Q1Q', 'QQ1', 'Q2Q', 'QQ2')
 
 #: 003 (1.99) bracket (velocity) and (1.100) bracket (position, ×τ), as printed.  Terms the
 #: printed formula does not have are zero.
 PRINTED_COEFFICIENTS = {
-    "velocity": {
-        "u": (10, -17, 10),
-        "q_km1": (Fraction(11, 240), Fraction(19, 120), Fraction(11, 240)),
-        "q_k": (Fraction(19, 240), Fraction(41, 120), Fraction(199, 240)),
-        "Q1Q1": (Fraction(1, 240), Fraction(11, 480), Fraction(47, 480)),
-        "Q1Q2": (Fraction(91, 320), Fraction(-179, 320), Fraction(59, 160)),
-        "Q2Q1": (Fraction(91, 320), Fraction(-179, 320), Fraction(59, 160)),
-        "Q2Q2": (Fraction(1, 280), Fraction(-1, 140), Fraction(11, 140)),
-        "Q": (Fraction(1, 480), Fraction(-1, 480), Fraction(11, 120)),
-        "Q1Q": (Fraction(1, 960), Fraction(-179, 960), Fraction(7, 240)),
-        "Q2Q": (Fraction(11, 16128), Fraction(-17, 8064), Fraction(191, 16128)),
+    'velocity': {
+        'u': (10, -17, 10),
+        'q_km1': (Fraction(11, 240), Fraction(19, 120), Fraction(11, 240)),
+        'q_k': (Fraction(19, 240), Fraction(41, 120), Fraction(199, 240)),
+        'Q1Q1': (Fraction(1, 240), Fraction(11, 480), Fraction(47, 480)),
+        'Q1Q2': (Fraction(91, 320), Fraction(-179, 320), Fraction(59, 160)),
+        'Q2Q1': (Fraction(91, 320), Fraction(-179, 320), Fraction(59, 160)),
+        'Q2Q2': (Fraction(1, 280), Fraction(-1, 140), Fraction(11, 140)),
+        'Q': (Fraction(1, 480), Fraction(-1, 480), Fraction(11, 120)),
+        'Q1Q': (Fraction(1, 960), Fraction(-179, 960), Fraction(7, 240)),
+        'Q2Q': (Fraction(11, 16128), Fraction(-17, 8064), Fraction(191, 16128)),
     },
-    "position": {
-        "u": (2, Fraction(-7, 4), Fraction(5, 4)),
-        "q_km1": (Fraction(1, 24), Fraction(19, 240), Fraction(1, 240)),
-        "q_k": (Fraction(1, 20), Fraction(19, 80), Fraction(7, 80)),
-        "Q1Q1": (Fraction(1, 960), Fraction(19, 960), Fraction(1, 96)),
-        "Q1Q2": (Fraction(-1, 2240), Fraction(23, 2240), Fraction(1, 112)),
-        "Q2Q1": (Fraction(1, 480), Fraction(19, 480), Fraction(1, 480)),
-        "Q2Q2": (Fraction(-1, 1920), Fraction(37, 6720), Fraction(101, 13446)),
+    'position': {
+        'u': (2, Fraction(-7, 4), Fraction(5, 4)),
+        'q_km1': (Fraction(1, 24), Fraction(19, 240), Fraction(1, 240)),
+        'q_k': (Fraction(1, 20), Fraction(19, 80), Fraction(7, 80)),
+        'Q1Q1': (Fraction(1, 960), Fraction(19, 960), Fraction(1, 96)),
+        'Q1Q2': (Fraction(-1, 2240), Fraction(23, 2240), Fraction(1, 112)),
+        'Q2Q1': (Fraction(1, 480), Fraction(19, 480), Fraction(1, 480)),
+        'Q2Q2': (Fraction(-1, 1920), Fraction(37, 6720), Fraction(101, 13446)),
     },
 }
 
@@ -295,7 +302,8 @@ _DERIVED: dict | None = None
 
 
 def derived_coefficients() -> dict:
-    """The coefficients of (1.99)/(1.100) derived in exact rational arithmetic (τ = 1, δτ = 1/3).
+    """
+    The coefficients of (1.99)/(1.100) derived in exact rational arithmetic (τ = 1, δτ = 1/3).
 
     f(σ) = Σ_j γ_j(σ) u_j from the exact solution of (1.98)'s system; the rotation vector
     φ(σ) = Q₁σ/2 + Q₂σ²/2 + Qσ³/12 (from (1.52), (1.57)); A = I + [φ×] + ½[φ×]² + …;
@@ -313,21 +321,21 @@ def derived_coefficients() -> dict:
             for i in range(3)]
     inv = _inverse(rows)
     gamma = [{0: inv[0][j], 1: inv[1][j], 2: inv[2][j] / 2} for j in range(3)]
-    beta = {"q_km1": {1: Fraction(1, 2), 2: Fraction(-1, 2)}, "q_k": {1: Fraction(1, 2), 2: Fraction(1, 2)},
-            "Q1": {1: Fraction(1, 2)}, "Q2": {2: Fraction(1, 2)}, "Q": {3: Fraction(1, 12)}}
+    beta = {'q_km1': {1: Fraction(1, 2), 2: Fraction(-1, 2)}, 'q_k': {1: Fraction(1, 2), 2: Fraction(1, 2)},
+            'Q1': {1: Fraction(1, 2)}, 'Q2': {2: Fraction(1, 2)}, 'Q': {3: Fraction(1, 12)}}
     out = {}
-    for kind, weight in (("velocity", {0: Fraction(1)}), ("position", {0: Fraction(1), 1: Fraction(-1)})):
-        table = {"u": tuple(_poly_int01(_poly_mul(weight, g)) for g in gamma)}
-        for x in ("q_km1", "q_k", "Q"):
+    for kind, weight in (('velocity', {0: Fraction(1)}), ('position', {0: Fraction(1), 1: Fraction(-1)})):
+        table = {'u': tuple(_poly_int01(_poly_mul(weight, g)) for g in gamma)}
+        for x in ('q_km1', 'q_k', 'Q'):
             table[x] = tuple(_poly_int01(_poly_mul(weight, _poly_mul(beta[x], g))) for g in gamma)
-        for x, y in product(("Q1", "Q2"), repeat=2):
+        for x, y in product(('Q1', 'Q2'), repeat=2):
             table[x + y] = tuple(Fraction(1, 2) * _poly_int01(_poly_mul(weight, _poly_mul(_poly_mul(beta[x], beta[y]), g)))
                                  for g in gamma)
-        for x in ("Q1", "Q2"):      # ½(X×(Q×f) + Q×(X×f)), both orders carry the same coefficient
-            c = tuple(Fraction(1, 2) * _poly_int01(_poly_mul(weight, _poly_mul(_poly_mul(beta[x], beta["Q"]), g)))
+        for x in ('Q1', 'Q2'):      # ½(X×(Q×f) + Q×(X×f)), both orders carry the same coefficient
+            c = tuple(Fraction(1, 2) * _poly_int01(_poly_mul(weight, _poly_mul(_poly_mul(beta[x], beta['Q']), g)))
                       for g in gamma)
-            table[x + "Q"] = c
-            table["Q" + x] = c
+            table[x + 'Q'] = c
+            table['Q' + x] = c
         out[kind] = table
     del layout
     _DERIVED = out
@@ -352,18 +360,18 @@ def _inverse(rows):
 
 def _series(q: np.ndarray, u: np.ndarray, h: np.ndarray, coefficients: dict) -> tuple[np.ndarray, np.ndarray]:
     qm, qk = q[:, -2], q[:, -1]
-    ops = {"q_km1": qm, "q_k": qk, "Q1": qk + qm, "Q2": qk - qm, "Q": cross(qm, qk)}
+    ops = {'q_km1': qm, 'q_k': qk, 'Q1': qk + qm, 'Q2': qk - qm, 'Q': cross(qm, qk)}
     res = []
-    for kind in ("velocity", "position"):
+    for kind in ('velocity', 'position'):
         total = np.zeros((len(q), 3))
         for term, coef in coefficients[kind].items():
             w = sum(float(c) * u[:, -3 + j] for j, c in enumerate(coef))
-            if term == "u":
+            if term == 'u':
                 total += w
-            elif term in ("q_km1", "q_k", "Q"):
+            elif term in ('q_km1', 'q_k', 'Q'):
                 total += cross(ops[term], w)
             else:
-                x, y = (term[:2], term[2:]) if term[:2] in ("Q1", "Q2") else (term[:1], term[1:])
+                x, y = (term[:2], term[2:]) if term[:2] in ('Q1', 'Q2') else (term[:1], term[1:])
                 total += cross(ops[x], cross(ops[y], w))
         res.append(total)
     return res[0], h[:, None] * res[1]
@@ -373,31 +381,31 @@ def coefficient_table() -> list[dict]:
     """Printed against derived, term by term (the table of doc/navigation.md)."""
     derived = derived_coefficients()
     rows = []
-    for kind in ("velocity", "position"):
+    for kind in ('velocity', 'position'):
         for term in _TERMS:
             d = derived[kind].get(term)
             p = PRINTED_COEFFICIENTS[kind].get(term)
             if d is None:
                 continue
-            rows.append({"equation": "1.99" if kind == "velocity" else "1.100", "term": term,
-                         "derived": [str(x) for x in d], "printed": [str(x) for x in p] if p else None,
-                         "agrees": p is not None and all(Fraction(x) == y for x, y in zip(p, d))})
+            rows.append({'equation': '1.99' if kind == 'velocity' else '1.100', 'term': term,
+                         'derived': [str(x) for x in d], 'printed': [str(x) for x in p] if p else None,
+                         'agrees': p is not None and all(Fraction(x) == y for x, y in zip(p, d))})
     return rows
 
 
 def markdown_coefficient_table() -> str:
     """The table of doc/navigation.md: ``python -m strapdown_ros.navigation.update``."""
-    lines = ["| eq. | term | derived (u₁, u₂, u₃) | printed | |", "|---|---|---|---|---|"]
+    lines = ['| eq. | term | derived (u₁, u₂, u₃) | printed | |', '|---|---|---|---|---|']
     for r in coefficient_table():
-        printed = ", ".join(r["printed"]) if r["printed"] else "—"
-        verdict = "agrees" if r["agrees"] else ("**misprint**" if r["printed"] else "absent in 003")
+        printed = ', '.join(r['printed']) if r['printed'] else '—'
+        verdict = 'agrees' if r['agrees'] else ('**misprint**' if r['printed'] else 'absent in 003')
         lines.append(f"| {r['equation']} | {r['term']} | {', '.join(r['derived'])} | {printed} | {verdict} |")
-    n_bad = sum(1 for r in coefficient_table() if r["printed"] and not r["agrees"])
-    n_ok = sum(1 for r in coefficient_table() if r["agrees"])
-    lines.append("")
-    lines.append(f"{n_ok} printed coefficient triples agree with the derivation exactly; {n_bad} do not.")
-    return "\n".join(lines)
+    n_bad = sum(1 for r in coefficient_table() if r['printed'] and not r['agrees'])
+    n_ok = sum(1 for r in coefficient_table() if r['agrees'])
+    lines.append('')
+    lines.append(f'{n_ok} printed coefficient triples agree with the derivation exactly; {n_bad} do not.')
+    return '\n'.join(lines)
 
 
-if __name__ == "__main__":
+if __name__ == '__main__':
     print(markdown_coefficient_table())

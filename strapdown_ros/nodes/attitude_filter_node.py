@@ -1,4 +1,5 @@
-"""attitude_filter_node: the star-camera-aided attitude filter (MEKF) live.
+"""
+attitude_filter_node: the star-camera-aided attitude filter (MEKF) live.
 
 A thin wrapper around :class:`~strapdown_ros.estimation.filter_system.FilterSystem`, the core
 ``filter_bag`` runs offline (same rules, same numbers): this module decodes messages, calls the
@@ -53,20 +54,20 @@ from __future__ import annotations
 
 import sys
 
-import numpy as np
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import (PoseWithCovarianceStamped, QuaternionStamped,
                                TwistWithCovarianceStamped, Vector3Stamped)
+import numpy as np
 from rclpy.node import Node
 from sensor_msgs.msg import Imu
 
-from strapdown_ros.params import FILTER_PARAMS
 from strapdown_ros.estimation.filter_support import chi2_3_quantile
 from strapdown_ros.estimation.filter_system import FilterSystem
-from strapdown_ros.streams.rate_increments import RateIncrementStream
 from strapdown_ros.nodes import ros_io
+from strapdown_ros.params import FILTER_PARAMS
+from strapdown_ros.streams.rate_increments import RateIncrementStream
 
-NODE_NAME = "attitude_filter_node"
+NODE_NAME = 'attitude_filter_node'
 
 
 class AttitudeFilterNode(Node):
@@ -76,75 +77,75 @@ class AttitudeFilterNode(Node):
         self.p = ros_io.declare_validated(self, FILTER_PARAMS, on_change=self._on_change)
         p = self.p
         self.system = FilterSystem(dict(p))
-        self.frame_id = p["frame_id"]
-        self.ref_frame = p["reference_frame_id"]
-        self.camera_frame = p["camera_frame_id"]
-        self.reject_frames = p["frame_mismatch"] == "reject"
-        self.use_cov = bool(p["use_camera_covariance"])
-        self.imu_input = p["gyro_input"] == "imu"
-        self.gate = chi2_3_quantile(float(p["gate_probability"]))
-        self.rate_variance = float(p["gyro_random_walk"]) ** 2 / float(p["output_period"])
+        self.frame_id = p['frame_id']
+        self.ref_frame = p['reference_frame_id']
+        self.camera_frame = p['camera_frame_id']
+        self.reject_frames = p['frame_mismatch'] == 'reject'
+        self.use_cov = bool(p['use_camera_covariance'])
+        self.imu_input = p['gyro_input'] == 'imu'
+        self.gate = chi2_3_quantile(float(p['gate_probability']))
+        self.rate_variance = float(p['gyro_random_walk']) ** 2 / float(p['output_period'])
         # increments per output period: the core runs at least that often
-        self.batch = max(1, int(round(float(p["output_period"]) * float(p["gyro_rate"]))))
+        self.batch = max(1, int(round(float(p['output_period']) * float(p['gyro_rate']))))
         self.undecodable = 0
-        self.frame_mismatch = {"gyro": 0, "camera": 0}
-        self.boresight_counts = {"received": 0, "dropped": 0}
-        self.published = {"outputs": 0, "fixes": 0}
+        self.frame_mismatch = {'gyro': 0, 'camera': 0}
+        self.boresight_counts = {'received': 0, 'dropped': 0}
+        self.published = {'outputs': 0, 'fixes': 0}
         self.last_output = None
         self.last_fix = None
         self.restarts_seen = 0
-        depth = int(p["qos_depth"])
+        depth = int(p['qos_depth'])
         qos = ros_io.stream_qos(depth)
         over = ros_io.QOS_OVERRIDES
-        self.pub_att = self.create_publisher(QuaternionStamped, "filter/attitude", qos,
+        self.pub_att = self.create_publisher(QuaternionStamped, 'filter/attitude', qos,
                                              qos_overriding_options=over)
-        self.pub_imu = self.create_publisher(Imu, "filter/imu", qos, qos_overriding_options=over)
-        self.pub_bias = self.create_publisher(Vector3Stamped, "filter/gyro_bias", qos,
+        self.pub_imu = self.create_publisher(Imu, 'filter/imu', qos, qos_overriding_options=over)
+        self.pub_bias = self.create_publisher(Vector3Stamped, 'filter/gyro_bias', qos,
                                               qos_overriding_options=over)
         self.pub_bias_cov = self.create_publisher(TwistWithCovarianceStamped,
-                                                  "filter/gyro_bias_with_covariance", qos,
+                                                  'filter/gyro_bias_with_covariance', qos,
                                                   qos_overriding_options=over)
         fix_qos = ros_io.camera_qos(depth)
-        self.pub_innov = self.create_publisher(Vector3Stamped, "filter/innovation", fix_qos,
+        self.pub_innov = self.create_publisher(Vector3Stamped, 'filter/innovation', fix_qos,
                                                qos_overriding_options=over)
-        self.pub_nis = self.create_publisher(Vector3Stamped, "filter/nis", fix_qos,
+        self.pub_nis = self.create_publisher(Vector3Stamped, 'filter/nis', fix_qos,
                                              qos_overriding_options=over)
-        self.pub_diag = self.create_publisher(DiagnosticArray, "/diagnostics",
+        self.pub_diag = self.create_publisher(DiagnosticArray, '/diagnostics',
                                               ros_io.DIAGNOSTICS_QOS)
         if self.imu_input:
-            period = 1.0 / float(p["gyro_rate"])
-            self.gyro_rates = RateIncrementStream(period, float(p["gyro_max_rate"]),
-                                                  p["imu_rate_rule"], float(p["max_stamp_jump"]),
-                                                  int(p["resync_count"]))
+            period = 1.0 / float(p['gyro_rate'])
+            self.gyro_rates = RateIncrementStream(period, float(p['gyro_max_rate']),
+                                                  p['imu_rate_rule'], float(p['max_stamp_jump']),
+                                                  int(p['resync_count']))
             self.last_imu = None
-            self.create_subscription(Imu, "imu/data_raw", self.on_imu_raw, qos,
+            self.create_subscription(Imu, 'imu/data_raw', self.on_imu_raw, qos,
                                      qos_overriding_options=over, raw=True)
         else:
-            self.create_subscription(Vector3Stamped, "imu/delta_theta", self.on_gyro_raw, qos,
+            self.create_subscription(Vector3Stamped, 'imu/delta_theta', self.on_gyro_raw, qos,
                                      qos_overriding_options=over, raw=True)
         if self.use_cov:
             self.create_subscription(PoseWithCovarianceStamped,
-                                     "star_camera/attitude_with_covariance", self._on_camera_cov,
+                                     'star_camera/attitude_with_covariance', self._on_camera_cov,
                                      fix_qos, qos_overriding_options=over)
         else:
-            self.create_subscription(QuaternionStamped, "star_camera/attitude",
+            self.create_subscription(QuaternionStamped, 'star_camera/attitude',
                                      self._on_camera_plain, fix_qos, qos_overriding_options=over)
-        if p["boresight_source"] == "topic":
-            self.create_subscription(PoseWithCovarianceStamped, "calibration/boresight",
+        if p['boresight_source'] == 'topic':
+            self.create_subscription(PoseWithCovarianceStamped, 'calibration/boresight',
                                      self._on_boresight, ros_io.latched_qos())
-        self.create_timer(float(p["diagnostics_period"]), self.publish_diagnostics)
+        self.create_timer(float(p['diagnostics_period']), self.publish_diagnostics)
         gyro_topic = f"imu/data_raw ({p['imu_rate_rule']})" if self.imu_input \
-            else "imu/delta_theta"
-        camera_topic = "star_camera/attitude_with_covariance" if self.use_cov \
-            else "star_camera/attitude"
-        self.log.info(f"started: gyro input {gyro_topic}, camera {camera_topic}, boresight from "
+            else 'imu/delta_theta'
+        camera_topic = 'star_camera/attitude_with_covariance' if self.use_cov \
+            else 'star_camera/attitude'
+        self.log.info(f'started: gyro input {gyro_topic}, camera {camera_topic}, boresight from '
                       f"{p['boresight_source']}, augment: {p['augment'] or 'none'}")
 
     # --- parameters ---------------------------------------------------------------------
     def _on_change(self, new: dict) -> str | None:
         """No parameter may change at runtime: the filter's model is its state."""
         return ("no parameter of attitude_filter_node can change at runtime (the filter's model "
-                "is its state); restart the node to change " + ", ".join(sorted(new)))
+                'is its state); restart the node to change ' + ', '.join(sorted(new)))
 
     # --- input ------------------------------------------------------------------------------
     def on_gyro_raw(self, data: bytes):
@@ -162,15 +163,17 @@ class AttitudeFilterNode(Node):
             self.undecodable += 1
             return
         self.last_imu = data
-        if not self._frame_ok("gyro", got[3], self.frame_id):
+        if not self._frame_ok('gyro', got[3], self.frame_id):
             return
         for ns, dth in self.gyro_rates.push(got[0], got[1]):
-            self.gyro(ns, dth, "")
+            self.gyro(ns, dth, '')
 
-    def gyro(self, stamp_ns: int, value, frame_id: str = "") -> None:
-        """One Δθ (rad, body axes, stamp = end of its interval): the frame rule, then the core;
-        the core runs once per ``output_period`` worth of increments."""
-        if not self._frame_ok("gyro", frame_id, self.frame_id):
+    def gyro(self, stamp_ns: int, value, frame_id: str = '') -> None:
+        """
+        One Δθ (rad, body axes, stamp = end of its interval): the frame rule, then the core;
+        the core runs once per ``output_period`` worth of increments.
+        """
+        if not self._frame_ok('gyro', frame_id, self.frame_id):
             return
         self.system.offer_gyro(int(stamp_ns), value)
         if self.system.buffered >= self.batch:
@@ -184,30 +187,30 @@ class AttitudeFilterNode(Node):
 
     def fix(self, header, q_msg, covariance) -> None:
         """One camera fix q_GCRS_VF (covariance: VF axes, rad², or None for the camera σ)."""
-        if not self._frame_ok("camera", header.frame_id, self.ref_frame):
+        if not self._frame_ok('camera', header.frame_id, self.ref_frame):
             return
         self.system.offer_fix(ros_io.stamp_to_ns(header.stamp),
                               ros_io.quaternion_from_msg(q_msg), covariance)
         self.process()
 
     def _on_boresight(self, msg: PoseWithCovarianceStamped):
-        self.boresight_counts["received"] += 1
+        self.boresight_counts['received'] += 1
         q = ros_io.quaternion_from_msg(msg.pose.pose.orientation)
         norm = float(np.linalg.norm(q)) if np.all(np.isfinite(q)) else 0.0
         if norm < 1e-6:
-            self.boresight_counts["dropped"] += 1
-            self.log.warn("calibration/boresight with a zero or non-finite quaternion dropped",
+            self.boresight_counts['dropped'] += 1
+            self.log.warn('calibration/boresight with a zero or non-finite quaternion dropped',
                           throttle=10.0)
             return
         self.system.set_boresight(q / norm)
-        self.log.info(f"boresight q_MF_VF from calibration/boresight: {np.round(q / norm, 9)}")
+        self.log.info(f'boresight q_MF_VF from calibration/boresight: {np.round(q / norm, 9)}')
 
     def _frame_ok(self, which: str, frame: str, expected: str) -> bool:
         if frame and frame != expected:
             self.frame_mismatch[which] += 1
-            self.log.warn(f"{which} message in frame {ros_io.bounded(frame, 80)!r}, expected "
+            self.log.warn(f'{which} message in frame {ros_io.bounded(frame, 80)!r}, expected '
                           f"{expected!r}: {'rejected' if self.reject_frames else 'used'}",
-                          throttle=10.0, key=f"frame_{which}")
+                          throttle=10.0, key=f'frame_{which}')
             return not self.reject_frames
         return True
 
@@ -220,11 +223,11 @@ class AttitudeFilterNode(Node):
             self._publish_output(o)
         for f in fixes:
             self._publish_fix(f)
-        restarts = self.system.counts["restarts"]
+        restarts = self.system.counts['restarts']
         if restarts > self.restarts_seen:
             self.restarts_seen = restarts
-            self.log.error("gyro gap or stamp jump: the rotation in it is lost; the filter "
-                           "restarts at the next fix", throttle=5.0)
+            self.log.error('gyro gap or stamp jump: the rotation in it is lost; the filter '
+                           'restarts at the next fix', throttle=5.0)
 
     def _publish_output(self, o) -> None:
         st = ros_io.ns_to_stamp(o.stamp_ns)
@@ -249,7 +252,7 @@ class AttitudeFilterNode(Node):
         cov[3:, 3:] = o.bias_covariance
         t.twist.covariance = [float(c) for c in cov.reshape(36)]
         self.pub_bias_cov.publish(t)
-        self.published["outputs"] += 1
+        self.published['outputs'] += 1
         self.last_output = o
 
     def _publish_fix(self, f) -> None:
@@ -260,9 +263,9 @@ class AttitudeFilterNode(Node):
         self.pub_innov.publish(ros_io.vector3_stamped(st, self.camera_frame, f.innovation))
         self.pub_nis.publish(ros_io.vector3_stamped(st, self.camera_frame,
                                                     (float(f.nis), 3.0, float(self.gate))))
-        self.published["fixes"] += 1
+        self.published['fixes'] += 1
         if not f.check_ok:
-            self.log.warn(f"live model check: {f.check_text}", throttle=30.0, key="model_check")
+            self.log.warn(f'live model check: {f.check_text}', throttle=30.0, key='model_check')
 
     # --- diagnostics ---------------------------------------------------------------------------
     def diagnostic_conditions(self, st: dict) -> ros_io.Conditions:
@@ -270,54 +273,54 @@ class AttitudeFilterNode(Node):
         c = ros_io.Conditions()
         g = self.system.gyro_check
         if g.accepted == 0:
-            c.add(ros_io.WARN, "no gyro increments received")
+            c.add(ros_io.WARN, 'no gyro increments received')
         if self.system.boresight is None:
-            c.add(ros_io.WARN, f"no boresight yet (calibration/boresight): "
+            c.add(ros_io.WARN, f'no boresight yet (calibration/boresight): '
                   f"{st['dropped_no_boresight']} fix(es) dropped")
         elif self.system.filter is None:
-            c.add(ros_io.WARN, "waiting for a camera fix to start")
+            c.add(ros_io.WARN, 'waiting for a camera fix to start')
         if g.dropped:
-            c.add(ros_io.WARN, f"dropped {g.dropped} gyro messages (NaN {g.nan}, out of range "
-                  f"{g.out_of_range}, out of order {g.out_of_order}, duplicate {g.duplicate}, "
-                  f"stamp outliers {g.stamp_outliers})")
+            c.add(ros_io.WARN, f'dropped {g.dropped} gyro messages (NaN {g.nan}, out of range '
+                  f'{g.out_of_range}, out of order {g.out_of_order}, duplicate {g.duplicate}, '
+                  f'stamp outliers {g.stamp_outliers})')
         if self.imu_input and self.gyro_rates.check.dropped:
-            c.add(ros_io.WARN, f"dropped {self.gyro_rates.check.dropped} angular-rate samples "
-                  "of imu/data_raw")
+            c.add(ros_io.WARN, f'dropped {self.gyro_rates.check.dropped} angular-rate samples '
+                  'of imu/data_raw')
         cam = self.system.camera_check
-        bad_fix = cam.dropped + st["dropped_zero_quaternion"] + st["dropped_bad_covariance"]
+        bad_fix = cam.dropped + st['dropped_zero_quaternion'] + st['dropped_bad_covariance']
         if bad_fix:
-            c.add(ros_io.WARN, f"dropped {bad_fix} camera fixes (NaN {cam.nan}, zero quaternion "
+            c.add(ros_io.WARN, f'dropped {bad_fix} camera fixes (NaN {cam.nan}, zero quaternion '
                   f"{st['dropped_zero_quaternion']}, bad covariance "
                   f"{st['dropped_bad_covariance']}, out of order {cam.out_of_order}, "
-                  f"duplicate {cam.duplicate})")
-        if self.boresight_counts["dropped"]:
+                  f'duplicate {cam.duplicate})')
+        if self.boresight_counts['dropped']:
             c.add(ros_io.WARN, f"{self.boresight_counts['dropped']} calibration/boresight "
-                  "message(s) dropped (zero or non-finite quaternion)")
-        if st["gated"]:
+                  'message(s) dropped (zero or non-finite quaternion)')
+        if st['gated']:
             c.add(ros_io.WARN, f"{st['gated']} fix(es) gated: NIS above the χ²(3) gate "
                   f"{self.gate:.4g} (gate_probability {self.p['gate_probability']})")
-        if st["too_old"] or st["overflow"]:
+        if st['too_old'] or st['overflow']:
             c.add(ros_io.WARN, f"{st['too_old']} fix(es) older than the increment history and "
                   f"{st['overflow']} beyond the pending limit dropped")
-        if st.get("late_fixes"):
+        if st.get('late_fixes'):
             c.add(ros_io.OK, f"{st['late_fixes']} late fix(es), largest lateness "
                   f"{st['max_lateness_s']:.3g} s")
         if any(self.frame_mismatch.values()):
-            c.add(ros_io.WARN, f"messages in an unexpected frame: gyro "
+            c.add(ros_io.WARN, f'messages in an unexpected frame: gyro '
                   f"{self.frame_mismatch['gyro']}, camera {self.frame_mismatch['camera']} "
                   f"({'rejected' if self.reject_frames else 'used'})")
         if self.undecodable:
-            c.add(ros_io.WARN, f"{self.undecodable} gyro message(s) could not be decoded: "
-                  "dropped")
+            c.add(ros_io.WARN, f'{self.undecodable} gyro message(s) could not be decoded: '
+                  'dropped')
         chk = self.system.check
         if chk is not None and not chk.last.ok:
-            c.add(ros_io.WARN, f"live model check: {chk.last.text()}")
+            c.add(ros_io.WARN, f'live model check: {chk.last.text()}')
         if g.missing:
-            c.add(ros_io.ERROR, f"{g.missing} gyro increments missing in {g.gaps} gaps: the "
+            c.add(ros_io.ERROR, f'{g.missing} gyro increments missing in {g.gaps} gaps: the '
                   f"rotation is lost; the filter restarted {st['restarts']} time(s)")
         if g.resyncs:
-            c.add(ros_io.ERROR, f"gyro stamps jumped {g.resyncs} time(s): resynchronised, the "
-                  "filter restarted")
+            c.add(ros_io.ERROR, f'gyro stamps jumped {g.resyncs} time(s): resynchronised, the '
+                  'filter restarted')
         return c
 
     def publish_diagnostics(self):
@@ -325,49 +328,49 @@ class AttitudeFilterNode(Node):
         c = self.diagnostic_conditions(st)
         cam = self.system.camera_check
         values = dict(st)
-        values.update({"camera_received": cam.received, "camera_accepted": cam.accepted,
-                       "camera_dropped_nan": cam.nan,
-                       "camera_dropped_out_of_order": cam.out_of_order,
-                       "camera_dropped_duplicate": cam.duplicate,
-                       "gyro_undecodable_dropped": self.undecodable,
-                       "gyro_frame_mismatch": self.frame_mismatch["gyro"],
-                       "camera_frame_mismatch": self.frame_mismatch["camera"],
-                       "boresight_source": self.p["boresight_source"],
-                       "boresight_received": self.boresight_counts["received"],
-                       "boresight_dropped": self.boresight_counts["dropped"],
-                       "outputs_published": self.published["outputs"],
-                       "fixes_published": self.published["fixes"], "nis_gate": self.gate})
+        values.update({'camera_received': cam.received, 'camera_accepted': cam.accepted,
+                       'camera_dropped_nan': cam.nan,
+                       'camera_dropped_out_of_order': cam.out_of_order,
+                       'camera_dropped_duplicate': cam.duplicate,
+                       'gyro_undecodable_dropped': self.undecodable,
+                       'gyro_frame_mismatch': self.frame_mismatch['gyro'],
+                       'camera_frame_mismatch': self.frame_mismatch['camera'],
+                       'boresight_source': self.p['boresight_source'],
+                       'boresight_received': self.boresight_counts['received'],
+                       'boresight_dropped': self.boresight_counts['dropped'],
+                       'outputs_published': self.published['outputs'],
+                       'fixes_published': self.published['fixes'], 'nis_gate': self.gate})
         o = self.last_output
         if o is not None:
             sb = np.sqrt(np.maximum(np.diag(o.bias_covariance), 0.0))
-            for k, a in enumerate("xyz"):
-                values[f"gyro_bias_{a}"] = float(o.bias[k])
-                values[f"gyro_bias_sigma_{a}"] = float(sb[k])
+            for k, a in enumerate('xyz'):
+                values[f'gyro_bias_{a}'] = float(o.bias[k])
+                values[f'gyro_bias_sigma_{a}'] = float(sb[k])
             for name, (v, s) in o.augmented.items():
                 for k in range(len(v)):
-                    values[f"{name}_{k}"] = float(v[k])
-                    values[f"{name}_sigma_{k}"] = float(s[k])
+                    values[f'{name}_{k}'] = float(v[k])
+                    values[f'{name}_sigma_{k}'] = float(s[k])
         if self.last_fix is not None and self.last_fix.nis is not None:
-            values["last_nis"] = float(self.last_fix.nis)
-            values["last_fix_status"] = self.last_fix.status
+            values['last_nis'] = float(self.last_fix.nis)
+            values['last_fix_status'] = self.last_fix.status
         chk = self.system.check
-        values["model_check"] = (ros_io.bounded(chk.last.text()) if chk is not None
-                                 else "not started")
+        values['model_check'] = (ros_io.bounded(chk.last.text()) if chk is not None
+                                 else 'not started')
         if self.imu_input:
-            values.update({"gyro_input": "imu", "imu_rate_rule": self.p["imu_rate_rule"],
-                           "imu_stated_rate_variance":
+            values.update({'gyro_input': 'imu', 'imu_rate_rule': self.p['imu_rate_rule'],
+                           'imu_stated_rate_variance':
                                ros_io.stated_rate_variance(self.last_imu),
-                           **self.gyro_rates.status("imu_gyro")})
+                           **self.gyro_rates.status('imu_gyro')})
         g = self.system.gyro_check
         stamp_ns = g.last_ns if g.last_ns is not None else 0
         self.pub_diag.publish(ros_io.diagnostic_array(
-            ros_io.ns_to_stamp(stamp_ns), f"{self.get_fully_qualified_name()}: attitude filter",
-            "attitude_filter", c.level, c.message(), values))
+            ros_io.ns_to_stamp(stamp_ns), f'{self.get_fully_qualified_name()}: attitude filter',
+            'attitude_filter', c.level, c.message(), values))
 
 
 def main(args=None):
     return ros_io.run_node(AttitudeFilterNode, NODE_NAME, args)
 
 
-if __name__ == "__main__":
+if __name__ == '__main__':
     sys.exit(main())

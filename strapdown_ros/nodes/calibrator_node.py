@@ -1,4 +1,5 @@
-"""calibrator_node: boresight β of a star camera (VF) relative to the IMU (MF) from attitude increments (004).
+"""
+calibrator_node: boresight β of a star camera (VF) relative to the IMU (MF) from attitude increments (004).
 
 A thin wrapper around :class:`~strapdown_ros.calibration.streaming.BoresightCalibrator` (the same
 object ``calibrate_bag`` uses offline, so live and offline answers agree).
@@ -65,29 +66,29 @@ parameter is fixed after start-up.
 """
 from __future__ import annotations
 
+from collections import deque
 import math
 import sys
 import time
-from collections import deque
 
-import numpy as np
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import PoseWithCovarianceStamped, QuaternionStamped, Vector3Stamped
+import numpy as np
 from rclpy.node import Node
 from sensor_msgs.msg import Imu
 
 from strapdown_ros.calibration.boresight import imu_attitude_from_camera
-from strapdown_ros.estimation.chi_square import FIT_LEVEL
-from strapdown_ros.params import CALIBRATOR_PARAMS
-from strapdown_ros.streams.checks import StreamCheck
+from strapdown_ros.calibration.state import CalibratorStateFile, state_identity, StateFileError
 from strapdown_ros.calibration.streaming import BoresightCalibrator
-from strapdown_ros.calibration.state import CalibratorStateFile, StateFileError, state_identity
-from strapdown_ros.streams.rate_increments import RateIncrementStream
+from strapdown_ros.estimation.chi_square import FIT_LEVEL
 from strapdown_ros.nodes import ros_io
 from strapdown_ros.nodes.ros_io import (camera_qos, latched_qos, pose_with_covariance,
-    rotation_block)
+                                        rotation_block)
+from strapdown_ros.params import CALIBRATOR_PARAMS
+from strapdown_ros.streams.checks import StreamCheck
+from strapdown_ros.streams.rate_increments import RateIncrementStream
 
-NODE_NAME = "calibrator_node"
+NODE_NAME = 'calibrator_node'
 ARCSEC = math.pi / 180.0 / 3600.0
 CAMERA_JUMP_S = 3600.0     # a camera stamp step beyond this (s) is a jump
 LOG_THROTTLE_S = 30.0          # a not-observable reason that keeps its wording is repeated at most this often
@@ -100,92 +101,92 @@ class CalibratorNode(Node):
         self.p = ros_io.declare_validated(self, CALIBRATOR_PARAMS, on_change=self._on_change,
                                           apply=self._apply_change)
         p = self.p
-        self.gyro_period = 1.0 / float(p["gyro_rate"])
+        self.gyro_period = 1.0 / float(p['gyro_rate'])
         self.cal = BoresightCalibrator.from_params(p)     # as calibrate_bag builds it (effects compensated)
-        sxy, sz = float(p["camera_sigma_xy"]), float(p["camera_sigma_z"])
+        sxy, sz = float(p['camera_sigma_xy']), float(p['camera_sigma_z'])
         self.default_p_avu = np.diag([sxy ** 2, sxy ** 2, sz ** 2])
-        jump, resync = float(p["max_stamp_jump"]), int(p["resync_count"])
-        self.gyro_check = StreamCheck(self.gyro_period, max_norm=2.0 * self.gyro_period * float(p["gyro_max_rate"]),
+        jump, resync = float(p['max_stamp_jump']), int(p['resync_count'])
+        self.gyro_check = StreamCheck(self.gyro_period, max_norm=2.0 * self.gyro_period * float(p['gyro_max_rate']),
                                       jump_limit=jump, resync_count=resync)
         # exposures need not be periodic (no gap test) and are seconds apart: a jump is an hour
         self.camera_check = StreamCheck(math.inf, jump_limit=max(jump, CAMERA_JUMP_S), resync_count=resync)
         self.solve_failures = 0
         self.gyro_frame_mismatch = 0
-        self.reject_frames = p["frame_mismatch"] == "reject"
-        self.camera_counts = {"dropped_zero_quaternion": 0, "normalised": 0, "dropped_bad_covariance": 0,
-                              "covariance_substituted": 0, "frame_mismatch": 0}
+        self.reject_frames = p['frame_mismatch'] == 'reject'
+        self.camera_counts = {'dropped_zero_quaternion': 0, 'normalised': 0, 'dropped_bad_covariance': 0,
+                              'covariance_substituted': 0, 'frame_mismatch': 0}
         self.origin_ns: int | None = None              # stamps are handled relative to the first one
         self.gaps: deque = deque(maxlen=1000)          # (start, end) relative seconds of gyro gaps
         self.pairs_discarded_gap = 0
         self.solves = 0
-        self.solve_ms = float("nan")
-        self.published = {"boresight": 0, "imu_attitude_from_camera": 0}
+        self.solve_ms = float('nan')
+        self.published = {'boresight': 0, 'imu_attitude_from_camera': 0}
         self.undecodable = 0                           # serialized gyro input that is not a Vector3Stamped
         self.valid = None                              # the latest observable, converged solution
         self.valid_stamp_ns: int | None = None
-        self.pending_fixes: deque = deque(maxlen=int(p["qos_depth"]))   # (stamp_ns, q, P) awaiting a solution
+        self.pending_fixes: deque = deque(maxlen=int(p['qos_depth']))   # (stamp_ns, q, P) awaiting a solution
         self._last_reason: str | None = None
         self._last_reason_log = -math.inf
-        self.frame_id = p["frame_id"]
-        self.ref_frame = p["reference_frame_id"]
-        self.use_cov = bool(p["use_camera_covariance"])
+        self.frame_id = p['frame_id']
+        self.ref_frame = p['reference_frame_id']
+        self.use_cov = bool(p['use_camera_covariance'])
 
-        self.pub_boresight = self.create_publisher(PoseWithCovarianceStamped, "calibration/boresight", latched_qos())
-        self.pub_angles = self.create_publisher(Vector3Stamped, "calibration/boresight_angles", latched_qos())
-        self.pub_imu_att = self.create_publisher(PoseWithCovarianceStamped, "calibration/imu_attitude_from_camera",
-                                                 camera_qos(int(p["qos_depth"])), qos_overriding_options=ros_io.QOS_OVERRIDES)
-        self.pub_diag = self.create_publisher(DiagnosticArray, "/diagnostics", ros_io.DIAGNOSTICS_QOS)
-        self.imu_input = p["gyro_input"] == "imu"
+        self.pub_boresight = self.create_publisher(PoseWithCovarianceStamped, 'calibration/boresight', latched_qos())
+        self.pub_angles = self.create_publisher(Vector3Stamped, 'calibration/boresight_angles', latched_qos())
+        self.pub_imu_att = self.create_publisher(PoseWithCovarianceStamped, 'calibration/imu_attitude_from_camera',
+                                                 camera_qos(int(p['qos_depth'])), qos_overriding_options=ros_io.QOS_OVERRIDES)
+        self.pub_diag = self.create_publisher(DiagnosticArray, '/diagnostics', ros_io.DIAGNOSTICS_QOS)
+        self.imu_input = p['gyro_input'] == 'imu'
         # raw subscriptions: stamp, vector and frame decoded from the bytes in ros_io
         if self.imu_input:                  # rate samples made into Δθ (the rule of sins_node)
-            self.gyro_rates = RateIncrementStream(self.gyro_period, float(p["gyro_max_rate"]),
-                                                  p["imu_rate_rule"], jump, resync)
+            self.gyro_rates = RateIncrementStream(self.gyro_period, float(p['gyro_max_rate']),
+                                                  p['imu_rate_rule'], jump, resync)
             self.last_imu = None                       # the latest Imu (bytes or message)
-            self.create_subscription(Imu, "imu/data_raw", self._on_imu_raw,
-                                     ros_io.stream_qos(int(p["qos_depth"])),
+            self.create_subscription(Imu, 'imu/data_raw', self._on_imu_raw,
+                                     ros_io.stream_qos(int(p['qos_depth'])),
                                      qos_overriding_options=ros_io.QOS_OVERRIDES, raw=True)
         else:
-            self.create_subscription(Vector3Stamped, "imu/delta_theta", self._on_gyro_raw,
-                                     ros_io.stream_qos(int(p["qos_depth"])),
+            self.create_subscription(Vector3Stamped, 'imu/delta_theta', self._on_gyro_raw,
+                                     ros_io.stream_qos(int(p['qos_depth'])),
                                      qos_overriding_options=ros_io.QOS_OVERRIDES, raw=True)
         if self.use_cov:
-            self.create_subscription(PoseWithCovarianceStamped, "star_camera/attitude_with_covariance",
-                                     self._on_camera_cov, camera_qos(int(p["qos_depth"])), qos_overriding_options=ros_io.QOS_OVERRIDES)
+            self.create_subscription(PoseWithCovarianceStamped, 'star_camera/attitude_with_covariance',
+                                     self._on_camera_cov, camera_qos(int(p['qos_depth'])), qos_overriding_options=ros_io.QOS_OVERRIDES)
         else:
-            self.create_subscription(QuaternionStamped, "star_camera/attitude", self._on_camera_plain,
-                                     camera_qos(int(p["qos_depth"])), qos_overriding_options=ros_io.QOS_OVERRIDES)
-        self.create_timer(float(p["diagnostics_period"]), self.publish_diagnostics)
-        self.state = {"file": p["state_file"], "saves": 0, "restored_pairs": 0, "errors": 0,
-                      "moved_aside": "", "problem": "", "persisting": False}
+            self.create_subscription(QuaternionStamped, 'star_camera/attitude', self._on_camera_plain,
+                                     camera_qos(int(p['qos_depth'])), qos_overriding_options=ros_io.QOS_OVERRIDES)
+        self.create_timer(float(p['diagnostics_period']), self.publish_diagnostics)
+        self.state = {'file': p['state_file'], 'saves': 0, 'restored_pairs': 0, 'errors': 0,
+                      'moved_aside': '', 'problem': '', 'persisting': False}
         self.state_file: CalibratorStateFile | None = None
-        camera_topic = "star_camera/attitude_with_covariance" if self.use_cov else "star_camera/attitude"
+        camera_topic = 'star_camera/attitude_with_covariance' if self.use_cov else 'star_camera/attitude'
         gyro_topic = (f"imu/data_raw ({p['imu_rate_rule']})" if self.imu_input
-                      else "imu/delta_theta")
-        if p["state_file"]:
-            streams = {"gyro": self.resolve_topic_name(
-                "imu/data_raw" if self.imu_input else "imu/delta_theta"),
-                       "camera": self.resolve_topic_name(camera_topic)}
+                      else 'imu/delta_theta')
+        if p['state_file']:
+            streams = {'gyro': self.resolve_topic_name(
+                'imu/data_raw' if self.imu_input else 'imu/delta_theta'),
+                       'camera': self.resolve_topic_name(camera_topic)}
             self._restore_state(state_identity(dict(p), streams))
         self.log.info(
-            f"started: gyro input {gyro_topic}, camera input {camera_topic}, "
+            f'started: gyro input {gyro_topic}, camera input {camera_topic}, '
             f"weighted={p['weighted']}, covariance_model={p['covariance_model']}, "
             f"min_rotation {p['min_rotation_deg']:g}°, max_sigma {p['max_sigma']:g} rad, max_pairs {p['max_pairs']}")
 
     # --- parameters ---------------------------------------------------------------------
     def _on_change(self, new: dict) -> str | None:
         """Validation (on-set): only the weighting may change at runtime."""
-        fixed = sorted(set(new) - {"weighted"})
+        fixed = sorted(set(new) - {'weighted'})
         if fixed:
-            return "only weighted can change at runtime; restart the node to change " + ", ".join(fixed)
+            return 'only weighted can change at runtime; restart the node to change ' + ', '.join(fixed)
         return None
 
     def _apply_change(self, new: dict) -> None:
         """Application (post-set), once rclpy has accepted the change."""
-        w = bool(new["weighted"])
+        w = bool(new['weighted'])
         if w != self.cal.weighted:
             self.cal.weighted = w
-            self.p["weighted"] = w
-            self.log.info(f"weighted switched to {w}; re-solving")
+            self.p['weighted'] = w
+            self.log.info(f'weighted switched to {w}; re-solving')
             # the warm start of the previous weighting is as good a start as any: solve() keeps it
             if len(self.cal.pairs) >= 2:
                 self._solve()
@@ -213,8 +214,10 @@ class CalibratorNode(Node):
         self._gyro(ros_io.stamp_to_ns(msg.header.stamp), (v.x, v.y, v.z), msg.header.frame_id)
 
     def _on_imu_raw(self, data: bytes):
-        """The imu/data_raw subscription (``gyro_input: imu``): stamp, rate and frame read from the
-        serialized bytes, then :meth:`_imu`."""
+        """
+        The imu/data_raw subscription (``gyro_input: imu``): stamp, rate and frame read from the
+        serialized bytes, then :meth:`_imu`.
+        """
         got = ros_io.decode_imu(data)
         if got is None:
             self.undecodable += 1
@@ -229,19 +232,21 @@ class CalibratorNode(Node):
         self._imu(ros_io.stamp_to_ns(msg.header.stamp), (w.x, w.y, w.z), msg.header.frame_id)
 
     def _imu(self, ns: int, rate, f: str):
-        """One rate sample: the frame rule, then validation and the increment rule
-        (RateIncrementStream); each increment formed enters the Δθ path (:meth:`_gyro`)."""
+        """
+        One rate sample: the frame rule, then validation and the increment rule
+        (RateIncrementStream); each increment formed enters the Δθ path (:meth:`_gyro`).
+        """
         if not self._gyro_frame_ok(f):
             return
         for ns_i, dth in self.gyro_rates.push(ns, rate):
-            self._gyro(ns_i, dth, "")
+            self._gyro(ns_i, dth, '')
 
     def _gyro_frame_ok(self, f: str) -> bool:
         if f and f != self.frame_id:                   # the frame rule of sins_node
             self.gyro_frame_mismatch += 1
-            self.log.warn(f"gyro increment in frame {f!r}, expected {self.frame_id!r}: "
+            self.log.warn(f'gyro increment in frame {f!r}, expected {self.frame_id!r}: '
                           f"{'rejected' if self.reject_frames else 'used'}",
-                          throttle=10.0, key="gyro_frame")
+                          throttle=10.0, key='gyro_frame')
             if self.reject_frames:
                 return False
         return True
@@ -259,13 +264,13 @@ class CalibratorNode(Node):
             prev_ns = None
             if g.returned:
                 self.log.error(
-                    f"{g.retracted} gyro increment(s) carried stamps off their timeline and the "
-                    "stream came back to it: dropped as a stamp burst; the pairs containing the "
-                    "burst are lost")
+                    f'{g.retracted} gyro increment(s) carried stamps off their timeline and the '
+                    'stream came back to it: dropped as a stamp burst; the pairs containing the '
+                    'burst are lost')
             else:
                 self.log.error(
-                    f"gyro stamps jumped by {g.last_jump_s:.6g} s and stayed: resynchronised; no "
-                    "increment pair spans the jump")
+                    f'gyro stamps jumped by {g.last_jump_s:.6g} s and stayed: resynchronised; no '
+                    'increment pair spans the jump')
         new = 0
         for ns_i, v in out:
             t = self._rel(ns_i)
@@ -273,9 +278,9 @@ class CalibratorNode(Node):
                 # the rotation of the missing increments is lost: no pair may span (prev, t]
                 self.gaps.append(((prev_ns - self.origin_ns) * 1e-9, t))
                 self.log.error(
-                    f"gyro gap: {int(round((ns_i - prev_ns) / (self.gyro_period * 1e9))) - 1} increment(s) missing "
-                    f"before stamp {ns_i * 1e-9:.6f} s; pairs spanning it are discarded",
-                    throttle=5.0, key="gyro_gap")
+                    f'gyro gap: {int(round((ns_i - prev_ns) / (self.gyro_period * 1e9))) - 1} increment(s) missing '
+                    f'before stamp {ns_i * 1e-9:.6f} s; pairs spanning it are discarded',
+                    throttle=5.0, key='gyro_gap')
             prev_ns = ns_i
             new += self.cal.add_gyro_sample(t, v)
         self._after_input(new)
@@ -290,40 +295,40 @@ class CalibratorNode(Node):
         ns = ros_io.stamp_to_ns(header.stamp)
         q = ros_io.quaternion_from_msg(q_msg)
         c = self.camera_check
-        norm = float(np.linalg.norm(q)) if np.all(np.isfinite(q)) else float("nan")
+        norm = float(np.linalg.norm(q)) if np.all(np.isfinite(q)) else float('nan')
         if math.isfinite(norm) and norm < 1e-6:
             c.received += 1
-            self.camera_counts["dropped_zero_quaternion"] += 1
-            self.log.warn("camera fix with a zero quaternion dropped",
-                          throttle=10.0, key="zero_quaternion")
+            self.camera_counts['dropped_zero_quaternion'] += 1
+            self.log.warn('camera fix with a zero quaternion dropped',
+                          throttle=10.0, key='zero_quaternion')
             return
         if np.all(np.isfinite(P)) and self.use_cov:
             P = 0.5 * (P + P.T)
             if not np.any(P):
                 P = self.default_p_avu            # all-zero covariance: "unknown" in ROS
-                self.camera_counts["covariance_substituted"] += 1
+                self.camera_counts['covariance_substituted'] += 1
             elif np.min(np.linalg.eigvalsh(P)) < -1e-12 * max(np.trace(P), 1e-300):
                 c.received += 1
-                self.camera_counts["dropped_bad_covariance"] += 1
-                self.log.warn("camera fix with a covariance that is not positive semi-definite "
-                              "dropped", throttle=10.0, key="camera_covariance")
+                self.camera_counts['dropped_bad_covariance'] += 1
+                self.log.warn('camera fix with a covariance that is not positive semi-definite '
+                              'dropped', throttle=10.0, key='camera_covariance')
                 return
         if abs(norm - 1.0) > 1e-9 and math.isfinite(norm):
             q = q / norm
-            self.camera_counts["normalised"] += 1
+            self.camera_counts['normalised'] += 1
         if header.frame_id and header.frame_id != self.ref_frame:
-            self.camera_counts["frame_mismatch"] += 1
-            self.log.warn(f"camera attitude in frame {header.frame_id!r}, "
-                          f"expected {self.ref_frame!r}: "
+            self.camera_counts['frame_mismatch'] += 1
+            self.log.warn(f'camera attitude in frame {header.frame_id!r}, '
+                          f'expected {self.ref_frame!r}: '
                           f"{'rejected' if self.reject_frames else 'used'}",
-                          throttle=30.0, key="camera_frame")
+                          throttle=30.0, key='camera_frame')
             if self.reject_frames:
                 return
         out = c.offer(ns, list(q) + list(np.asarray(P, dtype=float).ravel()))
         if c.resynced:
             self.cal.restart_camera()
-            self.log.error(f"camera stamps jumped by {c.last_jump_s:.6g} s and stayed: "
-                           "resynchronised")
+            self.log.error(f'camera stamps jumped by {c.last_jump_s:.6g} s and stayed: '
+                           'resynchronised')
         for ns_i, v in out:                        # after a resync, the held fixes too, in order
             q_i, P_i = np.asarray(v[:4]), np.asarray(v[4:], dtype=float).reshape(3, 3)
             self.pending_fixes.append((ns_i, q_i, P_i))
@@ -333,11 +338,13 @@ class CalibratorNode(Node):
 
     # --- persistence ---------------------------------------------------------------------------
     def _restore_state(self, identity: dict):
-        """Resume from ``state_file`` (strapdown_ros.calibration.state: identity, lock, atomic
+        """
+        Resume from ``state_file`` (strapdown_ros.calibration.state: identity, lock, atomic
         writes): its pairs, last fix and time origin; the estimate is solved again and
         republished latched.  A file that cannot be used is reported (ERROR) and the node runs
-        without persistence; only an unreadable regular file is moved aside."""
-        path = self.state["file"]
+        without persistence; only an unreadable regular file is moved aside.
+        """
+        path = self.state['file']
         sf = CalibratorStateFile(path, identity)
         try:
             sf.open()
@@ -347,29 +354,29 @@ class CalibratorNode(Node):
         try:
             origin = sf.load(self.cal)
         except StateFileError as exc:
-            if exc.kind == "corrupt":
+            if exc.kind == 'corrupt':
                 aside = sf.move_aside()
-                self.state["moved_aside"] = aside
-                self._state_problem(f"state file {path} not used: {exc}; moved aside to {aside}; "
-                                    "starting afresh")
-                self.state_file, self.state["persisting"] = sf, True
+                self.state['moved_aside'] = aside
+                self._state_problem(f'state file {path} not used: {exc}; moved aside to {aside}; '
+                                    'starting afresh')
+                self.state_file, self.state['persisting'] = sf, True
             else:
                 sf.close()
-                self._state_problem(f"state file {path} refused: {exc}; running without "
-                                    "persistence (remove the file or point state_file elsewhere)")
+                self._state_problem(f'state file {path} refused: {exc}; running without '
+                                    'persistence (remove the file or point state_file elsewhere)')
             return
-        self.state_file, self.state["persisting"] = sf, True
+        self.state_file, self.state['persisting'] = sf, True
         if origin is None:
             return
         self.origin_ns = origin
-        self.state["restored_pairs"] = len(self.cal.pairs)
-        self.log.info(f"resumed from {path}: {len(self.cal.pairs)} pairs")
+        self.state['restored_pairs'] = len(self.cal.pairs)
+        self.log.info(f'resumed from {path}: {len(self.cal.pairs)} pairs')
         if len(self.cal.pairs) >= 2:
             self._solve()
 
     def _state_problem(self, message: str):
-        self.state["errors"] += 1
-        self.state["problem"] = message[:300]
+        self.state['errors'] += 1
+        self.state['problem'] = message[:300]
         self.log.error(message)
 
     def _save_state(self):
@@ -377,12 +384,12 @@ class CalibratorNode(Node):
             return
         try:
             self.state_file.save(self.cal, self.origin_ns)
-            self.state["saves"] += 1
+            self.state['saves'] += 1
         except OSError as exc:
-            self.state["errors"] += 1
-            self.state["problem"] = f"cannot write state file {self.state['file']}: {exc}"[:300]
+            self.state['errors'] += 1
+            self.state['problem'] = f"cannot write state file {self.state['file']}: {exc}"[:300]
             self.log.error(f"cannot write state file {self.state['file']}: {exc}",
-                           throttle=30.0, key="state_file")
+                           throttle=30.0, key='state_file')
 
     def destroy_node(self):
         if self.state_file is not None:
@@ -420,13 +427,13 @@ class CalibratorNode(Node):
         except (np.linalg.LinAlgError, ValueError, FloatingPointError) as exc:
             # never lose the pairs or the latched estimate to one bad solve
             self.solve_failures += 1
-            self.log.error(f"boresight solve failed ({exc}); the last estimate stays published",
-                           throttle=10.0, key="solve_failed")
+            self.log.error(f'boresight solve failed ({exc}); the last estimate stays published',
+                           throttle=10.0, key='solve_failed')
             return
         self.solve_ms = (time.perf_counter() - t0) * 1e3
         self.solves += 1
         sigma = np.sqrt(np.maximum(np.diag(sol.covariance_beta), 0.0)) if sol.observable and sol.converged else None
-        if sigma is not None and np.max(sigma) > float(self.p["max_sigma"]):
+        if sigma is not None and np.max(sigma) > float(self.p['max_sigma']):
             # never publish a σ above max_sigma: the estimate is not good enough yet
             self.valid = None
             self._log_reason(f"published σ {np.max(sigma):.3g} rad would exceed max_sigma {self.p['max_sigma']:g}")
@@ -436,9 +443,9 @@ class CalibratorNode(Node):
             self.valid_stamp_ns = self._abs_ns(self.cal.pairs[-1].t_end)
             self._publish_solution()
             self._publish_imu_attitudes()
-            if self._last_reason is not None or self.published["boresight"] == 1:
-                self.log.info(f"boresight observable from {sol.pairs} pairs: publishing β = "
-                              f"{np.round(np.degrees(sol.beta), 5).tolist()}°")
+            if self._last_reason is not None or self.published['boresight'] == 1:
+                self.log.info(f'boresight observable from {sol.pairs} pairs: publishing β = '
+                              f'{np.round(np.degrees(sol.beta), 5).tolist()}°')
             self._last_reason = None
         else:
             # the published estimate stays what it was (transient-local); no new output
@@ -446,10 +453,10 @@ class CalibratorNode(Node):
             self._log_reason(sol.message)
 
     def _log_reason(self, message: str):
-        key = message.split(":", 1)[-1].strip()        # the "why" part; the axis numbers may jitter
+        key = message.split(':', 1)[-1].strip()        # the "why" part; the axis numbers may jitter
         now = time.monotonic()
         if key != self._last_reason or now - self._last_reason_log >= LOG_THROTTLE_S:
-            self.log.warn(f"boresight not published: {message}")
+            self.log.warn(f'boresight not published: {message}')
             self._last_reason = key
             self._last_reason_log = now
 
@@ -459,7 +466,7 @@ class CalibratorNode(Node):
         st = ros_io.ns_to_stamp(self.valid_stamp_ns)
         self.pub_boresight.publish(pose_with_covariance(st, self.frame_id, sol.q_mf_vf, sol.rotation_covariance_mf))
         self.pub_angles.publish(ros_io.vector3_stamped(st, self.frame_id, sol.beta))
-        self.published["boresight"] += 1
+        self.published['boresight'] += 1
 
     def _publish_imu_attitudes(self):
         if self.valid is None:
@@ -468,15 +475,15 @@ class CalibratorNode(Node):
             ns, q, P = self.pending_fixes.popleft()
             q_mf, P_mfa = imu_attitude_from_camera(q, P, self.valid)
             self.pub_imu_att.publish(pose_with_covariance(ros_io.ns_to_stamp(ns), self.ref_frame, q_mf, P_mfa))
-            self.published["imu_attitude_from_camera"] += 1
+            self.published['imu_attitude_from_camera'] += 1
 
     def publish_diagnostics(self):
         g, c = self.gyro_check, self.camera_check
         sol = self.cal.solution
-        values = {"pairs": len(self.cal.pairs), "solves": self.solves}
+        values = {'pairs': len(self.cal.pairs), 'solves': self.solves}
         if sol is None:
-            level, message = ros_io.WARN, "waiting for increment pairs (need gyro data and two camera fixes)"
-            values.update({"observable": False, "message": message})
+            level, message = ros_io.WARN, 'waiting for increment pairs (need gyro data and two camera fixes)'
+            values.update({'observable': False, 'message': message})
         else:
             message = sol.message
             ok = sol.observable and sol.converged
@@ -485,110 +492,110 @@ class CalibratorNode(Node):
             lo, hi = sol.chi2_band
             if ok and sol.fit_consistent is False:
                 level = ros_io.WARN
-                sig = (f"the published σ is scaled by √(χ²/dof) = {math.sqrt(chi2):.3g}"
+                sig = (f'the published σ is scaled by √(χ²/dof) = {math.sqrt(chi2):.3g}'
                        if sol.weighted else
-                       "the published σ comes from the residual scatter (unweighted)")
-                what = ("the stated noise is too small or the model lacks an effect (outliers, an "
-                        f"unmodelled error: run discrepancy on a recording); {sig}" if chi2 > hi
-                        else "the stated noise is too large (σ pessimistic)")
-                message = (f"{message}; FIT INCONSISTENT: χ²/dof = {chi2:.3g} outside its band "
-                           f"[{lo:.3g}, {hi:.3g}] (dof {sol.dof}, level {FIT_LEVEL:g}): {what}")
-            elif ok and np.isfinite(chi2) and chi2 > float(self.p["max_chi2_per_dof"]):
+                       'the published σ comes from the residual scatter (unweighted)')
+                what = ('the stated noise is too small or the model lacks an effect (outliers, an '
+                        f'unmodelled error: run discrepancy on a recording); {sig}' if chi2 > hi
+                        else 'the stated noise is too large (σ pessimistic)')
+                message = (f'{message}; FIT INCONSISTENT: χ²/dof = {chi2:.3g} outside its band '
+                           f'[{lo:.3g}, {hi:.3g}] (dof {sol.dof}, level {FIT_LEVEL:g}): {what}')
+            elif ok and np.isfinite(chi2) and chi2 > float(self.p['max_chi2_per_dof']):
                 level = ros_io.WARN
-                message = (f"{message}; χ²/dof = {chi2:.3g}: the residuals exceed the model (outliers, or an "
-                           "effect the model lacks: run discrepancy on a recording)")
-            values.update({"fit_consistent": sol.fit_consistent, "chi2_per_dof_band_low": lo,
-                           "chi2_per_dof_band_high": hi, "dof": sol.dof})
-            values.update({"observable": sol.observable, "message": sol.message,
-                           "unobservable_axes": "; ".join(sol.unobservable_axes) if sol.unobservable_axes else "none",
-                           "residual_rms_rad": sol.residual_rms, "iterations": sol.iterations,
-                           "converged": sol.converged, "chi2_per_dof": sol.chi2_per_dof})
+                message = (f'{message}; χ²/dof = {chi2:.3g}: the residuals exceed the model (outliers, or an '
+                           'effect the model lacks: run discrepancy on a recording)')
+            values.update({'fit_consistent': sol.fit_consistent, 'chi2_per_dof_band_low': lo,
+                           'chi2_per_dof_band_high': hi, 'dof': sol.dof})
+            values.update({'observable': sol.observable, 'message': sol.message,
+                           'unobservable_axes': '; '.join(sol.unobservable_axes) if sol.unobservable_axes else 'none',
+                           'residual_rms_rad': sol.residual_rms, 'iterations': sol.iterations,
+                           'converged': sol.converged, 'chi2_per_dof': sol.chi2_per_dof})
             if sol.observable and sol.beta is not None:
                 b = np.degrees(sol.beta)
                 s = np.sqrt(np.maximum(np.diag(sol.covariance_beta), 0.0)) / ARCSEC
-                values.update({"beta_yaw_deg": float(b[0]), "beta_pitch_deg": float(b[1]),
-                               "beta_roll_deg": float(b[2]), "beta_yaw_sigma_arcsec": float(s[0]),
-                               "beta_pitch_sigma_arcsec": float(s[1]), "beta_roll_sigma_arcsec": float(s[2])})
-        values.update({"weighted": self.cal.weighted, "covariance_model": self.cal.covariance_model,
-                       "boresight_of": f"{self.p['camera_frame_id']} in {self.frame_id}",
-                       "last_solve_ms": self.solve_ms,
-                       "boresight_published": self.published["boresight"],
-                       "imu_attitude_from_camera_published": self.published["imu_attitude_from_camera"],
-                       "pairs_discarded_gyro_gap": self.pairs_discarded_gap,
-                       **g.as_dict("gyro"),
-                       "camera_received": c.received, "camera_accepted": c.accepted,
-                       "camera_dropped_nan": c.nan, "camera_dropped_out_of_order": c.out_of_order,
-                       "camera_dropped_duplicate": c.duplicate, "camera_dropped_stamp_outlier": c.stamp_outliers,
-                       "camera_stamp_resyncs": c.resyncs, "solve_failures": self.solve_failures,
-                       "camera_outlier_fixes": self.cal.outlier_fixes,
-                       "gyro_frame_mismatch": self.gyro_frame_mismatch,
-                       "gyro_undecodable_dropped": self.undecodable,
-                       "gyro_history_overflowed": self.cal._gyro.overflowed,
-                       "state_file": self.state["file"] or "off", "state_saves": self.state["saves"],
-                       "state_restored_pairs": self.state["restored_pairs"], "state_errors": self.state["errors"],
-                       "state_persisting": self.state["persisting"],
-                       "state_problem": self.state["problem"] or "none",
-                       "pairs_replayed_not_added": self.cal.replayed_pairs,
-                       **{f"camera_{k}": v for k, v in self.camera_counts.items()}})
-        mism = self.gyro_frame_mismatch + self.camera_counts["frame_mismatch"]
+                values.update({'beta_yaw_deg': float(b[0]), 'beta_pitch_deg': float(b[1]),
+                               'beta_roll_deg': float(b[2]), 'beta_yaw_sigma_arcsec': float(s[0]),
+                               'beta_pitch_sigma_arcsec': float(s[1]), 'beta_roll_sigma_arcsec': float(s[2])})
+        values.update({'weighted': self.cal.weighted, 'covariance_model': self.cal.covariance_model,
+                       'boresight_of': f"{self.p['camera_frame_id']} in {self.frame_id}",
+                       'last_solve_ms': self.solve_ms,
+                       'boresight_published': self.published['boresight'],
+                       'imu_attitude_from_camera_published': self.published['imu_attitude_from_camera'],
+                       'pairs_discarded_gyro_gap': self.pairs_discarded_gap,
+                       **g.as_dict('gyro'),
+                       'camera_received': c.received, 'camera_accepted': c.accepted,
+                       'camera_dropped_nan': c.nan, 'camera_dropped_out_of_order': c.out_of_order,
+                       'camera_dropped_duplicate': c.duplicate, 'camera_dropped_stamp_outlier': c.stamp_outliers,
+                       'camera_stamp_resyncs': c.resyncs, 'solve_failures': self.solve_failures,
+                       'camera_outlier_fixes': self.cal.outlier_fixes,
+                       'gyro_frame_mismatch': self.gyro_frame_mismatch,
+                       'gyro_undecodable_dropped': self.undecodable,
+                       'gyro_history_overflowed': self.cal._gyro.overflowed,
+                       'state_file': self.state['file'] or 'off', 'state_saves': self.state['saves'],
+                       'state_restored_pairs': self.state['restored_pairs'], 'state_errors': self.state['errors'],
+                       'state_persisting': self.state['persisting'],
+                       'state_problem': self.state['problem'] or 'none',
+                       'pairs_replayed_not_added': self.cal.replayed_pairs,
+                       **{f'camera_{k}': v for k, v in self.camera_counts.items()}})
+        mism = self.gyro_frame_mismatch + self.camera_counts['frame_mismatch']
         if mism:                              # every condition listed, the level the worst
             level = max(level, ros_io.WARN)
-            message = (f"{message}; {mism} message(s) in an unexpected frame "
+            message = (f'{message}; {mism} message(s) in an unexpected frame '
                        f"({'rejected' if self.reject_frames else 'used'})")
         if self.undecodable:
             level = max(level, ros_io.WARN)
-            message = f"{message}; {self.undecodable} gyro message(s) could not be decoded: dropped"
+            message = f'{message}; {self.undecodable} gyro message(s) could not be decoded: dropped'
         if self.cal.outlier_fixes:
             level = max(level, ros_io.WARN)
-            message = (f"{message}; {self.cal.outlier_fixes} camera fix(es) dropped as outliers (both pairs off by more "
+            message = (f'{message}; {self.cal.outlier_fixes} camera fix(es) dropped as outliers (both pairs off by more '
                        f"than {self.p['outlier_gate']:g} σ in rotation angle, the pair skipping it consistent)")
         g_drop = g.dropped
         if self.imu_input:
             r = self.gyro_rates.check
-            values.update({"gyro_input": "imu", "imu_rate_rule": self.p["imu_rate_rule"],
-                           "imu_stated_rate_variance": ros_io.stated_rate_variance(self.last_imu),
-                           "model_rate_variance": float(self.p["gyro_random_walk"]) ** 2
+            values.update({'gyro_input': 'imu', 'imu_rate_rule': self.p['imu_rate_rule'],
+                           'imu_stated_rate_variance': ros_io.stated_rate_variance(self.last_imu),
+                           'model_rate_variance': float(self.p['gyro_random_walk']) ** 2
                            / self.gyro_period,
-                           **self.gyro_rates.status("imu_gyro")})
+                           **self.gyro_rates.status('imu_gyro')})
             if r.dropped and level == ros_io.OK:
                 level = ros_io.WARN
-                message = (f"{message}; dropped {r.dropped} angular-rate samples of imu/data_raw "
-                           f"(NaN {r.nan}, out of range {r.out_of_range}, out of order "
-                           f"{r.out_of_order}, duplicate {r.duplicate}, stamp outliers "
-                           f"{r.stamp_outliers})")
-        c_drop = c.dropped + self.camera_counts["dropped_zero_quaternion"] + self.camera_counts["dropped_bad_covariance"]
+                message = (f'{message}; dropped {r.dropped} angular-rate samples of imu/data_raw '
+                           f'(NaN {r.nan}, out of range {r.out_of_range}, out of order '
+                           f'{r.out_of_order}, duplicate {r.duplicate}, stamp outliers '
+                           f'{r.stamp_outliers})')
+        c_drop = c.dropped + self.camera_counts['dropped_zero_quaternion'] + self.camera_counts['dropped_bad_covariance']
         if g_drop or c_drop:
             level = max(level, ros_io.WARN)
-            message = f"{message}; dropped {g_drop} gyro and {c_drop} camera messages"
-        if self.state["errors"]:
+            message = f'{message}; dropped {g_drop} gyro and {c_drop} camera messages'
+        if self.state['errors']:
             level = ros_io.ERROR
             message = (f"{message}; state file: {self.state['errors']} error(s): "
                        f"{self.state['problem']}"
-                       + ("" if self.state["persisting"] else " (no persistence)"))
+                       + ('' if self.state['persisting'] else ' (no persistence)'))
         if g.bursts:
             level = ros_io.ERROR
-            message = (f"{message}; {g.burst_messages} gyro increment(s) in {g.bursts} burst(s) "
-                       "stamped off the timeline, dropped; the pairs containing them are lost")
+            message = (f'{message}; {g.burst_messages} gyro increment(s) in {g.bursts} burst(s) '
+                       'stamped off the timeline, dropped; the pairs containing them are lost')
         if g.resyncs or c.resyncs:
             level = ros_io.ERROR
-            message = (f"{message}; stamps jumped and were resynchronised (gyro {g.resyncs}, camera {c.resyncs}); "
-                       "no pair spans a jump")
+            message = (f'{message}; stamps jumped and were resynchronised (gyro {g.resyncs}, camera {c.resyncs}); '
+                       'no pair spans a jump')
         if self.solve_failures:
             level = ros_io.ERROR
-            message = f"{message}; {self.solve_failures} solve(s) failed, the last estimate stays published"
+            message = f'{message}; {self.solve_failures} solve(s) failed, the last estimate stays published'
         if g.missing:
             level = ros_io.ERROR
-            message = (f"{message}; {g.missing} gyro increments missing in {g.gaps} gaps: "
-                       f"{self.pairs_discarded_gap} pair(s) spanning them discarded")
+            message = (f'{message}; {g.missing} gyro increments missing in {g.gaps} gaps: '
+                       f'{self.pairs_discarded_gap} pair(s) spanning them discarded')
         stamp_ns = max(g.last_ns or 0, c.last_ns or 0)
         self.pub_diag.publish(ros_io.diagnostic_array(ros_io.ns_to_stamp(stamp_ns),
-                                                      f"{self.get_fully_qualified_name()}: boresight",
-                                                      "calibrator", level, message, values))
+                                                      f'{self.get_fully_qualified_name()}: boresight',
+                                                      'calibrator', level, message, values))
 
 
 def main(args=None):
     return ros_io.run_node(CalibratorNode, NODE_NAME, args)
 
 
-if __name__ == "__main__":
+if __name__ == '__main__':
     sys.exit(main())

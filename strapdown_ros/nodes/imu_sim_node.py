@@ -1,4 +1,5 @@
-"""imu_sim_node: integrating gyros (Δθ) and accelerometers (Δv) on an exact motion profile.
+"""
+imu_sim_node: integrating gyros (Δθ) and accelerometers (Δv) on an exact motion profile.
 
 Publishes (stamps are simulated time: ``start_time`` + profile time; each stamp is the
 *end* of its integration interval):
@@ -28,21 +29,21 @@ from __future__ import annotations
 import sys
 import time
 
-import numpy as np
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import QuaternionStamped, Vector3Stamped
 from nav_msgs.msg import Odometry
+import numpy as np
 from rclpy.node import Node
 from sensor_msgs.msg import Imu
 
-from strapdown_ros.params import IMU_SIM_PARAMS
 from strapdown_ros.motion.earth_profiles import EarthProfile
 from strapdown_ros.motion.from_config import profile_from_config
+from strapdown_ros.nodes import ros_io
+from strapdown_ros.params import IMU_SIM_PARAMS
 from strapdown_ros.rotation import to_ros_xyzw
 from strapdown_ros.sensors import simulated_imu
-from strapdown_ros.nodes import ros_io
 
-NODE_NAME = "imu_sim_node"
+NODE_NAME = 'imu_sim_node'
 
 
 class ImuSimNode(ros_io.PacedSimulation, Node):
@@ -54,39 +55,39 @@ class ImuSimNode(ros_io.PacedSimulation, Node):
         self.profile = profile_from_config(p)
         self.gyro, self.accel = simulated_imu(p, self.profile)
         self.gyro_errors, self.accel_errors = self.gyro.errors, self.accel.errors
-        dur = float(p["duration"])
+        dur = float(p['duration'])
         self.end_time = dur if dur > 0 else self.profile.duration
-        self.start_ns = int(round(float(p["start_time"]) * 1e9))
-        self.frame_id = p["frame_id"]
-        self.ref_frame = p["reference_frame_id"]
-        qos = ros_io.stream_qos(int(p["qos_depth"]))
-        self.pub_dtheta = self.create_publisher(Vector3Stamped, "imu/delta_theta", qos, qos_overriding_options=ros_io.QOS_OVERRIDES)
-        self.pub_dv = self.create_publisher(Vector3Stamped, "imu/delta_velocity", qos, qos_overriding_options=ros_io.QOS_OVERRIDES)
-        self.pub_raw = self.create_publisher(Imu, "imu/data_raw", qos, qos_overriding_options=ros_io.QOS_OVERRIDES)
-        self.pub_truth = self.create_publisher(QuaternionStamped, "imu/truth/attitude", qos, qos_overriding_options=ros_io.QOS_OVERRIDES)
+        self.start_ns = int(round(float(p['start_time']) * 1e9))
+        self.frame_id = p['frame_id']
+        self.ref_frame = p['reference_frame_id']
+        qos = ros_io.stream_qos(int(p['qos_depth']))
+        self.pub_dtheta = self.create_publisher(Vector3Stamped, 'imu/delta_theta', qos, qos_overriding_options=ros_io.QOS_OVERRIDES)
+        self.pub_dv = self.create_publisher(Vector3Stamped, 'imu/delta_velocity', qos, qos_overriding_options=ros_io.QOS_OVERRIDES)
+        self.pub_raw = self.create_publisher(Imu, 'imu/data_raw', qos, qos_overriding_options=ros_io.QOS_OVERRIDES)
+        self.pub_truth = self.create_publisher(QuaternionStamped, 'imu/truth/attitude', qos, qos_overriding_options=ros_io.QOS_OVERRIDES)
         # ECEF truth exists only for the Earth-referenced navigation profiles
-        self.pub_odom = (self.create_publisher(Odometry, "imu/truth/odometry", qos, qos_overriding_options=ros_io.QOS_OVERRIDES)
+        self.pub_odom = (self.create_publisher(Odometry, 'imu/truth/odometry', qos, qos_overriding_options=ros_io.QOS_OVERRIDES)
                          if isinstance(self.profile, EarthProfile) else None)
         self._odom_out = Odometry()
-        self._odom_out.header.frame_id = "earth"
+        self._odom_out.header.frame_id = 'earth'
         self._odom_out.child_frame_id = self.frame_id
-        self.pub_diag = self.create_publisher(DiagnosticArray, "/diagnostics", ros_io.DIAGNOSTICS_QOS)
-        self.counts = {"delta_theta": 0, "delta_velocity": 0, "data_raw": 0}
+        self.pub_diag = self.create_publisher(DiagnosticArray, '/diagnostics', ros_io.DIAGNOSTICS_QOS)
+        self.counts = {'delta_theta': 0, 'delta_velocity': 0, 'data_raw': 0}
         self._dtheta_out = ros_io.vector3_stamped(ros_io.ns_to_stamp(0), self.frame_id, (0.0, 0.0, 0.0))
         self._dv_out = ros_io.vector3_stamped(ros_io.ns_to_stamp(0), self.frame_id, (0.0, 0.0, 0.0))
         self._pending_dv = np.zeros(3)
         self._wall_start = None
         self.sim_time = 0.0
         self.finished = False
-        self.timer = self.create_timer(float(p["publish_period"]), self._tick)
-        self.diag_timer = self.create_timer(float(p["diagnostics_period"]), self._publish_diagnostics)
+        self.timer = self.create_timer(float(p['publish_period']), self._tick)
+        self.diag_timer = self.create_timer(float(p['diagnostics_period']), self._publish_diagnostics)
         self.log.info(
             f"started: profile={p['profile']} gyro {p['gyro_rate']} Hz, accel {p['accel_rate']} Hz, "
             f"time_scale {p['time_scale']}, duration {self.end_time:g} s")
 
     def _reject_changes(self, new: dict) -> str | None:
-        return ("imu_sim_node parameters are fixed after start-up (they define the simulated truth); "
-                "restart the node to change " + ", ".join(sorted(new)))
+        return ('imu_sim_node parameters are fixed after start-up (they define the simulated truth); '
+                'restart the node to change ' + ', '.join(sorted(new)))
 
     # ---------------------------------------------------------------------------------
     def _subscriber_count(self) -> int:
@@ -95,7 +96,7 @@ class ImuSimNode(ros_io.PacedSimulation, Node):
 
     def _on_finished(self):
         self._publish_diagnostics()
-        self.log.info(f"finished: published {self.counts} up to t = {self.sim_time:.3f} s")
+        self.log.info(f'finished: published {self.counts} up to t = {self.sim_time:.3f} s')
 
     def _advance_to(self, target: float):
         n_g = int(np.floor(target / self.gyro.period + 1e-9)) - self.gyro.count
@@ -117,7 +118,7 @@ class ImuSimNode(ros_io.PacedSimulation, Node):
             m.header.stamp = stamp(t)
             m.vector.x, m.vector.y, m.vector.z = float(v[0]), float(v[1]), float(v[2])
             self.pub_dv.publish(m)
-        self.counts["delta_velocity"] += len(ta)
+        self.counts['delta_velocity'] += len(ta)
         # mean specific force over each gyro interval, from the Δv stamped inside it
         edges = np.concatenate([[tg[0] - self.gyro.period], tg]) if n_g > 0 else np.zeros(1)
         m = self._dtheta_out
@@ -131,7 +132,7 @@ class ImuSimNode(ros_io.PacedSimulation, Node):
             self._pending_dv = np.zeros(3)
             if raw_on:
                 self.pub_raw.publish(self._imu_raw(st, v / self.gyro.period, f_mean))
-                self.counts["data_raw"] += 1
+                self.counts['data_raw'] += 1
             if truth_on:
                 self.pub_truth.publish(ros_io.quaternion_stamped(st, self.ref_frame, q))
             if odom is not None:
@@ -141,20 +142,20 @@ class ImuSimNode(ros_io.PacedSimulation, Node):
             self._pending_dv += dv[later].sum(0)
         elif len(ta):
             self._pending_dv += dv.sum(0)
-        self.counts["delta_theta"] += len(tg)
+        self.counts['delta_theta'] += len(tg)
         self.sim_time = max(self.gyro.count * self.gyro.period, self.accel.count * self.accel.period)
 
     def _odometry(self, stamp, truth: dict, k: int) -> Odometry:
         """Entry k of EarthProfile.truth as Odometry (refilled message; covariances stay zero)."""
         m = self._odom_out
         m.header.stamp = stamp
-        r = truth["position"][k]
+        r = truth['position'][k]
         m.pose.pose.position.x, m.pose.pose.position.y, m.pose.pose.position.z = float(r[0]), float(r[1]), float(r[2])
-        x, y, z, w = to_ros_xyzw(truth["attitude_ecef"][k])
+        x, y, z, w = to_ros_xyzw(truth['attitude_ecef'][k])
         o = m.pose.pose.orientation
         o.x, o.y, o.z, o.w = float(x), float(y), float(z), float(w)
-        m.twist.twist.linear = ros_io.vector3(truth["velocity_body"][k])
-        m.twist.twist.angular = ros_io.vector3(truth["earth_relative_rate"][k])
+        m.twist.twist.linear = ros_io.vector3(truth['velocity_body'][k])
+        m.twist.twist.angular = ros_io.vector3(truth['earth_relative_rate'][k])
         return m
 
     def _imu_raw(self, stamp, rate, f_mean) -> Imu:
@@ -173,14 +174,14 @@ class ImuSimNode(ros_io.PacedSimulation, Node):
     def _publish_diagnostics(self):
         wall = (time.monotonic() - self._wall_start) if self._wall_start else 0.0
         st = ros_io.ns_to_stamp(self.start_ns + int(round(self.sim_time * 1e9)))
-        values = {"simulated_time_s": self.sim_time, "real_time_factor": self.sim_time / wall if wall > 0 else 0.0,
-                  "gyro_rate_hz": self.p["gyro_rate"], "accel_rate_hz": self.p["accel_rate"],
-                  "delta_theta_published": self.counts["delta_theta"],
-                  "delta_velocity_published": self.counts["delta_velocity"],
-                  "data_raw_published": self.counts["data_raw"], "finished": self.finished,
-                  "profile": self.p["profile"]}
-        msg = "finished" if self.finished else ("waiting for subscribers" if self._wall_start is None else "running")
-        self.pub_diag.publish(ros_io.diagnostic_array(st, f"{self.get_fully_qualified_name()}: simulator", "imu_sim",
+        values = {'simulated_time_s': self.sim_time, 'real_time_factor': self.sim_time / wall if wall > 0 else 0.0,
+                  'gyro_rate_hz': self.p['gyro_rate'], 'accel_rate_hz': self.p['accel_rate'],
+                  'delta_theta_published': self.counts['delta_theta'],
+                  'delta_velocity_published': self.counts['delta_velocity'],
+                  'data_raw_published': self.counts['data_raw'], 'finished': self.finished,
+                  'profile': self.p['profile']}
+        msg = 'finished' if self.finished else ('waiting for subscribers' if self._wall_start is None else 'running')
+        self.pub_diag.publish(ros_io.diagnostic_array(st, f'{self.get_fully_qualified_name()}: simulator', 'imu_sim',
                                                       ros_io.OK, msg, values))
 
 
@@ -188,5 +189,5 @@ def main(args=None):
     return ros_io.run_node(ImuSimNode, NODE_NAME, args)
 
 
-if __name__ == "__main__":
+if __name__ == '__main__':
     sys.exit(main())

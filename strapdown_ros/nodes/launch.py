@@ -1,4 +1,5 @@
-"""Entry points of the nodes (``ros2 run strapdown_ros <node>``): light on purpose.
+"""
+Entry points of the nodes (``ros2 run strapdown_ros <node>``): light on purpose.
 
 The node modules import rclpy and the message packages, which takes about half a second.  A
 signal in that window used to be lost (SIGINT is ignored in a job started with ``&`` from a
@@ -15,8 +16,8 @@ import importlib
 import signal
 import sys
 
-__all__ = ["imu_sim_node", "sins_node", "star_camera_sim_node", "calibrator_node",
-           "attitude_filter_node", "strapdown_demo", "signal_received"]
+__all__ = ['imu_sim_node', 'sins_node', 'star_camera_sim_node', 'calibrator_node',
+           'attitude_filter_node', 'strapdown_demo', 'signal_received']
 
 
 _signalled = []
@@ -28,10 +29,12 @@ def _interrupt(signum, frame):
 
 
 def signal_received() -> bool:
-    """True once SIGINT or SIGTERM arrived before the node's own handlers took over.  The
+    """
+    True once SIGINT or SIGTERM arrived before the node's own handlers took over.  The
     KeyboardInterrupt raised for it can be swallowed when it lands in a callback of the
     interpreter (an import-lock or weakref callback: "Exception ignored in ..."), so
-    ``ros_io.run_node`` asks here too and stops instead of spinning."""
+    ``ros_io.run_node`` asks here too and stops instead of spinning.
+    """
     return bool(_signalled)
 
 
@@ -39,7 +42,7 @@ def _run(module: str) -> int:
     for sig in (signal.SIGINT, signal.SIGTERM):
         signal.signal(sig, _interrupt)
     try:
-        main = importlib.import_module(f"strapdown_ros.nodes.{module}").main
+        main = importlib.import_module(f'strapdown_ros.nodes.{module}').main
     except KeyboardInterrupt:                # a signal while importing: a clean stop
         return 0
     except ImportError:
@@ -59,28 +62,28 @@ def _run(module: str) -> int:
 
 
 def imu_sim_node():
-    return _run("imu_sim_node")
+    return _run('imu_sim_node')
 
 
 def sins_node():
-    return _run("sins_node")
+    return _run('sins_node')
 
 
 def star_camera_sim_node():
-    return _run("star_camera_sim_node")
+    return _run('star_camera_sim_node')
 
 
 def calibrator_node():
-    return _run("calibrator_node")
+    return _run('calibrator_node')
 
 
 def attitude_filter_node():
-    return _run("attitude_filter_node")
+    return _run('attitude_filter_node')
 
 
 def strapdown_demo():
-    return _run("demo")
+    return _run('demo')
 
 
-if __name__ == "__main__":
+if __name__ == '__main__':
     sys.exit(_run(sys.argv[1]))

@@ -1,4 +1,5 @@
-"""ROS I/O shared by the nodes: QoS, stamps, message builders, validated parameters, diagnostics.
+"""
+ROS I/O shared by the nodes: QoS, stamps, message builders, validated parameters, diagnostics.
 
 This is the only place (with the node modules) that imports rclpy and message packages.
 Quaternions cross the edge here: ROS messages carry ``x, y, z, w``; the core uses
@@ -6,25 +7,32 @@ scalar-first ``[w, x, y, z]`` (:mod:`strapdown_ros.rotation`).
 """
 from __future__ import annotations
 
+import gc
+import os
+import signal
+import sys
+import time
 from typing import Any, Callable, Sequence
 
-import numpy as np
 from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import (PoseWithCovarianceStamped, Quaternion, QuaternionStamped, Vector3,
                                Vector3Stamped)
+import numpy as np
 from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
 from rclpy.parameter import Parameter
-from rclpy.qos import (DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy)
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.qos_overriding_options import QoSOverridingOptions
 
-from strapdown_ros.params import ParamSpec
-from strapdown_ros.streams import cdr
 from strapdown_ros.nodes.launch import signal_received
+from strapdown_ros.params import ALL_PARAMETER_NAMES, combination_error, ParamSpec
+from strapdown_ros.streams import cdr
+
 
 # --- QoS ---------------------------------------------------------------------------
 def stream_qos(depth: int = 500) -> QoSProfile:
-    """Sensor-data QoS (best effort, volatile) for high-rate streams.
+    """
+    Sensor-data QoS (best effort, volatile) for high-rate streams.
 
     The history is deeper than rclpy's ``qos_profile_sensor_data`` (5) so that bursts
     from a faster-than-real-time simulator are queued rather than overwritten.
@@ -45,14 +53,16 @@ DIAGNOSTICS_QOS = QoSProfile(reliability=ReliabilityPolicy.RELIABLE, durability=
 
 # --- raw (serialized) stream messages --------------------------------------------------
 def decode_vector3_stamped(data: bytes) -> tuple[int, tuple[float, float, float], str] | None:
-    """``(stamp_ns, (x, y, z), frame_id)`` of a serialized geometry_msgs/Vector3Stamped.
+    """
+    ``(stamp_ns, (x, y, z), frame_id)`` of a serialized geometry_msgs/Vector3Stamped.
 
     The high-rate increment streams are subscribed raw (``raw=True``): rclpy then skips building
     four Python message objects per message (about 18 µs), and the node reads the few fields it
     needs from the bytes (:mod:`strapdown_ros.streams.cdr`, shared with ``sins_bag``).  Any other
     encoding than plain little-endian CDR is handed to rclpy's own deserializer, so nothing is
     misread (test/streams/test_checks_fuzz.py checks both against rclpy's serializer).  None when the bytes
-    are not a Vector3Stamped at all (the caller counts and drops them)."""
+    are not a Vector3Stamped at all (the caller counts and drops them).
+    """
     got = cdr.vector3_stamped(data)
     if got is not None:
         return got
@@ -66,12 +76,14 @@ def decode_vector3_stamped(data: bytes) -> tuple[int, tuple[float, float, float]
 
 
 def decode_imu(data: bytes):
-    """``(stamp_ns, angular_velocity, linear_acceleration | None, frame_id)`` of a serialized
+    """
+    ``(stamp_ns, angular_velocity, linear_acceleration | None, frame_id)`` of a serialized
     sensor_msgs/Imu (the ``imu/data_raw`` input of ``gyro_input: imu``), read from the bytes as
     :func:`decode_vector3_stamped` reads a Vector3Stamped (rclpy's deserialization of an Imu costs
     tens of µs); other encodings through rclpy's deserializer.  linear_acceleration is None when
     the message has none (REP-145: linear_acceleration_covariance[0] = −1).  None when the bytes
-    are not an Imu at all (the caller counts and drops them)."""
+    are not an Imu at all (the caller counts and drops them).
+    """
     got = cdr.imu(data)
     if got is not None:
         return got
@@ -87,13 +99,15 @@ def decode_imu(data: bytes):
 
 
 def stated_rate_variance(last_imu) -> str:
-    """What the latest Imu says of its rate noise, for /diagnostics (the nodes do not use it:
+    """
+    What the latest Imu says of its rate noise, for /diagnostics (the nodes do not use it:
     their covariance comes from the model's gyro_random_walk): the diagonal of
     angular_velocity_covariance, (rad/s)², as text; ``unknown`` when it is all zero (the ROS
     convention), ``not provided`` when element 0 is −1, ``none received`` before any Imu.
-    ``last_imu``: the serialized bytes of the raw subscription, or a message object."""
+    ``last_imu``: the serialized bytes of the raw subscription, or a message object.
+    """
     if last_imu is None:
-        return "none received"
+        return 'none received'
     if isinstance(last_imu, (bytes, bytearray, memoryview)):
         cov = cdr.imu_rate_covariance(last_imu)
         if cov is None:
@@ -102,14 +116,14 @@ def stated_rate_variance(last_imu) -> str:
             try:
                 cov = tuple(deserialize_message(last_imu, Imu).angular_velocity_covariance)
             except Exception:                          # noqa: BLE001 - malformed bytes
-                return "undecodable"
+                return 'undecodable'
     else:
         cov = tuple(last_imu.angular_velocity_covariance)
     if cov[0] == -1.0:
-        return "not provided"
+        return 'not provided'
     if not any(cov):
-        return "unknown"
-    return ", ".join(f"{cov[k]:.6g}" for k in (0, 4, 8))
+        return 'unknown'
+    return ', '.join(f'{cov[k]:.6g}' for k in (0, 4, 8))
 
 
 # --- camera and calibration messages ----------------------------------------------------
@@ -129,8 +143,10 @@ def latched_qos() -> QoSProfile:
 
 
 def pose_with_covariance(stamp, frame_id: str, q_wxyz, rotation_covariance) -> PoseWithCovarianceStamped:
-    """Attitude-only PoseWithCovarianceStamped: position 0 with :data:`UNKNOWN_POSITION_VARIANCE`
-    on its diagonal, rotation block (rows/cols 3..5) = ``rotation_covariance`` (3×3, rad²)."""
+    """
+    Attitude-only PoseWithCovarianceStamped: position 0 with :data:`UNKNOWN_POSITION_VARIANCE`
+    on its diagonal, rotation block (rows/cols 3..5) = ``rotation_covariance`` (3×3, rad²).
+    """
     m = PoseWithCovarianceStamped()
     m.header.stamp = stamp
     m.header.frame_id = frame_id
@@ -200,14 +216,15 @@ def quaternion_stamped(stamp: Time, frame_id: str, q_wxyz) -> QuaternionStamped:
 
 # --- parameters ---------------------------------------------------------------------------
 def descriptor(spec: ParamSpec) -> ParameterDescriptor:
-    """ROS descriptor of a core :class:`~strapdown_ros.params.ParamSpec` (``ros2 param describe``).
+    """
+    ROS descriptor of a core :class:`~strapdown_ros.params.ParamSpec` (``ros2 param describe``).
 
     Ranges and choices are stated in ``additional_constraints`` and enforced by
     :func:`declare_validated` (one message format that lists the valid values), not by
     rclpy's numeric ranges, whose messages differ between start-up and runtime.
     """
     d = ParameterDescriptor(description=spec.description,
-                            additional_constraints="valid: " + spec.range_text())
+                            additional_constraints='valid: ' + spec.range_text())
     # a YAML "50" for a double parameter must not be a type error: spec.check validates it
     # and an unquoted algorithm name "2" (an integer to the YAML parser) is accepted as well
     # and an integer list for a double array ([0, 0, 9]) is read as doubles
@@ -221,7 +238,7 @@ class InvalidParameter(ValueError):  # noqa: N818 (reads better at the call site
 
 
 #: parameters rclpy itself may be given (not the package's)
-ROS_OWN_PARAMETERS = ("use_sim_time", "start_type_description_service")
+ROS_OWN_PARAMETERS = ('use_sim_time', 'start_type_description_service')
 
 
 def _retyped(given, used) -> bool:
@@ -232,7 +249,8 @@ def _retyped(given, used) -> bool:
 
 def declare_validated(node, specs: Sequence[ParamSpec], on_change: Callable[[dict], str | None] | None = None,
                       apply: Callable[[dict], None] | None = None):
-    """Declare parameters with descriptors, validate the start-up values (raising
+    """
+    Declare parameters with descriptors, validate the start-up values (raising
     :class:`InvalidParameter` with the valid values in the message), and validate every runtime
     set in an on-set callback: ``on_change(values)`` may veto a valid change by returning a reason
     (e.g. a read-only value); ``apply(values)`` then makes it effective in a post-set callback,
@@ -241,7 +259,6 @@ def declare_validated(node, specs: Sequence[ParamSpec], on_change: Callable[[dic
     package declares is an error (a typo must not pass silently).  Returns the dict of current
     values, kept up to date.
     """
-    from strapdown_ros.params import ALL_PARAMETER_NAMES, combination_error
 
     by_name = {s.name: s for s in specs}
     values = {}
@@ -259,8 +276,8 @@ def declare_validated(node, specs: Sequence[ParamSpec], on_change: Callable[[dic
     err = combination_error(values)
     if err:
         raise InvalidParameter(err)
-    unknown = sorted(n for n in getattr(node, "_parameter_overrides", {})
-                     if n not in ALL_PARAMETER_NAMES and n not in ROS_OWN_PARAMETERS and not n.startswith("qos_overrides."))
+    unknown = sorted(n for n in getattr(node, '_parameter_overrides', {})
+                     if n not in ALL_PARAMETER_NAMES and n not in ROS_OWN_PARAMETERS and not n.startswith('qos_overrides.'))
     if unknown:
         raise InvalidParameter(f"unknown parameter(s) {', '.join(map(repr, unknown))} for {node.get_name()}; "
                                f"known: {', '.join(sorted(by_name))}")
@@ -279,8 +296,8 @@ def declare_validated(node, specs: Sequence[ParamSpec], on_change: Callable[[dic
                 # at run time a number given as text would stay text in `ros2 param get`
                 # (it cannot be re-set from inside the set callback): refused, as rclpy
                 # refuses text for a typed double
-                return None, (f"{p.name} must be set as a number, not as text "
-                              f"{bounded(repr(p.value), 80)}")
+                return None, (f'{p.name} must be set as a number, not as text '
+                              f'{bounded(repr(p.value), 80)}')
             if v != values.get(p.name):
                 new[p.name] = v
         err = combination_error({**values, **new}) if new else None
@@ -316,11 +333,12 @@ MAX_TEXT = 400
 def bounded(text: str, limit: int = MAX_TEXT) -> str:
     """``text`` cut to ``limit`` characters (an ellipsis marks the cut)."""
     text = str(text)
-    return text if len(text) <= limit else text[:limit - 1] + "…"
+    return text if len(text) <= limit else text[:limit - 1] + '…'
 
 
 class NodeLog:
-    """The one logging helper of the nodes: ``log(level, text, throttle=0.0, key=None)``.
+    """
+    The one logging helper of the nodes: ``log(level, text, throttle=0.0, key=None)``.
 
     rclpy's logger keeps one context per call site (function, file, line) and raises
     ``ValueError('Logger severity cannot be changed between calls.')`` when one call site logs
@@ -335,17 +353,17 @@ class NodeLog:
         The node's rclpy logger (``node.get_logger()``).
     """
 
-    LEVELS = ("debug", "info", "warn", "error")
+    LEVELS = ('debug', 'info', 'warn', 'error')
 
     def __init__(self, logger):
-        import time
         self._logger = logger
         self._clock = time.monotonic
         self._last: dict[str, float] = {}
 
     def __call__(self, level: str, text: str, throttle: float = 0.0,
                  key: str | None = None) -> bool:
-        """Log ``text`` at ``level`` (debug, info, warn or error); returns False when throttled.
+        """
+        Log ``text`` at ``level`` (debug, info, warn or error); returns False when throttled.
 
         Parameters
         ----------
@@ -358,22 +376,22 @@ class NodeLog:
         key : str, optional
             What the throttle counts (default: the text).
         """
-        if level == "warning":
-            level = "warn"
+        if level == 'warning':
+            level = 'warn'
         if level not in self.LEVELS:
             raise ValueError(f"unknown log level {level!r}; valid: {', '.join(self.LEVELS)}")
         if throttle > 0:
             k = key or text
             now = self._clock()
-            if now - self._last.get(k, -float("inf")) < throttle:
+            if now - self._last.get(k, -float('inf')) < throttle:
                 return False
             self._last[k] = now
         text = bounded(text)
-        if level == "error":                      # one call site per severity (see the class doc)
+        if level == 'error':                      # one call site per severity (see the class doc)
             self._logger.error(text)
-        elif level == "warn":
+        elif level == 'warn':
             self._logger.warning(text)
-        elif level == "info":
+        elif level == 'info':
             self._logger.info(text)
         else:
             self._logger.debug(text)
@@ -381,15 +399,15 @@ class NodeLog:
 
     def error(self, text: str, throttle: float = 0.0, key: str | None = None) -> bool:
         """``log("error", ...)``."""
-        return self("error", text, throttle, key)
+        return self('error', text, throttle, key)
 
     def warn(self, text: str, throttle: float = 0.0, key: str | None = None) -> bool:
         """``log("warn", ...)``."""
-        return self("warn", text, throttle, key)
+        return self('warn', text, throttle, key)
 
     def info(self, text: str, throttle: float = 0.0, key: str | None = None) -> bool:
         """``log("info", ...)``."""
-        return self("info", text, throttle, key)
+        return self('info', text, throttle, key)
 
 
 # --- diagnostics -------------------------------------------------------------------------
@@ -406,7 +424,7 @@ def diagnostic_array(stamp: Time, name: str, hardware_id: str, level: int, messa
 
 def _fmt(v) -> str:
     if isinstance(v, float):
-        return f"{v:.6g}"
+        return f'{v:.6g}'
     return str(v)
 
 
@@ -414,7 +432,8 @@ OK, WARN, ERROR = 0, 1, 2
 
 
 class Conditions:
-    """The current conditions of a node's /diagnostics status: the level is the worst of all of
+    """
+    The current conditions of a node's /diagnostics status: the level is the worst of all of
     them, and the message lists every one, worst first (in the order added within a level),
     bounded to ``limit`` characters with the number of conditions cut off.  A lower-level
     condition never masks a higher one (an undecodable message does not hide a gyro gap).
@@ -438,44 +457,47 @@ class Conditions:
         """The worst level of all conditions (:data:`OK` when there are none)."""
         return max((lv for lv, _ in self.items), default=OK)
 
-    def message(self, ok_text: str = "ok") -> str:
-        """Every condition's text, worst first, joined by ``; `` and bounded; ``ok_text`` when
-        there is none."""
+    def message(self, ok_text: str = 'ok') -> str:
+        """
+        Every condition's text, worst first, joined by ``; `` and bounded; ``ok_text`` when
+        there is none.
+        """
         texts = [t for _, t in sorted(self.items, key=lambda it: -it[0])]
         if not texts:
             return bounded(ok_text, self.limit)
         out = texts[0]
         for k, t in enumerate(texts[1:], 1):
-            more = f" (+{len(texts) - k} more)"
+            more = f' (+{len(texts) - k} more)'
             if len(out) + 2 + len(t) + len(more) > self.limit:
                 return bounded(out, self.limit - len(more)) + more
-            out += "; " + t
+            out += '; ' + t
         return bounded(out, self.limit)
 
 
 # --- simulators ------------------------------------------------------------------------------
 class PacedSimulation:
-    """Mixin for the simulator nodes: a wall timer calls :meth:`_tick`, which advances the
+    """
+    Mixin for the simulator nodes: a wall timer calls :meth:`_tick`, which advances the
     simulated time to ``time_scale`` × the wall time since the first tick (capped at
     ``end_time``) through the node's ``_advance_to(target)``, and calls ``_on_finished()`` once.
     Nothing downstream sees the wall clock: every stamp is simulated time.  Setting
     ``_wall_start = None`` restarts the pacing at the next tick (used after discovery).  With
     ``wait_for_subscribers`` = N > 0 the clock starts at the first tick that sees N subscribers
-    (``_subscriber_count()``), so that consumers started as separate processes lose nothing."""
+    (``_subscriber_count()``), so that consumers started as separate processes lose nothing.
+    """
 
     _wall_start = None
     finished = False
 
     def _tick(self):
-        import time
         if self.finished:
             return
         now = time.monotonic()
         if self._wall_start is None:
-            if self._subscriber_count() < int(self.p.get("wait_for_subscribers", 0)):
+            if self._subscriber_count() < int(self.p.get('wait_for_subscribers', 0)):
                 return                                   # the clock has not started yet
             self._wall_start = now
-        target = min((now - self._wall_start) * float(self.p["time_scale"]), self.end_time)
+        target = min((now - self._wall_start) * float(self.p['time_scale']), self.end_time)
         self._advance_to(target)
         if target >= self.end_time:
             self.finished = True
@@ -485,22 +507,23 @@ class PacedSimulation:
 # --- process entry point -------------------------------------------------------------------
 #: environment variable that selects the executor of the node processes: ``events`` (default)
 #: or ``single`` (rclpy's SingleThreadedExecutor)
-EXECUTOR_ENV = "STRAPDOWN_EXECUTOR"
+EXECUTOR_ENV = 'STRAPDOWN_EXECUTOR'
 
 
 def make_executor(kind: str | None = None):
-    """The executor of a node process.  rclpy's EventsExecutor (``rclpy.experimental``, Jazzy)
+    """
+    The executor of a node process.  rclpy's EventsExecutor (``rclpy.experimental``, Jazzy)
     dispatches a message in about a tenth of the CPU time of the SingleThreadedExecutor, which
     rebuilds its wait set on every spin (load_bench, node_rate_bench); ``single`` (or
     ``STRAPDOWN_EXECUTOR=single``) selects the latter, and it is the fallback where the former
-    does not exist."""
-    import os
+    does not exist.
+    """
 
     import rclpy.executors
-    kind = (kind or os.environ.get(EXECUTOR_ENV, "events")).strip().lower()
-    if kind not in ("events", "single"):
+    kind = (kind or os.environ.get(EXECUTOR_ENV, 'events')).strip().lower()
+    if kind not in ('events', 'single'):
         raise ValueError(f"{EXECUTOR_ENV} must be 'events' or 'single', got {kind!r}")
-    if kind == "events":
+    if kind == 'events':
         try:
             from rclpy.experimental import EventsExecutor
             return EventsExecutor()
@@ -510,20 +533,20 @@ def make_executor(kind: str | None = None):
 
 
 def run_node(node_class, name: str, args=None) -> int:
-    """``main()`` of every node: init, construct (invalid parameters → message on stderr, exit 2),
+    """
+    ``main()`` of every node: init, construct (invalid parameters → message on stderr, exit 2),
     spin until SIGINT/SIGTERM or shutdown, clean up.  Returns the process exit status.
 
     Signals: the process owns SIGINT and SIGTERM (rclpy's native handlers are not installed).
     A signal only records the request; the spin loop sees it within ``SPIN_SLICE_S`` and the
     node is shut down from the main loop, never from inside a callback (an exception raised in a
     callback would be logged by the events executor as FATAL, and a context shut down under a
-    running callback makes its next publish fail)."""
-    import signal
-    import sys
+    running callback makes its next publish fail).
+    """
 
     import rclpy
-    import rclpy.executors
     from rclpy.exceptions import ParameterException
+    import rclpy.executors
     from rclpy.signals import SignalHandlerOptions
 
     stop: list[int] = []
@@ -540,12 +563,12 @@ def run_node(node_class, name: str, args=None) -> int:
     except KeyboardInterrupt:                          # the entry point's import-time handler
         return 0
     except Exception as exc:                           # noqa: BLE001 - e.g. an unparsable --params-file
-        print(f"[{name}] error: {str(exc).splitlines()[0]}", file=sys.stderr)
+        print(f'[{name}] error: {str(exc).splitlines()[0]}', file=sys.stderr)
         return 2
     try:
         executor = make_executor()
     except ValueError as exc:
-        print(f"[{name}] error: {exc}", file=sys.stderr)
+        print(f'[{name}] error: {exc}', file=sys.stderr)
         rclpy.try_shutdown()
         return 2
     try:
@@ -554,7 +577,7 @@ def run_node(node_class, name: str, args=None) -> int:
         _quiet_exit(executor, rclpy)
         if stop:
             return 0
-        print(f"[{name}] error: {exc}", file=sys.stderr)
+        print(f'[{name}] error: {exc}', file=sys.stderr)
         return 2
     except Exception:                                  # noqa: BLE001
         if stop:
@@ -572,11 +595,12 @@ def run_node(node_class, name: str, args=None) -> int:
 
 
 def _freeze_startup_objects() -> None:
-    """Move every object made at start-up (modules, numba's and numpy's tables, the node) out of
+    """
+    Move every object made at start-up (modules, numba's and numpy's tables, the node) out of
     the garbage collector's reach (``gc.freeze``).  Without it each full collection walks them
     all (about 10⁵ objects in a sins_node process) while the input streams queue up.  Cycles
-    made later are still collected."""
-    import gc
+    made later are still collected.
+    """
     gc.collect()
     gc.freeze()
 
@@ -594,9 +618,11 @@ def _spin(executor, rclpy, stop: list) -> None:
 
 
 def _quiet_exit(executor, rclpy, node=None) -> int:
-    """Shut down the executor, the node and the context, each step on its own: rclpy's signal
+    """
+    Shut down the executor, the node and the context, each step on its own: rclpy's signal
     handler may shut the context down at the same moment ("rcl_shutdown already called"), which
-    is the stop that was asked for, not an error."""
+    is the stop that was asked for, not an error.
+    """
     for step in (executor.shutdown, node.destroy_node if node is not None else None, rclpy.try_shutdown):
         if step is None:
             continue

@@ -1,4 +1,5 @@
-"""sins_node: strapdown attitude from integrating-gyro increments with a selectable coning algorithm.
+"""
+sins_node: strapdown attitude from integrating-gyro increments with a selectable coning algorithm.
 
 Subscribes (stream QoS):
 * ``imu/delta_theta``     geometry_msgs/Vector3Stamped, rad, stamp = end of interval
@@ -50,19 +51,19 @@ from __future__ import annotations
 
 import sys
 
-import numpy as np
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import QuaternionStamped, Vector3Stamped
-from rclpy.node import Node
 from nav_msgs.msg import Odometry
+import numpy as np
+from rclpy.node import Node
 from sensor_msgs.msg import Imu
 
-from strapdown_ros.params import SINS_PARAMS
-from strapdown_ros.sins import SinsOutput, SinsSystem, odometry_arrays
-from strapdown_ros.streams.rate_increments import RateIncrementStream
 from strapdown_ros.nodes import ros_io
+from strapdown_ros.params import SINS_PARAMS
+from strapdown_ros.sins import odometry_arrays, SinsOutput, SinsSystem
+from strapdown_ros.streams.rate_increments import RateIncrementStream
 
-NODE_NAME = "sins_node"
+NODE_NAME = 'sins_node'
 
 
 class SinsNode(Node):
@@ -72,54 +73,54 @@ class SinsNode(Node):
         self.p = ros_io.declare_validated(self, SINS_PARAMS, on_change=self._on_change,
                                           apply=self._apply_change)
         p = self.p
-        self.published = {"attitude": 0, "imu": 0, "imu_without_accel": 0}
+        self.published = {'attitude': 0, 'imu': 0, 'imu_without_accel': 0}
         self.undecodable = 0                       # serialized input that is not a Vector3Stamped
         self.algorithm_changes = 0
-        self.frame_id = p["frame_id"]
-        self.ref_frame = p["reference_frame_id"]
-        self.imu_input = p["gyro_input"] == "imu"
+        self.frame_id = p['frame_id']
+        self.ref_frame = p['reference_frame_id']
+        self.imu_input = p['gyro_input'] == 'imu'
         # with Imu input, Δv comes from the same messages: at the Imu rate, which is gyro_rate
-        sys_p = dict(p, accel_rate=p["gyro_rate"]) if self.imu_input else p
+        sys_p = dict(p, accel_rate=p['gyro_rate']) if self.imu_input else p
         # the numerical core; sins/imu records are made only while it has a subscriber (asked once per block)
         self.system = SinsSystem(sys_p, log=self.log,
                                  imu_wanted=lambda: self.pub_imu.get_subscription_count() > 0)
         self._make_output_messages()
-        qos = ros_io.stream_qos(int(p["qos_depth"]))
-        self.pub_att = self.create_publisher(QuaternionStamped, "sins/attitude", qos, qos_overriding_options=ros_io.QOS_OVERRIDES)
-        self.pub_imu = self.create_publisher(Imu, "sins/imu", qos, qos_overriding_options=ros_io.QOS_OVERRIDES)
+        qos = ros_io.stream_qos(int(p['qos_depth']))
+        self.pub_att = self.create_publisher(QuaternionStamped, 'sins/attitude', qos, qos_overriding_options=ros_io.QOS_OVERRIDES)
+        self.pub_imu = self.create_publisher(Imu, 'sins/imu', qos, qos_overriding_options=ros_io.QOS_OVERRIDES)
         if self.nav is not None:
-            self.published["odometry"] = 0
-            self.pub_odom = self.create_publisher(Odometry, "sins/odometry", qos,
+            self.published['odometry'] = 0
+            self.pub_odom = self.create_publisher(Odometry, 'sins/odometry', qos,
                                                   qos_overriding_options=ros_io.QOS_OVERRIDES)
-        self.pub_diag = self.create_publisher(DiagnosticArray, "/diagnostics", ros_io.DIAGNOSTICS_QOS)
+        self.pub_diag = self.create_publisher(DiagnosticArray, '/diagnostics', ros_io.DIAGNOSTICS_QOS)
         # raw: the callbacks read stamp, vector and frame from the serialized bytes (ros_io)
         if self.imu_input:
-            period = 1.0 / float(p["gyro_rate"])
-            jump, resync = float(p["max_stamp_jump"]), int(p["resync_count"])
-            rule = p["imu_rate_rule"]
-            self.gyro_rates = RateIncrementStream(period, float(p["gyro_max_rate"]), rule, jump,
+            period = 1.0 / float(p['gyro_rate'])
+            jump, resync = float(p['max_stamp_jump']), int(p['resync_count'])
+            rule = p['imu_rate_rule']
+            self.gyro_rates = RateIncrementStream(period, float(p['gyro_max_rate']), rule, jump,
                                                   resync)
-            self.accel_rates = RateIncrementStream(period, float(p["accel_max"]), rule, jump,
+            self.accel_rates = RateIncrementStream(period, float(p['accel_max']), rule, jump,
                                                    resync)
             self.last_imu = None                   # the latest Imu (bytes or message)
-            self.create_subscription(Imu, "imu/data_raw", self._on_imu_raw, qos,
+            self.create_subscription(Imu, 'imu/data_raw', self._on_imu_raw, qos,
                                      qos_overriding_options=ros_io.QOS_OVERRIDES, raw=True)
         else:
-            self.create_subscription(Vector3Stamped, "imu/delta_theta", self._on_gyro_raw, qos,
+            self.create_subscription(Vector3Stamped, 'imu/delta_theta', self._on_gyro_raw, qos,
                                      qos_overriding_options=ros_io.QOS_OVERRIDES, raw=True)
-            self.create_subscription(Vector3Stamped, "imu/delta_velocity", self._on_accel_raw, qos,
+            self.create_subscription(Vector3Stamped, 'imu/delta_velocity', self._on_accel_raw, qos,
                                      qos_overriding_options=ros_io.QOS_OVERRIDES, raw=True)
-        self.create_timer(float(p["diagnostics_period"]), self.publish_diagnostics)
+        self.create_timer(float(p['diagnostics_period']), self.publish_diagnostics)
         if self.system.batch_span > 0:             # a block is processed at least this often
             self.create_timer(self.system.batch_span, self.process)
         self.log.info(
             f"started: gyro_input={p['gyro_input']}"
-            + (f" ({p['imu_rate_rule']}; Δv at gyro_rate)" if self.imu_input else "")
+            + (f" ({p['imu_rate_rule']}; Δv at gyro_rate)" if self.imu_input else '')
             + f", coning_algorithm={p['coning_algorithm']} "
             f"({self.integrator.algorithm.samples} samples/update), covariance_model={p['covariance_model']}, "
             f"compensating: {', '.join(self.system.compensating) or 'none'}")
         if self.system.initial_normalised:
-            self.log.warn("initial_orientation was not a unit quaternion; normalised")
+            self.log.warn('initial_orientation was not a unit quaternion; normalised')
 
     # --- the core's state, as the node's (diagnostics, tests, tools) --------------------------
     @property
@@ -149,32 +150,36 @@ class SinsNode(Node):
 
     # --- parameters ---------------------------------------------------------------------
     def _on_change(self, new: dict) -> str | None:
-        """Validation (on-set): only the coning algorithm may change at runtime, and only while
-        navigation is off (the navigation step is the algorithm's update)."""
+        """
+        Validation (on-set): only the coning algorithm may change at runtime, and only while
+        navigation is off (the navigation step is the algorithm's update).
+        """
         if self.nav is not None:
-            return ("no parameter can change at runtime while navigation is on (the navigation "
+            return ('no parameter can change at runtime while navigation is on (the navigation '
                     "step is the coning algorithm's update); restart the node to change "
-                    + ", ".join(sorted(new)))
-        fixed = sorted(set(new) - {"coning_algorithm"})
+                    + ', '.join(sorted(new)))
+        fixed = sorted(set(new) - {'coning_algorithm'})
         if fixed:
-            return ("only coning_algorithm can change at runtime; restart the node to change "
-                    + ", ".join(fixed))
+            return ('only coning_algorithm can change at runtime; restart the node to change '
+                    + ', '.join(fixed))
         return None
 
     def _apply_change(self, new: dict) -> None:
         """Application (post-set), once rclpy has accepted the change."""
-        name = new["coning_algorithm"]
+        name = new['coning_algorithm']
         if name != self.integrator.algorithm_name:
             self.process()                         # the samples so far belong to the old algorithm
             self.system.set_algorithm(name)
             self.algorithm_changes += 1
-            self.p["coning_algorithm"] = name
-            self.log.info(f"coning_algorithm switched to {name}")
+            self.p['coning_algorithm'] = name
+            self.log.info(f'coning_algorithm switched to {name}')
 
     # --- input ------------------------------------------------------------------------------
     def _on_gyro_raw(self, data: bytes):
-        """Hot path (the imu/delta_theta subscription): decode, validate, append to the block; the
-        numerical work runs in :meth:`process`."""
+        """
+        Hot path (the imu/delta_theta subscription): decode, validate, append to the block; the
+        numerical work runs in :meth:`process`.
+        """
         got = ros_io.decode_vector3_stamped(data)
         if got is None:
             self.undecodable += 1
@@ -194,8 +199,10 @@ class SinsNode(Node):
             self._publish(self.system.take_output())
 
     def _on_accel_raw(self, data: bytes):
-        """Hot path (the imu/delta_velocity subscription): decode, validate, append; folded into the
-        accumulator by :meth:`process`."""
+        """
+        Hot path (the imu/delta_velocity subscription): decode, validate, append; folded into the
+        accumulator by :meth:`process`.
+        """
         got = ros_io.decode_vector3_stamped(data)
         if got is None:
             self.undecodable += 1
@@ -211,8 +218,10 @@ class SinsNode(Node):
             self.process()
 
     def _on_imu_raw(self, data: bytes):
-        """Hot path (the imu/data_raw subscription, ``gyro_input: imu``): decode, then
-        :meth:`_imu`."""
+        """
+        Hot path (the imu/data_raw subscription, ``gyro_input: imu``): decode, then
+        :meth:`_imu`.
+        """
         got = ros_io.decode_imu(data)
         if got is None:
             self.undecodable += 1
@@ -229,29 +238,35 @@ class SinsNode(Node):
                   msg.header.frame_id)
 
     def _imu(self, stamp_ns: int, rate, accel, frame_id: str):
-        """One Imu message: the frame rule, then each rate through its RateIncrementStream
+        """
+        One Imu message: the frame rule, then each rate through its RateIncrementStream
         (validation, then the increment rule); the increments formed enter the Δθ/Δv path.  The
-        Δv goes first, so that the update of the same stamp finds its specific force."""
-        if not self.system.frame_accepted(frame_id, "gyro"):
+        Δv goes first, so that the update of the same stamp finds its specific force.
+        """
+        if not self.system.frame_accepted(frame_id, 'gyro'):
             return
         if accel is not None:
             for s, dv in self.accel_rates.push(stamp_ns, accel):
                 if self.system.offer_accel(s, dv):
                     self.process()
         for s, dth in self.gyro_rates.push(stamp_ns, rate):
-            self._gyro(s, dth, "")
+            self._gyro(s, dth, '')
 
     # --- batch processing ------------------------------------------------------------------
     def process(self) -> None:
-        """Integrate the buffered increments as one block through the vectorised core and publish
+        """
+        Integrate the buffered increments as one block through the vectorised core and publish
         every update with its own stamp.  The result equals message-by-message processing to
-        round-off (test/ros/test_nodes.py::test_sins_node_batches_equal_per_message_processing)."""
+        round-off (test/ros/test_nodes.py::test_sins_node_batches_equal_per_message_processing).
+        """
         self._publish(self.system.process())
 
     # --- output ------------------------------------------------------------------------------
     def _publish(self, out: SinsOutput) -> None:
-        """Publish the system's outputs; sins/attitude and sins/odometry only when subscribed
-        (checked once per block)."""
+        """
+        Publish the system's outputs; sins/attitude and sins/odometry only when subscribed
+        (checked once per block).
+        """
         att_out, imu_out, nav_out = out.attitude, out.imu, out.navigation
         if len(att_out) and self.pub_att.get_subscription_count() > 0:
             att = self._att_out                     # reused: publish serialises it at once
@@ -261,7 +276,7 @@ class SinsNode(Node):
                 ros_io.set_stamp(att.header.stamp, att_out.stamp_ns[k])
                 o.w, o.x, o.y, o.z = float(q[0]), float(q[1]), float(q[2]), float(q[3])
                 self.pub_att.publish(att)
-            self.published["attitude"] += len(att_out)
+            self.published['attitude'] += len(att_out)
         for k in range(len(imu_out)):
             self.pub_imu.publish(self._imu_msg(imu_out.stamp_ns[k], imu_out.attitude[k],
                                                imu_out.covariance[k], imu_out.mean_rate[k],
@@ -285,11 +300,13 @@ class SinsNode(Node):
             tw.linear.x, tw.linear.y, tw.linear.z = float(vb[0]), float(vb[1]), float(vb[2])
             m.twist.covariance = twist_cov[k]
             self.pub_odom.publish(m)
-        self.published["odometry"] += len(nb)
+        self.published['odometry'] += len(nb)
 
     def _imu_msg(self, stamp_ns, q, cov, rate, f_mean) -> Imu:
-        """sensor_msgs/Imu of one update.  One message object is reused (publish serialises it at
-        once): constructing a new Imu costs more than the rest of the update."""
+        """
+        sensor_msgs/Imu of one update.  One message object is reused (publish serialises it at
+        once): constructing a new Imu costs more than the rest of the update.
+        """
         m = self._imu_out
         ros_io.set_stamp(m.header.stamp, stamp_ns)
         o = m.orientation
@@ -301,11 +318,11 @@ class SinsNode(Node):
         if f_mean is None:
             a.x = a.y = a.z = 0.0
             m.linear_acceleration_covariance = self._no_accel_cov    # [0] = −1: no accelerometer data
-            self.published["imu_without_accel"] += 1
+            self.published['imu_without_accel'] += 1
         else:
             a.x, a.y, a.z = float(f_mean[0]), float(f_mean[1]), float(f_mean[2])
             m.linear_acceleration_covariance = self._accel_cov
-        self.published["imu"] += 1
+        self.published['imu'] += 1
         return m
 
     def _make_output_messages(self) -> None:
@@ -320,13 +337,15 @@ class SinsNode(Node):
         self._imu_out = m
         self._att_out = QuaternionStamped()
         self._odom_out = Odometry()
-        self._odom_out.header.frame_id = self.p["earth_frame_id"]
+        self._odom_out.header.frame_id = self.p['earth_frame_id']
         self._odom_out.child_frame_id = self.frame_id
         self._att_out.header.frame_id = self.ref_frame
 
     def accel_stall_s(self) -> float | None:
-        """Stamp seconds the gyro stream ran beyond the newest Δv (the core's rule,
-        :meth:`SinsSystem.accel_stall_s`)."""
+        """
+        Stamp seconds the gyro stream ran beyond the newest Δv (the core's rule,
+        :meth:`SinsSystem.accel_stall_s`).
+        """
         return self.system.accel_stall_s()
 
     def diagnostic_conditions(self) -> ros_io.Conditions:
@@ -334,72 +353,72 @@ class SinsNode(Node):
         g, a = self.gyro_check, self.accel_check
         c = ros_io.Conditions()
         if g.accepted == 0:
-            c.add(ros_io.WARN, "no gyro increments received")
+            c.add(ros_io.WARN, 'no gyro increments received')
         if g.dropped or a.dropped:
-            c.add(ros_io.WARN, f"dropped {g.dropped} gyro and {a.dropped} accelerometer messages "
-                  f"(NaN {g.nan + a.nan}, out of range {g.out_of_range + a.out_of_range}, out of "
-                  f"order {g.out_of_order + a.out_of_order}, duplicate "
-                  f"{g.duplicate + a.duplicate}, stamp outliers "
-                  f"{g.stamp_outliers + a.stamp_outliers})")
+            c.add(ros_io.WARN, f'dropped {g.dropped} gyro and {a.dropped} accelerometer messages '
+                  f'(NaN {g.nan + a.nan}, out of range {g.out_of_range + a.out_of_range}, out of '
+                  f'order {g.out_of_order + a.out_of_order}, duplicate '
+                  f'{g.duplicate + a.duplicate}, stamp outliers '
+                  f'{g.stamp_outliers + a.stamp_outliers})')
         if self.imu_input and (self.gyro_rates.check.dropped or self.accel_rates.check.dropped):
             gr, ar = self.gyro_rates.check, self.accel_rates.check
-            c.add(ros_io.WARN, f"dropped {gr.dropped} angular-rate and {ar.dropped} acceleration "
-                  f"samples of imu/data_raw (NaN {gr.nan + ar.nan}, out of range "
-                  f"{gr.out_of_range + ar.out_of_range}, out of order "
-                  f"{gr.out_of_order + ar.out_of_order}, duplicate {gr.duplicate + ar.duplicate}, "
-                  f"stamp outliers {gr.stamp_outliers + ar.stamp_outliers})")
+            c.add(ros_io.WARN, f'dropped {gr.dropped} angular-rate and {ar.dropped} acceleration '
+                  f'samples of imu/data_raw (NaN {gr.nan + ar.nan}, out of range '
+                  f'{gr.out_of_range + ar.out_of_range}, out of order '
+                  f'{gr.out_of_order + ar.out_of_order}, duplicate {gr.duplicate + ar.duplicate}, '
+                  f'stamp outliers {gr.stamp_outliers + ar.stamp_outliers})')
         if any(self.frame_mismatch.values()):
-            c.add(ros_io.WARN, f"messages in another frame than "
+            c.add(ros_io.WARN, f'messages in another frame than '
                   f"{ros_io.bounded(self.frame_id, 80)!r}: gyro {self.frame_mismatch['gyro']}, "
                   f"accelerometer {self.frame_mismatch['accel']} "
                   f"({'rejected' if self.system.reject_frames else 'used'})")
         if self.undecodable:
             c.add(ros_io.WARN,
-                  f"{self.undecodable} input message(s) could not be decoded: dropped")
-        stall = self.system.accel_stall("imu/data_raw" if self.imu_input
-                                        else "imu/delta_velocity")
+                  f'{self.undecodable} input message(s) could not be decoded: dropped')
+        stall = self.system.accel_stall('imu/data_raw' if self.imu_input
+                                        else 'imu/delta_velocity')
         if stall is not None:                     # the core's rule, shared with sins_bag
-            c.add(ros_io.ERROR if stall.level == "error" else ros_io.WARN, stall.text)
+            c.add(ros_io.ERROR if stall.level == 'error' else ros_io.WARN, stall.text)
         if g.missing:
-            c.add(ros_io.ERROR, f"{g.missing} gyro increments missing in {g.gaps} gaps: "
-                  "the rotation during the gaps is lost")
+            c.add(ros_io.ERROR, f'{g.missing} gyro increments missing in {g.gaps} gaps: '
+                  'the rotation during the gaps is lost')
         if g.resyncs:
-            c.add(ros_io.ERROR, f"gyro stamps jumped {g.resyncs} time(s) (last by "
-                  f"{g.last_jump_s:.6g} s): resynchronised; the rotation during a jump is lost")
+            c.add(ros_io.ERROR, f'gyro stamps jumped {g.resyncs} time(s) (last by '
+                  f'{g.last_jump_s:.6g} s): resynchronised; the rotation during a jump is lost')
         if self.nonfinite:
-            c.add(ros_io.ERROR, f"{self.nonfinite} non-finite update(s) discarded (never "
-                  "published); state reset to the last good one with inflated covariance")
+            c.add(ros_io.ERROR, f'{self.nonfinite} non-finite update(s) discarded (never '
+                  'published); state reset to the last good one with inflated covariance')
         if self.nav is not None and self.nav.alignment is not None and not self.nav.alignment.ok \
                 and self.nav.navigator is None:
-            c.add(ros_io.ERROR, f"static alignment refused: {self.nav.alignment.reason}")
+            c.add(ros_io.ERROR, f'static alignment refused: {self.nav.alignment.reason}')
         return c
 
     def publish_diagnostics(self):
         g = self.gyro_check
         c = self.diagnostic_conditions()
         values = self.system.status()
-        values.update({"undecodable_dropped": self.undecodable,
-                       "attitude_published": self.published["attitude"], "imu_published": self.published["imu"],
-                       "imu_published_without_accel": self.published["imu_without_accel"],
-                       "algorithm_changes": self.algorithm_changes})
+        values.update({'undecodable_dropped': self.undecodable,
+                       'attitude_published': self.published['attitude'], 'imu_published': self.published['imu'],
+                       'imu_published_without_accel': self.published['imu_without_accel'],
+                       'algorithm_changes': self.algorithm_changes})
         if self.imu_input:
-            values.update({"gyro_input": "imu", "imu_rate_rule": self.p["imu_rate_rule"],
-                           "imu_stated_rate_variance": ros_io.stated_rate_variance(self.last_imu),
-                           "model_rate_variance": self.system.rate_variance,
-                           **self.gyro_rates.status("imu_gyro"),
-                           **self.accel_rates.status("imu_accel")})
+            values.update({'gyro_input': 'imu', 'imu_rate_rule': self.p['imu_rate_rule'],
+                           'imu_stated_rate_variance': ros_io.stated_rate_variance(self.last_imu),
+                           'model_rate_variance': self.system.rate_variance,
+                           **self.gyro_rates.status('imu_gyro'),
+                           **self.accel_rates.status('imu_accel')})
         stall = self.accel_stall_s()
         if stall is not None:
-            values["accel_stall_s"] = stall
+            values['accel_stall_s'] = stall
         if self.nav is not None:
-            values["odometry_published"] = self.published["odometry"]
+            values['odometry_published'] = self.published['odometry']
         stamp_ns = g.last_ns if g.last_ns is not None else 0
-        self.pub_diag.publish(ros_io.diagnostic_array(ros_io.ns_to_stamp(stamp_ns), f"{self.get_fully_qualified_name()}: attitude",
-                                                      "sins", c.level, c.message(), values))
+        self.pub_diag.publish(ros_io.diagnostic_array(ros_io.ns_to_stamp(stamp_ns), f'{self.get_fully_qualified_name()}: attitude',
+                                                      'sins', c.level, c.message(), values))
 
 def main(args=None):
     return ros_io.run_node(SinsNode, NODE_NAME, args)
 
 
-if __name__ == "__main__":
+if __name__ == '__main__':
     sys.exit(main())

@@ -1,4 +1,5 @@
-"""star_camera_sim_node: a star camera (astro-visual unit, 004 §3) on the same exact motion profile.
+"""
+star_camera_sim_node: a star camera (astro-visual unit, 004 §3) on the same exact motion profile.
 
 The profile parameters and the time origin (``profile``…, ``start_time``, ``time_scale``,
 ``duration``) mean exactly what they mean for ``imu_sim_node``, so one parameter file gives
@@ -41,18 +42,18 @@ from __future__ import annotations
 import sys
 import time
 
-import numpy as np
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import PoseWithCovarianceStamped, QuaternionStamped
+import numpy as np
 from rclpy.node import Node
 
-from strapdown_ros.params import STAR_CAMERA_PARAMS
 from strapdown_ros.motion.from_config import profile_from_config
-from strapdown_ros.sensors.star_camera import StarCameraModel
 from strapdown_ros.nodes import ros_io
 from strapdown_ros.nodes.ros_io import camera_qos, latched_qos, pose_with_covariance
+from strapdown_ros.params import STAR_CAMERA_PARAMS
+from strapdown_ros.sensors.star_camera import StarCameraModel
 
-NODE_NAME = "star_camera_sim_node"
+NODE_NAME = 'star_camera_sim_node'
 
 #: variance (m²) on the position diagonal of attitude-only poses: "not measured"
 class StarCameraSimNode(ros_io.PacedSimulation, Node):
@@ -63,17 +64,17 @@ class StarCameraSimNode(ros_io.PacedSimulation, Node):
         p = self.p
         self.profile = profile_from_config(p)
         self.model = StarCameraModel.from_params(p)
-        sxy, sz = float(p["camera_sigma_xy"]), float(p["camera_sigma_z"])
-        dur = float(p["duration"])
+        sxy, sz = float(p['camera_sigma_xy']), float(p['camera_sigma_z'])
+        dur = float(p['duration'])
         self.end_time = dur if dur > 0 else self.profile.duration
-        self.start_ns = int(round(float(p["start_time"]) * 1e9))
-        self.ref_frame = p["reference_frame_id"]
-        self.camera_frame = p["camera_frame_id"]
-        qos = camera_qos(int(p["qos_depth"]))
-        self.pub_att = self.create_publisher(QuaternionStamped, "star_camera/attitude", qos, qos_overriding_options=ros_io.QOS_OVERRIDES)
-        self.pub_cov = self.create_publisher(PoseWithCovarianceStamped, "star_camera/attitude_with_covariance", qos, qos_overriding_options=ros_io.QOS_OVERRIDES)
-        self.pub_truth = self.create_publisher(QuaternionStamped, "star_camera/truth/boresight", latched_qos())
-        self.pub_diag = self.create_publisher(DiagnosticArray, "/diagnostics", ros_io.DIAGNOSTICS_QOS)
+        self.start_ns = int(round(float(p['start_time']) * 1e9))
+        self.ref_frame = p['reference_frame_id']
+        self.camera_frame = p['camera_frame_id']
+        qos = camera_qos(int(p['qos_depth']))
+        self.pub_att = self.create_publisher(QuaternionStamped, 'star_camera/attitude', qos, qos_overriding_options=ros_io.QOS_OVERRIDES)
+        self.pub_cov = self.create_publisher(PoseWithCovarianceStamped, 'star_camera/attitude_with_covariance', qos, qos_overriding_options=ros_io.QOS_OVERRIDES)
+        self.pub_truth = self.create_publisher(QuaternionStamped, 'star_camera/truth/boresight', latched_qos())
+        self.pub_diag = self.create_publisher(DiagnosticArray, '/diagnostics', ros_io.DIAGNOSTICS_QOS)
         self.pub_truth.publish(ros_io.quaternion_stamped(ros_io.ns_to_stamp(self.start_ns), self.camera_frame,
                                                          self.model.q_mf_vf))
         self.published = 0
@@ -81,17 +82,17 @@ class StarCameraSimNode(ros_io.PacedSimulation, Node):
         self._wall_start = None
         self.sim_time = 0.0
         self.finished = False
-        self.timer = self.create_timer(float(p["publish_period"]), self._tick)
-        self.diag_timer = self.create_timer(float(p["diagnostics_period"]), self.publish_diagnostics)
+        self.timer = self.create_timer(float(p['publish_period']), self._tick)
+        self.diag_timer = self.create_timer(float(p['diagnostics_period']), self.publish_diagnostics)
         self.log.info(
             f"started: profile={p['profile']}, exposure every {p['camera_interval']:g} s from "
-            f"{self.model.epoch(0):g} s, σ = ({sxy:.3g}, {sxy:.3g}, {sz:.3g}) rad, boresight β = "
+            f'{self.model.epoch(0):g} s, σ = ({sxy:.3g}, {sxy:.3g}, {sz:.3g}) rad, boresight β = '
             f"{np.round(np.degrees(self.model.boresight), 6).tolist()}°, time_scale {p['time_scale']}, "
-            f"duration {self.end_time:g} s")
+            f'duration {self.end_time:g} s')
 
     def _reject_changes(self, new: dict) -> str | None:
-        return ("star_camera_sim_node parameters are fixed after start-up (they define the simulated truth); "
-                "restart the node to change " + ", ".join(sorted(new)))
+        return ('star_camera_sim_node parameters are fixed after start-up (they define the simulated truth); '
+                'restart the node to change ' + ', '.join(sorted(new)))
 
     # ---------------------------------------------------------------------------------
     def _subscriber_count(self) -> int:
@@ -99,8 +100,8 @@ class StarCameraSimNode(ros_io.PacedSimulation, Node):
 
     def _on_finished(self):
         self.publish_diagnostics()
-        self.log.info(f"finished: published {self.published} fixes up to "
-                      f"t = {self.sim_time:.3f} s")
+        self.log.info(f'finished: published {self.published} fixes up to '
+                      f't = {self.sim_time:.3f} s')
 
     def _advance_to(self, target: float):
         n = 0
@@ -119,20 +120,20 @@ class StarCameraSimNode(ros_io.PacedSimulation, Node):
     def publish_diagnostics(self):
         wall = (time.monotonic() - self._wall_start) if self._wall_start else 0.0
         st = ros_io.ns_to_stamp(self.start_ns + int(round(self.sim_time * 1e9)))
-        values = {"simulated_time_s": self.sim_time,
-                  "real_time_factor": self.sim_time / wall if wall > 0 else 0.0,
-                  "fixes_published": self.published, "camera_interval_s": self.p["camera_interval"],
-                  "next_exposure_s": self.model.epoch(self.model.count),
-                  "last_exposure_s": self.last_stamp if self.last_stamp is not None else "none",
-                  "finished": self.finished, "profile": self.p["profile"]}
-        msg = "finished" if self.finished else ("waiting for subscribers" if self._wall_start is None else "running")
-        self.pub_diag.publish(ros_io.diagnostic_array(st, f"{self.get_fully_qualified_name()}: star camera",
-                                                      "star_camera_sim", ros_io.OK, msg, values))
+        values = {'simulated_time_s': self.sim_time,
+                  'real_time_factor': self.sim_time / wall if wall > 0 else 0.0,
+                  'fixes_published': self.published, 'camera_interval_s': self.p['camera_interval'],
+                  'next_exposure_s': self.model.epoch(self.model.count),
+                  'last_exposure_s': self.last_stamp if self.last_stamp is not None else 'none',
+                  'finished': self.finished, 'profile': self.p['profile']}
+        msg = 'finished' if self.finished else ('waiting for subscribers' if self._wall_start is None else 'running')
+        self.pub_diag.publish(ros_io.diagnostic_array(st, f'{self.get_fully_qualified_name()}: star camera',
+                                                      'star_camera_sim', ros_io.OK, msg, values))
 
 
 def main(args=None):
     return ros_io.run_node(StarCameraSimNode, NODE_NAME, args)
 
 
-if __name__ == "__main__":
+if __name__ == '__main__':
     sys.exit(main())

@@ -1,16 +1,18 @@
-"""Reading recordings (rosbag2 bags) for the offline tools: one reader of gyro increments or rate
+"""
+Reading recordings (rosbag2 bags) for the offline tools: one reader of gyro increments or rate
 samples and of attitude references in the common ROS message formats (:mod:`.reader`), and
 the tools' input options and reports (:mod:`.options`).
 
 Imports rosbags (the ``tools`` extra); the numerical core never imports this package.
 """
 from strapdown_ros.recording.options import (add_input_arguments, check_input_arguments,
-    input_lines, input_options, input_summary, input_warnings)
-from strapdown_ros.recording.reader import (CAMERA_COV_TOPIC, CAMERA_TOPIC, DELTA_THETA_TYPE,
-    GYRO_TOPIC, IMU_TYPE, REFERENCE_TYPES, Accepted, BagError, open_reader, read_bag,
-    resolve_topic)
+                                             input_lines, input_options, input_summary,
+                                             input_warnings)
+from strapdown_ros.recording.reader import (Accepted, BagError, CAMERA_COV_TOPIC, CAMERA_TOPIC,
+                                            DELTA_THETA_TYPE, GYRO_TOPIC, IMU_TYPE, open_reader,
+                                            read_bag, REFERENCE_TYPES, resolve_topic)
 
-__all__ = ["BagError", "Accepted", "open_reader", "resolve_topic", "read_bag", "input_summary",
-           "input_warnings", "input_lines", "add_input_arguments", "input_options",
-           "check_input_arguments", "GYRO_TOPIC", "CAMERA_TOPIC", "CAMERA_COV_TOPIC",
-           "DELTA_THETA_TYPE", "IMU_TYPE", "REFERENCE_TYPES"]
+__all__ = ['BagError', 'Accepted', 'open_reader', 'resolve_topic', 'read_bag', 'input_summary',
+           'input_warnings', 'input_lines', 'add_input_arguments', 'input_options',
+           'check_input_arguments', 'GYRO_TOPIC', 'CAMERA_TOPIC', 'CAMERA_COV_TOPIC',
+           'DELTA_THETA_TYPE', 'IMU_TYPE', 'REFERENCE_TYPES']

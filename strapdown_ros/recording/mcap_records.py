@@ -1,4 +1,5 @@
-"""The records of some topics of an indexed MCAP rosbag2 file, a chunk at a time, without a Python
+"""
+The records of some topics of an indexed MCAP rosbag2 file, a chunk at a time, without a Python
 object per record: the chunk is decompressed (and its CRC checked) by rosbags, its records are
 located by one scan (compiled when numba is there), and the messages of a topic come out as one
 array of rows when they all have the same length.  ``sins_bag`` reads its input this way; any other
@@ -16,14 +17,16 @@ import numpy as np
 
 from strapdown_ros.attitude.kernel import kernels_allowed, njit_optional
 
-__all__ = ["indexed_mcap", "channel_ids", "TopicRecords", "read_topics"]
+__all__ = ['indexed_mcap', 'channel_ids', 'TopicRecords', 'read_topics']
 
 _OP_MESSAGE = 0x05
 
 
-def _scan_py(raw, wanted):
-    """Offsets of the Message records of the wanted channels in a decompressed chunk: (record
-    start, data start, data length, channel id, log time) per message, in chunk order."""
+def scan_python(raw, wanted):
+    """
+    Offsets of the Message records of the wanted channels in a decompressed chunk: (record
+    start, data start, data length, channel id, log time) per message, in chunk order.
+    """
     n = raw.shape[0]
     cap = 1024
     out = np.empty((cap, 5), np.int64)
@@ -58,20 +61,20 @@ def _scan_py(raw, wanted):
 _compiled = None
 
 
-def _scanner():
+def scanner():
     global _compiled
     if _compiled is None:
-        got = njit_optional(_scan_py) if kernels_allowed() else None
+        got = njit_optional(scan_python) if kernels_allowed() else None
         _compiled = got[0] if got else False
-    return _compiled if _compiled is not False else _scan_plain
+    return _compiled if _compiled is not False else scan_plain
 
 
-_HEAD = struct.Struct("<BQ")
-_MSG = struct.Struct("<HIq")          # log time as int64, as the compiled scan reads it
+_HEAD = struct.Struct('<BQ')
+_MSG = struct.Struct('<HIq')          # log time as int64, as the compiled scan reads it
 
 
-def _scan_plain(raw, wanted):
-    """:func:`_scan_py` with struct (no numba): the same output."""
+def scan_plain(raw, wanted):
+    """:func:`scan_python` with struct (no numba): the same output."""
     buf = raw.tobytes()
     n = len(buf)
     rows = []
@@ -89,38 +92,44 @@ def _scan_plain(raw, wanted):
 
 
 def indexed_mcap(reader):
-    """rosbags' MCAP storage of an AnyReader over one bag of one MCAP file with a chunk index (and
-    no per-message compression); else None (read through rosbags' reader)."""
+    """
+    rosbags' MCAP storage of an AnyReader over one bag of one MCAP file with a chunk index (and
+    no per-message compression); else None (read through rosbags' reader).
+    """
     try:
         from rosbags.rosbag2.reader import DirectoryReader
         from rosbags.rosbag2.storage_mcap import McapReader
     except ImportError:                                      # pragma: no cover - another rosbags
         return None
-    inner = getattr(reader, "readers", None)
+    inner = getattr(reader, 'readers', None)
     if not inner or len(inner) != 1:
         return None
-    storage = getattr(inner[0], "storage", None)
+    storage = getattr(inner[0], 'storage', None)
     if isinstance(storage, DirectoryReader):
-        meta = getattr(storage, "metadata", None)
-        if meta is None or meta.compression_mode == "message" or len(storage.storages) != 1:
+        meta = getattr(storage, 'metadata', None)
+        if meta is None or meta.compression_mode == 'message' or len(storage.storages) != 1:
             return None
         storage = storage.storages[0]
-    if not isinstance(storage, McapReader) or not getattr(storage, "chunks", None) \
-            or getattr(storage, "bio", None) is None:
+    if not isinstance(storage, McapReader) or not getattr(storage, 'chunks', None) \
+            or getattr(storage, 'bio', None) is None:
         return None
     return storage
 
 
 def channel_ids(storage, connections) -> dict:
-    """{MCAP channel id: topic} of the file's channels that are these connections (same topic and
-    type)."""
+    """
+    {MCAP channel id: topic} of the file's channels that are these connections (same topic and
+    type).
+    """
     want = {(c.topic, c.msgtype) for c in connections}
     return {x.id: x.topic for x in storage.connections if (x.topic, x.msgtype) in want}
 
 
 class TopicRecords:
-    """The messages of one topic read from a chunk: ``rows`` (n, L) uint8 when they all have
-    the length L, else ``records`` (a list of bytes); ``log_ns`` (n,) their log times."""
+    """
+    The messages of one topic read from a chunk: ``rows`` (n, L) uint8 when they all have
+    the length L, else ``records`` (a list of bytes); ``log_ns`` (n,) their log times.
+    """
 
     def __init__(self, log_ns, rows=None, records=None):
         self.log_ns, self.rows, self.records = log_ns, rows, records
@@ -130,35 +139,37 @@ class TopicRecords:
 
 
 def read_topics(storage, channel_ids: dict, progress=None):
-    """Yield, chunk by chunk in the order of their first log time, {topic: TopicRecords} of the
+    """
+    Yield, chunk by chunk in the order of their first log time, {topic: TopicRecords} of the
     channels ``channel_ids`` ({channel id: topic}).  Raises ValueError on a damaged chunk (a
-    record running past its end, a size or checksum mismatch)."""
+    record running past its end, a size or checksum mismatch).
+    """
     from rosbags.rosbag2.storage_mcap import decompress
 
     wanted = np.zeros(max(channel_ids) + 1, np.bool_)
     wanted[list(channel_ids)] = True
-    scan = _scanner()
+    scan = scanner()
     bio = storage.bio
     chunks = [c for c in storage.chunks if any(c.channel_count.get(i, 0) for i in channel_ids)]
     chunks.sort(key=lambda c: (c.message_start_time, c.chunk_start_offset))
     for chunk in chunks:
         bio.seek(chunk.chunk_start_offset + 9 + 24)
-        crc = struct.unpack("<I", bio.read(4))[0]
+        crc = struct.unpack('<I', bio.read(4))[0]
         bio.seek(chunk.chunk_start_offset + 9 + 40 + len(chunk.compression))
         data = bio.read(chunk.compressed_size)
         if len(data) != chunk.compressed_size:
-            raise ValueError(f"chunk at {chunk.chunk_start_offset}: file ends inside it")
+            raise ValueError(f'chunk at {chunk.chunk_start_offset}: file ends inside it')
         raw = decompress(data, chunk.compression, chunk.uncompressed_size, crc)
         buf = np.frombuffer(raw, np.uint8)
         found, whole = scan(buf, wanted)
         if not whole or (len(found) and int((found[:, 1] + found[:, 2]).max()) > len(buf)):
-            raise ValueError(f"chunk at {chunk.chunk_start_offset}: a record runs past its end")
+            raise ValueError(f'chunk at {chunk.chunk_start_offset}: a record runs past its end')
         out = {}
         for ch, topic in channel_ids.items():
             sel = found[found[:, 3] == ch]
             if not len(sel):
                 continue
-            sel = sel[np.argsort(sel[:, 4], kind="stable")]          # log time, then chunk order
+            sel = sel[np.argsort(sel[:, 4], kind='stable')]          # log time, then chunk order
             starts, lengths = sel[:, 1], sel[:, 2]
             if np.all(lengths == lengths[0]):
                 rows = buf[starts[:, None] + np.arange(int(lengths[0]))[None, :]]

@@ -1,4 +1,5 @@
-"""Command-line options and reports of the input of the offline tools (:mod:`.reader`).
+"""
+Command-line options and reports of the input of the offline tools (:mod:`.reader`).
 
 ``add_input_arguments`` makes ``--gyro-topic``, ``--reference-topic``, ``--reference-frames`` and
 ``--rate-rule`` once for every tool; ``input_summary``, ``input_lines`` and ``input_warnings`` say
@@ -7,22 +8,23 @@ what was read and how (JSON, stdout, stderr).
 
 from __future__ import annotations
 
+from strapdown_ros.recording.reader import (bounded, bounded_list, CAMERA_COV_TOPIC, CAMERA_TOPIC,
+                                            DELTA_THETA_TYPE, GYRO_TOPIC, IMU_TYPE)
 from strapdown_ros.streams.rate_increments import RATE_RULES
-from strapdown_ros.recording.reader import (CAMERA_COV_TOPIC, CAMERA_TOPIC, DELTA_THETA_TYPE,
-    GYRO_TOPIC, IMU_TYPE, bounded, bounded_list)
 
 __all__ = [
-    "input_summary",
-    "input_warnings",
-    "input_lines",
-    "add_input_arguments",
-    "check_input_arguments",
-    "input_options",
+    'input_summary',
+    'input_warnings',
+    'input_lines',
+    'add_input_arguments',
+    'check_input_arguments',
+    'input_options',
 ]
 
 
 def input_summary(data: dict) -> dict:
-    """What was read and how, JSON-ready (the ``input`` record of the tools).
+    """
+    What was read and how, JSON-ready (the ``input`` record of the tools).
 
     Parameters
     ----------
@@ -37,21 +39,22 @@ def input_summary(data: dict) -> dict:
         (``from_messages`` | ``from_model`` | ``mixed``) and ``unread_messages`` {topic: n}.
     """
     return {
-        "gyro_topic": data["gyro_topic"],
-        "gyro_type": data["gyro_type"],
-        "gyro_input": data["gyro_input"],
-        "rate_rule": data["rate_rule"],
-        "rate_samples": data["rate_samples"],
-        "reference_topic": data["camera_topic"],
-        "reference_type": data["reference_type"],
-        "reference_frames": data["reference_frames"],
-        "reference_covariance": data["reference_covariance"],
-        "unread_messages": dict(data["unread_messages"]),
+        'gyro_topic': data['gyro_topic'],
+        'gyro_type': data['gyro_type'],
+        'gyro_input': data['gyro_input'],
+        'rate_rule': data['rate_rule'],
+        'rate_samples': data['rate_samples'],
+        'reference_topic': data['camera_topic'],
+        'reference_type': data['reference_type'],
+        'reference_frames': data['reference_frames'],
+        'reference_covariance': data['reference_covariance'],
+        'unread_messages': dict(data['unread_messages']),
     }
 
 
 def input_warnings(prog: str, info: dict) -> list[str]:
-    """``WARNING:`` lines for stderr about the input (:func:`input_summary` or :func:`read_bag`).
+    """
+    ``WARNING:`` lines for stderr about the input (:func:`input_summary` or :func:`read_bag`).
 
     Parameters
     ----------
@@ -66,19 +69,19 @@ def input_warnings(prog: str, info: dict) -> list[str]:
         One line per problem found, bounded in length; empty when there is nothing to say.
     """
     out = []
-    unread = info.get("unread_messages") or {}
+    unread = info.get('unread_messages') or {}
     if unread:
-        parts = bounded_list(f"{t}: {n:+d}" for t, n in sorted(unread.items()))
+        parts = bounded_list(f'{t}: {n:+d}' for t, n in sorted(unread.items()))
         out.append(
             f"{prog}: WARNING: the messages read differ from the bag's own index (index − read: "
-            f"{parts}): a corrupt or skipped chunk hides data; the result may be biased"
+            f'{parts}): a corrupt or skipped chunk hides data; the result may be biased'
         )
-    rs = info.get("rate_samples")
+    rs = info.get('rate_samples')
     if rs:
-        dropped = {k: v for k, v in rs["dropped"].items() if v}
-        if dropped or rs["intervals_not_integrated"]:
+        dropped = {k: v for k, v in rs['dropped'].items() if v}
+        if dropped or rs['intervals_not_integrated']:
             out.append(
-                f"{prog}: WARNING: gyro rate samples: dropped "
+                f'{prog}: WARNING: gyro rate samples: dropped '
                 f"{', '.join(f'{k} {v}' for k, v in dropped.items()) or 'none'}; "
                 f"{rs['intervals_not_integrated']} interval(s) not integrated (gaps)"
             )
@@ -86,7 +89,8 @@ def input_warnings(prog: str, info: dict) -> list[str]:
 
 
 def input_lines(info: dict) -> list[str]:
-    """Summary lines (stdout) saying what was read and how.
+    """
+    Summary lines (stdout) saying what was read and how.
 
     Parameters
     ----------
@@ -98,9 +102,9 @@ def input_lines(info: dict) -> list[str]:
     list of str
         One or two indented lines.
     """
-    short = {t: t.rsplit("/", 1)[-1] for t in (info["gyro_type"], info["reference_type"])}
-    if info["gyro_input"] == "rates":
-        rs = info["rate_samples"]
+    short = {t: t.rsplit('/', 1)[-1] for t in (info['gyro_type'], info['reference_type'])}
+    if info['gyro_input'] == 'rates':
+        rs = info['rate_samples']
         gyro = (
             f"{rs['accepted']} of {rs['received']} {short[info['gyro_type']]} rate samples on "
             f"{bounded(info['gyro_topic'])} → increments by the {info['rate_rule']} rule"
@@ -108,19 +112,19 @@ def input_lines(info: dict) -> list[str]:
     else:
         gyro = f"Δθ ({short[info['gyro_type']]}) on {bounded(info['gyro_topic'])}"
     ref = f"reference {short[info['reference_type']]} on {bounded(info['reference_topic'])}"
-    fr = info.get("reference_frames")
+    fr = info.get('reference_frames')
     if fr:
         ref += f" ({bounded(fr['parent'])}→{bounded(fr['child'])}, {fr['transform']})"
     cov = {
-        "from_messages": "covariance from the messages",
-        "from_model": "σ from the model",
-        "mixed": "covariance from the messages, σ from the model where they have none",
+        'from_messages': 'covariance from the messages',
+        'from_model': 'σ from the model',
+        'mixed': 'covariance from the messages, σ from the model where they have none',
     }
     lines = [f"  input: {gyro}; {ref}, {cov[info['reference_covariance']]}"]
-    if info.get("unread_messages"):
+    if info.get('unread_messages'):
         lines.append(
-            "  UNREAD: "
-            + bounded_list(f"{t} {n:+d}" for t, n in sorted(info["unread_messages"].items()))
+            '  UNREAD: '
+            + bounded_list(f'{t} {n:+d}' for t, n in sorted(info['unread_messages'].items()))
             + " message(s) in the bag's index but not returned by the reader (corrupt chunk?)"
         )
     return lines
@@ -128,44 +132,46 @@ def input_lines(info: dict) -> list[str]:
 
 # --- command-line options ------------------------------------------------------------------------
 def add_input_arguments(parser) -> None:
-    """Add ``--gyro-topic``, ``--reference-topic``, ``--reference-frames``, ``--rate-rule``.
+    """
+    Add ``--gyro-topic``, ``--reference-topic``, ``--reference-frames``, ``--rate-rule``.
 
     Parameters
     ----------
     parser : argparse.ArgumentParser
         The tool's parser (an argument group is added to it).
     """
-    g = parser.add_argument_group("input topics and formats")
+    g = parser.add_argument_group('input topics and formats')
     g.add_argument(
-        "--gyro-topic",
-        metavar="TOPIC",
-        help=f"gyro topic: {DELTA_THETA_TYPE} increments or {IMU_TYPE} rates, by its type in the "
-        f"bag (default {GYRO_TOPIC} under --namespace)",
+        '--gyro-topic',
+        metavar='TOPIC',
+        help=f'gyro topic: {DELTA_THETA_TYPE} increments or {IMU_TYPE} rates, by its type in the '
+        f'bag (default {GYRO_TOPIC} under --namespace)',
     )
     g.add_argument(
-        "--reference-topic",
-        metavar="TOPIC",
-        help="attitude reference topic (q_ref_body): QuaternionStamped, PoseStamped, "
-        "PoseWithCovarianceStamped, nav_msgs/Odometry or tf2_msgs/TFMessage (default: "
-        f"{CAMERA_COV_TOPIC} or {CAMERA_TOPIC}; /tf with --reference-frames)",
+        '--reference-topic',
+        metavar='TOPIC',
+        help='attitude reference topic (q_ref_body): QuaternionStamped, PoseStamped, '
+        'PoseWithCovarianceStamped, nav_msgs/Odometry or tf2_msgs/TFMessage (default: '
+        f'{CAMERA_COV_TOPIC} or {CAMERA_TOPIC}; /tf with --reference-frames)',
     )
     g.add_argument(
-        "--reference-frames",
+        '--reference-frames',
         nargs=2,
-        metavar=("PARENT", "CHILD"),
-        help="TF reference: transforms PARENT→CHILD (or the inverse of CHILD→PARENT)",
+        metavar=('PARENT', 'CHILD'),
+        help='TF reference: transforms PARENT→CHILD (or the inverse of CHILD→PARENT)',
     )
     g.add_argument(
-        "--rate-rule",
+        '--rate-rule',
         choices=RATE_RULES,
-        default="trapezoid",
-        help="increments from Imu rate samples: trapezoid (rate at the stamp; default) or mean "
-        "(mean rate over the interval ending at the stamp)",
+        default='trapezoid',
+        help='increments from Imu rate samples: trapezoid (rate at the stamp; default) or mean '
+        '(mean rate over the interval ending at the stamp)',
     )
 
 
 def check_input_arguments(args) -> None:
-    """Check the input options before any work.
+    """
+    Check the input options before any work.
 
     Parameters
     ----------
@@ -177,21 +183,22 @@ def check_input_arguments(args) -> None:
     ValueError
         One line: an empty topic name, empty or identical ``--reference-frames``.
     """
-    for opt, v in (("--gyro-topic", args.gyro_topic), ("--reference-topic", args.reference_topic)):
-        if v is not None and not v.strip("/").strip():
-            raise ValueError(f"{opt} must name a topic, got {bounded(v)!r}")
+    for opt, v in (('--gyro-topic', args.gyro_topic), ('--reference-topic', args.reference_topic)):
+        if v is not None and not v.strip('/').strip():
+            raise ValueError(f'{opt} must name a topic, got {bounded(v)!r}')
     if args.reference_frames:
-        parent, child = (f.lstrip("/") for f in args.reference_frames)
+        parent, child = (f.lstrip('/') for f in args.reference_frames)
         if not parent or not child:
-            raise ValueError("--reference-frames PARENT CHILD must be two frame names")
+            raise ValueError('--reference-frames PARENT CHILD must be two frame names')
         if parent == child:
             raise ValueError(
-                f"--reference-frames: PARENT and CHILD are the same frame {bounded(parent)!r}"
+                f'--reference-frames: PARENT and CHILD are the same frame {bounded(parent)!r}'
             )
 
 
 def input_options(args) -> dict:
-    """Keyword arguments of :func:`~strapdown_ros.recording.reader.read_bag` from the options.
+    """
+    Keyword arguments of :func:`~strapdown_ros.recording.reader.read_bag` from the options.
 
     Parameters
     ----------
@@ -204,8 +211,8 @@ def input_options(args) -> dict:
         ``gyro_topic``, ``reference_topic``, ``reference_frames`` (tuple or None), ``rate_rule``.
     """
     return {
-        "gyro_topic": args.gyro_topic,
-        "reference_topic": args.reference_topic,
-        "reference_frames": tuple(args.reference_frames) if args.reference_frames else None,
-        "rate_rule": args.rate_rule,
+        'gyro_topic': args.gyro_topic,
+        'reference_topic': args.reference_topic,
+        'reference_frames': tuple(args.reference_frames) if args.reference_frames else None,
+        'rate_rule': args.rate_rule,
     }

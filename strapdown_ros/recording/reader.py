@@ -1,4 +1,5 @@
-"""One reader of recordings for the offline tools: gyro and attitude reference from a rosbag2 bag.
+"""
+One reader of recordings for the offline tools: gyro and attitude reference from a rosbag2 bag.
 
 Gyro (``--gyro-topic``, default ``imu/delta_theta``), chosen by the topic's type in the bag:
 
@@ -36,32 +37,32 @@ from pathlib import Path
 
 import numpy as np
 from rosbags.highlevel import AnyReader, AnyReaderError
-from rosbags.typesys import Stores, get_typestore
+from rosbags.typesys import get_typestore, Stores
 
-from strapdown_ros.streams.rate_increments import RATE_RULES, increments_from_rates
 from strapdown_ros.rotation import from_ros_xyzw, quat_conjugate
-from strapdown_ros.streams.checks import StreamCheck, nominal_period, validate
+from strapdown_ros.streams.checks import nominal_period, StreamCheck, validate
+from strapdown_ros.streams.rate_increments import increments_from_rates, RATE_RULES
 
-__all__ = ["BagError", "Accepted", "open_reader", "resolve_topic", "read_bag", "bounded",
-           "bounded_list", "GYRO_TOPIC", "CAMERA_TOPIC", "CAMERA_COV_TOPIC", "DELTA_THETA_TYPE",
-           "IMU_TYPE", "REFERENCE_TYPES"]
+__all__ = ['BagError', 'Accepted', 'open_reader', 'resolve_topic', 'read_bag', 'bounded',
+           'bounded_list', 'GYRO_TOPIC', 'CAMERA_TOPIC', 'CAMERA_COV_TOPIC', 'DELTA_THETA_TYPE',
+           'IMU_TYPE', 'REFERENCE_TYPES']
 
-GYRO_TOPIC = "imu/delta_theta"
-CAMERA_TOPIC = "star_camera/attitude"
-CAMERA_COV_TOPIC = "star_camera/attitude_with_covariance"
-TF_TOPIC = "tf"
-DELTA_THETA_TYPE = "geometry_msgs/msg/Vector3Stamped"
-IMU_TYPE = "sensor_msgs/msg/Imu"
+GYRO_TOPIC = 'imu/delta_theta'
+CAMERA_TOPIC = 'star_camera/attitude'
+CAMERA_COV_TOPIC = 'star_camera/attitude_with_covariance'
+TF_TOPIC = 'tf'
+DELTA_THETA_TYPE = 'geometry_msgs/msg/Vector3Stamped'
+IMU_TYPE = 'sensor_msgs/msg/Imu'
 GYRO_TYPES = (DELTA_THETA_TYPE, IMU_TYPE)
 #: reference message type → how its orientation (and covariance) is read
 REFERENCE_TYPES = {
-    "geometry_msgs/msg/QuaternionStamped": "quaternion",
-    "geometry_msgs/msg/PoseStamped": "pose",
-    "geometry_msgs/msg/PoseWithCovarianceStamped": "pose_with_covariance",
-    "nav_msgs/msg/Odometry": "odometry",
-    "tf2_msgs/msg/TFMessage": "tf",
+    'geometry_msgs/msg/QuaternionStamped': 'quaternion',
+    'geometry_msgs/msg/PoseStamped': 'pose',
+    'geometry_msgs/msg/PoseWithCovarianceStamped': 'pose_with_covariance',
+    'nav_msgs/msg/Odometry': 'odometry',
+    'tf2_msgs/msg/TFMessage': 'tf',
 }
-_WITH_COVARIANCE = ("pose_with_covariance", "odometry")
+_WITH_COVARIANCE = ('pose_with_covariance', 'odometry')
 MAX_LISTED = 12  # topics or frame pairs named in one error line
 MAX_NAME = 80  # characters of one echoed name
 MAX_PAIRS_KEPT = 64  # distinct TF frame pairs remembered for the error line
@@ -72,7 +73,8 @@ class BagError(RuntimeError):
 
 
 def bounded(text, n: int = MAX_NAME) -> str:
-    """A string echoed from a bag, bounded: on one line and at most ``n`` characters.
+    """
+    A string echoed from a bag, bounded: on one line and at most ``n`` characters.
 
     Parameters
     ----------
@@ -85,12 +87,13 @@ def bounded(text, n: int = MAX_NAME) -> str:
     -------
     str
     """
-    text = "".join(c if c.isprintable() else repr(c)[1:-1] for c in str(text)[: 4 * n])
-    return text if len(text) <= n else text[: n - 1] + "…"
+    text = ''.join(c if c.isprintable() else repr(c)[1:-1] for c in str(text)[: 4 * n])
+    return text if len(text) <= n else text[: n - 1] + '…'
 
 
 def bounded_list(items, n: int = MAX_LISTED) -> str:
-    """A bounded, comma-separated listing.
+    """
+    A bounded, comma-separated listing.
 
     Parameters
     ----------
@@ -105,12 +108,12 @@ def bounded_list(items, n: int = MAX_LISTED) -> str:
         ``"none"`` for no items.
     """
     items = list(items)
-    head = ", ".join(bounded(i) for i in items[:n])
-    return (head + (f", … and {len(items) - n} more" if len(items) > n else "")) or "none"
+    head = ', '.join(bounded(i) for i in items[:n])
+    return (head + (f', … and {len(items) - n} more' if len(items) > n else '')) or 'none'
 
 
 def _topics_line(topics: dict) -> str:
-    return "topics in the bag: " + bounded_list(f"{t} ({ty})" for t, ty in sorted(topics.items()))
+    return 'topics in the bag: ' + bounded_list(f'{t} ({ty})' for t, ty in sorted(topics.items()))
 
 
 def _first_line(exc) -> str:
@@ -119,7 +122,8 @@ def _first_line(exc) -> str:
 
 
 def open_reader(path):
-    """An open ``rosbags`` AnyReader (Jazzy type store) for a bag directory or file.
+    """
+    An open ``rosbags`` AnyReader (Jazzy type store) for a bag directory or file.
 
     Parameters
     ----------
@@ -134,17 +138,18 @@ def open_reader(path):
     """
     path = Path(path)
     if not path.exists():
-        raise BagError(f"{path} does not exist")
+        raise BagError(f'{path} does not exist')
     try:
         reader = AnyReader([path], default_typestore=get_typestore(Stores.ROS2_JAZZY))
         reader.open()
     except Exception as exc:  # noqa: BLE001 - any unreadable bag is reported
-        raise BagError(f"cannot open {path}: {_first_line(exc)}") from None
+        raise BagError(f'cannot open {path}: {_first_line(exc)}') from None
     return reader
 
 
-def resolve_topic(topics, name: str, namespace: str = "") -> str | None:
-    """The bag topic for the relative name ``name``.
+def resolve_topic(topics, name: str, namespace: str = '') -> str | None:
+    """
+    The bag topic for the relative name ``name``.
 
     Parameters
     ----------
@@ -161,33 +166,35 @@ def resolve_topic(topics, name: str, namespace: str = "") -> str | None:
         ``[/]<namespace>/<name>``; without a namespace ``[/]<name>`` or else the only topic
         ending in ``/<name>``; None when there is none.
     """
-    ns = namespace.strip("/")
-    want = f"{ns}/{name}" if ns else name
+    ns = namespace.strip('/')
+    want = f'{ns}/{name}' if ns else name
     for t in topics:
-        if t.strip("/") == want:
+        if t.strip('/') == want:
             return t
     if not ns:
-        cands = [t for t in topics if t.strip("/").endswith("/" + name)]
+        cands = [t for t in topics if t.strip('/').endswith('/' + name)]
         if len(cands) == 1:
             return cands[0]
     return None
 
 
 def _named_topic(topics: dict, name: str, namespace: str, option: str, path) -> str:
-    """The topic given by an option: an absolute name (``/x``) as is, a relative one under the
-    namespace (:func:`resolve_topic`)."""
-    if name.startswith("/"):
-        found = next((t for t in topics if t.strip("/") == name.strip("/")), None)
+    """
+    The topic given by an option: an absolute name (``/x``) as is, a relative one under the
+    namespace (:func:`resolve_topic`).
+    """
+    if name.startswith('/'):
+        found = next((t for t in topics if t.strip('/') == name.strip('/')), None)
     else:
         found = resolve_topic(topics, name, namespace)
     if found is None:
         where = (
-            f" under namespace {bounded(namespace)!r}"
-            if namespace.strip("/") and not name.startswith("/")
-            else ""
+            f' under namespace {bounded(namespace)!r}'
+            if namespace.strip('/') and not name.startswith('/')
+            else ''
         )
         raise BagError(
-            f"{path}: {option} {bounded(name)}: no such topic{where}; {_topics_line(topics)}"
+            f'{path}: {option} {bounded(name)}: no such topic{where}; {_topics_line(topics)}'
         )
     return found
 
@@ -197,7 +204,8 @@ def _stamp_ns(header) -> int:
 
 
 class Accepted:
-    """One recorded stream after the nodes' input rules (:mod:`strapdown_ros.streams.checks`).
+    """
+    One recorded stream after the nodes' input rules (:mod:`strapdown_ros.streams.checks`).
 
     Parameters
     ----------
@@ -216,12 +224,12 @@ class Accepted:
         self.received = check.received + extra_received
         self.missing = check.missing
         self.dropped = {
-            "nan": check.nan,
-            "duplicate": check.duplicate,
-            "out_of_order": check.out_of_order,
-            "out_of_range": check.out_of_range,
-            "stamp_outlier": check.stamp_outliers,
-            "stamp_burst": check.burst_messages,
+            'nan': check.nan,
+            'duplicate': check.duplicate,
+            'out_of_order': check.out_of_order,
+            'out_of_range': check.out_of_range,
+            'stamp_outlier': check.stamp_outliers,
+            'stamp_burst': check.burst_messages,
         }
         self.resyncs = check.resyncs
 
@@ -236,19 +244,19 @@ def _select(
     reference_topic,
     reference_frames,
 ) -> tuple[str, str]:
-    where = f" under namespace {bounded(namespace)!r}" if namespace.strip("/") else ""
+    where = f' under namespace {bounded(namespace)!r}' if namespace.strip('/') else ''
     if gyro_topic:
-        g = _named_topic(topics, gyro_topic, namespace, "--gyro-topic", path)
+        g = _named_topic(topics, gyro_topic, namespace, '--gyro-topic', path)
     else:
         g = resolve_topic(topics, GYRO_TOPIC, namespace)
     if reference_topic:
-        c = _named_topic(topics, reference_topic, namespace, "--reference-topic", path)
+        c = _named_topic(topics, reference_topic, namespace, '--reference-topic', path)
     elif reference_frames:
-        c = resolve_topic(topics, TF_TOPIC, namespace) or resolve_topic(topics, TF_TOPIC, "")
+        c = resolve_topic(topics, TF_TOPIC, namespace) or resolve_topic(topics, TF_TOPIC, '')
         if c is None:
             raise BagError(
-                f"{path}: --reference-frames without --reference-topic reads /tf, which the bag "
-                f"does not have{where}; {_topics_line(topics)}"
+                f'{path}: --reference-frames without --reference-topic reads /tf, which the bag '
+                f'does not have{where}; {_topics_line(topics)}'
             )
     else:
         cov = resolve_topic(topics, CAMERA_COV_TOPIC, namespace)
@@ -261,43 +269,43 @@ def _select(
         raise BagError(f"{path}: no {' and no '.join(missing)}{where}; {_topics_line(topics)}")
     if topics[g] not in GYRO_TYPES:
         raise BagError(
-            f"{path}: gyro topic {bounded(g)} has type {bounded(topics[g])}; supported: "
+            f'{path}: gyro topic {bounded(g)} has type {bounded(topics[g])}; supported: '
             f"{', '.join(GYRO_TYPES)}"
         )
     if topics[c] not in REFERENCE_TYPES:
         raise BagError(
-            f"{path}: reference topic {bounded(c)} has type {bounded(topics[c])}; supported: "
+            f'{path}: reference topic {bounded(c)} has type {bounded(topics[c])}; supported: '
             f"{', '.join(REFERENCE_TYPES)}"
         )
     kind = REFERENCE_TYPES[topics[c]]
-    if kind == "tf" and not reference_frames:
+    if kind == 'tf' and not reference_frames:
         raise BagError(
-            f"{path}: reference topic {bounded(c)} is {bounded(topics[c])}: "
-            f"give --reference-frames PARENT CHILD"
+            f'{path}: reference topic {bounded(c)} is {bounded(topics[c])}: '
+            f'give --reference-frames PARENT CHILD'
         )
-    if kind != "tf" and reference_frames:
+    if kind != 'tf' and reference_frames:
         raise BagError(
-            f"{path}: --reference-frames needs a tf2_msgs/msg/TFMessage reference topic; "
-            f"{bounded(c)} is {bounded(topics[c])}"
+            f'{path}: --reference-frames needs a tf2_msgs/msg/TFMessage reference topic; '
+            f'{bounded(c)} is {bounded(topics[c])}'
         )
     return g, c
 
 
 # --- reference fixes -------------------------------------------------------------------------
 def _strip(frame: str) -> str:
-    return str(frame).lstrip("/")
+    return str(frame).lstrip('/')
 
 
 def _process_fixes(raw, with_cov: bool, P_assumed):
     """Quaternion and covariance rules of calibrator_node, per fix: (ns, q_wxyz, P 3×3 or None)."""
     out, rejected = [], 0
-    counts = {"zero_quaternion": 0, "bad_covariance": 0, "normalised": 0, "covariance_substituted": 0}
+    counts = {'zero_quaternion': 0, 'bad_covariance': 0, 'normalised': 0, 'covariance_substituted': 0}
     from_messages = 0
     for ns, q, P in raw:
-        norm = float(np.linalg.norm(q)) if np.all(np.isfinite(q)) else float("nan")
+        norm = float(np.linalg.norm(q)) if np.all(np.isfinite(q)) else float('nan')
         if np.isfinite(norm) and norm < 1e-6:
             rejected += 1
-            counts["zero_quaternion"] += 1
+            counts['zero_quaternion'] += 1
             continue
         if not with_cov or P is None:
             P = P_assumed
@@ -305,17 +313,17 @@ def _process_fixes(raw, with_cov: bool, P_assumed):
             P = 0.5 * (P + P.T)
             if not np.any(P):
                 P = P_assumed  # all-zero covariance: "unknown" in ROS
-                counts["covariance_substituted"] += 1
+                counts['covariance_substituted'] += 1
             elif np.min(np.linalg.eigvalsh(P)) < -1e-12 * max(np.trace(P), 1e-300):
                 rejected += 1
-                counts["bad_covariance"] += 1
+                counts['bad_covariance'] += 1
                 continue
             else:
                 from_messages += 1
         finite = bool(np.isfinite(norm) and np.all(np.isfinite(P)))
         if finite and abs(norm - 1.0) > 1e-9:
             q = q / norm
-            counts["normalised"] += 1
+            counts['normalised'] += 1
         out.append((ns, tuple(q) + tuple(np.asarray(P, dtype=float).ravel())))
     return out, rejected, counts, from_messages
 
@@ -357,22 +365,22 @@ class _TfCollector:
 
     def fixes(self, path, topic):
         if self.direct:
-            return self.direct, "direct"
+            return self.direct, 'direct'
         if self.inverse:
-            return [(ns, quat_conjugate(q), P) for ns, q, P in self.inverse], "inverse"
-        present = bounded_list(f"{a}→{b}" for a, b in sorted(self.pairs))
-        more = " (and more pairs)" if self.more_pairs else ""
+            return [(ns, quat_conjugate(q), P) for ns, q, P in self.inverse], 'inverse'
+        present = bounded_list(f'{a}→{b}' for a, b in sorted(self.pairs))
+        more = ' (and more pairs)' if self.more_pairs else ''
         raise BagError(
-            f"{path}: {bounded(topic)} has no transform "
-            f"{bounded(self.parent)}→{bounded(self.child)} "
-            f"nor its inverse; frame pairs present: {present}{more}"
+            f'{path}: {bounded(topic)} has no transform '
+            f'{bounded(self.parent)}→{bounded(self.child)} '
+            f'nor its inverse; frame pairs present: {present}{more}'
         )
 
 
 # --- reading ---------------------------------------------------------------------------------
 def read_bag(
     path: str | Path,
-    namespace: str = "",
+    namespace: str = '',
     use_camera_covariance: bool = True,
     camera_sigma=(0.0, 0.0, 0.0),
     gyro_max_rate: float = 20.0,
@@ -382,9 +390,10 @@ def read_bag(
     gyro_topic: str | None = None,
     reference_topic: str | None = None,
     reference_frames=None,
-    rate_rule: str = "trapezoid",
+    rate_rule: str = 'trapezoid',
 ) -> dict:
-    """Gyro increments and attitude fixes from a bag, validated by calibrator_node's rules.
+    """
+    Gyro increments and attitude fixes from a bag, validated by calibrator_node's rules.
 
     Parameters
     ----------
@@ -430,8 +439,8 @@ def read_bag(
         for c in reader.connections:
             if topics.setdefault(c.topic, c.msgtype) != c.msgtype:
                 raise BagError(
-                    f"{path}: topic {bounded(c.topic)} is recorded with two types, "
-                    f"{bounded(topics[c.topic])} and {bounded(c.msgtype)}"
+                    f'{path}: topic {bounded(c.topic)} is recorded with two types, '
+                    f'{bounded(topics[c.topic])} and {bounded(c.msgtype)}'
                 )
         gyro_t, ref_t = _select(
             topics,
@@ -449,12 +458,12 @@ def read_bag(
         expected = {gyro_t: 0, ref_t: 0}
         for c in reader.connections:
             if c.topic in expected:
-                expected[c.topic] += int(getattr(c, "msgcount", 0) or 0)
+                expected[c.topic] += int(getattr(c, 'msgcount', 0) or 0)
         read = {gyro_t: 0, ref_t: 0}
         raw_g, raw_fix = [], []
         rate_absent = 0
-        frames = {"gyro": set(), "camera": set()}
-        tf = _TfCollector(reference_frames) if kind == "tf" else None
+        frames = {'gyro': set(), 'camera': set()}
+        tf = _TfCollector(reference_frames) if kind == 'tf' else None
         conns = [c for c in reader.connections if c.topic in (gyro_t, ref_t)]
         for conn, _, raw in reader.messages(connections=conns):
             read[conn.topic] += 1
@@ -462,25 +471,25 @@ def read_bag(
                 msg = reader.deserialize(raw, conn.msgtype)
             except AnyReaderError as exc:
                 raise BagError(
-                    f"{path}: cannot deserialize a {bounded(conn.msgtype)} message on "
-                    f"{bounded(conn.topic)}: "
-                    f"{_first_line(exc)}"
+                    f'{path}: cannot deserialize a {bounded(conn.msgtype)} message on '
+                    f'{bounded(conn.topic)}: '
+                    f'{_first_line(exc)}'
                 ) from exc
             if conn.topic == gyro_t:
-                frames["gyro"].add(msg.header.frame_id)
+                frames['gyro'].add(msg.header.frame_id)
                 if rates and float(msg.angular_velocity_covariance[0]) == -1.0:
                     rate_absent += 1              # ROS: covariance[0] = -1 marks the field absent
                     continue
                 v = msg.angular_velocity if rates else msg.vector
                 raw_g.append((_stamp_ns(msg.header), (float(v.x), float(v.y), float(v.z))))
                 continue
-            if kind == "tf":
+            if kind == 'tf':
                 tf.add(msg)
                 continue
-            frames["camera"].add(msg.header.frame_id)
-            if kind == "quaternion":
+            frames['camera'].add(msg.header.frame_id)
+            if kind == 'quaternion':
                 raw_fix.append((_stamp_ns(msg.header), _orientation(msg.quaternion), None))
-            elif kind == "pose":
+            elif kind == 'pose':
                 raw_fix.append((_stamp_ns(msg.header), _orientation(msg.pose.orientation), None))
             else:  # PoseWithCovarianceStamped, Odometry
                 raw_fix.append(
@@ -493,12 +502,12 @@ def read_bag(
         tf_direction = None
         if tf is not None:
             raw_fix, tf_direction = tf.fixes(path, ref_t)
-            frames["camera"].add(tf.parent)
+            frames['camera'].add(tf.parent)
     except BagError:
         raise
     except Exception as exc:  # noqa: BLE001 - a corrupted record, whatever the reader says
         raise BagError(
-            f"{path}: unreadable record ({type(exc).__name__}: {_first_line(exc)})"
+            f'{path}: unreadable record ({type(exc).__name__}: {_first_line(exc)})'
         ) from None
     finally:
         reader.close()
@@ -513,8 +522,8 @@ def read_bag(
     if rates:
         if rate_absent and not raw_g:
             raise BagError(
-                f"{path}: every {IMU_TYPE} message on {bounded(gyro_t)} marks angular_velocity "
-                f"absent (angular_velocity_covariance[0] = -1)"
+                f'{path}: every {IMU_TYPE} message on {bounded(gyro_t)} marks angular_velocity '
+                f'absent (angular_velocity_covariance[0] = -1)'
             )
         r_period = nominal_period([t for t, _ in raw_g])
         r_check = StreamCheck(
@@ -531,18 +540,18 @@ def read_bag(
             1.5 * r_period if math.isfinite(r_period) else math.inf,
         )
         rate_info = {
-            "received": r_check.received + rate_absent,
-            "accepted": len(rt),
-            "dropped": {
-                "nan": r_check.nan,
-                "duplicate": r_check.duplicate,
-                "out_of_order": r_check.out_of_order,
-                "out_of_range": r_check.out_of_range,
-                "stamp_outlier": r_check.stamp_outliers,
-                "marked_absent": rate_absent,
+            'received': r_check.received + rate_absent,
+            'accepted': len(rt),
+            'dropped': {
+                'nan': r_check.nan,
+                'duplicate': r_check.duplicate,
+                'out_of_order': r_check.out_of_order,
+                'out_of_range': r_check.out_of_range,
+                'stamp_outlier': r_check.stamp_outliers,
+                'marked_absent': rate_absent,
             },
-            "intervals_not_integrated": max(len(rt) - 1 - len(inc_t), 0),
-            "period_s": r_period if math.isfinite(r_period) else None,
+            'intervals_not_integrated': max(len(rt) - 1 - len(inc_t), 0),
+            'period_s': r_period if math.isfinite(r_period) else None,
         }
         g_stamps, g_values = [int(t) for t in inc_t], [np.array(v) for v in inc_v]
     else:
@@ -572,15 +581,15 @@ def read_bag(
     )
     n_model = len(raw_c) - from_messages
     ref_cov = (
-        "from_model" if from_messages == 0 else ("from_messages" if n_model == 0 else "mixed")
+        'from_model' if from_messages == 0 else ('from_messages' if n_model == 0 else 'mixed')
     )
-    frames_used = None if tf is None else {"parent": tf.parent, "child": tf.child,
-                                           "transform": tf_direction}
-    return {"gyro_topic": gyro_t, "camera_topic": ref_t, "camera_covariance_from_bag": with_cov,
-            "gyro": gyro, "camera": cam, "camera_fixes": fix_counts, "gyro_period_s": g_period,
-            "frames": {k: sorted(v) for k, v in frames.items()}, "gyro_type": gyro_type,
-            "gyro_input": "rates" if rates else "delta_theta",
-            "rate_rule": rate_rule if rates else None, "rate_samples": rate_info,
-            "reference_type": ref_type, "reference_frames": frames_used,
-            "reference_covariance": ref_cov, "reference_covariance_from_model": n_model,
-            "unread_messages": unread, "messages_in_bag_index": expected}
+    frames_used = None if tf is None else {'parent': tf.parent, 'child': tf.child,
+                                           'transform': tf_direction}
+    return {'gyro_topic': gyro_t, 'camera_topic': ref_t, 'camera_covariance_from_bag': with_cov,
+            'gyro': gyro, 'camera': cam, 'camera_fixes': fix_counts, 'gyro_period_s': g_period,
+            'frames': {k: sorted(v) for k, v in frames.items()}, 'gyro_type': gyro_type,
+            'gyro_input': 'rates' if rates else 'delta_theta',
+            'rate_rule': rate_rule if rates else None, 'rate_samples': rate_info,
+            'reference_type': ref_type, 'reference_frames': frames_used,
+            'reference_covariance': ref_cov, 'reference_covariance_from_model': n_model,
+            'unread_messages': unread, 'messages_in_bag_index': expected}

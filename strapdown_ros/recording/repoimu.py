@@ -1,4 +1,5 @@
-"""Real recordings: a public IMU + optical-motion-capture data set turned into rosbag2 bags.
+"""
+Real recordings: a public IMU + optical-motion-capture data set turned into rosbag2 bags.
 
 The data set read here is **RepoIMU** (Szczęsna et al., 2016; see ``test/data/README.md``): an
 IMU (accelerometer, gyroscope, magnetometer) on a T-shaped wand ("TStick", 100 Hz) or on the
@@ -38,38 +39,40 @@ from __future__ import annotations
 
 import dataclasses
 import os
-import subprocess
 from pathlib import Path
+import subprocess
 
 import numpy as np
 
+from strapdown_ros.rotation import (quat_angle_between, quat_conjugate, quat_multiply,
+                                    quat_normalize, quat_to_rotvec, to_ros_xyzw)
 from strapdown_ros.streams.rate_increments import increments_from_rates
-from strapdown_ros.rotation import quat_normalize, to_ros_xyzw
 
-__all__ = ["ImuTrial", "read_repoimu_csv", "repoimu_trials", "find_repoimu", "reference_indices",
-           "write_bag", "extract_git_snapshot", "REALDATA_ENV", "TOPICS", "GYRO_FORMATS",
-           "REFERENCE_FORMATS", "rest_mean_rate", "xcorr_lag_s",
-           "rate_plateau_samples", "irregular_step_fraction"]
+__all__ = ['ImuTrial', 'read_repoimu_csv', 'repoimu_trials', 'find_repoimu', 'reference_indices',
+           'write_bag', 'extract_git_snapshot', 'REALDATA_ENV', 'TOPICS', 'GYRO_FORMATS',
+           'REFERENCE_FORMATS', 'rest_mean_rate', 'xcorr_lag_s',
+           'rate_plateau_samples', 'irregular_step_fraction']
 
 #: environment variable naming a directory with RepoIMU's ``TStick/`` and ``Pendulum/`` folders
-REALDATA_ENV = "STRAPDOWN_REALDATA"
+REALDATA_ENV = 'STRAPDOWN_REALDATA'
 #: topic -> message type of the bags written by :func:`write_bag`
 TOPICS = {
-    "imu/data": "sensor_msgs/msg/Imu",
-    "mocap/pose": "geometry_msgs/msg/PoseStamped",
-    "imu/delta_theta": "geometry_msgs/msg/Vector3Stamped",
-    "star_camera/attitude": "geometry_msgs/msg/QuaternionStamped",
+    'imu/data': 'sensor_msgs/msg/Imu',
+    'mocap/pose': 'geometry_msgs/msg/PoseStamped',
+    'imu/delta_theta': 'geometry_msgs/msg/Vector3Stamped',
+    'star_camera/attitude': 'geometry_msgs/msg/QuaternionStamped',
 }
-GYRO_FORMATS = {"imu": ("imu/data",), "delta_theta": ("imu/delta_theta",),
-                "both": ("imu/data", "imu/delta_theta")}
-REFERENCE_FORMATS = {"pose": ("mocap/pose",), "quaternion": ("star_camera/attitude",),
-                     "both": ("mocap/pose", "star_camera/attitude")}
+GYRO_FORMATS = {'imu': ('imu/data',), 'delta_theta': ('imu/delta_theta',),
+                'both': ('imu/data', 'imu/delta_theta')}
+REFERENCE_FORMATS = {'pose': ('mocap/pose',), 'quaternion': ('star_camera/attitude',),
+                     'both': ('mocap/pose', 'star_camera/attitude')}
 _NS = 1_000_000_000
 
 
 @dataclasses.dataclass(frozen=True)
 class ImuTrial:
-    """One recording: IMU rate samples and the reference attitude, both with their stamps.
+    """
+    One recording: IMU rate samples and the reference attitude, both with their stamps.
 
     Attributes
     ----------
@@ -95,17 +98,18 @@ class ImuTrial:
     accel: np.ndarray
     reference_stamps_ns: np.ndarray
     q_reference_marker: np.ndarray
-    imu_frame: str = "repoimu_imu"
-    reference_frame: str = "repoimu_vicon"
-    marker_frame: str = "repoimu_marker"
+    imu_frame: str = 'repoimu_imu'
+    reference_frame: str = 'repoimu_vicon'
+    marker_frame: str = 'repoimu_marker'
 
     @property
     def duration_s(self) -> float:
         """Span of the IMU stamps, s."""
         return float(self.stamps_ns[-1] - self.stamps_ns[0]) / _NS if len(self.stamps_ns) else 0.0
 
-    def excerpt(self, start_s: float, end_s: float) -> "ImuTrial":
-        """The samples with stamps in [first stamp + start_s, first stamp + end_s].
+    def excerpt(self, start_s: float, end_s: float) -> 'ImuTrial':
+        """
+        The samples with stamps in [first stamp + start_s, first stamp + end_s].
 
         Parameters
         ----------
@@ -128,7 +132,8 @@ class ImuTrial:
 
 
 def read_repoimu_csv(path, stamp_origin_ns: int = 0) -> ImuTrial:
-    """One RepoIMU trial from its CSV file.
+    """
+    One RepoIMU trial from its CSV file.
 
     Rows whose Vicon quaternion is zero or not finite (the static trials carry none) are kept for
     the IMU and left out of the reference; rows with a non-finite IMU value are dropped from the
@@ -152,7 +157,7 @@ def read_repoimu_csv(path, stamp_origin_ns: int = 0) -> ImuTrial:
         The file has not the columns of a RepoIMU trial, or no row.
     """
     path = Path(path)
-    data = np.genfromtxt(path, delimiter=";", skip_header=2, usecols=range(14))
+    data = np.genfromtxt(path, delimiter=';', skip_header=2, usecols=range(14))
     if data.ndim != 2 or data.shape[0] == 0 or data.shape[1] != 14:
         raise ValueError(f"{path}: not a RepoIMU trial (expected 14 ';'-separated columns)")
     t = data[:, 0]
@@ -166,8 +171,9 @@ def read_repoimu_csv(path, stamp_origin_ns: int = 0) -> ImuTrial:
                     quat_normalize(q[ok_ref]))
 
 
-def repoimu_trials(root, kinds=("TStick", "Pendulum")) -> list[Path]:
-    """The trial files of a RepoIMU copy, sorted, those without a reference attitude left out.
+def repoimu_trials(root, kinds=('TStick', 'Pendulum')) -> list[Path]:
+    """
+    The trial files of a RepoIMU copy, sorted, those without a reference attitude left out.
 
     Parameters
     ----------
@@ -184,12 +190,13 @@ def repoimu_trials(root, kinds=("TStick", "Pendulum")) -> list[Path]:
     root = Path(root)
     out = []
     for kind in kinds:
-        out += [p for p in sorted((root / kind).glob("*.csv")) if "Static" not in p.name]
+        out += [p for p in sorted((root / kind).glob('*.csv')) if 'Static' not in p.name]
     return out
 
 
 def extract_git_snapshot(git_dir, dest) -> Path:
-    """A work tree of a bare git snapshot (``git archive HEAD``) in ``dest``.
+    """
+    A work tree of a bare git snapshot (``git archive HEAD``) in ``dest``.
 
     Parameters
     ----------
@@ -205,14 +212,15 @@ def extract_git_snapshot(git_dir, dest) -> Path:
     """
     dest = Path(dest)
     dest.mkdir(parents=True, exist_ok=True)
-    archive = subprocess.run(["git", "--git-dir", str(git_dir), "archive", "HEAD"], check=True,
+    archive = subprocess.run(['git', '--git-dir', str(git_dir), 'archive', 'HEAD'], check=True,
                              capture_output=True).stdout
-    subprocess.run(["tar", "-x", "-C", str(dest)], input=archive, check=True)
+    subprocess.run(['tar', '-x', '-C', str(dest)], input=archive, check=True)
     return dest
 
 
 def find_repoimu(scratch=None) -> Path | None:
-    """Where a RepoIMU copy is on this machine, or None.
+    """
+    Where a RepoIMU copy is on this machine, or None.
 
     ``$STRAPDOWN_REALDATA`` (a directory with ``TStick/``) first; else ``shared/RepoIMU`` beside
     the repository or ``/work/shared/RepoIMU`` (the project's shared data folder); else a git
@@ -229,25 +237,26 @@ def find_repoimu(scratch=None) -> Path | None:
     Path or None
         A directory with ``TStick/``, or None when no copy is found.
     """
-    env = os.environ.get(REALDATA_ENV, "").strip()
+    env = os.environ.get(REALDATA_ENV, '').strip()
     if env:
         p = Path(env)
-        return p if (p / "TStick").is_dir() else None
+        return p if (p / 'TStick').is_dir() else None
     repo_root = Path(__file__).resolve().parents[1]
-    for shared in (repo_root.parent / "shared" / "RepoIMU", Path("/work/shared/RepoIMU")):
-        if (shared / "TStick").is_dir():
+    for shared in (repo_root.parent / 'shared' / 'RepoIMU', Path('/work/shared/RepoIMU')):
+        if (shared / 'TStick').is_dir():
             return shared
-    git_dir = Path("/work/.mirror/agnieszkaszczesna+RepoIMU/repo")
-    if scratch is None or not (git_dir / "HEAD").is_file():
+    git_dir = Path('/work/.mirror/agnieszkaszczesna+RepoIMU/repo')
+    if scratch is None or not (git_dir / 'HEAD').is_file():
         return None
-    dest = Path(scratch) / "RepoIMU"
-    if not (dest / "TStick").is_dir():
+    dest = Path(scratch) / 'RepoIMU'
+    if not (dest / 'TStick').is_dir():
         extract_git_snapshot(git_dir, dest)
     return dest
 
 
 def reference_indices(stamps_ns, interval_s: float) -> np.ndarray:
-    """Indices of the reference samples kept when decimating to one fix per ``interval_s``.
+    """
+    Indices of the reference samples kept when decimating to one fix per ``interval_s``.
 
     The first sample at or after each multiple of ``interval_s`` from the first stamp is kept.
 
@@ -264,7 +273,7 @@ def reference_indices(stamps_ns, interval_s: float) -> np.ndarray:
         Indices into ``stamps_ns``.
     """
     if not interval_s > 0:
-        raise ValueError(f"interval_s must be > 0, got {interval_s}")
+        raise ValueError(f'interval_s must be > 0, got {interval_s}')
     s = np.asarray(stamps_ns, dtype=np.int64)
     if len(s) == 0:
         return np.zeros(0, dtype=int)
@@ -281,15 +290,15 @@ class _Messages:
 
     def header(self, ns: int, frame_id: str):
         T = self.T
-        return T["std_msgs/msg/Header"](stamp=T["builtin_interfaces/msg/Time"](
+        return T['std_msgs/msg/Header'](stamp=T['builtin_interfaces/msg/Time'](
             sec=int(ns // _NS), nanosec=int(ns % _NS)), frame_id=frame_id)
 
     def vector3(self, v):
-        return self.T["geometry_msgs/msg/Vector3"](x=float(v[0]), y=float(v[1]), z=float(v[2]))
+        return self.T['geometry_msgs/msg/Vector3'](x=float(v[0]), y=float(v[1]), z=float(v[2]))
 
     def quaternion(self, q_wxyz):
         x, y, z, w = (float(c) for c in to_ros_xyzw(np.asarray(q_wxyz, dtype=float)))
-        return self.T["geometry_msgs/msg/Quaternion"](x=x, y=y, z=z, w=w)
+        return self.T['geometry_msgs/msg/Quaternion'](x=x, y=y, z=z, w=w)
 
     def serialize(self, msg) -> bytes:
         return self.store.serialize_cdr(msg, msg.__msgtype__)
@@ -299,7 +308,7 @@ class _Messages:
         cov_unknown = np.zeros(9)
         cov_orientation = np.zeros(9)
         cov_orientation[0] = -1.0                # REP-145: no orientation estimate
-        m = T["sensor_msgs/msg/Imu"](
+        m = T['sensor_msgs/msg/Imu'](
             header=self.header(ns, frame), orientation=self.quaternion([1.0, 0.0, 0.0, 0.0]),
             orientation_covariance=cov_orientation, angular_velocity=self.vector3(rate),
             angular_velocity_covariance=cov_unknown, linear_acceleration=self.vector3(acc),
@@ -308,23 +317,24 @@ class _Messages:
 
     def pose(self, ns, frame, q) -> bytes:
         T = self.T
-        m = T["geometry_msgs/msg/PoseStamped"](header=self.header(ns, frame), pose=T[
-            "geometry_msgs/msg/Pose"](position=T["geometry_msgs/msg/Point"](x=0.0, y=0.0, z=0.0),
+        m = T['geometry_msgs/msg/PoseStamped'](header=self.header(ns, frame), pose=T[
+            'geometry_msgs/msg/Pose'](position=T['geometry_msgs/msg/Point'](x=0.0, y=0.0, z=0.0),
                                       orientation=self.quaternion(q)))
         return self.serialize(m)
 
     def vector3_stamped(self, ns, frame, v) -> bytes:
-        return self.serialize(self.T["geometry_msgs/msg/Vector3Stamped"](
+        return self.serialize(self.T['geometry_msgs/msg/Vector3Stamped'](
             header=self.header(ns, frame), vector=self.vector3(v)))
 
     def quaternion_stamped(self, ns, frame, q) -> bytes:
-        return self.serialize(self.T["geometry_msgs/msg/QuaternionStamped"](
+        return self.serialize(self.T['geometry_msgs/msg/QuaternionStamped'](
             header=self.header(ns, frame), quaternion=self.quaternion(q)))
 
 
-def write_bag(bag, trial: ImuTrial, gyro_format: str = "imu", reference_format: str = "pose",
-              reference_interval_s: float = 1.0, storage: str = "mcap") -> dict:
-    """Write one trial (or an excerpt) as a rosbag2 bag.
+def write_bag(bag, trial: ImuTrial, gyro_format: str = 'imu', reference_format: str = 'pose',
+              reference_interval_s: float = 1.0, storage: str = 'mcap') -> dict:
+    """
+    Write one trial (or an excerpt) as a rosbag2 bag.
 
     Parameters
     ----------
@@ -349,17 +359,17 @@ def write_bag(bag, trial: ImuTrial, gyro_format: str = "imu", reference_format: 
         ``reference_fixes``, ``frames``.
     """
     from rosbags.rosbag2 import StoragePlugin, Writer
-    from rosbags.typesys import Stores, get_typestore
+    from rosbags.typesys import get_typestore, Stores
 
     if gyro_format not in GYRO_FORMATS:
         raise ValueError(f"gyro_format={gyro_format!r}; valid: {', '.join(GYRO_FORMATS)}")
     if reference_format not in REFERENCE_FORMATS:
-        raise ValueError(f"reference_format={reference_format!r}; valid: "
+        raise ValueError(f'reference_format={reference_format!r}; valid: '
                          f"{', '.join(REFERENCE_FORMATS)}")
-    if storage not in ("mcap", "sqlite3"):
-        raise ValueError(f"storage={storage!r}; valid: mcap, sqlite3")
+    if storage not in ('mcap', 'sqlite3'):
+        raise ValueError(f'storage={storage!r}; valid: mcap, sqlite3')
     if len(trial.stamps_ns) < 2 or len(trial.reference_stamps_ns) < 2:
-        raise ValueError(f"{trial.name}: fewer than 2 IMU samples or reference fixes")
+        raise ValueError(f'{trial.name}: fewer than 2 IMU samples or reference fixes')
     stamps = np.asarray(trial.stamps_ns, dtype=np.int64)
     period = float(np.median(np.diff(stamps))) / _NS
     ref_k = reference_indices(trial.reference_stamps_ns, reference_interval_s)
@@ -367,41 +377,42 @@ def write_bag(bag, trial: ImuTrial, gyro_format: str = "imu", reference_format: 
     store = get_typestore(Stores.ROS2_JAZZY)
     msgs = _Messages(store)
     batch = []                                   # (stamp, order, topic, bytes)
-    if "imu/data" in names:
+    if 'imu/data' in names:
         for ns, w, a in zip(stamps, trial.gyro, trial.accel):
-            batch.append((int(ns), 0, "imu/data", msgs.imu(int(ns), trial.imu_frame, w, a)))
-    if "imu/delta_theta" in names:
+            batch.append((int(ns), 0, 'imu/data', msgs.imu(int(ns), trial.imu_frame, w, a)))
+    if 'imu/delta_theta' in names:
         ok = np.r_[True, np.diff(stamps) > 0]    # the integration rule wants increasing stamps
-        inc_ns, dth = increments_from_rates(stamps[ok], trial.gyro[ok], rule="trapezoid",
+        inc_ns, dth = increments_from_rates(stamps[ok], trial.gyro[ok], rule='trapezoid',
                                             max_step_s=1.5 * period)
         for ns, v in zip(inc_ns, dth):
-            batch.append((int(ns), 1, "imu/delta_theta",
+            batch.append((int(ns), 1, 'imu/delta_theta',
                           msgs.vector3_stamped(int(ns), trial.imu_frame, v)))
     for k in ref_k:
         ns = int(trial.reference_stamps_ns[k])
         q = trial.q_reference_marker[k]
-        if "mocap/pose" in names:
-            batch.append((ns, 2, "mocap/pose", msgs.pose(ns, trial.reference_frame, q)))
-        if "star_camera/attitude" in names:
-            batch.append((ns, 3, "star_camera/attitude",
+        if 'mocap/pose' in names:
+            batch.append((ns, 2, 'mocap/pose', msgs.pose(ns, trial.reference_frame, q)))
+        if 'star_camera/attitude' in names:
+            batch.append((ns, 3, 'star_camera/attitude',
                           msgs.quaternion_stamped(ns, trial.reference_frame, q)))
     batch.sort(key=lambda m: (m[0], m[1]))
-    counts = {"/" + n: 0 for n in names}
-    plugin = StoragePlugin.MCAP if storage == "mcap" else StoragePlugin.SQLITE3
+    counts = {'/' + n: 0 for n in names}
+    plugin = StoragePlugin.MCAP if storage == 'mcap' else StoragePlugin.SQLITE3
     with Writer(Path(bag), version=Writer.VERSION_LATEST, storage_plugin=plugin) as writer:
-        conns = {n: writer.add_connection("/" + n, TOPICS[n], typestore=store) for n in names}
+        conns = {n: writer.add_connection('/' + n, TOPICS[n], typestore=store) for n in names}
         for ns, _, name, data in batch:
             writer.write(conns[name], ns, data)
-            counts["/" + name] += 1
-    return {"bag": str(bag), "messages": counts, "duration_s": trial.duration_s,
-            "gyro_rate_hz": 1.0 / period if period > 0 else None,
-            "reference_fixes": int(len(ref_k)),
-            "frames": {"imu": trial.imu_frame, "reference": trial.reference_frame,
-                       "marker": trial.marker_frame}}
+            counts['/' + name] += 1
+    return {'bag': str(bag), 'messages': counts, 'duration_s': trial.duration_s,
+            'gyro_rate_hz': 1.0 / period if period > 0 else None,
+            'reference_fixes': int(len(ref_k)),
+            'frames': {'imu': trial.imu_frame, 'reference': trial.reference_frame,
+                       'marker': trial.marker_frame}}
 
 
 def rest_mean_rate(trial: ImuTrial, angle_deg: float = 0.5, margin_s: float = 0.5) -> dict:
-    """Mean gyro rate over the rest at the start of a trial, the rest found from the reference.
+    """
+    Mean gyro rate over the rest at the start of a trial, the rest found from the reference.
 
     The rest ends ``margin_s`` before the reference attitude first departs more than
     ``angle_deg`` from its first value; the gyro is not used to find it.
@@ -421,7 +432,6 @@ def rest_mean_rate(trial: ImuTrial, angle_deg: float = 0.5, margin_s: float = 0.
         ``samples`` (gyro samples at rest), ``end_s`` (s after the first IMU stamp),
         ``mean_rad_s`` and ``sigma_rad_s`` (standard error of the mean, per axis), rad/s.
     """
-    from strapdown_ros.rotation import quat_angle_between
 
     q = trial.q_reference_marker
     ang = quat_angle_between(q, np.broadcast_to(q[0], q.shape))
@@ -431,17 +441,18 @@ def rest_mean_rate(trial: ImuTrial, angle_deg: float = 0.5, margin_s: float = 0.
     end -= int(round(margin_s * _NS))
     rest = trial.stamps_ns < end
     n = int(rest.sum())
-    out = {"samples": n, "end_s": float(end - int(trial.stamps_ns[0])) / _NS,
-           "mean_rad_s": None, "sigma_rad_s": None}
+    out = {'samples': n, 'end_s': float(end - int(trial.stamps_ns[0])) / _NS,
+           'mean_rad_s': None, 'sigma_rad_s': None}
     if n >= 2:
         g = trial.gyro[rest]
-        out["mean_rad_s"] = g.mean(axis=0).tolist()
-        out["sigma_rad_s"] = (g.std(axis=0, ddof=1) / np.sqrt(n)).tolist()
+        out['mean_rad_s'] = g.mean(axis=0).tolist()
+        out['sigma_rad_s'] = (g.std(axis=0, ddof=1) / np.sqrt(n)).tolist()
     return out
 
 
 def xcorr_lag_s(trial: ImuTrial, max_lag_s: float = 0.3) -> float:
-    """Lag of the gyro behind the reference from the cross-correlation of rate magnitudes, s.
+    """
+    Lag of the gyro behind the reference from the cross-correlation of rate magnitudes, s.
 
     |ω| of the gyro and of the reference attitude differentiated (body increments
     q_{k−1}* ⊗ q_k over consecutive distinct stamps) are put on one uniform grid (the median
@@ -465,7 +476,6 @@ def xcorr_lag_s(trial: ImuTrial, max_lag_s: float = 0.3) -> float:
     ValueError
         Too few samples, or the peak lies at the edge of the search.
     """
-    from strapdown_ros.rotation import quat_conjugate, quat_multiply, quat_to_rotvec
 
     ti, tr = trial.stamps_ns, trial.reference_stamps_ns
     keep_i = np.r_[True, np.diff(ti) > 0]
@@ -473,7 +483,7 @@ def xcorr_lag_s(trial: ImuTrial, max_lag_s: float = 0.3) -> float:
     ti, gi = ti[keep_i], trial.gyro[keep_i]
     tr, q = tr[keep_r], trial.q_reference_marker[keep_r]
     if len(ti) < 10 or len(tr) < 10:
-        raise ValueError(f"{trial.name}: too few samples for a cross-correlation")
+        raise ValueError(f'{trial.name}: too few samples for a cross-correlation')
     period = float(np.median(np.diff(ti)))
     dq = quat_multiply(quat_conjugate(q[:-1]), q[1:])
     w_ref = np.linalg.norm(quat_to_rotvec(dq), axis=1) / (np.diff(tr) / _NS)
@@ -489,7 +499,7 @@ def xcorr_lag_s(trial: ImuTrial, max_lag_s: float = 0.3) -> float:
                    for L in lags])
     k = int(np.argmax(cc))
     if k == 0 or k == len(lags) - 1:
-        raise ValueError(f"{trial.name}: cross-correlation peak at the edge of ±{max_lag_s} s")
+        raise ValueError(f'{trial.name}: cross-correlation peak at the edge of ±{max_lag_s} s')
     y0, y1, y2 = cc[k - 1], cc[k], cc[k + 1]
     den = y0 - 2.0 * y1 + y2
     frac = 0.5 * (y0 - y2) / den if den != 0 else 0.0
@@ -497,7 +507,8 @@ def xcorr_lag_s(trial: ImuTrial, max_lag_s: float = 0.3) -> float:
 
 
 def rate_plateau_samples(trial: ImuTrial, rel: float = 0.999) -> list:
-    """Per gyro axis, the samples whose |rate| lies within ``1 − rel`` of that axis' largest
+    """
+    Per gyro axis, the samples whose |rate| lies within ``1 − rel`` of that axis' largest
     |rate| in the trial.  A gyro that clips (saturates) sits on such a plateau for many samples;
     an unclipped peak reaches it for one or two.
 
@@ -520,7 +531,8 @@ def rate_plateau_samples(trial: ImuTrial, rel: float = 0.999) -> list:
 
 
 def irregular_step_fraction(stamps_ns, tolerance: float = 0.1) -> float:
-    """Fraction of stamp steps more than ``tolerance`` (relative) away from the median step.
+    """
+    Fraction of stamp steps more than ``tolerance`` (relative) away from the median step.
 
     Parameters
     ----------

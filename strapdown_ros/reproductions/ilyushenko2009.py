@@ -1,4 +1,5 @@
-"""002 (Ilyushenko 2009; paper 002) for ``reproduce_seeds``: simulated gyro + star-tracker data
+"""
+002 (Ilyushenko 2009; paper 002) for ``reproduce_seeds``: simulated gyro + star-tracker data
 sets and the
 integral method against the 000 estimator on the same data.  Research code: the method itself
 is :mod:`strapdown_ros.calibration.integral_method`.  No ROS imports.
@@ -9,7 +10,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["SimulatedMeasurements", "simulate_measurements", "section_002", "report_002"]
+from strapdown_ros.calibration.drifting_reference import estimate, TKACHENKO_C
+from strapdown_ros.calibration.integral_method import calibrate_from_measurements
+from strapdown_ros.reproductions.tkachenko1983 import simulate_000
+from strapdown_ros.sensors import IntegratingSensor, SensorErrorModel
+from strapdown_ros.sensors.star_camera import StarCameraModel
+
+__all__ = ['SimulatedMeasurements', 'simulate_measurements', 'section_002', 'report_002']
 
 
 @dataclass
@@ -36,17 +43,16 @@ class SimulatedMeasurements:
 def simulate_measurements(profile, duration: float, errors=None, gyro_rate: float = 100.0,
                           camera_interval: float = 0.1, camera_sigma=1e-5, seed: int = 0,
                           camera_first: float | None = None) -> SimulatedMeasurements:
-    """Gyro increments (:class:`IntegratingSensor`) and star-camera fixes (:class:`StarCameraModel`,
+    """
+    Gyro increments (:class:`IntegratingSensor`) and star-camera fixes (:class:`StarCameraModel`,
     boresight 0, so the camera attitude is the body attitude) on one exact profile.
 
     The camera takes fixes every ``camera_interval`` s from ``camera_first`` (default: the
     first gyro epoch at or after one camera interval) to ``duration``.
     """
-    from strapdown_ros.sensors import IntegratingSensor, SensorErrorModel
-    from strapdown_ros.sensors.star_camera import StarCameraModel
     errors = errors if errors is not None else SensorErrorModel()
     n = int(round(duration * gyro_rate))
-    gyro = IntegratingSensor(profile, "gyro", gyro_rate, errors, seed=seed)
+    gyro = IntegratingSensor(profile, 'gyro', gyro_rate, errors, seed=seed)
     t, meas, true = gyro.sample(n)
     first = camera_interval if camera_first is None else camera_first
     count = int(np.floor((duration - first) / camera_interval + 1e-9)) + 1
@@ -71,13 +77,10 @@ def _c_errors_from_B(B, s0, c_true):
     return c - np.asarray(c_true)
 
 
-GROUPS = {"scale c1-3": slice(0, 3), "misalignment c4-6": slice(3, 6), "bias c7-9": slice(6, 9)}
+GROUPS = {'scale c1-3': slice(0, 3), 'misalignment c4-6': slice(3, 6), 'bias c7-9': slice(6, 9)}
 
 
 def section_002(n_runs: int, quick: bool = False) -> dict:
-    from strapdown_ros.calibration.integral_method import calibrate_from_measurements
-    from strapdown_ros.calibration.drifting_reference import TKACHENKO_C, estimate
-    from strapdown_ros.reproductions.tkachenko1983 import simulate_000
 
     sigma = 1e-5                                           # rad, star tracker noise
     errs_000, errs_002, errs_002a, chi2, chi2a = [], [], [], [], []
@@ -91,59 +94,59 @@ def section_002(n_runs: int, quick: bool = False) -> dict:
         stamps = np.concatenate([[0.0], sim.h * sim.epochs])
         quats = np.vstack([sim.ref_q0[None], sim.ref_q])
         gyro_t = sim.h * np.arange(1, len(sim.meas) + 1)
-        for neighbour, errs, ch in (("previous", errs_002, chi2), ("adaptive", errs_002a, chi2a)):
+        for neighbour, errs, ch in (('previous', errs_002, chi2), ('adaptive', errs_002a, chi2a)):
             r = calibrate_from_measurements(gyro_t, sim.meas, stamps, quats, camera_sigma=sigma,
                                             q_body_camera=sim.reference.mounting, steps_per_interval=1,
                                             neighbour=neighbour)
             errs.append(_c_errors_from_B(r.B, r.s0, TKACHENKO_C))
             ch.append(r.chi2_per_dof)
     e0, e2, e2a = np.array(errs_000), np.array(errs_002), np.array(errs_002a)
-    out = {"runs": n_runs, "star_tracker_sigma_rad": sigma, "fix_interval_s": 0.2,
-           "rms_000": {g: float(np.sqrt(np.mean(e0[:, s] ** 2))) for g, s in GROUPS.items()},
-           "rms_002": {g: float(np.sqrt(np.mean(e2[:, s] ** 2))) for g, s in GROUPS.items()},
-           "rms_002_adaptive": {g: float(np.sqrt(np.mean(e2a[:, s] ** 2))) for g, s in GROUPS.items()},
-           "chi2_per_dof_002_mean": float(np.nanmean(chi2)), "chi2_per_dof_002_adaptive_mean": float(np.nanmean(chi2a))}
-    out["ratio_002_over_000"] = {g: out["rms_002"][g] / out["rms_000"][g] for g in GROUPS}
-    out["ratio_002_adaptive_over_000"] = {g: out["rms_002_adaptive"][g] / out["rms_000"][g] for g in GROUPS}
+    out = {'runs': n_runs, 'star_tracker_sigma_rad': sigma, 'fix_interval_s': 0.2,
+           'rms_000': {g: float(np.sqrt(np.mean(e0[:, s] ** 2))) for g, s in GROUPS.items()},
+           'rms_002': {g: float(np.sqrt(np.mean(e2[:, s] ** 2))) for g, s in GROUPS.items()},
+           'rms_002_adaptive': {g: float(np.sqrt(np.mean(e2a[:, s] ** 2))) for g, s in GROUPS.items()},
+           'chi2_per_dof_002_mean': float(np.nanmean(chi2)), 'chi2_per_dof_002_adaptive_mean': float(np.nanmean(chi2a))}
+    out['ratio_002_over_000'] = {g: out['rms_002'][g] / out['rms_000'][g] for g in GROUPS}
+    out['ratio_002_adaptive_over_000'] = {g: out['rms_002_adaptive'][g] / out['rms_000'][g] for g in GROUPS}
     return out
 
 
 def _compare(ratios: dict) -> str:
     better = [g for g, v in ratios.items() if v < 1]
     if len(better) == len(ratios):
-        return "more accurate than the 000 estimator in every group"
+        return 'more accurate than the 000 estimator in every group'
     if not better:
-        return "less accurate than the 000 estimator in every group"
+        return 'less accurate than the 000 estimator in every group'
     return f"more accurate than the 000 estimator in {', '.join(better)} only"
 
 
 def report_002(r: dict) -> str:
-    L = ["## 002 — integral method against the 000 estimator on the same data", "",
+    L = ['## 002 — integral method against the 000 estimator on the same data', '',
          "The paper's claim beside ours: 002 (Ilyushenko 2009) publishes no accuracy table or "
-         "figure; it "
-         "claims that the 12 parameters (B, s0) follow from at least 4 intervals of ordinary "
-         "motion, with no "
-         "special manoeuvres. Ours: the 000 §6 motion (not designed for calibration), one "
-         "interval per fix "
+         'figure; it '
+         'claims that the 12 parameters (B, s0) follow from at least 4 intervals of ordinary '
+         'motion, with no '
+         'special manoeuvres. Ours: the 000 §6 motion (not designed for calibration), one '
+         'interval per fix '
          f"pair every {r['fix_interval_s']:g} s, and the accuracy of the estimate against the 000 "
-         "estimator "
-         "on the same data:", "",
-         "| parameters | RMS error, 000 estimator | integral method (002 as printed) | ratio | "
-         "integral method, adaptive neighbour | ratio |", "|---|---|---|---|---|---|"]
-    for gname in r["rms_000"]:
+         'estimator '
+         'on the same data:', '',
+         '| parameters | RMS error, 000 estimator | integral method (002 as printed) | ratio | '
+         'integral method, adaptive neighbour | ratio |', '|---|---|---|---|---|---|']
+    for gname in r['rms_000']:
         L.append(f"| {gname} | {r['rms_000'][gname]:.2e} | {r['rms_002'][gname]:.2e} | "
                  f"{r['ratio_002_over_000'][gname]:.2f} | {r['rms_002_adaptive'][gname]:.2e} | "
                  f"{r['ratio_002_adaptive_over_000'][gname]:.2f} |")
-    c2, c2a = r["chi2_per_dof_002_mean"], r["chi2_per_dof_002_adaptive_mean"]
-    L += ["", f"{r['runs']} runs; integral method mean χ²/dof {c2:.2f} (as printed), {c2a:.2f} (adaptive).", "",
-          f"* Same data: 000 §6 trajectory and gyro errors c, a drift-free star tracker (σ = "
+    c2, c2a = r['chi2_per_dof_002_mean'], r['chi2_per_dof_002_adaptive_mean']
+    L += ['', f"{r['runs']} runs; integral method mean χ²/dof {c2:.2f} (as printed), {c2a:.2f} (adaptive).", '',
+          f'* Same data: 000 §6 trajectory and gyro errors c, a drift-free star tracker (σ = '
           f"{r['star_tracker_sigma_rad']:.0e} rad) every {r['fix_interval_s']:g} s; 000 estimator (iterated, "
-          "weighted by the angle noise) and the 002 integral method (3rd-order inversion, one interval per fix "
-          "pair, model weighting). The integral method estimates a general B (9) and s0; its errors are mapped "
+          'weighted by the angle noise) and the 002 integral method (3rd-order inversion, one interval per fix '
+          'pair, model weighting). The integral method estimates a general B (9) and s0; its errors are mapped '
           "onto 000's symmetric c (the mean of the two off-diagonal entries).",
-          "* The 3rd-order inversion of 002 uses the previous increment; the rate table of 000 jumps exactly on "
+          '* The 3rd-order inversion of 002 uses the previous increment; the rate table of 000 jumps exactly on '
           f"fix epochs. As printed, χ²/dof = {c2:.2f}; with the neighbour on the side without a jump ('adaptive') "
           f"{c2a:.2f}, {100 * (1 - c2a / c2):.0f}% {'lower' if c2a < c2 else 'higher'}.",
           f"* As printed, the integral method is {_compare(r['ratio_002_over_000'])}; with the adaptive neighbour it is "
-          f"{_compare(r['ratio_002_adaptive_over_000'])}.", ""]
-    return "\n".join(L)
+          f"{_compare(r['ratio_002_adaptive_over_000'])}.", '']
+    return '\n'.join(L)

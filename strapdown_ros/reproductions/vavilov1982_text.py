@@ -1,6 +1,8 @@
-"""The derivations behind the 001 section: fixed derivation text written by hand (mathematics, no
+"""
+The derivations behind the 001 section: fixed derivation text written by hand (mathematics, no
 measured claims), not computed from the run; each part names the test that checks it.  Written
-into doc/seeds/observability_001.md by :mod:`strapdown_ros.reproductions.vavilov1982`."""
+into doc/seeds/observability_001.md by :mod:`strapdown_ros.reproductions.vavilov1982`.
+"""
 
 DERIVATIONS_001 = r"""
 ## Derivations (001, Vavilov 1982) — derivation text, not computed

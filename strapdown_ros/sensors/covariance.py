@@ -1,4 +1,5 @@
-"""Covariance models of the gyro errors: the one registry behind the ``covariance_model``
+"""
+Covariance models of the gyro errors: the one registry behind the ``covariance_model``
 parameter of ``sins_node`` and ``calibrator_node``.
 
 Both models describe the same error effects of :mod:`strapdown_ros.sensors.effects` with the
@@ -28,22 +29,24 @@ import numpy as np
 from strapdown_ros.sensors.effects import EFFECTS, MISALIGNMENT_INDEX
 from strapdown_ros.sensors.model import SensorSigmas
 
-__all__ = ["CovarianceModel", "COVARIANCE_MODELS", "get_covariance_model", "constant_jacobian",
-           "constant_jacobian_basis", "constant_variances"]
+__all__ = ['CovarianceModel', 'COVARIANCE_MODELS', 'get_covariance_model', 'constant_jacobian',
+           'constant_jacobian_basis', 'constant_variances']
 
-_SIGMA_OF = {"gyro_bias": "bias_sigma", "gyro_scale_factor": "scale_sigma", "gyro_misalignment": "misalignment_sigma"}
+_SIGMA_OF = {'gyro_bias': 'bias_sigma', 'gyro_scale_factor': 'scale_sigma', 'gyro_misalignment': 'misalignment_sigma'}
 
 
 def constant_jacobian(rho: np.ndarray, T: np.ndarray) -> np.ndarray:
-    """∂ρ̃_k/∂x for the gyro constants x = [b (3), vec M (9, column-major)] → (n, 3, 12), assembled
-    from the effects' own increment Jacobians (bias, scale factor, misalignment)."""
+    """
+    ∂ρ̃_k/∂x for the gyro constants x = [b (3), vec M (9, column-major)] → (n, 3, 12), assembled
+    from the effects' own increment Jacobians (bias, scale factor, misalignment).
+    """
     rho = np.asarray(rho, dtype=float).reshape(-1, 3)
     T = np.broadcast_to(np.asarray(T, dtype=float), (len(rho),))
     t = np.zeros(len(rho))
     out = np.zeros((len(rho), 3, 12))
-    out[:, :, :3] = EFFECTS["gyro_bias"].increment_jacobian(rho, T, t)
-    scale = EFFECTS["gyro_scale_factor"].increment_jacobian(rho, T, t)
-    mis = EFFECTS["gyro_misalignment"].increment_jacobian(rho, T, t)
+    out[:, :, :3] = EFFECTS['gyro_bias'].increment_jacobian(rho, T, t)
+    scale = EFFECTS['gyro_scale_factor'].increment_jacobian(rho, T, t)
+    mis = EFFECTS['gyro_misalignment'].increment_jacobian(rho, T, t)
     for i in range(3):
         out[:, :, 3 + 4 * i] = scale[:, :, i]                 # M_ii at 3 + i + 3i
     for c, (i, j) in enumerate(MISALIGNMENT_INDEX):
@@ -53,18 +56,20 @@ def constant_jacobian(rho: np.ndarray, T: np.ndarray) -> np.ndarray:
 
 @lru_cache(maxsize=1)
 def constant_jacobian_basis() -> np.ndarray:
-    """``E`` (4, 3, 12): ``constant_jacobian(u, T) = Σ_i u_i E_i + T E_3`` for one increment u of
+    """
+    ``E`` (4, 3, 12): ``constant_jacobian(u, T) = Σ_i u_i E_i + T E_3`` for one increment u of
     length T.  Read off :func:`constant_jacobian` itself (the effects' own Jacobians stay the one
     home of the model), which must be linear in (u, T): checked here on random increments.  The
     compiled block kernel (:mod:`strapdown_ros.attitude.kernel`) and the navigation covariance
-    contract with it instead of forming the (n, 3, 12) Jacobians."""
+    contract with it instead of forming the (n, 3, 12) Jacobians.
+    """
     unit = constant_jacobian(np.eye(3), np.zeros(3))              # (3, 3, 12): u = e_i
     per_t = constant_jacobian(np.zeros((1, 3)), np.ones(1))[0]    # (3, 12): T = 1
     rng = np.random.default_rng(0)
     u, t = rng.normal(size=(4, 3)), rng.uniform(0.1, 1.0, 4)
-    if not np.allclose(constant_jacobian(u, t), np.einsum("ki,iab->kab", u, unit) + t[:, None, None] * per_t,
+    if not np.allclose(constant_jacobian(u, t), np.einsum('ki,iab->kab', u, unit) + t[:, None, None] * per_t,
                        rtol=1e-12, atol=1e-15):
-        raise RuntimeError("constant_jacobian is not linear in (u, T); its basis does not exist")
+        raise RuntimeError('constant_jacobian is not linear in (u, T); its basis does not exist')
     out = np.concatenate([unit, per_t[None]], axis=0)
     out.setflags(write=False)
     return out
@@ -79,8 +84,8 @@ def constant_variances(g: SensorSigmas) -> np.ndarray:
 
 
 class CovarianceModel:
-    name = ""
-    description = ""
+    name = ''
+    description = ''
     #: the gyro constants are random constants common to all increments
     constants = False
     #: the white part is (white_variance) × I whatever the increment (no rotation to reference axes),
@@ -97,8 +102,8 @@ class CovarianceModel:
 
 
 class RandomConstant(CovarianceModel):
-    name = "random_constant"
-    description = "bias, scale factor, misalignment random constants; random walk white"
+    name = 'random_constant'
+    description = 'bias, scale factor, misalignment random constants; random walk white'
     constants = True
     isotropic_white = True
 
@@ -112,8 +117,8 @@ class RandomConstant(CovarianceModel):
 
 
 class White004(CovarianceModel):
-    name = "004"
-    description = "004 §2.1: every term white between increments"
+    name = '004'
+    description = '004 §2.1: every term white between increments'
 
     def white(self, rho, T, g):
         rho = np.asarray(rho, dtype=float).reshape(-1, 3)

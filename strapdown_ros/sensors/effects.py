@@ -1,4 +1,5 @@
-"""The error-effect registry: one object per physical effect, owning it end to end.
+"""
+The error-effect registry: one object per physical effect, owning it end to end.
 
 Every effect the package knows lives here, once.  An effect owns
 
@@ -38,8 +39,8 @@ import numpy as np
 
 from strapdown_ros.sensors.model import NAVIGATION_GRADE_GYRO
 
-__all__ = ["EffectParameter", "Effect", "EFFECTS", "CANDIDATES", "get_effect", "effect_parameters",
-           "GyroEffects", "CameraEffects", "MISALIGNMENT_INDEX"]
+__all__ = ['EffectParameter', 'Effect', 'EFFECTS', 'CANDIDATES', 'get_effect', 'effect_parameters',
+           'GyroEffects', 'CameraEffects', 'MISALIGNMENT_INDEX']
 
 
 @dataclass(frozen=True)
@@ -75,13 +76,15 @@ MISALIGNMENT_INDEX = ((0, 1), (0, 2), (1, 0), (1, 2), (2, 0), (2, 1))
 
 
 class Effect:
-    """Base class.  ``sensor``: 'gyro' or 'camera'; ``kind``: 'systematic' (changes the mean of
+    """
+    Base class.  ``sensor``: 'gyro' or 'camera'; ``kind``: 'systematic' (changes the mean of
     the data, has a signature and usually a compensation) or 'noise' (changes the covariance).
     ``candidate``: searched for by the discrepancy workflow; other effects can be simulated and
-    compensated but are outside the library the workflow names."""
-    name: str = ""
-    sensor: str = "gyro"
-    kind: str = "systematic"
+    compensated but are outside the library the workflow names.
+    """
+    name: str = ''
+    sensor: str = 'gyro'
+    kind: str = 'systematic'
     candidate: bool = True
     compensable: bool = True
     parameters: tuple[EffectParameter, ...] = ()
@@ -91,8 +94,8 @@ class Effect:
     has_mean: bool = True
     #: the zero-effect value of the estimated parameters (1 for multiplicative noise scales)
     neutral: float = 0.0
-    summary: str = ""
-    signature_text: str = ""
+    summary: str = ''
+    signature_text: str = ''
 
     @property
     def value_parameter(self) -> EffectParameter:
@@ -107,7 +110,7 @@ class Effect:
         p = self.value_parameter
         if p.size == 1:
             return [p.name]
-        return [f"{p.name}[{i}]" for i in range(p.size)]
+        return [f'{p.name}[{i}]' for i in range(p.size)]
 
     def value(self, params: dict) -> np.ndarray:
         """The value vector of this effect from a parameter dict (defaults where absent)."""
@@ -120,13 +123,17 @@ class Effect:
 
     # gyro systematic effects override these -------------------------------------------
     def direct_check(self, delta_theta: np.ndarray, theta: np.ndarray) -> str | None:
-        """A test of the effect on the raw measured increments, independent of the residuals:
-        None when the data are consistent with it (or there is no such test), else the reason."""
+        """
+        A test of the effect on the raw measured increments, independent of the residuals:
+        None when the data are consistent with it (or there is no such test), else the reason.
+        """
         return None
 
     def fit_basis(self) -> np.ndarray | None:
-        """(size, q) map from the q combinations the residuals can separate to the parameters,
-        or None when all are separable."""
+        """
+        (size, q) map from the q combinations the residuals can separate to the parameters,
+        or None when all are separable.
+        """
         return None
 
     def matrix_term(self, theta: np.ndarray, sign: np.ndarray) -> np.ndarray | None:
@@ -161,9 +168,11 @@ class Effect:
         return states if S is None else S @ states
 
     def filter_partials(self, rho: np.ndarray, T: np.ndarray, t: np.ndarray) -> np.ndarray:
-        """∂ρ̃/∂c of the increments with respect to the filter states c: (n, 3, filter_size),
+        """
+        ∂ρ̃/∂c of the increments with respect to the filter states c: (n, 3, filter_size),
         for increments ρ (n, 3) of lengths T (n,) at times t (n,) since the effect epoch
-        (:meth:`increment_jacobian` mapped through :meth:`fit_basis`)."""
+        (:meth:`increment_jacobian` mapped through :meth:`fit_basis`).
+        """
         J = self.increment_jacobian(np.asarray(rho, dtype=float).reshape(-1, 3),
                                     np.asarray(T, dtype=float).reshape(-1),
                                     np.asarray(t, dtype=float).reshape(-1))
@@ -171,47 +180,51 @@ class Effect:
         return J if S is None else J @ S
 
     def filter_correlation_time(self, noise: dict | None = None) -> np.ndarray:
-        """Correlation time (filter_size,) of the filter states, s: ``noise[
+        """
+        Correlation time (filter_size,) of the filter states, s: ``noise[
         filter_correlation_parameter]`` makes the states first-order Gauss–Markov (driven by
         :meth:`filter_process_noise`, steady σ² = density·τ/2: a bias instability); inf (a random
-        walk, or a random constant without noise) when not given or 0."""
+        walk, or a random constant without noise) when not given or 0.
+        """
         value = np.inf
         if self.filter_correlation_parameter is not None and noise:
             v = float(noise.get(self.filter_correlation_parameter, 0.0))
             if not (np.isfinite(v) and v >= 0.0):
-                raise ValueError(f"{self.filter_correlation_parameter} must be finite and >= 0")
+                raise ValueError(f'{self.filter_correlation_parameter} must be finite and >= 0')
             value = v if v > 0 else np.inf
         return np.full(self.filter_size(), value)
 
     def filter_process_noise(self, noise: dict | None = None) -> np.ndarray:
-        """White-noise density (filter_size,) driving the filter states, from a dict of filter
+        """
+        White-noise density (filter_size,) driving the filter states, from a dict of filter
         noise parameters: ``noise[filter_noise_parameter]²`` per state, 0 (random constant)
-        when the effect has no such parameter or the dict does not give it."""
+        when the effect has no such parameter or the dict does not give it.
+        """
         value = 0.0
         if self.filter_noise_parameter is not None and noise:
             value = float(noise.get(self.filter_noise_parameter, 0.0))
             if not (np.isfinite(value) and value >= 0.0):
-                raise ValueError(f"{self.filter_noise_parameter} must be finite and >= 0")
+                raise ValueError(f'{self.filter_noise_parameter} must be finite and >= 0')
         return np.full(self.filter_size(), value ** 2)
 
     def __repr__(self):
-        return f"<effect {self.name}>"
+        return f'<effect {self.name}>'
 
 
 # ----------------------------------------------------------------------------- gyro, systematic
 class GyroBias(Effect):
-    name = "gyro_bias"
-    parameters = (EffectParameter("gyro_bias", "rad/s", 3, [0.0, 0.0, 0.0],
-                                  "known constant gyro bias b, body axes, rad/s (simulated and "
-                                  "compensated)",
+    name = 'gyro_bias'
+    parameters = (EffectParameter('gyro_bias', 'rad/s', 3, [0.0, 0.0, 0.0],
+                                  'known constant gyro bias b, body axes, rad/s (simulated and '
+                                  'compensated)',
                                   -MAX_BIAS_RATE, MAX_BIAS_RATE),)
-    sigma_parameter = "gyro_bias_sigma"
+    sigma_parameter = 'gyro_bias_sigma'
     #: bias random walk (rate random walk) σ_u, rad/s/√s, of the attitude filter
-    filter_noise_parameter = "gyro_bias_random_walk"
+    filter_noise_parameter = 'gyro_bias_random_walk'
     #: bias instability as a first-order Gauss–Markov bias with this correlation time, s
-    filter_correlation_parameter = "gyro_bias_correlation_time"
-    summary = "constant rate bias"
-    signature_text = "ε grows with the pair duration: Σ C_k T_k b"
+    filter_correlation_parameter = 'gyro_bias_correlation_time'
+    summary = 'constant rate bias'
+    signature_text = 'ε grows with the pair duration: Σ C_k T_k b'
 
     def bias_term(self, theta, t):
         return np.broadcast_to(theta, (len(t), 3))
@@ -221,13 +234,13 @@ class GyroBias(Effect):
 
 
 class GyroBiasDrift(Effect):
-    name = "gyro_bias_drift"
-    parameters = (EffectParameter("gyro_bias_drift", "rad/s²", 3, [0.0, 0.0, 0.0],
-                                  "linear bias ramp d: bias b + d·(t − t0), t0 = first gyro "
-                                  "stamp, rad/s²",
+    name = 'gyro_bias_drift'
+    parameters = (EffectParameter('gyro_bias_drift', 'rad/s²', 3, [0.0, 0.0, 0.0],
+                                  'linear bias ramp d: bias b + d·(t − t0), t0 = first gyro '
+                                  'stamp, rad/s²',
                                   -MAX_BIAS_DRIFT, MAX_BIAS_DRIFT),)
-    summary = "bias growing linearly with time"
-    signature_text = "as gyro_bias, weighted by the time since the first gyro stamp"
+    summary = 'bias growing linearly with time'
+    signature_text = 'as gyro_bias, weighted by the time since the first gyro stamp'
 
     def bias_term(self, theta, t):
         return np.asarray(t)[:, None] * theta
@@ -237,16 +250,18 @@ class GyroBiasDrift(Effect):
 
 
 class GyroBiasPeriodic(Effect):
-    """A bias oscillating with a known period: simulated and compensated, but deliberately not in
-    the workflow's library (its test case for 'unexplained structure')."""
-    name = "gyro_bias_periodic"
+    """
+    A bias oscillating with a known period: simulated and compensated, but deliberately not in
+    the workflow's library (its test case for 'unexplained structure').
+    """
+    name = 'gyro_bias_periodic'
     candidate = False
-    parameters = (EffectParameter("gyro_bias_periodic", "rad/s", 3, [0.0, 0.0, 0.0],
-                                  "amplitude A of a periodic bias A·sin(2π(t − t0)/P), rad/s (outside the "
-                                  "discrepancy library)", -MAX_BIAS_RATE, MAX_BIAS_RATE),
-                  EffectParameter("gyro_bias_period", "s", 1, 600.0, "period P of gyro_bias_periodic, s",
+    parameters = (EffectParameter('gyro_bias_periodic', 'rad/s', 3, [0.0, 0.0, 0.0],
+                                  'amplitude A of a periodic bias A·sin(2π(t − t0)/P), rad/s (outside the '
+                                  'discrepancy library)', -MAX_BIAS_RATE, MAX_BIAS_RATE),
+                  EffectParameter('gyro_bias_period', 's', 1, 600.0, 'period P of gyro_bias_periodic, s',
                                   0.0, 1e7, exclusive_minimum=True))
-    summary = "bias oscillating with period P"
+    summary = 'bias oscillating with period P'
 
     def __init__(self, period: float = 600.0):
         self.period = float(period)
@@ -259,13 +274,13 @@ class GyroBiasPeriodic(Effect):
 
 
 class GyroScaleFactor(Effect):
-    name = "gyro_scale_factor"
-    parameters = (EffectParameter("gyro_scale_factor", "1", 3, [0.0, 0.0, 0.0],
-                                  "known scale-factor errors s (relative), diagonal of M",
+    name = 'gyro_scale_factor'
+    parameters = (EffectParameter('gyro_scale_factor', '1', 3, [0.0, 0.0, 0.0],
+                                  'known scale-factor errors s (relative), diagonal of M',
                                   -MAX_RELATIVE_ERROR, MAX_RELATIVE_ERROR),)
-    sigma_parameter = "gyro_scale_sigma"
-    summary = "scale-factor error, same for both rotation senses"
-    signature_text = "ε ∝ rotation about each gyro axis: Σ C_k diag(ρ_k) s"
+    sigma_parameter = 'gyro_scale_sigma'
+    summary = 'scale-factor error, same for both rotation senses'
+    signature_text = 'ε ∝ rotation about each gyro axis: Σ C_k diag(ρ_k) s'
 
     def matrix_term(self, theta, sign):
         return np.broadcast_to(np.diag(theta), (len(sign), 3, 3))
@@ -278,13 +293,13 @@ class GyroScaleFactor(Effect):
 
 
 class GyroScaleAsymmetry(Effect):
-    name = "gyro_scale_asymmetry"
-    parameters = (EffectParameter("gyro_scale_asymmetry", "1", 3, [0.0, 0.0, 0.0],
-                                  "scale asymmetry a: scale 1 + s + a for positive, 1 + s − a for "
-                                  "negative rates",
+    name = 'gyro_scale_asymmetry'
+    parameters = (EffectParameter('gyro_scale_asymmetry', '1', 3, [0.0, 0.0, 0.0],
+                                  'scale asymmetry a: scale 1 + s + a for positive, 1 + s − a for '
+                                  'negative rates',
                                   -MAX_RELATIVE_ERROR, MAX_RELATIVE_ERROR),)
-    summary = "different scale factor for positive and negative rates"
-    signature_text = "ε ∝ |rotation| about each axis: Σ C_k diag(|ρ_k|) a (needs turns of both senses to tell from scale)"
+    summary = 'different scale factor for positive and negative rates'
+    signature_text = 'ε ∝ |rotation| about each axis: Σ C_k diag(|ρ_k|) a (needs turns of both senses to tell from scale)'
 
     def matrix_term(self, theta, sign):
         out = np.zeros((len(sign), 3, 3))
@@ -300,16 +315,16 @@ class GyroScaleAsymmetry(Effect):
 
 
 class GyroMisalignment(Effect):
-    name = "gyro_misalignment"
-    parameters = (EffectParameter("gyro_misalignment", "rad", 6, [0.0] * 6,
-                                  "known axis misalignments: off-diagonal M_xy, M_xz, M_yx, M_yz, "
-                                  "M_zx, M_zy, rad",
+    name = 'gyro_misalignment'
+    parameters = (EffectParameter('gyro_misalignment', 'rad', 6, [0.0] * 6,
+                                  'known axis misalignments: off-diagonal M_xy, M_xz, M_yx, M_yz, '
+                                  'M_zx, M_zy, rad',
                                   -MAX_MISALIGNMENT, MAX_MISALIGNMENT),)
-    sigma_parameter = "gyro_misalignment_sigma"
-    summary = "non-orthogonal gyro axes (off-diagonal M)"
-    signature_text = ("ε ∝ cross-axis rotation: Σ C_k M ρ_k; the antisymmetric part of M is a rotation of the "
-                      "whole triad, the same signature as a boresight change, so only the symmetric part "
-                      "(non-orthogonality, 3 combinations) is separable")
+    sigma_parameter = 'gyro_misalignment_sigma'
+    summary = 'non-orthogonal gyro axes (off-diagonal M)'
+    signature_text = ('ε ∝ cross-axis rotation: Σ C_k M ρ_k; the antisymmetric part of M is a rotation of the '
+                      'whole triad, the same signature as a boresight change, so only the symmetric part '
+                      '(non-orthogonality, 3 combinations) is separable')
 
     def fit_basis(self):
         """Symmetric non-orthogonality: M_xy = M_yx, M_xz = M_zx, M_yz = M_zy."""
@@ -334,34 +349,36 @@ class GyroMisalignment(Effect):
 # ----------------------------------------------------------------------------- noise terms
 class GyroRandomWalk(Effect):
     """White angle random walk: part of every nominal model, not searched for."""
-    name = "gyro_random_walk"
-    kind = "noise"
+    name = 'gyro_random_walk'
+    kind = 'noise'
     has_mean = False
     candidate = False
     compensable = False
-    parameters = (EffectParameter("gyro_random_walk", "rad/√s", 1, NAVIGATION_GRADE_GYRO.random_walk,
-                                  "white-noise random walk, rad/√s", 0.0, MAX_RANDOM_WALK),)
-    summary = "angle random walk (white rate noise)"
+    parameters = (EffectParameter('gyro_random_walk', 'rad/√s', 1, NAVIGATION_GRADE_GYRO.random_walk,
+                                  'white-noise random walk, rad/√s', 0.0, MAX_RANDOM_WALK),)
+    summary = 'angle random walk (white rate noise)'
 
 
 class GyroQuantization(Effect):
-    name = "gyro_quantization"
-    kind = "noise"
+    name = 'gyro_quantization'
+    kind = 'noise'
     compensable = False
-    parameters = (EffectParameter("gyro_quantum", "rad", 1, 0.0,
-                                  "pulse weight σ of level quantization (0 = off), rad", 0.0,
+    parameters = (EffectParameter('gyro_quantum', 'rad', 1, 0.0,
+                                  'pulse weight σ of level quantization (0 = off), rad', 0.0,
                                   MAX_QUANTUM),)
-    summary = "pulse quantization with carried remainder (000 §5), uncompensated"
-    signature_text = ("the output lags the integral by the carried remainder: a mean σ/2 in the sense of the "
-                      "motion on each axis (000 §5.3), seen where a pair starts and ends in different motion, "
-                      "and a variance σ²/12 per axis at each fix, with the camera-fix correlation structure")
+    summary = 'pulse quantization with carried remainder (000 §5), uncompensated'
+    signature_text = ('the output lags the integral by the carried remainder: a mean σ/2 in the sense of the '
+                      'motion on each axis (000 §5.3), seen where a pair starts and ends in different motion, '
+                      'and a variance σ²/12 per axis at each fix, with the camera-fix correlation structure')
 
     @staticmethod
     def lattice_step(delta_theta: np.ndarray, tolerance: float = 0.01, min_fraction: float = 0.9):
-        """The pulse weight the increments are multiples of, per axis, or None per axis where they
+        """
+        The pulse weight the increments are multiples of, per axis, or None per axis where they
         are not quantized: the smallest non-zero |Δθ| (1st percentile), accepted when at least
         ``min_fraction`` of the non-zero increments lie within ``tolerance`` of a multiple, then
-        refined as the median of Δθ / round(Δθ / step)."""
+        refined as the median of Δθ / round(Δθ / step).
+        """
         steps = []
         for x in np.asarray(delta_theta, dtype=float).reshape(-1, 3).T:
             x = x[x != 0.0]
@@ -378,37 +395,41 @@ class GyroQuantization(Effect):
         return steps
 
     def direct_check(self, delta_theta, theta):
-        """Quantized increments are multiples of the pulse weight: the lattice must exist and its
-        step must agree with the estimate within a factor 1.5."""
+        """
+        Quantized increments are multiples of the pulse weight: the lattice must exist and its
+        step must agree with the estimate within a factor 1.5.
+        """
         steps = [s for s in self.lattice_step(delta_theta) if s is not None]
         if not steps:
-            return "the measured increments are not multiples of a pulse weight (no quantization lattice)"
+            return 'the measured increments are not multiples of a pulse weight (no quantization lattice)'
         q = float(np.median(steps))
         if theta is None:
             return None
         if not (q / 1.5 <= float(theta[0]) <= 1.5 * q):
-            return f"the increments lie on a lattice of step {q:.3g} rad, not {float(theta[0]):.3g}"
+            return f'the increments lie on a lattice of step {q:.3g} rad, not {float(theta[0]):.3g}'
         return None
 
     def fix_covariance(self, P: np.ndarray, theta: np.ndarray) -> np.ndarray:
-        """Per-fix covariance (n, 3, 3) with the remainder variance σ²/12 added (isotropic, so the
-        same in MF and VF axes)."""
+        """
+        Per-fix covariance (n, 3, 3) with the remainder variance σ²/12 added (isotropic, so the
+        same in MF and VF axes).
+        """
         return P + (float(theta[0]) ** 2 / 12.0) * np.eye(3)
 
 
 class CameraNoiseAnisotropy(Effect):
-    name = "camera_noise_anisotropy"
-    sensor = "camera"
-    kind = "noise"
+    name = 'camera_noise_anisotropy'
+    sensor = 'camera'
+    kind = 'noise'
     has_mean = False
     neutral = 1.0
-    parameters = (EffectParameter("camera_noise_scale", "1", 3, [1.0, 1.0, 1.0],
-                                  "true camera noise σ about VF x, y, z ÷ the σ the camera reports (or "
-                                  "camera_sigma_*): simulated, and applied to P_avu by the "
-                                  "calibrator", 0.0,
+    parameters = (EffectParameter('camera_noise_scale', '1', 3, [1.0, 1.0, 1.0],
+                                  'true camera noise σ about VF x, y, z ÷ the σ the camera reports (or '
+                                  'camera_sigma_*): simulated, and applied to P_avu by the '
+                                  'calibrator', 0.0,
                                   MAX_CAMERA_NOISE_SCALE),)
-    summary = "camera noise about its axes differs from its stated covariance"
-    signature_text = "no mean; scales each VF axis of the camera-fix covariance: P → K P K, K = diag(k)"
+    summary = 'camera noise about its axes differs from its stated covariance'
+    signature_text = 'no mean; scales each VF axis of the camera-fix covariance: P → K P K, K = diag(k)'
 
     def fix_covariance(self, P: np.ndarray, theta: np.ndarray) -> np.ndarray:
         K = np.diag(np.asarray(theta, dtype=float))
@@ -416,19 +437,21 @@ class CameraNoiseAnisotropy(Effect):
 
 
 class TimeOffset(Effect):
-    name = "time_offset"
-    sensor = "camera"
-    parameters = (EffectParameter("camera_time_offset", "s", 1, 0.0,
-                                  "camera clock minus IMU clock, s (a fix stamped t shows t − offset)", -10.0, 10.0),)
-    summary = "camera–IMU timestamp offset"
-    signature_text = ("ε = (ΔSᵀ ω(t_start) − ω(t_end))·τ: only fixes taken while turning see it, so it shows as "
-                      "spikes at the rotations (004 Fig. 2a)")
+    name = 'time_offset'
+    sensor = 'camera'
+    parameters = (EffectParameter('camera_time_offset', 's', 1, 0.0,
+                                  'camera clock minus IMU clock, s (a fix stamped t shows t − offset)', -10.0, 10.0),)
+    summary = 'camera–IMU timestamp offset'
+    signature_text = ('ε = (ΔSᵀ ω(t_start) − ω(t_end))·τ: only fixes taken while turning see it, so it shows as '
+                      'spikes at the rotations (004 Fig. 2a)')
 
     def fix_jacobian(self, rate_body: np.ndarray, c_vf_mf: np.ndarray) -> np.ndarray:
-        """∂z/∂δτ (3, 1) of a camera-fix residual z (VF axes, predicted minus measured) with
+        """
+        ∂z/∂δτ (3, 1) of a camera-fix residual z (VF axes, predicted minus measured) with
         respect to the error δτ = τ̂ − τ of the estimated offset: the camera saw the attitude
         δτ later than the epoch the fix is applied at, q(t + δτ) ≈ q(t) ⊗ exp(ω δτ), so
-        ∂z/∂δτ = −C_VF^MF ω (ω the body rate at the fix, rad/s, body axes)."""
+        ∂z/∂δτ = −C_VF^MF ω (ω the body rate at the fix, rad/s, body axes).
+        """
         rate = np.asarray(rate_body, dtype=float).reshape(3)
         return -(np.asarray(c_vf_mf, dtype=float) @ rate)[:, None]
 
@@ -455,7 +478,8 @@ def effect_parameters(sensor: str) -> list[EffectParameter]:
 
 # ----------------------------------------------------------------------------- gyro bundle
 class GyroEffects:
-    """The systematic gyro effects of one parameter set, ready to apply or compensate.
+    """
+    The systematic gyro effects of one parameter set, ready to apply or compensate.
 
     ``params``: a dict with any of the effects' parameter names (others are ignored);
     ``epoch``: the effect epoch t0 in the caller's time base (see the module docstring).
@@ -469,10 +493,10 @@ class GyroEffects:
         self.epoch = epoch
         self.effects: list[tuple[Effect, np.ndarray]] = []
         for e in EFFECTS.values():
-            if e.sensor != "gyro" or e.kind != "systematic" or not e.is_active(params):
+            if e.sensor != 'gyro' or e.kind != 'systematic' or not e.is_active(params):
                 continue
             if isinstance(e, GyroBiasPeriodic):
-                e = GyroBiasPeriodic(float(params.get("gyro_bias_period", 600.0)))
+                e = GyroBiasPeriodic(float(params.get('gyro_bias_period', 600.0)))
             self.effects.append((e, e.value(params)))
         self._has_sign = any(isinstance(e, GyroScaleAsymmetry) for e, _ in self.effects)
         self._has_matrix = any(e.matrix_term(np.zeros(e.size), np.zeros((1, 3))) is not None
@@ -511,7 +535,7 @@ class GyroEffects:
         stamps = np.asarray(stamps, dtype=float).reshape(-1)
         T = np.broadcast_to(np.asarray(T, dtype=float), stamps.shape)
         K, b = self._terms(np.sign(rho), self._times(stamps, T))
-        out = rho if K is None else np.einsum("nij,nj->ni", K, rho)
+        out = rho if K is None else np.einsum('nij,nj->ni', K, rho)
         return out + b * T[:, None]
 
     def compensate(self, measured: np.ndarray, stamps: np.ndarray, T) -> np.ndarray:
@@ -535,8 +559,8 @@ class CameraEffects:
 
     def __init__(self, params: dict | None = None):
         params = params or {}
-        self.time_offset = float(EFFECTS["time_offset"].value(params)[0])
-        self.noise_scale = EFFECTS["camera_noise_anisotropy"].value(params)
+        self.time_offset = float(EFFECTS['time_offset'].value(params)[0])
+        self.noise_scale = EFFECTS['camera_noise_anisotropy'].value(params)
 
     def epoch(self, stamp):
         """IMU-clock time of the attitude in a fix stamped ``stamp`` (compensation)."""
@@ -544,4 +568,4 @@ class CameraEffects:
 
     def covariance(self, P: np.ndarray) -> np.ndarray:
         """The covariance a fix really has, given the one it reports (compensation)."""
-        return EFFECTS["camera_noise_anisotropy"].fix_covariance(np.asarray(P, dtype=float), self.noise_scale)
+        return EFFECTS['camera_noise_anisotropy'].fix_covariance(np.asarray(P, dtype=float), self.noise_scale)

@@ -1,4 +1,5 @@
-"""Integrating-sensor models: gyro angle increments Δθ and accelerometer velocity increments Δv.
+"""
+Integrating-sensor models: gyro angle increments Δθ and accelerometer velocity increments Δv.
 
 Measurement model (per output interval k of length T, body/sensor axes)::
 
@@ -34,9 +35,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-__all__ = ["SensorSigmas", "SensorErrorModel", "PulseQuantizer", "IntegratingSensor",
-           "increment_correction", "increment_covariance", "DEG_PER_HOUR", "ARCSEC",
-           "NAVIGATION_GRADE_GYRO", "NAVIGATION_GRADE_ACCEL"]
+__all__ = ['SensorSigmas', 'SensorErrorModel', 'PulseQuantizer', 'IntegratingSensor',
+           'increment_correction', 'increment_covariance', 'DEG_PER_HOUR', 'ARCSEC',
+           'NAVIGATION_GRADE_GYRO', 'NAVIGATION_GRADE_ACCEL']
 
 DEG_PER_HOUR = np.pi / 180.0 / 3600.0          # rad/s in one °/h
 ARCSEC = np.pi / 180.0 / 3600.0                # rad in one arc second
@@ -44,7 +45,8 @@ ARCSEC = np.pi / 180.0 / 3600.0                # rad in one arc second
 
 @dataclass(frozen=True)
 class SensorSigmas:
-    """Statistics of a sensor triad's errors (what a data sheet or a calibration report gives).
+    """
+    Statistics of a sensor triad's errors (what a data sheet or a calibration report gives).
 
     The simulator draws its constants from these; the SINS uses them for P_ρk (004 §2.1).
     """
@@ -55,19 +57,19 @@ class SensorSigmas:
     quantum: float = 0.0               # pulse weight σ (0: not quantized)
 
     def __post_init__(self):
-        for name in ("bias_sigma", "scale_sigma", "misalignment_sigma", "random_walk", "quantum"):
+        for name in ('bias_sigma', 'scale_sigma', 'misalignment_sigma', 'random_walk', 'quantum'):
             v = getattr(self, name)
             if not (np.isfinite(v) and v >= 0):
-                raise ValueError(f"{name} must be finite and >= 0, got {v}")
+                raise ValueError(f'{name} must be finite and >= 0, got {v}')
 
     @classmethod
-    def from_params(cls, values: dict, prefix: str) -> "SensorSigmas":
+    def from_params(cls, values: dict, prefix: str) -> 'SensorSigmas':
         """From node parameters ``<prefix>_bias_sigma`` … ``<prefix>_quantum`` (prefix gyro/accel)."""
-        return cls(**{f: float(values[f"{prefix}_{k}"]) for f, k in (
-            ("bias_sigma", "bias_sigma"), ("scale_sigma", "scale_sigma"),
-            ("misalignment_sigma", "misalignment_sigma"), ("random_walk", "random_walk"), ("quantum", "quantum"))})
+        return cls(**{f: float(values[f'{prefix}_{k}']) for f, k in (
+            ('bias_sigma', 'bias_sigma'), ('scale_sigma', 'scale_sigma'),
+            ('misalignment_sigma', 'misalignment_sigma'), ('random_walk', 'random_walk'), ('quantum', 'quantum'))})
 
-    def draw(self, rng: np.random.Generator) -> "SensorErrorModel":
+    def draw(self, rng: np.random.Generator) -> 'SensorErrorModel':
         return SensorErrorModel.random(rng, self.bias_sigma, self.scale_sigma, self.misalignment_sigma,
                                        self.random_walk, self.quantum)
 
@@ -95,14 +97,14 @@ class SensorErrorModel:
         self.bias = np.asarray(self.bias, dtype=float).reshape(3)
         self.scale_factor = np.asarray(self.scale_factor, dtype=float).reshape(3)
         self.misalignment = np.asarray(self.misalignment, dtype=float).reshape(3, 3)
-        for name in ("random_walk", "quantum"):
+        for name in ('random_walk', 'quantum'):
             v = float(getattr(self, name))
             if not np.isfinite(v) or v < 0:
-                raise ValueError(f"{name} must be finite and >= 0, got {v}")
+                raise ValueError(f'{name} must be finite and >= 0, got {v}')
             setattr(self, name, v)
         if not (np.all(np.isfinite(self.bias)) and np.all(np.isfinite(self.scale_factor))
                 and np.all(np.isfinite(self.misalignment))):
-            raise ValueError("sensor error constants must be finite")
+            raise ValueError('sensor error constants must be finite')
 
     @property
     def matrix(self) -> np.ndarray:
@@ -112,7 +114,7 @@ class SensorErrorModel:
         return m
 
     @classmethod
-    def from_tkachenko(cls, c, random_walk: float = 0.0, quantum: float = 0.0) -> "SensorErrorModel":
+    def from_tkachenko(cls, c, random_walk: float = 0.0, quantum: float = 0.0) -> 'SensorErrorModel':
         """000 §6: ``Δω = [D_I D_II E3]·c`` with c = (c1..c9)."""
         c = np.asarray(c, dtype=float).reshape(9)
         mis = np.array([[0.0, c[3], c[5]], [c[3], 0.0, c[4]], [c[5], c[4], 0.0]])
@@ -122,7 +124,7 @@ class SensorErrorModel:
     @classmethod
     def random(cls, rng: np.random.Generator, bias_sigma: float = 0.0, scale_sigma: float = 0.0,
                misalignment_sigma: float = 0.0, random_walk: float = 0.0,
-               quantum: float = 0.0) -> "SensorErrorModel":
+               quantum: float = 0.0) -> 'SensorErrorModel':
         """Draw the constants as zero-mean Gaussians with the given σ (004 §2.1)."""
         mis = rng.normal(0.0, misalignment_sigma, (3, 3)) if misalignment_sigma > 0 else np.zeros((3, 3))
         np.fill_diagonal(mis, 0.0)
@@ -136,13 +138,14 @@ class PulseQuantizer:
 
     def __init__(self, quantum: float):
         if not quantum > 0:
-            raise ValueError("quantum must be > 0")
+            raise ValueError('quantum must be > 0')
         self.quantum = float(quantum)
         self.integral = np.zeros(3)        # running integral A of the continuous signal
         self.level = np.zeros(3)           # last pulse level P (a multiple of σ)
 
     def __call__(self, increments: np.ndarray) -> np.ndarray:
-        """Quantize a block (n, 3) of continuous increments; returns pulse sums (n, 3).
+        """
+        Quantize a block (n, 3) of continuous increments; returns pulse sums (n, 3).
 
         The play operator is sequential by nature; it runs over plain Python floats
         (about 1 µs per sample and axis), the only per-sample loop in the simulator.
@@ -174,7 +177,8 @@ class PulseQuantizer:
 
 
 def increment_correction(pulses: np.ndarray, quantum: float, previous_sign=None):
-    """000 eq. (5.6): ``θ⁰_k = θ*_k + ½σ(sign θ*_k − sign θ*_{k−1})``, sign θ*_0 = 0.
+    """
+    000 eq. (5.6): ``θ⁰_k = θ*_k + ½σ(sign θ*_k − sign θ*_{k−1})``, sign θ*_0 = 0.
 
     ``pulses`` (n, 3); ``previous_sign`` (3,) carries sign θ*_{k−1} across blocks.
     Returns the corrected increments and the last sign.
@@ -187,7 +191,8 @@ def increment_correction(pulses: np.ndarray, quantum: float, previous_sign=None)
 
 
 class IntegratingSensor:
-    """A sensor triad sampling one profile quantity on a uniform time grid.
+    """
+    A sensor triad sampling one profile quantity on a uniform time grid.
 
     ``kind`` is ``'gyro'`` (``profile.delta_theta``) or ``'accel'`` (``profile.delta_v``).
     Sample k covers ``[t0 + (k−1)T, t0 + kT]`` and is stamped at its end.
@@ -195,10 +200,10 @@ class IntegratingSensor:
 
     def __init__(self, profile, kind: str, rate_hz: float, errors: SensorErrorModel | None = None,
                  seed: int | None = 0, start_time: float = 0.0, effects=None):
-        if kind not in ("gyro", "accel"):
+        if kind not in ('gyro', 'accel'):
             raise ValueError(f"kind must be 'gyro' or 'accel', got {kind!r}")
         if not (np.isfinite(rate_hz) and rate_hz > 0):
-            raise ValueError(f"rate_hz must be > 0, got {rate_hz}")
+            raise ValueError(f'rate_hz must be > 0, got {rate_hz}')
         self.profile = profile
         self.kind = kind
         self.period = 1.0 / float(rate_hz)
@@ -220,7 +225,7 @@ class IntegratingSensor:
     def true_increments(self, n: int):
         k = self.count + np.arange(0, n + 1)
         t = self.start_time + k * self.period
-        f = self.profile.delta_theta if self.kind == "gyro" else self.profile.delta_v
+        f = self.profile.delta_theta if self.kind == 'gyro' else self.profile.delta_v
         return t[1:], f(t[:-1], t[1:])
 
     def sample(self, n: int):
@@ -239,7 +244,8 @@ class IntegratingSensor:
 
 def increment_covariance(increments: np.ndarray, period: float, bias_sigma: float, scale_sigma: float,
                          misalignment_sigma: float, random_walk: float) -> np.ndarray:
-    """004 §2.1: covariance P_ρk of the error of each increment ρ_k (n, 3) → (n, 3, 3).
+    """
+    004 §2.1: covariance P_ρk of the error of each increment ρ_k (n, 3) → (n, 3, 3).
 
     ``P_ρk = σ_φ² diag(ρy²+ρz², ρx²+ρz², ρx²+ρy²) + σ_k² diag(ρx², ρy², ρz²)
     + (σ_b T)² I + σ_w² T I``.

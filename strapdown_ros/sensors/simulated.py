@@ -1,4 +1,5 @@
-"""The simulated IMU of ``imu_sim_node`` and ``record_sim``: the sensor model plus the effects.
+"""
+The simulated IMU of ``imu_sim_node`` and ``record_sim``: the sensor model plus the effects.
 
 The gyro and accelerometer triads are :class:`~strapdown_ros.sensors.model.IntegratingSensor`;
 the gyro carries the systematic effects of the registry
@@ -11,19 +12,21 @@ import numpy as np
 from strapdown_ros.sensors.effects import GyroEffects
 from strapdown_ros.sensors.model import IntegratingSensor, SensorSigmas
 
-__all__ = ["simulated_imu"]
+__all__ = ['simulated_imu']
 
 
 def simulated_imu(p: dict, profile):
-    """The gyro and accelerometer triads of ``imu_sim_node`` and ``record_sim`` from validated
+    """
+    The gyro and accelerometer triads of ``imu_sim_node`` and ``record_sim`` from validated
     node parameters: constants drawn gyro first, then accelerometer, from ``default_rng(seed)``;
     noise streams seed+1 (gyro) and seed+2 (accelerometer); the gyro carries the systematic
-    effects of the registry.  Returns (gyro, accel) :class:`IntegratingSensor`."""
-    seed = int(p["seed"])
+    effects of the registry.  Returns (gyro, accel) :class:`IntegratingSensor`.
+    """
+    seed = int(p['seed'])
     rng = np.random.default_rng(seed)
-    gyro_errors = SensorSigmas.from_params(p, "gyro").draw(rng)
-    accel_errors = SensorSigmas.from_params(p, "accel").draw(rng)
-    gyro = IntegratingSensor(profile, "gyro", float(p["gyro_rate"]), gyro_errors, seed=seed + 1,
+    gyro_errors = SensorSigmas.from_params(p, 'gyro').draw(rng)
+    accel_errors = SensorSigmas.from_params(p, 'accel').draw(rng)
+    gyro = IntegratingSensor(profile, 'gyro', float(p['gyro_rate']), gyro_errors, seed=seed + 1,
                              effects=GyroEffects(p))
-    accel = IntegratingSensor(profile, "accel", float(p["accel_rate"]), accel_errors, seed=seed + 2)
+    accel = IntegratingSensor(profile, 'accel', float(p['accel_rate']), accel_errors, seed=seed + 2)
     return gyro, accel

@@ -1,4 +1,5 @@
-"""Star camera (astro-visual unit, AVU) model: attitude of the camera frame VF at exposure epochs.
+"""
+Star camera (astro-visual unit, AVU) model: attitude of the camera frame VF at exposure epochs.
 
 Frames (Vasilyuk et al. 2024; paper 004, §1): MF is the IMU frame (the body frame of the SINS),
 VF the camera frame, GCRS
@@ -22,10 +23,10 @@ import numpy as np
 
 from strapdown_ros.motion.profiles import MotionProfile
 from strapdown_ros.rotation import (dcm_to_quat, quat_multiply, quat_normalize, rotvec_to_quat,
-    ypr_to_dcm)
+                                    ypr_to_dcm)
 from strapdown_ros.sensors import ARCSEC
 
-__all__ = ["StarCameraModel", "CameraFix"]
+__all__ = ['StarCameraModel', 'CameraFix']
 
 
 @dataclass
@@ -55,26 +56,26 @@ class StarCameraModel:
         self.sigma = np.asarray(self.sigma, dtype=float).reshape(3)
         self.noise_scale = np.asarray(self.noise_scale, dtype=float).reshape(3)
         if not np.all(np.isfinite(self.boresight)):
-            raise ValueError("boresight angles must be finite")
+            raise ValueError('boresight angles must be finite')
         if not (np.isfinite(self.interval) and self.interval > 0):
-            raise ValueError(f"interval must be > 0, got {self.interval}")
+            raise ValueError(f'interval must be > 0, got {self.interval}')
         if np.any(self.sigma < 0) or not np.all(np.isfinite(self.sigma)):
-            raise ValueError("sigma must be finite and >= 0")
+            raise ValueError('sigma must be finite and >= 0')
         if self.exposure_time < 0:
-            raise ValueError("exposure_time must be >= 0")
+            raise ValueError('exposure_time must be >= 0')
         self.rng = np.random.default_rng(self.seed)
         self.count = 0
 
     @classmethod
-    def from_params(cls, p: dict) -> "StarCameraModel":
+    def from_params(cls, p: dict) -> 'StarCameraModel':
         """The camera of ``star_camera_sim_node`` / ``record_sim`` from validated node parameters."""
-        sxy, sz = float(p["camera_sigma_xy"]), float(p["camera_sigma_z"])
-        first = float(p["camera_first_exposure"])
-        return cls(boresight=np.asarray(p["boresight"], dtype=float), interval=float(p["camera_interval"]),
+        sxy, sz = float(p['camera_sigma_xy']), float(p['camera_sigma_z'])
+        first = float(p['camera_first_exposure'])
+        return cls(boresight=np.asarray(p['boresight'], dtype=float), interval=float(p['camera_interval']),
                    sigma=np.array([sxy, sxy, sz]), first_exposure=None if first == 0.0 else first,
-                   time_offset=float(p["camera_time_offset"]), exposure_time=float(p["camera_exposure_time"]),
-                   stamp_at_exposure_start=bool(p["camera_stamp_at_exposure_start"]), seed=int(p["seed"]),
-                   noise_scale=np.asarray(p.get("camera_noise_scale", (1.0, 1.0, 1.0)), dtype=float))
+                   time_offset=float(p['camera_time_offset']), exposure_time=float(p['camera_exposure_time']),
+                   stamp_at_exposure_start=bool(p['camera_stamp_at_exposure_start']), seed=int(p['seed']),
+                   noise_scale=np.asarray(p.get('camera_noise_scale', (1.0, 1.0, 1.0)), dtype=float))
 
     @property
     def c_mf_vf(self) -> np.ndarray:

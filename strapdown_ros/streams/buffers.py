@@ -1,4 +1,5 @@
-"""A bounded buffer of stamped vectors with amortised O(1) appends: the one buffer behind the
+"""
+A bounded buffer of stamped vectors with amortised O(1) appends: the one buffer behind the
 calibrator's gyro history and the SINS's accelerometer accumulator.  No ROS imports.
 
 Appends write into preallocated numpy arrays (capacity doubles when full, up to ``max_len``);
@@ -11,7 +12,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["StampedBuffer"]
+__all__ = ['StampedBuffer']
 
 
 class StampedBuffer:
@@ -93,7 +94,7 @@ class StampedBuffer:
         """Drop every sample stamped at or before ``stamp``."""
         if self._lo == self._hi:
             return
-        self.drop_first(int(np.searchsorted(self.stamps, stamp, side="right")))
+        self.drop_first(int(np.searchsorted(self.stamps, stamp, side='right')))
 
     def clear(self) -> None:
         self._lo = self._hi = 0

@@ -1,4 +1,5 @@
-"""Reading the increment messages straight from their serialized bytes, for the nodes' raw
+"""
+Reading the increment messages straight from their serialized bytes, for the nodes' raw
 subscriptions (:func:`strapdown_ros.nodes.ros_io.decode_vector3_stamped`) and for ``sins_bag``
 (rosbag2 stores the same bytes).  No ROS imports: each caller hands the other encodings to its own
 deserializer (rclpy's, or rosbags').
@@ -16,22 +17,26 @@ from __future__ import annotations
 
 import struct
 
-__all__ = ["vector3_stamped", "imu", "imu_rate_covariance", "stamped_doubles"]
+import numpy as np
 
-_STAMP_AND_LENGTH = struct.Struct("<iII")     # header.stamp.sec, .nanosec, length of frame_id (with its NUL)
-_XYZ = struct.Struct("<3d")
-_F64 = struct.Struct("<d")
+__all__ = ['vector3_stamped', 'imu', 'imu_rate_covariance', 'stamped_doubles']
+
+_STAMP_AND_LENGTH = struct.Struct('<iII')     # header.stamp.sec, .nanosec, length of frame_id (with its NUL)
+_XYZ = struct.Struct('<3d')
+_F64 = struct.Struct('<d')
 
 
 def vector3_stamped(data) -> tuple[int, tuple[float, float, float], str] | None:
-    """``(stamp_ns, (x, y, z), frame_id)`` from the bytes (any buffer) of a Vector3Stamped in plain
-    little-endian CDR; None for any other encoding or bytes too short for the layout."""
+    """
+    ``(stamp_ns, (x, y, z), frame_id)`` from the bytes (any buffer) of a Vector3Stamped in plain
+    little-endian CDR; None for any other encoding or bytes too short for the layout.
+    """
     if len(data) >= 16 and data[0] == 0 and data[1] == 1:
         sec, nanosec, n = _STAMP_AND_LENGTH.unpack_from(data, 4)
         end = 16 + n
         off = 4 + ((end - 4 + 7) & ~7)
         if off + 24 <= len(data):
-            frame = bytes(data[16:end - 1]).decode("utf-8", "replace") if n else ""
+            frame = bytes(data[16:end - 1]).decode('utf-8', 'replace') if n else ''
             return sec * 1_000_000_000 + nanosec, _XYZ.unpack_from(data, off), frame
     return None
 
@@ -47,16 +52,18 @@ _XYZ_T = tuple[float, float, float]
 
 
 def imu(data) -> tuple[int, _XYZ_T, _XYZ_T | None, str] | None:
-    """``(stamp_ns, angular_velocity, linear_acceleration, frame_id)`` from the bytes (any buffer)
+    """
+    ``(stamp_ns, angular_velocity, linear_acceleration, frame_id)`` from the bytes (any buffer)
     of a sensor_msgs/Imu in plain little-endian CDR; ``linear_acceleration`` is None when the
     message says it has none (REP-145: linear_acceleration_covariance[0] = −1).  None for any other
-    encoding or bytes too short for the layout."""
+    encoding or bytes too short for the layout.
+    """
     if len(data) >= 16 and data[0] == 0 and data[1] == 1:
         sec, nanosec, n = _STAMP_AND_LENGTH.unpack_from(data, 4)
         end = 16 + n
         off = 4 + ((end - 4 + 7) & ~7)
         if off + 8 * _IMU_DOUBLES <= len(data):
-            frame = bytes(data[16:end - 1]).decode("utf-8", "replace") if n else ""
+            frame = bytes(data[16:end - 1]).decode('utf-8', 'replace') if n else ''
             rate = _XYZ.unpack_from(data, off + 8 * _IMU_RATE)
             accel = None
             if _F64.unpack_from(data, off + 8 * _IMU_ACCEL_COV)[0] != -1.0:
@@ -65,12 +72,14 @@ def imu(data) -> tuple[int, _XYZ_T, _XYZ_T | None, str] | None:
     return None
 
 
-_COV = struct.Struct("<9d")
+_COV = struct.Struct('<9d')
 
 
 def imu_rate_covariance(data) -> tuple | None:
-    """angular_velocity_covariance (9 float64, row-major, (rad/s)²) from the bytes of a
-    sensor_msgs/Imu in plain little-endian CDR; None for any other encoding or short bytes."""
+    """
+    angular_velocity_covariance (9 float64, row-major, (rad/s)²) from the bytes of a
+    sensor_msgs/Imu in plain little-endian CDR; None for any other encoding or short bytes.
+    """
     if len(data) >= 16 and data[0] == 0 and data[1] == 1:
         n = _STAMP_AND_LENGTH.unpack_from(data, 4)[2]
         off = 4 + ((16 + n - 4 + 7) & ~7)
@@ -80,7 +89,8 @@ def imu_rate_covariance(data) -> tuple | None:
 
 
 def stamped_doubles(records, count: int):
-    """Many stamped messages at once: a std_msgs/Header followed by ``count`` float64 fields in
+    """
+    Many stamped messages at once: a std_msgs/Header followed by ``count`` float64 fields in
     plain little-endian CDR (geometry_msgs/Vector3Stamped: 3; sensor_msgs/Imu: 37 — orientation 4,
     its covariance 9, angular_velocity 3, its covariance 9, linear_acceleration 3, its covariance
     9), decoded with numpy over records grouped by length and frame-id length.
@@ -108,7 +118,6 @@ def stamped_doubles(records, count: int):
         hands them to a deserializer.  Every decoded record equals :func:`vector3_stamped`'s
         reading of it (for ``count`` 3).
     """
-    import numpy as np
 
     n = len(records)
     stamps = np.zeros(n, np.int64)
@@ -133,10 +142,10 @@ def stamped_doubles(records, count: int):
             buf = records
         else:
             part = records if rows is None else [records[i] for i in rows]
-            buf = np.frombuffer(b"".join(part), np.uint8).reshape(len(part), length)
+            buf = np.frombuffer(b''.join(part), np.uint8).reshape(len(part), length)
         rows = np.arange(n) if rows is None else rows
         ok = (buf[:, 0] == 0) & (buf[:, 1] == 1)
-        head = np.ascontiguousarray(buf[:, 4:16]).view("<u4")       # sec, nanosec, len(frame_id)
+        head = np.ascontiguousarray(buf[:, 4:16]).view('<u4')       # sec, nanosec, len(frame_id)
         slen = head[:, 2]
         sizes = [int(slen[0])] if ok.all() and np.all(slen == slen[0]) else \
             [int(s) for s in np.unique(slen[ok])]
@@ -147,20 +156,20 @@ def stamped_doubles(records, count: int):
                 continue
             sel = ok & (slen == s) if len(sizes) > 1 or not ok.all() else slice(None)
             sub, hd, dst = buf[sel], head[sel], rows[sel]
-            stamps[dst] = hd[:, 0].view("<i4").astype(np.int64) * 1_000_000_000 + hd[:, 1]
-            values[dst] = np.ascontiguousarray(sub[:, off:off + 8 * count]).view("<f8")
+            stamps[dst] = hd[:, 0].view('<i4').astype(np.int64) * 1_000_000_000 + hd[:, 1]
+            values[dst] = np.ascontiguousarray(sub[:, off:off + 8 * count]).view('<f8')
             if s <= 1:
-                frames, inverse = [b""], np.zeros(len(dst), np.int64)
+                frames, inverse = [b''], np.zeros(len(dst), np.int64)
             else:
                 raw = np.ascontiguousarray(sub[:, 16:end - 1])
                 if np.all(raw == raw[0]):
                     frames, inverse = [raw[0].tobytes()], np.zeros(len(dst), np.int64)
                 else:
-                    uniq, inverse = np.unique(raw.view(f"V{s - 1}").ravel(), return_inverse=True)
+                    uniq, inverse = np.unique(raw.view(f'V{s - 1}').ravel(), return_inverse=True)
                     frames = [u.tobytes() for u in uniq]
             codes = []
             for f in frames:
-                name = f.decode("utf-8", "replace")
+                name = f.decode('utf-8', 'replace')
                 if name not in known:
                     known[name] = len(names)
                     names.append(name)

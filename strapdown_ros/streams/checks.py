@@ -1,4 +1,5 @@
-"""Input validation of a stamped stream, once for every node and tool.
+"""
+Input validation of a stamped stream, once for every node and tool.
 
 ``sins_node``, ``calibrator_node``, ``calibrate_bag`` and ``discrepancy`` all accept messages
 through :class:`StreamCheck`, so the live and offline paths agree by construction.  The rules,
@@ -45,11 +46,14 @@ from __future__ import annotations
 
 import math
 
-__all__ = ["StreamCheck", "nominal_period", "validate", "segments"]
+import numpy as np
+
+__all__ = ['StreamCheck', 'nominal_period', 'validate', 'segments']
 
 
 class StreamCheck:
-    """Validity bookkeeping of one stamped vector stream.
+    """
+    Validity bookkeeping of one stamped vector stream.
 
     :meth:`offer` returns the messages to process now, in order: usually ``[(stamp, value)]``
     or ``[]``; after a confirmed resynchronisation, the held messages too.  ``resynced`` is True
@@ -167,22 +171,24 @@ class StreamCheck:
         return []
 
     def _snapshot(self) -> dict:
-        return {"last_ns": self.last_ns, "first_ns": self.first_ns,
-                "accepted_since": self.accepted_since,
-                "gaps": self.gaps, "missing": self.missing, "resyncs": self.resyncs,
-                "dropouts": self.dropouts, "accepted": self.accepted, "received": self.received}
+        return {'last_ns': self.last_ns, 'first_ns': self.first_ns,
+                'accepted_since': self.accepted_since,
+                'gaps': self.gaps, 'missing': self.missing, 'resyncs': self.resyncs,
+                'dropouts': self.dropouts, 'accepted': self.accepted, 'received': self.received}
 
     def _confirm_jump(self):
-        """``resync_count`` held messages agree on a new timeline: a return from a burst, a
-        dropout or a resynchronisation (rule 4), in that order of precedence."""
+        """
+        ``resync_count`` held messages agree on a new timeline: a return from a burst, a
+        dropout or a resynchronisation (rule 4), in that order of precedence.
+        """
         held, self._held = self._held, []
         first = held[0][0]
         before = self._before_jump
         nominal = self.nominal_ns if math.isfinite(self.nominal_ns) else 0.0
-        if before is not None and self.accepted - before["accepted"] <= self.max_burst:
-            since = self.received - before["received"]
-            back = first - before["last_ns"]
-            off_timeline = not before["last_ns"] < self.last_ns < first   # not a dropout before
+        if before is not None and self.accepted - before['accepted'] <= self.max_burst:
+            since = self.received - before['received']
+            back = first - before['last_ns']
+            off_timeline = not before['last_ns'] < self.last_ns < first   # not a dropout before
             if off_timeline and 0 < back <= self.jump_ns + 2.0 * nominal * since:
                 return self._return_from_burst(held, before)
         self._before_jump = self._snapshot()
@@ -204,14 +210,14 @@ class StreamCheck:
         return out
 
     def _return_from_burst(self, held, before):
-        n = self.accepted - before["accepted"]          # delivered since the first jump: the burst
+        n = self.accepted - before['accepted']          # delivered since the first jump: the burst
         self.bursts += 1
         self.burst_messages += n
         self.last_jump_s = (held[0][0] - self.last_ns) * 1e-9
-        self.gaps, self.missing = before["gaps"], before["missing"]
-        self.resyncs, self.dropouts = before["resyncs"], before["dropouts"]
-        self.last_ns, self.first_ns = before["last_ns"], before["first_ns"]
-        self.accepted_since = before["accepted_since"]
+        self.gaps, self.missing = before['gaps'], before['missing']
+        self.resyncs, self.dropouts = before['resyncs'], before['dropouts']
+        self.last_ns, self.first_ns = before['last_ns'], before['first_ns']
+        self.accepted_since = before['accepted_since']
         self._before_jump = None
         out = []
         for s, val in held:
@@ -234,14 +240,15 @@ class StreamCheck:
         return [(stamp_ns, v)]
 
     def offer_many(self, stamps_ns, values) -> int:
-        """Vectorised :meth:`offer` of the usual case only: the longest prefix of ``stamps_ns``
+        """
+        Vectorised :meth:`offer` of the usual case only: the longest prefix of ``stamps_ns``
         (int64, ns) / ``values`` (n, 3) whose messages are finite, within ``max_norm`` and each one
         step of (0, ``jump_limit``] after the last accepted stamp, with no candidate timeline
         held.  Those messages are accepted with the counters :meth:`offer` would give (gaps
         included); the count k is returned and the message k (if any) must go through
         :meth:`offer`.  0 when the first message is not the usual case (or none was accepted
-        yet)."""
-        import numpy as np
+        yet).
+        """
         if self.last_ns is None or self._held or not len(stamps_ns):
             return 0
         st = np.asarray(stamps_ns, dtype=np.int64)
@@ -260,13 +267,15 @@ class StreamCheck:
             self.accepted_since += k
             self.last_ns = int(st[k - 1])
             self.resynced = False                   # the flags offer() clears for every message
-            if hasattr(self, "retracted"):          # (the burst flags, where the rules have them)
+            if hasattr(self, 'retracted'):          # (the burst flags, where the rules have them)
                 self.returned, self.retracted = False, 0
         return k
 
     def accept(self, stamp_ns: int, v) -> bool:
-        """Single-message form for consumers that process one message at a time: True when the
-        message itself is accepted now (messages released by a resync are not returned here)."""
+        """
+        Single-message form for consumers that process one message at a time: True when the
+        message itself is accepted now (messages released by a resync are not returned here).
+        """
         out = self.offer(stamp_ns, v)
         return bool(out) and out[-1][0] == stamp_ns
 
@@ -281,21 +290,22 @@ class StreamCheck:
         return (self.accepted_since - 1) / ((self.last_ns - self.first_ns) * 1e-9)
 
     def as_dict(self, prefix: str) -> dict:
-        return {f"{prefix}_received": self.received, f"{prefix}_accepted": self.accepted,
-                f"{prefix}_rate_hz_from_stamps": self.rate_hz(), f"{prefix}_dropped_nan": self.nan,
-                f"{prefix}_dropped_out_of_range": self.out_of_range,
-                f"{prefix}_dropped_out_of_order": self.out_of_order,
-                f"{prefix}_dropped_duplicate": self.duplicate, f"{prefix}_dropped_stamp_outlier": self.stamp_outliers,
-                f"{prefix}_stamp_resyncs": self.resyncs, f"{prefix}_gaps": self.gaps,
-                f"{prefix}_missing_samples": self.missing, f"{prefix}_dropouts": self.dropouts,
-                f"{prefix}_stamp_bursts": self.bursts,
-                f"{prefix}_stamp_burst_messages": self.burst_messages}
+        return {f'{prefix}_received': self.received, f'{prefix}_accepted': self.accepted,
+                f'{prefix}_rate_hz_from_stamps': self.rate_hz(), f'{prefix}_dropped_nan': self.nan,
+                f'{prefix}_dropped_out_of_range': self.out_of_range,
+                f'{prefix}_dropped_out_of_order': self.out_of_order,
+                f'{prefix}_dropped_duplicate': self.duplicate, f'{prefix}_dropped_stamp_outlier': self.stamp_outliers,
+                f'{prefix}_stamp_resyncs': self.resyncs, f'{prefix}_gaps': self.gaps,
+                f'{prefix}_missing_samples': self.missing, f'{prefix}_dropouts': self.dropouts,
+                f'{prefix}_stamp_bursts': self.bursts,
+                f'{prefix}_stamp_burst_messages': self.burst_messages}
 
 
 def nominal_period(stamps_ns) -> float:
-    """The period of a stream from its own stamps (s): the median of the positive steps, robust to
-    outliers, duplicates and gaps.  inf with fewer than 2 distinct stamps."""
-    import numpy as np
+    """
+    The period of a stream from its own stamps (s): the median of the positive steps, robust to
+    outliers, duplicates and gaps.  inf with fewer than 2 distinct stamps.
+    """
     st = np.asarray(stamps_ns, dtype=np.int64)
     d = np.diff(st)
     d = d[d > 0]
@@ -303,7 +313,8 @@ def nominal_period(stamps_ns) -> float:
 
 
 def validate(stamps_ns, values, check: StreamCheck):
-    """Run a whole recorded stream through ``check`` (the node's rules, in bag order).
+    """
+    Run a whole recorded stream through ``check`` (the node's rules, in bag order).
 
     Returns (stamps_ns, values, gaps): the accepted messages in order and the intervals
     (a, b), ns, that no increment pair may span: gaps (steps above 1.5 nominal periods,
@@ -312,7 +323,8 @@ def validate(stamps_ns, values, check: StreamCheck):
     removed from the output: the stamps of each time base are strictly increasing.  The index in
     the output where each time base after a resynchronisation starts is left in
     ``check.segment_starts`` (empty without a resynchronisation): split there, every segment is
-    strictly increasing."""
+    strictly increasing.
+    """
     out_t, out_v, gaps = [], [], []
     starts: list[int] = []
     marks: list[tuple[int, int, int]] = []       # (len(out_t), len(gaps), len(starts)) per jump
@@ -343,7 +355,9 @@ def validate(stamps_ns, values, check: StreamCheck):
 
 
 def segments(stamps_ns, starts) -> list[tuple[int, int]]:
-    """(lo, hi) index ranges of the time bases of an accepted stream (``validate``'s output and
-    ``check.segment_starts``): within each, the stamps are strictly increasing."""
+    """
+    (lo, hi) index ranges of the time bases of an accepted stream (``validate``'s output and
+    ``check.segment_starts``): within each, the stamps are strictly increasing.
+    """
     bounds = [0] + [int(k) for k in starts] + [len(stamps_ns)]
     return [(a, b) for a, b in zip(bounds[:-1], bounds[1:]) if b > a]

@@ -1,4 +1,5 @@
-"""Increments from rate samples: how a ``sensor_msgs/Imu`` stream becomes Δθ (and Δv).
+"""
+Increments from rate samples: how a ``sensor_msgs/Imu`` stream becomes Δθ (and Δv).
 
 Real drivers publish ``sensor_msgs/Imu`` with an angular velocity ω_k (and a specific force
 f_k) per message, stamped t_k.  The core integrates increments (quasi-coordinates
@@ -42,10 +43,10 @@ import numpy as np
 
 from strapdown_ros.streams.checks import StreamCheck
 
-__all__ = ["RATE_RULES", "increments_from_rates", "RateIntegrator", "RateIncrementStream"]
+__all__ = ['RATE_RULES', 'increments_from_rates', 'RateIntegrator', 'RateIncrementStream']
 
 #: the rules that make increments from rate samples (see the module docstring)
-RATE_RULES = ("trapezoid", "mean")
+RATE_RULES = ('trapezoid', 'mean')
 
 
 def _check_rule(rule: str) -> str:
@@ -54,8 +55,9 @@ def _check_rule(rule: str) -> str:
     return rule
 
 
-def increments_from_rates(stamps_ns, rates, rule: str = "trapezoid", max_step_s: float = math.inf):
-    """Increments from a validated stream of rate samples (offline form).
+def increments_from_rates(stamps_ns, rates, rule: str = 'trapezoid', max_step_s: float = math.inf):
+    """
+    Increments from a validated stream of rate samples (offline form).
 
     Parameters
     ----------
@@ -79,13 +81,13 @@ def increments_from_rates(stamps_ns, rates, rule: str = "trapezoid", max_step_s:
     t = np.asarray(stamps_ns, dtype=np.int64).reshape(-1)
     w = np.asarray(rates, dtype=float).reshape(-1, 3)
     if len(t) != len(w):
-        raise ValueError(f"{len(t)} stamps for {len(w)} rate samples")
+        raise ValueError(f'{len(t)} stamps for {len(w)} rate samples')
     if len(t) < 2:
         return np.zeros(0, dtype=np.int64), np.zeros((0, 3))
     dt_ns = np.diff(t)
     ok = (dt_ns > 0) & (dt_ns <= max_step_s * 1e9)
     dt = dt_ns * 1e-9
-    if rule == "trapezoid":
+    if rule == 'trapezoid':
         inc = 0.5 * (w[:-1] + w[1:]) * dt[:, None]
     else:
         inc = w[1:] * dt[:, None]
@@ -93,14 +95,15 @@ def increments_from_rates(stamps_ns, rates, rule: str = "trapezoid", max_step_s:
 
 
 class RateIntegrator:
-    """Streaming form of :func:`increments_from_rates`: one sample in, at most one increment out.
+    """
+    Streaming form of :func:`increments_from_rates`: one sample in, at most one increment out.
 
     ``push(stamp_ns, rate)`` returns ``(stamp_ns, (x, y, z))`` — the increment over the interval
     that ends at this sample — or None (first sample, or an interval above ``max_step_s``).
     The same samples give the same increments as the offline function, to the bit.
     """
 
-    def __init__(self, rule: str = "trapezoid", max_step_s: float = math.inf):
+    def __init__(self, rule: str = 'trapezoid', max_step_s: float = math.inf):
         self.rule = _check_rule(rule)
         self.max_step_ns = max_step_s * 1e9
         self.formed = 0
@@ -124,14 +127,15 @@ class RateIntegrator:
             return None
         dt = step * 1e-9
         self.formed += 1
-        if self.rule == "trapezoid":
+        if self.rule == 'trapezoid':
             return int(stamp_ns), (0.5 * (w_prev[0] + x) * dt, 0.5 * (w_prev[1] + y) * dt,
                                    0.5 * (w_prev[2] + z) * dt)
         return int(stamp_ns), (x * dt, y * dt, z * dt)
 
 
 class RateIncrementStream:
-    """The whole input rule of a rate stream, once for every node: validate, integrate, count.
+    """
+    The whole input rule of a rate stream, once for every node: validate, integrate, count.
 
     Each rate sample goes through :class:`strapdown_ros.streams.checks.StreamCheck` (non-finite,
     per-axis range ``max_rate``, duplicate, out of order, stamp jump and resynchronisation, gap)
@@ -155,7 +159,7 @@ class RateIncrementStream:
         Consecutive samples that confirm a new timeline (StreamCheck).
     """
 
-    def __init__(self, nominal_period: float, max_rate: float, rule: str = "trapezoid",
+    def __init__(self, nominal_period: float, max_rate: float, rule: str = 'trapezoid',
                  jump_limit: float = 1.0, resync_count: int = 5):
         self.check = StreamCheck(nominal_period, max_norm=max_rate, jump_limit=jump_limit,
                                  resync_count=resync_count)
@@ -163,9 +167,11 @@ class RateIncrementStream:
         self._offer, self._push = self.check.offer, self.integrator.push     # the hot path
 
     def push(self, stamp_ns: int, rate) -> list:
-        """One rate sample in (stamp in integer ns, rate in body axes); the increments it
+        """
+        One rate sample in (stamp in integer ns, rate in body axes); the increments it
         completes out, in order: ``[(stamp_ns, (x, y, z))]``, usually one, none for a dropped
-        or first sample, several when a resynchronisation releases held samples."""
+        or first sample, several when a resynchronisation releases held samples.
+        """
         got = self._offer(stamp_ns, rate)
         if not got:
             return got
@@ -183,11 +189,13 @@ class RateIncrementStream:
         return out
 
     def status(self, prefix: str) -> dict:
-        """Counters for /diagnostics: the StreamCheck counters of the rate samples
+        """
+        Counters for /diagnostics: the StreamCheck counters of the rate samples
         (``<prefix>_received``, ``_accepted``, ``_dropped_*``, …) and the increments formed and
-        skipped (an interval longer than 1.5 nominal periods, or the restart after a jump)."""
+        skipped (an interval longer than 1.5 nominal periods, or the restart after a jump).
+        """
         out = self.check.as_dict(prefix)
-        out[f"{prefix}_dropped"] = self.check.dropped
-        out[f"{prefix}_increments_formed"] = self.integrator.formed
-        out[f"{prefix}_increments_skipped"] = self.integrator.skipped
+        out[f'{prefix}_dropped'] = self.check.dropped
+        out[f'{prefix}_increments_formed'] = self.integrator.formed
+        out[f'{prefix}_increments_skipped'] = self.integrator.skipped
         return out

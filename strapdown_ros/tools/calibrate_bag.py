@@ -1,4 +1,5 @@
-"""calibrate_bag: star-camera boresight C_MF^VF from a rosbag2 bag, offline and without ROS.
+"""
+calibrate_bag: star-camera boresight C_MF^VF from a rosbag2 bag, offline and without ROS.
 
 Reads ``imu/delta_theta`` (geometry_msgs/msg/Vector3Stamped) and the camera attitude — from
 ``star_camera/attitude_with_covariance`` (geometry_msgs/msg/PoseWithCovarianceStamped, rotation
@@ -44,18 +45,19 @@ import sys
 
 import numpy as np
 
-from strapdown_ros.estimation.chi_square import FIT_LEVEL
 from strapdown_ros.calibration.streaming import BoresightCalibrator
-from strapdown_ros.params import CALIBRATOR_PARAMS, check_all, load_parameter_file
-from strapdown_ros.rotation import to_ros_xyzw
+from strapdown_ros.cli import check_outputs, FILE, OneLineParser, write_json
+from strapdown_ros.estimation.chi_square import FIT_LEVEL
+from strapdown_ros.params import CALIBRATOR_PARAMS, check_all, load_parameter_file, parse_overrides
 # the reader moved to strapdown_ros.recording; its names stay importable from here
-from strapdown_ros.recording import (CAMERA_COV_TOPIC, CAMERA_TOPIC, GYRO_TOPIC, Accepted,
-    BagError, add_input_arguments, check_input_arguments, input_lines, input_options,
-    input_summary, input_warnings, open_reader, read_bag, resolve_topic)
+from strapdown_ros.recording import (Accepted, add_input_arguments, BagError, CAMERA_COV_TOPIC,
+                                     CAMERA_TOPIC, check_input_arguments, GYRO_TOPIC, input_lines,
+                                     input_options, input_summary, input_warnings, open_reader,
+                                     read_bag, resolve_topic)
+from strapdown_ros.rotation import to_ros_xyzw
 from strapdown_ros.streams.checks import segments
-from strapdown_ros.params import parse_overrides
 
-__all__ = ["main", "read_bag", "calibrate", "calibrator_parameters", "make_calibrator", "solution_json", "BagError"]
+__all__ = ['main', 'read_bag', 'calibrate', 'calibrator_parameters', 'make_calibrator', 'solution_json', 'BagError']
 
 ARCSEC_PER_RAD = 180.0 / np.pi * 3600.0
 
@@ -63,7 +65,7 @@ ARCSEC_PER_RAD = 180.0 / np.pi * 3600.0
 # --- parameters -------------------------------------------------------------------------------
 def calibrator_parameters(params_file: str | None = None, overrides: dict | None = None) -> dict:
     """calibrator_node parameters from a ROS 2 parameter YAML (+ overrides), validated."""
-    raw = load_parameter_file(params_file, "calibrator_node") if params_file else {}
+    raw = load_parameter_file(params_file, 'calibrator_node') if params_file else {}
     raw.update(overrides or {})
     return check_all(CALIBRATOR_PARAMS, raw)
 
@@ -74,9 +76,11 @@ def make_calibrator(p: dict) -> BoresightCalibrator:
 
 
 def _match_segments(tg, g_segs, tc, c_segs) -> list[tuple[int, int]]:
-    """Which gyro time base goes with which camera time base, in order.  As many of each (a
+    """
+    Which gyro time base goes with which camera time base, in order.  As many of each (a
     clock reset of both streams, the usual case): the k-th with the k-th.  Otherwise (one
-    stream resynchronised alone) by overlapping stamp ranges, walking both lists forward."""
+    stream resynchronised alone) by overlapping stamp ranges, walking both lists forward.
+    """
     if len(g_segs) == len(c_segs):
         return [(k, k) for k in range(len(g_segs))]
     out, i, j = [], 0, 0
@@ -93,7 +97,8 @@ def _match_segments(tg, g_segs, tc, c_segs) -> list[tuple[int, int]]:
 
 
 def calibrate(data: dict, p: dict):
-    """Feed the calibrator as calibrator_node is fed — gyro and fixes interleaved in stamp order —
+    """
+    Feed the calibrator as calibrator_node is fed — gyro and fixes interleaved in stamp order —
     and solve; returns (solution, calibrator, pairs discarded over gyro gaps and stamp jumps).
     The calibrator's buffer stays bounded on recordings of any length.
 
@@ -103,19 +108,20 @@ def calibrate(data: dict, p: dict):
     the calibrator restarts its gyro history (``restart_gyro``, as calibrator_node does on a
     resynchronisation) at every gyro segment and its fix chain at every camera segment, so no
     pair spans a jump and no stamp array handed to the search is out of order (segments matched
-    by :func:`_match_segments`)."""
-    g, c = data["gyro"], data["camera"]
+    by :func:`_match_segments`).
+    """
+    g, c = data['gyro'], data['camera']
     t0 = min(g.stamps[0], c.stamps[0])                 # origin: float seconds keep ns resolution
     cal = make_calibrator(p)
     tg = (np.asarray(g.stamps, dtype=np.int64) - t0) * 1e-9
     vg = np.asarray(g.values, dtype=float).reshape(-1, 3)
     tc = (np.asarray(c.stamps, dtype=np.int64) - t0) * 1e-9
-    period = data.get("gyro_period_s") or 1.0 / float(p["gyro_rate"])
+    period = data.get('gyro_period_s') or 1.0 / float(p['gyro_rate'])
     h = 1.5 * period                                    # the in-interval polynomial reads the neighbours
-    offset = abs(float(p["camera_time_offset"]))      # a fix's epoch is its stamp − offset
+    offset = abs(float(p['camera_time_offset']))      # a fix's epoch is its stamp − offset
     lead = 3 * period + offset
-    g_segs = segments(g.stamps, getattr(g.check, "segment_starts", []))
-    c_segs = segments(c.stamps, getattr(c.check, "segment_starts", []))
+    g_segs = segments(g.stamps, getattr(g.check, 'segment_starts', []))
+    c_segs = segments(c.stamps, getattr(c.check, 'segment_starts', []))
     discarded = 0
     cur_g = cur_c = None                               # segments the calibrator is fed from
     k = 0                                              # gyro samples of segment cur_g fed so far
@@ -133,7 +139,7 @@ def calibrate(data: dict, p: dict):
         for t, (q, P) in zip(tc[ca:cb], c.values[ca:cb]):
             if t < seg_t[0] - offset or t > seg_t[-1] + offset:
                 continue                               # outside the gyro segment: no pair
-            k1 = int(np.searchsorted(seg_t, t + lead, side="right"))
+            k1 = int(np.searchsorted(seg_t, t + lead, side='right'))
             new = 0
             if k1 > k:
                 new = cal.add_gyro(seg_t[k:k1], seg_v[k:k1])
@@ -170,208 +176,209 @@ def solution_json(sol, weighted: bool) -> dict:
         unobs = [f"rotation about VF axis ({', '.join('1.00' if i == j else '0.00' for j in range(3))})"
                  for i in range(3)]
     out = {
-        "q_mf_vf_xyzw": [float(c) for c in to_ros_xyzw(sol.q_mf_vf)] if ok else None,
-        "rotation_covariance_mf_rad2": _mat(sol.rotation_covariance_mf) if ok else None,
-        "beta_rad": [float(b) for b in sol.beta] if ok else None,
-        "beta_sigma_rad": [float(s) for s in np.sqrt(np.diag(sol.covariance_beta))] if ok else None,
-        "covariance_rad2": _mat(sol.covariance_beta) if ok else None,
-        "pairs": int(sol.pairs),
-        "observable": ok,
-        "unobservable_axes": unobs,
-        "residual_rms_rad": _num(sol.residual_rms),
-        "weighted": bool(sol.weighted if ok else weighted),
+        'q_mf_vf_xyzw': [float(c) for c in to_ros_xyzw(sol.q_mf_vf)] if ok else None,
+        'rotation_covariance_mf_rad2': _mat(sol.rotation_covariance_mf) if ok else None,
+        'beta_rad': [float(b) for b in sol.beta] if ok else None,
+        'beta_sigma_rad': [float(s) for s in np.sqrt(np.diag(sol.covariance_beta))] if ok else None,
+        'covariance_rad2': _mat(sol.covariance_beta) if ok else None,
+        'pairs': int(sol.pairs),
+        'observable': ok,
+        'unobservable_axes': unobs,
+        'residual_rms_rad': _num(sol.residual_rms),
+        'weighted': bool(sol.weighted if ok else weighted),
         # extra keys
-        "message": sol.message,
-        "converged": bool(sol.converged),
-        "iterations": int(sol.iterations),
-        "chi2_per_dof": _num(sol.chi2_per_dof),
-        "fit_consistent": None if sol.fit_consistent is None else bool(sol.fit_consistent),
-        "chi2_per_dof_band": [_num(b) for b in sol.chi2_band] if ok else None,
-        "chi2_level": FIT_LEVEL,
-        "dof": int(sol.dof),
+        'message': sol.message,
+        'converged': bool(sol.converged),
+        'iterations': int(sol.iterations),
+        'chi2_per_dof': _num(sol.chi2_per_dof),
+        'fit_consistent': None if sol.fit_consistent is None else bool(sol.fit_consistent),
+        'chi2_per_dof_band': [_num(b) for b in sol.chi2_band] if ok else None,
+        'chi2_level': FIT_LEVEL,
+        'dof': int(sol.dof),
         # σ from the stated noise alone; beta_sigma_rad is it scaled by √(χ²/dof) when χ²/dof > 1
-        "beta_sigma_stated_noise_rad": (
+        'beta_sigma_stated_noise_rad': (
             [float(v) for v in np.sqrt(np.diag(sol.covariance_beta_stated))]
             if ok and sol.covariance_beta_stated is not None else None),
     }
     rep = sol.observability
     if rep is not None:
-        out["observability"] = {"eigenvalues": [_num(v) for v in rep.eigenvalues],
-                                "predicted_sigma_rad": [_num(v) for v in rep.predicted_sigma],
-                                "condition": _num(rep.condition), "weak": list(rep.weak)}
+        out['observability'] = {'eigenvalues': [_num(v) for v in rep.eigenvalues],
+                                'predicted_sigma_rad': [_num(v) for v in rep.predicted_sigma],
+                                'condition': _num(rep.condition), 'weak': list(rep.weak)}
     return out
 
 
 def _band_text(result: dict) -> str:
-    band = result.get("chi2_per_dof_band")
-    if result.get("fit_consistent") is None or not band:
-        return ""
-    verdict = "consistent" if result["fit_consistent"] else "INCONSISTENT"
+    band = result.get('chi2_per_dof_band')
+    if result.get('fit_consistent') is None or not band:
+        return ''
+    verdict = 'consistent' if result['fit_consistent'] else 'INCONSISTENT'
     return f" ({verdict}: band [{band[0]:.3g}, {band[1]:.3g}] at level {result['chi2_level']:g})"
 
 
 def _summary(bag: str, data: dict, result: dict, p: dict) -> str:
-    g, c = data["gyro"], data["camera"]
+    g, c = data['gyro'], data['camera']
     lines = [f"calibrate_bag: {bag}: {len(g.stamps)} Δθ from {data['gyro_topic']}, {len(c.stamps)} camera fixes "
              f"from {data['camera_topic']} ({'covariance from the bag' if data['camera_covariance_from_bag'] else 'assumed camera σ'})"]
-    drops = {f"{k} {n}": v for k, d in result["dropped"].items() for n, v in d.items() if v}
-    lines.append("  dropped: " + (", ".join(f"{k} {v}" for k, v in drops.items()) if drops else "none"))
-    gg, fx = result["gyro_gaps"], result["camera_fixes"]
-    if gg["gaps"]:
-        extra = [f"{gg[k]} {w}" for k, w in (("dropouts", "dropout(s) beyond max_stamp_jump"),
-                                             ("stamp_bursts", "stamp burst(s)")) if gg.get(k)]
-        kinds = " (" + ", ".join(extra) + ")" if extra else ""
+    drops = {f'{k} {n}': v for k, d in result['dropped'].items() for n, v in d.items() if v}
+    lines.append('  dropped: ' + (', '.join(f'{k} {v}' for k, v in drops.items()) if drops else 'none'))
+    gg, fx = result['gyro_gaps'], result['camera_fixes']
+    if gg['gaps']:
+        extra = [f'{gg[k]} {w}' for k, w in (('dropouts', 'dropout(s) beyond max_stamp_jump'),
+                                             ('stamp_bursts', 'stamp burst(s)')) if gg.get(k)]
+        kinds = ' (' + ', '.join(extra) + ')' if extra else ''
         lines.append(f"  GYRO GAPS: {gg['gaps']} gap(s){kinds}, "
                      f"{gg['missing']} increment(s) missing (rotation lost); "
                      f"{gg['pairs_discarded']} pair(s) spanning them discarded")
-    rs = result.get("stamp_resyncs", {})
+    rs = result.get('stamp_resyncs', {})
     if any(rs.values()):
         lines.append(f"  STAMP RESYNCS: gyro {rs.get('gyro', 0)}, camera {rs.get('camera', 0)} "
-                     "(clock resets): each time base calibrated on its own, no pair spans a reset")
+                     '(clock resets): each time base calibrated on its own, no pair spans a reset')
     notes = [f"{n.replace('_', ' ')} {v}" for n, v in fx.items() if v and not isinstance(v, list)]
     if notes:
-        lines.append("  camera fixes: " + ", ".join(notes))
-    chi2 = result["chi2_per_dof"]
+        lines.append('  camera fixes: ' + ', '.join(notes))
+    chi2 = result['chi2_per_dof']
     lines.append(f"  pairs {result['pairs']}, {'weighted' if result['weighted'] else 'unweighted (004)'}, "
                  f"covariance model {p['covariance_model']}, "
                  + (f"{'converged' if result['converged'] else 'NOT converged'} in {result['iterations']} iterations, "
                     f"residual RMS {result['residual_rms_rad'] * ARCSEC_PER_RAD:.3g}″"
-                    + (f", χ²/dof {chi2:.3g}" + _band_text(result) if chi2 is not None else "")
-                    if result["observable"] else "not observable"))
-    if result["observable"]:
-        names = ("heading ψ", "pitch ϑ", "roll γ")
-        untrusted = ("UNTRUSTED (fit inconsistent with the stated noise) "
-                     if result["fit_consistent"] is False else "")
-        lines.append(f"  {untrusted}β: " + ", ".join(
-            f"{n} {np.degrees(b):.6f}° ± {s * ARCSEC_PER_RAD:.3g}″"
-                                        for n, b, s in zip(names, result["beta_rad"], result["beta_sigma_rad"])))
-        sig_mf = np.sqrt(np.diag(result["rotation_covariance_mf_rad2"])) * ARCSEC_PER_RAD
-        q_text = ", ".join(f"{v:.9f}" for v in result["q_mf_vf_xyzw"])
-        lines.append(f"  {untrusted}q_mf_vf (x, y, z, w) = [{q_text}], "
+                    + (f', χ²/dof {chi2:.3g}' + _band_text(result) if chi2 is not None else '')
+                    if result['observable'] else 'not observable'))
+    if result['observable']:
+        names = ('heading ψ', 'pitch ϑ', 'roll γ')
+        untrusted = ('UNTRUSTED (fit inconsistent with the stated noise) '
+                     if result['fit_consistent'] is False else '')
+        lines.append(f'  {untrusted}β: ' + ', '.join(
+            f'{n} {np.degrees(b):.6f}° ± {s * ARCSEC_PER_RAD:.3g}″'
+                                        for n, b, s in zip(names, result['beta_rad'], result['beta_sigma_rad'])))
+        sig_mf = np.sqrt(np.diag(result['rotation_covariance_mf_rad2'])) * ARCSEC_PER_RAD
+        q_text = ', '.join(f'{v:.9f}' for v in result['q_mf_vf_xyzw'])
+        lines.append(f'  {untrusted}q_mf_vf (x, y, z, w) = [{q_text}], '
                      f"σ about MF x, y, z = {', '.join(f'{s:.3g}' for s in sig_mf)}″")
-    return "\n".join(lines)
+    return '\n'.join(lines)
 
 
 def consistency_warning(result: dict) -> str | None:
-    """The ``WARNING:`` line of a fit whose χ²/dof is outside its band (None when inside or
-    not judged): χ²/dof, the band, what it means, and which σ is reported."""
-    if result.get("fit_consistent") is not False:
+    """
+    The ``WARNING:`` line of a fit whose χ²/dof is outside its band (None when inside or
+    not judged): χ²/dof, the band, what it means, and which σ is reported.
+    """
+    if result.get('fit_consistent') is not False:
         return None
-    chi2, (lo, hi) = result["chi2_per_dof"], result["chi2_per_dof_band"]
+    chi2, (lo, hi) = result['chi2_per_dof'], result['chi2_per_dof_band']
     band = (f"its {100 * (1 - result['chi2_level']):g}% band [{lo:.3g}, {hi:.3g}] "
             f"(dof {result['dof']})")
     if chi2 > hi:
         scale = float(np.sqrt(chi2))
-        stated = result.get("beta_sigma_stated_noise_rad")
-        if result["weighted"]:
-            stated_text = ", ".join(f"{v * ARCSEC_PER_RAD:.3g}″" for v in stated or [])
-            shown = (f"the σ reported for β are scaled by √(χ²/dof) = {scale:.3g}"
-                     + (f"; σ with the stated noise {stated_text}" if stated else ""))
+        stated = result.get('beta_sigma_stated_noise_rad')
+        if result['weighted']:
+            stated_text = ', '.join(f'{v * ARCSEC_PER_RAD:.3g}″' for v in stated or [])
+            shown = (f'the σ reported for β are scaled by √(χ²/dof) = {scale:.3g}'
+                     + (f'; σ with the stated noise {stated_text}' if stated else ''))
         else:
-            shown = ("the σ reported for β come from the residual scatter (004 §4.3, unweighted), "
-                     f"a scatter √(χ²/dof) = {scale:.3g} times the stated noise")
-        return (f"WARNING: χ²/dof = {chi2:.3g} is above {band}: the stated noise is too small "
-                f"or the model lacks an effect (outliers, an unmodelled error); {shown}.  Do not "
-                "use the estimate as calibrated.")
-    return (f"WARNING: χ²/dof = {chi2:.3g} is below {band}: the stated noise is too large (the σ "
-            f"reported for β, from the stated noise, are pessimistic; not scaled down).")
+            shown = ('the σ reported for β come from the residual scatter (004 §4.3, unweighted), '
+                     f'a scatter √(χ²/dof) = {scale:.3g} times the stated noise')
+        return (f'WARNING: χ²/dof = {chi2:.3g} is above {band}: the stated noise is too small '
+                f'or the model lacks an effect (outliers, an unmodelled error); {shown}.  Do not '
+                'use the estimate as calibrated.')
+    return (f'WARNING: χ²/dof = {chi2:.3g} is below {band}: the stated noise is too large (the σ '
+            f'reported for β, from the stated noise, are pessimistic; not scaled down).')
 
 
 def main(argv=None) -> int:
-    from strapdown_ros.cli import FILE, OneLineParser, check_outputs, write_json
 
-    ap = OneLineParser(prog="calibrate_bag", description=__doc__,
+    ap = OneLineParser(prog='calibrate_bag', description=__doc__,
                        formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("bag", help="rosbag2 bag directory, or a .mcap / .db3 file")
-    ap.add_argument("--params", metavar="FILE", help="ROS 2 parameter YAML (calibrator_node and /** blocks)")
-    ap.add_argument("--json", metavar="FILE", help="write the result as JSON")
-    ap.add_argument("--force", action="store_true", help="overwrite an existing --json file")
-    ap.add_argument("--unweighted", action="store_true", help="unit weights, covariance from the residuals (004)")
-    ap.add_argument("--covariance-model", choices=("004", "random_constant"),
-                    help="gyro error model of E_imu (default: the parameter, random_constant)")
-    ap.add_argument("--namespace", default="", help="topic namespace, e.g. /robot1")
-    ap.add_argument("-p", "--param", action="append", default=[], metavar="NAME:=VALUE",
-                    help="calibrator_node parameter override (repeatable)")
+    ap.add_argument('bag', help='rosbag2 bag directory, or a .mcap / .db3 file')
+    ap.add_argument('--params', metavar='FILE', help='ROS 2 parameter YAML (calibrator_node and /** blocks)')
+    ap.add_argument('--json', metavar='FILE', help='write the result as JSON')
+    ap.add_argument('--force', action='store_true', help='overwrite an existing --json file')
+    ap.add_argument('--unweighted', action='store_true', help='unit weights, covariance from the residuals (004)')
+    ap.add_argument('--covariance-model', choices=('004', 'random_constant'),
+                    help='gyro error model of E_imu (default: the parameter, random_constant)')
+    ap.add_argument('--namespace', default='', help='topic namespace, e.g. /robot1')
+    ap.add_argument('-p', '--param', action='append', default=[], metavar='NAME:=VALUE',
+                    help='calibrator_node parameter override (repeatable)')
     add_input_arguments(ap)
     args = ap.parse_args(argv)
     try:
         check_input_arguments(args)
         over = parse_overrides(args.param)
         if args.unweighted:
-            over["weighted"] = False
+            over['weighted'] = False
         if args.covariance_model:
-            over["covariance_model"] = args.covariance_model
+            over['covariance_model'] = args.covariance_model
         p = calibrator_parameters(args.params, over)
-        check_outputs([("--json", args.json, FILE)],
-                      [("bag", args.bag), ("--params", args.params)], args.force)
-        data = read_bag(args.bag, args.namespace, bool(p["use_camera_covariance"]),
-                        (p["camera_sigma_xy"], p["camera_sigma_xy"], p["camera_sigma_z"]),
-                        float(p["gyro_max_rate"]), float(p["max_stamp_jump"]),
-                        int(p["resync_count"]), **input_options(args))
+        check_outputs([('--json', args.json, FILE)],
+                      [('bag', args.bag), ('--params', args.params)], args.force)
+        data = read_bag(args.bag, args.namespace, bool(p['use_camera_covariance']),
+                        (p['camera_sigma_xy'], p['camera_sigma_xy'], p['camera_sigma_z']),
+                        float(p['gyro_max_rate']), float(p['max_stamp_jump']),
+                        int(p['resync_count']), **input_options(args))
     except (ValueError, OSError, BagError) as exc:
-        print(f"calibrate_bag: error: {exc}", file=sys.stderr)
+        print(f'calibrate_bag: error: {exc}', file=sys.stderr)
         return 2
-    for line in input_warnings("calibrate_bag", data):
+    for line in input_warnings('calibrate_bag', data):
         print(line, file=sys.stderr)
-    for kind, want in (("gyro", p["frame_id"]), ("camera", p["reference_frame_id"])):
-        other = [f for f in data["frames"][kind] if f != want]
+    for kind, want in (('gyro', p['frame_id']), ('camera', p['reference_frame_id'])):
+        other = [f for f in data['frames'][kind] if f != want]
         if other:
             print(f"calibrate_bag: warning: {kind} messages in frame {', '.join(map(repr, other))}, "
-                  f"parameters expect {want!r}", file=sys.stderr)
+                  f'parameters expect {want!r}', file=sys.stderr)
 
-    g, c = data["gyro"], data["camera"]
+    g, c = data['gyro'], data['camera']
     if not g.stamps or not c.stamps:
         print(f"calibrate_bag: error: no usable {'gyro' if not g.stamps else 'camera'} messages", file=sys.stderr)
         return 2
-    step = data["gyro_period_s"]
-    if np.isfinite(step) and abs(step * float(p["gyro_rate"]) - 1.0) > 0.1:
-        print(f"calibrate_bag: note: gyro stamps are {step:.6g} s apart ({1.0 / step:.6g} Hz); gaps are judged "
+    step = data['gyro_period_s']
+    if np.isfinite(step) and abs(step * float(p['gyro_rate']) - 1.0) > 0.1:
+        print(f'calibrate_bag: note: gyro stamps are {step:.6g} s apart ({1.0 / step:.6g} Hz); gaps are judged '
               f"against that, not gyro_rate = {p['gyro_rate']:g} Hz", file=sys.stderr)
     sol, cal, discarded = calibrate(data, p)
-    result = solution_json(sol, bool(p["weighted"]))
-    result["covariance_model"] = p["covariance_model"]
-    result["dropped"] = {"gyro": dict(g.dropped),
-                         "camera": {**c.dropped, "zero_quaternion": data["camera_fixes"]["zero_quaternion"],
-                                    "bad_covariance": data["camera_fixes"]["bad_covariance"]}}
-    result["gyro_gaps"] = {"gaps": g.check.gaps, "missing": g.missing,
-                           "pairs_discarded": discarded,
-                           "dropouts": g.check.dropouts, "stamp_bursts": g.check.bursts}
-    result["stamp_resyncs"] = {"gyro": g.resyncs, "camera": c.resyncs}
-    result["pairs_replayed_not_added"] = cal.replayed_pairs         # stamps of a pair already held
-    result["gyro_rate_from_stamps_hz"] = _num(1.0 / data["gyro_period_s"]) if np.isfinite(data["gyro_period_s"]) else None
-    result["camera_fixes"] = {k: data["camera_fixes"][k] for k in ("normalised", "covariance_substituted")}
-    result["camera_fixes"]["outliers_dropped"] = cal.outlier_fixes
+    result = solution_json(sol, bool(p['weighted']))
+    result['covariance_model'] = p['covariance_model']
+    result['dropped'] = {'gyro': dict(g.dropped),
+                         'camera': {**c.dropped, 'zero_quaternion': data['camera_fixes']['zero_quaternion'],
+                                    'bad_covariance': data['camera_fixes']['bad_covariance']}}
+    result['gyro_gaps'] = {'gaps': g.check.gaps, 'missing': g.missing,
+                           'pairs_discarded': discarded,
+                           'dropouts': g.check.dropouts, 'stamp_bursts': g.check.bursts}
+    result['stamp_resyncs'] = {'gyro': g.resyncs, 'camera': c.resyncs}
+    result['pairs_replayed_not_added'] = cal.replayed_pairs         # stamps of a pair already held
+    result['gyro_rate_from_stamps_hz'] = _num(1.0 / data['gyro_period_s']) if np.isfinite(data['gyro_period_s']) else None
+    result['camera_fixes'] = {k: data['camera_fixes'][k] for k in ('normalised', 'covariance_substituted')}
+    result['camera_fixes']['outliers_dropped'] = cal.outlier_fixes
     origin_s = min(g.stamps[0], c.stamps[0]) * 1e-9                     # calibrate()'s time origin
-    result["camera_fixes"]["outlier_stamps_s"] = [float(t) + origin_s for t in cal.outlier_stamps]
-    result["messages"] = {"gyro": len(g.stamps), "camera": len(c.stamps)}
-    result["topics"] = {"gyro": data["gyro_topic"], "camera": data["camera_topic"]}
-    result["camera_covariance_from_bag"] = data["camera_covariance_from_bag"]
-    result["input"] = input_summary(data)
-    result["unread_messages"] = dict(data["unread_messages"])
-    if data["rate_samples"]:
-        result["dropped"]["gyro_rate_samples"] = dict(data["rate_samples"]["dropped"])
+    result['camera_fixes']['outlier_stamps_s'] = [float(t) + origin_s for t in cal.outlier_stamps]
+    result['messages'] = {'gyro': len(g.stamps), 'camera': len(c.stamps)}
+    result['topics'] = {'gyro': data['gyro_topic'], 'camera': data['camera_topic']}
+    result['camera_covariance_from_bag'] = data['camera_covariance_from_bag']
+    result['input'] = input_summary(data)
+    result['unread_messages'] = dict(data['unread_messages'])
+    if data['rate_samples']:
+        result['dropped']['gyro_rate_samples'] = dict(data['rate_samples']['dropped'])
     print(_summary(args.bag, data, result, p))
-    print("\n".join(input_lines(result["input"])))
-    warning = consistency_warning(result) if result["observable"] else None
+    print('\n'.join(input_lines(result['input'])))
+    warning = consistency_warning(result) if result['observable'] else None
     if warning:
         print(warning, file=sys.stderr)
     if args.json:
         try:
             write_json(args.json, result, indent=2)
         except (OSError, ValueError) as exc:
-            print(f"calibrate_bag: error: {exc}", file=sys.stderr)
+            print(f'calibrate_bag: error: {exc}', file=sys.stderr)
             return 2
-    if not result["observable"]:
-        advice = ("Record rotations about at least two non-parallel axes between camera exposures."
-                  if sol.pairs >= 2 else "Needs two camera fixes whose interval the gyro data covers without a gap.")
-        print(f"calibrate_bag: boresight NOT observable from this bag: {sol.message}; unobservable: "
+    if not result['observable']:
+        advice = ('Record rotations about at least two non-parallel axes between camera exposures.'
+                  if sol.pairs >= 2 else 'Needs two camera fixes whose interval the gyro data covers without a gap.')
+        print(f'calibrate_bag: boresight NOT observable from this bag: {sol.message}; unobservable: '
               f"{'; '.join(result['unobservable_axes'])}.  {advice}", file=sys.stderr)
         return 3
-    if not result["converged"]:
-        print(f"calibrate_bag: warning: {sol.message}", file=sys.stderr)
+    if not result['converged']:
+        print(f'calibrate_bag: warning: {sol.message}', file=sys.stderr)
         return 4
     return 0
 
 
-if __name__ == "__main__":
+if __name__ == '__main__':
     sys.exit(main())

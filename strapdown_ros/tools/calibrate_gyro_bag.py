@@ -1,4 +1,5 @@
-"""calibrate_gyro_bag: gyro scale factors, misalignments and biases from a recording, by 000 or 002.
+"""
+calibrate_gyro_bag: gyro scale factors, misalignments and biases from a recording, by 000 or 002.
 
     calibrate_gyro_bag BAG --method integral|tkachenko [--model MODEL.yaml] [--write-model OUT.yaml]
                        [--json FILE] [--force] [--drift] [--interval S] [--sigma-limit X]
@@ -39,15 +40,24 @@ nothing is written but the JSON report).
 from __future__ import annotations
 
 import argparse
+from pathlib import Path
 import sys
 import time
-from pathlib import Path
 
 import numpy as np
 
-__all__ = ["main", "result_json"]
+from strapdown_ros.calibration import gyro as gc
+from strapdown_ros.calibration.gyro import model_parameters
+from strapdown_ros.cli import check_outputs, FILE, OneLineParser, write_json
+from strapdown_ros.discrepancy.bag_input import load_recording, recording_lines
+from strapdown_ros.discrepancy.workflow import InputError, json_clean
+from strapdown_ros.params import load_model, write_model
+from strapdown_ros.recording import (add_input_arguments, BagError, check_input_arguments,
+                                     input_options, input_warnings)
 
-PROG = "calibrate_gyro_bag"
+__all__ = ['main', 'result_json']
+
+PROG = 'calibrate_gyro_bag'
 DEG_H = np.degrees(1.0) * 3600.0                 # rad/s → °/h
 
 
@@ -58,129 +68,122 @@ def _num(x):
 
 def result_json(cal, info: dict) -> dict:
     """The JSON record of a :class:`~strapdown_ros.calibration.gyro.GyroCalibration`."""
-    from strapdown_ros.discrepancy.workflow import json_clean
-    from strapdown_ros.calibration.gyro import model_parameters
 
     ok = bool(cal.observable)
     rep = cal.observability
     return json_clean({
-        "method": cal.method,
-        "observable": ok,
-        "labels": list(cal.labels),
-        "estimate": {n: _num(v) for n, v in zip(cal.labels, cal.x)} if ok else None,
-        "sigma": {n: _num(v) for n, v in zip(cal.labels, cal.sigma)} if ok else None,
-        "covariance": [[_num(v) for v in row] for row in cal.covariance] if ok else None,
-        "model_parameters": model_parameters(cal) if ok else None,
-        "unobservable": list(cal.unobservable),
-        "message": cal.message,
-        "observability": {"eigenvalues": [_num(v) for v in rep.eigenvalues],
-                          "predicted_sigma": [_num(v) for v in rep.predicted_sigma],
-                          "condition": _num(rep.condition), "weak": list(rep.weak),
-                          "units": f"scale and misalignment 1; bias and drift {cal.rate_scale:.6g} rad/s "
-                                   f"(the RMS rate of the recording)"},
-        "fit_consistent": cal.extra.get("fit_consistent"),
-        "chi2_per_dof": _num(cal.extra["chi2_per_dof"]) if "chi2_per_dof" in cal.extra else None,
-        "chi2_per_dof_band": cal.extra.get("chi2_per_dof_band"),
+        'method': cal.method,
+        'observable': ok,
+        'labels': list(cal.labels),
+        'estimate': {n: _num(v) for n, v in zip(cal.labels, cal.x)} if ok else None,
+        'sigma': {n: _num(v) for n, v in zip(cal.labels, cal.sigma)} if ok else None,
+        'covariance': [[_num(v) for v in row] for row in cal.covariance] if ok else None,
+        'model_parameters': model_parameters(cal) if ok else None,
+        'unobservable': list(cal.unobservable),
+        'message': cal.message,
+        'observability': {'eigenvalues': [_num(v) for v in rep.eigenvalues],
+                          'predicted_sigma': [_num(v) for v in rep.predicted_sigma],
+                          'condition': _num(rep.condition), 'weak': list(rep.weak),
+                          'units': f'scale and misalignment 1; bias and drift {cal.rate_scale:.6g} rad/s '
+                                   f'(the RMS rate of the recording)'},
+        'fit_consistent': cal.extra.get('fit_consistent'),
+        'chi2_per_dof': _num(cal.extra['chi2_per_dof']) if 'chi2_per_dof' in cal.extra else None,
+        'chi2_per_dof_band': cal.extra.get('chi2_per_dof_band'),
         # sigma is scaled by √max(1, χ²/dof); this is the σ of the stated noise alone
-        "sigma_stated_noise": ({n: _num(v / np.sqrt(cal.extra.get("covariance_scale", 1.0)))
+        'sigma_stated_noise': ({n: _num(v / np.sqrt(cal.extra.get('covariance_scale', 1.0)))
                                 for n, v in zip(cal.labels, cal.sigma)} if ok else None),
-        "rate_scale_rad_s": cal.rate_scale,
-        "details": cal.extra,
-        "input": info,
+        'rate_scale_rad_s': cal.rate_scale,
+        'details': cal.extra,
+        'input': info,
     })
 
 
 def _summary(bag, info, cal) -> str:
-    from strapdown_ros.discrepancy.bag_input import recording_lines
     lines = recording_lines(PROG, bag, info)
-    lines[0] += f"; method {cal.method}"
+    lines[0] += f'; method {cal.method}'
     d = cal.extra
-    chi2 = d.get("chi2_per_dof")
-    band = d.get("chi2_per_dof_band")
-    verdict = ""
-    if d.get("fit_consistent") is not None and band is not None:
+    chi2 = d.get('chi2_per_dof')
+    band = d.get('chi2_per_dof_band')
+    verdict = ''
+    if d.get('fit_consistent') is not None and band is not None:
         verdict = (f", {'consistent' if d['fit_consistent'] else 'INCONSISTENT'}: "
                    f"band [{band[0]:.3g}, {band[1]:.3g}] at level {d['chi2_level']:g}")
-    chi2_text = f", χ²/dof {chi2:.3g} (dof {d.get('dof')}{verdict})" if chi2 is not None else ""
+    chi2_text = f", χ²/dof {chi2:.3g} (dof {d.get('dof')}{verdict})" if chi2 is not None else ''
     lines.append(f"  {'observable' if cal.observable else 'NOT observable'}{chi2_text}")
     if not cal.observable:
-        return "\n".join(lines)
-    if d.get("fit_consistent") is False:
-        lines.append("  UNTRUSTED: the fit is inconsistent with the stated noise (the WARNING)")
+        return '\n'.join(lines)
+    if d.get('fit_consistent') is False:
+        lines.append('  UNTRUSTED: the fit is inconsistent with the stated noise (the WARNING)')
     for n, v, s in zip(cal.labels, cal.x, cal.sigma):
-        if n.startswith(("bias", "drift")):
-            lines.append(f"  {n:8s} {v: .6e} rad/s ± {s:.2e}   ({v * DEG_H: .5f} ± {s * DEG_H:.5f} °/h)")
+        if n.startswith(('bias', 'drift')):
+            lines.append(f'  {n:8s} {v: .6e} rad/s ± {s:.2e}   ({v * DEG_H: .5f} ± {s * DEG_H:.5f} °/h)')
         else:
-            lines.append(f"  {n:8s} {v: .6e}       ± {s:.2e}   ({v * 1e6: .2f} ± {s * 1e6:.2f} ppm)")
-    if "triad_rotation_rad" in d:
-        r, s = np.asarray(d["triad_rotation_rad"]), np.asarray(d["triad_rotation_sigma_rad"])
-        lines.append("  triad rotation against the initial boresight (not written): "
-                     + ", ".join(f"{a * 206264.806:.3g}″ ± {b * 206264.806:.2g}″" for a, b in zip(r, s)))
+            lines.append(f'  {n:8s} {v: .6e}       ± {s:.2e}   ({v * 1e6: .2f} ± {s * 1e6:.2f} ppm)')
+    if 'triad_rotation_rad' in d:
+        r, s = np.asarray(d['triad_rotation_rad']), np.asarray(d['triad_rotation_sigma_rad'])
+        lines.append('  triad rotation against the initial boresight (not written): '
+                     + ', '.join(f'{a * 206264.806:.3g}″ ± {b * 206264.806:.2g}″' for a, b in zip(r, s)))
     if cal.observability.weak:
         lines.append(f"  weakly observable: {'; '.join(cal.observability.weak)}")
-    return "\n".join(lines)
+    return '\n'.join(lines)
 
 
 def consistency_warning(out: dict) -> str | None:
     """The ``WARNING:`` line of an estimate whose χ²/dof is outside its band, else None."""
-    if out.get("fit_consistent") is not False or not out.get("observable"):
+    if out.get('fit_consistent') is not False or not out.get('observable'):
         return None
-    chi2, (lo, hi), d = out["chi2_per_dof"], out["chi2_per_dof_band"], out["details"]
+    chi2, (lo, hi), d = out['chi2_per_dof'], out['chi2_per_dof_band'], out['details']
     band = f"its {100 * (1 - d['chi2_level']):g}% band [{lo:.3g}, {hi:.3g}] (dof {d['dof']})"
     if chi2 > hi:
-        return (f"WARNING: χ²/dof = {chi2:.3g} is above {band}: the stated noise (camera "
-                "covariance, gyro random walk) is too small or the model lacks an effect; the σ "
-                f"reported are scaled by √(χ²/dof) = {np.sqrt(chi2):.3g} (sigma_stated_noise in "
-                "the JSON: unscaled).  Do not use the estimate as calibrated.")
-    return (f"WARNING: χ²/dof = {chi2:.3g} is below {band}: the stated noise is too large (the "
-            "σ reported, from the stated noise, are pessimistic; not scaled down).")
+        return (f'WARNING: χ²/dof = {chi2:.3g} is above {band}: the stated noise (camera '
+                'covariance, gyro random walk) is too small or the model lacks an effect; the σ '
+                f'reported are scaled by √(χ²/dof) = {np.sqrt(chi2):.3g} (sigma_stated_noise in '
+                'the JSON: unscaled).  Do not use the estimate as calibrated.')
+    return (f'WARNING: χ²/dof = {chi2:.3g} is below {band}: the stated noise is too large (the '
+            'σ reported, from the stated noise, are pessimistic; not scaled down).')
 
 
 def _parse(argv):
-    from strapdown_ros.recording import add_input_arguments
-    from strapdown_ros.cli import OneLineParser
 
     ap = OneLineParser(prog=PROG, description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("bag", help="rosbag2 bag directory, or a .mcap / .db3 file")
-    ap.add_argument("--method", required=True, choices=("integral", "tkachenko"),
-                    help="002 integral method or 000 (Tkachenko) increment equations")
-    ap.add_argument("--model", metavar="MODEL.yaml", help="model: ROS 2 parameter file (default: the defaults)")
-    ap.add_argument("--write-model", metavar="OUT.yaml", help="write the model with the estimated gyro errors")
-    ap.add_argument("--json", metavar="FILE", help="write the result as JSON")
-    ap.add_argument("--force", action="store_true", help="overwrite existing output files")
-    ap.add_argument("--drift", action="store_true", help="tkachenko: also estimate a constant drift of the reference")
-    ap.add_argument("--interval", type=float, metavar="S",
-                    help="integral: averaging interval, s (default: one camera step)")
-    ap.add_argument("--sigma-limit", type=float, default=1e-3, metavar="X",
-                    help="a combination whose predicted σ exceeds X (scale units; biases in RMS-rate units) "
-                         "counts as unobservable (default 0.001)")
-    ap.add_argument("--namespace", default="", help="topic namespace, e.g. /robot1")
-    ap.add_argument("--quiet", action="store_true", help="no progress on stderr")
+    ap.add_argument('bag', help='rosbag2 bag directory, or a .mcap / .db3 file')
+    ap.add_argument('--method', required=True, choices=('integral', 'tkachenko'),
+                    help='002 integral method or 000 (Tkachenko) increment equations')
+    ap.add_argument('--model', metavar='MODEL.yaml', help='model: ROS 2 parameter file (default: the defaults)')
+    ap.add_argument('--write-model', metavar='OUT.yaml', help='write the model with the estimated gyro errors')
+    ap.add_argument('--json', metavar='FILE', help='write the result as JSON')
+    ap.add_argument('--force', action='store_true', help='overwrite existing output files')
+    ap.add_argument('--drift', action='store_true', help='tkachenko: also estimate a constant drift of the reference')
+    ap.add_argument('--interval', type=float, metavar='S',
+                    help='integral: averaging interval, s (default: one camera step)')
+    ap.add_argument('--sigma-limit', type=float, default=1e-3, metavar='X',
+                    help='a combination whose predicted σ exceeds X (scale units; biases in RMS-rate units) '
+                         'counts as unobservable (default 0.001)')
+    ap.add_argument('--namespace', default='', help='topic namespace, e.g. /robot1')
+    ap.add_argument('--quiet', action='store_true', help='no progress on stderr')
     add_input_arguments(ap)
     return ap.parse_args(argv)
 
 
 def _check(args) -> None:
     """Arguments, input files and output paths, before any work.  Raises ValueError."""
-    from strapdown_ros.recording import check_input_arguments
-    from strapdown_ros.cli import FILE, check_outputs
 
     check_input_arguments(args)
-    if args.drift and args.method != "tkachenko":
-        raise ValueError("--drift needs --method tkachenko (002 has no reference drift)")
+    if args.drift and args.method != 'tkachenko':
+        raise ValueError('--drift needs --method tkachenko (002 has no reference drift)')
     if args.interval is not None:
-        if args.method != "integral":
-            raise ValueError("--interval needs --method integral")
+        if args.method != 'integral':
+            raise ValueError('--interval needs --method integral')
         if not (np.isfinite(args.interval) and args.interval > 0):
-            raise ValueError(f"--interval must be > 0 s, got {args.interval}")
+            raise ValueError(f'--interval must be > 0 s, got {args.interval}')
     if not (np.isfinite(args.sigma_limit) and args.sigma_limit > 0):
-        raise ValueError(f"--sigma-limit must be > 0, got {args.sigma_limit}")
+        raise ValueError(f'--sigma-limit must be > 0, got {args.sigma_limit}')
     if not Path(args.bag).exists():
-        raise ValueError(f"bag {args.bag} does not exist")
+        raise ValueError(f'bag {args.bag} does not exist')
     if args.model and not Path(args.model).is_file():
-        raise ValueError(f"model {args.model} does not exist")
-    check_outputs([("--json", args.json, FILE), ("--write-model", args.write_model, FILE)],
-                  [("bag", args.bag), ("--model", args.model)], args.force)
+        raise ValueError(f'model {args.model} does not exist')
+    check_outputs([('--json', args.json, FILE), ('--write-model', args.write_model, FILE)],
+                  [('bag', args.bag), ('--model', args.model)], args.force)
 
 
 def main(argv=None) -> int:
@@ -189,42 +192,36 @@ def main(argv=None) -> int:
 
     def progress(text):
         if not args.quiet:
-            print(f"{PROG}: [{time.perf_counter() - t_start:6.1f} s] {text}", file=sys.stderr, flush=True)
+            print(f'{PROG}: [{time.perf_counter() - t_start:6.1f} s] {text}', file=sys.stderr, flush=True)
 
     def fail(msg, status=2):
-        print(f"{PROG}: error: {msg}", file=sys.stderr)
+        print(f'{PROG}: error: {msg}', file=sys.stderr)
         return status
 
-    from strapdown_ros.params import load_model
     try:
         _check(args)
         model, doc = load_model(args.model)
     except (ValueError, OSError) as exc:
         return fail(exc)
-    if float(model.get("gyro_quantum", 0.0)) > 0 and not args.quiet:
-        print(f"{PROG}: warning: gyro_quantum > 0: pulse quantization (000 §5) is not modelled; the σ may be "
-              f"optimistic", file=sys.stderr)
-    from strapdown_ros.calibration import gyro as gc
-    from strapdown_ros.discrepancy.workflow import InputError
-    from strapdown_ros.cli import write_json
-    from strapdown_ros.recording import BagError, input_options, input_warnings
-    from strapdown_ros.discrepancy.bag_input import load_recording
+    if float(model.get('gyro_quantum', 0.0)) > 0 and not args.quiet:
+        print(f'{PROG}: warning: gyro_quantum > 0: pulse quantization (000 §5) is not modelled; the σ may be '
+              f'optimistic', file=sys.stderr)
     try:
         rec, info = load_recording(args.bag, model, args.namespace,     # (no progress line yet: an
                                    **input_options(args))               # unusable bag is one line)
         for line in input_warnings(PROG, info):
             print(line, file=sys.stderr)
         if len(rec.fix_stamps) < 6:
-            raise ValueError(f"{args.bag}: {len(rec.fix_stamps)} usable camera fixes (need at least 6)")
+            raise ValueError(f'{args.bag}: {len(rec.fix_stamps)} usable camera fixes (need at least 6)')
         progress(f"read {info['gyro_messages']} increments and {info['camera_fixes']} camera fixes")
         progress("compensating the model's other effects; initial boresight from the increment axes")
         prep = gc.prepare(rec, model)
-        if args.method == "integral":
-            progress(f"002 integral method over {prep.pairs} camera steps")
+        if args.method == 'integral':
+            progress(f'002 integral method over {prep.pairs} camera steps')
             cal = gc.calibrate_integral(prep, args.interval, args.sigma_limit)
         else:
             cal = gc.calibrate_tkachenko(prep, args.drift, args.sigma_limit,
-                                         progress=lambda s: progress(s.replace("tkachenko: ", "000: ")))
+                                         progress=lambda s: progress(s.replace('tkachenko: ', '000: ')))
     except (BagError, InputError, ValueError, OSError, np.linalg.LinAlgError) as exc:
         return fail(str(exc).splitlines()[0] if str(exc) else type(exc).__name__)
     out = result_json(cal, info)
@@ -236,21 +233,20 @@ def main(argv=None) -> int:
         if args.json:
             write_json(args.json, out)
         if cal.observable and args.write_model:
-            from strapdown_ros.params import write_model
             write_model(args.write_model, doc, gc.model_parameters(cal),
-                        f"written by calibrate_gyro_bag --method {cal.method}: gyro_scale_factor, gyro_misalignment, "
-                        f"gyro_bias estimated from {Path(args.bag).name}")
-            print(f"  model with the estimated gyro errors: {args.write_model}")
+                        f'written by calibrate_gyro_bag --method {cal.method}: gyro_scale_factor, gyro_misalignment, '
+                        f'gyro_bias estimated from {Path(args.bag).name}')
+            print(f'  model with the estimated gyro errors: {args.write_model}')
     except OSError as exc:
         return fail(exc)
     if not cal.observable:
-        print(f"{PROG}: gyro errors NOT observable from this bag ({cal.method}): unobservable: "
+        print(f'{PROG}: gyro errors NOT observable from this bag ({cal.method}): unobservable: '
               f"{'; '.join(cal.unobservable)}.  Record turns about three non-parallel axes, in both senses, "
-              f"and rest periods; nothing was estimated", file=sys.stderr)
+              f'and rest periods; nothing was estimated', file=sys.stderr)
         return 3
-    progress(f"done in {time.perf_counter() - t_start:.1f} s")
+    progress(f'done in {time.perf_counter() - t_start:.1f} s')
     return 0
 
 
-if __name__ == "__main__":
+if __name__ == '__main__':
     sys.exit(main())

@@ -1,4 +1,5 @@
-"""discrepancy: where a recording and its model disagree, which effect is missing, and how much
+"""
+discrepancy: where a recording and its model disagree, which effect is missing, and how much
 the disagreement shrinks once it is added.
 
     discrepancy BAG --model MODEL.yaml [--json FILE] [--report DIR] [--write-model OUT.yaml]
@@ -38,73 +39,83 @@ fit fails numerically (one line on stderr: ``discrepancy: analysis failed: ...``
 from __future__ import annotations
 
 import argparse
+from pathlib import Path
 import sys
 import time
-from pathlib import Path
 
 import numpy as np
 
+from strapdown_ros.cli import check_outputs, DIRECTORY, FILE, OneLineParser, write_json
 from strapdown_ros.discrepancy.bag_input import load_recording, recording_lines
+from strapdown_ros.discrepancy.diagnostics import allan_comparison
+from strapdown_ros.discrepancy.report import write_report
+from strapdown_ros.discrepancy.workflow import (analyse, AnalysisError, BoresightUnobservable,
+                                                DEFAULT_ALPHA, InputError, json_clean)
+from strapdown_ros.params import load_model
+from strapdown_ros.params import write_model as write_model_file
+from strapdown_ros.recording import (add_input_arguments, BagError, check_input_arguments,
+                                     input_options, input_warnings)
 
-__all__ = ["main", "write_model"]
+__all__ = ['main', 'write_model']
 
 ARCSEC_PER_RAD = 180.0 / np.pi * 3600.0
 
 
 def write_model(path: str, doc: dict, result) -> None:
-    """The model file with the found effects and the estimated boresight: written into ``/**``
-    (and into any node block that sets the same key, so it does not override the new value)."""
-    from strapdown_ros.params import write_model as write_model_file
+    """
+    The model file with the found effects and the estimated boresight: written into ``/**``
+    (and into any node block that sets the same key, so it does not override the new value).
+    """
 
     updates = dict(result.model_out)
-    updates["initial_boresight"] = updates["boresight"]
-    write_model_file(path, doc, updates, f"written by discrepancy: verdict {result.verdict}; effects added: "
+    updates['initial_boresight'] = updates['boresight']
+    write_model_file(path, doc, updates, f'written by discrepancy: verdict {result.verdict}; effects added: '
                      f"{', '.join(s.effect for s in result.steps) or 'none'}")
 
 
 def _summary(bag, info, res) -> str:
     j = res.as_json()
-    lines = recording_lines("discrepancy", bag, info, f"{res.pairs} increment pairs, ")
-    lines.append(f"  verdict: {res.verdict}")
+    lines = recording_lines('discrepancy', bag, info, f'{res.pairs} increment pairs, ')
+    lines.append(f'  verdict: {res.verdict}')
     if not res.fit_consistent:
         lo, hi = res.chi2_per_dof_band
-        lines.append(f"WARNING: the fit is not consistent with its stated noise: χ²/dof "
-                     f"{res.chi2_per_dof:.4g} outside [{lo:.3g}, {hi:.3g}] at the test level; the "
-                     f"values below are not plain results")
-    if res.sigma_method != "model":
-        jk = (", raised to the leave-one-block-out jackknife where that is larger"
-              if res.sigma_method == "hac_jackknife" else "")
-        lines.append(f"  σ: Newey–West sandwich over {res.hac_lags} pairs{jk} (the residuals "
+        lines.append(f'WARNING: the fit is not consistent with its stated noise: χ²/dof '
+                     f'{res.chi2_per_dof:.4g} outside [{lo:.3g}, {hi:.3g}] at the test level; the '
+                     f'values below are not plain results')
+    if res.sigma_method != 'model':
+        jk = (', raised to the leave-one-block-out jackknife where that is larger'
+              if res.sigma_method == 'hac_jackknife' else '')
+        lines.append(f'  σ: Newey–West sandwich over {res.hac_lags} pairs{jk} (the residuals '
                      f"fail {', '.join(res.tests_after['failed'])}: the model's σ would be too "
-                     f"small)")
-    lines.append(f"  whitened RMS {res.rms_before:.3g} → {res.rms_after:.3g} (1 = as the model predicts); held out "
-                 f"{res.heldout_rms_before:.3g} → {res.heldout_rms_after:.3g}")
+                     f'small)')
+    lines.append(f'  whitened RMS {res.rms_before:.3g} → {res.rms_after:.3g} (1 = as the model predicts); held out '
+                 f'{res.heldout_rms_before:.3g} → {res.heldout_rms_after:.3g}')
     for k, s in enumerate(res.steps, 1):
-        vals = "; ".join(f"{n} = {_fmt(v)} ± {_fmt(s.sigma[n])}" for n, v in s.parameters.items())
-        lines.append(f"  step {k}: {s.effect}: {vals}  (LR {s.statistic:.4g}, dof {s.dof}, p {s.p_value:.3g}, "
-                     f"held-out gain {s.heldout_gain:.3g})")
+        vals = '; '.join(f'{n} = {_fmt(v)} ± {_fmt(s.sigma[n])}' for n, v in s.parameters.items())
+        lines.append(f'  step {k}: {s.effect}: {vals}  (LR {s.statistic:.4g}, dof {s.dof}, p {s.p_value:.3g}, '
+                     f'held-out gain {s.heldout_gain:.3g})')
         if s.repeatable is False:
-            lines.append(f"    not repeatable across time blocks: leave-one-block-out spread "
+            lines.append(f'    not repeatable across time blocks: leave-one-block-out spread '
                          f"{'; '.join(f'{n} ± {_fmt(v)}' for n, v in s.spread.items())} "
-                         f"({s.spread_ratio:.3g}× the σ above): not a plain finding")
-    stop = {"max_steps": f"the step limit ({res.max_steps} accepted effects) stopped the search; "
-                         f"more may be missing",
-            "no_significant_candidate": "search stopped: no candidate left passes its test",
-            "no_candidates_left": "search stopped: every candidate was added, excluded or failed",
-            "iteration_limit": "search stopped by its turn limit"}.get(res.stopped_by,
-                                                                        f"{res.stopped_by}")
-    lines.append(f"  {stop}")
+                         f'({s.spread_ratio:.3g}× the σ above): not a plain finding')
+    stop = {'max_steps': f'the step limit ({res.max_steps} accepted effects) stopped the search; '
+                         f'more may be missing',
+            'no_significant_candidate': 'search stopped: no candidate left passes its test',
+            'no_candidates_left': 'search stopped: every candidate was added, excluded or failed',
+            'iteration_limit': 'search stopped by its turn limit'}.get(res.stopped_by,
+                                                                        f'{res.stopped_by}')
+    lines.append(f'  {stop}')
     seen: dict = {}
     for f in res.failed_candidates:                  # one line per effect and reason
-        seen.setdefault((f["effect"], f["reason"]), []).append(str(f["step"]))
+        seen.setdefault((f['effect'], f['reason']), []).append(str(f['step']))
     for (effect, reason), at in seen.items():
         lines.append(f"  not fitted (dropped at step {', '.join(at)}): {effect}: {reason}")
     for a, b in res.not_separable:
-        lines.append(f"  not separable on this trajectory: {a} and {b}")
+        lines.append(f'  not separable on this trajectory: {a} and {b}')
     for r in res.rejected:
         lines.append(f"  not added: {r['effect']}: {r['reason']}")
-    ta = j["tests_after"]
-    lines.append("  tests: " + ", ".join(f"{k} p = {ta[k]['p_value']:.3g}" for k in ("nis", "whiteness", "outliers"))
+    ta = j['tests_after']
+    lines.append('  tests: ' + ', '.join(f"{k} p = {ta[k]['p_value']:.3g}" for k in ('nis', 'whiteness', 'outliers'))
                  + f" (level {ta['level']:.3g} each)")
     if res.remaining:
         rm = res.remaining
@@ -113,129 +124,119 @@ def _summary(bag, info, res) -> str:
                      f"{rm.get('dominant_lag_autocorrelation', float('nan')):.2f}, correlation with rate "
                      f"{rm.get('correlation_with_rate', float('nan')):.2f}, with accumulated angle "
                      f"{rm.get('correlation_with_accumulated_angle', float('nan')):.2f}")
-        for c in rm.get("candidate_explanations", []):
-            sw = rm.get("gyro_axis_swap_sign", {})
-            lines.append(f"  candidate explanation outside the library: {c}: the gyro triad "
+        for c in rm.get('candidate_explanations', []):
+            sw = rm.get('gyro_axis_swap_sign', {})
+            lines.append(f'  candidate explanation outside the library: {c}: the gyro triad '
                          f"as wired is left-handed; read as e.g. {sw.get('mapping')} the "
                          f"axis-alignment RMS drops to {sw.get('ratio', float('nan')):.2g}× "
-                         f"(which axis, the camera cannot tell: a rotation goes into the "
-                         f"boresight)")
+                         f'(which axis, the camera cannot tell: a rotation goes into the '
+                         f'boresight)')
     b = np.degrees(res.boresight_rad)
     s = np.asarray(res.boresight_sigma_rad) * ARCSEC_PER_RAD
-    lines.append(f"  boresight β = ({b[0]:.6f}, {b[1]:.6f}, {b[2]:.6f})° ± ({s[0]:.3g}, {s[1]:.3g}, {s[2]:.3g})″")
-    return "\n".join(lines)
+    lines.append(f'  boresight β = ({b[0]:.6f}, {b[1]:.6f}, {b[2]:.6f})° ± ({s[0]:.3g}, {s[1]:.3g}, {s[2]:.3g})″')
+    return '\n'.join(lines)
 
 
 def _fmt(v):
     if isinstance(v, (list, tuple)):
-        return "[" + ", ".join(f"{x:.4g}" for x in v) + "]"
-    return f"{v:.4g}"
+        return '[' + ', '.join(f'{x:.4g}' for x in v) + ']'
+    return f'{v:.4g}'
 
 
 def main(argv=None) -> int:
-    from strapdown_ros.recording import (add_input_arguments, check_input_arguments,
-        input_options, input_warnings)
-    from strapdown_ros.cli import (DIRECTORY, FILE, OneLineParser, check_outputs,
-        write_json)
 
-    ap = OneLineParser(prog="discrepancy", description=__doc__,
+    ap = OneLineParser(prog='discrepancy', description=__doc__,
                        formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("bag", help="rosbag2 bag directory, or a .mcap / .db3 file")
-    ap.add_argument("--model", required=True, metavar="MODEL.yaml", help="nominal model: ROS 2 parameter file")
-    ap.add_argument("--json", metavar="FILE", help="write the result as JSON")
-    ap.add_argument("--report", metavar="DIR", help="write report.md and PNG plots into DIR (created)")
-    ap.add_argument("--write-model", metavar="OUT.yaml", help="write the model with the found effects")
-    ap.add_argument("--force", action="store_true", help="overwrite existing outputs (--json, "
-                    "--write-model, a non-empty --report directory)")
-    ap.add_argument("--alpha", type=float, default=None, help="family-wise level of the selection (default 0.01)")
-    ap.add_argument("--namespace", default="", help="topic namespace, e.g. /robot1")
-    ap.add_argument("--quiet", action="store_true", help="no progress on stderr")
+    ap.add_argument('bag', help='rosbag2 bag directory, or a .mcap / .db3 file')
+    ap.add_argument('--model', required=True, metavar='MODEL.yaml', help='nominal model: ROS 2 parameter file')
+    ap.add_argument('--json', metavar='FILE', help='write the result as JSON')
+    ap.add_argument('--report', metavar='DIR', help='write report.md and PNG plots into DIR (created)')
+    ap.add_argument('--write-model', metavar='OUT.yaml', help='write the model with the found effects')
+    ap.add_argument('--force', action='store_true', help='overwrite existing outputs (--json, '
+                    '--write-model, a non-empty --report directory)')
+    ap.add_argument('--alpha', type=float, default=None, help='family-wise level of the selection (default 0.01)')
+    ap.add_argument('--namespace', default='', help='topic namespace, e.g. /robot1')
+    ap.add_argument('--quiet', action='store_true', help='no progress on stderr')
     add_input_arguments(ap)
     args = ap.parse_args(argv)
     t0 = time.perf_counter()
-    from strapdown_ros.discrepancy.workflow import (DEFAULT_ALPHA, AnalysisError,
-        BoresightUnobservable, InputError, analyse, json_clean)
-    from strapdown_ros.params import load_model
-    from strapdown_ros.recording import BagError
 
     alpha = DEFAULT_ALPHA if args.alpha is None else args.alpha
     try:
         if not (0.0 < alpha < 0.5):
-            raise ValueError(f"--alpha must be in (0, 0.5), got {alpha}")
+            raise ValueError(f'--alpha must be in (0, 0.5), got {alpha}')
         check_input_arguments(args)
         if not Path(args.bag).exists():
-            raise ValueError(f"bag {args.bag} does not exist")
+            raise ValueError(f'bag {args.bag} does not exist')
         if not Path(args.model).is_file():
-            raise ValueError(f"model {args.model} does not exist")
-        check_outputs([("--json", args.json, FILE), ("--write-model", args.write_model, FILE),
-                       ("--report", args.report, DIRECTORY)],
-                      [("bag", args.bag), ("--model", args.model)], args.force)
+            raise ValueError(f'model {args.model} does not exist')
+        check_outputs([('--json', args.json, FILE), ('--write-model', args.write_model, FILE),
+                       ('--report', args.report, DIRECTORY)],
+                      [('bag', args.bag), ('--model', args.model)], args.force)
         model, doc = load_model(args.model)
     except (ValueError, OSError) as exc:
-        print(f"discrepancy: error: {exc}", file=sys.stderr)
+        print(f'discrepancy: error: {exc}', file=sys.stderr)
         return 2
 
     def progress(text):
         if not args.quiet:
-            print(f"discrepancy: [{time.perf_counter() - t0:6.1f} s] {text}", file=sys.stderr, flush=True)
+            print(f'discrepancy: [{time.perf_counter() - t0:6.1f} s] {text}', file=sys.stderr, flush=True)
     try:
-        progress("reading the bag")
+        progress('reading the bag')
         rec, info = load_recording(args.bag, model, args.namespace, **input_options(args))
-        for line in input_warnings("discrepancy", info):
+        for line in input_warnings('discrepancy', info):
             print(line, file=sys.stderr)
         res = analyse(rec, model, alpha=alpha, progress=progress)
     except BoresightUnobservable as exc:
         unobs = list(exc.report.unobservable) if exc.report is not None else []
         if args.json:
             try:
-                write_json(args.json, json_clean({"observable": False, "message": str(exc),
-                                                  "unobservable": unobs, "verdict": None,
-                                                  "input": info}))
+                write_json(args.json, json_clean({'observable': False, 'message': str(exc),
+                                                  'unobservable': unobs, 'verdict': None,
+                                                  'input': info}))
             except OSError as exc2:
-                print(f"discrepancy: error: {exc2}", file=sys.stderr)
+                print(f'discrepancy: error: {exc2}', file=sys.stderr)
                 return 2
-        print(f"discrepancy: boresight NOT observable from this bag: {exc}; unobservable: "
+        print(f'discrepancy: boresight NOT observable from this bag: {exc}; unobservable: '
               f"{'; '.join(unobs)}.  Record rotations about at least two non-parallel axes "
-              f"between camera exposures; no model written.", file=sys.stderr)
+              f'between camera exposures; no model written.', file=sys.stderr)
         return 3
     except (AnalysisError, np.linalg.LinAlgError, FloatingPointError, OverflowError) as exc:
         # a numerical failure is never reported as bad input (LinAlgError is a ValueError)
         msg = str(exc).splitlines()[0][:300] if str(exc) else type(exc).__name__
-        print(f"discrepancy: analysis failed: {msg}", file=sys.stderr)
+        print(f'discrepancy: analysis failed: {msg}', file=sys.stderr)
         return 4
     except (BagError, InputError, ValueError, OSError) as exc:
-        print(f"discrepancy: error: {exc}", file=sys.stderr)
+        print(f'discrepancy: error: {exc}', file=sys.stderr)
         return 2
-    progress("Allan deviation on static segments")
-    from strapdown_ros.discrepancy.diagnostics import allan_comparison
+    progress('Allan deviation on static segments')
     after = dict(model)
     for s in res.steps:
         after.update(s.parameters)
     try:
         allan = allan_comparison(rec.gyro_stamps, rec.delta_theta, model, after)
     except Exception as exc:                       # noqa: BLE001 - the rest of the result stands
-        allan = {"error": str(exc)}
+        allan = {'error': str(exc)}
     out = res.as_json()
-    out["allan"] = json_clean(allan)
-    out["input"] = json_clean(info)
+    out['allan'] = json_clean(allan)
+    out['input'] = json_clean(info)
     print(_summary(args.bag, info, res))
     try:
         if args.json:
             write_json(args.json, out)
         if args.write_model:
             write_model(args.write_model, doc, res)
-            print(f"  model with the found effects: {args.write_model}")
+            print(f'  model with the found effects: {args.write_model}')
         if args.report:
-            progress("report and plots")
-            from strapdown_ros.discrepancy.report import write_report
+            progress('report and plots')
             path = write_report(args.report, res, out)
-            print(f"  report: {path}")
+            print(f'  report: {path}')
     except OSError as exc:
-        print(f"discrepancy: error: {exc}", file=sys.stderr)
+        print(f'discrepancy: error: {exc}', file=sys.stderr)
         return 2
-    progress(f"done in {time.perf_counter() - t0:.1f} s")
+    progress(f'done in {time.perf_counter() - t0:.1f} s')
     return 0
 
 
-if __name__ == "__main__":
+if __name__ == '__main__':
     sys.exit(main())

@@ -1,4 +1,5 @@
-"""filter_bag: the star-camera-aided attitude filter of ``attitude_filter_node`` on a recording.
+"""
+filter_bag: the star-camera-aided attitude filter of ``attitude_filter_node`` on a recording.
 
     filter_bag BAG --output OUT.csv [--fixes FIXES.csv] [--params FILE] [--force]
 
@@ -14,29 +15,29 @@ Errors: one line on stderr, exit 2.
 """
 from __future__ import annotations
 
-import sys
 from pathlib import Path
+import sys
 
 import numpy as np
 
-from strapdown_ros.params import FILTER_PARAMS, check_all, load_parameter_file
+from strapdown_ros.cli import check_outputs, FILE, OneLineParser, write_text
 from strapdown_ros.estimation.filter_system import FilterSystem
+from strapdown_ros.params import check_all, FILTER_PARAMS, load_parameter_file
 from strapdown_ros.recording.options import (add_input_arguments, check_input_arguments,
-    input_options)
+                                             input_options)
 from strapdown_ros.recording.reader import BagError, read_bag
-from strapdown_ros.cli import FILE, OneLineParser, check_outputs, write_text
 
-NODE_NAME = "attitude_filter_node"
+NODE_NAME = 'attitude_filter_node'
 
 
 def state_rows(outputs, augment) -> str:
     """CSV text of the filter outputs (header first)."""
-    head = ["stamp", "qx", "qy", "qz", "qw", "sigma_x", "sigma_y", "sigma_z",
-            "bias_x", "bias_y", "bias_z", "bias_sigma_x", "bias_sigma_y", "bias_sigma_z"]
+    head = ['stamp', 'qx', 'qy', 'qz', 'qw', 'sigma_x', 'sigma_y', 'sigma_z',
+            'bias_x', 'bias_y', 'bias_z', 'bias_sigma_x', 'bias_sigma_y', 'bias_sigma_z']
     for name, (v, _) in (outputs[0].augmented.items() if outputs else []):
-        head += [f"{name}_{k}" for k in range(len(v))]
-        head += [f"{name}_sigma_{k}" for k in range(len(v))]
-    lines = [",".join(head)]
+        head += [f'{name}_{k}' for k in range(len(v))]
+        head += [f'{name}_sigma_{k}' for k in range(len(v))]
+    lines = [','.join(head)]
     for o in outputs:
         q = o.attitude
         vals = [o.stamp_ns * 1e-9, q[1], q[2], q[3], q[0],
@@ -44,31 +45,33 @@ def state_rows(outputs, augment) -> str:
                 *np.sqrt(np.diag(o.bias_covariance))]
         for v, s in o.augmented.values():
             vals += list(v) + list(s)
-        lines.append(",".join(f"{x:.17g}" for x in vals))
-    return "\n".join(lines) + "\n"
+        lines.append(','.join(f'{x:.17g}' for x in vals))
+    return '\n'.join(lines) + '\n'
 
 
 def fix_rows(fixes) -> str:
     """CSV text of the fix results (header first)."""
-    lines = ["stamp,status,innovation_x,innovation_y,innovation_z,nis,lateness,check_ok,check"]
+    lines = ['stamp,status,innovation_x,innovation_y,innovation_z,nis,lateness,check_ok,check']
     for f in fixes:
-        z = f.innovation if f.innovation is not None else [float("nan")] * 3
-        nis = f.nis if f.nis is not None else float("nan")
+        z = f.innovation if f.innovation is not None else [float('nan')] * 3
+        nis = f.nis if f.nis is not None else float('nan')
         text = f.check_text.replace('"', "'")
-        lines.append(f"{f.stamp_ns * 1e-9:.17g},{f.status},{z[0]:.17g},{z[1]:.17g},"
+        lines.append(f'{f.stamp_ns * 1e-9:.17g},{f.status},{z[0]:.17g},{z[1]:.17g},'
                      f"{z[2]:.17g},{nis:.17g},{f.lateness:.17g},{int(f.check_ok)},\"{text}\"")
-    return "\n".join(lines) + "\n"
+    return '\n'.join(lines) + '\n'
 
 
 def run_filter(data: dict, p: dict) -> FilterSystem:
-    """The filter over the streams of :func:`~strapdown_ros.recording.reader.read_bag`, fixes
-    given after the increments up to their stamps (the order a node sees live)."""
+    """
+    The filter over the streams of :func:`~strapdown_ros.recording.reader.read_bag`, fixes
+    given after the increments up to their stamps (the order a node sees live).
+    """
     system = FilterSystem(p)
-    g, c = data["gyro"], data["camera"]
+    g, c = data['gyro'], data['camera']
     gt = np.asarray(g.stamps, dtype=np.int64)
     k = 0
     for ns, (q, P) in zip(c.stamps, c.values):
-        j = int(np.searchsorted(gt, ns, side="right"))
+        j = int(np.searchsorted(gt, ns, side='right'))
         if j > k:
             system.add_increments(g.stamps[k:j], g.values[k:j])
             k = j
@@ -79,34 +82,34 @@ def run_filter(data: dict, p: dict) -> FilterSystem:
 
 
 def main(argv=None) -> int:
-    ap = OneLineParser(prog="filter_bag", description=__doc__.split("\n")[0])
-    ap.add_argument("bag", help="bag directory or file")
-    ap.add_argument("--output", required=True, help="CSV of the filter outputs")
-    ap.add_argument("--fixes", help="CSV of the fixes (default: OUTPUT with _fixes)")
-    ap.add_argument("--params", help="ROS 2 parameter file (attitude_filter_node or /**)")
-    ap.add_argument("--namespace", default="", help="topic namespace")
-    ap.add_argument("--force", action="store_true", help="replace existing outputs")
+    ap = OneLineParser(prog='filter_bag', description=__doc__.split('\n')[0])
+    ap.add_argument('bag', help='bag directory or file')
+    ap.add_argument('--output', required=True, help='CSV of the filter outputs')
+    ap.add_argument('--fixes', help='CSV of the fixes (default: OUTPUT with _fixes)')
+    ap.add_argument('--params', help='ROS 2 parameter file (attitude_filter_node or /**)')
+    ap.add_argument('--namespace', default='', help='topic namespace')
+    ap.add_argument('--force', action='store_true', help='replace existing outputs')
     add_input_arguments(ap)
     args = ap.parse_args(argv)
     out = Path(args.output)
-    fixes_path = Path(args.fixes) if args.fixes else out.with_name(out.stem + "_fixes"
-                                                                   + (out.suffix or ".csv"))
+    fixes_path = Path(args.fixes) if args.fixes else out.with_name(out.stem + '_fixes'
+                                                                   + (out.suffix or '.csv'))
     try:
         check_input_arguments(args)
         if not Path(args.bag).exists():
-            raise ValueError(f"bag {args.bag} does not exist")
+            raise ValueError(f'bag {args.bag} does not exist')
         if args.params and not Path(args.params).is_file():
-            raise ValueError(f"--params {args.params} is not a file")
-        check_outputs([("--output", str(out), FILE), ("--fixes", str(fixes_path), FILE)],
-                      [("bag", args.bag), ("--params", args.params)], args.force)
+            raise ValueError(f'--params {args.params} is not a file')
+        check_outputs([('--output', str(out), FILE), ('--fixes', str(fixes_path), FILE)],
+                      [('bag', args.bag), ('--params', args.params)], args.force)
         p = check_all(FILTER_PARAMS,
                       load_parameter_file(args.params, NODE_NAME) if args.params else {})
-        sxy, sz = float(p["camera_sigma_xy"]), float(p["camera_sigma_z"])
-        data = read_bag(args.bag, args.namespace, bool(p["use_camera_covariance"]),
-                        (sxy, sxy, sz), float(p["gyro_max_rate"]), float(p["max_stamp_jump"]),
-                        int(p["resync_count"]), **input_options(args))
+        sxy, sz = float(p['camera_sigma_xy']), float(p['camera_sigma_z'])
+        data = read_bag(args.bag, args.namespace, bool(p['use_camera_covariance']),
+                        (sxy, sxy, sz), float(p['gyro_max_rate']), float(p['max_stamp_jump']),
+                        int(p['resync_count']), **input_options(args))
     except (ValueError, BagError) as exc:
-        print(f"filter_bag: error: {str(exc).splitlines()[0]}", file=sys.stderr)
+        print(f'filter_bag: error: {str(exc).splitlines()[0]}', file=sys.stderr)
         return 2
     system = run_filter(data, p)
     outputs, fixes = system.take()
@@ -114,15 +117,15 @@ def main(argv=None) -> int:
         write_text(out, state_rows(outputs, system.augment))
         write_text(fixes_path, fix_rows(fixes))
     except OSError as exc:
-        print(f"filter_bag: error: {exc}", file=sys.stderr)
+        print(f'filter_bag: error: {exc}', file=sys.stderr)
         return 2
     st = system.status()
     print(f"filter_bag: {len(outputs)} outputs, {st['applied']} fixes applied, {st['gated']} "
           f"gated, {st['restarts']} restarts; {out}, {fixes_path}")
     if system.check is not None:
-        print(f"filter_bag: {system.check.last.text()}")
+        print(f'filter_bag: {system.check.last.text()}')
     return 0
 
 
-if __name__ == "__main__":
+if __name__ == '__main__':
     sys.exit(main())

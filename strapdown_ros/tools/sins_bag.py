@@ -1,4 +1,5 @@
-"""sins_bag: sins_node's solution from a rosbag2 recording, offline and without ROS.
+"""
+sins_bag: sins_node's solution from a rosbag2 recording, offline and without ROS.
 
     sins_bag BAG [--params FILE] [-p NAME:=VALUE ...] --output OUT [--force]
                  [--namespace NS] [--gyro-topic T] [--accel-topic T]
@@ -60,57 +61,61 @@ work), 3 no solution (e.g. the static alignment never succeeded).
 from __future__ import annotations
 
 import argparse
+from itertools import islice
 import math
 import os
+from pathlib import Path
 import sys
 import time
-from itertools import islice
-from pathlib import Path
 
 import numpy as np
 
-from strapdown_ros.params import SINS_PARAMS, check_all, load_parameter_file
-from strapdown_ros.files import commit_directory, discard_directory, stage_directory
+from strapdown_ros.cli import check_outputs, REPLACED
 from strapdown_ros.earth import geodetic_to_ecef
-from strapdown_ros.sins import SinsOutput, SinsSystem, odometry_arrays
-from strapdown_ros.streams.rate_increments import RATE_RULES
-from strapdown_ros.rotation import to_ros_xyzw
-from strapdown_ros.streams.cdr import stamped_doubles
-from strapdown_ros.text import bounded
+from strapdown_ros.files import commit_directory, discard_directory, stage_directory
+from strapdown_ros.params import check_all, load_parameter_file, parse_overrides, SINS_PARAMS
 from strapdown_ros.recording import BagError, open_reader, resolve_topic
 from strapdown_ros.recording.mcap_records import channel_ids, indexed_mcap, read_topics
 from strapdown_ros.recording.writer import offered_qos
-from strapdown_ros.params import parse_overrides
+from strapdown_ros.rotation import to_ros_xyzw
+from strapdown_ros.sins import odometry_arrays, SinsOutput, SinsSystem
+from strapdown_ros.streams.cdr import stamped_doubles
+from strapdown_ros.streams.rate_increments import RATE_RULES
+from strapdown_ros.text import bounded
 
-__all__ = ["main", "sins_parameters", "rate_from_stamps", "open_input", "run", "CSV_NAV_COLUMNS",
-           "CSV_ATTITUDE_COLUMNS", "BagError"]
+__all__ = ['main', 'sins_parameters', 'rate_from_stamps', 'open_input', 'run', 'CSV_NAV_COLUMNS',
+           'CSV_ATTITUDE_COLUMNS', 'BagError']
 
-GYRO_TOPIC = "imu/delta_theta"
-ACCEL_TOPIC = "imu/delta_velocity"
-VECTOR3_STAMPED = "geometry_msgs/msg/Vector3Stamped"
-OUTPUT_TYPES = {"sins/attitude": "geometry_msgs/msg/QuaternionStamped", "sins/imu": "sensor_msgs/msg/Imu",
-                "sins/odometry": "nav_msgs/msg/Odometry"}
-CSV_NAV_COLUMNS = ["stamp_s", "x", "y", "z", "vx", "vy", "vz", "qx", "qy", "qz", "qw",
-                   "sigma_x", "sigma_y", "sigma_z", "sigma_vx", "sigma_vy", "sigma_vz",
-                   "sigma_psi_x", "sigma_psi_y", "sigma_psi_z"]
-CSV_ATTITUDE_COLUMNS = ["stamp_s", "qx", "qy", "qz", "qw", "sigma_eps_x", "sigma_eps_y", "sigma_eps_z"]
+GYRO_TOPIC = 'imu/delta_theta'
+ACCEL_TOPIC = 'imu/delta_velocity'
+VECTOR3_STAMPED = 'geometry_msgs/msg/Vector3Stamped'
+OUTPUT_TYPES = {'sins/attitude': 'geometry_msgs/msg/QuaternionStamped', 'sins/imu': 'sensor_msgs/msg/Imu',
+                'sins/odometry': 'nav_msgs/msg/Odometry'}
+CSV_NAV_COLUMNS = ['stamp_s', 'x', 'y', 'z', 'vx', 'vy', 'vz', 'qx', 'qy', 'qz', 'qw',
+                   'sigma_x', 'sigma_y', 'sigma_z', 'sigma_vx', 'sigma_vy', 'sigma_vz',
+                   'sigma_psi_x', 'sigma_psi_y', 'sigma_psi_z']
+CSV_ATTITUDE_COLUMNS = ['stamp_s', 'qx', 'qy', 'qz', 'qw', 'sigma_eps_x', 'sigma_eps_y', 'sigma_eps_z']
 RATE_SAMPLE = 20001              # stamps per topic read for the rate (the first ones)
 PROGRESS_PERIOD = 5.0            # wall seconds between progress lines
 
 
 # --- parameters ---------------------------------------------------------------------------------
 def sins_parameters(params_file: str | None = None, overrides: dict | None = None) -> dict:
-    """sins_node parameters from a ROS 2 parameter YAML (``sins_node`` and ``/**`` blocks) plus
-    overrides, validated by the node's specs."""
-    raw = load_parameter_file(params_file, "sins_node") if params_file else {}
+    """
+    sins_node parameters from a ROS 2 parameter YAML (``sins_node`` and ``/**`` blocks) plus
+    overrides, validated by the node's specs.
+    """
+    raw = load_parameter_file(params_file, 'sins_node') if params_file else {}
     raw.update(overrides or {})
     return check_all(SINS_PARAMS, raw)
 
 
 def rate_from_stamps(stamps_ns) -> float | None:
-    """A stream's rate (Hz) from its stamps: 1e9 / the median positive step (ns), rounded to the
+    """
+    A stream's rate (Hz) from its stamps: 1e9 / the median positive step (ns), rounded to the
     fewest decimals whose period is within 1 ns of that step (stamps are whole nanoseconds: a
-    300 Hz stream steps 3333333 or 3333334 ns).  None with fewer than two distinct stamps."""
+    300 Hz stream steps 3333333 or 3333334 ns).  None with fewer than two distinct stamps.
+    """
     d = np.diff(np.asarray(stamps_ns, dtype=np.int64))
     d = d[d > 0]
     if not len(d):
@@ -126,27 +131,31 @@ def rate_from_stamps(stamps_ns) -> float | None:
 
 # --- input ----------------------------------------------------------------------------------------
 def _find_topic(topics: dict, name: str, namespace: str) -> str | None:
-    """An explicit topic (absolute, or relative to the namespace) or the default relative name
-    resolved as calibrate_bag resolves it."""
-    if name.startswith("/"):
+    """
+    An explicit topic (absolute, or relative to the namespace) or the default relative name
+    resolved as calibrate_bag resolves it.
+    """
+    if name.startswith('/'):
         for t in topics:
-            if t.strip("/") == name.strip("/"):
+            if t.strip('/') == name.strip('/'):
                 return t
         return None
     return resolve_topic(topics, name, namespace)
 
 
-IMU = "sensor_msgs/msg/Imu"
+IMU = 'sensor_msgs/msg/Imu'
 IMU_DOUBLES = 37                 # float64 fields of sensor_msgs/Imu after its header (cdr.py)
 IMU_RATE, IMU_ACCEL, IMU_ACCEL_COV = 13, 25, 28     # angular_velocity, linear_acceleration, cov[0]
 READ_CHUNK = 200_000             # records decoded at once
 
 
 class Stream:
-    """One input topic read whole, in bag order: header stamps (ns), the vectors and the header
+    """
+    One input topic read whole, in bag order: header stamps (ns), the vectors and the header
     frame ids (``frame_index`` into ``frame_names``).  ``kind``: ``increments`` (Vector3Stamped
     Δθ/Δv) or ``rates`` (sensor_msgs/Imu: ``values`` the angular velocity, ``accel`` the linear
-    acceleration, NaN where the message has none)."""
+    acceleration, NaN where the message has none).
+    """
 
     def __init__(self, topic, kind, stamps_ns, values, frame_index, frame_names, accel=None):
         self.topic, self.kind = topic, kind
@@ -168,7 +177,7 @@ class Stream:
 class Input:
     """The opened bag: the connections, the streams read whole, the rates from the stamps."""
 
-    def __init__(self, reader, gyro_conn, accel_conn, gyro_rate, accel_rate, path, frame_id="",
+    def __init__(self, reader, gyro_conn, accel_conn, gyro_rate, accel_rate, path, frame_id='',
                  gyro=None, accel=None):
         self.reader, self.gyro_conn, self.accel_conn = reader, gyro_conn, accel_conn
         self.gyro_rate, self.accel_rate, self.path = gyro_rate, accel_rate, path
@@ -178,13 +187,13 @@ class Input:
     @property
     def namespace(self) -> str:
         """The namespace of the gyro topic ('' or '/ns') for the output topics."""
-        t = "/" + self.gyro_conn.topic.strip("/")
-        rel = "/" + GYRO_TOPIC
-        return t[:-len(rel)] if t.endswith(rel) else ""
+        t = '/' + self.gyro_conn.topic.strip('/')
+        rel = '/' + GYRO_TOPIC
+        return t[:-len(rel)] if t.endswith(rel) else ''
 
     @property
     def imu_input(self) -> bool:
-        return self.gyro is not None and self.gyro.kind == "rates"
+        return self.gyro is not None and self.gyro.kind == 'rates'
 
     def close(self):
         self.reader.close()
@@ -195,13 +204,15 @@ def _stamp_ns(msg) -> int:
 
 
 def _unreadable(path, exc) -> BagError:
-    return BagError(f"{path}: unreadable record ({type(exc).__name__}: "
+    return BagError(f'{path}: unreadable record ({type(exc).__name__}: '
                     f"{bounded(str(exc).splitlines()[0]) if str(exc) else ''})")
 
 
 def _decode(reader, conn, records: list):
-    """Stamps, the float64 fields and the frames of a chunk of records: numpy over the plain CDR
-    layout (streams/cdr.py), rosbags' deserializer for any record in another encoding."""
+    """
+    Stamps, the float64 fields and the frames of a chunk of records: numpy over the plain CDR
+    layout (streams/cdr.py), rosbags' deserializer for any record in another encoding.
+    """
     imu = conn.msgtype == IMU
     st, vals, idx, names, bad = stamped_doubles(records, IMU_DOUBLES if imu else 3)
     known = {n: k for k, n in enumerate(names)}
@@ -225,22 +236,24 @@ def _decode(reader, conn, records: list):
 
 
 def _records(reader, conns: list):
-    """(connection, log time, raw) of the connections in bag order: the bag's own reader when
-    there is one bag (rosbags' AnyReader merges several bags by time, at a cost per record)."""
-    owners = {id(getattr(c, "owner", None)) for c in conns}
-    inner = getattr(reader, "readers", None)
+    """
+    (connection, log time, raw) of the connections in bag order: the bag's own reader when
+    there is one bag (rosbags' AnyReader merges several bags by time, at a cost per record).
+    """
+    owners = {id(getattr(c, 'owner', None)) for c in conns}
+    inner = getattr(reader, 'readers', None)
     if inner is not None and len(inner) == 1 and owners == {id(inner[0])}:
         return inner[0].messages(connections=conns)
     return reader.messages(connections=conns)
 
 
-def _read_streams(reader, conns: list, path, progress=None) -> dict:
+def read_streams(reader, conns: list, path, progress=None) -> dict:
     """Every record of the connections, decoded a chunk at a time: {topic: Stream}."""
     t0, t1 = reader.start_time, reader.end_time
     conn_of = {c.topic: c for c in conns}
     parts: dict = {c.topic: [] for c in conns}
     order: dict = {c.topic: [] for c in conns}          # (log times, chunk) of the fast path
-    state = {"next": time.monotonic() + PROGRESS_PERIOD}
+    state = {'next': time.monotonic() + PROGRESS_PERIOD}
     storage = indexed_mcap(reader)
     try:
         if storage is not None:                       # one MCAP file with a chunk index
@@ -251,8 +264,8 @@ def _read_streams(reader, conns: list, path, progress=None) -> dict:
                                                 got.rows if got.rows is not None else got.records))
                     order[topic].append((got.log_ns, k))
                 now = time.monotonic()
-                if progress is not None and now >= state["next"] and chunk:
-                    state["next"] = now + PROGRESS_PERIOD
+                if progress is not None and now >= state['next'] and chunk:
+                    state['next'] = now + PROGRESS_PERIOD
                     progress(int(max(int(g.log_ns[-1]) for g in chunk.values())), t0, t1)
         records = _records(reader, conns) if storage is None else iter(())
         while True:
@@ -265,8 +278,8 @@ def _read_streams(reader, conns: list, path, progress=None) -> dict:
                 if raws:
                     parts[topic].append(_decode(reader, conn, raws))
             now = time.monotonic()
-            if progress is not None and now >= state["next"]:
-                state["next"] = now + PROGRESS_PERIOD
+            if progress is not None and now >= state['next']:
+                state['next'] = now + PROGRESS_PERIOD
                 progress(chunk[-1][1], t0, t1)
     except BagError:
         raise
@@ -300,49 +313,51 @@ def _read_streams(reader, conns: list, path, progress=None) -> dict:
             accel = vals[:, IMU_ACCEL:IMU_ACCEL + 3].copy()
             accel[vals[:, IMU_ACCEL_COV] == -1.0] = np.nan          # REP-145: no acceleration
             rate = np.ascontiguousarray(vals[:, IMU_RATE:IMU_RATE + 3])
-            out[topic] = Stream(topic, "rates", st, rate, idx, names, accel)
+            out[topic] = Stream(topic, 'rates', st, rate, idx, names, accel)
         else:
-            out[topic] = Stream(topic, "increments", st, vals, idx, names)
+            out[topic] = Stream(topic, 'increments', st, vals, idx, names)
     return out
 
 
-def open_input(bag, namespace: str = "", gyro_topic: str | None = None, accel_topic: str | None = None,
+def open_input(bag, namespace: str = '', gyro_topic: str | None = None, accel_topic: str | None = None,
                need_accel: bool = False, imu_topic: str | None = None, progress=None) -> Input:
-    """Open the bag, find the topics (types checked), read the two streams whole (or the one
+    """
+    Open the bag, find the topics (types checked), read the two streams whole (or the one
     sensor_msgs/Imu stream), take the rates from their first stamps and the body frame from
-    the Δθ headers (the most frequent non-empty frame id).  Raises BagError."""
+    the Δθ headers (the most frequent non-empty frame id).  Raises BagError.
+    """
 
     path = Path(bag)
     reader = open_reader(path)
     try:
         topics = {c.topic: c.msgtype for c in reader.connections}
-        where = f" under namespace {bounded(namespace)!r}" if namespace.strip("/") else ""
+        where = f' under namespace {bounded(namespace)!r}' if namespace.strip('/') else ''
         listing = f"; topics in the bag: {bounded(', '.join(sorted(topics)) or 'none', 400)}"
         if imu_topic:
             gyro_topic = accel_topic = imu_topic
         g = _find_topic(topics, gyro_topic or GYRO_TOPIC, namespace)
         if g is None:
-            raise BagError(f"{path}: no {bounded(gyro_topic or GYRO_TOPIC)}{where}{listing}")
+            raise BagError(f'{path}: no {bounded(gyro_topic or GYRO_TOPIC)}{where}{listing}')
         if topics[g] not in (VECTOR3_STAMPED, IMU):
-            raise BagError(f"{bounded(g)} has type {bounded(topics[g])}, expected "
-                           f"{VECTOR3_STAMPED} or {IMU}")
+            raise BagError(f'{bounded(g)} has type {bounded(topics[g])}, expected '
+                           f'{VECTOR3_STAMPED} or {IMU}')
         if topics[g] == IMU and not accel_topic:
             accel_topic = g                           # Δv from the same Imu messages
         a = _find_topic(topics, accel_topic or ACCEL_TOPIC, namespace)
         if a is None and (need_accel or accel_topic):
-            why = " (navigation needs it)" if need_accel else ""
+            why = ' (navigation needs it)' if need_accel else ''
             name = bounded(accel_topic or ACCEL_TOPIC)
-            raise BagError(f"{path}: no {name}{where}{why}{listing}")
+            raise BagError(f'{path}: no {name}{where}{why}{listing}')
         if a is not None and a != g and topics[a] != VECTOR3_STAMPED:
-            also = f" (or the Imu topic {bounded(g)} itself)" if topics[g] == IMU else ""
-            raise BagError(f"{bounded(a)} has type {bounded(topics[a])}, expected "
-                           f"{VECTOR3_STAMPED}{also}")
+            also = f' (or the Imu topic {bounded(g)} itself)' if topics[g] == IMU else ''
+            raise BagError(f'{bounded(a)} has type {bounded(topics[a])}, expected '
+                           f'{VECTOR3_STAMPED}{also}')
         if a is not None and a == g and topics[g] != IMU:
-            raise BagError(f"{bounded(g)} cannot be both the Δθ and the Δv topic")
+            raise BagError(f'{bounded(g)} cannot be both the Δθ and the Δv topic')
         gc = next(c for c in reader.connections if c.topic == g)
         ac = next((c for c in reader.connections if c.topic == a), None) if a else None
         conns = [c for c in reader.connections if c.topic in {g, a}]
-        streams = _read_streams(reader, conns, path, progress)
+        streams = read_streams(reader, conns, path, progress)
     except BagError:
         reader.close()
         raise
@@ -351,8 +366,8 @@ def open_input(bag, namespace: str = "", gyro_topic: str | None = None, accel_to
     g_rate = rate_from_stamps(gs.stamps_ns[:RATE_SAMPLE])
     if g_rate is None:
         reader.close()
-        raise BagError(f"{path}: {bounded(g)} has {len(gs)} message(s) with distinct stamps; "
-                       "at least 2 are needed")
+        raise BagError(f'{path}: {bounded(g)} has {len(gs)} message(s) with distinct stamps; '
+                       'at least 2 are needed')
     if a is None:
         a_rate = None
     elif a == g:
@@ -362,17 +377,19 @@ def open_input(bag, namespace: str = "", gyro_topic: str | None = None, accel_to
         a_rate = rate_from_stamps(accel_stream.stamps_ns[:RATE_SAMPLE])
     if a and a_rate is None and need_accel:
         reader.close()
-        raise BagError(f"{path}: {bounded(a)} has fewer than 2 messages with distinct stamps (or "
-                       "no "
-                       "acceleration); navigation needs it")
+        raise BagError(f'{path}: {bounded(a)} has fewer than 2 messages with distinct stamps (or '
+                       'no '
+                       'acceleration); navigation needs it')
     named = [(n, c) for n, c in gs.frames() if n]
-    frame_id = named[0][0] if named else ""
+    frame_id = named[0][0] if named else ''
     return Input(reader, gc, ac, g_rate, a_rate, path, frame_id, gs, accel_stream)
 
 
 def _merged(g_stamps, a_stamps):
-    """(is_gyro, index) of two streams merged by stamp, each in its own (bag) order, Δv first at
-    equal stamps (the order sins_node is fed in; the one-message path)."""
+    """
+    (is_gyro, index) of two streams merged by stamp, each in its own (bag) order, Δv first at
+    equal stamps (the order sins_node is fed in; the one-message path).
+    """
     g_ns = g_stamps.tolist()
     a_ns = a_stamps.tolist() if a_stamps is not None else []
     i = j = 0
@@ -391,14 +408,16 @@ class CsvOutput:
 
     def __init__(self, path: Path, navigation: bool):
         self.path, self.navigation = Path(path), navigation
-        self.tmp = self.path.with_name(self.path.name + ".part")
-        self.fh = open(self.tmp, "w", encoding="utf-8", newline="")
-        self.fh.write(",".join(CSV_NAV_COLUMNS if navigation else CSV_ATTITUDE_COLUMNS) + "\n")
+        self.tmp = self.path.with_name(self.path.name + '.part')
+        self.fh = open(self.tmp, 'w', encoding='utf-8', newline='')
+        self.fh.write(','.join(CSV_NAV_COLUMNS if navigation else CSV_ATTITUDE_COLUMNS) + '\n')
         self.rows = 0
 
     def write(self, out: SinsOutput) -> None:
-        """One row per navigation step (stamp, position, velocity, q, σ) or, without navigation,
-        per attitude update (stamp, q, σ)."""
+        """
+        One row per navigation step (stamp, position, velocity, q, σ) or, without navigation,
+        per attitude update (stamp, q, σ).
+        """
         rec = out.navigation if self.navigation else out.attitude
         k = len(rec)
         if not k:
@@ -409,8 +428,8 @@ class CsvOutput:
         cols = [sec[:, None], nsec[:, None]] + ([rec.position, rec.velocity] if self.navigation
                                                 else []) + [q]
         table = np.hstack([np.asarray(c, dtype=float) for c in cols])   # sec, ns exact in float64
-        head = "%d.%09d" + ",%.17g" * (table.shape[1] - 2)                 # = "{:.17g}" per value
-        tail = ",%.17g" * sig.shape[1]
+        head = '%d.%09d' + ',%.17g' * (table.shape[1] - 2)                 # = "{:.17g}" per value
+        tail = ',%.17g' * sig.shape[1]
         for a in range(0, k, 4096):
             part, s_part = table[a:a + 4096], sig[a:a + 4096]
             m = len(part)
@@ -419,15 +438,15 @@ class CsvOutput:
             runs = np.flatnonzero(new)
             if len(runs) * 4 > m:                     # the σ change at every row: one format
                 flat = np.hstack([part, s_part]).ravel().tolist()
-                self.fh.write(((head + tail + "\n") * m) % tuple(flat))
+                self.fh.write(((head + tail + '\n') * m) % tuple(flat))
                 continue
             # the navigation σ change once per covariance epoch: each distinct row formatted once
             flat = s_part[runs].ravel().tolist()
-            texts = ((tail + "\n") * len(runs) % tuple(flat)).split("\n")[:-1]
+            texts = ((tail + '\n') * len(runs) % tuple(flat)).split('\n')[:-1]
             rows = np.empty((m, part.shape[1] + 1), dtype=object)
             rows[:, :-1] = part
             rows[:, -1] = np.array(texts, dtype=object)[np.cumsum(new) - 1]
-            self.fh.write(((head + "%s\n") * m) % tuple(rows.ravel().tolist()))
+            self.fh.write(((head + '%s\n') * m) % tuple(rows.ravel().tolist()))
         self.rows += k
 
     def close(self, ok: bool = True) -> None:
@@ -438,7 +457,7 @@ class CsvOutput:
             self.tmp.unlink(missing_ok=True)
 
     def summary(self) -> str:
-        return f"{self.path} ({self.rows} rows)"
+        return f'{self.path} ({self.rows} rows)'
 
 
 class McapOutput:
@@ -446,22 +465,22 @@ class McapOutput:
 
     def __init__(self, path: Path, system: SinsSystem, namespace: str):
         from rosbags.rosbag2 import StoragePlugin, Writer
-        from rosbags.typesys import Stores, get_typestore
+        from rosbags.typesys import get_typestore, Stores
 
         self.path = Path(path)
         self.store = get_typestore(Stores.ROS2_JAZZY)
         self.T = self.store.types
         p = system.p
-        self.frame_id, self.ref_frame = p["frame_id"], p["reference_frame_id"]
-        self.earth_frame = p["earth_frame_id"]
+        self.frame_id, self.ref_frame = p['frame_id'], p['reference_frame_id']
+        self.earth_frame = p['earth_frame_id']
         self.rate_variance = system.rate_variance
         g, a = system.rate_variance, system.accel_variance
         self.rate_cov = np.diag([g, g, g]).reshape(9)
         self.accel_cov = np.diag([a, a, a]).reshape(9)
         self.no_accel_cov = np.zeros(9)
         self.no_accel_cov[0] = -1.0
-        names = ["sins/attitude", "sins/imu"] + (["sins/odometry"] if system.nav is not None else [])
-        self.topics = {n: f"{namespace}/{n}" for n in names}
+        names = ['sins/attitude', 'sins/imu'] + (['sins/odometry'] if system.nav is not None else [])
+        self.topics = {n: f'{namespace}/{n}' for n in names}
         self.counts = {n: 0 for n in names}
         # written into a hidden sibling, renamed into place by close(): no half bag on a failure,
         # an old bag (--force) replaced only by a complete one
@@ -473,58 +492,62 @@ class McapOutput:
         except BaseException:
             discard_directory(self.staged)
             raise
-        qos = offered_qos("stream", int(p["qos_depth"]))
+        qos = offered_qos('stream', int(p['qos_depth']))
         self.conns = {n: self.writer.add_connection(self.topics[n], OUTPUT_TYPES[n], typestore=self.store,
                                                     offered_qos_profiles=[qos]) for n in names}
         # one message of each topic, serialised by rosbags: the template of its CDR rows
         T, z3 = self.T, np.zeros(3)
         self.templates: dict = {}
-        self._template("sins/attitude", T["geometry_msgs/msg/QuaternionStamped"](
+        self._template('sins/attitude', T['geometry_msgs/msg/QuaternionStamped'](
             header=self._header(0, self.ref_frame), quaternion=self._quat(np.zeros(4))), 4)
-        self._template("sins/imu", T["sensor_msgs/msg/Imu"](
+        self._template('sins/imu', T['sensor_msgs/msg/Imu'](
             header=self._header(0, self.frame_id), orientation=self._quat(np.zeros(4)),
             orientation_covariance=np.zeros(9), angular_velocity=self._vec(z3),
             angular_velocity_covariance=np.zeros(9), linear_acceleration=self._vec(z3),
             linear_acceleration_covariance=np.zeros(9)), 37)
-        if "sins/odometry" in self.conns:
-            point = T["geometry_msgs/msg/Point"](x=0.0, y=0.0, z=0.0)
-            pose = T["geometry_msgs/msg/Pose"](position=point, orientation=self._quat(np.zeros(4)))
-            twist = T["geometry_msgs/msg/Twist"](linear=self._vec(z3), angular=self._vec(z3))
-            self._template("sins/odometry", T["nav_msgs/msg/Odometry"](
+        if 'sins/odometry' in self.conns:
+            point = T['geometry_msgs/msg/Point'](x=0.0, y=0.0, z=0.0)
+            pose = T['geometry_msgs/msg/Pose'](position=point, orientation=self._quat(np.zeros(4)))
+            twist = T['geometry_msgs/msg/Twist'](linear=self._vec(z3), angular=self._vec(z3))
+            self._template('sins/odometry', T['nav_msgs/msg/Odometry'](
                 header=self._header(0, self.earth_frame), child_frame_id=self.frame_id,
-                pose=T["geometry_msgs/msg/PoseWithCovariance"](pose=pose, covariance=np.zeros(36)),
-                twist=T["geometry_msgs/msg/TwistWithCovariance"](twist=twist,
+                pose=T['geometry_msgs/msg/PoseWithCovariance'](pose=pose, covariance=np.zeros(36)),
+                twist=T['geometry_msgs/msg/TwistWithCovariance'](twist=twist,
                                                                  covariance=np.zeros(36))), 85)
 
     def _header(self, ns: int, frame_id: str):
         T = self.T
         ns = int(ns)
-        return T["std_msgs/msg/Header"](stamp=T["builtin_interfaces/msg/Time"](
+        return T['std_msgs/msg/Header'](stamp=T['builtin_interfaces/msg/Time'](
             sec=ns // 1_000_000_000, nanosec=ns % 1_000_000_000), frame_id=frame_id)
 
     def _quat(self, q):
-        return self.T["geometry_msgs/msg/Quaternion"](x=float(q[1]), y=float(q[2]), z=float(q[3]), w=float(q[0]))
+        return self.T['geometry_msgs/msg/Quaternion'](x=float(q[1]), y=float(q[2]), z=float(q[3]), w=float(q[0]))
 
     def _vec(self, v):
-        return self.T["geometry_msgs/msg/Vector3"](x=float(v[0]), y=float(v[1]), z=float(v[2]))
+        return self.T['geometry_msgs/msg/Vector3'](x=float(v[0]), y=float(v[1]), z=float(v[2]))
 
     def _template(self, name: str, msg, doubles: int) -> None:
-        """The CDR bytes of one message of the topic (its constant frame ids), from which every
-        message is made by writing its stamp and its float64 fields (:meth:`_rows`)."""
+        """
+        The CDR bytes of one message of the topic (its constant frame ids), from which every
+        message is made by writing its stamp and its float64 fields (:meth:`_rows`).
+        """
         raw = np.frombuffer(bytes(self.store.serialize_cdr(msg, OUTPUT_TYPES[name])), np.uint8)
         self.templates[name] = (raw, len(raw) - 8 * doubles)
 
     def _rows(self, name: str, stamps_ns, fields: np.ndarray) -> np.ndarray:
-        """(n, L) uint8: the messages of a topic in CDR (header stamp, then the float64 fields
-        after the constant part); the same bytes as rosbags' serializer gives."""
+        """
+        (n, L) uint8: the messages of a topic in CDR (header stamp, then the float64 fields
+        after the constant part); the same bytes as rosbags' serializer gives.
+        """
         raw, off = self.templates[name]
         n = len(stamps_ns)
         rows = np.empty((n, len(raw)), np.uint8)
         rows[:] = raw
         sec, nsec = np.divmod(np.asarray(stamps_ns, dtype=np.int64), 1_000_000_000)
-        rows[:, 4:8] = sec.astype("<i4").view(np.uint8).reshape(n, 4)
-        rows[:, 8:12] = nsec.astype("<u4").view(np.uint8).reshape(n, 4)
-        rows[:, off:] = np.ascontiguousarray(fields, dtype="<f8").view(np.uint8).reshape(n, -1)
+        rows[:, 4:8] = sec.astype('<i4').view(np.uint8).reshape(n, 4)
+        rows[:, 8:12] = nsec.astype('<u4').view(np.uint8).reshape(n, 4)
+        rows[:, off:] = np.ascontiguousarray(fields, dtype='<f8').view(np.uint8).reshape(n, -1)
         return rows
 
     def _put_rows(self, name: str, stamps_ns, rows: np.ndarray) -> None:
@@ -538,8 +561,8 @@ class McapOutput:
         at = out.attitude
         if len(at):
             q = to_ros_xyzw(at.attitude).reshape(-1, 4)
-            rows = self._rows("sins/attitude", at.stamp_ns, q)
-            self._put_rows("sins/attitude", at.stamp_ns, rows)
+            rows = self._rows('sins/attitude', at.stamp_ns, q)
+            self._put_rows('sins/attitude', at.stamp_ns, rows)
         im = out.imu
         m = len(im)
         if m:
@@ -549,15 +572,15 @@ class McapOutput:
                                 np.broadcast_to(self.rate_cov, (m, 9)),
                                 np.where(has[:, None], im.specific_force, 0.0),
                                 np.where(has[:, None], self.accel_cov, self.no_accel_cov)])
-            self._put_rows("sins/imu", im.stamp_ns, self._rows("sins/imu", im.stamp_ns, fields))
+            self._put_rows('sins/imu', im.stamp_ns, self._rows('sins/imu', im.stamp_ns, fields))
         nb = out.navigation
         k = len(nb)
         if k:
             pose_cov, v_body, twist_cov = odometry_arrays(nb, self.rate_variance)
             fields = np.hstack([nb.position, to_ros_xyzw(nb.attitude).reshape(-1, 4), pose_cov,
                                 v_body, np.zeros((k, 3)), twist_cov])
-            rows = self._rows("sins/odometry", nb.stamp_ns, fields)
-            self._put_rows("sins/odometry", nb.stamp_ns, rows)
+            rows = self._rows('sins/odometry', nb.stamp_ns, fields)
+            self._put_rows('sins/odometry', nb.stamp_ns, rows)
 
     def close(self, ok: bool = True) -> None:
         try:
@@ -572,47 +595,50 @@ class McapOutput:
         return sum(self.counts.values())
 
     def summary(self) -> str:
-        return f"{self.path} (MCAP: " + ", ".join(f"{self.topics[n]} {c}" for n, c in self.counts.items()) + ")"
+        return f'{self.path} (MCAP: ' + ', '.join(f'{self.topics[n]} {c}' for n, c in self.counts.items()) + ')'
 
 
 def _check_output(out: str, bag: str, force: bool, params: str | None = None) -> None:
-    """OUT can be written (the tools' one output rule,
+    """
+    OUT can be written (the tools' one output rule,
     :func:`~strapdown_ros.cli.check_outputs`: not an input, absent unless --force, its
-    directory takes a write); a directory is replaced only when it is a rosbag2 bag or empty."""
-    from strapdown_ros.cli import REPLACED, check_outputs
+    directory takes a write); a directory is replaced only when it is a rosbag2 bag or empty.
+    """
 
-    check_outputs([("--output", out, REPLACED)], [("bag", bag), ("--params", params)], force)
+    check_outputs([('--output', out, REPLACED)], [('bag', bag), ('--params', params)], force)
     p = Path(out)
-    not_a_bag = (not (p / "metadata.yaml").exists()) and any(p.iterdir()) if p.is_dir() else False
-    if p.is_dir() and (out.lower().endswith(".csv") or not_a_bag):
-        raise ValueError(f"--output {out} is a directory that is not a rosbag2 bag; "
-                         "not replacing it")
+    not_a_bag = (not (p / 'metadata.yaml').exists()) and any(p.iterdir()) if p.is_dir() else False
+    if p.is_dir() and (out.lower().endswith('.csv') or not_a_bag):
+        raise ValueError(f'--output {out} is a directory that is not a rosbag2 bag; '
+                         'not replacing it')
 
 
 # --- the run ----------------------------------------------------------------------------------------
-def run(inp: Input, make_system, sink, say=None, rate_rule: str = "trapezoid",
+def run(inp: Input, make_system, sink, say=None, rate_rule: str = 'trapezoid',
         system: SinsSystem | None = None):
-    """Feed the bag's streams through a system made by ``make_system()`` and write every output
+    """
+    Feed the bag's streams through a system made by ``make_system()`` and write every output
     to ``sink`` (``sink.write(SinsOutput)``); ``system``: a fresh one already made.  Returns
     (counts, system).
 
     The streams are screened whole by the node's rules (:meth:`SinsSystem.screen`, vectorised)
     and fed in large blocks (:meth:`SinsSystem.feed`); when a stream's stamps resynchronise, a
-    fresh system takes every message one by one in stamp order instead (sins_node's path)."""
+    fresh system takes every message one by one in stamp order instead (sins_node's path).
+    """
     g = inp.gyro
-    n = {"gyro": len(g), "accel": len(inp.accel) if inp.accel is not None else 0}
+    n = {'gyro': len(g), 'accel': len(inp.accel) if inp.accel is not None else 0}
     if inp.imu_input and inp.accel is None and inp.accel_conn is not None:
-        n["accel"] = int(np.sum(~np.all(np.isnan(g.accel), axis=1)))      # Imu messages with Δv
+        n['accel'] = int(np.sum(~np.all(np.isnan(g.accel), axis=1)))      # Imu messages with Δv
     span = max(inp.reader.end_time - inp.reader.start_time, 1)
-    state = {"next": time.monotonic() + PROGRESS_PERIOD}
+    state = {'next': time.monotonic() + PROGRESS_PERIOD}
 
     def progress(ns, origin):
         now = time.monotonic()
-        if say is not None and now >= state["next"] and origin is not None:
-            state["next"] = now + PROGRESS_PERIOD
+        if say is not None and now >= state['next'] and origin is not None:
+            state['next'] = now + PROGRESS_PERIOD
             done = (ns - origin) * 1e-9
             total = span * 1e-9
-            say(f"{done:.1f} / {total:.1f} s of the recording ({100.0 * done / total:.0f}%)")
+            say(f'{done:.1f} / {total:.1f} s of the recording ({100.0 * done / total:.0f}%)')
 
     def streams(system):
         """(gyro (stamps, values, frame_index, frame_names), accel (...) or None) as increments."""
@@ -632,8 +658,8 @@ def run(inp: Input, make_system, sink, say=None, rate_rule: str = "trapezoid",
 
     system = system if system is not None else make_system()
     gyro_in, accel_in = streams(system)
-    sg = system.screen("gyro", *gyro_in)
-    sa = system.screen("accel", *accel_in) if accel_in is not None and sg is not None else None
+    sg = system.screen('gyro', *gyro_in)
+    sa = system.screen('accel', *accel_in) if accel_in is not None and sg is not None else None
     if sg is not None and (accel_in is None or sa is not None):
         for out in system.feed(sg, sa):
             sink.write(out)
@@ -641,13 +667,13 @@ def run(inp: Input, make_system, sink, say=None, rate_rule: str = "trapezoid",
         return n, system
     # a stamp resynchronisation: the node's path, message by message, from a fresh system
     if say is not None:
-        say("note: the stamps resynchronise: processing message by message")
+        say('note: the stamps resynchronise: processing message by message')
     system = make_system()
     gyro_in, accel_in = streams(system)
     offer_g, offer_a = system.offer_gyro, system.offer_accel
 
     def frame(s, k):
-        return s[3][s[2][k]] if s[2] is not None else ""
+        return s[3][s[2][k]] if s[2] is not None else ''
     for is_gyro, k in _merged(gyro_in[0], accel_in[0] if accel_in is not None else None):
         if is_gyro:
             v = gyro_in[1][k]
@@ -670,81 +696,81 @@ def _summary(args, inp: Input, system: SinsSystem, sink, counts: dict, rates: di
     st = system.status()
     g, a = system.gyro_check, system.accel_check
     g_topic = bounded(inp.gyro_conn.topic)
-    a_topic = bounded(inp.accel_conn.topic) if inp.accel_conn is not None else ""
+    a_topic = bounded(inp.accel_conn.topic) if inp.accel_conn is not None else ''
     if inp.accel_conn is None:
-        tail = ", no Δv"
+        tail = ', no Δv'
     elif inp.imu_input and inp.accel is None:
         tail = f", {counts['accel']} with linear acceleration"
     else:
         tail = f", {counts['accel']} Δv from {a_topic}"
     if inp.imu_input:
         head = (f"sins_bag: {args.bag}: {counts['gyro']} sensor_msgs/Imu from {g_topic} "
-                f"(rates → increments, rule {args.rate_rule})")
+                f'(rates → increments, rule {args.rate_rule})')
     else:
         head = f"sins_bag: {args.bag}: {counts['gyro']} Δθ from {g_topic}"
     lines = [head + tail + f"; gyro_rate {rates['gyro_rate']:g} Hz, "
              f"accel_rate {rates['accel_rate']:g} Hz"]
     checks = [g, a] + list(system.rate_checks.values())
     drops = {k: sum(getattr(c, attr) for c in checks)
-             for k, attr in (("NaN", "nan"), ("out of range", "out_of_range"),
-                             ("out of order", "out_of_order"), ("duplicate", "duplicate"),
-                             ("stamp outlier", "stamp_outliers"))}
+             for k, attr in (('NaN', 'nan'), ('out of range', 'out_of_range'),
+                             ('out of order', 'out_of_order'), ('duplicate', 'duplicate'),
+                             ('stamp outlier', 'stamp_outliers'))}
     drops = {k: v for k, v in drops.items() if v}
     fm = system.frame_mismatch
-    if fm["gyro"] or fm["accel"]:
-        drops[f"frame mismatch ({'rejected' if system.reject_frames else 'used'})"] = fm["gyro"] + fm["accel"]
-    lines.append("  dropped: " + (", ".join(f"{k} {v}" for k, v in drops.items()) if drops else "none"))
+    if fm['gyro'] or fm['accel']:
+        drops[f"frame mismatch ({'rejected' if system.reject_frames else 'used'})"] = fm['gyro'] + fm['accel']
+    lines.append('  dropped: ' + (', '.join(f'{k} {v}' for k, v in drops.items()) if drops else 'none'))
     if g.missing or g.resyncs:
-        lines.append(f"  GYRO: {g.missing} increment(s) missing in {g.gaps} gap(s), {g.resyncs} stamp resync(s): "
-                     "the rotation during them is lost")
+        lines.append(f'  GYRO: {g.missing} increment(s) missing in {g.gaps} gap(s), {g.resyncs} stamp resync(s): '
+                     'the rotation during them is lost')
     if system.nonfinite:
-        lines.append(f"  {system.nonfinite} non-finite update(s) discarded")
-    stall = system.accel_stall(a_topic or "imu/delta_velocity")   # sins_node's /diagnostics rule
+        lines.append(f'  {system.nonfinite} non-finite update(s) discarded')
+    stall = system.accel_stall(a_topic or 'imu/delta_velocity')   # sins_node's /diagnostics rule
     if stall is not None:
         lines.append(f"  WARNING: {stall.text}; sins_node's /diagnostics: {stall.level.upper()}")
     line = f"  {st['updates']} attitude updates ({st['coning_algorithm']}, {st['samples_per_update']} samples/update)"
     if system.nav is not None:
         line += f"; navigation {st['navigation_state']}, {st.get('navigation_steps', 0)} steps"
-        if st.get("navigation_steps_accel_extrapolated"):
+        if st.get('navigation_steps_accel_extrapolated'):
             line += f" ({st['navigation_steps_accel_extrapolated']} with Δv extrapolated)"
-        if "alignment" in st:
+        if 'alignment' in st:
             line += f"; alignment: {st['alignment']}"
     if stall is not None:
-        line += f"; accel stall {stall.seconds:.3g} s"
+        line += f'; accel stall {stall.seconds:.3g} s'
     lines.append(line)
-    lines.append(f"  wrote {sink.summary()}")
-    return "\n".join(lines)
+    lines.append(f'  wrote {sink.summary()}')
+    return '\n'.join(lines)
 
 
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(prog="sins_bag", description=__doc__,
+    ap = argparse.ArgumentParser(prog='sins_bag', description=__doc__,
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("bag", help="rosbag2 bag directory, or a .mcap / .db3 file")
-    ap.add_argument("--output", "-o", required=True, metavar="OUT",
-                    help="OUT.csv: the solution as CSV; otherwise an MCAP bag directory with sins/* topics")
-    ap.add_argument("--params", metavar="FILE", help="ROS 2 parameter YAML (sins_node and /** blocks)")
-    ap.add_argument("-p", "--param", action="append", default=[], metavar="NAME:=VALUE",
-                    help="sins_node parameter override (repeatable), as ros2 run -p")
-    ap.add_argument("--namespace", default="", help="topic namespace, e.g. /robot1")
-    ap.add_argument("--gyro-topic", metavar="TOPIC", help=f"Δθ topic (default {GYRO_TOPIC})")
-    ap.add_argument("--accel-topic", metavar="TOPIC", help=f"Δv topic (default {ACCEL_TOPIC})")
-    ap.add_argument("--imu-topic", metavar="TOPIC",
-                    help="a sensor_msgs/msg/Imu topic giving both Δθ (angular_velocity) and Δv "
-                         "(linear_acceleration) by --rate-rule")
-    ap.add_argument("--rate-rule", choices=RATE_RULES, default="trapezoid",
-                    help="how an Imu rate sample becomes an increment "
-                         "(strapdown_ros.streams.rate_increments; default trapezoid)")
-    ap.add_argument("--force", action="store_true", help="replace OUT if it exists")
-    ap.add_argument("--quiet", action="store_true", help="no progress lines")
+    ap.add_argument('bag', help='rosbag2 bag directory, or a .mcap / .db3 file')
+    ap.add_argument('--output', '-o', required=True, metavar='OUT',
+                    help='OUT.csv: the solution as CSV; otherwise an MCAP bag directory with sins/* topics')
+    ap.add_argument('--params', metavar='FILE', help='ROS 2 parameter YAML (sins_node and /** blocks)')
+    ap.add_argument('-p', '--param', action='append', default=[], metavar='NAME:=VALUE',
+                    help='sins_node parameter override (repeatable), as ros2 run -p')
+    ap.add_argument('--namespace', default='', help='topic namespace, e.g. /robot1')
+    ap.add_argument('--gyro-topic', metavar='TOPIC', help=f'Δθ topic (default {GYRO_TOPIC})')
+    ap.add_argument('--accel-topic', metavar='TOPIC', help=f'Δv topic (default {ACCEL_TOPIC})')
+    ap.add_argument('--imu-topic', metavar='TOPIC',
+                    help='a sensor_msgs/msg/Imu topic giving both Δθ (angular_velocity) and Δv '
+                         '(linear_acceleration) by --rate-rule')
+    ap.add_argument('--rate-rule', choices=RATE_RULES, default='trapezoid',
+                    help='how an Imu rate sample becomes an increment '
+                         '(strapdown_ros.streams.rate_increments; default trapezoid)')
+    ap.add_argument('--force', action='store_true', help='replace OUT if it exists')
+    ap.add_argument('--quiet', action='store_true', help='no progress lines')
     args = ap.parse_args(argv)
 
     def err(text: str) -> int:
-        print(f"sins_bag: error: {text}", file=sys.stderr)
+        print(f'sins_bag: error: {text}', file=sys.stderr)
         return 2
 
     def say(text: str) -> None:
         if not args.quiet:
-            print(f"sins_bag: {text}", file=sys.stderr, flush=True)
+            print(f'sins_bag: {text}', file=sys.stderr, flush=True)
 
     inp = None
     try:
@@ -752,50 +778,50 @@ def main(argv=None) -> int:
         p = sins_parameters(args.params, over)              # every parameter checked before the bag
         _check_output(args.output, args.bag, args.force, args.params)
         if args.imu_topic and (args.gyro_topic or args.accel_topic):
-            raise ValueError("--imu-topic gives both streams: not with --gyro-topic/--accel-topic")
+            raise ValueError('--imu-topic gives both streams: not with --gyro-topic/--accel-topic')
 
         def reading(ns, t0, t1):
             span = max(t1 - t0, 1) * 1e-9
-            say(f"reading: {(ns - t0) * 1e-9:.1f} / {span:.1f} s of the recording")
+            say(f'reading: {(ns - t0) * 1e-9:.1f} / {span:.1f} s of the recording')
         inp = open_input(args.bag, args.namespace, args.gyro_topic, args.accel_topic,
-                         need_accel=bool(p["navigation"]), imu_topic=args.imu_topic,
+                         need_accel=bool(p['navigation']), imu_topic=args.imu_topic,
                          progress=reading)
-        if inp.imu_input and "accel_rate" not in over and inp.accel is None:
+        if inp.imu_input and 'accel_rate' not in over and inp.accel is None:
             inp.accel_rate = inp.gyro_rate            # Δv from the same Imu messages
-        rates = {"gyro_rate": inp.gyro_rate, "accel_rate": inp.accel_rate}
-        for name in ("gyro_rate", "accel_rate"):
+        rates = {'gyro_rate': inp.gyro_rate, 'accel_rate': inp.accel_rate}
+        for name in ('gyro_rate', 'accel_rate'):
             if name in over or rates[name] is None:
                 rates[name] = p[name]
             elif not math.isclose(rates[name], p[name], rel_tol=0.01):
-                say(f"note: {name} {rates[name]:g} Hz from the stamps (the parameters say {p[name]:g} Hz; "
-                    f"-p {name}:=... to impose one)")
+                say(f'note: {name} {rates[name]:g} Hz from the stamps (the parameters say {p[name]:g} Hz; '
+                    f'-p {name}:=... to impose one)')
         # the body frame: the recording's own, unless the parameters name one
-        named = "frame_id" in over or (args.params and "frame_id" in load_parameter_file(args.params, "sins_node"))
+        named = 'frame_id' in over or (args.params and 'frame_id' in load_parameter_file(args.params, 'sins_node'))
         frame = {}
-        if not named and inp.frame_id and inp.frame_id != p["frame_id"]:
-            frame = {"frame_id": inp.frame_id}
+        if not named and inp.frame_id and inp.frame_id != p['frame_id']:
+            frame = {'frame_id': inp.frame_id}
             say(f"note: frame_id {bounded(inp.frame_id)!r} from the recording's headers "
-                "(-p frame_id:=... to impose one)")
-        others = [(f, c) for f, c in inp.gyro.frames() if f and f != (frame or p).get("frame_id")]
+                '(-p frame_id:=... to impose one)')
+        others = [(f, c) for f, c in inp.gyro.frames() if f and f != (frame or p).get('frame_id')]
         if others and not named:
             total = len(inp.gyro)
-            kind = "Imu" if inp.imu_input else "Δθ"
-            listed = ", ".join(f"{bounded(f)!r} ({c})" for f, c in others[:3])
-            say(f"note: {sum(c for _, c in others)} of {total} {kind} message(s) "
-                "name another frame than the body frame and are rejected by the frame rule: "
-                + listed + (", …" if len(others) > 3 else ""))
+            kind = 'Imu' if inp.imu_input else 'Δθ'
+            listed = ', '.join(f'{bounded(f)!r} ({c})' for f, c in others[:3])
+            say(f'note: {sum(c for _, c in others)} of {total} {kind} message(s) '
+                'name another frame than the body frame and are rejected by the frame rule: '
+                + listed + (', …' if len(others) > 3 else ''))
         p = sins_parameters(args.params, {**over, **rates, **frame})
-        if p["navigation"]:
-            lat, lon, h = (float(x) for x in p["initial_position"])
+        if p['navigation']:
+            lat, lon, h = (float(x) for x in p['initial_position'])
             r = float(np.linalg.norm(geodetic_to_ecef(np.radians(lat), np.radians(lon), h)))
             if not 6.0e6 < r < 8.0e6:
                 raise ValueError(f"initial_position {p['initial_position']} is not within ±1000 km of the "
                                  "Earth's surface")
-        csv_out = args.output.lower().endswith(".csv")
+        csv_out = args.output.lower().endswith('.csv')
 
         def make_system():
-            return SinsSystem(p, log=lambda level, text: say(text if level == "info" else
-                                                             f"{level}: {text}"),
+            return SinsSystem(p, log=lambda level, text: say(text if level == 'info' else
+                                                             f'{level}: {text}'),
                               imu_wanted=(lambda: not csv_out))
         system = make_system()                          # parameters checked by the core now
     except (ValueError, OSError, BagError) as exc:
@@ -803,11 +829,11 @@ def main(argv=None) -> int:
             inp.close()
         return err(str(exc))
     try:
-        sink = CsvOutput(Path(args.output), system.nav is not None) if args.output.lower().endswith(".csv") \
+        sink = CsvOutput(Path(args.output), system.nav is not None) if args.output.lower().endswith('.csv') \
             else McapOutput(Path(args.output), system, inp.namespace)
     except Exception as exc:                           # noqa: BLE001 - the writer's own refusal
         inp.close()
-        return err(f"cannot write {args.output}: {exc}")
+        return err(f'cannot write {args.output}: {exc}')
     ok = False
     try:
         counts, system = run(inp, make_system, sink, say, args.rate_rule, system)
@@ -824,17 +850,17 @@ def main(argv=None) -> int:
                                           (system.nav.navigator is None or system.nav.navigator.steps == 0)):
         nav = system.nav
         why = (f"the static alignment did not complete (alignment_time {float(system.p['alignment_time']):g} s"
-               + (f"; last refusal: {nav.alignment.reason}" if nav.alignment is not None and not nav.alignment.ok
-                  else "") + ")") if nav is not None and nav.navigator is None else \
-            "no attitude update" if system.integrator.updates == 0 else "no navigation step"
-        if system.integrator.updates == 0 and system.frame_mismatch["gyro"] and system.gyro_check.accepted == 0:
-            why = ("every Δθ was rejected: its header.frame_id is not frame_id "
+               + (f'; last refusal: {nav.alignment.reason}' if nav.alignment is not None and not nav.alignment.ok
+                  else '') + ')') if nav is not None and nav.navigator is None else \
+            'no attitude update' if system.integrator.updates == 0 else 'no navigation step'
+        if system.integrator.updates == 0 and system.frame_mismatch['gyro'] and system.gyro_check.accepted == 0:
+            why = ('every Δθ was rejected: its header.frame_id is not frame_id '
                    f"{bounded(system.p['frame_id'])!r} "
-                   "(-p frame_id:=... or -p frame_mismatch:=accept)")
-        print(f"sins_bag: no solution: {why}", file=sys.stderr)
+                   '(-p frame_id:=... or -p frame_mismatch:=accept)')
+        print(f'sins_bag: no solution: {why}', file=sys.stderr)
         return 3
     return 0
 
 
-if __name__ == "__main__":
+if __name__ == '__main__':
     sys.exit(main())

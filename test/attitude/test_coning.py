@@ -1,4 +1,5 @@
-"""Order of accuracy of every coning algorithm on exact coning motion (003 §2.2).
+"""
+Order of accuracy of every coning algorithm on exact coning motion (003 §2.2).
 
 For each algorithm the cone-axis drift is measured at four update intervals h as the
 least-squares slope of the reference-Z attitude error over 10 whole cone periods (the
@@ -46,7 +47,7 @@ def grid_for(order: int):
     return 1e-3, (0.8, 1.0, 1.2, 1.6)
 
 
-@pytest.mark.parametrize("name", list(ALGORITHMS))
+@pytest.mark.parametrize('name', list(ALGORITHMS))
 def test_measured_order_matches_expected(name):
     alg = ALGORITHMS[name]
     alpha, grid = grid_for(alg.order_expected)
@@ -55,7 +56,7 @@ def test_measured_order_matches_expected(name):
     assert order == pytest.approx(alg.order_expected, abs=0.2), (name, drift)
 
 
-@pytest.mark.parametrize("name", ["1", "2", "3", "3.1", "4", "4+", "5", "6", "7", "4+_printed_terms"])
+@pytest.mark.parametrize('name', ['1', '2', '3', '3.1', '4', '4+', '5', '6', '7', '4+_printed_terms'])
 def test_seed_algorithms_drift_agrees_with_small_alpha_theory(name):
     """Corrected seed algorithms: measured drift within 3% of the exact-in-Ωh theory."""
     alg = ALGORITHMS[name]
@@ -64,10 +65,12 @@ def test_seed_algorithms_drift_agrees_with_small_alpha_theory(name):
         assert cone_axis_drift(name, alpha, x) == pytest.approx(theory_drift(alg, x), rel=0.03)
 
 
-@pytest.mark.parametrize("name", list(LITERATURE_DRIFT))
+@pytest.mark.parametrize('name', list(LITERATURE_DRIFT))
 def test_literature_algorithms_against_published_coefficients(name):
-    """Measured drift vs the published leading coefficient (seed guide), within 5%
-    at Ωh = 0.2 where higher-order terms are below 2%."""
+    """
+    Measured drift vs the published leading coefficient (seed guide), within 5%
+    at Ωh = 0.2 where higher-order terms are below 2%.
+    """
     alg = ALGORITHMS[name]
     alpha, grid = grid_for(alg.order_expected)
     x = grid[0] if alg.order_expected < 8 else grid[1]
@@ -77,5 +80,5 @@ def test_literature_algorithms_against_published_coefficients(name):
 
 def test_printed_forms_are_worse_than_corrected():
     """The misprinted forms drift at least 100× more than the corrected ones at Ωh = 0.4."""
-    for name in ("3", "3.1", "4+", "5"):
-        assert abs(cone_axis_drift(name + "_as_printed", 0.01, 0.4)) > 100 * abs(cone_axis_drift(name, 0.01, 0.4))
+    for name in ('3', '3.1', '4+', '5'):
+        assert abs(cone_axis_drift(name + '_as_printed', 0.01, 0.4)) > 100 * abs(cone_axis_drift(name, 0.01, 0.4))

@@ -2,12 +2,14 @@
 import numpy as np
 import pytest
 
-from strapdown_ros.calibration.boresight import (IncrementPair, camera_increment,
-    check_observability, gyro_increment, imu_attitude_from_camera, r_partial, solve_boresight)
+from strapdown_ros.calibration.boresight import (camera_increment, check_observability,
+                                                 gyro_increment, imu_attitude_from_camera,
+                                                 IncrementPair, r_partial, solve_boresight)
 from strapdown_ros.calibration.streaming import BoresightCalibrator
 from strapdown_ros.motion.profiles import bench_profile
-from strapdown_ros.rotation import (quat_angle_between, quat_conjugate, quat_error_rotvec,
-    quat_multiply, quat_normalize, quat_to_dcm, rotvec_to_quat, ypr_to_dcm, dcm_to_quat)
+from strapdown_ros.rotation import (dcm_to_quat, quat_angle_between, quat_conjugate,
+                                    quat_error_rotvec, quat_multiply, quat_normalize, quat_to_dcm,
+                                    rotvec_to_quat, ypr_to_dcm)
 from strapdown_ros.sensors import ARCSEC, IntegratingSensor, NAVIGATION_GRADE_GYRO, SensorSigmas
 from strapdown_ros.sensors.star_camera import StarCameraModel
 
@@ -15,8 +17,10 @@ BETA = np.radians([40.0, -25.0, 120.0])
 
 
 def test_partial_interval_polynomial_r0_coefficient_is_one_eighth():
-    """004 §2.2 r_0k(τ): against the exact partial rotation of a rate linear in time, the ρ·Δρ
-    term with 1/8 (derived from |θ(τ)|²/8) is 3× more accurate than the printed 1/4."""
+    """
+    004 §2.2 r_0k(τ): against the exact partial rotation of a rate linear in time, the ρ·Δρ
+    term with 1/8 (derived from |θ(τ)|²/8) is 3× more accurate than the printed 1/4.
+    """
     rng = np.random.default_rng(0)
     T = 0.005
     for _ in range(3):
@@ -40,7 +44,7 @@ def test_partial_interval_polynomial_r0_coefficient_is_one_eighth():
 
 def test_gyro_increment_is_exact_on_asynchronous_epochs():
     prof = bench_profile(hold=4.0, rotation_time=3.0)
-    s = IntegratingSensor(prof, "gyro", 200.0)
+    s = IntegratingSensor(prof, 'gyro', 200.0)
     t, dth, _ = s.sample(int(prof.duration * 200))
     for t0, t1 in [(3.0037, 9.1234), (10.0011, 10.0031), (20.4, 33.3)]:     # one pair inside one interval
         dq, _ = gyro_increment(t, dth, t0, t1)
@@ -59,13 +63,13 @@ def test_gyro_increment_covariance_matches_monte_carlo():
     rng = np.random.default_rng(4)
     errs = []
     for r in range(300):
-        s = IntegratingSensor(prof, "gyro", 200.0, sig.draw(rng), seed=r)
+        s = IntegratingSensor(prof, 'gyro', 200.0, sig.draw(rng), seed=r)
         t, dth, _ = s.sample(int(15 * 200))
         dq, E = gyro_increment(t, dth, t0, t1, sig)
-        errs.append(quat_error_rotvec(dq, truth, "body"))
+        errs.append(quat_error_rotvec(dq, truth, 'body'))
     errs = np.array(errs)
     np.testing.assert_allclose(errs.std(0) ** 2, np.diag(E), rtol=0.25)
-    nees = np.mean(np.einsum("ri,ij,rj->r", errs, np.linalg.inv(E), errs))
+    nees = np.mean(np.einsum('ri,ij,rj->r', errs, np.linalg.inv(E), errs))
     assert 2.5 < nees < 3.5
 
 
@@ -91,7 +95,7 @@ def synthetic_pairs(beta, n=40, noise_imu=0.2 * ARCSEC, noise_cam=np.array([0.6,
     return pairs
 
 
-@pytest.mark.parametrize("beta_deg", [(40, -25, 120), (-170, 80, -5), (0, 0, 0), (90, 45, 179)])
+@pytest.mark.parametrize('beta_deg', [(40, -25, 120), (-170, 80, -5), (0, 0, 0), (90, 45, 179)])
 def test_converges_from_zero_for_large_boresights(beta_deg):
     beta = np.radians(beta_deg)
     pairs = synthetic_pairs(beta, noise_imu=1e-12, noise_cam=np.full(3, 1e-12))
@@ -102,15 +106,17 @@ def test_converges_from_zero_for_large_boresights(beta_deg):
 
 
 def test_plain_gauss_newton_from_zero_converges_and_axis_start_saves_iterations():
-    """004's Gauss–Newton from β0 = 0 (init='given') converges for random large boresights,
-    including pitch near ±90°; the closed-form axis-alignment start needs 1–2 iterations."""
+    """
+    004's Gauss–Newton from β0 = 0 (init='given') converges for random large boresights,
+    including pitch near ±90°; the closed-form axis-alignment start needs 1–2 iterations.
+    """
     rng = np.random.default_rng(8)
     iters_plain, iters_axes = [], []
     betas = [rng.uniform([-np.pi, -1.55, -np.pi], [np.pi, 1.55, np.pi]) for _ in range(30)]
     for beta in betas + [np.array([0.0, 1.569, 0.0]), np.array([np.pi, 0.0, np.pi])]:
         pairs = synthetic_pairs(beta, n=20, noise_imu=1e-12, noise_cam=np.full(3, 1e-12), rng=rng)
         truth = dcm_to_quat(ypr_to_dcm(*beta))
-        for init, its in (("given", iters_plain), ("axes", iters_axes)):
+        for init, its in (('given', iters_plain), ('axes', iters_axes)):
             sol = solve_boresight(pairs, init=init, max_iterations=50)
             assert sol.converged and quat_angle_between(dcm_to_quat(sol.c_mf_vf), truth) < 1e-6, (init, beta)
             its.append(sol.iterations)
@@ -125,7 +131,7 @@ def test_weighted_covariance_is_consistent_and_better_than_unweighted():
         pairs = synthetic_pairs(BETA, n=30, rng=rng)
         for weighted, errs in ((True, errs_w), (False, errs_u)):
             sol = solve_boresight(pairs, weighted=weighted)
-            e = quat_error_rotvec(sol.q_mf_vf, dcm_to_quat(C_true), "reference")     # MF axes
+            e = quat_error_rotvec(sol.q_mf_vf, dcm_to_quat(C_true), 'reference')     # MF axes
             errs.append(e)
             if weighted:
                 nees_w.append(e @ np.linalg.solve(sol.rotation_covariance_mf, e))
@@ -142,12 +148,12 @@ def test_single_axis_and_static_motion_are_unobservable_and_named():
     pairs = synthetic_pairs(BETA, axes=[axis_vf, -axis_vf])
     sol = solve_boresight(pairs)
     assert not sol.observable and sol.beta is None
-    assert "all increments share one axis" in sol.message
-    named = np.array([float(x) for x in sol.message.split("(")[1].split(")")[0].split(",")])
+    assert 'all increments share one axis' in sol.message
+    named = np.array([float(x) for x in sol.message.split('(')[1].split(')')[0].split(',')])
     assert abs(abs(named @ axis_vf) - 1.0) < 1e-2          # printed with two decimals
     static = synthetic_pairs(BETA, axes=[axis_vf], angle=1.5e-3)          # Earth rate over ~20 s
     sol = solve_boresight(static)
-    assert not sol.observable and "static" in sol.message
+    assert not sol.observable and 'static' in sol.message
     rep = check_observability(synthetic_pairs(BETA))
     assert rep.observable and np.all(rep.predicted_sigma < 1e-3)
 
@@ -170,7 +176,7 @@ def test_camera_increment_covariance_and_imu_attitude_from_camera():
 def test_streaming_calibrator_on_the_bench_with_a_large_boresight():
     prof = bench_profile()
     rng = np.random.default_rng(1)
-    gyro = IntegratingSensor(prof, "gyro", 200.0, NAVIGATION_GRADE_GYRO.draw(rng), seed=2)
+    gyro = IntegratingSensor(prof, 'gyro', 200.0, NAVIGATION_GRADE_GYRO.draw(rng), seed=2)
     cam = StarCameraModel(boresight=BETA, interval=5.0, seed=3)
     cal = BoresightCalibrator(gyro=NAVIGATION_GRADE_GYRO)
     fixes = cam.fixes(prof, int(prof.duration // 5.0))
@@ -184,7 +190,7 @@ def test_streaming_calibrator_on_the_bench_with_a_large_boresight():
     cal.add_gyro(t[k:], dth[k:])
     sol = cal.solve()
     assert sol.observable and sol.converged and sol.pairs == len(fixes) - 1
-    e = quat_error_rotvec(sol.q_mf_vf, dcm_to_quat(ypr_to_dcm(*BETA)), "reference")
+    e = quat_error_rotvec(sol.q_mf_vf, dcm_to_quat(ypr_to_dcm(*BETA)), 'reference')
     assert np.all(np.abs(e) < 3 * np.sqrt(np.diag(sol.rotation_covariance_mf)))
     assert np.all(np.sqrt(np.diag(sol.covariance_beta)) < 30 * ARCSEC)
 
@@ -195,26 +201,28 @@ def test_gyro_sensitivity_predicts_the_increment_error_of_the_constants():
     b = np.array([2e-6, -1e-6, 3e-6])
     M = np.array([[1e-4, 2e-4, -1e-4], [-3e-4, -2e-4, 1e-4], [2e-4, 1e-4, 3e-4]])
     err = SensorSigmas()                                   # only for the call signature
-    t, u, _ = IntegratingSensor(prof, "gyro", 200.0).sample(int(prof.duration * 200))
+    t, u, _ = IntegratingSensor(prof, 'gyro', 200.0).sample(int(prof.duration * 200))
     y = u @ (np.eye(3) + M).T + b / 200.0
     t0, t1 = 1.0037, prof.duration - 0.5
     dq_true, *_ = gyro_increment(t, u, t0, t1)
     dq, _, G, white = gyro_increment(t, y, t0, t1, err, sensitivity=True)
-    eps = quat_error_rotvec(dq, dq_true, "body")
-    x = np.concatenate([b, M.reshape(-1, order="F")])
+    eps = quat_error_rotvec(dq, dq_true, 'body')
+    x = np.concatenate([b, M.reshape(-1, order='F')])
     np.testing.assert_allclose(G @ x, eps, atol=2e-3 * np.linalg.norm(eps))
     assert np.all(white == 0)
 
 
 def test_correlated_weighting_is_consistent_and_beats_pairwise():
-    """Shared camera fixes and gyro constants common to all pairs, modelled: NEES near 3 and a
-    smaller RMS than the independent-pairs weighting on the same data (25 runs, bench, 33 pairs)."""
+    """
+    Shared camera fixes and gyro constants common to all pairs, modelled: NEES near 3 and a
+    smaller RMS than the independent-pairs weighting on the same data (25 runs, bench, 33 pairs).
+    """
     prof = bench_profile()
     q_true = dcm_to_quat(ypr_to_dcm(*BETA))
     rng = np.random.default_rng(5)
-    errs = {"correlated": [], "pairwise": []}
+    errs = {'correlated': [], 'pairwise': []}
     nees = []
-    t_u, u, _ = IntegratingSensor(prof, "gyro", 200.0).sample(int(prof.duration * 200))
+    t_u, u, _ = IntegratingSensor(prof, 'gyro', 200.0).sample(int(prof.duration * 200))
     for seed in range(25):
         e = NAVIGATION_GRADE_GYRO.draw(rng)
         y = u @ (np.eye(3) + e.matrix).T + e.bias / 200.0 + rng.normal(0, e.random_walk * np.sqrt(1 / 200.0), u.shape)
@@ -225,28 +233,30 @@ def test_correlated_weighting_is_consistent_and_beats_pairwise():
         for w in errs:
             sol = solve_boresight(cal.pairs, weighting=w, gyro=NAVIGATION_GRADE_GYRO,
                                   common_rotation_sigma=cal.common_rotation_sigma)
-            ev = quat_error_rotvec(sol.q_mf_vf, q_true, "reference")
+            ev = quat_error_rotvec(sol.q_mf_vf, q_true, 'reference')
             errs[w].append(ev)
-            if w == "correlated":
-                assert sol.weighting == "correlated"
+            if w == 'correlated':
+                assert sol.weighting == 'correlated'
                 nees.append(ev @ np.linalg.solve(sol.rotation_covariance_mf, ev))
     rms = {w: np.sqrt(np.mean(np.sum(np.square(v), 1))) for w, v in errs.items()}
-    assert rms["correlated"] < 0.9 * rms["pairwise"]
+    assert rms['correlated'] < 0.9 * rms['pairwise']
     assert 2.0 < np.mean(nees) < 4.0
-    assert cal.solve().weighting == "correlated"                 # what the calibrator publishes (≤ 200 pairs)
+    assert cal.solve().weighting == 'correlated'                 # what the calibrator publishes (≤ 200 pairs)
 
 
-@pytest.mark.parametrize("noise_scale", [100.0, 6000.0])
+@pytest.mark.parametrize('noise_scale', [100.0, 6000.0])
 def test_a_stated_sigma_far_too_small_still_converges_to_the_boresight(noise_scale):
-    """Camera noise 100× and 6000× (≈1° per axis, a motion-capture
+    """
+    Camera noise 100× and 6000× (≈1° per axis, a motion-capture
     reference judged with star-tracker σ) what the fixes state.  Every weighting converges (the
     Gauss–Newton step is halved while it raises the cost of its own weights; converged once the
     step is below 1e-4 of the residual-scaled σ), β lies within 3 scaled σ of the injected
-    truth, no good fix is gated, and the fit is flagged inconsistent."""
+    truth, no good fix is gated, and the fit is flagged inconsistent.
+    """
     from strapdown_ros.estimation.chi_square import chi2_band
     beta = np.radians([40.0, -25.0, 120.0])
     prof = bench_profile()
-    t, dth, _ = IntegratingSensor(prof, "gyro", 100.0).sample(int(prof.duration * 100) - 1)
+    t, dth, _ = IntegratingSensor(prof, 'gyro', 100.0).sample(int(prof.duration * 100) - 1)
     cam = StarCameraModel(boresight=beta, interval=5.0, seed=1,
                           noise_scale=np.full(3, noise_scale))
     cal = BoresightCalibrator(gyro=NAVIGATION_GRADE_GYRO)
@@ -255,17 +265,17 @@ def test_a_stated_sigma_far_too_small_still_converges_to_the_boresight(noise_sca
         cal.add_camera(f.stamp, f.attitude, f.covariance)
     assert cal.outlier_fixes == 0 and len(cal.pairs) == 32
     q_true = dcm_to_quat(ypr_to_dcm(*beta))
-    for weighting in ("correlated", "pairwise", "unit"):
+    for weighting in ('correlated', 'pairwise', 'unit'):
         sol = solve_boresight(cal.pairs, weighting=weighting, gyro=cal.gyro, max_sigma=1.0)
         assert sol.converged and sol.iterations < 20, (weighting, sol.iterations)
         assert sol.fit_consistent is False and sol.chi2_per_dof > 100 * chi2_band(sol.dof)[1]
-        e = quat_error_rotvec(sol.q_mf_vf, q_true, frame="reference")
+        e = quat_error_rotvec(sol.q_mf_vf, q_true, frame='reference')
         assert np.all(np.abs(e) < 3 * np.sqrt(np.diag(sol.rotation_covariance_mf))), (weighting, e)
 
 
 def test_chi2_band_is_the_exact_two_sided_band():
     """chi2_band (numpy only, used inside node callbacks) against scipy's quantiles."""
-    stats = pytest.importorskip("scipy.stats")
+    stats = pytest.importorskip('scipy.stats')
     from strapdown_ros.estimation.chi_square import chi2_band
     for dof in (1, 2, 3, 7, 93, 1000, 30000):
         lo, hi = chi2_band(dof, 0.01)

@@ -2,10 +2,10 @@
 import numpy as np
 import pytest
 
-from strapdown_ros.calibration.consistency import (camera_imu_attitude, chi2_interval,
-    d_matrices, sins_from_camera, theta_diff_check)
+from strapdown_ros.calibration.consistency import (camera_imu_attitude, chi2_interval, d_matrices,
+                                                   sins_from_camera, theta_diff_check)
 from strapdown_ros.rotation import (dcm_to_quat, quat_conjugate, quat_multiply, quat_normalize,
-    quat_to_rotvec, rotvec_to_quat, ypr_to_dcm)
+                                    quat_to_rotvec, rotvec_to_quat, ypr_to_dcm)
 
 AS = np.radians(1.0 / 3600.0)
 
@@ -24,11 +24,11 @@ def test_d_matrices_printed_and_derived_equal_the_exact_derivative():
             d = np.zeros(3)
             d[j] = 1e-6
             D1[:, j] = _vee(C.T @ (ypr_to_dcm(*(b + d)) - ypr_to_dcm(*(b - d)))) / 2e-6   # C(β+δ) = C(I+[θ×])
-        for form in ("derived", "printed"):
+        for form in ('derived', 'printed'):
             E1, E2 = d_matrices(b, form)
             assert np.allclose(E1, D1, atol=1e-8) and np.allclose(E2, C @ D1, atol=1e-8)
     with pytest.raises(ValueError):
-        d_matrices(np.zeros(3), "other")
+        d_matrices(np.zeros(3), 'other')
 
 
 def test_chi2_interval_close_to_exact_quantiles():
@@ -79,31 +79,33 @@ def test_eq8_covariance_matches_monte_carlo():
         q_vf, P_avu, beta, _, _ = _run(rng, q_mf)
         q_cam, P = camera_imu_attitude(q_vf, P_avu, beta, P_BETA)
         th = quat_to_rotvec(quat_multiply(quat_conjugate(q_mf), q_cam))
-        nees.append(np.einsum("ni,ni->n", th, np.linalg.solve(P, th[..., None])[..., 0]))
+        nees.append(np.einsum('ni,ni->n', th, np.linalg.solve(P, th[..., None])[..., 0]))
     nees = np.array(nees)                                       # runs × epochs
     lo, hi = chi2_interval(3 * 400, 1 - 0.01 / 10)
     assert np.all((nees.sum(0) > lo) & (nees.sum(0) < hi)), nees.mean(0)
 
 
 def test_theta_diff_derived_covariance_consistent_printed_not():
-    """Fig. 3 check with exact truth: the derived P^diff holds at every epoch over a Monte Carlo;
-    004 §6's P^imu + P^mfa misses the shared boresight error and the alignment fix."""
+    """
+    Fig. 3 check with exact truth: the derived P^diff holds at every epoch over a Monte Carlo;
+    004 §6's P^imu + P^mfa misses the shared boresight error and the alignment fix.
+    """
     rng = np.random.default_rng(11)
     q_mf = _scenario(rng, 25)
     M = 300
-    nees = {"derived": [], "printed": []}
+    nees = {'derived': [], 'printed': []}
     within = []
     for _ in range(M):
         q_vf, P_avu, beta, q_ins, P_ins = _run(rng, q_mf)
         for form in nees:
             chk = theta_diff_check(q_vf, P_avu, beta, P_BETA, q_ins, P_ins, aligned_at=0, covariance=form)
             nees[form].append(chk.nees[1:])
-            if form == "derived":
+            if form == 'derived':
                 within.append(chk.within_3sigma)
                 assert chk.theta[0] == pytest.approx(np.zeros(3), abs=1e-12)    # aligned there
     lo, hi = chi2_interval(3 * M, 1 - 0.01 / 24)
-    s_der = np.sum(nees["derived"], axis=0)
-    s_pr = np.sum(nees["printed"], axis=0)
+    s_der = np.sum(nees['derived'], axis=0)
+    s_pr = np.sum(nees['printed'], axis=0)
     assert np.all((s_der > lo) & (s_der < hi)), s_der / M
     assert np.mean(within) > 0.99
     assert np.sum((s_pr < lo) | (s_pr > hi)) >= 5, s_pr / M      # the printed form fails at many epochs
@@ -130,8 +132,10 @@ def test_wrong_boresight_detected_and_right_one_passes():
 
 
 def test_independent_sins_and_printed_log():
-    """A SINS aligned independently of the camera: P^diff = P^imu + P^mfa is exact (004 §6's form);
-    the printed skew-part log agrees with the exact one to second order."""
+    """
+    A SINS aligned independently of the camera: P^diff = P^imu + P^mfa is exact (004 §6's form);
+    the printed skew-part log agrees with the exact one to second order.
+    """
     rng = np.random.default_rng(8)
     q_mf = _scenario(rng, 12)
     P_ins = np.broadcast_to(np.eye(3) * (3 * AS) ** 2, (12, 3, 3))
@@ -140,7 +144,7 @@ def test_independent_sins_and_printed_log():
         q_vf, P_avu, beta, _, _ = _run(rng, q_mf)
         q_ins = quat_normalize(quat_multiply(q_mf, rotvec_to_quat(rng.normal(size=(12, 3)) * 3 * AS)))
         a = theta_diff_check(q_vf, P_avu, beta, P_BETA, q_ins, P_ins, aligned_at=None)
-        b = theta_diff_check(q_vf, P_avu, beta, P_BETA, q_ins, P_ins, aligned_at=None, log="printed")
+        b = theta_diff_check(q_vf, P_avu, beta, P_BETA, q_ins, P_ins, aligned_at=None, log='printed')
         assert np.max(np.abs(a.theta - b.theta)) < np.max(np.abs(a.theta)) ** 3      # third order
         assert a.used.all()
         tot += a.nees
@@ -151,7 +155,7 @@ def test_independent_sins_and_printed_log():
 def test_arguments_checked():
     q = np.tile([1.0, 0, 0, 0], (3, 1))
     with pytest.raises(ValueError):
-        theta_diff_check(q, np.eye(3), np.zeros(3), np.eye(3), q, covariance="other")
+        theta_diff_check(q, np.eye(3), np.zeros(3), np.eye(3), q, covariance='other')
     with pytest.raises(ValueError):
         theta_diff_check(q, np.eye(3), np.zeros(3), np.eye(3), q[:2])
     with pytest.raises(ValueError):
@@ -179,7 +183,7 @@ def test_sins_constants_recursion_against_exact_propagation():
 def test_core_module_imports_no_ros():
     import subprocess
     import sys
-    code = ("import sys, strapdown_ros.calibration.consistency; "
+    code = ('import sys, strapdown_ros.calibration.consistency; '
             "bad = [m for m in sys.modules if m.split('.')[0] in ('rclpy', 'rosbag2_py', 'matplotlib', 'scipy')]; "
-            "print(bad); sys.exit(1 if bad else 0)")
-    assert subprocess.run([sys.executable, "-c", code], capture_output=True).returncode == 0
+            'print(bad); sys.exit(1 if bad else 0)')
+    assert subprocess.run([sys.executable, '-c', code], capture_output=True).returncode == 0

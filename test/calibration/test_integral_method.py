@@ -1,4 +1,5 @@
-"""002 (Ilyushenko 2009): integral calibration of B, s0 from star-tracker attitudes.
+"""
+002 (Ilyushenko 2009): integral calibration of B, s0 from star-tracker attitudes.
 
 Evidence for the module docstring of strapdown_ros/calibration/integral_method.py:
 * the printed 2nd/3rd-order forward formulas are of orders 2 and 3 (reversed cross product: 2);
@@ -16,16 +17,20 @@ import textwrap
 import numpy as np
 import pytest
 
-from strapdown_ros.calibration.integral_method import (PARAMETER_LABELS, IntervalMeans,
-    calibrate_from_measurements, camera_rate_covariance, forward_step, integral_calibration,
-    interval_boundaries, invert_step, mean_measured_rate, mean_true_rate, step_increments)
+from strapdown_ros.calibration.integral_method import (calibrate_from_measurements,
+                                                       camera_rate_covariance, forward_step,
+                                                       integral_calibration, interval_boundaries,
+                                                       IntervalMeans, invert_step,
+                                                       mean_measured_rate, mean_true_rate,
+                                                       PARAMETER_LABELS, step_increments)
 from strapdown_ros.motion.profiles import (ConingProfile, MotionProfile, PiecewiseRateProfile,
-    Segment, tkachenko_profile)
+                                           Segment, tkachenko_profile)
+from strapdown_ros.reproductions.ilyushenko2009 import simulate_measurements
 from strapdown_ros.rotation import (quat_angle_between, quat_conjugate, quat_cumprod,
-    quat_multiply, quat_normalize, quat_rotate, quat_to_dcm, quat_to_rotvec, rotvec_to_quat)
+                                    quat_multiply, quat_normalize, quat_rotate, quat_to_dcm,
+                                    quat_to_rotvec, rotvec_to_quat)
 from strapdown_ros.sensors import SensorErrorModel
 from strapdown_ros.sensors.star_camera import StarCameraModel
-from strapdown_ros.reproductions.ilyushenko2009 import simulate_measurements
 
 M_TRUE = np.array([[1.0e-3, 5.0e-4, -5.0e-4],
                    [-4.0e-4, -1.0e-3, 5.0e-4],
@@ -56,8 +61,10 @@ def _integrate_forward(profile, h, order, reverse=False, T0=0.37, T=3.3):
 
 
 def test_printed_forward_formulas_have_their_orders():
-    """002's Euler formulas with norm correction, fed exact ∫w dt: orders 2 and 3 as printed;
-    the cross product with reversed operands is a wrong hypothesis (order 2, twice the error)."""
+    """
+    002's Euler formulas with norm correction, fed exact ∫w dt: orders 2 and 3 as printed;
+    the cross product with reversed operands is a wrong hypothesis (order 2, twice the error).
+    """
     p = ConingProfile(0.3, 1.0)
     h = np.array([0.1, 0.05, 0.025, 0.0125])
     e2 = np.array([_integrate_forward(p, x, 2) for x in h])
@@ -90,7 +97,7 @@ def test_third_order_inversion_is_exact_inverse_of_forward_formula():
     assert np.max(np.abs(-8.0 * dc[:, 0] + 12.0 - 4.0 * a2 - np.sum(V * V, 1))) > 1e-3
 
 
-def _sequential(quats, form="paper"):
+def _sequential(quats, form='paper'):
     """The paper's recursion as written: V_{n−1} is the previously computed increment."""
     q = quat_normalize(quats)
     dq = quat_multiply(quat_conjugate(q[:-1]), q[1:])
@@ -105,7 +112,7 @@ def _sequential(quats, form="paper"):
     return out
 
 
-@pytest.mark.parametrize("form", ["paper", "rotvec"])
+@pytest.mark.parametrize('form', ['paper', 'rotvec'])
 def test_vectorised_recursion_equals_sequential(form):
     p = ConingProfile(0.3, 2.0)
     q = p.attitude(0.1 * np.arange(200))                 # 0.06 rad per step
@@ -114,7 +121,7 @@ def test_vectorised_recursion_equals_sequential(form):
     assert np.max(np.abs(V - ref)) < 1e-15
 
 
-def _mean_rate_error(profile, h, order, form="paper", T0=0.37, T=3.3, component=None):
+def _mean_rate_error(profile, h, order, form='paper', T0=0.37, T=3.3, component=None):
     n = int(round(T / h))
     stamps = T0 + h * np.arange(-1, n + 2)               # one fix before and after the interval
     t0, t1, w, _ = mean_true_rate(stamps, profile.attitude(stamps), intervals=[[1, 1 + n]], order=order, form=form)
@@ -123,15 +130,17 @@ def _mean_rate_error(profile, h, order, form="paper", T0=0.37, T=3.3, component=
     return float(np.linalg.norm(e)) if component is None else float(abs(e[component]))
 
 
-@pytest.mark.parametrize("form", ["paper", "rotvec"])
+@pytest.mark.parametrize('form', ['paper', 'rotvec'])
 def test_mean_rate_orders_on_coning(form):
-    """Error of w̄ against the exact ∫w dt/T over an arbitrary interval (3.3 s, not whole cone
-    periods): slopes 2.00 and 3.0 — the orders the paper names."""
+    """
+    Error of w̄ against the exact ∫w dt/T over an arbitrary interval (3.3 s, not whole cone
+    periods): slopes 2.00 and 3.0 — the orders the paper names.
+    """
     p = ConingProfile(0.3, 1.0)
     h = np.array([0.1, 0.05, 0.025, 0.0125])
     e2 = np.array([_mean_rate_error(p, x, 2, form) for x in h])
     e3 = np.array([_mean_rate_error(p, x, 3, form) for x in h])
-    print(form, "order 2:", e2, slopes(h, e2), "order 3:", e3, slopes(h, e3))
+    print(form, 'order 2:', e2, slopes(h, e2), 'order 3:', e3, slopes(h, e3))
     assert np.all(np.abs(slopes(h, e2) - 2.0) < 0.05)
     assert np.all(np.abs(slopes(h, e3) - 3.0) < 0.15)
     assert np.abs(slopes(h, e3)[-1] - 3.0) < 0.05
@@ -139,16 +148,18 @@ def test_mean_rate_orders_on_coning(form):
 
 
 def test_mean_rate_over_whole_cone_periods_matches_coning_theory():
-    """Over whole cone periods the periodic terms cancel; what remains is the cone-axis drift
+    """
+    Over whole cone periods the periodic terms cancel; what remains is the cone-axis drift
     of the equivalent coning algorithm: α²Ω(Ωh)²/12 ('none') for order 2 and α²Ω(Ωh)⁴/60
-    ('one plus previous') for order 3 (003 table, small-α)."""
+    ('one plus previous') for order 3 (003 table, small-α).
+    """
     alpha, nu = 0.05, 1.0
     p = ConingProfile(alpha, nu)
     period = 2 * np.pi / nu
     h = period / np.array([16, 32, 64, 128])
     e2 = np.array([_mean_rate_error(p, x, 2, T=2 * period, component=2) for x in h])
     e3 = np.array([_mean_rate_error(p, x, 3, T=2 * period, component=2) for x in h])
-    print("whole periods, cone axis: order 2", e2, slopes(h, e2), "order 3", e3, slopes(h, e3))
+    print('whole periods, cone axis: order 2', e2, slopes(h, e2), 'order 3', e3, slopes(h, e3))
     assert np.all(np.abs(slopes(h, e2) - 2.0) < 0.05)
     assert np.all(np.abs(slopes(h, e3) - 4.0) < 0.1)
     np.testing.assert_allclose(e2, alpha ** 2 * nu * (nu * h) ** 2 / 12, rtol=0.02)
@@ -157,10 +168,10 @@ def test_mean_rate_over_whole_cone_periods_matches_coning_theory():
 
 def test_noise_jacobians_against_finite_differences():
     """δV_n = (cI + [v×])θ_n + (−cI + [v×])θ_{n−1}: the camera covariance is built on it."""
-    from strapdown_ros.calibration.integral_method import _noise_jacobians
+    from strapdown_ros.calibration.integral_method import noise_jacobians
     p = ConingProfile(0.3, 2.0)
     q = p.attitude(0.1 * np.arange(6))
-    Jp, Jm = _noise_jacobians(q)
+    Jp, Jm = noise_jacobians(q)
     V = step_increments(q, order=2)
     eps = 1e-7
     for k in (2, 3):
@@ -188,7 +199,7 @@ def test_mean_measured_rate_exact_sum_and_partial_intervals():
     t1 = t0 + np.array([0.777, 1.3333, 1.2345])
     exact = p.delta_theta(t0, t1) / (t1 - t0)[:, None]
     e_lin = np.abs(mean_measured_rate(t, dth, t0, t1) - exact).max()
-    e_quad = np.abs(mean_measured_rate(t, dth, t0, t1, interpolation="quadratic") - exact).max()
+    e_quad = np.abs(mean_measured_rate(t, dth, t0, t1, interpolation='quadratic') - exact).max()
     wdot = 0.2 * 3.0 ** 2                                        # |ẇ| ≈ ν² sin α
     assert e_lin < 2 * wdot * 0.01 ** 2 / 8 / 0.777
     assert e_quad < 0.1 * e_lin
@@ -208,19 +219,19 @@ def test_interval_boundaries_skip_gaps():
 
 
 # --------------------------------------------------------------------------- calibration
-@pytest.fixture(scope="module")
+@pytest.fixture(scope='module')
 def tkachenko_data():
     return simulate_measurements(tkachenko_profile(), 30.0, gyro_errors(), gyro_rate=100.0, camera_interval=0.1,
                                  camera_sigma=CAMERA_SIGMA, seed=3)
 
 
 def _calibrate(d, **kw):
-    kw.setdefault("steps_per_interval", 5)
+    kw.setdefault('steps_per_interval', 5)
     return calibrate_from_measurements(d.gyro_stamps, d.delta_theta, d.camera_stamps, d.camera_quats, d.camera_sigma,
                                        gyro_random_walk=d.gyro_random_walk, profile=d.profile, **kw)
 
 
-@pytest.mark.parametrize("weighting", ["model", "residual", "pooled"])
+@pytest.mark.parametrize('weighting', ['model', 'residual', 'pooled'])
 def test_recovers_B_and_s0_within_3_sigma(tkachenko_data, weighting):
     d = tkachenko_data
     r = _calibrate(d, weighting=weighting)
@@ -228,18 +239,18 @@ def test_recovers_B_and_s0_within_3_sigma(tkachenko_data, weighting):
     assert len(r.intervals) == 59 and r.covariance.shape == (12, 12) and r.sigma.shape == (12,)
     err = r.x - d.x_true
     z = err / r.sigma
-    print(weighting, "error ×1e6:", np.round(err * 1e6, 1), "σ ×1e6:", np.round(r.sigma * 1e6, 1))
+    print(weighting, 'error ×1e6:', np.round(err * 1e6, 1), 'σ ×1e6:', np.round(r.sigma * 1e6, 1))
     assert np.all(np.abs(z) < 3.0), dict(zip(PARAMETER_LABELS, np.round(z, 2)))
     # the estimate is useful: M to a few % of its size, bias to ~5% (σ_cam = 1e-5 rad, 30 s)
     assert np.all(r.sigma[:9] < 0.1 * np.abs(M_TRUE).max())
     assert np.all(r.sigma[9:] < 0.1 * np.abs(BIAS).max())
     np.testing.assert_allclose(r.to_error_model().matrix, r.B - np.eye(3))
     np.testing.assert_allclose(r.bias, r.s0)
-    if weighting == "model":
+    if weighting == 'model':
         assert 0.6 < r.chi2_per_dof < 1.5
         assert r.covariance_residual is not None and r.covariance_model is not None
     # w̄ from the camera against the exact mean rate: at the noise level √2σ/T (order 3, ωh ≤ 0.03)
-    assert r.extra["w_bar_error_rms"] < 2.0 * np.sqrt(2) * CAMERA_SIGMA / 0.5
+    assert r.extra['w_bar_error_rms'] < 2.0 * np.sqrt(2) * CAMERA_SIGMA / 0.5
 
 
 def test_calibration_corrects_the_increments(tkachenko_data):
@@ -255,9 +266,11 @@ def test_calibration_corrects_the_increments(tkachenko_data):
 
 
 class SmoothProfile(MotionProfile):
-    """Smooth rotation about all three axes: two coning motions about different axes composed,
+    """
+    Smooth rotation about all three axes: two coning motions about different axes composed,
     q = c1(t) ⊗ (r ⊗ c2(t) ⊗ r*), ω = C2ᵀω1 + R ω_c2 (|ω| ≤ 0.38 rad/s).  ∫ω dt by composite
-    10-point Gauss–Legendre (a trigonometric integrand: exact to round-off on 0.05-s pieces)."""
+    10-point Gauss–Legendre (a trigonometric integrand: exact to round-off on 0.05-s pieces).
+    """
 
     def __init__(self):
         self.c1 = ConingProfile(0.3, 0.7)
@@ -282,7 +295,7 @@ class SmoothProfile(MotionProfile):
         for k in range(n):
             a, b = t0 + (t1 - t0) * k / n, t0 + (t1 - t0) * (k + 1) / n
             nodes = 0.5 * (a + b)[..., None] + 0.5 * (b - a)[..., None] * x
-            out += 0.5 * (b - a)[..., None] * np.einsum("k,...kj->...j", wts, self.body_rate(nodes))
+            out += 0.5 * (b - a)[..., None] * np.einsum('k,...kj->...j', wts, self.body_rate(nodes))
         return out
 
 
@@ -298,7 +311,8 @@ def test_smooth_profile_is_exact():
 
 
 def test_noise_free_bias_of_B_by_order():
-    """No camera or gyro noise: what is left in B, s0 is the inversion error itself.
+    """
+    No camera or gyro noise: what is left in B, s0 is the inversion error itself.
 
     Smooth 3-axis motion: order 2 biases B by (ωh)²-terms (8e-5 at h = 0.1 s), order 3 by 2e-6,
     and halving h divides them by 4 and 8 — the orders carry over to the calibration.
@@ -311,38 +325,41 @@ def test_noise_free_bias_of_B_by_order():
         for order in (2, 3):
             r = calibrate_from_measurements(d.gyro_stamps, d.delta_theta, d.camera_stamps, d.camera_quats,
                                             steps_per_interval=int(round(0.5 / h)), order=order,
-                                            weighting="residual")
+                                            weighting='residual')
             assert r.observable
             e[h, order] = np.abs(r.x - d.x_true).max()
-    print("noise-free max |x − x_true|:", {k: f"{v:.2e}" for k, v in e.items()})
+    print('noise-free max |x − x_true|:', {k: f'{v:.2e}' for k, v in e.items()})
     assert 3e-5 < e[0.1, 2] < 2e-4 and e[0.1, 3] < 5e-6
     assert 3.0 < e[0.2, 2] / e[0.1, 2] < 5.0
     assert 5.0 < e[0.2, 3] / e[0.1, 3] < 12.0
 
 
 def test_rate_jumps_on_the_camera_grid():
-    """000's piecewise-constant rates jump at 5-s multiples, on the 0.1-s camera grid.  The paper's
+    """
+    000's piecewise-constant rates jump at 5-s multiples, on the 0.1-s camera grid.  The paper's
     order-3 correction then adds (1/12)V_{n−1}×V_n at each jump (w̄ error up to 4e-5 rad/s in the
     interval of the jump; through the recursion ~|V|/12 of it leaks into the next one, 6e-8;
     1e-10 elsewhere); the adaptive neighbour removes it; off the grid the paper's choice is
-    better on average (module docstring)."""
+    better on average (module docstring).
+    """
     p = tkachenko_profile()
     stamps = 0.1 * np.arange(1, 299)
     out = {}
-    for order, nb in ((2, "previous"), (3, "previous"), (3, "adaptive")):
+    for order, nb in ((2, 'previous'), (3, 'previous'), (3, 'adaptive')):
         t0, t1, w, _ = mean_true_rate(stamps, p.attitude(stamps), order=order, steps_per_interval=5, neighbour=nb)
         err = np.linalg.norm(w - p.delta_theta(t0, t1) / (t1 - t0)[:, None], axis=1)
         jump = np.array([np.any((a <= j + 1e-9) & (j <= b + 0.1 + 1e-9)) for a, b in zip(t0, t1)
                          for j in [np.array([5.0, 10.0, 15.0, 20.0, 25.0])]])
         out[order, nb] = (err[jump].max(), err[~jump].max())
-    print({k: tuple(f"{x:.1e}" for x in v) for k, v in out.items()})
-    assert out[3, "previous"][1] < 1e-7 and 1e-5 < out[3, "previous"][0] < 1e-4
-    assert out[3, "adaptive"][0] < 1e-9 and out[3, "adaptive"][1] < 1e-9
-    assert out[2, "previous"][1] > 1e-6                     # order 2: (ωh)² everywhere
+    print({k: tuple(f'{x:.1e}' for x in v) for k, v in out.items()})
+    assert out[3, 'previous'][1] < 1e-7 and 1e-5 < out[3, 'previous'][0] < 1e-4
+    assert out[3, 'adaptive'][0] < 1e-9 and out[3, 'adaptive'][1] < 1e-9
+    assert out[2, 'previous'][1] > 1e-6                     # order 2: (ωh)² everywhere
 
 
 def test_sigma_is_honest_monte_carlo():
-    """50 seeds (camera noise, random walk): RMS error / RMS σ per parameter.
+    """
+    50 seeds (camera noise, random walk): RMS error / RMS σ per parameter.
 
     model weighting (full covariance, consecutive intervals): honest (within 1.5×);
     residual weighting on disjoint intervals (independent errors): honest;
@@ -350,15 +367,15 @@ def test_sigma_is_honest_monte_carlo():
     """
     prof = tkachenko_profile()
     errs = gyro_errors()
-    out = {k: ([], []) for k in ("model", "residual_disjoint", "residual_consecutive")}
+    out = {k: ([], []) for k in ('model', 'residual_disjoint', 'residual_consecutive')}
     for seed in range(50):
         d = simulate_measurements(prof, 30.0, errs, camera_interval=0.1, camera_sigma=CAMERA_SIGMA, seed=100 + seed)
         n = len(d.camera_stamps)
         disjoint = np.array([(a, a + 5) for a in range(0, n - 5, 6)])
-        for key, kw in (("model", dict(weighting="model")),
-                        ("residual_disjoint", dict(weighting="residual", intervals=disjoint,
+        for key, kw in (('model', dict(weighting='model')),
+                        ('residual_disjoint', dict(weighting='residual', intervals=disjoint,
                                                    steps_per_interval=None)),
-                        ("residual_consecutive", dict(weighting="residual"))):
+                        ('residual_consecutive', dict(weighting='residual'))):
             r = _calibrate(d, **kw)
             out[key][0].append(r.x - d.x_true)
             out[key][1].append(r.sigma)
@@ -366,24 +383,26 @@ def test_sigma_is_honest_monte_carlo():
     for key, (e, s) in out.items():
         e, s = np.array(e), np.array(s)
         ratios[key] = np.sqrt((e ** 2).mean(0)) / np.sqrt((s ** 2).mean(0))
-        print(key, "RMS error / RMS σ:", np.round(ratios[key], 2))
-    for key in ("model", "residual_disjoint"):
+        print(key, 'RMS error / RMS σ:', np.round(ratios[key], 2))
+    for key in ('model', 'residual_disjoint'):
         assert np.all(ratios[key] > 1 / 1.5) and np.all(ratios[key] < 1.5), (key, ratios[key])
-    assert np.all(ratios["residual_consecutive"] < 0.8)
+    assert np.all(ratios['residual_consecutive'] < 0.8)
 
 
 def test_constant_direction_is_flagged_unobservable():
-    """Rates about body x only (six magnitudes): B·e_y and B·e_z (B12, B13, B22, B23, B32, B33)
+    """
+    Rates about body x only (six magnitudes): B·e_y and B·e_z (B12, B13, B22, B23, B32, B33)
     are unobservable; the rest is still estimated within 3σ.  One constant rate: B·e_x and s0
-    cannot be told apart either (B_j1·ω + s0_j)."""
+    cannot be told apart either (B_j1·ω + s0_j).
+    """
     errs = gyro_errors()
     prof = PiecewiseRateProfile([Segment(5.0, [0.05 * (k + 1), 0.0, 0.0]) for k in range(6)],
                                 initial_attitude=(0.64, 0.48, 0.36, -0.48))
     d = simulate_measurements(prof, 30.0, errs, camera_interval=0.1, camera_sigma=CAMERA_SIGMA, seed=1)
-    for weighting in ("model", "residual"):
+    for weighting in ('model', 'residual'):
         r = _calibrate(d, weighting=weighting)
         assert not r.observable
-        assert sorted(r.unobservable_parameters) == ["B12", "B13", "B22", "B23", "B32", "B33"], r.message
+        assert sorted(r.unobservable_parameters) == ['B12', 'B13', 'B22', 'B23', 'B32', 'B33'], r.message
         assert len(r.observability.unobservable) == 6
         print(weighting, r.message)
         bad = np.isin(PARAMETER_LABELS, r.unobservable_parameters)
@@ -395,7 +414,7 @@ def test_constant_direction_is_flagged_unobservable():
     d = simulate_measurements(const, 30.0, errs, camera_interval=0.1, camera_sigma=CAMERA_SIGMA, seed=1)
     r = _calibrate(d)
     assert not r.observable and len(r.observability.unobservable) == 9
-    assert "+0.71·B11 -0.71·s0_1" in r.message, r.message
+    assert '+0.71·B11 -0.71·s0_1' in r.message, r.message
     assert np.all(np.isinf(r.sigma))
 
 
@@ -403,25 +422,27 @@ def test_too_few_intervals():
     d = simulate_measurements(tkachenko_profile(), 30.0, gyro_errors(), camera_interval=1.0,
                               camera_sigma=CAMERA_SIGMA, seed=2)
     r = _calibrate(d, steps_per_interval=10)                  # 2 intervals of 10 s
-    assert not r.observable and "at least 4" in r.message
+    assert not r.observable and 'at least 4' in r.message
     # exactly 4 intervals (4 unknowns per axis): model weighting solves, residual weighting cannot
     iv = np.array([[0, 2], [7, 9], [17, 19], [21, 23]])        # segments 1, 2, 4, 5 of the 000 table
-    r4 = _calibrate(d, intervals=iv, steps_per_interval=None, weighting="model")
+    r4 = _calibrate(d, intervals=iv, steps_per_interval=None, weighting='model')
     assert r4.observable and r4.dof == 0, r4.message
     assert np.all(np.abs(r4.x - d.x_true) < 3 * r4.sigma)
-    r4r = _calibrate(d, intervals=iv, steps_per_interval=None, weighting="residual")
-    assert not r4r.observable and "more than 4" in r4r.message
+    r4r = _calibrate(d, intervals=iv, steps_per_interval=None, weighting='residual')
+    assert not r4r.observable and 'more than 4' in r4r.message
 
 
 def test_camera_with_known_boresight():
-    """Camera frame ≠ body: fixes q_ref_cam = q_ref_body ⊗ q_body_cam; the known boresight is undone
-    and the camera noise rotated into body axes (004's anisotropic 0.6″/0.6″/6″ σ)."""
+    """
+    Camera frame ≠ body: fixes q_ref_cam = q_ref_body ⊗ q_body_cam; the known boresight is undone
+    and the camera noise rotated into body axes (004's anisotropic 0.6″/0.6″/6″ σ).
+    """
     prof = tkachenko_profile()
     errs = gyro_errors()
     cam = StarCameraModel(boresight=np.radians([30.0, -20.0, 50.0]), interval=0.1, first_exposure=0.1,
                           sigma=np.array([1e-5, 1e-5, 1e-4]), seed=5)
     from strapdown_ros.sensors import IntegratingSensor
-    t, meas, _ = IntegratingSensor(prof, "gyro", 100.0, errs, seed=5).sample(3000)
+    t, meas, _ = IntegratingSensor(prof, 'gyro', 100.0, errs, seed=5).sample(3000)
     fixes = cam.fixes(prof, 299)
     r = calibrate_from_measurements(t, meas, [f.stamp for f in fixes], [f.attitude for f in fixes], cam.sigma,
                                     gyro_random_walk=ARW, steps_per_interval=5, q_body_camera=cam.q_mf_vf)
@@ -452,7 +473,7 @@ def test_integral_calibration_direct_interface():
     w = rng.normal(0.0, 0.2, (40, 3))
     s = w @ B.T + BIAS + rng.normal(0.0, 1e-6, (40, 3))
     r = integral_calibration(IntervalMeans(np.arange(40.0), np.arange(1.0, 41.0), w, s))
-    assert r.weighting == "residual" and r.observable
+    assert r.weighting == 'residual' and r.observable
     assert np.all(np.abs(r.x - np.concatenate([B.ravel(), BIAS])) < 4 * r.sigma)
     np.testing.assert_allclose(r.sigma[9:], 1e-6 / np.sqrt(40), rtol=0.5)
 
@@ -470,5 +491,5 @@ def test_module_imports_without_ros():
         import strapdown_ros.calibration.integral_method as m
         print("ok", len(m.PARAMETER_LABELS))
     """)
-    res = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
-    assert res.returncode == 0 and "ok 12" in res.stdout, res.stderr
+    res = subprocess.run([sys.executable, '-c', code], capture_output=True, text=True, timeout=60)
+    assert res.returncode == 0 and 'ok 12' in res.stdout, res.stderr

@@ -1,24 +1,26 @@
-"""The calibrator's state file: identity, replay, lock, paths, temporaries.
-No ROS: strapdown_ros.calibration.state is core code; calibrator_node only calls it."""
+"""
+The calibrator's state file: identity, replay, lock, paths, temporaries.
+No ROS: strapdown_ros.calibration.state is core code; calibrator_node only calls it.
+"""
 import os
 
 import numpy as np
 import pytest
 
+from strapdown_ros.calibration.state import CalibratorStateFile, state_identity, StateFileError
 from strapdown_ros.calibration.streaming import BoresightCalibrator
-from strapdown_ros.calibration.state import CalibratorStateFile, StateFileError, state_identity
-from strapdown_ros.params import CALIBRATOR_PARAMS, check_all
 from strapdown_ros.motion.profiles import bench_profile
+from strapdown_ros.params import CALIBRATOR_PARAMS, check_all
 from strapdown_ros.sensors import IntegratingSensor
 from strapdown_ros.sensors.star_camera import StarCameraModel
 
-STREAMS = {"gyro": "/imu/delta_theta", "camera": "/star_camera/attitude_with_covariance"}
+STREAMS = {'gyro': '/imu/delta_theta', 'camera': '/star_camera/attitude_with_covariance'}
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture(scope='module')
 def recording():
     prof = bench_profile()
-    t, dth, _ = IntegratingSensor(prof, "gyro", 100.0).sample(int(prof.duration * 100) - 1)
+    t, dth, _ = IntegratingSensor(prof, 'gyro', 100.0).sample(int(prof.duration * 100) - 1)
     cam = StarCameraModel(boresight=np.radians([40.0, -25.0, 120.0]), interval=5.0, seed=1)
     fixes = cam.fixes(prof, int(prof.duration / 5.0) - 1)
     return t, dth, fixes
@@ -45,7 +47,7 @@ def _fresh(p):
 
 def test_replaying_the_same_recording_adds_nothing(tmp_path, recording):
     p = _params()
-    path = str(tmp_path / "state.npz")
+    path = str(tmp_path / 'state.npz')
     sf = CalibratorStateFile(path, state_identity(p, STREAMS))
     sf.open()
     cal = _fresh(p)
@@ -63,25 +65,25 @@ def test_replaying_the_same_recording_adds_nothing(tmp_path, recording):
         assert len(cal.pairs) == n and cal.replayed_pairs == n
         sf.save(cal, 0)
         sf.close()
-    assert sorted(os.listdir(tmp_path)) == ["state.npz", "state.npz.lock"]    # no temporaries
+    assert sorted(os.listdir(tmp_path)) == ['state.npz', 'state.npz.lock']    # no temporaries
 
 
-@pytest.mark.parametrize("change", [{"camera_frame_id": "camera2"},
-                                    {"gyro_scale_factor": [1e-3, 0.0, 0.0]},
-                                    {"covariance_model": "004"}, "stream"])
+@pytest.mark.parametrize('change', [{'camera_frame_id': 'camera2'},
+                                    {'gyro_scale_factor': [1e-3, 0.0, 0.0]},
+                                    {'covariance_model': '004'}, 'stream'])
 def test_a_state_of_another_calibration_is_refused_and_left_as_it_is(tmp_path, recording, change):
     p = _params()
-    path = str(tmp_path / "state.npz")
+    path = str(tmp_path / 'state.npz')
     sf = CalibratorStateFile(path, state_identity(p, STREAMS))
     sf.open()
     cal = _fresh(p)
     _feed(cal, recording)
     sf.save(cal, 0)
     sf.close()
-    before = open(path, "rb").read()
-    if change == "stream":
-        q, name = p, "gyro"
-        ident = state_identity(p, {**STREAMS, "gyro": "/robot2/imu/delta_theta"})
+    before = open(path, 'rb').read()
+    if change == 'stream':
+        q, name = p, 'gyro'
+        ident = state_identity(p, {**STREAMS, 'gyro': '/robot2/imu/delta_theta'})
     else:
         q = _params(**change)
         ident, name = state_identity(q, STREAMS), next(iter(change))
@@ -90,37 +92,37 @@ def test_a_state_of_another_calibration_is_refused_and_left_as_it_is(tmp_path, r
     cal = _fresh(q)
     with pytest.raises(StateFileError) as err:
         sf.load(cal)
-    assert err.value.kind == "identity" and name in str(err.value)
+    assert err.value.kind == 'identity' and name in str(err.value)
     assert cal.pairs == [] and cal.last_fix is None
     sf.close()
-    assert open(path, "rb").read() == before
+    assert open(path, 'rb').read() == before
 
 
 def test_the_lock_refuses_a_second_user(tmp_path):
-    path = str(tmp_path / "state.npz")
+    path = str(tmp_path / 'state.npz')
     a = CalibratorStateFile(path, state_identity(_params(), STREAMS))
     b = CalibratorStateFile(path, state_identity(_params(), STREAMS))
     a.open()
     with pytest.raises(StateFileError) as err:
         b.open()
-    assert err.value.kind == "locked" and "in use" in str(err.value)
+    assert err.value.kind == 'locked' and 'in use' in str(err.value)
     a.close()
     b.open()
     b.close()
 
 
 def test_a_directory_is_never_moved_and_a_trailing_slash_is_an_error(tmp_path):
-    d = tmp_path / "mydir"
+    d = tmp_path / 'mydir'
     d.mkdir()
-    (d / "keep.txt").write_text("user data")
-    for path in (str(d), str(tmp_path / "state.npz") + os.sep,
-                 str(tmp_path / "missing" / "state.npz")):
+    (d / 'keep.txt').write_text('user data')
+    for path in (str(d), str(tmp_path / 'state.npz') + os.sep,
+                 str(tmp_path / 'missing' / 'state.npz')):
         sf = CalibratorStateFile(path, state_identity(_params(), STREAMS))
         with pytest.raises(StateFileError) as err:
             sf.open()
-        assert err.value.kind == "path", path
-    assert (d / "keep.txt").read_text() == "user data"
-    assert sorted(os.listdir(tmp_path)) == ["mydir"]
+        assert err.value.kind == 'path', path
+    assert (d / 'keep.txt').read_text() == 'user data'
+    assert sorted(os.listdir(tmp_path)) == ['mydir']
 
 
 def test_kill_9_temporary_removed_at_next_start_and_corrupt_file_moved(tmp_path):
@@ -128,7 +130,7 @@ def test_kill_9_temporary_removed_at_next_start_and_corrupt_file_moved(tmp_path)
     import subprocess
     import sys
     import textwrap
-    path = str(tmp_path / "state.npz")
+    path = str(tmp_path / 'state.npz')
     # a writer killed with SIGKILL between writing its temporary and the rename
     code = textwrap.dedent(f"""
         import os, sys, numpy as np
@@ -142,16 +144,16 @@ def test_kill_9_temporary_removed_at_next_start_and_corrupt_file_moved(tmp_path)
         from strapdown_ros.calibration.streaming import BoresightCalibrator
         sf.save(BoresightCalibrator(), 0)
     """)
-    res = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
-    assert res.returncode == -signal.SIGKILL and "written" in res.stdout, res.stderr
-    assert ".state.npz.tmp" in os.listdir(tmp_path)
+    res = subprocess.run([sys.executable, '-c', code], capture_output=True, text=True, timeout=60)
+    assert res.returncode == -signal.SIGKILL and 'written' in res.stdout, res.stderr
+    assert '.state.npz.tmp' in os.listdir(tmp_path)
     sf = CalibratorStateFile(path, state_identity(_params(), STREAMS))
     sf.open()                                      # the lock is free: the killed process is gone
-    assert ".state.npz.tmp" not in os.listdir(tmp_path)
-    with open(path, "wb") as fh:
-        fh.write(b"not a state file")
+    assert '.state.npz.tmp' not in os.listdir(tmp_path)
+    with open(path, 'wb') as fh:
+        fh.write(b'not a state file')
     with pytest.raises(StateFileError) as err:
         sf.load(_fresh(_params()))
-    assert err.value.kind == "corrupt"
-    assert sf.move_aside() == path + ".corrupt" and not os.path.exists(path)
+    assert err.value.kind == 'corrupt'
+    assert sf.move_aside() == path + '.corrupt' and not os.path.exists(path)
     sf.close()

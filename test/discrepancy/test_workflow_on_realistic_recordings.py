@@ -1,38 +1,40 @@
-"""The discrepancy workflow on recordings like real ones: a reference noisier in motion than at
+"""
+The discrepancy workflow on recordings like real ones: a reference noisier in motion than at
 rest, a MEMS gyro with a large bias, unmodelled structure (honest σ), a static recording (the
 boresight unobservable), a gyro wiring fault, and random small recordings (never a crash).
 
 Truth is what was injected (simulate_recording / record_sim parameters, exact rest intervals),
-never the workflow's own output."""
+never the workflow's own output.
+"""
 import json
 
+from hypothesis import given, HealthCheck, settings
+from hypothesis import strategies as st
 import numpy as np
 import pytest
-from hypothesis import HealthCheck, given, settings
-from hypothesis import strategies as st
 
-from strapdown_ros.discrepancy.diagnostics import allan_comparison, static_segments
-from strapdown_ros.discrepancy.workflow import (STOPPED_BY, AnalysisError, InputError, Recording,
-    analyse, json_clean)
-from strapdown_ros.discrepancy.synthetic import simulate_recording
 from strapdown_ros.calibration.pairs import GyroRecord
-from strapdown_ros.params import CALIBRATOR_PARAMS, IMU_SIM_PARAMS, STAR_CAMERA_PARAMS, check_all
+from strapdown_ros.discrepancy.diagnostics import allan_comparison, static_segments
+from strapdown_ros.discrepancy.synthetic import simulate_recording
+from strapdown_ros.discrepancy.workflow import (analyse, AnalysisError, InputError, json_clean,
+                                                Recording, STOPPED_BY)
+from strapdown_ros.params import CALIBRATOR_PARAMS, check_all, IMU_SIM_PARAMS, STAR_CAMERA_PARAMS
 from strapdown_ros.rotation import quat_multiply, rotvec_to_quat
 from strapdown_ros.sensors.effects import CANDIDATES
 
 BETA = [0.698, -0.436, 2.094]
-VERDICTS = ("model_adequate", "explained", "unexplained_structure")
+VERDICTS = ('model_adequate', 'explained', 'unexplained_structure')
 
 
 def _recording(duration=300.0, rate=100.0, interval=1.0, seed=3, repeat=2, **over):
-    sc = {"profile": "bench", "bench_repeat": repeat, "gyro_rate": rate,
-          "camera_interval": interval, "boresight": BETA, "seed": seed, **over}
+    sc = {'profile': 'bench', 'bench_repeat': repeat, 'gyro_rate': rate,
+          'camera_interval': interval, 'boresight': BETA, 'seed': seed, **over}
     return simulate_recording(check_all(IMU_SIM_PARAMS, sc), check_all(STAR_CAMERA_PARAMS, sc),
                               duration)
 
 
 def _model(rate=100.0, **over):
-    return check_all(CALIBRATOR_PARAMS, {"gyro_rate": rate, **over})
+    return check_all(CALIBRATOR_PARAMS, {'gyro_rate': rate, **over})
 
 
 def _moving_fixes(rec, limit=1e-3):
@@ -41,10 +43,12 @@ def _moving_fixes(rec, limit=1e-3):
     return np.linalg.norm(g.rate_at(k, 0.5), axis=1) > limit
 
 
-@pytest.mark.parametrize("extra_sigma", [3e-5, 3e-4, 5e-3])
+@pytest.mark.parametrize('extra_sigma', [3e-5, 3e-4, 5e-3])
 def test_reference_noisier_in_motion_never_crashes(extra_sigma):
-    """Extra camera noise (10× to 1700× the stated 0.6″) only on the fixes taken while turning:
-    the camera-noise fit used to run off (scale 2e9) and crash the analysis as 'bad input'."""
+    """
+    Extra camera noise (10× to 1700× the stated 0.6″) only on the fixes taken while turning:
+    the camera-noise fit used to run off (scale 2e9) and crash the analysis as 'bad input'.
+    """
     rec = _recording()
     moving = _moving_fixes(rec)
     assert 40 < moving.sum() < 150
@@ -54,11 +58,11 @@ def test_reference_noisier_in_motion_never_crashes(extra_sigma):
     assert r.verdict in VERDICTS
     assert r.stopped_by in STOPPED_BY
     js = json.loads(json.dumps(r.as_json()))
-    for f in js["failed_candidates"]:
-        assert set(f) == {"effect", "step", "reason"} and f["reason"]
+    for f in js['failed_candidates']:
+        assert set(f) == {'effect', 'step', 'reason'} and f['reason']
     if extra_sigma >= 3e-4:           # far beyond the stated noise: never "explained" plainly
-        assert (r.verdict == "unexplained_structure" or not r.fit_consistent
-                or r.sigma_method in ("hac", "hac_jackknife"))
+        assert (r.verdict == 'unexplained_structure' or not r.fit_consistent
+                or r.sigma_method in ('hac', 'hac_jackknife'))
     for s in r.steps:                          # every reported σ finite or openly null
         for v in np.atleast_1d(list(s.sigma.values())[0]):
             assert v is None or v >= 0
@@ -89,16 +93,18 @@ def test_step_limit_counts_accepted_effects_and_is_said():
     rec = _recording(seed=5, camera_exposure_time=0.1, camera_stamp_at_exposure_start=True,
                      gyro_bias=[3e-6, -2e-6, 2e-6])
     r = analyse(rec, _model(), max_steps=1)
-    assert len(r.steps) == 1 and r.stopped_by == "max_steps"
-    assert r.as_json()["stopped_by"] == "max_steps"
+    assert len(r.steps) == 1 and r.stopped_by == 'max_steps'
+    assert r.as_json()['stopped_by'] == 'max_steps'
     r = analyse(_recording(seed=8), _model())
-    assert r.stopped_by in ("no_significant_candidate", "no_candidates_left")
+    assert r.stopped_by in ('no_significant_candidate', 'no_candidates_left')
 
 
 def _mems(rate=286.0, bias_deg_s=0.2, seed=0):
-    """A MEMS-like gyro record: 0.2 °/s bias on every axis, white noise, rest 0–30 s, a varying
+    """
+    A MEMS-like gyro record: 0.2 °/s bias on every axis, white noise, rest 0–30 s, a varying
     turn 30–50 s, rest 50–85 s, a turn 85–95 s, rest 95–110 s (too short: 15 s less a
-    window)."""
+    window).
+    """
     rng = np.random.default_rng(seed)
     T = 1.0 / rate
     t = T * np.arange(1, int(110.0 * rate) + 1)
@@ -115,7 +121,7 @@ def _mems(rate=286.0, bias_deg_s=0.2, seed=0):
 
 def test_rest_found_on_a_mems_gyro_with_a_large_bias():
     t, dth, nd = _mems()
-    params = {"gyro_random_walk": nd, "gyro_quantum": 0.0}
+    params = {'gyro_random_walk': nd, 'gyro_quantum': 0.0}
     segs = static_segments(t, dth, params)
     spans = [(t[a], t[b - 1]) for a, b in segs]
     assert len(spans) == 2, spans
@@ -123,33 +129,35 @@ def test_rest_found_on_a_mems_gyro_with_a_large_bias():
     assert a0 < 1.0 and 28.0 <= b0 <= 30.0, spans            # rest 0–30 s, turn from 30 s
     assert 50.0 <= a1 <= 52.0 and 83.0 <= b1 <= 85.0, spans  # rest 50–85 s
     allan = allan_comparison(t, dth, params)
-    assert allan is not None and allan["static_segments"] == 2
+    assert allan is not None and allan['static_segments'] == 2
     # white noise as the model states it: the measured Allan deviation at the shortest τ agrees
-    assert allan["measured"][0] == pytest.approx(allan["simulated_before"][0], rel=0.1)
+    assert allan['measured'][0] == pytest.approx(allan['simulated_before'][0], rel=0.1)
     # a model that understates the noise 3×: the rest is still found (from the data's floor)
     info = {}
-    assert len(static_segments(t, dth, {"gyro_random_walk": nd / 3.0}, info=info)) == 2
-    assert info["reference"] == "data"
+    assert len(static_segments(t, dth, {'gyro_random_walk': nd / 3.0}, info=info)) == 2
+    assert info['reference'] == 'data'
 
 
 def test_sigma_honest_when_structure_is_unmodelled():
-    """An unmodelled periodic bias (20°/h, 30 s, outside the library) and a 0.05 s stamp offset:
+    """
+    An unmodelled periodic bias (20°/h, 30 s, outside the library) and a 0.05 s stamp offset:
     the time offset from every fix and from every 2nd fix agree within 3 combined σ with the
     reported σ (Newey–West), not with the model's σ.  The camera-noise term is left out of the
     search here: it would inflate the stated noise until χ²/dof = 1 and so the model's σ too,
-    and the comparison is between two σ of the same model."""
+    and the comparison is between two σ of the same model.
+    """
     rec = _recording(seed=31, camera_exposure_time=0.1, camera_stamp_at_exposure_start=True,
                      gyro_bias_periodic=[1e-4, -1e-4, 5e-5], gyro_bias_period=30.0)
     est = []
     for sub in (1, 2):
         r = analyse(Recording(rec.gyro_stamps, rec.delta_theta, rec.fix_stamps[::sub],
                               rec.fix_q[::sub], rec.fix_P[::sub]), _model(),
-                    candidates=[c for c in CANDIDATES if c != "camera_noise_anisotropy"])
-        assert r.verdict == "unexplained_structure" and r.sigma_method in ("hac", "hac_jackknife")
-        assert not r.fit_consistent or r.tests_after["failed"]
-        s = {x.effect: x for x in r.steps}["time_offset"]
-        est.append((s.parameters["camera_time_offset"], s.sigma["camera_time_offset"],
-                    s.sigma_model["camera_time_offset"]))
+                    candidates=[c for c in CANDIDATES if c != 'camera_noise_anisotropy'])
+        assert r.verdict == 'unexplained_structure' and r.sigma_method in ('hac', 'hac_jackknife')
+        assert not r.fit_consistent or r.tests_after['failed']
+        s = {x.effect: x for x in r.steps}['time_offset']
+        est.append((s.parameters['camera_time_offset'], s.sigma['camera_time_offset'],
+                    s.sigma_model['camera_time_offset']))
         assert all(b >= m for b, m in zip(r.boresight_sigma_rad, r.boresight_sigma_model_rad))
     (v1, s1, m1), (v2, s2, m2) = est
     assert abs(v1 - v2) <= 3.0 * np.hypot(s1, s2), est
@@ -157,59 +165,63 @@ def test_sigma_honest_when_structure_is_unmodelled():
     assert abs(v1 + 0.05) <= 3.0 * s1                           # and the truth is inside too
 
 
-@pytest.mark.parametrize("fault", ["swap_xy", "negate_z"])
+@pytest.mark.parametrize('fault', ['swap_xy', 'negate_z'])
 def test_gyro_wiring_fault_is_unexplained_and_named(fault):
     rec = _recording(seed=11, interval=2.0)
-    rec.delta_theta = (rec.delta_theta[:, [1, 0, 2]] if fault == "swap_xy"
+    rec.delta_theta = (rec.delta_theta[:, [1, 0, 2]] if fault == 'swap_xy'
                        else rec.delta_theta * [1, 1, -1])
     r = analyse(rec, _model())
-    assert r.verdict == "unexplained_structure"
-    assert "gyro axis swap/sign" in r.remaining["candidate_explanations"]
-    P = np.array(r.remaining["gyro_axis_swap_sign"]["permutation"])
+    assert r.verdict == 'unexplained_structure'
+    assert 'gyro axis swap/sign' in r.remaining['candidate_explanations']
+    P = np.array(r.remaining['gyro_axis_swap_sign']['permutation'])
     assert np.linalg.det(P) == pytest.approx(-1.0)           # improper: what no boresight absorbs
-    assert r.remaining["gyro_axis_swap_sign"]["ratio"] < 0.01
+    assert r.remaining['gyro_axis_swap_sign']['ratio'] < 0.01
 
 
 def test_correct_wiring_names_no_swap():
     rec = _recording(seed=31, gyro_bias_periodic=[2e-6, -2e-6, 1e-6], gyro_bias_period=100.0)
     r = analyse(rec, _model())
     if r.remaining:
-        assert not r.remaining["gyro_axis_swap_sign"]["explains"]
-        assert "gyro axis swap/sign" not in r.remaining.get("candidate_explanations", [])
+        assert not r.remaining['gyro_axis_swap_sign']['explains']
+        assert 'gyro axis swap/sign' not in r.remaining.get('candidate_explanations', [])
 
 
 def test_bias_that_changes_half_way_is_not_repeatable():
-    """A bias step of 2e-6 rad/s at half time (outside the library: the bias is constant in the
-    model): the bias found is flagged not repeatable across the time blocks, with its spread."""
+    """
+    A bias step of 2e-6 rad/s at half time (outside the library: the bias is constant in the
+    model): the bias found is flagged not repeatable across the time blocks, with its spread.
+    """
     rec = _recording(seed=13, interval=2.0)
     late = rec.gyro_stamps > 150.0
     rec.delta_theta[late] += np.array([2e-6, -2e-6, 1e-6]) * 0.01
     r = analyse(rec, _model())
     steps = {s.effect: s for s in r.steps}
-    assert "gyro_bias" in steps, list(steps)
-    s = steps["gyro_bias"]
+    assert 'gyro_bias' in steps, list(steps)
+    s = steps['gyro_bias']
     assert s.repeatable is False and s.spread_ratio > r.repeatability_bound
-    assert len(s.fold_values) == 6 and np.all(np.asarray(s.spread["gyro_bias"]) > 0)
-    assert s.as_dict()["repeatable"] is False
+    assert len(s.fold_values) == 6 and np.all(np.asarray(s.spread['gyro_bias']) > 0)
+    assert s.as_dict()['repeatable'] is False
 
 
 def test_noisier_reference_gives_no_confident_wrong_answer():
-    """A reference as noisy as motion capture (0.3° = 5.2e-3 rad per axis, stated in its
+    """
+    A reference as noisy as motion capture (0.3° = 5.2e-3 rad per axis, stated in its
     covariance) and a gyro bias of 20°/h: the bias used to be called not separable from the
     scale asymmetry and the drift (alike residual patterns), and a wrong effect named instead.
     Now the bias is named and within 3σ of the injected value, no camera-noise scale is fitted
-    (the noise is as stated) and the boresight is within 3σ of the truth."""
+    (the noise is as stated) and the boresight is within 3σ of the truth.
+    """
     bias = np.array([1e-4, -1e-4, 5e-5])
     rec = _recording(duration=300.0, seed=5, camera_sigma_xy=5.2e-3, camera_sigma_z=5.2e-3,
                      gyro_bias=bias.tolist())
     r = analyse(rec, _model(max_sigma=0.05))
     named = {s.effect: s for s in r.steps}
-    assert "gyro_bias" in named, (r.steps, r.not_separable, r.rejected)
-    assert "camera_noise_anisotropy" not in named
-    est = np.asarray(named["gyro_bias"].parameters["gyro_bias"])
-    sig = np.asarray(named["gyro_bias"].sigma["gyro_bias"])
+    assert 'gyro_bias' in named, (r.steps, r.not_separable, r.rejected)
+    assert 'camera_noise_anisotropy' not in named
+    est = np.asarray(named['gyro_bias'].parameters['gyro_bias'])
+    sig = np.asarray(named['gyro_bias'].sigma['gyro_bias'])
     assert np.all(np.abs(est - bias) <= 3.0 * sig), (est, sig)
     err = (np.asarray(r.boresight_rad) - BETA + np.pi) % (2 * np.pi) - np.pi
     assert np.all(np.abs(err) <= 3.0 * np.asarray(r.boresight_sigma_rad)), (err,
                                                                             r.boresight_sigma_rad)
-    assert r.fit_consistent or r.verdict == "unexplained_structure"
+    assert r.fit_consistent or r.verdict == 'unexplained_structure'

@@ -1,13 +1,15 @@
-"""FilterSystem (the core of attitude_filter_node and filter_bag) and the live model check,
-against the package's gyro and camera simulators with injected effects (independent truth)."""
+"""
+FilterSystem (the core of attitude_filter_node and filter_bag) and the live model check,
+against the package's gyro and camera simulators with injected effects (independent truth).
+"""
 import numpy as np
 import pytest
 
-from strapdown_ros.params import FILTER_PARAMS, check_all
+from strapdown_ros.estimation.chi_square import chi2_sf
 from strapdown_ros.estimation.filter_system import FilterSystem
 from strapdown_ros.estimation.model_check import ljung_box
-from strapdown_ros.estimation.chi_square import chi2_sf
 from strapdown_ros.motion.profiles import PiecewiseRateProfile, Segment
+from strapdown_ros.params import check_all, FILTER_PARAMS
 from strapdown_ros.rotation import quat_conjugate, quat_multiply, quat_to_rotvec, rotvec_to_quat
 from strapdown_ros.sensors import ARCSEC
 from strapdown_ros.sensors.model import IntegratingSensor, SensorErrorModel
@@ -25,10 +27,10 @@ def _motion():
     return PiecewiseRateProfile(segs * 10, initial_attitude=rotvec_to_quat([0.2, -0.4, 0.9]))
 
 
-def run(scale, seconds=150, bias=(2e-6, -1e-6, 1.5e-6), augment="", seed=4, **extra):
+def run(scale, seconds=150, bias=(2e-6, -1e-6, 1.5e-6), augment='', seed=4, **extra):
     """Simulated Δθ at RATE Hz and a fix every second through FilterSystem (stamp order)."""
     profile = _motion()
-    gyro = IntegratingSensor(profile, "gyro", RATE,
+    gyro = IntegratingSensor(profile, 'gyro', RATE,
                              SensorErrorModel(np.array(bias), np.array(scale), np.zeros((3, 3)),
                                               random_walk=2e-6), seed=seed)
     beta = np.array([100.0, -50.0, 30.0]) * ARCSEC
@@ -62,12 +64,12 @@ def test_matching_model_passes_and_estimates_attitude_and_bias():
     sysf, profile = run(scale=(0.0, 0.0, 0.0))
     out, fixes = sysf.take()
     f = sysf.filter
-    assert sysf.counts["applied"] >= 140 and sysf.counts["gated"] == 0
+    assert sysf.counts['applied'] >= 140 and sysf.counts['gated'] == 0
     eps = quat_to_rotvec(quat_multiply(quat_conjugate(profile.attitude(f.time)), f.attitude))
-    assert np.all(np.abs(eps) < 3 * f.sigma("attitude"))
-    b = f.estimate("gyro_bias")
-    assert np.all(np.abs(b - [2e-6, -1e-6, 1.5e-6]) < 3 * f.sigma("gyro_bias"))
-    assert np.all(f.sigma("gyro_bias") < 5e-7)                        # really estimated
+    assert np.all(np.abs(eps) < 3 * f.sigma('attitude'))
+    b = f.estimate('gyro_bias')
+    assert np.all(np.abs(b - [2e-6, -1e-6, 1.5e-6]) < 3 * f.sigma('gyro_bias'))
+    assert np.all(f.sigma('gyro_bias') < 5e-7)                        # really estimated
     assert sysf.check.windows > 50
     assert sysf.check.failed <= 0.05 * sysf.check.windows, sysf.check.last.text()
     assert fixes[-1].check_ok
@@ -80,36 +82,36 @@ def test_unmodelled_scale_factor_is_named():
     # small enough that the gate keeps applying fixes; a 60-fix window spans both signs of the
     # rate about every axis (a one-sided window cannot tell a scale factor from its asymmetry)
     sysf, _ = run(scale=(1e-4, -1e-4, 1e-4), model_check_window=60)
-    assert sysf.counts["gated"] < 10
+    assert sysf.counts['gated'] < 10
     last = sysf.check.last
     assert not last.ok
-    assert last.best_effect == "gyro_scale_factor", last.text()
+    assert last.best_effect == 'gyro_scale_factor', last.text()
     assert last.best_p < 1e-6
     assert sysf.check.failed > 0.9 * sysf.check.windows
-    assert "innovations match gyro_scale_factor (p = " in last.text()
-    assert "run discrepancy on a recording" in last.text()
+    assert 'innovations match gyro_scale_factor (p = ' in last.text()
+    assert 'run discrepancy on a recording' in last.text()
     # the model is never changed by the check
-    assert [e.name for e, _ in sysf.filter.layout.gyro] == ["gyro_bias"]
+    assert [e.name for e, _ in sysf.filter.layout.gyro] == ['gyro_bias']
     assert sysf.filter.layout.size == 6
 
 
 def test_augmented_scale_factor_is_estimated_and_check_passes():
     sf = np.array([1e-4, -1e-4, 1e-4])
-    sysf, _ = run(scale=sf, augment="gyro_scale_factor", seconds=200, model_check_window=60)
+    sysf, _ = run(scale=sf, augment='gyro_scale_factor', seconds=200, model_check_window=60)
     f = sysf.filter
-    assert np.all(np.abs(f.estimate("gyro_scale_factor") - sf) < 3 * f.sigma("gyro_scale_factor"))
+    assert np.all(np.abs(f.estimate('gyro_scale_factor') - sf) < 3 * f.sigma('gyro_scale_factor'))
     assert sysf.check.last.ok, sysf.check.last.text()
 
 
 def test_fix_rules_drop_and_count():
-    p = check_all(FILTER_PARAMS, {"gyro_rate": RATE})
+    p = check_all(FILTER_PARAMS, {'gyro_rate': RATE})
     s = FilterSystem(p)
     assert s.offer_fix(10**9, [0.0, 0.0, 0.0, 0.0]) is None
-    assert s.counts["dropped_zero_quaternion"] == 1
+    assert s.counts['dropped_zero_quaternion'] == 1
     s.offer_fix(2 * 10**9, [2.0, 0.0, 0.0, 0.0], -np.eye(3))
-    assert s.counts["dropped_bad_covariance"] == 1
+    assert s.counts['dropped_bad_covariance'] == 1
     s.offer_fix(3 * 10**9, [2.0, 0.0, 0.0, 0.0], np.zeros((3, 3)))
-    assert s.counts["normalised"] == 1 and s.counts["covariance_substituted"] == 1
+    assert s.counts['normalised'] == 1 and s.counts['covariance_substituted'] == 1
     assert s.filter is not None
-    s.offer_gyro(3 * 10**9 + 20_000_000, (float("nan"), 0.0, 0.0))
+    s.offer_gyro(3 * 10**9 + 20_000_000, (float('nan'), 0.0, 0.0))
     assert s.gyro_check.nan == 1

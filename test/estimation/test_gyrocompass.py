@@ -1,15 +1,20 @@
-"""001 (Vavilov): the gyrocompass error model against geometry, and its observability statements
-against closed-form derivations (doc/seeds/observability_001.md)."""
+"""
+001 (Vavilov): the gyrocompass error model against geometry, and its observability statements
+against closed-form derivations (doc/seeds/observability_001.md).
+"""
 import numpy as np
 import pytest
 
-from strapdown_ros.estimation.gyrocompass import (Parameters, aircraft_matrix, circulation,
-    circulation_ship_system, error_matrices, exact_measurement, full_system, linear_measurement,
-    measurement_vectors, orthodrome, ship_system, transform)
-from strapdown_ros.estimation.steady_filter import (constant_gain_covariance, discretize,
-    pole_placement_gain, simulate_constant_gain, steady_state_gain)
+from strapdown_ros.estimation.gyrocompass import (aircraft_matrix, circulation,
+                                                  circulation_ship_system, error_matrices,
+                                                  exact_measurement, full_system,
+                                                  linear_measurement, measurement_vectors,
+                                                  orthodrome, Parameters, ship_system, transform)
 from strapdown_ros.estimation.observability import (measures_of_observability,
-    observability_gramian, stationary_measures)
+                                                    observability_gramian, stationary_measures)
+from strapdown_ros.estimation.steady_filter import (constant_gain_covariance, discretize,
+                                                    pole_placement_gain, simulate_constant_gain,
+                                                    steady_state_gain)
 
 SHIP = Parameters(15.0)
 
@@ -61,13 +66,13 @@ def test_orthodrome_kinematics_match_4_1():
     for tau in (0.0, 0.7):
         k = m.kinematics(tau)
         psi = psi0 + SHIP.speed / SHIP.radius * tau / SHIP.schuler_rate
-        v, s = k["omega2"], k["sin_lat"]
+        v, s = k['omega2'], k['sin_lat']
         assert s == pytest.approx(np.sin(psi) * np.sin(th), rel=1e-12)
         assert v ** 2 == pytest.approx((mu1 + np.cos(th)) ** 2 + (np.sin(th) * np.cos(psi)) ** 2, rel=1e-12)
-        assert k["V1"] == pytest.approx((mu1 + np.cos(th)) / v, rel=1e-12)
-        assert k["V2"] == pytest.approx(np.sin(th) * np.cos(psi) / v, rel=1e-12)
-        assert k["lam_omega3"] == pytest.approx(mu * s * (1 + mu1 * k["V1"] / v), rel=1e-10)
-        assert k["omega2_rate_ratio"] * v == pytest.approx(-mu * mu1 * s * k["V2"], rel=1e-8)
+        assert k['V1'] == pytest.approx((mu1 + np.cos(th)) / v, rel=1e-12)
+        assert k['V2'] == pytest.approx(np.sin(th) * np.cos(psi) / v, rel=1e-12)
+        assert k['lam_omega3'] == pytest.approx(mu * s * (1 + mu1 * k['V1'] / v), rel=1e-10)
+        assert k['omega2_rate_ratio'] * v == pytest.approx(-mu * mu1 * s * k['V2'], rel=1e-8)
 
 
 def _transformed(m, tau, h=1e-4):
@@ -75,12 +80,12 @@ def _transformed(m, tau, h=1e-4):
 
     def G(t):
         k = m.kinematics(t)
-        h1, h2 = measurement_vectors(k["V1"], k["V2"], k["omega2"], mu1)
+        h1, h2 = measurement_vectors(k['V1'], k['V2'], k['omega2'], mu1)
         return transform(h1), transform(h2), k
     G1, G2, k = G(tau)
     G1d = (G(tau + h)[0] - G(tau - h)[0]) / (2 * h)
     G2d = (G(tau + h)[1] - G(tau - h)[1]) / (2 * h)
-    B, b = error_matrices(k["lam_omega3"], k["omega2_rate_ratio"])
+    B, b = error_matrices(k['lam_omega3'], k['omega2_rate_ratio'])
     return G1, G2, G1d, G2d, B, b, k
 
 
@@ -90,7 +95,7 @@ def test_change_of_variables_4_3_on_the_orthodrome():
     mu, mu1 = SHIP.mu, SHIP.mu1
     m = orthodrome(SHIP, np.radians(40), np.radians(70))
     G1, G2, G1d, G2d, B, b, k = _transformed(m, 0.3)
-    c, v, V1, V2 = mu * k["sin_lat"], k["omega2"], k["V1"], k["V2"]
+    c, v, V1, V2 = mu * k['sin_lat'], k['omega2'], k['V1'], k['V2']
     Ay = (G1 @ B + G1d) @ np.linalg.inv(G1)
     assert Ay - (B2 + c * B1) == pytest.approx(c * mu1 * G2 @ np.linalg.inv(G1), abs=1e-9)
     assert G1 @ b == pytest.approx(c * np.array([0, v - mu1 ** 2 / v, 0, 2 * mu1 * V2]), abs=1e-12)
@@ -125,13 +130,13 @@ def test_ship_reduction_agrees_with_full_model():
     keep = [0, 1, 2, 3, 5]                                                  # drop z (known)
     g = observability_gramian(lambda t: F(t)[np.ix_(keep, keep)], lambda t: H(t)[:, keep], 0, 2 * np.pi, 200)
     k = m.kinematics(0.0)
-    h1, _ = measurement_vectors(k["V1"], k["V2"], k["omega2"], SHIP.mu1)
+    h1, _ = measurement_vectors(k['V1'], k['V2'], k['omega2'], SHIP.mu1)
     combos = np.zeros((5, 5))
     combos[:4, :4] = transform(h1)
     combos[4, 4] = 1.0
     full = measures_of_observability(g.mean, combos)
-    c = SHIP.mu * k["sin_lat"]
-    A, Hs = ship_system(c, k["omega2"] - SHIP.mu1 ** 2 / k["omega2"], 2 * SHIP.mu1 * k["V2"])
+    c = SHIP.mu * k['sin_lat']
+    A, Hs = ship_system(c, k['omega2'] - SHIP.mu1 ** 2 / k['omega2'], 2 * SHIP.mu1 * k['V2'])
     gs = observability_gramian(lambda t: A, lambda t: Hs, 0, 2 * np.pi, 2)
     reduced = measures_of_observability(gs.mean, np.eye(5))
     assert full == pytest.approx(reduced, rel=0.1)                         # neglected terms O(μ1), O(μ²)
@@ -158,9 +163,9 @@ def test_aircraft_D_against_geometry():
 
     def S(tau):
         k = m.kinematics(tau)
-        h1, h2 = measurement_vectors(k["V1"], k["V2"], k["omega2"], P.mu1)
+        h1, h2 = measurement_vectors(k['V1'], k['V2'], k['omega2'], P.mu1)
         G1, G2 = transform(h1), transform(h2)
-        c, v = mu * k["sin_lat"], k["omega2"]
+        c, v = mu * k['sin_lat'], k['omega2']
         Y, Z = np.zeros((4, 6)), np.zeros((4, 6))
         Y[:, :4], Z[:, :4] = G1, G2
         e = np.eye(6)
@@ -178,8 +183,10 @@ def test_aircraft_D_against_geometry():
 
 # ------------------------------------------------------------------- §4.2: the circulation
 def test_circulation_two_periods():
-    """(4.11): on τ1 ∈ (0,1) p1, p2 have measure λ1μ1/√(1+λ1⁴); on (0, 1/λ1) (≈ two circulation
-    periods … 1.6 for λ1 = 0.1) μ1/(√2λ1) and μ1/(√2λ1²) — derived from O⁻¹ by hand."""
+    """
+    (4.11): on τ1 ∈ (0,1) p1, p2 have measure λ1μ1/√(1+λ1⁴); on (0, 1/λ1) (≈ two circulation
+    periods … 1.6 for λ1 = 0.1) μ1/(√2λ1) and μ1/(√2λ1²) — derived from O⁻¹ by hand.
+    """
     lam1, mu1 = 0.1, SHIP.mu1
     A, H = circulation_ship_system(lam1, mu1)
     short = stationary_measures(A, H, 1.0)
@@ -199,7 +206,7 @@ def test_circulation_geometry_matches_4_10():
         G1, _, G1d, _, B, b, k = _transformed(m, tau, h=1e-5)
         Ay_tau1 = (G1 @ B + G1d) @ np.linalg.inv(G1) * lam1                # d/dτ1 = λ1 d/dτ
         assert np.abs(Ay_tau1 - lam1 * B2).max() < 1.5 * lam1 * SHIP.mu
-        v, V1, V2 = k["omega2"], k["V1"], k["V2"]
+        v, V1, V2 = k['omega2'], k['V1'], k['V2']
         d = np.array([0, V1 - SHIP.mu1 / v, 0, V2])
         assert np.abs(G1 @ b * lam1 - SHIP.mu1 * d).max() < 1.5 * lam1 * SHIP.mu
 
@@ -218,8 +225,10 @@ def test_asymptotic_observer_gains_scale_as_one_over_c():
 
 
 def test_steady_state_kalman_filter_riccati_and_nees():
-    """The doubling solution satisfies the DARE; a small Monte Carlo of the constant-gain filter stays
-    in the χ² band of its exactly propagated covariance."""
+    """
+    The doubling solution satisfies the DARE; a small Monte Carlo of the constant-gain filter stays
+    in the χ² band of its exactly propagated covariance.
+    """
     c = SHIP.mu * np.sin(np.radians(55))
     A, H = ship_system(c, np.cos(np.radians(55)))
     h, ds, q = 0.02, 0.1 * SHIP.mu, 1e-3
@@ -233,7 +242,7 @@ def test_steady_state_kalman_filter_riccati_and_nees():
     P0 = np.eye(5)
     Ps = constant_gain_covariance(Phi, H, Q, R, K, P0, steps)
     err = simulate_constant_gain(Phi, H, Q, R, K, P0, steps, runs, np.random.default_rng(7))
-    nees = np.einsum("rki,kij,rkj->rk", err, np.linalg.inv(Ps), err).mean(axis=0)   # mean over runs
+    nees = np.einsum('rki,kij,rkj->rk', err, np.linalg.inv(Ps), err).mean(axis=0)   # mean over runs
     # mean of `runs` χ²(5) values: 5 ± 3.3·√(10/runs) holds at each epoch with prob. ≈ 0.999
     band = 3.3 * np.sqrt(10 / runs)
     sel = nees[::50]
@@ -245,44 +254,46 @@ def test_seeds_001_tool_quick(tmp_path, capsys):
     """section_001 → report_001 → main: numbers against the derivations, and a one-line argument error."""
     from strapdown_ros.reproductions import vavilov1982 as seeds_001
     res = seeds_001.section_001(quick=True)
-    assert res["misprints"]["h1_corrected_rel_error"] < 1e-6
-    assert res["misprints"]["h1_printed_prefactor_rel_error"] == pytest.approx(1 - SHIP.mu1 / SHIP.mu, rel=1e-4)
-    c = res["ship"]["c"]
-    assert res["ship"]["derivative"][2] == pytest.approx(np.sqrt(2) * c, rel=5 * c)
-    lam1, mu1 = res["circulation"]["lam1"], res["circulation"]["mu1"]
-    assert res["circulation"]["derivative"]["unit"][2] == pytest.approx(lam1 * mu1 / np.sqrt(1 + lam1 ** 4), rel=1e-9)
+    assert res['misprints']['h1_corrected_rel_error'] < 1e-6
+    assert res['misprints']['h1_printed_prefactor_rel_error'] == pytest.approx(1 - SHIP.mu1 / SHIP.mu, rel=1e-4)
+    c = res['ship']['c']
+    assert res['ship']['derivative'][2] == pytest.approx(np.sqrt(2) * c, rel=5 * c)
+    lam1, mu1 = res['circulation']['lam1'], res['circulation']['mu1']
+    assert res['circulation']['derivative']['unit'][2] == pytest.approx(lam1 * mu1 / np.sqrt(1 + lam1 ** 4), rel=1e-9)
     text = seeds_001.report_001(res)
-    assert text.startswith("## 001")
+    assert text.startswith('## 001')
     assert "consistent with the filter's propagated covariance" in text
     import json
     json.dumps(res)                                                       # JSON-able
-    if __import__("importlib").util.find_spec("matplotlib"):
+    if __import__('importlib').util.find_spec('matplotlib'):
         files = seeds_001.plots_001(res, str(tmp_path))
-        assert all(f.endswith(".png") and (tmp_path / f.split("/")[-1]).exists() for f in files)
+        assert all(f.endswith('.png') and (tmp_path / f.split('/')[-1]).exists() for f in files)
     with pytest.raises(SystemExit) as e:
-        seeds_001.main(["--bogus"])
+        seeds_001.main(['--bogus'])
     assert e.value.code == 2
     err = capsys.readouterr().err.strip().splitlines()
-    assert len(err) == 1 and err[0].startswith("seeds_001: error:")
+    assert len(err) == 1 and err[0].startswith('seeds_001: error:')
 
 
 def test_001_derivation_text_is_labelled_and_its_checks_exist():
-    """The hand-written derivations say so, claim orders (001 prints no numbers), and every
-    check command they name selects existing tests."""
+    """
+    The hand-written derivations say so, claim orders (001 prints no numbers), and every
+    check command they name selects existing tests.
+    """
     import pathlib
     import re
 
     from strapdown_ros.reproductions import vavilov1982 as seeds_001
     from strapdown_ros.reproductions.vavilov1982_text import DERIVATIONS_001
-    assert "derivation text, not computed" in DERIVATIONS_001
+    assert 'derivation text, not computed' in DERIVATIONS_001
     assert "reproduces 001's numbers" not in DERIVATIONS_001
     checks = re.findall(r"pytest (test/\S+\.py) -k '?([^'`]+)'?`", DERIVATIONS_001)
     assert len(checks) >= 8
     root = pathlib.Path(__file__).resolve().parent.parent.parent
     for path, expr in checks:
-        names = re.findall(r"^def (test_\w+)", (root / path).read_text(), re.M)
-        for token in expr.split(" or "):
+        names = re.findall(r'^def (test_\w+)', (root / path).read_text(), re.M)
+        for token in expr.split(' or '):
             assert any(token.strip() in n for n in names), (path, token)
     # verdicts print their threshold beside them
-    assert seeds_001._order(0.82, 1.0) == "same order (×0.82, within 10×)"
-    assert seeds_001._order(0.05, 1.0) == "smaller by ×0.05 (not within 10×)"
+    assert seeds_001.order_verdict(0.82, 1.0) == 'same order (×0.82, within 10×)'
+    assert seeds_001.order_verdict(0.05, 1.0) == 'smaller by ×0.05 (not within 10×)'

@@ -3,7 +3,9 @@ import numpy as np
 import pytest
 
 from strapdown_ros.estimation.observability import (analyze_information, combination_sigma, expm,
-    measures_of_observability, observability_gramian, observability_matrix, stationary_measures)
+                                                    measures_of_observability,
+                                                    observability_gramian, observability_matrix,
+                                                    stationary_measures)
 
 
 # ------------------------------------------------------------------------------ static case
@@ -13,7 +15,7 @@ def test_information_known_weak_and_null_directions():
     c, s = np.cos(0.3), np.sin(0.3)
     rot = np.array([[c, -s, 0], [s, c, 0], [0, 0, 1.0]])
     N = rot @ np.diag([0.0, eps ** 2, 1.0]) @ rot.T
-    rep = analyze_information(N, labels=["a", "b", "c"], weak_ratio=1e-4)
+    rep = analyze_information(N, labels=['a', 'b', 'c'], weak_ratio=1e-4)
     assert not rep.observable
     assert len(rep.unobservable) == 1 and len(rep.weak) == 1
     assert abs(abs(rep.directions[:, 0] @ rot[:, 0]) - 1) < 1e-12          # null direction
@@ -48,8 +50,10 @@ def test_expm_closed_forms():
 
 
 def test_double_integrator_observed_in_position():
-    """W = [[T, T²/2], [T²/2, T³/3]]; mean-Gramian measures 1/2 (position), T/√12 (velocity);
-    derivative measures 1 and T."""
+    """
+    W = [[T, T²/2], [T²/2, T³/3]]; mean-Gramian measures 1/2 (position), T/√12 (velocity);
+    derivative measures 1 and T.
+    """
     T = 3.0
     A, H = np.array([[0, 1.0], [0, 0]]), np.array([[1.0, 0]])
     g = observability_gramian(lambda t: A, lambda t: H, 0.0, T, steps=4)
@@ -81,14 +85,16 @@ def test_unobservable_mode_has_measure_zero():
     m = measures_of_observability(g.mean, np.eye(4))
     assert m[2] == 0.0 and m[3] == 0.0 and m[0] > 0.5
     assert list(stationary_measures(A, H, 1.0)[2:]) == [0.0, 0.0]
-    rep = analyze_information(g.gramian, labels=["p", "v", "q", "r"])
+    rep = analyze_information(g.gramian, labels=['p', 'v', 'q', 'r'])
     assert not rep.observable and len(rep.unobservable) == 2
-    assert all(("q" in s or "r" in s) and "p" not in s for s in rep.unobservable)
+    assert all(('q' in s or 'r' in s) and 'p' not in s for s in rep.unobservable)
 
 
 def test_time_varying_gramian_accuracy():
-    """F(t) = [[0, t], [0, 0]], σ = x1: Φ = [[1, t²/2], [0, 1]], W = [[T, T³/6], [T³/6, T⁵/20]];
-    and F = 0, H(t) = (cos t, sin t): W = [[T/2 + sin2T/4, sin²T/2], [·, T/2 − sin2T/4]]."""
+    """
+    F(t) = [[0, t], [0, 0]], σ = x1: Φ = [[1, t²/2], [0, 1]], W = [[T, T³/6], [T³/6, T⁵/20]];
+    and F = 0, H(t) = (cos t, sin t): W = [[T/2 + sin2T/4, sin²T/2], [·, T/2 − sin2T/4]].
+    """
     T = 2.0
     g = observability_gramian(lambda t: np.array([[0, t], [0, 0.0]]), lambda t: np.array([[1.0, 0]]), 0, T, 200)
     exact = np.array([[T, T ** 3 / 6], [T ** 3 / 6, T ** 5 / 20]])

@@ -1,4 +1,5 @@
-"""Earth-referenced navigation profiles: truth checked against independent references.
+"""
+Earth-referenced navigation profiles: truth checked against independent references.
 
 * kinematics: 5-point central differences of position / velocity / attitude;
 * specific force: second difference of the *inertial* position (C_I_E(t) R(t)) minus gravitation,
@@ -12,26 +13,28 @@ import time
 import numpy as np
 import pytest
 
-from strapdown_ros.earth import OMEGA, enu_rotation, geodetic_to_ecef, normal_gravity
-from strapdown_ros.motion.earth_profiles import (NAVIGATION_PROFILE_NAMES, EarthProfile,
-    coordinated_turn_profile, navigation_profile_from_config, sculling_drift_rate,
-    sculling_profile, static_profile, straight_flight_profile)
+from strapdown_ros.earth import enu_rotation, geodetic_to_ecef, normal_gravity, OMEGA
+from strapdown_ros.motion.earth_profiles import (coordinated_turn_profile, EarthProfile,
+                                                 navigation_profile_from_config,
+                                                 NAVIGATION_PROFILE_NAMES, sculling_drift_rate,
+                                                 sculling_profile, static_profile,
+                                                 straight_flight_profile)
+from strapdown_ros.motion.from_config import profile_from_config, PROFILE_NAMES
 from strapdown_ros.motion.profiles import PiecewiseRateProfile, Segment
-from strapdown_ros.motion.from_config import PROFILE_NAMES, profile_from_config
-from strapdown_ros.rotation import (quat_angle_between, quat_conjugate, quat_multiply,
-    quat_to_dcm, quat_to_rotvec)
+from strapdown_ros.rotation import (quat_angle_between, quat_conjugate, quat_multiply, quat_to_dcm,
+                                    quat_to_rotvec)
 
 LAT, LON, H = np.radians(50.45), np.radians(30.52), 150.0
 
 PROFILES = {
-    "static": lambda: static_profile(LAT, LON, H, yaw=0.3, pitch=0.1, roll=-0.2),
-    "straight": lambda: straight_flight_profile(LAT, LON, H, speed=250.0, heading=0.7),
-    "turn": lambda: coordinated_turn_profile(LAT, LON, H, speed=100.0, radius=2000.0, heading=0.4),
+    'static': lambda: static_profile(LAT, LON, H, yaw=0.3, pitch=0.1, roll=-0.2),
+    'straight': lambda: straight_flight_profile(LAT, LON, H, speed=250.0, heading=0.7),
+    'turn': lambda: coordinated_turn_profile(LAT, LON, H, speed=100.0, radius=2000.0, heading=0.4),
     # 1 Hz: slow enough for finite differences on ECEF coordinates of 6.4e6 m
-    "sculling_1hz": lambda: sculling_profile(LAT, LON, H, angle_amplitude=0.02, accel_amplitude=1.0,
+    'sculling_1hz': lambda: sculling_profile(LAT, LON, H, angle_amplitude=0.02, accel_amplitude=1.0,
                                              frequency=1.0, yaw=0.5),
-    "sculling": lambda: sculling_profile(LAT, LON, H, angle_amplitude=0.01, accel_amplitude=1.0, frequency=10.0),
-    "sculling_slow": lambda: sculling_profile(LAT, LON, H, angle_amplitude=0.05, accel_amplitude=0.5,
+    'sculling': lambda: sculling_profile(LAT, LON, H, angle_amplitude=0.01, accel_amplitude=1.0, frequency=10.0),
+    'sculling_slow': lambda: sculling_profile(LAT, LON, H, angle_amplitude=0.05, accel_amplitude=0.5,
                                               frequency=0.2, yaw=-1.0),
 }
 FD = [(-2, 1 / 12), (-1, -8 / 12), (1, 8 / 12), (2, -1 / 12)]      # 5-point first derivative
@@ -49,7 +52,7 @@ def rate_from(att, t, dt):
     return derivative(lambda s: quat_to_rotvec(quat_multiply(quat_conjugate(q), att(s))), t, dt)
 
 
-@pytest.mark.parametrize("name", ["static", "straight", "turn", "sculling_1hz"])
+@pytest.mark.parametrize('name', ['static', 'straight', 'turn', 'sculling_1hz'])
 def test_finite_differences_match_velocity_acceleration_and_rates(name):
     p = PROFILES[name]()
     dt = 0.01
@@ -63,12 +66,14 @@ def test_finite_differences_match_velocity_acceleration_and_rates(name):
     np.testing.assert_allclose(rate_from(p.attitude, t, dt / 10), p.body_rate(t), rtol=0, atol=1e-10)
 
 
-@pytest.mark.parametrize("name", ["static", "straight", "turn", "sculling_slow"])
+@pytest.mark.parametrize('name', ['static', 'straight', 'turn', 'sculling_slow'])
 def test_specific_force_from_inertial_acceleration(name):
-    """f = C_B_I (r̈_I − G): r_I = C_I_E(t) R(t) differenced twice, G = g − centrifugal.
+    """
+    f = C_B_I (r̈_I − G): r_I = C_I_E(t) R(t) differenced twice, G = g − centrifugal.
 
     Tolerance 1e-5 m/s² (1 µg): the ECEF coordinates carry ~1e-9 m of round-off, which a second
-    difference with dt = 0.05 s amplifies to ~2e-6 m/s²; Coriolis is 1e-2…4e-2 m/s² here."""
+    difference with dt = 0.05 s amplifies to ~2e-6 m/s²; Coriolis is 1e-2…4e-2 m/s² here.
+    """
     p = PROFILES[name]()
     r0 = p.initial_position
     dt = 0.05
@@ -98,7 +103,7 @@ def test_static_closed_forms():
     # level: f along body up, up to the model's deflection from the ellipsoid normal: 003's
     # first-order formula ≈ 2.2″ here (1.05e-4 m/s² north), the exact normal field < 1.5e-7 rad
     assert np.all(np.hypot(f[:, 0], f[:, 1]) < 1.2e-4) and np.all(f[:, 2] > 9.8)
-    f_exact = static_profile(LAT, LON, H, yaw=yaw, gravity_model="normal_exact").specific_force(0.0)
+    f_exact = static_profile(LAT, LON, H, yaw=yaw, gravity_model='normal_exact').specific_force(0.0)
     assert np.hypot(f_exact[0], f_exact[1]) < 1.5e-6
     # Earth rate in ENU is Ω[0, cos φ, sin φ]; body = ENU turned by yaw about up
     w_enu = OMEGA * np.array([0.0, np.cos(LAT), np.sin(LAT)])
@@ -115,7 +120,7 @@ def test_static_closed_forms():
     np.testing.assert_allclose(p.velocity(t), 0.0)
 
 
-@pytest.mark.parametrize("name", ["static", "straight", "turn"])
+@pytest.mark.parametrize('name', ['static', 'straight', 'turn'])
 def test_delta_theta_and_attitude_match_closed_form_rodrigues(name):
     """ω_EB constant in body axes: PiecewiseRateProfile integrates ω_EB + C_B_E Ω_E in closed form."""
     p = PROFILES[name]()
@@ -138,11 +143,11 @@ def test_delta_theta_and_attitude_match_closed_form_rodrigues(name):
     assert np.max(quat_angle_between(p.attitude(t), ref.attitude(t))) < 1e-12
 
 
-@pytest.mark.parametrize("name", list(PROFILES))
-@pytest.mark.parametrize("kind", ["delta_v", "delta_theta"])
+@pytest.mark.parametrize('name', list(PROFILES))
+@pytest.mark.parametrize('kind', ['delta_v', 'delta_theta'])
 def test_quadrature_converges_against_doubled_rule(name, kind):
     p = PROFILES[name]()
-    fun = p.specific_force if kind == "delta_v" else p.body_rate
+    fun = p.specific_force if kind == 'delta_v' else p.body_rate
     h = 1 / 300.0
     t0 = np.concatenate([np.arange(0, 600) * h, 55.0 + np.arange(0, 300) * h])
     t1 = t0 + h
@@ -164,7 +169,7 @@ def test_quadrature_converges_against_doubled_rule(name, kind):
 
 
 def test_long_run_is_fast():
-    p = PROFILES["sculling"]()
+    p = PROFILES['sculling']()
     t = np.arange(0, 600 * 300 + 1) / 300.0
     start = time.perf_counter()
     dv = p.delta_v(t[:-1], t[1:])
@@ -175,29 +180,29 @@ def test_long_run_is_fast():
 
 
 def test_straight_flight_geometry():
-    p = PROFILES["straight"]()
+    p = PROFILES['straight']()
     t = np.linspace(0.0, 3600.0, 50)
     tr = p.truth(t)
     r0 = np.linalg.norm(p.initial_position)
-    np.testing.assert_allclose(np.linalg.norm(tr["position"], axis=-1), r0, rtol=1e-15)
-    np.testing.assert_allclose(np.linalg.norm(tr["velocity"], axis=-1), 250.0, rtol=1e-14)
-    c = quat_to_dcm(tr["attitude_ecef"])
-    np.testing.assert_allclose(c[..., 0], tr["velocity"] / 250.0, atol=1e-14)          # x along velocity
-    np.testing.assert_allclose(c[..., 2], tr["position"] / r0, atol=1e-14)             # z geocentric up
-    np.testing.assert_allclose(tr["velocity_body"], np.broadcast_to([250.0, 0, 0], (50, 3)), atol=1e-11)
+    np.testing.assert_allclose(np.linalg.norm(tr['position'], axis=-1), r0, rtol=1e-15)
+    np.testing.assert_allclose(np.linalg.norm(tr['velocity'], axis=-1), 250.0, rtol=1e-14)
+    c = quat_to_dcm(tr['attitude_ecef'])
+    np.testing.assert_allclose(c[..., 0], tr['velocity'] / 250.0, atol=1e-14)          # x along velocity
+    np.testing.assert_allclose(c[..., 2], tr['position'] / r0, atol=1e-14)             # z geocentric up
+    np.testing.assert_allclose(tr['velocity_body'], np.broadcast_to([250.0, 0, 0], (50, 3)), atol=1e-11)
     # the initial direction is the ENU heading (up to the geodetic/geocentric up difference)
     enu = enu_rotation(LAT, LON).T @ p.initial_velocity
     # (projecting on the plane ⟂ R0 turns the azimuth by 5e-6 rad here)
     assert abs(np.arctan2(enu[1], enu[0]) - 0.7) < 1e-5 and abs(enu[2]) < 250 * 4e-3
-    np.testing.assert_allclose(tr["height"][0], H, atol=1e-6)
+    np.testing.assert_allclose(tr['height'][0], H, atol=1e-6)
 
 
 def _turn_truth(**kw):
     p = coordinated_turn_profile(LAT, LON, H, speed=100.0, radius=2000.0, heading=0.4, **kw)
     t = np.linspace(0.0, 2 * np.pi * 2000.0 / 100.0, 721)            # one full circle
     tr = p.truth(t)
-    c = quat_to_dcm(tr["attitude_ecef"])
-    f_rel = np.einsum("...ji,...j->...i", c, tr["acceleration"] - tr["gravity"])
+    c = quat_to_dcm(tr['attitude_ecef'])
+    f_rel = np.einsum('...ji,...j->...i', c, tr['acceleration'] - tr['gravity'])
     return p, tr, f_rel
 
 
@@ -208,30 +213,30 @@ def test_coordinated_turn_is_coordinated():
     #   through sin β, plus the ellipsoid's curvature anisotropy of the vertical's tilt, 4e-6);
     # * pz90_003: 8.9e-5 m/s² - that model's vertical is 2.2″ (1.05e-4 m/s² north) off the
     #   ellipsoid normal, the circle's plane is ⟂ the geodetic up, and the body turns through it.
-    p, tr, f_rel = _turn_truth(gravity_model="normal_exact")
+    p, tr, f_rel = _turn_truth(gravity_model='normal_exact')
     assert np.max(np.abs(f_rel[:, 1])) < 1.5e-5
     assert np.max(np.abs(f_rel[:, 0])) < 1e-5
     # f_z = √(g² + (v²/ρ − gρ/R)²): the centripetal term less the outward tilt of the vertical
-    g0 = p.parameters["g0"]
+    g0 = p.parameters['g0']
     np.testing.assert_allclose(f_rel[:, 2], np.hypot(g0, 100.0 ** 2 / 2000.0 - g0 * 2000.0 / 6.382e6), rtol=3e-6)
-    assert _turn_truth()[0].gravity_model == "normal_exact"            # the package default
-    p3, tr3, f3 = _turn_truth(gravity_model="pz90_003")
+    assert _turn_truth()[0].gravity_model == 'normal_exact'            # the package default
+    p3, tr3, f3 = _turn_truth(gravity_model='pz90_003')
     assert np.max(np.abs(f3[:, 1])) < 1.2e-4 and np.max(np.abs(f3[:, 0])) < 1.2e-4
     # with the nominal atan(v²/ρg0) bank the tilt ρ/R of the vertical leaves ~ g·ρ/R·cos β = 2.7e-3
-    _, _, f_nom = _turn_truth(gravity_model="normal_exact", bank=p.parameters["bank_nominal"])
+    _, _, f_nom = _turn_truth(gravity_model='normal_exact', bank=p.parameters['bank_nominal'])
     assert 2e-3 < np.mean(np.abs(f_nom[:, 1])) < 3.5e-3
     # tan β = (v²/ρ − gρ/R)/g  ⇒  β ≈ β_nominal − (ρ/R) cos²β
-    bn = p.parameters["bank_nominal"]
-    assert abs(p.parameters["bank"] - (bn - 2000.0 / 6.382e6 * np.cos(bn) ** 2)) < 1e-6
+    bn = p.parameters['bank_nominal']
+    assert abs(p.parameters['bank'] - (bn - 2000.0 / 6.382e6 * np.cos(bn) ** 2)) < 1e-6
     # the rest of the sensed lateral force is Coriolis, ≤ 2Ωv
-    coriolis_y = tr["specific_force"][:, 1] - f_rel[:, 1]
+    coriolis_y = tr['specific_force'][:, 1] - f_rel[:, 1]
     assert 0.5 * OMEGA * 100.0 < np.max(np.abs(coriolis_y)) <= 2 * OMEGA * 100.0
     # closed circle, constant speed, body x along velocity; the height rises by ρ²/2R
-    np.testing.assert_allclose(tr["position"][-1], tr["position"][0], atol=1e-8)
-    np.testing.assert_allclose(tr["velocity_body"], np.broadcast_to([100.0, 0, 0], (721, 3)), atol=1e-11)
-    np.testing.assert_allclose(tr["height"], H + 2000.0 ** 2 / (2 * 6.38e6), atol=0.01)
-    assert np.ptp(tr["height"]) < 5e-3
-    np.testing.assert_allclose(np.linalg.norm(tr["position"] - p.parameters["centre"], axis=-1), 2000.0, rtol=1e-12)
+    np.testing.assert_allclose(tr['position'][-1], tr['position'][0], atol=1e-8)
+    np.testing.assert_allclose(tr['velocity_body'], np.broadcast_to([100.0, 0, 0], (721, 3)), atol=1e-11)
+    np.testing.assert_allclose(tr['height'], H + 2000.0 ** 2 / (2 * 6.38e6), atol=0.01)
+    assert np.ptp(tr['height']) < 5e-3
+    np.testing.assert_allclose(np.linalg.norm(tr['position'] - p.parameters['centre'], axis=-1), 2000.0, rtol=1e-12)
 
 
 def test_sculling_velocity_is_periodic_and_drift_formula_matches():
@@ -253,9 +258,9 @@ def test_sculling_velocity_is_periodic_and_drift_formula_matches():
     alpha = p.delta_theta(np.broadcast_to(t0[:, None], nodes.shape), nodes)
     vel = p.delta_v(np.broadcast_to(t0[:, None], nodes.shape), nodes)
     integrand = np.cross(alpha, p.specific_force(nodes)) + np.cross(vel, p.body_rate(nodes))
-    sculling = 0.5 * 0.5 * h * np.einsum("k,nkj->nj", wts, integrand)
+    sculling = 0.5 * 0.5 * h * np.einsum('k,nkj->nj', wts, integrand)
     rate = sculling.mean(0) / h
-    b_eff = p.parameters["effective_accel_amplitude"]
+    b_eff = p.parameters['effective_accel_amplitude']
     assert abs(b_eff - (B + A * 9.81)) < 1e-3
     expected = sculling_drift_rate(A, b_eff, w, h)
     assert abs(rate[2] - expected) < 0.01 * expected
@@ -280,21 +285,21 @@ def test_sculling_drift_rate_series_and_values():
 def test_profile_from_config_builds_navigation_profiles():
     assert set(NAVIGATION_PROFILE_NAMES) <= set(PROFILE_NAMES)
     for name in NAVIGATION_PROFILE_NAMES:
-        p = profile_from_config({"profile": name})
+        p = profile_from_config({'profile': name})
         assert isinstance(p, EarthProfile) and p.name == name
         np.testing.assert_allclose(p.initial_position, geodetic_to_ecef(np.radians(50.45), np.radians(30.52), 150.0)
-                                   if name != "coordinated_turn" else p.initial_position)
-    cfg = {"profile": "coordinated_turn", "nav_latitude_deg": -33.0, "nav_longitude_deg": 151.0,
-           "nav_height": 10.0, "nav_speed": 60.0, "nav_heading_deg": 90.0, "turn_radius": 500.0}
+                                   if name != 'coordinated_turn' else p.initial_position)
+    cfg = {'profile': 'coordinated_turn', 'nav_latitude_deg': -33.0, 'nav_longitude_deg': 151.0,
+           'nav_height': 10.0, 'nav_speed': 60.0, 'nav_heading_deg': 90.0, 'turn_radius': 500.0}
     p = profile_from_config(cfg)
-    assert p.parameters["speed"] == 60.0 and p.parameters["radius"] == 500.0
-    np.testing.assert_allclose(p.parameters["centre"], geodetic_to_ecef(np.radians(-33.0), np.radians(151.0), 10.0))
+    assert p.parameters['speed'] == 60.0 and p.parameters['radius'] == 500.0
+    np.testing.assert_allclose(p.parameters['centre'], geodetic_to_ecef(np.radians(-33.0), np.radians(151.0), 10.0))
     np.testing.assert_allclose(enu_rotation(np.radians(-33.0), np.radians(151.0)).T @ p.initial_velocity,
                                [0.0, 60.0, 0.0], atol=1e-12)               # heading 90° = north
-    s = navigation_profile_from_config({"profile": "sculling", "sculling_angle": 0.02, "sculling_accel": 2.0,
-                                        "sculling_frequency": 5.0})
-    assert s.parameters["angle_amplitude"] == 0.02 and s.parameters["omega"] == pytest.approx(10 * np.pi)
-    assert straight_flight_profile(LAT, LON, H).parameters["speed"] == 200.0
-    assert profile_from_config({"profile": "straight_flight"}).parameters["speed"] == 200.0
+    s = navigation_profile_from_config({'profile': 'sculling', 'sculling_angle': 0.02, 'sculling_accel': 2.0,
+                                        'sculling_frequency': 5.0})
+    assert s.parameters['angle_amplitude'] == 0.02 and s.parameters['omega'] == pytest.approx(10 * np.pi)
+    assert straight_flight_profile(LAT, LON, H).parameters['speed'] == 200.0
+    assert profile_from_config({'profile': 'straight_flight'}).parameters['speed'] == 200.0
     with pytest.raises(ValueError):
-        navigation_profile_from_config({"profile": "coning"})
+        navigation_profile_from_config({'profile': 'coning'})

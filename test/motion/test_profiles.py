@@ -1,4 +1,5 @@
-"""Motion profiles: exact truth checked against independent numerical references.
+"""
+Motion profiles: exact truth checked against independent numerical references.
 
 * attitude vs body rate: U^T dU/dt from a 6th-order central difference;
 * increments vs the integral of the body rate by high-order Gauss–Legendre quadrature;
@@ -7,11 +8,11 @@
 import numpy as np
 import pytest
 
-from strapdown_ros.motion.profiles import (ConingProfile, PiecewiseRateProfile, Segment,
-                                           bench_profile, tkachenko_profile)
 from strapdown_ros.motion.from_config import load_piecewise_profile
-from strapdown_ros.rotation import (quat_angle_between, quat_conjugate, quat_multiply,
-    quat_to_dcm, rotvec_to_dcm)
+from strapdown_ros.motion.profiles import (bench_profile, ConingProfile, PiecewiseRateProfile,
+                                           Segment, tkachenko_profile)
+from strapdown_ros.rotation import (quat_angle_between, quat_conjugate, quat_multiply, quat_to_dcm,
+                                    rotvec_to_dcm)
 
 
 def rate_from_attitude(profile, t, h=1e-3):
@@ -28,11 +29,11 @@ def gauss_integral(f, t0, t1, n=32, pieces=8):
     total = 0.0
     for a, b in zip(edges[:-1], edges[1:]):
         nodes = 0.5 * (b - a) * x + 0.5 * (a + b)
-        total = total + 0.5 * (b - a) * np.einsum("k,kj->j", w, f(nodes))
+        total = total + 0.5 * (b - a) * np.einsum('k,kj->j', w, f(nodes))
     return total
 
 
-@pytest.mark.parametrize("alpha,nu", [(0.087, 1.0), (0.5, 1.0), (1.2, 3.0)])
+@pytest.mark.parametrize('alpha,nu', [(0.087, 1.0), (0.5, 1.0), (1.2, 3.0)])
 def test_coning_rate_and_increments_are_exact(alpha, nu):
     p = ConingProfile(alpha, nu)
     for t in (0.3, 1.7, 5.2):
@@ -79,12 +80,12 @@ def ode_attitude(profile, t_end, q0):
     def f(t, q):
         w = profile.body_rate(t)
         return 0.5 * quat_multiply(q, np.concatenate([[0.0], w]))
-    sol = solve_ivp(f, (0.0, t_end), q0, method="DOP853", rtol=1e-13, atol=1e-14, max_step=0.05)
+    sol = solve_ivp(f, (0.0, t_end), q0, method='DOP853', rtol=1e-13, atol=1e-14, max_step=0.05)
     return sol.y[:, -1] / np.linalg.norm(sol.y[:, -1])
 
 
 def test_piecewise_with_earth_rate_is_exact():
-    pytest.importorskip("scipy")
+    pytest.importorskip('scipy')
     p = bench_profile(hold=2.0, rotation_time=1.5, earth_rate=True)
     # exaggerate the Earth rate so that it matters at test tolerances
     p = PiecewiseRateProfile(p.segments, earth_rate=p.earth_rate * 1000.0, gravity=(0, 0, 9.8))
@@ -117,22 +118,22 @@ def test_tkachenko_table_and_initial_quaternion():
     np.testing.assert_allclose(p.body_rate(29.0), [0.02, 0.02, -0.02])
     np.testing.assert_allclose(p.delta_theta(4.99, 5.01), [0.01 * 0.01 + 0.02 * 0.01, 0.02 * 0.01 + 0.32 * 0.01,
                                                            -0.01 * 0.01 - 0.015 * 0.01], atol=1e-17)
-    pytest.importorskip("scipy")
+    pytest.importorskip('scipy')
     q_ode = ode_attitude(p, 30.0, p.attitude(0.0))
     assert quat_angle_between(q_ode, p.attitude(30.0)) < 1e-10
 
 
 def test_user_profile_from_yaml(tmp_path):
-    f = tmp_path / "profile.yaml"
-    f.write_text("initial_attitude: [1, 0, 0, 0]\nsegments:\n  - {duration: 1.0, rate: [0, 0, 0.5]}\n"
-                 "  - {duration: 2.0, rate: [0.1, 0, 0]}\n")
+    f = tmp_path / 'profile.yaml'
+    f.write_text('initial_attitude: [1, 0, 0, 0]\nsegments:\n  - {duration: 1.0, rate: [0, 0, 0.5]}\n'
+                 '  - {duration: 2.0, rate: [0.1, 0, 0]}\n')
     p = load_piecewise_profile(str(f))
     assert p.duration == 3.0
     expected = quat_multiply(np.array([np.cos(0.25), 0, 0, np.sin(0.25)]), np.array([np.cos(0.1), np.sin(0.1), 0, 0]))
     assert quat_angle_between(p.attitude(3.0), expected) < 1e-15
-    bad = tmp_path / "bad.yaml"
-    bad.write_text("segments:\n  - {duration: -1.0}\n")
-    with pytest.raises(ValueError, match="segment 0"):
+    bad = tmp_path / 'bad.yaml'
+    bad.write_text('segments:\n  - {duration: -1.0}\n')
+    with pytest.raises(ValueError, match='segment 0'):
         load_piecewise_profile(str(bad))
 
 

@@ -1,4 +1,5 @@
-"""Real message formats in the offline tools (strapdown_ros.recording): the same simulated
+"""
+Real message formats in the offline tools (strapdown_ros.recording): the same simulated
 motion written as sensor_msgs/Imu rates, Δθ increments, and PoseStamped / Odometry / TF
 references, read by calibrate_bag and discrepancy; truth is the injected boresight and gyro bias.
 Also: argument errors in one line (exit 2), and messages a corrupt MCAP chunk hides are counted,
@@ -10,18 +11,16 @@ import struct
 import numpy as np
 import pytest
 
-pytest.importorskip("rosbags")
+pytest.importorskip('rosbags')
 
 from strapdown_ros.motion.profiles import MotionProfile  # noqa: E402
 from strapdown_ros.recording import read_bag  # noqa: E402
-from strapdown_ros.rotation import (dcm_to_quat, from_ros_xyzw, quat_conjugate,
-    quat_error_rotvec, quat_multiply, rotvec_to_quat, to_ros_xyzw, ypr_to_dcm)
+from strapdown_ros.rotation import (dcm_to_quat, from_ros_xyzw, quat_conjugate, quat_error_rotvec,
+                                    quat_multiply, rotvec_to_quat, to_ros_xyzw, ypr_to_dcm)
 from strapdown_ros.sensors import ARCSEC  # noqa: E402
 from strapdown_ros.sensors.star_camera import StarCameraModel  # noqa: E402
-from strapdown_ros.tools import calibrate_bag
-from strapdown_ros.tools import calibrate_gyro_bag
-from strapdown_ros.tools import discrepancy
 from strapdown_ros.tools import record_sim  # noqa: E402
+from strapdown_ros.tools import calibrate_bag, calibrate_gyro_bag, discrepancy
 
 BETA = np.radians([40.0, -25.0, 120.0])  # true boresight ψ, ϑ, γ
 BIAS = np.array([1.0e-5, -0.7e-5, 0.8e-5])  # injected gyro bias, rad/s (≈ 2 °/h, MEMS grade)
@@ -29,14 +28,16 @@ RATE_HZ = 100.0
 PERIOD_NS = 10_000_000
 CAMERA_INTERVAL = 2.0
 ORIGIN_NS = 1_700_000_000 * 10**9  # epoch-like stamps: the tools' own time origin
-BIAS_ARG = "gyro_bias:=[" + ", ".join(repr(float(b)) for b in BIAS) + "]"
+BIAS_ARG = 'gyro_bias:=[' + ', '.join(repr(float(b)) for b in BIAS) + ']'
 
 
 class SmoothTurns(MotionProfile):
-    """Rests and turns about body axes, both senses, with a smooth rate: over a turn of length D
+    """
+    Rests and turns about body axes, both senses, with a smooth rate: over a turn of length D
     and angle Φ the rate about the axis is s(τ) = 2Φ/D · sin²(πτ/D), zero with its derivative
     at both ends.  Attitude, rate, ω̈ and ∫ω dt are closed-form (the turn axis is fixed in body
-    and reference axes, so the rotation vector of a turn is axis · ∫s)."""
+    and reference axes, so the rotation vector of a turn is axis · ∫s).
+    """
 
     #: (duration s, body axis or None for a rest, angle rad); durations are whole gyro periods
     TURNS = ((2, 1), (0, 1), (1, -1), (2, -1), (0, -1), (1, 1)) * 2
@@ -67,7 +68,7 @@ class SmoothTurns(MotionProfile):
 
     def _where(self, t):
         t = np.atleast_1d(np.asarray(t, dtype=float))
-        k = np.clip(np.searchsorted(self.start, t, side="right") - 1, 0, len(self.SEGMENTS) - 1)
+        k = np.clip(np.searchsorted(self.start, t, side='right') - 1, 0, len(self.SEGMENTS) - 1)
         D = np.array([self.SEGMENTS[i][0] for i in k])
         U = np.array([self._axis(self.SEGMENTS[i][1]) for i in k])
         phi = np.array([self.SEGMENTS[i][2] for i in k])
@@ -119,7 +120,7 @@ class Motion:
         self.fixes = cam.fixes(PROFILE, int(DURATION / CAMERA_INTERVAL) - 1)
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture(scope='module')
 def motion():
     return Motion()
 
@@ -127,37 +128,37 @@ def motion():
 # --- writing bags with rosbags ---------------------------------------------------------------
 class BagWriter:
     def __init__(self):
-        from rosbags.typesys import Stores, get_typestore
+        from rosbags.typesys import get_typestore, Stores
 
         self.store = get_typestore(Stores.ROS2_JAZZY)
         self.T = self.store.types
 
     def header(self, ns, frame):
         T = self.T
-        return T["std_msgs/msg/Header"](
-            stamp=T["builtin_interfaces/msg/Time"](sec=int(ns // 10**9), nanosec=int(ns % 10**9)),
+        return T['std_msgs/msg/Header'](
+            stamp=T['builtin_interfaces/msg/Time'](sec=int(ns // 10**9), nanosec=int(ns % 10**9)),
             frame_id=frame,
         )
 
     def vec(self, v):
-        return self.T["geometry_msgs/msg/Vector3"](x=float(v[0]), y=float(v[1]), z=float(v[2]))
+        return self.T['geometry_msgs/msg/Vector3'](x=float(v[0]), y=float(v[1]), z=float(v[2]))
 
     def quat(self, q_wxyz):
         x, y, z, w = (float(c) for c in to_ros_xyzw(np.asarray(q_wxyz, dtype=float)))
-        return self.T["geometry_msgs/msg/Quaternion"](x=x, y=y, z=z, w=w)
+        return self.T['geometry_msgs/msg/Quaternion'](x=x, y=y, z=z, w=w)
 
     def pose(self, q):
         T = self.T
-        return T["geometry_msgs/msg/Pose"](
-            position=T["geometry_msgs/msg/Point"](x=1.0, y=2.0, z=3.0), orientation=self.quat(q)
+        return T['geometry_msgs/msg/Pose'](
+            position=T['geometry_msgs/msg/Point'](x=1.0, y=2.0, z=3.0), orientation=self.quat(q)
         )
 
     def imu(self, ns, rate, absent=False):
         T = self.T
         z9 = np.zeros(9)
         rate_cov = np.array([-1.0] + [0.0] * 8) if absent else z9  # ROS: -1 = field absent
-        return T["sensor_msgs/msg/Imu"](
-            header=self.header(ns, "imu_link"),
+        return T['sensor_msgs/msg/Imu'](
+            header=self.header(ns, 'imu_link'),
             orientation=self.quat([1, 0, 0, 0]),
             orientation_covariance=np.array([-1.0] + [0.0] * 8),
             angular_velocity=self.vec(rate),
@@ -167,13 +168,13 @@ class BagWriter:
         )
 
     def vector3_stamped(self, ns, v):
-        return self.T["geometry_msgs/msg/Vector3Stamped"](
-            header=self.header(ns, "imu_link"), vector=self.vec(v)
+        return self.T['geometry_msgs/msg/Vector3Stamped'](
+            header=self.header(ns, 'imu_link'), vector=self.vec(v)
         )
 
     def pose_stamped(self, ns, q):
-        return self.T["geometry_msgs/msg/PoseStamped"](
-            header=self.header(ns, "gcrs"), pose=self.pose(q)
+        return self.T['geometry_msgs/msg/PoseStamped'](
+            header=self.header(ns, 'gcrs'), pose=self.pose(q)
         )
 
     def odometry(self, ns, q, cov_rot):
@@ -181,32 +182,32 @@ class BagWriter:
         cov = np.zeros((6, 6))
         cov[:3, :3] = np.eye(3) * 4.0  # position: known to 2 m
         cov[3:, 3:] = cov_rot
-        twist = T["geometry_msgs/msg/Twist"](
+        twist = T['geometry_msgs/msg/Twist'](
             linear=self.vec([0, 0, 0]), angular=self.vec([0, 0, 0])
         )
-        return T["nav_msgs/msg/Odometry"](
-            header=self.header(ns, "gcrs"),
-            child_frame_id="star_tracker",
-            pose=T["geometry_msgs/msg/PoseWithCovariance"](
+        return T['nav_msgs/msg/Odometry'](
+            header=self.header(ns, 'gcrs'),
+            child_frame_id='star_tracker',
+            pose=T['geometry_msgs/msg/PoseWithCovariance'](
                 pose=self.pose(q), covariance=cov.reshape(36)
             ),
-            twist=T["geometry_msgs/msg/TwistWithCovariance"](twist=twist, covariance=np.zeros(36)),
+            twist=T['geometry_msgs/msg/TwistWithCovariance'](twist=twist, covariance=np.zeros(36)),
         )
 
     def tf(self, ns, transforms):
         """transforms: [(parent, child, q_parent_child)]."""
         T = self.T
         out = [
-            T["geometry_msgs/msg/TransformStamped"](
+            T['geometry_msgs/msg/TransformStamped'](
                 header=self.header(ns, parent),
                 child_frame_id=child,
-                transform=T["geometry_msgs/msg/Transform"](
+                transform=T['geometry_msgs/msg/Transform'](
                     translation=self.vec([0.5, 0.0, 0.0]), rotation=self.quat(q)
                 ),
             )
             for parent, child, q in transforms
         ]
-        return T["tf2_msgs/msg/TFMessage"](transforms=out)
+        return T['tf2_msgs/msg/TFMessage'](transforms=out)
 
     def write(self, path, messages):
         """messages: [(topic, stamp_ns, message)], written in stamp order (MCAP)."""
@@ -222,18 +223,18 @@ class BagWriter:
 
 
 def _gyro_messages(bw, motion, kind):
-    if kind == "delta_theta":
+    if kind == 'delta_theta':
         return [
-            ("/imu/delta_theta", ns, bw.vector3_stamped(ns, v))
+            ('/imu/delta_theta', ns, bw.vector3_stamped(ns, v))
             for ns, v in zip(motion.stamps[1:], motion.delta_theta)
         ]
     # Imu: one sample per stamp; the first (t = 0) only starts the integration
     rates = (
         motion.rate
-        if kind == "rate_at_stamp"
+        if kind == 'rate_at_stamp'
         else np.vstack([motion.mean_rate[:1], motion.mean_rate])
     )
-    return [("/imu/data", ns, bw.imu(ns, w)) for ns, w in zip(motion.stamps, rates)]
+    return [('/imu/data', ns, bw.imu(ns, w)) for ns, w in zip(motion.stamps, rates)]
 
 
 def _fix_ns(fx):
@@ -241,20 +242,20 @@ def _fix_ns(fx):
 
 
 def _reference_messages(bw, motion, kind):
-    if kind == "pose":
+    if kind == 'pose':
         return [
-            ("/camera/pose", _fix_ns(fx), bw.pose_stamped(_fix_ns(fx), fx.attitude))
+            ('/camera/pose', _fix_ns(fx), bw.pose_stamped(_fix_ns(fx), fx.attitude))
             for fx in motion.fixes
         ]
-    if kind in ("odometry", "odometry_zero_cov"):
+    if kind in ('odometry', 'odometry_zero_cov'):
         return [
             (
-                "/camera/odom",
+                '/camera/odom',
                 _fix_ns(fx),
                 bw.odometry(
                     _fix_ns(fx),
                     fx.attitude,
-                    fx.covariance if kind == "odometry" else np.zeros((3, 3)),
+                    fx.covariance if kind == 'odometry' else np.zeros((3, 3)),
                 ),
             )
             for fx in motion.fixes
@@ -264,20 +265,20 @@ def _reference_messages(bw, motion, kind):
     for k, fx in enumerate(motion.fixes):
         ns = _fix_ns(fx)
         cam = (
-            ("gcrs", "star_tracker", fx.attitude)
-            if kind == "tf"
-            else ("star_tracker", "gcrs", quat_conjugate(fx.attitude))
+            ('gcrs', 'star_tracker', fx.attitude)
+            if kind == 'tf'
+            else ('star_tracker', 'gcrs', quat_conjugate(fx.attitude))
         )
         out.append(
             (
-                "/tf",
+                '/tf',
                 ns,
                 bw.tf(
                     ns,
                     [
-                        ("map", "odom", [np.cos(0.1 * k), 0, 0, np.sin(0.1 * k)]),
+                        ('map', 'odom', [np.cos(0.1 * k), 0, 0, np.sin(0.1 * k)]),
                         cam,
-                        ("base_link", "imu_link", [1, 0, 0, 0]),
+                        ('base_link', 'imu_link', [1, 0, 0, 0]),
                     ],
                 ),
             )
@@ -286,25 +287,25 @@ def _reference_messages(bw, motion, kind):
         ns = ORIGIN_NS + 100_000_000 + j * 200_000_000
         out.append(
             (
-                "/tf",
+                '/tf',
                 ns,
-                bw.tf(ns, [("odom", "base_link", [np.cos(0.01 * j), np.sin(0.01 * j), 0, 0])]),
+                bw.tf(ns, [('odom', 'base_link', [np.cos(0.01 * j), np.sin(0.01 * j), 0, 0])]),
             )
         )
     return out
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture(scope='module')
 def bags(tmp_path_factory, motion):
     """(gyro format, reference format) → bag path, written once per module."""
-    root = tmp_path_factory.mktemp("formats")
+    root = tmp_path_factory.mktemp('formats')
     bw = BagWriter()
     cache = {}
 
     def get(gyro, ref):
         if (gyro, ref) not in cache:
             cache[(gyro, ref)] = bw.write(
-                root / f"{gyro}_{ref}",
+                root / f'{gyro}_{ref}',
                 _gyro_messages(bw, motion, gyro) + _reference_messages(bw, motion, ref),
             )
         return cache[(gyro, ref)]
@@ -313,63 +314,65 @@ def bags(tmp_path_factory, motion):
 
 
 def _calibrate(tmp_path, bag, *args):
-    out = tmp_path / "cal.json"
+    out = tmp_path / 'cal.json'
     if out.exists():
         out.unlink()
-    status = calibrate_bag.main([str(bag), "--json", str(out), "-p", BIAS_ARG, *args])
+    status = calibrate_bag.main([str(bag), '--json', str(out), '-p', BIAS_ARG, *args])
     return status, (json.loads(out.read_text()) if out.exists() else None)
 
 
 def _assert_boresight(r, bound_arcsec):
     """β recovered: the C_MF^VF error within 3σ per MF axis and within an absolute bound."""
-    assert r["observable"] and r["converged"], r["message"]
+    assert r['observable'] and r['converged'], r['message']
     q_true = dcm_to_quat(ypr_to_dcm(*BETA))
-    e = quat_error_rotvec(from_ros_xyzw(np.array(r["q_mf_vf_xyzw"])), q_true, frame="reference")
-    sigma = np.sqrt(np.diag(r["rotation_covariance_mf_rad2"]))
+    e = quat_error_rotvec(from_ros_xyzw(np.array(r['q_mf_vf_xyzw'])), q_true, frame='reference')
+    sigma = np.sqrt(np.diag(r['rotation_covariance_mf_rad2']))
     assert np.all(np.abs(e) < 3 * sigma), (e / ARCSEC, sigma / ARCSEC)
     assert np.all(np.abs(e) < bound_arcsec * ARCSEC), e / ARCSEC
 
 
 # --- formats ---------------------------------------------------------------------------------
 def test_imu_rates_at_the_stamps_with_pose_stamped_reference(tmp_path, bags, capsys):
-    """(a) sensor_msgs/Imu with the exact rate at each stamp (trapezoid rule, error T³ω̈/12 per
-    increment), PoseStamped reference without covariance: σ from the model."""
+    """
+    (a) sensor_msgs/Imu with the exact rate at each stamp (trapezoid rule, error T³ω̈/12 per
+    increment), PoseStamped reference without covariance: σ from the model.
+    """
     status, r = _calibrate(
         tmp_path,
-        bags("rate_at_stamp", "pose"),
-        "--gyro-topic",
-        "/imu/data",
-        "--reference-topic",
-        "/camera/pose",
+        bags('rate_at_stamp', 'pose'),
+        '--gyro-topic',
+        '/imu/data',
+        '--reference-topic',
+        '/camera/pose',
     )
     assert status == 0
     _assert_boresight(r, 5.0)
-    inp = r["input"]
-    assert inp["gyro_type"] == "sensor_msgs/msg/Imu" and inp["gyro_input"] == "rates"
+    inp = r['input']
+    assert inp['gyro_type'] == 'sensor_msgs/msg/Imu' and inp['gyro_input'] == 'rates'
     assert (
-        inp["rate_rule"] == "trapezoid"
-        and inp["reference_type"] == "geometry_msgs/msg/PoseStamped"
+        inp['rate_rule'] == 'trapezoid'
+        and inp['reference_type'] == 'geometry_msgs/msg/PoseStamped'
     )
-    assert inp["reference_covariance"] == "from_model" and r["camera_covariance_from_bag"] is False
+    assert inp['reference_covariance'] == 'from_model' and r['camera_covariance_from_bag'] is False
     n = int(round(DURATION * RATE_HZ)) + 1
-    assert inp["rate_samples"]["received"] == inp["rate_samples"]["accepted"] == n
-    assert inp["rate_samples"]["intervals_not_integrated"] == 0
-    assert r["messages"]["gyro"] == n - 1 and r["gyro_gaps"]["gaps"] == 0
-    assert r["unread_messages"] == {} and r["dropped"]["gyro_rate_samples"]["nan"] == 0
+    assert inp['rate_samples']['received'] == inp['rate_samples']['accepted'] == n
+    assert inp['rate_samples']['intervals_not_integrated'] == 0
+    assert r['messages']['gyro'] == n - 1 and r['gyro_gaps']['gaps'] == 0
+    assert r['unread_messages'] == {} and r['dropped']['gyro_rate_samples']['nan'] == 0
     out = capsys.readouterr().out
     assert (
-        "rate samples on /imu/data → increments by the trapezoid rule" in out
-        and "σ from the model" in out
+        'rate samples on /imu/data → increments by the trapezoid rule' in out
+        and 'σ from the model' in out
     )
 
 
 def test_trapezoid_increments_against_the_exact_integral(motion, bags):
     """The trapezoid increments of exact rate samples differ from ∫ω dt by T³ω̈/12 + O(T⁵)."""
     d = read_bag(
-        bags("rate_at_stamp", "pose"), gyro_topic="/imu/data", reference_topic="/camera/pose"
+        bags('rate_at_stamp', 'pose'), gyro_topic='/imu/data', reference_topic='/camera/pose'
     )
-    got = np.asarray(d["gyro"].values)
-    assert np.array_equal(np.asarray(d["gyro"].stamps), motion.stamps[1:])
+    got = np.asarray(d['gyro'].values)
+    assert np.array_equal(np.asarray(d['gyro'].stamps), motion.stamps[1:])
     t = motion.k_ns * 1e-9
     w2 = PROFILE.rate_second_derivative(0.5 * (t[:-1] + t[1:]))  # ω̈ mid-interval
     T = 1.0 / RATE_HZ
@@ -381,230 +384,238 @@ def test_trapezoid_increments_against_the_exact_integral(motion, bags):
 
 
 def test_imu_mean_rates_equal_the_delta_theta_topic(tmp_path, motion, bags):
-    """(d) the 'mean' rule fed by exact mean rates gives the Δθ topic's increments to round-off,
-    and so the same boresight."""
-    dth = read_bag(bags("delta_theta", "pose"), reference_topic="/camera/pose")
+    """
+    (d) the 'mean' rule fed by exact mean rates gives the Δθ topic's increments to round-off,
+    and so the same boresight.
+    """
+    dth = read_bag(bags('delta_theta', 'pose'), reference_topic='/camera/pose')
     mean = read_bag(
-        bags("mean_rate", "pose"),
-        gyro_topic="/imu/data",
-        reference_topic="/camera/pose",
-        rate_rule="mean",
+        bags('mean_rate', 'pose'),
+        gyro_topic='/imu/data',
+        reference_topic='/camera/pose',
+        rate_rule='mean',
     )
-    assert dth["gyro_input"] == "delta_theta" and mean["gyro_input"] == "rates"
-    assert mean["gyro"].stamps == dth["gyro"].stamps
-    a, b = np.asarray(mean["gyro"].values), np.asarray(dth["gyro"].values)
+    assert dth['gyro_input'] == 'delta_theta' and mean['gyro_input'] == 'rates'
+    assert mean['gyro'].stamps == dth['gyro'].stamps
+    a, b = np.asarray(mean['gyro'].values), np.asarray(dth['gyro'].values)
     np.testing.assert_allclose(a, b, rtol=4e-16, atol=1e-22)
     np.testing.assert_allclose(b, motion.delta_theta, rtol=0, atol=0)
-    s1, r1 = _calibrate(tmp_path, bags("delta_theta", "pose"), "--reference-topic", "/camera/pose")
+    s1, r1 = _calibrate(tmp_path, bags('delta_theta', 'pose'), '--reference-topic', '/camera/pose')
     s2, r2 = _calibrate(
         tmp_path,
-        bags("mean_rate", "pose"),
-        "--gyro-topic",
-        "/imu/data",
-        "--rate-rule",
-        "mean",
-        "--reference-topic",
-        "/camera/pose",
+        bags('mean_rate', 'pose'),
+        '--gyro-topic',
+        '/imu/data',
+        '--rate-rule',
+        'mean',
+        '--reference-topic',
+        '/camera/pose',
     )
-    assert s1 == s2 == 0 and r2["input"]["rate_rule"] == "mean"
-    np.testing.assert_allclose(r2["beta_rad"], r1["beta_rad"], rtol=0, atol=1e-12)
+    assert s1 == s2 == 0 and r2['input']['rate_rule'] == 'mean'
+    np.testing.assert_allclose(r2['beta_rad'], r1['beta_rad'], rtol=0, atol=1e-12)
     _assert_boresight(r1, 5.0)
 
 
 def test_dropped_rate_samples_are_counted_and_become_gaps(tmp_path, motion, capsys):
-    """A NaN, an out-of-range and an 'absent' (covariance[0] = −1) rate sample: each is dropped
+    """
+    A NaN, an out-of-range and an 'absent' (covariance[0] = −1) rate sample: each is dropped
     and counted, the interval over it (2 periods) is not integrated, so two increments are missing
-    and the one pair spanning each gap is discarded; the boresight stands."""
+    and the one pair spanning each gap is discarded; the boresight stands.
+    """
     bw = BagWriter()
-    msgs = _gyro_messages(bw, motion, "rate_at_stamp")
+    msgs = _gyro_messages(bw, motion, 'rate_at_stamp')
     bad = {
         5100: dict(rate=[np.nan, 0.0, 0.0]),
         9100: dict(rate=[1e308, 0.0, 0.0]),  # mid-interval
         13100: dict(rate=motion.rate[13100], absent=True),
     }  # of the fixes
     for k, kw in bad.items():
-        msgs[k] = ("/imu/data", motion.stamps[k], bw.imu(motion.stamps[k], **kw))
-    bag = bw.write(tmp_path / "drops", msgs + _reference_messages(bw, motion, "pose"))
+        msgs[k] = ('/imu/data', motion.stamps[k], bw.imu(motion.stamps[k], **kw))
+    bag = bw.write(tmp_path / 'drops', msgs + _reference_messages(bw, motion, 'pose'))
     capsys.readouterr()
     status, r = _calibrate(
-        tmp_path, bag, "--gyro-topic", "/imu/data", "--reference-topic", "/camera/pose"
+        tmp_path, bag, '--gyro-topic', '/imu/data', '--reference-topic', '/camera/pose'
     )
     assert status == 0
-    rs = r["input"]["rate_samples"]
-    assert rs["dropped"] == {
-        "nan": 1,
-        "duplicate": 0,
-        "out_of_order": 0,
-        "out_of_range": 1,
-        "stamp_outlier": 0,
-        "marked_absent": 1,
+    rs = r['input']['rate_samples']
+    assert rs['dropped'] == {
+        'nan': 1,
+        'duplicate': 0,
+        'out_of_order': 0,
+        'out_of_range': 1,
+        'stamp_outlier': 0,
+        'marked_absent': 1,
     }
-    assert rs["received"] == len(motion.stamps) and rs["accepted"] == len(motion.stamps) - 3
-    assert rs["intervals_not_integrated"] == 3
-    assert r["messages"]["gyro"] == len(motion.stamps) - 1 - 6
-    gg = r["gyro_gaps"]
-    assert (gg["gaps"], gg["missing"], gg["pairs_discarded"]) == (3, 6, 3)
-    assert r["pairs"] == len(motion.fixes) - 1 - 3
+    assert rs['received'] == len(motion.stamps) and rs['accepted'] == len(motion.stamps) - 3
+    assert rs['intervals_not_integrated'] == 3
+    assert r['messages']['gyro'] == len(motion.stamps) - 1 - 6
+    gg = r['gyro_gaps']
+    assert (gg['gaps'], gg['missing'], gg['pairs_discarded']) == (3, 6, 3)
+    assert r['pairs'] == len(motion.fixes) - 1 - 3
     err = capsys.readouterr().err
-    assert "WARNING: gyro rate samples: dropped nan 1, out_of_range 1, marked_absent 1" in err, err
+    assert 'WARNING: gyro rate samples: dropped nan 1, out_of_range 1, marked_absent 1' in err, err
     _assert_boresight(r, 5.0)
 
 
 def test_odometry_reference_covariance_from_the_messages_or_the_model(tmp_path, motion, bags):
-    """(b) nav_msgs/Odometry: the rotation block of pose.covariance is the camera covariance; a
-    zero rotation block takes the model's σ (the same as the simulated one here)."""
+    """
+    (b) nav_msgs/Odometry: the rotation block of pose.covariance is the camera covariance; a
+    zero rotation block takes the model's σ (the same as the simulated one here).
+    """
     status, r = _calibrate(
         tmp_path,
-        bags("rate_at_stamp", "odometry"),
-        "--gyro-topic",
-        "/imu/data",
-        "--reference-topic",
-        "camera/odom",
+        bags('rate_at_stamp', 'odometry'),
+        '--gyro-topic',
+        '/imu/data',
+        '--reference-topic',
+        'camera/odom',
     )
     assert status == 0
     _assert_boresight(r, 5.0)
-    assert r["input"]["reference_type"] == "nav_msgs/msg/Odometry"
+    assert r['input']['reference_type'] == 'nav_msgs/msg/Odometry'
     assert (
-        r["input"]["reference_covariance"] == "from_messages"
-        and r["camera_covariance_from_bag"] is True
+        r['input']['reference_covariance'] == 'from_messages'
+        and r['camera_covariance_from_bag'] is True
     )
     status, r0 = _calibrate(
         tmp_path,
-        bags("rate_at_stamp", "odometry_zero_cov"),
-        "--gyro-topic",
-        "/imu/data",
-        "--reference-topic",
-        "/camera/odom",
+        bags('rate_at_stamp', 'odometry_zero_cov'),
+        '--gyro-topic',
+        '/imu/data',
+        '--reference-topic',
+        '/camera/odom',
     )
-    assert status == 0 and r0["input"]["reference_covariance"] == "from_model"
-    assert r0["camera_fixes"]["covariance_substituted"] == len(motion.fixes)
+    assert status == 0 and r0['input']['reference_covariance'] == 'from_model'
+    assert r0['camera_fixes']['covariance_substituted'] == len(motion.fixes)
     _assert_boresight(r0, 5.0)
     np.testing.assert_allclose(
-        r0["beta_rad"], r["beta_rad"], rtol=0, atol=1e-9
+        r0['beta_rad'], r['beta_rad'], rtol=0, atol=1e-9
     )  # same σ: same fit
 
 
 def test_tf_reference_among_other_frames_direct_and_inverse(tmp_path, motion, bags):
-    """(c) /tf with other frame pairs: gcrs → star_tracker is taken; when only star_tracker → gcrs
-    is recorded its inverse is used, with the same result."""
+    """
+    (c) /tf with other frame pairs: gcrs → star_tracker is taken; when only star_tracker → gcrs
+    is recorded its inverse is used, with the same result.
+    """
     status, r = _calibrate(
         tmp_path,
-        bags("rate_at_stamp", "tf"),
-        "--gyro-topic",
-        "/imu/data",
-        "--reference-frames",
-        "gcrs",
-        "star_tracker",
+        bags('rate_at_stamp', 'tf'),
+        '--gyro-topic',
+        '/imu/data',
+        '--reference-frames',
+        'gcrs',
+        'star_tracker',
     )
     assert status == 0
     _assert_boresight(r, 5.0)
-    inp = r["input"]
-    assert inp["reference_topic"] == "/tf" and inp["reference_type"] == "tf2_msgs/msg/TFMessage"
-    assert inp["reference_frames"] == {
-        "parent": "gcrs",
-        "child": "star_tracker",
-        "transform": "direct",
+    inp = r['input']
+    assert inp['reference_topic'] == '/tf' and inp['reference_type'] == 'tf2_msgs/msg/TFMessage'
+    assert inp['reference_frames'] == {
+        'parent': 'gcrs',
+        'child': 'star_tracker',
+        'transform': 'direct',
     }
-    assert inp["reference_covariance"] == "from_model"
-    assert r["messages"]["camera"] == len(motion.fixes)
+    assert inp['reference_covariance'] == 'from_model'
+    assert r['messages']['camera'] == len(motion.fixes)
     status, ri = _calibrate(
         tmp_path,
-        bags("rate_at_stamp", "tf_inverse"),
-        "--gyro-topic",
-        "/imu/data",
-        "--reference-topic",
-        "/tf",
-        "--reference-frames",
-        "gcrs",
-        "star_tracker",
+        bags('rate_at_stamp', 'tf_inverse'),
+        '--gyro-topic',
+        '/imu/data',
+        '--reference-topic',
+        '/tf',
+        '--reference-frames',
+        'gcrs',
+        'star_tracker',
     )
-    assert status == 0 and ri["input"]["reference_frames"]["transform"] == "inverse"
-    np.testing.assert_allclose(ri["beta_rad"], r["beta_rad"], rtol=0, atol=1e-12)
+    assert status == 0 and ri['input']['reference_frames']['transform'] == 'inverse'
+    np.testing.assert_allclose(ri['beta_rad'], r['beta_rad'], rtol=0, atol=1e-12)
 
 
 def test_discrepancy_names_a_gyro_bias_on_imu_rate_input(tmp_path, bags):
     """The injected bias (rad/s) on sensor_msgs/Imu rate input is named and recovered within 3σ."""
-    model = tmp_path / "model.yaml"
-    model.write_text(json.dumps({"/**": {"ros__parameters": {"gyro_rate": RATE_HZ}}}))
-    out = tmp_path / "d.json"
+    model = tmp_path / 'model.yaml'
+    model.write_text(json.dumps({'/**': {'ros__parameters': {'gyro_rate': RATE_HZ}}}))
+    out = tmp_path / 'd.json'
     assert (
         discrepancy.main(
             [
-                str(bags("rate_at_stamp", "odometry")),
-                "--model",
+                str(bags('rate_at_stamp', 'odometry')),
+                '--model',
                 str(model),
-                "--json",
+                '--json',
                 str(out),
-                "--quiet",
-                "--gyro-topic",
-                "/imu/data",
-                "--reference-topic",
-                "/camera/odom",
+                '--quiet',
+                '--gyro-topic',
+                '/imu/data',
+                '--reference-topic',
+                '/camera/odom',
             ]
         )
         == 0
     )
     r = json.loads(out.read_text())
-    named = [s["effect"] for s in r["steps"]]
-    assert "gyro_bias" in named, (r["steps"], r.get("candidates_first_step"))
-    step = r["steps"][named.index("gyro_bias")]
-    est, sig = np.asarray(step["parameters"]["gyro_bias"]), np.asarray(step["sigma"]["gyro_bias"])
+    named = [s['effect'] for s in r['steps']]
+    assert 'gyro_bias' in named, (r['steps'], r.get('candidates_first_step'))
+    step = r['steps'][named.index('gyro_bias')]
+    est, sig = np.asarray(step['parameters']['gyro_bias']), np.asarray(step['sigma']['gyro_bias'])
     assert np.all(np.abs(est - BIAS) <= 3 * sig), (est, BIAS, sig)
     assert np.all(sig < 0.2 * np.abs(BIAS))  # a real detection, not a wide interval
     assert (
-        r["input"]["gyro_input"] == "rates"
-        and r["input"]["reference_type"] == "nav_msgs/msg/Odometry"
+        r['input']['gyro_input'] == 'rates'
+        and r['input']['reference_type'] == 'nav_msgs/msg/Odometry'
     )
 
 
 # --- errors ----------------------------------------------------------------------------------
 @pytest.mark.parametrize(
-    "args, needles",
+    'args, needles',
     [
         (
-            ["--reference-topic", "/imu/data"],
-            ["/imu/data has type sensor_msgs/msg/Imu", "supported"],
+            ['--reference-topic', '/imu/data'],
+            ['/imu/data has type sensor_msgs/msg/Imu', 'supported'],
         ),
         (
-            ["--reference-frames", "gcrs", "camera"],
-            ["no transform gcrs→camera", "frame pairs present", "gcrs→star_tracker", "map→odom"],
+            ['--reference-frames', 'gcrs', 'camera'],
+            ['no transform gcrs→camera', 'frame pairs present', 'gcrs→star_tracker', 'map→odom'],
         ),
         (
-            ["--reference-topic", "/nonexistent"],
+            ['--reference-topic', '/nonexistent'],
             [
-                "--reference-topic /nonexistent: no such topic",
-                "/imu/data (sensor_msgs/msg/Imu)",
-                "/tf (tf2_msgs/msg/TFMessage)",
+                '--reference-topic /nonexistent: no such topic',
+                '/imu/data (sensor_msgs/msg/Imu)',
+                '/tf (tf2_msgs/msg/TFMessage)',
             ],
         ),
-        (["--reference-topic", "/tf"], ["--reference-frames PARENT CHILD"]),
+        (['--reference-topic', '/tf'], ['--reference-frames PARENT CHILD']),
         (
-            ["--gyro-topic", "/tf", "--reference-frames", "gcrs", "star_tracker"],
-            ["gyro topic /tf has type"],
+            ['--gyro-topic', '/tf', '--reference-frames', 'gcrs', 'star_tracker'],
+            ['gyro topic /tf has type'],
         ),
-        (["--reference-frames", "gcrs", "gcrs"], ["same frame"]),
-        (["--rate-rule", "simpson"], ["invalid choice", "simpson"]),
+        (['--reference-frames', 'gcrs', 'gcrs'], ['same frame']),
+        (['--rate-rule', 'simpson'], ['invalid choice', 'simpson']),
     ],
 )
 def test_bad_input_options_are_one_line_exit_2(tmp_path, bags, capsys, args, needles):
-    bag = bags("rate_at_stamp", "tf")
-    model = tmp_path / "m.yaml"
-    model.write_text("{}")
+    bag = bags('rate_at_stamp', 'tf')
+    model = tmp_path / 'm.yaml'
+    model.write_text('{}')
     for tool, base in (
         (calibrate_bag, [str(bag)]),
-        (discrepancy, [str(bag), "--model", str(model), "--quiet"]),
-        (calibrate_gyro_bag, [str(bag), "--method", "integral", "--model", str(model)]),
+        (discrepancy, [str(bag), '--model', str(model), '--quiet']),
+        (calibrate_gyro_bag, [str(bag), '--method', 'integral', '--model', str(model)]),
     ):
         capsys.readouterr()
         try:
             status = tool.main(
-                base + ["--gyro-topic", "/imu/data"] * ("--gyro-topic" not in args) + args
+                base + ['--gyro-topic', '/imu/data'] * ('--gyro-topic' not in args) + args
             )
         except SystemExit as exc:  # argparse errors
             status = exc.code
         out, err = capsys.readouterr()
         lines = [ln for ln in err.splitlines() if ln.strip()]
-        assert status == 2 and len(lines) == 1 and "error" in lines[0], (
+        assert status == 2 and len(lines) == 1 and 'error' in lines[0], (
             tool.__name__,
             status,
             err,
@@ -618,38 +629,40 @@ def test_error_listing_is_bounded(tmp_path, capsys):
     bw = BagWriter()
     msgs = [
         (
-            f"/noise/topic_{i:02d}/" + "x" * 200,
+            f'/noise/topic_{i:02d}/' + 'x' * 200,
             PERIOD_NS * (i + 1),
             bw.vector3_stamped(PERIOD_NS * (i + 1), [0, 0, 0]),
         )
         for i in range(60)
     ]
-    bag = bw.write(tmp_path / "many", msgs)
-    assert calibrate_bag.main([str(bag), "--gyro-topic", "/nope"]) == 2
+    bag = bw.write(tmp_path / 'many', msgs)
+    assert calibrate_bag.main([str(bag), '--gyro-topic', '/nope']) == 2
     err = capsys.readouterr().err.strip()
-    assert "\n" not in err and "and 48 more" in err and len(err) < 1500, err
+    assert '\n' not in err and 'and 48 more' in err and len(err) < 1500, err
 
 
 # --- a corrupt chunk -------------------------------------------------------------------------
 def _flip_message_opcodes(mcap, channel_id, t0_ns, t1_ns) -> int:
-    """Flip the top bit of the opcode of every message record of ``channel_id`` logged in
+    """
+    Flip the top bit of the opcode of every message record of ``channel_id`` logged in
     [t0, t1) in the first chunk (an uncompressed rosbags MCAP): readers skip unknown opcodes, so
-    those messages vanish from the data while the index still counts them.  Returns how many."""
+    those messages vanish from the data while the index still counts them.  Returns how many.
+    """
     b = bytearray(mcap.read_bytes())
     pos = 8  # magic
     while b[pos] != 0x06:  # to the first chunk record
-        pos += 9 + struct.unpack_from("<Q", b, pos + 1)[0]
+        pos += 9 + struct.unpack_from('<Q', b, pos + 1)[0]
     body = pos + 9
-    size = struct.unpack_from("<Q", b, body + 16)[0]  # uncompressed size
-    comp = struct.unpack_from("<I", b, body + 28)[0]  # compression string length
+    size = struct.unpack_from('<Q', b, body + 16)[0]  # uncompressed size
+    comp = struct.unpack_from('<I', b, body + 28)[0]  # compression string length
     assert comp == 0  # rosbags writes uncompressed chunks
     rec = body + 28 + 4 + 8
     end, n = rec + size, 0
     while rec < end:
-        op, length = b[rec], struct.unpack_from("<Q", b, rec + 1)[0]
+        op, length = b[rec], struct.unpack_from('<Q', b, rec + 1)[0]
         if op == 0x05:
-            (chan,) = struct.unpack_from("<H", b, rec + 9)
-            (log_time,) = struct.unpack_from("<Q", b, rec + 9 + 6)
+            (chan,) = struct.unpack_from('<H', b, rec + 9)
+            (log_time,) = struct.unpack_from('<Q', b, rec + 9 + 6)
             if chan == channel_id and t0_ns <= log_time < t1_ns:
                 b[rec] ^= 0x80
                 n += 1
@@ -659,36 +672,38 @@ def _flip_message_opcodes(mcap, channel_id, t0_ns, t1_ns) -> int:
 
 
 def test_corrupt_first_chunk_is_reported_not_silent(tmp_path, capsys):
-    """A corrupt first MCAP chunk dropped 25 s of gyro data and
-    calibrate_bag said 'dropped: none'.  Now the read counts are compared with the bag's index."""
-    bag = tmp_path / "bag"
+    """
+    A corrupt first MCAP chunk dropped 25 s of gyro data and
+    calibrate_bag said 'dropped: none'.  Now the read counts are compared with the bag's index.
+    """
+    bag = tmp_path / 'bag'
     assert (
         record_sim.main(
-            [str(bag), "--no-accel", "-p", "profile:=bench", "-p", "camera_interval:=5.0"]
+            [str(bag), '--no-accel', '-p', 'profile:=bench', '-p', 'camera_interval:=5.0']
         )
         == 0
     )
     from rosbags.highlevel import AnyReader
 
     with AnyReader([bag]) as rd:
-        gyro_id = next(c.id for c in rd.connections if c.topic == "/imu/delta_theta")
-    hidden = _flip_message_opcodes(next(bag.glob("*.mcap")), gyro_id, 10 * 10**9, 35 * 10**9)
+        gyro_id = next(c.id for c in rd.connections if c.topic == '/imu/delta_theta')
+    hidden = _flip_message_opcodes(next(bag.glob('*.mcap')), gyro_id, 10 * 10**9, 35 * 10**9)
     assert hidden > 2000  # 25 s at 100 Hz inside the first chunk
     capsys.readouterr()
-    f = tmp_path / "r.json"
-    status = calibrate_bag.main([str(bag), "--json", str(f)])
+    f = tmp_path / 'r.json'
+    status = calibrate_bag.main([str(bag), '--json', str(f)])
     out, err = capsys.readouterr()
-    assert f"UNREAD: /imu/delta_theta +{hidden} message(s)" in out
+    assert f'UNREAD: /imu/delta_theta +{hidden} message(s)' in out
     assert status == 0  # the bench motion is still observable
     r = json.loads(f.read_text())
-    assert r["unread_messages"] == {"/imu/delta_theta": hidden}
-    assert r["messages"]["gyro"] == 17000 - hidden
-    warn = [ln for ln in err.splitlines() if "WARNING:" in ln]
-    assert len(warn) == 1 and f"/imu/delta_theta: +{hidden}" in warn[0], err
+    assert r['unread_messages'] == {'/imu/delta_theta': hidden}
+    assert r['messages']['gyro'] == 17000 - hidden
+    warn = [ln for ln in err.splitlines() if 'WARNING:' in ln]
+    assert len(warn) == 1 and f'/imu/delta_theta: +{hidden}' in warn[0], err
     # discrepancy reads through the same reader: the same count in its JSON input record
-    model = tmp_path / "m.yaml"
-    model.write_text("{}")
-    d = tmp_path / "d.json"
-    assert discrepancy.main([str(bag), "--model", str(model), "--json", str(d), "--quiet"]) == 0
-    assert json.loads(d.read_text())["input"]["unread_messages"] == {"/imu/delta_theta": hidden}
-    assert "WARNING:" in capsys.readouterr().err
+    model = tmp_path / 'm.yaml'
+    model.write_text('{}')
+    d = tmp_path / 'd.json'
+    assert discrepancy.main([str(bag), '--model', str(model), '--json', str(d), '--quiet']) == 0
+    assert json.loads(d.read_text())['input']['unread_messages'] == {'/imu/delta_theta': hidden}
+    assert 'WARNING:' in capsys.readouterr().err

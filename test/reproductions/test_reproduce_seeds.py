@@ -1,7 +1,9 @@
-"""reproduce_seeds in quick mode: the JSON schema it fixes, and the comparisons it reports.
+"""
+reproduce_seeds in quick mode: the JSON schema it fixes, and the comparisons it reports.
 
 Every comparison the report states is recomputed here from the numbers the JSON records (the
-paper's published values and ours), independently of the report code."""
+paper's published values and ours), independently of the report code.
+"""
 import json
 
 import numpy as np
@@ -11,45 +13,47 @@ from strapdown_ros.calibration.drifting_reference import PAPER_000
 from strapdown_ros.reproductions import reproduce_seeds
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture(scope='module')
 def result(tmp_path_factory):
-    d = tmp_path_factory.mktemp("seeds")
-    assert reproduce_seeds.main(["--only", "000,002,003", "--quick", "--json", str(d / "r.json"),
-                                 "--report", str(d / "r.md"), "--plots", str(d / "plots")]) == 0
-    return json.loads((d / "r.json").read_text()), (d / "r.md").read_text(), d
+    d = tmp_path_factory.mktemp('seeds')
+    assert reproduce_seeds.main(['--only', '000,002,003', '--quick', '--json', str(d / 'r.json'),
+                                 '--report', str(d / 'r.md'), '--plots', str(d / 'plots')]) == 0
+    return json.loads((d / 'r.json').read_text()), (d / 'r.md').read_text(), d
 
 
 def _cd(rec):
-    return np.r_[rec["dc"], rec["dd"]]
+    return np.r_[rec['dc'], rec['dd']]
 
 
 def test_000_schema(result):
     res, _, _ = result
-    cases = res["000"]["cases"]
-    assert set(cases) == {"unquantized", "quantized_raw", "quantized_centred"}
+    cases = res['000']['cases']
+    assert set(cases) == {'unquantized', 'quantized_raw', 'quantized_centred'}
     for case in cases.values():
-        for key in ("paper", "ours", "ours_as_printed", "ours_iterated", "ours_mc_mean", "ours_mc_std"):
-            assert len(case[key]["w0"]) == 3 and len(case[key]["dc"]) == 9 and len(case[key]["dd"]) == 3
+        for key in ('paper', 'ours', 'ours_as_printed', 'ours_iterated', 'ours_mc_mean', 'ours_mc_std'):
+            assert len(case[key]['w0']) == 3 and len(case[key]['dc']) == 9 and len(case[key]['dd']) == 3
     for name, case in cases.items():       # the paper's column is the transcription, untouched
-        assert case["paper"]["dc"] == PAPER_000[name]["dc"] and case["paper"]["dd"] == PAPER_000[name]["dd"]
+        assert case['paper']['dc'] == PAPER_000[name]['dc'] and case['paper']['dd'] == PAPER_000[name]['dd']
 
 
 def test_000_headline_is_rms_ratio_and_signs(result):
-    """The headline numbers, recomputed from the error vectors: RMS(paper)/RMS(ours) and the count
-    of components with the paper's sign; the report states them, not the largest ratio alone."""
+    """
+    The headline numbers, recomputed from the error vectors: RMS(paper)/RMS(ours) and the count
+    of components with the paper's sign; the report states them, not the largest ratio alone.
+    """
     res, text, _ = result
-    for name, case in res["000"]["cases"].items():
-        ours, paper = _cd(case["ours"]), _cd(case["paper"])
-        h = res["000"]["headline"][name]["ours"]
-        assert h["rms_ratio"] == pytest.approx(np.sqrt(np.mean(paper ** 2) / np.mean(ours ** 2)), rel=1e-12)
-        assert h["signs"] == int(np.sum(np.sign(ours) == np.sign(paper)))
-        hp = res["000"]["headline"][name]["ours_as_printed"]
-        printed = _cd(case["ours_as_printed"])
+    for name, case in res['000']['cases'].items():
+        ours, paper = _cd(case['ours']), _cd(case['paper'])
+        h = res['000']['headline'][name]['ours']
+        assert h['rms_ratio'] == pytest.approx(np.sqrt(np.mean(paper ** 2) / np.mean(ours ** 2)), rel=1e-12)
+        assert h['signs'] == int(np.sum(np.sign(ours) == np.sign(paper)))
+        hp = res['000']['headline'][name]['ours_as_printed']
+        printed = _cd(case['ours_as_printed'])
         ratio = np.sqrt(np.mean(paper ** 2) / np.mean(printed ** 2))
-        assert hp["rms_ratio"] == pytest.approx(ratio, rel=1e-12)
-        assert hp["signs"] == int(np.sum(np.sign(printed) == np.sign(paper)))
+        assert hp['rms_ratio'] == pytest.approx(ratio, rel=1e-12)
+        assert hp['signs'] == int(np.sum(np.sign(printed) == np.sign(paper)))
         cosine = printed @ paper / np.linalg.norm(printed) / np.linalg.norm(paper)
-        assert hp["corr"] == pytest.approx(cosine)
+        assert hp['corr'] == pytest.approx(cosine)
         # 000's method as printed is stated first, then the modified estimator
         first = (f"**{name}**, 000's method as printed: the paper's errors are "
                  f"{hp['rms_ratio']:.3g}× ours in RMS")
@@ -57,87 +61,93 @@ def test_000_headline_is_rms_ratio_and_signs(result):
         second = f"Modified estimator: the paper's errors are {h['rms_ratio']:.3g}× ours in RMS"
         assert text.index(first) < text.index(second)
         assert f"{h['signs']}/12 signs agree" in text
-    un = res["000"]["headline"]["unquantized"]["ours"]
-    assert un["rms_ratio"] > 5 and un["signs"] >= 9          # ~15× smaller, same signs mostly
-    up = res["000"]["headline"]["unquantized"]["ours_as_printed"]
+    un = res['000']['headline']['unquantized']['ours']
+    assert un['rms_ratio'] > 5 and un['signs'] >= 9          # ~15× smaller, same signs mostly
+    up = res['000']['headline']['unquantized']['ours_as_printed']
     # the audit's numbers for 000's method as printed: 1.53, 5/12, 0.58
-    assert 1.2 < up["rms_ratio"] < 2 and up["signs"] <= 6 and up["corr"] < 0.7
-    assert "within 2.9×" not in text
+    assert 1.2 < up['rms_ratio'] < 2 and up['signs'] <= 6 and up['corr'] < 0.7
+    assert 'within 2.9×' not in text
 
 
 def test_000_iterated_unquantized_is_1000x_below_the_paper(result):
     res, _, _ = result
-    c = res["000"]["cases"]["unquantized"]
-    for k in ("dc", "dd"):
-        for ours, paper in zip(c["ours_iterated"][k], c["paper"][k]):
+    c = res['000']['cases']['unquantized']
+    for k in ('dc', 'dd'):
+        for ours, paper in zip(c['ours_iterated'][k], c['paper'][k]):
             assert abs(ours) <= 1e-3 * abs(paper)
 
 
 def test_000_ablations_verdicts_follow_fixed_thresholds(result):
-    """Each ablation's verdict follows from its numbers and fixed thresholds (ratio within 2× of 1,
-    corr ≥ 0.9), not from the correlation of one of our estimators; both estimators are run."""
+    """
+    Each ablation's verdict follows from its numbers and fixed thresholds (ratio within 2× of 1,
+    corr ≥ 0.9), not from the correlation of one of our estimators; both estimators are run.
+    """
     from strapdown_ros.reproductions.tkachenko1983 import EXPLAINS_WITHIN, SAME_PATTERN
 
     res, text, _ = result
-    a = res["000"]["ablations"]
-    h = res["000"]["headline"]["unquantized"]
-    none = a["knobs"]["none"]
-    assert none["identity"]["rms_ratio"] == pytest.approx(h["ours"]["rms_ratio"], rel=1e-12)
-    assert none["printed"]["rms_ratio"] == pytest.approx(h["ours_as_printed"]["rms_ratio"], rel=1e-12)
+    a = res['000']['ablations']
+    h = res['000']['headline']['unquantized']
+    none = a['knobs']['none']
+    assert none['identity']['rms_ratio'] == pytest.approx(h['ours']['rms_ratio'], rel=1e-12)
+    assert none['printed']['rms_ratio'] == pytest.approx(h['ours_as_printed']['rms_ratio'], rel=1e-12)
     # the paper's own method is the reference column, not a knob that is "ruled out"
-    assert "coefficients_printed" not in a["knobs"] and "ruled out" not in text
+    assert 'coefficients_printed' not in a['knobs'] and 'ruled out' not in text
     # the profile's rates are constant on each step, so the integration scheme cannot matter
-    for key in ("algorithm_1", "algorithm_4", "quadrature_trapezoid"):
-        for est in ("printed", "identity"):
-            change = abs(a["knobs"][key][est]["rms_ratio"] / none[est]["rms_ratio"] - 1)
+    for key in ('algorithm_1', 'algorithm_4', 'quadrature_trapezoid'):
+        for est in ('printed', 'identity'):
+            change = abs(a['knobs'][key][est]['rms_ratio'] / none[est]['rms_ratio'] - 1)
             assert change < 0.05
-            assert f"size unchanged: ratio moves {100 * change:.1f}%" in text
-    for key, k in a["knobs"].items():
-        for est in ("printed", "identity"):
+            assert f'size unchanged: ratio moves {100 * change:.1f}%' in text
+    for key, k in a['knobs'].items():
+        for est in ('printed', 'identity'):
             v = k[est]
-            explains = (abs(np.log(v["rms_ratio"])) <= np.log(EXPLAINS_WITHIN)
-                        and v["corr"] >= SAME_PATTERN)
+            explains = (abs(np.log(v['rms_ratio'])) <= np.log(EXPLAINS_WITHIN)
+                        and v['corr'] >= SAME_PATTERN)
             if explains:
-                assert "explains size and pattern" in text
-    assert f"within {EXPLAINS_WITHIN:g}× of 1 and its corr ≥ {SAME_PATTERN:g}" in text
+                assert 'explains size and pattern' in text
+    assert f'within {EXPLAINS_WITHIN:g}× of 1 and its corr ≥ {SAME_PATTERN:g}' in text
 
 
 def test_000_new_ablations_compute_what_the_text_says(result):
-    """The float32-recursion and w0 = 1e-2 rows: the table's numbers are the agreement of a run
-    with that change, recomputed here from an independent run of the experiment."""
+    """
+    The float32-recursion and w0 = 1e-2 rows: the table's numbers are the agreement of a run
+    with that change, recomputed here from an independent run of the experiment.
+    """
     from strapdown_ros.calibration.drifting_reference import TKACHENKO_W0
     from strapdown_ros.reproductions.tkachenko1983 import run_tkachenko_experiment
 
     res, text, _ = result
-    a = res["000"]["ablations"]["knobs"]
-    paper = np.r_[PAPER_000["unquantized"]["dc"], PAPER_000["unquantized"]["dd"]]
-    for key, kw in (("w0_1e-2", dict(w0=np.full(3, 1e-2))),
-                    ("float32_recursion", dict(recursion="float32", algorithm="1"))):
+    a = res['000']['ablations']['knobs']
+    paper = np.r_[PAPER_000['unquantized']['dc'], PAPER_000['unquantized']['dd']]
+    for key, kw in (('w0_1e-2', dict(w0=np.full(3, 1e-2))),
+                    ('float32_recursion', dict(recursion='float32', algorithm='1'))):
         assert key in a
-        for est in ("printed", "identity"):
+        for est in ('printed', 'identity'):
             r = run_tkachenko_experiment(seed=None, coefficients=est, **kw)
-            ours = np.r_[r["dc"], r["dd"]]
+            ours = np.r_[r['dc'], r['dd']]
             ratio = np.sqrt(np.mean(paper ** 2) / np.mean(ours ** 2))
             corr = ours @ paper / np.linalg.norm(ours) / np.linalg.norm(paper)
             v = a[key][est]
-            assert v["rms_ratio"] == pytest.approx(ratio, rel=1e-9)
-            assert v["corr"] == pytest.approx(corr, abs=1e-9)
-            assert v["signs"] == int(np.sum(np.sign(ours) == np.sign(paper)))
+            assert v['rms_ratio'] == pytest.approx(ratio, rel=1e-9)
+            assert v['corr'] == pytest.approx(corr, abs=1e-9)
+            assert v['signs'] == int(np.sum(np.sign(ours) == np.sign(paper)))
             assert f"| {v['rms_ratio']:.2f} | {v['signs']}/12 | {v['corr']:+.3f} |" in text
     assert np.allclose(TKACHENKO_W0 * 10, 1e-2)
     # audit's numbers for the exponent misprint with the modified estimator: 1.66, 0.79, 9/12
-    v = a["w0_1e-2"]["identity"]
-    assert v["rms_ratio"] == pytest.approx(1.66, abs=0.01)
-    assert v["corr"] == pytest.approx(0.79, abs=0.01)
-    assert v["signs"] == 9
+    v = a['w0_1e-2']['identity']
+    assert v['rms_ratio'] == pytest.approx(1.66, abs=0.01)
+    assert v['corr'] == pytest.approx(0.79, abs=0.01)
+    assert v['signs'] == 9
 
 
 def test_float32_recursion_is_single_precision_roundoff():
-    """The float32 recursion's attitude differs from the float64 one by float32 round-off
-    (≫ float64's, ≪ the increments), and its equivalent increments reproduce it."""
-    from strapdown_ros.rotation import (quat_conjugate, quat_multiply, quat_to_rotvec,
-        rotvec_to_quat)
+    """
+    The float32 recursion's attitude differs from the float64 one by float32 round-off
+    (≫ float64's, ≪ the increments), and its equivalent increments reproduce it.
+    """
     from strapdown_ros.reproductions.tkachenko1983 import float32_recursion_increments
+    from strapdown_ros.rotation import (quat_conjugate, quat_multiply, quat_to_rotvec,
+                                        rotvec_to_quat)
 
     rng = np.random.default_rng(1)
     theta = rng.normal(0, 5e-3, (1500, 3))
@@ -158,95 +168,101 @@ def test_float32_recursion_is_single_precision_roundoff():
 
 def test_000_centring_sentence_computed(result):
     res, text, _ = result
-    g = res["000"]["centring_gain"]
-    gain = 1 - g["rms_c_centred"] / g["rms_c_raw"]
+    g = res['000']['centring_gain']
+    gain = 1 - g['rms_c_centred'] / g['rms_c_raw']
     assert f"({100 * abs(gain):.0f}% {'less' if gain > 0 else 'more'})" in text
 
 
 def test_002_and_003_sections(result):
     res, text, _ = result
-    r = res["002"]
-    assert set(r["rms_000"]) == set(r["rms_002"]) == set(r["rms_002_adaptive"])
-    assert all(v > 0 for v in r["rms_000"].values())
-    assert res["003"]["claim_case1"]["0.01"]["algorithm_1_above_1e-3"]
-    for needle in ("## 000", "## 002", "## 003", "Centring (5.5), Monte Carlo"):
+    r = res['002']
+    assert set(r['rms_000']) == set(r['rms_002']) == set(r['rms_002_adaptive'])
+    assert all(v > 0 for v in r['rms_000'].values())
+    assert res['003']['claim_case1']['0.01']['algorithm_1_above_1e-3']
+    for needle in ('## 000', '## 002', '## 003', 'Centring (5.5), Monte Carlo'):
         assert needle in text
 
 
 def test_003_values_below_the_floor_are_marked(result):
     res, text, _ = result
     marked = 0
-    for c in res["003"]["cases"]:
-        for n, v in c["drift_deg_per_h"].items():
-            below = abs(v) <= c["floor_deg_per_h"]
-            assert c["at_floor"][n] == below
+    for c in res['003']['cases']:
+        for n, v in c['drift_deg_per_h'].items():
+            below = abs(v) <= c['floor_deg_per_h']
+            assert c['at_floor'][n] == below
             marked += below
-    assert text.count(" (floor) |") == marked
-    assert f"{marked} of " in text
+    assert text.count(' (floor) |') == marked
+    assert f'{marked} of ' in text
 
 
 def test_plots_written_and_linked(result):
     _, text, d = result
-    for name in ("seeds_000_errors.png", "seeds_000_centring.png", "seeds_000_ablations.png"):
-        png = d / "plots" / name
-        assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and png.stat().st_size > 10_000
-        assert f"(plots/{name})" in text
+    for name in ('seeds_000_errors.png', 'seeds_000_centring.png', 'seeds_000_ablations.png'):
+        png = d / 'plots' / name
+        assert png.read_bytes()[:8] == b'\x89PNG\r\n\x1a\n' and png.stat().st_size > 10_000
+        assert f'(plots/{name})' in text
 
 
 def test_000_beyond_the_paper_gains_reported(result):
     res, text, _ = result
-    b = res["000"]["beyond_paper"]
-    assert {"raw", "centred", "centred+iter", "centred+weighted", "centred+iter+weighted"} <= set(b)
-    assert b["centred+weighted"]["rms_c"] < b["centred"]["rms_c"] < b["raw"]["rms_c"]
-    assert "Beyond the paper" in text
+    b = res['000']['beyond_paper']
+    assert {'raw', 'centred', 'centred+iter', 'centred+weighted', 'centred+iter+weighted'} <= set(b)
+    assert b['centred+weighted']['rms_c'] < b['centred']['rms_c'] < b['raw']['rms_c']
+    assert 'Beyond the paper' in text
 
 
 def test_registry_is_table_driven():
-    """Every available section is one registry entry with its run/report functions present;
-    sections whose module is absent are skipped, not fatal."""
+    """
+    Every available section is one registry entry with its run/report functions present;
+    sections whose module is absent are skipped, not fatal.
+    """
     names = reproduce_seeds.section_names()
-    assert {"000", "002", "003", "004"} <= set(names)
+    assert {'000', '002', '003', '004'} <= set(names)
     for s in reproduce_seeds.sections():
         assert callable(s.fn(s.run)) and callable(s.fn(s.report))
-    missing = reproduce_seeds.Section("999", "999", ".no_such_seed_module", "a", "b", None, lambda a: ())
+    missing = reproduce_seeds.Section('999', '999', '.no_such_seed_module', 'a', 'b', None, lambda a: ())
     assert not missing.available()
 
 
 def test_from_json_rerenders_the_same_report(result, tmp_path, capsys):
-    """--from-json writes the report of an earlier run without rerunning it: same text; the
-    input may not be an output (exit 2, one line)."""
+    """
+    --from-json writes the report of an earlier run without rerunning it: same text; the
+    input may not be an output (exit 2, one line).
+    """
     _, text, d = result
-    again = tmp_path / "again"
+    again = tmp_path / 'again'
     again.mkdir()
-    argv = ["--only", "000,002,003", "--from-json", str(d / "r.json"),
-            "--report", str(again / "r.md"), "--plots", str(again / "plots")]
+    argv = ['--only', '000,002,003', '--from-json', str(d / 'r.json'),
+            '--report', str(again / 'r.md'), '--plots', str(again / 'plots')]
     assert reproduce_seeds.main(argv) == 0
-    assert (again / "r.md").read_text() == text
+    assert (again / 'r.md').read_text() == text
     capsys.readouterr()
-    assert reproduce_seeds.main(["--from-json", str(d / "r.json"), "--json", str(d / "r.json"),
-                                 "--force"]) == 2
+    assert reproduce_seeds.main(['--from-json', str(d / 'r.json'), '--json', str(d / 'r.json'),
+                                 '--force']) == 2
     err = capsys.readouterr().err.strip().splitlines()
-    assert len(err) == 1 and err[0].startswith("reproduce_seeds: error:")
+    assert len(err) == 1 and err[0].startswith('reproduce_seeds: error:')
 
 
 def test_estimator_integration_reproduces_the_float32_recursion():
-    """Fed the equivalent increments, the estimator's own 1-sample integration gives the float32
-    attitudes (their exact product) to float64 round-off, so the ablation tests the recursion."""
-    from strapdown_ros.rotation import (quat_conjugate, quat_multiply, quat_to_rotvec,
-        rotvec_to_quat)
+    """
+    Fed the equivalent increments, the estimator's own 1-sample integration gives the float32
+    attitudes (their exact product) to float64 round-off, so the ablation tests the recursion.
+    """
     from strapdown_ros.calibration.drifting_reference import integrate_attitude
     from strapdown_ros.reproductions.tkachenko1983 import (float32_recursion_increments,
-        simulate_000)
+                                                           simulate_000)
+    from strapdown_ros.rotation import (quat_conjugate, quat_multiply, quat_to_rotvec,
+                                        rotvec_to_quat)
 
     sim = simulate_000(seed=None)
     q0, inc = float32_recursion_increments(sim.M0, sim.meas)
-    q = integrate_attitude(q0, inc, sim.h, "1")
+    q = integrate_attitude(q0, inc, sim.h, '1')
     m = [q0]
     for t in inc:
         m.append(quat_multiply(m[-1], rotvec_to_quat(t)))
     err = quat_to_rotvec(quat_multiply(quat_conjugate(np.array(m)), q))
     assert np.abs(err).max() < 1e-12
     # and the float32 attitude really is off the float64 one by single-precision round-off
-    q64 = integrate_attitude(sim.M0, sim.meas, sim.h, "1")
+    q64 = integrate_attitude(sim.M0, sim.meas, sim.h, '1')
     drift = np.abs(quat_to_rotvec(quat_multiply(quat_conjugate(q64), q))).max()
     assert 1e-8 < drift < 1e-4

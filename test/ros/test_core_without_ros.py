@@ -5,21 +5,21 @@ import sys
 import textwrap
 
 REPO = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
-ROS_ROOMS = ("nodes", "bench/ros", "demo.py")   # the only places that may import ROS
+ROS_ROOMS = ('nodes', 'bench/ros', 'demo.py')   # the only places that may import ROS
 
 
 def core_modules():
     """Every module of the package outside the ROS rooms, as dotted names under strapdown_ros."""
-    pkg = os.path.join(REPO, "strapdown_ros")
+    pkg = os.path.join(REPO, 'strapdown_ros')
     mods = []
     for root, _, files in os.walk(pkg):
         for f in sorted(files):
             rel = os.path.relpath(os.path.join(root, f), pkg)
-            if not f.endswith(".py") or rel.startswith(ROS_ROOMS):
+            if not f.endswith('.py') or rel.startswith(ROS_ROOMS):
                 continue
-            name = rel[:-3].replace(os.sep, ".")
-            mods.append(name[: -len(".__init__")] if name.endswith("__init__") else name)
-    return sorted(m for m in mods if m and m != "__init__")
+            name = rel[:-3].replace(os.sep, '.')
+            mods.append(name[: -len('.__init__')] if name.endswith('__init__') else name)
+    return sorted(m for m in mods if m and m != '__init__')
 
 
 CORE = core_modules()
@@ -50,22 +50,22 @@ def test_core_imports_with_rclpy_absent():
         assert not loaded, loaded
         print("core ok")
     """)
-    res = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    res = subprocess.run([sys.executable, '-c', code], capture_output=True, text=True, timeout=120)
     assert res.returncode == 0, res.stderr
-    assert "core ok" in res.stdout
+    assert 'core ok' in res.stdout
 
 
 def test_only_node_modules_import_ros():
     """Static check: no module outside the ROS rooms (nodes/, bench/ros/, demo.py) imports rclpy or message packages."""
     import re
-    pattern = re.compile(r"^\s*(import rclpy|from rclpy|from (sensor|geometry|std|nav|diagnostic|builtin_interfaces"
-                         r"|rcl_interfaces)(_msgs)?[. ])", re.M)
+    pattern = re.compile(r'^\s*(import rclpy|from rclpy|from (sensor|geometry|std|nav|diagnostic|builtin_interfaces'
+                         r'|rcl_interfaces)(_msgs)?[. ])', re.M)
     offenders = []
-    for root, _, files in os.walk(os.path.join(REPO, "strapdown_ros")):
+    for root, _, files in os.walk(os.path.join(REPO, 'strapdown_ros')):
         for f in files:
-            rel = os.path.relpath(os.path.join(root, f), os.path.join(REPO, "strapdown_ros"))
+            rel = os.path.relpath(os.path.join(root, f), os.path.join(REPO, 'strapdown_ros'))
             if rel.startswith(ROS_ROOMS):
                 continue
-            if f.endswith(".py") and pattern.search(open(os.path.join(root, f), encoding="utf-8").read()):
+            if f.endswith('.py') and pattern.search(open(os.path.join(root, f), encoding='utf-8').read()):
                 offenders.append(os.path.join(root, f))
     assert not offenders, offenders

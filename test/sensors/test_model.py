@@ -3,15 +3,15 @@ import numpy as np
 import pytest
 
 from strapdown_ros.motion.profiles import ConingProfile, tkachenko_profile
-from strapdown_ros.sensors import (IntegratingSensor, PulseQuantizer, SensorErrorModel,
-    SensorSigmas, increment_correction, increment_covariance)
+from strapdown_ros.sensors import (increment_correction, increment_covariance, IntegratingSensor,
+                                   PulseQuantizer, SensorErrorModel, SensorSigmas)
 
 
 def test_error_model_constants_are_applied_exactly():
     p = tkachenko_profile()
     c = np.array([3e-4, 3e-4, 3e-4, 5e-4, 5e-4, -5e-4, 1e-5, -1e-5, -1e-5])     # 000 §6
     err = SensorErrorModel.from_tkachenko(c)
-    s = IntegratingSensor(p, "gyro", 50.0, err)
+    s = IntegratingSensor(p, 'gyro', 50.0, err)
     t, meas, true = s.sample(1500)
     # Δω = D(ω)c with D = [D_I D_II E3] (000 §6), checked on the known piecewise rate
     w = p.body_rate(t - 0.01)
@@ -28,12 +28,12 @@ def test_error_model_constants_are_applied_exactly():
 def test_white_noise_has_the_stated_random_walk():
     p = ConingProfile(0.1, 1.0)
     arw = 1e-4
-    s = IntegratingSensor(p, "gyro", 100.0, SensorErrorModel(random_walk=arw), seed=3)
+    s = IntegratingSensor(p, 'gyro', 100.0, SensorErrorModel(random_walk=arw), seed=3)
     _, meas, true = s.sample(40000)
     std = (meas - true).std(axis=0)
     np.testing.assert_allclose(std, arw * np.sqrt(0.01), rtol=0.03)
     # seeded and reproducible
-    s2 = IntegratingSensor(p, "gyro", 100.0, SensorErrorModel(random_walk=arw), seed=3)
+    s2 = IntegratingSensor(p, 'gyro', 100.0, SensorErrorModel(random_walk=arw), seed=3)
     np.testing.assert_array_equal(s2.sample(100)[1], meas[:100])
 
 
@@ -70,11 +70,13 @@ def test_quantizer_pulse_rule_is_the_play_operator():
 
 
 def test_increment_correction_5_6_removes_the_mean_error():
-    """The raw accumulated pulse error is −(remainder), mean −σ/2·sign; (5.6) adds
+    """
+    The raw accumulated pulse error is −(remainder), mean −σ/2·sign; (5.6) adds
     ½σ(sign θ*_k − sign θ*_{k−1}), whose running sum is ½σ·sign θ*_k, so it centres the
     error whenever every interval contains pulses (|θ_k| > σ, the regime of 000 §6 where
     σ = 2e-5 rad ≪ θ_k).  With sparse pulses (|θ_k| < σ) sign θ*_k toggles with 0 and the
-    correction only half works: a documented limitation of (5.6)."""
+    correction only half works: a documented limitation of (5.6).
+    """
     sigma = 1e-3
     q = PulseQuantizer(sigma)
     theta = np.full((1000, 3), [3.3e-3, -2.7e-3, 0.45e-3])
@@ -101,6 +103,6 @@ def test_validation():
     with pytest.raises(ValueError):
         SensorSigmas(bias_sigma=-1.0)
     with pytest.raises(ValueError):
-        IntegratingSensor(ConingProfile(0.1, 1.0), "magnetometer", 100.0)
+        IntegratingSensor(ConingProfile(0.1, 1.0), 'magnetometer', 100.0)
     with pytest.raises(ValueError):
-        IntegratingSensor(ConingProfile(0.1, 1.0), "gyro", 0.0)
+        IntegratingSensor(ConingProfile(0.1, 1.0), 'gyro', 0.0)

@@ -1,9 +1,9 @@
 """Bounded buffers with O(1) amortised appends."""
 import numpy as np
 
-from strapdown_ros.streams.buffers import StampedBuffer
-from strapdown_ros.calibration.streaming import BoresightCalibrator
 from strapdown_ros.attitude.integrator import IncrementAccumulator
+from strapdown_ros.calibration.streaming import BoresightCalibrator
+from strapdown_ros.streams.buffers import StampedBuffer
 
 
 def test_stamped_buffer_is_bounded_and_keeps_the_newest():
@@ -18,8 +18,10 @@ def test_stamped_buffer_is_bounded_and_keeps_the_newest():
 
 
 def test_calibrator_gyro_history_after_a_single_fix_is_bounded():
-    """One fix, then a long stream of gyro increments and no second fix: the history stays at its
-    bound (it used to grow without limit and each add converted the whole list: 12–20 ms)."""
+    """
+    One fix, then a long stream of gyro increments and no second fix: the history stays at its
+    bound (it used to grow without limit and each add converted the whole list: 12–20 ms).
+    """
     cal = BoresightCalibrator(max_buffer=20_000)
     cal.add_camera(0.0, np.array([1.0, 0, 0, 0]), np.eye(3) * 1e-10)
     for k in range(1, 60_001):
@@ -43,7 +45,7 @@ def test_single_sample_path_equals_the_batch_path():
     from strapdown_ros.sensors import IntegratingSensor, NAVIGATION_GRADE_GYRO
     from strapdown_ros.sensors.star_camera import StarCameraModel
     prof = bench_profile()
-    t, dth, _ = IntegratingSensor(prof, "gyro", 100.0).sample(6000)
+    t, dth, _ = IntegratingSensor(prof, 'gyro', 100.0).sample(6000)
     fixes = StarCameraModel(boresight=[0.7, -0.4, 2.1], interval=5.0, seed=2).fixes(prof, 11)
     a, b = BoresightCalibrator(gyro=NAVIGATION_GRADE_GYRO), BoresightCalibrator(gyro=NAVIGATION_GRADE_GYRO)
     a.add_gyro(t, dth)

@@ -3,7 +3,7 @@ import math
 
 import numpy as np
 
-from strapdown_ros.streams.checks import StreamCheck, nominal_period, validate
+from strapdown_ros.streams.checks import nominal_period, StreamCheck, validate
 
 MS = 10_000_000          # 10 ms in ns
 
@@ -53,9 +53,11 @@ def test_validate_offline_reports_the_jump_as_a_gap_and_the_rate_from_stamps():
 
 
 def test_burst_of_past_stamps_costs_only_itself():
-    """A burst of 5 consecutive increments stamped 1000 s in the past, then the stream goes
+    """
+    A burst of 5 consecutive increments stamped 1000 s in the past, then the stream goes
     on.  The two confirmed jumps make a burst: 5 messages counted, no resynchronisation left,
-    one gap of exactly the 5 lost increments; offline the output is strictly increasing."""
+    one gap of exactly the 5 lost increments; offline the output is strictly increasing.
+    """
     for sign in (-1, +1):                                  # 1000 s in the past, and in the future
         st = [k * MS for k in range(1, 1001)]
         bad = list(st)
@@ -70,9 +72,11 @@ def test_burst_of_past_stamps_costs_only_itself():
 
 
 def test_dropout_beyond_the_jump_limit_counts_its_missing_increments():
-    """2 s without increments (beyond max_stamp_jump = 1 s) and a 1-s
+    """
+    2 s without increments (beyond max_stamp_jump = 1 s) and a 1-s
     saturation (values out of range, dropped) are dropouts on the same timeline, with their
-    missing increments counted, not clock resets with 0 missing."""
+    missing increments counted, not clock resets with 0 missing.
+    """
     st = [k * MS for k in range(1, 1001)]
     kept = [s for s in st if not 300 * MS < s <= 500 * MS]                 # 200 not received
     c = StreamCheck(0.01, jump_limit=1.0, resync_count=5)

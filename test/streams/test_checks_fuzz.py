@@ -1,11 +1,13 @@
-"""Fuzz tests of the input path: extreme values and random bytes never crash it, never
-poison what it accepts, and every message is accounted for."""
+"""
+Fuzz tests of the input path: extreme values and random bytes never crash it, never
+poison what it accepts, and every message is accounted for.
+"""
 import math
 
 import numpy as np
 import pytest
 
-hypothesis = pytest.importorskip("hypothesis")
+hypothesis = pytest.importorskip('hypothesis')
 from hypothesis import given, settings  # noqa: E402
 from hypothesis import strategies as st  # noqa: E402
 
@@ -34,52 +36,55 @@ def test_stream_check_never_accepts_poison_and_accounts_for_every_message(msgs):
 @settings(max_examples=200, deadline=None)
 @given(st.binary(max_size=200))
 def test_random_bytes_in_message_decoding_raise_cleanly_or_decode(raw):
-    pytest.importorskip("rosbags")
-    from rosbags.typesys import Stores, get_typestore
+    pytest.importorskip('rosbags')
+    from rosbags.typesys import get_typestore, Stores
     store = get_typestore(Stores.ROS2_JAZZY)
-    for typ in ("geometry_msgs/msg/Vector3Stamped", "geometry_msgs/msg/PoseWithCovarianceStamped"):
+    for typ in ('geometry_msgs/msg/Vector3Stamped', 'geometry_msgs/msg/PoseWithCovarianceStamped'):
         try:
             m = store.deserialize_cdr(raw, typ)
         except Exception:                        # noqa: BLE001 - read_bag turns any of these into BagError
             continue
         # whatever decodes goes through the same rules as a live message
-        v = (m.vector.x, m.vector.y, m.vector.z) if hasattr(m, "vector") else tuple(m.pose.covariance[:3])
+        v = (m.vector.x, m.vector.y, m.vector.z) if hasattr(m, 'vector') else tuple(m.pose.covariance[:3])
         StreamCheck(0.01, max_norm=0.4).offer(0, v)
 
 
 def test_bag_of_garbage_messages_is_a_one_line_error(tmp_path):
-    pytest.importorskip("rosbags")
+    pytest.importorskip('rosbags')
     from rosbags.rosbag2 import Writer
-    from rosbags.typesys import Stores, get_typestore
+    from rosbags.typesys import get_typestore, Stores
+
     from strapdown_ros.tools import calibrate_bag
     store = get_typestore(Stores.ROS2_JAZZY)
     rng = np.random.default_rng(0)
-    with Writer(tmp_path / "bag", version=Writer.VERSION_LATEST) as w:
-        c = w.add_connection("/imu/delta_theta", "geometry_msgs/msg/Vector3Stamped", typestore=store)
-        k = w.add_connection("/star_camera/attitude", "geometry_msgs/msg/QuaternionStamped", typestore=store)
+    with Writer(tmp_path / 'bag', version=Writer.VERSION_LATEST) as w:
+        c = w.add_connection('/imu/delta_theta', 'geometry_msgs/msg/Vector3Stamped', typestore=store)
+        k = w.add_connection('/star_camera/attitude', 'geometry_msgs/msg/QuaternionStamped', typestore=store)
         for i in range(50):
             w.write(c, i, rng.bytes(int(rng.integers(0, 80))))
             w.write(k, i, rng.bytes(int(rng.integers(0, 80))))
     with pytest.raises(calibrate_bag.BagError):
-        calibrate_bag.read_bag(tmp_path / "bag")
-    assert calibrate_bag.main([str(tmp_path / "bag")]) == 2
+        calibrate_bag.read_bag(tmp_path / 'bag')
+    assert calibrate_bag.main([str(tmp_path / 'bag')]) == 2
 
 
 @settings(max_examples=300, deadline=None)
 @given(sec=st.integers(-2 ** 31, 2 ** 31 - 1), nanosec=st.integers(0, 999_999_999),
        frame=st.text(max_size=40), xyz=st.tuples(*[st.floats(allow_nan=True, allow_infinity=True)] * 3))
 def test_raw_decoder_reads_what_rclpy_serialized(sec, nanosec, frame, xyz):
-    """sins_node and calibrator_node subscribe to the increment streams raw and read stamp, vector
+    """
+    sins_node and calibrator_node subscribe to the increment streams raw and read stamp, vector
     and frame from the bytes (ros_io.decode_vector3_stamped), as sins_bag reads bag records
     (nodes.cdr): for any message rclpy or rosbags serializes, the decoder must return exactly its
-    fields (NaN as NaN: the stream rules drop it later)."""
+    fields (NaN as NaN: the stream rules drop it later).
+    """
     import math
 
     from geometry_msgs.msg import Vector3Stamped
     from rclpy.serialization import serialize_message
 
     from strapdown_ros.nodes.ros_io import decode_vector3_stamped
-    frame = frame.replace("\x00", "")                     # a ROS string cannot hold NUL
+    frame = frame.replace('\x00', '')                     # a ROS string cannot hold NUL
     m = Vector3Stamped()
     m.header.stamp.sec, m.header.stamp.nanosec, m.header.frame_id = sec, nanosec, frame
     m.vector.x, m.vector.y, m.vector.z = xyz
@@ -88,28 +93,30 @@ def test_raw_decoder_reads_what_rclpy_serialized(sec, nanosec, frame, xyz):
     for got, want in zip(v, xyz):
         assert (math.isnan(got) and math.isnan(want)) or got == want
     # sins_bag reads bag records with the same decoder: rosbags writes the same bytes
-    from rosbags.typesys import Stores, get_typestore
+    from rosbags.typesys import get_typestore, Stores
 
     from strapdown_ros.streams.cdr import vector3_stamped
     ts = get_typestore(Stores.ROS2_JAZZY)
     t = ts.types
-    rec = t["geometry_msgs/msg/Vector3Stamped"](
-        header=t["std_msgs/msg/Header"](stamp=t["builtin_interfaces/msg/Time"](sec=sec, nanosec=nanosec), frame_id=frame),
-        vector=t["geometry_msgs/msg/Vector3"](x=xyz[0], y=xyz[1], z=xyz[2]))
-    ns2, v2, f2 = vector3_stamped(ts.serialize_cdr(rec, "geometry_msgs/msg/Vector3Stamped"))
+    rec = t['geometry_msgs/msg/Vector3Stamped'](
+        header=t['std_msgs/msg/Header'](stamp=t['builtin_interfaces/msg/Time'](sec=sec, nanosec=nanosec), frame_id=frame),
+        vector=t['geometry_msgs/msg/Vector3'](x=xyz[0], y=xyz[1], z=xyz[2]))
+    ns2, v2, f2 = vector3_stamped(ts.serialize_cdr(rec, 'geometry_msgs/msg/Vector3Stamped'))
     assert (ns2, f2) == (ns, f) and all((math.isnan(a) and math.isnan(b)) or a == b for a, b in zip(v2, v))
 
 
 def test_raw_decoder_big_endian_and_garbage():
-    """Big-endian CDR goes to rclpy's deserializer (the same fields); bytes that are no message give
-    None (the node counts and drops them) instead of an exception."""
+    """
+    Big-endian CDR goes to rclpy's deserializer (the same fields); bytes that are no message give
+    None (the node counts and drops them) instead of an exception.
+    """
     import struct
 
     from strapdown_ros.nodes.ros_io import decode_vector3_stamped
-    frame = b"imu_link\x00"
-    body = struct.pack(">iII", 12, 345, len(frame)) + frame
-    body += b"\x00" * ((-len(body)) % 8) + struct.pack(">3d", 1.5, -2.0, 3.25)
-    got = decode_vector3_stamped(b"\x00\x00\x00\x00" + body)
-    assert got == (12_000_000_345, (1.5, -2.0, 3.25), "imu_link")
-    for junk in (b"\x00\x01\x00\x00" + b"\xff" * 12, b"\x07\x07", b"\x00\x01\x00\x00\x01\x00", b"", b"\x00"):
+    frame = b'imu_link\x00'
+    body = struct.pack('>iII', 12, 345, len(frame)) + frame
+    body += b'\x00' * ((-len(body)) % 8) + struct.pack('>3d', 1.5, -2.0, 3.25)
+    got = decode_vector3_stamped(b'\x00\x00\x00\x00' + body)
+    assert got == (12_000_000_345, (1.5, -2.0, 3.25), 'imu_link')
+    for junk in (b'\x00\x01\x00\x00' + b'\xff' * 12, b'\x07\x07', b'\x00\x01\x00\x00\x01\x00', b'', b'\x00'):
         assert decode_vector3_stamped(junk) is None

@@ -4,21 +4,22 @@ import json
 import numpy as np
 import pytest
 
-pytest.importorskip("rosbags")
+pytest.importorskip('rosbags')
 
-from strapdown_ros.motion.profiles import PiecewiseRateProfile, Segment  # noqa: E402
+from strapdown_ros.motion.profiles import PiecewiseRateProfile  # noqa: E402
+from strapdown_ros.motion.profiles import Segment
 from strapdown_ros.rotation import (dcm_to_quat, from_ros_xyzw, quat_error_rotvec, to_ros_xyzw,
-    ypr_to_dcm)
+                                    ypr_to_dcm)
 from strapdown_ros.sensors import ARCSEC, IntegratingSensor, SensorErrorModel  # noqa: E402
 from strapdown_ros.sensors.star_camera import StarCameraModel  # noqa: E402
-from strapdown_ros.tools import calibrate_bag
 from strapdown_ros.tools import record_sim  # noqa: E402
+from strapdown_ros.tools import calibrate_bag
 
 BETA = np.radians([40.0, -25.0, 120.0])
-BETA_ARG = "boresight:=[" + ", ".join(repr(float(b)) for b in BETA) + "]"
-NO_GAPS = {"gaps": 0, "missing": 0, "pairs_discarded": 0, "dropouts": 0, "stamp_bursts": 0}
-KEYS = ["q_mf_vf_xyzw", "rotation_covariance_mf_rad2", "beta_rad", "beta_sigma_rad", "covariance_rad2", "pairs",
-        "observable", "unobservable_axes", "residual_rms_rad", "weighted"]
+BETA_ARG = 'boresight:=[' + ', '.join(repr(float(b)) for b in BETA) + ']'
+NO_GAPS = {'gaps': 0, 'missing': 0, 'pairs_discarded': 0, 'dropouts': 0, 'stamp_bursts': 0}
+KEYS = ['q_mf_vf_xyzw', 'rotation_covariance_mf_rad2', 'beta_rad', 'beta_sigma_rad', 'covariance_rad2', 'pairs',
+        'observable', 'unobservable_axes', 'residual_rms_rad', 'weighted']
 
 
 def _is_3x3(m):
@@ -30,50 +31,51 @@ def _floats(v, n):
     return isinstance(v, list) and len(v) == n and all(isinstance(x, float) for x in v)
 
 
-@pytest.mark.parametrize("storage", ["mcap", "sqlite3"])
+@pytest.mark.parametrize('storage', ['mcap', 'sqlite3'])
 def test_round_trip_bench(tmp_path, storage, capsys):
-    bag = tmp_path / f"bench_{storage}"
-    args = [str(bag), "--storage", storage, "-p", "profile:=bench", "-p", "camera_interval:=5.0", "-p", BETA_ARG]
-    if storage == "sqlite3":
-        args.append("--no-accel")
+    bag = tmp_path / f'bench_{storage}'
+    args = [str(bag), '--storage', storage, '-p', 'profile:=bench', '-p', 'camera_interval:=5.0', '-p', BETA_ARG]
+    if storage == 'sqlite3':
+        args.append('--no-accel')
     assert record_sim.main(args) == 0
     out = capsys.readouterr().out
-    assert "/imu/delta_theta 17000" in out and "/star_camera/attitude 34" in out
-    assert ("/imu/delta_velocity 51000" in out) == (storage == "mcap")
-    assert "/star_camera/truth/boresight 1" in out
+    assert '/imu/delta_theta 17000' in out and '/star_camera/attitude 34' in out
+    assert ('/imu/delta_velocity 51000' in out) == (storage == 'mcap')
+    assert '/star_camera/truth/boresight 1' in out
 
-    f = tmp_path / "result.json"
-    assert calibrate_bag.main([str(bag), "--json", str(f)]) == 0
+    f = tmp_path / 'result.json'
+    assert calibrate_bag.main([str(bag), '--json', str(f)]) == 0
     r = json.loads(f.read_text())
     assert list(r)[:len(KEYS)] == KEYS
-    assert _floats(r["q_mf_vf_xyzw"], 4) and _floats(r["beta_rad"], 3) and _floats(r["beta_sigma_rad"], 3)
-    assert _is_3x3(r["rotation_covariance_mf_rad2"]) and _is_3x3(r["covariance_rad2"])
-    assert isinstance(r["pairs"], int) and r["pairs"] == 33
-    assert r["observable"] is True and r["unobservable_axes"] == [] and r["weighted"] is True
-    assert isinstance(r["residual_rms_rad"], float)
-    assert set(r["dropped"]["gyro"].values()) == {0}
-    assert r["gyro_gaps"] == NO_GAPS
-    assert r["camera_covariance_from_bag"] is True
+    assert _floats(r['q_mf_vf_xyzw'], 4) and _floats(r['beta_rad'], 3) and _floats(r['beta_sigma_rad'], 3)
+    assert _is_3x3(r['rotation_covariance_mf_rad2']) and _is_3x3(r['covariance_rad2'])
+    assert isinstance(r['pairs'], int) and r['pairs'] == 33
+    assert r['observable'] is True and r['unobservable_axes'] == [] and r['weighted'] is True
+    assert isinstance(r['residual_rms_rad'], float)
+    assert set(r['dropped']['gyro'].values()) == {0}
+    assert r['gyro_gaps'] == NO_GAPS
+    assert r['camera_covariance_from_bag'] is True
 
     # C_MF^VF error as a rotation in MF axes (q_est = exp(e) ⊗ q_true) within 3σ of P^clb per axis
     q_true = dcm_to_quat(ypr_to_dcm(*BETA))
-    e = quat_error_rotvec(from_ros_xyzw(np.array(r["q_mf_vf_xyzw"])), q_true, frame="reference")
-    sigma = np.sqrt(np.diag(r["rotation_covariance_mf_rad2"]))
+    e = quat_error_rotvec(from_ros_xyzw(np.array(r['q_mf_vf_xyzw'])), q_true, frame='reference')
+    sigma = np.sqrt(np.diag(r['rotation_covariance_mf_rad2']))
     assert np.all(np.abs(e) < 3 * sigma), (e / ARCSEC, sigma / ARCSEC)
-    assert np.all(np.abs(np.array(r["beta_rad"]) - BETA) < 60 * ARCSEC)
-    assert np.allclose(np.sqrt(np.diag(r["covariance_rad2"])), r["beta_sigma_rad"])
+    assert np.all(np.abs(np.array(r['beta_rad']) - BETA) < 60 * ARCSEC)
+    assert np.allclose(np.sqrt(np.diag(r['covariance_rad2'])), r['beta_sigma_rad'])
 
-    if storage == "mcap":
+    if storage == 'mcap':
         # the bag holds what imu_sim_node publishes: same error draw, same noise seed, same stamps
         from rosbags.highlevel import AnyReader
-        from strapdown_ros.params import IMU_SIM_PARAMS, check_all, sigmas_from
+
         from strapdown_ros.motion.profiles import bench_profile
-        p = check_all(IMU_SIM_PARAMS, {"profile": "bench"})
-        gyro = IntegratingSensor(bench_profile(), "gyro", 100.0,
-                                 sigmas_from(p, "gyro").draw(np.random.default_rng(0)), seed=1)
+        from strapdown_ros.params import check_all, IMU_SIM_PARAMS, sigmas_from
+        p = check_all(IMU_SIM_PARAMS, {'profile': 'bench'})
+        gyro = IntegratingSensor(bench_profile(), 'gyro', 100.0,
+                                 sigmas_from(p, 'gyro').draw(np.random.default_rng(0)), seed=1)
         t, dth, _ = gyro.sample(5)
         with AnyReader([bag]) as rd:
-            conns = [c for c in rd.connections if c.topic == "/imu/delta_theta"]
+            conns = [c for c in rd.connections if c.topic == '/imu/delta_theta']
             got = []
             for c, ts, raw in rd.messages(connections=conns):
                 m = rd.deserialize(raw, c.msgtype)
@@ -82,55 +84,55 @@ def test_round_trip_bench(tmp_path, storage, capsys):
                 if len(got) == 5:
                     break
         assert [g[0] for g in got] == [g[1] for g in got] == [int(round(x * 1e9)) for x in t]
-        assert all(g[2] == "imu_link" for g in got)
+        assert all(g[2] == 'imu_link' for g in got)
         assert np.array_equal(np.array([g[3] for g in got]), dth)
 
 
 def test_single_axis_not_observable(tmp_path, capsys):
-    prof = tmp_path / "z_only.yaml"
-    prof.write_text("earth_rate: [0.0, 0.0, 0.0]\ngravity: [0.0, 0.0, 9.80665]\nsegments:\n"
-                    "  - {duration: 10.0, rate: [0.0, 0.0, 0.0]}\n"
-                    "  - {duration: 5.0, rate: [0.0, 0.0, 0.05236]}\n"
-                    "  - {duration: 10.0, rate: [0.0, 0.0, 0.0]}\n"
-                    "  - {duration: 5.0, rate: [0.0, 0.0, -0.04]}\n"
-                    "  - {duration: 10.0, rate: [0.0, 0.0, 0.0]}\n")
-    bag = tmp_path / "z_only"
-    assert record_sim.main([str(bag), "--no-accel", "-p", "profile:=piecewise", "-p", f"profile_file:={prof}",
-                            "-p", "camera_interval:=5.0", "-p", BETA_ARG]) == 0
-    f = tmp_path / "z.json"
+    prof = tmp_path / 'z_only.yaml'
+    prof.write_text('earth_rate: [0.0, 0.0, 0.0]\ngravity: [0.0, 0.0, 9.80665]\nsegments:\n'
+                    '  - {duration: 10.0, rate: [0.0, 0.0, 0.0]}\n'
+                    '  - {duration: 5.0, rate: [0.0, 0.0, 0.05236]}\n'
+                    '  - {duration: 10.0, rate: [0.0, 0.0, 0.0]}\n'
+                    '  - {duration: 5.0, rate: [0.0, 0.0, -0.04]}\n'
+                    '  - {duration: 10.0, rate: [0.0, 0.0, 0.0]}\n')
+    bag = tmp_path / 'z_only'
+    assert record_sim.main([str(bag), '--no-accel', '-p', 'profile:=piecewise', '-p', f'profile_file:={prof}',
+                            '-p', 'camera_interval:=5.0', '-p', BETA_ARG]) == 0
+    f = tmp_path / 'z.json'
     capsys.readouterr()
-    assert calibrate_bag.main([str(bag), "--json", str(f)]) == 3
+    assert calibrate_bag.main([str(bag), '--json', str(f)]) == 3
     err = capsys.readouterr().err
-    assert "NOT observable" in err
+    assert 'NOT observable' in err
     r = json.loads(f.read_text())
     assert list(r)[:len(KEYS)] == KEYS
-    assert r["observable"] is False and r["unobservable_axes"]
-    assert r["q_mf_vf_xyzw"] is None and r["beta_rad"] is None and r["covariance_rad2"] is None
-    assert r["rotation_covariance_mf_rad2"] is None and r["beta_sigma_rad"] is None
-    assert r["pairs"] == 7
+    assert r['observable'] is False and r['unobservable_axes']
+    assert r['q_mf_vf_xyzw'] is None and r['beta_rad'] is None and r['covariance_rad2'] is None
+    assert r['rotation_covariance_mf_rad2'] is None and r['beta_sigma_rad'] is None
+    assert r['pairs'] == 7
 
 
-def _write_bag(path, gyro_msgs, cam_msgs, namespace="/robot1"):
+def _write_bag(path, gyro_msgs, cam_msgs, namespace='/robot1'):
     """A bag written with rosbags directly: (ns, vector) gyro messages, (ns, q_wxyz) camera fixes."""
     from rosbags.rosbag2 import StoragePlugin, Writer
-    from rosbags.typesys import Stores, get_typestore
+    from rosbags.typesys import get_typestore, Stores
     ts = get_typestore(Stores.ROS2_JAZZY)
     T = ts.types
-    Time, Header = T["builtin_interfaces/msg/Time"], T["std_msgs/msg/Header"]
-    V3S, V3 = T["geometry_msgs/msg/Vector3Stamped"], T["geometry_msgs/msg/Vector3"]
-    QS, Q = T["geometry_msgs/msg/QuaternionStamped"], T["geometry_msgs/msg/Quaternion"]
+    Time, Header = T['builtin_interfaces/msg/Time'], T['std_msgs/msg/Header']
+    V3S, V3 = T['geometry_msgs/msg/Vector3Stamped'], T['geometry_msgs/msg/Vector3']
+    QS, Q = T['geometry_msgs/msg/QuaternionStamped'], T['geometry_msgs/msg/Quaternion']
 
     def header(ns, frame):
         return Header(stamp=Time(sec=ns // 10**9, nanosec=ns % 10**9), frame_id=frame)
     with Writer(path, version=9, storage_plugin=StoragePlugin.MCAP) as w:
-        cg = w.add_connection(f"{namespace}/imu/delta_theta", V3S.__msgtype__, typestore=ts)
-        cc = w.add_connection(f"{namespace}/star_camera/attitude", QS.__msgtype__, typestore=ts)
+        cg = w.add_connection(f'{namespace}/imu/delta_theta', V3S.__msgtype__, typestore=ts)
+        cc = w.add_connection(f'{namespace}/star_camera/attitude', QS.__msgtype__, typestore=ts)
         for ns, v in gyro_msgs:
-            m = V3S(header=header(ns, "imu_link"), vector=V3(x=float(v[0]), y=float(v[1]), z=float(v[2])))
+            m = V3S(header=header(ns, 'imu_link'), vector=V3(x=float(v[0]), y=float(v[1]), z=float(v[2])))
             w.write(cg, ns, ts.serialize_cdr(m, V3S.__msgtype__))
         for ns, q in cam_msgs:
             x, y, z, qw = to_ros_xyzw(q)
-            m = QS(header=header(ns, "gcrs"), quaternion=Q(x=x, y=y, z=z, w=qw))
+            m = QS(header=header(ns, 'gcrs'), quaternion=Q(x=x, y=y, z=z, w=qw))
             w.write(cc, ns, ts.serialize_cdr(m, QS.__msgtype__))
 
 
@@ -142,7 +144,7 @@ def test_nan_and_duplicate_are_dropped_and_counted(tmp_path, capsys):
         rate[axis] = ang * deg / 4.0
         segs += [Segment(4.0, rate), Segment(6.0)]
     profile = PiecewiseRateProfile(segs)
-    gyro = IntegratingSensor(profile, "gyro", 100.0, SensorErrorModel(random_walk=1e-7), seed=3)
+    gyro = IntegratingSensor(profile, 'gyro', 100.0, SensorErrorModel(random_walk=1e-7), seed=3)
     t, dth, _ = gyro.sample(int(round(profile.duration * 100)))
     start_ns = 1_700_000_000 * 10**9                       # epoch-like stamps: tests the time origin
     msgs = [(start_ns + int(round(x * 1e9)), v) for x, v in zip(t, dth)]
@@ -150,28 +152,28 @@ def test_nan_and_duplicate_are_dropped_and_counted(tmp_path, capsys):
     msgs.insert(201, msgs[200])                               # a repeated message: duplicate stamp
     cam = StarCameraModel(boresight=BETA, interval=5.0, seed=4)
     fixes = cam.fixes(profile, int(profile.duration // 5.0))
-    _write_bag(tmp_path / "bad", msgs, [(start_ns + int(round(fx.stamp * 1e9)), fx.attitude) for fx in fixes])
+    _write_bag(tmp_path / 'bad', msgs, [(start_ns + int(round(fx.stamp * 1e9)), fx.attitude) for fx in fixes])
 
-    f = tmp_path / "bad.json"
-    assert calibrate_bag.main([str(tmp_path / "bad"), "--namespace", "/robot1", "--json", str(f)]) == 0
+    f = tmp_path / 'bad.json'
+    assert calibrate_bag.main([str(tmp_path / 'bad'), '--namespace', '/robot1', '--json', str(f)]) == 0
     out = capsys.readouterr().out
-    assert "gyro nan 1" in out and "gyro duplicate 1" in out and "GYRO GAPS" in out
+    assert 'gyro nan 1' in out and 'gyro duplicate 1' in out and 'GYRO GAPS' in out
     r = json.loads(f.read_text())
-    assert r["dropped"]["gyro"] == {"nan": 1, "duplicate": 1, "out_of_order": 0, "out_of_range": 0,
-                                    "stamp_outlier": 0, "stamp_burst": 0}
-    assert r["messages"]["gyro"] == len(msgs) - 2
+    assert r['dropped']['gyro'] == {'nan': 1, 'duplicate': 1, 'out_of_order': 0, 'out_of_range': 0,
+                                    'stamp_outlier': 0, 'stamp_burst': 0}
+    assert r['messages']['gyro'] == len(msgs) - 2
     # the dropped NaN increment is a gap (its rotation is lost): the pair spanning it is discarded
-    assert r["gyro_gaps"] == {**NO_GAPS, "gaps": 1, "missing": 1, "pairs_discarded": 1}
-    assert r["pairs"] == len(fixes) - 2
-    assert r["camera_covariance_from_bag"] is False          # no attitude_with_covariance: assumed σ
-    assert r["observable"] is True
-    assert np.all(np.abs(np.array(r["beta_rad"]) - BETA) < 60 * ARCSEC)
+    assert r['gyro_gaps'] == {**NO_GAPS, 'gaps': 1, 'missing': 1, 'pairs_discarded': 1}
+    assert r['pairs'] == len(fixes) - 2
+    assert r['camera_covariance_from_bag'] is False          # no attitude_with_covariance: assumed σ
+    assert r['observable'] is True
+    assert np.all(np.abs(np.array(r['beta_rad']) - BETA) < 60 * ARCSEC)
 
     # the single namespace is found without --namespace; a wrong one is a clear error (exit 2)
-    assert calibrate_bag.main([str(tmp_path / "bad")]) == 0
+    assert calibrate_bag.main([str(tmp_path / 'bad')]) == 0
     capsys.readouterr()
-    assert calibrate_bag.main([str(tmp_path / "bad"), "--namespace", "/robot2"]) == 2
-    assert "robot2" in capsys.readouterr().err
+    assert calibrate_bag.main([str(tmp_path / 'bad'), '--namespace', '/robot2']) == 2
+    assert 'robot2' in capsys.readouterr().err
 
 
 def test_tools_run_with_ros_absent(tmp_path):
@@ -179,7 +181,7 @@ def test_tools_run_with_ros_absent(tmp_path):
     import subprocess
     import sys
     import textwrap
-    repo = str(__import__("pathlib").Path(__file__).resolve().parents[2])
+    repo = str(__import__('pathlib').Path(__file__).resolve().parents[2])
     code = textwrap.dedent(f"""
         import importlib.abc, sys
         BLOCK = ("rclpy", "rcl_interfaces", "builtin_interfaces", "std_msgs", "geometry_msgs",
@@ -198,48 +200,52 @@ def test_tools_run_with_ros_absent(tmp_path):
         assert not loaded, loaded
         print("tools ok")
     """)
-    res = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    res = subprocess.run([sys.executable, '-c', code], capture_output=True, text=True, timeout=120)
     assert res.returncode == 0, res.stderr
-    assert "tools ok" in res.stdout
+    assert 'tools ok' in res.stdout
 
 
 def test_long_recording_keeps_every_pair_and_takes_the_rate_from_the_stamps(tmp_path, capsys):
-    """> 200 000 gyro messages (here 210 000 at 200 Hz, gyro_rate left at 100)
+    """
+    > 200 000 gyro messages (here 210 000 at 200 Hz, gyro_rate left at 100)
     used to give 1 pair or none.  Now gyro and fixes are fed in stamp order and gaps are judged
-    against the rate of the stamps."""
-    bag = tmp_path / "long"
-    assert record_sim.main([str(bag), "--no-accel", "--duration", "1050", "-p", "profile:=bench",
-                            "-p", "bench_repeat:=7", "-p", "gyro_rate:=200.0", "-p", "camera_interval:=20.0",
-                            "-p", BETA_ARG]) == 0
-    f = tmp_path / "r.json"
-    assert calibrate_bag.main([str(bag), "--json", str(f)]) == 0
+    against the rate of the stamps.
+    """
+    bag = tmp_path / 'long'
+    assert record_sim.main([str(bag), '--no-accel', '--duration', '1050', '-p', 'profile:=bench',
+                            '-p', 'bench_repeat:=7', '-p', 'gyro_rate:=200.0', '-p', 'camera_interval:=20.0',
+                            '-p', BETA_ARG]) == 0
+    f = tmp_path / 'r.json'
+    assert calibrate_bag.main([str(bag), '--json', str(f)]) == 0
     r = json.loads(f.read_text())
-    assert r["messages"]["gyro"] == 210000 and r["messages"]["camera"] == 52
-    assert r["pairs"] == 51 and r["gyro_gaps"] == NO_GAPS
-    assert r["gyro_rate_from_stamps_hz"] == pytest.approx(200.0, rel=1e-9)
-    assert "200 Hz" in capsys.readouterr().err
+    assert r['messages']['gyro'] == 210000 and r['messages']['camera'] == 52
+    assert r['pairs'] == 51 and r['gyro_gaps'] == NO_GAPS
+    assert r['gyro_rate_from_stamps_hz'] == pytest.approx(200.0, rel=1e-9)
+    assert '200 Hz' in capsys.readouterr().err
     q_true = dcm_to_quat(ypr_to_dcm(*BETA))
-    e = quat_error_rotvec(from_ros_xyzw(np.array(r["q_mf_vf_xyzw"])), q_true, frame="reference")
-    assert np.all(np.abs(e) < 3 * np.sqrt(np.diag(r["rotation_covariance_mf_rad2"])))
+    e = quat_error_rotvec(from_ros_xyzw(np.array(r['q_mf_vf_xyzw'])), q_true, frame='reference')
+    assert np.all(np.abs(e) < 3 * np.sqrt(np.diag(r['rotation_covariance_mf_rad2'])))
 
 
 def test_overflowing_and_future_stamped_increments_in_a_bag(tmp_path):
-    """Offline, a (1e308, 1e308, 0) increment and a lone stamp far in the
-    future are dropped by the nodes' rules and counted; the estimate is the clean bag's."""
+    """
+    Offline, a (1e308, 1e308, 0) increment and a lone stamp far in the
+    future are dropped by the nodes' rules and counted; the estimate is the clean bag's.
+    """
     from rosbags.rosbag2 import Reader, Writer
-    from rosbags.typesys import Stores, get_typestore
+    from rosbags.typesys import get_typestore, Stores
 
-    clean = tmp_path / "clean"
-    assert record_sim.main([str(clean), "--no-accel", "-p", "profile:=bench", "-p", "camera_interval:=5.0",
-                            "-p", BETA_ARG]) == 0
+    clean = tmp_path / 'clean'
+    assert record_sim.main([str(clean), '--no-accel', '-p', 'profile:=bench', '-p', 'camera_interval:=5.0',
+                            '-p', BETA_ARG]) == 0
     store = get_typestore(Stores.ROS2_JAZZY)
-    dirty = tmp_path / "dirty"
+    dirty = tmp_path / 'dirty'
     with Reader(clean) as rd, Writer(dirty, version=Writer.VERSION_LATEST) as wr:
         conns = {c.id: wr.add_connection(c.topic, c.msgtype, typestore=store) for c in rd.connections}
         n = 0
         for c, t, raw in rd.messages():
             wr.write(conns[c.id], t, raw)
-            if c.topic == "/imu/delta_theta":
+            if c.topic == '/imu/delta_theta':
                 n += 1
                 if n in (3000, 9000):
                     m = store.deserialize_cdr(raw, c.msgtype)
@@ -250,71 +256,76 @@ def test_overflowing_and_future_stamped_increments_in_a_bag(tmp_path):
                         m.header.stamp.sec += 10**6
                     wr.write(conns[c.id], t + 1000, store.serialize_cdr(m, c.msgtype))
     out = {}
-    for name, bag in (("clean", clean), ("dirty", dirty)):
-        f = tmp_path / f"{name}.json"
-        assert calibrate_bag.main([str(bag), "--json", str(f)]) == 0
+    for name, bag in (('clean', clean), ('dirty', dirty)):
+        f = tmp_path / f'{name}.json'
+        assert calibrate_bag.main([str(bag), '--json', str(f)]) == 0
         out[name] = json.loads(f.read_text())
-    d = out["dirty"]["dropped"]["gyro"]
-    assert (d["out_of_range"], d["stamp_outlier"]) == (1, 1)
-    assert out["dirty"]["pairs"] == out["clean"]["pairs"] == 33
-    np.testing.assert_allclose(out["dirty"]["beta_rad"], out["clean"]["beta_rad"], rtol=0, atol=1e-12)
+    d = out['dirty']['dropped']['gyro']
+    assert (d['out_of_range'], d['stamp_outlier']) == (1, 1)
+    assert out['dirty']['pairs'] == out['clean']['pairs'] == 33
+    np.testing.assert_allclose(out['dirty']['beta_rad'], out['clean']['beta_rad'], rtol=0, atol=1e-12)
 
 
 def test_one_outlier_camera_fix_is_gated(tmp_path):
-    """One fix rotated 5° used to move β by 6113″.  The outlier rule (both pairs
+    """
+    One fix rotated 5° used to move β by 6113″.  The outlier rule (both pairs
     of the fix off in rotation angle, the pair skipping it consistent) drops it: β stays within 3σ
-    of the truth and one pair fewer is used."""
+    of the truth and one pair fewer is used.
+    """
     from rosbags.rosbag2 import Reader, Writer
-    from rosbags.typesys import Stores, get_typestore
+    from rosbags.typesys import get_typestore, Stores
+
     from strapdown_ros.rotation import quat_multiply, rotvec_to_quat
 
-    clean = tmp_path / "clean"
-    assert record_sim.main([str(clean), "--no-accel", "-p", "profile:=bench", "-p", "camera_interval:=5.0",
-                            "-p", BETA_ARG]) == 0
+    clean = tmp_path / 'clean'
+    assert record_sim.main([str(clean), '--no-accel', '-p', 'profile:=bench', '-p', 'camera_interval:=5.0',
+                            '-p', BETA_ARG]) == 0
     store = get_typestore(Stores.ROS2_JAZZY)
-    dirty = tmp_path / "dirty"
+    dirty = tmp_path / 'dirty'
     bad = rotvec_to_quat(np.radians(5.0) * np.array([0.6, -0.64, 0.48]))
     with Reader(clean) as rd, Writer(dirty, version=Writer.VERSION_LATEST) as wr:
         conns = {c.id: wr.add_connection(c.topic, c.msgtype, typestore=store) for c in rd.connections}
         for c, t, raw in rd.messages():
-            if c.topic.startswith("/star_camera/attitude") and t == 60 * 10**9:          # the fix at 60 s
+            if c.topic.startswith('/star_camera/attitude') and t == 60 * 10**9:          # the fix at 60 s
                 m = store.deserialize_cdr(raw, c.msgtype)
-                q = m.pose.pose.orientation if hasattr(m, "pose") else m.quaternion
+                q = m.pose.pose.orientation if hasattr(m, 'pose') else m.quaternion
                 w, x, y, z = quat_multiply(np.array([q.w, q.x, q.y, q.z]), bad)
                 q.w, q.x, q.y, q.z = float(w), float(x), float(y), float(z)
                 raw = store.serialize_cdr(m, c.msgtype)
             wr.write(conns[c.id], t, raw)
     out = {}
-    for name, bag in (("clean", clean), ("dirty", dirty)):
-        f = tmp_path / f"{name}.json"
-        assert calibrate_bag.main([str(bag), "--json", str(f)]) == 0
+    for name, bag in (('clean', clean), ('dirty', dirty)):
+        f = tmp_path / f'{name}.json'
+        assert calibrate_bag.main([str(bag), '--json', str(f)]) == 0
         out[name] = json.loads(f.read_text())
-    r = out["dirty"]
-    assert r["camera_fixes"]["outliers_dropped"] == 1 and r["camera_fixes"]["outlier_stamps_s"] == [pytest.approx(60.0)]
-    assert out["clean"]["camera_fixes"]["outliers_dropped"] == 0
-    assert r["pairs"] == out["clean"]["pairs"] - 1
+    r = out['dirty']
+    assert r['camera_fixes']['outliers_dropped'] == 1 and r['camera_fixes']['outlier_stamps_s'] == [pytest.approx(60.0)]
+    assert out['clean']['camera_fixes']['outliers_dropped'] == 0
+    assert r['pairs'] == out['clean']['pairs'] - 1
     q_true = dcm_to_quat(ypr_to_dcm(*BETA))
-    e = quat_error_rotvec(from_ros_xyzw(np.array(r["q_mf_vf_xyzw"])), q_true, frame="reference")
-    assert np.all(np.abs(e) < 3 * np.sqrt(np.diag(r["rotation_covariance_mf_rad2"]))), e / ARCSEC
+    e = quat_error_rotvec(from_ros_xyzw(np.array(r['q_mf_vf_xyzw'])), q_true, frame='reference')
+    assert np.all(np.abs(e) < 3 * np.sqrt(np.diag(r['rotation_covariance_mf_rad2']))), e / ARCSEC
 
 
 def test_dropout_and_stamp_burst_cost_only_the_pairs_containing_them(tmp_path, capsys):
-    """Offline, 2 s without increments (t in (62.5, 64.5] s) and 5
+    """
+    Offline, 2 s without increments (t in (62.5, 64.5] s) and 5
     increments stamped 1000 s in the past (t = 102.5 s) each cost the one pair that contains
-    them (33 → 31); the dropout reports its 200 missing increments, the burst its 5."""
+    them (33 → 31); the dropout reports its 200 missing increments, the burst its 5.
+    """
     from rosbags.rosbag2 import Reader, Writer
-    from rosbags.typesys import Stores, get_typestore
+    from rosbags.typesys import get_typestore, Stores
 
-    clean = tmp_path / "clean"
-    assert record_sim.main([str(clean), "--no-accel", "-p", "profile:=bench", "-p",
-                            "camera_interval:=5.0", "-p", BETA_ARG]) == 0
+    clean = tmp_path / 'clean'
+    assert record_sim.main([str(clean), '--no-accel', '-p', 'profile:=bench', '-p',
+                            'camera_interval:=5.0', '-p', BETA_ARG]) == 0
     store = get_typestore(Stores.ROS2_JAZZY)
-    dirty = tmp_path / "dirty"
+    dirty = tmp_path / 'dirty'
     with Reader(clean) as rd, Writer(dirty, version=Writer.VERSION_LATEST) as wr:
         conns = {c.id: wr.add_connection(c.topic, c.msgtype, typestore=store)
                  for c in rd.connections}
         for c, t, raw in rd.messages():
-            if c.topic == "/imu/delta_theta":
+            if c.topic == '/imu/delta_theta':
                 if 62_500_000_000 < t <= 64_500_000_000:
                     continue                                          # the dropout
                 if 102_500_000_000 <= t < 102_550_000_000:            # the burst
@@ -322,116 +333,121 @@ def test_dropout_and_stamp_burst_cost_only_the_pairs_containing_them(tmp_path, c
                     m.header.stamp.sec -= 1000
                     raw = store.serialize_cdr(m, c.msgtype)
             wr.write(conns[c.id], t, raw)
-    f = tmp_path / "r.json"
-    assert calibrate_bag.main([str(dirty), "--json", str(f)]) == 0
+    f = tmp_path / 'r.json'
+    assert calibrate_bag.main([str(dirty), '--json', str(f)]) == 0
     r = json.loads(f.read_text())
-    assert r["gyro_gaps"] == {"gaps": 2, "missing": 205, "pairs_discarded": 2, "dropouts": 1,
-                              "stamp_bursts": 1}
-    assert r["dropped"]["gyro"]["stamp_burst"] == 5 and r["stamp_resyncs"]["gyro"] == 0
-    assert r["pairs"] == 31
-    assert ("2 gap(s) (1 dropout(s) beyond max_stamp_jump, 1 stamp burst(s)), 205 increment(s) "
-            "missing") in capsys.readouterr().out
+    assert r['gyro_gaps'] == {'gaps': 2, 'missing': 205, 'pairs_discarded': 2, 'dropouts': 1,
+                              'stamp_bursts': 1}
+    assert r['dropped']['gyro']['stamp_burst'] == 5 and r['stamp_resyncs']['gyro'] == 0
+    assert r['pairs'] == 31
+    assert ('2 gap(s) (1 dropout(s) beyond max_stamp_jump, 1 stamp burst(s)), 205 increment(s) '
+            'missing') in capsys.readouterr().out
     q_true = dcm_to_quat(ypr_to_dcm(*BETA))
-    e = quat_error_rotvec(from_ros_xyzw(np.array(r["q_mf_vf_xyzw"])), q_true, frame="reference")
-    assert np.all(np.abs(e) < 3 * np.sqrt(np.diag(r["rotation_covariance_mf_rad2"]))), e / ARCSEC
+    e = quat_error_rotvec(from_ros_xyzw(np.array(r['q_mf_vf_xyzw'])), q_true, frame='reference')
+    assert np.all(np.abs(e) < 3 * np.sqrt(np.diag(r['rotation_covariance_mf_rad2']))), e / ARCSEC
 
 
 def _noisy_bench(tmp_path, name, scale):
     """bench bag whose camera noise is ``scale`` × the σ its covariance states (injected)."""
     bag = tmp_path / name
-    assert record_sim.main([str(bag), "--no-accel", "-p", "profile:=bench", "-p",
-                            "camera_interval:=5.0", "-p", BETA_ARG, "-p",
-                            f"camera_noise_scale:=[{scale}, {scale}, {scale}]"]) == 0
+    assert record_sim.main([str(bag), '--no-accel', '-p', 'profile:=bench', '-p',
+                            'camera_interval:=5.0', '-p', BETA_ARG, '-p',
+                            f'camera_noise_scale:=[{scale}, {scale}, {scale}]']) == 0
     return bag
 
 
-@pytest.mark.parametrize("scale", [1.0, 100.0])
+@pytest.mark.parametrize('scale', [1.0, 100.0])
 def test_fit_consistency_is_judged_and_a_wrong_sigma_drops_no_good_fix(tmp_path, capsys, scale):
-    """Camera noise 100× the stated σ → fit_consistent false, a WARNING
+    """
+    Camera noise 100× the stated σ → fit_consistent false, a WARNING
     line on stderr, exit 0, no good fix dropped as an outlier (the gate widens with the robust
-    scatter), β within 3 scaled σ of the injected truth.  Consistent noise → no warning."""
-    bag = _noisy_bench(tmp_path, f"s{scale:g}", scale)
+    scatter), β within 3 scaled σ of the injected truth.  Consistent noise → no warning.
+    """
+    bag = _noisy_bench(tmp_path, f's{scale:g}', scale)
     capsys.readouterr()
-    f = tmp_path / "r.json"
-    assert calibrate_bag.main([str(bag), "--json", str(f)]) == 0
+    f = tmp_path / 'r.json'
+    assert calibrate_bag.main([str(bag), '--json', str(f)]) == 0
     cap = capsys.readouterr()
     r = json.loads(f.read_text())
-    lo, hi = r["chi2_per_dof_band"]
-    assert r["dof"] == 3 * r["pairs"] - 3 and lo < 1.0 < hi
-    assert r["camera_fixes"]["outliers_dropped"] == 0 and r["pairs"] == 33
+    lo, hi = r['chi2_per_dof_band']
+    assert r['dof'] == 3 * r['pairs'] - 3 and lo < 1.0 < hi
+    assert r['camera_fixes']['outliers_dropped'] == 0 and r['pairs'] == 33
     q_true = dcm_to_quat(ypr_to_dcm(*BETA))
-    e = quat_error_rotvec(from_ros_xyzw(np.array(r["q_mf_vf_xyzw"])), q_true, frame="reference")
-    sigma = np.sqrt(np.diag(r["rotation_covariance_mf_rad2"]))
+    e = quat_error_rotvec(from_ros_xyzw(np.array(r['q_mf_vf_xyzw'])), q_true, frame='reference')
+    sigma = np.sqrt(np.diag(r['rotation_covariance_mf_rad2']))
     assert np.all(np.abs(e) < 3 * sigma), e / sigma
     if scale == 1.0:
-        assert r["fit_consistent"] is True and lo <= r["chi2_per_dof"] <= hi
-        assert "WARNING" not in cap.err and "UNTRUSTED" not in cap.out
+        assert r['fit_consistent'] is True and lo <= r['chi2_per_dof'] <= hi
+        assert 'WARNING' not in cap.err and 'UNTRUSTED' not in cap.out
     else:
-        assert r["fit_consistent"] is False and r["chi2_per_dof"] > 100 * hi
-        warn = [ln for ln in cap.err.splitlines() if ln.startswith("WARNING:")]
-        assert len(warn) == 1 and "χ²/dof" in warn[0] and "band" in warn[0] and "scaled" in warn[0]
-        assert "UNTRUSTED" in cap.out
+        assert r['fit_consistent'] is False and r['chi2_per_dof'] > 100 * hi
+        warn = [ln for ln in cap.err.splitlines() if ln.startswith('WARNING:')]
+        assert len(warn) == 1 and 'χ²/dof' in warn[0] and 'band' in warn[0] and 'scaled' in warn[0]
+        assert 'UNTRUSTED' in cap.out
         # the published σ is the stated-noise σ scaled by √(χ²/dof)
-        np.testing.assert_allclose(r["beta_sigma_rad"], np.array(r["beta_sigma_stated_noise_rad"])
-                                   * np.sqrt(r["chi2_per_dof"]), rtol=0.05)
+        np.testing.assert_allclose(r['beta_sigma_rad'], np.array(r['beta_sigma_stated_noise_rad'])
+                                   * np.sqrt(r['chi2_per_dof']), rtol=0.05)
 
 
 def test_an_outlier_fix_is_still_gated_when_the_sigma_is_wrong(tmp_path):
     """The robust gate still drops a fix rotated 5° when the stated σ is 100× too small."""
     from rosbags.rosbag2 import Reader, Writer
-    from rosbags.typesys import Stores, get_typestore
+    from rosbags.typesys import get_typestore, Stores
+
     from strapdown_ros.rotation import quat_multiply, rotvec_to_quat
 
-    clean = _noisy_bench(tmp_path, "clean", 100.0)
+    clean = _noisy_bench(tmp_path, 'clean', 100.0)
     store = get_typestore(Stores.ROS2_JAZZY)
-    dirty = tmp_path / "dirty"
+    dirty = tmp_path / 'dirty'
     bad = rotvec_to_quat(np.radians(5.0) * np.array([0.6, -0.64, 0.48]))
     with Reader(clean) as rd, Writer(dirty, version=Writer.VERSION_LATEST) as wr:
         conns = {c.id: wr.add_connection(c.topic, c.msgtype, typestore=store)
                  for c in rd.connections}
         for c, t, raw in rd.messages():
-            if c.topic.startswith("/star_camera/attitude") and t == 60 * 10**9:
+            if c.topic.startswith('/star_camera/attitude') and t == 60 * 10**9:
                 m = store.deserialize_cdr(raw, c.msgtype)
-                q = m.pose.pose.orientation if hasattr(m, "pose") else m.quaternion
+                q = m.pose.pose.orientation if hasattr(m, 'pose') else m.quaternion
                 w, x, y, z = quat_multiply(np.array([q.w, q.x, q.y, q.z]), bad)
                 q.w, q.x, q.y, q.z = float(w), float(x), float(y), float(z)
                 raw = store.serialize_cdr(m, c.msgtype)
             wr.write(conns[c.id], t, raw)
-    f = tmp_path / "r.json"
-    assert calibrate_bag.main([str(dirty), "--json", str(f)]) == 0
+    f = tmp_path / 'r.json'
+    assert calibrate_bag.main([str(dirty), '--json', str(f)]) == 0
     r = json.loads(f.read_text())
-    assert r["camera_fixes"]["outliers_dropped"] == 1
-    assert r["camera_fixes"]["outlier_stamps_s"] == [pytest.approx(60.0)] and r["pairs"] == 32
+    assert r['camera_fixes']['outliers_dropped'] == 1
+    assert r['camera_fixes']['outlier_stamps_s'] == [pytest.approx(60.0)] and r['pairs'] == 32
 
 
 def test_a_clock_reset_of_both_streams_calibrates_each_time_base(tmp_path):
-    """A confirmed resynchronisation offline: both clocks jump 5000 s ahead at t = 85 s (beyond
+    """
+    A confirmed resynchronisation offline: both clocks jump 5000 s ahead at t = 85 s (beyond
     3600 s: a clock change, not a dropout).  Each time base is calibrated on its own, as
     calibrator_node restarts its gyro history: no pair spans the reset, none is lost but the one
-    across it, and β is the truth's."""
+    across it, and β is the truth's.
+    """
     from rosbags.rosbag2 import Reader, Writer
-    from rosbags.typesys import Stores, get_typestore
+    from rosbags.typesys import get_typestore, Stores
 
-    clean = tmp_path / "clean"
-    assert record_sim.main([str(clean), "--no-accel", "-p", "profile:=bench", "-p",
-                            "camera_interval:=5.0", "-p", BETA_ARG]) == 0
+    clean = tmp_path / 'clean'
+    assert record_sim.main([str(clean), '--no-accel', '-p', 'profile:=bench', '-p',
+                            'camera_interval:=5.0', '-p', BETA_ARG]) == 0
     store = get_typestore(Stores.ROS2_JAZZY)
-    reset = tmp_path / "reset"
+    reset = tmp_path / 'reset'
     with Reader(clean) as rd, Writer(reset, version=Writer.VERSION_LATEST) as wr:
         conns = {c.id: wr.add_connection(c.topic, c.msgtype, typestore=store)
                  for c in rd.connections}
         for c, t, raw in rd.messages():
             if t > 85 * 10**9 - 5_000_000 and c.topic in (
-                    "/imu/delta_theta", "/star_camera/attitude_with_covariance"):
+                    '/imu/delta_theta', '/star_camera/attitude_with_covariance'):
                 m = store.deserialize_cdr(raw, c.msgtype)
                 m.header.stamp.sec += 5000
                 raw = store.serialize_cdr(m, c.msgtype)
             wr.write(conns[c.id], t, raw)
-    f = tmp_path / "r.json"
-    assert calibrate_bag.main([str(reset), "--json", str(f)]) == 0
+    f = tmp_path / 'r.json'
+    assert calibrate_bag.main([str(reset), '--json', str(f)]) == 0
     r = json.loads(f.read_text())
-    assert r["stamp_resyncs"] == {"gyro": 1, "camera": 1}
-    assert r["pairs"] == 33 - 1                      # fixes 5..80 s and 85..170 s: 15 + 17 pairs
+    assert r['stamp_resyncs'] == {'gyro': 1, 'camera': 1}
+    assert r['pairs'] == 33 - 1                      # fixes 5..80 s and 85..170 s: 15 + 17 pairs
     q_true = dcm_to_quat(ypr_to_dcm(*BETA))
-    e = quat_error_rotvec(from_ros_xyzw(np.array(r["q_mf_vf_xyzw"])), q_true, frame="reference")
-    assert np.all(np.abs(e) < 3 * np.sqrt(np.diag(r["rotation_covariance_mf_rad2"]))), e / ARCSEC
+    e = quat_error_rotvec(from_ros_xyzw(np.array(r['q_mf_vf_xyzw'])), q_true, frame='reference')
+    assert np.all(np.abs(e) < 3 * np.sqrt(np.diag(r['rotation_covariance_mf_rad2']))), e / ARCSEC

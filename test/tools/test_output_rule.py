@@ -1,111 +1,115 @@
-"""One output rule for every console script that writes (cli.py::check_outputs): an existing output needs --force, no output
+"""
+One output rule for every console script that writes (cli.py::check_outputs): an existing output needs --force, no output
 is an input; each refusal comes before any work, in one line, exit 2.  Writes are atomic: files
 (JSON, markdown, PNG) through a temporary file and os.replace, bag directories through a hidden
-sibling renamed into place when complete (strapdown_ros/files.py)."""
+sibling renamed into place when complete (strapdown_ros/files.py).
+"""
 import os
+from pathlib import Path
 import re
 import signal
-from pathlib import Path
 
 import pytest
 
 ROOT = Path(__file__).resolve().parents[2]
 
 #: console scripts that write no file (nodes)
-NO_OUTPUT = {"imu_sim_node", "sins_node", "strapdown_demo", "star_camera_sim_node",
-             "calibrator_node", "attitude_filter_node"}
+NO_OUTPUT = {'imu_sim_node', 'sins_node', 'strapdown_demo', 'star_camera_sim_node',
+             'calibrator_node', 'attitude_filter_node'}
 
 #: script -> argv with an EXISTING output (and no --force); {bag}, {model}, {old}, {trial},
 #: {data}, {plots} are filled in by the test
 EXISTING = {
-    "calibrate_bag": ["{bag}", "--json", "{old}"],
-    "calibrate_gyro_bag": ["{bag}", "--method", "integral", "--json", "{old}"],
-    "sins_bag": ["{bag}", "--output", "{old}"],
-    "discrepancy": ["{bag}", "--model", "{model}", "--json", "{old}"],
-    "record_sim": ["{bag}"],
-    "sins_bag_bench": ["{bag}", "--json", "{old}"],
-    "realdata_bag": ["{trial}", "{bag}"],
-    "realdata_report": ["--data", "{data}", "--out", "{plots}"],
-    "sins_bench": ["--json", "{old}"],
-    "coning_bench": ["--plots", "{plots}"],
-    "load_bench": ["--json", "{old}"],
-    "node_rate_bench": ["--json", "{old}"],
-    "nav_bench": ["--report", "{plots}"],
-    "boresight_bench": ["--plots", "{plots}"],
-    "reproduce_seeds": ["--json", "{old}"],
-    "discrepancy_bench": ["--plots", "{plots}"],
-    "filter_bench": ["--json", "{old}"],
-    "filter_bag": ["{bag}", "--output", "{old}"],
+    'calibrate_bag': ['{bag}', '--json', '{old}'],
+    'calibrate_gyro_bag': ['{bag}', '--method', 'integral', '--json', '{old}'],
+    'sins_bag': ['{bag}', '--output', '{old}'],
+    'discrepancy': ['{bag}', '--model', '{model}', '--json', '{old}'],
+    'record_sim': ['{bag}'],
+    'sins_bag_bench': ['{bag}', '--json', '{old}'],
+    'realdata_bag': ['{trial}', '{bag}'],
+    'realdata_report': ['--data', '{data}', '--out', '{plots}'],
+    'sins_bench': ['--json', '{old}'],
+    'coning_bench': ['--plots', '{plots}'],
+    'load_bench': ['--json', '{old}'],
+    'node_rate_bench': ['--json', '{old}'],
+    'nav_bench': ['--report', '{plots}'],
+    'boresight_bench': ['--plots', '{plots}'],
+    'reproduce_seeds': ['--json', '{old}'],
+    'discrepancy_bench': ['--plots', '{plots}'],
+    'filter_bench': ['--json', '{old}'],
+    'filter_bag': ['{bag}', '--output', '{old}'],
 }
 
 #: script -> argv whose output is one of its inputs
 AS_INPUT = {
-    "calibrate_bag": ["{bag}", "--json", "{bag}/metadata.yaml"],
-    "calibrate_gyro_bag": ["{bag}", "--method", "integral", "--model", "{model}",
-                           "--write-model", "{model}"],
-    "sins_bag": ["{bag}", "--output", "{bag}"],
-    "discrepancy": ["{bag}", "--model", "{model}", "--write-model", "{model}"],
-    "record_sim": ["{model}", "--params", "{model}"],
-    "sins_bag_bench": ["{bag}", "--json", "{bag}/metadata.yaml"],
-    "realdata_bag": ["{trial}", "{trial}"],
-    "realdata_report": ["--data", "{data}", "--out", "{data}"],
-    "filter_bag": ["{bag}", "--output", "{bag}/metadata.yaml"],
+    'calibrate_bag': ['{bag}', '--json', '{bag}/metadata.yaml'],
+    'calibrate_gyro_bag': ['{bag}', '--method', 'integral', '--model', '{model}',
+                           '--write-model', '{model}'],
+    'sins_bag': ['{bag}', '--output', '{bag}'],
+    'discrepancy': ['{bag}', '--model', '{model}', '--write-model', '{model}'],
+    'record_sim': ['{model}', '--params', '{model}'],
+    'sins_bag_bench': ['{bag}', '--json', '{bag}/metadata.yaml'],
+    'realdata_bag': ['{trial}', '{trial}'],
+    'realdata_report': ['--data', '{data}', '--out', '{data}'],
+    'filter_bag': ['{bag}', '--output', '{bag}/metadata.yaml'],
 }
 
 
 def console_scripts():
     """name -> 'module:function' of every console script in setup.py."""
-    text = (ROOT / "setup.py").read_text()
-    return dict(re.findall(r'"(\w+) = ([\w.]+:\w+)"', text))
+    text = (ROOT / 'setup.py').read_text()
+    return dict(re.findall(r'["\'](\w+) = ([\w.]+:\w+)["\']', text))
 
 
 def test_every_writing_script_is_covered():
     scripts = console_scripts()
-    assert scripts, "no console_scripts parsed from setup.py"
+    assert scripts, 'no console_scripts parsed from setup.py'
     missing = sorted(set(scripts) - NO_OUTPUT - set(EXISTING))
-    assert not missing, f"register these console scripts in test/tools/test_output_rule.py: {missing}"
+    assert not missing, f'register these console scripts in test/tools/test_output_rule.py: {missing}'
     assert set(AS_INPUT) <= set(EXISTING)
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture(scope='module')
 def files(tmp_path_factory):
-    pytest.importorskip("rosbags")
+    pytest.importorskip('rosbags')
     from strapdown_ros.tools import record_sim
-    d = tmp_path_factory.mktemp("rule")
-    bag = d / "bag"
-    assert record_sim.main([str(bag), "--no-accel", "--duration", "10",
-                            "-p", "camera_interval:=2.0"]) == 0
-    model = d / "m.yaml"
-    model.write_text("/**:\n  ros__parameters:\n    gyro_rate: 100.0\n")
-    trial = d / "TStick_Test01_Trial1.csv"
-    trial.write_text("not read\n")
-    data = d / "data"
-    (data / "TStick").mkdir(parents=True)
-    (data / "TStick" / "TStick_Test01_Trial1.csv").write_text("not read\n")
-    plots = d / "plots"
+    d = tmp_path_factory.mktemp('rule')
+    bag = d / 'bag'
+    assert record_sim.main([str(bag), '--no-accel', '--duration', '10',
+                            '-p', 'camera_interval:=2.0']) == 0
+    model = d / 'm.yaml'
+    model.write_text('/**:\n  ros__parameters:\n    gyro_rate: 100.0\n')
+    trial = d / 'TStick_Test01_Trial1.csv'
+    trial.write_text('not read\n')
+    data = d / 'data'
+    (data / 'TStick').mkdir(parents=True)
+    (data / 'TStick' / 'TStick_Test01_Trial1.csv').write_text('not read\n')
+    plots = d / 'plots'
     plots.mkdir()
-    for name in ("coning_drift.png", "nav_bench.md", "boresight_errors.png",
-                 "discrepancy_detection.png", "realdata.json"):
-        (plots / name).write_text("old")
-    old = d / "old.json"
+    for name in ('coning_drift.png', 'nav_bench.md', 'boresight_errors.png',
+                 'discrepancy_detection.png', 'realdata.json'):
+        (plots / name).write_text('old')
+    old = d / 'old.json'
     old.write_text('{"kept": true}\n')
-    return {"bag": bag, "model": model, "old": old, "trial": trial, "data": data,
-            "plots": plots}
+    return {'bag': bag, 'model': model, 'old': old, 'trial': trial, 'data': data,
+            'plots': plots}
 
 
 def _snapshot(root: Path) -> dict:
-    return {str(p): p.read_bytes() for p in sorted(root.rglob("*")) if p.is_file()}
+    return {str(p): p.read_bytes() for p in sorted(root.rglob('*')) if p.is_file()}
 
 
 def _run(script: str, argv: list, capsys):
-    """main(argv) in-process with a 30 s alarm (a refusal comes before any work); returns
-    (exit status, non-empty output lines)."""
+    """
+    main(argv) in-process with a 30 s alarm (a refusal comes before any work); returns
+    (exit status, non-empty output lines).
+    """
     import importlib
-    module, func = console_scripts()[script].split(":")
+    module, func = console_scripts()[script].split(':')
     main = getattr(importlib.import_module(module), func)
 
     def too_slow(signum, frame):
-        raise AssertionError(f"{script} did not refuse before starting its work")
+        raise AssertionError(f'{script} did not refuse before starting its work')
     previous = signal.signal(signal.SIGALRM, too_slow)
     signal.alarm(30)
     try:
@@ -116,7 +120,7 @@ def _run(script: str, argv: list, capsys):
         signal.alarm(0)
         signal.signal(signal.SIGALRM, previous)
     out = capsys.readouterr()
-    lines = [ln for ln in (out.out + out.err).splitlines() if ln.strip() and "[INFO]" not in ln]
+    lines = [ln for ln in (out.out + out.err).splitlines() if ln.strip() and '[INFO]' not in ln]
     return rc, lines
 
 
@@ -124,94 +128,99 @@ def _fill(argv, files):
     return [a.format(**{k: str(v) for k, v in files.items()}) for a in argv]
 
 
-@pytest.mark.parametrize("script", sorted(EXISTING))
+@pytest.mark.parametrize('script', sorted(EXISTING))
 def test_existing_output_needs_force(script, files, capsys):
-    before = _snapshot(files["bag"].parent)
+    before = _snapshot(files['bag'].parent)
     rc, lines = _run(script, _fill(EXISTING[script], files), capsys)
-    assert rc == 2 and len(lines) == 1 and "--force" in lines[0], (script, rc, lines)
-    assert _snapshot(files["bag"].parent) == before, script
+    assert rc == 2 and len(lines) == 1 and '--force' in lines[0], (script, rc, lines)
+    assert _snapshot(files['bag'].parent) == before, script
 
 
-@pytest.mark.parametrize("script", sorted(AS_INPUT))
+@pytest.mark.parametrize('script', sorted(AS_INPUT))
 def test_output_equal_to_an_input_is_refused(script, files, capsys):
-    before = _snapshot(files["bag"].parent)
+    before = _snapshot(files['bag'].parent)
     rc, lines = _run(script, _fill(AS_INPUT[script], files), capsys)
     assert rc == 2 and len(lines) == 1, (script, rc, lines)
-    assert "input" in lines[0] and "Traceback" not in lines[0], (script, lines)
-    assert _snapshot(files["bag"].parent) == before, script
+    assert 'input' in lines[0] and 'Traceback' not in lines[0], (script, lines)
+    assert _snapshot(files['bag'].parent) == before, script
 
 
 def test_bag_is_replaced_only_by_a_complete_one(tmp_path, monkeypatch):
-    """record_sim writes into a hidden sibling and renames it into place: a failure half-way
+    """
+    record_sim writes into a hidden sibling and renames it into place: a failure half-way
     leaves the old bag (--force) as it was and no half bag or temporary directory; a success
-    replaces it whole."""
-    pytest.importorskip("rosbags")
+    replaces it whole.
+    """
+    pytest.importorskip('rosbags')
     from strapdown_ros.tools import record_sim
-    bag = tmp_path / "bag"
-    args = [str(bag), "--no-accel", "--duration", "4", "-p", "camera_interval:=2.0"]
+    bag = tmp_path / 'bag'
+    args = [str(bag), '--no-accel', '--duration', '4', '-p', 'camera_interval:=2.0']
     assert record_sim.main(args) == 0
     before = _snapshot(bag)
     real = record_sim.record
 
     def fails_half_way(path, *a, **k):
         real(path, *a, **k)                       # a complete bag in the staging directory ...
-        raise OSError(28, "No space left on device")          # ... then the disk is full
-    monkeypatch.setattr(record_sim, "record", fails_half_way)
-    assert record_sim.main(args + ["--force", "--duration", "6"]) == 2
+        raise OSError(28, 'No space left on device')          # ... then the disk is full
+    monkeypatch.setattr(record_sim, 'record', fails_half_way)
+    assert record_sim.main(args + ['--force', '--duration', '6']) == 2
     assert _snapshot(bag) == before
-    assert sorted(os.listdir(tmp_path)) == ["bag"]            # no staging directory left
-    monkeypatch.setattr(record_sim, "record", real)
-    assert record_sim.main(args + ["--force", "--duration", "6"]) == 0
-    assert _snapshot(bag) != before and (bag / "metadata.yaml").exists()
-    assert sorted(os.listdir(tmp_path)) == ["bag"]
-    assert "duration" in (bag / "metadata.yaml").read_text()
+    assert sorted(os.listdir(tmp_path)) == ['bag']            # no staging directory left
+    monkeypatch.setattr(record_sim, 'record', real)
+    assert record_sim.main(args + ['--force', '--duration', '6']) == 0
+    assert _snapshot(bag) != before and (bag / 'metadata.yaml').exists()
+    assert sorted(os.listdir(tmp_path)) == ['bag']
+    assert 'duration' in (bag / 'metadata.yaml').read_text()
 
 
 def test_commit_directory_keeps_the_old_one_until_the_new_one_is_in_place(tmp_path):
     from strapdown_ros.files import commit_directory, discard_directory, stage_directory
-    target = tmp_path / "out"
+    target = tmp_path / 'out'
     target.mkdir()
-    (target / "a").write_text("old")
+    (target / 'a').write_text('old')
     staged = stage_directory(target)
-    assert staged.name == "out" and staged.parent.parent == tmp_path and not staged.exists()
+    assert staged.name == 'out' and staged.parent.parent == tmp_path and not staged.exists()
     staged.mkdir()
-    (staged / "a").write_text("new")
+    (staged / 'a').write_text('new')
     commit_directory(staged, target)
-    assert (target / "a").read_text() == "new" and os.listdir(tmp_path) == ["out"]
+    assert (target / 'a').read_text() == 'new' and os.listdir(tmp_path) == ['out']
     staged = stage_directory(target)
     staged.mkdir()
     discard_directory(staged)
-    assert (target / "a").read_text() == "new" and os.listdir(tmp_path) == ["out"]
+    assert (target / 'a').read_text() == 'new' and os.listdir(tmp_path) == ['out']
 
 
 def test_figures_are_written_atomically(tmp_path):
-    matplotlib = pytest.importorskip("matplotlib")
-    matplotlib.use("Agg")
+    matplotlib = pytest.importorskip('matplotlib')
+    matplotlib.use('Agg')
     import matplotlib.pyplot as plt
+
     from strapdown_ros.cli import write_figure
     fig, ax = plt.subplots()
     ax.plot([0, 1], [1, 0])
-    out = tmp_path / "f.png"
+    out = tmp_path / 'f.png'
     write_figure(fig, out, dpi=50)
-    assert out.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and os.listdir(tmp_path) == ["f.png"]
-    with pytest.raises(OSError, match="missing"):
-        write_figure(fig, tmp_path / "missing" / "f.png")
+    assert out.read_bytes()[:8] == b'\x89PNG\r\n\x1a\n' and os.listdir(tmp_path) == ['f.png']
+    with pytest.raises(OSError, match='missing'):
+        write_figure(fig, tmp_path / 'missing' / 'f.png')
     plt.close(fig)
-    assert os.listdir(tmp_path) == ["f.png"]
+    assert os.listdir(tmp_path) == ['f.png']
 
 
 def test_sins_bag_interrupted_keeps_the_old_output_bag(files, tmp_path, monkeypatch):
-    """sins_bag's MCAP output is staged too: an interruption half-way (--force over an old
-    output) leaves the old bag and no staging directory."""
+    """
+    sins_bag's MCAP output is staged too: an interruption half-way (--force over an old
+    output) leaves the old bag and no staging directory.
+    """
     from strapdown_ros.tools import sins_bag
-    out = tmp_path / "out"
-    assert sins_bag.main([str(files["bag"]), "--output", str(out), "--quiet"]) == 0
+    out = tmp_path / 'out'
+    assert sins_bag.main([str(files['bag']), '--output', str(out), '--quiet']) == 0
     before = _snapshot(out)
     real = sins_bag.run
 
     def interrupted(inp, make_system, sink, *a, **k):
         real(inp, make_system, sink, *a, **k)
         raise KeyboardInterrupt
-    monkeypatch.setattr(sins_bag, "run", interrupted)
-    assert sins_bag.main([str(files["bag"]), "--output", str(out), "--force", "--quiet"]) == 130
-    assert _snapshot(out) == before and sorted(os.listdir(tmp_path)) == ["out"]
+    monkeypatch.setattr(sins_bag, 'run', interrupted)
+    assert sins_bag.main([str(files['bag']), '--output', str(out), '--force', '--quiet']) == 130
+    assert _snapshot(out) == before and sorted(os.listdir(tmp_path)) == ['out']

@@ -1,4 +1,5 @@
-"""The full node graph under load, for ``load_bench``: four node processes on loopback and a monitor.
+"""
+The full node graph under load, for ``load_bench``: four node processes on loopback and a monitor.
 
 ``imu_sim_node``, ``star_camera_sim_node``, ``sins_node`` and ``calibrator_node`` run as separate
 processes (``python -m strapdown_ros.nodes.<node>``, as ``ros2 run`` starts them) in one namespace,
@@ -21,10 +22,11 @@ The consumers start first; the simulators start their clocks once every consumer
 * **resident memory** (``/proc/<pid>/status`` VmRSS) and CPU time of every node process, sampled
   every second.
 
-Nothing here is asserted; :mod:`strapdown_ros.bench.load_bench` prints and judges the figures.
+Nothing here is asserted; :mod:`strapdown_ros.bench.ros.load_bench` prints and judges the figures.
 """
 from __future__ import annotations
 
+from collections import deque
 import math
 import os
 import random
@@ -33,70 +35,72 @@ import subprocess
 import sys
 import tempfile
 import time
-from collections import deque
 from typing import Callable
 
 import numpy as np
 
-NODES = ("sins_node", "calibrator_node", "imu_sim_node", "star_camera_sim_node")
+from strapdown_ros.nodes.ros_io import (camera_qos, DIAGNOSTICS_QOS, latched_qos, make_executor,
+                                        stamp_to_ns, stream_qos)
+
+NODES = ('sins_node', 'calibrator_node', 'imu_sim_node', 'star_camera_sim_node')
 
 #: topics whose QoS the graph switches with ``qos_overrides`` (topic, publisher or subscription)
 STREAM_ENDPOINTS = {
-    "imu_sim_node": [("imu/delta_theta", "publisher"), ("imu/delta_velocity", "publisher"),
-                     ("imu/data_raw", "publisher"), ("imu/truth/attitude", "publisher")],
-    "star_camera_sim_node": [("star_camera/attitude", "publisher"),
-                             ("star_camera/attitude_with_covariance", "publisher")],
-    "sins_node": [("imu/delta_theta", "subscription"), ("imu/delta_velocity", "subscription"),
-                  ("sins/attitude", "publisher"), ("sins/imu", "publisher")],
-    "calibrator_node": [("imu/delta_theta", "subscription"),
-                        ("star_camera/attitude_with_covariance", "subscription"),
-                        ("calibration/imu_attitude_from_camera", "publisher")],
+    'imu_sim_node': [('imu/delta_theta', 'publisher'), ('imu/delta_velocity', 'publisher'),
+                     ('imu/data_raw', 'publisher'), ('imu/truth/attitude', 'publisher')],
+    'star_camera_sim_node': [('star_camera/attitude', 'publisher'),
+                             ('star_camera/attitude_with_covariance', 'publisher')],
+    'sins_node': [('imu/delta_theta', 'subscription'), ('imu/delta_velocity', 'subscription'),
+                  ('sins/attitude', 'publisher'), ('sins/imu', 'publisher')],
+    'calibrator_node': [('imu/delta_theta', 'subscription'),
+                        ('star_camera/attitude_with_covariance', 'subscription'),
+                        ('calibration/imu_attitude_from_camera', 'publisher')],
 }
 
-NOMINAL = {"gyro_rate": 100.0, "accel_rate": 300.0, "camera_interval": 20.0}
+NOMINAL = {'gyro_rate': 100.0, 'accel_rate': 300.0, 'camera_interval': 20.0}
 BENCH_HOLD_S, BENCH_PASS_S = 20.0, 150.0            # bench profile: hold, then 150 s per pass
-PAGE_KIB = os.sysconf("SC_PAGE_SIZE") / 1024.0
-CLOCK_TICKS = os.sysconf("SC_CLK_TCK")
+PAGE_KIB = os.sysconf('SC_PAGE_SIZE') / 1024.0
+CLOCK_TICKS = os.sysconf('SC_CLK_TCK')
 
 
 def node_parameters(ns: str, rate_factor: float, seconds: float, reliable_streams: bool) -> dict[str, dict]:
     """``-p`` parameters of each node process."""
-    gyro, accel = NOMINAL["gyro_rate"] * rate_factor, NOMINAL["accel_rate"] * rate_factor
+    gyro, accel = NOMINAL['gyro_rate'] * rate_factor, NOMINAL['accel_rate'] * rate_factor
     passes = max(1, math.ceil((seconds - BENCH_HOLD_S) / BENCH_PASS_S))
-    profile = {"profile": "bench", "bench_repeat": passes, "duration": float(seconds), "time_scale": 1.0}
+    profile = {'profile': 'bench', 'bench_repeat': passes, 'duration': float(seconds), 'time_scale': 1.0}
     params = {
-        "imu_sim_node": {**profile, "gyro_rate": gyro, "accel_rate": accel, "seed": 1,
-                         "wait_for_subscribers": 3},                 # sins, calibrator, monitor
-        "star_camera_sim_node": {**profile, "camera_interval": NOMINAL["camera_interval"] / rate_factor,
-                                 "boresight": [0.01, -0.02, 0.03], "seed": 2,
-                                 "wait_for_subscribers": 2},         # calibrator, monitor
-        "sins_node": {"gyro_rate": gyro, "accel_rate": accel},
-        "calibrator_node": {"gyro_rate": gyro},
+        'imu_sim_node': {**profile, 'gyro_rate': gyro, 'accel_rate': accel, 'seed': 1,
+                         'wait_for_subscribers': 3},                 # sins, calibrator, monitor
+        'star_camera_sim_node': {**profile, 'camera_interval': NOMINAL['camera_interval'] / rate_factor,
+                                 'boresight': [0.01, -0.02, 0.03], 'seed': 2,
+                                 'wait_for_subscribers': 2},         # calibrator, monitor
+        'sins_node': {'gyro_rate': gyro, 'accel_rate': accel},
+        'calibrator_node': {'gyro_rate': gyro},
     }
     # history of every stream endpoint: 2 s of the fastest stream, so that a process descheduled
     # for a moment on a busy machine catches up instead of overwriting (KEEP_LAST, both ends)
     depth = max(500, int(2 * accel))
     for node in params:
-        params[node]["qos_depth"] = depth
+        params[node]['qos_depth'] = depth
     if reliable_streams:
         for node, endpoints in STREAM_ENDPOINTS.items():
             for topic, kind in endpoints:
-                params[node][f"qos_overrides.{ns}/{topic}.{kind}.reliability"] = "reliable"
+                params[node][f'qos_overrides.{ns}/{topic}.{kind}.reliability'] = 'reliable'
     return params
 
 
 def _ros_value(v) -> str:
     if isinstance(v, bool):
-        return "true" if v else "false"
+        return 'true' if v else 'false'
     if isinstance(v, (list, tuple)):
-        return "[" + ",".join(_ros_value(x) for x in v) + "]"
+        return '[' + ','.join(_ros_value(x) for x in v) + ']'
     return str(v)
 
 
 def _command(node: str, ns: str, params: dict) -> list[str]:
-    cmd = [sys.executable, "-m", f"strapdown_ros.nodes.{node}", "--ros-args", "-r", f"__ns:={ns}"]
+    cmd = [sys.executable, '-m', f'strapdown_ros.nodes.{node}', '--ros-args', '-r', f'__ns:={ns}']
     for k, v in params.items():
-        cmd += ["-p", f"{k}:={_ros_value(v)}"]
+        cmd += ['-p', f'{k}:={_ros_value(v)}']
     return cmd
 
 
@@ -108,15 +112,15 @@ class ProcessSampler:
 
     def rss_kib(self) -> float:
         try:
-            with open(f"/proc/{self.pid}/statm", encoding="ascii") as fh:
+            with open(f'/proc/{self.pid}/statm', encoding='ascii') as fh:
                 return int(fh.read().split()[1]) * PAGE_KIB
         except (OSError, IndexError, ValueError):
             return math.nan
 
     def cpu_s(self) -> float:
         try:
-            with open(f"/proc/{self.pid}/stat", encoding="ascii") as fh:
-                fields = fh.read().rsplit(")", 1)[1].split()
+            with open(f'/proc/{self.pid}/stat', encoding='ascii') as fh:
+                fields = fh.read().rsplit(')', 1)[1].split()
             return (int(fields[11]) + int(fields[12])) / CLOCK_TICKS      # utime + stime
         except (OSError, IndexError, ValueError):
             return math.nan
@@ -125,44 +129,42 @@ class ProcessSampler:
 def run_graph(seconds: float = 600.0, rate_factor: float = 10.0, reliable_streams: bool = True,
               warmup: float = 30.0, progress: Callable[[str], None] | None = None) -> dict:
     """Run the graph for ``seconds`` of sensor time and return the raw figures (see module doc)."""
-    import rclpy
     from diagnostic_msgs.msg import DiagnosticArray
     from geometry_msgs.msg import PoseWithCovarianceStamped, QuaternionStamped, Vector3Stamped
+    import rclpy
     from rclpy.qos import ReliabilityPolicy
     from sensor_msgs.msg import Imu
 
-    from strapdown_ros.nodes.ros_io import (DIAGNOSTICS_QOS, camera_qos, latched_qos,
-        make_executor, stamp_to_ns, stream_qos)
 
     say = progress or (lambda s: None)
     env = dict(os.environ)
-    env["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
-    env.setdefault("ROS_DOMAIN_ID", str(random.randint(1, 100)))
-    os.environ.update({k: env[k] for k in ("ROS_AUTOMATIC_DISCOVERY_RANGE", "ROS_DOMAIN_ID")})
-    ns = f"/load_{os.getpid()}"
+    env['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
+    env.setdefault('ROS_DOMAIN_ID', str(random.randint(1, 100)))
+    os.environ.update({k: env[k] for k in ('ROS_AUTOMATIC_DISCOVERY_RANGE', 'ROS_DOMAIN_ID')})
+    ns = f'/load_{os.getpid()}'
     params = node_parameters(ns, rate_factor, seconds, reliable_streams)
     procs: dict[str, subprocess.Popen] = {}
-    log_dir = tempfile.mkdtemp(prefix="load_bench_")
-    logs = {n: open(os.path.join(log_dir, f"{n}.log"), "w", encoding="utf-8") for n in NODES}  # noqa: SIM115
+    log_dir = tempfile.mkdtemp(prefix='load_bench_')
+    logs = {n: open(os.path.join(log_dir, f'{n}.log'), 'w', encoding='utf-8') for n in NODES}  # noqa: SIM115
     rclpy.init()
-    mon = rclpy.create_node("load_monitor", namespace=ns)
+    mon = rclpy.create_node('load_monitor', namespace=ns)
     ex = make_executor()
     ex.add_node(mon)
     depth = 10000
     sq = stream_qos(depth)
     if reliable_streams:
         sq.reliability = ReliabilityPolicy.RELIABLE
-    count = {k: 0 for k in ("delta_theta", "camera", "attitude", "imu", "boresight")}
+    count = {k: 0 for k in ('delta_theta', 'camera', 'attitude', 'imu', 'boresight')}
     t_dtheta: dict[int, int] = {}                             # stamp → monitor receive time, ns
     t_dtheta_keys: deque = deque()
     t_fix: dict[int, int] = {}
-    lat = {"delta_theta_to_attitude": [], "fix_to_boresight": []}
+    lat = {'delta_theta_to_attitude': [], 'fix_to_boresight': []}
     diags: dict[str, dict] = {}
     first_dtheta = [None]
     now_ns = time.monotonic_ns
 
     def on_dtheta(msg):
-        count["delta_theta"] += 1
+        count['delta_theta'] += 1
         s = stamp_to_ns(msg.header.stamp)
         t_dtheta[s] = now_ns()
         t_dtheta_keys.append(s)
@@ -173,50 +175,50 @@ def run_graph(seconds: float = 600.0, rate_factor: float = 10.0, reliable_stream
 
     def on_attitude(msg):
         t = now_ns()
-        count["attitude"] += 1
+        count['attitude'] += 1
         t_in = t_dtheta.get(stamp_to_ns(msg.header.stamp))
         if t_in is not None:
-            lat["delta_theta_to_attitude"].append(t - t_in)
+            lat['delta_theta_to_attitude'].append(t - t_in)
 
     def on_imu(msg):
-        count["imu"] += 1
+        count['imu'] += 1
 
     def on_fix(msg):
-        count["camera"] += 1
+        count['camera'] += 1
         t_fix[stamp_to_ns(msg.header.stamp)] = now_ns()
 
     def on_boresight(msg):
         t = now_ns()
-        count["boresight"] += 1
+        count['boresight'] += 1
         t_in = t_fix.get(stamp_to_ns(msg.header.stamp))
         if t_in is not None:
-            lat["fix_to_boresight"].append(t - t_in)
+            lat['fix_to_boresight'].append(t - t_in)
 
     def on_diag(msg):
         for st in msg.status:
-            if st.name.startswith(ns + "/"):
-                node = st.name[len(ns) + 1:].split(":", 1)[0]
-                diags[node] = {"level": st.level[0] if isinstance(st.level, bytes) else int(st.level),
-                               "message": st.message, **{kv.key: kv.value for kv in st.values},
-                               "_received": time.monotonic()}
+            if st.name.startswith(ns + '/'):
+                node = st.name[len(ns) + 1:].split(':', 1)[0]
+                diags[node] = {'level': st.level[0] if isinstance(st.level, bytes) else int(st.level),
+                               'message': st.message, **{kv.key: kv.value for kv in st.values},
+                               '_received': time.monotonic()}
 
-    mon.create_subscription(Vector3Stamped, "imu/delta_theta", on_dtheta, sq)
-    mon.create_subscription(QuaternionStamped, "sins/attitude", on_attitude, sq)
-    mon.create_subscription(Imu, "sins/imu", on_imu, sq)
-    mon.create_subscription(PoseWithCovarianceStamped, "star_camera/attitude_with_covariance", on_fix,
+    mon.create_subscription(Vector3Stamped, 'imu/delta_theta', on_dtheta, sq)
+    mon.create_subscription(QuaternionStamped, 'sins/attitude', on_attitude, sq)
+    mon.create_subscription(Imu, 'sins/imu', on_imu, sq)
+    mon.create_subscription(PoseWithCovarianceStamped, 'star_camera/attitude_with_covariance', on_fix,
                             camera_qos(depth))
-    mon.create_subscription(PoseWithCovarianceStamped, "calibration/boresight", on_boresight, latched_qos())
-    mon.create_subscription(DiagnosticArray, "/diagnostics", on_diag, DIAGNOSTICS_QOS)
+    mon.create_subscription(PoseWithCovarianceStamped, 'calibration/boresight', on_boresight, latched_qos())
+    mon.create_subscription(DiagnosticArray, '/diagnostics', on_diag, DIAGNOSTICS_QOS)
 
     samplers: dict[str, ProcessSampler] = {}
-    series = {"t": [], **{n: [] for n in NODES}}
+    series = {'t': [], **{n: [] for n in NODES}}
     cpu0: dict[str, float] = {}
-    result: dict = {"seconds": seconds, "rate_factor": rate_factor, "reliable_streams": reliable_streams,
-                    "warmup_s": warmup, "namespace": ns, "ros_domain_id": int(env["ROS_DOMAIN_ID"]),
-                    "load_at_start": list(os.getloadavg()), "logs": log_dir, "cpu_count": os.cpu_count(),
-                    "rates_hz": {"gyro": params["imu_sim_node"]["gyro_rate"],
-                                 "accel": params["imu_sim_node"]["accel_rate"],
-                                 "camera": 1.0 / params["star_camera_sim_node"]["camera_interval"]}}
+    result: dict = {'seconds': seconds, 'rate_factor': rate_factor, 'reliable_streams': reliable_streams,
+                    'warmup_s': warmup, 'namespace': ns, 'ros_domain_id': int(env['ROS_DOMAIN_ID']),
+                    'load_at_start': list(os.getloadavg()), 'logs': log_dir, 'cpu_count': os.cpu_count(),
+                    'rates_hz': {'gyro': params['imu_sim_node']['gyro_rate'],
+                                 'accel': params['imu_sim_node']['accel_rate'],
+                                 'camera': 1.0 / params['star_camera_sim_node']['camera_interval']}}
 
     def spin_for(dt: float, until: Callable[[], bool] | None = None) -> bool:
         end = time.monotonic() + dt
@@ -232,53 +234,53 @@ def run_graph(seconds: float = 600.0, rate_factor: float = 10.0, reliable_stream
         samplers[node] = ProcessSampler(procs[node].pid)
 
     try:
-        for node in ("sins_node", "calibrator_node"):
+        for node in ('sins_node', 'calibrator_node'):
             launch(node)
-        say("consumers started; waiting for their /diagnostics")
-        if not spin_for(60.0, lambda: all(n in diags for n in ("sins_node", "calibrator_node"))):
-            raise RuntimeError(f"sins_node/calibrator_node did not come up within 60 s (logs in {log_dir})")
-        for node in ("imu_sim_node", "star_camera_sim_node"):
+        say('consumers started; waiting for their /diagnostics')
+        if not spin_for(60.0, lambda: all(n in diags for n in ('sins_node', 'calibrator_node'))):
+            raise RuntimeError(f'sins_node/calibrator_node did not come up within 60 s (logs in {log_dir})')
+        for node in ('imu_sim_node', 'star_camera_sim_node'):
             launch(node)
-        say("simulators started; they start their clocks once every consumer is matched")
+        say('simulators started; they start their clocks once every consumer is matched')
         if not spin_for(60.0, lambda: first_dtheta[0] is not None):
-            raise RuntimeError(f"no Δθ within 60 s of starting imu_sim_node (logs in {log_dir})")
+            raise RuntimeError(f'no Δθ within 60 s of starting imu_sim_node (logs in {log_dir})')
         t0 = first_dtheta[0]
         cpu0 = {n: s.cpu_s() for n, s in samplers.items()}
         deadline = t0 + seconds * 1.5 + 60.0
         next_sample, next_say = t0, t0 + 30.0
-        finished = lambda: all(diags.get(n, {}).get("finished") == "True"  # noqa: E731
-                               for n in ("imu_sim_node", "star_camera_sim_node"))
+        finished = lambda: all(diags.get(n, {}).get('finished') == 'True'  # noqa: E731
+                               for n in ('imu_sim_node', 'star_camera_sim_node'))
         while time.monotonic() < deadline and not finished():
             ex.spin_once(timeout_sec=0.01)
             now = time.monotonic()
             if now >= next_sample:
-                series["t"].append(now - t0)
+                series['t'].append(now - t0)
                 for n, s in samplers.items():
                     series[n].append(s.rss_kib())
                 next_sample += 1.0
             if now >= next_say:
                 say(f"{now - t0:5.0f}/{seconds:.0f} s: Δθ {count['delta_theta']}, attitude "
                     f"{count['attitude']}, fixes {count['camera']}, boresight {count['boresight']}; RSS "
-                    + ", ".join(f"{n.split('_')[0]} {series[n][-1] / 1024:.0f} MiB" for n in NODES))
+                    + ', '.join(f"{n.split('_')[0]} {series[n][-1] / 1024:.0f} MiB" for n in NODES))
                 next_say += 30.0
             if any(p.poll() is not None for p in procs.values()):
                 break
-        result["finished"] = finished()
-        result["wall_s"] = time.monotonic() - t0
+        result['finished'] = finished()
+        result['wall_s'] = time.monotonic() - t0
         cpu1 = {n: s.cpu_s() for n, s in samplers.items()}
         # drain, then wait for a /diagnostics of every node issued after the end
         mark = time.monotonic()
         spin_for(3.0)
-        spin_for(10.0, lambda: all(diags.get(n, {}).get("_received", 0) > mark for n in NODES))
-        series["t"].append(time.monotonic() - t0)
+        spin_for(10.0, lambda: all(diags.get(n, {}).get('_received', 0) > mark for n in NODES))
+        series['t'].append(time.monotonic() - t0)
         for n, s in samplers.items():
             series[n].append(s.rss_kib())
-        result["diagnostics"] = {n: {k: v for k, v in d.items() if k != "_received"} for n, d in diags.items()}
-        result["monitor"] = {k: {"received": v} for k, v in count.items()}
-        result["latency_ns"] = {k: np.asarray(v, dtype=np.int64) for k, v in lat.items()}
-        result["rss_kib"] = {k: np.asarray(v, dtype=float) for k, v in series.items()}
-        result["cpu_s"] = {n: cpu1[n] - cpu0.get(n, math.nan) for n in cpu1}
-        result["exit_codes"] = {n: p.poll() for n, p in procs.items()}       # None: still running (normal)
+        result['diagnostics'] = {n: {k: v for k, v in d.items() if k != '_received'} for n, d in diags.items()}
+        result['monitor'] = {k: {'received': v} for k, v in count.items()}
+        result['latency_ns'] = {k: np.asarray(v, dtype=np.int64) for k, v in lat.items()}
+        result['rss_kib'] = {k: np.asarray(v, dtype=float) for k, v in series.items()}
+        result['cpu_s'] = {n: cpu1[n] - cpu0.get(n, math.nan) for n in cpu1}
+        result['exit_codes'] = {n: p.poll() for n, p in procs.items()}       # None: still running (normal)
     finally:
         for p in procs.values():
             if p.poll() is None:
@@ -289,8 +291,8 @@ def run_graph(seconds: float = 600.0, rate_factor: float = 10.0, reliable_stream
                 codes[n] = p.wait(timeout=15)
             except subprocess.TimeoutExpired:
                 p.kill()
-                codes[n] = "killed"
-        result["exit_codes_after_sigint"] = codes
+                codes[n] = 'killed'
+        result['exit_codes_after_sigint'] = codes
         for fh in logs.values():
             fh.close()
         ex.remove_node(mon)
