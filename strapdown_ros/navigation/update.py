@@ -391,10 +391,10 @@ def derived_coefficients() -> dict:
     Return the coefficients of 003 (1.99)/(1.100) derived in exact rational arithmetic.
 
     With τ = 1, δτ = 1/3: f(σ) = Σ_j γ_j(σ) u_j from the exact solution of (1.98)'s system;
-    the rotation vector φ(σ) = Q₁σ/2 + Q₂σ²/2 + Qσ³/12 (from (1.52), (1.57)); A = I + [φ×] + ½[φ×]² + …;
-    velocity coefficient of a term = ∫₀¹ (its σ-polynomial) γ_j dσ, position the same with the
-    weight (1 − σ).  Terms of third order other than those with Q (e.g. Q₁×(Q₁×(Q₁×u))) are not
-    in 003's basis and not listed.
+    the rotation vector φ(σ) = Q₁σ/2 + Q₂σ²/2 + Qσ³/12 (from (1.52), (1.57));
+    A = I + [φ×] + ½[φ×]² + …; velocity coefficient of a term = ∫₀¹ (its σ-polynomial) γ_j dσ,
+    position the same with the weight (1 − σ).  Terms of third order other than those with Q
+    (e.g. Q₁×(Q₁×(Q₁×u))) are not in 003's basis and not listed.
 
     Returns
     -------
