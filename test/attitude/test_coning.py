@@ -14,7 +14,8 @@ integrator.  Expected orders: the corrected forms reach the order the thesis int
 import numpy as np
 import pytest
 
-from strapdown_ros.attitude.coning import ALGORITHMS, LITERATURE_DRIFT, theory_drift
+from strapdown_ros.attitude.coning import (ALGORITHMS, LITERATURE_DRIFT, LITERATURE_DRIFT_TEXT,
+                                           theory_drift)
 from strapdown_ros.attitude.integrator import AttitudeIntegrator
 from strapdown_ros.motion.profiles import ConingProfile
 from strapdown_ros.rotation import quat_conjugate, quat_multiply
@@ -144,3 +145,9 @@ def test_printed_forms_are_worse_than_corrected():
     for name in ('3', '3.1', '4+', '5'):
         printed = cone_axis_drift(name + '_as_printed', 0.01, 0.4)
         assert abs(printed) > 100 * abs(cone_axis_drift(name, 0.01, 0.4))
+
+
+def test_every_published_drift_has_its_printed_form():
+    """Each literature drift of the registry has the text tables print for it."""
+    assert set(LITERATURE_DRIFT_TEXT) == set(LITERATURE_DRIFT)
+    assert all(name in ALGORITHMS for name in LITERATURE_DRIFT)
