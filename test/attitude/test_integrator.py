@@ -7,7 +7,7 @@ import pytest
 from strapdown_ros.attitude import coning
 from strapdown_ros.attitude import kernel as attitude_kernel
 from strapdown_ros.attitude.coning import algorithm_names
-from strapdown_ros.attitude.integrator import AttitudeIntegrator, IncrementAccumulator
+from strapdown_ros.attitude.integrator import AttitudeIntegrator
 from strapdown_ros.motion.profiles import (ConingProfile, PiecewiseRateProfile, Segment,
                                            tkachenko_profile)
 from strapdown_ros.rotation import (cross, quat_angle_between, quat_error_rotvec, quat_to_dcm,
@@ -172,18 +172,6 @@ def test_quantization_and_initial_sigma_in_covariance():
     ck = quat_to_dcm(out.attitude[-1])
     expect = ck.T @ c0 @ (1e-6 * np.eye(3)) @ c0.T @ ck + (1e-10 / 12) * np.eye(3)
     np.testing.assert_allclose(out.covariance[-1], expect, rtol=1e-12, atol=1e-20)
-
-
-def test_increment_accumulator_bins_by_stamp():
-    """Increments are summed into the interval holding their end stamp."""
-    acc = IncrementAccumulator()
-    ts = np.arange(1, 13) / 300.0
-    acc.add(np.ones((12, 3)), ts)
-    s, n = acc.take(0.0, 0.01 + 1e-12)
-    assert n == 3 and np.allclose(s, 3.0)
-    sums, counts = acc.take_many(np.array([0.01, 0.02, 0.03]) + 1e-12)
-    assert list(counts) == [3, 3] and np.allclose(sums, 3.0)
-    assert acc.covered_until() == pytest.approx(0.04)
 
 
 def test_validation_messages():
