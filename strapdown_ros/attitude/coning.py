@@ -429,7 +429,7 @@ def theory_drift(alg: ConingAlgorithm, omega_h) -> float | None:
         coefficients cannot be read (:func:`spacing_coefficients`).
 
     """
-    coeffs = _series_coefficients(alg.name)
+    coeffs = _series_coefficients(alg)
     if coeffs is None:
         return None
     x = np.asarray(omega_h, dtype=float) / alg.samples
@@ -444,9 +444,8 @@ def theory_drift(alg: ConingAlgorithm, omega_h) -> float | None:
 
 
 @lru_cache(maxsize=None)
-def _series_coefficients(name: str, terms: int = 40):
-
-    alg = ALGORITHMS[name]
+def _series_coefficients(alg: ConingAlgorithm, terms: int = 40):
+    """Return the exact series coefficients of the drift bracket (cached per algorithm)."""
     k = spacing_coefficients(alg)
     if k is None:
         return None
