@@ -1,1 +1,1 @@
-"""Attitude from gyro increments: the coning-algorithm registry, the integrator and its kernel."""
+"""Attitude from gyro increments: the coning registry, the integrator, its kernel and sums."""

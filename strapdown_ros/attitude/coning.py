@@ -1,7 +1,11 @@
 """
-The coning-algorithm family: how the body rotation vector φ of one attitude update is
-formed from integrating-gyro increments q_i (Aksyonenko 2014; paper 003, §1.4, §2.2; and the
-literature: Miller 1983, Savage 1998, Bortz 1971 — doc/references.md).
+The coning-algorithm registry: the body rotation vector φ of one update from gyro increments.
+
+Every algorithm forms φ from integrating-gyro increments q_i (Aksyonenko 2014, paper 003,
+§1.4 and §2.2; literature forms after Miller 1983, Savage 1998 and Lee et al. 1990;
+doc/references.md).  ``ALGORITHMS`` is the one home of the formulas: the attitude integrator,
+its compiled kernel, the parameters of the nodes and the benchmarks all read it, so a new
+algorithm is one ``phi`` function and one entry here (doc/architecture.md).
 
 Every algorithm has the form ``φ = Σ q_i + Σ k_ij q_i × q_j`` over a *window* of
 increments, oldest first.  A window holds ``history`` previous increments (already
@@ -13,12 +17,10 @@ Cross-product convention: ``q_i × q_j`` with ``i`` earlier than ``j`` (the incr
 multiplied on the right is the later one).  With it, the classical 2-sample
 correction is ``+2/3 q1 × q2``.
 
-Order of accuracy here means the exponent p of the cone-axis drift
-``ε ∝ α²Ω(Ωh)^p`` under classical coning (h = update interval), the meaning the
-thesis uses ("algorithm 2 is of 4th order").  Under coning the drift is odd in Ωh
-per update, so p is always even.  The verdicts on the printed formulas of 003 come
-from ``test/attitude/test_coning.py`` and are written up, with the derivations of the
-corrected forms, in ``doc/coning_derivations.md``.
+Order of accuracy means the exponent p of the cone-axis drift ``ε ∝ α²Ω(Ωh)^p`` under
+classical coning (h = update interval), the meaning the thesis uses ("algorithm 2 is of 4th
+order"); p is always even.  The verdicts on the printed formulas of 003 and the derivations
+of the corrected forms are in doc/coning_derivations.md.
 
 All ``phi`` functions are vectorised: ``window`` has shape (M, history + samples, 3).
 """
@@ -34,28 +36,71 @@ import numpy as np
 
 from strapdown_ros.rotation import cross
 
-__all__ = ['ConingAlgorithm', 'ALGORITHMS', 'get_algorithm', 'algorithm_names', 'SEED_ALGORITHMS',
-           'LITERATURE_DRIFT', 'spacing_coefficients', 'theory_drift', 'bilinear_form']
+__all__ = ['ConingAlgorithm', 'ALGORITHMS', 'get_algorithm', 'algorithm_names',
+           'SEED_ALGORITHMS', 'LITERATURE_DRIFT', 'LITERATURE_DRIFT_TEXT',
+           'spacing_coefficients', 'theory_drift', 'bilinear_form']
 
 
 @dataclass(frozen=True)
 class ConingAlgorithm:
+    """
+    One coning algorithm of the registry: its formula and what is known about it.
+
+    Parameters
+    ----------
+    name : str
+        Registry key, e.g. ``'2'`` (003's numbering) or ``'two_sample'``.
+    samples : int
+        New increments per update (N).
+    history : int
+        Previous increments used (accelerating algorithms), taken from earlier updates.
+    phi : callable
+        ``phi(window) -> (M, 3)`` rotation vector, rad, from ``window`` (M, history + samples,
+        3), oldest increment first.
+    cross_products : int
+        Vector cross products per update.
+    additions : int
+        Vector additions and subtractions per update (Σq included).
+    scalings : int
+        Vector-by-scalar products per update.  The three counts are for the cheapest
+        evaluation order, the attitude update itself not included.
+    order_intended : int or None
+        Order of accuracy claimed by the source (thesis or literature).
+    order_expected : int or None
+        Order of this form, from the moment conditions (doc/coning_derivations.md).
+    source : str
+        Equation or literature reference.
+    formula : str
+        The formula as implemented, for tables.
+    note : str, optional
+        Verdict on the printed form, or the published drift.
+
+    """
+
     name: str
-    samples: int                     # new increments per update (N)
-    history: int                     # previous increments used (accelerating algorithms)
+    samples: int
+    history: int
     phi: Callable[[np.ndarray], np.ndarray]
-    cross_products: int              # vector cross products per update
-    additions: int                   # vector additions/subtractions per update (incl. Σq),
-    scalings: int                    # vector × scalar products per update; both counted for the
-                                     # cheapest evaluation order (the attitude update not included)
-    order_intended: int | None       # order claimed by the source (thesis or literature)
-    order_expected: int | None       # order of this form, from the moment conditions (doc/coning_derivations.md)
-    source: str                      # equation reference
-    formula: str                     # the formula as implemented
+    cross_products: int
+    additions: int
+    scalings: int
+    order_intended: int | None
+    order_expected: int | None
+    source: str
+    formula: str
     note: str = ''
 
     @property
     def window(self) -> int:
+        """
+        Return the number of increments one update reads, ``history + samples``.
+
+        Returns
+        -------
+        int
+            Window length.
+
+        """
         return self.history + self.samples
 
 
@@ -106,7 +151,8 @@ def _alg4(w):                                    # (1.80)/(2.18)
     return q1 + q2 + q3 + q4 + (2.0 / 3.0) * _x(q1 + q2, q3 + q4)
 
 
-def _alg4plus(w):                                # (1.81)/(2.19) corrected (doc/coning_derivations.md §4+)
+def _alg4plus(w):
+    # (1.81)/(2.19) corrected (doc/coning_derivations.md §4+)
     q1, q2, q3, q4 = (_q(w, i) for i in range(4))
     return (q1 + q2 + q3 + q4 + (22.0 / 15.0) * (_x(q1, q3) + _x(q2, q4))
             - (8.0 / 15.0) * _x(q2, q3))
@@ -118,7 +164,8 @@ def _alg4plus_runge(w):                          # Richardson (Runge) form of th
             + (22.0 / 45.0) * _x(q1 + q2, q3 + q4))
 
 
-def _alg4plus_printed(w):                        # as printed: q2+q2+q3+q3 + 4/3[q1×q3 + q2×q3 + q2×q4]
+def _alg4plus_printed(w):
+    # as printed: q2 + q2 + q3 + q3 + 4/3 [q1×q3 + q2×q3 + q2×q4]
     q1, q2, q3, q4 = (_q(w, i) for i in range(4))
     return q2 + q2 + q3 + q3 + (4.0 / 3.0) * (_x(q1, q3) + _x(q2, q3) + _x(q2, q4))
 
@@ -141,7 +188,8 @@ def _alg6(w):                                    # (1.83)/(2.21): q2 + 1/12 q1 �
     return q2 + (1.0 / 12.0) * _x(q1, q2)
 
 
-def _alg7(w):                                    # (1.84)/(2.22), causal reading (doc/coning_derivations.md §7)
+def _alg7(w):
+    # (1.84)/(2.22), causal reading (doc/coning_derivations.md §7)
     q1, q2, q3 = _q(w, 0), _q(w, 1), _q(w, 2)    # q3 current, q2, q1 previous
     return q3 + (1.0 / 6.0) * _x(q2, q3) - (1.0 / 24.0) * _x(q1, q3)
 
@@ -171,64 +219,66 @@ def _four_opt(w):
 
 
 _T = '003'
+_C = ConingAlgorithm
 ALGORITHMS: dict[str, ConingAlgorithm] = {a.name: a for a in [
-    ConingAlgorithm('1', 1, 0, _alg1, 0, 0, 0, 2, 2, f'{_T} (1.76), (2.14)', 'φ = q1',
-                    'single sample; no coning correction'),
-    ConingAlgorithm('2', 2, 0, _alg2, 1, 2, 1, 4, 4, f'{_T} (1.77), (2.15)',
-                    'φ = q1 + q2 + 2/3 q1×q2', 'as printed: OK; identical to two_sample'),
-    ConingAlgorithm('3', 3, 0, _alg3, 1, 3, 1, 4, 4, f'{_T} (1.78), (2.16)',
-                    'φ = q1 + q2 + q3 + 9/8 q1×q3',
-                    'printed 9/8 q3×q1 has the operands reversed (order 2); corrected form is order 4'),
-    ConingAlgorithm('3_as_printed', 3, 0, _alg3_printed, 1, 3, 1, 4, 2, f'{_T} (1.78) as printed',
-                    'φ = q1 + q2 + q3 + 9/8 q3×q1', 'doubles the uncorrected drift'),
-    ConingAlgorithm('3.1', 3, 0, _alg31, 1, 5, 2, 4, 6, f'{_T} (1.79), (2.17)',
-                    'φ = q1 + q2 + q3 + 9/20 (q1 + 3/2 q2)×(q3 − q1)',
-                    'printed (q3 − q1)×(q1 + 3/2 q2) has the operands reversed (order 2); corrected form '
-                    'equals three_sample_optimal and reaches order 6 (the thesis claims 4)'),
-    ConingAlgorithm('3.1_as_printed', 3, 0, _alg31_printed, 1, 5, 2, 4, 2, f'{_T} (1.79) as printed',
-                    'φ = q1 + q2 + q3 + 9/20 (q3 − q1)×(q1 + 3/2 q2)', ''),
-    ConingAlgorithm('4', 4, 0, _alg4, 1, 4, 1, 4, 4, f'{_T} (1.80), (2.18)',
-                    'φ = Σq + 2/3 (q1 + q2)×(q3 + q4)',
-                    'as printed: OK; the 2-sample algorithm on pairs of increments'),
-    ConingAlgorithm('4+', 4, 0, _alg4plus_runge, 3, 6, 2, 5, 6, f'{_T} (1.81), (2.19); §1.4.4',
-                    'φ = Σq + 32/45 (q1×q2 + q3×q4) + 22/45 (q1 + q2)×(q3 + q4)',
-                    'printed form is garbled (sum q2+q2+q3+q3, order 2). This is the Runge (Richardson) '
-                    'extrapolation §1.4.4 describes, (16·fine − coarse)/15 with fine = two 2-sample '
-                    'updates and coarse = algorithm 4: 3 cross products, order 6 (odd orders cannot occur)'),
-    ConingAlgorithm('4+_printed_terms', 4, 0, _alg4plus, 3, 6, 2, 5, 6, f'{_T} (1.81) cross-product set',
-                    'φ = Σq + 22/15 (q1×q3 + q2×q4) − 8/15 q2×q3',
-                    'keeps the printed cross-product set and solves the two coning moment conditions; '
-                    'order 6 but a 20× larger coefficient than 4+'),
-    ConingAlgorithm('4+_as_printed', 4, 0, _alg4plus_printed, 3, 6, 1, 5, 2, f'{_T} (1.81) as printed',
-                    'φ = q2 + q2 + q3 + q3 + 4/3 [q1×q3 + q2×q3 + q2×q4]', ''),
-    ConingAlgorithm('5', 5, 0, _alg5, 4, 8, 3, 4, 6, f'{_T} (1.82), (2.20)',
-                    'φ = Σq − 1375/432 q2×q4 − 1625/864 q1×q5 + 875/216 (q1×q4 + q2×q5)',
-                    'printed later×earlier products have the operands reversed (order 2); corrected form '
-                    'reaches order 6 (the thesis claims 4)'),
-    ConingAlgorithm('5_as_printed', 5, 0, _alg5_printed, 4, 8, 3, 4, 2, f'{_T} (1.82) as printed',
-                    'φ = Σq − 1375/432 q4×q2 − 1625/864 q5×q1 + 875/216 (q4×q1 + q5×q2)', ''),
-    ConingAlgorithm('6', 1, 1, _alg6, 1, 1, 1, 3, 4, f'{_T} (1.83), (2.21)',
-                    'φ = q2 + 1/12 q1×q2 (q1 previous)',
-                    'as printed: OK; order 4, better than the claimed 3; identical to one_plus_previous'),
-    ConingAlgorithm('7', 1, 2, _alg7, 2, 2, 2, 4, 4, f'{_T} (1.84), (2.22)',
-                    'φ = q3 + 1/6 q2×q3 − 1/24 q1×q3 (q1, q2 previous)',
-                    'printed with newest-first indices; read causally it is order 4 as claimed, but its '
-                    'error coefficient is 1.5× that of algorithm 6'),
-    ConingAlgorithm('7_as_printed', 1, 2, _alg7_printed, 2, 2, 2, 4, 2, f'{_T} (1.84) as printed',
-                    'φ = q1 + 1/6 q2×q1 − 1/24 q3×q1 (q1 oldest)',
-                    'corrections of the wrong sign (order 2, twice the uncorrected drift); the attitude '
-                    'also lags by two samples'),
+    _C('1', 1, 0, _alg1, 0, 0, 0, 2, 2, f'{_T} (1.76), (2.14)', 'φ = q1',
+       'single sample; no coning correction'),
+    _C('2', 2, 0, _alg2, 1, 2, 1, 4, 4, f'{_T} (1.77), (2.15)',
+       'φ = q1 + q2 + 2/3 q1×q2', 'as printed: OK; identical to two_sample'),
+    _C('3', 3, 0, _alg3, 1, 3, 1, 4, 4, f'{_T} (1.78), (2.16)',
+       'φ = q1 + q2 + q3 + 9/8 q1×q3',
+       'printed 9/8 q3×q1 has the operands reversed (order 2); corrected form is order 4'),
+    _C('3_as_printed', 3, 0, _alg3_printed, 1, 3, 1, 4, 2, f'{_T} (1.78) as printed',
+       'φ = q1 + q2 + q3 + 9/8 q3×q1', 'doubles the uncorrected drift'),
+    _C('3.1', 3, 0, _alg31, 1, 5, 2, 4, 6, f'{_T} (1.79), (2.17)',
+       'φ = q1 + q2 + q3 + 9/20 (q1 + 3/2 q2)×(q3 − q1)',
+       'printed (q3 − q1)×(q1 + 3/2 q2) has the operands reversed (order 2); corrected form '
+       'equals three_sample_optimal and reaches order 6 (the thesis claims 4)'),
+    _C('3.1_as_printed', 3, 0, _alg31_printed, 1, 5, 2, 4, 2, f'{_T} (1.79) as printed',
+       'φ = q1 + q2 + q3 + 9/20 (q3 − q1)×(q1 + 3/2 q2)', ''),
+    _C('4', 4, 0, _alg4, 1, 4, 1, 4, 4, f'{_T} (1.80), (2.18)',
+       'φ = Σq + 2/3 (q1 + q2)×(q3 + q4)',
+       'as printed: OK; the 2-sample algorithm on pairs of increments'),
+    _C('4+', 4, 0, _alg4plus_runge, 3, 6, 2, 5, 6, f'{_T} (1.81), (2.19); §1.4.4',
+       'φ = Σq + 32/45 (q1×q2 + q3×q4) + 22/45 (q1 + q2)×(q3 + q4)',
+       'printed form is garbled (sum q2+q2+q3+q3, order 2). This is the Runge (Richardson) '
+       'extrapolation §1.4.4 describes, (16·fine − coarse)/15 with fine = two 2-sample '
+       'updates and coarse = algorithm 4: 3 cross products, order 6 (odd orders cannot '
+       'occur)'),
+    _C('4+_printed_terms', 4, 0, _alg4plus, 3, 6, 2, 5, 6, f'{_T} (1.81) cross-product set',
+       'φ = Σq + 22/15 (q1×q3 + q2×q4) − 8/15 q2×q3',
+       'keeps the printed cross-product set and solves the two coning moment conditions; '
+       'order 6 but a 20× larger coefficient than 4+'),
+    _C('4+_as_printed', 4, 0, _alg4plus_printed, 3, 6, 1, 5, 2, f'{_T} (1.81) as printed',
+       'φ = q2 + q2 + q3 + q3 + 4/3 [q1×q3 + q2×q3 + q2×q4]', ''),
+    _C('5', 5, 0, _alg5, 4, 8, 3, 4, 6, f'{_T} (1.82), (2.20)',
+       'φ = Σq − 1375/432 q2×q4 − 1625/864 q1×q5 + 875/216 (q1×q4 + q2×q5)',
+       'printed later×earlier products have the operands reversed (order 2); corrected form '
+       'reaches order 6 (the thesis claims 4)'),
+    _C('5_as_printed', 5, 0, _alg5_printed, 4, 8, 3, 4, 2, f'{_T} (1.82) as printed',
+       'φ = Σq − 1375/432 q4×q2 − 1625/864 q5×q1 + 875/216 (q4×q1 + q5×q2)', ''),
+    _C('6', 1, 1, _alg6, 1, 1, 1, 3, 4, f'{_T} (1.83), (2.21)',
+       'φ = q2 + 1/12 q1×q2 (q1 previous)',
+       'as printed: OK; order 4, better than the claimed 3; identical to one_plus_previous'),
+    _C('7', 1, 2, _alg7, 2, 2, 2, 4, 4, f'{_T} (1.84), (2.22)',
+       'φ = q3 + 1/6 q2×q3 − 1/24 q1×q3 (q1, q2 previous)',
+       'printed with newest-first indices; read causally it is order 4 as claimed, but its '
+       'error coefficient is 1.5× that of algorithm 6'),
+    _C('7_as_printed', 1, 2, _alg7_printed, 2, 2, 2, 4, 2, f'{_T} (1.84) as printed',
+       'φ = q1 + 1/6 q2×q1 − 1/24 q3×q1 (q1 oldest)',
+       'corrections of the wrong sign (order 2, twice the uncorrected drift); the attitude '
+       'also lags by two samples'),
     # literature
-    ConingAlgorithm('one_plus_previous', 1, 1, _alg6, 1, 1, 1, 4, 4, 'Miller 1983; Savage 1998',
-                    'φ = q_k + 1/12 q_{k−1}×q_k', 'drift (Ωh)^4/60'),
-    ConingAlgorithm('two_sample', 2, 0, _alg2, 1, 2, 1, 4, 4, 'Miller 1983',
-                    'φ = q1 + q2 + 2/3 q1×q2', 'drift (Ωh)^4/960'),
-    ConingAlgorithm('three_sample_polynomial', 3, 0, _three_poly, 2, 5, 2, 4, 4, 'Lee et al. 1990',
-                    'φ = Σq + 33/80 q1×q3 + 57/80 q2×(q3 − q1)', 'drift −(Ωh)^4/6480'),
-    ConingAlgorithm('three_sample_optimal', 3, 0, _three_opt, 2, 5, 2, 6, 6, 'Miller 1983',
-                    'φ = Σq + 9/20 q1×q3 + 27/40 q2×(q3 − q1)', 'drift (Ωh)^6/204120'),
-    ConingAlgorithm('four_sample_optimal', 4, 0, _four_opt, 1, 6, 3, 8, 8, 'Lee et al. 1990',
-                    'φ = Σq + (54 q1 + 92 q2 + 214 q3)/105 × q4', 'drift (Ωh)^8/82575360'),
+    _C('one_plus_previous', 1, 1, _alg6, 1, 1, 1, 4, 4, 'Miller 1983; Savage 1998',
+       'φ = q_k + 1/12 q_{k−1}×q_k', 'drift (Ωh)^4/60'),
+    _C('two_sample', 2, 0, _alg2, 1, 2, 1, 4, 4, 'Miller 1983',
+       'φ = q1 + q2 + 2/3 q1×q2', 'drift (Ωh)^4/960'),
+    _C('three_sample_polynomial', 3, 0, _three_poly, 2, 5, 2, 4, 4, 'Lee et al. 1990',
+       'φ = Σq + 33/80 q1×q3 + 57/80 q2×(q3 − q1)', 'drift −(Ωh)^4/6480'),
+    _C('three_sample_optimal', 3, 0, _three_opt, 2, 5, 2, 6, 6, 'Miller 1983',
+       'φ = Σq + 9/20 q1×q3 + 27/40 q2×(q3 − q1)', 'drift (Ωh)^6/204120'),
+    _C('four_sample_optimal', 4, 0, _four_opt, 1, 6, 3, 8, 8, 'Lee et al. 1990',
+       'φ = Σq + (54 q1 + 92 q2 + 214 q3)/105 × q4', 'drift (Ωh)^8/82575360'),
 ]}
 
 #: the thesis's algorithms (corrected forms), in the thesis's numbering
@@ -244,13 +294,36 @@ LITERATURE_DRIFT = {
     'four_sample_optimal': lambda x: x ** 8 / 82575360.0,
 }
 
+#: the same leading terms as printed in tables (the keys of :data:`LITERATURE_DRIFT`)
+LITERATURE_DRIFT_TEXT = {
+    '1': '(Ωh)²/12',
+    'one_plus_previous': '(Ωh)⁴/60',
+    'two_sample': '(Ωh)⁴/960',
+    'three_sample_polynomial': '−(Ωh)⁴/6480',
+    'three_sample_optimal': '(Ωh)⁶/204120',
+    'four_sample_optimal': '(Ωh)⁸/82575360',
+}
+
 
 def spacing_coefficients(alg: ConingAlgorithm) -> dict[int, float] | None:
     """
-    Net coefficient K_m of all cross products ``q_i × q_j`` with ``j − i = m`` that
-    involve at least one new increment.  Extracted by evaluating φ on unit vectors
-    (every φ here is Σq plus a bilinear antisymmetric form).  Returns None when the
-    linear part of φ is not the sum of the new increments (a garbled form).
+    Return the net cross-product coefficient K_m of each index spacing m.
+
+    K_m sums the coefficients of all ``q_i × q_j`` with ``j − i = m`` that involve at least
+    one new increment.  They are read off ``alg.phi`` on unit vectors (every φ here is Σq
+    plus a bilinear antisymmetric form).
+
+    Parameters
+    ----------
+    alg : ConingAlgorithm
+        The algorithm.
+
+    Returns
+    -------
+    dict of int to float, or None
+        ``{m: K_m}``; None when the linear part of φ is not the sum of the new increments (a
+        garbled form).
+
     """
     n = alg.window
     new = list(range(alg.history, n))
@@ -276,16 +349,27 @@ def spacing_coefficients(alg: ConingAlgorithm) -> dict[int, float] | None:
 @lru_cache(maxsize=None)
 def bilinear_form(name: str) -> tuple[np.ndarray, np.ndarray] | None:
     """
-    φ of algorithm ``name`` as a table: ``φ = Σ_i lin_i q_i + Σ_p k_p q_{i_p} × q_{j_p}``
-    (window slots, oldest first) → ``(lin (W,), pairs (P, 3))``, rows of pairs ``(i_p, j_p, k_p)``
-    (indices as floats), for the compiled block kernel (:mod:`strapdown_ros.attitude.kernel`),
-    which evaluates every algorithm from its table.
+    Return φ of an algorithm as a coefficient table, for the compiled block kernel.
 
-    The table is read off ``phi`` itself (the registry stays the one home of the formulas):
-    ``lin_i`` from a unit x increment in slot i, ``k_ij`` from the z component of e_x in slot i
-    and e_y in slot j.  It is then checked on random windows, with the increments' scale from
-    1e-6 to 1 rad: the table must reproduce ``phi`` to 1e-13 relative, or None is returned
-    (a form that is not linear plus bilinear cross products is evaluated by ``phi``, in numpy).
+    ``φ = Σ_i lin_i q_i + Σ_p k_p q_{i_p} × q_{j_p}`` over the window slots, oldest first.
+    The table is read off ``phi`` itself, so the registry stays the one home of the formulas:
+    ``lin_i`` from a unit x increment in slot i, ``k_ij`` from the z component of e_x in slot
+    i and e_y in slot j.  It is then checked on random windows with increments from 1e-6 to
+    1 rad: it must reproduce ``phi`` to 1e-13 relative.  A form that is not linear plus
+    bilinear cross products is refused and evaluated by ``phi`` in numpy.
+
+    Parameters
+    ----------
+    name : str
+        Key of :data:`ALGORITHMS`.
+
+    Returns
+    -------
+    tuple of ndarray, or None
+        ``(lin (W,), pairs (P, 3))``, read-only; rows of ``pairs`` are ``(i_p, j_p, k_p)``
+        with the slot indices as floats (:mod:`strapdown_ros.attitude.kernel`).  None when
+        the table does not reproduce ``phi``.
+
     """
     alg = ALGORITHMS[name]
     n = alg.window
@@ -308,7 +392,8 @@ def bilinear_form(name: str) -> tuple[np.ndarray, np.ndarray] | None:
     rng = np.random.default_rng(12345)
     for scale in (1e-6, 1e-3, 1.0):
         w = scale * rng.normal(size=(16, n, 3))
-        rebuilt = np.einsum('i,mia->ma', lin, w) + (kk[None, :, None] * cross(w[:, pi], w[:, pj])).sum(1)
+        products = kk[None, :, None] * cross(w[:, pi], w[:, pj])
+        rebuilt = np.einsum('i,mia->ma', lin, w) + products.sum(1)
         ref = alg.phi(w)
         if np.max(np.abs(rebuilt - ref)) > 1e-13 * np.max(np.abs(ref)):
             return None
@@ -319,21 +404,32 @@ def bilinear_form(name: str) -> tuple[np.ndarray, np.ndarray] | None:
 
 def theory_drift(alg: ConingAlgorithm, omega_h) -> float | None:
     """
-    Cone-axis drift ε/(α²Ω) to leading order in α, *exact* in Ωh.
+    Return the cone-axis drift ε/(α²Ω) to leading order in α, exact in Ωh.
 
     Under classical coning with x = Ωτ the z component of ``q_i × q_j`` is
     ``−sin²α·4 sin²(x/2)·sin((j−i)x)`` and Σq_z over an update of N increments exceeds
     the z component of the true rotation vector by ``½ sin²α (Nx − sin Nx)``.  With the
     error taken as computed minus true, per update
     ``e = α²[½(Nx − sin Nx) − Σ_m K_m 4 sin²(x/2) sin(mx)]`` and ``ε/(α²Ω) = e/(α² Nx)``.
-    Expanding in x reproduces every entry of :data:`LITERATURE_DRIFT`.
+    The bracket is evaluated as its Taylor series with exact rational coefficients, because
+    the closed form cancels catastrophically for high orders at small Ωh
+    (doc/coning_derivations.md).  Expanding in x reproduces :data:`LITERATURE_DRIFT`.
 
-    The bracket is evaluated as its Taylor series with exact rational coefficients
-    (``4 sin²(x/2) sin(mx) = 2 sin(mx) − sin((m+1)x) − sin((m−1)x)``, K_m recovered as
-    fractions), because the closed form cancels catastrophically for high orders at
-    small Ωh (the x⁹ term of an 8th-order algorithm against x³ terms of size 1).
+    Parameters
+    ----------
+    alg : ConingAlgorithm
+        The algorithm.
+    omega_h : float or ndarray
+        Cone rate times update interval, Ωh, rad.
+
+    Returns
+    -------
+    float or ndarray or None
+        ε/(α²Ω), dimensionless, the shape of ``omega_h``; None for a form whose spacing
+        coefficients cannot be read (:func:`spacing_coefficients`).
+
     """
-    coeffs = _series_coefficients(alg.name)
+    coeffs = _series_coefficients(alg)
     if coeffs is None:
         return None
     x = np.asarray(omega_h, dtype=float) / alg.samples
@@ -348,9 +444,8 @@ def theory_drift(alg: ConingAlgorithm, omega_h) -> float | None:
 
 
 @lru_cache(maxsize=None)
-def _series_coefficients(name: str, terms: int = 40):
-
-    alg = ALGORITHMS[name]
+def _series_coefficients(alg: ConingAlgorithm, terms: int = 40):
+    """Return the exact series coefficients of the drift bracket (cached per algorithm)."""
     k = spacing_coefficients(alg)
     if k is None:
         return None
@@ -369,10 +464,38 @@ def _series_coefficients(name: str, terms: int = 40):
 
 
 def algorithm_names() -> list[str]:
+    """
+    Return the names of the registered algorithms, in registry order.
+
+    Returns
+    -------
+    list of str
+        Keys of :data:`ALGORITHMS`.
+
+    """
     return list(ALGORITHMS)
 
 
 def get_algorithm(name: str) -> ConingAlgorithm:
+    """
+    Return the registered algorithm of a name.
+
+    Parameters
+    ----------
+    name : str
+        Key of :data:`ALGORITHMS`.
+
+    Returns
+    -------
+    ConingAlgorithm
+        The algorithm.
+
+    Raises
+    ------
+    ValueError
+        For an unknown name; the message lists the valid names.
+
+    """
     try:
         return ALGORITHMS[name]
     except KeyError:

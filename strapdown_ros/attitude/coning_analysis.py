@@ -1,6 +1,9 @@
 """
 Measuring coning algorithms on exact coning motion: drift, round-off floor, order, cost.
 
+The library under ``coning_bench`` and the reproduction of 003 §2.3; the measured figures are
+in doc/coning.md.
+
 Drift
     The cone-axis (reference Z) component of the attitude error
     ``e = 2·vec(q_est ⊗ q_true*)_z`` is fitted with a least-squares line over the update
@@ -36,7 +39,8 @@ from strapdown_ros.motion.profiles import ConingProfile
 from strapdown_ros.rotation import (quat_conjugate, quat_cumprod, quat_multiply, quat_normalize,
                                     quat_to_rotvec, rotvec_to_quat)
 
-__all__ = ['LineFit', 'ode_reference', 'measure_case', 'order_sweep', 'cost_per_update', 'CaseResult']
+__all__ = ['LineFit', 'ode_reference', 'measure_case', 'order_sweep', 'cost_per_update',
+           'CaseResult']
 
 #: the three coning cases of 003 §2.3 (α rad, ν rad/s) and its two update periods (s)
 THESIS_CASES = [(0.087, 1.0), (0.5, 1.0), (0.087, 0.5)]
@@ -46,9 +50,16 @@ THESIS_RANKING = ['7', '6', '4+', '5', '4', '3.1', '3', '2', '1']       # best f
 FLOOR_FACTOR = 3.0
 
 
-
 class LineFit:
-    """Streaming least-squares line e(t) = a + b·(t − t0), with residual scatter."""
+    """
+    Streaming least-squares line e(t) = a + b·(t − t0), with residual scatter.
+
+    Parameters
+    ----------
+    t0 : float
+        Time origin of the fit, s (the middle of the span keeps the sums well conditioned).
+
+    """
 
     def __init__(self, t0: float):
         self.t0 = t0
@@ -56,6 +67,17 @@ class LineFit:
         self.st = self.se = self.stt = self.ste = self.see = 0.0
 
     def add(self, t: np.ndarray, e: np.ndarray):
+        """
+        Add points to the fit.
+
+        Parameters
+        ----------
+        t : (n,) array_like
+            Times, s.
+        e : (n,) array_like
+            Values at those times.
+
+        """
         x = np.asarray(t, dtype=float) - self.t0
         e = np.asarray(e, dtype=float)
         self.n += len(x)
@@ -66,7 +88,15 @@ class LineFit:
         self.see += e @ e
 
     def slope(self) -> tuple[float, float]:
-        """(slope, 1σ of the slope from the residual scatter)."""
+        """
+        Return the fitted slope and its 1σ.
+
+        Returns
+        -------
+        tuple of float
+            (slope, 1σ of the slope from the residual scatter), per second.
+
+        """
         n = self.n
         sxx = self.stt - self.st ** 2 / n
         sxe = self.ste - self.st * self.se / n
@@ -76,16 +106,40 @@ class LineFit:
         return b, float(np.sqrt(resid / sxx))
 
 
-def ode_reference(profile: ConingProfile, duration: float, rtol: float = 1e-13, atol: float = 1e-15):
-    """Dense DOP853 solution of the quaternion kinematics; returns ``f(t) → q (n, 4)``."""
+def ode_reference(profile: ConingProfile, duration: float, rtol: float = 1e-13,
+                  atol: float = 1e-15):
+    """
+    Solve the quaternion kinematics of a coning profile by DOP853 (scipy), densely.
+
+    Parameters
+    ----------
+    profile : ConingProfile
+        The motion.
+    duration : float
+        End of the solution, s (from 0).
+    rtol, atol : float
+        Tolerances of the solver.
+
+    Returns
+    -------
+    callable
+        ``attitude(t) -> (n, 4)`` ``q_ref_body``, scalar first; its ``nfev`` attribute is the
+        number of right-hand-side evaluations.
+
+    Raises
+    ------
+    RuntimeError
+        When the solver fails.
+
+    """
     from scipy.integrate import solve_ivp
 
     def rhs(t, q):
         w = profile.body_rate(t)
         return 0.5 * quat_multiply(q, np.concatenate([[0.0], w]))
 
-    sol = solve_ivp(rhs, (0.0, duration), profile.attitude(0.0), method='DOP853', rtol=rtol, atol=atol,
-                    dense_output=True)
+    sol = solve_ivp(rhs, (0.0, duration), profile.attitude(0.0), method='DOP853', rtol=rtol,
+                    atol=atol, dense_output=True)
     if not sol.success:
         raise RuntimeError(f'ODE reference failed: {sol.message}')
 
@@ -102,21 +156,79 @@ def _cone_error(q_est: np.ndarray, q_true: np.ndarray) -> np.ndarray:
 
 @dataclass
 class CaseResult:
+    """
+    Drift of the algorithms on one coning case (:func:`measure_case`).
+
+    Parameters
+    ----------
+    alpha : float
+        Cone half-angle α, rad.
+    nu : float
+        Cone frequency ν, rad/s.
+    step : float
+        Gyro sample interval τ, s.
+    duration : float
+        Length of the run, s.
+    fitted_until : float
+        End of the fitted span (whole cone periods), s.
+    drift : dict
+        Algorithm name → drift against the analytic truth, rad/s.
+    drift_ode : dict
+        Algorithm name → drift against the ODE truth, rad/s, when computed.
+    floor : dict
+        Samples per update N → round-off floor, rad/s.
+    truth_gap : float
+        Largest angle between the analytic and the ODE truth, rad (NaN without the ODE).
+    wall_s : float
+        Wall time of the case, s.
+
+    """
+
     alpha: float
     nu: float
     step: float
     duration: float
     fitted_until: float
-    drift: dict = field(default_factory=dict)          # name → rad/s (analytic truth)
-    drift_ode: dict = field(default_factory=dict)      # name → rad/s (ODE truth), when computed
-    floor: dict = field(default_factory=dict)          # samples per update N → rad/s
-    truth_gap: float = float('nan')                    # max angle between analytic and ODE truth, rad
+    drift: dict = field(default_factory=dict)
+    drift_ode: dict = field(default_factory=dict)
+    floor: dict = field(default_factory=dict)
+    truth_gap: float = float('nan')
     wall_s: float = 0.0
 
 
-def measure_case(names, alpha: float, nu: float, step: float, duration: float, with_ode: bool = False,
-                 chunk: int = 120_000) -> CaseResult:
-    """Drift of every algorithm in ``names`` on one coning case, plus floors (and ODE peer)."""
+def measure_case(names, alpha: float, nu: float, step: float, duration: float,
+                 with_ode: bool = False, chunk: int = 120_000) -> CaseResult:
+    """
+    Measure the drift of algorithms on one coning case, with the round-off floors.
+
+    Parameters
+    ----------
+    names : sequence of str
+        Algorithms of the coning registry.
+    alpha : float
+        Cone half-angle α, rad.
+    nu : float
+        Cone frequency ν, rad/s.
+    step : float
+        Gyro sample interval τ, s.
+    duration : float
+        Length of the run, s; at least one cone period.
+    with_ode : bool
+        Also measure against the DOP853 reference (:func:`ode_reference`).
+    chunk : int
+        Samples generated at a time (bounds the memory).
+
+    Returns
+    -------
+    CaseResult
+        Drifts, floors and timing.
+
+    Raises
+    ------
+    ValueError
+        When ``duration`` is shorter than one cone period.
+
+    """
     t_wall = time.perf_counter()
     prof = ConingProfile(alpha, nu)
     n_total = int(round(duration / step))
@@ -125,11 +237,12 @@ def measure_case(names, alpha: float, nu: float, step: float, duration: float, w
     if t_fit <= 0:
         raise ValueError(f'duration {duration} s is shorter than one cone period {period:.4g} s')
     algs = {n: ALGORITHMS[n] for n in names}
-    integ = {n: AttitudeIntegrator(n, prof.attitude(0.0), 0.0, nominal_period=step, propagate_covariance=False)
+    integ = {n: AttitudeIntegrator(n, prof.attitude(0.0), 0.0, nominal_period=step,
+                                   propagate_covariance=False)
              for n in names}
     fits = {n: LineFit(t_fit / 2) for n in names}
     fits_ode = {n: LineFit(t_fit / 2) for n in names}
-    seen = {n: 0 for n in names}
+    seen = dict.fromkeys(names, 0)
     ns = sorted({a.samples for a in algs.values()})
     floor_q = {n: prof.attitude(0.0) for n in ns}
     floor_fit = {n: LineFit(t_fit / 2) for n in ns}
@@ -142,25 +255,28 @@ def measure_case(names, alpha: float, nu: float, step: float, duration: float, w
         truth = prof.attitude(t)                       # t[0] is the previous epoch
         truth_ode = ref(t[1:]) if ref is not None else None
         if truth_ode is not None:
-            gap = max(gap, float(np.max(2 * np.arcsin(np.minimum(1.0, np.linalg.norm(
-                quat_multiply(quat_conjugate(truth[1:]), truth_ode)[:, 1:], axis=1))))))
+            diff = quat_multiply(quat_conjugate(truth[1:]), truth_ode)[:, 1:]
+            angle = 2 * np.arcsin(np.minimum(1.0, np.linalg.norm(diff, axis=1)))
+            gap = max(gap, float(np.max(angle)))
         for name, a in algs.items():
             out = integ[name].push(dth, t[1:])
             if len(out) == 0:
                 continue
-            idx = np.rint(out.stamps / step).astype(int) - start      # 1-based sample index in chunk
+            # 1-based sample index in the chunk
+            idx = np.rint(out.stamps / step).astype(int) - start
             skip = max(0, (a.history + 1 if a.history else 0) - seen[name])
             seen[name] += len(out)
             keep = (out.stamps <= t_fit + 1e-9)
             keep[:skip] = False
             if not np.any(keep):
                 continue
-            fits[name].add(out.stamps[keep], _cone_error(out.attitude[keep], truth[idx[keep]]))
+            att = out.attitude[keep]
+            fits[name].add(out.stamps[keep], _cone_error(att, truth[idx[keep]]))
             if truth_ode is not None:
-                fits_ode[name].add(out.stamps[keep], _cone_error(out.attitude[keep], truth_ode[idx[keep] - 1]))
+                fits_ode[name].add(out.stamps[keep], _cone_error(att, truth_ode[idx[keep] - 1]))
         # floor: exact rotation vector of each N-sample update through the same arithmetic
         for n in ns:
-            first = (-start) % n                       # updates end at global sample multiples of n
+            first = (-start) % n              # updates end at global sample multiples of n
             ends = np.arange(first + n, stop - start + 1, n)
             if len(ends) == 0:
                 continue
@@ -184,12 +300,34 @@ def measure_case(names, alpha: float, nu: float, step: float, duration: float, w
     return res
 
 
-def order_sweep(name: str, omega_h=None, alpha: float | None = None, periods: int = 20, nu: float = 1.0):
+def order_sweep(name: str, omega_h=None, alpha: float | None = None, periods: int = 20,
+                nu: float = 1.0):
     """
-    Drift ε/(α²Ω) at several Ωh (small α), the fitted order over the points above the
-    floor, and the small-α theory at the same points.
+    Measure the drift ε/(α²Ω) at several Ωh (small α) and the order it shows.
 
-    Returns dict(omega_h, drift, theory, floor, used, order_measured, order_theory_fit).
+    The order is fitted over the points above the round-off floor, beside the small-α theory
+    at the same points.
+
+    Parameters
+    ----------
+    name : str
+        Algorithm of the coning registry.
+    omega_h : sequence of float or None
+        Points Ωh, rad; None: a grid suited to the expected order.
+    alpha : float or None
+        Cone half-angle, rad; None: small enough for the α⁴ term, large enough for the floor.
+    periods : int
+        Cone periods per point.
+    nu : float
+        Cone frequency, rad/s.
+
+    Returns
+    -------
+    dict
+        ``omega_h``, ``alpha``, ``drift``, ``floor``, ``used`` (above 10× the floor),
+        ``theory``, ``order_measured`` and ``order_theory_fit`` (None with fewer than four
+        points used).
+
     """
     alg = ALGORITHMS[name]
     order = alg.order_expected or 2
@@ -210,18 +348,38 @@ def order_sweep(name: str, omega_h=None, alpha: float | None = None, periods: in
     drift, floor = np.array(drift), np.array(floor)
     used = np.abs(drift) > 10 * floor
     th = theory_drift(alg, omega_h)
-    out = {'omega_h': omega_h.tolist(), 'alpha': alpha, 'drift': drift.tolist(), 'floor': floor.tolist(),
-           'used': used.tolist(), 'theory': None if th is None else np.asarray(th).tolist(),
+    out = {'omega_h': omega_h.tolist(), 'alpha': alpha, 'drift': drift.tolist(),
+           'floor': floor.tolist(), 'used': used.tolist(),
+           'theory': None if th is None else np.asarray(th).tolist(),
            'order_measured': None, 'order_theory_fit': None}
     if used.sum() >= 4:
-        out['order_measured'] = float(np.polyfit(np.log(omega_h[used]), np.log(np.abs(drift[used])), 1)[0])
+        log_x = np.log(omega_h[used])
+        out['order_measured'] = float(np.polyfit(log_x, np.log(np.abs(drift[used])), 1)[0])
         if th is not None:
-            out['order_theory_fit'] = float(np.polyfit(np.log(omega_h[used]), np.log(np.abs(np.asarray(th)[used])), 1)[0])
+            log_th = np.log(np.abs(np.asarray(th)[used]))
+            out['order_theory_fit'] = float(np.polyfit(log_x, log_th, 1)[0])
     return out
 
 
 def cost_per_update(name: str, samples: int = 120_000, repeats: int = 3) -> float:
-    """Measured wall time per attitude update (ns) of the core, attitude only."""
+    """
+    Measure the wall time per attitude update of the core, attitude only.
+
+    Parameters
+    ----------
+    name : str
+        Algorithm of the coning registry.
+    samples : int
+        Gyro samples per run (pushed in blocks of 12 000).
+    repeats : int
+        Runs; the fastest counts.
+
+    Returns
+    -------
+    float
+        Nanoseconds per update.
+
+    """
     prof = ConingProfile(0.087, 1.0)
     t = np.arange(samples + 1) * 0.01
     dth = prof.delta_theta(t[:-1], t[1:])

@@ -1,6 +1,9 @@
 """
 SINS attitude integrator: gyro increments → attitude and its error covariance.
 
+The attitude room's streaming core, under ``sins_node``, the calibrator and the attitude filter;
+it reads its formulas from the coning registry and runs them in :mod:`.kernel` when compiled.
+
 :class:`AttitudeIntegrator` consumes integrating-gyro increments ``Δθ_k`` (body axes,
 rad) stamped at the end of their intervals and produces, at every update of the
 selected coning algorithm (:mod:`strapdown_ros.attitude.coning`):
@@ -56,27 +59,47 @@ from strapdown_ros.sensors.covariance import constant_jacobian
 from strapdown_ros.sensors.covariance import COVARIANCE_MODELS as _MODELS
 from strapdown_ros.sensors.covariance import get_covariance_model
 from strapdown_ros.sensors.effects import EFFECTS
-from strapdown_ros.streams.buffers import StampedBuffer
 
-__all__ = ['AttitudeIntegrator', 'UpdateBatch', 'IncrementAccumulator', 'COVARIANCE_MODELS']
+__all__ = ['AttitudeIntegrator', 'UpdateBatch', 'COVARIANCE_MODELS']
 
 #: names of the covariance models (the registry is strapdown_ros.sensors.covariance)
 COVARIANCE_MODELS = tuple(_MODELS)
 
 _NO_INCREMENTS, _NO_INTERVALS = np.zeros((0, 3)), np.zeros(0)       # shared, never written
+_RECENT = 4                  # used increments kept as history (more if an algorithm reads more)
 
 
 @dataclass
 class UpdateBatch:
-    """Outputs of one :meth:`AttitudeIntegrator.push`; M updates."""
-    stamps: np.ndarray          # (M,) end time of each update, s
-    attitude: np.ndarray        # (M, 4) q_ref_body, scalar-first
-    covariance: np.ndarray      # (M, 3, 3) attitude error covariance, body axes, rad²
-    rotation_vector: np.ndarray  # (M, 3) φ of each update
-    mean_rate: np.ndarray       # (M, 3) Σq / h, rad/s
-    interval: np.ndarray        # (M,) update interval h, s
-    #: index, in the pushed arrays, of the first update's last increment; the M updates end at
-    #: ``first_end + k·samples`` (the stamps above are those increments' stamps)
+    """
+    Outputs of one :meth:`AttitudeIntegrator.push`: M attitude updates.
+
+    Parameters
+    ----------
+    stamps : (M,) ndarray
+        End time of each update, s.
+    attitude : (M, 4) ndarray
+        ``q_ref_body``, Hamilton, scalar first.
+    covariance : (M, 3, 3) ndarray
+        Attitude error covariance, body axes, rad² (NaN without covariance propagation).
+    rotation_vector : (M, 3) ndarray
+        φ of each update, body axes, rad.
+    mean_rate : (M, 3) ndarray
+        Σq / h, rad/s.
+    interval : (M,) ndarray
+        Update interval h, s.
+    first_end : int, optional
+        Index, in the pushed arrays, of the first update's last increment; the M updates end
+        at ``first_end + k·samples`` (the stamps above are those increments' stamps).
+
+    """
+
+    stamps: np.ndarray
+    attitude: np.ndarray
+    covariance: np.ndarray
+    rotation_vector: np.ndarray
+    mean_rate: np.ndarray
+    interval: np.ndarray
     first_end: int = 0
 
     def __len__(self):
@@ -89,17 +112,27 @@ class AttitudeIntegrator:
 
     Parameters
     ----------
-    algorithm: name from :data:`strapdown_ros.attitude.coning.ALGORITHMS`.
-    initial_attitude: ``q_ref_body`` at ``initial_time`` (scalar-first).
-    initial_time: stamp (s) of the initial attitude; None → taken as the start of the
-        first increment, ``stamp_1 − nominal_period``.
-    nominal_period: expected gyro interval T (s), used only for the first sample.
-    gyro: statistics of the gyro errors for P_ρk (zeros → covariance stays at P0).
-    initial_sigma: 1σ of the initial attitude error per axis (rad).
-    covariance_model: a name in :data:`strapdown_ros.sensors.covariance.COVARIANCE_MODELS`.
-    quantization_correction: apply 000 eq. (5.6) with pulse weight ``gyro.quantum``.
-    propagate_covariance: False skips the covariance (published as NaN), for benchmarks of
-        the attitude algorithm alone.
+    algorithm : str
+        Name in :data:`strapdown_ros.attitude.coning.ALGORITHMS`.
+    initial_attitude : (4,) array_like
+        ``q_ref_body`` at ``initial_time``, scalar first.
+    initial_time : float or None
+        Stamp of the initial attitude, s; None: the start of the first increment,
+        ``stamp_1 − nominal_period``.
+    nominal_period : float
+        Expected gyro interval T, s, used only for the first sample.
+    gyro : SensorSigmas or None
+        Statistics of the gyro errors for P_ρk (zeros: the covariance stays at P0).
+    initial_sigma : float
+        1σ of the initial attitude error per axis, rad.
+    covariance_model : str
+        A name in :data:`strapdown_ros.sensors.covariance.COVARIANCE_MODELS`.
+    quantization_correction : bool
+        Apply 000 eq. (5.6) with the pulse weight ``gyro.quantum``.
+    propagate_covariance : bool
+        False skips the covariance (published as NaN), for benchmarks of the attitude
+        algorithm alone.
+
     """
 
     def __init__(self, algorithm: str = '2', initial_attitude=(1.0, 0.0, 0.0, 0.0),
@@ -130,25 +163,43 @@ class AttitudeIntegrator:
         self._recent = np.zeros((0, 3))          # last few used increments (history for 6, 7)
         c0 = quat_to_dcm(self.q)
         self._p_ref = c0 @ (initial_sigma ** 2 * np.eye(3)) @ c0.T   # white + initial part
-        self._j_const = np.zeros((3, 12))        # Σ C_j ∂ρ_j/∂x, x = [b, vec M] (random constants)
+        # Σ C_j ∂ρ_j/∂x, x = [b, vec M] (random constants)
+        self._j_const = np.zeros((3, 12))
         self.updates = 0
         self.samples = 0
         self._constant_var = self.cov_model.constant_variances(self.gyro)
         # the isotropic white part per second of interval (the compiled kernel's form)
         self._white_rate = (float(self.cov_model.white_variance(1.0, self.gyro))
                             if self.cov_model.isotropic_white else None)
-        # the compiled block kernel, if numba is there and STRAPDOWN_KERNEL allows it (read once, here)
+        # the compiled block kernel, if numba is there and STRAPDOWN_KERNEL allows it (read once)
         self._kernel = attitude_kernel.available()
 
     # -------------------------------------------------------------------------------
     @property
     def algorithm_name(self) -> str:
+        """
+        Return the name of the coning algorithm in use.
+
+        Returns
+        -------
+        str
+            Key of the coning registry.
+
+        """
         return self.algorithm.name
 
     def set_algorithm(self, name: str) -> None:
         """
-        Switch algorithm between updates.  Increments of an unfinished update are
-        applied one by one (φ = q) so that no rotation is lost.
+        Switch the coning algorithm between updates.
+
+        Increments of an unfinished update are applied one by one (φ = q) so that no
+        rotation is lost.
+
+        Parameters
+        ----------
+        name : str
+            Key of the coning registry.
+
         """
         new = get_algorithm(name)
         if len(self._pending):
@@ -163,24 +214,42 @@ class AttitudeIntegrator:
 
     def restart_clock(self) -> None:
         """
-        The stamps start a new time base (a confirmed stamp jump or clock reset): the next
-        increment is taken as one nominal period long.  The attitude carries on; the rotation
-        during the jump is lost (the caller reports it).
+        Start a new time base after a confirmed stamp jump or clock reset.
+
+        The next increment is taken as one nominal period long.  The attitude carries on; the
+        rotation during the jump is lost (the caller reports it).
         """
         self._last_stamp = None
         self.time = None
 
     def snapshot(self) -> tuple:
         """
-        The state needed to come back to this point (:meth:`restore`).  No copies: :meth:`push`
-        and :meth:`set_algorithm` replace these arrays, they never write into them.
+        Return the state needed to come back to this point (:meth:`restore`).
+
+        No copies: :meth:`push` and :meth:`set_algorithm` replace these arrays, they never
+        write into them.
+
+        Returns
+        -------
+        tuple
+            Opaque state for :meth:`restore`.
+
         """
-        return (self.q, self.time, self._last_stamp, self._p_ref, self._j_const, self.updates, self.samples)
+        return (self.q, self.time, self._last_stamp, self._p_ref, self._j_const, self.updates,
+                self.samples)
 
     def restore(self, snap: tuple, inflate_sigma: float = 0.0) -> None:
         """
-        Return to a :meth:`snapshot`, dropping the unfinished update and the history, and add
-        ``inflate_sigma``² per axis to the attitude covariance (what was skipped is unknown).
+        Return to a :meth:`snapshot`, dropping the unfinished update and the history.
+
+        Parameters
+        ----------
+        snap : tuple
+            A :meth:`snapshot`.
+        inflate_sigma : float
+            Added as ``inflate_sigma``² per axis to the attitude covariance, rad (what was
+            skipped is unknown).
+
         """
         self.q, self.time, self._last_stamp, p_ref, j_const, self.updates, self.samples = snap
         self._p_ref = p_ref + inflate_sigma ** 2 * np.eye(3)
@@ -190,28 +259,67 @@ class AttitudeIntegrator:
 
     def checkpoint(self) -> tuple:
         """
-        The whole state, for :meth:`rollback` (cheap: :meth:`push` replaces its arrays, it never
-        writes into them).
+        Return the whole state, for :meth:`rollback`.
+
+        Cheap: :meth:`push` replaces its arrays, it never writes into them.
+
+        Returns
+        -------
+        tuple
+            Opaque state for :meth:`rollback`.
+
         """
-        return (self.q, self.time, self._last_stamp, self._p_ref, self._j_const, self.updates, self.samples,
-                self._pending, self._pending_dt, self._recent, self._last_sign, self.algorithm)
+        return (self.q, self.time, self._last_stamp, self._p_ref, self._j_const, self.updates,
+                self.samples, self._pending, self._pending_dt, self._recent, self._last_sign,
+                self.algorithm)
 
     def rollback(self, cp: tuple) -> None:
-        """Return exactly to a :meth:`checkpoint`, unfinished update and history included."""
-        (self.q, self.time, self._last_stamp, self._p_ref, self._j_const, self.updates, self.samples,
-         self._pending, self._pending_dt, self._recent, self._last_sign, self.algorithm) = cp
+        """
+        Return exactly to a :meth:`checkpoint`, unfinished update and history included.
+
+        Parameters
+        ----------
+        cp : tuple
+            A :meth:`checkpoint`.
+
+        """
+        (self.q, self.time, self._last_stamp, self._p_ref, self._j_const, self.updates,
+         self.samples, self._pending, self._pending_dt, self._recent, self._last_sign,
+         self.algorithm) = cp
 
     def covariance(self) -> np.ndarray:
-        """Current body-axis covariance (3, 3)."""
-        return self._body_covariance(quat_to_dcm(self.q)[None], self._p_ref[None], self._j_const[None])[0]
+        """
+        Return the current attitude error covariance.
+
+        Returns
+        -------
+        (3, 3) ndarray
+            Body axes, rad².
+
+        """
+        c = quat_to_dcm(self.q)[None]
+        return self._body_covariance(c, self._p_ref[None], self._j_const[None])[0]
 
     # -------------------------------------------------------------------------------
     def push(self, delta_theta: np.ndarray, stamps: np.ndarray) -> UpdateBatch:
         """
-        Consume increments (n, 3) stamped at the end of their intervals (n,).
+        Consume gyro increments and return the attitude updates they complete.
 
         The caller guarantees finite values and strictly increasing stamps (the ROS
         node checks and counts violations before calling).
+
+        Parameters
+        ----------
+        delta_theta : (n, 3) array_like
+            Increments Δθ, body axes, rad.
+        stamps : (n,) array_like
+            End of each increment's interval, s.
+
+        Returns
+        -------
+        UpdateBatch
+            The updates completed by these increments (possibly none).
+
         """
         dth = np.asarray(delta_theta, dtype=float).reshape(-1, 3)
         stamps = np.asarray(stamps, dtype=float).reshape(-1)
@@ -221,7 +329,9 @@ class AttitudeIntegrator:
             return self._empty()
         if self.quantization_correction and self.gyro.quantum > 0:
             dth, self._last_sign = increment_correction(dth, self.gyro.quantum, self._last_sign)
-        prev = self._last_stamp if self._last_stamp is not None else stamps[0] - self.nominal_period
+        prev = self._last_stamp
+        if prev is None:
+            prev = stamps[0] - self.nominal_period
         if self.time is None:
             self.time = prev
         n = len(stamps)
@@ -252,7 +362,8 @@ class AttitudeIntegrator:
             seq = np.concatenate((self._recent[len(self._recent) - hist:], work[:used]))
         else:   # start-up: repeat the earliest increment seen so far
             first = self._recent[:1] if len(self._recent) else work[:1]
-            recent = np.concatenate((np.repeat(first, hist - len(self._recent), axis=0), self._recent))
+            pad = np.repeat(first, hist - len(self._recent), axis=0)
+            recent = np.concatenate((pad, self._recent))
             seq = np.concatenate((recent, work[:used]))
         dts = work_dt[:used]
         table = bilinear_form(alg.name)
@@ -272,22 +383,26 @@ class AttitudeIntegrator:
             self._pending, self._pending_dt = work[used:].copy(), work_dt[used:].copy()
         elif len(self._pending):
             self._pending, self._pending_dt = _NO_INCREMENTS, _NO_INTERVALS
-        self._recent = (work[used - 4:used].copy() if used >= 4
-                        else np.concatenate((self._recent, work[:used]))[-4:])
+        # the history of the next update: the last used increments, at least those it reads
+        keep = max(_RECENT, hist)
+        self._recent = (work[used - keep:used].copy() if used >= keep
+                        else np.concatenate((self._recent, work[:used]))[-keep:])
         return UpdateBatch(stamps=work_t[n_new - 1:used:n_new], attitude=q, covariance=cov,
-                           rotation_vector=phi, mean_rate=mean_rate, interval=h, first_end=first_end)
+                           rotation_vector=phi, mean_rate=mean_rate, interval=h,
+                           first_end=first_end)
 
     def _windows(self, seq: np.ndarray, m: int) -> np.ndarray:
-        """The m coning windows (m, window, 3) of a sequence of history + new increments."""
+        """Return the m coning windows (m, window, 3) of history + new increments."""
         alg = self.algorithm
         idx = np.arange(m)[:, None] * alg.samples + np.arange(alg.window)[None, :]
         return seq[idx]
 
     def _compiled_update(self, seq, dts, m, table):
         """
-        A block as one compiled call (:mod:`strapdown_ros.attitude.kernel`): coning term from the
-        algorithm's table, attitude, covariance (NaN without ``propagate_covariance``), mean
-        rate.
+        Run a block as one compiled call (:mod:`strapdown_ros.attitude.kernel`).
+
+        Coning term from the algorithm's table, attitude, covariance (NaN without
+        ``propagate_covariance``), mean rate.
         """
         g, model, alg = self.gyro, self.cov_model, self.algorithm
         q_white = None
@@ -296,14 +411,15 @@ class AttitudeIntegrator:
             new = seq[alg.history:]
             q_white = model.white(new, dts, g).reshape(m, alg.samples, 3, 3).sum(1)
         q, cov, phi, rate, h, self._p_ref, self._j_const = attitude_kernel.block_update(
-            self.q, seq, dts, alg.samples, alg.history, table, self._p_ref, self._j_const, self._constant_var,
-            self._white_rate, q_white, model.constants, compiled=True, covariance=cov_on)
+            self.q, seq, dts, alg.samples, alg.history, table, self._p_ref, self._j_const,
+            self._constant_var, self._white_rate, q_white, model.constants, compiled=True,
+            covariance=cov_on)
         if cov_on and g.quantum > 0:   # the remainder at this epoch (000 §5)
             cov = EFFECTS['gyro_quantization'].fix_covariance(cov, np.array([g.quantum]))
         return q, cov, phi, rate, h
 
     def _vectorised_update(self, phi, blocks, dts):
-        """The recursion of a block in numpy: a blocked quaternion scan and cumulative sums."""
+        """Run the recursion of a block in numpy: a quaternion scan and cumulative sums."""
         m = len(phi)
         q = quat_cumprod(self.q, rotvec_to_quat(phi))
         c = quat_to_dcm(q)
@@ -317,9 +433,11 @@ class AttitudeIntegrator:
     # -------------------------------------------------------------------------------
     def _accumulate_covariance(self, c, rho_sum, blocks, dts):
         """
-        Advance the reference-axis accumulators over m updates; return their running
-        values after every update: (m,3,3) and (m,3,12).  What is white and what is a random
-        constant is the covariance model's (strapdown_ros.sensors.covariance).
+        Advance the reference-axis accumulators over m updates.
+
+        Return their running values after every update: (m, 3, 3) and (m, 3, 12).  What is
+        white and what is a random constant is the covariance model's
+        (strapdown_ros.sensors.covariance).
         """
         g, model = self.gyro, self.cov_model
         blocks = np.asarray(blocks).reshape(len(c), -1, 3)
@@ -330,12 +448,14 @@ class AttitudeIntegrator:
             q = model.white_variance(dts.sum(1), g)
             p_ref = self._p_ref + np.cumsum(q)[:, None, None] * np.eye(3)
         else:
-            q_white = model.white(blocks.reshape(-1, 3), dts.reshape(-1), g).reshape(len(c), n_new, 3, 3).sum(1)
+            q_white = model.white(blocks.reshape(-1, 3), dts.reshape(-1), g)
+            q_white = q_white.reshape(len(c), n_new, 3, 3).sum(1)
             p_ref = self._p_ref + np.cumsum(c @ q_white @ np.swapaxes(c, -1, -2), axis=0)
         self._p_ref = p_ref[-1]
         if model.constants:
             # increments inside one update are lumped: ∂ρ/∂x of the update's sum over its length
-            j_const = self._j_const + np.cumsum(c @ constant_jacobian(rho_sum, dts.sum(1)), axis=0)
+            jac = constant_jacobian(rho_sum, dts.sum(1))
+            j_const = self._j_const + np.cumsum(c @ jac, axis=0)
             self._j_const = j_const[-1]
         else:
             j_const = np.broadcast_to(self._j_const, (len(c), 3, 12))
@@ -356,89 +476,3 @@ class AttitudeIntegrator:
     def _empty() -> UpdateBatch:
         return UpdateBatch(np.zeros(0), np.zeros((0, 4)), np.zeros((0, 3, 3)), np.zeros((0, 3)),
                            np.zeros((0, 3)), np.zeros(0))
-
-
-class IncrementAccumulator:
-    """
-    Sums stamped increments (e.g. accelerometer Δv at 300 Hz) over arbitrary intervals
-    ``(t_a, t_b]`` (e.g. the gyro update intervals) to give mean specific force.  Bounded: at
-    most ``max_len`` increments are held (the oldest dropped and counted in ``overflowed``), so
-    Δv arriving without gyro data cannot pile up.
-    """
-
-    def __init__(self, max_len: int = 100_000):
-        self._buf = StampedBuffer(3, max_len=max_len)
-        self.latest = -np.inf
-
-    @property
-    def overflowed(self) -> int:
-        return self._buf.overflowed
-
-    def __len__(self) -> int:
-        return len(self._buf)
-
-    def add(self, increments: np.ndarray, stamps: np.ndarray) -> None:
-        st = np.asarray(stamps, dtype=float).reshape(-1)
-        self._buf.extend(st, np.asarray(increments, dtype=float).reshape(-1, 3))
-        if len(st):
-            self.latest = max(self.latest, float(st.max()))
-
-    def discard_through(self, t: float) -> None:
-        """Forget the increments stamped at or before ``t`` (nobody will take them)."""
-        self._buf.drop_through(t)
-
-    def covered_until(self) -> float:
-        return self.latest
-
-    def take(self, t_a: float, t_b: float) -> tuple[np.ndarray, int]:
-        """
-        Sum of increments stamped in (t_a, t_b]; drops everything up to t_b.
-
-        Returns (sum (3,), count).  An increment whose interval straddles t_a or t_b is
-        counted whole in the interval holding its end stamp.
-        """
-        t, v = self._buf.stamps, self._buf.values
-        sel = (t > t_a) & (t <= t_b)
-        total = v[sel].sum(0) if np.any(sel) else np.zeros(3)
-        n = int(sel.sum())
-        self._buf.drop_through(t_b)
-        return total, n
-
-    def take_sequence(self, t_a: np.ndarray, t_b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """
-        :meth:`take` over intervals ``(t_a[i], t_b[i]]`` in increasing order, in one pass:
-        the same counts as calling :meth:`take` for each in turn (an increment already taken by
-        an earlier interval is not counted again); each sum is over its interval's increments
-        alone, so it does not depend on how the data were blocked.  Returns (m, 3), (m,).
-        """
-        t_a, t_b = np.asarray(t_a, dtype=float), np.asarray(t_b, dtype=float)
-        t, v = self._buf.stamps, self._buf.values
-        hi = np.searchsorted(t, t_b, side='right')
-        lo = np.searchsorted(t, t_a, side='right')
-        lo = np.maximum(lo, np.concatenate([[0], np.maximum.accumulate(hi)[:-1]]))   # taken already
-        lo = np.minimum(lo, hi)
-        counts = hi - lo
-        sums = np.zeros((len(t_b), 3))
-        has = counts > 0
-        if has.any():
-            # each interval summed over its own increments (reduceat over [lo, hi) pairs): the
-            # sum does not depend on what else the buffer holds, so any blocking of the same
-            # data gives the same bits
-            edges = np.column_stack([lo[has], hi[has]]).ravel()
-            padded = np.concatenate([v, np.zeros((1, 3))])
-            sums[has] = np.add.reduceat(padded, edges, axis=0)[::2]
-        if len(t_b):
-            self._buf.drop_through(float(t_b.max()))
-        return sums, counts
-
-    def take_many(self, edges: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Vectorised :meth:`take` over consecutive intervals ``(edges[i], edges[i+1]]``."""
-        edges = np.asarray(edges, dtype=float)
-        t, v = self._buf.stamps, self._buf.values
-        # stamps in (edges[i], edges[i+1]] are t[lo[i]:lo[i+1]]: sums from one cumulative sum
-        pos = np.searchsorted(t, edges, side='right')
-        cs = np.concatenate([np.zeros((1, 3)), np.cumsum(v, axis=0)])
-        sums, counts = cs[pos[1:]] - cs[pos[:-1]], np.diff(pos)
-        sums[counts == 0] = 0.0
-        self._buf.drop_through(edges[-1])
-        return sums, counts

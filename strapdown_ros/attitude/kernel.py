@@ -1,6 +1,10 @@
 """
-One block of :class:`~strapdown_ros.attitude.integrator.AttitudeIntegrator` — coning term, attitude and
-covariance recursion — as one compiled loop; optional.
+One block of the attitude integrator as one compiled loop (optional, with numba).
+
+The block of :class:`~strapdown_ros.attitude.integrator.AttitudeIntegrator`: coning term,
+attitude and covariance recursion.  The module also holds the package's one switch for
+compiled loops (:func:`kernels_allowed`) and its one optional compiler (:func:`njit_optional`),
+used by the navigation loops too.
 
 With numba installed (the ``bench`` extra brings it; it is not a runtime requirement) a block of
 m updates runs as a single compiled call; otherwise, or with ``STRAPDOWN_KERNEL=numpy``, the
@@ -96,9 +100,15 @@ def _block_py(q0, seq, dt, n_new, hist, lin, pairs, p_ref0, j0, var, rw2, use_is
                 for j in range(3):
                     cov[k, i, j] = math.nan
             continue
-        C[0, 0], C[0, 1], C[0, 2] = 1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)
-        C[1, 0], C[1, 1], C[1, 2] = 2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)
-        C[2, 0], C[2, 1], C[2, 2] = 2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)
+        C[0, 0] = 1 - 2 * (y * y + z * z)
+        C[0, 1] = 2 * (x * y - w * z)
+        C[0, 2] = 2 * (x * z + w * y)
+        C[1, 0] = 2 * (x * y + w * z)
+        C[1, 1] = 1 - 2 * (x * x + z * z)
+        C[1, 2] = 2 * (y * z - w * x)
+        C[2, 0] = 2 * (x * z - w * y)
+        C[2, 1] = 2 * (y * z + w * x)
+        C[2, 2] = 1 - 2 * (x * x + y * y)
         # white part
         if use_iso:
             qk = rw2 * hk
@@ -161,24 +171,52 @@ _compiled = None
 
 
 def kernels_allowed() -> bool:
-    """False when ``STRAPDOWN_KERNEL=numpy`` switches every compiled loop of the package off."""
+    """
+    Tell whether compiled loops may be used.
+
+    Returns
+    -------
+    bool
+        False when ``STRAPDOWN_KERNEL=numpy`` switches every compiled loop of the package off.
+
+    """
     return os.environ.get(ENV, 'auto').strip().lower() != 'numpy'
 
 
 def njit_optional(*functions):
     """
-    ``numba.njit(cache=True)`` of each function (a tuple), or None without numba.  The one home
-    of the optional compilation used by this module and the navigation loops.
+    Compile functions with ``numba.njit(cache=True)`` when numba is there.
+
+    The one home of the optional compilation, used by this module and the navigation loops.
+
+    Parameters
+    ----------
+    *functions : callable
+        Plain-Python functions numba can compile.
+
+    Returns
+    -------
+    tuple of callable, or None
+        The compiled functions, in order; None without numba or when it cannot compile them.
+
     """
     try:
         import numba
         return tuple(numba.njit(cache=True)(f) for f in functions)
-    except Exception:                                    # noqa: BLE001 - no numba, or it cannot compile
+    except Exception:                                    # no numba, or it cannot compile
         return None
 
 
 def available() -> bool:
-    """True when the compiled block kernel is in use (numba importable, not switched off)."""
+    """
+    Tell whether the compiled block kernel is in use.
+
+    Returns
+    -------
+    bool
+        True when numba is importable, can compile the block and is not switched off.
+
+    """
     global _compiled
     if not kernels_allowed():
         return False
@@ -189,7 +227,7 @@ def available() -> bool:
 
 
 def _sparse_basis() -> np.ndarray:
-    """The nonzeros of the constants' Jacobian basis E (4, 3, 12) as rows (l, row, column, value)."""
+    """Return the nonzeros of the basis E (4, 3, 12) as rows (l, row, column, value)."""
     global _BASIS
     if _BASIS is None:
         e = constant_jacobian_basis()
@@ -204,8 +242,9 @@ _NO_WHITE = np.zeros((1, 3, 3))
 
 def warm_up() -> None:
     """
-    Compile (or load from numba's cache) before the first real block, so that a node does not
-    stall on its first messages.
+    Compile the kernel (or load it from numba's cache) before the first real block.
+
+    So that a node does not stall on its first messages.
     """
     if available():
         for iso in (True, False):
@@ -215,20 +254,53 @@ def warm_up() -> None:
                          q_white=None if iso else np.zeros((1, 3, 3)), constants=True)
 
 
-def block_update(q0, seq, dt, n_new, hist, table, p_ref0, j0, var, rw2=None, q_white=None, constants=False,
-                 compiled=None, covariance=True):
+def block_update(q0, seq, dt, n_new, hist, table, p_ref0, j0, var, rw2=None, q_white=None,
+                 constants=False, compiled=None, covariance=True):
     """
-    Run one block (compiled when :func:`available`, else the same loop in Python — slow, for
-    tests).  ``seq`` (hist + m·n_new, 3): the ``hist`` previous increments, then the new ones;
-    ``dt`` (m·n_new,) their intervals; ``table`` = (lin, pairs) from
-    :func:`strapdown_ros.attitude.coning.bilinear_form`; the white part is ``rw2``·h·I (isotropic) or
-    ``q_white`` (m, 3, 3); ``constants``: propagate J.  Every array float64, C-contiguous (another
-    layout is still right, numba just compiles it once more).  Returns q (m, 4), cov (m, 3, 3),
-    φ (m, 3), mean rate (m, 3), h (m,) and the final P and J.  ``compiled``: the caller's
-    :func:`available` (None: asked here).  ``covariance`` False: the attitude alone (cov NaN, P
-    and J returned unchanged).
+    Run one block of attitude updates.
+
+    Compiled when :func:`available`, else the same loop in Python (slow, for tests).  Every
+    array float64, C-contiguous (another layout is still right, numba just compiles it once
+    more).
+
+    Parameters
+    ----------
+    q0 : (4,) ndarray
+        Attitude before the block, ``q_ref_body``, scalar first.
+    seq : (hist + m·n_new, 3) ndarray
+        The ``hist`` previous increments, then the new ones, rad.
+    dt : (m·n_new,) ndarray
+        Intervals of the new increments, s.
+    n_new, hist : int
+        Samples and history of the coning algorithm.
+    table : tuple of ndarray
+        ``(lin, pairs)`` from :func:`strapdown_ros.attitude.coning.bilinear_form`.
+    p_ref0 : (3, 3) ndarray
+        White and initial part of the covariance, reference axes, rad².
+    j0 : (3, 12) ndarray
+        Jacobian of the reference-axis error on the random constants [b, vec M].
+    var : (12,) ndarray
+        Prior variances of the random constants.
+    rw2 : float or None
+        Isotropic white part: ``rw2``·h·I per update, rad²/s.
+    q_white : (m, 3, 3) ndarray or None
+        White part per update, body axes, when not isotropic.
+    constants : bool
+        Propagate J.
+    compiled : bool or None
+        The caller's :func:`available` (None: asked here).
+    covariance : bool
+        False: the attitude alone (cov NaN, P and J returned unchanged).
+
+    Returns
+    -------
+    tuple
+        q (m, 4), cov (m, 3, 3) body axes, φ (m, 3), mean rate (m, 3), h (m,), and the final
+        P (3, 3) and J (3, 12).
+
     """
     use_iso = q_white is None
     fn = _compiled if (available() if compiled is None else compiled) else _block_py
-    return fn(q0, seq, dt, n_new, hist, table[0], table[1], p_ref0, j0, var, 0.0 if rw2 is None else rw2, use_iso,
-              _NO_WHITE if use_iso else q_white, constants, _sparse_basis(), bool(covariance))
+    return fn(q0, seq, dt, n_new, hist, table[0], table[1], p_ref0, j0, var,
+              0.0 if rw2 is None else rw2, use_iso, _NO_WHITE if use_iso else q_white, constants,
+              _sparse_basis(), bool(covariance))

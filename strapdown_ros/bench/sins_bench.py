@@ -29,7 +29,8 @@ import numpy as np
 
 from strapdown_ros.attitude import kernel as attitude_kernel
 from strapdown_ros.attitude.coning import algorithm_names
-from strapdown_ros.attitude.integrator import AttitudeIntegrator, IncrementAccumulator
+from strapdown_ros.attitude.increment_sums import IncrementAccumulator
+from strapdown_ros.attitude.integrator import AttitudeIntegrator
 from strapdown_ros.bench.core_peers import peer_runs
 from strapdown_ros.bench.stats import median_range, stats
 from strapdown_ros.cli import check_outputs, FILE, write_text

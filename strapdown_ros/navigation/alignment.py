@@ -1,6 +1,8 @@
 """
 Static coarse alignment: the attitude from the first seconds at rest (gravity and Earth rate).
 
+Used by the navigation channel (:mod:`.channel`) before it starts the navigator.
+
 At rest on the Earth the accelerometers measure ``f = −V_trueᵀ g(R)`` and the gyros
 ``ω = V_trueᵀ Ω_E`` (V = C_E_B).  With the known position both vectors are known in E, so the
 attitude follows from the two measured means by the TRIAD construction, gravity first (it is
@@ -30,8 +32,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from strapdown_ros import earth as _gravity
-from strapdown_ros.earth import DEFAULT_GRAVITY_MODEL
+from strapdown_ros.earth import DEFAULT_GRAVITY_MODEL, normal_gravity, OMEGA
 from strapdown_ros.sensors.model import SensorSigmas
 
 __all__ = ['AlignmentResult', 'static_alignment', 'triad']
@@ -39,20 +40,68 @@ __all__ = ['AlignmentResult', 'static_alignment', 'triad']
 
 @dataclass
 class AlignmentResult:
+    """
+    Outcome of :func:`static_alignment`.
+
+    Parameters
+    ----------
+    ok : bool
+        True when aligned.
+    reason : str
+        ``'aligned'`` or why the alignment was refused.
+    attitude : (3, 3) ndarray
+        C_E_B; identity when not ok.
+    covariance : (3, 3) ndarray
+        Covariance of ψ, E axes, rad² (NaN when not ok).
+    tilt_sigma : float
+        1σ tilt, rad.
+    heading_sigma : float
+        1σ heading, rad.
+
+    """
+
     ok: bool
     reason: str
-    attitude: np.ndarray            # C_E_B (3, 3), identity when not ok
-    covariance: np.ndarray          # ψ covariance (3, 3), E axes, rad²
-    tilt_sigma: float               # rad
-    heading_sigma: float            # rad
+    attitude: np.ndarray
+    covariance: np.ndarray
+    tilt_sigma: float
+    heading_sigma: float
 
     def as_dict(self) -> dict:
+        """
+        Return the outcome as plain values for a status message.
+
+        Returns
+        -------
+        dict
+            ``ok``, ``reason``, ``tilt_sigma_rad``, ``heading_sigma_rad``.
+
+        """
         return {'ok': self.ok, 'reason': self.reason, 'tilt_sigma_rad': self.tilt_sigma,
                 'heading_sigma_rad': self.heading_sigma}
 
 
-def triad(f_body: np.ndarray, w_body: np.ndarray, f_earth: np.ndarray, w_earth: np.ndarray) -> np.ndarray:
-    """C_E_B with C f_body ≈ f_earth exactly in direction and w_body fixing the rotation about it."""
+def triad(f_body: np.ndarray, w_body: np.ndarray, f_earth: np.ndarray,
+          w_earth: np.ndarray) -> np.ndarray:
+    """
+    Return the attitude that maps two body vectors onto two Earth vectors (TRIAD).
+
+    ``C f_body`` has exactly the direction of ``f_earth``; ``w_body`` fixes the rotation about
+    it.
+
+    Parameters
+    ----------
+    f_body, w_body : (3,) ndarray
+        First (exact) and second vector, body axes.
+    f_earth, w_earth : (3,) ndarray
+        The same vectors, E axes.
+
+    Returns
+    -------
+    (3, 3) ndarray
+        C_E_B.
+
+    """
     def frame(a, b):
         t1 = a / np.linalg.norm(a)
         t2 = np.cross(a, b)
@@ -61,24 +110,56 @@ def triad(f_body: np.ndarray, w_body: np.ndarray, f_earth: np.ndarray, w_earth: 
     return frame(f_earth, w_earth) @ frame(f_body, w_body).T
 
 
-def static_alignment(f_mean: np.ndarray, w_mean: np.ndarray, position: np.ndarray, duration: float,
-                     gyro: SensorSigmas, accel: SensorSigmas, f_spread: float | None = None,
+def static_alignment(f_mean: np.ndarray, w_mean: np.ndarray, position: np.ndarray,
+                     duration: float, gyro: SensorSigmas, accel: SensorSigmas,
+                     f_spread: float | None = None,
                      w_spread: float | None = None, sample_period: float = 0.01,
                      gravity_model: str = DEFAULT_GRAVITY_MODEL,
                      max_specific_force_error: float = 0.05,
                      max_rate: float = 1e-3, max_latitude_deg: float = 85.0,
                      max_heading_sigma: float = np.radians(10.0)) -> AlignmentResult:
     """
-    Align from the mean specific force (m/s²) and angular rate (rad/s) over ``duration`` s.
+    Align from the mean specific force and angular rate over a time at rest.
 
-    ``f_spread``/``w_spread``: RMS deviation of the per-sample means from the overall mean (for the
-    static test); compared with the noise expected at ``sample_period``.
+    Parameters
+    ----------
+    f_mean : (3,) array_like
+        Mean specific force, body axes, m/s².
+    w_mean : (3,) array_like
+        Mean angular rate, body axes, rad/s.
+    position : (3,) array_like
+        ECEF position, m.
+    duration : float
+        Averaging time T, s.
+    gyro, accel : SensorSigmas
+        Statistics of the sensor errors.
+    f_spread, w_spread : float or None
+        RMS deviation of the per-sample means from the overall mean (for the static test),
+        compared with the noise expected at ``sample_period``; None skips the test.
+    sample_period : float
+        Interval of the per-sample means, s.
+    gravity_model : str
+        Name in the gravity registry of :mod:`strapdown_ros.earth`.
+    max_specific_force_error : float
+        Largest accepted ``||f| − |g||``, m/s².
+    max_rate : float
+        Largest accepted mean rate above the Earth rate, rad/s.
+    max_latitude_deg : float
+        Largest accepted |latitude|, degrees.
+    max_heading_sigma : float
+        Largest accepted predicted heading 1σ, rad.
+
+    Returns
+    -------
+    AlignmentResult
+        The attitude and its covariance, or the reason for a refusal.
+
     """
     f = np.asarray(f_mean, dtype=float).reshape(3)
     w = np.asarray(w_mean, dtype=float).reshape(3)
     r = np.asarray(position, dtype=float).reshape(3)
-    g = _gravity.normal_gravity(r[None], gravity_model)[0]
-    om = np.array([0.0, 0.0, _gravity.OMEGA])
+    g = normal_gravity(r[None], gravity_model)[0]
+    om = np.array([0.0, 0.0, OMEGA])
     eye = np.eye(3)
 
     def refuse(reason):
@@ -87,27 +168,32 @@ def static_alignment(f_mean: np.ndarray, w_mean: np.ndarray, position: np.ndarra
     if not (np.all(np.isfinite(f)) and np.all(np.isfinite(w)) and duration > 0):
         return refuse('no finite data to align with')
     if abs(np.linalg.norm(f) - np.linalg.norm(g)) > max_specific_force_error:
-        return refuse(f'not static: |mean specific force| {np.linalg.norm(f):.4f} m/s² differs from gravity '
-                      f'{np.linalg.norm(g):.4f} m/s² by more than {max_specific_force_error} m/s²')
+        return refuse(f'not static: |mean specific force| {np.linalg.norm(f):.4f} m/s² differs '
+                      f'from gravity {np.linalg.norm(g):.4f} m/s² by more than '
+                      f'{max_specific_force_error} m/s²')
     if np.linalg.norm(w) > np.linalg.norm(om) + max_rate:
-        return refuse(f'not static: mean angular rate {np.linalg.norm(w):.3e} rad/s exceeds Earth rate + {max_rate} rad/s')
+        return refuse(f'not static: mean angular rate {np.linalg.norm(w):.3e} rad/s exceeds '
+                      f'Earth rate + {max_rate} rad/s')
     if f_spread is not None:
         expected = 5.0 * (accel.random_walk / np.sqrt(sample_period) + 1e-3)
         if f_spread > expected:
-            return refuse(f'not static: specific force varies by {f_spread:.3e} m/s² RMS (limit {expected:.3e})')
+            return refuse(f'not static: specific force varies by {f_spread:.3e} m/s² RMS '
+                          f'(limit {expected:.3e})')
     if w_spread is not None:
         expected = 5.0 * (gyro.random_walk / np.sqrt(sample_period) + 1e-5)
         if w_spread > expected:
-            return refuse(f'not static: angular rate varies by {w_spread:.3e} rad/s RMS (limit {expected:.3e})')
+            return refuse(f'not static: angular rate varies by {w_spread:.3e} rad/s RMS '
+                          f'(limit {expected:.3e})')
     lat = np.degrees(np.arcsin(r[2] / np.linalg.norm(r)))
     if abs(lat) > max_latitude_deg:
-        return refuse(f'heading unobservable: latitude {lat:.1f}° is within {90 - max_latitude_deg:.0f}° of a pole')
+        return refuse(f'heading unobservable: latitude {lat:.1f}° is within '
+                      f'{90 - max_latitude_deg:.0f}° of a pole')
     c = triad(f, w, -g, om)
     # first-order covariance by central differences of the construction
-    var_f = accel.bias_sigma ** 2 + accel.random_walk ** 2 / duration + (accel.scale_sigma ** 2
-                                                                          + accel.misalignment_sigma ** 2) * f @ f
-    var_w = gyro.bias_sigma ** 2 + gyro.random_walk ** 2 / duration + (gyro.scale_sigma ** 2
-                                                                        + gyro.misalignment_sigma ** 2) * w @ w
+    var_f = (accel.bias_sigma ** 2 + accel.random_walk ** 2 / duration
+             + (accel.scale_sigma ** 2 + accel.misalignment_sigma ** 2) * f @ f)
+    var_w = (gyro.bias_sigma ** 2 + gyro.random_walk ** 2 / duration
+             + (gyro.scale_sigma ** 2 + gyro.misalignment_sigma ** 2) * w @ w)
     jac = np.zeros((3, 6))
     for i in range(6):
         step_f = 1e-6 * max(np.linalg.norm(f), 1.0)
@@ -125,7 +211,8 @@ def static_alignment(f_mean: np.ndarray, w_mean: np.ndarray, position: np.ndarra
     heading_sigma = float(np.sqrt(up @ cov @ up))
     tilt_sigma = float(np.sqrt(max(np.trace(cov) - heading_sigma ** 2, 0.0) / 2.0))
     if heading_sigma > max_heading_sigma:
-        return refuse(f'heading unobservable: predicted heading σ {np.degrees(heading_sigma):.2f}° exceeds '
+        return refuse(f'heading unobservable: predicted heading σ '
+                      f'{np.degrees(heading_sigma):.2f}° exceeds '
                       f'{np.degrees(max_heading_sigma):.2f}° (latitude {lat:.1f}°, gyro bias '
                       f'{gyro.bias_sigma:.2e} rad/s, {duration:.0f} s)')
     return AlignmentResult(True, 'aligned', c, 0.5 * (cov + cov.T), tilt_sigma, heading_sigma)

@@ -1,6 +1,8 @@
 """
-The navigation channel as ``sins_node`` and ``sins_bag`` run it: static alignment or a given
-attitude, then :class:`~.navigator.Navigator` over the attitude integrator's updates.
+The navigation channel as ``sins_node`` and ``sins_bag`` run it.
+
+Static alignment or a given attitude, then :class:`~.navigator.Navigator` over the attitude
+integrator's updates.
 
 :class:`NavigationChannel` is fed what the node has already validated: compensated gyro
 increments, accelerometer increments (both stamped, seconds relative to the stamp origin) and,
@@ -23,13 +25,35 @@ ALIGNMENT_MODES = ('given', 'static')
 VELOCITY_UPDATES = ('derived', 'printed')
 
 
+def _spread(xs) -> float:
+    """Return the RMS deviation of vectors from their mean."""
+    return float(np.sqrt(np.mean(np.sum((np.array(xs) - np.mean(xs, 0)) ** 2, 1))))
+
+
 class NavigationChannel:
     """
-    Parameters (the node's): ``initial_position`` (lat °, lon °, h m, PZ-90), ``initial_velocity``
-    (east, north, up m/s at that point), ``initial_position_sigma`` (m), ``initial_velocity_sigma``
-    (m/s), ``initial_alignment`` (given | static), ``alignment_time`` (s), ``velocity_update``
-    (derived | printed), ``sculling_compensation``, ``gravity_model``,
-    ``navigation_covariance_period`` (s); sensor statistics ``gyro``/``accel``; rates.
+    Alignment and navigation over validated sensor data, with the state a node reports.
+
+    Parameters
+    ----------
+    p : dict
+        The node's parameters: ``initial_position`` (lat °, lon °, h m, PZ-90),
+        ``initial_velocity`` (east, north, up m/s at that point), ``initial_position_sigma``
+        (m), ``initial_velocity_sigma`` (m/s), ``initial_alignment`` (given | static),
+        ``alignment_time`` (s), ``velocity_update`` (derived | printed),
+        ``sculling_compensation``, ``gravity_model``, ``navigation_covariance_period`` (s).
+    gyro, accel : SensorSigmas
+        Statistics of the sensor errors.
+    gyro_period, accel_period : float
+        Sample intervals, s.
+    samples_per_update : int
+        Gyro increments per attitude update (the coning algorithm's samples).
+
+    Raises
+    ------
+    ValueError
+        For an unknown alignment mode or velocity update.
+
     """
 
     def __init__(self, p: dict, gyro: SensorSigmas, accel: SensorSigmas, gyro_period: float,
@@ -43,13 +67,14 @@ class NavigationChannel:
         self.samples = int(samples_per_update)
         self.mode = p['initial_alignment']
         if self.mode not in ALIGNMENT_MODES:
-            raise ValueError(f'initial_alignment must be one of {ALIGNMENT_MODES}, got {self.mode!r}')
+            raise ValueError(f'initial_alignment must be one of {ALIGNMENT_MODES}, '
+                             f'got {self.mode!r}')
         if p['velocity_update'] not in VELOCITY_UPDATES:
             raise ValueError(f'velocity_update must be one of {VELOCITY_UPDATES}')
         self.navigator: Navigator | None = None
         self.alignment: AlignmentResult | None = None
         self.refusals = 0
-        self._early_accel: list = []               # accelerometer data that arrive before the start
+        self._early_accel: list = []       # accelerometer data that arrive before the start
         self._reset_alignment()
 
     # --- alignment ------------------------------------------------------------------------------
@@ -58,9 +83,29 @@ class NavigationChannel:
 
     @property
     def aligning(self) -> bool:
+        """
+        Tell whether the channel is collecting data for a static alignment.
+
+        Returns
+        -------
+        bool
+            True in ``static`` mode before the navigator starts.
+
+        """
         return self.navigator is None and self.mode == 'static'
 
     def align_gyro(self, inc: np.ndarray, t: np.ndarray) -> None:
+        """
+        Add gyro increments to the alignment window.
+
+        Parameters
+        ----------
+        inc : (n, 3) ndarray
+            Compensated increments, body axes, rad.
+        t : (n,) ndarray
+            Their end stamps, s.
+
+        """
         al = self._al
         if al['t0'] is None and len(t):
             al['t0'] = float(t[0]) - self.gyro_period
@@ -69,12 +114,32 @@ class NavigationChannel:
         al['ga'].append(inc.sum(0) / max(len(t), 1) / self.gyro_period)
 
     def align_accel(self, inc: np.ndarray, t: np.ndarray) -> None:
+        """
+        Add accelerometer increments to the alignment window.
+
+        Parameters
+        ----------
+        inc : (n, 3) ndarray
+            Compensated increments, body axes, m/s.
+        t : (n,) ndarray
+            Their end stamps, s.
+
+        """
         self._al['aa'].append((inc, t))             # selected by the gyro window in try_align
 
     def try_align(self) -> tuple[bool, np.ndarray | None, float | None]:
         """
-        When the alignment window is full: (done, C_E_B, start time).  A refusal is counted,
-        kept in :attr:`alignment` with its reason, and the window starts again.
+        Align when the alignment window is full, and start the navigator.
+
+        A refusal is counted, kept in :attr:`alignment` with its reason, and the window starts
+        again.
+
+        Returns
+        -------
+        tuple
+            ``(done, C_E_B (3, 3), start time s)``; ``(False, None, None)`` while the window is
+            not full or after a refusal.
+
         """
         al = self._al
         if al['t0'] is None or al['t1'] is None:
@@ -89,10 +154,11 @@ class NavigationChannel:
             al['a'] = inc[sel].sum(0)
             # per-0.1 s means for the static test
             chunks = max(1, int(sel.sum() * self.accel_period / 0.1))
-            al['aa'] = [c.sum(0) / (len(c) * self.accel_period) for c in np.array_split(inc[sel], chunks) if len(c)]
-        spread = lambda xs: float(np.sqrt(np.mean(np.sum((np.array(xs) - np.mean(xs, 0)) ** 2, 1))))  # noqa: E731
+            al['aa'] = [c.sum(0) / (len(c) * self.accel_period)
+                        for c in np.array_split(inc[sel], chunks) if len(c)]
         res = static_alignment(al['a'] / span, al['g'] / span, self.position0, span, self.gyro_sig,
-                               self.accel_sig, f_spread=spread(al['aa']) if len(al['aa']) > 1 else None,
+                               self.accel_sig,
+                               f_spread=_spread(al['aa']) if len(al['aa']) > 1 else None,
                                w_spread=None, sample_period=0.1,
                                gravity_model=self.p['gravity_model'])
         self.alignment = res
@@ -105,32 +171,76 @@ class NavigationChannel:
         return True, res.attitude, t_end
 
     # --- navigation ---------------------------------------------------------------------------
-    def start(self, t0: float, attitude_e_b: np.ndarray | None = None, attitude_cov: np.ndarray | None = None,
-              attitude_sigma: float = 0.0) -> None:
+    def start(self, t0: float, attitude_e_b: np.ndarray | None = None,
+              attitude_cov: np.ndarray | None = None, attitude_sigma: float = 0.0) -> None:
+        """
+        Start the navigator at a time, from the initial position and velocity.
+
+        Parameters
+        ----------
+        t0 : float
+            Start of the attitude integrator, s.
+        attitude_e_b : (3, 3) ndarray or None
+            Initial C_E_B (unused here: the owner starts the integrator from it).
+        attitude_cov : (3, 3) ndarray or None
+            Covariance of ψ, E axes, rad²; None: ``attitude_sigma``² I.
+        attitude_sigma : float
+            1σ of the initial attitude per axis, rad.
+
+        """
         p = self.p
         p0 = np.zeros((9, 9))
         p0[0:3, 0:3] = float(p['initial_position_sigma']) ** 2 * np.eye(3)
         p0[3:6, 3:6] = float(p['initial_velocity_sigma']) ** 2 * np.eye(3)
-        p0[6:9, 6:9] = attitude_cov if attitude_cov is not None else attitude_sigma ** 2 * np.eye(3)
+        p0[6:9, 6:9] = (attitude_cov if attitude_cov is not None
+                        else attitude_sigma ** 2 * np.eye(3))
         derived = p['velocity_update'] == 'derived'
-        form = ('exact' if p['sculling_compensation'] else 'rotation_only') if derived else 'printed'
+        if derived:
+            form = 'exact' if p['sculling_compensation'] else 'rotation_only'
+        else:
+            form = 'printed'
+        accel_per_step = max(1, int(round(self.samples * self.gyro_period / self.accel_period)))
+        covariance = NavigationCovariance(self.gyro_sig, self.accel_sig, p0,
+                                          float(p['navigation_covariance_period']))
         self.navigator = Navigator(
-            self.position0, self.velocity0, t0, self.samples, max(1, int(round(self.samples * self.gyro_period
-                                                                              / self.accel_period))),
-            self.gyro_period, self.accel_period, form=form, scheme='exact' if derived else 'printed',
-            gravity_model=p['gravity_model'],
-            covariance=NavigationCovariance(self.gyro_sig, self.accel_sig, p0, float(p['navigation_covariance_period'])))
+            self.position0, self.velocity0, t0, self.samples, accel_per_step,
+            self.gyro_period, self.accel_period, form=form,
+            scheme='exact' if derived else 'printed', gravity_model=p['gravity_model'],
+            covariance=covariance)
         for inc, t in self._early_accel:            # the steps' fits may reach back before t0
             keep = t > t0 - 1.0
             self.navigator.add_accel(inc[keep], t[keep])
         self._early_accel.clear()
 
     def add_gyro(self, inc, t) -> None:
+        """
+        Feed gyro increments to the navigator, once it runs.
+
+        Parameters
+        ----------
+        inc : (n, 3) array_like
+            Compensated increments, body axes, rad.
+        t : (n,) array_like
+            Their end stamps, s.
+
+        """
         if self.navigator is not None:
             self.navigator.add_gyro(inc, t)
 
     def add_accel(self, inc, t) -> None:
-        inc, t = np.asarray(inc, dtype=float).reshape(-1, 3), np.asarray(t, dtype=float).reshape(-1)
+        """
+        Feed accelerometer increments to the navigator, or keep them until it starts.
+
+        Parameters
+        ----------
+        inc : (n, 3) array_like
+            Compensated increments, body axes, m/s.
+        t : (n,) array_like
+            Their end stamps, s.
+
+        """
+        inc = np.asarray(inc, dtype=float).reshape(-1, 3)
+        t = np.asarray(t, dtype=float).reshape(-1)
         if self.navigator is not None:
             self.navigator.add_accel(inc, t)
             return
@@ -139,21 +249,64 @@ class NavigationChannel:
         # kept (bounded: the last 2 s) until the navigator starts: the first step needs them
         self._early_accel.append((inc, t))
         newest = t[-1] if len(t) else -np.inf
-        while self._early_accel and len(self._early_accel[0][1]) and self._early_accel[0][1][-1] < newest - 2.0:
-            self._early_accel.pop(0)
+        early = self._early_accel
+        while early and len(early[0][1]) and early[0][1][-1] < newest - 2.0:
+            early.pop(0)
 
     def add_updates(self, stamps, intervals, attitude_end, attitude_start) -> None:
+        """
+        Queue attitude updates for the navigator (:meth:`.navigator.Navigator.add_updates`).
+
+        Parameters
+        ----------
+        stamps : (M,) array_like
+            End stamps of the updates, s.
+        intervals : (M,) array_like
+            Their lengths, s.
+        attitude_end, attitude_start : (M, 4) array_like
+            q_I_B at their ends and at their starts, scalar first.
+
+        """
         if self.navigator is not None:
             self.navigator.add_updates(stamps, intervals, attitude_end, attitude_start)
 
     def process(self, newest: float, wait: float) -> NavigationBatch | None:
+        """
+        Navigate the queued steps that are ready (:meth:`.navigator.Navigator.process`).
+
+        Parameters
+        ----------
+        newest : float
+            Newest stamp the owner has seen, s.
+        wait : float
+            How long a step waits for its accelerometer data, s.
+
+        Returns
+        -------
+        NavigationBatch or None
+            The navigated steps; None before the navigator starts.
+
+        """
         if self.navigator is None:
             return None
         return self.navigator.process(newest, wait)
 
     def status(self) -> dict:
-        d = {'navigation_state': 'aligning' if self.aligning else ('navigating' if self.navigator else 'waiting'),
-             'alignment_refusals': self.refusals}
+        """
+        Return the channel's state for the node's status message.
+
+        Returns
+        -------
+        dict
+            ``navigation_state``, ``alignment_refusals``, the alignment's outcome and the
+            navigator's step counts when there are any.
+
+        """
+        if self.aligning:
+            state = 'aligning'
+        else:
+            state = 'navigating' if self.navigator else 'waiting'
+        d = {'navigation_state': state, 'alignment_refusals': self.refusals}
         if self.alignment is not None:
             d['alignment'] = self.alignment.reason
             if self.alignment.ok:

@@ -1,6 +1,8 @@
 """
 Covariance of the navigation errors, propagated from the sensor error model.
 
+Carried by the :class:`~.navigator.Navigator` beside the position and velocity.
+
 Error state (E axes): ``x = [δR, δW, ψ]`` with ``V_est = (I + [ψ×]) V_true``.  Linearised
 e-frame error equations (Groves, *Principles of GNSS, Inertial and Multisensor Integrated
 Navigation*, 2nd ed., §14.2.3)::
@@ -30,40 +32,60 @@ import math
 import numpy as np
 
 from strapdown_ros.attitude.kernel import kernels_allowed, njit_optional
+from strapdown_ros.earth import GM, OMEGA
 from strapdown_ros.sensors.covariance import constant_jacobian_basis, constant_variances
 from strapdown_ros.sensors.model import SensorSigmas
 
-
-def _skew(v) -> np.ndarray:
-    return np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
-
-__all__ = ['NavigationCovariance']
-
-OMEGA = 7.292115e-5
-MU = 3.986004418e14
-_OM = np.array([[0.0, -OMEGA, 0.0], [OMEGA, 0.0, 0.0], [0.0, 0.0, 0.0]])
-_CENTRIFUGAL = OMEGA ** 2 * np.diag([1.0, 1.0, 0.0])
-_I9 = np.eye(9)
-_F_CONST = np.zeros((9, 9))               # the constant blocks of F
-_F_CONST[0:3, 3:6] = np.eye(3)
-_F_CONST[3:6, 3:6] = -2.0 * _OM
-_F_CONST[6:9, 6:9] = -_OM
-
+__all__ = ['NavigationCovariance', 'contract_blocks']
 
 _BASIS = constant_jacobian_basis()
 
 
 def contract_blocks(w: np.ndarray) -> np.ndarray:
     """
-    Per-epoch sums of ``V[a, m]·[u, T]_i`` (E, 3, 12; index 4m + i) → the sums of
-    ``V J(u, T)`` (E, 3, 12).
+    Turn per-epoch sums of ``V·[u, T]`` into the sums of ``V J(u, T)``.
+
+    The Jacobian of an increment on the sensor constants is linear in (u, T),
+    ``J(u, T) = Σ_i u_i E_i + T E_T`` (E: ``sensors.covariance.constant_jacobian_basis``), so
+    only the products are summed and the basis is applied once.
+
+    Parameters
+    ----------
+    w : (E, 3, 12) ndarray
+        Sums of ``V[a, m]·[u, T]_i`` at index 4m + i.
+
+    Returns
+    -------
+    (E, 3, 12) ndarray
+        Sums of ``V J(u, T)``.
+
     """
     w = w.reshape(len(w), 3, 3, 4)                                # [e, a, m, i]
     return np.einsum('eami,imc->eac', w, _BASIS)
 
 
 class NavigationCovariance:
-    def __init__(self, gyro: SensorSigmas, accel: SensorSigmas, p0: np.ndarray, period: float = 1.0):
+    """
+    The 9×9 covariance of ``[δR, δW, ψ]`` (E axes), propagated once per period.
+
+    Parameters
+    ----------
+    gyro, accel : SensorSigmas
+        Statistics of the sensor errors (random constants and random walks).
+    p0 : (9, 9) array_like
+        Initial covariance: m², (m/s)², rad².
+    period : float
+        Propagation period, s.
+
+    Raises
+    ------
+    ValueError
+        For a non-finite or wrongly shaped ``p0`` or a period that is not positive.
+
+    """
+
+    def __init__(self, gyro: SensorSigmas, accel: SensorSigmas, p0: np.ndarray,
+                 period: float = 1.0):
         p0 = np.asarray(p0, dtype=float)
         if p0.shape != (9, 9) or not np.all(np.isfinite(p0)):
             raise ValueError('initial navigation covariance must be a finite 9×9 matrix')
@@ -84,25 +106,47 @@ class NavigationCovariance:
 
     def propagate(self, positions, v_start, dv_body, theta, h) -> np.ndarray:
         """
-        Feed K steps; returns (K, 9, 9): for each step the covariance of the latest epoch
-        completed at that step (independent of how the steps are blocked).
+        Feed K navigation steps and return the covariance after each.
+
+        Parameters
+        ----------
+        positions : (K, 3) ndarray
+            ECEF position at the end of each step, m.
+        v_start : (K, 3, 3) ndarray
+            C_E_B at the start of each step.
+        dv_body : (K, 3) ndarray
+            Accelerometer increment of each step, body axes, m/s.
+        theta : (K, 3) ndarray
+            Gyro increment of each step, body axes, rad.
+        h : (K,) ndarray
+            Step lengths, s.
+
+        Returns
+        -------
+        (K, 9, 9) ndarray
+            For each step the covariance of the latest epoch completed at that step
+            (independent of how the steps are blocked).
+
         """
         k_steps = len(h)
         out = np.empty((k_steps, 9, 9))
         if k_steps == 0:
             return out
-        # V ∂δθ/∂[b_g, vec M_g] and V ∂δv/∂[b_a, vec M_a], summed per epoch below: the Jacobian is
-        # linear in (u, T), J(u, T) = Σ_i u_i E_i + T E_T, so only the (K, 3, 4) products V·[u, T]
-        # are formed per step and the sums are multiplied by the basis E once per epoch
-        wg = np.concatenate([v_start[:, :, :, None] * theta[:, None, None, :],
-                             (v_start * h[:, None, None])[:, :, :, None]], axis=-1).reshape(k_steps, 3, 12)
-        wa = np.concatenate([v_start[:, :, :, None] * dv_body[:, None, None, :],
-                             (v_start * h[:, None, None])[:, :, :, None]], axis=-1).reshape(k_steps, 3, 12)
+        # V ∂δθ/∂[b_g, vec M_g] and V ∂δv/∂[b_a, vec M_a], summed per epoch below: the
+        # Jacobian is linear in (u, T), J(u, T) = Σ_i u_i E_i + T E_T, so only the (K, 3, 4)
+        # products V·[u, T] are formed per step and the sums are multiplied by the basis E
+        # once per epoch
+        vh = (v_start * h[:, None, None])[:, :, :, None]
+        wg = np.concatenate([v_start[:, :, :, None] * theta[:, None, None, :], vh],
+                            axis=-1).reshape(k_steps, 3, 12)
+        wa = np.concatenate([v_start[:, :, :, None] * dv_body[:, None, None, :], vh],
+                            axis=-1).reshape(k_steps, 3, 12)
         fdt = (v_start @ dv_body[:, :, None])[:, :, 0]
         # (an epoch ends at the first step reaching a multiple of the period since the start)
         tot = self._elapsed + np.cumsum(h)
         grid = np.floor(tot / self.period + 1e-9)
-        ends = list(np.flatnonzero(np.diff(grid, prepend=np.floor(self._elapsed / self.period + 1e-9)) > 0) + 1)
+        first = np.floor(self._elapsed / self.period + 1e-9)
+        ends = list(np.flatnonzero(np.diff(grid, prepend=first) > 0) + 1)
         self._elapsed = float(tot[-1])
         bounds = np.array([0] + ends + ([k_steps] if not ends or ends[-1] < k_steps else []))
         starts = bounds[:-1]
@@ -112,7 +156,7 @@ class NavigationCovariance:
         sum_h = np.add.reduceat(h, starts)
         n_ep = len(ends)
         if n_ep:
-            # the epochs' recursion, compiled when numba is there (the same loop in Python otherwise)
+            # the epochs' recursion, compiled when numba is there (else the same loop in Python)
             a = self._acc
             dts = sum_h[:n_ep].copy()
             dts[0] += a['dt']
@@ -125,7 +169,8 @@ class NavigationCovariance:
             rs = positions[np.array(ends) - 1]
             q_rw = np.array([self.accel.random_walk ** 2, self.gyro.random_walk ** 2])
             cur = np.empty((n_ep, 9, 9))
-            _epochs()(self.p_w, self.j, self.var, dts, fs / dts[:, None], rs, bs, q_rw, MU, OMEGA, cur)
+            _epochs()(self.p_w, self.j, self.var, dts, fs / dts[:, None], rs, bs, q_rw, GM, OMEGA,
+                      cur)
             # each step carries the latest epoch completed at it (the one it ends, or the one
             # before): the same whatever the blocks the steps arrive in
             before = self.current
@@ -144,12 +189,13 @@ class NavigationCovariance:
         return out
 
 
-
 def _epochs_py(p_w, j, var, dts, fs, rs, bs, q_rw, mu, omega, out):
     """
+    Run the epochs' recursion; p_w and j are updated in place.
+
     For each epoch e: F from the mean specific force fs[e] and the position rs[e];
     Φ = I + FΔ + (FΔ)²/2 + (FΔ)³/6, G = I + FΔ/2; P_w ← Φ P_w Φᵀ + G Q Gᵀ, J ← Φ J + G B;
-    out[e] = P_w + J diag(var) Jᵀ (symmetrised).  p_w (9, 9) and j (9, 24) are updated in place.
+    out[e] = P_w + J diag(var) Jᵀ (symmetrised).  p_w is (9, 9), j (9, 24).
     """
     for e in range(dts.shape[0]):
         dt = dts[e]
@@ -222,7 +268,7 @@ _compiled = None
 
 
 def _epochs():
-    """The compiled epoch loop when numba is present and allowed (STRAPDOWN_KERNEL=numpy: Python)."""
+    """Return the epoch loop, compiled when numba is present and allowed."""
     global _compiled, _mm
     if _compiled is None:
         got = njit_optional(_mm_py, _epochs_py) if kernels_allowed() else None

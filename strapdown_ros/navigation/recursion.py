@@ -1,8 +1,10 @@
 """
-Velocity and position recursion in the Earth-fixed frame E (PZ-90), 003 (1.93), (1.99)–(1.100)
-(Aksyonenko 2014; paper 003).
+Velocity and position recursion in the Earth-fixed frame E (PZ-90).
 
-Inputs per step k (``[t_{k−1}, t_k]``, length h): the specific-force integrals ``Δv_E = V_{k−1} Δv``
+003 (1.93), (1.99)–(1.100) (Aksyonenko 2014; paper 003); run by the :mod:`.navigator`.
+
+Inputs per step k (``[t_{k−1}, t_k]``, length h): the specific-force integrals
+``Δv_E = V_{k−1} Δv``
 and ``Δr_E = V_{k−1} Δr`` (:mod:`.update`, rotated by the attitude ``V_{k−1}`` = C_E_B at
 ``t_{k−1}``).  State: ECEF position R and ECEF velocity W = Ṙ.
 
@@ -48,7 +50,7 @@ OMEGA = _gravity.OMEGA
 
 
 def _model_gravity_xyz(model, x, y, z):
-    """Gravity of the compiled models: ``model`` 1 the exact normal field, else 003's formula."""
+    """Return the gravity of a compiled model: 1 the exact normal field, else 003's formula."""
     if model == 1:
         return _normal_exact_xyz(x, y, z)
     return _gravity_xyz(x, y, z)
@@ -59,20 +61,22 @@ COMPILED_MODELS = {'pz90_003': 0, 'normal_exact': 1}
 
 
 def _exact_loop(origin, offset0, w0, dv, dr, h, omega, out_off, out_w, model):
-    """The exact scheme with the gravity of ``model`` (:data:`COMPILED_MODELS`) inside."""
+    """Run the exact scheme with the gravity of ``model`` (:data:`COMPILED_MODELS`) inside."""
     ox, oy, oz = origin[0], origin[1], origin[2]
     px, py, pz = offset0[0], offset0[1], offset0[2]
     wx, wy, wz = w0[0], w0[1], w0[2]
     w2 = omega * omega
     rx, ry, rz = ox + px, oy + py, oz + pz
     gx, gy, gz = _model_gravity_xyz(model, rx, ry, rz)
-    g0x, g0y = gx - w2 * rx, gy - w2 * ry            # gravitation G = g + Ω×(Ω×r) = g − Ω²(x, y, 0)
+    # gravitation G = g + Ω×(Ω×r) = g − Ω²(x, y, 0)
+    g0x, g0y = gx - w2 * rx, gy - w2 * ry
     g0z = gz
     for k in range(dv.shape[0]):
         hk = h[k]
         vx, vy, vz = wx - omega * ry, wy + omega * rx, wz       # v_I = W + Ω×R
         # predicted end position (inertial frame of t_{k-1}), rotated into E of t_k
-        s, c1 = math.sin(omega * hk), -2.0 * math.sin(0.5 * omega * hk) ** 2     # D_h − I: c1 = cos − 1
+        # D_h − I: c1 = cos − 1
+        s, c1 = math.sin(omega * hk), -2.0 * math.sin(0.5 * omega * hk) ** 2
         qx = rx + vx * hk + dr[k, 0] + 0.5 * g0x * hk * hk
         qy = ry + vy * hk + dr[k, 1] + 0.5 * g0y * hk * hk
         qz = rz + vz * hk + dr[k, 2] + 0.5 * g0z * hk * hk
@@ -122,7 +126,15 @@ _compiled = None
 
 
 def available() -> bool:
-    """numba present, allowed and able to compile the exact loop."""
+    """
+    Tell whether the exact loop runs compiled.
+
+    Returns
+    -------
+    bool
+        True when numba is present, allowed and able to compile the loop.
+
+    """
     global _compiled, _gravity_xyz, _normal_exact_xyz, _model_gravity_xyz
     if not kernels_allowed():
         return False
@@ -140,8 +152,31 @@ def available() -> bool:
 
 def exact_generic_step(origin, offset, w, dv, dr, h, model):
     """
-    The exact scheme with any gravity model of the registry: the same loop, run by Python with
-    that model's gravity (slow; the compiled loop has the 003 model built in).
+    Run the exact scheme with any gravity model of the registry.
+
+    The same loop, run by Python with that model's gravity (slow; the compiled loop has only
+    :data:`COMPILED_MODELS` built in).
+
+    Parameters
+    ----------
+    origin : (3,) ndarray
+        Fixed part of the ECEF position, m.
+    offset : (3,) ndarray
+        Position minus origin at the start, m.
+    w : (3,) ndarray
+        ECEF velocity at the start, m/s.
+    dv, dr : (K, 3) ndarray
+        Specific-force integrals rotated into E at each step's start, m/s and m.
+    h : (K,) ndarray
+        Step lengths, s.
+    model : str
+        Name in the gravity registry of :mod:`strapdown_ros.earth`.
+
+    Returns
+    -------
+    tuple of ndarray
+        ``(offset (K, 3), velocity (K, 3))`` after each step.
+
     """
     def grav(_model, x, y, z):
         g = _gravity.normal_gravity(np.array([x, y, z]), model)
@@ -174,13 +209,40 @@ def _printed(origin, offset, w, dv, dr, h, model):
 def run(origin, offset, velocity, dv_e, dr_e, h, scheme: str = 'exact',
         gravity_model: str = DEFAULT_GRAVITY_MODEL):
     """
-    Run K steps.  Returns ``(offset (K, 3), velocity (K, 3))``; position = origin + offset.
+    Run K navigation steps of the velocity and position recursion.
 
-    ``dv_e``/``dr_e``: specific-force integrals already rotated into E axes at ``t_{k−1}``.
+    Parameters
+    ----------
+    origin : (3,) array_like
+        Fixed part of the ECEF position, m.
+    offset : (3,) array_like
+        Position minus origin at the start, m.
+    velocity : (3,) array_like
+        ECEF velocity at the start, m/s.
+    dv_e, dr_e : (K, 3) array_like
+        Specific-force integrals already rotated into E axes at ``t_{k−1}``, m/s and m.
+    h : (K,) array_like
+        Step lengths, s.
+    scheme : str
+        One of :data:`SCHEMES`.
+    gravity_model : str
+        Name in the gravity registry of :mod:`strapdown_ros.earth`.
+
+    Returns
+    -------
+    tuple of ndarray
+        ``(offset (K, 3), velocity (K, 3))`` after each step; position = origin + offset.
+
+    Raises
+    ------
+    ValueError
+        For an unknown scheme.
+
     """
     if scheme not in SCHEMES:
         raise ValueError(f"unknown navigation scheme {scheme!r}; valid: {', '.join(SCHEMES)}")
-    args = [np.ascontiguousarray(x, dtype=float) for x in (origin, offset, velocity, dv_e, dr_e, h)]
+    args = [np.ascontiguousarray(x, dtype=float)
+            for x in (origin, offset, velocity, dv_e, dr_e, h)]
     if scheme == 'printed':
         return _printed(*args, gravity_model)
     if gravity_model not in COMPILED_MODELS:

@@ -1,6 +1,9 @@
 """
 Specific-force integrals of one navigation step from integrating gyros and accelerometers.
 
+The sensor side of a navigation step, under :mod:`.navigator`; :mod:`.recursion` takes its
+output.
+
 003 (Aksyonenko 2014) §1.5.2 integrates the navigation equation (1.93) over one step
 ``[t_{k−1}, t_k]`` of length
 ``h`` from the sensor *increments* (quasi-coordinates), never from rates.  The part that needs the
@@ -29,8 +32,9 @@ Forms of the integral (``form``):
     for the model: the integrand is a polynomial of degree ≤ 11 up to terms of 6th order in the
     step's rotation angle).  Its error is the fit's: the stated order of the algorithm.
 ``"series"``
-    the closed-form expansion of the same integrals in 003's basis (q_{k−1}, q_k, Q₁ = q_k + q_{k−1},
-    Q₂ = q_k − q_{k−1}, Q = q_{k−1} × q_k; u₁, u₂, u₃) with the coefficients *derived* here
+    the closed-form expansion of the same integrals in 003's basis (q_{k−1}, q_k,
+    Q₁ = q_k + q_{k−1}, Q₂ = q_k − q_{k−1}, Q = q_{k−1} × q_k; u₁, u₂, u₃) with the
+    coefficients *derived* here
     (:func:`derived_coefficients`, exact fractions); 003 layout only (one gyro, three
     accelerometer increments per step).
 ``"printed"``
@@ -57,8 +61,9 @@ import numpy as np
 from strapdown_ros.attitude.kernel import kernels_allowed, njit_optional
 from strapdown_ros.rotation import cross
 
-__all__ = ['FORMS', 'StepLayout', 'step_layout', 'specific_force_integrals', 'derived_coefficients',
-           'PRINTED_COEFFICIENTS', 'coefficient_table']
+__all__ = ['FORMS', 'StepLayout', 'step_layout', 'specific_force_integrals',
+           'derived_coefficients', 'PRINTED_COEFFICIENTS', 'coefficient_table',
+           'markdown_coefficient_table', 'kernel_available']
 
 FORMS = ('exact', 'series', 'printed', 'rotation_only', 'none')
 _GL_X, _GL_W = np.polynomial.legendre.leggauss(6)
@@ -69,7 +74,9 @@ _GL_WR = _GL_W * (1.0 - _GL_S)         # weights of ∫(1 − σ)·
 
 def _fit_matrix(window: int, per_step: int, degree: int) -> np.ndarray:
     """
-    Least-squares map (exact when square) from the integrals over ``window`` equal
+    Return the least-squares map from sub-interval integrals to polynomial coefficients.
+
+    The map (exact when square) goes from the integrals over ``window`` equal
     sub-intervals ending at σ = 1 (``per_step`` of them per unit step) to the coefficients of
     ``p(σ) = Σ_i p_i σ^i / i!`` (i ≤ degree).  Computed in exact rational arithmetic: a float
     pseudo-inverse carries relative errors of ~1e-13 into every step's Δv, the same each step,
@@ -81,7 +88,8 @@ def _fit_matrix(window: int, per_step: int, degree: int) -> np.ndarray:
     n = degree + 1
     ata = [[sum(r[i] * r[j] for r in rows) for j in range(n)] for i in range(n)]
     inv = _inverse(ata)
-    return np.array([[float(sum(inv[i][k] * r[k] for k in range(n))) for r in rows] for i in range(n)])
+    return np.array([[float(sum(inv[i][k] * r[k] for k in range(n))) for r in rows]
+                     for i in range(n)])
 
 
 @dataclass(frozen=True)
@@ -89,20 +97,37 @@ class StepLayout:
     """
     How many sensor sub-intervals one step holds and which ones each fit uses.
 
-    ``gyro_window`` / ``accel_window``: the number of sub-intervals ending at ``t_k`` that the fits
-    take (the step's own and, when there are too few, the previous ones).
+    Derived fields: ``gyro_window`` / ``accel_window``, the number of sub-intervals ending at
+    ``t_k`` that the fits take (the step's own and, when there are too few, the previous ones);
+    ``gyro_fit`` (2, Lg), the map from q to (a₁h, a₂h²); ``accel_fit`` (3, La), the map from u
+    to (ch, dh², eh³).
+
+    Parameters
+    ----------
+    gyro_per_step : int
+        Gyro increments per step, at least 1.
+    accel_per_step : int
+        Accelerometer increments per step, at least 1.
+
+    Raises
+    ------
+    ValueError
+        For fewer than one increment of either sensor.
+
     """
+
     gyro_per_step: int
     accel_per_step: int
     gyro_window: int = field(init=False)
     accel_window: int = field(init=False)
-    gyro_fit: np.ndarray = field(init=False, repr=False)     # (2, Lg): (a₁h, a₂h²) from q
-    accel_fit: np.ndarray = field(init=False, repr=False)    # (3, La): (ch, dh², eh³) from u
+    gyro_fit: np.ndarray = field(init=False, repr=False)
+    accel_fit: np.ndarray = field(init=False, repr=False)
 
     def __post_init__(self):
         n, m = int(self.gyro_per_step), int(self.accel_per_step)
         if n < 1 or m < 1:
-            raise ValueError(f'a step needs at least one gyro and one accelerometer increment, got {n} and {m}')
+            raise ValueError('a step needs at least one gyro and one accelerometer increment, '
+                             f'got {n} and {m}')
         lg, la = max(n, 2), max(m, 3)
         object.__setattr__(self, 'gyro_window', lg)
         object.__setattr__(self, 'accel_window', la)
@@ -111,33 +136,79 @@ class StepLayout:
 
     @property
     def is_003(self) -> bool:
-        """One gyro and three accelerometer increments per step: the layout of 003 §1.5."""
+        """
+        Tell whether the layout is 003's (§1.5).
+
+        Returns
+        -------
+        bool
+            True for one gyro and three accelerometer increments per step.
+
+        """
         return self.gyro_per_step == 1 and self.accel_per_step == 3
 
 
 def step_layout(gyro_per_step: int, accel_per_step: int) -> StepLayout:
+    """
+    Return the layout of a step with the given numbers of increments.
+
+    Parameters
+    ----------
+    gyro_per_step, accel_per_step : int
+        Gyro and accelerometer increments per step.
+
+    Returns
+    -------
+    StepLayout
+        The layout, with its fit matrices.
+
+    """
     return StepLayout(int(gyro_per_step), int(accel_per_step))
 
 
 def _rotation_part(phi: np.ndarray, v: np.ndarray) -> np.ndarray:
-    """``(exp([φ×]) − I) v`` by Rodrigues' formula, exact at any angle, broadcasting over (..., 3)."""
+    """Return ``(exp([φ×]) − I) v`` by Rodrigues' formula, exact at any angle, broadcasting."""
     a2 = np.einsum('...i,...i->...', phi, phi)
     a = np.sqrt(a2)
     small = a2 < 1e-8
     s1 = np.where(small, 1.0 - a2 / 6.0 + a2 * a2 / 120.0, np.sin(a) / np.where(small, 1.0, a))
-    s2 = np.where(small, 0.5 - a2 / 24.0 + a2 * a2 / 720.0, (1.0 - np.cos(a)) / np.where(small, 1.0, a2))
+    s2 = np.where(small, 0.5 - a2 / 24.0 + a2 * a2 / 720.0,
+                  (1.0 - np.cos(a)) / np.where(small, 1.0, a2))
     pv = cross(phi, v)
     return s1[..., None] * pv + s2[..., None] * cross(phi, pv)
 
 
-def specific_force_integrals(gyro_window: np.ndarray, accel_window: np.ndarray, h: np.ndarray,
-                             layout: StepLayout, form: str = 'exact') -> tuple[np.ndarray, np.ndarray]:
+def specific_force_integrals(gyro_window: np.ndarray, accel_window: np.ndarray,
+                             h: np.ndarray, layout: StepLayout,
+                             form: str = 'exact') -> tuple[np.ndarray, np.ndarray]:
     """
-    ``(Δv, Δr)`` of K steps, body axes at the start of each step.
+    Return the specific-force integrals ``(Δv, Δr)`` of K steps.
 
-    gyro_window: (K, layout.gyro_window, 3) gyro increments ending at ``t_k`` (oldest first), rad.
-    accel_window: (K, layout.accel_window, 3) accelerometer increments ending at ``t_k``, m/s.
-    h: (K,) step lengths, s.  Sub-intervals are taken as equal (h / per_step).
+    Sub-intervals are taken as equal (h / per_step).
+
+    Parameters
+    ----------
+    gyro_window : (K, layout.gyro_window, 3) array_like
+        Gyro increments ending at ``t_k``, oldest first, body axes, rad.
+    accel_window : (K, layout.accel_window, 3) array_like
+        Accelerometer increments ending at ``t_k``, oldest first, body axes, m/s.
+    h : (K,) array_like
+        Step lengths, s.
+    layout : StepLayout
+        Increments per step and the fits.
+    form : str
+        One of :data:`FORMS`; ``series`` and ``printed`` need 003's layout.
+
+    Returns
+    -------
+    tuple of ndarray
+        Δv (K, 3), m/s, and Δr (K, 3), m, body axes at the start of each step.
+
+    Raises
+    ------
+    ValueError
+        For an unknown form, or a series form on another layout.
+
     """
     if form not in FORMS:
         raise ValueError(f"unknown specific-force form {form!r}; valid: {', '.join(FORMS)}")
@@ -145,19 +216,20 @@ def specific_force_integrals(gyro_window: np.ndarray, accel_window: np.ndarray, 
     u = np.asarray(accel_window, dtype=float)
     h = np.asarray(h, dtype=float)
     n, m = layout.gyro_per_step, layout.accel_per_step
-    if form == 'exact' and kernel_available() and len(h):     # the same mathematics, one compiled loop
+    if form == 'exact' and kernel_available() and len(h):   # the same mathematics, compiled
         dv, dr = np.empty((len(h), 3)), np.empty((len(h), 3))
-        _compiled(np.ascontiguousarray(q), np.ascontiguousarray(u), np.ascontiguousarray(h), layout.gyro_fit,
-                  layout.accel_fit, n, m, _GL_S, _GL_W, _GL_WR, dv, dr)
+        _compiled(np.ascontiguousarray(q), np.ascontiguousarray(u), np.ascontiguousarray(h),
+                  layout.gyro_fit, layout.accel_fit, n, m, _GL_S, _GL_W, _GL_WR, dv, dr)
         return dv, dr
     theta = q[:, -n:].sum(1)                   # the step's own increments
     v = u[:, -m:].sum(1)
-    poly = layout.accel_fit @ u                              # (K, 3, 3): c', d', e' (per unit step)
+    poly = layout.accel_fit @ u                   # (K, 3, 3): c', d', e' (per unit step)
     if form in ('series', 'printed'):
         if not layout.is_003:
-            raise ValueError(f"the {form} form is 003's: one gyro and three accelerometer increments per step, "
-                             f'got {n} and {m}')
-        return _series(q, u, h, PRINTED_COEFFICIENTS if form == 'printed' else derived_coefficients())
+            raise ValueError(f"the {form} form is 003's: one gyro and three accelerometer "
+                             f'increments per step, got {n} and {m}')
+        coefficients = PRINTED_COEFFICIENTS if form == 'printed' else derived_coefficients()
+        return _series(q, u, h, coefficients)
     # ∫_0^1 (1 − σ) f'(σ) dσ of the fit, f' = c' + d'σ + e'σ²/2  → c'/2 + d'/6 + e'/24
     p_lin = poly[:, 0] / 2.0 + poly[:, 1] / 6.0 + poly[:, 2] / 24.0
     if form == 'none':
@@ -178,9 +250,11 @@ def specific_force_integrals(gyro_window: np.ndarray, accel_window: np.ndarray, 
 
 def _exact_loop(q, u, h, gyro_fit, accel_fit, n, m, gl_s, gl_w, gl_wr, dv_out, dr_out):
     """
-    The ``"exact"`` form step by step in scalar arithmetic: the vectorised code above, written
-    as one loop without temporaries so that numba can compile it (optional; the tests compare
-    the two paths).  ``n`` is unused (the gyro window is the fit's).
+    Run the ``"exact"`` form step by step in scalar arithmetic.
+
+    The vectorised code above, written as one loop without temporaries so that numba can
+    compile it (optional; the tests compare the two paths).  ``n`` is unused (the gyro window
+    is the fit's).
     """
     for k in range(h.shape[0]):
         for i in range(3):                  # the fits, column by column: a₁h, a₂h²; c', d', e'
@@ -215,7 +289,9 @@ def _exact_loop(q, u, h, gyro_fit, accel_fit, n, m, gl_s, gl_w, gl_wr, dv_out, d
             x = gl_s[g]
             x2 = 0.5 * x * x
             x3 = x * x * x / 12.0
-            px, py, pz = a1x * x + a2x * x2 + bx * x3, a1y * x + a2y * x2 + by * x3, a1z * x + a2z * x2 + bz * x3
+            px = a1x * x + a2x * x2 + bx * x3
+            py = a1y * x + a2y * x2 + by * x3
+            pz = a1z * x + a2z * x2 + bz * x3
             fx, fy, fz = cx + dx * x + ex * x2, cy + dy * x + ey * x2, cz + dz * x + ez * x2
             t2 = px * px + py * py + pz * pz
             if t2 < 1e-8:
@@ -244,7 +320,16 @@ _compiled = None
 
 
 def kernel_available() -> bool:
-    """numba present, allowed (``STRAPDOWN_KERNEL`` ≠ ``numpy``) and able to compile the loop."""
+    """
+    Tell whether the ``exact`` form runs compiled.
+
+    Returns
+    -------
+    bool
+        True when numba is present, allowed (``STRAPDOWN_KERNEL`` ≠ ``numpy``) and able to
+        compile the loop.
+
+    """
     global _compiled
     if not kernels_allowed():
         return False
@@ -303,13 +388,20 @@ _DERIVED: dict | None = None
 
 def derived_coefficients() -> dict:
     """
-    The coefficients of (1.99)/(1.100) derived in exact rational arithmetic (τ = 1, δτ = 1/3).
+    Return the coefficients of 003 (1.99)/(1.100) derived in exact rational arithmetic.
 
-    f(σ) = Σ_j γ_j(σ) u_j from the exact solution of (1.98)'s system; the rotation vector
-    φ(σ) = Q₁σ/2 + Q₂σ²/2 + Qσ³/12 (from (1.52), (1.57)); A = I + [φ×] + ½[φ×]² + …;
-    velocity coefficient of a term = ∫₀¹ (its σ-polynomial) γ_j dσ, position the same with the
-    weight (1 − σ).  Terms of third order other than those with Q (e.g. Q₁×(Q₁×(Q₁×u))) are not
-    in 003's basis and not listed.
+    With τ = 1, δτ = 1/3: f(σ) = Σ_j γ_j(σ) u_j from the exact solution of (1.98)'s system;
+    the rotation vector φ(σ) = Q₁σ/2 + Q₂σ²/2 + Qσ³/12 (from (1.52), (1.57));
+    A = I + [φ×] + ½[φ×]² + …; velocity coefficient of a term = ∫₀¹ (its σ-polynomial) γ_j dσ,
+    position the same with the weight (1 − σ).  Terms of third order other than those with Q
+    (e.g. Q₁×(Q₁×(Q₁×u))) are not in 003's basis and not listed.
+
+    Returns
+    -------
+    dict
+        ``{'velocity': {term: (c₁, c₂, c₃)}, 'position': {...}}``, Fractions, the terms of
+        :data:`PRINTED_COEFFICIENTS`; computed once.
+
     """
     global _DERIVED
     if _DERIVED is not None:
@@ -317,22 +409,28 @@ def derived_coefficients() -> dict:
     layout = step_layout(1, 3)
     # exact inverse of the 3×3 system (the float pinv above equals it to round-off)
     d = Fraction(1, 3)
-    rows = [[(i + 1) * d - i * d, (((i + 1) * d) ** 2 - (i * d) ** 2) / 2, (((i + 1) * d) ** 3 - (i * d) ** 3) / 6]
+    rows = [[(i + 1) * d - i * d, (((i + 1) * d) ** 2 - (i * d) ** 2) / 2,
+             (((i + 1) * d) ** 3 - (i * d) ** 3) / 6]
             for i in range(3)]
     inv = _inverse(rows)
     gamma = [{0: inv[0][j], 1: inv[1][j], 2: inv[2][j] / 2} for j in range(3)]
-    beta = {'q_km1': {1: Fraction(1, 2), 2: Fraction(-1, 2)}, 'q_k': {1: Fraction(1, 2), 2: Fraction(1, 2)},
+    beta = {'q_km1': {1: Fraction(1, 2), 2: Fraction(-1, 2)},
+            'q_k': {1: Fraction(1, 2), 2: Fraction(1, 2)},
             'Q1': {1: Fraction(1, 2)}, 'Q2': {2: Fraction(1, 2)}, 'Q': {3: Fraction(1, 12)}}
+    weights = (('velocity', {0: Fraction(1)}), ('position', {0: Fraction(1), 1: Fraction(-1)}))
     out = {}
-    for kind, weight in (('velocity', {0: Fraction(1)}), ('position', {0: Fraction(1), 1: Fraction(-1)})):
+    for kind, weight in weights:
         table = {'u': tuple(_poly_int01(_poly_mul(weight, g)) for g in gamma)}
         for x in ('q_km1', 'q_k', 'Q'):
-            table[x] = tuple(_poly_int01(_poly_mul(weight, _poly_mul(beta[x], g))) for g in gamma)
+            table[x] = tuple(_poly_int01(_poly_mul(weight, _poly_mul(beta[x], g)))
+                             for g in gamma)
         for x, y in product(('Q1', 'Q2'), repeat=2):
-            table[x + y] = tuple(Fraction(1, 2) * _poly_int01(_poly_mul(weight, _poly_mul(_poly_mul(beta[x], beta[y]), g)))
+            xy = _poly_mul(beta[x], beta[y])
+            table[x + y] = tuple(Fraction(1, 2) * _poly_int01(_poly_mul(weight, _poly_mul(xy, g)))
                                  for g in gamma)
-        for x in ('Q1', 'Q2'):      # ½(X×(Q×f) + Q×(X×f)), both orders carry the same coefficient
-            c = tuple(Fraction(1, 2) * _poly_int01(_poly_mul(weight, _poly_mul(_poly_mul(beta[x], beta['Q']), g)))
+        for x in ('Q1', 'Q2'):  # ½(X×(Q×f) + Q×(X×f)): both orders carry the same coefficient
+            xq = _poly_mul(beta[x], beta['Q'])
+            c = tuple(Fraction(1, 2) * _poly_int01(_poly_mul(weight, _poly_mul(xq, g)))
                       for g in gamma)
             table[x + 'Q'] = c
             table['Q' + x] = c
@@ -343,7 +441,7 @@ def derived_coefficients() -> dict:
 
 
 def _inverse(rows):
-    """Exact inverse of a small square matrix of Fractions (Gauss–Jordan)."""
+    """Return the exact inverse of a small square matrix of Fractions (Gauss–Jordan)."""
     n = len(rows)
     a = [list(r) + [Fraction(int(i == j)) for j in range(n)] for i, r in enumerate(rows)]
     for c in range(n):
@@ -358,7 +456,8 @@ def _inverse(rows):
     return [r[n:] for r in a]
 
 
-def _series(q: np.ndarray, u: np.ndarray, h: np.ndarray, coefficients: dict) -> tuple[np.ndarray, np.ndarray]:
+def _series(q: np.ndarray, u: np.ndarray, h: np.ndarray,
+            coefficients: dict) -> tuple[np.ndarray, np.ndarray]:
     qm, qk = q[:, -2], q[:, -1]
     ops = {'q_km1': qm, 'q_k': qk, 'Q1': qk + qm, 'Q2': qk - qm, 'Q': cross(qm, qk)}
     res = []
@@ -378,7 +477,16 @@ def _series(q: np.ndarray, u: np.ndarray, h: np.ndarray, coefficients: dict) -> 
 
 
 def coefficient_table() -> list[dict]:
-    """Printed against derived, term by term (the table of doc/navigation.md)."""
+    """
+    Compare the printed coefficients of 003 (1.99)/(1.100) with the derived ones.
+
+    Returns
+    -------
+    list of dict
+        One row per term: ``equation``, ``term``, ``derived`` and ``printed`` (text, None when
+        003 has no such term) and ``agrees``.
+
+    """
     derived = derived_coefficients()
     rows = []
     for kind in ('velocity', 'position'):
@@ -388,22 +496,39 @@ def coefficient_table() -> list[dict]:
             if d is None:
                 continue
             rows.append({'equation': '1.99' if kind == 'velocity' else '1.100', 'term': term,
-                         'derived': [str(x) for x in d], 'printed': [str(x) for x in p] if p else None,
-                         'agrees': p is not None and all(Fraction(x) == y for x, y in zip(p, d))})
+                         'derived': [str(x) for x in d],
+                         'printed': [str(x) for x in p] if p else None,
+                         'agrees': p is not None
+                         and all(Fraction(x) == y for x, y in zip(p, d))})
     return rows
 
 
 def markdown_coefficient_table() -> str:
-    """The table of doc/navigation.md: ``python -m strapdown_ros.navigation.update``."""
+    """
+    Return the coefficient table of doc/navigation.md as markdown.
+
+    Printed by ``python -m strapdown_ros.navigation.update``.
+
+    Returns
+    -------
+    str
+        The table and a one-line count of agreements.
+
+    """
     lines = ['| eq. | term | derived (u₁, u₂, u₃) | printed | |', '|---|---|---|---|---|']
     for r in coefficient_table():
         printed = ', '.join(r['printed']) if r['printed'] else '—'
-        verdict = 'agrees' if r['agrees'] else ('**misprint**' if r['printed'] else 'absent in 003')
-        lines.append(f"| {r['equation']} | {r['term']} | {', '.join(r['derived'])} | {printed} | {verdict} |")
+        if r['agrees']:
+            verdict = 'agrees'
+        else:
+            verdict = '**misprint**' if r['printed'] else 'absent in 003'
+        lines.append(f"| {r['equation']} | {r['term']} | {', '.join(r['derived'])} | {printed} "
+                     f'| {verdict} |')
     n_bad = sum(1 for r in coefficient_table() if r['printed'] and not r['agrees'])
     n_ok = sum(1 for r in coefficient_table() if r['agrees'])
     lines.append('')
-    lines.append(f'{n_ok} printed coefficient triples agree with the derivation exactly; {n_bad} do not.')
+    lines.append(f'{n_ok} printed coefficient triples agree with the derivation exactly; '
+                 f'{n_bad} do not.')
     return '\n'.join(lines)
 
 

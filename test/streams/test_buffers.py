@@ -1,7 +1,7 @@
 """Bounded buffers with O(1) amortised appends."""
 import numpy as np
 
-from strapdown_ros.attitude.integrator import IncrementAccumulator
+from strapdown_ros.attitude.increment_sums import IncrementAccumulator
 from strapdown_ros.calibration.streaming import BoresightCalibrator
 from strapdown_ros.streams.buffers import StampedBuffer
 
