@@ -68,18 +68,38 @@ class Section:
     report: str
     plots: str | None
     args: Callable
+    report_module: str | None = None
 
     def available(self) -> bool:
         name = importlib.util.resolve_name(self.module, __package__)
         return name == __name__ or importlib.util.find_spec(name) is not None
 
     def fn(self, attr: str):
-        return getattr(importlib.import_module(self.module, __package__), attr)
+        """
+        Return a function of this section by name.
+
+        Parameters
+        ----------
+        attr : str
+            The name of the run, report or plots function; the report and plots functions
+            are looked up in ``report_module`` when it is given.
+
+        Returns
+        -------
+        callable
+            The function.
+
+        """
+        module = self.module
+        if self.report_module and attr in (self.report, self.plots):
+            module = self.report_module
+        return getattr(importlib.import_module(module, __package__), attr)
 
 
 #: the report, in order; adding a section is one entry (modules not present are skipped)
 REGISTRY = (
-    Section('000', '000', '.tkachenko1983', 'section_000', 'report_000', 'plots_000', lambda a: (a.seeds, a.quick)),
+    Section('000', '000', '.tkachenko1983', 'section_000', 'report_000', 'plots_000',
+            lambda a: (a.seeds, a.quick), '.tkachenko1983_report'),
     Section('001', '001', '.vavilov1982', 'section_001', 'report_001', 'plots_001', lambda a: (a.quick,)),
     Section('002', '002', '.ilyushenko2009', 'section_002', 'report_002', None, lambda a: (a.runs, a.quick)),
     Section('003', '003', '.aksyonenko2014', 'section_003', 'report_003', None, lambda a: (a.coning_duration,)),

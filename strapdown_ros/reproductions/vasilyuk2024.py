@@ -448,7 +448,7 @@ class _Parser(argparse.ArgumentParser):
 
 def main(argv=None) -> int:
 
-    ap = _Parser(prog='seeds_004', description=__doc__.split('\n\n')[0])
+    ap = _Parser(prog='vasilyuk2024', description=__doc__.split('\n\n')[0])
     ap.add_argument('--quick', action='store_true', help='20 Hz gyro, one run per row, three rows')
     ap.add_argument('--runs', type=int, default=None, help='runs per ablation row (default 8; quick 1)')
     ap.add_argument('--report', default='', help='write the markdown here')
@@ -466,7 +466,7 @@ def main(argv=None) -> int:
                        ('--plots', a.plots, DIRECTORY, ('seeds_004_theta_diff.png',
                                                         'seeds_004_ablation.png'))], [], a.force)
     except ValueError as e:
-        print(f'seeds_004: error: {e}', file=sys.stderr)
+        print(f'vasilyuk2024: error: {e}', file=sys.stderr)
         return 2
     res = section_004_extras(a.quick, a.runs)
     text = report_004_extras(res)

@@ -409,7 +409,7 @@ def plots_001(res: dict, outdir: str) -> list[str]:
 
 
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(prog='seeds_001', description=__doc__.split('\n\n')[0])
+    ap = argparse.ArgumentParser(prog='vavilov1982', description=__doc__.split('\n\n')[0])
     ap.add_argument('--quick', action='store_true', help='fewer steps and Monte Carlo runs')
     ap.add_argument('--report', help='write the markdown section to this file')
     ap.add_argument('--json', help='write the numbers to this file')
@@ -417,7 +417,7 @@ def main(argv=None) -> int:
     ap.add_argument('--force', action='store_true', help='overwrite existing outputs')
 
     def _error(msg):
-        print(f'seeds_001: error: {msg}', file=sys.stderr)
+        print(f'vavilov1982: error: {msg}', file=sys.stderr)
         raise SystemExit(2)
     ap.error = _error
     args = ap.parse_args(argv)

@@ -58,4 +58,4 @@ def test_plots(quick, tmp_path):
 def test_main_argument_errors(args, capsys):
     assert seeds_004.main(args) == 2
     err = capsys.readouterr().err.strip().splitlines()
-    assert len(err) == 1 and err[0].startswith('seeds_004: ')
+    assert len(err) == 1 and err[0].startswith('vasilyuk2024: ')
