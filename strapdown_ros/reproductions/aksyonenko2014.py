@@ -42,7 +42,14 @@ def section_003(duration: float) -> dict:
 
 def report_003(r: dict) -> str:
     names = list(r['cases'][0]['drift_deg_per_h'])
-    L = [f"## 003 — coning, §2.3 ({r['duration_s']:g} s per case)", '',
+    L = [f"## 003 — coning, §2.3 ({r['duration_s']:g} s per case)", '']
+    claim = []
+    for step, cl in r['claim_case1'].items():
+        claim.append(f"τ = {step} s: largest of the others {cl['largest_other']:.2g} °/h, "
+                     f"algorithm (1) {cl['algorithm_1_deg_per_h']:.2g} °/h")
+    L += ["**The paper's claim beside ours.** 003 §2.3 (as printed, no drift table): in case 1 "
+          f'(α = 0.087, ν = 1) every algorithm but (1) drifts less than {CLAIM_LIMIT_DEG_PER_H:g} '
+          '°/h, and algorithm (1) more. Ours: ' + '; '.join(claim) + '.', '',
          'Drift along the cone axis, °/h. The floor is the float64 round-off of the same arithmetic fed with '
          'the exact rotation vector (|slope| + 3σ, largest over the update sizes, × 3, as doc/coning.md); a value '
          'at or below it is marked *(floor)*: it measures round-off, not the algorithm, and is not compared.', '',

@@ -122,7 +122,7 @@ def _compare(ratios: dict) -> str:
 
 def report_002(r: dict) -> str:
     L = ['## 002 — integral method against the 000 estimator on the same data', '',
-         "The paper's claim beside ours: 002 (Ilyushenko 2009) publishes no accuracy table or "
+         "**The paper's claim beside ours.** 002 (Ilyushenko 2009) publishes no accuracy table or "
          'figure; it '
          'claims that the 12 parameters (B, s0) follow from at least 4 intervals of ordinary '
          'motion, with no '

@@ -126,6 +126,28 @@ def _ablation_lines(a: dict) -> list[str]:
     return L + ['']
 
 
+def _rms(rec: dict) -> float:
+    return float(np.sqrt(np.mean(np.square(np.r_[rec['dc'], rec['dd']]))))
+
+
+def _claim_lines(r: dict) -> list[str]:
+    """Open the section with 000's published errors beside ours, case by case."""
+    L = ["**The paper's claim beside ours.** 000 §6 prints three sets of estimation errors "
+         '(δc1…δc9, δd1…δd3; the rows "paper" of the tables below, as printed). Their RMS '
+         'beside the RMS of ours on the same experiment (Δθ0 = 0, as in 000):', '',
+         "| case | paper (000 §6, as printed): RMS | ours, 000's method as printed: RMS "
+         '(paper/ours, signs, corr) | ours, modified estimator: RMS (paper/ours, signs, corr) |',
+         '|---|---|---|---|']
+    for case, rec in r['cases'].items():
+        cells = [f'{_rms(rec["paper"]):.2e}']
+        for key in ('ours_as_printed', 'ours'):
+            a = r['headline'][case][key]
+            cells.append(f"{_rms(rec[key]):.2e} ({a['rms_ratio']:.2f}, {a['signs']}/{a['n']}, "
+                         f"{a['corr']:+.2f})")
+        L.append(f'| {case} | ' + ' | '.join(cells) + ' |')
+    return L + ['']
+
+
 #: the rows of the error tables: the paper's published set first, then 000's method as printed
 ROW_NAMES = {'paper': "paper (000's published errors)", 'ours_as_printed': "ours: 000's method as printed",
              'ours': 'ours: modified estimator', 'ours_iterated': 'ours: Gauss–Newton',
@@ -135,6 +157,7 @@ ROW_NAMES = {'paper': "paper (000's published errors)", 'ours_as_printed': "ours
 def report_000(r: dict) -> str:
     L = ['## 000 — gyro errors against a drifting reference (Tkachenko 1983, §6)', '']
     h = r['headline']
+    L += _claim_lines(r)
     L += ['Headline — first order, Δθ0 = 0 as in 000 (RMS ratio = RMS(paper)/RMS(ours) over δc1…δc9, δd1…δd3; '
           "signs = components with the paper's sign; corr = cosine between the two 12-vectors). "
           "First 000's "

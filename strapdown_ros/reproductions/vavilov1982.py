@@ -33,6 +33,7 @@ from strapdown_ros.estimation.steady_filter import (constant_gain_covariance, di
                                                     pole_placement_gain, simulate_constant_gain,
                                                     steady_state_gain)
 from strapdown_ros.figures import save_figure
+from strapdown_ros.reproductions.markdown import place_figures
 from strapdown_ros.reproductions.vavilov1982_text import DERIVATIONS_001
 
 LATITUDE_DEG = 55.0              # "moderate latitudes"
@@ -258,9 +259,22 @@ def report_001(res: dict) -> str:
     p, mp, geo = res['parameters'], res['misprints'], res['geometry']
     s, a, ci, fl = res['ship'], res['aircraft'], res['circulation'], res['filters']
     L = ['## 001 — Observability in gyro-horizon-compass correction (Vavilov 1982)', '']
+    c = s['c']
+    lm = ci['lam1'] * ci['mu1']
+    L += ["**The paper's claim beside ours.** 001 prints orders of magnitude, not numbers "
+          f"(evaluated here at {p['latitude_deg']:g}°). Ship (4.6): y1, y2 of order 1, y3, y4, Δ "
+          f'of order μ sin φ = {c:.3g}; ours (derivative measure) '
+          + ', '.join(f'{n} {v:.3g}' for n, v in zip(['y1', 'y2', 'y3', 'y4', 'Δ'],
+                                                       s['derivative']))
+          + f". Aircraft (4.8): s1–s3 of order 1, s4, s5 of order μ sin φ = {a['c']:.3g}; ours "
+          + ', '.join(f'{n} {v:.3g}' for n, v in zip(['s1', 's2', 's3', 's4', 's5'],
+                                                       a['derivative']))
+          + f'. Circulation (4.11): p1 of order λ1μ1 = {lm:.3g} on τ1∈(0,1); ours '
+          f"{ci['derivative']['unit'][2]:.3g}. The tables below give the paper's orders as "
+          'their first column.', '']
     L.append(f"μ = u/ω0 = {p['mu']:.4f}, ship μ1 = {p['mu1_ship']:.4f} (V0 = {SHIP_SPEED:g} m/s), latitude "
              f"{p['latitude_deg']:g}°, unit of dimensionless time 1/ω0 = {p['unit_interval_s']:.0f} s. "
-             'Derivations and the two readings of the measure: `doc/seeds/observability_001.md`.')
+             'Derivations and the two readings of the measure: `doc/results/reproductions/observability_001.md`.')
     L += ['', '### Printed formulas checked against exact computations', '']
     L.append(f"- (3.7) with the prefactor μ: relative error {mp['h1_corrected_rel_error']:.1e} against the exact "
              f"nonlinear σ; with the printed 0.5μ1 of (3.2): {mp['h1_printed_prefactor_rel_error']:.2f}.")
@@ -431,8 +445,8 @@ def main(argv=None) -> int:
     res = section_001(quick=args.quick)
     text = '# 001 (Vavilov 1982) — observability, reproduced\n\n' + report_001(res)
     if args.plots:
-        for f in plots_001(res, args.plots):
-            text += f"\n![{os.path.basename(f)}]({os.path.relpath(f, os.path.dirname(args.report) or '.') if args.report else f})\n"
+        base = os.path.dirname(os.path.abspath(args.report)) if args.report else os.getcwd()
+        text = place_figures(text, plots_001(res, args.plots), base)
     text += DERIVATIONS_001
     if args.report:
         write_text(args.report, text)
