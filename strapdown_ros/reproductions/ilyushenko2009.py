@@ -57,14 +57,18 @@ def simulate_measurements(profile, duration: float, errors=None, gyro_rate: floa
     first = camera_interval if camera_first is None else camera_first
     count = int(np.floor((duration - first) / camera_interval + 1e-9)) + 1
     cam = StarCameraModel(boresight=np.zeros(3), interval=camera_interval,
-                          sigma=np.broadcast_to(np.asarray(camera_sigma, dtype=float), (3,)).copy(),
+                          sigma=np.broadcast_to(np.asarray(camera_sigma, dtype=float),
+                                                (3,)).copy(),
                           first_exposure=first, seed=seed + 7919)
     fixes = cam.fixes(profile, count)
     return SimulatedMeasurements(
         gyro_stamps=t, delta_theta=meas, true_delta_theta=true,
-        camera_stamps=np.array([f.stamp for f in fixes]), camera_quats=np.array([f.attitude for f in fixes]),
-        camera_true_quats=np.array([f.true_attitude for f in fixes]), camera_sigma=cam.sigma.copy(),
-        gyro_random_walk=errors.random_walk, B_true=np.eye(3) + errors.matrix, s0_true=errors.bias.copy(),
+        camera_stamps=np.array([f.stamp for f in fixes]),
+                                 camera_quats=np.array([f.attitude for f in fixes]),
+        camera_true_quats=np.array([f.true_attitude for f in fixes]),
+                                 camera_sigma=cam.sigma.copy(),
+        gyro_random_walk=errors.random_walk, B_true=np.eye(3) + errors.matrix,
+                                 s0_true=errors.bias.copy(),
         errors=errors, profile=profile)
 
 
@@ -88,7 +92,8 @@ def section_002(n_runs: int, quick: bool = False) -> dict:
         # one data set: the §6 trajectory and gyro errors, a star tracker (no drift, d = 0) read
         # every 0.2 s; both estimators see the same increments and the same fixes
         sim = simulate_000(quantum=0.0, seed=seed, d=np.zeros(3), angle_noise=sigma, t_first=0.2)
-        est = estimate(sim.meas, sim.h, sim.M0, sim.ref_q0, sim.ref_q, sim.epochs, angle_noise=sigma,
+        est = estimate(sim.meas, sim.h, sim.M0, sim.ref_q0, sim.ref_q, sim.epochs,
+                       angle_noise=sigma,
                        weighted=True, iterate=True)
         errs_000.append(est.x[3:12] - TKACHENKO_C)
         stamps = np.concatenate([[0.0], sim.h * sim.epochs])
@@ -96,7 +101,8 @@ def section_002(n_runs: int, quick: bool = False) -> dict:
         gyro_t = sim.h * np.arange(1, len(sim.meas) + 1)
         for neighbour, errs, ch in (('previous', errs_002, chi2), ('adaptive', errs_002a, chi2a)):
             r = calibrate_from_measurements(gyro_t, sim.meas, stamps, quats, camera_sigma=sigma,
-                                            q_body_camera=sim.reference.mounting, steps_per_interval=1,
+                                            q_body_camera=sim.reference.mounting,
+                                            steps_per_interval=1,
                                             neighbour=neighbour)
             errs.append(_c_errors_from_B(r.B, r.s0, TKACHENKO_C))
             ch.append(r.chi2_per_dof)
@@ -104,8 +110,10 @@ def section_002(n_runs: int, quick: bool = False) -> dict:
     out = {'runs': n_runs, 'star_tracker_sigma_rad': sigma, 'fix_interval_s': 0.2,
            'rms_000': {g: float(np.sqrt(np.mean(e0[:, s] ** 2))) for g, s in GROUPS.items()},
            'rms_002': {g: float(np.sqrt(np.mean(e2[:, s] ** 2))) for g, s in GROUPS.items()},
-           'rms_002_adaptive': {g: float(np.sqrt(np.mean(e2a[:, s] ** 2))) for g, s in GROUPS.items()},
-           'chi2_per_dof_002_mean': float(np.nanmean(chi2)), 'chi2_per_dof_002_adaptive_mean': float(np.nanmean(chi2a))}
+           'rms_002_adaptive': {g: float(np.sqrt(np.mean(e2a[:, s] ** 2))) for g,
+                                s in GROUPS.items()},
+           'chi2_per_dof_002_mean': float(np.nanmean(chi2)),
+           'chi2_per_dof_002_adaptive_mean': float(np.nanmean(chi2a))}
     out['ratio_002_over_000'] = {g: out['rms_002'][g] / out['rms_000'][g] for g in GROUPS}
     out['ratio_002_adaptive_over_000'] = {g: out['rms_002_adaptive'][g] / out['rms_000'][g] for g in GROUPS}
     return out
@@ -138,15 +146,22 @@ def report_002(r: dict) -> str:
                  f"{r['ratio_002_over_000'][gname]:.2f} | {r['rms_002_adaptive'][gname]:.2e} | "
                  f"{r['ratio_002_adaptive_over_000'][gname]:.2f} |")
     c2, c2a = r['chi2_per_dof_002_mean'], r['chi2_per_dof_002_adaptive_mean']
-    L += ['', f"{r['runs']} runs; integral method mean χ²/dof {c2:.2f} (as printed), {c2a:.2f} (adaptive).", '',
+    L += ['', f"{r['runs']} runs; integral method mean χ²/dof {c2:.2f} (as printed), {c2a:.2f} "
+              '(adaptive).', '',
           f'* Same data: 000 §6 trajectory and gyro errors c, a drift-free star tracker (σ = '
-          f"{r['star_tracker_sigma_rad']:.0e} rad) every {r['fix_interval_s']:g} s; 000 estimator (iterated, "
-          'weighted by the angle noise) and the 002 integral method (3rd-order inversion, one interval per fix '
-          'pair, model weighting). The integral method estimates a general B (9) and s0; its errors are mapped '
+          f"{r['star_tracker_sigma_rad']:.0e} rad) every {r['fix_interval_s']:g} s; 000 estimator "
+          '(iterated, '
+          'weighted by the angle noise) and the 002 integral method (3rd-order inversion, one '
+          'interval per fix '
+          'pair, model weighting). The integral method estimates a general B (9) and s0; its '
+          'errors are mapped '
           "onto 000's symmetric c (the mean of the two off-diagonal entries).",
-          '* The 3rd-order inversion of 002 uses the previous increment; the rate table of 000 jumps exactly on '
-          f"fix epochs. As printed, χ²/dof = {c2:.2f}; with the neighbour on the side without a jump ('adaptive') "
+          '* The 3rd-order inversion of 002 uses the previous increment; the rate table of 000 '
+          'jumps exactly on '
+          f'fix epochs. As printed, χ²/dof = {c2:.2f}; with the neighbour on the side without a '
+          "jump ('adaptive') "
           f"{c2a:.2f}, {100 * (1 - c2a / c2):.0f}% {'lower' if c2a < c2 else 'higher'}.",
-          f"* As printed, the integral method is {_compare(r['ratio_002_over_000'])}; with the adaptive neighbour it is "
+          f"* As printed, the integral method is {_compare(r['ratio_002_over_000'])}; with the "
+          'adaptive neighbour it is '
           f"{_compare(r['ratio_002_adaptive_over_000'])}.", '']
     return '\n'.join(L)

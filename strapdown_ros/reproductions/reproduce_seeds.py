@@ -101,11 +101,16 @@ class Section:
 REGISTRY = (
     Section('000', '000', '.tkachenko1983', 'section_000', 'report_000', 'plots_000',
             lambda a: (a.seeds, a.quick), '.tkachenko1983_report'),
-    Section('001', '001', '.vavilov1982', 'section_001', 'report_001', 'plots_001', lambda a: (a.quick,)),
-    Section('002', '002', '.ilyushenko2009', 'section_002', 'report_002', None, lambda a: (a.runs, a.quick)),
-    Section('003', '003', '.aksyonenko2014', 'section_003', 'report_003', None, lambda a: (a.coning_duration,)),
-    Section('004', '004', '.reproduce_seeds', 'section_004', 'report_004', 'plots_004', lambda a: (a.runs, a.quick)),
-    Section('004', '004_extras', '.vasilyuk2024', 'section_004_extras', 'report_004_extras', 'plots_004_extras',
+    Section('001', '001', '.vavilov1982', 'section_001', 'report_001', 'plots_001',
+            lambda a: (a.quick,)),
+    Section('002', '002', '.ilyushenko2009', 'section_002', 'report_002', None, lambda a: (a.runs,
+                                                                                           a.quick)),
+    Section('003', '003', '.aksyonenko2014', 'section_003', 'report_003', None,
+            lambda a: (a.coning_duration,)),
+    Section('004', '004', '.reproduce_seeds', 'section_004', 'report_004', 'plots_004',
+            lambda a: (a.runs, a.quick)),
+    Section('004', '004_extras', '.vasilyuk2024', 'section_004_extras', 'report_004_extras',
+            'plots_004_extras',
             lambda a: (a.quick,)),
 )
 
@@ -142,7 +147,8 @@ def experiment_004_pairs(seed: int, n_fixes: int = 73, interval: float = 21.0, _
             r[axis] = np.radians(deg) / turn
             segs += [Segment(turn, r), Segment(hold)]
         lat = np.radians(55.75)
-        _cache['profile'] = PiecewiseRateProfile(segs, earth_rate=EARTH_RATE * np.array([0.0, np.cos(lat), np.sin(lat)]),
+        _cache['profile'] = PiecewiseRateProfile(segs, earth_rate=EARTH_RATE * np.array([0.0,
+                                                                                         np.cos(lat), np.sin(lat)]),
                                                  gravity=(0.0, 0.0, STANDARD_GRAVITY))
         p = _cache['profile']
         tg = np.arange(int(span * 200) + 1) / 200.0
@@ -150,7 +156,8 @@ def experiment_004_pairs(seed: int, n_fixes: int = 73, interval: float = 21.0, _
     prof, t, u = _cache['profile'], _cache['t'], _cache['u']
     rng = np.random.default_rng(seed)
     err = NAVIGATION_GRADE_GYRO.draw(rng)
-    y = u @ (np.eye(3) + err.matrix).T + err.bias / 200.0 + rng.normal(0, err.random_walk * np.sqrt(1 / 200.0), u.shape)
+    y = u @ (np.eye(3) + err.matrix).T + err.bias / 200.0 + rng.normal(0,
+                                                                       err.random_walk * np.sqrt(1 / 200.0), u.shape)
     cam = StarCameraModel(boresight=np.zeros(3), interval=interval, seed=1000 + seed)
     fixes = cam.fixes(prof, n_fixes)
     pairs = []
@@ -178,14 +185,16 @@ def convergence_004(n: int = 100, seed: int = 8) -> dict:
             axis = rng.normal(size=3)
             dq_vf = rotvec_to_quat(axis / np.linalg.norm(axis) * np.radians(12.0) * (0.5 + rng.random()))
             dq_mf = quat_multiply(quat_multiply(qc, dq_vf), quat_conjugate(qc))
-            pairs.append(IncrementPair(20.0 * k, 20.0 * (k + 1), dq_mf, dq_vf, 1e-24 * np.eye(3), 1e-24 * np.eye(3)))
+            pairs.append(IncrementPair(20.0 * k, 20.0 * (k + 1), dq_mf, dq_vf, 1e-24 * np.eye(3),
+                                       1e-24 * np.eye(3)))
         for init, rec in res.items():
             sol = solve_boresight(pairs, init=init, max_iterations=50)
             ok = bool(sol.converged and quat_angle_between(dcm_to_quat(sol.c_mf_vf), qc) < 1e-6)
             rec.append((ok, sol.iterations))
     for init, rec in res.items():
         its = np.array([r[1] for r in rec])
-        out[init] = {'converged': int(sum(r[0] for r in rec)), 'median_iterations': float(np.median(its)),
+        out[init] = {'converged': int(sum(r[0] for r in rec)),
+                     'median_iterations': float(np.median(its)),
                      'max_iterations': int(its.max())}
     return out
 
@@ -226,7 +235,8 @@ def report_004(r: dict) -> str:
          '| | σ_ψ (optical axis) ″ | σ_ϑ ″ | σ_γ ″ | ψ / mean(ϑ, γ) | ϑ / γ |',
          '|---|---|---|---|---|---|']
     rows = [('paper (004 §6, as printed)', r['paper']['sigma_beta_arcsec']),
-            ('ours, unit weights (as 004): mean published σ', r['ours_unweighted_sigma_arcsec_mean']),
+            ('ours, unit weights (as 004): mean published σ',
+             r['ours_unweighted_sigma_arcsec_mean']),
             ('ours, unit weights: RMS error', r['ours_unweighted_rms_error_arcsec']),
             ('ours, weighted: mean published σ', r['ours_weighted_sigma_arcsec_mean']),
             ('ours, weighted: RMS error', r['ours_weighted_rms_error_arcsec'])]
@@ -238,17 +248,24 @@ def report_004(r: dict) -> str:
     same = oa > 1 and abs(np.log(oa / pa)) <= np.log(2) and abs(np.log(ob)) <= np.log(1.5)
     floor = r['common_rotation_floor_arcsec']
     rms = r['ours_unweighted_rms_error_arcsec']
-    L += ['', f"{r['runs']} runs. Simulated with 004 §6's sensor parameters (N = {r['paper']['N']} exposures "
-          f"{r['paper']['interval_s']:g} s apart, T_IMU = 5 ms, σ_φG = 3″, σ_kG = 1e-5, σ_wG = 0.0012°/√h, "
-          "σ_bG = 0.007°/h, camera 0.6″/0.6″/6″ looking up) on a trajectory like 004's Fig. 1a: 12 turns, mostly "
-          "in heading (about the optical axis). 004's trajectory is not published in full, so the pattern is "
+    L += ['', f"{r['runs']} runs. Simulated with 004 §6's sensor parameters (N = "
+              f"{r['paper']['N']} exposures "
+          f"{r['paper']['interval_s']:g} s apart, T_IMU = 5 ms, σ_φG = 3″, σ_kG = 1e-5, σ_wG = "
+          '0.0012°/√h, '
+          "σ_bG = 0.007°/h, camera 0.6″/0.6″/6″ looking up) on a trajectory like 004's Fig. 1a: "
+          '12 turns, mostly '
+          "in heading (about the optical axis). 004's trajectory is not published in full, so the "
+          'pattern is '
           'compared, not the digits.', '',
-          f'* Pattern of the published σ (unit weights, as 004): ψ is {oa:.1f}× the mean of ϑ and γ (paper '
+          f'* Pattern of the published σ (unit weights, as 004): ψ is {oa:.1f}× the mean of ϑ and '
+          'γ (paper '
           f'{pa:.0f}×), ϑ/γ = {ob:.2f} (paper 1) — the pattern '
           + ("agrees (ψ/mean within 2× of the paper's, ϑ/γ within 1.5×)." if same else
              "does not agree (criterion: ψ/mean within 2× of the paper's, ϑ/γ within 1.5×)."),
-          f"* 004's σ_β are the residual-based P_β of §4.3, which cannot see errors common to all pairs. The "
-          f'gyro-triad rotation σ_φG/√2 = {floor:.1f}″ per axis is such an error; our RMS errors of ϑ, γ '
+          "* 004's σ_β are the residual-based P_β of §4.3, which cannot see errors common to all "
+          'pairs. The '
+          f'gyro-triad rotation σ_φG/√2 = {floor:.1f}″ per axis is such an error; our RMS errors '
+          'of ϑ, γ '
           f'({rms[1]:.2f}″, {rms[2]:.2f}″) are '
           + ('at or above' if min(rms[1], rms[2]) >= 0.9 * floor else 'below')
           + f" it and {min(rms[1], rms[2]) / r['paper']['sigma_beta_arcsec'][1]:.1f}–"
@@ -256,9 +273,12 @@ def report_004(r: dict) -> str:
     cv = r.get('convergence')
     if cv:
         g, x = cv['given'], cv['axes']
-        L += [f"* Solver (§4.2), {cv['n']} random boresights (pitch within ±89°, 20 noise-free pairs each): Gauss–Newton "
-              f"from β0 = 0 as 004 converged in {g['converged']}/{cv['n']} (median {g['median_iterations']:g}, "
-              f"max {g['max_iterations']} iterations); from the closed-form axis alignment in {x['converged']}/{cv['n']} "
+        L += [f"* Solver (§4.2), {cv['n']} random boresights (pitch within ±89°, 20 noise-free "
+              'pairs each): Gauss–Newton '
+              f"from β0 = 0 as 004 converged in {g['converged']}/{cv['n']} (median "
+              f"{g['median_iterations']:g}, "
+              f"max {g['max_iterations']} iterations); from the closed-form axis alignment in "
+              f"{x['converged']}/{cv['n']} "
               f"(median {x['median_iterations']:g}, max {x['max_iterations']})."]
     L.append('')
     return '\n'.join(L)
@@ -336,8 +356,10 @@ def main(argv=None) -> int:
     names = section_names()
     ap = argparse.ArgumentParser(prog='reproduce_seeds', description=__doc__,
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument('--only', default=','.join(names), help=f"comma-separated subset of {','.join(names)}")
-    ap.add_argument('--seeds', type=int, default=100, help='Monte Carlo runs for 000 (≥ 100 for the record)')
+    ap.add_argument('--only', default=','.join(names), help='comma-separated subset of '
+                                                            f"{','.join(names)}")
+    ap.add_argument('--seeds', type=int, default=100, help='Monte Carlo runs for 000 (≥ 100 for '
+                                                           'the record)')
     ap.add_argument('--runs', type=int, default=20, help='runs for the 002 and 004 sections')
     ap.add_argument('--coning-duration', type=float, default=600.0, help='seconds per coning case')
     ap.add_argument('--quick', action='store_true', help='few runs (for tests)')
@@ -373,7 +395,8 @@ def main(argv=None) -> int:
         print(f'reproduce_seeds: error: {exc}', file=sys.stderr)
         return 2
     if a.quick:
-        a.seeds, a.runs, a.coning_duration = min(a.seeds, 8), min(a.runs, 3), min(a.coning_duration, 60.0)
+        a.seeds, a.runs, a.coning_duration = min(a.seeds, 8), min(a.runs,
+                                                                  3), min(a.coning_duration, 60.0)
     res, t0 = {}, time.perf_counter()
     for s in sections():
         if s.only not in only:

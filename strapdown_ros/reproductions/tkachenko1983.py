@@ -54,9 +54,11 @@ class Simulation000:
     x_true: np.ndarray
 
 
-def simulate_000(quantum: float = 0.0, seed: int | None = 0, profile=None, c=TKACHENKO_C, d=TKACHENKO_D,
+def simulate_000(quantum: float = 0.0, seed: int | None = 0, profile=None, c=TKACHENKO_C,
+                 d=TKACHENKO_D,
                  w0=TKACHENKO_W0, phi0=TKACHENKO_PHI0, h: float = 0.02, t_first: float = 4.0,
-                 t_step: float = 0.2, t_f: float = 30.0, structure: ErrorStructure = TKACHENKO_STRUCTURE,
+                 t_step: float = 0.2, t_f: float = 30.0,
+                 structure: ErrorStructure = TKACHENKO_STRUCTURE,
                  angle_noise: float = 0.0, initial_remainder: str = 'random',
                  t_star: float = 0.0, mounting=None) -> Simulation000:
     """
@@ -76,9 +78,11 @@ def simulate_000(quantum: float = 0.0, seed: int | None = 0, profile=None, c=TKA
     n = int(round(t_f / h))
     v0 = rotvec_to_quat(psi_matrix(structure, np.array(0.0), t_star) @ np.asarray(d, dtype=float))
     q_E_J = quat_multiply(quat_conjugate(prof.attitude(0.0)),
-                          quat_multiply(v0, aircraft_angles_to_quat(np.asarray(phi0)))) if mounting is None \
+                          quat_multiply(v0,
+                                        aircraft_angles_to_quat(np.asarray(phi0)))) if mounting is None \
         else np.asarray(mounting, dtype=float)
-    ref = GyrostabilizerReference(prof, d, structure, mounting=q_E_J, t_star=t_star, angle_noise=angle_noise,
+    ref = GyrostabilizerReference(prof, d, structure, mounting=q_E_J, t_star=t_star,
+                                  angle_noise=angle_noise,
                                   seed=None if seed is None else seed + 7919)
     err = SensorErrorModel.from_tkachenko(c, quantum=quantum) if structure is TKACHENKO_STRUCTURE \
         else SensorErrorModel()
@@ -87,8 +91,10 @@ def simulate_000(quantum: float = 0.0, seed: int | None = 0, profile=None, c=TKA
         sensor.quantizer.integral[:] = np.random.default_rng(seed).uniform(-quantum, quantum, 3)
     _, meas, true_inc = sensor.sample(n)
     if structure is not TKACHENKO_STRUCTURE:      # user structure: add D(ω)c exactly per interval
-        meas = true_inc + np.einsum('nij,j->ni', structure.D(true_inc / h, h * (np.arange(n) + 0.5)), c) * h
-    M0 = quat_multiply(quat_conjugate(quat_normalize(np.concatenate([[1.0], w0]))), prof.attitude(0.0))
+        meas = true_inc + np.einsum('nij,j->ni', structure.D(true_inc / h,
+                                                             h * (np.arange(n) + 0.5)), c) * h
+    M0 = quat_multiply(quat_conjugate(quat_normalize(np.concatenate([[1.0], w0]))),
+                       prof.attitude(0.0))
     epochs = np.rint(np.arange(t_first, t_f + 1e-9, t_step) / h).astype(int)
     ref_q0 = ref.quaternion(np.array(0.0))
     ref_q = ref.quaternion(h * epochs)
@@ -122,8 +128,10 @@ def run_tkachenko_experiment(quantum: float = 0.0, mode: str = 'raw', seed: int 
         inputs = [np.asarray(a, dtype=precision).astype(float) for a in inputs]
     if recursion == 'float32':
         inputs[1], inputs[0] = float32_recursion_increments(inputs[1], inputs[0])
-    sol = estimate(inputs[0], sim.h, inputs[1], inputs[2], inputs[3], sim.epochs, algorithm=algorithm,
-                   quadrature=quadrature, mode=mode, quantum=quantum, iterate=iterate, weighted=weighted,
+    sol = estimate(inputs[0], sim.h, inputs[1], inputs[2], inputs[3], sim.epochs,
+                   algorithm=algorithm,
+                   quadrature=quadrature, mode=mode, quantum=quantum, iterate=iterate,
+                   weighted=weighted,
                    t_star=sim.reference.t_star, angle_noise=sim.reference.angle_noise,
                    coefficients=coefficients)
     err = sol.x - sim.x_true
@@ -154,7 +162,8 @@ def monte_carlo_000(seeds: Sequence[int] = range(100), quantum: float = QUANTUM,
     for mode, it, wt in cases:
         errs, wrms, wf = [], [], []
         for s in seeds:
-            r = run_tkachenko_experiment(quantum, mode, s, iterate=it, weighted=wt, profile=profile,
+            r = run_tkachenko_experiment(quantum, mode, s, iterate=it, weighted=wt,
+                                         profile=profile,
                                          coefficients=coefficients)
             errs.append(r['dw0'] + r['dc'] + r['dd'])
             wrms.append(r['w_rms'])
@@ -202,7 +211,8 @@ def _variant_profile(segment: int, axis: int, rate: float) -> PiecewiseRateProfi
     base = tkachenko_profile()
     segs = [Segment(s.duration, s.rate.copy()) for s in base.segments]
     segs[segment].rate[axis] = rate
-    return PiecewiseRateProfile(segs, initial_attitude=(0.64, 0.48, 0.36, -0.48), name='tkachenko-variant')
+    return PiecewiseRateProfile(segs, initial_attitude=(0.64, 0.48, 0.36, -0.48),
+                                name='tkachenko-variant')
 
 
 def float32_recursion_increments(M0, meas) -> tuple[np.ndarray, np.ndarray]:
@@ -256,21 +266,29 @@ def _knobs() -> dict:
         'none': ('no change (§6 as printed)', {}),
         'quadrature_trapezoid': ("integration scheme: Θ by the paper's O(H³) trapezoid, H = 2h",
                                  dict(quadrature='trapezoid')),
-        'algorithm_1': ('integration scheme: attitude by the 1-sample algorithm instead of 2-sample',
+        'algorithm_1': ('integration scheme: attitude by the 1-sample algorithm instead of '
+                        '2-sample',
                         dict(algorithm='1')),
-        'algorithm_4': ('integration scheme: attitude by the 4-sample algorithm', dict(algorithm='4')),
-        'float32_inputs': ('increments and quaternions rounded to single precision', dict(precision=np.float32)),
+        'algorithm_4': ('integration scheme: attitude by the 4-sample algorithm',
+                        dict(algorithm='4')),
+        'float32_inputs': ('increments and quaternions rounded to single precision',
+                           dict(precision=np.float32)),
         'float32_recursion': ('attitude recursion computed in single precision (1-sample)',
                               dict(recursion='float32', algorithm='1')),
         'w0_half': ('misprint: w(0) = 1e-3 read as a rotation angle (half-angle 5e-4)',
                     dict(w0=0.5 * TKACHENKO_W0)),
-        'w0_double': ('misprint: w(0) twice as large (2e-3 per axis)', dict(w0=2.0 * TKACHENKO_W0)),
+        'w0_double': ('misprint: w(0) twice as large (2e-3 per axis)',
+                      dict(w0=2.0 * TKACHENKO_W0)),
         'w0_1e-2': ('misprint of the exponent: w(0) = 1e-2 per axis',
                     dict(w0=10.0 * TKACHENKO_W0)),
-        'w0_sign': ('sign convention: w0 = −1e-3 per axis (error of the other basis)', dict(w0=-TKACHENKO_W0)),
-        'c_sign': ('sign convention: c → −c (gyro error as truth − measured)', dict(c=-TKACHENKO_C)),
-        'c6_sign': ('misprint: c6 = +5e-4 (c4 = c5 = c6)', dict(c=TKACHENKO_C * np.r_[1, 1, 1, 1, 1, -1, 1, 1, 1])),
-        'rate_0.032': ('misprint: ω2 = 0.032 instead of 0.32 on 5–10 s', dict(profile=_variant_profile(1, 1, 0.032))),
+        'w0_sign': ('sign convention: w0 = −1e-3 per axis (error of the other basis)',
+                    dict(w0=-TKACHENKO_W0)),
+        'c_sign': ('sign convention: c → −c (gyro error as truth − measured)',
+                   dict(c=-TKACHENKO_C)),
+        'c6_sign': ('misprint: c6 = +5e-4 (c4 = c5 = c6)', dict(c=TKACHENKO_C * np.r_[1, 1, 1, 1,
+                                                                                      1, -1, 1, 1, 1])),
+        'rate_0.032': ('misprint: ω2 = 0.032 instead of 0.32 on 5–10 s',
+                       dict(profile=_variant_profile(1, 1, 0.032))),
         'mounting_J_is_E': ('misprint: J = E (φ0 then not consistent with Λ(0))',
                             dict(mounting=np.array([1.0, 0.0, 0.0, 0.0]))),
         'epochs_from_0.2s': ('equations from t = 0.2 s instead of 4 s', dict(t_first=0.2)),
@@ -330,7 +348,8 @@ def section_000(n_seeds: int, quick: bool = False) -> dict:
     spec = {'unquantized': dict(quantum=0.0, mode='raw'),
             'quantized_raw': dict(quantum=quantum, mode='raw'),
             'quantized_centred': dict(quantum=quantum, mode='centred')}
-    mc = monte_carlo_000(range(n_seeds), quantum, (('raw', False, False), ('centred', False, False),
+    mc = monte_carlo_000(range(n_seeds), quantum, (('raw', False, False), ('centred', False,
+                                                                           False),
                                                    ('raw', True, False), ('centred', True, False),
                                                    ('raw', False, True), ('centred', False, True),
                                                    ('centred', True, True)))
@@ -344,15 +363,19 @@ def section_000(n_seeds: int, quick: bool = False) -> dict:
                'ours_as_printed': {k: _vec(printed[k]) for k in ('w0', 'dc', 'dd')},
                'ours_iterated': {k: _vec(iterated[k]) for k in ('w0', 'dc', 'dd')}}
         paper = _paper_cd(case)
-        head = {'ours': agreement(_cd(first), paper), 'ours_as_printed': agreement(_cd(printed), paper),
+        head = {'ours': agreement(_cd(first), paper), 'ours_as_printed': agreement(_cd(printed),
+                                                                                   paper),
                 'ours_iterated': agreement(_cd(iterated), paper)}
         if kw['quantum'] > 0:
             m = mc[kw['mode']]
             e, wf = m['errors'], np.asarray(m['w0_final'])
-            rec['ours_mc_mean'] = {'w0': _vec(wf.mean(0)), 'dc': _vec(e[:, 3:12].mean(0)), 'dd': _vec(e[:, 12:].mean(0))}
-            rec['ours_mc_std'] = {'w0': _vec(wf.std(0, ddof=1)), 'dc': _vec(e[:, 3:12].std(0, ddof=1)),
+            rec['ours_mc_mean'] = {'w0': _vec(wf.mean(0)), 'dc': _vec(e[:, 3:12].mean(0)),
+                                   'dd': _vec(e[:, 12:].mean(0))}
+            rec['ours_mc_std'] = {'w0': _vec(wf.std(0, ddof=1)), 'dc': _vec(e[:, 3:12].std(0,
+                                                                                           ddof=1)),
                                   'dd': _vec(e[:, 12:].std(0, ddof=1))}
-            rec['ours_mc_rms'] = {'c': m['rms_c'], 'c_scale_misalignment': m['rms_c_scale'], 'c_bias': m['rms_c_bias'],
+            rec['ours_mc_rms'] = {'c': m['rms_c'], 'c_scale_misalignment': m['rms_c_scale'],
+                                  'c_bias': m['rms_c_bias'],
                                   'd': m['rms_d']}
             # the initial remainder: is the paper's set a plausible draw of our Monte Carlo?
             z = (paper - e[:, 3:].mean(0)) / e[:, 3:].std(0, ddof=1)
@@ -367,20 +390,25 @@ def section_000(n_seeds: int, quick: bool = False) -> dict:
         out['cases'][case] = rec
         out['headline'][case] = head
     raw, cen = mc['raw'], mc['centred']
-    out['beyond_paper'] = {k: {'rms_c': v['rms_c'], 'rms_c_bias': v['rms_c_bias'], 'rms_d': v['rms_d'],
+    out['beyond_paper'] = {k: {'rms_c': v['rms_c'], 'rms_c_bias': v['rms_c_bias'],
+                               'rms_d': v['rms_d'],
                                'rms_w': v['w_rms']} for k, v in mc.items()}
-    mcp = monte_carlo_000(range(n_seeds), quantum, (('raw', False, False), ('centred', False, False)),
+    mcp = monte_carlo_000(range(n_seeds), quantum, (('raw', False, False), ('centred', False,
+                                                                            False)),
                           coefficients='printed')
     out['centring_gain'] = {'rms_c_raw': raw['rms_c'], 'rms_c_centred': cen['rms_c'],
                             'printed_rms_c_raw': mcp['raw']['rms_c'],
                             'printed_rms_c_centred': mcp['centred']['rms_c'],
-                            'rms_c_bias_raw': raw['rms_c_bias'], 'rms_c_bias_centred': cen['rms_c_bias'],
-                            'rms_d_raw': raw['rms_d'], 'rms_d_centred': cen['rms_d'], 'seeds': n_seeds}
+                            'rms_c_bias_raw': raw['rms_c_bias'],
+                            'rms_c_bias_centred': cen['rms_c_bias'],
+                            'rms_d_raw': raw['rms_d'], 'rms_d_centred': cen['rms_d'],
+                            'seeds': n_seeds}
     un = out['cases']['unquantized']
     paper_cd = np.abs(_paper_cd('unquantized'))
     out['unquantized_ratio_to_paper'] = {
         'ours': _vec(np.abs(np.r_[un['ours']['dc'], un['ours']['dd']]) / paper_cd),
-        'ours_as_printed': _vec(np.abs(np.r_[un['ours_as_printed']['dc'], un['ours_as_printed']['dd']]) / paper_cd)}
+        'ours_as_printed': _vec(np.abs(np.r_[un['ours_as_printed']['dc'],
+                                             un['ours_as_printed']['dd']]) / paper_cd)}
     out['ablations'] = ablations_000(noise_seeds=3 if quick else 10)
     return out
 

@@ -39,12 +39,14 @@ def ablation_verdict(k: dict, base: dict) -> tuple[str, bool]:
     size_ok = abs(np.log(k['rms_ratio'])) <= np.log(EXPLAINS_WITHIN)
     pattern_ok = k['corr'] >= SAME_PATTERN
     if size_ok and pattern_ok:
-        return (f'explains size and pattern (ratio within {EXPLAINS_WITHIN:g}× of 1, corr ≥ {SAME_PATTERN:g})',
+        return (f'explains size and pattern (ratio within {EXPLAINS_WITHIN:g}× of 1, corr ≥ '
+                f'{SAME_PATTERN:g})',
                 True)
     if change < NO_EFFECT:
         return f'size unchanged: ratio moves {100 * change:.1f}% (< {100 * NO_EFFECT:g}%)', False
     if size_ok:
-        return (f"size only: ratio within {EXPLAINS_WITHIN:g}× of 1, corr {k['corr']:+.3f} < {SAME_PATTERN:g}",
+        return (f"size only: ratio within {EXPLAINS_WITHIN:g}× of 1, corr {k['corr']:+.3f} < "
+                f'{SAME_PATTERN:g}',
                 False)
     if pattern_ok:
         return (f"pattern only: corr ≥ {SAME_PATTERN:g}, ratio {k['rms_ratio']:.2g} not within "
@@ -88,7 +90,8 @@ def _ablation_lines(a: dict) -> list[str]:
                     and abs(np.log(n['rms_ratio_mean'])) <= np.log(EXPLAINS_WITHIN))
         if noise_ok:
             explained.append(f'noise on the reference angles ({name})')
-        L.append(f'* Noise, {name}: white noise on the aircraft angles raises the RMS error of δc, δd by '
+        L.append(f'* Noise, {name}: white noise on the aircraft angles raises the RMS error of '
+                 'δc, δd by '
                  f"{n['rms_per_rad']:.3g} per rad of angle noise (probe {n['probe_rad']:.0e} rad, "
                  f"{n['seeds']} "
                  f"seeds); the paper's RMS needs σ_φ ≈ {n['sigma_for_paper_rms_rad']:.2g} rad. At "
@@ -99,7 +102,8 @@ def _ablation_lines(a: dict) -> list[str]:
                  + _verdict(noise_ok, f'explains size and pattern (corr ≥ {SAME_PATTERN:g}).',
                             f'not the pattern (corr < {SAME_PATTERN:g}).'))
     if explained:
-        L.append("* Knobs that explain the paper's errors by these thresholds: " + '; '.join(explained) + '.')
+        L.append("* Knobs that explain the paper's errors by these thresholds: " + '; '
+                                                                                   ''.join(explained) + '.')
     else:
         bp, bi = base['printed'], base['identity']
         z = a['w0_zero']['identity']
@@ -107,7 +111,8 @@ def _ablation_lines(a: dict) -> list[str]:
                    key=lambda ke: a['knobs'][ke[0]][ke[1]]['corr']
                    - 10 * max(abs(np.log(a['knobs'][ke[0]][ke[1]]['rms_ratio'])) - np.log(EXPLAINS_WITHIN), 0))
         kb = a['knobs'][best[0]][best[1]]
-        L.append(f'* No knob tried, with either estimator, brings the ratio within {EXPLAINS_WITHIN:g}× of 1 with '
+        L.append('* No knob tried, with either estimator, brings the ratio within '
+                 f'{EXPLAINS_WITHIN:g}× of 1 with '
                  f"corr ≥ {SAME_PATTERN:g}. 000's method as printed gives ratio "
                  f"{bp['rms_ratio']:.2f}, "
                  f"{bp['signs']}/{bp['n']} signs, corr {bp['corr']:+.2f}; the modified "
@@ -149,16 +154,19 @@ def _claim_lines(r: dict) -> list[str]:
 
 
 #: the rows of the error tables: the paper's published set first, then 000's method as printed
-ROW_NAMES = {'paper': "paper (000's published errors)", 'ours_as_printed': "ours: 000's method as printed",
+ROW_NAMES = {'paper': "paper (000's published errors)", 'ours_as_printed': "ours: 000's method as "
+                                                                           'printed',
              'ours': 'ours: modified estimator', 'ours_iterated': 'ours: Gauss–Newton',
-             'ours_mc_mean': 'ours: modified, Monte Carlo mean', 'ours_mc_std': 'ours: modified, Monte Carlo std'}
+             'ours_mc_mean': 'ours: modified, Monte Carlo mean', 'ours_mc_std': 'ours: modified, '
+                                                                                'Monte Carlo std'}
 
 
 def report_000(r: dict) -> str:
     L = ['## 000 — gyro errors against a drifting reference (Tkachenko 1983, §6)', '']
     h = r['headline']
     L += _claim_lines(r)
-    L += ['Headline — first order, Δθ0 = 0 as in 000 (RMS ratio = RMS(paper)/RMS(ours) over δc1…δc9, δd1…δd3; '
+    L += ['Headline — first order, Δθ0 = 0 as in 000 (RMS ratio = RMS(paper)/RMS(ours) over '
+          'δc1…δc9, δd1…δd3; '
           "signs = components with the paper's sign; corr = cosine between the two 12-vectors). "
           "First 000's "
           'method as printed (every coefficient of (5.7) at the reference increment p), then this '
@@ -167,70 +175,92 @@ def report_000(r: dict) -> str:
 
     def _agree(o: dict) -> str:
         return (f"the paper's errors are {o['rms_ratio']:.3g}× ours in RMS "
-                f"({_verdict(o['rms_ratio'] > 1, 'ours smaller', 'ours larger')}), {o['signs']}/{o['n']} signs agree, "
+                f"({_verdict(o['rms_ratio'] > 1, 'ours smaller', 'ours larger')}), "
+                f"{o['signs']}/{o['n']} signs agree, "
                 f"corr {o['corr']:+.2f}")
 
     for case, hc in h.items():
         o, op = hc['ours'], hc['ours_as_printed']
-        line = (f"* **{case}**, 000's method as printed: {_agree(op)}. Modified estimator: {_agree(o)}; "
+        line = (f"* **{case}**, 000's method as printed: {_agree(op)}. Modified estimator: "
+                f'{_agree(o)}; '
                 f"largest |ours/paper| {o['max_ratio']:.2g}.")
         if 'monte_carlo' in hc:
             m = hc['monte_carlo']
-            line += (f" Against our Monte Carlo (modified estimator) over {m['seeds']} initial remainders: paper "
+            line += (f" Against our Monte Carlo (modified estimator) over {m['seeds']} initial "
+                     'remainders: paper '
                      f"RMS / our RMS {m['rms_ratio']:.2f}, {m['within_2sigma']}/{m['n']} paper "
                      'values within 2σ of '
                      f"our mean (RMS z {m['z_rms']:.2f}; plausible if RMS z ≤ 2) — the paper's "
                      'set '
-                     + _verdict(m['z_rms'] <= 2.0, 'is a plausible draw of the quantization noise.',
+                     + _verdict(m['z_rms'] <= 2.0, 'is a plausible draw of the quantization '
+                                                   'noise.',
                                 'is not a plausible draw of our quantization noise.'))
         L.append(line)
-    L += ['', "Errors estimate − truth (w0: corrected attitude error w⁰ at t_f; dc, dd in the paper's units).", '']
+    L += ['', 'Errors estimate − truth (w0: corrected attitude error w⁰ at t_f; dc, dd in the '
+              "paper's units).", '']
     for case, rec in r['cases'].items():
         L += [f'### {case}', '', '| | w0 ×1e-5 | δc1…δc9 | δd1…δd3 |', '|---|---|---|---|']
-        for key in ('paper', 'ours_as_printed', 'ours', 'ours_iterated', 'ours_mc_mean', 'ours_mc_std'):
+        for key in ('paper', 'ours_as_printed', 'ours', 'ours_iterated', 'ours_mc_mean',
+                    'ours_mc_std'):
             v = rec[key]
-            L.append(f'| {ROW_NAMES[key]} | ' + ' '.join(f'{x * 1e5:+.2f}' for x in v['w0']) + ' | '
-                     + ' '.join(f'{x:+.1e}' for x in v['dc']) + ' | ' + ' '.join(f'{x:+.1e}' for x in v['dd']) + ' |')
+            L.append(f'| {ROW_NAMES[key]} | '
+                     '' + ' '.join(f'{x * 1e5:+.2f}' for x in v['w0']) + ' | '
+                     + ' '.join(f'{x:+.1e}' for x in v['dc']) + ' | '
+                                                                '' + ' '.join(f'{x:+.1e}' for x in v['dd']) + ' |')
         L.append('')
     un, hu = r['cases']['unquantized'], h['unquantized']
-    L += ["* 'ours: modified estimator' is 000's first-order method — one linear least-squares solve of "
+    L += ["* 'ours: modified estimator' is 000's first-order method — one linear least-squares "
+          'solve of '
           '(2.7)/(5.7), no iteration — with its coefficients moved to where the exact quaternion '
           'identity '
-          'p° − q = w0 × (p° + q) puts them: the w0 columns at ½(p + p*), the c columns at the computed '
-          'increment p*, the d columns at the reference p (derivation: strapdown_ros/calibration/drifting_reference.py, '
+          'p° − q = w0 × (p° + q) puts them: the w0 columns at ½(p + p*), the c columns at the '
+          'computed '
+          'increment p*, the d columns at the reference p (derivation: '
+          'strapdown_ros/calibration/drifting_reference.py, '
           "'Where to evaluate the coefficients'). '000's method as printed' evaluates everything "
           'at p, '
           'as 000 prints.',
-          f'* Unquantized, printed coefficients: the w0² term 2w0 × (w0 × p*) stays in z; RMS ratio '
-          f"{hu['ours_as_printed']['rms_ratio']:.2f}, {hu['ours_as_printed']['signs']}/12 signs, δc6 = "
+          '* Unquantized, printed coefficients: the w0² term 2w0 × (w0 × p*) stays in z; RMS '
+          'ratio '
+          f"{hu['ours_as_printed']['rms_ratio']:.2f}, {hu['ours_as_printed']['signs']}/12 signs, "
+          'δc6 = '
           f"{un['ours_as_printed']['dc'][5]:+.1e} against the paper's {un['paper']['dc'][5]:+.1e} "
           f"({abs(un['ours_as_printed']['dc'][5] / un['paper']['dc'][5]):.0f}×).",
           f'* Iterated (Gauss–Newton on the exact model), unquantized: largest |error| '
           f"{max(abs(v) for v in un['ours_iterated']['dc'] + un['ours_iterated']['dd']):.1e}, "
-          f"{1 / hu['ours_iterated']['max_ratio']:.1e}× below the paper's component for component at least."]
+          f"{1 / hu['ours_iterated']['max_ratio']:.1e}× below the paper's component for component "
+          'at least.']
     q, hq = r['cases']['quantized_raw'], h['quantized_raw']['ours']
     q_ratio = np.array(q['ours']['dc']) / np.array(q['paper']['dc'])
-    L += ['* Quantized, raw, Δθ0 = 0: ours/paper for δc1…δc9 = ' + ', '.join(f'{v:+.2f}' for v in q_ratio)
+    L += ['* Quantized, raw, Δθ0 = 0: ours/paper for δc1…δc9 = ' + ', '
+                                                                   ''.join(f'{v:+.2f}' for v in q_ratio)
           + f" ({hq['signs']}/12 signs over δc, δd; RMS ratio {hq['rms_ratio']:.2f})."]
     g = r['centring_gain']
     gc, gd = 1 - g['rms_c_centred'] / g['rms_c_raw'], 1 - g['rms_d_centred'] / g['rms_d_raw']
     gp = 1 - g['printed_rms_c_centred'] / g['printed_rms_c_raw']
     gb = 1 - g['rms_c_bias_centred'] / g['rms_c_bias_raw']
-    L += [f"* Centring (5.5), Monte Carlo over {g['seeds']} seeds: RMS of c {g['rms_c_raw']:.2e} → "
-          f"{g['rms_c_centred']:.2e} ({100 * abs(gc):.0f}% {_verdict(gc > 0, 'less', 'more')}), of the biases c7–9 "
+    L += [f"* Centring (5.5), Monte Carlo over {g['seeds']} seeds: RMS of c {g['rms_c_raw']:.2e} "
+          '→ '
+          f"{g['rms_c_centred']:.2e} ({100 * abs(gc):.0f}% {_verdict(gc > 0, 'less', 'more')}), "
+          'of the biases c7–9 '
           f"{g['rms_c_bias_raw']:.2e} → {g['rms_c_bias_centred']:.2e} ({100 * abs(gb):.0f}% "
-          f"{_verdict(gb > 0, 'less', 'more')}), of d {g['rms_d_raw']:.2e} → {g['rms_d_centred']:.2e} "
-          f"({100 * abs(gd):.0f}% {_verdict(gd > 0, 'less', 'more')}). 000 says centring brings the errors towards "
-          f"the unquantized ones: {_verdict(gc > 0 and gd > 0, 'agrees', 'does not agree')}. With the printed "
+          f"{_verdict(gb > 0, 'less', 'more')}), of d {g['rms_d_raw']:.2e} → "
+          f"{g['rms_d_centred']:.2e} "
+          f"({100 * abs(gd):.0f}% {_verdict(gd > 0, 'less', 'more')}). 000 says centring brings "
+          'the errors towards '
+          f"the unquantized ones: {_verdict(gc > 0 and gd > 0, 'agrees', 'does not agree')}. With "
+          'the printed '
           f'coefficients the gain on c is {100 * gp:.1f}%.',
-          "* Corrections to 000's §2/§5 print used here, each checked in test/calibration/test_drifting_reference.py: (2.5) sign of "
+          "* Corrections to 000's §2/§5 print used here, each checked in "
+          'test/calibration/test_drifting_reference.py: (2.5) sign of '
           'p×(w+w0); q_F = −½Δθ in (5.2); z = z′ − δz in (5.4); R(q_K) = σ²/48, not σ²/12.', '']
     L += _ablation_lines(r['ablations'])
     b = r.get('beyond_paper')
     if b:
         base = b['raw']
         L += [f"### Beyond the paper (σ = 2e-5, Monte Carlo over {g['seeds']} seeds)", '',
-              "RMS errors, and in brackets the ratio to the paper's method without centring (raw, first order).", '',
+              "RMS errors, and in brackets the ratio to the paper's method without centring (raw, "
+              'first order).', '',
               '| method | c | c7–9 | d | w⁰ (attitude at the epochs) |', '|---|---|---|---|---|']
         names = {'raw': 'raw (5.4), first order', 'centred': 'centred (5.5), first order',
                  'raw+iter': 'raw, Gauss–Newton', 'centred+iter': 'centred, Gauss–Newton',
@@ -238,12 +268,15 @@ def report_000(r: dict) -> str:
                  'centred+iter+weighted': 'centred, Gauss–Newton, weighted'}
         for k, v in b.items():
             L.append(f'| {names.get(k, k)} | ' + ' | '.join(
-                f'{v[qq]:.2e} ({v[qq] / base[qq]:.2f})' for qq in ('rms_c', 'rms_c_bias', 'rms_d', 'rms_w')) + ' |')
+                f'{v[qq]:.2e} ({v[qq] / base[qq]:.2f})' for qq in ('rms_c', 'rms_c_bias', 'rms_d',
+                                                                   'rms_w')) + ' |')
         it_gain = 1 - b['centred+iter']['rms_c'] / b['centred']['rms_c']
         w_gain = 1 - b['centred+weighted']['rms_c'] / b['centred']['rms_c']
         best = min(b, key=lambda k: b[k]['rms_c'])
-        L += ['', f'* On c, from the centred first-order solution: Gauss–Newton {100 * it_gain:+.1f}%, weighting by '
-              f"R(δz)⁻¹ {100 * w_gain:+.1f}%; weighting {_verdict(w_gain > it_gain, 'gains more', 'gains less')} "
+        L += ['', '* On c, from the centred first-order solution: Gauss–Newton '
+                  f'{100 * it_gain:+.1f}%, weighting by '
+              f'R(δz)⁻¹ {100 * w_gain:+.1f}%; weighting '
+              f"{_verdict(w_gain > it_gain, 'gains more', 'gains less')} "
               f'than iteration. Lowest RMS of c: {names.get(best, best)}.', '']
     return '\n'.join(L)
 
@@ -264,14 +297,17 @@ def plots_000(r: dict, outdir: str) -> list[str]:
             return np.abs(np.r_[rec[key]['dc'], rec[key]['dd']])
         ax.semilogy(x, mag('paper'), 'ks', ms=7, label='000 (paper)')
         ax.semilogy(x, mag('ours'), 'o', color='C0', label='ours, modified estimator')
-        ax.semilogy(x, mag('ours_as_printed'), 'x', color='C3', ms=7, label="ours, 000's method as printed")
+        ax.semilogy(x, mag('ours_as_printed'), 'x', color='C3', ms=7, label="ours, 000's method "
+                                                                            'as printed')
         if any(v > 0 for v in rec['ours_mc_std']['dc']):
             rms = np.sqrt(np.square(np.r_[rec['ours_mc_mean']['dc'], rec['ours_mc_mean']['dd']])
                           + np.square(np.r_[rec['ours_mc_std']['dc'], rec['ours_mc_std']['dd']]))
-            ax.semilogy(x, rms, '_', color='C2', ms=14, mew=2, label='ours (modified), Monte Carlo RMS')
+            ax.semilogy(x, rms, '_', color='C2', ms=14, mew=2, label='ours (modified), Monte '
+                                                                     'Carlo RMS')
         ho, hp = r['headline'][case]['ours'], r['headline'][case]['ours_as_printed']
         ax.set_xticks(x, labels)
-        ax.set_title(f"{case}: paper/ours RMS, signs\nas printed {hp['rms_ratio']:.2g}, {hp['signs']}/{hp['n']}; "
+        ax.set_title(f"{case}: paper/ours RMS, signs\nas printed {hp['rms_ratio']:.2g}, "
+                     f"{hp['signs']}/{hp['n']}; "
                      f"modified {ho['rms_ratio']:.2g}, {ho['signs']}/{ho['n']}", fontsize=10)
         ax.grid(True, which='both', alpha=0.3)
     axes[0].set_ylabel('|estimate − truth| (c1–6: 1; c7–9, d: rad/s)')
@@ -286,7 +322,8 @@ def plots_000(r: dict, outdir: str) -> list[str]:
     ax.bar(xx - 0.2, raw, 0.4, label='raw (5.4)')
     ax.bar(xx + 0.2, cen, 0.4, label='centred (5.5)')
     for i in range(3):
-        ax.annotate(f'{-100 * (1 - cen[i] / raw[i]):+.0f}%', (xx[i] + 0.2, cen[i]), ha='center', va='bottom')
+        ax.annotate(f'{-100 * (1 - cen[i] / raw[i]):+.0f}%', (xx[i] + 0.2, cen[i]), ha='center',
+                    va='bottom')
     ax.set_xticks(xx, ['c', 'c7–9 (biases)', 'd'])
     ax.set_ylabel('RMS error over seeds')
     ax.set_title(f"000 §6, σ = 2e-5: centring, Monte Carlo over {g['seeds']} seeds")
@@ -301,16 +338,19 @@ def plots_000(r: dict, outdir: str) -> list[str]:
         ax.barh(yy, [v['rms_ratio'] for v in vals],
                 color=['C0' if v['corr'] >= SAME_PATTERN else 'C7' for v in vals])
         for y, v in zip(yy, vals):
-            ax.annotate(f" corr {v['corr']:+.3f}, {v['signs']}/{v['n']}", (v['rms_ratio'], y), va='center',
+            ax.annotate(f" corr {v['corr']:+.3f}, {v['signs']}/{v['n']}", (v['rms_ratio'], y),
+                        va='center',
                         fontsize=7)
         ax.axvline(1.0, color='k', lw=1)
         ax.axvspan(1 / EXPLAINS_WITHIN, EXPLAINS_WITHIN, color='C2', alpha=0.12)
         ax.set_xscale('log')
-        ax.set_xlim(min(0.3 * min(v['rms_ratio'] for v in vals), 0.3), 20 * max(v['rms_ratio'] for v in vals))
+        ax.set_xlim(min(0.3 * min(v['rms_ratio'] for v in vals), 0.3),
+                    20 * max(v['rms_ratio'] for v in vals))
         ax.set_title(title)
         ax.set_xlabel("RMS(paper)/RMS(ours), unquantized δc, δd (1 = the paper's size)")
     axes[0].set_yticks(yy, names, fontsize=8)
-    fig.suptitle(f"000 §6 ablations: green band = within {EXPLAINS_WITHIN:g}× of the paper's size; "
+    fig.suptitle(f"000 §6 ablations: green band = within {EXPLAINS_WITHIN:g}× of the paper's "
+                 'size; '
                  f'blue bar = corr ≥ {SAME_PATTERN:g}, grey = below')
     paths.append(save_figure(fig, outdir, 'seeds_000_ablations.png'))
     return paths

@@ -30,7 +30,8 @@ def test_000_schema(result):
     cases = res['000']['cases']
     assert set(cases) == {'unquantized', 'quantized_raw', 'quantized_centred'}
     for case in cases.values():
-        for key in ('paper', 'ours', 'ours_as_printed', 'ours_iterated', 'ours_mc_mean', 'ours_mc_std'):
+        for key in ('paper', 'ours', 'ours_as_printed', 'ours_iterated', 'ours_mc_mean',
+                    'ours_mc_std'):
             assert len(case[key]['w0']) == 3 and len(case[key]['dc']) == 9 and len(case[key]['dd']) == 3
     for name, case in cases.items():       # the paper's column is the transcription, untouched
         assert case['paper']['dc'] == PAPER_000[name]['dc'] and case['paper']['dd'] == PAPER_000[name]['dd']
@@ -45,7 +46,8 @@ def test_000_headline_is_rms_ratio_and_signs(result):
     for name, case in res['000']['cases'].items():
         ours, paper = _cd(case['ours']), _cd(case['paper'])
         h = res['000']['headline'][name]['ours']
-        assert h['rms_ratio'] == pytest.approx(np.sqrt(np.mean(paper ** 2) / np.mean(ours ** 2)), rel=1e-12)
+        assert h['rms_ratio'] == pytest.approx(np.sqrt(np.mean(paper ** 2) / np.mean(ours ** 2)),
+                                               rel=1e-12)
         assert h['signs'] == int(np.sum(np.sign(ours) == np.sign(paper)))
         hp = res['000']['headline'][name]['ours_as_printed']
         printed = _cd(case['ours_as_printed'])
@@ -89,7 +91,8 @@ def test_000_ablations_verdicts_follow_fixed_thresholds(result):
     h = res['000']['headline']['unquantized']
     none = a['knobs']['none']
     assert none['identity']['rms_ratio'] == pytest.approx(h['ours']['rms_ratio'], rel=1e-12)
-    assert none['printed']['rms_ratio'] == pytest.approx(h['ours_as_printed']['rms_ratio'], rel=1e-12)
+    assert none['printed']['rms_ratio'] == pytest.approx(h['ours_as_printed']['rms_ratio'],
+                                                         rel=1e-12)
     # the paper's own method is the reference column, not a knob that is "ruled out"
     assert 'coefficients_printed' not in a['knobs'] and 'ruled out' not in text
     # the profile's rates are constant on each step, so the integration scheme cannot matter
@@ -206,7 +209,8 @@ def test_plots_written_and_linked(result):
 def test_000_beyond_the_paper_gains_reported(result):
     res, text, _ = result
     b = res['000']['beyond_paper']
-    assert {'raw', 'centred', 'centred+iter', 'centred+weighted', 'centred+iter+weighted'} <= set(b)
+    assert {'raw', 'centred', 'centred+iter', 'centred+weighted',
+            'centred+iter+weighted'} <= set(b)
     assert b['centred+weighted']['rms_c'] < b['centred']['rms_c'] < b['raw']['rms_c']
     assert 'Beyond the paper' in text
 
@@ -220,7 +224,8 @@ def test_registry_is_table_driven():
     assert {'000', '002', '003', '004'} <= set(names)
     for s in reproduce_seeds.sections():
         assert callable(s.fn(s.run)) and callable(s.fn(s.report))
-    missing = reproduce_seeds.Section('999', '999', '.no_such_seed_module', 'a', 'b', None, lambda a: ())
+    missing = reproduce_seeds.Section('999', '999', '.no_such_seed_module', 'a', 'b', None,
+                                      lambda a: ())
     assert not missing.available()
 
 
