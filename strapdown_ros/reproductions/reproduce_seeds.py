@@ -1,8 +1,8 @@
 """
-reproduce_seeds: rerun the experiments of the seed papers and set our numbers beside theirs.
+Rerun the experiments of the seed papers and set our numbers beside theirs (reproduce_seeds).
 
-    reproduce_seeds [--only 000,001,002,003,004] [--seeds N] [--runs N] [--json FILE] [--report FILE]
-                    [--plots DIR] [--quick] [--from-json FILE]
+    reproduce_seeds [--only 000,001,002,003,004] [--seeds N] [--runs N] [--json FILE]
+                    [--report FILE] [--plots DIR] [--quick] [--from-json FILE]
 
 * 000 (Tkachenko 1983, §6): the three published error sets beside our first-order method, our
   Gauss–Newton solution and a Monte Carlo over ``--seeds`` quantization seeds; the headline is the
@@ -13,16 +13,15 @@ reproduce_seeds: rerun the experiments of the seed papers and set our numbers be
 * 002 (Ilyushenko 2009): the integral method against the 000 estimator on the same data
   (:mod:`.ilyushenko2009`).
 * 003 (Aksyonenko 2014, coning §2.3): the three cases, the thesis's claims, values at the
-  round-off floor marked
-  (:mod:`.aksyonenko2014`).
+  round-off floor marked (:mod:`.aksyonenko2014`).
 * 004 (Vasilyuk et al. 2024, boresight §6): the σ_β pattern from a simulated experiment with
-  004's sensor parameters
-  (here; further parts from :mod:`.vasilyuk2024` when present).
+  004's sensor parameters (here; the Fig. 3 check and the σ_β ablation from :mod:`.vasilyuk2024`).
 
 Every section is one entry of :data:`REGISTRY`: a module with a run, a report and (optionally) a
-plots function.  Every comparison sentence of the report is computed from the numbers it compares
-and prints its threshold; each section's figures follow its text.  References: doc/references.md.
-No ROS imports.
+plots function.  Each section opens with the paper's claim beside ours; every comparison
+sentence is computed from the numbers it compares and prints its threshold; each figure follows
+the table it illustrates.  This is the reproductions room: it uses the library (calibration,
+estimation, attitude) and nothing uses it.  References: doc/references.md.  No ROS imports.
 """
 from __future__ import annotations
 
@@ -58,10 +57,29 @@ def _vec(x):
 @dataclass(frozen=True)
 class Section:
     """
-    One part of the report.  ``only``: the name ``--only`` selects it by; ``key``: its key in
-    the results (JSON); ``module``: where ``run``/``report``/``plots`` live (relative to this
-    package); ``args``: the run function's positional arguments from the command line.
+    One part of the report: where its run, report and plots functions live.
+
+    Parameters
+    ----------
+    only : str
+        The name ``--only`` selects it by.
+    key : str
+        Its key in the results (JSON).
+    module : str
+        The module of ``run`` (and of ``report``/``plots`` unless ``report_module`` is given),
+        relative to this package.
+    run, report : str
+        Names of the run function (command-line values → JSON-able dict) and of the report
+        function (dict → Markdown).
+    plots : str or None
+        Name of the plots function (dict, directory → PNG paths), if any.
+    args : callable
+        The run function's positional arguments from the parsed command line.
+    report_module : str, optional
+        The module of ``report`` and ``plots`` when they live apart from ``run``.
+
     """
+
     only: str
     key: str
     module: str
@@ -72,6 +90,7 @@ class Section:
     report_module: str | None = None
 
     def available(self) -> bool:
+        """Return True when the section's module can be imported."""
         name = importlib.util.resolve_name(self.module, __package__)
         return name == __name__ or importlib.util.find_spec(name) is not None
 
@@ -103,23 +122,24 @@ REGISTRY = (
             lambda a: (a.seeds, a.quick), '.tkachenko1983_report'),
     Section('001', '001', '.vavilov1982', 'section_001', 'report_001', 'plots_001',
             lambda a: (a.quick,)),
-    Section('002', '002', '.ilyushenko2009', 'section_002', 'report_002', None, lambda a: (a.runs,
-                                                                                           a.quick)),
+    Section('002', '002', '.ilyushenko2009', 'section_002', 'report_002', None,
+            lambda a: (a.runs, a.quick)),
     Section('003', '003', '.aksyonenko2014', 'section_003', 'report_003', None,
             lambda a: (a.coning_duration,)),
     Section('004', '004', '.reproduce_seeds', 'section_004', 'report_004', 'plots_004',
             lambda a: (a.runs, a.quick)),
     Section('004', '004_extras', '.vasilyuk2024', 'section_004_extras', 'report_004_extras',
-            'plots_004_extras',
-            lambda a: (a.quick,)),
+            'plots_004_extras', lambda a: (a.quick,)),
 )
 
 
 def sections() -> list[Section]:
+    """Return the sections of :data:`REGISTRY` whose module is present, in report order."""
     return [s for s in REGISTRY if s.available()]
 
 
 def section_names() -> list[str]:
+    """Return the names ``--only`` accepts, in report order."""
     return list(dict.fromkeys(s.only for s in sections()))
 
 
@@ -132,11 +152,30 @@ TURNS_004 = [(2, 40.0), (0, 5.0), (2, 60.0), (1, 12.0), (2, -30.0), (0, -10.0),
 
 def experiment_004_pairs(seed: int, n_fixes: int = 73, interval: float = 21.0, _cache={}):
     """
-    One run of a 004 §6-like experiment: 73 exposures 21 s apart, 200 Hz navigation-grade
-    gyro (004 §6 values), camera 0.6″/0.6″/6″ looking up (β = 0: VF z, the optical axis, is MF z,
-    the vertical), 12 turns (mostly in heading) between static segments, Earth rate on.
-    """
+    Simulate one run of a 004 §6-like experiment and return its increment pairs.
 
+    73 exposures 21 s apart, 200 Hz navigation-grade gyro (004 §6 values), camera 0.6″/0.6″/6″
+    looking up (β = 0: VF z, the optical axis, is MF z, the vertical), 12 turns (mostly in
+    heading) between static segments, Earth rate on.  The trajectory is computed once and kept
+    in ``_cache``.
+
+    Parameters
+    ----------
+    seed : int
+        Seed of the gyro errors, the gyro noise and the camera noise.
+    n_fixes : int
+        Number of camera exposures.
+    interval : float
+        Time between exposures, s.
+
+    Returns
+    -------
+    pairs : list of IncrementPair
+        Gyro and camera attitude increments between successive exposures.
+    beta_true : (3,) ndarray
+        The true boresight (yaw, pitch, roll), rad: zero.
+
+    """
     if 'profile' not in _cache:
         span = n_fixes * interval + 5.0
         turn = 10.0
@@ -147,8 +186,8 @@ def experiment_004_pairs(seed: int, n_fixes: int = 73, interval: float = 21.0, _
             r[axis] = np.radians(deg) / turn
             segs += [Segment(turn, r), Segment(hold)]
         lat = np.radians(55.75)
-        _cache['profile'] = PiecewiseRateProfile(segs, earth_rate=EARTH_RATE * np.array([0.0,
-                                                                                         np.cos(lat), np.sin(lat)]),
+        earth = EARTH_RATE * np.array([0.0, np.cos(lat), np.sin(lat)])
+        _cache['profile'] = PiecewiseRateProfile(segs, earth_rate=earth,
                                                  gravity=(0.0, 0.0, STANDARD_GRAVITY))
         p = _cache['profile']
         tg = np.arange(int(span * 200) + 1) / 200.0
@@ -156,8 +195,8 @@ def experiment_004_pairs(seed: int, n_fixes: int = 73, interval: float = 21.0, _
     prof, t, u = _cache['profile'], _cache['t'], _cache['u']
     rng = np.random.default_rng(seed)
     err = NAVIGATION_GRADE_GYRO.draw(rng)
-    y = u @ (np.eye(3) + err.matrix).T + err.bias / 200.0 + rng.normal(0,
-                                                                       err.random_walk * np.sqrt(1 / 200.0), u.shape)
+    noise = rng.normal(0, err.random_walk * np.sqrt(1 / 200.0), u.shape)
+    y = u @ (np.eye(3) + err.matrix).T + err.bias / 200.0 + noise
     cam = StarCameraModel(boresight=np.zeros(3), interval=interval, seed=1000 + seed)
     fixes = cam.fixes(prof, n_fixes)
     pairs = []
@@ -170,10 +209,25 @@ def experiment_004_pairs(seed: int, n_fixes: int = 73, interval: float = 21.0, _
 
 def convergence_004(n: int = 100, seed: int = 8) -> dict:
     """
-    004 §4.2's Gauss–Newton from β0 = 0 (``init='given'``) against the closed-form axis start
-    (``init='axes'``) on ``n`` random boresights (pitch within ±89°), 20 noise-free pairs each.
-    """
+    Compare 004 §4.2's Gauss–Newton start β0 = 0 with the closed-form axis start.
 
+    ``init='given'`` (from β0 = 0, as 004) against ``init='axes'`` on ``n`` random boresights
+    (pitch within ±89°), 20 noise-free pairs each.
+
+    Parameters
+    ----------
+    n : int
+        Number of random boresights.
+    seed : int
+        Seed of the boresights and the increments.
+
+    Returns
+    -------
+    dict
+        ``n`` and, per start, the number converged to 1e-6 rad and the median and largest
+        iteration counts.
+
+    """
     rng = np.random.default_rng(seed)
     out = {'n': n}
     res = {'given': [], 'axes': []}
@@ -183,7 +237,8 @@ def convergence_004(n: int = 100, seed: int = 8) -> dict:
         pairs = []
         for k in range(20):
             axis = rng.normal(size=3)
-            dq_vf = rotvec_to_quat(axis / np.linalg.norm(axis) * np.radians(12.0) * (0.5 + rng.random()))
+            angle = np.radians(12.0) * (0.5 + rng.random())
+            dq_vf = rotvec_to_quat(axis / np.linalg.norm(axis) * angle)
             dq_mf = quat_multiply(quat_multiply(qc, dq_vf), quat_conjugate(qc))
             pairs.append(IncrementPair(20.0 * k, 20.0 * (k + 1), dq_mf, dq_vf, 1e-24 * np.eye(3),
                                        1e-24 * np.eye(3)))
@@ -200,22 +255,40 @@ def convergence_004(n: int = 100, seed: int = 8) -> dict:
 
 
 def section_004(runs: int, quick: bool = False) -> dict:
+    """
+    Run the 004 §6 section: the σ_β pattern of the boresight and the solver's convergence.
 
+    Parameters
+    ----------
+    runs : int
+        Simulated experiments (:func:`experiment_004_pairs`), each solved with unit weights
+        (as 004) and with covariance weights.
+    quick : bool
+        Ten random boresights for the convergence check instead of 100.
+
+    Returns
+    -------
+    dict
+        The paper's values, the mean published σ and RMS error of β per estimator, arcsec,
+        the common-rotation floor and the convergence record (JSON-able).
+
+    """
     paper = {'sigma_beta_arcsec': [6.0, 0.6, 0.6], 'N': 73, 'interval_s': 21.0}
     sig_u, sig_w, err_u, err_w = [], [], [], []
     for seed in range(runs):
         pairs, beta_true = experiment_004_pairs(seed)
         for weighted, sig, err in ((False, sig_u, err_u), (True, sig_w, err_w)):
-            sol = solve_boresight(pairs, weighted=weighted,
-                                  common_rotation_sigma=0.0 if not weighted else 3 * ARCSEC / np.sqrt(2))
+            common = 3 * ARCSEC / np.sqrt(2) if weighted else 0.0
+            sol = solve_boresight(pairs, weighted=weighted, common_rotation_sigma=common)
             sig.append(np.sqrt(np.diag(sol.covariance_beta)) / ARCSEC)
             err.append((sol.beta - beta_true) / ARCSEC)
+    floor = NAVIGATION_GRADE_GYRO.misalignment_sigma / np.sqrt(2) / ARCSEC
     return {'paper': paper, 'convergence': convergence_004(10 if quick else 100),
             'ours_unweighted_sigma_arcsec_mean': _vec(np.mean(sig_u, 0)),
             'ours_unweighted_rms_error_arcsec': _vec(np.sqrt(np.mean(np.square(err_u), 0))),
             'ours_weighted_sigma_arcsec_mean': _vec(np.mean(sig_w, 0)),
             'ours_weighted_rms_error_arcsec': _vec(np.sqrt(np.mean(np.square(err_w), 0))),
-            'common_rotation_floor_arcsec': float(NAVIGATION_GRADE_GYRO.misalignment_sigma / np.sqrt(2) / ARCSEC),
+            'common_rotation_floor_arcsec': float(floor),
             'runs': runs}
 
 
@@ -225,6 +298,20 @@ def _pattern(v) -> tuple[float, float]:
 
 
 def report_004(r: dict) -> str:
+    """
+    Write the 004 §6 section of the report.
+
+    Parameters
+    ----------
+    r : dict
+        The result of :func:`section_004`.
+
+    Returns
+    -------
+    str
+        Markdown: the paper's σ_β beside ours, the table and the computed verdicts.
+
+    """
     ps, os_ = r['paper']['sigma_beta_arcsec'], r['ours_unweighted_sigma_arcsec_mean']
     L = ['## 004 — boresight σ pattern, §6', '',
          f"**The paper's claim beside ours.** 004 §6 prints σ_β = {ps[0]:g}″ (ψ, about the "
@@ -285,6 +372,22 @@ def report_004(r: dict) -> str:
 
 
 def plots_004(r: dict, outdir: str) -> list[str]:
+    """
+    Draw the σ_β pattern of 004 §6 beside ours (``seeds_004_sigma.png``).
+
+    Parameters
+    ----------
+    r : dict
+        The result of :func:`section_004`.
+    outdir : str
+        Directory of the figure.
+
+    Returns
+    -------
+    list of str
+        The path of the PNG file.
+
+    """
     import matplotlib
     matplotlib.use('Agg')
     import matplotlib.pyplot as plt
@@ -341,8 +444,20 @@ def report(res: dict, figures: dict | None = None, base: str = '.') -> str:
 
 def write_plots(res: dict, outdir: str) -> dict:
     """
-    PNG figures beside the report (matplotlib, from the ``tools`` extra).  Returns the paths
-    per section key.
+    Write the PNG figures of every section that has a plots function (needs matplotlib).
+
+    Parameters
+    ----------
+    res : dict
+        Section key → that section's results.
+    outdir : str
+        Directory of the figures (created if missing).
+
+    Returns
+    -------
+    dict
+        Section key → paths of its PNG files.
+
     """
     os.makedirs(outdir, exist_ok=True)
     paths = {}
@@ -353,6 +468,20 @@ def write_plots(res: dict, outdir: str) -> dict:
 
 
 def main(argv=None) -> int:
+    """
+    Run the ``reproduce_seeds`` command.
+
+    Parameters
+    ----------
+    argv : list of str, optional
+        Command-line arguments (default: ``sys.argv[1:]``).
+
+    Returns
+    -------
+    int
+        0 on success, 2 on a usage or output error (one line on stderr).
+
+    """
     names = section_names()
     ap = argparse.ArgumentParser(prog='reproduce_seeds', description=__doc__,
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
