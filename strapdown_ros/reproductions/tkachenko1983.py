@@ -1,13 +1,11 @@
 """
-000 (Tkachenko 1983; paper 000) §6 for ``reproduce_seeds``: the simulated experiment, the
-Monte Carlo over
-the pulse generator's initial remainders, the ablations that look for what makes the paper's
-errors larger than ours, and the report section.  Research code: the estimator itself is
-:mod:`strapdown_ros.calibration.drifting_reference`; nothing here is needed to use it.
+Tkachenko 1983 (paper 000) §6, the experiment, for ``reproduce_seeds --only 000``.
 
-    python -m strapdown_ros.reproductions.tkachenko1983 [reproduce_seeds options]   # = reproduce_seeds --only 000
-
-No ROS imports.
+The simulated experiment, the Monte Carlo over the pulse generator's initial remainders, the
+ablations that look for what makes the paper's errors larger than ours, and the numbers of the
+report section (its text and figures: :mod:`.tkachenko1983_report`).  Research code: the
+estimator itself is :mod:`strapdown_ros.calibration.drifting_reference`; nothing here is needed
+to use it.  No ROS imports.
 """
 from __future__ import annotations
 
@@ -41,6 +39,34 @@ def _vec(x):
 # --------------------------------------------------------------------------- the §6 experiment
 @dataclass
 class Simulation000:
+    """
+    One simulated 000 §6 run: what the estimator is fed, and the truth.
+
+    Parameters
+    ----------
+    profile : PiecewiseRateProfile
+        The body motion (000's rate table).
+    reference : GyrostabilizerReference
+        The drifting reference (aircraft angles).
+    h : float
+        Gyro sample interval, s.
+    meas, true_inc : (N, 3) ndarray
+        Measured increments θ* and true increments θ, rad.
+    M0 : (4,) ndarray
+        Computed attitude M(t0), scalar first.
+    epochs : (J,) ndarray of int
+        Sample indices of the equations.
+    ref_q0 : (4,) ndarray
+        Reference quaternion at t0.
+    ref_q : (J, 4) ndarray
+        Reference quaternions at the epochs.
+    truth_epochs : (J, 4) ndarray
+        True attitude Λ(t_j) at the epochs.
+    x_true : (15,) ndarray
+        True w0, c, d.
+
+    """
+
     profile: PiecewiseRateProfile
     reference: GyrostabilizerReference
     h: float
@@ -55,16 +81,17 @@ class Simulation000:
 
 
 def simulate_000(quantum: float = 0.0, seed: int | None = 0, profile=None, c=TKACHENKO_C,
-                 d=TKACHENKO_D,
-                 w0=TKACHENKO_W0, phi0=TKACHENKO_PHI0, h: float = 0.02, t_first: float = 4.0,
-                 t_step: float = 0.2, t_f: float = 30.0,
-                 structure: ErrorStructure = TKACHENKO_STRUCTURE,
-                 angle_noise: float = 0.0, initial_remainder: str = 'random',
-                 t_star: float = 0.0, mounting=None) -> Simulation000:
+                 d=TKACHENKO_D, w0=TKACHENKO_W0, phi0=TKACHENKO_PHI0, h: float = 0.02,
+                 t_first: float = 4.0, t_step: float = 0.2, t_f: float = 30.0,
+                 structure: ErrorStructure = TKACHENKO_STRUCTURE, angle_noise: float = 0.0,
+                 initial_remainder: str = 'random', t_star: float = 0.0,
+                 mounting=None) -> Simulation000:
     """
-    Simulate 000 §6: exact truth, gyro with Δω = D(ω)c (and pulses of weight ``quantum``),
-    computed-attitude start ``M(0) = normalize([1, w0])*⊗Λ(0)``, the drifting reference read as
-    aircraft angles from φ0.
+    Simulate 000 §6: exact truth, gyro errors, computed attitude and drifting reference.
+
+    The gyro has Δω = D(ω)c (and pulses of weight ``quantum``); the computed attitude starts at
+    ``M(0) = normalize([1, w0])*⊗Λ(0)``; the drifting reference is read as aircraft angles
+    from φ0.
 
     Randomness: the pulse generator's initial remainder Δθ_0 of each axis is drawn uniformly in
     (−σ, σ) from ``seed`` (``initial_remainder='random'``); 000 takes Δθ_0 = 0 (``'zero'``, or
@@ -73,26 +100,62 @@ def simulate_000(quantum: float = 0.0, seed: int | None = 0, profile=None, c=TKA
     ``t_star`` ≤ 0: the moment L was aligned with I (000 §3: t* < t0 = 0).  With φ0 given at
     t0 the mounting then absorbs L(t0) ≠ I, so Λ(0) stays as printed.  ``mounting`` (q_E_J)
     overrides that choice (φ0 is then not the angle at t0).
+
+    Parameters
+    ----------
+    quantum : float
+        Pulse weight σ, rad (0: unquantized).
+    seed : int or None
+        Seed of the initial remainders and of the reference noise; None: Δθ_0 = 0.
+    profile : PiecewiseRateProfile, optional
+        Body motion (default: 000's rate table).
+    c, d, w0 : ndarray
+        True gyro errors (9), reference drift (3), rad/s, and initial attitude error (3).
+    phi0 : (3,) ndarray
+        Aircraft angles of the reference at t0, rad.
+    h : float
+        Gyro sample interval, s.
+    t_first, t_step, t_f : float
+        First epoch, epoch spacing and end of the run, s.
+    structure : ErrorStructure
+        D(ω, t) and G(t) (default: 000's).
+    angle_noise : float
+        White noise on the aircraft angles, rad.
+    initial_remainder : str
+        ``'random'`` or ``'zero'``.
+    t_star : float
+        Moment L was aligned with I, s (≤ 0).
+    mounting : (4,) ndarray, optional
+        q_E_J, overriding the mounting derived from φ0.
+
+    Returns
+    -------
+    Simulation000
+        The run.
+
     """
     prof = profile if profile is not None else tkachenko_profile()
     n = int(round(t_f / h))
     v0 = rotvec_to_quat(psi_matrix(structure, np.array(0.0), t_star) @ np.asarray(d, dtype=float))
-    q_E_J = quat_multiply(quat_conjugate(prof.attitude(0.0)),
-                          quat_multiply(v0,
-                                        aircraft_angles_to_quat(np.asarray(phi0)))) if mounting is None \
-        else np.asarray(mounting, dtype=float)
+    if mounting is None:
+        q_E_J = quat_multiply(quat_conjugate(prof.attitude(0.0)),
+                              quat_multiply(v0, aircraft_angles_to_quat(np.asarray(phi0))))
+    else:
+        q_E_J = np.asarray(mounting, dtype=float)
     ref = GyrostabilizerReference(prof, d, structure, mounting=q_E_J, t_star=t_star,
                                   angle_noise=angle_noise,
                                   seed=None if seed is None else seed + 7919)
-    err = SensorErrorModel.from_tkachenko(c, quantum=quantum) if structure is TKACHENKO_STRUCTURE \
-        else SensorErrorModel()
+    if structure is TKACHENKO_STRUCTURE:
+        err = SensorErrorModel.from_tkachenko(c, quantum=quantum)
+    else:
+        err = SensorErrorModel()
     sensor = IntegratingSensor(prof, 'gyro', 1.0 / h, err, seed=seed)
     if quantum > 0 and initial_remainder == 'random' and seed is not None:
         sensor.quantizer.integral[:] = np.random.default_rng(seed).uniform(-quantum, quantum, 3)
     _, meas, true_inc = sensor.sample(n)
     if structure is not TKACHENKO_STRUCTURE:      # user structure: add D(ω)c exactly per interval
-        meas = true_inc + np.einsum('nij,j->ni', structure.D(true_inc / h,
-                                                             h * (np.arange(n) + 0.5)), c) * h
+        D = structure.D(true_inc / h, h * (np.arange(n) + 0.5))
+        meas = true_inc + np.einsum('nij,j->ni', D, c) * h
     M0 = quat_multiply(quat_conjugate(quat_normalize(np.concatenate([[1.0], w0]))),
                        prof.attitude(0.0))
     epochs = np.rint(np.arange(t_first, t_f + 1e-9, t_step) / h).astype(int)
@@ -108,16 +171,50 @@ def run_tkachenko_experiment(quantum: float = 0.0, mode: str = 'raw', seed: int 
                              coefficients: str = 'identity', precision=None,
                              recursion: str = 'float64', **kw) -> dict:
     """
-    Reproduce 000 §6 (m = 3, n = 1, D = [D_I D_II E3], G = E3, h = 0.02 s, epochs 4, 4.2 … 30 s).
+    Reproduce 000 §6 and return the estimation errors in the paper's terms.
 
-    Returns the errors in the paper's terms: ``w0`` = w⁰, the corrected attitude error at t_f
-    (vector part of Λ⊗Λ̂*, absolute units — multiply by 1e5 for the paper's print),
-    ``dc`` = c* − c (9), ``dd`` = d* − d (3), and ``dw0`` = ŵ0 − w0, ``w_rms`` (RMS of w⁰ over the
-    epochs), ``iterations``, ``seconds``; ``full=True`` adds the solution and the simulation.
-    ``precision`` (e.g. ``np.float32``): the estimator's inputs (increments, M(t0), reference
-    quaternions) are rounded to that type first (an ablation: data stored in single precision).
-    ``recursion='float32'``: the computed attitude M(t) is the single-precision recursion of
-    :func:`float32_recursion_increments` (use with ``algorithm='1'``; an ablation).
+    m = 3, n = 1, D = [D_I D_II E3], G = E3, h = 0.02 s, epochs 4, 4.2 … 30 s.
+
+    Parameters
+    ----------
+    quantum : float
+        Pulse weight σ, rad (0: unquantized).
+    mode : str
+        Quantization handling: ``'raw'`` (5.4), ``'centred'`` (5.5) or ``'corrected'`` (5.6).
+    seed : int or None
+        Seed of the initial remainders; None: Δθ_0 = 0, as 000.
+    iterate, weighted : bool
+        Gauss–Newton iteration; weighting by R(δz)⁻¹.
+    algorithm, quadrature : str
+        Attitude integration algorithm (``'1'``, ``'2'``, ``'4'``) and Θ quadrature.
+    profile : PiecewiseRateProfile, optional
+        Body motion (default: 000's rate table).
+    full : bool
+        Add the solution and the simulation to the result.
+    coefficients : str
+        ``'identity'`` (the modified estimator) or ``'printed'`` (000's method as printed).
+    precision : numpy dtype, optional
+        Round the estimator's inputs (increments, M(t0), reference quaternions) to this type
+        first (an ablation: data stored in single precision).
+    recursion : str
+        ``'float32'``: the computed attitude M(t) is the single-precision recursion of
+        :func:`float32_recursion_increments` (use with ``algorithm='1'``; an ablation).
+    **kw
+        Passed on to :func:`simulate_000`.
+
+    Returns
+    -------
+    dict
+        ``w0`` = w⁰, the corrected attitude error at t_f (vector part of Λ⊗Λ̂*, absolute units;
+        × 1e5 for the paper's print), ``dc`` = c* − c (9), ``dd`` = d* − d (3),
+        ``dw0`` = ŵ0 − w0, ``w_rms`` (RMS of w⁰ over the epochs), ``iterations``,
+        ``observable``, ``seconds``.
+
+    Raises
+    ------
+    ValueError
+        On an unknown ``recursion``.
+
     """
     if recursion not in ('float64', 'float32'):
         raise ValueError(f'unknown recursion {recursion!r}; valid: float64, float32')
@@ -129,11 +226,9 @@ def run_tkachenko_experiment(quantum: float = 0.0, mode: str = 'raw', seed: int 
     if recursion == 'float32':
         inputs[1], inputs[0] = float32_recursion_increments(inputs[1], inputs[0])
     sol = estimate(inputs[0], sim.h, inputs[1], inputs[2], inputs[3], sim.epochs,
-                   algorithm=algorithm,
-                   quadrature=quadrature, mode=mode, quantum=quantum, iterate=iterate,
-                   weighted=weighted,
-                   t_star=sim.reference.t_star, angle_noise=sim.reference.angle_noise,
-                   coefficients=coefficients)
+                   algorithm=algorithm, quadrature=quadrature, mode=mode, quantum=quantum,
+                   iterate=iterate, weighted=weighted, t_star=sim.reference.t_star,
+                   angle_noise=sim.reference.angle_noise, coefficients=coefficients)
     err = sol.x - sim.x_true
     w_err = error_at_epochs(sol.refined_attitude, sim.truth_epochs)
     out = {'w0': w_err[-1].tolist(), 'dc': err[3:12].tolist(), 'dd': err[12:15].tolist(),
@@ -152,19 +247,35 @@ def monte_carlo_000(seeds: Sequence[int] = range(100), quantum: float = QUANTUM,
                                               ('raw', False, True), ('raw', True, True)),
                     profile=None, coefficients: str = 'identity') -> dict:
     """
-    Monte Carlo of the quantized §6 experiment over the initial remainders (one per seed).
+    Run the quantized §6 experiment over the initial remainders (one per seed).
 
-    ``cases``: (mode, iterate, weighted).  Returns per case the errors (seeds × 15:
-    δw0, δc, δd), their mean, std and RMS per component, the (absolute) RMS over the c and d
-    groups, and the w⁰ RMS.
+    Parameters
+    ----------
+    seeds : sequence of int
+        Seeds of the initial remainders.
+    quantum : float
+        Pulse weight σ, rad.
+    cases : sequence of (str, bool, bool)
+        (mode, iterate, weighted) of each case.
+    profile : PiecewiseRateProfile, optional
+        Body motion (default: 000's rate table).
+    coefficients : str
+        ``'identity'`` or ``'printed'`` (see :func:`run_tkachenko_experiment`).
+
+    Returns
+    -------
+    dict
+        Per case key (``mode[+iter][+weighted]``): the errors (seeds × 15: δw0, δc, δd), their
+        mean, std and RMS per component, the RMS over the c and d groups, the final w⁰ and the
+        w⁰ RMS.
+
     """
     res = {}
     for mode, it, wt in cases:
         errs, wrms, wf = [], [], []
         for s in seeds:
             r = run_tkachenko_experiment(quantum, mode, s, iterate=it, weighted=wt,
-                                         profile=profile,
-                                         coefficients=coefficients)
+                                         profile=profile, coefficients=coefficients)
             errs.append(r['dw0'] + r['dc'] + r['dd'])
             wrms.append(r['w_rms'])
             wf.append(r['w0'])
@@ -183,12 +294,22 @@ def monte_carlo_000(seeds: Sequence[int] = range(100), quantum: float = QUANTUM,
 # --------------------------------------------------------------------------- comparison
 def agreement(ours, paper) -> dict:
     """
-    How a set of our errors (δc, δd: 12 numbers) compares with the paper's.
+    Compare a set of our errors (δc, δd: 12 numbers) with the paper's.
 
-    ``rms_ratio`` = RMS(paper)/RMS(ours) (> 1: the paper's errors are larger), ``signs`` = how many
-    of the 12 components have the paper's sign, ``corr`` = the cosine between the two vectors,
-    ``scale`` = the least-squares factor a in paper ≈ a·ours and ``misfit`` = |paper − a·ours|/|paper|
-    (what no common scale explains), ``max_ratio`` = max |ours_i/paper_i|.
+    Parameters
+    ----------
+    ours, paper : (12,) array_like
+        Our errors and the paper's, same units.
+
+    Returns
+    -------
+    dict
+        ``rms_ratio`` = RMS(paper)/RMS(ours) (> 1: the paper's errors are larger), ``signs`` =
+        how many of the ``n`` components have the paper's sign, ``corr`` = the cosine between
+        the two vectors, ``scale`` = the least-squares factor a in paper ≈ a·ours, ``misfit`` =
+        |paper − a·ours|/|paper| (what no common scale explains), ``max_ratio`` =
+        max |ours_i/paper_i|.
+
     """
     o, p = np.asarray(ours, dtype=float), np.asarray(paper, dtype=float)
     a = float(o @ p / (o @ o)) if o @ o > 0 else 0.0
@@ -217,7 +338,7 @@ def _variant_profile(segment: int, axis: int, rate: float) -> PiecewiseRateProfi
 
 def float32_recursion_increments(M0, meas) -> tuple[np.ndarray, np.ndarray]:
     """
-    The attitude recursion ``M_k+1 = normalize(M_k ⊗ exp(θ_k))`` run in single precision.
+    Run the attitude recursion ``M_k+1 = normalize(M_k ⊗ exp(θ_k))`` in single precision.
 
     Every operation (half-angle, sin/cos, quaternion product, normalisation) is float32, as in a
     1983-era single-precision computer.  Returns ``(M0_32, increments)``: M(t0) rounded to
@@ -227,12 +348,18 @@ def float32_recursion_increments(M0, meas) -> tuple[np.ndarray, np.ndarray]:
 
     Parameters
     ----------
-    M0 : (4,) computed attitude at t0, scalar first.
-    meas : (N, 3) measured increments θ*, rad.
+    M0 : (4,) array_like
+        Computed attitude at t0, scalar first.
+    meas : (N, 3) array_like
+        Measured increments θ*, rad.
 
     Returns
     -------
-    (4,) float64 copy of the float32 M0 and (N, 3) equivalent increments, rad.
+    M0_32 : (4,) ndarray
+        Float64 copy of the float32 M0.
+    increments : (N, 3) ndarray
+        The equivalent increments, rad.
+
     """
     f = np.float32
     q = np.asarray(M0, dtype=f)
@@ -265,33 +392,32 @@ def _knobs() -> dict:
     return {
         'none': ('no change (§6 as printed)', {}),
         'quadrature_trapezoid': ("integration scheme: Θ by the paper's O(H³) trapezoid, H = 2h",
-                                 dict(quadrature='trapezoid')),
+                                 {'quadrature': 'trapezoid'}),
         'algorithm_1': ('integration scheme: attitude by the 1-sample algorithm instead of '
-                        '2-sample',
-                        dict(algorithm='1')),
+                        '2-sample', {'algorithm': '1'}),
         'algorithm_4': ('integration scheme: attitude by the 4-sample algorithm',
-                        dict(algorithm='4')),
+                        {'algorithm': '4'}),
         'float32_inputs': ('increments and quaternions rounded to single precision',
-                           dict(precision=np.float32)),
+                           {'precision': np.float32}),
         'float32_recursion': ('attitude recursion computed in single precision (1-sample)',
-                              dict(recursion='float32', algorithm='1')),
+                              {'recursion': 'float32', 'algorithm': '1'}),
         'w0_half': ('misprint: w(0) = 1e-3 read as a rotation angle (half-angle 5e-4)',
-                    dict(w0=0.5 * TKACHENKO_W0)),
+                    {'w0': 0.5 * TKACHENKO_W0}),
         'w0_double': ('misprint: w(0) twice as large (2e-3 per axis)',
-                      dict(w0=2.0 * TKACHENKO_W0)),
+                      {'w0': 2.0 * TKACHENKO_W0}),
         'w0_1e-2': ('misprint of the exponent: w(0) = 1e-2 per axis',
-                    dict(w0=10.0 * TKACHENKO_W0)),
+                    {'w0': 10.0 * TKACHENKO_W0}),
         'w0_sign': ('sign convention: w0 = −1e-3 per axis (error of the other basis)',
-                    dict(w0=-TKACHENKO_W0)),
+                    {'w0': -TKACHENKO_W0}),
         'c_sign': ('sign convention: c → −c (gyro error as truth − measured)',
-                   dict(c=-TKACHENKO_C)),
-        'c6_sign': ('misprint: c6 = +5e-4 (c4 = c5 = c6)', dict(c=TKACHENKO_C * np.r_[1, 1, 1, 1,
-                                                                                      1, -1, 1, 1, 1])),
+                   {'c': -TKACHENKO_C}),
+        'c6_sign': ('misprint: c6 = +5e-4 (c4 = c5 = c6)',
+                    {'c': TKACHENKO_C * np.r_[1, 1, 1, 1, 1, -1, 1, 1, 1]}),
         'rate_0.032': ('misprint: ω2 = 0.032 instead of 0.32 on 5–10 s',
-                       dict(profile=_variant_profile(1, 1, 0.032))),
+                       {'profile': _variant_profile(1, 1, 0.032)}),
         'mounting_J_is_E': ('misprint: J = E (φ0 then not consistent with Λ(0))',
-                            dict(mounting=np.array([1.0, 0.0, 0.0, 0.0]))),
-        'epochs_from_0.2s': ('equations from t = 0.2 s instead of 4 s', dict(t_first=0.2)),
+                            {'mounting': np.array([1.0, 0.0, 0.0, 0.0])}),
+        'epochs_from_0.2s': ('equations from t = 0.2 s instead of 4 s', {'t_first': 0.2}),
     }
 
 
@@ -304,6 +430,20 @@ def ablations_000(noise_seeds: int = 10) -> dict:
     errors are recorded.  Whether a knob explains the paper's errors is judged by fixed
     thresholds (:data:`EXPLAINS_WITHIN`, :data:`SAME_PATTERN`), never against the pattern of
     one of our own estimators.
+
+    Parameters
+    ----------
+    noise_seeds : int
+        Seeds of the reference-angle noise probe.
+
+    Returns
+    -------
+    dict
+        ``knobs``: per knob its label and, per estimator, its :func:`agreement` with the
+        paper; ``baseline``/``baseline_printed``: the rows without a knob; ``w0_zero``: the
+        diagnostic run with w0 = 0; ``noise``: the angle noise needed for the paper's RMS and
+        the agreement there.
+
     """
     paper = _paper_cd('unquantized')
     out = {'knobs': {}}
@@ -343,16 +483,32 @@ def ablations_000(noise_seeds: int = 10) -> dict:
 
 # --------------------------------------------------------------------------- the section
 def section_000(n_seeds: int, quick: bool = False) -> dict:
+    """
+    Run the 000 section of ``reproduce_seeds``.
+
+    Parameters
+    ----------
+    n_seeds : int
+        Monte Carlo runs over the initial remainders.
+    quick : bool
+        Fewer noise seeds in the ablations (for tests).
+
+    Returns
+    -------
+    dict
+        The three cases (paper's errors beside ours), the headline agreements, the Monte
+        Carlo, the centring gain, the methods beyond the paper and the ablations (JSON-able).
+
+    """
     quantum = QUANTUM
     out = {'cases': {}}
-    spec = {'unquantized': dict(quantum=0.0, mode='raw'),
-            'quantized_raw': dict(quantum=quantum, mode='raw'),
-            'quantized_centred': dict(quantum=quantum, mode='centred')}
-    mc = monte_carlo_000(range(n_seeds), quantum, (('raw', False, False), ('centred', False,
-                                                                           False),
-                                                   ('raw', True, False), ('centred', True, False),
-                                                   ('raw', False, True), ('centred', False, True),
-                                                   ('centred', True, True)))
+    spec = {'unquantized': {'quantum': 0.0, 'mode': 'raw'},
+            'quantized_raw': {'quantum': quantum, 'mode': 'raw'},
+            'quantized_centred': {'quantum': quantum, 'mode': 'centred'}}
+    cases = (('raw', False, False), ('centred', False, False), ('raw', True, False),
+             ('centred', True, False), ('raw', False, True), ('centred', False, True),
+             ('centred', True, True))
+    mc = monte_carlo_000(range(n_seeds), quantum, cases)
     out['headline'] = {}
     for case, kw in spec.items():
         first = run_tkachenko_experiment(seed=None, **kw)                 # Δθ0 = 0, as the paper
@@ -363,20 +519,19 @@ def section_000(n_seeds: int, quick: bool = False) -> dict:
                'ours_as_printed': {k: _vec(printed[k]) for k in ('w0', 'dc', 'dd')},
                'ours_iterated': {k: _vec(iterated[k]) for k in ('w0', 'dc', 'dd')}}
         paper = _paper_cd(case)
-        head = {'ours': agreement(_cd(first), paper), 'ours_as_printed': agreement(_cd(printed),
-                                                                                   paper),
+        head = {'ours': agreement(_cd(first), paper),
+                'ours_as_printed': agreement(_cd(printed), paper),
                 'ours_iterated': agreement(_cd(iterated), paper)}
         if kw['quantum'] > 0:
             m = mc[kw['mode']]
             e, wf = m['errors'], np.asarray(m['w0_final'])
             rec['ours_mc_mean'] = {'w0': _vec(wf.mean(0)), 'dc': _vec(e[:, 3:12].mean(0)),
                                    'dd': _vec(e[:, 12:].mean(0))}
-            rec['ours_mc_std'] = {'w0': _vec(wf.std(0, ddof=1)), 'dc': _vec(e[:, 3:12].std(0,
-                                                                                           ddof=1)),
+            rec['ours_mc_std'] = {'w0': _vec(wf.std(0, ddof=1)),
+                                  'dc': _vec(e[:, 3:12].std(0, ddof=1)),
                                   'dd': _vec(e[:, 12:].std(0, ddof=1))}
             rec['ours_mc_rms'] = {'c': m['rms_c'], 'c_scale_misalignment': m['rms_c_scale'],
-                                  'c_bias': m['rms_c_bias'],
-                                  'd': m['rms_d']}
+                                  'c_bias': m['rms_c_bias'], 'd': m['rms_d']}
             # the initial remainder: is the paper's set a plausible draw of our Monte Carlo?
             z = (paper - e[:, 3:].mean(0)) / e[:, 3:].std(0, ddof=1)
             mc_rms = float(np.sqrt(np.mean(e[:, 3:] ** 2)))
@@ -393,9 +548,7 @@ def section_000(n_seeds: int, quick: bool = False) -> dict:
     out['beyond_paper'] = {k: {'rms_c': v['rms_c'], 'rms_c_bias': v['rms_c_bias'],
                                'rms_d': v['rms_d'],
                                'rms_w': v['w_rms']} for k, v in mc.items()}
-    mcp = monte_carlo_000(range(n_seeds), quantum, (('raw', False, False), ('centred', False,
-                                                                            False)),
-                          coefficients='printed')
+    mcp = monte_carlo_000(range(n_seeds), quantum, cases[:2], coefficients='printed')
     out['centring_gain'] = {'rms_c_raw': raw['rms_c'], 'rms_c_centred': cen['rms_c'],
                             'printed_rms_c_raw': mcp['raw']['rms_c'],
                             'printed_rms_c_centred': mcp['centred']['rms_c'],

@@ -11,29 +11,33 @@ from __future__ import annotations
 import numpy as np
 
 from strapdown_ros.figures import save_figure
-from strapdown_ros.reproductions.tkachenko1983 import (EXPLAINS_WITHIN, ESTIMATORS, NO_EFFECT,
+from strapdown_ros.reproductions.tkachenko1983 import (ESTIMATORS, EXPLAINS_WITHIN, NO_EFFECT,
                                                        SAME_PATTERN)
 
-# --------------------------------------------------------------------------- report
+
 def _verdict(ok: bool, yes: str, no: str) -> str:
     return yes if ok else no
 
 
-
-
 def ablation_verdict(k: dict, base: dict) -> tuple[str, bool]:
     """
-    The verdict on one knob for one estimator, with its thresholds stated beside it.
+    Judge one knob for one estimator, with the thresholds stated beside the verdict.
 
     Parameters
     ----------
-    k : the knob's :func:`agreement` with the paper.
-    base : the same estimator's :func:`agreement` without the knob.
+    k : dict
+        The knob's :func:`~strapdown_ros.reproductions.tkachenko1983.agreement` with the paper.
+    base : dict
+        The same estimator's agreement without the knob.
 
     Returns
     -------
-    (verdict text, explains) — explains is True when the RMS ratio is within
-    :data:`EXPLAINS_WITHIN` of 1 and the correlation is at least :data:`SAME_PATTERN`.
+    verdict : str
+        The verdict text, its thresholds included.
+    explains : bool
+        True when the RMS ratio is within :data:`EXPLAINS_WITHIN` of 1 and the correlation is
+        at least :data:`SAME_PATTERN`.
+
     """
     change = abs(k['rms_ratio'] / base['rms_ratio'] - 1)
     size_ok = abs(np.log(k['rms_ratio'])) <= np.log(EXPLAINS_WITHIN)
@@ -81,7 +85,8 @@ def _ablation_lines(a: dict) -> list[str]:
                            else ablation_verdict(v, base[est]))
             if ok:
                 explained.append(f"{k['label']} ({name})")
-            row += f" {v['rms_ratio']:.2f} | {v['signs']}/{v['n']} | {v['corr']:+.3f} | {verdict} |"
+            row += (f" {v['rms_ratio']:.2f} | {v['signs']}/{v['n']} | {v['corr']:+.3f} | "
+                    f'{verdict} |')
         L.append(row)
     L.append('')
     for est, name in ESTIMATORS.items():
@@ -102,14 +107,18 @@ def _ablation_lines(a: dict) -> list[str]:
                  + _verdict(noise_ok, f'explains size and pattern (corr ≥ {SAME_PATTERN:g}).',
                             f'not the pattern (corr < {SAME_PATTERN:g}).'))
     if explained:
-        L.append("* Knobs that explain the paper's errors by these thresholds: " + '; '
-                                                                                   ''.join(explained) + '.')
+        L.append("* Knobs that explain the paper's errors by these thresholds: "
+                 + '; '.join(explained) + '.')
     else:
         bp, bi = base['printed'], base['identity']
         z = a['w0_zero']['identity']
+
+        def closeness(ke):
+            v = a['knobs'][ke[0]][ke[1]]
+            return v['corr'] - 10 * max(abs(np.log(v['rms_ratio'])) - np.log(EXPLAINS_WITHIN), 0)
+
         best = max(((key, est) for key in a['knobs'] for est in ESTIMATORS if key != 'none'),
-                   key=lambda ke: a['knobs'][ke[0]][ke[1]]['corr']
-                   - 10 * max(abs(np.log(a['knobs'][ke[0]][ke[1]]['rms_ratio'])) - np.log(EXPLAINS_WITHIN), 0))
+                   key=closeness)
         kb = a['knobs'][best[0]][best[1]]
         L.append('* No knob tried, with either estimator, brings the ratio within '
                  f'{EXPLAINS_WITHIN:g}× of 1 with '
@@ -157,11 +166,26 @@ def _claim_lines(r: dict) -> list[str]:
 ROW_NAMES = {'paper': "paper (000's published errors)", 'ours_as_printed': "ours: 000's method as "
                                                                            'printed',
              'ours': 'ours: modified estimator', 'ours_iterated': 'ours: Gauss–Newton',
-             'ours_mc_mean': 'ours: modified, Monte Carlo mean', 'ours_mc_std': 'ours: modified, '
-                                                                                'Monte Carlo std'}
+             'ours_mc_mean': 'ours: modified, Monte Carlo mean',
+             'ours_mc_std': 'ours: modified, Monte Carlo std'}
 
 
 def report_000(r: dict) -> str:
+    """
+    Write the 000 section of the report.
+
+    Parameters
+    ----------
+    r : dict
+        The result of :func:`strapdown_ros.reproductions.tkachenko1983.section_000`.
+
+    Returns
+    -------
+    str
+        Markdown: the paper's errors beside ours, the headline, the error tables, the
+        ablations and the methods beyond the paper.
+
+    """
     L = ['## 000 — gyro errors against a drifting reference (Tkachenko 1983, §6)', '']
     h = r['headline']
     L += _claim_lines(r)
@@ -204,9 +228,9 @@ def report_000(r: dict) -> str:
                     'ours_mc_std'):
             v = rec[key]
             L.append(f'| {ROW_NAMES[key]} | '
-                     '' + ' '.join(f'{x * 1e5:+.2f}' for x in v['w0']) + ' | '
+                     + ' '.join(f'{x * 1e5:+.2f}' for x in v['w0']) + ' | '
                      + ' '.join(f'{x:+.1e}' for x in v['dc']) + ' | '
-                                                                '' + ' '.join(f'{x:+.1e}' for x in v['dd']) + ' |')
+                     + ' '.join(f'{x:+.1e}' for x in v['dd']) + ' |')
         L.append('')
     un, hu = r['cases']['unquantized'], h['unquantized']
     L += ["* 'ours: modified estimator' is 000's first-order method — one linear least-squares "
@@ -232,8 +256,8 @@ def report_000(r: dict) -> str:
           'at least.']
     q, hq = r['cases']['quantized_raw'], h['quantized_raw']['ours']
     q_ratio = np.array(q['ours']['dc']) / np.array(q['paper']['dc'])
-    L += ['* Quantized, raw, Δθ0 = 0: ours/paper for δc1…δc9 = ' + ', '
-                                                                   ''.join(f'{v:+.2f}' for v in q_ratio)
+    L += ['* Quantized, raw, Δθ0 = 0: ours/paper for δc1…δc9 = '
+          + ', '.join(f'{v:+.2f}' for v in q_ratio)
           + f" ({hq['signs']}/12 signs over δc, δd; RMS ratio {hq['rms_ratio']:.2f})."]
     g = r['centring_gain']
     gc, gd = 1 - g['rms_c_centred'] / g['rms_c_raw'], 1 - g['rms_d_centred'] / g['rms_d_raw']
@@ -281,12 +305,27 @@ def report_000(r: dict) -> str:
     return '\n'.join(L)
 
 
-# --------------------------------------------------------------------------- plots
 def plots_000(r: dict, outdir: str) -> list[str]:
+    """
+    Draw the figures of the 000 section: errors, centring and ablations.
+
+    Parameters
+    ----------
+    r : dict
+        The result of :func:`strapdown_ros.reproductions.tkachenko1983.section_000`.
+    outdir : str
+        Directory of the figures.
+
+    Returns
+    -------
+    list of str
+        Paths of ``seeds_000_errors.png``, ``seeds_000_centring.png`` and
+        ``seeds_000_ablations.png``.
+
+    """
     import matplotlib
     matplotlib.use('Agg')
     import matplotlib.pyplot as plt
-
 
     paths = []
     labels = [f'c{i}' for i in range(1, 10)] + [f'd{i}' for i in range(1, 4)]

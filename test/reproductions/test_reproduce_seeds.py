@@ -122,8 +122,8 @@ def test_000_new_ablations_compute_what_the_text_says(result):
     res, text, _ = result
     a = res['000']['ablations']['knobs']
     paper = np.r_[PAPER_000['unquantized']['dc'], PAPER_000['unquantized']['dd']]
-    for key, kw in (('w0_1e-2', dict(w0=np.full(3, 1e-2))),
-                    ('float32_recursion', dict(recursion='float32', algorithm='1'))):
+    for key, kw in (('w0_1e-2', {'w0': np.full(3, 1e-2)}),
+                    ('float32_recursion', {'recursion': 'float32', 'algorithm': '1'})):
         assert key in a
         for est in ('printed', 'identity'):
             r = run_tkachenko_experiment(seed=None, coefficients=est, **kw)
