@@ -1,16 +1,17 @@
 """
-seeds_001: reproduce Vavilov 1982 (paper 001) — observability in gyro-horizon-compass
-correction.
+Reproduce Vavilov 1982 (paper 001): observability in gyro-horizon-compass correction.
 
-    python -m strapdown_ros.reproductions.vavilov1982 [--quick] [--report FILE.md] [--json FILE] [--plots DIR]
+    python -m strapdown_ros.reproductions.vavilov1982 [--quick] [--report FILE.md] [--json FILE]
+                                                      [--plots DIR]
 
-Computes, from :mod:`strapdown_ros.estimation.gyrocompass` and :mod:`strapdown_ros.estimation.observability`:
-the misprint checks of §3, the checks of (4.1)/(4.3) against exact geometry, the measures of
-observability of the ship case (4.6), the aircraft case (4.8) and the circulation (4.11) beside the
-paper's statements, the full time-varying model's Gramian, and the steady-state filter of the ship
-case with a Monte Carlo of its NEES.  Every sentence of the report is computed from the numbers,
-except the derivation text appended from :mod:`.seeds_001_text`, which is labelled as such and
-names the test command that checks each part.
+Computes, from :mod:`strapdown_ros.estimation.gyrocompass` and
+:mod:`strapdown_ros.estimation.observability`: the misprint checks of §3, the checks of
+(4.1)/(4.3) against exact geometry, the measures of observability of the ship case (4.6), the
+aircraft case (4.8) and the circulation (4.11) beside the paper's statements, the full
+time-varying model's Gramian, and the steady-state filter of the ship case with a Monte Carlo of
+its NEES.  Every sentence of the report is computed from the numbers, except the derivation text
+appended from :mod:`.vavilov1982_text`, which is labelled as such and names the test command
+that checks each part.
 
 For reproduce_seeds: ``section_001(quick) -> dict``, ``report_001(res) -> str``,
 ``plots_001(res, outdir) -> list[str]``.  No ROS imports; matplotlib only inside plots_001.
@@ -41,6 +42,8 @@ SHIP_SPEED = 15.0                # V0 for the ship [m/s] (001: μ1 ≈ 0.03)
 CIRCULATION_PERIOD = 420.0       # 7 min (001: 6–8 min)
 INCLINATION_DEG = 60.0           # orthodrome inclination ϑ, passing LATITUDE at τ = 0
 X0 = 1.5e-3                      # 001's characteristic error x° [rad]
+SHIP_NAMES = ('y1', 'y2', 'y3', 'y4', 'Δ')             # the ship's variables, (4.6)
+AIRCRAFT_NAMES = ('s1', 's2', 's3', 's4', 's5')        # the aircraft's variables, (4.8)
 
 
 def _f(x):
@@ -101,8 +104,8 @@ def _geometry_checks(ship) -> dict:
         c = mu * s
         printed = gc.B2 + c * gc.B1 + c * mu1 * G2 @ np.linalg.inv(G1)
         worst_43 = max(worst_43, np.abs((G1 @ B + G1d) @ np.linalg.inv(G1) - printed).max(),
-                       np.abs(G1 @ b - c * np.array([0, v - mu1 ** 2 / v, 0,
-                                                     2 * mu1 * k['V2']])).max())
+                       np.abs(G1 @ b - c * np.array([0, v - mu1 ** 2 / v, 0, 2 * mu1 * k['V2']]))
+                       .max())
     return {'eq_4_1_max_rel_error': worst_41, 'eq_4_3_max_abs_residual': worst_43}
 
 
@@ -134,10 +137,10 @@ def _ship(ship, quick) -> dict:
             'gramian_unit': _f(measures_of_observability(g_unit.mean, np.eye(5))),
             'gramian_period': _f(measures_of_observability(g_per.mean, np.eye(5))),
             'full_period_z_known': _f(full_zknown), 'full_gramian_rel_error': gf.relative_error,
-            'full_period_z_known_states': _f(measures_of_observability(gf.mean[np.ix_(keep, keep)],
-                                                                       np.eye(5))),
-            'full_eigenvalues': _f(rep.eigenvalues), 'full_weakest_direction': _f(rep.directions[:,
-                                                                                                 0]),
+            'full_period_z_known_states': _f(
+                measures_of_observability(gf.mean[np.ix_(keep, keep)], np.eye(5))),
+            'full_eigenvalues': _f(rep.eigenvalues),
+            'full_weakest_direction': _f(rep.directions[:, 0]),
             'full_weakest_ratio': float(rep.eigenvalues[0] / rep.eigenvalues[-1])}
 
 
@@ -182,10 +185,10 @@ def _circulation(ship, quick) -> dict:
         g = observability_gramian(sub_F, sub_H, 0, T1 * lam1, steps)
         g_half = observability_gramian(sub_F, sub_H, 0, T1 * lam1, steps // 2)
         # accuracy of the (Richardson) Gramian: its relative change when the step is doubled;
-        # eigenvalues below that (relative to the largest) are not resolved and count as unobservable
+        # eigenvalues below that (relative to the largest) are not resolved: unobservable
         acc = float(np.linalg.norm(g.gramian - g_half.gramian) / np.linalg.norm(g.gramian))
-        out['full_delta'][name] = float(measures_of_observability(g.mean, np.eye(5)[4:],
-                                                                  rel_tol=max(1e-14, acc))[0])
+        m_delta = measures_of_observability(g.mean, np.eye(5)[4:], rel_tol=max(1e-14, acc))
+        out['full_delta'][name] = float(m_delta[0])
         out.setdefault('full_gramian_accuracy', {})[name] = acc
     return out
 
@@ -198,7 +201,8 @@ def _filters(ship, quick) -> dict:
         c = ship.mu * np.sin(np.radians(latd))
         A, H = gc.ship_system(c, np.cos(np.radians(latd)))
         obs[name] = {'latitude_deg': latd, 'c': c, 'gain': _f(pole_placement_gain(A, H, poles))}
-    # steady-state Kalman filter; units of x°: Δσ = 0.1 μ (eq. 4.5) as white noise of that intensity
+    # steady-state Kalman filter; units of x°: Δσ = 0.1 μ (eq. 4.5) as white noise of that
+    # intensity
     ds, h, q = 0.1 * ship.mu, 0.05, 1e-2
     runs = 40 if quick else 200
     steps = int(round(200.0 / h))
@@ -212,15 +216,15 @@ def _filters(ship, quick) -> dict:
         ev, evec = np.linalg.eig((np.eye(5) - K @ H) @ Phi)
         order = np.argsort(-h / np.log(np.abs(ev)))
         tconst = (-h / np.log(np.abs(ev)))[order]
-        dominant = [['y1', 'y2', 'y3', 'y4', 'Δ'][int(np.argmax(np.abs(evec[:,
-                                                                            j])))] for j in order]
+        states = ['y1', 'y2', 'y3', 'y4', 'Δ']
+        dominant = [states[int(np.argmax(np.abs(evec[:, j])))] for j in order]
         Ps = constant_gain_covariance(Phi, H, Q, R, K, np.eye(5), steps)
         sig_t = np.sqrt(np.einsum('kii->ki', Ps))
         ss = np.sqrt(np.diag(Pf))
         rec = {'c': c, 'gain': _f(K), 'steady_sigma': _f(ss), 'time_constants': _f(tconst),
                'mode_dominant_state': dominant,
-               'final_over_steady': _f(sig_t[-1] / ss), 'measures': _f(stationary_measures(A, H,
-                                                                                           1.0))}
+               'final_over_steady': _f(sig_t[-1] / ss),
+               'measures': _f(stationary_measures(A, H, 1.0))}
         if name == 'lat':
             err = simulate_constant_gain(Phi, H, Q, R, K, np.eye(5), steps, runs,
                                          np.random.default_rng(1))
@@ -237,7 +241,21 @@ def _filters(ship, quick) -> dict:
 
 
 def section_001(quick: bool = False) -> dict:
-    """All numbers of the 001 section (JSON-able)."""
+    """
+    Compute all numbers of the 001 section.
+
+    Parameters
+    ----------
+    quick : bool
+        Fewer steps and Monte Carlo runs (for tests).
+
+    Returns
+    -------
+    dict
+        Parameters, misprint and geometry checks, the ship, aircraft and circulation measures
+        and the filters (JSON-able).
+
+    """
     ship = gc.Parameters(SHIP_SPEED)
     return {'parameters': {'mu': ship.mu, 'mu1_ship': ship.mu1, 'latitude_deg': LATITUDE_DEG,
                            'schuler_rate': ship.schuler_rate,
@@ -251,7 +269,22 @@ def section_001(quick: bool = False) -> dict:
 
 # ----------------------------------------------------------------------------- report
 def order_verdict(m: float, ref: float) -> str:
-    """Words for m against the paper's order ref, with the threshold: same order if within 10×."""
+    """
+    Word a measure against the paper's order, with the threshold: same order if within 10×.
+
+    Parameters
+    ----------
+    m : float
+        Our measure.
+    ref : float
+        The paper's order at the same latitude.
+
+    Returns
+    -------
+    str
+        For example ``'same order (×0.82, within 10×)'``.
+
+    """
     r = m / ref
     if 0.1 <= r <= 10:
         return f'same order (×{r:.2g}, within 10×)'
@@ -262,12 +295,26 @@ def _table(names, paper, columns: dict, paper_label: str = 'paper') -> list[str]
     head = f'| variable | {paper_label} | ' + ' | '.join(columns) + ' |'
     lines = [head, '|' + '---|' * (2 + len(columns))]
     for i, n in enumerate(names):
-        lines.append(f'| {n} | {paper[i]:.3g} | ' + ' | '
-                                                    ''.join(f'{col[i]:.3g}' for col in columns.values()) + ' |')
+        lines.append(f'| {n} | {paper[i]:.3g} | '
+                     + ' | '.join(f'{col[i]:.3g}' for col in columns.values()) + ' |')
     return lines
 
 
 def report_001(res: dict) -> str:
+    """
+    Write the 001 section of the report.
+
+    Parameters
+    ----------
+    res : dict
+        The result of :func:`section_001`.
+
+    Returns
+    -------
+    str
+        Markdown: the paper's orders beside our measures, the checks and the filters.
+
+    """
     p, mp, geo = res['parameters'], res['misprints'], res['geometry']
     s, a, ci, fl = res['ship'], res['aircraft'], res['circulation'], res['filters']
     L = ['## 001 — Observability in gyro-horizon-compass correction (Vavilov 1982)', '']
@@ -276,11 +323,9 @@ def report_001(res: dict) -> str:
     L += ["**The paper's claim beside ours.** 001 prints orders of magnitude, not numbers "
           f"(evaluated here at {p['latitude_deg']:g}°). Ship (4.6): y1, y2 of order 1, y3, y4, Δ "
           f'of order μ sin φ = {c:.3g}; ours (derivative measure) '
-          + ', '.join(f'{n} {v:.3g}' for n, v in zip(['y1', 'y2', 'y3', 'y4', 'Δ'],
-                                                       s['derivative']))
+          + ', '.join(f'{n} {v:.3g}' for n, v in zip(SHIP_NAMES, s['derivative']))
           + f". Aircraft (4.8): s1–s3 of order 1, s4, s5 of order μ sin φ = {a['c']:.3g}; ours "
-          + ', '.join(f'{n} {v:.3g}' for n, v in zip(['s1', 's2', 's3', 's4', 's5'],
-                                                       a['derivative']))
+          + ', '.join(f'{n} {v:.3g}' for n, v in zip(AIRCRAFT_NAMES, a['derivative']))
           + f'. Circulation (4.11): p1 of order λ1μ1 = {lm:.3g} on τ1∈(0,1); ours '
           f"{ci['derivative']['unit'][2]:.3g}. The tables below give the paper's orders as "
           'their first column.', '']
@@ -306,12 +351,10 @@ def report_001(res: dict) -> str:
              f"(4.3) (matrix and b1): largest residual {geo['eq_4_3_max_abs_residual']:.1e}.")
     L += ['', '### Ship on an orthodrome, (4.6)', '']
     names = ['y1', 'y2', 'y3', 'y4', 'Δ']
-    L += _table(names, s['paper'], {'derivative measure': s['derivative'], 'closed '
-                                                                           'form': s['closed_form'],
-                                    'Gramian, τ∈(0,1)': s['gramian_unit'], 'Gramian, '
-                                                                           'τ∈(0,2π)': s['gramian_period'],
-                                    'full LTV, z known, (0,2π)': s['full_period_z_known']},
-                  f"001: order (1 or μ sin φ) at {p['latitude_deg']:g}°")
+    columns = {'derivative measure': s['derivative'], 'closed form': s['closed_form'],
+               'Gramian, τ∈(0,1)': s['gramian_unit'], 'Gramian, τ∈(0,2π)': s['gramian_period'],
+               'full LTV, z known, (0,2π)': s['full_period_z_known']}
+    L += _table(names, s['paper'], columns, f"001: order (1 or μ sin φ) at {p['latitude_deg']:g}°")
     c = s['c']
     dm = s['derivative']
     L.append('')
@@ -339,11 +382,10 @@ def report_001(res: dict) -> str:
              'of x1, x3 '
              '(001: x2, x4 well observable, x1, x3 weakly).')
     L += ['', '### Aircraft, (4.8), μ1 = 1', '']
-    L += _table(['s1', 's2', 's3', 's4', 's5'], a['paper'], {'derivative measure': a['derivative'],
-                                                             'closed form': a['closed_form'],
-                                                             'Gramian, '
-                                                             'τ∈(0,2π)': a['gramian_period']},
-                  f"001: order (1 or μ sin φ) at {p['latitude_deg']:g}°")
+    columns = {'derivative measure': a['derivative'], 'closed form': a['closed_form'],
+               'Gramian, τ∈(0,2π)': a['gramian_period']}
+    L += _table(['s1', 's2', 's3', 's4', 's5'], a['paper'], columns,
+                f"001: order (1 or μ sin φ) at {p['latitude_deg']:g}°")
     L.append('')
     L.append(f"s1–s3: {', '.join(order_verdict(x, 1) for x in a['derivative'][:3])}; s4, s5 "
              f"against μ sinφ = {a['c']:.4f}: "
@@ -407,17 +449,23 @@ def report_001(res: dict) -> str:
              f"{fl['kalman']['step']:g}; gain from the Riccati equation by doubling) at "
              f"{o1['latitude_deg']:g}°: steady σ in x° = "
              + ', '.join(f'{n} {v:.2e}' for n, v in zip(names, k1['steady_sigma']))
-             + '; closed-loop time constants ' + ', '
-                                                 ''.join(f'{v:.1f}' for v in k1['time_constants']) + ' τ'
-             + f" (at {o2['latitude_deg']:g}°: " + ', '
-                                                   ''.join(f'{v:.1f}' for v in k2['time_constants']) + ' τ).')
-    ex_sig = [np.log(k2['steady_sigma'][i] / k1['steady_sigma'][i]) / np.log(k2['measures'][i] / k1['measures'][i])
-              for i in (2, 3, 4)]
-    ex_pair = np.log(k2['time_constants'][2] / k1['time_constants'][2]) / np.log(k2['measures'][2] / k1['measures'][2])
-    ex_slow = np.log(k2['time_constants'][4] / k1['time_constants'][4]) / np.log(k2['measures'][4] / k1['measures'][4])
+             + '; closed-loop time constants '
+             + ', '.join(f'{v:.1f}' for v in k1['time_constants']) + ' τ'
+             + f" (at {o2['latitude_deg']:g}°: "
+             + ', '.join(f'{v:.1f}' for v in k2['time_constants']) + ' τ).')
+
+    def exponent(key, i, j=None):
+        # d log(key) / d log(measure) between the two latitudes
+        j = i if j is None else j
+        return (np.log(k2[key][i] / k1[key][i])
+                / np.log(k2['measures'][j] / k1['measures'][j]))
+
+    ex_sig = [exponent('steady_sigma', i) for i in (2, 3, 4)]
+    ex_pair = exponent('time_constants', 2)
+    ex_slow = exponent('time_constants', 4)
     L.append('Between the two latitudes the steady σ of y3, y4, Δ scales as (derivative measure)^('
              + ', '.join(f'{e:.2f}' for e in ex_sig) + '), the slow oscillatory time constant as '
-                                                       f'm(y3)^({ex_pair:.2f}) '
+             f'm(y3)^({ex_pair:.2f}) '
              f'and the slowest one as m(Δ)^({ex_slow:.2f}); a random walk observed with measure m '
              'has steady σ ∝ m^(−1/2) '
              'and time constant ∝ m^(−1). Largest eigenvector component of each mode, fastest '
@@ -442,6 +490,22 @@ def report_001(res: dict) -> str:
 
 
 def plots_001(res: dict, outdir: str) -> list[str]:
+    """
+    Draw the measures of observability and the filter's Monte Carlo.
+
+    Parameters
+    ----------
+    res : dict
+        The result of :func:`section_001`.
+    outdir : str
+        Directory of the figures (created if missing).
+
+    Returns
+    -------
+    list of str
+        Paths of ``seeds_001_measures.png`` and ``seeds_001_filter.png``.
+
+    """
     import matplotlib
     matplotlib.use('Agg')
     import matplotlib.pyplot as plt
@@ -483,6 +547,20 @@ def plots_001(res: dict, outdir: str) -> list[str]:
 
 
 def main(argv=None) -> int:
+    """
+    Run the 001 page command (``python -m strapdown_ros.reproductions.vavilov1982``).
+
+    Parameters
+    ----------
+    argv : list of str, optional
+        Command-line arguments (default: ``sys.argv[1:]``).
+
+    Returns
+    -------
+    int
+        0 on success; a usage or output error exits with 2 and one line on stderr.
+
+    """
     ap = argparse.ArgumentParser(prog='vavilov1982', description=__doc__.split('\n\n')[0])
     ap.add_argument('--quick', action='store_true', help='fewer steps and Monte Carlo runs')
     ap.add_argument('--report', help='write the markdown section to this file')

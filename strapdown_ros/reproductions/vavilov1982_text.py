@@ -1,7 +1,8 @@
 """
-The derivations behind the 001 section: fixed derivation text written by hand (mathematics, no
-measured claims), not computed from the run; each part names the test that checks it.  Written
-into doc/results/reproductions/observability_001.md by
+The derivations behind the 001 section: fixed derivation text written by hand.
+
+Mathematics, no measured claims, not computed from the run; each part names the test that
+checks it.  Written into doc/results/reproductions/observability_001.md by
 :mod:`strapdown_ros.reproductions.vavilov1982`.
 """
 
