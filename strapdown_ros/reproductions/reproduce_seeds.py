@@ -129,7 +129,7 @@ REGISTRY = (
     Section('004', '004', '.reproduce_seeds', 'section_004', 'report_004', 'plots_004',
             lambda a: (a.runs, a.quick)),
     Section('004', '004_extras', '.vasilyuk2024', 'section_004_extras', 'report_004_extras',
-            'plots_004_extras', lambda a: (a.quick,)),
+            'plots_004_extras', lambda a: (a.quick,), '.vasilyuk2024_report'),
 )
 
 
