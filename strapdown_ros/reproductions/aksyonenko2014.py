@@ -1,8 +1,9 @@
 """
-003 (Aksyonenko 2014; paper 003, coning §2.3) for ``reproduce_seeds``: the three cases and
-the thesis's claims against our
-measured drift, each value marked where it is below the float64 round-off floor of its algorithm
-(the rule of doc/coning.md).  The full comparison is ``coning_bench`` → doc/coning.md.  No ROS imports.
+Aksyonenko 2014 (paper 003), coning §2.3, for ``reproduce_seeds``.
+
+The three cases and the thesis's claims against our measured drift, each value marked where it
+is below the float64 round-off floor of its algorithm (the rule of doc/coning.md).  The full
+comparison is ``coning_bench`` → doc/coning.md.  No ROS imports.
 """
 from __future__ import annotations
 
@@ -17,7 +18,21 @@ CLAIM_LIMIT_DEG_PER_H = 1e-3
 
 
 def section_003(duration: float) -> dict:
+    """
+    Measure the drift of every seed algorithm in the three coning cases of 003 §2.3.
 
+    Parameters
+    ----------
+    duration : float
+        Seconds per case.
+
+    Returns
+    -------
+    dict
+        Per case and update size the drift along the cone axis, °/h, the round-off floor and
+        the values at it, and the case-1 claim checks (JSON-able).
+
+    """
     names = list(SEED_ALGORITHMS)
     out = {'duration_s': duration, 'cases': []}
     for (a, nu) in ((0.087, 1.0), (0.5, 1.0), (0.087, 0.5)):
@@ -31,7 +46,8 @@ def section_003(duration: float) -> dict:
                                  'floor_deg_per_h': floor / DEG_PER_HOUR})
     claims = {}
     for step in (0.001, 0.01):
-        c1 = next(c for c in out['cases'] if c['alpha'] == 0.087 and c['nu'] == 1.0 and c['step'] == step)
+        c1 = next(c for c in out['cases']
+                  if c['alpha'] == 0.087 and c['nu'] == 1.0 and c['step'] == step)
         d = c1['drift_deg_per_h']
         claims[str(step)] = {'others_below_1e-3': all(abs(v) < CLAIM_LIMIT_DEG_PER_H for n,
                                                       v in d.items() if n != '1'),
@@ -43,6 +59,20 @@ def section_003(duration: float) -> dict:
 
 
 def report_003(r: dict) -> str:
+    """
+    Write the 003 section of the report.
+
+    Parameters
+    ----------
+    r : dict
+        The result of :func:`section_003`.
+
+    Returns
+    -------
+    str
+        Markdown: the thesis's claim beside ours, the drift table and the claim checks.
+
+    """
     names = list(r['cases'][0]['drift_deg_per_h'])
     L = [f"## 003 — coning, §2.3 ({r['duration_s']:g} s per case)", '']
     claim = []
