@@ -15,7 +15,7 @@ Rerun the experiments of the seed papers and set our numbers beside theirs (repr
 * 003 (Aksyonenko 2014, coning §2.3): the three cases, the thesis's claims, values at the
   round-off floor marked (:mod:`.aksyonenko2014`).
 * 004 (Vasilyuk et al. 2024, boresight §6): the σ_β pattern from a simulated experiment with
-  004's sensor parameters (here; the Fig. 3 check and the σ_β ablation from :mod:`.vasilyuk2024`).
+  004's sensor parameters, the Fig. 3 check and the σ_β ablation (:mod:`.vasilyuk2024`).
 
 Every section is one entry of :data:`REGISTRY`: a module with a run, a report and (optionally) a
 plots function.  Each section opens with the paper's claim beside ours; every comparison
@@ -37,21 +37,8 @@ from typing import Callable
 
 import numpy as np
 
-from strapdown_ros.calibration.boresight import (camera_increment, gyro_increment, IncrementPair,
-                                                 solve_boresight)
 from strapdown_ros.cli import check_outputs, DIRECTORY, FILE, write_text
-from strapdown_ros.figures import save_figure
-from strapdown_ros.motion.profiles import (EARTH_RATE, PiecewiseRateProfile, Segment,
-                                           STANDARD_GRAVITY)
 from strapdown_ros.reproductions.markdown import place_figures
-from strapdown_ros.rotation import (dcm_to_quat, quat_angle_between, quat_conjugate, quat_multiply,
-                                    rotvec_to_quat, ypr_to_dcm)
-from strapdown_ros.sensors import ARCSEC, NAVIGATION_GRADE_GYRO
-from strapdown_ros.sensors.star_camera import StarCameraModel
-
-
-def _vec(x):
-    return [float(v) for v in np.asarray(x).ravel()]
 
 
 @dataclass(frozen=True)
@@ -126,8 +113,8 @@ REGISTRY = (
             lambda a: (a.runs, a.quick)),
     Section('003', '003', '.aksyonenko2014', 'section_003', 'report_003', None,
             lambda a: (a.coning_duration,)),
-    Section('004', '004', '.reproduce_seeds', 'section_004', 'report_004', 'plots_004',
-            lambda a: (a.runs, a.quick)),
+    Section('004', '004', '.vasilyuk2024', 'section_004', 'report_004', 'plots_004',
+            lambda a: (a.runs, a.quick), '.vasilyuk2024_report'),
     Section('004', '004_extras', '.vasilyuk2024', 'section_004_extras', 'report_004_extras',
             'plots_004_extras', lambda a: (a.quick,), '.vasilyuk2024_report'),
 )
@@ -141,270 +128,6 @@ def sections() -> list[Section]:
 def section_names() -> list[str]:
     """Return the names ``--only`` accepts, in report order."""
     return list(dict.fromkeys(s.only for s in sections()))
-
-
-# ------------------------------------------------------------------------------------- 004
-#: 004 §6: 12 rotations of the INS between static segments, heading within 50°…300°, pitch
-#: within ±7°, roll within ±15° (its Fig. 1a); the order and sizes here are ours
-TURNS_004 = [(2, 40.0), (0, 5.0), (2, 60.0), (1, 12.0), (2, -30.0), (0, -10.0),
-             (2, 80.0), (1, -25.0), (2, -50.0), (0, 7.0), (2, 45.0), (1, 15.0)]
-
-
-def experiment_004_pairs(seed: int, n_fixes: int = 73, interval: float = 21.0, _cache={}):
-    """
-    Simulate one run of a 004 §6-like experiment and return its increment pairs.
-
-    73 exposures 21 s apart, 200 Hz navigation-grade gyro (004 §6 values), camera 0.6″/0.6″/6″
-    looking up (β = 0: VF z, the optical axis, is MF z, the vertical), 12 turns (mostly in
-    heading) between static segments, Earth rate on.  The trajectory is computed once and kept
-    in ``_cache``.
-
-    Parameters
-    ----------
-    seed : int
-        Seed of the gyro errors, the gyro noise and the camera noise.
-    n_fixes : int
-        Number of camera exposures.
-    interval : float
-        Time between exposures, s.
-
-    Returns
-    -------
-    pairs : list of IncrementPair
-        Gyro and camera attitude increments between successive exposures.
-    beta_true : (3,) ndarray
-        The true boresight (yaw, pitch, roll), rad: zero.
-
-    """
-    if 'profile' not in _cache:
-        span = n_fixes * interval + 5.0
-        turn = 10.0
-        hold = (span - len(TURNS_004) * turn) / (len(TURNS_004) + 1)
-        segs = [Segment(hold)]
-        for axis, deg in TURNS_004:
-            r = np.zeros(3)
-            r[axis] = np.radians(deg) / turn
-            segs += [Segment(turn, r), Segment(hold)]
-        lat = np.radians(55.75)
-        earth = EARTH_RATE * np.array([0.0, np.cos(lat), np.sin(lat)])
-        _cache['profile'] = PiecewiseRateProfile(segs, earth_rate=earth,
-                                                 gravity=(0.0, 0.0, STANDARD_GRAVITY))
-        p = _cache['profile']
-        tg = np.arange(int(span * 200) + 1) / 200.0
-        _cache['t'], _cache['u'] = tg[1:], p.delta_theta(tg[:-1], tg[1:])
-    prof, t, u = _cache['profile'], _cache['t'], _cache['u']
-    rng = np.random.default_rng(seed)
-    err = NAVIGATION_GRADE_GYRO.draw(rng)
-    noise = rng.normal(0, err.random_walk * np.sqrt(1 / 200.0), u.shape)
-    y = u @ (np.eye(3) + err.matrix).T + err.bias / 200.0 + noise
-    cam = StarCameraModel(boresight=np.zeros(3), interval=interval, seed=1000 + seed)
-    fixes = cam.fixes(prof, n_fixes)
-    pairs = []
-    for f0, f1 in zip(fixes[:-1], fixes[1:]):
-        dq_i, E_i = gyro_increment(t, y, f0.stamp, f1.stamp, NAVIGATION_GRADE_GYRO)
-        dq_c, E_c = camera_increment(f0.attitude, f0.covariance, f1.attitude, f1.covariance)
-        pairs.append(IncrementPair(f0.stamp, f1.stamp, dq_i, dq_c, E_i, E_c))
-    return pairs, np.zeros(3)
-
-
-def convergence_004(n: int = 100, seed: int = 8) -> dict:
-    """
-    Compare 004 §4.2's Gauss–Newton start β0 = 0 with the closed-form axis start.
-
-    ``init='given'`` (from β0 = 0, as 004) against ``init='axes'`` on ``n`` random boresights
-    (pitch within ±89°), 20 noise-free pairs each.
-
-    Parameters
-    ----------
-    n : int
-        Number of random boresights.
-    seed : int
-        Seed of the boresights and the increments.
-
-    Returns
-    -------
-    dict
-        ``n`` and, per start, the number converged to 1e-6 rad and the median and largest
-        iteration counts.
-
-    """
-    rng = np.random.default_rng(seed)
-    out = {'n': n}
-    res = {'given': [], 'axes': []}
-    for _ in range(n):
-        beta = rng.uniform([-np.pi, -1.55, -np.pi], [np.pi, 1.55, np.pi])
-        qc = dcm_to_quat(ypr_to_dcm(*beta))
-        pairs = []
-        for k in range(20):
-            axis = rng.normal(size=3)
-            angle = np.radians(12.0) * (0.5 + rng.random())
-            dq_vf = rotvec_to_quat(axis / np.linalg.norm(axis) * angle)
-            dq_mf = quat_multiply(quat_multiply(qc, dq_vf), quat_conjugate(qc))
-            pairs.append(IncrementPair(20.0 * k, 20.0 * (k + 1), dq_mf, dq_vf, 1e-24 * np.eye(3),
-                                       1e-24 * np.eye(3)))
-        for init, rec in res.items():
-            sol = solve_boresight(pairs, init=init, max_iterations=50)
-            ok = bool(sol.converged and quat_angle_between(dcm_to_quat(sol.c_mf_vf), qc) < 1e-6)
-            rec.append((ok, sol.iterations))
-    for init, rec in res.items():
-        its = np.array([r[1] for r in rec])
-        out[init] = {'converged': int(sum(r[0] for r in rec)),
-                     'median_iterations': float(np.median(its)),
-                     'max_iterations': int(its.max())}
-    return out
-
-
-def section_004(runs: int, quick: bool = False) -> dict:
-    """
-    Run the 004 §6 section: the σ_β pattern of the boresight and the solver's convergence.
-
-    Parameters
-    ----------
-    runs : int
-        Simulated experiments (:func:`experiment_004_pairs`), each solved with unit weights
-        (as 004) and with covariance weights.
-    quick : bool
-        Ten random boresights for the convergence check instead of 100.
-
-    Returns
-    -------
-    dict
-        The paper's values, the mean published σ and RMS error of β per estimator, arcsec,
-        the common-rotation floor and the convergence record (JSON-able).
-
-    """
-    paper = {'sigma_beta_arcsec': [6.0, 0.6, 0.6], 'N': 73, 'interval_s': 21.0}
-    sig_u, sig_w, err_u, err_w = [], [], [], []
-    for seed in range(runs):
-        pairs, beta_true = experiment_004_pairs(seed)
-        for weighted, sig, err in ((False, sig_u, err_u), (True, sig_w, err_w)):
-            common = 3 * ARCSEC / np.sqrt(2) if weighted else 0.0
-            sol = solve_boresight(pairs, weighted=weighted, common_rotation_sigma=common)
-            sig.append(np.sqrt(np.diag(sol.covariance_beta)) / ARCSEC)
-            err.append((sol.beta - beta_true) / ARCSEC)
-    floor = NAVIGATION_GRADE_GYRO.misalignment_sigma / np.sqrt(2) / ARCSEC
-    return {'paper': paper, 'convergence': convergence_004(10 if quick else 100),
-            'ours_unweighted_sigma_arcsec_mean': _vec(np.mean(sig_u, 0)),
-            'ours_unweighted_rms_error_arcsec': _vec(np.sqrt(np.mean(np.square(err_u), 0))),
-            'ours_weighted_sigma_arcsec_mean': _vec(np.mean(sig_w, 0)),
-            'ours_weighted_rms_error_arcsec': _vec(np.sqrt(np.mean(np.square(err_w), 0))),
-            'common_rotation_floor_arcsec': float(floor),
-            'runs': runs}
-
-
-def _pattern(v) -> tuple[float, float]:
-    """(σ_ψ / mean(σ_ϑ, σ_γ), σ_ϑ/σ_γ) — 004's pattern is (10, 1)."""
-    return v[0] / (0.5 * (v[1] + v[2])), v[1] / v[2]
-
-
-def report_004(r: dict) -> str:
-    """
-    Write the 004 §6 section of the report.
-
-    Parameters
-    ----------
-    r : dict
-        The result of :func:`section_004`.
-
-    Returns
-    -------
-    str
-        Markdown: the paper's σ_β beside ours, the table and the computed verdicts.
-
-    """
-    ps, os_ = r['paper']['sigma_beta_arcsec'], r['ours_unweighted_sigma_arcsec_mean']
-    L = ['## 004 — boresight σ pattern, §6', '',
-         f"**The paper's claim beside ours.** 004 §6 prints σ_β = {ps[0]:g}″ (ψ, about the "
-         f'optical axis), {ps[1]:g}″, {ps[2]:g}″: ψ is {_pattern(ps)[0]:.0f}× the mean of ϑ '
-         f"and γ. Ours, with 004's unit weights on a 004-like experiment, mean over {r['runs']} "
-         f'runs: {os_[0]:.2f}″, {os_[1]:.2f}″, {os_[2]:.2f}″ (ψ {_pattern(os_)[0]:.1f}× the '
-         'mean of ϑ and γ).', '',
-         '| | σ_ψ (optical axis) ″ | σ_ϑ ″ | σ_γ ″ | ψ / mean(ϑ, γ) | ϑ / γ |',
-         '|---|---|---|---|---|---|']
-    rows = [('paper (004 §6, as printed)', r['paper']['sigma_beta_arcsec']),
-            ('ours, unit weights (as 004): mean published σ',
-             r['ours_unweighted_sigma_arcsec_mean']),
-            ('ours, unit weights: RMS error', r['ours_unweighted_rms_error_arcsec']),
-            ('ours, weighted: mean published σ', r['ours_weighted_sigma_arcsec_mean']),
-            ('ours, weighted: RMS error', r['ours_weighted_rms_error_arcsec'])]
-    for name, v in rows:
-        a, b = _pattern(v)
-        L.append(f'| {name} | ' + ' | '.join(f'{x:.2f}' for x in v) + f' | {a:.1f} | {b:.2f} |')
-    pa, _ = _pattern(r['paper']['sigma_beta_arcsec'])
-    oa, ob = _pattern(r['ours_unweighted_sigma_arcsec_mean'])
-    same = oa > 1 and abs(np.log(oa / pa)) <= np.log(2) and abs(np.log(ob)) <= np.log(1.5)
-    floor = r['common_rotation_floor_arcsec']
-    rms = r['ours_unweighted_rms_error_arcsec']
-    L += ['', f"{r['runs']} runs. Simulated with 004 §6's sensor parameters (N = "
-              f"{r['paper']['N']} exposures "
-          f"{r['paper']['interval_s']:g} s apart, T_IMU = 5 ms, σ_φG = 3″, σ_kG = 1e-5, σ_wG = "
-          '0.0012°/√h, '
-          "σ_bG = 0.007°/h, camera 0.6″/0.6″/6″ looking up) on a trajectory like 004's Fig. 1a: "
-          '12 turns, mostly '
-          "in heading (about the optical axis). 004's trajectory is not published in full, so the "
-          'pattern is '
-          'compared, not the digits.', '',
-          f'* Pattern of the published σ (unit weights, as 004): ψ is {oa:.1f}× the mean of ϑ and '
-          'γ (paper '
-          f'{pa:.0f}×), ϑ/γ = {ob:.2f} (paper 1) — the pattern '
-          + ("agrees (ψ/mean within 2× of the paper's, ϑ/γ within 1.5×)." if same else
-             "does not agree (criterion: ψ/mean within 2× of the paper's, ϑ/γ within 1.5×)."),
-          "* 004's σ_β are the residual-based P_β of §4.3, which cannot see errors common to all "
-          'pairs. The '
-          f'gyro-triad rotation σ_φG/√2 = {floor:.1f}″ per axis is such an error; our RMS errors '
-          'of ϑ, γ '
-          f'({rms[1]:.2f}″, {rms[2]:.2f}″) are '
-          + ('at or above' if min(rms[1], rms[2]) >= 0.9 * floor else 'below')
-          + f" it and {min(rms[1], rms[2]) / r['paper']['sigma_beta_arcsec'][1]:.1f}–"
-          f"{max(rms[1], rms[2]) / r['paper']['sigma_beta_arcsec'][1]:.1f}× 004's 0.6″."]
-    cv = r.get('convergence')
-    if cv:
-        g, x = cv['given'], cv['axes']
-        L += [f"* Solver (§4.2), {cv['n']} random boresights (pitch within ±89°, 20 noise-free "
-              'pairs each): Gauss–Newton '
-              f"from β0 = 0 as 004 converged in {g['converged']}/{cv['n']} (median "
-              f"{g['median_iterations']:g}, "
-              f"max {g['max_iterations']} iterations); from the closed-form axis alignment in "
-              f"{x['converged']}/{cv['n']} "
-              f"(median {x['median_iterations']:g}, max {x['max_iterations']})."]
-    L.append('')
-    return '\n'.join(L)
-
-
-def plots_004(r: dict, outdir: str) -> list[str]:
-    """
-    Draw the σ_β pattern of 004 §6 beside ours (``seeds_004_sigma.png``).
-
-    Parameters
-    ----------
-    r : dict
-        The result of :func:`section_004`.
-    outdir : str
-        Directory of the figure.
-
-    Returns
-    -------
-    list of str
-        The path of the PNG file.
-
-    """
-    import matplotlib
-    matplotlib.use('Agg')
-    import matplotlib.pyplot as plt
-
-    fig, ax = plt.subplots(figsize=(6.5, 4))
-    xx = np.arange(3)
-    series = [('paper σ_β', r['paper']['sigma_beta_arcsec']),
-              ('ours, unit weights: mean σ', r['ours_unweighted_sigma_arcsec_mean']),
-              ('ours, unit weights: RMS error', r['ours_unweighted_rms_error_arcsec']),
-              ('ours, weighted: RMS error', r['ours_weighted_rms_error_arcsec'])]
-    for k, (name, v) in enumerate(series):
-        ax.bar(xx + (k - 1.5) * 0.2, v, 0.2, label=name)
-    ax.set_xticks(xx, ['ψ (optical axis)', 'ϑ', 'γ'])
-    ax.set_ylabel('arcsec')
-    ax.set_title('004 §6: boresight σ pattern')
-    ax.legend(fontsize=8)
-    return [save_figure(fig, outdir, 'seeds_004_sigma.png')]
 
 
 # ---------------------------------------------------------------------------------- report

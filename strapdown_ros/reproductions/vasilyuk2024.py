@@ -1,5 +1,5 @@
 """
-Vasilyuk et al. 2024 (paper 004): the Fig. 3 θ_diff check and the §6 σ_β ablation.
+Vasilyuk et al. 2024 (paper 004): the §6 σ_β pattern, the Fig. 3 θ_diff check, the ablation.
 
     python -m strapdown_ros.reproductions.vasilyuk2024 [--quick] [--runs N] [--report FILE]
                                                        [--json FILE] [--plots DIR]
@@ -11,11 +11,14 @@ Vasilyuk et al. 2024 (paper 004): the Fig. 3 θ_diff check and the §6 σ_β abl
   camera-derived IMU attitude is checked against its predicted covariance
   (:func:`strapdown_ros.calibration.consistency.theta_diff_check`), in 004's printed form and in
   the derived one; a deliberately wrong boresight is checked too.
-* §6: the σ_β published by 004's unit-weight estimator (§4.3) for variations of the camera and the
-  trajectory, each row computed; the explanation is built from the rows it compares.
+* §6: the σ_β pattern of 004's experiment, beside a simulated one with 004's sensor parameters,
+  and the §4.2 solver's convergence (:func:`section_004`).
+* §6 ablation: the σ_β published by 004's unit-weight estimator (§4.3) for variations of the
+  camera and the trajectory, each row computed; the explanation is built from the rows it
+  compares.
 
-For reproduce_seeds (the section after its 004 §6 pattern): ``section_004_extras(quick) ->
-dict`` here; its text and figures are in :mod:`.vasilyuk2024_report`.  No ROS imports.
+For reproduce_seeds: ``section_004(runs, quick)`` and ``section_004_extras(quick)`` here; their
+text and figures are in :mod:`.vasilyuk2024_report`.  No ROS imports.
 """
 from __future__ import annotations
 
@@ -36,16 +39,18 @@ from strapdown_ros.motion.profiles import (EARTH_RATE, PiecewiseRateProfile, Seg
 from strapdown_ros.reproductions.markdown import place_figures
 from strapdown_ros.reproductions.vasilyuk2024_report import (plots_004_extras,
                                                              report_004_extras)
-from strapdown_ros.rotation import quat_to_rotvec, ypr_to_dcm
+from strapdown_ros.rotation import (dcm_to_quat, quat_angle_between, quat_conjugate, quat_multiply,
+                                    quat_to_rotvec, rotvec_to_quat, ypr_to_dcm)
 from strapdown_ros.sensors import ARCSEC, NAVIGATION_GRADE_GYRO
 from strapdown_ros.sensors.covariance import constant_variances
 from strapdown_ros.sensors.star_camera import StarCameraModel
 
-__all__ = ['section_004_extras', 'simulate_004', 'trajectory_sigma', 'constants_covariance',
-           'ROWS', 'main']
+__all__ = ['section_004', 'experiment_004_pairs', 'convergence_004', 'section_004_extras',
+           'simulate_004', 'trajectory_sigma', 'constants_covariance', 'ROWS', 'main']
 
-#: 004 §6-like trajectory (the same turns as reproduce_seeds' 004 section): (axis, degrees);
-#: axis 2 = heading (MF z, vertical), 0 = pitch, 1 = roll
+#: 004 §6-like trajectory: 12 rotations between static segments (004's Fig. 1a: heading within
+#: 50°…300°, pitch within ±7°, roll within ±15°; the order and sizes here are ours), as
+#: (axis, degrees); axis 2 = heading (MF z, vertical), 0 = pitch, 1 = roll
 TURNS = ((2, 40.0), (0, 5.0), (2, 60.0), (1, 12.0), (2, -30.0), (0, -10.0),
          (2, 80.0), (1, -25.0), (2, -50.0), (0, 7.0), (2, 45.0), (1, 15.0))
 LATITUDE = np.radians(55.75)
@@ -352,6 +357,153 @@ def section_004_extras(quick: bool = False, runs: int | None = None) -> dict:
                         'nees_per_dof_printed': mc['printed'],
                         'wrong_detected': [bool(v) for v in mc['wrong_derived']]},
             'ablation': _ablation(runs, imu_rate, rows)}
+
+
+def _vec(x):
+    return [float(v) for v in np.asarray(x).ravel()]
+
+
+# ---------------------------------------------------------------- 004 §6: the σ_β pattern
+def experiment_004_pairs(seed: int, n_fixes: int = 73, interval: float = 21.0, _cache={}):
+    """
+    Simulate one run of a 004 §6-like experiment and return its increment pairs.
+
+    73 exposures 21 s apart, 200 Hz navigation-grade gyro (004 §6 values), camera 0.6″/0.6″/6″
+    looking up (β = 0: VF z, the optical axis, is MF z, the vertical), 12 turns (mostly in
+    heading) between static segments, Earth rate on.  The trajectory is computed once and kept
+    in ``_cache``.
+
+    Parameters
+    ----------
+    seed : int
+        Seed of the gyro errors, the gyro noise and the camera noise.
+    n_fixes : int
+        Number of camera exposures.
+    interval : float
+        Time between exposures, s.
+
+    Returns
+    -------
+    pairs : list of IncrementPair
+        Gyro and camera attitude increments between successive exposures.
+    beta_true : (3,) ndarray
+        The true boresight (yaw, pitch, roll), rad: zero.
+
+    """
+    if 'profile' not in _cache:
+        span = n_fixes * interval + 5.0
+        turn = 10.0
+        hold = (span - len(TURNS) * turn) / (len(TURNS) + 1)
+        segs = [Segment(hold)]
+        for axis, deg in TURNS:
+            r = np.zeros(3)
+            r[axis] = np.radians(deg) / turn
+            segs += [Segment(turn, r), Segment(hold)]
+        lat = np.radians(55.75)
+        earth = EARTH_RATE * np.array([0.0, np.cos(lat), np.sin(lat)])
+        _cache['profile'] = PiecewiseRateProfile(segs, earth_rate=earth,
+                                                 gravity=(0.0, 0.0, STANDARD_GRAVITY))
+        p = _cache['profile']
+        tg = np.arange(int(span * 200) + 1) / 200.0
+        _cache['t'], _cache['u'] = tg[1:], p.delta_theta(tg[:-1], tg[1:])
+    prof, t, u = _cache['profile'], _cache['t'], _cache['u']
+    rng = np.random.default_rng(seed)
+    err = NAVIGATION_GRADE_GYRO.draw(rng)
+    noise = rng.normal(0, err.random_walk * np.sqrt(1 / 200.0), u.shape)
+    y = u @ (np.eye(3) + err.matrix).T + err.bias / 200.0 + noise
+    cam = StarCameraModel(boresight=np.zeros(3), interval=interval, seed=1000 + seed)
+    fixes = cam.fixes(prof, n_fixes)
+    pairs = []
+    for f0, f1 in zip(fixes[:-1], fixes[1:]):
+        dq_i, E_i = gyro_increment(t, y, f0.stamp, f1.stamp, NAVIGATION_GRADE_GYRO)
+        dq_c, E_c = camera_increment(f0.attitude, f0.covariance, f1.attitude, f1.covariance)
+        pairs.append(IncrementPair(f0.stamp, f1.stamp, dq_i, dq_c, E_i, E_c))
+    return pairs, np.zeros(3)
+
+
+def convergence_004(n: int = 100, seed: int = 8) -> dict:
+    """
+    Compare 004 §4.2's Gauss–Newton start β0 = 0 with the closed-form axis start.
+
+    ``init='given'`` (from β0 = 0, as 004) against ``init='axes'`` on ``n`` random boresights
+    (pitch within ±89°), 20 noise-free pairs each.
+
+    Parameters
+    ----------
+    n : int
+        Number of random boresights.
+    seed : int
+        Seed of the boresights and the increments.
+
+    Returns
+    -------
+    dict
+        ``n`` and, per start, the number converged to 1e-6 rad and the median and largest
+        iteration counts.
+
+    """
+    rng = np.random.default_rng(seed)
+    out = {'n': n}
+    res = {'given': [], 'axes': []}
+    for _ in range(n):
+        beta = rng.uniform([-np.pi, -1.55, -np.pi], [np.pi, 1.55, np.pi])
+        qc = dcm_to_quat(ypr_to_dcm(*beta))
+        pairs = []
+        for k in range(20):
+            axis = rng.normal(size=3)
+            angle = np.radians(12.0) * (0.5 + rng.random())
+            dq_vf = rotvec_to_quat(axis / np.linalg.norm(axis) * angle)
+            dq_mf = quat_multiply(quat_multiply(qc, dq_vf), quat_conjugate(qc))
+            pairs.append(IncrementPair(20.0 * k, 20.0 * (k + 1), dq_mf, dq_vf, 1e-24 * np.eye(3),
+                                       1e-24 * np.eye(3)))
+        for init, rec in res.items():
+            sol = solve_boresight(pairs, init=init, max_iterations=50)
+            ok = bool(sol.converged and quat_angle_between(dcm_to_quat(sol.c_mf_vf), qc) < 1e-6)
+            rec.append((ok, sol.iterations))
+    for init, rec in res.items():
+        its = np.array([r[1] for r in rec])
+        out[init] = {'converged': int(sum(r[0] for r in rec)),
+                     'median_iterations': float(np.median(its)),
+                     'max_iterations': int(its.max())}
+    return out
+
+
+def section_004(runs: int, quick: bool = False) -> dict:
+    """
+    Run the 004 §6 section: the σ_β pattern of the boresight and the solver's convergence.
+
+    Parameters
+    ----------
+    runs : int
+        Simulated experiments (:func:`experiment_004_pairs`), each solved with unit weights
+        (as 004) and with covariance weights.
+    quick : bool
+        Ten random boresights for the convergence check instead of 100.
+
+    Returns
+    -------
+    dict
+        The paper's values, the mean published σ and RMS error of β per estimator, arcsec,
+        the common-rotation floor and the convergence record (JSON-able).
+
+    """
+    paper = {'sigma_beta_arcsec': [6.0, 0.6, 0.6], 'N': 73, 'interval_s': 21.0}
+    sig_u, sig_w, err_u, err_w = [], [], [], []
+    for seed in range(runs):
+        pairs, beta_true = experiment_004_pairs(seed)
+        for weighted, sig, err in ((False, sig_u, err_u), (True, sig_w, err_w)):
+            common = 3 * ARCSEC / np.sqrt(2) if weighted else 0.0
+            sol = solve_boresight(pairs, weighted=weighted, common_rotation_sigma=common)
+            sig.append(np.sqrt(np.diag(sol.covariance_beta)) / ARCSEC)
+            err.append((sol.beta - beta_true) / ARCSEC)
+    floor = NAVIGATION_GRADE_GYRO.misalignment_sigma / np.sqrt(2) / ARCSEC
+    return {'paper': paper, 'convergence': convergence_004(10 if quick else 100),
+            'ours_unweighted_sigma_arcsec_mean': _vec(np.mean(sig_u, 0)),
+            'ours_unweighted_rms_error_arcsec': _vec(np.sqrt(np.mean(np.square(err_u), 0))),
+            'ours_weighted_sigma_arcsec_mean': _vec(np.mean(sig_w, 0)),
+            'ours_weighted_rms_error_arcsec': _vec(np.sqrt(np.mean(np.square(err_w), 0))),
+            'common_rotation_floor_arcsec': float(floor),
+            'runs': runs}
 
 
 class _Parser(argparse.ArgumentParser):
