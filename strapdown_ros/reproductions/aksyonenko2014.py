@@ -49,8 +49,8 @@ def section_003(duration: float) -> dict:
         c1 = next(c for c in out['cases']
                   if c['alpha'] == 0.087 and c['nu'] == 1.0 and c['step'] == step)
         d = c1['drift_deg_per_h']
-        claims[str(step)] = {'others_below_1e-3': all(abs(v) < CLAIM_LIMIT_DEG_PER_H for n,
-                                                      v in d.items() if n != '1'),
+        others = [abs(v) for n, v in d.items() if n != '1']
+        claims[str(step)] = {'others_below_1e-3': all(v < CLAIM_LIMIT_DEG_PER_H for v in others),
                              'largest_other': max(abs(v) for n, v in d.items() if n != '1'),
                              'algorithm_1_above_1e-3': abs(d['1']) > CLAIM_LIMIT_DEG_PER_H,
                              'algorithm_1_deg_per_h': d['1']}

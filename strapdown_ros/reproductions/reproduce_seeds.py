@@ -247,8 +247,8 @@ def main(argv=None) -> int:
         print(f'reproduce_seeds: error: {exc}', file=sys.stderr)
         return 2
     if a.quick:
-        a.seeds, a.runs, a.coning_duration = min(a.seeds, 8), min(a.runs,
-                                                                  3), min(a.coning_duration, 60.0)
+        a.seeds, a.runs = min(a.seeds, 8), min(a.runs, 3)
+        a.coning_duration = min(a.coning_duration, 60.0)
     res, t0 = {}, time.perf_counter()
     for s in sections():
         if s.only not in only:

@@ -68,8 +68,8 @@ def _profile(n_fixes: int, interval: float, tilt_scale: float, imu_rate: float):
             r = np.zeros(3)
             r[axis] = np.radians(deg * (1.0 if axis == 2 else tilt_scale)) / TURN_S
             segs += [Segment(TURN_S, r), Segment(hold)]
-        prof = PiecewiseRateProfile(segs, earth_rate=EARTH_RATE * np.array([0.0, np.cos(LATITUDE),
-                                                                            np.sin(LATITUDE)]),
+        earth = EARTH_RATE * np.array([0.0, np.cos(LATITUDE), np.sin(LATITUDE)])
+        prof = PiecewiseRateProfile(segs, earth_rate=earth,
                                     gravity=(0.0, 0.0, STANDARD_GRAVITY))
         tg = np.arange(int(span * imu_rate) + 1) / imu_rate
         _PROFILES.clear()                                   # one at a time: 300k increments each
@@ -161,8 +161,8 @@ def trajectory_sigma(pairs, beta) -> np.ndarray:
     rv = quat_to_rotvec(np.array([p.dq_cam for p in pairs]))
     ang = np.linalg.norm(rv, axis=1)
     k = rv / np.maximum(ang, 1e-300)[:, None]
-    N = np.einsum('n,nij->ij', 2 * (1 - np.cos(ang)), np.eye(3)[None] - k[:, :, None] * k[:, None,
-                                                                                          :])
+    across = np.eye(3)[None] - k[:, :, None] * k[:, None, :]          # I − k kᵀ per increment
+    N = np.einsum('n,nij->ij', 2 * (1 - np.cos(ang)), across)
     D1, _ = d_matrices(beta)
     D1i = np.linalg.inv(D1)
     return np.sqrt(np.diag(D1i @ np.linalg.inv(N) @ D1i.T))
@@ -197,8 +197,8 @@ def _ablation(runs: int, imu_rate: float, rows) -> list[dict]:
         s = np.mean(sig, 0)
         out.append({'name': name, 'description': desc, 'sigma_beta_arcsec': [float(v) for v in s],
                     'ratio': float(s[0] / np.mean(s[1:])),
-                    'rms_error_arcsec': [float(v) for v in np.sqrt(np.mean(np.square(err),
-                                                                           0)) / ARCSEC],
+                    'rms_error_arcsec': [float(v) for v
+                                         in np.sqrt(np.mean(np.square(err), 0)) / ARCSEC],
                     'trajectory_ratio': float(traj[0] / np.mean(traj[1:])), 'runs': runs})
     return out
 
@@ -264,8 +264,8 @@ def _theta_diff(seed: int, imu_rate: float, wrong_arcsec=(0.0, 30.0, 0.0), n_fix
             rec = chk.as_dict()
             if label == 'estimated':
                 rec.update(theta_arcsec=(chk.theta / ARCSEC).tolist(),
-                           sigma3_arcsec=(3 * np.sqrt(np.einsum('nii->ni',
-                                                                chk.P_diff)) / ARCSEC).tolist(),
+                           sigma3_arcsec=(3 * np.sqrt(np.einsum('nii->ni', chk.P_diff))
+                                          / ARCSEC).tolist(),
                            sigma_diff_arcsec=(chk.sigma_diff / ARCSEC).tolist(),
                            sigma_mfa_arcsec=(chk.sigma_mfa / ARCSEC).tolist(),
                            sigma_avu_arcsec=(chk.sigma_avu / ARCSEC).tolist())
@@ -297,8 +297,8 @@ def _printed_alignment_check(imu_rate: float, boresight=(0.3, -0.2, np.pi / 2)) 
     for label, printed in (('printed', True), ('derived', False)):
         q_ins, P_ins = sins_from_camera(q_vf, sol.beta, dq, printed_alignment=printed)
         chk = theta_diff_check(q_vf, P_avu, sol.beta, sol.covariance_beta, q_ins, P_ins)
-        out[f'{label}_max_theta_deg'] = float(np.degrees(np.nanmax(np.linalg.norm(chk.theta,
-                                                                                  axis=1))))
+        largest = np.nanmax(np.linalg.norm(chk.theta, axis=1))
+        out[f'{label}_max_theta_deg'] = float(np.degrees(largest))
     return out
 
 

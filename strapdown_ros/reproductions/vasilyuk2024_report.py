@@ -154,8 +154,8 @@ def report_004_extras(res: dict) -> str:
           '| covariance of θ_diff | mean per-epoch NEES (3 expected) | joint NEES / band (95%) | '
           'components within 3σ | consistent |',
           '|---|---|---|---|---|']
-    for name, r in (('derived (shared δβ, alignment fix)', d), ('printed P^imu + P^mfa (004 §6)',
-                                                                p),
+    for name, r in (('derived (shared δβ, alignment fix)', d),
+                    ('printed P^imu + P^mfa (004 §6)', p),
                     (f"derived, boresight off by {_f3(f['wrong_offset_arcsec'])}″", wd)):
         L.append(f"| {name} | {r['mean_nees']:.2f} | {r['joint_nees']:.1f} / "
                  f"[{r['nees_band'][0]:.1f}, {r['nees_band'][1]:.1f}] | "

@@ -44,6 +44,7 @@ INCLINATION_DEG = 60.0           # orthodrome inclination ϑ, passing LATITUDE a
 X0 = 1.5e-3                      # 001's characteristic error x° [rad]
 SHIP_NAMES = ('y1', 'y2', 'y3', 'y4', 'Δ')             # the ship's variables, (4.6)
 AIRCRAFT_NAMES = ('s1', 's2', 's3', 's4', 's5')        # the aircraft's variables, (4.8)
+FULL_NAMES = ('x1', 'x2', 'x3', 'x4', 'z', 'Δ')         # states of the full time-varying model
 
 
 def _f(x):
@@ -370,8 +371,7 @@ def report_001(res: dict) -> str:
     L.append('Full time-varying model (states x1..x4, z, Δ) over one Schuler period: weakest '
              'eigenvalue '
              f"{s['full_weakest_ratio']:.1e} of the largest, direction "
-             + ', '.join(f'{n} {v:+.3f}' for n, v in zip(['x1', 'x2', 'x3', 'x4', 'z', 'Δ'],
-                                                         s['full_weakest_direction']))
+             + ', '.join(f'{n} {v:+.3f}' for n, v in zip(FULL_NAMES, s['full_weakest_direction']))
              + '; with z known (001 drops its term as below the noise) the measures agree with '
                '(4.6) within '
                f"{max(abs(x / y - 1) for x, y in zip(s['full_period_z_known'], gp)):.0%}.")
@@ -396,8 +396,7 @@ def report_001(res: dict) -> str:
              f"x4 {fm[3]:.2g}; measure of Δ {fm[5]:.1e} (= {fm[5] / a['c']:.1e}·μ sinφ), of z "
              f'{fm[4]:.1e}; '
              f"weakest direction (eigenvalue ratio {a['full_weakest_ratio']:.1e}): "
-             + ', '.join(f'{n} {v:+.2f}' for n, v in zip(['x1', 'x2', 'x3', 'x4', 'z', 'Δ'],
-                                                         a['full_weakest_direction']))
+             + ', '.join(f'{n} {v:+.2f}' for n, v in zip(FULL_NAMES, a['full_weakest_direction']))
              + '.')
     L += ['', '### Ship circulation, (4.11): one period against two', '']
     lam1, mu1 = ci['lam1'], ci['mu1']
