@@ -1,16 +1,17 @@
 """
-seeds_001: reproduce Vavilov 1982 (paper 001) — observability in gyro-horizon-compass
-correction.
+Reproduce Vavilov 1982 (paper 001): observability in gyro-horizon-compass correction.
 
-    python -m strapdown_ros.reproductions.vavilov1982 [--quick] [--report FILE.md] [--json FILE] [--plots DIR]
+    python -m strapdown_ros.reproductions.vavilov1982 [--quick] [--report FILE.md] [--json FILE]
+                                                      [--plots DIR]
 
-Computes, from :mod:`strapdown_ros.estimation.gyrocompass` and :mod:`strapdown_ros.estimation.observability`:
-the misprint checks of §3, the checks of (4.1)/(4.3) against exact geometry, the measures of
-observability of the ship case (4.6), the aircraft case (4.8) and the circulation (4.11) beside the
-paper's statements, the full time-varying model's Gramian, and the steady-state filter of the ship
-case with a Monte Carlo of its NEES.  Every sentence of the report is computed from the numbers,
-except the derivation text appended from :mod:`.seeds_001_text`, which is labelled as such and
-names the test command that checks each part.
+Computes, from :mod:`strapdown_ros.estimation.gyrocompass` and
+:mod:`strapdown_ros.estimation.observability`: the misprint checks of §3, the checks of
+(4.1)/(4.3) against exact geometry, the measures of observability of the ship case (4.6), the
+aircraft case (4.8) and the circulation (4.11) beside the paper's statements, the full
+time-varying model's Gramian, and the steady-state filter of the ship case with a Monte Carlo of
+its NEES.  Every sentence of the report is computed from the numbers, except the derivation text
+appended from :mod:`.vavilov1982_text`, which is labelled as such and names the test command
+that checks each part.
 
 For reproduce_seeds: ``section_001(quick) -> dict``, ``report_001(res) -> str``,
 ``plots_001(res, outdir) -> list[str]``.  No ROS imports; matplotlib only inside plots_001.
@@ -33,6 +34,7 @@ from strapdown_ros.estimation.steady_filter import (constant_gain_covariance, di
                                                     pole_placement_gain, simulate_constant_gain,
                                                     steady_state_gain)
 from strapdown_ros.figures import save_figure
+from strapdown_ros.reproductions.markdown import place_figures
 from strapdown_ros.reproductions.vavilov1982_text import DERIVATIONS_001
 
 LATITUDE_DEG = 55.0              # "moderate latitudes"
@@ -40,6 +42,9 @@ SHIP_SPEED = 15.0                # V0 for the ship [m/s] (001: μ1 ≈ 0.03)
 CIRCULATION_PERIOD = 420.0       # 7 min (001: 6–8 min)
 INCLINATION_DEG = 60.0           # orthodrome inclination ϑ, passing LATITUDE at τ = 0
 X0 = 1.5e-3                      # 001's characteristic error x° [rad]
+SHIP_NAMES = ('y1', 'y2', 'y3', 'y4', 'Δ')             # the ship's variables, (4.6)
+AIRCRAFT_NAMES = ('s1', 's2', 's3', 's4', 's5')        # the aircraft's variables, (4.8)
+FULL_NAMES = ('x1', 'x2', 'x3', 'x4', 'z', 'Δ')         # states of the full time-varying model
 
 
 def _f(x):
@@ -100,7 +105,8 @@ def _geometry_checks(ship) -> dict:
         c = mu * s
         printed = gc.B2 + c * gc.B1 + c * mu1 * G2 @ np.linalg.inv(G1)
         worst_43 = max(worst_43, np.abs((G1 @ B + G1d) @ np.linalg.inv(G1) - printed).max(),
-                       np.abs(G1 @ b - c * np.array([0, v - mu1 ** 2 / v, 0, 2 * mu1 * k['V2']])).max())
+                       np.abs(G1 @ b - c * np.array([0, v - mu1 ** 2 / v, 0, 2 * mu1 * k['V2']]))
+                       .max())
     return {'eq_4_1_max_rel_error': worst_41, 'eq_4_3_max_abs_residual': worst_43}
 
 
@@ -127,12 +133,15 @@ def _ship(ship, quick) -> dict:
     combos[:4, :4] = gc.transform(h1)
     combos[4, 4] = 1.0
     full_zknown = measures_of_observability(gf.mean[np.ix_(keep, keep)], combos)
-    return {'c': c, 'b12': b12, 'paper': [1.0, 1.0, c, c, c], 'derivative': _f(deriv), 'closed_form': _f(closed),
+    return {'c': c, 'b12': b12, 'paper': [1.0, 1.0, c, c, c], 'derivative': _f(deriv),
+            'closed_form': _f(closed),
             'gramian_unit': _f(measures_of_observability(g_unit.mean, np.eye(5))),
             'gramian_period': _f(measures_of_observability(g_per.mean, np.eye(5))),
             'full_period_z_known': _f(full_zknown), 'full_gramian_rel_error': gf.relative_error,
-            'full_period_z_known_states': _f(measures_of_observability(gf.mean[np.ix_(keep, keep)], np.eye(5))),
-            'full_eigenvalues': _f(rep.eigenvalues), 'full_weakest_direction': _f(rep.directions[:, 0]),
+            'full_period_z_known_states': _f(
+                measures_of_observability(gf.mean[np.ix_(keep, keep)], np.eye(5))),
+            'full_eigenvalues': _f(rep.eigenvalues),
+            'full_weakest_direction': _f(rep.directions[:, 0]),
             'full_weakest_ratio': float(rep.eigenvalues[0] / rep.eigenvalues[-1])}
 
 
@@ -177,9 +186,10 @@ def _circulation(ship, quick) -> dict:
         g = observability_gramian(sub_F, sub_H, 0, T1 * lam1, steps)
         g_half = observability_gramian(sub_F, sub_H, 0, T1 * lam1, steps // 2)
         # accuracy of the (Richardson) Gramian: its relative change when the step is doubled;
-        # eigenvalues below that (relative to the largest) are not resolved and count as unobservable
+        # eigenvalues below that (relative to the largest) are not resolved: unobservable
         acc = float(np.linalg.norm(g.gramian - g_half.gramian) / np.linalg.norm(g.gramian))
-        out['full_delta'][name] = float(measures_of_observability(g.mean, np.eye(5)[4:], rel_tol=max(1e-14, acc))[0])
+        m_delta = measures_of_observability(g.mean, np.eye(5)[4:], rel_tol=max(1e-14, acc))
+        out['full_delta'][name] = float(m_delta[0])
         out.setdefault('full_gramian_accuracy', {})[name] = acc
     return out
 
@@ -192,7 +202,8 @@ def _filters(ship, quick) -> dict:
         c = ship.mu * np.sin(np.radians(latd))
         A, H = gc.ship_system(c, np.cos(np.radians(latd)))
         obs[name] = {'latitude_deg': latd, 'c': c, 'gain': _f(pole_placement_gain(A, H, poles))}
-    # steady-state Kalman filter; units of x°: Δσ = 0.1 μ (eq. 4.5) as white noise of that intensity
+    # steady-state Kalman filter; units of x°: Δσ = 0.1 μ (eq. 4.5) as white noise of that
+    # intensity
     ds, h, q = 0.1 * ship.mu, 0.05, 1e-2
     runs = 40 if quick else 200
     steps = int(round(200.0 / h))
@@ -206,14 +217,18 @@ def _filters(ship, quick) -> dict:
         ev, evec = np.linalg.eig((np.eye(5) - K @ H) @ Phi)
         order = np.argsort(-h / np.log(np.abs(ev)))
         tconst = (-h / np.log(np.abs(ev)))[order]
-        dominant = [['y1', 'y2', 'y3', 'y4', 'Δ'][int(np.argmax(np.abs(evec[:, j])))] for j in order]
+        states = ['y1', 'y2', 'y3', 'y4', 'Δ']
+        dominant = [states[int(np.argmax(np.abs(evec[:, j])))] for j in order]
         Ps = constant_gain_covariance(Phi, H, Q, R, K, np.eye(5), steps)
         sig_t = np.sqrt(np.einsum('kii->ki', Ps))
         ss = np.sqrt(np.diag(Pf))
-        rec = {'c': c, 'gain': _f(K), 'steady_sigma': _f(ss), 'time_constants': _f(tconst), 'mode_dominant_state': dominant,
-               'final_over_steady': _f(sig_t[-1] / ss), 'measures': _f(stationary_measures(A, H, 1.0))}
+        rec = {'c': c, 'gain': _f(K), 'steady_sigma': _f(ss), 'time_constants': _f(tconst),
+               'mode_dominant_state': dominant,
+               'final_over_steady': _f(sig_t[-1] / ss),
+               'measures': _f(stationary_measures(A, H, 1.0))}
         if name == 'lat':
-            err = simulate_constant_gain(Phi, H, Q, R, K, np.eye(5), steps, runs, np.random.default_rng(1))
+            err = simulate_constant_gain(Phi, H, Q, R, K, np.eye(5), steps, runs,
+                                         np.random.default_rng(1))
             nees = np.einsum('rki,kij,rkj->rk', err, np.linalg.inv(Ps), err).mean(axis=0)
             lo, hi = _chi2_quantile(0.025, 5 * runs) / runs, _chi2_quantile(0.975, 5 * runs) / runs
             every = max(1, steps // 400)
@@ -227,19 +242,50 @@ def _filters(ship, quick) -> dict:
 
 
 def section_001(quick: bool = False) -> dict:
-    """All numbers of the 001 section (JSON-able)."""
+    """
+    Compute all numbers of the 001 section.
+
+    Parameters
+    ----------
+    quick : bool
+        Fewer steps and Monte Carlo runs (for tests).
+
+    Returns
+    -------
+    dict
+        Parameters, misprint and geometry checks, the ship, aircraft and circulation measures
+        and the filters (JSON-able).
+
+    """
     ship = gc.Parameters(SHIP_SPEED)
     return {'parameters': {'mu': ship.mu, 'mu1_ship': ship.mu1, 'latitude_deg': LATITUDE_DEG,
-                           'schuler_rate': ship.schuler_rate, 'circulation_period_s': CIRCULATION_PERIOD,
+                           'schuler_rate': ship.schuler_rate,
+                           'circulation_period_s': CIRCULATION_PERIOD,
                            'unit_interval_s': 1 / ship.schuler_rate, 'quick': quick},
             'misprints': _misprint_checks(ship), 'geometry': _geometry_checks(ship),
-            'ship': _ship(ship, quick), 'aircraft': _aircraft(quick), 'circulation': _circulation(ship, quick),
+            'ship': _ship(ship, quick), 'aircraft': _aircraft(quick),
+            'circulation': _circulation(ship, quick),
             'filters': _filters(ship, quick)}
 
 
 # ----------------------------------------------------------------------------- report
 def order_verdict(m: float, ref: float) -> str:
-    """Words for m against the paper's order ref, with the threshold: same order if within 10×."""
+    """
+    Word a measure against the paper's order, with the threshold: same order if within 10×.
+
+    Parameters
+    ----------
+    m : float
+        Our measure.
+    ref : float
+        The paper's order at the same latitude.
+
+    Returns
+    -------
+    str
+        For example ``'same order (×0.82, within 10×)'``.
+
+    """
     r = m / ref
     if 0.1 <= r <= 10:
         return f'same order (×{r:.2g}, within 10×)'
@@ -250,124 +296,215 @@ def _table(names, paper, columns: dict, paper_label: str = 'paper') -> list[str]
     head = f'| variable | {paper_label} | ' + ' | '.join(columns) + ' |'
     lines = [head, '|' + '---|' * (2 + len(columns))]
     for i, n in enumerate(names):
-        lines.append(f'| {n} | {paper[i]:.3g} | ' + ' | '.join(f'{col[i]:.3g}' for col in columns.values()) + ' |')
+        lines.append(f'| {n} | {paper[i]:.3g} | '
+                     + ' | '.join(f'{col[i]:.3g}' for col in columns.values()) + ' |')
     return lines
 
 
 def report_001(res: dict) -> str:
+    """
+    Write the 001 section of the report.
+
+    Parameters
+    ----------
+    res : dict
+        The result of :func:`section_001`.
+
+    Returns
+    -------
+    str
+        Markdown: the paper's orders beside our measures, the checks and the filters.
+
+    """
     p, mp, geo = res['parameters'], res['misprints'], res['geometry']
     s, a, ci, fl = res['ship'], res['aircraft'], res['circulation'], res['filters']
     L = ['## 001 — Observability in gyro-horizon-compass correction (Vavilov 1982)', '']
-    L.append(f"μ = u/ω0 = {p['mu']:.4f}, ship μ1 = {p['mu1_ship']:.4f} (V0 = {SHIP_SPEED:g} m/s), latitude "
-             f"{p['latitude_deg']:g}°, unit of dimensionless time 1/ω0 = {p['unit_interval_s']:.0f} s. "
-             'Derivations and the two readings of the measure: `doc/seeds/observability_001.md`.')
+    c = s['c']
+    lm = ci['lam1'] * ci['mu1']
+    L += ["**The paper's claim beside ours.** 001 prints orders of magnitude, not numbers "
+          f"(evaluated here at {p['latitude_deg']:g}°). Ship (4.6): y1, y2 of order 1, y3, y4, Δ "
+          f'of order μ sin φ = {c:.3g}; ours (derivative measure) '
+          + ', '.join(f'{n} {v:.3g}' for n, v in zip(SHIP_NAMES, s['derivative']))
+          + f". Aircraft (4.8): s1–s3 of order 1, s4, s5 of order μ sin φ = {a['c']:.3g}; ours "
+          + ', '.join(f'{n} {v:.3g}' for n, v in zip(AIRCRAFT_NAMES, a['derivative']))
+          + f'. Circulation (4.11): p1 of order λ1μ1 = {lm:.3g} on τ1∈(0,1); ours '
+          f"{ci['derivative']['unit'][2]:.3g}. The tables below give the paper's orders as "
+          'their first column.', '']
+    L.append(f"μ = u/ω0 = {p['mu']:.4f}, ship μ1 = {p['mu1_ship']:.4f} (V0 = {SHIP_SPEED:g} m/s), "
+             'latitude '
+             f"{p['latitude_deg']:g}°, unit of dimensionless time 1/ω0 = "
+             f"{p['unit_interval_s']:.0f} s. "
+             'Derivations and the two readings of the measure: '
+             '`doc/results/reproductions/observability_001.md`.')
     L += ['', '### Printed formulas checked against exact computations', '']
-    L.append(f"- (3.7) with the prefactor μ: relative error {mp['h1_corrected_rel_error']:.1e} against the exact "
-             f"nonlinear σ; with the printed 0.5μ1 of (3.2): {mp['h1_printed_prefactor_rel_error']:.2f}.")
+    L.append(f"- (3.7) with the prefactor μ: relative error {mp['h1_corrected_rel_error']:.1e} "
+             'against the exact '
+             'nonlinear σ; with the printed 0.5μ1 of (3.2): '
+             f"{mp['h1_printed_prefactor_rel_error']:.2f}.")
     L.append(f"- Latitude coefficient in σ: exact {mp['z_coefficient_exact']:.4e}, μμ1 sinφ form "
-             f"{mp['z_coefficient_corrected']:.4e}, printed μ1μ1 form {mp['z_coefficient_printed']:.4e}.")
-    L.append(f"- (4.5): a 0.1 m/s log error changes σ by {mp['delta_sigma_over_mu_x0']:.3f}·μx° (001: ~0.1·μx°, "
+             f"{mp['z_coefficient_corrected']:.4e}, printed μ1μ1 form "
+             f"{mp['z_coefficient_printed']:.4e}.")
+    L.append(f"- (4.5): a 0.1 m/s log error changes σ by {mp['delta_sigma_over_mu_x0']:.3f}·μx° "
+             '(001: ~0.1·μx°, '
              f"{order_verdict(mp['delta_sigma_over_mu_x0'], 0.1)}).")
-    L.append(f"- (4.1) against the orthodrome's exact geometry: largest relative error {geo['eq_4_1_max_rel_error']:.1e}; "
+    L.append("- (4.1) against the orthodrome's exact geometry: largest relative error "
+             f"{geo['eq_4_1_max_rel_error']:.1e}; "
              f"(4.3) (matrix and b1): largest residual {geo['eq_4_3_max_abs_residual']:.1e}.")
     L += ['', '### Ship on an orthodrome, (4.6)', '']
     names = ['y1', 'y2', 'y3', 'y4', 'Δ']
-    L += _table(names, s['paper'], {'derivative measure': s['derivative'], 'closed form': s['closed_form'],
-                                    'Gramian, τ∈(0,1)': s['gramian_unit'], 'Gramian, τ∈(0,2π)': s['gramian_period'],
-                                    'full LTV, z known, (0,2π)': s['full_period_z_known']},
-                  f"001: order (1 or μ sin φ) at {p['latitude_deg']:g}°")
+    columns = {'derivative measure': s['derivative'], 'closed form': s['closed_form'],
+               'Gramian, τ∈(0,1)': s['gramian_unit'], 'Gramian, τ∈(0,2π)': s['gramian_period'],
+               'full LTV, z known, (0,2π)': s['full_period_z_known']}
+    L += _table(names, s['paper'], columns, f"001: order (1 or μ sin φ) at {p['latitude_deg']:g}°")
     c = s['c']
     dm = s['derivative']
     L.append('')
-    L.append(f'Derivative reading: y1, y2 {order_verdict(dm[0], 1)}, {order_verdict(dm[1], 1)}; y3, y4, Δ against μ sinφ = {c:.4f}: '
+    L.append(f'Derivative reading: y1, y2 {order_verdict(dm[0], 1)}, {order_verdict(dm[1], 1)}; '
+             f'y3, y4, Δ against μ sinφ = {c:.4f}: '
              f'{order_verdict(dm[2], c)}, {order_verdict(dm[3], c)}, {order_verdict(dm[4], c)}. '
-             f"Largest deviation from the closed form: {max(abs(x / y - 1) for x, y in zip(dm, s['closed_form'])):.1e} (relative).")
+             'Largest deviation from the closed form: '
+             f"{max(abs(x / y - 1) for x, y in zip(dm, s['closed_form'])):.1e} (relative).")
     gu, gp = s['gramian_unit'], s['gramian_period']
-    L.append(f'Gramian reading: on τ∈(0,1) y3, y4, Δ reach only {min(gu[2:]) / c:.2g}–{max(gu[2:]) / c:.2g} of μ sinφ; '
+    L.append('Gramian reading: on τ∈(0,1) y3, y4, Δ reach only '
+             f'{min(gu[2:]) / c:.2g}–{max(gu[2:]) / c:.2g} of μ sinφ; '
              f'over one Schuler period {min(gp[2:]) / c:.2g}–{max(gp[2:]) / c:.2g} of it.')
-    L.append(f'Full time-varying model (states x1..x4, z, Δ) over one Schuler period: weakest eigenvalue '
+    L.append('Full time-varying model (states x1..x4, z, Δ) over one Schuler period: weakest '
+             'eigenvalue '
              f"{s['full_weakest_ratio']:.1e} of the largest, direction "
-             + ', '.join(f'{n} {v:+.3f}' for n, v in zip(['x1', 'x2', 'x3', 'x4', 'z', 'Δ'], s['full_weakest_direction']))
-             + f'; with z known (001 drops its term as below the noise) the measures agree with (4.6) within '
+             + ', '.join(f'{n} {v:+.3f}' for n, v in zip(FULL_NAMES, s['full_weakest_direction']))
+             + '; with z known (001 drops its term as below the noise) the measures agree with '
+               '(4.6) within '
                f"{max(abs(x / y - 1) for x, y in zip(s['full_period_z_known'], gp)):.0%}.")
     xs = s['full_period_z_known_states']
-    L.append(f'In the original variables (same Gramian): x1 {xs[0]:.3g}, x2 {xs[1]:.3g}, x3 {xs[2]:.3g}, x4 {xs[3]:.3g}; '
-             f'the weaker of x2, x4 is ×{min(xs[1], xs[3]) / max(xs[0], xs[2]):.2g} the stronger of x1, x3 '
+    L.append(f'In the original variables (same Gramian): x1 {xs[0]:.3g}, x2 {xs[1]:.3g}, x3 '
+             f'{xs[2]:.3g}, x4 {xs[3]:.3g}; '
+             f'the weaker of x2, x4 is ×{min(xs[1], xs[3]) / max(xs[0], xs[2]):.2g} the stronger '
+             'of x1, x3 '
              '(001: x2, x4 well observable, x1, x3 weakly).')
     L += ['', '### Aircraft, (4.8), μ1 = 1', '']
-    L += _table(['s1', 's2', 's3', 's4', 's5'], a['paper'], {'derivative measure': a['derivative'],
-                                                             'closed form': a['closed_form'],
-                                                             'Gramian, τ∈(0,2π)': a['gramian_period']},
-                  f"001: order (1 or μ sin φ) at {p['latitude_deg']:g}°")
+    columns = {'derivative measure': a['derivative'], 'closed form': a['closed_form'],
+               'Gramian, τ∈(0,2π)': a['gramian_period']}
+    L += _table(['s1', 's2', 's3', 's4', 's5'], a['paper'], columns,
+                f"001: order (1 or μ sin φ) at {p['latitude_deg']:g}°")
     L.append('')
-    L.append(f"s1–s3: {', '.join(order_verdict(x, 1) for x in a['derivative'][:3])}; s4, s5 against μ sinφ = {a['c']:.4f}: "
+    L.append(f"s1–s3: {', '.join(order_verdict(x, 1) for x in a['derivative'][:3])}; s4, s5 "
+             f"against μ sinφ = {a['c']:.4f}: "
              f"{', '.join(order_verdict(x, a['c']) for x in a['derivative'][3:])}.")
     fm = a['full_state_measures']
-    L.append(f'Full model (z unknown) over a Schuler period: measures x1 {fm[0]:.2g}, x2 {fm[1]:.2g}, x3 {fm[2]:.2g}, '
-             f"x4 {fm[3]:.2g}; measure of Δ {fm[5]:.1e} (= {fm[5] / a['c']:.1e}·μ sinφ), of z {fm[4]:.1e}; "
+    L.append(f'Full model (z unknown) over a Schuler period: measures x1 {fm[0]:.2g}, x2 '
+             f'{fm[1]:.2g}, x3 {fm[2]:.2g}, '
+             f"x4 {fm[3]:.2g}; measure of Δ {fm[5]:.1e} (= {fm[5] / a['c']:.1e}·μ sinφ), of z "
+             f'{fm[4]:.1e}; '
              f"weakest direction (eigenvalue ratio {a['full_weakest_ratio']:.1e}): "
-             + ', '.join(f'{n} {v:+.2f}' for n, v in zip(['x1', 'x2', 'x3', 'x4', 'z', 'Δ'], a['full_weakest_direction']))
+             + ', '.join(f'{n} {v:+.2f}' for n, v in zip(FULL_NAMES, a['full_weakest_direction']))
              + '.')
     L += ['', '### Ship circulation, (4.11): one period against two', '']
     lam1, mu1 = ci['lam1'], ci['mu1']
-    L.append(f'λ1 = ω0/Ω = {lam1:.4f}, μ1 = {mu1:.4f}, λ1μ1 = {lam1 * mu1:.2e}. Intervals in τ1 = Ωt: '
-             + ', '.join(f'{k} = {v:.3g} ({v / (2 * np.pi):.2f} circulation periods)' for k, v in ci['intervals_tau1'].items()) + '.')
+    L.append(f'λ1 = ω0/Ω = {lam1:.4f}, μ1 = {mu1:.4f}, λ1μ1 = {lam1 * mu1:.2e}. Intervals in τ1 = '
+             'Ωt: '
+             + ', '.join(f'{k} = {v:.3g} ({v / (2 * np.pi):.2f} circulation periods)' for k,
+                         v in ci['intervals_tau1'].items()) + '.')
     L.append('')
-    L.append('| interval | derivative m(p1) | derivative m(p2) | Gramian m(p1) | Gramian m(p2) | full model m(Δ) |')
+    L.append('| interval | derivative m(p1) | derivative m(p2) | Gramian m(p1) | Gramian m(p2) | '
+             'full model m(Δ) |')
     L.append('|---|---|---|---|---|---|')
     for k in ci['intervals_tau1']:
         d, g = ci['derivative'][k], ci['gramian'][k]
-        L.append(f"| {k} | {d[2]:.3g} | {d[3]:.3g} | {g[2]:.3g} | {g[3]:.3g} | {ci['full_delta'][k]:.3g} |")
+        L.append(f'| {k} | {d[2]:.3g} | {d[3]:.3g} | {g[2]:.3g} | {g[3]:.3g} | '
+                 f"{ci['full_delta'][k]:.3g} |")
     d0, g0, gl = ci['derivative']['unit'], ci['gramian']['unit'], ci['gramian']['schuler_unit']
     L.append('')
-    L.append(f'On τ1∈(0,1) the derivative measure of p1 is {d0[2] / (lam1 * mu1):.3g}·λ1μ1 ({order_verdict(d0[2], lam1 * mu1)} '
-             f'with the paper). Going to τ1∈(0,1/λ1) raises the Gramian measure of p1 by ×{gl[2] / g0[2]:.3g} and of p2 '
-             f"by ×{gl[3] / g0[3]:.3g} (one period alone: ×{ci['gramian']['one_period'][2] / g0[2]:.3g}, "
-             f"×{ci['gramian']['one_period'][3] / g0[3]:.3g}); the derivative measures of p1, p2 on τ1∈(0,1/λ1) are "
-             f"{ci['derivative']['schuler_unit'][2] / (lam1 * mu1):.3g} and {ci['derivative']['schuler_unit'][3] / (lam1 * mu1):.3g} "
+    L.append(f'On τ1∈(0,1) the derivative measure of p1 is {d0[2] / (lam1 * mu1):.3g}·λ1μ1 '
+             f'({order_verdict(d0[2], lam1 * mu1)} '
+             'with the paper). Going to τ1∈(0,1/λ1) raises the Gramian measure of p1 by '
+             f'×{gl[2] / g0[2]:.3g} and of p2 '
+             f'by ×{gl[3] / g0[3]:.3g} (one period alone: '
+             f"×{ci['gramian']['one_period'][2] / g0[2]:.3g}, "
+             f"×{ci['gramian']['one_period'][3] / g0[3]:.3g}); the derivative measures of p1, p2 "
+             'on τ1∈(0,1/λ1) are '
+             f"{ci['derivative']['schuler_unit'][2] / (lam1 * mu1):.3g} and "
+             f"{ci['derivative']['schuler_unit'][3] / (lam1 * mu1):.3g} "
              f"times λ1μ1; the full model's measure of Δ (0 = below the "
-             f"Gramian's accuracy) is {ci['full_delta']['unit']:.2g} on τ1∈(0,1), {ci['full_delta']['one_period']:.2g} after one "
+             f"Gramian's accuracy) is {ci['full_delta']['unit']:.2g} on τ1∈(0,1), "
+             f"{ci['full_delta']['one_period']:.2g} after one "
              f"period and {ci['full_delta']['schuler_unit']:.2g} on τ1∈(0,1/λ1).")
     L += ['', '### Stationary filters for the ship', '']
     o1, o2 = fl['observer']['lat'], fl['observer']['lat_low']
     ratio = [x / y for x, y in zip(o2['gain'], o1['gain'])]
-    L.append(f"Asymptotic observer (poles {fl['observer_poles']}): going from latitude {o1['latitude_deg']:g}° to "
-             f"{o2['latitude_deg']:g}° multiplies μ sinφ by {o2['c'] / o1['c']:.3f} and the gains of y3, y4, Δ by "
+    L.append(f"Asymptotic observer (poles {fl['observer_poles']}): going from latitude "
+             f"{o1['latitude_deg']:g}° to "
+             f"{o2['latitude_deg']:g}° multiplies μ sinφ by {o2['c'] / o1['c']:.3f} and the gains "
+             'of y3, y4, Δ by '
              + ', '.join(f'{r:.3f}' for r in ratio[2:]) + ' (001: ∝ 1/μ sinφ; ∝ 1/measure gives '
-             + ', '.join(f'{x / y:.3f}' for x, y in zip(fl['kalman']['lat']['measures'][2:], fl['kalman']['lat_low']['measures'][2:]))
+             + ', '.join(f'{x / y:.3f}' for x, y in zip(fl['kalman']['lat']['measures'][2:],
+                                                        fl['kalman']['lat_low']['measures'][2:]))
              + ", Δ's measure carrying b12 = cos φ too); "
              'those of y1, y2 by ' + ', '.join(f'{r:.3f}' for r in ratio[:2]) + '.')
     k1, k2 = fl['kalman']['lat'], fl['kalman']['lat_low']
-    L.append(f"Steady-state Kalman filter (Δσ = 0.1μ = {fl['kalman']['delta_sigma']:.2e} x° as white noise of that "
-             f"intensity per unit τ, random walk {fl['kalman']['process_noise']:g} x°/√τ on every state, step "
-             f"{fl['kalman']['step']:g}; gain from the Riccati equation by doubling) at {o1['latitude_deg']:g}°: steady σ in x° = "
+    L.append(f"Steady-state Kalman filter (Δσ = 0.1μ = {fl['kalman']['delta_sigma']:.2e} x° as "
+             'white noise of that '
+             f"intensity per unit τ, random walk {fl['kalman']['process_noise']:g} x°/√τ on every "
+             'state, step '
+             f"{fl['kalman']['step']:g}; gain from the Riccati equation by doubling) at "
+             f"{o1['latitude_deg']:g}°: steady σ in x° = "
              + ', '.join(f'{n} {v:.2e}' for n, v in zip(names, k1['steady_sigma']))
-             + '; closed-loop time constants ' + ', '.join(f'{v:.1f}' for v in k1['time_constants']) + ' τ'
-             + f" (at {o2['latitude_deg']:g}°: " + ', '.join(f'{v:.1f}' for v in k2['time_constants']) + ' τ).')
-    ex_sig = [np.log(k2['steady_sigma'][i] / k1['steady_sigma'][i]) / np.log(k2['measures'][i] / k1['measures'][i])
-              for i in (2, 3, 4)]
-    ex_pair = np.log(k2['time_constants'][2] / k1['time_constants'][2]) / np.log(k2['measures'][2] / k1['measures'][2])
-    ex_slow = np.log(k2['time_constants'][4] / k1['time_constants'][4]) / np.log(k2['measures'][4] / k1['measures'][4])
+             + '; closed-loop time constants '
+             + ', '.join(f'{v:.1f}' for v in k1['time_constants']) + ' τ'
+             + f" (at {o2['latitude_deg']:g}°: "
+             + ', '.join(f'{v:.1f}' for v in k2['time_constants']) + ' τ).')
+
+    def exponent(key, i, j=None):
+        # d log(key) / d log(measure) between the two latitudes
+        j = i if j is None else j
+        return (np.log(k2[key][i] / k1[key][i])
+                / np.log(k2['measures'][j] / k1['measures'][j]))
+
+    ex_sig = [exponent('steady_sigma', i) for i in (2, 3, 4)]
+    ex_pair = exponent('time_constants', 2)
+    ex_slow = exponent('time_constants', 4)
     L.append('Between the two latitudes the steady σ of y3, y4, Δ scales as (derivative measure)^('
-             + ', '.join(f'{e:.2f}' for e in ex_sig) + f'), the slow oscillatory time constant as m(y3)^({ex_pair:.2f}) '
-             f'and the slowest one as m(Δ)^({ex_slow:.2f}); a random walk observed with measure m has steady σ ∝ m^(−1/2) '
-             'and time constant ∝ m^(−1). Largest eigenvector component of each mode, fastest first: '
+             + ', '.join(f'{e:.2f}' for e in ex_sig) + '), the slow oscillatory time constant as '
+             f'm(y3)^({ex_pair:.2f}) '
+             f'and the slowest one as m(Δ)^({ex_slow:.2f}); a random walk observed with measure m '
+             'has steady σ ∝ m^(−1/2) '
+             'and time constant ∝ m^(−1). Largest eigenvector component of each mode, fastest '
+             'first: '
              + ', '.join(k1['mode_dominant_state']) + '.')
     L.append(f"After {fl['kalman']['duration']:g} τ the predicted σ is within a factor "
              f"{max(k1['final_over_steady']):.3f} of steady state.")
     inb = k1['nees_fraction_in_band']
     lo, hi = k1['nees_band']
     ok = lo <= k1['nees_mean'] <= hi and inb >= 0.8
-    L.append(f"Monte Carlo, {fl['kalman']['runs']} runs over {fl['kalman']['duration']:g} τ: NEES averaged over runs and epochs "
-             f"{k1['nees_mean']:.3f} (state dimension 5); {inb:.1%} of the epochs lie in the 95 % band "
-             f'[{lo:.2f}, {hi:.2f}] of a run-mean of χ²(5) (expected 95 %, epochs correlated over the time constants). '
+    L.append(f"Monte Carlo, {fl['kalman']['runs']} runs over {fl['kalman']['duration']:g} τ: NEES "
+             'averaged over runs and epochs '
+             f"{k1['nees_mean']:.3f} (state dimension 5); {inb:.1%} of the epochs lie in the 95 % "
+             'band '
+             f'[{lo:.2f}, {hi:.2f}] of a run-mean of χ²(5) (expected 95 %, epochs correlated over '
+             'the time constants). '
              f'Verdict (grand mean in the band and ≥ 80 % of epochs in it): the errors are '
-             + ('consistent' if ok else 'not consistent') + " with the filter's propagated covariance.")
+             + ('consistent' if ok else 'not consistent') + " with the filter's propagated "
+                                                            'covariance.')
     L.append('')
     return '\n'.join(L)
 
 
 def plots_001(res: dict, outdir: str) -> list[str]:
+    """
+    Draw the measures of observability and the filter's Monte Carlo.
+
+    Parameters
+    ----------
+    res : dict
+        The result of :func:`section_001`.
+    outdir : str
+        Directory of the figures (created if missing).
+
+    Returns
+    -------
+    list of str
+        Paths of ``seeds_001_measures.png`` and ``seeds_001_filter.png``.
+
+    """
     import matplotlib
     matplotlib.use('Agg')
     import matplotlib.pyplot as plt
@@ -409,7 +546,21 @@ def plots_001(res: dict, outdir: str) -> list[str]:
 
 
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(prog='seeds_001', description=__doc__.split('\n\n')[0])
+    """
+    Run the 001 page command (``python -m strapdown_ros.reproductions.vavilov1982``).
+
+    Parameters
+    ----------
+    argv : list of str, optional
+        Command-line arguments (default: ``sys.argv[1:]``).
+
+    Returns
+    -------
+    int
+        0 on success; a usage or output error exits with 2 and one line on stderr.
+
+    """
+    ap = argparse.ArgumentParser(prog='vavilov1982', description=__doc__.split('\n\n')[0])
     ap.add_argument('--quick', action='store_true', help='fewer steps and Monte Carlo runs')
     ap.add_argument('--report', help='write the markdown section to this file')
     ap.add_argument('--json', help='write the numbers to this file')
@@ -417,7 +568,7 @@ def main(argv=None) -> int:
     ap.add_argument('--force', action='store_true', help='overwrite existing outputs')
 
     def _error(msg):
-        print(f'seeds_001: error: {msg}', file=sys.stderr)
+        print(f'vavilov1982: error: {msg}', file=sys.stderr)
         raise SystemExit(2)
     ap.error = _error
     args = ap.parse_args(argv)
@@ -431,8 +582,8 @@ def main(argv=None) -> int:
     res = section_001(quick=args.quick)
     text = '# 001 (Vavilov 1982) — observability, reproduced\n\n' + report_001(res)
     if args.plots:
-        for f in plots_001(res, args.plots):
-            text += f"\n![{os.path.basename(f)}]({os.path.relpath(f, os.path.dirname(args.report) or '.') if args.report else f})\n"
+        base = os.path.dirname(os.path.abspath(args.report)) if args.report else os.getcwd()
+        text = place_figures(text, plots_001(res, args.plots), base)
     text += DERIVATIONS_001
     if args.report:
         write_text(args.report, text)

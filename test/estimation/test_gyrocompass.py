@@ -272,7 +272,7 @@ def test_seeds_001_tool_quick(tmp_path, capsys):
         seeds_001.main(['--bogus'])
     assert e.value.code == 2
     err = capsys.readouterr().err.strip().splitlines()
-    assert len(err) == 1 and err[0].startswith('seeds_001: error:')
+    assert len(err) == 1 and err[0].startswith('vavilov1982: error:')
 
 
 def test_001_derivation_text_is_labelled_and_its_checks_exist():

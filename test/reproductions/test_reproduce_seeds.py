@@ -9,12 +9,19 @@ import json
 import numpy as np
 import pytest
 
-from strapdown_ros.calibration.drifting_reference import PAPER_000
+from strapdown_ros.calibration.drifting_reference import (integrate_attitude, PAPER_000,
+                                                          TKACHENKO_W0)
 from strapdown_ros.reproductions import reproduce_seeds
+from strapdown_ros.reproductions.tkachenko1983 import (EXPLAINS_WITHIN,
+                                                       float32_recursion_increments,
+                                                       run_tkachenko_experiment, SAME_PATTERN,
+                                                       simulate_000)
+from strapdown_ros.rotation import quat_conjugate, quat_multiply, quat_to_rotvec, rotvec_to_quat
 
 
 @pytest.fixture(scope='module')
 def result(tmp_path_factory):
+    """Run reproduce_seeds --quick on 000, 002 and 003 once; return its JSON, report, dir."""
     d = tmp_path_factory.mktemp('seeds')
     assert reproduce_seeds.main(['--only', '000,002,003', '--quick', '--json', str(d / 'r.json'),
                                  '--report', str(d / 'r.md'), '--plots', str(d / 'plots')]) == 0
@@ -26,18 +33,24 @@ def _cd(rec):
 
 
 def test_000_schema(result):
+    """The 000 JSON holds every row of the three cases; the paper's column is untouched."""
     res, _, _ = result
     cases = res['000']['cases']
     assert set(cases) == {'unquantized', 'quantized_raw', 'quantized_centred'}
     for case in cases.values():
-        for key in ('paper', 'ours', 'ours_as_printed', 'ours_iterated', 'ours_mc_mean', 'ours_mc_std'):
-            assert len(case[key]['w0']) == 3 and len(case[key]['dc']) == 9 and len(case[key]['dd']) == 3
+        for key in ('paper', 'ours', 'ours_as_printed', 'ours_iterated', 'ours_mc_mean',
+                    'ours_mc_std'):
+            assert (len(case[key]['w0']) == 3 and len(case[key]['dc']) == 9
+                    and len(case[key]['dd']) == 3)
     for name, case in cases.items():       # the paper's column is the transcription, untouched
-        assert case['paper']['dc'] == PAPER_000[name]['dc'] and case['paper']['dd'] == PAPER_000[name]['dd']
+        assert (case['paper']['dc'] == PAPER_000[name]['dc']
+                and case['paper']['dd'] == PAPER_000[name]['dd'])
 
 
 def test_000_headline_is_rms_ratio_and_signs(result):
     """
+    The headline is the RMS ratio and the sign count, 000's method as printed first.
+
     The headline numbers, recomputed from the error vectors: RMS(paper)/RMS(ours) and the count
     of components with the paper's sign; the report states them, not the largest ratio alone.
     """
@@ -45,7 +58,8 @@ def test_000_headline_is_rms_ratio_and_signs(result):
     for name, case in res['000']['cases'].items():
         ours, paper = _cd(case['ours']), _cd(case['paper'])
         h = res['000']['headline'][name]['ours']
-        assert h['rms_ratio'] == pytest.approx(np.sqrt(np.mean(paper ** 2) / np.mean(ours ** 2)), rel=1e-12)
+        assert h['rms_ratio'] == pytest.approx(np.sqrt(np.mean(paper ** 2) / np.mean(ours ** 2)),
+                                               rel=1e-12)
         assert h['signs'] == int(np.sum(np.sign(ours) == np.sign(paper)))
         hp = res['000']['headline'][name]['ours_as_printed']
         printed = _cd(case['ours_as_printed'])
@@ -70,6 +84,7 @@ def test_000_headline_is_rms_ratio_and_signs(result):
 
 
 def test_000_iterated_unquantized_is_1000x_below_the_paper(result):
+    """Gauss–Newton without quantization is 1000× below the paper in every component."""
     res, _, _ = result
     c = res['000']['cases']['unquantized']
     for k in ('dc', 'dd'):
@@ -79,17 +94,18 @@ def test_000_iterated_unquantized_is_1000x_below_the_paper(result):
 
 def test_000_ablations_verdicts_follow_fixed_thresholds(result):
     """
+    Ablation verdicts follow fixed thresholds, for both estimators.
+
     Each ablation's verdict follows from its numbers and fixed thresholds (ratio within 2× of 1,
     corr ≥ 0.9), not from the correlation of one of our estimators; both estimators are run.
     """
-    from strapdown_ros.reproductions.tkachenko1983 import EXPLAINS_WITHIN, SAME_PATTERN
-
     res, text, _ = result
     a = res['000']['ablations']
     h = res['000']['headline']['unquantized']
     none = a['knobs']['none']
     assert none['identity']['rms_ratio'] == pytest.approx(h['ours']['rms_ratio'], rel=1e-12)
-    assert none['printed']['rms_ratio'] == pytest.approx(h['ours_as_printed']['rms_ratio'], rel=1e-12)
+    printed = h['ours_as_printed']['rms_ratio']
+    assert none['printed']['rms_ratio'] == pytest.approx(printed, rel=1e-12)
     # the paper's own method is the reference column, not a knob that is "ruled out"
     assert 'coefficients_printed' not in a['knobs'] and 'ruled out' not in text
     # the profile's rates are constant on each step, so the integration scheme cannot matter
@@ -110,17 +126,16 @@ def test_000_ablations_verdicts_follow_fixed_thresholds(result):
 
 def test_000_new_ablations_compute_what_the_text_says(result):
     """
+    The float32-recursion and w0 = 1e-2 rows compute what the text says.
+
     The float32-recursion and w0 = 1e-2 rows: the table's numbers are the agreement of a run
     with that change, recomputed here from an independent run of the experiment.
     """
-    from strapdown_ros.calibration.drifting_reference import TKACHENKO_W0
-    from strapdown_ros.reproductions.tkachenko1983 import run_tkachenko_experiment
-
     res, text, _ = result
     a = res['000']['ablations']['knobs']
     paper = np.r_[PAPER_000['unquantized']['dc'], PAPER_000['unquantized']['dd']]
-    for key, kw in (('w0_1e-2', dict(w0=np.full(3, 1e-2))),
-                    ('float32_recursion', dict(recursion='float32', algorithm='1'))):
+    for key, kw in (('w0_1e-2', {'w0': np.full(3, 1e-2)}),
+                    ('float32_recursion', {'recursion': 'float32', 'algorithm': '1'})):
         assert key in a
         for est in ('printed', 'identity'):
             r = run_tkachenko_experiment(seed=None, coefficients=est, **kw)
@@ -142,13 +157,11 @@ def test_000_new_ablations_compute_what_the_text_says(result):
 
 def test_float32_recursion_is_single_precision_roundoff():
     """
+    The float32 recursion differs from float64 by single-precision round-off.
+
     The float32 recursion's attitude differs from the float64 one by float32 round-off
     (≫ float64's, ≪ the increments), and its equivalent increments reproduce it.
     """
-    from strapdown_ros.reproductions.tkachenko1983 import float32_recursion_increments
-    from strapdown_ros.rotation import (quat_conjugate, quat_multiply, quat_to_rotvec,
-                                        rotvec_to_quat)
-
     rng = np.random.default_rng(1)
     theta = rng.normal(0, 5e-3, (1500, 3))
     q0 = np.array([0.64, 0.48, 0.36, -0.48])
@@ -167,6 +180,7 @@ def test_float32_recursion_is_single_precision_roundoff():
 
 
 def test_000_centring_sentence_computed(result):
+    """The centring sentence states the computed gain."""
     res, text, _ = result
     g = res['000']['centring_gain']
     gain = 1 - g['rms_c_centred'] / g['rms_c_raw']
@@ -174,6 +188,7 @@ def test_000_centring_sentence_computed(result):
 
 
 def test_002_and_003_sections(result):
+    """The 002 and 003 sections are present, with their numbers."""
     res, text, _ = result
     r = res['002']
     assert set(r['rms_000']) == set(r['rms_002']) == set(r['rms_002_adaptive'])
@@ -184,6 +199,7 @@ def test_002_and_003_sections(result):
 
 
 def test_003_values_below_the_floor_are_marked(result):
+    """Every 003 value at or below the round-off floor is marked, and only those."""
     res, text, _ = result
     marked = 0
     for c in res['003']['cases']:
@@ -196,6 +212,7 @@ def test_003_values_below_the_floor_are_marked(result):
 
 
 def test_plots_written_and_linked(result):
+    """The 000 figures are written and linked from the report."""
     _, text, d = result
     for name in ('seeds_000_errors.png', 'seeds_000_centring.png', 'seeds_000_ablations.png'):
         png = d / 'plots' / name
@@ -204,15 +221,19 @@ def test_plots_written_and_linked(result):
 
 
 def test_000_beyond_the_paper_gains_reported(result):
+    """Centring and weighting gains beyond the paper are reported."""
     res, text, _ = result
     b = res['000']['beyond_paper']
-    assert {'raw', 'centred', 'centred+iter', 'centred+weighted', 'centred+iter+weighted'} <= set(b)
+    assert {'raw', 'centred', 'centred+iter', 'centred+weighted',
+            'centred+iter+weighted'} <= set(b)
     assert b['centred+weighted']['rms_c'] < b['centred']['rms_c'] < b['raw']['rms_c']
     assert 'Beyond the paper' in text
 
 
 def test_registry_is_table_driven():
     """
+    The report is table-driven: one registry entry per section.
+
     Every available section is one registry entry with its run/report functions present;
     sections whose module is absent are skipped, not fatal.
     """
@@ -220,12 +241,15 @@ def test_registry_is_table_driven():
     assert {'000', '002', '003', '004'} <= set(names)
     for s in reproduce_seeds.sections():
         assert callable(s.fn(s.run)) and callable(s.fn(s.report))
-    missing = reproduce_seeds.Section('999', '999', '.no_such_seed_module', 'a', 'b', None, lambda a: ())
+    missing = reproduce_seeds.Section('999', '999', '.no_such_seed_module', 'a', 'b', None,
+                                      lambda a: ())
     assert not missing.available()
 
 
 def test_from_json_rerenders_the_same_report(result, tmp_path, capsys):
     """
+    --from-json re-renders the same report without rerunning.
+
     --from-json writes the report of an earlier run without rerunning it: same text; the
     input may not be an output (exit 2, one line).
     """
@@ -245,15 +269,11 @@ def test_from_json_rerenders_the_same_report(result, tmp_path, capsys):
 
 def test_estimator_integration_reproduces_the_float32_recursion():
     """
+    The estimator's integration reproduces the float32 recursion.
+
     Fed the equivalent increments, the estimator's own 1-sample integration gives the float32
     attitudes (their exact product) to float64 round-off, so the ablation tests the recursion.
     """
-    from strapdown_ros.calibration.drifting_reference import integrate_attitude
-    from strapdown_ros.reproductions.tkachenko1983 import (float32_recursion_increments,
-                                                           simulate_000)
-    from strapdown_ros.rotation import (quat_conjugate, quat_multiply, quat_to_rotvec,
-                                        rotvec_to_quat)
-
     sim = simulate_000(seed=None)
     q0, inc = float32_recursion_increments(sim.M0, sim.meas)
     q = integrate_attitude(q0, inc, sim.h, '1')

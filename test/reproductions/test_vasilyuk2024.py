@@ -4,17 +4,22 @@ import json
 import numpy as np
 import pytest
 
+from strapdown_ros.calibration.boresight import IncrementPair
 from strapdown_ros.reproductions import vasilyuk2024 as seeds_004
+from strapdown_ros.reproductions.vasilyuk2024_report import plots_004_extras, report_004_extras
+from strapdown_ros.rotation import rotvec_to_quat
 
 
 @pytest.fixture(scope='module')
 def quick():
+    """Return the quick run of the 004 extras."""
     return seeds_004.section_004_extras(quick=True)
 
 
 def test_quick_run_is_json_and_reports(quick):
+    """The quick run is JSON-able; the report states its numbers; Fig. 3 flags the wrong one."""
     json.dumps(quick)
-    text = seeds_004.report_004_extras(quick)
+    text = report_004_extras(quick)
     assert text.startswith('### 004 ')
     assert '### 004 §6' in text
     rows = {r['name']: r for r in quick['ablation']}
@@ -25,37 +30,48 @@ def test_quick_run_is_json_and_reports(quick):
     f = quick['fig3']
     assert f['estimated_derived']['consistent']
     assert not f['wrong_derived']['consistent']
-    assert f['estimated_derived']['theta_arcsec'][0] == [0.0, 0.0, 0.0] or np.allclose(f['estimated_derived']['theta_arcsec'][0], 0, atol=1e-9)
+    first = f['estimated_derived']['theta_arcsec'][0]
+    assert first == [0.0, 0.0, 0.0] or np.allclose(first, 0, atol=1e-9)
     # the trajectory sets the pattern: smaller tilt turns raise σ_ψ/σ_(ϑ,γ)
     assert rows['tilts_x0.3']['ratio'] > 2 * rows['baseline']['ratio']
 
 
 def test_trajectory_sigma_matches_the_heading_only_limit():
     """
-    Independent truth for the trajectory-only σ: increments all about VF z leave rotation
-    about z unobservable; with one tilt the ratio is the ratio of the 2(1 − cos φ) sums.
+    Check the trajectory-only σ against independent truth.
+
+    Increments all about VF z leave rotation about z unobservable; with one tilt the ratio is
+    the ratio of the 2(1 − cos φ) sums.
     """
-    from strapdown_ros.calibration.boresight import IncrementPair
-    from strapdown_ros.rotation import rotvec_to_quat
     big, small = np.radians(60.0), np.radians(6.0)
-    mk = lambda rv: IncrementPair(0, 1, rotvec_to_quat(np.array(rv)), rotvec_to_quat(np.array(rv)), np.eye(3), np.eye(3))
+
+    def mk(rv):
+        q = rotvec_to_quat(np.array(rv))
+        return IncrementPair(0, 1, q, q, np.eye(3), np.eye(3))
+
     pairs = [mk([0, 0, big]), mk([small, 0, 0]), mk([0, small, 0])]
     s = seeds_004.trajectory_sigma(pairs, np.zeros(3))
-    # β_ψ ↔ VF z (D2 column [0, 0, −1] at β = 0): information 2·2(1 − cos small); x: 2(1−cos big) + 2(1−cos small)
+    # β_ψ ↔ VF z (D2 column [0, 0, −1] at β = 0): information 2·2(1 − cos small);
+    # x: 2(1−cos big) + 2(1−cos small)
     iz = 2 * 2 * (1 - np.cos(small))
     ix = 2 * (1 - np.cos(big)) + 2 * (1 - np.cos(small))
     assert s[0] == pytest.approx(1 / np.sqrt(iz), rel=1e-9)
-    assert s[1] == pytest.approx(1 / np.sqrt(ix), rel=1e-9) and s[2] == pytest.approx(1 / np.sqrt(ix), rel=1e-9)
+    assert (s[1] == pytest.approx(1 / np.sqrt(ix), rel=1e-9)
+            and s[2] == pytest.approx(1 / np.sqrt(ix), rel=1e-9))
 
 
 def test_plots(quick, tmp_path):
+    """Both figures are written."""
     pytest.importorskip('matplotlib')
-    paths = seeds_004.plots_004_extras(quick, str(tmp_path))
-    assert len(paths) == 2 and all((tmp_path / p.rsplit('/', 1)[-1]).stat().st_size > 1000 for p in paths)
+    paths = plots_004_extras(quick, str(tmp_path))
+    assert len(paths) == 2 and all((tmp_path / p.rsplit('/', 1)[-1]).stat().st_size > 1000
+                                   for p in paths)
 
 
-@pytest.mark.parametrize('args', [['--runs', '0'], ['--report', '/nonexistent/dir/r.md'], ['--bogus']])
+@pytest.mark.parametrize('args', [['--runs', '0'], ['--report', '/nonexistent/dir/r.md'],
+                                  ['--bogus']])
 def test_main_argument_errors(args, capsys):
+    """Bad arguments and outputs exit 2 with one line named after the command."""
     assert seeds_004.main(args) == 2
     err = capsys.readouterr().err.strip().splitlines()
-    assert len(err) == 1 and err[0].startswith('seeds_004: ')
+    assert len(err) == 1 and err[0].startswith('vasilyuk2024: ')
