@@ -12,7 +12,8 @@ from dataclasses import dataclass
 import numpy as np
 
 __all__ = ['EffectParameter', 'Effect', 'MAX_BIAS_RATE', 'MAX_BIAS_DRIFT', 'MAX_RELATIVE_ERROR',
-           'MAX_MISALIGNMENT', 'MAX_RANDOM_WALK', 'MAX_QUANTUM', 'MAX_CAMERA_NOISE_SCALE']
+           'MAX_MISALIGNMENT', 'MAX_RANDOM_WALK', 'MAX_QUANTUM', 'MAX_CAMERA_NOISE_SCALE',
+           'MAX_G_SENSITIVITY']
 
 
 @dataclass(frozen=True)
@@ -61,6 +62,8 @@ MAX_QUANTUM = 0.1                # rad
 # a star-tracker σ stated for a motion-capture reference is ~10⁴ too small: simulable, and the
 # discrepancy fit of the term reports such a scale as at its bound
 MAX_CAMERA_NOISE_SCALE = 1e6
+# rad/s per m/s²: 0.1 rad/s at 10 m/s², far beyond any real gyro (~1e-6)
+MAX_G_SENSITIVITY = 1e-2
 
 
 class Effect:
@@ -68,9 +71,12 @@ class Effect:
     Base class of the registry's effects: declarations and default (empty) hooks.
 
     Class attributes declare the effect: ``sensor`` ('gyro' or 'camera'); ``kind``:
-    'systematic' (changes the mean of the data, has a signature and usually a compensation) or
-    'noise' (changes the covariance); ``candidate``: searched for by the discrepancy workflow
-    (other effects can be simulated and compensated but are outside the library it names).
+    'systematic' (changes the mean of the gyro increments as a function of the increment and
+    time, has a signature and usually a compensation), 'coupled' (changes the mean of the gyro
+    increments as a function of the accelerometer's velocity increments over the same interval)
+    or 'noise' (changes the covariance); ``candidate``: searched for by the discrepancy
+    workflow (other effects can be simulated and compensated but are outside the library it
+    names).
     """
 
     name: str = ''
@@ -93,6 +99,11 @@ class Effect:
     #: name of the filter parameter giving the correlation time of a Gauss–Markov state
     #: (None or 0: no decay)
     filter_correlation_parameter: str | None = None
+
+    @property
+    def needs_delta_v(self) -> bool:
+        """Tell whether the effect acts through the accelerometer's velocity increments."""
+        return self.kind == 'coupled'
 
     @property
     def value_parameter(self) -> EffectParameter:
@@ -223,6 +234,25 @@ class Effect:
         -------
         (n, 3) ndarray or None
             Rate bias, rad/s, body axes, or None when the effect has none.
+
+        """
+        return None
+
+    def delta_v_term(self, theta: np.ndarray, delta_v: np.ndarray) -> np.ndarray | None:
+        """
+        Return the contribution of a coupled effect to the gyro increments.
+
+        Parameters
+        ----------
+        theta : (size,) ndarray
+            Value of the effect.
+        delta_v : (n, 3) ndarray
+            Velocity increments ∫f dt over the gyro intervals, m/s, body axes.
+
+        Returns
+        -------
+        (n, 3) ndarray or None
+            Increment error, rad, or None when the effect has none.
 
         """
         return None

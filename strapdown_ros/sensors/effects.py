@@ -9,13 +9,16 @@ discrepancy workflow turns into the Jacobian of the increment residuals) and its
 **compensation**, where one exists (``sins_node``, ``calibrator_node``, the offline tools).
 The parameters reach the nodes through ``params.py``, which reads them from here.  Adding an
 effect is one new class (a gyro effect in :mod:`strapdown_ros.sensors.gyro_effects`, a camera
-effect below), one entry in :data:`EFFECTS`, its tests and its row in the effect table of
-doc/discrepancy.md.  The base class is in :mod:`strapdown_ros.sensors.effect_base`.
+effect below), one entry in :data:`EFFECTS`, its tests, its row in the effect tables of
+doc/discrepancy.md and the regenerated parameter tables of doc/nodes.md.  The base class is
+in :mod:`strapdown_ros.sensors.effect_base`.
 
 All systematic gyro effects share one measurement equation per increment k (interval
-``T_k``, true increment ``ρ_k``, body axes)::
+``T_k``, true increment ``ρ_k``, accelerometer increment ``Δv_k`` over the same interval,
+body axes)::
 
-    ρ̃_k = K_k ρ_k + b(t_k) T_k,     K_k = I + Σ_e K_e(θ_e, sign ρ_k),     b(t) = Σ_e b_e(θ_e, t)
+    ρ̃_k = K_k ρ_k + b(t_k) T_k + Σ_c G_c(θ_c) Δv_k,
+    K_k = I + Σ_e K_e(θ_e, sign ρ_k),     b(t) = Σ_e b_e(θ_e, t)
 
 with ``t_k`` the middle of interval k measured from the **effect epoch** t0 (the end stamp of
 the first gyro increment: profile time ``1/gyro_rate`` in the simulators, the first accepted
@@ -32,9 +35,9 @@ import numpy as np
 
 from strapdown_ros.sensors.effect_base import Effect, EffectParameter, MAX_CAMERA_NOISE_SCALE
 from strapdown_ros.sensors.gyro_effects import (GyroBias, GyroBiasDrift, GyroBiasPeriodic,
-                                                GyroMisalignment, GyroQuantization,
-                                                GyroRandomWalk, GyroScaleAsymmetry,
-                                                GyroScaleFactor)
+                                                GyroGSensitivity, GyroMisalignment,
+                                                GyroQuantization, GyroRandomWalk,
+                                                GyroScaleAsymmetry, GyroScaleFactor)
 
 __all__ = ['EFFECTS', 'CANDIDATES', 'get_effect', 'effect_parameters', 'GyroEffects',
            'CameraEffects', 'CameraNoiseAnisotropy', 'TimeOffset']
@@ -120,7 +123,7 @@ class TimeOffset(Effect):
 EFFECTS: dict[str, Effect] = {e.name: e for e in (
     TimeOffset(), GyroBias(), GyroBiasDrift(), GyroScaleFactor(), GyroScaleAsymmetry(),
     GyroMisalignment(), GyroQuantization(), CameraNoiseAnisotropy(), GyroBiasPeriodic(),
-    GyroRandomWalk())}
+    GyroRandomWalk(), GyroGSensitivity())}
 #: the library the discrepancy workflow searches, in a fixed order
 CANDIDATES: tuple[str, ...] = tuple(n for n, e in EFFECTS.items() if e.candidate)
 
@@ -183,21 +186,29 @@ class GyroEffects:
         first stamp seen.
     values : dict or None
         Effect name → value, overriding ``params``.
+    with_delta_v : bool
+        The caller gives the accelerometer's Δv over its gyro intervals to :meth:`apply` and
+        :meth:`compensate`.  Without it an active coupled effect (``gyro_g_sensitivity``) is
+        refused here, with one line, rather than ignored.
 
     """
 
     def __init__(self, params: dict | None = None, epoch: float | None = None,
-                 values: dict[str, Sequence[float]] | None = None):
+                 values: dict[str, Sequence[float]] | None = None, with_delta_v: bool = False):
         params = dict(params or {})
         for name, v in (values or {}).items():
             params[get_effect(name).value_parameter.name] = v
         self.epoch = epoch
         self.effects: list[tuple[Effect, np.ndarray]] = []
         for e in EFFECTS.values():
-            if e.sensor != 'gyro' or e.kind != 'systematic' or not e.is_active(params):
+            if e.sensor != 'gyro' or e.kind not in ('systematic', 'coupled') \
+                    or not e.is_active(params):
                 continue
             if isinstance(e, GyroBiasPeriodic):
                 e = GyroBiasPeriodic(float(params.get('gyro_bias_period', 600.0)))
+            if e.needs_delta_v and not with_delta_v:
+                raise ValueError(f'{e.name} needs the accelerometer increments over each gyro '
+                                 'interval, which this consumer does not have: set it to 0')
             self.effects.append((e, e.value(params)))
         self._has_sign = any(isinstance(e, GyroScaleAsymmetry) for e, _ in self.effects)
         self._has_matrix = any(e.matrix_term(np.zeros(e.size), np.zeros((1, 3))) is not None
@@ -207,6 +218,11 @@ class GyroEffects:
     def active(self) -> bool:
         """Tell whether any effect is active."""
         return bool(self.effects)
+
+    @property
+    def needs_delta_v(self) -> bool:
+        """Tell whether an active effect acts through the accelerometer's Δv."""
+        return any(e.needs_delta_v for e, _ in self.effects)
 
     def names(self) -> list[str]:
         """
@@ -225,11 +241,12 @@ class GyroEffects:
             self.epoch = float(stamps[0])
         return stamps - 0.5 * T - self.epoch
 
-    def _terms(self, sign, t):
-        """K (n, 3, 3) or None, and the rate bias (n, 3), rad/s."""
+    def _terms(self, sign, t, delta_v):
+        """K (n, 3, 3) or None, and the additive increment error b·T + G·Δv (n, 3), rad."""
         n = len(t)
         K = np.broadcast_to(np.eye(3), (n, 3, 3)).copy() if self._has_matrix else None
         b = np.zeros((n, 3))
+        extra = np.zeros((n, 3))
         for e, theta in self.effects:
             m = e.matrix_term(theta, sign)
             if m is not None:
@@ -237,13 +254,18 @@ class GyroEffects:
             bt = e.bias_term(theta, t)
             if bt is not None:
                 b += bt
-        return K, b
+            if e.needs_delta_v:
+                if delta_v is None:
+                    raise ValueError(f'{e.name} needs delta_v, the accelerometer increments '
+                                     'over the gyro intervals')
+                extra += e.delta_v_term(theta, np.asarray(delta_v, dtype=float).reshape(n, 3))
+        return K, b, extra
 
     def _arrays(self, stamps, T):
         stamps = np.asarray(stamps, dtype=float).reshape(-1)
         return stamps, np.broadcast_to(np.asarray(T, dtype=float), stamps.shape)
 
-    def apply(self, rho: np.ndarray, stamps: np.ndarray, T) -> np.ndarray:
+    def apply(self, rho: np.ndarray, stamps: np.ndarray, T, delta_v=None) -> np.ndarray:
         """
         Return the measured increments from true ones (the simulation).
 
@@ -255,6 +277,9 @@ class GyroEffects:
             End stamps of the intervals, s.
         T : float or (n,) ndarray
             Interval lengths, s.
+        delta_v : (n, 3) ndarray or None
+            Velocity increments ∫f dt over the same intervals, m/s, body axes; needed only by
+            the coupled effects.
 
         Returns
         -------
@@ -266,11 +291,12 @@ class GyroEffects:
         if not self.effects or len(rho) == 0:
             return rho
         stamps, T = self._arrays(stamps, T)
-        K, b = self._terms(np.sign(rho), self._times(stamps, T))
+        K, b, extra = self._terms(np.sign(rho), self._times(stamps, T), delta_v)
         out = rho if K is None else np.einsum('nij,nj->ni', K, rho)
-        return out + b * T[:, None]
+        return out + b * T[:, None] + extra
 
-    def compensate(self, measured: np.ndarray, stamps: np.ndarray, T) -> np.ndarray:
+    def compensate(self, measured: np.ndarray, stamps: np.ndarray, T,
+                   delta_v=None) -> np.ndarray:
         """
         Return the true increments from measured ones: the exact inverse of :meth:`apply`.
 
@@ -282,6 +308,9 @@ class GyroEffects:
             End stamps of the intervals, s.
         T : float or (n,) ndarray
             Interval lengths, s.
+        delta_v : (n, 3) ndarray or None
+            Velocity increments over the same intervals, m/s; needed only by the coupled
+            effects.
 
         Returns
         -------
@@ -293,8 +322,8 @@ class GyroEffects:
         if not self.effects or len(m) == 0:
             return m
         stamps, T = self._arrays(stamps, T)
-        K, b = self._terms(np.sign(m), self._times(stamps, T))
-        x = m - b * T[:, None]
+        K, b, extra = self._terms(np.sign(m), self._times(stamps, T), delta_v)
+        x = m - b * T[:, None] - extra
         if K is None:
             return x
         if not self._has_sign:                        # one matrix for every increment

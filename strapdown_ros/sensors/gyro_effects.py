@@ -1,5 +1,5 @@
 """
-The gyro effects of the registry: systematic and noise.
+The gyro effects of the registry: systematic, coupled (driven by the specific force) and noise.
 
 Each class owns one effect end to end (parameters, simulation, signature, compensation); the
 registry :data:`~strapdown_ros.sensors.effects.EFFECTS` lists them with the camera effects, and
@@ -11,13 +11,14 @@ from __future__ import annotations
 import numpy as np
 
 from strapdown_ros.sensors.effect_base import (Effect, EffectParameter, MAX_BIAS_DRIFT,
-                                               MAX_BIAS_RATE, MAX_MISALIGNMENT, MAX_QUANTUM,
-                                               MAX_RANDOM_WALK, MAX_RELATIVE_ERROR)
+                                               MAX_BIAS_RATE, MAX_G_SENSITIVITY,
+                                               MAX_MISALIGNMENT, MAX_QUANTUM, MAX_RANDOM_WALK,
+                                               MAX_RELATIVE_ERROR)
 from strapdown_ros.sensors.model import NAVIGATION_GRADE_GYRO
 
 __all__ = ['MISALIGNMENT_INDEX', 'GyroBias', 'GyroBiasDrift', 'GyroBiasPeriodic',
-           'GyroScaleFactor', 'GyroScaleAsymmetry', 'GyroMisalignment', 'GyroRandomWalk',
-           'GyroQuantization']
+           'GyroScaleFactor', 'GyroScaleAsymmetry', 'GyroMisalignment', 'GyroGSensitivity',
+           'GyroRandomWalk', 'GyroQuantization']
 
 
 #: order of the 6 off-diagonal elements of the gyro misalignment matrix M (row, column):
@@ -391,6 +392,70 @@ class GyroMisalignment(Effect):
         J = np.zeros((len(rho), 3, 6))
         for c, (i, j) in enumerate(MISALIGNMENT_INDEX):
             J[:, i, c] = rho[:, j]
+        return J
+
+
+# ----------------------------------------------------------------------------- gyro, coupled
+class GyroGSensitivity(Effect):
+    """
+    G-sensitivity (g-dependent bias): a rate bias G·f proportional to the specific force f.
+
+    Over a gyro interval the increment error is ``G·Δv``, Δv = ∫f dt over the *gyro*
+    interval, G a 3×3 matrix (row-major in the parameter), rad/s per m/s².  The simulators
+    integrate the exact specific force of the profile over each gyro interval, whatever the
+    accelerometer rate; a consumer compensates it only when it has Δv over its gyro intervals
+    (:class:`GyroEffects` with ``with_delta_v=True``).  Outside the discrepancy library (the
+    workflow reads no accelerometer data) and not a state of the attitude filter.
+    """
+
+    name = 'gyro_g_sensitivity'
+    kind = 'coupled'
+    candidate = False
+    parameters = (EffectParameter('gyro_g_sensitivity', 'rad/s/(m/s²)', 9, [0.0] * 9,
+                                  'g-sensitivity G, row-major 3×3: rate bias G·f for the '
+                                  'specific force f, body axes, rad/s per m/s²',
+                                  -MAX_G_SENSITIVITY, MAX_G_SENSITIVITY),)
+    summary = 'rate bias proportional to the specific force (g-dependent bias)'
+    signature_text = 'ε = Σ C_k G Δv_k: follows the specific force, not the rotation'
+
+    def delta_v_term(self, theta, delta_v):
+        """
+        Return G·Δv per increment.
+
+        Parameters
+        ----------
+        theta : (9,) ndarray
+            G, row-major, rad/s per m/s².
+        delta_v : (n, 3) ndarray
+            Velocity increments over the gyro intervals, m/s, body axes.
+
+        Returns
+        -------
+        (n, 3) ndarray
+            Increment error, rad.
+
+        """
+        return np.asarray(delta_v, dtype=float) @ np.reshape(theta, (3, 3)).T
+
+    def delta_v_jacobian(self, delta_v: np.ndarray) -> np.ndarray:
+        """
+        Return the signature ∂ρ̃/∂G: ∂ρ̃_i/∂G_ij = Δv_j.
+
+        Parameters
+        ----------
+        delta_v : (n, 3) ndarray
+            Velocity increments over the gyro intervals, m/s, body axes.
+
+        Returns
+        -------
+        (n, 3, 9) ndarray
+            The signature, G row-major.
+
+        """
+        dv = np.asarray(delta_v, dtype=float).reshape(-1, 3)
+        J = np.zeros((len(dv), 3, 9))
+        for i in range(3):
+            J[:, i, 3 * i:3 * i + 3] = dv
         return J
 
 

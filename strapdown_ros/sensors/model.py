@@ -352,7 +352,9 @@ class IntegratingSensor:
         t0, s of profile time.
     effects : GyroEffects or None
         Systematic effects of the registry (:class:`~strapdown_ros.sensors.effects.GyroEffects`);
-        their epoch defaults to the first stamp.
+        their epoch defaults to the first stamp.  Coupled effects receive the exact specific
+        force of the profile integrated over each sample's interval (``profile.delta_v``),
+        whatever the accelerometer rate.
 
     """
 
@@ -433,7 +435,13 @@ class IntegratingSensor:
         """
         t_end, true = self.true_increments(n)
         e = self.errors
-        u = true if self.effects is None else self.effects.apply(true, t_end, self.period)
+        u = true
+        if self.effects is not None:
+            dv = None
+            if self.effects.needs_delta_v:
+                t = self._grid(n)
+                dv = self.profile.delta_v(t[:-1], t[1:])
+            u = self.effects.apply(true, t_end, self.period, delta_v=dv)
         meas = u @ (np.eye(3) + e.matrix).T + e.bias * self.period
         if e.random_walk > 0:
             meas = meas + self.rng.normal(0.0, e.random_walk * np.sqrt(self.period), meas.shape)

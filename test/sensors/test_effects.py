@@ -7,7 +7,7 @@ truth; every effect parameter is a parameter of the nodes that simulate or compe
 import numpy as np
 import pytest
 
-from strapdown_ros.motion.profiles import bench_profile
+from strapdown_ros.motion.profiles import bench_profile, STANDARD_GRAVITY
 from strapdown_ros.params import (CALIBRATOR_PARAMS, check_all, IMU_SIM_PARAMS, SINS_PARAMS,
                                   STAR_CAMERA_PARAMS)
 from strapdown_ros.rotation import quat_conjugate, quat_multiply, quat_to_rotvec
@@ -131,3 +131,33 @@ def test_004_white_model_from_the_registry_is_004s_printed_p_rho():
     b = np.array([1e-6, -2e-6, 3e-6])
     x = np.concatenate([b, M.reshape(-1, order='F')])
     np.testing.assert_allclose(J @ x, rho @ M.T + b * 0.005, rtol=1e-13, atol=1e-20)
+
+
+def test_g_sensitivity_follows_the_specific_force_and_is_compensated_with_delta_v():
+    """A known G on the bench profile: Δθ error = G·Δv over each gyro interval, exactly."""
+    G = np.array([[1e-6, -2e-6, 3e-6], [4e-7, 5e-7, -6e-7], [2e-6, 1e-6, -1e-6]])
+    zero = {f'gyro_{k}': 0.0
+            for k in ('bias_sigma', 'scale_sigma', 'misalignment_sigma', 'random_walk')}
+    p = check_all(IMU_SIM_PARAMS, {'profile': 'bench', 'gyro_rate': 200.0, **zero,
+                                   'gyro_g_sensitivity': G.ravel().tolist()})
+    prof = bench_profile()
+    gyro, _ = simulated_imu(p, prof)
+    t, meas, true = gyro.sample(8000)                  # 40 s: the first hold and a turn
+    T = 0.005
+    # first hold: the body is level, f = [0, 0, g] exactly, so the error is G[:, 2]·g·T
+    hold = t <= 20.0
+    np.testing.assert_allclose(meas[hold] - true[hold],
+                               np.broadcast_to(G[:, 2] * STANDARD_GRAVITY * T, true[hold].shape),
+                               rtol=1e-9, atol=0)
+    # everywhere: G·Δv, Δv the exact specific force of the profile over each gyro interval
+    dv = prof.delta_v(t - T, t)
+    np.testing.assert_allclose(meas - true, dv @ G.T, rtol=0, atol=1e-17)
+    effect = EFFECTS['gyro_g_sensitivity']
+    J = effect.delta_v_jacobian(dv)
+    np.testing.assert_allclose(np.einsum('nij,j->ni', J, G.ravel()), dv @ G.T, rtol=1e-14)
+    # compensation with Δv inverts it; a consumer without Δv refuses the effect in one line
+    eff = GyroEffects(p, with_delta_v=True)
+    np.testing.assert_allclose(eff.compensate(meas, t, T, delta_v=dv), true, rtol=0, atol=1e-17)
+    with pytest.raises(ValueError, match='gyro_g_sensitivity needs the accelerometer'):
+        GyroEffects(p)
+    assert 'gyro_g_sensitivity' not in CANDIDATES
