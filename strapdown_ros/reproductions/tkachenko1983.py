@@ -82,8 +82,9 @@ def simulate_000(quantum: float = 0.0, seed: int | None = 0, profile=None, c=TKA
         else np.asarray(mounting, dtype=float)
     ref = GyrostabilizerReference(prof, d, structure, mounting=q_E_J, t_star=t_star, angle_noise=angle_noise,
                                   seed=None if seed is None else seed + 7919)
-    err = SensorErrorModel.from_tkachenko(c, quantum=quantum) if structure is TKACHENKO_STRUCTURE \
-        else SensorErrorModel()
+    err = SensorErrorModel()
+    if structure is TKACHENKO_STRUCTURE:
+        err = SensorErrorModel.from_symmetric_coefficients(c, quantum=quantum)
     sensor = IntegratingSensor(prof, 'gyro', 1.0 / h, err, seed=seed)
     if quantum > 0 and initial_remainder == 'random' and seed is not None:
         sensor.quantizer.integral[:] = np.random.default_rng(seed).uniform(-quantum, quantum, 3)
