@@ -1,7 +1,7 @@
 """
 Motion given in the Earth-fixed frame E, with exact position, velocity and attitude truth.
 
-An :class:`EarthProfile` is a :class:`~strapdown_ros.motion.profiles.MotionProfile` (usable
+An :class:`EarthProfile` is a :class:`~strapdown_ros.motion.profile_base.MotionProfile` (usable
 wherever one is: the simulated sensors, the attitude benches) whose motion is given in the
 Earth-fixed frame E (ECEF, PZ-90, rotating at Ω = :data:`~strapdown_ros.earth.OMEGA` about +Z);
 the presets built on it are in :mod:`strapdown_ros.motion.earth_profiles`.
@@ -48,7 +48,7 @@ from math import factorial
 import numpy as np
 
 from strapdown_ros.earth import DEFAULT_GRAVITY_MODEL, ecef_to_geodetic, normal_gravity, OMEGA
-from strapdown_ros.motion.profiles import MotionProfile
+from strapdown_ros.motion.profile_base import MotionProfile
 from strapdown_ros.rotation import quat_multiply, quat_normalize, quat_to_dcm
 
 __all__ = ['EarthProfile', 'MIN_FREQUENCY']

@@ -2,7 +2,7 @@
 Motion profiles from parameters: the ``profile`` parameter of the simulators, and user files.
 
 :func:`profile_from_config` is the one place where a parameter dict becomes a
-:class:`~strapdown_ros.motion.profiles.MotionProfile`: the body-frame profiles of
+:class:`~strapdown_ros.motion.profile_base.MotionProfile`: the body-frame profiles of
 :mod:`strapdown_ros.motion.profiles` and the Earth-referenced ones of
 :mod:`strapdown_ros.motion.earth_profiles`.
 """
@@ -11,8 +11,9 @@ from __future__ import annotations
 import numpy as np
 
 from strapdown_ros.motion.earth_profiles import navigation_profile_from_config
-from strapdown_ros.motion.profiles import (bench_profile, ConingProfile, MotionProfile,
-                                           PiecewiseRateProfile, Segment, tkachenko_profile)
+from strapdown_ros.motion.profile_base import MotionProfile
+from strapdown_ros.motion.profiles import (bench_profile, ConingProfile, PiecewiseRateProfile,
+                                           Segment, tkachenko_profile)
 
 __all__ = ['PROFILE_NAMES', 'profile_from_config', 'load_piecewise_profile']
 

@@ -1,189 +1,35 @@
 """
-Motion profiles with exact truth: the bottom of the simulation chain.
+Body-frame motion profiles with exact truth: coning, piecewise-constant rates, presets.
 
-The simulated sensors (:mod:`strapdown_ros.sensors.model`) and the benches sample these.  A
-profile gives, for any time ``t`` (seconds from the profile origin):
-
-* ``attitude(t)``: ``q_ref_body`` (body → reference, see :mod:`strapdown_ros.rotation`);
-* ``body_rate(t)``: absolute angular rate ω in body axes (rad/s);
-* ``delta_theta(t0, t1)``: the exact integrating-gyro output ∫ω dt over [t0, t1]
-  (the quasi-coordinates of 003 eq. 1.31);
-* ``specific_force(t)`` and ``delta_v(t0, t1)``: specific force f in body axes (m/s²)
-  and its exact integral (the integrating-accelerometer output).
-
-The reference frame is inertial.  All methods are vectorised over arrays of times.
+Each is a :class:`~strapdown_ros.motion.profile_base.MotionProfile` (the interface the
+simulated sensors and the benches sample).
 
 Exactness
 ---------
 * :class:`ConingProfile`: attitude, rate and increments are closed-form (Aksyonenko
   2014, 003, §2.2, with the printed misprints of (2.6) and (2.10) corrected, see
-  doc/coning_derivations.md).
+  doc/coning_derivations.md); Δv by the quadrature of the base class.
 * :class:`PiecewiseRateProfile`: body rate piecewise constant relative to an
   optionally rotating Earth frame.  Attitude and both increments are closed-form
   (Rodrigues' formula and its time integral); an interval that spans segment
   boundaries is split at the boundaries.  Round-off only (~1e-16 rad).
-* Specific force of the coning profile: n-point Gauss–Legendre quadrature, n (2..8)
-  chosen so that the rule's error bound (νΔt)^(2n)/(2n)! is below 1e-17 on
-  sub-intervals of at most 1/(8ν) s; the integrand is a trigonometric polynomial of
-  frequency ≤ 2ν, so the relative quadrature error is below 1e-15 (checked in the
-  tests against a 32-point rule).
 """
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from math import factorial
 from typing import Sequence
 
 import numpy as np
 
-from strapdown_ros.rotation import (quat_conjugate, quat_multiply, quat_normalize, quat_rotate,
-                                    quat_to_dcm, rotvec_to_quat, skew)
+from strapdown_ros.motion.profile_base import MotionProfile
+from strapdown_ros.rotation import (quat_multiply, quat_normalize, quat_to_dcm, rotvec_to_quat,
+                                    skew)
 
 EARTH_RATE = 7.2921150e-5      # rad/s, PZ-90 / WGS-84
 STANDARD_GRAVITY = 9.80665     # m/s²
 
-__all__ = ['MotionProfile', 'ConingProfile', 'PiecewiseRateProfile', 'Segment',
-           'tkachenko_profile', 'bench_profile', 'EARTH_RATE', 'STANDARD_GRAVITY']
-
-_GAUSS_LEGENDRE = {n: np.polynomial.legendre.leggauss(n) for n in range(2, 9)}
-
-
-def _gauss_points(x: float) -> int:
-    """Smallest n with x^(2n)/(2n)! < 1e-17 (x = frequency × sub-interval length)."""
-    for n in range(2, 9):
-        if x ** (2 * n) / factorial(2 * n) < 1e-17:
-            return n
-    return 8
-
-
-class MotionProfile:
-    """
-    Base class of the profiles: subclasses implement attitude, body_rate and delta_theta.
-
-    The default specific force is that of a body without linear acceleration
-    (:attr:`reference_specific_force` rotated into body axes), and the default Δv its
-    quadrature.
-    """
-
-    #: total length in seconds (``inf`` when the motion is unbounded)
-    duration: float = np.inf
-    #: gravity vector (specific force of a body at rest) in reference axes, m/s²
-    reference_specific_force: np.ndarray = np.zeros(3)
-
-    def attitude(self, t) -> np.ndarray:
-        """
-        Return the attitude q_ref_body.
-
-        Parameters
-        ----------
-        t : float or ndarray
-            Times, s from the profile origin.
-
-        Returns
-        -------
-        (..., 4) ndarray
-            Hamilton quaternions, scalar-first.
-
-        """
-        raise NotImplementedError
-
-    def body_rate(self, t) -> np.ndarray:
-        """
-        Return the absolute angular rate ω.
-
-        Parameters
-        ----------
-        t : float or ndarray
-            Times, s from the profile origin.
-
-        Returns
-        -------
-        (..., 3) ndarray
-            Rate, rad/s, body axes.
-
-        """
-        raise NotImplementedError
-
-    def delta_theta(self, t0, t1) -> np.ndarray:
-        """
-        Return the exact integrating-gyro output ∫ω dt over [t0, t1].
-
-        Parameters
-        ----------
-        t0, t1 : float or ndarray
-            Interval starts and ends, s (broadcast).
-
-        Returns
-        -------
-        (..., 3) ndarray
-            Increments, rad, body axes.
-
-        """
-        raise NotImplementedError
-
-    def specific_force(self, t) -> np.ndarray:
-        """
-        Return the specific force f = C_body_ref · f_ref (a body without linear acceleration).
-
-        Parameters
-        ----------
-        t : float or ndarray
-            Times, s from the profile origin.
-
-        Returns
-        -------
-        (..., 3) ndarray
-            Specific force, m/s², body axes.
-
-        """
-        q = self.attitude(t)
-        return quat_rotate(quat_conjugate(q), self.reference_specific_force)
-
-    def delta_v(self, t0, t1, max_step: float | None = None) -> np.ndarray:
-        """
-        Return ∫f dt over [t0, t1] by composite Gauss–Legendre quadrature (vectorised).
-
-        Parameters
-        ----------
-        t0, t1 : float or ndarray
-            Interval starts and ends, s (broadcast).
-        max_step : float or None
-            Longest sub-interval, s (None: the profile's own).
-
-        Returns
-        -------
-        (..., 3) ndarray
-            Velocity increments, m/s, body axes.
-
-        """
-        shape = np.broadcast(np.asarray(t0), np.asarray(t1)).shape + (3,)
-        t0, t1 = (np.atleast_1d(np.asarray(x, dtype=float)).ravel()
-                  for x in np.broadcast_arrays(t0, t1))
-        total = np.zeros(t0.shape + (3,))
-        if not np.any(self.reference_specific_force) or t0.size == 0:
-            return total.reshape(shape)
-        step = max_step if max_step is not None else self._quadrature_step()
-        longest = float(np.max(t1 - t0))
-        n_sub = max(1, int(np.ceil(longest / step)))
-        phase = 2.0 * self._frequency() * longest / n_sub
-        nodes_x, weights = _GAUSS_LEGENDRE[_gauss_points(phase)]
-        edges = np.linspace(0.0, 1.0, n_sub + 1)
-        for a, b in zip(edges[:-1], edges[1:]):
-            ta = t0 + a * (t1 - t0)
-            tb = t0 + b * (t1 - t0)
-            half = 0.5 * (tb - ta)
-            mid = 0.5 * (tb + ta)
-            nodes = mid[..., None] + half[..., None] * nodes_x             # (..., n)
-            f = self.specific_force(nodes)                                 # (..., n, 3)
-            total += half[..., None] * np.einsum('...k,...kj->...j', weights, f)
-        return total.reshape(shape)
-
-    def _frequency(self) -> float:
-        """Highest angular frequency (rad/s) in the specific force, for the quadrature rule."""
-        return 20.0
-
-    def _quadrature_step(self) -> float:
-        return 0.05
+__all__ = ['ConingProfile', 'PiecewiseRateProfile', 'Segment', 'tkachenko_profile',
+           'bench_profile', 'EARTH_RATE', 'STANDARD_GRAVITY']
 
 
 class ConingProfile(MotionProfile):

@@ -22,7 +22,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from strapdown_ros.motion.profiles import MotionProfile
+from strapdown_ros.motion.profile_base import MotionProfile
 from strapdown_ros.rotation import (dcm_to_quat, quat_multiply, quat_normalize, rotvec_to_quat,
                                     ypr_to_dcm)
 from strapdown_ros.sensors.model import ARCSEC
