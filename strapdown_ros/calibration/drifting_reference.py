@@ -169,7 +169,8 @@ def tkachenko_D(omega, t=None) -> np.ndarray:
     000 §6: ``D = [D_I D_II E3]``, ``D_I = diag ω``, ``D_II = [[ω2,0,ω3],[ω1,ω3,0],[0,ω2,ω1]]``.
 
     ``omega`` (..., 3) → (..., 3, 9).  Linear in ω (scale factors, symmetric misalignments)
-    plus a constant block (biases), the structure of :meth:`SensorErrorModel.from_tkachenko`.
+    plus a constant block (biases), the structure of
+    :meth:`SensorErrorModel.from_symmetric_coefficients`.
     """
     w = np.asarray(omega, dtype=float)
     D = np.zeros(w.shape[:-1] + (3, 9))

@@ -55,7 +55,8 @@ from strapdown_ros.estimation.chi_square import chi2_band, FIT_LEVEL
 from strapdown_ros.estimation.observability import analyze_information, ObservabilityReport
 from strapdown_ros.rotation import (dcm_to_quat, quat_conjugate, quat_multiply, quat_normalize,
                                     quat_to_dcm, quat_to_rotvec, skew)
-from strapdown_ros.sensors.effects import CameraEffects, GyroEffects, MISALIGNMENT_INDEX
+from strapdown_ros.sensors.effects import CameraEffects, GyroEffects
+from strapdown_ros.sensors.gyro_effects import MISALIGNMENT_INDEX
 
 __all__ = ['COMMON_LABELS', 'DRIFT_LABELS', 'ESTIMATED_PARAMETERS', 'GyroCalibration', 'prepare',
            'calibrate_integral', 'calibrate_tkachenko', 'model_parameters', 'tkachenko_noise_covariance',

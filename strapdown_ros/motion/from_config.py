@@ -2,7 +2,7 @@
 Motion profiles from parameters: the ``profile`` parameter of the simulators, and user files.
 
 :func:`profile_from_config` is the one place where a parameter dict becomes a
-:class:`~strapdown_ros.motion.profiles.MotionProfile`: the body-frame profiles of
+:class:`~strapdown_ros.motion.profile_base.MotionProfile`: the body-frame profiles of
 :mod:`strapdown_ros.motion.profiles` and the Earth-referenced ones of
 :mod:`strapdown_ros.motion.earth_profiles`.
 """
@@ -11,9 +11,13 @@ from __future__ import annotations
 import numpy as np
 
 from strapdown_ros.motion.earth_profiles import navigation_profile_from_config
-from strapdown_ros.motion.profiles import (bench_profile, ConingProfile, MotionProfile,
-                                           PiecewiseRateProfile, Segment, tkachenko_profile)
+from strapdown_ros.motion.profile_base import MotionProfile
+from strapdown_ros.motion.profiles import (bench_profile, ConingProfile, PiecewiseRateProfile,
+                                           Segment, tkachenko_profile)
 
+__all__ = ['PROFILE_NAMES', 'profile_from_config', 'load_piecewise_profile']
+
+#: every value of the ``profile`` parameter
 PROFILE_NAMES = ('coning', 'tkachenko', 'bench', 'piecewise',
                  # Earth-referenced navigation profiles (strapdown_ros.motion.earth_profiles)
                  'static', 'straight_flight', 'coordinated_turn', 'sculling')
@@ -29,6 +33,22 @@ def profile_from_config(cfg: dict) -> MotionProfile:
     profiles (``static``, ``straight_flight``, ``coordinated_turn``, ``sculling``) are built by
     :func:`strapdown_ros.motion.earth_profiles.navigation_profile_from_config` (``nav_*``,
     ``turn_radius``, ``sculling_*``, ``gravity_model`` keys).
+
+    Parameters
+    ----------
+    cfg : dict
+        The parameters (absent keys take their defaults).
+
+    Returns
+    -------
+    MotionProfile
+        The profile.
+
+    Raises
+    ------
+    ValueError
+        For an unknown profile, or a ``piecewise`` profile without a valid file (one line).
+
     """
     name = cfg.get('profile', 'coning')
     if name not in PROFILE_NAMES:
@@ -37,8 +57,8 @@ def profile_from_config(cfg: dict) -> MotionProfile:
         return navigation_profile_from_config(cfg)
     gravity = cfg.get('gravity', (0.0, 0.0, 0.0))
     if name == 'coning':
-        return ConingProfile(float(cfg.get('coning_alpha', 0.087)), float(cfg.get('coning_nu', 1.0)),
-                             gravity=gravity)
+        return ConingProfile(float(cfg.get('coning_alpha', 0.087)),
+                             float(cfg.get('coning_nu', 1.0)), gravity=gravity)
     if name == 'tkachenko':
         return tkachenko_profile()
     if name == 'bench':
@@ -53,7 +73,9 @@ def profile_from_config(cfg: dict) -> MotionProfile:
 
 def load_piecewise_profile(path: str) -> PiecewiseRateProfile:
     """
-    Load a user profile from YAML::
+    Load a user profile from YAML.
+
+    The file::
 
         initial_attitude: [w, x, y, z]      # q_ref_body at t = 0 (optional)
         earth_rate: [0, 0, 7.292115e-5]     # rad/s, reference axes (optional)
@@ -64,6 +86,22 @@ def load_piecewise_profile(path: str) -> PiecewiseRateProfile:
 
     The file may also be a ROS 2 parameter file whose ``ros__parameters`` contain a
     ``profile`` mapping with these keys.
+
+    Parameters
+    ----------
+    path : str
+        The YAML file.
+
+    Returns
+    -------
+    PiecewiseRateProfile
+        The profile.
+
+    Raises
+    ------
+    ValueError
+        When the file cannot be read or is not such a profile (one line).
+
     """
     import yaml  # optional extra (PyYAML ships with every ROS 2 installation)
 
@@ -73,18 +111,22 @@ def load_piecewise_profile(path: str) -> PiecewiseRateProfile:
     except OSError as exc:
         raise ValueError(f'profile_file {path}: {exc.strerror or exc}') from None
     except yaml.YAMLError as exc:
-        raise ValueError(f'profile_file {path}: not valid YAML ({str(exc).splitlines()[0]})') from None
+        first = str(exc).splitlines()[0]
+        raise ValueError(f'profile_file {path}: not valid YAML ({first})') from None
     if isinstance(doc, dict) and 'segments' not in doc:
         # ROS 2 parameter file layout: {node: {ros__parameters: {profile: {...}}}}
         for node_block in doc.values():
-            params = (node_block or {}).get('ros__parameters', {}) if isinstance(node_block, dict) else {}
+            params = {}
+            if isinstance(node_block, dict):
+                params = (node_block or {}).get('ros__parameters', {})
             if isinstance(params.get('profile'), dict):
                 doc = params['profile']
                 break
     if not isinstance(doc, dict) or 'segments' not in doc:
         raise ValueError(f"{path}: expected a mapping with a 'segments' list")
     if not isinstance(doc['segments'], list) or not doc['segments']:
-        raise ValueError(f"{path}: 'segments' must be a non-empty list of {{duration, rate}} mappings")
+        raise ValueError(f"{path}: 'segments' must be a non-empty list of "
+                         '{duration, rate} mappings')
     segs = []
     for i, s in enumerate(doc['segments']):
         try:
@@ -92,9 +134,11 @@ def load_piecewise_profile(path: str) -> PiecewiseRateProfile:
         except (KeyError, TypeError, ValueError, AttributeError) as exc:
             raise ValueError(f'{path}: segment {i}: {exc}') from None
     try:
-        return PiecewiseRateProfile(segs, initial_attitude=doc.get('initial_attitude', (1.0, 0.0, 0.0, 0.0)),
-                                    earth_rate=_vector3(doc.get('earth_rate', (0.0, 0.0, 0.0)), 'earth_rate'),
-                                    gravity=_vector3(doc.get('gravity', (0.0, 0.0, 0.0)), 'gravity'), name='piecewise')
+        zero = (0.0, 0.0, 0.0)
+        return PiecewiseRateProfile(
+            segs, initial_attitude=doc.get('initial_attitude', (1.0, 0.0, 0.0, 0.0)),
+            earth_rate=_vector3(doc.get('earth_rate', zero), 'earth_rate'),
+            gravity=_vector3(doc.get('gravity', zero), 'gravity'), name='piecewise')
     except (TypeError, ValueError) as exc:
         raise ValueError(f'{path}: {exc}') from None
 

@@ -1,110 +1,35 @@
 """
-Motion profiles with exact truth.
+Body-frame motion profiles with exact truth: coning, piecewise-constant rates, presets.
 
-A profile gives, for any time ``t`` (seconds from the profile origin):
-
-* ``attitude(t)``: ``q_ref_body`` (body → reference, see :mod:`strapdown_ros.rotation`);
-* ``body_rate(t)``: absolute angular rate ω in body axes (rad/s);
-* ``delta_theta(t0, t1)``: the exact integrating-gyro output ∫ω dt over [t0, t1]
-  (the quasi-coordinates of 003 eq. 1.31);
-* ``specific_force(t)`` and ``delta_v(t0, t1)``: specific force f in body axes (m/s²)
-  and its exact integral (the integrating-accelerometer output).
-
-The reference frame is inertial.  All methods are vectorised over arrays of times.
+Each is a :class:`~strapdown_ros.motion.profile_base.MotionProfile` (the interface the
+simulated sensors and the benches sample).
 
 Exactness
 ---------
-* :class:`ConingProfile`: attitude, rate and increments are closed-form (003 §2.2,
-  with the printed misprints of (2.6) and (2.10) corrected, see doc/coning_derivations.md).
+* :class:`ConingProfile`: attitude, rate and increments are closed-form (Aksyonenko
+  2014, 003, §2.2, with the printed misprints of (2.6) and (2.10) corrected, see
+  doc/coning_derivations.md); Δv by the quadrature of the base class.
 * :class:`PiecewiseRateProfile`: body rate piecewise constant relative to an
   optionally rotating Earth frame.  Attitude and both increments are closed-form
   (Rodrigues' formula and its time integral); an interval that spans segment
   boundaries is split at the boundaries.  Round-off only (~1e-16 rad).
-* Specific force of the coning profile: n-point Gauss–Legendre quadrature, n (2..8)
-  chosen so that the rule's error bound (νΔt)^(2n)/(2n)! is below 1e-17 on
-  sub-intervals of at most 1/(8ν) s; the integrand is a trigonometric polynomial of
-  frequency ≤ 2ν, so the relative quadrature error is below 1e-15 (checked in the
-  tests against a 32-point rule).
 """
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from math import factorial
 from typing import Sequence
 
 import numpy as np
 
-from strapdown_ros.rotation import (quat_conjugate, quat_multiply, quat_normalize, quat_rotate,
-                                    quat_to_dcm, rotvec_to_quat, skew)
+from strapdown_ros.motion.profile_base import MotionProfile
+from strapdown_ros.rotation import (quat_multiply, quat_normalize, quat_to_dcm, rotvec_to_quat,
+                                    skew)
 
 EARTH_RATE = 7.2921150e-5      # rad/s, PZ-90 / WGS-84
 STANDARD_GRAVITY = 9.80665     # m/s²
 
-__all__ = ['MotionProfile', 'ConingProfile', 'PiecewiseRateProfile', 'Segment',
-           'tkachenko_profile', 'bench_profile', 'profile_from_config',
-           'EARTH_RATE', 'STANDARD_GRAVITY', 'PROFILE_NAMES']
-
-_GAUSS_LEGENDRE = {n: np.polynomial.legendre.leggauss(n) for n in range(2, 9)}
-
-
-def _gauss_points(x: float) -> int:
-    """Smallest n with x^(2n)/(2n)! < 1e-17 (x = frequency × sub-interval length)."""
-    for n in range(2, 9):
-        if x ** (2 * n) / factorial(2 * n) < 1e-17:
-            return n
-    return 8
-
-
-class MotionProfile:
-    """Base class.  Subclasses implement attitude/body_rate/delta_theta/specific_force."""
-
-    #: total length in seconds (``inf`` when the motion is unbounded)
-    duration: float = np.inf
-    #: gravity vector (specific force of a body at rest) in reference axes, m/s²
-    reference_specific_force: np.ndarray = np.zeros(3)
-
-    def attitude(self, t) -> np.ndarray:
-        raise NotImplementedError
-
-    def body_rate(self, t) -> np.ndarray:
-        raise NotImplementedError
-
-    def delta_theta(self, t0, t1) -> np.ndarray:
-        raise NotImplementedError
-
-    def specific_force(self, t) -> np.ndarray:
-        """Default: a body with no linear acceleration; f = C_body_ref · f_ref."""
-        q = self.attitude(t)
-        return quat_rotate(quat_conjugate(q), self.reference_specific_force)
-
-    def delta_v(self, t0, t1, max_step: float | None = None) -> np.ndarray:
-        """∫ f dt by composite 8-point Gauss–Legendre quadrature (vectorised)."""
-        shape = np.broadcast(np.asarray(t0), np.asarray(t1)).shape + (3,)
-        t0, t1 = (np.atleast_1d(np.asarray(x, dtype=float)).ravel() for x in np.broadcast_arrays(t0, t1))
-        total = np.zeros(t0.shape + (3,))
-        if not np.any(self.reference_specific_force) or t0.size == 0:
-            return total.reshape(shape)
-        step = max_step if max_step is not None else self._quadrature_step()
-        longest = float(np.max(t1 - t0))
-        n_sub = max(1, int(np.ceil(longest / step)))
-        nodes_x, weights = _GAUSS_LEGENDRE[_gauss_points(2.0 * self._frequency() * longest / n_sub)]
-        edges = np.linspace(0.0, 1.0, n_sub + 1)
-        for a, b in zip(edges[:-1], edges[1:]):
-            ta = t0 + a * (t1 - t0)
-            tb = t0 + b * (t1 - t0)
-            half = 0.5 * (tb - ta)
-            mid = 0.5 * (tb + ta)
-            nodes = mid[..., None] + half[..., None] * nodes_x             # (..., n)
-            f = self.specific_force(nodes)                                 # (..., n, 3)
-            total += half[..., None] * np.einsum('...k,...kj->...j', weights, f)
-        return total.reshape(shape)
-
-    def _frequency(self) -> float:
-        """Highest angular frequency (rad/s) in the specific force, for the quadrature rule."""
-        return 20.0
-
-    def _quadrature_step(self) -> float:
-        return 0.05
+__all__ = ['ConingProfile', 'PiecewiseRateProfile', 'Segment', 'tkachenko_profile',
+           'bench_profile', 'EARTH_RATE', 'STANDARD_GRAVITY']
 
 
 class ConingProfile(MotionProfile):
@@ -122,6 +47,18 @@ class ConingProfile(MotionProfile):
 
     The cone axis is the reference Z axis; a perfect algorithm has zero mean drift
     about it and any algorithmic error accumulates about it (003 §2.3).
+
+    Parameters
+    ----------
+    alpha : float
+        Cone half-angle α, rad.
+    nu : float
+        Coning frequency ν, rad/s.
+    gravity : sequence of 3 float
+        Specific force of the body at rest, reference axes, m/s².
+    duration : float
+        Length of the motion, s.
+
     """
 
     def __init__(self, alpha: float, nu: float, gravity: Sequence[float] = (0.0, 0.0, 0.0),
@@ -134,13 +71,56 @@ class ConingProfile(MotionProfile):
         self.reference_specific_force = np.asarray(gravity, dtype=float)
 
     def rotation_vector(self, t) -> np.ndarray:
+        """
+        Return the rotation vector φ(t) = α·[sin νt, cos νt, 0] of (2.4).
+
+        Parameters
+        ----------
+        t : float or ndarray
+            Times, s from the profile origin.
+
+        Returns
+        -------
+        (..., 3) ndarray
+            φ, rad.
+
+        """
         t = np.asarray(t, dtype=float)
-        return self.alpha * np.stack([np.sin(self.nu * t), np.cos(self.nu * t), np.zeros_like(t)], -1)
+        phase = self.nu * t
+        return self.alpha * np.stack([np.sin(phase), np.cos(phase), np.zeros_like(t)], -1)
 
     def attitude(self, t) -> np.ndarray:
+        """
+        Return q_ref_body = exp(φ(t)).
+
+        Parameters
+        ----------
+        t : float or ndarray
+            Times, s from the profile origin.
+
+        Returns
+        -------
+        (..., 4) ndarray
+            Quaternions, scalar-first.
+
+        """
         return rotvec_to_quat(self.rotation_vector(t))
 
     def body_rate(self, t) -> np.ndarray:
+        """
+        Return the body rate (2.9).
+
+        Parameters
+        ----------
+        t : float or ndarray
+            Times, s from the profile origin.
+
+        Returns
+        -------
+        (..., 3) ndarray
+            ω, rad/s, body axes.
+
+        """
         t = np.asarray(t, dtype=float)
         a, v = self.alpha, self.nu
         return np.stack([v * np.sin(a) * np.cos(v * t), -v * np.sin(a) * np.sin(v * t),
@@ -153,6 +133,20 @@ class ConingProfile(MotionProfile):
         return 2.0 * np.sin(0.5 * self.alpha) ** 2
 
     def delta_theta(self, t0, t1) -> np.ndarray:
+        """
+        Return the closed-form increments (2.10, sign corrected).
+
+        Parameters
+        ----------
+        t0, t1 : float or ndarray
+            Interval starts and ends, s (broadcast).
+
+        Returns
+        -------
+        (..., 3) ndarray
+            Δθ, rad, body axes.
+
+        """
         t0 = np.asarray(t0, dtype=float)
         t1 = np.asarray(t1, dtype=float)
         a, v = self.alpha, self.nu
@@ -171,12 +165,24 @@ class ConingProfile(MotionProfile):
 
     @property
     def cone_period(self) -> float:
+        """Period 2π/|ν| of the coning motion, s."""
         return 2.0 * np.pi / abs(self.nu)
 
 
 @dataclass
 class Segment:
-    """``duration`` seconds at constant body rate ``rate`` (rad/s, body axes, relative to Earth)."""
+    """
+    One segment of a piecewise-rate profile.
+
+    Attributes
+    ----------
+    duration : float
+        Length, s, > 0.
+    rate : (3,) ndarray
+        Constant body rate relative to Earth, rad/s, body axes.
+
+    """
+
     duration: float
     rate: np.ndarray = field(default_factory=lambda: np.zeros(3))
 
@@ -200,8 +206,11 @@ def _rodrigues_integral(u: np.ndarray, s: np.ndarray) -> np.ndarray:
     x = w * s
     small = np.abs(x) < 1e-3
     with np.errstate(invalid='ignore', divide='ignore'):
-        a = np.where(small, s ** 2 * (0.5 - x ** 2 / 24.0 + x ** 4 / 720.0), (1 - np.cos(x)) / np.where(w > 0, w, 1) ** 2)
-        b = np.where(small, s ** 3 * (1.0 / 6.0 - x ** 2 / 120.0 + x ** 4 / 5040.0), (x - np.sin(x)) / np.where(w > 0, w, 1) ** 3)
+        w_safe = np.where(w > 0, w, 1)
+        a = np.where(small, s ** 2 * (0.5 - x ** 2 / 24.0 + x ** 4 / 720.0),
+                     (1 - np.cos(x)) / w_safe ** 2)
+        b = np.where(small, s ** 3 * (1.0 / 6.0 - x ** 2 / 120.0 + x ** 4 / 5040.0),
+                     (x - np.sin(x)) / w_safe ** 3)
     return s[..., None, None] * np.eye(3) + a[..., None, None] * K + b[..., None, None] * (K @ K)
 
 
@@ -219,6 +228,20 @@ class PiecewiseRateProfile(MotionProfile):
     ``reference_specific_force`` is the specific force of a body at rest in E,
     expressed in E axes (e.g. ``[0, 0, g]`` for an ENU bench); it is rotated into
     body axes through ``C_B_E`` (so it stays fixed on the rotating Earth).
+
+    Parameters
+    ----------
+    segments : sequence of Segment
+        The segments, in order (at least one).
+    initial_attitude : sequence of 4 float
+        q_E_B at t = 0, scalar-first.
+    earth_rate : sequence of 3 float
+        Ω_E, rad/s, reference axes.
+    gravity : sequence of 3 float
+        Specific force at rest in E, E axes, m/s².
+    name : str
+        Profile name.
+
     """
 
     def __init__(self, segments: Sequence[Segment], initial_attitude=(1.0, 0.0, 0.0, 0.0),
@@ -240,20 +263,35 @@ class PiecewiseRateProfile(MotionProfile):
         # attitude q_E_B at each segment start
         qs = [self.q0]
         for seg in self.segments:
-            qs.append(quat_normalize(quat_multiply(qs[-1], rotvec_to_quat(seg.rate * seg.duration))))
+            turn = rotvec_to_quat(seg.rate * seg.duration)
+            qs.append(quat_normalize(quat_multiply(qs[-1], turn)))
         self.segment_q = np.array(qs)
 
     # --- helpers -------------------------------------------------------------------
     def _segment_index(self, t: np.ndarray) -> np.ndarray:
         idx = np.searchsorted(self.starts, t, side='right') - 1
-        return np.clip(idx, 0, len(self.segments))        # index len(segments) = hold after the end
+        # index len(segments): the hold after the end
+        return np.clip(idx, 0, len(self.segments))
 
     def _rate_of(self, idx: np.ndarray) -> np.ndarray:
         rates = np.vstack([self.rates, np.zeros((1, 3))])
         return rates[idx]
 
     def attitude_earth(self, t) -> np.ndarray:
-        """``q_E_B(t)``: attitude relative to the (possibly rotating) Earth frame."""
+        """
+        Return ``q_E_B(t)``: the attitude relative to the (possibly rotating) Earth frame.
+
+        Parameters
+        ----------
+        t : float or ndarray
+            Times, s from the profile origin.
+
+        Returns
+        -------
+        (..., 4) ndarray
+            Quaternions, scalar-first.
+
+        """
         t = np.asarray(t, dtype=float)
         idx = self._segment_index(t)
         dt = t - self.starts[idx]
@@ -261,24 +299,67 @@ class PiecewiseRateProfile(MotionProfile):
                                             rotvec_to_quat(self._rate_of(idx) * dt[..., None])))
 
     def attitude(self, t) -> np.ndarray:
+        """
+        Return ``q_I_B(t) = q_I_E(t) ⊗ q_E_B(t)``.
+
+        Parameters
+        ----------
+        t : float or ndarray
+            Times, s from the profile origin.
+
+        Returns
+        -------
+        (..., 4) ndarray
+            Quaternions, scalar-first.
+
+        """
         t = np.asarray(t, dtype=float)
         q_ie = rotvec_to_quat(self.earth_rate * t[..., None])
         return quat_normalize(quat_multiply(q_ie, self.attitude_earth(t)))
 
     def body_rate(self, t) -> np.ndarray:
+        """
+        Return the absolute body rate ``ω_seg + C_B_E(t)·Ω_E``.
+
+        Parameters
+        ----------
+        t : float or ndarray
+            Times, s from the profile origin.
+
+        Returns
+        -------
+        (..., 3) ndarray
+            ω, rad/s, body axes.
+
+        """
         t = np.asarray(t, dtype=float)
         idx = self._segment_index(t)
         c_eb = quat_to_dcm(self.attitude_earth(t))
         return self._rate_of(idx) + np.einsum('...ji,j->...i', c_eb, self.earth_rate)
 
     def specific_force(self, t) -> np.ndarray:
+        """
+        Return the specific force at rest in E, rotated into body axes.
+
+        Parameters
+        ----------
+        t : float or ndarray
+            Times, s from the profile origin.
+
+        Returns
+        -------
+        (..., 3) ndarray
+            f, m/s², body axes.
+
+        """
         c_eb = quat_to_dcm(self.attitude_earth(np.asarray(t, dtype=float)))
         return np.einsum('...ji,j->...i', c_eb, self.reference_specific_force)
 
     def _segments_touched(self, t0: np.ndarray, t1: np.ndarray, n: int) -> range:
         """
-        Indices (< n) of the segments that intervals within [min t0, max t1] can touch: the
-        others contribute exactly zero, so a short block costs a few segments, not all of them.
+        Return the indices (< n) of the segments intervals within [min t0, max t1] can touch.
+
+        The others contribute exactly zero, so a short block costs a few segments, not all.
         """
         if t0.size == 0 or t1.size == 0:
             return range(0)
@@ -307,6 +388,20 @@ class PiecewiseRateProfile(MotionProfile):
         return out
 
     def delta_theta(self, t0, t1) -> np.ndarray:
+        """
+        Return the exact ∫ω dt over [t0, t1], split at the segment boundaries.
+
+        Parameters
+        ----------
+        t0, t1 : float or ndarray
+            Interval starts and ends, s (broadcast).
+
+        Returns
+        -------
+        (..., 3) ndarray
+            Δθ, rad, body axes.
+
+        """
         t0 = np.asarray(t0, dtype=float)
         t1 = np.asarray(t1, dtype=float)
         out = np.zeros(np.broadcast(t0, t1).shape + (3,))
@@ -320,6 +415,22 @@ class PiecewiseRateProfile(MotionProfile):
         return out
 
     def delta_v(self, t0, t1, max_step=None) -> np.ndarray:
+        """
+        Return the exact ∫f dt over [t0, t1] (closed form).
+
+        Parameters
+        ----------
+        t0, t1 : float or ndarray
+            Interval starts and ends, s (broadcast).
+        max_step : float or None
+            Unused (the integral is closed-form).
+
+        Returns
+        -------
+        (..., 3) ndarray
+            Δv, m/s, body axes.
+
+        """
         if not np.any(self.reference_specific_force):
             return np.zeros(np.broadcast(np.asarray(t0), np.asarray(t1)).shape + (3,))
         return self._integral_of_cbe(t0, t1) @ self.reference_specific_force
@@ -327,7 +438,17 @@ class PiecewiseRateProfile(MotionProfile):
 
 # --- presets ----------------------------------------------------------------------------
 def tkachenko_profile() -> PiecewiseRateProfile:
-    """000 §6: piecewise-constant body rates over [0, 30] s and Λ(0) = 0.64+0.48i1+0.36i2−0.48i3."""
+    """
+    Return the test motion of Tkachenko (1983, 000) §6.
+
+    Piecewise-constant body rates over [0, 30] s and Λ(0) = 0.64+0.48i1+0.36i2−0.48i3.
+
+    Returns
+    -------
+    PiecewiseRateProfile
+        The profile, no Earth rate, no gravity.
+
+    """
     table = [(0.01, 0.02, -0.01), (0.02, 0.32, -0.015), (0.01, 0.01, -0.02),
              (0.16, 0.015, -0.03), (0.03, 0.017, -0.16), (0.02, 0.02, -0.02)]
     return PiecewiseRateProfile([Segment(5.0, r) for r in table],
@@ -337,14 +458,38 @@ def tkachenko_profile() -> PiecewiseRateProfile:
 def bench_profile(latitude_deg: float = 50.45, earth_rate: bool = True,
                   hold: float = 20.0, rotation_time: float = 5.0,
                   angles_deg: Sequence[float] = (15.0, -12.0, 10.0, -15.0, 12.0, -10.0),
-                  axes: Sequence[int] = (2, 0, 1, 2, 0, 1), repeat: int = 1) -> PiecewiseRateProfile:
+                  axes: Sequence[int] = (2, 0, 1, 2, 0, 1),
+                  repeat: int = 1) -> PiecewiseRateProfile:
     """
-    A bench sequence in the spirit of 004 §6: static holds and 10–15° rotations about
-    the body z, x and y axes in turn, on a bench that turns with the Earth.
+    Return a bench sequence in the spirit of 004 §6.
 
-    Reference frame: inertial, coinciding with the local ENU frame at t = 0.  Earth rate in
-    ENU is Ω·[0, cos φ, sin φ]; gravity specific force [0, 0, g].  ``repeat`` runs the
-    sequence that many times (the turns of a pass cancel about each axis, so the attitude stays near the start).
+    Static holds and 10–15° rotations about the body z, x and y axes in turn, on a bench that
+    turns with the Earth.  Reference frame: inertial, coinciding with the local ENU frame at
+    t = 0.  Earth rate in ENU is Ω·[0, cos φ, sin φ]; gravity specific force [0, 0, g].
+
+    Parameters
+    ----------
+    latitude_deg : float
+        Latitude φ, degrees.
+    earth_rate : bool
+        The bench turns with the Earth.
+    hold : float
+        Length of each static hold, s.
+    rotation_time : float
+        Length of each rotation, s.
+    angles_deg : sequence of float
+        Rotation angles, degrees.
+    axes : sequence of int
+        Body axis of each rotation (0 x, 1 y, 2 z).
+    repeat : int
+        Passes of the sequence (the turns of a pass cancel about each axis, so the attitude
+        stays near the start).
+
+    Returns
+    -------
+    PiecewiseRateProfile
+        The profile.
+
     """
     segments = [Segment(hold)]
     for ang, ax in list(zip(angles_deg, axes)) * int(repeat):

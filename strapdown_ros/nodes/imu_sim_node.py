@@ -36,7 +36,7 @@ import numpy as np
 from rclpy.node import Node
 from sensor_msgs.msg import Imu
 
-from strapdown_ros.motion.earth_profiles import EarthProfile
+from strapdown_ros.motion.earth_motion import EarthProfile
 from strapdown_ros.motion.from_config import profile_from_config
 from strapdown_ros.nodes import ros_io
 from strapdown_ros.params import IMU_SIM_PARAMS

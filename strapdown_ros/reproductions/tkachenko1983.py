@@ -146,7 +146,7 @@ def simulate_000(quantum: float = 0.0, seed: int | None = 0, profile=None, c=TKA
                                   angle_noise=angle_noise,
                                   seed=None if seed is None else seed + 7919)
     if structure is TKACHENKO_STRUCTURE:
-        err = SensorErrorModel.from_tkachenko(c, quantum=quantum)
+        err = SensorErrorModel.from_symmetric_coefficients(c, quantum=quantum)
     else:
         err = SensorErrorModel()
     sensor = IntegratingSensor(prof, 'gyro', 1.0 / h, err, seed=seed)

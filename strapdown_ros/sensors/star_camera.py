@@ -1,11 +1,12 @@
 """
 Star camera (astro-visual unit, AVU) model: attitude of the camera frame VF at exposure epochs.
 
-Frames (Vasilyuk et al. 2024; paper 004, §1): MF is the IMU frame (the body frame of the SINS),
-VF the camera frame, GCRS
-the inertial reference.  The boresight ``C_MF^VF`` maps VF coordinates to MF coordinates,
-``C_MF^VF = R_z(−ψ) R_x(ϑ) R_y(γ)`` with β = (ψ, ϑ, γ) (:func:`~strapdown_ros.rotation.ypr_to_dcm`),
-so ``S_GCRS^VF = S_GCRS^MF · C_MF^VF`` and, as quaternions, ``q_GCRS_VF = q_GCRS_MF ⊗ q_MF_VF``.
+The camera of ``star_camera_sim_node`` and ``record_sim``.  Frames (Vasilyuk et al. 2024;
+paper 004, §1): MF is the IMU frame (the body frame of the SINS), VF the camera frame, GCRS the
+inertial reference.  The boresight ``C_MF^VF`` maps VF coordinates to MF coordinates,
+``C_MF^VF = R_z(−ψ) R_x(ϑ) R_y(γ)`` with β = (ψ, ϑ, γ)
+(:func:`~strapdown_ros.rotation.ypr_to_dcm`), so ``S_GCRS^VF = S_GCRS^MF · C_MF^VF`` and, as
+quaternions, ``q_GCRS_VF = q_GCRS_MF ⊗ q_MF_VF``.
 
 Measurement error (004 §3.3): ``S_GCRS^VF ≈ S̆_GCRS^VF (I + [θ×])`` with θ in VF axes,
 zero-mean Gaussian with covariance ``diag(σ_x², σ_y², σ_z²)``; the optical axis is VF z, where
@@ -21,16 +22,32 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from strapdown_ros.motion.profiles import MotionProfile
+from strapdown_ros.motion.profile_base import MotionProfile
 from strapdown_ros.rotation import (dcm_to_quat, quat_multiply, quat_normalize, rotvec_to_quat,
                                     ypr_to_dcm)
-from strapdown_ros.sensors import ARCSEC
+from strapdown_ros.sensors.model import ARCSEC
 
 __all__ = ['StarCameraModel', 'CameraFix']
 
 
 @dataclass
 class CameraFix:
+    """
+    One simulated camera fix.
+
+    Attributes
+    ----------
+    stamp : float
+        Header stamp, s (profile time).
+    attitude : (4,) ndarray
+        Measured q_GCRS_VF, scalar-first.
+    covariance : (3, 3) ndarray
+        Reported covariance, rad², VF axes.
+    true_attitude : (4,) ndarray
+        q_GCRS_VF at the instant the attitude belongs to.
+
+    """
+
     stamp: float                 # header stamp, s (profile time)
     attitude: np.ndarray         # measured q_GCRS_VF, scalar-first
     covariance: np.ndarray       # 3×3, rad², VF axes
@@ -39,6 +56,32 @@ class CameraFix:
 
 @dataclass
 class StarCameraModel:
+    """
+    The simulated star camera: boresight, exposure schedule, noise and timing effects.
+
+    Attributes
+    ----------
+    boresight : (3,) ndarray
+        β = (ψ, ϑ, γ), rad.
+    interval : float
+        Time between exposures, s.
+    sigma : (3,) ndarray
+        Reported noise σ about VF x, y, z, rad.
+    first_exposure : float or None
+        Stamp of the first exposure, s (None: one interval after t = 0).
+    time_offset : float
+        Camera clock minus IMU clock, s.
+    exposure_time : float
+        Exposure length, s.
+    stamp_at_exposure_start : bool
+        The stamp marks the start of the exposure (the attitude belongs to its middle).
+    seed : int
+        Seed of the noise stream.
+    noise_scale : (3,) ndarray
+        True noise σ ÷ reported σ per VF axis (effect ``camera_noise_anisotropy``).
+
+    """
+
     boresight: np.ndarray = field(default_factory=lambda: np.zeros(3))   # β = (ψ, ϑ, γ), rad
     interval: float = 20.0                          # s between exposures
     sigma: np.ndarray = field(default_factory=lambda: np.array([0.6, 0.6, 6.0]) * ARCSEC)
@@ -68,34 +111,83 @@ class StarCameraModel:
 
     @classmethod
     def from_params(cls, p: dict) -> 'StarCameraModel':
-        """The camera of ``star_camera_sim_node`` / ``record_sim`` from validated node parameters."""
+        """
+        Build the camera of ``star_camera_sim_node`` / ``record_sim``.
+
+        Parameters
+        ----------
+        p : dict
+            Validated node parameters (``boresight``, ``camera_*``, ``seed``).
+
+        Returns
+        -------
+        StarCameraModel
+            The camera.
+
+        """
         sxy, sz = float(p['camera_sigma_xy']), float(p['camera_sigma_z'])
         first = float(p['camera_first_exposure'])
-        return cls(boresight=np.asarray(p['boresight'], dtype=float), interval=float(p['camera_interval']),
-                   sigma=np.array([sxy, sxy, sz]), first_exposure=None if first == 0.0 else first,
-                   time_offset=float(p['camera_time_offset']), exposure_time=float(p['camera_exposure_time']),
-                   stamp_at_exposure_start=bool(p['camera_stamp_at_exposure_start']), seed=int(p['seed']),
-                   noise_scale=np.asarray(p.get('camera_noise_scale', (1.0, 1.0, 1.0)), dtype=float))
+        scale = p.get('camera_noise_scale', (1.0, 1.0, 1.0))
+        return cls(boresight=np.asarray(p['boresight'], dtype=float),
+                   interval=float(p['camera_interval']), sigma=np.array([sxy, sxy, sz]),
+                   first_exposure=None if first == 0.0 else first,
+                   time_offset=float(p['camera_time_offset']),
+                   exposure_time=float(p['camera_exposure_time']),
+                   stamp_at_exposure_start=bool(p['camera_stamp_at_exposure_start']),
+                   seed=int(p['seed']), noise_scale=np.asarray(scale, dtype=float))
 
     @property
     def c_mf_vf(self) -> np.ndarray:
+        """Boresight rotation C_MF^VF (VF → MF), 3×3."""
         return ypr_to_dcm(*self.boresight)
 
     @property
     def q_mf_vf(self) -> np.ndarray:
+        """Boresight quaternion q_MF_VF, scalar-first."""
         return dcm_to_quat(self.c_mf_vf)
 
     @property
     def covariance(self) -> np.ndarray:
+        """Fix covariance diag(σ²) the camera reports, rad², VF axes."""
         return np.diag(self.sigma ** 2)
 
     def epoch(self, n: int) -> float:
-        """Stamp of exposure n (n = 0, 1, ...)."""
+        """
+        Return the stamp of exposure n.
+
+        Parameters
+        ----------
+        n : int
+            Exposure index, 0, 1, ...
+
+        Returns
+        -------
+        float
+            Stamp, s.
+
+        """
         first = self.interval if self.first_exposure is None else self.first_exposure
         return first + n * self.interval
 
     def fixes(self, profile: MotionProfile, count: int) -> list[CameraFix]:
-        """The next ``count`` fixes (advances the exposure counter and the noise stream)."""
+        """
+        Simulate the next ``count`` camera exposures.
+
+        Advances the exposure counter and the noise stream.
+
+        Parameters
+        ----------
+        profile : MotionProfile
+            The exact motion.
+        count : int
+            Number of fixes.
+
+        Returns
+        -------
+        list of CameraFix
+            The fixes.
+
+        """
         out = []
         q_mf_vf = self.q_mf_vf
         for _ in range(count):

@@ -23,8 +23,9 @@ from strapdown_ros.calibration.integral_method import (calibrate_from_measuremen
                                                        IntervalMeans, invert_step,
                                                        mean_measured_rate, mean_true_rate,
                                                        PARAMETER_LABELS, step_increments)
-from strapdown_ros.motion.profiles import (ConingProfile, MotionProfile, PiecewiseRateProfile,
-                                           Segment, tkachenko_profile)
+from strapdown_ros.motion.profile_base import MotionProfile
+from strapdown_ros.motion.profiles import (ConingProfile, PiecewiseRateProfile, Segment,
+                                           tkachenko_profile)
 from strapdown_ros.reproductions.ilyushenko2009 import simulate_measurements
 from strapdown_ros.rotation import (quat_angle_between, quat_conjugate, quat_cumprod,
                                     quat_multiply, quat_normalize, quat_rotate, quat_to_dcm,

@@ -14,7 +14,8 @@ import numpy as np
 import pytest
 
 from strapdown_ros.earth import enu_rotation, geodetic_to_ecef, normal_gravity, OMEGA
-from strapdown_ros.motion.earth_profiles import (coordinated_turn_profile, EarthProfile,
+from strapdown_ros.motion.earth_motion import EarthProfile
+from strapdown_ros.motion.earth_profiles import (coordinated_turn_profile,
                                                  navigation_profile_from_config,
                                                  NAVIGATION_PROFILE_NAMES, sculling_drift_rate,
                                                  sculling_profile, static_profile,
@@ -31,14 +32,16 @@ PROFILES = {
     'straight': lambda: straight_flight_profile(LAT, LON, H, speed=250.0, heading=0.7),
     'turn': lambda: coordinated_turn_profile(LAT, LON, H, speed=100.0, radius=2000.0, heading=0.4),
     # 1 Hz: slow enough for finite differences on ECEF coordinates of 6.4e6 m
-    'sculling_1hz': lambda: sculling_profile(LAT, LON, H, angle_amplitude=0.02, accel_amplitude=1.0,
-                                             frequency=1.0, yaw=0.5),
-    'sculling': lambda: sculling_profile(LAT, LON, H, angle_amplitude=0.01, accel_amplitude=1.0, frequency=10.0),
-    'sculling_slow': lambda: sculling_profile(LAT, LON, H, angle_amplitude=0.05, accel_amplitude=0.5,
-                                              frequency=0.2, yaw=-1.0),
+    'sculling_1hz': lambda: sculling_profile(LAT, LON, H, angle_amplitude=0.02,
+                                             accel_amplitude=1.0, frequency=1.0, yaw=0.5),
+    'sculling': lambda: sculling_profile(LAT, LON, H, angle_amplitude=0.01, accel_amplitude=1.0,
+                                         frequency=10.0),
+    'sculling_slow': lambda: sculling_profile(LAT, LON, H, angle_amplitude=0.05,
+                                              accel_amplitude=0.5, frequency=0.2, yaw=-1.0),
 }
 FD = [(-2, 1 / 12), (-1, -8 / 12), (1, 8 / 12), (2, -1 / 12)]      # 5-point first derivative
-FD2 = [(-2, -1 / 12), (-1, 16 / 12), (0, -30 / 12), (1, 16 / 12), (2, -1 / 12)]   # second derivative
+# 5-point second derivative
+FD2 = [(-2, -1 / 12), (-1, 16 / 12), (0, -30 / 12), (1, 16 / 12), (2, -1 / 12)]
 TIMES = np.array([0.0, 0.37, 3.3, 41.7, 117.0])
 
 
@@ -57,19 +60,24 @@ def test_finite_differences_match_velocity_acceleration_and_rates(name):
     p = PROFILES[name]()
     dt = 0.01
     t = TIMES
-    # position → velocity: round-off of 6.4e6 m coordinates (1e-9 m) / dt and dt⁴ truncation: ≤ 1e-6 m/s
+    # position → velocity: round-off of 6.4e6 m coordinates (1e-9 m) / dt and dt⁴ truncation:
+    # ≤ 1e-6 m/s
     np.testing.assert_allclose(derivative(p.position, t, dt), p.velocity(t), rtol=0, atol=1e-6)
     # velocity → acceleration: truncation dt⁴·max|R⁽⁵⁾|/30 = 2e-8 m/s² for the 1 Hz sculling
-    np.testing.assert_allclose(derivative(p.velocity, t, dt / 2), p.acceleration(t), rtol=0, atol=5e-8)
-    # attitude → rates: q_E_B gives ω_EB, q_I_B the absolute body rate (1e-10 rad/s; truncation 7e-12)
-    np.testing.assert_allclose(rate_from(p.attitude_ecef, t, dt / 10), p.earth_relative_rate(t), rtol=0, atol=1e-10)
-    np.testing.assert_allclose(rate_from(p.attitude, t, dt / 10), p.body_rate(t), rtol=0, atol=1e-10)
+    np.testing.assert_allclose(derivative(p.velocity, t, dt / 2), p.acceleration(t), rtol=0,
+                               atol=5e-8)
+    # attitude → rates: q_E_B gives ω_EB, q_I_B the absolute body rate (1e-10 rad/s;
+    # truncation 7e-12)
+    np.testing.assert_allclose(rate_from(p.attitude_ecef, t, dt / 10), p.earth_relative_rate(t),
+                               rtol=0, atol=1e-10)
+    np.testing.assert_allclose(rate_from(p.attitude, t, dt / 10), p.body_rate(t), rtol=0,
+                               atol=1e-10)
 
 
 @pytest.mark.parametrize('name', ['static', 'straight', 'turn', 'sculling_slow'])
 def test_specific_force_from_inertial_acceleration(name):
     """
-    f = C_B_I (r̈_I − G): r_I = C_I_E(t) R(t) differenced twice, G = g − centrifugal.
+    Check f = C_B_I (r̈_I − G): r_I = C_I_E(t) R(t) differenced twice, G = g − centrifugal.
 
     Tolerance 1e-5 m/s² (1 µg): the ECEF coordinates carry ~1e-9 m of round-off, which a second
     difference with dt = 0.05 s amplifies to ~2e-6 m/s²; Coriolis is 1e-2…4e-2 m/s² here.
@@ -77,16 +85,22 @@ def test_specific_force_from_inertial_acceleration(name):
     p = PROFILES[name]()
     r0 = p.initial_position
     dt = 0.05
-    rz = lambda s: np.stack([np.stack([np.cos(OMEGA * s), -np.sin(OMEGA * s), 0 * s], -1),  # noqa: E731
-                             np.stack([np.sin(OMEGA * s), np.cos(OMEGA * s), 0 * s], -1),
-                             np.stack([0 * s, 0 * s, 1 + 0 * s], -1)], -2)
+
+    def rz(s):
+        return np.stack([np.stack([np.cos(OMEGA * s), -np.sin(OMEGA * s), 0 * s], -1),
+                         np.stack([np.sin(OMEGA * s), np.cos(OMEGA * s), 0 * s], -1),
+                         np.stack([0 * s, 0 * s, 1 + 0 * s], -1)], -2)
+
+    # r_I = C_I_E(R − R0) + C_I_E R0; the second term's second derivative is analytic
+    def moving(s):
+        return rz(s) @ (p.position(s) - r0)
+
     for t in TIMES:
-        # r_I = C_I_E(R − R0) + C_I_E R0; the second term's second derivative is analytic
-        moving = lambda s: rz(s) @ (p.position(s) - r0)  # noqa: E731
         acc_i = sum(w * moving(t + k * dt) for k, w in FD2) / dt ** 2
         acc_i = acc_i + rz(t) @ (np.array([-OMEGA ** 2, -OMEGA ** 2, 0.0]) * r0)
         r = p.position(t)
-        gravitation = normal_gravity(r, model=p.gravity_model) - OMEGA ** 2 * np.array([r[0], r[1], 0.0])
+        centrifugal = OMEGA ** 2 * np.array([r[0], r[1], 0.0])
+        gravitation = normal_gravity(r, model=p.gravity_model) - centrifugal
         f_i = acc_i - rz(t) @ gravitation
         f_b = quat_to_dcm(p.attitude(t)).T @ f_i
         np.testing.assert_allclose(f_b, p.specific_force(t), rtol=0, atol=1e-5)
@@ -103,11 +117,14 @@ def test_static_closed_forms():
     # level: f along body up, up to the model's deflection from the ellipsoid normal: 003's
     # first-order formula ≈ 2.2″ here (1.05e-4 m/s² north), the exact normal field < 1.5e-7 rad
     assert np.all(np.hypot(f[:, 0], f[:, 1]) < 1.2e-4) and np.all(f[:, 2] > 9.8)
-    f_exact = static_profile(LAT, LON, H, yaw=yaw, gravity_model='normal_exact').specific_force(0.0)
+    exact = static_profile(LAT, LON, H, yaw=yaw, gravity_model='normal_exact')
+    f_exact = exact.specific_force(0.0)
     assert np.hypot(f_exact[0], f_exact[1]) < 1.5e-6
     # Earth rate in ENU is Ω[0, cos φ, sin φ]; body = ENU turned by yaw about up
     w_enu = OMEGA * np.array([0.0, np.cos(LAT), np.sin(LAT)])
-    w_body = np.array([[np.cos(yaw), np.sin(yaw), 0], [-np.sin(yaw), np.cos(yaw), 0], [0, 0, 1]]) @ w_enu
+    c_body_enu = np.array([[np.cos(yaw), np.sin(yaw), 0], [-np.sin(yaw), np.cos(yaw), 0],
+                           [0, 0, 1]])
+    w_body = c_body_enu @ w_enu
     np.testing.assert_allclose(p.body_rate(t), np.broadcast_to(w_body, (7, 3)), rtol=0, atol=1e-19)
     np.testing.assert_allclose(quat_to_dcm(p.attitude_ecef(0.0))[:, 0],
                                enu_rotation(LAT, LON) @ [np.cos(yaw), np.sin(yaw), 0], atol=1e-15)
@@ -115,14 +132,15 @@ def test_static_closed_forms():
     t0 = np.arange(0, 1000) / 300.0 + 17.0
     t1 = t0 + 1 / 300.0
     np.testing.assert_allclose(p.delta_v(t0, t1), f[0] * (t1 - t0)[:, None], rtol=1e-13, atol=0)
-    np.testing.assert_allclose(p.delta_theta(t0, t1), w_body * (t1 - t0)[:, None], rtol=1e-13, atol=0)
+    np.testing.assert_allclose(p.delta_theta(t0, t1), w_body * (t1 - t0)[:, None], rtol=1e-13,
+                               atol=0)
     np.testing.assert_allclose(p.delta_v(0.0, 600.0), f[0] * 600.0, rtol=1e-14)
     np.testing.assert_allclose(p.velocity(t), 0.0)
 
 
 @pytest.mark.parametrize('name', ['static', 'straight', 'turn'])
 def test_delta_theta_and_attitude_match_closed_form_rodrigues(name):
-    """ω_EB constant in body axes: PiecewiseRateProfile integrates ω_EB + C_B_E Ω_E in closed form."""
+    """ω_EB constant in body axes: PiecewiseRateProfile integrates ω_EB + C_B_E Ω_E exactly."""
     p = PROFILES[name]()
     w = p.earth_relative_rate(0.0)
     # Δθ depends only on q_E_B at the interval start: one reference per block start T, so that
@@ -187,9 +205,10 @@ def test_straight_flight_geometry():
     np.testing.assert_allclose(np.linalg.norm(tr['position'], axis=-1), r0, rtol=1e-15)
     np.testing.assert_allclose(np.linalg.norm(tr['velocity'], axis=-1), 250.0, rtol=1e-14)
     c = quat_to_dcm(tr['attitude_ecef'])
-    np.testing.assert_allclose(c[..., 0], tr['velocity'] / 250.0, atol=1e-14)          # x along velocity
-    np.testing.assert_allclose(c[..., 2], tr['position'] / r0, atol=1e-14)             # z geocentric up
-    np.testing.assert_allclose(tr['velocity_body'], np.broadcast_to([250.0, 0, 0], (50, 3)), atol=1e-11)
+    np.testing.assert_allclose(c[..., 0], tr['velocity'] / 250.0, atol=1e-14)   # x along velocity
+    np.testing.assert_allclose(c[..., 2], tr['position'] / r0, atol=1e-14)      # z geocentric up
+    np.testing.assert_allclose(tr['velocity_body'], np.broadcast_to([250.0, 0, 0], (50, 3)),
+                               atol=1e-11)
     # the initial direction is the ENU heading (up to the geodetic/geocentric up difference)
     enu = enu_rotation(LAT, LON).T @ p.initial_velocity
     # (projecting on the plane ⟂ R0 turns the azimuth by 5e-6 rad here)
@@ -218,7 +237,8 @@ def test_coordinated_turn_is_coordinated():
     assert np.max(np.abs(f_rel[:, 0])) < 1e-5
     # f_z = √(g² + (v²/ρ − gρ/R)²): the centripetal term less the outward tilt of the vertical
     g0 = p.parameters['g0']
-    np.testing.assert_allclose(f_rel[:, 2], np.hypot(g0, 100.0 ** 2 / 2000.0 - g0 * 2000.0 / 6.382e6), rtol=3e-6)
+    f_z = np.hypot(g0, 100.0 ** 2 / 2000.0 - g0 * 2000.0 / 6.382e6)
+    np.testing.assert_allclose(f_rel[:, 2], f_z, rtol=3e-6)
     assert _turn_truth()[0].gravity_model == 'normal_exact'            # the package default
     p3, tr3, f3 = _turn_truth(gravity_model='pz90_003')
     assert np.max(np.abs(f3[:, 1])) < 1.2e-4 and np.max(np.abs(f3[:, 0])) < 1.2e-4
@@ -233,10 +253,12 @@ def test_coordinated_turn_is_coordinated():
     assert 0.5 * OMEGA * 100.0 < np.max(np.abs(coriolis_y)) <= 2 * OMEGA * 100.0
     # closed circle, constant speed, body x along velocity; the height rises by ρ²/2R
     np.testing.assert_allclose(tr['position'][-1], tr['position'][0], atol=1e-8)
-    np.testing.assert_allclose(tr['velocity_body'], np.broadcast_to([100.0, 0, 0], (721, 3)), atol=1e-11)
+    np.testing.assert_allclose(tr['velocity_body'], np.broadcast_to([100.0, 0, 0], (721, 3)),
+                               atol=1e-11)
     np.testing.assert_allclose(tr['height'], H + 2000.0 ** 2 / (2 * 6.38e6), atol=0.01)
     assert np.ptp(tr['height']) < 5e-3
-    np.testing.assert_allclose(np.linalg.norm(tr['position'] - p.parameters['centre'], axis=-1), 2000.0, rtol=1e-12)
+    radius = np.linalg.norm(tr['position'] - p.parameters['centre'], axis=-1)
+    np.testing.assert_allclose(radius, 2000.0, rtol=1e-12)
 
 
 def test_sculling_velocity_is_periodic_and_drift_formula_matches():
@@ -247,9 +269,12 @@ def test_sculling_velocity_is_periodic_and_drift_formula_matches():
     # to the round-off of the phase w·t (~1e-13 of B/w = 0.016 m/s)
     np.testing.assert_allclose(p.velocity(t + 1 / fz), p.velocity(t), rtol=0, atol=1e-14)
     np.testing.assert_allclose(p.velocity(t + 0.5 / fz), -p.velocity(t), rtol=0, atol=1e-14)
-    np.testing.assert_allclose(np.mean(p.velocity(np.arange(0, 100) / (100 * fz)), axis=0), 0.0, atol=1e-16)
-    np.testing.assert_allclose(p.initial_velocity, -(B / w) * enu_rotation(LAT, LON)[:, 1], atol=1e-15)
-    np.testing.assert_allclose(quat_angle_between(p.attitude_ecef(t + 1 / fz), p.attitude_ecef(t)), 0, atol=1e-9)
+    mean_v = np.mean(p.velocity(np.arange(0, 100) / (100 * fz)), axis=0)
+    np.testing.assert_allclose(mean_v, 0.0, atol=1e-16)
+    np.testing.assert_allclose(p.initial_velocity, -(B / w) * enu_rotation(LAT, LON)[:, 1],
+                               atol=1e-15)
+    after_period = quat_angle_between(p.attitude_ecef(t + 1 / fz), p.attitude_ecef(t))
+    np.testing.assert_allclose(after_period, 0, atol=1e-9)
     # ½∫(α×f + v×ω) dt over each interval, α, v the exact increments from the interval start
     h = 1 / 300.0
     t0 = 3.0 + np.arange(600) * h + 1e-4                     # 20 sculling periods, all phases
@@ -287,18 +312,21 @@ def test_profile_from_config_builds_navigation_profiles():
     for name in NAVIGATION_PROFILE_NAMES:
         p = profile_from_config({'profile': name})
         assert isinstance(p, EarthProfile) and p.name == name
-        np.testing.assert_allclose(p.initial_position, geodetic_to_ecef(np.radians(50.45), np.radians(30.52), 150.0)
-                                   if name != 'coordinated_turn' else p.initial_position)
+        start = geodetic_to_ecef(np.radians(50.45), np.radians(30.52), 150.0)
+        np.testing.assert_allclose(p.initial_position,
+                                   start if name != 'coordinated_turn' else p.initial_position)
     cfg = {'profile': 'coordinated_turn', 'nav_latitude_deg': -33.0, 'nav_longitude_deg': 151.0,
            'nav_height': 10.0, 'nav_speed': 60.0, 'nav_heading_deg': 90.0, 'turn_radius': 500.0}
     p = profile_from_config(cfg)
     assert p.parameters['speed'] == 60.0 and p.parameters['radius'] == 500.0
-    np.testing.assert_allclose(p.parameters['centre'], geodetic_to_ecef(np.radians(-33.0), np.radians(151.0), 10.0))
-    np.testing.assert_allclose(enu_rotation(np.radians(-33.0), np.radians(151.0)).T @ p.initial_velocity,
+    lat, lon = np.radians(-33.0), np.radians(151.0)
+    np.testing.assert_allclose(p.parameters['centre'], geodetic_to_ecef(lat, lon, 10.0))
+    np.testing.assert_allclose(enu_rotation(lat, lon).T @ p.initial_velocity,
                                [0.0, 60.0, 0.0], atol=1e-12)               # heading 90° = north
-    s = navigation_profile_from_config({'profile': 'sculling', 'sculling_angle': 0.02, 'sculling_accel': 2.0,
-                                        'sculling_frequency': 5.0})
-    assert s.parameters['angle_amplitude'] == 0.02 and s.parameters['omega'] == pytest.approx(10 * np.pi)
+    s = navigation_profile_from_config({'profile': 'sculling', 'sculling_angle': 0.02,
+                                        'sculling_accel': 2.0, 'sculling_frequency': 5.0})
+    assert s.parameters['angle_amplitude'] == 0.02
+    assert s.parameters['omega'] == pytest.approx(10 * np.pi)
     assert straight_flight_profile(LAT, LON, H).parameters['speed'] == 200.0
     assert profile_from_config({'profile': 'straight_flight'}).parameters['speed'] == 200.0
     with pytest.raises(ValueError):

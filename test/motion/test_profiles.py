@@ -51,11 +51,14 @@ def test_coning_printed_dcm_26_has_misprints_and_rodrigues_25_is_used():
     alpha, nu, t = 0.3, 1.0, 0.7
     p = ConingProfile(alpha, nu)
     c, s, v = np.cos(alpha), np.sin(alpha), nu * t
-    printed = np.array([[c + (1 - c) * np.sin(v) ** 2, -0.5 * (1 - c) * np.sin(2 * v), s * np.cos(v)],
-                        [0.5 * (1 - c) * np.sin(2 * v), c + (1 - c) * np.sin(v) ** 2, -s * np.sin(v)],
+    sin2 = (1 - c) * np.sin(v) ** 2
+    cross = 0.5 * (1 - c) * np.sin(2 * v)
+    printed = np.array([[c + sin2, -cross, s * np.cos(v)],
+                        [cross, c + sin2, -s * np.sin(v)],
                         [-s * np.cos(v), s * np.sin(v), c]])
     U = quat_to_dcm(p.attitude(t))
-    np.testing.assert_allclose(U, rotvec_to_dcm(alpha * np.array([np.sin(v), np.cos(v), 0.0])), atol=1e-15)
+    rodrigues = rotvec_to_dcm(alpha * np.array([np.sin(v), np.cos(v), 0.0]))
+    np.testing.assert_allclose(U, rodrigues, atol=1e-15)
     wrong = np.abs(printed - U) > 1e-9
     assert wrong[0, 1] and wrong[1, 1] and wrong.sum() == 2       # U12 sign, U22 sin² → cos²
     corrected = printed.copy()
@@ -116,8 +119,8 @@ def test_tkachenko_table_and_initial_quaternion():
     np.testing.assert_allclose(p.attitude(0.0), [0.64, 0.48, 0.36, -0.48], atol=1e-15)
     np.testing.assert_allclose(p.body_rate(7.0), [0.02, 0.32, -0.015])
     np.testing.assert_allclose(p.body_rate(29.0), [0.02, 0.02, -0.02])
-    np.testing.assert_allclose(p.delta_theta(4.99, 5.01), [0.01 * 0.01 + 0.02 * 0.01, 0.02 * 0.01 + 0.32 * 0.01,
-                                                           -0.01 * 0.01 - 0.015 * 0.01], atol=1e-17)
+    across = [0.01 * 0.01 + 0.02 * 0.01, 0.02 * 0.01 + 0.32 * 0.01, -0.01 * 0.01 - 0.015 * 0.01]
+    np.testing.assert_allclose(p.delta_theta(4.99, 5.01), across, atol=1e-17)
     pytest.importorskip('scipy')
     q_ode = ode_attitude(p, 30.0, p.attitude(0.0))
     assert quat_angle_between(q_ode, p.attitude(30.0)) < 1e-10
@@ -125,11 +128,13 @@ def test_tkachenko_table_and_initial_quaternion():
 
 def test_user_profile_from_yaml(tmp_path):
     f = tmp_path / 'profile.yaml'
-    f.write_text('initial_attitude: [1, 0, 0, 0]\nsegments:\n  - {duration: 1.0, rate: [0, 0, 0.5]}\n'
+    f.write_text('initial_attitude: [1, 0, 0, 0]\nsegments:\n'
+                 '  - {duration: 1.0, rate: [0, 0, 0.5]}\n'
                  '  - {duration: 2.0, rate: [0.1, 0, 0]}\n')
     p = load_piecewise_profile(str(f))
     assert p.duration == 3.0
-    expected = quat_multiply(np.array([np.cos(0.25), 0, 0, np.sin(0.25)]), np.array([np.cos(0.1), np.sin(0.1), 0, 0]))
+    expected = quat_multiply(np.array([np.cos(0.25), 0, 0, np.sin(0.25)]),
+                             np.array([np.cos(0.1), np.sin(0.1), 0, 0]))
     assert quat_angle_between(p.attitude(3.0), expected) < 1e-15
     bad = tmp_path / 'bad.yaml'
     bad.write_text('segments:\n  - {duration: -1.0}\n')

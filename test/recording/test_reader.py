@@ -13,7 +13,7 @@ import pytest
 
 pytest.importorskip('rosbags')
 
-from strapdown_ros.motion.profiles import MotionProfile  # noqa: E402
+from strapdown_ros.motion.profile_base import MotionProfile  # noqa: E402
 from strapdown_ros.recording import read_bag  # noqa: E402
 from strapdown_ros.rotation import (dcm_to_quat, from_ros_xyzw, quat_conjugate, quat_error_rotvec,
                                     quat_multiply, rotvec_to_quat, to_ros_xyzw, ypr_to_dcm)

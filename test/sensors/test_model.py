@@ -10,7 +10,7 @@ from strapdown_ros.sensors import (increment_correction, increment_covariance, I
 def test_error_model_constants_are_applied_exactly():
     p = tkachenko_profile()
     c = np.array([3e-4, 3e-4, 3e-4, 5e-4, 5e-4, -5e-4, 1e-5, -1e-5, -1e-5])     # 000 §6
-    err = SensorErrorModel.from_tkachenko(c)
+    err = SensorErrorModel.from_symmetric_coefficients(c)
     s = IntegratingSensor(p, 'gyro', 50.0, err)
     t, meas, true = s.sample(1500)
     # Δω = D(ω)c with D = [D_I D_II E3] (000 §6), checked on the known piecewise rate
@@ -51,7 +51,8 @@ def test_random_constants_follow_sigmas():
 def test_quantizer_carries_the_remainder_5_1():
     sigma = 2e-5
     rng = np.random.default_rng(5)
-    theta = np.cumsum(rng.normal(0, 1e-6, (5000, 3)), axis=0) * 1e-2 + rng.normal(0, 3e-5, (5000, 3))
+    theta = (np.cumsum(rng.normal(0, 1e-6, (5000, 3)), axis=0) * 1e-2
+             + rng.normal(0, 3e-5, (5000, 3)))
     q = PulseQuantizer(sigma)
     out = np.vstack([q(theta[:1234]), q(theta[1234:])])            # block boundary must not matter
     # every output is a whole number of pulses
@@ -71,6 +72,8 @@ def test_quantizer_pulse_rule_is_the_play_operator():
 
 def test_increment_correction_5_6_removes_the_mean_error():
     """
+    Check that (5.6) centres the accumulated error where every interval holds pulses.
+
     The raw accumulated pulse error is −(remainder), mean −σ/2·sign; (5.6) adds
     ½σ(sign θ*_k − sign θ*_{k−1}), whose running sum is ½σ·sign θ*_k, so it centres the
     error whenever every interval contains pulses (|θ_k| > σ, the regime of 000 §6 where
@@ -86,15 +89,16 @@ def test_increment_correction_5_6_removes_the_mean_error():
     err_cor = np.cumsum(corr - theta, axis=0)[100:].mean(0)
     np.testing.assert_allclose(err_raw, -0.5 * sigma * np.sign(theta[0]), atol=0.1 * sigma)
     np.testing.assert_allclose(err_cor[:2], 0.0, atol=0.1 * sigma)         # dense pulses: centred
-    assert abs(err_cor[2]) > 0.2 * sigma                                      # sparse pulses: not centred
+    assert abs(err_cor[2]) > 0.2 * sigma                             # sparse pulses: not centred
     np.testing.assert_array_equal(last, np.sign(out[-1]))
 
 
 def test_increment_covariance_004():
     rho = np.array([[1e-3, 2e-3, -3e-3]])
-    P = increment_covariance(rho, 0.005, bias_sigma=1e-7, scale_sigma=1e-5, misalignment_sigma=1e-5,
-                             random_walk=3e-7)[0]
-    expect = 1e-10 * np.array([13e-6, 10e-6, 5e-6]) + 1e-10 * rho[0] ** 2 + (1e-7 * 0.005) ** 2 + 9e-14 * 0.005
+    P = increment_covariance(rho, 0.005, bias_sigma=1e-7, scale_sigma=1e-5,
+                             misalignment_sigma=1e-5, random_walk=3e-7)[0]
+    expect = (1e-10 * np.array([13e-6, 10e-6, 5e-6]) + 1e-10 * rho[0] ** 2
+              + (1e-7 * 0.005) ** 2 + 9e-14 * 0.005)
     np.testing.assert_allclose(np.diag(P), expect, rtol=1e-12)
     assert np.count_nonzero(P - np.diag(np.diag(P))) == 0
 
