@@ -17,7 +17,7 @@ read it from a bag.  Two estimators, both the package's library code:
   step with the covariance of the equations built from the recording's own noise: every
   equation uses the fix at t0, so its error is common to all of them (000 does not model it),
   and the gyro random walk accumulates in the computed increments.  That covariance
-  (:func:`tkachenko_noise_covariance`) is first-order exact; Monte Carlo results are in
+  (:func:`drifting_reference_noise_covariance`) is first-order exact; Monte Carlo results are in
   doc/calibration/gyro_bag.md.
 
 Common parameters (what both methods publish, and what the effect registry compensates,
@@ -43,13 +43,14 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from strapdown_ros.calibration.boresight import axis_alignment
-from strapdown_ros.calibration.drifting_reference import (ErrorStructure, estimate, identity_G,
-                                                          measurement_rows,
-                                                          predicted_reference_increments,
-                                                          psi_matrix, theta_quadrature,
-                                                          tkachenko_D)
-from strapdown_ros.calibration.integral_method import (aligned_basis, calibrate_from_measurements,
-                                                       interval_boundaries)
+from strapdown_ros.calibration.drifting_reference import (estimate, measurement_rows,
+                                                          predicted_reference_increments)
+from strapdown_ros.calibration.drifting_reference_model import (ErrorStructure, identity_G,
+                                                                psi_matrix,
+                                                                scale_misalignment_bias_D,
+                                                                theta_quadrature)
+from strapdown_ros.calibration.integral_method import aligned_basis, calibrate_from_measurements
+from strapdown_ros.calibration.interval_means import interval_boundaries
 from strapdown_ros.calibration.pairs import build_pairs, GyroRecord
 from strapdown_ros.estimation.chi_square import chi2_band, FIT_LEVEL
 from strapdown_ros.estimation.observability import analyze_information, ObservabilityReport
@@ -58,7 +59,7 @@ from strapdown_ros.rotation import (dcm_to_quat, quat_conjugate, quat_multiply, 
 from strapdown_ros.sensors.effects import CameraEffects, GyroEffects, MISALIGNMENT_INDEX
 
 __all__ = ['COMMON_LABELS', 'DRIFT_LABELS', 'ESTIMATED_PARAMETERS', 'GyroCalibration', 'prepare',
-           'calibrate_integral', 'calibrate_tkachenko', 'model_parameters', 'tkachenko_noise_covariance',
+           'calibrate_integral', 'calibrate_drifting_reference', 'model_parameters', 'drifting_reference_noise_covariance',
            'MAX_EQUATIONS']
 
 COMMON_LABELS = ('scale_x', 'scale_y', 'scale_z', 'mis_xy', 'mis_xz', 'mis_yz', 'bias_x', 'bias_y', 'bias_z')
@@ -284,7 +285,7 @@ def _segment(prep: Prepared):
     return (g, h, b, quat_normalize(q_b[first]), prep.fix_P[keep][first], qc[first])
 
 
-def tkachenko_noise_covariance(P_ref, P_hat, cam_q, cam_P, t_rel, random_walk: float) -> np.ndarray:
+def drifting_reference_noise_covariance(P_ref, P_hat, cam_q, cam_P, t_rel, random_walk: float) -> np.ndarray:
     """
     Covariance (3J × 3J) of the residuals z_j = p̂*_j − p_j of the J equations (epochs 1..J,
     reference epoch 0 = row 0 of ``cam_q``/``cam_P``; ``P_ref``/``P_hat`` (J, 4)).
@@ -323,7 +324,7 @@ def _no_drift(t):
 def _whitened_equations(x, M0, meas, h, epochs, structure, q_b, P_b, random_walk, algorithm):
     """
     The equations (2.7) linearised at x ('identity' coefficients, as :func:`estimate`), whitened
-    by :func:`tkachenko_noise_covariance`: (U_w, z_w, equations used).
+    by :func:`drifting_reference_noise_covariance`: (U_w, z_w, equations used).
     """
     P_hat, Lam, th = predicted_reference_increments(x, M0, meas, h, epochs, structure, algorithm)
     P_ref = quat_multiply(q_b[1:], quat_conjugate(q_b[0]))
@@ -335,13 +336,13 @@ def _whitened_equations(x, M0, meas, h, epochs, structure, q_b, P_b, random_walk
                    for j in np.nonzero(keep)[0]])
     z = (P_hat[keep, 1:] - P_ref[keep, 1:]).ravel()
     cam = np.concatenate([[0], 1 + np.nonzero(keep)[0]])
-    R = tkachenko_noise_covariance(P_ref[keep], P_hat[keep], q_b[cam], P_b[cam], h * epochs[keep], random_walk)
+    R = drifting_reference_noise_covariance(P_ref[keep], P_hat[keep], q_b[cam], P_b[cam], h * epochs[keep], random_walk)
     s = np.sqrt(np.maximum(np.diag(R), 1e-300))
     L = np.linalg.cholesky(R / np.outer(s, s) + 1e-12 * np.eye(len(s)))
     return np.linalg.solve(L, U / s[:, None]), np.linalg.solve(L, z / s), int(keep.sum())
 
 
-def calibrate_tkachenko(prep: Prepared, drift: bool = False, sigma_limit: float = 1e-3, algorithm: str = '2',
+def calibrate_drifting_reference(prep: Prepared, drift: bool = False, sigma_limit: float = 1e-3, algorithm: str = '2',
                         progress=None) -> GyroCalibration:
     """
     000 on the recording (module docstring): x = [w0, c, d] with c = 000 §6's nine gyro errors
@@ -357,7 +358,7 @@ def calibrate_tkachenko(prep: Prepared, drift: bool = False, sigma_limit: float 
     if len(b) > MAX_EQUATIONS + 1:            # the dense noise covariance: fixes evenly thinned
         pick = np.unique(np.round(np.linspace(0, len(b) - 1, MAX_EQUATIONS + 1)).astype(int))
         b, q_b, P_b = b[pick], q_b[pick], P_b[pick]
-    structure = ErrorStructure(D=tkachenko_D, m=3, G=identity_G if drift else _no_drift, n=1 if drift else 0)
+    structure = ErrorStructure(D=scale_misalignment_bias_D, m=3, G=identity_G if drift else _no_drift, n=1 if drift else 0)
     b0 = int(b[0])
     meas = g.rho[b0 + 1:int(b[-1]) + 1]                # increments after boundary b0
     epochs = (b[1:] - b0).astype(int)

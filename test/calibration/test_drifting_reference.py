@@ -6,15 +6,20 @@ experiment beside the published numbers, and observability (§3, §4).
 import numpy as np
 import pytest
 
-from strapdown_ros.calibration.drifting_reference import (bias_D, error_at_epochs, ErrorStructure,
-                                                          estimate, GyrostabilizerReference,
-                                                          integrate_attitude, measurement_rows,
-                                                          NormalEquations, PAPER_000, psi_matrix,
-                                                          quat_to_aircraft_angles, rank_test,
-                                                          simple_case_test, theta_quadrature,
-                                                          TKACHENKO_C, TKACHENKO_D, tkachenko_D,
-                                                          TKACHENKO_PHI0, TKACHENKO_STRUCTURE,
-                                                          TKACHENKO_W0)
+from strapdown_ros.calibration.drifting_reference import (error_at_epochs, estimate,
+                                                          measurement_rows, NormalEquations)
+from strapdown_ros.calibration.drifting_reference_model import (bias_D, ErrorStructure,
+                                                                GyrostabilizerReference,
+                                                                integrate_attitude, PAPER_000,
+                                                                PAPER_000_C, PAPER_000_D,
+                                                                PAPER_000_PHI0, PAPER_000_W0,
+                                                                psi_matrix,
+                                                                quat_to_aircraft_angles,
+                                                                SCALE_MISALIGNMENT_BIAS,
+                                                                scale_misalignment_bias_D,
+                                                                theta_quadrature)
+from strapdown_ros.calibration.drifting_reference_observability import (rank_test,
+                                                                        simple_case_test)
 from strapdown_ros.motion.profiles import PiecewiseRateProfile, Segment, tkachenko_profile
 from strapdown_ros.reproductions.tkachenko1983 import (monte_carlo_000, run_tkachenko_experiment,
                                                        simulate_000)
@@ -39,7 +44,7 @@ def test_paper_numbers_transcribed():
     assert u['w0'] == [-0.67e-5, 0.32e-5, -1.3e-5] and u['dc'][5] == -2.4e-8 and u['dd'] == [-2.2e-7, 2.1e-7, -2.5e-7]
     assert r['w0'] == [-2e-5, 0.5e-5, -3.2e-5] and r['dc'][3] == 1.8e-5 and r['dd'][2] == -1.4e-6
     assert c['w0'] == [1.7e-5, 0.83e-5, -1.4e-5] and c['dc'][2] == -1.8e-5 and c['dd'][0] == 2.9e-7
-    np.testing.assert_allclose(TKACHENKO_C, [3e-4, 3e-4, 3e-4, 5e-4, 5e-4, -5e-4, 1e-5, -1e-5, -1e-5])
+    np.testing.assert_allclose(PAPER_000_C, [3e-4, 3e-4, 3e-4, 5e-4, 5e-4, -5e-4, 1e-5, -1e-5, -1e-5])
 
 
 def test_aircraft_angles_convention_and_round_trip():
@@ -61,9 +66,9 @@ def test_phi0_and_lambda0_are_not_the_same_attitude():
     L0 = tkachenko_profile().attitude(0.0)
     a = 2 * np.arctan2(0.6, 0.8)
     np.testing.assert_allclose(quat_multiply(rotvec_to_quat([a, 0, 0]), rotvec_to_quat([0, 0, -a])), L0, atol=1e-15)
-    assert np.degrees(quat_angle_between(L0, aircraft_angles_to_quat(TKACHENKO_PHI0))) > 139.0
+    assert np.degrees(quat_angle_between(L0, aircraft_angles_to_quat(PAPER_000_PHI0))) > 139.0
     sim = simulate_000(seed=None)
-    np.testing.assert_allclose(sim.reference.angles(np.array(0.0)), TKACHENKO_PHI0, atol=1e-14)
+    np.testing.assert_allclose(sim.reference.angles(np.array(0.0)), PAPER_000_PHI0, atol=1e-14)
     # the aircraft angles stay away from pitch ±90° on the whole run (max |pitch| 44°)
     pitch = sim.reference.angles(H * np.arange(1501))[:, 1]
     assert np.degrees(np.abs(pitch).max()) < 45.0
@@ -89,9 +94,9 @@ def test_reference_drift_and_mounting_invariance():
 def _linearisation_residual(eps, printed_25=False):
     sim = simulate_000(seed=None, c=np.zeros(9), w0=np.zeros(3), d=np.zeros(3))
     ep = sim.epochs[::10]
-    x = eps * np.concatenate([TKACHENKO_W0, TKACHENKO_C, TKACHENKO_D])
-    w0, c, d = TKACHENKO_STRUCTURE.split(x)
-    meas = sim.true_inc + np.einsum('nij,j->ni', tkachenko_D(sim.true_inc / H), c) * H
+    x = eps * np.concatenate([PAPER_000_W0, PAPER_000_C, PAPER_000_D])
+    w0, c, d = SCALE_MISALIGNMENT_BIAS.split(x)
+    meas = sim.true_inc + np.einsum('nij,j->ni', scale_misalignment_bias_D(sim.true_inc / H), c) * H
     L0 = sim.profile.attitude(0.0)
     M0 = quat_multiply(quat_conjugate(quat_normalize(np.r_[1.0, w0])), L0)
     P = quat_multiply(quat_conjugate(rotvec_to_quat((H * ep)[:, None] * d)),
@@ -101,7 +106,7 @@ def _linearisation_residual(eps, printed_25=False):
     Th = theta_quadrature(M, meas, H)
     r = []
     for j, e in enumerate(ep):
-        U = measurement_rows(P[j], Th[e], psi_matrix(TKACHENKO_STRUCTURE, H * e, 0.0))
+        U = measurement_rows(P[j], Th[e], psi_matrix(SCALE_MISALIGNMENT_BIAS, H * e, 0.0))
         if printed_25:     # (2.5) as printed, +p×(w + w0): w0 block −2Φ(p), Θ block ½(p0E + Φ(p))
             p0, p = P[j, 0], P[j, 1:]
             U[:, :3] = -2 * skew(p)

@@ -18,11 +18,12 @@ import numpy as np
 import pytest
 
 from strapdown_ros.calibration.integral_method import (calibrate_from_measurements,
-                                                       camera_rate_covariance, forward_step,
-                                                       integral_calibration, interval_boundaries,
-                                                       IntervalMeans, invert_step,
-                                                       mean_measured_rate, mean_true_rate,
-                                                       PARAMETER_LABELS, step_increments)
+                                                       integral_calibration, PARAMETER_LABELS)
+from strapdown_ros.calibration.interval_means import (camera_rate_covariance,
+                                                      interval_boundaries, IntervalMeans,
+                                                      mean_measured_rate, mean_true_rate)
+from strapdown_ros.calibration.star_tracker_increments import (forward_step, invert_step,
+                                                               noise_jacobians, step_increments)
 from strapdown_ros.motion.profiles import (ConingProfile, MotionProfile, PiecewiseRateProfile,
                                            Segment, tkachenko_profile)
 from strapdown_ros.reproductions.ilyushenko2009 import simulate_measurements
@@ -168,7 +169,6 @@ def test_mean_rate_over_whole_cone_periods_matches_coning_theory():
 
 def test_noise_jacobians_against_finite_differences():
     """δV_n = (cI + [v×])θ_n + (−cI + [v×])θ_{n−1}: the camera covariance is built on it."""
-    from strapdown_ros.calibration.integral_method import noise_jacobians
     p = ConingProfile(0.3, 2.0)
     q = p.attitude(0.1 * np.arange(6))
     Jp, Jm = noise_jacobians(q)

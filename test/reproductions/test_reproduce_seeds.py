@@ -9,7 +9,7 @@ import json
 import numpy as np
 import pytest
 
-from strapdown_ros.calibration.drifting_reference import PAPER_000
+from strapdown_ros.calibration.drifting_reference_model import PAPER_000
 from strapdown_ros.reproductions import reproduce_seeds
 
 
@@ -113,7 +113,7 @@ def test_000_new_ablations_compute_what_the_text_says(result):
     The float32-recursion and w0 = 1e-2 rows: the table's numbers are the agreement of a run
     with that change, recomputed here from an independent run of the experiment.
     """
-    from strapdown_ros.calibration.drifting_reference import TKACHENKO_W0
+    from strapdown_ros.calibration.drifting_reference_model import PAPER_000_W0
     from strapdown_ros.reproductions.tkachenko1983 import run_tkachenko_experiment
 
     res, text, _ = result
@@ -132,7 +132,7 @@ def test_000_new_ablations_compute_what_the_text_says(result):
             assert v['corr'] == pytest.approx(corr, abs=1e-9)
             assert v['signs'] == int(np.sum(np.sign(ours) == np.sign(paper)))
             assert f"| {v['rms_ratio']:.2f} | {v['signs']}/12 | {v['corr']:+.3f} |" in text
-    assert np.allclose(TKACHENKO_W0 * 10, 1e-2)
+    assert np.allclose(PAPER_000_W0 * 10, 1e-2)
     # audit's numbers for the exponent misprint with the modified estimator: 1.66, 0.79, 9/12
     v = a['w0_1e-2']['identity']
     assert v['rms_ratio'] == pytest.approx(1.66, abs=0.01)
@@ -248,7 +248,7 @@ def test_estimator_integration_reproduces_the_float32_recursion():
     Fed the equivalent increments, the estimator's own 1-sample integration gives the float32
     attitudes (their exact product) to float64 round-off, so the ablation tests the recursion.
     """
-    from strapdown_ros.calibration.drifting_reference import integrate_attitude
+    from strapdown_ros.calibration.drifting_reference_model import integrate_attitude
     from strapdown_ros.reproductions.tkachenko1983 import (float32_recursion_increments,
                                                            simulate_000)
     from strapdown_ros.rotation import (quat_conjugate, quat_multiply, quat_to_rotvec,
