@@ -1,11 +1,12 @@
 """
 Mean true and mean measured rates over averaging intervals (Ilyushenko 2009, paper 002).
 
-The data of 002's system B·w̄ + s0 = s̄: the averaging intervals between star-tracker fixes, the
-mean true rate w̄ from the fixes (through :mod:`strapdown_ros.calibration.star_tracker_increments`),
-the mean measured rate s̄ from the gyro increments, and the covariances of both from camera
-noise and gyro random walk.  Solved by :mod:`strapdown_ros.calibration.integral_method`; the
-noise model is derived in doc/integral_method.md.  No ROS; numpy only.
+The data of 002's system B·w̄ + s0 = s̄: the averaging intervals between star-tracker fixes,
+the mean true rate w̄ from the fixes (through
+:mod:`strapdown_ros.calibration.star_tracker_increments`), the mean measured rate s̄ from the
+gyro increments, and the covariances of both from camera noise and gyro random walk.  Solved
+by :mod:`strapdown_ros.calibration.integral_method`; the noise model is derived in
+doc/integral_method.md.  No ROS; numpy only.
 """
 from __future__ import annotations
 
@@ -21,13 +22,31 @@ __all__ = ['IntervalMeans', 'camera_rate_covariance', 'gyro_nodes', 'gyro_rate_c
 
 # ------------------------------------------------------------------ intervals and means
 def interval_boundaries(stamps: np.ndarray, steps_per_interval: int | None = None,
-                        interval_length: float | None = None, gap_factor: float = 3.0) -> np.ndarray:
+                        interval_length: float | None = None,
+                        gap_factor: float = 3.0) -> np.ndarray:
     """
-    Consecutive averaging intervals as fix-index pairs (K, 2): interval i spans fixes a..b.
+    Return consecutive averaging intervals as fix-index pairs.
 
-    Either ``steps_per_interval`` (camera steps per interval) or ``interval_length`` (s; an
-    interval ends at the first fix at least that long after its start).  Steps longer than
-    ``gap_factor`` × the median step are data gaps: no interval spans one.
+    Give exactly one of ``steps_per_interval`` and ``interval_length``.  A short remainder
+    before a gap or at the end is dropped.
+
+    Parameters
+    ----------
+    stamps : (N,) ndarray
+        Strictly increasing stamps of the camera fixes, s.
+    steps_per_interval : int, optional
+        Camera steps per interval.
+    interval_length : float, optional
+        Interval length, s: an interval ends at the first fix at least that long after its
+        start.
+    gap_factor : float
+        Steps longer than this many median steps are data gaps; no interval spans one.
+
+    Returns
+    -------
+    (K, 2) int ndarray
+        Interval i spans fixes a..b.
+
     """
     stamps = np.asarray(stamps, dtype=float)
     if len(stamps) < 2:
@@ -47,8 +66,9 @@ def interval_boundaries(stamps: np.ndarray, steps_per_interval: int | None = Non
         b, full = a, False
         while b < n - 1 and not gap[b]:
             b += 1
-            if (steps_per_interval is not None and b - a >= steps_per_interval) or \
-                    (interval_length is not None and stamps[b] - stamps[a] >= interval_length * (1 - 1e-9)):
+            long_enough = (interval_length is not None
+                           and stamps[b] - stamps[a] >= interval_length * (1 - 1e-9))
+            if (steps_per_interval is not None and b - a >= steps_per_interval) or long_enough:
                 full = True
                 break
         if full:
@@ -62,14 +82,35 @@ def mean_true_rate(stamps: np.ndarray, quats: np.ndarray, intervals=None, order:
                    interval_length: float | None = None, gap_factor: float = 3.0,
                    neighbour: str = 'previous'):
     """
-    Mean true body rate w̄ over averaging intervals, from star-tracker attitudes.
+    Return the mean true body rate w̄ over averaging intervals, from star-tracker attitudes.
 
-    ``intervals``: fix-index pairs (K, 2) (default: :func:`interval_boundaries` with
-    ``steps_per_interval`` or ``interval_length``; one step per interval if neither is given).
-    Returns ``(t0 (K,), t1 (K,), w̄ (K, 3), intervals (K, 2))``;
-    w̄_i = Σ_{n=a+1}^{b} V_n / (t_b − t_a).  Steps longer than ``gap_factor`` × the median
-    step are data gaps: the coning correction does not reach across them (explicit
-    ``intervals`` must not span one).
+    w̄_i = Σ_{n=a+1}^{b} V_n / (t_b − t_a), V_n from
+    :func:`~strapdown_ros.calibration.star_tracker_increments.step_increments`.
+
+    Parameters
+    ----------
+    stamps : (N,) ndarray
+        Stamps of the fixes, s.
+    quats : (N, 4) ndarray
+        Attitudes q_ref_body of the fixes, scalar first.
+    intervals : (K, 2) int ndarray, optional
+        Fix-index pairs; default :func:`interval_boundaries` with ``steps_per_interval`` or
+        ``interval_length`` (one step per interval if neither is given).  Must not span a gap.
+    order, form, neighbour
+        Passed to ``step_increments``.
+    steps_per_interval : int, optional
+        Camera steps per interval.
+    interval_length : float, optional
+        Interval length, s.
+    gap_factor : float
+        Steps longer than this many median steps are data gaps: the coning correction does
+        not reach across them.
+
+    Returns
+    -------
+    tuple
+        ``(t0 (K,), t1 (K,), w̄ (K, 3) rad/s, intervals (K, 2))``.
+
     """
     stamps = np.asarray(stamps, dtype=float)
     if intervals is None:
@@ -89,13 +130,37 @@ def mean_true_rate(stamps: np.ndarray, quats: np.ndarray, intervals=None, order:
 
 
 def gyro_nodes(gyro_stamps: np.ndarray, delta_theta: np.ndarray):
+    """
+    Return the epochs and the cumulative angle of a run of gyro increments.
+
+    Parameters
+    ----------
+    gyro_stamps : (n,) ndarray
+        Strictly increasing stamps, s, each at the end of its increment.
+    delta_theta : (n, 3) ndarray
+        Gyro increments, rad.
+
+    Returns
+    -------
+    nodes : (n + 1,) ndarray
+        Epochs, s: the start of the first increment (one period before its stamp), then
+        the stamps.
+    cum : (n + 1, 3) ndarray
+        Σ Δθ up to each epoch, rad.
+
+    Raises
+    ------
+    ValueError
+        Fewer than two increments, or stamps not increasing.
+
+    """
     s = np.asarray(gyro_stamps, dtype=float)
     d = np.asarray(delta_theta, dtype=float).reshape(-1, 3)
     if len(s) != len(d) or len(s) < 2:
         raise ValueError('need at least two gyro increments with one stamp each')
     if np.any(np.diff(s) <= 0):
         raise ValueError('gyro stamps must be strictly increasing')
-    first = s[0] - (s[1] - s[0])              # the first increment covers one period before its stamp
+    first = s[0] - (s[1] - s[0])       # the first increment covers one period before its stamp
     nodes = np.concatenate([[first], s])
     cum = np.vstack([np.zeros((1, 3)), np.cumsum(d, axis=0)])
     return nodes, cum
@@ -104,13 +169,29 @@ def gyro_nodes(gyro_stamps: np.ndarray, delta_theta: np.ndarray):
 def mean_measured_rate(gyro_stamps: np.ndarray, delta_theta: np.ndarray, t0, t1,
                        interpolation: str = 'linear') -> np.ndarray:
     """
-    s̄ = ∫s dt / T over [t0, t1] from gyro increments (stamp = end of each increment).
+    Return s̄ = ∫s dt / T over [t0, t1] from gyro increments.
 
-    The cumulative angle Θ(t) = Σ Δθ is known exactly at the gyro epochs; at t0, t1 between
-    epochs it is interpolated: ``"linear"`` (rate constant within a gyro interval; error
-    ≤ |ṡ|h_g²/8 at each end) or ``"quadratic"`` (through the three nearest epochs: rate
-    linear across two gyro intervals, error O(s̈ h_g³)).  When t0, t1 fall on gyro epochs
-    the result is the exact sum of the increments.  Vectorised over t0, t1.
+    The cumulative angle Θ(t) = Σ Δθ is known exactly at the gyro epochs and interpolated
+    between them.  When t0, t1 fall on gyro epochs the result is the exact sum of the
+    increments.  Vectorised over t0, t1.
+
+    Parameters
+    ----------
+    gyro_stamps : (n,) ndarray
+        Stamps, s, each at the end of its increment.
+    delta_theta : (n, 3) ndarray
+        Gyro increments, rad.
+    t0, t1 : float or (K,) ndarray
+        Interval ends, s, inside the span of the gyro data.
+    interpolation : {'linear', 'quadratic'}
+        'linear': rate constant within a gyro interval (error ≤ |ṡ|h_g²/8 at each end);
+        'quadratic': through the three nearest epochs (error O(s̈ h_g³)).
+
+    Returns
+    -------
+    (K, 3) ndarray
+        s̄, rad/s.
+
     """
     nodes, cum = gyro_nodes(gyro_stamps, delta_theta)
     t0 = np.atleast_1d(np.asarray(t0, dtype=float))
@@ -152,7 +233,8 @@ def _camera_covariances(n: int, camera_sigma=None, camera_covariance=None, c_bod
         P = np.asarray(camera_covariance, dtype=float)
         P = np.broadcast_to(P, (n, 3, 3)) if P.shape == (3, 3) else P.reshape(n, 3, 3)
     else:
-        sig = np.broadcast_to(np.asarray(0.0 if camera_sigma is None else camera_sigma, dtype=float), (3,))
+        sig = np.asarray(0.0 if camera_sigma is None else camera_sigma, dtype=float)
+        sig = np.broadcast_to(sig, (3,))
         P = np.broadcast_to(np.diag(sig ** 2), (n, 3, 3))
     if c_body_camera is not None:
         C = np.asarray(c_body_camera, dtype=float)
@@ -164,12 +246,32 @@ def camera_rate_covariance(quats: np.ndarray, intervals: np.ndarray, stamps: np.
                            camera_sigma=None, camera_covariance=None,
                            c_body_camera: np.ndarray | None = None) -> np.ndarray:
     """
-    Covariance (3K × 3K) of the errors of the mean true rates w̄ caused by camera noise.
+    Return the covariance of the errors of the mean true rates w̄ caused by camera noise.
 
-    Camera noise: right-perturbations θ_n with covariance ``diag(camera_sigma²)`` (camera
-    axes; scalar or (3,)) or ``camera_covariance`` ((3, 3) or (N, 3, 3)); ``c_body_camera``
-    rotates it into body axes.  Linearised through :func:`noise_jacobians`, exact in the
+    Camera noise: right-perturbations θ_n of the fixes.  Linearised through
+    :func:`~strapdown_ros.calibration.star_tracker_increments.noise_jacobians`, exact in the
     interval structure: intervals sharing fixes are correlated.
+
+    Parameters
+    ----------
+    quats : (N, 4) ndarray
+        Attitudes q_ref_body of the fixes, scalar first.
+    intervals : (K, 2) int ndarray
+        Fix-index pairs.
+    stamps : (N,) ndarray
+        Stamps of the fixes, s.
+    camera_sigma : float or (3,) array_like, optional
+        1σ per camera axis, rad.
+    camera_covariance : (3, 3) or (N, 3, 3) array_like, optional
+        Covariance of θ_n, camera axes, rad² (instead of ``camera_sigma``).
+    c_body_camera : (3, 3) ndarray, optional
+        DCM rotating camera axes into body axes.
+
+    Returns
+    -------
+    (3K, 3K) ndarray
+        Covariance of the stacked w̄, (rad/s)².
+
     """
     quats = np.asarray(quats, dtype=float)
     intervals = np.asarray(intervals, dtype=int).reshape(-1, 2)
@@ -203,8 +305,22 @@ def camera_rate_covariance(quats: np.ndarray, intervals: np.ndarray, stamps: np.
 
 def gyro_rate_covariance(t0: np.ndarray, t1: np.ndarray, random_walk: float) -> np.ndarray:
     """
-    Covariance (3K × 3K) of the mean measured rates from angle random walk σ_rw (rad/√s):
-    σ_rw²·|overlap(i, j)|/(T_i T_j) per axis (partial gyro intervals ignored).
+    Return the covariance of the mean measured rates from angle random walk.
+
+    σ_rw²·|overlap(i, j)|/(T_i T_j) per axis; partial gyro intervals are ignored.
+
+    Parameters
+    ----------
+    t0, t1 : (K,) ndarray
+        Interval ends, s.
+    random_walk : float
+        Angle random walk σ_rw, rad/√s.
+
+    Returns
+    -------
+    (3K, 3K) ndarray
+        Covariance of the stacked s̄, (rad/s)².
+
     """
     t0 = np.asarray(t0, dtype=float)
     t1 = np.asarray(t1, dtype=float)
@@ -213,20 +329,39 @@ def gyro_rate_covariance(t0: np.ndarray, t1: np.ndarray, random_walk: float) -> 
     return np.kron(random_walk ** 2 * ov / np.outer(T, T), np.eye(3))
 
 
-# ------------------------------------------------------------------ least squares
+# ------------------------------------------------------------------ the data of the system
 @dataclass
 class IntervalMeans:
-    """The data of 002's system: per interval, mean true and mean measured rates."""
-    t0: np.ndarray                                  # (K,) s
-    t1: np.ndarray                                  # (K,) s
-    w_bar: np.ndarray                               # (K, 3) mean true rate (star tracker), rad/s
-    s_bar: np.ndarray                               # (K, 3) mean measured rate (gyro), rad/s
-    camera_covariance: np.ndarray | None = None     # (3K, 3K) of the errors of w̄
-    gyro_covariance: np.ndarray | None = None       # (3K, 3K) of the errors of s̄
-    intervals: np.ndarray | None = None             # (K, 2) fix indices
-    w_bar_exact: np.ndarray | None = None           # (K, 3) exact ∫w dt/T when a profile is known
+    """
+    The data of 002's system: per interval, mean true and mean measured rates.
+
+    Attributes
+    ----------
+    t0, t1 : (K,) ndarray
+        Interval ends, s.
+    w_bar : (K, 3) ndarray
+        Mean true rate from the star tracker, body axes, rad/s.
+    s_bar : (K, 3) ndarray
+        Mean measured rate from the gyro, rad/s.
+    camera_covariance : (3K, 3K) ndarray or None
+        Covariance of the errors of w̄, (rad/s)².
+    gyro_covariance : (3K, 3K) ndarray or None
+        Covariance of the errors of s̄, (rad/s)².
+    intervals : (K, 2) int ndarray or None
+        Fix indices of the intervals.
+    w_bar_exact : (K, 3) ndarray or None
+        Exact ∫w dt / T when a motion profile is known, rad/s.
+
+    """
+
+    t0: np.ndarray
+    t1: np.ndarray
+    w_bar: np.ndarray
+    s_bar: np.ndarray
+    camera_covariance: np.ndarray | None = None
+    gyro_covariance: np.ndarray | None = None
+    intervals: np.ndarray | None = None
+    w_bar_exact: np.ndarray | None = None
 
     def __len__(self):
         return len(self.t0)
-
-

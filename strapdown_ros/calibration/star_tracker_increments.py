@@ -23,15 +23,33 @@ FORMS = ('paper', 'rotvec')
 
 
 # ------------------------------------------------------------------ quaternion formulas
-def forward_step(a_prev: np.ndarray, V: np.ndarray, V_prev: np.ndarray | None = None, order: int = 2,
-                 reverse_cross: bool = False) -> np.ndarray:
+def forward_step(a_prev: np.ndarray, V: np.ndarray, V_prev: np.ndarray | None = None,
+                 order: int = 2, reverse_cross: bool = False) -> np.ndarray:
     """
-    002's modified Euler step with norm correction: a_n from a_{n−1} and V_n = ∫w dt.
+    Take 002's modified Euler step with norm correction: a_n from a_{n−1} and V_n = ∫w dt.
 
-    order 2: ``a_{n−1}∘(1 + ½V − ⅛|V|² + ½(1 − |a_{n−1}|²))``;
-    order 3: adds ``(1/24)V_n × (V_n − V_{n−1}) − (1/48)|V_n|²V_n`` (needs ``V_prev``).
-    ``reverse_cross`` swaps the operands of the cross product (a hypothesis the tests reject).
-    Not normalised: the norm correction keeps |a| near 1, as in the paper.  Vectorised.
+    Order 2: ``a_{n−1}∘(1 + ½V − ⅛|V|² + ½(1 − |a_{n−1}|²))``; order 3 adds
+    ``(1/24)V_n × (V_n − V_{n−1}) − (1/48)|V_n|²V_n``.  Not normalised: the norm correction
+    keeps |a| near 1, as in the paper.  Vectorised.
+
+    Parameters
+    ----------
+    a_prev : (..., 4) ndarray
+        Attitude a_{n−1}, q_ref_body, scalar first.
+    V : (..., 3) ndarray
+        Rotation increment V_n of the step, body axes, rad.
+    V_prev : (..., 3) ndarray, optional
+        The previous increment V_{n−1}, rad; needed by order 3.
+    order : {2, 3}
+        Order of the formula.
+    reverse_cross : bool
+        Swap the operands of the cross product (a hypothesis the tests reject).
+
+    Returns
+    -------
+    (..., 4) ndarray
+        a_n, not normalised.
+
     """
     a_prev = np.asarray(a_prev, dtype=float)
     V = np.asarray(V, dtype=float)
@@ -60,13 +78,32 @@ def _solve_third_order(b: np.ndarray, c: np.ndarray, p: np.ndarray) -> np.ndarra
 def invert_step(delta_a: np.ndarray, V_prev: np.ndarray | None = None, order: int = 3,
                 form: str = 'paper', norm2_prev=1.0) -> np.ndarray:
     """
-    V_n = ∫w dt from the relative quaternion Δa_n = a_{n−1}⁻¹∘a_n, vectorised.
+    Recover V_n = ∫w dt from the relative quaternion Δa_n = a_{n−1}⁻¹∘a_n, vectorised.
 
-    order 2: 2·vect(Δa).  order 3: the exact inverse of :func:`forward_step` (order 3),
+    Order 2: 2·vect(Δa).  Order 3: the exact inverse of :func:`forward_step` (order 3),
     ``V = (c²b + (p·b)p − c·p×b)/(c(c² + |p|²))`` with b = 24·vect(Δa), c = 12 − ½|V|²,
-    p = V_prev and the printed |V|² = −8·scal(Δa) + 12 − 4|a_{n−1}|² (``norm2_prev`` = |a_{n−1}|²,
-    1 for star-tracker quaternions).  ``form="rotvec"``: log(Δa) − (1/12)V_prev×log(Δa).
-    Δa is used as given (not normalised), so a round trip through :func:`forward_step` is exact.
+    p = V_prev and the printed |V|² = −8·scal(Δa) + 12 − 4|a_{n−1}|².  ``form='rotvec'``:
+    log(Δa) − (1/12)V_prev×log(Δa).  Δa is used as given (not normalised), so a round trip
+    through :func:`forward_step` is exact.
+
+    Parameters
+    ----------
+    delta_a : (..., 4) ndarray
+        Relative quaternion Δa_n, scalar first.
+    V_prev : (..., 3) ndarray, optional
+        The neighbour increment of the coning term, rad; needed by order 3.
+    order : {2, 3}
+        Order of the inverted formula.
+    form : {'paper', 'rotvec'}
+        002's vector part, or the exact rotation vector log(Δa).
+    norm2_prev : float or ndarray
+        |a_{n−1}|², 1 for star-tracker quaternions.
+
+    Returns
+    -------
+    (..., 3) ndarray
+        V_n, body axes, rad.
+
     """
     dq = np.asarray(delta_a, dtype=float)
     if order not in ORDERS:
@@ -86,6 +123,20 @@ def invert_step(delta_a: np.ndarray, V_prev: np.ndarray | None = None, order: in
 
 
 def relative_quaternions(quats: np.ndarray) -> np.ndarray:
+    """
+    Return the relative quaternions a_{n−1}*∘a_n of consecutive attitudes, shortest rotation.
+
+    Parameters
+    ----------
+    quats : (N, 4) ndarray
+        Attitudes q_ref_body, scalar first (normalised here).
+
+    Returns
+    -------
+    (N−1, 4) ndarray
+        Δa_n with scalar part ≥ 0.
+
+    """
     q = quat_normalize(np.asarray(quats, dtype=float))
     dq = quat_multiply(quat_conjugate(q[:-1]), q[1:])
     return np.where(dq[:, :1] < 0.0, -dq, dq)                 # shortest rotation per step
@@ -95,18 +146,33 @@ def step_increments(quats: np.ndarray, order: int = 3, form: str = 'paper',
                     breaks: np.ndarray | None = None, neighbour: str = 'previous',
                     max_passes: int = 30) -> np.ndarray:
     """
-    ∫w dt over each star-tracker step, (N−1, 3), from N attitudes q_ref_body (scalar-first).
+    Return ∫w dt over each star-tracker step from N attitudes.
 
-    order 2: V_n = 2·vect(a_{n−1}*∘a_n); order 3: the inverse of 002's third-order formula
-    (module docstring).  ``form="rotvec"`` uses log(a_{n−1}*∘a_n) instead of 2·vect and drops
-    the |V|² factor.  ``breaks`` (bool, N−1): steps not to be used as a neighbour of the
-    coning correction (e.g. across a data gap); a step whose previous one is a break (or the
-    first step) takes its correction from the next step.
+    Order 2: V_n = 2·vect(a_{n−1}*∘a_n); order 3: the inverse of 002's third-order formula,
+    solved by vectorised fixed-point passes (doc/integral_method.md).  A step whose previous
+    one is a break (or the first step) takes its coning correction from the next step.
 
-    ``neighbour``: ``"previous"`` is the paper (V_{n−1}; the next step only where no previous
-    one exists); ``"adaptive"`` takes whichever of V_{n−1}, V_{n+1} differs less from V_n
-    (module docstring, *Rate jumps*: exact when the jumps fall on fixes, worse on average
-    otherwise).
+    Parameters
+    ----------
+    quats : (N, 4) ndarray
+        Attitudes q_ref_body, scalar first.
+    order : {2, 3}
+        Order of the inverted formula.
+    form : {'paper', 'rotvec'}
+        002's 2·vect(Δa) and |V|² terms, or the exact rotation vector log(Δa).
+    breaks : (N−1,) bool ndarray, optional
+        Steps not to be used as a neighbour of the coning correction (a data gap).
+    neighbour : {'previous', 'adaptive'}
+        'previous' is the paper (V_{n−1}); 'adaptive' takes whichever of V_{n−1}, V_{n+1}
+        differs less from V_n (exact when rate jumps fall on fixes, worse on average).
+    max_passes : int
+        Limit of fixed-point passes of the order-3 recursion.
+
+    Returns
+    -------
+    (N−1, 3) ndarray
+        V_n, body axes, rad.
+
     """
     if order not in ORDERS:
         raise ValueError(f'order must be one of {ORDERS}, got {order!r}')
@@ -145,9 +211,10 @@ def step_increments(quats: np.ndarray, order: int = 3, form: str = 'paper',
         p[:-1][use_next[:-1]] = -V[1:][use_next[:-1]]
         return p
 
-    V = V0 if form == 'rotvec' else V0 * (1.0 + 8.0 * (1.0 - dq[:, :1]) / 24.0)   # start: the |V|² term
-    for _ in range(max(1, max_passes)):                    # fixed point of the recursion
-        V_new = invert_step(dq, neighbour(V), order=3, form=form)   # p = 0 where no neighbour exists
+    # start from the |V|² term of the scalar part
+    V = V0 if form == 'rotvec' else V0 * (1.0 + 8.0 * (1.0 - dq[:, :1]) / 24.0)
+    for _ in range(max(1, max_passes)):     # fixed point; p = 0 where no neighbour exists
+        V_new = invert_step(dq, neighbour(V), order=3, form=form)
         done = np.max(np.abs(V_new - V)) <= 1e-16 * max(float(np.max(np.abs(V_new))), 1e-300)
         V = V_new
         if done:
@@ -156,10 +223,24 @@ def step_increments(quats: np.ndarray, order: int = 3, form: str = 'paper',
 
 
 def noise_jacobians(quats: np.ndarray):
-    """∂V_n/∂θ_n and ∂V_n/∂θ_{n−1} for right-perturbations θ of the fixes (second-order form)."""
+    """
+    Return ∂V_n/∂θ_n and ∂V_n/∂θ_{n−1} for right-perturbations θ of the fixes.
+
+    The second-order form: δV_n = (cI + [v×])θ_n + (−cI + [v×])θ_{n−1}, (c, v) = Δa_n.
+
+    Parameters
+    ----------
+    quats : (N, 4) ndarray
+        Attitudes q_ref_body of the fixes, scalar first.
+
+    Returns
+    -------
+    tuple of two (N−1, 3, 3) ndarray
+        The Jacobians with respect to the fix ending and the fix starting each step.
+
+    """
     dq = relative_quaternions(quats)
     c = dq[:, 0][:, None, None]
     S = skew(dq[:, 1:])
     I3 = np.eye(3)
     return c * I3 + S, -c * I3 + S
-
