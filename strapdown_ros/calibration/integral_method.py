@@ -27,59 +27,145 @@ __all__ = ['PARAMETER_LABELS', 'IntegralResult', 'aligned_basis', 'calibrate_fro
            'design_matrix', 'integral_calibration']
 
 #: parameter order of x, covariance and sigma: B row by row, then s0
-PARAMETER_LABELS = tuple(f'B{i}{j}' for i in (1, 2, 3) for j in (1, 2, 3)) + ('s0_1', 's0_2', 's0_3')
+PARAMETER_LABELS = (tuple(f'B{i}{j}' for i in (1, 2, 3) for j in (1, 2, 3))
+                    + ('s0_1', 's0_2', 's0_3'))
 
 
 @dataclass
 class IntegralResult:
+    """
+    The result of the integral calibration: B, s0, their covariance and observability.
+
+    Attributes
+    ----------
+    observable : bool
+        Every one of the 12 parameters is observable.
+    message : str
+        The observability verdict in words.
+    B : (3, 3) ndarray
+        Gyro matrix of s = B·w + s0.
+    s0 : (3,) ndarray
+        Gyro bias, rad/s.
+    covariance : (12, 12) ndarray
+        The published covariance, in :data:`PARAMETER_LABELS` order.
+    sigma : (12,) ndarray
+        √diag of the covariance; inf for unobservable parameters.
+    weighting : str
+        'residual', 'pooled' or 'model'.
+    residuals : (K, 3) ndarray
+        s̄ − B w̄ − s0, rad/s.
+    residual_rms : float
+        RMS of the residuals, rad/s.
+    chi2_per_dof : float
+        χ²/dof of the model weighting (nan for the others).
+    dof : int
+        Degrees of freedom of the residuals.
+    intervals : IntervalMeans
+        The data solved.
+    observability : ObservabilityReport
+        Observability of the parameters, s0 in units of ``rate_scale``.
+    covariance_residual : (12, 12) ndarray or None
+        002's σ²(AᵀA)⁻¹ per axis (when K > 4).
+    covariance_model : (12, 12) ndarray or None
+        (HᵀR⁻¹H)⁻¹ (when the noise is known).
+    rate_scale : float
+        RMS |w̄| used to scale s0 for the observability report, rad/s.
+    unobservable_parameters : list of str
+        Labels lying wholly in the unobservable subspace.
+    labels : tuple of str
+        :data:`PARAMETER_LABELS`.
+    extra : dict
+        Diagnostics of the chain (errors of w̄ against a known profile, orders used).
+
+    """
+
     observable: bool
     message: str
-    B: np.ndarray                                   # 3×3
-    s0: np.ndarray                                  # (3,) rad/s
-    covariance: np.ndarray                          # 12×12 in PARAMETER_LABELS order (the one published)
-    sigma: np.ndarray                               # (12,) √diag; inf for unobservable parameters
+    B: np.ndarray
+    s0: np.ndarray
+    covariance: np.ndarray
+    sigma: np.ndarray
     weighting: str
-    residuals: np.ndarray                           # (K, 3) s̄ − B w̄ − s0, rad/s
-    residual_rms: float                             # rad/s
-    chi2_per_dof: float                             # model weighting only (nan otherwise)
+    residuals: np.ndarray
+    residual_rms: float
+    chi2_per_dof: float
     dof: int
     intervals: IntervalMeans
     observability: ObservabilityReport
-    covariance_residual: np.ndarray | None = None   # σ²(AᵀA)⁻¹ per axis (when K > 4)
-    covariance_model: np.ndarray | None = None      # (HᵀR⁻¹H)⁻¹ (when the noise is known)
-    rate_scale: float = 1.0                         # RMS |w̄| used to scale s0 for observability
-    unobservable_parameters: list = field(default_factory=list)   # labels lying wholly in the null space
+    covariance_residual: np.ndarray | None = None
+    covariance_model: np.ndarray | None = None
+    rate_scale: float = 1.0
+    unobservable_parameters: list = field(default_factory=list)
     labels: tuple = PARAMETER_LABELS
     extra: dict = field(default_factory=dict)
 
     @property
     def x(self) -> np.ndarray:
+        """Return the 12 parameters: B row by row, then s0."""
         return np.concatenate([self.B.ravel(), self.s0])
 
     @property
     def M(self) -> np.ndarray:
-        """B − I: scale factors on the diagonal, misalignments off it (sensors.SensorErrorModel.matrix)."""
+        """Return B − I: scale factors on the diagonal, misalignments off it."""
         return self.B - np.eye(3)
 
     @property
     def bias(self) -> np.ndarray:
+        """Return the bias s0, rad/s."""
         return self.s0
 
     def to_error_model(self):
-        """The estimate as a :class:`~strapdown_ros.sensors.SensorErrorModel` (M = B − I, b = s0)."""
+        """
+        Return the estimate as a :class:`~strapdown_ros.sensors.SensorErrorModel`.
+
+        Returns
+        -------
+        SensorErrorModel
+            M = B − I, b = s0.
+
+        """
         M = self.M
         return SensorErrorModel(bias=self.s0.copy(), scale_factor=np.diag(M).copy(),
                                 misalignment=M - np.diag(np.diag(M)))
 
     def correct(self, delta_theta: np.ndarray, period) -> np.ndarray:
-        """Apply the calibration to increments: u = B⁻¹(Δθ − s0·T)."""
+        """
+        Apply the calibration to increments: u = B⁻¹(Δθ − s0·T).
+
+        Parameters
+        ----------
+        delta_theta : (n, 3) ndarray
+            Gyro increments, rad.
+        period : float or (n,) ndarray
+            Length T of each increment, s.
+
+        Returns
+        -------
+        (n, 3) ndarray
+            Corrected increments u, rad.
+
+        """
         d = np.asarray(delta_theta, dtype=float)
         T = np.asarray(period, dtype=float)
-        return (d - np.multiply.outer(T, self.s0) if T.ndim else d - self.s0 * T) @ np.linalg.inv(self.B).T
+        biased = d - np.multiply.outer(T, self.s0) if T.ndim else d - self.s0 * T
+        return biased @ np.linalg.inv(self.B).T
 
 
 def design_matrix(w_bar: np.ndarray) -> np.ndarray:
-    """H (3K × 12): row 3i+j is s̄_ij = B_j·w̄_i + s0_j in PARAMETER_LABELS order."""
+    """
+    Return the design matrix H of 002's system.
+
+    Parameters
+    ----------
+    w_bar : (K, 3) ndarray
+        Mean true rates, rad/s.
+
+    Returns
+    -------
+    (3K, 12) ndarray
+        Row 3i+j is s̄_ij = B_j·w̄_i + s0_j in :data:`PARAMETER_LABELS` order.
+
+    """
     w = np.asarray(w_bar, dtype=float).reshape(-1, 3)
     K = len(w)
     H = np.zeros((K, 3, 12))
@@ -94,9 +180,21 @@ _AXIS_PARAMS = [np.array([3 * j, 3 * j + 1, 3 * j + 2, 9 + j]) for j in range(3)
 
 def aligned_basis(V: np.ndarray) -> np.ndarray:
     """
-    Orthonormal basis of span(V) (12 × m) aligned greedily with the parameter axes: each
-    vector is the normalised projection of the parameter that the remaining subspace holds
-    best, so a wholly unobservable parameter comes out as itself (e.g. ``+1.00·B12``).
+    Return an orthonormal basis of span(V) aligned greedily with the parameter axes.
+
+    Each vector is the normalised projection of the parameter that the remaining subspace
+    holds best, so a wholly unobservable parameter comes out as itself (e.g. ``+1.00·B12``).
+
+    Parameters
+    ----------
+    V : (p, m) ndarray
+        Orthonormal columns spanning a subspace of the parameter space.
+
+    Returns
+    -------
+    (p, m) ndarray
+        The aligned basis, sorted by the parameter each vector holds most.
+
     """
     rest = V.copy()
     out = []
@@ -124,17 +222,34 @@ def integral_calibration(data: IntervalMeans, weighting: str = 'auto', inflate: 
     """
     Solve 002's system B·w̄_i + s0 = s̄_i over K ≥ 4 intervals by least squares.
 
-    weighting:
-      ``"residual"``: per axis j, A = [w̄ᵀ 1] (K × 4), unweighted LS, covariance σ_j²(AᵀA)⁻¹
-      with σ_j² = RSS_j/(K − 4) (needs K > 4);
-      ``"pooled"``: the same with one σ² = ΣRSS/(3K − 12);
-      ``"model"``: generalised LS with the full covariance R = R_gyro + B R_cam Bᵀ of
-      :class:`IntervalMeans` (needs camera and/or gyro covariance), covariance (HᵀR⁻¹H)⁻¹,
-      multiplied by max(1, χ²/dof) when ``inflate``;
-      ``"auto"``: model when a covariance is present, else residual.
-    Unobservable combinations (:func:`analyze_information` with ``sigma_limit`` on the
-    parameters with s0 in units of the RMS rate, and ``rel_tol``) are left at the nominal
-    value (B = ``B_nominal`` or I, s0 = 0) by a minimum-norm solution; their σ is inf.
+    Unobservable combinations (``analyze_information`` on the parameters with s0 in units of
+    the RMS rate) are left at the nominal value (B = ``B_nominal`` or I, s0 = 0) by a
+    minimum-norm solution; their σ is inf.
+
+    Parameters
+    ----------
+    data : IntervalMeans
+        Mean true and measured rates, with their covariances if known.
+    weighting : {'auto', 'residual', 'pooled', 'model'}
+        'residual': per axis j, A = [w̄ᵀ 1] (K × 4), unweighted least squares, covariance
+        σ_j²(AᵀA)⁻¹ with σ_j² = RSS_j/(K − 4) (needs K > 4); 'pooled': the same with one
+        σ² = ΣRSS/(3K − 12); 'model': generalised least squares with the full covariance
+        R = R_gyro + B R_cam Bᵀ (needs a covariance), covariance (HᵀR⁻¹H)⁻¹; 'auto': model
+        when a covariance is present, else residual.
+    inflate : bool
+        Multiply the model covariance by max(1, χ²/dof).
+    sigma_limit : float
+        Predicted σ above which a direction counts as unobservable (scaled parameters).
+    rel_tol : float
+        Relative eigenvalue below which a direction counts as unobservable.
+    B_nominal : (3, 3) ndarray, optional
+        Nominal B (default I).
+
+    Returns
+    -------
+    IntegralResult
+        B, s0, covariance, residuals and observability; NaN with a message when K < 4.
+
     """
     w = np.asarray(data.w_bar, dtype=float).reshape(-1, 3)
     s = np.asarray(data.s_bar, dtype=float).reshape(-1, 3)
@@ -143,9 +258,11 @@ def integral_calibration(data: IntervalMeans, weighting: str = 'auto', inflate: 
     if weighting == 'auto':
         weighting = 'model' if has_model else 'residual'
     if weighting not in ('residual', 'pooled', 'model'):
-        raise ValueError(f"weighting must be 'auto', 'residual', 'pooled' or 'model', got {weighting!r}")
+        raise ValueError("weighting must be 'auto', 'residual', 'pooled' or 'model', "
+                         f'got {weighting!r}')
     if weighting == 'model' and not has_model:
-        raise ValueError("weighting='model' needs the camera or gyro covariance of the interval means")
+        raise ValueError("weighting='model' needs the camera or gyro covariance "
+                         'of the interval means')
     Bn = np.eye(3) if B_nominal is None else np.asarray(B_nominal, dtype=float)
     x_nom = np.concatenate([Bn.ravel(), np.zeros(3)])
     H = design_matrix(w)
@@ -157,9 +274,9 @@ def integral_calibration(data: IntervalMeans, weighting: str = 'auto', inflate: 
     def nan_result(msg):
         nan12 = np.full(12, np.nan)
         rep = analyze_information(np.zeros((12, 12)), labels=PARAMETER_LABELS)
-        return IntegralResult(False, msg, Bn.copy(), np.zeros(3), np.full((12, 12), np.nan), nan12,
-                              weighting, np.full((K, 3), np.nan), float('nan'), float('nan'), 0, data, rep,
-                              rate_scale=rate_scale)
+        return IntegralResult(False, msg, Bn.copy(), np.zeros(3), np.full((12, 12), np.nan),
+                              nan12, weighting, np.full((K, 3), np.nan), float('nan'),
+                              float('nan'), 0, data, rep, rate_scale=rate_scale)
 
     if K < 4:
         return nan_result(f'{K} interval(s): 002 needs at least 4')
@@ -183,7 +300,7 @@ def integral_calibration(data: IntervalMeans, weighting: str = 'auto', inflate: 
         if data.gyro_covariance is not None:
             R += data.gyro_covariance
         if data.camera_covariance is not None:
-            # e_i = n_i − B·δw̄_i: the camera part is rotated by B (taken from the unweighted solution)
+            # e_i = n_i − B·δw̄_i: the camera part is rotated by B (of the unweighted solution)
             B_est = Bn.copy()
             for j in range(3):
                 B_est[j] += np.linalg.lstsq(A, y[j::3], rcond=None)[0][:3]
@@ -192,7 +309,8 @@ def integral_calibration(data: IntervalMeans, weighting: str = 'auto', inflate: 
         scale = np.sqrt(np.maximum(np.diag(R), 0.0))
         scale = np.where(scale > 0, scale, max(float(scale.max()), 1e-300))
         Hs, ys = H / scale[:, None], y / scale
-        X = np.linalg.solve(R / np.outer(scale, scale) + 1e-12 * np.eye(3 * K), np.column_stack([Hs, ys]))
+        X = np.linalg.solve(R / np.outer(scale, scale) + 1e-12 * np.eye(3 * K),
+                            np.column_stack([Hs, ys]))
         info_model, g_model = Hs.T @ X[:, :12], Hs.T @ X[:, 12]
         info_model = 0.5 * (info_model + info_model.T)
         yRy_model = float(ys @ X[:, 12])
@@ -200,25 +318,27 @@ def integral_calibration(data: IntervalMeans, weighting: str = 'auto', inflate: 
         info, g, yRy = info_model, g_model, yRy_model
     else:
         if var_res is None:
-            return nan_result(f'{K} intervals: the residual weighting needs more than 4 (no residual '
-                              f"degrees of freedom); use weighting='model' with the noise known")
+            return nan_result(f'{K} intervals: the residual weighting needs more than 4 '
+                              '(no residual degrees of freedom); '
+                              "use weighting='model' with the noise known")
         sd = np.tile(np.sqrt(var_res), K)
         Hw, yw = H / sd[:, None], y / sd
         info, g, yRy = Hw.T @ Hw, Hw.T @ yw, float(yw @ yw)
     # --- observability on the scaled parameters (s0 in units of the RMS rate)
     info_scaled = D[:, None] * info * D[None, :]
-    rep = analyze_information(info_scaled, labels=PARAMETER_LABELS, rel_tol=rel_tol, sigma_limit=sigma_limit)
+    rep = analyze_information(info_scaled, labels=PARAMETER_LABELS, rel_tol=rel_tol,
+                              sigma_limit=sigma_limit)
     lam, vec = rep.eigenvalues, rep.directions
     bad = (lam <= rel_tol * max(float(lam[-1]), 0.0)) | (rep.predicted_sigma > sigma_limit)
     good = vec[:, ~bad]
-    Pg = good @ np.diag(1.0 / lam[~bad]) @ good.T            # pseudo-inverse on the observable subspace
+    Pg = good @ np.diag(1.0 / lam[~bad]) @ good.T      # pseudo-inverse on the observable subspace
     dx = D * (Pg @ (D * g))                                 # minimum-norm step from the nominal
     chi2_sum = max(yRy - 2.0 * float(dx @ g) + float(dx @ info @ dx), 0.0)   # weighted RSS
     dof = 3 * K - int(np.sum(~bad))
     cov = D[:, None] * Pg * D[None, :]
     if weighting != 'model':
         cov_res = cov.copy()
-    elif var_res is not None:                               # 002's unweighted σ²(AᵀA)⁻¹, for comparison
+    elif var_res is not None:          # 002's unweighted σ²(AᵀA)⁻¹, for comparison
         cov_res = np.zeros((12, 12))
         AtA_pinv = np.linalg.pinv(AtA)
         for j in range(3):
@@ -239,48 +359,92 @@ def integral_calibration(data: IntervalMeans, weighting: str = 'auto', inflate: 
     B, s0 = x[:9].reshape(3, 3), x[9:]
     resid = s - w @ B.T - s0
     sigma = np.sqrt(np.maximum(np.diag(cov), 0.0))
-    touched = np.any(np.abs(vec[:, bad]) > 1e-3, axis=1) if np.any(bad) else np.zeros(12, dtype=bool)
+    if np.any(bad):
+        touched = np.any(np.abs(vec[:, bad]) > 1e-3, axis=1)
+    else:
+        touched = np.zeros(12, dtype=bool)
     sigma = np.where(touched, np.inf, sigma)
     unobs_params = []
     if np.any(bad):
-        # name the unobservable subspace in a parameter-aligned basis (eigh mixes degenerate directions)
+        # name the unobservable subspace in a parameter-aligned basis
+        # (eigh mixes degenerate directions)
         basis = aligned_basis(vec[:, bad])
         rep.unobservable = [_describe(v) for v in basis.T]
-        rep.message = 'not observable: ' + '; '.join(rep.unobservable) + \
-            (f" (weakly observable: {'; '.join(rep.weak)})" if rep.weak else '')
+        weak = f" (weakly observable: {'; '.join(rep.weak)})" if rep.weak else ''
+        rep.message = 'not observable: ' + '; '.join(rep.unobservable) + weak
     if np.any(bad) or rep.weak:
         rep.message += f' [s0 in units of the RMS mean rate {rate_scale:.3g} rad/s]'
         Pu = vec[:, bad] @ vec[:, bad].T
         unobs_params = [PARAMETER_LABELS[i] for i in range(12) if Pu[i, i] > 0.99]
     return IntegralResult(
-        observable=rep.observable, message=rep.message, B=B, s0=s0, covariance=cov, sigma=sigma, weighting=weighting,
-        residuals=resid, residual_rms=float(np.sqrt(np.mean(resid ** 2))), chi2_per_dof=chi2, dof=dof,
-        intervals=data, observability=rep, covariance_residual=cov_res, covariance_model=cov_model,
-        rate_scale=rate_scale, unobservable_parameters=unobs_params)
+        observable=rep.observable, message=rep.message, B=B, s0=s0, covariance=cov, sigma=sigma,
+        weighting=weighting, residuals=resid, residual_rms=float(np.sqrt(np.mean(resid ** 2))),
+        chi2_per_dof=chi2, dof=dof, intervals=data, observability=rep,
+        covariance_residual=cov_res, covariance_model=cov_model, rate_scale=rate_scale,
+        unobservable_parameters=unobs_params)
 
 
 # ------------------------------------------------------------------ the whole chain
-def calibrate_from_measurements(gyro_stamps: np.ndarray, delta_theta: np.ndarray, camera_stamps: np.ndarray,
-                                camera_quats: np.ndarray, camera_sigma=None, *, camera_covariance=None,
-                                gyro_random_walk: float = 0.0, order: int = 3, form: str = 'paper',
-                                steps_per_interval: int | None = None, interval_length: float | None = None,
+def calibrate_from_measurements(gyro_stamps: np.ndarray, delta_theta: np.ndarray,
+                                camera_stamps: np.ndarray, camera_quats: np.ndarray,
+                                camera_sigma=None, *, camera_covariance=None,
+                                gyro_random_walk: float = 0.0, order: int = 3,
+                                form: str = 'paper', steps_per_interval: int | None = None,
+                                interval_length: float | None = None,
                                 intervals: np.ndarray | None = None, weighting: str = 'auto',
-                                interpolation: str = 'linear', q_body_camera: np.ndarray | None = None,
-                                profile=None, inflate: bool = True, sigma_limit: float = 1e-2,
+                                interpolation: str = 'linear',
+                                q_body_camera: np.ndarray | None = None, profile=None,
+                                inflate: bool = True, sigma_limit: float = 1e-2,
                                 neighbour: str = 'previous') -> IntegralResult:
     """
-    002 end to end: gyro increments + star-tracker fixes → B, s0 with covariance and observability.
+    Run 002 end to end: gyro increments and star-tracker fixes to B, s0 and their covariance.
 
-    gyro_stamps (n,), delta_theta (n, 3): integrating-gyro output, stamped at the end of each
-    increment.  camera_stamps (N,), camera_quats (N, 4): fixes q_ref_camera (scalar-first);
-    with ``q_body_camera`` (the boresight q_MF_VF) the body attitude is q_ref_camera ⊗
-    q_body_camera*; default: camera = body.  camera_sigma: 1σ per camera axis (rad, scalar or
-    (3,)) or camera_covariance ((3,3) or (N,3,3)).  gyro_random_walk: rad/√s.
-    Intervals: ``intervals`` (fix-index pairs), ``steps_per_interval`` or ``interval_length``
-    (default 10 camera steps).  Fixes outside the gyro data are dropped.
-    ``profile`` (optional, a :class:`~strapdown_ros.motion.profiles.MotionProfile`): the exact mean rates
-    are attached (``result.intervals.w_bar_exact``) and the error of the star-tracker w̄ against
-    them is reported in ``result.extra``.
+    Fixes outside the gyro data are dropped.  Without ``intervals``, ``steps_per_interval``
+    or ``interval_length`` an interval is 10 camera steps.
+
+    Parameters
+    ----------
+    gyro_stamps : (n,) ndarray
+        Stamps of the integrating-gyro output, s, each at the end of its increment.
+    delta_theta : (n, 3) ndarray
+        Gyro increments, rad.
+    camera_stamps : (N,) ndarray
+        Stamps of the fixes, s.
+    camera_quats : (N, 4) ndarray
+        Fixes q_ref_camera, scalar first.
+    camera_sigma : float or (3,) array_like, optional
+        1σ per camera axis, rad.
+    camera_covariance : (3, 3) or (N, 3, 3) array_like, optional
+        Covariance of the fixes, camera axes, rad² (instead of ``camera_sigma``).
+    gyro_random_walk : float
+        Angle random walk, rad/√s (0: gyro noise not modelled).
+    order, form, neighbour
+        Inversion of the fixes, see
+        :func:`~strapdown_ros.calibration.star_tracker_increments.step_increments`.
+    steps_per_interval : int, optional
+        Camera steps per averaging interval.
+    interval_length : float, optional
+        Length of an averaging interval, s.
+    intervals : (K, 2) int ndarray, optional
+        Explicit fix-index pairs; every fix must lie inside the gyro data.
+    weighting : str
+        See :func:`integral_calibration`.
+    interpolation : {'linear', 'quadratic'}
+        See :func:`~strapdown_ros.calibration.interval_means.mean_measured_rate`.
+    q_body_camera : (4,) ndarray, optional
+        The boresight q_MF_VF; the body attitude is q_ref_camera ⊗ q_body_camera*.
+        Default: camera = body.
+    profile : MotionProfile, optional
+        When given, the exact mean rates are attached (``result.intervals.w_bar_exact``) and
+        the error of the star-tracker w̄ against them is reported in ``result.extra``.
+    inflate, sigma_limit
+        See :func:`integral_calibration`.
+
+    Returns
+    -------
+    IntegralResult
+        B, s0 with covariance and observability.
+
     """
     cs = np.asarray(camera_stamps, dtype=float)
     cq = quat_normalize(np.asarray(camera_quats, dtype=float).reshape(-1, 4))
@@ -299,10 +463,12 @@ def calibrate_from_measurements(gyro_stamps: np.ndarray, delta_theta: np.ndarray
     if intervals is None and steps_per_interval is None and interval_length is None:
         steps_per_interval = 10
     t0, t1, w, iv = mean_true_rate(cs, cq, intervals=intervals, order=order, form=form,
-                                   steps_per_interval=steps_per_interval, interval_length=interval_length,
-                                   neighbour=neighbour)
-    s = mean_measured_rate(gyro_stamps, delta_theta, t0, t1, interpolation=interpolation) if len(t0) else \
-        np.zeros((0, 3))
+                                   steps_per_interval=steps_per_interval,
+                                   interval_length=interval_length, neighbour=neighbour)
+    if len(t0):
+        s = mean_measured_rate(gyro_stamps, delta_theta, t0, t1, interpolation=interpolation)
+    else:
+        s = np.zeros((0, 3))
     R_cam = None
     if camera_sigma is not None or camera_covariance is not None:
         R_cam = camera_rate_covariance(cq, iv, cs, camera_sigma, camera_covariance, C_bc)
@@ -316,8 +482,9 @@ def calibrate_from_measurements(gyro_stamps: np.ndarray, delta_theta: np.ndarray
         extra['w_bar_error_max'] = float(np.max(np.abs(err)))
     res = integral_calibration(data, weighting=weighting, inflate=inflate, sigma_limit=sigma_limit)
     dq = relative_quaternions(cq) if len(cq) > 1 else np.zeros((0, 4))
-    extra['max_step_rotation'] = float(np.max(np.linalg.norm(quat_to_rotvec(dq), axis=1))) if len(dq) else 0.0
+    extra['max_step_rotation'] = 0.0
+    if len(dq):
+        extra['max_step_rotation'] = float(np.max(np.linalg.norm(quat_to_rotvec(dq), axis=1)))
     extra['order'], extra['form'], extra['neighbour'] = order, form, neighbour
     res.extra.update(extra)
     return res
-
