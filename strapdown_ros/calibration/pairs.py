@@ -20,7 +20,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from strapdown_ros.calibration.boresight import increment_residuals, r_partial
+from strapdown_ros.calibration.boresight import increment_residuals
+from strapdown_ros.calibration.boresight_increments import r_partial
 from strapdown_ros.rotation import (quat_conjugate, quat_cumprod, quat_multiply, quat_normalize,
                                     quat_to_dcm, rotvec_to_quat)
 

@@ -30,7 +30,7 @@ import os
 
 import numpy as np
 
-from strapdown_ros.calibration.boresight import IncrementPair
+from strapdown_ros.calibration.boresight_increments import IncrementPair
 
 __all__ = ['CalibratorStateFile', 'StateFileError', 'state_identity', 'OPERATIONAL',
            'STATE_VERSION']

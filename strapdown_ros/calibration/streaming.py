@@ -26,9 +26,9 @@ from collections import deque
 
 import numpy as np
 
-from strapdown_ros.calibration.boresight import (angle_consistency, BoresightSolution,
-                                                 camera_increment, gyro_increment, IncrementPair,
-                                                 solve_boresight)
+from strapdown_ros.calibration.boresight import BoresightSolution, solve_boresight
+from strapdown_ros.calibration.boresight_increments import (angle_consistency, camera_increment,
+                                                            gyro_increment, IncrementPair)
 from strapdown_ros.sensors import SensorSigmas
 from strapdown_ros.sensors.covariance import get_covariance_model
 from strapdown_ros.sensors.effects import CameraEffects, GyroEffects

@@ -2,9 +2,10 @@
 import numpy as np
 import pytest
 
-from strapdown_ros.calibration.boresight import (camera_increment, check_observability,
-                                                 gyro_increment, imu_attitude_from_camera,
-                                                 IncrementPair, r_partial, solve_boresight)
+from strapdown_ros.calibration.boresight import (check_observability, imu_attitude_from_camera,
+                                                 solve_boresight)
+from strapdown_ros.calibration.boresight_increments import (camera_increment, gyro_increment,
+                                                            IncrementPair, r_partial)
 from strapdown_ros.calibration.streaming import BoresightCalibrator
 from strapdown_ros.motion.profiles import bench_profile
 from strapdown_ros.rotation import (dcm_to_quat, quat_angle_between, quat_conjugate,

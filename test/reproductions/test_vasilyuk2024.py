@@ -35,7 +35,7 @@ def test_trajectory_sigma_matches_the_heading_only_limit():
     Independent truth for the trajectory-only σ: increments all about VF z leave rotation
     about z unobservable; with one tilt the ratio is the ratio of the 2(1 − cos φ) sums.
     """
-    from strapdown_ros.calibration.boresight import IncrementPair
+    from strapdown_ros.calibration.boresight_increments import IncrementPair
     from strapdown_ros.rotation import rotvec_to_quat
     big, small = np.radians(60.0), np.radians(6.0)
     mk = lambda rv: IncrementPair(0, 1, rotvec_to_quat(np.array(rv)), rotvec_to_quat(np.array(rv)), np.eye(3), np.eye(3))
