@@ -49,7 +49,7 @@ def test_replaying_the_same_recording_adds_nothing(tmp_path, recording):
     p = _params()
     path = str(tmp_path / 'state.npz')
     sf = CalibratorStateFile(path, state_identity(p, STREAMS))
-    sf.open()
+    sf.acquire()
     cal = _fresh(p)
     _feed(cal, recording)
     n = len(cal.pairs)
@@ -58,7 +58,7 @@ def test_replaying_the_same_recording_adds_nothing(tmp_path, recording):
     sf.close()
     for _ in range(3):                        # a kill loop replaying the same data
         sf = CalibratorStateFile(path, state_identity(p, STREAMS))
-        sf.open()
+        sf.acquire()
         cal = _fresh(p)
         assert sf.load(cal) == 0 and len(cal.pairs) == n
         _feed(cal, recording)
@@ -75,7 +75,7 @@ def test_a_state_of_another_calibration_is_refused_and_left_as_it_is(tmp_path, r
     p = _params()
     path = str(tmp_path / 'state.npz')
     sf = CalibratorStateFile(path, state_identity(p, STREAMS))
-    sf.open()
+    sf.acquire()
     cal = _fresh(p)
     _feed(cal, recording)
     sf.save(cal, 0)
@@ -88,7 +88,7 @@ def test_a_state_of_another_calibration_is_refused_and_left_as_it_is(tmp_path, r
         q = _params(**change)
         ident, name = state_identity(q, STREAMS), next(iter(change))
     sf = CalibratorStateFile(path, ident)
-    sf.open()
+    sf.acquire()
     cal = _fresh(q)
     with pytest.raises(StateFileError) as err:
         sf.load(cal)
@@ -102,12 +102,12 @@ def test_the_lock_refuses_a_second_user(tmp_path):
     path = str(tmp_path / 'state.npz')
     a = CalibratorStateFile(path, state_identity(_params(), STREAMS))
     b = CalibratorStateFile(path, state_identity(_params(), STREAMS))
-    a.open()
+    a.acquire()
     with pytest.raises(StateFileError) as err:
-        b.open()
+        b.acquire()
     assert err.value.kind == 'locked' and 'in use' in str(err.value)
     a.close()
-    b.open()
+    b.acquire()
     b.close()
 
 
@@ -119,7 +119,7 @@ def test_a_directory_is_never_moved_and_a_trailing_slash_is_an_error(tmp_path):
                  str(tmp_path / 'missing' / 'state.npz')):
         sf = CalibratorStateFile(path, state_identity(_params(), STREAMS))
         with pytest.raises(StateFileError) as err:
-            sf.open()
+            sf.acquire()
         assert err.value.kind == 'path', path
     assert (d / 'keep.txt').read_text() == 'user data'
     assert sorted(os.listdir(tmp_path)) == ['mydir']
@@ -139,7 +139,7 @@ def test_kill_9_temporary_removed_at_next_start_and_corrupt_file_moved(tmp_path)
         from strapdown_ros.params import CALIBRATOR_PARAMS, check_all
         ident = state_identity(check_all(CALIBRATOR_PARAMS, {{}}), {STREAMS!r})
         sf = CalibratorStateFile({path!r}, ident)
-        sf.open()
+        sf.acquire()
         os.replace = lambda a, b: (print("written", flush=True), os.kill(os.getpid(), 9))
         from strapdown_ros.calibration.streaming import BoresightCalibrator
         sf.save(BoresightCalibrator(), 0)
@@ -148,7 +148,7 @@ def test_kill_9_temporary_removed_at_next_start_and_corrupt_file_moved(tmp_path)
     assert res.returncode == -signal.SIGKILL and 'written' in res.stdout, res.stderr
     assert '.state.npz.tmp' in os.listdir(tmp_path)
     sf = CalibratorStateFile(path, state_identity(_params(), STREAMS))
-    sf.open()                                      # the lock is free: the killed process is gone
+    sf.acquire()                                      # the lock is free: the killed process is gone
     assert '.state.npz.tmp' not in os.listdir(tmp_path)
     with open(path, 'wb') as fh:
         fh.write(b'not a state file')
