@@ -81,7 +81,8 @@ def test_third_order_inversion_is_exact_inverse_of_forward_formula():
     rng = np.random.default_rng(0)
     V = rng.normal(0.0, 0.2, (50, 3))
     V_prev = rng.normal(0.0, 0.2, (50, 3))
-    da = forward_step(np.array([1.0, 0, 0, 0]), V, V_prev, order=3)      # unit a_{n−1}: Δa = the step
+    # unit a_{n−1}: Δa = the step
+    da = forward_step(np.array([1.0, 0, 0, 0]), V, V_prev, order=3)
     assert np.max(np.abs(invert_step(da, V_prev, order=3) - V)) < 1e-15
     da2 = forward_step(np.array([1.0, 0, 0, 0]), V, order=2)
     assert np.max(np.abs(invert_step(da2, order=2) - V)) < 1e-16
@@ -181,8 +182,10 @@ def test_noise_jacobians_against_finite_differences():
             qq = q.copy()
             qq[k] = quat_multiply(q[k], rotvec_to_quat(th))
             dV = (step_increments(qq, order=2) - V) / eps
-            np.testing.assert_allclose(dV[k - 1], Jp[k - 1][:, i], atol=1e-7)    # step k ends at fix k
-            np.testing.assert_allclose(dV[k], Jm[k][:, i], atol=1e-7)            # step k+1 starts at fix k
+            # step k ends at fix k
+            np.testing.assert_allclose(dV[k - 1], Jp[k - 1][:, i], atol=1e-7)
+            # step k+1 starts at fix k
+            np.testing.assert_allclose(dV[k], Jm[k][:, i], atol=1e-7)
 
 
 # --------------------------------------------------------------------------- gyro side
@@ -424,7 +427,8 @@ def test_too_few_intervals():
     r = _calibrate(d, steps_per_interval=10)                  # 2 intervals of 10 s
     assert not r.observable and 'at least 4' in r.message
     # exactly 4 intervals (4 unknowns per axis): model weighting solves, residual weighting cannot
-    iv = np.array([[0, 2], [7, 9], [17, 19], [21, 23]])        # segments 1, 2, 4, 5 of the 000 table
+    # segments 1, 2, 4, 5 of the 000 table
+    iv = np.array([[0, 2], [7, 9], [17, 19], [21, 23]])
     r4 = _calibrate(d, intervals=iv, steps_per_interval=None, weighting='model')
     assert r4.observable and r4.dof == 0, r4.message
     assert np.all(np.abs(r4.x - d.x_true) < 3 * r4.sigma)
