@@ -97,9 +97,9 @@ def test_a_unquantized_first_order_within_10x_of_paper():
     Every δc_i, δd_i within 10× of 000's published error (in fact within 3×).  The
     coefficients are evaluated exactly in w0 ('identity'); with 000's printed choice
     (everything at the reference p) the w0² term 2w0 × (w0 × p*) stays in z and δc6 becomes
-    3e-6, 125× the paper's −2.4e-8 — the one component that breaks the 10× bound.  The remaining errors are second order in (w0, c);
-    how they compare with the paper's (RMS ratio, signs, ablations) is reported by
-    ``reproduce_seeds --only 000``.
+    3e-6, 125× the paper's −2.4e-8 — the one component that breaks the 10× bound.  The
+    remaining errors are second order in (w0, c); how they compare with the paper's (RMS
+    ratio, signs, ablations) is reported by ``reproduce_seeds --only 000``.
     """
     r = run_tkachenko_experiment(seed=None)
     pc, pd = _paper('unquantized')
