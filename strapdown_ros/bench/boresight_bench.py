@@ -37,8 +37,9 @@ import time
 
 import numpy as np
 
-from strapdown_ros.calibration.boresight import (camera_increment, gyro_increment, IncrementPair,
-                                                 solve_boresight)
+from strapdown_ros.calibration.boresight import solve_boresight
+from strapdown_ros.calibration.boresight_increments import (camera_increment, gyro_increment,
+                                                            IncrementPair)
 from strapdown_ros.calibration.streaming import BoresightCalibrator
 from strapdown_ros.cli import check_outputs, DIRECTORY, FILE, write_figure, write_text
 from strapdown_ros.motion.profiles import EARTH_RATE, PiecewiseRateProfile, Segment

@@ -1,32 +1,14 @@
 """
-Boresight of a star camera (VF) relative to the IMU (MF) from attitude increments
-(Vasilyuk et al. 2024; paper 004).
+Boresight of a star camera (VF) relative to the IMU (MF) from attitude increments.
 
-Pipeline (004 §2–§5):
-
-1. :func:`gyro_increment` — ΔS_imu over [t_{E,n−1}, t_{E,n}] from asynchronous gyro increments
-   with the in-interval polynomial r_k(τ) at both ends (§2.2), and its covariance E_imu by
-   the recursion (2) (§2.3).
-2. :func:`camera_increment` — ΔS_avu = (S_{n−1})ᵀ S_n and E_avu = P_n + ΔSᵀ P_{n−1} ΔS (§3.3).
-3. :func:`solve_boresight` — Gauss–Newton on β = (ψ, ϑ, γ) with the residual of (5)–(6) and a
-   central-difference Jacobian (§4.2), stopping at |Δβ| ≤ 1e-9 rad; covariance P_β from the
-   residuals (§4.3) or, weighted, from E_imu and E_avu (the weighting 004 names as future work).
-4. :func:`imu_attitude_from_camera` — S_GCRS^MF = S_GCRS^VF (C_MF^VF)ᵀ and P^mfa of eq. (8).
-
-Conventions: ``C = C_MF^VF`` maps VF coordinates to MF coordinates (ypr_to_dcm(β)); ΔS_imu
-maps MF at t_n to MF at t_{n−1}; errors are right-perturbations in the local axes.
-
-Two remarks on the printed formulas, with evidence in ``test/calibration/test_boresight.py``:
-
-* §2.2 r_0k(τ): the ρ·Δρ term is ``−(ρ·Δρ)/8 (τ³/T³ − τ²/T²)`` (from |θ(τ)|²/8 with
-  θ(τ) = ρτ/T + Δρ/2 (τ²/T² − τ/T)); the printed /4 enlarges the partial-interval error
-  (``test/calibration/test_boresight.py`` measures by how much).
-* §4.2 starts Gauss–Newton from a given β0 (``init="given"``); ``test/calibration/test_boresight.py`` checks
-  its convergence from β0 = 0 over random boresights, including pitch near ±90°, and
-  ``reproduce_seeds`` records the iteration counts (doc/seeds/reproduce_seeds.md, 004).  By default the
-  solver first aligns the rotation axes in closed form (the rotation vectors satisfy
-  log ΔS_imu = C log ΔS_avu; least squares over C is Wahba's problem, solved by SVD), which needs
-  no β0 at all and leaves Gauss–Newton only the small nonlinear remainder.
+Vasilyuk et al. 2024 (paper 004), §4–§5, on the increment pairs of
+:mod:`strapdown_ros.calibration.boresight_increments`: :func:`solve_boresight` runs
+Gauss–Newton on β = (ψ, ϑ, γ) with the residual of (5)–(6) (§4), weighted by E_imu and E_avu
+(the weighting 004 names as future work); :func:`imu_attitude_from_camera` gives the IMU
+attitude from a camera fix (§5, eq. (8)).  Conventions: ``C = C_MF^VF`` maps VF coordinates
+to MF coordinates (ypr_to_dcm(β)); ΔS_imu maps MF at t_n to MF at t_{n−1}; errors are
+right-perturbations in the local axes.  Remarks on the printed formulas and the measured
+figures: doc/calibration.md.  No ROS; numpy only.
 """
 from __future__ import annotations
 
@@ -34,171 +16,99 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from strapdown_ros.estimation.chi_square import chi2_band, FIT_LEVEL
+from strapdown_ros.estimation.chi_square import chi2_band
 from strapdown_ros.estimation.observability import analyze_information, ObservabilityReport
-from strapdown_ros.rotation import (dcm_to_quat, dcm_to_ypr, quat_conjugate, quat_cumprod,
-                                    quat_multiply, quat_normalize, quat_to_dcm, quat_to_rotvec,
+from strapdown_ros.rotation import (dcm_to_quat, dcm_to_ypr, quat_conjugate, quat_multiply,
+                                    quat_normalize, quat_to_dcm, quat_to_rotvec,
                                     ypr_error_to_rotation, ypr_to_dcm)
 from strapdown_ros.sensors import SensorSigmas
-from strapdown_ros.sensors.covariance import (constant_jacobian, constant_variances,
-                                              get_covariance_model)
+from strapdown_ros.sensors.covariance import constant_variances
 
-__all__ = ['IncrementPair', 'angle_consistency',
-           'gyro_increment', 'camera_increment', 'BoresightSolution', 'solve_boresight',
-           'check_observability', 'imu_attitude_from_camera', 'r_partial']
-
-
-
-# --------------------------------------------------------------------------- §2.2 ΔS_imu
-def r_partial(rho: np.ndarray, drho: np.ndarray, x: np.ndarray) -> np.ndarray:
-    """
-    004 §2.2: unnormalised quaternion of the rotation over the first fraction x = τ/T of an
-    IMU interval with increment ρ (Δρ = ρ − ρ_prev), from a rate linear in time.
-    """
-    rho, drho = np.atleast_2d(rho), np.atleast_2d(drho)
-    x = np.asarray(x, dtype=float).reshape(-1, 1)
-    r2 = np.sum(rho * rho, axis=1, keepdims=True)
-    rd = np.sum(rho * drho, axis=1, keepdims=True)
-    r0 = 1.0 - r2 / 8.0 * x ** 2 - rd / 8.0 * (x ** 3 - x ** 2)
-    rv = rho / 2.0 * (x - r2 / 24.0 * x ** 3) + drho / 4.0 * (x ** 2 - x) + np.cross(rho, drho) / 24.0 * x ** 3
-    return np.concatenate([r0, rv], axis=1)
-
-
-def gyro_increment(stamps: np.ndarray, delta_theta: np.ndarray, t_start: float, t_end: float,
-                   gyro: SensorSigmas | None = None, covariance_model: str = 'random_constant',
-                   sensitivity: bool = False):
-    """
-    ΔS_imu (quaternion, MF(t_end) → MF(t_start)) and E_imu (3×3, MF axes at t_end).
-
-    With ``sensitivity=True`` (and ``gyro`` given) two more items are returned: G (3×12), the
-    sensitivity of the error ε_imu to the gyro constants x = [b (3), vec M (9, column-major)]
-    (MF axes at t_end), and the white part of E_imu (random walk only).  They let the
-    estimator treat the constants as common to all pairs (``weighting="correlated"``).
-
-    ``stamps`` are the end times of the increments ``delta_theta`` (sorted).  Needs the
-    increment whose interval contains ``t_end``; returns None when it has not arrived.
-    The interval length T of each increment is the difference of its stamps.
-    """
-    stamps = np.asarray(stamps, dtype=float)
-    dth = np.asarray(delta_theta, dtype=float)
-    if len(stamps) < 2 or t_end <= t_start:
-        return None
-    k0 = int(np.searchsorted(stamps, t_start, side='right'))       # first increment ending after t_start
-    k1 = int(np.searchsorted(stamps, t_end, side='left'))          # first increment ending at/after t_end
-    if k0 < 1 or k1 >= len(stamps):
-        return None                                                 # need one increment before, one after
-    T = np.diff(stamps)[k0 - 1:k1]                                  # lengths of intervals k0..k1
-    rho = dth[k0:k1 + 1]
-    drho = rho - dth[k0 - 1:k1]
-    x_start = (t_start - (stamps[k0] - T[0])) / T[0]
-    x_end = (t_end - (stamps[k1] - T[-1])) / T[-1]
-    full = quat_normalize(r_partial(rho, drho, np.ones(len(rho))))
-    head = quat_normalize(r_partial(rho[0], drho[0], x_start)[0])
-    tail = quat_normalize(r_partial(rho[-1], drho[-1], x_end)[0])
-    if k0 == k1:
-        dq = quat_multiply(quat_conjugate(head), tail)
-        chain = dq[None]
-    else:
-        factors = np.vstack([quat_multiply(quat_conjugate(head), full[0])[None], full[1:-1], tail[None]])
-        chain = quat_cumprod(np.array([1.0, 0.0, 0.0, 0.0]), factors)
-        dq = chain[-1]
-    cov = np.zeros((3, 3))
-    G = np.zeros((3, 12))
-    white = np.zeros((3, 3))
-    if gyro is not None:
-        # eq. (2) over the whole IMU intervals k0..k1 from E = 0 (004: E(t_En) ≈ E(t_I,K−1)),
-        # evaluated as a sum in the axes of MF(t_start): C_k = attitude after interval k
-        C = quat_to_dcm(quat_cumprod(np.array([1.0, 0.0, 0.0, 0.0]), full))
-        model = get_covariance_model(covariance_model)
-        W = np.einsum('kij,kjl,kml->im', C, model.white(rho, T, gyro), C)      # Σ C_k Q_k C_kᵀ
-        var = model.constant_variances(gyro)
-        if np.any(var > 0) or sensitivity:
-            J = np.einsum('kij,kjl->il', C, constant_jacobian(rho, T))         # Σ C_k ∂ρ_k/∂x
-        P = W + ((J * var) @ J.T if np.any(var > 0) else 0.0)
-        Cend = C[-1]
-        cov = Cend.T @ P @ Cend
-        cov = 0.5 * (cov + cov.T)
-        if sensitivity:
-            # ε = C_endᵀ Σ_k C_k (∂ρ_k/∂x · x + w_k): linear in the constants x = [b, vec M]
-            G = Cend.T @ J
-            white = Cend.T @ W @ Cend
-    if sensitivity:
-        return quat_normalize(dq), cov, G, white
-    return quat_normalize(dq), cov
-
-
-def camera_increment(q_prev: np.ndarray, P_prev: np.ndarray, q_next: np.ndarray, P_next: np.ndarray):
-    """ΔS_avu = S_{n−1}ᵀ S_n (VF(t_n) → VF(t_{n−1})) and E_avu = P_n + ΔSᵀ P_{n−1} ΔS (004 §3.3)."""
-    dq = quat_normalize(quat_multiply(quat_conjugate(q_prev), q_next))
-    dS = quat_to_dcm(dq)
-    return dq, np.asarray(P_next) + dS.T @ np.asarray(P_prev) @ dS
-
-
-@dataclass
-class IncrementPair:
-    t_start: float
-    t_end: float
-    dq_imu: np.ndarray          # ΔS_imu
-    dq_cam: np.ndarray          # ΔS_avu
-    cov_imu: np.ndarray         # E_imu, MF axes
-    cov_cam: np.ndarray         # E_avu, VF axes
-    # optional, for weighting="correlated": gyro constants' sensitivity G (3×12) and the white
-    # part of E_imu, and the covariances of the two camera fixes (adjacent pairs share a fix)
-    imu_sensitivity: np.ndarray | None = None
-    cov_imu_white: np.ndarray | None = None
-    cov_fix_start: np.ndarray | None = None
-    cov_fix_end: np.ndarray | None = None
-
-    @property
-    def angle(self) -> float:
-        return float(np.linalg.norm(quat_to_rotvec(self.dq_cam)))
-
-
-def angle_consistency(pair: IncrementPair) -> tuple[float, float]:
-    """
-    φ_avu − φ_imu of a pair and its predicted σ (rad).  Rotation angles do not depend on the
-    boresight, so this judges a pair before (and whatever) the boresight fit says (004 Fig. 2a).
-    σ² = k_avuᵀ E_avu k_avu + k_imuᵀ E_imu k_imu with k the unit rotation axes (the angle error
-    is the error component along the axis); below 1e-9 rad the mean diagonal stands in.
-    """
-    out, var = [], 0.0
-    for dq, E in ((pair.dq_cam, pair.cov_cam), (pair.dq_imu, pair.cov_imu)):
-        rv = quat_to_rotvec(dq)
-        a = float(np.linalg.norm(rv))
-        out.append(a)
-        var += float(rv @ E @ rv) / a ** 2 if a > 1e-9 else float(np.trace(E)) / 3.0
-    return out[0] - out[1], float(np.sqrt(max(var, 0.0)))
+__all__ = ['CORRELATED_MAX_PAIRS', 'WEIGHTINGS', 'BoresightSolution', 'axis_alignment',
+           'check_observability', 'imu_attitude_from_camera', 'increment_residuals',
+           'solve_boresight']
 
 
 # ---------------------------------------------------------------------- §4 the estimate
 @dataclass
 class BoresightSolution:
+    """
+    The boresight estimate of :func:`solve_boresight`, or why there is none.
+
+    Attributes
+    ----------
+    observable : bool
+        The boresight is observable from the pairs.
+    message : str
+        'observable', a convergence note, or why not.
+    beta : (3,) ndarray or None
+        (ψ, ϑ, γ), rad.
+    c_mf_vf : (3, 3) ndarray or None
+        C_MF^VF.
+    covariance_beta : (3, 3) ndarray or None
+        P_β, rad² (the one published).
+    covariance_beta_residual : (3, 3) ndarray or None
+        004 §4.3's sandwich from the residuals.
+    covariance_beta_model : (3, 3) ndarray or None
+        (Hᵀ W H)⁻¹ from E_imu, E_avu.
+    rotation_covariance_mf : (3, 3) ndarray or None
+        P^clb = D2 P_β D2ᵀ, MF axes, rad².
+    weighted : bool
+        Any weighting other than 'unit'.
+    weighting : str
+        'unit', 'pairwise' or 'correlated'.
+    iterations : int
+        Gauss–Newton iterations.
+    converged : bool
+        The iteration converged.
+    residual_rms : float
+        RMS of the residual components, rad.
+    chi2_per_dof : float
+        Σ fᵀ W f / dof with the stated noise, any weighting.
+    dof : int
+        3n − 3.
+    chi2_band : tuple of float
+        ``chi2_band(dof)``, the two-sided band of χ²/dof.
+    fit_consistent : bool or None
+        χ²/dof inside its band: the stated noise explains the residuals.  False: the stated
+        noise is wrong or the model lacks an effect, and covariance_beta is scaled by χ²/dof
+        when > 1.
+    covariance_beta_stated : (3, 3) ndarray or None
+        P_β from the stated noise alone (unscaled).
+    pairs : int
+        Number of increment pairs.
+    observability : ObservabilityReport or None
+        The observability report.
+    unobservable_axes : list of str
+        Named unobservable rotation axes.
+
+    """
+
     observable: bool
     message: str
-    beta: np.ndarray | None = None                 # (ψ, ϑ, γ), rad
+    beta: np.ndarray | None = None
     c_mf_vf: np.ndarray | None = None
-    covariance_beta: np.ndarray | None = None      # P_β, rad² (the one published)
-    covariance_beta_residual: np.ndarray | None = None   # 004 §4.3 sandwich
-    covariance_beta_model: np.ndarray | None = None      # (Hᵀ W H)⁻¹ from E_imu, E_avu
-    rotation_covariance_mf: np.ndarray | None = None     # P^clb = D2 P_β D2ᵀ (MF axes)
+    covariance_beta: np.ndarray | None = None
+    covariance_beta_residual: np.ndarray | None = None
+    covariance_beta_model: np.ndarray | None = None
+    rotation_covariance_mf: np.ndarray | None = None
     weighted: bool = False
     weighting: str = 'unit'
     iterations: int = 0
     converged: bool = False
-    residual_rms: float = float('nan')             # rad, RMS of the residual components
-    chi2_per_dof: float = float('nan')             # Σ fᵀ W f / dof, stated noise, any weighting
-    dof: int = 0                                   # 3n − 3
-    chi2_band: tuple = (float('nan'), float('nan'))   # chi2_band(dof, FIT_LEVEL)
-    #: χ²/dof inside its band: the stated noise explains the residuals.  False: the stated noise
-    #: is wrong or the model lacks an effect, and covariance_beta is scaled by χ²/dof when > 1
+    residual_rms: float = float('nan')
+    chi2_per_dof: float = float('nan')
+    dof: int = 0
+    chi2_band: tuple = (float('nan'), float('nan'))
     fit_consistent: bool | None = None
-    covariance_beta_stated: np.ndarray | None = None   # P_β from the stated noise alone (unscaled)
+    covariance_beta_stated: np.ndarray | None = None
     pairs: int = 0
     observability: ObservabilityReport | None = None
     unobservable_axes: list = field(default_factory=list)
 
     @property
     def q_mf_vf(self) -> np.ndarray:
+        """Return C_MF^VF as a quaternion, scalar first."""
         return dcm_to_quat(self.c_mf_vf)
 
 
@@ -211,13 +121,48 @@ def _stack(pairs):
 
 
 def increment_residuals(C: np.ndarray, A_imu: np.ndarray, A_cam: np.ndarray) -> np.ndarray:
-    """f_n of 004 (5)–(6): the skew part of ΔS_avuᵀ Cᵀ ΔS_imu C − I, (n, 3)."""
+    """
+    Return the residuals f_n of 004 (5)–(6): the skew part of ΔS_avuᵀ Cᵀ ΔS_imu C − I.
+
+    Parameters
+    ----------
+    C : (3, 3) ndarray
+        C_MF^VF.
+    A_imu : (n, 3, 3) ndarray
+        ΔS_imu as DCMs.
+    A_cam : (n, 3, 3) ndarray
+        ΔS_avu as DCMs.
+
+    Returns
+    -------
+    (n, 3) ndarray
+        f_n, rad.
+
+    """
     F = np.swapaxes(A_cam, 1, 2) @ (C.T @ A_imu @ C)
-    return 0.5 * np.stack([F[:, 2, 1] - F[:, 1, 2], F[:, 0, 2] - F[:, 2, 0], F[:, 1, 0] - F[:, 0, 1]], axis=1)
+    return 0.5 * np.stack([F[:, 2, 1] - F[:, 1, 2], F[:, 0, 2] - F[:, 2, 0],
+                           F[:, 1, 0] - F[:, 0, 1]], axis=1)
 
 
 def axis_alignment(A_imu, A_cam) -> np.ndarray:
-    """Closed-form C from the rotation vectors: min Σ |log ΔS_imu − C log ΔS_avu|² (Wahba/SVD)."""
+    """
+    Return the closed-form C that aligns the rotation vectors of the increments.
+
+    min Σ |log ΔS_imu − C log ΔS_avu|² over rotations C: Wahba's problem, solved by SVD.
+
+    Parameters
+    ----------
+    A_imu : (n, 3, 3) ndarray
+        ΔS_imu as DCMs.
+    A_cam : (n, 3, 3) ndarray
+        ΔS_avu as DCMs.
+
+    Returns
+    -------
+    (3, 3) ndarray
+        C_MF^VF.
+
+    """
     u = quat_to_rotvec(dcm_to_quat(A_imu))
     v = quat_to_rotvec(dcm_to_quat(A_cam))
     B = u.T @ v
@@ -226,24 +171,47 @@ def axis_alignment(A_imu, A_cam) -> np.ndarray:
     return U @ np.diag([1.0, 1.0, d]) @ Vt
 
 
-def check_observability(pairs, c_mf_vf: np.ndarray | None = None, weights: np.ndarray | None = None,
-                        min_rotation: float = np.radians(0.5), axis_tolerance: float = np.radians(2.0),
+def check_observability(pairs, c_mf_vf: np.ndarray | None = None,
+                        weights: np.ndarray | None = None,
+                        min_rotation: float = np.radians(0.5),
+                        axis_tolerance: float = np.radians(2.0),
                         max_sigma: float = 1e-3) -> ObservabilityReport:
     """
-    004 §4.1 and the conditioning of the normal matrix, in VF rotation axes.
+    Judge the observability of the boresight: 004 §4.1 and the conditioning of the normal matrix.
 
     Near the solution the residual of pair n responds to a small rotation δ of C (VF axes)
-    as f_n = (I − R_nᵀ) δ with R_n = ΔS_avu,n; the normal matrix is Σ (I − R_n) W_n (I − R_nᵀ)
-    = Σ 2(1 − cos φ_n)(I − k_n k_nᵀ) for unit weights: a rotation about an axis k_n says
-    nothing about rotations of C about k_n.  Reported unobservable: directions whose
-    predicted σ exceeds ``max_sigma`` (rad) or whose eigenvalue vanishes.
+    as f_n = (I − R_nᵀ) δ with R_n = ΔS_avu,n; the normal matrix is
+    Σ (I − R_n) W_n (I − R_nᵀ) = Σ 2(1 − cos φ_n)(I − k_n k_nᵀ) for unit weights: a rotation
+    about an axis k_n says nothing about rotations of C about k_n.
+
+    Parameters
+    ----------
+    pairs : sequence of IncrementPair
+        The pairs.
+    c_mf_vf : (3, 3) ndarray, optional
+        Unused (the normal matrix is taken in VF axes).
+    weights : (n, 3, 3) ndarray, optional
+        W_n; default unit weights scaled by the camera noise.
+    min_rotation : float
+        Smallest rotation between exposures that counts, rad.
+    axis_tolerance : float
+        Spread of rotation axes below which they count as one axis, rad.
+    max_sigma : float
+        Directions whose predicted σ exceeds it (rad) are unobservable, as are those whose
+        eigenvalue vanishes.
+
+    Returns
+    -------
+    ObservabilityReport
+        In VF rotation axes, the unobservable axes named.
+
     """
     _, A_cam, E_imu, E_cam = _stack(pairs)
     I3 = np.eye(3)
     H = I3 - np.swapaxes(A_cam, 1, 2)
     if weights is None:
         W = np.broadcast_to(I3, H.shape)
-        scale = max(np.sqrt(np.mean([np.trace(e) / 3 for e in E_cam])), 1e-12)   # noise scale for σ
+        scale = max(np.sqrt(np.mean([np.trace(e) / 3 for e in E_cam])), 1e-12)   # noise for σ
         W = W / scale ** 2
     else:
         W = weights
@@ -258,7 +226,8 @@ def check_observability(pairs, c_mf_vf: np.ndarray | None = None, weights: np.nd
     ang = np.linalg.norm(rv, axis=1)
     big = ang >= min_rotation
     if not np.any(big):
-        why = f'no rotation above {np.degrees(min_rotation):.2g}° between exposures (static motion)'
+        why = (f'no rotation above {np.degrees(min_rotation):.2g}° between exposures '
+               '(static motion)')
     else:
         k = rv[big] / ang[big, None]
         spread = np.max(np.arccos(np.clip(np.abs(k @ k.T), -1, 1)))
@@ -271,8 +240,8 @@ def check_observability(pairs, c_mf_vf: np.ndarray | None = None, weights: np.nd
         if why.startswith('no rotation'):
             rep.message = f'boresight not observable: {why}; weakest: {rep.unobservable[0]}'
         else:
-            rep.message = f'{rep.unobservable[0]} not observable' + (f': {why}' if why else
-                                                                     f': predicted σ {rep.predicted_sigma[0]:.2g} rad')
+            reason = why if why else f'predicted σ {rep.predicted_sigma[0]:.2g} rad'
+            rep.message = f'{rep.unobservable[0]} not observable: {reason}'
     return rep
 
 
@@ -312,21 +281,53 @@ def solve_boresight(pairs, beta0=(0.0, 0.0, 0.0), weighted: bool = True, init: s
     """
     Estimate β and its covariance from increment pairs (004 §4), or report why not.
 
-    init: ``"axes"`` starts Gauss–Newton from the closed-form axis alignment (independent of
-    β0, 1–2 iterations); ``"given"`` starts from ``beta0`` exactly as 004 §4.2.
-    common_rotation_sigma: σ (rad, per axis) of a rotation of the gyro triad common to all
-    pairs.  The antisymmetric part of the gyro misalignment matrix rotates the whole triad
-    relative to MF; every ΔS_imu turns with it, so it is indistinguishable from the boresight
-    and never averages out.  For independent off-diagonal misalignments of σ_φ it is
-    σ_φ/√2 per axis.  It is added to the published covariance (MF axes: σ²I; β: D2⁻¹σ²D2⁻ᵀ);
-    without it the weighted covariance is overconfident (boresight_bench: mean NEES 5.1 → 2.95).
-    weighting: ``"unit"`` (004), ``"pairwise"`` (each pair by Cᵀ E_imu C + E_avu, independent
-    pairs), ``"correlated"`` (generalised least squares with the full residual covariance of
-    :func:`_correlated_covariance`: shared camera fixes and gyro constants common to all pairs;
-    needs ``gyro`` and pairs carrying sensitivities, O(n³)), or ``"auto"`` (correlated when
-    possible and n ≤ CORRELATED_MAX_PAIRS, else pairwise).  Default: pairwise if ``weighted``
-    else unit.  The correlated covariance contains the gyro-triad rotation itself, so
-    ``common_rotation_sigma`` is not added to it.
+    Parameters
+    ----------
+    pairs : sequence of IncrementPair
+        The increment pairs.
+    beta0 : (3,) array_like
+        Start of Gauss–Newton with ``init='given'``, rad.
+    weighted : bool
+        Default weighting: 'pairwise' if true, else 'unit'.
+    init : {'axes', 'given'}
+        'axes' starts Gauss–Newton from the closed-form :func:`axis_alignment` (independent
+        of β0, 1–2 iterations); 'given' starts from ``beta0`` exactly as 004 §4.2.
+    max_iterations : int
+        Limit of Gauss–Newton iterations.
+    tolerance : float
+        Convergence threshold of |Δβ|, rad.
+    dx : float
+        Central-difference step of the Jacobian, rad.
+    max_sigma : float
+        Predicted σ above which a direction is unobservable, rad.
+    min_rotation : float
+        Smallest rotation between exposures that counts, rad.
+    common_rotation_sigma : float
+        σ (rad, per axis) of a rotation of the gyro triad common to all pairs: the
+        antisymmetric part of the gyro misalignment rotates every ΔS_imu alike, so it is
+        indistinguishable from the boresight and never averages out (σ_φ/√2 per axis for
+        independent off-diagonal misalignments of σ_φ).  Added to the published covariance
+        (MF axes: σ²I; β: D2⁻¹σ²D2⁻ᵀ), except with the correlated weighting, which contains
+        it already.
+    weighting : {'unit', 'pairwise', 'correlated', 'auto'}, optional
+        'unit' (004); 'pairwise' (each pair by Cᵀ E_imu C + E_avu, independent pairs);
+        'correlated' (generalised least squares with the full residual covariance: shared
+        camera fixes and gyro constants common to all pairs; needs ``gyro`` and pairs with
+        sensitivities, O(n³)); 'auto' (correlated when possible and n ≤
+        CORRELATED_MAX_PAIRS, else pairwise).
+    gyro : SensorSigmas, optional
+        Gyro error sigmas, for the correlated weighting.
+
+    Returns
+    -------
+    BoresightSolution
+        β, C_MF^VF and their covariances, or ``observable=False`` with the reason.
+
+    Raises
+    ------
+    ValueError
+        An unknown weighting or init, or 'correlated' without what it needs.
+
     """
     pairs = list(pairs)
     n = len(pairs)
@@ -346,7 +347,7 @@ def solve_boresight(pairs, beta0=(0.0, 0.0, 0.0), weighted: bool = True, init: s
     rep = check_observability(pairs, min_rotation=min_rotation, max_sigma=max_sigma)
     if not rep.observable:
         return BoresightSolution(False, rep.message, pairs=n, observability=rep,
-                                 unobservable_axes=[u for u in rep.unobservable])
+                                 unobservable_axes=list(rep.unobservable))
     beta = np.asarray(beta0, dtype=float).copy()
     if init == 'axes':
         beta = dcm_to_ypr(axis_alignment(A_imu, A_cam))
@@ -383,13 +384,11 @@ def solve_boresight(pairs, beta0=(0.0, 0.0, 0.0), weighted: bool = True, init: s
         W = weights(C)
         HtW = np.einsum('nji,njk->nik', H, W)
         g = np.einsum('nij,nj->i', HtW, f)
-        return C, f, H, W, HtW, np.einsum('nij,njk->ik', HtW, H), g, float(np.einsum('ni,nij,nj->', f, W, f))
+        N = np.einsum('nij,njk->ik', HtW, H)
+        return C, f, H, W, HtW, N, g, float(np.einsum('ni,nij,nj->', f, W, f))
 
     def frozen_cost(lin, f_t):
-        """
-        fᵀ W f of residuals f_t with the weights of the linearisation ``lin`` (the cost the
-        Gauss–Newton step of ``lin`` descends).
-        """
+        """Return fᵀ W f of f_t with the weights of ``lin`` (the cost its step descends)."""
         if weighting == 'correlated':
             return float(f_t.reshape(-1) @ np.linalg.solve(lin[3], f_t.reshape(-1)))
         return float(np.einsum('ni,nij,nj->', f_t, lin[3], f_t))
@@ -443,18 +442,38 @@ def solve_boresight(pairs, beta0=(0.0, 0.0, 0.0), weighted: bool = True, init: s
         P = P + common_rotation_sigma ** 2 * D2i @ D2i.T
     beta_wrapped = dcm_to_ypr(C)                     # canonical angles of the same rotation
     sol = BoresightSolution(
-        observable=True, message='observable' if converged else f'not converged after {it} iterations',
+        observable=True,
+        message='observable' if converged else f'not converged after {it} iterations',
         beta=beta_wrapped, c_mf_vf=C, covariance_beta=P, covariance_beta_residual=P_res,
         covariance_beta_model=P_model, rotation_covariance_mf=D2 @ P @ D2.T, weighted=weighted,
-        weighting=weighting,
-        iterations=it, converged=converged, residual_rms=float(np.sqrt(np.mean(f ** 2))), chi2_per_dof=chi2,
-        dof=dof, chi2_band=band, fit_consistent=consistent, covariance_beta_stated=P_model,
-        pairs=n, observability=rep)
+        weighting=weighting, iterations=it, converged=converged,
+        residual_rms=float(np.sqrt(np.mean(f ** 2))), chi2_per_dof=chi2, dof=dof,
+        chi2_band=band, fit_consistent=consistent, covariance_beta_stated=P_model, pairs=n,
+        observability=rep)
     return sol
 
 
 def imu_attitude_from_camera(q_gcrs_vf: np.ndarray, P_avu: np.ndarray, sol: BoresightSolution):
-    """004 §5: S_GCRS^MF = S_GCRS^VF (C_MF^VF)ᵀ and P^mfa = C P^avu Cᵀ + D2 P_β D2ᵀ (eq. 8), MF axes."""
+    """
+    Return the IMU attitude from a camera fix and the boresight (004 §5, eq. (8)).
+
+    S_GCRS^MF = S_GCRS^VF (C_MF^VF)ᵀ and P^mfa = C P^avu Cᵀ + D2 P_β D2ᵀ, MF axes.
+
+    Parameters
+    ----------
+    q_gcrs_vf : (4,) ndarray
+        The camera attitude S_GCRS^VF, scalar first.
+    P_avu : (3, 3) ndarray
+        Its covariance, VF axes, rad².
+    sol : BoresightSolution
+        An observable boresight.
+
+    Returns
+    -------
+    tuple
+        q_GCRS_MF (scalar first) and P^mfa (3×3, MF axes, rad²).
+
+    """
     q = quat_normalize(quat_multiply(q_gcrs_vf, quat_conjugate(sol.q_mf_vf)))
     C = sol.c_mf_vf
     return q, C @ np.asarray(P_avu) @ C.T + sol.rotation_covariance_mf

@@ -1,9 +1,11 @@
 """
-Increment pairs over a whole recording, vectorised: attitude increments from the gyro and the
-camera between consecutive fixes, their residual (004 eq. 5–6) and the signatures of the effects.
+Increment pairs over a whole recording, vectorised.
 
-This is the same computation as :func:`strapdown_ros.calibration.boresight.gyro_increment` (one-sample
-products of exp(ρ_k) with 004's in-interval polynomial at both ends), done once for all pairs:
+Attitude increments from the gyro and the camera between consecutive fixes, their residual
+(004 eq. 5–6) and the signatures of the effects, for the discrepancy workflow and the gyro
+calibration.  This is the same computation as
+:func:`strapdown_ros.calibration.boresight_increments.gyro_increment` (one-sample products of
+exp(ρ_k) with 004's in-interval polynomial at both ends), done once for all pairs:
 the gyro attitude ``A(t)`` is integrated over the whole record (one parallel-prefix scan), the
 attitude at a fix epoch τ inside interval k is ``A_{k−1} ⊗ r_k(x)``, x = fraction of interval
 k before τ, and ``ΔS_imu = A(τ_s)* ⊗ A(τ_e)``.
@@ -20,18 +22,35 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from strapdown_ros.calibration.boresight import increment_residuals, r_partial
+from strapdown_ros.calibration.boresight import increment_residuals
+from strapdown_ros.calibration.boresight_increments import r_partial
 from strapdown_ros.rotation import (quat_conjugate, quat_cumprod, quat_multiply, quat_normalize,
                                     quat_to_dcm, rotvec_to_quat)
 
-__all__ = ['GyroRecord', 'PairSet', 'build_pairs', 'pair_residuals', 'pair_integral', 'ANGLE_LIMIT']
+__all__ = ['ANGLE_LIMIT', 'GyroRecord', 'PairSet', 'build_pairs', 'pair_integral',
+           'pair_residuals']
 
 ANGLE_LIMIT = np.pi * 0.999          # increments beyond this are not formed (ambiguous rotation)
 
 
 @dataclass
 class GyroRecord:
-    """Compensated gyro increments of a record: stamps (n,) s, increments (n, 3) rad."""
+    """
+    Compensated gyro increments of a record, integrated into an attitude once.
+
+    Attributes
+    ----------
+    stamps : (n,) ndarray
+        End stamps of the increments, s.
+    rho : (n, 3) ndarray
+        Increments, rad.
+    period : (n − 1,) ndarray
+        Length T_k of interval k ≥ 1, s (derived).
+    attitude : (n, 4) ndarray
+        Gyro attitude A at the end of each interval, scalar first (derived).
+
+    """
+
     stamps: np.ndarray
     rho: np.ndarray
 
@@ -45,13 +64,27 @@ class GyroRecord:
 
     @property
     def dcm(self) -> np.ndarray:
-        """DCMs of :attr:`attitude` (computed once)."""
+        """Return the DCMs of :attr:`attitude` (computed once)."""
         if self._dcm is None:
             self._dcm = quat_to_dcm(self.attitude)
         return self._dcm
 
     def locate(self, tau: np.ndarray):
-        """Interval index k (t_{k−1} < τ ≤ t_k) and fraction x of each epoch; valid mask."""
+        """
+        Locate epochs on the gyro grid.
+
+        Parameters
+        ----------
+        tau : (m,) ndarray
+            Epochs on the IMU clock, s.
+
+        Returns
+        -------
+        tuple
+            Interval index k (t_{k−1} < τ ≤ t_k), fraction x of the interval before τ, and a
+            mask of the epochs the gyro covers (one increment before the interval).
+
+        """
         k = np.searchsorted(self.stamps, tau, side='left')
         valid = (k >= 2) & (k < len(self.stamps))
         k = np.clip(k, 2, len(self.stamps) - 1)
@@ -60,14 +93,45 @@ class GyroRecord:
         return k, x, valid
 
     def attitude_at(self, k, x) -> np.ndarray:
+        """
+        Return the gyro attitude ``A_{k−1} ⊗ r_k(x)`` inside interval k.
+
+        Parameters
+        ----------
+        k : int ndarray
+            Interval indices (:meth:`locate`).
+        x : ndarray
+            Fractions of the intervals.
+
+        Returns
+        -------
+        (m, 4) ndarray
+            The attitude, scalar first.
+
+        """
         rho, drho = self.rho[k], self.rho[k] - self.rho[k - 1]
         part = quat_normalize(r_partial(rho, drho, x))
         return quat_normalize(quat_multiply(self.attitude[k - 1], part))
 
     def rate_at(self, k, window: float = 0.025) -> np.ndarray:
         """
-        Body rate around interval k: the mean over ±``window`` s (at least ±2 increments), so
-        that one quantised or noisy increment does not stand for the rate.
+        Return the body rate around interval k.
+
+        The mean over ±``window`` s (at least ±2 increments), so that one quantised or noisy
+        increment does not stand for the rate.
+
+        Parameters
+        ----------
+        k : int ndarray
+            Interval indices.
+        window : float
+            Half-width of the mean, s.
+
+        Returns
+        -------
+        (m, 3) ndarray
+            Body rate, rad/s.
+
         """
         k = np.asarray(k)
         n = len(self.stamps)
@@ -87,35 +151,89 @@ def _exp(rho):
 
 @dataclass
 class PairSet:
-    """Pairs of consecutive usable fixes (indices into the fix arrays) and their increments."""
-    fix_start: np.ndarray        # (N,) index of the first fix
-    fix_end: np.ndarray          # (N,)
-    t_start: np.ndarray          # IMU-clock epochs τ (stamp − time offset), s
+    """
+    Pairs of consecutive usable fixes (indices into the fix arrays) and their increments.
+
+    Attributes
+    ----------
+    fix_start, fix_end : (N,) int ndarray
+        Indices of the first and the second fix.
+    t_start, t_end : (N,) ndarray
+        IMU-clock epochs τ (stamp − time offset), s.
+    dq_imu : (N, 4) ndarray
+        ΔS_imu, MF(τ_e) → MF(τ_s), scalar first.
+    dq_cam : (N, 4) ndarray
+        ΔS_avu, VF(t_e) → VF(t_s), scalar first.
+    k_start, x_start, k_end, x_end : (N,) ndarray
+        Gyro interval and fraction of each epoch.
+    duration : (N,) ndarray
+        τ_e − τ_s, s.
+
+    """
+
+    fix_start: np.ndarray
+    fix_end: np.ndarray
+    t_start: np.ndarray
     t_end: np.ndarray
-    dq_imu: np.ndarray           # (N, 4) ΔS_imu, MF(τ_e) → MF(τ_s)
-    dq_cam: np.ndarray           # (N, 4) ΔS_avu, VF(t_e) → VF(t_s)
-    k_start: np.ndarray          # gyro interval and fraction of each epoch
+    dq_imu: np.ndarray
+    dq_cam: np.ndarray
+    k_start: np.ndarray
     x_start: np.ndarray
     k_end: np.ndarray
     x_end: np.ndarray
-    duration: np.ndarray         # τ_e − τ_s
+    duration: np.ndarray
 
     def __len__(self):
         return len(self.fix_start)
 
     @property
     def adjacent(self) -> np.ndarray:
-        """(N−1,) True where pair n+1 starts at the fix where pair n ends (they share it)."""
+        """Return (N−1,) True where pair n+1 starts at the fix where pair n ends (shared)."""
         return self.fix_start[1:] == self.fix_end[:-1]
 
     def subset(self, mask) -> 'PairSet':
+        """
+        Return the pairs selected by a mask.
+
+        Parameters
+        ----------
+        mask : (N,) bool ndarray or index array
+            The pairs to keep.
+
+        Returns
+        -------
+        PairSet
+            The selected pairs.
+
+        """
         return PairSet(*(getattr(self, f)[mask] for f in self.__dataclass_fields__))
 
 
 def build_pairs(gyro: GyroRecord, fix_stamps, fix_q, time_offset: float = 0.0, gaps=()) -> PairSet:
     """
-    Pairs (n−1, n) of consecutive fixes whose epochs the gyro covers (one increment before the
-    first epoch's interval, as 004's polynomial needs) and whose span holds no gyro gap.
+    Build the pairs (n−1, n) of consecutive fixes that the gyro covers without a gap.
+
+    The gyro must cover both epochs (one increment before the first epoch's interval, as
+    004's polynomial needs) and the span must hold no gyro gap.
+
+    Parameters
+    ----------
+    gyro : GyroRecord
+        The compensated gyro increments.
+    fix_stamps : (M,) array_like
+        Camera stamps, s.
+    fix_q : (M, 4) array_like
+        Camera attitudes q_GCRS_VF, scalar first.
+    time_offset : float
+        Camera time offset, s: τ = stamp − time_offset.
+    gaps : sequence of (float, float)
+        Gyro gaps (start, end), s.
+
+    Returns
+    -------
+    PairSet
+        The pairs.
+
     """
     tau = np.asarray(fix_stamps, dtype=float) - float(time_offset)
     k, x, valid = gyro.locate(tau)
@@ -135,16 +253,46 @@ def build_pairs(gyro: GyroRecord, fix_stamps, fix_q, time_offset: float = 0.0, g
 
 
 def pair_residuals(C: np.ndarray, pairs: PairSet) -> np.ndarray:
-    """f_n of 004 (5)–(6), VF axes: the skew part of ΔS_avuᵀ Cᵀ ΔS_imu C (N, 3)."""
+    """
+    Return the residuals f_n of 004 (5)–(6), VF axes: the skew part of ΔS_avuᵀ Cᵀ ΔS_imu C.
+
+    Parameters
+    ----------
+    C : (3, 3) ndarray
+        C_MF^VF.
+    pairs : PairSet
+        The pairs.
+
+    Returns
+    -------
+    (N, 3) ndarray
+        f_n, rad.
+
+    """
     return increment_residuals(C, quat_to_dcm(pairs.dq_imu), quat_to_dcm(pairs.dq_cam))
 
 
 def pair_integral(gyro: GyroRecord, pairs: PairSet, jacobian, chunk: int = 100_000) -> np.ndarray:
     """
-    ε-signature per pair, MF axes at τ_e: ``C_eᵀ Σ_k w_k C_k D_k`` → (N, 3, p).
+    Return the ε-signature per pair, MF axes at τ_e: ``C_eᵀ Σ_k w_k C_k D_k``.
 
-    ``jacobian(rho, T, t_mid_index_slice)`` returns D_k (m, 3, p) for a slice of intervals; it is
-    called chunk by chunk, so memory stays bounded on recordings of hours.
+    Parameters
+    ----------
+    gyro : GyroRecord
+        The gyro increments.
+    pairs : PairSet
+        The pairs.
+    jacobian : callable
+        ``jacobian(rho, T, index_slice)`` returns D_k (m, 3, p) for a slice of intervals; it
+        is called chunk by chunk, so memory stays bounded on recordings of hours.
+    chunk : int
+        Intervals per call of ``jacobian``.
+
+    Returns
+    -------
+    (N, 3, p) ndarray
+        The signatures.
+
     """
     n = len(gyro.stamps)
     Ks, Ke = pairs.k_start, pairs.k_end
@@ -178,4 +326,3 @@ def pair_integral(gyro: GyroRecord, pairs: PairSet, jacobian, chunk: int = 100_0
     total = Ze - Zs + (1.0 - pairs.x_start)[:, None, None] * Ys + pairs.x_end[:, None, None] * Ye
     Cend = quat_to_dcm(gyro.attitude_at(Ke, pairs.x_end))
     return np.einsum('nji,njp->nip', Cend, total)
-

@@ -1,7 +1,8 @@
 """
-The calibrator's state file: identity, lock, atomic writes (``calibrator_node`` ``state_file``).
+The calibrator's state file: identity, lock, atomic writes.
 
-No ROS imports; the node only calls :class:`CalibratorStateFile`.  The rules:
+The ``state_file`` of ``calibrator_node``.  No ROS imports; the node only calls
+:class:`CalibratorStateFile`.  The rules:
 
 * **identity** — the file stores what defines its estimate: every calibrator parameter except
   the operational ones (:data:`OPERATIONAL`: queue depths, publishing thresholds, input
@@ -30,7 +31,7 @@ import os
 
 import numpy as np
 
-from strapdown_ros.calibration.boresight import IncrementPair
+from strapdown_ros.calibration.boresight_increments import IncrementPair
 
 __all__ = ['CalibratorStateFile', 'StateFileError', 'state_identity', 'OPERATIONAL',
            'STATE_VERSION']
@@ -48,7 +49,17 @@ _REQUIRED = ('t_start', 't_end', 'dq_imu', 'dq_cam', 'cov_imu', 'cov_cam')
 
 
 class StateFileError(RuntimeError):
-    """The state file cannot be used; ``kind`` is 'path', 'locked', 'identity' or 'corrupt'."""
+    """
+    The state file cannot be used.
+
+    Parameters
+    ----------
+    kind : str
+        'path', 'locked', 'identity' or 'corrupt'.
+    message : str
+        What is wrong, in words.
+
+    """
 
     def __init__(self, kind: str, message: str):
         super().__init__(message)
@@ -56,7 +67,7 @@ class StateFileError(RuntimeError):
 
 
 def _plain(v):
-    """A parameter value as plain JSON (lists for arrays, floats for numpy scalars)."""
+    """Return a parameter value as plain JSON (lists for arrays, floats for numpy scalars)."""
     if isinstance(v, (list, tuple, np.ndarray)):
         return [_plain(x) for x in v]
     if isinstance(v, (bool, np.bool_)):
@@ -70,8 +81,20 @@ def _plain(v):
 
 def state_identity(params: dict, streams: dict) -> dict:
     """
-    The identity of a calibrator state: the parameters that define the estimate (all but
-    :data:`OPERATIONAL`) and the streams (e.g. ``{"gyro": "/robot/imu/delta_theta", ...}``).
+    Return the identity of a calibrator state.
+
+    Parameters
+    ----------
+    params : dict
+        The calibrator's parameters; all but :data:`OPERATIONAL` define the estimate.
+    streams : dict
+        The resolved stream names, e.g. ``{'gyro': '/robot/imu/delta_theta', ...}``.
+
+    Returns
+    -------
+    dict
+        ``{'parameters': ..., 'streams': ...}`` as plain JSON values.
+
     """
     return {'parameters': {k: _plain(v) for k, v in sorted(params.items())
                            if k not in OPERATIONAL},
@@ -91,9 +114,10 @@ def _differences(stored: dict, current: dict) -> list[str]:
 
 class CalibratorStateFile:
     """
-    One node's state file.  :meth:`open` first (path checks, lock, stale temporary removed),
-    then :meth:`load` once and :meth:`save` after every new pair; :meth:`close` releases the
-    lock.
+    One node's state file.
+
+    :meth:`acquire` first (path checks, lock, stale temporary removed), then :meth:`load` once
+    and :meth:`save` after every new pair; :meth:`close` releases the lock.
 
     Parameters
     ----------
@@ -101,6 +125,7 @@ class CalibratorStateFile:
         ``state_file``.
     identity : dict
         :func:`state_identity` of the running node.
+
     """
 
     def __init__(self, path: str, identity: dict):
@@ -113,12 +138,16 @@ class CalibratorStateFile:
         self.lock_path = self.path + '.lock'
 
     # --- start-up ---------------------------------------------------------------------------
-    def open(self) -> None:
+    def acquire(self) -> None:
         """
-        Check the path, take the lock, remove a temporary left by a killed writer.  Raises
-        StateFileError ('path' or 'locked'); nothing is changed on the file system then.
-        """
+        Check the path, take the lock, remove a temporary left by a killed writer.
 
+        Raises
+        ------
+        StateFileError
+            'path' or 'locked'; nothing is changed on the file system then.
+
+        """
         p = self.path
         if p.endswith(os.sep) or (os.altsep and p.endswith(os.altsep)):
             raise StateFileError('path', f'state_file {p!r} ends with a path separator: '
@@ -159,16 +188,31 @@ class CalibratorStateFile:
     # --- contents ---------------------------------------------------------------------------
     def load(self, cal) -> int | None:
         """
-        Restore pairs and last fix into ``cal``; returns the time origin (ns), or None when
-        there is no file.  Raises StateFileError: 'identity' (the file is left as it is) or
-        'corrupt' (unreadable or malformed); nothing is restored then.
+        Restore pairs and last fix into ``cal``.
+
+        Parameters
+        ----------
+        cal : BoresightCalibrator
+            The calibrator to restore into.
+
+        Returns
+        -------
+        int or None
+            The time origin, ns, or None when there is no file.
+
+        Raises
+        ------
+        StateFileError
+            'identity' (the file is left as it is) or 'corrupt' (unreadable or malformed);
+            nothing is restored then.
+
         """
         if not os.path.exists(self.path):
             return None
         try:
             with np.load(self.path, allow_pickle=False) as z:
                 data = {k: z[k] for k in z.files}
-        except Exception as exc:                   # noqa: BLE001 - any unreadable file is reported
+        except Exception as exc:                   # any unreadable file is reported
             why = f'unreadable ({type(exc).__name__}: {str(exc)[:120]})'
             raise StateFileError('corrupt', why) from None
         if int(data.get('version', -1)) != STATE_VERSION:
@@ -177,7 +221,7 @@ class CalibratorStateFile:
                                              'the package)')
         try:
             stored = json.loads(str(data['identity']))
-        except Exception:                          # noqa: BLE001
+        except Exception:                          # any malformed record is reported
             raise StateFileError('corrupt', 'identity record unreadable') from None
         diff = _differences(stored, self.identity)
         if diff:
@@ -209,7 +253,7 @@ class CalibratorStateFile:
         return origin
 
     def move_aside(self) -> str:
-        """Rename an unreadable regular file to ``<state_file>.corrupt[.k]``; returns the name."""
+        """Rename an unreadable regular file to ``<state_file>.corrupt[.k]``; return the name."""
         if not os.path.isfile(self.path):
             return ''
         k, aside = 0, f'{self.path}.corrupt'
@@ -221,8 +265,20 @@ class CalibratorStateFile:
 
     def save(self, cal, origin_ns: int) -> None:
         """
-        Write pairs, last fix, estimate and identity atomically (module docstring).  OSError
-        when the file system refuses.
+        Write pairs, last fix, estimate and identity atomically (module docstring).
+
+        Parameters
+        ----------
+        cal : BoresightCalibrator
+            The calibrator to save.
+        origin_ns : int
+            The time origin, ns.
+
+        Raises
+        ------
+        OSError
+            The file system refuses.
+
         """
         arrays = {'version': np.array(STATE_VERSION),
                   'origin_ns': np.array(int(origin_ns), dtype=np.int64),
@@ -234,9 +290,9 @@ class CalibratorStateFile:
                 arrays['pair_' + f] = np.array(vals, dtype=float)
         last = cal.last_fix
         if last is not None:
-            arrays['last_fix_t'], arrays['last_fix_q'], arrays['last_fix_P'] = (np.array(last[0]),
-                                                                             np.asarray(last[1]),
-                                                                             np.asarray(last[2]))
+            arrays['last_fix_t'] = np.array(last[0])
+            arrays['last_fix_q'] = np.asarray(last[1])
+            arrays['last_fix_P'] = np.asarray(last[2])
         sol = cal.solution
         if sol is not None and sol.observable and sol.beta is not None:
             arrays['beta'] = np.asarray(sol.beta, dtype=float)

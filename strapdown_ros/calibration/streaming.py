@@ -1,5 +1,5 @@
 """
-Streaming boresight calibrator: gyro increments + camera fixes → increment pairs → estimate.
+Streaming boresight calibrator: gyro increments and camera fixes to pairs to an estimate.
 
 Used by ``calibrator_node`` (live) and ``calibrate_bag`` (offline) alike, so both give the same
 answer on the same data.  No ROS imports.
@@ -17,8 +17,8 @@ increments, and the camera's ``camera_time_offset`` (a fix stamped t belongs to 
 
 A pair (n−1, n) is formed as soon as the gyro increment whose interval contains t_{E,n} has
 arrived.  :meth:`solve` runs the estimator over all pairs, warm-started from the previous
-solution, and returns a :class:`~strapdown_ros.calibration.boresight.BoresightSolution` (which says
-whether the boresight is observable, and why not).
+solution, and returns a :class:`~strapdown_ros.calibration.boresight.BoresightSolution`
+(which says whether the boresight is observable, and why not).
 """
 from __future__ import annotations
 
@@ -26,9 +26,9 @@ from collections import deque
 
 import numpy as np
 
-from strapdown_ros.calibration.boresight import (angle_consistency, BoresightSolution,
-                                                 camera_increment, gyro_increment, IncrementPair,
-                                                 solve_boresight)
+from strapdown_ros.calibration.boresight import BoresightSolution, solve_boresight
+from strapdown_ros.calibration.boresight_increments import (angle_consistency, camera_increment,
+                                                            gyro_increment, IncrementPair)
 from strapdown_ros.sensors import SensorSigmas
 from strapdown_ros.sensors.covariance import get_covariance_model
 from strapdown_ros.sensors.effects import CameraEffects, GyroEffects
@@ -38,14 +38,48 @@ __all__ = ['BoresightCalibrator']
 
 
 class BoresightCalibrator:
-    def __init__(self, gyro: SensorSigmas | None = None, covariance_model: str = 'random_constant',
-                 weighted: bool = True, initial_boresight=(0.0, 0.0, 0.0), min_rotation: float = np.radians(0.5),
+    """
+    The streaming boresight calibrator of ``calibrator_node`` and ``calibrate_bag``.
+
+    Parameters
+    ----------
+    gyro : SensorSigmas, optional
+        Gyro error sigmas (E_imu and the correlated weighting); None: no gyro covariance.
+    covariance_model : str
+        Gyro covariance model (:mod:`strapdown_ros.sensors.covariance`).
+    weighted : bool
+        Weight the pairs (else 004's unit weights).
+    initial_boresight : (3,) array_like
+        Start of the first solve with ``init='given'``, rad (the default start is the
+        closed-form axis alignment).
+    min_rotation : float
+        Smallest rotation between exposures that counts for observability, rad.
+    max_sigma : float
+        Predicted σ above which a direction is unobservable, rad.
+    max_pairs : int
+        Keep at most this many latest pairs (0: all).
+    effects : GyroEffects, optional
+        Known gyro effects compensated on the increments.
+    camera : CameraEffects, optional
+        Camera time offset and noise scale applied to the fixes.
+    outlier_gate : float
+        Gate of the outlier-fix rule in σ (0: off).
+    max_buffer : int, optional
+        Bound of the gyro history, samples (default MAX_BUFFER).
+
+    """
+
+    def __init__(self, gyro: SensorSigmas | None = None,
+                 covariance_model: str = 'random_constant', weighted: bool = True,
+                 initial_boresight=(0.0, 0.0, 0.0), min_rotation: float = np.radians(0.5),
                  max_sigma: float = 1e-3, max_pairs: int = 0, effects: GyroEffects | None = None,
-                 camera: CameraEffects | None = None, outlier_gate: float = 6.0, max_buffer: int | None = None):
+                 camera: CameraEffects | None = None, outlier_gate: float = 6.0,
+                 max_buffer: int | None = None):
         self.outlier_gate = float(outlier_gate)
         self.outlier_fixes = 0                      # camera fixes dropped by the outlier rule
         self.outlier_stamps: deque = deque(maxlen=100)
-        self._angle_ratios: deque = deque(maxlen=self.ROBUST_WINDOW)   # normalised angle residuals
+        # normalised angle residuals of the latest pairs
+        self._angle_ratios: deque = deque(maxlen=self.ROBUST_WINDOW)
         self._prev_fix = None                       # the fix before _last_fix (for the skip pair)
         self.effects = effects if effects is not None and effects.active else None
         self.camera = camera
@@ -68,16 +102,46 @@ class BoresightCalibrator:
 
     @classmethod
     def from_params(cls, p: dict) -> 'BoresightCalibrator':
-        """The calibrator of ``calibrator_node`` parameters (node and ``calibrate_bag`` alike)."""
-        return cls(gyro=SensorSigmas.from_params(p, 'gyro'), covariance_model=p['covariance_model'],
-                   weighted=bool(p['weighted']), initial_boresight=np.asarray(p['initial_boresight'], dtype=float),
-                   min_rotation=np.radians(float(p['min_rotation_deg'])), max_sigma=float(p['max_sigma']),
-                   max_pairs=int(p['max_pairs']), effects=GyroEffects(p), camera=CameraEffects(p),
+        """
+        Build the calibrator from ``calibrator_node`` parameters (node and ``calibrate_bag``).
+
+        Parameters
+        ----------
+        p : dict
+            The parameters, as :mod:`strapdown_ros.params` declares them.
+
+        Returns
+        -------
+        BoresightCalibrator
+            The calibrator.
+
+        """
+        return cls(gyro=SensorSigmas.from_params(p, 'gyro'),
+                   covariance_model=p['covariance_model'], weighted=bool(p['weighted']),
+                   initial_boresight=np.asarray(p['initial_boresight'], dtype=float),
+                   min_rotation=np.radians(float(p['min_rotation_deg'])),
+                   max_sigma=float(p['max_sigma']), max_pairs=int(p['max_pairs']),
+                   effects=GyroEffects(p), camera=CameraEffects(p),
                    outlier_gate=float(p['outlier_gate']))
 
     # --- input -----------------------------------------------------------------------------
     def add_gyro(self, stamps, delta_theta) -> int:
-        """Append increments (stamps strictly increasing); returns the number of new pairs."""
+        """
+        Append gyro increments.
+
+        Parameters
+        ----------
+        stamps : (n,) array_like
+            End stamps of the increments, s, strictly increasing.
+        delta_theta : (n, 3) array_like
+            Increments, rad.
+
+        Returns
+        -------
+        int
+            The number of new pairs.
+
+        """
         st = np.atleast_1d(np.asarray(stamps, dtype=float))
         v = np.asarray(delta_theta, dtype=float).reshape(-1, 3)
         if self.effects is not None and len(st):
@@ -91,8 +155,22 @@ class BoresightCalibrator:
 
     def add_gyro_sample(self, stamp: float, delta_theta) -> int:
         """
-        One increment (the live path of calibrator_node): the same as :meth:`add_gyro` with
-        one sample, without its array conversions.
+        Append one increment (the live path of calibrator_node).
+
+        The same as :meth:`add_gyro` with one sample, without its array conversions.
+
+        Parameters
+        ----------
+        stamp : float
+            End stamp of the increment, s.
+        delta_theta : (3,) array_like
+            The increment, rad.
+
+        Returns
+        -------
+        int
+            The number of new pairs.
+
         """
         if self.effects is not None:
             return self.add_gyro([stamp], [delta_theta])
@@ -102,8 +180,10 @@ class BoresightCalibrator:
 
     def restart_gyro(self) -> None:
         """
-        The gyro stamps start a new time base (a confirmed stamp jump): the buffered increments
-        and the fix that would start the next pair are dropped, since no pair may span the jump.
+        Start a new gyro time base (a confirmed stamp jump).
+
+        The buffered increments and the fix that would start the next pair are dropped, since
+        no pair may span the jump.
         """
         self._gyro.clear()
         self._last_stamp = None
@@ -111,18 +191,36 @@ class BoresightCalibrator:
         self._cams.clear()
 
     def restart_camera(self) -> None:
-        """The camera stamps start a new time base: no pair may span the jump."""
+        """Start a new camera time base: no pair may span the jump."""
         self._last_fix = None
         self._cams.clear()
 
-    #: hard bound of the gyro history, samples (1e6 ≈ 24 MB: 8 min at 2 kHz, 2.8 h at 100 Hz between
-    #: two fixes); beyond it the oldest are dropped and a pair that needed them is not formed
+    #: hard bound of the gyro history, samples (1e6 ≈ 24 MB: 8 min at 2 kHz, 2.8 h at 100 Hz
+    #: between two fixes); beyond it the oldest are dropped and a pair that needed them is not
+    #: formed
     MAX_BUFFER = 1_000_000
 
     def add_camera(self, stamp: float, q_gcrs_vf, covariance) -> int:
         """
-        Append one camera fix; returns the number of new pairs.  With camera effects the fix
-        is placed at its IMU-clock epoch and its covariance corrected.
+        Append one camera fix.
+
+        With camera effects the fix is placed at its IMU-clock epoch and its covariance
+        corrected.
+
+        Parameters
+        ----------
+        stamp : float
+            Stamp of the fix, s.
+        q_gcrs_vf : (4,) array_like
+            Camera attitude q_GCRS_VF, scalar first.
+        covariance : (3, 3) array_like
+            Its covariance, VF axes, rad².
+
+        Returns
+        -------
+        int
+            The number of new pairs.
+
         """
         P = np.asarray(covariance, dtype=float)
         if self.camera is not None:
@@ -131,7 +229,7 @@ class BoresightCalibrator:
         return self._form_pairs()
 
     def _pair(self, fix_a, fix_b):
-        """The increment pair between two fixes, or None without gyro data around them."""
+        """Return the increment pair between two fixes, or None without gyro data around them."""
         t0, q0, P0 = fix_a
         stamp, q, P = fix_b
         t = self._gyro.stamps
@@ -142,8 +240,11 @@ class BoresightCalibrator:
         if r is None:
             return None
         dq_c, E_c = camera_increment(q0, P0, q, P)
-        extra = dict(imu_sensitivity=r[2], cov_imu_white=r[3]) if self.gyro is not None else {}
-        return IncrementPair(t0, stamp, r[0], dq_c, r[1], E_c, cov_fix_start=P0, cov_fix_end=P, **extra)
+        extra = {}
+        if self.gyro is not None:
+            extra = {'imu_sensitivity': r[2], 'cov_imu_white': r[3]}
+        return IncrementPair(t0, stamp, r[0], dq_c, r[1], E_c, cov_fix_start=P0, cov_fix_end=P,
+                             **extra)
 
     #: the robust scale of the outlier gate is taken over at most this many of the latest pairs
     ROBUST_WINDOW = 200
@@ -152,10 +253,11 @@ class BoresightCalibrator:
 
     def angle_scale(self) -> float:
         """
-        Robust scale s of the normalised angle residuals r = (φ_avu − φ_imu)/σ of the latest
-        pairs: 1.4826 · median |r − median r| (the MAD, σ for Gaussian r), at least 1.  With the
-        stated noise right, s ≈ 1; with the camera σ stated 100× too small, s ≈ 100.  inf (no
-        gate) with fewer than ``ROBUST_MIN_PAIRS`` pairs.
+        Return the robust scale s of the normalised angle residuals of the latest pairs.
+
+        r = (φ_avu − φ_imu)/σ; s = 1.4826 · median |r − median r| (the MAD, σ for Gaussian r),
+        at least 1.  With the stated noise right, s ≈ 1; with the camera σ stated 100× too
+        small, s ≈ 100.  inf (no gate) with fewer than ``ROBUST_MIN_PAIRS`` pairs.
         """
         r = np.asarray(self._angle_ratios, dtype=float)
         if len(r) < self.ROBUST_MIN_PAIRS:
@@ -178,7 +280,7 @@ class BoresightCalibrator:
                 break                                   # wait for the gyro to cover t_E,n
             pair = self._pair(self._last_fix, (stamp, q, P))
             fix = self._cams.popleft()
-            if pair is None:                            # not enough gyro data around t0: skip this pair
+            if pair is None:               # not enough gyro data around t0: skip this pair
                 self._prev_fix, self._last_fix = None, fix
                 continue
             key = self.pair_key(pair)
@@ -191,9 +293,10 @@ class BoresightCalibrator:
             d, sig = angle_consistency(pair)
             self._angle_ratios.append(d / sig if sig > 0 else 0.0)
             new += 1
-            self._drop_outlier_fix(fix)              # the last pair may become the skip pair: still new
+            # the last pair may become the skip pair: still new
+            self._drop_outlier_fix(fix)
             self._prev_fix, self._last_fix = self._last_fix, fix
-            # drop gyro data no longer needed (keep a margin before the fix that may start a skip pair)
+            # drop gyro data no longer needed (a margin before the fix that may start a skip pair)
             keep = self._prev_fix[0] if self._prev_fix is not None else stamp
             self._gyro.drop_first(int(np.searchsorted(self._gyro.stamps, keep)) - 3)
         if self.max_pairs and len(self.pairs) > self.max_pairs:
@@ -205,30 +308,62 @@ class BoresightCalibrator:
     # --- identity of pairs and the fix chain (the state file) -----------------------------------
     @staticmethod
     def pair_key(pair: IncrementPair) -> tuple[int, int]:
-        """(t_start, t_end) of a pair in integer ns: the identity of a pair across restarts."""
+        """
+        Return (t_start, t_end) of a pair in integer ns: its identity across restarts.
+
+        Parameters
+        ----------
+        pair : IncrementPair
+            The pair.
+
+        Returns
+        -------
+        tuple of int
+            The key.
+
+        """
         return int(round(pair.t_start * 1e9)), int(round(pair.t_end * 1e9))
 
     def add_pair_keys(self, pairs) -> None:
         """
-        Hold the keys of ``pairs`` (restored from a state file): pairs with the same stamps
-        are not formed again.
+        Hold the keys of pairs restored from a state file: those stamps are not paired again.
+
+        Parameters
+        ----------
+        pairs : iterable of IncrementPair
+            The restored pairs.
+
         """
         self._pair_keys.update(self.pair_key(pr) for pr in pairs)
 
     @property
     def last_fix(self):
-        """(stamp s, q_GCRS_VF, P) of the fix that starts the next pair, or None."""
+        """Return (stamp s, q_GCRS_VF, P) of the fix that starts the next pair, or None."""
         return self._last_fix
 
     def restore_last_fix(self, stamp: float, q_gcrs_vf, covariance) -> None:
-        """Resume the fix chain from a stored fix (the state file)."""
+        """
+        Resume the fix chain from a stored fix (the state file).
+
+        Parameters
+        ----------
+        stamp : float
+            Stamp of the fix, s.
+        q_gcrs_vf : (4,) array_like
+            Camera attitude, scalar first.
+        covariance : (3, 3) array_like
+            Its covariance, VF axes, rad².
+
+        """
         self._last_fix = (float(stamp), np.asarray(q_gcrs_vf, dtype=float),
                           np.asarray(covariance, dtype=float))
         self._prev_fix = None
 
     def _drop_outlier_fix(self, fix) -> int:
         """
-        The outlier rule: fix n (= _last_fix) is an outlier when both its pairs, (n−1, n) and
+        Apply the outlier rule to fix n (= _last_fix); return 1 when it was dropped, else 0.
+
+        Fix n is an outlier when both its pairs, (n−1, n) and
         (n, n+1), disagree in rotation angle by more than the gate while the pair (n−1, n+1)
         that skips it agrees.  The gate is ``outlier_gate`` × max(1, s) × the stated σ of the
         angle difference, s the robust scale of the normalised angle residuals of the latest
@@ -236,7 +371,7 @@ class BoresightCalibrator:
         ``outlier_gate`` σ; when the stated σ is too small by a factor s, the gate widens by s,
         so a wrong σ never turns good fixes into outliers while a fix off by far more than the
         actual scatter is still gated.  Then both pairs give way to the skip pair (the newest
-        pair in the list).  Returns 1 when fix n was dropped, else 0.
+        pair in the list).
         """
         if self.outlier_gate <= 0 or self._prev_fix is None or len(self.pairs) < 2:
             return 0
@@ -250,7 +385,7 @@ class BoresightCalibrator:
             return 0
         skip = self._pair(self._prev_fix, fix)
         if skip is None or self._inconsistent(skip, scale):
-            return 0                                    # not one bad fix: leave it to the estimator
+            return 0                     # not one bad fix: leave it to the estimator
         del self.pairs[-2:]
         self.pairs.append(skip)
         self._pair_keys.add(self.pair_key(skip))
@@ -262,12 +397,21 @@ class BoresightCalibrator:
     # --- estimate ------------------------------------------------------------------------------
     def solve(self) -> BoresightSolution:
         """
-        Estimate from all pairs.  Warm start: once a converged solution exists, Gauss–Newton
-        starts from it (the closed-form axis alignment is only needed the first time).
+        Estimate the boresight from all pairs.
+
+        Warm start: once a converged solution exists, Gauss–Newton starts from it (the
+        closed-form axis alignment is only needed the first time).
+
+        Returns
+        -------
+        BoresightSolution
+            The estimate, or why there is none.
+
         """
         prev = self.solution
         if prev is not None and prev.observable and prev.converged:
-            sol = solve_boresight(self.pairs, beta0=prev.beta, init='given', **self._solver_options())
+            sol = solve_boresight(self.pairs, beta0=prev.beta, init='given',
+                                  **self._solver_options())
             if not (sol.observable and sol.converged):
                 sol = self._cold()
         else:
@@ -276,13 +420,16 @@ class BoresightCalibrator:
         return sol
 
     def _cold(self) -> BoresightSolution:
-        return solve_boresight(self.pairs, beta0=self.initial_boresight, init='axes', **self._solver_options())
+        return solve_boresight(self.pairs, beta0=self.initial_boresight, init='axes',
+                               **self._solver_options())
 
     def _solver_options(self) -> dict:
         """
+        Return the options of ``solve_boresight``.
+
         Weighting: unit when ``weighted`` is off; with the random-constant gyro model the
-        correlated solution (shared fixes, common gyro constants) up to CORRELATED_MAX_PAIRS pairs
-        and pairwise weights beyond; with 004's white model pairwise weights.
+        correlated solution (shared fixes, common gyro constants) up to CORRELATED_MAX_PAIRS
+        pairs and pairwise weights beyond; with 004's white model pairwise weights.
         """
         if not self.weighted:
             weighting = 'unit'
@@ -290,10 +437,11 @@ class BoresightCalibrator:
             weighting = 'auto'
         else:
             weighting = 'pairwise'
-        return dict(weighting=weighting, gyro=self.gyro, max_sigma=self.max_sigma, min_rotation=self.min_rotation,
-                    common_rotation_sigma=self.common_rotation_sigma)
+        return {'weighting': weighting, 'gyro': self.gyro, 'max_sigma': self.max_sigma,
+                'min_rotation': self.min_rotation,
+                'common_rotation_sigma': self.common_rotation_sigma}
 
     @property
     def common_rotation_sigma(self) -> float:
-        """σ per axis of the gyro-triad rotation (antisymmetric misalignment), σ_φ/√2."""
+        """Return σ per axis of the gyro-triad rotation (antisymmetric misalignment), σ_φ/√2."""
         return self.gyro.misalignment_sigma / np.sqrt(2.0) if self.gyro is not None else 0.0

@@ -347,7 +347,7 @@ class CalibratorNode(Node):
         path = self.state['file']
         sf = CalibratorStateFile(path, identity)
         try:
-            sf.open()
+            sf.acquire()
         except StateFileError as exc:
             self._state_problem(str(exc))
             return

@@ -11,7 +11,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from strapdown_ros.calibration.drifting_reference import estimate, TKACHENKO_C
+from strapdown_ros.calibration.drifting_reference import estimate
+from strapdown_ros.calibration.drifting_reference_model import PAPER_000_C
 from strapdown_ros.calibration.integral_method import calibrate_from_measurements
 from strapdown_ros.reproductions.tkachenko1983 import simulate_000
 from strapdown_ros.sensors import IntegratingSensor, SensorErrorModel
@@ -163,7 +164,7 @@ def section_002(n_runs: int, quick: bool = False) -> dict:
         sim = simulate_000(quantum=0.0, seed=seed, d=np.zeros(3), angle_noise=sigma, t_first=0.2)
         est = estimate(sim.meas, sim.h, sim.M0, sim.ref_q0, sim.ref_q, sim.epochs,
                        angle_noise=sigma, weighted=True, iterate=True)
-        errs_000.append(est.x[3:12] - TKACHENKO_C)
+        errs_000.append(est.x[3:12] - PAPER_000_C)
         stamps = np.concatenate([[0.0], sim.h * sim.epochs])
         quats = np.vstack([sim.ref_q0[None], sim.ref_q])
         gyro_t = sim.h * np.arange(1, len(sim.meas) + 1)
@@ -171,7 +172,7 @@ def section_002(n_runs: int, quick: bool = False) -> dict:
             r = calibrate_from_measurements(gyro_t, sim.meas, stamps, quats, camera_sigma=sigma,
                                             q_body_camera=sim.reference.mounting,
                                             steps_per_interval=1, neighbour=neighbour)
-            errs.append(_c_errors_from_B(r.B, r.s0, TKACHENKO_C))
+            errs.append(_c_errors_from_B(r.B, r.s0, PAPER_000_C))
             ch.append(r.chi2_per_dof)
     e0, e2, e2a = np.array(errs_000), np.array(errs_002), np.array(errs_002a)
     out = {'runs': n_runs, 'star_tracker_sigma_rad': sigma, 'fix_interval_s': 0.2,

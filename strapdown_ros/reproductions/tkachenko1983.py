@@ -15,11 +15,13 @@ from typing import Sequence
 
 import numpy as np
 
-from strapdown_ros.calibration.drifting_reference import (error_at_epochs, ErrorStructure,
-                                                          estimate, GyrostabilizerReference,
-                                                          PAPER_000, psi_matrix, TKACHENKO_C,
-                                                          TKACHENKO_D, TKACHENKO_PHI0,
-                                                          TKACHENKO_STRUCTURE, TKACHENKO_W0)
+from strapdown_ros.calibration.drifting_reference import error_at_epochs, estimate
+from strapdown_ros.calibration.drifting_reference_model import (ErrorStructure,
+                                                                GyrostabilizerReference, PAPER_000,
+                                                                psi_matrix, PAPER_000_C,
+                                                                PAPER_000_D, PAPER_000_PHI0,
+                                                                SCALE_MISALIGNMENT_BIAS,
+                                                                PAPER_000_W0)
 from strapdown_ros.motion.profiles import PiecewiseRateProfile, Segment, tkachenko_profile
 from strapdown_ros.rotation import (aircraft_angles_to_quat, quat_conjugate, quat_multiply,
                                     quat_normalize, quat_to_rotvec, rotvec_to_quat)
@@ -80,10 +82,10 @@ class Simulation000:
     x_true: np.ndarray
 
 
-def simulate_000(quantum: float = 0.0, seed: int | None = 0, profile=None, c=TKACHENKO_C,
-                 d=TKACHENKO_D, w0=TKACHENKO_W0, phi0=TKACHENKO_PHI0, h: float = 0.02,
+def simulate_000(quantum: float = 0.0, seed: int | None = 0, profile=None, c=PAPER_000_C,
+                 d=PAPER_000_D, w0=PAPER_000_W0, phi0=PAPER_000_PHI0, h: float = 0.02,
                  t_first: float = 4.0, t_step: float = 0.2, t_f: float = 30.0,
-                 structure: ErrorStructure = TKACHENKO_STRUCTURE, angle_noise: float = 0.0,
+                 structure: ErrorStructure = SCALE_MISALIGNMENT_BIAS, angle_noise: float = 0.0,
                  initial_remainder: str = 'random', t_star: float = 0.0,
                  mounting=None) -> Simulation000:
     """
@@ -145,15 +147,15 @@ def simulate_000(quantum: float = 0.0, seed: int | None = 0, profile=None, c=TKA
     ref = GyrostabilizerReference(prof, d, structure, mounting=q_E_J, t_star=t_star,
                                   angle_noise=angle_noise,
                                   seed=None if seed is None else seed + 7919)
-    if structure is TKACHENKO_STRUCTURE:
-        err = SensorErrorModel.from_symmetric_coefficients(c, quantum=quantum)
+    if structure is SCALE_MISALIGNMENT_BIAS:
+        err = SensorErrorModel.from_scale_misalignment_bias(c, quantum=quantum)
     else:
         err = SensorErrorModel()
     sensor = IntegratingSensor(prof, 'gyro', 1.0 / h, err, seed=seed)
     if quantum > 0 and initial_remainder == 'random' and seed is not None:
         sensor.quantizer.integral[:] = np.random.default_rng(seed).uniform(-quantum, quantum, 3)
     _, meas, true_inc = sensor.sample(n)
-    if structure is not TKACHENKO_STRUCTURE:      # user structure: add D(ω)c exactly per interval
+    if structure is not SCALE_MISALIGNMENT_BIAS:      # user structure: add D(ω)c exactly per interval
         D = structure.D(true_inc / h, h * (np.arange(n) + 0.5))
         meas = true_inc + np.einsum('nij,j->ni', D, c) * h
     M0 = quat_multiply(quat_conjugate(quat_normalize(np.concatenate([[1.0], w0]))),
@@ -402,17 +404,17 @@ def _knobs() -> dict:
         'float32_recursion': ('attitude recursion computed in single precision (1-sample)',
                               {'recursion': 'float32', 'algorithm': '1'}),
         'w0_half': ('misprint: w(0) = 1e-3 read as a rotation angle (half-angle 5e-4)',
-                    {'w0': 0.5 * TKACHENKO_W0}),
+                    {'w0': 0.5 * PAPER_000_W0}),
         'w0_double': ('misprint: w(0) twice as large (2e-3 per axis)',
-                      {'w0': 2.0 * TKACHENKO_W0}),
+                      {'w0': 2.0 * PAPER_000_W0}),
         'w0_1e-2': ('misprint of the exponent: w(0) = 1e-2 per axis',
-                    {'w0': 10.0 * TKACHENKO_W0}),
+                    {'w0': 10.0 * PAPER_000_W0}),
         'w0_sign': ('sign convention: w0 = −1e-3 per axis (error of the other basis)',
-                    {'w0': -TKACHENKO_W0}),
+                    {'w0': -PAPER_000_W0}),
         'c_sign': ('sign convention: c → −c (gyro error as truth − measured)',
-                   {'c': -TKACHENKO_C}),
+                   {'c': -PAPER_000_C}),
         'c6_sign': ('misprint: c6 = +5e-4 (c4 = c5 = c6)',
-                    {'c': TKACHENKO_C * np.r_[1, 1, 1, 1, 1, -1, 1, 1, 1]}),
+                    {'c': PAPER_000_C * np.r_[1, 1, 1, 1, 1, -1, 1, 1, 1]}),
         'rate_0.032': ('misprint: ω2 = 0.032 instead of 0.32 on 5–10 s',
                        {'profile': _variant_profile(1, 1, 0.032)}),
         'mounting_J_is_E': ('misprint: J = E (φ0 then not consistent with Λ(0))',

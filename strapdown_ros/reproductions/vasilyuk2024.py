@@ -29,8 +29,9 @@ import sys
 
 import numpy as np
 
-from strapdown_ros.calibration.boresight import (camera_increment, gyro_increment, IncrementPair,
-                                                 solve_boresight)
+from strapdown_ros.calibration.boresight import solve_boresight
+from strapdown_ros.calibration.boresight_increments import (camera_increment, gyro_increment,
+                                                            IncrementPair)
 from strapdown_ros.calibration.consistency import (d1_finite_difference, d_matrices,
                                                    sins_from_camera, theta_diff_check)
 from strapdown_ros.cli import check_outputs, DIRECTORY, FILE, write_text

@@ -19,7 +19,7 @@ random *constant* (common to all increments) and what is *white*:
     (``test/sensors/test_effects.py`` checks the identity against
     :func:`~strapdown_ros.sensors.model.increment_covariance`).
 
-Every consumer (the attitude integrator, ``boresight.gyro_increment``, the calibrator's
+Every consumer (the attitude integrator, ``boresight_increments.gyro_increment``, the calibrator's
 weighting) asks the model object, never the model's name.
 """
 from __future__ import annotations

@@ -14,7 +14,7 @@ body/sensor axes)::
   ``Δω = D(ω)c`` with ``D = [D_I D_II E3]``, ``D_I = diag(ω)``,
   ``D_II = [[ω2,0,ω3],[ω1,ω3,0],[0,ω2,ω1]]`` is the special case
   ``M = [[c1,c4,c6],[c4,c2,c5],[c6,c5,c3]]``, ``b = (c7,c8,c9)``
-  (see :meth:`SensorErrorModel.from_symmetric_coefficients`).
+  (see :meth:`SensorErrorModel.from_scale_misalignment_bias`).
 * ``b``: bias (rad/s or m/s²), a random constant.
 * ``σ_rw``: angle/velocity random walk (rad/√s or m/s/√s), so the increment noise
   has covariance ``σ_rw²·T`` (004: P_wG = (σ_wG √T_IMU)² I).
@@ -179,7 +179,7 @@ class SensorErrorModel:
         return m
 
     @classmethod
-    def from_symmetric_coefficients(cls, c, random_walk: float = 0.0,
+    def from_scale_misalignment_bias(cls, c, random_walk: float = 0.0,
                                     quantum: float = 0.0) -> 'SensorErrorModel':
         """
         Build the model of Tkachenko (1983, 000) §6: ``Δω = [D_I D_II E3]·c``.

@@ -220,7 +220,7 @@ def main(argv=None) -> int:
             progress(f'002 integral method over {prep.pairs} camera steps')
             cal = gc.calibrate_integral(prep, args.interval, args.sigma_limit)
         else:
-            cal = gc.calibrate_tkachenko(prep, args.drift, args.sigma_limit,
+            cal = gc.calibrate_drifting_reference(prep, args.drift, args.sigma_limit,
                                          progress=lambda s: progress(s.replace('tkachenko: ', '000: ')))
     except (BagError, InputError, ValueError, OSError, np.linalg.LinAlgError) as exc:
         return fail(str(exc).splitlines()[0] if str(exc) else type(exc).__name__)

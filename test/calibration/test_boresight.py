@@ -1,11 +1,13 @@
-"""Boresight estimator (004) against exact truth: increments, solution, covariance, observability."""
+"""Boresight estimator (004) against exact truth: increments, solution, covariance, checks."""
 import numpy as np
 import pytest
 
-from strapdown_ros.calibration.boresight import (camera_increment, check_observability,
-                                                 gyro_increment, imu_attitude_from_camera,
-                                                 IncrementPair, r_partial, solve_boresight)
+from strapdown_ros.calibration.boresight import (check_observability, imu_attitude_from_camera,
+                                                 solve_boresight)
+from strapdown_ros.calibration.boresight_increments import (camera_increment, gyro_increment,
+                                                            IncrementPair, r_partial)
 from strapdown_ros.calibration.streaming import BoresightCalibrator
+from strapdown_ros.estimation.chi_square import chi2_band
 from strapdown_ros.motion.profiles import bench_profile
 from strapdown_ros.rotation import (dcm_to_quat, quat_angle_between, quat_conjugate,
                                     quat_error_rotvec, quat_multiply, quat_normalize, quat_to_dcm,
@@ -18,8 +20,9 @@ BETA = np.radians([40.0, -25.0, 120.0])
 
 def test_partial_interval_polynomial_r0_coefficient_is_one_eighth():
     """
-    004 §2.2 r_0k(τ): against the exact partial rotation of a rate linear in time, the ρ·Δρ
-    term with 1/8 (derived from |θ(τ)|²/8) is 3× more accurate than the printed 1/4.
+    Test 004 §2.2 r_0k(τ) against the exact partial rotation of a rate linear in time.
+
+    The ρ·Δρ term with 1/8 (derived from |θ(τ)|²/8) is 3× more accurate than the printed 1/4.
     """
     rng = np.random.default_rng(0)
     T = 0.005
@@ -30,7 +33,8 @@ def test_partial_interval_polynomial_r0_coefficient_is_one_eighth():
         n = 4000
         ts = np.linspace(T, T + x * T, n + 1)
         q = np.array([1.0, 0, 0, 0])
-        for i in range(n):                       # midpoint product of a linear rate: exact to 1e-15
+        # midpoint product of a linear rate: exact to 1e-15
+        for i in range(n):
             tm = 0.5 * (ts[i] + ts[i + 1])
             q = quat_multiply(q, rotvec_to_quat((a + b * tm) * (ts[i + 1] - ts[i])))
         ours = quat_normalize(r_partial(rho, rho - rho_prev, x)[0])
@@ -43,10 +47,12 @@ def test_partial_interval_polynomial_r0_coefficient_is_one_eighth():
 
 
 def test_gyro_increment_is_exact_on_asynchronous_epochs():
+    """ΔS_imu between epochs that fall inside gyro intervals matches the exact attitude."""
     prof = bench_profile(hold=4.0, rotation_time=3.0)
     s = IntegratingSensor(prof, 'gyro', 200.0)
     t, dth, _ = s.sample(int(prof.duration * 200))
-    for t0, t1 in [(3.0037, 9.1234), (10.0011, 10.0031), (20.4, 33.3)]:     # one pair inside one interval
+    # one pair inside one interval
+    for t0, t1 in [(3.0037, 9.1234), (10.0011, 10.0031), (20.4, 33.3)]:
         dq, _ = gyro_increment(t, dth, t0, t1)
         truth = quat_multiply(quat_conjugate(prof.attitude(t0)), prof.attitude(t1))
         assert quat_angle_between(dq, truth) < 2e-8, (t0, t1)
@@ -73,9 +79,35 @@ def test_gyro_increment_covariance_matches_monte_carlo():
     assert 2.5 < nees < 3.5
 
 
-def synthetic_pairs(beta, n=40, noise_imu=0.2 * ARCSEC, noise_cam=np.array([0.6, 0.6, 6.0]) * ARCSEC,
-                    axes=None, rng=None, angle=np.radians(12.0)):
-    """Pairs from random rotations: ΔS_imu = C ΔS_avu Cᵀ exactly, plus noise of known covariance."""
+def synthetic_pairs(beta, n=40, noise_imu=0.2 * ARCSEC,
+                    noise_cam=np.array([0.6, 0.6, 6.0]) * ARCSEC, axes=None, rng=None,
+                    angle=np.radians(12.0)):
+    """
+    Return pairs from random rotations: ΔS_imu = C ΔS_avu Cᵀ exactly, plus noise.
+
+    Parameters
+    ----------
+    beta : (3,) ndarray
+        The boresight, rad.
+    n : int
+        Number of pairs.
+    noise_imu : float
+        1σ of the IMU increment noise per axis, rad.
+    noise_cam : (3,) ndarray
+        1σ of the camera increment noise per axis, rad.
+    axes : (n, 3) ndarray, optional
+        Rotation axes (default random).
+    rng : numpy.random.Generator, optional
+        Random source.
+    angle : float
+        Rotation angle of every pair, rad.
+
+    Returns
+    -------
+    list of IncrementPair
+        The pairs, with their noise covariances.
+
+    """
     rng = rng or np.random.default_rng(0)
     C = ypr_to_dcm(*beta)
     qc = dcm_to_quat(C)
@@ -90,13 +122,23 @@ def synthetic_pairs(beta, n=40, noise_imu=0.2 * ARCSEC, noise_cam=np.array([0.6,
         E_cam = 2 * P_cam
         e_imu = rng.multivariate_normal(np.zeros(3), E_imu)
         e_cam = rng.multivariate_normal(np.zeros(3), E_cam)
-        pairs.append(IncrementPair(20.0 * k, 20.0 * (k + 1), quat_multiply(dq_mf, rotvec_to_quat(e_imu)),
+        pairs.append(IncrementPair(20.0 * k, 20.0 * (k + 1),
+                                   quat_multiply(dq_mf, rotvec_to_quat(e_imu)),
                                    quat_multiply(dq_vf, rotvec_to_quat(e_cam)), E_imu, E_cam))
     return pairs
 
 
 @pytest.mark.parametrize('beta_deg', [(40, -25, 120), (-170, 80, -5), (0, 0, 0), (90, 45, 179)])
 def test_converges_from_zero_for_large_boresights(beta_deg):
+    """
+    Converge from β0 = 0 for large boresights.
+
+    Parameters
+    ----------
+    beta_deg : tuple of float
+        The boresight, degrees.
+
+    """
     beta = np.radians(beta_deg)
     pairs = synthetic_pairs(beta, noise_imu=1e-12, noise_cam=np.full(3, 1e-12))
     sol = solve_boresight(pairs, beta0=(0.0, 0.0, 0.0))
@@ -107,8 +149,10 @@ def test_converges_from_zero_for_large_boresights(beta_deg):
 
 def test_plain_gauss_newton_from_zero_converges_and_axis_start_saves_iterations():
     """
-    004's Gauss–Newton from β0 = 0 (init='given') converges for random large boresights,
-    including pitch near ±90°; the closed-form axis-alignment start needs 1–2 iterations.
+    Test 004's Gauss–Newton from β0 = 0 (init='given') on random large boresights.
+
+    It converges, including pitch near ±90°; the closed-form axis-alignment start needs 1–2
+    iterations.
     """
     rng = np.random.default_rng(8)
     iters_plain, iters_axes = [], []
@@ -118,12 +162,14 @@ def test_plain_gauss_newton_from_zero_converges_and_axis_start_saves_iterations(
         truth = dcm_to_quat(ypr_to_dcm(*beta))
         for init, its in (('given', iters_plain), ('axes', iters_axes)):
             sol = solve_boresight(pairs, init=init, max_iterations=50)
-            assert sol.converged and quat_angle_between(dcm_to_quat(sol.c_mf_vf), truth) < 1e-6, (init, beta)
+            err = quat_angle_between(dcm_to_quat(sol.c_mf_vf), truth)
+            assert sol.converged and err < 1e-6, (init, beta)
             its.append(sol.iterations)
     assert max(iters_axes) <= 2 < np.median(iters_plain)
 
 
 def test_weighted_covariance_is_consistent_and_better_than_unweighted():
+    """The weighted covariance has NEES near 3 and the weighted estimate a smaller error."""
     rng = np.random.default_rng(3)
     C_true = ypr_to_dcm(*BETA)
     errs_w, errs_u, nees_w = [], [], []
@@ -142,6 +188,7 @@ def test_weighted_covariance_is_consistent_and_better_than_unweighted():
 
 
 def test_single_axis_and_static_motion_are_unobservable_and_named():
+    """Rotations about one axis, or none, are reported unobservable with the axis named."""
     C = ypr_to_dcm(*BETA)
     axis_mf = np.array([0.0, 0.0, 1.0])
     axis_vf = C.T @ axis_mf
@@ -159,6 +206,7 @@ def test_single_axis_and_static_motion_are_unobservable_and_named():
 
 
 def test_camera_increment_covariance_and_imu_attitude_from_camera():
+    """E_avu of 004 §3.3 and the IMU attitude and covariance of eq. (8)."""
     q0 = dcm_to_quat(ypr_to_dcm(0.3, 0.2, -0.1))
     q1 = quat_multiply(q0, rotvec_to_quat([0.1, -0.2, 0.05]))
     P0, P1 = np.diag([1.0, 2.0, 3.0]), np.diag([4.0, 5.0, 6.0])
@@ -170,10 +218,12 @@ def test_camera_increment_covariance_and_imu_attitude_from_camera():
     q_vf = dcm_to_quat(ypr_to_dcm(1.0, 0.4, 2.0))
     q_mf, P = imu_attitude_from_camera(q_vf, P1 * 1e-12, sol)
     np.testing.assert_allclose(quat_to_dcm(q_mf), quat_to_dcm(q_vf) @ sol.c_mf_vf.T, atol=1e-14)
-    np.testing.assert_allclose(P, sol.c_mf_vf @ (P1 * 1e-12) @ sol.c_mf_vf.T + sol.rotation_covariance_mf)
+    expected = sol.c_mf_vf @ (P1 * 1e-12) @ sol.c_mf_vf.T + sol.rotation_covariance_mf
+    np.testing.assert_allclose(P, expected)
 
 
 def test_streaming_calibrator_on_the_bench_with_a_large_boresight():
+    """The streaming calibrator fed as a live stream finds a large boresight within 3σ."""
     prof = bench_profile()
     rng = np.random.default_rng(1)
     gyro = IntegratingSensor(prof, 'gyro', 200.0, NAVIGATION_GRADE_GYRO.draw(rng), seed=2)
@@ -197,7 +247,8 @@ def test_streaming_calibrator_on_the_bench_with_a_large_boresight():
 
 def test_gyro_sensitivity_predicts_the_increment_error_of_the_constants():
     """G (3×12) of gyro_increment: ε_imu ≈ G·[b, vec M] for known constants (noise off)."""
-    prof = bench_profile(hold=2.0, rotation_time=3.0, angles_deg=(15.0, -12.0, 10.0), axes=(2, 0, 1))
+    prof = bench_profile(hold=2.0, rotation_time=3.0, angles_deg=(15.0, -12.0, 10.0),
+                         axes=(2, 0, 1))
     b = np.array([2e-6, -1e-6, 3e-6])
     M = np.array([[1e-4, 2e-4, -1e-4], [-3e-4, -2e-4, 1e-4], [2e-4, 1e-4, 3e-4]])
     err = SensorSigmas()                                   # only for the call signature
@@ -214,8 +265,10 @@ def test_gyro_sensitivity_predicts_the_increment_error_of_the_constants():
 
 def test_correlated_weighting_is_consistent_and_beats_pairwise():
     """
-    Shared camera fixes and gyro constants common to all pairs, modelled: NEES near 3 and a
-    smaller RMS than the independent-pairs weighting on the same data (25 runs, bench, 33 pairs).
+    Model the shared camera fixes and the gyro constants common to all pairs.
+
+    NEES near 3 and a smaller RMS than the independent-pairs weighting on the same data (25
+    runs, bench, 33 pairs).
     """
     prof = bench_profile()
     q_true = dcm_to_quat(ypr_to_dcm(*BETA))
@@ -225,10 +278,12 @@ def test_correlated_weighting_is_consistent_and_beats_pairwise():
     t_u, u, _ = IntegratingSensor(prof, 'gyro', 200.0).sample(int(prof.duration * 200))
     for seed in range(25):
         e = NAVIGATION_GRADE_GYRO.draw(rng)
-        y = u @ (np.eye(3) + e.matrix).T + e.bias / 200.0 + rng.normal(0, e.random_walk * np.sqrt(1 / 200.0), u.shape)
+        noise = rng.normal(0, e.random_walk * np.sqrt(1 / 200.0), u.shape)
+        y = u @ (np.eye(3) + e.matrix).T + e.bias / 200.0 + noise
         cal = BoresightCalibrator(gyro=NAVIGATION_GRADE_GYRO)
         cal.add_gyro(t_u, y)
-        for f in StarCameraModel(boresight=BETA, interval=5.0, seed=100 + seed).fixes(prof, int(prof.duration // 5)):
+        cam = StarCameraModel(boresight=BETA, interval=5.0, seed=100 + seed)
+        for f in cam.fixes(prof, int(prof.duration // 5)):
             cal.add_camera(f.stamp, f.attitude, f.covariance)
         for w in errs:
             sol = solve_boresight(cal.pairs, weighting=w, gyro=NAVIGATION_GRADE_GYRO,
@@ -241,19 +296,27 @@ def test_correlated_weighting_is_consistent_and_beats_pairwise():
     rms = {w: np.sqrt(np.mean(np.sum(np.square(v), 1))) for w, v in errs.items()}
     assert rms['correlated'] < 0.9 * rms['pairwise']
     assert 2.0 < np.mean(nees) < 4.0
-    assert cal.solve().weighting == 'correlated'                 # what the calibrator publishes (≤ 200 pairs)
+    # what the calibrator publishes (≤ 200 pairs)
+    assert cal.solve().weighting == 'correlated'
 
 
 @pytest.mark.parametrize('noise_scale', [100.0, 6000.0])
 def test_a_stated_sigma_far_too_small_still_converges_to_the_boresight(noise_scale):
     """
-    Camera noise 100× and 6000× (≈1° per axis, a motion-capture
-    reference judged with star-tracker σ) what the fixes state.  Every weighting converges (the
+    Converge although the camera noise is 100× and 6000× what the fixes state.
+
+    6000× is ≈1° per axis, a motion-capture reference judged with star-tracker σ.  Every
+    weighting converges (the
     Gauss–Newton step is halved while it raises the cost of its own weights; converged once the
     step is below 1e-4 of the residual-scaled σ), β lies within 3 scaled σ of the injected
     truth, no good fix is gated, and the fit is flagged inconsistent.
+
+    Parameters
+    ----------
+    noise_scale : float
+        Actual over stated camera noise.
+
     """
-    from strapdown_ros.estimation.chi_square import chi2_band
     beta = np.radians([40.0, -25.0, 120.0])
     prof = bench_profile()
     t, dth, _ = IntegratingSensor(prof, 'gyro', 100.0).sample(int(prof.duration * 100) - 1)
@@ -276,7 +339,6 @@ def test_a_stated_sigma_far_too_small_still_converges_to_the_boresight(noise_sca
 def test_chi2_band_is_the_exact_two_sided_band():
     """chi2_band (numpy only, used inside node callbacks) against scipy's quantiles."""
     stats = pytest.importorskip('scipy.stats')
-    from strapdown_ros.estimation.chi_square import chi2_band
     for dof in (1, 2, 3, 7, 93, 1000, 30000):
         lo, hi = chi2_band(dof, 0.01)
         assert lo == pytest.approx(stats.chi2.ppf(0.005, dof) / dof, rel=1e-10)

@@ -1,4 +1,7 @@
-"""004 §5 eq. (8) and the Fig. 3 θ_diff check against exact truth (strapdown_ros.calibration.consistency)."""
+"""004 §5 eq. (8) and the Fig. 3 θ_diff check against exact truth (calibration.consistency)."""
+import subprocess
+import sys
+
 import numpy as np
 import pytest
 
@@ -15,6 +18,7 @@ def _vee(A):
 
 
 def test_d_matrices_printed_and_derived_equal_the_exact_derivative():
+    """Both printed and derived D1, D2 equal the finite-difference derivatives of C."""
     rng = np.random.default_rng(3)
     for _ in range(20):
         b = rng.uniform(-1.4, 1.4, 3)
@@ -23,7 +27,8 @@ def test_d_matrices_printed_and_derived_equal_the_exact_derivative():
         for j in range(3):
             d = np.zeros(3)
             d[j] = 1e-6
-            D1[:, j] = _vee(C.T @ (ypr_to_dcm(*(b + d)) - ypr_to_dcm(*(b - d)))) / 2e-6   # C(β+δ) = C(I+[θ×])
+            # C(β+δ) = C(I+[θ×])
+            D1[:, j] = _vee(C.T @ (ypr_to_dcm(*(b + d)) - ypr_to_dcm(*(b - d)))) / 2e-6
         for form in ('derived', 'printed'):
             E1, E2 = d_matrices(b, form)
             assert np.allclose(E1, D1, atol=1e-8) and np.allclose(E2, C @ D1, atol=1e-8)
@@ -32,6 +37,7 @@ def test_d_matrices_printed_and_derived_equal_the_exact_derivative():
 
 
 def test_chi2_interval_close_to_exact_quantiles():
+    """The Wilson–Hilferty interval is close to the exact χ² quantiles."""
     # exact χ² quantiles (scipy.stats.chi2.ppf), 95% two-sided
     assert np.allclose(chi2_interval(30), (16.7908, 46.9792), rtol=1e-3)
     assert np.allclose(chi2_interval(300), (253.912, 349.874), rtol=1e-4)
@@ -44,7 +50,8 @@ def _scenario(rng, n=25):
     for k in range(n - 1):
         ang = np.radians(rng.uniform(10, 120)) if k % 2 == 0 else np.radians(0.09)
         ax = rng.normal(size=3)
-        q.append(quat_normalize(quat_multiply(q[-1], rotvec_to_quat(ang * ax / np.linalg.norm(ax)))))
+        step = rotvec_to_quat(ang * ax / np.linalg.norm(ax))
+        q.append(quat_normalize(quat_multiply(q[-1], step)))
     return np.array(q)
 
 
@@ -63,7 +70,8 @@ def _run(rng, q_mf, beta_offset=np.zeros(3), printed_alignment=False):
     d_beta = rng.multivariate_normal(np.zeros(3), P_BETA)
     beta = BETA_TRUE + d_beta + beta_offset
     dq_true = quat_multiply(quat_conjugate(q_mf[:-1]), q_mf[1:])
-    dq = quat_normalize(quat_multiply(dq_true, rotvec_to_quat(rng.normal(size=(n - 1, 3)) * SIG_GYRO)))
+    gyro_noise = rotvec_to_quat(rng.normal(size=(n - 1, 3)) * SIG_GYRO)
+    dq = quat_normalize(quat_multiply(dq_true, gyro_noise))
     E = np.broadcast_to(np.eye(3) * SIG_GYRO ** 2, (n - 1, 3, 3))
     q_ins, P_ins = sins_from_camera(q_vf, beta, dq, E, printed_alignment=printed_alignment)
     P_avu = np.diag(SIG_AVU ** 2)
@@ -87,8 +95,10 @@ def test_eq8_covariance_matches_monte_carlo():
 
 def test_theta_diff_derived_covariance_consistent_printed_not():
     """
-    Fig. 3 check with exact truth: the derived P^diff holds at every epoch over a Monte Carlo;
-    004 §6's P^imu + P^mfa misses the shared boresight error and the alignment fix.
+    Test the Fig. 3 check with exact truth over a Monte Carlo.
+
+    The derived P^diff holds at every epoch; 004 §6's P^imu + P^mfa misses the shared
+    boresight error and the alignment fix.
     """
     rng = np.random.default_rng(11)
     q_mf = _scenario(rng, 25)
@@ -98,7 +108,8 @@ def test_theta_diff_derived_covariance_consistent_printed_not():
     for _ in range(M):
         q_vf, P_avu, beta, q_ins, P_ins = _run(rng, q_mf)
         for form in nees:
-            chk = theta_diff_check(q_vf, P_avu, beta, P_BETA, q_ins, P_ins, aligned_at=0, covariance=form)
+            chk = theta_diff_check(q_vf, P_avu, beta, P_BETA, q_ins, P_ins, aligned_at=0,
+                                   covariance=form)
             nees[form].append(chk.nees[1:])
             if form == 'derived':
                 within.append(chk.within_3sigma)
@@ -108,10 +119,12 @@ def test_theta_diff_derived_covariance_consistent_printed_not():
     s_pr = np.sum(nees['printed'], axis=0)
     assert np.all((s_der > lo) & (s_der < hi)), s_der / M
     assert np.mean(within) > 0.99
-    assert np.sum((s_pr < lo) | (s_pr > hi)) >= 5, s_pr / M      # the printed form fails at many epochs
+    # the printed form fails at many epochs
+    assert np.sum((s_pr < lo) | (s_pr > hi)) >= 5, s_pr / M
 
 
 def test_wrong_boresight_detected_and_right_one_passes():
+    """A boresight off by many σ fails the check; the right one passes."""
     rng = np.random.default_rng(21)
     q_mf = _scenario(rng, 25)
     passed = 0
@@ -133,8 +146,10 @@ def test_wrong_boresight_detected_and_right_one_passes():
 
 def test_independent_sins_and_printed_log():
     """
-    A SINS aligned independently of the camera: P^diff = P^imu + P^mfa is exact (004 §6's form);
-    the printed skew-part log agrees with the exact one to second order.
+    Test a SINS aligned independently of the camera.
+
+    P^diff = P^imu + P^mfa is exact (004 §6's form); the printed skew-part log agrees with the
+    exact one to second order.
     """
     rng = np.random.default_rng(8)
     q_mf = _scenario(rng, 12)
@@ -142,9 +157,11 @@ def test_independent_sins_and_printed_log():
     tot = np.zeros(12)
     for _ in range(300):
         q_vf, P_avu, beta, _, _ = _run(rng, q_mf)
-        q_ins = quat_normalize(quat_multiply(q_mf, rotvec_to_quat(rng.normal(size=(12, 3)) * 3 * AS)))
+        sins_error = rotvec_to_quat(rng.normal(size=(12, 3)) * 3 * AS)
+        q_ins = quat_normalize(quat_multiply(q_mf, sins_error))
         a = theta_diff_check(q_vf, P_avu, beta, P_BETA, q_ins, P_ins, aligned_at=None)
-        b = theta_diff_check(q_vf, P_avu, beta, P_BETA, q_ins, P_ins, aligned_at=None, log='printed')
+        b = theta_diff_check(q_vf, P_avu, beta, P_BETA, q_ins, P_ins, aligned_at=None,
+                             log='printed')
         assert np.max(np.abs(a.theta - b.theta)) < np.max(np.abs(a.theta)) ** 3      # third order
         assert a.used.all()
         tot += a.nees
@@ -153,6 +170,7 @@ def test_independent_sins_and_printed_log():
 
 
 def test_arguments_checked():
+    """Unknown forms and wrong shapes raise ValueError."""
     q = np.tile([1.0, 0, 0, 0], (3, 1))
     with pytest.raises(ValueError):
         theta_diff_check(q, np.eye(3), np.zeros(3), np.eye(3), q, covariance='other')
@@ -176,14 +194,15 @@ def test_sins_constants_recursion_against_exact_propagation():
     q_ins, P, J = sins_from_camera(q_vf, BETA_TRUE, dq, sensitivity=G, white=np.zeros((14, 3, 3)),
                                    constant_variances=Pc, return_sensitivity=True)
     err = quat_to_rotvec(quat_multiply(quat_conjugate(q_mf), q_ins))
-    assert np.max(np.abs(err - J @ x)) < 10 * np.max(np.abs(err)) ** 2 + 1e-14     # second order in |ε|
+    # second order in |ε|
+    assert np.max(np.abs(err - J @ x)) < 10 * np.max(np.abs(err)) ** 2 + 1e-14
     assert np.allclose(P, J @ Pc @ np.swapaxes(J, 1, 2), rtol=1e-12, atol=0)
 
 
 def test_core_module_imports_no_ros():
-    import subprocess
-    import sys
+    """The module imports neither ROS nor matplotlib nor scipy."""
     code = ('import sys, strapdown_ros.calibration.consistency; '
-            "bad = [m for m in sys.modules if m.split('.')[0] in ('rclpy', 'rosbag2_py', 'matplotlib', 'scipy')]; "
+            "heavy = ('rclpy', 'rosbag2_py', 'matplotlib', 'scipy'); "
+            "bad = [m for m in sys.modules if m.split('.')[0] in heavy]; "
             'print(bad); sys.exit(1 if bad else 0)')
     assert subprocess.run([sys.executable, '-c', code], capture_output=True).returncode == 0

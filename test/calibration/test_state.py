@@ -1,8 +1,13 @@
 """
 The calibrator's state file: identity, replay, lock, paths, temporaries.
+
 No ROS: strapdown_ros.calibration.state is core code; calibrator_node only calls it.
 """
 import os
+import signal
+import subprocess
+import sys
+import textwrap
 
 import numpy as np
 import pytest
@@ -19,6 +24,7 @@ STREAMS = {'gyro': '/imu/delta_theta', 'camera': '/star_camera/attitude_with_cov
 
 @pytest.fixture(scope='module')
 def recording():
+    """Return gyro increments and camera fixes of the bench profile."""
     prof = bench_profile()
     t, dth, _ = IntegratingSensor(prof, 'gyro', 100.0).sample(int(prof.duration * 100) - 1)
     cam = StarCameraModel(boresight=np.radians([40.0, -25.0, 120.0]), interval=5.0, seed=1)
@@ -46,10 +52,21 @@ def _fresh(p):
 
 
 def test_replaying_the_same_recording_adds_nothing(tmp_path, recording):
+    """
+    Replay a recording into a resumed calibrator: no pair is added twice.
+
+    Parameters
+    ----------
+    tmp_path : pathlib.Path
+        pytest's temporary directory.
+    recording : tuple
+        Gyro increments and camera fixes of the bench profile (fixture).
+
+    """
     p = _params()
     path = str(tmp_path / 'state.npz')
     sf = CalibratorStateFile(path, state_identity(p, STREAMS))
-    sf.open()
+    sf.acquire()
     cal = _fresh(p)
     _feed(cal, recording)
     n = len(cal.pairs)
@@ -58,7 +75,7 @@ def test_replaying_the_same_recording_adds_nothing(tmp_path, recording):
     sf.close()
     for _ in range(3):                        # a kill loop replaying the same data
         sf = CalibratorStateFile(path, state_identity(p, STREAMS))
-        sf.open()
+        sf.acquire()
         cal = _fresh(p)
         assert sf.load(cal) == 0 and len(cal.pairs) == n
         _feed(cal, recording)
@@ -71,11 +88,25 @@ def test_replaying_the_same_recording_adds_nothing(tmp_path, recording):
 @pytest.mark.parametrize('change', [{'camera_frame_id': 'camera2'},
                                     {'gyro_scale_factor': [1e-3, 0.0, 0.0]},
                                     {'covariance_model': '004'}, 'stream'])
-def test_a_state_of_another_calibration_is_refused_and_left_as_it_is(tmp_path, recording, change):
+def test_a_state_of_another_calibration_is_refused_and_left_as_it_is(tmp_path, recording,
+                                                                     change):
+    """
+    Refuse a state file written for another calibration and leave it untouched.
+
+    Parameters
+    ----------
+    tmp_path : pathlib.Path
+        pytest's temporary directory.
+    recording : tuple
+        Gyro increments and camera fixes of the bench profile (fixture).
+    change : dict
+        The parameters that differ.
+
+    """
     p = _params()
     path = str(tmp_path / 'state.npz')
     sf = CalibratorStateFile(path, state_identity(p, STREAMS))
-    sf.open()
+    sf.acquire()
     cal = _fresh(p)
     _feed(cal, recording)
     sf.save(cal, 0)
@@ -88,7 +119,7 @@ def test_a_state_of_another_calibration_is_refused_and_left_as_it_is(tmp_path, r
         q = _params(**change)
         ident, name = state_identity(q, STREAMS), next(iter(change))
     sf = CalibratorStateFile(path, ident)
-    sf.open()
+    sf.acquire()
     cal = _fresh(q)
     with pytest.raises(StateFileError) as err:
         sf.load(cal)
@@ -99,19 +130,37 @@ def test_a_state_of_another_calibration_is_refused_and_left_as_it_is(tmp_path, r
 
 
 def test_the_lock_refuses_a_second_user(tmp_path):
+    """
+    Refuse a second user of the same state file while the lock is held.
+
+    Parameters
+    ----------
+    tmp_path : pathlib.Path
+        pytest's temporary directory.
+
+    """
     path = str(tmp_path / 'state.npz')
     a = CalibratorStateFile(path, state_identity(_params(), STREAMS))
     b = CalibratorStateFile(path, state_identity(_params(), STREAMS))
-    a.open()
+    a.acquire()
     with pytest.raises(StateFileError) as err:
-        b.open()
+        b.acquire()
     assert err.value.kind == 'locked' and 'in use' in str(err.value)
     a.close()
-    b.open()
+    b.acquire()
     b.close()
 
 
 def test_a_directory_is_never_moved_and_a_trailing_slash_is_an_error(tmp_path):
+    """
+    Refuse a directory or a trailing separator as state file, moving nothing.
+
+    Parameters
+    ----------
+    tmp_path : pathlib.Path
+        pytest's temporary directory.
+
+    """
     d = tmp_path / 'mydir'
     d.mkdir()
     (d / 'keep.txt').write_text('user data')
@@ -119,27 +168,33 @@ def test_a_directory_is_never_moved_and_a_trailing_slash_is_an_error(tmp_path):
                  str(tmp_path / 'missing' / 'state.npz')):
         sf = CalibratorStateFile(path, state_identity(_params(), STREAMS))
         with pytest.raises(StateFileError) as err:
-            sf.open()
+            sf.acquire()
         assert err.value.kind == 'path', path
     assert (d / 'keep.txt').read_text() == 'user data'
     assert sorted(os.listdir(tmp_path)) == ['mydir']
 
 
 def test_kill_9_temporary_removed_at_next_start_and_corrupt_file_moved(tmp_path):
-    import signal
-    import subprocess
-    import sys
-    import textwrap
+    """
+    Remove a killed writer's temporary at the next start; move a corrupt file aside.
+
+    Parameters
+    ----------
+    tmp_path : pathlib.Path
+        pytest's temporary directory.
+
+    """
     path = str(tmp_path / 'state.npz')
+    repo = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
     # a writer killed with SIGKILL between writing its temporary and the rename
     code = textwrap.dedent(f"""
         import os, sys, numpy as np
-        sys.path.insert(0, {os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))!r})
+        sys.path.insert(0, {repo!r})
         from strapdown_ros.calibration.state import CalibratorStateFile, state_identity
         from strapdown_ros.params import CALIBRATOR_PARAMS, check_all
         ident = state_identity(check_all(CALIBRATOR_PARAMS, {{}}), {STREAMS!r})
         sf = CalibratorStateFile({path!r}, ident)
-        sf.open()
+        sf.acquire()
         os.replace = lambda a, b: (print("written", flush=True), os.kill(os.getpid(), 9))
         from strapdown_ros.calibration.streaming import BoresightCalibrator
         sf.save(BoresightCalibrator(), 0)
@@ -148,7 +203,8 @@ def test_kill_9_temporary_removed_at_next_start_and_corrupt_file_moved(tmp_path)
     assert res.returncode == -signal.SIGKILL and 'written' in res.stdout, res.stderr
     assert '.state.npz.tmp' in os.listdir(tmp_path)
     sf = CalibratorStateFile(path, state_identity(_params(), STREAMS))
-    sf.open()                                      # the lock is free: the killed process is gone
+    # the lock is free: the killed process is gone
+    sf.acquire()
     assert '.state.npz.tmp' not in os.listdir(tmp_path)
     with open(path, 'wb') as fh:
         fh.write(b'not a state file')

@@ -9,8 +9,8 @@ import json
 import numpy as np
 import pytest
 
-from strapdown_ros.calibration.drifting_reference import (integrate_attitude, PAPER_000,
-                                                          TKACHENKO_W0)
+from strapdown_ros.calibration.drifting_reference_model import (integrate_attitude, PAPER_000,
+                                                                PAPER_000_W0)
 from strapdown_ros.reproductions import reproduce_seeds
 from strapdown_ros.reproductions.tkachenko1983 import (EXPLAINS_WITHIN,
                                                        float32_recursion_increments,
@@ -147,7 +147,7 @@ def test_000_new_ablations_compute_what_the_text_says(result):
             assert v['corr'] == pytest.approx(corr, abs=1e-9)
             assert v['signs'] == int(np.sum(np.sign(ours) == np.sign(paper)))
             assert f"| {v['rms_ratio']:.2f} | {v['signs']}/12 | {v['corr']:+.3f} |" in text
-    assert np.allclose(TKACHENKO_W0 * 10, 1e-2)
+    assert np.allclose(PAPER_000_W0 * 10, 1e-2)
     # audit's numbers for the exponent misprint with the modified estimator: 1.66, 0.79, 9/12
     v = a['w0_1e-2']['identity']
     assert v['rms_ratio'] == pytest.approx(1.66, abs=0.01)

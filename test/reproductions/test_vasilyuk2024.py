@@ -4,7 +4,7 @@ import json
 import numpy as np
 import pytest
 
-from strapdown_ros.calibration.boresight import IncrementPair
+from strapdown_ros.calibration.boresight_increments import IncrementPair
 from strapdown_ros.reproductions import vasilyuk2024 as seeds_004
 from strapdown_ros.reproductions.vasilyuk2024_report import plots_004_extras, report_004_extras
 from strapdown_ros.rotation import rotvec_to_quat

@@ -10,7 +10,7 @@ from strapdown_ros.sensors import (increment_correction, increment_covariance, I
 def test_error_model_constants_are_applied_exactly():
     p = tkachenko_profile()
     c = np.array([3e-4, 3e-4, 3e-4, 5e-4, 5e-4, -5e-4, 1e-5, -1e-5, -1e-5])     # 000 §6
-    err = SensorErrorModel.from_symmetric_coefficients(c)
+    err = SensorErrorModel.from_scale_misalignment_bias(c)
     s = IntegratingSensor(p, 'gyro', 50.0, err)
     t, meas, true = s.sample(1500)
     # Δω = D(ω)c with D = [D_I D_II E3] (000 §6), checked on the known piecewise rate

@@ -229,12 +229,12 @@ def test_tkachenko_with_a_drifting_reference_estimates_the_drift():
     t = rec.fix_stamps
     rec.fix_q = quat_multiply(quat_conjugate(rotvec_to_quat(np.outer(t - t[0], d))), rec.fix_q)   # q_L_VF
     prep = gc.prepare(rec, load_model(None)[0])
-    r = gc.calibrate_tkachenko(prep, drift=True)
+    r = gc.calibrate_drifting_reference(prep, drift=True)
     truth = np.array(list(TRUTH.values()) + list(d))
     assert r.observable and r.labels[-3:] == gc.DRIFT_LABELS
     assert np.all(np.abs(r.x - truth) <= 3 * r.sigma), np.round((r.x - truth) / r.sigma, 2)
     assert np.all(r.sigma[-3:] < 0.1 * np.abs(d))
-    plain = gc.calibrate_tkachenko(prep, drift=False)
+    plain = gc.calibrate_drifting_reference(prep, drift=False)
     assert np.max(np.abs(plain.x - truth[:9]) / plain.sigma) > 5          # the drift matters here
 
 
@@ -254,7 +254,7 @@ def test_gyro_gap_is_not_spanned_and_both_methods_still_recover(recording):
     rec.gyro_stamps, rec.delta_theta, rec.gaps = st[~cut], rec.delta_theta[~cut], [(a, b)]
     prep = gc.prepare(rec, model)
     truth = np.array(list(TRUTH.values()))
-    for r in (gc.calibrate_integral(prep), gc.calibrate_tkachenko(prep)):
+    for r in (gc.calibrate_integral(prep), gc.calibrate_drifting_reference(prep)):
         assert r.observable, r.message
         assert np.all(np.abs(r.x - truth) <= 3 * r.sigma), (r.method, np.round((r.x - truth) / r.sigma, 2))
     assert r.extra['segment_s'][0] > b                                # 000: the stretch after the gap
