@@ -6,9 +6,10 @@ import numpy as np
 import pytest
 
 from strapdown_ros.bench import boresight_bench
+from strapdown_ros.bench.boresight_opencv import OPENCV_METHODS
 
 ESTIMATORS = ('weighted', 'unweighted', 'weighted_004cov', 'correlated_gls')
-OPENCV = tuple(f'opencv_{m}' for m in boresight_bench.OPENCV_METHODS)
+OPENCV = tuple(f'opencv_{m}' for m in OPENCV_METHODS)
 NEES = ('weighted.covariance_beta', 'weighted.covariance_beta_model', 'weighted.covariance_beta_residual',
         'unweighted.covariance_beta', 'correlated_gls.model')
 
