@@ -131,13 +131,18 @@ def calibrator_check(sc: Scenario, seed: int) -> dict:
     # pairs carrying the same sensitivities: the pair formation must agree
     pairs_c = []
     for p, f0, f1 in zip(pairs, fixes[:-1], fixes[1:]):
-        _, E_i, G_i, W_i = gyro_increment(sc.stamps, y, p.t_start, p.t_end, sc.gyro, sensitivity=True)
-        pairs_c.append(IncrementPair(p.t_start, p.t_end, p.dq_imu, p.dq_cam, E_i, p.cov_cam, imu_sensitivity=G_i,
-                                     cov_imu_white=W_i, cov_fix_start=f0.covariance, cov_fix_end=f1.covariance))
+        _, E_i, G_i, W_i = gyro_increment(sc.stamps, y, p.t_start, p.t_end, sc.gyro,
+                                          sensitivity=True)
+        pairs_c.append(
+            IncrementPair(p.t_start, p.t_end, p.dq_imu, p.dq_cam, E_i, p.cov_cam,
+                          imu_sensitivity=G_i, cov_imu_white=W_i, cov_fix_start=f0.covariance,
+                          cov_fix_end=f1.covariance))
     sol = solve_boresight(pairs_c, weighting=sol_cal.weighting, gyro=sc.gyro)
     dq = max(rotation_angle(quat_to_dcm(quat_multiply(quat_conjugate(a.dq_imu), b.dq_imu)))
              for a, b in zip(cal.pairs, pairs))
-    dE = max(np.max(np.abs(a.cov_imu - b.cov_imu)) / np.max(np.abs(b.cov_imu)) for a, b in zip(cal.pairs, pairs))
+    dE = max(
+        np.max(np.abs(a.cov_imu - b.cov_imu)) / np.max(np.abs(b.cov_imu))
+        for a, b in zip(cal.pairs, pairs))
     return {'pairs_calibrator': len(cal.pairs), 'pairs_bench': len(pairs),
             'max_dq_imu_diff_arcsec': dq / ARCSEC, 'max_E_imu_rel_diff': float(dE),
             'beta_diff_arcsec': (wrap_angles(sol_cal.beta - sol.beta) / ARCSEC).tolist(),
@@ -149,8 +154,8 @@ def _estimator_names() -> list[str]:
         [f'opencv_{m}_pivot' for m in OPENCV_PIVOT_METHODS]
 
 
-_COV_NAMES = ('calibrator', 'weighted', 'weighted_model', 'weighted_residual', 'unweighted', 'weighted_004cov',
-              'correlated_gls')
+_COV_NAMES = ('calibrator', 'weighted', 'weighted_model', 'weighted_residual', 'unweighted',
+              'weighted_004cov', 'correlated_gls')
 _WORKER_SC: Scenario | None = None            # the scenario of forked workers
 
 
@@ -170,8 +175,8 @@ def one_run(sc: Scenario, r: int, ss: np.random.SeedSequence) -> dict:
     f_true = residuals(sc.beta, A_imu, A_cam)
     blocks = np.swapaxes(sc.C, 0, 1)[None] @ sc.E_imu @ sc.C[None] + sc.E_cam
     fb = np.linalg.solve(np.linalg.cholesky(blocks), f_true.reshape(-1, 3)[..., None])[..., 0]
-    out['full_nees'] = (np.sum(np.linalg.solve(np.linalg.cholesky(sc.Sigma), f_true) ** 2) / len(f_true),
-                        np.sum(fb ** 2) / len(f_true))
+    out['full_nees'] = (np.sum(np.linalg.solve(np.linalg.cholesky(sc.Sigma), f_true)**2) /
+                        len(f_true), np.sum(fb**2) / len(f_true))
     sols = {'weighted': solve_boresight(pairs, weighted=True, init='axes'),
             'unweighted': solve_boresight(pairs, weighted=False, init='axes')}
     pairs004 = [IncrementPair(p.t_start, p.t_end, p.dq_imu, p.dq_cam, e, p.cov_cam)
@@ -181,10 +186,14 @@ def one_run(sc: Scenario, r: int, ss: np.random.SeedSequence) -> dict:
     # the gyro sensitivities and fix covariances, correlated weighting from the measured data
     pairs_c = []
     for n_, (p, f0, f1) in enumerate(zip(pairs, fixes[:-1], fixes[1:])):
-        _, E_i, G_i, W_i = gyro_increment(sc.stamps, y, p.t_start, p.t_end, sc.gyro, sensitivity=True)
-        pairs_c.append(IncrementPair(p.t_start, p.t_end, p.dq_imu, p.dq_cam, E_i, p.cov_cam, imu_sensitivity=G_i,
-                                     cov_imu_white=W_i, cov_fix_start=f0.covariance, cov_fix_end=f1.covariance))
-    sols['calibrator'] = solve_boresight(pairs_c, init='axes', weighting='correlated', gyro=sc.gyro)
+        _, E_i, G_i, W_i = gyro_increment(sc.stamps, y, p.t_start, p.t_end, sc.gyro,
+                                          sensitivity=True)
+        pairs_c.append(
+            IncrementPair(p.t_start, p.t_end, p.dq_imu, p.dq_cam, E_i, p.cov_cam,
+                          imu_sensitivity=G_i, cov_imu_white=W_i, cov_fix_start=f0.covariance,
+                          cov_fix_end=f1.covariance))
+    sols['calibrator'] = solve_boresight(pairs_c, init='axes', weighting='correlated',
+                                         gyro=sc.gyro)
     for k, sol in sols.items():
         if not (sol.observable and sol.converged):
             out['fail'][k] = f'run {r}: {sol.message}'
@@ -197,7 +206,8 @@ def one_run(sc: Scenario, r: int, ss: np.random.SeedSequence) -> dict:
         out['covs']['weighted_residual'] = w.covariance_beta_residual
         out['chi2'] = w.chi2_per_dof
         b, Pg = correlated_gls(sc, pairs, w.beta)
-        out['err']['correlated_gls'], out['tot']['correlated_gls'] = angle_errors(ypr_to_dcm(*b), sc)
+        out['err']['correlated_gls'], out['tot']['correlated_gls'] = angle_errors(
+            ypr_to_dcm(*b), sc)
         out['covs']['correlated_gls'] = Pg
     else:
         out['fail']['correlated_gls'] = f'run {r}: no weighted start'
@@ -238,7 +248,8 @@ def monte_carlo(sc: Scenario, runs: int, seed: int, progress: bool = True, jobs:
             failures[k].append(v)
         chi2[r], triad[r], full_nees[r] = res['chi2'], res['triad'], res['full_nees']
         if progress and done % max(1, runs // 10) == 0:
-            print(f'  run {done}/{runs}  {time.perf_counter() - t_start:.1f} s', file=sys.stderr, flush=True)
+            print(f'  run {done}/{runs}  {time.perf_counter() - t_start:.1f} s', file=sys.stderr,
+                  flush=True)
 
     pool = None
     if jobs > 1:
@@ -258,8 +269,10 @@ def monte_carlo(sc: Scenario, runs: int, seed: int, progress: bool = True, jobs:
             _WORKER_SC = None
     for k in failures:
         failures[k].sort(key=lambda m: int(m.split(':')[0].split()[1]))
-    return {'errors': err, 'total': tot, 'covs': covs, 'chi2': chi2, 'full_nees': full_nees,
-            'failures': failures, 'triad': triad, 'wall_s': time.perf_counter() - t_start, 'jobs': jobs}
+    return {
+        'errors': err, 'total': tot, 'covs': covs, 'chi2': chi2, 'full_nees': full_nees,
+        'failures': failures, 'triad': triad, 'wall_s': time.perf_counter() - t_start, 'jobs': jobs
+    }
 
 
 # ------------------------------------------------------------------------------ performance
@@ -283,10 +296,11 @@ def performance(n_pairs: int = 1000, repeats: int = 15, seed: int = 7) -> dict:
         R = quat_to_dcm(dq_vf)
         E_cam = Pc + R.T @ Pc @ R
         dq_mf = quat_multiply(quat_multiply(qc, dq_vf), quat_conjugate(qc))
-        return IncrementPair(20.0 * k, 20.0 * (k + 1),
-                             quat_multiply(dq_mf, rotvec_to_quat(rng.multivariate_normal(np.zeros(3), E_imu))),
-                             quat_multiply(dq_vf, rotvec_to_quat(rng.multivariate_normal(np.zeros(3), E_cam))),
-                             E_imu, E_cam)
+        return IncrementPair(
+            20.0 * k, 20.0 * (k + 1),
+            quat_multiply(dq_mf, rotvec_to_quat(rng.multivariate_normal(np.zeros(3), E_imu))),
+            quat_multiply(dq_vf, rotvec_to_quat(rng.multivariate_normal(np.zeros(3), E_cam))),
+            E_imu, E_cam)
     cal = BoresightCalibrator(gyro=NAVIGATION_GRADE_GYRO, weighted=True)
     cal.pairs = [pair(k) for k in range(n_pairs)]
     t0 = time.perf_counter()
@@ -308,8 +322,10 @@ def performance(n_pairs: int = 1000, repeats: int = 15, seed: int = 7) -> dict:
         t0 = time.perf_counter()
         gyro_increment(st, dth, 0.5013, 20.5026, NAVIGATION_GRADE_GYRO)
         tp.append((time.perf_counter() - t0) * 1e3)
-    return {'pairs': n_pairs, 'repeats': repeats, 'cold_solve_ms': cold_ms, 'cold_iterations': cold.iterations,
-            'warm_solve_ms_median': float(np.median(times)), 'warm_solve_ms_max': float(np.max(times)),
-            'warm_solve_ms_all': times, 'warm_iterations': iters,
-            'pair_formation_ms_median': float(np.median(tp)), 'target_ms': 50.0,
-            'meets_target': bool(np.median(times) < 50.0)}
+    return {
+        'pairs': n_pairs, 'repeats': repeats, 'cold_solve_ms': cold_ms,
+        'cold_iterations': cold.iterations, 'warm_solve_ms_median': float(np.median(times)),
+        'warm_solve_ms_max': float(np.max(times)), 'warm_solve_ms_all': times,
+        'warm_iterations': iters, 'pair_formation_ms_median': float(np.median(tp)),
+        'target_ms': 50.0, 'meets_target': bool(np.median(times) < 50.0)
+    }

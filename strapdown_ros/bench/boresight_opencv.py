@@ -55,7 +55,8 @@ def opencv_handeye(pairs, fixes, methods=OPENCV_METHODS, translations: str = 'ze
     for m in methods:
         try:
             with np.errstate(invalid='ignore'):
-                R, t = cv2.calibrateHandEye(R_g2b, t_g2b, R_t2c, zeros, method=getattr(cv2, f'CALIB_HAND_EYE_{m}'))
+                R, t = cv2.calibrateHandEye(R_g2b, t_g2b, R_t2c, zeros,
+                                            method=getattr(cv2, f'CALIB_HAND_EYE_{m}'))
             R = np.asarray(R, dtype=float)
             if not np.all(np.isfinite(R)):
                 out[m] = (None, 'degenerate output (NaN rotation)')
@@ -63,14 +64,18 @@ def opencv_handeye(pairs, fixes, methods=OPENCV_METHODS, translations: str = 'ze
                 out[m] = (None, f'degenerate output (det {np.linalg.det(R):.3g})')
             else:
                 out[m] = (R, 'ok' if np.all(np.isfinite(t)) else 'ok (translation not finite)')
-        except cv2.error as exc:                     # pragma: no cover - depends on the OpenCV build
+        except cv2.error as exc:  # pragma: no cover - depends on the OpenCV build
             text = str(exc).strip().splitlines()[-1]
-            out[m] = (None, 'cv2.error: ' + (text.split(' error: ', 1)[-1] if ' error: ' in text else text))
+            out[m] = (None, 'cv2.error: ' +
+                      (text.split(' error: ', 1)[-1] if ' error: ' in text else text))
     return out
 
 
 
 def all_opencv(pairs, fixes) -> dict:
     out = {f'opencv_{m}': v for m, v in opencv_handeye(pairs, fixes).items()}
-    out.update({f'opencv_{m}_pivot': v for m, v in opencv_handeye(pairs, fixes, OPENCV_PIVOT_METHODS, 'pivot').items()})
+    out.update({
+        f'opencv_{m}_pivot': v
+        for m, v in opencv_handeye(pairs, fixes, OPENCV_PIVOT_METHODS, 'pivot').items()
+    })
     return out

@@ -6,6 +6,7 @@ written independently of ``calibration.boresight``; the linear map of the gyro c
 the pair errors, the full covariance of the stacked residuals and the Cramér–Rao bounds.
 Used by the Monte Carlo (``boresight_monte_carlo``) and the report of ``boresight_bench``.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -32,10 +33,11 @@ ROTATION_START = 6.0            # s after the exposure that opens the interval
 ROTATION_TIME = 5.0
 #: (interval index 1..70, body axis, angle °): about x, y, z and two oblique axes, varied order,
 #: intervals 8–9 and 26–27 back to back
-ROTATIONS = ((3, (0, 0, 1), 15.0), (8, (1, 0, 0), 12.0), (9, (0, 1, 0), -10.0), (15, (0, 0, 1), -13.0),
-             (21, (0, 1, 0), 14.0), (26, (1, 0, 0), -11.0), (27, (1, 1, 0), 12.0), (33, (0, 0, 1), 10.0),
-             (40, (0, 1, 0), 12.0), (46, (1, 0, 0), 15.0), (52, (0, 1, 1), -12.0), (58, (0, 0, 1), -14.0),
-             (64, (1, 0, 0), -13.0))
+ROTATIONS = ((3, (0, 0, 1), 15.0), (8, (1, 0, 0), 12.0), (9, (0, 1, 0), -10.0),
+             (15, (0, 0, 1), -13.0), (21, (0, 1, 0), 14.0), (26, (1, 0, 0), -11.0),
+             (27, (1, 1, 0), 12.0), (33, (0, 0, 1), 10.0), (40, (0, 1, 0), 12.0),
+             (46, (1, 0, 0), 15.0), (52, (0, 1, 1), -12.0), (58, (0, 0, 1), -14.0), (64, (1, 0, 0),
+                                                                                     -13.0))
 
 
 def wrap_angles(a):
@@ -49,7 +51,9 @@ def rotation_angle(R):
 
 
 def _vee_skew(F):
-    return 0.5 * np.stack([F[..., 2, 1] - F[..., 1, 2], F[..., 0, 2] - F[..., 2, 0], F[..., 1, 0] - F[..., 0, 1]], -1)
+    return 0.5 * np.stack(
+        [F[..., 2, 1] - F[..., 1, 2], F[..., 0, 2] - F[..., 2, 0], F[..., 1, 0] - F[..., 0, 1]],
+        -1)
 
 
 def residuals(beta, A_imu, A_cam):
@@ -83,14 +87,16 @@ class Scenario:
     cam_sigma: np.ndarray         # rad, VF axes
     A_imu: np.ndarray             # true ΔS_imu (P, 3, 3)
     A_cam: np.ndarray             # true ΔS_avu (P, 3, 3)
-    E_imu: np.ndarray             # calibrator 'random_constant' E_imu from the true increments (P, 3, 3)
+    E_imu: np.ndarray  # calibrator 'random_constant' E_imu from the true increments (P, 3, 3)
     E_imu_004: np.ndarray         # calibrator '004' E_imu from the true increments
     E_cam: np.ndarray             # E_avu (P, 3, 3)
     G: np.ndarray                 # ∂ε_n/∂x, x = (b, vec M) (P, 3, 12), MF axes at t_n
     white_var: np.ndarray         # white-noise variance of ε_n per axis (P,)
     angles_deg: np.ndarray        # rotation angle of each pair
     build_s: float = 0.0
-    Sigma: np.ndarray | None = None     # full covariance of the stacked residuals at the truth (bounds())
+    Sigma: np.ndarray | None = (
+        None  # full covariance of the stacked residuals at the truth (bounds())
+    )
     K_gyro: np.ndarray | None = None    # covariance of the stacked gyro pair errors ε (bounds())
 
     @property
@@ -108,7 +114,10 @@ def build_profile(earth_rate: bool = True) -> tuple[PiecewiseRateProfile, np.nda
     for idx, axis, ang in ROTATIONS:
         a = epochs[idx - 1] + ROTATION_START
         axis = np.asarray(axis, dtype=float)
-        segs += [Segment(a - cur), Segment(ROTATION_TIME, axis / np.linalg.norm(axis) * np.radians(ang) / ROTATION_TIME)]
+        segs += [
+            Segment(a - cur),
+            Segment(ROTATION_TIME, axis / np.linalg.norm(axis) * np.radians(ang) / ROTATION_TIME)
+        ]
         cur = a + ROTATION_TIME
     segs.append(Segment(epochs[-1] + 2.0 - cur))
     lat = np.radians(LATITUDE_DEG)
@@ -182,8 +191,9 @@ def build_scenario(beta_deg=BETA_DEG, gyro: SensorSigmas = NAVIGATION_GRADE_GYRO
         G[n, :, 3:] = np.einsum('k,kai,kj->aij', w, Dk, u[k0:k1 + 1]).reshape(3, 9)
         white[n] = gyro.random_walk ** 2 * T * np.sum(w)
     angles = np.degrees([rotation_angle(a) for a in A_cam])
-    return Scenario(prof, beta, epochs, stamps, u, gyro, cam_sigma, A_imu, A_cam, E_imu, E_imu_004, E_cam, G,
-                    white, angles, time.perf_counter() - t0)
+    return Scenario(prof, beta, epochs, stamps, u, gyro, cam_sigma, A_imu, A_cam, E_imu, E_imu_004,
+                    E_cam, G, white, angles,
+                    time.perf_counter() - t0)
 
 
 # ---------------------------------------------------------------------- noise model, bounds
@@ -200,7 +210,8 @@ def gyro_covariance(sc: Scenario, constants: bool = True, white: bool = True,
     return K
 
 
-def camera_covariance(sc: Scenario, R: np.ndarray | None = None, correlated: bool = True) -> np.ndarray:
+def camera_covariance(sc: Scenario, R: np.ndarray | None = None,
+                      correlated: bool = True) -> np.ndarray:
     """
     Covariance of the stacked e_cam,n = θ_n − R_nᵀ θ_{n−1}: diagonal blocks P + R_nᵀ P R_n,
     off-diagonal (n, n+1) blocks −P R_{n+1} (adjacent pairs share the fix θ_n).
@@ -218,7 +229,8 @@ def camera_covariance(sc: Scenario, R: np.ndarray | None = None, correlated: boo
     return S
 
 
-def residual_covariance(sc: Scenario, C: np.ndarray, K_gyro: np.ndarray, S_cam: np.ndarray) -> np.ndarray:
+def residual_covariance(sc: Scenario, C: np.ndarray, K_gyro: np.ndarray,
+                        S_cam: np.ndarray) -> np.ndarray:
     """Σ of the stacked f_n = Cᵀ ε_n − e_cam,n."""
     P = sc.pairs_count
     K4 = K_gyro.reshape(P, 3, P, 3)
@@ -245,9 +257,11 @@ def bounds(sc: Scenario) -> dict:
     variants = {
         'exact': Sigma,
         'camera_correlation_only': residual_covariance(sc, C, _blockdiag_keep(K_full), S_cam),
-        'gyro_constants_correlation_only': residual_covariance(sc, C, K_full, camera_covariance(sc, correlated=False)),
+        'gyro_constants_correlation_only': residual_covariance(
+            sc, C, K_full, camera_covariance(sc, correlated=False)),
         'white_gyro_only': residual_covariance(sc, C, gyro_covariance(sc, constants=False), S_cam),
-        'without_triad_rotation': residual_covariance(sc, C, gyro_covariance(sc, misalignment='symmetric'), S_cam),
+        'without_triad_rotation': residual_covariance(
+            sc, C, gyro_covariance(sc, misalignment='symmetric'), S_cam),
     }
     out = {}
     for name, Sg in variants.items():
@@ -264,7 +278,8 @@ def bounds(sc: Scenario) -> dict:
     pred = {}
     blocks004 = np.swapaxes(C, 0, 1)[None] @ sc.E_imu_004 @ C[None] + sc.E_cam
     for name, W in (('weighted', W_ind), ('unweighted', np.eye(len(H))),
-                    ('weighted_004cov', _blockdiag_inv(blocks004)), ('correlated_gls', np.linalg.inv(Sigma))):
+                    ('weighted_004cov', _blockdiag_inv(blocks004)), ('correlated_gls',
+                                                                     np.linalg.inv(Sigma))):
         N = H.T @ W @ H
         Kl = np.linalg.solve(N, H.T @ W)
         pred[name] = Kl @ Sigma @ Kl.T

@@ -14,6 +14,7 @@ The core attitude path beside its peers, for ``sins_bench``: one run times, in t
 on the same 360 000 Δθ intervals (one hour at 100 Hz).  Compilation is excluded (one warm-up
 call before timing).  Ratios A/B and A/C are formed within each run.
 """
+
 from __future__ import annotations
 
 import math
@@ -66,8 +67,8 @@ def _pyins():
     return pd, sd
 
 
-def peer_runs(dth: np.ndarray, stamps: np.ndarray, q0: np.ndarray, runs: int = 5, block: int = 6000,
-              progress=None) -> dict:
+def peer_runs(dth: np.ndarray, stamps: np.ndarray, q0: np.ndarray, runs: int = 5,
+              block: int = 6000, progress=None) -> dict:
     """``runs`` rounds of A, B, C in turn on the increments ``dth`` (n, 3) stamped ``stamps`` (n+1,)."""
     n = len(dth)
     loop = _reference_loop()
@@ -78,16 +79,20 @@ def peer_runs(dth: np.ndarray, stamps: np.ndarray, q0: np.ndarray, runs: int = 5
         # pyins's increment convention: one extra "before" row; accelerometers zero (attitude only)
         data = np.zeros((n + 1, 6))
         data[1:, :3] = dth
-        imu = pd.DataFrame(data, index=stamps, columns=['gyro_x', 'gyro_y', 'gyro_z', 'accel_x', 'accel_y', 'accel_z'])
+        imu = pd.DataFrame(data, index=stamps,
+                           columns=['gyro_x', 'gyro_y', 'gyro_z', 'accel_x', 'accel_y', 'accel_z'])
         pva = pd.Series({'lat': 50.45, 'lon': 30.52, 'alt': 0.0, 'VN': 0.0, 'VE': 0.0, 'VD': 0.0,
                          'roll': 0.0, 'pitch': 0.0, 'heading': 0.0})
-        sd.Integrator(pva).integrate(sd.compute_increments_from_imu(imu.iloc[:100], 'increment'))   # compile
+        sd.Integrator(pva).integrate(sd.compute_increments_from_imu(imu.iloc[:100],
+                                                                    'increment'))  # compile
     if loop is not None:
-        loop(dth[:10], q0)                                                                          # compile
-    AttitudeIntegrator('one_plus_previous', q0, stamps[0], gyro=NAVIGATION_GRADE_GYRO).push(dth[:10], stamps[1:11])
+        loop(dth[:10], q0)  # compile
+    AttitudeIntegrator('one_plus_previous', q0, stamps[0],
+                       gyro=NAVIGATION_GRADE_GYRO).push(dth[:10], stamps[1:11])
 
     def a():
-        integ = AttitudeIntegrator('one_plus_previous', q0, stamps[0], nominal_period=stamps[1] - stamps[0],
+        integ = AttitudeIntegrator('one_plus_previous', q0, stamps[0],
+                                   nominal_period=stamps[1] - stamps[0],
                                    gyro=NAVIGATION_GRADE_GYRO)
         t0 = time.perf_counter()
         for k in range(0, n, block):
@@ -123,7 +128,7 @@ def peer_runs(dth: np.ndarray, stamps: np.ndarray, q0: np.ndarray, runs: int = 5
         return time.perf_counter() - t0, q[-1]
 
     if pyins is not None:
-        b()                                           # the kernel compiles for these argument types
+        b()  # the kernel compiles for these argument types
     rows = []
     for r in range(runs):
         ta, qa = a()
@@ -137,6 +142,9 @@ def peer_runs(dth: np.ndarray, stamps: np.ndarray, q0: np.ndarray, runs: int = 5
             row['final_attitude_difference_rad'] = float(quat_angle_between(qa, qc))
         rows.append(row)
         if progress:
-            progress(f'peer run {r + 1}/{runs}: A {ta:.3f} s, B {tb:.3f} s (API {tb_api:.3f} s), C {tc:.4f} s')
+            progress(
+                f'peer run {r + 1}/{runs}: A {ta:.3f} s, B {tb:.3f} s (API {tb_api:.3f} s), C'
+                f' {tc:.4f} s'
+            )
     return {'intervals': n, 'runs': rows, 'pyins_available': pyins is not None,
             'compiled_loop_available': loop is not None}

@@ -13,6 +13,7 @@ Scenario: bench profile (enough 150 s passes for --duration), gyro 200 Hz, a sta
 3. Confusion: injected × first named effect at k ≥ 5σ.
 4. Speed: the ``discrepancy`` CLI on a 900 s bag (200 Hz, 450 fixes), 5 runs.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -48,8 +49,10 @@ CONFUSION_MIN_SIZE = 5.0
 WITHIN = 3.0
 #: detection target of the plot marks and the conclusions: ≥ 90 % detected at k ≥ 7σ
 TARGET_SIZE, TARGET_DETECTION = 7.0, 0.90
-QUICK = dict(effects=['time_offset', 'gyro_bias'], seeds=2, sizes=[5.0], null_seeds=3, duration=320.0)
-FULL = dict(effects=list(CANDIDATES), seeds=50, sizes=[1.0, 2.0, 3.0, 5.0, 7.0, 10.0], null_seeds=100, duration=480.0)
+QUICK = dict(effects=['time_offset', 'gyro_bias'], seeds=2, sizes=[5.0], null_seeds=3,
+             duration=320.0)
+FULL = dict(effects=list(CANDIDATES), seeds=50, sizes=[1.0, 2.0, 3.0, 5.0, 7.0, 10.0],
+            null_seeds=100, duration=480.0)
 SPEED_DURATION, SPEED_REPEATS = 900.0, 5
 THREAD_VARS = ('OMP_NUM_THREADS', 'OPENBLAS_NUM_THREADS', 'MKL_NUM_THREADS')
 
@@ -67,14 +70,15 @@ def _q(name: str) -> int:
 
 
 def scenario_raw(seed: int, duration: float, overrides: dict | None = None) -> dict:
-    raw = dict(profile='bench', bench_repeat=max(1, math.ceil((duration - 20.0) / 150.0)), gyro_rate=200.0,
-               camera_interval=2.0, seed=int(seed), boresight=list(BORESIGHT))
+    raw = dict(profile='bench', bench_repeat=max(1, math.ceil((duration - 20.0) / 150.0)),
+               gyro_rate=200.0, camera_interval=2.0, seed=int(seed), boresight=list(BORESIGHT))
     return {**raw, **(overrides or {})}
 
 
 def _simulate(seed, duration, overrides=None):
     raw = scenario_raw(seed, duration, overrides)
-    return simulate_recording(check_all(IMU_SIM_PARAMS, raw), check_all(STAR_CAMERA_PARAMS, raw), duration)
+    return simulate_recording(check_all(IMU_SIM_PARAMS, raw), check_all(STAR_CAMERA_PARAMS, raw),
+                              duration)
 
 
 def _model():
@@ -100,8 +104,10 @@ def run_job(job: dict) -> dict:
     try:
         injected, sim_seed = {}, job['seed']
         if name is not None:
-            cov = job['cov'] if job['cov'] is not None else sigma_job([name], job['seed'], job['duration'])[name]
-            injected = draw_hidden_effect(name, job['size'], np.asarray(cov), np.random.default_rng(job['draw_seed']))
+            cov = job['cov'] if job['cov'] is not None else sigma_job([name], job['seed'],
+                                                                      job['duration'])[name]
+            injected = draw_hidden_effect(name, job['size'], np.asarray(cov),
+                                          np.random.default_rng(job['draw_seed']))
             sim_seed += INJECT_SEED_OFFSET
         rec = _simulate(sim_seed, job['duration'], injected)
         t1 = time.perf_counter()
@@ -125,8 +131,8 @@ def score(name, injected: dict, res: dict) -> dict:
     if out['detected']:
         st = res['steps'][named.index(name)]
         p = EFFECTS[name].value_parameter.name
-        est, sig, inj = (np.atleast_1d(np.asarray(v, dtype=float)) for v in (st['parameters'][p], st['sigma'][p],
-                                                                             injected[p]))
+        est, sig, inj = (np.atleast_1d(np.asarray(v, dtype=float))
+                         for v in (st['parameters'][p], st['sigma'][p], injected[p]))
         z = np.abs(est - inj) / sig
         out.update(p_value=st['p_value'], estimate=est.tolist(), estimate_sigma=sig.tolist(),
                    max_abs_z=float(np.max(z)), within_3sigma=bool(np.all(z <= WITHIN)))
@@ -138,8 +144,13 @@ def _progress(label: str, done: int, total: int, t0: float):
     """``[#####.....] 12/40 jobs, ETA 1m10s`` on stderr, rewritten in place."""
     eta = int(round((time.perf_counter() - t0) / done * (total - done))) if done else None
     bar = '#' * int(round(30 * done / max(total, 1)))
-    print(f"\r{label} [{bar:.<30}] {done}/{total} jobs, ETA {'?' if eta is None else f'{eta // 60}m{eta % 60:02d}s'}",
-          end='\n' if done == total else '', file=sys.stderr, flush=True)
+    print(
+        f'\r{label} [{bar:.<30}] {done}/{total} jobs, ETA'
+        f" {'?' if eta is None else f'{eta // 60}m{eta % 60:02d}s'}",
+        end='\n' if done == total else '',
+        file=sys.stderr,
+        flush=True,
+    )
 
 
 def _pool_map(pool, fn, items, label):
@@ -155,24 +166,31 @@ def _pool_map(pool, fn, items, label):
 
 def monte_carlo(args) -> dict:
     saved = {k: os.environ.get(k) for k in THREAD_VARS}
-    _init_worker()                                   # the spawned workers import numpy with 1 BLAS thread
+    _init_worker()  # the spawned workers import numpy with 1 BLAS thread
     try:
         with ProcessPoolExecutor(max_workers=args.workers, mp_context=mp.get_context('spawn'),
                                  initializer=_init_worker) as pool:
             t0 = time.perf_counter()
             covs = {e: None for e in args.effects}
             if args.sigma == 'reference':
-                covs = _pool_map(pool, sigma_job, [(args.effects, args.first_seed, args.duration)], 'sigma')[0]
+                covs = _pool_map(pool, sigma_job, [(args.effects, args.first_seed, args.duration)],
+                                 'sigma')[0]
             t_sigma = time.perf_counter() - t0
             jobs = []
             for e in args.effects:
                 for i in range(args.seeds):
                     seed = args.first_seed + i
-                    for k in (args.sizes if args.every_size else [args.sizes[i % len(args.sizes)]]):
-                        jobs.append(dict(effect=e, seed=seed, size=float(k), cov=covs[e], duration=args.duration,
-                                         alpha=args.alpha, draw_seed=[seed, CANDIDATES.index(e), int(round(k * 1000))]))
-            jobs += [dict(effect=None, seed=args.first_seed + i, size=0.0, duration=args.duration, alpha=args.alpha)
-                     for i in range(args.null_seeds)]
+                    for k in (args.sizes if args.every_size else [args.sizes[i %
+                                                                             len(args.sizes)]]):
+                        jobs.append(
+                            dict(effect=e, seed=seed, size=float(k), cov=covs[e],
+                                 duration=args.duration, alpha=args.alpha,
+                                 draw_seed=[seed, CANDIDATES.index(e),
+                                            int(round(k * 1000))]))
+            jobs += [
+                dict(effect=None, seed=args.first_seed + i, size=0.0, duration=args.duration,
+                     alpha=args.alpha) for i in range(args.null_seeds)
+            ]
             recs = _pool_map(pool, run_job, [(j,) for j in jobs], 'runs')
             t_runs = time.perf_counter() - t0 - t_sigma
     finally:
@@ -181,9 +199,15 @@ def monte_carlo(args) -> dict:
                 os.environ.pop(k, None)
             else:
                 os.environ[k] = v
-    sig = {e: None if c is None else np.sqrt(np.diag(np.atleast_2d(c))).tolist() for e, c in covs.items()}
-    return {'runs': [r for r in recs if r['effect'] is not None], 'nulls': [r for r in recs if r['effect'] is None],
-            'reference_sigma': sig, 'sigma_wall_s': t_sigma, 'runs_wall_s': t_runs}
+    sig = {
+        e: None if c is None else np.sqrt(np.diag(np.atleast_2d(c))).tolist()
+        for e, c in covs.items()
+    }
+    return {
+        'runs': [r for r in recs if r['effect'] is not None],
+        'nulls': [r for r in recs if r['effect'] is None], 'reference_sigma': sig,
+        'sigma_wall_s': t_sigma, 'runs_wall_s': t_runs
+    }
 
 
 def speed(args) -> dict:
@@ -194,7 +218,8 @@ def speed(args) -> dict:
     tmp = tempfile.mkdtemp(prefix='discrepancy_bench_')
     try:
         bag, model = os.path.join(tmp, 'bag'), os.path.join(tmp, 'model.yaml')
-        fixes = record(bag, imu_p, cam_p, accel=False)['messages'].get('/star_camera/attitude_with_covariance')
+        fixes = record(bag, imu_p, cam_p,
+                       accel=False)['messages'].get('/star_camera/attitude_with_covariance')
         with open(model, 'w', encoding='utf-8') as fh:
             json.dump({'/**': {'ros__parameters': {}}}, fh)              # JSON is YAML
         for i in range(SPEED_REPEATS):
@@ -208,8 +233,11 @@ def speed(args) -> dict:
                 errors.append((err.getvalue().strip().splitlines() or ['?'])[-1])
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
-    return {'mode': 'cli', 'duration_s': SPEED_DURATION, 'gyro_rate_hz': 200.0, 'fixes': fixes, 'return_codes': rcs,
-            'cli_errors': errors, 'time_s': _med(times), 'times_s': times, 'load_average_at_start': list(load)}
+    return {
+        'mode': 'cli', 'duration_s': SPEED_DURATION, 'gyro_rate_hz': 200.0, 'fixes': fixes,
+        'return_codes': rcs, 'cli_errors': errors, 'time_s': _med(times), 'times_s': times,
+        'load_average_at_start': list(load)
+    }
 
 
 # ----------------------------------------------------------------------------- summary
@@ -224,15 +252,20 @@ def binom_ci(k: int, n: int) -> tuple[float, float]:
 
 def ideal_power(q: int, k: float, alpha: float) -> float:
     from scipy.stats import chi2, ncx2
-    return float(ncx2.sf(chi2.isf(alpha / 2 / len(CANDIDATES), q), q, k * k))      # the selection gets α/2
+    return float(ncx2.sf(chi2.isf(alpha / 2 / len(CANDIDATES), q), q,
+                         k * k))  # the selection gets α/2
 
 
 def _med(xs):
-    return {'median': float(np.median(xs)), 'min': float(min(xs)), 'max': float(max(xs)), 'n': len(xs)} if xs else None
+    return {
+        'median': float(np.median(xs)), 'min': float(min(xs)), 'max': float(max(xs)), 'n': len(xs)
+    } if xs else None
 
 
 def _span(m, what='runs') -> str:
-    return f"median {m['median']:.1f} s (min {m['min']:.1f} – max {m['max']:.1f} s, {m['n']} {what})"
+    return (
+        f"median {m['median']:.1f} s (min {m['min']:.1f} – max {m['max']:.1f} s, {m['n']} {what})"
+    )
 
 
 def _count(rs, key) -> int:
@@ -245,10 +278,13 @@ def summarise(mc: dict, args) -> dict:
     for e in args.effects:
         for k in args.sizes:
             rs = [r for r in runs if r['effect'] == e and r['size'] == k]
-            det[e][f'{k:g}'] = {'n': len(rs), 'detected': _count(rs, 'detected'),
-                                'named_first': _count(rs, 'named_first'), 'within_3sigma': _count(rs, 'within_3sigma'),
-                                'errors': sum(r['verdict'] == 'error' for r in rs),
-                                'ideal_power': ideal_power(_q(e), k, args.alpha)}
+            det[e][f'{k:g}'] = {
+                'n': len(rs), 'detected': _count(rs, 'detected'),
+                'named_first': _count(rs,
+                                      'named_first'), 'within_3sigma': _count(rs, 'within_3sigma'),
+                'errors': sum(r['verdict'] == 'error'
+                              for r in rs), 'ideal_power': ideal_power(_q(e), k, args.alpha)
+            }
     cols = list(CANDIDATES) + ['none']
     conf = {e: dict.fromkeys(cols, 0) for e in args.effects}
     for r in runs:
@@ -258,19 +294,26 @@ def summarise(mc: dict, args) -> dict:
     for e in args.effects:
         rs = [r for r in runs if r['effect'] == e and r['size'] >= TARGET_SIZE]
         n, d = len(rs), _count(rs, 'detected')
-        targets[e] = {'n': n, 'detected': d, 'rate': d / n if n else None, 'ci95': list(binom_ci(d, n)),
-                      'met': d / n >= TARGET_DETECTION if n else None}
+        targets[e] = {
+            'n': n, 'detected': d, 'rate': d / n if n else None, 'ci95': list(binom_ci(d, n)),
+            'met': d / n >= TARGET_DETECTION if n else None
+        }
     fa, nn = _count(nulls, 'false_alarm'), len(nulls)
-    return {'detection': det, 'confusion': {'min_size': CONFUSION_MIN_SIZE, 'columns': cols, 'rows': conf},
-            'detection_target': {'size': TARGET_SIZE, 'rate': TARGET_DETECTION, 'per_effect': targets},
-            'false_alarm': {'n': nn, 'alarms': fa, 'rate': fa / nn if nn else None, 'ci95': list(binom_ci(fa, nn)),
-                            'alpha': args.alpha, 'met': fa / nn <= args.alpha if nn else None,
-                            'verdicts': dict(Counter(r['verdict'] for r in nulls)),
-                            'alarms_detail': [{k: r.get(k) for k in ('seed', 'verdict', 'steps', 'failed_tests')}
-                                              for r in nulls if r.get('false_alarm')]},
-            'analysis_s': _med([r['analysis_s'] for r in runs + nulls if 'analysis_s' in r]),
-            'job_s': _med([r['job_s'] for r in runs + nulls]),
-            'errors': [r for r in runs + nulls if r['verdict'] == 'error']}
+    return {
+        'detection': det,
+        'confusion': {'min_size': CONFUSION_MIN_SIZE, 'columns': cols, 'rows': conf},
+        'detection_target': {'size': TARGET_SIZE, 'rate': TARGET_DETECTION, 'per_effect': targets},
+        'false_alarm': {
+            'n': nn, 'alarms': fa, 'rate': fa / nn if nn else None, 'ci95': list(binom_ci(fa, nn)),
+            'alpha': args.alpha, 'met': fa / nn <= args.alpha if nn else None,
+            'verdicts': dict(Counter(r['verdict'] for r in nulls)),
+            'alarms_detail': [{k: r.get(k)
+                               for k in ('seed', 'verdict', 'steps', 'failed_tests')}
+                              for r in nulls if r.get('false_alarm')]
+        }, 'analysis_s': _med([r['analysis_s'] for r in runs + nulls if 'analysis_s' in r
+                               ]), 'job_s': _med([r['job_s'] for r in runs + nulls]),
+        'errors': [r for r in runs + nulls if r['verdict'] == 'error']
+    }
 
 
 def _pct(x):
@@ -279,23 +322,48 @@ def _pct(x):
 
 def tables(sm: dict, sizes) -> list[str]:
     """Markdown tables (also printed to stdout)."""
-    L = ['### Detection: detected/runs (ideal LRT power)', '',
-         '| effect | q | ' + ' | '.join(f'k = {k:g}σ' for k in sizes) + ' | named first | estimate within 3σ |',
-         '|---' * (len(sizes) + 4) + '|']
+    L = [
+        '### Detection: detected/runs (ideal LRT power)', '',
+        '| effect | q | ' + ' | '.join(f'k = {k:g}σ'
+                                       for k in sizes) + ' | named first | estimate within 3σ |',
+        '|---' * (len(sizes) + 4) + '|'
+    ]
     for e, row in sm['detection'].items():
-        tot = {key: sum(c[key] for c in row.values()) for key in ('n', 'detected', 'named_first', 'within_3sigma')}
-        L.append(f'| {e} | {_q(e)} | ' + ' | '.join(f"{c['detected']}/{c['n']} ({_pct(c['ideal_power'])})"
-                                                     for c in row.values())
-                 + f" | {tot['named_first']}/{tot['n']} | {tot['within_3sigma']}/{tot['detected']} |")
+        tot = {
+            key: sum(c[key] for c in row.values())
+            for key in ('n', 'detected', 'named_first', 'within_3sigma')
+        }
+        L.append(
+            f'| {e} | {_q(e)} | ' +
+            ' | '.join(f"{c['detected']}/{c['n']} ({_pct(c['ideal_power'])})"
+                       for c in row.values()) +
+            f" | {tot['named_first']}/{tot['n']} | {tot['within_3sigma']}/{tot['detected']} |")
     c = sm['confusion']
-    shown = [k for k in c['columns'] if k in c['rows'] or k == 'none' or any(r[k] for r in c['rows'].values())]
-    L += ['', f"### Confusion at k ≥ {c['min_size']:g}σ: injected (rows) × first named (columns)", '',
-          '| injected | ' + ' | '.join(shown) + ' |', '|---' * (len(shown) + 1) + '|']
+    shown = [
+        k for k in c['columns']
+        if k in c['rows'] or k == 'none' or any(r[k] for r in c['rows'].values())
+    ]
+    L += [
+        '',
+        f"### Confusion at k ≥ {c['min_size']:g}σ: injected (rows) × first named (columns)",
+        '',
+        '| injected | ' + ' | '.join(shown) + ' |',
+        '|---' * (len(shown) + 1) + '|',
+    ]
     L += [f'| {e} | ' + ' | '.join(str(r[k]) for k in shown) + ' |' for e, r in c['rows'].items()]
     fa = sm['false_alarm']
-    L += ['', '### False alarms (null data)', '', '| runs | alarms | rate | 95% CI | α | verdicts |', '|---' * 6 + '|',
-          f"| {fa['n']} | {fa['alarms']} | {_pct(fa['rate'])} | {_pct(fa['ci95'][0])}–{_pct(fa['ci95'][1])} | "
-          f"{_pct(fa['alpha'])} | {', '.join(f'{k} {v}' for k, v in fa['verdicts'].items())} |"]
+    L += [
+        '',
+        '### False alarms (null data)',
+        '',
+        '| runs | alarms | rate | 95% CI | α | verdicts |',
+        '|---' * 6 + '|',
+        (
+            f"| {fa['n']} | {fa['alarms']} | {_pct(fa['rate'])} |"
+            f" {_pct(fa['ci95'][0])}–{_pct(fa['ci95'][1])} | {_pct(fa['alpha'])} |"
+            f" {', '.join(f'{k} {v}' for k, v in fa['verdicts'].items())} |"
+        ),
+    ]
     return L
 
 
@@ -306,33 +374,52 @@ def conclusions(res: dict) -> list[str]:
     if fa['n']:
         lo, hi = fa['ci95']
         where = 'contains' if lo <= a <= hi else ('lies above' if lo > a else 'lies below')
-        out.append(f"False-alarm rate {_pct(fa['rate'])} (95% CI {_pct(lo)}–{_pct(hi)}, {fa['alarms']}/{fa['n']} "
-                   f"null runs) {'≤' if fa['met'] else '>'} α = {_pct(a)}: {'met' if fa['met'] else 'not met'}; "
-                   f'the interval {where} α.')
-        out += [f"Null seed {d['seed']}: {d['verdict']}, added {', '.join(d['steps']) or 'nothing'}, failed tests "
-                f"after: {', '.join(d['failed_tests'] or []) or 'none'}." for d in fa['alarms_detail']]
+        out.append(
+            f"False-alarm rate {_pct(fa['rate'])} (95% CI {_pct(lo)}–{_pct(hi)},"
+            f" {fa['alarms']}/{fa['n']} null runs) {'≤' if fa['met'] else '>'} α = {_pct(a)}:"
+            f" {'met' if fa['met'] else 'not met'}; the interval {where} α."
+        )
+        out += [
+            f"Null seed {d['seed']}: {d['verdict']}, added {', '.join(d['steps']) or 'nothing'},"
+            f" failed tests after: {', '.join(d['failed_tests'] or []) or 'none'}."
+            for d in fa['alarms_detail']
+        ]
     for e, v in t['per_effect'].items():
-        out.append(f"{e}: no runs at k ≥ {t['size']:g}σ, detection target not assessed." if not v['n'] else
-                   f"{e}: detected in {v['detected']}/{v['n']} runs at k ≥ {t['size']:g}σ ({_pct(v['rate'])}, "
-                   f"95% CI {_pct(v['ci95'][0])}–{_pct(v['ci95'][1])}) {'≥' if v['met'] else '<'} {_pct(t['rate'])}: "
-                   f"{'met' if v['met'] else 'not met'}.")
+        out.append(
+            f"{e}: no runs at k ≥ {t['size']:g}σ, detection target not assessed."
+            if not v['n']
+            else (
+                f"{e}: detected in {v['detected']}/{v['n']} runs at k ≥ {t['size']:g}σ"
+                f" ({_pct(v['rate'])}, 95% CI {_pct(v['ci95'][0])}–{_pct(v['ci95'][1])})"
+                f" {'≥' if v['met'] else '<'} {_pct(t['rate'])}:"
+                f" {'met' if v['met'] else 'not met'}."
+            )
+        )
     conf = sm['confusion']['rows']
     tot = sum(sum(r.values()) for r in conf.values())
     if tot:
         right, none = sum(r[e] for e, r in conf.items()), sum(r['none'] for r in conf.values())
-        out.append(f"At k ≥ {sm['confusion']['min_size']:g}σ the injected effect was named first in {right}/{tot} "
-                   f'runs ({_pct(right / tot)}); another effect in {tot - right - none}, none in {none}.')
+        out.append(
+            f"At k ≥ {sm['confusion']['min_size']:g}σ the injected effect was named first in"
+            f' {right}/{tot} runs ({_pct(right / tot)}); another effect in {tot - right - none},'
+            f' none in {none}.'
+        )
     cells = [c for row in sm['detection'].values() for c in row.values()]
     nd, w = sum(c['detected'] for c in cells), sum(c['within_3sigma'] for c in cells)
     if nd:
-        out.append(f'{w}/{nd} detected estimates ({_pct(w / nd)}) lie within 3σ of the injected value in every '
-                   f'component.')
+        out.append(
+            f'{w}/{nd} detected estimates ({_pct(w / nd)}) lie within 3σ of the injected value in'
+            ' every component.'
+        )
     sp = res.get('speed')
     if sp:
-        out.append(f"Speed of the discrepancy CLI on a bag: {_span(sp['time_s'])} for {sp['duration_s']:g} s at {sp['gyro_rate_hz']:g} "
-                   f"Hz with {sp['fixes']} fixes; load average at start {sp['load_average_at_start'][0]:.2f}"
-                   + (f"; return codes {sorted(set(sp['return_codes']))}" if sp['return_codes'] else '')
-                   + (f"; CLI error: {sp['cli_errors'][0]}." if sp.get('cli_errors') else '.'))
+        out.append(
+            f"Speed of the discrepancy CLI on a bag: {_span(sp['time_s'])} for"
+            f" {sp['duration_s']:g} s at {sp['gyro_rate_hz']:g} Hz with {sp['fixes']} fixes; load"
+            f" average at start {sp['load_average_at_start'][0]:.2f}"
+            + (f"; return codes {sorted(set(sp['return_codes']))}" if sp['return_codes'] else '')
+            + (f"; CLI error: {sp['cli_errors'][0]}." if sp.get('cli_errors') else '.')
+        )
     if sm['errors']:
         out.append(f"{len(sm['errors'])} runs raised an error (see the JSON).")
     return out
@@ -350,7 +437,7 @@ def write_plots(res: dict, outdir: str) -> list[str]:
     n_e = len(sm['detection'])
     for i, (e, row) in enumerate(sm['detection'].items()):
         col = plt.get_cmap('tab10')(i % 10)
-        dx = 0.04 * (i - (n_e - 1) / 2)              # small offsets so that equal rates stay visible
+        dx = 0.04 * (i - (n_e - 1) / 2)  # small offsets so that equal rates stay visible
         pts = [(float(k) + dx, c['detected'] / c['n']) for k, c in row.items() if c['n']]
         if pts:
             ax.plot(*zip(*pts), 'o-', color=col, label=e)
@@ -359,8 +446,15 @@ def write_plots(res: dict, outdir: str) -> list[str]:
     ax.plot(ks, [TARGET_DETECTION] * len(ks), 'kv', ms=9,
             label=f'target ≥ {TARGET_DETECTION:.0%} at k ≥ {TARGET_SIZE:g}σ')
     ax.axhline(TARGET_DETECTION, color='k', lw=0.5, ls=':')
-    ax.set(xlabel='injected size k (σ, Mahalanobis)', ylabel='detection rate', ylim=(-0.03, 1.03),
-           title='Detection vs effect size (dashed: ideal LRT power at (α/2)/m; markers offset slightly in k)')
+    ax.set(
+        xlabel='injected size k (σ, Mahalanobis)',
+        ylabel='detection rate',
+        ylim=(-0.03, 1.03),
+        title=(
+            'Detection vs effect size (dashed: ideal LRT power at (α/2)/m; markers offset slightly'
+            ' in k)'
+        ),
+    )
     ax.grid(alpha=0.3)
     ax.legend(fontsize=7, loc='lower right')
     fig.tight_layout()
@@ -369,15 +463,18 @@ def write_plots(res: dict, outdir: str) -> list[str]:
     plt.close(fig)
     c = sm['confusion']
     rows, cols = list(c['rows']), c['columns']
-    M = np.array([[c['rows'][r][k] for k in cols] for r in rows], dtype=float).reshape(len(rows), len(cols))
+    M = np.array([[c['rows'][r][k] for k in cols] for r in rows],
+                 dtype=float).reshape(len(rows), len(cols))
     frac = M / np.maximum(M.sum(1, keepdims=True), 1)
     fig, ax = plt.subplots(figsize=(1.0 + 0.8 * len(cols), 1.5 + 0.5 * len(rows)))
     im = ax.imshow(frac, cmap='Blues', vmin=0, vmax=1, aspect='auto')
     for i, j in zip(*np.nonzero(M)):
-        ax.text(j, i, f'{int(M[i, j])}', ha='center', va='center', color='w' if frac[i, j] > 0.5 else 'k')
+        ax.text(j, i, f'{int(M[i, j])}', ha='center', va='center',
+                color='w' if frac[i, j] > 0.5 else 'k')
     ax.set_xticks(range(len(cols)), cols, rotation=45, ha='right', fontsize=7)
     ax.set_yticks(range(len(rows)), rows, fontsize=7)
-    ax.set(xlabel='first named effect', ylabel='injected effect', title=f"Confusion at k ≥ {c['min_size']:g}σ")
+    ax.set(xlabel='first named effect', ylabel='injected effect',
+           title=f"Confusion at k ≥ {c['min_size']:g}σ")
     fig.colorbar(im, ax=ax, label='fraction of row')
     fig.tight_layout()
     files.append(os.path.join(outdir, 'discrepancy_confusion.png'))
@@ -388,50 +485,75 @@ def write_plots(res: dict, outdir: str) -> list[str]:
 
 def write_report(path: str, res: dict, plots: list[str]):
     cfg, sm, tm = res['config'], res['summary'], res['timing']
-    sigma = (f"one reference null recording per effect (seed {cfg['first_seed']})" if cfg['sigma'] == 'reference'
-             else "each seed's own null recording")
-    L = ['# discrepancy_bench — detection, false alarms and confusion of the discrepancy workflow', '',
-         f"Generated by `{res['command']}`: {tm['total_s']:.0f} s wall, {cfg['workers']} workers, "
-         f"{tm['cpu_count']} CPUs, load average at start {tm['load_average_at_start'][0]:.2f}.", '',
-         f"Scenario: bench profile, {cfg['duration']:g} s, gyro 200 Hz, a fix every 2 s; nominal model = calibrator "
-         f"defaults; α = {cfg['alpha']:g}. {cfg['seeds']} seeds per effect, sizes "
-         f"{', '.join(f'{k:g}' for k in cfg['sizes'])}σ "
-         f"({'every size for every seed' if cfg['every_size'] else 'cycled over the seeds'}); σ of each effect from "
-         f'{sigma}; injected recordings use seed + {INJECT_SEED_OFFSET}.', '', '## Conclusions', '']
-    L += [f'* {s}' for s in conclusions(res)] + [''] + [x.replace('### ', '## ') for x in tables(sm, cfg['sizes'])]
+    sigma = (f"one reference null recording per effect (seed {cfg['first_seed']})"
+             if cfg['sigma'] == 'reference' else "each seed's own null recording")
+    L = [
+        '# discrepancy_bench — detection, false alarms and confusion of the discrepancy workflow',
+        '',
+        (
+            f"Generated by `{res['command']}`: {tm['total_s']:.0f} s wall, {cfg['workers']}"
+            f" workers, {tm['cpu_count']} CPUs, load average at start"
+            f" {tm['load_average_at_start'][0]:.2f}."
+        ),
+        '',
+        (
+            f"Scenario: bench profile, {cfg['duration']:g} s, gyro 200 Hz, a fix every 2 s;"
+            f" nominal model = calibrator defaults; α = {cfg['alpha']:g}. {cfg['seeds']} seeds per"
+            f" effect, sizes {', '.join(f'{k:g}' for k in cfg['sizes'])}σ"
+            f" ({'every size for every seed' if cfg['every_size'] else 'cycled over the seeds'});"
+            f' σ of each effect from {sigma}; injected recordings use seed + {INJECT_SEED_OFFSET}.'
+        ),
+        '',
+        '## Conclusions',
+        '',
+    ]
+    L += [f'* {s}' for s in conclusions(res)
+          ] + [''] + [x.replace('### ', '## ') for x in tables(sm, cfg['sizes'])]
     if sm['analysis_s']:
         L += ['', f"Analysis time per run: {_span(sm['analysis_s'])}."]
-    L += [''] + [f'![{os.path.basename(p)}]({os.path.relpath(p, os.path.dirname(os.path.abspath(path)))})'
-                 for p in plots]
+    L += [''] + [
+        f'![{os.path.basename(p)}]({os.path.relpath(p, os.path.dirname(os.path.abspath(path)))})'
+        for p in plots
+    ]
     write_text(path, '\n'.join(L) + '\n')
 
 
 # ----------------------------------------------------------------------------- arguments
 def parse_args(argv):
-    ap = _Parser(prog=PROG, description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap = _Parser(prog=PROG, description=__doc__,
+                 formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument('--seeds', type=int, help='seeds per effect (default 50)')
     ap.add_argument('--duration', type=float, help='simulated seconds per recording (default 480)')
     ap.add_argument('--sizes', help='comma-separated effect sizes in σ (default 1,2,3,5,7,10)')
     ap.add_argument('--effects', help=f"all (default) or a comma list of: {', '.join(CANDIDATES)}")
-    ap.add_argument('--null-seeds', type=int, help='null recordings for the false-alarm rate (default 100)')
-    ap.add_argument('--alpha', type=float, default=0.01, help='significance level of the workflow (default 0.01)')
+    ap.add_argument('--null-seeds', type=int,
+                    help='null recordings for the false-alarm rate (default 100)')
+    ap.add_argument('--alpha', type=float, default=0.01,
+                    help='significance level of the workflow (default 0.01)')
     ap.add_argument('--workers', type=int, default=2, help='worker processes (default 2)')
     ap.add_argument('--first-seed', type=int, default=0, help='seed of the first run (default 0)')
-    ap.add_argument('--every-size', action='store_true', help='run every size for every seed (default: cycle sizes)')
-    ap.add_argument('--sigma', choices=('reference', 'per-seed'), default='reference',
-                    help="σ of an effect from one reference null recording (default) or from each seed's own")
+    ap.add_argument('--every-size', action='store_true',
+                    help='run every size for every seed (default: cycle sizes)')
+    ap.add_argument(
+        '--sigma', choices=('reference', 'per-seed'), default='reference',
+        help="σ of an effect from one reference null recording (default) or from each seed's own")
     ap.add_argument('--json', help='write all records and tables to this JSON file')
-    ap.add_argument('--plots', help='write discrepancy_detection.png and discrepancy_confusion.png here')
+    ap.add_argument('--plots',
+                    help='write discrepancy_detection.png and discrepancy_confusion.png here')
     ap.add_argument('--report', help='write the markdown report to this file')
     ap.add_argument('--force', action='store_true', help='overwrite existing outputs')
-    ap.add_argument('--speed-only', action='store_true',
-                    help='only the speed measurement (5 runs of the discrepancy CLI on a 15-minute bag)')
-    ap.add_argument('--speed', action=argparse.BooleanOptionalAction, default=None,
-                    help='time the discrepancy CLI on a 900 s recording (default on; off with --quick)')
-    ap.add_argument('--quick', action='store_true',
-                    help='smoke mode: ' + ', '.join(f'{k}={v}' for k, v in QUICK.items()) + ', no speed')
+    ap.add_argument(
+        '--speed-only', action='store_true',
+        help='only the speed measurement (5 runs of the discrepancy CLI on a 15-minute bag)')
+    ap.add_argument(
+        '--speed', action=argparse.BooleanOptionalAction, default=None,
+        help='time the discrepancy CLI on a 900 s recording (default on; off with --quick)')
+    ap.add_argument(
+        '--quick', action='store_true',
+        help='smoke mode: ' + ', '.join(f'{k}={v}' for k, v in QUICK.items()) + ', no speed')
     args = ap.parse_args(argv)
-    for k, v in (QUICK if args.quick else FULL).items():       # the mode's defaults for what was not given
+    for k, v in (QUICK
+                 if args.quick else FULL).items():  # the mode's defaults for what was not given
         if getattr(args, k) is None:
             setattr(args, k, list(v) if isinstance(v, list) else v)
     args.speed = args.speed if args.speed is not None else not args.quick
@@ -440,19 +562,26 @@ def parse_args(argv):
     if not (0.0 < args.alpha < 1.0) or args.workers < 1 or args.first_seed < 0:
         ap.error('--alpha must lie in (0, 1), --workers be >= 1 and --first-seed >= 0')
     if not (40.0 <= args.duration <= 86400.0):
-        ap.error(f'--duration must lie in [40, 86400] s (>= 13 fixes 2 s apart), got {args.duration:g}')
+        ap.error(
+            f'--duration must lie in [40, 86400] s (>= 13 fixes 2 s apart), got {args.duration:g}')
     if isinstance(args.sizes, str):
         try:
             args.sizes = [float(s) for s in args.sizes.split(',')]
         except ValueError:
             ap.error(f'--sizes must be comma-separated numbers, got {args.sizes!r}')
-        if not all(0.0 < s <= 100.0 for s in args.sizes) or len(set(args.sizes)) != len(args.sizes):
+        if not all(0.0 < s <= 100.0
+                   for s in args.sizes) or len(set(args.sizes)) != len(args.sizes):
             ap.error('--sizes must be distinct numbers in (0, 100]')
     if isinstance(args.effects, str):
-        names = list(CANDIDATES) if args.effects.strip() == 'all' else [s.strip() for s in args.effects.split(',')]
+        names = list(CANDIDATES) if args.effects.strip() == 'all' else [
+            s.strip() for s in args.effects.split(',')
+        ]
         bad = sorted({n for n in names if n not in CANDIDATES or names.count(n) > 1})
         if bad:
-            ap.error(f"--effects: unknown or repeated {', '.join(map(repr, bad))}; valid: all, {', '.join(CANDIDATES)}")
+            ap.error(
+                f"--effects: unknown or repeated {', '.join(map(repr, bad))}; valid: all,"
+                f" {', '.join(CANDIDATES)}"
+            )
         args.effects = names
     try:                                        # the tools' one output rule
         check_outputs([('--json', args.json, FILE), ('--report', args.report, FILE),
@@ -471,25 +600,37 @@ def main(argv=None) -> int:
     if args.speed_only:
         sp = speed(args)
         t = sp['time_s']
-        print(f"{PROG}: discrepancy CLI on a {sp['duration_s']:g} s recording (200 Hz gyro, {sp['fixes']} fixes), "
-              f"report included: median {t['median']:.2f} s (min {t['min']:.2f}, max {t['max']:.2f}) over "
-              f"{len(sp['times_s'])} runs; load average at start {load[0]:.2f}; exit codes {sp['return_codes']}")
+        print(
+            f"{PROG}: discrepancy CLI on a {sp['duration_s']:g} s recording (200 Hz gyro,"
+            f" {sp['fixes']} fixes), report included: median {t['median']:.2f} s (min"
+            f" {t['min']:.2f}, max {t['max']:.2f}) over {len(sp['times_s'])} runs; load average at"
+            f" start {load[0]:.2f}; exit codes {sp['return_codes']}"
+        )
         if args.json:
             write_text(args.json, json.dumps({'command': f'{PROG} ' + ' '.join(argv),
                                               'speed': sp}, indent=1, default=float))
         return 0
-    n_jobs = len(args.effects) * args.seeds * (len(args.sizes) if args.every_size else 1) + args.null_seeds
-    print(f'{PROG}: {len(args.effects)} effects × {args.seeds} seeds, sizes '
-          f"{','.join(f'{k:g}' for k in args.sizes)}σ, {args.null_seeds} null seeds, {args.duration:g} s each: "
-          f'{n_jobs} jobs on {args.workers} workers; load average at start {load[0]:.2f} {load[1]:.2f} {load[2]:.2f}',
-          file=sys.stderr)
+    n_jobs = len(
+        args.effects) * args.seeds * (len(args.sizes) if args.every_size else 1) + args.null_seeds
+    print(
+        f'{PROG}: {len(args.effects)} effects × {args.seeds} seeds, sizes '
+        f"{','.join(f'{k:g}' for k in args.sizes)}σ, {args.null_seeds} null seeds,"
+        f' {args.duration:g} s each: '
+        f'{n_jobs} jobs on {args.workers} workers; load average at start {load[0]:.2f}'
+        f' {load[1]:.2f} {load[2]:.2f}',
+        file=sys.stderr,
+    )
     mc = monte_carlo(args)
-    cfg = {k: getattr(args, k) for k in ('seeds', 'duration', 'sizes', 'effects', 'null_seeds', 'alpha', 'workers',
-                                         'first_seed', 'every_size', 'sigma', 'quick')}
+    cfg = {
+        k: getattr(args, k)
+        for k in ('seeds', 'duration', 'sizes', 'effects', 'null_seeds', 'alpha', 'workers',
+                  'first_seed', 'every_size', 'sigma', 'quick')
+    }
     res = {'command': f'{PROG} ' + ' '.join(argv), 'config': cfg, 'summary': summarise(mc, args),
            'reference_sigma': mc['reference_sigma'], 'runs': mc['runs'], 'nulls': mc['nulls']}
     if args.speed:
-        print(f'{PROG}: speed: {SPEED_REPEATS} runs on a {SPEED_DURATION:g} s recording ...', file=sys.stderr)
+        print(f'{PROG}: speed: {SPEED_REPEATS} runs on a {SPEED_DURATION:g} s recording ...',
+              file=sys.stderr)
         res['speed'] = speed(args)
     sm = res['summary']
     res['plots'] = write_plots(res, args.plots) if args.plots else []
@@ -498,9 +639,14 @@ def main(argv=None) -> int:
                      'cpu_count': os.cpu_count()}
     print('\n'.join(tables(sm, args.sizes)) + '\n\n' + '\n'.join(conclusions(res)))
     if sm['analysis_s']:
-        print(f"analysis per run: {_span(sm['analysis_s'])}; job (simulation + σ + analysis): {_span(sm['job_s'])}")
-    print(f"total {res['timing']['total_s']:.0f} s (σ {mc['sigma_wall_s']:.0f} s, runs {mc['runs_wall_s']:.0f} s); "
-          f'load average at start {load[0]:.2f}')
+        print(
+            f"analysis per run: {_span(sm['analysis_s'])}; job (simulation + σ + analysis):"
+            f" {_span(sm['job_s'])}"
+        )
+    print(
+        f"total {res['timing']['total_s']:.0f} s (σ {mc['sigma_wall_s']:.0f} s, runs"
+        f" {mc['runs_wall_s']:.0f} s); load average at start {load[0]:.2f}"
+    )
     if args.report:
         write_report(args.report, res, res['plots'])
     if args.json:

@@ -29,6 +29,7 @@ Prints a markdown table on stdout; ``--json FILE``; ``--plots DIR`` (attitude er
 ±3σ band, bias convergence with ±3σ, NIS with its χ² band); ``--report FILE`` (markdown).  The
 figures are printed, not asserted.  Exit 0; 2 for bad arguments.
 """
+
 from __future__ import annotations
 
 import math
@@ -244,7 +245,8 @@ def realdata_run(a, progress) -> dict:
         root = repoimu.find_repoimu(scratch)
         if root is None:
             return {'available': False}
-        path = next((p for p in repoimu.repoimu_trials(root, ('TStick',)) if p.stem == a.trial), None)
+        path = next((p for p in repoimu.repoimu_trials(root, ('TStick', )) if p.stem == a.trial),
+                    None)
         if path is None:
             return {'available': False, 'reason': f'trial {a.trial} not in {root}'}
         trial = repoimu.read_repoimu_csv(path)
@@ -324,19 +326,23 @@ def render(res: dict) -> str:
         L.append(f"| NEES {name} ({v['dim']}) | {v['mean']:.3f} | {v['band_per_fix'][0]:.2f}–"
                  f"{v['band_per_fix'][1]:.2f} | {v['fraction_of_fixes_inside']:.0%} |")
     n = s['nis']
-    L.append(f"| NIS (3), all {n['fixes']} fixes ({n['gated']} gated at the χ²₃ 0.9999 quantile "
-             f"{chi2_3_quantile(0.9999):.2f}, the filter's default) | {n['mean']:.3f} | "
-             f"{n['band'][0]:.3f}–"
-             f"{n['band'][1]:.3f} (mean) | {n['fraction_single_inside_95']:.1%} single NIS in "
-             f'χ²₃ 95 % |')
+    L.append(
+        f"| NIS (3), all {n['fixes']} fixes ({n['gated']} gated at the χ²₃ 0.9999 quantile "
+        f"{chi2_3_quantile(0.9999):.2f}, the filter's default) | {n['mean']:.3f} | "
+        f"{n['band'][0]:.3f}–"
+        f"{n['band'][1]:.3f} (mean) | {n['fraction_single_inside_95']:.1%} single NIS in "
+        'χ²₃ 95 % |'
+    )
     tm = res.get('timing')
     if tm:
-        L += ['', f"## Cost of the core: {tm['seconds']:g} s of 1 kHz Δθ, a fix every second",
-              '', f"median (min–max) of {tm['runs']} runs; one process, one thread; load average "
-              f"at the start {' '.join(f'{x:.2f}' for x in res['load_at_start'])} on "
-              f"{res['cpu_count']} cores; data generation not timed", '',
-              f'| increments per propagate call | fix | input queue | µs per increment, all work '
-              f'(target ≤ {TARGET_US:g}) | µs per fix |', '|---|---|---|---:|---:|']
+        L += [
+            '', f"## Cost of the core: {tm['seconds']:g} s of 1 kHz Δθ, a fix every second", '',
+            f"median (min–max) of {tm['runs']} runs; one process, one thread; load average "
+            f"at the start {' '.join(f'{x:.2f}' for x in res['load_at_start'])} on "
+            f"{res['cpu_count']} cores; data generation not timed", '',
+            f'| increments per propagate call | fix | input queue | µs per increment, all work '
+            f'(target ≤ {TARGET_US:g}) | µs per fix |', '|---|---|---|---:|---:|'
+        ]
         for row in tm['rows']:
             q = f"{row['max_queued']}" if row['max_queued'] else f"off ({row['seconds']:g} s)"
             L.append(f"| {row['block']} | {row['fix']} | {q} | "
@@ -351,10 +357,12 @@ def render(res: dict) -> str:
                  + (f"; {rd['reason']}" if rd and rd.get('reason') else ''))
     else:
         deg = 180 / math.pi
-        L += [f"{rd['trial']} ({rd['duration_s']:.1f} s): {rd['applied']}/{rd['fixes']} fixes "
-              f"applied, {rd['gated']} gated, mean NIS {rd['mean_nis']:.2f}; ARW from the rest "
-              f"{rd['arw_rad_sqrt_s']:.2e} rad/√s, camera σ {rd['camera_sigma_rad']:g} rad.", '',
-              '| quantity | filter ± 1σ | independent | z |', '|---|---|---|---|']
+        L += [
+            f"{rd['trial']} ({rd['duration_s']:.1f} s): {rd['applied']}/{rd['fixes']} fixes "
+            f"applied, {rd['gated']} gated, mean NIS {rd['mean_nis']:.2f}; ARW from the rest "
+            f"{rd['arw_rad_sqrt_s']:.2e} rad/√s, camera σ {rd['camera_sigma_rad']:g} rad.", '',
+            '| quantity | filter ± 1σ | independent | z |', '|---|---|---|---|'
+        ]
         for i, ax in enumerate('xyz'):
             L.append(f"| bias {ax}, °/s | {rd['bias_rad_s'][i] * deg:.3f} ± "
                      f"{rd['bias_sigma_rad_s'][i] * deg:.3f} | rest mean "

@@ -190,9 +190,10 @@ def main(argv=None) -> int:
     load = os.getloadavg() if hasattr(os, 'getloadavg') else (math.nan,) * 3
     cpus = os.cpu_count()
     busy = load[0] > 0.5 * (cpus or 1)
-    print(f'sins_bag_bench: load average at start {load[0]:.2f} {load[1]:.2f} {load[2]:.2f} '
-          f"({cpus} CPUs){' — the machine is busy: absolute times are inflated' if busy else ''}",
-          file=sys.stderr, flush=True)
+    print(
+        f'sins_bag_bench: load average at start {load[0]:.2f} {load[1]:.2f} {load[2]:.2f} '
+        f"({cpus} CPUs){' — the machine is busy: absolute times are inflated' if busy else ''}",
+        file=sys.stderr, flush=True)
     with tempfile.TemporaryDirectory(prefix='sins_bag_bench_') as tmp:
         tmp = Path(tmp)
         extra = []

@@ -16,6 +16,7 @@ Every figure is the median and min–max of ``--runs`` (≥ 5 by default) runs, 
 at the start.  Absolute times vary from machine to machine and with the load; ratios measured in
 one run are the comparable figures.  Exit 0; 2 for bad arguments.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -48,7 +49,8 @@ def coning_data(hours: float = 1.0):
     return prof, tg, ta, prof.delta_theta(tg[:-1], tg[1:]), prof.delta_v(ta[:-1], ta[1:])
 
 
-def core_run(data, algorithm: str = '2', covariance_model: str = 'random_constant', block: int = 6000) -> dict:
+def core_run(data, algorithm: str = '2', covariance_model: str = 'random_constant',
+             block: int = 6000) -> dict:
     """One timed pass of the core over ``data`` (from :func:`coning_data`)."""
     prof, tg, ta, dth, dv = data
     n_g = len(dth)
@@ -67,8 +69,8 @@ def core_run(data, algorithm: str = '2', covariance_model: str = 'random_constan
             'real_time_ratio': n_g * 0.01 / wall, 'ns_per_gyro_interval': wall / n_g * 1e9}
 
 
-def core_benchmark(algorithm: str = '2', hours: float = 1.0, covariance_model: str = 'random_constant',
-                   repeats: int = 3) -> dict:
+def core_benchmark(algorithm: str = '2', hours: float = 1.0,
+                   covariance_model: str = 'random_constant', repeats: int = 3) -> dict:
     """Best of ``repeats`` passes (kept for callers that want one figure); :func:`main` reports medians."""
     data = coning_data(hours)
     runs = [core_run(data, algorithm, covariance_model) for _ in range(repeats)]
@@ -83,18 +85,23 @@ class _Parser(argparse.ArgumentParser):
 
 def main(argv=None):
     argv = sys.argv[1:] if argv is None else argv
-    ap = _Parser(prog='sins_bench', description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap = _Parser(prog='sins_bench', description=__doc__,
+                 formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument('--algorithm', default='2')
     ap.add_argument('--hours', type=float, default=1.0)
     ap.add_argument('--runs', type=int, default=5, help='runs of every figure (default 5)')
-    ap.add_argument('--no-peers', action='store_true', help='skip the pyins / compiled-loop comparison')
+    ap.add_argument('--no-peers', action='store_true',
+                    help='skip the pyins / compiled-loop comparison')
     ap.add_argument('--node-seconds', type=float, default=20.0)
     ap.add_argument('--node-rate', type=float, default=2000.0)
     ap.add_argument('--json', help='write the figures to this JSON file')
     ap.add_argument('--force', action='store_true', help='overwrite existing outputs')
     args = ap.parse_args(argv)
     if args.algorithm not in algorithm_names():
-        ap.error(f"--algorithm {args.algorithm!r} is not valid; valid values: {', '.join(algorithm_names())}")
+        ap.error(
+            f'--algorithm {args.algorithm!r} is not valid; valid values:'
+            f" {', '.join(algorithm_names())}"
+        )
     if not (math.isfinite(args.hours) and 0 < args.hours <= 24):
         ap.error(f'--hours must be in (0, 24], got {args.hours}')
     if not 1 <= args.runs <= 100:
@@ -110,12 +117,18 @@ def main(argv=None):
 
     load = os.getloadavg()
     res: dict = {'load_at_start': list(load), 'cpu_count': os.cpu_count(), 'runs': args.runs}
-    lines = [f"$ sins_bench {' '.join(argv)}".rstrip(),
-             f'load average at start {load[0]:.2f} {load[1]:.2f} {load[2]:.2f} on {os.cpu_count()} cores; median '
-             f'(min–max) of {args.runs} runs; absolute times vary from machine to machine, ratios are measured in one run']
+    lines = [
+        f"$ sins_bench {' '.join(argv)}".rstrip(),
+        (
+            f'load average at start {load[0]:.2f} {load[1]:.2f} {load[2]:.2f} on {os.cpu_count()}'
+            f' cores; median (min–max) of {args.runs} runs; absolute times vary from machine to'
+            ' machine, ratios are measured in one run'
+        ),
+    ]
     res['compiled_kernel'] = attitude_kernel.available()
-    lines.append('attitude core: ' + ('compiled block kernel (numba)' if res['compiled_kernel'] else
-                                      'vectorised numpy path (numba absent, or STRAPDOWN_KERNEL=numpy)'))
+    lines.append('attitude core: ' +
+                 ('compiled block kernel (numba)' if res['compiled_kernel'] else
+                  'vectorised numpy path (numba absent, or STRAPDOWN_KERNEL=numpy)'))
     data = coning_data(args.hours)
     core = {'random_constant': [], '004': []}
     for m in core:                                   # compilation (or numba's cache) is not timed
@@ -124,12 +137,21 @@ def main(argv=None):
         for m in core:
             core[m].append(core_run(data, args.algorithm, m))
     res['core'] = core
-    lines += ['', '| core: 360 000 gyro + 1 080 000 accel intervals | wall, s | × real time | ns per gyro interval |',
-              '|---|---:|---:|---:|']
+    lines += [
+        '',
+        (
+            '| core: 360 000 gyro + 1 080 000 accel intervals | wall, s | × real time | ns per'
+            ' gyro interval |'
+        ),
+        '|---|---:|---:|---:|',
+    ]
     for m, runs in core.items():
-        lines.append(f"| algorithm {args.algorithm}, covariance `{m}` | {median_range(stats([r['wall_s'] for r in runs]), '.3f')} | "
-                     f"{median_range(stats([r['real_time_ratio'] for r in runs]), '.0f')} | "
-                     f"{median_range(stats([r['ns_per_gyro_interval'] for r in runs]), '.0f')} |")
+        lines.append(
+            f'| algorithm {args.algorithm}, covariance `{m}` |'
+            f" {median_range(stats([r['wall_s'] for r in runs]), '.3f')} |"
+            f" {median_range(stats([r['real_time_ratio'] for r in runs]), '.0f')} |"
+            f" {median_range(stats([r['ns_per_gyro_interval'] for r in runs]), '.0f')} |"
+        )
     if not args.no_peers:
         prof, tg, _, dth, _ = data
         peers = peer_runs(dth, tg, prof.attitude(0.0), runs=args.runs)
@@ -141,22 +163,41 @@ def main(argv=None):
         c = stats([r['compiled_loop_s'] for r in rows])
         rb = stats([r['ratio_to_pyins'] for r in rows])
         rc = stats([r['ratio_to_compiled'] for r in rows])
-        diff = max((r.get('final_attitude_difference_rad', math.nan) for r in rows), default=math.nan)
-        lines += ['', f"| {peers['intervals']} Δθ intervals, one-plus-previous coning term | wall, s | "
-                      'strapdown_ros ÷ this |', '|---|---:|---:|',
-                  f"| A strapdown_ros core, covariance included | {median_range(a, '.3f')} | 1 |",
-                  f"| B pyins 1.0.1 compiled kernel (coning term in numpy, as its API computes it) | {median_range(b, '.3f')} | "
-                  f"{median_range(rb, '.2f')} |",
-                  f"| pyins public API around that kernel (pandas in and out), for information | {median_range(bapi, '.3f')} | "
-                  f"{median_range(stats([r['strapdown_ros_s'] / r['pyins_api_s'] for r in rows if math.isfinite(r['pyins_api_s'])]), '.2f')} |",
-                  f"| C compiled 20-line quaternion loop (numba) | {median_range(c, '.4f')} | {median_range(rc, '.1f')} |", '']
+        diff = max((r.get('final_attitude_difference_rad', math.nan) for r in rows),
+                   default=math.nan)
+        lines += [
+            '',
+            (
+                f"| {peers['intervals']} Δθ intervals, one-plus-previous coning term | wall, s | "
+                'strapdown_ros ÷ this |'
+            ),
+            '|---|---:|---:|',
+            f"| A strapdown_ros core, covariance included | {median_range(a, '.3f')} | 1 |",
+            (
+                '| B pyins 1.0.1 compiled kernel (coning term in numpy, as its API computes it) |'
+                f" {median_range(b, '.3f')} | {median_range(rb, '.2f')} |"
+            ),
+            (
+                '| pyins public API around that kernel (pandas in and out), for information |'
+                f" {median_range(bapi, '.3f')} | "
+                f"{median_range(stats([r['strapdown_ros_s'] / r['pyins_api_s'] for r in rows if math.isfinite(r['pyins_api_s'])]), '.2f')} |"
+            ),
+            (
+                f"| C compiled 20-line quaternion loop (numba) | {median_range(c, '.4f')} |"
+                f" {median_range(rc, '.1f')} |"
+            ),
+            '',
+        ]
         if rb['n']:
             lines.append(f"A ÷ B median {rb['median']:.2f} — target ≤ {PYINS_RATIO_TARGET:g} "
                          f"{'met' if rb['median'] <= PYINS_RATIO_TARGET else 'NOT met'}.")
         if rc['n']:
-            lines.append(f"A ÷ C median {rc['median']:.1f} — target ≤ {COMPILED_RATIO_TARGET:g} "
-                         f"{'met' if rc['median'] <= COMPILED_RATIO_TARGET else 'NOT met'}; the final attitudes of A "
-                         f'and C differ by {diff:.1e} rad (same mathematics, independent code).')
+            lines.append(
+                f"A ÷ C median {rc['median']:.1f} — target ≤ {COMPILED_RATIO_TARGET:g}"
+                f" {'met' if rc['median'] <= COMPILED_RATIO_TARGET else 'NOT met'}; the final"
+                f' attitudes of A and C differ by {diff:.1e} rad (same mathematics, independent'
+                ' code).'
+            )
         if not (b['n'] and c['n']):
             lines.append("(pyins or numba is not installed: pip install 'strapdown_ros[bench]')")
     if args.node_seconds > 0:
@@ -168,12 +209,20 @@ def main(argv=None):
         res['node'] = nodes
         lost = stats([n['sent'] - n['accepted_by_node'] for n in nodes])
         ach = stats([n['achieved_input_hz'] for n in nodes])
-        out = stats([n['attitude_outputs_received'] / max(n['attitude_outputs_expected'], 1) for n in nodes])
-        lines += ['', f'| sins_node in its own process, {args.node_rate:g} Hz Δθ for {args.node_seconds:g} s over '
-                      'loopback (paced publisher) | median (min–max) |', '|---|---:|',
-                  f"| achieved input rate, Hz | {median_range(ach, '.0f')} |",
-                  f"| messages lost (sent − accepted by the node) | {median_range(lost, '.0f')} |",
-                  f"| attitudes received back ÷ expected | {median_range(out, '.4f')} |"]
+        out = stats([
+            n['attitude_outputs_received'] / max(n['attitude_outputs_expected'], 1) for n in nodes
+        ])
+        lines += [
+            '',
+            (
+                f'| sins_node in its own process, {args.node_rate:g} Hz Δθ for'
+                f' {args.node_seconds:g} s over loopback (paced publisher) | median (min–max) |'
+            ),
+            '|---|---:|',
+            f"| achieved input rate, Hz | {median_range(ach, '.0f')} |",
+            f"| messages lost (sent − accepted by the node) | {median_range(lost, '.0f')} |",
+            f"| attitudes received back ÷ expected | {median_range(out, '.4f')} |",
+        ]
     text = '\n'.join(lines)
     print(text)
     res['text'] = text

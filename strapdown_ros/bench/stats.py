@@ -156,7 +156,9 @@ def rts_smooth(pre, post, P_pre, P_post, Phi):
     out[-1] = post[-1]
     for k in range(len(post) - 2, -1, -1):
         q_s, b_s = out[k + 1]
-        d_next = np.concatenate([quat_to_rotvec(quat_multiply(quat_conjugate(q_s), pre[k + 1][0])), pre[k + 1][1] - b_s])
+        d_next = np.concatenate([
+            quat_to_rotvec(quat_multiply(quat_conjugate(q_s), pre[k + 1][0])), pre[k + 1][1] - b_s
+        ])
         G = np.linalg.solve(P_pre[k + 1], Phi @ P_post[k]).T
         d = G @ d_next
         out[k] = (quat_multiply(post[k][0], rotvec_to_quat(-d[:3])), post[k][1] - d[3:])

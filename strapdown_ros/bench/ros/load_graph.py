@@ -63,17 +63,22 @@ PAGE_KIB = os.sysconf('SC_PAGE_SIZE') / 1024.0
 CLOCK_TICKS = os.sysconf('SC_CLK_TCK')
 
 
-def node_parameters(ns: str, rate_factor: float, seconds: float, reliable_streams: bool) -> dict[str, dict]:
+def node_parameters(ns: str, rate_factor: float, seconds: float,
+                    reliable_streams: bool) -> dict[str, dict]:
     """``-p`` parameters of each node process."""
     gyro, accel = NOMINAL['gyro_rate'] * rate_factor, NOMINAL['accel_rate'] * rate_factor
     passes = max(1, math.ceil((seconds - BENCH_HOLD_S) / BENCH_PASS_S))
-    profile = {'profile': 'bench', 'bench_repeat': passes, 'duration': float(seconds), 'time_scale': 1.0}
+    profile = {
+        'profile': 'bench', 'bench_repeat': passes, 'duration': float(seconds), 'time_scale': 1.0
+    }
     params = {
-        'imu_sim_node': {**profile, 'gyro_rate': gyro, 'accel_rate': accel, 'seed': 1,
-                         'wait_for_subscribers': 3},                 # sins, calibrator, monitor
-        'star_camera_sim_node': {**profile, 'camera_interval': NOMINAL['camera_interval'] / rate_factor,
-                                 'boresight': [0.01, -0.02, 0.03], 'seed': 2,
-                                 'wait_for_subscribers': 2},         # calibrator, monitor
+        'imu_sim_node': {
+            **profile, 'gyro_rate': gyro, 'accel_rate': accel, 'seed': 1, 'wait_for_subscribers': 3
+        },  # sins, calibrator, monitor
+        'star_camera_sim_node': {
+            **profile, 'camera_interval': NOMINAL['camera_interval'] / rate_factor,
+            'boresight': [0.01, -0.02, 0.03], 'seed': 2, 'wait_for_subscribers': 2
+        },  # calibrator, monitor
         'sins_node': {'gyro_rate': gyro, 'accel_rate': accel},
         'calibrator_node': {'gyro_rate': gyro},
     }
@@ -145,7 +150,8 @@ def run_graph(seconds: float = 600.0, rate_factor: float = 10.0, reliable_stream
     params = node_parameters(ns, rate_factor, seconds, reliable_streams)
     procs: dict[str, subprocess.Popen] = {}
     log_dir = tempfile.mkdtemp(prefix='load_bench_')
-    logs = {n: open(os.path.join(log_dir, f'{n}.log'), 'w', encoding='utf-8') for n in NODES}  # noqa: SIM115
+    logs = {n: open(os.path.join(log_dir, f'{n}.log'), 'w', encoding='utf-8')
+            for n in NODES}  # noqa: SIM115
     rclpy.init()
     mon = rclpy.create_node('load_monitor', namespace=ns)
     ex = make_executor()
@@ -198,27 +204,34 @@ def run_graph(seconds: float = 600.0, rate_factor: float = 10.0, reliable_stream
         for st in msg.status:
             if st.name.startswith(ns + '/'):
                 node = st.name[len(ns) + 1:].split(':', 1)[0]
-                diags[node] = {'level': st.level[0] if isinstance(st.level, bytes) else int(st.level),
-                               'message': st.message, **{kv.key: kv.value for kv in st.values},
-                               '_received': time.monotonic()}
+                diags[node] = {
+                    'level': st.level[0] if isinstance(st.level, bytes) else int(st.level),
+                    'message': st.message, **{kv.key: kv.value
+                                              for kv in st.values}, '_received': time.monotonic()
+                }
 
     mon.create_subscription(Vector3Stamped, 'imu/delta_theta', on_dtheta, sq)
     mon.create_subscription(QuaternionStamped, 'sins/attitude', on_attitude, sq)
     mon.create_subscription(Imu, 'sins/imu', on_imu, sq)
-    mon.create_subscription(PoseWithCovarianceStamped, 'star_camera/attitude_with_covariance', on_fix,
-                            camera_qos(depth))
-    mon.create_subscription(PoseWithCovarianceStamped, 'calibration/boresight', on_boresight, latched_qos())
+    mon.create_subscription(PoseWithCovarianceStamped, 'star_camera/attitude_with_covariance',
+                            on_fix, camera_qos(depth))
+    mon.create_subscription(PoseWithCovarianceStamped, 'calibration/boresight', on_boresight,
+                            latched_qos())
     mon.create_subscription(DiagnosticArray, '/diagnostics', on_diag, DIAGNOSTICS_QOS)
 
     samplers: dict[str, ProcessSampler] = {}
     series = {'t': [], **{n: [] for n in NODES}}
     cpu0: dict[str, float] = {}
-    result: dict = {'seconds': seconds, 'rate_factor': rate_factor, 'reliable_streams': reliable_streams,
-                    'warmup_s': warmup, 'namespace': ns, 'ros_domain_id': int(env['ROS_DOMAIN_ID']),
-                    'load_at_start': list(os.getloadavg()), 'logs': log_dir, 'cpu_count': os.cpu_count(),
-                    'rates_hz': {'gyro': params['imu_sim_node']['gyro_rate'],
-                                 'accel': params['imu_sim_node']['accel_rate'],
-                                 'camera': 1.0 / params['star_camera_sim_node']['camera_interval']}}
+    result: dict = {
+        'seconds': seconds, 'rate_factor': rate_factor, 'reliable_streams': reliable_streams,
+        'warmup_s': warmup, 'namespace': ns, 'ros_domain_id': int(env['ROS_DOMAIN_ID']),
+        'load_at_start': list(os.getloadavg()), 'logs': log_dir, 'cpu_count': os.cpu_count(),
+        'rates_hz': {
+            'gyro': params['imu_sim_node']['gyro_rate'],
+            'accel': params['imu_sim_node']['accel_rate'],
+            'camera': 1.0 / params['star_camera_sim_node']['camera_interval']
+        }
+    }
 
     def spin_for(dt: float, until: Callable[[], bool] | None = None) -> bool:
         end = time.monotonic() + dt
@@ -229,7 +242,8 @@ def run_graph(seconds: float = 600.0, rate_factor: float = 10.0, reliable_stream
         return False
 
     def launch(node: str):
-        procs[node] = subprocess.Popen(_command(node, ns, params[node]), env=env, stdout=logs[node],
+        procs[node] = subprocess.Popen(_command(node, ns,
+                                                params[node]), env=env, stdout=logs[node],
                                        stderr=subprocess.STDOUT, start_new_session=True)
         samplers[node] = ProcessSampler(procs[node].pid)
 
@@ -238,7 +252,8 @@ def run_graph(seconds: float = 600.0, rate_factor: float = 10.0, reliable_stream
             launch(node)
         say('consumers started; waiting for their /diagnostics')
         if not spin_for(60.0, lambda: all(n in diags for n in ('sins_node', 'calibrator_node'))):
-            raise RuntimeError(f'sins_node/calibrator_node did not come up within 60 s (logs in {log_dir})')
+            raise RuntimeError(
+                f'sins_node/calibrator_node did not come up within 60 s (logs in {log_dir})')
         for node in ('imu_sim_node', 'star_camera_sim_node'):
             launch(node)
         say('simulators started; they start their clocks once every consumer is matched')
@@ -259,9 +274,12 @@ def run_graph(seconds: float = 600.0, rate_factor: float = 10.0, reliable_stream
                     series[n].append(s.rss_kib())
                 next_sample += 1.0
             if now >= next_say:
-                say(f"{now - t0:5.0f}/{seconds:.0f} s: Δθ {count['delta_theta']}, attitude "
-                    f"{count['attitude']}, fixes {count['camera']}, boresight {count['boresight']}; RSS "
-                    + ', '.join(f"{n.split('_')[0]} {series[n][-1] / 1024:.0f} MiB" for n in NODES))
+                say(
+                    f"{now - t0:5.0f}/{seconds:.0f} s: Δθ {count['delta_theta']}, attitude"
+                    f" {count['attitude']}, fixes {count['camera']}, boresight"
+                    f" {count['boresight']}; RSS "
+                    + ', '.join(f"{n.split('_')[0]} {series[n][-1] / 1024:.0f} MiB" for n in NODES)
+                )
                 next_say += 30.0
             if any(p.poll() is not None for p in procs.values()):
                 break
@@ -275,12 +293,17 @@ def run_graph(seconds: float = 600.0, rate_factor: float = 10.0, reliable_stream
         series['t'].append(time.monotonic() - t0)
         for n, s in samplers.items():
             series[n].append(s.rss_kib())
-        result['diagnostics'] = {n: {k: v for k, v in d.items() if k != '_received'} for n, d in diags.items()}
+        result['diagnostics'] = {
+            n: {k: v
+                for k, v in d.items() if k != '_received'}
+            for n, d in diags.items()
+        }
         result['monitor'] = {k: {'received': v} for k, v in count.items()}
         result['latency_ns'] = {k: np.asarray(v, dtype=np.int64) for k, v in lat.items()}
         result['rss_kib'] = {k: np.asarray(v, dtype=float) for k, v in series.items()}
         result['cpu_s'] = {n: cpu1[n] - cpu0.get(n, math.nan) for n in cpu1}
-        result['exit_codes'] = {n: p.poll() for n, p in procs.items()}       # None: still running (normal)
+        result['exit_codes'] = {n: p.poll()
+                                for n, p in procs.items()}  # None: still running (normal)
     finally:
         for p in procs.values():
             if p.poll() is None:

@@ -13,6 +13,7 @@ the package's nodes do, so one harness reads every subject the same way.
 and sleeps in between (it never busy-spins, so on a 2-core machine it does not starve the node
 it measures).  Stamps continue across trials at 1/rate steps, strictly increasing.
 """
+
 from __future__ import annotations
 
 import math
@@ -49,18 +50,21 @@ class CountingNode(Node):
         period = self.declare_parameter('diagnostics_period', 0.5).value
         raw = self.declare_parameter('raw', False).value
         self.received = 0
-        self.create_subscription(Vector3Stamped, 'imu/delta_theta', self._on_gyro, ros_io.stream_qos(int(depth)),
+        self.create_subscription(Vector3Stamped, 'imu/delta_theta', self._on_gyro,
+                                 ros_io.stream_qos(int(depth)),
                                  qos_overriding_options=ros_io.QOS_OVERRIDES, raw=bool(raw))
-        self.pub_diag = self.create_publisher(DiagnosticArray, '/diagnostics', ros_io.DIAGNOSTICS_QOS)
+        self.pub_diag = self.create_publisher(DiagnosticArray, '/diagnostics',
+                                              ros_io.DIAGNOSTICS_QOS)
         self.create_timer(float(period), self._diag)
 
     def _on_gyro(self, msg):
         self.received += 1
 
     def _diag(self):
-        self.pub_diag.publish(ros_io.diagnostic_array(ros_io.ns_to_stamp(0), f'{self.get_fully_qualified_name()}: count',
-                                                      'counting', ros_io.OK, 'ok',
-                                                      {'gyro_received': self.received}))
+        self.pub_diag.publish(
+            ros_io.diagnostic_array(ros_io.ns_to_stamp(0),
+                                    f'{self.get_fully_qualified_name()}: count', 'counting',
+                                    ros_io.OK, 'ok', {'gyro_received': self.received}))
 
 
 def main(args=None):
@@ -70,8 +74,12 @@ def main(args=None):
 class Subject:
     """One node process under test, in its own namespace, and the harness's view of it."""
 
-    MODULES = {'counting_node': 'strapdown_ros.bench.ros.rate_probe', 'counting_node_raw': 'strapdown_ros.bench.ros.rate_probe',
-               'sins_node': 'strapdown_ros.nodes.sins_node', 'calibrator_node': 'strapdown_ros.nodes.calibrator_node'}
+    MODULES = {
+        'counting_node': 'strapdown_ros.bench.ros.rate_probe',
+        'counting_node_raw': 'strapdown_ros.bench.ros.rate_probe',
+        'sins_node': 'strapdown_ros.nodes.sins_node',
+        'calibrator_node': 'strapdown_ros.nodes.calibrator_node'
+    }
 
     def __init__(self, harness: Node, name: str, params: dict):
         self.name = name
@@ -80,8 +88,10 @@ class Subject:
                '-p', 'diagnostics_period:=0.25']
         for k, v in params.items():
             cmd += ['-p', f'{k}:={v}']
-        self.proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
-        self.pub = harness.create_publisher(Vector3Stamped, f'{self.ns}/imu/delta_theta', ros_io.stream_qos(500))
+        self.proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
+                                     text=True)
+        self.pub = harness.create_publisher(Vector3Stamped, f'{self.ns}/imu/delta_theta',
+                                            ros_io.stream_qos(500))
         self.received: int | None = None
         self.updated = 0.0
         self.stamp_ns = 1_000_000_000
@@ -117,7 +127,8 @@ class Harness:
         self.ex = executor_factory()
         self.ex.add_node(self.node)
         self.subjects: list[Subject] = []
-        self.node.create_subscription(DiagnosticArray, '/diagnostics', self._on_diag, ros_io.DIAGNOSTICS_QOS)
+        self.node.create_subscription(DiagnosticArray, '/diagnostics', self._on_diag,
+                                      ros_io.DIAGNOSTICS_QOS)
 
     def _on_diag(self, msg):
         for st in msg.status:
@@ -139,7 +150,8 @@ class Harness:
         return False
 
     def ready(self, s: Subject, timeout: float = 30.0) -> bool:
-        return self.spin(timeout, lambda: s.pub.get_subscription_count() > 0 and s.received is not None)
+        return self.spin(timeout,
+                         lambda: s.pub.get_subscription_count() > 0 and s.received is not None)
 
     def trial(self, s: Subject, rate: float, seconds: float, slot: float = 0.002) -> dict:
         """Publish ``rate`` × ``seconds`` Δθ to ``s`` paced by the wall clock; the count it received."""
@@ -186,16 +198,20 @@ class Harness:
 
 
 # --- the harness's measurements (called by bench/ros/node_rate_bench.py) ---------------------------------------------------------------------
-def rate_repeat(lo_hz: float, hi_hz: float, steps: int, seconds: float, algorithm: str, say) -> dict:
+def rate_repeat(lo_hz: float, hi_hz: float, steps: int, seconds: float, algorithm: str,
+                say) -> dict:
     """One repeat: a fresh process per subject, interleaved bisections; the highest passing rates."""
     h = Harness(ros_io.make_executor)
-    params = {'counting_node': {}, 'counting_node_raw': {'raw': 'true'}, 'sins_node': {'coning_algorithm': algorithm},
-              'calibrator_node': {}}
+    params = {
+        'counting_node': {}, 'counting_node_raw': {'raw': 'true'},
+        'sins_node': {'coning_algorithm': algorithm}, 'calibrator_node': {}
+    }
     try:
         subj = {n: h.add(n, params[n]) for n in SUBJECTS}
         for n, s in subj.items():
             if not h.ready(s):
-                raise RuntimeError(f'{n} did not come up: ' + (s.proc.stderr.read() if s.proc.poll() is not None else ''))
+                raise RuntimeError(f'{n} did not come up: ' +
+                                   (s.proc.stderr.read() if s.proc.poll() is not None else ''))
         lo = {n: lo_hz for n in SUBJECTS}
         hi = {n: hi_hz for n in SUBJECTS}
         passed_lo = {}
@@ -215,13 +231,19 @@ def rate_repeat(lo_hz: float, hi_hz: float, steps: int, seconds: float, algorith
                     lo[n] = mid
                 else:
                     hi[n] = mid
-            say('step %d: ' % (step + 1) + ', '.join(f'{n} {lo[n]:.0f}–{hi[n]:.0f} Hz' for n in SUBJECTS))
+            say('step %d: ' % (step + 1) + ', '.join(f'{n} {lo[n]:.0f}–{hi[n]:.0f} Hz'
+                                                     for n in SUBJECTS))
         rates = {n: (lo[n] if passed_lo[n] else 0.0) for n in SUBJECTS}
-        return {'rates_hz': rates, 'bracket_hi_hz': hi, 'trials': trials,
-                'ratio': {n: rates[n] / rates['counting_node'] if rates['counting_node'] else math.nan
-                          for n in SUBJECTS[1:]},
-                'ratio_to_raw': {n: rates[n] / rates['counting_node_raw'] if rates['counting_node_raw'] else math.nan
-                                 for n in SUBJECTS[2:]}}
+        return {
+            'rates_hz': rates, 'bracket_hi_hz': hi, 'trials': trials, 'ratio': {
+                n: rates[n] / rates['counting_node'] if rates['counting_node'] else math.nan
+                for n in SUBJECTS[1:]
+            }, 'ratio_to_raw': {
+                n: rates[n] /
+                rates['counting_node_raw'] if rates['counting_node_raw'] else math.nan
+                for n in SUBJECTS[2:]
+            }
+        }
     finally:
         h.close()
 
@@ -262,7 +284,10 @@ def callback_cost(algorithm: str, n: int = 20000, subscribed: bool = False,
         if not (node.pub_imu.get_subscription_count() and node.pub_att.get_subscription_count()):
             node.destroy_node()
             listener.destroy_node()
-            raise RuntimeError('the in-process subscriber of sins/imu and sins/attitude was not discovered in 10 s')
+            raise RuntimeError(
+                'the in-process subscriber of sins/imu and sins/attitude was not discovered in'
+                ' 10 s'
+            )
     if gyro_input == 'imu':
         msgs = _serialized_imu(n, lambda k: (0.1 * math.sin(k * 1e-3), 0.1 * math.cos(k * 1e-3),
                                              0.02))
