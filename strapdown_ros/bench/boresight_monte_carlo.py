@@ -62,7 +62,6 @@ def form_pairs(sc: Scenario, y: np.ndarray, fixes, cov_imu=None) -> list[Increme
     return pairs
 
 
-
 def correlated_gls(sc: Scenario, pairs, beta0, iterations: int = 3):
     """
     Bench reference: Gauss–Newton with the full Σ of the stacked residuals (camera fixes
@@ -103,7 +102,6 @@ def convention_check(sc: Scenario) -> dict:
     for name, (R, msg) in all_opencv(pairs, fixes).items():
         res[name] = angle_errors(R, sc)[1] / ARCSEC if R is not None else msg
     return res
-
 
 
 def calibrator_check(sc: Scenario, seed: int) -> dict:

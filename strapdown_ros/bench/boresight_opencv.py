@@ -71,7 +71,6 @@ def opencv_handeye(pairs, fixes, methods=OPENCV_METHODS, translations: str = 'ze
     return out
 
 
-
 def all_opencv(pairs, fixes) -> dict:
     out = {f'opencv_{m}': v for m, v in opencv_handeye(pairs, fixes).items()}
     out.update({

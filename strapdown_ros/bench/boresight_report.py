@@ -15,6 +15,7 @@ from strapdown_ros.bench.boresight_summary import nees_values
 from strapdown_ros.cli import write_figure, write_text
 from strapdown_ros.sensors import ARCSEC
 
+
 def make_plots(sc: Scenario, bnd: dict, mc: dict, summary: dict, outdir: str) -> list[str]:
     import matplotlib
     matplotlib.use('Agg')
@@ -161,7 +162,7 @@ def write_report(path: str, res: dict, plots: list[str]):
         '',
         (
             'The **independent-pairs bound** Σ H_nᵀ (Cᵀ E_imu,n C + E_avu,n)⁻¹ H_n uses only the'
-            ' diagonal blocks (E_imu from the calibrator\'s `random_constant` model on the true'
+            " diagonal blocks (E_imu from the calibrator's `random_constant` model on the true"
             ' increments). It is the covariance the weighted estimator assumes; it is *not* a'
             ' lower bound when pairs are correlated.'
         ),

@@ -14,6 +14,7 @@ from strapdown_ros.rotation import (dcm_to_quat, dcm_to_ypr, quat_to_rotvec, rot
                                     ypr_error_to_rotation, ypr_to_dcm)
 from strapdown_ros.sensors import ARCSEC
 
+
 def _vf_errors(sc: Scenario, e: np.ndarray) -> np.ndarray:
     """Rotation errors θ (VF axes, Ĉ = C(I + [θ×])) of runs with angle errors e (r, 3)."""
     Ch = ypr_to_dcm(*(sc.beta + e).T)
@@ -143,7 +144,6 @@ def summarize(sc: Scenario, bnd: dict, mc: dict, runs: int) -> dict:
             'band95_full': [x / (3 * sc.pairs_count) for x in nees_band(runs, 3 * sc.pairs_count)]
         }
     }
-
 
 
 def findings(sm: dict) -> list[str]:

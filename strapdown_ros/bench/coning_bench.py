@@ -25,8 +25,7 @@ import numpy as np
 
 from strapdown_ros.attitude.coning import ALGORITHMS, theory_drift
 from strapdown_ros.attitude.coning_analysis import (cost_per_update, FLOOR_FACTOR, measure_case,
-                                                    order_sweep, THESIS_CASES, THESIS_RANKING,
-                                                    THESIS_STEPS)
+                                                    order_sweep, THESIS_CASES, THESIS_STEPS)
 from strapdown_ros.bench.coning_report import fmt, write_report
 from strapdown_ros.cli import check_outputs, DIRECTORY, FILE, write_figure, write_text
 from strapdown_ros.motion.profiles import ConingProfile

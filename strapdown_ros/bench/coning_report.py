@@ -44,7 +44,7 @@ MISPRINTS = [
         'φ = Σq + 32/45 (q1×q2 + q3×q4) + 22/45 (q1 + q2) × (q3 + q4)',
         (
             'The printed sum is not Σq (the rotation is wrong even without coning) and Σ m·K_m ='
-            ' 20/3 ≠ 16/3. §1.4.4 derives 4+ by Runge\'s rule; Richardson extrapolation (16·φ_fine'
+            " 20/3 ≠ 16/3. §1.4.4 derives 4+ by Runge's rule; Richardson extrapolation (16·φ_fine"
             ' − φ_coarse)/15, with φ_fine two 2-sample updates composed to second order and'
             ' φ_coarse algorithm 4, gives the form on the right: both moment conditions hold,'
             ' order 6 (a 5th order, as claimed, cannot occur: the coning drift is even in Ωh).'
@@ -96,13 +96,13 @@ MODEL_MISPRINTS = [
 ]
 
 
-
 def fmt(x, digits=3):
     if x is None:
         return '—'
     if x == 0:
         return '0'
     return f'{x:.{digits}g}'
+
 
 def _rec(res, name, alpha, nu, step):
     for r in res['results']:

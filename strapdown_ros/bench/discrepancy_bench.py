@@ -49,10 +49,10 @@ CONFUSION_MIN_SIZE = 5.0
 WITHIN = 3.0
 #: detection target of the plot marks and the conclusions: ≥ 90 % detected at k ≥ 7σ
 TARGET_SIZE, TARGET_DETECTION = 7.0, 0.90
-QUICK = dict(effects=['time_offset', 'gyro_bias'], seeds=2, sizes=[5.0], null_seeds=3,
-             duration=320.0)
-FULL = dict(effects=list(CANDIDATES), seeds=50, sizes=[1.0, 2.0, 3.0, 5.0, 7.0, 10.0],
-            null_seeds=100, duration=480.0)
+QUICK = {'effects': ['time_offset', 'gyro_bias'], 'seeds': 2, 'sizes': [5.0], 'null_seeds': 3,
+         'duration': 320.0}
+FULL = {'effects': list(CANDIDATES), 'seeds': 50, 'sizes': [1.0, 2.0, 3.0, 5.0, 7.0, 10.0],
+        'null_seeds': 100, 'duration': 480.0}
 SPEED_DURATION, SPEED_REPEATS = 900.0, 5
 THREAD_VARS = ('OMP_NUM_THREADS', 'OPENBLAS_NUM_THREADS', 'MKL_NUM_THREADS')
 
@@ -70,8 +70,9 @@ def _q(name: str) -> int:
 
 
 def scenario_raw(seed: int, duration: float, overrides: dict | None = None) -> dict:
-    raw = dict(profile='bench', bench_repeat=max(1, math.ceil((duration - 20.0) / 150.0)),
-               gyro_rate=200.0, camera_interval=2.0, seed=int(seed), boresight=list(BORESIGHT))
+    raw = {'profile': 'bench', 'bench_repeat': max(1, math.ceil((duration - 20.0) / 150.0)),
+           'gyro_rate': 200.0, 'camera_interval': 2.0, 'seed': int(seed),
+           'boresight': list(BORESIGHT)}
     return {**raw, **(overrides or {})}
 
 
@@ -171,7 +172,7 @@ def monte_carlo(args) -> dict:
         with ProcessPoolExecutor(max_workers=args.workers, mp_context=mp.get_context('spawn'),
                                  initializer=_init_worker) as pool:
             t0 = time.perf_counter()
-            covs = {e: None for e in args.effects}
+            covs = dict.fromkeys(args.effects)
             if args.sigma == 'reference':
                 covs = _pool_map(pool, sigma_job, [(args.effects, args.first_seed, args.duration)],
                                  'sigma')[0]
@@ -180,16 +181,14 @@ def monte_carlo(args) -> dict:
             for e in args.effects:
                 for i in range(args.seeds):
                     seed = args.first_seed + i
-                    for k in (args.sizes if args.every_size else [args.sizes[i %
-                                                                             len(args.sizes)]]):
-                        jobs.append(
-                            dict(effect=e, seed=seed, size=float(k), cov=covs[e],
-                                 duration=args.duration, alpha=args.alpha,
-                                 draw_seed=[seed, CANDIDATES.index(e),
-                                            int(round(k * 1000))]))
+                    sizes = args.sizes if args.every_size else [args.sizes[i % len(args.sizes)]]
+                    for k in sizes:
+                        jobs.append({'effect': e, 'seed': seed, 'size': float(k), 'cov': covs[e],
+                                     'duration': args.duration, 'alpha': args.alpha,
+                                     'draw_seed': [seed, CANDIDATES.index(e), int(round(k * 1000))]})
             jobs += [
-                dict(effect=None, seed=args.first_seed + i, size=0.0, duration=args.duration,
-                     alpha=args.alpha) for i in range(args.null_seeds)
+                {'effect': None, 'seed': args.first_seed + i, 'size': 0.0,
+                 'duration': args.duration, 'alpha': args.alpha} for i in range(args.null_seeds)
             ]
             recs = _pool_map(pool, run_job, [(j,) for j in jobs], 'runs')
             t_runs = time.perf_counter() - t0 - t_sigma
@@ -552,8 +551,8 @@ def parse_args(argv):
         '--quick', action='store_true',
         help='smoke mode: ' + ', '.join(f'{k}={v}' for k, v in QUICK.items()) + ', no speed')
     args = ap.parse_args(argv)
-    for k, v in (QUICK
-                 if args.quick else FULL).items():  # the mode's defaults for what was not given
+    # the mode's defaults for what was not given
+    for k, v in (QUICK if args.quick else FULL).items():
         if getattr(args, k) is None:
             setattr(args, k, list(v) if isinstance(v, list) else v)
     args.speed = args.speed if args.speed is not None else not args.quick

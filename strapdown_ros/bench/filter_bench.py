@@ -217,9 +217,9 @@ def summarize(mc: dict, runs: int) -> dict:
                                                        for B in mc['bound_f'][half:]]))),
         'sqrt_pcrb_smoother_rad': float(np.sqrt(np.mean([np.trace(B[att, att]) / 3
                                                          for B in mc['bound_s'][half:]])))},
-        'bias': {'filter_over_filter_pcrb': ratio(mc['bias'], mc['bound_f'], bia),
-                 'smoother_over_smoother_pcrb': ratio(mc['bias_s'], mc['bound_s'], bia)},
-        'filter_P_vs_pcrb': mc['p_gap']}
+           'bias': {'filter_over_filter_pcrb': ratio(mc['bias'], mc['bound_f'], bia),
+                    'smoother_over_smoother_pcrb': ratio(mc['bias_s'], mc['bound_s'], bia)},
+           'filter_P_vs_pcrb': mc['p_gap']}
     nees = mc['nees'].mean(axis=0)               # (F, 3): joint, attitude, bias
     out['nees'] = {}
     for c, (name, dim) in enumerate((('joint', 6), ('attitude', 3), ('bias', 3))):
@@ -534,10 +534,10 @@ def main(argv=None) -> int:
     res = {'command': 'filter_bench ' + ' '.join(argv), 'cpu_count': os.cpu_count(),
            'load_at_start': list(os.getloadavg()),
            'settings': {k_: getattr(a, k_) for k_ in ('runs', 'fixes', 'fix_interval',
-                                                       'gyro_period', 'arw', 'bias_rw',
-                                                       'camera_sigma', 'prior_attitude',
-                                                       'prior_bias', 'seed', 'timing_seconds',
-                                                       'timing_runs')}}
+                                                      'gyro_period', 'arw', 'bias_rw',
+                                                      'camera_sigma', 'prior_attitude',
+                                                      'prior_bias', 'seed', 'timing_seconds',
+                                                      'timing_runs')}}
     mc = monte_carlo(a, progress)
     res['summary'] = summarize(mc, a.runs)
     if a.timing_seconds > 0:
@@ -550,7 +550,7 @@ def main(argv=None) -> int:
             res['realdata'] = realdata_run(a, progress)
         except (ValueError, OSError) as exc:          # a data problem: reported, not a crash
             res['realdata'] = {'available': False, 'reason': f'{type(exc).__name__}: '
-                                                            f'{str(exc)[:200]}'}
+                               f'{str(exc)[:200]}'}
     res['conclusions'] = conclusions(res)
     text = render(res)
     print(text)

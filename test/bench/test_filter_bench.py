@@ -18,7 +18,7 @@ def test_filter_bench_runs_and_writes_its_outputs(tmp_path, capsys):
     res = json.loads((tmp_path / 'f.json').read_text())
     assert {'summary', 'timing', 'conclusions'} <= set(res)
     assert sorted(p.name for p in out.iterdir()) == ['attitude_error.png', 'bias_convergence.png',
-                                                    'nis.png']
+                                                     'nis.png']
     assert '![nis.png]' in (tmp_path / 'f.md').read_text()
 
 

@@ -232,7 +232,7 @@ def format_report(raw: dict, s: dict, command: str) -> str:
             f" {la[1]:.2f} {la[2]:.2f} on {raw['cpu_count']} cores"
         ),
         '',
-        f'| topic | path | QoS | published | received | lost |',
+        '| topic | path | QoS | published | received | lost |',
         '|---|---|---|---:|---:|---:|',
     ]
     for x in s['loss']:

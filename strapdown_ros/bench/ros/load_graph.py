@@ -140,7 +140,6 @@ def run_graph(seconds: float = 600.0, rate_factor: float = 10.0, reliable_stream
     from rclpy.qos import ReliabilityPolicy
     from sensor_msgs.msg import Imu
 
-
     say = progress or (lambda s: None)
     env = dict(os.environ)
     env['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
@@ -160,7 +159,7 @@ def run_graph(seconds: float = 600.0, rate_factor: float = 10.0, reliable_stream
     sq = stream_qos(depth)
     if reliable_streams:
         sq.reliability = ReliabilityPolicy.RELIABLE
-    count = {k: 0 for k in ('delta_theta', 'camera', 'attitude', 'imu', 'boresight')}
+    count = dict.fromkeys(('delta_theta', 'camera', 'attitude', 'imu', 'boresight'), 0)
     t_dtheta: dict[int, int] = {}                             # stamp → monitor receive time, ns
     t_dtheta_keys: deque = deque()
     t_fix: dict[int, int] = {}
