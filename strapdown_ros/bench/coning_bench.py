@@ -157,8 +157,8 @@ def summary_table(res: dict, args) -> str:
             f"\nα = {case['alpha']:g} rad, ν = {case['nu']:g} rad/s, τ = {case['step']:g} s, "
             f"{case['duration']:g} s (fit over {case['fitted_until_s']:.1f} s)")
         lines.append(
-            f"{'algorithm':<24}{'drift °/h':>12}{'theory °/h':>12}{'ODE peer °/h':>14}{'order':>7}{'floor':>7}"
-        )
+            f"{'algorithm':<24}{'drift °/h':>12}{'theory °/h':>12}{'ODE peer °/h':>14}"
+            f"{'order':>7}{'floor':>7}")
         for r in recs:
             if (r['alpha'], r['nu'], r['step']) != (case['alpha'], case['nu'], case['step']):
                 continue

@@ -32,7 +32,8 @@ import time
 
 import numpy as np
 
-from strapdown_ros.cli import check_outputs, DIRECTORY, FILE, write_figure, write_text
+from strapdown_ros.cli import (check_outputs, DIRECTORY, FILE, OneLineParser, write_figure,
+                               write_text)
 from strapdown_ros.discrepancy.synthetic import (draw_hidden_effect, effect_sigma,
                                                  simulate_recording)
 from strapdown_ros.discrepancy.workflow import analyse
@@ -55,12 +56,6 @@ FULL = {'effects': list(CANDIDATES), 'seeds': 50, 'sizes': [1.0, 2.0, 3.0, 5.0, 
         'null_seeds': 100, 'duration': 480.0}
 SPEED_DURATION, SPEED_REPEATS = 900.0, 5
 THREAD_VARS = ('OMP_NUM_THREADS', 'OPENBLAS_NUM_THREADS', 'MKL_NUM_THREADS')
-
-
-class _Parser(argparse.ArgumentParser):
-    def error(self, message):                       # one line, exit 2, no usage block
-        print(f'{PROG}: error: {message}', file=sys.stderr)
-        sys.exit(2)
 
 
 # ----------------------------------------------------------------------------- scenario and jobs
@@ -519,7 +514,7 @@ def write_report(path: str, res: dict, plots: list[str]):
 
 # ----------------------------------------------------------------------------- arguments
 def parse_args(argv):
-    ap = _Parser(prog=PROG, description=__doc__,
+    ap = OneLineParser(prog=PROG, description=__doc__,
                  formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument('--seeds', type=int, help='seeds per effect (default 50)')
     ap.add_argument('--duration', type=float, help='simulated seconds per recording (default 480)')

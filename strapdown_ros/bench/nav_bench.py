@@ -56,7 +56,8 @@ import time
 import numpy as np
 
 from strapdown_ros.bench.stats import median_range, stats
-from strapdown_ros.cli import check_outputs, DIRECTORY, FILE, write_figure, write_json, write_text
+from strapdown_ros.cli import (check_outputs, DIRECTORY, FILE, OneLineParser, write_figure,
+                               write_json, write_text)
 from strapdown_ros.earth import enu_rotation, normal_gravity
 from strapdown_ros.motion.earth_profiles import (gravity_sculling_term,
                                                  navigation_profile_from_config,
@@ -642,15 +643,9 @@ def write_report(outdir: str, res: dict, series: dict, text: str) -> str:
     return str(path)
 
 
-class _Parser(argparse.ArgumentParser):
-    def error(self, message):                    # one line, exit 2
-        print(f'nav_bench: error: {message}', file=sys.stderr)
-        sys.exit(2)
-
-
 def main(argv=None):
     argv = sys.argv[1:] if argv is None else list(argv)
-    ap = _Parser(prog='nav_bench', description=__doc__,
+    ap = OneLineParser(prog='nav_bench', description=__doc__,
                  formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument('--seconds', type=float, default=600.0,
                     help='duration of the moving profiles (default 600)')

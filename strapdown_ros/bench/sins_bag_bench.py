@@ -44,7 +44,7 @@ from strapdown_ros import earth as G
 from strapdown_ros.attitude import kernel as attitude_kernel
 from strapdown_ros.attitude.integrator import AttitudeIntegrator
 from strapdown_ros.bench.stats import median_range, stats
-from strapdown_ros.cli import check_outputs, FILE, write_text
+from strapdown_ros.cli import check_outputs, FILE, OneLineParser, write_text
 from strapdown_ros.motion.earth_profiles import navigation_profile_from_config
 from strapdown_ros.motion.profiles import ConingProfile
 from strapdown_ros.rotation import to_ros_xyzw
@@ -152,14 +152,8 @@ def bag_bytes(bag) -> int:
     return p.stat().st_size
 
 
-class _Parser(argparse.ArgumentParser):
-    def error(self, message):                    # one line, exit 2
-        print(f'sins_bag_bench: error: {message}', file=sys.stderr)
-        sys.exit(2)
-
-
 def main(argv=None) -> int:
-    ap = _Parser(prog='sins_bag_bench', description=__doc__,
+    ap = OneLineParser(prog='sins_bag_bench', description=__doc__,
                  formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument('bag', help='rosbag2 bag (e.g. record_sim OUT --duration 3600 '
                                 '-p profile:=coordinated_turn)')

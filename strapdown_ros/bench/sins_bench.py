@@ -33,7 +33,7 @@ from strapdown_ros.attitude.coning import algorithm_names
 from strapdown_ros.attitude.integrator import AttitudeIntegrator, IncrementAccumulator
 from strapdown_ros.bench.core_peers import peer_runs
 from strapdown_ros.bench.stats import median_range, stats
-from strapdown_ros.cli import check_outputs, FILE, write_text
+from strapdown_ros.cli import check_outputs, FILE, OneLineParser, write_text
 from strapdown_ros.motion.profiles import ConingProfile, STANDARD_GRAVITY
 from strapdown_ros.sensors import NAVIGATION_GRADE_GYRO
 
@@ -77,15 +77,9 @@ def core_benchmark(algorithm: str = '2', hours: float = 1.0,
     return min(runs, key=lambda r: r['wall_s'])
 
 
-class _Parser(argparse.ArgumentParser):
-    def error(self, message):
-        print(f'sins_bench: error: {message}', file=sys.stderr)
-        sys.exit(2)
-
-
 def main(argv=None):
     argv = sys.argv[1:] if argv is None else argv
-    ap = _Parser(prog='sins_bench', description=__doc__,
+    ap = OneLineParser(prog='sins_bench', description=__doc__,
                  formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument('--algorithm', default='2')
     ap.add_argument('--hours', type=float, default=1.0)
@@ -163,6 +157,8 @@ def main(argv=None):
         c = stats([r['compiled_loop_s'] for r in rows])
         rb = stats([r['ratio_to_pyins'] for r in rows])
         rc = stats([r['ratio_to_compiled'] for r in rows])
+        rapi = stats([r['strapdown_ros_s'] / r['pyins_api_s'] for r in rows
+                      if math.isfinite(r['pyins_api_s'])])
         diff = max((r.get('final_attitude_difference_rad', math.nan) for r in rows),
                    default=math.nan)
         lines += [
@@ -180,7 +176,7 @@ def main(argv=None):
             (
                 '| pyins public API around that kernel (pandas in and out), for information |'
                 f" {median_range(bapi, '.3f')} | "
-                f"{median_range(stats([r['strapdown_ros_s'] / r['pyins_api_s'] for r in rows if math.isfinite(r['pyins_api_s'])]), '.2f')} |"
+                f"{median_range(rapi, '.2f')} |"
             ),
             (
                 f"| C compiled 20-line quaternion loop (numba) | {median_range(c, '.4f')} |"

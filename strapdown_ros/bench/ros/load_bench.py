@@ -32,19 +32,14 @@ import time
 import numpy as np
 
 from strapdown_ros.bench.ros.load_graph import node_parameters, run_graph
-from strapdown_ros.cli import check_outputs, DIRECTORY, FILE, write_figure, write_text
+from strapdown_ros.cli import (check_outputs, DIRECTORY, FILE, OneLineParser, write_figure,
+                               write_text)
 
 RSS_GROWTH_TARGET = 0.10
 
 
-class _Parser(argparse.ArgumentParser):
-    def error(self, message):                    # one line, exit 2
-        print(f'load_bench: error: {message}', file=sys.stderr)
-        sys.exit(2)
-
-
 def parse_args(argv):
-    ap = _Parser(prog='load_bench', description=__doc__,
+    ap = OneLineParser(prog='load_bench', description=__doc__,
                  formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument('--seconds', type=float, default=600.0,
                     help='sensor time to run, s (default 600)')
@@ -292,13 +287,10 @@ def format_report(raw: dict, s: dict, command: str) -> str:
                      + ', '.join(f'{v:+.2f}' for v in b['error_over_sigma']) + ' (ψ, ϑ, γ).')
     else:
         lines.append('Calibrator at the end: no published estimate.')
-    lines.append(
-        'Node /diagnostics at the end: '
-        + '; '.join(
-            f"{n} {['OK', 'WARN', 'ERROR', 'STALE'][lv] if isinstance(lv, int) and 0 <= lv < 4 else lv}"
-            for n, lv in sorted(s['node_levels'].items())
-        )
-    )
+    names = ['OK', 'WARN', 'ERROR', 'STALE']
+    lines.append('Node /diagnostics at the end: ' + '; '.join(
+        f'{n} {names[lv] if isinstance(lv, int) and 0 <= lv < 4 else lv}'
+        for n, lv in sorted(s['node_levels'].items())))
     lines.append('Exit status after SIGINT: ' +
                  ', '.join(f'{n} {c}' for n, c in raw['exit_codes_after_sigint'].items()))
     return '\n'.join(lines)

@@ -37,7 +37,7 @@ import time
 
 from strapdown_ros.attitude.coning import algorithm_names
 from strapdown_ros.bench.ros import rate_probe as probe
-from strapdown_ros.cli import check_outputs, FILE, write_text
+from strapdown_ros.cli import check_outputs, FILE, OneLineParser, write_text
 
 RATIO_TARGET = 0.9
 CALLBACK_TARGET_US = 15.0
@@ -47,14 +47,8 @@ FILTER_TARGET_US = 50.0
 FILTER_OUTPUT_PERIODS = (0.01, 0.1)
 
 
-class _Parser(argparse.ArgumentParser):
-    def error(self, message):
-        print(f'node_rate_bench: error: {message}', file=sys.stderr)
-        sys.exit(2)
-
-
 def parse_args(argv):
-    ap = _Parser(prog='node_rate_bench', description=__doc__,
+    ap = OneLineParser(prog='node_rate_bench', description=__doc__,
                  formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument('--seconds', type=float, default=5.0,
                     help='length of one trial, s (default 5)')

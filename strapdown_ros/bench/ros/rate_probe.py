@@ -197,7 +197,7 @@ class Harness:
         self.node.destroy_node()
 
 
-# --- the harness's measurements (called by bench/ros/node_rate_bench.py) ---------------------------------------------------------------------
+# --- the harness's measurements (called by bench/ros/node_rate_bench.py) ---------------------
 def rate_repeat(lo_hz: float, hi_hz: float, steps: int, seconds: float, algorithm: str,
                 say) -> dict:
     """One repeat: a fresh process per subject, interleaved bisections; the highest passing rates."""
