@@ -33,7 +33,26 @@ CORE_ESTIMATORS = ('calibrator', 'weighted', 'unweighted', 'weighted_004cov', 'c
 
 
 def draw_gyro(sc: Scenario, errors: SensorErrorModel, rng: np.random.Generator) -> np.ndarray:
-    """y = (I + M) u + b T + w (the IntegratingSensor model, quantization off), vectorised."""
+    """
+    Draw the gyro increments y = (I + M) u + b T + w of one run, vectorised.
+
+    The ``IntegratingSensor`` model with quantization off (``calibrator_check`` compares them).
+
+    Parameters
+    ----------
+    sc : Scenario
+        The bench scenario.
+    errors : SensorErrorModel
+        The run's gyro constants M, b and random walk.
+    rng : numpy.random.Generator
+        Source of the white noise.
+
+    Returns
+    -------
+    (K, 3) ndarray
+        Measured gyro increments, rad.
+
+    """
     T = 1.0 / GYRO_RATE
     y = sc.u @ (np.eye(3) + errors.matrix).T + errors.bias * T
     if errors.random_walk > 0:
@@ -42,6 +61,24 @@ def draw_gyro(sc: Scenario, errors: SensorErrorModel, rng: np.random.Generator) 
 
 
 def camera_fixes(sc: Scenario, seed: int, noise: bool = True):
+    """
+    Simulate the star-camera fixes of one run.
+
+    Parameters
+    ----------
+    sc : Scenario
+        The bench scenario.
+    seed : int
+        Seed of the camera noise.
+    noise : bool, optional
+        False gives exact fixes.
+
+    Returns
+    -------
+    list
+        ``N_FIXES`` fixes of ``StarCameraModel.fixes`` (stamp, attitude q_GCRS_VF, covariance).
+
+    """
     cam = StarCameraModel(boresight=sc.beta, interval=INTERVAL, first_exposure=FIRST_EXPOSURE,
                           sigma=sc.cam_sigma if noise else np.zeros(3), seed=seed)
     return cam.fixes(sc.profile, N_FIXES)
@@ -49,8 +86,27 @@ def camera_fixes(sc: Scenario, seed: int, noise: bool = True):
 
 def form_pairs(sc: Scenario, y: np.ndarray, fixes, cov_imu=None) -> list[IncrementPair]:
     """
-    Pairs with gyro_increment/camera_increment; E_imu precomputed from the true increments
-    (identical to what the calibrator computes from the measured ones to ~1e-5 relative).
+    Form the increment pairs with ``gyro_increment`` and ``camera_increment``.
+
+    E_imu is precomputed from the true increments; it equals what the calibrator computes from
+    the measured ones to about 1e-5 relative.
+
+    Parameters
+    ----------
+    sc : Scenario
+        The bench scenario.
+    y : (K, 3) ndarray
+        Measured gyro increments, rad.
+    fixes : list
+        Camera fixes of ``camera_fixes``.
+    cov_imu : (P, 3, 3) ndarray, optional
+        E_imu of every pair; ``sc.E_imu`` when None.
+
+    Returns
+    -------
+    list of IncrementPair
+        The P = N − 1 pairs.
+
     """
     cov_imu = sc.E_imu if cov_imu is None else cov_imu
     pairs = []
@@ -64,8 +120,29 @@ def form_pairs(sc: Scenario, y: np.ndarray, fixes, cov_imu=None) -> list[Increme
 
 def correlated_gls(sc: Scenario, pairs, beta0, iterations: int = 3):
     """
-    Bench reference: Gauss–Newton with the full Σ of the stacked residuals (camera fixes
-    shared by adjacent pairs, gyro constants common to all pairs), from beta0.
+    Estimate β by Gauss–Newton with the full covariance Σ of the stacked residuals.
+
+    A bench reference: camera fixes shared by adjacent pairs and gyro constants common to all
+    pairs are both in Σ.
+
+    Parameters
+    ----------
+    sc : Scenario
+        The bench scenario.
+    pairs : list of IncrementPair
+        The run's pairs.
+    beta0 : (3,) ndarray
+        Start, rad (the weighted estimate).
+    iterations : int, optional
+        Largest number of Gauss–Newton steps.
+
+    Returns
+    -------
+    beta : (3,) ndarray
+        Estimate (ψ, ϑ, γ), rad.
+    covariance : (3, 3) ndarray
+        (Hᵀ Σ⁻¹ H)⁻¹ at the estimate, rad².
+
     """
     A_imu = quat_to_dcm(np.array([p.dq_imu for p in pairs]))
     A_cam = quat_to_dcm(np.array([p.dq_cam for p in pairs]))
@@ -86,13 +163,43 @@ def correlated_gls(sc: Scenario, pairs, beta0, iterations: int = 3):
 
 
 def angle_errors(C_est: np.ndarray, sc: Scenario) -> tuple[np.ndarray, float]:
-    """(β̂ − β) wrapped, rad, and the total rotation angle between Ĉ and C."""
+    """
+    Return the angle errors of an estimated boresight.
+
+    Parameters
+    ----------
+    C_est : (3, 3) ndarray
+        Estimated C_MF^VF.
+    sc : Scenario
+        The bench scenario.
+
+    Returns
+    -------
+    errors : (3,) ndarray
+        β̂ − β wrapped, rad.
+    total : float
+        Rotation angle between Ĉ and C, rad.
+
+    """
     return wrap_angles(dcm_to_ypr(C_est) - sc.beta), rotation_angle(C_est.T @ sc.C)
 
 
 # --------------------------------------------------------------------------------- checks
 def convention_check(sc: Scenario) -> dict:
-    """Noise-free pairs (exact gyro, exact camera): every estimator must return the truth."""
+    """
+    Check on noise-free pairs that every estimator returns the truth.
+
+    Parameters
+    ----------
+    sc : Scenario
+        The bench scenario.
+
+    Returns
+    -------
+    dict
+        Estimator → total angle error, arc seconds, or why an OpenCV method gave no answer.
+
+    """
     fixes = camera_fixes(sc, 0, noise=False)
     pairs = form_pairs(sc, sc.u, fixes)
     res = {}
@@ -106,8 +213,24 @@ def convention_check(sc: Scenario) -> dict:
 
 def calibrator_check(sc: Scenario, seed: int) -> dict:
     """
-    The bench's pair formation against the streaming BoresightCalibrator, and the vectorised
-    gyro draw against IntegratingSensor.sample, on one run.
+    Check the bench's pair formation and gyro draw against the library on one run.
+
+    The pairs against the streaming ``BoresightCalibrator`` fed the same stream, and the
+    vectorised gyro draw against ``IntegratingSensor.sample``.
+
+    Parameters
+    ----------
+    sc : Scenario
+        The bench scenario.
+    seed : int
+        Seed of the run.
+
+    Returns
+    -------
+    dict
+        Pair counts, largest ΔS_imu and E_imu differences, β difference (arc seconds) and the
+        largest gyro draw difference (rad).
+
     """
     rng = np.random.default_rng(seed)
     errors = sc.gyro.draw(rng)
@@ -158,7 +281,25 @@ _WORKER_SC: Scenario | None = None            # the scenario of forked workers
 
 
 def one_run(sc: Scenario, r: int, ss: np.random.SeedSequence) -> dict:
-    """One Monte Carlo run: new gyro constants and noise, new camera noise, every estimator."""
+    """
+    Run one Monte Carlo run: new gyro constants and noise, new camera noise, every estimator.
+
+    Parameters
+    ----------
+    sc : Scenario
+        The bench scenario.
+    r : int
+        Index of the run.
+    ss : numpy.random.SeedSequence
+        Seed of the run.
+
+    Returns
+    -------
+    dict
+        ``err``/``tot``/``covs``/``fail`` per estimator, the weighted χ²/dof, the run's
+        antisymmetric misalignment ``triad`` and the normalised residual at the truth.
+
+    """
     g_rng, n_rng, c_ss = (np.random.default_rng(s) for s in ss.spawn(3))
     errors = sc.gyro.draw(g_rng)
     A = 0.5 * (errors.matrix - errors.matrix.T)
@@ -222,7 +363,29 @@ def _worker(args):
 
 
 def monte_carlo(sc: Scenario, runs: int, seed: int, progress: bool = True, jobs: int = 1) -> dict:
-    """``runs`` independent runs (seeded per run, so the result does not depend on ``jobs``)."""
+    """
+    Run ``runs`` independent runs, seeded per run so the result does not depend on ``jobs``.
+
+    Parameters
+    ----------
+    sc : Scenario
+        The bench scenario.
+    runs : int
+        Number of runs.
+    seed : int
+        Seed of the whole Monte Carlo.
+    progress : bool, optional
+        Print progress on stderr.
+    jobs : int, optional
+        Worker processes (forked); 1 runs in this process.
+
+    Returns
+    -------
+    dict
+        Per-estimator arrays ``errors`` (runs, 3) rad, ``total`` (runs,), ``covs``
+        (runs, 3, 3), ``failures``; ``chi2``, ``full_nees``, ``triad``, ``wall_s``, ``jobs``.
+
+    """
     global _WORKER_SC
     children = np.random.SeedSequence(seed).spawn(runs)
     names = _estimator_names()
@@ -276,9 +439,27 @@ def monte_carlo(sc: Scenario, runs: int, seed: int, progress: bool = True, jobs:
 # ------------------------------------------------------------------------------ performance
 def performance(n_pairs: int = 1000, repeats: int = 15, seed: int = 7) -> dict:
     """
-    Warm-started BoresightCalibrator.solve() after one new pair, with n_pairs accumulated.
-    Synthetic pairs: 1 in 5 a 10–15° rotation about a random axis, the rest Earth-rate holds,
-    with camera noise (0.6″, 0.6″, 6″) and 0.5″ gyro noise.
+    Time a warm-started ``BoresightCalibrator.solve()`` after one new pair.
+
+    Synthetic pairs: one in five a 10–15° rotation about a random axis, the rest Earth-rate
+    holds, with camera noise (0.6″, 0.6″, 6″) and 0.5″ gyro noise.  Also times the forming of
+    one pair from 20 s of 200 Hz gyro data.
+
+    Parameters
+    ----------
+    n_pairs : int, optional
+        Pairs accumulated before the timed solves.
+    repeats : int, optional
+        Timed solves (one new pair each).
+    seed : int, optional
+        Seed of the synthetic pairs.
+
+    Returns
+    -------
+    dict
+        Times in ms (cold, warm median/max/all, pair formation), iterations, the 50 ms target
+        and whether it is met.
+
     """
     rng = np.random.default_rng(seed)
     C = ypr_to_dcm(*np.radians(BETA_DEG))

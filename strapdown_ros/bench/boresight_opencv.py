@@ -18,8 +18,18 @@ PIVOT_T_X = np.array([0.1, -0.2, 0.3])     # m, arbitrary camera offset of the p
 
 def opencv_available() -> tuple[bool, str]:
     """
-    cv2.calibrateHandEye is missing from the Python bindings of opencv-python 5.0.0
-    (opencv/opencv#29565, fixed upstream by PR #29584 after that release).
+    Tell whether OpenCV's hand-eye calibration can be called.
+
+    ``cv2.calibrateHandEye`` is missing from the Python bindings of opencv-python 5.0.0
+    (opencv/opencv#29565, fixed upstream after that release).
+
+    Returns
+    -------
+    available : bool
+        True when ``cv2.calibrateHandEye`` exists.
+    info : str
+        The cv2 version, or why it is unavailable and what to install.
+
     """
     try:
         import cv2
@@ -33,14 +43,29 @@ def opencv_available() -> tuple[bool, str]:
 
 def opencv_handeye(pairs, fixes, methods=OPENCV_METHODS, translations: str = 'zero') -> dict:
     """
-    R_cam2gripper = C_MF^VF from absolute poses: gripper→base = Π ΔS_imu (MF at t_n → MF at
-    t_1), target→camera = (S_GCRS^VF,n)ᵀ.  Returns {method: (C or None, msg)}.
+    Estimate R_cam2gripper = C_MF^VF with OpenCV's hand-eye methods from absolute poses.
 
-    translations: ``"zero"`` (rotation-only problem as given); ``"pivot"``: t_g2b,n = −R_g2b,n t_X
-    with an arbitrary t_X and t_t2c = 0 — the camera centre stays at the base origin.  These
-    translations satisfy the translation equations identically for any rotation, so they add
-    no information (and need no truth) but lift the degeneracy of methods that solve rotation
-    and translation together.
+    Gripper→base = Π ΔS_imu (MF at t_n → MF at t_1), target→camera = (S_GCRS^VF,n)ᵀ.
+
+    Parameters
+    ----------
+    pairs : list of IncrementPair
+        The increment pairs (their ``dq_imu`` are chained).
+    fixes : list
+        The camera fixes, one more than the pairs.
+    methods : sequence of str, optional
+        OpenCV method names (``CALIB_HAND_EYE_<name>``).
+    translations : {'zero', 'pivot'}, optional
+        ``'zero'``: the rotation-only problem as given.  ``'pivot'``: t_g2b,n = −R_g2b,n t_X
+        with an arbitrary t_X and t_t2c = 0, so the camera centre stays at the base origin;
+        these satisfy the translation equations for any rotation and add no information,
+        but lift the degeneracy of methods that solve rotation and translation together.
+
+    Returns
+    -------
+    dict
+        Method → (C_MF^VF as a (3, 3) ndarray, or None; message).
+
     """
     avail, why = opencv_available()
     if not avail:
@@ -72,6 +97,22 @@ def opencv_handeye(pairs, fixes, methods=OPENCV_METHODS, translations: str = 'ze
 
 
 def all_opencv(pairs, fixes) -> dict:
+    """
+    Run every OpenCV method, with zero translations and (where needed) pivot ones.
+
+    Parameters
+    ----------
+    pairs : list of IncrementPair
+        The increment pairs.
+    fixes : list
+        The camera fixes.
+
+    Returns
+    -------
+    dict
+        ``opencv_<method>`` and ``opencv_<method>_pivot`` → (C or None, message).
+
+    """
     out = {f'opencv_{m}': v for m, v in opencv_handeye(pairs, fixes).items()}
     out.update({
         f'opencv_{m}_pivot': v

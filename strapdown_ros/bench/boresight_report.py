@@ -15,8 +15,33 @@ from strapdown_ros.bench.boresight_summary import nees_values
 from strapdown_ros.cli import write_figure, write_text
 from strapdown_ros.sensors import ARCSEC
 
+#: the files ``make_plots`` writes into its directory
+PLOT_FILES = ('boresight_errors.png', 'boresight_nees.png', 'boresight_ratios.png')
+
 
 def make_plots(sc: Scenario, bnd: dict, mc: dict, summary: dict, outdir: str) -> list[str]:
+    """
+    Write the error scatter, NEES histogram and efficiency bar plots.
+
+    Parameters
+    ----------
+    sc : Scenario
+        The scenario; the current plots do not use it.
+    bnd : dict
+        Result of ``bounds`` (the 95 % ellipses).
+    mc : dict
+        Result of ``monte_carlo``.
+    summary : dict
+        Result of ``summarize``.
+    outdir : str
+        Directory of the ``PLOT_FILES`` (created).
+
+    Returns
+    -------
+    list of str
+        Paths of the files written.
+
+    """
     import matplotlib
     matplotlib.use('Agg')
     import matplotlib.pyplot as plt
@@ -115,6 +140,19 @@ def _f(v, nd=2):
 
 
 def write_report(path: str, res: dict, plots: list[str]):
+    """
+    Write the markdown report of one benchmark run.
+
+    Parameters
+    ----------
+    path : str
+        Markdown file to write.
+    res : dict
+        The run's result (what ``--json`` writes).
+    plots : list of str
+        Plot files, linked relative to the report.
+
+    """
     sm = res['summary']
     cfg = res['config']
     L = [
@@ -394,3 +432,119 @@ def write_report(path: str, res: dict, plots: list[str]):
             L.append(f'![{os.path.basename(p)}]({os.path.relpath(os.path.abspath(p), base)})')
         L.append('')
     write_text(path, '\n'.join(L))
+
+
+def print_checks(sc: Scenario, cv_info: str, conv: dict, calc: dict) -> None:
+    """
+    Print the scenario size and the pipeline checks on stdout.
+
+    Parameters
+    ----------
+    sc : Scenario
+        The bench scenario.
+    cv_info : str
+        OpenCV version, or why its hand-eye calibration is unavailable.
+    conv : dict
+        Result of ``convention_check``: total angle error per estimator, arc seconds.
+    calc : dict
+        Result of ``calibrator_check``.
+
+    """
+    print(f'scenario: {sc.pairs_count} pairs, {len(sc.u)} gyro intervals, '
+          f'{int(np.sum(sc.angles_deg > 0.5))} pairs > 0.5°, built in {sc.build_s:.1f} s')
+    print(f'OpenCV hand-eye: {cv_info}')
+    print('noise-free convention check (total angle error, ″): '
+          + ', '.join(f'{k} {v:.1e}' if isinstance(v, float) else f'{k}: {v}'
+                      for k, v in conv.items()))
+    print(f"calibrator check: pairs {calc['pairs_calibrator']}/{calc['pairs_bench']}, "
+          f"max ΔS_imu diff {calc['max_dq_imu_diff_arcsec']:.1e}″, "
+          f"β diff {np.max(np.abs(calc['beta_diff_arcsec'])):.1e}″, gyro draw vs "
+          f"IntegratingSensor {calc['gyro_draw_vs_IntegratingSensor_max_abs']:.1e}")
+
+
+def _ratios(values) -> str:
+    return ', '.join(f'{x:.2f}' for x in values)
+
+
+def _verdict(ok) -> str:
+    return ' PASS' if ok else ' FAIL'
+
+
+def print_summary(sm: dict, perf: dict, mc: dict, runs: int, jobs: int) -> None:
+    """
+    Print the bounds, estimator, NEES, acceptance and timing tables on stdout.
+
+    Parameters
+    ----------
+    sm : dict
+        Result of ``summarize``.
+    perf : dict
+        Result of ``performance``.
+    mc : dict
+        Result of ``monte_carlo`` (its wall time is printed).
+    runs : int
+        Monte Carlo runs.
+    jobs : int
+        Worker processes of the Monte Carlo.
+
+    """
+    print(f"\n{runs} runs in {mc['wall_s']:.1f} s on {jobs} process(es) "
+          f"({mc['wall_s'] / runs * 1e3:.0f} ms/run)")
+    print(f"{'bound':<34}{'σψ″':>9}{'σϑ″':>9}{'σγ″':>9}{'total″':>9}")
+    for k, v in sm['crlb'].items():
+        s = v['sigma_arcsec']
+        print(f"{k:<34}{s[0]:9.3f}{s[1]:9.3f}{s[2]:9.3f}{v['total_angle_rms_arcsec']:9.3f}")
+    print(f"\n{'estimator':<24}{'RMSψ″':>8}{'RMSϑ″':>8}{'RMSγ″':>8}{'total″':>8}   "
+          f"{'eff. vs exact':<20}{'eff. vs indep.':<20}fails")
+    for k, v in sm['estimators'].items():
+        if not v.get('rms_arcsec'):
+            print(f"{k:<24}  all runs failed: {v['failures'][:1]}")
+            continue
+        r = v['rms_arcsec']
+        ee = ' '.join(f'{x:5.2f}' for x in v['efficiency_vs_exact_crlb'])
+        ei = ' '.join(f'{x:5.2f}' for x in v['efficiency_vs_independent_pairs_bound'])
+        print(f"{k:<24}{r[0]:8.3f}{r[1]:8.3f}{r[2]:8.3f}{v['total_angle_rms_arcsec']:8.3f}   "
+              f"{ee:<20}{ei:<20}{v['failure_count']}")
+    print("\nerrors relative to the gyro triad's own frame exp([a×])·C "
+          '(a = antisymmetric misalignment of the run):')
+    for k, v in sm['estimators'].items():
+        if v.get('rms_arcsec'):
+            r = v['rms_vs_gyro_triad_frame_arcsec']
+            eff = ' '.join(f'{x:5.2f}' for x in v['efficiency_vs_bound_without_triad_rotation'])
+            print(f'  {k:<24}{r[0]:8.3f}{r[1]:8.3f}{r[2]:8.3f}   '
+                  f'eff. vs CRLB without triad rotation {eff}')
+    print('\nNEES means (95% band of the mean of χ²(3)):')
+    for k, v in sm['nees'].items():
+        print(f"  {k:<40}{v['mean']:8.3f}   [{v['band95'][0]:.3f}, {v['band95'][1]:.3f}]  "
+              f"{'inside' if v['inside'] else 'OUTSIDE'}")
+    wu = sm['weighted_vs_unweighted']
+    print('weighting gain (unweighted/weighted RMS): '
+          + _ratios(wu['rms_ratio_unweighted_over_weighted'])
+          + f"; total {wu['total_angle_ratio']:.2f}")
+    acc = sm['acceptance']
+    a1 = acc['weighted_rms_le_1.2_crlb']
+    ac = acc['calibrator_rms_le_1.2_crlb']['vs_exact_crlb']
+    print('acceptance calibrator (correlated) ≤ 1.2·√CRLB: exact ' + _ratios(ac['ratios'])
+          + _verdict(ac['pass'])
+          + f"; NEES {sm['nees']['calibrator.covariance_beta']['mean']:.2f}")
+    if 'calibrator_le_best_opencv' in acc:
+        a3 = acc['calibrator_le_best_opencv']
+        print(f"acceptance calibrator ≤ best OpenCV ({a3['best_opencv']}): ratio per angle "
+              + _ratios(a3['ratio_per_angle']) + f", total {a3['ratio_total_angle']:.2f}"
+              + _verdict(a3['pass']))
+    ex, ind = a1['vs_exact_crlb'], a1['vs_independent_pairs_bound']
+    print('acceptance weighted ≤ 1.2·√CRLB: exact ' + _ratios(ex['ratios'])
+          + _verdict(ex['pass']) + ' (predicted ' + _ratios(ex['predicted_ratios'])
+          + _verdict(ex['predicted_pass']) + '); independent-pairs ' + _ratios(ind['ratios'])
+          + _verdict(ind['pass']))
+    if 'weighted_le_best_opencv' in acc:
+        a2 = acc['weighted_le_best_opencv']
+        print(f"acceptance weighted ≤ best OpenCV ({a2['best_opencv']}): ratio per angle "
+              + _ratios(a2['ratio_per_angle']) + f", total {a2['ratio_total_angle']:.2f}"
+              + _verdict(a2['pass']))
+    print(f"solve() warm start with {perf['pairs']} pairs: median "
+          f"{perf['warm_solve_ms_median']:.1f} ms per update "
+          f"(max {perf['warm_solve_ms_max']:.1f}, "
+          f"iterations {sorted(set(perf['warm_iterations']))}; "
+          f"cold {perf['cold_solve_ms']:.1f} ms); "
+          f"one pair from 20 s of gyro data {perf['pair_formation_ms_median']:.1f} ms")

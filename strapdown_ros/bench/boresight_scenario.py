@@ -1,12 +1,12 @@
 """
-Scenario and noise model of the boresight benchmark (Kuzmina et al. 2015, paper 004, §6 in spirit).
+Scenario, noise model and Cramér–Rao bounds of the boresight benchmark.
 
-The bench on the rotating Earth, its fixes, rotations and sensor errors; the pair residuals
-written independently of ``calibration.boresight``; the linear map of the gyro constants into
-the pair errors, the full covariance of the stacked residuals and the Cramér–Rao bounds.
-Used by the Monte Carlo (``boresight_monte_carlo``) and the report of ``boresight_bench``.
+The bench of Vasilyuk et al. 2024 (004) §6 in spirit: a bench on the rotating Earth, its fixes,
+rotations and sensor errors; the pair residuals written independently of
+``calibration.boresight``; the linear map of the gyro constants into the pair errors, the
+full covariance of the stacked residuals and the bounds.  Used by the Monte Carlo
+(``boresight_monte_carlo``), the summary and the ``boresight_bench`` command.
 """
-
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -36,16 +36,43 @@ ROTATION_TIME = 5.0
 ROTATIONS = ((3, (0, 0, 1), 15.0), (8, (1, 0, 0), 12.0), (9, (0, 1, 0), -10.0),
              (15, (0, 0, 1), -13.0), (21, (0, 1, 0), 14.0), (26, (1, 0, 0), -11.0),
              (27, (1, 1, 0), 12.0), (33, (0, 0, 1), 10.0), (40, (0, 1, 0), 12.0),
-             (46, (1, 0, 0), 15.0), (52, (0, 1, 1), -12.0), (58, (0, 0, 1), -14.0), (64, (1, 0, 0),
-                                                                                     -13.0))
+             (46, (1, 0, 0), 15.0), (52, (0, 1, 1), -12.0), (58, (0, 0, 1), -14.0),
+             (64, (1, 0, 0), -13.0))
 
 
 def wrap_angles(a):
+    """
+    Wrap angles to [−π, π).
+
+    Parameters
+    ----------
+    a : array_like
+        Angles, rad.
+
+    Returns
+    -------
+    ndarray
+        The same angles wrapped, rad.
+
+    """
     return (np.asarray(a) + np.pi) % (2 * np.pi) - np.pi
 
 
 def rotation_angle(R):
-    """Rotation angle of a DCM, accurate for tiny angles too (via the quaternion)."""
+    """
+    Return the rotation angle of a DCM, accurate for tiny angles too (via the quaternion).
+
+    Parameters
+    ----------
+    R : (3, 3) ndarray
+        Direction cosine matrix.
+
+    Returns
+    -------
+    float
+        Rotation angle, rad, in [0, π].
+
+    """
     q = dcm_to_quat(R)
     return float(2.0 * np.arctan2(np.linalg.norm(q[1:]), abs(q[0])))
 
@@ -58,15 +85,51 @@ def _vee_skew(F):
 
 def residuals(beta, A_imu, A_cam):
     """
-    f_n(β) of 004 (5)–(6), written independently of boresight.py: vee of the skew part of
-    ΔS_avuᵀ Cᵀ ΔS_imu C, stacked (3P,).
+    Return the stacked pair residuals f_n(β) of Kuzmina et al. 2015 (004) eqs. (5)–(6).
+
+    Written independently of ``calibration.boresight``: the vee of the skew part of
+    ΔS_avuᵀ Cᵀ ΔS_imu C for every pair.
+
+    Parameters
+    ----------
+    beta : (3,) ndarray
+        Boresight angles (ψ, ϑ, γ), rad.
+    A_imu : (P, 3, 3) ndarray
+        Gyro attitude increments ΔS_imu (MF axes).
+    A_cam : (P, 3, 3) ndarray
+        Camera attitude increments ΔS_avu (VF axes).
+
+    Returns
+    -------
+    (3P,) ndarray
+        The stacked residuals, rad.
+
     """
     C = ypr_to_dcm(*beta)
     return _vee_skew(np.swapaxes(A_cam, 1, 2) @ (C.T @ A_imu @ C)).reshape(-1)
 
 
 def jacobian(beta, A_imu, A_cam, dx=1e-7):
-    """Central-difference ∂f/∂β (3P × 3), as 004 §4.2."""
+    """
+    Return the central-difference Jacobian ∂f/∂β of ``residuals``, as in 004 §4.2.
+
+    Parameters
+    ----------
+    beta : (3,) ndarray
+        Boresight angles (ψ, ϑ, γ), rad.
+    A_imu : (P, 3, 3) ndarray
+        Gyro attitude increments ΔS_imu.
+    A_cam : (P, 3, 3) ndarray
+        Camera attitude increments ΔS_avu.
+    dx : float, optional
+        Full difference step, rad.
+
+    Returns
+    -------
+    (3P, 3) ndarray
+        The Jacobian.
+
+    """
     H = np.empty((3 * len(A_imu), 3))
     for j in range(3):
         d = np.zeros(3)
@@ -78,37 +141,97 @@ def jacobian(beta, A_imu, A_cam, dx=1e-7):
 # ----------------------------------------------------------------------------- scenario
 @dataclass
 class Scenario:
+    """
+    The bench scenario: motion, true boresight, sensor increments and noise model.
+
+    Built by ``build_scenario``; ``Sigma`` and ``K_gyro`` are set from ``bounds``.
+
+    Attributes
+    ----------
+    profile : PiecewiseRateProfile
+        Body motion on the rotating Earth.
+    beta : (3,) ndarray
+        True boresight angles (ψ, ϑ, γ), rad.
+    epochs : (N,) ndarray
+        Exposure stamps of the fixes, s.
+    stamps : (K,) ndarray
+        Ends of the gyro intervals, s.
+    u : (K, 3) ndarray
+        Exact gyro increments, rad.
+    gyro : SensorSigmas
+        Gyro error sigmas.
+    cam_sigma : (3,) ndarray
+        Camera noise σ about VF x, y, z, rad.
+    A_imu, A_cam : (P, 3, 3) ndarray
+        True ΔS_imu and ΔS_avu of the P = N − 1 pairs.
+    E_imu : (P, 3, 3) ndarray
+        The calibrator's ``random_constant`` E_imu from the true increments, rad².
+    E_imu_004 : (P, 3, 3) ndarray
+        The calibrator's ``004`` E_imu from the true increments, rad².
+    E_cam : (P, 3, 3) ndarray
+        E_avu of every pair, rad².
+    G : (P, 3, 12) ndarray
+        ∂ε_n/∂x with x = (b, vec M), MF axes at t_n.
+    white_var : (P,) ndarray
+        White-noise variance of ε_n per axis, rad².
+    angles_deg : (P,) ndarray
+        Rotation angle of each pair, degrees.
+    build_s : float
+        Time taken to build the scenario, s.
+    Sigma : (3P, 3P) ndarray or None
+        Full covariance of the stacked residuals at the truth, rad².
+    K_gyro : (3P, 3P) ndarray or None
+        Covariance of the stacked gyro pair errors ε, rad².
+
+    """
+
     profile: PiecewiseRateProfile
     beta: np.ndarray
-    epochs: np.ndarray            # exposure stamps (N)
-    stamps: np.ndarray            # gyro interval ends (K)
-    u: np.ndarray                 # exact gyro increments (K, 3)
+    epochs: np.ndarray
+    stamps: np.ndarray
+    u: np.ndarray
     gyro: SensorSigmas
-    cam_sigma: np.ndarray         # rad, VF axes
-    A_imu: np.ndarray             # true ΔS_imu (P, 3, 3)
-    A_cam: np.ndarray             # true ΔS_avu (P, 3, 3)
-    E_imu: np.ndarray  # calibrator 'random_constant' E_imu from the true increments (P, 3, 3)
-    E_imu_004: np.ndarray         # calibrator '004' E_imu from the true increments
-    E_cam: np.ndarray             # E_avu (P, 3, 3)
-    G: np.ndarray                 # ∂ε_n/∂x, x = (b, vec M) (P, 3, 12), MF axes at t_n
-    white_var: np.ndarray         # white-noise variance of ε_n per axis (P,)
-    angles_deg: np.ndarray        # rotation angle of each pair
+    cam_sigma: np.ndarray
+    A_imu: np.ndarray
+    A_cam: np.ndarray
+    E_imu: np.ndarray
+    E_imu_004: np.ndarray
+    E_cam: np.ndarray
+    G: np.ndarray
+    white_var: np.ndarray
+    angles_deg: np.ndarray
     build_s: float = 0.0
-    Sigma: np.ndarray | None = (
-        None  # full covariance of the stacked residuals at the truth (bounds())
-    )
-    K_gyro: np.ndarray | None = None    # covariance of the stacked gyro pair errors ε (bounds())
+    Sigma: np.ndarray | None = None
+    K_gyro: np.ndarray | None = None
 
     @property
     def pairs_count(self) -> int:
+        """Return the number of increment pairs, N − 1."""
         return len(self.epochs) - 1
 
     @property
     def C(self) -> np.ndarray:
+        """Return the true boresight DCM C_MF^VF."""
         return ypr_to_dcm(*self.beta)
 
 
 def build_profile(earth_rate: bool = True) -> tuple[PiecewiseRateProfile, np.ndarray]:
+    """
+    Build the bench motion: holds, and the rotations of ``ROTATIONS`` between fixes.
+
+    Parameters
+    ----------
+    earth_rate : bool, optional
+        Whether the bench turns with the Earth at ``LATITUDE_DEG``.
+
+    Returns
+    -------
+    profile : PiecewiseRateProfile
+        The motion.
+    epochs : (N,) ndarray
+        Exposure stamps of the ``N_FIXES`` fixes, s.
+
+    """
     epochs = FIRST_EXPOSURE + INTERVAL * np.arange(N_FIXES)
     segs, cur = [], 0.0
     for idx, axis, ang in ROTATIONS:
@@ -127,12 +250,25 @@ def build_profile(earth_rate: bool = True) -> tuple[PiecewiseRateProfile, np.nda
 
 def x_prior(g: SensorSigmas, misalignment: str = 'all') -> np.ndarray:
     """
-    Covariance (12 × 12) of x = (b, vec M), M[i, j] at 3 + 3i + j (diagonal: scale factors,
-    off-diagonal: misalignments, all independent as SensorSigmas.draw makes them).
+    Return the prior covariance of the gyro constants x = (b, vec M).
 
-    misalignment: ``"all"``; ``"symmetric"`` keeps only the symmetric part (M + Mᵀ)/2 of the
-    misalignments; ``"antisymmetric"`` only (M − Mᵀ)/2 = [a×], a small rotation of the whole gyro
-    triad (σ_a = σ_φ/√2 per axis), which no boresight estimator can tell from β.
+    M[i, j] sits at 3 + 3i + j: diagonal entries are scale factors, off-diagonal ones
+    misalignments, all independent as ``SensorSigmas.draw`` makes them.
+
+    Parameters
+    ----------
+    g : SensorSigmas
+        Gyro error sigmas.
+    misalignment : {'all', 'symmetric', 'antisymmetric'}, optional
+        ``'symmetric'`` keeps only the symmetric part (M + Mᵀ)/2 of the misalignments;
+        ``'antisymmetric'`` only (M − Mᵀ)/2 = [a×], a small rotation of the whole gyro triad
+        (σ_a = σ_φ/√2 per axis) that no boresight estimator can tell from β.
+
+    Returns
+    -------
+    (12, 12) ndarray
+        The covariance (rad/s)² for b, dimensionless for M.
+
     """
     P = np.zeros((12, 12))
     P[:3, :3] = np.eye(3) * g.bias_sigma ** 2
@@ -152,6 +288,24 @@ def x_prior(g: SensorSigmas, misalignment: str = 'all') -> np.ndarray:
 
 def build_scenario(beta_deg=BETA_DEG, gyro: SensorSigmas = NAVIGATION_GRADE_GYRO,
                    cam_sigma_arcsec=CAMERA_SIGMA_ARCSEC) -> Scenario:
+    """
+    Build the scenario: motion, exact increments, pair covariances, gyro sensitivity.
+
+    Parameters
+    ----------
+    beta_deg : tuple of float, optional
+        True boresight (ψ, ϑ, γ), degrees.
+    gyro : SensorSigmas, optional
+        Gyro error sigmas.
+    cam_sigma_arcsec : tuple of float, optional
+        Camera noise σ about VF x, y, z, arc seconds.
+
+    Returns
+    -------
+    Scenario
+        The scenario, without ``Sigma`` and ``K_gyro`` (see ``bounds``).
+
+    """
     t0 = time.perf_counter()
     prof, epochs = build_profile()
     T = 1.0 / GYRO_RATE
@@ -199,7 +353,26 @@ def build_scenario(beta_deg=BETA_DEG, gyro: SensorSigmas = NAVIGATION_GRADE_GYRO
 # ---------------------------------------------------------------------- noise model, bounds
 def gyro_covariance(sc: Scenario, constants: bool = True, white: bool = True,
                     misalignment: str = 'all') -> np.ndarray:
-    """Covariance of the stacked ε (3P × 3P, MF axes at each t_n)."""
+    """
+    Return the covariance of the stacked gyro pair errors ε (MF axes at each t_n).
+
+    Parameters
+    ----------
+    sc : Scenario
+        The scenario.
+    constants : bool, optional
+        Include the random constants b, M (common to all pairs).
+    white : bool, optional
+        Include the white noise.
+    misalignment : str, optional
+        Part of the misalignment prior, as in ``x_prior``.
+
+    Returns
+    -------
+    (3P, 3P) ndarray
+        Covariance, rad².
+
+    """
     P = sc.pairs_count
     K = np.zeros((3 * P, 3 * P))
     if constants:
@@ -213,8 +386,25 @@ def gyro_covariance(sc: Scenario, constants: bool = True, white: bool = True,
 def camera_covariance(sc: Scenario, R: np.ndarray | None = None,
                       correlated: bool = True) -> np.ndarray:
     """
-    Covariance of the stacked e_cam,n = θ_n − R_nᵀ θ_{n−1}: diagonal blocks P + R_nᵀ P R_n,
-    off-diagonal (n, n+1) blocks −P R_{n+1} (adjacent pairs share the fix θ_n).
+    Return the covariance of the stacked camera pair errors e_cam,n = θ_n − R_nᵀ θ_{n−1}.
+
+    Diagonal blocks P + R_nᵀ P R_n, off-diagonal (n, n+1) blocks −P R_{n+1}: adjacent pairs
+    share the fix θ_n.
+
+    Parameters
+    ----------
+    sc : Scenario
+        The scenario.
+    R : (P, 3, 3) ndarray, optional
+        Camera increments; the true ones when None.
+    correlated : bool, optional
+        Keep the off-diagonal blocks.
+
+    Returns
+    -------
+    (3P, 3P) ndarray
+        Covariance, rad².
+
     """
     R = sc.A_cam if R is None else R
     P = len(R)
@@ -231,7 +421,26 @@ def camera_covariance(sc: Scenario, R: np.ndarray | None = None,
 
 def residual_covariance(sc: Scenario, C: np.ndarray, K_gyro: np.ndarray,
                         S_cam: np.ndarray) -> np.ndarray:
-    """Σ of the stacked f_n = Cᵀ ε_n − e_cam,n."""
+    """
+    Return Σ of the stacked residuals f_n = Cᵀ ε_n − e_cam,n.
+
+    Parameters
+    ----------
+    sc : Scenario
+        The scenario.
+    C : (3, 3) ndarray
+        Boresight DCM C_MF^VF at which Σ is evaluated.
+    K_gyro : (3P, 3P) ndarray
+        Covariance of the stacked gyro pair errors, rad².
+    S_cam : (3P, 3P) ndarray
+        Covariance of the stacked camera pair errors, rad².
+
+    Returns
+    -------
+    (3P, 3P) ndarray
+        Covariance, rad².
+
+    """
     P = sc.pairs_count
     K4 = K_gyro.reshape(P, 3, P, 3)
     Kg = np.einsum('ai,namb,bk->nimk', C, K4, C).reshape(3 * P, 3 * P)
@@ -248,7 +457,23 @@ def _blockdiag_inv(blocks):
 
 
 def bounds(sc: Scenario) -> dict:
-    """CRLBs (rad²) and the predicted covariance of the linear(ised) estimators."""
+    """
+    Return the Cramér–Rao bounds and the predicted covariance of the linear estimators.
+
+    Parameters
+    ----------
+    sc : Scenario
+        The scenario.
+
+    Returns
+    -------
+    dict
+        ``H`` (3P, 3) Jacobian at the truth; ``Sigma`` and ``K_gyro`` (3P, 3P); ``crlb``:
+        name → (3, 3) bound, rad² (``exact``, its variants, ``independent_pairs``,
+        ``triad_rotation_floor``); ``predicted``: estimator → sandwich covariance K Σ Kᵀ;
+        ``E_imu_model_rel_diff``: the calibrator's E_imu against the linear gyro model.
+
+    """
     C = sc.C
     H = jacobian(sc.beta, sc.A_imu, sc.A_cam)
     K_full = gyro_covariance(sc)

@@ -14,6 +14,19 @@ from strapdown_ros.rotation import (dcm_to_quat, dcm_to_ypr, quat_to_rotvec, rot
                                     ypr_error_to_rotation, ypr_to_dcm)
 from strapdown_ros.sensors import ARCSEC
 
+#: NEES entries: name → (estimator of the errors, covariance it is tested with)
+NEES_PAIRS = {
+    'calibrator.covariance_beta': ('calibrator', 'calibrator'),
+    'weighted.covariance_beta': ('weighted', 'weighted'),
+    'weighted.covariance_beta_model': ('weighted', 'weighted_model'),
+    'weighted.covariance_beta_residual': ('weighted', 'weighted_residual'),
+    'weighted.covariance_beta+triad_floor': ('weighted', 'weighted_floor'),
+    'unweighted.covariance_beta': ('unweighted', 'unweighted'),
+    'unweighted.covariance_beta+triad_floor': ('unweighted', 'unweighted_floor'),
+    'weighted_004cov.covariance_beta': ('weighted_004cov', 'weighted_004cov'),
+    'correlated_gls.model': ('correlated_gls', 'correlated_gls'),
+}
+
 
 def _vf_errors(sc: Scenario, e: np.ndarray) -> np.ndarray:
     """Rotation errors θ (VF axes, Ĉ = C(I + [θ×])) of runs with angle errors e (r, 3)."""
@@ -22,17 +35,70 @@ def _vf_errors(sc: Scenario, e: np.ndarray) -> np.ndarray:
 
 
 def nees_values(e, P):
+    """
+    Return the NEES eᵀ P⁻¹ e of every run with finite error and covariance.
+
+    Parameters
+    ----------
+    e : (R, 3) ndarray
+        Errors of the runs, rad (NaN for a failed run).
+    P : (R, 3, 3) ndarray
+        Published covariances, rad².
+
+    Returns
+    -------
+    ndarray
+        NEES of the finite runs.
+
+    """
     ok = np.all(np.isfinite(e), 1) & np.all(np.isfinite(P.reshape(len(P), -1)), 1)
     e, P = e[ok], P[ok]
     return np.einsum('ri,ri->r', e, np.linalg.solve(P, e[..., None])[..., 0])
 
 
 def nees_band(n, dof=3):
+    """
+    Return the two-sided 95 % band of the mean of n χ²(dof) values.
+
+    Parameters
+    ----------
+    n : int
+        Number of values averaged.
+    dof : int, optional
+        Degrees of freedom of each.
+
+    Returns
+    -------
+    list of float
+        [lower, upper].
+
+    """
     from scipy.stats import chi2
     return [float(chi2.ppf(0.025, dof * n) / n), float(chi2.ppf(0.975, dof * n) / n)]
 
 
 def summarize(sc: Scenario, bnd: dict, mc: dict, runs: int) -> dict:
+    """
+    Summarise the Monte Carlo against the bounds.
+
+    Parameters
+    ----------
+    sc : Scenario
+        The scenario.
+    bnd : dict
+        Result of ``bounds``.
+    mc : dict
+        Result of ``monte_carlo``; ``covs`` gains the ``*_floor`` entries.
+    runs : int
+        Number of runs.
+
+    Returns
+    -------
+    dict
+        ``crlb`` (σ in arc seconds per bound), ``estimators`` (RMS, efficiencies, failures),
+        ``nees``, ``acceptance``, ``weighted_vs_unweighted``, ``noise_model_check``.
+
+    """
     D1, D2 = ypr_error_to_rotation(*sc.beta)
     crlb = {k: {'sigma_arcsec': (np.sqrt(np.diag(v)) / ARCSEC).tolist(),
                 'sigma_vf_axes_arcsec': (np.sqrt(np.diag(D1 @ v @ D1.T)) / ARCSEC).tolist(),
@@ -74,29 +140,17 @@ def summarize(sc: Scenario, bnd: dict, mc: dict, runs: int) -> dict:
                                                ARCSEC).tolist()
         est[k] = d
     band = nees_band(runs)
-    mc['covs'][
-        'weighted_floor'] = mc['covs']['weighted'] + bnd['crlb']['triad_rotation_floor'][None]
-    mc['covs'][
-        'unweighted_floor'] = mc['covs']['unweighted'] + bnd['crlb']['triad_rotation_floor'][None]
+    floor = bnd['crlb']['triad_rotation_floor'][None]
+    mc['covs']['weighted_floor'] = mc['covs']['weighted'] + floor
+    mc['covs']['unweighted_floor'] = mc['covs']['unweighted'] + floor
     nees = {}
-    for name, (ek, ck) in {
-            'calibrator.covariance_beta': ('calibrator', 'calibrator'),
-            'weighted.covariance_beta': ('weighted', 'weighted'),
-            'weighted.covariance_beta_model': ('weighted', 'weighted_model'),
-            'weighted.covariance_beta_residual': ('weighted', 'weighted_residual'),
-            'weighted.covariance_beta+triad_floor': ('weighted', 'weighted_floor'),
-            'unweighted.covariance_beta': ('unweighted', 'unweighted'),
-            'unweighted.covariance_beta+triad_floor': ('unweighted', 'unweighted_floor'),
-            'weighted_004cov.covariance_beta': ('weighted_004cov', 'weighted_004cov'),
-            'correlated_gls.model': ('correlated_gls', 'correlated_gls')
-    }.items():
+    for name, (ek, ck) in NEES_PAIRS.items():
         v = nees_values(mc['errors'][ek], mc['covs'][ck])
         b = nees_band(len(v)) if len(v) else band
-        nees[name] = {
-            'mean': float(np.mean(v)) if len(v) else None, 'runs': int(len(v)), 'band95': b,
-            'inside': bool(len(v) and b[0] <= np.mean(v) <= b[1]), 'mean_published_sigma_arcsec': (
-                np.sqrt(np.nanmean(np.diagonal(mc['covs'][ck], 0, 1, 2), 0)) / ARCSEC).tolist()
-        }
+        sigma = np.sqrt(np.nanmean(np.diagonal(mc['covs'][ck], 0, 1, 2), 0)) / ARCSEC
+        nees[name] = {'mean': float(np.mean(v)) if len(v) else None, 'runs': int(len(v)),
+                      'band95': b, 'inside': bool(len(v) and b[0] <= np.mean(v) <= b[1]),
+                      'mean_published_sigma_arcsec': sigma.tolist()}
     cv_ok = {k: v for k, v in est.items() if k.startswith('opencv_') and v['runs_ok'] == runs}
     best_cv = min(cv_ok, key=lambda k: cv_ok[k]['total_angle_rms_arcsec']) if cv_ok else None
     w = est['weighted']
@@ -147,7 +201,20 @@ def summarize(sc: Scenario, bnd: dict, mc: dict, runs: int) -> dict:
 
 
 def findings(sm: dict) -> list[str]:
-    """Plain statements derived from the numbers."""
+    """
+    Return plain statements derived from the summary's numbers.
+
+    Parameters
+    ----------
+    sm : dict
+        Result of ``summarize``.
+
+    Returns
+    -------
+    list of str
+        One sentence per finding, for the JSON and the report.
+
+    """
     est, cr, n = sm['estimators'], sm['crlb'], sm['nees']
     w, u, g = est['weighted'], est['unweighted'], est['correlated_gls']
 

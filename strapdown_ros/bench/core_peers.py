@@ -14,7 +14,6 @@ The core attitude path beside its peers, for ``sins_bench``: one run times, in t
 on the same 360 000 Δθ intervals (one hour at 100 Hz).  Compilation is excluded (one warm-up
 call before timing).  Ratios A/B and A/C are formed within each run.
 """
-
 from __future__ import annotations
 
 import math

@@ -13,7 +13,6 @@ Scenario: bench profile (enough 150 s passes for --duration), gyro 200 Hz, a sta
 3. Confusion: injected × first named effect at k ≥ 5σ.
 4. Speed: the ``discrepancy`` CLI on a 900 s bag (200 Hz, 450 fixes), 5 runs.
 """
-
 from __future__ import annotations
 
 import argparse

@@ -29,7 +29,6 @@ Prints a markdown table on stdout; ``--json FILE``; ``--plots DIR`` (attitude er
 ±3σ band, bias convergence with ±3σ, NIS with its χ² band); ``--report FILE`` (markdown).  The
 figures are printed, not asserted.  Exit 0; 2 for bad arguments.
 """
-
 from __future__ import annotations
 
 import math

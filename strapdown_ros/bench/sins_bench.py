@@ -16,7 +16,6 @@ Every figure is the median and min–max of ``--runs`` (≥ 5 by default) runs, 
 at the start.  Absolute times vary from machine to machine and with the load; ratios measured in
 one run are the comparable figures.  Exit 0; 2 for bad arguments.
 """
-
 from __future__ import annotations
 
 import argparse

@@ -24,7 +24,6 @@ node_rate_bench: the highest Δθ rate a node takes without loss, against bare r
 Absolute figures vary from machine to machine and with the load (printed at the start); the
 ratios measured in one run are the comparable figures.  Exit 0 (a benchmark); 2 for bad arguments.
 """
-
 from __future__ import annotations
 
 import argparse

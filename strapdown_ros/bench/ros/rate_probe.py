@@ -13,7 +13,6 @@ the package's nodes do, so one harness reads every subject the same way.
 and sleeps in between (it never busy-spins, so on a 2-core machine it does not starve the node
 it measures).  Stamps continue across trials at 1/rate steps, strictly increasing.
 """
-
 from __future__ import annotations
 
 import math
