@@ -1,12 +1,13 @@
 """
-coning_bench: drift, order of accuracy and cost of every coning algorithm on exact coning
-motion, set beside the analytic theory, an independent ODE reference and the claims of 003
-(Aksyonenko 2014).
+Benchmark every coning algorithm on exact coning motion: drift, order of accuracy and cost.
+
+The command ``coning_bench``: the figures set beside the analytic theory, an independent
+ODE reference and the claims of Aksyonenko 2014 (003); the report is ``coning_report``.
 
 With no options it runs the three cases of 003 §2.3 — (α, ν) = (0.087, 1), (0.5, 1),
 (0.087, 0.5), 3600 s — at τ = 0.01 s and τ = 0.001 s, an order sweep per algorithm at small
 α, and the cost per update; it prints a summary and, with --json/--plots/--report, writes
-the JSON records, PNG plots and the Markdown report (doc/coning.md).
+the JSON records, PNG plots and the Markdown report.
 
 Method (strapdown_ros/attitude/coning_analysis.py): drift = least-squares slope of the cone-axis
 error over whole cone periods; floor = the same arithmetic fed exact rotation vectors;
@@ -34,6 +35,20 @@ from strapdown_ros.sensors import DEG_PER_HOUR
 
 
 def parse_args(argv):
+    """
+    Parse and check the command line of ``coning_bench``.
+
+    Parameters
+    ----------
+    argv : list of str
+        Arguments without the program name.
+
+    Returns
+    -------
+    argparse.Namespace
+        The options, with ``names`` (algorithms), ``cases`` ((α, ν) pairs) and ``steps``.
+
+    """
     ap = argparse.ArgumentParser(prog='coning_bench', description=__doc__,
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument('--alpha', type=float,
@@ -44,9 +59,12 @@ def parse_args(argv):
     ap.add_argument('--duration', type=float, default=3600.0,
                     help='simulated seconds per case (default 3600)')
     ap.add_argument('--algorithms', help='comma-separated names (default: all)')
-    ap.add_argument('--json', help='write the results to this JSON file')
-    ap.add_argument('--plots', help='write PNG plots into this directory')
-    ap.add_argument('--report', help='write the Markdown report to this file (e.g. doc/coning.md)')
+    ap.add_argument('--json', help='write the results to this JSON file '
+                    '(documented run: doc/results/coning_bench/coning.json)')
+    ap.add_argument('--plots', help='write PNG plots into this directory '
+                    '(documented run: doc/results/coning_bench)')
+    ap.add_argument('--report', help='write the Markdown report to this file '
+                    '(documented run: doc/results/coning_bench/coning.md)')
     ap.add_argument('--force', action='store_true', help='overwrite existing outputs')
     ap.add_argument('--no-ode', action='store_true', help='skip the ODE peer reference')
     ap.add_argument('--sweep-periods', type=int, default=20,
@@ -70,6 +88,21 @@ def parse_args(argv):
 
 
 def run(args) -> dict:
+    """
+    Measure every case and algorithm: drift, order sweep, cost, model checks.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        Options of ``parse_args``.
+
+    Returns
+    -------
+    dict
+        ``results`` (one record per case, step and algorithm; rad/s and °/h), ``cases``,
+        ``order_sweeps``, ``model_checks`` and ``wall_s``.
+
+    """
     t0 = time.perf_counter()
     cases = []
     for alpha, nu in args.cases:
@@ -107,20 +140,25 @@ def run(args) -> dict:
                 'scalings': a.scalings,
                 'order_claimed': a.order_intended,
             })
-    return {
-        'results': records, 'cases': [{
-            'alpha': c.alpha, 'nu': c.nu, 'step': c.step, 'duration': c.duration,
-            'fitted_until_s': c.fitted_until,
-            'floor_rad_per_s': {str(k): v
-                                for k, v in c.floor.items()}, 'ode_truth_max_gap_rad': c.truth_gap,
-            'wall_s': c.wall_s
-        } for c in cases], 'order_sweeps': sweeps, 'model_checks': model_checks(),
-        'wall_s': time.perf_counter() - t0
-    }
+    case_records = [{'alpha': c.alpha, 'nu': c.nu, 'step': c.step, 'duration': c.duration,
+                     'fitted_until_s': c.fitted_until,
+                     'floor_rad_per_s': {str(k): v for k, v in c.floor.items()},
+                     'ode_truth_max_gap_rad': c.truth_gap, 'wall_s': c.wall_s}
+                    for c in cases]
+    return {'results': records, 'cases': case_records, 'order_sweeps': sweeps,
+            'model_checks': model_checks(), 'wall_s': time.perf_counter() - t0}
 
 
 def model_checks() -> dict:
-    """Numerical evidence for the misprints of the coning model, 003 §2.2."""
+    """
+    Return the numerical evidence for the misprints of the coning model, 003 §2.2.
+
+    Returns
+    -------
+    dict
+        Largest differences between the printed formulas and the exact ones (α = 0.5, ν = 1).
+
+    """
     alpha, nu = 0.5, 1.0
     p = ConingProfile(alpha, nu)
     t = np.linspace(0.0, 7.0, 701)
@@ -150,6 +188,22 @@ def model_checks() -> dict:
 
 # ------------------------------------------------------------------------------- output
 def summary_table(res: dict, args) -> str:
+    """
+    Format the console table of drifts, theory, ODE peer, order and floor per case.
+
+    Parameters
+    ----------
+    res : dict
+        Result of ``run``.
+    args : argparse.Namespace
+        Options; the table does not use them.
+
+    Returns
+    -------
+    str
+        The table.
+
+    """
     recs = res['results']
     lines = []
     for case in res['cases']:
@@ -163,8 +217,8 @@ def summary_table(res: dict, args) -> str:
             if (r['alpha'], r['nu'], r['step']) != (case['alpha'], case['nu'], case['step']):
                 continue
             th = None if r['theory_rad_per_s'] is None else r['theory_rad_per_s'] / DEG_PER_HOUR
-            ode = None if r[
-                'drift_ode_rad_per_s'] is None else r['drift_ode_rad_per_s'] / DEG_PER_HOUR
+            ode = r['drift_ode_rad_per_s']
+            ode = None if ode is None else ode / DEG_PER_HOUR
             lines.append(
                 f"{r['algorithm']:<24}{fmt(r['drift_deg_per_h']):>12}{fmt(th):>12}{fmt(ode):>14}"
                 f"{fmt(r['order_measured'], 2):>7}{('yes' if r['floor'] else ''):>7}")
@@ -172,6 +226,22 @@ def summary_table(res: dict, args) -> str:
 
 
 def write_plots(res: dict, outdir: str) -> list[str]:
+    """
+    Write the drift bars per case and the order-of-accuracy plot.
+
+    Parameters
+    ----------
+    res : dict
+        Result of ``run``.
+    outdir : str
+        Directory for ``coning_drift.png`` and ``coning_order.png`` (created).
+
+    Returns
+    -------
+    list of str
+        Paths of the files written.
+
+    """
     import matplotlib
     matplotlib.use('Agg')
     import matplotlib.pyplot as plt
@@ -242,6 +312,20 @@ def write_plots(res: dict, outdir: str) -> list[str]:
 
 
 def main(argv=None):
+    """
+    Run ``coning_bench``.
+
+    Parameters
+    ----------
+    argv : list of str, optional
+        Arguments without the program name; ``sys.argv[1:]`` when None.
+
+    Returns
+    -------
+    int
+        0 on success, 2 for bad arguments or outputs (one line on stderr).
+
+    """
     args = parse_args(sys.argv[1:] if argv is None else argv)
     try:                                       # everything that can fail, before minutes of work
         check_outputs([('--json', args.json, FILE), ('--report', args.report, FILE),

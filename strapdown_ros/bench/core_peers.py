@@ -1,13 +1,15 @@
 """
-The core attitude path beside its peers, for ``sins_bench``: one run times, in turn,
+The core attitude path beside its peers, for ``sins_bench``.
+
+One run times, in turn,
 
 * **A**, strapdown_ros: :class:`~strapdown_ros.attitude.integrator.AttitudeIntegrator` with the
   one-plus-previous coning term, covariance propagation included, pushed in 60 s blocks;
-* **B**, pyins 1.0.1 (PyPI ``python-ins``, optional): the same coning term, θ_k + θ_{k−1} × θ_k / 12,
-  computed as its ``compute_increments_from_imu`` does, and its numba-compiled integration kernel
-  (which also integrates velocity and position; no covariance).  Its public API around the same
-  kernel (``compute_increments_from_imu`` + ``Integrator.integrate``, pandas in and out) is timed
-  too, for information;
+* **B**, pyins 1.0.1 (PyPI ``python-ins``, optional): the same coning term,
+  θ_k + θ_{k−1} × θ_k / 12, computed as its ``compute_increments_from_imu`` does, and its
+  numba-compiled integration kernel (which also integrates velocity and position; no
+  covariance).  Its public API around the same kernel (``compute_increments_from_imu`` +
+  ``Integrator.integrate``, pandas in and out) is timed too, for information;
 * **C**, a compiled reference: the 20-line quaternion loop below, numba-compiled (optional):
   the same coning term, q ← q ⊗ exp(φ), renormalised; nothing else.
 
@@ -27,7 +29,7 @@ from strapdown_ros.sensors import NAVIGATION_GRADE_GYRO
 
 
 def _reference_loop():
-    """The compiled reference loop (numba), or None without numba."""
+    """Return the compiled reference loop (numba), or None without numba."""
     try:
         from numba import njit
     except ImportError:
@@ -68,7 +70,31 @@ def _pyins():
 
 def peer_runs(dth: np.ndarray, stamps: np.ndarray, q0: np.ndarray, runs: int = 5,
               block: int = 6000, progress=None) -> dict:
-    """``runs`` rounds of A, B, C in turn on the increments ``dth`` (n, 3) stamped ``stamps`` (n+1,)."""
+    """
+    Time ``runs`` rounds of A, B and C in turn on the same increments.
+
+    Parameters
+    ----------
+    dth : (n, 3) ndarray
+        Gyro increments Δθ, rad.
+    stamps : (n + 1,) ndarray
+        Interval edges, s.
+    q0 : (4,) ndarray
+        Initial attitude, scalar-first quaternion.
+    runs : int, optional
+        Rounds.
+    block : int, optional
+        Increments per ``push`` of the strapdown_ros integrator.
+    progress : callable, optional
+        Called with one line of text per round.
+
+    Returns
+    -------
+    dict
+        ``intervals``, ``runs`` (per round: wall times in s, ratios, final attitude
+        difference in rad), ``pyins_available``, ``compiled_loop_available``.
+
+    """
     n = len(dth)
     loop = _reference_loop()
     pyins = _pyins()
@@ -100,8 +126,10 @@ def peer_runs(dth: np.ndarray, stamps: np.ndarray, q0: np.ndarray, runs: int = 5
 
     def b():
         """
-        pyins's compiled kernel with the coning term computed as its compute_increments_from_imu
-        does (numpy); its DataFrame wrapping is left out.
+        Time pyins's compiled kernel alone.
+
+        The coning term is computed as its ``compute_increments_from_imu`` does (numpy); its
+        DataFrame wrapping is left out.
         """
         from pyins._numba_integrate import integrate
         t0 = time.perf_counter()

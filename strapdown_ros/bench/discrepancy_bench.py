@@ -514,7 +514,7 @@ def write_report(path: str, res: dict, plots: list[str]):
 # ----------------------------------------------------------------------------- arguments
 def parse_args(argv):
     ap = OneLineParser(prog=PROG, description=__doc__,
-                 formatter_class=argparse.RawDescriptionHelpFormatter)
+                       formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument('--seeds', type=int, help='seeds per effect (default 50)')
     ap.add_argument('--duration', type=float, help='simulated seconds per recording (default 480)')
     ap.add_argument('--sizes', help='comma-separated effect sizes in σ (default 1,2,3,5,7,10)')

@@ -646,7 +646,7 @@ def write_report(outdir: str, res: dict, series: dict, text: str) -> str:
 def main(argv=None):
     argv = sys.argv[1:] if argv is None else list(argv)
     ap = OneLineParser(prog='nav_bench', description=__doc__,
-                 formatter_class=argparse.RawDescriptionHelpFormatter)
+                       formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument('--seconds', type=float, default=600.0,
                     help='duration of the moving profiles (default 600)')
     ap.add_argument('--static-seconds', type=float, default=3600.0,

@@ -154,7 +154,7 @@ def bag_bytes(bag) -> int:
 
 def main(argv=None) -> int:
     ap = OneLineParser(prog='sins_bag_bench', description=__doc__,
-                 formatter_class=argparse.RawDescriptionHelpFormatter)
+                       formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument('bag', help='rosbag2 bag (e.g. record_sim OUT --duration 3600 '
                                 '-p profile:=coordinated_turn)')
     ap.add_argument('--navigation-profile', metavar='NAME',

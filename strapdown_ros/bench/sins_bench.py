@@ -1,5 +1,7 @@
 """
-sins_bench: performance figures of the SINS (printed; nothing is asserted).
+Measure the speed of the SINS core, against peers, and of ``sins_node`` over loopback.
+
+The command ``sins_bench``; figures are printed, nothing is asserted.
 
 1. **Core**: one hour of 100 Hz gyro and 300 Hz accelerometer increments (360 000 gyro
    intervals) through algorithm ``--algorithm`` with covariance propagation (``random_constant``
@@ -12,9 +14,9 @@ sins_bench: performance figures of the SINS (printed; nothing is asserted).
    ``--node-rate`` Hz (default 2000) over loopback by a publisher that sleeps between 2 ms bursts;
    accepted, dropped and missing counts from the node's /diagnostics, outputs received back.
 
-Every figure is the median and min–max of ``--runs`` (≥ 5 by default) runs, with the load average
-at the start.  Absolute times vary from machine to machine and with the load; ratios measured in
-one run are the comparable figures.  Exit 0; 2 for bad arguments.
+Every figure is the median and min–max of ``--runs`` (≥ 5 by default) runs, with the load
+average at the start.  Absolute times vary from machine to machine and with the load; ratios
+measured in one run are the comparable figures.  Exit 0; 2 for bad arguments.
 """
 from __future__ import annotations
 
@@ -41,6 +43,21 @@ COMPILED_RATIO_TARGET = 5.0       # within 5× of a compiled quaternion loop
 
 
 def coning_data(hours: float = 1.0):
+    """
+    Generate the increments of the core benchmark: coning motion with gravity.
+
+    Parameters
+    ----------
+    hours : float, optional
+        Length of the data, h.
+
+    Returns
+    -------
+    tuple
+        (profile, gyro edges tg (n+1,) s, accel edges ta (3n+1,) s, Δθ (n, 3) rad,
+        Δv (3n, 3) m/s): 100 Hz gyro, 300 Hz accelerometer.
+
+    """
     prof = ConingProfile(0.087, 1.0, gravity=(0.0, 0.0, STANDARD_GRAVITY))
     n_g = int(round(hours * 3600 * 100))
     tg = np.arange(n_g + 1) * 0.01
@@ -50,7 +67,26 @@ def coning_data(hours: float = 1.0):
 
 def core_run(data, algorithm: str = '2', covariance_model: str = 'random_constant',
              block: int = 6000) -> dict:
-    """One timed pass of the core over ``data`` (from :func:`coning_data`)."""
+    """
+    Time one pass of the attitude core and the Δv binning over ``data``.
+
+    Parameters
+    ----------
+    data : tuple
+        Result of :func:`coning_data`.
+    algorithm : str, optional
+        Coning algorithm name.
+    covariance_model : str, optional
+        ``'random_constant'`` or ``'004'``.
+    block : int, optional
+        Gyro increments per ``push``.
+
+    Returns
+    -------
+    dict
+        Wall time in s, real-time ratio, ns per gyro interval, counts.
+
+    """
     prof, tg, ta, dth, dv = data
     n_g = len(dth)
     integ = AttitudeIntegrator(algorithm, prof.attitude(0.0), 0.0, gyro=NAVIGATION_GRADE_GYRO,
@@ -70,16 +106,49 @@ def core_run(data, algorithm: str = '2', covariance_model: str = 'random_constan
 
 def core_benchmark(algorithm: str = '2', hours: float = 1.0,
                    covariance_model: str = 'random_constant', repeats: int = 3) -> dict:
-    """Best of ``repeats`` passes (kept for callers that want one figure); :func:`main` reports medians."""
+    """
+    Return the best of ``repeats`` passes of :func:`core_run` (``main`` reports medians).
+
+    Parameters
+    ----------
+    algorithm : str, optional
+        Coning algorithm name.
+    hours : float, optional
+        Length of the data, h.
+    covariance_model : str, optional
+        ``'random_constant'`` or ``'004'``.
+    repeats : int, optional
+        Passes.
+
+    Returns
+    -------
+    dict
+        The fastest pass.
+
+    """
     data = coning_data(hours)
     runs = [core_run(data, algorithm, covariance_model) for _ in range(repeats)]
     return min(runs, key=lambda r: r['wall_s'])
 
 
 def main(argv=None):
+    """
+    Run ``sins_bench``.
+
+    Parameters
+    ----------
+    argv : list of str, optional
+        Arguments without the program name; ``sys.argv[1:]`` when None.
+
+    Returns
+    -------
+    int
+        0 on success, 2 for bad arguments or outputs.
+
+    """
     argv = sys.argv[1:] if argv is None else argv
     ap = OneLineParser(prog='sins_bench', description=__doc__,
-                 formatter_class=argparse.RawDescriptionHelpFormatter)
+                       formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument('--algorithm', default='2')
     ap.add_argument('--hours', type=float, default=1.0)
     ap.add_argument('--runs', type=int, default=5, help='runs of every figure (default 5)')
@@ -87,7 +156,8 @@ def main(argv=None):
                     help='skip the pyins / compiled-loop comparison')
     ap.add_argument('--node-seconds', type=float, default=20.0)
     ap.add_argument('--node-rate', type=float, default=2000.0)
-    ap.add_argument('--json', help='write the figures to this JSON file')
+    ap.add_argument('--json', help='write the figures to this JSON file '
+                    '(documented run: doc/results/sins_bench/sins_bench.json)')
     ap.add_argument('--force', action='store_true', help='overwrite existing outputs')
     args = ap.parse_args(argv)
     if args.algorithm not in algorithm_names():

@@ -40,7 +40,7 @@ RSS_GROWTH_TARGET = 0.10
 
 def parse_args(argv):
     ap = OneLineParser(prog='load_bench', description=__doc__,
-                 formatter_class=argparse.RawDescriptionHelpFormatter)
+                       formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument('--seconds', type=float, default=600.0,
                     help='sensor time to run, s (default 600)')
     ap.add_argument(

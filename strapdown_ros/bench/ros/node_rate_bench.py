@@ -48,7 +48,7 @@ FILTER_OUTPUT_PERIODS = (0.01, 0.1)
 
 def parse_args(argv):
     ap = OneLineParser(prog='node_rate_bench', description=__doc__,
-                 formatter_class=argparse.RawDescriptionHelpFormatter)
+                       formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument('--seconds', type=float, default=5.0,
                     help='length of one trial, s (default 5)')
     ap.add_argument('--steps', type=int, default=7, help='bisection steps per subject (default 7)')
