@@ -114,8 +114,10 @@ def all_opencv(pairs, fixes) -> dict:
 
     """
     out = {f'opencv_{m}': v for m, v in opencv_handeye(pairs, fixes).items()}
-    out.update({
-        f'opencv_{m}_pivot': v
-        for m, v in opencv_handeye(pairs, fixes, OPENCV_PIVOT_METHODS, 'pivot').items()
-    })
+    out.update(
+        {
+            f'opencv_{m}_pivot': v
+            for m, v in opencv_handeye(pairs, fixes, OPENCV_PIVOT_METHODS, 'pivot').items()
+        }
+    )
     return out

@@ -483,10 +483,12 @@ def bounds(sc: Scenario) -> dict:
         'exact': Sigma,
         'camera_correlation_only': residual_covariance(sc, C, _blockdiag_keep(K_full), S_cam),
         'gyro_constants_correlation_only': residual_covariance(
-            sc, C, K_full, camera_covariance(sc, correlated=False)),
+            sc, C, K_full, camera_covariance(sc, correlated=False)
+        ),
         'white_gyro_only': residual_covariance(sc, C, gyro_covariance(sc, constants=False), S_cam),
         'without_triad_rotation': residual_covariance(
-            sc, C, gyro_covariance(sc, misalignment='symmetric'), S_cam),
+            sc, C, gyro_covariance(sc, misalignment='symmetric'), S_cam
+        ),
     }
     out = {}
     for name, Sg in variants.items():

@@ -115,26 +115,34 @@ def summarize(sc: Scenario, bnd: dict, mc: dict, runs: int) -> dict:
         ok = np.all(np.isfinite(e), 1)
         n_ok = int(ok.sum())
         d = {
-            'runs_ok': n_ok, 'failures': mc['failures'][k][:5],
-            'failure_count': len(mc['failures'][k])
+            'runs_ok': n_ok,
+            'failures': mc['failures'][k][:5],
+            'failure_count': len(mc['failures'][k]),
         }
         if n_ok:
             eo = e[ok]
             rms = np.sqrt(np.mean(eo ** 2, 0))
-            d.update({
-                'rms_arcsec': (rms / ARCSEC).tolist(),
-                'mean_arcsec': (eo.mean(0) / ARCSEC).tolist(),
-                'std_arcsec': (eo.std(0, ddof=1) / ARCSEC).tolist() if n_ok > 1 else None,
-                'total_angle_rms_arcsec': float(np.sqrt(np.nanmean(mc['total'][k]**2)) / ARCSEC),
-                'rms_vf_axes_arcsec': (np.sqrt(np.mean(_vf_errors(sc, eo)**2, 0)) /
-                                       ARCSEC).tolist(),
-                'rms_vs_gyro_triad_frame_arcsec': (
-                    np.sqrt(np.mean(wrap_angles(eo - shift[ok])**2, 0)) / ARCSEC).tolist(),
-                'efficiency_vs_bound_without_triad_rotation': (
-                    np.sqrt(np.mean(wrap_angles(eo - shift[ok])**2, 0)) / s_nt).tolist(),
-                'efficiency_vs_exact_crlb': (rms / s_exact).tolist(),
-                'efficiency_vs_independent_pairs_bound': (rms / s_ind).tolist()
-            })
+            d.update(
+                {
+                    'rms_arcsec': (rms / ARCSEC).tolist(),
+                    'mean_arcsec': (eo.mean(0) / ARCSEC).tolist(),
+                    'std_arcsec': (eo.std(0, ddof=1) / ARCSEC).tolist() if n_ok > 1 else None,
+                    'total_angle_rms_arcsec': float(
+                        np.sqrt(np.nanmean(mc['total'][k] ** 2)) / ARCSEC
+                    ),
+                    'rms_vf_axes_arcsec': (
+                        np.sqrt(np.mean(_vf_errors(sc, eo) ** 2, 0)) / ARCSEC
+                    ).tolist(),
+                    'rms_vs_gyro_triad_frame_arcsec': (
+                        np.sqrt(np.mean(wrap_angles(eo - shift[ok]) ** 2, 0)) / ARCSEC
+                    ).tolist(),
+                    'efficiency_vs_bound_without_triad_rotation': (
+                        np.sqrt(np.mean(wrap_angles(eo - shift[ok]) ** 2, 0)) / s_nt
+                    ).tolist(),
+                    'efficiency_vs_exact_crlb': (rms / s_exact).tolist(),
+                    'efficiency_vs_independent_pairs_bound': (rms / s_ind).tolist(),
+                }
+            )
             if k in bnd['predicted']:
                 d['predicted_sigma_arcsec'] = (np.sqrt(np.diag(bnd['predicted'][k])) /
                                                ARCSEC).tolist()
@@ -159,16 +167,19 @@ def summarize(sc: Scenario, bnd: dict, mc: dict, runs: int) -> dict:
     acc_cal = {'vs_exact_crlb': {'ratios': c['efficiency_vs_exact_crlb'],
                                  'pass': bool(max(c['efficiency_vs_exact_crlb']) <= 1.2)}}
     acc = {
-        'calibrator_rms_le_1.2_crlb': acc_cal, 'weighted_rms_le_1.2_crlb': {
+        'calibrator_rms_le_1.2_crlb': acc_cal,
+        'weighted_rms_le_1.2_crlb': {
             'vs_exact_crlb': {
                 'ratios': w['efficiency_vs_exact_crlb'],
                 'pass': bool(max(w['efficiency_vs_exact_crlb']) <= 1.2),
-                'predicted_ratios': pred_eff, 'predicted_pass': bool(max(pred_eff) <= 1.2)
-            }, 'vs_independent_pairs_bound': {
+                'predicted_ratios': pred_eff,
+                'predicted_pass': bool(max(pred_eff) <= 1.2),
+            },
+            'vs_independent_pairs_bound': {
                 'ratios': w['efficiency_vs_independent_pairs_bound'],
-                'pass': bool(max(w['efficiency_vs_independent_pairs_bound']) <= 1.2)
-            }
-        }
+                'pass': bool(max(w['efficiency_vs_independent_pairs_bound']) <= 1.2),
+            },
+        },
     }
     if best_cv:
         b = est[best_cv]
@@ -176,27 +187,34 @@ def summarize(sc: Scenario, bnd: dict, mc: dict, runs: int) -> dict:
             'best_opencv': best_cv,
             'ratio_per_angle': (np.array(c['rms_arcsec']) / np.array(b['rms_arcsec'])).tolist(),
             'ratio_total_angle': c['total_angle_rms_arcsec'] / b['total_angle_rms_arcsec'],
-            'pass': bool(c['total_angle_rms_arcsec'] <= b['total_angle_rms_arcsec'])}
+            'pass': bool(c['total_angle_rms_arcsec'] <= b['total_angle_rms_arcsec']),
+        }
         acc['weighted_le_best_opencv'] = {
             'best_opencv': best_cv,
             'ratio_per_angle': (np.array(w['rms_arcsec']) / np.array(b['rms_arcsec'])).tolist(),
             'ratio_total_angle': w['total_angle_rms_arcsec'] / b['total_angle_rms_arcsec'],
-            'pass': bool(w['total_angle_rms_arcsec'] <= b['total_angle_rms_arcsec'])}
+            'pass': bool(w['total_angle_rms_arcsec'] <= b['total_angle_rms_arcsec']),
+        }
     u = est['unweighted']
     fn = mc['full_nees']
     return {
-        'crlb': crlb, 'estimators': est, 'nees': nees, 'acceptance': acc,
+        'crlb': crlb,
+        'estimators': est,
+        'nees': nees,
+        'acceptance': acc,
         'weighted_vs_unweighted': {
-            'rms_ratio_unweighted_over_weighted': (np.array(u['rms_arcsec']) /
-                                                   np.array(w['rms_arcsec'])).tolist(),
-            'total_angle_ratio': u['total_angle_rms_arcsec'] / w['total_angle_rms_arcsec']
-        }, 'noise_model_check': {
+            'rms_ratio_unweighted_over_weighted': (
+                np.array(u['rms_arcsec']) / np.array(w['rms_arcsec'])
+            ).tolist(),
+            'total_angle_ratio': u['total_angle_rms_arcsec'] / w['total_angle_rms_arcsec'],
+        },
+        'noise_model_check': {
             'E_imu_calibrator_vs_linear_model_max_rel_diff': bnd['E_imu_model_rel_diff'],
             'residual_at_truth_normalised_full_sigma_mean': float(np.mean(fn[:, 0])),
             'residual_at_truth_normalised_blockdiag_sigma_mean': float(np.mean(fn[:, 1])),
             'weighted_chi2_per_dof_mean': float(np.nanmean(mc['chi2'])),
-            'band95_full': [x / (3 * sc.pairs_count) for x in nees_band(runs, 3 * sc.pairs_count)]
-        }
+            'band95_full': [x / (3 * sc.pairs_count) for x in nees_band(runs, 3 * sc.pairs_count)],
+        },
     }
 
 

@@ -119,27 +119,29 @@ def run(args) -> dict:
             a = ALGORITHMS[n]
             d = c.drift[n]
             th = theory_drift(a, c.nu * c.step * a.samples)
-            records.append({
-                'algorithm': n,
-                'alpha': c.alpha,
-                'nu': c.nu,
-                'step': c.step,
-                'samples_per_update': a.samples,
-                'drift_rad_per_s': d,
-                'drift_deg_per_h': d / DEG_PER_HOUR,
-                'theory_rad_per_s': None if th is None else float(th * c.alpha**2 * c.nu),
-                'order_measured': sweeps[n]['order_measured'],
-                'order_theory': a.order_expected,
-                'floor': bool(abs(d) <= FLOOR_FACTOR * max(c.floor.values())),
-                'ns_per_update': costs[n],
-                # extra fields (the schema's fields come first)
-                'floor_rad_per_s': max(c.floor.values()),
-                'drift_ode_rad_per_s': c.drift_ode.get(n),
-                'cross_products': a.cross_products,
-                'additions': a.additions,
-                'scalings': a.scalings,
-                'order_claimed': a.order_intended,
-            })
+            records.append(
+                {
+                    'algorithm': n,
+                    'alpha': c.alpha,
+                    'nu': c.nu,
+                    'step': c.step,
+                    'samples_per_update': a.samples,
+                    'drift_rad_per_s': d,
+                    'drift_deg_per_h': d / DEG_PER_HOUR,
+                    'theory_rad_per_s': None if th is None else float(th * c.alpha**2 * c.nu),
+                    'order_measured': sweeps[n]['order_measured'],
+                    'order_theory': a.order_expected,
+                    'floor': bool(abs(d) <= FLOOR_FACTOR * max(c.floor.values())),
+                    'ns_per_update': costs[n],
+                    # extra fields (the schema's fields come first)
+                    'floor_rad_per_s': max(c.floor.values()),
+                    'drift_ode_rad_per_s': c.drift_ode.get(n),
+                    'cross_products': a.cross_products,
+                    'additions': a.additions,
+                    'scalings': a.scalings,
+                    'order_claimed': a.order_intended,
+                }
+            )
     case_records = [{'alpha': c.alpha, 'nu': c.nu, 'step': c.step, 'duration': c.duration,
                      'fitted_until_s': c.fitted_until,
                      'floor_rad_per_s': {str(k): v for k, v in c.floor.items()},

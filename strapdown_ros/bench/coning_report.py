@@ -189,8 +189,7 @@ def _claim_verdicts(res, combos, steps, sw, p4, p4p, p4pp) -> list[str]:
             + ' (003 ranks 7 first; the leading coefficients are −1/40 for 7 and 1/60 for 6).'
         )
     orders = {
-        n: sw[n]['order_measured']
-        for n in ('2', '3', '4', '3.1', '4+', '5', '6', '7') if n in sw
+        n: sw[n]['order_measured'] for n in ('2', '3', '4', '3.1', '4+', '5', '6', '7') if n in sw
     }
     if orders:
         L.append('* Measured orders: ' + ', '.join(f'{n} {fmt(o, 2)}'
@@ -207,11 +206,13 @@ def _claim_verdicts(res, combos, steps, sw, p4, p4p, p4pp) -> list[str]:
             )
         )
     fine = min(steps)
-    at_floor_fine = sorted({
-        r['algorithm']
-        for r in res['results']
-        if r['step'] == fine and r['floor'] and r['algorithm'] in THESIS_RANKING
-    })
+    at_floor_fine = sorted(
+        {
+            r['algorithm']
+            for r in res['results']
+            if r['step'] == fine and r['floor'] and r['algorithm'] in THESIS_RANKING
+        }
+    )
     L.append(
         f"* At the thesis's own τ = {fine:g} s, "
         + (
@@ -458,9 +459,12 @@ def write_report(res: dict, args, path: str, plots: list[str]) -> None:
         '|---|---|---|---|---|---|---|',
     ]
     pub_text = {
-        '1': '(Ωh)²/12', 'one_plus_previous': '(Ωh)⁴/60', 'two_sample': '(Ωh)⁴/960',
-        'three_sample_polynomial': '−(Ωh)⁴/6480', 'three_sample_optimal': '(Ωh)⁶/204120',
-        'four_sample_optimal': '(Ωh)⁸/82575360'
+        '1': '(Ωh)²/12',
+        'one_plus_previous': '(Ωh)⁴/60',
+        'two_sample': '(Ωh)⁴/960',
+        'three_sample_polynomial': '−(Ωh)⁴/6480',
+        'three_sample_optimal': '(Ωh)⁶/204120',
+        'four_sample_optimal': '(Ωh)⁸/82575360',
     }
     for n, f in LITERATURE_DRIFT.items():
         if n not in sw:

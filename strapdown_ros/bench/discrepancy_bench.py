@@ -17,222 +17,32 @@ from __future__ import annotations
 
 import argparse
 from collections import Counter
-from concurrent.futures import as_completed, ProcessPoolExecutor
-import contextlib
-import io
 import json
 import math
-import multiprocessing as mp
 import os
-import shutil
 import sys
-import tempfile
 import time
 
 import numpy as np
 
+from strapdown_ros.bench.discrepancy_monte_carlo import (INJECT_SEED_OFFSET, median_summary,
+                                                         monte_carlo, separable_dimension,
+                                                         speed, SPEED_DURATION, SPEED_REPEATS)
 from strapdown_ros.cli import (check_outputs, DIRECTORY, FILE, OneLineParser, write_figure,
                                write_text)
-from strapdown_ros.discrepancy.synthetic import (draw_hidden_effect, effect_sigma,
-                                                 simulate_recording)
-from strapdown_ros.discrepancy.workflow import analyse
-from strapdown_ros.params import (CALIBRATOR_PARAMS, check_all, IMU_SIM_PARAMS,
-                                  simulator_parameters, STAR_CAMERA_PARAMS)
-from strapdown_ros.recording.writer import record
-from strapdown_ros.sensors.effects import CANDIDATES, EFFECTS
-from strapdown_ros.tools import discrepancy as cli
+from strapdown_ros.sensors.effects import CANDIDATES
 
 PROG = 'discrepancy_bench'
-BORESIGHT = [0.698, -0.436, 2.094]
-INJECT_SEED_OFFSET = 10000
 CONFUSION_MIN_SIZE = 5.0
-WITHIN = 3.0
 #: detection target of the plot marks and the conclusions: ≥ 90 % detected at k ≥ 7σ
 TARGET_SIZE, TARGET_DETECTION = 7.0, 0.90
 QUICK = {'effects': ['time_offset', 'gyro_bias'], 'seeds': 2, 'sizes': [5.0], 'null_seeds': 3,
          'duration': 320.0}
 FULL = {'effects': list(CANDIDATES), 'seeds': 50, 'sizes': [1.0, 2.0, 3.0, 5.0, 7.0, 10.0],
         'null_seeds': 100, 'duration': 480.0}
-SPEED_DURATION, SPEED_REPEATS = 900.0, 5
-THREAD_VARS = ('OMP_NUM_THREADS', 'OPENBLAS_NUM_THREADS', 'MKL_NUM_THREADS')
 
 
 # ----------------------------------------------------------------------------- scenario and jobs
-def _q(name: str) -> int:
-    S = EFFECTS[name].fit_basis()
-    return EFFECTS[name].size if S is None else S.shape[1]
-
-
-def scenario_raw(seed: int, duration: float, overrides: dict | None = None) -> dict:
-    raw = {'profile': 'bench', 'bench_repeat': max(1, math.ceil((duration - 20.0) / 150.0)),
-           'gyro_rate': 200.0, 'camera_interval': 2.0, 'seed': int(seed),
-           'boresight': list(BORESIGHT)}
-    return {**raw, **(overrides or {})}
-
-
-def _simulate(seed, duration, overrides=None):
-    raw = scenario_raw(seed, duration, overrides)
-    return simulate_recording(check_all(IMU_SIM_PARAMS, raw), check_all(STAR_CAMERA_PARAMS, raw),
-                              duration)
-
-
-def _model():
-    return check_all(CALIBRATOR_PARAMS, {})
-
-
-def _init_worker():
-    for k in THREAD_VARS:
-        os.environ[k] = '1'
-
-
-def sigma_job(names, seed: int, duration: float) -> dict:
-    """{name: covariance (list)} of the effects on the null recording of ``seed``."""
-    out = effect_sigma(_simulate(seed, duration), _model(), list(names))
-    return {n: np.asarray(out[n]).tolist() for n in names}
-
-
-def run_job(job: dict) -> dict:
-    """One (effect, seed, size) simulation + analysis; effect None: a null run."""
-    t0 = time.perf_counter()
-    name = job['effect']
-    out = {k: v for k, v in job.items() if k not in ('cov', 'duration', 'alpha')}
-    try:
-        injected, sim_seed = {}, job['seed']
-        if name is not None:
-            cov = job['cov'] if job['cov'] is not None else sigma_job([name], job['seed'],
-                                                                      job['duration'])[name]
-            injected = draw_hidden_effect(name, job['size'], np.asarray(cov),
-                                          np.random.default_rng(job['draw_seed']))
-            sim_seed += INJECT_SEED_OFFSET
-        rec = _simulate(sim_seed, job['duration'], injected)
-        t1 = time.perf_counter()
-        res = analyse(rec, _model(), alpha=job['alpha']).as_json()
-        out.update(sim_seed=sim_seed, injected=injected, analysis_s=time.perf_counter() - t1)
-        out.update(score(name, injected, res))
-    except Exception as exc:                         # recorded; counted as an error in the summary
-        out.update(verdict='error', error=f'{type(exc).__name__}: {exc}', steps=[], first=None)
-    out['job_s'] = time.perf_counter() - t0
-    return out
-
-
-def score(name, injected: dict, res: dict) -> dict:
-    named = [s['effect'] for s in res['steps']]
-    out = {'verdict': res['verdict'], 'steps': named, 'first': named[0] if named else None,
-           'failed_tests': res['tests_after'].get('failed', [])}
-    if name is None:
-        out['false_alarm'] = res['verdict'] != 'model_adequate'
-        return out
-    out.update(detected=name in named, named_first=bool(named) and named[0] == name)
-    if out['detected']:
-        st = res['steps'][named.index(name)]
-        p = EFFECTS[name].value_parameter.name
-        est, sig, inj = (np.atleast_1d(np.asarray(v, dtype=float))
-                         for v in (st['parameters'][p], st['sigma'][p], injected[p]))
-        z = np.abs(est - inj) / sig
-        out.update(p_value=st['p_value'], estimate=est.tolist(), estimate_sigma=sig.tolist(),
-                   max_abs_z=float(np.max(z)), within_3sigma=bool(np.all(z <= WITHIN)))
-    return out
-
-
-# ----------------------------------------------------------------------------- execution
-def _progress(label: str, done: int, total: int, t0: float):
-    """``[#####.....] 12/40 jobs, ETA 1m10s`` on stderr, rewritten in place."""
-    eta = int(round((time.perf_counter() - t0) / done * (total - done))) if done else None
-    bar = '#' * int(round(30 * done / max(total, 1)))
-    print(
-        f'\r{label} [{bar:.<30}] {done}/{total} jobs, ETA'
-        f" {'?' if eta is None else f'{eta // 60}m{eta % 60:02d}s'}",
-        end='\n' if done == total else '',
-        file=sys.stderr,
-        flush=True,
-    )
-
-
-def _pool_map(pool, fn, items, label):
-    t0 = time.perf_counter()
-    futs = {pool.submit(fn, *it): i for i, it in enumerate(items)}
-    out = [None] * len(items)
-    _progress(label, 0, len(items), t0)
-    for done, f in enumerate(as_completed(futs), 1):
-        out[futs[f]] = f.result()
-        _progress(label, done, len(items), t0)
-    return out
-
-
-def monte_carlo(args) -> dict:
-    saved = {k: os.environ.get(k) for k in THREAD_VARS}
-    _init_worker()  # the spawned workers import numpy with 1 BLAS thread
-    try:
-        with ProcessPoolExecutor(max_workers=args.workers, mp_context=mp.get_context('spawn'),
-                                 initializer=_init_worker) as pool:
-            t0 = time.perf_counter()
-            covs = dict.fromkeys(args.effects)
-            if args.sigma == 'reference':
-                covs = _pool_map(pool, sigma_job, [(args.effects, args.first_seed, args.duration)],
-                                 'sigma')[0]
-            t_sigma = time.perf_counter() - t0
-            jobs = []
-            for e in args.effects:
-                for i in range(args.seeds):
-                    seed = args.first_seed + i
-                    sizes = args.sizes if args.every_size else [args.sizes[i % len(args.sizes)]]
-                    for k in sizes:
-                        jobs.append({'effect': e, 'seed': seed, 'size': float(k), 'cov': covs[e],
-                                     'duration': args.duration, 'alpha': args.alpha,
-                                     'draw_seed': [seed, CANDIDATES.index(e), int(round(k * 1000))]})
-            jobs += [
-                {'effect': None, 'seed': args.first_seed + i, 'size': 0.0,
-                 'duration': args.duration, 'alpha': args.alpha} for i in range(args.null_seeds)
-            ]
-            recs = _pool_map(pool, run_job, [(j,) for j in jobs], 'runs')
-            t_runs = time.perf_counter() - t0 - t_sigma
-    finally:
-        for k, v in saved.items():
-            if v is None:
-                os.environ.pop(k, None)
-            else:
-                os.environ[k] = v
-    sig = {
-        e: None if c is None else np.sqrt(np.diag(np.atleast_2d(c))).tolist()
-        for e, c in covs.items()
-    }
-    return {
-        'runs': [r for r in recs if r['effect'] is not None],
-        'nulls': [r for r in recs if r['effect'] is None], 'reference_sigma': sig,
-        'sigma_wall_s': t_sigma, 'runs_wall_s': t_runs
-    }
-
-
-def speed(args) -> dict:
-    """SPEED_REPEATS timings of the ``discrepancy`` CLI on a 900 s, 200 Hz, 450-fix bag (record_sim)."""
-    load, times, rcs, errors = os.getloadavg(), [], [], []
-    imu_p, cam_p = simulator_parameters(overrides=scenario_raw(args.first_seed, SPEED_DURATION),
-                                        duration=SPEED_DURATION)
-    tmp = tempfile.mkdtemp(prefix='discrepancy_bench_')
-    try:
-        bag, model = os.path.join(tmp, 'bag'), os.path.join(tmp, 'model.yaml')
-        fixes = record(bag, imu_p, cam_p,
-                       accel=False)['messages'].get('/star_camera/attitude_with_covariance')
-        with open(model, 'w', encoding='utf-8') as fh:
-            json.dump({'/**': {'ros__parameters': {}}}, fh)              # JSON is YAML
-        for i in range(SPEED_REPEATS):
-            argv = [bag, '--model', model, '--json', os.path.join(tmp, f'r{i}.json'),
-                    '--report', os.path.join(tmp, f'report{i}')]
-            err, t0 = io.StringIO(), time.perf_counter()
-            with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(err):
-                rcs.append(cli.main(argv))
-            times.append(time.perf_counter() - t0)
-            if rcs[-1]:
-                errors.append((err.getvalue().strip().splitlines() or ['?'])[-1])
-    finally:
-        shutil.rmtree(tmp, ignore_errors=True)
-    return {
-        'mode': 'cli', 'duration_s': SPEED_DURATION, 'gyro_rate_hz': 200.0, 'fixes': fixes,
-        'return_codes': rcs, 'cli_errors': errors, 'time_s': _med(times), 'times_s': times,
-        'load_average_at_start': list(load)
-    }
-
-
 # ----------------------------------------------------------------------------- summary
 def binom_ci(k: int, n: int) -> tuple[float, float]:
     """Clopper–Pearson 95 % interval."""
@@ -247,12 +57,6 @@ def ideal_power(q: int, k: float, alpha: float) -> float:
     from scipy.stats import chi2, ncx2
     return float(ncx2.sf(chi2.isf(alpha / 2 / len(CANDIDATES), q), q,
                          k * k))  # the selection gets α/2
-
-
-def _med(xs):
-    return {
-        'median': float(np.median(xs)), 'min': float(min(xs)), 'max': float(max(xs)), 'n': len(xs)
-    } if xs else None
 
 
 def _span(m, what='runs') -> str:
@@ -272,11 +76,12 @@ def summarise(mc: dict, args) -> dict:
         for k in args.sizes:
             rs = [r for r in runs if r['effect'] == e and r['size'] == k]
             det[e][f'{k:g}'] = {
-                'n': len(rs), 'detected': _count(rs, 'detected'),
-                'named_first': _count(rs,
-                                      'named_first'), 'within_3sigma': _count(rs, 'within_3sigma'),
-                'errors': sum(r['verdict'] == 'error'
-                              for r in rs), 'ideal_power': ideal_power(_q(e), k, args.alpha)
+                'n': len(rs),
+                'detected': _count(rs, 'detected'),
+                'named_first': _count(rs, 'named_first'),
+                'within_3sigma': _count(rs, 'within_3sigma'),
+                'errors': sum(r['verdict'] == 'error' for r in rs),
+                'ideal_power': ideal_power(separable_dimension(e), k, args.alpha),
             }
     cols = list(CANDIDATES) + ['none']
     conf = {e: dict.fromkeys(cols, 0) for e in args.effects}
@@ -288,8 +93,11 @@ def summarise(mc: dict, args) -> dict:
         rs = [r for r in runs if r['effect'] == e and r['size'] >= TARGET_SIZE]
         n, d = len(rs), _count(rs, 'detected')
         targets[e] = {
-            'n': n, 'detected': d, 'rate': d / n if n else None, 'ci95': list(binom_ci(d, n)),
-            'met': d / n >= TARGET_DETECTION if n else None
+            'n': n,
+            'detected': d,
+            'rate': d / n if n else None,
+            'ci95': list(binom_ci(d, n)),
+            'met': d / n >= TARGET_DETECTION if n else None,
         }
     fa, nn = _count(nulls, 'false_alarm'), len(nulls)
     return {
@@ -297,15 +105,22 @@ def summarise(mc: dict, args) -> dict:
         'confusion': {'min_size': CONFUSION_MIN_SIZE, 'columns': cols, 'rows': conf},
         'detection_target': {'size': TARGET_SIZE, 'rate': TARGET_DETECTION, 'per_effect': targets},
         'false_alarm': {
-            'n': nn, 'alarms': fa, 'rate': fa / nn if nn else None, 'ci95': list(binom_ci(fa, nn)),
-            'alpha': args.alpha, 'met': fa / nn <= args.alpha if nn else None,
+            'n': nn,
+            'alarms': fa,
+            'rate': fa / nn if nn else None,
+            'ci95': list(binom_ci(fa, nn)),
+            'alpha': args.alpha,
+            'met': fa / nn <= args.alpha if nn else None,
             'verdicts': dict(Counter(r['verdict'] for r in nulls)),
-            'alarms_detail': [{k: r.get(k)
-                               for k in ('seed', 'verdict', 'steps', 'failed_tests')}
-                              for r in nulls if r.get('false_alarm')]
-        }, 'analysis_s': _med([r['analysis_s'] for r in runs + nulls if 'analysis_s' in r
-                               ]), 'job_s': _med([r['job_s'] for r in runs + nulls]),
-        'errors': [r for r in runs + nulls if r['verdict'] == 'error']
+            'alarms_detail': [
+                {k: r.get(k) for k in ('seed', 'verdict', 'steps', 'failed_tests')}
+                for r in nulls
+                if r.get('false_alarm')
+            ],
+        },
+        'analysis_s': median_summary([r['analysis_s'] for r in runs + nulls if 'analysis_s' in r]),
+        'job_s': median_summary([r['job_s'] for r in runs + nulls]),
+        'errors': [r for r in runs + nulls if r['verdict'] == 'error'],
     }
 
 
@@ -327,7 +142,7 @@ def tables(sm: dict, sizes) -> list[str]:
             for key in ('n', 'detected', 'named_first', 'within_3sigma')
         }
         L.append(
-            f'| {e} | {_q(e)} | ' +
+            f'| {e} | {separable_dimension(e)} | ' +
             ' | '.join(f"{c['detected']}/{c['n']} ({_pct(c['ideal_power'])})"
                        for c in row.values()) +
             f" | {tot['named_first']}/{tot['n']} | {tot['within_3sigma']}/{tot['detected']} |")
@@ -434,7 +249,7 @@ def write_plots(res: dict, outdir: str) -> list[str]:
         pts = [(float(k) + dx, c['detected'] / c['n']) for k, c in row.items() if c['n']]
         if pts:
             ax.plot(*zip(*pts), 'o-', color=col, label=e)
-        ax.plot(kk, [ideal_power(_q(e), k, cfg['alpha']) for k in kk], '--', color=col, lw=0.8)
+        ax.plot(kk, [ideal_power(separable_dimension(e), k, cfg['alpha']) for k in kk], '--', color=col, lw=0.8)
     ks = [k for k in cfg['sizes'] if k >= TARGET_SIZE] or [TARGET_SIZE]
     ax.plot(ks, [TARGET_DETECTION] * len(ks), 'kv', ms=9,
             label=f'target ≥ {TARGET_DETECTION:.0%} at k ≥ {TARGET_SIZE:g}σ')
@@ -616,8 +431,19 @@ def main(argv=None) -> int:
     mc = monte_carlo(args)
     cfg = {
         k: getattr(args, k)
-        for k in ('seeds', 'duration', 'sizes', 'effects', 'null_seeds', 'alpha', 'workers',
-                  'first_seed', 'every_size', 'sigma', 'quick')
+        for k in (
+            'seeds',
+            'duration',
+            'sizes',
+            'effects',
+            'null_seeds',
+            'alpha',
+            'workers',
+            'first_seed',
+            'every_size',
+            'sigma',
+            'quick',
+        )
     }
     res = {'command': f'{PROG} ' + ' '.join(argv), 'config': cfg, 'summary': summarise(mc, args),
            'reference_sigma': mc['reference_sigma'], 'runs': mc['runs'], 'nulls': mc['nulls']}

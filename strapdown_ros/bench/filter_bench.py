@@ -206,19 +206,26 @@ def summarize(mc: dict, runs: int) -> dict:
     F = mc['att'].shape[1]
     half = F // 2
     att, bia = slice(0, 3), slice(3, 6)
-    out = {'attitude': {
-        'filter_over_filter_pcrb': ratio(mc['att'], mc['bound_f'], att),
-        'filter_over_filter_pcrb_second_half': ratio(mc['att'], mc['bound_f'], att, half),
-        'smoother_over_smoother_pcrb': ratio(mc['att_s'], mc['bound_s'], att),
-        'filter_over_smoother_pcrb': ratio(mc['att'], mc['bound_s'], att),
-        'rms_filter_rad': float(np.sqrt(np.mean(np.square(mc['att'][:, half:])))),
-        'sqrt_pcrb_filter_rad': float(np.sqrt(np.mean([np.trace(B[att, att]) / 3
-                                                       for B in mc['bound_f'][half:]]))),
-        'sqrt_pcrb_smoother_rad': float(np.sqrt(np.mean([np.trace(B[att, att]) / 3
-                                                         for B in mc['bound_s'][half:]])))},
-           'bias': {'filter_over_filter_pcrb': ratio(mc['bias'], mc['bound_f'], bia),
-                    'smoother_over_smoother_pcrb': ratio(mc['bias_s'], mc['bound_s'], bia)},
-           'filter_P_vs_pcrb': mc['p_gap']}
+    out = {
+        'attitude': {
+            'filter_over_filter_pcrb': ratio(mc['att'], mc['bound_f'], att),
+            'filter_over_filter_pcrb_second_half': ratio(mc['att'], mc['bound_f'], att, half),
+            'smoother_over_smoother_pcrb': ratio(mc['att_s'], mc['bound_s'], att),
+            'filter_over_smoother_pcrb': ratio(mc['att'], mc['bound_s'], att),
+            'rms_filter_rad': float(np.sqrt(np.mean(np.square(mc['att'][:, half:])))),
+            'sqrt_pcrb_filter_rad': float(
+                np.sqrt(np.mean([np.trace(B[att, att]) / 3 for B in mc['bound_f'][half:]]))
+            ),
+            'sqrt_pcrb_smoother_rad': float(
+                np.sqrt(np.mean([np.trace(B[att, att]) / 3 for B in mc['bound_s'][half:]]))
+            ),
+        },
+        'bias': {
+            'filter_over_filter_pcrb': ratio(mc['bias'], mc['bound_f'], bia),
+            'smoother_over_smoother_pcrb': ratio(mc['bias_s'], mc['bound_s'], bia),
+        },
+        'filter_P_vs_pcrb': mc['p_gap'],
+    }
     nees = mc['nees'].mean(axis=0)               # (F, 3): joint, attitude, bias
     out['nees'] = {}
     for c, (name, dim) in enumerate((('joint', 6), ('attitude', 3), ('bias', 3))):

@@ -180,13 +180,26 @@ def sculling_check(seconds, progress) -> list[dict]:
             beff = -float(sculling_drift_rate(A, B + A * g_up, w, h))
             floor = FLOOR_RELATIVE * d[1.0]['mean_specific_force']
             row = {
-                'frequency_hz': f, 'step_s': h, 'wh': w * h, 'A': A, 'B': B, 'g_up': g_up,
-                'measured_up': plus, 'measured_body_z': float(d[1.0]['slope_body'][2]), 'odd': odd,
-                'even': even, 'classical': classical, 'gravity_term': gravity,
-                'predicted': classical + gravity, 'classical_with_b_eff': beff,
-                'float_floor': floor, 'ratio_odd': odd / classical, 'ratio_even': even / gravity,
-                'ratio_total': plus / (classical + gravity), 'ratio_b_eff': plus / beff,
-                'ratio_body': float(d[1.0]['slope_body'][2]) / classical
+                'frequency_hz': f,
+                'step_s': h,
+                'wh': w * h,
+                'A': A,
+                'B': B,
+                'g_up': g_up,
+                'measured_up': plus,
+                'measured_body_z': float(d[1.0]['slope_body'][2]),
+                'odd': odd,
+                'even': even,
+                'classical': classical,
+                'gravity_term': gravity,
+                'predicted': classical + gravity,
+                'classical_with_b_eff': beff,
+                'float_floor': floor,
+                'ratio_odd': odd / classical,
+                'ratio_even': even / gravity,
+                'ratio_total': plus / (classical + gravity),
+                'ratio_b_eff': plus / beff,
+                'ratio_body': float(d[1.0]['slope_body'][2]) / classical,
             }
             checked = [k for k, ref in (('ratio_odd', classical), ('ratio_even', gravity),
                                         ('ratio_total', classical + gravity)) if abs(ref) > floor]
@@ -232,12 +245,18 @@ def vertical_channel(res: dict) -> list[dict]:
                 continue
             s = d[key]
             a = dr[form + '_up']
-            rows.append({
-                'profile': p, 'key': key, 'label': s['label'], 'duration': s['duration'],
-                'tau_s': tau, 'drift_up': a,
-                'predicted_m': a * tau**2 * (math.cosh(s['duration'] / tau) - 1.0),
-                'measured_m': s['final_vertical_m']
-            })
+            rows.append(
+                {
+                    'profile': p,
+                    'key': key,
+                    'label': s['label'],
+                    'duration': s['duration'],
+                    'tau_s': tau,
+                    'drift_up': a,
+                    'predicted_m': a * tau**2 * (math.cosh(s['duration'] / tau) - 1.0),
+                    'measured_m': s['final_vertical_m'],
+                }
+            )
     return rows
 
 
@@ -262,18 +281,25 @@ def timing_runs(seconds, runs, block, progress) -> dict:
     inc = generate_increments(prof, seconds, GYRO_RATE, ACCEL_RATE, block=block)
     load = os.getloadavg() if hasattr(os, 'getloadavg') else (math.nan,) * 3
     res = {
-        'seconds': seconds, 'gyro_intervals': len(inc.tg), 'accel_intervals': len(inc.ta),
-        'runs': runs, 'load_at_start': list(load), 'block': block,
-        'algorithms': {'2': [], 'one_plus_previous': []}
+        'seconds': seconds,
+        'gyro_intervals': len(inc.tg),
+        'accel_intervals': len(inc.ta),
+        'runs': runs,
+        'load_at_start': list(load),
+        'block': block,
+        'algorithms': {'2': [], 'one_plus_previous': []},
     }
     for i in range(runs):
         for alg in res['algorithms']:
             r = navigate(inc, r0, w0, q0, alg, 'exact', 'exact', covariance=True, block=block)
-            res['algorithms'][alg].append({
-                'wall_s': r['wall_s'], 'steps': r['steps'],
-                'real_time_ratio': seconds / r['wall_s'],
-                'ns_per_gyro_interval': r['wall_s'] / len(inc.tg) * 1e9
-            })
+            res['algorithms'][alg].append(
+                {
+                    'wall_s': r['wall_s'],
+                    'steps': r['steps'],
+                    'real_time_ratio': seconds / r['wall_s'],
+                    'ns_per_gyro_interval': r['wall_s'] / len(inc.tg) * 1e9,
+                }
+            )
         progress(f'timing run {i + 1}/{runs}')
     return res
 
@@ -705,16 +731,24 @@ def main(argv=None):
 
     load = os.getloadavg() if hasattr(os, 'getloadavg') else (math.nan,) * 3
     res: dict = {
-        'load_at_start': list(load), 'cpu_count': os.cpu_count(), 'settings': {
-            'command': f"nav_bench {' '.join(argv)}".rstrip(), 'seconds': args.seconds,
-            'static_seconds': args.static_seconds, 'drift_seconds': args.drift_seconds,
-            'timing_seconds': args.timing_seconds, 'runs': args.runs, 'block': args.block,
-            'profiles': profiles, 'gyro_rate': GYRO_RATE, 'accel_rate': ACCEL_RATE,
+        'load_at_start': list(load),
+        'cpu_count': os.cpu_count(),
+        'settings': {
+            'command': f"nav_bench {' '.join(argv)}".rstrip(),
+            'seconds': args.seconds,
+            'static_seconds': args.static_seconds,
+            'drift_seconds': args.drift_seconds,
+            'timing_seconds': args.timing_seconds,
+            'runs': args.runs,
+            'block': args.block,
+            'profiles': profiles,
+            'gyro_rate': GYRO_RATE,
+            'accel_rate': ACCEL_RATE,
             'configurations': [
                 dict(zip(('key', 'algorithm', 'form', 'scheme', 'history', 'label'), c))
                 for c in CONFIGS
-            ]
-        }
+            ],
+        },
     }
     res['navigation'], series = navigation_runs(profiles, args.seconds, args.static_seconds,
                                                 args.block, progress)

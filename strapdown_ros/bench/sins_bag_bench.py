@@ -225,11 +225,20 @@ def main(argv=None) -> int:
         rows = sum(1 for _ in open(out, encoding='utf-8')) - 1
     att = attitude_only_runs(args.runs)
     res = {
-        'bag': str(args.bag), 'bag_bytes': bag_bytes(args.bag),
-        'sins_bag_args': extra, 'load_average_start': list(load), 'cpus': cpus, 'runs': args.runs,
-        'sins_bag_shown': (f'--params <{args.navigation_profile} initial state>'
-                           if args.navigation_profile else ' '.join(extra)),
-        'records': raws[0]['records'], 'csv_rows': rows, 'summary': sins[0]['summary'],
+        'bag': str(args.bag),
+        'bag_bytes': bag_bytes(args.bag),
+        'sins_bag_args': extra,
+        'load_average_start': list(load),
+        'cpus': cpus,
+        'runs': args.runs,
+        'sins_bag_shown': (
+            f'--params <{args.navigation_profile} initial state>'
+            if args.navigation_profile
+            else ' '.join(extra)
+        ),
+        'records': raws[0]['records'],
+        'csv_rows': rows,
+        'summary': sins[0]['summary'],
         'raw_iteration_s': stats([r['iteration_s'] for r in raws]),
         'raw_process_s': stats([r['wall_s'] for r in raws]),
         'sins_bag_s': stats([r['wall_s'] for r in sins]),

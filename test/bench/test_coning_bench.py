@@ -6,10 +6,18 @@ import pytest
 from strapdown_ros.bench import coning_bench
 
 SCHEMA = {
-    'algorithm': str, 'alpha': float, 'nu': float, 'step': float, 'samples_per_update': int,
-    'drift_rad_per_s': float, 'drift_deg_per_h': float, 'theory_rad_per_s': (float, type(None)),
-    'order_measured': (float, type(None)), 'order_theory': (int, type(None)), 'floor': bool,
-    'ns_per_update': float
+    'algorithm': str,
+    'alpha': float,
+    'nu': float,
+    'step': float,
+    'samples_per_update': int,
+    'drift_rad_per_s': float,
+    'drift_deg_per_h': float,
+    'theory_rad_per_s': (float, type(None)),
+    'order_measured': (float, type(None)),
+    'order_theory': (int, type(None)),
+    'floor': bool,
+    'ns_per_update': float,
 }
 
 

@@ -22,8 +22,10 @@ SECONDS = 60.0
 #: (one+prev: its start-up step), turn 1.3e-4 / 2.1e-6 (one+prev start-up; coning 2: 3.6e-7 / 1.1e-8),
 #: sculling 2.3e-2 / 7.5e-4 (the exact form's own error at wh = 0.63).  Margin 5–10×.
 BOUNDS = {
-    'static': (3e-6, 5e-8), 'straight_flight': (4e-6, 7e-8), 'coordinated_turn': (7e-4, 1.1e-5),
-    'sculling': (0.12, 4e-3)
+    'static': (3e-6, 5e-8),
+    'straight_flight': (4e-6, 7e-8),
+    'coordinated_turn': (7e-4, 1.1e-5),
+    'sculling': (0.12, 4e-3),
 }
 
 

@@ -117,10 +117,17 @@ def loss_table(raw: dict) -> list[dict]:
     out = []
     for topic, path, qos, pub, rec in rows:
         lost = None if pub is None or rec is None else pub - rec
-        out.append({
-            'topic': topic, 'path': path, 'qos': qos, 'published': pub, 'received': rec,
-            'lost': lost, 'reliable': qos.startswith('reliable')
-        })
+        out.append(
+            {
+                'topic': topic,
+                'path': path,
+                'qos': qos,
+                'published': pub,
+                'received': rec,
+                'lost': lost,
+                'reliable': qos.startswith('reliable'),
+            }
+        )
     return out
 
 
@@ -132,10 +139,13 @@ def latency_table(raw: dict) -> list[dict]:
         v = np.asarray(raw['latency_ns'].get(key, []), dtype=float) * 1e-6
         row = {'key': key, 'what': label, 'n': int(v.size)}
         if v.size:
-            row.update({
-                'p50_ms': float(np.percentile(v, 50)), 'p99_ms': float(np.percentile(v, 99)),
-                'max_ms': float(v.max())
-            })
+            row.update(
+                {
+                    'p50_ms': float(np.percentile(v, 50)),
+                    'p99_ms': float(np.percentile(v, 99)),
+                    'max_ms': float(v.max()),
+                }
+            )
         out.append(row)
     return out
 
@@ -147,16 +157,21 @@ def memory_table(raw: dict) -> list[dict]:
         r = np.asarray(raw['rss_kib'].get(node, []), dtype=float)
         row = {
             'node': node,
-            'cpu_percent_of_one_core': 100.0 * raw['cpu_s'].get(node, math.nan) / raw['wall_s']
+            'cpu_percent_of_one_core': 100.0 * raw['cpu_s'].get(node, math.nan) / raw['wall_s'],
         }
         if r.size and t.size == r.size:
             k = int(np.searchsorted(t, raw['warmup_s']))
             k = min(k, r.size - 1)
-            row.update({
-                'rss_first_mib': r[0] / 1024, 'rss_start_mib': r[k] / 1024,
-                'start_at_s': float(t[k]), 'rss_end_mib': r[-1] / 1024,
-                'rss_max_mib': float(np.nanmax(r)) / 1024, 'growth': float(r[-1] / r[k] - 1.0)
-            })
+            row.update(
+                {
+                    'rss_first_mib': r[0] / 1024,
+                    'rss_start_mib': r[k] / 1024,
+                    'start_at_s': float(t[k]),
+                    'rss_end_mib': r[-1] / 1024,
+                    'rss_max_mib': float(np.nanmax(r)) / 1024,
+                    'growth': float(r[-1] / r[k] - 1.0),
+                }
+            )
         out.append(row)
     return out
 
@@ -187,22 +202,24 @@ def summarise(raw: dict) -> dict:
     d = raw.get('diagnostics', {})
     sim_t = float(d.get('imu_sim_node', {}).get('simulated_time_s', 'nan'))
     return {
-        'loss': loss, 'latency': latency_table(raw), 'memory': mem,
-        'boresight': boresight_check(raw), 'simulated_s': sim_t,
+        'loss': loss,
+        'latency': latency_table(raw),
+        'memory': mem,
+        'boresight': boresight_check(raw),
+        'simulated_s': sim_t,
         'real_time_factor': sim_t / raw['wall_s'] if raw.get('wall_s') else math.nan,
-        'lost_on_reliable_paths': sum(lost_rel) if known else None, 'loss_target_met': known and
-        sum(abs(v) for v in lost_rel) == 0,
-        'rss_growth_max': max(g for g in growth
-                              if g is not None) if any(g is not None for g in growth) else None,
+        'lost_on_reliable_paths': sum(lost_rel) if known else None,
+        'loss_target_met': known and sum(abs(v) for v in lost_rel) == 0,
+        'rss_growth_max': (
+            max(g for g in growth if g is not None) if any(g is not None for g in growth) else None
+        ),
         'rss_target_met': all(g is not None and g < RSS_GROWTH_TARGET for g in growth),
-        'node_levels': {n: v.get('level')
-                        for n, v in d.items()},
-        'node_messages': {n: v.get('message')
-                          for n, v in d.items()}, 'missing_in_nodes': {
-                              'sins_node': _int(d.get('sins_node', {}), 'gyro_missing_samples'),
-                              'calibrator_node': _int(d.get('calibrator_node', {}),
-                                                      'gyro_missing_samples')
-                          }
+        'node_levels': {n: v.get('level') for n, v in d.items()},
+        'node_messages': {n: v.get('message') for n, v in d.items()},
+        'missing_in_nodes': {
+            'sins_node': _int(d.get('sins_node', {}), 'gyro_missing_samples'),
+            'calibrator_node': _int(d.get('calibrator_node', {}), 'gyro_missing_samples'),
+        },
     }
 
 

@@ -46,15 +46,27 @@ NODES = ('sins_node', 'calibrator_node', 'imu_sim_node', 'star_camera_sim_node')
 
 #: topics whose QoS the graph switches with ``qos_overrides`` (topic, publisher or subscription)
 STREAM_ENDPOINTS = {
-    'imu_sim_node': [('imu/delta_theta', 'publisher'), ('imu/delta_velocity', 'publisher'),
-                     ('imu/data_raw', 'publisher'), ('imu/truth/attitude', 'publisher')],
-    'star_camera_sim_node': [('star_camera/attitude', 'publisher'),
-                             ('star_camera/attitude_with_covariance', 'publisher')],
-    'sins_node': [('imu/delta_theta', 'subscription'), ('imu/delta_velocity', 'subscription'),
-                  ('sins/attitude', 'publisher'), ('sins/imu', 'publisher')],
-    'calibrator_node': [('imu/delta_theta', 'subscription'),
-                        ('star_camera/attitude_with_covariance', 'subscription'),
-                        ('calibration/imu_attitude_from_camera', 'publisher')],
+    'imu_sim_node': [
+        ('imu/delta_theta', 'publisher'),
+        ('imu/delta_velocity', 'publisher'),
+        ('imu/data_raw', 'publisher'),
+        ('imu/truth/attitude', 'publisher'),
+    ],
+    'star_camera_sim_node': [
+        ('star_camera/attitude', 'publisher'),
+        ('star_camera/attitude_with_covariance', 'publisher'),
+    ],
+    'sins_node': [
+        ('imu/delta_theta', 'subscription'),
+        ('imu/delta_velocity', 'subscription'),
+        ('sins/attitude', 'publisher'),
+        ('sins/imu', 'publisher'),
+    ],
+    'calibrator_node': [
+        ('imu/delta_theta', 'subscription'),
+        ('star_camera/attitude_with_covariance', 'subscription'),
+        ('calibration/imu_attitude_from_camera', 'publisher'),
+    ],
 }
 
 NOMINAL = {'gyro_rate': 100.0, 'accel_rate': 300.0, 'camera_interval': 20.0}
@@ -69,15 +81,25 @@ def node_parameters(ns: str, rate_factor: float, seconds: float,
     gyro, accel = NOMINAL['gyro_rate'] * rate_factor, NOMINAL['accel_rate'] * rate_factor
     passes = max(1, math.ceil((seconds - BENCH_HOLD_S) / BENCH_PASS_S))
     profile = {
-        'profile': 'bench', 'bench_repeat': passes, 'duration': float(seconds), 'time_scale': 1.0
+        'profile': 'bench',
+        'bench_repeat': passes,
+        'duration': float(seconds),
+        'time_scale': 1.0,
     }
     params = {
         'imu_sim_node': {
-            **profile, 'gyro_rate': gyro, 'accel_rate': accel, 'seed': 1, 'wait_for_subscribers': 3
+            **profile,
+            'gyro_rate': gyro,
+            'accel_rate': accel,
+            'seed': 1,
+            'wait_for_subscribers': 3,
         },  # sins, calibrator, monitor
         'star_camera_sim_node': {
-            **profile, 'camera_interval': NOMINAL['camera_interval'] / rate_factor,
-            'boresight': [0.01, -0.02, 0.03], 'seed': 2, 'wait_for_subscribers': 2
+            **profile,
+            'camera_interval': NOMINAL['camera_interval'] / rate_factor,
+            'boresight': [0.01, -0.02, 0.03],
+            'seed': 2,
+            'wait_for_subscribers': 2,
         },  # calibrator, monitor
         'sins_node': {'gyro_rate': gyro, 'accel_rate': accel},
         'calibrator_node': {'gyro_rate': gyro},
@@ -205,8 +227,9 @@ def run_graph(seconds: float = 600.0, rate_factor: float = 10.0, reliable_stream
                 node = st.name[len(ns) + 1:].split(':', 1)[0]
                 diags[node] = {
                     'level': st.level[0] if isinstance(st.level, bytes) else int(st.level),
-                    'message': st.message, **{kv.key: kv.value
-                                              for kv in st.values}, '_received': time.monotonic()
+                    'message': st.message,
+                    **{kv.key: kv.value for kv in st.values},
+                    '_received': time.monotonic(),
                 }
 
     mon.create_subscription(Vector3Stamped, 'imu/delta_theta', on_dtheta, sq)
@@ -222,14 +245,20 @@ def run_graph(seconds: float = 600.0, rate_factor: float = 10.0, reliable_stream
     series = {'t': [], **{n: [] for n in NODES}}
     cpu0: dict[str, float] = {}
     result: dict = {
-        'seconds': seconds, 'rate_factor': rate_factor, 'reliable_streams': reliable_streams,
-        'warmup_s': warmup, 'namespace': ns, 'ros_domain_id': int(env['ROS_DOMAIN_ID']),
-        'load_at_start': list(os.getloadavg()), 'logs': log_dir, 'cpu_count': os.cpu_count(),
+        'seconds': seconds,
+        'rate_factor': rate_factor,
+        'reliable_streams': reliable_streams,
+        'warmup_s': warmup,
+        'namespace': ns,
+        'ros_domain_id': int(env['ROS_DOMAIN_ID']),
+        'load_at_start': list(os.getloadavg()),
+        'logs': log_dir,
+        'cpu_count': os.cpu_count(),
         'rates_hz': {
             'gyro': params['imu_sim_node']['gyro_rate'],
             'accel': params['imu_sim_node']['accel_rate'],
-            'camera': 1.0 / params['star_camera_sim_node']['camera_interval']
-        }
+            'camera': 1.0 / params['star_camera_sim_node']['camera_interval'],
+        },
     }
 
     def spin_for(dt: float, until: Callable[[], bool] | None = None) -> bool:
@@ -293,9 +322,7 @@ def run_graph(seconds: float = 600.0, rate_factor: float = 10.0, reliable_stream
         for n, s in samplers.items():
             series[n].append(s.rss_kib())
         result['diagnostics'] = {
-            n: {k: v
-                for k, v in d.items() if k != '_received'}
-            for n, d in diags.items()
+            n: {k: v for k, v in d.items() if k != '_received'} for n, d in diags.items()
         }
         result['monitor'] = {k: {'received': v} for k, v in count.items()}
         result['latency_ns'] = {k: np.asarray(v, dtype=np.int64) for k, v in lat.items()}

@@ -77,7 +77,7 @@ class Subject:
         'counting_node': 'strapdown_ros.bench.ros.rate_probe',
         'counting_node_raw': 'strapdown_ros.bench.ros.rate_probe',
         'sins_node': 'strapdown_ros.nodes.sins_node',
-        'calibrator_node': 'strapdown_ros.nodes.calibrator_node'
+        'calibrator_node': 'strapdown_ros.nodes.calibrator_node',
     }
 
     def __init__(self, harness: Node, name: str, params: dict):
@@ -202,8 +202,10 @@ def rate_repeat(lo_hz: float, hi_hz: float, steps: int, seconds: float, algorith
     """One repeat: a fresh process per subject, interleaved bisections; the highest passing rates."""
     h = Harness(ros_io.make_executor)
     params = {
-        'counting_node': {}, 'counting_node_raw': {'raw': 'true'},
-        'sins_node': {'coning_algorithm': algorithm}, 'calibrator_node': {}
+        'counting_node': {},
+        'counting_node_raw': {'raw': 'true'},
+        'sins_node': {'coning_algorithm': algorithm},
+        'calibrator_node': {},
     }
     try:
         subj = {n: h.add(n, params[n]) for n in SUBJECTS}
@@ -234,14 +236,21 @@ def rate_repeat(lo_hz: float, hi_hz: float, steps: int, seconds: float, algorith
                                                      for n in SUBJECTS))
         rates = {n: (lo[n] if passed_lo[n] else 0.0) for n in SUBJECTS}
         return {
-            'rates_hz': rates, 'bracket_hi_hz': hi, 'trials': trials, 'ratio': {
+            'rates_hz': rates,
+            'bracket_hi_hz': hi,
+            'trials': trials,
+            'ratio': {
                 n: rates[n] / rates['counting_node'] if rates['counting_node'] else math.nan
                 for n in SUBJECTS[1:]
-            }, 'ratio_to_raw': {
-                n: rates[n] /
-                rates['counting_node_raw'] if rates['counting_node_raw'] else math.nan
+            },
+            'ratio_to_raw': {
+                n: (
+                    rates[n] / rates['counting_node_raw']
+                    if rates['counting_node_raw']
+                    else math.nan
+                )
                 for n in SUBJECTS[2:]
-            }
+            },
         }
     finally:
         h.close()
