@@ -1,15 +1,20 @@
 """
-discrepancy_bench: Monte Carlo of the discrepancy workflow (strapdown_ros.discrepancy.workflow).
+Benchmark the discrepancy workflow: detection, naming, false alarms, confusion and speed.
 
-Scenario: bench profile (enough 150 s passes for --duration), gyro 200 Hz, a star-camera fix every
-2 s, boresight (0.698, −0.436, 2.094) rad; nominal model = the calibrator defaults.
+The command ``discrepancy_bench``: a Monte Carlo of ``strapdown_ros.discrepancy.workflow``
+(the runs in ``discrepancy_monte_carlo``), summarised, printed and reported here.
 
-1. Detection against size: per effect and seed s, σ of the effect (``effect_sigma``; one reference
-   null recording, the first seed, unless --sigma per-seed), a hidden effect of Mahalanobis size k
-   (``draw_hidden_effect``; seed i gets sizes[i mod n] unless --every-size) in a recording of seed
-   s + 10000, ``analyse``: detected, named first, estimate within 3σ in every component.  Reference:
-   the ideal LRT power P(χ²_q(k²) > χ²_q⁻¹(1 − α/m)), q = separable dimension, m = candidates.
-2. False alarms: null recordings of --null-seeds seeds, verdict ≠ ``model_adequate`` (Clopper–Pearson).
+Scenario: bench profile (enough 150 s passes for --duration), gyro 200 Hz, a star-camera fix
+every 2 s, boresight (0.698, −0.436, 2.094) rad; nominal model = the calibrator defaults.
+
+1. Detection against size: per effect and seed s, σ of the effect (``effect_sigma``; one
+   reference null recording, the first seed, unless --sigma per-seed), a hidden effect of
+   Mahalanobis size k (``draw_hidden_effect``; seed i gets sizes[i mod n] unless --every-size)
+   in a recording of seed s + 10000, ``analyse``: detected, named first, estimate within 3σ in
+   every component.  Reference: the ideal LRT power P(χ²_q(k²) > χ²_q⁻¹(1 − α/m)),
+   q = separable dimension, m = candidates.
+2. False alarms: null recordings of --null-seeds seeds, verdict ≠ ``model_adequate``
+   (Clopper–Pearson).
 3. Confusion: injected × first named effect at k ≥ 5σ.
 4. Speed: the ``discrepancy`` CLI on a 900 s bag (200 Hz, 450 fixes), 5 runs.
 """
@@ -45,7 +50,22 @@ FULL = {'effects': list(CANDIDATES), 'seeds': 50, 'sizes': [1.0, 2.0, 3.0, 5.0, 
 # ----------------------------------------------------------------------------- scenario and jobs
 # ----------------------------------------------------------------------------- summary
 def binom_ci(k: int, n: int) -> tuple[float, float]:
-    """Clopper–Pearson 95 % interval."""
+    """
+    Return the Clopper–Pearson 95 % interval of a binomial proportion.
+
+    Parameters
+    ----------
+    k : int
+        Successes.
+    n : int
+        Trials.
+
+    Returns
+    -------
+    (float, float)
+        Lower and upper bound; NaN for n = 0.
+
+    """
     from scipy.stats import beta
     if n == 0:
         return float('nan'), float('nan')
@@ -54,9 +74,29 @@ def binom_ci(k: int, n: int) -> tuple[float, float]:
 
 
 def ideal_power(q: int, k: float, alpha: float) -> float:
+    """
+    Return the power of the ideal likelihood-ratio test for an effect of size k.
+
+    P(χ²_q(k²) > χ²_q⁻¹(1 − α/(2m))): the selection gets α/2, shared by the m candidates.
+
+    Parameters
+    ----------
+    q : int
+        Separable dimension of the effect.
+    k : float
+        Mahalanobis size of the effect, σ.
+    alpha : float
+        Significance level of the workflow.
+
+    Returns
+    -------
+    float
+        Detection probability.
+
+    """
     from scipy.stats import chi2, ncx2
-    return float(ncx2.sf(chi2.isf(alpha / 2 / len(CANDIDATES), q), q,
-                         k * k))  # the selection gets α/2
+    threshold = chi2.isf(alpha / 2 / len(CANDIDATES), q)      # the selection gets α/2
+    return float(ncx2.sf(threshold, q, k * k))
 
 
 def _span(m, what='runs') -> str:
@@ -70,6 +110,23 @@ def _count(rs, key) -> int:
 
 
 def summarise(mc: dict, args) -> dict:
+    """
+    Summarise the Monte Carlo: detection per size, confusion, target, false alarms.
+
+    Parameters
+    ----------
+    mc : dict
+        Result of ``discrepancy_monte_carlo.monte_carlo``.
+    args : argparse.Namespace
+        The run's options (effects, sizes, alpha).
+
+    Returns
+    -------
+    dict
+        ``detection``, ``confusion``, ``detection_target``, ``false_alarm``, ``analysis_s``,
+        ``job_s`` (median summaries, s) and ``errors``.
+
+    """
     runs, nulls = mc['runs'], mc['nulls']
     det = {e: {} for e in args.effects}
     for e in args.effects:
@@ -129,7 +186,22 @@ def _pct(x):
 
 
 def tables(sm: dict, sizes) -> list[str]:
-    """Markdown tables (also printed to stdout)."""
+    """
+    Format the markdown tables of the summary (also printed on stdout).
+
+    Parameters
+    ----------
+    sm : dict
+        Result of ``summarise``.
+    sizes : list of float
+        Effect sizes of the run, σ.
+
+    Returns
+    -------
+    list of str
+        Lines of markdown.
+
+    """
     L = [
         '### Detection: detected/runs (ideal LRT power)', '',
         '| effect | q | ' + ' | '.join(f'k = {k:g}σ'
@@ -176,7 +248,20 @@ def tables(sm: dict, sizes) -> list[str]:
 
 
 def conclusions(res: dict) -> list[str]:
-    """Sentences whose every number and verdict word is computed."""
+    """
+    Return sentences whose every number and verdict word is computed.
+
+    Parameters
+    ----------
+    res : dict
+        The run's result (summary, config, speed).
+
+    Returns
+    -------
+    list of str
+        The sentences.
+
+    """
     sm, a = res['summary'], res['config']['alpha']
     fa, t, out = sm['false_alarm'], sm['detection_target'], []
     if fa['n']:
@@ -235,6 +320,22 @@ def conclusions(res: dict) -> list[str]:
 
 # ----------------------------------------------------------------------------- outputs
 def write_plots(res: dict, outdir: str) -> list[str]:
+    """
+    Write the detection-against-size and confusion plots.
+
+    Parameters
+    ----------
+    res : dict
+        The run's result.
+    outdir : str
+        Directory for ``discrepancy_detection.png`` and ``discrepancy_confusion.png``.
+
+    Returns
+    -------
+    list of str
+        Paths of the files written.
+
+    """
     import matplotlib
     matplotlib.use('Agg')
     import matplotlib.pyplot as plt
@@ -249,7 +350,8 @@ def write_plots(res: dict, outdir: str) -> list[str]:
         pts = [(float(k) + dx, c['detected'] / c['n']) for k, c in row.items() if c['n']]
         if pts:
             ax.plot(*zip(*pts), 'o-', color=col, label=e)
-        ax.plot(kk, [ideal_power(separable_dimension(e), k, cfg['alpha']) for k in kk], '--', color=col, lw=0.8)
+        q = separable_dimension(e)
+        ax.plot(kk, [ideal_power(q, k, cfg['alpha']) for k in kk], '--', color=col, lw=0.8)
     ks = [k for k in cfg['sizes'] if k >= TARGET_SIZE] or [TARGET_SIZE]
     ax.plot(ks, [TARGET_DETECTION] * len(ks), 'kv', ms=9,
             label=f'target ≥ {TARGET_DETECTION:.0%} at k ≥ {TARGET_SIZE:g}σ')
@@ -292,6 +394,19 @@ def write_plots(res: dict, outdir: str) -> list[str]:
 
 
 def write_report(path: str, res: dict, plots: list[str]):
+    """
+    Write the markdown report of one run.
+
+    Parameters
+    ----------
+    path : str
+        Markdown file to write.
+    res : dict
+        The run's result.
+    plots : list of str
+        Plot files, linked relative to the report.
+
+    """
     cfg, sm, tm = res['config'], res['summary'], res['timing']
     sigma = (f"one reference null recording per effect (seed {cfg['first_seed']})"
              if cfg['sigma'] == 'reference' else "each seed's own null recording")
@@ -315,19 +430,31 @@ def write_report(path: str, res: dict, plots: list[str]):
         '## Conclusions',
         '',
     ]
-    L += [f'* {s}' for s in conclusions(res)
-          ] + [''] + [x.replace('### ', '## ') for x in tables(sm, cfg['sizes'])]
+    L += [f'* {s}' for s in conclusions(res)] + ['']
+    L += [x.replace('### ', '## ') for x in tables(sm, cfg['sizes'])]
     if sm['analysis_s']:
         L += ['', f"Analysis time per run: {_span(sm['analysis_s'])}."]
-    L += [''] + [
-        f'![{os.path.basename(p)}]({os.path.relpath(p, os.path.dirname(os.path.abspath(path)))})'
-        for p in plots
-    ]
+    base = os.path.dirname(os.path.abspath(path))
+    L += [''] + [f'![{os.path.basename(p)}]({os.path.relpath(p, base)})' for p in plots]
     write_text(path, '\n'.join(L) + '\n')
 
 
 # ----------------------------------------------------------------------------- arguments
 def parse_args(argv):
+    """
+    Parse and check the command line; fill the defaults of the quick or full mode.
+
+    Parameters
+    ----------
+    argv : list of str
+        Arguments without the program name.
+
+    Returns
+    -------
+    argparse.Namespace
+        The options (``sizes`` and ``effects`` as lists).
+
+    """
     ap = OneLineParser(prog=PROG, description=__doc__,
                        formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument('--seeds', type=int, help='seeds per effect (default 50)')
@@ -345,10 +472,12 @@ def parse_args(argv):
     ap.add_argument(
         '--sigma', choices=('reference', 'per-seed'), default='reference',
         help="σ of an effect from one reference null recording (default) or from each seed's own")
-    ap.add_argument('--json', help='write all records and tables to this JSON file')
+    ap.add_argument('--json', help='write all records and tables to this JSON file '
+                    '(documented run: doc/results/discrepancy_bench/bench.json)')
     ap.add_argument('--plots',
                     help='write discrepancy_detection.png and discrepancy_confusion.png here')
-    ap.add_argument('--report', help='write the markdown report to this file')
+    ap.add_argument('--report', help='write the markdown report to this file '
+                    '(documented run: doc/results/discrepancy_bench/bench.md)')
     ap.add_argument('--force', action='store_true', help='overwrite existing outputs')
     ap.add_argument(
         '--speed-only', action='store_true',
@@ -377,13 +506,14 @@ def parse_args(argv):
             args.sizes = [float(s) for s in args.sizes.split(',')]
         except ValueError:
             ap.error(f'--sizes must be comma-separated numbers, got {args.sizes!r}')
-        if not all(0.0 < s <= 100.0
-                   for s in args.sizes) or len(set(args.sizes)) != len(args.sizes):
+        sizes = args.sizes
+        if not all(0.0 < s <= 100.0 for s in sizes) or len(set(sizes)) != len(sizes):
             ap.error('--sizes must be distinct numbers in (0, 100]')
     if isinstance(args.effects, str):
-        names = list(CANDIDATES) if args.effects.strip() == 'all' else [
-            s.strip() for s in args.effects.split(',')
-        ]
+        if args.effects.strip() == 'all':
+            names = list(CANDIDATES)
+        else:
+            names = [s.strip() for s in args.effects.split(',')]
         bad = sorted({n for n in names if n not in CANDIDATES or names.count(n) > 1})
         if bad:
             ap.error(
@@ -402,6 +532,20 @@ def parse_args(argv):
 
 
 def main(argv=None) -> int:
+    """
+    Run ``discrepancy_bench``.
+
+    Parameters
+    ----------
+    argv : list of str, optional
+        Arguments without the program name; ``sys.argv[1:]`` when None.
+
+    Returns
+    -------
+    int
+        0 on success (bad arguments exit 2 with one line on stderr).
+
+    """
     argv = sys.argv[1:] if argv is None else list(argv)
     args = parse_args(argv)
     t_all, load = time.perf_counter(), os.getloadavg()
@@ -418,8 +562,8 @@ def main(argv=None) -> int:
             write_text(args.json, json.dumps({'command': f'{PROG} ' + ' '.join(argv),
                                               'speed': sp}, indent=1, default=float))
         return 0
-    n_jobs = len(
-        args.effects) * args.seeds * (len(args.sizes) if args.every_size else 1) + args.null_seeds
+    per_seed = len(args.sizes) if args.every_size else 1
+    n_jobs = len(args.effects) * args.seeds * per_seed + args.null_seeds
     print(
         f'{PROG}: {len(args.effects)} effects × {args.seeds} seeds, sizes '
         f"{','.join(f'{k:g}' for k in args.sizes)}σ, {args.null_seeds} null seeds,"
@@ -429,22 +573,9 @@ def main(argv=None) -> int:
         file=sys.stderr,
     )
     mc = monte_carlo(args)
-    cfg = {
-        k: getattr(args, k)
-        for k in (
-            'seeds',
-            'duration',
-            'sizes',
-            'effects',
-            'null_seeds',
-            'alpha',
-            'workers',
-            'first_seed',
-            'every_size',
-            'sigma',
-            'quick',
-        )
-    }
+    cfg = {k: getattr(args, k)
+           for k in ('seeds', 'duration', 'sizes', 'effects', 'null_seeds', 'alpha', 'workers',
+                     'first_seed', 'every_size', 'sigma', 'quick')}
     res = {'command': f'{PROG} ' + ' '.join(argv), 'config': cfg, 'summary': summarise(mc, args),
            'reference_sigma': mc['reference_sigma'], 'runs': mc['runs'], 'nulls': mc['nulls']}
     if args.speed:

@@ -39,11 +39,43 @@ THREAD_VARS = ('OMP_NUM_THREADS', 'OPENBLAS_NUM_THREADS', 'MKL_NUM_THREADS')
 
 
 def separable_dimension(name: str) -> int:
+    """
+    Return the separable dimension q of an effect (columns of its fit basis).
+
+    Parameters
+    ----------
+    name : str
+        Effect name of the registry.
+
+    Returns
+    -------
+    int
+        q.
+
+    """
     S = EFFECTS[name].fit_basis()
     return EFFECTS[name].size if S is None else S.shape[1]
 
 
 def scenario_raw(seed: int, duration: float, overrides: dict | None = None) -> dict:
+    """
+    Return the raw simulator parameters of the bench scenario.
+
+    Parameters
+    ----------
+    seed : int
+        Seed of the recording.
+    duration : float
+        Length, s (sets the number of 150 s bench passes).
+    overrides : dict, optional
+        Parameters that replace the scenario's (e.g. an injected effect).
+
+    Returns
+    -------
+    dict
+        Parameter name → value, for ``check_all``.
+
+    """
     raw = {'profile': 'bench', 'bench_repeat': max(1, math.ceil((duration - 20.0) / 150.0)),
            'gyro_rate': 200.0, 'camera_interval': 2.0, 'seed': int(seed),
            'boresight': list(BORESIGHT)}
@@ -66,13 +98,44 @@ def _init_worker():
 
 
 def sigma_job(names, seed: int, duration: float) -> dict:
-    """{name: covariance (list)} of the effects on the null recording of ``seed``."""
+    """
+    Return the covariance of each effect's estimate on the null recording of ``seed``.
+
+    Parameters
+    ----------
+    names : iterable of str
+        Effect names.
+    seed : int
+        Seed of the null recording.
+    duration : float
+        Length, s.
+
+    Returns
+    -------
+    dict
+        Name → covariance as a nested list.
+
+    """
     out = effect_sigma(_simulate(seed, duration), _model(), list(names))
     return {n: np.asarray(out[n]).tolist() for n in names}
 
 
 def run_job(job: dict) -> dict:
-    """One (effect, seed, size) simulation + analysis; effect None: a null run."""
+    """
+    Simulate and analyse one (effect, seed, size) recording; effect None is a null run.
+
+    Parameters
+    ----------
+    job : dict
+        ``effect``, ``seed``, ``size``, ``cov``, ``duration``, ``alpha``, ``draw_seed``.
+
+    Returns
+    -------
+    dict
+        The job's keys, the injected values, the scores of ``score`` and times in s; an
+        exception is recorded as verdict ``error``.
+
+    """
     t0 = time.perf_counter()
     name = job['effect']
     out = {k: v for k, v in job.items() if k not in ('cov', 'duration', 'alpha')}
@@ -96,6 +159,25 @@ def run_job(job: dict) -> dict:
 
 
 def score(name, injected: dict, res: dict) -> dict:
+    """
+    Score one analysis against the injected effect.
+
+    Parameters
+    ----------
+    name : str or None
+        Injected effect; None for a null recording.
+    injected : dict
+        Injected parameter values.
+    res : dict
+        ``analyse(...).as_json()``.
+
+    Returns
+    -------
+    dict
+        Verdict, named effects, and for an injected effect: detected, named first, estimate
+        with σ and whether it lies within 3σ of the truth; for a null run: false alarm.
+
+    """
     named = [s['effect'] for s in res['steps']]
     out = {'verdict': res['verdict'], 'steps': named, 'first': named[0] if named else None,
            'failed_tests': res['tests_after'].get('failed', [])}
@@ -140,6 +222,20 @@ def _pool_map(pool, fn, items, label):
 
 
 def monte_carlo(args) -> dict:
+    """
+    Run every job in spawned worker processes with one BLAS thread each.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        Options of ``discrepancy_bench.parse_args``.
+
+    Returns
+    -------
+    dict
+        ``runs`` and ``nulls`` (records of ``run_job``), ``reference_sigma`` and wall times, s.
+
+    """
     saved = {k: os.environ.get(k) for k in THREAD_VARS}
     _init_worker()  # the spawned workers import numpy with 1 BLAS thread
     try:
@@ -157,9 +253,10 @@ def monte_carlo(args) -> dict:
                     seed = args.first_seed + i
                     sizes = args.sizes if args.every_size else [args.sizes[i % len(args.sizes)]]
                     for k in sizes:
+                        draw_seed = [seed, CANDIDATES.index(e), int(round(k * 1000))]
                         jobs.append({'effect': e, 'seed': seed, 'size': float(k), 'cov': covs[e],
                                      'duration': args.duration, 'alpha': args.alpha,
-                                     'draw_seed': [seed, CANDIDATES.index(e), int(round(k * 1000))]})
+                                     'draw_seed': draw_seed})
             jobs += [
                 {'effect': None, 'seed': args.first_seed + i, 'size': 0.0,
                  'duration': args.duration, 'alpha': args.alpha} for i in range(args.null_seeds)
@@ -184,7 +281,20 @@ def monte_carlo(args) -> dict:
 
 
 def speed(args) -> dict:
-    """SPEED_REPEATS timings of the ``discrepancy`` CLI on a 900 s, 200 Hz, 450-fix bag (record_sim)."""
+    """
+    Time ``SPEED_REPEATS`` runs of the ``discrepancy`` command on a 900 s, 200 Hz bag.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        Options (``first_seed`` seeds the recording).
+
+    Returns
+    -------
+    dict
+        Times in s with their median summary, return codes, errors, the load average at start.
+
+    """
     load, times, rcs, errors = os.getloadavg(), [], [], []
     imu_p, cam_p = simulator_parameters(overrides=scenario_raw(args.first_seed, SPEED_DURATION),
                                         duration=SPEED_DURATION)
@@ -206,14 +316,26 @@ def speed(args) -> dict:
                 errors.append((err.getvalue().strip().splitlines() or ['?'])[-1])
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
-    return {
-        'mode': 'cli', 'duration_s': SPEED_DURATION, 'gyro_rate_hz': 200.0, 'fixes': fixes,
-        'return_codes': rcs, 'cli_errors': errors, 'time_s': median_summary(times), 'times_s': times,
-        'load_average_at_start': list(load)
-    }
+    return {'mode': 'cli', 'duration_s': SPEED_DURATION, 'gyro_rate_hz': 200.0, 'fixes': fixes,
+            'return_codes': rcs, 'cli_errors': errors, 'time_s': median_summary(times),
+            'times_s': times, 'load_average_at_start': list(load)}
 
 
 def median_summary(xs):
+    """
+    Return the median, min, max and count of the values, or None without values.
+
+    Parameters
+    ----------
+    xs : list of float
+        The values.
+
+    Returns
+    -------
+    dict or None
+        ``median``, ``min``, ``max``, ``n``.
+
+    """
     return {
         'median': float(np.median(xs)), 'min': float(min(xs)), 'max': float(max(xs)), 'n': len(xs)
     } if xs else None
