@@ -1,14 +1,16 @@
 """
-sins_bag_bench: the wall time of the whole ``sins_bag`` command beside the raw read of the same
-bag, measured in the same run (printed; nothing is asserted).
+Measure the wall time of the whole ``sins_bag`` command beside the raw read of the same bag.
+
+The command ``sins_bag_bench``; both are measured in the same run (printed; nothing is
+asserted).
 
     sins_bag_bench BAG [--navigation-profile NAME | --params FILE] [-p NAME:=VALUE ...]
                    [--runs N] [--cold] [--json FILE]
 
 Each run, alternately:
 
-* **raw read**: a separate Python process opens BAG with rosbags' ``AnyReader`` and iterates over
-  every record of every topic (no decoding): its whole wall time (interpreter start and the
+* **raw read**: a separate Python process opens BAG with rosbags' ``AnyReader`` and iterates
+  over every record of every topic (no decoding): its whole wall time (interpreter start and the
   rosbags import included) and the time of the iteration alone;
 * **sins_bag**: the command ``sins_bag BAG --output OUT.csv`` with the parameters given, as a user
   runs it: the whole wall time (start-up, loading the compiled kernels from numba's cache,
@@ -69,8 +71,20 @@ print(n, t2 - t1, t2 - t0)
 
 def navigation_parameters(profile: str, path: Path) -> Path:
     """
-    sins_node parameters (ROS 2 YAML) with navigation from the exact initial state of a
-    navigation profile of :mod:`strapdown_ros.motion.earth_profiles`, written to ``path``.
+    Write sins_node parameters with navigation from a profile's exact initial state.
+
+    Parameters
+    ----------
+    profile : str
+        Navigation profile of :mod:`strapdown_ros.motion.earth_profiles`.
+    path : pathlib.Path
+        ROS 2 parameter YAML to write.
+
+    Returns
+    -------
+    pathlib.Path
+        ``path``.
+
     """
     prof = navigation_profile_from_config({'profile': profile})
     t0 = np.zeros(1)
@@ -88,7 +102,20 @@ def navigation_parameters(profile: str, path: Path) -> Path:
 
 
 def raw_read(bag: str) -> dict:
-    """One raw-read process: records, iteration time, in-process total, whole wall time."""
+    """
+    Time one raw-read process over a bag (rosbags ``AnyReader``, no decoding).
+
+    Parameters
+    ----------
+    bag : str
+        rosbag2 bag.
+
+    Returns
+    -------
+    dict
+        Records, iteration time, in-process total and whole wall time, s.
+
+    """
     t0 = time.perf_counter()
     out = subprocess.run([sys.executable, '-c', RAW_READ, bag], capture_output=True, text=True,
                          check=True)
@@ -98,7 +125,31 @@ def raw_read(bag: str) -> dict:
 
 
 def sins_bag_run(bag: str, args: list, out: Path, env: dict | None = None) -> dict:
-    """One whole sins_bag command (CSV output): wall time, exit status, the summary line."""
+    """
+    Time one whole ``sins_bag`` command with CSV output, as a user runs it.
+
+    Parameters
+    ----------
+    bag : str
+        rosbag2 bag.
+    args : list of str
+        Further ``sins_bag`` arguments (parameters).
+    out : pathlib.Path
+        CSV to write.
+    env : dict, optional
+        Environment of the process (e.g. an empty numba cache).
+
+    Returns
+    -------
+    dict
+        Wall time, s, and the command's summary line.
+
+    Raises
+    ------
+    RuntimeError
+        When ``sins_bag`` exits with an error.
+
+    """
     script = Path(sys.executable).parent / 'sins_bag'       # the console script, as a user runs it
     head = ([str(script)] if script.exists()
             else [sys.executable, '-m', 'strapdown_ros.tools.sins_bag'])
@@ -113,8 +164,21 @@ def sins_bag_run(bag: str, args: list, out: Path, env: dict | None = None) -> di
 
 def attitude_only_runs(runs: int) -> dict:
     """
-    360 000 intervals (1 h at 100 Hz, coning motion) through AttitudeIntegrator in one push:
-    attitude only compiled, attitude only numpy, with covariance compiled; medians over runs.
+    Time 360 000 intervals through ``AttitudeIntegrator`` in one push, three ways.
+
+    1 h at 100 Hz of coning motion: attitude only compiled, attitude only numpy, and with
+    covariance compiled.
+
+    Parameters
+    ----------
+    runs : int
+        Runs of each.
+
+    Returns
+    -------
+    dict
+        Wall times of every run, s, per way, and whether the compiled kernel is available.
+
     """
     t = np.arange(360_001) * 0.01
     prof = ConingProfile(0.087, 1.0)
@@ -145,7 +209,20 @@ def attitude_only_runs(runs: int) -> dict:
 
 
 def bag_bytes(bag) -> int:
-    """Size of a bag (a directory: all its files), bytes."""
+    """
+    Return the size of a bag (a directory: all its files).
+
+    Parameters
+    ----------
+    bag : str or pathlib.Path
+        The bag.
+
+    Returns
+    -------
+    int
+        Size, bytes.
+
+    """
     p = Path(bag)
     if p.is_dir():
         return sum(f.stat().st_size for f in p.rglob('*') if f.is_file())
@@ -153,6 +230,20 @@ def bag_bytes(bag) -> int:
 
 
 def main(argv=None) -> int:
+    """
+    Run ``sins_bag_bench``.
+
+    Parameters
+    ----------
+    argv : list of str, optional
+        Arguments without the program name; ``sys.argv[1:]`` when None.
+
+    Returns
+    -------
+    int
+        0; bad arguments exit 2 with one line on stderr.
+
+    """
     ap = OneLineParser(prog='sins_bag_bench', description=__doc__,
                        formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument('bag', help='rosbag2 bag (e.g. record_sim OUT --duration 3600 '
@@ -165,7 +256,8 @@ def main(argv=None) -> int:
     ap.add_argument('--runs', type=int, default=5, help='alternating runs (default 5)')
     ap.add_argument('--cold', action='store_true',
                     help='one more sins_bag run with an empty numba cache')
-    ap.add_argument('--json', metavar='FILE', help='write the figures to this JSON file')
+    ap.add_argument('--json', metavar='FILE', help='write the figures to this JSON file '
+                    '(documented run: doc/results/sins_bag_bench/sins_bag_bench.json)')
     ap.add_argument('--force', action='store_true', help='overwrite an existing --json')
     args = ap.parse_args(argv)
     if args.runs < 1:
@@ -257,7 +349,20 @@ def main(argv=None) -> int:
 
 
 def render(res: dict) -> str:
-    """The markdown report; every conclusion computed from the numbers."""
+    """
+    Render the markdown text of the run.
+
+    Parameters
+    ----------
+    res : dict
+        The run's result.
+
+    Returns
+    -------
+    str
+        The markdown.
+
+    """
     a = res['attitude_only']
     lines = [
         f"## sins_bag on {res['bag']} ({res['records']} records, {res['bag_bytes'] / 1e6:.0f} MB; "
