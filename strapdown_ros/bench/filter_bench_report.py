@@ -199,8 +199,13 @@ def write_plots(outdir: str, mc: dict) -> list[str]:
         ax.set_ylabel(f"ε_{'xyz'[i]}, µrad")
         ax.grid(alpha=0.3)
     axs[0].legend(fontsize=8, loc='upper right')
-    rms = lambda e: 1e6 * np.sqrt(np.mean(np.square(e), axis=(0, 2)))      # noqa: E731
-    bnd = lambda B: 1e6 * np.sqrt([np.trace(b[:3, :3]) / 3 for b in B])   # noqa: E731
+
+    def rms(e):
+        return 1e6 * np.sqrt(np.mean(np.square(e), axis=(0, 2)))
+
+    def bnd(B):
+        return 1e6 * np.sqrt([np.trace(b[:3, :3]) / 3 for b in B])
+
     axs[3].semilogy(t, rms(mc['att']), 'C0.-', label='filter RMS (all runs)')
     axs[3].semilogy(t, bnd(mc['bound_f']), 'C0--', label='√ filter PCRB')
     axs[3].semilogy(t, rms(mc['att_s']), 'C1.-', label='RTS smoother RMS')

@@ -1,5 +1,7 @@
 """
-load_bench: the full node graph at 10× the nominal sensor rates, on loopback, for 10 minutes.
+Run the full node graph at 10× the nominal sensor rates, on loopback, for 10 minutes.
+
+The command ``load_bench``; the graph and its monitor are in ``load_graph``.
 
 ``imu_sim_node`` (gyro 1000 Hz, accelerometer 3000 Hz), ``star_camera_sim_node`` (a fix every
 2 s), ``sins_node`` and ``calibrator_node`` run as separate processes in real time; a monitor
@@ -39,26 +41,37 @@ RSS_GROWTH_TARGET = 0.10
 
 
 def parse_args(argv):
+    """
+    Parse and check the command line of ``load_bench``.
+
+    Parameters
+    ----------
+    argv : list of str
+        Arguments without the program name.
+
+    Returns
+    -------
+    argparse.Namespace
+        The options.
+
+    """
     ap = OneLineParser(prog='load_bench', description=__doc__,
                        formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument('--seconds', type=float, default=600.0,
                     help='sensor time to run, s (default 600)')
-    ap.add_argument(
-        '--rate-factor',
-        type=float,
-        default=10.0,
-        help=(
-            'multiple of the nominal rates: gyro 100 Hz, accel 300 Hz, camera 1/20 Hz (default 10)'
-        ),
-    )
+    ap.add_argument('--rate-factor', type=float, default=10.0,
+                    help='multiple of the nominal rates: gyro 100 Hz, accel 300 Hz, '
+                    'camera 1/20 Hz (default 10)')
     ap.add_argument('--streams', choices=('reliable', 'best_effort'), default='reliable',
                     help='QoS reliability of the IMU streams (default reliable)')
     ap.add_argument(
         '--warmup', type=float, default=30.0,
         help='memory growth is measured from this many seconds after the first Δθ (default 30)')
-    ap.add_argument('--json', metavar='FILE', help='write the figures as JSON')
+    ap.add_argument('--json', metavar='FILE', help='write the figures as JSON '
+                    '(documented run: doc/results/load_bench/load_bench.json)')
     ap.add_argument('--report', metavar='DIR',
-                    help='write load_bench.md and load_bench.png into DIR (created)')
+                    help='write load_bench.md and load_bench.png into DIR (created; '
+                    'documented run: doc/results/load_bench)')
     ap.add_argument('--quiet', action='store_true', help='no progress on stderr')
     ap.add_argument('--force', action='store_true', help='overwrite existing outputs')
     args = ap.parse_args(argv)
@@ -88,7 +101,22 @@ def _int(d: dict, key: str) -> int | None:
 
 
 def loss_table(raw: dict) -> list[dict]:
-    """Published and received counts of every path, from the nodes' own /diagnostics and the monitor."""
+    """
+    Return the published and received counts of every path.
+
+    From the nodes' own /diagnostics and the monitor.
+
+    Parameters
+    ----------
+    raw : dict
+        Result of ``load_graph.run_graph``.
+
+    Returns
+    -------
+    list of dict
+        One row per path: topic, path, QoS, published, received, lost.
+
+    """
     d = raw.get('diagnostics', {})
     sim, cam, sins, cal = (d.get(n, {}) for n in ('imu_sim_node', 'star_camera_sim_node',
                                                   'sins_node', 'calibrator_node'))
@@ -132,6 +160,20 @@ def loss_table(raw: dict) -> list[dict]:
 
 
 def latency_table(raw: dict) -> list[dict]:
+    """
+    Return the end-to-end latency percentiles of the measured paths.
+
+    Parameters
+    ----------
+    raw : dict
+        Result of ``load_graph.run_graph``.
+
+    Returns
+    -------
+    list of dict
+        One row per path: count and the p50, p99 and max latency, ms.
+
+    """
     names = {'delta_theta_to_attitude': 'Δθ → sins/attitude (same stamp)',
              'fix_to_boresight': 'camera fix → calibration/boresight'}
     out = []
@@ -151,6 +193,21 @@ def latency_table(raw: dict) -> list[dict]:
 
 
 def memory_table(raw: dict) -> list[dict]:
+    """
+    Return the resident memory and CPU load of every node process.
+
+    Parameters
+    ----------
+    raw : dict
+        Result of ``load_graph.run_graph``.
+
+    Returns
+    -------
+    list of dict
+        One row per node: RSS at the start, after the warm-up, at the end and its maximum,
+        MiB; the growth after the warm-up; CPU load, % of one core.
+
+    """
     t = np.asarray(raw['rss_kib']['t'], dtype=float)
     out = []
     for node in ('imu_sim_node', 'star_camera_sim_node', 'sins_node', 'calibrator_node'):
@@ -177,7 +234,22 @@ def memory_table(raw: dict) -> list[dict]:
 
 
 def boresight_check(raw: dict) -> dict | None:
-    """The calibrator's final estimate against the simulated truth (sanity of the loaded graph)."""
+    """
+    Compare the calibrator's final estimate with the simulated truth.
+
+    A sanity check of the loaded graph.
+
+    Parameters
+    ----------
+    raw : dict
+        Result of ``load_graph.run_graph``.
+
+    Returns
+    -------
+    dict or None
+        Pairs, error and σ per angle (arc seconds) and error/σ; None without an estimate.
+
+    """
     cal = raw.get('diagnostics', {}).get('calibrator_node', {})
     try:
         beta = np.radians([float(cal[f'beta_{a}_deg']) for a in ('yaw', 'pitch', 'roll')])
@@ -186,13 +258,25 @@ def boresight_check(raw: dict) -> dict | None:
         return None
     truth = np.asarray(node_parameters('', 1.0, 1.0, False)['star_camera_sim_node']['boresight'])
     err = np.degrees(beta - truth) * 3600.0
-    return {
-        'pairs': _int(cal, 'pairs'), 'error_arcsec': err.tolist(), 'sigma_arcsec': sig.tolist(),
-        'error_over_sigma': (err / sig).tolist()
-    }
+    return {'pairs': _int(cal, 'pairs'), 'error_arcsec': err.tolist(),
+            'sigma_arcsec': sig.tolist(), 'error_over_sigma': (err / sig).tolist()}
 
 
 def summarise(raw: dict) -> dict:
+    """
+    Summarise the run: the loss, latency and memory tables and the verdicts.
+
+    Parameters
+    ----------
+    raw : dict
+        Result of ``load_graph.run_graph``.
+
+    Returns
+    -------
+    dict
+        The tables, the boresight check and the figures the verdicts use.
+
+    """
     loss = loss_table(raw)
     mem = memory_table(raw)
     rel = [r for r in loss if r['reliable']]
@@ -228,6 +312,24 @@ def _fmt(v, spec=''):
 
 
 def format_report(raw: dict, s: dict, command: str) -> str:
+    """
+    Format the markdown report; every verdict sentence is computed from its figures.
+
+    Parameters
+    ----------
+    raw : dict
+        Result of ``load_graph.run_graph``.
+    s : dict
+        Result of ``summarise``.
+    command : str
+        The command line, quoted in the report.
+
+    Returns
+    -------
+    str
+        The markdown.
+
+    """
     r = raw['rates_hz']
     la = raw['load_at_start']
     lines = [
@@ -314,6 +416,17 @@ def format_report(raw: dict, s: dict, command: str) -> str:
 
 
 def write_plots(raw: dict, path) -> None:
+    """
+    Write ``load_bench.png``: memory over time and the latency distributions.
+
+    Parameters
+    ----------
+    raw : dict
+        Result of ``load_graph.run_graph``.
+    path : str or pathlib.Path
+        PNG file to write.
+
+    """
     import matplotlib
     matplotlib.use('Agg')
     import matplotlib.pyplot as plt
@@ -346,6 +459,20 @@ def write_plots(raw: dict, path) -> None:
 
 
 def main(argv=None) -> int:
+    """
+    Run ``load_bench``.
+
+    Parameters
+    ----------
+    argv : list of str, optional
+        Arguments without the program name; ``sys.argv[1:]`` when None.
+
+    Returns
+    -------
+    int
+        0 whatever the figures; 1 if the graph failed to run; bad arguments exit 2.
+
+    """
     argv = sys.argv[1:] if argv is None else argv
     args = parse_args(argv)
 

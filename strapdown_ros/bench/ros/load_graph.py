@@ -1,11 +1,12 @@
 """
-The full node graph under load, for ``load_bench``: four node processes on loopback and a monitor.
+The full node graph under load, for ``load_bench``: four node processes and a monitor.
 
-``imu_sim_node``, ``star_camera_sim_node``, ``sins_node`` and ``calibrator_node`` run as separate
-processes (``python -m strapdown_ros.nodes.<node>``, as ``ros2 run`` starts them) in one namespace,
-at ``rate_factor`` × the nominal sensor rates (gyro 100 Hz, accelerometer 300 Hz, one camera fix
-every 20 s) in real time, on the bench trajectory (004 §6).  With ``reliable_streams`` the stream
-topics are switched to RELIABLE through the standard ``qos_overrides`` parameters, on both ends.
+``imu_sim_node``, ``star_camera_sim_node``, ``sins_node`` and ``calibrator_node`` run as
+separate processes (``python -m strapdown_ros.nodes.<node>``, as ``ros2 run`` starts them) on
+loopback in one namespace, at ``rate_factor`` × the nominal sensor rates (gyro 100 Hz,
+accelerometer 300 Hz, one camera fix every 20 s) in real time, on the bench trajectory
+(004 §6).  With ``reliable_streams`` the stream topics are switched to RELIABLE through the
+standard ``qos_overrides`` parameters, on both ends.
 
 The consumers start first; the simulators start their clocks once every consumer is matched
 (``wait_for_subscribers``), so nothing is lost to discovery.  A monitor node in this process
@@ -22,7 +23,8 @@ The consumers start first; the simulators start their clocks once every consumer
 * **resident memory** (``/proc/<pid>/status`` VmRSS) and CPU time of every node process, sampled
   every second.
 
-Nothing here is asserted; :mod:`strapdown_ros.bench.ros.load_bench` prints and judges the figures.
+Nothing here is asserted; :mod:`strapdown_ros.bench.ros.load_bench` prints and judges the
+figures.
 """
 from __future__ import annotations
 
@@ -37,7 +39,12 @@ import tempfile
 import time
 from typing import Callable
 
+from diagnostic_msgs.msg import DiagnosticArray
+from geometry_msgs.msg import PoseWithCovarianceStamped, QuaternionStamped, Vector3Stamped
 import numpy as np
+import rclpy
+from rclpy.qos import ReliabilityPolicy
+from sensor_msgs.msg import Imu
 
 from strapdown_ros.nodes.ros_io import (camera_qos, DIAGNOSTICS_QOS, latched_qos, make_executor,
                                         stamp_to_ns, stream_qos)
@@ -77,7 +84,26 @@ CLOCK_TICKS = os.sysconf('SC_CLK_TCK')
 
 def node_parameters(ns: str, rate_factor: float, seconds: float,
                     reliable_streams: bool) -> dict[str, dict]:
-    """``-p`` parameters of each node process."""
+    """
+    Return the ``-p`` parameters of each node process.
+
+    Parameters
+    ----------
+    ns : str
+        Namespace of the graph (the QoS override names include it).
+    rate_factor : float
+        Multiple of the nominal sensor rates.
+    seconds : float
+        Sensor time to run, s (sets the bench passes).
+    reliable_streams : bool
+        Switch the stream topics to RELIABLE on both ends.
+
+    Returns
+    -------
+    dict
+        Node name → parameter name → value.
+
+    """
     gyro, accel = NOMINAL['gyro_rate'] * rate_factor, NOMINAL['accel_rate'] * rate_factor
     passes = max(1, math.ceil((seconds - BENCH_HOLD_S) / BENCH_PASS_S))
     profile = {
@@ -132,12 +158,21 @@ def _command(node: str, ns: str, params: dict) -> list[str]:
 
 
 class ProcessSampler:
-    """Resident memory (KiB) and CPU seconds of a process, from /proc."""
+    """
+    Resident memory (KiB) and CPU seconds of a process, from /proc.
+
+    Parameters
+    ----------
+    pid : int
+        The process.
+
+    """
 
     def __init__(self, pid: int):
         self.pid = pid
 
     def rss_kib(self) -> float:
+        """Return the resident memory, KiB (NaN once the process is gone)."""
         try:
             with open(f'/proc/{self.pid}/statm', encoding='ascii') as fh:
                 return int(fh.read().split()[1]) * PAGE_KIB
@@ -145,6 +180,7 @@ class ProcessSampler:
             return math.nan
 
     def cpu_s(self) -> float:
+        """Return the user + system CPU time, s (NaN once the process is gone)."""
         try:
             with open(f'/proc/{self.pid}/stat', encoding='ascii') as fh:
                 fields = fh.read().rsplit(')', 1)[1].split()
@@ -155,13 +191,29 @@ class ProcessSampler:
 
 def run_graph(seconds: float = 600.0, rate_factor: float = 10.0, reliable_streams: bool = True,
               warmup: float = 30.0, progress: Callable[[str], None] | None = None) -> dict:
-    """Run the graph for ``seconds`` of sensor time and return the raw figures (see module doc)."""
-    from diagnostic_msgs.msg import DiagnosticArray
-    from geometry_msgs.msg import PoseWithCovarianceStamped, QuaternionStamped, Vector3Stamped
-    import rclpy
-    from rclpy.qos import ReliabilityPolicy
-    from sensor_msgs.msg import Imu
+    """
+    Run the graph for ``seconds`` of sensor time and return the raw figures.
 
+    Parameters
+    ----------
+    seconds : float, optional
+        Sensor time, s.
+    rate_factor : float, optional
+        Multiple of the nominal sensor rates.
+    reliable_streams : bool, optional
+        Switch the stream topics to RELIABLE.
+    warmup : float, optional
+        Memory growth is measured from this many seconds after the first Δθ.
+    progress : callable, optional
+        Called with one line of progress text.
+
+    Returns
+    -------
+    dict
+        Counts, latencies (ns), memory and CPU series, the nodes' last /diagnostics, exit codes
+        (see the module docstring).
+
+    """
     say = progress or (lambda s: None)
     env = dict(os.environ)
     env['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
@@ -172,7 +224,7 @@ def run_graph(seconds: float = 600.0, rate_factor: float = 10.0, reliable_stream
     procs: dict[str, subprocess.Popen] = {}
     log_dir = tempfile.mkdtemp(prefix='load_bench_')
     logs = {n: open(os.path.join(log_dir, f'{n}.log'), 'w', encoding='utf-8')
-            for n in NODES}  # noqa: SIM115
+            for n in NODES}
     rclpy.init()
     mon = rclpy.create_node('load_monitor', namespace=ns)
     ex = make_executor()
@@ -291,8 +343,11 @@ def run_graph(seconds: float = 600.0, rate_factor: float = 10.0, reliable_stream
         cpu0 = {n: s.cpu_s() for n, s in samplers.items()}
         deadline = t0 + seconds * 1.5 + 60.0
         next_sample, next_say = t0, t0 + 30.0
-        finished = lambda: all(diags.get(n, {}).get('finished') == 'True'  # noqa: E731
-                               for n in ('imu_sim_node', 'star_camera_sim_node'))
+
+        def finished():
+            return all(diags.get(n, {}).get('finished') == 'True'
+                       for n in ('imu_sim_node', 'star_camera_sim_node'))
+
         while time.monotonic() < deadline and not finished():
             ex.spin_once(timeout_sec=0.01)
             now = time.monotonic()

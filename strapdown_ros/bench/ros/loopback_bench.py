@@ -21,6 +21,25 @@ from strapdown_ros.nodes.ros_io import ns_to_stamp, stream_qos
 
 
 def run_loopback(rate_hz: float = 2000.0, seconds: float = 60.0, algorithm: str = '2') -> dict:
+    """
+    Feed a separate ``sins_node`` process over loopback at a fixed rate and count.
+
+    Parameters
+    ----------
+    rate_hz : float, optional
+        Δθ input rate, Hz.
+    seconds : float, optional
+        Length of the feed, s.
+    algorithm : str, optional
+        Coning algorithm of the node.
+
+    Returns
+    -------
+    dict
+        Achieved input rate, messages sent, accepted and lost per the node's /diagnostics,
+        attitudes received back against those expected.
+
+    """
     ns = f'/bench_{os.getpid()}'
     cmd = [
         sys.executable, '-m', 'strapdown_ros.nodes.sins_node', '--ros-args', '-r', f'__ns:={ns}',
@@ -73,15 +92,15 @@ def run_loopback(rate_hz: float = 2000.0, seconds: float = 60.0, algorithm: str 
         while time.monotonic() < t_end and not diags:
             rclpy.spin_once(node, timeout_sec=0.05)
         kv = {v.key: v.value for v in diags[-1].values} if diags else {}
-        return {
-            'rate_hz': rate_hz, 'seconds': seconds, 'sent': n_total, 'send_wall_s': send_wall,
-            'achieved_input_hz': n_total / send_wall,
-            'accepted_by_node': int(kv.get('gyro_accepted', -1)),
-            'missing_in_node': int(kv.get('gyro_missing_samples', -1)), 'dropped_in_node': sum(
-                int(kv.get(k, 0)) for k in ('gyro_dropped_nan', 'gyro_dropped_out_of_order',
-                                            'gyro_dropped_duplicate')),
-            'attitude_outputs_received': outputs[0], 'attitude_outputs_expected': expected_out
-        }
+        dropped = sum(int(kv.get(k, 0)) for k in ('gyro_dropped_nan', 'gyro_dropped_out_of_order',
+                                                  'gyro_dropped_duplicate'))
+        return {'rate_hz': rate_hz, 'seconds': seconds, 'sent': n_total,
+                'send_wall_s': send_wall, 'achieved_input_hz': n_total / send_wall,
+                'accepted_by_node': int(kv.get('gyro_accepted', -1)),
+                'missing_in_node': int(kv.get('gyro_missing_samples', -1)),
+                'dropped_in_node': dropped,
+                'attitude_outputs_received': outputs[0],
+                'attitude_outputs_expected': expected_out}
     finally:
         node.destroy_node()
         rclpy.try_shutdown()

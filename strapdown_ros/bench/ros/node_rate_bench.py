@@ -1,9 +1,11 @@
 """
-node_rate_bench: the highest Δθ rate a node takes without loss, against bare rclpy, and its callback cost.
+Measure the highest Δθ rate a node takes without loss, against bare rclpy, and its callback cost.
+
+The command ``node_rate_bench``; the ROS side is ``rate_probe``.
 
 1. **Sustained rate.**  Four processes are started: a bare counting subscriber
-   (``strapdown_ros.bench.ros.rate_probe``: same QoS, same executor, same spin loop, a callback that
-   only counts; it takes deserialized messages, as a plain rclpy subscriber does), the same
+   (``strapdown_ros.bench.ros.rate_probe``: same QoS, same executor, same spin loop, a callback
+   that only counts; it takes deserialized messages, as a plain rclpy subscriber does), the same
    subscriber taking the serialized bytes (``counting_node_raw``; sins_node and calibrator_node
    subscribe raw and decode the stamp, vector and frame themselves), ``sins_node`` and
    ``calibrator_node``.  For each, the rate is bisected on a log
@@ -14,15 +16,16 @@ node_rate_bench: the highest Δθ rate a node takes without loss, against bare r
    ratios of each node's highest passing rate to the counting subscribers' are formed within one
    repeat.  ``--repeats`` (≥ 5) fresh sets of processes give the median and min–max.
 2. **Callback cost** (``--callback-runs``, in this process): ``sins_node``'s Δθ callback called
-   directly with serialized messages at 1 kHz stamps, as the executor calls it (the nodes subscribe
-   raw) — the hot path alone (decode, validate, append), the amortised cost with the
+   directly with serialized messages at 1 kHz stamps, as the executor calls it (the nodes
+   subscribe raw) — the hot path alone (decode, validate, append), the amortised cost with the
    block processing (no subscriber: no outputs built), and, for information, with a subscriber of
    ``sins/imu`` and ``sins/attitude`` so that every update is published; ``calibrator_node``'s;
    both again per ``sensor_msgs/Imu`` message with ``gyro_input: imu`` (rows ``*_imu``).
    Median and min–max of the runs, the subjects in turn.
 
 Absolute figures vary from machine to machine and with the load (printed at the start); the
-ratios measured in one run are the comparable figures.  Exit 0 (a benchmark); 2 for bad arguments.
+ratios measured in one run are the comparable figures.  Exit 0 (a benchmark); 2 for bad
+arguments.
 """
 from __future__ import annotations
 
@@ -47,6 +50,20 @@ FILTER_OUTPUT_PERIODS = (0.01, 0.1)
 
 
 def parse_args(argv):
+    """
+    Parse and check the command line of ``node_rate_bench``.
+
+    Parameters
+    ----------
+    argv : list of str
+        Arguments without the program name.
+
+    Returns
+    -------
+    argparse.Namespace
+        The options.
+
+    """
     ap = OneLineParser(prog='node_rate_bench', description=__doc__,
                        formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument('--seconds', type=float, default=5.0,
@@ -61,7 +78,8 @@ def parse_args(argv):
     ap.add_argument('--callback-runs', type=int, default=5,
                     help='runs of the callback-cost measurement (0: skip)')
     ap.add_argument('--no-rate', action='store_true', help='skip the sustained-rate part')
-    ap.add_argument('--json', metavar='FILE', help='write the figures as JSON')
+    ap.add_argument('--json', metavar='FILE', help='write the figures as JSON '
+                    '(documented run: doc/results/node_rate_bench/node_rate_bench.json)')
     ap.add_argument('--quiet', action='store_true', help='no progress on stderr')
     ap.add_argument('--force', action='store_true', help='overwrite existing outputs')
     args = ap.parse_args(argv)
@@ -95,6 +113,20 @@ def _stats(values) -> dict:
 
 
 def main(argv=None) -> int:
+    """
+    Run ``node_rate_bench``.
+
+    Parameters
+    ----------
+    argv : list of str, optional
+        Arguments without the program name; ``sys.argv[1:]`` when None.
+
+    Returns
+    -------
+    int
+        0 (a benchmark); bad arguments exit 2 with one line on stderr.
+
+    """
     argv = sys.argv[1:] if argv is None else argv
     args = parse_args(argv)
     t_start = time.monotonic()
