@@ -36,8 +36,8 @@ def run_loopback(rate_hz: float = 2000.0, seconds: float = 60.0, algorithm: str 
     Returns
     -------
     dict
-        Achieved input rate, messages sent, accepted and lost per the node's /diagnostics,
-        attitudes received back against those expected.
+        Messages sent and the achieved input rate; accepted, missing and dropped per the node's
+        /diagnostics; attitudes received back and expected.
 
     """
     ns = f'/bench_{os.getpid()}'
