@@ -1,7 +1,8 @@
 """
 Measure the highest Δθ rate a node takes without loss, against bare rclpy, and its callback cost.
 
-The command ``node_rate_bench``; the ROS side is ``rate_probe``.
+The command ``node_rate_bench``; the ROS side is ``rate_probe`` (the rates) and
+``callback_cost``.
 
 1. **Sustained rate.**  Four processes are started: a bare counting subscriber
    (``strapdown_ros.bench.ros.rate_probe``: same QoS, same executor, same spin loop, a callback
@@ -38,6 +39,7 @@ import sys
 import time
 
 from strapdown_ros.attitude.coning import algorithm_names
+from strapdown_ros.bench.ros import callback_cost as cost
 from strapdown_ros.bench.ros import rate_probe as probe
 from strapdown_ros.cli import check_outputs, FILE, OneLineParser, write_text
 
@@ -154,15 +156,15 @@ def main(argv=None) -> int:
                   alg + '_imu': [], 'calibrator_node_imu': []}
             published = {alg: [], 'sins_node_alg_one_plus_previous': []}
             for k in range(args.callback_runs):              # the subjects in turn
-                cb[alg].append(probe.callback_cost(args.algorithm))
+                cb[alg].append(cost.callback_cost(args.algorithm))
                 cb['sins_node_alg_one_plus_previous'].append(
-                    probe.callback_cost('one_plus_previous'))
-                cb['calibrator_node'].append(probe.calibrator_callback_cost())
-                cb[alg + '_imu'].append(probe.callback_cost(args.algorithm, gyro_input='imu'))
-                cb['calibrator_node_imu'].append(probe.calibrator_callback_cost(gyro_input='imu'))
-                published[alg].append(probe.callback_cost(args.algorithm, subscribed=True))
+                    cost.callback_cost('one_plus_previous'))
+                cb['calibrator_node'].append(cost.calibrator_callback_cost())
+                cb[alg + '_imu'].append(cost.callback_cost(args.algorithm, gyro_input='imu'))
+                cb['calibrator_node_imu'].append(cost.calibrator_callback_cost(gyro_input='imu'))
+                published[alg].append(cost.callback_cost(args.algorithm, subscribed=True))
                 published['sins_node_alg_one_plus_previous'].append(
-                    probe.callback_cost('one_plus_previous', subscribed=True))
+                    cost.callback_cost('one_plus_previous', subscribed=True))
             say('callback cost measured')
             out['callback'] = cb
             out['callback_published'] = published
@@ -206,7 +208,7 @@ def main(argv=None) -> int:
                 'force into a Δθ and a Δv, the work of two increment messages; the '
                 'target is for Δθ messages).'
             )
-            filt = {op: [probe.filter_callback_cost(output_period=op)
+            filt = {op: [cost.filter_callback_cost(output_period=op)
                          for _ in range(args.callback_runs)] for op in FILTER_OUTPUT_PERIODS}
             say('filter callback cost measured')
             out['filter_callback'] = {str(op): runs for op, runs in filt.items()}
