@@ -116,8 +116,8 @@ def conclusions(res: dict) -> list[str]:
         rest = [r for r in vc if r not in good]
         other = ''
         if rest:
-            ratios = ', '.join(
-                f"{r['profile']} {r['key']} {r['measured_m'] / r['predicted_m']:.2g}" for r in rest)
+            ratios = ', '.join(f"{r['profile']} {r['key']} "
+                               f"{r['measured_m'] / r['predicted_m']:.2g}" for r in rest)
             other = (f'; in the other {len(rest)} the measured vertical error (at most '
                      f"{max(abs(r['measured_m']) for r in rest):.1e} m) is not set by the Δv "
                      f'drift — measured ÷ predicted: {ratios}')

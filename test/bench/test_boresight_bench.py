@@ -1,4 +1,4 @@
-"""boresight_bench at reduced size: JSON schema, bounds, estimator sanity, OpenCV entries, timing."""
+"""boresight_bench at reduced size: schema, bounds, estimator sanity, OpenCV entries, timing."""
 
 import json
 import math
@@ -51,7 +51,8 @@ def test_bounds_are_positive_and_decompose(bench):
     for k in ('exact', 'independent_pairs', 'without_triad_rotation', 'triad_rotation_floor',
               'white_gyro_only'):
         assert _finite(cr[k]['sigma_arcsec']) and min(cr[k]['sigma_arcsec']) > 0, k
-    # the triad rotation (antisymmetric gyro misalignment) is exactly unobservable: it adds to the bound
+    # the triad rotation (antisymmetric gyro misalignment) is exactly unobservable: it adds to
+    # the bound
     ex = np.array(cr['exact']['covariance_rad2'])
     parts = np.array(cr['without_triad_rotation']['covariance_rad2']) + np.array(
         cr['triad_rotation_floor']['covariance_rad2'])

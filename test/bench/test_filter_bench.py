@@ -1,6 +1,7 @@
 """
-filter_bench smoke test: tiny settings, every output written; no figure asserted (the bench
-prints figures, it does not assert them).
+Smoke test of filter_bench: tiny settings, every output written.
+
+No figure is asserted: the bench prints figures, it does not assert them.
 """
 import json
 

@@ -1,7 +1,9 @@
 """
-load_bench end to end, short: the graph as separate processes, counts from each node's own
-/diagnostics, and the simulators' clocks held until every consumer is matched, so that nothing is
-lost to discovery (the 10-minute run at 10× is a benchmark: doc/benchmarks.md, doc/bench/load/).
+Run load_bench end to end, short: the graph loses nothing and the report is written.
+
+The graph runs as separate processes, counts come from each node's own /diagnostics, and the
+simulators' clocks are held until every consumer is matched, so nothing is lost to discovery
+(the 10-minute run at 10× is a benchmark: doc/benchmarks.md).
 """
 import json
 import os

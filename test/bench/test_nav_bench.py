@@ -1,6 +1,8 @@
 """
-nav_bench and the navigation runner (strapdown_ros.navigation.run): perfect-sensor errors, printed
-against derived, the sculling drift against its formula, and the CLI's files and argument errors.
+Check nav_bench and the navigation runner (strapdown_ros.navigation.run).
+
+Perfect-sensor errors, printed against derived coefficients, the sculling drift against its
+formula, and the command's files and argument errors.
 """
 import json
 import os
@@ -18,9 +20,10 @@ from strapdown_ros.navigation.run import run_profile, specific_force_drift, summ
 SECONDS = 60.0
 
 #: (final/max |δR| m, |δW| m/s) bounds for 60 s of perfect sensors, exact Δv + exact recursion,
-#: no sensor history.  Measured: static ≤ 2.3e-7 m / 3.8e-9 m/s, straight flight ≤ 3.8e-7 / 6.4e-9
-#: (one+prev: its start-up step), turn 1.3e-4 / 2.1e-6 (one+prev start-up; coning 2: 3.6e-7 / 1.1e-8),
-#: sculling 2.3e-2 / 7.5e-4 (the exact form's own error at wh = 0.63).  Margin 5–10×.
+#: no sensor history.  Measured: static ≤ 2.3e-7 m / 3.8e-9 m/s, straight flight ≤ 3.8e-7 /
+#: 6.4e-9 (one+prev: its start-up step), turn 1.3e-4 / 2.1e-6 (one+prev start-up; coning 2:
+#: 3.6e-7 / 1.1e-8), sculling 2.3e-2 / 7.5e-4 (the exact form's own error at wh = 0.63).
+#: Margin 5–10×.
 BOUNDS = {
     'static': (3e-6, 5e-8),
     'straight_flight': (4e-6, 7e-8),
@@ -40,8 +43,8 @@ def test_perfect_sensor_errors_small(profiles, name, algorithm):
     r = run_profile(profiles[name], SECONDS, algorithm=algorithm)
     s = summarize(r)
     pos, vel = BOUNDS[name]
-    assert len(
-        r['t']) == r['steps'] and abs(r['t'][-1] - SECONDS) < 1e-9 and s['extrapolated_steps'] == 0
+    assert len(r['t']) == r['steps'] and abs(r['t'][-1] - SECONDS) < 1e-9
+    assert s['extrapolated_steps'] == 0
     assert s['max_position_m'] < pos and s['max_velocity_m_s'] < vel, s
     assert s['max_attitude_rad'] < 1e-8, s
     assert np.allclose(r['true_position'], profiles[name].position(r['t']))
@@ -49,6 +52,8 @@ def test_perfect_sensor_errors_small(profiles, name, algorithm):
 
 def test_no_start_up_error_with_or_without_sensor_history(profiles):
     """
+    Check one+prev has no start-up error, with or without sensor data before t0.
+
     one+prev fits the rate over the previous step; before t0 the navigator continues the first
     sample's rate (it once read a zero increment there: 1.3e-4 m on the turn).  With or without
     two periods of real sensor history the error stays at the float floor.
@@ -64,9 +69,12 @@ def test_no_start_up_error_with_or_without_sensor_history(profiles):
 
 def test_printed_worse_than_derived_where_specific_force_is_curved(profiles):
     """
+    Check the printed coefficients lose against the derived ones on curved specific force.
+
     Sculling: the specific force is curved (≈ quadratic) within a step, where the printed
-    coefficients of (1.99)/(1.100) differ from the derived ones (measured 54× at 60 s); on the static
-    profile (constant specific force, only the Earth's rotation) both stay near the float floor.
+    coefficients of (1.99)/(1.100) differ from the derived ones (measured 54× at 60 s); on the
+    static profile (constant specific force, only the Earth's rotation) both stay near the float
+    floor.
     """
     def final(name, form, scheme):
         return summarize(
@@ -81,6 +89,8 @@ def test_printed_worse_than_derived_where_specific_force_is_curved(profiles):
 @pytest.mark.parametrize('steps', [1, 2])
 def test_sculling_drift_matches_formula(steps):
     """
+    Check the rotation-only Δv drift against the sculling formula and the gravity term.
+
     rotation_only Δv against ∫C f dt, in E along up: the part odd in B is −½AB(1 − sin wh/wh)
     (measured ratio 1.00000), the part even in B the gravity term ½gA²(sin wh/wh − ½(1 + cos wh)).
     """
