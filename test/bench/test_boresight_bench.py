@@ -17,6 +17,7 @@ NEES = ('weighted.covariance_beta', 'weighted.covariance_beta_model',
 
 @pytest.fixture(scope='module')
 def bench(tmp_path_factory):
+    """Run boresight_bench once with 12 runs; the output directory and its JSON."""
     pytest.importorskip('scipy')
     d = tmp_path_factory.mktemp('boresight')
     f = d / 'b.json'
@@ -33,6 +34,7 @@ def _finite(xs, n=3):
 
 
 def test_schema_and_config(bench):
+    """The JSON has every section and the configuration of the scenario."""
     _, res = bench
     for key in ('command', 'config', 'opencv', 'convention_check', 'calibrator_check', 'summary',
                 'performance', 'per_run_errors_arcsec', 'timing', 'findings'):
@@ -46,6 +48,7 @@ def test_schema_and_config(bench):
 
 
 def test_bounds_are_positive_and_decompose(bench):
+    """The bounds are positive; exact = triad floor + the rest."""
     _, res = bench
     cr = res['summary']['crlb']
     for k in ('exact', 'independent_pairs', 'without_triad_rotation', 'triad_rotation_floor',
@@ -62,6 +65,7 @@ def test_bounds_are_positive_and_decompose(bench):
 
 
 def test_estimators_are_sane(bench):
+    """Every estimator converges, weighting helps, NEES means are finite."""
     _, res = bench
     est = res['summary']['estimators']
     for k in ESTIMATORS:
@@ -85,6 +89,7 @@ def test_estimators_are_sane(bench):
 
 
 def test_pipeline_checks(bench):
+    """Noise-free estimates are exact; the bench agrees with the calibrator."""
     _, res = bench
     conv = res['convention_check']
     assert conv['weighted'] < 1e-6 and conv['unweighted'] < 1e-6          # arc seconds, noise-free
@@ -96,6 +101,7 @@ def test_pipeline_checks(bench):
 
 
 def test_opencv_methods_present(bench):
+    """The OpenCV methods give answers, or every run says why not."""
     _, res = bench
     est = res['summary']['estimators']
     if res['opencv']['available']:
@@ -111,6 +117,7 @@ def test_opencv_methods_present(bench):
 
 
 def test_performance_and_report(bench):
+    """The solve() timing is recorded and the report has its sections."""
     d, res = bench
     pf = res['performance']
     assert pf['pairs'] == 1000 and pf['warm_solve_ms_median'] > 0 and len(
@@ -122,5 +129,6 @@ def test_performance_and_report(bench):
 
 
 def test_full_run_needs_100_runs():
+    """Fewer than 100 runs without --quick is refused."""
     with pytest.raises(SystemExit):
         boresight_bench.main(['--runs', '12'])

@@ -23,6 +23,7 @@ SCHEMA = {
 
 @pytest.fixture(scope='module')
 def bench(tmp_path_factory):
+    """Run coning_bench once on one short case; the output directory and its JSON."""
     pytest.importorskip('scipy')
     pytest.importorskip('matplotlib')
     d = tmp_path_factory.mktemp('bench')
@@ -40,6 +41,7 @@ def bench(tmp_path_factory):
 
 
 def test_json_schema(bench):
+    """Every record has the fields of the schema."""
     _, res = bench
     assert len(res['results']) == 2 * 4
     for r in res['results']:
@@ -52,6 +54,7 @@ def test_json_schema(bench):
 
 @pytest.mark.parametrize('name,step', [('two_sample', 0.1), ('one_plus_previous', 0.2)])
 def test_drift_and_order_agree_with_theory(bench, name, step):
+    """Measured drift and order agree with the small-α theory."""
     _, res = bench
     r = next(r for r in res['results'] if r['algorithm'] == name and r['step'] == step)
     assert not r['floor']
@@ -60,6 +63,7 @@ def test_drift_and_order_agree_with_theory(bench, name, step):
 
 
 def test_report_and_plots(bench):
+    """The report has its sections, the plots exist, printed forms lose."""
     d, res = bench
     text = (d / 'coning.md').read_text()
     for needle in ('## Round-off floor', '## Order of accuracy and verdict',
@@ -84,6 +88,7 @@ def test_report_and_plots(bench):
 
 
 def test_unknown_algorithm_is_refused(capsys):
+    """An unknown algorithm name is refused with the valid names."""
     with pytest.raises(SystemExit):
         coning_bench.main(['--algorithms', '2,bogus'])
     assert 'valid names: 1, 2' in capsys.readouterr().err

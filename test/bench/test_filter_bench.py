@@ -9,6 +9,7 @@ from strapdown_ros.bench.filter_bench import main
 
 
 def test_filter_bench_runs_and_writes_its_outputs(tmp_path, capsys):
+    """Tiny settings run and write JSON, report and plots."""
     out = tmp_path / 'out'
     args = ['--runs', '3', '--fixes', '5', '--timing-seconds', '0.2', '--timing-runs', '1',
             '--blocks', '1,10', '--no-realdata', '--quiet', '--json', str(tmp_path / 'f.json'),
@@ -24,6 +25,7 @@ def test_filter_bench_runs_and_writes_its_outputs(tmp_path, capsys):
 
 
 def test_filter_bench_refuses_an_existing_output_without_force(tmp_path, capsys):
+    """An existing output needs --force."""
     (tmp_path / 'f.json').write_text('{}')
     try:
         main(['--runs', '2', '--fixes', '2', '--json', str(tmp_path / 'f.json')])

@@ -16,6 +16,7 @@ BIN = os.path.dirname(sys.executable)
 
 
 def test_short_load_run_loses_nothing_and_reports(tmp_path):
+    """A 12 s run loses no message and writes its report."""
     import subprocess
     p = subprocess.run([
         os.path.join(BIN, 'load_bench'), '--seconds', '12', '--rate-factor', '1', '--warmup', '2',

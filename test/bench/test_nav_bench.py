@@ -34,12 +34,14 @@ BOUNDS = {
 
 @pytest.fixture(scope='module')
 def profiles():
+    """Return the four navigation profiles by name."""
     return {n: navigation_profile_from_config({'profile': n}) for n in BOUNDS}
 
 
 @pytest.mark.parametrize('algorithm', ['2', 'one_plus_previous'])
 @pytest.mark.parametrize('name', list(BOUNDS))
 def test_perfect_sensor_errors_small(profiles, name, algorithm):
+    """Perfect sensors give errors below the bounds on every profile."""
     r = run_profile(profiles[name], SECONDS, algorithm=algorithm)
     s = summarize(r)
     pos, vel = BOUNDS[name]
@@ -116,6 +118,7 @@ def test_sculling_drift_matches_formula(steps):
 
 
 def test_gravity_term_series_matches_closed_form():
+    """The gravity sculling term matches its series."""
     x = np.array([1e-3, 5e-3, 0.02, 0.5])
     direct = 0.5 * 9.8 * 1e-4 * (np.sin(x) / x - 0.5 * (1 + np.cos(x)))
     got = gravity_sculling_term(1e-2, 9.8, x, 1.0)
@@ -129,6 +132,7 @@ def _cli(*args, timeout=120):
 
 
 def test_cli_writes_its_files(tmp_path):
+    """The command writes its JSON, report and plots."""
     js, rep = tmp_path / 'nav.json', tmp_path / 'report'
     p = _cli('--seconds', '5', '--static-seconds', '5', '--drift-seconds', '5', '--timing-seconds',
              '2', '--runs', '1', '--json', str(js), '--report', str(rep), '--quiet')
@@ -155,6 +159,7 @@ def test_cli_writes_its_files(tmp_path):
     (['--report', '/nonexistent/dir/r'], '/nonexistent'),
 ])
 def test_cli_rejects_bad_arguments(args, needle):
+    """Bad arguments exit 2 with one line on stderr."""
     p = _cli(*args, timeout=60)
     lines = [ln for ln in (p.stdout + p.stderr).splitlines() if ln.strip()]
     assert p.returncode == 2, (p.stdout, p.stderr)
@@ -163,6 +168,7 @@ def test_cli_rejects_bad_arguments(args, needle):
 
 
 def test_console_script_when_installed():
+    """The console script runs when it is installed."""
     exe = os.path.join(os.path.dirname(sys.executable), 'nav_bench')
     if not os.path.exists(exe):
         pytest.skip('nav_bench console script not installed (pip install -e . regenerates it)')
