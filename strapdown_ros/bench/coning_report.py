@@ -375,8 +375,8 @@ def write_report(res: dict, args, path: str, plots: list[str]) -> None:
             cells = []
             for a, v in combos:
                 r = _rec(res, n, a, v, step)
-                th = None if r is None or r[
-                    'theory_rad_per_s'] is None else r['theory_rad_per_s'] / DEG_PER_HOUR
+                th = None if r is None else r['theory_rad_per_s']
+                th = None if th is None else th / DEG_PER_HOUR
                 cells += [_cell(r), fmt(th)]
             L.append(f'| `{n}` | {ALGORITHMS[n].samples} | ' + ' | '.join(cells)
                      + f" | {fmt(sw[n]['order_measured'], 3)} | {ALGORITHMS[n].order_expected} |")

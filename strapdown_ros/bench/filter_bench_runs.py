@@ -184,8 +184,8 @@ def monte_carlo(a, progress) -> dict:
             out['gated'] += res.status == 'gated'
             out['sig_att'][run, j] = np.sqrt(np.diag(P)[:3])
             out['sig_bias'][run, j] = np.sqrt(np.diag(P)[3:])
-            out['b_true'][run, j], out['b_est'][run, j] = b[(j + 1) * k - 1], e[3:] + b[
-                (j + 1) * k - 1]
+            b_fix = b[(j + 1) * k - 1]
+            out['b_true'][run, j], out['b_est'][run, j] = b_fix, e[3:] + b_fix
             if run == 0 and res.status == 'gated':
                 p_gap[2] = min(p_gap[2], j)
             if run == 0 and j < p_gap[2]:        # σ and correlations of P against the PCRB's

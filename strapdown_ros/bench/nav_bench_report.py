@@ -79,8 +79,8 @@ def conclusions(res: dict) -> list[str]:
                                 ('one+prev', 'opp/exact', 'opp/rotation_only', 0.01)):
         if 'sculling' not in nav:
             continue
-        on, off = nav['sculling'][k_on]['final_position_m'], nav['sculling'][k_off][
-            'final_position_m']
+        on = nav['sculling'][k_on]['final_position_m']
+        off = nav['sculling'][k_off]['final_position_m']
         others = []
         for p in nav:
             if p == 'sculling':

@@ -51,6 +51,11 @@ FILTER_TARGET_US = 50.0
 FILTER_OUTPUT_PERIODS = (0.01, 0.1)
 
 
+
+def _median_range(s: dict) -> str:
+    return '–' if s['n'] == 0 else f"{s['median']:.2f} ({s['min']:.2f}–{s['max']:.2f})"
+
+
 def parse_args(argv):
     """
     Parse and check the command line of ``node_rate_bench``.
@@ -185,10 +190,8 @@ def main(argv=None) -> int:
                 a = _stats([r['amortised_us'] for r in runs])
                 hp = _stats([r.get('hot_path_us') for r in runs])
                 pb = _stats([r['amortised_us'] for r in published.get(name, [])])
-                hot = '–' if hp[
-                    'n'] == 0 else f"{hp['median']:.2f} ({hp['min']:.2f}–{hp['max']:.2f})"
-                pub = '–' if pb[
-                    'n'] == 0 else f"{pb['median']:.2f} ({pb['min']:.2f}–{pb['max']:.2f})"
+                hot = _median_range(hp)
+                pub = _median_range(pb)
                 lines.append(
                     f"| {name} | {hot} | {a['median']:.2f} ({a['min']:.2f}–{a['max']:.2f}) |"
                     f' {pub} |'
