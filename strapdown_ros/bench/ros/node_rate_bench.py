@@ -51,7 +51,6 @@ FILTER_TARGET_US = 50.0
 FILTER_OUTPUT_PERIODS = (0.01, 0.1)
 
 
-
 def _median_range(s: dict) -> str:
     return '–' if s['n'] == 0 else f"{s['median']:.2f} ({s['min']:.2f}–{s['max']:.2f})"
 
