@@ -475,7 +475,8 @@ def parse_args(argv):
     ap.add_argument('--json', help='write all records and tables to this JSON file '
                     '(documented run: doc/results/discrepancy_bench/bench.json)')
     ap.add_argument('--plots',
-                    help='write discrepancy_detection.png and discrepancy_confusion.png here')
+                    help='write discrepancy_detection.png and discrepancy_confusion.png here '
+                    '(documented run: doc/results/discrepancy_bench)')
     ap.add_argument('--report', help='write the markdown report to this file '
                     '(documented run: doc/results/discrepancy_bench/bench.md)')
     ap.add_argument('--force', action='store_true', help='overwrite existing outputs')
