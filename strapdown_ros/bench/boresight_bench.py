@@ -48,7 +48,7 @@ from strapdown_ros.bench.boresight_scenario import (BETA_DEG, bounds, build_scen
                                                     CAMERA_SIGMA_ARCSEC, FIRST_EXPOSURE,
                                                     GYRO_RATE, INTERVAL, LATITUDE_DEG,
                                                     N_FIXES, ROTATION_TIME, ROTATIONS)
-from strapdown_ros.bench.boresight_summary import findings, summarize
+from strapdown_ros.bench.boresight_summary import conclusions, summarize
 from strapdown_ros.cli import check_outputs, DIRECTORY, FILE, write_text
 from strapdown_ros.sensors import ARCSEC
 
@@ -169,7 +169,7 @@ def main(argv=None) -> int:
            'per_run_errors_arcsec': {k: np.round(v / ARCSEC, 4).tolist()
                                      for k, v in mc['errors'].items()},
            'timing': {'scenario_s': sc.build_s, 'monte_carlo_s': mc['wall_s'], 'jobs': jobs}}
-    res['findings'] = findings(sm)
+    res['findings'] = conclusions(sm)
     plots = make_plots(sc, bnd, mc, sm, args.plots) if args.plots else []
     res['plots'] = plots
     res['timing']['total_s'] = time.perf_counter() - t_all

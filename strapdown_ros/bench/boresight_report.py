@@ -424,7 +424,7 @@ def write_report(path: str, res: dict, plots: list[str]):
         '',
     ]
     if res.get('findings'):
-        L += ['## Findings', ''] + [f'* {x}' for x in res['findings']] + ['']
+        L += ['## Conclusions', ''] + [f'* {x}' for x in res['findings']] + ['']
     if plots:
         L += ['## Plots', '']
         base = os.path.dirname(os.path.abspath(path))

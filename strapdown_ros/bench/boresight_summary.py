@@ -218,7 +218,7 @@ def summarize(sc: Scenario, bnd: dict, mc: dict, runs: int) -> dict:
     }
 
 
-def findings(sm: dict) -> list[str]:
+def conclusions(sm: dict) -> list[str]:
     """
     Return plain statements derived from the summary's numbers.
 
@@ -230,7 +230,7 @@ def findings(sm: dict) -> list[str]:
     Returns
     -------
     list of str
-        One sentence per finding, for the JSON and the report.
+        One sentence each, for the JSON (key ``findings``) and the report.
 
     """
     est, cr, n = sm['estimators'], sm['crlb'], sm['nees']
