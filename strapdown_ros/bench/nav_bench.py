@@ -34,8 +34,7 @@ attitude error.  Then:
   B the acceleration amplitude, the part even in B against the gravity term
   ½gA²(sin(wh)/(wh) − ½(1 + cos wh)) (the pure roll oscillation in gravity, derived in
   :func:`~strapdown_ros.motion.earth_profiles.gravity_sculling_term`); acceptance 5 % where
-  above the float floor (10⁻¹⁵ of the mean specific force: a few ulp per step; the exact Δv
-  on the static and straight-flight profiles drifts by 1–2·10⁻¹⁵ m/s²).
+  above the float floor (10⁻¹⁵ of the mean specific force: a few ulp per step).
 * **Round-off**: the static run with smaller blocks (the navigator's cumulative increment sums are
   rebased once per block).
 * **Run time** of ``--timing-seconds`` (3600) of 100 Hz gyro + 300 Hz accelerometer data through
