@@ -7,6 +7,7 @@ simulators' clocks are held until every consumer is matched, so nothing is lost 
 """
 import json
 import os
+import subprocess
 import sys
 
 import pytest
@@ -17,13 +18,10 @@ BIN = os.path.dirname(sys.executable)
 
 def test_short_load_run_loses_nothing_and_reports(tmp_path):
     """A 12 s run loses no message and writes its report."""
-    import subprocess
-    p = subprocess.run([
-        os.path.join(BIN, 'load_bench'), '--seconds', '12', '--rate-factor', '1', '--warmup', '2',
-        '--json',
-        str(tmp_path / 'l.json'), '--report',
-        str(tmp_path / 'r'), '--quiet'
-    ], capture_output=True, text=True, timeout=180)
+    cmd = [os.path.join(BIN, 'load_bench'), '--seconds', '12', '--rate-factor', '1',
+           '--warmup', '2', '--json', str(tmp_path / 'l.json'), '--report', str(tmp_path / 'r'),
+           '--quiet']
+    p = subprocess.run(cmd, capture_output=True, text=True, timeout=180)
     assert p.returncode == 0, p.stderr
     d = json.load(open(tmp_path / 'l.json'))
     s = d['summary']
