@@ -1,13 +1,15 @@
 """
-The core attitude path beside its peers, for ``sins_bench``: one run times, in turn,
+The core attitude path beside its peers, for ``sins_bench``.
+
+One run times, in turn,
 
 * **A**, strapdown_ros: :class:`~strapdown_ros.attitude.integrator.AttitudeIntegrator` with the
   one-plus-previous coning term, covariance propagation included, pushed in 60 s blocks;
-* **B**, pyins 1.0.1 (PyPI ``python-ins``, optional): the same coning term, θ_k + θ_{k−1} × θ_k / 12,
-  computed as its ``compute_increments_from_imu`` does, and its numba-compiled integration kernel
-  (which also integrates velocity and position; no covariance).  Its public API around the same
-  kernel (``compute_increments_from_imu`` + ``Integrator.integrate``, pandas in and out) is timed
-  too, for information;
+* **B**, pyins 1.0.1 (PyPI ``python-ins``, optional): the same coning term,
+  θ_k + θ_{k−1} × θ_k / 12, computed as its ``compute_increments_from_imu`` does, and its
+  numba-compiled integration kernel (which also integrates velocity and position; no
+  covariance).  Its public API around the same kernel (``compute_increments_from_imu`` +
+  ``Integrator.integrate``, pandas in and out) is timed too, for information;
 * **C**, a compiled reference: the 20-line quaternion loop below, numba-compiled (optional):
   the same coning term, q ← q ⊗ exp(φ), renormalised; nothing else.
 
@@ -27,7 +29,7 @@ from strapdown_ros.sensors import NAVIGATION_GRADE_GYRO
 
 
 def _reference_loop():
-    """The compiled reference loop (numba), or None without numba."""
+    """Return the compiled reference loop (numba), or None without numba."""
     try:
         from numba import njit
     except ImportError:
@@ -66,9 +68,33 @@ def _pyins():
     return pd, sd
 
 
-def peer_runs(dth: np.ndarray, stamps: np.ndarray, q0: np.ndarray, runs: int = 5, block: int = 6000,
-              progress=None) -> dict:
-    """``runs`` rounds of A, B, C in turn on the increments ``dth`` (n, 3) stamped ``stamps`` (n+1,)."""
+def peer_runs(dth: np.ndarray, stamps: np.ndarray, q0: np.ndarray, runs: int = 5,
+              block: int = 6000, progress=None) -> dict:
+    """
+    Time ``runs`` rounds of A, B and C in turn on the same increments.
+
+    Parameters
+    ----------
+    dth : (n, 3) ndarray
+        Gyro increments Δθ, rad.
+    stamps : (n + 1,) ndarray
+        Interval edges, s.
+    q0 : (4,) ndarray
+        Initial attitude, scalar-first quaternion.
+    runs : int, optional
+        Rounds.
+    block : int, optional
+        Increments per ``push`` of the strapdown_ros integrator.
+    progress : callable, optional
+        Called with one line of text per round.
+
+    Returns
+    -------
+    dict
+        ``intervals``, ``runs`` (per round: wall times in s, ratios, final attitude
+        difference in rad), ``pyins_available``, ``compiled_loop_available``.
+
+    """
     n = len(dth)
     loop = _reference_loop()
     pyins = _pyins()
@@ -78,16 +104,20 @@ def peer_runs(dth: np.ndarray, stamps: np.ndarray, q0: np.ndarray, runs: int = 5
         # pyins's increment convention: one extra "before" row; accelerometers zero (attitude only)
         data = np.zeros((n + 1, 6))
         data[1:, :3] = dth
-        imu = pd.DataFrame(data, index=stamps, columns=['gyro_x', 'gyro_y', 'gyro_z', 'accel_x', 'accel_y', 'accel_z'])
+        imu = pd.DataFrame(data, index=stamps,
+                           columns=['gyro_x', 'gyro_y', 'gyro_z', 'accel_x', 'accel_y', 'accel_z'])
         pva = pd.Series({'lat': 50.45, 'lon': 30.52, 'alt': 0.0, 'VN': 0.0, 'VE': 0.0, 'VD': 0.0,
                          'roll': 0.0, 'pitch': 0.0, 'heading': 0.0})
-        sd.Integrator(pva).integrate(sd.compute_increments_from_imu(imu.iloc[:100], 'increment'))   # compile
+        sd.Integrator(pva).integrate(sd.compute_increments_from_imu(imu.iloc[:100],
+                                                                    'increment'))  # compile
     if loop is not None:
-        loop(dth[:10], q0)                                                                          # compile
-    AttitudeIntegrator('one_plus_previous', q0, stamps[0], gyro=NAVIGATION_GRADE_GYRO).push(dth[:10], stamps[1:11])
+        loop(dth[:10], q0)  # compile
+    AttitudeIntegrator('one_plus_previous', q0, stamps[0],
+                       gyro=NAVIGATION_GRADE_GYRO).push(dth[:10], stamps[1:11])
 
     def a():
-        integ = AttitudeIntegrator('one_plus_previous', q0, stamps[0], nominal_period=stamps[1] - stamps[0],
+        integ = AttitudeIntegrator('one_plus_previous', q0, stamps[0],
+                                   nominal_period=stamps[1] - stamps[0],
                                    gyro=NAVIGATION_GRADE_GYRO)
         t0 = time.perf_counter()
         for k in range(0, n, block):
@@ -96,8 +126,10 @@ def peer_runs(dth: np.ndarray, stamps: np.ndarray, q0: np.ndarray, runs: int = 5
 
     def b():
         """
-        pyins's compiled kernel with the coning term computed as its compute_increments_from_imu
-        does (numpy); its DataFrame wrapping is left out.
+        Time pyins's compiled kernel alone.
+
+        The coning term is computed as its ``compute_increments_from_imu`` does (numpy); its
+        DataFrame wrapping is left out.
         """
         from pyins._numba_integrate import integrate
         t0 = time.perf_counter()
@@ -123,7 +155,7 @@ def peer_runs(dth: np.ndarray, stamps: np.ndarray, q0: np.ndarray, runs: int = 5
         return time.perf_counter() - t0, q[-1]
 
     if pyins is not None:
-        b()                                           # the kernel compiles for these argument types
+        b()  # the kernel compiles for these argument types
     rows = []
     for r in range(runs):
         ta, qa = a()
@@ -137,6 +169,9 @@ def peer_runs(dth: np.ndarray, stamps: np.ndarray, q0: np.ndarray, runs: int = 5
             row['final_attitude_difference_rad'] = float(quat_angle_between(qa, qc))
         rows.append(row)
         if progress:
-            progress(f'peer run {r + 1}/{runs}: A {ta:.3f} s, B {tb:.3f} s (API {tb_api:.3f} s), C {tc:.4f} s')
+            progress(
+                f'peer run {r + 1}/{runs}: A {ta:.3f} s, B {tb:.3f} s (API {tb_api:.3f} s), C'
+                f' {tc:.4f} s'
+            )
     return {'intervals': n, 'runs': rows, 'pyins_available': pyins is not None,
             'compiled_loop_available': loop is not None}

@@ -1,345 +1,70 @@
 """
-discrepancy_bench: Monte Carlo of the discrepancy workflow (strapdown_ros.discrepancy.workflow).
+Benchmark the discrepancy workflow: detection, naming, false alarms, confusion and speed.
 
-Scenario: bench profile (enough 150 s passes for --duration), gyro 200 Hz, a star-camera fix every
-2 s, boresight (0.698, −0.436, 2.094) rad; nominal model = the calibrator defaults.
+The command ``discrepancy_bench``: a Monte Carlo of ``strapdown_ros.discrepancy.workflow``
+(the runs in ``discrepancy_monte_carlo``, the summary in ``discrepancy_summary``), printed and
+reported here.
 
-1. Detection against size: per effect and seed s, σ of the effect (``effect_sigma``; one reference
-   null recording, the first seed, unless --sigma per-seed), a hidden effect of Mahalanobis size k
-   (``draw_hidden_effect``; seed i gets sizes[i mod n] unless --every-size) in a recording of seed
-   s + 10000, ``analyse``: detected, named first, estimate within 3σ in every component.  Reference:
-   the ideal LRT power P(χ²_q(k²) > χ²_q⁻¹(1 − α/m)), q = separable dimension, m = candidates.
-2. False alarms: null recordings of --null-seeds seeds, verdict ≠ ``model_adequate`` (Clopper–Pearson).
+Scenario: bench profile (enough 150 s passes for --duration), gyro 200 Hz, a star-camera fix
+every 2 s, boresight (0.698, −0.436, 2.094) rad; nominal model = the calibrator defaults.
+
+1. Detection against size: per effect and seed s, σ of the effect (``effect_sigma``; one
+   reference null recording, the first seed, unless --sigma per-seed), a hidden effect of
+   Mahalanobis size k (``draw_hidden_effect``; seed i gets sizes[i mod n] unless --every-size)
+   in a recording of seed s + 10000, ``analyse``: detected, named first, estimate within 3σ in
+   every component.  Reference: the ideal LRT power P(χ²_q(k²) > χ²_q⁻¹(1 − α/m)),
+   q = separable dimension, m = candidates.
+2. False alarms: null recordings of --null-seeds seeds, verdict ≠ ``model_adequate``
+   (Clopper–Pearson).
 3. Confusion: injected × first named effect at k ≥ 5σ.
 4. Speed: the ``discrepancy`` CLI on a 900 s bag (200 Hz, 450 fixes), 5 runs.
 """
 from __future__ import annotations
 
 import argparse
-from collections import Counter
-from concurrent.futures import as_completed, ProcessPoolExecutor
-import contextlib
-import io
 import json
-import math
-import multiprocessing as mp
 import os
-import shutil
 import sys
-import tempfile
 import time
 
 import numpy as np
 
-from strapdown_ros.cli import check_outputs, DIRECTORY, FILE, write_figure, write_text
-from strapdown_ros.discrepancy.synthetic import (draw_hidden_effect, effect_sigma,
-                                                 simulate_recording)
-from strapdown_ros.discrepancy.workflow import analyse
-from strapdown_ros.params import (CALIBRATOR_PARAMS, check_all, IMU_SIM_PARAMS,
-                                  simulator_parameters, STAR_CAMERA_PARAMS)
-from strapdown_ros.recording.writer import record
-from strapdown_ros.sensors.effects import CANDIDATES, EFFECTS
-from strapdown_ros.tools import discrepancy as cli
+from strapdown_ros.bench.discrepancy_monte_carlo import (INJECT_SEED_OFFSET, monte_carlo,
+                                                         separable_dimension, speed,
+                                                         SPEED_DURATION, SPEED_REPEATS)
+from strapdown_ros.bench.discrepancy_summary import (conclusions, ideal_power, span_text,
+                                                     summarise, tables, TARGET_DETECTION,
+                                                     TARGET_SIZE)
+from strapdown_ros.cli import (check_outputs, DIRECTORY, FILE, OneLineParser, write_figure,
+                               write_text)
+from strapdown_ros.sensors.effects import CANDIDATES
 
 PROG = 'discrepancy_bench'
-BORESIGHT = [0.698, -0.436, 2.094]
-INJECT_SEED_OFFSET = 10000
-CONFUSION_MIN_SIZE = 5.0
-WITHIN = 3.0
-#: detection target of the plot marks and the conclusions: ≥ 90 % detected at k ≥ 7σ
-TARGET_SIZE, TARGET_DETECTION = 7.0, 0.90
-QUICK = dict(effects=['time_offset', 'gyro_bias'], seeds=2, sizes=[5.0], null_seeds=3, duration=320.0)
-FULL = dict(effects=list(CANDIDATES), seeds=50, sizes=[1.0, 2.0, 3.0, 5.0, 7.0, 10.0], null_seeds=100, duration=480.0)
-SPEED_DURATION, SPEED_REPEATS = 900.0, 5
-THREAD_VARS = ('OMP_NUM_THREADS', 'OPENBLAS_NUM_THREADS', 'MKL_NUM_THREADS')
-
-
-class _Parser(argparse.ArgumentParser):
-    def error(self, message):                       # one line, exit 2, no usage block
-        print(f'{PROG}: error: {message}', file=sys.stderr)
-        sys.exit(2)
-
-
-# ----------------------------------------------------------------------------- scenario and jobs
-def _q(name: str) -> int:
-    S = EFFECTS[name].fit_basis()
-    return EFFECTS[name].size if S is None else S.shape[1]
-
-
-def scenario_raw(seed: int, duration: float, overrides: dict | None = None) -> dict:
-    raw = dict(profile='bench', bench_repeat=max(1, math.ceil((duration - 20.0) / 150.0)), gyro_rate=200.0,
-               camera_interval=2.0, seed=int(seed), boresight=list(BORESIGHT))
-    return {**raw, **(overrides or {})}
-
-
-def _simulate(seed, duration, overrides=None):
-    raw = scenario_raw(seed, duration, overrides)
-    return simulate_recording(check_all(IMU_SIM_PARAMS, raw), check_all(STAR_CAMERA_PARAMS, raw), duration)
-
-
-def _model():
-    return check_all(CALIBRATOR_PARAMS, {})
-
-
-def _init_worker():
-    for k in THREAD_VARS:
-        os.environ[k] = '1'
-
-
-def sigma_job(names, seed: int, duration: float) -> dict:
-    """{name: covariance (list)} of the effects on the null recording of ``seed``."""
-    out = effect_sigma(_simulate(seed, duration), _model(), list(names))
-    return {n: np.asarray(out[n]).tolist() for n in names}
-
-
-def run_job(job: dict) -> dict:
-    """One (effect, seed, size) simulation + analysis; effect None: a null run."""
-    t0 = time.perf_counter()
-    name = job['effect']
-    out = {k: v for k, v in job.items() if k not in ('cov', 'duration', 'alpha')}
-    try:
-        injected, sim_seed = {}, job['seed']
-        if name is not None:
-            cov = job['cov'] if job['cov'] is not None else sigma_job([name], job['seed'], job['duration'])[name]
-            injected = draw_hidden_effect(name, job['size'], np.asarray(cov), np.random.default_rng(job['draw_seed']))
-            sim_seed += INJECT_SEED_OFFSET
-        rec = _simulate(sim_seed, job['duration'], injected)
-        t1 = time.perf_counter()
-        res = analyse(rec, _model(), alpha=job['alpha']).as_json()
-        out.update(sim_seed=sim_seed, injected=injected, analysis_s=time.perf_counter() - t1)
-        out.update(score(name, injected, res))
-    except Exception as exc:                         # recorded; counted as an error in the summary
-        out.update(verdict='error', error=f'{type(exc).__name__}: {exc}', steps=[], first=None)
-    out['job_s'] = time.perf_counter() - t0
-    return out
-
-
-def score(name, injected: dict, res: dict) -> dict:
-    named = [s['effect'] for s in res['steps']]
-    out = {'verdict': res['verdict'], 'steps': named, 'first': named[0] if named else None,
-           'failed_tests': res['tests_after'].get('failed', [])}
-    if name is None:
-        out['false_alarm'] = res['verdict'] != 'model_adequate'
-        return out
-    out.update(detected=name in named, named_first=bool(named) and named[0] == name)
-    if out['detected']:
-        st = res['steps'][named.index(name)]
-        p = EFFECTS[name].value_parameter.name
-        est, sig, inj = (np.atleast_1d(np.asarray(v, dtype=float)) for v in (st['parameters'][p], st['sigma'][p],
-                                                                             injected[p]))
-        z = np.abs(est - inj) / sig
-        out.update(p_value=st['p_value'], estimate=est.tolist(), estimate_sigma=sig.tolist(),
-                   max_abs_z=float(np.max(z)), within_3sigma=bool(np.all(z <= WITHIN)))
-    return out
-
-
-# ----------------------------------------------------------------------------- execution
-def _progress(label: str, done: int, total: int, t0: float):
-    """``[#####.....] 12/40 jobs, ETA 1m10s`` on stderr, rewritten in place."""
-    eta = int(round((time.perf_counter() - t0) / done * (total - done))) if done else None
-    bar = '#' * int(round(30 * done / max(total, 1)))
-    print(f"\r{label} [{bar:.<30}] {done}/{total} jobs, ETA {'?' if eta is None else f'{eta // 60}m{eta % 60:02d}s'}",
-          end='\n' if done == total else '', file=sys.stderr, flush=True)
-
-
-def _pool_map(pool, fn, items, label):
-    t0 = time.perf_counter()
-    futs = {pool.submit(fn, *it): i for i, it in enumerate(items)}
-    out = [None] * len(items)
-    _progress(label, 0, len(items), t0)
-    for done, f in enumerate(as_completed(futs), 1):
-        out[futs[f]] = f.result()
-        _progress(label, done, len(items), t0)
-    return out
-
-
-def monte_carlo(args) -> dict:
-    saved = {k: os.environ.get(k) for k in THREAD_VARS}
-    _init_worker()                                   # the spawned workers import numpy with 1 BLAS thread
-    try:
-        with ProcessPoolExecutor(max_workers=args.workers, mp_context=mp.get_context('spawn'),
-                                 initializer=_init_worker) as pool:
-            t0 = time.perf_counter()
-            covs = {e: None for e in args.effects}
-            if args.sigma == 'reference':
-                covs = _pool_map(pool, sigma_job, [(args.effects, args.first_seed, args.duration)], 'sigma')[0]
-            t_sigma = time.perf_counter() - t0
-            jobs = []
-            for e in args.effects:
-                for i in range(args.seeds):
-                    seed = args.first_seed + i
-                    for k in (args.sizes if args.every_size else [args.sizes[i % len(args.sizes)]]):
-                        jobs.append(dict(effect=e, seed=seed, size=float(k), cov=covs[e], duration=args.duration,
-                                         alpha=args.alpha, draw_seed=[seed, CANDIDATES.index(e), int(round(k * 1000))]))
-            jobs += [dict(effect=None, seed=args.first_seed + i, size=0.0, duration=args.duration, alpha=args.alpha)
-                     for i in range(args.null_seeds)]
-            recs = _pool_map(pool, run_job, [(j,) for j in jobs], 'runs')
-            t_runs = time.perf_counter() - t0 - t_sigma
-    finally:
-        for k, v in saved.items():
-            if v is None:
-                os.environ.pop(k, None)
-            else:
-                os.environ[k] = v
-    sig = {e: None if c is None else np.sqrt(np.diag(np.atleast_2d(c))).tolist() for e, c in covs.items()}
-    return {'runs': [r for r in recs if r['effect'] is not None], 'nulls': [r for r in recs if r['effect'] is None],
-            'reference_sigma': sig, 'sigma_wall_s': t_sigma, 'runs_wall_s': t_runs}
-
-
-def speed(args) -> dict:
-    """SPEED_REPEATS timings of the ``discrepancy`` CLI on a 900 s, 200 Hz, 450-fix bag (record_sim)."""
-    load, times, rcs, errors = os.getloadavg(), [], [], []
-    imu_p, cam_p = simulator_parameters(overrides=scenario_raw(args.first_seed, SPEED_DURATION),
-                                        duration=SPEED_DURATION)
-    tmp = tempfile.mkdtemp(prefix='discrepancy_bench_')
-    try:
-        bag, model = os.path.join(tmp, 'bag'), os.path.join(tmp, 'model.yaml')
-        fixes = record(bag, imu_p, cam_p, accel=False)['messages'].get('/star_camera/attitude_with_covariance')
-        with open(model, 'w', encoding='utf-8') as fh:
-            json.dump({'/**': {'ros__parameters': {}}}, fh)              # JSON is YAML
-        for i in range(SPEED_REPEATS):
-            argv = [bag, '--model', model, '--json', os.path.join(tmp, f'r{i}.json'),
-                    '--report', os.path.join(tmp, f'report{i}')]
-            err, t0 = io.StringIO(), time.perf_counter()
-            with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(err):
-                rcs.append(cli.main(argv))
-            times.append(time.perf_counter() - t0)
-            if rcs[-1]:
-                errors.append((err.getvalue().strip().splitlines() or ['?'])[-1])
-    finally:
-        shutil.rmtree(tmp, ignore_errors=True)
-    return {'mode': 'cli', 'duration_s': SPEED_DURATION, 'gyro_rate_hz': 200.0, 'fixes': fixes, 'return_codes': rcs,
-            'cli_errors': errors, 'time_s': _med(times), 'times_s': times, 'load_average_at_start': list(load)}
+QUICK = {'effects': ['time_offset', 'gyro_bias'], 'seeds': 2, 'sizes': [5.0], 'null_seeds': 3,
+         'duration': 320.0}
+FULL = {'effects': list(CANDIDATES), 'seeds': 50, 'sizes': [1.0, 2.0, 3.0, 5.0, 7.0, 10.0],
+        'null_seeds': 100, 'duration': 480.0}
 
 
 # ----------------------------------------------------------------------------- summary
-def binom_ci(k: int, n: int) -> tuple[float, float]:
-    """Clopper–Pearson 95 % interval."""
-    from scipy.stats import beta
-    if n == 0:
-        return float('nan'), float('nan')
-    return (0.0 if k == 0 else float(beta.ppf(0.025, k, n - k + 1)),
-            1.0 if k == n else float(beta.ppf(0.975, k + 1, n - k)))
-
-
-def ideal_power(q: int, k: float, alpha: float) -> float:
-    from scipy.stats import chi2, ncx2
-    return float(ncx2.sf(chi2.isf(alpha / 2 / len(CANDIDATES), q), q, k * k))      # the selection gets α/2
-
-
-def _med(xs):
-    return {'median': float(np.median(xs)), 'min': float(min(xs)), 'max': float(max(xs)), 'n': len(xs)} if xs else None
-
-
-def _span(m, what='runs') -> str:
-    return f"median {m['median']:.1f} s (min {m['min']:.1f} – max {m['max']:.1f} s, {m['n']} {what})"
-
-
-def _count(rs, key) -> int:
-    return sum(bool(r.get(key)) for r in rs)
-
-
-def summarise(mc: dict, args) -> dict:
-    runs, nulls = mc['runs'], mc['nulls']
-    det = {e: {} for e in args.effects}
-    for e in args.effects:
-        for k in args.sizes:
-            rs = [r for r in runs if r['effect'] == e and r['size'] == k]
-            det[e][f'{k:g}'] = {'n': len(rs), 'detected': _count(rs, 'detected'),
-                                'named_first': _count(rs, 'named_first'), 'within_3sigma': _count(rs, 'within_3sigma'),
-                                'errors': sum(r['verdict'] == 'error' for r in rs),
-                                'ideal_power': ideal_power(_q(e), k, args.alpha)}
-    cols = list(CANDIDATES) + ['none']
-    conf = {e: dict.fromkeys(cols, 0) for e in args.effects}
-    for r in runs:
-        if r['size'] >= CONFUSION_MIN_SIZE and r['verdict'] != 'error':
-            conf[r['effect']][r['first'] or 'none'] += 1
-    targets = {}
-    for e in args.effects:
-        rs = [r for r in runs if r['effect'] == e and r['size'] >= TARGET_SIZE]
-        n, d = len(rs), _count(rs, 'detected')
-        targets[e] = {'n': n, 'detected': d, 'rate': d / n if n else None, 'ci95': list(binom_ci(d, n)),
-                      'met': d / n >= TARGET_DETECTION if n else None}
-    fa, nn = _count(nulls, 'false_alarm'), len(nulls)
-    return {'detection': det, 'confusion': {'min_size': CONFUSION_MIN_SIZE, 'columns': cols, 'rows': conf},
-            'detection_target': {'size': TARGET_SIZE, 'rate': TARGET_DETECTION, 'per_effect': targets},
-            'false_alarm': {'n': nn, 'alarms': fa, 'rate': fa / nn if nn else None, 'ci95': list(binom_ci(fa, nn)),
-                            'alpha': args.alpha, 'met': fa / nn <= args.alpha if nn else None,
-                            'verdicts': dict(Counter(r['verdict'] for r in nulls)),
-                            'alarms_detail': [{k: r.get(k) for k in ('seed', 'verdict', 'steps', 'failed_tests')}
-                                              for r in nulls if r.get('false_alarm')]},
-            'analysis_s': _med([r['analysis_s'] for r in runs + nulls if 'analysis_s' in r]),
-            'job_s': _med([r['job_s'] for r in runs + nulls]),
-            'errors': [r for r in runs + nulls if r['verdict'] == 'error']}
-
-
-def _pct(x):
-    return '—' if x is None or (isinstance(x, float) and math.isnan(x)) else f'{100 * x:.1f}%'
-
-
-def tables(sm: dict, sizes) -> list[str]:
-    """Markdown tables (also printed to stdout)."""
-    L = ['### Detection: detected/runs (ideal LRT power)', '',
-         '| effect | q | ' + ' | '.join(f'k = {k:g}σ' for k in sizes) + ' | named first | estimate within 3σ |',
-         '|---' * (len(sizes) + 4) + '|']
-    for e, row in sm['detection'].items():
-        tot = {key: sum(c[key] for c in row.values()) for key in ('n', 'detected', 'named_first', 'within_3sigma')}
-        L.append(f'| {e} | {_q(e)} | ' + ' | '.join(f"{c['detected']}/{c['n']} ({_pct(c['ideal_power'])})"
-                                                     for c in row.values())
-                 + f" | {tot['named_first']}/{tot['n']} | {tot['within_3sigma']}/{tot['detected']} |")
-    c = sm['confusion']
-    shown = [k for k in c['columns'] if k in c['rows'] or k == 'none' or any(r[k] for r in c['rows'].values())]
-    L += ['', f"### Confusion at k ≥ {c['min_size']:g}σ: injected (rows) × first named (columns)", '',
-          '| injected | ' + ' | '.join(shown) + ' |', '|---' * (len(shown) + 1) + '|']
-    L += [f'| {e} | ' + ' | '.join(str(r[k]) for k in shown) + ' |' for e, r in c['rows'].items()]
-    fa = sm['false_alarm']
-    L += ['', '### False alarms (null data)', '', '| runs | alarms | rate | 95% CI | α | verdicts |', '|---' * 6 + '|',
-          f"| {fa['n']} | {fa['alarms']} | {_pct(fa['rate'])} | {_pct(fa['ci95'][0])}–{_pct(fa['ci95'][1])} | "
-          f"{_pct(fa['alpha'])} | {', '.join(f'{k} {v}' for k, v in fa['verdicts'].items())} |"]
-    return L
-
-
-def conclusions(res: dict) -> list[str]:
-    """Sentences whose every number and verdict word is computed."""
-    sm, a = res['summary'], res['config']['alpha']
-    fa, t, out = sm['false_alarm'], sm['detection_target'], []
-    if fa['n']:
-        lo, hi = fa['ci95']
-        where = 'contains' if lo <= a <= hi else ('lies above' if lo > a else 'lies below')
-        out.append(f"False-alarm rate {_pct(fa['rate'])} (95% CI {_pct(lo)}–{_pct(hi)}, {fa['alarms']}/{fa['n']} "
-                   f"null runs) {'≤' if fa['met'] else '>'} α = {_pct(a)}: {'met' if fa['met'] else 'not met'}; "
-                   f'the interval {where} α.')
-        out += [f"Null seed {d['seed']}: {d['verdict']}, added {', '.join(d['steps']) or 'nothing'}, failed tests "
-                f"after: {', '.join(d['failed_tests'] or []) or 'none'}." for d in fa['alarms_detail']]
-    for e, v in t['per_effect'].items():
-        out.append(f"{e}: no runs at k ≥ {t['size']:g}σ, detection target not assessed." if not v['n'] else
-                   f"{e}: detected in {v['detected']}/{v['n']} runs at k ≥ {t['size']:g}σ ({_pct(v['rate'])}, "
-                   f"95% CI {_pct(v['ci95'][0])}–{_pct(v['ci95'][1])}) {'≥' if v['met'] else '<'} {_pct(t['rate'])}: "
-                   f"{'met' if v['met'] else 'not met'}.")
-    conf = sm['confusion']['rows']
-    tot = sum(sum(r.values()) for r in conf.values())
-    if tot:
-        right, none = sum(r[e] for e, r in conf.items()), sum(r['none'] for r in conf.values())
-        out.append(f"At k ≥ {sm['confusion']['min_size']:g}σ the injected effect was named first in {right}/{tot} "
-                   f'runs ({_pct(right / tot)}); another effect in {tot - right - none}, none in {none}.')
-    cells = [c for row in sm['detection'].values() for c in row.values()]
-    nd, w = sum(c['detected'] for c in cells), sum(c['within_3sigma'] for c in cells)
-    if nd:
-        out.append(f'{w}/{nd} detected estimates ({_pct(w / nd)}) lie within 3σ of the injected value in every '
-                   f'component.')
-    sp = res.get('speed')
-    if sp:
-        out.append(f"Speed of the discrepancy CLI on a bag: {_span(sp['time_s'])} for {sp['duration_s']:g} s at {sp['gyro_rate_hz']:g} "
-                   f"Hz with {sp['fixes']} fixes; load average at start {sp['load_average_at_start'][0]:.2f}"
-                   + (f"; return codes {sorted(set(sp['return_codes']))}" if sp['return_codes'] else '')
-                   + (f"; CLI error: {sp['cli_errors'][0]}." if sp.get('cli_errors') else '.'))
-    if sm['errors']:
-        out.append(f"{len(sm['errors'])} runs raised an error (see the JSON).")
-    return out
-
-
 # ----------------------------------------------------------------------------- outputs
 def write_plots(res: dict, outdir: str) -> list[str]:
+    """
+    Write the detection-against-size and confusion plots.
+
+    Parameters
+    ----------
+    res : dict
+        The run's result.
+    outdir : str
+        Directory for ``discrepancy_detection.png`` and ``discrepancy_confusion.png``.
+
+    Returns
+    -------
+    list of str
+        Paths of the files written.
+
+    """
     import matplotlib
     matplotlib.use('Agg')
     import matplotlib.pyplot as plt
@@ -350,17 +75,25 @@ def write_plots(res: dict, outdir: str) -> list[str]:
     n_e = len(sm['detection'])
     for i, (e, row) in enumerate(sm['detection'].items()):
         col = plt.get_cmap('tab10')(i % 10)
-        dx = 0.04 * (i - (n_e - 1) / 2)              # small offsets so that equal rates stay visible
+        dx = 0.04 * (i - (n_e - 1) / 2)  # small offsets so that equal rates stay visible
         pts = [(float(k) + dx, c['detected'] / c['n']) for k, c in row.items() if c['n']]
         if pts:
             ax.plot(*zip(*pts), 'o-', color=col, label=e)
-        ax.plot(kk, [ideal_power(_q(e), k, cfg['alpha']) for k in kk], '--', color=col, lw=0.8)
+        q = separable_dimension(e)
+        ax.plot(kk, [ideal_power(q, k, cfg['alpha']) for k in kk], '--', color=col, lw=0.8)
     ks = [k for k in cfg['sizes'] if k >= TARGET_SIZE] or [TARGET_SIZE]
     ax.plot(ks, [TARGET_DETECTION] * len(ks), 'kv', ms=9,
             label=f'target ≥ {TARGET_DETECTION:.0%} at k ≥ {TARGET_SIZE:g}σ')
     ax.axhline(TARGET_DETECTION, color='k', lw=0.5, ls=':')
-    ax.set(xlabel='injected size k (σ, Mahalanobis)', ylabel='detection rate', ylim=(-0.03, 1.03),
-           title='Detection vs effect size (dashed: ideal LRT power at (α/2)/m; markers offset slightly in k)')
+    ax.set(
+        xlabel='injected size k (σ, Mahalanobis)',
+        ylabel='detection rate',
+        ylim=(-0.03, 1.03),
+        title=(
+            'Detection vs effect size (dashed: ideal LRT power at (α/2)/m; markers offset slightly'
+            ' in k)'
+        ),
+    )
     ax.grid(alpha=0.3)
     ax.legend(fontsize=7, loc='lower right')
     fig.tight_layout()
@@ -369,15 +102,18 @@ def write_plots(res: dict, outdir: str) -> list[str]:
     plt.close(fig)
     c = sm['confusion']
     rows, cols = list(c['rows']), c['columns']
-    M = np.array([[c['rows'][r][k] for k in cols] for r in rows], dtype=float).reshape(len(rows), len(cols))
+    M = np.array([[c['rows'][r][k] for k in cols] for r in rows],
+                 dtype=float).reshape(len(rows), len(cols))
     frac = M / np.maximum(M.sum(1, keepdims=True), 1)
     fig, ax = plt.subplots(figsize=(1.0 + 0.8 * len(cols), 1.5 + 0.5 * len(rows)))
     im = ax.imshow(frac, cmap='Blues', vmin=0, vmax=1, aspect='auto')
     for i, j in zip(*np.nonzero(M)):
-        ax.text(j, i, f'{int(M[i, j])}', ha='center', va='center', color='w' if frac[i, j] > 0.5 else 'k')
+        ax.text(j, i, f'{int(M[i, j])}', ha='center', va='center',
+                color='w' if frac[i, j] > 0.5 else 'k')
     ax.set_xticks(range(len(cols)), cols, rotation=45, ha='right', fontsize=7)
     ax.set_yticks(range(len(rows)), rows, fontsize=7)
-    ax.set(xlabel='first named effect', ylabel='injected effect', title=f"Confusion at k ≥ {c['min_size']:g}σ")
+    ax.set(xlabel='first named effect', ylabel='injected effect',
+           title=f"Confusion at k ≥ {c['min_size']:g}σ")
     fig.colorbar(im, ax=ax, label='fraction of row')
     fig.tight_layout()
     files.append(os.path.join(outdir, 'discrepancy_confusion.png'))
@@ -387,51 +123,104 @@ def write_plots(res: dict, outdir: str) -> list[str]:
 
 
 def write_report(path: str, res: dict, plots: list[str]):
+    """
+    Write the markdown report of one run.
+
+    Parameters
+    ----------
+    path : str
+        Markdown file to write.
+    res : dict
+        The run's result.
+    plots : list of str
+        Plot files, linked relative to the report.
+
+    """
     cfg, sm, tm = res['config'], res['summary'], res['timing']
-    sigma = (f"one reference null recording per effect (seed {cfg['first_seed']})" if cfg['sigma'] == 'reference'
-             else "each seed's own null recording")
-    L = ['# discrepancy_bench — detection, false alarms and confusion of the discrepancy workflow', '',
-         f"Generated by `{res['command']}`: {tm['total_s']:.0f} s wall, {cfg['workers']} workers, "
-         f"{tm['cpu_count']} CPUs, load average at start {tm['load_average_at_start'][0]:.2f}.", '',
-         f"Scenario: bench profile, {cfg['duration']:g} s, gyro 200 Hz, a fix every 2 s; nominal model = calibrator "
-         f"defaults; α = {cfg['alpha']:g}. {cfg['seeds']} seeds per effect, sizes "
-         f"{', '.join(f'{k:g}' for k in cfg['sizes'])}σ "
-         f"({'every size for every seed' if cfg['every_size'] else 'cycled over the seeds'}); σ of each effect from "
-         f'{sigma}; injected recordings use seed + {INJECT_SEED_OFFSET}.', '', '## Conclusions', '']
-    L += [f'* {s}' for s in conclusions(res)] + [''] + [x.replace('### ', '## ') for x in tables(sm, cfg['sizes'])]
+    sigma = (f"one reference null recording per effect (seed {cfg['first_seed']})"
+             if cfg['sigma'] == 'reference' else "each seed's own null recording")
+    L = [
+        '# discrepancy_bench — detection, false alarms and confusion of the discrepancy workflow',
+        '',
+        (
+            f"Generated by `{res['command']}`: {tm['total_s']:.0f} s wall, {cfg['workers']}"
+            f" workers, {tm['cpu_count']} CPUs, load average at start"
+            f" {tm['load_average_at_start'][0]:.2f}."
+        ),
+        '',
+        (
+            f"Scenario: bench profile, {cfg['duration']:g} s, gyro 200 Hz, a fix every 2 s;"
+            f" nominal model = calibrator defaults; α = {cfg['alpha']:g}. {cfg['seeds']} seeds per"
+            f" effect, sizes {', '.join(f'{k:g}' for k in cfg['sizes'])}σ"
+            f" ({'every size for every seed' if cfg['every_size'] else 'cycled over the seeds'});"
+            f' σ of each effect from {sigma}; injected recordings use seed + {INJECT_SEED_OFFSET}.'
+        ),
+        '',
+        '## Conclusions',
+        '',
+    ]
+    L += [f'* {s}' for s in conclusions(res)] + ['']
+    L += [x.replace('### ', '## ') for x in tables(sm, cfg['sizes'])]
     if sm['analysis_s']:
-        L += ['', f"Analysis time per run: {_span(sm['analysis_s'])}."]
-    L += [''] + [f'![{os.path.basename(p)}]({os.path.relpath(p, os.path.dirname(os.path.abspath(path)))})'
-                 for p in plots]
+        L += ['', f"Analysis time per run: {span_text(sm['analysis_s'])}."]
+    base = os.path.dirname(os.path.abspath(path))
+    L += [''] + [f'![{os.path.basename(p)}]({os.path.relpath(p, base)})' for p in plots]
     write_text(path, '\n'.join(L) + '\n')
 
 
 # ----------------------------------------------------------------------------- arguments
 def parse_args(argv):
-    ap = _Parser(prog=PROG, description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    """
+    Parse and check the command line; fill the defaults of the quick or full mode.
+
+    Parameters
+    ----------
+    argv : list of str
+        Arguments without the program name.
+
+    Returns
+    -------
+    argparse.Namespace
+        The options (``sizes`` and ``effects`` as lists).
+
+    """
+    ap = OneLineParser(prog=PROG, description=__doc__,
+                       formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument('--seeds', type=int, help='seeds per effect (default 50)')
     ap.add_argument('--duration', type=float, help='simulated seconds per recording (default 480)')
     ap.add_argument('--sizes', help='comma-separated effect sizes in σ (default 1,2,3,5,7,10)')
     ap.add_argument('--effects', help=f"all (default) or a comma list of: {', '.join(CANDIDATES)}")
-    ap.add_argument('--null-seeds', type=int, help='null recordings for the false-alarm rate (default 100)')
-    ap.add_argument('--alpha', type=float, default=0.01, help='significance level of the workflow (default 0.01)')
+    ap.add_argument('--null-seeds', type=int,
+                    help='null recordings for the false-alarm rate (default 100)')
+    ap.add_argument('--alpha', type=float, default=0.01,
+                    help='significance level of the workflow (default 0.01)')
     ap.add_argument('--workers', type=int, default=2, help='worker processes (default 2)')
     ap.add_argument('--first-seed', type=int, default=0, help='seed of the first run (default 0)')
-    ap.add_argument('--every-size', action='store_true', help='run every size for every seed (default: cycle sizes)')
-    ap.add_argument('--sigma', choices=('reference', 'per-seed'), default='reference',
-                    help="σ of an effect from one reference null recording (default) or from each seed's own")
-    ap.add_argument('--json', help='write all records and tables to this JSON file')
-    ap.add_argument('--plots', help='write discrepancy_detection.png and discrepancy_confusion.png here')
-    ap.add_argument('--report', help='write the markdown report to this file')
+    ap.add_argument('--every-size', action='store_true',
+                    help='run every size for every seed (default: cycle sizes)')
+    ap.add_argument(
+        '--sigma', choices=('reference', 'per-seed'), default='reference',
+        help="σ of an effect from one reference null recording (default) or from each seed's own")
+    ap.add_argument('--json', help='write all records and tables to this JSON file '
+                    '(documented run: doc/results/discrepancy_bench/bench.json)')
+    ap.add_argument('--plots',
+                    help='write discrepancy_detection.png and discrepancy_confusion.png here '
+                    '(documented run: doc/results/discrepancy_bench)')
+    ap.add_argument('--report', help='write the markdown report to this file '
+                    '(documented run: doc/results/discrepancy_bench/bench.md)')
     ap.add_argument('--force', action='store_true', help='overwrite existing outputs')
-    ap.add_argument('--speed-only', action='store_true',
-                    help='only the speed measurement (5 runs of the discrepancy CLI on a 15-minute bag)')
-    ap.add_argument('--speed', action=argparse.BooleanOptionalAction, default=None,
-                    help='time the discrepancy CLI on a 900 s recording (default on; off with --quick)')
-    ap.add_argument('--quick', action='store_true',
-                    help='smoke mode: ' + ', '.join(f'{k}={v}' for k, v in QUICK.items()) + ', no speed')
+    ap.add_argument(
+        '--speed-only', action='store_true',
+        help='only the speed measurement (5 runs of the discrepancy CLI on a 15-minute bag)')
+    ap.add_argument(
+        '--speed', action=argparse.BooleanOptionalAction, default=None,
+        help='time the discrepancy CLI on a 900 s recording (default on; off with --quick)')
+    ap.add_argument(
+        '--quick', action='store_true',
+        help='smoke mode: ' + ', '.join(f'{k}={v}' for k, v in QUICK.items()) + ', no speed')
     args = ap.parse_args(argv)
-    for k, v in (QUICK if args.quick else FULL).items():       # the mode's defaults for what was not given
+    # the mode's defaults for what was not given
+    for k, v in (QUICK if args.quick else FULL).items():
         if getattr(args, k) is None:
             setattr(args, k, list(v) if isinstance(v, list) else v)
     args.speed = args.speed if args.speed is not None else not args.quick
@@ -440,19 +229,27 @@ def parse_args(argv):
     if not (0.0 < args.alpha < 1.0) or args.workers < 1 or args.first_seed < 0:
         ap.error('--alpha must lie in (0, 1), --workers be >= 1 and --first-seed >= 0')
     if not (40.0 <= args.duration <= 86400.0):
-        ap.error(f'--duration must lie in [40, 86400] s (>= 13 fixes 2 s apart), got {args.duration:g}')
+        ap.error(
+            f'--duration must lie in [40, 86400] s (>= 13 fixes 2 s apart), got {args.duration:g}')
     if isinstance(args.sizes, str):
         try:
             args.sizes = [float(s) for s in args.sizes.split(',')]
         except ValueError:
             ap.error(f'--sizes must be comma-separated numbers, got {args.sizes!r}')
-        if not all(0.0 < s <= 100.0 for s in args.sizes) or len(set(args.sizes)) != len(args.sizes):
+        sizes = args.sizes
+        if not all(0.0 < s <= 100.0 for s in sizes) or len(set(sizes)) != len(sizes):
             ap.error('--sizes must be distinct numbers in (0, 100]')
     if isinstance(args.effects, str):
-        names = list(CANDIDATES) if args.effects.strip() == 'all' else [s.strip() for s in args.effects.split(',')]
+        if args.effects.strip() == 'all':
+            names = list(CANDIDATES)
+        else:
+            names = [s.strip() for s in args.effects.split(',')]
         bad = sorted({n for n in names if n not in CANDIDATES or names.count(n) > 1})
         if bad:
-            ap.error(f"--effects: unknown or repeated {', '.join(map(repr, bad))}; valid: all, {', '.join(CANDIDATES)}")
+            ap.error(
+                f"--effects: unknown or repeated {', '.join(map(repr, bad))}; valid: all,"
+                f" {', '.join(CANDIDATES)}"
+            )
         args.effects = names
     try:                                        # the tools' one output rule
         check_outputs([('--json', args.json, FILE), ('--report', args.report, FILE),
@@ -465,31 +262,55 @@ def parse_args(argv):
 
 
 def main(argv=None) -> int:
+    """
+    Run ``discrepancy_bench``.
+
+    Parameters
+    ----------
+    argv : list of str, optional
+        Arguments without the program name; ``sys.argv[1:]`` when None.
+
+    Returns
+    -------
+    int
+        0 on success (bad arguments exit 2 with one line on stderr).
+
+    """
     argv = sys.argv[1:] if argv is None else list(argv)
     args = parse_args(argv)
     t_all, load = time.perf_counter(), os.getloadavg()
     if args.speed_only:
         sp = speed(args)
         t = sp['time_s']
-        print(f"{PROG}: discrepancy CLI on a {sp['duration_s']:g} s recording (200 Hz gyro, {sp['fixes']} fixes), "
-              f"report included: median {t['median']:.2f} s (min {t['min']:.2f}, max {t['max']:.2f}) over "
-              f"{len(sp['times_s'])} runs; load average at start {load[0]:.2f}; exit codes {sp['return_codes']}")
+        print(
+            f"{PROG}: discrepancy CLI on a {sp['duration_s']:g} s recording (200 Hz gyro,"
+            f" {sp['fixes']} fixes), report included: median {t['median']:.2f} s (min"
+            f" {t['min']:.2f}, max {t['max']:.2f}) over {len(sp['times_s'])} runs; load average at"
+            f" start {load[0]:.2f}; exit codes {sp['return_codes']}"
+        )
         if args.json:
             write_text(args.json, json.dumps({'command': f'{PROG} ' + ' '.join(argv),
                                               'speed': sp}, indent=1, default=float))
         return 0
-    n_jobs = len(args.effects) * args.seeds * (len(args.sizes) if args.every_size else 1) + args.null_seeds
-    print(f'{PROG}: {len(args.effects)} effects × {args.seeds} seeds, sizes '
-          f"{','.join(f'{k:g}' for k in args.sizes)}σ, {args.null_seeds} null seeds, {args.duration:g} s each: "
-          f'{n_jobs} jobs on {args.workers} workers; load average at start {load[0]:.2f} {load[1]:.2f} {load[2]:.2f}',
-          file=sys.stderr)
+    per_seed = len(args.sizes) if args.every_size else 1
+    n_jobs = len(args.effects) * args.seeds * per_seed + args.null_seeds
+    print(
+        f'{PROG}: {len(args.effects)} effects × {args.seeds} seeds, sizes '
+        f"{','.join(f'{k:g}' for k in args.sizes)}σ, {args.null_seeds} null seeds,"
+        f' {args.duration:g} s each: '
+        f'{n_jobs} jobs on {args.workers} workers; load average at start {load[0]:.2f}'
+        f' {load[1]:.2f} {load[2]:.2f}',
+        file=sys.stderr,
+    )
     mc = monte_carlo(args)
-    cfg = {k: getattr(args, k) for k in ('seeds', 'duration', 'sizes', 'effects', 'null_seeds', 'alpha', 'workers',
-                                         'first_seed', 'every_size', 'sigma', 'quick')}
+    cfg = {k: getattr(args, k)
+           for k in ('seeds', 'duration', 'sizes', 'effects', 'null_seeds', 'alpha', 'workers',
+                     'first_seed', 'every_size', 'sigma', 'quick')}
     res = {'command': f'{PROG} ' + ' '.join(argv), 'config': cfg, 'summary': summarise(mc, args),
            'reference_sigma': mc['reference_sigma'], 'runs': mc['runs'], 'nulls': mc['nulls']}
     if args.speed:
-        print(f'{PROG}: speed: {SPEED_REPEATS} runs on a {SPEED_DURATION:g} s recording ...', file=sys.stderr)
+        print(f'{PROG}: speed: {SPEED_REPEATS} runs on a {SPEED_DURATION:g} s recording ...',
+              file=sys.stderr)
         res['speed'] = speed(args)
     sm = res['summary']
     res['plots'] = write_plots(res, args.plots) if args.plots else []
@@ -498,9 +319,14 @@ def main(argv=None) -> int:
                      'cpu_count': os.cpu_count()}
     print('\n'.join(tables(sm, args.sizes)) + '\n\n' + '\n'.join(conclusions(res)))
     if sm['analysis_s']:
-        print(f"analysis per run: {_span(sm['analysis_s'])}; job (simulation + σ + analysis): {_span(sm['job_s'])}")
-    print(f"total {res['timing']['total_s']:.0f} s (σ {mc['sigma_wall_s']:.0f} s, runs {mc['runs_wall_s']:.0f} s); "
-          f'load average at start {load[0]:.2f}')
+        print(
+            f"analysis per run: {span_text(sm['analysis_s'])}; job (simulation + σ + analysis):"
+            f" {span_text(sm['job_s'])}"
+        )
+    print(
+        f"total {res['timing']['total_s']:.0f} s (σ {mc['sigma_wall_s']:.0f} s, runs"
+        f" {mc['runs_wall_s']:.0f} s); load average at start {load[0]:.2f}"
+    )
     if args.report:
         write_report(args.report, res, res['plots'])
     if args.json:

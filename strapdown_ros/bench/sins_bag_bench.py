@@ -1,14 +1,16 @@
 """
-sins_bag_bench: the wall time of the whole ``sins_bag`` command beside the raw read of the same
-bag, measured in the same run (printed; nothing is asserted).
+Measure the wall time of the whole ``sins_bag`` command beside the raw read of the same bag.
+
+The command ``sins_bag_bench``; both are measured in the same run (printed; nothing is
+asserted).
 
     sins_bag_bench BAG [--navigation-profile NAME | --params FILE] [-p NAME:=VALUE ...]
                    [--runs N] [--cold] [--json FILE]
 
 Each run, alternately:
 
-* **raw read**: a separate Python process opens BAG with rosbags' ``AnyReader`` and iterates over
-  every record of every topic (no decoding): its whole wall time (interpreter start and the
+* **raw read**: a separate Python process opens BAG with rosbags' ``AnyReader`` and iterates
+  over every record of every topic (no decoding): its whole wall time (interpreter start and the
   rosbags import included) and the time of the iteration alone;
 * **sins_bag**: the command ``sins_bag BAG --output OUT.csv`` with the parameters given, as a user
   runs it: the whole wall time (start-up, loading the compiled kernels from numba's cache,
@@ -44,7 +46,7 @@ from strapdown_ros import earth as G
 from strapdown_ros.attitude import kernel as attitude_kernel
 from strapdown_ros.attitude.integrator import AttitudeIntegrator
 from strapdown_ros.bench.stats import median_range, stats
-from strapdown_ros.cli import check_outputs, FILE, write_text
+from strapdown_ros.cli import check_outputs, FILE, OneLineParser, write_text
 from strapdown_ros.motion.earth_profiles import navigation_profile_from_config
 from strapdown_ros.motion.profiles import ConingProfile
 from strapdown_ros.rotation import to_ros_xyzw
@@ -69,8 +71,20 @@ print(n, t2 - t1, t2 - t0)
 
 def navigation_parameters(profile: str, path: Path) -> Path:
     """
-    sins_node parameters (ROS 2 YAML) with navigation from the exact initial state of a
-    navigation profile of :mod:`strapdown_ros.motion.earth_profiles`, written to ``path``.
+    Write sins_node parameters with navigation from a profile's exact initial state.
+
+    Parameters
+    ----------
+    profile : str
+        Navigation profile of :mod:`strapdown_ros.motion.earth_profiles`.
+    path : pathlib.Path
+        ROS 2 parameter YAML to write.
+
+    Returns
+    -------
+    pathlib.Path
+        ``path``.
+
     """
     prof = navigation_profile_from_config({'profile': profile})
     t0 = np.zeros(1)
@@ -88,7 +102,20 @@ def navigation_parameters(profile: str, path: Path) -> Path:
 
 
 def raw_read(bag: str) -> dict:
-    """One raw-read process: records, iteration time, in-process total, whole wall time."""
+    """
+    Time one raw-read process over a bag (rosbags ``AnyReader``, no decoding).
+
+    Parameters
+    ----------
+    bag : str
+        rosbag2 bag.
+
+    Returns
+    -------
+    dict
+        Records, iteration time, in-process total and whole wall time, s.
+
+    """
     t0 = time.perf_counter()
     out = subprocess.run([sys.executable, '-c', RAW_READ, bag], capture_output=True, text=True,
                          check=True)
@@ -98,7 +125,31 @@ def raw_read(bag: str) -> dict:
 
 
 def sins_bag_run(bag: str, args: list, out: Path, env: dict | None = None) -> dict:
-    """One whole sins_bag command (CSV output): wall time, exit status, the summary line."""
+    """
+    Time one whole ``sins_bag`` command with CSV output, as a user runs it.
+
+    Parameters
+    ----------
+    bag : str
+        rosbag2 bag.
+    args : list of str
+        Further ``sins_bag`` arguments (parameters).
+    out : pathlib.Path
+        CSV to write.
+    env : dict, optional
+        Environment of the process (e.g. an empty numba cache).
+
+    Returns
+    -------
+    dict
+        Wall time, s, and the command's summary line.
+
+    Raises
+    ------
+    RuntimeError
+        When ``sins_bag`` exits with an error.
+
+    """
     script = Path(sys.executable).parent / 'sins_bag'       # the console script, as a user runs it
     head = ([str(script)] if script.exists()
             else [sys.executable, '-m', 'strapdown_ros.tools.sins_bag'])
@@ -113,8 +164,21 @@ def sins_bag_run(bag: str, args: list, out: Path, env: dict | None = None) -> di
 
 def attitude_only_runs(runs: int) -> dict:
     """
-    360 000 intervals (1 h at 100 Hz, coning motion) through AttitudeIntegrator in one push:
-    attitude only compiled, attitude only numpy, with covariance compiled; medians over runs.
+    Time 360 000 intervals through ``AttitudeIntegrator`` in one push, three ways.
+
+    1 h at 100 Hz of coning motion: attitude only compiled, attitude only numpy, and with
+    covariance compiled.
+
+    Parameters
+    ----------
+    runs : int
+        Runs of each.
+
+    Returns
+    -------
+    dict
+        Wall times of every run, s, per way, and whether the compiled kernel is available.
+
     """
     t = np.arange(360_001) * 0.01
     prof = ConingProfile(0.087, 1.0)
@@ -145,22 +209,43 @@ def attitude_only_runs(runs: int) -> dict:
 
 
 def bag_bytes(bag) -> int:
-    """Size of a bag (a directory: all its files), bytes."""
+    """
+    Return the size of a bag (a directory: all its files).
+
+    Parameters
+    ----------
+    bag : str or pathlib.Path
+        The bag.
+
+    Returns
+    -------
+    int
+        Size, bytes.
+
+    """
     p = Path(bag)
     if p.is_dir():
         return sum(f.stat().st_size for f in p.rglob('*') if f.is_file())
     return p.stat().st_size
 
 
-class _Parser(argparse.ArgumentParser):
-    def error(self, message):                    # one line, exit 2
-        print(f'sins_bag_bench: error: {message}', file=sys.stderr)
-        sys.exit(2)
-
-
 def main(argv=None) -> int:
-    ap = _Parser(prog='sins_bag_bench', description=__doc__,
-                 formatter_class=argparse.RawDescriptionHelpFormatter)
+    """
+    Run ``sins_bag_bench``.
+
+    Parameters
+    ----------
+    argv : list of str, optional
+        Arguments without the program name; ``sys.argv[1:]`` when None.
+
+    Returns
+    -------
+    int
+        0; bad arguments exit 2 with one line on stderr.
+
+    """
+    ap = OneLineParser(prog='sins_bag_bench', description=__doc__,
+                       formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument('bag', help='rosbag2 bag (e.g. record_sim OUT --duration 3600 '
                                 '-p profile:=coordinated_turn)')
     ap.add_argument('--navigation-profile', metavar='NAME',
@@ -171,7 +256,8 @@ def main(argv=None) -> int:
     ap.add_argument('--runs', type=int, default=5, help='alternating runs (default 5)')
     ap.add_argument('--cold', action='store_true',
                     help='one more sins_bag run with an empty numba cache')
-    ap.add_argument('--json', metavar='FILE', help='write the figures to this JSON file')
+    ap.add_argument('--json', metavar='FILE', help='write the figures to this JSON file '
+                    '(documented run: doc/results/sins_bag_bench/sins_bag_bench.json)')
     ap.add_argument('--force', action='store_true', help='overwrite an existing --json')
     args = ap.parse_args(argv)
     if args.runs < 1:
@@ -190,9 +276,10 @@ def main(argv=None) -> int:
     load = os.getloadavg() if hasattr(os, 'getloadavg') else (math.nan,) * 3
     cpus = os.cpu_count()
     busy = load[0] > 0.5 * (cpus or 1)
-    print(f'sins_bag_bench: load average at start {load[0]:.2f} {load[1]:.2f} {load[2]:.2f} '
-          f"({cpus} CPUs){' — the machine is busy: absolute times are inflated' if busy else ''}",
-          file=sys.stderr, flush=True)
+    print(
+        f'sins_bag_bench: load average at start {load[0]:.2f} {load[1]:.2f} {load[2]:.2f} '
+        f"({cpus} CPUs){' — the machine is busy: absolute times are inflated' if busy else ''}",
+        file=sys.stderr, flush=True)
     with tempfile.TemporaryDirectory(prefix='sins_bag_bench_') as tmp:
         tmp = Path(tmp)
         extra = []
@@ -230,11 +317,20 @@ def main(argv=None) -> int:
         rows = sum(1 for _ in open(out, encoding='utf-8')) - 1
     att = attitude_only_runs(args.runs)
     res = {
-        'bag': str(args.bag), 'bag_bytes': bag_bytes(args.bag),
-        'sins_bag_args': extra, 'load_average_start': list(load), 'cpus': cpus, 'runs': args.runs,
-        'sins_bag_shown': (f'--params <{args.navigation_profile} initial state>'
-                           if args.navigation_profile else ' '.join(extra)),
-        'records': raws[0]['records'], 'csv_rows': rows, 'summary': sins[0]['summary'],
+        'bag': str(args.bag),
+        'bag_bytes': bag_bytes(args.bag),
+        'sins_bag_args': extra,
+        'load_average_start': list(load),
+        'cpus': cpus,
+        'runs': args.runs,
+        'sins_bag_shown': (
+            f'--params <{args.navigation_profile} initial state>'
+            if args.navigation_profile
+            else ' '.join(extra)
+        ),
+        'records': raws[0]['records'],
+        'csv_rows': rows,
+        'summary': sins[0]['summary'],
         'raw_iteration_s': stats([r['iteration_s'] for r in raws]),
         'raw_process_s': stats([r['wall_s'] for r in raws]),
         'sins_bag_s': stats([r['wall_s'] for r in sins]),
@@ -253,7 +349,20 @@ def main(argv=None) -> int:
 
 
 def render(res: dict) -> str:
-    """The markdown report; every conclusion computed from the numbers."""
+    """
+    Render the markdown text of the run.
+
+    Parameters
+    ----------
+    res : dict
+        The run's result.
+
+    Returns
+    -------
+    str
+        The markdown.
+
+    """
     a = res['attitude_only']
     lines = [
         f"## sins_bag on {res['bag']} ({res['records']} records, {res['bag_bytes'] / 1e6:.0f} MB; "

@@ -1,7 +1,9 @@
 """
-Summary statistics shared by the benchmark commands: medians with their min–max over runs,
-χ² bands; for filter_bench the posterior Cramér–Rao bounds of a linear-Gaussian model, the
-multiplicative RTS smoother and the exact gyro-error sampler.
+Summary statistics shared by the benchmark commands.
+
+Medians with their min–max over runs and χ² bands; for ``filter_bench`` the posterior
+Cramér–Rao bounds of a linear-Gaussian model, the multiplicative RTS smoother and the exact
+gyro-error sampler.
 """
 from __future__ import annotations
 
@@ -17,7 +19,20 @@ __all__ = ['stats', 'median_range', 'chi2_band', 'pcrb_filter_smoother',
 
 
 def stats(values) -> dict:
-    """Median, min, max and count of the finite values (None and NaN are left out)."""
+    """
+    Return the median, min, max and count of the finite values (None and NaN are left out).
+
+    Parameters
+    ----------
+    values : iterable of float or None
+        The values of the runs.
+
+    Returns
+    -------
+    dict
+        ``median``, ``min``, ``max`` (NaN when none is finite) and ``n``.
+
+    """
     v = [x for x in values if x is not None and math.isfinite(x)]
     if not v:
         return {'median': math.nan, 'min': math.nan, 'max': math.nan, 'n': 0}
@@ -25,7 +40,22 @@ def stats(values) -> dict:
 
 
 def median_range(s: dict, fmt: str) -> str:
-    """``median (min–max)`` of a :func:`stats` result, formatted with ``fmt``."""
+    """
+    Format a :func:`stats` result as ``median (min–max)``.
+
+    Parameters
+    ----------
+    s : dict
+        Result of :func:`stats`.
+    fmt : str
+        Format specification of each number, e.g. ``'.3f'``.
+
+    Returns
+    -------
+    str
+        The text, or 'not measured' when there is no value.
+
+    """
     if s['n'] == 0:
         return 'not measured'
     return f"{format(s['median'], fmt)} ({format(s['min'], fmt)}–{format(s['max'], fmt)})"
@@ -33,8 +63,9 @@ def median_range(s: dict, fmt: str) -> str:
 
 def chi2_band(dof: int, probability: float = 0.95) -> tuple[float, float]:
     """
-    Two-sided band of a χ² variable with ``dof`` degrees of freedom (Wilson–Hilferty; for
-    dof ≥ 30 within 0.1 % of the exact quantiles).
+    Return the two-sided band of a χ² variable with ``dof`` degrees of freedom.
+
+    The Wilson–Hilferty approximation; for dof ≥ 30 within 0.1 % of the exact quantiles.
 
     Parameters
     ----------
@@ -47,6 +78,7 @@ def chi2_band(dof: int, probability: float = 0.95) -> tuple[float, float]:
     -------
     (float, float)
         Lower and upper quantile.
+
     """
     z = statistics.NormalDist().inv_cdf(0.5 + 0.5 * probability)
     c = 2.0 / (9.0 * dof)
@@ -55,7 +87,7 @@ def chi2_band(dof: int, probability: float = 0.95) -> tuple[float, float]:
 
 def pcrb_filter_smoother(phi, q, p0, h, r, fixes: int):
     """
-    Posterior Cramér–Rao bounds of a linear-Gaussian state-space model measured at each step.
+    Return the posterior Cramér–Rao bounds of a linear-Gaussian model measured at each step.
 
     For ``x_k = Φ x_{k−1} + w``, ``y_k = H x_k + v`` with x_0 ~ N(0, P0), the PCRB of the causal
     estimate of x_k from y_1..y_k is the Kalman filter's covariance, and that of the estimate
@@ -79,6 +111,7 @@ def pcrb_filter_smoother(phi, q, p0, h, r, fixes: int):
     -------
     filtered, smoothed, predicted : list of ndarray (n, n)
         Bounds after each measurement (causal, fixed-interval) and before it.
+
     """
     post, pre, P = [], [], p0
     for _ in range(fixes):
@@ -99,13 +132,16 @@ def pcrb_filter_smoother(phi, q, p0, h, r, fixes: int):
 
 def simulate_increments(rng, T, n, sigma_v, sigma_u, b0):
     """
-    Gyro errors at exact truth: ∫b dt over each interval plus white angle noise σ_v²T, and b
-    at its end; b a Wiener process of density σ_u² from b0, sampled from the exact joint law of
+    Draw gyro increment errors and the true bias from the exact law of a random-walk bias.
+
+    The errors are ∫b dt over each interval plus white angle noise σ_v²T, and b at its end;
+    b is a Wiener process of density σ_u² from b0, sampled from the exact joint law of
     (b(t+T) − b(t), ∫(t+T−s) db(s)) (as ``test/estimation/test_attitude_filter.py``).
 
     Parameters
     ----------
     rng : numpy.random.Generator
+        Source of the draws.
     T : float
         Increment interval, s.
     n : int
@@ -123,6 +159,7 @@ def simulate_increments(rng, T, n, sigma_v, sigma_u, b0):
         Gyro increment errors (add the exact increments of the motion), rad.
     bias : ndarray (n, 3)
         True bias at the end of each interval, rad/s.
+
     """
     cov = sigma_u ** 2 * np.array([[T, T * T / 2.0], [T * T / 2.0, T ** 3 / 3.0]])
     L = np.linalg.cholesky(cov) if sigma_u > 0 else np.zeros((2, 2))
@@ -134,8 +171,9 @@ def simulate_increments(rng, T, n, sigma_v, sigma_u, b0):
 
 def rts_smooth(pre, post, P_pre, P_post, Phi):
     """
-    Multiplicative RTS smoother on the filter's output at the fixes: with
-    ``G_k = P⁺_k Φᵀ (P⁻_{k+1})⁻¹`` and Δ the error state "estimate minus smoothed",
+    Smooth the filter's output at the fixes with the multiplicative RTS smoother.
+
+    With ``G_k = P⁺_k Φᵀ (P⁻_{k+1})⁻¹`` and Δ the error state "estimate minus smoothed":
     ``Δ_k = G_k Δ⁻_{k+1}``, ``q^s_k = q̂⁺_k ⊗ exp(−Δ_ε)``, ``b^s_k = b̂⁺_k − Δ_b``.
 
     Parameters
@@ -151,12 +189,15 @@ def rts_smooth(pre, post, P_pre, P_post, Phi):
     -------
     list of (q, b)
         Smoothed attitude and bias at each fix.
+
     """
     out = [None] * len(post)
     out[-1] = post[-1]
     for k in range(len(post) - 2, -1, -1):
         q_s, b_s = out[k + 1]
-        d_next = np.concatenate([quat_to_rotvec(quat_multiply(quat_conjugate(q_s), pre[k + 1][0])), pre[k + 1][1] - b_s])
+        d_next = np.concatenate([
+            quat_to_rotvec(quat_multiply(quat_conjugate(q_s), pre[k + 1][0])), pre[k + 1][1] - b_s
+        ])
         G = np.linalg.solve(P_pre[k + 1], Phi @ P_post[k]).T
         d = G @ d_next
         out[k] = (quat_multiply(post[k][0], rotvec_to_quat(-d[:3])), post[k][1] - d[3:])
