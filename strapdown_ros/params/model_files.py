@@ -1,0 +1,108 @@
+"""
+Model files: the nominal model of a recording as one ROS 2 parameter file of every node.
+
+:func:`load_model` reads and validates one, :func:`write_model` writes one back (the
+calibration and discrepancy tools write their estimates into it), and
+:func:`simulator_parameters` gives the validated parameters of the two simulators.
+No ROS imports.
+"""
+from __future__ import annotations
+
+import json
+
+from strapdown_ros.files import atomic_write_text
+from strapdown_ros.params.spec import load_parameter_file, ParamSpec
+from strapdown_ros.params.tables import IMU_SIM_PARAMS, NODE_PARAMS, STAR_CAMERA_PARAMS
+from strapdown_ros.params.validation import check_all
+
+
+def load_model(path: str | None) -> tuple[dict, dict]:
+    """
+    A nominal model from a ROS 2 parameter file: the ``/**`` block and the blocks of the
+    package's nodes merged (``/**`` first, then imu_sim_node, star_camera_sim_node, sins_node,
+    calibrator_node), every key validated by the node that declares it.
+
+    Returns (values, raw): ``values`` holds every parameter of every node (defaults where the
+    file is silent; ``path`` None: every default), ``raw`` the parsed document.  Raises
+    ValueError naming a key that no node of the package knows, a block that names no node, or an
+    invalid value.
+    """
+    import yaml
+
+    try:
+        if path is None:                      # no file: every default
+            doc = {}
+        else:
+            with open(path, 'r', encoding='utf-8') as fh:
+                doc = yaml.safe_load(fh)
+    except yaml.YAMLError as exc:
+        raise ValueError(f'{path}: not valid YAML ({str(exc).splitlines()[0]})') from None
+    except OSError as exc:
+        raise ValueError(f'{path}: {exc.strerror or exc}') from None
+    if doc is None:
+        doc = {}
+    if not isinstance(doc, dict):
+        raise ValueError(f'{path}: expected a ROS 2 parameter file (a mapping of node names to ros__parameters)')
+    specs: dict[str, ParamSpec] = {}
+    for lst in NODE_PARAMS.values():
+        for s in lst:
+            specs.setdefault(s.name, s)
+    merged: dict = {}
+    order = ['/**', '**'] + [n for node in NODE_PARAMS for n in (node, '/' + node)]
+    for key in doc:
+        if key not in order:
+            raise ValueError(f'{path}: block {key!r} names no node of the package '
+                             f"(known: /**, {', '.join(NODE_PARAMS)})")
+    for key in order:
+        block = doc.get(key)
+        if block is None:
+            continue
+        if not isinstance(block, dict) or not isinstance(block.get('ros__parameters', {}), dict):
+            raise ValueError(f"{path}: block {key!r} must hold a 'ros__parameters' mapping")
+        for name, value in (block.get('ros__parameters') or {}).items():
+            if name not in specs:
+                raise ValueError(f'{path}: model key {name!r} is not a parameter of any node of the package')
+            err = specs[name].check(specs[name].normalise(value))
+            if err:
+                raise ValueError(f'{path}: {err}')
+            merged[name] = specs[name].normalise(value)
+    values = {n: s.default for n, s in specs.items()}
+    values.update(merged)
+    return values, doc
+
+
+def write_model(path: str, doc: dict | None, updates: dict, comment: str) -> None:
+    """
+    Write a model file: ``doc`` (the parsed parameter document, not modified) with ``updates``
+    set in ``/**`` and in every node block that sets the same key (so the block does not
+    override the new value), atomically, under a ``# comment`` line.  Plain copies: no YAML
+    anchors.
+    """
+
+    import yaml
+
+
+    doc = json.loads(json.dumps(doc or {}))                   # a deep copy of plain data
+    root = doc.setdefault('/**', {}).setdefault('ros__parameters', {})
+    for name, value in updates.items():
+        root[name] = json.loads(json.dumps(value))
+        for key, block in doc.items():
+            if key != '/**' and isinstance(block, dict) and name in (block.get('ros__parameters') or {}):
+                block['ros__parameters'][name] = json.loads(json.dumps(value))
+    atomic_write_text(path, f'# {comment}\n'
+                      + yaml.safe_dump(doc, sort_keys=False, allow_unicode=True))
+
+
+
+def simulator_parameters(params_file: str | None = None, overrides: dict | None = None,
+                         duration: float | None = None) -> tuple[dict, dict]:
+    """Validated parameters of imu_sim_node and star_camera_sim_node (defaults: profile bench)."""
+    imu_raw, cam_raw = {'profile': 'bench'}, {'profile': 'bench'}
+    if params_file:
+        imu_raw.update(load_parameter_file(params_file, 'imu_sim_node'))
+        cam_raw.update(load_parameter_file(params_file, 'star_camera_sim_node'))
+    for raw in (imu_raw, cam_raw):
+        raw.update(overrides or {})
+        if duration is not None:
+            raw['duration'] = float(duration)
+    return check_all(IMU_SIM_PARAMS, imu_raw), check_all(STAR_CAMERA_PARAMS, cam_raw)
