@@ -1,40 +1,35 @@
 """
-The numerical core of ``sins_node``, without ROS: used by the node and by ``sins_bag``.
+The SINS core of ``sins_node`` and ``sins_bag``: from raw increments to published numbers.
 
-:class:`SinsSystem` takes the node's validated parameters (:data:`strapdown_ros.params.SINS_PARAMS`)
-and the raw stream of ``imu/delta_theta`` and ``imu/delta_velocity`` values (header stamp in
-integer nanoseconds, the vector, the header frame id) and owns everything between them and the
-published numbers:
+:class:`SinsSystem` takes the node's validated parameters
+(:data:`strapdown_ros.params.SINS_PARAMS`) and the raw stream of ``imu/delta_theta`` and
+``imu/delta_velocity`` values (header stamp in integer nanoseconds, the vector, the header
+frame id) and owns everything between them and the published numbers:
 
 * input validation: the frame rule (``frame_id``/``frame_mismatch``) and the stream rules of
-  :class:`strapdown_ros.streams.checks.StreamCheck` (NaN, range, duplicates, out of order, stamp jumps
-  and resynchronisation, gaps), one per stream;
+  :class:`strapdown_ros.streams.checks.StreamCheck`, one per stream;
 * the blocks: increments are integrated in blocks covering ``batch_period`` of stamp time (or
   :data:`MAX_BATCH` messages); :meth:`SinsSystem.offer_gyro` / :meth:`~SinsSystem.offer_accel`
   say when a block is due, :meth:`SinsSystem.process` integrates it;
-* the :class:`~strapdown_ros.attitude.integrator.AttitudeIntegrator`, the compensation of the gyro effects
-  of the parameters (:class:`~strapdown_ros.sensors.effects.GyroEffects`), the non-finite rule
-  (an update whose attitude or covariance is not finite is never output: the block is redone
-  sample by sample from the state before it, the offending update is dropped and the state
-  returns to the last good update with :data:`NONFINITE_INFLATION` rad added to its σ);
+* the :class:`~strapdown_ros.attitude.integrator.AttitudeIntegrator`, the compensation of the
+  gyro effects of the parameters (:class:`~strapdown_ros.sensors.effects.GyroEffects`), the
+  non-finite rule (an update whose attitude or covariance is not finite is never output: the
+  block is redone sample by sample from the state before it, the offending update is dropped
+  and the state returns to the last good update with :data:`NONFINITE_INFLATION` rad added to
+  its σ);
 * the accelerometer accumulator of ``sins/imu`` (mean specific force over each update, which
   waits up to ``accel_wait`` stamp seconds for the accelerometer data);
-* the :class:`~.channel.NavigationChannel` (parameter ``navigation``) with its start: the given
-  attitude, or the static alignment, after which the integrator restarts from the aligned
-  attitude.
+* the :class:`~strapdown_ros.navigation.channel.NavigationChannel` (parameter ``navigation``)
+  with its start: the given attitude, or the static alignment, after which the integrator
+  restarts from the aligned attitude.
 
-Outputs (:class:`SinsOutput`) are plain arrays with absolute header stamps (ns): the attitude
-updates (``sins/attitude``), the ``sins/imu`` records and the navigation steps
-(``sins/odometry``); :func:`odometry_arrays` gives the Odometry covariances and body velocity.
-Processing the same messages in the same order gives the same numbers, whoever calls it.
-
-No ROS imports.
+The outputs are those of :mod:`strapdown_ros.sins.outputs`.  Processing the same messages in
+the same order gives the same numbers, whoever calls it.  No ROS imports.
 """
 from __future__ import annotations
 
 from collections import deque
 import copy
-from dataclasses import dataclass, fields
 import math
 import time
 from typing import Callable
@@ -46,225 +41,29 @@ from strapdown_ros.attitude.integrator import AttitudeIntegrator, IncrementAccum
 from strapdown_ros.navigation import recursion as nav_recursion
 from strapdown_ros.navigation.channel import NavigationChannel
 from strapdown_ros.params import sigmas_from
-from strapdown_ros.rotation import dcm_to_quat, from_ros_xyzw, quat_to_dcm
+from strapdown_ros.rotation import dcm_to_quat, from_ros_xyzw
 from strapdown_ros.sensors.effects import GyroEffects
+from strapdown_ros.sins.outputs import (AccelStall, accel_stall_limits, AttitudeOutput,
+                                        ImuOutput, NavigationOutput, NO_OUTPUT, SinsOutput)
+from strapdown_ros.sins.screening import screen_stream
 from strapdown_ros.streams.checks import StreamCheck
 from strapdown_ros.streams.rate_increments import increments_from_rates
 from strapdown_ros.text import bounded
 
-__all__ = ['SinsSystem', 'SinsOutput', 'AttitudeOutput', 'ImuOutput', 'NavigationOutput', 'odometry_arrays',
-           'NONFINITE_INFLATION', 'MAX_BATCH',
-           'FEED_BLOCK', 'FEED_ACCEL_BLOCK', 'screen_stream', 'ACCEL_STALL_ERROR_FACTOR',
-           'ACCEL_STALL_ERROR_MIN_S', 'accel_stall_limits', 'AccelStall']
-
-NONFINITE_INFLATION = 0.01      # rad per axis added to σ after a non-finite update is discarded
-MAX_BATCH = 4096                # a block is processed when it holds this many messages, whatever its span
-FEED_BLOCK = 16384              # Δθ per block of a whole recording (feed)
-FEED_ACCEL_BLOCK = 32768        # Δv per block of a whole recording (below the accumulator's bound)
-
-
-# --- outputs ------------------------------------------------------------------------------------
-class _Arrays:
-    """Concatenation and emptiness of the output records (all fields are arrays along axis 0)."""
-
-    def __len__(self) -> int:
-        return len(self.stamp_ns)
-
-    @classmethod
-    def concat(cls, parts: list):
-        if not parts:
-            return cls.EMPTY
-        if len(parts) == 1:
-            return parts[0]
-        return cls(*(np.concatenate([getattr(p, f.name) for p in parts]) for f in fields(cls)))
-
-
-@dataclass
-class AttitudeOutput(_Arrays):
-    """Attitude updates (``sins/attitude``), M of them."""
-    stamp_ns: np.ndarray        # (M,) int64 header stamp, ns (end of the update)
-    attitude: np.ndarray        # (M, 4) q_ref_body, scalar-first
-    covariance: np.ndarray      # (M, 3, 3) attitude error ε, body axes, rad²
-    mean_rate: np.ndarray       # (M, 3) mean angular rate over the update, rad/s
-    interval: np.ndarray        # (M,) update length, s
-
-    @classmethod
-    def empty(cls):
-        return cls(np.zeros(0, np.int64), np.zeros((0, 4)), np.zeros((0, 3, 3)), np.zeros((0, 3)), np.zeros(0))
-
-
-@dataclass
-class ImuOutput(_Arrays):
-    """
-    ``sins/imu`` records: the attitude updates once their accelerometer data arrived (or
-    waited ``accel_wait``).  ``specific_force`` is the mean Δv/h over the update where
-    ``has_accel``, zeros (and ``has_accel`` False) where no accelerometer data covered it.
-    """
-    stamp_ns: np.ndarray        # (M,) int64
-    attitude: np.ndarray        # (M, 4) q_ref_body, scalar-first
-    covariance: np.ndarray      # (M, 3, 3) body axes, rad²
-    mean_rate: np.ndarray       # (M, 3) rad/s
-    specific_force: np.ndarray  # (M, 3) m/s², body axes
-    has_accel: np.ndarray       # (M,) bool
-
-    @classmethod
-    def empty(cls):
-        return cls(np.zeros(0, np.int64), np.zeros((0, 4)), np.zeros((0, 3, 3)), np.zeros((0, 3)),
-                   np.zeros((0, 3)), np.zeros(0, bool))
-
-
-@dataclass
-class NavigationOutput(_Arrays):
-    """Navigation steps (``sins/odometry``), K of them (:class:`.navigator.NavigationBatch`)."""
-    stamp_ns: np.ndarray        # (K,) int64
-    position: np.ndarray        # (K, 3) ECEF, m
-    velocity: np.ndarray        # (K, 3) ECEF, m/s
-    attitude: np.ndarray        # (K, 4) q_earth_body, scalar-first
-    covariance: np.ndarray      # (K, 9, 9) [δR, δW, ψ] (ψ about earth axes), m, m/s, rad
-    extrapolated: np.ndarray    # (K,) bool: accelerometer data were extrapolated for the step
-
-    @classmethod
-    def empty(cls):
-        return cls(np.zeros(0, np.int64), np.zeros((0, 3)), np.zeros((0, 3)), np.zeros((0, 4)),
-                   np.zeros((0, 9, 9)), np.zeros(0, bool))
-
-
-for _cls in (AttitudeOutput, ImuOutput, NavigationOutput):
-    _cls.EMPTY = _cls.empty()          # shared: zero-length arrays, never written
-
-
-@dataclass
-class SinsOutput:
-    """What one :meth:`SinsSystem.process` produced, in stamp order per stream."""
-    attitude: AttitudeOutput
-    imu: ImuOutput
-    navigation: NavigationOutput
-
-
-_NOTHING = SinsOutput(AttitudeOutput.EMPTY, ImuOutput.EMPTY, NavigationOutput.EMPTY)
-
-
-def odometry_arrays(nav: NavigationOutput, rate_variance: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """
-    The nav_msgs/Odometry numbers of navigation steps (REP-105): pose covariance (K, 36) of
-    [position, ψ about earth axes], velocity in body axes (K, 3) and the twist covariance (K, 36)
-    ([body velocity, angular rate]; the angular block ``rate_variance`` per axis: the rate itself
-    is on sins/imu, twist.angular is not filled).
-    """
-    k = len(nav)
-    p = nav.covariance
-    c6 = np.zeros((k, 6, 6))
-    c6[:, :3, :3], c6[:, :3, 3:], c6[:, 3:, :3], c6[:, 3:, 3:] = p[:, :3, :3], p[:, :3, 6:], p[:, 6:, :3], p[:, 6:, 6:]
-    c = quat_to_dcm(nav.attitude).reshape(k, 3, 3)              # C_E_B: twist in body axes
-    ct = np.swapaxes(c, -1, -2)
-    vb = np.einsum('kij,kj->ki', ct, nav.velocity)
-    t6 = np.zeros((k, 6, 6))
-    t6[:, :3, :3] = ct @ p[:, 3:6, 3:6] @ c
-    t6[:, 3:, 3:] = np.eye(3) * rate_variance
-    return c6.reshape(k, 36), vb, t6.reshape(k, 36)
-
-
-#: the accelerometer stall is an ERROR beyond this factor × accel_wait, and at least this many
-#: stamp seconds (a WARN beyond accel_wait): the one rule of sins_node's /diagnostics and
-#: sins_bag's summary
-ACCEL_STALL_ERROR_FACTOR = 10.0
-ACCEL_STALL_ERROR_MIN_S = 1.0
-
-
-def accel_stall_limits(accel_wait: float) -> tuple[float, float]:
-    """
-    (WARN, ERROR) thresholds of the accelerometer stall, stamp seconds.
-
-    Parameters
-    ----------
-    accel_wait : float
-        The parameter ``accel_wait``, s: how long sins/imu waits for Δv.
-
-    Returns
-    -------
-    (float, float)
-        ``accel_wait`` and max(:data:`ACCEL_STALL_ERROR_MIN_S`,
-        :data:`ACCEL_STALL_ERROR_FACTOR` × ``accel_wait``).
-    """
-    wait = float(accel_wait)
-    return wait, max(ACCEL_STALL_ERROR_MIN_S, ACCEL_STALL_ERROR_FACTOR * wait)
-
-
-@dataclass(frozen=True)
-class AccelStall:
-    """
-    The accelerometer stream has stopped while the gyro stream runs on.
-
-    Attributes
-    ----------
-    seconds : float
-        Stamp seconds the gyro stream ran beyond the newest accepted Δv (or its first stamp
-        when no Δv arrived).
-    level : str
-        ``"warn"`` (beyond ``accel_wait``) or ``"error"`` (beyond the ERROR limit).
-    text : str
-        The sentence of /diagnostics and of sins_bag's ``WARNING:`` line, naming the stream.
-    """
-
-    seconds: float
-    level: str
-    text: str
+#: rad per axis added to σ after a non-finite update is discarded
+NONFINITE_INFLATION = 0.01
+#: a block is processed when it holds this many messages, whatever its span
+MAX_BATCH = 4096
+#: Δθ per block of a whole recording (feed)
+FEED_BLOCK = 16384
+#: Δv per block of a whole recording (below the accumulator's bound)
+FEED_ACCEL_BLOCK = 32768
 
 
 def _finite_update(q: np.ndarray, cov: np.ndarray) -> bool:
     """One update's attitude and covariance are finite (scalar reads: a block's check costs < 1 µs)."""
     return math.isfinite(q[0] + q[1] + q[2] + q[3] + cov[0, 0] + cov[0, 1] + cov[0, 2] + cov[1, 1] + cov[1, 2]
                          + cov[2, 2])
-
-
-def screen_stream(check: StreamCheck, stamps_ns: np.ndarray, values: np.ndarray) -> list:
-    """
-    A whole recorded stream through ``check`` in order: :meth:`StreamCheck.offer_many` over the
-    regular stretches, :meth:`StreamCheck.offer` for each message that is not (so the counters
-    and the accepted messages are those of offering every message in turn).
-
-    Parameters
-    ----------
-    check : StreamCheck
-        The stream's rules and counters (updated).
-    stamps_ns : ndarray (n,) int64
-        Stamps, ns, in bag order.
-    values : ndarray (n, 3)
-        The vectors.
-
-    Returns
-    -------
-    list of (stamps_ns (m,) int64, values (m, 3))
-        The accepted messages per time base: a new element starts at each stamp
-        resynchronisation (``check.resynced``), so each element's stamps strictly increase.
-    """
-    segments: list = []
-    parts_t: list = []
-    parts_v: list = []
-    i, n, width = 0, len(stamps_ns), 64
-    while i < n:
-        k = check.offer_many(stamps_ns[i:i + width], values[i:i + width])
-        if k:
-            full = k == min(width, n - i)
-            parts_t.append(stamps_ns[i:i + k])
-            parts_v.append(values[i:i + k])
-            i += k
-            width = min(2 * width, 1 << 16) if full else 64
-            continue
-        width = 64
-        v = values[i]
-        got = check.offer(int(stamps_ns[i]), (float(v[0]), float(v[1]), float(v[2])))
-        if got and check.resynced and parts_t:
-            segments.append((np.concatenate(parts_t), np.concatenate(parts_v)))
-            parts_t, parts_v = [], []
-        if got:
-            parts_t.append(np.array([g[0] for g in got], dtype=np.int64))
-            parts_v.append(np.array([g[1] for g in got], dtype=float).reshape(-1, 3))
-        i += 1
-    if parts_t or not segments:
-        segments.append((np.concatenate(parts_t) if parts_t else np.zeros(0, np.int64),
-                         np.concatenate(parts_v) if parts_v else np.zeros((0, 3))))
-    return segments
 
 
 # --- the system ---------------------------------------------------------------------------------
@@ -655,7 +454,7 @@ class SinsSystem:
 
     def take_output(self) -> SinsOutput:
         if not self.has_output:
-            return _NOTHING
+            return NO_OUTPUT
         att, imu, nav = self._out
         out = SinsOutput(AttitudeOutput.concat(att), ImuOutput.concat(imu), NavigationOutput.concat(nav))
         self._out = ([], [], [])
@@ -886,3 +685,4 @@ class SinsSystem:
             values.update({'attitude_sigma_x_rad': sig[0], 'attitude_sigma_y_rad': sig[1],
                            'attitude_sigma_z_rad': sig[2]})
         return values
+
