@@ -66,20 +66,26 @@ def parse_args(argv):
     ap.add_argument('--duration', type=float, default=12.0, help='simulated seconds (default 12)')
     ap.add_argument('--time-scale', type=float, default=1.0, help='simulated seconds per wall second (default 1: six '
                     'SINS nodes and the simulator share one executor thread)')
-    ap.add_argument('--alpha', type=float, default=0.1, help='coning half-angle, rad (default 0.1)')
-    ap.add_argument('--nu', type=float, default=4 * np.pi, help='coning frequency, rad/s (default 4π: 2 Hz)')
+    ap.add_argument('--alpha', type=float, default=0.1,
+                    help='coning half-angle, rad (default 0.1)')
+    ap.add_argument('--nu', type=float, default=4 * np.pi,
+                    help='coning frequency, rad/s (default 4π: 2 Hz)')
     ap.add_argument('--errors', choices=('ideal', 'navigation_grade'), default='ideal',
                     help='sensor errors: ideal shows the algorithmic error (default), navigation_grade uses 004 §6')
     ap.add_argument('--seed', type=int, default=0)
     ap.add_argument('--json', help='also write the table as JSON to this file')
-    ap.add_argument('--no-calibration', action='store_true', help='skip the calibration graph (part 2)')
-    ap.add_argument('--no-navigation', action='store_true', help='skip the navigation graph (part 3)')
-    ap.add_argument('--boresight-deg', default='40,-25,120', help='true boresight ψ,ϑ,γ in degrees (part 2)')
+    ap.add_argument('--no-calibration', action='store_true',
+                    help='skip the calibration graph (part 2)')
+    ap.add_argument('--no-navigation', action='store_true',
+                    help='skip the navigation graph (part 3)')
+    ap.add_argument('--boresight-deg', default='40,-25,120',
+                    help='true boresight ψ,ϑ,γ in degrees (part 2)')
     args = ap.parse_args(argv)
     args.algorithms = [a for a in args.algorithms.split(',') if a]
     unknown = [a for a in args.algorithms if a not in ALGORITHMS]
     if unknown:
-        ap.error(f"unknown algorithm(s) {', '.join(unknown)}; valid names: {', '.join(ALGORITHMS)}")
+        ap.error(
+            f"unknown algorithm(s) {', '.join(unknown)}; valid names: {', '.join(ALGORITHMS)}")
     if args.duration < 10.0:
         ap.error('--duration must be at least 10 simulated seconds')
     return args
@@ -148,10 +154,12 @@ def run(args) -> list[dict]:
                 st = np.array([stamp_to_ns(m.header.stamp) * 1e-9 for m in msgs])
                 q = from_ros_xyzw(np.array([[m.quaternion.x, m.quaternion.y, m.quaternion.z, m.quaternion.w]
                                             for m in msgs]))
-                row['final_error_arcsec'] = float(quat_angle_between(q[-1], profile.attitude(st[-1])) * ARCSEC)
+                row['final_error_arcsec'] = float(quat_angle_between(
+                    q[-1], profile.attitude(st[-1])) * ARCSEC)
                 row['drift_deg_per_h'] = cone_axis_drift(st, q, profile) / DEG_PER_HOUR
                 th = theory_drift(ALGORITHMS[a], args.nu * ALGORITHMS[a].samples * sim.gyro.period)
-                row['theory_deg_per_h'] = None if th is None else float(th * args.alpha ** 2 * args.nu / DEG_PER_HOUR)
+                row['theory_deg_per_h'] = None if th is None else float(
+                    th * args.alpha ** 2 * args.nu / DEG_PER_HOUR)
                 sig = np.sqrt(np.diag(node.integrator.covariance()))
                 row['published_sigma_arcsec'] = float(np.linalg.norm(sig) * ARCSEC)
             rows.append(row)
@@ -192,12 +200,14 @@ def run_calibration(args) -> dict:
     time_scale = 8.0                 # four nodes and the monitor on one executor thread
     common = [Parameter('profile', value='bench'), Parameter('time_scale', value=time_scale),
               Parameter('qos_depth', value=20000), Parameter('seed', value=args.seed)]
-    sim = ImuSimNode(namespace='/calib', parameter_overrides=[*common, Parameter('accel_rate', value=10.0)])
+    sim = ImuSimNode(namespace='/calib',
+                     parameter_overrides=[*common, Parameter('accel_rate', value=10.0)])
     cam = StarCameraSimNode(namespace='/calib', parameter_overrides=[
         *common, Parameter('camera_interval', value=5.0), Parameter('boresight', value=list(beta))])
     sins = SinsNode(namespace='/calib', parameter_overrides=[Parameter('qos_depth', value=20000),
                                                              Parameter('coning_algorithm', value='2')])
-    cal = CalibratorNode(namespace='/calib', parameter_overrides=[Parameter('qos_depth', value=20000)])
+    cal = CalibratorNode(namespace='/calib',
+                         parameter_overrides=[Parameter('qos_depth', value=20000)])
     ex = Executor()
     nodes = (sim, cam, sins, cal)
     for n in nodes:
@@ -244,10 +254,12 @@ def format_calibration(c: dict) -> str:
     if not c.get('observable'):
         lines.append(f"  not observable: {c.get('message')}")
         return '\n'.join(lines)
-    lines.append(f"{'angle':<10}{'truth °':>12}{'estimate °':>14}{'error ″':>10}{'σ ″':>8}{'error/σ':>9}")
+    lines.append(
+        f"{'angle':<10}{'truth °':>12}{'estimate °':>14}{'error ″':>10}{'σ ″':>8}{'error/σ':>9}")
     for k, name in enumerate(('heading ψ', 'pitch ϑ', 'roll γ')):
         e, s_ = c['error_arcsec'][k], c['sigma_arcsec'][k]
-        lines.append(f"{name:<10}{c['beta_true_deg'][k]:>12.4f}{c['beta_deg'][k]:>14.5f}{e:>10.2f}{s_:>8.2f}{e / s_:>9.2f}")
+        lines.append(
+            f"{name:<10}{c['beta_true_deg'][k]:>12.4f}{c['beta_deg'][k]:>14.5f}{e:>10.2f}{s_:>8.2f}{e / s_:>9.2f}")
     lines.append(f"Gauss–Newton, {c.get('weighting', 'weighted')} weighting, χ²/dof {c['chi2_per_dof']:.2f}; "
                  'rotation error in MF axes / σ: '
                  + ', '.join(f'{v:+.2f}' for v in c['rotation_error_mf_over_sigma'])
@@ -275,9 +287,11 @@ def run_navigation(args, duration: float = 60.0) -> dict:
         Parameter('duration', value=duration), Parameter('qos_depth', value=20000), Parameter('seed', value=args.seed)])
     sins = SinsNode(namespace='/nav', parameter_overrides=[
         Parameter('navigation', value=True), Parameter('coning_algorithm', value='2'),
-        Parameter('initial_position', value=[float(np.degrees(lat)), float(np.degrees(lon)), float(h)]),
+        Parameter('initial_position', value=[
+                  float(np.degrees(lat)), float(np.degrees(lon)), float(h)]),
         Parameter('initial_velocity', value=[float(x) for x in enu.T @ w0]),
-        Parameter('initial_orientation', value=[float(x) for x in to_ros_xyzw(prof.attitude_ecef(np.array([0.0]))[0])]),
+        Parameter('initial_orientation', value=[
+                  float(x) for x in to_ros_xyzw(prof.attitude_ecef(np.array([0.0]))[0])]),
         Parameter('qos_depth', value=20000)])
     mon = rclpy.create_node('nav_monitor', namespace='/nav')
     got = {'sins': {}, 'truth': {}}
@@ -371,7 +385,8 @@ def main(argv=None):
             json.dump({'rows': rows, 'meta': meta, 'calibration': calib, 'navigation': nav,
                        'args': {k: v for k, v in vars(args).items()}}, fh, indent=2, default=float)
     ok = all(r['published'] > 0 and r['dropped'] + r['missing'] == 0 for r in rows) and \
-        (calib is None or calib.get('observable', False)) and (nav is None or 'position_error_m' in nav)
+        (calib is None or calib.get('observable', False)) and (
+            nav is None or 'position_error_m' in nav)
     return 0 if ok else 1
 
 

@@ -162,7 +162,8 @@ def _q(u, e):
         sd = sgn * 2.0 * k / (2.0 * k + 3.0) + x2 * sd
     at = np.arctan(x)
     q_cf = 0.5 * ((1.0 + 3.0 / (x * x)) * at - 3.0 / x)
-    dq_cf = 0.5 * (6.0 * u / (e * e) * at - (e * e + 3.0 * u * u) / (e * (u * u + e * e)) - 3.0 / e)
+    dq_cf = 0.5 * (6.0 * u / (e * e) * at
+                   - (e * e + 3.0 * u * u) / (e * (u * u + e * e)) - 3.0 / e)
     q = np.where(x <= 0.5, xs ** 3 * sq, q_cf)
     dq = np.where(x <= 0.5, -xs ** 3 * sd / u, dq_cf)          # dq/du = −(x/u) dq/dx
     return q, dq
@@ -297,7 +298,8 @@ def get_gravity_model(name):
     try:
         return GRAVITY_MODELS[name]
     except KeyError:
-        raise ValueError(f'unknown gravity model {name!r}; valid: {sorted(GRAVITY_MODELS)}') from None
+        raise ValueError(
+            f'unknown gravity model {name!r}; valid: {sorted(GRAVITY_MODELS)}') from None
 
 
 def normal_gravity(r, model=DEFAULT_GRAVITY_MODEL):
@@ -335,7 +337,8 @@ def ecef_to_geodetic(r, a=A, f=F):
 
 def enu_rotation(lat, lon):
     """C_ecef_enu (..., 3, 3): columns are east, north, up expressed in ECEF."""
-    lat, lon = np.broadcast_arrays(np.asarray(lat, dtype=np.float64), np.asarray(lon, dtype=np.float64))
+    lat, lon = np.broadcast_arrays(np.asarray(lat, dtype=np.float64),
+                                   np.asarray(lon, dtype=np.float64))
     sl, cl, so, co = np.sin(lat), np.cos(lat), np.sin(lon), np.cos(lon)
     z = np.zeros_like(sl)
     east = np.stack([-so, co, z], axis=-1)
@@ -415,7 +418,8 @@ def report(heights=(0.0, 1e3, 1e4, 2e4, 1e5)):
               '| variant | max abs Δ‖g‖, mGal | max angle, ″ | RMS angle, ″ |', '|---|---|---|---|']
     for name, fn in PRINTED_VARIANTS.items():
         c = compare_models(fn, 'normal_exact', (0.0, 1e4, 2e4)).values()
-        worst = [max(d[k] for d in c) for k in ('max_mag_mgal', 'max_dir_arcsec', 'rms_dir_arcsec')]
+        worst = [max(d[k] for d in c)
+                 for k in ('max_mag_mgal', 'max_dir_arcsec', 'rms_dir_arcsec')]
         lines.append(f'| {name} | ' + ' | '.join(f'{v:.3g}' for v in worst) + ' |')
     return '\n'.join(lines)
 

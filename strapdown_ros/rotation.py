@@ -113,7 +113,8 @@ def quat_to_rotvec(q: np.ndarray) -> np.ndarray:
     # angle / s, with the s → 0 limit 2/w (w ≈ 1 there); each branch sees only safe operands
     small = s <= 1e-12
     w = np.where(small, q[..., :1], 1.0)
-    factor = np.where(small, 2.0 / w * (1.0 + s * s / (3.0 * w ** 2)), angle / np.where(small, 1.0, s))
+    factor = np.where(small, 2.0 / w * (1.0 + s * s / (3.0 * w ** 2)),
+                      angle / np.where(small, 1.0, s))
     return v * factor
 
 
@@ -142,16 +143,20 @@ def dcm_to_quat(C: np.ndarray) -> np.ndarray:
         k = choice[i]
         if k == 0:
             s = 2.0 * np.sqrt(1.0 + tr[i])
-            q[i] = [0.25 * s, (c[2, 1] - c[1, 2]) / s, (c[0, 2] - c[2, 0]) / s, (c[1, 0] - c[0, 1]) / s]
+            q[i] = [0.25 * s, (c[2, 1] - c[1, 2]) / s,
+                    (c[0, 2] - c[2, 0]) / s, (c[1, 0] - c[0, 1]) / s]
         elif k == 1:
             s = 2.0 * np.sqrt(1.0 + c[0, 0] - c[1, 1] - c[2, 2])
-            q[i] = [(c[2, 1] - c[1, 2]) / s, 0.25 * s, (c[0, 1] + c[1, 0]) / s, (c[0, 2] + c[2, 0]) / s]
+            q[i] = [(c[2, 1] - c[1, 2]) / s, 0.25 * s,
+                    (c[0, 1] + c[1, 0]) / s, (c[0, 2] + c[2, 0]) / s]
         elif k == 2:
             s = 2.0 * np.sqrt(1.0 + c[1, 1] - c[0, 0] - c[2, 2])
-            q[i] = [(c[0, 2] - c[2, 0]) / s, (c[0, 1] + c[1, 0]) / s, 0.25 * s, (c[1, 2] + c[2, 1]) / s]
+            q[i] = [(c[0, 2] - c[2, 0]) / s, (c[0, 1] + c[1, 0]) / s,
+                    0.25 * s, (c[1, 2] + c[2, 1]) / s]
         else:
             s = 2.0 * np.sqrt(1.0 + c[2, 2] - c[0, 0] - c[1, 1])
-            q[i] = [(c[1, 0] - c[0, 1]) / s, (c[0, 2] + c[2, 0]) / s, (c[1, 2] + c[2, 1]) / s, 0.25 * s]
+            q[i] = [(c[1, 0] - c[0, 1]) / s, (c[0, 2] + c[2, 0]) / s,
+                    (c[1, 2] + c[2, 1]) / s, 0.25 * s]
     q = np.where(q[:, :1] < 0, -q, q)
     return quat_normalize(q).reshape(shape + (4,))
 

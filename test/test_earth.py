@@ -125,7 +125,8 @@ def test_corrected_printed_vs_exact_and_literal_fails():
         # first-order truncation: measured 3.47e-4 m/s² (34.7 mGal), 3.20″ at h = 0
         assert np.max(np.abs(np.linalg.norm(pr, axis=-1) - np.linalg.norm(ex, axis=-1))) < 4e-4
         assert np.max(_angle_arcsec(pr, ex)) < 3.5
-        lit = np.array([G.printed_gravity_as_printed(*p) for p in r.reshape(-1, 3)]).reshape(r.shape)
+        lit = np.array([G.printed_gravity_as_printed(*p)
+                       for p in r.reshape(-1, 3)]).reshape(r.shape)
         assert np.max(_angle_arcsec(lit, ex)) > 600.0            # measured 694″
         for kw in ({'g2_omega_sign': 1.0}, {'gz_sign': -1.0}):   # one fix alone is not enough
             assert np.max(_angle_arcsec(G.printed_gravity_variant(r, **kw), ex)) > 600.0
@@ -166,7 +167,8 @@ def test_registry_and_shapes():
 def test_geodetic_known_points():
     b = G.A * (1 - G.F)
     assert np.allclose(G.geodetic_to_ecef(0.0, 0.0, 0.0), [G.A, 0, 0], atol=1e-9, rtol=0)
-    assert np.allclose(G.geodetic_to_ecef(0.0, np.pi / 2, 100.0), [0, G.A + 100, 0], atol=1e-9, rtol=0)
+    assert np.allclose(G.geodetic_to_ecef(0.0, np.pi / 2, 100.0),
+                       [0, G.A + 100, 0], atol=1e-9, rtol=0)
     assert np.allclose(G.geodetic_to_ecef(np.pi / 2, 0.3, 0.0), [0, 0, b], atol=1e-9, rtol=0)
     assert abs(G.E2 - 0.0066943662) < 1e-10
 

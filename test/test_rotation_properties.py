@@ -23,14 +23,17 @@ SETTINGS = settings(max_examples=300, deadline=None)
 
 
 def same_rotation(p, q, tol=1e-12):
-    return min(np.max(np.abs(p - q)), np.max(np.abs(p + q))) < tol        # the double cover: q ≡ −q
+    # the double cover: q ≡ −q
+    return min(np.max(np.abs(p - q)), np.max(np.abs(p + q))) < tol
 
 
 @SETTINGS
 @given(quats, quats, quats)
 def test_composition_is_associative_and_matches_dcms(p, q, r):
-    assert same_rotation(quat_multiply(quat_multiply(p, q), r), quat_multiply(p, quat_multiply(q, r)))
-    np.testing.assert_allclose(quat_to_dcm(quat_multiply(p, q)), quat_to_dcm(p) @ quat_to_dcm(q), atol=1e-12)
+    assert same_rotation(quat_multiply(quat_multiply(p, q), r),
+                         quat_multiply(p, quat_multiply(q, r)))
+    np.testing.assert_allclose(quat_to_dcm(quat_multiply(p, q)),
+                               quat_to_dcm(p) @ quat_to_dcm(q), atol=1e-12)
 
 
 @SETTINGS
@@ -67,4 +70,5 @@ def test_rotation_vector_angle_and_wrap_at_pi(k, a):
     # a rotation by a + 2π·0 past π is the rotation by 2π − a about −k
     b = np.pi + 0.5 * (np.pi - a)
     if np.pi + 1e-9 < b < 2 * np.pi - 1e-6:                 # at π itself ±πk are the same rotation
-        np.testing.assert_allclose(quat_to_rotvec(rotvec_to_quat(b * k)), -(2 * np.pi - b) * k, atol=1e-9)
+        np.testing.assert_allclose(quat_to_rotvec(
+            rotvec_to_quat(b * k)), -(2 * np.pi - b) * k, atol=1e-9)

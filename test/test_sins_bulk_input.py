@@ -238,7 +238,7 @@ def test_mcap_chunk_reader_gives_rosbags_records_in_rosbags_order(tmp_path):
         got = read_streams(rd, sel, path)
         ids = mcap_records.channel_ids(storage, sel)
         plain = [mcap_records.scan_plain(np.frombuffer(b'\x05' + bytes(8), np.uint8),
-                                          np.ones(3, bool))]
+                                         np.ones(3, bool))]
     finally:
         rd.close()
     assert plain[0][1] and len(ids) == 2

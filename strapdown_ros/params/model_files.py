@@ -42,7 +42,8 @@ def load_model(path: str | None) -> tuple[dict, dict]:
     if doc is None:
         doc = {}
     if not isinstance(doc, dict):
-        raise ValueError(f'{path}: expected a ROS 2 parameter file (a mapping of node names to ros__parameters)')
+        raise ValueError(
+            f'{path}: expected a ROS 2 parameter file (a mapping of node names to ros__parameters)')
     specs: dict[str, ParamSpec] = {}
     for lst in NODE_PARAMS.values():
         for s in lst:
@@ -61,7 +62,8 @@ def load_model(path: str | None) -> tuple[dict, dict]:
             raise ValueError(f"{path}: block {key!r} must hold a 'ros__parameters' mapping")
         for name, value in (block.get('ros__parameters') or {}).items():
             if name not in specs:
-                raise ValueError(f'{path}: model key {name!r} is not a parameter of any node of the package')
+                raise ValueError(
+                    f'{path}: model key {name!r} is not a parameter of any node of the package')
             err = specs[name].check(specs[name].normalise(value))
             if err:
                 raise ValueError(f'{path}: {err}')
@@ -81,7 +83,6 @@ def write_model(path: str, doc: dict | None, updates: dict, comment: str) -> Non
 
     import yaml
 
-
     doc = json.loads(json.dumps(doc or {}))                   # a deep copy of plain data
     root = doc.setdefault('/**', {}).setdefault('ros__parameters', {})
     for name, value in updates.items():
@@ -91,7 +92,6 @@ def write_model(path: str, doc: dict | None, updates: dict, comment: str) -> Non
                 block['ros__parameters'][name] = json.loads(json.dumps(value))
     atomic_write_text(path, f'# {comment}\n'
                       + yaml.safe_dump(doc, sort_keys=False, allow_unicode=True))
-
 
 
 def simulator_parameters(params_file: str | None = None, overrides: dict | None = None,

@@ -112,6 +112,7 @@ class ParamSpec:
     def range_text(self) -> str:
         if self.choices is not None:
             return ', '.join(map(str, self.choices))
+
         def num(v):
             return str(v) if isinstance(v, int) else f'{v:g}'
         parts = []
@@ -141,9 +142,11 @@ def load_parameter_file(path: str, node_name: str) -> dict:
     except OSError as exc:
         raise ValueError(f'parameter file {path}: {exc.strerror or exc}') from None
     except yaml.YAMLError as exc:
-        raise ValueError(f'parameter file {path}: not valid YAML ({str(exc).splitlines()[0]})') from None
+        raise ValueError(
+            f'parameter file {path}: not valid YAML ({str(exc).splitlines()[0]})') from None
     if not isinstance(doc, dict):
-        raise ValueError(f'parameter file {path}: expected a mapping of node names to ros__parameters')
+        raise ValueError(
+            f'parameter file {path}: expected a mapping of node names to ros__parameters')
     merged: dict = {}
     for key in ('/**', '**', node_name, '/' + node_name):
         block = doc.get(key)
@@ -177,4 +180,3 @@ def parse_overrides(items) -> dict:
             raise ValueError(f'parameter override {item!r} has no name')
         out[name] = yaml.safe_load(text) if text.strip() else ''
     return out
-

@@ -31,10 +31,12 @@ SENSOR_BOUNDS = {'gyro': {'bias': 100.0, 'random_walk': 1.0, 'quantum': 0.1},
 def _sensor_params(prefix: str, grade: SensorSigmas, rate: float, unit: str, rw_unit: str) -> list[ParamSpec]:
     b = SENSOR_BOUNDS[prefix]
     return [
-        ParamSpec(f'{prefix}_rate', rate, f'{prefix} output rate, Hz', 0.0, 10000.0, exclusive_minimum=True),
+        ParamSpec(f'{prefix}_rate', rate, f'{prefix} output rate, Hz',
+                  0.0, 10000.0, exclusive_minimum=True),
         ParamSpec(f'{prefix}_bias_sigma', grade.bias_sigma,
                   f'1σ of the constant bias per axis, {unit}', 0.0, b['bias']),
-        ParamSpec(f'{prefix}_scale_sigma', grade.scale_sigma, '1σ of each scale-factor error (relative)', 0.0, 0.1),
+        ParamSpec(f'{prefix}_scale_sigma', grade.scale_sigma,
+                  '1σ of each scale-factor error (relative)', 0.0, 0.1),
         ParamSpec(f'{prefix}_misalignment_sigma', grade.misalignment_sigma,
                   '1σ of each axis misalignment (off-diagonal of M), rad', 0.0, 0.1),
         ParamSpec(f'{prefix}_random_walk', grade.random_walk,
@@ -46,11 +48,14 @@ def _sensor_params(prefix: str, grade: SensorSigmas, rate: float, unit: str, rw_
 
 PROFILE_PARAMS = [
     ParamSpec('profile', 'coning', 'motion profile', choices=PROFILE_NAMES),
-    ParamSpec('coning_alpha', 0.087, 'coning half-angle α, rad (003 §2.2)', 0.0, np.pi, exclusive_minimum=True),
+    ParamSpec('coning_alpha', 0.087, 'coning half-angle α, rad (003 §2.2)',
+              0.0, np.pi, exclusive_minimum=True),
     ParamSpec('coning_nu', 1.0, 'coning frequency ν, rad/s', 0.0, 1000.0, exclusive_minimum=True),
-    ParamSpec('bench_latitude_deg', 50.45, 'bench latitude, degrees (Earth-rate direction)', -90.0, 90.0),
+    ParamSpec('bench_latitude_deg', 50.45,
+              'bench latitude, degrees (Earth-rate direction)', -90.0, 90.0),
     ParamSpec('bench_earth_rate', True, 'bench profile turns with the Earth'),
-    ParamSpec('bench_repeat', 1, 'passes of the bench turn sequence (150 s each after a 20 s hold)', 1, 100000),
+    ParamSpec('bench_repeat', 1,
+              'passes of the bench turn sequence (150 s each after a 20 s hold)', 1, 100000),
     ParamSpec('profile_file', '', "YAML with 'segments' for profile=piecewise"),
     ParamSpec('gravity', [0.0, 0.0, 0.0], 'specific force at rest in reference axes, m/s² '
               '(coning and piecewise profiles; the bench uses ENU gravity)', length=3),
@@ -63,14 +68,18 @@ PROFILE_PARAMS = [
               0.0, 1e4),
     ParamSpec('nav_heading_deg', 0.0, 'ENU yaw of the body (static, sculling) or of the initial velocity, '
               'degrees counter-clockwise from east (REP-103)', -360.0, 360.0),
-    ParamSpec('turn_radius', 2000.0, 'coordinated_turn radius, m', 0.0, 1e6, exclusive_minimum=True),
+    ParamSpec('turn_radius', 2000.0, 'coordinated_turn radius, m',
+              0.0, 1e6, exclusive_minimum=True),
     ParamSpec('sculling_angle', 0.01, 'sculling angular amplitude about body x, rad', 0.0, 1.5),
-    ParamSpec('sculling_accel', 1.0, 'sculling acceleration amplitude along the level y axis, m/s²', 0.0, 1e3),
-    ParamSpec('sculling_frequency', 10.0, 'sculling frequency, Hz', 0.0, 1000.0, exclusive_minimum=True),
+    ParamSpec('sculling_accel', 1.0,
+              'sculling acceleration amplitude along the level y axis, m/s²', 0.0, 1e3),
+    ParamSpec('sculling_frequency', 10.0, 'sculling frequency, Hz',
+              0.0, 1000.0, exclusive_minimum=True),
     ParamSpec('gravity_model', DEFAULT_GRAVITY_MODEL, 'normal gravity of the navigation profiles '
               "(pz90_003: 003's formula corrected, 3.2″ and 35 mGal from normal_exact)",
               choices=tuple(GRAVITY_MODELS)),
 ]
+
 
 def _effect_specs(sensor: str, skip: Sequence[ParamSpec] = ()) -> list[ParamSpec]:
     """
@@ -107,7 +116,8 @@ IMU_SIM_PARAMS = PROFILE_PARAMS + GYRO_PARAMS + ACCEL_PARAMS + COMMON_PARAMS + [
               0.0, 1e6, exclusive_minimum=True),
     ParamSpec('duration', 0.0, 'simulated seconds to publish (0: the profile length, or forever)', 0.0),
     ParamSpec('start_time', 0.0, 'header stamp of profile time 0, s', 0.0),
-    ParamSpec('publish_period', 0.005, 'wall period of the publishing timer, s', 0.0, 1.0, exclusive_minimum=True),
+    ParamSpec('publish_period', 0.005, 'wall period of the publishing timer, s',
+              0.0, 1.0, exclusive_minimum=True),
     ParamSpec('wait_for_subscribers', 0,
               'the simulated clock starts once imu/delta_theta and imu/data_raw have this many '
               'subscribers in all (0: at start-up), so that separately started consumers lose '
@@ -120,7 +130,8 @@ INPUT_PARAMS = [
               'rate is rejected as impossible', 0.0, 1e4, exclusive_minimum=True),
     ParamSpec('max_stamp_jump', 1.0, 'a stamp step beyond this, s, forward or back, is a jump: a lone one is an '
               'outlier, resync_count consistent ones a new timeline', 0.0, 1e6, exclusive_minimum=True),
-    ParamSpec('resync_count', 5, 'consecutive messages that confirm a new timeline after a stamp jump', 1, 1000),
+    ParamSpec('resync_count', 5,
+              'consecutive messages that confirm a new timeline after a stamp jump', 1, 1000),
     ParamSpec('frame_mismatch', 'reject', 'a message whose header.frame_id is neither empty nor the expected frame: '
               'reject (counted, WARN) or accept (counted, WARN)', choices=('reject', 'accept')),
 ]
@@ -147,43 +158,48 @@ MAX_SPEED = 1e4
 
 SINS_PARAMS = GYRO_PARAMS + ACCEL_PARAMS + COMMON_PARAMS + INPUT_PARAMS + ACCEL_INPUT_PARAMS + \
     GYRO_INPUT_PARAMS + [
-    ParamSpec('coning_algorithm', '2', 'coning algorithm (doc/coning_derivations.md)', choices=tuple(algorithm_names())),
-    ParamSpec('initial_orientation', [0.0, 0.0, 0.0, 1.0],
-              'initial q_ref_body as ROS x, y, z, w (normalised if not unit)', length=4),
-    ParamSpec('initial_attitude_sigma', 0.0, '1σ initial attitude error per axis, rad', 0.0, np.pi),
-    ParamSpec('covariance_model', 'random_constant', 'gyro error model of the covariance', choices=COVARIANCE_MODELS),
-    ParamSpec('quantization_correction', False, 'apply 000 eq. (5.6) with gyro_quantum'),
-    ParamSpec('accel_wait', 0.1, 'how long (stamp seconds) sins/imu waits for accelerometer data', 0.0, 10.0),
-    ParamSpec('navigation', False, 'navigation channel (003 §1.5): ECEF position and velocity on sins/odometry '
-              'from imu/delta_velocity; the attitude reference frame is then the inertial frame that coincides '
-              'with earth at the start (doc/navigation.md)'),
-    ParamSpec('initial_position', [50.45, 30.52, 150.0], 'initial latitude °, longitude °, height m (PZ-90 '
-              'ellipsoid)', length=3, element_ranges=((-90.0, 90.0), (-180.0, 360.0), (-1e4, 1e6)),
-              element_names=('latitude °', 'longitude °', 'height m')),
-    ParamSpec('initial_velocity', [0.0, 0.0, 0.0], 'initial velocity east, north, up, m/s',
-              -MAX_SPEED, MAX_SPEED, length=3),
-    ParamSpec('initial_position_sigma', 0.0, '1σ initial position error per axis, m', 0.0),
-    ParamSpec('initial_velocity_sigma', 0.0, '1σ initial velocity error per axis, m/s', 0.0),
-    ParamSpec('initial_alignment', 'given', 'initial attitude: given (initial_orientation = q_earth_body) or '
-              'static (coarse alignment from gravity and Earth rate over alignment_time at rest)',
-              choices=('given', 'static')),
-    ParamSpec('alignment_time', 60.0, 'static alignment window, stamp seconds', 0.1, 86400.0),
-    ParamSpec('velocity_update', 'derived', "velocity/position update: derived (exact in the Earth's rotation) "
-              'or printed (003 eqs. 1.99–1.100 as printed, 1 gyro : 3 accelerometer samples only)',
-              choices=('derived', 'printed')),
-    ParamSpec('sculling_compensation', True, 'rotation and sculling from the fitted motion (false: rotation '
-              'compensation ½θ×v only)'),
-    ParamSpec('gravity_model', DEFAULT_GRAVITY_MODEL, 'normal gravity model '
-              "(strapdown_ros/earth.py; pz90_003: 003's formula corrected, 3.2″ and "
-              '35 mGal from normal_exact)',
-              choices=('pz90_003', 'normal_exact', 'j2')),
-    ParamSpec('navigation_covariance_period', 1.0, 'propagation period of the navigation covariance, s',
-              0.001, 60.0),
-    ParamSpec('earth_frame_id', 'earth', 'frame id of sins/odometry (REP-105 earth: ECEF, PZ-90)'),
-    ParamSpec('batch_period', 0.01, 'increments are integrated in blocks spanning this much stamp time, and at '
-              'least every this many wall seconds (0: every message at once); outputs keep their own stamps',
-              0.0, 1.0),
-]
+        ParamSpec('coning_algorithm', '2', 'coning algorithm (doc/coning_derivations.md)',
+                  choices=tuple(algorithm_names())),
+        ParamSpec('initial_orientation', [0.0, 0.0, 0.0, 1.0],
+                  'initial q_ref_body as ROS x, y, z, w (normalised if not unit)', length=4),
+        ParamSpec('initial_attitude_sigma', 0.0,
+                  '1σ initial attitude error per axis, rad', 0.0, np.pi),
+        ParamSpec('covariance_model', 'random_constant',
+                  'gyro error model of the covariance', choices=COVARIANCE_MODELS),
+        ParamSpec('quantization_correction', False, 'apply 000 eq. (5.6) with gyro_quantum'),
+        ParamSpec('accel_wait', 0.1,
+                  'how long (stamp seconds) sins/imu waits for accelerometer data', 0.0, 10.0),
+        ParamSpec('navigation', False, 'navigation channel (003 §1.5): ECEF position and velocity on sins/odometry '
+                  'from imu/delta_velocity; the attitude reference frame is then the inertial frame that coincides '
+                  'with earth at the start (doc/navigation.md)'),
+        ParamSpec('initial_position', [50.45, 30.52, 150.0], 'initial latitude °, longitude °, height m (PZ-90 '
+                  'ellipsoid)', length=3, element_ranges=((-90.0, 90.0), (-180.0, 360.0), (-1e4, 1e6)),
+                  element_names=('latitude °', 'longitude °', 'height m')),
+        ParamSpec('initial_velocity', [0.0, 0.0, 0.0], 'initial velocity east, north, up, m/s',
+                  -MAX_SPEED, MAX_SPEED, length=3),
+        ParamSpec('initial_position_sigma', 0.0, '1σ initial position error per axis, m', 0.0),
+        ParamSpec('initial_velocity_sigma', 0.0, '1σ initial velocity error per axis, m/s', 0.0),
+        ParamSpec('initial_alignment', 'given', 'initial attitude: given (initial_orientation = q_earth_body) or '
+                  'static (coarse alignment from gravity and Earth rate over alignment_time at rest)',
+                  choices=('given', 'static')),
+        ParamSpec('alignment_time', 60.0, 'static alignment window, stamp seconds', 0.1, 86400.0),
+        ParamSpec('velocity_update', 'derived', "velocity/position update: derived (exact in the Earth's rotation) "
+                  'or printed (003 eqs. 1.99–1.100 as printed, 1 gyro : 3 accelerometer samples only)',
+                  choices=('derived', 'printed')),
+        ParamSpec('sculling_compensation', True, 'rotation and sculling from the fitted motion (false: rotation '
+                  'compensation ½θ×v only)'),
+        ParamSpec('gravity_model', DEFAULT_GRAVITY_MODEL, 'normal gravity model '
+                  "(strapdown_ros/earth.py; pz90_003: 003's formula corrected, 3.2″ and "
+                  '35 mGal from normal_exact)',
+                  choices=('pz90_003', 'normal_exact', 'j2')),
+        ParamSpec('navigation_covariance_period', 1.0, 'propagation period of the navigation covariance, s',
+                  0.001, 60.0),
+        ParamSpec('earth_frame_id', 'earth',
+                  'frame id of sins/odometry (REP-105 earth: ECEF, PZ-90)'),
+        ParamSpec('batch_period', 0.01, 'increments are integrated in blocks spanning this much stamp time, and at '
+                  'least every this many wall seconds (0: every message at once); outputs keep their own stamps',
+                  0.0, 1.0),
+        ]
 
 
 def sigmas_from(values: dict, prefix: str) -> SensorSigmas:
@@ -196,18 +212,23 @@ STAR_CAMERA_PARAMS = PROFILE_PARAMS + [
     ParamSpec('reference_frame_id', 'gcrs', 'inertial reference frame id of attitudes'),
     ParamSpec('camera_frame_id', 'star_camera', 'camera frame (VF) id'),
     ParamSpec('qos_depth', 500, 'history depth of the stream QoS', 1, 100000),
-    ParamSpec('diagnostics_period', 1.0, 'period of /diagnostics, wall seconds', 0.0, 3600.0, exclusive_minimum=True),
+    ParamSpec('diagnostics_period', 1.0, 'period of /diagnostics, wall seconds',
+              0.0, 3600.0, exclusive_minimum=True),
     ParamSpec('seed', 0, 'seed of the camera noise', 0, 2**31 - 1),
     ParamSpec('time_scale', 1.0, 'simulated seconds per wall second (as imu_sim_node)', 0.0, 1e6,
               exclusive_minimum=True),
     ParamSpec('duration', 0.0, 'simulated seconds to publish (0: the profile length, or forever)', 0.0),
     ParamSpec('start_time', 0.0, 'header stamp of profile time 0, s (as imu_sim_node)', 0.0),
-    ParamSpec('publish_period', 0.005, 'wall period of the publishing timer, s', 0.0, 1.0, exclusive_minimum=True),
+    ParamSpec('publish_period', 0.005, 'wall period of the publishing timer, s',
+              0.0, 1.0, exclusive_minimum=True),
     ParamSpec('wait_for_subscribers', 0, 'the simulated clock starts once the camera topics have this many '
               'subscribers in all (0: at start-up), so that separately started consumers lose nothing', 0, 1000),
-    ParamSpec('camera_interval', 20.0, 'time between exposures, s', 0.0, 3600.0, exclusive_minimum=True),
-    ParamSpec('camera_first_exposure', 0.0, 'profile time of the first exposure, s (0: one interval)', 0.0),
-    ParamSpec('camera_sigma_xy', 0.6 * ARCSEC_RAD, '1σ attitude noise about VF x and y, rad (004: 0.6″)', 0.0, 0.1),
+    ParamSpec('camera_interval', 20.0, 'time between exposures, s',
+              0.0, 3600.0, exclusive_minimum=True),
+    ParamSpec('camera_first_exposure', 0.0,
+              'profile time of the first exposure, s (0: one interval)', 0.0),
+    ParamSpec('camera_sigma_xy', 0.6 * ARCSEC_RAD,
+              '1σ attitude noise about VF x and y, rad (004: 0.6″)', 0.0, 0.1),
     ParamSpec('camera_sigma_z', 6.0 * ARCSEC_RAD, '1σ attitude noise about the optical axis VF z, rad (004: 6″)',
               0.0, 0.1),
     ParamSpec('boresight', [0.0, 0.0, 0.0], 'true β = (heading ψ, pitch ϑ, roll γ) of VF relative to MF, rad',
@@ -215,7 +236,8 @@ STAR_CAMERA_PARAMS = PROFILE_PARAMS + [
     ParamSpec('camera_time_offset', 0.0, 'camera clock minus IMU clock, s (a fix stamped t shows t − offset)',
               -10.0, 10.0),
     ParamSpec('camera_exposure_time', 0.0, 'exposure duration, s', 0.0, 10.0),
-    ParamSpec('camera_stamp_at_exposure_start', False, 'stamp = exposure start while the attitude is mid-exposure'),
+    ParamSpec('camera_stamp_at_exposure_start', False,
+              'stamp = exposure start while the attitude is mid-exposure'),
 ]
 STAR_CAMERA_PARAMS += _effect_specs('camera', STAR_CAMERA_PARAMS)
 
@@ -225,9 +247,11 @@ CALIBRATOR_PARAMS = GYRO_PARAMS + INPUT_PARAMS + GYRO_INPUT_PARAMS + [
     ParamSpec('frame_id', 'imu_link', 'IMU frame (MF) id'),
     ParamSpec('camera_frame_id', 'star_camera', 'camera frame (VF) id'),
     ParamSpec('qos_depth', 500, 'history depth of the stream QoS', 1, 100000),
-    ParamSpec('diagnostics_period', 1.0, 'period of /diagnostics, wall seconds', 0.0, 3600.0, exclusive_minimum=True),
+    ParamSpec('diagnostics_period', 1.0, 'period of /diagnostics, wall seconds',
+              0.0, 3600.0, exclusive_minimum=True),
     ParamSpec('weighted', True, 'weight the pairs by E_imu and E_avu (false: unit weights as 004)'),
-    ParamSpec('covariance_model', 'random_constant', 'gyro error model of E_imu', choices=COVARIANCE_MODELS),
+    ParamSpec('covariance_model', 'random_constant',
+              'gyro error model of E_imu', choices=COVARIANCE_MODELS),
     ParamSpec('initial_boresight', [0.0, 0.0, 0.0], 'β0, rad (the solver aligns rotation axes first, so any β0 '
               'converges)', length=3),
     ParamSpec('min_rotation_deg', 0.5, 'increments below this angle do not count as rotations (004 §4.1)',
@@ -243,8 +267,10 @@ CALIBRATOR_PARAMS = GYRO_PARAMS + INPUT_PARAMS + GYRO_INPUT_PARAMS + [
               0.0, 1e9, exclusive_minimum=True),
     ParamSpec('use_camera_covariance', True, 'read P_avu from star_camera/attitude_with_covariance '
               '(false: star_camera/attitude with camera_sigma_xy/z)'),
-    ParamSpec('camera_sigma_xy', 0.6 * ARCSEC_RAD, 'assumed camera σ about VF x, y when no covariance, rad', 0.0, 0.1),
-    ParamSpec('camera_sigma_z', 6.0 * ARCSEC_RAD, 'assumed camera σ about VF z when no covariance, rad', 0.0, 0.1),
+    ParamSpec('camera_sigma_xy', 0.6 * ARCSEC_RAD,
+              'assumed camera σ about VF x, y when no covariance, rad', 0.0, 0.1),
+    ParamSpec('camera_sigma_z', 6.0 * ARCSEC_RAD,
+              'assumed camera σ about VF z when no covariance, rad', 0.0, 0.1),
 ]
 #: camera effects the calibrator compensates (time offset of the fixes, camera noise scale)
 CALIBRATOR_PARAMS += _effect_specs('camera')
@@ -309,4 +335,3 @@ ALL_PARAMETER_NAMES = frozenset(s.name for s in IMU_SIM_PARAMS + SINS_PARAMS + S
 #: the nodes whose blocks a model file may hold (ROS 2 parameter-file schema)
 NODE_PARAMS = {'imu_sim_node': IMU_SIM_PARAMS, 'sins_node': SINS_PARAMS,
                'star_camera_sim_node': STAR_CAMERA_PARAMS, 'calibrator_node': CALIBRATOR_PARAMS}
-

@@ -77,4 +77,3 @@ def check_all(specs: Sequence[ParamSpec], values: dict) -> dict:
     if err:
         raise ValueError(err)
     return out
-

@@ -299,7 +299,8 @@ def _strip(frame: str) -> str:
 def _process_fixes(raw, with_cov: bool, P_assumed):
     """Quaternion and covariance rules of calibrator_node, per fix: (ns, q_wxyz, P 3×3 or None)."""
     out, rejected = [], 0
-    counts = {'zero_quaternion': 0, 'bad_covariance': 0, 'normalised': 0, 'covariance_substituted': 0}
+    counts = {'zero_quaternion': 0, 'bad_covariance': 0,
+              'normalised': 0, 'covariance_substituted': 0}
     from_messages = 0
     for ns, q, P in raw:
         norm = float(np.linalg.norm(q)) if np.all(np.isfinite(q)) else float('nan')

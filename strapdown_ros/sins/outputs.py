@@ -106,7 +106,8 @@ def odometry_arrays(nav: NavigationOutput, rate_variance: float) -> tuple[np.nda
     k = len(nav)
     p = nav.covariance
     c6 = np.zeros((k, 6, 6))
-    c6[:, :3, :3], c6[:, :3, 3:], c6[:, 3:, :3], c6[:, 3:, 3:] = p[:, :3, :3], p[:, :3, 6:], p[:, 6:, :3], p[:, 6:, 6:]
+    c6[:, :3, :3], c6[:, :3, 3:], c6[:, 3:, :3], c6[:, 3:,
+                                                    3:] = p[:, :3, :3], p[:, :3, 6:], p[:, 6:, :3], p[:, 6:, 6:]
     c = quat_to_dcm(nav.attitude).reshape(k, 3, 3)              # C_E_B: twist in body axes
     ct = np.swapaxes(c, -1, -2)
     vb = np.einsum('kij,kj->ki', ct, nav.velocity)

@@ -60,4 +60,3 @@ def screen_stream(check: StreamCheck, stamps_ns: np.ndarray, values: np.ndarray)
         segments.append((np.concatenate(parts_t) if parts_t else np.zeros(0, np.int64),
                          np.concatenate(parts_v) if parts_v else np.zeros((0, 3))))
     return segments
-

@@ -106,7 +106,8 @@ class SinsSystem:
         a_period = 1.0 / float(p['accel_rate'])
         self.accel_check = StreamCheck(a_period, max_norm=2.0 * a_period * float(p['accel_max']), jump_limit=jump,
                                        resync_count=resync)
-        self.nonfinite = 0                         # updates whose output was not finite (never output)
+        # updates whose output was not finite (never output)
+        self.nonfinite = 0
         self.rate_checks: dict = {}                # sensor_msgs/Imu rate samples (screen_imu)
         self.frame_mismatch = {'gyro': 0, 'accel': 0}
         self.frame_id = p['frame_id']
@@ -128,8 +129,10 @@ class SinsSystem:
         self._batch_span_ns = int(round(self.batch_span * 1e9))
         self._gyro_period_ns = int(round(period * 1e9))
         g = self.integrator.gyro.random_walk ** 2 / max(period, 1e-12)
-        self.rate_variance = g                     # per axis, (rad/s)², of the mean rate of sins/imu
-        self.accel_variance = float(p['accel_random_walk']) ** 2 * float(p['accel_rate'])   # (m/s²)²
+        # per axis, (rad/s)², of the mean rate of sins/imu
+        self.rate_variance = g
+        # (m/s²)²
+        self.accel_variance = float(p['accel_random_walk']) ** 2 * float(p['accel_rate'])
         self._log_fn = log
         self._imu_wanted = imu_wanted or (lambda: True)
         self._throttle: dict[str, float] = {}
@@ -211,7 +214,8 @@ class SinsSystem:
         # the stamp time the block covers, from the end of the previous block (at 100 Hz with
         # batch_period 0.01 every message is processed at once; at 1 kHz, blocks of 10), whatever
         # gyro_rate says
-        start = self._block_end_ns if self._block_end_ns is not None else self._gyro_in[0][0] - self._gyro_period_ns
+        start = self._block_end_ns if self._block_end_ns is not None else self._gyro_in[
+            0][0] - self._gyro_period_ns
         return self._gyro_in[-1][0] - start >= self._batch_span_ns - 1 or len(self._gyro_in) >= MAX_BATCH
 
     def offer_accel(self, stamp_ns: int, value, frame_id: str = '') -> bool:
@@ -456,7 +460,8 @@ class SinsSystem:
         if not self.has_output:
             return NO_OUTPUT
         att, imu, nav = self._out
-        out = SinsOutput(AttitudeOutput.concat(att), ImuOutput.concat(imu), NavigationOutput.concat(nav))
+        out = SinsOutput(AttitudeOutput.concat(att), ImuOutput.concat(imu),
+                         NavigationOutput.concat(nav))
         self._out = ([], [], [])
         self.has_output = False
         return out
@@ -516,7 +521,8 @@ class SinsSystem:
         if nav.navigator is not None:
             return False
         if nav.mode == 'given':
-            nav.start(float(t[0]) - self.integrator.nominal_period, attitude_sigma=float(self.p['initial_attitude_sigma']))
+            nav.start(float(t[0]) - self.integrator.nominal_period,
+                      attitude_sigma=float(self.p['initial_attitude_sigma']))
             return False
         comp = self.gyro_effects.compensate(inc, t, np.full(len(t), self.integrator.nominal_period)) \
             if self.compensating else inc
@@ -550,7 +556,8 @@ class SinsSystem:
         restores the last good state instead.
         """
         if self.compensating:
-            prev = self._last_gyro_t if self._last_gyro_t is not None else t[0] - self.integrator.nominal_period
+            prev = (self._last_gyro_t if self._last_gyro_t is not None
+                    else t[0] - self.integrator.nominal_period)
             T = np.diff(t, prepend=prev)
             inc = self.gyro_effects.compensate(inc, t, T)
         self._last_gyro_t = float(t[-1])
@@ -576,8 +583,10 @@ class SinsSystem:
                 self.nav.add_updates(batch.stamps, batch.interval, batch.attitude, starts)
         imu_on = self._imu_wanted()                 # asked once per block
         if len(batch):
-            ns = np.array(stamps_ns[batch.first_end::self.integrator.algorithm.samples], dtype=np.int64)
-            self._out[0].append(AttitudeOutput(ns, batch.attitude, batch.covariance, batch.mean_rate, batch.interval))
+            ns = np.array(
+                stamps_ns[batch.first_end::self.integrator.algorithm.samples], dtype=np.int64)
+            self._out[0].append(AttitudeOutput(ns, batch.attitude,
+                                batch.covariance, batch.mean_rate, batch.interval))
             self.has_output = True
             if imu_on:
                 for k in range(len(batch)):
@@ -612,7 +621,8 @@ class SinsSystem:
         f = np.zeros((ready, 3))
         f[has] = dv[has] / h[has, None]
         self._out[1].append(ImuOutput(np.array([it[2] for it in items], dtype=np.int64),
-                                      np.array([it[3] for it in items]), np.array([it[4] for it in items]),
+                                      np.array([it[3] for it in items]), np.array([it[4]
+                                                                                   for it in items]),
                                       np.array([it[5] for it in items]), f, has))
         self.has_output = True
 
@@ -685,4 +695,3 @@ class SinsSystem:
             values.update({'attitude_sigma_x_rad': sig[0], 'attitude_sigma_y_rad': sig[1],
                            'attitude_sigma_z_rad': sig[2]})
         return values
-

@@ -21,7 +21,8 @@ import numpy as np
 
 __all__ = ['vector3_stamped', 'imu', 'imu_rate_covariance', 'stamped_doubles']
 
-_STAMP_AND_LENGTH = struct.Struct('<iII')     # header.stamp.sec, .nanosec, length of frame_id (with its NUL)
+# header.stamp.sec, .nanosec, length of frame_id (with its NUL)
+_STAMP_AND_LENGTH = struct.Struct('<iII')
 _XYZ = struct.Struct('<3d')
 _F64 = struct.Struct('<d')
 

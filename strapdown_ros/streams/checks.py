@@ -70,7 +70,8 @@ class StreamCheck:
                  max_burst: int | None = None):
         self.nominal_ns = nominal_period * 1e9
         self.max_norm = max_norm
-        self.jump_ns = max(jump_limit * 1e9, 3.0 * self.nominal_ns if math.isfinite(self.nominal_ns) else 0.0)
+        self.jump_ns = max(jump_limit * 1e9,
+                           3.0 * self.nominal_ns if math.isfinite(self.nominal_ns) else 0.0)
         self._gap_ns = 1.5 * self.nominal_ns   # inf without a nominal period: no gaps
         self.resync_count = max(1, int(resync_count))
         self.last_ns: int | None = None
@@ -335,7 +336,7 @@ def validate(stamps_ns, values, check: StreamCheck):
             continue
         if check.returned:
             n_out, n_gaps, n_starts = marks.pop() if marks else (len(out_t) - check.retracted,
-                                                               len(gaps), len(starts))
+                                                                 len(gaps), len(starts))
             del out_t[n_out:], out_v[n_out:], gaps[n_gaps:], starts[n_starts:]
             prev = out_t[-1] if out_t else None
         elif check.resynced or (prev is not None and got[0][0] - prev > check.jump_ns):

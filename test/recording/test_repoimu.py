@@ -276,7 +276,7 @@ def test_every_second_fix_agrees_with_every_fix_within_3_sigma(trial, workdir, m
 
 
 def test_reference_with_added_noise_gives_no_confident_wrong_answer(trial, workdir,
-                                                                      model_file):
+                                                                    model_file):
     """
     0.3° (5.2e-3 rad) of white noise added to every Vicon fix, the nominal model (which states
     0.005 rad), the full effect library: the gyro bias is named and agrees with the mean rate at

@@ -47,7 +47,8 @@ def test_single_sample_path_equals_the_batch_path():
     prof = bench_profile()
     t, dth, _ = IntegratingSensor(prof, 'gyro', 100.0).sample(6000)
     fixes = StarCameraModel(boresight=[0.7, -0.4, 2.1], interval=5.0, seed=2).fixes(prof, 11)
-    a, b = BoresightCalibrator(gyro=NAVIGATION_GRADE_GYRO), BoresightCalibrator(gyro=NAVIGATION_GRADE_GYRO)
+    a, b = BoresightCalibrator(gyro=NAVIGATION_GRADE_GYRO), BoresightCalibrator(
+        gyro=NAVIGATION_GRADE_GYRO)
     a.add_gyro(t, dth)
     for s, v in zip(t, dth):
         b.add_gyro_sample(float(s), v)

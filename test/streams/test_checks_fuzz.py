@@ -29,7 +29,8 @@ def test_stream_check_never_accepts_poison_and_accounts_for_every_message(msgs):
     for _, v in out:
         assert all(math.isfinite(x) and abs(x) <= 0.4 for x in v)
     held = len(c._held)
-    assert c.received == c.accepted + c.nan + c.out_of_range + c.duplicate + c.out_of_order + c.stamp_outliers + held
+    assert c.received == (c.accepted + c.nan + c.out_of_range
+                          + c.duplicate + c.out_of_order + c.stamp_outliers + held)
     assert len(out) == c.accepted
 
 
@@ -45,7 +46,8 @@ def test_random_bytes_in_message_decoding_raise_cleanly_or_decode(raw):
         except Exception:                        # noqa: BLE001 - read_bag turns any of these into BagError
             continue
         # whatever decodes goes through the same rules as a live message
-        v = (m.vector.x, m.vector.y, m.vector.z) if hasattr(m, 'vector') else tuple(m.pose.covariance[:3])
+        v = (m.vector.x, m.vector.y, m.vector.z) if hasattr(
+            m, 'vector') else tuple(m.pose.covariance[:3])
         StreamCheck(0.01, max_norm=0.4).offer(0, v)
 
 
@@ -58,8 +60,10 @@ def test_bag_of_garbage_messages_is_a_one_line_error(tmp_path):
     store = get_typestore(Stores.ROS2_JAZZY)
     rng = np.random.default_rng(0)
     with Writer(tmp_path / 'bag', version=Writer.VERSION_LATEST) as w:
-        c = w.add_connection('/imu/delta_theta', 'geometry_msgs/msg/Vector3Stamped', typestore=store)
-        k = w.add_connection('/star_camera/attitude', 'geometry_msgs/msg/QuaternionStamped', typestore=store)
+        c = w.add_connection('/imu/delta_theta',
+                             'geometry_msgs/msg/Vector3Stamped', typestore=store)
+        k = w.add_connection('/star_camera/attitude',
+                             'geometry_msgs/msg/QuaternionStamped', typestore=store)
         for i in range(50):
             w.write(c, i, rng.bytes(int(rng.integers(0, 80))))
             w.write(k, i, rng.bytes(int(rng.integers(0, 80))))
@@ -99,10 +103,12 @@ def test_raw_decoder_reads_what_rclpy_serialized(sec, nanosec, frame, xyz):
     ts = get_typestore(Stores.ROS2_JAZZY)
     t = ts.types
     rec = t['geometry_msgs/msg/Vector3Stamped'](
-        header=t['std_msgs/msg/Header'](stamp=t['builtin_interfaces/msg/Time'](sec=sec, nanosec=nanosec), frame_id=frame),
+        header=t['std_msgs/msg/Header'](stamp=t['builtin_interfaces/msg/Time']
+                                        (sec=sec, nanosec=nanosec), frame_id=frame),
         vector=t['geometry_msgs/msg/Vector3'](x=xyz[0], y=xyz[1], z=xyz[2]))
     ns2, v2, f2 = vector3_stamped(ts.serialize_cdr(rec, 'geometry_msgs/msg/Vector3Stamped'))
-    assert (ns2, f2) == (ns, f) and all((math.isnan(a) and math.isnan(b)) or a == b for a, b in zip(v2, v))
+    assert (ns2, f2) == (ns, f) and all(
+        (math.isnan(a) and math.isnan(b)) or a == b for a, b in zip(v2, v))
 
 
 def test_raw_decoder_big_endian_and_garbage():
