@@ -1,4 +1,6 @@
 """
+Argument checks shared by the offline tools, run before any work.
+
 Argument checks shared by the offline tools: output paths are checked before any work, so a
 typo costs a one-line error (exit 2), not minutes of computation followed by a traceback.
 
@@ -48,6 +50,8 @@ def _writable_dir(d: Path, what: str, path) -> None:
 
 def check_output_file(path, what: str) -> None:
     """
+    Check that ``path`` can be written as a file.
+
     ``path`` can be written as a file: its directory exists and takes a write, it is no
     directory.
     """
@@ -73,13 +77,13 @@ def check_output_dir(path, what: str) -> None:
 
 
 def _inside(a: Path, b: Path) -> bool:
-    """``a`` is ``b`` or below it (resolved paths)."""
+    """Tell whether ``a`` is ``b`` or below it (resolved paths)."""
     return a == b or b in a.parents
 
 
 def check_outputs(outputs: Iterable[Sequence], inputs: Iterable[Sequence], force: bool) -> None:
     """
-    The output rule of every tool, before any work.  Raises ValueError (one line).
+    Apply the output rule of every tool, before any work.
 
     Parameters
     ----------
@@ -93,6 +97,7 @@ def check_outputs(outputs: Iterable[Sequence], inputs: Iterable[Sequence], force
         Every file or directory the tool reads (None or '' skipped).
     force : bool
         ``--force`` was given: an existing output may be replaced.
+
     """
     outputs = [tuple(o) for o in outputs]
     named = {str(o[1]): tuple(o[3]) for o in outputs if o[1] and len(o) > 3}
@@ -140,17 +145,19 @@ def check_outputs(outputs: Iterable[Sequence], inputs: Iterable[Sequence], force
 
 
 def write_text(path, text: str) -> None:
-    """A text file, written atomically (OSError names ``path``)."""
+    """Write a text file atomically (OSError names ``path``)."""
     atomic_write_text(path, text)
 
 
 def write_json(path, data, indent: int = 1) -> None:
-    """A JSON result file (strict JSON: no NaN), newline-terminated, written atomically."""
+    """Write a JSON result file atomically (strict JSON, newline-terminated)."""
     atomic_write_text(path, json.dumps(data, indent=indent, allow_nan=False) + '\n')
 
 
 def write_figure(fig, path, **kwargs) -> None:
     """
+    Save a matplotlib figure atomically.
+
     A matplotlib figure saved atomically (a temporary file with the same extension in the
     same directory, then ``os.replace``); ``kwargs`` go to ``savefig`` (``dpi``).
     """

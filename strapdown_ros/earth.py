@@ -1,4 +1,6 @@
 """
+Normal gravity in the Earth-fixed frame and geodetic conversions.
+
 Normal gravity in the Earth-fixed frame (Aksyonenko 2014; paper 003, §1.5.2) and geodetic
 conversions.
 
@@ -211,7 +213,7 @@ def normal_gravity_exact(r, ell=PZ90_11):
 
 
 def somigliana(lat, ell=PZ90_11):
-    """Normal gravity magnitude on the ellipsoid (Somigliana, closed form), geodetic lat in rad."""
+    """Return the normal gravity magnitude on the ellipsoid (Somigliana, closed form)."""
     b = ell.a * (1.0 - ell.f)
     e = math.sqrt(ell.a ** 2 - b * b)
     ep = e / b
@@ -241,6 +243,8 @@ _Q0 = float(_q(_B, _EL)[0])                          # q at the ellipsoid (u = b
 
 def normal_exact_xyz(x, y, z):
     """
+    Return the exact normal gravity at one ECEF position, scalar form.
+
     The exact normal gravity of the PZ-90.11 level ellipsoid (:func:`normal_gravity_exact`) at one
     ECEF position (m) → (g_X, g_Y, g_Z), m/s²; pure ``math`` on scalars (the series and closed
     form of :func:`_q` inlined) so that numba compiles it into the navigation loop
@@ -255,6 +259,7 @@ def normal_exact_xyz(x, y, z):
     -------
     tuple of float
         (g_X, g_Y, g_Z): gravitation + centrifugal, ECEF axes, m/s².
+
     """
     d = x * x + y * y + z * z - _E2L
     u = math.sqrt(0.5 * (d + math.sqrt(d * d + 4.0 * _E2L * z * z)))
@@ -294,7 +299,7 @@ SCALAR_GRAVITY = {'pz90_003': printed_gravity_xyz, 'normal_exact': normal_exact_
 
 
 def get_gravity_model(name):
-    """The vectorised gravity function (r (...,3) → g (...,3)) registered under ``name``."""
+    """Return the vectorised gravity function registered under ``name``."""
     try:
         return GRAVITY_MODELS[name]
     except KeyError:

@@ -56,6 +56,8 @@ def quat_identity(shape=()) -> np.ndarray:
 
 def cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """
+    Return ``a × b`` over the last axis (length 3), broadcasting.
+
     ``a × b`` over the last axis (length 3), broadcasting; by components (``np.cross`` spends
     most of its time moving axes and casting, several times slower on long arrays).
     """
@@ -119,7 +121,7 @@ def quat_to_rotvec(q: np.ndarray) -> np.ndarray:
 
 
 def quat_to_dcm(q: np.ndarray) -> np.ndarray:
-    """Unit quaternion ``q_a_b`` → DCM ``C_a_b`` (maps b-coordinates to a-coordinates)."""
+    """Convert unit quaternions ``q_a_b`` to DCMs ``C_a_b``."""
     q = np.asarray(q, dtype=float)
     w, x, y, z = q[..., 0], q[..., 1], q[..., 2], q[..., 3]
     return np.stack([
@@ -199,7 +201,7 @@ def quat_angle_between(q1: np.ndarray, q2: np.ndarray) -> np.ndarray:
 
 def quat_cumprod(q0: np.ndarray, dq: np.ndarray) -> np.ndarray:
     """
-    Running attitude ``q_k = q0 ⊗ dq_1 ⊗ … ⊗ dq_k`` for k = 1..n, vectorised.
+    Return the running attitude ``q_k = q0 ⊗ dq_1 ⊗ … ⊗ dq_k``, vectorised.
 
     A blocked scan with O(n) work: the n factors are cut into blocks of 16; one vectorised
     pass per position runs the prefix inside every block at once (earlier factor on the
@@ -292,6 +294,8 @@ def dcm_to_ypr(C: np.ndarray) -> np.ndarray:
 
 def ypr_error_to_rotation(yaw, pitch, roll) -> tuple[np.ndarray, np.ndarray]:
     """
+    Map a perturbation of (ψ, ϑ, γ) into the rotation error of C (004 §5).
+
     004 §5: small-angle maps ``θ_child = D1 δβ`` and ``θ_parent = D2 δβ = C D1 δβ`` of a
     perturbation δβ of (ψ, ϑ, γ) into the rotation error of C (``C ≈ C̆(I + [θ_child×])``).
     """

@@ -1,4 +1,6 @@
 """
+The documentation covers every parameter and topic; the README gives the commands.
+
 The documentation covers every parameter (with its default) and every topic the nodes use, in
 doc/nodes.md, and the README gives the two commands and the ROS 2 workflow.
 """
@@ -50,7 +52,7 @@ def test_two_commands_and_ros_workflow_are_documented():
 
 
 def _anchors(text):
-    """GitHub's heading anchors of a Markdown text (headings inside code blocks excluded)."""
+    """Return GitHub's heading anchors of a Markdown text."""
     text = re.sub(r'```.*?```', '', text, flags=re.S)
     return {re.sub(r'[^\w\- ]', '', h.strip().lower()).replace(' ', '-')
             for h in re.findall(r'^#+ (.+)$', text, flags=re.M)}

@@ -203,6 +203,8 @@ def test_enu_rotation():
 
 def test_scalar_exact_field_and_the_compiled_loop_equal_the_vectorised_field():
     """
+    Agree between the scalar and vectorised forms of the normal_exact gravity.
+
     gravity_model normal_exact is the default: its scalar form (compiled into the navigation
     loop) equals the vectorised closed form (independent code: arrays, series by np.where), and
     the loop run with it equals the same loop run with the vectorised field.

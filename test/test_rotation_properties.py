@@ -1,4 +1,6 @@
 """
+Property tests of the rotation core on random inputs.
+
 Property tests of the rotation core: composition, inverse, renormalisation,
 conversion round-trips, the angle wrap at π and the double cover — on random inputs.
 """

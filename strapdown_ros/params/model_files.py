@@ -18,6 +18,8 @@ from strapdown_ros.params.validation import check_all
 
 def load_model(path: str | None) -> tuple[dict, dict]:
     """
+    Read a nominal model from a ROS 2 parameter file of the package's nodes.
+
     A nominal model from a ROS 2 parameter file: the ``/**`` block and the blocks of the
     package's nodes merged (``/**`` first, then imu_sim_node, star_camera_sim_node, sins_node,
     calibrator_node), every key validated by the node that declares it.
@@ -75,12 +77,13 @@ def load_model(path: str | None) -> tuple[dict, dict]:
 
 def write_model(path: str, doc: dict | None, updates: dict, comment: str) -> None:
     """
+    Write a model file with ``updates`` set, atomically.
+
     Write a model file: ``doc`` (the parsed parameter document, not modified) with ``updates``
     set in ``/**`` and in every node block that sets the same key (so the block does not
     override the new value), atomically, under a ``# comment`` line.  Plain copies: no YAML
     anchors.
     """
-
     import yaml
 
     doc = json.loads(json.dumps(doc or {}))                   # a deep copy of plain data
@@ -96,7 +99,7 @@ def write_model(path: str, doc: dict | None, updates: dict, comment: str) -> Non
 
 def simulator_parameters(params_file: str | None = None, overrides: dict | None = None,
                          duration: float | None = None) -> tuple[dict, dict]:
-    """Validated parameters of imu_sim_node and star_camera_sim_node (defaults: profile bench)."""
+    """Return the validated parameters of the two simulator nodes."""
     imu_raw, cam_raw = {'profile': 'bench'}, {'profile': 'bench'}
     if params_file:
         imu_raw.update(load_parameter_file(params_file, 'imu_sim_node'))

@@ -17,6 +17,7 @@ import numpy as np
 @dataclass(frozen=True)
 class ParamSpec:
     """One parameter: default, unit and meaning, and its validation (range or choices)."""
+
     name: str
     default: Any
     description: str
@@ -32,6 +33,8 @@ class ParamSpec:
 
     def normalise(self, value):
         """
+        Return ``value`` in the type of the parameter, as the command line means it.
+
         Choices are strings; a name like ``2`` or ``3.1`` given unquoted on the command line
         (``-p coning_algorithm:=2``) arrives as a number and is read as its spelling (``2.0``
         stays ``"2.0"``, which is no name: refused, as an integer given a fraction is).
@@ -131,6 +134,8 @@ class ParamSpec:
 
 def load_parameter_file(path: str, node_name: str) -> dict:
     """
+    Read the parameters of ``node_name`` from a ROS 2 parameter YAML file.
+
     Parameters for ``node_name`` from a ROS 2 parameter YAML file (``/**`` wildcard
     and exact node names are merged, exact names win), as the nodes would see them.
     """

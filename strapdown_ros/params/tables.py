@@ -83,6 +83,8 @@ PROFILE_PARAMS = [
 
 def _effect_specs(sensor: str, skip: Sequence[ParamSpec] = ()) -> list[ParamSpec]:
     """
+    Return the specs of the effect parameters of one sensor.
+
     ParamSpecs of the effect parameters of one sensor (:mod:`strapdown_ros.sensors.effects`
     owns them), except names already in ``skip``.
     """

@@ -17,6 +17,8 @@ from strapdown_ros.params.tables import ALL_PARAMETER_NAMES
 
 def combination_error(values: dict) -> str | None:
     """
+    Check the rules between parameters, in one place.
+
     The rules between parameters, in one place (nodes at start-up and on set, tools through
     :func:`check_all`); each rule applies when ``values`` holds all its parameters.  Returns an
     error message naming the valid combinations, or None.
@@ -34,6 +36,7 @@ def combination_error(values: dict) -> str | None:
     -------
     str or None
         The error message, or None when every applicable rule holds.
+
     """
     if 'augment' in values and augment_error(values['augment']):
         return augment_error(values['augment'])

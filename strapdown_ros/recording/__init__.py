@@ -1,4 +1,6 @@
 """
+Reading and writing recordings (rosbag2 bags) for the offline tools.
+
 Reading recordings (rosbag2 bags) for the offline tools: one reader of gyro increments or rate
 samples and of attitude references in the common ROS message formats (:mod:`.reader`), and
 the tools' input options and reports (:mod:`.options`).

@@ -1,4 +1,6 @@
 """
+The records of some topics of an indexed MCAP rosbag2 file, a chunk at a time.
+
 The records of some topics of an indexed MCAP rosbag2 file, a chunk at a time, without a Python
 object per record: the chunk is decompressed (and its CRC checked) by rosbags, its records are
 located by one scan (compiled when numba is there), and the messages of a topic come out as one
@@ -24,6 +26,8 @@ _OP_MESSAGE = 0x05
 
 def scan_python(raw, wanted):
     """
+    Locate the Message records of the wanted channels in a decompressed chunk.
+
     Offsets of the Message records of the wanted channels in a decompressed chunk: (record
     start, data start, data length, channel id, log time) per message, in chunk order.
     """
@@ -93,6 +97,8 @@ def scan_plain(raw, wanted):
 
 def indexed_mcap(reader):
     """
+    Return rosbags' MCAP storage of a reader when it can be read by chunks.
+
     rosbags' MCAP storage of an AnyReader over one bag of one MCAP file with a chunk index (and
     no per-message compression); else None (read through rosbags' reader).
     """
@@ -118,6 +124,8 @@ def indexed_mcap(reader):
 
 def channel_ids(storage, connections) -> dict:
     """
+    Map the MCAP channel ids of these connections to their topics.
+
     {MCAP channel id: topic} of the file's channels that are these connections (same topic and
     type).
     """
@@ -127,6 +135,8 @@ def channel_ids(storage, connections) -> dict:
 
 class TopicRecords:
     """
+    The messages of one topic read from a chunk.
+
     The messages of one topic read from a chunk: ``rows`` (n, L) uint8 when they all have
     the length L, else ``records`` (a list of bytes); ``log_ns`` (n,) their log times.
     """
@@ -140,6 +150,8 @@ class TopicRecords:
 
 def read_topics(storage, channel_ids: dict, progress=None):
     """
+    Yield the records of the wanted channels, chunk by chunk.
+
     Yield, chunk by chunk in the order of their first log time, {topic: TopicRecords} of the
     channels ``channel_ids`` ({channel id: topic}).  Raises ValueError on a damaged chunk (a
     record running past its end, a size or checksum mismatch).

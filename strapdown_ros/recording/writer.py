@@ -39,6 +39,8 @@ def _typestore():
 
 def offered_qos(kind: str, depth: int):
     """
+    Return the offered QoS of the simulator publishers (rosbags ``Qos``).
+
     The offered QoS of the simulator publishers (rosbags ``Qos``): 'stream' (ros_io.stream_qos),
     'camera' (star_camera_sim_node.camera_qos) or 'latched' (star_camera_sim_node.latched_qos).
     """

@@ -33,6 +33,7 @@ class _Arrays:
 @dataclass
 class AttitudeOutput(_Arrays):
     """Attitude updates (``sins/attitude``), M of them."""
+
     stamp_ns: np.ndarray        # (M,) int64 header stamp, ns (end of the update)
     attitude: np.ndarray        # (M, 4) q_ref_body, scalar-first
     covariance: np.ndarray      # (M, 3, 3) attitude error ε, body axes, rad²
@@ -47,10 +48,13 @@ class AttitudeOutput(_Arrays):
 @dataclass
 class ImuOutput(_Arrays):
     """
+    The ``sins/imu`` records: attitude updates with their specific force.
+
     ``sins/imu`` records: the attitude updates once their accelerometer data arrived (or
     waited ``accel_wait``).  ``specific_force`` is the mean Δv/h over the update where
     ``has_accel``, zeros (and ``has_accel`` False) where no accelerometer data covered it.
     """
+
     stamp_ns: np.ndarray        # (M,) int64
     attitude: np.ndarray        # (M, 4) q_ref_body, scalar-first
     covariance: np.ndarray      # (M, 3, 3) body axes, rad²
@@ -67,6 +71,7 @@ class ImuOutput(_Arrays):
 @dataclass
 class NavigationOutput(_Arrays):
     """Navigation steps (``sins/odometry``), K of them (:class:`.navigator.NavigationBatch`)."""
+
     stamp_ns: np.ndarray        # (K,) int64
     position: np.ndarray        # (K, 3) ECEF, m
     velocity: np.ndarray        # (K, 3) ECEF, m/s
@@ -87,6 +92,7 @@ for _cls in (AttitudeOutput, ImuOutput, NavigationOutput):
 @dataclass
 class SinsOutput:
     """What one :meth:`SinsSystem.process` produced, in stamp order per stream."""
+
     attitude: AttitudeOutput
     imu: ImuOutput
     navigation: NavigationOutput
@@ -98,6 +104,8 @@ NO_OUTPUT = SinsOutput(AttitudeOutput.EMPTY, ImuOutput.EMPTY, NavigationOutput.E
 
 def odometry_arrays(nav: NavigationOutput, rate_variance: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """
+    Return the nav_msgs/Odometry numbers of navigation steps (REP-105).
+
     The nav_msgs/Odometry numbers of navigation steps (REP-105): pose covariance (K, 36) of
     [position, ψ about earth axes], velocity in body axes (K, 3) and the twist covariance (K, 36)
     ([body velocity, angular rate]; the angular block ``rate_variance`` per axis: the rate itself
@@ -138,6 +146,7 @@ def accel_stall_limits(accel_wait: float) -> tuple[float, float]:
     (float, float)
         ``accel_wait`` and max(:data:`ACCEL_STALL_ERROR_MIN_S`,
         :data:`ACCEL_STALL_ERROR_FACTOR` × ``accel_wait``).
+
     """
     wait = float(accel_wait)
     return wait, max(ACCEL_STALL_ERROR_MIN_S, ACCEL_STALL_ERROR_FACTOR * wait)
@@ -157,6 +166,7 @@ class AccelStall:
         ``"warn"`` (beyond ``accel_wait``) or ``"error"`` (beyond the ERROR limit).
     text : str
         The sentence of /diagnostics and of sins_bag's ``WARNING:`` line, naming the stream.
+
     """
 
     seconds: float

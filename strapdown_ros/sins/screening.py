@@ -14,6 +14,8 @@ from strapdown_ros.streams.checks import StreamCheck
 
 def screen_stream(check: StreamCheck, stamps_ns: np.ndarray, values: np.ndarray) -> list:
     """
+    Run a whole recorded stream through ``check`` in order.
+
     A whole recorded stream through ``check`` in order: :meth:`StreamCheck.offer_many` over the
     regular stretches, :meth:`StreamCheck.offer` for each message that is not (so the counters
     and the accepted messages are those of offering every message in turn).
@@ -32,6 +34,7 @@ def screen_stream(check: StreamCheck, stamps_ns: np.ndarray, values: np.ndarray)
     list of (stamps_ns (m,) int64, values (m, 3))
         The accepted messages per time base: a new element starts at each stamp
         resynchronisation (``check.resynced``), so each element's stamps strictly increase.
+
     """
     segments: list = []
     parts_t: list = []

@@ -69,6 +69,8 @@ def _finite_update(q: np.ndarray, cov: np.ndarray) -> bool:
 # --- the system ---------------------------------------------------------------------------------
 class SinsSystem:
     """
+    The processing of ``sins_node``: input rules, blocks, integration and navigation.
+
     sins_node's processing.  ``params``: validated :data:`~strapdown_ros.params.SINS_PARAMS`
     (copied); ``log(level, text)``: where messages go (level ``info``, ``warn`` or ``error``;
     repeated warnings are throttled here); ``imu_wanted()``: asked once per block whether
@@ -149,6 +151,8 @@ class SinsSystem:
     # --- messages -----------------------------------------------------------------------------
     def _log(self, level: str, text, throttle: float = 0.0, key: str | None = None) -> None:
         """
+        Emit ``text`` at most once per ``throttle`` seconds per ``key``.
+
         Emit ``text`` (a str, or a callable making it: built only when emitted), at most once
         per ``throttle`` seconds per ``key``.
         """
@@ -164,7 +168,7 @@ class SinsSystem:
 
     # --- input --------------------------------------------------------------------------------
     def _frame_text(self, stream: str, frame_id: str, count: int = 1) -> str:
-        """The frame-mismatch warning, frame ids bounded (built only when emitted)."""
+        """Return the frame-mismatch warning, frame ids bounded."""
         many = f'{count} {stream} messages' if count > 1 else f'{stream} message'
         return (f'{many} in frame {bounded(frame_id)!r}, expected {bounded(self.frame_id)!r}: '
                 f"{'rejected' if self.reject_frames else 'used'}")
@@ -176,6 +180,8 @@ class SinsSystem:
 
     def _wrong_frame(self, frame_id: str, stream: str) -> bool:
         """
+        Apply the frame rule; True when the message is rejected.
+
         The frame rule: an empty frame_id is unspecified; another frame than ``frame_id`` is
         counted and WARNed, and rejected unless ``frame_mismatch`` is accept.
         """
@@ -186,6 +192,8 @@ class SinsSystem:
 
     def frame_accepted(self, frame_id: str, stream: str = 'gyro') -> bool:
         """
+        Apply the frame rule alone, for input checked before :meth:`offer_gyro`.
+
         The frame rule alone, for input checked before it reaches :meth:`offer_gyro` (a
         ``sensor_msgs/Imu`` rate sample, before it is made into increments): True when
         ``frame_id`` is empty or ``frame_id``, or another frame counted under ``stream`` and
@@ -241,6 +249,8 @@ class SinsSystem:
     # --- a whole recording at once -------------------------------------------------------------
     def _foreign_frames(self, frame_index, frame_names, n: int):
         """
+        Mark the records whose frame is not the body frame.
+
         (mask of the n records whose frame is not the body frame, the first such frame or
         None) from per-record indices into ``frame_names`` (None: every record is ours).
         """
@@ -254,6 +264,8 @@ class SinsSystem:
 
     def screen(self, stream: str, stamps_ns, values, frame_index=None, frame_names=()):
         """
+        Apply the input rules to a whole recorded stream in bag order.
+
         The input rules of :meth:`offer_gyro` / :meth:`offer_accel` applied to a whole recorded
         stream in bag order, vectorised where the stream is regular.
 
@@ -277,6 +289,7 @@ class SinsSystem:
             accept one by one, with the same counters (frame mismatches, drops, gaps).  None when
             the stream's time base restarts (a stamp resynchronisation): nothing is changed
             then, and the stream must go through the one-message methods.
+
         """
         check = copy.deepcopy(self.gyro_check if stream == 'gyro' else self.accel_check)
         st = np.asarray(stamps_ns, dtype=np.int64).reshape(-1)
@@ -301,13 +314,14 @@ class SinsSystem:
     def screen_imu(self, stamps_ns, angular_velocity, linear_acceleration=None, frame_index=None,
                    frame_names=(), rule: str = 'trapezoid'):
         """
-        sensor_msgs/Imu rate samples of a whole recording made into Δθ and Δv as ``gyro_input:
-        imu`` makes them: the frame rule (counted under ``gyro``), each rate stream validated by
-        a :class:`~strapdown_ros.streams.checks.StreamCheck` (per-axis range ``gyro_max_rate`` rad/s or
-        ``accel_max`` m/s², period 1 / ``gyro_rate``), then
-        :func:`strapdown_ros.streams.rate_increments.increments_from_rates` with ``rule`` and a longest
-        step of 1.5 periods, restarted at each stamp resynchronisation.  The checks are kept in
-        :attr:`rate_checks`.
+        Make the sensor_msgs/Imu rate samples of a whole recording into Δθ and Δv.
+
+        As ``gyro_input: imu`` makes them: the frame rule (counted under ``gyro``), each rate
+        stream validated by a :class:`~strapdown_ros.streams.checks.StreamCheck` (per-axis range
+        ``gyro_max_rate`` rad/s or ``accel_max`` m/s², period 1 / ``gyro_rate``), then
+        :func:`strapdown_ros.streams.rate_increments.increments_from_rates` with ``rule`` and a
+        longest step of 1.5 periods, restarted at each stamp resynchronisation.  The checks are
+        kept in :attr:`rate_checks`.
 
         Parameters
         ----------
@@ -317,7 +331,10 @@ class SinsSystem:
             rad/s, body axes.
         linear_acceleration : array_like (n, 3), optional
             m/s², body axes; a row of NaN where the message has none (covariance[0] = −1).
-        frame_index, frame_names : as :meth:`screen`.
+        frame_index : array_like (n,) int, optional
+            Index of each message's header.frame_id in ``frame_names``, as :meth:`screen`.
+        frame_names : sequence of str
+            The distinct frame ids.
         rule : {'trapezoid', 'mean'}
             :data:`strapdown_ros.streams.rate_increments.RATE_RULES`.
 
@@ -326,6 +343,7 @@ class SinsSystem:
         gyro : (stamps_ns (m,) int64, Δθ (m, 3))
         accel : (stamps_ns (k,) int64, Δv (k, 3)) or None
             Increments stamped at the end of their intervals, for :meth:`screen`.
+
         """
         st = np.asarray(stamps_ns, dtype=np.int64).reshape(-1)
         w = np.asarray(angular_velocity, dtype=float).reshape(-1, 3)
@@ -367,6 +385,8 @@ class SinsSystem:
 
     def feed(self, gyro, accel=None, block: int = FEED_BLOCK, accel_block: int = FEED_ACCEL_BLOCK):
         """
+        Run screened streams through the system in blocks, and finish.
+
         Run screened streams (:meth:`screen`'s output) through the system in blocks, as the
         messages in stamp order (Δv first at equal stamps) would have run, and finish.
 
@@ -387,6 +407,7 @@ class SinsSystem:
         SinsOutput
             What each block produced; the last one is :meth:`finish`'s.  The numbers equal the
             node's on the same messages to round-off (the attitude to the bit).
+
         """
         g_ns, g_v = gyro
         a_ns, a_v = accel if accel is not None else (np.zeros(0, np.int64), np.zeros((0, 3)))
@@ -421,6 +442,8 @@ class SinsSystem:
 
     def set_algorithm(self, name: str) -> bool:
         """
+        Switch the coning algorithm at runtime.
+
         Switch the coning algorithm at runtime (attitude only; the samples buffered so far are
         integrated with the old one first).  True when it changed.
         """
@@ -437,6 +460,8 @@ class SinsSystem:
     # --- processing ---------------------------------------------------------------------------
     def process(self) -> SinsOutput:
         """
+        Integrate the buffered increments as one block.
+
         Integrate the buffered increments as one block through the vectorised core; returns
         every output produced since the last call.  The result equals message-by-message
         processing to round-off (test/ros/test_nodes.py::test_sins_node_batches_equal_per_message_processing).
@@ -446,6 +471,8 @@ class SinsSystem:
 
     def finish(self) -> SinsOutput:
         """
+        Integrate what is buffered and release every waiting update (end of the data).
+
         End of the data: integrate what is buffered and release the updates still waiting for
         accelerometer data, as ``accel_wait`` would once the stream had gone on (sins/imu without
         specific force where none covered the update; navigation steps with the accelerometer
@@ -467,7 +494,7 @@ class SinsSystem:
         return out
 
     def _take_accel(self):
-        """The buffered Δv as arrays (t (n,), s from the origin; values (n, 3)); emptied."""
+        """Take the buffered Δv as arrays; the buffer is emptied."""
         if self._accel_in:
             n = len(self._accel_in)
             self._accel_blocks.append((np.fromiter((a[0] for a in self._accel_in), float, n),
@@ -479,7 +506,7 @@ class SinsSystem:
         return np.concatenate([b[0] for b in blocks]), np.concatenate([b[1] for b in blocks])
 
     def _take_gyro(self):
-        """The buffered Δθ as arrays (header stamps (n,) int64 ns; values (n, 3)); emptied."""
+        """Take the buffered Δθ as arrays; the buffer is emptied."""
         if self._gyro_in:
             n = len(self._gyro_in)
             self._gyro_blocks.append((np.fromiter((g[0] for g in self._gyro_in), np.int64, n),
@@ -551,6 +578,8 @@ class SinsSystem:
 
     def _integrate(self, inc: np.ndarray, t: np.ndarray, stamps_ns, per_sample: bool = False) -> bool:
         """
+        Compensate and integrate a block, collecting its outputs.
+
         Compensate and integrate a block (``stamps_ns``: the header stamps of ``t``), collecting
         its outputs; False (nothing output) if an update is not finite, unless ``per_sample``, which
         restores the last good state instead.
@@ -598,6 +627,8 @@ class SinsSystem:
 
     def _flush_imu(self, final: bool = False) -> None:
         """
+        Make the sins/imu records of the updates that are ready.
+
         sins/imu records of the updates whose interval is covered by accelerometer data, or
         that waited longer than ``accel_wait`` (stamp time) for it (``final``: all of them).
         """
@@ -640,6 +671,8 @@ class SinsSystem:
     # --- state --------------------------------------------------------------------------------
     def accel_stall_s(self) -> float | None:
         """
+        Return the stamp seconds the gyro stream ran beyond the newest Δv.
+
         Stamp seconds the gyro stream has run beyond the newest accepted Δv (the first gyro
         stamp when none arrived); None when no accelerometer stream is expected (none seen and
         navigation off) or no gyro data arrived.
@@ -652,6 +685,8 @@ class SinsSystem:
 
     def accel_stall(self, accel_topic: str = 'imu/delta_velocity') -> AccelStall | None:
         """
+        Return the accelerometer stall, or None when there is none.
+
         The accelerometer stall by the rule of :func:`accel_stall_limits` (WARN beyond
         ``accel_wait``, ERROR beyond max(1 s, 10 ``accel_wait``)), or None when there is none.
 
@@ -659,6 +694,7 @@ class SinsSystem:
         ----------
         accel_topic : str
             The name of the accelerometer stream in the text.
+
         """
         stall = self.accel_stall_s()
         warn_s, error_s = accel_stall_limits(self.p['accel_wait'])
@@ -674,6 +710,8 @@ class SinsSystem:
 
     def status(self) -> dict:
         """
+        Return the counters and state of the system.
+
         The counters and state of the system (the node's /diagnostics values, without what the
         node itself counts).
         """

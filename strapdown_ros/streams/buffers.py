@@ -1,4 +1,6 @@
 """
+A bounded buffer of stamped vectors with amortised O(1) appends.
+
 A bounded buffer of stamped vectors with amortised O(1) appends: the one buffer behind the
 calibrator's gyro history and the SINS's accelerometer accumulator.  No ROS imports.
 
@@ -31,7 +33,7 @@ class StampedBuffer:
 
     @property
     def stamps(self) -> np.ndarray:
-        """Live stamps (a view; valid until the next append or drop)."""
+        """Live stamps, s (a view; valid until the next append or drop)."""
         return self._t[self._lo:self._hi]
 
     @property

@@ -1,4 +1,6 @@
 """
+Reading the increment messages straight from their serialized bytes.
+
 Reading the increment messages straight from their serialized bytes, for the nodes' raw
 subscriptions (:func:`strapdown_ros.nodes.ros_io.decode_vector3_stamped`) and for ``sins_bag``
 (rosbag2 stores the same bytes).  No ROS imports: each caller hands the other encodings to its own
@@ -29,6 +31,8 @@ _F64 = struct.Struct('<d')
 
 def vector3_stamped(data) -> tuple[int, tuple[float, float, float], str] | None:
     """
+    Decode a Vector3Stamped from plain little-endian CDR bytes.
+
     ``(stamp_ns, (x, y, z), frame_id)`` from the bytes (any buffer) of a Vector3Stamped in plain
     little-endian CDR; None for any other encoding or bytes too short for the layout.
     """
@@ -54,6 +58,8 @@ _XYZ_T = tuple[float, float, float]
 
 def imu(data) -> tuple[int, _XYZ_T, _XYZ_T | None, str] | None:
     """
+    Decode a sensor_msgs/Imu from plain little-endian CDR bytes.
+
     ``(stamp_ns, angular_velocity, linear_acceleration, frame_id)`` from the bytes (any buffer)
     of a sensor_msgs/Imu in plain little-endian CDR; ``linear_acceleration`` is None when the
     message says it has none (REP-145: linear_acceleration_covariance[0] = −1).  None for any other
@@ -78,6 +84,8 @@ _COV = struct.Struct('<9d')
 
 def imu_rate_covariance(data) -> tuple | None:
     """
+    Decode the angular velocity covariance of a sensor_msgs/Imu from CDR bytes.
+
     angular_velocity_covariance (9 float64, row-major, (rad/s)²) from the bytes of a
     sensor_msgs/Imu in plain little-endian CDR; None for any other encoding or short bytes.
     """
@@ -91,6 +99,8 @@ def imu_rate_covariance(data) -> tuple | None:
 
 def stamped_doubles(records, count: int):
     """
+    Decode many stamped messages at once with numpy.
+
     Many stamped messages at once: a std_msgs/Header followed by ``count`` float64 fields in
     plain little-endian CDR (geometry_msgs/Vector3Stamped: 3; sensor_msgs/Imu: 37 — orientation 4,
     its covariance 9, angular_velocity 3, its covariance 9, linear_acceleration 3, its covariance
@@ -118,8 +128,8 @@ def stamped_doubles(records, count: int):
         Indices of the records in another encoding or too short for the layout: the caller
         hands them to a deserializer.  Every decoded record equals :func:`vector3_stamped`'s
         reading of it (for ``count`` 3).
-    """
 
+    """
     n = len(records)
     stamps = np.zeros(n, np.int64)
     values = np.full((n, count), np.nan)

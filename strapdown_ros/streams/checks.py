@@ -179,6 +179,8 @@ class StreamCheck:
 
     def _confirm_jump(self):
         """
+        Confirm a new timeline held by ``resync_count`` messages.
+
         ``resync_count`` held messages agree on a new timeline: a return from a burst, a
         dropout or a resynchronisation (rule 4), in that order of precedence.
         """
@@ -242,6 +244,8 @@ class StreamCheck:
 
     def offer_many(self, stamps_ns, values) -> int:
         """
+        Offer many messages at once, vectorised, in the usual case only.
+
         Vectorised :meth:`offer` of the usual case only: the longest prefix of ``stamps_ns``
         (int64, ns) / ``values`` (n, 3) whose messages are finite, within ``max_norm`` and each one
         step of (0, ``jump_limit``] after the last accepted stamp, with no candidate timeline
@@ -274,6 +278,8 @@ class StreamCheck:
 
     def accept(self, stamp_ns: int, v) -> bool:
         """
+        Offer one message; True when it is accepted now.
+
         Single-message form for consumers that process one message at a time: True when the
         message itself is accepted now (messages released by a resync are not returned here).
         """
@@ -304,6 +310,8 @@ class StreamCheck:
 
 def nominal_period(stamps_ns) -> float:
     """
+    Return the period of a stream from its own stamps, s.
+
     The period of a stream from its own stamps (s): the median of the positive steps, robust to
     outliers, duplicates and gaps.  inf with fewer than 2 distinct stamps.
     """
@@ -357,6 +365,8 @@ def validate(stamps_ns, values, check: StreamCheck):
 
 def segments(stamps_ns, starts) -> list[tuple[int, int]]:
     """
+    Return the index ranges of the time bases of an accepted stream.
+
     (lo, hi) index ranges of the time bases of an accepted stream (``validate``'s output and
     ``check.segment_starts``): within each, the stamps are strictly increasing.
     """

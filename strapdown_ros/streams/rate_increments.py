@@ -76,6 +76,7 @@ def increments_from_rates(stamps_ns, rates, rule: str = 'trapezoid', max_step_s:
         End stamps of the increments formed (m ≤ n − 1).
     increments : ndarray, shape (m, 3)
         Δθ (rad) or Δv (m/s) over (t_{k−1}, t_k].
+
     """
     _check_rule(rule)
     t = np.asarray(stamps_ns, dtype=np.int64).reshape(-1)
@@ -157,6 +158,7 @@ class RateIncrementStream:
         Stamp step, s, beyond which a sample starts a candidate new timeline (StreamCheck).
     resync_count : int
         Consecutive samples that confirm a new timeline (StreamCheck).
+
     """
 
     def __init__(self, nominal_period: float, max_rate: float, rule: str = 'trapezoid',
@@ -168,6 +170,8 @@ class RateIncrementStream:
 
     def push(self, stamp_ns: int, rate) -> list:
         """
+        Push one rate sample in; return the increments it completes.
+
         One rate sample in (stamp in integer ns, rate in body axes); the increments it
         completes out, in order: ``[(stamp_ns, (x, y, z))]``, usually one, none for a dropped
         or first sample, several when a resynchronisation releases held samples.
@@ -190,6 +194,8 @@ class RateIncrementStream:
 
     def status(self, prefix: str) -> dict:
         """
+        Return the counters for /diagnostics.
+
         Counters for /diagnostics: the StreamCheck counters of the rate samples
         (``<prefix>_received``, ``_accepted``, ``_dropped_*``, …) and the increments formed and
         skipped (an interval longer than 1.5 nominal periods, or the restart after a jump).

@@ -1,4 +1,6 @@
 """
+Real message formats in the offline tools (strapdown_ros.recording).
+
 Real message formats in the offline tools (strapdown_ros.recording): the same simulated
 motion written as sensor_msgs/Imu rates, Δθ increments, and PoseStamped / Odometry / TF
 references, read by calibrate_bag and discrepancy; truth is the injected boresight and gyro bias.
@@ -33,6 +35,8 @@ BIAS_ARG = 'gyro_bias:=[' + ', '.join(repr(float(b)) for b in BIAS) + ']'
 
 class SmoothTurns(MotionProfile):
     """
+    Rests and turns about body axes, both senses, with a smooth rate.
+
     Rests and turns about body axes, both senses, with a smooth rate: over a turn of length D
     and angle Φ the rate about the axis is s(τ) = 2Φ/D · sin²(πτ/D), zero with its derivative
     at both ends.  Attitude, rate, ω̈ and ∫ω dt are closed-form (the turn axis is fixed in body
@@ -195,7 +199,7 @@ class BagWriter:
         )
 
     def tf(self, ns, transforms):
-        """transforms: [(parent, child, q_parent_child)]."""
+        """Record transforms: [(parent, child, q_parent_child)]."""
         T = self.T
         out = [
             T['geometry_msgs/msg/TransformStamped'](
@@ -334,6 +338,8 @@ def _assert_boresight(r, bound_arcsec):
 # --- formats ---------------------------------------------------------------------------------
 def test_imu_rates_at_the_stamps_with_pose_stamped_reference(tmp_path, bags, capsys):
     """
+    Read sensor_msgs/Imu rates at the stamps with a PoseStamped reference.
+
     (a) sensor_msgs/Imu with the exact rate at each stamp (trapezoid rule, error T³ω̈/12 per
     increment), PoseStamped reference without covariance: σ from the model.
     """
@@ -385,6 +391,8 @@ def test_trapezoid_increments_against_the_exact_integral(motion, bags):
 
 def test_imu_mean_rates_equal_the_delta_theta_topic(tmp_path, motion, bags):
     """
+    Read the mean rule fed by exact mean rates as the Δθ topic.
+
     (d) the 'mean' rule fed by exact mean rates gives the Δθ topic's increments to round-off,
     and so the same boresight.
     """
@@ -418,6 +426,8 @@ def test_imu_mean_rates_equal_the_delta_theta_topic(tmp_path, motion, bags):
 
 def test_dropped_rate_samples_are_counted_and_become_gaps(tmp_path, motion, capsys):
     """
+    Drop and count bad rate samples; their intervals become gaps.
+
     A NaN, an out-of-range and an 'absent' (covariance[0] = −1) rate sample: each is dropped
     and counted, the interval over it (2 periods) is not integrated, so two increments are missing
     and the one pair spanning each gap is discarded; the boresight stands.
@@ -459,6 +469,8 @@ def test_dropped_rate_samples_are_counted_and_become_gaps(tmp_path, motion, caps
 
 def test_odometry_reference_covariance_from_the_messages_or_the_model(tmp_path, motion, bags):
     """
+    Read an Odometry reference covariance from the messages or the model.
+
     (b) nav_msgs/Odometry: the rotation block of pose.covariance is the camera covariance; a
     zero rotation block takes the model's σ (the same as the simulated one here).
     """
@@ -495,6 +507,8 @@ def test_odometry_reference_covariance_from_the_messages_or_the_model(tmp_path, 
 
 def test_tf_reference_among_other_frames_direct_and_inverse(tmp_path, motion, bags):
     """
+    Read a /tf reference among other frames, direct and inverse.
+
     (c) /tf with other frame pairs: gcrs → star_tracker is taken; when only star_tracker → gcrs
     is recorded its inverse is used, with the same result.
     """
@@ -644,6 +658,8 @@ def test_error_listing_is_bounded(tmp_path, capsys):
 # --- a corrupt chunk -------------------------------------------------------------------------
 def _flip_message_opcodes(mcap, channel_id, t0_ns, t1_ns) -> int:
     """
+    Hide the messages of one channel in the first chunk of an MCAP file.
+
     Flip the top bit of the opcode of every message record of ``channel_id`` logged in
     [t0, t1) in the first chunk (an uncompressed rosbags MCAP): readers skip unknown opcodes, so
     those messages vanish from the data while the index still counts them.  Returns how many.
@@ -673,6 +689,8 @@ def _flip_message_opcodes(mcap, channel_id, t0_ns, t1_ns) -> int:
 
 def test_corrupt_first_chunk_is_reported_not_silent(tmp_path, capsys):
     """
+    Report a corrupt first chunk instead of dropping its messages silently.
+
     A corrupt first MCAP chunk dropped 25 s of gyro data and
     calibrate_bag said 'dropped: none'.  Now the read counts are compared with the bag's index.
     """

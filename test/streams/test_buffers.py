@@ -19,6 +19,8 @@ def test_stamped_buffer_is_bounded_and_keeps_the_newest():
 
 def test_calibrator_gyro_history_after_a_single_fix_is_bounded():
     """
+    Keep the gyro history of the calibrator at its bound without fixes.
+
     One fix, then a long stream of gyro increments and no second fix: the history stays at its
     bound (it used to grow without limit and each add converted the whole list: 12–20 ms).
     """

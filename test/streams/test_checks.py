@@ -54,6 +54,8 @@ def test_validate_offline_reports_the_jump_as_a_gap_and_the_rate_from_stamps():
 
 def test_burst_of_past_stamps_costs_only_itself():
     """
+    Count a burst of stamps in the past as a burst, not a resynchronisation.
+
     A burst of 5 consecutive increments stamped 1000 s in the past, then the stream goes
     on.  The two confirmed jumps make a burst: 5 messages counted, no resynchronisation left,
     one gap of exactly the 5 lost increments; offline the output is strictly increasing.
@@ -73,6 +75,8 @@ def test_burst_of_past_stamps_costs_only_itself():
 
 def test_dropout_beyond_the_jump_limit_counts_its_missing_increments():
     """
+    Keep dropouts and saturation on the same timeline, their losses counted.
+
     2 s without increments (beyond max_stamp_jump = 1 s) and a 1-s
     saturation (values out of range, dropped) are dropouts on the same timeline, with their
     missing increments counted, not clock resets with 0 missing.

@@ -1,4 +1,6 @@
 """
+Fuzz tests of the input path.
+
 Fuzz tests of the input path: extreme values and random bytes never crash it, never
 poison what it accepts, and every message is accounted for.
 """
@@ -77,6 +79,8 @@ def test_bag_of_garbage_messages_is_a_one_line_error(tmp_path):
        frame=st.text(max_size=40), xyz=st.tuples(*[st.floats(allow_nan=True, allow_infinity=True)] * 3))
 def test_raw_decoder_reads_what_rclpy_serialized(sec, nanosec, frame, xyz):
     """
+    Decode exactly the fields of every message rclpy serializes.
+
     sins_node and calibrator_node subscribe to the increment streams raw and read stamp, vector
     and frame from the bytes (ros_io.decode_vector3_stamped), as sins_bag reads bag records
     (nodes.cdr): for any message rclpy or rosbags serializes, the decoder must return exactly its
@@ -113,6 +117,8 @@ def test_raw_decoder_reads_what_rclpy_serialized(sec, nanosec, frame, xyz):
 
 def test_raw_decoder_big_endian_and_garbage():
     """
+    Give big-endian CDR to rclpy and None for bytes that are no message.
+
     Big-endian CDR goes to rclpy's deserializer (the same fields); bytes that are no message give
     None (the node counts and drops them) instead of an exception.
     """
