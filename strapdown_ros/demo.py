@@ -64,14 +64,16 @@ def parse_args(argv):
     ap.add_argument('--algorithms', default='1,2,6,7,4+,three_sample_optimal',
                     help='comma-separated coning algorithms (default: %(default)s)')
     ap.add_argument('--duration', type=float, default=12.0, help='simulated seconds (default 12)')
-    ap.add_argument('--time-scale', type=float, default=1.0, help='simulated seconds per wall second (default 1: six '
+    ap.add_argument('--time-scale', type=float, default=1.0, help='simulated seconds per wall '
+                                                                  'second (default 1: six '
                     'SINS nodes and the simulator share one executor thread)')
     ap.add_argument('--alpha', type=float, default=0.1,
                     help='coning half-angle, rad (default 0.1)')
     ap.add_argument('--nu', type=float, default=4 * np.pi,
                     help='coning frequency, rad/s (default 4π: 2 Hz)')
     ap.add_argument('--errors', choices=('ideal', 'navigation_grade'), default='ideal',
-                    help='sensor errors: ideal shows the algorithmic error (default), navigation_grade uses 004 §6')
+                    help='sensor errors: ideal shows the algorithmic error (default), '
+                         'navigation_grade uses 004 §6')
     ap.add_argument('--seed', type=int, default=0)
     ap.add_argument('--json', help='also write the table as JSON to this file')
     ap.add_argument('--no-calibration', action='store_true',
@@ -172,9 +174,11 @@ def run(args) -> list[dict]:
 
 def format_table(rows, meta, args) -> str:
     lines = [f'coning α = {args.alpha:g} rad, ν = {args.nu:.4g} rad/s, gyro 100 Hz, accel 300 Hz, '
-             f"sensors: {args.errors}; {meta['simulated_s']:.1f} simulated s in {meta['wall_s']:.1f} wall s "
+             f"sensors: {args.errors}; {meta['simulated_s']:.1f} simulated s in "
+             f"{meta['wall_s']:.1f} wall s "
              f"({meta['simulated_s'] / max(meta['wall_s'], 1e-9):.1f}× real time)",
-             f"simulator published {meta['delta_theta_published']} Δθ and {meta['delta_velocity_published']} Δv messages",
+             f"simulator published {meta['delta_theta_published']} Δθ and "
+             f"{meta['delta_velocity_published']} Δv messages",
              '',
              f"{'algorithm':<22}{'N':>3}{'final error ″':>15}{'drift °/h':>13}{'theory °/h':>13}"
              f"{'σ pub. ″':>10}{'Δθ in':>8}{'out':>7}{'dropped':>9}"]
@@ -184,9 +188,12 @@ def format_table(rows, meta, args) -> str:
                      f"{r.get('drift_deg_per_h', float('nan')):>13.4g}{(th if th is not None else float('nan')):>13.4g}"
                      f"{r.get('published_sigma_arcsec', float('nan')):>10.3g}{r['gyro_in']:>8}{r['published']:>7}"
                      f"{r['dropped'] + r['missing']:>9}")
-    lines += ['', 'drift: least-squares slope of the cone-axis error over whole cone periods; theory: small-α drift',
-              'exact in Ωh (doc/coning_derivations.md). At α = 0.1 algorithms of order ≥ 6 sit on the α⁴ floor,',
-              'above their small-α theory. σ pub.: norm of the published 1σ attitude error (0 with ideal sensors).']
+    lines += ['', 'drift: least-squares slope of the cone-axis error over whole cone periods; '
+                  'theory: small-α drift',
+              'exact in Ωh (doc/coning_derivations.md). At α = 0.1 algorithms of order ≥ 6 sit '
+              'on the α⁴ floor,',
+              'above their small-α theory. σ pub.: norm of the published 1σ attitude error (0 '
+              'with ideal sensors).']
     return '\n'.join(lines)
 
 
@@ -248,8 +255,10 @@ def run_calibration(args) -> dict:
 
 
 def format_calibration(c: dict) -> str:
-    lines = ['', 'Boresight calibration: imu_sim_node + star_camera_sim_node + sins_node + calibrator_node, bench '
-             f"trajectory, {c['simulated_s']:.0f} simulated s in {c['wall_s']:.1f} wall s, camera every 5 s, "
+    lines = ['', 'Boresight calibration: imu_sim_node + star_camera_sim_node + sins_node + '
+                 'calibrator_node, bench '
+             f"trajectory, {c['simulated_s']:.0f} simulated s in {c['wall_s']:.1f} wall s, "
+             'camera every 5 s, '
              f"{c['pairs']} increment pairs"]
     if not c.get('observable'):
         lines.append(f"  not observable: {c.get('message')}")
@@ -260,10 +269,12 @@ def format_calibration(c: dict) -> str:
         e, s_ = c['error_arcsec'][k], c['sigma_arcsec'][k]
         lines.append(
             f"{name:<10}{c['beta_true_deg'][k]:>12.4f}{c['beta_deg'][k]:>14.5f}{e:>10.2f}{s_:>8.2f}{e / s_:>9.2f}")
-    lines.append(f"Gauss–Newton, {c.get('weighting', 'weighted')} weighting, χ²/dof {c['chi2_per_dof']:.2f}; "
+    lines.append(f"Gauss–Newton, {c.get('weighting', 'weighted')} weighting, χ²/dof "
+                 f"{c['chi2_per_dof']:.2f}; "
                  'rotation error in MF axes / σ: '
                  + ', '.join(f'{v:+.2f}' for v in c['rotation_error_mf_over_sigma'])
-                 + f"; SINS (algorithm 2) attitude error at the end: {c['sins_final_error_arcsec']:.2f}″")
+                 + '; SINS (algorithm 2) attitude error at the end: '
+                   f"{c['sins_final_error_arcsec']:.2f}″")
     return '\n'.join(lines)
 
 
@@ -302,7 +313,8 @@ def run_navigation(args, duration: float = 60.0) -> dict:
     ex = Executor()
     nodes = (sim, sins, mon)
     try:
-        # discovery first, without spinning: the simulator publishes nothing before everybody listens
+        # discovery first, without spinning: the simulator publishes nothing before everybody
+        # listens
         deadline = time.monotonic() + 10.0
         while time.monotonic() < deadline and not (sins.count_subscribers('/nav/sins/odometry') >= 1
                                                    and sim.count_subscribers('/nav/imu/delta_theta') >= 1
@@ -347,18 +359,22 @@ def run_navigation(args, duration: float = 60.0) -> dict:
 
 
 def format_navigation(c: dict) -> str:
-    lines = ['', 'Navigation: imu_sim_node (coordinated turn, navigation-grade sensor errors) + sins_node '
-             f"(navigation: true, algorithm 2), {c['simulated_s']:.0f} simulated s in {c['wall_s']:.1f} wall s, "
+    lines = ['', 'Navigation: imu_sim_node (coordinated turn, navigation-grade sensor errors) + '
+                 'sins_node '
+             f"(navigation: true, algorithm 2), {c['simulated_s']:.0f} simulated s in "
+             f"{c['wall_s']:.1f} wall s, "
              f"{c['steps']} sins/odometry messages"]
     if 'position_error_m' not in c:
         lines.append('  no sins/odometry matched imu/truth/odometry')
         return '\n'.join(lines)
-    lines.append(f"frames {c['frame_id']} → {c['child_frame_id']}; after {c['t_s']:.1f} s, ECEF position error "
+    lines.append(f"frames {c['frame_id']} → {c['child_frame_id']}; after {c['t_s']:.1f} s, ECEF "
+                 'position error '
                  'against the truth (m) and the published 1σ:')
     for k, ax in enumerate('XYZ'):
         e, s_ = c['position_error_m'][k], c['position_sigma_m'][k]
         lines.append(f'  {ax}: error {e:+9.3f}  σ {s_:8.3f}  error/σ {e / s_:+6.2f}')
-    lines.append(f"position NEES {c['position_nees']:.2f} (3 dof; one draw of the sensor errors), attitude error "
+    lines.append(f"position NEES {c['position_nees']:.2f} (3 dof; one draw of the sensor "
+                 'errors), attitude error '
                  f"{c['attitude_error_arcsec']:.1f}″")
     return '\n'.join(lines)
 

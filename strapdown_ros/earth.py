@@ -406,9 +406,11 @@ def report(heights=(0.0, 1e3, 1e4, 2e4, 1e5)):
     ge_w, gp_w = float(somigliana(0.0, WGS84)), float(somigliana(np.pi / 2, WGS84))
     c0, c1 = GE * (1 - 0.5 * E2_003 + 1.5 * ETA_003), GE * (E2_003 - ETA_003)
     lines = ['### Constants', '',
-             f'* Somigliana PZ-90.11: γ_e = {ge_pz:.10f}, γ_p = {gp_pz:.10f} m/s² (003 g_e = {GE}); '
+             f'* Somigliana PZ-90.11: γ_e = {ge_pz:.10f}, γ_p = {gp_pz:.10f} m/s² (003 g_e = '
+             f'{GE}); '
              f'WGS-84: γ_e = {ge_w:.10f}, γ_p = {gp_w:.10f}',
-             f'* J2 of the PZ-90.11 level ellipsoid = {level_ellipsoid_j2():.10e} (published {J2:.10e})',
+             f'* J2 of the PZ-90.11 level ellipsoid = {level_ellipsoid_j2():.10e} (published '
+             f'{J2:.10e})',
              f'* η = aΩ²/g_e = {A * OMEGA ** 2 / GE:.10f} (003 prints {ETA_003})',
              f'* first-order coefficients: g_e(1 − ½e² + 3/2η) = {c0:.6f} vs GM/a² = {GM / A ** 2:.6f}; '
              f'g_e(e² − η) = {c1:.6f} vs 3·J2·GM/a² = {3 * J2 * GM / A ** 2:.6f} m/s²', '']

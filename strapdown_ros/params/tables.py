@@ -28,7 +28,8 @@ SENSOR_BOUNDS = {'gyro': {'bias': 100.0, 'random_walk': 1.0, 'quantum': 0.1},
                  'accel': {'bias': 1000.0, 'random_walk': 100.0, 'quantum': 10.0}}
 
 
-def _sensor_params(prefix: str, grade: SensorSigmas, rate: float, unit: str, rw_unit: str) -> list[ParamSpec]:
+def _sensor_params(prefix: str, grade: SensorSigmas, rate: float, unit: str,
+                   rw_unit: str) -> list[ParamSpec]:
     b = SENSOR_BOUNDS[prefix]
     return [
         ParamSpec(f'{prefix}_rate', rate, f'{prefix} output rate, Hz',
@@ -62,12 +63,17 @@ PROFILE_PARAMS = [
     # Earth-referenced navigation profiles (static, straight_flight, coordinated_turn, sculling)
     ParamSpec('nav_latitude_deg', 50.45, 'navigation profiles: geodetic latitude of the start '
               "(turn: of the circle's centre), degrees", -90.0, 90.0),
-    ParamSpec('nav_longitude_deg', 30.52, 'navigation profiles: longitude, degrees', -180.0, 360.0),
-    ParamSpec('nav_height', 150.0, 'navigation profiles: height above the PZ-90 ellipsoid, m', -1e4, 1e6),
-    ParamSpec('nav_speed', 0.0, 'straight_flight / coordinated_turn speed, m/s (0: 200 straight, 100 turn)',
+    ParamSpec('nav_longitude_deg', 30.52, 'navigation profiles: longitude, degrees',
+              -180.0, 360.0),
+    ParamSpec('nav_height', 150.0, 'navigation profiles: height above the PZ-90 ellipsoid, m',
+              -1e4, 1e6),
+    ParamSpec('nav_speed', 0.0,
+              'straight_flight / coordinated_turn speed, m/s (0: 200 straight, 100 turn)',
               0.0, 1e4),
-    ParamSpec('nav_heading_deg', 0.0, 'ENU yaw of the body (static, sculling) or of the initial velocity, '
-              'degrees counter-clockwise from east (REP-103)', -360.0, 360.0),
+    ParamSpec('nav_heading_deg', 0.0,
+              'ENU yaw of the body (static, sculling) or of the initial velocity, degrees '
+              'counter-clockwise from east (REP-103)',
+              -360.0, 360.0),
     ParamSpec('turn_radius', 2000.0, 'coordinated_turn radius, m',
               0.0, 1e6, exclusive_minimum=True),
     ParamSpec('sculling_angle', 0.01, 'sculling angular amplitude about body x, rad', 0.0, 1.5),
@@ -116,7 +122,8 @@ IMU_SIM_PARAMS = PROFILE_PARAMS + GYRO_PARAMS + ACCEL_PARAMS + COMMON_PARAMS + [
     ParamSpec('seed', 0, 'seed of the random error constants and noise', 0, 2**31 - 1),
     ParamSpec('time_scale', 1.0, 'simulated seconds per wall second (> 1: faster than real time)',
               0.0, 1e6, exclusive_minimum=True),
-    ParamSpec('duration', 0.0, 'simulated seconds to publish (0: the profile length, or forever)', 0.0),
+    ParamSpec('duration', 0.0, 'simulated seconds to publish (0: the profile length, or forever)',
+              0.0),
     ParamSpec('start_time', 0.0, 'header stamp of profile time 0, s', 0.0),
     ParamSpec('publish_period', 0.005, 'wall period of the publishing timer, s',
               0.0, 1.0, exclusive_minimum=True),
@@ -128,14 +135,20 @@ IMU_SIM_PARAMS = PROFILE_PARAMS + GYRO_PARAMS + ACCEL_PARAMS + COMMON_PARAMS + [
 
 #: input validation of the consuming nodes (strapdown_ros/streams/checks.py)
 INPUT_PARAMS = [
-    ParamSpec('gyro_max_rate', 20.0, 'gyro range, rad/s: an increment with a component beyond 2 periods at this '
-              'rate is rejected as impossible', 0.0, 1e4, exclusive_minimum=True),
-    ParamSpec('max_stamp_jump', 1.0, 'a stamp step beyond this, s, forward or back, is a jump: a lone one is an '
-              'outlier, resync_count consistent ones a new timeline', 0.0, 1e6, exclusive_minimum=True),
+    ParamSpec('gyro_max_rate', 20.0,
+              'gyro range, rad/s: an increment with a component beyond 2 periods at this rate is '
+              'rejected as impossible',
+              0.0, 1e4, exclusive_minimum=True),
+    ParamSpec('max_stamp_jump', 1.0,
+              'a stamp step beyond this, s, forward or back, is a jump: a lone one is an '
+              'outlier, resync_count consistent ones a new timeline',
+              0.0, 1e6, exclusive_minimum=True),
     ParamSpec('resync_count', 5,
               'consecutive messages that confirm a new timeline after a stamp jump', 1, 1000),
-    ParamSpec('frame_mismatch', 'reject', 'a message whose header.frame_id is neither empty nor the expected frame: '
-              'reject (counted, WARN) or accept (counted, WARN)', choices=('reject', 'accept')),
+    ParamSpec('frame_mismatch', 'reject',
+              'a message whose header.frame_id is neither empty nor the expected frame: reject '
+              '(counted, WARN) or accept (counted, WARN)',
+              choices=('reject', 'accept')),
 ]
 #: the gyro input of the consuming nodes: integrated increments, or sensor_msgs/Imu rate samples
 #: made into increments by strapdown_ros/streams/rate_increments.py
@@ -150,8 +163,10 @@ GYRO_INPUT_PARAMS = [
               choices=RATE_RULES),
 ]
 ACCEL_INPUT_PARAMS = [
-    ParamSpec('accel_max', 500.0, 'accelerometer range, m/s²: a Δv with a component beyond 2 periods at this '
-              'is rejected as impossible', 0.0, 1e6, exclusive_minimum=True),
+    ParamSpec('accel_max', 500.0,
+              'accelerometer range, m/s²: a Δv with a component beyond 2 periods at this is '
+              'rejected as impossible',
+              0.0, 1e6, exclusive_minimum=True),
 ]
 
 #: largest velocity component of the navigation, m/s (above any aircraft; orbital speed is
@@ -171,35 +186,43 @@ SINS_PARAMS = GYRO_PARAMS + ACCEL_PARAMS + COMMON_PARAMS + INPUT_PARAMS + ACCEL_
         ParamSpec('quantization_correction', False, 'apply 000 eq. (5.6) with gyro_quantum'),
         ParamSpec('accel_wait', 0.1,
                   'how long (stamp seconds) sins/imu waits for accelerometer data', 0.0, 10.0),
-        ParamSpec('navigation', False, 'navigation channel (003 §1.5): ECEF position and velocity on sins/odometry '
-                  'from imu/delta_velocity; the attitude reference frame is then the inertial frame that coincides '
-                  'with earth at the start (doc/navigation.md)'),
-        ParamSpec('initial_position', [50.45, 30.52, 150.0], 'initial latitude °, longitude °, height m (PZ-90 '
-                  'ellipsoid)', length=3, element_ranges=((-90.0, 90.0), (-180.0, 360.0), (-1e4, 1e6)),
+        ParamSpec('navigation', False,
+                  'navigation channel (003 §1.5): ECEF position and velocity on sins/odometry '
+                  'from imu/delta_velocity; the attitude reference frame is then the inertial '
+                  'frame that coincides with earth at the start (doc/navigation.md)'),
+        ParamSpec('initial_position', [50.45, 30.52, 150.0],
+                  'initial latitude °, longitude °, height m (PZ-90 ellipsoid)',
+                  length=3, element_ranges=((-90.0, 90.0), (-180.0, 360.0), (-1e4, 1e6)),
                   element_names=('latitude °', 'longitude °', 'height m')),
         ParamSpec('initial_velocity', [0.0, 0.0, 0.0], 'initial velocity east, north, up, m/s',
                   -MAX_SPEED, MAX_SPEED, length=3),
         ParamSpec('initial_position_sigma', 0.0, '1σ initial position error per axis, m', 0.0),
         ParamSpec('initial_velocity_sigma', 0.0, '1σ initial velocity error per axis, m/s', 0.0),
-        ParamSpec('initial_alignment', 'given', 'initial attitude: given (initial_orientation = q_earth_body) or '
-                  'static (coarse alignment from gravity and Earth rate over alignment_time at rest)',
+        ParamSpec('initial_alignment', 'given',
+                  'initial attitude: given (initial_orientation = q_earth_body) or static '
+                  '(coarse alignment from gravity and Earth rate over alignment_time at rest)',
                   choices=('given', 'static')),
         ParamSpec('alignment_time', 60.0, 'static alignment window, stamp seconds', 0.1, 86400.0),
-        ParamSpec('velocity_update', 'derived', "velocity/position update: derived (exact in the Earth's rotation) "
-                  'or printed (003 eqs. 1.99–1.100 as printed, 1 gyro : 3 accelerometer samples only)',
+        ParamSpec('velocity_update', 'derived',
+                  "velocity/position update: derived (exact in the Earth's rotation) or printed "
+                  '(003 eqs. 1.99–1.100 as printed, 1 gyro : 3 accelerometer samples only)',
                   choices=('derived', 'printed')),
-        ParamSpec('sculling_compensation', True, 'rotation and sculling from the fitted motion (false: rotation '
-                  'compensation ½θ×v only)'),
+        ParamSpec('sculling_compensation', True,
+                  'rotation and sculling from the fitted motion (false: rotation compensation '
+                  '½θ×v only)'),
         ParamSpec('gravity_model', DEFAULT_GRAVITY_MODEL, 'normal gravity model '
                   "(strapdown_ros/earth.py; pz90_003: 003's formula corrected, 3.2″ and "
                   '35 mGal from normal_exact)',
                   choices=('pz90_003', 'normal_exact', 'j2')),
-        ParamSpec('navigation_covariance_period', 1.0, 'propagation period of the navigation covariance, s',
+        ParamSpec('navigation_covariance_period', 1.0,
+                  'propagation period of the navigation covariance, s',
                   0.001, 60.0),
         ParamSpec('earth_frame_id', 'earth',
                   'frame id of sins/odometry (REP-105 earth: ECEF, PZ-90)'),
-        ParamSpec('batch_period', 0.01, 'increments are integrated in blocks spanning this much stamp time, and at '
-                  'least every this many wall seconds (0: every message at once); outputs keep their own stamps',
+        ParamSpec('batch_period', 0.01,
+                  'increments are integrated in blocks spanning this much stamp time, and at '
+                  'least every this many wall seconds (0: every message at once); outputs keep '
+                  'their own stamps',
                   0.0, 1.0),
         ]
 
@@ -219,23 +242,29 @@ STAR_CAMERA_PARAMS = PROFILE_PARAMS + [
     ParamSpec('seed', 0, 'seed of the camera noise', 0, 2**31 - 1),
     ParamSpec('time_scale', 1.0, 'simulated seconds per wall second (as imu_sim_node)', 0.0, 1e6,
               exclusive_minimum=True),
-    ParamSpec('duration', 0.0, 'simulated seconds to publish (0: the profile length, or forever)', 0.0),
+    ParamSpec('duration', 0.0, 'simulated seconds to publish (0: the profile length, or forever)',
+              0.0),
     ParamSpec('start_time', 0.0, 'header stamp of profile time 0, s (as imu_sim_node)', 0.0),
     ParamSpec('publish_period', 0.005, 'wall period of the publishing timer, s',
               0.0, 1.0, exclusive_minimum=True),
-    ParamSpec('wait_for_subscribers', 0, 'the simulated clock starts once the camera topics have this many '
-              'subscribers in all (0: at start-up), so that separately started consumers lose nothing', 0, 1000),
+    ParamSpec('wait_for_subscribers', 0,
+              'the simulated clock starts once the camera topics have this many subscribers in '
+              'all (0: at start-up), so that separately started consumers lose nothing',
+              0, 1000),
     ParamSpec('camera_interval', 20.0, 'time between exposures, s',
               0.0, 3600.0, exclusive_minimum=True),
     ParamSpec('camera_first_exposure', 0.0,
               'profile time of the first exposure, s (0: one interval)', 0.0),
     ParamSpec('camera_sigma_xy', 0.6 * ARCSEC_RAD,
               '1σ attitude noise about VF x and y, rad (004: 0.6″)', 0.0, 0.1),
-    ParamSpec('camera_sigma_z', 6.0 * ARCSEC_RAD, '1σ attitude noise about the optical axis VF z, rad (004: 6″)',
+    ParamSpec('camera_sigma_z', 6.0 * ARCSEC_RAD,
+              '1σ attitude noise about the optical axis VF z, rad (004: 6″)',
               0.0, 0.1),
-    ParamSpec('boresight', [0.0, 0.0, 0.0], 'true β = (heading ψ, pitch ϑ, roll γ) of VF relative to MF, rad',
+    ParamSpec('boresight', [0.0, 0.0, 0.0],
+              'true β = (heading ψ, pitch ϑ, roll γ) of VF relative to MF, rad',
               length=3),
-    ParamSpec('camera_time_offset', 0.0, 'camera clock minus IMU clock, s (a fix stamped t shows t − offset)',
+    ParamSpec('camera_time_offset', 0.0,
+              'camera clock minus IMU clock, s (a fix stamped t shows t − offset)',
               -10.0, 10.0),
     ParamSpec('camera_exposure_time', 0.0, 'exposure duration, s', 0.0, 10.0),
     ParamSpec('camera_stamp_at_exposure_start', False,
@@ -251,24 +280,33 @@ CALIBRATOR_PARAMS = GYRO_PARAMS + INPUT_PARAMS + GYRO_INPUT_PARAMS + [
     ParamSpec('qos_depth', 500, 'history depth of the stream QoS', 1, 100000),
     ParamSpec('diagnostics_period', 1.0, 'period of /diagnostics, wall seconds',
               0.0, 3600.0, exclusive_minimum=True),
-    ParamSpec('weighted', True, 'weight the pairs by E_imu and E_avu (false: unit weights as 004)'),
+    ParamSpec('weighted', True,
+              'weight the pairs by E_imu and E_avu (false: unit weights as 004)'),
     ParamSpec('covariance_model', 'random_constant',
               'gyro error model of E_imu', choices=COVARIANCE_MODELS),
-    ParamSpec('initial_boresight', [0.0, 0.0, 0.0], 'β0, rad (the solver aligns rotation axes first, so any β0 '
-              'converges)', length=3),
-    ParamSpec('min_rotation_deg', 0.5, 'increments below this angle do not count as rotations (004 §4.1)',
+    ParamSpec('initial_boresight', [0.0, 0.0, 0.0],
+              'β0, rad (the solver aligns rotation axes first, so any β0 converges)',
+              length=3),
+    ParamSpec('min_rotation_deg', 0.5,
+              'increments below this angle do not count as rotations (004 §4.1)',
               0.0, 180.0),
-    ParamSpec('max_sigma', 1e-3, 'publish only when every boresight direction has predicted σ below this, rad',
+    ParamSpec('max_sigma', 1e-3,
+              'publish only when every boresight direction has predicted σ below this, rad',
               0.0, 1.0, exclusive_minimum=True),
     ParamSpec('max_pairs', 0, 'keep at most this many latest pairs (0: all)', 0, 10**7),
-    ParamSpec('outlier_gate', 6.0, 'a fix is an outlier when both its pairs disagree in rotation angle by more than '
-              'this many σ and the pair skipping it agrees (0: off)', 0.0, 1000.0),
-    ParamSpec('state_file', '', 'file the pairs and estimate persist to after every new pair (atomic), and resume '
+    ParamSpec('outlier_gate', 6.0,
+              'a fix is an outlier when both its pairs disagree in rotation angle by more than '
+              'this many σ and the pair skipping it agrees (0: off)',
+              0.0, 1000.0),
+    ParamSpec('state_file', '',
+              'file the pairs and estimate persist to after every new pair (atomic), and resume '
               "from at start-up ('' = off); a corrupted one is reported and moved aside"),
-    ParamSpec('max_chi2_per_dof', 3.0, 'WARN on /diagnostics when the weighted χ²/dof of the solution exceeds this',
+    ParamSpec('max_chi2_per_dof', 3.0,
+              'WARN on /diagnostics when the weighted χ²/dof of the solution exceeds this',
               0.0, 1e9, exclusive_minimum=True),
-    ParamSpec('use_camera_covariance', True, 'read P_avu from star_camera/attitude_with_covariance '
-              '(false: star_camera/attitude with camera_sigma_xy/z)'),
+    ParamSpec('use_camera_covariance', True,
+              'read P_avu from star_camera/attitude_with_covariance (false: star_camera/attitude '
+              'with camera_sigma_xy/z)'),
     ParamSpec('camera_sigma_xy', 0.6 * ARCSEC_RAD,
               'assumed camera σ about VF x, y when no covariance, rad', 0.0, 0.1),
     ParamSpec('camera_sigma_z', 6.0 * ARCSEC_RAD,

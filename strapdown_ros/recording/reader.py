@@ -7,9 +7,9 @@ Gyro (``--gyro-topic``, default ``imu/delta_theta``), chosen by the topic's type
 * ``sensor_msgs/msg/Imu``: ``angular_velocity`` rate samples (rad/s).  They are validated by
   :class:`strapdown_ros.streams.checks.StreamCheck` (range ``gyro_max_rate`` per axis, period the
   median step of the stamps), made into increments by
-  :func:`strapdown_ros.streams.rate_increments.increments_from_rates` (rule ``trapezoid`` or ``mean``,
-  intervals above 1.5 periods not integrated), and the increments then take the same path as
-  Δθ messages (validation, gaps, missing counts).
+  :func:`strapdown_ros.streams.rate_increments.increments_from_rates` (rule ``trapezoid`` or
+  ``mean``, intervals above 1.5 periods not integrated), and the increments then take the same path
+  as Δθ messages (validation, gaps, missing counts).
 
 Attitude reference (``--reference-topic``, default ``star_camera/attitude_with_covariance``
 when present and its covariance is wanted, else ``star_camera/attitude``): q_ref_body of the

@@ -26,8 +26,8 @@ Bags written (:func:`write_bag`), either or both formats of each stream:
   geometry_msgs/msg/PoseStamped (orientation q_vicon_marker; the data set has no positions, the
   position is written as zero);
 * the package's own: ``imu/delta_theta`` geometry_msgs/msg/Vector3Stamped (Δθ from the rate
-  samples by :func:`strapdown_ros.streams.rate_increments.increments_from_rates`, trapezoid rule, each
-  stamped at the end of its interval) and ``star_camera/attitude``
+  samples by :func:`strapdown_ros.streams.rate_increments.increments_from_rates`, trapezoid rule,
+  each stamped at the end of its interval) and ``star_camera/attitude``
   geometry_msgs/msg/QuaternionStamped (the same q_vicon_marker).
 
 The reference is decimated to one fix per ``reference_interval_s`` (default 1 s, like a star

@@ -214,7 +214,8 @@ class SinsSystem:
             self._last_gyro_t = None
             self._block_end_ns = None
             self.origin_ns = None
-            self._log('error', f'gyro stamps jumped by {self.gyro_check.last_jump_s:.6g} s and stayed: '
+            self._log('error', f'gyro stamps jumped by {self.gyro_check.last_jump_s:.6g} s and '
+                               f'stayed: '
                       'resynchronised to the new time base; the rotation during the jump is lost')
         if self.origin_ns is None:
             self.origin_ns = out[0][0]
@@ -464,7 +465,8 @@ class SinsSystem:
 
         Integrate the buffered increments as one block through the vectorised core; returns
         every output produced since the last call.  The result equals message-by-message
-        processing to round-off (test/ros/test_nodes.py::test_sins_node_batches_equal_per_message_processing).
+        processing to round-off
+        (test/ros/test_nodes.py::test_sins_node_batches_equal_per_message_processing).
         """
         self._run()
         return self.take_output()
@@ -581,7 +583,8 @@ class SinsSystem:
         Compensate and integrate a block, collecting its outputs.
 
         Compensate and integrate a block (``stamps_ns``: the header stamps of ``t``), collecting
-        its outputs; False (nothing output) if an update is not finite, unless ``per_sample``, which
+        its outputs; False (nothing output) if an update is not finite, unless ``per_sample``,
+        which
         restores the last good state instead.
         """
         if self.compensating:
@@ -591,15 +594,17 @@ class SinsSystem:
             inc = self.gyro_effects.compensate(inc, t, T)
         self._last_gyro_t = float(t[-1])
         batch = self.integrator.push(inc, t)
-        # a NaN or ±Inf anywhere in a block reaches its last update: q, P and J are carried from update
-        # to update, and every entry of T enters every entry of Cᵀ T C (NaN·0 and ∞·0 are NaN)
+        # a NaN or ±Inf anywhere in a block reaches its last update: q, P and J are carried from
+        # update to update, and every entry of T enters every entry of Cᵀ T C (NaN·0 and ∞·0 are
+        # NaN)
         if len(batch) and not _finite_update(batch.attitude[-1], batch.covariance[-1]):
             if not per_sample:
                 return False
             # never output a non-finite state: back to the last good one, covariance inflated
             self.nonfinite += 1
             self.integrator.restore(self._good, inflate_sigma=NONFINITE_INFLATION)
-            self._log('error', 'non-finite attitude: not published; state reset to the last good update '
+            self._log('error', 'non-finite attitude: not published; state reset to the last good '
+                               'update '
                       f'with {NONFINITE_INFLATION} rad added to its σ', throttle=5.0, key='nonfinite')
             return True
         if len(batch):

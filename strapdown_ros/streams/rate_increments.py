@@ -28,8 +28,8 @@ The first sample starts the stream and gives no increment.  An interval longer t
 ``max_step`` (1.5 nominal periods in the nodes and tools) is not integrated: the rotation over
 it is unknown, the increment is not formed, and the increment stream downstream sees a gap with
 its missing increments counted, exactly as for a Δθ stream with a dropout.  Samples must be
-validated first (finite, in range, in order: :class:`strapdown_ros.streams.checks.StreamCheck`); after
-a stamp resynchronisation the integrator is restarted (:meth:`RateIntegrator.reset`).
+validated first (finite, in range, in order: :class:`strapdown_ros.streams.checks.StreamCheck`);
+after a stamp resynchronisation the integrator is restarted (:meth:`RateIntegrator.reset`).
 :class:`RateIncrementStream` is that whole input rule for one stream (validation, integration,
 counters), as ``sins_node`` and ``calibrator_node`` use it with ``gyro_input: imu``.
 
