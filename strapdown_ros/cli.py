@@ -30,7 +30,7 @@ FILE, DIRECTORY, REPLACED = 'file', 'directory', 'replaced'
 
 
 class OneLineParser(argparse.ArgumentParser):
-    """argparse whose errors are one line on stderr (``prog: error: ...``) and exit 2, no usage block."""
+    """An argparse parser whose errors are one line on stderr and exit 2, no usage block."""
 
     def error(self, message):
         print(f'{self.prog}: error: {message}', file=sys.stderr)

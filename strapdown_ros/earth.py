@@ -382,7 +382,8 @@ def compare_models(test='pz90_003', reference='normal_exact', heights=(0.0, 1e3,
             'max_mag': float(np.max(np.abs(dm))), 'rms_mag': float(np.sqrt(np.mean(dm ** 2))),
             'max_mag_mgal': float(np.max(np.abs(dm))) * 1e5,
             'rms_mag_mgal': float(np.sqrt(np.mean(dm ** 2))) * 1e5,
-            'max_dir_arcsec': float(np.max(da)), 'rms_dir_arcsec': float(np.sqrt(np.mean(da ** 2))),
+            'max_dir_arcsec': float(np.max(da)),
+            'rms_dir_arcsec': float(np.sqrt(np.mean(da ** 2))),
             'worst_lat_deg': float(np.degrees(la.ravel()[np.argmax(np.abs(dm).ravel())])),
         }
     return out
@@ -391,28 +392,43 @@ def compare_models(test='pz90_003', reference='normal_exact', heights=(0.0, 1e3,
 #: Variants of the printed formula (misprint study): name → r (...,3) → g (...,3).
 _pv = printed_gravity_variant
 PRINTED_VARIANTS = {
-    'as printed (e²=0.0066934, +Ω²R in g2, −g2·cosφ in g_Z)': partial(_pv, g2_omega_sign=1.0, gz_sign=-1.0),
+    'as printed (e²=0.0066934, +Ω²R in g2, −g2·cosφ in g_Z)':
+        partial(_pv, g2_omega_sign=1.0, gz_sign=-1.0),
     'g2 fixed only': partial(_pv, gz_sign=-1.0),
     'g_Z fixed only': partial(_pv, g2_omega_sign=1.0),
     'both signs fixed (pz90_003)': _pv,
     'both fixed, e²=0.0066943662': partial(_pv, e2=E2),
-    'both fixed, e²=0.0066943662, g_e=Somigliana PZ-90.11': partial(_pv, e2=E2, ge=float(somigliana(0.0))),
+    'both fixed, e²=0.0066943662, g_e=Somigliana PZ-90.11':
+        partial(_pv, e2=E2, ge=float(somigliana(0.0))),
 }
 
 
 def report(heights=(0.0, 1e3, 1e4, 2e4, 1e5)):
-    """Markdown tables of :func:`compare_models` (the numbers quoted in doc/navigation_gravity.md)."""
+    """
+    Return the Markdown tables of :func:`compare_models` (quoted in doc/navigation_gravity.md).
+
+    Parameters
+    ----------
+    heights : sequence of float
+        Heights above the ellipsoid, m.
+
+    Returns
+    -------
+    str
+        The constants, the model comparisons and the printed-formula variants.
+
+    """
     ge_pz, gp_pz = float(somigliana(0.0)), float(somigliana(np.pi / 2))
     ge_w, gp_w = float(somigliana(0.0, WGS84)), float(somigliana(np.pi / 2, WGS84))
     c0, c1 = GE * (1 - 0.5 * E2_003 + 1.5 * ETA_003), GE * (E2_003 - ETA_003)
     lines = ['### Constants', '',
-             f'* Somigliana PZ-90.11: γ_e = {ge_pz:.10f}, γ_p = {gp_pz:.10f} m/s² (003 g_e = '
-             f'{GE}); '
-             f'WGS-84: γ_e = {ge_w:.10f}, γ_p = {gp_w:.10f}',
-             f'* J2 of the PZ-90.11 level ellipsoid = {level_ellipsoid_j2():.10e} (published '
-             f'{J2:.10e})',
+             f'* Somigliana PZ-90.11: γ_e = {ge_pz:.10f}, γ_p = {gp_pz:.10f} m/s² '
+             f'(003 g_e = {GE}); WGS-84: γ_e = {ge_w:.10f}, γ_p = {gp_w:.10f}',
+             f'* J2 of the PZ-90.11 level ellipsoid = {level_ellipsoid_j2():.10e} '
+             f'(published {J2:.10e})',
              f'* η = aΩ²/g_e = {A * OMEGA ** 2 / GE:.10f} (003 prints {ETA_003})',
-             f'* first-order coefficients: g_e(1 − ½e² + 3/2η) = {c0:.6f} vs GM/a² = {GM / A ** 2:.6f}; '
+             f'* first-order coefficients: g_e(1 − ½e² + 3/2η) = {c0:.6f} '
+             f'vs GM/a² = {GM / A ** 2:.6f}; '
              f'g_e(e² − η) = {c1:.6f} vs 3·J2·GM/a² = {3 * J2 * GM / A ** 2:.6f} m/s²', '']
     head = '| h, km | max abs Δ‖g‖, mGal | RMS Δ‖g‖, mGal | max angle, ″ | RMS angle, ″ |'
     for test, ref in (('pz90_003', 'normal_exact'), ('j2', 'normal_exact'), ('pz90_003', 'j2')):
@@ -421,8 +437,9 @@ def report(heights=(0.0, 1e3, 1e4, 2e4, 1e5)):
             lines.append(f"| {h / 1e3:g} | {d['max_mag_mgal']:.3g} | {d['rms_mag_mgal']:.3g} | "
                          f"{d['max_dir_arcsec']:.3g} | {d['rms_dir_arcsec']:.3g} |")
         lines.append('')
-    lines += ['### Printed-formula variants vs normal_exact, h = 0 … 20 km (worst over heights)', '',
-              '| variant | max abs Δ‖g‖, mGal | max angle, ″ | RMS angle, ″ |', '|---|---|---|---|']
+    lines += ['### Printed-formula variants vs normal_exact, h = 0 … 20 km (worst over heights)',
+              '', '| variant | max abs Δ‖g‖, mGal | max angle, ″ | RMS angle, ″ |',
+              '|---|---|---|---|']
     for name, fn in PRINTED_VARIANTS.items():
         c = compare_models(fn, 'normal_exact', (0.0, 1e4, 2e4)).values()
         worst = [max(d[k] for d in c)

@@ -251,7 +251,7 @@ def from_ros_xyzw(q: np.ndarray) -> np.ndarray:
 
 # --- Euler sequences of the seeds --------------------------------------------------
 def elementary_dcm(axis: int, angle) -> np.ndarray:
-    """Active rotation by ``angle`` about coordinate axis 0/1/2 (x/y/z): ``exp([angle·e_axis ×])``."""
+    """Return the active rotation by ``angle`` about axis 0/1/2 (x/y/z): ``exp([angle·e ×])``."""
     angle = np.asarray(angle, dtype=float)
     c, s = np.cos(angle), np.sin(angle)
     one, zero = np.ones_like(angle), np.zeros_like(angle)
@@ -276,7 +276,7 @@ def elementary_dcm(axis: int, angle) -> np.ndarray:
 
 
 def ypr_to_dcm(yaw, pitch, roll) -> np.ndarray:
-    """``C_parent_child = R_z(−ψ) R_x(ϑ) R_y(γ)`` (004 eq. 1), mapping child → parent coordinates."""
+    """Return ``C_parent_child = R_z(−ψ) R_x(ϑ) R_y(γ)`` (004 eq. 1), child → parent coordinates."""
     return (elementary_dcm(2, -np.asarray(yaw, dtype=float)) @ elementary_dcm(0, pitch)
             @ elementary_dcm(1, roll))
 

@@ -45,7 +45,8 @@ def load_model(path: str | None) -> tuple[dict, dict]:
         doc = {}
     if not isinstance(doc, dict):
         raise ValueError(
-            f'{path}: expected a ROS 2 parameter file (a mapping of node names to ros__parameters)')
+            f'{path}: expected a ROS 2 parameter file '
+            '(a mapping of node names to ros__parameters)')
     specs: dict[str, ParamSpec] = {}
     for lst in NODE_PARAMS.values():
         for s in lst:
@@ -91,7 +92,8 @@ def write_model(path: str, doc: dict | None, updates: dict, comment: str) -> Non
     for name, value in updates.items():
         root[name] = json.loads(json.dumps(value))
         for key, block in doc.items():
-            if key != '/**' and isinstance(block, dict) and name in (block.get('ros__parameters') or {}):
+            sets_it = isinstance(block, dict) and name in (block.get('ros__parameters') or {})
+            if key != '/**' and sets_it:
                 block['ros__parameters'][name] = json.loads(json.dumps(value))
     atomic_write_text(path, f'# {comment}\n'
                       + yaml.safe_dump(doc, sort_keys=False, allow_unicode=True))

@@ -43,21 +43,24 @@ class ParamSpec:
         as an integral double (``5.0``) as an integer; a number given as text that YAML did not
         read as one (``1.0e9``: YAML 1.1 wants ``1.0e+9``) as that number.
         """
-        if self.choices is not None and isinstance(value, (int, float)) and not isinstance(value, bool):
+        number = isinstance(value, (int, float)) and not isinstance(value, bool)
+        numeric_default = (isinstance(self.default, (int, float))
+                           and not isinstance(self.default, bool))
+        if self.choices is not None and number:
             return str(value)
         if self.length is not None and not isinstance(value, (str, bytes, dict)) \
                 and hasattr(value, '__len__') \
                 and all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in value):
             return [float(v) for v in value]
-        if isinstance(self.default, (int, float)) and not isinstance(self.default, bool) and \
-                isinstance(value, str):
+        if numeric_default and isinstance(value, str):
             try:
                 value = float(value.strip())
             except ValueError:
                 return value
-        if isinstance(self.default, float) and isinstance(value, int) and not isinstance(value, bool):
+        if isinstance(self.default, float) and isinstance(value, int) \
+                and not isinstance(value, bool):
             return float(value)
-        if isinstance(self.default, int) and not isinstance(self.default, bool) and isinstance(value, float) \
+        if numeric_default and isinstance(self.default, int) and isinstance(value, float) \
                 and value.is_integer():
             return int(value)
         return value
@@ -67,7 +70,8 @@ class ParamSpec:
         if self.choices is not None:
             value = self.normalise(value)
             if value not in self.choices:
-                return f"{self.name}={value!r} is not valid; valid values: {', '.join(map(str, self.choices))}"
+                valid = ', '.join(map(str, self.choices))
+                return f'{self.name}={value!r} is not valid; valid values: {valid}'
             return None
         if self.length is not None:
             try:
@@ -88,7 +92,9 @@ class ParamSpec:
                     return err
             return None
         if isinstance(self.default, bool):
-            return None if isinstance(value, bool) else f'{self.name} must be true or false, got {value!r}'
+            if isinstance(value, bool):
+                return None
+            return f'{self.name} must be true or false, got {value!r}'
         if isinstance(self.default, (int, float)):
             if isinstance(value, bool) or not isinstance(value, (int, float)):
                 return f'{self.name} must be a number, got {value!r}'
@@ -161,12 +167,32 @@ def load_parameter_file(path: str, node_name: str) -> dict:
 
 
 def markdown_table(specs: Sequence[ParamSpec]) -> str:
+    """
+    Render parameter specs as the Markdown table of doc/nodes.md.
+
+    Parameters
+    ----------
+    specs : sequence of ParamSpec
+        The parameters of one node, in declaration order.
+
+    Returns
+    -------
+    str
+        The table: parameter, ROS type, default, valid values, meaning.
+
+    """
     rows = ['| parameter | type | default | valid | meaning |', '|---|---|---|---|---|']
     for s in specs:
         ros_type = {bool: 'bool', int: 'integer', float: 'double', str: 'string'}
         typ = ros_type[type(s.default)] if s.length is None else f'double[{s.length}]'
-        default = f'{s.default:.6g}' if isinstance(s.default, float) else repr(s.default) \
-            if isinstance(s.default, str) else str(s.default).lower() if isinstance(s.default, bool) else str(s.default)
+        if isinstance(s.default, float):
+            default = f'{s.default:.6g}'
+        elif isinstance(s.default, str):
+            default = repr(s.default)
+        elif isinstance(s.default, bool):
+            default = str(s.default).lower()
+        else:
+            default = str(s.default)
         rows.append(f'| `{s.name}` | {typ} | {default} | {s.range_text()} | {s.description} |')
     return '\n'.join(rows)
 

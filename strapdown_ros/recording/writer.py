@@ -81,8 +81,8 @@ class _Messages:
         self.PoseWithCovarianceStamped = T['geometry_msgs/msg/PoseWithCovarianceStamped']
 
     def header(self, ns: int, frame_id: str):
-        return self.Header(stamp=self.Time(sec=int(ns // 1_000_000_000), nanosec=int(ns % 1_000_000_000)),
-                           frame_id=frame_id)
+        stamp = self.Time(sec=int(ns // 1_000_000_000), nanosec=int(ns % 1_000_000_000))
+        return self.Header(stamp=stamp, frame_id=frame_id)
 
     def quaternion(self, q_wxyz):
         x, y, z, w = (float(c) for c in to_ros_xyzw(q_wxyz))
@@ -104,8 +104,8 @@ class _Messages:
         cov[3:, 3:] = np.asarray(cov_rot, dtype=float)
         pose = self.Pose(position=self.Point(x=0.0, y=0.0, z=0.0),
                          orientation=self.quaternion(q_wxyz))
-        m = self.PoseWithCovarianceStamped(header=self.header(ns, frame_id),
-                                           pose=self.PoseWithCovariance(pose=pose, covariance=cov.reshape(36)))
+        with_cov = self.PoseWithCovariance(pose=pose, covariance=cov.reshape(36))
+        m = self.PoseWithCovarianceStamped(header=self.header(ns, frame_id), pose=with_cov)
         return self.store.serialize_cdr(m, self.PoseWithCovarianceStamped.__msgtype__)
 
 
@@ -198,7 +198,8 @@ def record(bag: str | Path, imu_p: dict, cam_p: dict, storage: str = 'mcap', acc
                 batch.append((ns, 3, 'star_camera/attitude',
                              msgs.quaternion_stamped(ns, cam_ref_frame, fix.attitude)))
                 batch.append((ns, 4, 'star_camera/attitude_with_covariance',
-                              msgs.pose_with_covariance_stamped(ns, cam_ref_frame, fix.attitude, fix.covariance)))
+                              msgs.pose_with_covariance_stamped(ns, cam_ref_frame, fix.attitude,
+                                                                fix.covariance)))
             emit(batch)
             if w1 >= t_end:
                 break

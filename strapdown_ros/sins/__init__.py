@@ -7,7 +7,7 @@ Odometry numbers) and :mod:`~strapdown_ros.sins.screening` (a whole recorded str
 the input rules).  Its names are imported from ``strapdown_ros.sins``.
 """
 from strapdown_ros.sins.outputs import (ACCEL_STALL_ERROR_FACTOR, ACCEL_STALL_ERROR_MIN_S,
-                                        AccelStall, accel_stall_limits, AttitudeOutput,
+                                        accel_stall_limits, AccelStall, AttitudeOutput,
                                         ImuOutput, NavigationOutput, NO_OUTPUT,
                                         odometry_arrays, SinsOutput)
 from strapdown_ros.sins.screening import screen_stream

@@ -42,7 +42,8 @@ class AttitudeOutput(_Arrays):
 
     @classmethod
     def empty(cls):
-        return cls(np.zeros(0, np.int64), np.zeros((0, 4)), np.zeros((0, 3, 3)), np.zeros((0, 3)), np.zeros(0))
+        return cls(np.zeros(0, np.int64), np.zeros((0, 4)), np.zeros((0, 3, 3)), np.zeros((0, 3)),
+                   np.zeros(0))
 
 
 @dataclass
@@ -102,7 +103,8 @@ class SinsOutput:
 NO_OUTPUT = SinsOutput(AttitudeOutput.EMPTY, ImuOutput.EMPTY, NavigationOutput.EMPTY)
 
 
-def odometry_arrays(nav: NavigationOutput, rate_variance: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def odometry_arrays(nav: NavigationOutput,
+                    rate_variance: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """
     Return the nav_msgs/Odometry numbers of navigation steps (REP-105).
 
@@ -114,8 +116,8 @@ def odometry_arrays(nav: NavigationOutput, rate_variance: float) -> tuple[np.nda
     k = len(nav)
     p = nav.covariance
     c6 = np.zeros((k, 6, 6))
-    c6[:, :3, :3], c6[:, :3, 3:], c6[:, 3:, :3], c6[:, 3:,
-                                                    3:] = p[:, :3, :3], p[:, :3, 6:], p[:, 6:, :3], p[:, 6:, 6:]
+    c6[:, :3, :3], c6[:, :3, 3:] = p[:, :3, :3], p[:, :3, 6:]
+    c6[:, 3:, :3], c6[:, 3:, 3:] = p[:, 6:, :3], p[:, 6:, 6:]
     c = quat_to_dcm(nav.attitude).reshape(k, 3, 3)              # C_E_B: twist in body axes
     ct = np.swapaxes(c, -1, -2)
     vb = np.einsum('kij,kj->ki', ct, nav.velocity)

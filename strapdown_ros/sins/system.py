@@ -43,7 +43,7 @@ from strapdown_ros.navigation.channel import NavigationChannel
 from strapdown_ros.params import sigmas_from
 from strapdown_ros.rotation import dcm_to_quat, from_ros_xyzw
 from strapdown_ros.sensors.effects import GyroEffects
-from strapdown_ros.sins.outputs import (AccelStall, accel_stall_limits, AttitudeOutput,
+from strapdown_ros.sins.outputs import (accel_stall_limits, AccelStall, AttitudeOutput,
                                         ImuOutput, NavigationOutput, NO_OUTPUT, SinsOutput)
 from strapdown_ros.sins.screening import screen_stream
 from strapdown_ros.streams.checks import StreamCheck
@@ -61,9 +61,9 @@ FEED_ACCEL_BLOCK = 32768
 
 
 def _finite_update(q: np.ndarray, cov: np.ndarray) -> bool:
-    """One update's attitude and covariance are finite (scalar reads: a block's check costs < 1 µs)."""
-    return math.isfinite(q[0] + q[1] + q[2] + q[3] + cov[0, 0] + cov[0, 1] + cov[0, 2] + cov[1, 1] + cov[1, 2]
-                         + cov[2, 2])
+    """Tell whether one update's attitude and covariance are finite (scalar reads, < 1 µs)."""
+    return math.isfinite(q[0] + q[1] + q[2] + q[3] + cov[0, 0] + cov[0, 1] + cov[0, 2]
+                         + cov[1, 1] + cov[1, 2] + cov[2, 2])
 
 
 # --- the system ---------------------------------------------------------------------------------
@@ -97,16 +97,19 @@ class SinsSystem:
         self.integrator = AttitudeIntegrator(
             p['coning_algorithm'], initial_attitude=from_ros_xyzw(q0_xyzw), nominal_period=period,
             gyro=sigmas_from(p, 'gyro'), initial_sigma=float(p['initial_attitude_sigma']),
-            covariance_model=p['covariance_model'], quantization_correction=bool(p['quantization_correction']))
+            covariance_model=p['covariance_model'],
+            quantization_correction=bool(p['quantization_correction']))
         # known systematic gyro effects of the model (sensors.effects), compensated per increment
         self.gyro_effects = GyroEffects(p)
         self.compensating = self.gyro_effects.names()
         self._last_gyro_t: float | None = None
         jump, resync = float(p['max_stamp_jump']), int(p['resync_count'])
-        self.gyro_check = StreamCheck(period, max_norm=2.0 * period * float(p['gyro_max_rate']), jump_limit=jump,
+        self.gyro_check = StreamCheck(period, max_norm=2.0 * period * float(p['gyro_max_rate']),
+                                      jump_limit=jump,
                                       resync_count=resync)
         a_period = 1.0 / float(p['accel_rate'])
-        self.accel_check = StreamCheck(a_period, max_norm=2.0 * a_period * float(p['accel_max']), jump_limit=jump,
+        self.accel_check = StreamCheck(a_period, max_norm=2.0 * a_period * float(p['accel_max']),
+                                       jump_limit=jump,
                                        resync_count=resync)
         # updates whose output was not finite (never output)
         self.nonfinite = 0
@@ -140,10 +143,11 @@ class SinsSystem:
         self._throttle: dict[str, float] = {}
         self._out: tuple[list, list, list] = ([], [], [])
         self.has_output = False
-        attitude_kernel.warm_up()                  # compiled before the first message, if numba is there
+        attitude_kernel.warm_up()      # compiled before the first message, if numba is there
         self.nav: NavigationChannel | None = None
         if p['navigation']:
-            self.nav = NavigationChannel(p, sigmas_from(p, 'gyro'), sigmas_from(p, 'accel'), period, a_period,
+            self.nav = NavigationChannel(p, sigmas_from(p, 'gyro'), sigmas_from(p, 'accel'),
+                                         period, a_period,
                                          self.integrator.algorithm.samples)
             nav_recursion.warm_up()
             self._nav_prev_q = self.integrator.q.copy()
@@ -225,7 +229,8 @@ class SinsSystem:
         # gyro_rate says
         start = self._block_end_ns if self._block_end_ns is not None else self._gyro_in[
             0][0] - self._gyro_period_ns
-        return self._gyro_in[-1][0] - start >= self._batch_span_ns - 1 or len(self._gyro_in) >= MAX_BATCH
+        return (self._gyro_in[-1][0] - start >= self._batch_span_ns - 1
+                or len(self._gyro_in) >= MAX_BATCH)
 
     def offer_accel(self, stamp_ns: int, value, frame_id: str = '') -> bool:
         """One imu/delta_velocity message (m/s): validate and append.  True when a block is due."""
@@ -553,18 +558,19 @@ class SinsSystem:
             nav.start(float(t[0]) - self.integrator.nominal_period,
                       attitude_sigma=float(self.p['initial_attitude_sigma']))
             return False
-        comp = self.gyro_effects.compensate(inc, t, np.full(len(t), self.integrator.nominal_period)) \
-            if self.compensating else inc
+        periods = np.full(len(t), self.integrator.nominal_period)
+        comp = self.gyro_effects.compensate(inc, t, periods) if self.compensating else inc
         nav.align_gyro(comp, t)
         done, c_e_b, t_end = nav.try_align()
         if nav.alignment is not None and not nav.alignment.ok:
-            self._log('error', f'static alignment refused: {nav.alignment.reason}; trying again', throttle=5.0,
-                      key='alignment')
+            self._log('error', f'static alignment refused: {nav.alignment.reason}; trying again',
+                      throttle=5.0, key='alignment')
         if done:
             sigma = float(np.sqrt(np.trace(nav.alignment.covariance) / 3.0))
             self.integrator = AttitudeIntegrator(
-                self.integrator.algorithm_name, initial_attitude=dcm_to_quat(c_e_b), initial_time=t_end,
-                nominal_period=self.integrator.nominal_period, gyro=sigmas_from(self.p, 'gyro'), initial_sigma=sigma,
+                self.integrator.algorithm_name, initial_attitude=dcm_to_quat(c_e_b),
+                initial_time=t_end, nominal_period=self.integrator.nominal_period,
+                gyro=sigmas_from(self.p, 'gyro'), initial_sigma=sigma,
                 covariance_model=self.p['covariance_model'],
                 quantization_correction=bool(self.p['quantization_correction']))
             self._good = self.integrator.snapshot()
@@ -578,7 +584,8 @@ class SinsSystem:
     def _stamps_ns(self, t: np.ndarray) -> np.ndarray:
         return self.origin_ns + np.rint(np.asarray(t, dtype=float) * 1e9).astype(np.int64)
 
-    def _integrate(self, inc: np.ndarray, t: np.ndarray, stamps_ns, per_sample: bool = False) -> bool:
+    def _integrate(self, inc: np.ndarray, t: np.ndarray, stamps_ns,
+                   per_sample: bool = False) -> bool:
         """
         Compensate and integrate a block, collecting its outputs.
 
@@ -604,8 +611,8 @@ class SinsSystem:
             self.nonfinite += 1
             self.integrator.restore(self._good, inflate_sigma=NONFINITE_INFLATION)
             self._log('error', 'non-finite attitude: not published; state reset to the last good '
-                               'update '
-                      f'with {NONFINITE_INFLATION} rad added to its σ', throttle=5.0, key='nonfinite')
+                      f'update with {NONFINITE_INFLATION} rad added to its σ',
+                      throttle=5.0, key='nonfinite')
             return True
         if len(batch):
             self._good = self.integrator.snapshot()
@@ -617,15 +624,16 @@ class SinsSystem:
                 self.nav.add_updates(batch.stamps, batch.interval, batch.attitude, starts)
         imu_on = self._imu_wanted()                 # asked once per block
         if len(batch):
-            ns = np.array(
-                stamps_ns[batch.first_end::self.integrator.algorithm.samples], dtype=np.int64)
-            self._out[0].append(AttitudeOutput(ns, batch.attitude,
-                                batch.covariance, batch.mean_rate, batch.interval))
+            step = self.integrator.algorithm.samples
+            ns = np.array(stamps_ns[batch.first_end::step], dtype=np.int64)
+            self._out[0].append(AttitudeOutput(ns, batch.attitude, batch.covariance,
+                                               batch.mean_rate, batch.interval))
             self.has_output = True
             if imu_on:
                 for k in range(len(batch)):
-                    self.pending_imu.append((batch.stamps[k], batch.interval[k], int(ns[k]), batch.attitude[k],
-                                             batch.covariance[k], batch.mean_rate[k]))
+                    self.pending_imu.append((batch.stamps[k], batch.interval[k], int(ns[k]),
+                                             batch.attitude[k], batch.covariance[k],
+                                             batch.mean_rate[k]))
         if not imu_on and len(batch) and not self.pending_imu:
             self.accel.discard_through(float(batch.stamps[-1]))     # no sins/imu wants the Δv
         return True
@@ -643,7 +651,7 @@ class SinsSystem:
         newest = self.integrator.time if self.integrator.time is not None else -np.inf
         covered = self.accel.covered_until() + 1e-9
         ready = 0
-        for item in self.pending_imu:                  # stamps increase: the ready ones are a prefix
+        for item in self.pending_imu:      # stamps increase: the ready ones are a prefix
             if not final and item[0] > covered and newest - item[0] < wait:
                 break
             ready += 1
@@ -657,8 +665,8 @@ class SinsSystem:
         f = np.zeros((ready, 3))
         f[has] = dv[has] / h[has, None]
         self._out[1].append(ImuOutput(np.array([it[2] for it in items], dtype=np.int64),
-                                      np.array([it[3] for it in items]), np.array([it[4]
-                                                                                   for it in items]),
+                                      np.array([it[3] for it in items]),
+                                      np.array([it[4] for it in items]),
                                       np.array([it[5] for it in items]), f, has))
         self.has_output = True
 
@@ -669,8 +677,8 @@ class SinsSystem:
         nb = self.nav.process(np.inf if final else newest, float(self.p['accel_wait']))
         if nb is None or not len(nb):
             return
-        self._out[2].append(NavigationOutput(self._stamps_ns(nb.stamps), nb.position, nb.velocity, nb.attitude,
-                                             nb.covariance, nb.extrapolated))
+        self._out[2].append(NavigationOutput(self._stamps_ns(nb.stamps), nb.position, nb.velocity,
+                                             nb.attitude, nb.covariance, nb.extrapolated))
         self.has_output = True
 
     # --- state --------------------------------------------------------------------------------

@@ -289,10 +289,12 @@ class StreamCheck:
     # --- reporting -------------------------------------------------------------------------
     @property
     def dropped(self) -> int:
-        return self.nan + self.out_of_range + self.out_of_order + self.duplicate + self.stamp_outliers
+        return (self.nan + self.out_of_range + self.out_of_order + self.duplicate
+                + self.stamp_outliers)
 
     def rate_hz(self) -> float:
-        if self.first_ns is None or self.last_ns is None or self.last_ns <= self.first_ns or self.accepted_since < 2:
+        if self.first_ns is None or self.last_ns is None or self.last_ns <= self.first_ns \
+                or self.accepted_since < 2:
             return 0.0
         return (self.accepted_since - 1) / ((self.last_ns - self.first_ns) * 1e-9)
 
@@ -301,7 +303,8 @@ class StreamCheck:
                 f'{prefix}_rate_hz_from_stamps': self.rate_hz(), f'{prefix}_dropped_nan': self.nan,
                 f'{prefix}_dropped_out_of_range': self.out_of_range,
                 f'{prefix}_dropped_out_of_order': self.out_of_order,
-                f'{prefix}_dropped_duplicate': self.duplicate, f'{prefix}_dropped_stamp_outlier': self.stamp_outliers,
+                f'{prefix}_dropped_duplicate': self.duplicate,
+                f'{prefix}_dropped_stamp_outlier': self.stamp_outliers,
                 f'{prefix}_stamp_resyncs': self.resyncs, f'{prefix}_gaps': self.gaps,
                 f'{prefix}_missing_samples': self.missing, f'{prefix}_dropouts': self.dropouts,
                 f'{prefix}_stamp_bursts': self.bursts,
@@ -354,7 +357,8 @@ def validate(stamps_ns, values, check: StreamCheck):
                 starts.append(len(out_t))
                 prev = None
         for s, val in got:
-            if prev is not None and math.isfinite(check.nominal_ns) and s - prev > 1.5 * check.nominal_ns:
+            if prev is not None and math.isfinite(check.nominal_ns) \
+                    and s - prev > 1.5 * check.nominal_ns:
                 gaps.append((prev, s))
             out_t.append(s)
             out_v.append(val)
