@@ -276,7 +276,7 @@ def elementary_dcm(axis: int, angle) -> np.ndarray:
 
 
 def ypr_to_dcm(yaw, pitch, roll) -> np.ndarray:
-    """Return ``C_parent_child = R_z(−ψ) R_x(ϑ) R_y(γ)`` (004 eq. 1), child → parent coordinates."""
+    """Return ``C_parent_child = R_z(−ψ) R_x(ϑ) R_y(γ)`` (004 eq. 1): child → parent."""
     return (elementary_dcm(2, -np.asarray(yaw, dtype=float)) @ elementary_dcm(0, pitch)
             @ elementary_dcm(1, roll))
 

@@ -35,8 +35,8 @@ def test_every_topic_is_documented():
     for f in ('imu_sim_node.py', 'sins_node.py', 'star_camera_sim_node.py', 'calibrator_node.py',
               'attitude_filter_node.py'):
         src = _read('strapdown_ros', 'nodes', f)
-        topics |= set(re.findall(r'create_(?:publisher|subscription)\(\s*\w+,\s*["\']([^"\']+)["\']',
-                                 src))
+        created = r'create_(?:publisher|subscription)\(\s*\w+,\s*["\']([^"\']+)["\']'
+        topics |= set(re.findall(created, src))
     assert topics >= {'imu/delta_theta', 'imu/delta_velocity', 'imu/data_raw', 'sins/attitude',
                       'sins/imu', '/diagnostics', 'star_camera/attitude', 'calibration/boresight'}
     for t in topics:

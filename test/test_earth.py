@@ -90,7 +90,8 @@ def test_normal_exact_matches_harmonic_series():
         assert np.max(_angle_arcsec(ex, j2)) < 1.5     # measured 1.30″
 
 
-@pytest.mark.parametrize('model,pot', [('j2', G.j2_potential), ('normal_exact', G.normal_potential)])
+@pytest.mark.parametrize('model,pot', [('j2', G.j2_potential),
+                                       ('normal_exact', G.normal_potential)])
 def test_gravity_is_gradient_of_potential(model, pot):
     r = _random_points()
     g = G.normal_gravity(r, model)

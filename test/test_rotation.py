@@ -35,8 +35,8 @@ def test_rotvec_quaternion_dcm_roundtrips_and_rodrigues():
             term = term @ K / k
             expm = expm + term
         np.testing.assert_allclose(R.rotvec_to_dcm(p), expm, atol=1e-13)
-    np.testing.assert_allclose(R.dcm_to_quat(R.quat_to_dcm(q)) * np.sign(q[:, :1]), q * np.sign(q[:, :1]),
-                               atol=1e-13)
+    sign = np.sign(q[:, :1])
+    np.testing.assert_allclose(R.dcm_to_quat(R.quat_to_dcm(q)) * sign, q * sign, atol=1e-13)
 
 
 def test_small_and_zero_rotation_vectors_are_exact():
@@ -116,6 +116,6 @@ def test_ypr_error_maps_match_004_d1_d2_by_finite_differences():
 def test_aircraft_angles_of_000():
     phi = np.array([-0.5, 0.17, -0.6])        # 000 §6 initial angles
     q = R.aircraft_angles_to_quat(phi)
-    C = R.rotvec_to_dcm([0, phi[0], 0]) @ R.rotvec_to_dcm([0, 0, phi[1]]
-                        ) @ R.rotvec_to_dcm([phi[2], 0, 0])
+    C = (R.rotvec_to_dcm([0, phi[0], 0]) @ R.rotvec_to_dcm([0, 0, phi[1]])
+         @ R.rotvec_to_dcm([phi[2], 0, 0]))
     np.testing.assert_allclose(R.quat_to_dcm(q), C, atol=1e-15)

@@ -8,10 +8,11 @@ import numpy as np
 import pytest
 
 hypothesis = pytest.importorskip('hypothesis')
-from hypothesis import given, settings  # noqa: E402
-from hypothesis import strategies as st  # noqa: E402
+st = pytest.importorskip('hypothesis.strategies')
+given, settings = hypothesis.given, hypothesis.settings
 
-from strapdown_ros.rotation import (dcm_to_quat, from_ros_xyzw, quat_angle_between, quat_conjugate,
+from strapdown_ros.rotation import (dcm_to_quat, from_ros_xyzw,  # noqa: E402
+                                    quat_angle_between, quat_conjugate,
                                     quat_multiply, quat_normalize, quat_to_dcm, quat_to_rotvec,
                                     rotvec_to_quat, to_ros_xyzw)
 

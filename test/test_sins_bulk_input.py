@@ -241,7 +241,7 @@ def test_mcap_chunk_reader_gives_rosbags_records_in_rosbags_order(tmp_path):
     try:
         storage = mcap_records.indexed_mcap(rd)
         assert storage is not None and len(storage.chunks) >= 3
-        sel = [c for c in rd.connections]
+        sel = list(rd.connections)
         ref = {c.topic: [] for c in sel}
         for c, _, raw in rd.messages(connections=sel):
             ref[c.topic].append(vector3_stamped(raw))

@@ -1,7 +1,7 @@
 """
 Real message formats in the offline tools (strapdown_ros.recording).
 
-Real message formats in the offline tools (strapdown_ros.recording): the same simulated
+The same simulated
 motion written as sensor_msgs/Imu rates, Δθ increments, and PoseStamped / Odometry / TF
 references, read by calibrate_bag and discrepancy; truth is the injected boresight and gyro bias.
 Also: argument errors in one line (exit 2), and messages a corrupt MCAP chunk hides are counted,
@@ -17,12 +17,13 @@ pytest.importorskip('rosbags')
 
 from strapdown_ros.motion.profiles import MotionProfile  # noqa: E402
 from strapdown_ros.recording import read_bag  # noqa: E402
-from strapdown_ros.rotation import (dcm_to_quat, from_ros_xyzw, quat_conjugate, quat_error_rotvec,
+from strapdown_ros.rotation import (dcm_to_quat, from_ros_xyzw, quat_conjugate,  # noqa: E402
+                                    quat_error_rotvec,
                                     quat_multiply, rotvec_to_quat, to_ros_xyzw, ypr_to_dcm)
 from strapdown_ros.sensors import ARCSEC  # noqa: E402
 from strapdown_ros.sensors.star_camera import StarCameraModel  # noqa: E402
-from strapdown_ros.tools import record_sim  # noqa: E402
-from strapdown_ros.tools import calibrate_bag, calibrate_gyro_bag, discrepancy
+from strapdown_ros.tools import (calibrate_bag, calibrate_gyro_bag,  # noqa: E402
+                                 discrepancy, record_sim)
 
 BETA = np.radians([40.0, -25.0, 120.0])  # true boresight ψ, ϑ, γ
 BIAS = np.array([1.0e-5, -0.7e-5, 0.8e-5])  # injected gyro bias, rad/s (≈ 2 °/h, MEMS grade)
@@ -131,6 +132,8 @@ def motion():
 
 # --- writing bags with rosbags ---------------------------------------------------------------
 class BagWriter:
+    """Write bags with rosbags' own serializer (independent of the package's writer)."""
+
     def __init__(self):
         from rosbags.typesys import get_typestore, Stores
 
@@ -435,9 +438,9 @@ def test_dropped_rate_samples_are_counted_and_become_gaps(tmp_path, motion, caps
     bw = BagWriter()
     msgs = _gyro_messages(bw, motion, 'rate_at_stamp')
     bad = {
-        5100: dict(rate=[np.nan, 0.0, 0.0]),
-        9100: dict(rate=[1e308, 0.0, 0.0]),  # mid-interval
-        13100: dict(rate=motion.rate[13100], absent=True),
+        5100: {'rate': [np.nan, 0.0, 0.0]},
+        9100: {'rate': [1e308, 0.0, 0.0]},  # mid-interval
+        13100: {'rate': motion.rate[13100], 'absent': True},
     }  # of the fixes
     for k, kw in bad.items():
         msgs[k] = ('/imu/data', motion.stamps[k], bw.imu(motion.stamps[k], **kw))

@@ -18,8 +18,8 @@ def feed(check, stamps, values=None):
 
 def test_nan_range_duplicate_out_of_order_gap():
     c = StreamCheck(0.01, max_norm=2 * 0.01 * 20.0)
-    vals = [(0.001, 0, 0), (math.nan, 0, 0), (1e308, 1e308, 0.0), (1000.0, 0, 0), (0.001, 0, 0), (0.001, 0, 0),
-            (0.001, 0, 0), (0.001, 0, 0)]
+    vals = [(0.001, 0, 0), (math.nan, 0, 0), (1e308, 1e308, 0.0), (1000.0, 0, 0), (0.001, 0, 0),
+            (0.001, 0, 0), (0.001, 0, 0), (0.001, 0, 0)]
     got = feed(c, [1 * MS, 2 * MS, 3 * MS, 4 * MS, 5 * MS, 5 * MS, 4 * MS, 8 * MS], vals)
     assert got == [1 * MS, 5 * MS, 8 * MS]
     assert (c.nan, c.out_of_range, c.duplicate, c.out_of_order) == (1, 2, 1, 1)
@@ -39,7 +39,7 @@ def test_clock_reset_resynchronises_and_loses_nothing():
     before = [(1000 + k) * MS for k in range(10)]
     after = [k * MS for k in range(1, 20)]                 # the clock restarted near zero
     got = feed(c, before + after)
-    assert got == before + after                           # the held messages are released in order
+    assert got == before + after      # the held messages are released in order
     assert c.resyncs == 1 and c.out_of_order == 0 and c.last_jump_s < -9.0
     assert c.rate_hz() == np.float64(100.0) or abs(c.rate_hz() - 100.0) < 1e-9
 
