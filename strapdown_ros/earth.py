@@ -57,11 +57,22 @@ MISPRINTS = {
 # --- the 003 formula (scalar, pure math: numba.njit-able) -------------------------------
 def printed_gravity_xyz(x, y, z):
     """
-    003 normal gravity, corrected: ECEF position (m) → ECEF gravity (g_X, g_Y, g_Z), m/s².
+    Return 003's normal gravity, corrected, at one ECEF position.
 
     Pure ``math`` on scalars so that ``numba.njit(printed_gravity_xyz)`` compiles.  As printed
     except the two proven sign misprints (:data:`MISPRINTS`); e² = 0.0066934, η = 0.00346775,
     g_e = 9.780318 as printed.  On the Z axis (m = 0) g_X = g_Y = 0.
+
+    Parameters
+    ----------
+    x, y, z : float
+        ECEF position, m.
+
+    Returns
+    -------
+    (float, float, float)
+        ECEF gravity (g_X, g_Y, g_Z), m/s².
+
     """
     m = math.sqrt(x * x + y * y)
     r = math.sqrt(x * x + y * y + z * z)
@@ -79,7 +90,22 @@ def printed_gravity_xyz(x, y, z):
 
 
 def printed_gravity_as_printed(x, y, z):
-    """003 formula literally as printed (e² = 0.0066934, +Ω²R in g2, −g2 cosφ in g_Z)."""
+    """
+    Return 003's normal gravity literally as printed, at one ECEF position.
+
+    e² = 0.0066934, +Ω²R in g2, −g2 cosφ in g_Z (the misprint study's reference).
+
+    Parameters
+    ----------
+    x, y, z : float
+        ECEF position, m.
+
+    Returns
+    -------
+    (float, float, float)
+        ECEF gravity (g_X, g_Y, g_Z), m/s².
+
+    """
     m = math.sqrt(x * x + y * y)
     r = math.sqrt(x * x + y * y + z * z)
     s = z / r
@@ -96,7 +122,32 @@ def printed_gravity_as_printed(x, y, z):
 
 
 def printed_gravity_variant(r, e2=E2_003, g2_omega_sign=-1.0, gz_sign=1.0, ge=GE, eta=ETA_003):
-    """Vectorised 003 formula with the disputed pieces as parameters (defaults = corrected)."""
+    """
+    Return 003's gravity formula, vectorised, with the disputed pieces as parameters.
+
+    The defaults are the corrected formula (:func:`printed_gravity_xyz`).
+
+    Parameters
+    ----------
+    r : array_like (..., 3)
+        ECEF positions, m.
+    e2 : float
+        First eccentricity squared.
+    g2_omega_sign : float
+        Sign of the Ω²R term in g2 (+1 as printed, −1 corrected).
+    gz_sign : float
+        Sign of the g2 cosφ term in g_Z (−1 as printed, +1 corrected).
+    ge : float
+        Equatorial gravity, m/s².
+    eta : float
+        η = aΩ²/g_e.
+
+    Returns
+    -------
+    ndarray (..., 3)
+        ECEF gravity, m/s².
+
+    """
     r = np.asarray(r, dtype=np.float64)
     x, y, z = r[..., 0], r[..., 1], r[..., 2]
     m = np.sqrt(x * x + y * y)
@@ -122,7 +173,30 @@ def _pz90_003(r):
 
 # --- independent references ------------------------------------------------------------
 def j2_potential(r, gm=GM, j2=J2, a=A, omega=OMEGA):
-    """Gravity potential GM/R·(1 − J2 (a/R)² P2(sinφ)) + ½Ω²(X²+Y²), m²/s²."""
+    """
+    Return the J2 gravity potential plus the centrifugal potential.
+
+    GM/R·(1 − J2 (a/R)² P2(sinφ)) + ½Ω²(X²+Y²).
+
+    Parameters
+    ----------
+    r : array_like (..., 3)
+        ECEF positions, m.
+    gm : float
+        Gravitational parameter, m³/s².
+    j2 : float
+        Second zonal coefficient.
+    a : float
+        Equatorial radius, m.
+    omega : float
+        Earth rate, rad/s.
+
+    Returns
+    -------
+    ndarray (...)
+        Potential, m²/s².
+
+    """
     r = np.asarray(r, dtype=np.float64)
     rr2 = np.sum(r * r, axis=-1)
     rr = np.sqrt(rr2)
@@ -183,7 +257,22 @@ def _ellipsoidal(r, ell):
 
 
 def normal_potential(r, ell=PZ90_11):
-    """Exact normal potential of the level ellipsoid (H&M 2-126) + centrifugal, m²/s²."""
+    """
+    Return the exact normal potential of the level ellipsoid (H&M 2-126) plus centrifugal.
+
+    Parameters
+    ----------
+    r : array_like (..., 3)
+        ECEF positions, m.
+    ell : Ellipsoid
+        The level ellipsoid (default PZ-90.11).
+
+    Returns
+    -------
+    ndarray (...)
+        Potential, m²/s².
+
+    """
     r = np.asarray(r, dtype=np.float64)
     u, sb, _, e, b = _ellipsoidal(r, ell)
     q, _ = _q(u, e)
@@ -194,7 +283,22 @@ def normal_potential(r, ell=PZ90_11):
 
 
 def normal_gravity_exact(r, ell=PZ90_11):
-    """Analytic gradient of :func:`normal_potential` through (u, β); exact at any height."""
+    """
+    Return the analytic gradient of :func:`normal_potential`; exact at any height.
+
+    Parameters
+    ----------
+    r : array_like (..., 3)
+        ECEF positions, m.
+    ell : Ellipsoid
+        The level ellipsoid (default PZ-90.11).
+
+    Returns
+    -------
+    ndarray (..., 3)
+        ECEF gravity (gravitation + centrifugal), m/s².
+
+    """
     r = np.asarray(r, dtype=np.float64)
     u, sb, e2l, e, b = _ellipsoidal(r, ell)
     q, dq = _q(u, e)
@@ -213,7 +317,22 @@ def normal_gravity_exact(r, ell=PZ90_11):
 
 
 def somigliana(lat, ell=PZ90_11):
-    """Return the normal gravity magnitude on the ellipsoid (Somigliana, closed form)."""
+    """
+    Return the normal gravity magnitude on the ellipsoid (Somigliana, closed form).
+
+    Parameters
+    ----------
+    lat : float or array_like
+        Geodetic latitude, rad.
+    ell : Ellipsoid
+        The level ellipsoid (default PZ-90.11).
+
+    Returns
+    -------
+    float or ndarray
+        Gravity magnitude on the ellipsoid surface, m/s².
+
+    """
     b = ell.a * (1.0 - ell.f)
     e = math.sqrt(ell.a ** 2 - b * b)
     ep = e / b
@@ -227,7 +346,20 @@ def somigliana(lat, ell=PZ90_11):
 
 
 def level_ellipsoid_j2(ell=PZ90_11):
-    """J2 implied by (a, f, GM, ω) of a level ellipsoid: e²/3·(1 − 2 m e′/(15 q0))."""
+    """
+    Return the J2 implied by (a, f, GM, ω) of a level ellipsoid: e²/3·(1 − 2 m e′/(15 q0)).
+
+    Parameters
+    ----------
+    ell : Ellipsoid
+        The level ellipsoid (default PZ-90.11).
+
+    Returns
+    -------
+    float
+        J2.
+
+    """
     b = ell.a * (1.0 - ell.f)
     e = math.sqrt(ell.a ** 2 - b * b)
     mm = ell.omega ** 2 * ell.a ** 2 * b / ell.gm
@@ -299,7 +431,25 @@ SCALAR_GRAVITY = {'pz90_003': printed_gravity_xyz, 'normal_exact': normal_exact_
 
 
 def get_gravity_model(name):
-    """Return the vectorised gravity function registered under ``name``."""
+    """
+    Return the vectorised gravity function registered under ``name``.
+
+    Parameters
+    ----------
+    name : str
+        A key of :data:`GRAVITY_MODELS`.
+
+    Returns
+    -------
+    callable
+        r (..., 3) ECEF, m → g (..., 3) ECEF, m/s².
+
+    Raises
+    ------
+    ValueError
+        For an unknown name, listing the valid ones.
+
+    """
     try:
         return GRAVITY_MODELS[name]
     except KeyError:
@@ -308,13 +458,47 @@ def get_gravity_model(name):
 
 
 def normal_gravity(r, model=DEFAULT_GRAVITY_MODEL):
-    """ECEF gravity vector (gravitation + centrifugal), m/s², at ECEF positions r (..., 3), m."""
+    """
+    Return the ECEF gravity vector (gravitation + centrifugal) at ECEF positions.
+
+    Parameters
+    ----------
+    r : array_like (..., 3)
+        ECEF positions, m.
+    model : str
+        A key of :data:`GRAVITY_MODELS`.
+
+    Returns
+    -------
+    ndarray (..., 3)
+        Gravity, m/s², ECEF axes.
+
+    """
     return get_gravity_model(model)(np.asarray(r, dtype=np.float64))
 
 
 # --- geodesy (PZ-90.11 ellipsoid) -------------------------------------------------------
 def geodetic_to_ecef(lat, lon, h, a=A, f=F):
-    """Geodetic latitude/longitude (rad) and height (m) → ECEF (..., 3), m."""
+    """
+    Convert geodetic coordinates to ECEF positions.
+
+    Parameters
+    ----------
+    lat, lon : float or array_like
+        Geodetic latitude and longitude, rad.
+    h : float or array_like
+        Height above the ellipsoid, m.
+    a : float
+        Equatorial radius, m.
+    f : float
+        Flattening.
+
+    Returns
+    -------
+    ndarray (..., 3)
+        ECEF positions, m.
+
+    """
     lat, lon, h = np.broadcast_arrays(*(np.asarray(v, dtype=np.float64) for v in (lat, lon, h)))
     e2 = f * (2.0 - f)
     sl = np.sin(lat)
@@ -324,7 +508,26 @@ def geodetic_to_ecef(lat, lon, h, a=A, f=F):
 
 
 def ecef_to_geodetic(r, a=A, f=F):
-    """ECEF (..., 3) → (lat, lon, h); Bowring iteration (4 steps: < 1e-15 rad, < 1e-8 m)."""
+    """
+    Convert ECEF positions to geodetic coordinates (Bowring iteration, 4 steps).
+
+    Four steps give < 1e-15 rad and < 1e-8 m.
+
+    Parameters
+    ----------
+    r : array_like (..., 3)
+        ECEF positions, m.
+    a : float
+        Equatorial radius, m.
+    f : float
+        Flattening.
+
+    Returns
+    -------
+    (ndarray, ndarray, ndarray)
+        Latitude and longitude, rad, and height, m.
+
+    """
     r = np.asarray(r, dtype=np.float64)
     x, y, z = r[..., 0], r[..., 1], r[..., 2]
     e2 = f * (2.0 - f)
@@ -341,7 +544,20 @@ def ecef_to_geodetic(r, a=A, f=F):
 
 
 def enu_rotation(lat, lon):
-    """C_ecef_enu (..., 3, 3): columns are east, north, up expressed in ECEF."""
+    """
+    Return ``C_ecef_enu``: its columns are east, north and up expressed in ECEF.
+
+    Parameters
+    ----------
+    lat, lon : float or array_like
+        Geodetic latitude and longitude, rad.
+
+    Returns
+    -------
+    ndarray (..., 3, 3)
+        ``C_ecef_enu``, mapping ENU coordinates to ECEF.
+
+    """
     lat, lon = np.broadcast_arrays(np.asarray(lat, dtype=np.float64),
                                    np.asarray(lon, dtype=np.float64))
     sl, cl, so, co = np.sin(lat), np.cos(lat), np.sin(lon), np.cos(lon)
@@ -361,11 +577,25 @@ def _angle_arcsec(g1, g2):
 def compare_models(test='pz90_003', reference='normal_exact', heights=(0.0, 1e3, 1e4, 2e4, 1e5),
                    lat_step_deg=5.0, lon_deg=(0.0, 37.0, 143.0, -100.0)):
     """
-    Differences of ``test`` against ``reference`` on a geodetic grid, per height.
+    Return the differences of ``test`` against ``reference`` on a geodetic grid, per height.
 
-    ``test``/``reference`` are registry names or callables r (...,3) → g (...,3).  Returns
-    {h: {"max_mag", "rms_mag" (m/s²), "max_mag_mgal", "rms_mag_mgal", "max_dir_arcsec",
-    "rms_dir_arcsec", "worst_lat_deg"}}.
+    Parameters
+    ----------
+    test, reference : str or callable
+        Registry names or callables r (..., 3) → g (..., 3).
+    heights : sequence of float
+        Heights above the ellipsoid, m.
+    lat_step_deg : float
+        Latitude step of the grid, degrees.
+    lon_deg : sequence of float
+        Longitudes of the grid, degrees.
+
+    Returns
+    -------
+    dict
+        {h: {"max_mag", "rms_mag" (m/s²), "max_mag_mgal", "rms_mag_mgal", "max_dir_arcsec",
+        "rms_dir_arcsec", "worst_lat_deg"}}.
+
     """
     ft = get_gravity_model(test) if isinstance(test, str) else test
     fr = get_gravity_model(reference) if isinstance(reference, str) else reference
