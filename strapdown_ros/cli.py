@@ -33,6 +33,15 @@ class OneLineParser(argparse.ArgumentParser):
     """An argparse parser whose errors are one line on stderr and exit 2, no usage block."""
 
     def error(self, message):
+        """
+        Print ``prog: error: message`` on stderr and exit 2.
+
+        Parameters
+        ----------
+        message : str
+            The error, one line.
+
+        """
         print(f'{self.prog}: error: {message}', file=sys.stderr)
         sys.exit(2)
 
@@ -52,8 +61,20 @@ def check_output_file(path, what: str) -> None:
     """
     Check that ``path`` can be written as a file.
 
-    ``path`` can be written as a file: its directory exists and takes a write, it is no
-    directory.
+    Its directory exists and takes a write, and it is no directory.
+
+    Parameters
+    ----------
+    path : str or os.PathLike or None
+        The output file (None or '': not asked for, nothing checked).
+    what : str
+        How the message names it (the option, e.g. ``--json``).
+
+    Raises
+    ------
+    ValueError
+        One line naming ``what`` and ``path``.
+
     """
     if not path:
         return
@@ -64,7 +85,22 @@ def check_output_file(path, what: str) -> None:
 
 
 def check_output_dir(path, what: str) -> None:
-    """``path`` is a directory that takes a write, or can be created in one."""
+    """
+    Check that ``path`` is a directory that takes a write, or can be created in one.
+
+    Parameters
+    ----------
+    path : str or os.PathLike or None
+        The output directory (None or '': not asked for, nothing checked).
+    what : str
+        How the message names it (the option, e.g. ``--outdir``).
+
+    Raises
+    ------
+    ValueError
+        One line naming ``what`` and ``path``.
+
+    """
     if not path:
         return
     p = Path(path)
@@ -97,6 +133,11 @@ def check_outputs(outputs: Iterable[Sequence], inputs: Iterable[Sequence], force
         Every file or directory the tool reads (None or '' skipped).
     force : bool
         ``--force`` was given: an existing output may be replaced.
+
+    Raises
+    ------
+    ValueError
+        One line naming the option and the path that break the rule.
 
     """
     outputs = [tuple(o) for o in outputs]
@@ -145,12 +186,39 @@ def check_outputs(outputs: Iterable[Sequence], inputs: Iterable[Sequence], force
 
 
 def write_text(path, text: str) -> None:
-    """Write a text file atomically (OSError names ``path``)."""
+    """
+    Write a text file atomically.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The file.
+    text : str
+        Its content, UTF-8.
+
+    Raises
+    ------
+    OSError
+        Naming ``path``.
+
+    """
     atomic_write_text(path, text)
 
 
 def write_json(path, data, indent: int = 1) -> None:
-    """Write a JSON result file atomically (strict JSON, newline-terminated)."""
+    """
+    Write a JSON result file atomically (strict JSON: no NaN, newline-terminated).
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The file.
+    data : object
+        Plain JSON values (see :func:`strapdown_ros.text.json_clean`).
+    indent : int
+        Indentation of the JSON text.
+
+    """
     atomic_write_text(path, json.dumps(data, indent=indent, allow_nan=False) + '\n')
 
 
@@ -158,7 +226,16 @@ def write_figure(fig, path, **kwargs) -> None:
     """
     Save a matplotlib figure atomically.
 
-    A matplotlib figure saved atomically (a temporary file with the same extension in the
-    same directory, then ``os.replace``); ``kwargs`` go to ``savefig`` (``dpi``).
+    A temporary file with the same extension in the same directory, then ``os.replace``.
+
+    Parameters
+    ----------
+    fig : matplotlib.figure.Figure
+        The figure.
+    path : str or os.PathLike
+        The image file; its extension gives the format.
+    **kwargs
+        Passed to ``savefig`` (``dpi``).
+
     """
     atomic_savefig(fig, path, **kwargs)

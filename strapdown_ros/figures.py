@@ -9,7 +9,24 @@ __all__ = ['save_figure']
 
 
 def save_figure(fig, outdir: str, name: str) -> str:
-    """Lay out, write ``outdir/name`` (PNG, 110 dpi) and close a figure; returns the path."""
+    """
+    Lay out, write and close a figure.
+
+    Parameters
+    ----------
+    fig : matplotlib.figure.Figure
+        The figure.
+    outdir : str
+        The output directory.
+    name : str
+        The file name (PNG, written at 110 dpi).
+
+    Returns
+    -------
+    str
+        The path written.
+
+    """
     import matplotlib.pyplot as plt
 
     fig.tight_layout()

@@ -155,7 +155,15 @@ def commit_directory(staged, path) -> None:
 
 
 def discard_directory(staged) -> None:
-    """Remove a staged directory (a failed or interrupted run); the target is untouched."""
+    """
+    Remove a staged directory (a failed or interrupted run); the target is untouched.
+
+    Parameters
+    ----------
+    staged : str or os.PathLike
+        A path from :func:`stage_directory`.
+
+    """
     shutil.rmtree(Path(staged).parent, ignore_errors=True)
 
 
