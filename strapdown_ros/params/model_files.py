@@ -20,14 +20,27 @@ def load_model(path: str | None) -> tuple[dict, dict]:
     """
     Read a nominal model from a ROS 2 parameter file of the package's nodes.
 
-    A nominal model from a ROS 2 parameter file: the ``/**`` block and the blocks of the
-    package's nodes merged (``/**`` first, then imu_sim_node, star_camera_sim_node, sins_node,
-    calibrator_node), every key validated by the node that declares it.
+    The ``/**`` block and the blocks of the package's nodes are merged (``/**`` first, then
+    imu_sim_node, star_camera_sim_node, sins_node, calibrator_node), every key validated by the
+    node that declares it.
 
-    Returns (values, raw): ``values`` holds every parameter of every node (defaults where the
-    file is silent; ``path`` None: every default), ``raw`` the parsed document.  Raises
-    ValueError naming a key that no node of the package knows, a block that names no node, or an
-    invalid value.
+    Parameters
+    ----------
+    path : str or None
+        The parameter file (None: every default).
+
+    Returns
+    -------
+    (dict, dict)
+        ``values``: every parameter of every node (defaults where the file is silent), and
+        ``raw``: the parsed document.
+
+    Raises
+    ------
+    ValueError
+        Naming a key that no node of the package knows, a block that names no node, or an
+        invalid value.
+
     """
     import yaml
 
@@ -80,10 +93,21 @@ def write_model(path: str, doc: dict | None, updates: dict, comment: str) -> Non
     """
     Write a model file with ``updates`` set, atomically.
 
-    Write a model file: ``doc`` (the parsed parameter document, not modified) with ``updates``
-    set in ``/**`` and in every node block that sets the same key (so the block does not
-    override the new value), atomically, under a ``# comment`` line.  Plain copies: no YAML
-    anchors.
+    ``updates`` are set in ``/**`` and in every node block that sets the same key (so the block
+    does not override the new value); the file starts with a ``# comment`` line.  Plain copies:
+    no YAML anchors.
+
+    Parameters
+    ----------
+    path : str
+        The model file to write.
+    doc : dict or None
+        The parsed parameter document (not modified).
+    updates : dict
+        Parameter name → new value (plain JSON values).
+    comment : str
+        The first line's comment, without ``#``.
+
     """
     import yaml
 
@@ -101,7 +125,29 @@ def write_model(path: str, doc: dict | None, updates: dict, comment: str) -> Non
 
 def simulator_parameters(params_file: str | None = None, overrides: dict | None = None,
                          duration: float | None = None) -> tuple[dict, dict]:
-    """Return the validated parameters of the two simulator nodes."""
+    """
+    Return the validated parameters of imu_sim_node and star_camera_sim_node.
+
+    Parameters
+    ----------
+    params_file : str or None
+        A ROS 2 parameter file (None: defaults, profile ``bench``).
+    overrides : dict or None
+        Parameter values that win over the file (both nodes).
+    duration : float or None
+        Simulated seconds (both nodes), or None for the file's value.
+
+    Returns
+    -------
+    (dict, dict)
+        The parameters of imu_sim_node and of star_camera_sim_node.
+
+    Raises
+    ------
+    ValueError
+        An invalid value, naming the valid ones.
+
+    """
     imu_raw, cam_raw = {'profile': 'bench'}, {'profile': 'bench'}
     if params_file:
         imu_raw.update(load_parameter_file(params_file, 'imu_sim_node'))

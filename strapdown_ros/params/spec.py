@@ -16,7 +16,31 @@ import numpy as np
 
 @dataclass(frozen=True)
 class ParamSpec:
-    """One parameter: default, unit and meaning, and its validation (range or choices)."""
+    """
+    One parameter: default, unit and meaning, and its validation (range or choices).
+
+    Parameters
+    ----------
+    name : str
+        The ROS parameter name.
+    default : bool, int, float, str or list of float
+        Default value; its type is the parameter's type.
+    description : str
+        Meaning and unit (the table's "meaning" column).
+    minimum, maximum : float or None
+        Range of a number (None: unbounded).
+    choices : sequence of str or None
+        The valid names of a string parameter.
+    exclusive_minimum : bool
+        ``minimum`` itself is invalid.
+    length : int or None
+        Length of an array parameter.
+    element_ranges : tuple of (float or None, float or None), optional
+        Arrays: (minimum, maximum) of each element, instead of minimum/maximum.
+    element_names : tuple of str, optional
+        Arrays: the names of the elements in the range text (e.g. ``('latitude °', ...)``).
+
+    """
 
     name: str
     default: Any
@@ -42,6 +66,17 @@ class ParamSpec:
         is read as a list of doubles; a double given as an integer as a double; an integer given
         as an integral double (``5.0``) as an integer; a number given as text that YAML did not
         read as one (``1.0e9``: YAML 1.1 wants ``1.0e+9``) as that number.
+
+        Parameters
+        ----------
+        value : object
+            The value as given (YAML, command line or rclpy).
+
+        Returns
+        -------
+        object
+            The value to check and use.
+
         """
         number = isinstance(value, (int, float)) and not isinstance(value, bool)
         numeric_default = (isinstance(self.default, (int, float))
@@ -66,7 +101,20 @@ class ParamSpec:
         return value
 
     def check(self, value) -> str | None:
-        """Return an error message that names the valid values, or None when valid."""
+        """
+        Return an error message that names the valid values, or None when valid.
+
+        Parameters
+        ----------
+        value : object
+            A value (normalised by :meth:`normalise` for choices).
+
+        Returns
+        -------
+        str or None
+            One line naming the parameter, the value and the valid values.
+
+        """
         if self.choices is not None:
             value = self.normalise(value)
             if value not in self.choices:
@@ -119,6 +167,7 @@ class ParamSpec:
         return f'{shown} is out of range; valid: {self.range_text()}'
 
     def range_text(self) -> str:
+        """Return the valid values as text (the table's "valid" column and the error messages)."""
         if self.choices is not None:
             return ', '.join(map(str, self.choices))
 
@@ -142,8 +191,26 @@ def load_parameter_file(path: str, node_name: str) -> dict:
     """
     Read the parameters of ``node_name`` from a ROS 2 parameter YAML file.
 
-    Parameters for ``node_name`` from a ROS 2 parameter YAML file (``/**`` wildcard
-    and exact node names are merged, exact names win), as the nodes would see them.
+    ``/**`` wildcard and exact node names are merged (exact names win), as the nodes would
+    see them.
+
+    Parameters
+    ----------
+    path : str
+        The parameter file.
+    node_name : str
+        The node, without namespace.
+
+    Returns
+    -------
+    dict
+        Parameter name → value, not validated.
+
+    Raises
+    ------
+    ValueError
+        An unreadable file or not a mapping of node names, in one line.
+
     """
     import yaml
 
@@ -198,7 +265,25 @@ def markdown_table(specs: Sequence[ParamSpec]) -> str:
 
 
 def parse_overrides(items) -> dict:
-    """``name:=value`` strings (ROS 2 ``-p`` syntax) → dict; values parsed as YAML."""
+    """
+    Parse ``name:=value`` strings (ROS 2 ``-p`` syntax); values are read as YAML.
+
+    Parameters
+    ----------
+    items : iterable of str or None
+        The overrides.
+
+    Returns
+    -------
+    dict
+        Parameter name → value.
+
+    Raises
+    ------
+    ValueError
+        An item without ``:=`` or without a name.
+
+    """
     import yaml  # optional extra (PyYAML ships with every ROS 2 installation)
 
     out = {}

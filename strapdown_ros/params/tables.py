@@ -228,6 +228,23 @@ SINS_PARAMS = GYRO_PARAMS + ACCEL_PARAMS + COMMON_PARAMS + INPUT_PARAMS + ACCEL_
 
 
 def sigmas_from(values: dict, prefix: str) -> SensorSigmas:
+    """
+    Return the sensor statistics of a parameter set.
+
+    Parameters
+    ----------
+    values : dict
+        Validated parameters holding ``<prefix>_bias_sigma`` and the others of
+        the sensor tables.
+    prefix : {'gyro', 'accel'}
+        Which sensor.
+
+    Returns
+    -------
+    SensorSigmas
+        The statistics (σ of bias, scale, misalignment, random walk, quantum).
+
+    """
     return SensorSigmas.from_params(values, prefix)
 
 

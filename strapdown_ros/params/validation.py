@@ -59,11 +59,29 @@ def combination_error(values: dict) -> str | None:
 
 def check_all(specs: Sequence[ParamSpec], values: dict) -> dict:
     """
-    Fill defaults and validate; raises ValueError listing the valid values.
+    Fill in the defaults and validate a node's parameter values.
 
     Names that another node of the package declares are ignored (a shared parameter file
     serves several nodes, as ROS itself ignores undeclared parameters); any other name is
     an error, so a typo does not pass silently.
+
+    Parameters
+    ----------
+    specs : sequence of ParamSpec
+        The node's table.
+    values : dict
+        Parameter name → value, any subset.
+
+    Returns
+    -------
+    dict
+        Every parameter of ``specs``, normalised.
+
+    Raises
+    ------
+    ValueError
+        An unknown name, an invalid value or combination, naming the valid values.
+
     """
     out = {}
     known = {s.name for s in specs}
