@@ -42,6 +42,7 @@ class AttitudeOutput(_Arrays):
 
     @classmethod
     def empty(cls):
+        """Return a record with no update (zero-length arrays)."""
         return cls(np.zeros(0, np.int64), np.zeros((0, 4)), np.zeros((0, 3, 3)), np.zeros((0, 3)),
                    np.zeros(0))
 
@@ -65,6 +66,7 @@ class ImuOutput(_Arrays):
 
     @classmethod
     def empty(cls):
+        """Return a record with no sins/imu record (zero-length arrays)."""
         return cls(np.zeros(0, np.int64), np.zeros((0, 4)), np.zeros((0, 3, 3)), np.zeros((0, 3)),
                    np.zeros((0, 3)), np.zeros(0, bool))
 
@@ -82,6 +84,7 @@ class NavigationOutput(_Arrays):
 
     @classmethod
     def empty(cls):
+        """Return a record with no navigation step (zero-length arrays)."""
         return cls(np.zeros(0, np.int64), np.zeros((0, 3)), np.zeros((0, 3)), np.zeros((0, 4)),
                    np.zeros((0, 9, 9)), np.zeros(0, bool))
 
@@ -108,10 +111,23 @@ def odometry_arrays(nav: NavigationOutput,
     """
     Return the nav_msgs/Odometry numbers of navigation steps (REP-105).
 
-    The nav_msgs/Odometry numbers of navigation steps (REP-105): pose covariance (K, 36) of
-    [position, ψ about earth axes], velocity in body axes (K, 3) and the twist covariance (K, 36)
-    ([body velocity, angular rate]; the angular block ``rate_variance`` per axis: the rate itself
-    is on sins/imu, twist.angular is not filled).
+    Parameters
+    ----------
+    nav : NavigationOutput
+        K navigation steps.
+    rate_variance : float
+        Variance of the angular rate per axis, (rad/s)², for the twist's angular block (the
+        rate itself is on sins/imu; twist.angular is not filled).
+
+    Returns
+    -------
+    pose_covariance : ndarray (K, 36)
+        Row-major 6×6 covariance of [position, ψ about earth axes], m², rad².
+    body_velocity : ndarray (K, 3)
+        Velocity in body axes, m/s.
+    twist_covariance : ndarray (K, 36)
+        Row-major 6×6 covariance of [body velocity, angular rate].
+
     """
     k = len(nav)
     p = nav.covariance

@@ -71,12 +71,6 @@ class SinsSystem:
     """
     The processing of ``sins_node``: input rules, blocks, integration and navigation.
 
-    sins_node's processing.  ``params``: validated :data:`~strapdown_ros.params.SINS_PARAMS`
-    (copied); ``log(level, text)``: where messages go (level ``info``, ``warn`` or ``error``;
-    repeated warnings are throttled here); ``imu_wanted()``: asked once per block whether
-    ``sins/imu`` records are wanted (False: none are made and the accelerometer data only feed
-    the navigation).
-
     Feeding: :meth:`offer_gyro` / :meth:`offer_accel` for every message, in arrival order; when
     one returns True a block is due: call :meth:`process`, which integrates what is buffered and
     returns everything produced since the last call (:class:`SinsOutput`).  :meth:`process` may
@@ -84,6 +78,23 @@ class SinsSystem:
     tells that outputs are waiting without a block being due (a stamp resynchronisation
     processed the old time base).  :meth:`finish` (end of a recording) releases the outputs
     still waiting for accelerometer data, as ``accel_wait`` would.
+
+    Parameters
+    ----------
+    params : dict
+        Validated :data:`~strapdown_ros.params.SINS_PARAMS` (copied).
+    log : callable(level, text), optional
+        Where messages go (level ``info``, ``warn`` or ``error``; repeated warnings are
+        throttled here).  None: messages are dropped.
+    imu_wanted : callable() -> bool, optional
+        Asked once per block whether ``sins/imu`` records are wanted (False: none are made and
+        the accelerometer data only feed the navigation).  None: always wanted.
+
+    Raises
+    ------
+    ValueError
+        ``initial_orientation`` is the zero quaternion.
+
     """
 
     def __init__(self, params: dict, log: Callable[[str, str], None] | None = None,
@@ -198,15 +209,43 @@ class SinsSystem:
         """
         Apply the frame rule alone, for input checked before :meth:`offer_gyro`.
 
-        The frame rule alone, for input checked before it reaches :meth:`offer_gyro` (a
-        ``sensor_msgs/Imu`` rate sample, before it is made into increments): True when
-        ``frame_id`` is empty or ``frame_id``, or another frame counted under ``stream`` and
-        accepted (``frame_mismatch`` accept).
+        Used for a ``sensor_msgs/Imu`` rate sample, before it is made into increments.
+
+        Parameters
+        ----------
+        frame_id : str
+            The message's header.frame_id.
+        stream : {'gyro', 'accel'}
+            The counter a foreign frame is counted under.
+
+        Returns
+        -------
+        bool
+            True when ``frame_id`` is empty or the body frame, or another frame that is counted and
+            accepted (``frame_mismatch`` accept).
+
         """
         return frame_id in self._own_frames or not self._wrong_frame(frame_id, stream)
 
     def offer_gyro(self, stamp_ns: int, value, frame_id: str = '') -> bool:
-        """One imu/delta_theta message (rad): validate and append.  True when a block is due."""
+        """
+        Validate and append one imu/delta_theta message.
+
+        Parameters
+        ----------
+        stamp_ns : int
+            Header stamp, ns.
+        value : sequence of float
+            Δθ, rad, body axes.
+        frame_id : str
+            The message's header.frame_id.
+
+        Returns
+        -------
+        bool
+            True when a block is due (call :meth:`process`).
+
+        """
         if frame_id not in self._own_frames and self._wrong_frame(frame_id, 'gyro'):
             return False
         out = self.gyro_check.offer(stamp_ns, value)
@@ -219,21 +258,38 @@ class SinsSystem:
             self._block_end_ns = None
             self.origin_ns = None
             self._log('error', f'gyro stamps jumped by {self.gyro_check.last_jump_s:.6g} s and '
-                               f'stayed: '
-                      'resynchronised to the new time base; the rotation during the jump is lost')
+                      'stayed: resynchronised to the new time base; the rotation during the jump '
+                      'is lost')
         if self.origin_ns is None:
             self.origin_ns = out[0][0]
         self._gyro_in += out                               # (stamp_ns, (x, y, z)); times in _run
         # the stamp time the block covers, from the end of the previous block (at 100 Hz with
         # batch_period 0.01 every message is processed at once; at 1 kHz, blocks of 10), whatever
         # gyro_rate says
-        start = self._block_end_ns if self._block_end_ns is not None else self._gyro_in[
-            0][0] - self._gyro_period_ns
+        start = (self._block_end_ns if self._block_end_ns is not None
+                 else self._gyro_in[0][0] - self._gyro_period_ns)
         return (self._gyro_in[-1][0] - start >= self._batch_span_ns - 1
                 or len(self._gyro_in) >= MAX_BATCH)
 
     def offer_accel(self, stamp_ns: int, value, frame_id: str = '') -> bool:
-        """One imu/delta_velocity message (m/s): validate and append.  True when a block is due."""
+        """
+        Validate and append one imu/delta_velocity message.
+
+        Parameters
+        ----------
+        stamp_ns : int
+            Header stamp, ns.
+        value : sequence of float
+            Δv, m/s, body axes.
+        frame_id : str
+            The message's header.frame_id.
+
+        Returns
+        -------
+        bool
+            True when a block is due (call :meth:`process`).
+
+        """
         if frame_id not in self._own_frames and self._wrong_frame(frame_id, 'accel'):
             return False
         out = self.accel_check.offer(stamp_ns, value)
@@ -448,10 +504,25 @@ class SinsSystem:
 
     def set_algorithm(self, name: str) -> bool:
         """
-        Switch the coning algorithm at runtime.
+        Switch the coning algorithm at runtime (attitude only).
 
-        Switch the coning algorithm at runtime (attitude only; the samples buffered so far are
-        integrated with the old one first).  True when it changed.
+        The increments buffered so far are integrated with the old algorithm first.
+
+        Parameters
+        ----------
+        name : str
+            A name of :data:`strapdown_ros.attitude.coning.ALGORITHMS`.
+
+        Returns
+        -------
+        bool
+            True when it changed.
+
+        Raises
+        ------
+        ValueError
+            While the navigation channel runs.
+
         """
         if name == self.integrator.algorithm_name:
             return False
@@ -491,6 +562,15 @@ class SinsSystem:
         return self.take_output()
 
     def take_output(self) -> SinsOutput:
+        """
+        Return the outputs produced since the last call, and forget them.
+
+        Returns
+        -------
+        SinsOutput
+            Attitude updates, sins/imu records and navigation steps, in stamp order per stream.
+
+        """
         if not self.has_output:
             return NO_OUTPUT
         att, imu, nav = self._out
