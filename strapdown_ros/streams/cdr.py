@@ -33,8 +33,17 @@ def vector3_stamped(data) -> tuple[int, tuple[float, float, float], str] | None:
     """
     Decode a Vector3Stamped from plain little-endian CDR bytes.
 
-    ``(stamp_ns, (x, y, z), frame_id)`` from the bytes (any buffer) of a Vector3Stamped in plain
-    little-endian CDR; None for any other encoding or bytes too short for the layout.
+    Parameters
+    ----------
+    data : bytes-like
+        The serialized message (any buffer).
+
+    Returns
+    -------
+    (int, (float, float, float), str) or None
+        ``(stamp_ns, (x, y, z), frame_id)``; None for any other encoding or bytes too short for
+        the layout.
+
     """
     if len(data) >= 16 and data[0] == 0 and data[1] == 1:
         sec, nanosec, n = _STAMP_AND_LENGTH.unpack_from(data, 4)
@@ -60,10 +69,18 @@ def imu(data) -> tuple[int, _XYZ_T, _XYZ_T | None, str] | None:
     """
     Decode a sensor_msgs/Imu from plain little-endian CDR bytes.
 
-    ``(stamp_ns, angular_velocity, linear_acceleration, frame_id)`` from the bytes (any buffer)
-    of a sensor_msgs/Imu in plain little-endian CDR; ``linear_acceleration`` is None when the
-    message says it has none (REP-145: linear_acceleration_covariance[0] = −1).  None for any other
-    encoding or bytes too short for the layout.
+    Parameters
+    ----------
+    data : bytes-like
+        The serialized message (any buffer).
+
+    Returns
+    -------
+    (int, tuple, tuple or None, str) or None
+        ``(stamp_ns, angular_velocity, linear_acceleration, frame_id)``; ``linear_acceleration``
+        is None when the message says it has none (REP-145: linear_acceleration_covariance[0] =
+        −1).  None for any other encoding or bytes too short for the layout.
+
     """
     if len(data) >= 16 and data[0] == 0 and data[1] == 1:
         sec, nanosec, n = _STAMP_AND_LENGTH.unpack_from(data, 4)
@@ -86,8 +103,17 @@ def imu_rate_covariance(data) -> tuple | None:
     """
     Decode the angular velocity covariance of a sensor_msgs/Imu from CDR bytes.
 
-    angular_velocity_covariance (9 float64, row-major, (rad/s)²) from the bytes of a
-    sensor_msgs/Imu in plain little-endian CDR; None for any other encoding or short bytes.
+    Parameters
+    ----------
+    data : bytes-like
+        The serialized message, plain little-endian CDR.
+
+    Returns
+    -------
+    tuple of 9 float or None
+        angular_velocity_covariance, row-major, (rad/s)²; None for any other encoding or short
+        bytes.
+
     """
     if len(data) >= 16 and data[0] == 0 and data[1] == 1:
         n = _STAMP_AND_LENGTH.unpack_from(data, 4)[2]

@@ -99,9 +99,15 @@ class RateIntegrator:
     """
     Streaming form of :func:`increments_from_rates`: one sample in, at most one increment out.
 
-    ``push(stamp_ns, rate)`` returns ``(stamp_ns, (x, y, z))`` — the increment over the interval
-    that ends at this sample — or None (first sample, or an interval above ``max_step_s``).
     The same samples give the same increments as the offline function, to the bit.
+
+    Parameters
+    ----------
+    rule : {'trapezoid', 'mean'}
+        How a sample stands for the rate (:data:`RATE_RULES`).
+    max_step_s : float
+        An interval longer than this, s, is not integrated (counted ``skipped``).
+
     """
 
     def __init__(self, rule: str = 'trapezoid', max_step_s: float = math.inf):
@@ -117,6 +123,23 @@ class RateIntegrator:
         self._w: tuple | None = None
 
     def push(self, stamp_ns: int, rate):
+        """
+        Push one rate sample in; return the increment over the interval it ends.
+
+        Parameters
+        ----------
+        stamp_ns : int
+            Stamp, ns.
+        rate : sequence of float
+            Rate, body axes (rad/s for a gyro).
+
+        Returns
+        -------
+        (int, (float, float, float)) or None
+            ``(stamp_ns, increment)``, or None for the first sample or an interval above
+            ``max_step_s``.
+
+        """
         x, y, z = float(rate[0]), float(rate[1]), float(rate[2])
         t_prev, w_prev = self._t, self._w
         self._t, self._w = int(stamp_ns), (x, y, z)
@@ -172,9 +195,19 @@ class RateIncrementStream:
         """
         Push one rate sample in; return the increments it completes.
 
-        One rate sample in (stamp in integer ns, rate in body axes); the increments it
-        completes out, in order: ``[(stamp_ns, (x, y, z))]``, usually one, none for a dropped
-        or first sample, several when a resynchronisation releases held samples.
+        Parameters
+        ----------
+        stamp_ns : int
+            Stamp, ns.
+        rate : sequence of float
+            Rate, body axes.
+
+        Returns
+        -------
+        list of (int, (float, float, float))
+            ``[(stamp_ns, increment)]`` in order: usually one, none for a dropped or first sample,
+            several when a resynchronisation releases held samples.
+
         """
         got = self._offer(stamp_ns, rate)
         if not got:
@@ -196,9 +229,18 @@ class RateIncrementStream:
         """
         Return the counters for /diagnostics.
 
-        Counters for /diagnostics: the StreamCheck counters of the rate samples
-        (``<prefix>_received``, ``_accepted``, ``_dropped_*``, …) and the increments formed and
-        skipped (an interval longer than 1.5 nominal periods, or the restart after a jump).
+        Parameters
+        ----------
+        prefix : str
+            Prefix of every key.
+
+        Returns
+        -------
+        dict
+            The StreamCheck counters of the rate samples (``<prefix>_received``, ``_accepted``,
+            ``_dropped_*``, …) and the increments formed and skipped (an interval longer than 1.5
+            nominal periods, or the restart after a jump).
+
         """
         out = self.check.as_dict(prefix)
         out[f'{prefix}_dropped'] = self.check.dropped
