@@ -28,8 +28,22 @@ def scan_python(raw, wanted):
     """
     Locate the Message records of the wanted channels in a decompressed chunk.
 
-    Offsets of the Message records of the wanted channels in a decompressed chunk: (record
-    start, data start, data length, channel id, log time) per message, in chunk order.
+    Written for numba (:func:`scanner` compiles it); :func:`scan_plain` gives the same output
+    without it.
+
+    Parameters
+    ----------
+    raw : ndarray (n,) uint8
+        The decompressed chunk.
+    wanted : ndarray (m,) bool
+        Indexed by channel id: True for the channels to keep.
+
+    Returns
+    -------
+    ndarray (k, 5) int64
+        Per message, in chunk order: record start, data start, data length, channel id, log
+        time (ns).
+
     """
     n = raw.shape[0]
     cap = 1024
@@ -66,6 +80,7 @@ _compiled = None
 
 
 def scanner():
+    """Return the chunk scanner: :func:`scan_python` compiled (numba), else :func:`scan_plain`."""
     global _compiled
     if _compiled is None:
         got = njit_optional(scan_python) if kernels_allowed() else None
@@ -78,7 +93,22 @@ _MSG = struct.Struct('<HIq')          # log time as int64, as the compiled scan 
 
 
 def scan_plain(raw, wanted):
-    """:func:`scan_python` with struct (no numba): the same output."""
+    """
+    Locate the Message records like :func:`scan_python`, with struct (no numba).
+
+    Parameters
+    ----------
+    raw : bytes-like
+        The decompressed chunk.
+    wanted : sequence of bool
+        Indexed by channel id: True for the channels to keep.
+
+    Returns
+    -------
+    ndarray (k, 5) int64
+        The same rows as :func:`scan_python`.
+
+    """
     buf = raw.tobytes()
     n = len(buf)
     rows = []
@@ -99,8 +129,17 @@ def indexed_mcap(reader):
     """
     Return rosbags' MCAP storage of a reader when it can be read by chunks.
 
-    rosbags' MCAP storage of an AnyReader over one bag of one MCAP file with a chunk index (and
-    no per-message compression); else None (read through rosbags' reader).
+    Parameters
+    ----------
+    reader : rosbags.highlevel.AnyReader
+        An open reader.
+
+    Returns
+    -------
+    object or None
+        The storage of its one MCAP file when the file has a chunk index and no per-message
+        compression; else None (read through rosbags' reader).
+
     """
     try:
         from rosbags.rosbag2.reader import DirectoryReader
@@ -126,8 +165,18 @@ def channel_ids(storage, connections) -> dict:
     """
     Map the MCAP channel ids of these connections to their topics.
 
-    {MCAP channel id: topic} of the file's channels that are these connections (same topic and
-    type).
+    Parameters
+    ----------
+    storage : object
+        From :func:`indexed_mcap`.
+    connections : iterable of rosbags Connection
+        The connections wanted (same topic and type).
+
+    Returns
+    -------
+    dict
+        {MCAP channel id: topic}.
+
     """
     want = {(c.topic, c.msgtype) for c in connections}
     return {x.id: x.topic for x in storage.connections if (x.topic, x.msgtype) in want}
@@ -137,8 +186,15 @@ class TopicRecords:
     """
     The messages of one topic read from a chunk.
 
-    The messages of one topic read from a chunk: ``rows`` (n, L) uint8 when they all have
-    the length L, else ``records`` (a list of bytes); ``log_ns`` (n,) their log times.
+    Parameters
+    ----------
+    log_ns : ndarray (n,) int64
+        Log times, ns.
+    rows : ndarray (n, L) uint8, optional
+        The messages' bytes when they all have the length L.
+    records : list of bytes, optional
+        The messages' bytes otherwise.
+
     """
 
     def __init__(self, log_ns, rows=None, records=None):
@@ -152,9 +208,28 @@ def read_topics(storage, channel_ids: dict, progress=None):
     """
     Yield the records of the wanted channels, chunk by chunk.
 
-    Yield, chunk by chunk in the order of their first log time, {topic: TopicRecords} of the
-    channels ``channel_ids`` ({channel id: topic}).  Raises ValueError on a damaged chunk (a
-    record running past its end, a size or checksum mismatch).
+    Chunks come in the order of their first log time; within a topic, records in log time
+    order, then chunk order.
+
+    Parameters
+    ----------
+    storage : object
+        From :func:`indexed_mcap`.
+    channel_ids : dict
+        {channel id: topic} (:func:`channel_ids`).
+    progress : callable(int), optional
+        Called with each chunk's last log time, ns.
+
+    Yields
+    ------
+    dict
+        {topic: TopicRecords} of one chunk.
+
+    Raises
+    ------
+    ValueError
+        A damaged chunk (a record running past its end, a size or checksum mismatch).
+
     """
     from rosbags.rosbag2.storage_mcap import decompress
 

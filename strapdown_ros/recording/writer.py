@@ -41,8 +41,19 @@ def offered_qos(kind: str, depth: int):
     """
     Return the offered QoS of the simulator publishers (rosbags ``Qos``).
 
-    The offered QoS of the simulator publishers (rosbags ``Qos``): 'stream' (ros_io.stream_qos),
-    'camera' (star_camera_sim_node.camera_qos) or 'latched' (star_camera_sim_node.latched_qos).
+    Parameters
+    ----------
+    kind : {'stream', 'camera', 'latched'}
+        As ``ros_io.stream_qos``, ``star_camera_sim_node.camera_qos`` or
+        ``star_camera_sim_node.latched_qos``.
+    depth : int
+        History depth (latched: 1).
+
+    Returns
+    -------
+    rosbags.interfaces.Qos
+        The profile written into the bag's metadata.
+
     """
     from rosbags.interfaces import (Qos, QosDurability, QosHistory, QosLiveliness, QosReliability,
                                     QosTime)
@@ -117,11 +128,35 @@ def _topic(namespace: str, name: str) -> str:
 def record(bag: str | Path, imu_p: dict, cam_p: dict, storage: str = 'mcap', accel: bool = True,
            namespace: str = '') -> dict:
     """
-    Simulate and write the bag; returns a summary (messages per topic, true boresight, ...).
+    Simulate the two simulator nodes and write their messages to a bag.
 
     Mirrors ``imu_sim_node``: error constants ``sigmas_from(p, 'gyro').draw(default_rng(seed))``
     then the accelerometer's from the same generator; gyro noise seed+1, accelerometer seed+2;
     sample k of a sensor covers [(k−1)T, kT] and is stamped ``start_ns + round(kT·1e9)``.
+
+    Parameters
+    ----------
+    bag : str or Path
+        The bag directory to write.
+    imu_p, cam_p : dict
+        Validated parameters of imu_sim_node and star_camera_sim_node.
+    storage : {'mcap', 'sqlite3'}
+        The rosbag2 storage.
+    accel : bool
+        Also write imu/delta_velocity.
+    namespace : str
+        Namespace of the topics.
+
+    Returns
+    -------
+    dict
+        Summary: messages per topic, the true boresight and error constants, ...
+
+    Raises
+    ------
+    ValueError
+        An invalid ``storage``.
+
     """
     from rosbags.rosbag2 import StoragePlugin, Writer  # optional extra (tools)
 
