@@ -1,8 +1,9 @@
 """
 Argument checks shared by the offline tools, run before any work.
 
-Argument checks shared by the offline tools: output paths are checked before any work, so a
-typo costs a one-line error (exit 2), not minutes of computation followed by a traceback.
+A base module (it imports only :mod:`strapdown_ros.files`): output paths are checked before
+any work, so a typo costs a one-line error (exit 2), not minutes of computation followed by a
+traceback.
 
 :func:`check_outputs` is THE output rule of every tool that writes: no output may be an input
 (resolved paths; a file inside an input bag directory counts as the input), outputs differ from

@@ -1,8 +1,8 @@
 """
 Normal gravity in the Earth-fixed frame and geodetic conversions.
 
-Normal gravity in the Earth-fixed frame (Aksyonenko 2014; paper 003, §1.5.2) and geodetic
-conversions.
+The Earth model of the package (Aksyonenko 2014; paper 003, §1.5.2), one room above the base:
+the motion profiles, the navigation channel and the parameter tables use it.
 
 Conventions: ECEF = the PZ-90 Greenwich rectangular frame (REP-105 frame ``earth``), Earth
 rotation +Z, SI units (m, m/s², rad).  "Gravity" is gravitation + centrifugal, the vector a

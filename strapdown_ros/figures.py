@@ -1,4 +1,8 @@
-"""Figure output shared by the report tools (matplotlib imported only when a figure is saved)."""
+"""
+Figure output shared by the report tools.
+
+A base module: matplotlib is imported only when a figure is saved.
+"""
 from __future__ import annotations
 
 import os

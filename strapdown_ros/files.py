@@ -1,8 +1,9 @@
 """
 Atomic file writes and a write probe, shared by the tools and the model writer.
 
-Atomic file writes and a write probe, shared by the offline tools (cli.py) and the
-model writer (config.write_model).  No ROS imports.
+A base module (no imports from other rooms), used by the offline tools through
+:mod:`strapdown_ros.cli` and by the model writer (:func:`strapdown_ros.params.write_model`).
+No ROS imports.
 
 A write goes to a temporary file in the target's own directory and is moved over the target with
 ``os.replace`` (atomic on POSIX): a reader sees the old file or the new one, never a part, and a

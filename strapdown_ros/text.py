@@ -1,10 +1,10 @@
 """
 Text out of the core: bounded echoes and plain JSON values.
 
-Text out of the core: every string a node or tool echoes (a frame id, a topic name, a reason
-read from the input) goes through :func:`bounded`, so that hostile or broken input (a 2 MB
-header.frame_id) can neither flood a log nor cost time in formatting; every JSON result goes
-through :func:`json_clean`.  No ROS imports.
+A base module (no imports from other rooms): every string a node or tool echoes (a frame id,
+a topic name, a reason read from the input) goes through :func:`bounded`, so that hostile or
+broken input (a 2 MB header.frame_id) can neither flood a log nor cost time in formatting;
+every JSON result goes through :func:`json_clean`.  No ROS imports.
 """
 from __future__ import annotations
 

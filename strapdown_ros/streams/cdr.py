@@ -1,10 +1,9 @@
 """
 Reading the increment messages straight from their serialized bytes.
 
-Reading the increment messages straight from their serialized bytes, for the nodes' raw
-subscriptions (:func:`strapdown_ros.nodes.ros_io.decode_vector3_stamped`) and for ``sins_bag``
-(rosbag2 stores the same bytes).  No ROS imports: each caller hands the other encodings to its own
-deserializer (rclpy's, or rosbags').
+Used by the nodes' raw subscriptions (:func:`strapdown_ros.nodes.ros_io.decode_vector3_stamped`)
+and by ``sins_bag`` (rosbag2 stores the same bytes).  No ROS imports: each caller hands the
+other encodings to its own deserializer (rclpy's, or rosbags').
 
 geometry_msgs/Vector3Stamped in plain little-endian CDR (encapsulation 0x0001, what
 rmw_fastrtps and rmw_cyclonedds write): 4 bytes of encapsulation, int32 sec, uint32 nanosec, the
