@@ -211,7 +211,7 @@ SINS_PARAMS = GYRO_PARAMS + ACCEL_PARAMS + COMMON_PARAMS + INPUT_PARAMS + ACCEL_
                   'rotation and sculling from the fitted motion (false: rotation compensation '
                   '½θ×v only)'),
         ParamSpec('gravity_model', DEFAULT_GRAVITY_MODEL, 'normal gravity model '
-                  "(strapdown_ros/earth.py; pz90_003: 003's formula corrected, 3.2″ and "
+                  "(strapdown_ros/earth; pz90_003: 003's formula corrected, 3.2″ and "
                   '35 mGal from normal_exact)',
                   choices=('pz90_003', 'normal_exact', 'j2')),
         ParamSpec('navigation_covariance_period', 1.0,
