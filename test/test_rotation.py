@@ -8,6 +8,7 @@ rng = np.random.default_rng(1)
 
 
 def random_quats(n):
+    """Return n random unit quaternions."""
     return R.quat_normalize(rng.normal(size=(n, 4)))
 
 

@@ -27,6 +27,7 @@ SETTINGS = settings(max_examples=300, deadline=None)
 
 def same_rotation(p, q, tol=1e-12):
     # the double cover: q ≡ −q
+    """Tell whether p and q are the same rotation (q ≡ −q)."""
     return min(np.max(np.abs(p - q)), np.max(np.abs(p + q))) < tol
 
 

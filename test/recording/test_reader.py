@@ -83,21 +83,25 @@ class SmoothTurns(MotionProfile):
         return phi / D * (tau - D / (2 * np.pi) * np.sin(2 * np.pi * tau / D))
 
     def attitude(self, t):
+        """Return q_ref_body at times ``t`` (closed form)."""
         k, tau, D, U, phi = self._where(t)
         q = quat_multiply(self.q_start[k], rotvec_to_quat(U * self._angle(tau, D, phi)[:, None]))
         return q.reshape(np.shape(t) + (4,))
 
     def body_rate(self, t):
+        """Return the body rate at times ``t``, rad/s."""
         k, tau, D, U, phi = self._where(t)
         return (U * (2 * phi / D * np.sin(np.pi * tau / D) ** 2)[:, None]).reshape(
             np.shape(t) + (3,)
         )
 
     def rate_second_derivative(self, t):
+        """Return ω̈ at times ``t``, rad/s³."""
         k, tau, D, U, phi = self._where(t)
         return U * (phi / D * (2 * np.pi / D) ** 2 * np.cos(2 * np.pi * tau / D))[:, None]
 
     def delta_theta(self, t0, t1):
+        """Return ∫ω dt over [t0, t1], rad (exact)."""
         def F(t):
             k, tau, D, U, phi = self._where(t)
             return self.angle_before[k] + U * self._angle(tau, D, phi)[:, None]
@@ -127,6 +131,7 @@ class Motion:
 
 @pytest.fixture(scope='module')
 def motion():
+    """Give the simulated motion shared by the tests of this module."""
     return Motion()
 
 
@@ -141,6 +146,7 @@ class BagWriter:
         self.T = self.store.types
 
     def header(self, ns, frame):
+        """Return a std_msgs/Header at ``ns`` in ``frame``."""
         T = self.T
         return T['std_msgs/msg/Header'](
             stamp=T['builtin_interfaces/msg/Time'](sec=int(ns // 10**9), nanosec=int(ns % 10**9)),
@@ -148,19 +154,23 @@ class BagWriter:
         )
 
     def vec(self, v):
+        """Return a geometry_msgs/Vector3."""
         return self.T['geometry_msgs/msg/Vector3'](x=float(v[0]), y=float(v[1]), z=float(v[2]))
 
     def quat(self, q_wxyz):
+        """Return a geometry_msgs/Quaternion from a scalar-first quaternion."""
         x, y, z, w = (float(c) for c in to_ros_xyzw(np.asarray(q_wxyz, dtype=float)))
         return self.T['geometry_msgs/msg/Quaternion'](x=x, y=y, z=z, w=w)
 
     def pose(self, q):
+        """Return a geometry_msgs/Pose at the origin with orientation ``q``."""
         T = self.T
         return T['geometry_msgs/msg/Pose'](
             position=T['geometry_msgs/msg/Point'](x=1.0, y=2.0, z=3.0), orientation=self.quat(q)
         )
 
     def imu(self, ns, rate, absent=False):
+        """Return a sensor_msgs/Imu of rate ``rate`` (``absent``: covariance[0] = −1)."""
         T = self.T
         z9 = np.zeros(9)
         rate_cov = np.array([-1.0] + [0.0] * 8) if absent else z9  # ROS: -1 = field absent
@@ -175,16 +185,19 @@ class BagWriter:
         )
 
     def vector3_stamped(self, ns, v):
+        """Return a Vector3Stamped in imu_link."""
         return self.T['geometry_msgs/msg/Vector3Stamped'](
             header=self.header(ns, 'imu_link'), vector=self.vec(v)
         )
 
     def pose_stamped(self, ns, q):
+        """Return a PoseStamped in gcrs."""
         return self.T['geometry_msgs/msg/PoseStamped'](
             header=self.header(ns, 'gcrs'), pose=self.pose(q)
         )
 
     def odometry(self, ns, q, cov_rot):
+        """Return an Odometry with the rotation block ``cov_rot`` of the pose covariance."""
         T = self.T
         cov = np.zeros((6, 6))
         cov[:3, :3] = np.eye(3) * 4.0  # position: known to 2 m

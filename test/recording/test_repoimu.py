@@ -42,11 +42,13 @@ DEG = np.pi / 180.0
 
 @pytest.fixture(scope='module')
 def workdir(tmp_path_factory):
+    """Give a scratch directory for the module."""
     return tmp_path_factory.mktemp('realdata')
 
 
 @pytest.fixture(scope='module')
 def trial(workdir):
+    """Give the RepoIMU trial, or skip when the data set is not there."""
     root = find_repoimu(scratch=workdir)
     if root is None or not (root / TRIAL).is_file():
         pytest.skip('RepoIMU not found: set STRAPDOWN_REALDATA to a directory with TStick/ '
@@ -56,6 +58,7 @@ def trial(workdir):
 
 @pytest.fixture(scope='module')
 def model_file(workdir):
+    """Give the nominal model file of the trial."""
     p = workdir / 'nominal.yaml'
     p.write_text(NOMINAL_MODEL)
     return p

@@ -9,6 +9,7 @@ MS = 10_000_000          # 10 ms in ns
 
 
 def feed(check, stamps, values=None):
+    """Offer every message in turn; return what was released."""
     out = []
     for k, s in enumerate(stamps):
         v = (0.001, 0.0, 0.0) if values is None else values[k]
