@@ -24,12 +24,13 @@ setup(
     extras_require={
         'ros': ROS_FROM_PYPI,
         'tools': ['scipy', 'matplotlib', 'rosbags', 'pyyaml', 'allantools'],
-        # boresight_bench: OpenCV hand-eye peers; 5.0.0 lacks calibrateHandEye in Python (opencv#29565)
+        # boresight_bench: OpenCV hand-eye peers; 5.0.0 lacks calibrateHandEye in Python
+        # (opencv#29565).
         # sins_bench peers: pyins (its numba kernel; numba also compiles the reference loop and,
         # when installed, strapdown_ros.attitude.kernel — optional, numpy fallback)
         'bench': ['opencv-python-headless>=4.8,<5', 'python-ins==1.0.1'],
-        # the compiled block kernel of the attitude core and the navigation loops (optional: without
-        # numba the vectorised numpy path runs, tested against it; sins_bench prints both)
+        # the compiled block kernel of the attitude core and the navigation loops (optional:
+        # without numba the vectorised numpy path runs, tested against it; sins_bench prints both)
         'fast': ['numba'],
         # the ROS 2 linters as demo_nodes_py runs them (ament_flake8 with the plugins its
         # ROS package depends on, ament_pep257)

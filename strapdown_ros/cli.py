@@ -1,6 +1,9 @@
 """
-Argument checks shared by the offline tools: output paths are checked before any work, so a
-typo costs a one-line error (exit 2), not minutes of computation followed by a traceback.
+Argument checks shared by the offline tools, run before any work.
+
+A base module (it imports only :mod:`strapdown_ros.files`): output paths are checked before
+any work, so a typo costs a one-line error (exit 2), not minutes of computation followed by a
+traceback.
 
 :func:`check_outputs` is THE output rule of every tool that writes: no output may be an input
 (resolved paths; a file inside an input bag directory counts as the input), outputs differ from
@@ -28,9 +31,18 @@ FILE, DIRECTORY, REPLACED = 'file', 'directory', 'replaced'
 
 
 class OneLineParser(argparse.ArgumentParser):
-    """argparse whose errors are one line on stderr (``prog: error: ...``) and exit 2, no usage block."""
+    """An argparse parser whose errors are one line on stderr and exit 2, no usage block."""
 
     def error(self, message):
+        """
+        Print ``prog: error: message`` on stderr and exit 2.
+
+        Parameters
+        ----------
+        message : str
+            The error, one line.
+
+        """
         print(f'{self.prog}: error: {message}', file=sys.stderr)
         sys.exit(2)
 
@@ -48,8 +60,22 @@ def _writable_dir(d: Path, what: str, path) -> None:
 
 def check_output_file(path, what: str) -> None:
     """
-    ``path`` can be written as a file: its directory exists and takes a write, it is no
-    directory.
+    Check that ``path`` can be written as a file.
+
+    Its directory exists and takes a write, and it is no directory.
+
+    Parameters
+    ----------
+    path : str or os.PathLike or None
+        The output file (None or '': not asked for, nothing checked).
+    what : str
+        How the message names it (the option, e.g. ``--json``).
+
+    Raises
+    ------
+    ValueError
+        One line naming ``what`` and ``path``.
+
     """
     if not path:
         return
@@ -60,7 +86,22 @@ def check_output_file(path, what: str) -> None:
 
 
 def check_output_dir(path, what: str) -> None:
-    """``path`` is a directory that takes a write, or can be created in one."""
+    """
+    Check that ``path`` is a directory that takes a write, or can be created in one.
+
+    Parameters
+    ----------
+    path : str or os.PathLike or None
+        The output directory (None or '': not asked for, nothing checked).
+    what : str
+        How the message names it (the option, e.g. ``--outdir``).
+
+    Raises
+    ------
+    ValueError
+        One line naming ``what`` and ``path``.
+
+    """
     if not path:
         return
     p = Path(path)
@@ -73,13 +114,13 @@ def check_output_dir(path, what: str) -> None:
 
 
 def _inside(a: Path, b: Path) -> bool:
-    """``a`` is ``b`` or below it (resolved paths)."""
+    """Tell whether ``a`` is ``b`` or below it (resolved paths)."""
     return a == b or b in a.parents
 
 
 def check_outputs(outputs: Iterable[Sequence], inputs: Iterable[Sequence], force: bool) -> None:
     """
-    The output rule of every tool, before any work.  Raises ValueError (one line).
+    Apply the output rule of every tool, before any work.
 
     Parameters
     ----------
@@ -93,6 +134,12 @@ def check_outputs(outputs: Iterable[Sequence], inputs: Iterable[Sequence], force
         Every file or directory the tool reads (None or '' skipped).
     force : bool
         ``--force`` was given: an existing output may be replaced.
+
+    Raises
+    ------
+    ValueError
+        One line naming the option and the path that break the rule.
+
     """
     outputs = [tuple(o) for o in outputs]
     named = {str(o[1]): tuple(o[3]) for o in outputs if o[1] and len(o) > 3}
@@ -140,18 +187,56 @@ def check_outputs(outputs: Iterable[Sequence], inputs: Iterable[Sequence], force
 
 
 def write_text(path, text: str) -> None:
-    """A text file, written atomically (OSError names ``path``)."""
+    """
+    Write a text file atomically.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The file.
+    text : str
+        Its content, UTF-8.
+
+    Raises
+    ------
+    OSError
+        Naming ``path``.
+
+    """
     atomic_write_text(path, text)
 
 
 def write_json(path, data, indent: int = 1) -> None:
-    """A JSON result file (strict JSON: no NaN), newline-terminated, written atomically."""
+    """
+    Write a JSON result file atomically (strict JSON: no NaN, newline-terminated).
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The file.
+    data : object
+        Plain JSON values (see :func:`strapdown_ros.text.json_clean`).
+    indent : int
+        Indentation of the JSON text.
+
+    """
     atomic_write_text(path, json.dumps(data, indent=indent, allow_nan=False) + '\n')
 
 
 def write_figure(fig, path, **kwargs) -> None:
     """
-    A matplotlib figure saved atomically (a temporary file with the same extension in the
-    same directory, then ``os.replace``); ``kwargs`` go to ``savefig`` (``dpi``).
+    Save a matplotlib figure atomically.
+
+    A temporary file with the same extension in the same directory, then ``os.replace``.
+
+    Parameters
+    ----------
+    fig : matplotlib.figure.Figure
+        The figure.
+    path : str or os.PathLike
+        The image file; its extension gives the format.
+    **kwargs
+        Passed to ``savefig`` (``dpi``).
+
     """
     atomic_savefig(fig, path, **kwargs)

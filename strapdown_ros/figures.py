@@ -1,4 +1,8 @@
-"""Figure output shared by the report tools (matplotlib imported only when a figure is saved)."""
+"""
+Figure output shared by the report tools.
+
+A base module: matplotlib is imported only when a figure is saved.
+"""
 from __future__ import annotations
 
 import os
@@ -9,7 +13,24 @@ __all__ = ['save_figure']
 
 
 def save_figure(fig, outdir: str, name: str) -> str:
-    """Lay out, write ``outdir/name`` (PNG, 110 dpi) and close a figure; returns the path."""
+    """
+    Lay out, write and close a figure.
+
+    Parameters
+    ----------
+    fig : matplotlib.figure.Figure
+        The figure.
+    outdir : str
+        The output directory.
+    name : str
+        The file name (PNG, written at 110 dpi).
+
+    Returns
+    -------
+    str
+        The path written.
+
+    """
     import matplotlib.pyplot as plt
 
     fig.tight_layout()

@@ -1,6 +1,9 @@
 """
-Atomic file writes and a write probe, shared by the offline tools (cli.py) and the
-model writer (config.write_model).  No ROS imports.
+Atomic file writes and a write probe, shared by the tools and the model writer.
+
+A base module (no imports from other rooms), used by the offline tools through
+:mod:`strapdown_ros.cli` and by the model writer (:func:`strapdown_ros.params.write_model`).
+No ROS imports.
 
 A write goes to a temporary file in the target's own directory and is moved over the target with
 ``os.replace`` (atomic on POSIX): a reader sees the old file or the new one, never a part, and a
@@ -26,6 +29,8 @@ def _directory(path) -> Path:
 @contextmanager
 def _replacing(path, suffix: str):
     """
+    Give a temporary file beside ``path`` that replaces it when the block ends.
+
     A temporary file beside ``path`` (same directory, ``suffix``) for the caller to fill;
     moved over ``path`` when the block ends, removed if it fails.  Errors name ``path``.
     """
@@ -61,6 +66,7 @@ def atomic_write_text(path, text: str) -> None:
     ------
     OSError
         The write failed; the message names ``path`` and the target is unchanged.
+
     """
     with _replacing(path, '.tmp') as (fd, _):
         with os.fdopen(fd, 'w', encoding='utf-8') as fh:
@@ -71,6 +77,8 @@ def atomic_write_text(path, text: str) -> None:
 
 def atomic_savefig(fig, path, **kwargs) -> None:
     """
+    Save a matplotlib figure atomically.
+
     ``fig.savefig(path, **kwargs)`` atomically: matplotlib writes a temporary file with the
     same extension (it picks the format from it) in the target's directory, then ``os.replace``.
 
@@ -82,6 +90,7 @@ def atomic_savefig(fig, path, **kwargs) -> None:
         The target image (PNG, SVG, ...); its directory must exist.
     **kwargs
         Passed to ``savefig`` (``dpi``, ...).
+
     """
     with _replacing(path, Path(path).suffix) as (fd, tmp):
         os.close(fd)
@@ -90,6 +99,8 @@ def atomic_savefig(fig, path, **kwargs) -> None:
 
 def stage_directory(path) -> Path:
     """
+    Return where to write a directory output before it is complete.
+
     Where to write a directory output (a bag) before it is complete: ``path``'s name inside
     a new hidden temporary directory beside it (same file system, so the final move is a
     rename; the files inside keep the names they will have).  Not created itself.
@@ -103,6 +114,7 @@ def stage_directory(path) -> Path:
     -------
     pathlib.Path
         The staging path; hand it to :func:`commit_directory` or :func:`discard_directory`.
+
     """
     p = Path(path)
     holder = tempfile.mkdtemp(dir=_directory(p), prefix=f'.{p.name}.', suffix='.part')
@@ -111,6 +123,8 @@ def stage_directory(path) -> Path:
 
 def commit_directory(staged, path) -> None:
     """
+    Move the complete directory ``staged`` to ``path``.
+
     Move the complete directory ``staged`` (from :func:`stage_directory`) to ``path``.  An
     existing ``path`` (the caller checked --force) is moved aside first and removed only after
     the new one is in place; if the move fails, it is put back.
@@ -121,6 +135,7 @@ def commit_directory(staged, path) -> None:
         The complete directory.
     path : str or os.PathLike
         The target.
+
     """
     staged, p = Path(staged), Path(path)
     old = staged.parent / '.old'
@@ -141,12 +156,22 @@ def commit_directory(staged, path) -> None:
 
 
 def discard_directory(staged) -> None:
-    """Remove a staged directory (a failed or interrupted run); the target is untouched."""
+    """
+    Remove a staged directory (a failed or interrupted run); the target is untouched.
+
+    Parameters
+    ----------
+    staged : str or os.PathLike
+        A path from :func:`stage_directory`.
+
+    """
     shutil.rmtree(Path(staged).parent, ignore_errors=True)
 
 
 def probe_writable(directory) -> str | None:
     """
+    Try what a write into ``directory`` does.
+
     Try what a write into ``directory`` does: create and remove a temporary file there.
     Returns None when it works, else the reason (``os.access`` is not enough: as root it says
     yes for /proc, where creating a file fails).
@@ -155,6 +180,7 @@ def probe_writable(directory) -> str | None:
     ----------
     directory : str or os.PathLike
         An existing directory.
+
     """
     try:
         fd, tmp = tempfile.mkstemp(dir=directory, prefix='.write-probe.', suffix='.tmp')

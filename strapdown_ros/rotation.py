@@ -39,7 +39,20 @@ __all__ = [
 
 
 def skew(v: np.ndarray) -> np.ndarray:
-    """Cross-product matrix ``[v×]`` so that ``[v×] @ u == v × u``; shape (..., 3, 3)."""
+    """
+    Return the cross-product matrix ``[v×]``, so that ``[v×] @ u == v × u``.
+
+    Parameters
+    ----------
+    v : array_like (..., 3)
+        Vectors.
+
+    Returns
+    -------
+    ndarray (..., 3, 3)
+        Skew-symmetric matrices.
+
+    """
     v = np.asarray(v, dtype=float)
     z = np.zeros(v.shape[:-1])
     x, y, w = v[..., 0], v[..., 1], v[..., 2]
@@ -49,6 +62,20 @@ def skew(v: np.ndarray) -> np.ndarray:
 
 
 def quat_identity(shape=()) -> np.ndarray:
+    """
+    Return identity quaternions ``[1, 0, 0, 0]``.
+
+    Parameters
+    ----------
+    shape : int or tuple of int
+        Leading shape (``()``: one quaternion).
+
+    Returns
+    -------
+    ndarray (*shape, 4)
+        Scalar-first identity quaternions.
+
+    """
     q = np.zeros(tuple(np.atleast_1d(shape)) + (4,) if shape != () else (4,))
     q[..., 0] = 1.0
     return q
@@ -56,8 +83,21 @@ def quat_identity(shape=()) -> np.ndarray:
 
 def cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """
-    ``a × b`` over the last axis (length 3), broadcasting; by components (``np.cross`` spends
-    most of its time moving axes and casting, several times slower on long arrays).
+    Return ``a × b`` over the last axis (length 3), broadcasting.
+
+    Computed by components: ``np.cross`` spends most of its time moving axes and casting, and is
+    several times slower on long arrays.
+
+    Parameters
+    ----------
+    a, b : array_like (..., 3)
+        Vectors, broadcast against each other.
+
+    Returns
+    -------
+    ndarray (..., 3)
+        The cross products.
+
     """
     a = np.asarray(a, dtype=float)
     b = np.asarray(b, dtype=float)
@@ -67,7 +107,20 @@ def cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 
 
 def quat_multiply(p: np.ndarray, q: np.ndarray) -> np.ndarray:
-    """Hamilton product ``p ⊗ q`` (scalar-first), broadcasting over leading axes."""
+    """
+    Return the Hamilton product ``p ⊗ q`` (scalar-first), broadcasting over leading axes.
+
+    Parameters
+    ----------
+    p, q : array_like (..., 4)
+        Quaternions ``[w, x, y, z]``; ``q_a_b ⊗ q_b_c = q_a_c``.
+
+    Returns
+    -------
+    ndarray (..., 4)
+        The products.
+
+    """
     p = np.asarray(p, dtype=float)
     q = np.asarray(q, dtype=float)
     pw, px, py, pz = p[..., 0], p[..., 1], p[..., 2], p[..., 3]
@@ -81,21 +134,59 @@ def quat_multiply(p: np.ndarray, q: np.ndarray) -> np.ndarray:
 
 
 def quat_conjugate(q: np.ndarray) -> np.ndarray:
+    """
+    Return the conjugate ``q*`` (the inverse of a unit quaternion).
+
+    Parameters
+    ----------
+    q : array_like (..., 4)
+        Scalar-first quaternions.
+
+    Returns
+    -------
+    ndarray (..., 4)
+        ``[w, −x, −y, −z]``.
+
+    """
     q = np.asarray(q, dtype=float)
     return q * np.array([1.0, -1.0, -1.0, -1.0])
 
 
 def quat_normalize(q: np.ndarray) -> np.ndarray:
+    """
+    Return quaternions scaled to unit norm.
+
+    Parameters
+    ----------
+    q : array_like (..., 4)
+        Non-zero quaternions.
+
+    Returns
+    -------
+    ndarray (..., 4)
+        Unit quaternions.
+
+    """
     q = np.asarray(q, dtype=float)
     return q / np.linalg.norm(q, axis=-1, keepdims=True)
 
 
 def rotvec_to_quat(phi: np.ndarray) -> np.ndarray:
     """
-    ``exp(φ)``: rotation vector (..., 3) → unit quaternion (..., 4).
+    Return ``exp(φ)``: rotation vectors to unit quaternions.
 
-    Uses ``sin(a/2)/a = sinc(a/2π)/2`` so it is exact (to round-off) at any angle,
-    including zero.
+    Uses ``sin(a/2)/a = sinc(a/2π)/2``, exact to round-off at any angle, including zero.
+
+    Parameters
+    ----------
+    phi : array_like (..., 3)
+        Rotation vectors, rad.
+
+    Returns
+    -------
+    ndarray (..., 4)
+        Unit quaternions, scalar first.
+
     """
     phi = np.asarray(phi, dtype=float)
     angle = np.linalg.norm(phi, axis=-1, keepdims=True)
@@ -104,7 +195,20 @@ def rotvec_to_quat(phi: np.ndarray) -> np.ndarray:
 
 
 def quat_to_rotvec(q: np.ndarray) -> np.ndarray:
-    """``log(q)``: unit quaternion → rotation vector with angle in [0, π]."""
+    """
+    Return ``log(q)``: unit quaternions to rotation vectors with angle in [0, π].
+
+    Parameters
+    ----------
+    q : array_like (..., 4)
+        Unit quaternions, scalar first (q and −q give the same vector).
+
+    Returns
+    -------
+    ndarray (..., 3)
+        Rotation vectors, rad.
+
+    """
     q = np.asarray(q, dtype=float)
     q = np.where(q[..., :1] < 0.0, -q, q)            # shortest rotation
     v = q[..., 1:]
@@ -113,12 +217,26 @@ def quat_to_rotvec(q: np.ndarray) -> np.ndarray:
     # angle / s, with the s → 0 limit 2/w (w ≈ 1 there); each branch sees only safe operands
     small = s <= 1e-12
     w = np.where(small, q[..., :1], 1.0)
-    factor = np.where(small, 2.0 / w * (1.0 + s * s / (3.0 * w ** 2)), angle / np.where(small, 1.0, s))
+    factor = np.where(small, 2.0 / w * (1.0 + s * s / (3.0 * w ** 2)),
+                      angle / np.where(small, 1.0, s))
     return v * factor
 
 
 def quat_to_dcm(q: np.ndarray) -> np.ndarray:
-    """Unit quaternion ``q_a_b`` → DCM ``C_a_b`` (maps b-coordinates to a-coordinates)."""
+    """
+    Convert unit quaternions ``q_a_b`` to DCMs ``C_a_b``.
+
+    Parameters
+    ----------
+    q : array_like (..., 4)
+        Unit quaternions, scalar first.
+
+    Returns
+    -------
+    ndarray (..., 3, 3)
+        ``C_a_b``, mapping b-coordinates to a-coordinates.
+
+    """
     q = np.asarray(q, dtype=float)
     w, x, y, z = q[..., 0], q[..., 1], q[..., 2], q[..., 3]
     return np.stack([
@@ -129,7 +247,20 @@ def quat_to_dcm(q: np.ndarray) -> np.ndarray:
 
 
 def dcm_to_quat(C: np.ndarray) -> np.ndarray:
-    """DCM → unit quaternion with w ≥ 0 (Shepperd's method, robust at any angle)."""
+    """
+    Convert DCMs to unit quaternions with w ≥ 0 (Shepperd's method, robust at any angle).
+
+    Parameters
+    ----------
+    C : array_like (..., 3, 3)
+        Rotation matrices ``C_a_b``.
+
+    Returns
+    -------
+    ndarray (..., 4)
+        ``q_a_b``, scalar first, w ≥ 0.
+
+    """
     C = np.asarray(C, dtype=float)
     shape = C.shape[:-2]
     C = C.reshape(-1, 3, 3)
@@ -142,27 +273,61 @@ def dcm_to_quat(C: np.ndarray) -> np.ndarray:
         k = choice[i]
         if k == 0:
             s = 2.0 * np.sqrt(1.0 + tr[i])
-            q[i] = [0.25 * s, (c[2, 1] - c[1, 2]) / s, (c[0, 2] - c[2, 0]) / s, (c[1, 0] - c[0, 1]) / s]
+            q[i] = [0.25 * s, (c[2, 1] - c[1, 2]) / s,
+                    (c[0, 2] - c[2, 0]) / s, (c[1, 0] - c[0, 1]) / s]
         elif k == 1:
             s = 2.0 * np.sqrt(1.0 + c[0, 0] - c[1, 1] - c[2, 2])
-            q[i] = [(c[2, 1] - c[1, 2]) / s, 0.25 * s, (c[0, 1] + c[1, 0]) / s, (c[0, 2] + c[2, 0]) / s]
+            q[i] = [(c[2, 1] - c[1, 2]) / s, 0.25 * s,
+                    (c[0, 1] + c[1, 0]) / s, (c[0, 2] + c[2, 0]) / s]
         elif k == 2:
             s = 2.0 * np.sqrt(1.0 + c[1, 1] - c[0, 0] - c[2, 2])
-            q[i] = [(c[0, 2] - c[2, 0]) / s, (c[0, 1] + c[1, 0]) / s, 0.25 * s, (c[1, 2] + c[2, 1]) / s]
+            q[i] = [(c[0, 2] - c[2, 0]) / s, (c[0, 1] + c[1, 0]) / s,
+                    0.25 * s, (c[1, 2] + c[2, 1]) / s]
         else:
             s = 2.0 * np.sqrt(1.0 + c[2, 2] - c[0, 0] - c[1, 1])
-            q[i] = [(c[1, 0] - c[0, 1]) / s, (c[0, 2] + c[2, 0]) / s, (c[1, 2] + c[2, 1]) / s, 0.25 * s]
+            q[i] = [(c[1, 0] - c[0, 1]) / s, (c[0, 2] + c[2, 0]) / s,
+                    (c[1, 2] + c[2, 1]) / s, 0.25 * s]
     q = np.where(q[:, :1] < 0, -q, q)
     return quat_normalize(q).reshape(shape + (4,))
 
 
 def rotvec_to_dcm(phi: np.ndarray) -> np.ndarray:
-    """Rodrigues' formula (003 eq. 1.26/1.42/1.63): ``E + sin φ/φ·Φ + (1-cos φ)/φ²·Φ²``."""
+    """
+    Return the DCM of rotation vectors (Rodrigues' formula, 003 eq. 1.26/1.42/1.63).
+
+    ``E + sin φ/φ·Φ + (1-cos φ)/φ²·Φ²``, computed through the quaternion.
+
+    Parameters
+    ----------
+    phi : array_like (..., 3)
+        Rotation vectors, rad.
+
+    Returns
+    -------
+    ndarray (..., 3, 3)
+        Rotation matrices.
+
+    """
     return quat_to_dcm(rotvec_to_quat(phi))
 
 
 def quat_rotate(q: np.ndarray, v: np.ndarray) -> np.ndarray:
-    """Rotate vectors: ``q ⊗ v ⊗ q*`` (maps b-coordinates to a-coordinates for q_a_b)."""
+    """
+    Rotate vectors: ``q ⊗ v ⊗ q*``.
+
+    Parameters
+    ----------
+    q : array_like (..., 4)
+        Unit quaternions ``q_a_b``, scalar first.
+    v : array_like (..., 3)
+        Vectors in b-coordinates.
+
+    Returns
+    -------
+    ndarray (..., 3)
+        The vectors in a-coordinates.
+
+    """
     q = np.asarray(q, dtype=float)
     v = np.asarray(v, dtype=float)
     qv = q[..., 1:]
@@ -172,10 +337,26 @@ def quat_rotate(q: np.ndarray, v: np.ndarray) -> np.ndarray:
 
 def quat_error_rotvec(q_est: np.ndarray, q_true: np.ndarray, frame: str = 'body') -> np.ndarray:
     """
-    Attitude error as a rotation vector.
+    Return the attitude error as a rotation vector.
 
-    ``frame='body'``: ε with ``q_est = q_true ⊗ exp(ε)`` (body axes, 004's definition).
-    ``frame='reference'``: e with ``q_est = exp(e) ⊗ q_true`` (reference axes).
+    Parameters
+    ----------
+    q_est, q_true : array_like (..., 4)
+        Estimated and true attitudes ``q_ref_body``, scalar first.
+    frame : {'body', 'reference'}
+        ``'body'``: ε with ``q_est = q_true ⊗ exp(ε)`` (body axes, 004's definition);
+        ``'reference'``: e with ``q_est = exp(e) ⊗ q_true`` (reference axes).
+
+    Returns
+    -------
+    ndarray (..., 3)
+        The error, rad.
+
+    Raises
+    ------
+    ValueError
+        For another ``frame``.
+
     """
     if frame == 'body':
         d = quat_multiply(quat_conjugate(q_true), q_est)
@@ -187,21 +368,44 @@ def quat_error_rotvec(q_est: np.ndarray, q_true: np.ndarray, frame: str = 'body'
 
 
 def quat_angle_between(q1: np.ndarray, q2: np.ndarray) -> np.ndarray:
-    """Angle (rad) of the rotation between two attitudes."""
+    """
+    Return the angle of the rotation between two attitudes.
+
+    Parameters
+    ----------
+    q1, q2 : array_like (..., 4)
+        Unit quaternions, scalar first.
+
+    Returns
+    -------
+    ndarray (...)
+        The angle, rad, in [0, π].
+
+    """
     d = quat_multiply(quat_conjugate(q1), q2)
     return 2.0 * np.arctan2(np.linalg.norm(d[..., 1:], axis=-1), np.abs(d[..., 0]))
 
 
 def quat_cumprod(q0: np.ndarray, dq: np.ndarray) -> np.ndarray:
     """
-    Running attitude ``q_k = q0 ⊗ dq_1 ⊗ … ⊗ dq_k`` for k = 1..n, vectorised.
+    Return the running attitude ``q_k = q0 ⊗ dq_1 ⊗ … ⊗ dq_k``, vectorised.
 
-    A blocked scan with O(n) work: the n factors are cut into blocks of 16; one vectorised
-    pass per position runs the prefix inside every block at once (earlier factor on the
-    left: the product is not commutative), the block totals are scanned the same way
-    (recursively), and one vectorised product puts each block's prefix in front.  Each
-    result passes through about 16·log₁₆ n products instead of n, and is renormalised at the end.
-    Mathematically identical to the sequential update (003 eq. 1.64).
+    A blocked scan with O(n) work (blocks of 16, the block totals scanned recursively), each
+    result renormalised at the end; mathematically identical to the sequential update
+    (003 eq. 1.64).
+
+    Parameters
+    ----------
+    q0 : array_like (4,)
+        Initial attitude, scalar first.
+    dq : array_like (n, 4)
+        Attitude increments, in order.
+
+    Returns
+    -------
+    ndarray (n, 4)
+        ``q_1 … q_n``, unit norm.
+
     """
     q0 = np.asarray(q0, dtype=float)
     x = np.asarray(dq, dtype=float)
@@ -231,20 +435,61 @@ def quat_cumprod(q0: np.ndarray, dq: np.ndarray) -> np.ndarray:
 
 # --- ROS edge helpers -------------------------------------------------------------
 def to_ros_xyzw(q: np.ndarray) -> np.ndarray:
-    """Scalar-first ``[w,x,y,z]`` → ROS order ``[x,y,z,w]``."""
+    """
+    Reorder scalar-first ``[w,x,y,z]`` to the ROS order ``[x,y,z,w]``.
+
+    Parameters
+    ----------
+    q : array_like (..., 4)
+        Scalar-first quaternions.
+
+    Returns
+    -------
+    ndarray (..., 4)
+        The same quaternions, ROS order.
+
+    """
     q = np.asarray(q, dtype=float)
     return np.concatenate([q[..., 1:], q[..., :1]], axis=-1)
 
 
 def from_ros_xyzw(q: np.ndarray) -> np.ndarray:
-    """ROS order ``[x,y,z,w]`` → scalar-first ``[w,x,y,z]``."""
+    """
+    Reorder the ROS order ``[x,y,z,w]`` to scalar-first ``[w,x,y,z]``.
+
+    Parameters
+    ----------
+    q : array_like (..., 4)
+        Quaternions in ROS order.
+
+    Returns
+    -------
+    ndarray (..., 4)
+        The same quaternions, scalar first.
+
+    """
     q = np.asarray(q, dtype=float)
     return np.concatenate([q[..., 3:], q[..., :3]], axis=-1)
 
 
 # --- Euler sequences of the seeds --------------------------------------------------
 def elementary_dcm(axis: int, angle) -> np.ndarray:
-    """Active rotation by ``angle`` about coordinate axis 0/1/2 (x/y/z): ``exp([angle·e_axis ×])``."""
+    """
+    Return the active rotation by ``angle`` about a coordinate axis: ``exp([angle·e ×])``.
+
+    Parameters
+    ----------
+    axis : {0, 1, 2}
+        x, y or z.
+    angle : float or array_like (...)
+        Angle, rad.
+
+    Returns
+    -------
+    ndarray (..., 3, 3)
+        Rotation matrices.
+
+    """
     angle = np.asarray(angle, dtype=float)
     c, s = np.cos(angle), np.sin(angle)
     one, zero = np.ones_like(angle), np.zeros_like(angle)
@@ -269,13 +514,39 @@ def elementary_dcm(axis: int, angle) -> np.ndarray:
 
 
 def ypr_to_dcm(yaw, pitch, roll) -> np.ndarray:
-    """``C_parent_child = R_z(−ψ) R_x(ϑ) R_y(γ)`` (004 eq. 1), mapping child → parent coordinates."""
+    """
+    Return ``C_parent_child = R_z(−ψ) R_x(ϑ) R_y(γ)`` (004 eq. 1).
+
+    Parameters
+    ----------
+    yaw, pitch, roll : float or array_like (...)
+        ψ, ϑ, γ, rad.
+
+    Returns
+    -------
+    ndarray (..., 3, 3)
+        The DCM mapping child to parent coordinates.
+
+    """
     return (elementary_dcm(2, -np.asarray(yaw, dtype=float)) @ elementary_dcm(0, pitch)
             @ elementary_dcm(1, roll))
 
 
 def dcm_to_ypr(C: np.ndarray) -> np.ndarray:
-    """Inverse of :func:`ypr_to_dcm`; pitch in [-π/2, π/2].  Returns (..., 3) [ψ, ϑ, γ]."""
+    """
+    Return the angles of :func:`ypr_to_dcm`; pitch in [-π/2, π/2].
+
+    Parameters
+    ----------
+    C : array_like (..., 3, 3)
+        ``C_parent_child``.
+
+    Returns
+    -------
+    ndarray (..., 3)
+        [ψ, ϑ, γ], rad.
+
+    """
     C = np.asarray(C, dtype=float)
     # R_z(−ψ)R_x(ϑ)R_y(γ): C[2,1] = sin ϑ, C[0,1] = sin ψ cos ϑ, C[1,1] = cos ψ cos ϑ,
     # C[2,0] = −cos ϑ sin γ, C[2,2] = cos ϑ cos γ
@@ -287,8 +558,21 @@ def dcm_to_ypr(C: np.ndarray) -> np.ndarray:
 
 def ypr_error_to_rotation(yaw, pitch, roll) -> tuple[np.ndarray, np.ndarray]:
     """
-    004 §5: small-angle maps ``θ_child = D1 δβ`` and ``θ_parent = D2 δβ = C D1 δβ`` of a
-    perturbation δβ of (ψ, ϑ, γ) into the rotation error of C (``C ≈ C̆(I + [θ_child×])``).
+    Map a perturbation of (ψ, ϑ, γ) into the rotation error of C (004 §5).
+
+    The small-angle maps ``θ_child = D1 δβ`` and ``θ_parent = D2 δβ = C D1 δβ``, with
+    ``C ≈ C̆(I + [θ_child×])``.
+
+    Parameters
+    ----------
+    yaw, pitch, roll : float
+        ψ, ϑ, γ of C, rad.
+
+    Returns
+    -------
+    (ndarray (3, 3), ndarray (3, 3))
+        D1 (child axes) and D2 (parent axes).
+
     """
     sy, cy = np.sin(yaw), np.cos(yaw)
     sp, cp = np.sin(pitch), np.cos(pitch)
@@ -305,7 +589,20 @@ AIRCRAFT_AXES = (1, 2, 0)
 
 
 def aircraft_angles_to_quat(angles) -> np.ndarray:
-    """Quaternion ``N_L_J(φ) = exp(φ1·e_y/2) ⊗ exp(φ2·e_z/2) ⊗ exp(φ3·e_x/2)`` (000 §6)."""
+    """
+    Return ``N_L_J(φ) = exp(φ1·e_y/2) ⊗ exp(φ2·e_z/2) ⊗ exp(φ3·e_x/2)`` (000 §6).
+
+    Parameters
+    ----------
+    angles : array_like (..., 3)
+        Aircraft angles φ1 (yaw), φ2 (pitch), φ3 (roll), rad.
+
+    Returns
+    -------
+    ndarray (..., 4)
+        ``q_L_J``, scalar first: body (J) coordinates to the reference basis (L).
+
+    """
     angles = np.asarray(angles, dtype=float)
     q = None
     for axis, k in zip(AIRCRAFT_AXES, range(3)):

@@ -1,8 +1,10 @@
 """
-Text out of the core: every string a node or tool echoes (a frame id, a topic name, a reason
-read from the input) goes through :func:`bounded`, so that hostile or broken input (a 2 MB
-header.frame_id) can neither flood a log nor cost time in formatting; every JSON result goes
-through :func:`json_clean`.  No ROS imports.
+Text out of the core: bounded echoes and plain JSON values.
+
+A base module (no imports from other rooms): every string a node or tool echoes (a frame id,
+a topic name, a reason read from the input) goes through :func:`bounded`, so that hostile or
+broken input (a 2 MB header.frame_id) can neither flood a log nor cost time in formatting;
+every JSON result goes through :func:`json_clean`.  No ROS imports.
 """
 from __future__ import annotations
 
@@ -16,6 +18,8 @@ ECHO_LIMIT = 64
 
 def bounded(text, limit: int = ECHO_LIMIT) -> str:
     """
+    Cut ``text`` to at most ``limit`` characters, marking the cut.
+
     ``text`` (made a str) cut to at most ``limit`` characters, the cut marked by an ellipsis
     and the original length.
 
@@ -31,6 +35,7 @@ def bounded(text, limit: int = ECHO_LIMIT) -> str:
     str
         ``text`` itself when it is short enough; otherwise its first ``limit`` characters,
         ``…`` and ``(N chars)``, so the result is at most ``limit`` + 20 characters long.
+
     """
     s = text if isinstance(text, str) else str(text)
     limit = max(1, int(limit))
@@ -52,6 +57,7 @@ def json_clean(v):
     -------
     object
         The same structure in Python types that strict JSON (no NaN) can write.
+
     """
     if isinstance(v, dict):
         return {k: json_clean(x) for k, x in v.items()}

@@ -25,7 +25,7 @@ import pytest  # noqa: E402  (after the environment above, before any test impor
 
 @pytest.fixture(scope='module')
 def ros():
-    """An rclpy context for one test module of node tests."""
+    """Give an rclpy context for one test module of node tests."""
     import rclpy
     rclpy.init()
     yield

@@ -4,6 +4,8 @@ import time
 
 def spin_until(executor, predicate, timeout):
     """
+    Spin ``executor`` until ``predicate()`` is true or ``timeout`` s pass.
+
     Spin ``executor`` in 20 ms slices until ``predicate()`` is true; False after ``timeout`` s
     of wall time (every wait of a node test has a timeout).
     """

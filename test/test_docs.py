@@ -1,4 +1,6 @@
 """
+The documentation covers every parameter and topic; the README gives the commands.
+
 The documentation covers every parameter (with its default) and every topic the nodes use, in
 doc/nodes.md, and the README gives the two commands and the ROS 2 workflow.
 """
@@ -33,8 +35,8 @@ def test_every_topic_is_documented():
     for f in ('imu_sim_node.py', 'sins_node.py', 'star_camera_sim_node.py', 'calibrator_node.py',
               'attitude_filter_node.py'):
         src = _read('strapdown_ros', 'nodes', f)
-        topics |= set(re.findall(r'create_(?:publisher|subscription)\(\s*\w+,\s*["\']([^"\']+)["\']',
-                                 src))
+        created = r'create_(?:publisher|subscription)\(\s*\w+,\s*["\']([^"\']+)["\']'
+        topics |= set(re.findall(created, src))
     assert topics >= {'imu/delta_theta', 'imu/delta_velocity', 'imu/data_raw', 'sins/attitude',
                       'sins/imu', '/diagnostics', 'star_camera/attitude', 'calibration/boresight'}
     for t in topics:
@@ -50,7 +52,7 @@ def test_two_commands_and_ros_workflow_are_documented():
 
 
 def _anchors(text):
-    """GitHub's heading anchors of a Markdown text (headings inside code blocks excluded)."""
+    """Return GitHub's heading anchors of a Markdown text."""
     text = re.sub(r'```.*?```', '', text, flags=re.S)
     return {re.sub(r'[^\w\- ]', '', h.strip().lower()).replace(' ', '-')
             for h in re.findall(r'^#+ (.+)$', text, flags=re.M)}

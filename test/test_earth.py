@@ -90,7 +90,8 @@ def test_normal_exact_matches_harmonic_series():
         assert np.max(_angle_arcsec(ex, j2)) < 1.5     # measured 1.30″
 
 
-@pytest.mark.parametrize('model,pot', [('j2', G.j2_potential), ('normal_exact', G.normal_potential)])
+@pytest.mark.parametrize('model,pot', [('j2', G.j2_potential),
+                                       ('normal_exact', G.normal_potential)])
 def test_gravity_is_gradient_of_potential(model, pot):
     r = _random_points()
     g = G.normal_gravity(r, model)
@@ -125,7 +126,8 @@ def test_corrected_printed_vs_exact_and_literal_fails():
         # first-order truncation: measured 3.47e-4 m/s² (34.7 mGal), 3.20″ at h = 0
         assert np.max(np.abs(np.linalg.norm(pr, axis=-1) - np.linalg.norm(ex, axis=-1))) < 4e-4
         assert np.max(_angle_arcsec(pr, ex)) < 3.5
-        lit = np.array([G.printed_gravity_as_printed(*p) for p in r.reshape(-1, 3)]).reshape(r.shape)
+        lit = np.array([G.printed_gravity_as_printed(*p)
+                       for p in r.reshape(-1, 3)]).reshape(r.shape)
         assert np.max(_angle_arcsec(lit, ex)) > 600.0            # measured 694″
         for kw in ({'g2_omega_sign': 1.0}, {'gz_sign': -1.0}):   # one fix alone is not enough
             assert np.max(_angle_arcsec(G.printed_gravity_variant(r, **kw), ex)) > 600.0
@@ -166,7 +168,8 @@ def test_registry_and_shapes():
 def test_geodetic_known_points():
     b = G.A * (1 - G.F)
     assert np.allclose(G.geodetic_to_ecef(0.0, 0.0, 0.0), [G.A, 0, 0], atol=1e-9, rtol=0)
-    assert np.allclose(G.geodetic_to_ecef(0.0, np.pi / 2, 100.0), [0, G.A + 100, 0], atol=1e-9, rtol=0)
+    assert np.allclose(G.geodetic_to_ecef(0.0, np.pi / 2, 100.0),
+                       [0, G.A + 100, 0], atol=1e-9, rtol=0)
     assert np.allclose(G.geodetic_to_ecef(np.pi / 2, 0.3, 0.0), [0, 0, b], atol=1e-9, rtol=0)
     assert abs(G.E2 - 0.0066943662) < 1e-10
 
@@ -201,6 +204,8 @@ def test_enu_rotation():
 
 def test_scalar_exact_field_and_the_compiled_loop_equal_the_vectorised_field():
     """
+    Agree between the scalar and vectorised forms of the normal_exact gravity.
+
     gravity_model normal_exact is the default: its scalar form (compiled into the navigation
     loop) equals the vectorised closed form (independent code: arrays, series by np.where), and
     the loop run with it equals the same loop run with the vectorised field.

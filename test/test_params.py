@@ -30,6 +30,7 @@ def test_example_profile_loads():
 
 
 def test_unknown_parameter_is_refused_with_the_known_names():
-    with pytest.raises(ValueError, match="unknown parameter 'coning_algo'; known: .*coning_algorithm"):
+    with pytest.raises(ValueError, match="unknown parameter 'coning_algo'; known: "
+                                         '.*coning_algorithm'):
         check_all(SINS_PARAMS, {'coning_algo': '2'})
     assert isinstance(ConingProfile(0.1, 1.0).cone_period, float)

@@ -8,6 +8,7 @@ rng = np.random.default_rng(1)
 
 
 def random_quats(n):
+    """Return n random unit quaternions."""
     return R.quat_normalize(rng.normal(size=(n, 4)))
 
 
@@ -35,8 +36,8 @@ def test_rotvec_quaternion_dcm_roundtrips_and_rodrigues():
             term = term @ K / k
             expm = expm + term
         np.testing.assert_allclose(R.rotvec_to_dcm(p), expm, atol=1e-13)
-    np.testing.assert_allclose(R.dcm_to_quat(R.quat_to_dcm(q)) * np.sign(q[:, :1]), q * np.sign(q[:, :1]),
-                               atol=1e-13)
+    sign = np.sign(q[:, :1])
+    np.testing.assert_allclose(R.dcm_to_quat(R.quat_to_dcm(q)) * sign, q * sign, atol=1e-13)
 
 
 def test_small_and_zero_rotation_vectors_are_exact():
@@ -48,7 +49,8 @@ def test_small_and_zero_rotation_vectors_are_exact():
 
 def test_composition_and_body_increment_update():
     a, b = random_quats(2)
-    np.testing.assert_allclose(R.quat_to_dcm(R.quat_multiply(a, b)), R.quat_to_dcm(a) @ R.quat_to_dcm(b), atol=1e-14)
+    np.testing.assert_allclose(R.quat_to_dcm(R.quat_multiply(a, b)),
+                               R.quat_to_dcm(a) @ R.quat_to_dcm(b), atol=1e-14)
     # a body-axis increment multiplies on the right: U_k = U_{k-1} A(φ)   (003 eq. 1.64)
     phi = np.array([0.1, -0.2, 0.3])
     np.testing.assert_allclose(R.quat_to_dcm(R.quat_multiply(a, R.rotvec_to_quat(phi))),
@@ -71,7 +73,8 @@ def test_error_rotvec_definitions():
     q_est = R.quat_multiply(q_true, R.rotvec_to_quat(eps))
     np.testing.assert_allclose(R.quat_error_rotvec(q_est, q_true, 'body'), eps, atol=1e-15)
     # C_est = C_true (I + [ε×]) to first order: the 004 §2.3 definition
-    np.testing.assert_allclose(R.quat_to_dcm(q_est), R.quat_to_dcm(q_true) @ (np.eye(3) + R.skew(eps)), atol=1e-7)
+    np.testing.assert_allclose(R.quat_to_dcm(q_est), R.quat_to_dcm(
+        q_true) @ (np.eye(3) + R.skew(eps)), atol=1e-7)
     e_ref = R.quat_to_dcm(q_true) @ eps
     np.testing.assert_allclose(R.quat_error_rotvec(q_est, q_true, 'reference'), e_ref, atol=1e-15)
     assert R.quat_angle_between(q_est, q_true) == pytest.approx(np.linalg.norm(eps), rel=1e-9)
@@ -114,5 +117,6 @@ def test_ypr_error_maps_match_004_d1_d2_by_finite_differences():
 def test_aircraft_angles_of_000():
     phi = np.array([-0.5, 0.17, -0.6])        # 000 §6 initial angles
     q = R.aircraft_angles_to_quat(phi)
-    C = R.rotvec_to_dcm([0, phi[0], 0]) @ R.rotvec_to_dcm([0, 0, phi[1]]) @ R.rotvec_to_dcm([phi[2], 0, 0])
+    C = (R.rotvec_to_dcm([0, phi[0], 0]) @ R.rotvec_to_dcm([0, 0, phi[1]])
+         @ R.rotvec_to_dcm([phi[2], 0, 0]))
     np.testing.assert_allclose(R.quat_to_dcm(q), C, atol=1e-15)

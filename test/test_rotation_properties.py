@@ -1,4 +1,6 @@
 """
+Property tests of the rotation core on random inputs.
+
 Property tests of the rotation core: composition, inverse, renormalisation,
 conversion round-trips, the angle wrap at π and the double cover — on random inputs.
 """
@@ -6,10 +8,11 @@ import numpy as np
 import pytest
 
 hypothesis = pytest.importorskip('hypothesis')
-from hypothesis import given, settings  # noqa: E402
-from hypothesis import strategies as st  # noqa: E402
+st = pytest.importorskip('hypothesis.strategies')
+given, settings = hypothesis.given, hypothesis.settings
 
-from strapdown_ros.rotation import (dcm_to_quat, from_ros_xyzw, quat_angle_between, quat_conjugate,
+from strapdown_ros.rotation import (dcm_to_quat, from_ros_xyzw,  # noqa: E402
+                                    quat_angle_between, quat_conjugate,
                                     quat_multiply, quat_normalize, quat_to_dcm, quat_to_rotvec,
                                     rotvec_to_quat, to_ros_xyzw)
 
@@ -23,14 +26,18 @@ SETTINGS = settings(max_examples=300, deadline=None)
 
 
 def same_rotation(p, q, tol=1e-12):
-    return min(np.max(np.abs(p - q)), np.max(np.abs(p + q))) < tol        # the double cover: q ≡ −q
+    # the double cover: q ≡ −q
+    """Tell whether p and q are the same rotation (q ≡ −q)."""
+    return min(np.max(np.abs(p - q)), np.max(np.abs(p + q))) < tol
 
 
 @SETTINGS
 @given(quats, quats, quats)
 def test_composition_is_associative_and_matches_dcms(p, q, r):
-    assert same_rotation(quat_multiply(quat_multiply(p, q), r), quat_multiply(p, quat_multiply(q, r)))
-    np.testing.assert_allclose(quat_to_dcm(quat_multiply(p, q)), quat_to_dcm(p) @ quat_to_dcm(q), atol=1e-12)
+    assert same_rotation(quat_multiply(quat_multiply(p, q), r),
+                         quat_multiply(p, quat_multiply(q, r)))
+    np.testing.assert_allclose(quat_to_dcm(quat_multiply(p, q)),
+                               quat_to_dcm(p) @ quat_to_dcm(q), atol=1e-12)
 
 
 @SETTINGS
@@ -67,4 +74,5 @@ def test_rotation_vector_angle_and_wrap_at_pi(k, a):
     # a rotation by a + 2π·0 past π is the rotation by 2π − a about −k
     b = np.pi + 0.5 * (np.pi - a)
     if np.pi + 1e-9 < b < 2 * np.pi - 1e-6:                 # at π itself ±πk are the same rotation
-        np.testing.assert_allclose(quat_to_rotvec(rotvec_to_quat(b * k)), -(2 * np.pi - b) * k, atol=1e-9)
+        np.testing.assert_allclose(quat_to_rotvec(
+            rotvec_to_quat(b * k)), -(2 * np.pi - b) * k, atol=1e-9)

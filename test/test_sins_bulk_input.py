@@ -1,4 +1,6 @@
 """
+The whole-recording input path of the SINS core equals the one-message path.
+
 The whole-recording input path of the SINS core (sins_bag's): the vectorised CDR decoder, the
 vectorised stream rules and the block feeding give exactly what the node's one-message path
 gives — the same accepted messages and counters, the same attitude to the bit, the navigation to
@@ -19,6 +21,8 @@ from strapdown_ros.text import bounded
 
 def _faulty_stream(rng, n, period_ns, scale, arrival=False):
     """
+    Make a stream with every kind of fault the rules handle (no resync).
+
     Stamps and vectors of a stream with every kind of fault the rules handle (no resync);
     ``arrival``: also the times the messages arrive (the stamps before the per-message faults).
     """
@@ -104,6 +108,8 @@ def _collect(outs):
 @pytest.mark.parametrize('navigation', [False, True])
 def test_screen_and_feed_equal_the_node_path(navigation):
     """
+    Give the same results on the node's path and the whole-recording path.
+
     The node's path (every message offered in stamp order, a block every batch_period) and
     the whole-recording path (screen, then blocks of 257 Δθ / 500 Δv) on the same faulty
     streams with foreign frames: the same counters, the same attitude and covariance to the bit,
@@ -182,6 +188,8 @@ def test_bounded_cuts_long_text_and_says_how_long_it_was():
 
 def test_frame_warning_is_built_only_when_emitted_and_bounded():
     """
+    Build the frame warning only when it is emitted, and bounded.
+
     A 2 MB frame id costs no string building per message, and the warning that
     is emitted carries at most the bounded id.
     """
@@ -198,6 +206,8 @@ def test_frame_warning_is_built_only_when_emitted_and_bounded():
 
 def test_mcap_chunk_reader_gives_rosbags_records_in_rosbags_order(tmp_path):
     """
+    Read MCAP chunks as rosbags reads them, in the same order.
+
     sins_bag's chunk reader (recording/mcap_records.py, compiled scan and its plain form) against
     rosbags' reader on an MCAP file of several chunks overlapping in log time, with frame ids
     of several lengths: the same records in the same order, the same decoded numbers.
@@ -231,14 +241,14 @@ def test_mcap_chunk_reader_gives_rosbags_records_in_rosbags_order(tmp_path):
     try:
         storage = mcap_records.indexed_mcap(rd)
         assert storage is not None and len(storage.chunks) >= 3
-        sel = [c for c in rd.connections]
+        sel = list(rd.connections)
         ref = {c.topic: [] for c in sel}
         for c, _, raw in rd.messages(connections=sel):
             ref[c.topic].append(vector3_stamped(raw))
         got = read_streams(rd, sel, path)
         ids = mcap_records.channel_ids(storage, sel)
         plain = [mcap_records.scan_plain(np.frombuffer(b'\x05' + bytes(8), np.uint8),
-                                          np.ones(3, bool))]
+                                         np.ones(3, bool))]
     finally:
         rd.close()
     assert plain[0][1] and len(ids) == 2

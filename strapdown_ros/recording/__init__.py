@@ -1,7 +1,10 @@
 """
-Reading recordings (rosbag2 bags) for the offline tools: one reader of gyro increments or rate
-samples and of attitude references in the common ROS message formats (:mod:`.reader`), and
-the tools' input options and reports (:mod:`.options`).
+Reading and writing recordings (rosbag2 bags) for the offline tools.
+
+One reader of gyro increments or rate samples and of attitude references in the common ROS
+message formats (:mod:`.reader`), the tools' input options and reports (:mod:`.options`), the
+MCAP chunk reader of ``sins_bag`` (:mod:`.mcap_records`), the simulated-bag writer
+(:mod:`.writer`) and the RepoIMU converter (:mod:`.repoimu`).
 
 Imports rosbags (the ``tools`` extra); the numerical core never imports this package.
 """

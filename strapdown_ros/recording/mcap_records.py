@@ -1,4 +1,6 @@
 """
+The records of some topics of an indexed MCAP rosbag2 file, a chunk at a time.
+
 The records of some topics of an indexed MCAP rosbag2 file, a chunk at a time, without a Python
 object per record: the chunk is decompressed (and its CRC checked) by rosbags, its records are
 located by one scan (compiled when numba is there), and the messages of a topic come out as one
@@ -24,8 +26,24 @@ _OP_MESSAGE = 0x05
 
 def scan_python(raw, wanted):
     """
-    Offsets of the Message records of the wanted channels in a decompressed chunk: (record
-    start, data start, data length, channel id, log time) per message, in chunk order.
+    Locate the Message records of the wanted channels in a decompressed chunk.
+
+    Written for numba (:func:`scanner` compiles it); :func:`scan_plain` gives the same output
+    without it.
+
+    Parameters
+    ----------
+    raw : ndarray (n,) uint8
+        The decompressed chunk.
+    wanted : ndarray (m,) bool
+        Indexed by channel id: True for the channels to keep.
+
+    Returns
+    -------
+    ndarray (k, 5) int64
+        Per message, in chunk order: record start, data start, data length, channel id, log
+        time (ns).
+
     """
     n = raw.shape[0]
     cap = 1024
@@ -62,6 +80,7 @@ _compiled = None
 
 
 def scanner():
+    """Return the chunk scanner: :func:`scan_python` compiled (numba), else :func:`scan_plain`."""
     global _compiled
     if _compiled is None:
         got = njit_optional(scan_python) if kernels_allowed() else None
@@ -74,7 +93,22 @@ _MSG = struct.Struct('<HIq')          # log time as int64, as the compiled scan 
 
 
 def scan_plain(raw, wanted):
-    """:func:`scan_python` with struct (no numba): the same output."""
+    """
+    Locate the Message records like :func:`scan_python`, with struct (no numba).
+
+    Parameters
+    ----------
+    raw : bytes-like
+        The decompressed chunk.
+    wanted : sequence of bool
+        Indexed by channel id: True for the channels to keep.
+
+    Returns
+    -------
+    ndarray (k, 5) int64
+        The same rows as :func:`scan_python`.
+
+    """
     buf = raw.tobytes()
     n = len(buf)
     rows = []
@@ -93,8 +127,19 @@ def scan_plain(raw, wanted):
 
 def indexed_mcap(reader):
     """
-    rosbags' MCAP storage of an AnyReader over one bag of one MCAP file with a chunk index (and
-    no per-message compression); else None (read through rosbags' reader).
+    Return rosbags' MCAP storage of a reader when it can be read by chunks.
+
+    Parameters
+    ----------
+    reader : rosbags.highlevel.AnyReader
+        An open reader.
+
+    Returns
+    -------
+    object or None
+        The storage of its one MCAP file when the file has a chunk index and no per-message
+        compression; else None (read through rosbags' reader).
+
     """
     try:
         from rosbags.rosbag2.reader import DirectoryReader
@@ -118,8 +163,20 @@ def indexed_mcap(reader):
 
 def channel_ids(storage, connections) -> dict:
     """
-    {MCAP channel id: topic} of the file's channels that are these connections (same topic and
-    type).
+    Map the MCAP channel ids of these connections to their topics.
+
+    Parameters
+    ----------
+    storage : object
+        From :func:`indexed_mcap`.
+    connections : iterable of rosbags Connection
+        The connections wanted (same topic and type).
+
+    Returns
+    -------
+    dict
+        {MCAP channel id: topic}.
+
     """
     want = {(c.topic, c.msgtype) for c in connections}
     return {x.id: x.topic for x in storage.connections if (x.topic, x.msgtype) in want}
@@ -127,8 +184,17 @@ def channel_ids(storage, connections) -> dict:
 
 class TopicRecords:
     """
-    The messages of one topic read from a chunk: ``rows`` (n, L) uint8 when they all have
-    the length L, else ``records`` (a list of bytes); ``log_ns`` (n,) their log times.
+    The messages of one topic read from a chunk.
+
+    Parameters
+    ----------
+    log_ns : ndarray (n,) int64
+        Log times, ns.
+    rows : ndarray (n, L) uint8, optional
+        The messages' bytes when they all have the length L.
+    records : list of bytes, optional
+        The messages' bytes otherwise.
+
     """
 
     def __init__(self, log_ns, rows=None, records=None):
@@ -140,9 +206,30 @@ class TopicRecords:
 
 def read_topics(storage, channel_ids: dict, progress=None):
     """
-    Yield, chunk by chunk in the order of their first log time, {topic: TopicRecords} of the
-    channels ``channel_ids`` ({channel id: topic}).  Raises ValueError on a damaged chunk (a
-    record running past its end, a size or checksum mismatch).
+    Yield the records of the wanted channels, chunk by chunk.
+
+    Chunks come in the order of their first log time; within a topic, records in log time
+    order, then chunk order.
+
+    Parameters
+    ----------
+    storage : object
+        From :func:`indexed_mcap`.
+    channel_ids : dict
+        {channel id: topic} (:func:`channel_ids`).
+    progress : callable(int), optional
+        Called with each chunk's last log time, ns.
+
+    Yields
+    ------
+    dict
+        {topic: TopicRecords} of one chunk.
+
+    Raises
+    ------
+    ValueError
+        A damaged chunk (a record running past its end, a size or checksum mismatch).
+
     """
     from rosbags.rosbag2.storage_mcap import decompress
 

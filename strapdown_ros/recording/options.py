@@ -24,7 +24,7 @@ __all__ = [
 
 def input_summary(data: dict) -> dict:
     """
-    What was read and how, JSON-ready (the ``input`` record of the tools).
+    Return what was read and how, JSON-ready (the ``input`` record of the tools).
 
     Parameters
     ----------
@@ -37,6 +37,7 @@ def input_summary(data: dict) -> dict:
         gyro and reference topics and types, ``gyro_input`` (``delta_theta`` | ``rates``), the
         rate rule and rate-sample counts, the TF frames, ``reference_covariance``
         (``from_messages`` | ``from_model`` | ``mixed``) and ``unread_messages`` {topic: n}.
+
     """
     return {
         'gyro_topic': data['gyro_topic'],
@@ -67,6 +68,7 @@ def input_warnings(prog: str, info: dict) -> list[str]:
     -------
     list of str
         One line per problem found, bounded in length; empty when there is nothing to say.
+
     """
     out = []
     unread = info.get('unread_messages') or {}
@@ -101,6 +103,7 @@ def input_lines(info: dict) -> list[str]:
     -------
     list of str
         One or two indented lines.
+
     """
     short = {t: t.rsplit('/', 1)[-1] for t in (info['gyro_type'], info['reference_type'])}
     if info['gyro_input'] == 'rates':
@@ -139,6 +142,7 @@ def add_input_arguments(parser) -> None:
     ----------
     parser : argparse.ArgumentParser
         The tool's parser (an argument group is added to it).
+
     """
     g = parser.add_argument_group('input topics and formats')
     g.add_argument(
@@ -182,6 +186,7 @@ def check_input_arguments(args) -> None:
     ------
     ValueError
         One line: an empty topic name, empty or identical ``--reference-frames``.
+
     """
     for opt, v in (('--gyro-topic', args.gyro_topic), ('--reference-topic', args.reference_topic)):
         if v is not None and not v.strip('/').strip():
@@ -209,6 +214,7 @@ def input_options(args) -> dict:
     -------
     dict
         ``gyro_topic``, ``reference_topic``, ``reference_frames`` (tuple or None), ``rate_rule``.
+
     """
     return {
         'gyro_topic': args.gyro_topic,

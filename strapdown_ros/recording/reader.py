@@ -7,9 +7,9 @@ Gyro (``--gyro-topic``, default ``imu/delta_theta``), chosen by the topic's type
 * ``sensor_msgs/msg/Imu``: ``angular_velocity`` rate samples (rad/s).  They are validated by
   :class:`strapdown_ros.streams.checks.StreamCheck` (range ``gyro_max_rate`` per axis, period the
   median step of the stamps), made into increments by
-  :func:`strapdown_ros.streams.rate_increments.increments_from_rates` (rule ``trapezoid`` or ``mean``,
-  intervals above 1.5 periods not integrated), and the increments then take the same path as
-  Δθ messages (validation, gaps, missing counts).
+  :func:`strapdown_ros.streams.rate_increments.increments_from_rates` (rule ``trapezoid`` or
+  ``mean``, intervals above 1.5 periods not integrated), and the increments then take the same path
+  as Δθ messages (validation, gaps, missing counts).
 
 Attitude reference (``--reference-topic``, default ``star_camera/attitude_with_covariance``
 when present and its covariance is wanted, else ``star_camera/attitude``): q_ref_body of the
@@ -74,7 +74,7 @@ class BagError(RuntimeError):
 
 def bounded(text, n: int = MAX_NAME) -> str:
     """
-    A string echoed from a bag, bounded: on one line and at most ``n`` characters.
+    Bound a string echoed from a bag: one line, at most ``n`` characters.
 
     Parameters
     ----------
@@ -86,6 +86,7 @@ def bounded(text, n: int = MAX_NAME) -> str:
     Returns
     -------
     str
+
     """
     text = ''.join(c if c.isprintable() else repr(c)[1:-1] for c in str(text)[: 4 * n])
     return text if len(text) <= n else text[: n - 1] + '…'
@@ -93,7 +94,7 @@ def bounded(text, n: int = MAX_NAME) -> str:
 
 def bounded_list(items, n: int = MAX_LISTED) -> str:
     """
-    A bounded, comma-separated listing.
+    Return a bounded, comma-separated listing.
 
     Parameters
     ----------
@@ -106,6 +107,7 @@ def bounded_list(items, n: int = MAX_LISTED) -> str:
     -------
     str
         ``"none"`` for no items.
+
     """
     items = list(items)
     head = ', '.join(bounded(i) for i in items[:n])
@@ -123,7 +125,7 @@ def _first_line(exc) -> str:
 
 def open_reader(path):
     """
-    An open ``rosbags`` AnyReader (Jazzy type store) for a bag directory or file.
+    Open a bag directory or file with ``rosbags`` (Jazzy type store).
 
     Parameters
     ----------
@@ -135,6 +137,7 @@ def open_reader(path):
     rosbags.highlevel.AnyReader
         Opened; the caller closes it.  Raises :class:`BagError` (one line) when the bag is
         missing or unreadable.
+
     """
     path = Path(path)
     if not path.exists():
@@ -149,7 +152,7 @@ def open_reader(path):
 
 def resolve_topic(topics, name: str, namespace: str = '') -> str | None:
     """
-    The bag topic for the relative name ``name``.
+    Return the bag topic for the relative name ``name``.
 
     Parameters
     ----------
@@ -165,6 +168,7 @@ def resolve_topic(topics, name: str, namespace: str = '') -> str | None:
     str or None
         ``[/]<namespace>/<name>``; without a namespace ``[/]<name>`` or else the only topic
         ending in ``/<name>``; None when there is none.
+
     """
     ns = namespace.strip('/')
     want = f'{ns}/{name}' if ns else name
@@ -180,6 +184,8 @@ def resolve_topic(topics, name: str, namespace: str = '') -> str | None:
 
 def _named_topic(topics: dict, name: str, namespace: str, option: str, path) -> str:
     """
+    Return the topic given by an option.
+
     The topic given by an option: an absolute name (``/x``) as is, a relative one under the
     namespace (:func:`resolve_topic`).
     """
@@ -217,6 +223,7 @@ class Accepted:
         The check that accepted them (its counts).
     extra_received : int
         Messages dropped before the check (e.g. zero quaternions), counted as received.
+
     """
 
     def __init__(self, stamps, values, gaps, check, extra_received: int = 0):
@@ -299,7 +306,8 @@ def _strip(frame: str) -> str:
 def _process_fixes(raw, with_cov: bool, P_assumed):
     """Quaternion and covariance rules of calibrator_node, per fix: (ns, q_wxyz, P 3×3 or None)."""
     out, rejected = [], 0
-    counts = {'zero_quaternion': 0, 'bad_covariance': 0, 'normalised': 0, 'covariance_substituted': 0}
+    counts = {'zero_quaternion': 0, 'bad_covariance': 0,
+              'normalised': 0, 'covariance_substituted': 0}
     from_messages = 0
     for ns, q, P in raw:
         norm = float(np.linalg.norm(q)) if np.all(np.isfinite(q)) else float('nan')
@@ -427,6 +435,7 @@ def read_bag(
         (counts), ``gyro_period_s``, ``frames`` and the input description of
         :func:`input_summary` (types, rate samples, reference covariance, unread messages).
         Raises :class:`BagError` (one line).
+
     """
     if rate_rule not in RATE_RULES:
         raise BagError(

@@ -26,8 +26,8 @@ Bags written (:func:`write_bag`), either or both formats of each stream:
   geometry_msgs/msg/PoseStamped (orientation q_vicon_marker; the data set has no positions, the
   position is written as zero);
 * the package's own: ``imu/delta_theta`` geometry_msgs/msg/Vector3Stamped (Δθ from the rate
-  samples by :func:`strapdown_ros.streams.rate_increments.increments_from_rates`, trapezoid rule, each
-  stamped at the end of its interval) and ``star_camera/attitude``
+  samples by :func:`strapdown_ros.streams.rate_increments.increments_from_rates`, trapezoid rule,
+  each stamped at the end of its interval) and ``star_camera/attitude``
   geometry_msgs/msg/QuaternionStamped (the same q_vicon_marker).
 
 The reference is decimated to one fix per ``reference_interval_s`` (default 1 s, like a star
@@ -90,6 +90,7 @@ class ImuTrial:
         Orientation of the marker frame in the reference frame, scalar-first, unit.
     imu_frame, reference_frame, marker_frame : str
         Frame names written into the headers (see the module docstring).
+
     """
 
     name: str
@@ -109,7 +110,7 @@ class ImuTrial:
 
     def excerpt(self, start_s: float, end_s: float) -> 'ImuTrial':
         """
-        The samples with stamps in [first stamp + start_s, first stamp + end_s].
+        Return the samples with stamps in a window after the first stamp.
 
         Parameters
         ----------
@@ -120,6 +121,7 @@ class ImuTrial:
         -------
         ImuTrial
             The same trial restricted to the window (both streams).
+
         """
         t0 = int(self.stamps_ns[0])
         lo, hi = t0 + int(round(start_s * _NS)), t0 + int(round(end_s * _NS))
@@ -155,6 +157,7 @@ def read_repoimu_csv(path, stamp_origin_ns: int = 0) -> ImuTrial:
     ------
     ValueError
         The file has not the columns of a RepoIMU trial, or no row.
+
     """
     path = Path(path)
     data = np.genfromtxt(path, delimiter=';', skip_header=2, usecols=range(14))
@@ -173,7 +176,7 @@ def read_repoimu_csv(path, stamp_origin_ns: int = 0) -> ImuTrial:
 
 def repoimu_trials(root, kinds=('TStick', 'Pendulum')) -> list[Path]:
     """
-    The trial files of a RepoIMU copy, sorted, those without a reference attitude left out.
+    List the trial files of a RepoIMU copy that have a reference attitude.
 
     Parameters
     ----------
@@ -186,6 +189,7 @@ def repoimu_trials(root, kinds=('TStick', 'Pendulum')) -> list[Path]:
     -------
     list of Path
         CSV files; the static trials (``*Static*``: no Vicon orientation) are not listed.
+
     """
     root = Path(root)
     out = []
@@ -196,7 +200,7 @@ def repoimu_trials(root, kinds=('TStick', 'Pendulum')) -> list[Path]:
 
 def extract_git_snapshot(git_dir, dest) -> Path:
     """
-    A work tree of a bare git snapshot (``git archive HEAD``) in ``dest``.
+    Extract a work tree of a bare git snapshot (``git archive HEAD``) into ``dest``.
 
     Parameters
     ----------
@@ -209,6 +213,7 @@ def extract_git_snapshot(git_dir, dest) -> Path:
     -------
     Path
         ``dest``.
+
     """
     dest = Path(dest)
     dest.mkdir(parents=True, exist_ok=True)
@@ -236,6 +241,7 @@ def find_repoimu(scratch=None) -> Path | None:
     -------
     Path or None
         A directory with ``TStick/``, or None when no copy is found.
+
     """
     env = os.environ.get(REALDATA_ENV, '').strip()
     if env:
@@ -256,7 +262,7 @@ def find_repoimu(scratch=None) -> Path | None:
 
 def reference_indices(stamps_ns, interval_s: float) -> np.ndarray:
     """
-    Indices of the reference samples kept when decimating to one fix per ``interval_s``.
+    Return the reference samples kept when decimating to one fix per ``interval_s``.
 
     The first sample at or after each multiple of ``interval_s`` from the first stamp is kept.
 
@@ -271,6 +277,7 @@ def reference_indices(stamps_ns, interval_s: float) -> np.ndarray:
     -------
     ndarray of int
         Indices into ``stamps_ns``.
+
     """
     if not interval_s > 0:
         raise ValueError(f'interval_s must be > 0, got {interval_s}')
@@ -357,6 +364,7 @@ def write_bag(bag, trial: ImuTrial, gyro_format: str = 'imu', reference_format: 
     dict
         ``bag``, ``messages`` (per topic), ``duration_s``, ``gyro_rate_hz`` (from the stamps),
         ``reference_fixes``, ``frames``.
+
     """
     from rosbags.rosbag2 import StoragePlugin, Writer
     from rosbags.typesys import get_typestore, Stores
@@ -431,8 +439,8 @@ def rest_mean_rate(trial: ImuTrial, angle_deg: float = 0.5, margin_s: float = 0.
     dict
         ``samples`` (gyro samples at rest), ``end_s`` (s after the first IMU stamp),
         ``mean_rad_s`` and ``sigma_rad_s`` (standard error of the mean, per axis), rad/s.
-    """
 
+    """
     q = trial.q_reference_marker
     ang = quat_angle_between(q, np.broadcast_to(q[0], q.shape))
     moving = np.flatnonzero(ang > np.radians(angle_deg))
@@ -475,8 +483,8 @@ def xcorr_lag_s(trial: ImuTrial, max_lag_s: float = 0.3) -> float:
     ------
     ValueError
         Too few samples, or the peak lies at the edge of the search.
-    """
 
+    """
     ti, tr = trial.stamps_ns, trial.reference_stamps_ns
     keep_i = np.r_[True, np.diff(ti) > 0]
     keep_r = np.r_[True, np.diff(tr) > 0]
@@ -508,6 +516,8 @@ def xcorr_lag_s(trial: ImuTrial, max_lag_s: float = 0.3) -> float:
 
 def rate_plateau_samples(trial: ImuTrial, rel: float = 0.999) -> list:
     """
+    Find, per gyro axis, the samples on the plateau of the largest rate.
+
     Per gyro axis, the samples whose |rate| lies within ``1 − rel`` of that axis' largest
     |rate| in the trial.  A gyro that clips (saturates) sits on such a plateau for many samples;
     an unclipped peak reaches it for one or two.
@@ -523,6 +533,7 @@ def rate_plateau_samples(trial: ImuTrial, rel: float = 0.999) -> list:
     -------
     list of int
         Counts for x, y, z.
+
     """
     g = np.abs(np.asarray(trial.gyro, dtype=float))
     if len(g) == 0:
@@ -545,6 +556,7 @@ def irregular_step_fraction(stamps_ns, tolerance: float = 0.1) -> float:
     -------
     float
         In [0, 1]; 0 for fewer than two steps.
+
     """
     d = np.diff(np.asarray(stamps_ns, dtype=np.int64)).astype(float)
     if len(d) < 2:

@@ -39,13 +39,27 @@ def _typestore():
 
 def offered_qos(kind: str, depth: int):
     """
-    The offered QoS of the simulator publishers (rosbags ``Qos``): 'stream' (ros_io.stream_qos),
-    'camera' (star_camera_sim_node.camera_qos) or 'latched' (star_camera_sim_node.latched_qos).
+    Return the offered QoS of the simulator publishers (rosbags ``Qos``).
+
+    Parameters
+    ----------
+    kind : {'stream', 'camera', 'latched'}
+        As ``ros_io.stream_qos``, ``star_camera_sim_node.camera_qos`` or
+        ``star_camera_sim_node.latched_qos``.
+    depth : int
+        History depth (latched: 1).
+
+    Returns
+    -------
+    rosbags.interfaces.Qos
+        The profile written into the bag's metadata.
+
     """
     from rosbags.interfaces import (Qos, QosDurability, QosHistory, QosLiveliness, QosReliability,
                                     QosTime)
 
-    zero = QosTime(0, 0)                     # deadline, lifespan, lease: unspecified (the defaults)
+    # deadline, lifespan, lease: unspecified (the defaults)
+    zero = QosTime(0, 0)
     rel = QosReliability.BEST_EFFORT if kind == 'stream' else QosReliability.RELIABLE
     dur = QosDurability.TRANSIENT_LOCAL if kind == 'latched' else QosDurability.VOLATILE
     return Qos(QosHistory.KEEP_LAST, 1 if kind == 'latched' else int(depth), rel, dur, zero, zero,
@@ -78,8 +92,8 @@ class _Messages:
         self.PoseWithCovarianceStamped = T['geometry_msgs/msg/PoseWithCovarianceStamped']
 
     def header(self, ns: int, frame_id: str):
-        return self.Header(stamp=self.Time(sec=int(ns // 1_000_000_000), nanosec=int(ns % 1_000_000_000)),
-                           frame_id=frame_id)
+        stamp = self.Time(sec=int(ns // 1_000_000_000), nanosec=int(ns % 1_000_000_000))
+        return self.Header(stamp=stamp, frame_id=frame_id)
 
     def quaternion(self, q_wxyz):
         x, y, z, w = (float(c) for c in to_ros_xyzw(q_wxyz))
@@ -91,16 +105,18 @@ class _Messages:
         return self.store.serialize_cdr(m, self.Vector3Stamped.__msgtype__)
 
     def quaternion_stamped(self, ns, frame_id, q_wxyz) -> bytes:
-        m = self.QuaternionStamped(header=self.header(ns, frame_id), quaternion=self.quaternion(q_wxyz))
+        m = self.QuaternionStamped(header=self.header(ns, frame_id),
+                                   quaternion=self.quaternion(q_wxyz))
         return self.store.serialize_cdr(m, self.QuaternionStamped.__msgtype__)
 
     def pose_with_covariance_stamped(self, ns, frame_id, q_wxyz, cov_rot) -> bytes:
         cov = np.zeros((6, 6))
         cov[0, 0] = cov[1, 1] = cov[2, 2] = UNKNOWN_POSITION_VARIANCE
         cov[3:, 3:] = np.asarray(cov_rot, dtype=float)
-        pose = self.Pose(position=self.Point(x=0.0, y=0.0, z=0.0), orientation=self.quaternion(q_wxyz))
-        m = self.PoseWithCovarianceStamped(header=self.header(ns, frame_id),
-                                           pose=self.PoseWithCovariance(pose=pose, covariance=cov.reshape(36)))
+        pose = self.Pose(position=self.Point(x=0.0, y=0.0, z=0.0),
+                         orientation=self.quaternion(q_wxyz))
+        with_cov = self.PoseWithCovariance(pose=pose, covariance=cov.reshape(36))
+        m = self.PoseWithCovarianceStamped(header=self.header(ns, frame_id), pose=with_cov)
         return self.store.serialize_cdr(m, self.PoseWithCovarianceStamped.__msgtype__)
 
 
@@ -112,11 +128,35 @@ def _topic(namespace: str, name: str) -> str:
 def record(bag: str | Path, imu_p: dict, cam_p: dict, storage: str = 'mcap', accel: bool = True,
            namespace: str = '') -> dict:
     """
-    Simulate and write the bag; returns a summary (messages per topic, true boresight, ...).
+    Simulate the two simulator nodes and write their messages to a bag.
 
     Mirrors ``imu_sim_node``: error constants ``sigmas_from(p, 'gyro').draw(default_rng(seed))``
     then the accelerometer's from the same generator; gyro noise seed+1, accelerometer seed+2;
     sample k of a sensor covers [(k−1)T, kT] and is stamped ``start_ns + round(kT·1e9)``.
+
+    Parameters
+    ----------
+    bag : str or Path
+        The bag directory to write.
+    imu_p, cam_p : dict
+        Validated parameters of imu_sim_node and star_camera_sim_node.
+    storage : {'mcap', 'sqlite3'}
+        The rosbag2 storage.
+    accel : bool
+        Also write imu/delta_velocity.
+    namespace : str
+        Namespace of the topics.
+
+    Returns
+    -------
+    dict
+        Summary: messages per topic, the true boresight and error constants, ...
+
+    Raises
+    ------
+    ValueError
+        An invalid ``storage``.
+
     """
     from rosbags.rosbag2 import StoragePlugin, Writer  # optional extra (tools)
 
@@ -144,7 +184,8 @@ def record(bag: str | Path, imu_p: dict, cam_p: dict, storage: str = 'mcap', acc
         ['imu/truth/attitude', 'star_camera/attitude', 'star_camera/attitude_with_covariance',
          'star_camera/truth/boresight']
     qos = {n: offered_qos('stream', imu_p['qos_depth']) for n in names if n.startswith('imu/')}
-    qos.update({n: offered_qos('camera', cam_p['qos_depth']) for n in names if n.startswith('star_camera/')})
+    qos.update({n: offered_qos('camera', cam_p['qos_depth'])
+               for n in names if n.startswith('star_camera/')})
     qos['star_camera/truth/boresight'] = offered_qos('latched', 1)
     counts = {_topic(namespace, n): 0 for n in names}
     bag = Path(bag)
@@ -154,7 +195,8 @@ def record(bag: str | Path, imu_p: dict, cam_p: dict, storage: str = 'mcap', acc
                                           offered_qos_profiles=[qos[n]]) for n in names}
 
         def emit(batch):
-            batch.sort(key=lambda m: (m[0], m[1]))             # by stamp; stable order within a stamp
+            # by stamp; stable order within a stamp
+            batch.sort(key=lambda m: (m[0], m[1]))
             for ns, _, name, data in batch:
                 writer.write(conns[name], ns, data)
                 counts[_topic(namespace, name)] += 1
@@ -168,12 +210,14 @@ def record(bag: str | Path, imu_p: dict, cam_p: dict, storage: str = 'mcap', acc
             w1 = min(w1 + _WINDOW, t_end)
             batch = []
             # accelerometer, then gyro: as ImuSimNode._advance_to (independent noise streams)
-            k_a = min(int(np.floor(min(w1, imu_end) / acc.period + 1e-9)), n_acc) - acc.count if accel else 0
+            k_a = min(int(np.floor(min(w1, imu_end) / acc.period + 1e-9)),
+                      n_acc) - acc.count if accel else 0
             if k_a > 0:
                 ta, dv, _ = acc.sample(k_a)
                 for t, v in zip(ta, dv):
                     ns = imu_start_ns + int(round(t * 1e9))
-                    batch.append((ns, 1, 'imu/delta_velocity', msgs.vector3_stamped(ns, frame_id, v)))
+                    batch.append((ns, 1, 'imu/delta_velocity',
+                                 msgs.vector3_stamped(ns, frame_id, v)))
             k_g = min(int(np.floor(min(w1, imu_end) / gyro.period + 1e-9)), n_gyro) - gyro.count
             if k_g > 0:
                 tg, dth, _ = gyro.sample(k_g)
@@ -181,13 +225,16 @@ def record(bag: str | Path, imu_p: dict, cam_p: dict, storage: str = 'mcap', acc
                 for t, v, q in zip(tg, dth, q_true):
                     ns = imu_start_ns + int(round(t * 1e9))
                     batch.append((ns, 0, 'imu/delta_theta', msgs.vector3_stamped(ns, frame_id, v)))
-                    batch.append((ns, 2, 'imu/truth/attitude', msgs.quaternion_stamped(ns, ref_frame, q)))
+                    batch.append((ns, 2, 'imu/truth/attitude',
+                                 msgs.quaternion_stamped(ns, ref_frame, q)))
             while cam.epoch(cam.count) <= min(w1, cam_end) + 1e-9:
                 fix = cam.fixes(cam_profile, 1)[0]
                 ns = cam_start_ns + int(round(fix.stamp * 1e9))
-                batch.append((ns, 3, 'star_camera/attitude', msgs.quaternion_stamped(ns, cam_ref_frame, fix.attitude)))
+                batch.append((ns, 3, 'star_camera/attitude',
+                             msgs.quaternion_stamped(ns, cam_ref_frame, fix.attitude)))
                 batch.append((ns, 4, 'star_camera/attitude_with_covariance',
-                              msgs.pose_with_covariance_stamped(ns, cam_ref_frame, fix.attitude, fix.covariance)))
+                              msgs.pose_with_covariance_stamped(ns, cam_ref_frame, fix.attitude,
+                                                                fix.covariance)))
             emit(batch)
             if w1 >= t_end:
                 break

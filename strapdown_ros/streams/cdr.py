@@ -1,8 +1,9 @@
 """
-Reading the increment messages straight from their serialized bytes, for the nodes' raw
-subscriptions (:func:`strapdown_ros.nodes.ros_io.decode_vector3_stamped`) and for ``sins_bag``
-(rosbag2 stores the same bytes).  No ROS imports: each caller hands the other encodings to its own
-deserializer (rclpy's, or rosbags').
+Reading the increment messages straight from their serialized bytes.
+
+Used by the nodes' raw subscriptions (:func:`strapdown_ros.nodes.ros_io.decode_vector3_stamped`)
+and by ``sins_bag`` (rosbag2 stores the same bytes).  No ROS imports: each caller hands the
+other encodings to its own deserializer (rclpy's, or rosbags').
 
 geometry_msgs/Vector3Stamped in plain little-endian CDR (encapsulation 0x0001, what
 rmw_fastrtps and rmw_cyclonedds write): 4 bytes of encapsulation, int32 sec, uint32 nanosec, the
@@ -21,15 +22,27 @@ import numpy as np
 
 __all__ = ['vector3_stamped', 'imu', 'imu_rate_covariance', 'stamped_doubles']
 
-_STAMP_AND_LENGTH = struct.Struct('<iII')     # header.stamp.sec, .nanosec, length of frame_id (with its NUL)
+# header.stamp.sec, .nanosec, length of frame_id (with its NUL)
+_STAMP_AND_LENGTH = struct.Struct('<iII')
 _XYZ = struct.Struct('<3d')
 _F64 = struct.Struct('<d')
 
 
 def vector3_stamped(data) -> tuple[int, tuple[float, float, float], str] | None:
     """
-    ``(stamp_ns, (x, y, z), frame_id)`` from the bytes (any buffer) of a Vector3Stamped in plain
-    little-endian CDR; None for any other encoding or bytes too short for the layout.
+    Decode a Vector3Stamped from plain little-endian CDR bytes.
+
+    Parameters
+    ----------
+    data : bytes-like
+        The serialized message (any buffer).
+
+    Returns
+    -------
+    (int, (float, float, float), str) or None
+        ``(stamp_ns, (x, y, z), frame_id)``; None for any other encoding or bytes too short for
+        the layout.
+
     """
     if len(data) >= 16 and data[0] == 0 and data[1] == 1:
         sec, nanosec, n = _STAMP_AND_LENGTH.unpack_from(data, 4)
@@ -53,10 +66,20 @@ _XYZ_T = tuple[float, float, float]
 
 def imu(data) -> tuple[int, _XYZ_T, _XYZ_T | None, str] | None:
     """
-    ``(stamp_ns, angular_velocity, linear_acceleration, frame_id)`` from the bytes (any buffer)
-    of a sensor_msgs/Imu in plain little-endian CDR; ``linear_acceleration`` is None when the
-    message says it has none (REP-145: linear_acceleration_covariance[0] = −1).  None for any other
-    encoding or bytes too short for the layout.
+    Decode a sensor_msgs/Imu from plain little-endian CDR bytes.
+
+    Parameters
+    ----------
+    data : bytes-like
+        The serialized message (any buffer).
+
+    Returns
+    -------
+    (int, tuple, tuple or None, str) or None
+        ``(stamp_ns, angular_velocity, linear_acceleration, frame_id)``; ``linear_acceleration``
+        is None when the message says it has none (REP-145: linear_acceleration_covariance[0] =
+        −1).  None for any other encoding or bytes too short for the layout.
+
     """
     if len(data) >= 16 and data[0] == 0 and data[1] == 1:
         sec, nanosec, n = _STAMP_AND_LENGTH.unpack_from(data, 4)
@@ -77,8 +100,19 @@ _COV = struct.Struct('<9d')
 
 def imu_rate_covariance(data) -> tuple | None:
     """
-    angular_velocity_covariance (9 float64, row-major, (rad/s)²) from the bytes of a
-    sensor_msgs/Imu in plain little-endian CDR; None for any other encoding or short bytes.
+    Decode the angular velocity covariance of a sensor_msgs/Imu from CDR bytes.
+
+    Parameters
+    ----------
+    data : bytes-like
+        The serialized message, plain little-endian CDR.
+
+    Returns
+    -------
+    tuple of 9 float or None
+        angular_velocity_covariance, row-major, (rad/s)²; None for any other encoding or short
+        bytes.
+
     """
     if len(data) >= 16 and data[0] == 0 and data[1] == 1:
         n = _STAMP_AND_LENGTH.unpack_from(data, 4)[2]
@@ -90,6 +124,8 @@ def imu_rate_covariance(data) -> tuple | None:
 
 def stamped_doubles(records, count: int):
     """
+    Decode many stamped messages at once with numpy.
+
     Many stamped messages at once: a std_msgs/Header followed by ``count`` float64 fields in
     plain little-endian CDR (geometry_msgs/Vector3Stamped: 3; sensor_msgs/Imu: 37 — orientation 4,
     its covariance 9, angular_velocity 3, its covariance 9, linear_acceleration 3, its covariance
@@ -117,8 +153,8 @@ def stamped_doubles(records, count: int):
         Indices of the records in another encoding or too short for the layout: the caller
         hands them to a deserializer.  Every decoded record equals :func:`vector3_stamped`'s
         reading of it (for ``count`` 3).
-    """
 
+    """
     n = len(records)
     stamps = np.zeros(n, np.int64)
     values = np.full((n, count), np.nan)

@@ -57,7 +57,24 @@ class StreamCheck:
 
     :meth:`offer` returns the messages to process now, in order: usually ``[(stamp, value)]``
     or ``[]``; after a confirmed resynchronisation, the held messages too.  ``resynced`` is True
-    right after one (the consumer's time base must restart).
+    right after one (the consumer's time base must restart).  The rules are those of the module
+    docstring.
+
+    Parameters
+    ----------
+    nominal_period : float
+        Nominal message period, s (inf: none known, no gaps counted).
+    max_norm : float or None
+        Largest valid absolute component (None: no range check).
+    jump_limit : float
+        A stamp step beyond this, s, forward or back, is a jump (at least 3 nominal periods).
+    resync_count : int
+        Consecutive messages that confirm a new timeline.
+    max_dropout : float or None
+        Longest forward jump, s, that counts as a dropout (None: :attr:`MAX_DROPOUT_S`).
+    max_burst : int or None
+        Most accepted messages a burst that returns may hold (None: :attr:`MAX_BURST`).
+
     """
 
     #: a confirmed forward jump up to this, s, is a dropout (rule 4a), not a clock reset
@@ -70,7 +87,8 @@ class StreamCheck:
                  max_burst: int | None = None):
         self.nominal_ns = nominal_period * 1e9
         self.max_norm = max_norm
-        self.jump_ns = max(jump_limit * 1e9, 3.0 * self.nominal_ns if math.isfinite(self.nominal_ns) else 0.0)
+        self.jump_ns = max(jump_limit * 1e9,
+                           3.0 * self.nominal_ns if math.isfinite(self.nominal_ns) else 0.0)
         self._gap_ns = 1.5 * self.nominal_ns   # inf without a nominal period: no gaps
         self.resync_count = max(1, int(resync_count))
         self.last_ns: int | None = None
@@ -106,6 +124,25 @@ class StreamCheck:
         return max(abs(c) for c in v)
 
     def offer(self, stamp_ns: int, v, isfinite=math.isfinite):
+        """
+        Offer one message to the rules.
+
+        Parameters
+        ----------
+        stamp_ns : int
+            Header stamp, ns.
+        v : sequence of float
+            The vector.
+        isfinite : callable
+            ``math.isfinite`` (bound as a default: the hot path).
+
+        Returns
+        -------
+        list of (int, tuple)
+            The messages to process now, in order: usually this one or none; after a confirmed
+            resynchronisation, the held messages too.
+
+        """
         self.received += 1
         self.resynced = self.returned = False
         self.retracted = 0
@@ -178,6 +215,8 @@ class StreamCheck:
 
     def _confirm_jump(self):
         """
+        Confirm a new timeline held by ``resync_count`` messages.
+
         ``resync_count`` held messages agree on a new timeline: a return from a burst, a
         dropout or a resynchronisation (rule 4), in that order of precedence.
         """
@@ -241,13 +280,25 @@ class StreamCheck:
 
     def offer_many(self, stamps_ns, values) -> int:
         """
-        Vectorised :meth:`offer` of the usual case only: the longest prefix of ``stamps_ns``
-        (int64, ns) / ``values`` (n, 3) whose messages are finite, within ``max_norm`` and each one
-        step of (0, ``jump_limit``] after the last accepted stamp, with no candidate timeline
-        held.  Those messages are accepted with the counters :meth:`offer` would give (gaps
-        included); the count k is returned and the message k (if any) must go through
-        :meth:`offer`.  0 when the first message is not the usual case (or none was accepted
-        yet).
+        Offer many messages at once, vectorised, in the usual case only.
+
+        The longest prefix whose messages are finite, within ``max_norm`` and each one step of
+        (0, ``jump_limit``] after the last accepted stamp, with no candidate timeline held, is
+        accepted with the counters :meth:`offer` would give (gaps included).
+
+        Parameters
+        ----------
+        stamps_ns : array_like (n,) int64
+            Stamps, ns.
+        values : array_like (n, 3)
+            The vectors.
+
+        Returns
+        -------
+        int
+            k, the number accepted; message k (if any) must go through :meth:`offer`.  0 when the
+            first message is not the usual case (or none was accepted yet).
+
         """
         if self.last_ns is None or self._held or not len(stamps_ns):
             return 0
@@ -273,8 +324,23 @@ class StreamCheck:
 
     def accept(self, stamp_ns: int, v) -> bool:
         """
-        Single-message form for consumers that process one message at a time: True when the
-        message itself is accepted now (messages released by a resync are not returned here).
+        Offer one message; True when it is accepted now.
+
+        The single-message form for consumers that process one message at a time (messages
+        released by a resynchronisation are not returned here).
+
+        Parameters
+        ----------
+        stamp_ns : int
+            Header stamp, ns.
+        v : sequence of float
+            The vector.
+
+        Returns
+        -------
+        bool
+            The message itself is accepted now.
+
         """
         out = self.offer(stamp_ns, v)
         return bool(out) and out[-1][0] == stamp_ns
@@ -282,19 +348,39 @@ class StreamCheck:
     # --- reporting -------------------------------------------------------------------------
     @property
     def dropped(self) -> int:
-        return self.nan + self.out_of_range + self.out_of_order + self.duplicate + self.stamp_outliers
+        """Messages dropped by any rule (non-finite, range, duplicate, order, stamp outlier)."""
+        return (self.nan + self.out_of_range + self.out_of_order + self.duplicate
+                + self.stamp_outliers)
 
     def rate_hz(self) -> float:
-        if self.first_ns is None or self.last_ns is None or self.last_ns <= self.first_ns or self.accepted_since < 2:
+        """Return the rate from the accepted stamps of the current time base, Hz (0: unknown)."""
+        if self.first_ns is None or self.last_ns is None or self.last_ns <= self.first_ns \
+                or self.accepted_since < 2:
             return 0.0
         return (self.accepted_since - 1) / ((self.last_ns - self.first_ns) * 1e-9)
 
     def as_dict(self, prefix: str) -> dict:
+        """
+        Return the counters for /diagnostics and the tools' JSON.
+
+        Parameters
+        ----------
+        prefix : str
+            Prefix of every key (``gyro``, ``accel``, ...).
+
+        Returns
+        -------
+        dict
+            ``<prefix>_received``, ``<prefix>_accepted``, ``<prefix>_dropped_*``, gaps, missing
+            samples, resynchronisations and bursts.
+
+        """
         return {f'{prefix}_received': self.received, f'{prefix}_accepted': self.accepted,
                 f'{prefix}_rate_hz_from_stamps': self.rate_hz(), f'{prefix}_dropped_nan': self.nan,
                 f'{prefix}_dropped_out_of_range': self.out_of_range,
                 f'{prefix}_dropped_out_of_order': self.out_of_order,
-                f'{prefix}_dropped_duplicate': self.duplicate, f'{prefix}_dropped_stamp_outlier': self.stamp_outliers,
+                f'{prefix}_dropped_duplicate': self.duplicate,
+                f'{prefix}_dropped_stamp_outlier': self.stamp_outliers,
                 f'{prefix}_stamp_resyncs': self.resyncs, f'{prefix}_gaps': self.gaps,
                 f'{prefix}_missing_samples': self.missing, f'{prefix}_dropouts': self.dropouts,
                 f'{prefix}_stamp_bursts': self.bursts,
@@ -303,8 +389,20 @@ class StreamCheck:
 
 def nominal_period(stamps_ns) -> float:
     """
-    The period of a stream from its own stamps (s): the median of the positive steps, robust to
-    outliers, duplicates and gaps.  inf with fewer than 2 distinct stamps.
+    Return the period of a stream from its own stamps, s.
+
+    The median of the positive steps, robust to outliers, duplicates and gaps.
+
+    Parameters
+    ----------
+    stamps_ns : array_like (n,) int64
+        Stamps, ns.
+
+    Returns
+    -------
+    float
+        The period, s; inf with fewer than 2 distinct stamps.
+
     """
     st = np.asarray(stamps_ns, dtype=np.int64)
     d = np.diff(st)
@@ -316,14 +414,30 @@ def validate(stamps_ns, values, check: StreamCheck):
     """
     Run a whole recorded stream through ``check`` (the node's rules, in bag order).
 
-    Returns (stamps_ns, values, gaps): the accepted messages in order and the intervals
-    (a, b), ns, that no increment pair may span: gaps (steps above 1.5 nominal periods,
-    dropouts and returns from a burst included) and confirmed resynchronisations (a, b) = (last
-    stamp before, first after; b < a for a backward jump).  A burst that returned (rule 4c) is
-    removed from the output: the stamps of each time base are strictly increasing.  The index in
-    the output where each time base after a resynchronisation starts is left in
-    ``check.segment_starts`` (empty without a resynchronisation): split there, every segment is
-    strictly increasing.
+    A burst that returned (rule 4c) is removed from the output: the stamps of each time base
+    are strictly increasing.  The index in the output where each time base after a
+    resynchronisation starts is left in ``check.segment_starts`` (empty without one).
+
+    Parameters
+    ----------
+    stamps_ns : iterable of int
+        Stamps, ns, in bag order.
+    values : iterable of sequence of float
+        The vectors.
+    check : StreamCheck
+        The stream's rules and counters (updated).
+
+    Returns
+    -------
+    stamps : list of int
+        The accepted stamps, ns, in order.
+    values : list
+        The accepted vectors.
+    gaps : list of (int, int)
+        Intervals (a, b), ns, that no increment pair may span: gaps (steps above 1.5 nominal
+        periods, dropouts and returns from a burst included) and confirmed resynchronisations
+        (last stamp before, first after; b < a for a backward jump).
+
     """
     out_t, out_v, gaps = [], [], []
     starts: list[int] = []
@@ -335,7 +449,7 @@ def validate(stamps_ns, values, check: StreamCheck):
             continue
         if check.returned:
             n_out, n_gaps, n_starts = marks.pop() if marks else (len(out_t) - check.retracted,
-                                                               len(gaps), len(starts))
+                                                                 len(gaps), len(starts))
             del out_t[n_out:], out_v[n_out:], gaps[n_gaps:], starts[n_starts:]
             prev = out_t[-1] if out_t else None
         elif check.resynced or (prev is not None and got[0][0] - prev > check.jump_ns):
@@ -345,7 +459,8 @@ def validate(stamps_ns, values, check: StreamCheck):
                 starts.append(len(out_t))
                 prev = None
         for s, val in got:
-            if prev is not None and math.isfinite(check.nominal_ns) and s - prev > 1.5 * check.nominal_ns:
+            if prev is not None and math.isfinite(check.nominal_ns) \
+                    and s - prev > 1.5 * check.nominal_ns:
                 gaps.append((prev, s))
             out_t.append(s)
             out_v.append(val)
@@ -356,8 +471,20 @@ def validate(stamps_ns, values, check: StreamCheck):
 
 def segments(stamps_ns, starts) -> list[tuple[int, int]]:
     """
-    (lo, hi) index ranges of the time bases of an accepted stream (``validate``'s output and
-    ``check.segment_starts``): within each, the stamps are strictly increasing.
+    Return the index ranges of the time bases of an accepted stream.
+
+    Parameters
+    ----------
+    stamps_ns : sequence of int
+        Accepted stamps (:func:`validate`'s output).
+    starts : sequence of int
+        ``check.segment_starts``.
+
+    Returns
+    -------
+    list of (int, int)
+        (lo, hi) index ranges; within each, the stamps strictly increase.
+
     """
     bounds = [0] + [int(k) for k in starts] + [len(stamps_ns)]
     return [(a, b) for a, b in zip(bounds[:-1], bounds[1:]) if b > a]

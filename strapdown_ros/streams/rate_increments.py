@@ -28,8 +28,8 @@ The first sample starts the stream and gives no increment.  An interval longer t
 ``max_step`` (1.5 nominal periods in the nodes and tools) is not integrated: the rotation over
 it is unknown, the increment is not formed, and the increment stream downstream sees a gap with
 its missing increments counted, exactly as for a Δθ stream with a dropout.  Samples must be
-validated first (finite, in range, in order: :class:`strapdown_ros.streams.checks.StreamCheck`); after
-a stamp resynchronisation the integrator is restarted (:meth:`RateIntegrator.reset`).
+validated first (finite, in range, in order: :class:`strapdown_ros.streams.checks.StreamCheck`);
+after a stamp resynchronisation the integrator is restarted (:meth:`RateIntegrator.reset`).
 :class:`RateIncrementStream` is that whole input rule for one stream (validation, integration,
 counters), as ``sins_node`` and ``calibrator_node`` use it with ``gyro_input: imu``.
 
@@ -76,6 +76,7 @@ def increments_from_rates(stamps_ns, rates, rule: str = 'trapezoid', max_step_s:
         End stamps of the increments formed (m ≤ n − 1).
     increments : ndarray, shape (m, 3)
         Δθ (rad) or Δv (m/s) over (t_{k−1}, t_k].
+
     """
     _check_rule(rule)
     t = np.asarray(stamps_ns, dtype=np.int64).reshape(-1)
@@ -98,9 +99,15 @@ class RateIntegrator:
     """
     Streaming form of :func:`increments_from_rates`: one sample in, at most one increment out.
 
-    ``push(stamp_ns, rate)`` returns ``(stamp_ns, (x, y, z))`` — the increment over the interval
-    that ends at this sample — or None (first sample, or an interval above ``max_step_s``).
     The same samples give the same increments as the offline function, to the bit.
+
+    Parameters
+    ----------
+    rule : {'trapezoid', 'mean'}
+        How a sample stands for the rate (:data:`RATE_RULES`).
+    max_step_s : float
+        An interval longer than this, s, is not integrated (counted ``skipped``).
+
     """
 
     def __init__(self, rule: str = 'trapezoid', max_step_s: float = math.inf):
@@ -116,6 +123,23 @@ class RateIntegrator:
         self._w: tuple | None = None
 
     def push(self, stamp_ns: int, rate):
+        """
+        Push one rate sample in; return the increment over the interval it ends.
+
+        Parameters
+        ----------
+        stamp_ns : int
+            Stamp, ns.
+        rate : sequence of float
+            Rate, body axes (rad/s for a gyro).
+
+        Returns
+        -------
+        (int, (float, float, float)) or None
+            ``(stamp_ns, increment)``, or None for the first sample or an interval above
+            ``max_step_s``.
+
+        """
         x, y, z = float(rate[0]), float(rate[1]), float(rate[2])
         t_prev, w_prev = self._t, self._w
         self._t, self._w = int(stamp_ns), (x, y, z)
@@ -157,6 +181,7 @@ class RateIncrementStream:
         Stamp step, s, beyond which a sample starts a candidate new timeline (StreamCheck).
     resync_count : int
         Consecutive samples that confirm a new timeline (StreamCheck).
+
     """
 
     def __init__(self, nominal_period: float, max_rate: float, rule: str = 'trapezoid',
@@ -168,9 +193,21 @@ class RateIncrementStream:
 
     def push(self, stamp_ns: int, rate) -> list:
         """
-        One rate sample in (stamp in integer ns, rate in body axes); the increments it
-        completes out, in order: ``[(stamp_ns, (x, y, z))]``, usually one, none for a dropped
-        or first sample, several when a resynchronisation releases held samples.
+        Push one rate sample in; return the increments it completes.
+
+        Parameters
+        ----------
+        stamp_ns : int
+            Stamp, ns.
+        rate : sequence of float
+            Rate, body axes.
+
+        Returns
+        -------
+        list of (int, (float, float, float))
+            ``[(stamp_ns, increment)]`` in order: usually one, none for a dropped or first sample,
+            several when a resynchronisation releases held samples.
+
         """
         got = self._offer(stamp_ns, rate)
         if not got:
@@ -190,9 +227,20 @@ class RateIncrementStream:
 
     def status(self, prefix: str) -> dict:
         """
-        Counters for /diagnostics: the StreamCheck counters of the rate samples
-        (``<prefix>_received``, ``_accepted``, ``_dropped_*``, …) and the increments formed and
-        skipped (an interval longer than 1.5 nominal periods, or the restart after a jump).
+        Return the counters for /diagnostics.
+
+        Parameters
+        ----------
+        prefix : str
+            Prefix of every key.
+
+        Returns
+        -------
+        dict
+            The StreamCheck counters of the rate samples (``<prefix>_received``, ``_accepted``,
+            ``_dropped_*``, …) and the increments formed and skipped (an interval longer than 1.5
+            nominal periods, or the restart after a jump).
+
         """
         out = self.check.as_dict(prefix)
         out[f'{prefix}_dropped'] = self.check.dropped

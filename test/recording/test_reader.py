@@ -1,5 +1,7 @@
 """
-Real message formats in the offline tools (strapdown_ros.recording): the same simulated
+Real message formats in the offline tools (strapdown_ros.recording).
+
+The same simulated
 motion written as sensor_msgs/Imu rates, Δθ increments, and PoseStamped / Odometry / TF
 references, read by calibrate_bag and discrepancy; truth is the injected boresight and gyro bias.
 Also: argument errors in one line (exit 2), and messages a corrupt MCAP chunk hides are counted,
@@ -15,12 +17,13 @@ pytest.importorskip('rosbags')
 
 from strapdown_ros.motion.profile_base import MotionProfile  # noqa: E402
 from strapdown_ros.recording import read_bag  # noqa: E402
-from strapdown_ros.rotation import (dcm_to_quat, from_ros_xyzw, quat_conjugate, quat_error_rotvec,
+from strapdown_ros.rotation import (dcm_to_quat, from_ros_xyzw, quat_conjugate,  # noqa: E402
+                                    quat_error_rotvec,
                                     quat_multiply, rotvec_to_quat, to_ros_xyzw, ypr_to_dcm)
 from strapdown_ros.sensors import ARCSEC  # noqa: E402
 from strapdown_ros.sensors.star_camera import StarCameraModel  # noqa: E402
-from strapdown_ros.tools import record_sim  # noqa: E402
-from strapdown_ros.tools import calibrate_bag, calibrate_gyro_bag, discrepancy
+from strapdown_ros.tools import (calibrate_bag, calibrate_gyro_bag,  # noqa: E402
+                                 discrepancy, record_sim)
 
 BETA = np.radians([40.0, -25.0, 120.0])  # true boresight ψ, ϑ, γ
 BIAS = np.array([1.0e-5, -0.7e-5, 0.8e-5])  # injected gyro bias, rad/s (≈ 2 °/h, MEMS grade)
@@ -33,6 +36,8 @@ BIAS_ARG = 'gyro_bias:=[' + ', '.join(repr(float(b)) for b in BIAS) + ']'
 
 class SmoothTurns(MotionProfile):
     """
+    Rests and turns about body axes, both senses, with a smooth rate.
+
     Rests and turns about body axes, both senses, with a smooth rate: over a turn of length D
     and angle Φ the rate about the axis is s(τ) = 2Φ/D · sin²(πτ/D), zero with its derivative
     at both ends.  Attitude, rate, ω̈ and ∫ω dt are closed-form (the turn axis is fixed in body
@@ -78,21 +83,25 @@ class SmoothTurns(MotionProfile):
         return phi / D * (tau - D / (2 * np.pi) * np.sin(2 * np.pi * tau / D))
 
     def attitude(self, t):
+        """Return q_ref_body at times ``t`` (closed form)."""
         k, tau, D, U, phi = self._where(t)
         q = quat_multiply(self.q_start[k], rotvec_to_quat(U * self._angle(tau, D, phi)[:, None]))
         return q.reshape(np.shape(t) + (4,))
 
     def body_rate(self, t):
+        """Return the body rate at times ``t``, rad/s."""
         k, tau, D, U, phi = self._where(t)
         return (U * (2 * phi / D * np.sin(np.pi * tau / D) ** 2)[:, None]).reshape(
             np.shape(t) + (3,)
         )
 
     def rate_second_derivative(self, t):
+        """Return ω̈ at times ``t``, rad/s³."""
         k, tau, D, U, phi = self._where(t)
         return U * (phi / D * (2 * np.pi / D) ** 2 * np.cos(2 * np.pi * tau / D))[:, None]
 
     def delta_theta(self, t0, t1):
+        """Return ∫ω dt over [t0, t1], rad (exact)."""
         def F(t):
             k, tau, D, U, phi = self._where(t)
             return self.angle_before[k] + U * self._angle(tau, D, phi)[:, None]
@@ -122,11 +131,14 @@ class Motion:
 
 @pytest.fixture(scope='module')
 def motion():
+    """Give the simulated motion shared by the tests of this module."""
     return Motion()
 
 
 # --- writing bags with rosbags ---------------------------------------------------------------
 class BagWriter:
+    """Write bags with rosbags' own serializer (independent of the package's writer)."""
+
     def __init__(self):
         from rosbags.typesys import get_typestore, Stores
 
@@ -134,6 +146,7 @@ class BagWriter:
         self.T = self.store.types
 
     def header(self, ns, frame):
+        """Return a std_msgs/Header at ``ns`` in ``frame``."""
         T = self.T
         return T['std_msgs/msg/Header'](
             stamp=T['builtin_interfaces/msg/Time'](sec=int(ns // 10**9), nanosec=int(ns % 10**9)),
@@ -141,19 +154,23 @@ class BagWriter:
         )
 
     def vec(self, v):
+        """Return a geometry_msgs/Vector3."""
         return self.T['geometry_msgs/msg/Vector3'](x=float(v[0]), y=float(v[1]), z=float(v[2]))
 
     def quat(self, q_wxyz):
+        """Return a geometry_msgs/Quaternion from a scalar-first quaternion."""
         x, y, z, w = (float(c) for c in to_ros_xyzw(np.asarray(q_wxyz, dtype=float)))
         return self.T['geometry_msgs/msg/Quaternion'](x=x, y=y, z=z, w=w)
 
     def pose(self, q):
+        """Return a geometry_msgs/Pose at the origin with orientation ``q``."""
         T = self.T
         return T['geometry_msgs/msg/Pose'](
             position=T['geometry_msgs/msg/Point'](x=1.0, y=2.0, z=3.0), orientation=self.quat(q)
         )
 
     def imu(self, ns, rate, absent=False):
+        """Return a sensor_msgs/Imu of rate ``rate`` (``absent``: covariance[0] = −1)."""
         T = self.T
         z9 = np.zeros(9)
         rate_cov = np.array([-1.0] + [0.0] * 8) if absent else z9  # ROS: -1 = field absent
@@ -168,16 +185,19 @@ class BagWriter:
         )
 
     def vector3_stamped(self, ns, v):
+        """Return a Vector3Stamped in imu_link."""
         return self.T['geometry_msgs/msg/Vector3Stamped'](
             header=self.header(ns, 'imu_link'), vector=self.vec(v)
         )
 
     def pose_stamped(self, ns, q):
+        """Return a PoseStamped in gcrs."""
         return self.T['geometry_msgs/msg/PoseStamped'](
             header=self.header(ns, 'gcrs'), pose=self.pose(q)
         )
 
     def odometry(self, ns, q, cov_rot):
+        """Return an Odometry with the rotation block ``cov_rot`` of the pose covariance."""
         T = self.T
         cov = np.zeros((6, 6))
         cov[:3, :3] = np.eye(3) * 4.0  # position: known to 2 m
@@ -195,7 +215,7 @@ class BagWriter:
         )
 
     def tf(self, ns, transforms):
-        """transforms: [(parent, child, q_parent_child)]."""
+        """Record transforms: [(parent, child, q_parent_child)]."""
         T = self.T
         out = [
             T['geometry_msgs/msg/TransformStamped'](
@@ -334,6 +354,8 @@ def _assert_boresight(r, bound_arcsec):
 # --- formats ---------------------------------------------------------------------------------
 def test_imu_rates_at_the_stamps_with_pose_stamped_reference(tmp_path, bags, capsys):
     """
+    Read sensor_msgs/Imu rates at the stamps with a PoseStamped reference.
+
     (a) sensor_msgs/Imu with the exact rate at each stamp (trapezoid rule, error T³ω̈/12 per
     increment), PoseStamped reference without covariance: σ from the model.
     """
@@ -385,6 +407,8 @@ def test_trapezoid_increments_against_the_exact_integral(motion, bags):
 
 def test_imu_mean_rates_equal_the_delta_theta_topic(tmp_path, motion, bags):
     """
+    Read the mean rule fed by exact mean rates as the Δθ topic.
+
     (d) the 'mean' rule fed by exact mean rates gives the Δθ topic's increments to round-off,
     and so the same boresight.
     """
@@ -418,6 +442,8 @@ def test_imu_mean_rates_equal_the_delta_theta_topic(tmp_path, motion, bags):
 
 def test_dropped_rate_samples_are_counted_and_become_gaps(tmp_path, motion, capsys):
     """
+    Drop and count bad rate samples; their intervals become gaps.
+
     A NaN, an out-of-range and an 'absent' (covariance[0] = −1) rate sample: each is dropped
     and counted, the interval over it (2 periods) is not integrated, so two increments are missing
     and the one pair spanning each gap is discarded; the boresight stands.
@@ -425,9 +451,9 @@ def test_dropped_rate_samples_are_counted_and_become_gaps(tmp_path, motion, caps
     bw = BagWriter()
     msgs = _gyro_messages(bw, motion, 'rate_at_stamp')
     bad = {
-        5100: dict(rate=[np.nan, 0.0, 0.0]),
-        9100: dict(rate=[1e308, 0.0, 0.0]),  # mid-interval
-        13100: dict(rate=motion.rate[13100], absent=True),
+        5100: {'rate': [np.nan, 0.0, 0.0]},
+        9100: {'rate': [1e308, 0.0, 0.0]},  # mid-interval
+        13100: {'rate': motion.rate[13100], 'absent': True},
     }  # of the fixes
     for k, kw in bad.items():
         msgs[k] = ('/imu/data', motion.stamps[k], bw.imu(motion.stamps[k], **kw))
@@ -459,6 +485,8 @@ def test_dropped_rate_samples_are_counted_and_become_gaps(tmp_path, motion, caps
 
 def test_odometry_reference_covariance_from_the_messages_or_the_model(tmp_path, motion, bags):
     """
+    Read an Odometry reference covariance from the messages or the model.
+
     (b) nav_msgs/Odometry: the rotation block of pose.covariance is the camera covariance; a
     zero rotation block takes the model's σ (the same as the simulated one here).
     """
@@ -495,6 +523,8 @@ def test_odometry_reference_covariance_from_the_messages_or_the_model(tmp_path, 
 
 def test_tf_reference_among_other_frames_direct_and_inverse(tmp_path, motion, bags):
     """
+    Read a /tf reference among other frames, direct and inverse.
+
     (c) /tf with other frame pairs: gcrs → star_tracker is taken; when only star_tracker → gcrs
     is recorded its inverse is used, with the same result.
     """
@@ -644,6 +674,8 @@ def test_error_listing_is_bounded(tmp_path, capsys):
 # --- a corrupt chunk -------------------------------------------------------------------------
 def _flip_message_opcodes(mcap, channel_id, t0_ns, t1_ns) -> int:
     """
+    Hide the messages of one channel in the first chunk of an MCAP file.
+
     Flip the top bit of the opcode of every message record of ``channel_id`` logged in
     [t0, t1) in the first chunk (an uncompressed rosbags MCAP): readers skip unknown opcodes, so
     those messages vanish from the data while the index still counts them.  Returns how many.
@@ -673,6 +705,8 @@ def _flip_message_opcodes(mcap, channel_id, t0_ns, t1_ns) -> int:
 
 def test_corrupt_first_chunk_is_reported_not_silent(tmp_path, capsys):
     """
+    Report a corrupt first chunk instead of dropping its messages silently.
+
     A corrupt first MCAP chunk dropped 25 s of gyro data and
     calibrate_bag said 'dropped: none'.  Now the read counts are compared with the bag's index.
     """

@@ -42,11 +42,13 @@ DEG = np.pi / 180.0
 
 @pytest.fixture(scope='module')
 def workdir(tmp_path_factory):
+    """Give a scratch directory for the module."""
     return tmp_path_factory.mktemp('realdata')
 
 
 @pytest.fixture(scope='module')
 def trial(workdir):
+    """Give the RepoIMU trial, or skip when the data set is not there."""
     root = find_repoimu(scratch=workdir)
     if root is None or not (root / TRIAL).is_file():
         pytest.skip('RepoIMU not found: set STRAPDOWN_REALDATA to a directory with TStick/ '
@@ -56,6 +58,7 @@ def trial(workdir):
 
 @pytest.fixture(scope='module')
 def model_file(workdir):
+    """Give the nominal model file of the trial."""
     p = workdir / 'nominal.yaml'
     p.write_text(NOMINAL_MODEL)
     return p
@@ -66,7 +69,7 @@ REAL_TOPICS = {'gyro_topic': '/imu/data', 'reference_topic': '/mocap/pose'}
 
 
 def _reads_real_formats() -> bool:
-    """discrepancy's reader takes --gyro-topic/--reference-topic (sensor_msgs/Imu, PoseStamped)."""
+    """Check that discrepancy's reader takes --gyro-topic and --reference-topic."""
     from strapdown_ros.discrepancy.bag_input import load_recording
     params = inspect.signature(load_recording).parameters.values()
     return any(p.kind is p.VAR_KEYWORD or p.name == 'gyro_topic' for p in params)
@@ -109,6 +112,8 @@ def _step(res, effect):
 
 def _rest_end(trial, angle_deg=0.5, margin_s=0.5):
     """
+    Return the stamp (ns) where the rest at the start ends.
+
     Stamp (ns) where the rest at the start ends: the Vicon attitude first departs more than
     ``angle_deg`` from its first value, less ``margin_s``.  Uses the reference only.
     """
@@ -121,6 +126,8 @@ def _rest_end(trial, angle_deg=0.5, margin_s=0.5):
 
 def _xcorr_lag_s(trial):
     """
+    Return the lag of the gyro behind the reference, s.
+
     Lag of the gyro behind the reference, s: peak of the cross-correlation of |ω_gyro| with
     |ω_ref| (the Vicon attitude differentiated, body-frame increments), parabolic
     interpolation.
@@ -214,6 +221,8 @@ def test_injected_gyro_bias_recovered(trial, workdir, model_file):
 
 def test_injected_boresight_recovered(trial, workdir, model_file):
     """
+    Recover a fixed rotation of the marker frame as the boresight.
+
     The marker frame turned by a fixed 37° rotation R (q_vicon_marker' = q_vicon_marker ⊗ R):
     the boresight C_MF^VF' = C_MF^VF R.
     """
@@ -234,6 +243,8 @@ def test_injected_boresight_recovered(trial, workdir, model_file):
 
 def test_real_and_own_format_bags_give_the_same_result(trial, workdir, model_file):
     """
+    Read real-format and own-format bags of one trial to the same result.
+
     sensor_msgs/Imu rates + PoseStamped read by the tools (trapezoid rule) give what the
     package's own Δθ + QuaternionStamped bag of the same trial gives.
     """
@@ -253,6 +264,8 @@ def test_real_and_own_format_bags_give_the_same_result(trial, workdir, model_fil
 # --- the converter and the tools' arguments, without the data set (these run everywhere) -------
 def test_every_second_fix_agrees_with_every_fix_within_3_sigma(trial, workdir, model_file):
     """
+    Agree within 3σ with every second fix and with every fix.
+
     Honest σ: the same trial with the reference decimated to one fix
     every 2 s instead of every 1 s; every estimate both runs make (boresight, time offset, gyro
     bias) agrees within 3 combined σ.
@@ -276,8 +289,10 @@ def test_every_second_fix_agrees_with_every_fix_within_3_sigma(trial, workdir, m
 
 
 def test_reference_with_added_noise_gives_no_confident_wrong_answer(trial, workdir,
-                                                                      model_file):
+                                                                    model_file):
     """
+    Give no confident wrong answer on a noisy reference.
+
     0.3° (5.2e-3 rad) of white noise added to every Vicon fix, the nominal model (which states
     0.005 rad), the full effect library: the gyro bias is named and agrees with the mean rate at
     rest (reference-only rest segment) within 3 combined σ, and the boresight agrees with that of
@@ -312,7 +327,7 @@ def test_reference_with_added_noise_gives_no_confident_wrong_answer(trial, workd
 
 
 def _synthetic_csv(path, n=501, period=0.01, t0=0.08):
-    """A file in RepoIMU's layout: a rest, then a turn at 0.5 rad/s about z; Vicon = exact."""
+    """Write a file in RepoIMU's layout: a rest, then a turn; Vicon exact."""
     t = t0 + period * np.arange(n)
     w = np.where(t > t0 + 1.0, 0.5, 0.0)
     angle = np.concatenate([[0.0], np.cumsum(0.5 * (w[1:] + w[:-1]) * period)])
@@ -381,6 +396,8 @@ def test_converter_writes_what_the_file_says(tmp_path):
 
 def test_rest_and_cross_correlation_on_exact_data(tmp_path):
     """
+    Find the rest and the lag on a file whose answers are known.
+
     The library's rest-segment mean and cross-correlation lag (used by realdata_report) on a
     file whose answers are known: rest 1 s then a turn; the gyro then delayed by 30 ms.
     """

@@ -19,6 +19,8 @@ def test_stamped_buffer_is_bounded_and_keeps_the_newest():
 
 def test_calibrator_gyro_history_after_a_single_fix_is_bounded():
     """
+    Keep the gyro history of the calibrator at its bound without fixes.
+
     One fix, then a long stream of gyro increments and no second fix: the history stays at its
     bound (it used to grow without limit and each add converted the whole list: 12–20 ms).
     """
@@ -47,7 +49,8 @@ def test_single_sample_path_equals_the_batch_path():
     prof = bench_profile()
     t, dth, _ = IntegratingSensor(prof, 'gyro', 100.0).sample(6000)
     fixes = StarCameraModel(boresight=[0.7, -0.4, 2.1], interval=5.0, seed=2).fixes(prof, 11)
-    a, b = BoresightCalibrator(gyro=NAVIGATION_GRADE_GYRO), BoresightCalibrator(gyro=NAVIGATION_GRADE_GYRO)
+    a, b = BoresightCalibrator(gyro=NAVIGATION_GRADE_GYRO), BoresightCalibrator(
+        gyro=NAVIGATION_GRADE_GYRO)
     a.add_gyro(t, dth)
     for s, v in zip(t, dth):
         b.add_gyro_sample(float(s), v)

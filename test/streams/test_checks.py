@@ -9,6 +9,7 @@ MS = 10_000_000          # 10 ms in ns
 
 
 def feed(check, stamps, values=None):
+    """Offer every message in turn; return what was released."""
     out = []
     for k, s in enumerate(stamps):
         v = (0.001, 0.0, 0.0) if values is None else values[k]
@@ -18,8 +19,8 @@ def feed(check, stamps, values=None):
 
 def test_nan_range_duplicate_out_of_order_gap():
     c = StreamCheck(0.01, max_norm=2 * 0.01 * 20.0)
-    vals = [(0.001, 0, 0), (math.nan, 0, 0), (1e308, 1e308, 0.0), (1000.0, 0, 0), (0.001, 0, 0), (0.001, 0, 0),
-            (0.001, 0, 0), (0.001, 0, 0)]
+    vals = [(0.001, 0, 0), (math.nan, 0, 0), (1e308, 1e308, 0.0), (1000.0, 0, 0), (0.001, 0, 0),
+            (0.001, 0, 0), (0.001, 0, 0), (0.001, 0, 0)]
     got = feed(c, [1 * MS, 2 * MS, 3 * MS, 4 * MS, 5 * MS, 5 * MS, 4 * MS, 8 * MS], vals)
     assert got == [1 * MS, 5 * MS, 8 * MS]
     assert (c.nan, c.out_of_range, c.duplicate, c.out_of_order) == (1, 2, 1, 1)
@@ -39,7 +40,7 @@ def test_clock_reset_resynchronises_and_loses_nothing():
     before = [(1000 + k) * MS for k in range(10)]
     after = [k * MS for k in range(1, 20)]                 # the clock restarted near zero
     got = feed(c, before + after)
-    assert got == before + after                           # the held messages are released in order
+    assert got == before + after      # the held messages are released in order
     assert c.resyncs == 1 and c.out_of_order == 0 and c.last_jump_s < -9.0
     assert c.rate_hz() == np.float64(100.0) or abs(c.rate_hz() - 100.0) < 1e-9
 
@@ -54,6 +55,8 @@ def test_validate_offline_reports_the_jump_as_a_gap_and_the_rate_from_stamps():
 
 def test_burst_of_past_stamps_costs_only_itself():
     """
+    Count a burst of stamps in the past as a burst, not a resynchronisation.
+
     A burst of 5 consecutive increments stamped 1000 s in the past, then the stream goes
     on.  The two confirmed jumps make a burst: 5 messages counted, no resynchronisation left,
     one gap of exactly the 5 lost increments; offline the output is strictly increasing.
@@ -73,6 +76,8 @@ def test_burst_of_past_stamps_costs_only_itself():
 
 def test_dropout_beyond_the_jump_limit_counts_its_missing_increments():
     """
+    Keep dropouts and saturation on the same timeline, their losses counted.
+
     2 s without increments (beyond max_stamp_jump = 1 s) and a 1-s
     saturation (values out of range, dropped) are dropouts on the same timeline, with their
     missing increments counted, not clock resets with 0 missing.

@@ -1,5 +1,7 @@
 """
-Fuzz tests of the input path: extreme values and random bytes never crash it, never
+Fuzz tests of the input path.
+
+Extreme values and random bytes never crash it, never
 poison what it accepts, and every message is accounted for.
 """
 import math
@@ -8,8 +10,8 @@ import numpy as np
 import pytest
 
 hypothesis = pytest.importorskip('hypothesis')
-from hypothesis import given, settings  # noqa: E402
-from hypothesis import strategies as st  # noqa: E402
+st = pytest.importorskip('hypothesis.strategies')
+given, settings = hypothesis.given, hypothesis.settings
 
 from strapdown_ros.streams.checks import StreamCheck  # noqa: E402
 
@@ -29,7 +31,8 @@ def test_stream_check_never_accepts_poison_and_accounts_for_every_message(msgs):
     for _, v in out:
         assert all(math.isfinite(x) and abs(x) <= 0.4 for x in v)
     held = len(c._held)
-    assert c.received == c.accepted + c.nan + c.out_of_range + c.duplicate + c.out_of_order + c.stamp_outliers + held
+    assert c.received == (c.accepted + c.nan + c.out_of_range
+                          + c.duplicate + c.out_of_order + c.stamp_outliers + held)
     assert len(out) == c.accepted
 
 
@@ -42,10 +45,11 @@ def test_random_bytes_in_message_decoding_raise_cleanly_or_decode(raw):
     for typ in ('geometry_msgs/msg/Vector3Stamped', 'geometry_msgs/msg/PoseWithCovarianceStamped'):
         try:
             m = store.deserialize_cdr(raw, typ)
-        except Exception:                        # noqa: BLE001 - read_bag turns any of these into BagError
+        except Exception:     # noqa: BLE001 - read_bag turns any of these into BagError
             continue
         # whatever decodes goes through the same rules as a live message
-        v = (m.vector.x, m.vector.y, m.vector.z) if hasattr(m, 'vector') else tuple(m.pose.covariance[:3])
+        v = (m.vector.x, m.vector.y, m.vector.z) if hasattr(
+            m, 'vector') else tuple(m.pose.covariance[:3])
         StreamCheck(0.01, max_norm=0.4).offer(0, v)
 
 
@@ -58,8 +62,10 @@ def test_bag_of_garbage_messages_is_a_one_line_error(tmp_path):
     store = get_typestore(Stores.ROS2_JAZZY)
     rng = np.random.default_rng(0)
     with Writer(tmp_path / 'bag', version=Writer.VERSION_LATEST) as w:
-        c = w.add_connection('/imu/delta_theta', 'geometry_msgs/msg/Vector3Stamped', typestore=store)
-        k = w.add_connection('/star_camera/attitude', 'geometry_msgs/msg/QuaternionStamped', typestore=store)
+        c = w.add_connection('/imu/delta_theta',
+                             'geometry_msgs/msg/Vector3Stamped', typestore=store)
+        k = w.add_connection('/star_camera/attitude',
+                             'geometry_msgs/msg/QuaternionStamped', typestore=store)
         for i in range(50):
             w.write(c, i, rng.bytes(int(rng.integers(0, 80))))
             w.write(k, i, rng.bytes(int(rng.integers(0, 80))))
@@ -70,9 +76,12 @@ def test_bag_of_garbage_messages_is_a_one_line_error(tmp_path):
 
 @settings(max_examples=300, deadline=None)
 @given(sec=st.integers(-2 ** 31, 2 ** 31 - 1), nanosec=st.integers(0, 999_999_999),
-       frame=st.text(max_size=40), xyz=st.tuples(*[st.floats(allow_nan=True, allow_infinity=True)] * 3))
+       frame=st.text(max_size=40),
+       xyz=st.tuples(*[st.floats(allow_nan=True, allow_infinity=True)] * 3))
 def test_raw_decoder_reads_what_rclpy_serialized(sec, nanosec, frame, xyz):
     """
+    Decode exactly the fields of every message rclpy serializes.
+
     sins_node and calibrator_node subscribe to the increment streams raw and read stamp, vector
     and frame from the bytes (ros_io.decode_vector3_stamped), as sins_bag reads bag records
     (nodes.cdr): for any message rclpy or rosbags serializes, the decoder must return exactly its
@@ -99,14 +108,18 @@ def test_raw_decoder_reads_what_rclpy_serialized(sec, nanosec, frame, xyz):
     ts = get_typestore(Stores.ROS2_JAZZY)
     t = ts.types
     rec = t['geometry_msgs/msg/Vector3Stamped'](
-        header=t['std_msgs/msg/Header'](stamp=t['builtin_interfaces/msg/Time'](sec=sec, nanosec=nanosec), frame_id=frame),
+        header=t['std_msgs/msg/Header'](stamp=t['builtin_interfaces/msg/Time']
+                                        (sec=sec, nanosec=nanosec), frame_id=frame),
         vector=t['geometry_msgs/msg/Vector3'](x=xyz[0], y=xyz[1], z=xyz[2]))
     ns2, v2, f2 = vector3_stamped(ts.serialize_cdr(rec, 'geometry_msgs/msg/Vector3Stamped'))
-    assert (ns2, f2) == (ns, f) and all((math.isnan(a) and math.isnan(b)) or a == b for a, b in zip(v2, v))
+    assert (ns2, f2) == (ns, f) and all(
+        (math.isnan(a) and math.isnan(b)) or a == b for a, b in zip(v2, v))
 
 
 def test_raw_decoder_big_endian_and_garbage():
     """
+    Give big-endian CDR to rclpy and None for bytes that are no message.
+
     Big-endian CDR goes to rclpy's deserializer (the same fields); bytes that are no message give
     None (the node counts and drops them) instead of an exception.
     """
@@ -118,5 +131,6 @@ def test_raw_decoder_big_endian_and_garbage():
     body += b'\x00' * ((-len(body)) % 8) + struct.pack('>3d', 1.5, -2.0, 3.25)
     got = decode_vector3_stamped(b'\x00\x00\x00\x00' + body)
     assert got == (12_000_000_345, (1.5, -2.0, 3.25), 'imu_link')
-    for junk in (b'\x00\x01\x00\x00' + b'\xff' * 12, b'\x07\x07', b'\x00\x01\x00\x00\x01\x00', b'', b'\x00'):
+    for junk in (b'\x00\x01\x00\x00' + b'\xff' * 12, b'\x07\x07', b'\x00\x01\x00\x00\x01\x00',
+                 b'', b'\x00'):
         assert decode_vector3_stamped(junk) is None

@@ -1,4 +1,6 @@
 """
+The gyro_input imu core: RateIncrementStream and the raw sensor_msgs/Imu decoder.
+
 gyro_input imu, the core part: RateIncrementStream (validation + the increment rule, the glue
 sins_node and calibrator_node share) and the raw decoder of sensor_msgs/Imu bytes.
 """
@@ -142,6 +144,8 @@ def test_the_raw_imu_decoder_reads_what_rclpy_serialized(frame, accel):
 
 def test_the_raw_imu_decoder_for_any_frame_length_and_values():
     """
+    Decode every padding of the float64 block exactly as rclpy serialized it.
+
     Every padding of the float64 block (frame_id lengths 0..40, multi-byte characters) and any
     values: the decoder returns exactly what rclpy serialized.
     """

@@ -33,7 +33,8 @@ def test_trapezoid_is_exact_for_a_linear_rate_and_second_order_otherwise():
         ts, inc = increments_from_rates(np.round(t * 1e9).astype(np.int64), rate, 'trapezoid')
         t1 = ts * 1e-9
         exact = _exact(a, w, t1 - T, t1)
-        # local error +T³ ω̈ /12 (trapezoid minus exact): check the constant, then the order of the summed angle
+        # local error +T³ ω̈ /12 (trapezoid minus exact): check the constant, then the order of the
+        # summed angle
         omega_dd = -w ** 2 * a[None, :] * np.sin(w * (t1 - T / 2))[:, None]
         assert np.allclose(inc - exact, T ** 3 * omega_dd / 12.0, atol=T ** 4 * 2)
         errs.append(np.max(np.abs(np.cumsum(inc - exact, axis=0))))
