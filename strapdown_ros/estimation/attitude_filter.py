@@ -40,14 +40,15 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from strapdown_ros.attitude.integrator import AttitudeIntegrator
+from strapdown_ros.estimation.chi_square import chi2_3_quantile
 from strapdown_ros.estimation.error_model import block_transition
-from strapdown_ros.estimation.filter_support import (chi2_3_quantile, FilterCounters, FixResult,
+from strapdown_ros.estimation.filter_support import (FilterCounters, FixResult,
                                                      psd_factor, triangular_factor)
 from strapdown_ros.rotation import (quat_conjugate, quat_multiply, quat_normalize, quat_to_dcm,
                                     quat_to_rotvec, rotvec_to_quat)
 from strapdown_ros.sensors.effects import EFFECTS, GyroEffects
 
-__all__ = ['AttitudeFilter', 'FixResult', 'FilterCounters', 'chi2_3_quantile', 'FILTER_STATES']
+__all__ = ['AttitudeFilter', 'FILTER_STATES']
 
 #: names the ``augment`` argument accepts besides the registry's systematic gyro effects
 FILTER_STATES = ('time_offset', 'boresight')

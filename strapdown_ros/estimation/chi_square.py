@@ -1,16 +1,18 @@
 """
-The χ² statistics of fit consistency: the acceptance band of χ²/dof and the p-value.
+The χ² statistics of the estimation side: one home for the band, the p-value and the gate.
 
 A weighted least-squares fit, or a filter's innovations, whose stated noise is right gives a
-χ² statistic with ``dof`` degrees of freedom.  These functions are exact (the regularised
-incomplete gamma function) and numpy-free, so a node pays no scipy import in a callback.
+χ² statistic with ``dof`` degrees of freedom: :func:`chi2_band` is the acceptance band of
+χ²/dof, :func:`chi2_sf` the p-value, :func:`chi2_3_quantile` the attitude filter's NIS gate.
+They are exact (the regularised incomplete gamma function) and need neither numpy nor scipy,
+so a node pays no scipy import in a callback.
 """
 from __future__ import annotations
 
 import math
 from statistics import NormalDist
 
-__all__ = ['FIT_LEVEL', 'chi2_band', 'chi2_sf']
+__all__ = ['FIT_LEVEL', 'chi2_band', 'chi2_sf', 'chi2_3_quantile']
 
 #: two-sided level of the χ²/dof acceptance band: a consistent fit falls outside it with
 #: probability FIT_LEVEL
@@ -103,3 +105,30 @@ def chi2_sf(x: float, dof: int) -> float:
     if not math.isfinite(x):
         return 0.0 if x > 0 else 1.0
     return max(0.0, 1.0 - _gamma_p(0.5 * dof, 0.5 * max(x, 0.0)))
+
+
+def chi2_3_quantile(probability: float) -> float:
+    """
+    Quantile of the χ² distribution with 3 degrees of freedom (bisection on its CDF
+    ``erf(√(x/2)) − √(2x/π) e^{−x/2}``).
+
+    Parameters
+    ----------
+    probability : float
+        In (0, 1).
+
+    Returns
+    -------
+    float
+        x with P(χ²₃ ≤ x) = probability.
+    """
+    if not 0.0 < probability < 1.0:
+        raise ValueError(f'probability must be in (0, 1), got {probability}')
+
+    def cdf(x):
+        return math.erf(math.sqrt(x / 2.0)) - math.sqrt(2.0 * x / math.pi) * math.exp(-x / 2.0)
+    lo, hi = 0.0, 200.0
+    for _ in range(200):
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if cdf(mid) < probability else (lo, mid)
+    return 0.5 * (lo + hi)

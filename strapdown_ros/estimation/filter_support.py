@@ -1,44 +1,18 @@
 """
-Small parts of the attitude filter (:mod:`strapdown_ros.estimation.attitude_filter`): the
-χ²(3) gate quantile, the square-root covariance factors, and the result and counter records.
+Small parts of the attitude filter (:mod:`strapdown_ros.estimation.attitude_filter`).
+
+The names of its augmentable states, the square-root covariance factors, and the result and
+counter records.
 """
 from __future__ import annotations
 
 from dataclasses import dataclass
-import math
-
 import numpy as np
 
 from strapdown_ros.sensors.effects import EFFECTS
 
-__all__ = ['AUGMENT_CHOICES', 'augment_names', 'augment_error', 'chi2_3_quantile', 'triangular_factor', 'psd_factor', 'FixResult', 'FilterCounters']
-
-
-def chi2_3_quantile(probability: float) -> float:
-    """
-    Quantile of the χ² distribution with 3 degrees of freedom (bisection on its CDF
-    ``erf(√(x/2)) − √(2x/π) e^{−x/2}``).
-
-    Parameters
-    ----------
-    probability : float
-        In (0, 1).
-
-    Returns
-    -------
-    float
-        x with P(χ²₃ ≤ x) = probability.
-    """
-    if not 0.0 < probability < 1.0:
-        raise ValueError(f'probability must be in (0, 1), got {probability}')
-
-    def cdf(x):
-        return math.erf(math.sqrt(x / 2.0)) - math.sqrt(2.0 * x / math.pi) * math.exp(-x / 2.0)
-    lo, hi = 0.0, 200.0
-    for _ in range(200):
-        mid = 0.5 * (lo + hi)
-        lo, hi = (mid, hi) if cdf(mid) < probability else (lo, mid)
-    return 0.5 * (lo + hi)
+__all__ = ['AUGMENT_CHOICES', 'augment_names', 'augment_error', 'triangular_factor', 'psd_factor',
+           'FixResult', 'FilterCounters']
 
 
 def triangular_factor(*blocks: np.ndarray) -> np.ndarray:
