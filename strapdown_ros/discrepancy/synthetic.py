@@ -14,7 +14,7 @@ import numpy as np
 
 from strapdown_ros.discrepancy.linear_model import fit
 from strapdown_ros.discrepancy.linearisation import fit_noise, Linearisation, noise_of, Recording
-from strapdown_ros.discrepancy.workflow import initial_boresight_estimate, refine_fit
+from strapdown_ros.discrepancy.model_fit import initial_boresight_estimate, refine_fit
 from strapdown_ros.motion.from_config import profile_from_config
 from strapdown_ros.sensors import simulated_imu
 from strapdown_ros.sensors.effects import EFFECTS
