@@ -6,13 +6,13 @@ counter records.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 import numpy as np
 
 from strapdown_ros.sensors.effects import EFFECTS
 
-__all__ = ['AUGMENT_CHOICES', 'augment_names', 'augment_error', 'triangular_factor', 'psd_factor',
-           'FixResult', 'FilterCounters']
+__all__ = ['AUGMENT_CHOICES', 'FILTER_STATES', 'augment_names', 'augment_error',
+           'triangular_factor', 'psd_factor', 'FixResult', 'FilterCounters', 'StateLayout']
 
 
 def triangular_factor(*blocks: np.ndarray) -> np.ndarray:
@@ -77,11 +77,13 @@ class FilterCounters:
     implausible: int = 0         # updates after which an estimate left its registry range
 
 
+#: names the ``augment`` argument accepts besides the registry's systematic gyro effects
+FILTER_STATES = ('time_offset', 'boresight')
 #: names the filter's ``augment`` parameter accepts: the registry's systematic gyro effects
 #: (the bias is always a state), the camera time offset and the boresight
 AUGMENT_CHOICES = tuple(n for n, e in EFFECTS.items()
-                        if e.sensor == 'gyro' and e.kind == 'systematic' and n != 'gyro_bias') \
-    + ('time_offset', 'boresight')
+                        if e.sensor == 'gyro' and e.kind == 'systematic'
+                        and n != 'gyro_bias') + FILTER_STATES
 
 
 def augment_names(text: str) -> tuple:
@@ -98,3 +100,89 @@ def augment_error(text: str) -> str | None:
     if len(set(names)) != len(names):
         return 'augment: a name is given twice'
     return None
+
+
+@dataclass
+class StateLayout:
+    """
+    Where each group of states sits in the filter's error state.
+
+    The order: ε (3), the gyro states contiguous (bias first), the time offset, the boresight.
+
+    Parameters
+    ----------
+    gyro : list of (Effect, slice)
+        The gyro effects with states and their slices, ``gyro_bias`` first.
+    time_offset : slice, optional
+        The camera time offset's state (1, s).
+    boresight : slice, optional
+        The boresight error's states (3, rad, VF axes).
+    size : int
+        Length of the error state.
+
+    """
+
+    gyro: list = field(default_factory=list)
+    time_offset: slice | None = None
+    boresight: slice | None = None
+    size: int = 6
+
+    @classmethod
+    def build(cls, augment) -> StateLayout:
+        """
+        Lay out the attitude error, the bias and the augmented states.
+
+        Parameters
+        ----------
+        augment : tuple of str
+            Further states: systematic gyro effects of the registry, ``time_offset``,
+            ``boresight`` (:data:`AUGMENT_CHOICES`).
+
+        Returns
+        -------
+        StateLayout
+            The layout.
+
+        Raises
+        ------
+        ValueError
+            A name unknown, unsupported or given twice (the bias is always a state).
+
+        """
+        lay = cls(gyro=[(EFFECTS['gyro_bias'], slice(3, 6))], size=6)
+        gyro = [n for n, e in EFFECTS.items() if e.sensor == 'gyro' and e.kind == 'systematic']
+        if len(set(augment)) != len(augment) or 'gyro_bias' in augment:
+            raise ValueError('augment: a name given twice (the bias is always a state)')
+        valid = [n for n in gyro + list(FILTER_STATES) if n != 'gyro_bias']
+        for name in augment:
+            if name not in valid:
+                raise ValueError(f'augment: unknown or unsupported state {name!r}; valid: '
+                                 f"{', '.join(valid)}")
+        for name in (n for n in augment if n in gyro):
+            e = EFFECTS[name]
+            lay.gyro.append((e, slice(lay.size, lay.size + e.filter_size())))
+            lay.size += e.filter_size()
+        if 'time_offset' in augment:
+            lay.time_offset = slice(lay.size, lay.size + 1)
+            lay.size += 1
+        if 'boresight' in augment:
+            lay.boresight = slice(lay.size, lay.size + 3)
+            lay.size += 3
+        return lay
+
+    def named_slices(self) -> list:
+        """
+        Return the augmented state groups by name, bias included, ε excluded.
+
+        Returns
+        -------
+        list of (str, slice)
+            ``(name, slice)`` in the layout's order.
+
+        """
+        out = [(e.name, sl) for e, sl in self.gyro]
+        if self.time_offset is not None:
+            out.append(('time_offset', self.time_offset))
+        if self.boresight is not None:
+            out.append(('boresight', self.boresight))
+        return out
