@@ -82,7 +82,8 @@ def initial_pairs(rec: Recording, params: dict, epoch: float):
     Returns
     -------
     PairSet
-        The pairs of consecutive camera fixes (:func:`strapdown_ros.calibration.pairs.build_pairs`).
+        The pairs of consecutive camera fixes
+        (:func:`strapdown_ros.calibration.pairs.build_pairs`).
 
     Raises
     ------

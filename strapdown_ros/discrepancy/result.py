@@ -1,9 +1,10 @@
 """
 What the discrepancy workflow returns: the accepted steps, the verdict and the per-pair series.
 
-:class:`Step` is one accepted effect with its value, σ and repeatability; :class:`DiscrepancyResult`
-is the whole answer of :func:`strapdown_ros.discrepancy.workflow.analyse` and its JSON
-(``discrepancy --json``); :func:`residual_series` gives the per-pair arrays the report
+:class:`Step` is one accepted effect with its value, σ and repeatability;
+:class:`DiscrepancyResult` is the whole answer of
+:func:`strapdown_ros.discrepancy.workflow.analyse` and its JSON (``discrepancy --json``);
+:func:`residual_series` gives the per-pair arrays the report
 (:mod:`strapdown_ros.discrepancy.report`) plots.  No ROS imports.
 """
 from __future__ import annotations
@@ -185,7 +186,7 @@ class DiscrepancyResult:
         Returns
         -------
         dict
-            Every field except the series, non-finite numbers as None.
+            Every field except the series and ``model_out``, non-finite numbers as None.
 
         """
         return json_clean({

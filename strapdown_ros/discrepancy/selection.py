@@ -249,17 +249,18 @@ def score_candidate(lin: Linearisation, free, noise: dict, base, name: str) -> d
     e = EFFECTS[name]
     why = e.direct_check(lin.rec.delta_theta, None)
     if why:                                    # the raw data rule it out: no fit needed
-        return dict(effect=name, statistic=0.0, dof=e.size, p_value=1.0, direct_check=why)
+        return {'effect': name, 'statistic': 0.0, 'dof': e.size, 'p_value': 1.0,
+                'direct_check': why}
     if e.kind == 'noise':
         theta, f, sig = fit_noise(lin, free, noise, name)
         stat = max(base.nll - f.nll, 0.0)
         dof = e.size
-        return dict(effect=name, statistic=stat, dof=dof, p_value=float(chi2.sf(stat, dof)),
-                    theta=theta, sigma=sig)
+        return {'effect': name, 'statistic': stat, 'dof': dof,
+                'p_value': float(chi2.sf(stat, dof)), 'theta': theta, 'sigma': sig}
     f = lin.evaluate(free + [name], noise)
     with_it = lin.whitener(noise).apply(lin.design(free + [name]))
     without = lin.whitener(noise).apply(lin.design(free))
     dof = int(np.linalg.matrix_rank(with_it, tol=None)) - int(np.linalg.matrix_rank(without))
     stat = max(base.chi2 - f.chi2, 0.0)
     dof = max(dof, 1)
-    return dict(effect=name, statistic=stat, dof=dof, p_value=float(chi2.sf(stat, dof)))
+    return {'effect': name, 'statistic': stat, 'dof': dof, 'p_value': float(chi2.sf(stat, dof))}
