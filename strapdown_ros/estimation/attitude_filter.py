@@ -32,6 +32,7 @@ from strapdown_ros.sensors.effects import EFFECTS, GyroEffects
 
 __all__ = ['AttitudeFilter']
 
+
 class AttitudeFilter:
     """
     Multiplicative error-state Kalman filter of the SINS attitude with star-camera fixes.
@@ -82,6 +83,7 @@ class AttitudeFilter:
         the queue is full, or any estimate, the covariance or :meth:`update` is asked for: a
         caller sees the state of immediate processing; one increment per call then costs a
         fraction of the work (``filter_bench``).
+
     """
 
     def __init__(self, initial_attitude, initial_time: float, *, algorithm: str = '2',
@@ -164,13 +166,13 @@ class AttitudeFilter:
     # ------------------------------------------------------------------ layout and estimates
     @property
     def x(self) -> np.ndarray:
-        """The estimates of the filter states (not errors), in the layout's order."""
+        """Return the estimates of the filter states (not errors), in the layout's order."""
         self._drain()
         return self._x
 
     @property
     def attitude(self) -> np.ndarray:
-        """Current estimate of ``q_ref_body`` (at :attr:`time`)."""
+        """Return the current estimate of ``q_ref_body`` (at :attr:`time`)."""
         self._drain()
         return self.integrator.q
 
@@ -193,7 +195,26 @@ class AttitudeFilter:
         return 0.0 if sl is None else float(self._x[sl][0])
 
     def estimate(self, name: str) -> np.ndarray:
-        """Estimate of a state group (``boresight``: the quaternion ``q_MF_VF``)."""
+        """
+        Return the estimate of one group of states.
+
+        Parameters
+        ----------
+        name : str
+            A state group of this filter (``gyro_bias``, an augmented name; ``boresight``:
+            the quaternion ``q_MF_VF``).
+
+        Returns
+        -------
+        ndarray
+            A copy of the estimate, in the effect's filter units.
+
+        Raises
+        ------
+        ValueError
+            ``name`` is not a state of this filter.
+
+        """
         self._drain()
         if name == 'boresight':
             return self.boresight.copy()
@@ -203,7 +224,25 @@ class AttitudeFilter:
         return self._x[sl].copy()
 
     def sigma(self, name: str) -> np.ndarray:
-        """1σ of the error of one group of states (``attitude`` too), from the covariance."""
+        """
+        Return the 1σ of the error of one group of states, from the covariance.
+
+        Parameters
+        ----------
+        name : str
+            A state group of this filter, or ``attitude`` (rad, body axes).
+
+        Returns
+        -------
+        ndarray
+            1σ per component.
+
+        Raises
+        ------
+        ValueError
+            ``name`` is not a state of this filter.
+
+        """
         self._drain()
         sl = slice(0, 3) if name == 'attitude' else dict(self.layout.named_slices()).get(name)
         if sl is None:
@@ -213,8 +252,10 @@ class AttitudeFilter:
     @property
     def P(self) -> np.ndarray:
         """
-        Error-state covariance (n, n): ``S Sᵀ`` of the square-root factor the filter keeps,
-        symmetric and positive semi-definite by construction.
+        Error-state covariance (n, n).
+
+        ``S Sᵀ`` of the square-root factor the filter keeps, symmetric and positive
+        semi-definite by construction.
         """
         self._drain()
         P = self._sqrt_p @ self._sqrt_p.T
@@ -222,8 +263,15 @@ class AttitudeFilter:
 
     def implausible(self) -> list[str]:
         """
-        Names of the estimates outside the valid range of their registry parameter (a
-        diverging filter; reported, not clamped).
+        Return the names of the estimates outside the valid range of their registry parameter.
+
+        A diverging filter; reported, not clamped.
+
+        Returns
+        -------
+        list of str
+            Effect names.
+
         """
         self._drain()
         out = []
@@ -239,7 +287,7 @@ class AttitudeFilter:
         return out
 
     def _gyro_effects(self, decay_time: float = 0.0) -> GyroEffects:
-        """The estimated gyro effects, Gauss–Markov states decayed over ``decay_time`` s."""
+        """Return the estimated gyro effects, Gauss–Markov states decayed over ``decay_time`` s."""
         x = self._x.copy()
         x[3:3 + len(self._g_tau)] *= np.exp(-decay_time / self._g_tau)
         values = {e.name: e.filter_values(x[sl]) for e, sl in self.layout.gyro}
@@ -261,6 +309,7 @@ class AttitudeFilter:
         -------
         list of FixResult
             The fixes applied (or gated) during this call.
+
         """
         d = np.asarray(delta_theta, dtype=float).reshape(-1, 3)
         t = np.asarray(stamps, dtype=float).reshape(-1)
@@ -291,14 +340,36 @@ class AttitudeFilter:
 
     def update(self, stamp: float, attitude, covariance, boresight=None) -> FixResult:
         """
-        A star-camera fix: measured ``q_GCRS_VF`` (scalar-first) and its 3×3 covariance in
-        VF axes (rad²), stamped ``stamp`` (camera clock, s).  ``boresight``: a new known
-        ``q_MF_VF`` (e.g. from the calibrator) for this and later fixes; only when the boresight
-        is not a filter state.
+        Take a star-camera fix.
 
         Applied at the epoch ``stamp − τ̂``: now when the increments end exactly there, later
         (status 'pending', the result comes from :meth:`propagate`) when they have not reached
         it, and by re-processing the history when they have passed it (counted as late).
+
+        Parameters
+        ----------
+        stamp : float
+            Header stamp of the fix, camera clock, s.
+        attitude : array_like (4,)
+            Measured ``q_GCRS_VF``, scalar-first, unit.
+        covariance : array_like (3, 3)
+            Its covariance in VF axes, rad², positive definite.
+        boresight : array_like (4,), optional
+            A new known ``q_MF_VF`` (e.g. from the calibrator) for this and later fixes; only
+            when the boresight is not a filter state.
+
+        Returns
+        -------
+        FixResult
+            Status ``applied``, ``gated``, ``pending``, ``too_old`` or ``overflow``, with the
+            residual and its NIS when it was applied or gated.
+
+        Raises
+        ------
+        ValueError
+            The fix or the boresight is not finite, not a unit quaternion, or the covariance is
+            not positive definite.
+
         """
         self._drain()
         q = np.asarray(attitude, dtype=float)
@@ -320,7 +391,8 @@ class AttitudeFilter:
                     or abs(np.linalg.norm(q_bv) - 1) > 1e-3):
                 raise ValueError('boresight must be a finite unit quaternion [w, x, y, z]')
             self.boresight = quat_normalize(q_bv)
-        fix = CameraFix(self._seq, float(stamp), float(stamp) - self.time_offset, quat_normalize(q), R)
+        fix = CameraFix(self._seq, float(stamp), float(stamp) - self.time_offset,
+                        quat_normalize(q), R)
         self._seq += 1
         if fix.epoch > self._last_stamp:
             if len(self._pending) >= self.max_pending:
@@ -336,8 +408,10 @@ class AttitudeFilter:
     # ------------------------------------------------------------------ processing
     def _drain(self) -> None:
         """
-        Process the queued increments (none of them reaches a waiting fix: :meth:`propagate`
-        processes at once when one does, and :meth:`update` drains first).
+        Process the queued increments.
+
+        None of them reaches a waiting fix: :meth:`propagate` processes at once when one does,
+        and :meth:`update` drains first.
         """
         if self._queued:
             d, t = np.concatenate(self._queue_d), np.concatenate(self._queue_t)
@@ -373,9 +447,10 @@ class AttitudeFilter:
 
     def _push(self, d: np.ndarray, t: np.ndarray) -> None:
         """
-        Compensate, integrate and propagate the covariance over increments (pieces); with
-        Gauss–Markov states in blocks of at most 5 % of the shortest correlation time (the
-        compensation uses the estimate decayed to the middle of a block).
+        Compensate, integrate and propagate the covariance over increments (pieces).
+
+        With Gauss–Markov states, in blocks of at most 5 % of the shortest correlation time
+        (the compensation uses the estimate decayed to the middle of a block).
         """
         if len(t) == 0:
             return
@@ -410,8 +485,9 @@ class AttitudeFilter:
 
     def _flush(self) -> None:
         """
-        Complete the unfinished update (its increments applied one by one, the integrator's
-        rule when the algorithm changes): attitude and covariance are then at the newest stamp.
+        Complete the unfinished update: attitude and covariance are then at the newest stamp.
+
+        Its increments are applied one by one, the integrator's rule when the algorithm changes.
         """
         if len(self._open_rho) == 0:
             return
@@ -426,8 +502,10 @@ class AttitudeFilter:
 
     def _propagate_covariance(self, c0, c, rho, h, t_mid) -> None:
         """
-        P over m updates: attitudes C_j (m,3,3), lumped increments ρ_j, lengths h_j, times
-        since the effect epoch (:func:`~strapdown_ros.estimation.error_model.block_transition`).
+        Propagate P over m updates.
+
+        Attitudes C_j (m,3,3), lumped increments ρ_j, lengths h_j, times since the effect epoch
+        (:func:`strapdown_ros.estimation.error_model.block_transition`).
         """
         lay = self.layout
         A = np.concatenate([c @ e.filter_partials(rho, h, t_mid) for e, _ in lay.gyro], axis=2)

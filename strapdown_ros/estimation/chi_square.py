@@ -21,8 +21,10 @@ FIT_LEVEL = 0.01
 
 def _gamma_p(a: float, x: float) -> float:
     """
-    Regularised lower incomplete gamma P(a, x): the series below a + 1, Lentz's continued
-    fraction for Q = 1 − P above (Numerical Recipes §6.2).
+    Return the regularised lower incomplete gamma function P(a, x).
+
+    The series below a + 1, Lentz's continued fraction for Q = 1 − P above (Numerical
+    Recipes §6.2).
     """
     if x <= 0.0:
         return 0.0
@@ -57,8 +59,10 @@ def _gamma_p(a: float, x: float) -> float:
 
 def _chi2_quantile(p: float, dof: int) -> float:
     """
-    x with P(χ²_dof ≤ x) = p: Newton's method on the exact distribution function from the
-    Wilson–Hilferty start (no scipy: the node must not pay its import inside a callback).
+    Return x with P(χ²_dof ≤ x) = p.
+
+    Newton's method on the exact distribution function from the Wilson–Hilferty start (no
+    scipy: the node must not pay its import inside a callback).
     """
     a = 0.5 * dof
     c = 2.0 / (9.0 * dof)
@@ -75,10 +79,24 @@ def _chi2_quantile(p: float, dof: int) -> float:
 
 def chi2_band(dof: int, level: float = FIT_LEVEL) -> tuple[float, float]:
     """
-    The two-sided acceptance band of χ²/dof for ``dof`` degrees of freedom at ``level``:
-    (χ²_{level/2}(dof)/dof, χ²_{1−level/2}(dof)/dof).  A weighted least-squares fit whose
-    stated noise is right lands inside with probability 1 − level.  Exact quantiles (numpy
-    only, checked against scipy in test/estimation/test_chi_square.py).  (nan, nan) for dof < 1.
+    Return the two-sided acceptance band of χ²/dof.
+
+    (χ²_{level/2}(dof)/dof, χ²_{1−level/2}(dof)/dof): a weighted least-squares fit whose
+    stated noise is right lands inside with probability 1 − level.  Exact quantiles, neither
+    numpy nor scipy.
+
+    Parameters
+    ----------
+    dof : int
+        Degrees of freedom.
+    level : float
+        Two-sided level.
+
+    Returns
+    -------
+    (float, float)
+        The band of χ²/dof; (nan, nan) for dof < 1.
+
     """
     if dof < 1:
         return float('nan'), float('nan')
@@ -87,8 +105,9 @@ def chi2_band(dof: int, level: float = FIT_LEVEL) -> tuple[float, float]:
 
 def chi2_sf(x: float, dof: int) -> float:
     """
-    Survival function P(χ²_dof > x) (the p-value of a χ² statistic), from the regularised
-    incomplete gamma function of this module (numpy only).
+    Return the survival function P(χ²_dof > x): the p-value of a χ² statistic.
+
+    From the regularised incomplete gamma function of this module.
 
     Parameters
     ----------
@@ -101,6 +120,7 @@ def chi2_sf(x: float, dof: int) -> float:
     -------
     float
         The probability, in [0, 1].
+
     """
     if not math.isfinite(x):
         return 0.0 if x > 0 else 1.0
@@ -109,8 +129,9 @@ def chi2_sf(x: float, dof: int) -> float:
 
 def chi2_3_quantile(probability: float) -> float:
     """
-    Quantile of the χ² distribution with 3 degrees of freedom (bisection on its CDF
-    ``erf(√(x/2)) − √(2x/π) e^{−x/2}``).
+    Return the quantile of the χ² distribution with 3 degrees of freedom: the filter's gate.
+
+    Bisection on its CDF ``erf(√(x/2)) − √(2x/π) e^{−x/2}``.
 
     Parameters
     ----------
@@ -121,6 +142,12 @@ def chi2_3_quantile(probability: float) -> float:
     -------
     float
         x with P(χ²₃ ≤ x) = probability.
+
+    Raises
+    ------
+    ValueError
+        ``probability`` is not in (0, 1).
+
     """
     if not 0.0 < probability < 1.0:
         raise ValueError(f'probability must be in (0, 1), got {probability}')

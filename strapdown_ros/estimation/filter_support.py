@@ -1,12 +1,13 @@
 """
 Small parts of the attitude filter (:mod:`strapdown_ros.estimation.attitude_filter`).
 
-The names of its augmentable states, the square-root covariance factors, and the result and
-counter records.
+The names of its augmentable states and their layout in the error state, the square-root
+covariance factors, and the result and counter records.  No ROS imports.
 """
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+
 import numpy as np
 
 from strapdown_ros.sensors.effects import EFFECTS
@@ -17,7 +18,7 @@ __all__ = ['AUGMENT_CHOICES', 'FILTER_STATES', 'augment_names', 'augment_error',
 
 def triangular_factor(*blocks: np.ndarray) -> np.ndarray:
     """
-    A square factor S with S Sᵀ = Σ B Bᵀ, from the QR factorisation of [B₁ B₂ …]ᵀ.
+    Return a square factor S with S Sᵀ = Σ B Bᵀ, from the QR factorisation of [B₁ B₂ …]ᵀ.
 
     Parameters
     ----------
@@ -28,6 +29,7 @@ def triangular_factor(*blocks: np.ndarray) -> np.ndarray:
     -------
     ndarray (n, n)
         S (lower triangular), so that S Sᵀ is positive semi-definite by construction.
+
     """
     r = np.linalg.qr(np.hstack(blocks).T, mode='r')
     return r.T
@@ -35,7 +37,7 @@ def triangular_factor(*blocks: np.ndarray) -> np.ndarray:
 
 def psd_factor(Q: np.ndarray) -> np.ndarray:
     """
-    A factor B with B Bᵀ = Q of a symmetric positive semi-definite Q.
+    Return a factor B with B Bᵀ = Q of a symmetric positive semi-definite Q.
 
     Parameters
     ----------
@@ -46,6 +48,7 @@ def psd_factor(Q: np.ndarray) -> np.ndarray:
     -------
     ndarray (n, n)
         B = V diag(√λ).
+
     """
     w, v = np.linalg.eigh(0.5 * (Q + Q.T))
     return v * np.sqrt(np.clip(w, 0.0, None))
@@ -53,19 +56,55 @@ def psd_factor(Q: np.ndarray) -> np.ndarray:
 
 @dataclass
 class FixResult:
-    """Outcome of one camera fix."""
-    stamp: float                 # header stamp of the fix, s
-    epoch: float                 # IMU-clock epoch it was applied at (stamp − τ̂), s
-    status: str                  # 'applied', 'gated', 'pending', 'too_old', 'overflow'
-    lateness: float = 0.0        # newest increment stamp − epoch at arrival (0: not late), s
-    residual: np.ndarray | None = None     # z (3,), VF axes, rad
-    nis: float | None = None     # zᵀ S⁻¹ z
-    innovation_covariance: np.ndarray | None = None   # S = H P Hᵀ + R (3, 3), rad²
+    """
+    Outcome of one camera fix.
+
+    Parameters
+    ----------
+    stamp : float
+        Header stamp of the fix, s.
+    epoch : float
+        IMU-clock epoch it was applied at (stamp − τ̂), s.
+    status : str
+        ``applied``, ``gated``, ``pending``, ``too_old`` or ``overflow``.
+    lateness : float
+        Newest increment stamp − epoch at arrival (0: not late), s.
+    residual : ndarray (3,), optional
+        The residual z, VF axes, rad.
+    nis : float, optional
+        zᵀ S⁻¹ z.
+    innovation_covariance : ndarray (3, 3), optional
+        S = H P Hᵀ + R, rad².
+
+    """
+
+    stamp: float
+    epoch: float
+    status: str
+    lateness: float = 0.0
+    residual: np.ndarray | None = None
+    nis: float | None = None
+    innovation_covariance: np.ndarray | None = None
 
 
 @dataclass
 class FilterCounters:
-    """Counts of what the filter did (reported; a node puts them on /diagnostics)."""
+    """
+    Counts of what the filter did (reported; a node puts them on /diagnostics).
+
+    Parameters
+    ----------
+    applied, gated, late, too_old, pending_overflow : int
+        Fixes applied, gated, late, older than the history, dropped from a full queue.
+    reprocessed_increments : int
+        Increments processed again for late fixes.
+    max_lateness, last_lateness : float
+        Largest and last lateness of a late fix, s.
+    implausible : int
+        Updates after which an estimate left its registry range.
+
+    """
+
     applied: int = 0
     gated: int = 0
     late: int = 0
@@ -74,7 +113,7 @@ class FilterCounters:
     reprocessed_increments: int = 0
     max_lateness: float = 0.0
     last_lateness: float = 0.0
-    implausible: int = 0         # updates after which an estimate left its registry range
+    implausible: int = 0
 
 
 #: names the ``augment`` argument accepts besides the registry's systematic gyro effects
@@ -87,12 +126,38 @@ AUGMENT_CHOICES = tuple(n for n, e in EFFECTS.items()
 
 
 def augment_names(text: str) -> tuple:
-    """The names of a comma-separated ``augment`` value (blanks ignored)."""
+    """
+    Return the names of a comma-separated ``augment`` value (blanks ignored).
+
+    Parameters
+    ----------
+    text : str
+        The parameter value, e.g. ``"gyro_scale_factor, time_offset"``.
+
+    Returns
+    -------
+    tuple of str
+        The names.
+
+    """
     return tuple(n.strip() for n in str(text).split(',') if n.strip())
 
 
 def augment_error(text: str) -> str | None:
-    """One-line error of an ``augment`` value naming the valid names, or None when valid."""
+    """
+    Return the one-line error of an ``augment`` value naming the valid names.
+
+    Parameters
+    ----------
+    text : str
+        The parameter value.
+
+    Returns
+    -------
+    str or None
+        The error, or None when the value is valid.
+
+    """
     names = augment_names(text)
     bad = [n for n in names if n not in AUGMENT_CHOICES]
     if bad:
