@@ -23,8 +23,8 @@ import numpy as np
 from strapdown_ros.attitude.integrator import AttitudeIntegrator
 from strapdown_ros.estimation.chi_square import chi2_3_quantile
 from strapdown_ros.estimation.error_model import block_transition
-from strapdown_ros.estimation.filter_support import (FilterCounters, FixResult, psd_factor,
-                                                     StateLayout, triangular_factor)
+from strapdown_ros.estimation.filter_support import (checked_fix, FilterCounters, FixResult,
+                                                     psd_factor, StateLayout, triangular_factor)
 from strapdown_ros.estimation.fix_history import CameraFix, Checkpoint, IncrementLog
 from strapdown_ros.rotation import (quat_conjugate, quat_multiply, quat_normalize, quat_to_dcm,
                                     quat_to_rotvec, rotvec_to_quat)
@@ -218,10 +218,7 @@ class AttitudeFilter:
         self._drain()
         if name == 'boresight':
             return self.boresight.copy()
-        sl = dict(self.layout.named_slices()).get(name)
-        if sl is None:
-            raise ValueError(f'{name!r} is not a state of this filter')
-        return self._x[sl].copy()
+        return self._x[self.layout.slice_of(name)].copy()
 
     def sigma(self, name: str) -> np.ndarray:
         """
@@ -244,9 +241,7 @@ class AttitudeFilter:
 
         """
         self._drain()
-        sl = slice(0, 3) if name == 'attitude' else dict(self.layout.named_slices()).get(name)
-        if sl is None:
-            raise ValueError(f'{name!r} is not a state of this filter')
+        sl = slice(0, 3) if name == 'attitude' else self.layout.slice_of(name)
         return np.sqrt(np.diag(self.P)[sl])
 
     @property
@@ -274,17 +269,7 @@ class AttitudeFilter:
 
         """
         self._drain()
-        out = []
-        named = [(e, sl) for e, sl in self.layout.gyro]
-        if self.layout.time_offset is not None:
-            named.append((EFFECTS['time_offset'], self.layout.time_offset))
-        for e, sl in named:
-            v = e.filter_values(self._x[sl]) if e.sensor == 'gyro' else self._x[sl]
-            p = e.value_parameter
-            if (p.minimum is not None and np.any(v < p.minimum)) or \
-                    (p.maximum is not None and np.any(v > p.maximum)):
-                out.append(e.name)
-        return out
+        return self.layout.implausible(self._x)
 
     def _gyro_effects(self, decay_time: float = 0.0) -> GyroEffects:
         """Return the estimated gyro effects, Gauss–Markov states decayed over ``decay_time`` s."""
@@ -372,17 +357,7 @@ class AttitudeFilter:
 
         """
         self._drain()
-        q = np.asarray(attitude, dtype=float)
-        R = np.asarray(covariance, dtype=float)
-        if q.shape != (4,) or not np.all(np.isfinite(q)) or abs(np.linalg.norm(q) - 1.0) > 1e-3:
-            raise ValueError('the fix attitude must be a finite unit quaternion [w, x, y, z]')
-        if R.shape != (3, 3) or not np.all(np.isfinite(R)):
-            raise ValueError('the fix covariance must be a finite 3x3 matrix')
-        R = 0.5 * (R + R.T)
-        if np.linalg.eigvalsh(R)[0] <= 0:
-            raise ValueError('the fix covariance must be positive definite')
-        if not np.isfinite(stamp):
-            raise ValueError('the fix stamp must be finite')
+        q, R = checked_fix(stamp, attitude, covariance)
         if boresight is not None:
             if self.layout.boresight is not None:
                 raise ValueError('the boresight is a filter state here: estimated, not given')

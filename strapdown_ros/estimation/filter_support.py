@@ -13,7 +13,49 @@ import numpy as np
 from strapdown_ros.sensors.effects import EFFECTS
 
 __all__ = ['AUGMENT_CHOICES', 'FILTER_STATES', 'augment_names', 'augment_error',
-           'triangular_factor', 'psd_factor', 'FixResult', 'FilterCounters', 'StateLayout']
+           'triangular_factor', 'psd_factor', 'FixResult', 'FilterCounters', 'StateLayout',
+           'checked_fix']
+
+
+def checked_fix(stamp: float, attitude, covariance):
+    """
+    Check a camera fix the attitude filter is given.
+
+    Parameters
+    ----------
+    stamp : float
+        Header stamp, s.
+    attitude : array_like (4,)
+        ``q_GCRS_VF``, scalar-first, unit within 1e-3.
+    covariance : array_like (3, 3)
+        Its covariance in VF axes, rad².
+
+    Returns
+    -------
+    q : ndarray (4,)
+        The attitude as given.
+    R : ndarray (3, 3)
+        The covariance, symmetrised.
+
+    Raises
+    ------
+    ValueError
+        The attitude is not a finite unit quaternion, the covariance not finite or not positive
+        definite, or the stamp not finite.
+
+    """
+    q = np.asarray(attitude, dtype=float)
+    R = np.asarray(covariance, dtype=float)
+    if q.shape != (4,) or not np.all(np.isfinite(q)) or abs(np.linalg.norm(q) - 1.0) > 1e-3:
+        raise ValueError('the fix attitude must be a finite unit quaternion [w, x, y, z]')
+    if R.shape != (3, 3) or not np.all(np.isfinite(R)):
+        raise ValueError('the fix covariance must be a finite 3x3 matrix')
+    R = 0.5 * (R + R.T)
+    if np.linalg.eigvalsh(R)[0] <= 0:
+        raise ValueError('the fix covariance must be positive definite')
+    if not np.isfinite(stamp):
+        raise ValueError('the fix stamp must be finite')
+    return q, R
 
 
 def triangular_factor(*blocks: np.ndarray) -> np.ndarray:
@@ -250,4 +292,56 @@ class StateLayout:
             out.append(('time_offset', self.time_offset))
         if self.boresight is not None:
             out.append(('boresight', self.boresight))
+        return out
+
+    def slice_of(self, name: str) -> slice:
+        """
+        Return the slice of one state group.
+
+        Parameters
+        ----------
+        name : str
+            ``gyro_bias``, an augmented gyro effect, ``time_offset`` or ``boresight``.
+
+        Returns
+        -------
+        slice
+            Its place in the error state.
+
+        Raises
+        ------
+        ValueError
+            ``name`` is not a state of this layout.
+
+        """
+        sl = dict(self.named_slices()).get(name)
+        if sl is None:
+            raise ValueError(f'{name!r} is not a state of this filter')
+        return sl
+
+    def implausible(self, x: np.ndarray) -> list:
+        """
+        Return the names of the estimates outside the valid range of their registry parameter.
+
+        Parameters
+        ----------
+        x : ndarray (size,)
+            The estimates of the filter states, in this layout.
+
+        Returns
+        -------
+        list of str
+            Effect names (gyro effects and the time offset).
+
+        """
+        out = []
+        named = [(e, sl) for e, sl in self.gyro]
+        if self.time_offset is not None:
+            named.append((EFFECTS['time_offset'], self.time_offset))
+        for e, sl in named:
+            v = e.filter_values(x[sl]) if e.sensor == 'gyro' else x[sl]
+            p = e.value_parameter
+            if (p.minimum is not None and np.any(v < p.minimum)) or \
+                    (p.maximum is not None and np.any(v > p.maximum)):
+                out.append(e.name)
         return out
