@@ -47,7 +47,7 @@ def test_combination_sigma_differs_from_eigen_sigma():
 
 # ------------------------------------------------------------------------------ dynamic case
 def test_expm_closed_forms():
-    """expm matches the closed forms of diagonal, nilpotent and rotation matrices."""
+    """The matrix exponential matches the closed forms of rotation, nilpotent, diagonal."""
     w = 0.7
     assert expm(np.array([[0, w], [-w, 0]]) * 3.0) == pytest.approx(
         np.array([[np.cos(3 * w), np.sin(3 * w)], [-np.sin(3 * w), np.cos(3 * w)]]), abs=1e-14)
