@@ -18,14 +18,38 @@ __all__ = ['load_recording', 'recording_lines']
 
 def load_recording(bag: str, model: dict, namespace: str = '', **options):
     """
-    The recording as the core's :class:`Recording`, with what reading it found (drops, gaps,
-    topics, the gyro rate from the stamps, the input formats).  ``options``: the input options
-    of :func:`strapdown_ros.recording.read_bag` (``gyro_topic``, ``reference_topic``,
-    ``reference_frames``, ``rate_rule``).  Raises BagError / ValueError.
+    Read a bag into the core's :class:`Recording`, with what reading it found.
+
+    Parameters
+    ----------
+    bag : str
+        Path of the rosbag2 bag.
+    model : dict
+        The model (validated calibrator parameters): camera σ, gyro rate limit, stamp rules.
+    namespace : str
+        Namespace of the topics.
+    **options
+        The input options of :func:`strapdown_ros.recording.read_bag` (``gyro_topic``,
+        ``reference_topic``, ``reference_frames``, ``rate_rule``).
+
+    Returns
+    -------
+    rec : Recording
+        Stamps in seconds from a common origin, increments (rad), fixes and covariances.
+    info : dict
+        Drops, gaps, topics, the gyro rate from the stamps, the input formats.
+
+    Raises
+    ------
+    BagError
+        The bag cannot be read, or holds fewer than 10 usable gyro increments.
+    ValueError
+        An input option is invalid.
+
     """
     sig = (model['camera_sigma_xy'], model['camera_sigma_xy'], model['camera_sigma_z'])
-    data = read_bag(bag, namespace, True, sig, float(model['gyro_max_rate']), float(model['max_stamp_jump']),
-                    int(model['resync_count']), **options)
+    data = read_bag(bag, namespace, True, sig, float(model['gyro_max_rate']),
+                    float(model['max_stamp_jump']), int(model['resync_count']), **options)
     g, c = data['gyro'], data['camera']
     if len(g.stamps) < 10:
         raise BagError(f"{bag}: {len(g.stamps)} usable gyro increments on {data['gyro_topic']}")
@@ -37,14 +61,15 @@ def load_recording(bag: str, model: dict, namespace: str = '', **options):
     q = np.array([v[0] for v in c.values]).reshape(-1, 4)
     P = np.array([v[1] for v in c.values]).reshape(-1, 3, 3)
     rec = Recording(t_g, np.asarray(g.values, dtype=float), t_c, q, P, gaps)
+    camera_dropped = {k: v for k, v in data['camera_fixes'].items()
+                      if k in ('zero_quaternion', 'bad_covariance')}
     info = {'gyro_topic': data['gyro_topic'], 'camera_topic': data['camera_topic'],
             'camera_covariance_from_bag': data['camera_covariance_from_bag'],
             'gyro_messages': len(g.stamps), 'camera_fixes': len(c.stamps),
             'gyro_rate_from_stamps_hz': 1.0 / period if 0 < period < np.inf else None,
             'gyro_gaps': len(gaps), 'gyro_missing': g.missing,
             'stamp_resyncs': {'gyro': g.resyncs, 'camera': c.resyncs},
-            'dropped': {'gyro': dict(g.dropped), 'camera': {**c.dropped, **{
-                k: v for k, v in data['camera_fixes'].items() if k in ('zero_quaternion', 'bad_covariance')}}},
+            'dropped': {'gyro': dict(g.dropped), 'camera': {**c.dropped, **camera_dropped}},
             'stamp_origin_ns': int(origin), 'duration_s': float(t_g[-1] - t_g[0])}
     info.update(input_summary(data))
     if data['rate_samples']:
@@ -54,14 +79,31 @@ def load_recording(bag: str, model: dict, namespace: str = '', **options):
 
 def recording_lines(prog: str, bag, info: dict, counts: str = '') -> list[str]:
     """
-    The first lines of a tool's summary: what :func:`load_recording` found (``counts``: more
-    figures for the first line, e.g. "448 increment pairs, ").
+    Return the first lines of a tool's summary: what :func:`load_recording` found.
+
+    Parameters
+    ----------
+    prog : str
+        Name of the tool, first word of the summary.
+    bag : str or Path
+        The bag read.
+    info : dict
+        What :func:`load_recording` found.
+    counts : str
+        More figures for the first line, e.g. "448 increment pairs, ".
+
+    Returns
+    -------
+    list of str
+        The lines.
+
     """
-    lines = [f"{prog}: {bag}: {info['gyro_messages']} Δθ at {info['gyro_rate_from_stamps_hz']:.6g} Hz "
-             f"(from the stamps), {info['camera_fixes']} fixes, {counts}{info['duration_s']:.1f} s"]
+    lines = [f"{prog}: {bag}: {info['gyro_messages']} Δθ at "
+             f"{info['gyro_rate_from_stamps_hz']:.6g} Hz (from the stamps), "
+             f"{info['camera_fixes']} fixes, {counts}{info['duration_s']:.1f} s"]
     if info['gyro_gaps']:
-        lines.append(f"  gyro gaps: {info['gyro_gaps']} ({info['gyro_missing']} increments missing); pairs "
-                     f'spanning them are not used')
+        lines.append(f"  gyro gaps: {info['gyro_gaps']} ({info['gyro_missing']} increments "
+                     'missing); pairs spanning them are not used')
     if 'gyro_input' in info:
         lines += input_lines(info)
     return lines

@@ -1,7 +1,10 @@
 """
-Residual diagnostics of the discrepancy workflow: the verdict tests, a description of what
-structure remains, and the Allan deviation of the gyro on static segments (measured against the
-model simulated on the same segment).  No ROS imports.
+Residual diagnostics of the discrepancy workflow: verdict tests, remaining structure, Allan.
+
+The verdict tests, a description of what structure remains, a check for a gyro wiring fault,
+and the Allan deviation of the gyro on static segments (measured against the model simulated
+on the same segment).  Used by :mod:`strapdown_ros.discrepancy.workflow` and the report.
+No ROS imports.
 
 Verdict tests on the whitened residual w (3 per pair, ≈ iid N(0, 1) under an adequate model),
 each at α/3 (Bonferroni over the three; the workflow passes its α/2 for the tests):
@@ -24,12 +27,28 @@ from strapdown_ros.sensors.model import PulseQuantizer
 __all__ = ['verdict_tests', 'autocorrelation', 'describe_remaining', 'static_segments',
            'allan_comparison', 'axis_swap_check', 'white_rate_variance', 'SWAP_RATIO']
 
-#: a signed permutation of the gyro axes "explains" the residual when the axis-alignment RMS with
-#: it is below this fraction of the RMS with the axes as wired
+#: a signed permutation of the gyro axes "explains" the residual when the axis-alignment RMS
+#: with it is below this fraction of the RMS with the axes as wired
 SWAP_RATIO = 0.3
 
 
 def autocorrelation(x: np.ndarray, lags: int) -> np.ndarray:
+    """
+    Return the sample autocorrelation of a series at lags 1 … ``lags``.
+
+    Parameters
+    ----------
+    x : (n,) array_like
+        The series (its mean is removed).
+    lags : int
+        Largest lag.
+
+    Returns
+    -------
+    (lags,) ndarray
+        ρ_k; zeros for a constant or too short series.
+
+    """
     x = np.asarray(x, dtype=float) - np.mean(x)
     d = float(x @ x)
     if d == 0 or len(x) < 2:
@@ -38,6 +57,27 @@ def autocorrelation(x: np.ndarray, lags: int) -> np.ndarray:
 
 
 def verdict_tests(whitened: np.ndarray, pairs: int, alpha: float, lags: int) -> dict:
+    """
+    Run the three verdict tests on the whitened residuals, each at ``alpha``/3.
+
+    Parameters
+    ----------
+    whitened : array_like
+        Whitened residuals w, 3 per pair.
+    pairs : int
+        Number of increment pairs.
+    alpha : float
+        Level of the three tests together (Bonferroni).
+    lags : int
+        Ljung–Box lags (at most a quarter of the pairs are used).
+
+    Returns
+    -------
+    dict
+        ``nis``, ``whiteness``, ``outliers`` (statistic, dof, p-value each), ``level``,
+        ``passed`` (all three pass) and ``failed`` (their names).
+
+    """
     from scipy.stats import chi2, norm
 
     w = np.asarray(whitened, dtype=float).reshape(-1)
@@ -59,15 +99,29 @@ def verdict_tests(whitened: np.ndarray, pairs: int, alpha: float, lags: int) -> 
              'whiteness': {'statistic': Q, 'dof': 3 * h, 'lags': h, 'p_value': p_lb},
              'outliers': {'statistic': zmax, 'n': n, 'p_value': p_out}}
     tests['level'] = level
-    tests['passed'] = bool(all(t['p_value'] >= level for t in (tests['nis'], tests['whiteness'], tests['outliers'])))
+    tests['passed'] = bool(all(t['p_value'] >= level
+                               for t in (tests['nis'], tests['whiteness'], tests['outliers'])))
     tests['failed'] = [k for k in ('nis', 'whiteness', 'outliers') if tests[k]['p_value'] < level]
     return tests
 
 
 def describe_remaining(series: dict, lin=None) -> dict:
     """
-    What structure is left: dominant period and lag, correlation with rate and with
-    accumulated angle, where the largest residuals are.
+    Describe the structure left in the residuals.
+
+    Parameters
+    ----------
+    series : dict
+        Per-pair arrays (:func:`strapdown_ros.discrepancy.result.residual_series`).
+    lin : Linearisation, optional
+        Unused; kept for the callers that pass it.
+
+    Returns
+    -------
+    dict
+        Dominant period and lag, correlation with rate, accumulated angle and rotation angle,
+        where the largest whitened residuals are.
+
     """
     t = np.asarray(series['t'], dtype=float)
     w = np.asarray(series['whitened'], dtype=float)
@@ -92,7 +146,8 @@ def describe_remaining(series: dict, lin=None) -> dict:
     out['dominant_lag_pairs'] = k + 1
     out['dominant_lag_autocorrelation'] = float(ac[k])
     mag = np.linalg.norm(w, axis=1)
-    for key, name in (('rate', 'correlation_with_rate'), ('accumulated_angle', 'correlation_with_accumulated_angle'),
+    for key, name in (('rate', 'correlation_with_rate'),
+                      ('accumulated_angle', 'correlation_with_accumulated_angle'),
                       ('phi_cam', 'correlation_with_rotation_angle')):
         x = np.asarray(series.get(key, []), dtype=float)
         if len(x) == len(mag) and np.std(x) > 0 and np.std(mag) > 0:
@@ -103,10 +158,10 @@ def describe_remaining(series: dict, lin=None) -> dict:
     return out
 
 
-# ----------------------------------------------------------------------------- Allan deviation
+# ----------------------------------------------------------------------------- wiring
 def axis_swap_check(rotvec_imu: np.ndarray, rotvec_cam: np.ndarray) -> dict:
     """
-    Would a wiring fault of the gyro (axes swapped or a sign reversed) explain the residual?
+    Check whether a gyro wiring fault (axes swapped or a sign reversed) explains the residual.
 
     Re-fits the closed-form axis alignment (Wahba/SVD, a proper rotation C: min Σ|C·P·u − v|²)
     of the gyro pair increments u, their axes mapped by each of the 47 non-identity signed
@@ -128,8 +183,8 @@ def axis_swap_check(rotvec_imu: np.ndarray, rotvec_cam: np.ndarray) -> dict:
         ``mapping`` (in words, e.g. "x ← +y, y ← +x, z ← +z"), ``rms_as_wired_rad``,
         ``rms_best_rad``, ``ratio``}; when it explains,
         ``candidate_explanations`` = ["gyro axis swap/sign"].
-    """
 
+    """
     u = np.asarray(rotvec_imu, dtype=float)
     v = np.asarray(rotvec_cam, dtype=float)
 
@@ -168,8 +223,23 @@ def axis_swap_check(rotvec_imu: np.ndarray, rotvec_cam: np.ndarray) -> dict:
 # ----------------------------------------------------------------------------- Allan deviation
 def white_rate_variance(params: dict, period: float) -> float:
     """
-    Variance of one increment (rad²) of the model's white rate noise: the random walk
-    N²·T plus the quantization remainder's σ_q²/6 (the MA(1) of the carried remainder).
+    Return the variance of one increment of the model's white rate noise.
+
+    The random walk N²·T plus the quantization remainder's σ_q²/6 (the MA(1) of the carried
+    remainder).
+
+    Parameters
+    ----------
+    params : dict
+        The model (``gyro_random_walk`` rad/√s, ``gyro_quantum`` rad).
+    period : float
+        Increment period T, s.
+
+    Returns
+    -------
+    float
+        Variance, rad².
+
     """
     rw, q = float(params.get('gyro_random_walk', 0.0)), float(params.get('gyro_quantum', 0.0))
     return rw ** 2 * period + q ** 2 / 6.0
@@ -179,17 +249,17 @@ def static_segments(stamps: np.ndarray, delta_theta: np.ndarray, params: dict | 
                     min_duration: float = 15.0, window: float = 1.0, alpha: float = 1e-3,
                     info: dict | None = None) -> list[tuple[int, int]]:
     """
-    Index ranges [i, j) where the rate is constant within the noise, whatever its mean (a
-    gyro bias of any size, Earth rate): rest on a bench, or a constant-rate turn.
+    Find the index ranges [i, j) where the rate is constant within the noise.
 
-    Windows of ``window`` seconds: the sample variance of the increments in a window, its mean
-    removed, about each axis, against the white rate noise of one increment with a χ²(n−1)
-    bound at ``alpha`` per window and axis.  The reference variance is the model's
-    (:func:`white_rate_variance` of ``params``) or, when the data are noisier than the model
-    says, the data's own floor: the smallest window variance over the χ²(n−1) quantile at
-    1/(number of windows), i.e. what the quietest window implies.  A segment: consecutive
-    passing windows whose means agree (|difference| within the normal bound at ``alpha`` of
-    √(2·ref/n)), covering at least ``min_duration`` seconds.
+    Whatever its mean (a gyro bias of any size, Earth rate): rest on a bench, or a
+    constant-rate turn.  Windows of ``window`` seconds: the sample variance of the increments
+    in a window, its mean removed, about each axis, against the white rate noise of one
+    increment with a χ²(n−1) bound at ``alpha`` per window and axis.  The reference variance is the
+    model's (:func:`white_rate_variance` of ``params``) or, when the data are noisier than the
+    model says, the data's own floor: the smallest window variance over the χ²(n−1) quantile at
+    1/(number of windows), i.e. what the quietest window implies.  A segment: consecutive passing
+    windows whose means agree (|difference| within the normal bound at ``alpha`` of √(2·ref/n)),
+    covering at least ``min_duration`` seconds.
 
     Parameters
     ----------
@@ -209,6 +279,8 @@ def static_segments(stamps: np.ndarray, delta_theta: np.ndarray, params: dict | 
     Returns
     -------
     list of (int, int)
+        The segments, as index ranges of the increments.
+
     """
     from scipy.stats import chi2, norm
 
@@ -262,19 +334,42 @@ def _adev(rate: np.ndarray, fs: float, taus: np.ndarray):
 def allan_comparison(stamps, delta_theta, params_before: dict, params_after: dict | None = None,
                      seed: int = 0, segments: int = 5) -> dict | None:
     """
-    Overlapping Allan deviation of the measured gyro rate on the static segments (the longest
-    ``segments`` of them, each axis, averaged over axes and segments) against the same for the
-    model simulated on the same segments: the measured mean rate plus the model's random walk,
-    quantization and bias drift, fed through the package's own sensor model.  Segments: where the
-    rate is constant within the noise (:func:`static_segments`, from the data: a gyro bias of
-    any size does not hide them).  None when the recording has no such segment of 15 s.
-    """
+    Compare the Allan deviation of the measured gyro rate with the model's on static segments.
 
+    The overlapping Allan deviation on the static segments (the longest ``segments`` of them,
+    each axis, averaged over axes and segments) against the same for the model simulated on the
+    same segments: the measured mean rate plus the model's random walk, quantization and bias
+    drift, fed through the package's own sensor model.  Segments: where the rate is constant
+    within the noise (:func:`static_segments`, from the data: a gyro bias of any size does not
+    hide them).
+
+    Parameters
+    ----------
+    stamps : (n,) array_like
+        Increment end stamps, s.
+    delta_theta : (n, 3) array_like
+        Increments, rad.
+    params_before : dict
+        The model before the workflow.
+    params_after : dict, optional
+        The model with the effects the workflow added.
+    seed : int
+        Seed of the simulated noise.
+    segments : int
+        Most static segments used.
+
+    Returns
+    -------
+    dict or None
+        τ, the measured and simulated curves, the static noise against the model's, the excess
+        region; None when the recording has no static segment of 15 s.
+
+    """
     st = np.asarray(stamps, dtype=float)
     dth = np.asarray(delta_theta, dtype=float)
     found: dict = {}
-    segs = sorted(static_segments(st, dth, params_before, info=found), key=lambda s: s[1] - s[0],
-                  reverse=True)[:segments]
+    segs = sorted(static_segments(st, dth, params_before, info=found),
+                  key=lambda s: s[1] - s[0], reverse=True)[:segments]
     if not segs:
         return None
     T = float(np.median(np.diff(st)))
@@ -288,7 +383,8 @@ def allan_comparison(stamps, delta_theta, params_before: dict, params_after: dic
         mean = dth[i:j].mean(axis=0)
         rw = float(params.get('gyro_random_walk', 0.0))
         sim = np.tile(mean, (n, 1)) + rng.normal(0.0, rw * np.sqrt(T), (n, 3))
-        eff = GyroEffects({k: v for k, v in params.items() if k in ('gyro_bias_drift',)}, epoch=float(st[0]))
+        drift = {k: v for k, v in params.items() if k in ('gyro_bias_drift',)}
+        eff = GyroEffects(drift, epoch=float(st[0]))
         if eff.active:
             sim = sim + (eff.apply(np.zeros((n, 3)), st[i:j], T))
         q = float(params.get('gyro_quantum', 0.0))
@@ -314,11 +410,13 @@ def allan_comparison(stamps, delta_theta, params_before: dict, params_after: dic
     resid = np.vstack([dth[i:j] - dth[i:j].mean(axis=0) for i, j in segs]) / T
 
     def model_std(params):
-        rw, q = float(params.get('gyro_random_walk', 0.0)), float(params.get('gyro_quantum', 0.0))
+        rw = float(params.get('gyro_random_walk', 0.0))
+        q = float(params.get('gyro_quantum', 0.0))
         return float(np.sqrt(rw ** 2 / T + q ** 2 / (6.0 * T ** 2)))
     out = {'static_noise': {'rate_std_rad_s': resid.std(axis=0).tolist(),
                             'model_rate_std_rad_s_before': model_std(params_before),
-                            'model_rate_std_rad_s_after': model_std(params_after or params_before)},
+                            'model_rate_std_rad_s_after': model_std(params_after
+                                                                    or params_before)},
            'taus_s': taus.tolist(), 'measured': measured.tolist(),
            'simulated_before': curve(lambda i, j: simulate(params_before, i, j)).tolist(),
            'static_segments': len(segs),

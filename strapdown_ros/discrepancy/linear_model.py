@@ -1,7 +1,8 @@
 """
 The linear-Gaussian model of the increment residuals, with a banded whitening.
 
-Near the current model the stacked residual r (3N, VF axes) of N increment pairs is
+The statistical core under :mod:`strapdown_ros.discrepancy.linearisation`.  Near the current model
+the stacked residual r (3N, VF axes) of N increment pairs is
 
     r = J z + U x + e,     e ~ N(0, B),     x ~ N(0, P_x)
 
@@ -10,8 +11,9 @@ Near the current model the stacked residual r (3N, VF axes) of N increment pairs
   common to all pairs with the prior covariance the model's ``*_sigma`` give;
 * B: the covariance of everything white between fixes: per pair ``Cᵀ E_white C + P_n +
   R_nᵀ P_{n−1} R_n`` on the diagonal and ``−P_n R_{n+1}`` between pairs that share fix n
-  (004 §3.3, as :func:`strapdown_ros.calibration.boresight._correlated_covariance`).  It is block
-  tridiagonal, so its Cholesky factor is banded (bandwidth 5) and whitening costs O(N).
+  (004 §3.3, as the calibrator's correlated covariance in
+  :mod:`strapdown_ros.calibration.boresight`).  It is block tridiagonal, so its Cholesky factor is
+  banded (bandwidth 5) and whitening costs O(N).
 
 Marginalising x exactly, the residual covariance is Σ = B + U P_x Uᵀ, the calibrator's
 correlated covariance.  :func:`fit` returns the GLS estimate of z, the whitened residual and
@@ -27,13 +29,27 @@ import numpy as np
 __all__ = ['band_covariance', 'Whitener', 'Fit', 'fit', 'hac_covariance']
 
 
-def band_covariance(fix_P: np.ndarray, R_cam: np.ndarray, adjacent: np.ndarray, white_diag: np.ndarray):
+def band_covariance(fix_P: np.ndarray, R_cam: np.ndarray, adjacent: np.ndarray,
+                    white_diag: np.ndarray) -> np.ndarray:
     """
-    Lower band storage (6, 3N) of B.
+    Return the covariance B of the white residual part in lower band storage.
 
-    fix_P: (N, 2, 3, 3) covariances of the start and end fix of each pair (VF, rad²), after the
-    noise effects; R_cam: (N, 3, 3) ΔS_avu; adjacent: (N−1,) pairs n, n+1 share a fix;
-    white_diag: (N, 3, 3) the white gyro part Cᵀ E_white C.
+    Parameters
+    ----------
+    fix_P : (N, 2, 3, 3) ndarray
+        Covariances of the start and end fix of each pair (VF, rad²), after the noise effects.
+    R_cam : (N, 3, 3) ndarray
+        The camera increments ΔS_avu as rotation matrices.
+    adjacent : (N−1,) ndarray
+        1 where pairs n, n+1 share a fix, else 0.
+    white_diag : (N, 3, 3) ndarray
+        The white gyro part Cᵀ E_white C, rad².
+
+    Returns
+    -------
+    (6, 3N) ndarray
+        The lower band of B (scipy's ``cholesky_banded`` storage).
+
     """
     N = len(R_cam)
     Rt = np.swapaxes(R_cam, 1, 2)
@@ -43,7 +59,7 @@ def band_covariance(fix_P: np.ndarray, R_cam: np.ndarray, adjacent: np.ndarray, 
         for b in range(a + 1):
             full_lower[a - b, b::3][:N] = diag[:, a, b]
     if N > 1:
-        # cov(f_{n+1}, f_n) = (−P_n R_{n+1})ᵀ = −R_{n+1}ᵀ P_n: rows of pair n+1, columns of pair n
+        # cov(f_{n+1}, f_n) = (−P_n R_{n+1})ᵀ = −R_{n+1}ᵀ P_n: rows of pair n+1, columns of n
         cross = -np.swapaxes(R_cam[1:], 1, 2) @ fix_P[1:, 0]
         cross = cross * adjacent[:, None, None]
         for a in range(3):
@@ -57,8 +73,17 @@ class Whitener:
     """
     Banded Cholesky factor L of B (B = L Lᵀ): ``apply(X)`` = L⁻¹ X, ``logdet`` = log det B.
 
-    Raises ``numpy.linalg.LinAlgError`` when B has non-finite entries, is not positive
-    definite, or its factor has a diagonal so small that L⁻¹ is not finite.
+    Parameters
+    ----------
+    band_lower : (6, 3N) ndarray
+        B in lower band storage (:func:`band_covariance`).
+
+    Raises
+    ------
+    numpy.linalg.LinAlgError
+        B has non-finite entries, is not positive definite, or its factor has a diagonal so
+        small that L⁻¹ is not finite.
+
     """
 
     def __init__(self, band_lower: np.ndarray):
@@ -74,6 +99,20 @@ class Whitener:
         self.n = band_lower.shape[1]
 
     def apply(self, X: np.ndarray) -> np.ndarray:
+        """
+        Whiten: return L⁻¹ X.
+
+        Parameters
+        ----------
+        X : (3N,) or (3N, k) ndarray
+            Residuals or columns.
+
+        Returns
+        -------
+        ndarray
+            L⁻¹ X, the same shape.
+
+        """
         from scipy.linalg import solve_banded
 
         return solve_banded((5, 0), self.L, X)
@@ -81,23 +120,75 @@ class Whitener:
 
 @dataclass
 class Fit:
-    z: np.ndarray                 # free parameters
-    x: np.ndarray                 # gyro constants (posterior mean)
-    cov_z: np.ndarray             # posterior covariance of z (x marginalised)
-    whitened: np.ndarray          # L⁻¹ (r − J z − U x), (3N,)
-    chi2: float                   # |whitened|² + xᵀ P⁻¹ x
-    nll: float                    # χ² + log det Σ  (−2 log-likelihood up to a constant)
+    """
+    One GLS fit of the residuals (:func:`fit`).
+
+    Parameters
+    ----------
+    z : ndarray (nz,)
+        The free parameters.
+    x : ndarray (nx,)
+        The gyro constants (posterior mean).
+    cov_z : ndarray (nz, nz)
+        Posterior covariance of z (x marginalised).
+    whitened : ndarray (3N,)
+        L⁻¹ (r − J z − U x).
+    chi2 : float
+        |whitened|² + xᵀ P⁻¹ x.
+    nll : float
+        χ² + log det Σ (−2 log-likelihood up to a constant).
+    dof : int
+        Residuals minus the rank of the free columns.
+    design : ndarray (3N, nz + nx), optional
+        L⁻¹ [J U], for the sandwich.
+    cov_all : ndarray (nz + nx, nz + nx), optional
+        Posterior covariance of (z, x).
+    prior_precision : ndarray (nx,), optional
+        1 / prior variance of x.
+
+    """
+
+    z: np.ndarray
+    x: np.ndarray
+    cov_z: np.ndarray
+    whitened: np.ndarray
+    chi2: float
+    nll: float
     dof: int
-    design: np.ndarray | None = None       # L⁻¹ [J U] (3N, nz + nx), for the sandwich
-    cov_all: np.ndarray | None = None      # posterior covariance of (z, x)
-    prior_precision: np.ndarray | None = None   # 1 / prior variance of x
+    design: np.ndarray | None = None
+    cov_all: np.ndarray | None = None
+    prior_precision: np.ndarray | None = None
 
 
 def fit(r: np.ndarray, J: np.ndarray, U: np.ndarray, prior_var: np.ndarray, W: Whitener) -> Fit:
     """
-    GLS of r = J z + U x + e with x ~ N(0, diag(prior_var)), e ~ N(0, B = W).
+    Fit r = J z + U x + e by GLS, with x ~ N(0, diag(prior_var)) and e ~ N(0, B).
 
     Columns of U with zero prior variance are dropped (a constant the model says is exactly 0).
+
+    Parameters
+    ----------
+    r : (3N,) ndarray
+        Stacked residuals, VF axes, rad.
+    J : (3N, nz) ndarray
+        Columns of the free parameters.
+    U : (3N, nx) ndarray
+        Columns of the gyro constants.
+    prior_var : (nx,) ndarray
+        Prior variances of the gyro constants.
+    W : Whitener
+        The whitening of B.
+
+    Returns
+    -------
+    Fit
+        Estimates, covariances, whitened residual, χ² and −2 log L.
+
+    Raises
+    ------
+    numpy.linalg.LinAlgError
+        Non-finite inputs or results.
+
     """
     if not (np.all(np.isfinite(r)) and np.all(np.isfinite(J)) and np.all(np.isfinite(U))):
         raise np.linalg.LinAlgError('the residuals or their columns have non-finite values')
@@ -107,7 +198,8 @@ def fit(r: np.ndarray, J: np.ndarray, U: np.ndarray, prior_var: np.ndarray, W: W
     A = W.apply(np.hstack([J, U, r[:, None]]))
     Aj, Au, ar = A[:, :nz], A[:, nz:nz + nx], A[:, -1]
     # stacked system with prior rows for x: [Aj Au; 0 P^-1/2] [z; x] ≈ [ar; 0]
-    M = np.vstack([np.hstack([Aj, Au]), np.hstack([np.zeros((nx, nz)), np.diag(1.0 / np.sqrt(pv))])])
+    M = np.vstack([np.hstack([Aj, Au]),
+                   np.hstack([np.zeros((nx, nz)), np.diag(1.0 / np.sqrt(pv))])])
     y = np.concatenate([ar, np.zeros(nx)])
     N = M.T @ M
     g = M.T @ y
@@ -131,7 +223,7 @@ def fit(r: np.ndarray, J: np.ndarray, U: np.ndarray, prior_var: np.ndarray, W: W
 
 def hac_covariance(f: Fit, lags: int) -> np.ndarray:
     """
-    Newey–West (Bartlett-kernel HAC) sandwich covariance of the free parameters z of a fit.
+    Return the Newey–West (Bartlett-kernel HAC) sandwich covariance of the free parameters z.
 
     The model covariance (HᵀH)⁻¹ assumes the whitened residual is white with unit variance.  The
     sandwich H⁻¹ S H⁻¹ does not: S = Σ_{|l| ≤ L} (1 − |l|/(L+1)) Σ_n g_n g_{n−l}ᵀ, with
@@ -150,6 +242,7 @@ def hac_covariance(f: Fit, lags: int) -> np.ndarray:
     -------
     numpy.ndarray
         (nz, nz) covariance of z, in the units of z.
+
     """
     nz = len(f.z)
     A, w = f.design, f.whitened

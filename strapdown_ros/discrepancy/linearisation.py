@@ -1,8 +1,11 @@
 """
-The linearisation of the discrepancy workflow: a recording in the core's terms, the increment
-residuals at one model point (004 eq. 5–6) with the columns of the boresight and of every effect,
-the whitening by the calibrator's correlated covariance, and the maximum-likelihood fit of a
-noise term.  :mod:`.discrepancy` runs the selection on top of it.  No ROS imports.
+The linearisation of the discrepancy workflow: residuals and columns at one model point.
+
+A recording in the core's terms, the increment residuals at one model point (004 eq. 5–6)
+with the columns of the boresight and of every effect, the whitening by the calibrator's
+correlated covariance (:mod:`strapdown_ros.discrepancy.linear_model`), and the
+maximum-likelihood fit of a noise term.  :mod:`strapdown_ros.discrepancy.workflow` runs the
+selection on top of it; the workflow's errors are defined here.  No ROS imports.
 """
 from __future__ import annotations
 
@@ -16,17 +19,19 @@ from strapdown_ros.discrepancy.linear_model import band_covariance, fit, Whitene
 from strapdown_ros.rotation import quat_to_dcm, rotvec_to_dcm
 from strapdown_ros.sensors.effects import EFFECTS, get_effect, GyroEffects
 
-__all__ = ['Recording', 'InputError', 'AnalysisError', 'BoresightUnobservable', 'NumericalFailure',
-           'NUMERICAL_ERRORS', 'Linearisation', 'NOISE_SCALE_RANGE', 'QUANTUM_RANGE']
+__all__ = ['Recording', 'InputError', 'AnalysisError', 'BoresightUnobservable',
+           'NumericalFailure', 'NUMERICAL_ERRORS', 'Linearisation', 'NOISE_SCALE_RANGE',
+           'QUANTUM_RANGE', 'noise_of', 'fit_noise']
 
-#: range of a fitted camera-noise scale k (true σ ÷ stated σ per VF axis): an estimate at either
-#: end is not reported as a value (the candidate fails with that reason)
+#: range of a fitted camera-noise scale k (true σ ÷ stated σ per VF axis): an estimate at
+#: either end is not reported as a value (the candidate fails with that reason)
 NOISE_SCALE_RANGE = (1e-3, 1e3)
 #: range of a fitted pulse weight σ_q, in units of √12 × the RMS stated fix σ (the remainder
 #: variance σ_q²/12 from 0 to 900 times the mean stated fix variance)
 QUANTUM_RANGE = (0.0, 30.0)
 
-_PRIOR_EFFECTS = (('gyro_bias', 'gyro_bias_sigma'), ('gyro_scale_factor', 'gyro_scale_sigma'),
+_PRIOR_EFFECTS = (('gyro_bias', 'gyro_bias_sigma'),
+                  ('gyro_scale_factor', 'gyro_scale_sigma'),
                   ('gyro_misalignment', 'gyro_misalignment_sigma'))
 
 
@@ -44,9 +49,19 @@ class AnalysisError(Exception):
 
 class BoresightUnobservable(Exception):
     """
-    The recording's motion does not determine the boresight (004 §4.1 and the conditioning,
-    the rule of :func:`strapdown_ros.calibration.boresight.check_observability`); ``report`` holds the
-    :class:`~strapdown_ros.estimation.observability.ObservabilityReport`.
+    The recording's motion does not determine the boresight.
+
+    004 §4.1 and the conditioning, the rule of
+    :func:`strapdown_ros.calibration.boresight.check_observability`.
+
+    Parameters
+    ----------
+    message : str
+        What is unobservable, in words.
+    report : ObservabilityReport, optional
+        The report (:class:`strapdown_ros.estimation.observability.ObservabilityReport`), kept
+        as ``report``.
+
     """
 
     def __init__(self, message: str, report=None):
@@ -56,8 +71,10 @@ class BoresightUnobservable(Exception):
 
 class NumericalFailure(ArithmeticError):
     """
-    One fit failed numerically (a covariance not positive definite, a non-finite result, an
-    estimate at the bound of its range).  Caught per candidate by the selection.
+    One fit failed numerically.
+
+    A covariance not positive definite, a non-finite result, an estimate at the bound of its
+    range.  Caught per candidate by the selection.
     """
 
 
@@ -67,13 +84,32 @@ NUMERICAL_ERRORS = (np.linalg.LinAlgError, FloatingPointError, NumericalFailure,
 
 @dataclass
 class Recording:
-    """A recording in the core's terms: stamps in seconds from an origin (any), VF covariances."""
-    gyro_stamps: np.ndarray               # (n,) end of each increment's interval
-    delta_theta: np.ndarray               # (n, 3) rad, body (MF) axes
-    fix_stamps: np.ndarray                # (m,) camera stamps (camera clock)
-    fix_q: np.ndarray                     # (m, 4) q_GCRS_VF scalar-first
-    fix_P: np.ndarray                     # (m, 3, 3) reported (or assumed) covariance, VF axes, rad²
-    gaps: list = field(default_factory=list)   # gyro gaps (a, b), s
+    """
+    A recording in the core's terms: stamps in seconds from an origin (any), VF covariances.
+
+    Parameters
+    ----------
+    gyro_stamps : (n,) array_like
+        End of each increment's interval, s.
+    delta_theta : (n, 3) array_like
+        Gyro increments, rad, body (MF) axes.
+    fix_stamps : (m,) array_like
+        Camera stamps (camera clock), s.
+    fix_q : (m, 4) array_like
+        ``q_GCRS_VF``, scalar-first.
+    fix_P : (m, 3, 3) array_like
+        Reported (or assumed) covariance of each fix, VF axes, rad².
+    gaps : list of (float, float)
+        Gyro gaps (a, b), s.
+
+    """
+
+    gyro_stamps: np.ndarray
+    delta_theta: np.ndarray
+    fix_stamps: np.ndarray
+    fix_q: np.ndarray
+    fix_P: np.ndarray
+    gaps: list = field(default_factory=list)
 
     def __post_init__(self):
         self.gyro_stamps = np.asarray(self.gyro_stamps, dtype=float)
@@ -85,7 +121,26 @@ class Recording:
 
 # ----------------------------------------------------------------------------- the linearisation
 class Linearisation:
-    """Residuals and columns of the model at one point (parameter values + boresight C)."""
+    """
+    Residuals and columns of the model at one point (parameter values + boresight C).
+
+    Parameters
+    ----------
+    rec : Recording
+        The recording.
+    params : dict
+        The model point: effect values by ROS parameter name, SI units.
+    C : (3, 3) ndarray
+        The boresight direction cosine matrix (MF from VF).
+    epoch : float
+        Origin of the effects' time, s.
+
+    Raises
+    ------
+    InputError
+        Fewer than two increment pairs at this point.
+
+    """
 
     def __init__(self, rec: Recording, params: dict, C: np.ndarray, epoch: float):
         self.params, self.C = params, C
@@ -95,10 +150,11 @@ class Linearisation:
         rho = self.effects.compensate(m, st, T)
         self.gyro = GyroRecord(st, rho)
         self.time_offset = float(EFFECTS['time_offset'].value(params)[0])
-        self.pairs: PairSet = build_pairs(self.gyro, rec.fix_stamps, rec.fix_q, self.time_offset, rec.gaps)
+        self.pairs: PairSet = build_pairs(self.gyro, rec.fix_stamps, rec.fix_q,
+                                          self.time_offset, rec.gaps)
         if len(self.pairs) < 2:
-            raise InputError(f'only {len(self.pairs)} increment pair(s): the gyro data must cover consecutive '
-                             f'camera fixes')
+            raise InputError(f'only {len(self.pairs)} increment pair(s): the gyro data must '
+                             'cover consecutive camera fixes')
         self.epoch = epoch
         self.rec = rec
         N = len(self.pairs)
@@ -112,8 +168,9 @@ class Linearisation:
         for j in range(3):
             d = np.zeros(3)
             d[j] = h
-            cols.append((pair_residuals(C @ rotvec_to_dcm(d), self.pairs)
-                         - pair_residuals(C @ rotvec_to_dcm(-d), self.pairs)).reshape(-1) / (2 * h))
+            diff = (pair_residuals(C @ rotvec_to_dcm(d), self.pairs)
+                    - pair_residuals(C @ rotvec_to_dcm(-d), self.pairs))
+            cols.append(diff.reshape(-1) / (2 * h))
         self.col_boresight = np.array(cols).T
         # gyro-effect signatures ∂r/∂θ_model = −Cᵀ ε-signature: computed when first asked for
         self._sig = {}
@@ -124,8 +181,8 @@ class Linearisation:
         self._sig['time_offset'] = (E @ C).reshape(3 * N, 1)
         # nominal random constants (prior) U
         self.U = np.hstack([-self.signature(n) for n, _ in _PRIOR_EFFECTS])
-        self.prior_var = np.concatenate([np.full(EFFECTS[n].size, float(params.get(s, 0.0)) ** 2)
-                                         for n, s in _PRIOR_EFFECTS])
+        self.prior_var = np.concatenate([
+            np.full(EFFECTS[n].size, float(params.get(s, 0.0)) ** 2) for n, s in _PRIOR_EFFECTS])
         self.random_walk = float(params.get('gyro_random_walk', 0.0))
         # quantization: the output lags the integral by the remainder, mean σ/2 in the sense of
         # the motion on each axis (000 §5.3): r_mean = σ/2 · Cᵀ(ΔS_imuᵀ s_s − s_e), s = soft sign
@@ -141,31 +198,102 @@ class Linearisation:
 
     # ---- columns -----------------------------------------------------------------------
     def signature(self, name: str) -> np.ndarray:
-        """∂r/∂θ_model of a systematic effect's parameters, (3N, size)."""
+        """
+        Return ∂r/∂θ_model of a systematic effect's parameters.
+
+        Parameters
+        ----------
+        name : str
+            Effect name of the registry.
+
+        Returns
+        -------
+        (3N, size) ndarray
+            The columns, rad per parameter unit (computed once, then kept).
+
+        """
         if name not in self._sig:
             e = EFFECTS[name]
             eps = pair_integral(self.gyro, self.pairs,
                                 lambda r_, T_, sl: e.increment_jacobian(r_, T_, self._times(sl)))
-            self._sig[name] = -np.einsum('ji,njp->nip', self.C, eps).reshape(3 * len(self.pairs), -1)
+            sig = -np.einsum('ji,njp->nip', self.C, eps)
+            self._sig[name] = sig.reshape(3 * len(self.pairs), -1)
         return self._sig[name]
 
     def columns(self, name: str) -> np.ndarray:
-        """∂r/∂(fit combinations) of a systematic effect, (3N, q)."""
+        """
+        Return ∂r/∂(fit combinations) of a systematic effect.
+
+        Parameters
+        ----------
+        name : str
+            Effect name of the registry.
+
+        Returns
+        -------
+        (3N, q) ndarray
+            The columns of its separable combinations (the effect's ``fit_basis``).
+
+        """
         col = self.signature(name)
         S = get_effect(name).fit_basis()
         return col if S is None else col @ S
 
     def design(self, names) -> np.ndarray:
+        """
+        Return the design matrix: the boresight columns, then those of each effect.
+
+        Parameters
+        ----------
+        names : list of str
+            The free systematic effects, in order.
+
+        Returns
+        -------
+        (3N, 3 + Σq) ndarray
+            J.
+
+        """
         return np.hstack([self.col_boresight] + [self.columns(n) for n in names])
 
     # ---- noise ---------------------------------------------------------------------------
     def fix_covariance(self, noise: dict) -> np.ndarray:
+        """
+        Return the fix covariances with the noise terms applied.
+
+        Parameters
+        ----------
+        noise : dict
+            Noise terms by effect name, their θ.
+
+        Returns
+        -------
+        (m, 3, 3) ndarray
+            Covariance of each fix, VF axes, rad².
+
+        """
         P = self.rec.fix_P
         for name, theta in noise.items():
             P = EFFECTS[name].fix_covariance(P, np.asarray(theta, dtype=float))
         return P
 
     def whitener(self, noise: dict, mask=None) -> Whitener:
+        """
+        Return the whitening of the residual covariance B under the noise terms.
+
+        Parameters
+        ----------
+        noise : dict
+            Noise terms by effect name.
+        mask : (N,) bool ndarray, optional
+            The pairs kept (default: all).
+
+        Returns
+        -------
+        Whitener
+            The banded Cholesky factor of B.
+
+        """
         pairs = self.pairs if mask is None else self.pairs.subset(mask)
         R = self.R_cam if mask is None else self.R_cam[mask]
         P = self.fix_covariance(noise)
@@ -174,14 +302,59 @@ class Linearisation:
         return Whitener(band_covariance(fixP, R, pairs.adjacent, white))
 
     def rows(self, mask) -> np.ndarray:
+        """
+        Return the residual rows of the pairs in a mask.
+
+        Parameters
+        ----------
+        mask : (N,) bool array_like
+            The pairs.
+
+        Returns
+        -------
+        (3N,) bool ndarray
+            The three rows of each pair.
+
+        """
         return np.repeat(np.asarray(mask, dtype=bool), 3)
 
     def residual(self, noise) -> np.ndarray:
-        """r less the mean of the noise terms (the quantization lag)."""
+        """
+        Return the residual r less the mean of the noise terms (the quantization lag).
+
+        Parameters
+        ----------
+        noise : dict
+            Noise terms by effect name.
+
+        Returns
+        -------
+        (3N,) ndarray
+            Residual, rad.
+
+        """
         q = noise.get('gyro_quantization')
         return self.r if q is None else self.r - float(q[0]) * self.quant_col
 
     def evaluate(self, free, noise, mask=None):
+        """
+        Fit the model with the free effects and noise terms (GLS, gyro constants marginalised).
+
+        Parameters
+        ----------
+        free : list of str
+            Free systematic effects (besides the boresight).
+        noise : dict
+            Noise terms by effect name.
+        mask : (N,) bool ndarray, optional
+            The pairs used (default: all).
+
+        Returns
+        -------
+        Fit
+            The fit (:func:`strapdown_ros.discrepancy.linear_model.fit`).
+
+        """
         J = self.design(free)
         r = self.residual(noise)
         if mask is None:
@@ -191,6 +364,20 @@ class Linearisation:
 
 
 def noise_of(params: dict) -> dict:
+    """
+    Return the noise terms a model states: quantization and camera-noise anisotropy.
+
+    Parameters
+    ----------
+    params : dict
+        The model (``gyro_quantum`` rad, ``camera_noise_scale``).
+
+    Returns
+    -------
+    dict
+        ``{effect name: θ}``, only the terms that differ from neutral.
+
+    """
     out = {}
     q = float(params.get('gyro_quantum', 0.0))
     if q > 0:
@@ -204,7 +391,7 @@ def noise_of(params: dict) -> dict:
 # ----------------------------------------------------------------------------- noise ML
 def fit_noise(lin: Linearisation, free, noise: dict, name: str, mask=None):
     """
-    Maximum-likelihood value of a noise term (others fixed); returns (theta, fit, sigma).
+    Fit a noise term by maximum likelihood, the others fixed.
 
     Bounded parametrisations (the stated ranges :data:`NOISE_SCALE_RANGE`,
     :data:`QUANTUM_RANGE`): the camera-noise scales as u = log k, the pulse weight as
@@ -212,6 +399,34 @@ def fit_noise(lin: Linearisation, free, noise: dict, name: str, mask=None):
     whose covariance is not positive definite counts as −2 log L = ∞.  An optimum at a bound of
     the range, or a fit that fails there, raises :class:`NumericalFailure`.  σ: from the
     curvature of −2 log L in θ (Fisher), ∞ where the curvature is not positive or not finite.
+
+    Parameters
+    ----------
+    lin : Linearisation
+        The linearisation at the current model point.
+    free : list of str
+        Free systematic effects.
+    noise : dict
+        The other noise terms.
+    name : str
+        The noise term fitted.
+    mask : (N,) bool ndarray, optional
+        The pairs used (default: all).
+
+    Returns
+    -------
+    theta : ndarray
+        The term's value.
+    fit : Fit
+        The fit at it.
+    sigma : ndarray
+        Its 1σ per component.
+
+    Raises
+    ------
+    NumericalFailure
+        No value gives a positive-definite covariance, or the optimum is at a bound.
+
     """
     from scipy.optimize import minimize
 
@@ -271,7 +486,7 @@ def fit_noise(lin: Linearisation, free, noise: dict, name: str, mask=None):
         if best is None or res.fun < best.fun:
             best = res
     if not np.isfinite(best.fun):
-        raise NumericalFailure(f'no value in its range gives a positive-definite covariance')
+        raise NumericalFailure('no value in its range gives a positive-definite covariance')
     at_bound = (best.x >= hi - 1e-3) | ((best.x <= lo + 1e-3) & (name != 'gyro_quantization'))
     if np.any(at_bound):
         rng = (f'{NOISE_SCALE_RANGE[0]:g} to {NOISE_SCALE_RANGE[1]:g}'

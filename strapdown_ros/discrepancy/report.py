@@ -1,6 +1,8 @@
 """
-The report of ``discrepancy``: report.md and its PNG plots, every sentence computed from the
-result it describes.
+The report of ``discrepancy``: report.md and its PNG plots.
+
+Every sentence is computed from the result it describes
+(:class:`strapdown_ros.discrepancy.result.DiscrepancyResult` and its JSON).
 
 Plots (before = the nominal model, after = with the effects found):
 
@@ -24,7 +26,7 @@ import numpy as np
 from strapdown_ros.cli import write_figure, write_text
 from strapdown_ros.discrepancy.diagnostics import autocorrelation
 
-__all__ = ['write_report']
+__all__ = ['write_report', 'angle_unit']
 
 ARCSEC = 180.0 / np.pi * 3600.0
 AXES = ('VF x', 'VF y', 'VF z')
@@ -39,8 +41,23 @@ def _plt():
 
 def angle_unit(values_rad) -> tuple[float, str]:
     """
-    A unit that fits the size of the angles: (factor from rad, symbol) — arcseconds below
-    10′, arcminutes below 10°, degrees above (judged on the 99th percentile of |value|).
+    Choose a unit that fits the size of the angles.
+
+    Arcseconds below 10′, arcminutes below 10°, degrees above (judged on the 99th percentile
+    of |value|).
+
+    Parameters
+    ----------
+    values_rad : array_like
+        The angles, rad (non-finite values ignored).
+
+    Returns
+    -------
+    factor : float
+        Factor from rad to the unit.
+    symbol : str
+        ″, ′ or °.
+
     """
     v = np.abs(np.asarray(values_rad, dtype=float))
     v = v[np.isfinite(v)]
@@ -59,8 +76,9 @@ def _effects_words(res) -> str:
 
 def _residuals(plt, res, path):
     """
-    Main plot: residual of each pair against time, before and after on separate axes, each in
-    a unit that fits its size.
+    Plot the residual of each pair against time (the main plot).
+
+    Before and after on separate axes, each in a unit that fits its size.
     """
     fig, axs = plt.subplots(3, 2, figsize=(12, 7.5), sharex=True)
     for col, (name, colour) in enumerate((('before', '0.35'), ('after', 'C0'))):
@@ -117,7 +135,8 @@ def _cross(plt, res, path):
             x = np.degrees(s[key])
             y = np.sum(s['whitened'] ** 2, axis=1) / 3.0
             r = np.corrcoef(x, y)[0, 1] if np.std(x) > 0 and np.std(y) > 0 else float('nan')
-            ax.semilogy(x, np.maximum(y, 1e-6), '.', ms=3, color=col, label=f'{name} (r = {r:.2f})')
+            ax.semilogy(x, np.maximum(y, 1e-6), '.', ms=3, color=col,
+                        label=f'{name} (r = {r:.2f})')
         ax.axhline(1.0, color='C1', lw=1)
         ax.set_xlabel(label)
         ax.set_ylabel('residual² ÷ expected (mean of 3 axes)')
@@ -130,8 +149,9 @@ def _cross(plt, res, path):
 
 def _fig2a(plt, res, path):
     """
-    Difference of the rotation angles (camera − gyro) of each pair against its rotation
-    angle (004 Fig. 2a), before and after on separate axes, each in a unit that fits.
+    Plot the difference of the rotation angles (camera − gyro) against the angle (004 Fig. 2a).
+
+    Before and after on separate axes, each in a unit that fits.
     """
     fig, axs = plt.subplots(1, 2, figsize=(12, 4.5))
     for ax, (name, colour) in zip(axs, (('before', '0.35'), ('after', 'C0'))):
@@ -185,7 +205,25 @@ def _fmt(v):
 
 
 def write_report(outdir: str, res, out: dict) -> str:
-    """Write report.md and the PNGs into ``outdir`` (created); returns the report's path."""
+    """
+    Write report.md and the PNG plots into a directory.
+
+    Parameters
+    ----------
+    outdir : str
+        The directory (created when missing).
+    res : DiscrepancyResult
+        The result (:func:`strapdown_ros.discrepancy.workflow.analyse`).
+    out : dict
+        Its JSON document as the ``discrepancy`` tool writes it (with ``input`` and
+        ``allan``).
+
+    Returns
+    -------
+    str
+        The path of report.md.
+
+    """
     d = Path(outdir)
     d.mkdir(parents=True, exist_ok=True)
     plt = _plt()
@@ -194,7 +232,16 @@ def write_report(outdir: str, res, out: dict) -> str:
     _cross(plt, res, d / 'cross_correlation.png')
     _fig2a(plt, res, d / 'fig2a.png')
     has_allan = _allan(plt, out.get('allan'), d / 'allan.png')
-    tb, ta = out['tests_before'], out['tests_after']
+    L = (_summary_lines(res, out) + _step_lines(res, out) + _test_lines(res, out)
+         + _remaining_lines(res.remaining) + _allan_lines(out.get('allan'))
+         + _boresight_and_plot_lines(res, has_allan))
+    path = d / 'report.md'
+    write_text(path, '\n'.join(L) + '\n')
+    return str(path)
+
+
+def _summary_lines(res, out: dict) -> list:
+    """Return the recording, the verdict, the selection rule, warnings and why it stopped."""
     info = out.get('input', {})
     L = ['# Discrepancy report', '']
     L.append(f"Recording: {info.get('gyro_messages')} gyro increments at "
@@ -204,26 +251,28 @@ def write_report(outdir: str, res, out: dict) -> str:
     L.append('')
     added = ', '.join(f'`{s.effect}`' for s in res.steps) or 'none'
     L.append(f'**Verdict: `{res.verdict}`.** Effects added: {added}. Whitened residual RMS '
-             f'{res.rms_before:.3g} → {res.rms_after:.3g} on all pairs and {res.heldout_rms_before:.3g} → '
-             f'{res.heldout_rms_after:.3g} on the held-out blocks (1 is what the model predicts).')
+             f'{res.rms_before:.3g} → {res.rms_after:.3g} on all pairs and '
+             f'{res.heldout_rms_before:.3g} → {res.heldout_rms_after:.3g} on the held-out '
+             'blocks (1 is what the model predicts).')
     L.append('')
-    L.append(f'Selection: likelihood-ratio tests at α/2 = {res.alpha / 2:g} with a Bonferroni correction over '
-             f'the candidates left at each step (the other α/2 goes to the tests below); an effect is added only if the held-out −2 log L per residual '
-             f"also improves; signatures with |correlation| above {out['selection']['separability_bound']} are "
-             f'reported as not separable.')
+    L.append(f'Selection: likelihood-ratio tests at α/2 = {res.alpha / 2:g} with a Bonferroni '
+             'correction over the candidates left at each step (the other α/2 goes to the tests '
+             'below); an effect is added only if the held-out −2 log L per residual also '
+             'improves; signatures with |correlation| above '
+             f"{out['selection']['separability_bound']} are reported as not separable.")
     if not out.get('fit_consistent', True):
         lo, hi = out['chi2_per_dof_band']
-        L += ['', f'**WARNING: the fit is not consistent with its stated noise** (χ²/dof '
+        L += ['', '**WARNING: the fit is not consistent with its stated noise** (χ²/dof '
               f"{out['chi2_per_dof']:.4g}, outside [{lo:.3g}, {hi:.3g}] at the test level): the "
-              f'values below are not plain results.']
+              'values below are not plain results.']
     if out.get('sigma_method') in ('hac', 'hac_jackknife'):
         jk = (', raised to the leave-one-block-out jackknife over time where that is larger'
               if out['sigma_method'] == 'hac_jackknife' else '')
         L += ['', f"σ: the residuals fail {', '.join(out['tests_after']['failed'])}, so every σ "
               f"is the Newey–West sandwich over {out['hac_lags']} pairs{jk} (never below the "
-              f"model's σ; noise terms: the leave-one-block-out jackknife)."]
+              "model's σ; noise terms: the leave-one-block-out jackknife)."]
     stop = {'max_steps': f"the step limit ({out.get('max_steps')} accepted effects) stopped the "
-                         f'search: more effects may be missing',
+                         'search: more effects may be missing',
             'no_significant_candidate': 'the search stopped because no candidate left passes its '
                                         'test',
             'no_candidates_left': 'the search stopped because every candidate was added, excluded '
@@ -232,13 +281,19 @@ def write_report(outdir: str, res, out: dict) -> str:
                                                                            '')
     if stop:
         L += ['', stop[0].upper() + stop[1:] + '.']
-    L += ['', '## Steps', '', '| step | effect | parameters (SI) | σ | LR statistic | dof | p-value | held-out gain |',
-          '|---|---|---|---|---|---|---|---|']
+    return L
+
+
+def _step_lines(res, out: dict) -> list:
+    """Return the table of steps, repeatability, failures, first-step scores, rejections."""
+    L = ['', '## Steps', '',
+         '| step | effect | parameters (SI) | σ | LR statistic | dof | p-value | held-out gain |',
+         '|---|---|---|---|---|---|---|---|']
     for k, s in enumerate(res.steps, 1):
         pv = '; '.join(f'`{n}` = {_fmt(v)}' for n, v in s.parameters.items())
         sv = '; '.join(_fmt(v) for v in s.sigma.values())
-        L.append(f'| {k} | `{s.effect}` | {pv} | {sv} | {s.statistic:.4g} | {s.dof} | {s.p_value:.3g} | '
-                 f'{s.heldout_gain:.3g} |')
+        L.append(f'| {k} | `{s.effect}` | {pv} | {sv} | {s.statistic:.4g} | {s.dof} | '
+                 f'{s.p_value:.3g} | {s.heldout_gain:.3g} |')
     if not res.steps:
         L.append('| – | none passed | | | | | | |')
     for k, s in enumerate(res.steps, 1):
@@ -252,85 +307,108 @@ def write_report(outdir: str, res, out: dict) -> str:
             seen.setdefault((f['effect'], f['reason']), []).append(str(f['step']))
         L += ['', 'Not fitted (dropped from the step named): ' + '; '.join(
             f"`{e}` at step {', '.join(at)}: {r}" for (e, r), at in seen.items()) + '.']
-    L += ['', 'First-step scores of every candidate:', '', '| candidate | LR statistic | dof | p-value | note |',
-          '|---|---|---|---|---|']
+    L += ['', 'First-step scores of every candidate:', '',
+          '| candidate | LR statistic | dof | p-value | note |', '|---|---|---|---|---|']
     for c in out['candidates_first_step']:
         L.append(f"| `{c['effect']}` | {c['statistic']:.4g} | {c['dof']} | {c['p_value']:.3g} | "
                  f"{c.get('direct_check', '')} |")
     if res.not_separable:
-        L += ['', 'Not separable on this trajectory: ' + '; '.join(f'`{a}` and `{b}`' for a, b in res.not_separable)
-              + '.']
+        L += ['', 'Not separable on this trajectory: '
+              + '; '.join(f'`{a}` and `{b}`' for a, b in res.not_separable) + '.']
     if res.rejected:
-        L += ['', 'Not added: ' + '; '.join(f"`{r['effect']}` ({r['reason']})" for r in res.rejected) + '.']
-    L += ['', '## Tests', '', f"Each at (α/2)/3 = {ta['level']:.3g}.", '',
-          '| test | before: statistic | p | after: statistic | p | after |', '|---|---|---|---|---|---|']
-    for k, label in (('nis', 'NIS (χ²)'), ('whiteness', 'Ljung–Box whiteness'), ('outliers', 'largest |residual|')):
+        L += ['', 'Not added: '
+              + '; '.join(f"`{r['effect']}` ({r['reason']})" for r in res.rejected) + '.']
+    return L
+
+
+def _test_lines(res, out: dict) -> list:
+    """Return the table of the verdict tests before and after."""
+    tb, ta = out['tests_before'], out['tests_after']
+    L = ['', '## Tests', '', f"Each at (α/2)/3 = {ta['level']:.3g}.", '',
+         '| test | before: statistic | p | after: statistic | p | after |',
+         '|---|---|---|---|---|---|']
+    for k, label in (('nis', 'NIS (χ²)'), ('whiteness', 'Ljung–Box whiteness'),
+                     ('outliers', 'largest |residual|')):
         ok = 'pass' if ta[k]['p_value'] is not None and ta[k]['p_value'] >= ta['level'] else 'FAIL'
-        L.append(f"| {label} | {tb[k]['statistic']:.4g} | {tb[k]['p_value']:.3g} | {ta[k]['statistic']:.4g} | "
-                 f"{ta[k]['p_value']:.3g} | {ok} |")
-    if res.remaining:
-        rm = res.remaining
-        L += ['', '## What remains', '']
-        if 'dominant_period_s' in rm:
-            L.append(f"- dominant period {rm['dominant_period_s']:.4g} s (normalised periodogram power "
-                     f"{rm['dominant_period_power']:.2f});")
-        L.append(f"- largest autocorrelation {rm['dominant_lag_autocorrelation']:.2f} at lag {rm['dominant_lag_pairs']} "
-                 f'pair(s);')
-        for key, label in (('correlation_with_rate', 'body rate'), ('correlation_with_accumulated_angle',
-                                                                    'accumulated angle'),
-                           ('correlation_with_rotation_angle', 'rotation angle of the increment')):
-            if key in rm:
-                L.append(f'- correlation of the squared residual with the {label}: {rm[key]:.2f};')
-        sw = rm.get('gyro_axis_swap_sign')
-        if sw and sw.get('explains'):
-            L.append(f'- candidate explanation outside the library: **gyro axis swap/sign** — '
-                     f"the gyro triad as wired is left-handed: read as e.g. {sw['mapping']}, the "
-                     f"axis-alignment RMS drops to {sw['ratio']:.2g}× that of the axes as wired "
-                     f'(which axis is swapped or reversed the camera cannot tell: any rotation '
-                     f'of the triad goes into the boresight);')
-        L.append('- largest whitened residuals at t = ' + ', '.join(f'{t:.1f}' for t in rm['largest_whitened_at_s'])
-                 + ' s.')
-    allan = out.get('allan')
-    if allan and 'taus_s' in allan:
-        L += ['', '## Allan deviation (static segments)', '']
-        if 'excess_region_s' in allan:
-            a, b = allan['excess_region_s']
-            L.append(f"The measured Allan deviation exceeds the nominal model's by up to "
-                     f"{allan['excess_ratio_max']:.2f}× for τ from {a:.3g} to {b:.3g} s"
-                     + (f" (log–log slope {allan['excess_slope']:.2f} there)." if allan.get('excess_slope') is not None
-                        else '.'))
-        else:
-            L.append("The measured Allan deviation stays within 1.5× of the nominal model's at every τ.")
-        sn = allan.get('static_noise')
-        if sn:
-            m = np.asarray(sn['rate_std_rad_s'])
-            after = sn['model_rate_std_rad_s_after']
-            L.append('')
-            L.append(f"Rate noise on the static segments (each segment's mean removed): "
-                     f"{', '.join(f'{v:.3g}' for v in m)} rad/s about x, y, z; the model predicts "
-                     f"{sn['model_rate_std_rad_s_before']:.3g} before and {sn['model_rate_std_rad_s_after']:.3g} after "
-                     f"(measured ÷ model after: {', '.join(f'{v / after:.2f}' for v in m)}).")
-    elif allan and 'error' in allan:
-        L += ['', f"Allan deviation not computed: {allan['error']}"]
+        L.append(f"| {label} | {tb[k]['statistic']:.4g} | {tb[k]['p_value']:.3g} | "
+                 f"{ta[k]['statistic']:.4g} | {ta[k]['p_value']:.3g} | {ok} |")
+    return L
+
+
+def _remaining_lines(rm: dict) -> list:
+    """Return what structure remains (empty when the tests pass)."""
+    if not rm:
+        return []
+    L = ['', '## What remains', '']
+    if 'dominant_period_s' in rm:
+        L.append(f"- dominant period {rm['dominant_period_s']:.4g} s (normalised periodogram "
+                 f"power {rm['dominant_period_power']:.2f});")
+    L.append(f"- largest autocorrelation {rm['dominant_lag_autocorrelation']:.2f} at lag "
+             f"{rm['dominant_lag_pairs']} pair(s);")
+    for key, label in (('correlation_with_rate', 'body rate'),
+                       ('correlation_with_accumulated_angle', 'accumulated angle'),
+                       ('correlation_with_rotation_angle', 'rotation angle of the increment')):
+        if key in rm:
+            L.append(f'- correlation of the squared residual with the {label}: {rm[key]:.2f};')
+    sw = rm.get('gyro_axis_swap_sign')
+    if sw and sw.get('explains'):
+        L.append('- candidate explanation outside the library: **gyro axis swap/sign** — '
+                 f"the gyro triad as wired is left-handed: read as e.g. {sw['mapping']}, the "
+                 f"axis-alignment RMS drops to {sw['ratio']:.2g}× that of the axes as wired "
+                 '(which axis is swapped or reversed the camera cannot tell: any rotation '
+                 'of the triad goes into the boresight);')
+    L.append('- largest whitened residuals at t = '
+             + ', '.join(f'{t:.1f}' for t in rm['largest_whitened_at_s']) + ' s.')
+    return L
+
+
+def _allan_lines(allan) -> list:
+    """Return the Allan-deviation comparison, or why there is none."""
+    if not (allan and 'taus_s' in allan):
+        if allan and 'error' in allan:
+            return ['', f"Allan deviation not computed: {allan['error']}"]
+        return ['', 'No static segment of 15 s or more: no Allan-deviation comparison.']
+    L = ['', '## Allan deviation (static segments)', '']
+    if 'excess_region_s' in allan:
+        a, b = allan['excess_region_s']
+        slope = (f" (log–log slope {allan['excess_slope']:.2f} there)."
+                 if allan.get('excess_slope') is not None else '.')
+        L.append("The measured Allan deviation exceeds the nominal model's by up to "
+                 f"{allan['excess_ratio_max']:.2f}× for τ from {a:.3g} to {b:.3g} s" + slope)
     else:
-        L += ['', 'No static segment of 15 s or more: no Allan-deviation comparison.']
+        L.append("The measured Allan deviation stays within 1.5× of the nominal model's at "
+                 'every τ.')
+    sn = allan.get('static_noise')
+    if sn:
+        m = np.asarray(sn['rate_std_rad_s'])
+        after = sn['model_rate_std_rad_s_after']
+        L.append('')
+        L.append("Rate noise on the static segments (each segment's mean removed): "
+                 f"{', '.join(f'{v:.3g}' for v in m)} rad/s about x, y, z; the model predicts "
+                 f"{sn['model_rate_std_rad_s_before']:.3g} before and "
+                 f"{sn['model_rate_std_rad_s_after']:.3g} after "
+                 f"(measured ÷ model after: {', '.join(f'{v / after:.2f}' for v in m)}).")
+    return L
+
+
+def _boresight_and_plot_lines(res, has_allan: bool) -> list:
+    """Return the boresight estimate and the plots with their captions."""
     b = np.degrees(res.boresight_rad)
     s = np.asarray(res.boresight_sigma_rad) * ARCSEC
-    L += ['', '## Boresight (estimated in every fit)', '',
-          f'β = ({b[0]:.6f}°, {b[1]:.6f}°, {b[2]:.6f}°) ± ({s[0]:.3g}″, {s[1]:.3g}″, {s[2]:.3g}″).', '',
-          '## Plots', '',
-          'Residual of each increment pair (camera vs gyro) against time, before and after '
-          'adding the found effects; the shaded band is ±3σ of what the model expects:', '',
-          '![residual against time](residuals.png)', '',
-          'Difference of the angles the camera and the gyro turned between two fixes, against '
-          'that angle (004 Fig. 2a):', '', '![angle difference against angle](fig2a.png)', '',
-          'Autocorrelation of the normalised residuals (white: inside the band):', '',
-          '![autocorrelation](autocorrelation.png)', '',
-          'Normalised residual against the turning rate and the angle turned so far:', '',
-          '![cross-correlation](cross_correlation.png)', '']
+    L = ['', '## Boresight (estimated in every fit)', '',
+         f'β = ({b[0]:.6f}°, {b[1]:.6f}°, {b[2]:.6f}°) ± '
+         f'({s[0]:.3g}″, {s[1]:.3g}″, {s[2]:.3g}″).', '',
+         '## Plots', '',
+         'Residual of each increment pair (camera vs gyro) against time, before and after '
+         'adding the found effects; the shaded band is ±3σ of what the model expects:', '',
+         '![residual against time](residuals.png)', '',
+         'Difference of the angles the camera and the gyro turned between two fixes, against '
+         'that angle (004 Fig. 2a):', '', '![angle difference against angle](fig2a.png)', '',
+         'Autocorrelation of the normalised residuals (white: inside the band):', '',
+         '![autocorrelation](autocorrelation.png)', '',
+         'Normalised residual against the turning rate and the angle turned so far:', '',
+         '![cross-correlation](cross_correlation.png)', '']
     if has_allan:
         L += ['Allan deviation of the gyro at rest, measured and simulated from the model:', '',
               '![Allan deviation](allan.png)', '']
-    path = d / 'report.md'
-    write_text(path, '\n'.join(L) + '\n')
-    return str(path)
+    return L

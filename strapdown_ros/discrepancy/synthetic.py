@@ -1,7 +1,9 @@
 """
-Hidden effects for testing the discrepancy workflow: the σ with which a recording determines
-an effect, and a draw of that effect at a chosen size in those σ.  Used by the tests and by
-``discrepancy_bench`` alike.  No ROS imports.
+Hidden effects for testing the discrepancy workflow: their σ on a recording, and a draw.
+
+The σ with which a recording determines an effect, a draw of that effect at a chosen size in
+those σ, and an in-memory recording as ``record_sim`` would write it.  Used by the tests and
+by ``discrepancy_bench`` alike.  No ROS imports.
 
 Size is the Mahalanobis length in the effect's separable combinations: an effect drawn at
 size k changes −2 log L by about k² (the non-centrality of its likelihood-ratio test), whatever
@@ -14,7 +16,7 @@ import numpy as np
 
 from strapdown_ros.discrepancy.linear_model import fit
 from strapdown_ros.discrepancy.linearisation import fit_noise, Linearisation, noise_of, Recording
-from strapdown_ros.discrepancy.workflow import initial_boresight_estimate, refine_fit
+from strapdown_ros.discrepancy.model_fit import initial_boresight_estimate, refine_fit
 from strapdown_ros.motion.from_config import profile_from_config
 from strapdown_ros.sensors import simulated_imu
 from strapdown_ros.sensors.effects import EFFECTS
@@ -25,8 +27,22 @@ __all__ = ['effect_sigma', 'draw_hidden_effect', 'simulate_recording']
 
 def effect_sigma(rec: Recording, params: dict, names) -> dict:
     """
-    Covariance (q×q) of the separable combinations of each effect in ``names`` on this
-    recording, under the model ``params`` (the effects absent): {name: covariance}.
+    Return the covariance of the separable combinations of effects on this recording.
+
+    Parameters
+    ----------
+    rec : Recording
+        The recording.
+    params : dict
+        The model (the effects absent).
+    names : str or sequence of str
+        Effect names.
+
+    Returns
+    -------
+    dict
+        ``{name: (q, q) covariance}`` in the units of the effect's combinations.
+
     """
     params = dict(params)
     epoch = float(rec.gyro_stamps[0])
@@ -39,8 +55,8 @@ def effect_sigma(rec: Recording, params: dict, names) -> dict:
         e = EFFECTS[name]
         if name == 'gyro_quantization':
             # the lag term's information at σ = 0+ (the variance term has none there)
-            f = fit(lin.r, np.hstack([lin.design([]), lin.quant_col[:, None]]), lin.U, lin.prior_var,
-                    lin.whitener(noise))
+            f = fit(lin.r, np.hstack([lin.design([]), lin.quant_col[:, None]]), lin.U,
+                    lin.prior_var, lin.whitener(noise))
             out[name] = f.cov_z[3:, 3:]
         elif e.kind == 'noise':
             _, _, sig = fit_noise(lin, [], noise, name)
@@ -50,10 +66,27 @@ def effect_sigma(rec: Recording, params: dict, names) -> dict:
     return out
 
 
-def draw_hidden_effect(name: str, size: float, cov: np.ndarray, rng: np.random.Generator) -> dict:
+def draw_hidden_effect(name: str, size: float, cov: np.ndarray,
+                       rng: np.random.Generator) -> dict:
     """
-    Parameter overrides that inject ``name`` at ``size`` σ (Mahalanobis) for record_sim / the
-    simulator nodes.
+    Draw the parameter overrides that inject an effect at a size in σ (Mahalanobis).
+
+    Parameters
+    ----------
+    name : str
+        Effect name of the registry.
+    size : float
+        Mahalanobis length in the effect's separable combinations.
+    cov : (q, q) array_like
+        Their covariance on the recording (:func:`effect_sigma`).
+    rng : numpy.random.Generator
+        Source of the direction.
+
+    Returns
+    -------
+    dict
+        ``{ROS parameter name: value}`` for record_sim or the simulator nodes.
+
     """
     e = EFFECTS[name]
     p = e.value_parameter
@@ -72,10 +105,26 @@ def draw_hidden_effect(name: str, size: float, cov: np.ndarray, rng: np.random.G
 
 def simulate_recording(imu_p: dict, cam_p: dict, duration: float) -> Recording:
     """
-    In memory, what ``record_sim`` writes to a bag for the same validated parameters (same
-    sensor and camera models, seeds and stamps, no accelerometer): the benchmark's fast path.
-    """
+    Simulate in memory what ``record_sim`` writes to a bag for the same validated parameters.
 
+    The same sensor and camera models, seeds and stamps, no accelerometer: the benchmark's
+    fast path.
+
+    Parameters
+    ----------
+    imu_p : dict
+        Validated IMU simulator parameters.
+    cam_p : dict
+        Validated star-camera parameters.
+    duration : float
+        Length of the recording, s.
+
+    Returns
+    -------
+    Recording
+        The gyro increments and the camera fixes.
+
+    """
     profile = profile_from_config(imu_p)
     gyro, _ = simulated_imu(imu_p, profile)
     t, dth, _ = gyro.sample(int(np.floor(duration / gyro.period + 1e-9)))
@@ -84,4 +133,5 @@ def simulate_recording(imu_p: dict, cam_p: dict, duration: float) -> Recording:
     while cam.epoch(count) <= duration + 1e-9:
         count += 1
     fixes = cam.fixes(profile_from_config(cam_p), count)
-    return Recording(t, dth, [f.stamp for f in fixes], [f.attitude for f in fixes], [f.covariance for f in fixes])
+    return Recording(t, dth, [f.stamp for f in fixes], [f.attitude for f in fixes],
+                     [f.covariance for f in fixes])

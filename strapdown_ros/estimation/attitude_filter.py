@@ -3,89 +3,34 @@ Star-camera-aided attitude filter: the multiplicative error-state Kalman filter 
 
 Lefferts, Markley & Shuster (1982), "Kalman filtering for spacecraft attitude estimation",
 J. Guidance 5(5); Markley & Crassidis (2014), *Fundamentals of Spacecraft Attitude
-Determination and Control*, ch. 6.  Model, equations and sources: ``doc/attitude_filter.md``.
-
-Nominal state: the SINS attitude ``q_ref_body`` from the package's own integrator
-(:class:`~strapdown_ros.attitude.integrator.AttitudeIntegrator`, the selected coning algorithm) on
-increments compensated with the estimated gyro effects; the boresight ``q_MF_VF``; τ̂.
-
-Error state x (all "estimate minus truth"):
-
-* ε (3): attitude error in body axes, ``C_est = C_true (I + [ε×])`` (doc/conventions.md);
-* δb (3): gyro bias error, rad/s, body axes (the registry's ``gyro_bias``);
-* optional, by name from the effect registry (:mod:`strapdown_ros.sensors.effects`): any
-  systematic gyro effect (``gyro_scale_factor`` 3, ``gyro_misalignment`` 3 = its separable
-  symmetric part, ...) through the effect's own ``filter_partials`` / ``filter_process_noise``;
-  ``time_offset`` (1, s, the registry's camera effect, ``fix_jacobian``); and ``boresight``
-  (3, rad, VF axes, ``q_MF_VF,true = q_MF_VF,est ⊗ exp(−η)``: the camera mounting error).
-
-Propagation: :func:`~strapdown_ros.estimation.error_model.block_transition` (angle random walk;
-gyro states constant, random walks or Gauss–Markov, as each effect says).
-
-Update at a fix (camera attitude ``q_GCRS_VF``, covariance R in VF axes) applied at its epoch
-``stamp − τ̂``: residual ``z = log(q_meas⁻¹ ⊗ q̂_ref_body ⊗ q̂_MF_VF)`` (VF axes, predicted minus
-measured) ≈ ``C_VF^MF ε + η − C_VF^MF ω δτ − θ_noise``; gate on the NIS ``zᵀS⁻¹z`` against the
-χ²(3) quantile of ``gate_probability``; Joseph-form covariance update on a square-root factor
-(P = SSᵀ, QR of [(I − KH)S, KR^½]): symmetric and positive semi-definite by construction.
-
-Late fixes: a bounded history of increments (split at fix epochs) and checkpoints lets a fix
-older than the newest increment be applied at its epoch, the later increments and fixes
-re-processed; lateness reported; a fix older than the history dropped and counted.
+Determination and Control*, ch. 6.  The nominal attitude ``q_ref_body`` comes from the
+package's own integrator (:class:`strapdown_ros.attitude.integrator.AttitudeIntegrator`) on
+increments compensated with the estimated gyro effects; the error state is the attitude error
+ε, the gyro bias and, by name, further states of the effect registry (:mod:`.filter_support`
+lays them out), the camera time offset and the boresight.  Propagation by
+:func:`strapdown_ros.estimation.error_model.block_transition`; a fix is gated on its NIS and
+applied in Joseph form on a square-root factor; a late fix rolls back to a checkpoint
+(:mod:`.fix_history`).  Model, equations and sources: doc/attitude_filter.md.  The node
+(``attitude_filter_node``) and the ``filter_bag`` tool reach it through
+:mod:`.filter_system`.  No ROS imports.
 """
 from __future__ import annotations
 
 from collections import deque
-from dataclasses import dataclass, field
 
 import numpy as np
 
 from strapdown_ros.attitude.integrator import AttitudeIntegrator
+from strapdown_ros.estimation.chi_square import chi2_3_quantile
 from strapdown_ros.estimation.error_model import block_transition
-from strapdown_ros.estimation.filter_support import (chi2_3_quantile, FilterCounters, FixResult,
-                                                     psd_factor, triangular_factor)
+from strapdown_ros.estimation.filter_support import (checked_fix, FilterCounters, FixResult,
+                                                     psd_factor, StateLayout, triangular_factor)
+from strapdown_ros.estimation.fix_history import CameraFix, Checkpoint, IncrementLog
 from strapdown_ros.rotation import (quat_conjugate, quat_multiply, quat_normalize, quat_to_dcm,
                                     quat_to_rotvec, rotvec_to_quat)
 from strapdown_ros.sensors.effects import EFFECTS, GyroEffects
 
-__all__ = ['AttitudeFilter', 'FixResult', 'FilterCounters', 'chi2_3_quantile', 'FILTER_STATES']
-
-#: names the ``augment`` argument accepts besides the registry's systematic gyro effects
-FILTER_STATES = ('time_offset', 'boresight')
-
-
-@dataclass
-class _Fix:
-    seq: int
-    stamp: float
-    epoch: float
-    attitude: np.ndarray
-    covariance: np.ndarray
-    lateness: float = 0.0
-    counted: bool = False
-    order: int = -1              # rank in the order fixes were processed (re-processing renews it)
-
-
-@dataclass
-class _Checkpoint:
-    epoch: float
-    pieces: int                  # global index of the next piece in the log
-    order: int                   # fixes processed after the checkpoint have order >= this
-    integrator: tuple
-    states: np.ndarray
-    boresight: np.ndarray
-    covariance: np.ndarray       # square-root factor of P (never written into)
-    open_rho: np.ndarray
-    open_dt: np.ndarray
-    last_rate: np.ndarray
-    last_stamp: float
-
-
-@dataclass
-class _Layout:
-    gyro: list = field(default_factory=list)     # (effect, slice) of the gyro states, bias first
-    time_offset: slice | None = None
-    boresight: slice | None = None
-    size: int = 6
+__all__ = ['AttitudeFilter']
 
 
 class AttitudeFilter:
@@ -138,6 +83,7 @@ class AttitudeFilter:
         the queue is full, or any estimate, the covariance or :meth:`update` is asked for: a
         caller sees the state of immediate processing; one increment per call then costs a
         fraction of the work (``filter_bench``).
+
     """
 
     def __init__(self, initial_attitude, initial_time: float, *, algorithm: str = '2',
@@ -168,7 +114,7 @@ class AttitudeFilter:
         self.epoch = float(initial_time)               # effect epoch of the time-dependent effects
         self.gate = chi2_3_quantile(gate_probability)
         self.gate_probability = float(gate_probability)
-        self.layout = self._make_layout(tuple(augment))
+        self.layout = StateLayout.build(tuple(augment))
         self._x = np.zeros(self.layout.size)            # the estimates (filter states), not errors
         q_bv = np.asarray(boresight, dtype=float)
         if q_bv.shape != (4,) or not np.all(np.isfinite(q_bv)) or np.linalg.norm(q_bv) < 0.5:
@@ -177,7 +123,7 @@ class AttitudeFilter:
         p0 = np.zeros(self.layout.size)
         p0[:3], p0[3:6] = initial_sigma ** 2, bias_sigma ** 2
         sig = dict(augment_sigma or {})
-        for name, sl in self._named_slices():
+        for name, sl in self.layout.named_slices():
             if name in ('gyro_bias',):
                 continue
             if name not in sig:
@@ -185,7 +131,7 @@ class AttitudeFilter:
             width = (sl.stop - sl.start,)
             p0[sl] = np.broadcast_to(np.asarray(sig[name], dtype=float), width) ** 2
         for name, v in (initial_values or {}).items():
-            sl = dict(self._named_slices()).get(name)
+            sl = dict(self.layout.named_slices()).get(name)
             if sl is None:
                 raise ValueError(f'initial_values: {name!r} is not a state of this filter')
             self._x[sl] = np.asarray(v, dtype=float).reshape(sl.stop - sl.start)
@@ -201,11 +147,7 @@ class AttitudeFilter:
         self.history = int(history)
         self.max_pending = int(max_pending)
         self.checkpoint_interval = float(checkpoint_interval)
-        self._log_t = np.empty(2 * self.history)
-        self._log_d = np.empty((2 * self.history, 3))
-        self._log_lo = 0              # buffer row of global piece _base
-        self._base = 0                # global index of the oldest piece kept
-        self._n = 0                   # global index of the next piece
+        self._log = IncrementLog(self.history)
         self._open_rho = np.zeros((0, 3))      # compensated pieces not yet in a completed update
         self._open_dt = np.zeros(0)
         self._last_rate = np.zeros(3)
@@ -214,7 +156,7 @@ class AttitudeFilter:
         self._queue_t: list = []
         self._queued = 0
         self._queued_stamp = float(initial_time)
-        self._pending: list[_Fix] = []
+        self._pending: list[CameraFix] = []
         self._applied: deque = deque()         # fixes applied (or gated), for re-processing
         self._seq = 0
         self._order = 0
@@ -222,46 +164,15 @@ class AttitudeFilter:
         self._checkpoint()
 
     # ------------------------------------------------------------------ layout and estimates
-    def _make_layout(self, augment) -> _Layout:
-        """Layout: ε, the gyro states contiguous (bias first), time offset, boresight."""
-        lay = _Layout(gyro=[(EFFECTS['gyro_bias'], slice(3, 6))], size=6)
-        gyro = [n for n, e in EFFECTS.items() if e.sensor == 'gyro' and e.kind == 'systematic']
-        if len(set(augment)) != len(augment) or 'gyro_bias' in augment:
-            raise ValueError('augment: a name given twice (the bias is always a state)')
-        valid = [n for n in gyro + list(FILTER_STATES) if n != 'gyro_bias']
-        for name in augment:
-            if name not in valid:
-                raise ValueError(f'augment: unknown or unsupported state {name!r}; valid: '
-                                 f"{', '.join(valid)}")
-        for name in (n for n in augment if n in gyro):
-            e = EFFECTS[name]
-            lay.gyro.append((e, slice(lay.size, lay.size + e.filter_size())))
-            lay.size += e.filter_size()
-        if 'time_offset' in augment:
-            lay.time_offset = slice(lay.size, lay.size + 1)
-            lay.size += 1
-        if 'boresight' in augment:
-            lay.boresight = slice(lay.size, lay.size + 3)
-            lay.size += 3
-        return lay
-
-    def _named_slices(self):
-        out = [(e.name, sl) for e, sl in self.layout.gyro]
-        if self.layout.time_offset is not None:
-            out.append(('time_offset', self.layout.time_offset))
-        if self.layout.boresight is not None:
-            out.append(('boresight', self.layout.boresight))
-        return out
-
     @property
     def x(self) -> np.ndarray:
-        """The estimates of the filter states (not errors), in the layout's order."""
+        """Return the estimates of the filter states (not errors), in the layout's order."""
         self._drain()
         return self._x
 
     @property
     def attitude(self) -> np.ndarray:
-        """Current estimate of ``q_ref_body`` (at :attr:`time`)."""
+        """Return the current estimate of ``q_ref_body`` (at :attr:`time`)."""
         self._drain()
         return self.integrator.q
 
@@ -284,28 +195,62 @@ class AttitudeFilter:
         return 0.0 if sl is None else float(self._x[sl][0])
 
     def estimate(self, name: str) -> np.ndarray:
-        """Estimate of a state group (``boresight``: the quaternion ``q_MF_VF``)."""
+        """
+        Return the estimate of one group of states.
+
+        Parameters
+        ----------
+        name : str
+            A state group of this filter (``gyro_bias``, an augmented name; ``boresight``:
+            the quaternion ``q_MF_VF``).
+
+        Returns
+        -------
+        ndarray
+            A copy of the estimate, in the effect's filter units.
+
+        Raises
+        ------
+        ValueError
+            ``name`` is not a state of this filter.
+
+        """
         self._drain()
         if name == 'boresight':
             return self.boresight.copy()
-        sl = dict(self._named_slices()).get(name)
-        if sl is None:
-            raise ValueError(f'{name!r} is not a state of this filter')
-        return self._x[sl].copy()
+        return self._x[self.layout.slice_of(name)].copy()
 
     def sigma(self, name: str) -> np.ndarray:
-        """1σ of the error of one group of states (``attitude`` too), from the covariance."""
+        """
+        Return the 1σ of the error of one group of states, from the covariance.
+
+        Parameters
+        ----------
+        name : str
+            A state group of this filter, or ``attitude`` (rad, body axes).
+
+        Returns
+        -------
+        ndarray
+            1σ per component.
+
+        Raises
+        ------
+        ValueError
+            ``name`` is not a state of this filter.
+
+        """
         self._drain()
-        sl = slice(0, 3) if name == 'attitude' else dict(self._named_slices()).get(name)
-        if sl is None:
-            raise ValueError(f'{name!r} is not a state of this filter')
+        sl = slice(0, 3) if name == 'attitude' else self.layout.slice_of(name)
         return np.sqrt(np.diag(self.P)[sl])
 
     @property
     def P(self) -> np.ndarray:
         """
-        Error-state covariance (n, n): ``S Sᵀ`` of the square-root factor the filter keeps,
-        symmetric and positive semi-definite by construction.
+        Error-state covariance (n, n).
+
+        ``S Sᵀ`` of the square-root factor the filter keeps, symmetric and positive
+        semi-definite by construction.
         """
         self._drain()
         P = self._sqrt_p @ self._sqrt_p.T
@@ -313,24 +258,21 @@ class AttitudeFilter:
 
     def implausible(self) -> list[str]:
         """
-        Names of the estimates outside the valid range of their registry parameter (a
-        diverging filter; reported, not clamped).
+        Return the names of the estimates outside the valid range of their registry parameter.
+
+        A diverging filter; reported, not clamped.
+
+        Returns
+        -------
+        list of str
+            Effect names.
+
         """
         self._drain()
-        out = []
-        named = [(e, sl) for e, sl in self.layout.gyro]
-        if self.layout.time_offset is not None:
-            named.append((EFFECTS['time_offset'], self.layout.time_offset))
-        for e, sl in named:
-            v = e.filter_values(self._x[sl]) if e.sensor == 'gyro' else self._x[sl]
-            p = e.value_parameter
-            if (p.minimum is not None and np.any(v < p.minimum)) or \
-                    (p.maximum is not None and np.any(v > p.maximum)):
-                out.append(e.name)
-        return out
+        return self.layout.implausible(self._x)
 
     def _gyro_effects(self, decay_time: float = 0.0) -> GyroEffects:
-        """The estimated gyro effects, Gauss–Markov states decayed over ``decay_time`` s."""
+        """Return the estimated gyro effects, Gauss–Markov states decayed over ``decay_time`` s."""
         x = self._x.copy()
         x[3:3 + len(self._g_tau)] *= np.exp(-decay_time / self._g_tau)
         values = {e.name: e.filter_values(x[sl]) for e, sl in self.layout.gyro}
@@ -352,6 +294,7 @@ class AttitudeFilter:
         -------
         list of FixResult
             The fixes applied (or gated) during this call.
+
         """
         d = np.asarray(delta_theta, dtype=float).reshape(-1, 3)
         t = np.asarray(stamps, dtype=float).reshape(-1)
@@ -382,27 +325,39 @@ class AttitudeFilter:
 
     def update(self, stamp: float, attitude, covariance, boresight=None) -> FixResult:
         """
-        A star-camera fix: measured ``q_GCRS_VF`` (scalar-first) and its 3×3 covariance in
-        VF axes (rad²), stamped ``stamp`` (camera clock, s).  ``boresight``: a new known
-        ``q_MF_VF`` (e.g. from the calibrator) for this and later fixes; only when the boresight
-        is not a filter state.
+        Take a star-camera fix.
 
         Applied at the epoch ``stamp − τ̂``: now when the increments end exactly there, later
         (status 'pending', the result comes from :meth:`propagate`) when they have not reached
         it, and by re-processing the history when they have passed it (counted as late).
+
+        Parameters
+        ----------
+        stamp : float
+            Header stamp of the fix, camera clock, s.
+        attitude : array_like (4,)
+            Measured ``q_GCRS_VF``, scalar-first, unit.
+        covariance : array_like (3, 3)
+            Its covariance in VF axes, rad², positive definite.
+        boresight : array_like (4,), optional
+            A new known ``q_MF_VF`` (e.g. from the calibrator) for this and later fixes; only
+            when the boresight is not a filter state.
+
+        Returns
+        -------
+        FixResult
+            Status ``applied``, ``gated``, ``pending``, ``too_old`` or ``overflow``, with the
+            residual and its NIS when it was applied or gated.
+
+        Raises
+        ------
+        ValueError
+            The fix or the boresight is not finite, not a unit quaternion, or the covariance is
+            not positive definite.
+
         """
         self._drain()
-        q = np.asarray(attitude, dtype=float)
-        R = np.asarray(covariance, dtype=float)
-        if q.shape != (4,) or not np.all(np.isfinite(q)) or abs(np.linalg.norm(q) - 1.0) > 1e-3:
-            raise ValueError('the fix attitude must be a finite unit quaternion [w, x, y, z]')
-        if R.shape != (3, 3) or not np.all(np.isfinite(R)):
-            raise ValueError('the fix covariance must be a finite 3x3 matrix')
-        R = 0.5 * (R + R.T)
-        if np.linalg.eigvalsh(R)[0] <= 0:
-            raise ValueError('the fix covariance must be positive definite')
-        if not np.isfinite(stamp):
-            raise ValueError('the fix stamp must be finite')
+        q, R = checked_fix(stamp, attitude, covariance)
         if boresight is not None:
             if self.layout.boresight is not None:
                 raise ValueError('the boresight is a filter state here: estimated, not given')
@@ -411,7 +366,8 @@ class AttitudeFilter:
                     or abs(np.linalg.norm(q_bv) - 1) > 1e-3):
                 raise ValueError('boresight must be a finite unit quaternion [w, x, y, z]')
             self.boresight = quat_normalize(q_bv)
-        fix = _Fix(self._seq, float(stamp), float(stamp) - self.time_offset, quat_normalize(q), R)
+        fix = CameraFix(self._seq, float(stamp), float(stamp) - self.time_offset,
+                        quat_normalize(q), R)
         self._seq += 1
         if fix.epoch > self._last_stamp:
             if len(self._pending) >= self.max_pending:
@@ -427,8 +383,10 @@ class AttitudeFilter:
     # ------------------------------------------------------------------ processing
     def _drain(self) -> None:
         """
-        Process the queued increments (none of them reaches a waiting fix: :meth:`propagate`
-        processes at once when one does, and :meth:`update` drains first).
+        Process the queued increments.
+
+        None of them reaches a waiting fix: :meth:`propagate` processes at once when one does,
+        and :meth:`update` drains first.
         """
         if self._queued:
             d, t = np.concatenate(self._queue_d), np.concatenate(self._queue_t)
@@ -464,9 +422,10 @@ class AttitudeFilter:
 
     def _push(self, d: np.ndarray, t: np.ndarray) -> None:
         """
-        Compensate, integrate and propagate the covariance over increments (pieces); with
-        Gauss–Markov states in blocks of at most 5 % of the shortest correlation time (the
-        compensation uses the estimate decayed to the middle of a block).
+        Compensate, integrate and propagate the covariance over increments (pieces).
+
+        With Gauss–Markov states, in blocks of at most 5 % of the shortest correlation time
+        (the compensation uses the estimate decayed to the middle of a block).
         """
         if len(t) == 0:
             return
@@ -480,7 +439,7 @@ class AttitudeFilter:
         self._push_block(d, t)
 
     def _push_block(self, d: np.ndarray, t: np.ndarray) -> None:
-        self._log(d, t)
+        self._log.append(d, t)
         dt = np.diff(np.concatenate([[self._last_stamp], t]))
         rho = self._gyro_effects(0.5 * (t[-1] - self._last_stamp)).compensate(d, t, dt)
         self._last_rate = rho[-1] / dt[-1]
@@ -501,8 +460,9 @@ class AttitudeFilter:
 
     def _flush(self) -> None:
         """
-        Complete the unfinished update (its increments applied one by one, the integrator's
-        rule when the algorithm changes): attitude and covariance are then at the newest stamp.
+        Complete the unfinished update: attitude and covariance are then at the newest stamp.
+
+        Its increments are applied one by one, the integrator's rule when the algorithm changes.
         """
         if len(self._open_rho) == 0:
             return
@@ -517,8 +477,10 @@ class AttitudeFilter:
 
     def _propagate_covariance(self, c0, c, rho, h, t_mid) -> None:
         """
-        P over m updates: attitudes C_j (m,3,3), lumped increments ρ_j, lengths h_j, times
-        since the effect epoch (:func:`~strapdown_ros.estimation.error_model.block_transition`).
+        Propagate P over m updates.
+
+        Attitudes C_j (m,3,3), lumped increments ρ_j, lengths h_j, times since the effect epoch
+        (:func:`strapdown_ros.estimation.error_model.block_transition`).
         """
         lay = self.layout
         A = np.concatenate([c @ e.filter_partials(rho, h, t_mid) for e, _ in lay.gyro], axis=2)
@@ -532,7 +494,7 @@ class AttitudeFilter:
         self._x[3:k] = self._x[3:k] * decay         # a Gauss–Markov estimate decays as the state
         self._sqrt_p = triangular_factor(phi @ self._sqrt_p, psd_factor(Q))     # P ← ΦPΦᵀ + Q
 
-    def _apply(self, fix: _Fix) -> FixResult:
+    def _apply(self, fix: CameraFix) -> FixResult:
         """Measurement update at the newest stamp (= the fix epoch)."""
         self._flush()
         lay = self.layout
@@ -585,43 +547,23 @@ class AttitudeFilter:
         self._checkpoint()
         return res
 
-    def _record(self, fix: _Fix, status: str, z=None, nis=None, S=None) -> FixResult:
+    def _record(self, fix: CameraFix, status: str, z=None, nis=None, S=None) -> FixResult:
         res = FixResult(fix.stamp, fix.epoch, status, fix.lateness, z, nis, S)
         self.results.append(res)
         return res
 
     # ------------------------------------------------------------------ history
-    def _log(self, d: np.ndarray, t: np.ndarray) -> None:
-        k = len(t)
-        if k > self.history:                     # keep only the newest pieces
-            drop = k - self.history
-            d, t = d[drop:], t[drop:]
-            self._n += drop
-            self._base = self._n
-            self._log_lo = 0
-            k = len(t)
-        hi = self._log_lo + (self._n - self._base)
-        if hi + k > len(self._log_t):           # compact: keep the newest `history - k` pieces
-            keep = min(self._n - self._base, self.history - k)
-            src = slice(hi - keep, hi)
-            self._log_t[:keep] = self._log_t[src].copy()
-            self._log_d[:keep] = self._log_d[src].copy()
-            self._base = self._n - keep
-            self._log_lo, hi = 0, keep
-        self._log_t[hi:hi + k], self._log_d[hi:hi + k] = t, d
-        self._n += k
-
     def _checkpoint(self) -> None:
-        self._checkpoints.append(_Checkpoint(
-            self._last_stamp, self._n, self._order,
+        self._checkpoints.append(Checkpoint(
+            self._last_stamp, self._log.next, self._order,
             self.integrator.checkpoint(), self._x.copy(), self.boresight.copy(), self._sqrt_p,
             self._open_rho, self._open_dt, self._last_rate, self._last_stamp))
 
-    def _late(self, fix: _Fix) -> FixResult:
+    def _late(self, fix: CameraFix) -> FixResult:
         fix.lateness = self._last_stamp - fix.epoch
         cp = None
         for c in reversed(self._checkpoints):
-            if c.pieces >= self._base and c.epoch <= fix.epoch:
+            if c.pieces >= self._log.base and c.epoch <= fix.epoch:
                 cp = c
                 break
         if cp is None:
@@ -630,16 +572,15 @@ class AttitudeFilter:
         self.counters.late += 1
         self.counters.last_lateness = fix.lateness
         self.counters.max_lateness = max(self.counters.max_lateness, fix.lateness)
-        lo = self._log_lo + (cp.pieces - self._base)
-        hi = self._log_lo + (self._n - self._base)
-        d, t = self._log_d[lo:hi].copy(), self._log_t[lo:hi].copy()
+        d, t = self._log.since(cp.pieces)
         self.counters.reprocessed_increments += len(t)
         # back to the checkpoint
         self.integrator.rollback(cp.integrator)
         self._x, self.boresight = cp.states.copy(), cp.boresight.copy()
         self._sqrt_p = cp.covariance
         self._open_rho, self._open_dt, self._last_rate = cp.open_rho, cp.open_dt, cp.last_rate
-        self._last_stamp, self._n = cp.last_stamp, cp.pieces
+        self._last_stamp = cp.last_stamp
+        self._log.rewind(cp.pieces)
         while self._checkpoints and self._checkpoints[-1] is not cp:
             self._checkpoints.pop()
         redo = [f for f in self._applied if f.order >= cp.order]
@@ -652,7 +593,8 @@ class AttitudeFilter:
 
     def _trim_applied(self) -> None:
         """Forget applied fixes older than every usable checkpoint (no longer re-processable)."""
-        oldest = next((c.epoch for c in self._checkpoints if c.pieces >= self._base), np.inf)
+        oldest = next((c.epoch for c in self._checkpoints if c.pieces >= self._log.base),
+                      np.inf)
         while self._applied and self._applied[0].epoch < oldest:
             self._applied.popleft()
         while len(self._applied) > 4 * self.max_pending + 1024:

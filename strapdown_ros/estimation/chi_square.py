@@ -1,16 +1,18 @@
 """
-The χ² statistics of fit consistency: the acceptance band of χ²/dof and the p-value.
+The χ² statistics of the estimation side: one home for the band, the p-value and the gate.
 
 A weighted least-squares fit, or a filter's innovations, whose stated noise is right gives a
-χ² statistic with ``dof`` degrees of freedom.  These functions are exact (the regularised
-incomplete gamma function) and numpy-free, so a node pays no scipy import in a callback.
+χ² statistic with ``dof`` degrees of freedom: :func:`chi2_band` is the acceptance band of
+χ²/dof, :func:`chi2_sf` the p-value, :func:`chi2_3_quantile` the attitude filter's NIS gate.
+They are exact (the regularised incomplete gamma function) and need neither numpy nor scipy,
+so a node pays no scipy import in a callback.
 """
 from __future__ import annotations
 
 import math
 from statistics import NormalDist
 
-__all__ = ['FIT_LEVEL', 'chi2_band', 'chi2_sf']
+__all__ = ['FIT_LEVEL', 'chi2_band', 'chi2_sf', 'chi2_3_quantile']
 
 #: two-sided level of the χ²/dof acceptance band: a consistent fit falls outside it with
 #: probability FIT_LEVEL
@@ -19,8 +21,10 @@ FIT_LEVEL = 0.01
 
 def _gamma_p(a: float, x: float) -> float:
     """
-    Regularised lower incomplete gamma P(a, x): the series below a + 1, Lentz's continued
-    fraction for Q = 1 − P above (Numerical Recipes §6.2).
+    Return the regularised lower incomplete gamma function P(a, x).
+
+    The series below a + 1, Lentz's continued fraction for Q = 1 − P above (Numerical
+    Recipes §6.2).
     """
     if x <= 0.0:
         return 0.0
@@ -55,8 +59,10 @@ def _gamma_p(a: float, x: float) -> float:
 
 def _chi2_quantile(p: float, dof: int) -> float:
     """
-    x with P(χ²_dof ≤ x) = p: Newton's method on the exact distribution function from the
-    Wilson–Hilferty start (no scipy: the node must not pay its import inside a callback).
+    Return x with P(χ²_dof ≤ x) = p.
+
+    Newton's method on the exact distribution function from the Wilson–Hilferty start (no
+    scipy: the node must not pay its import inside a callback).
     """
     a = 0.5 * dof
     c = 2.0 / (9.0 * dof)
@@ -73,10 +79,24 @@ def _chi2_quantile(p: float, dof: int) -> float:
 
 def chi2_band(dof: int, level: float = FIT_LEVEL) -> tuple[float, float]:
     """
-    The two-sided acceptance band of χ²/dof for ``dof`` degrees of freedom at ``level``:
-    (χ²_{level/2}(dof)/dof, χ²_{1−level/2}(dof)/dof).  A weighted least-squares fit whose
-    stated noise is right lands inside with probability 1 − level.  Exact quantiles (numpy
-    only, checked against scipy in test/estimation/test_chi_square.py).  (nan, nan) for dof < 1.
+    Return the two-sided acceptance band of χ²/dof.
+
+    (χ²_{level/2}(dof)/dof, χ²_{1−level/2}(dof)/dof): a weighted least-squares fit whose
+    stated noise is right lands inside with probability 1 − level.  Exact quantiles, neither
+    numpy nor scipy.
+
+    Parameters
+    ----------
+    dof : int
+        Degrees of freedom.
+    level : float
+        Two-sided level.
+
+    Returns
+    -------
+    (float, float)
+        The band of χ²/dof; (nan, nan) for dof < 1.
+
     """
     if dof < 1:
         return float('nan'), float('nan')
@@ -85,8 +105,9 @@ def chi2_band(dof: int, level: float = FIT_LEVEL) -> tuple[float, float]:
 
 def chi2_sf(x: float, dof: int) -> float:
     """
-    Survival function P(χ²_dof > x) (the p-value of a χ² statistic), from the regularised
-    incomplete gamma function of this module (numpy only).
+    Return the survival function P(χ²_dof > x): the p-value of a χ² statistic.
+
+    From the regularised incomplete gamma function of this module.
 
     Parameters
     ----------
@@ -99,7 +120,42 @@ def chi2_sf(x: float, dof: int) -> float:
     -------
     float
         The probability, in [0, 1].
+
     """
     if not math.isfinite(x):
         return 0.0 if x > 0 else 1.0
     return max(0.0, 1.0 - _gamma_p(0.5 * dof, 0.5 * max(x, 0.0)))
+
+
+def chi2_3_quantile(probability: float) -> float:
+    """
+    Return the quantile of the χ² distribution with 3 degrees of freedom: the filter's gate.
+
+    Bisection on its CDF ``erf(√(x/2)) − √(2x/π) e^{−x/2}``.
+
+    Parameters
+    ----------
+    probability : float
+        In (0, 1).
+
+    Returns
+    -------
+    float
+        x with P(χ²₃ ≤ x) = probability.
+
+    Raises
+    ------
+    ValueError
+        ``probability`` is not in (0, 1).
+
+    """
+    if not 0.0 < probability < 1.0:
+        raise ValueError(f'probability must be in (0, 1), got {probability}')
+
+    def cdf(x):
+        return math.erf(math.sqrt(x / 2.0)) - math.sqrt(2.0 * x / math.pi) * math.exp(-x / 2.0)
+    lo, hi = 0.0, 200.0
+    for _ in range(200):
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if cdf(mid) < probability else (lo, mid)
+    return 0.5 * (lo + hi)

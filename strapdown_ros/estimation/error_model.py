@@ -19,7 +19,7 @@ __all__ = ['block_transition']
 def block_transition(c0: np.ndarray, c: np.ndarray, A: np.ndarray, h: np.ndarray,
                      sigma_v: float, density: np.ndarray, tau: np.ndarray):
     """
-    Transition and process noise of [ε, δc] over m integrator updates.
+    Return the transition and process noise of [ε, δc] over m integrator updates.
 
     Parameters
     ----------
@@ -47,6 +47,7 @@ def block_transition(c0: np.ndarray, c: np.ndarray, A: np.ndarray, h: np.ndarray
         Process noise accumulated over the block.
     decay : ndarray (q,)
         ``e^{−T/τ}`` over the block length T (1 for random walks and constants).
+
     """
     m, _, q = A.shape
     lam = 1.0 / np.asarray(tau, dtype=float)            # 0 where τ = inf
@@ -70,8 +71,9 @@ def block_transition(c0: np.ndarray, c: np.ndarray, A: np.ndarray, h: np.ndarray
     Q[:3, :3] = sigma_v ** 2 * total * np.eye(3)
     if np.any(s > 0):
         sh = s[None, :] * h[:, None]                     # (m, q): variance of each kick
-        # G_i = Σ_{j>i} A_j e^{−λ(u_j − u_i)} + ½ A_i: the kick of update i on the angle (half of
-        # its own update), with the 1/12 term below the per-step integral is exact (h³/3, −h²/2)
+        # G_i = Σ_{j>i} A_j e^{−λ(u_j − u_i)} + ½ A_i: the kick of update i on the angle (half
+        # of its own update); with the 1/12 term below the per-step integral is exact (h³/3,
+        # −h²/2)
         if markov:
             G = np.empty_like(A)
             acc = np.zeros((3, q))

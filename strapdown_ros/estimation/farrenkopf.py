@@ -1,30 +1,26 @@
 """
 Farrenkopf's analytic steady state of the single-axis gyro-bias attitude filter.
 
-The model (Farrenkopf 1978; Markley & Crassidis 2014, *Fundamentals of Spacecraft Attitude
-Determination and Control*, ch. 6 (the steady-state analysis of the MEKF); Crassidis & Junkins,
-*Optimal Estimation of Dynamic Systems*, 2nd ed., ch. 7): one axis, angle θ, gyro output
+The reference the attitude filter's tests and ``filter_bench`` compare it with.  The model
+(Farrenkopf 1978; Markley & Crassidis 2014, *Fundamentals of Spacecraft Attitude Determination
+and Control*, ch. 6 (the steady-state analysis of the MEKF); Crassidis & Junkins, *Optimal
+Estimation of Dynamic Systems*, 2nd ed., ch. 7): one axis, angle θ, gyro output
 ``ω̃ = ω + b + η_v`` with white angle noise of density σ_v² (angle random walk, rad/√s) and
 a bias random walk ``ḃ = η_u`` of density σ_u² (rad/s/√s); an angle measurement
 ``y_k = θ_k + n_k`` with white noise of variance σ_n² every Δt.  With the dimensionless
 
     S_v = σ_v √Δt / σ_n,       S_u = σ_u Δt^{3/2} / σ_n,
 
-the steady-state one-step prediction (pre-update) and filtered (post-update) angle variances are
+the steady-state one-step prediction (pre-update) and filtered (post-update) angle variances
+are
 
     γ = ¼ (S_u + √(16 + 4 S_v² + S_u²/3)),       ξ = γ + √(γ² − 1),
     P_θ(−) = σ_n² (ξ² − 1),       P_θ(+) = σ_n² (1 − ξ⁻²).
 
-Derivation (``doc/attitude_filter.md`` gives it in full): the second difference of the
-measurements is a moving average of order 2, ``Δ²y_k = (1 − r₁z)(1 − r₂z) ν_k``, with
-autocovariances (units σ_n²) ``c₀ = 6 + 2S_v² + ⅔S_u²``, ``c₁ = −4 − S_v² + S_u²/6``,
-``c₂ = 1``; the innovation variance of the steady-state filter is that of the spectral factor,
-``σ_ν² = c₂ / (r₁r₂) = P_θ(−) + σ_n²``.  Writing ``r_i = e^{−λ_i}``, the factorisation gives
-``4 sinh²(λ₁/2) · 4 sinh²(λ₂/2) = S_u²`` and ``4 sinh²(λ₁/2) + 4 sinh²(λ₂/2) = S_v² − S_u²/6``,
-from which ``cosh((λ₁ + λ₂)/2) = γ`` and ``1/(r₁r₂) = ξ²``.  The post-update variance follows
-from the scalar gain ``K = P(−) / (P(−) + σ_n²)``: ``P(+) = P(−) σ_n² / (P(−) + σ_n²)``.
-:func:`riccati_steady_state` iterates the discrete Riccati equation of the same model as an
-independent check (``test/estimation/test_attitude_filter.py``).
+The derivation (the second difference of the measurements as a moving average of order 2 and
+its spectral factor) is in doc/attitude_filter.md.  :func:`riccati_steady_state` iterates the
+discrete Riccati equation of the same model as an independent check
+(``test/estimation/test_attitude_filter.py``).
 """
 from __future__ import annotations
 
@@ -39,9 +35,22 @@ __all__ = ['SteadyState', 'farrenkopf_steady_state', 'riccati_steady_state', 'bi
 
 @dataclass(frozen=True)
 class SteadyState:
-    """Steady-state 1σ of the single-axis filter, rad (attitude) and rad/s (bias)."""
-    attitude_pre: float          # before a measurement update (one-step prediction)
-    attitude_post: float         # after it
+    """
+    Steady-state 1σ of the single-axis filter, rad (attitude) and rad/s (bias).
+
+    Parameters
+    ----------
+    attitude_pre : float
+        Attitude σ before a measurement update (one-step prediction), rad.
+    attitude_post : float
+        Attitude σ after it, rad.
+    bias_pre, bias_post : float, optional
+        Bias σ before and after, rad/s.
+
+    """
+
+    attitude_pre: float
+    attitude_post: float
     bias_pre: float | None = None
     bias_post: float | None = None
 
@@ -66,6 +75,12 @@ def farrenkopf_steady_state(sigma_n: float, sigma_v: float, sigma_u: float,
     -------
     SteadyState
         ``attitude_pre`` and ``attitude_post`` σ, rad (the bias fields are None here).
+
+    Raises
+    ------
+    ValueError
+        A σ negative or not finite, or dt or sigma_n not positive.
+
     """
     for name, v in (('sigma_n', sigma_n), ('sigma_v', sigma_v), ('sigma_u', sigma_u)):
         if not (np.isfinite(v) and v >= 0):
@@ -80,22 +95,43 @@ def farrenkopf_steady_state(sigma_n: float, sigma_v: float, sigma_u: float,
                        attitude_post=float(sigma_n * np.sqrt(1.0 - xi ** -2)))
 
 
-def bias_filter_model(sigma_v: float, sigma_u: float, dt: float) -> tuple[np.ndarray, np.ndarray]:
+def bias_filter_model(sigma_v: float, sigma_u: float,
+                      dt: float) -> tuple[np.ndarray, np.ndarray]:
     """
-    Exact discrete model of one axis over dt: transition Φ (2, 2) and process noise Q (2, 2)
-    of x = [θ error, bias error] with ``θ̇ = −b + η_v``, ``ḃ = η_u``, from the continuous model
-    by Van Loan's method (:func:`strapdown_ros.estimation.steady_filter.discretize`); equal to
-    ``Q = [[σ_v²Δt + σ_u²Δt³/3, −σ_u²Δt²/2], [−σ_u²Δt²/2, σ_u²Δt]]``.
+    Return the exact discrete model of one axis over dt.
+
+    x = [θ error, bias error] with ``θ̇ = −b + η_v``, ``ḃ = η_u``, from the continuous model by
+    Van Loan's method (:func:`strapdown_ros.estimation.steady_filter.discretize`); Q equals
+    ``[[σ_v²Δt + σ_u²Δt³/3, −σ_u²Δt²/2], [−σ_u²Δt²/2, σ_u²Δt]]``.
+
+    Parameters
+    ----------
+    sigma_v : float
+        Angle random walk, rad/√s.
+    sigma_u : float
+        Bias random walk, rad/s/√s.
+    dt : float
+        Interval, s.
+
+    Returns
+    -------
+    phi : ndarray (2, 2)
+        Transition.
+    Q : ndarray (2, 2)
+        Process noise.
+
     """
     A = np.array([[0.0, -1.0], [0.0, 0.0]])
     return discretize(A, np.diag([sigma_v ** 2, sigma_u ** 2]), dt)
 
 
-def riccati_steady_state(sigma_n: float, sigma_v: float, sigma_u: float, dt: float) -> SteadyState:
+def riccati_steady_state(sigma_n: float, sigma_v: float, sigma_u: float,
+                         dt: float) -> SteadyState:
     """
-    Steady state of the same single-axis model from the discrete algebraic Riccati equation
-    (:func:`strapdown_ros.estimation.steady_filter.steady_state_gain`: numerical, independent of
-    the closed form).
+    Return the steady state of the same single-axis model from the discrete Riccati equation.
+
+    Numerical (:func:`strapdown_ros.estimation.steady_filter.steady_state_gain`), independent
+    of the closed form.
 
     Parameters
     ----------
@@ -107,6 +143,7 @@ def riccati_steady_state(sigma_n: float, sigma_v: float, sigma_u: float, dt: flo
     -------
     SteadyState
         Attitude and bias σ before and after the update.
+
     """
     phi, q = bias_filter_model(sigma_v, sigma_u, dt)
     m, _, p = steady_state_gain(phi, np.array([[1.0, 0.0]]), q, np.array([[sigma_n ** 2]]))

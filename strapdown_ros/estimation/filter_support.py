@@ -1,49 +1,66 @@
 """
-Small parts of the attitude filter (:mod:`strapdown_ros.estimation.attitude_filter`): the
-χ²(3) gate quantile, the square-root covariance factors, and the result and counter records.
+Small parts of the attitude filter (:mod:`strapdown_ros.estimation.attitude_filter`).
+
+The names of its augmentable states and their layout in the error state, the square-root
+covariance factors, and the result and counter records.  No ROS imports.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
-import math
+from dataclasses import dataclass, field
 
 import numpy as np
 
 from strapdown_ros.sensors.effects import EFFECTS
 
-__all__ = ['AUGMENT_CHOICES', 'augment_names', 'augment_error', 'chi2_3_quantile', 'triangular_factor', 'psd_factor', 'FixResult', 'FilterCounters']
+__all__ = ['AUGMENT_CHOICES', 'FILTER_STATES', 'augment_names', 'augment_error',
+           'triangular_factor', 'psd_factor', 'FixResult', 'FilterCounters', 'StateLayout',
+           'checked_fix']
 
 
-def chi2_3_quantile(probability: float) -> float:
+def checked_fix(stamp: float, attitude, covariance):
     """
-    Quantile of the χ² distribution with 3 degrees of freedom (bisection on its CDF
-    ``erf(√(x/2)) − √(2x/π) e^{−x/2}``).
+    Check a camera fix the attitude filter is given.
 
     Parameters
     ----------
-    probability : float
-        In (0, 1).
+    stamp : float
+        Header stamp, s.
+    attitude : array_like (4,)
+        ``q_GCRS_VF``, scalar-first, unit within 1e-3.
+    covariance : array_like (3, 3)
+        Its covariance in VF axes, rad².
 
     Returns
     -------
-    float
-        x with P(χ²₃ ≤ x) = probability.
-    """
-    if not 0.0 < probability < 1.0:
-        raise ValueError(f'probability must be in (0, 1), got {probability}')
+    q : ndarray (4,)
+        The attitude as given.
+    R : ndarray (3, 3)
+        The covariance, symmetrised.
 
-    def cdf(x):
-        return math.erf(math.sqrt(x / 2.0)) - math.sqrt(2.0 * x / math.pi) * math.exp(-x / 2.0)
-    lo, hi = 0.0, 200.0
-    for _ in range(200):
-        mid = 0.5 * (lo + hi)
-        lo, hi = (mid, hi) if cdf(mid) < probability else (lo, mid)
-    return 0.5 * (lo + hi)
+    Raises
+    ------
+    ValueError
+        The attitude is not a finite unit quaternion, the covariance not finite or not positive
+        definite, or the stamp not finite.
+
+    """
+    q = np.asarray(attitude, dtype=float)
+    R = np.asarray(covariance, dtype=float)
+    if q.shape != (4,) or not np.all(np.isfinite(q)) or abs(np.linalg.norm(q) - 1.0) > 1e-3:
+        raise ValueError('the fix attitude must be a finite unit quaternion [w, x, y, z]')
+    if R.shape != (3, 3) or not np.all(np.isfinite(R)):
+        raise ValueError('the fix covariance must be a finite 3x3 matrix')
+    R = 0.5 * (R + R.T)
+    if np.linalg.eigvalsh(R)[0] <= 0:
+        raise ValueError('the fix covariance must be positive definite')
+    if not np.isfinite(stamp):
+        raise ValueError('the fix stamp must be finite')
+    return q, R
 
 
 def triangular_factor(*blocks: np.ndarray) -> np.ndarray:
     """
-    A square factor S with S Sᵀ = Σ B Bᵀ, from the QR factorisation of [B₁ B₂ …]ᵀ.
+    Return a square factor S with S Sᵀ = Σ B Bᵀ, from the QR factorisation of [B₁ B₂ …]ᵀ.
 
     Parameters
     ----------
@@ -54,6 +71,7 @@ def triangular_factor(*blocks: np.ndarray) -> np.ndarray:
     -------
     ndarray (n, n)
         S (lower triangular), so that S Sᵀ is positive semi-definite by construction.
+
     """
     r = np.linalg.qr(np.hstack(blocks).T, mode='r')
     return r.T
@@ -61,7 +79,7 @@ def triangular_factor(*blocks: np.ndarray) -> np.ndarray:
 
 def psd_factor(Q: np.ndarray) -> np.ndarray:
     """
-    A factor B with B Bᵀ = Q of a symmetric positive semi-definite Q.
+    Return a factor B with B Bᵀ = Q of a symmetric positive semi-definite Q.
 
     Parameters
     ----------
@@ -72,6 +90,7 @@ def psd_factor(Q: np.ndarray) -> np.ndarray:
     -------
     ndarray (n, n)
         B = V diag(√λ).
+
     """
     w, v = np.linalg.eigh(0.5 * (Q + Q.T))
     return v * np.sqrt(np.clip(w, 0.0, None))
@@ -79,19 +98,55 @@ def psd_factor(Q: np.ndarray) -> np.ndarray:
 
 @dataclass
 class FixResult:
-    """Outcome of one camera fix."""
-    stamp: float                 # header stamp of the fix, s
-    epoch: float                 # IMU-clock epoch it was applied at (stamp − τ̂), s
-    status: str                  # 'applied', 'gated', 'pending', 'too_old', 'overflow'
-    lateness: float = 0.0        # newest increment stamp − epoch at arrival (0: not late), s
-    residual: np.ndarray | None = None     # z (3,), VF axes, rad
-    nis: float | None = None     # zᵀ S⁻¹ z
-    innovation_covariance: np.ndarray | None = None   # S = H P Hᵀ + R (3, 3), rad²
+    """
+    Outcome of one camera fix.
+
+    Parameters
+    ----------
+    stamp : float
+        Header stamp of the fix, s.
+    epoch : float
+        IMU-clock epoch it was applied at (stamp − τ̂), s.
+    status : str
+        ``applied``, ``gated``, ``pending``, ``too_old`` or ``overflow``.
+    lateness : float
+        Newest increment stamp − epoch at arrival (0: not late), s.
+    residual : ndarray (3,), optional
+        The residual z, VF axes, rad.
+    nis : float, optional
+        zᵀ S⁻¹ z.
+    innovation_covariance : ndarray (3, 3), optional
+        S = H P Hᵀ + R, rad².
+
+    """
+
+    stamp: float
+    epoch: float
+    status: str
+    lateness: float = 0.0
+    residual: np.ndarray | None = None
+    nis: float | None = None
+    innovation_covariance: np.ndarray | None = None
 
 
 @dataclass
 class FilterCounters:
-    """Counts of what the filter did (reported; a node puts them on /diagnostics)."""
+    """
+    Counts of what the filter did (reported; a node puts them on /diagnostics).
+
+    Parameters
+    ----------
+    applied, gated, late, too_old, pending_overflow : int
+        Fixes applied, gated, late, older than the history, dropped from a full queue.
+    reprocessed_increments : int
+        Increments processed again for late fixes.
+    max_lateness, last_lateness : float
+        Largest and last lateness of a late fix, s.
+    implausible : int
+        Updates after which an estimate left its registry range.
+
+    """
+
     applied: int = 0
     gated: int = 0
     late: int = 0
@@ -100,23 +155,51 @@ class FilterCounters:
     reprocessed_increments: int = 0
     max_lateness: float = 0.0
     last_lateness: float = 0.0
-    implausible: int = 0         # updates after which an estimate left its registry range
+    implausible: int = 0
 
 
+#: names the ``augment`` argument accepts besides the registry's systematic gyro effects
+FILTER_STATES = ('time_offset', 'boresight')
 #: names the filter's ``augment`` parameter accepts: the registry's systematic gyro effects
 #: (the bias is always a state), the camera time offset and the boresight
 AUGMENT_CHOICES = tuple(n for n, e in EFFECTS.items()
-                        if e.sensor == 'gyro' and e.kind == 'systematic' and n != 'gyro_bias') \
-    + ('time_offset', 'boresight')
+                        if e.sensor == 'gyro' and e.kind == 'systematic'
+                        and n != 'gyro_bias') + FILTER_STATES
 
 
 def augment_names(text: str) -> tuple:
-    """The names of a comma-separated ``augment`` value (blanks ignored)."""
+    """
+    Return the names of a comma-separated ``augment`` value (blanks ignored).
+
+    Parameters
+    ----------
+    text : str
+        The parameter value, e.g. ``"gyro_scale_factor, time_offset"``.
+
+    Returns
+    -------
+    tuple of str
+        The names.
+
+    """
     return tuple(n.strip() for n in str(text).split(',') if n.strip())
 
 
 def augment_error(text: str) -> str | None:
-    """One-line error of an ``augment`` value naming the valid names, or None when valid."""
+    """
+    Return the one-line error of an ``augment`` value naming the valid names.
+
+    Parameters
+    ----------
+    text : str
+        The parameter value.
+
+    Returns
+    -------
+    str or None
+        The error, or None when the value is valid.
+
+    """
     names = augment_names(text)
     bad = [n for n in names if n not in AUGMENT_CHOICES]
     if bad:
@@ -124,3 +207,141 @@ def augment_error(text: str) -> str | None:
     if len(set(names)) != len(names):
         return 'augment: a name is given twice'
     return None
+
+
+@dataclass
+class StateLayout:
+    """
+    Where each group of states sits in the filter's error state.
+
+    The order: ε (3), the gyro states contiguous (bias first), the time offset, the boresight.
+
+    Parameters
+    ----------
+    gyro : list of (Effect, slice)
+        The gyro effects with states and their slices, ``gyro_bias`` first.
+    time_offset : slice, optional
+        The camera time offset's state (1, s).
+    boresight : slice, optional
+        The boresight error's states (3, rad, VF axes).
+    size : int
+        Length of the error state.
+
+    """
+
+    gyro: list = field(default_factory=list)
+    time_offset: slice | None = None
+    boresight: slice | None = None
+    size: int = 6
+
+    @classmethod
+    def build(cls, augment) -> StateLayout:
+        """
+        Lay out the attitude error, the bias and the augmented states.
+
+        Parameters
+        ----------
+        augment : tuple of str
+            Further states: systematic gyro effects of the registry, ``time_offset``,
+            ``boresight`` (:data:`AUGMENT_CHOICES`).
+
+        Returns
+        -------
+        StateLayout
+            The layout.
+
+        Raises
+        ------
+        ValueError
+            A name unknown, unsupported or given twice (the bias is always a state).
+
+        """
+        lay = cls(gyro=[(EFFECTS['gyro_bias'], slice(3, 6))], size=6)
+        gyro = [n for n, e in EFFECTS.items() if e.sensor == 'gyro' and e.kind == 'systematic']
+        if len(set(augment)) != len(augment) or 'gyro_bias' in augment:
+            raise ValueError('augment: a name given twice (the bias is always a state)')
+        valid = [n for n in gyro + list(FILTER_STATES) if n != 'gyro_bias']
+        for name in augment:
+            if name not in valid:
+                raise ValueError(f'augment: unknown or unsupported state {name!r}; valid: '
+                                 f"{', '.join(valid)}")
+        for name in (n for n in augment if n in gyro):
+            e = EFFECTS[name]
+            lay.gyro.append((e, slice(lay.size, lay.size + e.filter_size())))
+            lay.size += e.filter_size()
+        if 'time_offset' in augment:
+            lay.time_offset = slice(lay.size, lay.size + 1)
+            lay.size += 1
+        if 'boresight' in augment:
+            lay.boresight = slice(lay.size, lay.size + 3)
+            lay.size += 3
+        return lay
+
+    def named_slices(self) -> list:
+        """
+        Return the augmented state groups by name, bias included, ε excluded.
+
+        Returns
+        -------
+        list of (str, slice)
+            ``(name, slice)`` in the layout's order.
+
+        """
+        out = [(e.name, sl) for e, sl in self.gyro]
+        if self.time_offset is not None:
+            out.append(('time_offset', self.time_offset))
+        if self.boresight is not None:
+            out.append(('boresight', self.boresight))
+        return out
+
+    def slice_of(self, name: str) -> slice:
+        """
+        Return the slice of one state group.
+
+        Parameters
+        ----------
+        name : str
+            ``gyro_bias``, an augmented gyro effect, ``time_offset`` or ``boresight``.
+
+        Returns
+        -------
+        slice
+            Its place in the error state.
+
+        Raises
+        ------
+        ValueError
+            ``name`` is not a state of this layout.
+
+        """
+        sl = dict(self.named_slices()).get(name)
+        if sl is None:
+            raise ValueError(f'{name!r} is not a state of this filter')
+        return sl
+
+    def implausible(self, x: np.ndarray) -> list:
+        """
+        Return the names of the estimates outside the valid range of their registry parameter.
+
+        Parameters
+        ----------
+        x : ndarray (size,)
+            The estimates of the filter states, in this layout.
+
+        Returns
+        -------
+        list of str
+            Effect names (gyro effects and the time offset).
+
+        """
+        out = []
+        named = [(e, sl) for e, sl in self.gyro]
+        if self.time_offset is not None:
+            named.append((EFFECTS['time_offset'], self.time_offset))
+        for e, sl in named:
+            v = e.filter_values(x[sl]) if e.sensor == 'gyro' else x[sl]
+            p = e.value_parameter
+            if (p.minimum is not None and np.any(v < p.minimum)) or \
+                    (p.maximum is not None and np.any(v > p.maximum)):
+                out.append(e.name)
+        return out

@@ -1,10 +1,12 @@
 """
-The attitude filter between validated streams and outputs: shared by ``attitude_filter_node``
-and the offline tool ``filter_bag`` (no ROS imports).
+The attitude filter between validated streams and outputs, shared by the node and the tool.
 
-* Gyro increments pass the nodes' input rules (:class:`~strapdown_ros.streams.checks.StreamCheck`) in
-  :meth:`FilterSystem.offer_gyro` (the node) or arrive already validated by the recording reader
-  (:meth:`FilterSystem.add_increments`, the tool); both then take the same path.
+``attitude_filter_node`` and the offline tool ``filter_bag`` both drive it (no ROS imports).
+
+* Gyro increments pass the nodes' input rules
+  (:class:`strapdown_ros.streams.checks.StreamCheck`) in :meth:`FilterSystem.offer_gyro` (the node)
+  or arrive already validated by the recording reader (:meth:`FilterSystem.add_increments`, the
+  tool); both then take the same path.
 * Camera fixes (``q_GCRS_VF``, covariance in VF axes or none) follow calibrator_node's rules
   (:meth:`FilterSystem.offer_fix`): a zero quaternion is dropped, a non-unit one normalised, an
   all-zero covariance replaced by the model's, one that is not positive semi-definite dropped;
@@ -44,22 +46,64 @@ SIGNATURE_BUFFER = 4096
 
 @dataclass
 class FilterOutput:
-    """The filter state at one output time."""
+    """
+    The filter state at one output time.
+
+    Parameters
+    ----------
+    stamp_ns : int
+        Time of the state, ns.
+    attitude : ndarray (4,)
+        ``q_ref_body`` [w, x, y, z].
+    attitude_covariance : ndarray (3, 3)
+        Covariance of ε (body axes), rad².
+    rate : ndarray (3,)
+        Bias-compensated mean body rate since the previous output, rad/s.
+    bias : ndarray (3,)
+        Gyro bias estimate, rad/s.
+    bias_covariance : ndarray (3, 3)
+        Its covariance, (rad/s)².
+    augmented : dict
+        ``{name: (estimate, σ)}`` of the augmented states.
+
+    """
+
     stamp_ns: int
-    attitude: np.ndarray            # q_ref_body [w, x, y, z]
-    attitude_covariance: np.ndarray  # (3, 3) of ε (body axes), rad²
-    rate: np.ndarray                # bias-compensated mean body rate since the previous output
-    bias: np.ndarray                # rad/s
-    bias_covariance: np.ndarray     # (3, 3), (rad/s)²
-    augmented: dict                 # name -> (estimate, σ)
+    attitude: np.ndarray
+    attitude_covariance: np.ndarray
+    rate: np.ndarray
+    bias: np.ndarray
+    bias_covariance: np.ndarray
+    augmented: dict
 
 
 @dataclass
 class FixOutput:
-    """One fix processed by the filter."""
+    """
+    One fix processed by the filter.
+
+    Parameters
+    ----------
+    stamp_ns : int
+        Stamp of the fix, ns.
+    status : str
+        ``applied``, ``gated``, ``pending``, ``too_old`` or ``overflow``.
+    innovation : ndarray (3,), optional
+        The residual z, VF axes, rad.
+    nis : float, optional
+        Its normalised innovation squared.
+    lateness : float
+        How late it arrived, s.
+    check_text : str
+        The live model check's verdict in words.
+    check_ok : bool
+        Whether the model check passes.
+
+    """
+
     stamp_ns: int
-    status: str                     # applied, gated, pending, too_old, overflow
-    innovation: np.ndarray | None   # z, VF axes, rad
+    status: str
+    innovation: np.ndarray | None
     nis: float | None
     lateness: float
     check_text: str = ''
@@ -68,13 +112,19 @@ class FixOutput:
 
 class FilterSystem:
     """
-    Streams → :class:`~strapdown_ros.estimation.attitude_filter.AttitudeFilter` → outputs.
+    Streams → :class:`strapdown_ros.estimation.attitude_filter.AttitudeFilter` → outputs.
 
     Parameters
     ----------
     p : dict
-        Validated parameters of ``attitude_filter_node`` (:data:`strapdown_ros.params.
-        FILTER_PARAMS`).
+        Validated parameters of ``attitude_filter_node``
+        (:data:`strapdown_ros.params.FILTER_PARAMS`).
+
+    Raises
+    ------
+    ValueError
+        The ``augment`` parameter names an unknown state.
+
     """
 
     def __init__(self, p: dict):
@@ -121,7 +171,17 @@ class FilterSystem:
 
     # ------------------------------------------------------------------ input
     def offer_gyro(self, stamp_ns: int, value) -> None:
-        """One Δθ (rad, body axes) from a live stream: the input rules, then buffered."""
+        """
+        Take one Δθ from a live stream: the input rules, then buffered.
+
+        Parameters
+        ----------
+        stamp_ns : int
+            Header stamp, ns.
+        value : array_like (3,)
+            The increment, rad, body axes.
+
+        """
         g = self.gyro_check
         prev = g.last_ns
         out = g.offer(stamp_ns, value)
@@ -138,8 +198,17 @@ class FilterSystem:
 
     def add_increments(self, stamps_ns, values) -> None:
         """
-        Increments already validated (the recording reader), buffered as :meth:`offer_gyro`
-        buffers; a gap (beyond 1.5 nominal periods) restarts the filter as there.
+        Take increments already validated (the recording reader), buffered as in offer_gyro.
+
+        A gap (beyond 1.5 nominal periods) restarts the filter as there.
+
+        Parameters
+        ----------
+        stamps_ns : sequence of int
+            Stamps, ns.
+        values : sequence of (3,) array_like
+            Increments, rad, body axes.
+
         """
         for ns, v in zip(stamps_ns, values):
             if self._buf_t:
@@ -155,8 +224,24 @@ class FilterSystem:
 
     def offer_fix(self, stamp_ns: int, q_wxyz, covariance=None) -> FixOutput | None:
         """
-        One camera fix ``q_GCRS_VF`` with its 3×3 covariance (VF axes, rad²; None: the model
-        σ).  The rules of calibrator_node, then the filter (after the buffered increments).
+        Take one camera fix from a live stream: calibrator_node's rules, then the filter.
+
+        The filter takes it after the buffered increments.
+
+        Parameters
+        ----------
+        stamp_ns : int
+            Header stamp, ns.
+        q_wxyz : array_like (4,)
+            ``q_GCRS_VF``, scalar-first.
+        covariance : array_like (3, 3), optional
+            Its covariance, VF axes, rad² (None: the model σ).
+
+        Returns
+        -------
+        FixOutput or None
+            The result, or None when the fix is dropped, starts the filter or waits.
+
         """
         self.counts['fixes_received'] += 1
         q = np.asarray(q_wxyz, dtype=float)
@@ -185,7 +270,24 @@ class FilterSystem:
         return res
 
     def add_fix(self, stamp_ns: int, q_wxyz, covariance) -> FixOutput | None:
-        """A fix already validated (unit quaternion, positive definite covariance)."""
+        """
+        Take a fix already validated (unit quaternion, positive definite covariance).
+
+        Parameters
+        ----------
+        stamp_ns : int
+            Stamp, ns.
+        q_wxyz : array_like (4,)
+            ``q_GCRS_VF``, scalar-first.
+        covariance : array_like (3, 3)
+            VF axes, rad².
+
+        Returns
+        -------
+        FixOutput or None
+            The result, or None when the fix is dropped, starts the filter or waits.
+
+        """
         if self.boresight is None:
             self.counts['dropped_no_boresight'] += 1
             return None
@@ -203,7 +305,15 @@ class FilterSystem:
         return self._fix_result(res)
 
     def set_boresight(self, q_wxyz) -> None:
-        """A new known boresight ``q_MF_VF`` (the latched calibration/boresight)."""
+        """
+        Set a new known boresight (the latched calibration/boresight).
+
+        Parameters
+        ----------
+        q_wxyz : array_like (4,)
+            ``q_MF_VF``, scalar-first.
+
+        """
         q = quat_normalize(np.asarray(q_wxyz, dtype=float))
         self.boresight = q
         if self.filter is not None and 'boresight' not in self.augment:
@@ -217,8 +327,9 @@ class FilterSystem:
     # ------------------------------------------------------------------ processing
     def process(self) -> None:
         """
-        Propagate over the buffered increments, emitting outputs at output times and fix
-        results as pending fixes are reached.
+        Propagate over the buffered increments.
+
+        Outputs are emitted at output times and fix results as pending fixes are reached.
         """
         if not self._buf_t:
             return
@@ -266,8 +377,10 @@ class FilterSystem:
 
     def _signature(self, d, h, t) -> None:
         """
-        Keep the increments for the model check's signatures; they are summed in one
-        vectorised pass (:meth:`_flush_signature`) before the next fix is applied.
+        Keep the increments for the model check's signatures.
+
+        They are summed in one vectorised pass (:meth:`_flush_signature`) before the next fix
+        is applied.
         """
         if self.check is None or not self.check.effects:
             return
@@ -371,13 +484,31 @@ class FilterSystem:
         self.filter = None
 
     def take(self) -> tuple[list, list]:
-        """The outputs and fix results produced since the last call."""
+        """
+        Return the outputs and fix results produced since the last call.
+
+        Returns
+        -------
+        outputs : list of FilterOutput
+            The filter states.
+        fixes : list of FixOutput
+            The fixes processed.
+
+        """
         out, fixes = self.outputs, self.fix_outputs
         self.outputs, self.fix_outputs = [], []
         return out, fixes
 
     def status(self) -> dict:
-        """Counts for /diagnostics and the tool's summary."""
+        """
+        Return the counts for /diagnostics and the tool's summary.
+
+        Returns
+        -------
+        dict
+            Input counts, filter counters and the model check's windows.
+
+        """
         g = self.gyro_check
         out = dict(self.counts)
         out.update(g.as_dict('gyro'))

@@ -1,23 +1,24 @@
 """
-Live model check of the attitude filter: are the innovations of the last N fixes what the
-filter's model says they are, and if not, which effect of the registry do they look like?
+Live model check of the attitude filter: its innovations against the filter's own model.
 
-Over a sliding window of N fixes applied or gated (a gated fix counts: an unmodelled effect
-makes the filter gate) (residual z_k, VF axes, with its innovation covariance
-S_k):
+Are the innovations of the last N fixes what the model says they are, and if not, which effect
+of the registry do they look like?  :mod:`strapdown_ros.estimation.filter_system` feeds it
+every applied or gated fix.  Over a sliding window of N fixes applied or gated (a gated fix
+counts: an unmodelled effect makes the filter gate) (residual z_k, VF axes, with its
+innovation covariance S_k):
 
 * consistency: Σ NIS_k against the two-sided χ²(3N) band of probability ``1 − alpha``;
-* whiteness: the Ljung–Box statistic of the whitened innovations ``S_k^{-1/2} z_k`` (each axis,
-  lags 1..L, L = min(10, N // 5)), summed over the axes, against χ²(3L) at ``alpha``.
+* whiteness: the Ljung–Box statistic of the whitened innovations ``S_k^{-1/2} z_k`` (each
+  axis, lags 1..L, L = min(10, N // 5)), summed over the axes, against χ²(3L) at ``alpha``.
 
 When either fails, each candidate effect (a systematic gyro effect of
 :data:`strapdown_ros.sensors.effects.EFFECTS` the filter does not carry, and the camera time
-offset when the filter does not estimate it) is fitted to the window by weighted least squares,
-``z_k ≈ G_k c`` with G_k its signature (the effect's increment partials integrated over the
-interval before the fix and carried into VF axes, or the time offset's fix Jacobian), and the
-likelihood ratio ``Σ z_kᵀS_k⁻¹z_k − min_c Σ (z_k − G_k c)ᵀS_k⁻¹(z_k − G_k c)`` is compared with
-χ²(size of c): the best match is the effect with the smallest p-value.  The check only reports;
-the filter's model is never changed by it.
+offset when the filter does not estimate it) is fitted to the window by weighted least
+squares, ``z_k ≈ G_k c`` with G_k its signature (the effect's increment partials integrated
+over the interval before the fix and carried into VF axes, or the time offset's fix Jacobian),
+and the likelihood ratio ``Σ z_kᵀS_k⁻¹z_k − min_c Σ (z_k − G_k c)ᵀS_k⁻¹(z_k − G_k c)`` is
+compared with χ²(size of c): the best match is the effect with the smallest p-value.  The
+check only reports; the filter's model is never changed by it.
 """
 from __future__ import annotations
 
@@ -34,7 +35,7 @@ __all__ = ['ModelCheck', 'ModelCheckResult', 'ljung_box']
 
 def ljung_box(x: np.ndarray, lags: int) -> float:
     """
-    Ljung–Box statistic ``n(n+2) Σ_{k=1}^{L} r_k²/(n−k)`` of one series, summed over columns.
+    Return the Ljung–Box statistic ``n(n+2) Σ_{k=1}^{L} r_k²/(n−k)``, summed over columns.
 
     Parameters
     ----------
@@ -47,6 +48,7 @@ def ljung_box(x: np.ndarray, lags: int) -> float:
     -------
     float
         The statistic, χ²(m L) for white series.
+
     """
     x = np.asarray(x, dtype=float)
     x = x.reshape(len(x), -1) - x.reshape(len(x), -1).mean(0)
@@ -62,18 +64,41 @@ def ljung_box(x: np.ndarray, lags: int) -> float:
 
 @dataclass
 class ModelCheckResult:
-    """Verdict of one window (None fields: not computed)."""
-    fixes: int                       # fixes in the window
-    ok: bool                         # True while the window passes (or is not yet full)
+    """
+    Verdict of one window (None fields: not computed).
+
+    Parameters
+    ----------
+    fixes : int
+        Fixes in the window.
+    ok : bool
+        True while the window passes (or is not yet full).
+    nis_sum : float
+        Σ NIS over the window.
+    nis_band : tuple of float
+        Its two-sided band.
+    whiteness_p : float
+        p-value of the Ljung–Box statistic.
+    best_effect : str, optional
+        The effect the innovations match best (failing windows).
+    best_p : float
+        Its p-value (small: the effect explains the innovations).
+    best_estimate : ndarray, optional
+        The fitted effect value, in its units.
+
+    """
+
+    fixes: int
+    ok: bool
     nis_sum: float = float('nan')
-    nis_band: tuple = (float('nan'), float('nan'))   # two-sided band of Σ NIS
-    whiteness_p: float = float('nan')                # p-value of the Ljung–Box statistic
-    best_effect: str | None = None   # the effect the innovations match best (failing windows)
-    best_p: float = float('nan')     # its p-value (small: the effect explains the innovations)
-    best_estimate: np.ndarray | None = None          # the fitted effect value, its units
+    nis_band: tuple = (float('nan'), float('nan'))
+    whiteness_p: float = float('nan')
+    best_effect: str | None = None
+    best_p: float = float('nan')
+    best_estimate: np.ndarray | None = None
 
     def text(self) -> str:
-        """One line for /diagnostics and logs."""
+        """Return the verdict as one line for /diagnostics and logs."""
         if self.fixes == 0 or (self.ok and not math.isfinite(self.nis_sum)):
             return f'model check: {self.fixes} fix(es) in the window, not yet full'
         head = (f'NIS sum {self.nis_sum:.4g} over {self.fixes} fixes (band '
@@ -101,6 +126,7 @@ class ModelCheck:
         Candidate gyro effects (registry objects with ``filter_partials``), not filter states.
     time_offset : bool
         The camera time offset is a candidate (its fix Jacobian).
+
     """
 
     def __init__(self, window: int = 30, alpha: float = 0.001, effects=(), time_offset=False):
@@ -123,19 +149,51 @@ class ModelCheck:
 
     def signature(self, rho, h, t_mid, c_end_body) -> list[np.ndarray]:
         """
-        Signatures (3, size) in body axes at the interval's end of each gyro candidate over
-        increments ρ (n, 3) of lengths h (n,) at times t_mid (n,) since the effect epoch, with
-        ``c_end_body`` (n, 3, 3) the rotation from each increment's body axes to the body axes at
-        the end of the interval (since the last applied fix).
+        Return the signature of each gyro candidate over the interval since the last fix.
+
+        Parameters
+        ----------
+        rho : ndarray (n, 3)
+            Increments, rad, body axes.
+        h : ndarray (n,)
+            Their lengths, s.
+        t_mid : ndarray (n,)
+            Their middle times since the effect epoch, s.
+        c_end_body : ndarray (n, 3, 3)
+            Rotation from each increment's body axes to the body axes at the end of the
+            interval (since the last applied fix).
+
+        Returns
+        -------
+        list of ndarray (3, size)
+            One per candidate, body axes at the interval's end.
+
         """
         return [np.einsum('nij,njk->ik', c_end_body, e.filter_partials(rho, h, t_mid))
                 for e in self.effects]
 
     def add(self, z, S, gyro_signatures, c_vf_mf, rate_body) -> ModelCheckResult:
         """
-        One applied or gated fix: residual z (3,), VF axes; S (3, 3); the gyro signatures of the
-        interval before it (:meth:`signature`, body axes); C_VF^MF; the body rate at the fix.
-        Returns the verdict of the window ending at this fix.
+        Add one applied or gated fix and judge the window ending at it.
+
+        Parameters
+        ----------
+        z : array_like (3,)
+            Residual, VF axes, rad.
+        S : array_like (3, 3)
+            Its innovation covariance, rad².
+        gyro_signatures : list of ndarray (3, size)
+            The signatures of the interval before it (:meth:`signature`, body axes).
+        c_vf_mf : ndarray (3, 3)
+            C_VF^MF.
+        rate_body : array_like (3,)
+            The body rate at the fix, rad/s.
+
+        Returns
+        -------
+        ModelCheckResult
+            The verdict of the window ending at this fix.
+
         """
         G = [c_vf_mf @ g for g in gyro_signatures]
         if self.time_offset:

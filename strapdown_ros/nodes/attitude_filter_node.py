@@ -61,7 +61,7 @@ import numpy as np
 from rclpy.node import Node
 from sensor_msgs.msg import Imu
 
-from strapdown_ros.estimation.filter_support import chi2_3_quantile
+from strapdown_ros.estimation.chi_square import chi2_3_quantile
 from strapdown_ros.estimation.filter_system import FilterSystem
 from strapdown_ros.nodes import ros_io
 from strapdown_ros.params import FILTER_PARAMS

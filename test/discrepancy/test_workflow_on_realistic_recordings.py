@@ -1,7 +1,9 @@
 """
-The discrepancy workflow on recordings like real ones: a reference noisier in motion than at
-rest, a MEMS gyro with a large bias, unmodelled structure (honest σ), a static recording (the
-boresight unobservable), a gyro wiring fault, and random small recordings (never a crash).
+The discrepancy workflow on recordings like real ones.
+
+A reference noisier in motion than at rest, a MEMS gyro with a large bias, unmodelled
+structure (honest σ), a static recording (the boresight unobservable), a gyro wiring fault,
+and random small recordings (never a crash).
 
 Truth is what was injected (simulate_recording / record_sim parameters, exact rest intervals),
 never the workflow's own output.
@@ -46,8 +48,16 @@ def _moving_fixes(rec, limit=1e-3):
 @pytest.mark.parametrize('extra_sigma', [3e-5, 3e-4, 5e-3])
 def test_reference_noisier_in_motion_never_crashes(extra_sigma):
     """
+    Reference noisier in motion never crashes.
+
     Extra camera noise (10× to 1700× the stated 0.6″) only on the fixes taken while turning:
     the camera-noise fit used to run off (scale 2e9) and crash the analysis as 'bad input'.
+
+    Parameters
+    ----------
+    extra_sigma : float
+        Extra camera noise on the fixes taken while turning, rad.
+
     """
     rec = _recording()
     moving = _moving_fixes(rec)
@@ -75,6 +85,27 @@ def test_reference_noisier_in_motion_never_crashes(extra_sigma):
        interval=st.sampled_from([1.0, 2.0]))
 def test_random_small_recordings_return_or_raise_only_stated_errors(seed, bias, scale, rw, offset,
                                                                     cam, interval):
+    """
+    Random small recordings return or raise only stated errors.
+
+    Parameters
+    ----------
+    seed : int
+        Seed of the simulation.
+    bias : float
+        Gyro bias, rad/s.
+    scale : float
+        Gyro scale factor.
+    rw : float
+        Angle random walk, rad/√s.
+    offset : float
+        Camera time offset, s.
+    cam : float
+        Camera noise σ, rad.
+    interval : float
+        Camera interval, s.
+
+    """
     rec = _recording(duration=80.0, rate=50.0, interval=interval, seed=seed, repeat=1,
                      gyro_bias=[bias, -bias, 0.5 * bias], gyro_scale_factor=[scale, 0.0, -scale],
                      gyro_random_walk=rw, camera_time_offset=offset)
@@ -101,9 +132,10 @@ def test_step_limit_counts_accepted_effects_and_is_said():
 
 def _mems(rate=286.0, bias_deg_s=0.2, seed=0):
     """
-    A MEMS-like gyro record: 0.2 °/s bias on every axis, white noise, rest 0–30 s, a varying
-    turn 30–50 s, rest 50–85 s, a turn 85–95 s, rest 95–110 s (too short: 15 s less a
-    window).
+    Simulate a MEMS-like gyro record with known rest intervals.
+
+    0.2 °/s bias on every axis, white noise, rest 0–30 s, a varying turn 30–50 s, rest
+    50–85 s, a turn 85–95 s, rest 95–110 s (too short: 15 s less a window).
     """
     rng = np.random.default_rng(seed)
     T = 1.0 / rate
@@ -120,6 +152,7 @@ def _mems(rate=286.0, bias_deg_s=0.2, seed=0):
 
 
 def test_rest_found_on_a_mems_gyro_with_a_large_bias():
+    """Rest found on a mems gyro with a large bias."""
     t, dth, nd = _mems()
     params = {'gyro_random_walk': nd, 'gyro_quantum': 0.0}
     segs = static_segments(t, dth, params)
@@ -140,6 +173,8 @@ def test_rest_found_on_a_mems_gyro_with_a_large_bias():
 
 def test_sigma_honest_when_structure_is_unmodelled():
     """
+    σ is honest when structure is unmodelled.
+
     An unmodelled periodic bias (20°/h, 30 s, outside the library) and a 0.05 s stamp offset:
     the time offset from every fix and from every 2nd fix agree within 3 combined σ with the
     reported σ (Newey–West), not with the model's σ.  The camera-noise term is left out of the
@@ -167,6 +202,15 @@ def test_sigma_honest_when_structure_is_unmodelled():
 
 @pytest.mark.parametrize('fault', ['swap_xy', 'negate_z'])
 def test_gyro_wiring_fault_is_unexplained_and_named(fault):
+    """
+    Gyro wiring fault is unexplained and named.
+
+    Parameters
+    ----------
+    fault : str
+        The wiring fault: x and y swapped, or z reversed.
+
+    """
     rec = _recording(seed=11, interval=2.0)
     rec.delta_theta = (rec.delta_theta[:, [1, 0, 2]] if fault == 'swap_xy'
                        else rec.delta_theta * [1, 1, -1])
@@ -179,6 +223,7 @@ def test_gyro_wiring_fault_is_unexplained_and_named(fault):
 
 
 def test_correct_wiring_names_no_swap():
+    """Correct wiring names no swap."""
     rec = _recording(seed=31, gyro_bias_periodic=[2e-6, -2e-6, 1e-6], gyro_bias_period=100.0)
     r = analyse(rec, _model())
     if r.remaining:
@@ -188,6 +233,8 @@ def test_correct_wiring_names_no_swap():
 
 def test_bias_that_changes_half_way_is_not_repeatable():
     """
+    Bias that changes half way is not repeatable.
+
     A bias step of 2e-6 rad/s at half time (outside the library: the bias is constant in the
     model): the bias found is flagged not repeatable across the time blocks, with its spread.
     """
@@ -205,6 +252,8 @@ def test_bias_that_changes_half_way_is_not_repeatable():
 
 def test_noisier_reference_gives_no_confident_wrong_answer():
     """
+    Noisier reference gives no confident wrong answer.
+
     A reference as noisy as motion capture (0.3° = 5.2e-3 rad per axis, stated in its
     covariance) and a gyro bias of 20°/h: the bias used to be called not separable from the
     scale asymmetry and the drift (alike residual patterns), and a wrong effect named instead.

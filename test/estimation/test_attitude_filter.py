@@ -25,16 +25,18 @@ from strapdown_ros.sensors.model import IntegratingSensor, SensorErrorModel
 from strapdown_ros.sensors.star_camera import StarCameraModel
 
 
-def attitude_error(q_true, q_est):
+def _attitude_error(q_true, q_est):
     """ε of the package convention, q_true = q_est ⊗ exp(−ε)."""
     return quat_to_rotvec(quat_multiply(quat_conjugate(q_true), q_est))
 
 
-def bias_walk_increments(rng, T, n, sigma_v, sigma_u, b0):
+def _bias_walk_increments(rng, T, n, sigma_v, sigma_u, b0):
     """
-    Gyro errors at exact truth: ∫b dt over each interval and b at its end, b a Wiener process
-    of density σ_u² started at b0, plus white angle noise σ_v²T; sampled from the exact joint law
-    of (b(t+T) − b(t), ∫(t+T−s) db(s)).
+    Draw gyro errors at exact truth for a random-walk bias.
+
+    ∫b dt over each interval and b at its end, b a Wiener process of density σ_u² started at
+    b0, plus white angle noise σ_v²T; sampled from the exact joint law of
+    (b(t+T) − b(t), ∫(t+T−s) db(s)).
     """
     cov = sigma_u ** 2 * np.array([[T, T * T / 2.0], [T * T / 2.0, T ** 3 / 3.0]])
     L = np.linalg.cholesky(cov) if sigma_u > 0 else np.zeros((2, 2))
@@ -45,17 +47,18 @@ def bias_walk_increments(rng, T, n, sigma_v, sigma_u, b0):
     return integral + rng.normal(0.0, sigma_v * np.sqrt(T), (n, 3)), b_end
 
 
-def camera_fix(rng, q_true_vf, sigma):
+def _camera_fix(rng, q_true_vf, sigma):
     return quat_multiply(q_true_vf, rotvec_to_quat(rng.normal(0.0, 1.0, 3) * sigma))
 
 
-def assert_spd(P):
+def _assert_spd(P):
     assert np.array_equal(P, P.T)
     assert np.linalg.eigvalsh(P)[0] > 0
 
 
 # ----------------------------------------------------------------------------- (a) Farrenkopf
 def test_farrenkopf_closed_form_equals_riccati():
+    """Farrenkopf's closed form equals the Riccati solution."""
     for args in [(1e-5, 1e-6, 1e-8, 1.0), (1e-5, 1e-5, 1e-7, 10.0), (3e-6, 0.0, 1e-9, 0.5),
                  (1e-5, 1e-6, 1e-5, 1.0), (1e-5, 0.0, 1e-6, 1.0), (2e-5, 5e-6, 2e-6, 1.0)]:
         a, r = farrenkopf_steady_state(*args), riccati_steady_state(*args)
@@ -75,6 +78,8 @@ def test_farrenkopf_closed_form_equals_riccati():
 
 def test_bias_only_filter_reaches_farrenkopf_steady_state():
     """
+    Bias-only filter reaches Farrenkopf's steady state.
+
     At rest, a fix every Δt: the filter's σ equals the analytic one, and the σ of the actual
     post-update errors over 8 runs × 400 fixes × 3 axes is within 5 % of it.
     """
@@ -85,7 +90,7 @@ def test_bias_only_filter_reaches_farrenkopf_steady_state():
     errors, pre, post = [], None, None
     for run in range(8):
         rng = np.random.default_rng(100 + run)
-        d, _ = bias_walk_increments(rng, T, k * fixes, sv, su, rng.normal(0, 1e-5, 3))
+        d, _ = _bias_walk_increments(rng, T, k * fixes, sv, su, rng.normal(0, 1e-5, 3))
         stamps = T * np.arange(1, k * fixes + 1)
         f = AttitudeFilter(quat_multiply(q0, rotvec_to_quat(rng.normal(0, 1e-4, 3))), 0.0,
                            gyro_random_walk=sv, gyro_bias_random_walk=su, initial_sigma=1e-4,
@@ -93,14 +98,14 @@ def test_bias_only_filter_reaches_farrenkopf_steady_state():
         for j in range(fixes):
             f.propagate(d[j * k:(j + 1) * k], stamps[j * k:(j + 1) * k])
             pre = np.sqrt(np.diag(f.P)[:3])
-            res = f.update(stamps[(j + 1) * k - 1], camera_fix(rng, q0, sn), sn ** 2 * np.eye(3))
+            res = f.update(stamps[(j + 1) * k - 1], _camera_fix(rng, q0, sn), sn ** 2 * np.eye(3))
             assert res.status == 'applied'
             post = np.sqrt(np.diag(f.P)[:3])
             if j >= 100:
-                errors.append(attitude_error(q0, f.attitude))
+                errors.append(_attitude_error(q0, f.attitude))
         np.testing.assert_allclose(pre, theory.attitude_pre, rtol=1e-6)
         np.testing.assert_allclose(post, theory.attitude_post, rtol=1e-6)
-        assert_spd(f.P)
+        _assert_spd(f.P)
     rms = np.sqrt(np.mean(np.square(errors)))
     print(f'\nFARRENKOPF sigma_pre {theory.attitude_pre:.4e} post {theory.attitude_post:.4e} rad; '
           f'filter pre {pre[0]:.4e} post {post[0]:.4e}; actual post-update rms {rms:.4e} '
@@ -115,10 +120,12 @@ def _chi2_band(k, p):
     return k * (1.0 - 2.0 / (9.0 * k) + z * np.sqrt(2.0 / (9.0 * k))) ** 3
 
 
-def bias_markov_increments(rng, T, n, sigma_v, density, tau, b0):
+def _bias_markov_increments(rng, T, n, sigma_v, density, tau, b0):
     """
-    As :func:`bias_walk_increments` for a first-order Gauss–Markov bias
-    (db = −b/τ dt + dη, density q): exact joint law of b(t+T) and ∫b over the interval.
+    Draw gyro errors at exact truth for a first-order Gauss–Markov bias.
+
+    As :func:`_bias_walk_increments` for db = −b/τ dt + dη, density q: exact joint law of
+    b(t+T) and ∫b over the interval.
     """
     lam, a = 1.0 / tau, np.exp(-T / tau)
     v1 = density * (1 - a * a) / (2 * lam)
@@ -136,10 +143,12 @@ def bias_markov_increments(rng, T, n, sigma_v, density, tau, b0):
 
 def _nees_monte_carlo(runs, tau=None, gap=0.0, model_tau=True):
     """
-    Run-averaged NEES (fixes, 3: joint, attitude, bias) and all NIS of the bias filter, 60 s
-    runs with a slow constant rotation, a bias random walk (tau None) or a Gauss–Markov bias
-    of correlation time tau, initial errors from the prior; then ``gap`` s without fixes, and
-    the NEES (runs, 3) at its end (``model_tau`` False: the filter is not told τ).
+    Return the run-averaged NEES and all NIS of the bias filter over Monte Carlo runs.
+
+    NEES (fixes, 3: joint, attitude, bias); 60 s runs with a slow constant rotation, a bias
+    random walk (tau None) or a Gauss–Markov bias of correlation time tau, initial errors from the
+    prior; then ``gap`` s without fixes, and the NEES (runs, 3) at its end (``model_tau`` False:
+    the filter is not told τ).
     """
     T, dt, sn, sv, s0 = 0.25, 2.0, 10e-6, 3e-6, 2e-4
     if tau is None:
@@ -160,9 +169,9 @@ def _nees_monte_carlo(runs, tau=None, gap=0.0, model_tau=True):
         rng = np.random.default_rng(20000 + run)
         b0 = rng.normal(0, sb, 3)
         if tau is None:
-            d, b = bias_walk_increments(rng, T, n, sv, su, b0)
+            d, b = _bias_walk_increments(rng, T, n, sv, su, b0)
         else:
-            d, b = bias_markov_increments(rng, T, n, sv, su ** 2, tau, b0)
+            d, b = _bias_markov_increments(rng, T, n, sv, su ** 2, tau, b0)
         d = d + rate * T                                     # exact increments of the motion
         f = AttitudeFilter(quat_multiply(q_start, rotvec_to_quat(rng.normal(0, s0, 3))), 0.0,
                            gyro_random_walk=sv, gyro_bias_random_walk=su, initial_sigma=s0,
@@ -171,17 +180,17 @@ def _nees_monte_carlo(runs, tau=None, gap=0.0, model_tau=True):
             f.propagate(d[j * k:(j + 1) * k], stamps[j * k:(j + 1) * k])
             t = stamps[(j + 1) * k - 1]
             q_true = quat_multiply(q_start, rotvec_to_quat(rate * t))
-            nis.append(f.update(t, camera_fix(rng, q_true, sn), sn ** 2 * np.eye(3)).nis)
-            e = np.concatenate([attitude_error(q_true, f.attitude),
+            nis.append(f.update(t, _camera_fix(rng, q_true, sn), sn ** 2 * np.eye(3)).nis)
+            e = np.concatenate([_attitude_error(q_true, f.attitude),
                                 f.estimate('gyro_bias') - b[(j + 1) * k - 1]])
             nees[run, j] = _nees(e, f.P[:6, :6])
         if gap > 0:
             f.propagate(d[k * fixes:], stamps[k * fixes:])
             q_true = quat_multiply(q_start, rotvec_to_quat(rate * stamps[-1]))
-            e = np.concatenate([attitude_error(q_true, f.attitude),
+            e = np.concatenate([_attitude_error(q_true, f.attitude),
                                 f.estimate('gyro_bias') - b[-1]])
             nees_gap[run] = _nees(e, f.P[:6, :6])
-        assert_spd(f.P)
+        _assert_spd(f.P)
     if gap > 0:
         return nees.mean(axis=0), np.array(nis), nees_gap.mean(axis=0)
     return nees.mean(axis=0), np.array(nis)
@@ -222,6 +231,8 @@ def test_nees_of_attitude_and_bias_over_100_runs():
 
 def test_nees_with_a_gauss_markov_bias_instability():
     """
+    NEES stays consistent with a Gauss–Markov bias instability.
+
     The same with a first-order Gauss–Markov bias (τ = 30 s, steady σ 2e-5 rad/s), truth
     sampled from its exact law, the filter given the correlation time; then 90 s without fixes:
     at its end the bias NEES is in its 95 % band (the state has returned to its steady law),
@@ -251,8 +262,10 @@ def _calibration_motion():
 
 def _run_calibration(duration_marks, augment, seed=3):
     """
-    Package simulators: gyro with bias, scale factor, symmetric misalignment, ARW; camera with
-    boresight, time offset and anisotropic noise.  Returns truth, the filter, and σ at marks.
+    Run the filter with augmented states on the package simulators; return truth, filter, σ.
+
+    Gyro with bias, scale factor, symmetric misalignment, ARW; camera with boresight, time
+    offset and anisotropic noise.  σ at the marks.
     """
     profile = _calibration_motion()
     T = 0.25
@@ -287,7 +300,7 @@ def _run_calibration(duration_marks, augment, seed=3):
             if abs(fx.stamp - m) < 1e-9:
                 names = ('attitude', 'gyro_bias') + tuple(augment)
                 marks[m] = {a: f.sigma(a).copy() for a in names}
-        assert_spd(f.P)
+        _assert_spd(f.P)
     truth = {'gyro_bias': bias, 'gyro_scale_factor': scale, 'gyro_misalignment': sym,
              'time_offset': np.array([tau]), 'boresight': cam.q_mf_vf,
              'attitude': profile.attitude(f.time)}
@@ -295,6 +308,7 @@ def _run_calibration(duration_marks, augment, seed=3):
 
 
 def test_recovery_of_bias_scale_misalignment_boresight_time_offset():
+    """Recovery of bias scale misalignment boresight time offset."""
     augment = ('gyro_scale_factor', 'gyro_misalignment', 'time_offset', 'boresight')
     truth, f, marks = _run_calibration((360.0, 1440.0), augment)
     assert f.counters.applied == 1440 and f.counters.gated == 0
@@ -302,7 +316,7 @@ def test_recovery_of_bias_scale_misalignment_boresight_time_offset():
         err = f.estimate(name) - truth[name]
         assert np.all(np.abs(err) < 3.0 * f.sigma(name)), (name, err, f.sigma(name))
         assert np.all(np.abs(err) < 0.2 * np.abs(truth[name])), name      # and really estimated
-    eta = attitude_error(truth['boresight'], f.estimate('boresight'))
+    eta = _attitude_error(truth['boresight'], f.estimate('boresight'))
     print()
     names = ('gyro_bias', 'gyro_scale_factor', 'gyro_misalignment', 'time_offset', 'boresight')
     for name in names:
@@ -311,7 +325,7 @@ def test_recovery_of_bias_scale_misalignment_boresight_time_offset():
               f'sigma {f.sigma(name)}, '
               f'sigma(360 s)/sigma(1440 s) {(marks[360.0][name] / marks[1440.0][name]).round(3)}')
     assert np.all(np.abs(eta) < 3.0 * f.sigma('boresight')), (eta, f.sigma('boresight'))
-    att = attitude_error(truth['attitude'], f.attitude)
+    att = _attitude_error(truth['attitude'], f.attitude)
     assert np.all(np.abs(att) < 3.0 * f.sigma('attitude'))
     # random constants seen through white noise, the motion repeating: σ ∝ 1/√t, so σ(t)/σ(4t) ≈ 2
     for name in names:
@@ -321,6 +335,7 @@ def test_recovery_of_bias_scale_misalignment_boresight_time_offset():
 
 # ----------------------------------------------------------------------------- (d) long run
 def test_bounded_attitude_error_over_two_hours_while_open_loop_drifts():
+    """Bounded attitude error over two hours while open loop drifts."""
     T, dt, sn, sv = 0.25, 10.0, 5e-6, 1e-6
     rate = np.array([0.0, 0.0, 7.292115e-5])                  # the Earth's rate about z
     bias = np.array([4.8e-7, -3e-7, 2e-7])                    # ≈ 0.1 °/h
@@ -339,9 +354,9 @@ def test_bounded_attitude_error_over_two_hours_while_open_loop_drifts():
         open_loop.push(d[sl], stamps[sl])
         t = stamps[sl][-1]
         q_true = quat_multiply(q_start, rotvec_to_quat(rate * t))
-        f.update(t, camera_fix(rng, q_true, sn), sn ** 2 * np.eye(3))
-        filt_err.append(attitude_error(q_true, f.attitude))
-        ol_err.append(attitude_error(q_true, open_loop.q))
+        f.update(t, _camera_fix(rng, q_true, sn), sn ** 2 * np.eye(3))
+        filt_err.append(_attitude_error(q_true, f.attitude))
+        ol_err.append(_attitude_error(q_true, open_loop.q))
         sig.append(f.sigma('attitude'))
     filt_err, ol_err, sig = map(np.asarray, (filt_err, ol_err, sig))
     late = slice(len(filt_err) // 2, None)                    # the second hour
@@ -353,13 +368,15 @@ def test_bounded_attitude_error_over_two_hours_while_open_loop_drifts():
     assert np.linalg.norm(ol_err[-1]) > 100 * np.max(np.linalg.norm(filt_err[late], axis=1))
     assert np.linalg.norm(ol_err[-1]) == pytest.approx(np.linalg.norm(bias) * 7200, rel=0.1)
     assert np.all(np.abs(f.estimate('gyro_bias') - bias) < 3 * f.sigma('gyro_bias'))
-    assert_spd(f.P)
+    _assert_spd(f.P)
 
 
 # ----------------------------------------------------------------------------- (e) stamps, gate
 def _stream(lateness, fixes=60, history=20_000, algorithm='2',
             augment=('gyro_scale_factor', 'time_offset')):
     """
+    Stream increments and fixes into a filter, one fix delivered late.
+
     Camera epochs off the gyro grid (time offset and first exposure), a fix delivered
     ``lateness`` seconds after the increments passed its epoch.
     """
@@ -391,6 +408,15 @@ def _stream(lateness, fixes=60, history=20_000, algorithm='2',
 
 @pytest.mark.parametrize('algorithm', ['2', '4', '7'])
 def test_late_fix_gives_the_same_state_as_in_order_processing(algorithm):
+    """
+    Late fix gives the same state as in order processing.
+
+    Parameters
+    ----------
+    algorithm : str
+        Coning algorithm of the integrator.
+
+    """
     f0, r0 = _stream(0.0, algorithm=algorithm)
     f1, r1 = _stream(0.6, algorithm=algorithm)   # fix epochs 0.6 s behind the increments
     assert f0.counters.late == 0 and f1.counters.late == 60
@@ -410,6 +436,7 @@ def test_late_fix_gives_the_same_state_as_in_order_processing(algorithm):
 
 
 def test_outlier_is_gated_and_old_fix_dropped_and_counted():
+    """Outlier is gated and old fix dropped and counted."""
     f, _ = _stream(0.0, fixes=20, history=64)
     P_before, q_before, x_before = f.P.copy(), f.attitude.copy(), f.x.copy()
     t = f.newest_stamp
@@ -421,7 +448,7 @@ def test_outlier_is_gated_and_old_fix_dropped_and_counted():
     np.testing.assert_array_equal(f.x, x_before)                      # no correction applied
     # propagated to the epoch, not updated (an update with this fix would cut the σ by ~40 %)
     assert np.trace(f.P[:3, :3]) > 0.99 * np.trace(P_before[:3, :3])
-    assert np.linalg.norm(attitude_error(profile.attitude(t), f.attitude)) < 1e-4
+    assert np.linalg.norm(_attitude_error(profile.attitude(t), f.attitude)) < 1e-4
     old = f.update(t - 30.0, profile.attitude(t - 30.0), (2 * ARCSEC) ** 2 * np.eye(3))
     assert old.status == 'too_old' and f.counters.too_old == 1
     assert chi2_3_quantile(0.95) == pytest.approx(7.814728, abs=1e-5)
@@ -440,6 +467,7 @@ def test_outlier_is_gated_and_old_fix_dropped_and_counted():
 
 
 def test_registry_supplies_the_filter_partials():
+    """Registry supplies the filter partials."""
     rng = np.random.default_rng(0)
     rho, T, t = rng.normal(size=(5, 3)), np.full(5, 0.01), np.arange(5.0)
     mis = EFFECTS['gyro_misalignment']
@@ -455,6 +483,8 @@ def test_registry_supplies_the_filter_partials():
 
 def test_covariance_stays_symmetric_and_positive_with_an_extremely_precise_camera():
     """
+    Covariance stays symmetric and positive with an extremely precise camera.
+
     Prior 1e-2 rad, fixes with σ = 1e-11 rad (a dynamic range of 1e18 in P): P, kept as a
     square-root factor (P = SSᵀ, the Joseph update as a QR of [(I − KH)S, KR^½]), stays exactly
     symmetric and positive semi-definite down to the round-off of its eigenvalues.
@@ -498,6 +528,8 @@ def test_estimation_imports_without_ros():
 
 def test_fixes_out_of_order_give_the_in_order_state():
     """
+    Fixes out of order give the in order state.
+
     Fixes delivered in a random order, each once the increments have passed its epoch (some
     held back to the end: up to ~1 min late, many fix intervals): every one is applied at its
     epoch, the later ones re-applied after it, and the final state is the in-order one.
@@ -508,8 +540,8 @@ def test_fixes_out_of_order_give_the_in_order_state():
     st, meas, _ = IntegratingSensor(profile, 'gyro', 1.0 / T, errors, seed=8).sample(480)
     fixes = StarCameraModel(interval=1.0, first_exposure=0.55, sigma=np.full(3, 2 * ARCSEC),
                             seed=9).fixes(profile, 55)
-    kw = dict(gyro_random_walk=2e-6, initial_sigma=1e-4, bias_sigma=1e-5,
-              augment=('gyro_scale_factor',), augment_sigma={'gyro_scale_factor': 1e-3})
+    kw = {'gyro_random_walk': 2e-6, 'initial_sigma': 1e-4, 'bias_sigma': 1e-5,
+          'augment': ('gyro_scale_factor',), 'augment_sigma': {'gyro_scale_factor': 1e-3}}
     f0 = AttitudeFilter(profile.attitude(0.0), 0.0, **kw)
     for fx in fixes:
         f0.update(fx.stamp, fx.attitude, fx.covariance)          # pending, applied in order
@@ -535,6 +567,7 @@ def test_fixes_out_of_order_give_the_in_order_state():
 
 
 def test_order_of_augmented_names_does_not_matter():
+    """Order of augmented names does not matter."""
     f0, _ = _stream(0.0, fixes=15)
     f1, _ = _stream(0.0, fixes=15, augment=('time_offset', 'gyro_scale_factor'))
     for name in ('gyro_bias', 'gyro_scale_factor', 'time_offset'):

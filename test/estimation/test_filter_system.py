@@ -1,6 +1,7 @@
 """
-FilterSystem (the core of attitude_filter_node and filter_bag) and the live model check,
-against the package's gyro and camera simulators with injected effects (independent truth).
+FilterSystem (the core of attitude_filter_node and filter_bag) and the live model check.
+
+Against the package's gyro and camera simulators with injected effects (independent truth).
 """
 import numpy as np
 import pytest
@@ -27,8 +28,8 @@ def _motion():
     return PiecewiseRateProfile(segs * 10, initial_attitude=rotvec_to_quat([0.2, -0.4, 0.9]))
 
 
-def run(scale, seconds=150, bias=(2e-6, -1e-6, 1.5e-6), augment='', seed=4, **extra):
-    """Simulated Δθ at RATE Hz and a fix every second through FilterSystem (stamp order)."""
+def _run(scale, seconds=150, bias=(2e-6, -1e-6, 1.5e-6), augment='', seed=4, **extra):
+    """Simulate Δθ at RATE Hz and a fix every second through FilterSystem (stamp order)."""
     profile = _motion()
     gyro = IntegratingSensor(profile, 'gyro', RATE,
                              SensorErrorModel(np.array(bias), np.array(scale), np.zeros((3, 3)),
@@ -53,6 +54,7 @@ def run(scale, seconds=150, bias=(2e-6, -1e-6, 1.5e-6), augment='', seed=4, **ex
 
 
 def test_chi2_sf_and_ljung_box():
+    """chi2_sf against tables, ljung_box of white noise against its χ² mean."""
     assert chi2_sf(3.0, 3) == pytest.approx(0.391625, abs=1e-6)      # tables: χ²(3) at 3.0
     assert chi2_sf(30.0, 10) == pytest.approx(8.5664e-4, rel=1e-3)
     rng = np.random.default_rng(0)
@@ -61,7 +63,8 @@ def test_chi2_sf_and_ljung_box():
 
 
 def test_matching_model_passes_and_estimates_attitude_and_bias():
-    sysf, profile = run(scale=(0.0, 0.0, 0.0))
+    """Matching model passes and estimates attitude and bias."""
+    sysf, profile = _run(scale=(0.0, 0.0, 0.0))
     out, fixes = sysf.take()
     f = sysf.filter
     assert sysf.counts['applied'] >= 140 and sysf.counts['gated'] == 0
@@ -81,7 +84,8 @@ def test_matching_model_passes_and_estimates_attitude_and_bias():
 def test_unmodelled_scale_factor_is_named():
     # small enough that the gate keeps applying fixes; a 60-fix window spans both signs of the
     # rate about every axis (a one-sided window cannot tell a scale factor from its asymmetry)
-    sysf, _ = run(scale=(1e-4, -1e-4, 1e-4), model_check_window=60)
+    """Unmodelled scale factor is named."""
+    sysf, _ = _run(scale=(1e-4, -1e-4, 1e-4), model_check_window=60)
     assert sysf.counts['gated'] < 10
     last = sysf.check.last
     assert not last.ok
@@ -96,14 +100,16 @@ def test_unmodelled_scale_factor_is_named():
 
 
 def test_augmented_scale_factor_is_estimated_and_check_passes():
+    """Augmented scale factor is estimated and check passes."""
     sf = np.array([1e-4, -1e-4, 1e-4])
-    sysf, _ = run(scale=sf, augment='gyro_scale_factor', seconds=200, model_check_window=60)
+    sysf, _ = _run(scale=sf, augment='gyro_scale_factor', seconds=200, model_check_window=60)
     f = sysf.filter
     assert np.all(np.abs(f.estimate('gyro_scale_factor') - sf) < 3 * f.sigma('gyro_scale_factor'))
     assert sysf.check.last.ok, sysf.check.last.text()
 
 
 def test_fix_rules_drop_and_count():
+    """Fix rules drop and count."""
     p = check_all(FILTER_PARAMS, {'gyro_rate': RATE})
     s = FilterSystem(p)
     assert s.offer_fix(10**9, [0.0, 0.0, 0.0, 0.0]) is None

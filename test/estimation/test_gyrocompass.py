@@ -1,11 +1,16 @@
 """
-001 (Vavilov): the gyrocompass error model against geometry, and its observability statements
-against closed-form derivations (doc/seeds/observability_001.md).
+001 (Vavilov 1982): the gyrocompass error model and its observability statements.
+
+The error model against geometry, the observability statements against closed-form
+derivations (doc/seeds/observability_001.md).
 """
+import pathlib
+import re
+
 import numpy as np
 import pytest
 
-from strapdown_ros.estimation.gyrocompass import (aircraft_matrix, circulation,
+from strapdown_ros.estimation.gyrocompass import (aircraft_matrix, B1, B2, circulation,
                                                   circulation_ship_system, error_matrices,
                                                   exact_measurement, full_system,
                                                   linear_measurement, measurement_vectors,
@@ -15,6 +20,8 @@ from strapdown_ros.estimation.observability import (measures_of_observability,
 from strapdown_ros.estimation.steady_filter import (constant_gain_covariance, discretize,
                                                     pole_placement_gain, simulate_constant_gain,
                                                     steady_state_gain)
+from strapdown_ros.reproductions import vavilov1982 as seeds_001
+from strapdown_ros.reproductions.vavilov1982_text import DERIVATIONS_001
 
 SHIP = Parameters(15.0)
 
@@ -36,11 +43,12 @@ def test_measurement_linearisation_is_first_order_exact():
         args = (mu, mu1, V1, V2, w2, 2 * eps, 0.03 * eps, np.sin(lat), 1.5 * eps)
         lin = linear_measurement(*args)
         res.append(abs(exact_measurement(*args) - lin) / abs(lin))
-    assert res[0] < 1e-4 and res[1] / res[0] == pytest.approx(0.1, rel=0.01)     # relative error ∝ ε
+    assert res[0] < 1e-4
+    assert res[1] / res[0] == pytest.approx(0.1, rel=0.01)     # relative error ∝ ε
 
 
 def test_printed_coefficients_fail():
-    """(3.2)'s prefactor 0.5μ1 and (3.3)'s μ1μ1 are misprints: they miss the exact σ at first order."""
+    """(3.2)'s prefactor 0.5μ1 and (3.3)'s μ1μ1 are misprints: they miss the exact σ at order 1."""
     mu, mu1 = SHIP.mu, SHIP.mu1
     lat, V1, V2 = np.radians(50), 0.6, 0.8
     w2 = _consistent_truth(mu1, V1, V2, lat)
@@ -49,7 +57,7 @@ def test_printed_coefficients_fail():
     args = (mu, mu1, V1, V2, w2, 2 * eps, 0.03 * eps, np.sin(lat), 0.0)
     exact, lin = exact_measurement(*args), linear_measurement(*args)
     assert exact == pytest.approx(lin, rel=1e-5)
-    assert abs(exact * mu1 / mu - lin) > 0.4 * abs(lin)                       # printed prefactor: 45 % off
+    assert abs(exact * mu1 / mu - lin) > 0.4 * abs(lin)       # printed prefactor: 45 % off
     # latitude error only: coefficient −μμ1 sinφ, not −μ1μ1 sinφ
     z = 1e-6
     dz = exact_measurement(mu, mu1, V1, V2, w2, 0, 0, np.sin(lat), z)
@@ -68,7 +76,8 @@ def test_orthodrome_kinematics_match_4_1():
         psi = psi0 + SHIP.speed / SHIP.radius * tau / SHIP.schuler_rate
         v, s = k['omega2'], k['sin_lat']
         assert s == pytest.approx(np.sin(psi) * np.sin(th), rel=1e-12)
-        assert v ** 2 == pytest.approx((mu1 + np.cos(th)) ** 2 + (np.sin(th) * np.cos(psi)) ** 2, rel=1e-12)
+        assert v ** 2 == pytest.approx((mu1 + np.cos(th)) ** 2 + (np.sin(th) * np.cos(psi)) ** 2,
+                                       rel=1e-12)
         assert k['V1'] == pytest.approx((mu1 + np.cos(th)) / v, rel=1e-12)
         assert k['V2'] == pytest.approx(np.sin(th) * np.cos(psi) / v, rel=1e-12)
         assert k['lam_omega3'] == pytest.approx(mu * s * (1 + mu1 * k['V1'] / v), rel=1e-10)
@@ -90,8 +99,12 @@ def _transformed(m, tau, h=1e-4):
 
 
 def test_change_of_variables_4_3_on_the_orthodrome():
-    """y = G1x, z = G2x obey (4.3): ẏ = (B2 + cB1)y + c(μ1z + b1Δ), ż = (B2 + cB1)z + c b2Δ, c = μ sinφ."""
-    from strapdown_ros.estimation.gyrocompass import B1, B2
+    """
+    Change of variables (4.3) holds on the orthodrome.
+
+    y = G1x, z = G2x obey (4.3): ẏ = (B2 + cB1)y + c(μ1z + b1Δ), ż = (B2 + cB1)z + c b2Δ,
+    c = μ sinφ.
+    """
     mu, mu1 = SHIP.mu, SHIP.mu1
     m = orthodrome(SHIP, np.radians(40), np.radians(70))
     G1, G2, G1d, G2d, B, b, k = _transformed(m, 0.3)
@@ -107,12 +120,17 @@ def test_change_of_variables_4_3_on_the_orthodrome():
 
 # ------------------------------------------------------------------- §4.1: the ship (4.6)
 def test_ship_measures_closed_form():
-    """Derivative measures of (4.6): y1 = 1, y2 = 2/√10, y3 = y4 = √2c, Δ = c b12/√6 (leading order in c)."""
+    """
+    Ship measures of (4.6) have their closed form.
+
+    Derivative measures: y1 = 1, y2 = 2/√10, y3 = y4 = √2c, Δ = c b12/√6 (leading order in c).
+    """
     for lat in (np.radians(30), np.radians(60)):
         c, b12 = SHIP.mu * np.sin(lat), np.cos(lat)
         A, H = ship_system(c, b12)
         m = stationary_measures(A, H, 1.0)
-        closed = np.array([1.0, 2 / np.sqrt(10), np.sqrt(2) * c, np.sqrt(2) * c, c * b12 / np.sqrt(6)])
+        closed = np.array([1.0, 2 / np.sqrt(10), np.sqrt(2) * c, np.sqrt(2) * c,
+                           c * b12 / np.sqrt(6)])
         assert m == pytest.approx(closed, rel=5 * c)
         # the paper's statement: y1, y2 of order 1; y3, y4, Δ of order μ sin φ, i.e. ∝ c
         A2, H2 = ship_system(c / 2, b12)
@@ -122,13 +140,19 @@ def test_ship_measures_closed_form():
 
 
 def test_ship_reduction_agrees_with_full_model():
-    """The full LTV model (x, Δ; z known) on an orthodrome gives the measures of (4.6) over a Schuler period."""
+    """
+    Ship reduction agrees with the full model.
+
+    The full LTV model (x, Δ; z known) on an orthodrome gives the measures of (4.6) over a
+    Schuler period.
+    """
     lat = np.radians(55)
     th = np.radians(60)
     m = orthodrome(SHIP, th, np.arcsin(np.sin(lat) / np.sin(th)))
     F, H = full_system(m)
     keep = [0, 1, 2, 3, 5]                                                  # drop z (known)
-    g = observability_gramian(lambda t: F(t)[np.ix_(keep, keep)], lambda t: H(t)[:, keep], 0, 2 * np.pi, 200)
+    g = observability_gramian(lambda t: F(t)[np.ix_(keep, keep)], lambda t: H(t)[:, keep],
+                              0, 2 * np.pi, 200)
     k = m.kinematics(0.0)
     h1, _ = measurement_vectors(k['V1'], k['V2'], k['omega2'], SHIP.mu1)
     combos = np.zeros((5, 5))
@@ -139,14 +163,19 @@ def test_ship_reduction_agrees_with_full_model():
     A, Hs = ship_system(c, k['omega2'] - SHIP.mu1 ** 2 / k['omega2'], 2 * SHIP.mu1 * k['V2'])
     gs = observability_gramian(lambda t: A, lambda t: Hs, 0, 2 * np.pi, 2)
     reduced = measures_of_observability(gs.mean, np.eye(5))
-    assert full == pytest.approx(reduced, rel=0.1)                         # neglected terms O(μ1), O(μ²)
+    assert full == pytest.approx(reduced, rel=0.1)          # neglected terms O(μ1), O(μ²)
     assert full[2:] / c == pytest.approx(reduced[2:] / c, rel=0.1)
     assert np.all(full[2:] < 1.5 * c) and np.all(full[:2] > 3 * c)
 
 
 # ------------------------------------------------------------------- §4.1: the aircraft (4.8)
 def test_aircraft_measures_exact():
-    """(4.8): σ-derivatives give s2 = (σ'−σ''')/2, s4 = (σ'+σ''')/2c, …: measures 1, √2, √2, √2c, √2c exactly."""
+    """
+    Aircraft measures of (4.8) are exact.
+
+    σ-derivatives give s2 = (σ'−σ''')/2, s4 = (σ'+σ''')/2c, …: measures 1, √2, √2, √2c,
+    √2c exactly.
+    """
     for c in (0.05, 0.01):
         D, H = aircraft_matrix(c)
         assert stationary_measures(D, H, 1.0) == pytest.approx(
@@ -155,7 +184,7 @@ def test_aircraft_measures_exact():
 
 def test_aircraft_D_against_geometry():
     """At μ1 = 1, ṡ = Ds holds to O(c²) in rows 1–3 (those that reach σ), rows 4–5 only to O(c)."""
-    P = Parameters(EARTH_SPEED := 7.292115e-5 * 6.371e6)
+    P = Parameters(7.292115e-5 * 6.371e6)          # the speed that makes μ1 = 1
     assert P.mu1 == pytest.approx(1.0)
     mu = P.mu
     m = orthodrome(P, np.radians(40), np.radians(70))
@@ -170,7 +199,8 @@ def test_aircraft_D_against_geometry():
         Y[:, :4], Z[:, :4] = G1, G2
         e = np.eye(6)
         rows = [Y[0] - c * e[4], Y[1] - c * (2 * Y[2] - Z[0]),
-                -Y[0] + c * (3 * Y[3] + 2 * Z[1] + (v - P.mu1 ** 2 / v) * e[5]), Y[2] - Z[0], Y[3] + Z[1]]
+                -Y[0] + c * (3 * Y[3] + 2 * Z[1] + (v - P.mu1 ** 2 / v) * e[5]), Y[2] - Z[0],
+                Y[3] + Z[1]]
         return np.vstack(rows), c
     tau, h = 0.3, 1e-4
     S0, c = S(tau)
@@ -184,6 +214,8 @@ def test_aircraft_D_against_geometry():
 # ------------------------------------------------------------------- §4.2: the circulation
 def test_circulation_two_periods():
     """
+    Circulation over two periods.
+
     (4.11): on τ1 ∈ (0,1) p1, p2 have measure λ1μ1/√(1+λ1⁴); on (0, 1/λ1) (≈ two circulation
     periods … 1.6 for λ1 = 0.1) μ1/(√2λ1) and μ1/(√2λ1²) — derived from O⁻¹ by hand.
     """
@@ -192,13 +224,18 @@ def test_circulation_two_periods():
     short = stationary_measures(A, H, 1.0)
     long = stationary_measures(A, H, 1 / lam1)
     assert short[2:] == pytest.approx([lam1 * mu1 / np.sqrt(1 + lam1 ** 4)] * 2, rel=1e-10)
-    assert long[2:] == pytest.approx([mu1 / (np.sqrt(2) * lam1), mu1 / (np.sqrt(2) * lam1 ** 2)], rel=1e-10)
+    assert long[2:] == pytest.approx([mu1 / (np.sqrt(2) * lam1), mu1 / (np.sqrt(2) * lam1 ** 2)],
+                                     rel=1e-10)
     assert short[1] == pytest.approx(lam1, rel=1e-12)
 
 
 def test_circulation_geometry_matches_4_10():
-    """On a real circulation y' = λ1B2y + μ1dΔ (time τ1) up to terms of order λ1μ (001: 'accuracy λ1μ1')."""
-    from strapdown_ros.estimation.gyrocompass import B2
+    """
+    Circulation geometry matches (4.10).
+
+    On a real circulation y' = λ1B2y + μ1dΔ (time τ1) up to terms of order λ1μ (001: 'accuracy
+    λ1μ1').
+    """
     period = 420.0
     lam1 = SHIP.schuler_rate * period / (2 * np.pi)
     m = circulation(SHIP, np.radians(50), period)
@@ -219,13 +256,16 @@ def test_asymptotic_observer_gains_scale_as_one_over_c():
     for c in (0.04, 0.02):
         A, H = ship_system(c, 0.6)
         L[c] = pole_placement_gain(A, H, poles)
-        assert np.sort(np.linalg.eigvals(A - np.outer(L[c], H[0])).real) == pytest.approx(sorted(poles), abs=1e-8)
+        eig = np.sort(np.linalg.eigvals(A - np.outer(L[c], H[0])).real)
+        assert eig == pytest.approx(sorted(poles), abs=1e-8)
     assert L[0.02][2:] / L[0.04][2:] == pytest.approx([2.0] * 3, rel=0.01)
     assert L[0.02][:2] / L[0.04][:2] == pytest.approx([1.0] * 2, rel=0.01)
 
 
 def test_steady_state_kalman_filter_riccati_and_nees():
     """
+    Steady-state Kalman filter: the Riccati solution and the NEES.
+
     The doubling solution satisfies the DARE; a small Monte Carlo of the constant-gain filter stays
     in the χ² band of its exactly propagated covariance.
     """
@@ -242,7 +282,8 @@ def test_steady_state_kalman_filter_riccati_and_nees():
     P0 = np.eye(5)
     Ps = constant_gain_covariance(Phi, H, Q, R, K, P0, steps)
     err = simulate_constant_gain(Phi, H, Q, R, K, P0, steps, runs, np.random.default_rng(7))
-    nees = np.einsum('rki,kij,rkj->rk', err, np.linalg.inv(Ps), err).mean(axis=0)   # mean over runs
+    # mean over runs
+    nees = np.einsum('rki,kij,rkj->rk', err, np.linalg.inv(Ps), err).mean(axis=0)
     # mean of `runs` χ²(5) values: 5 ± 3.3·√(10/runs) holds at each epoch with prob. ≈ 0.999
     band = 3.3 * np.sqrt(10 / runs)
     sel = nees[::50]
@@ -251,15 +292,29 @@ def test_steady_state_kalman_filter_riccati_and_nees():
 
 # ------------------------------------------------------------------- the report tool
 def test_seeds_001_tool_quick(tmp_path, capsys):
-    """section_001 → report_001 → main: numbers against the derivations, and a one-line argument error."""
-    from strapdown_ros.reproductions import vavilov1982 as seeds_001
+    """
+    Seeds-001 report tool runs quickly and reports argument errors in one line.
+
+    section_001 → report_001 → main: numbers against the derivations, and a one-line argument
+    error.
+
+    Parameters
+    ----------
+    tmp_path : fixture
+        Temporary directory of the test.
+    capsys : fixture
+        Capture of the standard output and error.
+
+    """
     res = seeds_001.section_001(quick=True)
     assert res['misprints']['h1_corrected_rel_error'] < 1e-6
-    assert res['misprints']['h1_printed_prefactor_rel_error'] == pytest.approx(1 - SHIP.mu1 / SHIP.mu, rel=1e-4)
+    assert res['misprints']['h1_printed_prefactor_rel_error'] == pytest.approx(
+        1 - SHIP.mu1 / SHIP.mu, rel=1e-4)
     c = res['ship']['c']
     assert res['ship']['derivative'][2] == pytest.approx(np.sqrt(2) * c, rel=5 * c)
     lam1, mu1 = res['circulation']['lam1'], res['circulation']['mu1']
-    assert res['circulation']['derivative']['unit'][2] == pytest.approx(lam1 * mu1 / np.sqrt(1 + lam1 ** 4), rel=1e-9)
+    assert res['circulation']['derivative']['unit'][2] == pytest.approx(
+        lam1 * mu1 / np.sqrt(1 + lam1 ** 4), rel=1e-9)
     text = seeds_001.report_001(res)
     assert text.startswith('## 001')
     assert "consistent with the filter's propagated covariance" in text
@@ -277,14 +332,11 @@ def test_seeds_001_tool_quick(tmp_path, capsys):
 
 def test_001_derivation_text_is_labelled_and_its_checks_exist():
     """
+    001 derivation text is labelled and its checks exist.
+
     The hand-written derivations say so, claim orders (001 prints no numbers), and every
     check command they name selects existing tests.
     """
-    import pathlib
-    import re
-
-    from strapdown_ros.reproductions import vavilov1982 as seeds_001
-    from strapdown_ros.reproductions.vavilov1982_text import DERIVATIONS_001
     assert 'derivation text, not computed' in DERIVATIONS_001
     assert "reproduces 001's numbers" not in DERIVATIONS_001
     checks = re.findall(r"pytest (test/\S+\.py) -k '?([^'`]+)'?`", DERIVATIONS_001)
