@@ -63,7 +63,7 @@ from sensor_msgs.msg import Imu
 
 from strapdown_ros.estimation.filter_support import chi2_3_quantile
 from strapdown_ros.estimation.filter_system import FilterSystem
-from strapdown_ros.nodes import ros_io
+from strapdown_ros.nodes import ros_io, ros_params, ros_process
 from strapdown_ros.params import FILTER_PARAMS
 from strapdown_ros.streams.rate_increments import RateIncrementStream
 
@@ -74,7 +74,7 @@ class AttitudeFilterNode(Node):
     def __init__(self, **kwargs):
         super().__init__(NODE_NAME, **kwargs)
         self.log = ros_io.NodeLog(self.get_logger())
-        self.p = ros_io.declare_validated(self, FILTER_PARAMS, on_change=self._on_change)
+        self.p = ros_params.declare_validated(self, FILTER_PARAMS, on_change=self._on_change)
         p = self.p
         self.system = FilterSystem(dict(p))
         self.frame_id = p['frame_id']
@@ -369,7 +369,7 @@ class AttitudeFilterNode(Node):
 
 
 def main(args=None):
-    return ros_io.run_node(AttitudeFilterNode, NODE_NAME, args)
+    return ros_process.run_node(AttitudeFilterNode, NODE_NAME, args)
 
 
 if __name__ == '__main__':

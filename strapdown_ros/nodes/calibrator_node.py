@@ -81,7 +81,7 @@ from strapdown_ros.calibration.boresight import imu_attitude_from_camera
 from strapdown_ros.calibration.state import CalibratorStateFile, state_identity, StateFileError
 from strapdown_ros.calibration.streaming import BoresightCalibrator
 from strapdown_ros.estimation.chi_square import FIT_LEVEL
-from strapdown_ros.nodes import ros_io
+from strapdown_ros.nodes import ros_io, ros_params, ros_process
 from strapdown_ros.nodes.ros_io import (camera_qos, latched_qos, pose_with_covariance,
                                         rotation_block)
 from strapdown_ros.params import CALIBRATOR_PARAMS
@@ -98,7 +98,7 @@ class CalibratorNode(Node):
     def __init__(self, **kwargs):
         super().__init__(NODE_NAME, **kwargs)
         self.log = ros_io.NodeLog(self.get_logger())   # the one logging helper of the nodes
-        self.p = ros_io.declare_validated(self, CALIBRATOR_PARAMS, on_change=self._on_change,
+        self.p = ros_params.declare_validated(self, CALIBRATOR_PARAMS, on_change=self._on_change,
                                           apply=self._apply_change)
         p = self.p
         self.gyro_period = 1.0 / float(p['gyro_rate'])
@@ -594,7 +594,7 @@ class CalibratorNode(Node):
 
 
 def main(args=None):
-    return ros_io.run_node(CalibratorNode, NODE_NAME, args)
+    return ros_process.run_node(CalibratorNode, NODE_NAME, args)
 
 
 if __name__ == '__main__':

@@ -38,7 +38,7 @@ from sensor_msgs.msg import Imu
 
 from strapdown_ros.motion.earth_profiles import EarthProfile
 from strapdown_ros.motion.from_config import profile_from_config
-from strapdown_ros.nodes import ros_io
+from strapdown_ros.nodes import ros_io, ros_params, ros_process
 from strapdown_ros.params import IMU_SIM_PARAMS
 from strapdown_ros.rotation import to_ros_xyzw
 from strapdown_ros.sensors import simulated_imu
@@ -50,7 +50,7 @@ class ImuSimNode(ros_io.PacedSimulation, Node):
     def __init__(self, **kwargs):
         super().__init__(NODE_NAME, **kwargs)
         self.log = ros_io.NodeLog(self.get_logger())   # the one logging helper of the nodes
-        self.p = ros_io.declare_validated(self, IMU_SIM_PARAMS, on_change=self._reject_changes)
+        self.p = ros_params.declare_validated(self, IMU_SIM_PARAMS, on_change=self._reject_changes)
         p = self.p
         self.profile = profile_from_config(p)
         self.gyro, self.accel = simulated_imu(p, self.profile)
@@ -186,7 +186,7 @@ class ImuSimNode(ros_io.PacedSimulation, Node):
 
 
 def main(args=None):
-    return ros_io.run_node(ImuSimNode, NODE_NAME, args)
+    return ros_process.run_node(ImuSimNode, NODE_NAME, args)
 
 
 if __name__ == '__main__':

@@ -1,31 +1,26 @@
 """
-ROS I/O shared by the nodes: QoS, stamps, message builders, validated parameters, diagnostics.
+ROS I/O shared by the nodes: QoS, stamps, messages, raw stream decoding, logging, diagnostics.
 
-This is the only place (with the node modules) that imports rclpy and message packages.
-Quaternions cross the edge here: ROS messages carry ``x, y, z, w``; the core uses
-scalar-first ``[w, x, y, z]`` (:mod:`strapdown_ros.rotation`).
+The node modules and this room are the only places that import rclpy and message packages.
+Quaternions cross the edge here: ROS messages carry ``x, y, z, w``; the core uses scalar-first
+``[w, x, y, z]`` (:mod:`strapdown_ros.rotation`).  A node's parameters are declared by
+:mod:`strapdown_ros.nodes.ros_params`, its process run by :mod:`strapdown_ros.nodes.ros_process`.
 """
 from __future__ import annotations
 
-import gc
-import os
-import signal
-import sys
 import time
-from typing import Any, Callable, Sequence
+from typing import Any, Sequence
 
 from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import (PoseWithCovarianceStamped, Quaternion, QuaternionStamped, Vector3,
                                Vector3Stamped)
 import numpy as np
-from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
-from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.qos_overriding_options import QoSOverridingOptions
+from rclpy.serialization import deserialize_message
+from sensor_msgs.msg import Imu
 
-from strapdown_ros.nodes.launch import signal_received
-from strapdown_ros.params import ALL_PARAMETER_NAMES, combination_error, ParamSpec
 from strapdown_ros.streams import cdr
 
 
@@ -66,7 +61,6 @@ def decode_vector3_stamped(data: bytes) -> tuple[int, tuple[float, float, float]
     got = cdr.vector3_stamped(data)
     if got is not None:
         return got
-    from rclpy.serialization import deserialize_message
     try:
         m = deserialize_message(data, Vector3Stamped)
     except Exception:                                  # noqa: BLE001 - malformed bytes
@@ -87,8 +81,6 @@ def decode_imu(data: bytes):
     got = cdr.imu(data)
     if got is not None:
         return got
-    from rclpy.serialization import deserialize_message
-    from sensor_msgs.msg import Imu
     try:
         m = deserialize_message(data, Imu)
     except Exception:                                  # noqa: BLE001 - malformed bytes
@@ -111,8 +103,6 @@ def stated_rate_variance(last_imu) -> str:
     if isinstance(last_imu, (bytes, bytearray, memoryview)):
         cov = cdr.imu_rate_covariance(last_imu)
         if cov is None:
-            from rclpy.serialization import deserialize_message
-            from sensor_msgs.msg import Imu
             try:
                 cov = tuple(deserialize_message(last_imu, Imu).angular_velocity_covariance)
             except Exception:                          # noqa: BLE001 - malformed bytes
@@ -212,117 +202,6 @@ def quaternion_stamped(stamp: Time, frame_id: str, q_wxyz) -> QuaternionStamped:
     m.header.frame_id = frame_id
     m.quaternion = quaternion_msg(q_wxyz)
     return m
-
-
-# --- parameters ---------------------------------------------------------------------------
-def descriptor(spec: ParamSpec) -> ParameterDescriptor:
-    """
-    ROS descriptor of a core :class:`~strapdown_ros.params.ParamSpec` (``ros2 param describe``).
-
-    Ranges and choices are stated in ``additional_constraints`` and enforced by
-    :func:`declare_validated` (one message format that lists the valid values), not by
-    rclpy's numeric ranges, whose messages differ between start-up and runtime.
-    """
-    d = ParameterDescriptor(description=spec.description,
-                            additional_constraints='valid: ' + spec.range_text())
-    # a YAML "50" for a double parameter must not be a type error: spec.check validates it
-    # and an unquoted algorithm name "2" (an integer to the YAML parser) is accepted as well
-    # and an integer list for a double array ([0, 0, 9]) is read as doubles
-    d.dynamic_typing = spec.choices is not None or spec.length is not None or (
-        isinstance(spec.default, (int, float)) and not isinstance(spec.default, bool))
-    return d
-
-
-class InvalidParameter(ValueError):  # noqa: N818 (reads better at the call site)
-    """Raised at start-up for a parameter value that fails validation."""
-
-
-#: parameters rclpy itself may be given (not the package's)
-ROS_OWN_PARAMETERS = ('use_sim_time', 'start_type_description_service')
-
-
-def _retyped(given, used) -> bool:
-    """The start-up value ``given`` was read as the number ``used`` of another type."""
-    return isinstance(used, (int, float)) and not isinstance(used, bool) \
-        and type(given) is not type(used)
-
-
-def declare_validated(node, specs: Sequence[ParamSpec], on_change: Callable[[dict], str | None] | None = None,
-                      apply: Callable[[dict], None] | None = None):
-    """
-    Declare parameters with descriptors, validate the start-up values (raising
-    :class:`InvalidParameter` with the valid values in the message), and validate every runtime
-    set in an on-set callback: ``on_change(values)`` may veto a valid change by returning a reason
-    (e.g. a read-only value); ``apply(values)`` then makes it effective in a post-set callback,
-    once rclpy has accepted it.  Setting a parameter to its current value is no change (so
-    ``ros2 param load`` of the shipped file succeeds).  A start-up override that no node of the
-    package declares is an error (a typo must not pass silently).  Returns the dict of current
-    values, kept up to date.
-    """
-
-    by_name = {s.name: s for s in specs}
-    values = {}
-    for s in specs:
-        p = node.declare_parameter(s.name, s.default, descriptor(s))
-        v = s.normalise(p.value)
-        err = s.check(v)
-        if err:
-            raise InvalidParameter(err)
-        values[s.name] = v
-        if _retyped(p.value, v):
-            # a number given as text ("0.05", a quoted YAML value) or a double given as an
-            # integer: stored with its proper type, so `ros2 param get` shows what is used
-            node.set_parameters([Parameter(s.name, value=v)])
-    err = combination_error(values)
-    if err:
-        raise InvalidParameter(err)
-    unknown = sorted(n for n in getattr(node, '_parameter_overrides', {})
-                     if n not in ALL_PARAMETER_NAMES and n not in ROS_OWN_PARAMETERS and not n.startswith('qos_overrides.'))
-    if unknown:
-        raise InvalidParameter(f"unknown parameter(s) {', '.join(map(repr, unknown))} for {node.get_name()}; "
-                               f"known: {', '.join(sorted(by_name))}")
-
-    def _changes(params: list[Parameter]):
-        new = {}
-        for p in params:
-            spec = by_name.get(p.name)
-            if spec is None:
-                continue
-            v = spec.normalise(p.value)
-            err = spec.check(v)
-            if err:
-                return None, err
-            if isinstance(p.value, str) and _retyped(p.value, v):
-                # at run time a number given as text would stay text in `ros2 param get`
-                # (it cannot be re-set from inside the set callback): refused, as rclpy
-                # refuses text for a typed double
-                return None, (f'{p.name} must be set as a number, not as text '
-                              f'{bounded(repr(p.value), 80)}')
-            if v != values.get(p.name):
-                new[p.name] = v
-        err = combination_error({**values, **new}) if new else None
-        return (None, err) if err else (new, None)
-
-    def _on_set(params: list[Parameter]) -> SetParametersResult:
-        new, err = _changes(params)
-        if err:
-            return SetParametersResult(successful=False, reason=err)
-        if on_change is not None and new:
-            reason = on_change(new)
-            if reason:
-                return SetParametersResult(successful=False, reason=reason)
-        return SetParametersResult(successful=True)
-
-    def _post_set(params: list[Parameter]) -> None:
-        new, _ = _changes(params)
-        if new:
-            values.update(new)
-            if apply is not None:
-                apply(new)
-
-    node.add_on_set_parameters_callback(_on_set)
-    node.add_post_set_parameters_callback(_post_set)
-    return values
 
 
 # --- logging -----------------------------------------------------------------------------
@@ -502,133 +381,3 @@ class PacedSimulation:
         if target >= self.end_time:
             self.finished = True
             self._on_finished()
-
-
-# --- process entry point -------------------------------------------------------------------
-#: environment variable that selects the executor of the node processes: ``events`` (default)
-#: or ``single`` (rclpy's SingleThreadedExecutor)
-EXECUTOR_ENV = 'STRAPDOWN_EXECUTOR'
-
-
-def make_executor(kind: str | None = None):
-    """
-    The executor of a node process.  rclpy's EventsExecutor (``rclpy.experimental``, Jazzy)
-    dispatches a message in about a tenth of the CPU time of the SingleThreadedExecutor, which
-    rebuilds its wait set on every spin (load_bench, node_rate_bench); ``single`` (or
-    ``STRAPDOWN_EXECUTOR=single``) selects the latter, and it is the fallback where the former
-    does not exist.
-    """
-
-    import rclpy.executors
-    kind = (kind or os.environ.get(EXECUTOR_ENV, 'events')).strip().lower()
-    if kind not in ('events', 'single'):
-        raise ValueError(f"{EXECUTOR_ENV} must be 'events' or 'single', got {kind!r}")
-    if kind == 'events':
-        try:
-            from rclpy.experimental import EventsExecutor
-            return EventsExecutor()
-        except ImportError:                            # pragma: no cover - older rclpy
-            pass
-    return rclpy.executors.SingleThreadedExecutor()
-
-
-def run_node(node_class, name: str, args=None) -> int:
-    """
-    ``main()`` of every node: init, construct (invalid parameters → message on stderr, exit 2),
-    spin until SIGINT/SIGTERM or shutdown, clean up.  Returns the process exit status.
-
-    Signals: the process owns SIGINT and SIGTERM (rclpy's native handlers are not installed).
-    A signal only records the request; the spin loop sees it within ``SPIN_SLICE_S`` and the
-    node is shut down from the main loop, never from inside a callback (an exception raised in a
-    callback would be logged by the events executor as FATAL, and a context shut down under a
-    running callback makes its next publish fail).
-    """
-
-    import rclpy
-    from rclpy.exceptions import ParameterException
-    import rclpy.executors
-    from rclpy.signals import SignalHandlerOptions
-
-    stop: list[int] = []
-
-    def request_stop(signum, frame):
-        stop.append(signum)
-
-    try:
-        for sig in (signal.SIGINT, signal.SIGTERM):
-            signal.signal(sig, request_stop)
-        if signal_received():                          # a signal the entry point saw first
-            return 0
-        rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
-    except KeyboardInterrupt:                          # the entry point's import-time handler
-        return 0
-    except Exception as exc:                           # noqa: BLE001 - e.g. an unparsable --params-file
-        print(f'[{name}] error: {str(exc).splitlines()[0]}', file=sys.stderr)
-        return 2
-    try:
-        executor = make_executor()
-    except ValueError as exc:
-        print(f'[{name}] error: {exc}', file=sys.stderr)
-        rclpy.try_shutdown()
-        return 2
-    try:
-        node = node_class()
-    except (ValueError, ParameterException) as exc:   # invalid parameters: clear message, exit 2
-        _quiet_exit(executor, rclpy)
-        if stop:
-            return 0
-        print(f'[{name}] error: {exc}', file=sys.stderr)
-        return 2
-    except Exception:                                  # noqa: BLE001
-        if stop:
-            return _quiet_exit(executor, rclpy)
-        raise
-    try:
-        executor.add_node(node)
-        _freeze_startup_objects()
-        _spin(executor, rclpy, stop)
-    except (KeyboardInterrupt, rclpy.executors.ExternalShutdownException):
-        pass
-    finally:
-        _quiet_exit(executor, rclpy, node)
-    return 0
-
-
-def _freeze_startup_objects() -> None:
-    """
-    Move every object made at start-up (modules, numba's and numpy's tables, the node) out of
-    the garbage collector's reach (``gc.freeze``).  Without it each full collection walks them
-    all (about 10⁵ objects in a sins_node process) while the input streams queue up.  Cycles
-    made later are still collected.
-    """
-    gc.collect()
-    gc.freeze()
-
-
-#: longest time between a signal and the start of the shutdown, s
-SPIN_SLICE_S = 0.2
-
-
-def _spin(executor, rclpy, stop: list) -> None:
-    """Spin in slices of ``SPIN_SLICE_S`` until a stop is requested or the context is shut down."""
-    from rclpy.task import Future
-    never = Future()
-    while not stop and rclpy.ok():
-        executor.spin_until_future_complete(never, timeout_sec=SPIN_SLICE_S)
-
-
-def _quiet_exit(executor, rclpy, node=None) -> int:
-    """
-    Shut down the executor, the node and the context, each step on its own: rclpy's signal
-    handler may shut the context down at the same moment ("rcl_shutdown already called"), which
-    is the stop that was asked for, not an error.
-    """
-    for step in (executor.shutdown, node.destroy_node if node is not None else None, rclpy.try_shutdown):
-        if step is None:
-            continue
-        try:
-            step()
-        except Exception:                              # noqa: BLE001 - a concurrent shutdown: already stopped
-            pass
-    return 0
-

@@ -58,7 +58,7 @@ import numpy as np
 from rclpy.node import Node
 from sensor_msgs.msg import Imu
 
-from strapdown_ros.nodes import ros_io
+from strapdown_ros.nodes import ros_io, ros_params, ros_process
 from strapdown_ros.params import SINS_PARAMS
 from strapdown_ros.sins import odometry_arrays, SinsOutput, SinsSystem
 from strapdown_ros.streams.rate_increments import RateIncrementStream
@@ -70,7 +70,7 @@ class SinsNode(Node):
     def __init__(self, **kwargs):
         super().__init__(NODE_NAME, **kwargs)
         self.log = ros_io.NodeLog(self.get_logger())   # the one logging helper (any severity)
-        self.p = ros_io.declare_validated(self, SINS_PARAMS, on_change=self._on_change,
+        self.p = ros_params.declare_validated(self, SINS_PARAMS, on_change=self._on_change,
                                           apply=self._apply_change)
         p = self.p
         self.published = {'attitude': 0, 'imu': 0, 'imu_without_accel': 0}
@@ -417,7 +417,7 @@ class SinsNode(Node):
                                                       'sins', c.level, c.message(), values))
 
 def main(args=None):
-    return ros_io.run_node(SinsNode, NODE_NAME, args)
+    return ros_process.run_node(SinsNode, NODE_NAME, args)
 
 
 if __name__ == '__main__':

@@ -48,7 +48,7 @@ import numpy as np
 from rclpy.node import Node
 
 from strapdown_ros.motion.from_config import profile_from_config
-from strapdown_ros.nodes import ros_io
+from strapdown_ros.nodes import ros_io, ros_params, ros_process
 from strapdown_ros.nodes.ros_io import camera_qos, latched_qos, pose_with_covariance
 from strapdown_ros.params import STAR_CAMERA_PARAMS
 from strapdown_ros.sensors.star_camera import StarCameraModel
@@ -60,7 +60,7 @@ class StarCameraSimNode(ros_io.PacedSimulation, Node):
     def __init__(self, **kwargs):
         super().__init__(NODE_NAME, **kwargs)
         self.log = ros_io.NodeLog(self.get_logger())   # the one logging helper of the nodes
-        self.p = ros_io.declare_validated(self, STAR_CAMERA_PARAMS, on_change=self._reject_changes)
+        self.p = ros_params.declare_validated(self, STAR_CAMERA_PARAMS, on_change=self._reject_changes)
         p = self.p
         self.profile = profile_from_config(p)
         self.model = StarCameraModel.from_params(p)
@@ -132,7 +132,7 @@ class StarCameraSimNode(ros_io.PacedSimulation, Node):
 
 
 def main(args=None):
-    return ros_io.run_node(StarCameraSimNode, NODE_NAME, args)
+    return ros_process.run_node(StarCameraSimNode, NODE_NAME, args)
 
 
 if __name__ == '__main__':

@@ -49,15 +49,13 @@ from strapdown_ros.calibration.streaming import BoresightCalibrator
 from strapdown_ros.cli import check_outputs, FILE, OneLineParser, write_json
 from strapdown_ros.estimation.chi_square import FIT_LEVEL
 from strapdown_ros.params import CALIBRATOR_PARAMS, check_all, load_parameter_file, parse_overrides
-# the reader moved to strapdown_ros.recording; its names stay importable from here
-from strapdown_ros.recording import (Accepted, add_input_arguments, BagError, CAMERA_COV_TOPIC,
-                                     CAMERA_TOPIC, check_input_arguments, GYRO_TOPIC, input_lines,
-                                     input_options, input_summary, input_warnings, open_reader,
-                                     read_bag, resolve_topic)
+from strapdown_ros.recording import (add_input_arguments, BagError, check_input_arguments,
+                                     input_lines, input_options, input_summary, input_warnings,
+                                     read_bag)
 from strapdown_ros.rotation import to_ros_xyzw
 from strapdown_ros.streams.checks import segments
 
-__all__ = ['main', 'read_bag', 'calibrate', 'calibrator_parameters', 'make_calibrator', 'solution_json', 'BagError']
+__all__ = ['main', 'calibrate', 'calibrator_parameters', 'make_calibrator', 'solution_json']
 
 ARCSEC_PER_RAD = 180.0 / np.pi * 3600.0
 

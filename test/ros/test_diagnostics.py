@@ -18,7 +18,7 @@ from geometry_msgs.msg import Vector3Stamped  # noqa: E402
 from rclpy.parameter import Parameter  # noqa: E402
 
 from strapdown_ros.motion.earth_profiles import static_profile  # noqa: E402
-from strapdown_ros.nodes import ros_io  # noqa: E402
+from strapdown_ros.nodes import ros_io, ros_params  # noqa: E402
 from strapdown_ros.nodes.calibrator_node import CalibratorNode  # noqa: E402
 from strapdown_ros.nodes.sins_node import SinsNode  # noqa: E402
 from strapdown_ros.sins import accel_stall_limits  # noqa: E402
@@ -304,17 +304,17 @@ def test_runtime_parameters(ros):
         assert not res.successful
     finally:
         nav.destroy_node()
-    refused = ros_io.InvalidParameter
+    refused = ros_params.InvalidParameter
     with pytest.raises(refused, match=r'batch_period=1000000000.0 is out of range'):
         SinsNode(namespace='/t_rt_b',
                  parameter_overrides=[Parameter('batch_period', value='1.0e9')])
-    with pytest.raises(ros_io.InvalidParameter, match=r'latitude ° in \[-90, 90\]'):
+    with pytest.raises(ros_params.InvalidParameter, match=r'latitude ° in \[-90, 90\]'):
         SinsNode(namespace='/t_rt_lat',
                  parameter_overrides=[Parameter('initial_position', value=[95.0, 0.0, 0.0])])
     with pytest.raises(refused, match=r'initial_velocity\[1\]=1e\+08 is out of range; valid: '):
         SinsNode(namespace='/t_rt_v',
                  parameter_overrides=[Parameter('initial_velocity', value=[0.0, 1e8, 0.0])])
-    with pytest.raises(ros_io.InvalidParameter, match='valid: coning_algorithm one of 1, 6, 7'):
+    with pytest.raises(ros_params.InvalidParameter, match='valid: coning_algorithm one of 1, 6, 7'):
         SinsNode(namespace='/t_rt_pr', parameter_overrides=[
             Parameter('navigation', value=True), Parameter('velocity_update', value='printed')])
     ok = SinsNode(namespace='/t_rt_pr_ok', parameter_overrides=[
@@ -343,6 +343,6 @@ def test_a_number_given_as_text_is_stored_with_its_type(ros):
         assert node.get_parameter('accel_wait').value == 1.0
     finally:
         node.destroy_node()
-    with pytest.raises(ros_io.InvalidParameter, match='batch_period must be a number'):
+    with pytest.raises(ros_params.InvalidParameter, match='batch_period must be a number'):
         SinsNode(namespace='/t_text_bad',
                  parameter_overrides=[Parameter('batch_period', value='fast')])

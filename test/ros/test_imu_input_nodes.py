@@ -436,7 +436,7 @@ def test_navigation_from_imu_messages_matches_the_exact_truth(ros, profile, tol_
 
 @pytest.mark.parametrize('node_class', [SinsNode, CalibratorNode])
 def test_gyro_input_parameters_are_validated_and_fixed_at_runtime(ros, node_class):
-    from strapdown_ros.nodes.ros_io import InvalidParameter
+    from strapdown_ros.nodes.ros_params import InvalidParameter
     for name, bad, valid in (('gyro_input', 'rates', 'delta_theta, imu'),
                              ('imu_rate_rule', 'simpson', 'trapezoid, mean')):
         with pytest.raises(InvalidParameter, match=valid):

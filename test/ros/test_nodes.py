@@ -422,7 +422,7 @@ def test_parameter_rules(ros):
     (ros2 param load of the shipped file succeeds); an unknown -p name is refused with its name;
     changes are validated on set and applied after.
     """
-    from strapdown_ros.nodes.ros_io import InvalidParameter
+    from strapdown_ros.nodes.ros_params import InvalidParameter
     with pytest.raises(InvalidParameter, match='qos_depth must be an integer'):
         SinsNode(namespace='/t_p1', parameter_overrides=[Parameter('qos_depth', value=1.5)])
     with pytest.raises(InvalidParameter, match='gyro_bais'):

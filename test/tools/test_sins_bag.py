@@ -12,6 +12,8 @@ from strapdown_ros.motion.earth_profiles import navigation_profile_from_config  
 from strapdown_ros.params import load_parameter_file  # noqa: E402
 from strapdown_ros.rotation import from_ros_xyzw  # noqa: E402
 from strapdown_ros.rotation import quat_angle_between, quat_to_dcm, to_ros_xyzw
+from strapdown_ros.recording.imu_streams import rate_from_stamps  # noqa: E402
+from strapdown_ros.recording.sins_replay import CSV_ATTITUDE_COLUMNS, CSV_NAV_COLUMNS  # noqa: E402
 from strapdown_ros.tools import sins_bag  # noqa: E402
 from strapdown_ros.tools import record_sim
 
@@ -79,7 +81,7 @@ def test_csv_matches_the_exact_truth_static(bags, tmp_path, capsys):
     assert rc == 0, err
     assert 'gyro_rate 100 Hz, accel_rate 300 Hz' in stdout and '500 steps' in stdout
     header, d, ns = _csv(out)
-    assert header == sins_bag.CSV_NAV_COLUMNS
+    assert header == CSV_NAV_COLUMNS
     assert len(d) == int(DURATION * 100) and np.all(np.diff(ns) == 10_000_000) and ns[-1] == 5_000_000_000
     t = ns * 1e-9                                              # record_sim: start_time 0 = profile time 0
     dp = np.max(np.linalg.norm(d[:, 1:4] - prof.position(t), axis=1))
@@ -122,11 +124,11 @@ def test_attitude_only_csv_and_rates_from_the_stamps(tmp_path, capsys):
     assert rc == 0, err
     assert 'gyro_rate 200 Hz' in stdout
     header, d, ns = _csv(out)
-    assert header == sins_bag.CSV_ATTITUDE_COLUMNS
+    assert header == CSV_ATTITUDE_COLUMNS
     assert len(d) == int(DURATION * 200) // 2 and np.all(np.diff(ns) == 10_000_000)   # algorithm 2: 2 samples
     assert np.all(d[:, 5:] > 0) and np.all(d[-1, 5:] > 10 * d[0, 5:])                    # σ of ε, body axes
-    assert sins_bag.rate_from_stamps(np.round(np.arange(1, 100) * 1e9 / 300).astype(np.int64)) == 300.0
-    assert sins_bag.rate_from_stamps([5, 5]) is None
+    assert rate_from_stamps(np.round(np.arange(1, 100) * 1e9 / 300).astype(np.int64)) == 300.0
+    assert rate_from_stamps([5, 5]) is None
 
 
 def test_the_recordings_own_body_frame_unless_one_is_named(tmp_path, capsys):
@@ -502,7 +504,7 @@ def test_a_damaged_mcap_chunk_is_one_line_exit_2(tmp_path, capsys):
     one line on stderr, exit 2, no output file.
     """
     from strapdown_ros.recording import mcap_records
-    from strapdown_ros.tools.calibrate_bag import open_reader
+    from strapdown_ros.recording import open_reader
     bag = _record(tmp_path / 'dmg', 'coning')
     rd = open_reader(bag)
     try:

@@ -39,8 +39,9 @@ from typing import Callable
 
 import numpy as np
 
-from strapdown_ros.nodes.ros_io import (camera_qos, DIAGNOSTICS_QOS, latched_qos, make_executor,
-                                        stamp_to_ns, stream_qos)
+from strapdown_ros.nodes.ros_io import (camera_qos, DIAGNOSTICS_QOS, latched_qos, stamp_to_ns,
+                                        stream_qos)
+from strapdown_ros.nodes.ros_process import make_executor
 
 NODES = ('sins_node', 'calibrator_node', 'imu_sim_node', 'star_camera_sim_node')
 

@@ -3,7 +3,7 @@ The ROS side of ``node_rate_bench``: a bare counting subscriber and a paced Δθ
 
 ``counting_node`` is the reference: it subscribes to ``imu/delta_theta`` with exactly the QoS of
 ``sins_node`` and ``calibrator_node`` (:func:`ros_io.stream_qos` of ``qos_depth``, the same QoS
-override options), runs under the same ``ros_io.run_node`` (same executor, same spin loop), and
+override options), runs under the same ``ros_process.run_node`` (same executor, same spin loop), and
 does nothing in its callback but count.  It takes deserialized messages, as a plain rclpy
 subscriber does; with ``raw:=true`` (subject ``counting_node_raw``) it takes the serialized bytes,
 as sins_node and calibrator_node do — the fastest an rclpy subscriber can be.  It reports ``gyro_received`` on ``/diagnostics``, as
@@ -27,7 +27,7 @@ from geometry_msgs.msg import Vector3Stamped
 import numpy as np
 from rclpy.node import Node
 
-from strapdown_ros.nodes import ros_io
+from strapdown_ros.nodes import ros_io, ros_process
 from strapdown_ros.nodes.attitude_filter_node import AttitudeFilterNode
 from strapdown_ros.nodes.calibrator_node import CalibratorNode
 from strapdown_ros.nodes.sins_node import SinsNode
@@ -64,7 +64,7 @@ class CountingNode(Node):
 
 
 def main(args=None):
-    return ros_io.run_node(CountingNode, NODE_NAME, args)
+    return ros_process.run_node(CountingNode, NODE_NAME, args)
 
 
 class Subject:
@@ -188,7 +188,7 @@ class Harness:
 # --- the harness's measurements (called by bench/ros/node_rate_bench.py) ---------------------------------------------------------------------
 def rate_repeat(lo_hz: float, hi_hz: float, steps: int, seconds: float, algorithm: str, say) -> dict:
     """One repeat: a fresh process per subject, interleaved bisections; the highest passing rates."""
-    h = Harness(ros_io.make_executor)
+    h = Harness(ros_process.make_executor)
     params = {'counting_node': {}, 'counting_node_raw': {'raw': 'true'}, 'sins_node': {'coning_algorithm': algorithm},
               'calibrator_node': {}}
     try:
