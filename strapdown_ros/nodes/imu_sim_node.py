@@ -61,32 +61,43 @@ class ImuSimNode(ros_io.PacedSimulation, Node):
         self.frame_id = p['frame_id']
         self.ref_frame = p['reference_frame_id']
         qos = ros_io.stream_qos(int(p['qos_depth']))
-        self.pub_dtheta = self.create_publisher(Vector3Stamped, 'imu/delta_theta', qos, qos_overriding_options=ros_io.QOS_OVERRIDES)
-        self.pub_dv = self.create_publisher(Vector3Stamped, 'imu/delta_velocity', qos, qos_overriding_options=ros_io.QOS_OVERRIDES)
-        self.pub_raw = self.create_publisher(Imu, 'imu/data_raw', qos, qos_overriding_options=ros_io.QOS_OVERRIDES)
-        self.pub_truth = self.create_publisher(QuaternionStamped, 'imu/truth/attitude', qos, qos_overriding_options=ros_io.QOS_OVERRIDES)
+        self.pub_dtheta = self.create_publisher(Vector3Stamped, 'imu/delta_theta', qos,
+                                                qos_overriding_options=ros_io.QOS_OVERRIDES)
+        self.pub_dv = self.create_publisher(Vector3Stamped, 'imu/delta_velocity', qos,
+                                            qos_overriding_options=ros_io.QOS_OVERRIDES)
+        self.pub_raw = self.create_publisher(Imu, 'imu/data_raw', qos,
+                                             qos_overriding_options=ros_io.QOS_OVERRIDES)
+        self.pub_truth = self.create_publisher(QuaternionStamped, 'imu/truth/attitude', qos,
+                                               qos_overriding_options=ros_io.QOS_OVERRIDES)
         # ECEF truth exists only for the Earth-referenced navigation profiles
-        self.pub_odom = (self.create_publisher(Odometry, 'imu/truth/odometry', qos, qos_overriding_options=ros_io.QOS_OVERRIDES)
+        self.pub_odom = (self.create_publisher(Odometry, 'imu/truth/odometry', qos,
+                                               qos_overriding_options=ros_io.QOS_OVERRIDES)
                          if isinstance(self.profile, EarthProfile) else None)
         self._odom_out = Odometry()
         self._odom_out.header.frame_id = 'earth'
         self._odom_out.child_frame_id = self.frame_id
-        self.pub_diag = self.create_publisher(DiagnosticArray, '/diagnostics', ros_io.DIAGNOSTICS_QOS)
+        self.pub_diag = self.create_publisher(DiagnosticArray, '/diagnostics',
+                                              ros_io.DIAGNOSTICS_QOS)
         self.counts = {'delta_theta': 0, 'delta_velocity': 0, 'data_raw': 0}
-        self._dtheta_out = ros_io.vector3_stamped(ros_io.ns_to_stamp(0), self.frame_id, (0.0, 0.0, 0.0))
-        self._dv_out = ros_io.vector3_stamped(ros_io.ns_to_stamp(0), self.frame_id, (0.0, 0.0, 0.0))
+        self._dtheta_out = ros_io.vector3_stamped(ros_io.ns_to_stamp(0), self.frame_id,
+                                                  (0.0, 0.0, 0.0))
+        self._dv_out = ros_io.vector3_stamped(ros_io.ns_to_stamp(0), self.frame_id,
+                                              (0.0, 0.0, 0.0))
         self._pending_dv = np.zeros(3)
         self._wall_start = None
         self.sim_time = 0.0
         self.finished = False
         self.timer = self.create_timer(float(p['publish_period']), self._tick)
-        self.diag_timer = self.create_timer(float(p['diagnostics_period']), self._publish_diagnostics)
+        self.diag_timer = self.create_timer(float(p['diagnostics_period']),
+                                            self._publish_diagnostics)
         self.log.info(
-            f"started: profile={p['profile']} gyro {p['gyro_rate']} Hz, accel {p['accel_rate']} Hz, "
+            f"started: profile={p['profile']} gyro {p['gyro_rate']} Hz, "
+            f"accel {p['accel_rate']} Hz, "
             f"time_scale {p['time_scale']}, duration {self.end_time:g} s")
 
     def _reject_changes(self, new: dict) -> str | None:
-        return ('imu_sim_node parameters are fixed after start-up (they define the simulated truth); '
+        return ('imu_sim_node parameters are fixed after start-up (they define the simulated '
+                'truth); '
                 'restart the node to change ' + ', '.join(sorted(new)))
 
     # ---------------------------------------------------------------------------------
@@ -143,14 +154,16 @@ class ImuSimNode(ros_io.PacedSimulation, Node):
         elif len(ta):
             self._pending_dv += dv.sum(0)
         self.counts['delta_theta'] += len(tg)
-        self.sim_time = max(self.gyro.count * self.gyro.period, self.accel.count * self.accel.period)
+        self.sim_time = max(self.gyro.count * self.gyro.period,
+                            self.accel.count * self.accel.period)
 
     def _odometry(self, stamp, truth: dict, k: int) -> Odometry:
         """Entry k of EarthProfile.truth as Odometry (refilled message; covariances stay zero)."""
         m = self._odom_out
         m.header.stamp = stamp
         r = truth['position'][k]
-        m.pose.pose.position.x, m.pose.pose.position.y, m.pose.pose.position.z = float(r[0]), float(r[1]), float(r[2])
+        pos = m.pose.pose.position
+        pos.x, pos.y, pos.z = float(r[0]), float(r[1]), float(r[2])
         x, y, z, w = to_ros_xyzw(truth['attitude_ecef'][k])
         o = m.pose.pose.orientation
         o.x, o.y, o.z, o.w = float(x), float(y), float(z), float(w)
@@ -174,15 +187,20 @@ class ImuSimNode(ros_io.PacedSimulation, Node):
     def _publish_diagnostics(self):
         wall = (time.monotonic() - self._wall_start) if self._wall_start else 0.0
         st = ros_io.ns_to_stamp(self.start_ns + int(round(self.sim_time * 1e9)))
-        values = {'simulated_time_s': self.sim_time, 'real_time_factor': self.sim_time / wall if wall > 0 else 0.0,
+        values = {'simulated_time_s': self.sim_time,
+                  'real_time_factor': self.sim_time / wall if wall > 0 else 0.0,
                   'gyro_rate_hz': self.p['gyro_rate'], 'accel_rate_hz': self.p['accel_rate'],
                   'delta_theta_published': self.counts['delta_theta'],
                   'delta_velocity_published': self.counts['delta_velocity'],
                   'data_raw_published': self.counts['data_raw'], 'finished': self.finished,
                   'profile': self.p['profile']}
-        msg = 'finished' if self.finished else ('waiting for subscribers' if self._wall_start is None else 'running')
-        self.pub_diag.publish(ros_io.diagnostic_array(st, f'{self.get_fully_qualified_name()}: simulator', 'imu_sim',
-                                                      ros_io.OK, msg, values))
+        if self.finished:
+            msg = 'finished'
+        else:
+            msg = 'waiting for subscribers' if self._wall_start is None else 'running'
+        name = f'{self.get_fully_qualified_name()}: simulator'
+        self.pub_diag.publish(ros_io.diagnostic_array(st, name, 'imu_sim', ros_io.OK, msg,
+                                                      values))
 
 
 def main(args=None):

@@ -32,7 +32,8 @@ def stream_qos(depth: int = 500) -> QoSProfile:
     The history is deeper than rclpy's ``qos_profile_sensor_data`` (5) so that bursts
     from a faster-than-real-time simulator are queued rather than overwritten.
     """
-    return QoSProfile(reliability=ReliabilityPolicy.BEST_EFFORT, durability=DurabilityPolicy.VOLATILE,
+    return QoSProfile(reliability=ReliabilityPolicy.BEST_EFFORT,
+                      durability=DurabilityPolicy.VOLATILE,
                       history=HistoryPolicy.KEEP_LAST, depth=depth)
 
 
@@ -42,7 +43,8 @@ def stream_qos(depth: int = 500) -> QoSProfile:
 #: fixed QoS.
 QOS_OVERRIDES = QoSOverridingOptions.with_default_policies()
 
-DIAGNOSTICS_QOS = QoSProfile(reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.VOLATILE,
+DIAGNOSTICS_QOS = QoSProfile(reliability=ReliabilityPolicy.RELIABLE,
+                             durability=DurabilityPolicy.VOLATILE,
                              history=HistoryPolicy.KEEP_LAST, depth=10)
 
 
@@ -55,8 +57,8 @@ def decode_vector3_stamped(data: bytes) -> tuple[int, tuple[float, float, float]
     four Python message objects per message (about 18 µs), and the node reads the few fields it
     needs from the bytes (:mod:`strapdown_ros.streams.cdr`, shared with ``sins_bag``).  Any other
     encoding than plain little-endian CDR is handed to rclpy's own deserializer, so nothing is
-    misread (test/streams/test_checks_fuzz.py checks both against rclpy's serializer).  None when the bytes
-    are not a Vector3Stamped at all (the caller counts and drops them).
+    misread (test/streams/test_checks_fuzz.py checks both against rclpy's serializer).  None when
+    the bytes are not a Vector3Stamped at all (the caller counts and drops them).
     """
     got = cdr.vector3_stamped(data)
     if got is not None:
@@ -128,11 +130,13 @@ def camera_qos(depth: int) -> QoSProfile:
 
 def latched_qos() -> QoSProfile:
     """Reliable, transient-local, depth 1: the latest value reaches late subscribers."""
-    return QoSProfile(reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL,
+    return QoSProfile(reliability=ReliabilityPolicy.RELIABLE,
+                      durability=DurabilityPolicy.TRANSIENT_LOCAL,
                       history=HistoryPolicy.KEEP_LAST, depth=1)
 
 
-def pose_with_covariance(stamp, frame_id: str, q_wxyz, rotation_covariance) -> PoseWithCovarianceStamped:
+def pose_with_covariance(stamp, frame_id: str, q_wxyz,
+                         rotation_covariance) -> PoseWithCovarianceStamped:
     """
     Attitude-only PoseWithCovarianceStamped: position 0 with :data:`UNKNOWN_POSITION_VARIANCE`
     on its diagonal, rotation block (rows/cols 3..5) = ``rotation_covariance`` (3×3, rad²).
@@ -180,7 +184,8 @@ def vector3(v: Sequence[float]) -> Vector3:
 
 def quaternion_msg(q_wxyz: Sequence[float]) -> Quaternion:
     """Core scalar-first quaternion → ROS message (x, y, z, w)."""
-    return Quaternion(w=float(q_wxyz[0]), x=float(q_wxyz[1]), y=float(q_wxyz[2]), z=float(q_wxyz[3]))
+    return Quaternion(w=float(q_wxyz[0]), x=float(q_wxyz[1]), y=float(q_wxyz[2]),
+                      z=float(q_wxyz[3]))
 
 
 def quaternion_from_msg(q: Quaternion) -> np.ndarray:

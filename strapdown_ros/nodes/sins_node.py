@@ -71,7 +71,7 @@ class SinsNode(Node):
         super().__init__(NODE_NAME, **kwargs)
         self.log = ros_io.NodeLog(self.get_logger())   # the one logging helper (any severity)
         self.p = ros_params.declare_validated(self, SINS_PARAMS, on_change=self._on_change,
-                                          apply=self._apply_change)
+                                              apply=self._apply_change)
         p = self.p
         self.published = {'attitude': 0, 'imu': 0, 'imu_without_accel': 0}
         self.undecodable = 0                       # serialized input that is not a Vector3Stamped
@@ -81,18 +81,22 @@ class SinsNode(Node):
         self.imu_input = p['gyro_input'] == 'imu'
         # with Imu input, Δv comes from the same messages: at the Imu rate, which is gyro_rate
         sys_p = dict(p, accel_rate=p['gyro_rate']) if self.imu_input else p
-        # the numerical core; sins/imu records are made only while it has a subscriber (asked once per block)
+        # the numerical core; sins/imu records are made only while it has a subscriber
+        # (asked once per block)
         self.system = SinsSystem(sys_p, log=self.log,
                                  imu_wanted=lambda: self.pub_imu.get_subscription_count() > 0)
         self._make_output_messages()
         qos = ros_io.stream_qos(int(p['qos_depth']))
-        self.pub_att = self.create_publisher(QuaternionStamped, 'sins/attitude', qos, qos_overriding_options=ros_io.QOS_OVERRIDES)
-        self.pub_imu = self.create_publisher(Imu, 'sins/imu', qos, qos_overriding_options=ros_io.QOS_OVERRIDES)
+        self.pub_att = self.create_publisher(QuaternionStamped, 'sins/attitude', qos,
+                                             qos_overriding_options=ros_io.QOS_OVERRIDES)
+        self.pub_imu = self.create_publisher(Imu, 'sins/imu', qos,
+                                             qos_overriding_options=ros_io.QOS_OVERRIDES)
         if self.nav is not None:
             self.published['odometry'] = 0
             self.pub_odom = self.create_publisher(Odometry, 'sins/odometry', qos,
                                                   qos_overriding_options=ros_io.QOS_OVERRIDES)
-        self.pub_diag = self.create_publisher(DiagnosticArray, '/diagnostics', ros_io.DIAGNOSTICS_QOS)
+        self.pub_diag = self.create_publisher(DiagnosticArray, '/diagnostics',
+                                              ros_io.DIAGNOSTICS_QOS)
         # raw: the callbacks read stamp, vector and frame from the serialized bytes (ros_io)
         if self.imu_input:
             period = 1.0 / float(p['gyro_rate'])
@@ -117,7 +121,8 @@ class SinsNode(Node):
             f"started: gyro_input={p['gyro_input']}"
             + (f" ({p['imu_rate_rule']}; Δv at gyro_rate)" if self.imu_input else '')
             + f", coning_algorithm={p['coning_algorithm']} "
-            f"({self.integrator.algorithm.samples} samples/update), covariance_model={p['covariance_model']}, "
+            f'({self.integrator.algorithm.samples} samples/update), '
+            f"covariance_model={p['covariance_model']}, "
             f"compensating: {', '.join(self.system.compensating) or 'none'}")
         if self.system.initial_normalised:
             self.log.warn('initial_orientation was not a unit quaternion; normalised')
@@ -146,7 +151,6 @@ class SinsNode(Node):
     @property
     def frame_mismatch(self) -> dict:
         return self.system.frame_mismatch
-
 
     # --- parameters ---------------------------------------------------------------------
     def _on_change(self, new: dict) -> str | None:
@@ -214,7 +218,8 @@ class SinsNode(Node):
         """The same for a message object (tests, tools)."""
         st = msg.header.stamp
         v = msg.vector
-        if self.system.offer_accel(st.sec * 1_000_000_000 + st.nanosec, (v.x, v.y, v.z), msg.header.frame_id):
+        if self.system.offer_accel(st.sec * 1_000_000_000 + st.nanosec, (v.x, v.y, v.z),
+                                   msg.header.frame_id):
             self.process()
 
     def _on_imu_raw(self, data: bytes):
@@ -278,9 +283,10 @@ class SinsNode(Node):
                 self.pub_att.publish(att)
             self.published['attitude'] += len(att_out)
         for k in range(len(imu_out)):
+            f_mean = imu_out.specific_force[k] if imu_out.has_accel[k] else None
             self.pub_imu.publish(self._imu_msg(imu_out.stamp_ns[k], imu_out.attitude[k],
                                                imu_out.covariance[k], imu_out.mean_rate[k],
-                                               imu_out.specific_force[k] if imu_out.has_accel[k] else None))
+                                               f_mean))
         if len(nav_out) and self.pub_odom.get_subscription_count() > 0:
             self._publish_odometry(nav_out)
 
@@ -291,7 +297,8 @@ class SinsNode(Node):
             ros_io.set_stamp(m.header.stamp, nb.stamp_ns[k])
             pose = m.pose.pose
             r, q = nb.position[k], nb.attitude[k]
-            pose.position.x, pose.position.y, pose.position.z = float(r[0]), float(r[1]), float(r[2])
+            pos = pose.position
+            pos.x, pos.y, pos.z = float(r[0]), float(r[1]), float(r[2])
             o = pose.orientation
             o.w, o.x, o.y, o.z = float(q[0]), float(q[1]), float(q[2]), float(q[3])
             m.pose.covariance = pose_cov[k]
@@ -317,7 +324,8 @@ class SinsNode(Node):
         a = m.linear_acceleration
         if f_mean is None:
             a.x = a.y = a.z = 0.0
-            m.linear_acceleration_covariance = self._no_accel_cov    # [0] = −1: no accelerometer data
+            # [0] = −1: no accelerometer data
+            m.linear_acceleration_covariance = self._no_accel_cov
             self.published['imu_without_accel'] += 1
         else:
             a.x, a.y, a.z = float(f_mean[0]), float(f_mean[1]), float(f_mean[2])
@@ -398,7 +406,8 @@ class SinsNode(Node):
         c = self.diagnostic_conditions()
         values = self.system.status()
         values.update({'undecodable_dropped': self.undecodable,
-                       'attitude_published': self.published['attitude'], 'imu_published': self.published['imu'],
+                       'attitude_published': self.published['attitude'],
+                       'imu_published': self.published['imu'],
                        'imu_published_without_accel': self.published['imu_without_accel'],
                        'algorithm_changes': self.algorithm_changes})
         if self.imu_input:
@@ -413,8 +422,10 @@ class SinsNode(Node):
         if self.nav is not None:
             values['odometry_published'] = self.published['odometry']
         stamp_ns = g.last_ns if g.last_ns is not None else 0
-        self.pub_diag.publish(ros_io.diagnostic_array(ros_io.ns_to_stamp(stamp_ns), f'{self.get_fully_qualified_name()}: attitude',
+        name = f'{self.get_fully_qualified_name()}: attitude'
+        self.pub_diag.publish(ros_io.diagnostic_array(ros_io.ns_to_stamp(stamp_ns), name,
                                                       'sins', c.level, c.message(), values))
+
 
 def main(args=None):
     return ros_process.run_node(SinsNode, NODE_NAME, args)

@@ -55,12 +55,13 @@ from strapdown_ros.sensors.star_camera import StarCameraModel
 
 NODE_NAME = 'star_camera_sim_node'
 
-#: variance (m²) on the position diagonal of attitude-only poses: "not measured"
+
 class StarCameraSimNode(ros_io.PacedSimulation, Node):
     def __init__(self, **kwargs):
         super().__init__(NODE_NAME, **kwargs)
         self.log = ros_io.NodeLog(self.get_logger())   # the one logging helper of the nodes
-        self.p = ros_params.declare_validated(self, STAR_CAMERA_PARAMS, on_change=self._reject_changes)
+        self.p = ros_params.declare_validated(self, STAR_CAMERA_PARAMS,
+                                              on_change=self._reject_changes)
         p = self.p
         self.profile = profile_from_config(p)
         self.model = StarCameraModel.from_params(p)
@@ -71,11 +72,17 @@ class StarCameraSimNode(ros_io.PacedSimulation, Node):
         self.ref_frame = p['reference_frame_id']
         self.camera_frame = p['camera_frame_id']
         qos = camera_qos(int(p['qos_depth']))
-        self.pub_att = self.create_publisher(QuaternionStamped, 'star_camera/attitude', qos, qos_overriding_options=ros_io.QOS_OVERRIDES)
-        self.pub_cov = self.create_publisher(PoseWithCovarianceStamped, 'star_camera/attitude_with_covariance', qos, qos_overriding_options=ros_io.QOS_OVERRIDES)
-        self.pub_truth = self.create_publisher(QuaternionStamped, 'star_camera/truth/boresight', latched_qos())
-        self.pub_diag = self.create_publisher(DiagnosticArray, '/diagnostics', ros_io.DIAGNOSTICS_QOS)
-        self.pub_truth.publish(ros_io.quaternion_stamped(ros_io.ns_to_stamp(self.start_ns), self.camera_frame,
+        self.pub_att = self.create_publisher(QuaternionStamped, 'star_camera/attitude', qos,
+                                             qos_overriding_options=ros_io.QOS_OVERRIDES)
+        self.pub_cov = self.create_publisher(PoseWithCovarianceStamped,
+                                             'star_camera/attitude_with_covariance', qos,
+                                             qos_overriding_options=ros_io.QOS_OVERRIDES)
+        self.pub_truth = self.create_publisher(QuaternionStamped, 'star_camera/truth/boresight',
+                                               latched_qos())
+        self.pub_diag = self.create_publisher(DiagnosticArray, '/diagnostics',
+                                              ros_io.DIAGNOSTICS_QOS)
+        self.pub_truth.publish(ros_io.quaternion_stamped(ros_io.ns_to_stamp(self.start_ns),
+                                                         self.camera_frame,
                                                          self.model.q_mf_vf))
         self.published = 0
         self.last_stamp: float | None = None
@@ -83,15 +90,18 @@ class StarCameraSimNode(ros_io.PacedSimulation, Node):
         self.sim_time = 0.0
         self.finished = False
         self.timer = self.create_timer(float(p['publish_period']), self._tick)
-        self.diag_timer = self.create_timer(float(p['diagnostics_period']), self.publish_diagnostics)
+        self.diag_timer = self.create_timer(float(p['diagnostics_period']),
+                                            self.publish_diagnostics)
         self.log.info(
             f"started: profile={p['profile']}, exposure every {p['camera_interval']:g} s from "
             f'{self.model.epoch(0):g} s, σ = ({sxy:.3g}, {sxy:.3g}, {sz:.3g}) rad, boresight β = '
-            f"{np.round(np.degrees(self.model.boresight), 6).tolist()}°, time_scale {p['time_scale']}, "
+            f'{np.round(np.degrees(self.model.boresight), 6).tolist()}°, '
+            f"time_scale {p['time_scale']}, "
             f'duration {self.end_time:g} s')
 
     def _reject_changes(self, new: dict) -> str | None:
-        return ('star_camera_sim_node parameters are fixed after start-up (they define the simulated truth); '
+        return ('star_camera_sim_node parameters are fixed after start-up (they define the '
+                'simulated truth); '
                 'restart the node to change ' + ', '.join(sorted(new)))
 
     # ---------------------------------------------------------------------------------
@@ -113,7 +123,8 @@ class StarCameraSimNode(ros_io.PacedSimulation, Node):
         for fix in self.model.fixes(self.profile, n):
             st = ros_io.ns_to_stamp(self.start_ns + int(round(fix.stamp * 1e9)))
             self.pub_att.publish(ros_io.quaternion_stamped(st, self.ref_frame, fix.attitude))
-            self.pub_cov.publish(pose_with_covariance(st, self.ref_frame, fix.attitude, fix.covariance))
+            self.pub_cov.publish(pose_with_covariance(st, self.ref_frame, fix.attitude,
+                                                      fix.covariance))
             self.published += 1
             self.last_stamp = fix.stamp
 
@@ -122,13 +133,18 @@ class StarCameraSimNode(ros_io.PacedSimulation, Node):
         st = ros_io.ns_to_stamp(self.start_ns + int(round(self.sim_time * 1e9)))
         values = {'simulated_time_s': self.sim_time,
                   'real_time_factor': self.sim_time / wall if wall > 0 else 0.0,
-                  'fixes_published': self.published, 'camera_interval_s': self.p['camera_interval'],
+                  'fixes_published': self.published,
+                  'camera_interval_s': self.p['camera_interval'],
                   'next_exposure_s': self.model.epoch(self.model.count),
                   'last_exposure_s': self.last_stamp if self.last_stamp is not None else 'none',
                   'finished': self.finished, 'profile': self.p['profile']}
-        msg = 'finished' if self.finished else ('waiting for subscribers' if self._wall_start is None else 'running')
-        self.pub_diag.publish(ros_io.diagnostic_array(st, f'{self.get_fully_qualified_name()}: star camera',
-                                                      'star_camera_sim', ros_io.OK, msg, values))
+        if self.finished:
+            msg = 'finished'
+        else:
+            msg = 'waiting for subscribers' if self._wall_start is None else 'running'
+        name = f'{self.get_fully_qualified_name()}: star camera'
+        self.pub_diag.publish(ros_io.diagnostic_array(st, name, 'star_camera_sim', ros_io.OK,
+                                                      msg, values))
 
 
 def main(args=None):

@@ -57,7 +57,7 @@ def fix_rows(fixes) -> str:
         nis = f.nis if f.nis is not None else float('nan')
         text = f.check_text.replace('"', "'")
         lines.append(f'{f.stamp_ns * 1e-9:.17g},{f.status},{z[0]:.17g},{z[1]:.17g},'
-                     f"{z[2]:.17g},{nis:.17g},{f.lateness:.17g},{int(f.check_ok)},\"{text}\"")
+                     f'{z[2]:.17g},{nis:.17g},{f.lateness:.17g},{int(f.check_ok)},"{text}"')
     return '\n'.join(lines) + '\n'
 
 

@@ -5,7 +5,8 @@ realdata_report: the discrepancy workflow and calibrate_bag over every trial of 
                     [--out doc/realdata] [--limit N] [--force] [--decimation-check]
 
 DIR: a RepoIMU copy (``TStick/`` and ``Pendulum/``; default ``$STRAPDOWN_REALDATA``, else
-``shared/RepoIMU``).  Each trial is written as a bag (:func:`strapdown_ros.recording.repoimu.write_bag`:
+``shared/RepoIMU``).  Each trial is written as a bag
+(:func:`strapdown_ros.recording.repoimu.write_bag`:
 sensor_msgs/Imu + PoseStamped when the installed tools read them, else Δθ increments +
 QuaternionStamped; the Vicon attitude decimated to one fix per second) and analysed three ways:
 
@@ -19,8 +20,9 @@ Beside them, figures computed from the data alone: the mean gyro rate over the r
 (rest found from the Vicon attitude) and the lag from a cross-correlation of |ω_gyro| with the
 rate of the Vicon attitude.  ``--decimation-check``: the restricted workflow again with fixes
 every 2 s, each estimate compared with the 1 s one in units of the combined σ.  Output:
-``realdata.json`` and ``realdata.md`` in ``--out``; progress on stderr.  Not part of the test suite.  Exit 2 with one line on stderr for unusable
-arguments (no data set, output exists without ``--force``).
+``realdata.json`` and ``realdata.md`` in ``--out``; progress on stderr.  Not part of the test
+suite.  Exit 2 with one line on stderr for unusable arguments (no data set, output exists
+without ``--force``).
 """
 from __future__ import annotations
 
@@ -138,9 +140,9 @@ def analyse_trial(csv: Path, model_file: Path, work: Path,
     if r.returncode == 0:
         j = json.loads(js.read_text())
         out['discrepancy'] = {k: j.get(k) for k in ('verdict', 'rms_before', 'rms_after',
-                                                      'heldout_rms_before', 'heldout_rms_after',
-                                                      'steps', 'not_separable', 'pairs',
-                                                      'boresight_rad', 'boresight_sigma_rad')}
+                                                    'heldout_rms_before', 'heldout_rms_after',
+                                                    'steps', 'not_separable', 'pairs',
+                                                    'boresight_rad', 'boresight_sigma_rad')}
         for k in ('fit_consistent', 'chi2_per_dof', 'observable'):     # when the version has them
             if k in j:
                 out['discrepancy'][k] = j[k]
@@ -346,8 +348,8 @@ def markdown(trials: list, meta: dict) -> str:
         'samples by the trapezoid rule), the Vicon attitude as one fix per second.  Run time '
         f"{meta['seconds']:.0f} s"
         + ('.' if meta.get('complete', True) else
-           f"; INCOMPLETE: {meta['trials_done']} of {meta['trials_listed']} trials so far.")
-        , '',
+           f"; INCOMPLETE: {meta['trials_done']} of {meta['trials_listed']} trials so far."),
+        '',
         'Columns: **plateau** = most samples of one gyro axis within 0.1 % of its largest '
         '|rate| in the trial (a clipping gyro sits there for many samples); **lag** = '
         '`camera_time_offset` (ms) and **bias** (°/s, x, y, z) from the '
@@ -375,10 +377,9 @@ def markdown(trials: list, meta: dict) -> str:
     for t in trials:
         for pr in t.get('discrepancy', {}).get('not_separable') or []:
             pairs[' and '.join(pr)] = pairs.get(' and '.join(pr), 0) + 1
+    ranked = sorted(pairs.items(), key=lambda x: -x[1])
     lines.append('Called not separable by the full search: '
-                 + (', '.join(f'{k} in {v}' for k, v in sorted(pairs.items(),
-                                                              key=lambda x: -x[1]))
-                    or 'no pair') + '.')
+                 + (', '.join(f'{k} in {v}' for k, v in ranked) or 'no pair') + '.')
     diffs, zs, clipped = [], [], []
     for t in trials:
         lag = t.get('two_effects', {}).get('values', {}).get('camera_time_offset')
