@@ -27,10 +27,21 @@ from strapdown_ros.streams import cdr
 # --- QoS ---------------------------------------------------------------------------
 def stream_qos(depth: int = 500) -> QoSProfile:
     """
-    Sensor-data QoS (best effort, volatile) for high-rate streams.
+    Return the sensor-data QoS (best effort, volatile) of the high-rate streams.
 
     The history is deeper than rclpy's ``qos_profile_sensor_data`` (5) so that bursts
     from a faster-than-real-time simulator are queued rather than overwritten.
+
+    Parameters
+    ----------
+    depth : int
+        History depth, messages (keep-last).
+
+    Returns
+    -------
+    QoSProfile
+        Best effort, volatile, keep-last ``depth``.
+
     """
     return QoSProfile(reliability=ReliabilityPolicy.BEST_EFFORT,
                       durability=DurabilityPolicy.VOLATILE,
@@ -51,7 +62,7 @@ DIAGNOSTICS_QOS = QoSProfile(reliability=ReliabilityPolicy.RELIABLE,
 # --- raw (serialized) stream messages --------------------------------------------------
 def decode_vector3_stamped(data: bytes) -> tuple[int, tuple[float, float, float], str] | None:
     """
-    ``(stamp_ns, (x, y, z), frame_id)`` of a serialized geometry_msgs/Vector3Stamped.
+    Decode a serialized geometry_msgs/Vector3Stamped.
 
     The high-rate increment streams are subscribed raw (``raw=True``): rclpy then skips building
     four Python message objects per message (about 18 µs), and the node reads the few fields it
@@ -59,6 +70,17 @@ def decode_vector3_stamped(data: bytes) -> tuple[int, tuple[float, float, float]
     encoding than plain little-endian CDR is handed to rclpy's own deserializer, so nothing is
     misread (test/streams/test_checks_fuzz.py checks both against rclpy's serializer).  None when
     the bytes are not a Vector3Stamped at all (the caller counts and drops them).
+
+    Parameters
+    ----------
+    data : bytes
+        The serialized message (a raw subscription's callback argument).
+
+    Returns
+    -------
+    (int, (float, float, float), str) or None
+        Header stamp (ns), the vector, header.frame_id; None when undecodable.
+
     """
     got = cdr.vector3_stamped(data)
     if got is not None:
@@ -73,12 +95,24 @@ def decode_vector3_stamped(data: bytes) -> tuple[int, tuple[float, float, float]
 
 def decode_imu(data: bytes):
     """
-    ``(stamp_ns, angular_velocity, linear_acceleration | None, frame_id)`` of a serialized
-    sensor_msgs/Imu (the ``imu/data_raw`` input of ``gyro_input: imu``), read from the bytes as
-    :func:`decode_vector3_stamped` reads a Vector3Stamped (rclpy's deserialization of an Imu costs
-    tens of µs); other encodings through rclpy's deserializer.  linear_acceleration is None when
-    the message has none (REP-145: linear_acceleration_covariance[0] = −1).  None when the bytes
-    are not an Imu at all (the caller counts and drops them).
+    Decode a serialized sensor_msgs/Imu (the ``imu/data_raw`` input of ``gyro_input: imu``).
+
+    Read from the bytes as :func:`decode_vector3_stamped` reads a Vector3Stamped (rclpy's
+    deserialization of an Imu costs tens of µs); other encodings through rclpy's deserializer.
+
+    Parameters
+    ----------
+    data : bytes
+        The serialized message.
+
+    Returns
+    -------
+    tuple or None
+        ``(stamp_ns, angular_velocity, linear_acceleration, frame_id)``: rad/s and m/s², body
+        axes; linear_acceleration is None when the message has none (REP-145:
+        linear_acceleration_covariance[0] = −1).  None when the bytes are not an Imu at all
+        (the caller counts and drops them).
+
     """
     got = cdr.imu(data)
     if got is not None:
@@ -94,11 +128,22 @@ def decode_imu(data: bytes):
 
 def stated_rate_variance(last_imu) -> str:
     """
-    What the latest Imu says of its rate noise, for /diagnostics (the nodes do not use it:
-    their covariance comes from the model's gyro_random_walk): the diagonal of
-    angular_velocity_covariance, (rad/s)², as text; ``unknown`` when it is all zero (the ROS
-    convention), ``not provided`` when element 0 is −1, ``none received`` before any Imu.
-    ``last_imu``: the serialized bytes of the raw subscription, or a message object.
+    Describe what the latest Imu says of its rate noise, for /diagnostics.
+
+    The nodes do not use it: their covariance comes from the model's gyro_random_walk.
+
+    Parameters
+    ----------
+    last_imu : bytes or sensor_msgs.msg.Imu or None
+        The serialized bytes of the raw subscription, or a message object.
+
+    Returns
+    -------
+    str
+        The diagonal of angular_velocity_covariance, (rad/s)², as text; ``unknown`` when it is
+        all zero (the ROS convention), ``not provided`` when element 0 is −1, ``none received``
+        before any Imu, ``undecodable`` for bytes that are not an Imu.
+
     """
     if last_imu is None:
         return 'none received'
@@ -123,13 +168,26 @@ UNKNOWN_POSITION_VARIANCE = 1e9
 
 
 def camera_qos(depth: int) -> QoSProfile:
-    """Reliable, volatile, keep-last: for rare, important messages (camera fixes)."""
+    """
+    Return the QoS of rare, important messages (camera fixes): reliable, volatile, keep-last.
+
+    Parameters
+    ----------
+    depth : int
+        History depth, messages.
+
+    Returns
+    -------
+    QoSProfile
+        The profile.
+
+    """
     return QoSProfile(reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.VOLATILE,
                       history=HistoryPolicy.KEEP_LAST, depth=int(depth))
 
 
 def latched_qos() -> QoSProfile:
-    """Reliable, transient-local, depth 1: the latest value reaches late subscribers."""
+    """Return the latched QoS (reliable, transient-local, depth 1) for late subscribers."""
     return QoSProfile(reliability=ReliabilityPolicy.RELIABLE,
                       durability=DurabilityPolicy.TRANSIENT_LOCAL,
                       history=HistoryPolicy.KEEP_LAST, depth=1)
@@ -138,8 +196,25 @@ def latched_qos() -> QoSProfile:
 def pose_with_covariance(stamp, frame_id: str, q_wxyz,
                          rotation_covariance) -> PoseWithCovarianceStamped:
     """
-    Attitude-only PoseWithCovarianceStamped: position 0 with :data:`UNKNOWN_POSITION_VARIANCE`
-    on its diagonal, rotation block (rows/cols 3..5) = ``rotation_covariance`` (3×3, rad²).
+    Build an attitude-only PoseWithCovarianceStamped.
+
+    Parameters
+    ----------
+    stamp : builtin_interfaces.msg.Time
+        Header stamp.
+    frame_id : str
+        Header frame id.
+    q_wxyz : (4,) array_like
+        The orientation, scalar-first (converted to ROS x, y, z, w).
+    rotation_covariance : (3, 3) array_like
+        Rotation block of the covariance, rad² (symmetrised).
+
+    Returns
+    -------
+    PoseWithCovarianceStamped
+        Position 0 with :data:`UNKNOWN_POSITION_VARIANCE` on its diagonal, the rotation block
+        at rows/cols 3..5.
+
     """
     m = PoseWithCovarianceStamped()
     m.header.stamp = stamp
@@ -154,46 +229,169 @@ def pose_with_covariance(stamp, frame_id: str, q_wxyz,
 
 
 def rotation_block(msg: PoseWithCovarianceStamped) -> np.ndarray:
-    """The 3×3 rotation block (rows/cols 3..5) of a PoseWithCovariance covariance."""
+    """
+    Return the rotation block of a pose covariance.
+
+    Parameters
+    ----------
+    msg : PoseWithCovarianceStamped
+        The message.
+
+    Returns
+    -------
+    (3, 3) ndarray
+        Rows/cols 3..5 of its covariance, rad².
+
+    """
     return np.asarray(msg.pose.covariance, dtype=float).reshape(6, 6)[3:, 3:].copy()
 
 
 # --- time ----------------------------------------------------------------------------
 def stamp_to_ns(stamp: Time) -> int:
+    """
+    Return a ROS stamp as integer nanoseconds.
+
+    Parameters
+    ----------
+    stamp : builtin_interfaces.msg.Time
+        The stamp.
+
+    Returns
+    -------
+    int
+        sec · 10⁹ + nanosec.
+
+    """
     return int(stamp.sec) * 1_000_000_000 + int(stamp.nanosec)
 
 
 def ns_to_stamp(ns: int) -> Time:
+    """
+    Return integer nanoseconds as a ROS stamp.
+
+    Parameters
+    ----------
+    ns : int
+        Nanoseconds.
+
+    Returns
+    -------
+    builtin_interfaces.msg.Time
+        The stamp.
+
+    """
     ns = int(ns)
     return Time(sec=ns // 1_000_000_000, nanosec=ns % 1_000_000_000)
 
 
 def set_stamp(stamp: Time, ns) -> None:
-    """Write ``ns`` into an existing stamp (no new message: the per-update publishing path)."""
+    """
+    Write nanoseconds into an existing stamp (no new message: the per-update publishing path).
+
+    Parameters
+    ----------
+    stamp : builtin_interfaces.msg.Time
+        The stamp to overwrite.
+    ns : int
+        Nanoseconds.
+
+    """
     stamp.sec, stamp.nanosec = divmod(int(ns), 1_000_000_000)
 
 
 def seconds_to_stamp(t: float) -> Time:
+    """
+    Return seconds as a ROS stamp, rounded to the nanosecond.
+
+    Parameters
+    ----------
+    t : float
+        Seconds.
+
+    Returns
+    -------
+    builtin_interfaces.msg.Time
+        The stamp.
+
+    """
     return ns_to_stamp(int(round(t * 1e9)))
 
 
 # --- messages -----------------------------------------------------------------------------
 def vector3(v: Sequence[float]) -> Vector3:
+    """
+    Build a Vector3 message.
+
+    Parameters
+    ----------
+    v : (3,) sequence of float
+        The vector.
+
+    Returns
+    -------
+    geometry_msgs.msg.Vector3
+        The message.
+
+    """
     return Vector3(x=float(v[0]), y=float(v[1]), z=float(v[2]))
 
 
 def quaternion_msg(q_wxyz: Sequence[float]) -> Quaternion:
-    """Core scalar-first quaternion → ROS message (x, y, z, w)."""
+    """
+    Convert a core quaternion to a ROS Quaternion message.
+
+    Parameters
+    ----------
+    q_wxyz : (4,) sequence of float
+        The quaternion, scalar-first.
+
+    Returns
+    -------
+    geometry_msgs.msg.Quaternion
+        The message (x, y, z, w).
+
+    """
     return Quaternion(w=float(q_wxyz[0]), x=float(q_wxyz[1]), y=float(q_wxyz[2]),
                       z=float(q_wxyz[3]))
 
 
 def quaternion_from_msg(q: Quaternion) -> np.ndarray:
-    """ROS quaternion → core scalar-first array."""
+    """
+    Convert a ROS Quaternion message to a core quaternion.
+
+    Parameters
+    ----------
+    q : geometry_msgs.msg.Quaternion
+        The message.
+
+    Returns
+    -------
+    (4,) ndarray
+        The quaternion, scalar-first.
+
+    """
     return np.array([q.w, q.x, q.y, q.z], dtype=float)
 
 
 def vector3_stamped(stamp: Time, frame_id: str, v) -> Vector3Stamped:
+    """
+    Build a Vector3Stamped message.
+
+    Parameters
+    ----------
+    stamp : builtin_interfaces.msg.Time
+        Header stamp.
+    frame_id : str
+        Header frame id.
+    v : (3,) sequence of float
+        The vector.
+
+    Returns
+    -------
+    geometry_msgs.msg.Vector3Stamped
+        The message.
+
+    """
     m = Vector3Stamped()
     m.header.stamp = stamp
     m.header.frame_id = frame_id
@@ -202,6 +400,24 @@ def vector3_stamped(stamp: Time, frame_id: str, v) -> Vector3Stamped:
 
 
 def quaternion_stamped(stamp: Time, frame_id: str, q_wxyz) -> QuaternionStamped:
+    """
+    Build a QuaternionStamped message.
+
+    Parameters
+    ----------
+    stamp : builtin_interfaces.msg.Time
+        Header stamp.
+    frame_id : str
+        Header frame id.
+    q_wxyz : (4,) sequence of float
+        The quaternion, scalar-first.
+
+    Returns
+    -------
+    geometry_msgs.msg.QuaternionStamped
+        The message.
+
+    """
     m = QuaternionStamped()
     m.header.stamp = stamp
     m.header.frame_id = frame_id
@@ -215,7 +431,22 @@ MAX_TEXT = 400
 
 
 def bounded(text: str, limit: int = MAX_TEXT) -> str:
-    """``text`` cut to ``limit`` characters (an ellipsis marks the cut)."""
+    """
+    Cut a text to a number of characters (an ellipsis marks the cut).
+
+    Parameters
+    ----------
+    text : str
+        The text (anything else is converted with ``str``).
+    limit : int
+        Most characters kept.
+
+    Returns
+    -------
+    str
+        The text, at most ``limit`` characters.
+
+    """
     text = str(text)
     return text if len(text) <= limit else text[:limit - 1] + '…'
 
@@ -233,8 +464,9 @@ class NodeLog:
 
     Parameters
     ----------
-    logger
+    logger : rclpy.impl.rcutils_logger.RcutilsLogger
         The node's rclpy logger (``node.get_logger()``).
+
     """
 
     LEVELS = ('debug', 'info', 'warn', 'error')
@@ -259,6 +491,12 @@ class NodeLog:
             Minimum wall seconds between two messages of the same ``key`` (0: every one).
         key : str, optional
             What the throttle counts (default: the text).
+
+        Returns
+        -------
+        bool
+            False when throttled.
+
         """
         if level == 'warning':
             level = 'warn'
@@ -282,21 +520,94 @@ class NodeLog:
         return True
 
     def error(self, text: str, throttle: float = 0.0, key: str | None = None) -> bool:
-        """``log("error", ...)``."""
+        """
+        Log a message at level error, as :meth:`__call__` does.
+
+        Parameters
+        ----------
+        text : str
+            The message.
+        throttle : float
+            Minimum wall seconds between two messages of the same ``key`` (0: every one).
+        key : str, optional
+            What the throttle counts (default: the text).
+
+        Returns
+        -------
+        bool
+            False when throttled.
+
+        """
         return self('error', text, throttle, key)
 
     def warn(self, text: str, throttle: float = 0.0, key: str | None = None) -> bool:
-        """``log("warn", ...)``."""
+        """
+        Log a message at level warn, as :meth:`__call__` does.
+
+        Parameters
+        ----------
+        text : str
+            The message.
+        throttle : float
+            Minimum wall seconds between two messages of the same ``key`` (0: every one).
+        key : str, optional
+            What the throttle counts (default: the text).
+
+        Returns
+        -------
+        bool
+            False when throttled.
+
+        """
         return self('warn', text, throttle, key)
 
     def info(self, text: str, throttle: float = 0.0, key: str | None = None) -> bool:
-        """``log("info", ...)``."""
+        """
+        Log a message at level info, as :meth:`__call__` does.
+
+        Parameters
+        ----------
+        text : str
+            The message.
+        throttle : float
+            Minimum wall seconds between two messages of the same ``key`` (0: every one).
+        key : str, optional
+            What the throttle counts (default: the text).
+
+        Returns
+        -------
+        bool
+            False when throttled.
+
+        """
         return self('info', text, throttle, key)
 
 
 # --- diagnostics -------------------------------------------------------------------------
 def diagnostic_array(stamp: Time, name: str, hardware_id: str, level: int, message: str,
                      values: dict[str, Any]) -> DiagnosticArray:
+    """
+    Build a DiagnosticArray of one status.
+
+    Parameters
+    ----------
+    stamp : builtin_interfaces.msg.Time
+        Header stamp.
+    name, hardware_id : str
+        The status's name and hardware id.
+    level : int or bytes
+        :data:`OK`, :data:`WARN` or :data:`ERROR`.
+    message : str
+        The status message.
+    values : dict
+        Key → value; floats formatted with 6 significant digits.
+
+    Returns
+    -------
+    diagnostic_msgs.msg.DiagnosticArray
+        The message.
+
+    """
     st = DiagnosticStatus(level=bytes([level]) if isinstance(level, int) else level, name=name,
                           message=message, hardware_id=hardware_id,
                           values=[KeyValue(key=str(k), value=_fmt(v)) for k, v in values.items()])
@@ -317,8 +628,9 @@ OK, WARN, ERROR = 0, 1, 2
 
 class Conditions:
     """
-    The current conditions of a node's /diagnostics status: the level is the worst of all of
-    them, and the message lists every one, worst first (in the order added within a level),
+    The current conditions of a node's /diagnostics status.
+
+    The level is the worst of all of them, and the message lists every one, worst first (in the order added within a level),
     bounded to ``limit`` characters with the number of conditions cut off.  A lower-level
     condition never masks a higher one (an undecodable message does not hide a gyro gap).
 
@@ -326,6 +638,7 @@ class Conditions:
     ----------
     limit : int
         Longest message, characters.
+
     """
 
     def __init__(self, limit: int = MAX_TEXT):
@@ -333,18 +646,38 @@ class Conditions:
         self.items: list[tuple[int, str]] = []
 
     def add(self, level: int, text: str) -> None:
-        """One condition at ``level`` (:data:`OK`, :data:`WARN` or :data:`ERROR`)."""
+        """
+        Add one condition.
+
+        Parameters
+        ----------
+        level : int
+            :data:`OK`, :data:`WARN` or :data:`ERROR`.
+        text : str
+            What it says.
+
+        """
         self.items.append((int(level), str(text)))
 
     @property
     def level(self) -> int:
-        """The worst level of all conditions (:data:`OK` when there are none)."""
+        """Worst level of all conditions (:data:`OK` when there are none)."""
         return max((lv for lv, _ in self.items), default=OK)
 
     def message(self, ok_text: str = 'ok') -> str:
         """
-        Every condition's text, worst first, joined by ``; `` and bounded; ``ok_text`` when
-        there is none.
+        Return the status message: every condition's text, worst first, joined by ``; ``.
+
+        Parameters
+        ----------
+        ok_text : str
+            The message when there is no condition.
+
+        Returns
+        -------
+        str
+            The message, bounded to ``limit`` characters with the number of conditions cut.
+
         """
         texts = [t for _, t in sorted(self.items, key=lambda it: -it[0])]
         if not texts:
@@ -361,8 +694,9 @@ class Conditions:
 # --- simulators ------------------------------------------------------------------------------
 class PacedSimulation:
     """
-    Mixin for the simulator nodes: a wall timer calls :meth:`_tick`, which advances the
-    simulated time to ``time_scale`` × the wall time since the first tick (capped at
+    Mixin for the simulator nodes: the simulated time paced by the wall clock.
+
+    A wall timer calls :meth:`_tick`, which advances the simulated time to ``time_scale`` × the wall time since the first tick (capped at
     ``end_time``) through the node's ``_advance_to(target)``, and calls ``_on_finished()`` once.
     Nothing downstream sees the wall clock: every stamp is simulated time.  Setting
     ``_wall_start = None`` restarts the pacing at the next tick (used after discovery).  With
