@@ -81,8 +81,8 @@ from sensor_msgs.msg import Imu
 from strapdown_ros.calibration.boresight import imu_attitude_from_camera
 from strapdown_ros.calibration.state import CalibratorStateFile, state_identity, StateFileError
 from strapdown_ros.calibration.streaming import BoresightCalibrator
-from strapdown_ros.estimation.chi_square import FIT_LEVEL
-from strapdown_ros.nodes import ros_io, ros_params, ros_process
+from strapdown_ros.nodes import ros_io, ros_params, ros_process, ros_status
+from strapdown_ros.nodes.calibrator_status import boresight_status
 from strapdown_ros.nodes.ros_io import (camera_qos, latched_qos, pose_with_covariance,
                                         rotation_block)
 from strapdown_ros.params import CALIBRATOR_PARAMS
@@ -90,7 +90,6 @@ from strapdown_ros.streams.checks import StreamCheck
 from strapdown_ros.streams.rate_increments import RateIncrementStream
 
 NODE_NAME = 'calibrator_node'
-ARCSEC = math.pi / 180.0 / 3600.0
 CAMERA_JUMP_S = 3600.0     # a camera stamp step beyond this (s) is a jump
 # a not-observable reason that keeps its wording is repeated at most this often
 LOG_THROTTLE_S = 30.0
@@ -99,7 +98,7 @@ LOG_THROTTLE_S = 30.0
 class CalibratorNode(Node):
     def __init__(self, **kwargs):
         super().__init__(NODE_NAME, **kwargs)
-        self.log = ros_io.NodeLog(self.get_logger())   # the one logging helper of the nodes
+        self.log = ros_status.NodeLog(self.get_logger())   # the one logging helper of the nodes
         self.p = ros_params.declare_validated(self, CALIBRATOR_PARAMS, on_change=self._on_change,
                                               apply=self._apply_change)
         p = self.p
@@ -508,132 +507,12 @@ class CalibratorNode(Node):
             self.published['imu_attitude_from_camera'] += 1
 
     def publish_diagnostics(self):
-        g, c = self.gyro_check, self.camera_check
-        sol = self.cal.solution
-        values = {'pairs': len(self.cal.pairs), 'solves': self.solves}
-        if sol is None:
-            level = ros_io.WARN
-            message = 'waiting for increment pairs (need gyro data and two camera fixes)'
-            values.update({'observable': False, 'message': message})
-        else:
-            message = sol.message
-            ok = sol.observable and sol.converged
-            level = ros_io.OK if ok else ros_io.WARN
-            chi2 = sol.chi2_per_dof
-            lo, hi = sol.chi2_band
-            if ok and sol.fit_consistent is False:
-                level = ros_io.WARN
-                sig = (f'the published σ is scaled by √(χ²/dof) = {math.sqrt(chi2):.3g}'
-                       if sol.weighted else
-                       'the published σ comes from the residual scatter (unweighted)')
-                what = ('the stated noise is too small or the model lacks an effect (outliers, an '
-                        f'unmodelled error: run discrepancy on a recording); {sig}' if chi2 > hi
-                        else 'the stated noise is too large (σ pessimistic)')
-                message = (f'{message}; FIT INCONSISTENT: χ²/dof = {chi2:.3g} outside its band '
-                           f'[{lo:.3g}, {hi:.3g}] (dof {sol.dof}, level {FIT_LEVEL:g}): {what}')
-            elif ok and np.isfinite(chi2) and chi2 > float(self.p['max_chi2_per_dof']):
-                level = ros_io.WARN
-                message = (f'{message}; χ²/dof = {chi2:.3g}: the residuals exceed the model '
-                           '(outliers, or an effect the model lacks: run discrepancy on a '
-                           'recording)')
-            values.update({'fit_consistent': sol.fit_consistent, 'chi2_per_dof_band_low': lo,
-                           'chi2_per_dof_band_high': hi, 'dof': sol.dof})
-            values.update({'observable': sol.observable, 'message': sol.message,
-                           'unobservable_axes': ('; '.join(sol.unobservable_axes)
-                                                 if sol.unobservable_axes else 'none'),
-                           'residual_rms_rad': sol.residual_rms, 'iterations': sol.iterations,
-                           'converged': sol.converged, 'chi2_per_dof': sol.chi2_per_dof})
-            if sol.observable and sol.beta is not None:
-                b = np.degrees(sol.beta)
-                s = np.sqrt(np.maximum(np.diag(sol.covariance_beta), 0.0)) / ARCSEC
-                values.update({'beta_yaw_deg': float(b[0]), 'beta_pitch_deg': float(b[1]),
-                               'beta_roll_deg': float(b[2]), 'beta_yaw_sigma_arcsec': float(s[0]),
-                               'beta_pitch_sigma_arcsec': float(s[1]),
-                               'beta_roll_sigma_arcsec': float(s[2])})
-        values.update({'weighted': self.cal.weighted,
-                       'covariance_model': self.cal.covariance_model,
-                       'boresight_of': f"{self.p['camera_frame_id']} in {self.frame_id}",
-                       'last_solve_ms': self.solve_ms,
-                       'boresight_published': self.published['boresight'],
-                       'imu_attitude_from_camera_published':
-                           self.published['imu_attitude_from_camera'],
-                       'pairs_discarded_gyro_gap': self.pairs_discarded_gap,
-                       **g.as_dict('gyro'),
-                       'camera_received': c.received, 'camera_accepted': c.accepted,
-                       'camera_dropped_nan': c.nan, 'camera_dropped_out_of_order': c.out_of_order,
-                       'camera_dropped_duplicate': c.duplicate,
-                       'camera_dropped_stamp_outlier': c.stamp_outliers,
-                       'camera_stamp_resyncs': c.resyncs, 'solve_failures': self.solve_failures,
-                       'camera_outlier_fixes': self.cal.outlier_fixes,
-                       'gyro_frame_mismatch': self.gyro_frame_mismatch,
-                       'gyro_undecodable_dropped': self.undecodable,
-                       'gyro_history_overflowed': self.cal._gyro.overflowed,
-                       'state_file': self.state['file'] or 'off',
-                       'state_saves': self.state['saves'],
-                       'state_restored_pairs': self.state['restored_pairs'],
-                       'state_errors': self.state['errors'],
-                       'state_persisting': self.state['persisting'],
-                       'state_problem': self.state['problem'] or 'none',
-                       'pairs_replayed_not_added': self.cal.replayed_pairs,
-                       **{f'camera_{k}': v for k, v in self.camera_counts.items()}})
-        mism = self.gyro_frame_mismatch + self.camera_counts['frame_mismatch']
-        if mism:                              # every condition listed, the level the worst
-            level = max(level, ros_io.WARN)
-            message = (f'{message}; {mism} message(s) in an unexpected frame '
-                       f"({'rejected' if self.reject_frames else 'used'})")
-        if self.undecodable:
-            level = max(level, ros_io.WARN)
-            message = (f'{message}; {self.undecodable} gyro message(s) could not be decoded: '
-                       'dropped')
-        if self.cal.outlier_fixes:
-            level = max(level, ros_io.WARN)
-            message = (f'{message}; {self.cal.outlier_fixes} camera fix(es) dropped as outliers '
-                       f"(both pairs off by more than {self.p['outlier_gate']:g} σ in rotation "
-                       'angle, the pair skipping it consistent)')
-        g_drop = g.dropped
-        if self.imu_input:
-            r = self.gyro_rates.check
-            values.update({'gyro_input': 'imu', 'imu_rate_rule': self.p['imu_rate_rule'],
-                           'imu_stated_rate_variance': ros_io.stated_rate_variance(self.last_imu),
-                           'model_rate_variance': float(self.p['gyro_random_walk']) ** 2
-                           / self.gyro_period,
-                           **self.gyro_rates.status('imu_gyro')})
-            if r.dropped and level == ros_io.OK:
-                level = ros_io.WARN
-                message = (f'{message}; dropped {r.dropped} angular-rate samples of imu/data_raw '
-                           f'(NaN {r.nan}, out of range {r.out_of_range}, out of order '
-                           f'{r.out_of_order}, duplicate {r.duplicate}, stamp outliers '
-                           f'{r.stamp_outliers})')
-        cc = self.camera_counts
-        c_drop = c.dropped + cc['dropped_zero_quaternion'] + cc['dropped_bad_covariance']
-        if g_drop or c_drop:
-            level = max(level, ros_io.WARN)
-            message = f'{message}; dropped {g_drop} gyro and {c_drop} camera messages'
-        if self.state['errors']:
-            level = ros_io.ERROR
-            message = (f"{message}; state file: {self.state['errors']} error(s): "
-                       f"{self.state['problem']}"
-                       + ('' if self.state['persisting'] else ' (no persistence)'))
-        if g.bursts:
-            level = ros_io.ERROR
-            message = (f'{message}; {g.burst_messages} gyro increment(s) in {g.bursts} burst(s) '
-                       'stamped off the timeline, dropped; the pairs containing them are lost')
-        if g.resyncs or c.resyncs:
-            level = ros_io.ERROR
-            message = (f'{message}; stamps jumped and were resynchronised (gyro {g.resyncs}, '
-                       f'camera {c.resyncs}); no pair spans a jump')
-        if self.solve_failures:
-            level = ros_io.ERROR
-            message = (f'{message}; {self.solve_failures} solve(s) failed, the last estimate '
-                       'stays published')
-        if g.missing:
-            level = ros_io.ERROR
-            message = (f'{message}; {g.missing} gyro increments missing in {g.gaps} gaps: '
-                       f'{self.pairs_discarded_gap} pair(s) spanning them discarded')
-        stamp_ns = max(g.last_ns or 0, c.last_ns or 0)
+        """Publish the /diagnostics status (:func:`~.calibrator_status.boresight_status`)."""
+        level, message, values = boresight_status(self)
+        stamp_ns = max(self.gyro_check.last_ns or 0, self.camera_check.last_ns or 0)
         name = f'{self.get_fully_qualified_name()}: boresight'
-        self.pub_diag.publish(ros_io.diagnostic_array(ros_io.ns_to_stamp(stamp_ns), name,
-                                                      'calibrator', level, message, values))
+        self.pub_diag.publish(ros_status.diagnostic_array(ros_io.ns_to_stamp(stamp_ns), name,
+                                                          'calibrator', level, message, values))
 
 
 def main(args=None):

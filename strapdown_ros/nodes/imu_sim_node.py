@@ -38,7 +38,7 @@ from sensor_msgs.msg import Imu
 
 from strapdown_ros.motion.earth_profiles import EarthProfile
 from strapdown_ros.motion.from_config import profile_from_config
-from strapdown_ros.nodes import ros_io, ros_params, ros_process
+from strapdown_ros.nodes import ros_io, ros_params, ros_process, ros_status
 from strapdown_ros.params import IMU_SIM_PARAMS
 from strapdown_ros.rotation import to_ros_xyzw
 from strapdown_ros.sensors import simulated_imu
@@ -49,7 +49,7 @@ NODE_NAME = 'imu_sim_node'
 class ImuSimNode(ros_io.PacedSimulation, Node):
     def __init__(self, **kwargs):
         super().__init__(NODE_NAME, **kwargs)
-        self.log = ros_io.NodeLog(self.get_logger())   # the one logging helper of the nodes
+        self.log = ros_status.NodeLog(self.get_logger())   # the one logging helper of the nodes
         self.p = ros_params.declare_validated(self, IMU_SIM_PARAMS, on_change=self._reject_changes)
         p = self.p
         self.profile = profile_from_config(p)
@@ -199,8 +199,8 @@ class ImuSimNode(ros_io.PacedSimulation, Node):
         else:
             msg = 'waiting for subscribers' if self._wall_start is None else 'running'
         name = f'{self.get_fully_qualified_name()}: simulator'
-        self.pub_diag.publish(ros_io.diagnostic_array(st, name, 'imu_sim', ros_io.OK, msg,
-                                                      values))
+        self.pub_diag.publish(ros_status.diagnostic_array(st, name, 'imu_sim', ros_status.OK,
+                                                          msg, values))
 
 
 def main(args=None):

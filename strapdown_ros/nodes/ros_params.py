@@ -12,7 +12,7 @@ from typing import Callable, Sequence
 from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
 from rclpy.parameter import Parameter
 
-from strapdown_ros.nodes.ros_io import bounded
+from strapdown_ros.nodes.ros_status import bounded
 from strapdown_ros.params import ALL_PARAMETER_NAMES, combination_error, ParamSpec
 
 __all__ = ['descriptor', 'declare_validated', 'InvalidParameter', 'ROS_OWN_PARAMETERS']

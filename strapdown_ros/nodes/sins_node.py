@@ -29,7 +29,7 @@ Publishes at every update of the algorithm (gyro rate / samples per update):
 * ``/diagnostics``   counts of received, dropped (NaN, out-of-order, duplicate) and
                      missing (gap) messages, rates from header stamps; the level is the worst
                      of all current conditions and the message lists each, worst first
-                     (:class:`~strapdown_ros.nodes.ros_io.Conditions`); a Δv stream that stops
+                     (:class:`~strapdown_ros.nodes.ros_status.Conditions`); a Δv stream that stops
                      while Δθ runs on is WARN beyond ``accel_wait`` and ERROR beyond
                      max(1 s, 10 ``accel_wait``) of stamp time
 
@@ -58,7 +58,7 @@ import numpy as np
 from rclpy.node import Node
 from sensor_msgs.msg import Imu
 
-from strapdown_ros.nodes import ros_io, ros_params, ros_process
+from strapdown_ros.nodes import ros_io, ros_params, ros_process, ros_status
 from strapdown_ros.params import SINS_PARAMS
 from strapdown_ros.sins import odometry_arrays, SinsOutput, SinsSystem
 from strapdown_ros.streams.rate_increments import RateIncrementStream
@@ -69,7 +69,7 @@ NODE_NAME = 'sins_node'
 class SinsNode(Node):
     def __init__(self, **kwargs):
         super().__init__(NODE_NAME, **kwargs)
-        self.log = ros_io.NodeLog(self.get_logger())   # the one logging helper (any severity)
+        self.log = ros_status.NodeLog(self.get_logger())   # the one logging helper (any severity)
         self.p = ros_params.declare_validated(self, SINS_PARAMS, on_change=self._on_change,
                                               apply=self._apply_change)
         p = self.p
@@ -356,49 +356,53 @@ class SinsNode(Node):
         """
         return self.system.accel_stall_s()
 
-    def diagnostic_conditions(self) -> ros_io.Conditions:
+    def diagnostic_conditions(self) -> ros_status.Conditions:
         """Every current condition of the node with its level (the status level is the worst)."""
         g, a = self.gyro_check, self.accel_check
-        c = ros_io.Conditions()
+        c = ros_status.Conditions()
         if g.accepted == 0:
-            c.add(ros_io.WARN, 'no gyro increments received')
+            c.add(ros_status.WARN, 'no gyro increments received')
         if g.dropped or a.dropped:
-            c.add(ros_io.WARN, f'dropped {g.dropped} gyro and {a.dropped} accelerometer messages '
+            c.add(ros_status.WARN,
+                  f'dropped {g.dropped} gyro and {a.dropped} accelerometer messages '
                   f'(NaN {g.nan + a.nan}, out of range {g.out_of_range + a.out_of_range}, out of '
                   f'order {g.out_of_order + a.out_of_order}, duplicate '
                   f'{g.duplicate + a.duplicate}, stamp outliers '
                   f'{g.stamp_outliers + a.stamp_outliers})')
         if self.imu_input and (self.gyro_rates.check.dropped or self.accel_rates.check.dropped):
             gr, ar = self.gyro_rates.check, self.accel_rates.check
-            c.add(ros_io.WARN, f'dropped {gr.dropped} angular-rate and {ar.dropped} acceleration '
+            c.add(ros_status.WARN,
+                  f'dropped {gr.dropped} angular-rate and {ar.dropped} acceleration '
                   f'samples of imu/data_raw (NaN {gr.nan + ar.nan}, out of range '
                   f'{gr.out_of_range + ar.out_of_range}, out of order '
                   f'{gr.out_of_order + ar.out_of_order}, duplicate {gr.duplicate + ar.duplicate}, '
                   f'stamp outliers {gr.stamp_outliers + ar.stamp_outliers})')
         if any(self.frame_mismatch.values()):
-            c.add(ros_io.WARN, f'messages in another frame than '
-                  f"{ros_io.bounded(self.frame_id, 80)!r}: gyro {self.frame_mismatch['gyro']}, "
+            c.add(ros_status.WARN,
+                  'messages in another frame than '
+                  f'{ros_status.bounded(self.frame_id, 80)!r}: '
+                  f"gyro {self.frame_mismatch['gyro']}, "
                   f"accelerometer {self.frame_mismatch['accel']} "
                   f"({'rejected' if self.system.reject_frames else 'used'})")
         if self.undecodable:
-            c.add(ros_io.WARN,
+            c.add(ros_status.WARN,
                   f'{self.undecodable} input message(s) could not be decoded: dropped')
         stall = self.system.accel_stall('imu/data_raw' if self.imu_input
                                         else 'imu/delta_velocity')
         if stall is not None:                     # the core's rule, shared with sins_bag
-            c.add(ros_io.ERROR if stall.level == 'error' else ros_io.WARN, stall.text)
+            c.add(ros_status.ERROR if stall.level == 'error' else ros_status.WARN, stall.text)
         if g.missing:
-            c.add(ros_io.ERROR, f'{g.missing} gyro increments missing in {g.gaps} gaps: '
+            c.add(ros_status.ERROR, f'{g.missing} gyro increments missing in {g.gaps} gaps: '
                   'the rotation during the gaps is lost')
         if g.resyncs:
-            c.add(ros_io.ERROR, f'gyro stamps jumped {g.resyncs} time(s) (last by '
+            c.add(ros_status.ERROR, f'gyro stamps jumped {g.resyncs} time(s) (last by '
                   f'{g.last_jump_s:.6g} s): resynchronised; the rotation during a jump is lost')
         if self.nonfinite:
-            c.add(ros_io.ERROR, f'{self.nonfinite} non-finite update(s) discarded (never '
+            c.add(ros_status.ERROR, f'{self.nonfinite} non-finite update(s) discarded (never '
                   'published); state reset to the last good one with inflated covariance')
         if self.nav is not None and self.nav.alignment is not None and not self.nav.alignment.ok \
                 and self.nav.navigator is None:
-            c.add(ros_io.ERROR, f'static alignment refused: {self.nav.alignment.reason}')
+            c.add(ros_status.ERROR, f'static alignment refused: {self.nav.alignment.reason}')
         return c
 
     def publish_diagnostics(self):
@@ -423,8 +427,8 @@ class SinsNode(Node):
             values['odometry_published'] = self.published['odometry']
         stamp_ns = g.last_ns if g.last_ns is not None else 0
         name = f'{self.get_fully_qualified_name()}: attitude'
-        self.pub_diag.publish(ros_io.diagnostic_array(ros_io.ns_to_stamp(stamp_ns), name,
-                                                      'sins', c.level, c.message(), values))
+        self.pub_diag.publish(ros_status.diagnostic_array(ros_io.ns_to_stamp(stamp_ns), name,
+                                                          'sins', c.level, c.message(), values))
 
 
 def main(args=None):

@@ -48,7 +48,7 @@ import numpy as np
 from rclpy.node import Node
 
 from strapdown_ros.motion.from_config import profile_from_config
-from strapdown_ros.nodes import ros_io, ros_params, ros_process
+from strapdown_ros.nodes import ros_io, ros_params, ros_process, ros_status
 from strapdown_ros.nodes.ros_io import camera_qos, latched_qos, pose_with_covariance
 from strapdown_ros.params import STAR_CAMERA_PARAMS
 from strapdown_ros.sensors.star_camera import StarCameraModel
@@ -59,7 +59,7 @@ NODE_NAME = 'star_camera_sim_node'
 class StarCameraSimNode(ros_io.PacedSimulation, Node):
     def __init__(self, **kwargs):
         super().__init__(NODE_NAME, **kwargs)
-        self.log = ros_io.NodeLog(self.get_logger())   # the one logging helper of the nodes
+        self.log = ros_status.NodeLog(self.get_logger())   # the one logging helper of the nodes
         self.p = ros_params.declare_validated(self, STAR_CAMERA_PARAMS,
                                               on_change=self._reject_changes)
         p = self.p
@@ -143,8 +143,8 @@ class StarCameraSimNode(ros_io.PacedSimulation, Node):
         else:
             msg = 'waiting for subscribers' if self._wall_start is None else 'running'
         name = f'{self.get_fully_qualified_name()}: star camera'
-        self.pub_diag.publish(ros_io.diagnostic_array(st, name, 'star_camera_sim', ros_io.OK,
-                                                      msg, values))
+        self.pub_diag.publish(ros_status.diagnostic_array(st, name, 'star_camera_sim',
+                                                          ros_status.OK, msg, values))
 
 
 def main(args=None):

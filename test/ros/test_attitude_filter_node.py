@@ -25,7 +25,7 @@ from sensor_msgs.msg import Imu  # noqa: E402
 from std_msgs.msg import Header  # noqa: E402
 
 from ros_helpers import spin_until  # noqa: E402
-from strapdown_ros.nodes import ros_io  # noqa: E402
+from strapdown_ros.nodes import ros_io, ros_status  # noqa: E402
 from strapdown_ros.nodes.attitude_filter_node import AttitudeFilterNode  # noqa: E402
 from strapdown_ros.nodes.imu_sim_node import ImuSimNode  # noqa: E402
 from strapdown_ros.nodes.star_camera_sim_node import StarCameraSimNode  # noqa: E402
@@ -256,7 +256,7 @@ def test_bad_input_is_dropped_counted_and_reported(ros):
         assert node.system.counts['applied'] == 1         # alive: the next fix applied
         c = node.diagnostic_conditions(node.system.status())
         text = c.message()
-        assert c.level == ros_io.ERROR                            # the NaN left a gap: restart
+        assert c.level == ros_status.ERROR                            # the NaN left a gap: restart
         assert 'dropped 1 gyro messages (NaN 1' in text and 'zero quaternion 1' in text, text
     finally:
         node.destroy_node()
@@ -366,7 +366,7 @@ def test_unmodelled_scale_factor_is_a_warn_on_diagnostics(ros):
                      fx.covariance)
         node.process()
         c = node.diagnostic_conditions(node.system.status())
-        assert c.level == ros_io.WARN, c.message()
+        assert c.level == ros_status.WARN, c.message()
         assert 'live model check: ' in c.message()
         assert 'innovations match gyro_scale_factor (p = ' in c.message(), c.message()
         assert node.system.augment == ()                 # the model is unchanged

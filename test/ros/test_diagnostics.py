@@ -18,7 +18,7 @@ from geometry_msgs.msg import Vector3Stamped  # noqa: E402
 from rclpy.parameter import Parameter  # noqa: E402
 
 from strapdown_ros.motion.earth_profiles import static_profile  # noqa: E402
-from strapdown_ros.nodes import ros_io, ros_params  # noqa: E402
+from strapdown_ros.nodes import ros_io, ros_params, ros_status  # noqa: E402
 from strapdown_ros.nodes.calibrator_node import CalibratorNode  # noqa: E402
 from strapdown_ros.nodes.sins_node import SinsNode  # noqa: E402
 from strapdown_ros.sins import accel_stall_limits  # noqa: E402
@@ -81,7 +81,7 @@ def test_node_log_takes_any_sequence_of_severities_and_throttles(ros):
     """Logging, the class: one helper call site, every severity, changing throttles."""
     node = rclpy.create_node('log_probe')
     try:
-        log = ros_io.NodeLog(node.get_logger())
+        log = ros_status.NodeLog(node.get_logger())
         for level in ('error', 'warn', 'info', 'warning', 'debug', 'error', 'info'):
             assert log(level, f'probe at {level}')
         assert log('warn', 'throttled', throttle=60.0)
@@ -97,7 +97,7 @@ def test_no_node_selects_a_logger_method_at_run_time():
     """
     Logging, the guard: rclpy's logger keeps one context per call site, so a call site must
     not choose its severity (``(lg.error if … else lg.info)(text)``) or pass a throttle that is
-    not a constant.  Every node module is scanned; ros_io.NodeLog is the way to log at a level
+    not a constant.  Every node module is scanned; ros_status.NodeLog is the way to log at a level
     chosen at run time.
     """
     methods = {'debug', 'info', 'warn', 'warning', 'error', 'fatal'}
@@ -119,7 +119,7 @@ def test_no_node_selects_a_logger_method_at_run_time():
 
 def test_every_node_logs_through_nodelog():
     """
-    Every node logs through ros_io.NodeLog (one call site per severity,
+    Every node logs through ros_status.NodeLog (one call site per severity,
     its own throttle, bounded texts).  Outside ros_io.py, ``get_logger()`` appears
     only as the argument of ``NodeLog(...)``; no rclpy severity method is called on a logger,
     and no rclpy throttle is passed.
@@ -165,11 +165,11 @@ def test_static_alignment_then_stamps_step_back_and_foreign_frames_keep_it_alive
         assert sins.nav.alignment is not None and sins.nav.alignment.ok
         assert sins.nav.navigator is not None
         level, message, values = diag.now()
-        assert level == ros_io.OK and values['navigation_state'] == 'navigating', message
+        assert level == ros_status.OK and values['navigation_state'] == 'navigating', message
         _feed(sins, t - 10_000_000_000, 0.5)                        # 10 s back, and it stays there
         _feed(sins, t - 9_500_000_000, 0.3, frame_accel='elsewhere')
         level, message, values = diag.now()
-        assert level == ros_io.ERROR, message
+        assert level == ros_status.ERROR, message
         assert 'jumped' in message and 'another frame' in message, message
         assert sins.frame_mismatch['accel'] > 0 and sins.gyro_check.resyncs >= 1
     finally:
@@ -188,34 +188,34 @@ def test_every_diagnostic_transition_of_sins_node(ros, monkeypatch):
     diag = Diagnostics(sins, monkeypatch)
     try:
         level, message, _ = diag.now()
-        assert (level, message) == (ros_io.WARN, 'no gyro increments received')
+        assert (level, message) == (ros_status.WARN, 'no gyro increments received')
         t = _feed(sins, 50_000_000_000, 0.5)
-        assert diag.now()[:2] == (ros_io.OK, 'ok')
+        assert diag.now()[:2] == (ros_status.OK, 'ok')
         warn_s, error_s = accel_stall_limits(sins.p['accel_wait'])     # the core's rule
         assert (warn_s, error_s) == (0.1, 1.0)
         t = _feed(sins, t, 0.3, accel=False)                          # Δv stop, Δθ runs on 0.3 s
         level, message, values = diag.now()
-        assert level == ros_io.WARN, message
+        assert level == ros_status.WARN, message
         assert 'accelerometer increments (imu/delta_velocity) stopped' in message
         assert 'WARN beyond 0.1 s, ERROR beyond 1 s' in message
         assert float(values['accel_stall_s']) == pytest.approx(0.3, abs=0.011)
         t = _feed(sins, t, 0.3)                             # Δv back (within max_stamp_jump)
-        assert diag.now()[:2] == (ros_io.OK, 'ok')
+        assert diag.now()[:2] == (ros_status.OK, 'ok')
         for _ in range(3):
             sins._on_gyro_raw(b'\x00\x01garbage')
         level, message, _ = diag.now()
-        assert level == ros_io.WARN
+        assert level == ros_status.WARN
         assert message == '3 input message(s) could not be decoded: dropped'
         t = _feed(sins, t, 1.0, skip=range(20, 70))                   # 50 gyro increments missing
         level, message, _ = diag.now()
-        assert level == ros_io.ERROR, message
+        assert level == ros_status.ERROR, message
         assert message.startswith('50 gyro increments missing in 1 gaps')
         assert 'could not be decoded' in message
         t = _feed(sins, t, 1.5, accel=False)                          # Δv stalled beyond 1 s
         level, message, values = diag.now()
-        assert level == ros_io.ERROR and 'stopped' in message and 'missing' in message
+        assert level == ros_status.ERROR and 'stopped' in message and 'missing' in message
         assert float(values['accel_stall_s']) == pytest.approx(1.5, abs=0.011)
-        assert all(len(m) <= ros_io.MAX_TEXT for _, m, _ in diag.got)
+        assert all(len(m) <= ros_status.MAX_TEXT for _, m, _ in diag.got)
     finally:
         sins.destroy_node()
 
@@ -231,10 +231,10 @@ def test_navigation_without_any_accelerometer_data_is_reported(ros, monkeypatch)
     try:
         t = _feed(sins, 10_000_000_000, 0.5, accel=False)
         level, message, _ = diag.now()
-        assert level == ros_io.WARN and 'no accelerometer increments received' in message
+        assert level == ros_status.WARN and 'no accelerometer increments received' in message
         assert 'sins/odometry stalls' in message
         _feed(sins, t, 1.0, accel=False)
-        assert diag.now()[0] == ros_io.ERROR
+        assert diag.now()[0] == ros_status.ERROR
     finally:
         sins.destroy_node()
 
@@ -252,11 +252,11 @@ def test_calibrator_lists_every_condition_at_the_worst_level(ros, monkeypatch):
         cal._on_gyro(_msg(1_000_000_000 + 11 * 10_000_000, (1e-4, 0.0, 0.0), frame='camera'))
         cal._on_gyro_raw(b'garbage')
         level, message, _ = diag.now()
-        assert level == ros_io.WARN and 'waiting' in message and 'unexpected frame' in message
+        assert level == ros_status.WARN and 'waiting' in message and 'unexpected frame' in message
         assert 'could not be decoded' in message, message
         cal._on_gyro(_msg(1_000_000_000 + 30 * 10_000_000, (1e-4, 0.0, 0.0)))   # 18 missing
         level, message, _ = diag.now()
-        assert level == ros_io.ERROR and 'missing' in message and 'could not be decoded' in message
+        assert level == ros_status.ERROR and 'missing' in message and 'could not be decoded' in message
     finally:
         cal.destroy_node()
 

@@ -27,7 +27,7 @@ from geometry_msgs.msg import Vector3Stamped
 import numpy as np
 from rclpy.node import Node
 
-from strapdown_ros.nodes import ros_io, ros_process
+from strapdown_ros.nodes import ros_io, ros_process, ros_status
 from strapdown_ros.nodes.attitude_filter_node import AttitudeFilterNode
 from strapdown_ros.nodes.calibrator_node import CalibratorNode
 from strapdown_ros.nodes.sins_node import SinsNode
@@ -58,8 +58,8 @@ class CountingNode(Node):
         self.received += 1
 
     def _diag(self):
-        self.pub_diag.publish(ros_io.diagnostic_array(ros_io.ns_to_stamp(0), f'{self.get_fully_qualified_name()}: count',
-                                                      'counting', ros_io.OK, 'ok',
+        self.pub_diag.publish(ros_status.diagnostic_array(ros_io.ns_to_stamp(0), f'{self.get_fully_qualified_name()}: count',
+                                                      'counting', ros_status.OK, 'ok',
                                                       {'gyro_received': self.received}))
 
 
