@@ -71,6 +71,16 @@ NODE_NAME = 'attitude_filter_node'
 
 
 class AttitudeFilterNode(Node):
+    """
+    The star-camera-aided attitude filter node: ROS in and out of the core filter.
+
+    Parameters
+    ----------
+    **kwargs
+        Passed to :class:`rclpy.node.Node` (namespace, parameter_overrides, ...).
+
+    """
+
     def __init__(self, **kwargs):
         super().__init__(NODE_NAME, **kwargs)
         self.log = ros_status.NodeLog(self.get_logger())
@@ -149,7 +159,15 @@ class AttitudeFilterNode(Node):
 
     # --- input ------------------------------------------------------------------------------
     def on_gyro_raw(self, data: bytes):
-        """The imu/delta_theta subscription: stamp, vector and frame read from the bytes."""
+        """
+        Take one imu/delta_theta message: stamp, vector and frame from its bytes.
+
+        Parameters
+        ----------
+        data : bytes
+            The serialized geometry_msgs/Vector3Stamped.
+
+        """
         got = ros_io.decode_vector3_stamped(data)
         if got is None:
             self.undecodable += 1
@@ -157,7 +175,15 @@ class AttitudeFilterNode(Node):
         self.gyro(*got)
 
     def on_imu_raw(self, data: bytes):
-        """The imu/data_raw subscription (``gyro_input: imu``)."""
+        """
+        Take one imu/data_raw message (``gyro_input: imu``).
+
+        Parameters
+        ----------
+        data : bytes
+            The serialized sensor_msgs/Imu.
+
+        """
         got = ros_io.decode_imu(data)
         if got is None:
             self.undecodable += 1
@@ -170,8 +196,19 @@ class AttitudeFilterNode(Node):
 
     def gyro(self, stamp_ns: int, value, frame_id: str = '') -> None:
         """
-        One Δθ (rad, body axes, stamp = end of its interval): the frame rule, then the core;
-        the core runs once per ``output_period`` worth of increments.
+        Take one Δθ: the frame rule, then the core.
+
+        The core runs once per ``output_period`` worth of increments.
+
+        Parameters
+        ----------
+        stamp_ns : int
+            Header stamp, ns (the end of the increment's interval).
+        value : (3,) sequence of float
+            Δθ, rad, body axes.
+        frame_id : str
+            The header frame id.
+
         """
         if not self._frame_ok('gyro', frame_id, self.frame_id):
             return
@@ -186,7 +223,19 @@ class AttitudeFilterNode(Node):
         self.fix(msg.header, msg.quaternion, None)
 
     def fix(self, header, q_msg, covariance) -> None:
-        """One camera fix q_GCRS_VF (covariance: VF axes, rad², or None for the camera σ)."""
+        """
+        Take one camera fix q_GCRS_VF.
+
+        Parameters
+        ----------
+        header : std_msgs.msg.Header
+            The fix's header (stamp, frame id).
+        q_msg : geometry_msgs.msg.Quaternion
+            q_GCRS_VF, ROS order x, y, z, w.
+        covariance : (3, 3) array_like or None
+            Its covariance, VF axes, rad²; None for the camera σ of the parameters.
+
+        """
         if not self._frame_ok('camera', header.frame_id, self.ref_frame):
             return
         self.system.offer_fix(ros_io.stamp_to_ns(header.stamp),
@@ -269,7 +318,20 @@ class AttitudeFilterNode(Node):
 
     # --- diagnostics ---------------------------------------------------------------------------
     def diagnostic_conditions(self, st: dict) -> ros_status.Conditions:
-        """Every current condition with its level (the status level is the worst)."""
+        """
+        Return every current condition with its level.
+
+        Parameters
+        ----------
+        st : dict
+            The filter's status (counters and state).
+
+        Returns
+        -------
+        Conditions
+            The conditions; the status level is the worst of them.
+
+        """
         c = ros_status.Conditions()
         g = self.system.gyro_check
         if g.accepted == 0:
@@ -325,6 +387,7 @@ class AttitudeFilterNode(Node):
         return c
 
     def publish_diagnostics(self):
+        """Publish the /diagnostics status of the node."""
         st = self.system.status()
         c = self.diagnostic_conditions(st)
         cam = self.system.camera_check
@@ -370,6 +433,20 @@ class AttitudeFilterNode(Node):
 
 
 def main(args=None):
+    """
+    Run attitude_filter_node (the entry point of its process).
+
+    Parameters
+    ----------
+    args : list of str, optional
+        ROS arguments (default the process's).
+
+    Returns
+    -------
+    int
+        The exit status (:func:`strapdown_ros.nodes.ros_process.run_node`).
+
+    """
     return ros_process.run_node(AttitudeFilterNode, NODE_NAME, args)
 
 

@@ -96,6 +96,16 @@ LOG_THROTTLE_S = 30.0
 
 
 class CalibratorNode(Node):
+    """
+    The boresight calibrator node: ROS in and out of :class:`BoresightCalibrator`.
+
+    Parameters
+    ----------
+    **kwargs
+        Passed to :class:`rclpy.node.Node` (namespace, parameter_overrides, ...).
+
+    """
+
     def __init__(self, **kwargs):
         super().__init__(NODE_NAME, **kwargs)
         self.log = ros_status.NodeLog(self.get_logger())   # the one logging helper of the nodes
@@ -193,7 +203,7 @@ class CalibratorNode(Node):
 
     # --- parameters ---------------------------------------------------------------------
     def _on_change(self, new: dict) -> str | None:
-        """Validation (on-set): only the weighting may change at runtime."""
+        """Validate a change (on-set): only the weighting may change at runtime."""
         fixed = sorted(set(new) - {'weighted'})
         if fixed:
             return ('only weighted can change at runtime; restart the node to change '
@@ -229,12 +239,14 @@ class CalibratorNode(Node):
         self._gyro(*got)
 
     def _on_gyro(self, msg: Vector3Stamped):
-        """The same for a message object (tests, tools)."""
+        """Take one imu/delta_theta message object (tests, tools)."""
         v = msg.vector
         self._gyro(ros_io.stamp_to_ns(msg.header.stamp), (v.x, v.y, v.z), msg.header.frame_id)
 
     def _on_imu_raw(self, data: bytes):
         """
+        Take one imu/data_raw message (``gyro_input: imu``).
+
         The imu/data_raw subscription (``gyro_input: imu``): stamp, rate and frame read from the
         serialized bytes, then :meth:`_imu`.
         """
@@ -246,13 +258,15 @@ class CalibratorNode(Node):
         self._imu(got[0], got[1], got[3])
 
     def _on_imu(self, msg: Imu):
-        """The same for a message object (tests, tools)."""
+        """Take one imu/data_raw message object (tests, tools)."""
         w = msg.angular_velocity
         self.last_imu = msg
         self._imu(ros_io.stamp_to_ns(msg.header.stamp), (w.x, w.y, w.z), msg.header.frame_id)
 
     def _imu(self, ns: int, rate, f: str):
         """
+        Take one rate sample: the frame rule, then validation and the increment rule.
+
         One rate sample: the frame rule, then validation and the increment rule
         (RateIncrementStream); each increment formed enters the Δθ path (:meth:`_gyro`).
         """
@@ -360,10 +374,12 @@ class CalibratorNode(Node):
     # --- persistence ---------------------------------------------------------------------------
     def _restore_state(self, identity: dict):
         """
+        Resume from ``state_file``: its pairs, last fix and time origin.
+
         Resume from ``state_file`` (strapdown_ros.calibration.state: identity, lock, atomic
-        writes): its pairs, last fix and time origin; the estimate is solved again and
-        republished latched.  A file that cannot be used is reported (ERROR) and the node runs
-        without persistence; only an unreadable regular file is moved aside.
+        writes): its pairs, last fix and time origin; the estimate is solved again and republished
+        latched.  A file that cannot be used is reported (ERROR) and the node runs without
+        persistence; only an unreadable regular file is moved aside.
         """
         path = self.state['file']
         sf = CalibratorStateFile(path, identity)
@@ -413,6 +429,7 @@ class CalibratorNode(Node):
                            throttle=30.0, key='state_file')
 
     def destroy_node(self):
+        """Close the state file (its lock), then destroy the node."""
         if self.state_file is not None:
             self.state_file.close()
             self.state_file = None
@@ -516,6 +533,20 @@ class CalibratorNode(Node):
 
 
 def main(args=None):
+    """
+    Run calibrator_node (the entry point of its process).
+
+    Parameters
+    ----------
+    args : list of str, optional
+        ROS arguments (default the process's).
+
+    Returns
+    -------
+    int
+        The exit status (:func:`strapdown_ros.nodes.ros_process.run_node`).
+
+    """
     return ros_process.run_node(CalibratorNode, NODE_NAME, args)
 
 

@@ -47,6 +47,16 @@ NODE_NAME = 'imu_sim_node'
 
 
 class ImuSimNode(ros_io.PacedSimulation, Node):
+    """
+    The IMU simulator node: Δθ, Δv (or Imu rates) of a motion profile, paced by the wall clock.
+
+    Parameters
+    ----------
+    **kwargs
+        Passed to :class:`rclpy.node.Node` (namespace, parameter_overrides, ...).
+
+    """
+
     def __init__(self, **kwargs):
         super().__init__(NODE_NAME, **kwargs)
         self.log = ros_status.NodeLog(self.get_logger())   # the one logging helper of the nodes
@@ -204,6 +214,20 @@ class ImuSimNode(ros_io.PacedSimulation, Node):
 
 
 def main(args=None):
+    """
+    Run imu_sim_node (the entry point of its process).
+
+    Parameters
+    ----------
+    args : list of str, optional
+        ROS arguments (default the process's).
+
+    Returns
+    -------
+    int
+        The exit status (:func:`strapdown_ros.nodes.ros_process.run_node`).
+
+    """
     return ros_process.run_node(ImuSimNode, NODE_NAME, args)
 
 

@@ -432,10 +432,11 @@ class PacedSimulation:
 
     A wall timer calls :meth:`_tick`, which advances the simulated time to ``time_scale`` × the
     wall time since the first tick (capped at ``end_time``) through the node's
-    ``_advance_to(target)``, and calls ``_on_finished()`` once.  Nothing downstream sees the wall clock: every stamp is simulated time.  Setting
-    ``_wall_start = None`` restarts the pacing at the next tick (used after discovery).  With
-    ``wait_for_subscribers`` = N > 0 the clock starts at the first tick that sees N subscribers
-    (``_subscriber_count()``), so that consumers started as separate processes lose nothing.
+    ``_advance_to(target)``, and calls ``_on_finished()`` once.  Nothing downstream sees the wall
+    clock: every stamp is simulated time.  Setting ``_wall_start = None`` restarts the pacing at
+    the next tick (used after discovery).  With ``wait_for_subscribers`` = N > 0 the clock starts
+    at the first tick that sees N subscribers (``_subscriber_count()``), so that consumers started
+    as separate processes lose nothing.
     """
 
     _wall_start = None

@@ -96,7 +96,6 @@ def declare_validated(node, specs: Sequence[ParamSpec],
         contradict each other, or an override names no parameter of the package.
 
     """
-
     by_name = {s.name: s for s in specs}
     values = {}
     for s in specs:

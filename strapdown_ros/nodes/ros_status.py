@@ -224,8 +224,9 @@ class Conditions:
     The current conditions of a node's /diagnostics status.
 
     The level is the worst of all of them, and the message lists every one, worst first (in the
-    order added within a level), bounded to ``limit`` characters with the number of conditions
-    cut off.  A lower-level condition never masks a higher one (an undecodable message does not hide a gyro gap).
+    order added within a level), bounded to ``limit`` characters with the number of conditions cut
+    off.  A lower-level condition never masks a higher one (an undecodable message does not hide a
+    gyro gap).
 
     Parameters
     ----------

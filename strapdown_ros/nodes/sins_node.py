@@ -67,6 +67,16 @@ NODE_NAME = 'sins_node'
 
 
 class SinsNode(Node):
+    """
+    The strapdown attitude (and navigation) node: ROS in and out of :class:`SinsSystem`.
+
+    Parameters
+    ----------
+    **kwargs
+        Passed to :class:`rclpy.node.Node` (namespace, parameter_overrides, ...).
+
+    """
+
     def __init__(self, **kwargs):
         super().__init__(NODE_NAME, **kwargs)
         self.log = ros_status.NodeLog(self.get_logger())   # the one logging helper (any severity)
@@ -130,31 +140,39 @@ class SinsNode(Node):
     # --- the core's state, as the node's (diagnostics, tests, tools) --------------------------
     @property
     def integrator(self):
+        """Return the core's attitude integrator."""
         return self.system.integrator
 
     @property
     def nav(self):
+        """Return the core's navigation channel (None when ``navigation`` is off)."""
         return self.system.nav
 
     @property
     def gyro_check(self):
+        """Return the stream rules of the Δθ input (with their counters)."""
         return self.system.gyro_check
 
     @property
     def accel_check(self):
+        """Return the stream rules of the Δv input (with their counters)."""
         return self.system.accel_check
 
     @property
     def nonfinite(self) -> int:
+        """Return the number of non-finite updates discarded."""
         return self.system.nonfinite
 
     @property
     def frame_mismatch(self) -> dict:
+        """Return the messages in another frame than ``frame_id``, per stream."""
         return self.system.frame_mismatch
 
     # --- parameters ---------------------------------------------------------------------
     def _on_change(self, new: dict) -> str | None:
         """
+        Validate a change (on-set): only the coning algorithm may change.
+
         Validation (on-set): only the coning algorithm may change at runtime, and only while
         navigation is off (the navigation step is the algorithm's update).
         """
@@ -169,7 +187,7 @@ class SinsNode(Node):
         return None
 
     def _apply_change(self, new: dict) -> None:
-        """Application (post-set), once rclpy has accepted the change."""
+        """Apply a change (post-set), once rclpy has accepted it."""
         name = new['coning_algorithm']
         if name != self.integrator.algorithm_name:
             self.process()                         # the samples so far belong to the old algorithm
@@ -181,6 +199,8 @@ class SinsNode(Node):
     # --- input ------------------------------------------------------------------------------
     def _on_gyro_raw(self, data: bytes):
         """
+        Take one imu/delta_theta message (the hot path).
+
         Hot path (the imu/delta_theta subscription): decode, validate, append to the block; the
         numerical work runs in :meth:`process`.
         """
@@ -191,7 +211,7 @@ class SinsNode(Node):
         self._gyro(*got)
 
     def _on_gyro(self, msg: Vector3Stamped):
-        """The same for a message object (tests, tools)."""
+        """Take one imu/delta_theta message object (tests, tools)."""
         st = msg.header.stamp
         v = msg.vector
         self._gyro(st.sec * 1_000_000_000 + st.nanosec, (v.x, v.y, v.z), msg.header.frame_id)
@@ -204,6 +224,8 @@ class SinsNode(Node):
 
     def _on_accel_raw(self, data: bytes):
         """
+        Take one imu/delta_velocity message (the hot path).
+
         Hot path (the imu/delta_velocity subscription): decode, validate, append; folded into the
         accumulator by :meth:`process`.
         """
@@ -215,7 +237,7 @@ class SinsNode(Node):
             self.process()
 
     def _on_accel(self, msg: Vector3Stamped):
-        """The same for a message object (tests, tools)."""
+        """Take one imu/delta_velocity message object (tests, tools)."""
         st = msg.header.stamp
         v = msg.vector
         if self.system.offer_accel(st.sec * 1_000_000_000 + st.nanosec, (v.x, v.y, v.z),
@@ -224,8 +246,9 @@ class SinsNode(Node):
 
     def _on_imu_raw(self, data: bytes):
         """
-        Hot path (the imu/data_raw subscription, ``gyro_input: imu``): decode, then
-        :meth:`_imu`.
+        Take one imu/data_raw message (the hot path of ``gyro_input: imu``).
+
+        Hot path (the imu/data_raw subscription, ``gyro_input: imu``): decode, then :meth:`_imu`.
         """
         got = ros_io.decode_imu(data)
         if got is None:
@@ -235,7 +258,7 @@ class SinsNode(Node):
         self._imu(*got)
 
     def _on_imu(self, msg: Imu):
-        """The same for a message object (tests, tools)."""
+        """Take one imu/data_raw message object (tests, tools)."""
         w, a = msg.angular_velocity, msg.linear_acceleration
         accel = None if msg.linear_acceleration_covariance[0] == -1.0 else (a.x, a.y, a.z)
         self.last_imu = msg
@@ -244,9 +267,11 @@ class SinsNode(Node):
 
     def _imu(self, stamp_ns: int, rate, accel, frame_id: str):
         """
+        Take one Imu message: the frame rule, then each rate through its stream.
+
         One Imu message: the frame rule, then each rate through its RateIncrementStream
-        (validation, then the increment rule); the increments formed enter the Δθ/Δv path.  The
-        Δv goes first, so that the update of the same stamp finds its specific force.
+        (validation, then the increment rule); the increments formed enter the Δθ/Δv path.  The Δv
+        goes first, so that the update of the same stamp finds its specific force.
         """
         if not self.system.frame_accepted(frame_id, 'gyro'):
             return
@@ -260,6 +285,8 @@ class SinsNode(Node):
     # --- batch processing ------------------------------------------------------------------
     def process(self) -> None:
         """
+        Integrate the buffered increments as one block and publish the updates.
+
         Integrate the buffered increments as one block through the vectorised core and publish
         every update with its own stamp.  The result equals message-by-message processing to
         round-off (test/ros/test_nodes.py::test_sins_node_batches_equal_per_message_processing).
@@ -269,8 +296,10 @@ class SinsNode(Node):
     # --- output ------------------------------------------------------------------------------
     def _publish(self, out: SinsOutput) -> None:
         """
-        Publish the system's outputs; sins/attitude and sins/odometry only when subscribed
-        (checked once per block).
+        Publish the system's outputs of one block.
+
+        Publish the system's outputs; sins/attitude and sins/odometry only when subscribed (checked
+        once per block).
         """
         att_out, imu_out, nav_out = out.attitude, out.imu, out.navigation
         if len(att_out) and self.pub_att.get_subscription_count() > 0:
@@ -311,6 +340,8 @@ class SinsNode(Node):
 
     def _imu_msg(self, stamp_ns, q, cov, rate, f_mean) -> Imu:
         """
+        Fill the sensor_msgs/Imu of one update.
+
         sensor_msgs/Imu of one update.  One message object is reused (publish serialises it at
         once): constructing a new Imu costs more than the rest of the update.
         """
@@ -351,13 +382,27 @@ class SinsNode(Node):
 
     def accel_stall_s(self) -> float | None:
         """
-        Stamp seconds the gyro stream ran beyond the newest Δv (the core's rule,
-        :meth:`SinsSystem.accel_stall_s`).
+        Return the stamp seconds the gyro stream ran beyond the newest Δv.
+
+        Returns
+        -------
+        float or None
+            Seconds; None before any gyro data.
+
         """
         return self.system.accel_stall_s()
 
     def diagnostic_conditions(self) -> ros_status.Conditions:
-        """Every current condition of the node with its level (the status level is the worst)."""
+        """
+        Return every current condition of the node with its level.
+
+        Returns
+        -------
+        Conditions
+            The conditions (:class:`strapdown_ros.nodes.ros_status.Conditions`); the status
+            level is the worst of them.
+
+        """
         g, a = self.gyro_check, self.accel_check
         c = ros_status.Conditions()
         if g.accepted == 0:
@@ -406,6 +451,7 @@ class SinsNode(Node):
         return c
 
     def publish_diagnostics(self):
+        """Publish the /diagnostics status of the node."""
         g = self.gyro_check
         c = self.diagnostic_conditions()
         values = self.system.status()
@@ -432,6 +478,20 @@ class SinsNode(Node):
 
 
 def main(args=None):
+    """
+    Run sins_node (the entry point of its process).
+
+    Parameters
+    ----------
+    args : list of str, optional
+        ROS arguments (default the process's).
+
+    Returns
+    -------
+    int
+        The exit status (:func:`strapdown_ros.nodes.ros_process.run_node`).
+
+    """
     return ros_process.run_node(SinsNode, NODE_NAME, args)
 
 

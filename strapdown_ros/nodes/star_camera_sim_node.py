@@ -57,6 +57,16 @@ NODE_NAME = 'star_camera_sim_node'
 
 
 class StarCameraSimNode(ros_io.PacedSimulation, Node):
+    """
+    The star camera simulator node: noisy attitude fixes of a motion profile.
+
+    Parameters
+    ----------
+    **kwargs
+        Passed to :class:`rclpy.node.Node` (namespace, parameter_overrides, ...).
+
+    """
+
     def __init__(self, **kwargs):
         super().__init__(NODE_NAME, **kwargs)
         self.log = ros_status.NodeLog(self.get_logger())   # the one logging helper of the nodes
@@ -129,6 +139,7 @@ class StarCameraSimNode(ros_io.PacedSimulation, Node):
             self.last_stamp = fix.stamp
 
     def publish_diagnostics(self):
+        """Publish the /diagnostics status of the node."""
         wall = (time.monotonic() - self._wall_start) if self._wall_start else 0.0
         st = ros_io.ns_to_stamp(self.start_ns + int(round(self.sim_time * 1e9)))
         values = {'simulated_time_s': self.sim_time,
@@ -148,6 +159,20 @@ class StarCameraSimNode(ros_io.PacedSimulation, Node):
 
 
 def main(args=None):
+    """
+    Run star_camera_sim_node (the entry point of its process).
+
+    Parameters
+    ----------
+    args : list of str, optional
+        ROS arguments (default the process's).
+
+    Returns
+    -------
+    int
+        The exit status (:func:`strapdown_ros.nodes.ros_process.run_node`).
+
+    """
     return ros_process.run_node(StarCameraSimNode, NODE_NAME, args)
 
 
