@@ -183,14 +183,14 @@ class ImuRecording:
 
     @property
     def namespace(self) -> str:
-        """The namespace of the gyro topic ('' or '/ns'), for the output topics."""
+        """Return the namespace of the gyro topic ('' or '/ns'), for the output topics."""
         t = '/' + self.gyro_conn.topic.strip('/')
         rel = '/' + GYRO_TOPIC
         return t[:-len(rel)] if t.endswith(rel) else ''
 
     @property
     def imu_input(self) -> bool:
-        """True when the gyro stream is sensor_msgs/Imu rate samples."""
+        """Tell whether the gyro stream is sensor_msgs/Imu rate samples."""
         return self.gyro is not None and self.gyro.kind == 'rates'
 
     def close(self):

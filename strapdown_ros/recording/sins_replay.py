@@ -436,7 +436,7 @@ class McapOutput:
 
     @property
     def rows(self) -> int:
-        """The number of messages written."""
+        """Return the number of messages written."""
         return sum(self.counts.values())
 
     def summary(self) -> str:

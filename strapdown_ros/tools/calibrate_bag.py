@@ -62,22 +62,52 @@ ARCSEC_PER_RAD = 180.0 / np.pi * 3600.0
 
 # --- parameters -------------------------------------------------------------------------------
 def calibrator_parameters(params_file: str | None = None, overrides: dict | None = None) -> dict:
-    """calibrator_node parameters from a ROS 2 parameter YAML (+ overrides), validated."""
+    """
+    Return calibrator_node's parameters from a ROS 2 parameter YAML, validated.
+
+    Parameters
+    ----------
+    params_file : str, optional
+        A ROS 2 parameter YAML (its ``calibrator_node`` and ``/**`` blocks).
+    overrides : dict, optional
+        Values that replace the file's (name → value).
+
+    Returns
+    -------
+    dict
+        Every calibrator_node parameter, name → checked value.
+
+    """
     raw = load_parameter_file(params_file, 'calibrator_node') if params_file else {}
     raw.update(overrides or {})
     return check_all(CALIBRATOR_PARAMS, raw)
 
 
 def make_calibrator(p: dict) -> BoresightCalibrator:
-    """The calibrator exactly as built from calibrator_node parameters."""
+    """
+    Return the calibrator exactly as calibrator_node builds it.
+
+    Parameters
+    ----------
+    p : dict
+        calibrator_node parameters (:func:`calibrator_parameters`).
+
+    Returns
+    -------
+    BoresightCalibrator
+        The calibrator, its gyro effects compensated.
+
+    """
     return BoresightCalibrator.from_params(p)
 
 
 def _match_segments(tg, g_segs, tc, c_segs) -> list[tuple[int, int]]:
     """
-    Which gyro time base goes with which camera time base, in order.  As many of each (a
-    clock reset of both streams, the usual case): the k-th with the k-th.  Otherwise (one
-    stream resynchronised alone) by overlapping stamp ranges, walking both lists forward.
+    Pair each gyro time base with its camera time base, in order.
+
+    Which gyro time base goes with which camera time base, in order.  As many of each (a clock
+    reset of both streams, the usual case): the k-th with the k-th.  Otherwise (one stream
+    resynchronised alone) by overlapping stamp ranges, walking both lists forward.
     """
     if len(g_segs) == len(c_segs):
         return [(k, k) for k in range(len(g_segs))]
@@ -96,9 +126,11 @@ def _match_segments(tg, g_segs, tc, c_segs) -> list[tuple[int, int]]:
 
 def calibrate(data: dict, p: dict):
     """
-    Feed the calibrator as calibrator_node is fed — gyro and fixes interleaved in stamp order —
-    and solve; returns (solution, calibrator, pairs discarded over gyro gaps and stamp jumps).
-    The calibrator's buffer stays bounded on recordings of any length.
+    Feed the calibrator as calibrator_node is fed and solve.
+
+    Feed the calibrator as calibrator_node is fed — gyro and fixes interleaved in stamp order — and
+    solve; returns (solution, calibrator, pairs discarded over gyro gaps and stamp jumps). The
+    calibrator's buffer stays bounded on recordings of any length.
 
     Each stream is split into its time bases (``strapdown_ros.streams.checks.segments``: a
     confirmed resynchronisation starts a new one; a burst that returned has already been removed by
@@ -107,6 +139,23 @@ def calibrate(data: dict, p: dict):
     resynchronisation) at every gyro segment and its fix chain at every camera segment, so no
     pair spans a jump and no stamp array handed to the search is out of order (segments matched
     by :func:`_match_segments`).
+
+    Parameters
+    ----------
+    data : dict
+        The streams of :func:`strapdown_ros.recording.reader.read_bag`.
+    p : dict
+        calibrator_node parameters.
+
+    Returns
+    -------
+    solution : BoresightSolution
+        The boresight estimate.
+    calibrator : BoresightCalibrator
+        The calibrator after the recording.
+    discarded : int
+        Pairs discarded over gyro gaps and stamp jumps.
+
     """
     g, c = data['gyro'], data['camera']
     t0 = min(g.stamps[0], c.stamps[0])                 # origin: float seconds keep ns resolution
@@ -168,7 +217,22 @@ def _mat(m):
 
 
 def solution_json(sol, weighted: bool) -> dict:
-    """The JSON record of a BoresightSolution (schema in the module docstring)."""
+    """
+    Return the JSON record of a BoresightSolution (schema in the module docstring).
+
+    Parameters
+    ----------
+    sol : BoresightSolution
+        The solution.
+    weighted : bool
+        Whether the fit was weighted by the pair covariances.
+
+    Returns
+    -------
+    dict
+        Plain JSON values.
+
+    """
     ok = bool(sol.observable and sol.beta is not None)
     unobs = list(sol.unobservable_axes) if not ok else []
     if not ok and not unobs:                   # too few pairs: nothing is observable
@@ -267,8 +331,20 @@ def _summary(bag: str, data: dict, result: dict, p: dict) -> str:
 
 def consistency_warning(result: dict) -> str | None:
     """
-    The ``WARNING:`` line of a fit whose χ²/dof is outside its band (None when inside or
-    not judged): χ²/dof, the band, what it means, and which σ is reported.
+    Return the ``WARNING:`` line of a fit whose χ²/dof is outside its band.
+
+    The line gives χ²/dof, the band, what it means, and which σ is reported.
+
+    Parameters
+    ----------
+    result : dict
+        The JSON record of the solution (:func:`solution_json`).
+
+    Returns
+    -------
+    str or None
+        The line; None when χ²/dof is inside its band or not judged.
+
     """
     if result.get('fit_consistent') is not False:
         return None
@@ -293,7 +369,20 @@ def consistency_warning(result: dict) -> str | None:
 
 
 def main(argv=None) -> int:
+    """
+    Run the calibrate_bag command.
 
+    Parameters
+    ----------
+    argv : list of str, optional
+        The arguments (default ``sys.argv[1:]``).
+
+    Returns
+    -------
+    int
+        The exit status (0 success; 2 unusable arguments or input, one line on stderr).
+
+    """
     ap = OneLineParser(prog='calibrate_bag', description=__doc__,
                        formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument('bag', help='rosbag2 bag directory, or a .mcap / .db3 file')

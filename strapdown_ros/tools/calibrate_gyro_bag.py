@@ -69,8 +69,22 @@ def _num(x):
 
 
 def result_json(cal, info: dict) -> dict:
-    """The JSON record of a :class:`~strapdown_ros.calibration.gyro.GyroCalibration`."""
+    """
+    Return the JSON record of a gyro calibration.
 
+    Parameters
+    ----------
+    cal : GyroCalibration
+        The estimate (:class:`strapdown_ros.calibration.gyro.GyroCalibration`).
+    info : dict
+        What was read from the bag (messages, fixes, topics).
+
+    Returns
+    -------
+    dict
+        Plain JSON values.
+
+    """
     ok = bool(cal.observable)
     rep = cal.observability
     return json_clean({
@@ -134,7 +148,20 @@ def _summary(bag, info, cal) -> str:
 
 
 def consistency_warning(out: dict) -> str | None:
-    """The ``WARNING:`` line of an estimate whose χ²/dof is outside its band, else None."""
+    """
+    Return the ``WARNING:`` line of an estimate whose χ²/dof is outside its band.
+
+    Parameters
+    ----------
+    out : dict
+        The JSON record (:func:`result_json`).
+
+    Returns
+    -------
+    str or None
+        The line; None when inside the band.
+
+    """
     if out.get('fit_consistent') is not False or not out.get('observable'):
         return None
     chi2, (lo, hi), d = out['chi2_per_dof'], out['chi2_per_dof_band'], out['details']
@@ -176,8 +203,7 @@ def _parse(argv):
 
 
 def _check(args) -> None:
-    """Arguments, input files and output paths, before any work.  Raises ValueError."""
-
+    """Check the arguments, input files and output paths, before any work."""
     check_input_arguments(args)
     if args.drift and args.method != 'tkachenko':
         raise ValueError('--drift needs --method tkachenko (002 has no reference drift)')
@@ -197,6 +223,20 @@ def _check(args) -> None:
 
 
 def main(argv=None) -> int:
+    """
+    Run the calibrate_gyro_bag command.
+
+    Parameters
+    ----------
+    argv : list of str, optional
+        The arguments (default ``sys.argv[1:]``).
+
+    Returns
+    -------
+    int
+        The exit status (0 success; 2 unusable arguments or input, one line on stderr).
+
+    """
     args = _parse(argv)
     t_start = time.perf_counter()
 

@@ -1,6 +1,7 @@
 """
-discrepancy: where a recording and its model disagree, which effect is missing, and how much
-the disagreement shrinks once it is added.
+discrepancy: where a recording and its model disagree, and which effect is missing.
+
+How much the disagreement shrinks once the missing effect is added is reported too.
 
     discrepancy BAG --model MODEL.yaml [--json FILE] [--report DIR] [--write-model OUT.yaml]
                 [--force]
@@ -63,10 +64,21 @@ ARCSEC_PER_RAD = 180.0 / np.pi * 3600.0
 
 def write_model(path: str, doc: dict, result) -> None:
     """
-    The model file with the found effects and the estimated boresight: written into ``/**``
-    (and into any node block that sets the same key, so it does not override the new value).
-    """
+    Write the model file with the found effects and the estimated boresight.
 
+    The values go into ``/**`` (and into any node block that sets the same key, so that it does
+    not override the new value).
+
+    Parameters
+    ----------
+    path : str
+        The output model file (written atomically).
+    doc : dict
+        The input model document (ROS 2 parameter YAML).
+    result : DiscrepancyResult
+        The workflow's result.
+
+    """
     updates = dict(result.model_out)
     updates['initial_boresight'] = updates['boresight']
     write_model_file(path, doc, updates,
@@ -152,7 +164,20 @@ def _fmt(v):
 
 
 def main(argv=None) -> int:
+    """
+    Run the discrepancy command.
 
+    Parameters
+    ----------
+    argv : list of str, optional
+        The arguments (default ``sys.argv[1:]``).
+
+    Returns
+    -------
+    int
+        The exit status (0 success; 2 unusable arguments or input, one line on stderr).
+
+    """
     ap = OneLineParser(prog='discrepancy', description=__doc__,
                        formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument('bag', help='rosbag2 bag directory, or a .mcap / .db3 file')

@@ -47,7 +47,20 @@ __all__ = ['main']
 
 
 def main(argv=None) -> int:
+    """
+    Run the record_sim command.
 
+    Parameters
+    ----------
+    argv : list of str, optional
+        The arguments (default ``sys.argv[1:]``).
+
+    Returns
+    -------
+    int
+        The exit status (0 success; 2 unusable arguments or input, one line on stderr).
+
+    """
     ap = OneLineParser(prog='record_sim', description=__doc__,
                        formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument('bag', help='output bag directory (must not exist unless --force)')
