@@ -126,7 +126,10 @@ class ImuSimNode(ros_io.PacedSimulation, Node):
             return
         ta, dv, _ = self.accel.sample(max(n_a, 0))
         tg, dth, _ = self.gyro.sample(max(n_g, 0))
-        stamp = lambda t: ros_io.ns_to_stamp(self.start_ns + int(round(t * 1e9)))  # noqa: E731
+
+        def stamp(t):
+            return ros_io.ns_to_stamp(self.start_ns + int(round(t * 1e9)))
+
         # one message object per topic, refilled (publish serialises at once); the derived topics
         # are built only while somebody subscribes to them
         raw_on = self.pub_raw.get_subscription_count() > 0

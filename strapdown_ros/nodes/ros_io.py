@@ -87,7 +87,7 @@ def decode_vector3_stamped(data: bytes) -> tuple[int, tuple[float, float, float]
         return got
     try:
         m = deserialize_message(data, Vector3Stamped)
-    except Exception:                                  # noqa: BLE001 - malformed bytes
+    except Exception:                                  # malformed bytes
         return None
     v = m.vector
     return stamp_to_ns(m.header.stamp), (v.x, v.y, v.z), m.header.frame_id
@@ -119,7 +119,7 @@ def decode_imu(data: bytes):
         return got
     try:
         m = deserialize_message(data, Imu)
-    except Exception:                                  # noqa: BLE001 - malformed bytes
+    except Exception:                                  # malformed bytes
         return None
     w, a = m.angular_velocity, m.linear_acceleration
     accel = None if m.linear_acceleration_covariance[0] == -1.0 else (a.x, a.y, a.z)
@@ -152,7 +152,7 @@ def stated_rate_variance(last_imu) -> str:
         if cov is None:
             try:
                 cov = tuple(deserialize_message(last_imu, Imu).angular_velocity_covariance)
-            except Exception:                          # noqa: BLE001 - malformed bytes
+            except Exception:                          # malformed bytes
                 return 'undecodable'
     else:
         cov = tuple(last_imu.angular_velocity_covariance)

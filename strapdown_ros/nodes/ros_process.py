@@ -107,7 +107,7 @@ def run_node(node_class, name: str, args=None) -> int:
         rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
     except KeyboardInterrupt:                          # the entry point's import-time handler
         return 0
-    except Exception as exc:                           # noqa: BLE001 - e.g. a bad --params-file
+    except Exception as exc:                           # e.g. a bad --params-file
         print(f'[{name}] error: {str(exc).splitlines()[0]}', file=sys.stderr)
         return 2
     try:
@@ -124,7 +124,7 @@ def run_node(node_class, name: str, args=None) -> int:
             return 0
         print(f'[{name}] error: {exc}', file=sys.stderr)
         return 2
-    except Exception:                                  # noqa: BLE001
+    except Exception:
         if stop:
             return _quiet_exit(executor)
         raise
@@ -172,6 +172,6 @@ def _quiet_exit(executor, node=None) -> int:
             continue
         try:
             step()
-        except Exception:                              # noqa: BLE001 - already stopped
+        except Exception:                              # already stopped
             pass
     return 0

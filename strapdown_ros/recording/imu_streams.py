@@ -353,7 +353,7 @@ def read_streams(reader, conns: list, path, progress=None) -> dict:
         parts, order = _read_chunks(reader, conns, progress)
     except BagError:
         raise
-    except Exception as exc:                  # noqa: BLE001 - a corrupted record, whatever says so
+    except Exception as exc:                  # a corrupted record, whatever says so
         raise _unreadable(path, exc) from None
     conn_of = {c.topic: c for c in conns}
     return {topic: _joined(conn_of[topic], chunks, order[topic])

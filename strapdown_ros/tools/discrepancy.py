@@ -253,7 +253,7 @@ def main(argv=None) -> int:
         after.update(s.parameters)
     try:
         allan = allan_comparison(rec.gyro_stamps, rec.delta_theta, model, after)
-    except Exception as exc:                       # noqa: BLE001 - the rest of the result stands
+    except Exception as exc:                       # the rest of the result stands
         allan = {'error': str(exc)}
     out = res.as_json()
     out['allan'] = json_clean(allan)

@@ -141,7 +141,7 @@ def analyse_trial(csv: Path, model_file: Path, work: Path,
         two['rejected'] = [r2['effect'] + ': ' + r2['reason'] for r2 in res.rejected]
         two['not_separable'] = [list(p) for p in res.not_separable]
         out['two_effects'] = two
-    except Exception as exc:                     # noqa: BLE001 - one trial's failure is reported
+    except Exception as exc:                     # one trial's failure is reported
         out['two_effects'] = {'error': f'{type(exc).__name__}: {exc}'[:300]}
     if decimation_check:
         runs = estimates_by_fix_interval(trial, model_file, work)
@@ -206,7 +206,7 @@ def estimates_by_fix_interval(trial, model_file: Path, work: Path,
                           reference_interval_s=iv)
                 rec, _ = load_recording(str(bag), model)
             res = analyse(rec, model, candidates=TWO_EFFECTS)
-        except Exception as exc:                 # noqa: BLE001 - one run's failure is reported
+        except Exception as exc:                 # one run's failure is reported
             out[f'{iv:g}'] = {'error': f'{type(exc).__name__}: {exc}'[:300]}
             continue
         vals = {'boresight': {'value': list(res.boresight_rad),

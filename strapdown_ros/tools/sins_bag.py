@@ -314,7 +314,7 @@ def main(argv=None) -> int:
             sink = CsvOutput(Path(args.output), system.nav is not None)
         else:
             sink = McapOutput(Path(args.output), system, inp.namespace, odometry_arrays)
-    except Exception as exc:                           # noqa: BLE001 - the writer's own refusal
+    except Exception as exc:                           # the writer's own refusal
         inp.close()
         return err(f'cannot write {args.output}: {exc}')
     ok = False
