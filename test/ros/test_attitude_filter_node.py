@@ -9,36 +9,35 @@ Every wait has a timeout (conftest.py isolates the ROS domain).
 import math
 from types import SimpleNamespace
 
-import numpy as np
-import pytest
-
-rclpy = pytest.importorskip('rclpy')
-
-from builtin_interfaces.msg import Time  # noqa: E402
-from diagnostic_msgs.msg import DiagnosticArray  # noqa: E402
-from geometry_msgs.msg import PoseWithCovarianceStamped  # noqa: E402
+from builtin_interfaces.msg import Time
+from diagnostic_msgs.msg import DiagnosticArray
+from geometry_msgs.msg import PoseWithCovarianceStamped
 from geometry_msgs.msg import (Quaternion, QuaternionStamped, TwistWithCovarianceStamped,
                                Vector3Stamped)
-from rclpy.parameter import Parameter  # noqa: E402
-from rclpy.qos import ReliabilityPolicy  # noqa: E402
-from sensor_msgs.msg import Imu  # noqa: E402
-from std_msgs.msg import Header  # noqa: E402
+import numpy as np
+import pytest
+import rclpy
+from rclpy.parameter import Parameter
+from rclpy.qos import ReliabilityPolicy
+from ros_helpers import spin_until
+from sensor_msgs.msg import Imu
+from std_msgs.msg import Header
 
-from ros_helpers import spin_until  # noqa: E402
-from strapdown_ros.nodes import ros_io, ros_status  # noqa: E402
-from strapdown_ros.nodes.attitude_filter_node import AttitudeFilterNode  # noqa: E402
-from strapdown_ros.nodes.imu_sim_node import ImuSimNode  # noqa: E402
-from strapdown_ros.nodes.star_camera_sim_node import StarCameraSimNode  # noqa: E402
-from strapdown_ros.params import FILTER_PARAMS  # noqa: E402
+from strapdown_ros.nodes import ros_io, ros_status
+from strapdown_ros.nodes.attitude_filter_node import AttitudeFilterNode
+from strapdown_ros.nodes.imu_sim_node import ImuSimNode
+from strapdown_ros.nodes.star_camera_sim_node import StarCameraSimNode
+from strapdown_ros.params import FILTER_PARAMS
 from strapdown_ros.rotation import (dcm_to_quat, from_ros_xyzw, quat_conjugate, quat_error_rotvec,
                                     quat_multiply, ypr_to_dcm)
-from strapdown_ros.tools.filter_bag import run_filter  # noqa: E402
+from strapdown_ros.tools.filter_bag import run_filter
+
 
 try:
-    from rclpy.experimental import EventsExecutor as Executor  # noqa: E402
+    from rclpy.experimental import EventsExecutor as Executor
     TIME_SCALE = 8.0
 except ImportError:                                        # older Jazzy rclpy
-    from rclpy.executors import SingleThreadedExecutor as Executor  # noqa: E402
+    from rclpy.executors import SingleThreadedExecutor as Executor
     TIME_SCALE = 5.0
 
 BETA = np.radians([40.0, -25.0, 120.0])
@@ -46,8 +45,6 @@ Q_MF_VF = dcm_to_quat(ypr_to_dcm(*BETA))
 BIAS = np.array([2.0e-6, -1.0e-6, 1.5e-6])          # injected gyro bias, rad/s
 QUEUE = 20000
 DURATION = 80.0                                      # s: holds and turns about z and x
-
-
 
 
 def q_of(m):

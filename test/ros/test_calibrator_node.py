@@ -14,26 +14,25 @@ import subprocess
 import sys
 import time
 
+from diagnostic_msgs.msg import DiagnosticArray
+from geometry_msgs.msg import PoseWithCovarianceStamped
+from geometry_msgs.msg import QuaternionStamped, Vector3Stamped
 import numpy as np
 import pytest
+import rclpy
+from rclpy.executors import SingleThreadedExecutor
+from rclpy.parameter import Parameter
+from rclpy.qos import DurabilityPolicy, ReliabilityPolicy
+from ros_helpers import spin_until
 
-rclpy = pytest.importorskip('rclpy')
-
-from diagnostic_msgs.msg import DiagnosticArray  # noqa: E402
-from geometry_msgs.msg import PoseWithCovarianceStamped  # noqa: E402
-from geometry_msgs.msg import QuaternionStamped, Vector3Stamped
-from rclpy.executors import SingleThreadedExecutor  # noqa: E402
-from rclpy.parameter import Parameter  # noqa: E402
-from rclpy.qos import DurabilityPolicy, ReliabilityPolicy  # noqa: E402
-
-from ros_helpers import spin_until  # noqa: E402
-from strapdown_ros.motion.profiles import bench_profile  # noqa: E402
-from strapdown_ros.nodes.calibrator_node import CalibratorNode  # noqa: E402
-from strapdown_ros.nodes.imu_sim_node import ImuSimNode  # noqa: E402
-from strapdown_ros.nodes.ros_io import stamp_to_ns, stream_qos  # noqa: E402
+from strapdown_ros.motion.profiles import bench_profile
+from strapdown_ros.nodes.calibrator_node import CalibratorNode
+from strapdown_ros.nodes.imu_sim_node import ImuSimNode
+from strapdown_ros.nodes.ros_io import stamp_to_ns, stream_qos
 from strapdown_ros.nodes.star_camera_sim_node import camera_qos, latched_qos, StarCameraSimNode
 from strapdown_ros.rotation import (dcm_to_quat, from_ros_xyzw, quat_error_rotvec, quat_to_dcm,
                                     quat_to_rotvec, ypr_to_dcm)
+
 
 ARCSEC = math.pi / 180.0 / 3600.0
 BETA = np.radians([40.0, -25.0, 120.0])          # (ψ, ϑ, γ): far from small, as in 004 §1
@@ -47,7 +46,7 @@ REPO = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__)
 # Jazzy's rclpy 7.1) has no such limit (no loss at 60×), so the simulated minutes run in seconds.
 # Deployed, each node spins in its own process and this does not arise.
 try:
-    from rclpy.experimental import EventsExecutor as Executor  # noqa: E402
+    from rclpy.experimental import EventsExecutor as Executor
     MAX_TIME_SCALE = 50.0
 except ImportError:                                        # older Jazzy rclpy
     Executor = SingleThreadedExecutor
@@ -57,8 +56,6 @@ except ImportError:                                        # older Jazzy rclpy
 # CPU hogs beside it, 0.1–70% of the samples were lost at the default depth 500) cannot
 # overwrite samples.  Graph.run still fails, with the counts, if any increment is lost.
 QUEUE = 20000
-
-
 
 
 def q_of(msg):
@@ -91,7 +88,8 @@ class Graph:
             '--ros-args', '-r', f'imu/delta_theta:={ns}/imu/delta_theta',
             '-r', f'star_camera/attitude:={ns}/star_camera/attitude']) if plain_peer else None
         self.sim = ImuSimNode(namespace=ns, parameter_overrides=[
-            *prof, *depth, Parameter('gyro_rate', value=100.0), Parameter('accel_rate', value=10.0),   # Δv unused
+            *prof, *depth, Parameter('gyro_rate', value=100.0),
+            Parameter('accel_rate', value=10.0),   # Δv unused
             Parameter('time_scale', value=min(time_scale, MAX_TIME_SCALE))])
         self.cam = StarCameraSimNode(namespace=ns, parameter_overrides=[
             *prof, Parameter('boresight', value=[float(b) for b in BETA]),
@@ -100,10 +98,12 @@ class Graph:
         self.diags = []
         self.imu_att = []
         self.mon.create_subscription(DiagnosticArray, '/diagnostics', self.diags.append, 50)
-        self.mon.create_subscription(PoseWithCovarianceStamped, 'calibration/imu_attitude_from_camera',
+        self.mon.create_subscription(PoseWithCovarianceStamped,
+                                     'calibration/imu_attitude_from_camera',
                                      self.imu_att.append, camera_qos(100))
         self.ex = Executor()
-        self.nodes = [self.calib, self.mon, self.sim, self.cam] + ([self.peer] if self.peer else [])
+        self.nodes = [self.calib, self.mon, self.sim,
+                      self.cam] + ([self.peer] if self.peer else [])
 
     def run(self):
         """
@@ -116,7 +116,8 @@ class Graph:
         peers = 2 if self.peer else 1
         assert spin_until(self.ex, lambda: self.sim.pub_dtheta.get_subscription_count() >= peers
                           and self.cam.pub_cov.get_subscription_count() >= 1
-                          and self.cam.pub_att.get_subscription_count() >= peers - 1, 10.0), 'discovery timed out'
+                          and self.cam.pub_att.get_subscription_count() >= peers - 1,
+                          10.0), 'discovery timed out'
         self.ex.add_node(self.sim)
         self.ex.add_node(self.cam)
         t0 = time.monotonic()
@@ -130,7 +131,9 @@ class Graph:
         assert self.all_received(), (
             f'calibrator lost input (best-effort queue overflow? lower time_scale): gyro {g.received} of '
             f"{self.sim.counts['delta_theta']}, camera {c.received} of {self.cam.published}")
-        assert (g.accepted, g.nan, g.out_of_order, g.duplicate, g.gaps, g.missing) == (g.received, 0, 0, 0, 0, 0)
+        assert (g.accepted, g.nan, g.out_of_order, g.duplicate, g.gaps, g.missing) == (g.received,
+                                                                                       0, 0, 0, 0,
+                                                                                       0)
         assert c.accepted == c.received == self.cam.published
 
     def all_received(self):
@@ -173,8 +176,10 @@ def test_bench_calibration_full_graph(ros):
         assert cal.published['boresight'] >= 1, cal.cal.solution.message
         # star_camera/attitude + σ parameters (the same σ as the simulator's) gives the same answer
         assert g.peer.published['boresight'] == cal.published['boresight']
-        np.testing.assert_allclose(g.peer.cal.solution.beta, cal.cal.solution.beta, rtol=0, atol=1e-12)
-        np.testing.assert_allclose(g.peer.cal.solution.rotation_covariance_mf, cal.cal.solution.rotation_covariance_mf,
+        np.testing.assert_allclose(g.peer.cal.solution.beta, cal.cal.solution.beta, rtol=0,
+                                   atol=1e-12)
+        np.testing.assert_allclose(g.peer.cal.solution.rotation_covariance_mf,
+                                   cal.cal.solution.rotation_covariance_mf,
                                    rtol=1e-9)
 
         # --- the estimate reaches a subscriber created after it was published (transient local)
@@ -186,7 +191,8 @@ def test_bench_calibration_full_graph(ros):
         C = quat_to_dcm(q_of(msg))
         P = rot_cov(msg)
         cov6 = np.asarray(msg.pose.covariance).reshape(6, 6)
-        assert np.all(np.diag(cov6)[:3] == 1e9) and not np.any(cov6[:3, 3:])   # position: not estimated
+        # position: not estimated
+        assert np.all(np.diag(cov6)[:3] == 1e9) and not np.any(cov6[:3, 3:])
         # rotation error in MF axes: C_pub = (I + [e×]) C_true
         e = quat_to_rotvec(dcm_to_quat(C @ C_TRUE.T))
         sig = np.sqrt(np.diag(P))
@@ -199,7 +205,8 @@ def test_bench_calibration_full_graph(ros):
         assert ang and ang[-1].header.stamp == msg.header.stamp
         beta = np.array([ang[-1].vector.x, ang[-1].vector.y, ang[-1].vector.z])
         assert np.all(np.abs(beta - BETA) < 60 * ARCSEC), (beta - BETA) / ARCSEC
-        np.testing.assert_allclose(ypr_to_dcm(*beta), C, atol=1e-12)      # the same rotation as the pose
+        # the same rotation as the pose
+        np.testing.assert_allclose(ypr_to_dcm(*beta), C, atol=1e-12)
 
         truth = g.late_subscriber('star_camera/truth/boresight', QuaternionStamped, 5.0)
         assert truth and np.allclose(quat_to_dcm(q_of(truth[-1])), C_TRUE, atol=1e-12)
@@ -213,7 +220,8 @@ def test_bench_calibration_full_graph(ros):
         z = []
         for m, tk in zip(g.imu_att, t):
             assert m.header.frame_id == 'gcrs'
-            eps = quat_error_rotvec(q_of(m), prof.attitude(tk), frame='body')     # MF axes, as P^mfa
+            # MF axes, as P^mfa
+            eps = quat_error_rotvec(q_of(m), prof.attitude(tk), frame='body')
             s = np.sqrt(np.diag(rot_cov(m)))
             assert np.all(s < 60 * ARCSEC)
             z.append(eps / s)
@@ -241,7 +249,8 @@ def test_bench_calibration_full_graph(ros):
             assert info[0].qos_profile.durability == dur, topic
             assert info[0].qos_profile.reliability == ReliabilityPolicy.RELIABLE, topic
         sub = g.mon.get_subscriptions_info_by_topic(f'{ns}/imu/delta_theta')
-        assert [i.qos_profile.reliability for i in sub] == [ReliabilityPolicy.BEST_EFFORT] * 2   # both calibrators
+        # both calibrators
+        assert [i.qos_profile.reliability for i in sub] == [ReliabilityPolicy.BEST_EFFORT] * 2
         for topic in ('star_camera/attitude', 'star_camera/attitude_with_covariance'):
             sub = g.mon.get_subscriptions_info_by_topic(f'{ns}/{topic}')
             assert [i.qos_profile.reliability for i in sub] == [ReliabilityPolicy.RELIABLE], topic
@@ -297,8 +306,10 @@ def test_single_axis_rotation_is_reported_not_observable(ros, tmp_path):
     segs = ['  - {duration: 10.0}']
     for r in (0.05, -0.04, 0.03, -0.05, 0.04, -0.03):
         segs += [f'  - {{duration: 5.0, rate: [0, 0, {r}]}}', '  - {duration: 10.0}']
-    prof = _piecewise(tmp_path, 'earth_rate: [0, 0, 0]\nsegments:\n' + '\n'.join(segs) + '\n')   # 100 s
-    g = Graph('/t_calib_axis', prof, time_scale=25.0, camera=[Parameter('camera_interval', value=5.0)])
+    # 100 s
+    prof = _piecewise(tmp_path, 'earth_rate: [0, 0, 0]\nsegments:\n' + '\n'.join(segs) + '\n')
+    g = Graph('/t_calib_axis', prof, time_scale=25.0,
+              camera=[Parameter('camera_interval', value=5.0)])
     try:
         st, kv = _not_observable(g)
         assert 'one axis' in st.message
@@ -314,8 +325,10 @@ def test_single_axis_rotation_is_reported_not_observable(ros, tmp_path):
 
 
 def test_static_motion_is_reported_not_observable(ros, tmp_path):
-    prof = _piecewise(tmp_path, 'earth_rate: [0, 4.6e-5, 5.6e-5]\nsegments:\n  - {duration: 150.0}\n')
-    g = Graph('/t_calib_static', prof, time_scale=30.0, camera=[Parameter('camera_interval', value=5.0)])
+    prof = _piecewise(tmp_path,
+                      'earth_rate: [0, 4.6e-5, 5.6e-5]\nsegments:\n  - {duration: 150.0}\n')
+    g = Graph('/t_calib_static', prof, time_scale=30.0,
+              camera=[Parameter('camera_interval', value=5.0)])
     try:
         st, kv = _not_observable(g)
         assert 'static' in st.message and int(kv['pairs']) == 29
@@ -328,7 +341,8 @@ def test_bad_camera_and_gyro_input_is_dropped_counted_and_reported(ros):
     cal = CalibratorNode(namespace=ns)
     src = rclpy.create_node('source', namespace=ns)
     pub_g = src.create_publisher(Vector3Stamped, 'imu/delta_theta', stream_qos())
-    pub_c = src.create_publisher(PoseWithCovarianceStamped, 'star_camera/attitude_with_covariance', camera_qos(10))
+    pub_c = src.create_publisher(PoseWithCovarianceStamped, 'star_camera/attitude_with_covariance',
+                                 camera_qos(10))
     diags = []
     src.create_subscription(DiagnosticArray, '/diagnostics', diags.append, 10)
     ex = Executor()
@@ -376,14 +390,16 @@ def test_bad_camera_and_gyro_input_is_dropped_counted_and_reported(ros):
         assert (c.accepted, c.nan, c.duplicate, c.out_of_order) == (2, 1, 1, 1)
         assert cal.camera_counts['normalised'] == 1 and cal.camera_counts['dropped_zero_quaternion'] == 1
         assert cal.camera_counts['dropped_bad_covariance'] == 1
-        assert cal.pairs_discarded_gap == 1 and cal.cal.pairs == []       # the only pair spans the gap
+        # the only pair spans the gap
+        assert cal.pairs_discarded_gap == 1 and cal.cal.pairs == []
         assert cal.published['boresight'] == 0
         cal.publish_diagnostics()
         assert spin_until(ex, lambda: status_of(diags, f'{ns}/calibrator_node') is not None, 5.0)
         st = status_of(diags, f'{ns}/calibrator_node')
         kv = {v.key: v.value for v in st.values}
         assert st.level == b'\x02' and 'missing' in st.message and 'discarded' in st.message
-        assert (kv['gyro_dropped_nan'], kv['camera_dropped_zero_quaternion'], kv['camera_normalised']) == ('1', '1', '1')
+        assert (kv['gyro_dropped_nan'], kv['camera_dropped_zero_quaternion'],
+                kv['camera_normalised']) == ('1', '1', '1')
     finally:
         for n in (cal, src):
             ex.remove_node(n)
@@ -392,13 +408,18 @@ def test_bad_camera_and_gyro_input_is_dropped_counted_and_reported(ros):
 
 def test_invalid_parameters_are_refused_with_the_valid_values(ros):
     with pytest.raises(ValueError, match=r"covariance_model='bogus' is not valid; valid values: random_constant, 004"):
-        CalibratorNode(namespace='/t_calib_refuse1', parameter_overrides=[Parameter('covariance_model', value='bogus')])
-    with pytest.raises(ValueError, match=r'camera_interval=-1.0 is out of range; valid: > 0 and <= 3600'):
-        StarCameraSimNode(namespace='/t_calib_refuse2', parameter_overrides=[Parameter('camera_interval', value=-1.0)])
+        CalibratorNode(namespace='/t_calib_refuse1',
+                       parameter_overrides=[Parameter('covariance_model', value='bogus')])
+    with pytest.raises(ValueError,
+                       match=r'camera_interval=-1.0 is out of range; valid: > 0 and <= 3600'):
+        StarCameraSimNode(namespace='/t_calib_refuse2',
+                          parameter_overrides=[Parameter('camera_interval', value=-1.0)])
     with pytest.raises(ValueError, match=r'max_sigma=0.0 is out of range; valid: > 0'):
-        CalibratorNode(namespace='/t_calib_refuse3', parameter_overrides=[Parameter('max_sigma', value=0.0)])
+        CalibratorNode(namespace='/t_calib_refuse3',
+                       parameter_overrides=[Parameter('max_sigma', value=0.0)])
     with pytest.raises(ValueError, match='valid values: coning, tkachenko, bench, piecewise'):
-        StarCameraSimNode(namespace='/t_calib_refuse4', parameter_overrides=[Parameter('profile', value='spiral')])
+        StarCameraSimNode(namespace='/t_calib_refuse4',
+                          parameter_overrides=[Parameter('profile', value='spiral')])
     cam = StarCameraSimNode(namespace='/t_calib_refuse5')
     try:
         res = cam.set_parameters([Parameter('camera_interval', value=1.0)])[0]
@@ -408,12 +429,15 @@ def test_invalid_parameters_are_refused_with_the_valid_values(ros):
 
 
 @pytest.mark.parametrize('module, arg, text', [
-    ('calibrator_node', 'covariance_model:=bogus', "covariance_model='bogus' is not valid; valid values: random_constant, 004"),
-    ('star_camera_sim_node', 'camera_interval:=-1.0', 'camera_interval=-1.0 is out of range; valid: > 0'),
+    ('calibrator_node', 'covariance_model:=bogus',
+     "covariance_model='bogus' is not valid; valid values: random_constant, 004"),
+    ('star_camera_sim_node', 'camera_interval:=-1.0',
+     'camera_interval=-1.0 is out of range; valid: > 0'),
 ])
 def test_executables_exit_2_with_a_clear_message(module, arg, text):
     env = dict(os.environ, PYTHONPATH=os.pathsep.join([REPO, os.environ.get('PYTHONPATH', '')]))
-    res = subprocess.run([sys.executable, '-m', f'strapdown_ros.nodes.{module}', '--ros-args', '-p', arg],
+    res = subprocess.run([sys.executable, '-m', f'strapdown_ros.nodes.{module}', '--ros-args',
+                          '-p', arg],
                          capture_output=True, text=True, timeout=60, env=env)
     assert res.returncode == 2, res.stderr
     assert text in res.stderr
@@ -443,7 +467,8 @@ def _node_estimate(ns, poison: bool, params=(), keep=False, noise_scale=1.0):
                 stamp(m, s)
                 m.vector.x, m.vector.y, m.vector.z = (float(c) for c in v)
                 cal._on_gyro(m)
-                if poison and k == 5000:                      # one overflowing increment, its own stamp
+                # one overflowing increment, its own stamp
+                if poison and k == 5000:
                     bad = Vector3Stamped()
                     stamp(bad, s + 0.004)
                     bad.vector.x, bad.vector.y = 1e308, 1e308
@@ -522,7 +547,8 @@ def test_restart_resumes_the_same_estimate_and_a_corrupted_state_is_moved_aside(
     assert sorted(os.listdir(tmp_path)) == ['calib_state.npz', 'calib_state.npz.lock']
     node = CalibratorNode(namespace='/t_state', parameter_overrides=sf)
     try:
-        assert node.state['restored_pairs'] == 32 and node.published['boresight'] == 1     # 33 fixes
+        # 33 fixes
+        assert node.state['restored_pairs'] == 32 and node.published['boresight'] == 1
         np.testing.assert_allclose(node.valid.beta, beta, rtol=0, atol=1e-12)
     finally:
         node.destroy_node()
@@ -612,7 +638,8 @@ def test_one_input_path_node_and_calibrate_bag_agree_on_a_hostile_stream(ros, tm
 
     prof = bench_profile()
     t, dth, _ = IntegratingSensor(prof, 'gyro', 100.0).sample(int(prof.duration * 100) - 1)
-    fixes = StarCameraModel(boresight=np.radians([40.0, -25.0, 120.0]), interval=5.0, seed=1).fixes(
+    fixes = StarCameraModel(boresight=np.radians([40.0, -25.0, 120.0]), interval=5.0,
+                            seed=1).fixes(
         prof, int(prof.duration / 5.0) - 1)
     base = 1_000_000_000_000
     gyro = [(base + int(round(s * 1e9)), tuple(map(float, v))) for s, v in zip(t, dth)]
@@ -620,18 +647,24 @@ def test_one_input_path_node_and_calibrate_bag_agree_on_a_hostile_stream(ros, tm
     # (inside the pair of the fixes at 60 and 65 s); then the stream returns to its timeline
     for k in range(6250, 6255):
         gyro[k] = (gyro[k][0] - 1000 * 10**9, gyro[k][1])
-    hostile = [(gyro[100][0] + 1, (float('nan'), 0.0, 0.0)), (gyro[200][0], gyro[200][1]),       # NaN, duplicate
-               (gyro[250][0] - 30_000_000, gyro[250][1]), (gyro[300][0] + 2, (1e308, 1e308, 0.0)),   # older, huge
-               (gyro[400][0] + 10**15, gyro[400][1])]                                            # far future
+    # NaN, duplicate
+    hostile = [(gyro[100][0] + 1, (float('nan'), 0.0, 0.0)), (gyro[200][0], gyro[200][1]),
+               # older, huge
+               (gyro[250][0] - 30_000_000, gyro[250][1]), (gyro[300][0] + 2, (1e308, 1e308, 0.0)),
+               # far future
+               (gyro[400][0] + 10**15, gyro[400][1])]
     at = {100: hostile[0], 200: hostile[1], 250: hostile[2], 300: hostile[3], 400: hostile[4]}
     stream = []
     for k, g in enumerate(gyro):
         stream.append(('g', g[0], g[1]))
         if k in at:
             stream.append(('g',) + at[k])
-    cams = [(base + int(round(f.stamp * 1e9)), to_ros_xyzw(f.attitude), f.covariance) for f in fixes]
-    cams[5] = (cams[5][0], 2.0 * cams[5][1], cams[5][2])                                      # non-unit
-    cams.insert(9, (cams[8][0] + 1_000_000, np.zeros(4), cams[8][2]))                          # zero quaternion
+    cams = [(base + int(round(f.stamp * 1e9)), to_ros_xyzw(f.attitude),
+             f.covariance) for f in fixes]
+    # non-unit
+    cams[5] = (cams[5][0], 2.0 * cams[5][1], cams[5][2])
+    # zero quaternion
+    cams.insert(9, (cams[8][0] + 1_000_000, np.zeros(4), cams[8][2]))
     # arrival order: the gyro stream as built (hostile messages where they arrived), the fixes merged
     # in by stamp against the regular increments
     events, j = [], 0
@@ -648,8 +681,10 @@ def test_one_input_path_node_and_calibrate_bag_agree_on_a_hostile_stream(ros, tm
     bag = tmp_path / 'hostile'
     try:
         with Writer(bag, version=Writer.VERSION_LATEST) as w:
-            cg = w.add_connection('/imu/delta_theta', 'geometry_msgs/msg/Vector3Stamped', typestore=store)
-            cc = w.add_connection('/star_camera/attitude_with_covariance', 'geometry_msgs/msg/PoseWithCovarianceStamped',
+            cg = w.add_connection('/imu/delta_theta', 'geometry_msgs/msg/Vector3Stamped',
+                                  typestore=store)
+            cc = w.add_connection('/star_camera/attitude_with_covariance',
+                                  'geometry_msgs/msg/PoseWithCovarianceStamped',
                                   typestore=store)
             for i, (kind, ns, v) in enumerate(events):
                 stamp = T['builtin_interfaces/msg/Time'](sec=ns // 10**9, nanosec=ns % 10**9)
@@ -670,10 +705,14 @@ def test_one_input_path_node_and_calibrate_bag_agree_on_a_hostile_stream(ros, tm
                     h = T['std_msgs/msg/Header'](stamp=stamp, frame_id='gcrs')
                     pose = T['geometry_msgs/msg/Pose'](position=T['geometry_msgs/msg/Point'](x=0.0, y=0.0, z=0.0),
                                                        orientation=T['geometry_msgs/msg/Quaternion'](
-                                                           x=float(q[0]), y=float(q[1]), z=float(q[2]), w=float(q[3])))
+                                                           x=float(q[0]), y=float(q[1]),
+                                                           z=float(q[2]), w=float(q[3])))
                     m = T['geometry_msgs/msg/PoseWithCovarianceStamped'](
-                        header=h, pose=T['geometry_msgs/msg/PoseWithCovariance'](pose=pose, covariance=c6.reshape(36)))
-                    w.write(cc, i, store.serialize_cdr(m, 'geometry_msgs/msg/PoseWithCovarianceStamped'))
+                        header=h,
+                        pose=T['geometry_msgs/msg/PoseWithCovariance'](pose=pose,
+                                                                       covariance=c6.reshape(36)))
+                    w.write(cc, i,
+                            store.serialize_cdr(m, 'geometry_msgs/msg/PoseWithCovarianceStamped'))
                     r = PoseWithCovarianceStamped()
                     r.header.stamp.sec, r.header.stamp.nanosec = ns // 10**9, ns % 10**9
                     r.header.frame_id = 'gcrs'
@@ -685,11 +724,13 @@ def test_one_input_path_node_and_calibrate_bag_agree_on_a_hostile_stream(ros, tm
         assert calibrate_bag.main([str(bag), '--json', str(f)]) == 0
         r = json.loads(f.read_text())
         g = node.gyro_check
-        assert r['dropped']['gyro'] == {'nan': g.nan, 'duplicate': g.duplicate, 'out_of_order': g.out_of_order,
+        assert r['dropped']['gyro'] == {'nan': g.nan, 'duplicate': g.duplicate,
+                                        'out_of_order': g.out_of_order,
                                         'out_of_range': g.out_of_range,
                                         'stamp_outlier': g.stamp_outliers,
                                         'stamp_burst': g.burst_messages}
-        assert (g.nan, g.duplicate, g.out_of_order, g.out_of_range, g.stamp_outliers) == (1, 1, 1, 1, 1)
+        assert (g.nan, g.duplicate, g.out_of_order, g.out_of_range, g.stamp_outliers) == (1, 1, 1,
+                                                                                          1, 1)
         # the burst: 5 increments lost in one gap, no resynchronisation left standing; it costs the
         # one pair that contains it (the hostile extras above have their own stamps: no gap)
         assert (g.bursts, g.burst_messages, g.resyncs, g.gaps, g.missing) == (1, 5, 0, 1, 5)

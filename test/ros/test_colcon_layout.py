@@ -24,6 +24,7 @@ import time
 
 import pytest
 
+
 REPO = Path(__file__).resolve().parent.parent.parent
 PKG = 'strapdown_ros'
 EXECUTABLES = ('imu_sim_node', 'sins_node', 'strapdown_demo', 'sins_bench', 'coning_bench',
@@ -124,7 +125,8 @@ def workspace(tmp_path_factory):
                               stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
                               text=True, timeout=BUILD_TIMEOUT_S)
     except subprocess.TimeoutExpired as exc:
-        out = exc.output.decode(errors='replace') if isinstance(exc.output, bytes) else (exc.output or '')
+        out = exc.output.decode(errors='replace') if isinstance(exc.output,
+                                                                bytes) else (exc.output or '')
         pytest.fail(f'colcon build timed out after {BUILD_TIMEOUT_S} s:\n{_tail(out)}')
     output = proc.stdout
     assert proc.returncode == 0, (
@@ -166,7 +168,8 @@ def test_colcon_install_layout(workspace):
 
 def _resolve_like_ros2_run(workspace, exe):
     """`ros2 run PKG EXE`: ament index prefix of PKG, then <prefix>/lib/PKG/EXE."""
-    pytest.importorskip('ament_index_python', reason='ament_index_python not installed (`ros` extra)')
+    pytest.importorskip('ament_index_python',
+                        reason='ament_index_python not installed (`ros` extra)')
     code = ('from ament_index_python.packages import get_package_prefix; '
             f'print(get_package_prefix({PKG!r}))')
     proc = subprocess.run([sys.executable, '-c', code], cwd=workspace['ws'], env=workspace['env'],

@@ -4,6 +4,7 @@ import subprocess
 import sys
 import textwrap
 
+
 REPO = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 ROS_ROOMS = ('nodes', 'bench/ros', 'demo.py')   # the only places that may import ROS
 
@@ -66,6 +67,7 @@ def test_only_node_modules_import_ros():
             rel = os.path.relpath(os.path.join(root, f), os.path.join(REPO, 'strapdown_ros'))
             if rel.startswith(ROS_ROOMS):
                 continue
-            if f.endswith('.py') and pattern.search(open(os.path.join(root, f), encoding='utf-8').read()):
+            if f.endswith('.py') and pattern.search(open(os.path.join(root, f),
+                                                         encoding='utf-8').read()):
                 offenders.append(os.path.join(root, f))
     assert not offenders, offenders

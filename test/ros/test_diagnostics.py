@@ -9,24 +9,22 @@ loggers are used (a severity change at one call site used to raise inside rclpy'
 import ast
 import pathlib
 
+from geometry_msgs.msg import Vector3Stamped
 import numpy as np
 import pytest
+import rclpy
+from rclpy.parameter import Parameter
 
-rclpy = pytest.importorskip('rclpy')
+from strapdown_ros.motion.earth_profiles import static_profile
+from strapdown_ros.nodes import ros_params, ros_status
+from strapdown_ros.nodes.calibrator_node import CalibratorNode
+from strapdown_ros.nodes.sins_node import SinsNode
+from strapdown_ros.sins import accel_stall_limits
 
-from geometry_msgs.msg import Vector3Stamped  # noqa: E402
-from rclpy.parameter import Parameter  # noqa: E402
-
-from strapdown_ros.motion.earth_profiles import static_profile  # noqa: E402
-from strapdown_ros.nodes import ros_io, ros_params, ros_status  # noqa: E402
-from strapdown_ros.nodes.calibrator_node import CalibratorNode  # noqa: E402
-from strapdown_ros.nodes.sins_node import SinsNode  # noqa: E402
-from strapdown_ros.sins import accel_stall_limits  # noqa: E402
 
 IDEAL = [Parameter(f'{s}_{k}', value=0.0) for s in ('gyro', 'accel')
          for k in ('bias_sigma', 'scale_sigma', 'misalignment_sigma', 'random_walk')]
 NODES = pathlib.Path(__file__).resolve().parents[2] / 'strapdown_ros' / 'nodes'
-
 
 
 def _msg(stamp_ns, v, frame=''):
@@ -314,7 +312,8 @@ def test_runtime_parameters(ros):
     with pytest.raises(refused, match=r'initial_velocity\[1\]=1e\+08 is out of range; valid: '):
         SinsNode(namespace='/t_rt_v',
                  parameter_overrides=[Parameter('initial_velocity', value=[0.0, 1e8, 0.0])])
-    with pytest.raises(ros_params.InvalidParameter, match='valid: coning_algorithm one of 1, 6, 7'):
+    with pytest.raises(ros_params.InvalidParameter,
+                       match='valid: coning_algorithm one of 1, 6, 7'):
         SinsNode(namespace='/t_rt_pr', parameter_overrides=[
             Parameter('navigation', value=True), Parameter('velocity_update', value='printed')])
     ok = SinsNode(namespace='/t_rt_pr_ok', parameter_overrides=[

@@ -8,31 +8,30 @@ a closed-form fixed-axis motion, the injected boresight.
 import math
 import time
 
+from diagnostic_msgs.msg import DiagnosticArray
+from geometry_msgs.msg import PoseWithCovarianceStamped
+from geometry_msgs.msg import QuaternionStamped
 import numpy as np
 import pytest
+import rclpy
+from rclpy.executors import SingleThreadedExecutor
+from rclpy.parameter import Parameter
+from ros_helpers import spin_until
+from sensor_msgs.msg import Imu
 
-rclpy = pytest.importorskip('rclpy')
-
-from diagnostic_msgs.msg import DiagnosticArray  # noqa: E402
-from geometry_msgs.msg import PoseWithCovarianceStamped  # noqa: E402
-from geometry_msgs.msg import QuaternionStamped
-from rclpy.executors import SingleThreadedExecutor  # noqa: E402
-from rclpy.parameter import Parameter  # noqa: E402
-from sensor_msgs.msg import Imu  # noqa: E402
-
-from ros_helpers import spin_until  # noqa: E402
-from strapdown_ros.attitude.coning import ALGORITHMS  # noqa: E402
+from strapdown_ros.attitude.coning import ALGORITHMS
 from strapdown_ros.attitude.coning import theory_drift
-from strapdown_ros.motion.profiles import ConingProfile  # noqa: E402
-from strapdown_ros.nodes.calibrator_node import CalibratorNode  # noqa: E402
-from strapdown_ros.nodes.imu_sim_node import ImuSimNode  # noqa: E402
-from strapdown_ros.nodes.ros_io import stamp_to_ns, stream_qos  # noqa: E402
-from strapdown_ros.nodes.sins_node import SinsNode  # noqa: E402
+from strapdown_ros.motion.profiles import ConingProfile
+from strapdown_ros.nodes.calibrator_node import CalibratorNode
+from strapdown_ros.nodes.imu_sim_node import ImuSimNode
+from strapdown_ros.nodes.ros_io import stamp_to_ns, stream_qos
+from strapdown_ros.nodes.sins_node import SinsNode
 from strapdown_ros.rotation import (from_ros_xyzw, quat_angle_between, quat_conjugate,
                                     quat_multiply, rotvec_to_quat, to_ros_xyzw)
 
+
 try:
-    from rclpy.experimental import EventsExecutor as GraphExecutor  # noqa: E402
+    from rclpy.experimental import EventsExecutor as GraphExecutor
 except ImportError:                                                 # older rclpy
     GraphExecutor = SingleThreadedExecutor
 
@@ -41,8 +40,6 @@ ALPHA, NU = 0.1, 4 * np.pi                       # the cone of test/ros/test_nod
 IDEAL = [Parameter(f'{s}_{k}', value=0.0) for s in ('gyro', 'accel')
          for k in ('bias_sigma', 'scale_sigma', 'misalignment_sigma', 'random_walk')]
 IMU_MEAN = [Parameter('gyro_input', value='imu'), Parameter('imu_rate_rule', value='mean')]
-
-
 
 
 def _stamped_quaternions(msgs):
@@ -79,6 +76,7 @@ def test_imu_mean_rule_gives_the_delta_theta_attitude_except_the_first_increment
         Parameter('duration', value=duration), Parameter('qos_depth', value=QUEUE), *IDEAL])
     common = [Parameter('coning_algorithm', value='1'), Parameter('qos_depth', value=QUEUE),
               Parameter('batch_period', value=0.0), *IDEAL]
+
     def start(t):
         q = to_ros_xyzw(prof.attitude(t))
         return Parameter('initial_orientation', value=[float(c) for c in q])
@@ -290,6 +288,7 @@ def test_calibrator_on_imu_rates_recovers_the_boresight(ros):
     from strapdown_ros.rotation import dcm_to_quat, quat_to_dcm, quat_to_rotvec
 
     class ImuGraph(Graph):
+
         def run(self):
             for n in (self.calib, self.mon):
                 self.ex.add_node(n)

@@ -11,7 +11,6 @@ import time
 
 import pytest
 
-pytest.importorskip('rclpy')
 
 BIN = os.path.dirname(sys.executable)
 NODES = ['imu_sim_node', 'sins_node', 'star_camera_sim_node', 'calibrator_node',
@@ -31,7 +30,8 @@ def test_signal_at_any_moment_exits_0_quietly(node):
     for sig, delay, ignored in ((signal.SIGINT, 0.35, True), (signal.SIGTERM, 0.6, False),
                                 (signal.SIGINT, 0.9, False), (signal.SIGTERM, 2.5, True),
                                 (signal.SIGINT, 2.5, True)):
-        p = subprocess.Popen([exe, '--ros-args', '-p', 'diagnostics_period:=0.2'], stdout=subprocess.PIPE,
+        p = subprocess.Popen([exe, '--ros-args', '-p', 'diagnostics_period:=0.2'],
+                             stdout=subprocess.PIPE,
                              stderr=subprocess.STDOUT, text=True, env=env,
                              preexec_fn=_ignore_sigint if ignored else None)
         time.sleep(delay)

@@ -4,33 +4,31 @@ type, frame ids and content against imu_sim_node's exact truth, for the static a
 and the static alignment started from the data.
 """
 
+from diagnostic_msgs.msg import DiagnosticArray
+from nav_msgs.msg import Odometry
 import numpy as np
 import pytest
+import rclpy
+from rclpy.parameter import Parameter
+from ros_helpers import spin_until
 
-rclpy = pytest.importorskip('rclpy')
-from diagnostic_msgs.msg import DiagnosticArray  # noqa: E402
-from nav_msgs.msg import Odometry  # noqa: E402
-from rclpy.parameter import Parameter  # noqa: E402
-
-from ros_helpers import spin_until  # noqa: E402
-from strapdown_ros import earth as G  # noqa: E402
-from strapdown_ros.motion.earth_profiles import navigation_profile_from_config  # noqa: E402
-from strapdown_ros.nodes.imu_sim_node import ImuSimNode  # noqa: E402
-from strapdown_ros.nodes.ros_io import stamp_to_ns, stream_qos  # noqa: E402
-from strapdown_ros.nodes.sins_node import SinsNode  # noqa: E402
-from strapdown_ros.rotation import quat_angle_between  # noqa: E402
+from strapdown_ros import earth as G
+from strapdown_ros.motion.earth_profiles import navigation_profile_from_config
+from strapdown_ros.nodes.imu_sim_node import ImuSimNode
+from strapdown_ros.nodes.ros_io import stamp_to_ns, stream_qos
+from strapdown_ros.nodes.sins_node import SinsNode
+from strapdown_ros.rotation import quat_angle_between
 from strapdown_ros.rotation import to_ros_xyzw
 
+
 try:
-    from rclpy.experimental import EventsExecutor as GraphExecutor  # noqa: E402
+    from rclpy.experimental import EventsExecutor as GraphExecutor
 except ImportError:                                                  # pragma: no cover
     from rclpy.executors import SingleThreadedExecutor as GraphExecutor
 
 QUEUE = 20000
 IDEAL = [Parameter(f'{s}_{k}', value=0.0) for s in ('gyro', 'accel')
          for k in ('bias_sigma', 'scale_sigma', 'misalignment_sigma', 'random_walk')]
-
-
 
 
 def _run(ns, profile, duration, sins_extra=(), sim_extra=(), expect=None):
@@ -46,12 +44,16 @@ def _run(ns, profile, duration, sins_extra=(), sim_extra=(), expect=None):
     sim = ImuSimNode(namespace=ns, parameter_overrides=[
         Parameter('profile', value=profile), Parameter('time_scale', value=10.0),
         Parameter('duration', value=duration), Parameter('qos_depth', value=QUEUE),
-        Parameter('wait_for_subscribers', value=1), *IDEAL, *sim_extra])     # no start lost to discovery
+        # no start lost to discovery
+        Parameter('wait_for_subscribers', value=1), *IDEAL, *sim_extra])
     sins = SinsNode(namespace=ns, parameter_overrides=[
-        Parameter('navigation', value=True), Parameter('coning_algorithm', value='one_plus_previous'),
-        Parameter('initial_position', value=[float(np.degrees(lat)), float(np.degrees(lon)), float(h)]),
+        Parameter('navigation', value=True),
+        Parameter('coning_algorithm', value='one_plus_previous'),
+        Parameter('initial_position',
+                  value=[float(np.degrees(lat)), float(np.degrees(lon)), float(h)]),
         Parameter('initial_velocity', value=[float(x) for x in enu.T @ w0]),
-        Parameter('initial_orientation', value=[float(x) for x in to_ros_xyzw(prof.attitude_ecef(np.array([0.0]))[0])]),
+        Parameter('initial_orientation',
+                  value=[float(x) for x in to_ros_xyzw(prof.attitude_ecef(np.array([0.0]))[0])]),
         Parameter('qos_depth', value=QUEUE), *IDEAL, *sins_extra])
     mon = rclpy.create_node('monitor', namespace=ns)
     got = {'sins': [], 'truth': [], 'diag': []}
@@ -67,7 +69,8 @@ def _run(ns, profile, duration, sins_extra=(), sim_extra=(), expect=None):
         sim._wall_start = None
         n_expected = expect if expect is not None else int(round(duration * 100)) - 2
         assert spin_until(ex, lambda: sim.finished and len(got['sins']) >= n_expected
-                          and len(got['truth']) >= n_expected, 60.0), {k: len(v) for k, v in got.items()}
+                          and len(got['truth']) >= n_expected,
+                          60.0), {k: len(v) for k, v in got.items()}
         spin_until(ex, lambda: False, 1.2)          # one more diagnostics period
         return got, sins
     finally:
@@ -93,7 +96,8 @@ def _quat(m):
     return np.array([o.w, o.x, o.y, o.z])
 
 
-@pytest.mark.parametrize('profile, tol_pos, tol_vel', [('static', 1e-6, 1e-6), ('coordinated_turn', 2e-3, 2e-3)])
+@pytest.mark.parametrize('profile, tol_pos, tol_vel',
+                         [('static', 1e-6, 1e-6), ('coordinated_turn', 2e-3, 2e-3)])
 def test_sins_odometry_matches_the_exact_truth(ros, profile, tol_pos, tol_vel):
     got, _ = _run(f'/t_nav_{profile}', profile, 5.0)
     m0 = got['sins'][0]
@@ -116,7 +120,8 @@ def test_static_alignment_starts_navigation_from_the_data(ros):
         Parameter('initial_orientation', value=[0.0, 0.0, 0.0, 1.0])], expect=590)
     assert sins.nav.alignment is not None and sins.nav.alignment.ok
     pairs = _paired(got) if got['sins'] else []
-    assert got['sins'] and got['sins'][0].header.stamp.sec >= 2         # navigation begins after the window
+    # navigation begins after the window
+    assert got['sins'] and got['sins'][0].header.stamp.sec >= 2
     # perfect sensors: the aligned attitude equals the truth to the TRIAD's round-off
     da = max(quat_angle_between(_quat(s), _quat(t)) for s, t in pairs)
     assert da < 1e-9

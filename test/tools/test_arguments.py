@@ -6,6 +6,7 @@ import time
 
 import pytest
 
+
 BIN = os.path.dirname(sys.executable)
 
 
@@ -38,10 +39,12 @@ def test_node_refuses_bad_files_and_parameters(tmp_path, args, needle):
 def test_tools_check_arguments_before_work(tmp_path):
     (tmp_path / 'bad.yaml').write_text('segments: [1, 2')
     for cmd, needle in (
-            ([os.path.join(BIN, 'record_sim'), str(tmp_path / 'b'), '--params', str(tmp_path / 'bad.yaml')], 'YAML'),
+            ([os.path.join(BIN, 'record_sim'), str(tmp_path / 'b'), '--params',
+              str(tmp_path / 'bad.yaml')], 'YAML'),
             ([os.path.join(BIN, 'coning_bench'), '--json', '/nonexistent/x.json'], '/nonexistent'),
             ([os.path.join(BIN, 'coning_bench'), '--duration', '5'], 'cone period'),
-            ([os.path.join(BIN, 'reproduce_seeds'), '--report', '/nonexistent/x.md'], '/nonexistent'),
+            ([os.path.join(BIN, 'reproduce_seeds'), '--report', '/nonexistent/x.md'],
+             '/nonexistent'),
             ([os.path.join(BIN, 'reproduce_seeds'), '--runs', '0'], '--runs'),
             ([os.path.join(BIN, 'load_bench'), '--seconds', '5'], '--seconds'),
             ([os.path.join(BIN, 'load_bench'), '--report', '/nonexistent/d/e'], '/nonexistent'),
@@ -51,14 +54,16 @@ def test_tools_check_arguments_before_work(tmp_path):
             ([os.path.join(BIN, 'sins_bench'), '--json', '/nonexistent/s.json'], '/nonexistent'),
             ([os.path.join(BIN, 'node_rate_bench'), '--lo', '5000', '--hi', '100'], '--lo')):
         line, took = _one_line_exit_2(cmd)
-        assert needle in line and took < 20.0, (cmd, line, took)       # refused before minutes of work
+        # refused before minutes of work
+        assert needle in line and took < 20.0, (cmd, line, took)
 
 
 def test_corrupted_mcap_is_one_line_exit_2(tmp_path):
     pytest.importorskip('rosbags')
     from strapdown_ros.tools import record_sim
     bag = tmp_path / 'bag'
-    assert record_sim.main([str(bag), '--no-accel', '--duration', '30', '-p', 'camera_interval:=2.0']) == 0
+    assert record_sim.main([str(bag), '--no-accel', '--duration', '30', '-p',
+                            'camera_interval:=2.0']) == 0
     f = next(bag.glob('*.mcap'))
     data = bytearray(f.read_bytes())
     for i in range(len(data) // 3, len(data) // 3 + 4000, 7):          # garbage in the middle
@@ -69,7 +74,8 @@ def test_corrupted_mcap_is_one_line_exit_2(tmp_path):
     for cmd in ([os.path.join(BIN, 'calibrate_bag'), str(bag)],
                 [os.path.join(BIN, 'discrepancy'), str(bag), '--model', str(model)]):
         p = subprocess.run(cmd, capture_output=True, text=True, timeout=60)
-        assert p.returncode == 2 and 'Traceback' not in p.stderr, (cmd, p.returncode, p.stderr[-2000:])
+        assert p.returncode == 2 and 'Traceback' not in p.stderr, (cmd, p.returncode,
+                                                                   p.stderr[-2000:])
         errs = [ln for ln in p.stderr.splitlines() if 'error' in ln]
         assert len(errs) == 1, p.stderr
 

@@ -4,21 +4,21 @@ import json
 import numpy as np
 import pytest
 
-pytest.importorskip('rosbags')
-
-from strapdown_ros.motion.profiles import PiecewiseRateProfile  # noqa: E402
+from strapdown_ros.motion.profiles import PiecewiseRateProfile
 from strapdown_ros.motion.profiles import Segment
 from strapdown_ros.rotation import (dcm_to_quat, from_ros_xyzw, quat_error_rotvec, to_ros_xyzw,
                                     ypr_to_dcm)
-from strapdown_ros.sensors import ARCSEC, IntegratingSensor, SensorErrorModel  # noqa: E402
-from strapdown_ros.sensors.star_camera import StarCameraModel  # noqa: E402
-from strapdown_ros.tools import record_sim  # noqa: E402
+from strapdown_ros.sensors import ARCSEC, IntegratingSensor, SensorErrorModel
+from strapdown_ros.sensors.star_camera import StarCameraModel
 from strapdown_ros.tools import calibrate_bag
+from strapdown_ros.tools import record_sim
+
 
 BETA = np.radians([40.0, -25.0, 120.0])
 BETA_ARG = 'boresight:=[' + ', '.join(repr(float(b)) for b in BETA) + ']'
 NO_GAPS = {'gaps': 0, 'missing': 0, 'pairs_discarded': 0, 'dropouts': 0, 'stamp_bursts': 0}
-KEYS = ['q_mf_vf_xyzw', 'rotation_covariance_mf_rad2', 'beta_rad', 'beta_sigma_rad', 'covariance_rad2', 'pairs',
+KEYS = ['q_mf_vf_xyzw', 'rotation_covariance_mf_rad2', 'beta_rad', 'beta_sigma_rad',
+        'covariance_rad2', 'pairs',
         'observable', 'unobservable_axes', 'residual_rms_rad', 'weighted']
 
 
@@ -34,7 +34,8 @@ def _floats(v, n):
 @pytest.mark.parametrize('storage', ['mcap', 'sqlite3'])
 def test_round_trip_bench(tmp_path, storage, capsys):
     bag = tmp_path / f'bench_{storage}'
-    args = [str(bag), '--storage', storage, '-p', 'profile:=bench', '-p', 'camera_interval:=5.0', '-p', BETA_ARG]
+    args = [str(bag), '--storage', storage, '-p', 'profile:=bench', '-p', 'camera_interval:=5.0',
+            '-p', BETA_ARG]
     if storage == 'sqlite3':
         args.append('--no-accel')
     assert record_sim.main(args) == 0
@@ -47,7 +48,8 @@ def test_round_trip_bench(tmp_path, storage, capsys):
     assert calibrate_bag.main([str(bag), '--json', str(f)]) == 0
     r = json.loads(f.read_text())
     assert list(r)[:len(KEYS)] == KEYS
-    assert _floats(r['q_mf_vf_xyzw'], 4) and _floats(r['beta_rad'], 3) and _floats(r['beta_sigma_rad'], 3)
+    assert _floats(r['q_mf_vf_xyzw'], 4) and _floats(r['beta_rad'],
+                                                     3) and _floats(r['beta_sigma_rad'], 3)
     assert _is_3x3(r['rotation_covariance_mf_rad2']) and _is_3x3(r['covariance_rad2'])
     assert isinstance(r['pairs'], int) and r['pairs'] == 33
     assert r['observable'] is True and r['unobservable_axes'] == [] and r['weighted'] is True
@@ -79,7 +81,8 @@ def test_round_trip_bench(tmp_path, storage, capsys):
             got = []
             for c, ts, raw in rd.messages(connections=conns):
                 m = rd.deserialize(raw, c.msgtype)
-                got.append((ts, m.header.stamp.sec * 10**9 + m.header.stamp.nanosec, m.header.frame_id,
+                got.append((ts, m.header.stamp.sec * 10**9 + m.header.stamp.nanosec,
+                            m.header.frame_id,
                             [m.vector.x, m.vector.y, m.vector.z]))
                 if len(got) == 5:
                     break
@@ -97,7 +100,8 @@ def test_single_axis_not_observable(tmp_path, capsys):
                     '  - {duration: 5.0, rate: [0.0, 0.0, -0.04]}\n'
                     '  - {duration: 10.0, rate: [0.0, 0.0, 0.0]}\n')
     bag = tmp_path / 'z_only'
-    assert record_sim.main([str(bag), '--no-accel', '-p', 'profile:=piecewise', '-p', f'profile_file:={prof}',
+    assert record_sim.main([str(bag), '--no-accel', '-p', 'profile:=piecewise', '-p',
+                            f'profile_file:={prof}',
                             '-p', 'camera_interval:=5.0', '-p', BETA_ARG]) == 0
     f = tmp_path / 'z.json'
     capsys.readouterr()
@@ -128,7 +132,8 @@ def _write_bag(path, gyro_msgs, cam_msgs, namespace='/robot1'):
         cg = w.add_connection(f'{namespace}/imu/delta_theta', V3S.__msgtype__, typestore=ts)
         cc = w.add_connection(f'{namespace}/star_camera/attitude', QS.__msgtype__, typestore=ts)
         for ns, v in gyro_msgs:
-            m = V3S(header=header(ns, 'imu_link'), vector=V3(x=float(v[0]), y=float(v[1]), z=float(v[2])))
+            m = V3S(header=header(ns, 'imu_link'),
+                    vector=V3(x=float(v[0]), y=float(v[1]), z=float(v[2])))
             w.write(cg, ns, ts.serialize_cdr(m, V3S.__msgtype__))
         for ns, q in cam_msgs:
             x, y, z, qw = to_ros_xyzw(q)
@@ -146,16 +151,20 @@ def test_nan_and_duplicate_are_dropped_and_counted(tmp_path, capsys):
     profile = PiecewiseRateProfile(segs)
     gyro = IntegratingSensor(profile, 'gyro', 100.0, SensorErrorModel(random_walk=1e-7), seed=3)
     t, dth, _ = gyro.sample(int(round(profile.duration * 100)))
-    start_ns = 1_700_000_000 * 10**9                       # epoch-like stamps: tests the time origin
+    # epoch-like stamps: tests the time origin
+    start_ns = 1_700_000_000 * 10**9
     msgs = [(start_ns + int(round(x * 1e9)), v) for x, v in zip(t, dth)]
-    msgs[749] = (msgs[749][0], np.array([np.nan, 0.0, 0.0]))   # t = 7.5 s, inside the first pair (5, 10] s
+    # t = 7.5 s, inside the first pair (5, 10] s
+    msgs[749] = (msgs[749][0], np.array([np.nan, 0.0, 0.0]))
     msgs.insert(201, msgs[200])                               # a repeated message: duplicate stamp
     cam = StarCameraModel(boresight=BETA, interval=5.0, seed=4)
     fixes = cam.fixes(profile, int(profile.duration // 5.0))
-    _write_bag(tmp_path / 'bad', msgs, [(start_ns + int(round(fx.stamp * 1e9)), fx.attitude) for fx in fixes])
+    _write_bag(tmp_path / 'bad', msgs,
+               [(start_ns + int(round(fx.stamp * 1e9)), fx.attitude) for fx in fixes])
 
     f = tmp_path / 'bad.json'
-    assert calibrate_bag.main([str(tmp_path / 'bad'), '--namespace', '/robot1', '--json', str(f)]) == 0
+    assert calibrate_bag.main([str(tmp_path / 'bad'), '--namespace', '/robot1', '--json',
+                               str(f)]) == 0
     out = capsys.readouterr().out
     assert 'gyro nan 1' in out and 'gyro duplicate 1' in out and 'GYRO GAPS' in out
     r = json.loads(f.read_text())
@@ -165,7 +174,8 @@ def test_nan_and_duplicate_are_dropped_and_counted(tmp_path, capsys):
     # the dropped NaN increment is a gap (its rotation is lost): the pair spanning it is discarded
     assert r['gyro_gaps'] == {**NO_GAPS, 'gaps': 1, 'missing': 1, 'pairs_discarded': 1}
     assert r['pairs'] == len(fixes) - 2
-    assert r['camera_covariance_from_bag'] is False          # no attitude_with_covariance: assumed σ
+    # no attitude_with_covariance: assumed σ
+    assert r['camera_covariance_from_bag'] is False
     assert r['observable'] is True
     assert np.all(np.abs(np.array(r['beta_rad']) - BETA) < 60 * ARCSEC)
 
@@ -213,7 +223,8 @@ def test_long_recording_keeps_every_pair_and_takes_the_rate_from_the_stamps(tmp_
     """
     bag = tmp_path / 'long'
     assert record_sim.main([str(bag), '--no-accel', '--duration', '1050', '-p', 'profile:=bench',
-                            '-p', 'bench_repeat:=7', '-p', 'gyro_rate:=200.0', '-p', 'camera_interval:=20.0',
+                            '-p', 'bench_repeat:=7', '-p', 'gyro_rate:=200.0', '-p',
+                            'camera_interval:=20.0',
                             '-p', BETA_ARG]) == 0
     f = tmp_path / 'r.json'
     assert calibrate_bag.main([str(bag), '--json', str(f)]) == 0
@@ -236,12 +247,14 @@ def test_overflowing_and_future_stamped_increments_in_a_bag(tmp_path):
     from rosbags.typesys import get_typestore, Stores
 
     clean = tmp_path / 'clean'
-    assert record_sim.main([str(clean), '--no-accel', '-p', 'profile:=bench', '-p', 'camera_interval:=5.0',
+    assert record_sim.main([str(clean), '--no-accel', '-p', 'profile:=bench', '-p',
+                            'camera_interval:=5.0',
                             '-p', BETA_ARG]) == 0
     store = get_typestore(Stores.ROS2_JAZZY)
     dirty = tmp_path / 'dirty'
     with Reader(clean) as rd, Writer(dirty, version=Writer.VERSION_LATEST) as wr:
-        conns = {c.id: wr.add_connection(c.topic, c.msgtype, typestore=store) for c in rd.connections}
+        conns = {c.id: wr.add_connection(c.topic, c.msgtype,
+                                         typestore=store) for c in rd.connections}
         n = 0
         for c, t, raw in rd.messages():
             wr.write(conns[c.id], t, raw)
@@ -263,7 +276,8 @@ def test_overflowing_and_future_stamped_increments_in_a_bag(tmp_path):
     d = out['dirty']['dropped']['gyro']
     assert (d['out_of_range'], d['stamp_outlier']) == (1, 1)
     assert out['dirty']['pairs'] == out['clean']['pairs'] == 33
-    np.testing.assert_allclose(out['dirty']['beta_rad'], out['clean']['beta_rad'], rtol=0, atol=1e-12)
+    np.testing.assert_allclose(out['dirty']['beta_rad'], out['clean']['beta_rad'], rtol=0,
+                               atol=1e-12)
 
 
 def test_one_outlier_camera_fix_is_gated(tmp_path):
@@ -278,15 +292,18 @@ def test_one_outlier_camera_fix_is_gated(tmp_path):
     from strapdown_ros.rotation import quat_multiply, rotvec_to_quat
 
     clean = tmp_path / 'clean'
-    assert record_sim.main([str(clean), '--no-accel', '-p', 'profile:=bench', '-p', 'camera_interval:=5.0',
+    assert record_sim.main([str(clean), '--no-accel', '-p', 'profile:=bench', '-p',
+                            'camera_interval:=5.0',
                             '-p', BETA_ARG]) == 0
     store = get_typestore(Stores.ROS2_JAZZY)
     dirty = tmp_path / 'dirty'
     bad = rotvec_to_quat(np.radians(5.0) * np.array([0.6, -0.64, 0.48]))
     with Reader(clean) as rd, Writer(dirty, version=Writer.VERSION_LATEST) as wr:
-        conns = {c.id: wr.add_connection(c.topic, c.msgtype, typestore=store) for c in rd.connections}
+        conns = {c.id: wr.add_connection(c.topic, c.msgtype,
+                                         typestore=store) for c in rd.connections}
         for c, t, raw in rd.messages():
-            if c.topic.startswith('/star_camera/attitude') and t == 60 * 10**9:          # the fix at 60 s
+            # the fix at 60 s
+            if c.topic.startswith('/star_camera/attitude') and t == 60 * 10**9:
                 m = store.deserialize_cdr(raw, c.msgtype)
                 q = m.pose.pose.orientation if hasattr(m, 'pose') else m.quaternion
                 w, x, y, z = quat_multiply(np.array([q.w, q.x, q.y, q.z]), bad)

@@ -8,7 +8,6 @@ import sys
 import numpy as np
 import pytest
 
-pytest.importorskip('rosbags')
 
 PY = [sys.executable, '-m']
 

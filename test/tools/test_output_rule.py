@@ -11,6 +11,7 @@ import signal
 
 import pytest
 
+
 ROOT = Path(__file__).resolve().parents[2]
 
 #: console scripts that write no file (nodes)

@@ -5,25 +5,25 @@ same messages (same core: the same numbers), MCAP and CSV outputs, argument erro
 import numpy as np
 import pytest
 
-pytest.importorskip('rosbags')
-
-from strapdown_ros import earth as G  # noqa: E402
-from strapdown_ros.motion.earth_profiles import navigation_profile_from_config  # noqa: E402
-from strapdown_ros.params import load_parameter_file  # noqa: E402
-from strapdown_ros.rotation import from_ros_xyzw  # noqa: E402
+from strapdown_ros import earth as G
+from strapdown_ros.motion.earth_profiles import navigation_profile_from_config
+from strapdown_ros.params import load_parameter_file
+from strapdown_ros.recording.imu_streams import rate_from_stamps
+from strapdown_ros.recording.sins_replay import CSV_ATTITUDE_COLUMNS, CSV_NAV_COLUMNS
+from strapdown_ros.rotation import from_ros_xyzw
 from strapdown_ros.rotation import quat_angle_between, quat_to_dcm, to_ros_xyzw
-from strapdown_ros.recording.imu_streams import rate_from_stamps  # noqa: E402
-from strapdown_ros.recording.sins_replay import CSV_ATTITUDE_COLUMNS, CSV_NAV_COLUMNS  # noqa: E402
-from strapdown_ros.tools import sins_bag  # noqa: E402
 from strapdown_ros.tools import record_sim
+from strapdown_ros.tools import sins_bag
 
-IDEAL = [f'{s}_{k}:=0.0' for s in ('gyro', 'accel') for k in ('bias_sigma', 'scale_sigma', 'misalignment_sigma',
-                                                               'random_walk')]
+
+IDEAL = [f'{s}_{k}:=0.0' for s in ('gyro', 'accel')
+         for k in ('bias_sigma', 'scale_sigma', 'misalignment_sigma', 'random_walk')]
 DURATION = 5.0
 
 
 def _record(path, profile, *extra, storage='mcap'):
-    args = [str(path), '--duration', str(DURATION), '--storage', storage, '-p', f'profile:={profile}']
+    args = [str(path), '--duration', str(DURATION), '--storage', storage, '-p',
+            f'profile:={profile}']
     for item in IDEAL + list(extra):
         args += ['-p', item]
     assert record_sim.main(args) == 0
@@ -83,12 +83,14 @@ def test_csv_matches_the_exact_truth_static(bags, tmp_path, capsys):
     header, d, ns = _csv(out)
     assert header == CSV_NAV_COLUMNS
     assert len(d) == int(DURATION * 100) and np.all(np.diff(ns) == 10_000_000) and ns[-1] == 5_000_000_000
-    t = ns * 1e-9                                              # record_sim: start_time 0 = profile time 0
+    # record_sim: start_time 0 = profile time 0
+    t = ns * 1e-9
     dp = np.max(np.linalg.norm(d[:, 1:4] - prof.position(t), axis=1))
     dv = np.max(np.linalg.norm(d[:, 4:7] - prof.velocity(t), axis=1))
     da = np.max(quat_angle_between(from_ros_xyzw(d[:, 7:11]), prof.attitude_ecef(t)))
     assert np.linalg.norm(d[0, 1:4]) > 6.3e6
-    assert dp < 1e-3 and dv < 1e-3 and da < 1e-8, (dp, dv, da)          # mm, mm/s (achieved: ~1e-6)
+    # mm, mm/s (achieved: ~1e-6)
+    assert dp < 1e-3 and dv < 1e-3 and da < 1e-8, (dp, dv, da)
     assert np.all(d[:, 11:] == 0.0)                            # ideal sensors, zero initial σ
 
 
@@ -100,7 +102,8 @@ def test_static_alignment_from_the_recording(bags, tmp_path, capsys):
     bag, params, prof = bags['static']
     out = tmp_path / 'aligned.csv'
     rc, stdout, err = _run_tool(capsys, bag, '--params', params, '-p', 'initial_alignment:=static',
-                                '-p', 'alignment_time:=2.0', '-p', 'initial_orientation:=[0.0, 0.0, 0.0, 1.0]',
+                                '-p', 'alignment_time:=2.0', '-p',
+                                'initial_orientation:=[0.0, 0.0, 0.0, 1.0]',
                                 '--output', out)
     assert rc == 0 and 'alignment: aligned' in stdout, err
     _, d, ns = _csv(out)
@@ -125,8 +128,10 @@ def test_attitude_only_csv_and_rates_from_the_stamps(tmp_path, capsys):
     assert 'gyro_rate 200 Hz' in stdout
     header, d, ns = _csv(out)
     assert header == CSV_ATTITUDE_COLUMNS
-    assert len(d) == int(DURATION * 200) // 2 and np.all(np.diff(ns) == 10_000_000)   # algorithm 2: 2 samples
-    assert np.all(d[:, 5:] > 0) and np.all(d[-1, 5:] > 10 * d[0, 5:])                    # σ of ε, body axes
+    # algorithm 2: 2 samples
+    assert len(d) == int(DURATION * 200) // 2 and np.all(np.diff(ns) == 10_000_000)
+    # σ of ε, body axes
+    assert np.all(d[:, 5:] > 0) and np.all(d[-1, 5:] > 10 * d[0, 5:])
     assert rate_from_stamps(np.round(np.arange(1, 100) * 1e9 / 300).astype(np.int64)) == 300.0
     assert rate_from_stamps([5, 5]) is None
 
@@ -141,7 +146,8 @@ def test_the_recordings_own_body_frame_unless_one_is_named(tmp_path, capsys):
     rc, stdout, err = _run_tool(capsys, bag, '--output', tmp_path / 'own.csv')
     assert rc == 0, err
     assert len(_csv(tmp_path / 'own.csv')[1]) == int(DURATION * 100) // 2
-    rc, stdout, err = _run_tool(capsys, bag, '-p', 'frame_id:=imu_link', '--output', tmp_path / 'named.csv')
+    rc, stdout, err = _run_tool(capsys, bag, '-p', 'frame_id:=imu_link', '--output',
+                                tmp_path / 'named.csv')
     assert rc == 3 and 'every Δθ was rejected' in err and "frame_id 'imu_link'" in err
 
 
@@ -153,7 +159,8 @@ def test_mcap_output_has_the_node_topics_and_types(bags, tmp_path, capsys):
     assert rc == 0, err
     with AnyReader([out]) as rd:
         types = {c.topic: c.msgtype for c in rd.connections}
-        assert types == {'/sins/attitude': 'geometry_msgs/msg/QuaternionStamped', '/sins/imu': 'sensor_msgs/msg/Imu',
+        assert types == {'/sins/attitude': 'geometry_msgs/msg/QuaternionStamped',
+                         '/sins/imu': 'sensor_msgs/msg/Imu',
                          '/sins/odometry': 'nav_msgs/msg/Odometry'}
         assert all(c.msgcount == 500 for c in rd.connections)
         odo = [rd.deserialize(raw, c.msgtype) for c, _, raw in
@@ -163,8 +170,10 @@ def test_mcap_output_has_the_node_topics_and_types(bags, tmp_path, capsys):
     assert odo[0].header.frame_id == 'earth' and odo[0].child_frame_id == 'imu_link'
     assert imu[0].header.frame_id == 'imu_link' and imu[-1].linear_acceleration_covariance[0] >= 0
     t = np.array([m.header.stamp.sec + m.header.stamp.nanosec * 1e-9 for m in odo])
-    r = np.array([[m.pose.pose.position.x, m.pose.pose.position.y, m.pose.pose.position.z] for m in odo])
-    assert np.max(np.linalg.norm(r - prof.position(t), axis=1)) < 2e-3           # as sins_node on the turn
+    r = np.array([[m.pose.pose.position.x, m.pose.pose.position.y,
+                   m.pose.pose.position.z] for m in odo])
+    # as sins_node on the turn
+    assert np.max(np.linalg.norm(r - prof.position(t), axis=1)) < 2e-3
     cov = np.array(odo[-1].pose.covariance).reshape(6, 6)
     assert np.all(np.isfinite(cov)) and np.allclose(cov, cov.T)
 
@@ -189,7 +198,8 @@ def test_mcap_output_bytes_are_rosbags_serialization(bags, tmp_path, capsys):
 
 def test_namespaced_topics_and_force(tmp_path, capsys):
     bag = tmp_path / 'ns_bag'
-    assert record_sim.main([str(bag), '--duration', '1', '--namespace', '/robot1', '-p', 'profile:=coning']) == 0
+    assert record_sim.main([str(bag), '--duration', '1', '--namespace', '/robot1', '-p',
+                            'profile:=coning']) == 0
     capsys.readouterr()
     out = tmp_path / 'ns_out'
     assert _run_tool(capsys, bag, '--output', out)[0] == 0
@@ -199,7 +209,8 @@ def test_namespaced_topics_and_force(tmp_path, capsys):
     rc, _, err = _run_tool(capsys, bag, '--output', out)
     assert rc == 2 and '--force' in err
     assert _run_tool(capsys, bag, '--namespace', 'robot1', '--output', out, '--force')[0] == 0
-    assert _run_tool(capsys, bag, '--gyro-topic', '/robot1/imu/delta_theta', '--output', out, '--force')[0] == 0
+    assert _run_tool(capsys, bag, '--gyro-topic', '/robot1/imu/delta_theta', '--output', out,
+                     '--force')[0] == 0
 
 
 # --- node and tool: the same core --------------------------------------------------------------------
@@ -225,7 +236,8 @@ def test_node_and_tool_give_the_same_solution(bags, tmp_path, capsys, monkeypatc
 
     msgs = []
     with AnyReader([bag]) as rd:
-        conns = [c for c in rd.connections if c.topic in ('/imu/delta_theta', '/imu/delta_velocity')]
+        conns = [c for c in rd.connections if c.topic in ('/imu/delta_theta',
+                                                          '/imu/delta_velocity')]
         for c, _, raw in rd.messages(connections=conns):
             m = deserialize_message(bytes(raw), Vector3Stamped)
             msgs.append((stamp_to_ns(m.header.stamp), c.topic == '/imu/delta_theta', m))
@@ -235,10 +247,12 @@ def test_node_and_tool_give_the_same_solution(bags, tmp_path, capsys, monkeypatc
     rclpy.init(context=ctx)
     try:
         node = SinsNode(context=ctx, namespace=f'/t_sins_bag_{profile}', parameter_overrides=[
-            Parameter(k, value=v) for k, v in load_parameter_file(str(params), 'sins_node').items()])
+            Parameter(k, value=v) for k,
+            v in load_parameter_file(str(params), 'sins_node').items()])
         got = {'att': [], 'imu': [], 'odom': []}
         monkeypatch.setattr(node.pub_att, 'publish', lambda m: got['att'].append(
-            (stamp_to_ns(m.header.stamp), [m.quaternion.x, m.quaternion.y, m.quaternion.z, m.quaternion.w])))
+            (stamp_to_ns(m.header.stamp),
+             [m.quaternion.x, m.quaternion.y, m.quaternion.z, m.quaternion.w])))
         monkeypatch.setattr(node.pub_imu, 'publish', lambda m: got['imu'].append(
             (stamp_to_ns(m.header.stamp), list(m.orientation_covariance),
              [m.linear_acceleration.x, m.linear_acceleration.y, m.linear_acceleration.z])))
@@ -246,8 +260,10 @@ def test_node_and_tool_give_the_same_solution(bags, tmp_path, capsys, monkeypatc
         def odom(m):
             p, o, v = m.pose.pose.position, m.pose.pose.orientation, m.twist.twist.linear
             q = np.array([o.w, o.x, o.y, o.z])
-            got['odom'].append((stamp_to_ns(m.header.stamp), [p.x, p.y, p.z], quat_to_dcm(q) @ [v.x, v.y, v.z],
-                                [o.x, o.y, o.z, o.w], np.sqrt(np.diag(np.array(m.pose.covariance).reshape(6, 6)))))
+            got['odom'].append((stamp_to_ns(m.header.stamp), [p.x, p.y, p.z],
+                                quat_to_dcm(q) @ [v.x, v.y, v.z],
+                                [o.x, o.y, o.z, o.w],
+                                np.sqrt(np.diag(np.array(m.pose.covariance).reshape(6, 6)))))
         monkeypatch.setattr(node.pub_odom, 'publish', odom)
         for pub in (node.pub_att, node.pub_imu, node.pub_odom):
             monkeypatch.setattr(pub, 'get_subscription_count', lambda: 1)
@@ -274,19 +290,24 @@ def test_node_and_tool_give_the_same_solution(bags, tmp_path, capsys, monkeypatc
     print(f'{profile}: node vs tool: position {dr:.1e} relative, velocity {dv:.1e} m/s, quaternion {dq:.1e}')
     # the MCAP bag against what the node published on all three topics
     with AnyReader([out_bag]) as rd:
-        per = {c.topic: [rd.deserialize(raw, c.msgtype) for _, _, raw in rd.messages(connections=[c])]
+        per = {c.topic: [rd.deserialize(raw, c.msgtype) for _, _,
+                         raw in rd.messages(connections=[c])]
                for c in rd.connections}
     att = per['/sins/attitude']
     assert [stamp_to_ns(m.header.stamp) for m in att] == [s for s, _ in got['att']]
-    assert np.array_equal([[m.quaternion.x, m.quaternion.y, m.quaternion.z, m.quaternion.w] for m in att],
+    assert np.array_equal([[m.quaternion.x, m.quaternion.y, m.quaternion.z,
+                            m.quaternion.w] for m in att],
                           [q for _, q in got['att']])
     imu = per['/sins/imu']
     assert [stamp_to_ns(m.header.stamp) for m in imu] == [s for s, _, _ in got['imu']]
-    assert np.array_equal([list(m.orientation_covariance) for m in imu], [c for _, c, _ in got['imu']])
-    assert np.array_equal([[m.linear_acceleration.x, m.linear_acceleration.y, m.linear_acceleration.z] for m in imu],
+    assert np.array_equal([list(m.orientation_covariance) for m in imu],
+                          [c for _, c, _ in got['imu']])
+    assert np.array_equal([[m.linear_acceleration.x, m.linear_acceleration.y,
+                            m.linear_acceleration.z] for m in imu],
                           [f for _, _, f in got['imu']])
     odo = per['/sins/odometry']
-    assert np.array_equal([[m.pose.pose.position.x, m.pose.pose.position.y, m.pose.pose.position.z] for m in odo],
+    assert np.array_equal([[m.pose.pose.position.x, m.pose.pose.position.y,
+                            m.pose.pose.position.z] for m in odo],
                           r_node)
 
 
@@ -294,7 +315,8 @@ def test_node_and_tool_give_the_same_solution(bags, tmp_path, capsys, monkeypatc
 def test_argument_errors_are_one_line_exit_2_before_any_work(bags, tmp_path, capsys):
     bag, params, _ = bags['static']
     no_accel = tmp_path / 'no_accel'
-    assert record_sim.main([str(no_accel), '--duration', '1', '--no-accel', '-p', 'profile:=static']) == 0
+    assert record_sim.main([str(no_accel), '--duration', '1', '--no-accel', '-p',
+                            'profile:=static']) == 0
     (tmp_path / 'exists.csv').write_text('x\n')
     (tmp_path / 'dir').mkdir()
     (tmp_path / 'dir' / 'keep.txt').write_text('x')
@@ -307,7 +329,8 @@ def test_argument_errors_are_one_line_exit_2_before_any_work(bags, tmp_path, cap
         ([bag, '-o', tmp_path / 'a.csv', '-p', 'gyro_bais:=1.0'], 'gyro_bais'),
         ([bag, '-o', tmp_path / 'a.csv', '-p', 'navigation'], 'name:=value'),
         ([bag, '-o', tmp_path / 'a.csv', '--params', tmp_path / 'missing.yaml'], 'missing.yaml'),
-        ([bag, '-o', tmp_path / 'a.csv', '-p', 'initial_position:=[0.0, 0.0, 1.0e7]', '-p', 'navigation:=true'],
+        ([bag, '-o', tmp_path / 'a.csv', '-p', 'initial_position:=[0.0, 0.0, 1.0e7]', '-p',
+          'navigation:=true'],
          'initial_position'),
         ([no_accel, '-o', tmp_path / 'a.csv', '-p', 'navigation:=true'], 'delta_velocity'),
         ([bag, '-o', tmp_path / 'exists.csv'], '--force'),
@@ -318,7 +341,8 @@ def test_argument_errors_are_one_line_exit_2_before_any_work(bags, tmp_path, cap
     for args, needle in cases:
         rc, out, err = _run_tool(capsys, *args)
         lines = [ln for ln in (out + err).splitlines() if ln.strip()]
-        assert rc == 2 and len(lines) == 1 and lines[0].startswith('sins_bag: error:'), (args, rc, out, err)
+        assert rc == 2 and len(lines) == 1 and lines[0].startswith('sins_bag: error:'), (args, rc,
+                                                                                         out, err)
         assert needle in lines[0], (needle, lines[0])
     assert not (tmp_path / 'a.csv').exists() and (tmp_path / 'exists.csv').read_text() == 'x\n'
     assert (tmp_path / 'dir' / 'keep.txt').exists() and (bag / 'metadata.yaml').exists()
