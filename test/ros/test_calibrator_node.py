@@ -74,14 +74,15 @@ def status_of(diags, prefix):
 
 
 class Graph:
-    """imu_sim_node + star_camera_sim_node + calibrator_node (+ a monitor node) in one namespace."""
+    """The simulators, calibrator_node and a monitor node, in one namespace."""
 
     def __init__(self, ns, profile, time_scale, camera=(), calibrator=(), plain_peer=False):
         self.ns = ns
         prof = [Parameter(k, value=v) for k, v in profile.items()]
         depth = [Parameter('qos_depth', value=QUEUE)]
         self.calib = CalibratorNode(namespace=ns, parameter_overrides=[*depth, *calibrator])
-        # optional second calibrator on star_camera/attitude (no covariance: σ from its parameters),
+        # optional second calibrator on star_camera/attitude (no covariance: σ from its
+        # parameters),
         # in its own namespace with its inputs remapped to this graph's topics
         self.peer = CalibratorNode(namespace=ns + '_plain', parameter_overrides=[
             *depth, Parameter('use_camera_covariance', value=False)], cli_args=[
@@ -129,7 +130,8 @@ class Graph:
         spin_until(self.ex, self.all_received, 5.0)
         g, c = self.calib.gyro_check, self.calib.camera_check
         assert self.all_received(), (
-            f'calibrator lost input (best-effort queue overflow? lower time_scale): gyro {g.received} of '
+            'calibrator lost input (best-effort queue overflow? lower time_scale): '
+            f'gyro {g.received} of '
             f"{self.sim.counts['delta_theta']}, camera {c.received} of {self.cam.published}")
         assert (g.accepted, g.nan, g.out_of_order, g.duplicate, g.gaps, g.missing) == (g.received,
                                                                                        0, 0, 0, 0,
@@ -234,9 +236,11 @@ def test_bench_calibration_full_graph(ros):
         types = dict(g.mon.get_topic_names_and_types())
         expect = {'calibration/boresight': 'geometry_msgs/msg/PoseWithCovarianceStamped',
                   'calibration/boresight_angles': 'geometry_msgs/msg/Vector3Stamped',
-                  'calibration/imu_attitude_from_camera': 'geometry_msgs/msg/PoseWithCovarianceStamped',
+                  'calibration/imu_attitude_from_camera':
+                      'geometry_msgs/msg/PoseWithCovarianceStamped',
                   'star_camera/attitude': 'geometry_msgs/msg/QuaternionStamped',
-                  'star_camera/attitude_with_covariance': 'geometry_msgs/msg/PoseWithCovarianceStamped',
+                  'star_camera/attitude_with_covariance':
+                      'geometry_msgs/msg/PoseWithCovarianceStamped',
                   'star_camera/truth/boresight': 'geometry_msgs/msg/QuaternionStamped'}
         for topic, typ in expect.items():
             assert types[f'{ns}/{topic}'] == [typ], topic
@@ -260,7 +264,8 @@ def test_bench_calibration_full_graph(ros):
         assert st.level == b'\x00', st.message
         assert kv['observable'] == 'True' and kv['converged'] == 'True' and int(kv['pairs']) == 33
         assert kv['weighted'] == 'True' and float(kv['chi2_per_dof']) < 3.0
-        assert int(kv['gyro_received']) == g.sim.counts['delta_theta'] and int(kv['camera_received']) == 34
+        assert (int(kv['gyro_received']) == g.sim.counts['delta_theta']
+                and int(kv['camera_received']) == 34)
         assert float(kv['beta_yaw_deg']) == pytest.approx(40.0, abs=60 / 3600)
         assert 0.1 < float(kv['beta_yaw_sigma_arcsec']) < 60.0
         assert 0.0 < float(kv['last_solve_ms']) < 1000.0
@@ -349,7 +354,8 @@ def test_bad_camera_and_gyro_input_is_dropped_counted_and_reported(ros):
     for n in (cal, src):
         ex.add_node(n)
     try:
-        assert spin_until(ex, lambda: pub_g.get_subscription_count() >= 1 and pub_c.get_subscription_count() >= 1
+        assert spin_until(ex, lambda: pub_g.get_subscription_count() >= 1
+                          and pub_c.get_subscription_count() >= 1
                           and src.count_publishers('/diagnostics') >= 1, 10.0)
 
         def gyro(k, v=(1e-4, 0.0, 0.0)):
@@ -384,11 +390,13 @@ def test_bad_camera_and_gyro_input_is_dropped_counted_and_reported(ros):
                 ex.spin_once(timeout_sec=0.005)
         gyro(250)                                        # duplicate
         gyro(10, (float('nan'), 0.0, 0.0))               # NaN
-        assert spin_until(ex, lambda: cal.gyro_check.received >= 251 and cal.camera_check.received >= 7, 5.0)
+        assert spin_until(ex, lambda: cal.gyro_check.received >= 251
+                          and cal.camera_check.received >= 7, 5.0)
         g, c = cal.gyro_check, cal.camera_check
         assert (g.accepted, g.nan, g.duplicate, g.gaps, g.missing) == (249, 1, 1, 1, 1)
         assert (c.accepted, c.nan, c.duplicate, c.out_of_order) == (2, 1, 1, 1)
-        assert cal.camera_counts['normalised'] == 1 and cal.camera_counts['dropped_zero_quaternion'] == 1
+        assert (cal.camera_counts['normalised'] == 1
+                and cal.camera_counts['dropped_zero_quaternion'] == 1)
         assert cal.camera_counts['dropped_bad_covariance'] == 1
         # the only pair spans the gap
         assert cal.pairs_discarded_gap == 1 and cal.cal.pairs == []
@@ -407,7 +415,8 @@ def test_bad_camera_and_gyro_input_is_dropped_counted_and_reported(ros):
 
 
 def test_invalid_parameters_are_refused_with_the_valid_values(ros):
-    with pytest.raises(ValueError, match=r"covariance_model='bogus' is not valid; valid values: random_constant, 004"):
+    with pytest.raises(ValueError, match=r"covariance_model='bogus' is not valid; "
+                                         r'valid values: random_constant, 004'):
         CalibratorNode(namespace='/t_calib_refuse1',
                        parameter_overrides=[Parameter('covariance_model', value='bogus')])
     with pytest.raises(ValueError,
@@ -444,7 +453,7 @@ def test_executables_exit_2_with_a_clear_message(module, arg, text):
 
 
 def _node_estimate(ns, poison: bool, params=(), keep=False, noise_scale=1.0):
-    """calibrator_node fed bench data through its own callbacks (no DDS): returns (β, node counters)."""
+    """Feed calibrator_node bench data through its own callbacks (no DDS): (β, node counters)."""
     from strapdown_ros.rotation import to_ros_xyzw
     from strapdown_ros.sensors import IntegratingSensor
     from strapdown_ros.sensors.star_camera import StarCameraModel
@@ -563,7 +572,8 @@ def test_restart_resumes_the_same_estimate_and_a_corrupted_state_is_moved_aside(
         fh.write(b'not a state file')
     node = CalibratorNode(namespace='/t_state', parameter_overrides=sf)
     try:
-        assert node.state['errors'] == 1 and node.cal.pairs == [] and node.published['boresight'] == 0
+        assert (node.state['errors'] == 1 and node.cal.pairs == []
+                and node.published['boresight'] == 0)
         assert not os.path.exists(state) and os.path.exists(state + '.corrupt')
     finally:
         node.destroy_node()
@@ -665,7 +675,8 @@ def test_one_input_path_node_and_calibrate_bag_agree_on_a_hostile_stream(ros, tm
     cams[5] = (cams[5][0], 2.0 * cams[5][1], cams[5][2])
     # zero quaternion
     cams.insert(9, (cams[8][0] + 1_000_000, np.zeros(4), cams[8][2]))
-    # arrival order: the gyro stream as built (hostile messages where they arrived), the fixes merged
+    # arrival order: the gyro stream as built (hostile messages where they arrived), the fixes
+    # merged
     # in by stamp against the regular increments
     events, j = [], 0
     for k, e in enumerate(stream):
@@ -690,8 +701,8 @@ def test_one_input_path_node_and_calibrate_bag_agree_on_a_hostile_stream(ros, tm
                 stamp = T['builtin_interfaces/msg/Time'](sec=ns // 10**9, nanosec=ns % 10**9)
                 if kind == 'g':
                     h = T['std_msgs/msg/Header'](stamp=stamp, frame_id='imu_link')
-                    m = T['geometry_msgs/msg/Vector3Stamped'](header=h, vector=T['geometry_msgs/msg/Vector3'](
-                        x=v[0], y=v[1], z=v[2]))
+                    vec = T['geometry_msgs/msg/Vector3'](x=v[0], y=v[1], z=v[2])
+                    m = T['geometry_msgs/msg/Vector3Stamped'](header=h, vector=vec)
                     w.write(cg, i, store.serialize_cdr(m, 'geometry_msgs/msg/Vector3Stamped'))
                     r = Vector3Stamped()
                     r.header.stamp.sec, r.header.stamp.nanosec = ns // 10**9, ns % 10**9
@@ -703,10 +714,10 @@ def test_one_input_path_node_and_calibrate_bag_agree_on_a_hostile_stream(ros, tm
                     c6 = np.zeros((6, 6))
                     c6[3:, 3:] = P
                     h = T['std_msgs/msg/Header'](stamp=stamp, frame_id='gcrs')
-                    pose = T['geometry_msgs/msg/Pose'](position=T['geometry_msgs/msg/Point'](x=0.0, y=0.0, z=0.0),
-                                                       orientation=T['geometry_msgs/msg/Quaternion'](
-                                                           x=float(q[0]), y=float(q[1]),
-                                                           z=float(q[2]), w=float(q[3])))
+                    point = T['geometry_msgs/msg/Point'](x=0.0, y=0.0, z=0.0)
+                    quat = T['geometry_msgs/msg/Quaternion'](x=float(q[0]), y=float(q[1]),
+                                                             z=float(q[2]), w=float(q[3]))
+                    pose = T['geometry_msgs/msg/Pose'](position=point, orientation=quat)
                     m = T['geometry_msgs/msg/PoseWithCovarianceStamped'](
                         header=h,
                         pose=T['geometry_msgs/msg/PoseWithCovariance'](pose=pose,
@@ -736,7 +747,8 @@ def test_one_input_path_node_and_calibrate_bag_agree_on_a_hostile_stream(ros, tm
         assert (g.bursts, g.burst_messages, g.resyncs, g.gaps, g.missing) == (1, 5, 0, 1, 5)
         assert r['gyro_gaps']['stamp_bursts'] == 1 and r['gyro_gaps']['missing'] == 5
         assert r['pairs'] == len(node.cal.pairs) == len(fixes) - 1 - 1
-        assert r['dropped']['camera']['zero_quaternion'] == node.camera_counts['dropped_zero_quaternion'] == 1
+        assert (r['dropped']['camera']['zero_quaternion']
+                == node.camera_counts['dropped_zero_quaternion'] == 1)
         assert r['camera_fixes']['normalised'] == node.camera_counts['normalised'] == 1
         assert r['messages']['gyro'] == g.accepted - g.burst_messages   # offline: burst removed
         np.testing.assert_allclose(r['beta_rad'], node.valid.beta, rtol=0, atol=1e-10)

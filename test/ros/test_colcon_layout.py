@@ -145,8 +145,8 @@ def test_colcon_install_layout(workspace):
     libexec = prefix / 'lib' / PKG
     for exe in EXECUTABLES:
         path = libexec / exe
-        assert path.is_file(), (f'{path} missing; installed there: '
-                                f"{sorted(p.name for p in libexec.glob('*')) if libexec.is_dir() else 'nothing'}"
+        there = sorted(p.name for p in libexec.glob('*')) if libexec.is_dir() else 'nothing'
+        assert path.is_file(), (f'{path} missing; installed there: {there}'
                                 ' (setup.cfg [install] install_scripts=$base/lib/strapdown_ros?)')
         assert os.access(path, os.X_OK), f'{path} is not executable'
         assert path.read_text().startswith('#!'), f'{path} has no shebang'
@@ -160,7 +160,8 @@ def test_colcon_install_layout(workspace):
     proc = subprocess.run(
         [sys.executable, '-c', f'import {PKG}, {PKG}.nodes, {PKG}.tools; print({PKG}.__file__)'],
         cwd=workspace['ws'], env=env, capture_output=True, text=True, timeout=60)
-    assert proc.returncode == 0, f"import {PKG} failed ({workspace['sourced_with']}):\n{proc.stderr}"
+    assert proc.returncode == 0, (f"import {PKG} failed ({workspace['sourced_with']}):\n"
+                                  f'{proc.stderr}')
     imported = Path(proc.stdout.strip().splitlines()[-1]).resolve()
     assert imported.is_relative_to(site.resolve()), (
         f'{PKG} imported from {imported}, expected under {site}')
@@ -175,7 +176,8 @@ def _resolve_like_ros2_run(workspace, exe):
     proc = subprocess.run([sys.executable, '-c', code], cwd=workspace['ws'], env=workspace['env'],
                           capture_output=True, text=True, timeout=60)
     assert proc.returncode == 0, (f'get_package_prefix({PKG!r}) failed with '
-                                  f"AMENT_PREFIX_PATH={workspace['env'].get('AMENT_PREFIX_PATH')!r}:\n"
+                                  'AMENT_PREFIX_PATH='
+                                  f"{workspace['env'].get('AMENT_PREFIX_PATH')!r}:\n"
                                   f'{proc.stderr}')
     prefix = Path(proc.stdout.strip().splitlines()[-1])
     assert prefix.resolve() == workspace['prefix'].resolve(), (

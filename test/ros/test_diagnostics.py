@@ -254,7 +254,8 @@ def test_calibrator_lists_every_condition_at_the_worst_level(ros, monkeypatch):
         assert 'could not be decoded' in message, message
         cal._on_gyro(_msg(1_000_000_000 + 30 * 10_000_000, (1e-4, 0.0, 0.0)))   # 18 missing
         level, message, _ = diag.now()
-        assert level == ros_status.ERROR and 'missing' in message and 'could not be decoded' in message
+        assert (level == ros_status.ERROR and 'missing' in message
+                and 'could not be decoded' in message)
     finally:
         cal.destroy_node()
 

@@ -117,7 +117,8 @@ def test_imu_mean_rule_gives_the_delta_theta_attitude_except_the_first_increment
         # the same increments from the second on: q_d = c ⊗ q_i with one constant c, to round-off
         c = quat_multiply(q_d[1:], quat_conjugate(q_i))
         assert np.max(quat_angle_between(c, c[:1])) < 1e-12
-        # both within the one-sample coning bound of the exact attitude (test/ros/test_nodes.py's bound)
+        # both within the one-sample coning bound of the exact attitude (the bound of
+        # test/ros/test_nodes.py)
         drift = abs(theory_drift(ALGORITHMS['1'], NU * 0.01)) * ALPHA ** 2 * NU          # rad/s
         for t, q in ((t_d, q_d), (t_i, q_i)):
             err = quat_angle_between(q, np.array([truth[k] for k in t.tolist()]))

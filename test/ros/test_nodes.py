@@ -153,11 +153,12 @@ def test_full_graph_topics_qos_rates_and_content(ros):
         np.testing.assert_allclose(w, prof.delta_theta(t1 - 0.02, t1) / 0.02, atol=1e-12)
 
         # --- diagnostics of both nodes
-        spin_until(ex, lambda: any(s.name.startswith(f'{ns}/sins_node') for d in rec.data['/diagnostics']
-                                   for s in d.status), 5.0)
+        spin_until(ex, lambda: any(s.name.startswith(f'{ns}/sins_node')
+                                   for d in rec.data['/diagnostics'] for s in d.status), 5.0)
         sins.publish_diagnostics()
         spin_until(ex, lambda: False, 0.3)
-        status = [s for d in rec.data['/diagnostics'] for s in d.status if s.name.startswith(f'{ns}/sins_node')][-1]
+        status = [s for d in rec.data['/diagnostics'] for s in d.status
+                  if s.name.startswith(f'{ns}/sins_node')][-1]
         kv = {v.key: v.value for v in status.values}
         assert kv['coning_algorithm'] == '2' and int(kv['gyro_accepted']) == 400
         assert float(kv['gyro_rate_hz_from_stamps']) == pytest.approx(100.0)
@@ -185,7 +186,8 @@ def test_bad_input_is_dropped_counted_and_reported(ros):
 
         def send(k, v=(0.001, 0.0, 0.0)):
             m = Vector3Stamped()
-            m.header.stamp.sec, m.header.stamp.nanosec = 100 + k // 100, int(round((k % 100) * rate * 1e9))
+            m.header.stamp.sec = 100 + k // 100
+            m.header.stamp.nanosec = int(round((k % 100) * rate * 1e9))
             m.vector.x, m.vector.y, m.vector.z = v
             pub.publish(m)
             ex.spin_once(timeout_sec=0.005)
@@ -202,7 +204,8 @@ def test_bad_input_is_dropped_counted_and_reported(ros):
                                                                                        1, 1)
         assert sins.integrator.updates == 12
         sins.publish_diagnostics()
-        assert spin_until(ex, lambda: any(s.name.startswith(f'{ns}/sins_node') for d in diags for s in d.status), 5.0)
+        assert spin_until(ex, lambda: any(s.name.startswith(f'{ns}/sins_node')
+                                          for d in diags for s in d.status), 5.0)
         st = [s for d in diags for s in d.status if s.name.startswith(f'{ns}/sins_node')][-1]
         kv = {v.key: v.value for v in st.values}
         # ERROR: rotation lost in a gap
@@ -243,7 +246,8 @@ def test_node_executable_exits_with_a_clear_message_on_bad_algorithm():
     env = dict(os.environ,
                PYTHONPATH=os.pathsep.join([repo, os.environ.get('PYTHONPATH', '')]))
     res = subprocess.run([sys.executable, '-m', 'strapdown_ros.nodes.sins_node', '--ros-args',
-                          '-p', 'coning_algorithm:=rk4'], capture_output=True, text=True, timeout=60, env=env)
+                          '-p', 'coning_algorithm:=rk4'], capture_output=True, text=True,
+                         timeout=60, env=env)
     assert res.returncode == 2
     assert "coning_algorithm='rk4' is not valid; valid values: 1, 2, 3" in res.stderr
 
@@ -260,7 +264,8 @@ def test_numeric_algorithm_names_given_unquoted_are_accepted(ros):
 
 
 def test_nodes_start_from_the_shipped_parameter_file(ros):
-    path = os.path.join(os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__)))), 'config', 'coning.yaml')
+    repo = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+    path = os.path.join(repo, 'config', 'coning.yaml')
     sim = ImuSimNode(namespace='/t_file', cli_args=['--ros-args', '--params-file', path])
     sins = SinsNode(namespace='/t_file', cli_args=['--ros-args', '--params-file', path])
     try:
@@ -361,7 +366,8 @@ def test_impossible_increments_lone_future_stamp_and_clock_reset(ros):
         angle = 2 * np.arctan2(np.linalg.norm(q[-1, :3]), abs(q[-1, 3]))
         assert angle == pytest.approx(24 * 0.001, rel=1e-9)
         sins.publish_diagnostics()
-        assert spin_until(ex, lambda: any(s.name.startswith(f'{ns}/sins_node') for d in diags for s in d.status), 5.0)
+        assert spin_until(ex, lambda: any(s.name.startswith(f'{ns}/sins_node')
+                                          for d in diags for s in d.status), 5.0)
         st = [s for d in diags for s in d.status if s.name.startswith(f'{ns}/sins_node')][-1]
         kv = {v.key: v.value for v in st.values}
         # ERROR naming the cause
@@ -416,7 +422,8 @@ def test_sins_node_never_publishes_a_non_finite_state(ros, monkeypatch):
                               abs(good_q[0])) == pytest.approx(5 * 0.001, rel=1e-9)
         # inflated by 0.01 rad/axis
         assert np.sqrt(np.trace(sins.integrator.covariance())) > sigma0 + 0.009
-        # the raw subscription path: bytes that are no message are counted and dropped, nothing else
+        # the raw subscription path: bytes that are no message are counted and dropped, nothing
+        # else
         from rclpy.serialization import serialize_message
         updates = sins.integrator.updates
         sins._on_gyro_raw(b'\x00\x01\x00\x00garbage')
@@ -476,7 +483,8 @@ def test_parameter_rules(ros):
         changed = sins.set_parameters([Parameter('frame_id', value='other')])
         assert not changed[0].successful and 'restart' in changed[0].reason
         ok = sins.set_parameters([Parameter('coning_algorithm', value='4+')])
-        assert ok[0].successful and sins.integrator.algorithm_name == '4+' and sins.p['coning_algorithm'] == '4+'
+        assert (ok[0].successful and sins.integrator.algorithm_name == '4+'
+                and sins.p['coning_algorithm'] == '4+')
     finally:
         sins.destroy_node()
 
@@ -563,7 +571,8 @@ def test_sins_node_batches_equal_per_message_processing(ros, monkeypatch):
         finally:
             node.destroy_node()
     a, b = results[0.0], results[0.05]
-    assert len(a['att']) == len(b['att']) > 1000 and len(a['imu']) == len(b['imu']) == len(a['att'])
+    assert (len(a['att']) == len(b['att']) > 1000
+            and len(a['imu']) == len(b['imu']) == len(a['att']))
     assert [s for s, _ in a['att']] == [s for s, _ in b['att']]
     qa, qb = np.array([q for _, q in a['att']]), np.array([q for _, q in b['att']])
     assert np.max(np.abs(qa - qb)) < 1e-14
@@ -601,8 +610,8 @@ def test_stream_qos_overrides_and_simulator_waits_for_subscribers(ros):
             ex.add_node(n)
         infos = probe.get_subscriptions_info_by_topic(f'{ns}/imu/delta_theta')
         assert [i.qos_profile.reliability for i in infos] == [ReliabilityPolicy.RELIABLE]
-        assert probe.get_publishers_info_by_topic(f'{ns}/imu/delta_theta')[0].qos_profile.reliability \
-            == ReliabilityPolicy.RELIABLE
+        pub = probe.get_publishers_info_by_topic(f'{ns}/imu/delta_theta')[0]
+        assert pub.qos_profile.reliability == ReliabilityPolicy.RELIABLE
         spin_until(ex, lambda: False, 1.0)
         # one subscriber of two
         assert sim.counts['delta_theta'] == 0 and sim._wall_start is None

@@ -41,6 +41,7 @@ def test_signal_at_any_moment_exits_0_quietly(node):
         except subprocess.TimeoutExpired:
             p.kill()
             out, _ = p.communicate()
-            pytest.fail(f'{node} ignored {sig.name} after {delay} s (SIGINT ignored: {ignored}):\n{out}')
+            pytest.fail(f'{node} ignored {sig.name} after {delay} s '
+                        f'(SIGINT ignored: {ignored}):\n{out}')
         assert p.returncode == 0, (node, sig.name, delay, ignored, out)
         assert 'Traceback' not in out and 'Error' not in out, out

@@ -81,7 +81,8 @@ def _run(ns, profile, duration, sins_extra=(), sim_extra=(), expect=None):
 
 def _paired(got):
     truth = {stamp_to_ns(m.header.stamp): m for m in got['truth']}
-    pairs = [(m, truth[stamp_to_ns(m.header.stamp)]) for m in got['sins'] if stamp_to_ns(m.header.stamp) in truth]
+    pairs = [(m, truth[stamp_to_ns(m.header.stamp)]) for m in got['sins']
+             if stamp_to_ns(m.header.stamp) in truth]
     assert len(pairs) > 0.9 * len(got['sins'])
     return pairs
 
@@ -106,7 +107,8 @@ def test_sins_odometry_matches_the_exact_truth(ros, profile, tol_pos, tol_vel):
     dp = max(np.linalg.norm(_pos(s) - _pos(t)) for s, t in pairs)
     dv = max(np.linalg.norm(np.array([s.twist.twist.linear.x - t.twist.twist.linear.x,
                                       s.twist.twist.linear.y - t.twist.twist.linear.y,
-                                      s.twist.twist.linear.z - t.twist.twist.linear.z])) for s, t in pairs)
+                                      s.twist.twist.linear.z - t.twist.twist.linear.z]))
+             for s, t in pairs)
     da = max(quat_angle_between(_quat(s), _quat(t)) for s, t in pairs)
     assert np.linalg.norm(_pos(pairs[-1][1])) > 6.3e6                     # ECEF, metres
     assert dp < tol_pos and dv < tol_vel and da < 1e-8, (dp, dv, da)

@@ -14,7 +14,8 @@ def _one_line_exit_2(cmd, timeout=60):
     t0 = time.monotonic()
     p = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout)
     # (rcl logs its own "[ERROR] [rcl]: Failed to parse global arguments" from C: not ours)
-    lines = [ln for ln in (p.stdout + p.stderr).splitlines() if ln.strip() and '[INFO]' not in ln and '[rcl]' not in ln]
+    lines = [ln for ln in (p.stdout + p.stderr).splitlines()
+             if ln.strip() and '[INFO]' not in ln and '[rcl]' not in ln]
     assert p.returncode == 2, (cmd, p.returncode, p.stdout, p.stderr)
     assert len(lines) == 1 and 'Traceback' not in lines[0] and 'error' in lines[0], lines
     return lines[0], time.monotonic() - t0

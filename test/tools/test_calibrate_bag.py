@@ -23,8 +23,9 @@ KEYS = ['q_mf_vf_xyzw', 'rotation_covariance_mf_rad2', 'beta_rad', 'beta_sigma_r
 
 
 def _is_3x3(m):
-    return isinstance(m, list) and len(m) == 3 and all(isinstance(r, list) and len(r) == 3 for r in m) \
-        and all(isinstance(v, float) for r in m for v in r)
+    return (isinstance(m, list) and len(m) == 3
+            and all(isinstance(r, list) and len(r) == 3 for r in m)
+            and all(isinstance(v, float) for r in m for v in r))
 
 
 def _floats(v, n):
@@ -117,7 +118,7 @@ def test_single_axis_not_observable(tmp_path, capsys):
 
 
 def _write_bag(path, gyro_msgs, cam_msgs, namespace='/robot1'):
-    """A bag written with rosbags directly: (ns, vector) gyro messages, (ns, q_wxyz) camera fixes."""
+    """Write a bag with rosbags directly: (ns, vector) gyro messages, (ns, q_wxyz) fixes."""
     from rosbags.rosbag2 import StoragePlugin, Writer
     from rosbags.typesys import get_typestore, Stores
     ts = get_typestore(Stores.ROS2_JAZZY)
@@ -204,7 +205,8 @@ def test_tools_run_with_ros_absent(tmp_path):
         sys.path.insert(0, {repo!r})
         from strapdown_ros.tools import calibrate_bag, record_sim
         bag = {str(tmp_path / "short")!r}
-        assert record_sim.main([bag, "--duration", "30", "--no-accel", "-p", "camera_interval:=5.0"]) == 0
+        assert record_sim.main([bag, '--duration', '30', '--no-accel',
+                                '-p', 'camera_interval:=5.0']) == 0
         assert calibrate_bag.main([bag]) == 3          # one turn about z only: not observable
         loaded = [m for m in sys.modules if m.split(".")[0] in BLOCK]
         assert not loaded, loaded
@@ -316,7 +318,8 @@ def test_one_outlier_camera_fix_is_gated(tmp_path):
         assert calibrate_bag.main([str(bag), '--json', str(f)]) == 0
         out[name] = json.loads(f.read_text())
     r = out['dirty']
-    assert r['camera_fixes']['outliers_dropped'] == 1 and r['camera_fixes']['outlier_stamps_s'] == [pytest.approx(60.0)]
+    assert r['camera_fixes']['outliers_dropped'] == 1
+    assert r['camera_fixes']['outlier_stamps_s'] == [pytest.approx(60.0)]
     assert out['clean']['camera_fixes']['outliers_dropped'] == 0
     assert r['pairs'] == out['clean']['pairs'] - 1
     q_true = dcm_to_quat(ypr_to_dcm(*BETA))

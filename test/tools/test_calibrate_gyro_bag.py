@@ -25,7 +25,8 @@ BETA = [0.698, -0.436, 2.094]
 SCENARIO = {'profile': 'bench', 'bench_repeat': 1, 'gyro_rate': 100.0, 'boresight': BETA,
             'gyro_bias_sigma': 0.0, 'gyro_scale_sigma': 0.0, 'gyro_misalignment_sigma': 0.0}
 INJECTED = {'gyro_scale_factor': [5e-4, -3e-4, 4e-4],
-            # M_xy, M_xz, M_yx, M_yz, M_zx, M_zy: not symmetric (the antisymmetric part is a triad rotation)
+            # M_xy, M_xz, M_yx, M_yz, M_zx, M_zy: not symmetric (the antisymmetric part is a
+            # triad rotation)
             'gyro_misalignment': [2e-4, -1e-4, 3e-4, 1.5e-4, -2e-4, 1e-4],
             'gyro_bias': [1e-5, -2e-5, 1.5e-5]}
 M = INJECTED['gyro_misalignment']
@@ -148,7 +149,7 @@ def test_nominal_model_is_not_adequate_on_that_recording(recording, tmp_path):
 
 @pytest.fixture(scope='module')
 def z_only(tmp_path_factory):
-    """Turns about the gyro z axis only (and rests): x/y scale and their misalignment are not observable."""
+    """Turns about the gyro z axis only (and rests): x/y scale and misalignment unobservable."""
     d = tmp_path_factory.mktemp('z_only')
     prof = d / 'z_only.yaml'
     prof.write_text(json.dumps({'segments': [{'duration': 8.0},
@@ -227,7 +228,8 @@ def test_console_script_one_line_exit_2(tmp_path):
     p = subprocess.run([os.path.join(BIN, 'calibrate_gyro_bag'), str(tmp_path / 'none'),
                         '--method', 'tkachenko'],
                        capture_output=True, text=True, timeout=60)
-    assert p.returncode == 2 and p.stderr.count('\n') == 1 and 'does not exist' in p.stderr, p.stderr
+    assert (p.returncode == 2 and p.stderr.count('\n') == 1
+            and 'does not exist' in p.stderr), p.stderr
 
 
 def test_tkachenko_with_a_drifting_reference_estimates_the_drift():

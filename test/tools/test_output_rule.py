@@ -1,7 +1,8 @@
 """
-One output rule for every console script that writes (cli.py::check_outputs): an existing output needs --force, no output
-is an input; each refusal comes before any work, in one line, exit 2.  Writes are atomic: files
-(JSON, markdown, PNG) through a temporary file and os.replace, bag directories through a hidden
+One output rule for every console script that writes (cli.py::check_outputs).
+
+An existing output needs --force, no output is an input; each refusal comes before any work, in
+one line, exit 2.  Writes are atomic: files (JSON, markdown, PNG) through a temporary file and os.replace, bag directories through a hidden
 sibling renamed into place when complete (strapdown_ros/files.py).
 """
 import os
@@ -66,7 +67,8 @@ def test_every_writing_script_is_covered():
     scripts = console_scripts()
     assert scripts, 'no console_scripts parsed from setup.py'
     missing = sorted(set(scripts) - NO_OUTPUT - set(EXISTING))
-    assert not missing, f'register these console scripts in test/tools/test_output_rule.py: {missing}'
+    assert not missing, ('register these console scripts in test/tools/test_output_rule.py: '
+                         f'{missing}')
     assert set(AS_INPUT) <= set(EXISTING)
 
 

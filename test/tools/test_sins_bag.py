@@ -45,7 +45,8 @@ def _sins_params(path, profile):
                     '    coning_algorithm: one_plus_previous\n'
                     f'    initial_position: {fl([np.degrees(lat), np.degrees(lon), h])}\n'
                     f'    initial_velocity: {fl(enu.T @ w0)}\n'
-                    f'    initial_orientation: {fl(to_ros_xyzw(prof.attitude_ecef(np.array([0.0]))[0]))}\n' + ideal)
+                    '    initial_orientation: '
+                    f'{fl(to_ros_xyzw(prof.attitude_ecef(np.array([0.0]))[0]))}\n' + ideal)
     return path, prof
 
 
@@ -63,7 +64,8 @@ def bags(tmp_path_factory):
 def _csv(path):
     header = path.read_text().splitlines()[0].split(',')
     data = np.loadtxt(path, delimiter=',', skiprows=1, ndmin=2)
-    stamps = [int(s.replace('.', '')) for s in (ln.split(',')[0] for ln in path.read_text().splitlines()[1:])]
+    rows = path.read_text().splitlines()[1:]
+    stamps = [int(s.replace('.', '')) for s in (ln.split(',')[0] for ln in rows)]
     return header, data, np.array(stamps, dtype=np.int64)
 
 
@@ -73,7 +75,7 @@ def _run_tool(capsys, *args):
     return rc, cap.out, cap.err
 
 
-# --- the solution ---------------------------------------------------------------------------------
+# --- the solution --------------------------------------------------------------------------------
 def test_csv_matches_the_exact_truth_static(bags, tmp_path, capsys):
     bag, params, prof = bags['static']
     out = tmp_path / 'static.csv'
@@ -82,7 +84,8 @@ def test_csv_matches_the_exact_truth_static(bags, tmp_path, capsys):
     assert 'gyro_rate 100 Hz, accel_rate 300 Hz' in stdout and '500 steps' in stdout
     header, d, ns = _csv(out)
     assert header == CSV_NAV_COLUMNS
-    assert len(d) == int(DURATION * 100) and np.all(np.diff(ns) == 10_000_000) and ns[-1] == 5_000_000_000
+    assert (len(d) == int(DURATION * 100) and np.all(np.diff(ns) == 10_000_000)
+            and ns[-1] == 5_000_000_000)
     # record_sim: start_time 0 = profile time 0
     t = ns * 1e-9
     dp = np.max(np.linalg.norm(d[:, 1:4] - prof.position(t), axis=1))
@@ -213,7 +216,7 @@ def test_namespaced_topics_and_force(tmp_path, capsys):
                      '--force')[0] == 0
 
 
-# --- node and tool: the same core --------------------------------------------------------------------
+# --- node and tool: the same core ----------------------------------------------------------------
 @pytest.mark.parametrize('profile', ['static', 'coordinated_turn'])
 def test_node_and_tool_give_the_same_solution(bags, tmp_path, capsys, monkeypatch, profile):
     """
@@ -287,7 +290,8 @@ def test_node_and_tool_give_the_same_solution(bags, tmp_path, capsys, monkeypatc
     dv = np.max(np.abs(d[:, 4:7] - v_node))
     dq = np.max(np.abs(d[:, 7:11] - np.array([o[3] for o in got['odom']])))
     assert dr <= 1e-9 and dv <= 1e-9 and dq <= 1e-12, (dr, dv, dq)
-    print(f'{profile}: node vs tool: position {dr:.1e} relative, velocity {dv:.1e} m/s, quaternion {dq:.1e}')
+    print(f'{profile}: node vs tool: position {dr:.1e} relative, velocity {dv:.1e} m/s, '
+          f'quaternion {dq:.1e}')
     # the MCAP bag against what the node published on all three topics
     with AnyReader([out_bag]) as rd:
         per = {c.topic: [rd.deserialize(raw, c.msgtype) for _, _,
@@ -311,7 +315,7 @@ def test_node_and_tool_give_the_same_solution(bags, tmp_path, capsys, monkeypatc
                           r_node)
 
 
-# --- errors --------------------------------------------------------------------------------------------
+# --- errors --------------------------------------------------------------------------------------
 def test_argument_errors_are_one_line_exit_2_before_any_work(bags, tmp_path, capsys):
     bag, params, _ = bags['static']
     no_accel = tmp_path / 'no_accel'
@@ -351,7 +355,7 @@ def test_argument_errors_are_one_line_exit_2_before_any_work(bags, tmp_path, cap
     assert rc == 0 and 'no Δv' in out, err
 
 
-# --- frames, bounded echoes, sensor_msgs/Imu input ---
+# --- frames, bounded echoes, sensor_msgs/Imu input --- -------------------------------------------
 def _read_vectors(bag, topic):
     """(stamp_ns, (x, y, z), frame) of a Vector3Stamped topic of a bag, in bag order."""
     from rosbags.highlevel import AnyReader
