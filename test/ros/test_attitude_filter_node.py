@@ -59,8 +59,10 @@ def ns_of(m):
 @pytest.fixture(scope='module')
 def graph(ros):
     """
-    One simulated bench run (80 s, a fix every second) through the filter node; a monitor
-    records what the node received and what it published.
+    Run one simulated bench run through the filter node.
+
+    One simulated bench run (80 s, a fix every second) through the filter node; a monitor records
+    what the node received and what it published.
     """
     ns = '/t_filter_graph'
     depth = Parameter('qos_depth', value=QUEUE)
@@ -181,11 +183,13 @@ def _compare(a, b, bias_atol, cov_rtol):
 
 def test_node_and_filter_bag_give_the_same_numbers(graph, ros):
     """
-    The messages the live node received, through filter_bag's driver and through a second
-    node fed in the tool's order (increments up to a fix's stamp, then the fix): the same
-    numbers to round-off.  Live, a fix that arrives after later increments is applied as a late
-    fix (replayed from a checkpoint): the covariance propagation is then lumped differently, and
-    the live node agrees with the tool to 1e-4 of the bias σ (measured: ~1e-5).
+    Check: node and filter bag give the same numbers.
+
+    The messages the live node received, through filter_bag's driver and through a second node fed
+    in the tool's order (increments up to a fix's stamp, then the fix): the same numbers to
+    round-off.  Live, a fix that arrives after later increments is applied as a late fix (replayed
+    from a checkpoint): the covariance propagation is then lumped differently, and the live node
+    agrees with the tool to 1e-4 of the bias σ (measured: ~1e-5).
     """
     filt, rec = graph.filt, graph.rec
     tool = _tool_on(rec, dict(filt.p))
@@ -290,9 +294,11 @@ def test_boresight_from_the_latched_topic(ros):
 
 def test_imu_rates_input(ros):
     """
-    ``gyro_input: imu``: sensor_msgs/Imu rates (mean rule) through the node's raw
-    subscription callback; a constant rate about a fixed axis, exact fixes every second: the
-    filtered attitude is the exact one within 3σ and every fix is applied.
+    Check: imu rates input.
+
+    ``gyro_input: imu``: sensor_msgs/Imu rates (mean rule) through the node's raw subscription
+    callback; a constant rate about a fixed axis, exact fixes every second: the filtered attitude
+    is the exact one within 3σ and every fix is applied.
     """
     from rclpy.serialization import serialize_message
 
@@ -326,8 +332,10 @@ def test_imu_rates_input(ros):
 
 def test_unmodelled_scale_factor_is_a_warn_on_diagnostics(ros):
     """
-    An injected gyro scale factor the filter does not model: the live model check names it
-    on /diagnostics as WARN (the node does not change its model).
+    Check: unmodelled scale factor is a warn on diagnostics.
+
+    An injected gyro scale factor the filter does not model: the live model check names it on
+    /diagnostics as WARN (the node does not change its model).
     """
     from strapdown_ros.motion.profiles import PiecewiseRateProfile, Segment
     from strapdown_ros.rotation import rotvec_to_quat

@@ -108,8 +108,10 @@ class Graph:
 
     def run(self):
         """
-        Discovery first (the simulators start their clocks at their first timer tick, so they
-        join the executor only when the calibrator's subscriptions are matched), then run both
+        Run discovery, then both simulators to the end, until every message is taken.
+
+        Discovery first (the simulators start their clocks at their first timer tick, so they join
+        the executor only when the calibrator's subscriptions are matched), then run both
         simulators to the end and wait until the calibrator has taken every message.
         """
         for n in (self.calib, self.mon) + ((self.peer,) if self.peer else ()):
@@ -502,8 +504,10 @@ def _node_estimate(ns, poison: bool, params=(), keep=False, noise_scale=1.0):
 
 def test_overflowing_increment_is_rejected_and_loses_nothing(ros):
     """
-    Δθ = (1e308, 1e308, 0) used to crash the node with LinAlgError and lose
-    every pair.  Now the sensor range rejects it; the estimate is the one without it.
+    Check: overflowing increment is rejected and loses nothing.
+
+    Δθ = (1e308, 1e308, 0) used to crash the node with LinAlgError and lose every pair.  Now the
+    sensor range rejects it; the estimate is the one without it.
     """
     beta_clean, _, _ = _node_estimate('/t_clean', poison=False)
     beta, out_of_range, failures = _node_estimate('/t_poison', poison=True)
@@ -513,9 +517,11 @@ def test_overflowing_increment_is_rejected_and_loses_nothing(ros):
 
 def test_inconsistent_noise_is_a_warn_with_the_reason(ros):
     """
-    Camera noise 100× the σ its covariance states: /diagnostics WARN
-    saying the fit is inconsistent (χ²/dof outside its band), fit_consistent False; no good fix
-    dropped as an outlier.  With the stated noise right: fit_consistent True.
+    Check: inconsistent noise is a warn with the reason.
+
+    Camera noise 100× the σ its covariance states: /diagnostics WARN saying the fit is inconsistent
+    (χ²/dof outside its band), fit_consistent False; no good fix dropped as an outlier.  With the
+    stated noise right: fit_consistent True.
     """
     for scale in (1.0, 100.0):
         # the simulated gyro is ideal: so is the stated gyro model, the camera σ is the one judged
@@ -545,10 +551,12 @@ def test_inconsistent_noise_is_a_warn_with_the_reason(ros):
 
 def test_restart_resumes_the_same_estimate_and_a_corrupted_state_is_moved_aside(ros, tmp_path):
     """
-    Restart without loss: the pairs and estimate persist to state_file (atomic, after
-    every new pair); a restarted node resumes the same estimate and republishes it latched;
-    replaying the same recording into it adds no pair; a corrupted file
-    is reported and moved aside, never used; no temporary is left behind.
+    Check: restart resumes the same estimate and a corrupted state is moved aside.
+
+    Restart without loss: the pairs and estimate persist to state_file (atomic, after every new
+    pair); a restarted node resumes the same estimate and republishes it latched; replaying the
+    same recording into it adds no pair; a corrupted file is reported and moved aside, never used;
+    no temporary is left behind.
     """
     state = str(tmp_path / 'calib_state.npz')
     sf = [Parameter('state_file', value=state)]
@@ -581,10 +589,11 @@ def test_restart_resumes_the_same_estimate_and_a_corrupted_state_is_moved_aside(
 
 def test_state_file_identity_lock_and_paths(ros, tmp_path):
     """
-    The state file in the node: a state of another calibration (another camera frame)
-    is refused with the reason and left as it is; a second node on the same file gets an ERROR
-    and runs without persistence; a directory (with or without a trailing slash) is refused and
-    never moved.
+    Check: state file identity lock and paths.
+
+    The state file in the node: a state of another calibration (another camera frame) is refused
+    with the reason and left as it is; a second node on the same file gets an ERROR and runs
+    without persistence; a directory (with or without a trailing slash) is refused and never moved.
     """
     state = str(tmp_path / 's.npz')
     _node_estimate('/t_sid', poison=False, params=[Parameter('state_file', value=state)])
@@ -633,8 +642,10 @@ def test_state_file_identity_lock_and_paths(ros, tmp_path):
 
 def test_one_input_path_node_and_calibrate_bag_agree_on_a_hostile_stream(ros, tmp_path):
     """
-    One input path: the same hostile stream (NaN, duplicate, out-of-order, impossible
-    and far-future increments; a zero and a non-unit camera quaternion) fed to calibrator_node and
+    Check: one input path node and calibrate bag agree on a hostile stream.
+
+    One input path: the same hostile stream (NaN, duplicate, out-of-order, impossible and
+    far-future increments; a zero and a non-unit camera quaternion) fed to calibrator_node and
     written to a bag for calibrate_bag gives the same counts and the same estimate.
     """
     pytest.importorskip('rosbags')

@@ -68,8 +68,10 @@ def _site_packages(prefix: Path) -> Path:
 
 def _sourced_env(install: Path, base_env: dict):
     """
-    Environment after sourcing the colcon workspace with sh (setup.sh, else
-    local_setup.sh). Returns (env, how).
+    Return the environment after sourcing the colcon workspace with sh.
+
+    Environment after sourcing the colcon workspace with sh (setup.sh, else local_setup.sh).
+    Returns (env, how).
     """
     for script in ('setup.sh', 'local_setup.sh'):
         path = install / script
@@ -95,8 +97,10 @@ def _sourced_env(install: Path, base_env: dict):
 @pytest.fixture(scope='module')
 def workspace(tmp_path_factory):
     """
-    Build the package with colcon once per module; yields a dict with the paths,
-    the sourced environment and the build output.
+    Build the package with colcon once per module.
+
+    Build the package with colcon once per module; yields a dict with the paths, the sourced
+    environment and the build output.
     """
     cmd = _colcon_cmd()
     if cmd is None:

@@ -1,6 +1,7 @@
 """
-Node reliability:
-logging that survives any sequence of severities, /diagnostics that list every current condition
+Node reliability: logging, /diagnostics and the runtime parameter rules.
+
+Logging that survives any sequence of severities, /diagnostics that list every current condition
 at the worst level (the accelerometer stall included), and the runtime parameter rules.
 
 Nodes are constructed in-process and fed through their message entry points; their real rclpy
@@ -55,8 +56,10 @@ class Diagnostics:
 def _feed(node, t0_ns, seconds, gyro_rate=100.0, accel_rate=300.0, accel=True, skip=(),
           frame_accel='', profile=None):
     """
-    Interleaved Δθ and Δv of a body at rest (static profile: Earth rate and gravity exact),
-    stamped from ``t0_ns`` on; gyro sample indices in ``skip`` are not sent.
+    Feed interleaved Δθ and Δv of a body at rest.
+
+    Interleaved Δθ and Δv of a body at rest (static profile: Earth rate and gravity exact), stamped
+    from ``t0_ns`` on; gyro sample indices in ``skip`` are not sent.
     """
     prof = profile or static_profile(np.radians(50.45), np.radians(30.52), 150.0)
     tg = np.arange(1, int(round(seconds * gyro_rate)) + 1) / gyro_rate
@@ -93,10 +96,12 @@ def test_node_log_takes_any_sequence_of_severities_and_throttles(ros):
 
 def test_no_node_selects_a_logger_method_at_run_time():
     """
-    Logging, the guard: rclpy's logger keeps one context per call site, so a call site must
-    not choose its severity (``(lg.error if … else lg.info)(text)``) or pass a throttle that is
-    not a constant.  Every node module is scanned; ros_status.NodeLog is the way to log at a level
-    chosen at run time.
+    Check: no node selects a logger method at run time.
+
+    Logging, the guard: rclpy's logger keeps one context per call site, so a call site must not
+    choose its severity (``(lg.error if … else lg.info)(text)``) or pass a throttle that is not a
+    constant.  Every node module is scanned; ros_status.NodeLog is the way to log at a level chosen
+    at run time.
     """
     methods = {'debug', 'info', 'warn', 'warning', 'error', 'fatal'}
     bad = []
@@ -117,10 +122,12 @@ def test_no_node_selects_a_logger_method_at_run_time():
 
 def test_every_node_logs_through_nodelog():
     """
-    Every node logs through ros_status.NodeLog (one call site per severity,
-    its own throttle, bounded texts).  Outside ros_io.py, ``get_logger()`` appears
-    only as the argument of ``NodeLog(...)``; no rclpy severity method is called on a logger,
-    and no rclpy throttle is passed.
+    Check: every node logs through nodelog.
+
+    Every node logs through ros_status.NodeLog (one call site per severity, its own throttle,
+    bounded texts).  Outside ros_io.py, ``get_logger()`` appears only as the argument of
+    ``NodeLog(...)``; no rclpy severity method is called on a logger, and no rclpy throttle is
+    passed.
     """
     methods = {'debug', 'info', 'warn', 'warning', 'error', 'fatal'}
     bad = []
@@ -149,9 +156,11 @@ def test_every_node_logs_through_nodelog():
 
 def test_static_alignment_then_stamps_step_back_and_foreign_frames_keep_it_alive(ros, monkeypatch):
     """
-    Logging, the repro: navigation with a static alignment; after it (info), the stamps step
-    back 10 s (errors: jump, resynchronisation) and Δv arrive in another frame (warn).  Before the
-    fix the second severity at sins_node's one log call site raised inside the callback.
+    Check: static alignment then stamps step back and foreign frames keep it alive.
+
+    Logging, the repro: navigation with a static alignment; after it (info), the stamps step back
+    10 s (errors: jump, resynchronisation) and Δv arrive in another frame (warn).  Before the fix
+    the second severity at sins_node's one log call site raised inside the callback.
     """
     sins = SinsNode(namespace='/t_diag_align', parameter_overrides=[
         Parameter('navigation', value=True), Parameter('initial_alignment', value='static'),
@@ -176,10 +185,12 @@ def test_static_alignment_then_stamps_step_back_and_foreign_frames_keep_it_alive
 
 def test_every_diagnostic_transition_of_sins_node(ros, monkeypatch):
     """
-    Each level change of sins_node's status, with every condition listed.
-    OK → WARN (Δv stopped for more than accel_wait) → OK (Δv back) → WARN (undecodable) → ERROR
-    (a gyro gap: not masked by the undecodable messages, both listed) → ERROR (Δv stalled beyond
-    max(1 s, 10 accel_wait), named).
+    Check: every diagnostic transition of sins node.
+
+    Each level change of sins_node's status, with every condition listed. OK → WARN (Δv stopped for
+    more than accel_wait) → OK (Δv back) → WARN (undecodable) → ERROR (a gyro gap: not masked by
+    the undecodable messages, both listed) → ERROR (Δv stalled beyond max(1 s, 10 accel_wait),
+    named).
     """
     sins = SinsNode(namespace='/t_diag_all', parameter_overrides=[
         Parameter('accel_rate', value=300.0), Parameter('accel_wait', value=0.1), *IDEAL])
@@ -220,8 +231,10 @@ def test_every_diagnostic_transition_of_sins_node(ros, monkeypatch):
 
 def test_navigation_without_any_accelerometer_data_is_reported(ros, monkeypatch):
     """
-    With navigation on and no Δv at all, sins/odometry never starts: WARN, then
-    ERROR, naming the missing stream.
+    Check: navigation without any accelerometer data is reported.
+
+    With navigation on and no Δv at all, sins/odometry never starts: WARN, then ERROR, naming the
+    missing stream.
     """
     sins = SinsNode(namespace='/t_diag_noacc', parameter_overrides=[
         Parameter('navigation', value=True), Parameter('accel_rate', value=300.0), *IDEAL])
@@ -239,8 +252,10 @@ def test_navigation_without_any_accelerometer_data_is_reported(ros, monkeypatch)
 
 def test_calibrator_lists_every_condition_at_the_worst_level(ros, monkeypatch):
     """
-    In calibrator_node, a frame mismatch and undecodable messages are listed beside
-    the WARN of a missing solution, and a gyro gap makes it ERROR without hiding them.
+    Check: calibrator lists every condition at the worst level.
+
+    In calibrator_node, a frame mismatch and undecodable messages are listed beside the WARN of a
+    missing solution, and a gyro gap makes it ERROR without hiding them.
     """
     cal = CalibratorNode(namespace='/t_diag_cal', parameter_overrides=list(IDEAL[:4]))
     diag = Diagnostics(cal, monkeypatch)
@@ -262,11 +277,13 @@ def test_calibrator_lists_every_condition_at_the_worst_level(ros, monkeypatch):
 
 def test_runtime_parameters(ros):
     """
-    An array parameter set to its current value (rclpy hands back array('d')) is
-    no change, so `ros2 param load` of the shipped config/coning.yaml succeeds; coning_algorithm
-    2.0 is refused (no name), as an integer given a fraction is; with navigation on no parameter
-    changes, and the message says so; -p numbers that YAML leaves as text (1.0e9) get the range
-    error, and the printed velocity update needs 003's layout.
+    Check: runtime parameters.
+
+    An array parameter set to its current value (rclpy hands back array('d')) is no change, so
+    `ros2 param load` of the shipped config/coning.yaml succeeds; coning_algorithm 2.0 is refused
+    (no name), as an integer given a fraction is; with navigation on no parameter changes, and the
+    message says so; -p numbers that YAML leaves as text (1.0e9) get the range error, and the
+    printed velocity update needs 003's layout.
     """
     import yaml
     shipped = pathlib.Path(__file__).resolve().parents[2] / 'config' / 'coning.yaml'
@@ -325,9 +342,11 @@ def test_runtime_parameters(ros):
 
 def test_a_number_given_as_text_is_stored_with_its_type(ros):
     """
-    A quoted number for a double ("0.05", as YAML files may
-    quote it) or an integer for a double is used as the double AND stored as one, so
-    `ros2 param get` shows what the node uses; text that is no number is still refused.
+    Check: a number given as text is stored with its type.
+
+    A quoted number for a double ("0.05", as YAML files may quote it) or an integer for a double is
+    used as the double AND stored as one, so `ros2 param get` shows what the node uses; text that
+    is no number is still refused.
     """
     node = SinsNode(namespace='/t_text_num', parameter_overrides=[
         Parameter('batch_period', value='0.05'), Parameter('accel_wait', value=1)])

@@ -1,6 +1,7 @@
 """
-gyro_input imu, the node part: sins_node and calibrator_node fed sensor_msgs/Imu rate samples
-on imu/data_raw (real nodes spun in-process, every wait with a timeout).
+The nodes with ``gyro_input: imu``: sensor_msgs/Imu rate samples instead of increments.
+
+sins_node and calibrator_node fed sensor_msgs/Imu rate samples on imu/data_raw (real nodes spun in-process, every wait with a timeout).
 
 Truth is independent of the code under test: the simulator's exact attitude (imu/truth/attitude),
 a closed-form fixed-axis motion, the injected boresight.
@@ -62,6 +63,8 @@ def _close(ex, nodes):
 
 def test_imu_mean_rule_gives_the_delta_theta_attitude_except_the_first_increment(ros):
     """
+    Check: imu mean rule gives the delta theta attitude except the first increment.
+
     imu_sim_node's imu/data_raw is Δθ/T: with imu_rate_rule mean the increments are its Δθ to
     round-off, except the first (the first Imu sample starts the stream and gives none).  A node
     that starts from the true attitude at the first Imu stamp then differs from the Δθ node by a
@@ -167,9 +170,11 @@ def _imu_msg(k, rate, frame='imu_link', period_ns=10_000_000):
 
 def test_trapezoid_rule_on_sampled_rates_is_within_its_second_order_bound(ros):
     """
-    Rates sampled at the stamps of a fixed-axis motion (the coning algorithm is exact for it:
-    the error is the increment rule's alone).  The trapezoid rule errs by +T³ω̈/12 per increment,
-    so the angle after time t by at most t·T²·max|ω̈|/12 (rate_increments).
+    Check: trapezoid rule on sampled rates is within its second order bound.
+
+    Rates sampled at the stamps of a fixed-axis motion (the coning algorithm is exact for it: the
+    error is the increment rule's alone).  The trapezoid rule errs by +T³ω̈/12 per increment, so
+    the angle after time t by at most t·T²·max|ω̈|/12 (rate_increments).
     """
     ns = '/t_imu_trap'
     sins = SinsNode(namespace=ns, parameter_overrides=[
@@ -212,9 +217,11 @@ def test_trapezoid_rule_on_sampled_rates_is_within_its_second_order_bound(ros):
 
 def test_bad_imu_input_is_dropped_counted_and_reported(ros):
     """
-    NaN, duplicate and out-of-order stamps, an unknown frame: dropped and counted by both
-    nodes, reported on /diagnostics; the interval lost to the NaN is a gap of the increments
-    (ERROR: rotation lost); the nodes go on.
+    Check: bad imu input is dropped counted and reported.
+
+    NaN, duplicate and out-of-order stamps, an unknown frame: dropped and counted by both nodes,
+    reported on /diagnostics; the interval lost to the NaN is a gap of the increments (ERROR:
+    rotation lost); the nodes go on.
     """
     ns = '/t_imu_bad'
     sins = SinsNode(namespace=ns, parameter_overrides=[
@@ -281,6 +288,8 @@ def test_bad_imu_input_is_dropped_counted_and_reported(ros):
 
 def test_calibrator_on_imu_rates_recovers_the_boresight(ros):
     """
+    Check: calibrator on imu rates recovers the boresight.
+
     calibration graph (test/ros/test_calibrator_node.py) with the calibrator on imu/data_raw (mean
     rule: imu_sim_node publishes Δθ/T): the injected boresight within 3σ of the published one.
     """
@@ -358,9 +367,11 @@ def test_calibrator_on_imu_rates_recovers_the_boresight(ros):
                                                        ('coordinated_turn', 2e-3, 2e-3)])
 def test_navigation_from_imu_messages_matches_the_exact_truth(ros, profile, tol_pos, tol_vel):
     """
-    sins_node with navigation on imu/data_raw alone (Δθ and Δv from the same messages, mean
-    rule), started from the truth at the first Imu stamp: sins/odometry within the bounds of the
-    Δθ/Δv-fed node (test/ros/test_sins_node_navigation.py), against imu/truth/odometry.
+    Check: navigation from imu messages matches the exact truth.
+
+    sins_node with navigation on imu/data_raw alone (Δθ and Δv from the same messages, mean rule),
+    started from the truth at the first Imu stamp: sins/odometry within the bounds of the Δθ/Δv-fed
+    node (test/ros/test_sins_node_navigation.py), against imu/truth/odometry.
     """
     from nav_msgs.msg import Odometry
 

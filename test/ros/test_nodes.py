@@ -277,7 +277,7 @@ def test_nodes_start_from_the_shipped_parameter_file(ros):
 
 
 def _sins_error_with(ros, ns, effects, compensate):
-    """Final attitude error of sins_node on a graph whose gyro carries ``effects``."""
+    """Return the final attitude error of sins_node on a graph whose gyro carries ``effects``."""
     sim, sins = make_graph(ns, duration=2.0, extra_sim=effects,
                            extra_sins=effects if compensate else ())
     mon = rclpy.create_node('monitor', namespace=ns)
@@ -302,8 +302,10 @@ def _sins_error_with(ros, ns, effects, compensate):
 
 def test_sins_node_compensates_the_gyro_effects_in_its_parameters(ros):
     """
-    The model's known effects (sensors/effects.py) are removed from each increment: with them
-    in both the simulator and sins_node the error is the coning error; without, it is the effect's.
+    Check: sins node compensates the gyro effects in its parameters.
+
+    The model's known effects (sensors/effects.py) are removed from each increment: with them in
+    both the simulator and sins_node the error is the coning error; without, it is the effect's.
     """
     effects = [Parameter('gyro_bias', value=[2e-4, -1e-4, 1.5e-4]),
                Parameter('gyro_bias_drift', value=[1e-5, 0.0, -1e-5]),
@@ -319,9 +321,11 @@ def test_sins_node_compensates_the_gyro_effects_in_its_parameters(ros):
 
 def test_impossible_increments_lone_future_stamp_and_clock_reset(ros):
     """
-    A finite but impossible increment (1000 rad in 10 ms, 1e308) is
-    rejected by the sensor range and never reaches the state; a lone stamp far in the future is an
-    outlier that stops nothing; a clock reset is followed after resync_count messages, losing none.
+    Check: impossible increments lone future stamp and clock reset.
+
+    A finite but impossible increment (1000 rad in 10 ms, 1e308) is rejected by the sensor range
+    and never reaches the state; a lone stamp far in the future is an outlier that stops nothing; a
+    clock reset is followed after resync_count messages, losing none.
     """
     ns = '/t_hostile'
     sins = SinsNode(namespace=ns,
@@ -383,8 +387,10 @@ def test_impossible_increments_lone_future_stamp_and_clock_reset(ros):
 
 def test_sins_node_never_publishes_a_non_finite_state(ros, monkeypatch):
     """
-    Should the core ever produce a non-finite update, it is not published; the
-    state returns to the last good one with an inflated σ and /diagnostics says ERROR.
+    Check: sins node never publishes a non finite state.
+
+    Should the core ever produce a non-finite update, it is not published; the state returns to the
+    last good one with an inflated σ and /diagnostics says ERROR.
     """
     sins = SinsNode(namespace='/t_nonfinite',
                     parameter_overrides=[Parameter('coning_algorithm', value='1'), *IDEAL])
@@ -437,8 +443,10 @@ def test_sins_node_never_publishes_a_non_finite_state(ros, monkeypatch):
 @pytest.mark.parametrize('rule, used', [('reject', 2), ('accept', 3)])
 def test_frame_rule(ros, rule, used):
     """
-    An increment in another frame than frame_id is counted and WARNed, and
-    rejected by default; an empty frame_id is unspecified and used.
+    Check: frame rule.
+
+    An increment in another frame than frame_id is counted and WARNed, and rejected by default; an
+    empty frame_id is unspecified and used.
     """
     sins = SinsNode(namespace=f'/t_frame_{rule}', parameter_overrides=[
         Parameter('coning_algorithm', value='1'), Parameter('frame_mismatch', value=rule), *IDEAL])
@@ -456,10 +464,12 @@ def test_frame_rule(ros, rule, used):
 
 def test_parameter_rules(ros):
     """
-    An integer parameter given 1.5 is refused (not truncated); an integer list
-    for a double array is read as doubles; setting a parameter to its current value is no change
-    (ros2 param load of the shipped file succeeds); an unknown -p name is refused with its name;
-    changes are validated on set and applied after.
+    Check: parameter rules.
+
+    An integer parameter given 1.5 is refused (not truncated); an integer list for a double array
+    is read as doubles; setting a parameter to its current value is no change (ros2 param load of
+    the shipped file succeeds); an unknown -p name is refused with its name; changes are validated
+    on set and applied after.
     """
     from strapdown_ros.nodes.ros_params import InvalidParameter
     with pytest.raises(InvalidParameter, match='qos_depth must be an integer'):
@@ -491,8 +501,10 @@ def test_parameter_rules(ros):
 
 def _captured(node, monkeypatch):
     """
-    Copies of what a node publishes on sins/attitude and sins/imu (the node reuses its
-    message objects, so the fields are copied at publish time).
+    Copy what a node publishes on sins/attitude and sins/imu.
+
+    Copies of what a node publishes on sins/attitude and sins/imu (the node reuses its message
+    objects, so the fields are copied at publish time).
     """
     out = {'att': [], 'imu': []}
 
@@ -516,11 +528,13 @@ def _captured(node, monkeypatch):
 
 def test_sins_node_batches_equal_per_message_processing(ros, monkeypatch):
     """
-    The hot path only validates and appends; blocks go through the vectorised
-    core.  Blocks of 50 ms (batch_period 0.05) and message-by-message processing (batch_period 0)
-    publish the same updates with the same stamps, attitudes, covariances and specific forces to
-    round-off — with a gyro effect compensated, the 004 covariance model, a gap, and a change of
-    coning algorithm in the middle.  Both also match the exact coning attitude.
+    Check: sins node batches equal per message processing.
+
+    The hot path only validates and appends; blocks go through the vectorised core.  Blocks of 50
+    ms (batch_period 0.05) and message-by-message processing (batch_period 0) publish the same
+    updates with the same stamps, attitudes, covariances and specific forces to round-off — with a
+    gyro effect compensated, the 004 covariance model, a gap, and a change of coning algorithm in
+    the middle.  Both also match the exact coning attitude.
     """
     rate, n = 1000.0, 3000
     prof = ConingProfile(ALPHA, NU, gravity=(0.0, 0.0, 9.80665))
@@ -592,6 +606,8 @@ def test_sins_node_batches_equal_per_message_processing(ros, monkeypatch):
 
 def test_stream_qos_overrides_and_simulator_waits_for_subscribers(ros):
     """
+    Check: stream qos overrides and simulator waits for subscribers.
+
     The stream topics take the standard qos_overrides parameters (load_bench makes every path
     reliable so); a simulator with wait_for_subscribers starts its clock only once matched, so a
     consumer started later still gets the first increment.

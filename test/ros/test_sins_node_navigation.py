@@ -1,5 +1,7 @@
 """
-sins_node's navigation channel in a real graph (in-process, executor, timeouts): sins/odometry
+sins_node's navigation channel in a real graph (in-process, executor, timeouts).
+
+The sins/odometry
 type, frame ids and content against imu_sim_node's exact truth, for the static and turn profiles,
 and the static alignment started from the data.
 """

@@ -94,11 +94,12 @@ def _digest(paths):
 
 def test_no_output_overwrites_an_input(tmp_path):
     """
-    One output rule for every tool
-    (cli.py::check_outputs): no output may be an input (a file inside the input bag
-    directory included) or another output, an existing one needs --force, the target directory
-    must take a real write (/proc: os.access says yes as root); each refusal is one line, exit 2,
-    and the inputs are untouched.
+    Check: no output overwrites an input.
+
+    One output rule for every tool (cli.py::check_outputs): no output may be an input (a file
+    inside the input bag directory included) or another output, an existing one needs --force, the
+    target directory must take a real write (/proc: os.access says yes as root); each refusal is
+    one line, exit 2, and the inputs are untouched.
     """
     pytest.importorskip('rosbags')
     from strapdown_ros.tools import record_sim
@@ -177,8 +178,10 @@ def test_atomic_write_leaves_the_old_file_when_the_write_fails(tmp_path):
 ])
 def test_model_values_beyond_physics_or_of_wrong_type_are_refused_first(tmp_path, body, needle):
     """
-    Huge in-range values used to overflow later, a YAML date for a string used to fail after
-    the JSON was written; now each is one line, exit 2, nothing written.
+    Check: model values beyond physics or of wrong type are refused first.
+
+    Huge in-range values used to overflow later, a YAML date for a string used to fail after the
+    JSON was written; now each is one line, exit 2, nothing written.
     """
     bag = tmp_path / 'bag'
     bag.mkdir()                                   # never read: the model is refused first

@@ -219,9 +219,11 @@ def test_tools_run_with_ros_absent(tmp_path):
 
 def test_long_recording_keeps_every_pair_and_takes_the_rate_from_the_stamps(tmp_path, capsys):
     """
-    > 200 000 gyro messages (here 210 000 at 200 Hz, gyro_rate left at 100)
-    used to give 1 pair or none.  Now gyro and fixes are fed in stamp order and gaps are judged
-    against the rate of the stamps.
+    Check: long recording keeps every pair and takes the rate from the stamps.
+
+    > 200 000 gyro messages (here 210 000 at 200 Hz, gyro_rate left at 100) used to give 1 pair or
+    none.  Now gyro and fixes are fed in stamp order and gaps are judged against the rate of the
+    stamps.
     """
     bag = tmp_path / 'long'
     assert record_sim.main([str(bag), '--no-accel', '--duration', '1050', '-p', 'profile:=bench',
@@ -242,8 +244,10 @@ def test_long_recording_keeps_every_pair_and_takes_the_rate_from_the_stamps(tmp_
 
 def test_overflowing_and_future_stamped_increments_in_a_bag(tmp_path):
     """
-    Offline, a (1e308, 1e308, 0) increment and a lone stamp far in the
-    future are dropped by the nodes' rules and counted; the estimate is the clean bag's.
+    Check: overflowing and future stamped increments in a bag.
+
+    Offline, a (1e308, 1e308, 0) increment and a lone stamp far in the future are dropped by the
+    nodes' rules and counted; the estimate is the clean bag's.
     """
     from rosbags.rosbag2 import Reader, Writer
     from rosbags.typesys import get_typestore, Stores
@@ -284,9 +288,11 @@ def test_overflowing_and_future_stamped_increments_in_a_bag(tmp_path):
 
 def test_one_outlier_camera_fix_is_gated(tmp_path):
     """
-    One fix rotated 5° used to move β by 6113″.  The outlier rule (both pairs
-    of the fix off in rotation angle, the pair skipping it consistent) drops it: β stays within 3σ
-    of the truth and one pair fewer is used.
+    Check: one outlier camera fix is gated.
+
+    One fix rotated 5° used to move β by 6113″.  The outlier rule (both pairs of the fix off in
+    rotation angle, the pair skipping it consistent) drops it: β stays within 3σ of the truth and
+    one pair fewer is used.
     """
     from rosbags.rosbag2 import Reader, Writer
     from rosbags.typesys import get_typestore, Stores
@@ -329,9 +335,11 @@ def test_one_outlier_camera_fix_is_gated(tmp_path):
 
 def test_dropout_and_stamp_burst_cost_only_the_pairs_containing_them(tmp_path, capsys):
     """
-    Offline, 2 s without increments (t in (62.5, 64.5] s) and 5
-    increments stamped 1000 s in the past (t = 102.5 s) each cost the one pair that contains
-    them (33 → 31); the dropout reports its 200 missing increments, the burst its 5.
+    Check: dropout and stamp burst cost only the pairs containing them.
+
+    Offline, 2 s without increments (t in (62.5, 64.5] s) and 5 increments stamped 1000 s in the
+    past (t = 102.5 s) each cost the one pair that contains them (33 → 31); the dropout reports its
+    200 missing increments, the burst its 5.
     """
     from rosbags.rosbag2 import Reader, Writer
     from rosbags.typesys import get_typestore, Stores
@@ -368,7 +376,7 @@ def test_dropout_and_stamp_burst_cost_only_the_pairs_containing_them(tmp_path, c
 
 
 def _noisy_bench(tmp_path, name, scale):
-    """bench bag whose camera noise is ``scale`` × the σ its covariance states (injected)."""
+    """Write a bench bag whose camera noise is ``scale`` × the σ its covariance states."""
     bag = tmp_path / name
     assert record_sim.main([str(bag), '--no-accel', '-p', 'profile:=bench', '-p',
                             'camera_interval:=5.0', '-p', BETA_ARG, '-p',
@@ -379,9 +387,11 @@ def _noisy_bench(tmp_path, name, scale):
 @pytest.mark.parametrize('scale', [1.0, 100.0])
 def test_fit_consistency_is_judged_and_a_wrong_sigma_drops_no_good_fix(tmp_path, capsys, scale):
     """
-    Camera noise 100× the stated σ → fit_consistent false, a WARNING
-    line on stderr, exit 0, no good fix dropped as an outlier (the gate widens with the robust
-    scatter), β within 3 scaled σ of the injected truth.  Consistent noise → no warning.
+    Check: fit consistency is judged and a wrong sigma drops no good fix.
+
+    Camera noise 100× the stated σ → fit_consistent false, a WARNING line on stderr, exit 0, no
+    good fix dropped as an outlier (the gate widens with the robust scatter), β within 3 scaled σ
+    of the injected truth.  Consistent noise → no warning.
     """
     bag = _noisy_bench(tmp_path, f's{scale:g}', scale)
     capsys.readouterr()
@@ -440,10 +450,12 @@ def test_an_outlier_fix_is_still_gated_when_the_sigma_is_wrong(tmp_path):
 
 def test_a_clock_reset_of_both_streams_calibrates_each_time_base(tmp_path):
     """
-    A confirmed resynchronisation offline: both clocks jump 5000 s ahead at t = 85 s (beyond
-    3600 s: a clock change, not a dropout).  Each time base is calibrated on its own, as
-    calibrator_node restarts its gyro history: no pair spans the reset, none is lost but the one
-    across it, and β is the truth's.
+    Check: a clock reset of both streams calibrates each time base.
+
+    A confirmed resynchronisation offline: both clocks jump 5000 s ahead at t = 85 s (beyond 3600
+    s: a clock change, not a dropout).  Each time base is calibrated on its own, as calibrator_node
+    restarts its gyro history: no pair spans the reset, none is lost but the one across it, and β
+    is the truth's.
     """
     from rosbags.rosbag2 import Reader, Writer
     from rosbags.typesys import get_typestore, Stores

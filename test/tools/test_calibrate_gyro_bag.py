@@ -86,8 +86,10 @@ def test_injected_errors_recovered_within_3_sigma(calibrated):
 
 def test_written_model_compensates_with_the_right_sign(calibrated, recording):
     """
-    The model's parameters, compensated as sins_node compensates (GyroEffects), turn the
-    recorded increments back into the true ones (from the profile), up to the triad rotation.
+    Check: written model compensates with the right sign.
+
+    The model's parameters, compensated as sins_node compensates (GyroEffects), turn the recorded
+    increments back into the true ones (from the profile), up to the triad rotation.
     """
     from strapdown_ros.discrepancy.bag_input import load_recording
     _, out, _ = calibrated
@@ -118,15 +120,17 @@ def test_written_model_compensates_with_the_right_sign(calibrated, recording):
 
 @pytest.fixture(scope='module')
 def fresh(recording):
-    """A new recording with the same injected errors: other seed, camera every 2 s."""
+    """Record anew with the same injected errors: other seed, camera every 2 s."""
     return _record(recording[0] / 'fresh',
                    {**SCENARIO, **INJECTED, 'camera_interval': 2.0, 'seed': 12}, 170.0)
 
 
 def test_written_model_is_adequate_on_a_fresh_simulation(calibrated, fresh, tmp_path):
     """
-    Acceptance: the written model, through the discrepancy workflow, on a fresh simulation,
-    gives model_adequate (the nominal model does not: the next test).
+    Check: written model is adequate on a fresh simulation.
+
+    Acceptance: the written model, through the discrepancy workflow, on a fresh simulation, gives
+    model_adequate (the nominal model does not: the next test).
     """
     method, out, _ = calibrated
     bag = fresh
@@ -149,7 +153,11 @@ def test_nominal_model_is_not_adequate_on_that_recording(recording, tmp_path):
 
 @pytest.fixture(scope='module')
 def z_only(tmp_path_factory):
-    """Turns about the gyro z axis only (and rests): x/y scale and misalignment unobservable."""
+    """
+    Record turns about the gyro z axis only (and rests).
+
+    Turns about the gyro z axis only (and rests): x/y scale and misalignment unobservable.
+    """
     d = tmp_path_factory.mktemp('z_only')
     prof = d / 'z_only.yaml'
     prof.write_text(json.dumps({'segments': [{'duration': 8.0},
@@ -234,9 +242,11 @@ def test_console_script_one_line_exit_2(tmp_path):
 
 def test_tkachenko_with_a_drifting_reference_estimates_the_drift():
     """
-    000's gyrostabilizer: the reference basis drifts at a constant rate d (reference axes).  On
-    000 §6's motion (large turns about all axes, 30 s, fixes every 0.1 s) the drift option recovers
-    d and the gyro errors within 3σ; without it the drift corrupts them.
+    Check: tkachenko with a drifting reference estimates the drift.
+
+    000's gyrostabilizer: the reference basis drifts at a constant rate d (reference axes).  On 000
+    §6's motion (large turns about all axes, 30 s, fixes every 0.1 s) the drift option recovers d
+    and the gyro errors within 3σ; without it the drift corrupts them.
     """
     from strapdown_ros.calibration import gyro as gc
     from strapdown_ros.discrepancy.synthetic import simulate_recording
@@ -262,6 +272,8 @@ def test_tkachenko_with_a_drifting_reference_estimates_the_drift():
 
 def test_gyro_gap_is_not_spanned_and_both_methods_still_recover(recording):
     """
+    Check: gyro gap is not spanned and both methods still recover.
+
     Increments missing for 1.5 s in mid-turn (the rotation in them is lost): nothing is formed
     across the gap — 002 drops the intervals spanning it, 000 uses the longer gap-free stretch.
     """
@@ -287,9 +299,11 @@ def test_gyro_gap_is_not_spanned_and_both_methods_still_recover(recording):
 
 def test_camera_noise_100x_the_stated_sigma_is_an_inconsistent_fit(tmp_path, capsys):
     """
-    002 with the camera noise 100× what its covariance states → χ²/dof
-    far above its band, fit_consistent false, one WARNING line, exit 0; σ scaled by √(χ²/dof),
-    the injected errors within 3 of those σ.
+    Check: camera noise 100x the stated sigma is an inconsistent fit.
+
+    002 with the camera noise 100× what its covariance states → χ²/dof far above its band,
+    fit_consistent false, one WARNING line, exit 0; σ scaled by √(χ²/dof), the injected errors
+    within 3 of those σ.
     """
     bag = _record(tmp_path / 'bag', {**SCENARIO, **INJECTED, 'camera_interval': 0.5, 'seed': 11,
                                      'camera_noise_scale': [100.0, 100.0, 100.0]}, 170.0)

@@ -1,6 +1,8 @@
 """
-filter_bag: argument errors (one line, exit 2) and a run on a recorded simulation whose
-gyro bias is injected (independent truth).
+filter_bag: argument errors, and a run on a recorded simulation.
+
+Argument errors are one line with exit 2; the simulation's gyro bias is injected (independent
+truth).
 """
 import subprocess
 import sys

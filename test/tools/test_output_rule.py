@@ -2,8 +2,9 @@
 One output rule for every console script that writes (cli.py::check_outputs).
 
 An existing output needs --force, no output is an input; each refusal comes before any work, in
-one line, exit 2.  Writes are atomic: files (JSON, markdown, PNG) through a temporary file and os.replace, bag directories through a hidden
-sibling renamed into place when complete (strapdown_ros/files.py).
+one line, exit 2.  Writes are atomic: files (JSON, markdown, PNG) through a temporary file and
+os.replace, bag directories through a hidden sibling renamed into place when complete
+(strapdown_ros/files.py).
 """
 import os
 from pathlib import Path
@@ -58,7 +59,7 @@ AS_INPUT = {
 
 
 def console_scripts():
-    """name -> 'module:function' of every console script in setup.py."""
+    """Return name -> 'module:function' of every console script in setup.py."""
     text = (ROOT / 'setup.py').read_text()
     return dict(re.findall(r'["\'](\w+) = ([\w.]+:\w+)["\']', text))
 
@@ -104,8 +105,10 @@ def _snapshot(root: Path) -> dict:
 
 def _run(script: str, argv: list, capsys):
     """
-    main(argv) in-process with a 30 s alarm (a refusal comes before any work); returns
-    (exit status, non-empty output lines).
+    Run main(argv) in-process with a 30 s alarm.
+
+    main(argv) in-process with a 30 s alarm (a refusal comes before any work); returns (exit
+    status, non-empty output lines).
     """
     import importlib
     module, func = console_scripts()[script].split(':')
@@ -150,9 +153,11 @@ def test_output_equal_to_an_input_is_refused(script, files, capsys):
 
 def test_bag_is_replaced_only_by_a_complete_one(tmp_path, monkeypatch):
     """
-    record_sim writes into a hidden sibling and renames it into place: a failure half-way
-    leaves the old bag (--force) as it was and no half bag or temporary directory; a success
-    replaces it whole.
+    Check: bag is replaced only by a complete one.
+
+    record_sim writes into a hidden sibling and renames it into place: a failure half-way leaves
+    the old bag (--force) as it was and no half bag or temporary directory; a success replaces it
+    whole.
     """
     pytest.importorskip('rosbags')
     from strapdown_ros.tools import record_sim
@@ -212,8 +217,10 @@ def test_figures_are_written_atomically(tmp_path):
 
 def test_sins_bag_interrupted_keeps_the_old_output_bag(files, tmp_path, monkeypatch):
     """
-    sins_bag's MCAP output is staged too: an interruption half-way (--force over an old
-    output) leaves the old bag and no staging directory.
+    Check: sins bag interrupted keeps the old output bag.
+
+    sins_bag's MCAP output is staged too: an interruption half-way (--force over an old output)
+    leaves the old bag and no staging directory.
     """
     from strapdown_ros.tools import sins_bag
     out = tmp_path / 'out'

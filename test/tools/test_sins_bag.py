@@ -1,6 +1,8 @@
 """
-record_sim → rosbag2 → sins_bag: the solution against the exact truth, against sins_node fed the
-same messages (same core: the same numbers), MCAP and CSV outputs, argument errors.
+record_sim → rosbag2 → sins_bag: the solution of a recording.
+
+Against the exact truth, against sins_node fed the same messages (same core: the same numbers);
+MCAP and CSV outputs, argument errors.
 """
 import numpy as np
 import pytest
@@ -32,6 +34,8 @@ def _record(path, profile, *extra, storage='mcap'):
 
 def _sins_params(path, profile):
     """
+    Write sins_node parameters (ROS 2 YAML) from the profile's exact initial state.
+
     sins_node parameters (ROS 2 YAML) from the profile's exact initial state, as
     test/ros/test_sins_node_navigation.py configures the node.
     """
@@ -99,8 +103,10 @@ def test_csv_matches_the_exact_truth_static(bags, tmp_path, capsys):
 
 def test_static_alignment_from_the_recording(bags, tmp_path, capsys):
     """
-    initial_alignment static: the solution starts after alignment_time, aligned to the truth;
-    a window longer than the recording gives no solution (exit 3).
+    Check: static alignment from the recording.
+
+    initial_alignment static: the solution starts after alignment_time, aligned to the truth; a
+    window longer than the recording gives no solution (exit 3).
     """
     bag, params, prof = bags['static']
     out = tmp_path / 'aligned.csv'
@@ -121,8 +127,10 @@ def test_static_alignment_from_the_recording(bags, tmp_path, capsys):
 
 def test_attitude_only_csv_and_rates_from_the_stamps(tmp_path, capsys):
     """
-    Navigation off (the node's default): one row per attitude update, σ about body axes.  A
-    200 Hz gyro recording runs at 200 Hz whatever gyro_rate the parameters say.
+    Check: attitude only csv and rates from the stamps.
+
+    Navigation off (the node's default): one row per attitude update, σ about body axes.  A 200 Hz
+    gyro recording runs at 200 Hz whatever gyro_rate the parameters say.
     """
     bag = _record(tmp_path / 'bag200', 'coning', 'gyro_rate:=200.0')
     out = tmp_path / 'att.csv'
@@ -141,9 +149,11 @@ def test_attitude_only_csv_and_rates_from_the_stamps(tmp_path, capsys):
 
 def test_the_recordings_own_body_frame_unless_one_is_named(tmp_path, capsys):
     """
-    A recording from other software names its own body frame: sins_bag takes it from the
-    headers unless frame_id is given; given and different, every Δθ is rejected (the node's
-    rule) and the error says why.
+    Check: the recordings own body frame unless one is named.
+
+    A recording from other software names its own body frame: sins_bag takes it from the headers
+    unless frame_id is given; given and different, every Δθ is rejected (the node's rule) and the
+    error says why.
     """
     bag = _record(tmp_path / 'bag_imu', 'coning', 'frame_id:=imu')
     rc, stdout, err = _run_tool(capsys, bag, '--output', tmp_path / 'own.csv')
@@ -183,8 +193,10 @@ def test_mcap_output_has_the_node_topics_and_types(bags, tmp_path, capsys):
 
 def test_mcap_output_bytes_are_rosbags_serialization(bags, tmp_path, capsys):
     """
-    sins_bag writes its messages as CDR rows made with numpy from one serialised message per
-    topic: every record must be exactly what rosbags' serializer makes of the message it holds.
+    Check: mcap output bytes are rosbags serialization.
+
+    sins_bag writes its messages as CDR rows made with numpy from one serialised message per topic:
+    every record must be exactly what rosbags' serializer makes of the message it holds.
     """
     from rosbags.highlevel import AnyReader
     bag, params, _ = bags['coordinated_turn']
@@ -220,6 +232,8 @@ def test_namespaced_topics_and_force(tmp_path, capsys):
 @pytest.mark.parametrize('profile', ['static', 'coordinated_turn'])
 def test_node_and_tool_give_the_same_solution(bags, tmp_path, capsys, monkeypatch, profile):
     """
+    Check: node and tool give the same solution.
+
     sins_node fed the bag's messages through its callbacks (deserialised by rclpy, in the tool's
     order: by stamp, Δv first at equal stamps) publishes exactly what sins_bag writes.
     """
@@ -371,7 +385,7 @@ def _read_vectors(bag, topic):
 
 
 def _write_bag(path, topics: dict):
-    """A rosbag2 MCAP bag: {topic: (msgtype, [(stamp_ns, message)])}."""
+    """Write a rosbag2 MCAP bag: {topic: (msgtype, [(stamp_ns, message)])}."""
     from rosbags.rosbag2 import StoragePlugin, Writer
     from rosbags.typesys import get_typestore, Stores
     store = get_typestore(Stores.ROS2_JAZZY)
@@ -401,9 +415,11 @@ def _vector_msgs(items, frame=None):
 
 def test_body_frame_of_the_majority_and_the_rest_reported(tmp_path, capsys):
     """
-    One stray first Δθ in another frame no longer rejects the recording: the body
-    frame is the most frequent one, the stray messages are named, counted and rejected, and the
-    solution is that of the recording without them.
+    Check: body frame of the majority and the rest reported.
+
+    One stray first Δθ in another frame no longer rejects the recording: the body frame is the most
+    frequent one, the stray messages are named, counted and rejected, and the solution is that of
+    the recording without them.
     """
     src = _record(tmp_path / 'src', 'coning', 'frame_id:=imu')
     g = _read_vectors(src, '/imu/delta_theta')
@@ -436,8 +452,10 @@ def test_body_frame_of_the_majority_and_the_rest_reported(tmp_path, capsys):
 
 def test_huge_frame_ids_are_cheap_and_every_echo_is_bounded(tmp_path, capsys):
     """
-    Three Δθ with 2 MB frame ids cost no time (86 s before) and the output stays
-    short: every echoed frame id is cut to 64 characters.
+    Check: huge frame ids are cheap and every echo is bounded.
+
+    Three Δθ with 2 MB frame ids cost no time (86 s before) and the output stays short: every
+    echoed frame id is cut to 64 characters.
     """
     import time as _time
     src = _record(tmp_path / 'src', 'coning')
@@ -466,6 +484,8 @@ def test_huge_frame_ids_are_cheap_and_every_echo_is_bounded(tmp_path, capsys):
 
 def _imu_bag(path, g, a):
     """
+    Write sensor_msgs/Imu messages with the exact mean rates of the increments.
+
     sensor_msgs/Imu messages with the exact mean rates of the Δθ/Δv increments (the mean rule:
     rate_k = Δ_k / (t_k − t_{k−1})), one extra sample at the start of the first interval.
     """
@@ -494,9 +514,11 @@ def _imu_bag(path, g, a):
 
 def test_imu_input_with_mean_rates_gives_the_increment_solution(tmp_path, capsys):
     """
+    Check: imu input with mean rates gives the increment solution.
+
     sensor_msgs/Imu input: a bag of Imu messages whose rates are the exact means over their
-    intervals gives, with --rate-rule mean, the solution of the Δθ/Δv bag to round-off
-    (navigation, 100 Hz gyro and accelerometer).
+    intervals gives, with --rate-rule mean, the solution of the Δθ/Δv bag to round-off (navigation,
+    100 Hz gyro and accelerometer).
     """
     src = _record(tmp_path / 'src', 'coordinated_turn', 'accel_rate:=100.0')
     params, prof = _sins_params(tmp_path / 'p.yaml', 'coordinated_turn')
@@ -528,8 +550,10 @@ def test_imu_input_with_mean_rates_gives_the_increment_solution(tmp_path, capsys
 
 def test_a_damaged_mcap_chunk_is_one_line_exit_2(tmp_path, capsys):
     """
-    The chunk reader refuses a chunk whose record runs past its end (or whose checksum fails):
-    one line on stderr, exit 2, no output file.
+    Check: a damaged mcap chunk is one line exit 2.
+
+    The chunk reader refuses a chunk whose record runs past its end (or whose checksum fails): one
+    line on stderr, exit 2, no output file.
     """
     from strapdown_ros.recording import mcap_records
     from strapdown_ros.recording import open_reader
@@ -553,7 +577,7 @@ def test_a_damaged_mcap_chunk_is_one_line_exit_2(tmp_path, capsys):
 
 
 def _drop_accel_after(src, dst, t_stop):
-    """A copy of the bag ``src`` whose Δv stop ``t_stop`` seconds after its start."""
+    """Copy the bag ``src`` with its Δv stopping ``t_stop`` s after its start."""
     from rosbags.rosbag2 import Reader, StoragePlugin, Writer
     with Reader(src) as r, Writer(dst, version=Writer.VERSION_LATEST,
                                   storage_plugin=StoragePlugin.MCAP) as w:
@@ -573,10 +597,12 @@ def _drop_accel_after(src, dst, t_stop):
 @pytest.mark.parametrize('accel_wait, level', [(0.1, 'ERROR'), (0.5, 'WARN')])
 def test_accelerometer_stall_is_reported_by_the_nodes_rule(tmp_path, capsys, accel_wait, level):
     """
-    Δv stop half-way through the recording while Δθ run on;
-    sins_bag reports it as sins_node does on /diagnostics (the core's rule,
-    SinsSystem.accel_stall: WARN beyond accel_wait, ERROR beyond max(1 s, 10 accel_wait)),
-    naming the stalled stream, with the stall's length in the summary counts.
+    Check: accelerometer stall is reported by the nodes rule.
+
+    Δv stop half-way through the recording while Δθ run on; sins_bag reports it as sins_node does
+    on /diagnostics (the core's rule, SinsSystem.accel_stall: WARN beyond accel_wait, ERROR beyond
+    max(1 s, 10 accel_wait)), naming the stalled stream, with the stall's length in the summary
+    counts.
     """
     from strapdown_ros.sins import accel_stall_limits
     full = _record(tmp_path / 'full', 'static')
