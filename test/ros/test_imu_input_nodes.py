@@ -1,7 +1,8 @@
 """
 The nodes with ``gyro_input: imu``: sensor_msgs/Imu rate samples instead of increments.
 
-sins_node and calibrator_node fed sensor_msgs/Imu rate samples on imu/data_raw (real nodes spun in-process, every wait with a timeout).
+sins_node and calibrator_node fed sensor_msgs/Imu rate samples on imu/data_raw (real nodes spun
+in-process, every wait with a timeout).
 
 Truth is independent of the code under test: the simulator's exact attitude (imu/truth/attitude),
 a closed-form fixed-axis motion, the injected boresight.

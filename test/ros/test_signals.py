@@ -1,8 +1,8 @@
 """
 Every node exits 0, without a traceback, on SIGINT or SIGTERM at any moment.
 
-That is at any moment after its entry point runs: during the imports, during construction, while spinning, and with
-SIGINT ignored as in a job started with ``&`` from a script.
+That is at any moment after its entry point runs: during the imports, during construction, while
+spinning, and with SIGINT ignored as in a job started with ``&`` from a script.
 """
 import os
 import signal
