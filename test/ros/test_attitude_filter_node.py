@@ -48,11 +48,13 @@ DURATION = 80.0                                      # s: holds and turns about 
 
 
 def q_of(m):
+    """Return the scalar-first quaternion of a QuaternionStamped or pose message."""
     q = m.quaternion if isinstance(m, QuaternionStamped) else m.orientation
     return from_ros_xyzw(np.array([q.x, q.y, q.z, q.w]))
 
 
 def ns_of(m):
+    """Return the header stamp of a message, ns."""
     return ros_io.stamp_to_ns(m.header.stamp)
 
 

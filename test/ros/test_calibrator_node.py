@@ -65,10 +65,12 @@ def q_of(msg):
 
 
 def rot_cov(msg):
+    """Return the rotation block of a pose covariance, rad²."""
     return np.asarray(msg.pose.covariance, dtype=float).reshape(6, 6)[3:, 3:]
 
 
 def status_of(diags, prefix):
+    """Return the latest diagnostic status whose name starts with ``prefix``."""
     st = [s for d in diags for s in d.status if s.name.startswith(prefix)]
     return st[-1] if st else None
 
@@ -141,11 +143,13 @@ class Graph:
         assert c.accepted == c.received == self.cam.published
 
     def all_received(self):
+        """Tell whether every calibrator took every message published."""
         return all(n.gyro_check.received == self.sim.counts['delta_theta']
                    and n.camera_check.received == self.cam.published
                    for n in (self.calib, self.peer) if n is not None)
 
     def diagnostics(self):
+        """Publish the calibrator status and return it with its key values."""
         self.calib.publish_diagnostics()
         prefix = f'{self.ns}/calibrator_node'
         n0 = sum(1 for d in self.diags for s in d.status if s.name.startswith(prefix))
@@ -155,12 +159,14 @@ class Graph:
         return st, {v.key: v.value for v in st.values}
 
     def late_subscriber(self, topic, typ, wait):
+        """Subscribe late (latched QoS) and return what arrives within ``wait`` s."""
         got = []
         self.mon.create_subscription(typ, topic, got.append, latched_qos())
         spin_until(self.ex, lambda: bool(got), wait)
         return got
 
     def close(self):
+        """Destroy the nodes and the executor."""
         for n in self.nodes:
             try:
                 self.ex.remove_node(n)

@@ -49,6 +49,7 @@ class Diagnostics:
         self.got.append((st.level[0], st.message, {kv.key: kv.value for kv in st.values}))
 
     def now(self):
+        """Publish the status now and return it."""
         self.node.publish_diagnostics()
         return self.got[-1]
 

@@ -56,10 +56,12 @@ class Recorder:
             node.create_subscription(typ, name, lambda m, n=name: self.data[n].append(m), qos)
 
     def stamps(self, name):
+        """Return the header stamps of a topic, s."""
         return np.array([stamp_to_ns(m.header.stamp) * 1e-9 for m in self.data[name]])
 
 
 def make_graph(ns, algorithm='2', duration=4.0, extra_sim=(), extra_sins=()):
+    """Build imu_sim_node and sins_node in one namespace: (sim, sins)."""
     sim = ImuSimNode(namespace=ns, parameter_overrides=[
         Parameter('coning_alpha', value=ALPHA), Parameter('coning_nu', value=NU),
         Parameter('gravity', value=[0.0, 0.0, 9.80665]),

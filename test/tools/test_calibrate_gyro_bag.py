@@ -52,6 +52,7 @@ def _run(*argv):
 
 @pytest.fixture(scope='module')
 def recording(tmp_path_factory):
+    """Record the scenario with the injected gyro errors, and the nominal model."""
     d = tmp_path_factory.mktemp('gyro')
     bag = _record(d / 'bag', {**SCENARIO, **INJECTED, 'camera_interval': 0.5, 'seed': 11}, 170.0)
     model = d / 'nominal.yaml'
@@ -61,6 +62,7 @@ def recording(tmp_path_factory):
 
 @pytest.fixture(scope='module', params=['integral', 'tkachenko'])
 def calibrated(request, recording):
+    """Run calibrate_gyro_bag by each method on the recording."""
     d, bag, model = recording
     out, js = d / f'{request.param}.yaml', d / f'{request.param}.json'
     assert _run(bag, '--method', request.param, '--model', model, '--write-model', out, '--json',

@@ -20,6 +20,7 @@ def _run(*args, cwd):
 
 @pytest.fixture(scope='module')
 def bag(tmp_path_factory):
+    """Record a simulation with an injected gyro bias."""
     d = tmp_path_factory.mktemp('fbag')
     (d / 'p.yaml').write_text(
         'imu_sim_node:\n  ros__parameters:\n    gyro_rate: 100.0\n'

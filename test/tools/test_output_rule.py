@@ -75,6 +75,7 @@ def test_every_writing_script_is_covered():
 
 @pytest.fixture(scope='module')
 def files(tmp_path_factory):
+    """Make the inputs every console script is run with: a bag, a model, data."""
     pytest.importorskip('rosbags')
     from strapdown_ros.tools import record_sim
     d = tmp_path_factory.mktemp('rule')

@@ -56,6 +56,7 @@ def _sins_params(path, profile):
 
 @pytest.fixture(scope='module')
 def bags(tmp_path_factory):
+    """Record the static and turn profiles with their parameter files."""
     d = tmp_path_factory.mktemp('sins_bag')
     out = {}
     for profile, storage in (('static', 'mcap'), ('coordinated_turn', 'sqlite3')):
