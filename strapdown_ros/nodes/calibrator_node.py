@@ -165,21 +165,21 @@ class CalibratorNode(Node):
             self.gyro_rates = RateIncrementStream(self.gyro_period, float(p['gyro_max_rate']),
                                                   p['imu_rate_rule'], jump, resync)
             self.last_imu = None                       # the latest Imu (bytes or message)
-            self.create_subscription(Imu, 'imu/data_raw', self._on_imu_raw,
+            self.create_subscription(Imu, 'imu/data_raw', self.on_imu_raw,
                                      ros_io.stream_qos(int(p['qos_depth'])),
                                      qos_overriding_options=ros_io.QOS_OVERRIDES, raw=True)
         else:
-            self.create_subscription(Vector3Stamped, 'imu/delta_theta', self._on_gyro_raw,
+            self.create_subscription(Vector3Stamped, 'imu/delta_theta', self.on_gyro_raw,
                                      ros_io.stream_qos(int(p['qos_depth'])),
                                      qos_overriding_options=ros_io.QOS_OVERRIDES, raw=True)
         if self.use_cov:
             self.create_subscription(PoseWithCovarianceStamped,
                                      'star_camera/attitude_with_covariance',
-                                     self._on_camera_cov, camera_qos(int(p['qos_depth'])),
+                                     self.on_camera_cov, camera_qos(int(p['qos_depth'])),
                                      qos_overriding_options=ros_io.QOS_OVERRIDES)
         else:
             self.create_subscription(QuaternionStamped, 'star_camera/attitude',
-                                     self._on_camera_plain,
+                                     self.on_camera_plain,
                                      camera_qos(int(p['qos_depth'])),
                                      qos_overriding_options=ros_io.QOS_OVERRIDES)
         self.create_timer(float(p['diagnostics_period']), self.publish_diagnostics)
@@ -230,25 +230,44 @@ class CalibratorNode(Node):
     def _abs_ns(self, t_rel: float) -> int:
         return self.origin_ns + int(round(t_rel * 1e9))
 
-    def _on_gyro_raw(self, data: bytes):
-        """Take one imu/delta_theta message: stamp, vector and frame read from its bytes."""
+    def on_gyro_raw(self, data: bytes):
+        """
+        Take one imu/delta_theta message: stamp, vector and frame read from its bytes.
+
+        Parameters
+        ----------
+        data : bytes
+            The serialized geometry_msgs/Vector3Stamped (a raw subscription's argument).
+
+        """
         got = ros_io.decode_vector3_stamped(data)
         if got is None:
             self.undecodable += 1
             return
         self._gyro(*got)
 
-    def _on_gyro(self, msg: Vector3Stamped):
-        """Take one imu/delta_theta message object (tests, tools)."""
+    def on_gyro(self, msg: Vector3Stamped):
+        """
+        Take one imu/delta_theta message object (tests, tools).
+
+        Parameters
+        ----------
+        msg : geometry_msgs.msg.Vector3Stamped
+            The message.
+
+        """
         v = msg.vector
         self._gyro(ros_io.stamp_to_ns(msg.header.stamp), (v.x, v.y, v.z), msg.header.frame_id)
 
-    def _on_imu_raw(self, data: bytes):
+    def on_imu_raw(self, data: bytes):
         """
-        Take one imu/data_raw message (``gyro_input: imu``).
+        Take one imu/data_raw message (``gyro_input: imu``): stamp, rate and frame from its bytes.
 
-        The imu/data_raw subscription (``gyro_input: imu``): stamp, rate and frame read from the
-        serialized bytes, then :meth:`_imu`.
+        Parameters
+        ----------
+        data : bytes
+            The serialized sensor_msgs/Imu (a raw subscription's argument).
+
         """
         got = ros_io.decode_imu(data)
         if got is None:
@@ -257,8 +276,16 @@ class CalibratorNode(Node):
         self.last_imu = data                   # its stated covariance: read for /diagnostics
         self._imu(got[0], got[1], got[3])
 
-    def _on_imu(self, msg: Imu):
-        """Take one imu/data_raw message object (tests, tools)."""
+    def on_imu(self, msg: Imu):
+        """
+        Take one imu/data_raw message object (tests, tools).
+
+        Parameters
+        ----------
+        msg : sensor_msgs.msg.Imu
+            The message.
+
+        """
         w = msg.angular_velocity
         self.last_imu = msg
         self._imu(ros_io.stamp_to_ns(msg.header.stamp), (w.x, w.y, w.z), msg.header.frame_id)
@@ -320,10 +347,28 @@ class CalibratorNode(Node):
             new += self.cal.add_gyro_sample(t, v)
         self._after_input(new)
 
-    def _on_camera_cov(self, msg: PoseWithCovarianceStamped):
+    def on_camera_cov(self, msg: PoseWithCovarianceStamped):
+        """
+        Take one camera fix with its covariance (the rotation block, VF axes, rad²).
+
+        Parameters
+        ----------
+        msg : geometry_msgs.msg.PoseWithCovarianceStamped
+            The message.
+
+        """
         self._on_camera(msg.header, msg.pose.pose.orientation, rotation_block(msg))
 
-    def _on_camera_plain(self, msg: QuaternionStamped):
+    def on_camera_plain(self, msg: QuaternionStamped):
+        """
+        Take one camera fix without covariance (the σ of the parameters).
+
+        Parameters
+        ----------
+        msg : geometry_msgs.msg.QuaternionStamped
+            The message.
+
+        """
         self._on_camera(msg.header, msg.quaternion, self.default_p_avu)
 
     def _on_camera(self, header, q_msg, P):

@@ -117,12 +117,12 @@ class SinsNode(Node):
             self.accel_rates = RateIncrementStream(period, float(p['accel_max']), rule, jump,
                                                    resync)
             self.last_imu = None                   # the latest Imu (bytes or message)
-            self.create_subscription(Imu, 'imu/data_raw', self._on_imu_raw, qos,
+            self.create_subscription(Imu, 'imu/data_raw', self.on_imu_raw, qos,
                                      qos_overriding_options=ros_io.QOS_OVERRIDES, raw=True)
         else:
-            self.create_subscription(Vector3Stamped, 'imu/delta_theta', self._on_gyro_raw, qos,
+            self.create_subscription(Vector3Stamped, 'imu/delta_theta', self.on_gyro_raw, qos,
                                      qos_overriding_options=ros_io.QOS_OVERRIDES, raw=True)
-            self.create_subscription(Vector3Stamped, 'imu/delta_velocity', self._on_accel_raw, qos,
+            self.create_subscription(Vector3Stamped, 'imu/delta_velocity', self.on_accel_raw, qos,
                                      qos_overriding_options=ros_io.QOS_OVERRIDES, raw=True)
         self.create_timer(float(p['diagnostics_period']), self.publish_diagnostics)
         if self.system.batch_span > 0:             # a block is processed at least this often
@@ -197,12 +197,17 @@ class SinsNode(Node):
             self.log.info(f'coning_algorithm switched to {name}')
 
     # --- input ------------------------------------------------------------------------------
-    def _on_gyro_raw(self, data: bytes):
+    def on_gyro_raw(self, data: bytes):
         """
-        Take one imu/delta_theta message (the hot path).
+        Take one imu/delta_theta message: decode, validate, append to the block.
 
-        Hot path (the imu/delta_theta subscription): decode, validate, append to the block; the
-        numerical work runs in :meth:`process`.
+        The numerical work runs in :meth:`process`.
+
+        Parameters
+        ----------
+        data : bytes
+            The serialized geometry_msgs/Vector3Stamped (a raw subscription's argument).
+
         """
         got = ros_io.decode_vector3_stamped(data)
         if got is None:
@@ -210,8 +215,16 @@ class SinsNode(Node):
             return
         self._gyro(*got)
 
-    def _on_gyro(self, msg: Vector3Stamped):
-        """Take one imu/delta_theta message object (tests, tools)."""
+    def on_gyro(self, msg: Vector3Stamped):
+        """
+        Take one imu/delta_theta message object (tests, tools).
+
+        Parameters
+        ----------
+        msg : geometry_msgs.msg.Vector3Stamped
+            The message.
+
+        """
         st = msg.header.stamp
         v = msg.vector
         self._gyro(st.sec * 1_000_000_000 + st.nanosec, (v.x, v.y, v.z), msg.header.frame_id)
@@ -222,12 +235,17 @@ class SinsNode(Node):
         elif self.system.has_output:               # a stamp resync processed the old time base
             self._publish(self.system.take_output())
 
-    def _on_accel_raw(self, data: bytes):
+    def on_accel_raw(self, data: bytes):
         """
-        Take one imu/delta_velocity message (the hot path).
+        Take one imu/delta_velocity message: decode, validate, append.
 
-        Hot path (the imu/delta_velocity subscription): decode, validate, append; folded into the
-        accumulator by :meth:`process`.
+        Folded into the accumulator by :meth:`process`.
+
+        Parameters
+        ----------
+        data : bytes
+            The serialized geometry_msgs/Vector3Stamped (a raw subscription's argument).
+
         """
         got = ros_io.decode_vector3_stamped(data)
         if got is None:
@@ -236,19 +254,31 @@ class SinsNode(Node):
         if self.system.offer_accel(*got):
             self.process()
 
-    def _on_accel(self, msg: Vector3Stamped):
-        """Take one imu/delta_velocity message object (tests, tools)."""
+    def on_accel(self, msg: Vector3Stamped):
+        """
+        Take one imu/delta_velocity message object (tests, tools).
+
+        Parameters
+        ----------
+        msg : geometry_msgs.msg.Vector3Stamped
+            The message.
+
+        """
         st = msg.header.stamp
         v = msg.vector
         if self.system.offer_accel(st.sec * 1_000_000_000 + st.nanosec, (v.x, v.y, v.z),
                                    msg.header.frame_id):
             self.process()
 
-    def _on_imu_raw(self, data: bytes):
+    def on_imu_raw(self, data: bytes):
         """
-        Take one imu/data_raw message (the hot path of ``gyro_input: imu``).
+        Take one imu/data_raw message (``gyro_input: imu``): decode, then the rate rule.
 
-        Hot path (the imu/data_raw subscription, ``gyro_input: imu``): decode, then :meth:`_imu`.
+        Parameters
+        ----------
+        data : bytes
+            The serialized sensor_msgs/Imu (a raw subscription's argument).
+
         """
         got = ros_io.decode_imu(data)
         if got is None:
@@ -257,8 +287,16 @@ class SinsNode(Node):
         self.last_imu = data                       # its stated covariance: read for /diagnostics
         self._imu(*got)
 
-    def _on_imu(self, msg: Imu):
-        """Take one imu/data_raw message object (tests, tools)."""
+    def on_imu(self, msg: Imu):
+        """
+        Take one imu/data_raw message object (tests, tools).
+
+        Parameters
+        ----------
+        msg : sensor_msgs.msg.Imu
+            The message.
+
+        """
         w, a = msg.angular_velocity, msg.linear_acceleration
         accel = None if msg.linear_acceleration_covariance[0] == -1.0 else (a.x, a.y, a.z)
         self.last_imu = msg

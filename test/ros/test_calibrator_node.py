@@ -483,13 +483,13 @@ def _node_estimate(ns, poison: bool, params=(), keep=False, noise_scale=1.0):
                 m = Vector3Stamped()
                 stamp(m, s)
                 m.vector.x, m.vector.y, m.vector.z = (float(c) for c in v)
-                cal._on_gyro(m)
+                cal.on_gyro(m)
                 # one overflowing increment, its own stamp
                 if poison and k == 5000:
                     bad = Vector3Stamped()
                     stamp(bad, s + 0.004)
                     bad.vector.x, bad.vector.y = 1e308, 1e308
-                    cal._on_gyro(bad)
+                    cal.on_gyro(bad)
             else:
                 m = PoseWithCovarianceStamped()
                 stamp(m, s)
@@ -499,7 +499,7 @@ def _node_estimate(ns, poison: bool, params=(), keep=False, noise_scale=1.0):
                 c6 = np.zeros((6, 6))
                 c6[3:, 3:] = v.covariance
                 m.pose.covariance = [float(x) for x in c6.ravel()]
-                cal._on_camera_cov(m)
+                cal.on_camera_cov(m)
         if keep:
             return cal
         return np.array(cal.valid.beta), cal.gyro_check.out_of_range, cal.solve_failures
@@ -725,7 +725,7 @@ def test_one_input_path_node_and_calibrate_bag_agree_on_a_hostile_stream(ros, tm
                     r.header.stamp.sec, r.header.stamp.nanosec = ns // 10**9, ns % 10**9
                     r.header.frame_id = 'imu_link'
                     r.vector.x, r.vector.y, r.vector.z = v
-                    node._on_gyro(r)
+                    node.on_gyro(r)
                 else:
                     q, P = v
                     c6 = np.zeros((6, 6))
@@ -747,7 +747,7 @@ def test_one_input_path_node_and_calibrate_bag_agree_on_a_hostile_stream(ros, tm
                     o = r.pose.pose.orientation
                     o.x, o.y, o.z, o.w = (float(c) for c in q)
                     r.pose.covariance = [float(x) for x in c6.ravel()]
-                    node._on_camera_cov(r)
+                    node.on_camera_cov(r)
         f = tmp_path / 'r.json'
         assert calibrate_bag.main([str(bag), '--json', str(f)]) == 0
         r = json.loads(f.read_text())

@@ -72,9 +72,9 @@ def _feed(node, t0_ns, seconds, gyro_rate=100.0, accel_rate=300.0, accel=True, s
     for t, kind, k in sorted(events):
         ns = t0_ns + int(round(t * 1e9))
         if kind == 0:
-            node._on_gyro(_msg(ns, dth[k]))
+            node.on_gyro(_msg(ns, dth[k]))
         else:
-            node._on_accel(_msg(ns, dv[k], frame_accel))
+            node.on_accel(_msg(ns, dv[k], frame_accel))
     node.process()
     return t0_ns + int(round(seconds * 1e9))
 
@@ -212,7 +212,7 @@ def test_every_diagnostic_transition_of_sins_node(ros, monkeypatch):
         t = _feed(sins, t, 0.3)                             # Δv back (within max_stamp_jump)
         assert diag.now()[:2] == (ros_status.OK, 'ok')
         for _ in range(3):
-            sins._on_gyro_raw(b'\x00\x01garbage')
+            sins.on_gyro_raw(b'\x00\x01garbage')
         level, message, _ = diag.now()
         assert level == ros_status.WARN
         assert message == '3 input message(s) could not be decoded: dropped'
@@ -262,13 +262,13 @@ def test_calibrator_lists_every_condition_at_the_worst_level(ros, monkeypatch):
     diag = Diagnostics(cal, monkeypatch)
     try:
         for k in range(1, 11):
-            cal._on_gyro(_msg(1_000_000_000 + k * 10_000_000, (1e-4, 0.0, 0.0)))
-        cal._on_gyro(_msg(1_000_000_000 + 11 * 10_000_000, (1e-4, 0.0, 0.0), frame='camera'))
-        cal._on_gyro_raw(b'garbage')
+            cal.on_gyro(_msg(1_000_000_000 + k * 10_000_000, (1e-4, 0.0, 0.0)))
+        cal.on_gyro(_msg(1_000_000_000 + 11 * 10_000_000, (1e-4, 0.0, 0.0), frame='camera'))
+        cal.on_gyro_raw(b'garbage')
         level, message, _ = diag.now()
         assert level == ros_status.WARN and 'waiting' in message and 'unexpected frame' in message
         assert 'could not be decoded' in message, message
-        cal._on_gyro(_msg(1_000_000_000 + 30 * 10_000_000, (1e-4, 0.0, 0.0)))   # 18 missing
+        cal.on_gyro(_msg(1_000_000_000 + 30 * 10_000_000, (1e-4, 0.0, 0.0)))   # 18 missing
         level, message, _ = diag.now()
         assert (level == ros_status.ERROR and 'missing' in message
                 and 'could not be decoded' in message)

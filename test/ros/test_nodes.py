@@ -407,7 +407,7 @@ def test_sins_node_never_publishes_a_non_finite_state(ros, monkeypatch):
             m.vector.x = 0.001
             return m
         for k in range(1, 6):
-            sins._on_gyro(msg(k))
+            sins.on_gyro(msg(k))
         good_q, sigma0 = sins.integrator.q.copy(), np.sqrt(np.trace(sins.integrator.covariance()))
         real_push = sins.integrator.push
 
@@ -416,9 +416,9 @@ def test_sins_node_never_publishes_a_non_finite_state(ros, monkeypatch):
             b.attitude[:] = np.nan
             return b
         monkeypatch.setattr(sins.integrator, 'push', poisoned)
-        sins._on_gyro(msg(6))
+        sins.on_gyro(msg(6))
         monkeypatch.setattr(sins.integrator, 'push', real_push)
-        sins._on_gyro(msg(7))
+        sins.on_gyro(msg(7))
         # update 6 never published
         assert len(sent) == 6 and sins.nonfinite == 1
         assert all(np.isfinite([m.quaternion.w for m in sent]))
@@ -434,9 +434,9 @@ def test_sins_node_never_publishes_a_non_finite_state(ros, monkeypatch):
         # else
         from rclpy.serialization import serialize_message
         updates = sins.integrator.updates
-        sins._on_gyro_raw(b'\x00\x01\x00\x00garbage')
+        sins.on_gyro_raw(b'\x00\x01\x00\x00garbage')
         assert sins.undecodable == 1 and sins.integrator.updates == updates
-        sins._on_gyro_raw(serialize_message(msg(8)))
+        sins.on_gyro_raw(serialize_message(msg(8)))
         assert sins.integrator.updates == updates + 1 and len(sent) == 7
     finally:
         sins.destroy_node()
@@ -458,7 +458,7 @@ def test_frame_rule(ros, rule, used):
             m.header.stamp.sec, m.header.stamp.nanosec = 10, k * 10_000_000
             m.header.frame_id = frame
             m.vector.x = 0.001
-            sins._on_gyro(m)
+            sins.on_gyro(m)
         assert sins.frame_mismatch['gyro'] == 1 and sins.integrator.updates == used
     finally:
         sins.destroy_node()
@@ -574,9 +574,9 @@ def test_sins_node_batches_equal_per_message_processing(ros, monkeypatch):
                                 lambda *x: pushes.append(1) or real_push(*x))
             for k in range(n):
                 for j in range(3):
-                    node._on_accel(accel[3 * k + j])
+                    node.on_accel(accel[3 * k + j])
                 if keep[k]:
-                    node._on_gyro(gyro[k])
+                    node.on_gyro(gyro[k])
                 if k == 2000:                            # runtime switch, between two messages
                     node.set_parameters([Parameter('coning_algorithm', value='one_plus_previous')])
             node.process()

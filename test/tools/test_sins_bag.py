@@ -287,7 +287,7 @@ def test_node_and_tool_give_the_same_solution(bags, tmp_path, capsys, monkeypatc
             monkeypatch.setattr(pub, 'get_subscription_count', lambda: 1)
         try:
             for _, is_gyro, m in msgs:
-                (node._on_gyro if is_gyro else node._on_accel)(m)
+                (node.on_gyro if is_gyro else node.on_accel)(m)
             node.process()
         finally:
             node.destroy_node()
