@@ -1,7 +1,7 @@
 """
 Entry points of the nodes (``ros2 run strapdown_ros <node>``): light on purpose.
 
-The node modules import rclpy and the message packages, which takes about half a second.  A
+The node modules import rclpy and the message packages, which takes a noticeable time.  A
 signal in that window used to be lost (SIGINT is ignored in a job started with ``&`` from a
 script, and rclpy only re-arms it in ``rclpy.init``) or to print a traceback (Ctrl-C in the
 middle of an import).  Here SIGINT and SIGTERM are armed first, before any heavy import: a
@@ -47,7 +47,7 @@ def signal_received() -> bool:
 
 def _run(module: str) -> int:
     # signals first, then the node module: imported here, lazily, because importing rclpy and
-    # the message packages takes about half a second, and a signal in that window must end the
+    # the message packages takes a noticeable time, and a signal in that window must end the
     # process cleanly (the one place of the package that imports inside a function)
     for sig in (signal.SIGINT, signal.SIGTERM):
         signal.signal(sig, _interrupt)

@@ -65,11 +65,11 @@ def decode_vector3_stamped(data: bytes) -> tuple[int, tuple[float, float, float]
     Decode a serialized geometry_msgs/Vector3Stamped.
 
     The high-rate increment streams are subscribed raw (``raw=True``): rclpy then skips building
-    four Python message objects per message (about 18 µs), and the node reads the few fields it
-    needs from the bytes (:mod:`strapdown_ros.streams.cdr`, shared with ``sins_bag``).  Any other
-    encoding than plain little-endian CDR is handed to rclpy's own deserializer, so nothing is
-    misread (test/streams/test_checks_fuzz.py checks both against rclpy's serializer).  None when
-    the bytes are not a Vector3Stamped at all (the caller counts and drops them).
+    four Python message objects per message, and the node reads the few fields it needs from the
+    bytes (:mod:`strapdown_ros.streams.cdr`, shared with ``sins_bag``).  Any other encoding than
+    plain little-endian CDR is handed to rclpy's own deserializer, so nothing is misread
+    (test/streams/test_checks_fuzz.py checks both against rclpy's serializer).  None when the bytes
+    are not a Vector3Stamped at all (the caller counts and drops them).
 
     Parameters
     ----------
@@ -98,7 +98,8 @@ def decode_imu(data: bytes):
     Decode a serialized sensor_msgs/Imu (the ``imu/data_raw`` input of ``gyro_input: imu``).
 
     Read from the bytes as :func:`decode_vector3_stamped` reads a Vector3Stamped (rclpy's
-    deserialization of an Imu costs tens of µs); other encodings through rclpy's deserializer.
+    deserialization of an Imu costs more than the rest of the callback); other encodings through
+    rclpy's deserializer.
 
     Parameters
     ----------

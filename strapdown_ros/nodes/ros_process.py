@@ -39,9 +39,10 @@ def make_executor(kind: str | None = None):
     """
     Return the executor of a node process.
 
-    rclpy's EventsExecutor (``rclpy.experimental``, Jazzy) dispatches a message in about a tenth
-    of the CPU time of the SingleThreadedExecutor, which rebuilds its wait set on every spin;
-    ``single`` selects the latter, and it is the fallback where the former does not exist.
+    rclpy's EventsExecutor (``rclpy.experimental``, Jazzy) dispatches a message in a fraction of
+    the CPU time of the SingleThreadedExecutor, which rebuilds its wait set on every spin
+    (figures: doc/nodes.md, executor); ``single`` selects the latter, and it is the fallback where
+    the former does not exist.
 
     Parameters
     ----------
@@ -144,7 +145,7 @@ def _freeze_startup_objects() -> None:
     Move every object made at start-up out of the garbage collector's reach (``gc.freeze``).
 
     Modules, numba's and numpy's tables, the node: without it each full collection walks them
-    all (about 10⁵ objects in a sins_node process) while the input streams queue up.  Cycles
+    all (every object of the loaded modules) while the input streams queue up.  Cycles
     made later are still collected.
     """
     gc.collect()
