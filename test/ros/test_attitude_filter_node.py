@@ -11,25 +11,29 @@ from types import SimpleNamespace
 
 from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import DiagnosticArray
-from geometry_msgs.msg import PoseWithCovarianceStamped
-from geometry_msgs.msg import (Quaternion, QuaternionStamped, TwistWithCovarianceStamped,
-                               Vector3Stamped)
+from geometry_msgs.msg import (PoseWithCovarianceStamped, Quaternion, QuaternionStamped,
+                               TwistWithCovarianceStamped, Vector3Stamped)
 import numpy as np
 import pytest
 import rclpy
 from rclpy.parameter import Parameter
 from rclpy.qos import ReliabilityPolicy
+from rclpy.serialization import serialize_message
 from ros_helpers import spin_until
 from sensor_msgs.msg import Imu
 from std_msgs.msg import Header
 
+from strapdown_ros.motion.profiles import PiecewiseRateProfile, Segment
 from strapdown_ros.nodes import ros_io, ros_status
 from strapdown_ros.nodes.attitude_filter_node import AttitudeFilterNode
 from strapdown_ros.nodes.imu_sim_node import ImuSimNode
 from strapdown_ros.nodes.star_camera_sim_node import StarCameraSimNode
 from strapdown_ros.params import FILTER_PARAMS
 from strapdown_ros.rotation import (dcm_to_quat, from_ros_xyzw, quat_conjugate, quat_error_rotvec,
-                                    quat_multiply, ypr_to_dcm)
+                                    quat_multiply, rotvec_to_quat, ypr_to_dcm)
+from strapdown_ros.sensors import ARCSEC
+from strapdown_ros.sensors.model import IntegratingSensor, SensorErrorModel
+from strapdown_ros.sensors.star_camera import StarCameraModel
 from strapdown_ros.tools.filter_bag import run_filter
 
 
@@ -302,9 +306,6 @@ def test_imu_rates_input(ros):
     callback; a constant rate about a fixed axis, exact fixes every second: the filtered attitude
     is the exact one within 3σ and every fix is applied.
     """
-    from rclpy.serialization import serialize_message
-
-    from strapdown_ros.rotation import rotvec_to_quat
     node = AttitudeFilterNode(namespace='/t_filter_imu', parameter_overrides=[
         Parameter('gyro_input', value='imu'), Parameter('imu_rate_rule', value='mean'),
         Parameter('use_camera_covariance', value=False), Parameter('output_period', value=0.1)])
@@ -339,11 +340,6 @@ def test_unmodelled_scale_factor_is_a_warn_on_diagnostics(ros):
     An injected gyro scale factor the filter does not model: the live model check names it on
     /diagnostics as WARN (the node does not change its model).
     """
-    from strapdown_ros.motion.profiles import PiecewiseRateProfile, Segment
-    from strapdown_ros.rotation import rotvec_to_quat
-    from strapdown_ros.sensors import ARCSEC
-    from strapdown_ros.sensors.model import IntegratingSensor, SensorErrorModel
-    from strapdown_ros.sensors.star_camera import StarCameraModel
     rate, seconds = 50.0, 150
     segs = []
     for axis, sign in ((0, 1), (1, 1), (2, 1), (0, -1), (1, -1), (2, -1)):

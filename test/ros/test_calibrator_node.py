@@ -15,8 +15,7 @@ import sys
 import time
 
 from diagnostic_msgs.msg import DiagnosticArray
-from geometry_msgs.msg import PoseWithCovarianceStamped
-from geometry_msgs.msg import QuaternionStamped, Vector3Stamped
+from geometry_msgs.msg import PoseWithCovarianceStamped, QuaternionStamped, Vector3Stamped
 import numpy as np
 import pytest
 import rclpy
@@ -28,10 +27,13 @@ from ros_helpers import spin_until
 from strapdown_ros.motion.profiles import bench_profile
 from strapdown_ros.nodes.calibrator_node import CalibratorNode
 from strapdown_ros.nodes.imu_sim_node import ImuSimNode
-from strapdown_ros.nodes.ros_io import stamp_to_ns, stream_qos
-from strapdown_ros.nodes.star_camera_sim_node import camera_qos, latched_qos, StarCameraSimNode
+from strapdown_ros.nodes.ros_io import camera_qos, latched_qos, stamp_to_ns, stream_qos
+from strapdown_ros.nodes.star_camera_sim_node import StarCameraSimNode
 from strapdown_ros.rotation import (dcm_to_quat, from_ros_xyzw, quat_error_rotvec, quat_to_dcm,
-                                    quat_to_rotvec, ypr_to_dcm)
+                                    quat_to_rotvec, to_ros_xyzw, ypr_to_dcm)
+from strapdown_ros.sensors import IntegratingSensor
+from strapdown_ros.sensors.star_camera import StarCameraModel
+from strapdown_ros.tools import calibrate_bag
 
 
 ARCSEC = math.pi / 180.0 / 3600.0
@@ -462,10 +464,6 @@ def test_executables_exit_2_with_a_clear_message(module, arg, text):
 
 def _node_estimate(ns, poison: bool, params=(), keep=False, noise_scale=1.0):
     """Feed calibrator_node bench data through its own callbacks (no DDS): (β, node counters)."""
-    from strapdown_ros.rotation import to_ros_xyzw
-    from strapdown_ros.sensors import IntegratingSensor
-    from strapdown_ros.sensors.star_camera import StarCameraModel
-
     prof = bench_profile()
     gyro = IntegratingSensor(prof, 'gyro', 100.0)
     t, dth, _ = gyro.sample(int(prof.duration * 100) - 1)
@@ -657,11 +655,6 @@ def test_one_input_path_node_and_calibrate_bag_agree_on_a_hostile_stream(ros, tm
     pytest.importorskip('rosbags')
     from rosbags.rosbag2 import Writer
     from rosbags.typesys import get_typestore, Stores
-
-    from strapdown_ros.rotation import to_ros_xyzw
-    from strapdown_ros.sensors import IntegratingSensor
-    from strapdown_ros.sensors.star_camera import StarCameraModel
-    from strapdown_ros.tools import calibrate_bag
 
     prof = bench_profile()
     t, dth, _ = IntegratingSensor(prof, 'gyro', 100.0).sample(int(prof.duration * 100) - 1)

@@ -11,8 +11,8 @@ import math
 import time
 
 from diagnostic_msgs.msg import DiagnosticArray
-from geometry_msgs.msg import PoseWithCovarianceStamped
-from geometry_msgs.msg import QuaternionStamped
+from geometry_msgs.msg import PoseWithCovarianceStamped, QuaternionStamped
+from nav_msgs.msg import Odometry
 import numpy as np
 import pytest
 import rclpy
@@ -21,15 +21,19 @@ from rclpy.parameter import Parameter
 from ros_helpers import spin_until
 from sensor_msgs.msg import Imu
 
-from strapdown_ros.attitude.coning import ALGORITHMS
-from strapdown_ros.attitude.coning import theory_drift
+from strapdown_ros import earth as G
+from strapdown_ros.attitude.coning import ALGORITHMS, theory_drift
+from strapdown_ros.motion.earth_profiles import navigation_profile_from_config
 from strapdown_ros.motion.profiles import ConingProfile
 from strapdown_ros.nodes.calibrator_node import CalibratorNode
 from strapdown_ros.nodes.imu_sim_node import ImuSimNode
 from strapdown_ros.nodes.ros_io import stamp_to_ns, stream_qos
+from strapdown_ros.nodes.ros_params import InvalidParameter
 from strapdown_ros.nodes.sins_node import SinsNode
-from strapdown_ros.rotation import (from_ros_xyzw, quat_angle_between, quat_conjugate,
-                                    quat_multiply, rotvec_to_quat, to_ros_xyzw)
+from strapdown_ros.params import PROFILE_PARAMS
+from strapdown_ros.rotation import (dcm_to_quat, from_ros_xyzw, quat_angle_between,
+                                    quat_conjugate, quat_multiply, quat_to_dcm, quat_to_rotvec,
+                                    rotvec_to_quat, to_ros_xyzw)
 
 
 try:
@@ -296,8 +300,6 @@ def test_calibrator_on_imu_rates_recovers_the_boresight(ros):
     """
     from test_calibrator_node import ARCSEC, BETA, C_TRUE, Graph, MAX_TIME_SCALE, q_of, rot_cov
 
-    from strapdown_ros.rotation import dcm_to_quat, quat_to_dcm, quat_to_rotvec
-
     class ImuGraph(Graph):
 
         def run(self):
@@ -374,13 +376,7 @@ def test_navigation_from_imu_messages_matches_the_exact_truth(ros, profile, tol_
     started from the truth at the first Imu stamp: sins/odometry within the bounds of the Δθ/Δv-fed
     node (test/ros/test_sins_node_navigation.py), against imu/truth/odometry.
     """
-    from nav_msgs.msg import Odometry
-
-    from strapdown_ros import earth as G
-    from strapdown_ros.motion.earth_profiles import navigation_profile_from_config
-
     ns, duration, t0 = f'/t_imu_nav_{profile}', 3.0, np.array([0.01])
-    from strapdown_ros.params import PROFILE_PARAMS
 
     # the truth of the simulator's own parameters (its default gravity_model included: the turn
     # is coordinated with that model's vertical)
@@ -448,7 +444,6 @@ def test_navigation_from_imu_messages_matches_the_exact_truth(ros, profile, tol_
 
 @pytest.mark.parametrize('node_class', [SinsNode, CalibratorNode])
 def test_gyro_input_parameters_are_validated_and_fixed_at_runtime(ros, node_class):
-    from strapdown_ros.nodes.ros_params import InvalidParameter
     for name, bad, valid in (('gyro_input', 'rates', 'delta_theta, imu'),
                              ('imu_rate_rule', 'simpson', 'trapezoid, mean')):
         with pytest.raises(InvalidParameter, match=valid):

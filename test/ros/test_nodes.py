@@ -20,14 +20,13 @@ from rclpy.qos import ReliabilityPolicy
 from ros_helpers import spin_until
 from sensor_msgs.msg import Imu
 
-from strapdown_ros.attitude.coning import ALGORITHMS
-from strapdown_ros.attitude.coning import theory_drift
+from strapdown_ros.attitude.coning import ALGORITHMS, theory_drift
 from strapdown_ros.motion.profiles import ConingProfile
 from strapdown_ros.nodes.imu_sim_node import ImuSimNode
 from strapdown_ros.nodes.ros_io import stamp_to_ns, stream_qos
+from strapdown_ros.nodes.ros_params import InvalidParameter
 from strapdown_ros.nodes.sins_node import SinsNode
-from strapdown_ros.rotation import from_ros_xyzw
-from strapdown_ros.rotation import quat_angle_between, to_ros_xyzw
+from strapdown_ros.rotation import from_ros_xyzw, quat_angle_between, to_ros_xyzw
 
 
 # one thread serves all nodes here; the events executor keeps up (see
@@ -473,7 +472,6 @@ def test_parameter_rules(ros):
     the shipped file succeeds); an unknown -p name is refused with its name; changes are validated
     on set and applied after.
     """
-    from strapdown_ros.nodes.ros_params import InvalidParameter
     with pytest.raises(InvalidParameter, match='qos_depth must be an integer'):
         SinsNode(namespace='/t_p1', parameter_overrides=[Parameter('qos_depth', value=1.5)])
     with pytest.raises(InvalidParameter, match='gyro_bais'):

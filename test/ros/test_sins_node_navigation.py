@@ -19,8 +19,8 @@ from strapdown_ros.motion.earth_profiles import navigation_profile_from_config
 from strapdown_ros.nodes.imu_sim_node import ImuSimNode
 from strapdown_ros.nodes.ros_io import stamp_to_ns, stream_qos
 from strapdown_ros.nodes.sins_node import SinsNode
-from strapdown_ros.rotation import quat_angle_between
-from strapdown_ros.rotation import to_ros_xyzw
+from strapdown_ros.params import PROFILE_PARAMS
+from strapdown_ros.rotation import quat_angle_between, to_ros_xyzw
 
 
 try:
@@ -34,7 +34,6 @@ IDEAL = [Parameter(f'{s}_{k}', value=0.0) for s in ('gyro', 'accel')
 
 
 def _run(ns, profile, duration, sins_extra=(), sim_extra=(), expect=None):
-    from strapdown_ros.params import PROFILE_PARAMS
 
     # the truth of the simulator's own parameters (its default gravity_model included: the turn is
     # coordinated with that model's vertical, and the initial state must be that profile's)

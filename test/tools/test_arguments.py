@@ -1,10 +1,15 @@
 """Bad files and arguments are refused before any work, in one line, exit 2."""
+import hashlib
+import json
 import os
 import subprocess
 import sys
 import time
 
 import pytest
+
+from strapdown_ros.cli import write_json
+from strapdown_ros.tools import record_sim
 
 
 BIN = os.path.dirname(sys.executable)
@@ -61,7 +66,6 @@ def test_tools_check_arguments_before_work(tmp_path):
 
 def test_corrupted_mcap_is_one_line_exit_2(tmp_path):
     pytest.importorskip('rosbags')
-    from strapdown_ros.tools import record_sim
     bag = tmp_path / 'bag'
     assert record_sim.main([str(bag), '--no-accel', '--duration', '30', '-p',
                             'camera_interval:=2.0']) == 0
@@ -83,7 +87,6 @@ def test_corrupted_mcap_is_one_line_exit_2(tmp_path):
 
 def _digest(paths):
     """Content of every file under ``paths`` (inputs must come out untouched)."""
-    import hashlib
     out = {}
     for root in paths:
         files = [root] if root.is_file() else sorted(p for p in root.rglob('*') if p.is_file())
@@ -102,7 +105,6 @@ def test_no_output_overwrites_an_input(tmp_path):
     one line, exit 2, and the inputs are untouched.
     """
     pytest.importorskip('rosbags')
-    from strapdown_ros.tools import record_sim
     bag = tmp_path / 'bag'
     assert record_sim.main([str(bag), '--no-accel', '--duration', '10',
                             '-p', 'camera_interval:=2.0']) == 0
@@ -150,13 +152,11 @@ def test_no_output_overwrites_an_input(tmp_path):
     p = subprocess.run([b('calibrate_bag'), str(bag), '--json', str(old), '--force'],
                        capture_output=True, text=True, timeout=120)
     assert p.returncode in (0, 3), p.stderr                # 3: this static bag is unobservable
-    import json
     assert 'observable' in json.loads(old.read_text())
     assert not [f for f in os.listdir(tmp_path) if f.endswith('.tmp')]
 
 
 def test_atomic_write_leaves_the_old_file_when_the_write_fails(tmp_path):
-    from strapdown_ros.cli import write_json
     out = tmp_path / 'r.json'
     out.write_text('old\n')
     with pytest.raises(ValueError):

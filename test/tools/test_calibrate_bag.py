@@ -1,17 +1,18 @@
 """record_sim → rosbag2 (MCAP and sqlite3) → calibrate_bag, without ROS."""
 import json
+import subprocess
+import sys
+import textwrap
 
 import numpy as np
 import pytest
 
-from strapdown_ros.motion.profiles import PiecewiseRateProfile
-from strapdown_ros.motion.profiles import Segment
-from strapdown_ros.rotation import (dcm_to_quat, from_ros_xyzw, quat_error_rotvec, to_ros_xyzw,
-                                    ypr_to_dcm)
+from strapdown_ros.motion.profiles import PiecewiseRateProfile, Segment
+from strapdown_ros.rotation import (dcm_to_quat, from_ros_xyzw, quat_error_rotvec, quat_multiply,
+                                    rotvec_to_quat, to_ros_xyzw, ypr_to_dcm)
 from strapdown_ros.sensors import ARCSEC, IntegratingSensor, SensorErrorModel
 from strapdown_ros.sensors.star_camera import StarCameraModel
-from strapdown_ros.tools import calibrate_bag
-from strapdown_ros.tools import record_sim
+from strapdown_ros.tools import calibrate_bag, record_sim
 
 
 BETA = np.radians([40.0, -25.0, 120.0])
@@ -189,9 +190,6 @@ def test_nan_and_duplicate_are_dropped_and_counted(tmp_path, capsys):
 
 def test_tools_run_with_ros_absent(tmp_path):
     """record_sim and calibrate_bag import and run with rclpy and every message package blocked."""
-    import subprocess
-    import sys
-    import textwrap
     repo = str(__import__('pathlib').Path(__file__).resolve().parents[2])
     code = textwrap.dedent(f"""
         import importlib.abc, sys
@@ -296,8 +294,6 @@ def test_one_outlier_camera_fix_is_gated(tmp_path):
     """
     from rosbags.rosbag2 import Reader, Writer
     from rosbags.typesys import get_typestore, Stores
-
-    from strapdown_ros.rotation import quat_multiply, rotvec_to_quat
 
     clean = tmp_path / 'clean'
     assert record_sim.main([str(clean), '--no-accel', '-p', 'profile:=bench', '-p',
@@ -423,8 +419,6 @@ def test_an_outlier_fix_is_still_gated_when_the_sigma_is_wrong(tmp_path):
     """The robust gate still drops a fix rotated 5° when the stated σ is 100× too small."""
     from rosbags.rosbag2 import Reader, Writer
     from rosbags.typesys import get_typestore, Stores
-
-    from strapdown_ros.rotation import quat_multiply, rotvec_to_quat
 
     clean = _noisy_bench(tmp_path, 'clean', 100.0)
     store = get_typestore(Stores.ROS2_JAZZY)

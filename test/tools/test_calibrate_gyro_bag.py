@@ -13,11 +13,15 @@ import sys
 import numpy as np
 import pytest
 
+from strapdown_ros.calibration import gyro as gc
+from strapdown_ros.discrepancy.bag_input import load_recording
+from strapdown_ros.discrepancy.synthetic import simulate_recording
+from strapdown_ros.discrepancy.workflow import analyse
 from strapdown_ros.motion.from_config import profile_from_config
-from strapdown_ros.params import load_model
+from strapdown_ros.params import check_all, IMU_SIM_PARAMS, load_model, STAR_CAMERA_PARAMS
+from strapdown_ros.rotation import quat_conjugate, quat_multiply, rotvec_to_quat
 from strapdown_ros.sensors.effects import GyroEffects
-from strapdown_ros.tools import calibrate_gyro_bag, discrepancy
-from strapdown_ros.tools import record_sim
+from strapdown_ros.tools import calibrate_gyro_bag, discrepancy, record_sim
 
 
 BIN = os.path.dirname(sys.executable)
@@ -93,7 +97,6 @@ def test_written_model_compensates_with_the_right_sign(calibrated, recording):
     The model's parameters, compensated as sins_node compensates (GyroEffects), turn the recorded
     increments back into the true ones (from the profile), up to the triad rotation.
     """
-    from strapdown_ros.discrepancy.bag_input import load_recording
     _, out, _ = calibrated
     model, _ = load_model(str(out))
     for name in INJECTED:
@@ -143,9 +146,6 @@ def test_written_model_is_adequate_on_a_fresh_simulation(calibrated, fresh, tmp_
 
 
 def test_nominal_model_is_not_adequate_on_that_recording(recording, tmp_path):
-    from strapdown_ros.discrepancy.synthetic import simulate_recording
-    from strapdown_ros.discrepancy.workflow import analyse
-    from strapdown_ros.params import check_all, IMU_SIM_PARAMS, STAR_CAMERA_PARAMS
     over = {**SCENARIO, **INJECTED, 'camera_interval': 2.0, 'seed': 12}
     rec = simulate_recording(check_all(IMU_SIM_PARAMS, over), check_all(STAR_CAMERA_PARAMS, over),
                              170.0)
@@ -250,11 +250,6 @@ def test_tkachenko_with_a_drifting_reference_estimates_the_drift():
     §6's motion (large turns about all axes, 30 s, fixes every 0.1 s) the drift option recovers d
     and the gyro errors within 3σ; without it the drift corrupts them.
     """
-    from strapdown_ros.calibration import gyro as gc
-    from strapdown_ros.discrepancy.synthetic import simulate_recording
-    from strapdown_ros.params import check_all, IMU_SIM_PARAMS, STAR_CAMERA_PARAMS
-    from strapdown_ros.rotation import quat_conjugate, quat_multiply, rotvec_to_quat
-
     over = {**SCENARIO, **INJECTED, 'profile': 'tkachenko', 'camera_interval': 0.1, 'seed': 21}
     rec = simulate_recording(check_all(IMU_SIM_PARAMS, over), check_all(STAR_CAMERA_PARAMS, over),
                              30.0)
@@ -279,9 +274,6 @@ def test_gyro_gap_is_not_spanned_and_both_methods_still_recover(recording):
     Increments missing for 1.5 s in mid-turn (the rotation in them is lost): nothing is formed
     across the gap — 002 drops the intervals spanning it, 000 uses the longer gap-free stretch.
     """
-    from strapdown_ros.calibration import gyro as gc
-    from strapdown_ros.discrepancy.bag_input import load_recording
-
     model, _ = load_model(str(recording[2]))
     rec, _ = load_recording(str(recording[1]), model)
     st = rec.gyro_stamps

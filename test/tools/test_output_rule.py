@@ -6,12 +6,17 @@ one line, exit 2.  Writes are atomic: files (JSON, markdown, PNG) through a temp
 os.replace, bag directories through a hidden sibling renamed into place when complete
 (strapdown_ros/files.py).
 """
+import importlib
 import os
 from pathlib import Path
 import re
 import signal
 
 import pytest
+
+from strapdown_ros.cli import write_figure
+from strapdown_ros.files import commit_directory, discard_directory, stage_directory
+from strapdown_ros.tools import record_sim, sins_bag
 
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -77,7 +82,6 @@ def test_every_writing_script_is_covered():
 def files(tmp_path_factory):
     """Make the inputs every console script is run with: a bag, a model, data."""
     pytest.importorskip('rosbags')
-    from strapdown_ros.tools import record_sim
     d = tmp_path_factory.mktemp('rule')
     bag = d / 'bag'
     assert record_sim.main([str(bag), '--no-accel', '--duration', '10',
@@ -111,7 +115,6 @@ def _run(script: str, argv: list, capsys):
     main(argv) in-process with a 30 s alarm (a refusal comes before any work); returns (exit
     status, non-empty output lines).
     """
-    import importlib
     module, func = console_scripts()[script].split(':')
     main = getattr(importlib.import_module(module), func)
 
@@ -161,7 +164,6 @@ def test_bag_is_replaced_only_by_a_complete_one(tmp_path, monkeypatch):
     whole.
     """
     pytest.importorskip('rosbags')
-    from strapdown_ros.tools import record_sim
     bag = tmp_path / 'bag'
     args = [str(bag), '--no-accel', '--duration', '4', '-p', 'camera_interval:=2.0']
     assert record_sim.main(args) == 0
@@ -183,7 +185,6 @@ def test_bag_is_replaced_only_by_a_complete_one(tmp_path, monkeypatch):
 
 
 def test_commit_directory_keeps_the_old_one_until_the_new_one_is_in_place(tmp_path):
-    from strapdown_ros.files import commit_directory, discard_directory, stage_directory
     target = tmp_path / 'out'
     target.mkdir()
     (target / 'a').write_text('old')
@@ -204,7 +205,6 @@ def test_figures_are_written_atomically(tmp_path):
     matplotlib.use('Agg')
     import matplotlib.pyplot as plt
 
-    from strapdown_ros.cli import write_figure
     fig, ax = plt.subplots()
     ax.plot([0, 1], [1, 0])
     out = tmp_path / 'f.png'
@@ -223,7 +223,6 @@ def test_sins_bag_interrupted_keeps_the_old_output_bag(files, tmp_path, monkeypa
     sins_bag's MCAP output is staged too: an interruption half-way (--force over an old output)
     leaves the old bag and no staging directory.
     """
-    from strapdown_ros.tools import sins_bag
     out = tmp_path / 'out'
     assert sins_bag.main([str(files['bag']), '--output', str(out), '--quiet']) == 0
     before = _snapshot(out)

@@ -4,18 +4,27 @@ record_sim → rosbag2 → sins_bag: the solution of a recording.
 Against the exact truth, against sins_node fed the same messages (same core: the same numbers);
 MCAP and CSV outputs, argument errors.
 """
+import re
+import time as _time
+
+from geometry_msgs.msg import Vector3Stamped
 import numpy as np
 import pytest
+from rclpy.context import Context
+from rclpy.parameter import Parameter
+from rclpy.serialization import deserialize_message
 
 from strapdown_ros import earth as G
 from strapdown_ros.motion.earth_profiles import navigation_profile_from_config
+from strapdown_ros.nodes.ros_io import stamp_to_ns
+from strapdown_ros.nodes.sins_node import SinsNode
 from strapdown_ros.params import load_parameter_file
+from strapdown_ros.recording import mcap_records, open_reader
 from strapdown_ros.recording.imu_streams import rate_from_stamps
 from strapdown_ros.recording.sins_replay import CSV_ATTITUDE_COLUMNS, CSV_NAV_COLUMNS
-from strapdown_ros.rotation import from_ros_xyzw
-from strapdown_ros.rotation import quat_angle_between, quat_to_dcm, to_ros_xyzw
-from strapdown_ros.tools import record_sim
-from strapdown_ros.tools import sins_bag
+from strapdown_ros.rotation import from_ros_xyzw, quat_angle_between, quat_to_dcm, to_ros_xyzw
+from strapdown_ros.sins import accel_stall_limits
+from strapdown_ros.tools import record_sim, sins_bag
 
 
 IDEAL = [f'{s}_{k}:=0.0' for s in ('gyro', 'accel')
@@ -239,13 +248,7 @@ def test_node_and_tool_give_the_same_solution(bags, tmp_path, capsys, monkeypatc
     order: by stamp, Δv first at equal stamps) publishes exactly what sins_bag writes.
     """
     rclpy = pytest.importorskip('rclpy')
-    from geometry_msgs.msg import Vector3Stamped
-    from rclpy.parameter import Parameter
-    from rclpy.serialization import deserialize_message
     from rosbags.highlevel import AnyReader
-
-    from strapdown_ros.nodes.ros_io import stamp_to_ns
-    from strapdown_ros.nodes.sins_node import SinsNode
 
     bag, params, _ = bags[profile]
     out_csv, out_bag = tmp_path / 'tool.csv', tmp_path / 'tool_bag'
@@ -260,7 +263,6 @@ def test_node_and_tool_give_the_same_solution(bags, tmp_path, capsys, monkeypatc
             m = deserialize_message(bytes(raw), Vector3Stamped)
             msgs.append((stamp_to_ns(m.header.stamp), c.topic == '/imu/delta_theta', m))
     msgs.sort(key=lambda x: (x[0], x[1]))                  # stable: each topic keeps its order
-    from rclpy.context import Context
     ctx = Context()                                         # its own: whatever other modules hold
     rclpy.init(context=ctx)
     try:
@@ -458,7 +460,6 @@ def test_huge_frame_ids_are_cheap_and_every_echo_is_bounded(tmp_path, capsys):
     Three Δθ with 2 MB frame ids cost no time (86 s before) and the output stays short: every
     echoed frame id is cut to 64 characters.
     """
-    import time as _time
     src = _record(tmp_path / 'src', 'coning')
     g = _read_vectors(src, '/imu/delta_theta')
     a = _read_vectors(src, '/imu/delta_velocity')
@@ -556,8 +557,6 @@ def test_a_damaged_mcap_chunk_is_one_line_exit_2(tmp_path, capsys):
     The chunk reader refuses a chunk whose record runs past its end (or whose checksum fails): one
     line on stderr, exit 2, no output file.
     """
-    from strapdown_ros.recording import mcap_records
-    from strapdown_ros.recording import open_reader
     bag = _record(tmp_path / 'dmg', 'coning')
     rd = open_reader(bag)
     try:
@@ -605,7 +604,6 @@ def test_accelerometer_stall_is_reported_by_the_nodes_rule(tmp_path, capsys, acc
     max(1 s, 10 accel_wait)), naming the stalled stream, with the stall's length in the summary
     counts.
     """
-    from strapdown_ros.sins import accel_stall_limits
     full = _record(tmp_path / 'full', 'static')
     bag = _drop_accel_after(full, tmp_path / 'half', DURATION / 2)
     rc, out, err = _run_tool(capsys, bag, '-o', tmp_path / 'a.csv',
@@ -618,7 +616,6 @@ def test_accelerometer_stall_is_reported_by_the_nodes_rule(tmp_path, capsys, acc
     assert warn[0].rstrip().endswith(level), warn
     warn_s, error_s = accel_stall_limits(accel_wait)
     assert f'WARN beyond {warn_s:g} s, ERROR beyond {error_s:g} s' in warn[0]
-    import re
     stall = float(re.search(r'accel stall ([\d.e+-]+) s', out).group(1))
     assert stall == pytest.approx(DURATION / 2, abs=0.02)           # the gyro ran on 2.5 s
     rc, out, err = _run_tool(capsys, full, '-o', tmp_path / 'b.csv',
