@@ -217,8 +217,8 @@ def test_mcap_chunk_reader_gives_rosbags_records_in_rosbags_order(tmp_path):
     from rosbags.typesys import get_typestore, Stores
 
     from strapdown_ros.recording import mcap_records
-    from strapdown_ros.tools.calibrate_bag import open_reader
-    from strapdown_ros.tools.sins_bag import read_streams
+    from strapdown_ros.recording import open_reader
+    from strapdown_ros.recording.imu_streams import read_streams
     store = get_typestore(Stores.ROS2_JAZZY)
     T = store.types
     rng = np.random.default_rng(9)

@@ -337,6 +337,11 @@ class BoresightCalibrator:
         self._pair_keys.update(self.pair_key(pr) for pr in pairs)
 
     @property
+    def gyro_history_overflowed(self) -> bool:
+        """Return whether the bounded gyro history has dropped its oldest increments."""
+        return bool(self._gyro.overflowed)
+
+    @property
     def last_fix(self):
         """Return (stamp s, q_GCRS_VF, P) of the fix that starts the next pair, or None."""
         return self._last_fix

@@ -46,7 +46,7 @@ Publishes (stream QoS unless said; every ``output_period`` of stamp time):
   last NIS, and the live model check (``model_check``: its text; WARN when a test fails, e.g.
   "innovations match gyro_scale_factor (p = …): run discrepancy on a recording"; the node never
   changes its model itself).  The level is the worst of the conditions
-  (:class:`~strapdown_ros.nodes.ros_io.Conditions`).
+  (:class:`~strapdown_ros.nodes.ros_status.Conditions`).
 
 No parameter may change at runtime (the filter's model is its state); restart the node.
 """
@@ -63,7 +63,7 @@ from sensor_msgs.msg import Imu
 
 from strapdown_ros.estimation.chi_square import chi2_3_quantile
 from strapdown_ros.estimation.filter_system import FilterSystem
-from strapdown_ros.nodes import ros_io
+from strapdown_ros.nodes import ros_io, ros_params, ros_process, ros_status
 from strapdown_ros.params import FILTER_PARAMS
 from strapdown_ros.streams.rate_increments import RateIncrementStream
 
@@ -71,10 +71,20 @@ NODE_NAME = 'attitude_filter_node'
 
 
 class AttitudeFilterNode(Node):
+    """
+    The star-camera-aided attitude filter node: ROS in and out of the core filter.
+
+    Parameters
+    ----------
+    **kwargs
+        Passed to :class:`rclpy.node.Node` (namespace, parameter_overrides, ...).
+
+    """
+
     def __init__(self, **kwargs):
         super().__init__(NODE_NAME, **kwargs)
-        self.log = ros_io.NodeLog(self.get_logger())
-        self.p = ros_io.declare_validated(self, FILTER_PARAMS, on_change=self._on_change)
+        self.log = ros_status.NodeLog(self.get_logger())
+        self.p = ros_params.declare_validated(self, FILTER_PARAMS, on_change=self._on_change)
         p = self.p
         self.system = FilterSystem(dict(p))
         self.frame_id = p['frame_id']
@@ -149,7 +159,15 @@ class AttitudeFilterNode(Node):
 
     # --- input ------------------------------------------------------------------------------
     def on_gyro_raw(self, data: bytes):
-        """The imu/delta_theta subscription: stamp, vector and frame read from the bytes."""
+        """
+        Take one imu/delta_theta message: stamp, vector and frame from its bytes.
+
+        Parameters
+        ----------
+        data : bytes
+            The serialized geometry_msgs/Vector3Stamped.
+
+        """
         got = ros_io.decode_vector3_stamped(data)
         if got is None:
             self.undecodable += 1
@@ -157,7 +175,15 @@ class AttitudeFilterNode(Node):
         self.gyro(*got)
 
     def on_imu_raw(self, data: bytes):
-        """The imu/data_raw subscription (``gyro_input: imu``)."""
+        """
+        Take one imu/data_raw message (``gyro_input: imu``).
+
+        Parameters
+        ----------
+        data : bytes
+            The serialized sensor_msgs/Imu.
+
+        """
         got = ros_io.decode_imu(data)
         if got is None:
             self.undecodable += 1
@@ -170,8 +196,19 @@ class AttitudeFilterNode(Node):
 
     def gyro(self, stamp_ns: int, value, frame_id: str = '') -> None:
         """
-        One Δθ (rad, body axes, stamp = end of its interval): the frame rule, then the core;
-        the core runs once per ``output_period`` worth of increments.
+        Take one Δθ: the frame rule, then the core.
+
+        The core runs once per ``output_period`` worth of increments.
+
+        Parameters
+        ----------
+        stamp_ns : int
+            Header stamp, ns (the end of the increment's interval).
+        value : (3,) sequence of float
+            Δθ, rad, body axes.
+        frame_id : str
+            The header frame id.
+
         """
         if not self._frame_ok('gyro', frame_id, self.frame_id):
             return
@@ -186,7 +223,19 @@ class AttitudeFilterNode(Node):
         self.fix(msg.header, msg.quaternion, None)
 
     def fix(self, header, q_msg, covariance) -> None:
-        """One camera fix q_GCRS_VF (covariance: VF axes, rad², or None for the camera σ)."""
+        """
+        Take one camera fix q_GCRS_VF.
+
+        Parameters
+        ----------
+        header : std_msgs.msg.Header
+            The fix's header (stamp, frame id).
+        q_msg : geometry_msgs.msg.Quaternion
+            q_GCRS_VF, ROS order x, y, z, w.
+        covariance : (3, 3) array_like or None
+            Its covariance, VF axes, rad²; None for the camera σ of the parameters.
+
+        """
         if not self._frame_ok('camera', header.frame_id, self.ref_frame):
             return
         self.system.offer_fix(ros_io.stamp_to_ns(header.stamp),
@@ -208,7 +257,7 @@ class AttitudeFilterNode(Node):
     def _frame_ok(self, which: str, frame: str, expected: str) -> bool:
         if frame and frame != expected:
             self.frame_mismatch[which] += 1
-            self.log.warn(f'{which} message in frame {ros_io.bounded(frame, 80)!r}, expected '
+            self.log.warn(f'{which} message in frame {ros_status.bounded(frame, 80)!r}, expected '
                           f"{expected!r}: {'rejected' if self.reject_frames else 'used'}",
                           throttle=10.0, key=f'frame_{which}')
             return not self.reject_frames
@@ -268,62 +317,77 @@ class AttitudeFilterNode(Node):
             self.log.warn(f'live model check: {f.check_text}', throttle=30.0, key='model_check')
 
     # --- diagnostics ---------------------------------------------------------------------------
-    def diagnostic_conditions(self, st: dict) -> ros_io.Conditions:
-        """Every current condition with its level (the status level is the worst)."""
-        c = ros_io.Conditions()
+    def diagnostic_conditions(self, st: dict) -> ros_status.Conditions:
+        """
+        Return every current condition with its level.
+
+        Parameters
+        ----------
+        st : dict
+            The filter's status (counters and state).
+
+        Returns
+        -------
+        Conditions
+            The conditions; the status level is the worst of them.
+
+        """
+        c = ros_status.Conditions()
         g = self.system.gyro_check
         if g.accepted == 0:
-            c.add(ros_io.WARN, 'no gyro increments received')
+            c.add(ros_status.WARN, 'no gyro increments received')
         if self.system.boresight is None:
-            c.add(ros_io.WARN, f'no boresight yet (calibration/boresight): '
+            c.add(ros_status.WARN, f'no boresight yet (calibration/boresight): '
                   f"{st['dropped_no_boresight']} fix(es) dropped")
         elif self.system.filter is None:
-            c.add(ros_io.WARN, 'waiting for a camera fix to start')
+            c.add(ros_status.WARN, 'waiting for a camera fix to start')
         if g.dropped:
-            c.add(ros_io.WARN, f'dropped {g.dropped} gyro messages (NaN {g.nan}, out of range '
+            c.add(ros_status.WARN, f'dropped {g.dropped} gyro messages (NaN {g.nan}, out of range '
                   f'{g.out_of_range}, out of order {g.out_of_order}, duplicate {g.duplicate}, '
                   f'stamp outliers {g.stamp_outliers})')
         if self.imu_input and self.gyro_rates.check.dropped:
-            c.add(ros_io.WARN, f'dropped {self.gyro_rates.check.dropped} angular-rate samples '
+            c.add(ros_status.WARN, f'dropped {self.gyro_rates.check.dropped} angular-rate samples '
                   'of imu/data_raw')
         cam = self.system.camera_check
         bad_fix = cam.dropped + st['dropped_zero_quaternion'] + st['dropped_bad_covariance']
         if bad_fix:
-            c.add(ros_io.WARN, f'dropped {bad_fix} camera fixes (NaN {cam.nan}, zero quaternion '
+            c.add(ros_status.WARN,
+                  f'dropped {bad_fix} camera fixes (NaN {cam.nan}, zero quaternion '
                   f"{st['dropped_zero_quaternion']}, bad covariance "
                   f"{st['dropped_bad_covariance']}, out of order {cam.out_of_order}, "
                   f'duplicate {cam.duplicate})')
         if self.boresight_counts['dropped']:
-            c.add(ros_io.WARN, f"{self.boresight_counts['dropped']} calibration/boresight "
+            c.add(ros_status.WARN, f"{self.boresight_counts['dropped']} calibration/boresight "
                   'message(s) dropped (zero or non-finite quaternion)')
         if st['gated']:
-            c.add(ros_io.WARN, f"{st['gated']} fix(es) gated: NIS above the χ²(3) gate "
+            c.add(ros_status.WARN, f"{st['gated']} fix(es) gated: NIS above the χ²(3) gate "
                   f"{self.gate:.4g} (gate_probability {self.p['gate_probability']})")
         if st['too_old'] or st['overflow']:
-            c.add(ros_io.WARN, f"{st['too_old']} fix(es) older than the increment history and "
+            c.add(ros_status.WARN, f"{st['too_old']} fix(es) older than the increment history and "
                   f"{st['overflow']} beyond the pending limit dropped")
         if st.get('late_fixes'):
-            c.add(ros_io.OK, f"{st['late_fixes']} late fix(es), largest lateness "
+            c.add(ros_status.OK, f"{st['late_fixes']} late fix(es), largest lateness "
                   f"{st['max_lateness_s']:.3g} s")
         if any(self.frame_mismatch.values()):
-            c.add(ros_io.WARN, f'messages in an unexpected frame: gyro '
+            c.add(ros_status.WARN, f'messages in an unexpected frame: gyro '
                   f"{self.frame_mismatch['gyro']}, camera {self.frame_mismatch['camera']} "
                   f"({'rejected' if self.reject_frames else 'used'})")
         if self.undecodable:
-            c.add(ros_io.WARN, f'{self.undecodable} gyro message(s) could not be decoded: '
+            c.add(ros_status.WARN, f'{self.undecodable} gyro message(s) could not be decoded: '
                   'dropped')
         chk = self.system.check
         if chk is not None and not chk.last.ok:
-            c.add(ros_io.WARN, f'live model check: {chk.last.text()}')
+            c.add(ros_status.WARN, f'live model check: {chk.last.text()}')
         if g.missing:
-            c.add(ros_io.ERROR, f'{g.missing} gyro increments missing in {g.gaps} gaps: the '
+            c.add(ros_status.ERROR, f'{g.missing} gyro increments missing in {g.gaps} gaps: the '
                   f"rotation is lost; the filter restarted {st['restarts']} time(s)")
         if g.resyncs:
-            c.add(ros_io.ERROR, f'gyro stamps jumped {g.resyncs} time(s): resynchronised, the '
+            c.add(ros_status.ERROR, f'gyro stamps jumped {g.resyncs} time(s): resynchronised, the '
                   'filter restarted')
         return c
 
     def publish_diagnostics(self):
+        """Publish the /diagnostics status of the node."""
         st = self.system.status()
         c = self.diagnostic_conditions(st)
         cam = self.system.camera_check
@@ -354,7 +418,7 @@ class AttitudeFilterNode(Node):
             values['last_nis'] = float(self.last_fix.nis)
             values['last_fix_status'] = self.last_fix.status
         chk = self.system.check
-        values['model_check'] = (ros_io.bounded(chk.last.text()) if chk is not None
+        values['model_check'] = (ros_status.bounded(chk.last.text()) if chk is not None
                                  else 'not started')
         if self.imu_input:
             values.update({'gyro_input': 'imu', 'imu_rate_rule': self.p['imu_rate_rule'],
@@ -363,13 +427,27 @@ class AttitudeFilterNode(Node):
                            **self.gyro_rates.status('imu_gyro')})
         g = self.system.gyro_check
         stamp_ns = g.last_ns if g.last_ns is not None else 0
-        self.pub_diag.publish(ros_io.diagnostic_array(
+        self.pub_diag.publish(ros_status.diagnostic_array(
             ros_io.ns_to_stamp(stamp_ns), f'{self.get_fully_qualified_name()}: attitude filter',
             'attitude_filter', c.level, c.message(), values))
 
 
 def main(args=None):
-    return ros_io.run_node(AttitudeFilterNode, NODE_NAME, args)
+    """
+    Run attitude_filter_node (the entry point of its process).
+
+    Parameters
+    ----------
+    args : list of str, optional
+        ROS arguments (default the process's).
+
+    Returns
+    -------
+    int
+        The exit status (:func:`strapdown_ros.nodes.ros_process.run_node`).
+
+    """
+    return ros_process.run_node(AttitudeFilterNode, NODE_NAME, args)
 
 
 if __name__ == '__main__':

@@ -1,5 +1,5 @@
 """
-calibrator_node: boresight β of a star camera (VF) relative to the IMU (MF) from attitude increments (004).
+calibrator_node: the boresight β of a star camera (VF) relative to the IMU (MF), live (004).
 
 A thin wrapper around :class:`~strapdown_ros.calibration.streaming.BoresightCalibrator` (the same
 object ``calibrate_bag`` uses offline, so live and offline answers agree).
@@ -9,8 +9,9 @@ Subscribes:
 * ``imu/delta_theta``  geometry_msgs/Vector3Stamped, rad, stamp = end of interval (stream QoS);
   with ``gyro_input: imu`` instead ``imu/data_raw`` sensor_msgs/Imu (stream QoS): each
   angular_velocity is validated as a rate sample and made into Δθ by ``imu_rate_rule``
-  (:class:`strapdown_ros.streams.rate_increments.RateIncrementStream`, as ``sins_node``); the increments
-  take the path of imu/delta_theta.  Covariance fields and linear_acceleration are not used.
+  (:class:`strapdown_ros.streams.rate_increments.RateIncrementStream`, as ``sins_node``); the
+  increments take the path of imu/delta_theta.  Covariance fields and linear_acceleration are
+  not used.
 * ``star_camera/attitude_with_covariance``  geometry_msgs/PoseWithCovarianceStamped (when
   ``use_camera_covariance``: P_avu = the rotation block, rows/cols 3..5, VF axes, rad²), or
   ``star_camera/attitude``  geometry_msgs/QuaternionStamped (otherwise: P_avu =
@@ -80,8 +81,8 @@ from sensor_msgs.msg import Imu
 from strapdown_ros.calibration.boresight import imu_attitude_from_camera
 from strapdown_ros.calibration.state import CalibratorStateFile, state_identity, StateFileError
 from strapdown_ros.calibration.streaming import BoresightCalibrator
-from strapdown_ros.estimation.chi_square import FIT_LEVEL
-from strapdown_ros.nodes import ros_io
+from strapdown_ros.nodes import ros_io, ros_params, ros_process, ros_status
+from strapdown_ros.nodes.calibrator_status import boresight_status
 from strapdown_ros.nodes.ros_io import (camera_qos, latched_qos, pose_with_covariance,
                                         rotation_block)
 from strapdown_ros.params import CALIBRATOR_PARAMS
@@ -89,95 +90,124 @@ from strapdown_ros.streams.checks import StreamCheck
 from strapdown_ros.streams.rate_increments import RateIncrementStream
 
 NODE_NAME = 'calibrator_node'
-ARCSEC = math.pi / 180.0 / 3600.0
 CAMERA_JUMP_S = 3600.0     # a camera stamp step beyond this (s) is a jump
-LOG_THROTTLE_S = 30.0          # a not-observable reason that keeps its wording is repeated at most this often
+# a not-observable reason that keeps its wording is repeated at most this often
+LOG_THROTTLE_S = 30.0
 
 
 class CalibratorNode(Node):
+    """
+    The boresight calibrator node: ROS in and out of :class:`BoresightCalibrator`.
+
+    Parameters
+    ----------
+    **kwargs
+        Passed to :class:`rclpy.node.Node` (namespace, parameter_overrides, ...).
+
+    """
+
     def __init__(self, **kwargs):
         super().__init__(NODE_NAME, **kwargs)
-        self.log = ros_io.NodeLog(self.get_logger())   # the one logging helper of the nodes
-        self.p = ros_io.declare_validated(self, CALIBRATOR_PARAMS, on_change=self._on_change,
-                                          apply=self._apply_change)
+        self.log = ros_status.NodeLog(self.get_logger())   # the one logging helper of the nodes
+        self.p = ros_params.declare_validated(self, CALIBRATOR_PARAMS, on_change=self._on_change,
+                                              apply=self._apply_change)
         p = self.p
         self.gyro_period = 1.0 / float(p['gyro_rate'])
-        self.cal = BoresightCalibrator.from_params(p)     # as calibrate_bag builds it (effects compensated)
+        # as calibrate_bag builds it (effects compensated)
+        self.cal = BoresightCalibrator.from_params(p)
         sxy, sz = float(p['camera_sigma_xy']), float(p['camera_sigma_z'])
         self.default_p_avu = np.diag([sxy ** 2, sxy ** 2, sz ** 2])
         jump, resync = float(p['max_stamp_jump']), int(p['resync_count'])
-        self.gyro_check = StreamCheck(self.gyro_period, max_norm=2.0 * self.gyro_period * float(p['gyro_max_rate']),
+        self.gyro_check = StreamCheck(self.gyro_period,
+                                      max_norm=2.0 * self.gyro_period * float(p['gyro_max_rate']),
                                       jump_limit=jump, resync_count=resync)
         # exposures need not be periodic (no gap test) and are seconds apart: a jump is an hour
-        self.camera_check = StreamCheck(math.inf, jump_limit=max(jump, CAMERA_JUMP_S), resync_count=resync)
+        self.camera_check = StreamCheck(math.inf, jump_limit=max(jump, CAMERA_JUMP_S),
+                                        resync_count=resync)
         self.solve_failures = 0
         self.gyro_frame_mismatch = 0
         self.reject_frames = p['frame_mismatch'] == 'reject'
-        self.camera_counts = {'dropped_zero_quaternion': 0, 'normalised': 0, 'dropped_bad_covariance': 0,
+        self.camera_counts = {'dropped_zero_quaternion': 0, 'normalised': 0,
+                              'dropped_bad_covariance': 0,
                               'covariance_substituted': 0, 'frame_mismatch': 0}
-        self.origin_ns: int | None = None              # stamps are handled relative to the first one
+        # stamps are handled relative to the first one
+        self.origin_ns: int | None = None
         self.gaps: deque = deque(maxlen=1000)          # (start, end) relative seconds of gyro gaps
         self.pairs_discarded_gap = 0
         self.solves = 0
         self.solve_ms = float('nan')
         self.published = {'boresight': 0, 'imu_attitude_from_camera': 0}
-        self.undecodable = 0                           # serialized gyro input that is not a Vector3Stamped
+        # serialized gyro input that is not a Vector3Stamped
+        self.undecodable = 0
         self.valid = None                              # the latest observable, converged solution
         self.valid_stamp_ns: int | None = None
-        self.pending_fixes: deque = deque(maxlen=int(p['qos_depth']))   # (stamp_ns, q, P) awaiting a solution
+        # (stamp_ns, q, P) awaiting a solution
+        self.pending_fixes: deque = deque(maxlen=int(p['qos_depth']))
         self._last_reason: str | None = None
         self._last_reason_log = -math.inf
         self.frame_id = p['frame_id']
         self.ref_frame = p['reference_frame_id']
         self.use_cov = bool(p['use_camera_covariance'])
 
-        self.pub_boresight = self.create_publisher(PoseWithCovarianceStamped, 'calibration/boresight', latched_qos())
-        self.pub_angles = self.create_publisher(Vector3Stamped, 'calibration/boresight_angles', latched_qos())
-        self.pub_imu_att = self.create_publisher(PoseWithCovarianceStamped, 'calibration/imu_attitude_from_camera',
-                                                 camera_qos(int(p['qos_depth'])), qos_overriding_options=ros_io.QOS_OVERRIDES)
-        self.pub_diag = self.create_publisher(DiagnosticArray, '/diagnostics', ros_io.DIAGNOSTICS_QOS)
+        self.pub_boresight = self.create_publisher(PoseWithCovarianceStamped,
+                                                   'calibration/boresight', latched_qos())
+        self.pub_angles = self.create_publisher(Vector3Stamped, 'calibration/boresight_angles',
+                                                latched_qos())
+        self.pub_imu_att = self.create_publisher(PoseWithCovarianceStamped,
+                                                 'calibration/imu_attitude_from_camera',
+                                                 camera_qos(int(p['qos_depth'])),
+                                                 qos_overriding_options=ros_io.QOS_OVERRIDES)
+        self.pub_diag = self.create_publisher(DiagnosticArray, '/diagnostics',
+                                              ros_io.DIAGNOSTICS_QOS)
         self.imu_input = p['gyro_input'] == 'imu'
         # raw subscriptions: stamp, vector and frame decoded from the bytes in ros_io
         if self.imu_input:                  # rate samples made into Δθ (the rule of sins_node)
             self.gyro_rates = RateIncrementStream(self.gyro_period, float(p['gyro_max_rate']),
                                                   p['imu_rate_rule'], jump, resync)
             self.last_imu = None                       # the latest Imu (bytes or message)
-            self.create_subscription(Imu, 'imu/data_raw', self._on_imu_raw,
+            self.create_subscription(Imu, 'imu/data_raw', self.on_imu_raw,
                                      ros_io.stream_qos(int(p['qos_depth'])),
                                      qos_overriding_options=ros_io.QOS_OVERRIDES, raw=True)
         else:
-            self.create_subscription(Vector3Stamped, 'imu/delta_theta', self._on_gyro_raw,
+            self.create_subscription(Vector3Stamped, 'imu/delta_theta', self.on_gyro_raw,
                                      ros_io.stream_qos(int(p['qos_depth'])),
                                      qos_overriding_options=ros_io.QOS_OVERRIDES, raw=True)
         if self.use_cov:
-            self.create_subscription(PoseWithCovarianceStamped, 'star_camera/attitude_with_covariance',
-                                     self._on_camera_cov, camera_qos(int(p['qos_depth'])), qos_overriding_options=ros_io.QOS_OVERRIDES)
+            self.create_subscription(PoseWithCovarianceStamped,
+                                     'star_camera/attitude_with_covariance',
+                                     self.on_camera_cov, camera_qos(int(p['qos_depth'])),
+                                     qos_overriding_options=ros_io.QOS_OVERRIDES)
         else:
-            self.create_subscription(QuaternionStamped, 'star_camera/attitude', self._on_camera_plain,
-                                     camera_qos(int(p['qos_depth'])), qos_overriding_options=ros_io.QOS_OVERRIDES)
+            self.create_subscription(QuaternionStamped, 'star_camera/attitude',
+                                     self.on_camera_plain,
+                                     camera_qos(int(p['qos_depth'])),
+                                     qos_overriding_options=ros_io.QOS_OVERRIDES)
         self.create_timer(float(p['diagnostics_period']), self.publish_diagnostics)
         self.state = {'file': p['state_file'], 'saves': 0, 'restored_pairs': 0, 'errors': 0,
                       'moved_aside': '', 'problem': '', 'persisting': False}
         self.state_file: CalibratorStateFile | None = None
-        camera_topic = 'star_camera/attitude_with_covariance' if self.use_cov else 'star_camera/attitude'
+        camera_topic = ('star_camera/attitude_with_covariance' if self.use_cov
+                        else 'star_camera/attitude')
         gyro_topic = (f"imu/data_raw ({p['imu_rate_rule']})" if self.imu_input
                       else 'imu/delta_theta')
         if p['state_file']:
-            streams = {'gyro': self.resolve_topic_name(
-                'imu/data_raw' if self.imu_input else 'imu/delta_theta'),
+            gyro_name = 'imu/data_raw' if self.imu_input else 'imu/delta_theta'
+            streams = {'gyro': self.resolve_topic_name(gyro_name),
                        'camera': self.resolve_topic_name(camera_topic)}
             self._restore_state(state_identity(dict(p), streams))
         self.log.info(
             f'started: gyro input {gyro_topic}, camera input {camera_topic}, '
             f"weighted={p['weighted']}, covariance_model={p['covariance_model']}, "
-            f"min_rotation {p['min_rotation_deg']:g}°, max_sigma {p['max_sigma']:g} rad, max_pairs {p['max_pairs']}")
+            f"min_rotation {p['min_rotation_deg']:g}°, max_sigma {p['max_sigma']:g} rad, "
+            f"max_pairs {p['max_pairs']}")
 
     # --- parameters ---------------------------------------------------------------------
     def _on_change(self, new: dict) -> str | None:
-        """Validation (on-set): only the weighting may change at runtime."""
+        """Validate a change (on-set): only the weighting may change at runtime."""
         fixed = sorted(set(new) - {'weighted'})
         if fixed:
-            return 'only weighted can change at runtime; restart the node to change ' + ', '.join(fixed)
+            return ('only weighted can change at runtime; restart the node to change '
+                    + ', '.join(fixed))
         return None
 
     def _apply_change(self, new: dict) -> None:
@@ -200,23 +230,44 @@ class CalibratorNode(Node):
     def _abs_ns(self, t_rel: float) -> int:
         return self.origin_ns + int(round(t_rel * 1e9))
 
-    def _on_gyro_raw(self, data: bytes):
-        """The imu/delta_theta subscription: stamp, vector and frame read from the serialized bytes."""
+    def on_gyro_raw(self, data: bytes):
+        """
+        Take one imu/delta_theta message: stamp, vector and frame read from its bytes.
+
+        Parameters
+        ----------
+        data : bytes
+            The serialized geometry_msgs/Vector3Stamped (a raw subscription's argument).
+
+        """
         got = ros_io.decode_vector3_stamped(data)
         if got is None:
             self.undecodable += 1
             return
         self._gyro(*got)
 
-    def _on_gyro(self, msg: Vector3Stamped):
-        """The same for a message object (tests, tools)."""
+    def on_gyro(self, msg: Vector3Stamped):
+        """
+        Take one imu/delta_theta message object (tests, tools).
+
+        Parameters
+        ----------
+        msg : geometry_msgs.msg.Vector3Stamped
+            The message.
+
+        """
         v = msg.vector
         self._gyro(ros_io.stamp_to_ns(msg.header.stamp), (v.x, v.y, v.z), msg.header.frame_id)
 
-    def _on_imu_raw(self, data: bytes):
+    def on_imu_raw(self, data: bytes):
         """
-        The imu/data_raw subscription (``gyro_input: imu``): stamp, rate and frame read from the
-        serialized bytes, then :meth:`_imu`.
+        Take one imu/data_raw message (``gyro_input: imu``): stamp, rate and frame from its bytes.
+
+        Parameters
+        ----------
+        data : bytes
+            The serialized sensor_msgs/Imu (a raw subscription's argument).
+
         """
         got = ros_io.decode_imu(data)
         if got is None:
@@ -225,14 +276,24 @@ class CalibratorNode(Node):
         self.last_imu = data                   # its stated covariance: read for /diagnostics
         self._imu(got[0], got[1], got[3])
 
-    def _on_imu(self, msg: Imu):
-        """The same for a message object (tests, tools)."""
+    def on_imu(self, msg: Imu):
+        """
+        Take one imu/data_raw message object (tests, tools).
+
+        Parameters
+        ----------
+        msg : sensor_msgs.msg.Imu
+            The message.
+
+        """
         w = msg.angular_velocity
         self.last_imu = msg
         self._imu(ros_io.stamp_to_ns(msg.header.stamp), (w.x, w.y, w.z), msg.header.frame_id)
 
     def _imu(self, ns: int, rate, f: str):
         """
+        Take one rate sample: the frame rule, then validation and the increment rule.
+
         One rate sample: the frame rule, then validation and the increment rule
         (RateIncrementStream); each increment formed enters the Δθ path (:meth:`_gyro`).
         """
@@ -278,17 +339,36 @@ class CalibratorNode(Node):
                 # the rotation of the missing increments is lost: no pair may span (prev, t]
                 self.gaps.append(((prev_ns - self.origin_ns) * 1e-9, t))
                 self.log.error(
-                    f'gyro gap: {int(round((ns_i - prev_ns) / (self.gyro_period * 1e9))) - 1} increment(s) missing '
+                    f'gyro gap: {int(round((ns_i - prev_ns) / (self.gyro_period * 1e9))) - 1} '
+                    'increment(s) missing '
                     f'before stamp {ns_i * 1e-9:.6f} s; pairs spanning it are discarded',
                     throttle=5.0, key='gyro_gap')
             prev_ns = ns_i
             new += self.cal.add_gyro_sample(t, v)
         self._after_input(new)
 
-    def _on_camera_cov(self, msg: PoseWithCovarianceStamped):
+    def on_camera_cov(self, msg: PoseWithCovarianceStamped):
+        """
+        Take one camera fix with its covariance (the rotation block, VF axes, rad²).
+
+        Parameters
+        ----------
+        msg : geometry_msgs.msg.PoseWithCovarianceStamped
+            The message.
+
+        """
         self._on_camera(msg.header, msg.pose.pose.orientation, rotation_block(msg))
 
-    def _on_camera_plain(self, msg: QuaternionStamped):
+    def on_camera_plain(self, msg: QuaternionStamped):
+        """
+        Take one camera fix without covariance (the σ of the parameters).
+
+        Parameters
+        ----------
+        msg : geometry_msgs.msg.QuaternionStamped
+            The message.
+
+        """
         self._on_camera(msg.header, msg.quaternion, self.default_p_avu)
 
     def _on_camera(self, header, q_msg, P):
@@ -339,10 +419,12 @@ class CalibratorNode(Node):
     # --- persistence ---------------------------------------------------------------------------
     def _restore_state(self, identity: dict):
         """
+        Resume from ``state_file``: its pairs, last fix and time origin.
+
         Resume from ``state_file`` (strapdown_ros.calibration.state: identity, lock, atomic
-        writes): its pairs, last fix and time origin; the estimate is solved again and
-        republished latched.  A file that cannot be used is reported (ERROR) and the node runs
-        without persistence; only an unreadable regular file is moved aside.
+        writes): its pairs, last fix and time origin; the estimate is solved again and republished
+        latched.  A file that cannot be used is reported (ERROR) and the node runs without
+        persistence; only an unreadable regular file is moved aside.
         """
         path = self.state['file']
         sf = CalibratorStateFile(path, identity)
@@ -392,6 +474,7 @@ class CalibratorNode(Node):
                            throttle=30.0, key='state_file')
 
     def destroy_node(self):
+        """Close the state file (its lock), then destroy the node."""
         if self.state_file is not None:
             self.state_file.close()
             self.state_file = None
@@ -408,9 +491,12 @@ class CalibratorNode(Node):
             self._save_state()                      # at most once per new pair
 
     def _discard_pairs_over_gaps(self, new_pairs: int):
-        pairs = self.cal.pairs              # public list of the core; the newest pairs are at its end
-        start = max(0, len(pairs) - new_pairs)          # (max_pairs may already have trimmed the list)
-        h = 1.5 * self.gyro_period      # the in-interval polynomial also reads the neighbouring increments
+        # public list of the core; the newest pairs are at its end
+        pairs = self.cal.pairs
+        # (max_pairs may already have trimmed the list)
+        start = max(0, len(pairs) - new_pairs)
+        # the in-interval polynomial also reads the neighbouring increments
+        h = 1.5 * self.gyro_period
         keep_tail = []
         for pair in pairs[start:]:
             if any(pair.t_start - h < b and a < pair.t_end + h for a, b in self.gaps):
@@ -432,11 +518,13 @@ class CalibratorNode(Node):
             return
         self.solve_ms = (time.perf_counter() - t0) * 1e3
         self.solves += 1
-        sigma = np.sqrt(np.maximum(np.diag(sol.covariance_beta), 0.0)) if sol.observable and sol.converged else None
+        sigma = np.sqrt(np.maximum(np.diag(sol.covariance_beta),
+                                   0.0)) if sol.observable and sol.converged else None
         if sigma is not None and np.max(sigma) > float(self.p['max_sigma']):
             # never publish a σ above max_sigma: the estimate is not good enough yet
             self.valid = None
-            self._log_reason(f"published σ {np.max(sigma):.3g} rad would exceed max_sigma {self.p['max_sigma']:g}")
+            self._log_reason(f'published σ {np.max(sigma):.3g} rad would exceed max_sigma '
+                             f"{self.p['max_sigma']:g}")
             return
         if sol.observable and sol.converged:
             self.valid = sol
@@ -453,7 +541,8 @@ class CalibratorNode(Node):
             self._log_reason(sol.message)
 
     def _log_reason(self, message: str):
-        key = message.split(':', 1)[-1].strip()        # the "why" part; the axis numbers may jitter
+        # the "why" part; the axis numbers may jitter
+        key = message.split(':', 1)[-1].strip()
         now = time.monotonic()
         if key != self._last_reason or now - self._last_reason_log >= LOG_THROTTLE_S:
             self.log.warn(f'boresight not published: {message}')
@@ -464,7 +553,8 @@ class CalibratorNode(Node):
     def _publish_solution(self):
         sol = self.valid
         st = ros_io.ns_to_stamp(self.valid_stamp_ns)
-        self.pub_boresight.publish(pose_with_covariance(st, self.frame_id, sol.q_mf_vf, sol.rotation_covariance_mf))
+        self.pub_boresight.publish(pose_with_covariance(st, self.frame_id, sol.q_mf_vf,
+                                                        sol.rotation_covariance_mf))
         self.pub_angles.publish(ros_io.vector3_stamped(st, self.frame_id, sol.beta))
         self.published['boresight'] += 1
 
@@ -474,127 +564,35 @@ class CalibratorNode(Node):
         while self.pending_fixes:
             ns, q, P = self.pending_fixes.popleft()
             q_mf, P_mfa = imu_attitude_from_camera(q, P, self.valid)
-            self.pub_imu_att.publish(pose_with_covariance(ros_io.ns_to_stamp(ns), self.ref_frame, q_mf, P_mfa))
+            self.pub_imu_att.publish(pose_with_covariance(ros_io.ns_to_stamp(ns), self.ref_frame,
+                                                          q_mf, P_mfa))
             self.published['imu_attitude_from_camera'] += 1
 
     def publish_diagnostics(self):
-        g, c = self.gyro_check, self.camera_check
-        sol = self.cal.solution
-        values = {'pairs': len(self.cal.pairs), 'solves': self.solves}
-        if sol is None:
-            level, message = ros_io.WARN, 'waiting for increment pairs (need gyro data and two camera fixes)'
-            values.update({'observable': False, 'message': message})
-        else:
-            message = sol.message
-            ok = sol.observable and sol.converged
-            level = ros_io.OK if ok else ros_io.WARN
-            chi2 = sol.chi2_per_dof
-            lo, hi = sol.chi2_band
-            if ok and sol.fit_consistent is False:
-                level = ros_io.WARN
-                sig = (f'the published σ is scaled by √(χ²/dof) = {math.sqrt(chi2):.3g}'
-                       if sol.weighted else
-                       'the published σ comes from the residual scatter (unweighted)')
-                what = ('the stated noise is too small or the model lacks an effect (outliers, an '
-                        f'unmodelled error: run discrepancy on a recording); {sig}' if chi2 > hi
-                        else 'the stated noise is too large (σ pessimistic)')
-                message = (f'{message}; FIT INCONSISTENT: χ²/dof = {chi2:.3g} outside its band '
-                           f'[{lo:.3g}, {hi:.3g}] (dof {sol.dof}, level {FIT_LEVEL:g}): {what}')
-            elif ok and np.isfinite(chi2) and chi2 > float(self.p['max_chi2_per_dof']):
-                level = ros_io.WARN
-                message = (f'{message}; χ²/dof = {chi2:.3g}: the residuals exceed the model (outliers, or an '
-                           'effect the model lacks: run discrepancy on a recording)')
-            values.update({'fit_consistent': sol.fit_consistent, 'chi2_per_dof_band_low': lo,
-                           'chi2_per_dof_band_high': hi, 'dof': sol.dof})
-            values.update({'observable': sol.observable, 'message': sol.message,
-                           'unobservable_axes': '; '.join(sol.unobservable_axes) if sol.unobservable_axes else 'none',
-                           'residual_rms_rad': sol.residual_rms, 'iterations': sol.iterations,
-                           'converged': sol.converged, 'chi2_per_dof': sol.chi2_per_dof})
-            if sol.observable and sol.beta is not None:
-                b = np.degrees(sol.beta)
-                s = np.sqrt(np.maximum(np.diag(sol.covariance_beta), 0.0)) / ARCSEC
-                values.update({'beta_yaw_deg': float(b[0]), 'beta_pitch_deg': float(b[1]),
-                               'beta_roll_deg': float(b[2]), 'beta_yaw_sigma_arcsec': float(s[0]),
-                               'beta_pitch_sigma_arcsec': float(s[1]), 'beta_roll_sigma_arcsec': float(s[2])})
-        values.update({'weighted': self.cal.weighted, 'covariance_model': self.cal.covariance_model,
-                       'boresight_of': f"{self.p['camera_frame_id']} in {self.frame_id}",
-                       'last_solve_ms': self.solve_ms,
-                       'boresight_published': self.published['boresight'],
-                       'imu_attitude_from_camera_published': self.published['imu_attitude_from_camera'],
-                       'pairs_discarded_gyro_gap': self.pairs_discarded_gap,
-                       **g.as_dict('gyro'),
-                       'camera_received': c.received, 'camera_accepted': c.accepted,
-                       'camera_dropped_nan': c.nan, 'camera_dropped_out_of_order': c.out_of_order,
-                       'camera_dropped_duplicate': c.duplicate, 'camera_dropped_stamp_outlier': c.stamp_outliers,
-                       'camera_stamp_resyncs': c.resyncs, 'solve_failures': self.solve_failures,
-                       'camera_outlier_fixes': self.cal.outlier_fixes,
-                       'gyro_frame_mismatch': self.gyro_frame_mismatch,
-                       'gyro_undecodable_dropped': self.undecodable,
-                       'gyro_history_overflowed': self.cal._gyro.overflowed,
-                       'state_file': self.state['file'] or 'off', 'state_saves': self.state['saves'],
-                       'state_restored_pairs': self.state['restored_pairs'], 'state_errors': self.state['errors'],
-                       'state_persisting': self.state['persisting'],
-                       'state_problem': self.state['problem'] or 'none',
-                       'pairs_replayed_not_added': self.cal.replayed_pairs,
-                       **{f'camera_{k}': v for k, v in self.camera_counts.items()}})
-        mism = self.gyro_frame_mismatch + self.camera_counts['frame_mismatch']
-        if mism:                              # every condition listed, the level the worst
-            level = max(level, ros_io.WARN)
-            message = (f'{message}; {mism} message(s) in an unexpected frame '
-                       f"({'rejected' if self.reject_frames else 'used'})")
-        if self.undecodable:
-            level = max(level, ros_io.WARN)
-            message = f'{message}; {self.undecodable} gyro message(s) could not be decoded: dropped'
-        if self.cal.outlier_fixes:
-            level = max(level, ros_io.WARN)
-            message = (f'{message}; {self.cal.outlier_fixes} camera fix(es) dropped as outliers (both pairs off by more '
-                       f"than {self.p['outlier_gate']:g} σ in rotation angle, the pair skipping it consistent)")
-        g_drop = g.dropped
-        if self.imu_input:
-            r = self.gyro_rates.check
-            values.update({'gyro_input': 'imu', 'imu_rate_rule': self.p['imu_rate_rule'],
-                           'imu_stated_rate_variance': ros_io.stated_rate_variance(self.last_imu),
-                           'model_rate_variance': float(self.p['gyro_random_walk']) ** 2
-                           / self.gyro_period,
-                           **self.gyro_rates.status('imu_gyro')})
-            if r.dropped and level == ros_io.OK:
-                level = ros_io.WARN
-                message = (f'{message}; dropped {r.dropped} angular-rate samples of imu/data_raw '
-                           f'(NaN {r.nan}, out of range {r.out_of_range}, out of order '
-                           f'{r.out_of_order}, duplicate {r.duplicate}, stamp outliers '
-                           f'{r.stamp_outliers})')
-        c_drop = c.dropped + self.camera_counts['dropped_zero_quaternion'] + self.camera_counts['dropped_bad_covariance']
-        if g_drop or c_drop:
-            level = max(level, ros_io.WARN)
-            message = f'{message}; dropped {g_drop} gyro and {c_drop} camera messages'
-        if self.state['errors']:
-            level = ros_io.ERROR
-            message = (f"{message}; state file: {self.state['errors']} error(s): "
-                       f"{self.state['problem']}"
-                       + ('' if self.state['persisting'] else ' (no persistence)'))
-        if g.bursts:
-            level = ros_io.ERROR
-            message = (f'{message}; {g.burst_messages} gyro increment(s) in {g.bursts} burst(s) '
-                       'stamped off the timeline, dropped; the pairs containing them are lost')
-        if g.resyncs or c.resyncs:
-            level = ros_io.ERROR
-            message = (f'{message}; stamps jumped and were resynchronised (gyro {g.resyncs}, camera {c.resyncs}); '
-                       'no pair spans a jump')
-        if self.solve_failures:
-            level = ros_io.ERROR
-            message = f'{message}; {self.solve_failures} solve(s) failed, the last estimate stays published'
-        if g.missing:
-            level = ros_io.ERROR
-            message = (f'{message}; {g.missing} gyro increments missing in {g.gaps} gaps: '
-                       f'{self.pairs_discarded_gap} pair(s) spanning them discarded')
-        stamp_ns = max(g.last_ns or 0, c.last_ns or 0)
-        self.pub_diag.publish(ros_io.diagnostic_array(ros_io.ns_to_stamp(stamp_ns),
-                                                      f'{self.get_fully_qualified_name()}: boresight',
-                                                      'calibrator', level, message, values))
+        """Publish the /diagnostics status (:func:`~.calibrator_status.boresight_status`)."""
+        level, message, values = boresight_status(self)
+        stamp_ns = max(self.gyro_check.last_ns or 0, self.camera_check.last_ns or 0)
+        name = f'{self.get_fully_qualified_name()}: boresight'
+        self.pub_diag.publish(ros_status.diagnostic_array(ros_io.ns_to_stamp(stamp_ns), name,
+                                                          'calibrator', level, message, values))
 
 
 def main(args=None):
-    return ros_io.run_node(CalibratorNode, NODE_NAME, args)
+    """
+    Run calibrator_node (the entry point of its process).
+
+    Parameters
+    ----------
+    args : list of str, optional
+        ROS arguments (default the process's).
+
+    Returns
+    -------
+    int
+        The exit status (:func:`strapdown_ros.nodes.ros_process.run_node`).
+
+    """
+    return ros_process.run_node(CalibratorNode, NODE_NAME, args)
 
 
 if __name__ == '__main__':

@@ -38,7 +38,7 @@ from sensor_msgs.msg import Imu
 
 from strapdown_ros.motion.earth_motion import EarthProfile
 from strapdown_ros.motion.from_config import profile_from_config
-from strapdown_ros.nodes import ros_io
+from strapdown_ros.nodes import ros_io, ros_params, ros_process, ros_status
 from strapdown_ros.params import IMU_SIM_PARAMS
 from strapdown_ros.rotation import to_ros_xyzw
 from strapdown_ros.sensors import simulated_imu
@@ -47,10 +47,20 @@ NODE_NAME = 'imu_sim_node'
 
 
 class ImuSimNode(ros_io.PacedSimulation, Node):
+    """
+    The IMU simulator node: Δθ, Δv (or Imu rates) of a motion profile, paced by the wall clock.
+
+    Parameters
+    ----------
+    **kwargs
+        Passed to :class:`rclpy.node.Node` (namespace, parameter_overrides, ...).
+
+    """
+
     def __init__(self, **kwargs):
         super().__init__(NODE_NAME, **kwargs)
-        self.log = ros_io.NodeLog(self.get_logger())   # the one logging helper of the nodes
-        self.p = ros_io.declare_validated(self, IMU_SIM_PARAMS, on_change=self._reject_changes)
+        self.log = ros_status.NodeLog(self.get_logger())   # the one logging helper of the nodes
+        self.p = ros_params.declare_validated(self, IMU_SIM_PARAMS, on_change=self._reject_changes)
         p = self.p
         self.profile = profile_from_config(p)
         self.gyro, self.accel = simulated_imu(p, self.profile)
@@ -61,32 +71,43 @@ class ImuSimNode(ros_io.PacedSimulation, Node):
         self.frame_id = p['frame_id']
         self.ref_frame = p['reference_frame_id']
         qos = ros_io.stream_qos(int(p['qos_depth']))
-        self.pub_dtheta = self.create_publisher(Vector3Stamped, 'imu/delta_theta', qos, qos_overriding_options=ros_io.QOS_OVERRIDES)
-        self.pub_dv = self.create_publisher(Vector3Stamped, 'imu/delta_velocity', qos, qos_overriding_options=ros_io.QOS_OVERRIDES)
-        self.pub_raw = self.create_publisher(Imu, 'imu/data_raw', qos, qos_overriding_options=ros_io.QOS_OVERRIDES)
-        self.pub_truth = self.create_publisher(QuaternionStamped, 'imu/truth/attitude', qos, qos_overriding_options=ros_io.QOS_OVERRIDES)
+        self.pub_dtheta = self.create_publisher(Vector3Stamped, 'imu/delta_theta', qos,
+                                                qos_overriding_options=ros_io.QOS_OVERRIDES)
+        self.pub_dv = self.create_publisher(Vector3Stamped, 'imu/delta_velocity', qos,
+                                            qos_overriding_options=ros_io.QOS_OVERRIDES)
+        self.pub_raw = self.create_publisher(Imu, 'imu/data_raw', qos,
+                                             qos_overriding_options=ros_io.QOS_OVERRIDES)
+        self.pub_truth = self.create_publisher(QuaternionStamped, 'imu/truth/attitude', qos,
+                                               qos_overriding_options=ros_io.QOS_OVERRIDES)
         # ECEF truth exists only for the Earth-referenced navigation profiles
-        self.pub_odom = (self.create_publisher(Odometry, 'imu/truth/odometry', qos, qos_overriding_options=ros_io.QOS_OVERRIDES)
+        self.pub_odom = (self.create_publisher(Odometry, 'imu/truth/odometry', qos,
+                                               qos_overriding_options=ros_io.QOS_OVERRIDES)
                          if isinstance(self.profile, EarthProfile) else None)
         self._odom_out = Odometry()
         self._odom_out.header.frame_id = 'earth'
         self._odom_out.child_frame_id = self.frame_id
-        self.pub_diag = self.create_publisher(DiagnosticArray, '/diagnostics', ros_io.DIAGNOSTICS_QOS)
+        self.pub_diag = self.create_publisher(DiagnosticArray, '/diagnostics',
+                                              ros_io.DIAGNOSTICS_QOS)
         self.counts = {'delta_theta': 0, 'delta_velocity': 0, 'data_raw': 0}
-        self._dtheta_out = ros_io.vector3_stamped(ros_io.ns_to_stamp(0), self.frame_id, (0.0, 0.0, 0.0))
-        self._dv_out = ros_io.vector3_stamped(ros_io.ns_to_stamp(0), self.frame_id, (0.0, 0.0, 0.0))
+        self._dtheta_out = ros_io.vector3_stamped(ros_io.ns_to_stamp(0), self.frame_id,
+                                                  (0.0, 0.0, 0.0))
+        self._dv_out = ros_io.vector3_stamped(ros_io.ns_to_stamp(0), self.frame_id,
+                                              (0.0, 0.0, 0.0))
         self._pending_dv = np.zeros(3)
         self._wall_start = None
         self.sim_time = 0.0
         self.finished = False
         self.timer = self.create_timer(float(p['publish_period']), self._tick)
-        self.diag_timer = self.create_timer(float(p['diagnostics_period']), self._publish_diagnostics)
+        self.diag_timer = self.create_timer(float(p['diagnostics_period']),
+                                            self._publish_diagnostics)
         self.log.info(
-            f"started: profile={p['profile']} gyro {p['gyro_rate']} Hz, accel {p['accel_rate']} Hz, "
+            f"started: profile={p['profile']} gyro {p['gyro_rate']} Hz, "
+            f"accel {p['accel_rate']} Hz, "
             f"time_scale {p['time_scale']}, duration {self.end_time:g} s")
 
     def _reject_changes(self, new: dict) -> str | None:
-        return ('imu_sim_node parameters are fixed after start-up (they define the simulated truth); '
+        return ('imu_sim_node parameters are fixed after start-up (they define the simulated '
+                'truth); '
                 'restart the node to change ' + ', '.join(sorted(new)))
 
     # ---------------------------------------------------------------------------------
@@ -105,7 +126,10 @@ class ImuSimNode(ros_io.PacedSimulation, Node):
             return
         ta, dv, _ = self.accel.sample(max(n_a, 0))
         tg, dth, _ = self.gyro.sample(max(n_g, 0))
-        stamp = lambda t: ros_io.ns_to_stamp(self.start_ns + int(round(t * 1e9)))  # noqa: E731
+
+        def stamp(t):
+            return ros_io.ns_to_stamp(self.start_ns + int(round(t * 1e9)))
+
         # one message object per topic, refilled (publish serialises at once); the derived topics
         # are built only while somebody subscribes to them
         raw_on = self.pub_raw.get_subscription_count() > 0
@@ -143,14 +167,16 @@ class ImuSimNode(ros_io.PacedSimulation, Node):
         elif len(ta):
             self._pending_dv += dv.sum(0)
         self.counts['delta_theta'] += len(tg)
-        self.sim_time = max(self.gyro.count * self.gyro.period, self.accel.count * self.accel.period)
+        self.sim_time = max(self.gyro.count * self.gyro.period,
+                            self.accel.count * self.accel.period)
 
     def _odometry(self, stamp, truth: dict, k: int) -> Odometry:
         """Entry k of EarthProfile.truth as Odometry (refilled message; covariances stay zero)."""
         m = self._odom_out
         m.header.stamp = stamp
         r = truth['position'][k]
-        m.pose.pose.position.x, m.pose.pose.position.y, m.pose.pose.position.z = float(r[0]), float(r[1]), float(r[2])
+        pos = m.pose.pose.position
+        pos.x, pos.y, pos.z = float(r[0]), float(r[1]), float(r[2])
         x, y, z, w = to_ros_xyzw(truth['attitude_ecef'][k])
         o = m.pose.pose.orientation
         o.x, o.y, o.z, o.w = float(x), float(y), float(z), float(w)
@@ -174,19 +200,38 @@ class ImuSimNode(ros_io.PacedSimulation, Node):
     def _publish_diagnostics(self):
         wall = (time.monotonic() - self._wall_start) if self._wall_start else 0.0
         st = ros_io.ns_to_stamp(self.start_ns + int(round(self.sim_time * 1e9)))
-        values = {'simulated_time_s': self.sim_time, 'real_time_factor': self.sim_time / wall if wall > 0 else 0.0,
+        values = {'simulated_time_s': self.sim_time,
+                  'real_time_factor': self.sim_time / wall if wall > 0 else 0.0,
                   'gyro_rate_hz': self.p['gyro_rate'], 'accel_rate_hz': self.p['accel_rate'],
                   'delta_theta_published': self.counts['delta_theta'],
                   'delta_velocity_published': self.counts['delta_velocity'],
                   'data_raw_published': self.counts['data_raw'], 'finished': self.finished,
                   'profile': self.p['profile']}
-        msg = 'finished' if self.finished else ('waiting for subscribers' if self._wall_start is None else 'running')
-        self.pub_diag.publish(ros_io.diagnostic_array(st, f'{self.get_fully_qualified_name()}: simulator', 'imu_sim',
-                                                      ros_io.OK, msg, values))
+        if self.finished:
+            msg = 'finished'
+        else:
+            msg = 'waiting for subscribers' if self._wall_start is None else 'running'
+        name = f'{self.get_fully_qualified_name()}: simulator'
+        self.pub_diag.publish(ros_status.diagnostic_array(st, name, 'imu_sim', ros_status.OK,
+                                                          msg, values))
 
 
 def main(args=None):
-    return ros_io.run_node(ImuSimNode, NODE_NAME, args)
+    """
+    Run imu_sim_node (the entry point of its process).
+
+    Parameters
+    ----------
+    args : list of str, optional
+        ROS arguments (default the process's).
+
+    Returns
+    -------
+    int
+        The exit status (:func:`strapdown_ros.nodes.ros_process.run_node`).
+
+    """
+    return ros_process.run_node(ImuSimNode, NODE_NAME, args)
 
 
 if __name__ == '__main__':

@@ -29,7 +29,7 @@ Publishes at every update of the algorithm (gyro rate / samples per update):
 * ``/diagnostics``   counts of received, dropped (NaN, out-of-order, duplicate) and
                      missing (gap) messages, rates from header stamps; the level is the worst
                      of all current conditions and the message lists each, worst first
-                     (:class:`~strapdown_ros.nodes.ros_io.Conditions`); a Δv stream that stops
+                     (:class:`~strapdown_ros.nodes.ros_status.Conditions`); a Δv stream that stops
                      while Δθ runs on is WARN beyond ``accel_wait`` and ERROR beyond
                      max(1 s, 10 ``accel_wait``) of stamp time
 
@@ -58,7 +58,7 @@ import numpy as np
 from rclpy.node import Node
 from sensor_msgs.msg import Imu
 
-from strapdown_ros.nodes import ros_io
+from strapdown_ros.nodes import ros_io, ros_params, ros_process, ros_status
 from strapdown_ros.params import SINS_PARAMS
 from strapdown_ros.sins import odometry_arrays, SinsOutput, SinsSystem
 from strapdown_ros.streams.rate_increments import RateIncrementStream
@@ -67,11 +67,21 @@ NODE_NAME = 'sins_node'
 
 
 class SinsNode(Node):
+    """
+    The strapdown attitude (and navigation) node: ROS in and out of :class:`SinsSystem`.
+
+    Parameters
+    ----------
+    **kwargs
+        Passed to :class:`rclpy.node.Node` (namespace, parameter_overrides, ...).
+
+    """
+
     def __init__(self, **kwargs):
         super().__init__(NODE_NAME, **kwargs)
-        self.log = ros_io.NodeLog(self.get_logger())   # the one logging helper (any severity)
-        self.p = ros_io.declare_validated(self, SINS_PARAMS, on_change=self._on_change,
-                                          apply=self._apply_change)
+        self.log = ros_status.NodeLog(self.get_logger())   # the one logging helper (any severity)
+        self.p = ros_params.declare_validated(self, SINS_PARAMS, on_change=self._on_change,
+                                              apply=self._apply_change)
         p = self.p
         self.published = {'attitude': 0, 'imu': 0, 'imu_without_accel': 0}
         self.undecodable = 0                       # serialized input that is not a Vector3Stamped
@@ -81,18 +91,22 @@ class SinsNode(Node):
         self.imu_input = p['gyro_input'] == 'imu'
         # with Imu input, Δv comes from the same messages: at the Imu rate, which is gyro_rate
         sys_p = dict(p, accel_rate=p['gyro_rate']) if self.imu_input else p
-        # the numerical core; sins/imu records are made only while it has a subscriber (asked once per block)
+        # the numerical core; sins/imu records are made only while it has a subscriber
+        # (asked once per block)
         self.system = SinsSystem(sys_p, log=self.log,
                                  imu_wanted=lambda: self.pub_imu.get_subscription_count() > 0)
         self._make_output_messages()
         qos = ros_io.stream_qos(int(p['qos_depth']))
-        self.pub_att = self.create_publisher(QuaternionStamped, 'sins/attitude', qos, qos_overriding_options=ros_io.QOS_OVERRIDES)
-        self.pub_imu = self.create_publisher(Imu, 'sins/imu', qos, qos_overriding_options=ros_io.QOS_OVERRIDES)
+        self.pub_att = self.create_publisher(QuaternionStamped, 'sins/attitude', qos,
+                                             qos_overriding_options=ros_io.QOS_OVERRIDES)
+        self.pub_imu = self.create_publisher(Imu, 'sins/imu', qos,
+                                             qos_overriding_options=ros_io.QOS_OVERRIDES)
         if self.nav is not None:
             self.published['odometry'] = 0
             self.pub_odom = self.create_publisher(Odometry, 'sins/odometry', qos,
                                                   qos_overriding_options=ros_io.QOS_OVERRIDES)
-        self.pub_diag = self.create_publisher(DiagnosticArray, '/diagnostics', ros_io.DIAGNOSTICS_QOS)
+        self.pub_diag = self.create_publisher(DiagnosticArray, '/diagnostics',
+                                              ros_io.DIAGNOSTICS_QOS)
         # raw: the callbacks read stamp, vector and frame from the serialized bytes (ros_io)
         if self.imu_input:
             period = 1.0 / float(p['gyro_rate'])
@@ -103,12 +117,12 @@ class SinsNode(Node):
             self.accel_rates = RateIncrementStream(period, float(p['accel_max']), rule, jump,
                                                    resync)
             self.last_imu = None                   # the latest Imu (bytes or message)
-            self.create_subscription(Imu, 'imu/data_raw', self._on_imu_raw, qos,
+            self.create_subscription(Imu, 'imu/data_raw', self.on_imu_raw, qos,
                                      qos_overriding_options=ros_io.QOS_OVERRIDES, raw=True)
         else:
-            self.create_subscription(Vector3Stamped, 'imu/delta_theta', self._on_gyro_raw, qos,
+            self.create_subscription(Vector3Stamped, 'imu/delta_theta', self.on_gyro_raw, qos,
                                      qos_overriding_options=ros_io.QOS_OVERRIDES, raw=True)
-            self.create_subscription(Vector3Stamped, 'imu/delta_velocity', self._on_accel_raw, qos,
+            self.create_subscription(Vector3Stamped, 'imu/delta_velocity', self.on_accel_raw, qos,
                                      qos_overriding_options=ros_io.QOS_OVERRIDES, raw=True)
         self.create_timer(float(p['diagnostics_period']), self.publish_diagnostics)
         if self.system.batch_span > 0:             # a block is processed at least this often
@@ -117,7 +131,8 @@ class SinsNode(Node):
             f"started: gyro_input={p['gyro_input']}"
             + (f" ({p['imu_rate_rule']}; Δv at gyro_rate)" if self.imu_input else '')
             + f", coning_algorithm={p['coning_algorithm']} "
-            f"({self.integrator.algorithm.samples} samples/update), covariance_model={p['covariance_model']}, "
+            f'({self.integrator.algorithm.samples} samples/update), '
+            f"covariance_model={p['covariance_model']}, "
             f"compensating: {', '.join(self.system.compensating) or 'none'}")
         if self.system.initial_normalised:
             self.log.warn('initial_orientation was not a unit quaternion; normalised')
@@ -125,32 +140,39 @@ class SinsNode(Node):
     # --- the core's state, as the node's (diagnostics, tests, tools) --------------------------
     @property
     def integrator(self):
+        """Return the core's attitude integrator."""
         return self.system.integrator
 
     @property
     def nav(self):
+        """Return the core's navigation channel (None when ``navigation`` is off)."""
         return self.system.nav
 
     @property
     def gyro_check(self):
+        """Return the stream rules of the Δθ input (with their counters)."""
         return self.system.gyro_check
 
     @property
     def accel_check(self):
+        """Return the stream rules of the Δv input (with their counters)."""
         return self.system.accel_check
 
     @property
     def nonfinite(self) -> int:
+        """Return the number of non-finite updates discarded."""
         return self.system.nonfinite
 
     @property
     def frame_mismatch(self) -> dict:
+        """Return the messages in another frame than ``frame_id``, per stream."""
         return self.system.frame_mismatch
-
 
     # --- parameters ---------------------------------------------------------------------
     def _on_change(self, new: dict) -> str | None:
         """
+        Validate a change (on-set): only the coning algorithm may change.
+
         Validation (on-set): only the coning algorithm may change at runtime, and only while
         navigation is off (the navigation step is the algorithm's update).
         """
@@ -165,7 +187,7 @@ class SinsNode(Node):
         return None
 
     def _apply_change(self, new: dict) -> None:
-        """Application (post-set), once rclpy has accepted the change."""
+        """Apply a change (post-set), once rclpy has accepted it."""
         name = new['coning_algorithm']
         if name != self.integrator.algorithm_name:
             self.process()                         # the samples so far belong to the old algorithm
@@ -175,10 +197,17 @@ class SinsNode(Node):
             self.log.info(f'coning_algorithm switched to {name}')
 
     # --- input ------------------------------------------------------------------------------
-    def _on_gyro_raw(self, data: bytes):
+    def on_gyro_raw(self, data: bytes):
         """
-        Hot path (the imu/delta_theta subscription): decode, validate, append to the block; the
-        numerical work runs in :meth:`process`.
+        Take one imu/delta_theta message: decode, validate, append to the block.
+
+        The numerical work runs in :meth:`process`.
+
+        Parameters
+        ----------
+        data : bytes
+            The serialized geometry_msgs/Vector3Stamped (a raw subscription's argument).
+
         """
         got = ros_io.decode_vector3_stamped(data)
         if got is None:
@@ -186,8 +215,16 @@ class SinsNode(Node):
             return
         self._gyro(*got)
 
-    def _on_gyro(self, msg: Vector3Stamped):
-        """The same for a message object (tests, tools)."""
+    def on_gyro(self, msg: Vector3Stamped):
+        """
+        Take one imu/delta_theta message object (tests, tools).
+
+        Parameters
+        ----------
+        msg : geometry_msgs.msg.Vector3Stamped
+            The message.
+
+        """
         st = msg.header.stamp
         v = msg.vector
         self._gyro(st.sec * 1_000_000_000 + st.nanosec, (v.x, v.y, v.z), msg.header.frame_id)
@@ -198,10 +235,17 @@ class SinsNode(Node):
         elif self.system.has_output:               # a stamp resync processed the old time base
             self._publish(self.system.take_output())
 
-    def _on_accel_raw(self, data: bytes):
+    def on_accel_raw(self, data: bytes):
         """
-        Hot path (the imu/delta_velocity subscription): decode, validate, append; folded into the
-        accumulator by :meth:`process`.
+        Take one imu/delta_velocity message: decode, validate, append.
+
+        Folded into the accumulator by :meth:`process`.
+
+        Parameters
+        ----------
+        data : bytes
+            The serialized geometry_msgs/Vector3Stamped (a raw subscription's argument).
+
         """
         got = ros_io.decode_vector3_stamped(data)
         if got is None:
@@ -210,17 +254,31 @@ class SinsNode(Node):
         if self.system.offer_accel(*got):
             self.process()
 
-    def _on_accel(self, msg: Vector3Stamped):
-        """The same for a message object (tests, tools)."""
+    def on_accel(self, msg: Vector3Stamped):
+        """
+        Take one imu/delta_velocity message object (tests, tools).
+
+        Parameters
+        ----------
+        msg : geometry_msgs.msg.Vector3Stamped
+            The message.
+
+        """
         st = msg.header.stamp
         v = msg.vector
-        if self.system.offer_accel(st.sec * 1_000_000_000 + st.nanosec, (v.x, v.y, v.z), msg.header.frame_id):
+        if self.system.offer_accel(st.sec * 1_000_000_000 + st.nanosec, (v.x, v.y, v.z),
+                                   msg.header.frame_id):
             self.process()
 
-    def _on_imu_raw(self, data: bytes):
+    def on_imu_raw(self, data: bytes):
         """
-        Hot path (the imu/data_raw subscription, ``gyro_input: imu``): decode, then
-        :meth:`_imu`.
+        Take one imu/data_raw message (``gyro_input: imu``): decode, then the rate rule.
+
+        Parameters
+        ----------
+        data : bytes
+            The serialized sensor_msgs/Imu (a raw subscription's argument).
+
         """
         got = ros_io.decode_imu(data)
         if got is None:
@@ -229,8 +287,16 @@ class SinsNode(Node):
         self.last_imu = data                       # its stated covariance: read for /diagnostics
         self._imu(*got)
 
-    def _on_imu(self, msg: Imu):
-        """The same for a message object (tests, tools)."""
+    def on_imu(self, msg: Imu):
+        """
+        Take one imu/data_raw message object (tests, tools).
+
+        Parameters
+        ----------
+        msg : sensor_msgs.msg.Imu
+            The message.
+
+        """
         w, a = msg.angular_velocity, msg.linear_acceleration
         accel = None if msg.linear_acceleration_covariance[0] == -1.0 else (a.x, a.y, a.z)
         self.last_imu = msg
@@ -239,9 +305,11 @@ class SinsNode(Node):
 
     def _imu(self, stamp_ns: int, rate, accel, frame_id: str):
         """
+        Take one Imu message: the frame rule, then each rate through its stream.
+
         One Imu message: the frame rule, then each rate through its RateIncrementStream
-        (validation, then the increment rule); the increments formed enter the Δθ/Δv path.  The
-        Δv goes first, so that the update of the same stamp finds its specific force.
+        (validation, then the increment rule); the increments formed enter the Δθ/Δv path.  The Δv
+        goes first, so that the update of the same stamp finds its specific force.
         """
         if not self.system.frame_accepted(frame_id, 'gyro'):
             return
@@ -255,6 +323,8 @@ class SinsNode(Node):
     # --- batch processing ------------------------------------------------------------------
     def process(self) -> None:
         """
+        Integrate the buffered increments as one block and publish the updates.
+
         Integrate the buffered increments as one block through the vectorised core and publish
         every update with its own stamp.  The result equals message-by-message processing to
         round-off (test/ros/test_nodes.py::test_sins_node_batches_equal_per_message_processing).
@@ -264,8 +334,10 @@ class SinsNode(Node):
     # --- output ------------------------------------------------------------------------------
     def _publish(self, out: SinsOutput) -> None:
         """
-        Publish the system's outputs; sins/attitude and sins/odometry only when subscribed
-        (checked once per block).
+        Publish the system's outputs of one block.
+
+        Publish the system's outputs; sins/attitude and sins/odometry only when subscribed (checked
+        once per block).
         """
         att_out, imu_out, nav_out = out.attitude, out.imu, out.navigation
         if len(att_out) and self.pub_att.get_subscription_count() > 0:
@@ -278,9 +350,10 @@ class SinsNode(Node):
                 self.pub_att.publish(att)
             self.published['attitude'] += len(att_out)
         for k in range(len(imu_out)):
+            f_mean = imu_out.specific_force[k] if imu_out.has_accel[k] else None
             self.pub_imu.publish(self._imu_msg(imu_out.stamp_ns[k], imu_out.attitude[k],
                                                imu_out.covariance[k], imu_out.mean_rate[k],
-                                               imu_out.specific_force[k] if imu_out.has_accel[k] else None))
+                                               f_mean))
         if len(nav_out) and self.pub_odom.get_subscription_count() > 0:
             self._publish_odometry(nav_out)
 
@@ -291,7 +364,8 @@ class SinsNode(Node):
             ros_io.set_stamp(m.header.stamp, nb.stamp_ns[k])
             pose = m.pose.pose
             r, q = nb.position[k], nb.attitude[k]
-            pose.position.x, pose.position.y, pose.position.z = float(r[0]), float(r[1]), float(r[2])
+            pos = pose.position
+            pos.x, pos.y, pos.z = float(r[0]), float(r[1]), float(r[2])
             o = pose.orientation
             o.w, o.x, o.y, o.z = float(q[0]), float(q[1]), float(q[2]), float(q[3])
             m.pose.covariance = pose_cov[k]
@@ -304,6 +378,8 @@ class SinsNode(Node):
 
     def _imu_msg(self, stamp_ns, q, cov, rate, f_mean) -> Imu:
         """
+        Fill the sensor_msgs/Imu of one update.
+
         sensor_msgs/Imu of one update.  One message object is reused (publish serialises it at
         once): constructing a new Imu costs more than the rest of the update.
         """
@@ -317,7 +393,8 @@ class SinsNode(Node):
         a = m.linear_acceleration
         if f_mean is None:
             a.x = a.y = a.z = 0.0
-            m.linear_acceleration_covariance = self._no_accel_cov    # [0] = −1: no accelerometer data
+            # [0] = −1: no accelerometer data
+            m.linear_acceleration_covariance = self._no_accel_cov
             self.published['imu_without_accel'] += 1
         else:
             a.x, a.y, a.z = float(f_mean[0]), float(f_mean[1]), float(f_mean[2])
@@ -343,62 +420,82 @@ class SinsNode(Node):
 
     def accel_stall_s(self) -> float | None:
         """
-        Stamp seconds the gyro stream ran beyond the newest Δv (the core's rule,
-        :meth:`SinsSystem.accel_stall_s`).
+        Return the stamp seconds the gyro stream ran beyond the newest Δv.
+
+        Returns
+        -------
+        float or None
+            Seconds; None before any gyro data.
+
         """
         return self.system.accel_stall_s()
 
-    def diagnostic_conditions(self) -> ros_io.Conditions:
-        """Every current condition of the node with its level (the status level is the worst)."""
+    def diagnostic_conditions(self) -> ros_status.Conditions:
+        """
+        Return every current condition of the node with its level.
+
+        Returns
+        -------
+        Conditions
+            The conditions (:class:`strapdown_ros.nodes.ros_status.Conditions`); the status
+            level is the worst of them.
+
+        """
         g, a = self.gyro_check, self.accel_check
-        c = ros_io.Conditions()
+        c = ros_status.Conditions()
         if g.accepted == 0:
-            c.add(ros_io.WARN, 'no gyro increments received')
+            c.add(ros_status.WARN, 'no gyro increments received')
         if g.dropped or a.dropped:
-            c.add(ros_io.WARN, f'dropped {g.dropped} gyro and {a.dropped} accelerometer messages '
+            c.add(ros_status.WARN,
+                  f'dropped {g.dropped} gyro and {a.dropped} accelerometer messages '
                   f'(NaN {g.nan + a.nan}, out of range {g.out_of_range + a.out_of_range}, out of '
                   f'order {g.out_of_order + a.out_of_order}, duplicate '
                   f'{g.duplicate + a.duplicate}, stamp outliers '
                   f'{g.stamp_outliers + a.stamp_outliers})')
         if self.imu_input and (self.gyro_rates.check.dropped or self.accel_rates.check.dropped):
             gr, ar = self.gyro_rates.check, self.accel_rates.check
-            c.add(ros_io.WARN, f'dropped {gr.dropped} angular-rate and {ar.dropped} acceleration '
+            c.add(ros_status.WARN,
+                  f'dropped {gr.dropped} angular-rate and {ar.dropped} acceleration '
                   f'samples of imu/data_raw (NaN {gr.nan + ar.nan}, out of range '
                   f'{gr.out_of_range + ar.out_of_range}, out of order '
                   f'{gr.out_of_order + ar.out_of_order}, duplicate {gr.duplicate + ar.duplicate}, '
                   f'stamp outliers {gr.stamp_outliers + ar.stamp_outliers})')
         if any(self.frame_mismatch.values()):
-            c.add(ros_io.WARN, f'messages in another frame than '
-                  f"{ros_io.bounded(self.frame_id, 80)!r}: gyro {self.frame_mismatch['gyro']}, "
+            c.add(ros_status.WARN,
+                  'messages in another frame than '
+                  f'{ros_status.bounded(self.frame_id, 80)!r}: '
+                  f"gyro {self.frame_mismatch['gyro']}, "
                   f"accelerometer {self.frame_mismatch['accel']} "
                   f"({'rejected' if self.system.reject_frames else 'used'})")
         if self.undecodable:
-            c.add(ros_io.WARN,
+            c.add(ros_status.WARN,
                   f'{self.undecodable} input message(s) could not be decoded: dropped')
         stall = self.system.accel_stall('imu/data_raw' if self.imu_input
                                         else 'imu/delta_velocity')
         if stall is not None:                     # the core's rule, shared with sins_bag
-            c.add(ros_io.ERROR if stall.level == 'error' else ros_io.WARN, stall.text)
+            c.add(ros_status.ERROR if stall.level == 'error' else ros_status.WARN, stall.text)
         if g.missing:
-            c.add(ros_io.ERROR, f'{g.missing} gyro increments missing in {g.gaps} gaps: '
+            c.add(ros_status.ERROR, f'{g.missing} gyro increments missing in {g.gaps} gaps: '
                   'the rotation during the gaps is lost')
         if g.resyncs:
-            c.add(ros_io.ERROR, f'gyro stamps jumped {g.resyncs} time(s) (last by '
+            c.add(ros_status.ERROR, f'gyro stamps jumped {g.resyncs} time(s) (last by '
                   f'{g.last_jump_s:.6g} s): resynchronised; the rotation during a jump is lost')
         if self.nonfinite:
-            c.add(ros_io.ERROR, f'{self.nonfinite} non-finite update(s) discarded (never '
+            c.add(ros_status.ERROR, f'{self.nonfinite} non-finite update(s) discarded (never '
                   'published); state reset to the last good one with inflated covariance')
         if self.nav is not None and self.nav.alignment is not None and not self.nav.alignment.ok \
                 and self.nav.navigator is None:
-            c.add(ros_io.ERROR, f'static alignment refused: {self.nav.alignment.reason}')
+            c.add(ros_status.ERROR, f'static alignment refused: {self.nav.alignment.reason}')
         return c
 
     def publish_diagnostics(self):
+        """Publish the /diagnostics status of the node."""
         g = self.gyro_check
         c = self.diagnostic_conditions()
         values = self.system.status()
         values.update({'undecodable_dropped': self.undecodable,
-                       'attitude_published': self.published['attitude'], 'imu_published': self.published['imu'],
+                       'attitude_published': self.published['attitude'],
+                       'imu_published': self.published['imu'],
                        'imu_published_without_accel': self.published['imu_without_accel'],
                        'algorithm_changes': self.algorithm_changes})
         if self.imu_input:
@@ -413,11 +510,27 @@ class SinsNode(Node):
         if self.nav is not None:
             values['odometry_published'] = self.published['odometry']
         stamp_ns = g.last_ns if g.last_ns is not None else 0
-        self.pub_diag.publish(ros_io.diagnostic_array(ros_io.ns_to_stamp(stamp_ns), f'{self.get_fully_qualified_name()}: attitude',
-                                                      'sins', c.level, c.message(), values))
+        name = f'{self.get_fully_qualified_name()}: attitude'
+        self.pub_diag.publish(ros_status.diagnostic_array(ros_io.ns_to_stamp(stamp_ns), name,
+                                                          'sins', c.level, c.message(), values))
+
 
 def main(args=None):
-    return ros_io.run_node(SinsNode, NODE_NAME, args)
+    """
+    Run sins_node (the entry point of its process).
+
+    Parameters
+    ----------
+    args : list of str, optional
+        ROS arguments (default the process's).
+
+    Returns
+    -------
+    int
+        The exit status (:func:`strapdown_ros.nodes.ros_process.run_node`).
+
+    """
+    return ros_process.run_node(SinsNode, NODE_NAME, args)
 
 
 if __name__ == '__main__':

@@ -48,19 +48,30 @@ import numpy as np
 from rclpy.node import Node
 
 from strapdown_ros.motion.from_config import profile_from_config
-from strapdown_ros.nodes import ros_io
+from strapdown_ros.nodes import ros_io, ros_params, ros_process, ros_status
 from strapdown_ros.nodes.ros_io import camera_qos, latched_qos, pose_with_covariance
 from strapdown_ros.params import STAR_CAMERA_PARAMS
 from strapdown_ros.sensors.star_camera import StarCameraModel
 
 NODE_NAME = 'star_camera_sim_node'
 
-#: variance (m²) on the position diagonal of attitude-only poses: "not measured"
+
 class StarCameraSimNode(ros_io.PacedSimulation, Node):
+    """
+    The star camera simulator node: noisy attitude fixes of a motion profile.
+
+    Parameters
+    ----------
+    **kwargs
+        Passed to :class:`rclpy.node.Node` (namespace, parameter_overrides, ...).
+
+    """
+
     def __init__(self, **kwargs):
         super().__init__(NODE_NAME, **kwargs)
-        self.log = ros_io.NodeLog(self.get_logger())   # the one logging helper of the nodes
-        self.p = ros_io.declare_validated(self, STAR_CAMERA_PARAMS, on_change=self._reject_changes)
+        self.log = ros_status.NodeLog(self.get_logger())   # the one logging helper of the nodes
+        self.p = ros_params.declare_validated(self, STAR_CAMERA_PARAMS,
+                                              on_change=self._reject_changes)
         p = self.p
         self.profile = profile_from_config(p)
         self.model = StarCameraModel.from_params(p)
@@ -71,11 +82,17 @@ class StarCameraSimNode(ros_io.PacedSimulation, Node):
         self.ref_frame = p['reference_frame_id']
         self.camera_frame = p['camera_frame_id']
         qos = camera_qos(int(p['qos_depth']))
-        self.pub_att = self.create_publisher(QuaternionStamped, 'star_camera/attitude', qos, qos_overriding_options=ros_io.QOS_OVERRIDES)
-        self.pub_cov = self.create_publisher(PoseWithCovarianceStamped, 'star_camera/attitude_with_covariance', qos, qos_overriding_options=ros_io.QOS_OVERRIDES)
-        self.pub_truth = self.create_publisher(QuaternionStamped, 'star_camera/truth/boresight', latched_qos())
-        self.pub_diag = self.create_publisher(DiagnosticArray, '/diagnostics', ros_io.DIAGNOSTICS_QOS)
-        self.pub_truth.publish(ros_io.quaternion_stamped(ros_io.ns_to_stamp(self.start_ns), self.camera_frame,
+        self.pub_att = self.create_publisher(QuaternionStamped, 'star_camera/attitude', qos,
+                                             qos_overriding_options=ros_io.QOS_OVERRIDES)
+        self.pub_cov = self.create_publisher(PoseWithCovarianceStamped,
+                                             'star_camera/attitude_with_covariance', qos,
+                                             qos_overriding_options=ros_io.QOS_OVERRIDES)
+        self.pub_truth = self.create_publisher(QuaternionStamped, 'star_camera/truth/boresight',
+                                               latched_qos())
+        self.pub_diag = self.create_publisher(DiagnosticArray, '/diagnostics',
+                                              ros_io.DIAGNOSTICS_QOS)
+        self.pub_truth.publish(ros_io.quaternion_stamped(ros_io.ns_to_stamp(self.start_ns),
+                                                         self.camera_frame,
                                                          self.model.q_mf_vf))
         self.published = 0
         self.last_stamp: float | None = None
@@ -83,15 +100,18 @@ class StarCameraSimNode(ros_io.PacedSimulation, Node):
         self.sim_time = 0.0
         self.finished = False
         self.timer = self.create_timer(float(p['publish_period']), self._tick)
-        self.diag_timer = self.create_timer(float(p['diagnostics_period']), self.publish_diagnostics)
+        self.diag_timer = self.create_timer(float(p['diagnostics_period']),
+                                            self.publish_diagnostics)
         self.log.info(
             f"started: profile={p['profile']}, exposure every {p['camera_interval']:g} s from "
             f'{self.model.epoch(0):g} s, σ = ({sxy:.3g}, {sxy:.3g}, {sz:.3g}) rad, boresight β = '
-            f"{np.round(np.degrees(self.model.boresight), 6).tolist()}°, time_scale {p['time_scale']}, "
+            f'{np.round(np.degrees(self.model.boresight), 6).tolist()}°, '
+            f"time_scale {p['time_scale']}, "
             f'duration {self.end_time:g} s')
 
     def _reject_changes(self, new: dict) -> str | None:
-        return ('star_camera_sim_node parameters are fixed after start-up (they define the simulated truth); '
+        return ('star_camera_sim_node parameters are fixed after start-up (they define the '
+                'simulated truth); '
                 'restart the node to change ' + ', '.join(sorted(new)))
 
     # ---------------------------------------------------------------------------------
@@ -113,26 +133,47 @@ class StarCameraSimNode(ros_io.PacedSimulation, Node):
         for fix in self.model.fixes(self.profile, n):
             st = ros_io.ns_to_stamp(self.start_ns + int(round(fix.stamp * 1e9)))
             self.pub_att.publish(ros_io.quaternion_stamped(st, self.ref_frame, fix.attitude))
-            self.pub_cov.publish(pose_with_covariance(st, self.ref_frame, fix.attitude, fix.covariance))
+            self.pub_cov.publish(pose_with_covariance(st, self.ref_frame, fix.attitude,
+                                                      fix.covariance))
             self.published += 1
             self.last_stamp = fix.stamp
 
     def publish_diagnostics(self):
+        """Publish the /diagnostics status of the node."""
         wall = (time.monotonic() - self._wall_start) if self._wall_start else 0.0
         st = ros_io.ns_to_stamp(self.start_ns + int(round(self.sim_time * 1e9)))
         values = {'simulated_time_s': self.sim_time,
                   'real_time_factor': self.sim_time / wall if wall > 0 else 0.0,
-                  'fixes_published': self.published, 'camera_interval_s': self.p['camera_interval'],
+                  'fixes_published': self.published,
+                  'camera_interval_s': self.p['camera_interval'],
                   'next_exposure_s': self.model.epoch(self.model.count),
                   'last_exposure_s': self.last_stamp if self.last_stamp is not None else 'none',
                   'finished': self.finished, 'profile': self.p['profile']}
-        msg = 'finished' if self.finished else ('waiting for subscribers' if self._wall_start is None else 'running')
-        self.pub_diag.publish(ros_io.diagnostic_array(st, f'{self.get_fully_qualified_name()}: star camera',
-                                                      'star_camera_sim', ros_io.OK, msg, values))
+        if self.finished:
+            msg = 'finished'
+        else:
+            msg = 'waiting for subscribers' if self._wall_start is None else 'running'
+        name = f'{self.get_fully_qualified_name()}: star camera'
+        self.pub_diag.publish(ros_status.diagnostic_array(st, name, 'star_camera_sim',
+                                                          ros_status.OK, msg, values))
 
 
 def main(args=None):
-    return ros_io.run_node(StarCameraSimNode, NODE_NAME, args)
+    """
+    Run star_camera_sim_node (the entry point of its process).
+
+    Parameters
+    ----------
+    args : list of str, optional
+        ROS arguments (default the process's).
+
+    Returns
+    -------
+    int
+        The exit status (:func:`strapdown_ros.nodes.ros_process.run_node`).
+
+    """
+    return ros_process.run_node(StarCameraSimNode, NODE_NAME, args)
 
 
 if __name__ == '__main__':

@@ -49,37 +49,65 @@ from strapdown_ros.calibration.streaming import BoresightCalibrator
 from strapdown_ros.cli import check_outputs, FILE, OneLineParser, write_json
 from strapdown_ros.estimation.chi_square import FIT_LEVEL
 from strapdown_ros.params import CALIBRATOR_PARAMS, check_all, load_parameter_file, parse_overrides
-# the reader moved to strapdown_ros.recording; its names stay importable from here
-from strapdown_ros.recording import (Accepted, add_input_arguments, BagError, CAMERA_COV_TOPIC,
-                                     CAMERA_TOPIC, check_input_arguments, GYRO_TOPIC, input_lines,
-                                     input_options, input_summary, input_warnings, open_reader,
-                                     read_bag, resolve_topic)
+from strapdown_ros.recording import (add_input_arguments, BagError, check_input_arguments,
+                                     input_lines, input_options, input_summary, input_warnings,
+                                     read_bag)
 from strapdown_ros.rotation import to_ros_xyzw
 from strapdown_ros.streams.checks import segments
 
-__all__ = ['main', 'read_bag', 'calibrate', 'calibrator_parameters', 'make_calibrator', 'solution_json', 'BagError']
+__all__ = ['main', 'calibrate', 'calibrator_parameters', 'make_calibrator', 'solution_json']
 
 ARCSEC_PER_RAD = 180.0 / np.pi * 3600.0
 
 
 # --- parameters -------------------------------------------------------------------------------
 def calibrator_parameters(params_file: str | None = None, overrides: dict | None = None) -> dict:
-    """calibrator_node parameters from a ROS 2 parameter YAML (+ overrides), validated."""
+    """
+    Return calibrator_node's parameters from a ROS 2 parameter YAML, validated.
+
+    Parameters
+    ----------
+    params_file : str, optional
+        A ROS 2 parameter YAML (its ``calibrator_node`` and ``/**`` blocks).
+    overrides : dict, optional
+        Values that replace the file's (name → value).
+
+    Returns
+    -------
+    dict
+        Every calibrator_node parameter, name → checked value.
+
+    """
     raw = load_parameter_file(params_file, 'calibrator_node') if params_file else {}
     raw.update(overrides or {})
     return check_all(CALIBRATOR_PARAMS, raw)
 
 
 def make_calibrator(p: dict) -> BoresightCalibrator:
-    """The calibrator exactly as built from calibrator_node parameters."""
+    """
+    Return the calibrator exactly as calibrator_node builds it.
+
+    Parameters
+    ----------
+    p : dict
+        calibrator_node parameters (:func:`calibrator_parameters`).
+
+    Returns
+    -------
+    BoresightCalibrator
+        The calibrator, its gyro effects compensated.
+
+    """
     return BoresightCalibrator.from_params(p)
 
 
 def _match_segments(tg, g_segs, tc, c_segs) -> list[tuple[int, int]]:
     """
-    Which gyro time base goes with which camera time base, in order.  As many of each (a
-    clock reset of both streams, the usual case): the k-th with the k-th.  Otherwise (one
-    stream resynchronised alone) by overlapping stamp ranges, walking both lists forward.
+    Pair each gyro time base with its camera time base, in order.
+
+    Which gyro time base goes with which camera time base, in order.  As many of each (a clock
+    reset of both streams, the usual case): the k-th with the k-th.  Otherwise (one stream
+    resynchronised alone) by overlapping stamp ranges, walking both lists forward.
     """
     if len(g_segs) == len(c_segs):
         return [(k, k) for k in range(len(g_segs))]
@@ -98,17 +126,36 @@ def _match_segments(tg, g_segs, tc, c_segs) -> list[tuple[int, int]]:
 
 def calibrate(data: dict, p: dict):
     """
-    Feed the calibrator as calibrator_node is fed — gyro and fixes interleaved in stamp order —
-    and solve; returns (solution, calibrator, pairs discarded over gyro gaps and stamp jumps).
-    The calibrator's buffer stays bounded on recordings of any length.
+    Feed the calibrator as calibrator_node is fed and solve.
 
-    Each stream is split into its time bases (``strapdown_ros.streams.checks.segments``: a confirmed
-    resynchronisation starts a new one; a burst that returned has already been removed by
+    Feed the calibrator as calibrator_node is fed — gyro and fixes interleaved in stamp order — and
+    solve; returns (solution, calibrator, pairs discarded over gyro gaps and stamp jumps). The
+    calibrator's buffer stays bounded on recordings of any length.
+
+    Each stream is split into its time bases (``strapdown_ros.streams.checks.segments``: a
+    confirmed resynchronisation starts a new one; a burst that returned has already been removed by
     ``validate``).  Gyro and camera segments are matched in order (the k-th with the k-th);
     the calibrator restarts its gyro history (``restart_gyro``, as calibrator_node does on a
     resynchronisation) at every gyro segment and its fix chain at every camera segment, so no
     pair spans a jump and no stamp array handed to the search is out of order (segments matched
     by :func:`_match_segments`).
+
+    Parameters
+    ----------
+    data : dict
+        The streams of :func:`strapdown_ros.recording.reader.read_bag`.
+    p : dict
+        calibrator_node parameters.
+
+    Returns
+    -------
+    solution : BoresightSolution
+        The boresight estimate.
+    calibrator : BoresightCalibrator
+        The calibrator after the recording.
+    discarded : int
+        Pairs discarded over gyro gaps and stamp jumps.
+
     """
     g, c = data['gyro'], data['camera']
     t0 = min(g.stamps[0], c.stamps[0])                 # origin: float seconds keep ns resolution
@@ -117,7 +164,8 @@ def calibrate(data: dict, p: dict):
     vg = np.asarray(g.values, dtype=float).reshape(-1, 3)
     tc = (np.asarray(c.stamps, dtype=np.int64) - t0) * 1e-9
     period = data.get('gyro_period_s') or 1.0 / float(p['gyro_rate'])
-    h = 1.5 * period                                    # the in-interval polynomial reads the neighbours
+    # the in-interval polynomial reads the neighbours
+    h = 1.5 * period
     offset = abs(float(p['camera_time_offset']))      # a fix's epoch is its stamp − offset
     lead = 3 * period + offset
     g_segs = segments(g.stamps, getattr(g.check, 'segment_starts', []))
@@ -158,7 +206,7 @@ def calibrate(data: dict, p: dict):
     return cal.solve(), cal, discarded
 
 
-# --- output -----------------------------------------------------------------------------------------
+# --- output ---------------------------------------------------------------------------------
 def _num(x):
     x = float(x)
     return x if np.isfinite(x) else None
@@ -169,17 +217,33 @@ def _mat(m):
 
 
 def solution_json(sol, weighted: bool) -> dict:
-    """The JSON record of a BoresightSolution (schema in the module docstring)."""
+    """
+    Return the JSON record of a BoresightSolution (schema in the module docstring).
+
+    Parameters
+    ----------
+    sol : BoresightSolution
+        The solution.
+    weighted : bool
+        Whether the fit was weighted by the pair covariances.
+
+    Returns
+    -------
+    dict
+        Plain JSON values.
+
+    """
     ok = bool(sol.observable and sol.beta is not None)
     unobs = list(sol.unobservable_axes) if not ok else []
     if not ok and not unobs:                   # too few pairs: nothing is observable
-        unobs = [f"rotation about VF axis ({', '.join('1.00' if i == j else '0.00' for j in range(3))})"
-                 for i in range(3)]
+        axes = [', '.join('1.00' if i == j else '0.00' for j in range(3)) for i in range(3)]
+        unobs = [f'rotation about VF axis ({a})' for a in axes]
     out = {
         'q_mf_vf_xyzw': [float(c) for c in to_ros_xyzw(sol.q_mf_vf)] if ok else None,
         'rotation_covariance_mf_rad2': _mat(sol.rotation_covariance_mf) if ok else None,
         'beta_rad': [float(b) for b in sol.beta] if ok else None,
-        'beta_sigma_rad': [float(s) for s in np.sqrt(np.diag(sol.covariance_beta))] if ok else None,
+        'beta_sigma_rad': ([float(s) for s in np.sqrt(np.diag(sol.covariance_beta))]
+                           if ok else None),
         'covariance_rad2': _mat(sol.covariance_beta) if ok else None,
         'pairs': int(sol.pairs),
         'observable': ok,
@@ -218,10 +282,13 @@ def _band_text(result: dict) -> str:
 
 def _summary(bag: str, data: dict, result: dict, p: dict) -> str:
     g, c = data['gyro'], data['camera']
-    lines = [f"calibrate_bag: {bag}: {len(g.stamps)} Δθ from {data['gyro_topic']}, {len(c.stamps)} camera fixes "
-             f"from {data['camera_topic']} ({'covariance from the bag' if data['camera_covariance_from_bag'] else 'assumed camera σ'})"]
+    cov_from = ('covariance from the bag' if data['camera_covariance_from_bag']
+                else 'assumed camera σ')
+    lines = [f"calibrate_bag: {bag}: {len(g.stamps)} Δθ from {data['gyro_topic']}, "
+             f"{len(c.stamps)} camera fixes from {data['camera_topic']} ({cov_from})"]
     drops = {f'{k} {n}': v for k, d in result['dropped'].items() for n, v in d.items() if v}
-    lines.append('  dropped: ' + (', '.join(f'{k} {v}' for k, v in drops.items()) if drops else 'none'))
+    lines.append('  dropped: ' + (', '.join(f'{k} {v}' for k,
+                                            v in drops.items()) if drops else 'none'))
     gg, fx = result['gyro_gaps'], result['camera_fixes']
     if gg['gaps']:
         extra = [f'{gg[k]} {w}' for k, w in (('dropouts', 'dropout(s) beyond max_stamp_jump'),
@@ -238,19 +305,23 @@ def _summary(bag: str, data: dict, result: dict, p: dict) -> str:
     if notes:
         lines.append('  camera fixes: ' + ', '.join(notes))
     chi2 = result['chi2_per_dof']
-    lines.append(f"  pairs {result['pairs']}, {'weighted' if result['weighted'] else 'unweighted (004)'}, "
-                 f"covariance model {p['covariance_model']}, "
-                 + (f"{'converged' if result['converged'] else 'NOT converged'} in {result['iterations']} iterations, "
-                    f"residual RMS {result['residual_rms_rad'] * ARCSEC_PER_RAD:.3g}″"
-                    + (f', χ²/dof {chi2:.3g}' + _band_text(result) if chi2 is not None else '')
-                    if result['observable'] else 'not observable'))
+    weighting = 'weighted' if result['weighted'] else 'unweighted (004)'
+    if result['observable']:
+        converged = 'converged' if result['converged'] else 'NOT converged'
+        fit = (f"{converged} in {result['iterations']} iterations, "
+               f"residual RMS {result['residual_rms_rad'] * ARCSEC_PER_RAD:.3g}″"
+               + (f', χ²/dof {chi2:.3g}' + _band_text(result) if chi2 is not None else ''))
+    else:
+        fit = 'not observable'
+    lines.append(f"  pairs {result['pairs']}, {weighting}, "
+                 f"covariance model {p['covariance_model']}, " + fit)
     if result['observable']:
         names = ('heading ψ', 'pitch ϑ', 'roll γ')
         untrusted = ('UNTRUSTED (fit inconsistent with the stated noise) '
                      if result['fit_consistent'] is False else '')
+        angles = zip(names, result['beta_rad'], result['beta_sigma_rad'])
         lines.append(f'  {untrusted}β: ' + ', '.join(
-            f'{n} {np.degrees(b):.6f}° ± {s * ARCSEC_PER_RAD:.3g}″'
-                                        for n, b, s in zip(names, result['beta_rad'], result['beta_sigma_rad'])))
+            f'{n} {np.degrees(b):.6f}° ± {s * ARCSEC_PER_RAD:.3g}″' for n, b, s in angles))
         sig_mf = np.sqrt(np.diag(result['rotation_covariance_mf_rad2'])) * ARCSEC_PER_RAD
         q_text = ', '.join(f'{v:.9f}' for v in result['q_mf_vf_xyzw'])
         lines.append(f'  {untrusted}q_mf_vf (x, y, z, w) = [{q_text}], '
@@ -260,8 +331,20 @@ def _summary(bag: str, data: dict, result: dict, p: dict) -> str:
 
 def consistency_warning(result: dict) -> str | None:
     """
-    The ``WARNING:`` line of a fit whose χ²/dof is outside its band (None when inside or
-    not judged): χ²/dof, the band, what it means, and which σ is reported.
+    Return the ``WARNING:`` line of a fit whose χ²/dof is outside its band.
+
+    The line gives χ²/dof, the band, what it means, and which σ is reported.
+
+    Parameters
+    ----------
+    result : dict
+        The JSON record of the solution (:func:`solution_json`).
+
+    Returns
+    -------
+    str or None
+        The line; None when χ²/dof is inside its band or not judged.
+
     """
     if result.get('fit_consistent') is not False:
         return None
@@ -286,14 +369,29 @@ def consistency_warning(result: dict) -> str | None:
 
 
 def main(argv=None) -> int:
+    """
+    Run the calibrate_bag command.
 
+    Parameters
+    ----------
+    argv : list of str, optional
+        The arguments (default ``sys.argv[1:]``).
+
+    Returns
+    -------
+    int
+        The exit status (0 success; 2 unusable arguments or input, one line on stderr).
+
+    """
     ap = OneLineParser(prog='calibrate_bag', description=__doc__,
                        formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument('bag', help='rosbag2 bag directory, or a .mcap / .db3 file')
-    ap.add_argument('--params', metavar='FILE', help='ROS 2 parameter YAML (calibrator_node and /** blocks)')
+    ap.add_argument('--params', metavar='FILE',
+                    help='ROS 2 parameter YAML (calibrator_node and /** blocks)')
     ap.add_argument('--json', metavar='FILE', help='write the result as JSON')
     ap.add_argument('--force', action='store_true', help='overwrite an existing --json file')
-    ap.add_argument('--unweighted', action='store_true', help='unit weights, covariance from the residuals (004)')
+    ap.add_argument('--unweighted', action='store_true',
+                    help='unit weights, covariance from the residuals (004)')
     ap.add_argument('--covariance-model', choices=('004', 'random_constant'),
                     help='gyro error model of E_imu (default: the parameter, random_constant)')
     ap.add_argument('--namespace', default='', help='topic namespace, e.g. /robot1')
@@ -323,30 +421,36 @@ def main(argv=None) -> int:
     for kind, want in (('gyro', p['frame_id']), ('camera', p['reference_frame_id'])):
         other = [f for f in data['frames'][kind] if f != want]
         if other:
-            print(f"calibrate_bag: warning: {kind} messages in frame {', '.join(map(repr, other))}, "
+            print(f'calibrate_bag: warning: {kind} messages in frame '
+                  f"{', '.join(map(repr, other))}, "
                   f'parameters expect {want!r}', file=sys.stderr)
 
     g, c = data['gyro'], data['camera']
     if not g.stamps or not c.stamps:
-        print(f"calibrate_bag: error: no usable {'gyro' if not g.stamps else 'camera'} messages", file=sys.stderr)
+        print(f"calibrate_bag: error: no usable {'gyro' if not g.stamps else 'camera'} messages",
+              file=sys.stderr)
         return 2
     step = data['gyro_period_s']
     if np.isfinite(step) and abs(step * float(p['gyro_rate']) - 1.0) > 0.1:
-        print(f'calibrate_bag: note: gyro stamps are {step:.6g} s apart ({1.0 / step:.6g} Hz); gaps are judged '
+        print(f'calibrate_bag: note: gyro stamps are {step:.6g} s apart ({1.0 / step:.6g} Hz); '
+              'gaps are judged '
               f"against that, not gyro_rate = {p['gyro_rate']:g} Hz", file=sys.stderr)
     sol, cal, discarded = calibrate(data, p)
     result = solution_json(sol, bool(p['weighted']))
     result['covariance_model'] = p['covariance_model']
     result['dropped'] = {'gyro': dict(g.dropped),
-                         'camera': {**c.dropped, 'zero_quaternion': data['camera_fixes']['zero_quaternion'],
+                         'camera': {**c.dropped,
+                                    'zero_quaternion': data['camera_fixes']['zero_quaternion'],
                                     'bad_covariance': data['camera_fixes']['bad_covariance']}}
     result['gyro_gaps'] = {'gaps': g.check.gaps, 'missing': g.missing,
                            'pairs_discarded': discarded,
                            'dropouts': g.check.dropouts, 'stamp_bursts': g.check.bursts}
     result['stamp_resyncs'] = {'gyro': g.resyncs, 'camera': c.resyncs}
     result['pairs_replayed_not_added'] = cal.replayed_pairs         # stamps of a pair already held
-    result['gyro_rate_from_stamps_hz'] = _num(1.0 / data['gyro_period_s']) if np.isfinite(data['gyro_period_s']) else None
-    result['camera_fixes'] = {k: data['camera_fixes'][k] for k in ('normalised', 'covariance_substituted')}
+    period = data['gyro_period_s']
+    result['gyro_rate_from_stamps_hz'] = _num(1.0 / period) if np.isfinite(period) else None
+    result['camera_fixes'] = {k: data['camera_fixes'][k] for k in ('normalised',
+                                                                   'covariance_substituted')}
     result['camera_fixes']['outliers_dropped'] = cal.outlier_fixes
     origin_s = min(g.stamps[0], c.stamps[0]) * 1e-9                     # calibrate()'s time origin
     result['camera_fixes']['outlier_stamps_s'] = [float(t) + origin_s for t in cal.outlier_stamps]
@@ -369,9 +473,13 @@ def main(argv=None) -> int:
             print(f'calibrate_bag: error: {exc}', file=sys.stderr)
             return 2
     if not result['observable']:
-        advice = ('Record rotations about at least two non-parallel axes between camera exposures.'
-                  if sol.pairs >= 2 else 'Needs two camera fixes whose interval the gyro data covers without a gap.')
-        print(f'calibrate_bag: boresight NOT observable from this bag: {sol.message}; unobservable: '
+        if sol.pairs >= 2:
+            advice = ('Record rotations about at least two non-parallel axes between camera '
+                      'exposures.')
+        else:
+            advice = 'Needs two camera fixes whose interval the gyro data covers without a gap.'
+        print(f'calibrate_bag: boresight NOT observable from this bag: {sol.message}; '
+              'unobservable: '
               f"{'; '.join(result['unobservable_axes'])}.  {advice}", file=sys.stderr)
         return 3
     if not result['converged']:

@@ -1,18 +1,20 @@
 """
 calibrate_gyro_bag: gyro scale factors, misalignments and biases from a recording, by 000 or 002.
 
-    calibrate_gyro_bag BAG --method integral|tkachenko [--model MODEL.yaml] [--write-model OUT.yaml]
-                       [--json FILE] [--force] [--drift] [--interval S] [--sigma-limit X]
+    calibrate_gyro_bag BAG --method integral|tkachenko [--model MODEL.yaml]
+                       [--write-model OUT.yaml] [--json FILE] [--force] [--drift]
+                       [--interval S] [--sigma-limit X]
 
-BAG: a rosbag2 recording (MCAP or sqlite3) of ``imu/delta_theta`` (geometry_msgs/Vector3Stamped)
-and the star camera — ``star_camera/attitude_with_covariance`` (geometry_msgs/PoseWithCovarianceStamped,
-its covariance is used) or ``star_camera/attitude`` (geometry_msgs/QuaternionStamped, then
-``camera_sigma_xy``/``camera_sigma_z`` of the model) — at any rates, stamps from the headers, read
-and validated as ``calibrate_bag`` and ``discrepancy`` read them (drops, gyro gaps).  No truth topic
-is needed and the boresight need not be known: it is found from the increment axes.  Other
-formats (``strapdown_ros.recording``): ``--gyro-topic`` of sensor_msgs/msg/Imu rates (increments by
-``--rate-rule``), ``--reference-topic`` of PoseStamped, PoseWithCovarianceStamped,
-nav_msgs/msg/Odometry or QuaternionStamped, or TF with ``--reference-frames PARENT CHILD``.
+BAG: a rosbag2 recording (MCAP or sqlite3) of ``imu/delta_theta``
+(geometry_msgs/Vector3Stamped) and the star camera — ``star_camera/attitude_with_covariance``
+(geometry_msgs/PoseWithCovarianceStamped, its covariance is used) or ``star_camera/attitude``
+(geometry_msgs/QuaternionStamped, then ``camera_sigma_xy``/``camera_sigma_z`` of the model) — at
+any rates, stamps from the headers, read and validated as ``calibrate_bag`` and ``discrepancy``
+read them (drops, gyro gaps).  No truth topic is needed and the boresight need not be known: it
+is found from the increment axes.  Other formats (``strapdown_ros.recording``): ``--gyro-topic``
+of sensor_msgs/msg/Imu rates (increments by ``--rate-rule``), ``--reference-topic`` of
+PoseStamped, PoseWithCovarianceStamped, nav_msgs/msg/Odometry or QuaternionStamped, or TF with
+``--reference-frames PARENT CHILD``.
 
 Methods (``strapdown_ros.calibration.gyro``):
 ``integral`` — 002 (Ilyushenko): mean rates over consecutive camera intervals (``--interval`` s,
@@ -67,8 +69,22 @@ def _num(x):
 
 
 def result_json(cal, info: dict) -> dict:
-    """The JSON record of a :class:`~strapdown_ros.calibration.gyro.GyroCalibration`."""
+    """
+    Return the JSON record of a gyro calibration.
 
+    Parameters
+    ----------
+    cal : GyroCalibration
+        The estimate (:class:`strapdown_ros.calibration.gyro.GyroCalibration`).
+    info : dict
+        What was read from the bag (messages, fixes, topics).
+
+    Returns
+    -------
+    dict
+        Plain JSON values.
+
+    """
     ok = bool(cal.observable)
     rep = cal.observability
     return json_clean({
@@ -84,8 +100,8 @@ def result_json(cal, info: dict) -> dict:
         'observability': {'eigenvalues': [_num(v) for v in rep.eigenvalues],
                           'predicted_sigma': [_num(v) for v in rep.predicted_sigma],
                           'condition': _num(rep.condition), 'weak': list(rep.weak),
-                          'units': f'scale and misalignment 1; bias and drift {cal.rate_scale:.6g} rad/s '
-                                   f'(the RMS rate of the recording)'},
+                          'units': 'scale and misalignment 1; bias and drift '
+                                   f'{cal.rate_scale:.6g} rad/s (the RMS rate of the recording)'},
         'fit_consistent': cal.extra.get('fit_consistent'),
         'chi2_per_dof': _num(cal.extra['chi2_per_dof']) if 'chi2_per_dof' in cal.extra else None,
         'chi2_per_dof_band': cal.extra.get('chi2_per_dof_band'),
@@ -116,20 +132,36 @@ def _summary(bag, info, cal) -> str:
         lines.append('  UNTRUSTED: the fit is inconsistent with the stated noise (the WARNING)')
     for n, v, s in zip(cal.labels, cal.x, cal.sigma):
         if n.startswith(('bias', 'drift')):
-            lines.append(f'  {n:8s} {v: .6e} rad/s ± {s:.2e}   ({v * DEG_H: .5f} ± {s * DEG_H:.5f} °/h)')
+            lines.append(f'  {n:8s} {v: .6e} rad/s ± {s:.2e}   '
+                         f'({v * DEG_H: .5f} ± {s * DEG_H:.5f} °/h)')
         else:
-            lines.append(f'  {n:8s} {v: .6e}       ± {s:.2e}   ({v * 1e6: .2f} ± {s * 1e6:.2f} ppm)')
+            lines.append(f'  {n:8s} {v: .6e}       ± {s:.2e}   '
+                         f'({v * 1e6: .2f} ± {s * 1e6:.2f} ppm)')
     if 'triad_rotation_rad' in d:
         r, s = np.asarray(d['triad_rotation_rad']), np.asarray(d['triad_rotation_sigma_rad'])
         lines.append('  triad rotation against the initial boresight (not written): '
-                     + ', '.join(f'{a * 206264.806:.3g}″ ± {b * 206264.806:.2g}″' for a, b in zip(r, s)))
+                     + ', '.join(f'{a * 206264.806:.3g}″ ± {b * 206264.806:.2g}″' for a,
+                                 b in zip(r, s)))
     if cal.observability.weak:
         lines.append(f"  weakly observable: {'; '.join(cal.observability.weak)}")
     return '\n'.join(lines)
 
 
 def consistency_warning(out: dict) -> str | None:
-    """The ``WARNING:`` line of an estimate whose χ²/dof is outside its band, else None."""
+    """
+    Return the ``WARNING:`` line of an estimate whose χ²/dof is outside its band.
+
+    Parameters
+    ----------
+    out : dict
+        The JSON record (:func:`result_json`).
+
+    Returns
+    -------
+    str or None
+        The line; None when inside the band.
+
+    """
     if out.get('fit_consistent') is not False or not out.get('observable'):
         return None
     chi2, (lo, hi), d = out['chi2_per_dof'], out['chi2_per_dof_band'], out['details']
@@ -145,19 +177,24 @@ def consistency_warning(out: dict) -> str | None:
 
 def _parse(argv):
 
-    ap = OneLineParser(prog=PROG, description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap = OneLineParser(prog=PROG, description=__doc__,
+                       formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument('bag', help='rosbag2 bag directory, or a .mcap / .db3 file')
     ap.add_argument('--method', required=True, choices=('integral', 'tkachenko'),
                     help='002 integral method or 000 (Tkachenko) increment equations')
-    ap.add_argument('--model', metavar='MODEL.yaml', help='model: ROS 2 parameter file (default: the defaults)')
-    ap.add_argument('--write-model', metavar='OUT.yaml', help='write the model with the estimated gyro errors')
+    ap.add_argument('--model', metavar='MODEL.yaml',
+                    help='model: ROS 2 parameter file (default: the defaults)')
+    ap.add_argument('--write-model', metavar='OUT.yaml',
+                    help='write the model with the estimated gyro errors')
     ap.add_argument('--json', metavar='FILE', help='write the result as JSON')
     ap.add_argument('--force', action='store_true', help='overwrite existing output files')
-    ap.add_argument('--drift', action='store_true', help='tkachenko: also estimate a constant drift of the reference')
+    ap.add_argument('--drift', action='store_true',
+                    help='tkachenko: also estimate a constant drift of the reference')
     ap.add_argument('--interval', type=float, metavar='S',
                     help='integral: averaging interval, s (default: one camera step)')
     ap.add_argument('--sigma-limit', type=float, default=1e-3, metavar='X',
-                    help='a combination whose predicted σ exceeds X (scale units; biases in RMS-rate units) '
+                    help='a combination whose predicted σ exceeds X (scale units; biases in '
+                         'RMS-rate units) '
                          'counts as unobservable (default 0.001)')
     ap.add_argument('--namespace', default='', help='topic namespace, e.g. /robot1')
     ap.add_argument('--quiet', action='store_true', help='no progress on stderr')
@@ -166,8 +203,7 @@ def _parse(argv):
 
 
 def _check(args) -> None:
-    """Arguments, input files and output paths, before any work.  Raises ValueError."""
-
+    """Check the arguments, input files and output paths, before any work."""
     check_input_arguments(args)
     if args.drift and args.method != 'tkachenko':
         raise ValueError('--drift needs --method tkachenko (002 has no reference drift)')
@@ -187,12 +223,27 @@ def _check(args) -> None:
 
 
 def main(argv=None) -> int:
+    """
+    Run the calibrate_gyro_bag command.
+
+    Parameters
+    ----------
+    argv : list of str, optional
+        The arguments (default ``sys.argv[1:]``).
+
+    Returns
+    -------
+    int
+        The exit status (0 success; 2 unusable arguments or input, one line on stderr).
+
+    """
     args = _parse(argv)
     t_start = time.perf_counter()
 
     def progress(text):
         if not args.quiet:
-            print(f'{PROG}: [{time.perf_counter() - t_start:6.1f} s] {text}', file=sys.stderr, flush=True)
+            print(f'{PROG}: [{time.perf_counter() - t_start:6.1f} s] {text}', file=sys.stderr,
+                  flush=True)
 
     def fail(msg, status=2):
         print(f'{PROG}: error: {msg}', file=sys.stderr)
@@ -204,7 +255,8 @@ def main(argv=None) -> int:
     except (ValueError, OSError) as exc:
         return fail(exc)
     if float(model.get('gyro_quantum', 0.0)) > 0 and not args.quiet:
-        print(f'{PROG}: warning: gyro_quantum > 0: pulse quantization (000 §5) is not modelled; the σ may be '
+        print(f'{PROG}: warning: gyro_quantum > 0: pulse quantization (000 §5) is not '
+              'modelled; the σ may be '
               f'optimistic', file=sys.stderr)
     try:
         rec, info = load_recording(args.bag, model, args.namespace,     # (no progress line yet: an
@@ -212,16 +264,20 @@ def main(argv=None) -> int:
         for line in input_warnings(PROG, info):
             print(line, file=sys.stderr)
         if len(rec.fix_stamps) < 6:
-            raise ValueError(f'{args.bag}: {len(rec.fix_stamps)} usable camera fixes (need at least 6)')
-        progress(f"read {info['gyro_messages']} increments and {info['camera_fixes']} camera fixes")
-        progress("compensating the model's other effects; initial boresight from the increment axes")
+            raise ValueError(f'{args.bag}: {len(rec.fix_stamps)} usable camera fixes '
+                             '(need at least 6)')
+        progress(f"read {info['gyro_messages']} increments and {info['camera_fixes']} "
+                 'camera fixes')
+        progress("compensating the model's other effects; "
+                 'initial boresight from the increment axes')
         prep = gc.prepare(rec, model)
         if args.method == 'integral':
             progress(f'002 integral method over {prep.pairs} camera steps')
             cal = gc.calibrate_integral(prep, args.interval, args.sigma_limit)
         else:
-            cal = gc.calibrate_drifting_reference(prep, args.drift, args.sigma_limit,
-                                         progress=lambda s: progress(s.replace('tkachenko: ', '000: ')))
+            cal = gc.calibrate_drifting_reference(
+                prep, args.drift, args.sigma_limit,
+                progress=lambda s: progress(s.replace('tkachenko: ', '000: ')))
     except (BagError, InputError, ValueError, OSError, np.linalg.LinAlgError) as exc:
         return fail(str(exc).splitlines()[0] if str(exc) else type(exc).__name__)
     out = result_json(cal, info)
@@ -234,14 +290,16 @@ def main(argv=None) -> int:
             write_json(args.json, out)
         if cal.observable and args.write_model:
             write_model(args.write_model, doc, gc.model_parameters(cal),
-                        f'written by calibrate_gyro_bag --method {cal.method}: gyro_scale_factor, gyro_misalignment, '
+                        f'written by calibrate_gyro_bag --method {cal.method}: '
+                        'gyro_scale_factor, gyro_misalignment, '
                         f'gyro_bias estimated from {Path(args.bag).name}')
             print(f'  model with the estimated gyro errors: {args.write_model}')
     except OSError as exc:
         return fail(exc)
     if not cal.observable:
         print(f'{PROG}: gyro errors NOT observable from this bag ({cal.method}): unobservable: '
-              f"{'; '.join(cal.unobservable)}.  Record turns about three non-parallel axes, in both senses, "
+              f"{'; '.join(cal.unobservable)}.  Record turns about three non-parallel axes, "
+              'in both senses, '
               f'and rest periods; nothing was estimated', file=sys.stderr)
         return 3
     progress(f'done in {time.perf_counter() - t_start:.1f} s')

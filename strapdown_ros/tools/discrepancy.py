@@ -1,6 +1,7 @@
 """
-discrepancy: where a recording and its model disagree, which effect is missing, and how much
-the disagreement shrinks once it is added.
+discrepancy: where a recording and its model disagree, and which effect is missing.
+
+How much the disagreement shrinks once the missing effect is added is reported too.
 
     discrepancy BAG --model MODEL.yaml [--json FILE] [--report DIR] [--write-model OUT.yaml]
                 [--force]
@@ -63,13 +64,25 @@ ARCSEC_PER_RAD = 180.0 / np.pi * 3600.0
 
 def write_model(path: str, doc: dict, result) -> None:
     """
-    The model file with the found effects and the estimated boresight: written into ``/**``
-    (and into any node block that sets the same key, so it does not override the new value).
-    """
+    Write the model file with the found effects and the estimated boresight.
 
+    The values go into ``/**`` (and into any node block that sets the same key, so that it does
+    not override the new value).
+
+    Parameters
+    ----------
+    path : str
+        The output model file (written atomically).
+    doc : dict
+        The input model document (ROS 2 parameter YAML).
+    result : DiscrepancyResult
+        The workflow's result.
+
+    """
     updates = dict(result.model_out)
     updates['initial_boresight'] = updates['boresight']
-    write_model_file(path, doc, updates, f'written by discrepancy: verdict {result.verdict}; effects added: '
+    write_model_file(path, doc, updates,
+                     f'written by discrepancy: verdict {result.verdict}; effects added: '
                      f"{', '.join(s.effect for s in result.steps) or 'none'}")
 
 
@@ -88,22 +101,24 @@ def _summary(bag, info, res) -> str:
         lines.append(f'  σ: Newey–West sandwich over {res.hac_lags} pairs{jk} (the residuals '
                      f"fail {', '.join(res.tests_after['failed'])}: the model's σ would be too "
                      f'small)')
-    lines.append(f'  whitened RMS {res.rms_before:.3g} → {res.rms_after:.3g} (1 = as the model predicts); held out '
+    lines.append(f'  whitened RMS {res.rms_before:.3g} → {res.rms_after:.3g} '
+                 '(1 = as the model predicts); held out '
                  f'{res.heldout_rms_before:.3g} → {res.heldout_rms_after:.3g}')
     for k, s in enumerate(res.steps, 1):
         vals = '; '.join(f'{n} = {_fmt(v)} ± {_fmt(s.sigma[n])}' for n, v in s.parameters.items())
-        lines.append(f'  step {k}: {s.effect}: {vals}  (LR {s.statistic:.4g}, dof {s.dof}, p {s.p_value:.3g}, '
+        lines.append(f'  step {k}: {s.effect}: {vals}  (LR {s.statistic:.4g}, dof {s.dof}, '
+                     f'p {s.p_value:.3g}, '
                      f'held-out gain {s.heldout_gain:.3g})')
         if s.repeatable is False:
             lines.append(f'    not repeatable across time blocks: leave-one-block-out spread '
                          f"{'; '.join(f'{n} ± {_fmt(v)}' for n, v in s.spread.items())} "
                          f'({s.spread_ratio:.3g}× the σ above): not a plain finding')
-    stop = {'max_steps': f'the step limit ({res.max_steps} accepted effects) stopped the search; '
-                         f'more may be missing',
-            'no_significant_candidate': 'search stopped: no candidate left passes its test',
-            'no_candidates_left': 'search stopped: every candidate was added, excluded or failed',
-            'iteration_limit': 'search stopped by its turn limit'}.get(res.stopped_by,
-                                                                        f'{res.stopped_by}')
+    stops = {'max_steps': f'the step limit ({res.max_steps} accepted effects) stopped the search; '
+                          f'more may be missing',
+             'no_significant_candidate': 'search stopped: no candidate left passes its test',
+             'no_candidates_left': 'search stopped: every candidate was added, excluded or failed',
+             'iteration_limit': 'search stopped by its turn limit'}
+    stop = stops.get(res.stopped_by, f'{res.stopped_by}')
     lines.append(f'  {stop}')
     seen: dict = {}
     for f in res.failed_candidates:                  # one line per effect and reason
@@ -115,15 +130,19 @@ def _summary(bag, info, res) -> str:
     for r in res.rejected:
         lines.append(f"  not added: {r['effect']}: {r['reason']}")
     ta = j['tests_after']
-    lines.append('  tests: ' + ', '.join(f"{k} p = {ta[k]['p_value']:.3g}" for k in ('nis', 'whiteness', 'outliers'))
+    lines.append('  tests: ' + ', '.join(f"{k} p = {ta[k]['p_value']:.3g}" for k in ('nis',
+                                                                                     'whiteness',
+                                                                                     'outliers'))
                  + f" (level {ta['level']:.3g} each)")
     if res.remaining:
         rm = res.remaining
-        lines.append(f"  remaining structure: dominant period {rm.get('dominant_period_s', float('nan')):.4g} s, "
+        nan = float('nan')
+        lines.append('  remaining structure: dominant period '
+                     f"{rm.get('dominant_period_s', nan):.4g} s, "
                      f"lag-{rm.get('dominant_lag_pairs')} autocorrelation "
-                     f"{rm.get('dominant_lag_autocorrelation', float('nan')):.2f}, correlation with rate "
-                     f"{rm.get('correlation_with_rate', float('nan')):.2f}, with accumulated angle "
-                     f"{rm.get('correlation_with_accumulated_angle', float('nan')):.2f}")
+                     f"{rm.get('dominant_lag_autocorrelation', nan):.2f}, correlation with rate "
+                     f"{rm.get('correlation_with_rate', nan):.2f}, with accumulated angle "
+                     f"{rm.get('correlation_with_accumulated_angle', nan):.2f}")
         for c in rm.get('candidate_explanations', []):
             sw = rm.get('gyro_axis_swap_sign', {})
             lines.append(f'  candidate explanation outside the library: {c}: the gyro triad '
@@ -133,7 +152,8 @@ def _summary(bag, info, res) -> str:
                          f'boresight)')
     b = np.degrees(res.boresight_rad)
     s = np.asarray(res.boresight_sigma_rad) * ARCSEC_PER_RAD
-    lines.append(f'  boresight β = ({b[0]:.6f}, {b[1]:.6f}, {b[2]:.6f})° ± ({s[0]:.3g}, {s[1]:.3g}, {s[2]:.3g})″')
+    lines.append(f'  boresight β = ({b[0]:.6f}, {b[1]:.6f}, {b[2]:.6f})° '
+                 f'± ({s[0]:.3g}, {s[1]:.3g}, {s[2]:.3g})″')
     return '\n'.join(lines)
 
 
@@ -144,17 +164,34 @@ def _fmt(v):
 
 
 def main(argv=None) -> int:
+    """
+    Run the discrepancy command.
 
+    Parameters
+    ----------
+    argv : list of str, optional
+        The arguments (default ``sys.argv[1:]``).
+
+    Returns
+    -------
+    int
+        The exit status (0 success; 2 unusable arguments or input, one line on stderr).
+
+    """
     ap = OneLineParser(prog='discrepancy', description=__doc__,
                        formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument('bag', help='rosbag2 bag directory, or a .mcap / .db3 file')
-    ap.add_argument('--model', required=True, metavar='MODEL.yaml', help='nominal model: ROS 2 parameter file')
+    ap.add_argument('--model', required=True, metavar='MODEL.yaml',
+                    help='nominal model: ROS 2 parameter file')
     ap.add_argument('--json', metavar='FILE', help='write the result as JSON')
-    ap.add_argument('--report', metavar='DIR', help='write report.md and PNG plots into DIR (created)')
-    ap.add_argument('--write-model', metavar='OUT.yaml', help='write the model with the found effects')
+    ap.add_argument('--report', metavar='DIR',
+                    help='write report.md and PNG plots into DIR (created)')
+    ap.add_argument('--write-model', metavar='OUT.yaml',
+                    help='write the model with the found effects')
     ap.add_argument('--force', action='store_true', help='overwrite existing outputs (--json, '
                     '--write-model, a non-empty --report directory)')
-    ap.add_argument('--alpha', type=float, default=None, help='family-wise level of the selection (default 0.01)')
+    ap.add_argument('--alpha', type=float, default=None,
+                    help='family-wise level of the selection (default 0.01)')
     ap.add_argument('--namespace', default='', help='topic namespace, e.g. /robot1')
     ap.add_argument('--quiet', action='store_true', help='no progress on stderr')
     add_input_arguments(ap)
@@ -180,7 +217,8 @@ def main(argv=None) -> int:
 
     def progress(text):
         if not args.quiet:
-            print(f'discrepancy: [{time.perf_counter() - t0:6.1f} s] {text}', file=sys.stderr, flush=True)
+            print(f'discrepancy: [{time.perf_counter() - t0:6.1f} s] {text}', file=sys.stderr,
+                  flush=True)
     try:
         progress('reading the bag')
         rec, info = load_recording(args.bag, model, args.namespace, **input_options(args))
@@ -215,7 +253,7 @@ def main(argv=None) -> int:
         after.update(s.parameters)
     try:
         allan = allan_comparison(rec.gyro_stamps, rec.delta_theta, model, after)
-    except Exception as exc:                       # noqa: BLE001 - the rest of the result stands
+    except Exception as exc:                       # the rest of the result stands
         allan = {'error': str(exc)}
     out = res.as_json()
     out['allan'] = json_clean(allan)

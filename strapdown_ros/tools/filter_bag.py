@@ -31,7 +31,22 @@ NODE_NAME = 'attitude_filter_node'
 
 
 def state_rows(outputs, augment) -> str:
-    """CSV text of the filter outputs (header first)."""
+    """
+    Return the CSV text of the filter outputs, header first.
+
+    Parameters
+    ----------
+    outputs : list
+        The filter's outputs (stamp, attitude, σ, state).
+    augment : object
+        Not read: the augmented columns come from the outputs themselves.
+
+    Returns
+    -------
+    str
+        The CSV text.
+
+    """
     head = ['stamp', 'qx', 'qy', 'qz', 'qw', 'sigma_x', 'sigma_y', 'sigma_z',
             'bias_x', 'bias_y', 'bias_z', 'bias_sigma_x', 'bias_sigma_y', 'bias_sigma_z']
     for name, (v, _) in (outputs[0].augmented.items() if outputs else []):
@@ -50,21 +65,48 @@ def state_rows(outputs, augment) -> str:
 
 
 def fix_rows(fixes) -> str:
-    """CSV text of the fix results (header first)."""
+    """
+    Return the CSV text of the fix results, header first.
+
+    Parameters
+    ----------
+    fixes : list
+        The filter's fix results (stamp, status, innovation, NIS, lateness, check).
+
+    Returns
+    -------
+    str
+        The CSV text.
+
+    """
     lines = ['stamp,status,innovation_x,innovation_y,innovation_z,nis,lateness,check_ok,check']
     for f in fixes:
         z = f.innovation if f.innovation is not None else [float('nan')] * 3
         nis = f.nis if f.nis is not None else float('nan')
         text = f.check_text.replace('"', "'")
         lines.append(f'{f.stamp_ns * 1e-9:.17g},{f.status},{z[0]:.17g},{z[1]:.17g},'
-                     f"{z[2]:.17g},{nis:.17g},{f.lateness:.17g},{int(f.check_ok)},\"{text}\"")
+                     f'{z[2]:.17g},{nis:.17g},{f.lateness:.17g},{int(f.check_ok)},"{text}"')
     return '\n'.join(lines) + '\n'
 
 
 def run_filter(data: dict, p: dict) -> FilterSystem:
     """
-    The filter over the streams of :func:`~strapdown_ros.recording.reader.read_bag`, fixes
-    given after the increments up to their stamps (the order a node sees live).
+    Run the filter over the streams of a recording.
+
+    Fixes are given after the increments up to their stamps: the order a node sees live.
+
+    Parameters
+    ----------
+    data : dict
+        The streams of :func:`strapdown_ros.recording.reader.read_bag`.
+    p : dict
+        attitude_filter_node parameters.
+
+    Returns
+    -------
+    FilterSystem
+        The filter after the recording, its outputs and fix results kept.
+
     """
     system = FilterSystem(p)
     g, c = data['gyro'], data['camera']
@@ -82,6 +124,20 @@ def run_filter(data: dict, p: dict) -> FilterSystem:
 
 
 def main(argv=None) -> int:
+    """
+    Run the filter_bag command.
+
+    Parameters
+    ----------
+    argv : list of str, optional
+        The arguments (default ``sys.argv[1:]``).
+
+    Returns
+    -------
+    int
+        The exit status (0 success; 2 unusable arguments or input, one line on stderr).
+
+    """
     ap = OneLineParser(prog='filter_bag', description=__doc__.split('\n')[0])
     ap.add_argument('bag', help='bag directory or file')
     ap.add_argument('--output', required=True, help='CSV of the filter outputs')

@@ -26,6 +26,20 @@ __all__ = ['main']
 
 
 def main(argv=None) -> int:
+    """
+    Run the realdata_bag command.
+
+    Parameters
+    ----------
+    argv : list of str, optional
+        The arguments (default ``sys.argv[1:]``).
+
+    Returns
+    -------
+    int
+        The exit status (0 success; 2 unusable arguments or input, one line on stderr).
+
+    """
     ap = OneLineParser(prog='realdata_bag', description=__doc__,
                        formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument('trial', help='RepoIMU trial CSV')

@@ -47,15 +47,31 @@ __all__ = ['main']
 
 
 def main(argv=None) -> int:
+    """
+    Run the record_sim command.
 
+    Parameters
+    ----------
+    argv : list of str, optional
+        The arguments (default ``sys.argv[1:]``).
+
+    Returns
+    -------
+    int
+        The exit status (0 success; 2 unusable arguments or input, one line on stderr).
+
+    """
     ap = OneLineParser(prog='record_sim', description=__doc__,
                        formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument('bag', help='output bag directory (must not exist unless --force)')
     ap.add_argument('--force', action='store_true', help='replace an existing output bag')
-    ap.add_argument('--params', metavar='FILE', help='ROS 2 parameter YAML (imu_sim_node, star_camera_sim_node, /**)')
+    ap.add_argument('--params', metavar='FILE',
+                    help='ROS 2 parameter YAML (imu_sim_node, star_camera_sim_node, /**)')
     ap.add_argument('--duration', type=float, metavar='S',
-                    help="simulated seconds (default: the parameter 'duration', 0 = the profile length)")
-    ap.add_argument('--storage', choices=('mcap', 'sqlite3'), default='mcap', help='rosbag2 storage (default mcap)')
+                    help="simulated seconds (default: the parameter 'duration', "
+                         '0 = the profile length)')
+    ap.add_argument('--storage', choices=('mcap', 'sqlite3'), default='mcap',
+                    help='rosbag2 storage (default mcap)')
     ap.add_argument('--no-accel', action='store_true', help='do not record imu/delta_velocity')
     ap.add_argument('--namespace', default='', help='topic namespace, e.g. /robot1')
     ap.add_argument('-p', '--param', action='append', default=[], metavar='NAME:=VALUE',
@@ -64,7 +80,8 @@ def main(argv=None) -> int:
     from rosbags.rosbag2 import WriterError
 
     try:
-        imu_p, cam_p = simulator_parameters(args.params, parse_overrides(args.param), args.duration)
+        imu_p, cam_p = simulator_parameters(args.params, parse_overrides(args.param),
+                                            args.duration)
         if any(imu_p[s.name] != cam_p[s.name] for s in PROFILE_PARAMS):
             print('record_sim: warning: imu_sim_node and star_camera_sim_node have different '
                   'profile parameters; each uses its own, as the nodes would', file=sys.stderr)
@@ -91,7 +108,8 @@ def main(argv=None) -> int:
         commit_directory(staged, args.bag)
         staged = None
         summary['bag'] = str(args.bag)
-    except (ValueError, OSError, WriterError) as exc:          # WriterError: the bag exists already, ...
+    # WriterError: the bag exists already, ...
+    except (ValueError, OSError, WriterError) as exc:
         print(f'record_sim: error: {exc}', file=sys.stderr)
         return 2
     finally:
@@ -99,7 +117,8 @@ def main(argv=None) -> int:
             discard_directory(staged)
     beta = np.asarray(summary['boresight_rad'])
     topics = ', '.join(f'{t} {n}' for t, n in summary['messages'].items())
-    print(f"record_sim: {summary['bag']} ({summary['storage']}, {summary['duration_s']:g} s): {topics}; "
+    print(f"record_sim: {summary['bag']} ({summary['storage']}, {summary['duration_s']:g} s): "
+          f'{topics}; '
           f"true boresight β = ({', '.join(f'{np.degrees(b):.6g}' for b in beta)})° "
           f"q_mf_vf_xyzw = [{', '.join(f'{c:.9f}' for c in summary['q_mf_vf_xyzw'])}]")
     return 0

@@ -9,36 +9,39 @@ Every wait has a timeout (conftest.py isolates the ROS domain).
 import math
 from types import SimpleNamespace
 
+from builtin_interfaces.msg import Time
+from diagnostic_msgs.msg import DiagnosticArray
+from geometry_msgs.msg import (PoseWithCovarianceStamped, Quaternion, QuaternionStamped,
+                               TwistWithCovarianceStamped, Vector3Stamped)
 import numpy as np
 import pytest
+import rclpy
+from rclpy.parameter import Parameter
+from rclpy.qos import ReliabilityPolicy
+from rclpy.serialization import serialize_message
+from ros_helpers import spin_until
+from sensor_msgs.msg import Imu
+from std_msgs.msg import Header
 
-rclpy = pytest.importorskip('rclpy')
-
-from builtin_interfaces.msg import Time  # noqa: E402
-from diagnostic_msgs.msg import DiagnosticArray  # noqa: E402
-from geometry_msgs.msg import PoseWithCovarianceStamped  # noqa: E402
-from geometry_msgs.msg import (Quaternion, QuaternionStamped, TwistWithCovarianceStamped,
-                               Vector3Stamped)
-from rclpy.parameter import Parameter  # noqa: E402
-from rclpy.qos import ReliabilityPolicy  # noqa: E402
-from sensor_msgs.msg import Imu  # noqa: E402
-from std_msgs.msg import Header  # noqa: E402
-
-from ros_helpers import spin_until  # noqa: E402
-from strapdown_ros.nodes import ros_io  # noqa: E402
-from strapdown_ros.nodes.attitude_filter_node import AttitudeFilterNode  # noqa: E402
-from strapdown_ros.nodes.imu_sim_node import ImuSimNode  # noqa: E402
-from strapdown_ros.nodes.star_camera_sim_node import StarCameraSimNode  # noqa: E402
-from strapdown_ros.params import FILTER_PARAMS  # noqa: E402
+from strapdown_ros.motion.profiles import PiecewiseRateProfile, Segment
+from strapdown_ros.nodes import ros_io, ros_status
+from strapdown_ros.nodes.attitude_filter_node import AttitudeFilterNode
+from strapdown_ros.nodes.imu_sim_node import ImuSimNode
+from strapdown_ros.nodes.star_camera_sim_node import StarCameraSimNode
+from strapdown_ros.params import FILTER_PARAMS
 from strapdown_ros.rotation import (dcm_to_quat, from_ros_xyzw, quat_conjugate, quat_error_rotvec,
-                                    quat_multiply, ypr_to_dcm)
-from strapdown_ros.tools.filter_bag import run_filter  # noqa: E402
+                                    quat_multiply, rotvec_to_quat, ypr_to_dcm)
+from strapdown_ros.sensors import ARCSEC
+from strapdown_ros.sensors.model import IntegratingSensor, SensorErrorModel
+from strapdown_ros.sensors.star_camera import StarCameraModel
+from strapdown_ros.tools.filter_bag import run_filter
+
 
 try:
-    from rclpy.experimental import EventsExecutor as Executor  # noqa: E402
+    from rclpy.experimental import EventsExecutor as Executor
     TIME_SCALE = 8.0
 except ImportError:                                        # older Jazzy rclpy
-    from rclpy.executors import SingleThreadedExecutor as Executor  # noqa: E402
+    from rclpy.executors import SingleThreadedExecutor as Executor
     TIME_SCALE = 5.0
 
 BETA = np.radians([40.0, -25.0, 120.0])
@@ -48,22 +51,24 @@ QUEUE = 20000
 DURATION = 80.0                                      # s: holds and turns about z and x
 
 
-
-
 def q_of(m):
+    """Return the scalar-first quaternion of a QuaternionStamped or pose message."""
     q = m.quaternion if isinstance(m, QuaternionStamped) else m.orientation
     return from_ros_xyzw(np.array([q.x, q.y, q.z, q.w]))
 
 
 def ns_of(m):
+    """Return the header stamp of a message, ns."""
     return ros_io.stamp_to_ns(m.header.stamp)
 
 
 @pytest.fixture(scope='module')
 def graph(ros):
     """
-    One simulated bench run (80 s, a fix every second) through the filter node; a monitor
-    records what the node received and what it published.
+    Run one simulated bench run through the filter node.
+
+    One simulated bench run (80 s, a fix every second) through the filter node; a monitor records
+    what the node received and what it published.
     """
     ns = '/t_filter_graph'
     depth = Parameter('qos_depth', value=QUEUE)
@@ -184,11 +189,13 @@ def _compare(a, b, bias_atol, cov_rtol):
 
 def test_node_and_filter_bag_give_the_same_numbers(graph, ros):
     """
-    The messages the live node received, through filter_bag's driver and through a second
-    node fed in the tool's order (increments up to a fix's stamp, then the fix): the same
-    numbers to round-off.  Live, a fix that arrives after later increments is applied as a late
-    fix (replayed from a checkpoint): the covariance propagation is then lumped differently, and
-    the live node agrees with the tool to 1e-4 of the bias σ (measured: ~1e-5).
+    Check: node and filter bag give the same numbers.
+
+    The messages the live node received, through filter_bag's driver and through a second node fed
+    in the tool's order (increments up to a fix's stamp, then the fix): the same numbers to
+    round-off.  Live, a fix that arrives after later increments is applied as a late fix (replayed
+    from a checkpoint): the covariance propagation is then lumped differently, and the live node
+    agrees with the tool to 1e-4 of the bias σ (measured: ~1e-5).
     """
     filt, rec = graph.filt, graph.rec
     tool = _tool_on(rec, dict(filt.p))
@@ -256,7 +263,7 @@ def test_bad_input_is_dropped_counted_and_reported(ros):
         assert node.system.counts['applied'] == 1         # alive: the next fix applied
         c = node.diagnostic_conditions(node.system.status())
         text = c.message()
-        assert c.level == ros_io.ERROR                            # the NaN left a gap: restart
+        assert c.level == ros_status.ERROR                            # the NaN left a gap: restart
         assert 'dropped 1 gyro messages (NaN 1' in text and 'zero quaternion 1' in text, text
     finally:
         node.destroy_node()
@@ -293,13 +300,12 @@ def test_boresight_from_the_latched_topic(ros):
 
 def test_imu_rates_input(ros):
     """
-    ``gyro_input: imu``: sensor_msgs/Imu rates (mean rule) through the node's raw
-    subscription callback; a constant rate about a fixed axis, exact fixes every second: the
-    filtered attitude is the exact one within 3σ and every fix is applied.
-    """
-    from rclpy.serialization import serialize_message
+    Check: imu rates input.
 
-    from strapdown_ros.rotation import rotvec_to_quat
+    ``gyro_input: imu``: sensor_msgs/Imu rates (mean rule) through the node's raw subscription
+    callback; a constant rate about a fixed axis, exact fixes every second: the filtered attitude
+    is the exact one within 3σ and every fix is applied.
+    """
     node = AttitudeFilterNode(namespace='/t_filter_imu', parameter_overrides=[
         Parameter('gyro_input', value='imu'), Parameter('imu_rate_rule', value='mean'),
         Parameter('use_camera_covariance', value=False), Parameter('output_period', value=0.1)])
@@ -329,14 +335,11 @@ def test_imu_rates_input(ros):
 
 def test_unmodelled_scale_factor_is_a_warn_on_diagnostics(ros):
     """
-    An injected gyro scale factor the filter does not model: the live model check names it
-    on /diagnostics as WARN (the node does not change its model).
+    Check: unmodelled scale factor is a warn on diagnostics.
+
+    An injected gyro scale factor the filter does not model: the live model check names it on
+    /diagnostics as WARN (the node does not change its model).
     """
-    from strapdown_ros.motion.profiles import PiecewiseRateProfile, Segment
-    from strapdown_ros.rotation import rotvec_to_quat
-    from strapdown_ros.sensors import ARCSEC
-    from strapdown_ros.sensors.model import IntegratingSensor, SensorErrorModel
-    from strapdown_ros.sensors.star_camera import StarCameraModel
     rate, seconds = 50.0, 150
     segs = []
     for axis, sign in ((0, 1), (1, 1), (2, 1), (0, -1), (1, -1), (2, -1)):
@@ -366,7 +369,7 @@ def test_unmodelled_scale_factor_is_a_warn_on_diagnostics(ros):
                      fx.covariance)
         node.process()
         c = node.diagnostic_conditions(node.system.status())
-        assert c.level == ros_io.WARN, c.message()
+        assert c.level == ros_status.WARN, c.message()
         assert 'live model check: ' in c.message()
         assert 'innovations match gyro_scale_factor (p = ' in c.message(), c.message()
         assert node.system.augment == ()                 # the model is unchanged

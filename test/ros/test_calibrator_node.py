@@ -14,26 +14,27 @@ import subprocess
 import sys
 import time
 
+from diagnostic_msgs.msg import DiagnosticArray
+from geometry_msgs.msg import PoseWithCovarianceStamped, QuaternionStamped, Vector3Stamped
 import numpy as np
 import pytest
+import rclpy
+from rclpy.executors import SingleThreadedExecutor
+from rclpy.parameter import Parameter
+from rclpy.qos import DurabilityPolicy, ReliabilityPolicy
+from ros_helpers import spin_until
 
-rclpy = pytest.importorskip('rclpy')
-
-from diagnostic_msgs.msg import DiagnosticArray  # noqa: E402
-from geometry_msgs.msg import PoseWithCovarianceStamped  # noqa: E402
-from geometry_msgs.msg import QuaternionStamped, Vector3Stamped
-from rclpy.executors import SingleThreadedExecutor  # noqa: E402
-from rclpy.parameter import Parameter  # noqa: E402
-from rclpy.qos import DurabilityPolicy, ReliabilityPolicy  # noqa: E402
-
-from ros_helpers import spin_until  # noqa: E402
-from strapdown_ros.motion.profiles import bench_profile  # noqa: E402
-from strapdown_ros.nodes.calibrator_node import CalibratorNode  # noqa: E402
-from strapdown_ros.nodes.imu_sim_node import ImuSimNode  # noqa: E402
-from strapdown_ros.nodes.ros_io import stamp_to_ns, stream_qos  # noqa: E402
-from strapdown_ros.nodes.star_camera_sim_node import camera_qos, latched_qos, StarCameraSimNode
+from strapdown_ros.motion.profiles import bench_profile
+from strapdown_ros.nodes.calibrator_node import CalibratorNode
+from strapdown_ros.nodes.imu_sim_node import ImuSimNode
+from strapdown_ros.nodes.ros_io import camera_qos, latched_qos, stamp_to_ns, stream_qos
+from strapdown_ros.nodes.star_camera_sim_node import StarCameraSimNode
 from strapdown_ros.rotation import (dcm_to_quat, from_ros_xyzw, quat_error_rotvec, quat_to_dcm,
-                                    quat_to_rotvec, ypr_to_dcm)
+                                    quat_to_rotvec, to_ros_xyzw, ypr_to_dcm)
+from strapdown_ros.sensors import IntegratingSensor
+from strapdown_ros.sensors.star_camera import StarCameraModel
+from strapdown_ros.tools import calibrate_bag
+
 
 ARCSEC = math.pi / 180.0 / 3600.0
 BETA = np.radians([40.0, -25.0, 120.0])          # (ψ, ϑ, γ): far from small, as in 004 §1
@@ -47,7 +48,7 @@ REPO = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__)
 # Jazzy's rclpy 7.1) has no such limit (no loss at 60×), so the simulated minutes run in seconds.
 # Deployed, each node spins in its own process and this does not arise.
 try:
-    from rclpy.experimental import EventsExecutor as Executor  # noqa: E402
+    from rclpy.experimental import EventsExecutor as Executor
     MAX_TIME_SCALE = 50.0
 except ImportError:                                        # older Jazzy rclpy
     Executor = SingleThreadedExecutor
@@ -59,8 +60,6 @@ except ImportError:                                        # older Jazzy rclpy
 QUEUE = 20000
 
 
-
-
 def q_of(msg):
     """Scalar-first quaternion of a Pose/Quaternion(Stamped) message."""
     q = msg.pose.pose.orientation if isinstance(msg, PoseWithCovarianceStamped) else msg.quaternion
@@ -68,30 +67,34 @@ def q_of(msg):
 
 
 def rot_cov(msg):
+    """Return the rotation block of a pose covariance, rad²."""
     return np.asarray(msg.pose.covariance, dtype=float).reshape(6, 6)[3:, 3:]
 
 
 def status_of(diags, prefix):
+    """Return the latest diagnostic status whose name starts with ``prefix``."""
     st = [s for d in diags for s in d.status if s.name.startswith(prefix)]
     return st[-1] if st else None
 
 
 class Graph:
-    """imu_sim_node + star_camera_sim_node + calibrator_node (+ a monitor node) in one namespace."""
+    """The simulators, calibrator_node and a monitor node, in one namespace."""
 
     def __init__(self, ns, profile, time_scale, camera=(), calibrator=(), plain_peer=False):
         self.ns = ns
         prof = [Parameter(k, value=v) for k, v in profile.items()]
         depth = [Parameter('qos_depth', value=QUEUE)]
         self.calib = CalibratorNode(namespace=ns, parameter_overrides=[*depth, *calibrator])
-        # optional second calibrator on star_camera/attitude (no covariance: σ from its parameters),
+        # optional second calibrator on star_camera/attitude (no covariance: σ from its
+        # parameters),
         # in its own namespace with its inputs remapped to this graph's topics
         self.peer = CalibratorNode(namespace=ns + '_plain', parameter_overrides=[
             *depth, Parameter('use_camera_covariance', value=False)], cli_args=[
             '--ros-args', '-r', f'imu/delta_theta:={ns}/imu/delta_theta',
             '-r', f'star_camera/attitude:={ns}/star_camera/attitude']) if plain_peer else None
         self.sim = ImuSimNode(namespace=ns, parameter_overrides=[
-            *prof, *depth, Parameter('gyro_rate', value=100.0), Parameter('accel_rate', value=10.0),   # Δv unused
+            *prof, *depth, Parameter('gyro_rate', value=100.0),
+            Parameter('accel_rate', value=10.0),   # Δv unused
             Parameter('time_scale', value=min(time_scale, MAX_TIME_SCALE))])
         self.cam = StarCameraSimNode(namespace=ns, parameter_overrides=[
             *prof, Parameter('boresight', value=[float(b) for b in BETA]),
@@ -100,15 +103,19 @@ class Graph:
         self.diags = []
         self.imu_att = []
         self.mon.create_subscription(DiagnosticArray, '/diagnostics', self.diags.append, 50)
-        self.mon.create_subscription(PoseWithCovarianceStamped, 'calibration/imu_attitude_from_camera',
+        self.mon.create_subscription(PoseWithCovarianceStamped,
+                                     'calibration/imu_attitude_from_camera',
                                      self.imu_att.append, camera_qos(100))
         self.ex = Executor()
-        self.nodes = [self.calib, self.mon, self.sim, self.cam] + ([self.peer] if self.peer else [])
+        self.nodes = [self.calib, self.mon, self.sim,
+                      self.cam] + ([self.peer] if self.peer else [])
 
     def run(self):
         """
-        Discovery first (the simulators start their clocks at their first timer tick, so they
-        join the executor only when the calibrator's subscriptions are matched), then run both
+        Run discovery, then both simulators to the end, until every message is taken.
+
+        Discovery first (the simulators start their clocks at their first timer tick, so they join
+        the executor only when the calibrator's subscriptions are matched), then run both
         simulators to the end and wait until the calibrator has taken every message.
         """
         for n in (self.calib, self.mon) + ((self.peer,) if self.peer else ()):
@@ -116,7 +123,8 @@ class Graph:
         peers = 2 if self.peer else 1
         assert spin_until(self.ex, lambda: self.sim.pub_dtheta.get_subscription_count() >= peers
                           and self.cam.pub_cov.get_subscription_count() >= 1
-                          and self.cam.pub_att.get_subscription_count() >= peers - 1, 10.0), 'discovery timed out'
+                          and self.cam.pub_att.get_subscription_count() >= peers - 1,
+                          10.0), 'discovery timed out'
         self.ex.add_node(self.sim)
         self.ex.add_node(self.cam)
         t0 = time.monotonic()
@@ -128,17 +136,22 @@ class Graph:
         spin_until(self.ex, self.all_received, 5.0)
         g, c = self.calib.gyro_check, self.calib.camera_check
         assert self.all_received(), (
-            f'calibrator lost input (best-effort queue overflow? lower time_scale): gyro {g.received} of '
+            'calibrator lost input (best-effort queue overflow? lower time_scale): '
+            f'gyro {g.received} of '
             f"{self.sim.counts['delta_theta']}, camera {c.received} of {self.cam.published}")
-        assert (g.accepted, g.nan, g.out_of_order, g.duplicate, g.gaps, g.missing) == (g.received, 0, 0, 0, 0, 0)
+        assert (g.accepted, g.nan, g.out_of_order, g.duplicate, g.gaps, g.missing) == (g.received,
+                                                                                       0, 0, 0, 0,
+                                                                                       0)
         assert c.accepted == c.received == self.cam.published
 
     def all_received(self):
+        """Tell whether every calibrator took every message published."""
         return all(n.gyro_check.received == self.sim.counts['delta_theta']
                    and n.camera_check.received == self.cam.published
                    for n in (self.calib, self.peer) if n is not None)
 
     def diagnostics(self):
+        """Publish the calibrator status and return it with its key values."""
         self.calib.publish_diagnostics()
         prefix = f'{self.ns}/calibrator_node'
         n0 = sum(1 for d in self.diags for s in d.status if s.name.startswith(prefix))
@@ -148,12 +161,14 @@ class Graph:
         return st, {v.key: v.value for v in st.values}
 
     def late_subscriber(self, topic, typ, wait):
+        """Subscribe late (latched QoS) and return what arrives within ``wait`` s."""
         got = []
         self.mon.create_subscription(typ, topic, got.append, latched_qos())
         spin_until(self.ex, lambda: bool(got), wait)
         return got
 
     def close(self):
+        """Destroy the nodes and the executor."""
         for n in self.nodes:
             try:
                 self.ex.remove_node(n)
@@ -173,8 +188,10 @@ def test_bench_calibration_full_graph(ros):
         assert cal.published['boresight'] >= 1, cal.cal.solution.message
         # star_camera/attitude + σ parameters (the same σ as the simulator's) gives the same answer
         assert g.peer.published['boresight'] == cal.published['boresight']
-        np.testing.assert_allclose(g.peer.cal.solution.beta, cal.cal.solution.beta, rtol=0, atol=1e-12)
-        np.testing.assert_allclose(g.peer.cal.solution.rotation_covariance_mf, cal.cal.solution.rotation_covariance_mf,
+        np.testing.assert_allclose(g.peer.cal.solution.beta, cal.cal.solution.beta, rtol=0,
+                                   atol=1e-12)
+        np.testing.assert_allclose(g.peer.cal.solution.rotation_covariance_mf,
+                                   cal.cal.solution.rotation_covariance_mf,
                                    rtol=1e-9)
 
         # --- the estimate reaches a subscriber created after it was published (transient local)
@@ -186,7 +203,8 @@ def test_bench_calibration_full_graph(ros):
         C = quat_to_dcm(q_of(msg))
         P = rot_cov(msg)
         cov6 = np.asarray(msg.pose.covariance).reshape(6, 6)
-        assert np.all(np.diag(cov6)[:3] == 1e9) and not np.any(cov6[:3, 3:])   # position: not estimated
+        # position: not estimated
+        assert np.all(np.diag(cov6)[:3] == 1e9) and not np.any(cov6[:3, 3:])
         # rotation error in MF axes: C_pub = (I + [e×]) C_true
         e = quat_to_rotvec(dcm_to_quat(C @ C_TRUE.T))
         sig = np.sqrt(np.diag(P))
@@ -199,7 +217,8 @@ def test_bench_calibration_full_graph(ros):
         assert ang and ang[-1].header.stamp == msg.header.stamp
         beta = np.array([ang[-1].vector.x, ang[-1].vector.y, ang[-1].vector.z])
         assert np.all(np.abs(beta - BETA) < 60 * ARCSEC), (beta - BETA) / ARCSEC
-        np.testing.assert_allclose(ypr_to_dcm(*beta), C, atol=1e-12)      # the same rotation as the pose
+        # the same rotation as the pose
+        np.testing.assert_allclose(ypr_to_dcm(*beta), C, atol=1e-12)
 
         truth = g.late_subscriber('star_camera/truth/boresight', QuaternionStamped, 5.0)
         assert truth and np.allclose(quat_to_dcm(q_of(truth[-1])), C_TRUE, atol=1e-12)
@@ -213,7 +232,8 @@ def test_bench_calibration_full_graph(ros):
         z = []
         for m, tk in zip(g.imu_att, t):
             assert m.header.frame_id == 'gcrs'
-            eps = quat_error_rotvec(q_of(m), prof.attitude(tk), frame='body')     # MF axes, as P^mfa
+            # MF axes, as P^mfa
+            eps = quat_error_rotvec(q_of(m), prof.attitude(tk), frame='body')
             s = np.sqrt(np.diag(rot_cov(m)))
             assert np.all(s < 60 * ARCSEC)
             z.append(eps / s)
@@ -226,9 +246,11 @@ def test_bench_calibration_full_graph(ros):
         types = dict(g.mon.get_topic_names_and_types())
         expect = {'calibration/boresight': 'geometry_msgs/msg/PoseWithCovarianceStamped',
                   'calibration/boresight_angles': 'geometry_msgs/msg/Vector3Stamped',
-                  'calibration/imu_attitude_from_camera': 'geometry_msgs/msg/PoseWithCovarianceStamped',
+                  'calibration/imu_attitude_from_camera':
+                      'geometry_msgs/msg/PoseWithCovarianceStamped',
                   'star_camera/attitude': 'geometry_msgs/msg/QuaternionStamped',
-                  'star_camera/attitude_with_covariance': 'geometry_msgs/msg/PoseWithCovarianceStamped',
+                  'star_camera/attitude_with_covariance':
+                      'geometry_msgs/msg/PoseWithCovarianceStamped',
                   'star_camera/truth/boresight': 'geometry_msgs/msg/QuaternionStamped'}
         for topic, typ in expect.items():
             assert types[f'{ns}/{topic}'] == [typ], topic
@@ -241,7 +263,8 @@ def test_bench_calibration_full_graph(ros):
             assert info[0].qos_profile.durability == dur, topic
             assert info[0].qos_profile.reliability == ReliabilityPolicy.RELIABLE, topic
         sub = g.mon.get_subscriptions_info_by_topic(f'{ns}/imu/delta_theta')
-        assert [i.qos_profile.reliability for i in sub] == [ReliabilityPolicy.BEST_EFFORT] * 2   # both calibrators
+        # both calibrators
+        assert [i.qos_profile.reliability for i in sub] == [ReliabilityPolicy.BEST_EFFORT] * 2
         for topic in ('star_camera/attitude', 'star_camera/attitude_with_covariance'):
             sub = g.mon.get_subscriptions_info_by_topic(f'{ns}/{topic}')
             assert [i.qos_profile.reliability for i in sub] == [ReliabilityPolicy.RELIABLE], topic
@@ -251,7 +274,8 @@ def test_bench_calibration_full_graph(ros):
         assert st.level == b'\x00', st.message
         assert kv['observable'] == 'True' and kv['converged'] == 'True' and int(kv['pairs']) == 33
         assert kv['weighted'] == 'True' and float(kv['chi2_per_dof']) < 3.0
-        assert int(kv['gyro_received']) == g.sim.counts['delta_theta'] and int(kv['camera_received']) == 34
+        assert (int(kv['gyro_received']) == g.sim.counts['delta_theta']
+                and int(kv['camera_received']) == 34)
         assert float(kv['beta_yaw_deg']) == pytest.approx(40.0, abs=60 / 3600)
         assert 0.1 < float(kv['beta_yaw_sigma_arcsec']) < 60.0
         assert 0.0 < float(kv['last_solve_ms']) < 1000.0
@@ -297,8 +321,10 @@ def test_single_axis_rotation_is_reported_not_observable(ros, tmp_path):
     segs = ['  - {duration: 10.0}']
     for r in (0.05, -0.04, 0.03, -0.05, 0.04, -0.03):
         segs += [f'  - {{duration: 5.0, rate: [0, 0, {r}]}}', '  - {duration: 10.0}']
-    prof = _piecewise(tmp_path, 'earth_rate: [0, 0, 0]\nsegments:\n' + '\n'.join(segs) + '\n')   # 100 s
-    g = Graph('/t_calib_axis', prof, time_scale=25.0, camera=[Parameter('camera_interval', value=5.0)])
+    # 100 s
+    prof = _piecewise(tmp_path, 'earth_rate: [0, 0, 0]\nsegments:\n' + '\n'.join(segs) + '\n')
+    g = Graph('/t_calib_axis', prof, time_scale=25.0,
+              camera=[Parameter('camera_interval', value=5.0)])
     try:
         st, kv = _not_observable(g)
         assert 'one axis' in st.message
@@ -314,8 +340,10 @@ def test_single_axis_rotation_is_reported_not_observable(ros, tmp_path):
 
 
 def test_static_motion_is_reported_not_observable(ros, tmp_path):
-    prof = _piecewise(tmp_path, 'earth_rate: [0, 4.6e-5, 5.6e-5]\nsegments:\n  - {duration: 150.0}\n')
-    g = Graph('/t_calib_static', prof, time_scale=30.0, camera=[Parameter('camera_interval', value=5.0)])
+    prof = _piecewise(tmp_path,
+                      'earth_rate: [0, 4.6e-5, 5.6e-5]\nsegments:\n  - {duration: 150.0}\n')
+    g = Graph('/t_calib_static', prof, time_scale=30.0,
+              camera=[Parameter('camera_interval', value=5.0)])
     try:
         st, kv = _not_observable(g)
         assert 'static' in st.message and int(kv['pairs']) == 29
@@ -328,14 +356,16 @@ def test_bad_camera_and_gyro_input_is_dropped_counted_and_reported(ros):
     cal = CalibratorNode(namespace=ns)
     src = rclpy.create_node('source', namespace=ns)
     pub_g = src.create_publisher(Vector3Stamped, 'imu/delta_theta', stream_qos())
-    pub_c = src.create_publisher(PoseWithCovarianceStamped, 'star_camera/attitude_with_covariance', camera_qos(10))
+    pub_c = src.create_publisher(PoseWithCovarianceStamped, 'star_camera/attitude_with_covariance',
+                                 camera_qos(10))
     diags = []
     src.create_subscription(DiagnosticArray, '/diagnostics', diags.append, 10)
     ex = Executor()
     for n in (cal, src):
         ex.add_node(n)
     try:
-        assert spin_until(ex, lambda: pub_g.get_subscription_count() >= 1 and pub_c.get_subscription_count() >= 1
+        assert spin_until(ex, lambda: pub_g.get_subscription_count() >= 1
+                          and pub_c.get_subscription_count() >= 1
                           and src.count_publishers('/diagnostics') >= 1, 10.0)
 
         def gyro(k, v=(1e-4, 0.0, 0.0)):
@@ -370,20 +400,24 @@ def test_bad_camera_and_gyro_input_is_dropped_counted_and_reported(ros):
                 ex.spin_once(timeout_sec=0.005)
         gyro(250)                                        # duplicate
         gyro(10, (float('nan'), 0.0, 0.0))               # NaN
-        assert spin_until(ex, lambda: cal.gyro_check.received >= 251 and cal.camera_check.received >= 7, 5.0)
+        assert spin_until(ex, lambda: cal.gyro_check.received >= 251
+                          and cal.camera_check.received >= 7, 5.0)
         g, c = cal.gyro_check, cal.camera_check
         assert (g.accepted, g.nan, g.duplicate, g.gaps, g.missing) == (249, 1, 1, 1, 1)
         assert (c.accepted, c.nan, c.duplicate, c.out_of_order) == (2, 1, 1, 1)
-        assert cal.camera_counts['normalised'] == 1 and cal.camera_counts['dropped_zero_quaternion'] == 1
+        assert (cal.camera_counts['normalised'] == 1
+                and cal.camera_counts['dropped_zero_quaternion'] == 1)
         assert cal.camera_counts['dropped_bad_covariance'] == 1
-        assert cal.pairs_discarded_gap == 1 and cal.cal.pairs == []       # the only pair spans the gap
+        # the only pair spans the gap
+        assert cal.pairs_discarded_gap == 1 and cal.cal.pairs == []
         assert cal.published['boresight'] == 0
         cal.publish_diagnostics()
         assert spin_until(ex, lambda: status_of(diags, f'{ns}/calibrator_node') is not None, 5.0)
         st = status_of(diags, f'{ns}/calibrator_node')
         kv = {v.key: v.value for v in st.values}
         assert st.level == b'\x02' and 'missing' in st.message and 'discarded' in st.message
-        assert (kv['gyro_dropped_nan'], kv['camera_dropped_zero_quaternion'], kv['camera_normalised']) == ('1', '1', '1')
+        assert (kv['gyro_dropped_nan'], kv['camera_dropped_zero_quaternion'],
+                kv['camera_normalised']) == ('1', '1', '1')
     finally:
         for n in (cal, src):
             ex.remove_node(n)
@@ -391,14 +425,20 @@ def test_bad_camera_and_gyro_input_is_dropped_counted_and_reported(ros):
 
 
 def test_invalid_parameters_are_refused_with_the_valid_values(ros):
-    with pytest.raises(ValueError, match=r"covariance_model='bogus' is not valid; valid values: random_constant, 004"):
-        CalibratorNode(namespace='/t_calib_refuse1', parameter_overrides=[Parameter('covariance_model', value='bogus')])
-    with pytest.raises(ValueError, match=r'camera_interval=-1.0 is out of range; valid: > 0 and <= 3600'):
-        StarCameraSimNode(namespace='/t_calib_refuse2', parameter_overrides=[Parameter('camera_interval', value=-1.0)])
+    with pytest.raises(ValueError, match=r"covariance_model='bogus' is not valid; "
+                                         r'valid values: random_constant, 004'):
+        CalibratorNode(namespace='/t_calib_refuse1',
+                       parameter_overrides=[Parameter('covariance_model', value='bogus')])
+    with pytest.raises(ValueError,
+                       match=r'camera_interval=-1.0 is out of range; valid: > 0 and <= 3600'):
+        StarCameraSimNode(namespace='/t_calib_refuse2',
+                          parameter_overrides=[Parameter('camera_interval', value=-1.0)])
     with pytest.raises(ValueError, match=r'max_sigma=0.0 is out of range; valid: > 0'):
-        CalibratorNode(namespace='/t_calib_refuse3', parameter_overrides=[Parameter('max_sigma', value=0.0)])
+        CalibratorNode(namespace='/t_calib_refuse3',
+                       parameter_overrides=[Parameter('max_sigma', value=0.0)])
     with pytest.raises(ValueError, match='valid values: coning, tkachenko, bench, piecewise'):
-        StarCameraSimNode(namespace='/t_calib_refuse4', parameter_overrides=[Parameter('profile', value='spiral')])
+        StarCameraSimNode(namespace='/t_calib_refuse4',
+                          parameter_overrides=[Parameter('profile', value='spiral')])
     cam = StarCameraSimNode(namespace='/t_calib_refuse5')
     try:
         res = cam.set_parameters([Parameter('camera_interval', value=1.0)])[0]
@@ -408,23 +448,22 @@ def test_invalid_parameters_are_refused_with_the_valid_values(ros):
 
 
 @pytest.mark.parametrize('module, arg, text', [
-    ('calibrator_node', 'covariance_model:=bogus', "covariance_model='bogus' is not valid; valid values: random_constant, 004"),
-    ('star_camera_sim_node', 'camera_interval:=-1.0', 'camera_interval=-1.0 is out of range; valid: > 0'),
+    ('calibrator_node', 'covariance_model:=bogus',
+     "covariance_model='bogus' is not valid; valid values: random_constant, 004"),
+    ('star_camera_sim_node', 'camera_interval:=-1.0',
+     'camera_interval=-1.0 is out of range; valid: > 0'),
 ])
 def test_executables_exit_2_with_a_clear_message(module, arg, text):
     env = dict(os.environ, PYTHONPATH=os.pathsep.join([REPO, os.environ.get('PYTHONPATH', '')]))
-    res = subprocess.run([sys.executable, '-m', f'strapdown_ros.nodes.{module}', '--ros-args', '-p', arg],
+    res = subprocess.run([sys.executable, '-m', f'strapdown_ros.nodes.{module}', '--ros-args',
+                          '-p', arg],
                          capture_output=True, text=True, timeout=60, env=env)
     assert res.returncode == 2, res.stderr
     assert text in res.stderr
 
 
 def _node_estimate(ns, poison: bool, params=(), keep=False, noise_scale=1.0):
-    """calibrator_node fed bench data through its own callbacks (no DDS): returns (β, node counters)."""
-    from strapdown_ros.rotation import to_ros_xyzw
-    from strapdown_ros.sensors import IntegratingSensor
-    from strapdown_ros.sensors.star_camera import StarCameraModel
-
+    """Feed calibrator_node bench data through its own callbacks (no DDS): (β, node counters)."""
     prof = bench_profile()
     gyro = IntegratingSensor(prof, 'gyro', 100.0)
     t, dth, _ = gyro.sample(int(prof.duration * 100) - 1)
@@ -442,12 +481,13 @@ def _node_estimate(ns, poison: bool, params=(), keep=False, noise_scale=1.0):
                 m = Vector3Stamped()
                 stamp(m, s)
                 m.vector.x, m.vector.y, m.vector.z = (float(c) for c in v)
-                cal._on_gyro(m)
-                if poison and k == 5000:                      # one overflowing increment, its own stamp
+                cal.on_gyro(m)
+                # one overflowing increment, its own stamp
+                if poison and k == 5000:
                     bad = Vector3Stamped()
                     stamp(bad, s + 0.004)
                     bad.vector.x, bad.vector.y = 1e308, 1e308
-                    cal._on_gyro(bad)
+                    cal.on_gyro(bad)
             else:
                 m = PoseWithCovarianceStamped()
                 stamp(m, s)
@@ -457,7 +497,7 @@ def _node_estimate(ns, poison: bool, params=(), keep=False, noise_scale=1.0):
                 c6 = np.zeros((6, 6))
                 c6[3:, 3:] = v.covariance
                 m.pose.covariance = [float(x) for x in c6.ravel()]
-                cal._on_camera_cov(m)
+                cal.on_camera_cov(m)
         if keep:
             return cal
         return np.array(cal.valid.beta), cal.gyro_check.out_of_range, cal.solve_failures
@@ -468,8 +508,10 @@ def _node_estimate(ns, poison: bool, params=(), keep=False, noise_scale=1.0):
 
 def test_overflowing_increment_is_rejected_and_loses_nothing(ros):
     """
-    Δθ = (1e308, 1e308, 0) used to crash the node with LinAlgError and lose
-    every pair.  Now the sensor range rejects it; the estimate is the one without it.
+    Check: overflowing increment is rejected and loses nothing.
+
+    Δθ = (1e308, 1e308, 0) used to crash the node with LinAlgError and lose every pair.  Now the
+    sensor range rejects it; the estimate is the one without it.
     """
     beta_clean, _, _ = _node_estimate('/t_clean', poison=False)
     beta, out_of_range, failures = _node_estimate('/t_poison', poison=True)
@@ -479,9 +521,11 @@ def test_overflowing_increment_is_rejected_and_loses_nothing(ros):
 
 def test_inconsistent_noise_is_a_warn_with_the_reason(ros):
     """
-    Camera noise 100× the σ its covariance states: /diagnostics WARN
-    saying the fit is inconsistent (χ²/dof outside its band), fit_consistent False; no good fix
-    dropped as an outlier.  With the stated noise right: fit_consistent True.
+    Check: inconsistent noise is a warn with the reason.
+
+    Camera noise 100× the σ its covariance states: /diagnostics WARN saying the fit is inconsistent
+    (χ²/dof outside its band), fit_consistent False; no good fix dropped as an outlier.  With the
+    stated noise right: fit_consistent True.
     """
     for scale in (1.0, 100.0):
         # the simulated gyro is ideal: so is the stated gyro model, the camera σ is the one judged
@@ -511,10 +555,12 @@ def test_inconsistent_noise_is_a_warn_with_the_reason(ros):
 
 def test_restart_resumes_the_same_estimate_and_a_corrupted_state_is_moved_aside(ros, tmp_path):
     """
-    Restart without loss: the pairs and estimate persist to state_file (atomic, after
-    every new pair); a restarted node resumes the same estimate and republishes it latched;
-    replaying the same recording into it adds no pair; a corrupted file
-    is reported and moved aside, never used; no temporary is left behind.
+    Check: restart resumes the same estimate and a corrupted state is moved aside.
+
+    Restart without loss: the pairs and estimate persist to state_file (atomic, after every new
+    pair); a restarted node resumes the same estimate and republishes it latched; replaying the
+    same recording into it adds no pair; a corrupted file is reported and moved aside, never used;
+    no temporary is left behind.
     """
     state = str(tmp_path / 'calib_state.npz')
     sf = [Parameter('state_file', value=state)]
@@ -522,7 +568,8 @@ def test_restart_resumes_the_same_estimate_and_a_corrupted_state_is_moved_aside(
     assert sorted(os.listdir(tmp_path)) == ['calib_state.npz', 'calib_state.npz.lock']
     node = CalibratorNode(namespace='/t_state', parameter_overrides=sf)
     try:
-        assert node.state['restored_pairs'] == 32 and node.published['boresight'] == 1     # 33 fixes
+        # 33 fixes
+        assert node.state['restored_pairs'] == 32 and node.published['boresight'] == 1
         np.testing.assert_allclose(node.valid.beta, beta, rtol=0, atol=1e-12)
     finally:
         node.destroy_node()
@@ -537,7 +584,8 @@ def test_restart_resumes_the_same_estimate_and_a_corrupted_state_is_moved_aside(
         fh.write(b'not a state file')
     node = CalibratorNode(namespace='/t_state', parameter_overrides=sf)
     try:
-        assert node.state['errors'] == 1 and node.cal.pairs == [] and node.published['boresight'] == 0
+        assert (node.state['errors'] == 1 and node.cal.pairs == []
+                and node.published['boresight'] == 0)
         assert not os.path.exists(state) and os.path.exists(state + '.corrupt')
     finally:
         node.destroy_node()
@@ -545,10 +593,11 @@ def test_restart_resumes_the_same_estimate_and_a_corrupted_state_is_moved_aside(
 
 def test_state_file_identity_lock_and_paths(ros, tmp_path):
     """
-    The state file in the node: a state of another calibration (another camera frame)
-    is refused with the reason and left as it is; a second node on the same file gets an ERROR
-    and runs without persistence; a directory (with or without a trailing slash) is refused and
-    never moved.
+    Check: state file identity lock and paths.
+
+    The state file in the node: a state of another calibration (another camera frame) is refused
+    with the reason and left as it is; a second node on the same file gets an ERROR and runs
+    without persistence; a directory (with or without a trailing slash) is refused and never moved.
     """
     state = str(tmp_path / 's.npz')
     _node_estimate('/t_sid', poison=False, params=[Parameter('state_file', value=state)])
@@ -597,22 +646,20 @@ def test_state_file_identity_lock_and_paths(ros, tmp_path):
 
 def test_one_input_path_node_and_calibrate_bag_agree_on_a_hostile_stream(ros, tmp_path):
     """
-    One input path: the same hostile stream (NaN, duplicate, out-of-order, impossible
-    and far-future increments; a zero and a non-unit camera quaternion) fed to calibrator_node and
+    Check: one input path node and calibrate bag agree on a hostile stream.
+
+    One input path: the same hostile stream (NaN, duplicate, out-of-order, impossible and
+    far-future increments; a zero and a non-unit camera quaternion) fed to calibrator_node and
     written to a bag for calibrate_bag gives the same counts and the same estimate.
     """
     pytest.importorskip('rosbags')
     from rosbags.rosbag2 import Writer
     from rosbags.typesys import get_typestore, Stores
 
-    from strapdown_ros.rotation import to_ros_xyzw
-    from strapdown_ros.sensors import IntegratingSensor
-    from strapdown_ros.sensors.star_camera import StarCameraModel
-    from strapdown_ros.tools import calibrate_bag
-
     prof = bench_profile()
     t, dth, _ = IntegratingSensor(prof, 'gyro', 100.0).sample(int(prof.duration * 100) - 1)
-    fixes = StarCameraModel(boresight=np.radians([40.0, -25.0, 120.0]), interval=5.0, seed=1).fixes(
+    fixes = StarCameraModel(boresight=np.radians([40.0, -25.0, 120.0]), interval=5.0,
+                            seed=1).fixes(
         prof, int(prof.duration / 5.0) - 1)
     base = 1_000_000_000_000
     gyro = [(base + int(round(s * 1e9)), tuple(map(float, v))) for s, v in zip(t, dth)]
@@ -620,19 +667,26 @@ def test_one_input_path_node_and_calibrate_bag_agree_on_a_hostile_stream(ros, tm
     # (inside the pair of the fixes at 60 and 65 s); then the stream returns to its timeline
     for k in range(6250, 6255):
         gyro[k] = (gyro[k][0] - 1000 * 10**9, gyro[k][1])
-    hostile = [(gyro[100][0] + 1, (float('nan'), 0.0, 0.0)), (gyro[200][0], gyro[200][1]),       # NaN, duplicate
-               (gyro[250][0] - 30_000_000, gyro[250][1]), (gyro[300][0] + 2, (1e308, 1e308, 0.0)),   # older, huge
-               (gyro[400][0] + 10**15, gyro[400][1])]                                            # far future
+    # NaN, duplicate
+    hostile = [(gyro[100][0] + 1, (float('nan'), 0.0, 0.0)), (gyro[200][0], gyro[200][1]),
+               # older, huge
+               (gyro[250][0] - 30_000_000, gyro[250][1]), (gyro[300][0] + 2, (1e308, 1e308, 0.0)),
+               # far future
+               (gyro[400][0] + 10**15, gyro[400][1])]
     at = {100: hostile[0], 200: hostile[1], 250: hostile[2], 300: hostile[3], 400: hostile[4]}
     stream = []
     for k, g in enumerate(gyro):
         stream.append(('g', g[0], g[1]))
         if k in at:
             stream.append(('g',) + at[k])
-    cams = [(base + int(round(f.stamp * 1e9)), to_ros_xyzw(f.attitude), f.covariance) for f in fixes]
-    cams[5] = (cams[5][0], 2.0 * cams[5][1], cams[5][2])                                      # non-unit
-    cams.insert(9, (cams[8][0] + 1_000_000, np.zeros(4), cams[8][2]))                          # zero quaternion
-    # arrival order: the gyro stream as built (hostile messages where they arrived), the fixes merged
+    cams = [(base + int(round(f.stamp * 1e9)), to_ros_xyzw(f.attitude),
+             f.covariance) for f in fixes]
+    # non-unit
+    cams[5] = (cams[5][0], 2.0 * cams[5][1], cams[5][2])
+    # zero quaternion
+    cams.insert(9, (cams[8][0] + 1_000_000, np.zeros(4), cams[8][2]))
+    # arrival order: the gyro stream as built (hostile messages where they arrived), the fixes
+    # merged
     # in by stamp against the regular increments
     events, j = [], 0
     for k, e in enumerate(stream):
@@ -648,54 +702,63 @@ def test_one_input_path_node_and_calibrate_bag_agree_on_a_hostile_stream(ros, tm
     bag = tmp_path / 'hostile'
     try:
         with Writer(bag, version=Writer.VERSION_LATEST) as w:
-            cg = w.add_connection('/imu/delta_theta', 'geometry_msgs/msg/Vector3Stamped', typestore=store)
-            cc = w.add_connection('/star_camera/attitude_with_covariance', 'geometry_msgs/msg/PoseWithCovarianceStamped',
+            cg = w.add_connection('/imu/delta_theta', 'geometry_msgs/msg/Vector3Stamped',
+                                  typestore=store)
+            cc = w.add_connection('/star_camera/attitude_with_covariance',
+                                  'geometry_msgs/msg/PoseWithCovarianceStamped',
                                   typestore=store)
             for i, (kind, ns, v) in enumerate(events):
                 stamp = T['builtin_interfaces/msg/Time'](sec=ns // 10**9, nanosec=ns % 10**9)
                 if kind == 'g':
                     h = T['std_msgs/msg/Header'](stamp=stamp, frame_id='imu_link')
-                    m = T['geometry_msgs/msg/Vector3Stamped'](header=h, vector=T['geometry_msgs/msg/Vector3'](
-                        x=v[0], y=v[1], z=v[2]))
+                    vec = T['geometry_msgs/msg/Vector3'](x=v[0], y=v[1], z=v[2])
+                    m = T['geometry_msgs/msg/Vector3Stamped'](header=h, vector=vec)
                     w.write(cg, i, store.serialize_cdr(m, 'geometry_msgs/msg/Vector3Stamped'))
                     r = Vector3Stamped()
                     r.header.stamp.sec, r.header.stamp.nanosec = ns // 10**9, ns % 10**9
                     r.header.frame_id = 'imu_link'
                     r.vector.x, r.vector.y, r.vector.z = v
-                    node._on_gyro(r)
+                    node.on_gyro(r)
                 else:
                     q, P = v
                     c6 = np.zeros((6, 6))
                     c6[3:, 3:] = P
                     h = T['std_msgs/msg/Header'](stamp=stamp, frame_id='gcrs')
-                    pose = T['geometry_msgs/msg/Pose'](position=T['geometry_msgs/msg/Point'](x=0.0, y=0.0, z=0.0),
-                                                       orientation=T['geometry_msgs/msg/Quaternion'](
-                                                           x=float(q[0]), y=float(q[1]), z=float(q[2]), w=float(q[3])))
+                    point = T['geometry_msgs/msg/Point'](x=0.0, y=0.0, z=0.0)
+                    quat = T['geometry_msgs/msg/Quaternion'](x=float(q[0]), y=float(q[1]),
+                                                             z=float(q[2]), w=float(q[3]))
+                    pose = T['geometry_msgs/msg/Pose'](position=point, orientation=quat)
                     m = T['geometry_msgs/msg/PoseWithCovarianceStamped'](
-                        header=h, pose=T['geometry_msgs/msg/PoseWithCovariance'](pose=pose, covariance=c6.reshape(36)))
-                    w.write(cc, i, store.serialize_cdr(m, 'geometry_msgs/msg/PoseWithCovarianceStamped'))
+                        header=h,
+                        pose=T['geometry_msgs/msg/PoseWithCovariance'](pose=pose,
+                                                                       covariance=c6.reshape(36)))
+                    w.write(cc, i,
+                            store.serialize_cdr(m, 'geometry_msgs/msg/PoseWithCovarianceStamped'))
                     r = PoseWithCovarianceStamped()
                     r.header.stamp.sec, r.header.stamp.nanosec = ns // 10**9, ns % 10**9
                     r.header.frame_id = 'gcrs'
                     o = r.pose.pose.orientation
                     o.x, o.y, o.z, o.w = (float(c) for c in q)
                     r.pose.covariance = [float(x) for x in c6.ravel()]
-                    node._on_camera_cov(r)
+                    node.on_camera_cov(r)
         f = tmp_path / 'r.json'
         assert calibrate_bag.main([str(bag), '--json', str(f)]) == 0
         r = json.loads(f.read_text())
         g = node.gyro_check
-        assert r['dropped']['gyro'] == {'nan': g.nan, 'duplicate': g.duplicate, 'out_of_order': g.out_of_order,
+        assert r['dropped']['gyro'] == {'nan': g.nan, 'duplicate': g.duplicate,
+                                        'out_of_order': g.out_of_order,
                                         'out_of_range': g.out_of_range,
                                         'stamp_outlier': g.stamp_outliers,
                                         'stamp_burst': g.burst_messages}
-        assert (g.nan, g.duplicate, g.out_of_order, g.out_of_range, g.stamp_outliers) == (1, 1, 1, 1, 1)
+        assert (g.nan, g.duplicate, g.out_of_order, g.out_of_range, g.stamp_outliers) == (1, 1, 1,
+                                                                                          1, 1)
         # the burst: 5 increments lost in one gap, no resynchronisation left standing; it costs the
         # one pair that contains it (the hostile extras above have their own stamps: no gap)
         assert (g.bursts, g.burst_messages, g.resyncs, g.gaps, g.missing) == (1, 5, 0, 1, 5)
         assert r['gyro_gaps']['stamp_bursts'] == 1 and r['gyro_gaps']['missing'] == 5
         assert r['pairs'] == len(node.cal.pairs) == len(fixes) - 1 - 1
-        assert r['dropped']['camera']['zero_quaternion'] == node.camera_counts['dropped_zero_quaternion'] == 1
+        assert (r['dropped']['camera']['zero_quaternion']
+                == node.camera_counts['dropped_zero_quaternion'] == 1)
         assert r['camera_fixes']['normalised'] == node.camera_counts['normalised'] == 1
         assert r['messages']['gyro'] == g.accepted - g.burst_messages   # offline: burst removed
         np.testing.assert_allclose(r['beta_rad'], node.valid.beta, rtol=0, atol=1e-10)

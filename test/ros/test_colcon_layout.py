@@ -24,6 +24,7 @@ import time
 
 import pytest
 
+
 REPO = Path(__file__).resolve().parent.parent.parent
 PKG = 'strapdown_ros'
 EXECUTABLES = ('imu_sim_node', 'sins_node', 'strapdown_demo', 'sins_bench', 'coning_bench',
@@ -67,8 +68,10 @@ def _site_packages(prefix: Path) -> Path:
 
 def _sourced_env(install: Path, base_env: dict):
     """
-    Environment after sourcing the colcon workspace with sh (setup.sh, else
-    local_setup.sh). Returns (env, how).
+    Return the environment after sourcing the colcon workspace with sh.
+
+    Environment after sourcing the colcon workspace with sh (setup.sh, else local_setup.sh).
+    Returns (env, how).
     """
     for script in ('setup.sh', 'local_setup.sh'):
         path = install / script
@@ -94,8 +97,10 @@ def _sourced_env(install: Path, base_env: dict):
 @pytest.fixture(scope='module')
 def workspace(tmp_path_factory):
     """
-    Build the package with colcon once per module; yields a dict with the paths,
-    the sourced environment and the build output.
+    Build the package with colcon once per module.
+
+    Build the package with colcon once per module; yields a dict with the paths, the sourced
+    environment and the build output.
     """
     cmd = _colcon_cmd()
     if cmd is None:
@@ -124,7 +129,8 @@ def workspace(tmp_path_factory):
                               stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
                               text=True, timeout=BUILD_TIMEOUT_S)
     except subprocess.TimeoutExpired as exc:
-        out = exc.output.decode(errors='replace') if isinstance(exc.output, bytes) else (exc.output or '')
+        out = exc.output.decode(errors='replace') if isinstance(exc.output,
+                                                                bytes) else (exc.output or '')
         pytest.fail(f'colcon build timed out after {BUILD_TIMEOUT_S} s:\n{_tail(out)}')
     output = proc.stdout
     assert proc.returncode == 0, (
@@ -143,8 +149,8 @@ def test_colcon_install_layout(workspace):
     libexec = prefix / 'lib' / PKG
     for exe in EXECUTABLES:
         path = libexec / exe
-        assert path.is_file(), (f'{path} missing; installed there: '
-                                f"{sorted(p.name for p in libexec.glob('*')) if libexec.is_dir() else 'nothing'}"
+        there = sorted(p.name for p in libexec.glob('*')) if libexec.is_dir() else 'nothing'
+        assert path.is_file(), (f'{path} missing; installed there: {there}'
                                 ' (setup.cfg [install] install_scripts=$base/lib/strapdown_ros?)')
         assert os.access(path, os.X_OK), f'{path} is not executable'
         assert path.read_text().startswith('#!'), f'{path} has no shebang'
@@ -158,7 +164,8 @@ def test_colcon_install_layout(workspace):
     proc = subprocess.run(
         [sys.executable, '-c', f'import {PKG}, {PKG}.nodes, {PKG}.tools; print({PKG}.__file__)'],
         cwd=workspace['ws'], env=env, capture_output=True, text=True, timeout=60)
-    assert proc.returncode == 0, f"import {PKG} failed ({workspace['sourced_with']}):\n{proc.stderr}"
+    assert proc.returncode == 0, (f"import {PKG} failed ({workspace['sourced_with']}):\n"
+                                  f'{proc.stderr}')
     imported = Path(proc.stdout.strip().splitlines()[-1]).resolve()
     assert imported.is_relative_to(site.resolve()), (
         f'{PKG} imported from {imported}, expected under {site}')
@@ -166,13 +173,15 @@ def test_colcon_install_layout(workspace):
 
 def _resolve_like_ros2_run(workspace, exe):
     """`ros2 run PKG EXE`: ament index prefix of PKG, then <prefix>/lib/PKG/EXE."""
-    pytest.importorskip('ament_index_python', reason='ament_index_python not installed (`ros` extra)')
+    pytest.importorskip('ament_index_python',
+                        reason='ament_index_python not installed (`ros` extra)')
     code = ('from ament_index_python.packages import get_package_prefix; '
             f'print(get_package_prefix({PKG!r}))')
     proc = subprocess.run([sys.executable, '-c', code], cwd=workspace['ws'], env=workspace['env'],
                           capture_output=True, text=True, timeout=60)
     assert proc.returncode == 0, (f'get_package_prefix({PKG!r}) failed with '
-                                  f"AMENT_PREFIX_PATH={workspace['env'].get('AMENT_PREFIX_PATH')!r}:\n"
+                                  'AMENT_PREFIX_PATH='
+                                  f"{workspace['env'].get('AMENT_PREFIX_PATH')!r}:\n"
                                   f'{proc.stderr}')
     prefix = Path(proc.stdout.strip().splitlines()[-1])
     assert prefix.resolve() == workspace['prefix'].resolve(), (

@@ -4,6 +4,7 @@ import subprocess
 import sys
 import textwrap
 
+
 REPO = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 ROS_ROOMS = ('nodes', 'bench/ros', 'demo.py')   # the only places that may import ROS
 
@@ -44,7 +45,8 @@ def test_core_imports_with_rclpy_absent():
         from strapdown_ros.motion.profiles import ConingProfile
         p = ConingProfile(0.1, 1.0)
         t = np.arange(101) * 0.01
-        out = AttitudeIntegrator("2", p.attitude(0.0), 0.0).push(p.delta_theta(t[:-1], t[1:]), t[1:])
+        integrator = AttitudeIntegrator("2", p.attitude(0.0), 0.0)
+        out = integrator.push(p.delta_theta(t[:-1], t[1:]), t[1:])
         assert len(out) == 50
         loaded = [m for m in sys.modules if m.split(".")[0] in BLOCK]
         assert not loaded, loaded
@@ -56,16 +58,17 @@ def test_core_imports_with_rclpy_absent():
 
 
 def test_only_node_modules_import_ros():
-    """Static check: no module outside the ROS rooms (nodes/, bench/ros/, demo.py) imports rclpy or message packages."""
+    """No module outside the ROS rooms (nodes/, bench/ros/, demo.py) imports ROS (static check)."""
     import re
-    pattern = re.compile(r'^\s*(import rclpy|from rclpy|from (sensor|geometry|std|nav|diagnostic|builtin_interfaces'
-                         r'|rcl_interfaces)(_msgs)?[. ])', re.M)
+    pattern = re.compile(r'^\s*(import rclpy|from rclpy|from (sensor|geometry|std|nav|diagnostic'
+                         r'|builtin_interfaces|rcl_interfaces)(_msgs)?[. ])', re.M)
     offenders = []
     for root, _, files in os.walk(os.path.join(REPO, 'strapdown_ros')):
         for f in files:
             rel = os.path.relpath(os.path.join(root, f), os.path.join(REPO, 'strapdown_ros'))
             if rel.startswith(ROS_ROOMS):
                 continue
-            if f.endswith('.py') and pattern.search(open(os.path.join(root, f), encoding='utf-8').read()):
+            if f.endswith('.py') and pattern.search(open(os.path.join(root, f),
+                                                         encoding='utf-8').read()):
                 offenders.append(os.path.join(root, f))
     assert not offenders, offenders

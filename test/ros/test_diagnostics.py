@@ -1,6 +1,7 @@
 """
-Node reliability:
-logging that survives any sequence of severities, /diagnostics that list every current condition
+Node reliability: logging, /diagnostics and the runtime parameter rules.
+
+Logging that survives any sequence of severities, /diagnostics that list every current condition
 at the worst level (the accelerometer stall included), and the runtime parameter rules.
 
 Nodes are constructed in-process and fed through their message entry points; their real rclpy
@@ -9,24 +10,22 @@ loggers are used (a severity change at one call site used to raise inside rclpy'
 import ast
 import pathlib
 
+from geometry_msgs.msg import Vector3Stamped
 import numpy as np
 import pytest
+import rclpy
+from rclpy.parameter import Parameter
 
-rclpy = pytest.importorskip('rclpy')
+from strapdown_ros.motion.earth_profiles import static_profile
+from strapdown_ros.nodes import ros_params, ros_status
+from strapdown_ros.nodes.calibrator_node import CalibratorNode
+from strapdown_ros.nodes.sins_node import SinsNode
+from strapdown_ros.sins import accel_stall_limits
 
-from geometry_msgs.msg import Vector3Stamped  # noqa: E402
-from rclpy.parameter import Parameter  # noqa: E402
-
-from strapdown_ros.motion.earth_profiles import static_profile  # noqa: E402
-from strapdown_ros.nodes import ros_io  # noqa: E402
-from strapdown_ros.nodes.calibrator_node import CalibratorNode  # noqa: E402
-from strapdown_ros.nodes.sins_node import SinsNode  # noqa: E402
-from strapdown_ros.sins import accel_stall_limits  # noqa: E402
 
 IDEAL = [Parameter(f'{s}_{k}', value=0.0) for s in ('gyro', 'accel')
          for k in ('bias_sigma', 'scale_sigma', 'misalignment_sigma', 'random_walk')]
 NODES = pathlib.Path(__file__).resolve().parents[2] / 'strapdown_ros' / 'nodes'
-
 
 
 def _msg(stamp_ns, v, frame=''):
@@ -50,6 +49,7 @@ class Diagnostics:
         self.got.append((st.level[0], st.message, {kv.key: kv.value for kv in st.values}))
 
     def now(self):
+        """Publish the status now and return it."""
         self.node.publish_diagnostics()
         return self.got[-1]
 
@@ -57,8 +57,10 @@ class Diagnostics:
 def _feed(node, t0_ns, seconds, gyro_rate=100.0, accel_rate=300.0, accel=True, skip=(),
           frame_accel='', profile=None):
     """
-    Interleaved Δθ and Δv of a body at rest (static profile: Earth rate and gravity exact),
-    stamped from ``t0_ns`` on; gyro sample indices in ``skip`` are not sent.
+    Feed interleaved Δθ and Δv of a body at rest.
+
+    Interleaved Δθ and Δv of a body at rest (static profile: Earth rate and gravity exact), stamped
+    from ``t0_ns`` on; gyro sample indices in ``skip`` are not sent.
     """
     prof = profile or static_profile(np.radians(50.45), np.radians(30.52), 150.0)
     tg = np.arange(1, int(round(seconds * gyro_rate)) + 1) / gyro_rate
@@ -70,9 +72,9 @@ def _feed(node, t0_ns, seconds, gyro_rate=100.0, accel_rate=300.0, accel=True, s
     for t, kind, k in sorted(events):
         ns = t0_ns + int(round(t * 1e9))
         if kind == 0:
-            node._on_gyro(_msg(ns, dth[k]))
+            node.on_gyro(_msg(ns, dth[k]))
         else:
-            node._on_accel(_msg(ns, dv[k], frame_accel))
+            node.on_accel(_msg(ns, dv[k], frame_accel))
     node.process()
     return t0_ns + int(round(seconds * 1e9))
 
@@ -81,7 +83,7 @@ def test_node_log_takes_any_sequence_of_severities_and_throttles(ros):
     """Logging, the class: one helper call site, every severity, changing throttles."""
     node = rclpy.create_node('log_probe')
     try:
-        log = ros_io.NodeLog(node.get_logger())
+        log = ros_status.NodeLog(node.get_logger())
         for level in ('error', 'warn', 'info', 'warning', 'debug', 'error', 'info'):
             assert log(level, f'probe at {level}')
         assert log('warn', 'throttled', throttle=60.0)
@@ -95,10 +97,12 @@ def test_node_log_takes_any_sequence_of_severities_and_throttles(ros):
 
 def test_no_node_selects_a_logger_method_at_run_time():
     """
-    Logging, the guard: rclpy's logger keeps one context per call site, so a call site must
-    not choose its severity (``(lg.error if … else lg.info)(text)``) or pass a throttle that is
-    not a constant.  Every node module is scanned; ros_io.NodeLog is the way to log at a level
-    chosen at run time.
+    Check: no node selects a logger method at run time.
+
+    Logging, the guard: rclpy's logger keeps one context per call site, so a call site must not
+    choose its severity (``(lg.error if … else lg.info)(text)``) or pass a throttle that is not a
+    constant.  Every node module is scanned; ros_status.NodeLog is the way to log at a level chosen
+    at run time.
     """
     methods = {'debug', 'info', 'warn', 'warning', 'error', 'fatal'}
     bad = []
@@ -119,10 +123,12 @@ def test_no_node_selects_a_logger_method_at_run_time():
 
 def test_every_node_logs_through_nodelog():
     """
-    Every node logs through ros_io.NodeLog (one call site per severity,
-    its own throttle, bounded texts).  Outside ros_io.py, ``get_logger()`` appears
-    only as the argument of ``NodeLog(...)``; no rclpy severity method is called on a logger,
-    and no rclpy throttle is passed.
+    Check: every node logs through nodelog.
+
+    Every node logs through ros_status.NodeLog (one call site per severity, its own throttle,
+    bounded texts).  Outside ros_io.py, ``get_logger()`` appears only as the argument of
+    ``NodeLog(...)``; no rclpy severity method is called on a logger, and no rclpy throttle is
+    passed.
     """
     methods = {'debug', 'info', 'warn', 'warning', 'error', 'fatal'}
     bad = []
@@ -151,9 +157,11 @@ def test_every_node_logs_through_nodelog():
 
 def test_static_alignment_then_stamps_step_back_and_foreign_frames_keep_it_alive(ros, monkeypatch):
     """
-    Logging, the repro: navigation with a static alignment; after it (info), the stamps step
-    back 10 s (errors: jump, resynchronisation) and Δv arrive in another frame (warn).  Before the
-    fix the second severity at sins_node's one log call site raised inside the callback.
+    Check: static alignment then stamps step back and foreign frames keep it alive.
+
+    Logging, the repro: navigation with a static alignment; after it (info), the stamps step back
+    10 s (errors: jump, resynchronisation) and Δv arrive in another frame (warn).  Before the fix
+    the second severity at sins_node's one log call site raised inside the callback.
     """
     sins = SinsNode(namespace='/t_diag_align', parameter_overrides=[
         Parameter('navigation', value=True), Parameter('initial_alignment', value='static'),
@@ -165,11 +173,11 @@ def test_static_alignment_then_stamps_step_back_and_foreign_frames_keep_it_alive
         assert sins.nav.alignment is not None and sins.nav.alignment.ok
         assert sins.nav.navigator is not None
         level, message, values = diag.now()
-        assert level == ros_io.OK and values['navigation_state'] == 'navigating', message
+        assert level == ros_status.OK and values['navigation_state'] == 'navigating', message
         _feed(sins, t - 10_000_000_000, 0.5)                        # 10 s back, and it stays there
         _feed(sins, t - 9_500_000_000, 0.3, frame_accel='elsewhere')
         level, message, values = diag.now()
-        assert level == ros_io.ERROR, message
+        assert level == ros_status.ERROR, message
         assert 'jumped' in message and 'another frame' in message, message
         assert sins.frame_mismatch['accel'] > 0 and sins.gyro_check.resyncs >= 1
     finally:
@@ -178,52 +186,56 @@ def test_static_alignment_then_stamps_step_back_and_foreign_frames_keep_it_alive
 
 def test_every_diagnostic_transition_of_sins_node(ros, monkeypatch):
     """
-    Each level change of sins_node's status, with every condition listed.
-    OK → WARN (Δv stopped for more than accel_wait) → OK (Δv back) → WARN (undecodable) → ERROR
-    (a gyro gap: not masked by the undecodable messages, both listed) → ERROR (Δv stalled beyond
-    max(1 s, 10 accel_wait), named).
+    Check: every diagnostic transition of sins node.
+
+    Each level change of sins_node's status, with every condition listed. OK → WARN (Δv stopped for
+    more than accel_wait) → OK (Δv back) → WARN (undecodable) → ERROR (a gyro gap: not masked by
+    the undecodable messages, both listed) → ERROR (Δv stalled beyond max(1 s, 10 accel_wait),
+    named).
     """
     sins = SinsNode(namespace='/t_diag_all', parameter_overrides=[
         Parameter('accel_rate', value=300.0), Parameter('accel_wait', value=0.1), *IDEAL])
     diag = Diagnostics(sins, monkeypatch)
     try:
         level, message, _ = diag.now()
-        assert (level, message) == (ros_io.WARN, 'no gyro increments received')
+        assert (level, message) == (ros_status.WARN, 'no gyro increments received')
         t = _feed(sins, 50_000_000_000, 0.5)
-        assert diag.now()[:2] == (ros_io.OK, 'ok')
+        assert diag.now()[:2] == (ros_status.OK, 'ok')
         warn_s, error_s = accel_stall_limits(sins.p['accel_wait'])     # the core's rule
         assert (warn_s, error_s) == (0.1, 1.0)
         t = _feed(sins, t, 0.3, accel=False)                          # Δv stop, Δθ runs on 0.3 s
         level, message, values = diag.now()
-        assert level == ros_io.WARN, message
+        assert level == ros_status.WARN, message
         assert 'accelerometer increments (imu/delta_velocity) stopped' in message
         assert 'WARN beyond 0.1 s, ERROR beyond 1 s' in message
         assert float(values['accel_stall_s']) == pytest.approx(0.3, abs=0.011)
         t = _feed(sins, t, 0.3)                             # Δv back (within max_stamp_jump)
-        assert diag.now()[:2] == (ros_io.OK, 'ok')
+        assert diag.now()[:2] == (ros_status.OK, 'ok')
         for _ in range(3):
-            sins._on_gyro_raw(b'\x00\x01garbage')
+            sins.on_gyro_raw(b'\x00\x01garbage')
         level, message, _ = diag.now()
-        assert level == ros_io.WARN
+        assert level == ros_status.WARN
         assert message == '3 input message(s) could not be decoded: dropped'
         t = _feed(sins, t, 1.0, skip=range(20, 70))                   # 50 gyro increments missing
         level, message, _ = diag.now()
-        assert level == ros_io.ERROR, message
+        assert level == ros_status.ERROR, message
         assert message.startswith('50 gyro increments missing in 1 gaps')
         assert 'could not be decoded' in message
         t = _feed(sins, t, 1.5, accel=False)                          # Δv stalled beyond 1 s
         level, message, values = diag.now()
-        assert level == ros_io.ERROR and 'stopped' in message and 'missing' in message
+        assert level == ros_status.ERROR and 'stopped' in message and 'missing' in message
         assert float(values['accel_stall_s']) == pytest.approx(1.5, abs=0.011)
-        assert all(len(m) <= ros_io.MAX_TEXT for _, m, _ in diag.got)
+        assert all(len(m) <= ros_status.MAX_TEXT for _, m, _ in diag.got)
     finally:
         sins.destroy_node()
 
 
 def test_navigation_without_any_accelerometer_data_is_reported(ros, monkeypatch):
     """
-    With navigation on and no Δv at all, sins/odometry never starts: WARN, then
-    ERROR, naming the missing stream.
+    Check: navigation without any accelerometer data is reported.
+
+    With navigation on and no Δv at all, sins/odometry never starts: WARN, then ERROR, naming the
+    missing stream.
     """
     sins = SinsNode(namespace='/t_diag_noacc', parameter_overrides=[
         Parameter('navigation', value=True), Parameter('accel_rate', value=300.0), *IDEAL])
@@ -231,43 +243,48 @@ def test_navigation_without_any_accelerometer_data_is_reported(ros, monkeypatch)
     try:
         t = _feed(sins, 10_000_000_000, 0.5, accel=False)
         level, message, _ = diag.now()
-        assert level == ros_io.WARN and 'no accelerometer increments received' in message
+        assert level == ros_status.WARN and 'no accelerometer increments received' in message
         assert 'sins/odometry stalls' in message
         _feed(sins, t, 1.0, accel=False)
-        assert diag.now()[0] == ros_io.ERROR
+        assert diag.now()[0] == ros_status.ERROR
     finally:
         sins.destroy_node()
 
 
 def test_calibrator_lists_every_condition_at_the_worst_level(ros, monkeypatch):
     """
-    In calibrator_node, a frame mismatch and undecodable messages are listed beside
-    the WARN of a missing solution, and a gyro gap makes it ERROR without hiding them.
+    Check: calibrator lists every condition at the worst level.
+
+    In calibrator_node, a frame mismatch and undecodable messages are listed beside the WARN of a
+    missing solution, and a gyro gap makes it ERROR without hiding them.
     """
     cal = CalibratorNode(namespace='/t_diag_cal', parameter_overrides=list(IDEAL[:4]))
     diag = Diagnostics(cal, monkeypatch)
     try:
         for k in range(1, 11):
-            cal._on_gyro(_msg(1_000_000_000 + k * 10_000_000, (1e-4, 0.0, 0.0)))
-        cal._on_gyro(_msg(1_000_000_000 + 11 * 10_000_000, (1e-4, 0.0, 0.0), frame='camera'))
-        cal._on_gyro_raw(b'garbage')
+            cal.on_gyro(_msg(1_000_000_000 + k * 10_000_000, (1e-4, 0.0, 0.0)))
+        cal.on_gyro(_msg(1_000_000_000 + 11 * 10_000_000, (1e-4, 0.0, 0.0), frame='camera'))
+        cal.on_gyro_raw(b'garbage')
         level, message, _ = diag.now()
-        assert level == ros_io.WARN and 'waiting' in message and 'unexpected frame' in message
+        assert level == ros_status.WARN and 'waiting' in message and 'unexpected frame' in message
         assert 'could not be decoded' in message, message
-        cal._on_gyro(_msg(1_000_000_000 + 30 * 10_000_000, (1e-4, 0.0, 0.0)))   # 18 missing
+        cal.on_gyro(_msg(1_000_000_000 + 30 * 10_000_000, (1e-4, 0.0, 0.0)))   # 18 missing
         level, message, _ = diag.now()
-        assert level == ros_io.ERROR and 'missing' in message and 'could not be decoded' in message
+        assert (level == ros_status.ERROR and 'missing' in message
+                and 'could not be decoded' in message)
     finally:
         cal.destroy_node()
 
 
 def test_runtime_parameters(ros):
     """
-    An array parameter set to its current value (rclpy hands back array('d')) is
-    no change, so `ros2 param load` of the shipped config/coning.yaml succeeds; coning_algorithm
-    2.0 is refused (no name), as an integer given a fraction is; with navigation on no parameter
-    changes, and the message says so; -p numbers that YAML leaves as text (1.0e9) get the range
-    error, and the printed velocity update needs 003's layout.
+    Check: runtime parameters.
+
+    An array parameter set to its current value (rclpy hands back array('d')) is no change, so
+    `ros2 param load` of the shipped config/coning.yaml succeeds; coning_algorithm 2.0 is refused
+    (no name), as an integer given a fraction is; with navigation on no parameter changes, and the
+    message says so; -p numbers that YAML leaves as text (1.0e9) get the range error, and the
+    printed velocity update needs 003's layout.
     """
     import yaml
     shipped = pathlib.Path(__file__).resolve().parents[2] / 'config' / 'coning.yaml'
@@ -304,17 +321,18 @@ def test_runtime_parameters(ros):
         assert not res.successful
     finally:
         nav.destroy_node()
-    refused = ros_io.InvalidParameter
+    refused = ros_params.InvalidParameter
     with pytest.raises(refused, match=r'batch_period=1000000000.0 is out of range'):
         SinsNode(namespace='/t_rt_b',
                  parameter_overrides=[Parameter('batch_period', value='1.0e9')])
-    with pytest.raises(ros_io.InvalidParameter, match=r'latitude ° in \[-90, 90\]'):
+    with pytest.raises(ros_params.InvalidParameter, match=r'latitude ° in \[-90, 90\]'):
         SinsNode(namespace='/t_rt_lat',
                  parameter_overrides=[Parameter('initial_position', value=[95.0, 0.0, 0.0])])
     with pytest.raises(refused, match=r'initial_velocity\[1\]=1e\+08 is out of range; valid: '):
         SinsNode(namespace='/t_rt_v',
                  parameter_overrides=[Parameter('initial_velocity', value=[0.0, 1e8, 0.0])])
-    with pytest.raises(ros_io.InvalidParameter, match='valid: coning_algorithm one of 1, 6, 7'):
+    with pytest.raises(ros_params.InvalidParameter,
+                       match='valid: coning_algorithm one of 1, 6, 7'):
         SinsNode(namespace='/t_rt_pr', parameter_overrides=[
             Parameter('navigation', value=True), Parameter('velocity_update', value='printed')])
     ok = SinsNode(namespace='/t_rt_pr_ok', parameter_overrides=[
@@ -325,9 +343,11 @@ def test_runtime_parameters(ros):
 
 def test_a_number_given_as_text_is_stored_with_its_type(ros):
     """
-    A quoted number for a double ("0.05", as YAML files may
-    quote it) or an integer for a double is used as the double AND stored as one, so
-    `ros2 param get` shows what the node uses; text that is no number is still refused.
+    Check: a number given as text is stored with its type.
+
+    A quoted number for a double ("0.05", as YAML files may quote it) or an integer for a double is
+    used as the double AND stored as one, so `ros2 param get` shows what the node uses; text that
+    is no number is still refused.
     """
     node = SinsNode(namespace='/t_text_num', parameter_overrides=[
         Parameter('batch_period', value='0.05'), Parameter('accel_wait', value=1)])
@@ -343,6 +363,6 @@ def test_a_number_given_as_text_is_stored_with_its_type(ros):
         assert node.get_parameter('accel_wait').value == 1.0
     finally:
         node.destroy_node()
-    with pytest.raises(ros_io.InvalidParameter, match='batch_period must be a number'):
+    with pytest.raises(ros_params.InvalidParameter, match='batch_period must be a number'):
         SinsNode(namespace='/t_text_bad',
                  parameter_overrides=[Parameter('batch_period', value='fast')])

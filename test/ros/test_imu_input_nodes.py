@@ -1,6 +1,8 @@
 """
-gyro_input imu, the node part: sins_node and calibrator_node fed sensor_msgs/Imu rate samples
-on imu/data_raw (real nodes spun in-process, every wait with a timeout).
+The nodes with ``gyro_input: imu``: sensor_msgs/Imu rate samples instead of increments.
+
+sins_node and calibrator_node fed sensor_msgs/Imu rate samples on imu/data_raw (real nodes spun
+in-process, every wait with a timeout).
 
 Truth is independent of the code under test: the simulator's exact attitude (imu/truth/attitude),
 a closed-form fixed-axis motion, the injected boresight.
@@ -8,31 +10,34 @@ a closed-form fixed-axis motion, the injected boresight.
 import math
 import time
 
+from diagnostic_msgs.msg import DiagnosticArray
+from geometry_msgs.msg import PoseWithCovarianceStamped, QuaternionStamped
+from nav_msgs.msg import Odometry
 import numpy as np
 import pytest
+import rclpy
+from rclpy.executors import SingleThreadedExecutor
+from rclpy.parameter import Parameter
+from ros_helpers import spin_until
+from sensor_msgs.msg import Imu
 
-rclpy = pytest.importorskip('rclpy')
+from strapdown_ros import earth as G
+from strapdown_ros.attitude.coning import ALGORITHMS, theory_drift
+from strapdown_ros.motion.earth_profiles import navigation_profile_from_config
+from strapdown_ros.motion.profiles import ConingProfile
+from strapdown_ros.nodes.calibrator_node import CalibratorNode
+from strapdown_ros.nodes.imu_sim_node import ImuSimNode
+from strapdown_ros.nodes.ros_io import stamp_to_ns, stream_qos
+from strapdown_ros.nodes.ros_params import InvalidParameter
+from strapdown_ros.nodes.sins_node import SinsNode
+from strapdown_ros.params import PROFILE_PARAMS
+from strapdown_ros.rotation import (dcm_to_quat, from_ros_xyzw, quat_angle_between,
+                                    quat_conjugate, quat_multiply, quat_to_dcm, quat_to_rotvec,
+                                    rotvec_to_quat, to_ros_xyzw)
 
-from diagnostic_msgs.msg import DiagnosticArray  # noqa: E402
-from geometry_msgs.msg import PoseWithCovarianceStamped  # noqa: E402
-from geometry_msgs.msg import QuaternionStamped
-from rclpy.executors import SingleThreadedExecutor  # noqa: E402
-from rclpy.parameter import Parameter  # noqa: E402
-from sensor_msgs.msg import Imu  # noqa: E402
-
-from ros_helpers import spin_until  # noqa: E402
-from strapdown_ros.attitude.coning import ALGORITHMS  # noqa: E402
-from strapdown_ros.attitude.coning import theory_drift
-from strapdown_ros.motion.profiles import ConingProfile  # noqa: E402
-from strapdown_ros.nodes.calibrator_node import CalibratorNode  # noqa: E402
-from strapdown_ros.nodes.imu_sim_node import ImuSimNode  # noqa: E402
-from strapdown_ros.nodes.ros_io import stamp_to_ns, stream_qos  # noqa: E402
-from strapdown_ros.nodes.sins_node import SinsNode  # noqa: E402
-from strapdown_ros.rotation import (from_ros_xyzw, quat_angle_between, quat_conjugate,
-                                    quat_multiply, rotvec_to_quat, to_ros_xyzw)
 
 try:
-    from rclpy.experimental import EventsExecutor as GraphExecutor  # noqa: E402
+    from rclpy.experimental import EventsExecutor as GraphExecutor
 except ImportError:                                                 # older rclpy
     GraphExecutor = SingleThreadedExecutor
 
@@ -41,8 +46,6 @@ ALPHA, NU = 0.1, 4 * np.pi                       # the cone of test/ros/test_nod
 IDEAL = [Parameter(f'{s}_{k}', value=0.0) for s in ('gyro', 'accel')
          for k in ('bias_sigma', 'scale_sigma', 'misalignment_sigma', 'random_walk')]
 IMU_MEAN = [Parameter('gyro_input', value='imu'), Parameter('imu_rate_rule', value='mean')]
-
-
 
 
 def _stamped_quaternions(msgs):
@@ -65,6 +68,8 @@ def _close(ex, nodes):
 
 def test_imu_mean_rule_gives_the_delta_theta_attitude_except_the_first_increment(ros):
     """
+    Check: imu mean rule gives the delta theta attitude except the first increment.
+
     imu_sim_node's imu/data_raw is Δθ/T: with imu_rate_rule mean the increments are its Δθ to
     round-off, except the first (the first Imu sample starts the stream and gives none).  A node
     that starts from the true attitude at the first Imu stamp then differs from the Δθ node by a
@@ -79,6 +84,7 @@ def test_imu_mean_rule_gives_the_delta_theta_attitude_except_the_first_increment
         Parameter('duration', value=duration), Parameter('qos_depth', value=QUEUE), *IDEAL])
     common = [Parameter('coning_algorithm', value='1'), Parameter('qos_depth', value=QUEUE),
               Parameter('batch_period', value=0.0), *IDEAL]
+
     def start(t):
         q = to_ros_xyzw(prof.attitude(t))
         return Parameter('initial_orientation', value=[float(c) for c in q])
@@ -119,7 +125,8 @@ def test_imu_mean_rule_gives_the_delta_theta_attitude_except_the_first_increment
         # the same increments from the second on: q_d = c ⊗ q_i with one constant c, to round-off
         c = quat_multiply(q_d[1:], quat_conjugate(q_i))
         assert np.max(quat_angle_between(c, c[:1])) < 1e-12
-        # both within the one-sample coning bound of the exact attitude (test/ros/test_nodes.py's bound)
+        # both within the one-sample coning bound of the exact attitude (the bound of
+        # test/ros/test_nodes.py)
         drift = abs(theory_drift(ALGORITHMS['1'], NU * 0.01)) * ALPHA ** 2 * NU          # rad/s
         for t, q in ((t_d, q_d), (t_i, q_i)):
             err = quat_angle_between(q, np.array([truth[k] for k in t.tolist()]))
@@ -168,9 +175,11 @@ def _imu_msg(k, rate, frame='imu_link', period_ns=10_000_000):
 
 def test_trapezoid_rule_on_sampled_rates_is_within_its_second_order_bound(ros):
     """
-    Rates sampled at the stamps of a fixed-axis motion (the coning algorithm is exact for it:
-    the error is the increment rule's alone).  The trapezoid rule errs by +T³ω̈/12 per increment,
-    so the angle after time t by at most t·T²·max|ω̈|/12 (rate_increments).
+    Check: trapezoid rule on sampled rates is within its second order bound.
+
+    Rates sampled at the stamps of a fixed-axis motion (the coning algorithm is exact for it: the
+    error is the increment rule's alone).  The trapezoid rule errs by +T³ω̈/12 per increment, so
+    the angle after time t by at most t·T²·max|ω̈|/12 (rate_increments).
     """
     ns = '/t_imu_trap'
     sins = SinsNode(namespace=ns, parameter_overrides=[
@@ -213,9 +222,11 @@ def test_trapezoid_rule_on_sampled_rates_is_within_its_second_order_bound(ros):
 
 def test_bad_imu_input_is_dropped_counted_and_reported(ros):
     """
-    NaN, duplicate and out-of-order stamps, an unknown frame: dropped and counted by both
-    nodes, reported on /diagnostics; the interval lost to the NaN is a gap of the increments
-    (ERROR: rotation lost); the nodes go on.
+    Check: bad imu input is dropped counted and reported.
+
+    NaN, duplicate and out-of-order stamps, an unknown frame: dropped and counted by both nodes,
+    reported on /diagnostics; the interval lost to the NaN is a gap of the increments (ERROR:
+    rotation lost); the nodes go on.
     """
     ns = '/t_imu_bad'
     sins = SinsNode(namespace=ns, parameter_overrides=[
@@ -282,14 +293,15 @@ def test_bad_imu_input_is_dropped_counted_and_reported(ros):
 
 def test_calibrator_on_imu_rates_recovers_the_boresight(ros):
     """
+    Check: calibrator on imu rates recovers the boresight.
+
     calibration graph (test/ros/test_calibrator_node.py) with the calibrator on imu/data_raw (mean
     rule: imu_sim_node publishes Δθ/T): the injected boresight within 3σ of the published one.
     """
     from test_calibrator_node import ARCSEC, BETA, C_TRUE, Graph, MAX_TIME_SCALE, q_of, rot_cov
 
-    from strapdown_ros.rotation import dcm_to_quat, quat_to_dcm, quat_to_rotvec
-
     class ImuGraph(Graph):
+
         def run(self):
             for n in (self.calib, self.mon):
                 self.ex.add_node(n)
@@ -358,17 +370,13 @@ def test_calibrator_on_imu_rates_recovers_the_boresight(ros):
                                                        ('coordinated_turn', 2e-3, 2e-3)])
 def test_navigation_from_imu_messages_matches_the_exact_truth(ros, profile, tol_pos, tol_vel):
     """
-    sins_node with navigation on imu/data_raw alone (Δθ and Δv from the same messages, mean
-    rule), started from the truth at the first Imu stamp: sins/odometry within the bounds of the
-    Δθ/Δv-fed node (test/ros/test_sins_node_navigation.py), against imu/truth/odometry.
+    Check: navigation from imu messages matches the exact truth.
+
+    sins_node with navigation on imu/data_raw alone (Δθ and Δv from the same messages, mean rule),
+    started from the truth at the first Imu stamp: sins/odometry within the bounds of the Δθ/Δv-fed
+    node (test/ros/test_sins_node_navigation.py), against imu/truth/odometry.
     """
-    from nav_msgs.msg import Odometry
-
-    from strapdown_ros import earth as G
-    from strapdown_ros.motion.earth_profiles import navigation_profile_from_config
-
     ns, duration, t0 = f'/t_imu_nav_{profile}', 3.0, np.array([0.01])
-    from strapdown_ros.params import PROFILE_PARAMS
 
     # the truth of the simulator's own parameters (its default gravity_model included: the turn
     # is coordinated with that model's vertical)
@@ -436,7 +444,6 @@ def test_navigation_from_imu_messages_matches_the_exact_truth(ros, profile, tol_
 
 @pytest.mark.parametrize('node_class', [SinsNode, CalibratorNode])
 def test_gyro_input_parameters_are_validated_and_fixed_at_runtime(ros, node_class):
-    from strapdown_ros.nodes.ros_io import InvalidParameter
     for name, bad, valid in (('gyro_input', 'rates', 'delta_theta, imu'),
                              ('imu_rate_rule', 'simpson', 'trapezoid, mean')):
         with pytest.raises(InvalidParameter, match=valid):

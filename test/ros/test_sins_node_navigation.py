@@ -1,28 +1,30 @@
 """
-sins_node's navigation channel in a real graph (in-process, executor, timeouts): sins/odometry
+sins_node's navigation channel in a real graph (in-process, executor, timeouts).
+
+The sins/odometry
 type, frame ids and content against imu_sim_node's exact truth, for the static and turn profiles,
 and the static alignment started from the data.
 """
 
+from diagnostic_msgs.msg import DiagnosticArray
+from nav_msgs.msg import Odometry
 import numpy as np
 import pytest
+import rclpy
+from rclpy.parameter import Parameter
+from ros_helpers import spin_until
 
-rclpy = pytest.importorskip('rclpy')
-from diagnostic_msgs.msg import DiagnosticArray  # noqa: E402
-from nav_msgs.msg import Odometry  # noqa: E402
-from rclpy.parameter import Parameter  # noqa: E402
+from strapdown_ros import earth as G
+from strapdown_ros.motion.earth_profiles import navigation_profile_from_config
+from strapdown_ros.nodes.imu_sim_node import ImuSimNode
+from strapdown_ros.nodes.ros_io import stamp_to_ns, stream_qos
+from strapdown_ros.nodes.sins_node import SinsNode
+from strapdown_ros.params import PROFILE_PARAMS
+from strapdown_ros.rotation import quat_angle_between, to_ros_xyzw
 
-from ros_helpers import spin_until  # noqa: E402
-from strapdown_ros import earth as G  # noqa: E402
-from strapdown_ros.motion.earth_profiles import navigation_profile_from_config  # noqa: E402
-from strapdown_ros.nodes.imu_sim_node import ImuSimNode  # noqa: E402
-from strapdown_ros.nodes.ros_io import stamp_to_ns, stream_qos  # noqa: E402
-from strapdown_ros.nodes.sins_node import SinsNode  # noqa: E402
-from strapdown_ros.rotation import quat_angle_between  # noqa: E402
-from strapdown_ros.rotation import to_ros_xyzw
 
 try:
-    from rclpy.experimental import EventsExecutor as GraphExecutor  # noqa: E402
+    from rclpy.experimental import EventsExecutor as GraphExecutor
 except ImportError:                                                  # pragma: no cover
     from rclpy.executors import SingleThreadedExecutor as GraphExecutor
 
@@ -31,10 +33,7 @@ IDEAL = [Parameter(f'{s}_{k}', value=0.0) for s in ('gyro', 'accel')
          for k in ('bias_sigma', 'scale_sigma', 'misalignment_sigma', 'random_walk')]
 
 
-
-
 def _run(ns, profile, duration, sins_extra=(), sim_extra=(), expect=None):
-    from strapdown_ros.params import PROFILE_PARAMS
 
     # the truth of the simulator's own parameters (its default gravity_model included: the turn is
     # coordinated with that model's vertical, and the initial state must be that profile's)
@@ -46,12 +45,16 @@ def _run(ns, profile, duration, sins_extra=(), sim_extra=(), expect=None):
     sim = ImuSimNode(namespace=ns, parameter_overrides=[
         Parameter('profile', value=profile), Parameter('time_scale', value=10.0),
         Parameter('duration', value=duration), Parameter('qos_depth', value=QUEUE),
-        Parameter('wait_for_subscribers', value=1), *IDEAL, *sim_extra])     # no start lost to discovery
+        # no start lost to discovery
+        Parameter('wait_for_subscribers', value=1), *IDEAL, *sim_extra])
     sins = SinsNode(namespace=ns, parameter_overrides=[
-        Parameter('navigation', value=True), Parameter('coning_algorithm', value='one_plus_previous'),
-        Parameter('initial_position', value=[float(np.degrees(lat)), float(np.degrees(lon)), float(h)]),
+        Parameter('navigation', value=True),
+        Parameter('coning_algorithm', value='one_plus_previous'),
+        Parameter('initial_position',
+                  value=[float(np.degrees(lat)), float(np.degrees(lon)), float(h)]),
         Parameter('initial_velocity', value=[float(x) for x in enu.T @ w0]),
-        Parameter('initial_orientation', value=[float(x) for x in to_ros_xyzw(prof.attitude_ecef(np.array([0.0]))[0])]),
+        Parameter('initial_orientation',
+                  value=[float(x) for x in to_ros_xyzw(prof.attitude_ecef(np.array([0.0]))[0])]),
         Parameter('qos_depth', value=QUEUE), *IDEAL, *sins_extra])
     mon = rclpy.create_node('monitor', namespace=ns)
     got = {'sins': [], 'truth': [], 'diag': []}
@@ -67,7 +70,8 @@ def _run(ns, profile, duration, sins_extra=(), sim_extra=(), expect=None):
         sim._wall_start = None
         n_expected = expect if expect is not None else int(round(duration * 100)) - 2
         assert spin_until(ex, lambda: sim.finished and len(got['sins']) >= n_expected
-                          and len(got['truth']) >= n_expected, 60.0), {k: len(v) for k, v in got.items()}
+                          and len(got['truth']) >= n_expected,
+                          60.0), {k: len(v) for k, v in got.items()}
         spin_until(ex, lambda: False, 1.2)          # one more diagnostics period
         return got, sins
     finally:
@@ -78,7 +82,8 @@ def _run(ns, profile, duration, sins_extra=(), sim_extra=(), expect=None):
 
 def _paired(got):
     truth = {stamp_to_ns(m.header.stamp): m for m in got['truth']}
-    pairs = [(m, truth[stamp_to_ns(m.header.stamp)]) for m in got['sins'] if stamp_to_ns(m.header.stamp) in truth]
+    pairs = [(m, truth[stamp_to_ns(m.header.stamp)]) for m in got['sins']
+             if stamp_to_ns(m.header.stamp) in truth]
     assert len(pairs) > 0.9 * len(got['sins'])
     return pairs
 
@@ -93,7 +98,8 @@ def _quat(m):
     return np.array([o.w, o.x, o.y, o.z])
 
 
-@pytest.mark.parametrize('profile, tol_pos, tol_vel', [('static', 1e-6, 1e-6), ('coordinated_turn', 2e-3, 2e-3)])
+@pytest.mark.parametrize('profile, tol_pos, tol_vel',
+                         [('static', 1e-6, 1e-6), ('coordinated_turn', 2e-3, 2e-3)])
 def test_sins_odometry_matches_the_exact_truth(ros, profile, tol_pos, tol_vel):
     got, _ = _run(f'/t_nav_{profile}', profile, 5.0)
     m0 = got['sins'][0]
@@ -102,7 +108,8 @@ def test_sins_odometry_matches_the_exact_truth(ros, profile, tol_pos, tol_vel):
     dp = max(np.linalg.norm(_pos(s) - _pos(t)) for s, t in pairs)
     dv = max(np.linalg.norm(np.array([s.twist.twist.linear.x - t.twist.twist.linear.x,
                                       s.twist.twist.linear.y - t.twist.twist.linear.y,
-                                      s.twist.twist.linear.z - t.twist.twist.linear.z])) for s, t in pairs)
+                                      s.twist.twist.linear.z - t.twist.twist.linear.z]))
+             for s, t in pairs)
     da = max(quat_angle_between(_quat(s), _quat(t)) for s, t in pairs)
     assert np.linalg.norm(_pos(pairs[-1][1])) > 6.3e6                     # ECEF, metres
     assert dp < tol_pos and dv < tol_vel and da < 1e-8, (dp, dv, da)
@@ -116,7 +123,8 @@ def test_static_alignment_starts_navigation_from_the_data(ros):
         Parameter('initial_orientation', value=[0.0, 0.0, 0.0, 1.0])], expect=590)
     assert sins.nav.alignment is not None and sins.nav.alignment.ok
     pairs = _paired(got) if got['sins'] else []
-    assert got['sins'] and got['sins'][0].header.stamp.sec >= 2         # navigation begins after the window
+    # navigation begins after the window
+    assert got['sins'] and got['sins'][0].header.stamp.sec >= 2
     # perfect sensors: the aligned attitude equals the truth to the TRIAD's round-off
     da = max(quat_angle_between(_quat(s), _quat(t)) for s, t in pairs)
     assert da < 1e-9

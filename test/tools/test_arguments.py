@@ -1,10 +1,16 @@
 """Bad files and arguments are refused before any work, in one line, exit 2."""
+import hashlib
+import json
 import os
 import subprocess
 import sys
 import time
 
 import pytest
+
+from strapdown_ros.cli import write_json
+from strapdown_ros.tools import record_sim
+
 
 BIN = os.path.dirname(sys.executable)
 
@@ -13,7 +19,8 @@ def _one_line_exit_2(cmd, timeout=60):
     t0 = time.monotonic()
     p = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout)
     # (rcl logs its own "[ERROR] [rcl]: Failed to parse global arguments" from C: not ours)
-    lines = [ln for ln in (p.stdout + p.stderr).splitlines() if ln.strip() and '[INFO]' not in ln and '[rcl]' not in ln]
+    lines = [ln for ln in (p.stdout + p.stderr).splitlines()
+             if ln.strip() and '[INFO]' not in ln and '[rcl]' not in ln]
     assert p.returncode == 2, (cmd, p.returncode, p.stdout, p.stderr)
     assert len(lines) == 1 and 'Traceback' not in lines[0] and 'error' in lines[0], lines
     return lines[0], time.monotonic() - t0
@@ -38,10 +45,12 @@ def test_node_refuses_bad_files_and_parameters(tmp_path, args, needle):
 def test_tools_check_arguments_before_work(tmp_path):
     (tmp_path / 'bad.yaml').write_text('segments: [1, 2')
     for cmd, needle in (
-            ([os.path.join(BIN, 'record_sim'), str(tmp_path / 'b'), '--params', str(tmp_path / 'bad.yaml')], 'YAML'),
+            ([os.path.join(BIN, 'record_sim'), str(tmp_path / 'b'), '--params',
+              str(tmp_path / 'bad.yaml')], 'YAML'),
             ([os.path.join(BIN, 'coning_bench'), '--json', '/nonexistent/x.json'], '/nonexistent'),
             ([os.path.join(BIN, 'coning_bench'), '--duration', '5'], 'cone period'),
-            ([os.path.join(BIN, 'reproduce_seeds'), '--report', '/nonexistent/x.md'], '/nonexistent'),
+            ([os.path.join(BIN, 'reproduce_seeds'), '--report', '/nonexistent/x.md'],
+             '/nonexistent'),
             ([os.path.join(BIN, 'reproduce_seeds'), '--runs', '0'], '--runs'),
             ([os.path.join(BIN, 'load_bench'), '--seconds', '5'], '--seconds'),
             ([os.path.join(BIN, 'load_bench'), '--report', '/nonexistent/d/e'], '/nonexistent'),
@@ -51,14 +60,15 @@ def test_tools_check_arguments_before_work(tmp_path):
             ([os.path.join(BIN, 'sins_bench'), '--json', '/nonexistent/s.json'], '/nonexistent'),
             ([os.path.join(BIN, 'node_rate_bench'), '--lo', '5000', '--hi', '100'], '--lo')):
         line, took = _one_line_exit_2(cmd)
-        assert needle in line and took < 20.0, (cmd, line, took)       # refused before minutes of work
+        # refused before minutes of work
+        assert needle in line and took < 20.0, (cmd, line, took)
 
 
 def test_corrupted_mcap_is_one_line_exit_2(tmp_path):
     pytest.importorskip('rosbags')
-    from strapdown_ros.tools import record_sim
     bag = tmp_path / 'bag'
-    assert record_sim.main([str(bag), '--no-accel', '--duration', '30', '-p', 'camera_interval:=2.0']) == 0
+    assert record_sim.main([str(bag), '--no-accel', '--duration', '30', '-p',
+                            'camera_interval:=2.0']) == 0
     f = next(bag.glob('*.mcap'))
     data = bytearray(f.read_bytes())
     for i in range(len(data) // 3, len(data) // 3 + 4000, 7):          # garbage in the middle
@@ -69,14 +79,14 @@ def test_corrupted_mcap_is_one_line_exit_2(tmp_path):
     for cmd in ([os.path.join(BIN, 'calibrate_bag'), str(bag)],
                 [os.path.join(BIN, 'discrepancy'), str(bag), '--model', str(model)]):
         p = subprocess.run(cmd, capture_output=True, text=True, timeout=60)
-        assert p.returncode == 2 and 'Traceback' not in p.stderr, (cmd, p.returncode, p.stderr[-2000:])
+        assert p.returncode == 2 and 'Traceback' not in p.stderr, (cmd, p.returncode,
+                                                                   p.stderr[-2000:])
         errs = [ln for ln in p.stderr.splitlines() if 'error' in ln]
         assert len(errs) == 1, p.stderr
 
 
 def _digest(paths):
     """Content of every file under ``paths`` (inputs must come out untouched)."""
-    import hashlib
     out = {}
     for root in paths:
         files = [root] if root.is_file() else sorted(p for p in root.rglob('*') if p.is_file())
@@ -87,14 +97,14 @@ def _digest(paths):
 
 def test_no_output_overwrites_an_input(tmp_path):
     """
-    One output rule for every tool
-    (cli.py::check_outputs): no output may be an input (a file inside the input bag
-    directory included) or another output, an existing one needs --force, the target directory
-    must take a real write (/proc: os.access says yes as root); each refusal is one line, exit 2,
-    and the inputs are untouched.
+    Check: no output overwrites an input.
+
+    One output rule for every tool (cli.py::check_outputs): no output may be an input (a file
+    inside the input bag directory included) or another output, an existing one needs --force, the
+    target directory must take a real write (/proc: os.access says yes as root); each refusal is
+    one line, exit 2, and the inputs are untouched.
     """
     pytest.importorskip('rosbags')
-    from strapdown_ros.tools import record_sim
     bag = tmp_path / 'bag'
     assert record_sim.main([str(bag), '--no-accel', '--duration', '10',
                             '-p', 'camera_interval:=2.0']) == 0
@@ -142,13 +152,11 @@ def test_no_output_overwrites_an_input(tmp_path):
     p = subprocess.run([b('calibrate_bag'), str(bag), '--json', str(old), '--force'],
                        capture_output=True, text=True, timeout=120)
     assert p.returncode in (0, 3), p.stderr                # 3: this static bag is unobservable
-    import json
     assert 'observable' in json.loads(old.read_text())
     assert not [f for f in os.listdir(tmp_path) if f.endswith('.tmp')]
 
 
 def test_atomic_write_leaves_the_old_file_when_the_write_fails(tmp_path):
-    from strapdown_ros.cli import write_json
     out = tmp_path / 'r.json'
     out.write_text('old\n')
     with pytest.raises(ValueError):
@@ -170,8 +178,10 @@ def test_atomic_write_leaves_the_old_file_when_the_write_fails(tmp_path):
 ])
 def test_model_values_beyond_physics_or_of_wrong_type_are_refused_first(tmp_path, body, needle):
     """
-    Huge in-range values used to overflow later, a YAML date for a string used to fail after
-    the JSON was written; now each is one line, exit 2, nothing written.
+    Check: model values beyond physics or of wrong type are refused first.
+
+    Huge in-range values used to overflow later, a YAML date for a string used to fail after the
+    JSON was written; now each is one line, exit 2, nothing written.
     """
     bag = tmp_path / 'bag'
     bag.mkdir()                                   # never read: the model is refused first

@@ -1,30 +1,32 @@
 """record_sim → rosbag2 (MCAP and sqlite3) → calibrate_bag, without ROS."""
 import json
+import subprocess
+import sys
+import textwrap
 
 import numpy as np
 import pytest
 
-pytest.importorskip('rosbags')
+from strapdown_ros.motion.profiles import PiecewiseRateProfile, Segment
+from strapdown_ros.rotation import (dcm_to_quat, from_ros_xyzw, quat_error_rotvec, quat_multiply,
+                                    rotvec_to_quat, to_ros_xyzw, ypr_to_dcm)
+from strapdown_ros.sensors import ARCSEC, IntegratingSensor, SensorErrorModel
+from strapdown_ros.sensors.star_camera import StarCameraModel
+from strapdown_ros.tools import calibrate_bag, record_sim
 
-from strapdown_ros.motion.profiles import PiecewiseRateProfile  # noqa: E402
-from strapdown_ros.motion.profiles import Segment
-from strapdown_ros.rotation import (dcm_to_quat, from_ros_xyzw, quat_error_rotvec, to_ros_xyzw,
-                                    ypr_to_dcm)
-from strapdown_ros.sensors import ARCSEC, IntegratingSensor, SensorErrorModel  # noqa: E402
-from strapdown_ros.sensors.star_camera import StarCameraModel  # noqa: E402
-from strapdown_ros.tools import record_sim  # noqa: E402
-from strapdown_ros.tools import calibrate_bag
 
 BETA = np.radians([40.0, -25.0, 120.0])
 BETA_ARG = 'boresight:=[' + ', '.join(repr(float(b)) for b in BETA) + ']'
 NO_GAPS = {'gaps': 0, 'missing': 0, 'pairs_discarded': 0, 'dropouts': 0, 'stamp_bursts': 0}
-KEYS = ['q_mf_vf_xyzw', 'rotation_covariance_mf_rad2', 'beta_rad', 'beta_sigma_rad', 'covariance_rad2', 'pairs',
+KEYS = ['q_mf_vf_xyzw', 'rotation_covariance_mf_rad2', 'beta_rad', 'beta_sigma_rad',
+        'covariance_rad2', 'pairs',
         'observable', 'unobservable_axes', 'residual_rms_rad', 'weighted']
 
 
 def _is_3x3(m):
-    return isinstance(m, list) and len(m) == 3 and all(isinstance(r, list) and len(r) == 3 for r in m) \
-        and all(isinstance(v, float) for r in m for v in r)
+    return (isinstance(m, list) and len(m) == 3
+            and all(isinstance(r, list) and len(r) == 3 for r in m)
+            and all(isinstance(v, float) for r in m for v in r))
 
 
 def _floats(v, n):
@@ -34,7 +36,8 @@ def _floats(v, n):
 @pytest.mark.parametrize('storage', ['mcap', 'sqlite3'])
 def test_round_trip_bench(tmp_path, storage, capsys):
     bag = tmp_path / f'bench_{storage}'
-    args = [str(bag), '--storage', storage, '-p', 'profile:=bench', '-p', 'camera_interval:=5.0', '-p', BETA_ARG]
+    args = [str(bag), '--storage', storage, '-p', 'profile:=bench', '-p', 'camera_interval:=5.0',
+            '-p', BETA_ARG]
     if storage == 'sqlite3':
         args.append('--no-accel')
     assert record_sim.main(args) == 0
@@ -47,7 +50,8 @@ def test_round_trip_bench(tmp_path, storage, capsys):
     assert calibrate_bag.main([str(bag), '--json', str(f)]) == 0
     r = json.loads(f.read_text())
     assert list(r)[:len(KEYS)] == KEYS
-    assert _floats(r['q_mf_vf_xyzw'], 4) and _floats(r['beta_rad'], 3) and _floats(r['beta_sigma_rad'], 3)
+    assert _floats(r['q_mf_vf_xyzw'], 4) and _floats(r['beta_rad'],
+                                                     3) and _floats(r['beta_sigma_rad'], 3)
     assert _is_3x3(r['rotation_covariance_mf_rad2']) and _is_3x3(r['covariance_rad2'])
     assert isinstance(r['pairs'], int) and r['pairs'] == 33
     assert r['observable'] is True and r['unobservable_axes'] == [] and r['weighted'] is True
@@ -79,7 +83,8 @@ def test_round_trip_bench(tmp_path, storage, capsys):
             got = []
             for c, ts, raw in rd.messages(connections=conns):
                 m = rd.deserialize(raw, c.msgtype)
-                got.append((ts, m.header.stamp.sec * 10**9 + m.header.stamp.nanosec, m.header.frame_id,
+                got.append((ts, m.header.stamp.sec * 10**9 + m.header.stamp.nanosec,
+                            m.header.frame_id,
                             [m.vector.x, m.vector.y, m.vector.z]))
                 if len(got) == 5:
                     break
@@ -97,7 +102,8 @@ def test_single_axis_not_observable(tmp_path, capsys):
                     '  - {duration: 5.0, rate: [0.0, 0.0, -0.04]}\n'
                     '  - {duration: 10.0, rate: [0.0, 0.0, 0.0]}\n')
     bag = tmp_path / 'z_only'
-    assert record_sim.main([str(bag), '--no-accel', '-p', 'profile:=piecewise', '-p', f'profile_file:={prof}',
+    assert record_sim.main([str(bag), '--no-accel', '-p', 'profile:=piecewise', '-p',
+                            f'profile_file:={prof}',
                             '-p', 'camera_interval:=5.0', '-p', BETA_ARG]) == 0
     f = tmp_path / 'z.json'
     capsys.readouterr()
@@ -113,7 +119,7 @@ def test_single_axis_not_observable(tmp_path, capsys):
 
 
 def _write_bag(path, gyro_msgs, cam_msgs, namespace='/robot1'):
-    """A bag written with rosbags directly: (ns, vector) gyro messages, (ns, q_wxyz) camera fixes."""
+    """Write a bag with rosbags directly: (ns, vector) gyro messages, (ns, q_wxyz) fixes."""
     from rosbags.rosbag2 import StoragePlugin, Writer
     from rosbags.typesys import get_typestore, Stores
     ts = get_typestore(Stores.ROS2_JAZZY)
@@ -128,7 +134,8 @@ def _write_bag(path, gyro_msgs, cam_msgs, namespace='/robot1'):
         cg = w.add_connection(f'{namespace}/imu/delta_theta', V3S.__msgtype__, typestore=ts)
         cc = w.add_connection(f'{namespace}/star_camera/attitude', QS.__msgtype__, typestore=ts)
         for ns, v in gyro_msgs:
-            m = V3S(header=header(ns, 'imu_link'), vector=V3(x=float(v[0]), y=float(v[1]), z=float(v[2])))
+            m = V3S(header=header(ns, 'imu_link'),
+                    vector=V3(x=float(v[0]), y=float(v[1]), z=float(v[2])))
             w.write(cg, ns, ts.serialize_cdr(m, V3S.__msgtype__))
         for ns, q in cam_msgs:
             x, y, z, qw = to_ros_xyzw(q)
@@ -146,16 +153,20 @@ def test_nan_and_duplicate_are_dropped_and_counted(tmp_path, capsys):
     profile = PiecewiseRateProfile(segs)
     gyro = IntegratingSensor(profile, 'gyro', 100.0, SensorErrorModel(random_walk=1e-7), seed=3)
     t, dth, _ = gyro.sample(int(round(profile.duration * 100)))
-    start_ns = 1_700_000_000 * 10**9                       # epoch-like stamps: tests the time origin
+    # epoch-like stamps: tests the time origin
+    start_ns = 1_700_000_000 * 10**9
     msgs = [(start_ns + int(round(x * 1e9)), v) for x, v in zip(t, dth)]
-    msgs[749] = (msgs[749][0], np.array([np.nan, 0.0, 0.0]))   # t = 7.5 s, inside the first pair (5, 10] s
+    # t = 7.5 s, inside the first pair (5, 10] s
+    msgs[749] = (msgs[749][0], np.array([np.nan, 0.0, 0.0]))
     msgs.insert(201, msgs[200])                               # a repeated message: duplicate stamp
     cam = StarCameraModel(boresight=BETA, interval=5.0, seed=4)
     fixes = cam.fixes(profile, int(profile.duration // 5.0))
-    _write_bag(tmp_path / 'bad', msgs, [(start_ns + int(round(fx.stamp * 1e9)), fx.attitude) for fx in fixes])
+    _write_bag(tmp_path / 'bad', msgs,
+               [(start_ns + int(round(fx.stamp * 1e9)), fx.attitude) for fx in fixes])
 
     f = tmp_path / 'bad.json'
-    assert calibrate_bag.main([str(tmp_path / 'bad'), '--namespace', '/robot1', '--json', str(f)]) == 0
+    assert calibrate_bag.main([str(tmp_path / 'bad'), '--namespace', '/robot1', '--json',
+                               str(f)]) == 0
     out = capsys.readouterr().out
     assert 'gyro nan 1' in out and 'gyro duplicate 1' in out and 'GYRO GAPS' in out
     r = json.loads(f.read_text())
@@ -165,7 +176,8 @@ def test_nan_and_duplicate_are_dropped_and_counted(tmp_path, capsys):
     # the dropped NaN increment is a gap (its rotation is lost): the pair spanning it is discarded
     assert r['gyro_gaps'] == {**NO_GAPS, 'gaps': 1, 'missing': 1, 'pairs_discarded': 1}
     assert r['pairs'] == len(fixes) - 2
-    assert r['camera_covariance_from_bag'] is False          # no attitude_with_covariance: assumed σ
+    # no attitude_with_covariance: assumed σ
+    assert r['camera_covariance_from_bag'] is False
     assert r['observable'] is True
     assert np.all(np.abs(np.array(r['beta_rad']) - BETA) < 60 * ARCSEC)
 
@@ -178,9 +190,6 @@ def test_nan_and_duplicate_are_dropped_and_counted(tmp_path, capsys):
 
 def test_tools_run_with_ros_absent(tmp_path):
     """record_sim and calibrate_bag import and run with rclpy and every message package blocked."""
-    import subprocess
-    import sys
-    import textwrap
     repo = str(__import__('pathlib').Path(__file__).resolve().parents[2])
     code = textwrap.dedent(f"""
         import importlib.abc, sys
@@ -194,7 +203,8 @@ def test_tools_run_with_ros_absent(tmp_path):
         sys.path.insert(0, {repo!r})
         from strapdown_ros.tools import calibrate_bag, record_sim
         bag = {str(tmp_path / "short")!r}
-        assert record_sim.main([bag, "--duration", "30", "--no-accel", "-p", "camera_interval:=5.0"]) == 0
+        assert record_sim.main([bag, '--duration', '30', '--no-accel',
+                                '-p', 'camera_interval:=5.0']) == 0
         assert calibrate_bag.main([bag]) == 3          # one turn about z only: not observable
         loaded = [m for m in sys.modules if m.split(".")[0] in BLOCK]
         assert not loaded, loaded
@@ -207,13 +217,16 @@ def test_tools_run_with_ros_absent(tmp_path):
 
 def test_long_recording_keeps_every_pair_and_takes_the_rate_from_the_stamps(tmp_path, capsys):
     """
-    > 200 000 gyro messages (here 210 000 at 200 Hz, gyro_rate left at 100)
-    used to give 1 pair or none.  Now gyro and fixes are fed in stamp order and gaps are judged
-    against the rate of the stamps.
+    Check: long recording keeps every pair and takes the rate from the stamps.
+
+    > 200 000 gyro messages (here 210 000 at 200 Hz, gyro_rate left at 100) used to give 1 pair or
+    none.  Now gyro and fixes are fed in stamp order and gaps are judged against the rate of the
+    stamps.
     """
     bag = tmp_path / 'long'
     assert record_sim.main([str(bag), '--no-accel', '--duration', '1050', '-p', 'profile:=bench',
-                            '-p', 'bench_repeat:=7', '-p', 'gyro_rate:=200.0', '-p', 'camera_interval:=20.0',
+                            '-p', 'bench_repeat:=7', '-p', 'gyro_rate:=200.0', '-p',
+                            'camera_interval:=20.0',
                             '-p', BETA_ARG]) == 0
     f = tmp_path / 'r.json'
     assert calibrate_bag.main([str(bag), '--json', str(f)]) == 0
@@ -229,19 +242,23 @@ def test_long_recording_keeps_every_pair_and_takes_the_rate_from_the_stamps(tmp_
 
 def test_overflowing_and_future_stamped_increments_in_a_bag(tmp_path):
     """
-    Offline, a (1e308, 1e308, 0) increment and a lone stamp far in the
-    future are dropped by the nodes' rules and counted; the estimate is the clean bag's.
+    Check: overflowing and future stamped increments in a bag.
+
+    Offline, a (1e308, 1e308, 0) increment and a lone stamp far in the future are dropped by the
+    nodes' rules and counted; the estimate is the clean bag's.
     """
     from rosbags.rosbag2 import Reader, Writer
     from rosbags.typesys import get_typestore, Stores
 
     clean = tmp_path / 'clean'
-    assert record_sim.main([str(clean), '--no-accel', '-p', 'profile:=bench', '-p', 'camera_interval:=5.0',
+    assert record_sim.main([str(clean), '--no-accel', '-p', 'profile:=bench', '-p',
+                            'camera_interval:=5.0',
                             '-p', BETA_ARG]) == 0
     store = get_typestore(Stores.ROS2_JAZZY)
     dirty = tmp_path / 'dirty'
     with Reader(clean) as rd, Writer(dirty, version=Writer.VERSION_LATEST) as wr:
-        conns = {c.id: wr.add_connection(c.topic, c.msgtype, typestore=store) for c in rd.connections}
+        conns = {c.id: wr.add_connection(c.topic, c.msgtype,
+                                         typestore=store) for c in rd.connections}
         n = 0
         for c, t, raw in rd.messages():
             wr.write(conns[c.id], t, raw)
@@ -263,30 +280,34 @@ def test_overflowing_and_future_stamped_increments_in_a_bag(tmp_path):
     d = out['dirty']['dropped']['gyro']
     assert (d['out_of_range'], d['stamp_outlier']) == (1, 1)
     assert out['dirty']['pairs'] == out['clean']['pairs'] == 33
-    np.testing.assert_allclose(out['dirty']['beta_rad'], out['clean']['beta_rad'], rtol=0, atol=1e-12)
+    np.testing.assert_allclose(out['dirty']['beta_rad'], out['clean']['beta_rad'], rtol=0,
+                               atol=1e-12)
 
 
 def test_one_outlier_camera_fix_is_gated(tmp_path):
     """
-    One fix rotated 5° used to move β by 6113″.  The outlier rule (both pairs
-    of the fix off in rotation angle, the pair skipping it consistent) drops it: β stays within 3σ
-    of the truth and one pair fewer is used.
+    Check: one outlier camera fix is gated.
+
+    One fix rotated 5° used to move β by 6113″.  The outlier rule (both pairs of the fix off in
+    rotation angle, the pair skipping it consistent) drops it: β stays within 3σ of the truth and
+    one pair fewer is used.
     """
     from rosbags.rosbag2 import Reader, Writer
     from rosbags.typesys import get_typestore, Stores
 
-    from strapdown_ros.rotation import quat_multiply, rotvec_to_quat
-
     clean = tmp_path / 'clean'
-    assert record_sim.main([str(clean), '--no-accel', '-p', 'profile:=bench', '-p', 'camera_interval:=5.0',
+    assert record_sim.main([str(clean), '--no-accel', '-p', 'profile:=bench', '-p',
+                            'camera_interval:=5.0',
                             '-p', BETA_ARG]) == 0
     store = get_typestore(Stores.ROS2_JAZZY)
     dirty = tmp_path / 'dirty'
     bad = rotvec_to_quat(np.radians(5.0) * np.array([0.6, -0.64, 0.48]))
     with Reader(clean) as rd, Writer(dirty, version=Writer.VERSION_LATEST) as wr:
-        conns = {c.id: wr.add_connection(c.topic, c.msgtype, typestore=store) for c in rd.connections}
+        conns = {c.id: wr.add_connection(c.topic, c.msgtype,
+                                         typestore=store) for c in rd.connections}
         for c, t, raw in rd.messages():
-            if c.topic.startswith('/star_camera/attitude') and t == 60 * 10**9:          # the fix at 60 s
+            # the fix at 60 s
+            if c.topic.startswith('/star_camera/attitude') and t == 60 * 10**9:
                 m = store.deserialize_cdr(raw, c.msgtype)
                 q = m.pose.pose.orientation if hasattr(m, 'pose') else m.quaternion
                 w, x, y, z = quat_multiply(np.array([q.w, q.x, q.y, q.z]), bad)
@@ -299,7 +320,8 @@ def test_one_outlier_camera_fix_is_gated(tmp_path):
         assert calibrate_bag.main([str(bag), '--json', str(f)]) == 0
         out[name] = json.loads(f.read_text())
     r = out['dirty']
-    assert r['camera_fixes']['outliers_dropped'] == 1 and r['camera_fixes']['outlier_stamps_s'] == [pytest.approx(60.0)]
+    assert r['camera_fixes']['outliers_dropped'] == 1
+    assert r['camera_fixes']['outlier_stamps_s'] == [pytest.approx(60.0)]
     assert out['clean']['camera_fixes']['outliers_dropped'] == 0
     assert r['pairs'] == out['clean']['pairs'] - 1
     q_true = dcm_to_quat(ypr_to_dcm(*BETA))
@@ -309,9 +331,11 @@ def test_one_outlier_camera_fix_is_gated(tmp_path):
 
 def test_dropout_and_stamp_burst_cost_only_the_pairs_containing_them(tmp_path, capsys):
     """
-    Offline, 2 s without increments (t in (62.5, 64.5] s) and 5
-    increments stamped 1000 s in the past (t = 102.5 s) each cost the one pair that contains
-    them (33 → 31); the dropout reports its 200 missing increments, the burst its 5.
+    Check: dropout and stamp burst cost only the pairs containing them.
+
+    Offline, 2 s without increments (t in (62.5, 64.5] s) and 5 increments stamped 1000 s in the
+    past (t = 102.5 s) each cost the one pair that contains them (33 → 31); the dropout reports its
+    200 missing increments, the burst its 5.
     """
     from rosbags.rosbag2 import Reader, Writer
     from rosbags.typesys import get_typestore, Stores
@@ -348,7 +372,7 @@ def test_dropout_and_stamp_burst_cost_only_the_pairs_containing_them(tmp_path, c
 
 
 def _noisy_bench(tmp_path, name, scale):
-    """bench bag whose camera noise is ``scale`` × the σ its covariance states (injected)."""
+    """Write a bench bag whose camera noise is ``scale`` × the σ its covariance states."""
     bag = tmp_path / name
     assert record_sim.main([str(bag), '--no-accel', '-p', 'profile:=bench', '-p',
                             'camera_interval:=5.0', '-p', BETA_ARG, '-p',
@@ -359,9 +383,11 @@ def _noisy_bench(tmp_path, name, scale):
 @pytest.mark.parametrize('scale', [1.0, 100.0])
 def test_fit_consistency_is_judged_and_a_wrong_sigma_drops_no_good_fix(tmp_path, capsys, scale):
     """
-    Camera noise 100× the stated σ → fit_consistent false, a WARNING
-    line on stderr, exit 0, no good fix dropped as an outlier (the gate widens with the robust
-    scatter), β within 3 scaled σ of the injected truth.  Consistent noise → no warning.
+    Check: fit consistency is judged and a wrong sigma drops no good fix.
+
+    Camera noise 100× the stated σ → fit_consistent false, a WARNING line on stderr, exit 0, no
+    good fix dropped as an outlier (the gate widens with the robust scatter), β within 3 scaled σ
+    of the injected truth.  Consistent noise → no warning.
     """
     bag = _noisy_bench(tmp_path, f's{scale:g}', scale)
     capsys.readouterr()
@@ -394,8 +420,6 @@ def test_an_outlier_fix_is_still_gated_when_the_sigma_is_wrong(tmp_path):
     from rosbags.rosbag2 import Reader, Writer
     from rosbags.typesys import get_typestore, Stores
 
-    from strapdown_ros.rotation import quat_multiply, rotvec_to_quat
-
     clean = _noisy_bench(tmp_path, 'clean', 100.0)
     store = get_typestore(Stores.ROS2_JAZZY)
     dirty = tmp_path / 'dirty'
@@ -420,10 +444,12 @@ def test_an_outlier_fix_is_still_gated_when_the_sigma_is_wrong(tmp_path):
 
 def test_a_clock_reset_of_both_streams_calibrates_each_time_base(tmp_path):
     """
-    A confirmed resynchronisation offline: both clocks jump 5000 s ahead at t = 85 s (beyond
-    3600 s: a clock change, not a dropout).  Each time base is calibrated on its own, as
-    calibrator_node restarts its gyro history: no pair spans the reset, none is lost but the one
-    across it, and β is the truth's.
+    Check: a clock reset of both streams calibrates each time base.
+
+    A confirmed resynchronisation offline: both clocks jump 5000 s ahead at t = 85 s (beyond 3600
+    s: a clock change, not a dropout).  Each time base is calibrated on its own, as calibrator_node
+    restarts its gyro history: no pair spans the reset, none is lost but the one across it, and β
+    is the truth's.
     """
     from rosbags.rosbag2 import Reader, Writer
     from rosbags.typesys import get_typestore, Stores

@@ -13,25 +13,31 @@ import sys
 import numpy as np
 import pytest
 
-pytest.importorskip('rosbags')
+from strapdown_ros.calibration import gyro as gc
+from strapdown_ros.discrepancy.bag_input import load_recording
+from strapdown_ros.discrepancy.synthetic import simulate_recording
+from strapdown_ros.discrepancy.workflow import analyse
+from strapdown_ros.motion.from_config import profile_from_config
+from strapdown_ros.params import check_all, IMU_SIM_PARAMS, load_model, STAR_CAMERA_PARAMS
+from strapdown_ros.rotation import quat_conjugate, quat_multiply, rotvec_to_quat
+from strapdown_ros.sensors.effects import GyroEffects
+from strapdown_ros.tools import calibrate_gyro_bag, discrepancy, record_sim
 
-from strapdown_ros.motion.from_config import profile_from_config  # noqa: E402
-from strapdown_ros.params import load_model  # noqa: E402
-from strapdown_ros.sensors.effects import GyroEffects  # noqa: E402
-from strapdown_ros.tools import record_sim  # noqa: E402
-from strapdown_ros.tools import calibrate_gyro_bag, discrepancy
 
 BIN = os.path.dirname(sys.executable)
 BETA = [0.698, -0.436, 2.094]
 SCENARIO = {'profile': 'bench', 'bench_repeat': 1, 'gyro_rate': 100.0, 'boresight': BETA,
             'gyro_bias_sigma': 0.0, 'gyro_scale_sigma': 0.0, 'gyro_misalignment_sigma': 0.0}
 INJECTED = {'gyro_scale_factor': [5e-4, -3e-4, 4e-4],
-            # M_xy, M_xz, M_yx, M_yz, M_zx, M_zy: not symmetric (the antisymmetric part is a triad rotation)
+            # M_xy, M_xz, M_yx, M_yz, M_zx, M_zy: not symmetric (the antisymmetric part is a
+            # triad rotation)
             'gyro_misalignment': [2e-4, -1e-4, 3e-4, 1.5e-4, -2e-4, 1e-4],
             'gyro_bias': [1e-5, -2e-5, 1.5e-5]}
 M = INJECTED['gyro_misalignment']
-TRUTH = dict(zip(('scale_x', 'scale_y', 'scale_z', 'mis_xy', 'mis_xz', 'mis_yz', 'bias_x', 'bias_y', 'bias_z'),
-                 INJECTED['gyro_scale_factor'] + [(M[0] + M[2]) / 2, (M[1] + M[4]) / 2, (M[3] + M[5]) / 2]
+TRUTH = dict(zip(('scale_x', 'scale_y', 'scale_z', 'mis_xy', 'mis_xz', 'mis_yz', 'bias_x',
+                  'bias_y', 'bias_z'),
+                 INJECTED['gyro_scale_factor'] + [(M[0] + M[2]) / 2, (M[1] + M[4]) / 2,
+                                                  (M[3] + M[5]) / 2]
                  + INJECTED['gyro_bias']))
 NOMINAL = {'/**': {'ros__parameters': {'gyro_rate': 100.0}}}
 
@@ -50,6 +56,7 @@ def _run(*argv):
 
 @pytest.fixture(scope='module')
 def recording(tmp_path_factory):
+    """Record the scenario with the injected gyro errors, and the nominal model."""
     d = tmp_path_factory.mktemp('gyro')
     bag = _record(d / 'bag', {**SCENARIO, **INJECTED, 'camera_interval': 0.5, 'seed': 11}, 170.0)
     model = d / 'nominal.yaml'
@@ -59,9 +66,11 @@ def recording(tmp_path_factory):
 
 @pytest.fixture(scope='module', params=['integral', 'tkachenko'])
 def calibrated(request, recording):
+    """Run calibrate_gyro_bag by each method on the recording."""
     d, bag, model = recording
     out, js = d / f'{request.param}.yaml', d / f'{request.param}.json'
-    assert _run(bag, '--method', request.param, '--model', model, '--write-model', out, '--json', js) == 0
+    assert _run(bag, '--method', request.param, '--model', model, '--write-model', out, '--json',
+                js) == 0
     return request.param, out, json.loads(js.read_text())
 
 
@@ -71,20 +80,23 @@ def test_injected_errors_recovered_within_3_sigma(calibrated):
     est, sig = r['estimate'], r['sigma']
     for name, true in TRUTH.items():
         assert abs(est[name] - true) <= 3 * sig[name], (method, name, est[name], true, sig[name])
-        assert sig[name] < 0.2 * abs(true), (method, name, sig[name])     # σ small enough to mean something
+        # σ small enough to mean something
+        assert sig[name] < 0.2 * abs(true), (method, name, sig[name])
     cov = np.array(r['covariance'])
     assert np.allclose(np.sqrt(np.diag(cov)), [sig[n] for n in r['labels']])
-    assert 0.7 < r['details']['chi2_per_dof'] < 1.4                      # the noise model fits the data
+    # the noise model fits the data
+    assert 0.7 < r['details']['chi2_per_dof'] < 1.4
     lo, hi = r['chi2_per_dof_band']
     assert r['fit_consistent'] is True and lo <= r['chi2_per_dof'] <= hi
 
 
 def test_written_model_compensates_with_the_right_sign(calibrated, recording):
     """
-    The model's parameters, compensated as sins_node compensates (GyroEffects), turn the
-    recorded increments back into the true ones (from the profile), up to the triad rotation.
+    Check: written model compensates with the right sign.
+
+    The model's parameters, compensated as sins_node compensates (GyroEffects), turn the recorded
+    increments back into the true ones (from the profile), up to the triad rotation.
     """
-    from strapdown_ros.discrepancy.bag_input import load_recording
     _, out, _ = calibrated
     model, _ = load_model(str(out))
     for name in INJECTED:
@@ -103,22 +115,27 @@ def test_written_model_compensates_with_the_right_sign(calibrated, recording):
     turning = np.linalg.norm(true, axis=1) > 1e-4
     raw_err = rec.delta_theta[turning] - true[turning] @ (np.eye(3) + A).T
     comp_err = comp[turning] - true[turning] @ (np.eye(3) + A).T
-    wrong = GyroEffects({k: (-np.asarray(v)).tolist() for k, v in model.items() if k in INJECTED}).compensate(
+    wrong = GyroEffects({k: (-np.asarray(v)).tolist() for k,
+                         v in model.items() if k in INJECTED}).compensate(
         rec.delta_theta, st, np.full(len(st), 0.01))[turning] - true[turning] @ (np.eye(3) + A).T
     rms = lambda e: float(np.sqrt(np.mean(e ** 2)))       # noqa: E731
-    assert rms(comp_err) < 0.2 * rms(raw_err) < 0.2 * rms(wrong), (rms(comp_err), rms(raw_err), rms(wrong))
+    assert rms(comp_err) < 0.2 * rms(raw_err) < 0.2 * rms(wrong), (rms(comp_err), rms(raw_err),
+                                                                   rms(wrong))
 
 
 @pytest.fixture(scope='module')
 def fresh(recording):
-    """A new recording with the same injected errors: other seed, camera every 2 s."""
-    return _record(recording[0] / 'fresh', {**SCENARIO, **INJECTED, 'camera_interval': 2.0, 'seed': 12}, 170.0)
+    """Record anew with the same injected errors: other seed, camera every 2 s."""
+    return _record(recording[0] / 'fresh',
+                   {**SCENARIO, **INJECTED, 'camera_interval': 2.0, 'seed': 12}, 170.0)
 
 
 def test_written_model_is_adequate_on_a_fresh_simulation(calibrated, fresh, tmp_path):
     """
-    Acceptance: the written model, through the discrepancy workflow, on a fresh simulation,
-    gives model_adequate (the nominal model does not: the next test).
+    Check: written model is adequate on a fresh simulation.
+
+    Acceptance: the written model, through the discrepancy workflow, on a fresh simulation, gives
+    model_adequate (the nominal model does not: the next test).
     """
     method, out, _ = calibrated
     bag = fresh
@@ -129,32 +146,38 @@ def test_written_model_is_adequate_on_a_fresh_simulation(calibrated, fresh, tmp_
 
 
 def test_nominal_model_is_not_adequate_on_that_recording(recording, tmp_path):
-    from strapdown_ros.discrepancy.synthetic import simulate_recording
-    from strapdown_ros.discrepancy.workflow import analyse
-    from strapdown_ros.params import check_all, IMU_SIM_PARAMS, STAR_CAMERA_PARAMS
     over = {**SCENARIO, **INJECTED, 'camera_interval': 2.0, 'seed': 12}
-    rec = simulate_recording(check_all(IMU_SIM_PARAMS, over), check_all(STAR_CAMERA_PARAMS, over), 170.0)
+    rec = simulate_recording(check_all(IMU_SIM_PARAMS, over), check_all(STAR_CAMERA_PARAMS, over),
+                             170.0)
     model, _ = load_model(str(recording[2]))
     assert analyse(rec, model, max_steps=1).verdict != 'model_adequate'
 
 
 @pytest.fixture(scope='module')
 def z_only(tmp_path_factory):
-    """Turns about the gyro z axis only (and rests): x/y scale and their misalignment are not observable."""
+    """
+    Record turns about the gyro z axis only (and rests).
+
+    Turns about the gyro z axis only (and rests): x/y scale and misalignment unobservable.
+    """
     d = tmp_path_factory.mktemp('z_only')
     prof = d / 'z_only.yaml'
-    prof.write_text(json.dumps({'segments': [{'duration': 8.0}, {'duration': 5.0, 'rate': [0, 0, 0.05]},
-                                             {'duration': 8.0}, {'duration': 5.0, 'rate': [0, 0, -0.05]},
+    prof.write_text(json.dumps({'segments': [{'duration': 8.0},
+                                             {'duration': 5.0, 'rate': [0, 0, 0.05]},
+                                             {'duration': 8.0},
+                                             {'duration': 5.0, 'rate': [0, 0, -0.05]},
                                              {'duration': 8.0}]}))
-    return _record(d / 'bag', {**SCENARIO, **INJECTED, 'profile': 'piecewise', 'profile_file': str(prof),
-                               'camera_interval': 0.5, 'seed': 3}, 34.0)
+    return _record(d / 'bag',
+                   {**SCENARIO, **INJECTED, 'profile': 'piecewise', 'profile_file': str(prof),
+                    'camera_interval': 0.5, 'seed': 3}, 34.0)
 
 
 @pytest.mark.parametrize('method, names, observable', [
     ('tkachenko', ('scale_x', 'scale_y', 'mis_xy'), ('scale_z', 'bias')),
     ('integral', ('B11', 'B22', 'B12', 'B21'), ('B33',)),
 ])
-def test_unobservable_motion_is_refused_with_the_combinations_named(tmp_path, capsys, z_only, method, names,
+def test_unobservable_motion_is_refused_with_the_combinations_named(tmp_path, capsys, z_only,
+                                                                    method, names,
                                                                     observable):
     out, js = tmp_path / 'out.yaml', tmp_path / 'r.json'
     assert _run(z_only, '--method', method, '--write-model', out, '--json', js) == 3
@@ -185,49 +208,55 @@ def test_arguments_and_files_are_checked_before_work(tmp_path, capsys, recording
         ([str(bag), '--method', 'integral', '--interval', '-1'], '--interval'),
         ([str(bag), '--method', 'integral', '--sigma-limit', '0'], '--sigma-limit'),
         ([str(bag), '--method', 'integral', '--model', str(tmp_path / 'nomodel.yaml')], 'nomodel'),
-        ([str(bag), '--method', 'integral', '--model', str(tmp_path / 'bad.yaml')], 'no_such_parameter'),
+        ([str(bag), '--method', 'integral', '--model', str(tmp_path / 'bad.yaml')],
+         'no_such_parameter'),
         ([str(bag), '--method', 'integral', '--json', str(tmp_path / 'exists.json')], '--force'),
         ([str(bag), '--method', 'integral', '--json', '/nonexistent/r.json'], '/nonexistent'),
         ([str(bag), '--method', 'integral', '--write-model', str(tmp_path)], 'directory'),
-        ([str(bag), '--method', 'integral', '--json', str(tmp_path / 'a'), '--write-model', str(tmp_path / 'a')],
+        ([str(bag), '--method', 'integral', '--json', str(tmp_path / 'a'), '--write-model',
+          str(tmp_path / 'a')],
          'same output'),
         ([str(not_a_bag), '--method', 'integral'], 'notabag'),
     ]
     for argv, needle in cases:
         try:
-            status = calibrate_gyro_bag.main(argv)                  # not --quiet: progress must not leak
+            # not --quiet: progress must not leak
+            status = calibrate_gyro_bag.main(argv)
         except SystemExit as exc:                                  # argparse
             status = exc.code
         cap = capsys.readouterr()
         lines = [ln for ln in (cap.out + cap.err).splitlines() if ln.strip()]
         assert status == 2, (argv, cap.out, cap.err)
-        assert len(lines) == 1 and 'error' in lines[0] and 'Traceback' not in cap.err, (argv, lines)
+        assert len(lines) == 1 and 'error' in lines[0] and 'Traceback' not in cap.err, (argv,
+                                                                                        lines)
         assert needle in lines[0], (argv, lines[0])
-    assert (tmp_path / 'exists.json').read_text() == '{}'          # not overwritten without --force
+    # not overwritten without --force
+    assert (tmp_path / 'exists.json').read_text() == '{}'
 
 
 def test_console_script_one_line_exit_2(tmp_path):
-    p = subprocess.run([os.path.join(BIN, 'calibrate_gyro_bag'), str(tmp_path / 'none'), '--method', 'tkachenko'],
+    p = subprocess.run([os.path.join(BIN, 'calibrate_gyro_bag'), str(tmp_path / 'none'),
+                        '--method', 'tkachenko'],
                        capture_output=True, text=True, timeout=60)
-    assert p.returncode == 2 and p.stderr.count('\n') == 1 and 'does not exist' in p.stderr, p.stderr
+    assert (p.returncode == 2 and p.stderr.count('\n') == 1
+            and 'does not exist' in p.stderr), p.stderr
 
 
 def test_tkachenko_with_a_drifting_reference_estimates_the_drift():
     """
-    000's gyrostabilizer: the reference basis drifts at a constant rate d (reference axes).  On
-    000 §6's motion (large turns about all axes, 30 s, fixes every 0.1 s) the drift option recovers
-    d and the gyro errors within 3σ; without it the drift corrupts them.
-    """
-    from strapdown_ros.calibration import gyro as gc
-    from strapdown_ros.discrepancy.synthetic import simulate_recording
-    from strapdown_ros.params import check_all, IMU_SIM_PARAMS, STAR_CAMERA_PARAMS
-    from strapdown_ros.rotation import quat_conjugate, quat_multiply, rotvec_to_quat
+    Check: tkachenko with a drifting reference estimates the drift.
 
+    000's gyrostabilizer: the reference basis drifts at a constant rate d (reference axes).  On 000
+    §6's motion (large turns about all axes, 30 s, fixes every 0.1 s) the drift option recovers d
+    and the gyro errors within 3σ; without it the drift corrupts them.
+    """
     over = {**SCENARIO, **INJECTED, 'profile': 'tkachenko', 'camera_interval': 0.1, 'seed': 21}
-    rec = simulate_recording(check_all(IMU_SIM_PARAMS, over), check_all(STAR_CAMERA_PARAMS, over), 30.0)
+    rec = simulate_recording(check_all(IMU_SIM_PARAMS, over), check_all(STAR_CAMERA_PARAMS, over),
+                             30.0)
     d = np.array([2e-5, -1e-5, 1.5e-5])                               # rad/s, about 4°/h
     t = rec.fix_stamps
-    rec.fix_q = quat_multiply(quat_conjugate(rotvec_to_quat(np.outer(t - t[0], d))), rec.fix_q)   # q_L_VF
+    # q_L_VF
+    rec.fix_q = quat_multiply(quat_conjugate(rotvec_to_quat(np.outer(t - t[0], d))), rec.fix_q)
     prep = gc.prepare(rec, load_model(None)[0])
     r = gc.calibrate_drifting_reference(prep, drift=True)
     truth = np.array(list(TRUTH.values()) + list(d))
@@ -240,31 +269,35 @@ def test_tkachenko_with_a_drifting_reference_estimates_the_drift():
 
 def test_gyro_gap_is_not_spanned_and_both_methods_still_recover(recording):
     """
+    Check: gyro gap is not spanned and both methods still recover.
+
     Increments missing for 1.5 s in mid-turn (the rotation in them is lost): nothing is formed
     across the gap — 002 drops the intervals spanning it, 000 uses the longer gap-free stretch.
     """
-    from strapdown_ros.calibration import gyro as gc
-    from strapdown_ros.discrepancy.bag_input import load_recording
-
     model, _ = load_model(str(recording[2]))
     rec, _ = load_recording(str(recording[1]), model)
     st = rec.gyro_stamps
-    cut = (st > 46.0) & (st <= 47.5)                                 # inside the first z turn (45–50 s)
+    # inside the first z turn (45–50 s)
+    cut = (st > 46.0) & (st <= 47.5)
     a, b = st[np.nonzero(cut)[0][0] - 1], st[np.nonzero(cut)[0][-1] + 1]
     rec.gyro_stamps, rec.delta_theta, rec.gaps = st[~cut], rec.delta_theta[~cut], [(a, b)]
     prep = gc.prepare(rec, model)
     truth = np.array(list(TRUTH.values()))
     for r in (gc.calibrate_integral(prep), gc.calibrate_drifting_reference(prep)):
         assert r.observable, r.message
-        assert np.all(np.abs(r.x - truth) <= 3 * r.sigma), (r.method, np.round((r.x - truth) / r.sigma, 2))
-    assert r.extra['segment_s'][0] > b                                # 000: the stretch after the gap
+        assert np.all(np.abs(r.x - truth) <= 3 * r.sigma), (r.method,
+                                                            np.round((r.x - truth) / r.sigma, 2))
+    # 000: the stretch after the gap
+    assert r.extra['segment_s'][0] > b
 
 
 def test_camera_noise_100x_the_stated_sigma_is_an_inconsistent_fit(tmp_path, capsys):
     """
-    002 with the camera noise 100× what its covariance states → χ²/dof
-    far above its band, fit_consistent false, one WARNING line, exit 0; σ scaled by √(χ²/dof),
-    the injected errors within 3 of those σ.
+    Check: camera noise 100x the stated sigma is an inconsistent fit.
+
+    002 with the camera noise 100× what its covariance states → χ²/dof far above its band,
+    fit_consistent false, one WARNING line, exit 0; σ scaled by √(χ²/dof), the injected errors
+    within 3 of those σ.
     """
     bag = _record(tmp_path / 'bag', {**SCENARIO, **INJECTED, 'camera_interval': 0.5, 'seed': 11,
                                      'camera_noise_scale': [100.0, 100.0, 100.0]}, 170.0)

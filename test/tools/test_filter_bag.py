@@ -1,6 +1,8 @@
 """
-filter_bag: argument errors (one line, exit 2) and a run on a recorded simulation whose
-gyro bias is injected (independent truth).
+filter_bag: argument errors, and a run on a recorded simulation.
+
+Argument errors are one line with exit 2; the simulation's gyro bias is injected (independent
+truth).
 """
 import subprocess
 import sys
@@ -8,7 +10,6 @@ import sys
 import numpy as np
 import pytest
 
-pytest.importorskip('rosbags')
 
 PY = [sys.executable, '-m']
 
@@ -19,6 +20,7 @@ def _run(*args, cwd):
 
 @pytest.fixture(scope='module')
 def bag(tmp_path_factory):
+    """Record a simulation with an injected gyro bias."""
     d = tmp_path_factory.mktemp('fbag')
     (d / 'p.yaml').write_text(
         'imu_sim_node:\n  ros__parameters:\n    gyro_rate: 100.0\n'

@@ -1,15 +1,23 @@
 """
-One output rule for every console script that writes (cli.py::check_outputs): an existing output needs --force, no output
-is an input; each refusal comes before any work, in one line, exit 2.  Writes are atomic: files
-(JSON, markdown, PNG) through a temporary file and os.replace, bag directories through a hidden
-sibling renamed into place when complete (strapdown_ros/files.py).
+One output rule for every console script that writes (cli.py::check_outputs).
+
+An existing output needs --force, no output is an input; each refusal comes before any work, in
+one line, exit 2.  Writes are atomic: files (JSON, markdown, PNG) through a temporary file and
+os.replace, bag directories through a hidden sibling renamed into place when complete
+(strapdown_ros/files.py).
 """
+import importlib
 import os
 from pathlib import Path
 import re
 import signal
 
 import pytest
+
+from strapdown_ros.cli import write_figure
+from strapdown_ros.files import commit_directory, discard_directory, stage_directory
+from strapdown_ros.tools import record_sim, sins_bag
+
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -56,7 +64,7 @@ AS_INPUT = {
 
 
 def console_scripts():
-    """name -> 'module:function' of every console script in setup.py."""
+    """Return name -> 'module:function' of every console script in setup.py."""
     text = (ROOT / 'setup.py').read_text()
     return dict(re.findall(r'["\'](\w+) = ([\w.]+:\w+)["\']', text))
 
@@ -65,14 +73,15 @@ def test_every_writing_script_is_covered():
     scripts = console_scripts()
     assert scripts, 'no console_scripts parsed from setup.py'
     missing = sorted(set(scripts) - NO_OUTPUT - set(EXISTING))
-    assert not missing, f'register these console scripts in test/tools/test_output_rule.py: {missing}'
+    assert not missing, ('register these console scripts in test/tools/test_output_rule.py: '
+                         f'{missing}')
     assert set(AS_INPUT) <= set(EXISTING)
 
 
 @pytest.fixture(scope='module')
 def files(tmp_path_factory):
+    """Make the inputs every console script is run with: a bag, a model, data."""
     pytest.importorskip('rosbags')
-    from strapdown_ros.tools import record_sim
     d = tmp_path_factory.mktemp('rule')
     bag = d / 'bag'
     assert record_sim.main([str(bag), '--no-accel', '--duration', '10',
@@ -101,10 +110,11 @@ def _snapshot(root: Path) -> dict:
 
 def _run(script: str, argv: list, capsys):
     """
-    main(argv) in-process with a 30 s alarm (a refusal comes before any work); returns
-    (exit status, non-empty output lines).
+    Run main(argv) in-process with a 30 s alarm.
+
+    main(argv) in-process with a 30 s alarm (a refusal comes before any work); returns (exit
+    status, non-empty output lines).
     """
-    import importlib
     module, func = console_scripts()[script].split(':')
     main = getattr(importlib.import_module(module), func)
 
@@ -147,12 +157,13 @@ def test_output_equal_to_an_input_is_refused(script, files, capsys):
 
 def test_bag_is_replaced_only_by_a_complete_one(tmp_path, monkeypatch):
     """
-    record_sim writes into a hidden sibling and renames it into place: a failure half-way
-    leaves the old bag (--force) as it was and no half bag or temporary directory; a success
-    replaces it whole.
+    Check: bag is replaced only by a complete one.
+
+    record_sim writes into a hidden sibling and renames it into place: a failure half-way leaves
+    the old bag (--force) as it was and no half bag or temporary directory; a success replaces it
+    whole.
     """
     pytest.importorskip('rosbags')
-    from strapdown_ros.tools import record_sim
     bag = tmp_path / 'bag'
     args = [str(bag), '--no-accel', '--duration', '4', '-p', 'camera_interval:=2.0']
     assert record_sim.main(args) == 0
@@ -174,7 +185,6 @@ def test_bag_is_replaced_only_by_a_complete_one(tmp_path, monkeypatch):
 
 
 def test_commit_directory_keeps_the_old_one_until_the_new_one_is_in_place(tmp_path):
-    from strapdown_ros.files import commit_directory, discard_directory, stage_directory
     target = tmp_path / 'out'
     target.mkdir()
     (target / 'a').write_text('old')
@@ -195,7 +205,6 @@ def test_figures_are_written_atomically(tmp_path):
     matplotlib.use('Agg')
     import matplotlib.pyplot as plt
 
-    from strapdown_ros.cli import write_figure
     fig, ax = plt.subplots()
     ax.plot([0, 1], [1, 0])
     out = tmp_path / 'f.png'
@@ -209,10 +218,11 @@ def test_figures_are_written_atomically(tmp_path):
 
 def test_sins_bag_interrupted_keeps_the_old_output_bag(files, tmp_path, monkeypatch):
     """
-    sins_bag's MCAP output is staged too: an interruption half-way (--force over an old
-    output) leaves the old bag and no staging directory.
+    Check: sins bag interrupted keeps the old output bag.
+
+    sins_bag's MCAP output is staged too: an interruption half-way (--force over an old output)
+    leaves the old bag and no staging directory.
     """
-    from strapdown_ros.tools import sins_bag
     out = tmp_path / 'out'
     assert sins_bag.main([str(files['bag']), '--output', str(out), '--quiet']) == 0
     before = _snapshot(out)

@@ -1,27 +1,40 @@
 """
-record_sim → rosbag2 → sins_bag: the solution against the exact truth, against sins_node fed the
-same messages (same core: the same numbers), MCAP and CSV outputs, argument errors.
+record_sim → rosbag2 → sins_bag: the solution of a recording.
+
+Against the exact truth, against sins_node fed the same messages (same core: the same numbers);
+MCAP and CSV outputs, argument errors.
 """
+import re
+import time as _time
+
+from geometry_msgs.msg import Vector3Stamped
 import numpy as np
 import pytest
+from rclpy.context import Context
+from rclpy.parameter import Parameter
+from rclpy.serialization import deserialize_message
 
-pytest.importorskip('rosbags')
+from strapdown_ros import earth as G
+from strapdown_ros.motion.earth_profiles import navigation_profile_from_config
+from strapdown_ros.nodes.ros_io import stamp_to_ns
+from strapdown_ros.nodes.sins_node import SinsNode
+from strapdown_ros.params import load_parameter_file
+from strapdown_ros.recording import mcap_records, open_reader
+from strapdown_ros.recording.imu_streams import rate_from_stamps
+from strapdown_ros.recording.sins_replay import CSV_ATTITUDE_COLUMNS, CSV_NAV_COLUMNS
+from strapdown_ros.rotation import from_ros_xyzw, quat_angle_between, quat_to_dcm, to_ros_xyzw
+from strapdown_ros.sins import accel_stall_limits
+from strapdown_ros.tools import record_sim, sins_bag
 
-from strapdown_ros import earth as G  # noqa: E402
-from strapdown_ros.motion.earth_profiles import navigation_profile_from_config  # noqa: E402
-from strapdown_ros.params import load_parameter_file  # noqa: E402
-from strapdown_ros.rotation import from_ros_xyzw  # noqa: E402
-from strapdown_ros.rotation import quat_angle_between, quat_to_dcm, to_ros_xyzw
-from strapdown_ros.tools import sins_bag  # noqa: E402
-from strapdown_ros.tools import record_sim
 
-IDEAL = [f'{s}_{k}:=0.0' for s in ('gyro', 'accel') for k in ('bias_sigma', 'scale_sigma', 'misalignment_sigma',
-                                                               'random_walk')]
+IDEAL = [f'{s}_{k}:=0.0' for s in ('gyro', 'accel')
+         for k in ('bias_sigma', 'scale_sigma', 'misalignment_sigma', 'random_walk')]
 DURATION = 5.0
 
 
 def _record(path, profile, *extra, storage='mcap'):
-    args = [str(path), '--duration', str(DURATION), '--storage', storage, '-p', f'profile:={profile}']
+    args = [str(path), '--duration', str(DURATION), '--storage', storage, '-p',
+            f'profile:={profile}']
     for item in IDEAL + list(extra):
         args += ['-p', item]
     assert record_sim.main(args) == 0
@@ -30,6 +43,8 @@ def _record(path, profile, *extra, storage='mcap'):
 
 def _sins_params(path, profile):
     """
+    Write sins_node parameters (ROS 2 YAML) from the profile's exact initial state.
+
     sins_node parameters (ROS 2 YAML) from the profile's exact initial state, as
     test/ros/test_sins_node_navigation.py configures the node.
     """
@@ -43,12 +58,14 @@ def _sins_params(path, profile):
                     '    coning_algorithm: one_plus_previous\n'
                     f'    initial_position: {fl([np.degrees(lat), np.degrees(lon), h])}\n'
                     f'    initial_velocity: {fl(enu.T @ w0)}\n'
-                    f'    initial_orientation: {fl(to_ros_xyzw(prof.attitude_ecef(np.array([0.0]))[0]))}\n' + ideal)
+                    '    initial_orientation: '
+                    f'{fl(to_ros_xyzw(prof.attitude_ecef(np.array([0.0]))[0]))}\n' + ideal)
     return path, prof
 
 
 @pytest.fixture(scope='module')
 def bags(tmp_path_factory):
+    """Record the static and turn profiles with their parameter files."""
     d = tmp_path_factory.mktemp('sins_bag')
     out = {}
     for profile, storage in (('static', 'mcap'), ('coordinated_turn', 'sqlite3')):
@@ -61,7 +78,8 @@ def bags(tmp_path_factory):
 def _csv(path):
     header = path.read_text().splitlines()[0].split(',')
     data = np.loadtxt(path, delimiter=',', skiprows=1, ndmin=2)
-    stamps = [int(s.replace('.', '')) for s in (ln.split(',')[0] for ln in path.read_text().splitlines()[1:])]
+    rows = path.read_text().splitlines()[1:]
+    stamps = [int(s.replace('.', '')) for s in (ln.split(',')[0] for ln in rows)]
     return header, data, np.array(stamps, dtype=np.int64)
 
 
@@ -71,7 +89,7 @@ def _run_tool(capsys, *args):
     return rc, cap.out, cap.err
 
 
-# --- the solution ---------------------------------------------------------------------------------
+# --- the solution --------------------------------------------------------------------------------
 def test_csv_matches_the_exact_truth_static(bags, tmp_path, capsys):
     bag, params, prof = bags['static']
     out = tmp_path / 'static.csv'
@@ -79,26 +97,32 @@ def test_csv_matches_the_exact_truth_static(bags, tmp_path, capsys):
     assert rc == 0, err
     assert 'gyro_rate 100 Hz, accel_rate 300 Hz' in stdout and '500 steps' in stdout
     header, d, ns = _csv(out)
-    assert header == sins_bag.CSV_NAV_COLUMNS
-    assert len(d) == int(DURATION * 100) and np.all(np.diff(ns) == 10_000_000) and ns[-1] == 5_000_000_000
-    t = ns * 1e-9                                              # record_sim: start_time 0 = profile time 0
+    assert header == CSV_NAV_COLUMNS
+    assert (len(d) == int(DURATION * 100) and np.all(np.diff(ns) == 10_000_000)
+            and ns[-1] == 5_000_000_000)
+    # record_sim: start_time 0 = profile time 0
+    t = ns * 1e-9
     dp = np.max(np.linalg.norm(d[:, 1:4] - prof.position(t), axis=1))
     dv = np.max(np.linalg.norm(d[:, 4:7] - prof.velocity(t), axis=1))
     da = np.max(quat_angle_between(from_ros_xyzw(d[:, 7:11]), prof.attitude_ecef(t)))
     assert np.linalg.norm(d[0, 1:4]) > 6.3e6
-    assert dp < 1e-3 and dv < 1e-3 and da < 1e-8, (dp, dv, da)          # mm, mm/s (achieved: ~1e-6)
+    # mm, mm/s (achieved: ~1e-6)
+    assert dp < 1e-3 and dv < 1e-3 and da < 1e-8, (dp, dv, da)
     assert np.all(d[:, 11:] == 0.0)                            # ideal sensors, zero initial σ
 
 
 def test_static_alignment_from_the_recording(bags, tmp_path, capsys):
     """
-    initial_alignment static: the solution starts after alignment_time, aligned to the truth;
-    a window longer than the recording gives no solution (exit 3).
+    Check: static alignment from the recording.
+
+    initial_alignment static: the solution starts after alignment_time, aligned to the truth; a
+    window longer than the recording gives no solution (exit 3).
     """
     bag, params, prof = bags['static']
     out = tmp_path / 'aligned.csv'
     rc, stdout, err = _run_tool(capsys, bag, '--params', params, '-p', 'initial_alignment:=static',
-                                '-p', 'alignment_time:=2.0', '-p', 'initial_orientation:=[0.0, 0.0, 0.0, 1.0]',
+                                '-p', 'alignment_time:=2.0', '-p',
+                                'initial_orientation:=[0.0, 0.0, 0.0, 1.0]',
                                 '--output', out)
     assert rc == 0 and 'alignment: aligned' in stdout, err
     _, d, ns = _csv(out)
@@ -113,8 +137,10 @@ def test_static_alignment_from_the_recording(bags, tmp_path, capsys):
 
 def test_attitude_only_csv_and_rates_from_the_stamps(tmp_path, capsys):
     """
-    Navigation off (the node's default): one row per attitude update, σ about body axes.  A
-    200 Hz gyro recording runs at 200 Hz whatever gyro_rate the parameters say.
+    Check: attitude only csv and rates from the stamps.
+
+    Navigation off (the node's default): one row per attitude update, σ about body axes.  A 200 Hz
+    gyro recording runs at 200 Hz whatever gyro_rate the parameters say.
     """
     bag = _record(tmp_path / 'bag200', 'coning', 'gyro_rate:=200.0')
     out = tmp_path / 'att.csv'
@@ -122,24 +148,29 @@ def test_attitude_only_csv_and_rates_from_the_stamps(tmp_path, capsys):
     assert rc == 0, err
     assert 'gyro_rate 200 Hz' in stdout
     header, d, ns = _csv(out)
-    assert header == sins_bag.CSV_ATTITUDE_COLUMNS
-    assert len(d) == int(DURATION * 200) // 2 and np.all(np.diff(ns) == 10_000_000)   # algorithm 2: 2 samples
-    assert np.all(d[:, 5:] > 0) and np.all(d[-1, 5:] > 10 * d[0, 5:])                    # σ of ε, body axes
-    assert sins_bag.rate_from_stamps(np.round(np.arange(1, 100) * 1e9 / 300).astype(np.int64)) == 300.0
-    assert sins_bag.rate_from_stamps([5, 5]) is None
+    assert header == CSV_ATTITUDE_COLUMNS
+    # algorithm 2: 2 samples
+    assert len(d) == int(DURATION * 200) // 2 and np.all(np.diff(ns) == 10_000_000)
+    # σ of ε, body axes
+    assert np.all(d[:, 5:] > 0) and np.all(d[-1, 5:] > 10 * d[0, 5:])
+    assert rate_from_stamps(np.round(np.arange(1, 100) * 1e9 / 300).astype(np.int64)) == 300.0
+    assert rate_from_stamps([5, 5]) is None
 
 
 def test_the_recordings_own_body_frame_unless_one_is_named(tmp_path, capsys):
     """
-    A recording from other software names its own body frame: sins_bag takes it from the
-    headers unless frame_id is given; given and different, every Δθ is rejected (the node's
-    rule) and the error says why.
+    Check: the recordings own body frame unless one is named.
+
+    A recording from other software names its own body frame: sins_bag takes it from the headers
+    unless frame_id is given; given and different, every Δθ is rejected (the node's rule) and the
+    error says why.
     """
     bag = _record(tmp_path / 'bag_imu', 'coning', 'frame_id:=imu')
     rc, stdout, err = _run_tool(capsys, bag, '--output', tmp_path / 'own.csv')
     assert rc == 0, err
     assert len(_csv(tmp_path / 'own.csv')[1]) == int(DURATION * 100) // 2
-    rc, stdout, err = _run_tool(capsys, bag, '-p', 'frame_id:=imu_link', '--output', tmp_path / 'named.csv')
+    rc, stdout, err = _run_tool(capsys, bag, '-p', 'frame_id:=imu_link', '--output',
+                                tmp_path / 'named.csv')
     assert rc == 3 and 'every Δθ was rejected' in err and "frame_id 'imu_link'" in err
 
 
@@ -151,7 +182,8 @@ def test_mcap_output_has_the_node_topics_and_types(bags, tmp_path, capsys):
     assert rc == 0, err
     with AnyReader([out]) as rd:
         types = {c.topic: c.msgtype for c in rd.connections}
-        assert types == {'/sins/attitude': 'geometry_msgs/msg/QuaternionStamped', '/sins/imu': 'sensor_msgs/msg/Imu',
+        assert types == {'/sins/attitude': 'geometry_msgs/msg/QuaternionStamped',
+                         '/sins/imu': 'sensor_msgs/msg/Imu',
                          '/sins/odometry': 'nav_msgs/msg/Odometry'}
         assert all(c.msgcount == 500 for c in rd.connections)
         odo = [rd.deserialize(raw, c.msgtype) for c, _, raw in
@@ -161,16 +193,20 @@ def test_mcap_output_has_the_node_topics_and_types(bags, tmp_path, capsys):
     assert odo[0].header.frame_id == 'earth' and odo[0].child_frame_id == 'imu_link'
     assert imu[0].header.frame_id == 'imu_link' and imu[-1].linear_acceleration_covariance[0] >= 0
     t = np.array([m.header.stamp.sec + m.header.stamp.nanosec * 1e-9 for m in odo])
-    r = np.array([[m.pose.pose.position.x, m.pose.pose.position.y, m.pose.pose.position.z] for m in odo])
-    assert np.max(np.linalg.norm(r - prof.position(t), axis=1)) < 2e-3           # as sins_node on the turn
+    r = np.array([[m.pose.pose.position.x, m.pose.pose.position.y,
+                   m.pose.pose.position.z] for m in odo])
+    # as sins_node on the turn
+    assert np.max(np.linalg.norm(r - prof.position(t), axis=1)) < 2e-3
     cov = np.array(odo[-1].pose.covariance).reshape(6, 6)
     assert np.all(np.isfinite(cov)) and np.allclose(cov, cov.T)
 
 
 def test_mcap_output_bytes_are_rosbags_serialization(bags, tmp_path, capsys):
     """
-    sins_bag writes its messages as CDR rows made with numpy from one serialised message per
-    topic: every record must be exactly what rosbags' serializer makes of the message it holds.
+    Check: mcap output bytes are rosbags serialization.
+
+    sins_bag writes its messages as CDR rows made with numpy from one serialised message per topic:
+    every record must be exactly what rosbags' serializer makes of the message it holds.
     """
     from rosbags.highlevel import AnyReader
     bag, params, _ = bags['coordinated_turn']
@@ -187,7 +223,8 @@ def test_mcap_output_bytes_are_rosbags_serialization(bags, tmp_path, capsys):
 
 def test_namespaced_topics_and_force(tmp_path, capsys):
     bag = tmp_path / 'ns_bag'
-    assert record_sim.main([str(bag), '--duration', '1', '--namespace', '/robot1', '-p', 'profile:=coning']) == 0
+    assert record_sim.main([str(bag), '--duration', '1', '--namespace', '/robot1', '-p',
+                            'profile:=coning']) == 0
     capsys.readouterr()
     out = tmp_path / 'ns_out'
     assert _run_tool(capsys, bag, '--output', out)[0] == 0
@@ -197,24 +234,21 @@ def test_namespaced_topics_and_force(tmp_path, capsys):
     rc, _, err = _run_tool(capsys, bag, '--output', out)
     assert rc == 2 and '--force' in err
     assert _run_tool(capsys, bag, '--namespace', 'robot1', '--output', out, '--force')[0] == 0
-    assert _run_tool(capsys, bag, '--gyro-topic', '/robot1/imu/delta_theta', '--output', out, '--force')[0] == 0
+    assert _run_tool(capsys, bag, '--gyro-topic', '/robot1/imu/delta_theta', '--output', out,
+                     '--force')[0] == 0
 
 
-# --- node and tool: the same core --------------------------------------------------------------------
+# --- node and tool: the same core ----------------------------------------------------------------
 @pytest.mark.parametrize('profile', ['static', 'coordinated_turn'])
 def test_node_and_tool_give_the_same_solution(bags, tmp_path, capsys, monkeypatch, profile):
     """
+    Check: node and tool give the same solution.
+
     sins_node fed the bag's messages through its callbacks (deserialised by rclpy, in the tool's
     order: by stamp, Δv first at equal stamps) publishes exactly what sins_bag writes.
     """
     rclpy = pytest.importorskip('rclpy')
-    from geometry_msgs.msg import Vector3Stamped
-    from rclpy.parameter import Parameter
-    from rclpy.serialization import deserialize_message
     from rosbags.highlevel import AnyReader
-
-    from strapdown_ros.nodes.ros_io import stamp_to_ns
-    from strapdown_ros.nodes.sins_node import SinsNode
 
     bag, params, _ = bags[profile]
     out_csv, out_bag = tmp_path / 'tool.csv', tmp_path / 'tool_bag'
@@ -223,20 +257,22 @@ def test_node_and_tool_give_the_same_solution(bags, tmp_path, capsys, monkeypatc
 
     msgs = []
     with AnyReader([bag]) as rd:
-        conns = [c for c in rd.connections if c.topic in ('/imu/delta_theta', '/imu/delta_velocity')]
+        conns = [c for c in rd.connections if c.topic in ('/imu/delta_theta',
+                                                          '/imu/delta_velocity')]
         for c, _, raw in rd.messages(connections=conns):
             m = deserialize_message(bytes(raw), Vector3Stamped)
             msgs.append((stamp_to_ns(m.header.stamp), c.topic == '/imu/delta_theta', m))
     msgs.sort(key=lambda x: (x[0], x[1]))                  # stable: each topic keeps its order
-    from rclpy.context import Context
     ctx = Context()                                         # its own: whatever other modules hold
     rclpy.init(context=ctx)
     try:
         node = SinsNode(context=ctx, namespace=f'/t_sins_bag_{profile}', parameter_overrides=[
-            Parameter(k, value=v) for k, v in load_parameter_file(str(params), 'sins_node').items()])
+            Parameter(k, value=v) for k,
+            v in load_parameter_file(str(params), 'sins_node').items()])
         got = {'att': [], 'imu': [], 'odom': []}
         monkeypatch.setattr(node.pub_att, 'publish', lambda m: got['att'].append(
-            (stamp_to_ns(m.header.stamp), [m.quaternion.x, m.quaternion.y, m.quaternion.z, m.quaternion.w])))
+            (stamp_to_ns(m.header.stamp),
+             [m.quaternion.x, m.quaternion.y, m.quaternion.z, m.quaternion.w])))
         monkeypatch.setattr(node.pub_imu, 'publish', lambda m: got['imu'].append(
             (stamp_to_ns(m.header.stamp), list(m.orientation_covariance),
              [m.linear_acceleration.x, m.linear_acceleration.y, m.linear_acceleration.z])))
@@ -244,14 +280,16 @@ def test_node_and_tool_give_the_same_solution(bags, tmp_path, capsys, monkeypatc
         def odom(m):
             p, o, v = m.pose.pose.position, m.pose.pose.orientation, m.twist.twist.linear
             q = np.array([o.w, o.x, o.y, o.z])
-            got['odom'].append((stamp_to_ns(m.header.stamp), [p.x, p.y, p.z], quat_to_dcm(q) @ [v.x, v.y, v.z],
-                                [o.x, o.y, o.z, o.w], np.sqrt(np.diag(np.array(m.pose.covariance).reshape(6, 6)))))
+            got['odom'].append((stamp_to_ns(m.header.stamp), [p.x, p.y, p.z],
+                                quat_to_dcm(q) @ [v.x, v.y, v.z],
+                                [o.x, o.y, o.z, o.w],
+                                np.sqrt(np.diag(np.array(m.pose.covariance).reshape(6, 6)))))
         monkeypatch.setattr(node.pub_odom, 'publish', odom)
         for pub in (node.pub_att, node.pub_imu, node.pub_odom):
             monkeypatch.setattr(pub, 'get_subscription_count', lambda: 1)
         try:
             for _, is_gyro, m in msgs:
-                (node._on_gyro if is_gyro else node._on_accel)(m)
+                (node.on_gyro if is_gyro else node.on_accel)(m)
             node.process()
         finally:
             node.destroy_node()
@@ -269,30 +307,37 @@ def test_node_and_tool_give_the_same_solution(bags, tmp_path, capsys, monkeypatc
     dv = np.max(np.abs(d[:, 4:7] - v_node))
     dq = np.max(np.abs(d[:, 7:11] - np.array([o[3] for o in got['odom']])))
     assert dr <= 1e-9 and dv <= 1e-9 and dq <= 1e-12, (dr, dv, dq)
-    print(f'{profile}: node vs tool: position {dr:.1e} relative, velocity {dv:.1e} m/s, quaternion {dq:.1e}')
+    print(f'{profile}: node vs tool: position {dr:.1e} relative, velocity {dv:.1e} m/s, '
+          f'quaternion {dq:.1e}')
     # the MCAP bag against what the node published on all three topics
     with AnyReader([out_bag]) as rd:
-        per = {c.topic: [rd.deserialize(raw, c.msgtype) for _, _, raw in rd.messages(connections=[c])]
+        per = {c.topic: [rd.deserialize(raw, c.msgtype) for _, _,
+                         raw in rd.messages(connections=[c])]
                for c in rd.connections}
     att = per['/sins/attitude']
     assert [stamp_to_ns(m.header.stamp) for m in att] == [s for s, _ in got['att']]
-    assert np.array_equal([[m.quaternion.x, m.quaternion.y, m.quaternion.z, m.quaternion.w] for m in att],
+    assert np.array_equal([[m.quaternion.x, m.quaternion.y, m.quaternion.z,
+                            m.quaternion.w] for m in att],
                           [q for _, q in got['att']])
     imu = per['/sins/imu']
     assert [stamp_to_ns(m.header.stamp) for m in imu] == [s for s, _, _ in got['imu']]
-    assert np.array_equal([list(m.orientation_covariance) for m in imu], [c for _, c, _ in got['imu']])
-    assert np.array_equal([[m.linear_acceleration.x, m.linear_acceleration.y, m.linear_acceleration.z] for m in imu],
+    assert np.array_equal([list(m.orientation_covariance) for m in imu],
+                          [c for _, c, _ in got['imu']])
+    assert np.array_equal([[m.linear_acceleration.x, m.linear_acceleration.y,
+                            m.linear_acceleration.z] for m in imu],
                           [f for _, _, f in got['imu']])
     odo = per['/sins/odometry']
-    assert np.array_equal([[m.pose.pose.position.x, m.pose.pose.position.y, m.pose.pose.position.z] for m in odo],
+    assert np.array_equal([[m.pose.pose.position.x, m.pose.pose.position.y,
+                            m.pose.pose.position.z] for m in odo],
                           r_node)
 
 
-# --- errors --------------------------------------------------------------------------------------------
+# --- errors --------------------------------------------------------------------------------------
 def test_argument_errors_are_one_line_exit_2_before_any_work(bags, tmp_path, capsys):
     bag, params, _ = bags['static']
     no_accel = tmp_path / 'no_accel'
-    assert record_sim.main([str(no_accel), '--duration', '1', '--no-accel', '-p', 'profile:=static']) == 0
+    assert record_sim.main([str(no_accel), '--duration', '1', '--no-accel', '-p',
+                            'profile:=static']) == 0
     (tmp_path / 'exists.csv').write_text('x\n')
     (tmp_path / 'dir').mkdir()
     (tmp_path / 'dir' / 'keep.txt').write_text('x')
@@ -305,7 +350,8 @@ def test_argument_errors_are_one_line_exit_2_before_any_work(bags, tmp_path, cap
         ([bag, '-o', tmp_path / 'a.csv', '-p', 'gyro_bais:=1.0'], 'gyro_bais'),
         ([bag, '-o', tmp_path / 'a.csv', '-p', 'navigation'], 'name:=value'),
         ([bag, '-o', tmp_path / 'a.csv', '--params', tmp_path / 'missing.yaml'], 'missing.yaml'),
-        ([bag, '-o', tmp_path / 'a.csv', '-p', 'initial_position:=[0.0, 0.0, 1.0e7]', '-p', 'navigation:=true'],
+        ([bag, '-o', tmp_path / 'a.csv', '-p', 'initial_position:=[0.0, 0.0, 1.0e7]', '-p',
+          'navigation:=true'],
          'initial_position'),
         ([no_accel, '-o', tmp_path / 'a.csv', '-p', 'navigation:=true'], 'delta_velocity'),
         ([bag, '-o', tmp_path / 'exists.csv'], '--force'),
@@ -316,7 +362,8 @@ def test_argument_errors_are_one_line_exit_2_before_any_work(bags, tmp_path, cap
     for args, needle in cases:
         rc, out, err = _run_tool(capsys, *args)
         lines = [ln for ln in (out + err).splitlines() if ln.strip()]
-        assert rc == 2 and len(lines) == 1 and lines[0].startswith('sins_bag: error:'), (args, rc, out, err)
+        assert rc == 2 and len(lines) == 1 and lines[0].startswith('sins_bag: error:'), (args, rc,
+                                                                                         out, err)
         assert needle in lines[0], (needle, lines[0])
     assert not (tmp_path / 'a.csv').exists() and (tmp_path / 'exists.csv').read_text() == 'x\n'
     assert (tmp_path / 'dir' / 'keep.txt').exists() and (bag / 'metadata.yaml').exists()
@@ -325,7 +372,7 @@ def test_argument_errors_are_one_line_exit_2_before_any_work(bags, tmp_path, cap
     assert rc == 0 and 'no Δv' in out, err
 
 
-# --- frames, bounded echoes, sensor_msgs/Imu input ---
+# --- frames, bounded echoes, sensor_msgs/Imu input --- -------------------------------------------
 def _read_vectors(bag, topic):
     """(stamp_ns, (x, y, z), frame) of a Vector3Stamped topic of a bag, in bag order."""
     from rosbags.highlevel import AnyReader
@@ -341,7 +388,7 @@ def _read_vectors(bag, topic):
 
 
 def _write_bag(path, topics: dict):
-    """A rosbag2 MCAP bag: {topic: (msgtype, [(stamp_ns, message)])}."""
+    """Write a rosbag2 MCAP bag: {topic: (msgtype, [(stamp_ns, message)])}."""
     from rosbags.rosbag2 import StoragePlugin, Writer
     from rosbags.typesys import get_typestore, Stores
     store = get_typestore(Stores.ROS2_JAZZY)
@@ -371,9 +418,11 @@ def _vector_msgs(items, frame=None):
 
 def test_body_frame_of_the_majority_and_the_rest_reported(tmp_path, capsys):
     """
-    One stray first Δθ in another frame no longer rejects the recording: the body
-    frame is the most frequent one, the stray messages are named, counted and rejected, and the
-    solution is that of the recording without them.
+    Check: body frame of the majority and the rest reported.
+
+    One stray first Δθ in another frame no longer rejects the recording: the body frame is the most
+    frequent one, the stray messages are named, counted and rejected, and the solution is that of
+    the recording without them.
     """
     src = _record(tmp_path / 'src', 'coning', 'frame_id:=imu')
     g = _read_vectors(src, '/imu/delta_theta')
@@ -406,10 +455,11 @@ def test_body_frame_of_the_majority_and_the_rest_reported(tmp_path, capsys):
 
 def test_huge_frame_ids_are_cheap_and_every_echo_is_bounded(tmp_path, capsys):
     """
-    Three Δθ with 2 MB frame ids cost no time (86 s before) and the output stays
-    short: every echoed frame id is cut to 64 characters.
+    Check: huge frame ids are cheap and every echo is bounded.
+
+    Three Δθ with 2 MB frame ids cost no time (86 s before) and the output stays short: every
+    echoed frame id is cut to 64 characters.
     """
-    import time as _time
     src = _record(tmp_path / 'src', 'coning')
     g = _read_vectors(src, '/imu/delta_theta')
     a = _read_vectors(src, '/imu/delta_velocity')
@@ -436,6 +486,8 @@ def test_huge_frame_ids_are_cheap_and_every_echo_is_bounded(tmp_path, capsys):
 
 def _imu_bag(path, g, a):
     """
+    Write sensor_msgs/Imu messages with the exact mean rates of the increments.
+
     sensor_msgs/Imu messages with the exact mean rates of the Δθ/Δv increments (the mean rule:
     rate_k = Δ_k / (t_k − t_{k−1})), one extra sample at the start of the first interval.
     """
@@ -464,9 +516,11 @@ def _imu_bag(path, g, a):
 
 def test_imu_input_with_mean_rates_gives_the_increment_solution(tmp_path, capsys):
     """
+    Check: imu input with mean rates gives the increment solution.
+
     sensor_msgs/Imu input: a bag of Imu messages whose rates are the exact means over their
-    intervals gives, with --rate-rule mean, the solution of the Δθ/Δv bag to round-off
-    (navigation, 100 Hz gyro and accelerometer).
+    intervals gives, with --rate-rule mean, the solution of the Δθ/Δv bag to round-off (navigation,
+    100 Hz gyro and accelerometer).
     """
     src = _record(tmp_path / 'src', 'coordinated_turn', 'accel_rate:=100.0')
     params, prof = _sins_params(tmp_path / 'p.yaml', 'coordinated_turn')
@@ -498,11 +552,11 @@ def test_imu_input_with_mean_rates_gives_the_increment_solution(tmp_path, capsys
 
 def test_a_damaged_mcap_chunk_is_one_line_exit_2(tmp_path, capsys):
     """
-    The chunk reader refuses a chunk whose record runs past its end (or whose checksum fails):
-    one line on stderr, exit 2, no output file.
+    Check: a damaged mcap chunk is one line exit 2.
+
+    The chunk reader refuses a chunk whose record runs past its end (or whose checksum fails): one
+    line on stderr, exit 2, no output file.
     """
-    from strapdown_ros.recording import mcap_records
-    from strapdown_ros.tools.calibrate_bag import open_reader
     bag = _record(tmp_path / 'dmg', 'coning')
     rd = open_reader(bag)
     try:
@@ -523,7 +577,7 @@ def test_a_damaged_mcap_chunk_is_one_line_exit_2(tmp_path, capsys):
 
 
 def _drop_accel_after(src, dst, t_stop):
-    """A copy of the bag ``src`` whose Δv stop ``t_stop`` seconds after its start."""
+    """Copy the bag ``src`` with its Δv stopping ``t_stop`` s after its start."""
     from rosbags.rosbag2 import Reader, StoragePlugin, Writer
     with Reader(src) as r, Writer(dst, version=Writer.VERSION_LATEST,
                                   storage_plugin=StoragePlugin.MCAP) as w:
@@ -543,12 +597,13 @@ def _drop_accel_after(src, dst, t_stop):
 @pytest.mark.parametrize('accel_wait, level', [(0.1, 'ERROR'), (0.5, 'WARN')])
 def test_accelerometer_stall_is_reported_by_the_nodes_rule(tmp_path, capsys, accel_wait, level):
     """
-    Δv stop half-way through the recording while Δθ run on;
-    sins_bag reports it as sins_node does on /diagnostics (the core's rule,
-    SinsSystem.accel_stall: WARN beyond accel_wait, ERROR beyond max(1 s, 10 accel_wait)),
-    naming the stalled stream, with the stall's length in the summary counts.
+    Check: accelerometer stall is reported by the nodes rule.
+
+    Δv stop half-way through the recording while Δθ run on; sins_bag reports it as sins_node does
+    on /diagnostics (the core's rule, SinsSystem.accel_stall: WARN beyond accel_wait, ERROR beyond
+    max(1 s, 10 accel_wait)), naming the stalled stream, with the stall's length in the summary
+    counts.
     """
-    from strapdown_ros.sins import accel_stall_limits
     full = _record(tmp_path / 'full', 'static')
     bag = _drop_accel_after(full, tmp_path / 'half', DURATION / 2)
     rc, out, err = _run_tool(capsys, bag, '-o', tmp_path / 'a.csv',
@@ -561,7 +616,6 @@ def test_accelerometer_stall_is_reported_by_the_nodes_rule(tmp_path, capsys, acc
     assert warn[0].rstrip().endswith(level), warn
     warn_s, error_s = accel_stall_limits(accel_wait)
     assert f'WARN beyond {warn_s:g} s, ERROR beyond {error_s:g} s' in warn[0]
-    import re
     stall = float(re.search(r'accel stall ([\d.e+-]+) s', out).group(1))
     assert stall == pytest.approx(DURATION / 2, abs=0.02)           # the gyro ran on 2.5 s
     rc, out, err = _run_tool(capsys, full, '-o', tmp_path / 'b.csv',

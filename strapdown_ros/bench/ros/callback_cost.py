@@ -78,11 +78,11 @@ def callback_cost(algorithm: str, n: int = 20000, subscribed: bool = False,
     if gyro_input == 'imu':
         msgs = _serialized_imu(n, lambda k: (0.1 * math.sin(k * 1e-3), 0.1 * math.cos(k * 1e-3),
                                              0.02))
-        callback = node._on_imu_raw
+        callback = node.on_imu_raw
     else:
         msgs = _serialized(n, lambda k: (1e-4 * math.sin(k * 1e-3), 1e-4 * math.cos(k * 1e-3),
                                          2e-5))
-        callback = node._on_gyro_raw
+        callback = node.on_gyro_raw
     spent = [0.0]
     real = node.process
 
@@ -128,9 +128,9 @@ def calibrator_callback_cost(n: int = 20000, gyro_input: str = 'delta_theta') ->
     node = CalibratorNode(namespace=f'/cbc_{os.getpid()}', parameter_overrides=[
         Parameter('gyro_rate', value=1000.0), Parameter('gyro_input', value=gyro_input)])
     if gyro_input == 'imu':
-        msgs, callback = _serialized_imu(n, lambda k: (0.1, -0.1, 0.02)), node._on_imu_raw
+        msgs, callback = _serialized_imu(n, lambda k: (0.1, -0.1, 0.02)), node.on_imu_raw
     else:
-        msgs, callback = _serialized(n, lambda k: (1e-4, -1e-4, 2e-5)), node._on_gyro_raw
+        msgs, callback = _serialized(n, lambda k: (1e-4, -1e-4, 2e-5)), node.on_gyro_raw
     try:
         t0 = time.perf_counter()
         for m in msgs:

@@ -46,8 +46,9 @@ import rclpy
 from rclpy.qos import ReliabilityPolicy
 from sensor_msgs.msg import Imu
 
-from strapdown_ros.nodes.ros_io import (camera_qos, DIAGNOSTICS_QOS, latched_qos, make_executor,
-                                        stamp_to_ns, stream_qos)
+from strapdown_ros.nodes.ros_io import (camera_qos, DIAGNOSTICS_QOS, latched_qos, stamp_to_ns,
+                                        stream_qos)
+from strapdown_ros.nodes.ros_process import make_executor
 
 NODES = ('sins_node', 'calibrator_node', 'imu_sim_node', 'star_camera_sim_node')
 

@@ -3,7 +3,7 @@ The ROS side of ``node_rate_bench``: a bare counting subscriber and a paced Δθ
 
 ``counting_node`` is the reference: it subscribes to ``imu/delta_theta`` with exactly the QoS
 of ``sins_node`` and ``calibrator_node`` (:func:`ros_io.stream_qos` of ``qos_depth``, the same QoS
-override options), runs under the same ``ros_io.run_node`` (same executor, same spin loop), and
+override options), runs under the same ``ros_process.run_node`` (same executor, same spin loop), and
 does nothing in its callback but count.  It takes deserialized messages, as a plain rclpy
 subscriber does; with ``raw:=true`` (subject ``counting_node_raw``) it takes the serialized
 bytes, as sins_node and calibrator_node do — the fastest an rclpy subscriber can be.  It
@@ -28,7 +28,7 @@ from geometry_msgs.msg import Vector3Stamped
 import rclpy
 from rclpy.node import Node
 
-from strapdown_ros.nodes import ros_io
+from strapdown_ros.nodes import ros_io, ros_process, ros_status
 
 NODE_NAME = 'counting_node'
 SUBJECTS = ('counting_node', 'counting_node_raw', 'sins_node', 'calibrator_node')
@@ -54,7 +54,7 @@ class CountingNode(Node):
         period = self.declare_parameter('diagnostics_period', 0.5).value
         raw = self.declare_parameter('raw', False).value
         self.received = 0
-        self.create_subscription(Vector3Stamped, 'imu/delta_theta', self._on_gyro,
+        self.create_subscription(Vector3Stamped, 'imu/delta_theta', self.on_gyro,
                                  ros_io.stream_qos(int(depth)),
                                  qos_overriding_options=ros_io.QOS_OVERRIDES, raw=bool(raw))
         self.pub_diag = self.create_publisher(DiagnosticArray, '/diagnostics',
@@ -66,9 +66,9 @@ class CountingNode(Node):
 
     def _diag(self):
         self.pub_diag.publish(
-            ros_io.diagnostic_array(ros_io.ns_to_stamp(0),
+            ros_status.diagnostic_array(ros_io.ns_to_stamp(0),
                                     f'{self.get_fully_qualified_name()}: count', 'counting',
-                                    ros_io.OK, 'ok', {'gyro_received': self.received}))
+                                    ros_status.OK, 'ok', {'gyro_received': self.received}))
 
 
 def main(args=None):
@@ -83,10 +83,10 @@ def main(args=None):
     Returns
     -------
     int
-        Exit status of ``ros_io.run_node``.
+        Exit status of ``ros_process.run_node``.
 
     """
-    return ros_io.run_node(CountingNode, NODE_NAME, args)
+    return ros_process.run_node(CountingNode, NODE_NAME, args)
 
 
 class Subject:
@@ -343,7 +343,7 @@ def rate_repeat(lo_hz: float, hi_hz: float, steps: int, seconds: float, algorith
         counting subscribers.
 
     """
-    h = Harness(ros_io.make_executor)
+    h = Harness(ros_process.make_executor)
     params = {
         'counting_node': {},
         'counting_node_raw': {'raw': 'true'},
