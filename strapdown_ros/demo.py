@@ -200,7 +200,7 @@ def run(args) -> list[dict]:
                 mon.count_publishers(f'/demo/{namespace_for(a)}/sins/attitude') == 0
                 for a in args.algorithms):
             ex.spin_once(timeout_sec=0.05)
-        sim._wall_start = None
+        sim.restart_pacing()
         wall0 = time.monotonic()
         deadline = wall0 + 5.0 * args.duration / args.time_scale + 30.0
         expected = {a: int(round(args.duration * sim.gyro.period ** -1)) // ALGORITHMS[a].samples
@@ -330,8 +330,8 @@ def run_calibration(args) -> dict:
         deadline = time.monotonic() + 10.0
         while time.monotonic() < deadline and sim.count_subscribers('/calib/imu/delta_theta') < 2:
             ex.spin_once(timeout_sec=0.05)
-        sim._wall_start = None
-        cam._wall_start = None
+        sim.restart_pacing()
+        cam.restart_pacing()
         wall0 = time.monotonic()
         deadline = wall0 + 3.0 * sim.end_time / time_scale + 30.0
         while time.monotonic() < deadline and not (sim.finished and cam.finished):

@@ -337,6 +337,11 @@ class BoresightCalibrator:
         self._pair_keys.update(self.pair_key(pr) for pr in pairs)
 
     @property
+    def gyro_history(self):
+        """Return the bounded gyro history (a :class:`~strapdown_ros.streams.buffers.StampedBuffer`)."""
+        return self._gyro
+
+    @property
     def gyro_history_overflowed(self) -> bool:
         """Return whether the bounded gyro history has dropped its oldest increments."""
         return bool(self._gyro.overflowed)

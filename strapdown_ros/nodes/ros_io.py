@@ -434,7 +434,7 @@ class PacedSimulation:
     A wall timer calls :meth:`_tick`, which advances the simulated time to ``time_scale`` × the
     wall time since the first tick (capped at ``end_time``) through the node's
     ``_advance_to(target)``, and calls ``_on_finished()`` once.  Nothing downstream sees the wall
-    clock: every stamp is simulated time.  Setting ``_wall_start = None`` restarts the pacing at
+    clock: every stamp is simulated time.  :meth:`restart_pacing` restarts the pacing at
     the next tick (used after discovery).  With ``wait_for_subscribers`` = N > 0 the clock starts
     at the first tick that sees N subscribers (``_subscriber_count()``), so that consumers started
     as separate processes lose nothing.
@@ -442,6 +442,15 @@ class PacedSimulation:
 
     _wall_start = None
     finished = False
+
+    @property
+    def pacing_started(self) -> bool:
+        """Return whether the simulated clock runs (False while waiting for subscribers)."""
+        return self._wall_start is not None
+
+    def restart_pacing(self) -> None:
+        """Restart the pacing at the next tick (simulated time continues; used after discovery)."""
+        self._wall_start = None
 
     def _tick(self):
         if self.finished:

@@ -46,6 +46,11 @@ class StampedBuffer:
         return self._hi - self._lo
 
     @property
+    def storage_size(self) -> int:
+        """Return the number of rows allocated (at most twice the bound)."""
+        return len(self._t)
+
+    @property
     def stamps(self) -> np.ndarray:
         """Live stamps, s (a view; valid until the next append or drop)."""
         return self._t[self._lo:self._hi]

@@ -123,6 +123,11 @@ class StreamCheck:
             return max(abs(v[0]), abs(v[1]), abs(v[2]))
         return max(abs(c) for c in v)
 
+    @property
+    def held(self) -> int:
+        """Return the number of messages held as a candidate new timeline after a stamp jump."""
+        return len(self._held)
+
     def offer(self, stamp_ns: int, v, isfinite=math.isfinite):
         """
         Offer one message to the rules.

@@ -110,7 +110,7 @@ def test_imu_mean_rule_gives_the_delta_theta_attitude_except_the_first_increment
                           and sim.pub_truth.get_subscription_count() >= 1
                           and mon.count_publishers(f'{ns}/sins_imu/attitude') == 1
                           and mon.count_publishers(f'{ns}/sins/attitude') == 1, 10.0)
-        sim._wall_start = None
+        sim.restart_pacing()
         n = int(round(duration * 100))
         assert spin_until(ex, lambda: sim.finished and len(rec['sins/attitude']) >= n
                           and len(rec['sins_imu/attitude']) >= n - 1
@@ -409,7 +409,7 @@ def test_navigation_from_imu_messages_matches_the_exact_truth(ros, profile, tol_
     try:
         assert spin_until(ex, lambda: mon.count_publishers(f'{ns}/sins/odometry') == 1
                           and sim.pub_odom.get_subscription_count() >= 1, 10.0)
-        sim._wall_start = None       # the clock started on sins_node's imu/data_raw subscription
+        sim.restart_pacing()       # the clock started on sins_node's imu/data_raw subscription
         n_expected = int(round(duration * 100)) - 3
         assert spin_until(ex, lambda: sim.finished and len(got['sins']) >= n_expected
                           and len(got['truth']) >= n_expected, 60.0), \

@@ -174,7 +174,7 @@ def test_standard_library_imports_sit_at_the_top():
 
 
 def private_uses(path):
-    """Return the private names a file takes from package modules other than itself."""
+    """Return the private names a file takes from other modules, or from other objects."""
     tree = ast.parse(path.read_text(encoding='utf-8'))
     aliases, out = {}, []
     for node in ast.walk(tree):
@@ -191,10 +191,14 @@ def private_uses(path):
                 if a.name.split('.')[0] == 'strapdown_ros' and a.asname:
                     aliases[a.asname] = a.name
     for node in ast.walk(tree):
-        if isinstance(node, ast.Attribute) and isinstance(node.value, ast.Name) \
-                and node.value.id in aliases and node.attr.startswith('_') \
+        if isinstance(node, ast.Attribute) and node.attr.startswith('_') \
                 and not node.attr.startswith('__'):
-            out.append(f'{node.lineno} {aliases[node.value.id]}.{node.attr}')
+            owner = node.value.id if isinstance(node.value, ast.Name) else None
+            if owner in aliases:
+                out.append(f'{node.lineno} {aliases[owner]}.{node.attr}')
+            elif owner not in ('self', 'cls'):
+                # another object's private attribute (obj._x, obj.part._x)
+                out.append(f'{node.lineno} {ast.unparse(node)}')
     return out
 
 

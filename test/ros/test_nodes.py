@@ -90,7 +90,7 @@ def test_full_graph_topics_qos_rates_and_content(ros):
         # discovery first, then restart the simulator's clock so no sample is sent before
         # every subscription has matched
         assert spin_until(ex, lambda: mon.count_publishers(f'{ns}/sins/attitude') == 1, 10.0)
-        sim._wall_start = None
+        sim.restart_pacing()
         assert spin_until(ex, lambda: sim.finished and len(rec.data['sins/attitude']) >= 199,
                           30.0), \
             {k: len(v) for k, v in rec.data.items()}
@@ -288,7 +288,7 @@ def _sins_error_with(ros, ns, effects, compensate):
         ex.add_node(n)
     try:
         assert spin_until(ex, lambda: mon.count_publishers(f'{ns}/sins/attitude') == 1, 10.0)
-        sim._wall_start = None
+        sim.restart_pacing()
         assert spin_until(ex, lambda: sim.finished and len(rec.data['sins/attitude']) >= 99, 30.0)
         st = rec.stamps('sins/attitude')
         q = from_ros_xyzw(np.array([[m.quaternion.x, m.quaternion.y, m.quaternion.z,
@@ -630,7 +630,7 @@ def test_stream_qos_overrides_and_simulator_waits_for_subscribers(ros):
         assert pub.qos_profile.reliability == ReliabilityPolicy.RELIABLE
         spin_until(ex, lambda: False, 1.0)
         # one subscriber of two
-        assert sim.counts['delta_theta'] == 0 and sim._wall_start is None
+        assert sim.counts['delta_theta'] == 0 and not sim.pacing_started
         got = []
         probe.create_subscription(Vector3Stamped, 'imu/delta_theta', got.append, stream_qos(QUEUE))
         assert spin_until(ex, lambda: len(got) > 20, 20.0)

@@ -67,7 +67,7 @@ def _run(ns, profile, duration, sins_extra=(), sim_extra=(), expect=None):
     try:
         assert spin_until(ex, lambda: mon.count_publishers(f'{ns}/sins/odometry') == 1
                           and sim.count_subscribers(f'{ns}/imu/delta_velocity') >= 1, 10.0)
-        sim._wall_start = None
+        sim.restart_pacing()
         n_expected = expect if expect is not None else int(round(duration * 100)) - 2
         assert spin_until(ex, lambda: sim.finished and len(got['sins']) >= n_expected
                           and len(got['truth']) >= n_expected,

@@ -10,7 +10,7 @@ def test_stamped_buffer_is_bounded_and_keeps_the_newest():
     b = StampedBuffer(3, max_len=1000, initial=16)
     for k in range(5000):
         b.extend([k * 0.01], [[k, 0.0, 0.0]])
-        assert len(b._t) <= 2000                          # storage never beyond 2× the bound
+        assert b.storage_size <= 2000                          # storage never beyond 2× the bound
     assert len(b) == 1000 and b.overflowed == 4000
     np.testing.assert_array_equal(b.values[:, 0], np.arange(4000, 5000))
     b.drop_through(45.0)
@@ -28,8 +28,8 @@ def test_calibrator_gyro_history_after_a_single_fix_is_bounded():
     cal.add_camera(0.0, np.array([1.0, 0, 0, 0]), np.eye(3) * 1e-10)
     for k in range(1, 60_001):
         cal.add_gyro([k * 0.005], [[1e-5, 0.0, 0.0]])
-    assert len(cal._gyro) == 20_000 and cal._gyro.overflowed == 40_000
-    assert len(cal._gyro._t) <= 40_000
+    assert len(cal.gyro_history) == 20_000 and cal.gyro_history.overflowed == 40_000
+    assert cal.gyro_history.storage_size <= 40_000
 
 
 def test_delta_v_without_gyro_does_not_pile_up():

@@ -30,7 +30,7 @@ def test_stream_check_never_accepts_poison_and_accounts_for_every_message(msgs):
         out += got
     for _, v in out:
         assert all(math.isfinite(x) and abs(x) <= 0.4 for x in v)
-    held = len(c._held)
+    held = c.held
     assert c.received == (c.accepted + c.nan + c.out_of_range
                           + c.duplicate + c.out_of_order + c.stamp_outliers + held)
     assert len(out) == c.accepted
