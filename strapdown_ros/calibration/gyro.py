@@ -12,7 +12,7 @@ equations built from the recording's own noise).  Both publish the common parame
 (:data:`COMMON_LABELS`: diag(M), the symmetric part of the off-diagonal M, the bias; the
 reference drift with ``drift``), the ones the effect registry compensates; the antisymmetric
 part of M, a rotation of the whole triad, is reported, not estimated as a gyro parameter.
-Methods, parameters and Monte Carlo results: doc/calibration/gyro_bag.md.
+Methods, parameters and Monte Carlo results: doc/results/calibrate_gyro_bag/gyro_bag.md.
 """
 from __future__ import annotations
 

@@ -25,7 +25,7 @@ Equations implemented (numbers are 001's):
     (4.8)  aircraft:   ṡ = D s, σ = s1
     (4.11) ship circulation: (y1, y2, p1, p2) with p1 = d2Δ, p2 = d4Δ (time τ1 = Ωt)
 
-Misprints found and corrected (derivations in doc/seeds/observability_001.md):
+Misprints found and corrected (derivations in doc/results/reproductions/observability_001.md):
     * (2.1) ΔM3 = −ω2Δ is dimensionally wrong; (2.8) Δω1 = −(ω̇2/ω2)Δ requires ΔM3 = −ω̇2Δ.
     * (3.2) prefactor 0.5μ1 → 0.5μ; (3.5) lacks that factor μ; (3.3) coefficient μ1μ1 → μμ1
       (all checked against the exact nonlinear measurement by :func:`exact_measurement`).

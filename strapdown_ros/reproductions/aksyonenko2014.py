@@ -2,7 +2,7 @@
 Aksyonenko 2014 (paper 003), coning §2.3, for ``reproduce_seeds``.
 
 The three cases and the thesis's claims against our measured drift, each value marked where it
-is below the float64 round-off floor of its algorithm (the rule of doc/coning.md).  The full
+is below the float64 round-off floor of its algorithm (the rule of doc/results/coning_bench/coning.md).  The full
 comparison is ``coning_bench`` → doc/coning.md.  No ROS imports.
 """
 from __future__ import annotations
@@ -38,7 +38,7 @@ def section_003(duration: float) -> dict:
     for (a, nu) in ((0.087, 1.0), (0.5, 1.0), (0.087, 0.5)):
         for step in (0.01, 0.001):
             r = measure_case(names, a, nu, step, duration)
-            # the rule of coning_bench / doc/coning.md
+            # the rule of coning_bench / doc/results/coning_bench/coning.md
             floor = FLOOR_FACTOR * max(r.floor.values())
             out['cases'].append({'alpha': a, 'nu': nu, 'step': step,
                                  'drift_deg_per_h': {n: r.drift[n] / DEG_PER_HOUR for n in names},
@@ -85,7 +85,7 @@ def report_003(r: dict) -> str:
           'Drift along the cone axis, °/h. The floor is the float64 round-off of the same '
           'arithmetic fed with '
           'the exact rotation vector (|slope| + 3σ, largest over the update sizes, × 3, as '
-          'doc/coning.md); a value '
+          'doc/results/coning_bench/coning.md); a value '
           'at or below it is marked *(floor)*: it measures round-off, not the algorithm, and is '
           'not compared.', '',
           '| case | τ | ' + ' | '.join(names) + ' | floor |',
@@ -110,5 +110,5 @@ def report_003(r: dict) -> str:
                  f"({cl['algorithm_1_deg_per_h']:.2g} °/h).")
     L += ['', '* 003 publishes no drift table, only plots, the case-1 statement above and a '
               'ranking; '
-          'doc/coning.md (coning_bench) tests the ranking.', '']
+          'doc/results/coning_bench/coning.md (coning_bench) tests the ranking.', '']
     return '\n'.join(L)

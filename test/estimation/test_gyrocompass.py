@@ -2,7 +2,7 @@
 001 (Vavilov 1982): the gyrocompass error model and its observability statements.
 
 The error model against geometry, the observability statements against closed-form
-derivations (doc/seeds/observability_001.md).
+derivations (doc/results/reproductions/observability_001.md).
 """
 import pathlib
 import re
