@@ -13,8 +13,8 @@ import platform
 
 import numpy as np
 
-from strapdown_ros.attitude.coning import (ALGORITHMS, LITERATURE_DRIFT, LITERATURE_DRIFT_TEXT,
-                                          SEED_ALGORITHMS)
+from strapdown_ros.attitude.coning import (ALGORITHMS, LITERATURE_DRIFT,
+                                           LITERATURE_DRIFT_TEXT, SEED_ALGORITHMS)
 from strapdown_ros.attitude.coning_analysis import THESIS_RANKING
 from strapdown_ros.bench.coning_misprints import MISPRINTS, MODEL_MISPRINTS
 from strapdown_ros.cli import write_text
@@ -385,7 +385,8 @@ def write_report(res: dict, args, path: str, plots: list[str]) -> None:
         x = s['omega_h'][k]
         ratio = s['drift'][k] / f(x)
         L.append(
-            f"| `{n}` | {LITERATURE_DRIFT_TEXT[n]} | {x:g} | {fmt(f(x), 4)} | {fmt(s['drift'][k], 4)} |"
+            f'| `{n}` | {LITERATURE_DRIFT_TEXT[n]} | {x:g} | {fmt(f(x), 4)} '
+            f"| {fmt(s['drift'][k], 4)} |"
             f" {ratio:.4f} | {fmt(s['order_measured'], 3)} / {ALGORITHMS[n].order_expected} |"
         )
     L += [

@@ -79,7 +79,8 @@ def main(argv=None) -> int:
     arg('--blocks', default='1,10,100', help='increments per propagate call (default 1,10,100)')
     arg('--trial', default='TStick_Test11_Trial2', help='RepoIMU wand trial')
     arg('--real-camera-sigma', type=float, default=0.005,
-        help='σ of a Vicon fix per axis, rad (default 0.005, as doc/results/realdata/nominal.yaml)')
+        help='σ of a Vicon fix per axis, rad '
+             '(default 0.005, as doc/results/realdata/nominal.yaml)')
     arg('--no-realdata', action='store_true', help='skip the real-data run')
     arg('--json', help='write the figures to this JSON file '
         '(documented run: doc/results/filter_bench/filter_bench.json)')

@@ -338,7 +338,7 @@ class BoresightCalibrator:
 
     @property
     def gyro_history(self):
-        """Return the bounded gyro history (a :class:`~strapdown_ros.streams.buffers.StampedBuffer`)."""
+        """Return the bounded gyro history (a :class:`~.streams.buffers.StampedBuffer`)."""
         return self._gyro
 
     @property

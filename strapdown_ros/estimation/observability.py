@@ -37,9 +37,9 @@ estimate:
   interval of length T: with time normalised to the interval (A → A·T), σ and its derivatives
   of orders 0…n−1 are available to accuracy Δσ; x = O⁻¹(σ, σ̇, …) with the observability
   matrix ``O = [H; HA; …; HAⁿ⁻¹]``, so ``m_i = 1/‖row_i(O⁻¹)‖``.  This is the reading that
-  reproduces 001's printed orders — derivation in doc/results/reproductions/observability_001.md §5.  The
-  Gramian reading reaches those orders only over about one Schuler period, not on 001's unit
-  interval.
+  reproduces 001's printed orders — derivation in
+  doc/results/reproductions/observability_001.md §5.  The Gramian reading reaches those orders
+  only over about one Schuler period, not on 001's unit interval.
 
 001's measure is not in general the 1/√λ of :func:`analyze_information`: it is a measure of a
 *given* combination, ``1/√(aᵀN⁻¹a)``, and it is normalised per sample and per unit interval

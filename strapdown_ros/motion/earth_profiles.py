@@ -312,7 +312,8 @@ def sculling_profile(lat: float, lon: float, h: float = 0.0, angle_amplitude: fl
     sculling term ``½∫(α×f + v×ω) dt`` (test/motion/test_earth_profiles.py).  It is **not** the
     B of the drift of a Δv without sculling compensation: the second-order rotation of the large
     vertical force, ``½α×(α×g ẑ)``, cancels the A·g part in body axes, so that drift is
-    :func:`sculling_drift_rate` with the real B (``nav_bench``, doc/results/nav_bench/), plus, in level
+    :func:`sculling_drift_rate` with the real B (``nav_bench``, doc/results/nav_bench/), plus,
+    in level
     axes, the term even in B of :func:`gravity_sculling_term`.
 
     Parameters

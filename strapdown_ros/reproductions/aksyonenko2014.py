@@ -2,8 +2,9 @@
 Aksyonenko 2014 (paper 003), coning §2.3, for ``reproduce_seeds``.
 
 The three cases and the thesis's claims against our measured drift, each value marked where it
-is below the float64 round-off floor of its algorithm (the rule of doc/results/coning_bench/coning.md).  The full
-comparison is ``coning_bench`` → doc/coning.md.  No ROS imports.
+is below the float64 round-off floor of its algorithm (the rule of
+doc/results/coning_bench/coning.md).  The full comparison is ``coning_bench`` →
+doc/results/coning_bench/coning.md.  No ROS imports.
 """
 from __future__ import annotations
 

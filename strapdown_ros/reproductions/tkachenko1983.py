@@ -18,10 +18,10 @@ import numpy as np
 from strapdown_ros.calibration.drifting_reference import error_at_epochs, estimate
 from strapdown_ros.calibration.drifting_reference_model import (ErrorStructure,
                                                                 GyrostabilizerReference, PAPER_000,
-                                                                psi_matrix, PAPER_000_C,
-                                                                PAPER_000_D, PAPER_000_PHI0,
-                                                                SCALE_MISALIGNMENT_BIAS,
-                                                                PAPER_000_W0)
+                                                                PAPER_000_C, PAPER_000_D,
+                                                                PAPER_000_PHI0, PAPER_000_W0,
+                                                                psi_matrix,
+                                                                SCALE_MISALIGNMENT_BIAS)
 from strapdown_ros.motion.profiles import PiecewiseRateProfile, Segment, tkachenko_profile
 from strapdown_ros.rotation import (aircraft_angles_to_quat, quat_conjugate, quat_multiply,
                                     quat_normalize, quat_to_rotvec, rotvec_to_quat)
@@ -155,7 +155,8 @@ def simulate_000(quantum: float = 0.0, seed: int | None = 0, profile=None, c=PAP
     if quantum > 0 and initial_remainder == 'random' and seed is not None:
         sensor.quantizer.integral[:] = np.random.default_rng(seed).uniform(-quantum, quantum, 3)
     _, meas, true_inc = sensor.sample(n)
-    if structure is not SCALE_MISALIGNMENT_BIAS:      # user structure: add D(ω)c exactly per interval
+    # a user structure: add D(ω)c exactly per interval
+    if structure is not SCALE_MISALIGNMENT_BIAS:
         D = structure.D(true_inc / h, h * (np.arange(n) + 0.5))
         meas = true_inc + np.einsum('nij,j->ni', D, c) * h
     M0 = quat_multiply(quat_conjugate(quat_normalize(np.concatenate([[1.0], w0]))),

@@ -7,9 +7,9 @@ simulated data** (``imu_sim_node``, ``star_camera_sim_node``, ``record_sim``), i
 **signature** (the derivative of what it changes with respect to its parameters, which the
 discrepancy workflow turns into the Jacobian of the increment residuals) and its
 **compensation**, where one exists (``sins_node``, ``calibrator_node``, the offline tools).
-The parameters reach the nodes through ``strapdown_ros.params``, which reads them from here.  Adding an
-effect is one new class (a gyro effect in :mod:`strapdown_ros.sensors.gyro_effects`, a camera
-effect below), one entry in :data:`EFFECTS`, its tests, its row in the effect tables of
+The parameters reach the nodes through ``strapdown_ros.params``, which reads them from here.
+Adding an effect is one new class (a gyro effect in :mod:`strapdown_ros.sensors.gyro_effects`,
+a camera effect below), one entry in :data:`EFFECTS`, its tests, its row in the effect tables of
 doc/discrepancy.md and the regenerated parameter tables of doc/nodes.md.  The base class is
 in :mod:`strapdown_ros.sensors.effect_base`.
 

@@ -180,7 +180,7 @@ class SensorErrorModel:
 
     @classmethod
     def from_scale_misalignment_bias(cls, c, random_walk: float = 0.0,
-                                    quantum: float = 0.0) -> 'SensorErrorModel':
+                                     quantum: float = 0.0) -> 'SensorErrorModel':
         """
         Build the model of Tkachenko (1983, 000) §6: ``Δω = [D_I D_II E3]·c``.
 

@@ -37,8 +37,8 @@ from typing import Callable
 import numpy as np
 
 from strapdown_ros.attitude import kernel as attitude_kernel
-from strapdown_ros.attitude.integrator import AttitudeIntegrator
 from strapdown_ros.attitude.increment_sums import IncrementAccumulator
+from strapdown_ros.attitude.integrator import AttitudeIntegrator
 from strapdown_ros.navigation import recursion as nav_recursion
 from strapdown_ros.navigation.channel import NavigationChannel
 from strapdown_ros.params import sigmas_from

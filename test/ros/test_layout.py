@@ -85,7 +85,8 @@ def test_no_relative_imports():
 
 def test_no_import_cycles():
     """The module import graph (imports anywhere in a module) has no cycle."""
-    graph = {m: {t for t, _, _ in imports(p) if t in MODULES and t != m} for m, p in MODULES.items()}
+    graph = {m: {t for t, _, _ in imports(p) if t in MODULES and t != m}
+             for m, p in MODULES.items()}
     # a package's __init__ importing its own modules is the package's public face, not a cycle
     for m in graph:
         graph[m] = {t for t in graph[m] if not (t == m.rsplit('.', 1)[0] and m in MODULES)}
@@ -146,7 +147,8 @@ def test_package_imports_sit_at_the_top():
     outside the ROS rooms reaching a ROS room, which it may do only where ROS is needed.
     """
     def ros_room(t):
-        return t.startswith(('strapdown_ros.nodes', 'strapdown_ros.bench.ros', 'strapdown_ros.demo'))
+        return t.startswith(('strapdown_ros.nodes', 'strapdown_ros.bench.ros',
+                             'strapdown_ros.demo'))
 
     offenders = [f'{p.relative_to(REPO)}:{line} {t}' for m, p in MODULES.items()
                  if m != 'strapdown_ros.nodes.launch'

@@ -2,10 +2,10 @@
 The ROS side of ``node_rate_bench``: a bare counting subscriber and a paced Δθ publisher.
 
 ``counting_node`` is the reference: it subscribes to ``imu/delta_theta`` with exactly the QoS
-of ``sins_node`` and ``calibrator_node`` (:func:`ros_io.stream_qos` of ``qos_depth``, the same QoS
-override options), runs under the same ``ros_process.run_node`` (same executor, same spin loop), and
-does nothing in its callback but count.  It takes deserialized messages, as a plain rclpy
-subscriber does; with ``raw:=true`` (subject ``counting_node_raw``) it takes the serialized
+of ``sins_node`` and ``calibrator_node`` (:func:`ros_io.stream_qos` of ``qos_depth``, the same
+QoS override options), runs under the same ``ros_process.run_node`` (same executor, same spin
+loop), and does nothing in its callback but count.  It takes deserialized messages, as a plain
+rclpy subscriber does; with ``raw:=true`` (subject ``counting_node_raw``) it takes the serialized
 bytes, as sins_node and calibrator_node do — the fastest an rclpy subscriber can be.  It
 reports ``gyro_received`` on ``/diagnostics``, as the package's nodes do, so one harness
 reads every subject the same way.
@@ -67,8 +67,8 @@ class CountingNode(Node):
     def _diag(self):
         self.pub_diag.publish(
             ros_status.diagnostic_array(ros_io.ns_to_stamp(0),
-                                    f'{self.get_fully_qualified_name()}: count', 'counting',
-                                    ros_status.OK, 'ok', {'gyro_received': self.received}))
+                                        f'{self.get_fully_qualified_name()}: count', 'counting',
+                                        ros_status.OK, 'ok', {'gyro_received': self.received}))
 
 
 def main(args=None):
