@@ -12,8 +12,9 @@ import os
 import numpy as np
 
 from strapdown_ros.bench.filter_bench_runs import RATE
-from strapdown_ros.bench.stats import chi2_band, median_range, stats
+from strapdown_ros.bench.stats import median_range, stats
 from strapdown_ros.estimation import chi2_3_quantile
+from strapdown_ros.estimation.chi_square import chi2_interval
 from strapdown_ros.figures import save_figure
 
 TARGET_RATIO = 1.1
@@ -230,7 +231,7 @@ def write_plots(outdir: str, mc: dict) -> list[str]:
     paths.append(save_figure(fig, outdir, 'bias_convergence.png'))
     fig, ax = plt.subplots(figsize=(9, 4.5))
     runs = mc['nis'].shape[0]
-    lo, hi = chi2_band(3 * runs)
+    lo, hi = chi2_interval(3 * runs)
     ax.axhspan(chi2_3_quantile(0.025), chi2_3_quantile(0.975), color='C0', alpha=0.1,
                label='χ²₃ 95 % band (single NIS)')
     ax.plot(t, mc['nis'][0], 'C0.', label='NIS, run 0')

@@ -13,9 +13,10 @@ import time
 
 import numpy as np
 
-from strapdown_ros.bench.stats import (chi2_band, pcrb_filter_smoother, rts_smooth,
+from strapdown_ros.bench.stats import (pcrb_filter_smoother, rts_smooth,
                                        simulate_increments)
 from strapdown_ros.estimation import AttitudeFilter, chi2_3_quantile
+from strapdown_ros.estimation.chi_square import chi2_interval
 from strapdown_ros.estimation.steady_filter import discretize
 from strapdown_ros.recording import repoimu
 from strapdown_ros.rotation import quat_conjugate, quat_multiply, quat_to_rotvec, rotvec_to_quat
@@ -260,15 +261,15 @@ def summarize(mc: dict, runs: int) -> dict:
     nees = mc['nees'].mean(axis=0)               # (F, 3): joint, attitude, bias
     out['nees'] = {}
     for c, (name, dim) in enumerate((('joint', 6), ('attitude', 3), ('bias', 3))):
-        lo, hi = chi2_band(dim * runs)
+        lo, hi = chi2_interval(dim * runs)
         inside = np.mean((nees[:, c] > lo / runs) & (nees[:, c] < hi / runs))
-        lo_all, hi_all = chi2_band(dim * runs * F)
+        lo_all, hi_all = chi2_interval(dim * runs * F)
         out['nees'][name] = {'dim': dim, 'mean': float(nees[:, c].mean()),
                              'band_per_fix': [lo / runs, hi / runs],
                              'fraction_of_fixes_inside': float(inside),
                              'band_if_independent': [lo_all / runs / F, hi_all / runs / F]}
     nis = mc['nis'][np.isfinite(mc['nis'])]
-    lo, hi = chi2_band(3 * len(nis))
+    lo, hi = chi2_interval(3 * len(nis))
     out['nis'] = {'mean': float(nis.mean()), 'fixes': int(len(nis)), 'gated': int(mc['gated']),
                   'band': [lo / len(nis), hi / len(nis)],
                   'fraction_single_inside_95': float(np.mean(

@@ -14,7 +14,7 @@ import numpy as np
 
 from strapdown_ros.rotation import quat_conjugate, quat_multiply, quat_to_rotvec, rotvec_to_quat
 
-__all__ = ['stats', 'median_range', 'chi2_band', 'pcrb_filter_smoother',
+__all__ = ['stats', 'median_range', 'pcrb_filter_smoother',
            'simulate_increments', 'rts_smooth']
 
 
@@ -59,30 +59,6 @@ def median_range(s: dict, fmt: str) -> str:
     if s['n'] == 0:
         return 'not measured'
     return f"{format(s['median'], fmt)} ({format(s['min'], fmt)}–{format(s['max'], fmt)})"
-
-
-def chi2_band(dof: int, probability: float = 0.95) -> tuple[float, float]:
-    """
-    Return the two-sided band of a χ² variable with ``dof`` degrees of freedom.
-
-    The Wilson–Hilferty approximation; for dof ≥ 30 within 0.1 % of the exact quantiles.
-
-    Parameters
-    ----------
-    dof : int
-        Degrees of freedom (a sum of dof squared unit normals).
-    probability : float
-        Probability inside the band (0.95: the 2.5 % and 97.5 % quantiles).
-
-    Returns
-    -------
-    (float, float)
-        Lower and upper quantile.
-
-    """
-    z = statistics.NormalDist().inv_cdf(0.5 + 0.5 * probability)
-    c = 2.0 / (9.0 * dof)
-    return (dof * (1.0 - c - z * math.sqrt(c)) ** 3, dof * (1.0 - c + z * math.sqrt(c)) ** 3)
 
 
 def pcrb_filter_smoother(phi, q, p0, h, r, fixes: int):

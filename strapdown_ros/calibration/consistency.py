@@ -16,10 +16,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from strapdown_ros.estimation.chi_square import chi2_interval
 from strapdown_ros.rotation import (dcm_to_quat, quat_conjugate, quat_multiply, quat_normalize,
                                     quat_to_dcm, quat_to_rotvec, ypr_to_dcm)
 
-__all__ = ['COVARIANCE_FORMS', 'ThetaDiffCheck', 'camera_imu_attitude', 'chi2_interval',
+__all__ = ['COVARIANCE_FORMS', 'ThetaDiffCheck', 'camera_imu_attitude',
            'd1_finite_difference', 'd_matrices', 'sins_from_camera', 'theta_diff_check']
 
 COVARIANCE_FORMS = ('derived', 'printed')
@@ -201,36 +202,6 @@ def sins_from_camera(q_gcrs_vf, beta, dq_imu, E_imu=None, align_at: int = 0, sen
             E = np.zeros((3, 3)) if E_imu is None else np.asarray(E_imu[k - 1])
             P[k] = R.T @ P[k - 1] @ R + E
     return (q, P, Js) if return_sensitivity else (q, P)
-
-
-def chi2_interval(dof: float, prob: float = 0.95) -> tuple[float, float]:
-    """
-    Return the two-sided ``prob`` interval of a χ² variable (Wilson–Hilferty).
-
-    Within 0.1% of the exact quantiles for dof ≥ 30; at dof 3 the lower end is 16% low, the
-    upper 0.2%.
-
-    Parameters
-    ----------
-    dof : float
-        Degrees of freedom.
-    prob : float
-        Probability inside the interval.
-
-    Returns
-    -------
-    tuple of float
-        Lower and upper ends.
-
-    """
-    # upper-tail normal quantile, Abramowitz & Stegun 26.2.23 (|error| < 4.5e-4)
-    p = 0.5 * (1.0 + prob)
-    t = np.sqrt(-2.0 * np.log(1.0 - p))
-    z = t - ((2.515517 + 0.802853 * t + 0.010328 * t * t)
-             / (1.0 + 1.432788 * t + 0.189269 * t * t + 0.001308 * t ** 3))
-    a = 2.0 / (9.0 * dof)
-    return (float(dof * (1.0 - a - z * np.sqrt(a)) ** 3),
-            float(dof * (1.0 - a + z * np.sqrt(a)) ** 3))
 
 
 @dataclass

@@ -12,7 +12,8 @@ from __future__ import annotations
 import math
 from statistics import NormalDist
 
-__all__ = ['FIT_LEVEL', 'chi2_band', 'chi2_sf', 'chi2_3_quantile']
+__all__ = ['FIT_LEVEL', 'chi2_band', 'chi2_interval', 'chi2_quantile', 'chi2_sf',
+           'chi2_3_quantile']
 
 #: two-sided level of the χ²/dof acceptance band: a consistent fit falls outside it with
 #: probability FIT_LEVEL
@@ -57,12 +58,25 @@ def _gamma_p(a: float, x: float) -> float:
     return max(0.0, 1.0 - math.exp(log_pre) * h)
 
 
-def _chi2_quantile(p: float, dof: int) -> float:
+def chi2_quantile(p: float, dof: float) -> float:
     """
-    Return x with P(χ²_dof ≤ x) = p.
+    Return x with P(χ²_dof ≤ x) = p, the exact quantile.
 
     Newton's method on the exact distribution function from the Wilson–Hilferty start (no
     scipy: the node must not pay its import inside a callback).
+
+    Parameters
+    ----------
+    p : float
+        Probability, in (0, 1).
+    dof : float
+        Degrees of freedom, > 0.
+
+    Returns
+    -------
+    float
+        The quantile.
+
     """
     a = 0.5 * dof
     c = 2.0 / (9.0 * dof)
@@ -100,7 +114,28 @@ def chi2_band(dof: int, level: float = FIT_LEVEL) -> tuple[float, float]:
     """
     if dof < 1:
         return float('nan'), float('nan')
-    return _chi2_quantile(level / 2, dof) / dof, _chi2_quantile(1 - level / 2, dof) / dof
+    return chi2_quantile(level / 2, dof) / dof, chi2_quantile(1 - level / 2, dof) / dof
+
+
+def chi2_interval(dof: float, probability: float = 0.95) -> tuple[float, float]:
+    """
+    Return the two-sided interval of a χ² variable that holds it with ``probability``.
+
+    Parameters
+    ----------
+    dof : float
+        Degrees of freedom (a sum of dof squared unit normals), > 0.
+    probability : float
+        Probability inside the interval (0.95: the 2.5 % and 97.5 % quantiles).
+
+    Returns
+    -------
+    tuple of float
+        The lower and upper quantile (not divided by dof; :func:`chi2_band` is per dof).
+
+    """
+    tail = 0.5 * (1.0 - probability)
+    return chi2_quantile(tail, dof), chi2_quantile(1.0 - tail, dof)
 
 
 def chi2_sf(x: float, dof: int) -> float:

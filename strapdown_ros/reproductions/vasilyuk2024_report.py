@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from strapdown_ros.calibration.consistency import chi2_interval
+from strapdown_ros.estimation.chi_square import chi2_interval
 from strapdown_ros.figures import save_figure
 
 __all__ = ['report_004', 'plots_004', 'report_004_extras', 'plots_004_extras']

@@ -21,13 +21,13 @@ from __future__ import annotations
 import argparse
 import json
 import os
-from statistics import NormalDist
 import sys
 
 import numpy as np
 
 from strapdown_ros.cli import check_outputs, DIRECTORY, FILE, write_text
 from strapdown_ros.estimation import gyrocompass as gc
+from strapdown_ros.estimation.chi_square import chi2_quantile
 from strapdown_ros.estimation.observability import (analyze_information, measures_of_observability,
                                                     observability_gramian, stationary_measures)
 from strapdown_ros.estimation.steady_filter import (constant_gain_covariance, discretize,
@@ -54,12 +54,6 @@ def _f(x):
 def _orthodrome_at(params, lat):
     th = np.radians(INCLINATION_DEG)
     return gc.orthodrome(params, th, float(np.arcsin(np.sin(lat) / np.sin(th))))
-
-
-def _chi2_quantile(p: float, k: float) -> float:
-    """Wilson–Hilferty approximation of the χ²(k) quantile (relative error < 1e-3 for k ≥ 50)."""
-    z = NormalDist().inv_cdf(p)
-    return k * (1 - 2 / (9 * k) + z * np.sqrt(2 / (9 * k))) ** 3
 
 
 # ----------------------------------------------------------------------------- checks
@@ -230,7 +224,7 @@ def _filters(ship, quick) -> dict:
             err = simulate_constant_gain(Phi, H, Q, R, K, np.eye(5), steps, runs,
                                          np.random.default_rng(1))
             nees = np.einsum('rki,kij,rkj->rk', err, np.linalg.inv(Ps), err).mean(axis=0)
-            lo, hi = _chi2_quantile(0.025, 5 * runs) / runs, _chi2_quantile(0.975, 5 * runs) / runs
+            lo, hi = chi2_quantile(0.025, 5 * runs) / runs, chi2_quantile(0.975, 5 * runs) / runs
             every = max(1, steps // 400)
             rec.update({'nees_mean': float(nees.mean()), 'nees_band': [lo, hi],
                         'nees_fraction_in_band': float(np.mean((nees >= lo) & (nees <= hi))),

@@ -5,8 +5,9 @@ import sys
 import numpy as np
 import pytest
 
-from strapdown_ros.calibration.consistency import (camera_imu_attitude, chi2_interval, d_matrices,
+from strapdown_ros.calibration.consistency import (camera_imu_attitude, d_matrices,
                                                    sins_from_camera, theta_diff_check)
+from strapdown_ros.estimation.chi_square import chi2_interval
 from strapdown_ros.rotation import (dcm_to_quat, quat_conjugate, quat_multiply, quat_normalize,
                                     quat_to_rotvec, rotvec_to_quat, ypr_to_dcm)
 
@@ -34,14 +35,6 @@ def test_d_matrices_printed_and_derived_equal_the_exact_derivative():
             assert np.allclose(E1, D1, atol=1e-8) and np.allclose(E2, C @ D1, atol=1e-8)
     with pytest.raises(ValueError):
         d_matrices(np.zeros(3), 'other')
-
-
-def test_chi2_interval_close_to_exact_quantiles():
-    """The Wilson–Hilferty interval is close to the exact χ² quantiles."""
-    # exact χ² quantiles (scipy.stats.chi2.ppf), 95% two-sided
-    assert np.allclose(chi2_interval(30), (16.7908, 46.9792), rtol=1e-3)
-    assert np.allclose(chi2_interval(300), (253.912, 349.874), rtol=1e-4)
-    assert chi2_interval(3)[1] == pytest.approx(9.3484, rel=3e-3)
 
 
 def _scenario(rng, n=25):
