@@ -46,13 +46,15 @@ def signal_received() -> bool:
 
 
 def _run(module: str) -> int:
+    # module: a node module of strapdown_ros.nodes by its name, or a full dotted module name
     # signals first, then the node module: imported here, lazily, because importing rclpy and
     # the message packages takes a noticeable time, and a signal in that window must end the
     # process cleanly (the one place of the package that imports inside a function)
     for sig in (signal.SIGINT, signal.SIGTERM):
         signal.signal(sig, _interrupt)
     try:
-        main = importlib.import_module(f'strapdown_ros.nodes.{module}').main
+        name = module if '.' in module else f'strapdown_ros.nodes.{module}'
+        main = importlib.import_module(name).main
     except KeyboardInterrupt:                # a signal while importing: a clean stop
         return 0
     except ImportError:
@@ -98,7 +100,7 @@ def attitude_filter_node():
 
 def strapdown_demo():
     """Run the console script ``strapdown_demo``; return its exit status."""
-    return _run('demo')
+    return _run('strapdown_ros.demo')
 
 
 if __name__ == '__main__':

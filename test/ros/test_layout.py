@@ -7,7 +7,11 @@ its module (tests included), and package imports at the top of a module.  The ro
 the one doc/architecture.md draws.
 """
 import ast
+import importlib
 from pathlib import Path
+import re
+
+import pytest
 
 REPO = Path(__file__).resolve().parents[2]
 PACKAGE = REPO / 'strapdown_ros'
@@ -209,3 +213,20 @@ def test_no_private_name_is_used_outside_its_module():
     files = list(MODULES.values()) + sorted((REPO / 'test').rglob('*.py'))
     offenders = [f'{p.relative_to(REPO)}:{u}' for p in files for u in private_uses(p)]
     assert not offenders, offenders
+
+
+def test_every_console_script_resolves_to_a_main():
+    """Each console script of setup.py, and each module a node entry point runs, has a main."""
+    pytest.importorskip('rclpy')
+    setup = (REPO / 'setup.py').read_text(encoding='utf-8')
+    scripts = dict(re.findall(r"'(\w+) = ([\w.]+:\w+)'", setup))
+    assert len(scripts) >= 20, scripts
+    for name, target in scripts.items():
+        module, func = target.split(':')
+        assert callable(getattr(importlib.import_module(module), func)), name
+    launch = (PACKAGE / 'nodes' / 'launch.py').read_text(encoding='utf-8')
+    targets = re.findall(r"_run\('([\w.]+)'\)", launch)
+    assert len(targets) == 6, targets
+    for t in targets:
+        module = t if '.' in t else f'strapdown_ros.nodes.{t}'
+        assert callable(importlib.import_module(module).main), t
