@@ -9,7 +9,8 @@ declaration and the file readers), :mod:`~strapdown_ros.params.tables` (the node
 :mod:`~strapdown_ros.params.model_files` (model files of every node).  Its names are imported
 from ``strapdown_ros.params``.  No ROS imports.
 """
-from strapdown_ros.params.model_files import load_model, simulator_parameters, write_model
+from strapdown_ros.params.model_files import (load_model, node_parameters, simulator_parameters,
+                                              write_model)
 from strapdown_ros.params.spec import (load_parameter_file, markdown_table, ParamSpec,
                                        parse_overrides)
 from strapdown_ros.params.tables import (ACCEL_INPUT_PARAMS, ACCEL_PARAMS,
@@ -21,9 +22,8 @@ from strapdown_ros.params.tables import (ACCEL_INPUT_PARAMS, ACCEL_PARAMS,
 from strapdown_ros.params.validation import check_all, combination_error
 
 __all__ = ['ACCEL_INPUT_PARAMS', 'ACCEL_PARAMS', 'ALL_PARAMETER_NAMES', 'ARCSEC_RAD',
-           'CALIBRATOR_PARAMS', 'check_all', 'combination_error', 'COMMON_PARAMS',
-           'FILTER_PARAMS', 'GYRO_INPUT_PARAMS', 'GYRO_PARAMS', 'IMU_SIM_PARAMS',
-           'INPUT_PARAMS', 'load_model', 'load_parameter_file', 'markdown_table', 'MAX_SPEED',
-           'NODE_PARAMS', 'ParamSpec', 'parse_overrides', 'PROFILE_PARAMS', 'SENSOR_BOUNDS',
-           'sigmas_from', 'simulator_parameters', 'SINS_PARAMS', 'STAR_CAMERA_PARAMS',
-           'write_model']
+           'CALIBRATOR_PARAMS', 'check_all', 'combination_error', 'COMMON_PARAMS', 'FILTER_PARAMS',
+           'GYRO_INPUT_PARAMS', 'GYRO_PARAMS', 'IMU_SIM_PARAMS', 'INPUT_PARAMS', 'load_model',
+           'load_parameter_file', 'markdown_table', 'MAX_SPEED', 'node_parameters', 'NODE_PARAMS',
+           'ParamSpec', 'parse_overrides', 'PROFILE_PARAMS', 'SENSOR_BOUNDS', 'sigmas_from',
+           'simulator_parameters', 'SINS_PARAMS', 'STAR_CAMERA_PARAMS', 'write_model']

@@ -123,6 +123,38 @@ def write_model(path: str, doc: dict | None, updates: dict, comment: str) -> Non
                       + yaml.safe_dump(doc, sort_keys=False, allow_unicode=True))
 
 
+def node_parameters(node: str, specs, params_file: str | None = None,
+                    overrides: dict | None = None) -> dict:
+    """
+    Return the validated parameters of one node, as an offline tool reads them.
+
+    Parameters
+    ----------
+    node : str
+        The node's name: its block of the parameter file (``/**`` applies too).
+    specs : list of ParamSpec
+        The node's parameter declarations (e.g. ``SINS_PARAMS``).
+    params_file : str or None
+        A ROS 2 parameter file (None: the defaults).
+    overrides : dict or None
+        Values that win over the file (name → value).
+
+    Returns
+    -------
+    dict
+        Every parameter of the node, name → checked value.
+
+    Raises
+    ------
+    ValueError
+        An invalid value, naming the valid ones.
+
+    """
+    raw = load_parameter_file(params_file, node) if params_file else {}
+    raw.update(overrides or {})
+    return check_all(specs, raw)
+
+
 def simulator_parameters(params_file: str | None = None, overrides: dict | None = None,
                          duration: float | None = None) -> tuple[dict, dict]:
     """

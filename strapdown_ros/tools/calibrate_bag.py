@@ -48,7 +48,7 @@ import numpy as np
 from strapdown_ros.calibration.streaming import BoresightCalibrator
 from strapdown_ros.cli import check_outputs, FILE, OneLineParser, write_json
 from strapdown_ros.estimation.chi_square import FIT_LEVEL
-from strapdown_ros.params import CALIBRATOR_PARAMS, check_all, load_parameter_file, parse_overrides
+from strapdown_ros.params import CALIBRATOR_PARAMS, node_parameters, parse_overrides
 from strapdown_ros.recording import (add_input_arguments, BagError, check_input_arguments,
                                      input_lines, input_options, input_summary, input_warnings,
                                      read_bag)
@@ -78,9 +78,7 @@ def calibrator_parameters(params_file: str | None = None, overrides: dict | None
         Every calibrator_node parameter, name → checked value.
 
     """
-    raw = load_parameter_file(params_file, 'calibrator_node') if params_file else {}
-    raw.update(overrides or {})
-    return check_all(CALIBRATOR_PARAMS, raw)
+    return node_parameters('calibrator_node', CALIBRATOR_PARAMS, params_file, overrides)
 
 
 def make_calibrator(p: dict) -> BoresightCalibrator:

@@ -22,7 +22,7 @@ import numpy as np
 
 from strapdown_ros.cli import check_outputs, FILE, OneLineParser, write_text
 from strapdown_ros.estimation.filter_system import FilterSystem
-from strapdown_ros.params import check_all, FILTER_PARAMS, load_parameter_file
+from strapdown_ros.params import FILTER_PARAMS, node_parameters
 from strapdown_ros.recording.options import (add_input_arguments, check_input_arguments,
                                              input_options)
 from strapdown_ros.recording.reader import BagError, read_bag
@@ -158,8 +158,7 @@ def main(argv=None) -> int:
             raise ValueError(f'--params {args.params} is not a file')
         check_outputs([('--output', str(out), FILE), ('--fixes', str(fixes_path), FILE)],
                       [('bag', args.bag), ('--params', args.params)], args.force)
-        p = check_all(FILTER_PARAMS,
-                      load_parameter_file(args.params, NODE_NAME) if args.params else {})
+        p = node_parameters(NODE_NAME, FILTER_PARAMS, args.params)
         sxy, sz = float(p['camera_sigma_xy']), float(p['camera_sigma_z'])
         data = read_bag(args.bag, args.namespace, bool(p['use_camera_covariance']),
                         (sxy, sxy, sz), float(p['gyro_max_rate']), float(p['max_stamp_jump']),

@@ -64,7 +64,8 @@ import numpy as np
 
 from strapdown_ros.cli import check_outputs, REPLACED
 from strapdown_ros.earth import geodetic_to_ecef
-from strapdown_ros.params import check_all, load_parameter_file, parse_overrides, SINS_PARAMS
+from strapdown_ros.params import (load_parameter_file, node_parameters, parse_overrides,
+                                  SINS_PARAMS)
 from strapdown_ros.recording import BagError
 from strapdown_ros.recording.imu_streams import ACCEL_TOPIC, GYRO_TOPIC, open_input
 from strapdown_ros.recording.sins_replay import CsvOutput, McapOutput, run
@@ -92,9 +93,7 @@ def sins_parameters(params_file: str | None = None, overrides: dict | None = Non
         Every sins_node parameter, name → checked value.
 
     """
-    raw = load_parameter_file(params_file, 'sins_node') if params_file else {}
-    raw.update(overrides or {})
-    return check_all(SINS_PARAMS, raw)
+    return node_parameters('sins_node', SINS_PARAMS, params_file, overrides)
 
 
 def _check_output(out: str, bag: str, force: bool, params: str | None = None) -> None:
