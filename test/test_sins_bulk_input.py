@@ -12,8 +12,8 @@ import math
 import numpy as np
 import pytest
 
-from strapdown_ros.params import check_all, SINS_PARAMS
-from strapdown_ros.sins import screen_stream, SinsSystem
+from strapdown_ros.params import model_and_settings
+from strapdown_ros.sins import screen_stream, SinsSettings, SinsSystem
 from strapdown_ros.streams.cdr import stamped_doubles, vector3_stamped
 from strapdown_ros.streams.checks import StreamCheck
 from strapdown_ros.text import bounded
@@ -90,7 +90,8 @@ def test_screen_stream_gives_the_counters_and_messages_of_offer(seed):
 def _params(**kw):
     base = {'gyro_rate': 100.0, 'accel_rate': 300.0, 'gyro_random_walk': 1e-6}
     base.update(kw)
-    return check_all(SINS_PARAMS, base)
+    model, settings = model_and_settings('sins_node', base)
+    return model, SinsSettings.from_values(settings)
 
 
 def _collect(outs):
@@ -128,7 +129,7 @@ def test_screen_and_feed_equal_the_node_path(navigation):
         kw = {'navigation': True, 'initial_position': [50.45, 30.52, 150.0],
               'initial_velocity': [0.0, 0.0, 0.0]}
     p = _params(**kw)
-    node = SinsSystem(p, imu_wanted=lambda: True)
+    node = SinsSystem(*p, imu_wanted=lambda: True)
     outs_node = []
     # the messages as a node receives them: in the order they arrive (a wrong stamp does not
     # delay a message), Δv first at equal times
@@ -145,7 +146,7 @@ def test_screen_and_feed_equal_the_node_path(navigation):
             outs_node.append(node.process())
     outs_node += [node.process(), node.finish()]
 
-    bulk = SinsSystem(p, imu_wanted=lambda: True)
+    bulk = SinsSystem(*p, imu_wanted=lambda: True)
     sg = bulk.screen('gyro', g_st, g_v, g_frames, names)
     sa = bulk.screen('accel', a_st, a_v)
     assert sg is not None and sa is not None
@@ -171,7 +172,7 @@ def test_screen_and_feed_equal_the_node_path(navigation):
 
 def test_screen_returns_none_at_a_resync_and_changes_nothing():
     p = _params()
-    sys_ = SinsSystem(p)
+    sys_ = SinsSystem(*p)
     st = np.arange(1, 101, dtype=np.int64) * 10_000_000 + 1000 * 10**9
     st[50:] -= 100 * 10**9          # a clock reset that stays (back; a forward jump is a dropout)
     before = sys_.gyro_check.as_dict('g')
@@ -195,7 +196,7 @@ def test_frame_warning_is_built_only_when_emitted_and_bounded():
     """
     p = _params()
     logged = []
-    s = SinsSystem(p, log=lambda level, text: logged.append(text))
+    s = SinsSystem(*p, log=lambda level, text: logged.append(text))
     huge = 'f' * 2_000_000
     for k in range(1, 2001):
         s.offer_gyro(k * 10_000_000, (0.0, 0.0, 0.0), huge)

@@ -24,8 +24,8 @@ import numpy as np
 
 from strapdown_ros.discrepancy.synthetic import (draw_hidden_effect, effect_sigma,
                                                  simulate_recording)
-from strapdown_ros.discrepancy.workflow import analyse
-from strapdown_ros.params import (CALIBRATOR_PARAMS, check_all, IMU_SIM_PARAMS,
+from strapdown_ros.discrepancy.workflow import analyse, DiscrepancySettings
+from strapdown_ros.params import (check_all, IMU_SIM_PARAMS, model_and_settings,
                                   simulator_parameters, STAR_CAMERA_PARAMS)
 from strapdown_ros.recording.writer import record
 from strapdown_ros.sensors.effects import CANDIDATES, EFFECTS
@@ -89,7 +89,7 @@ def _simulate(seed, duration, overrides=None):
 
 
 def _model():
-    return check_all(CALIBRATOR_PARAMS, {})
+    return model_and_settings('calibrator_node')[0]
 
 
 def _init_worker():
@@ -149,7 +149,7 @@ def run_job(job: dict) -> dict:
             sim_seed += INJECT_SEED_OFFSET
         rec = _simulate(sim_seed, job['duration'], injected)
         t1 = time.perf_counter()
-        res = analyse(rec, _model(), alpha=job['alpha']).as_json()
+        res = analyse(rec, _model(), DiscrepancySettings(alpha=job['alpha'])).as_json()
         out.update(sim_seed=sim_seed, injected=injected, analysis_s=time.perf_counter() - t1)
         out.update(score(name, injected, res))
     except Exception as exc:                         # recorded; counted as an error in the summary

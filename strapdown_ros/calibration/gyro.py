@@ -34,7 +34,7 @@ from strapdown_ros.estimation.chi_square import chi2_band, FIT_LEVEL
 from strapdown_ros.estimation.observability import analyze_information, ObservabilityReport
 from strapdown_ros.rotation import (dcm_to_quat, quat_conjugate, quat_multiply, quat_normalize,
                                     quat_to_dcm, quat_to_rotvec, skew)
-from strapdown_ros.sensors.effects import CameraEffects, GyroEffects
+from strapdown_ros.sensors.effects import EFFECTS, GyroEffects
 from strapdown_ros.sensors.gyro_effects import MISALIGNMENT_INDEX
 
 __all__ = ['COMMON_LABELS', 'DRIFT_LABELS', 'ESTIMATED_PARAMETERS', 'MAX_EQUATIONS',
@@ -150,13 +150,19 @@ def model_parameters(cal: GyroCalibration) -> dict:
     Returns
     -------
     dict
-        'gyro_scale_factor', 'gyro_misalignment' and 'gyro_bias' as lists of floats.
+        'gyro_scale_factor', 'gyro_misalignment' and 'gyro_bias' as lists of floats, and each
+        effect's σ key (its registry ``sigma_parameter``): the largest σ of its components.
 
     """
     M = cal.misalignment_matrix
-    return {'gyro_scale_factor': [float(v) for v in cal.scale],
-            'gyro_misalignment': [float(M[i, j]) for i, j in MISALIGNMENT_INDEX],
-            'gyro_bias': [float(v) for v in cal.bias]}
+    sig = cal.sigma
+    out = {'gyro_scale_factor': [float(v) for v in cal.scale],
+           'gyro_misalignment': [float(M[i, j]) for i, j in MISALIGNMENT_INDEX],
+           'gyro_bias': [float(v) for v in cal.bias]}
+    for name, part in (('gyro_scale_factor', sig[0:3]), ('gyro_misalignment', sig[3:6]),
+                       ('gyro_bias', sig[6:9])):
+        out[EFFECTS[name].sigma_parameter] = float(np.max(part))
+    return out
 
 
 # ----------------------------------------------------------------------------- the data
@@ -202,7 +208,7 @@ class Prepared:
     random_walk: float
 
 
-def prepare(rec, params: dict) -> Prepared:
+def prepare(rec, model) -> Prepared:
     """
     Prepare a recording for either method.
 
@@ -215,8 +221,8 @@ def prepare(rec, params: dict) -> Prepared:
     ----------
     rec : Recording
         Gyro increments, fixes, covariances and gaps as read from a bag.
-    params : dict
-        Effect parameters of the model.
+    model : SensorModel
+        The unit's sensor model.
 
     Returns
     -------
@@ -229,13 +235,14 @@ def prepare(rec, params: dict) -> Prepared:
         Fewer than two camera-fix pairs covered by gap-free gyro data.
 
     """
-    other = dict(params)
-    for name in ESTIMATED_PARAMETERS:
-        other.pop(name, None)
+    # the model's other gyro effects: compensated; those estimated here start from zero
+    other = {n: model.effect_value(n) for n in model.active('gyro')
+             if EFFECTS[n].kind == 'systematic'
+             and EFFECTS[n].value_parameter.name not in ESTIMATED_PARAMETERS}
     st = np.asarray(rec.gyro_stamps, dtype=float)
     T = np.diff(st, prepend=st[0] - (st[1] - st[0]))
-    rho = GyroEffects(other, epoch=float(st[0])).compensate(rec.delta_theta, st, T)
-    cam = CameraEffects(params)
+    rho = GyroEffects(values=other, epoch=float(st[0])).compensate(rec.delta_theta, st, T)
+    cam = model.camera_effects()
     fix_t = cam.epoch(np.asarray(rec.fix_stamps, dtype=float))
     fix_P = cam.covariance(np.asarray(rec.fix_P, dtype=float))
     pairs = build_pairs(GyroRecord(st, rho), fix_t, rec.fix_q, 0.0, rec.gaps)
@@ -244,7 +251,7 @@ def prepare(rec, params: dict) -> Prepared:
                          '(need many)')
     C = axis_alignment(quat_to_dcm(pairs.dq_imu), quat_to_dcm(pairs.dq_cam))
     return Prepared(st, rho, fix_t, quat_normalize(rec.fix_q), fix_P, list(rec.gaps), C,
-                    len(pairs), float(params.get('gyro_random_walk', 0.0)))
+                    len(pairs), model.gyro.random_walk)
 
 
 def _report(info_scaled, labels, sigma_limit, rel_tol=1e-9):

@@ -23,6 +23,7 @@ solution, and returns a :class:`~strapdown_ros.calibration.boresight.BoresightSo
 from __future__ import annotations
 
 from collections import deque
+from dataclasses import dataclass, fields
 
 import numpy as np
 
@@ -32,9 +33,85 @@ from strapdown_ros.calibration.boresight_increments import (angle_consistency, c
 from strapdown_ros.sensors import SensorSigmas
 from strapdown_ros.sensors.covariance import get_covariance_model
 from strapdown_ros.sensors.effects import CameraEffects, GyroEffects
+from strapdown_ros.sensors.sensor_model import SensorModel
 from strapdown_ros.streams.buffers import StampedBuffer
 
-__all__ = ['BoresightCalibrator']
+__all__ = ['BoresightCalibrator', 'CalibratorSettings']
+
+
+@dataclass(frozen=True)
+class CalibratorSettings:
+    """
+    What ``calibrator_node`` and ``calibrate_bag`` take besides the sensor model.
+
+    The field names are the node's parameter names (:data:`strapdown_ros.params.CALIBRATOR_PARAMS`,
+    where each is described).
+
+    Attributes
+    ----------
+    weighted : bool
+        Weight the pairs by E_imu and E_avu.
+    covariance_model : str
+        Gyro error model of E_imu.
+    initial_boresight : tuple of float
+        β0 of the solver, rad; all zero: the model's boresight.
+    min_rotation_deg : float
+        Smallest increment angle that counts as a rotation, degrees.
+    max_sigma : float
+        Largest predicted σ of a published direction, rad.
+    max_pairs : int
+        Keep at most this many latest pairs (0: all).
+    outlier_gate : float
+        Outlier-fix gate, σ (0: off).
+    max_chi2_per_dof : float
+        χ²/dof above which the fit is called inconsistent.
+    use_camera_covariance : bool
+        Read each fix's covariance (false: the model's camera σ).
+    state_file : str
+        Where the node persists its pairs ('' off).
+    max_stamp_jump : float
+        A stamp step beyond this is a jump, s.
+    resync_count : int
+        Consecutive messages that confirm a new timeline.
+    frame_mismatch : str
+        ``reject`` or ``accept`` a message in another frame.
+
+    """
+
+    weighted: bool = True
+    covariance_model: str = 'random_constant'
+    initial_boresight: tuple = (0.0, 0.0, 0.0)
+    min_rotation_deg: float = 0.5
+    max_sigma: float = 1e-3
+    max_pairs: int = 0
+    outlier_gate: float = 6.0
+    max_chi2_per_dof: float = 3.0
+    use_camera_covariance: bool = True
+    state_file: str = ''
+    max_stamp_jump: float = 1.0
+    resync_count: int = 5
+    frame_mismatch: str = 'reject'
+
+    @classmethod
+    def from_values(cls, values) -> CalibratorSettings:
+        """
+        Build the settings from parameter values (other names are not read).
+
+        Parameters
+        ----------
+        values : mapping
+            Parameter name → value (defaults where absent).
+
+        Returns
+        -------
+        CalibratorSettings
+            The settings.
+
+        """
+        out = {f.name: values[f.name] for f in fields(cls) if f.name in values}
+        if 'initial_boresight' in out:
+            out['initial_boresight'] = tuple(float(x) for x in out['initial_boresight'])
+        return cls(**out)
 
 
 class BoresightCalibrator:
@@ -101,14 +178,21 @@ class BoresightCalibrator:
         self.solution: BoresightSolution | None = None
 
     @classmethod
-    def from_params(cls, p: dict) -> 'BoresightCalibrator':
+    def from_model(cls, model: SensorModel,
+                   settings: CalibratorSettings | None = None) -> 'BoresightCalibrator':
         """
-        Build the calibrator from ``calibrator_node`` parameters (node and ``calibrate_bag``).
+        Build the calibrator of ``calibrator_node`` and ``calibrate_bag``.
+
+        The model's gyro statistics weight the pairs, its gyro effects are compensated on the
+        increments and its camera effects (time offset, noise scale) on the fixes; the solver
+        starts at ``initial_boresight``, or at the model's boresight when that is all zero.
 
         Parameters
         ----------
-        p : dict
-            The parameters, as :mod:`strapdown_ros.params` declares them.
+        model : SensorModel
+            The unit's sensor model.
+        settings : CalibratorSettings, optional
+            The calibrator's settings (default: the defaults).
 
         Returns
         -------
@@ -116,13 +200,16 @@ class BoresightCalibrator:
             The calibrator.
 
         """
-        return cls(gyro=SensorSigmas.from_params(p, 'gyro'),
-                   covariance_model=p['covariance_model'], weighted=bool(p['weighted']),
-                   initial_boresight=np.asarray(p['initial_boresight'], dtype=float),
-                   min_rotation=np.radians(float(p['min_rotation_deg'])),
-                   max_sigma=float(p['max_sigma']), max_pairs=int(p['max_pairs']),
-                   effects=GyroEffects(p), camera=CameraEffects(p),
-                   outlier_gate=float(p['outlier_gate']))
+        s = settings or CalibratorSettings()
+        start = np.asarray(s.initial_boresight, dtype=float)
+        if not np.any(start):
+            start = np.asarray(model.boresight, dtype=float)
+        return cls(gyro=model.gyro, covariance_model=s.covariance_model,
+                   weighted=bool(s.weighted), initial_boresight=start,
+                   min_rotation=np.radians(float(s.min_rotation_deg)),
+                   max_sigma=float(s.max_sigma), max_pairs=int(s.max_pairs),
+                   effects=model.gyro_effects(), camera=model.camera_effects(),
+                   outlier_gate=float(s.outlier_gate))
 
     # --- input -----------------------------------------------------------------------------
     def add_gyro(self, stamps, delta_theta) -> int:
@@ -189,6 +276,35 @@ class BoresightCalibrator:
         self._last_stamp = None
         self._last_fix = None
         self._cams.clear()
+
+    def discard_new_pairs_over(self, new: int, gaps, margin: float) -> int:
+        """
+        Discard the latest pairs whose interval reaches a gyro gap (the node's rule).
+
+        Parameters
+        ----------
+        new : int
+            How many of the latest pairs to look at (those just formed).
+        gaps : sequence of (float, float)
+            Gyro gaps (start, end), s: the rotation in them is lost.
+        margin : float
+            A pair within this of a gap is discarded too (the in-interval polynomial reads the
+            neighbours), s.
+
+        Returns
+        -------
+        int
+            Pairs discarded.
+
+        """
+        if not new or not gaps:
+            return 0
+        tail = self.pairs[len(self.pairs) - new:]
+        keep = [pr for pr in tail
+                if not any(pr.t_start - margin < b and a < pr.t_end + margin for a, b in gaps)]
+        del self.pairs[len(self.pairs) - new:]
+        self.pairs.extend(keep)
+        return len(tail) - len(keep)
 
     def restart_camera(self) -> None:
         """Start a new camera time base: no pair may span the jump."""

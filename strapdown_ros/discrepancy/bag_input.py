@@ -11,12 +11,14 @@ from __future__ import annotations
 import numpy as np
 
 from strapdown_ros.discrepancy.linearisation import Recording
-from strapdown_ros.recording import BagError, input_lines, input_summary, read_bag
+from strapdown_ros.recording import (BagError, input_lines, input_summary, read_bag,
+                                     recording_facts)
 
 __all__ = ['load_recording', 'recording_lines']
 
 
-def load_recording(bag: str, model: dict, namespace: str = '', **options):
+def load_recording(bag: str, model, settings: dict | None = None, namespace: str = '',
+                   **options):
     """
     Read a bag into the core's :class:`Recording`, with what reading it found.
 
@@ -24,8 +26,10 @@ def load_recording(bag: str, model: dict, namespace: str = '', **options):
     ----------
     bag : str
         Path of the rosbag2 bag.
-    model : dict
-        The model (validated calibrator parameters): camera σ, gyro rate limit, stamp rules.
+    model : SensorModel
+        The sensor model: the camera σ of fixes without a covariance, the gyro clip level.
+    settings : dict, optional
+        The stream rules (``max_stamp_jump``, ``resync_count``; defaults where absent).
     namespace : str
         Namespace of the topics.
     **options
@@ -47,9 +51,10 @@ def load_recording(bag: str, model: dict, namespace: str = '', **options):
         An input option is invalid.
 
     """
-    sig = (model['camera_sigma_xy'], model['camera_sigma_xy'], model['camera_sigma_z'])
-    data = read_bag(bag, namespace, True, sig, float(model['gyro_max_rate']),
-                    float(model['max_stamp_jump']), int(model['resync_count']), **options)
+    settings = settings or {}
+    data = read_bag(bag, namespace, True, tuple(model.camera_sigma), model.gyro_max_rate,
+                    float(settings.get('max_stamp_jump', 1.0)),
+                    int(settings.get('resync_count', 5)), **options)
     g, c = data['gyro'], data['camera']
     if len(g.stamps) < 10:
         raise BagError(f"{bag}: {len(g.stamps)} usable gyro increments on {data['gyro_topic']}")
@@ -72,6 +77,7 @@ def load_recording(bag: str, model: dict, namespace: str = '', **options):
             'dropped': {'gyro': dict(g.dropped), 'camera': {**c.dropped, **camera_dropped}},
             'stamp_origin_ns': int(origin), 'duration_s': float(t_g[-1] - t_g[0])}
     info.update(input_summary(data))
+    info['facts'] = recording_facts(data)
     if data['rate_samples']:
         info['dropped']['gyro_rate_samples'] = dict(data['rate_samples']['dropped'])
     return rec, info

@@ -21,7 +21,7 @@ import itertools
 
 import numpy as np
 
-from strapdown_ros.sensors.effects import GyroEffects
+from strapdown_ros.sensors.effects import EFFECTS, GyroEffects
 from strapdown_ros.sensors.model import PulseQuantizer
 
 __all__ = ['verdict_tests', 'autocorrelation', 'describe_remaining', 'static_segments',
@@ -241,8 +241,14 @@ def white_rate_variance(params: dict, period: float) -> float:
         Variance, rad².
 
     """
-    rw, q = float(params.get('gyro_random_walk', 0.0)), float(params.get('gyro_quantum', 0.0))
+    rw, q = _noise(params)
     return rw ** 2 * period + q ** 2 / 6.0
+
+
+def _noise(params) -> tuple[float, float]:
+    """Return the random walk (rad/√s) and the pulse weight (rad) of a model (registry)."""
+    return (float(EFFECTS['gyro_random_walk'].value(params)[0]),
+            float(EFFECTS['gyro_quantization'].value(params)[0]))
 
 
 def static_segments(stamps: np.ndarray, delta_theta: np.ndarray, params: dict | None = None,
@@ -381,13 +387,14 @@ def allan_comparison(stamps, delta_theta, params_before: dict, params_after: dic
     def simulate(params, i, j):
         n = j - i
         mean = dth[i:j].mean(axis=0)
-        rw = float(params.get('gyro_random_walk', 0.0))
+        rw, q = _noise(params)
         sim = np.tile(mean, (n, 1)) + rng.normal(0.0, rw * np.sqrt(T), (n, 3))
-        drift = {k: v for k, v in params.items() if k in ('gyro_bias_drift',)}
-        eff = GyroEffects(drift, epoch=float(st[0]))
+        # the model's time-varying bias at rest (drift, periodic): every effect's bias term on
+        # zero rotation, its mean over the segment removed (the segment's mean is the data's)
+        eff = GyroEffects(params, epoch=float(st[0]))
         if eff.active:
-            sim = sim + (eff.apply(np.zeros((n, 3)), st[i:j], T))
-        q = float(params.get('gyro_quantum', 0.0))
+            b = eff.apply(np.zeros((n, 3)), st[i:j], T)
+            sim = sim + (b - b.mean(axis=0))
         if q > 0:
             sim = PulseQuantizer(q)(sim)
         return sim
@@ -410,8 +417,7 @@ def allan_comparison(stamps, delta_theta, params_before: dict, params_after: dic
     resid = np.vstack([dth[i:j] - dth[i:j].mean(axis=0) for i, j in segs]) / T
 
     def model_std(params):
-        rw = float(params.get('gyro_random_walk', 0.0))
-        q = float(params.get('gyro_quantum', 0.0))
+        rw, q = _noise(params)
         return float(np.sqrt(rw ** 2 / T + q ** 2 / (6.0 * T ** 2)))
     out = {'static_noise': {'rate_std_rad_s': resid.std(axis=0).tolist(),
                             'model_rate_std_rad_s_before': model_std(params_before),

@@ -30,10 +30,6 @@ NOISE_SCALE_RANGE = (1e-3, 1e3)
 #: variance σ_q²/12 from 0 to 900 times the mean stated fix variance)
 QUANTUM_RANGE = (0.0, 30.0)
 
-_PRIOR_EFFECTS = (('gyro_bias', 'gyro_bias_sigma'),
-                  ('gyro_scale_factor', 'gyro_scale_sigma'),
-                  ('gyro_misalignment', 'gyro_misalignment_sigma'))
-
 
 class InputError(ValueError):
     """The recording cannot be analysed (too few fixes, no overlap, ...)."""
@@ -180,10 +176,11 @@ class Linearisation:
         E = np.einsum('nji,nj->ni', self.R_imu, w_s) - w_e
         self._sig['time_offset'] = (E @ C).reshape(3 * N, 1)
         # nominal random constants (prior) U
-        self.U = np.hstack([-self.signature(n) for n, _ in _PRIOR_EFFECTS])
-        self.prior_var = np.concatenate([
-            np.full(EFFECTS[n].size, float(params.get(s, 0.0)) ** 2) for n, s in _PRIOR_EFFECTS])
-        self.random_walk = float(params.get('gyro_random_walk', 0.0))
+        # the random constants of the registry (bias, scale factor, misalignment): their σ
+        prior = [e for e in EFFECTS.values() if e.random_constant and e.sensor == 'gyro']
+        self.U = np.hstack([-self.signature(e.name) for e in prior])
+        self.prior_var = np.concatenate([np.full(e.size, e.sigma(params) ** 2) for e in prior])
+        self.random_walk = float(EFFECTS['gyro_random_walk'].value(params)[0])
         # quantization: the output lags the integral by the remainder, mean σ/2 in the sense of
         # the motion on each axis (000 §5.3): r_mean = σ/2 · Cᵀ(ΔS_imuᵀ s_s − s_e), s = soft sign
         # of the rate over ±0.5 s (0 where an axis is not driven past its random walk)
@@ -213,7 +210,7 @@ class Linearisation:
 
         """
         if name not in self._sig:
-            e = EFFECTS[name]
+            e = EFFECTS[name].configured(self.params)
             eps = pair_integral(self.gyro, self.pairs,
                                 lambda r_, T_, sl: e.increment_jacobian(r_, T_, self._times(sl)))
             sig = -np.einsum('ji,njp->nip', self.C, eps)
@@ -365,12 +362,15 @@ class Linearisation:
 
 def noise_of(params: dict) -> dict:
     """
-    Return the noise terms a model states: quantization and camera-noise anisotropy.
+    Return the noise terms of the library a model states (quantization, camera-noise scale).
+
+    The registry's noise effects that the workflow searches for (``candidate``), where their
+    value is not neutral.
 
     Parameters
     ----------
-    params : dict
-        The model (``gyro_quantum`` rad, ``camera_noise_scale``).
+    params : mapping or SensorModel
+        The model, by model key.
 
     Returns
     -------
@@ -378,14 +378,8 @@ def noise_of(params: dict) -> dict:
         ``{effect name: θ}``, only the terms that differ from neutral.
 
     """
-    out = {}
-    q = float(params.get('gyro_quantum', 0.0))
-    if q > 0:
-        out['gyro_quantization'] = [q]
-    k = np.asarray(params.get('camera_noise_scale', (1.0, 1.0, 1.0)), dtype=float)
-    if np.any(k != 1.0):
-        out['camera_noise_anisotropy'] = k.tolist()
-    return out
+    return {n: e.value(params).tolist() for n, e in EFFECTS.items()
+            if e.kind == 'noise' and e.candidate and e.is_active(params)}
 
 
 # ----------------------------------------------------------------------------- noise ML

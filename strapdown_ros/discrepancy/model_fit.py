@@ -21,14 +21,8 @@ from strapdown_ros.discrepancy.linearisation import (InputError, Linearisation,
 from strapdown_ros.rotation import quat_to_dcm, rotvec_to_dcm
 from strapdown_ros.sensors.effects import EFFECTS, GyroEffects
 
-__all__ = ['PLAUSIBLE_MAX', 'check_plausible', 'initial_pairs', 'initial_boresight_estimate',
+__all__ = ['check_plausible', 'initial_pairs', 'initial_boresight_estimate',
            'boresight_observability', 'refine_fit']
-
-#: largest |value| of a fitted dimensionless gyro effect (scale factor, asymmetry, misalignment
-#: in rad) the linearised workflow reports; beyond it the model is not a small correction (a
-#: wiring fault, a wrong unit) and the candidate fails with that reason.  Parameters with a
-#: stated range (camera_time_offset: ±10 s) are held to it.
-PLAUSIBLE_MAX = {'gyro_scale_factor': 0.1, 'gyro_scale_asymmetry': 0.1, 'gyro_misalignment': 0.1}
 
 
 def check_plausible(name: str, params: dict) -> None:
@@ -45,13 +39,15 @@ def check_plausible(name: str, params: dict) -> None:
     Raises
     ------
     NumericalFailure
-        The value is not finite, beyond :data:`PLAUSIBLE_MAX`, or outside the parameter's range.
+        The value is not finite, beyond the effect's plausible bound (its registry class: beyond it
+    the model is not a small correction, a wiring fault or a wrong unit), or outside the
+    parameter's range.
 
     """
     e = EFFECTS[name]
     p = e.value_parameter
     v = np.atleast_1d(np.asarray(e.value(params), dtype=float))
-    hi = PLAUSIBLE_MAX.get(name)
+    hi = e.plausible_bound()
     lo_p, hi_p = p.minimum, p.maximum
     if not np.all(np.isfinite(v)):
         raise NumericalFailure(f'a non-finite {p.name}')
@@ -152,7 +148,7 @@ def boresight_observability(rec: Recording, params: dict, epoch: float | None = 
     """
     epoch = float(rec.gyro_stamps[0]) if epoch is None else epoch
     pairs = initial_pairs(rec, params, epoch)
-    rw2 = float(params.get('gyro_random_walk', 0.0)) ** 2
+    rw2 = float(EFFECTS['gyro_random_walk'].value(params)[0]) ** 2
     P = rec.fix_P
     items = [SimpleNamespace(dq_cam=pairs.dq_cam[n], dq_imu=pairs.dq_imu[n],
                              cov_cam=P[pairs.fix_start[n]] + P[pairs.fix_end[n]],

@@ -119,6 +119,10 @@ class DiscrepancyResult:
         Increment pairs and camera fixes used.
     model_out : dict
         Effect parameter values to write to the model.
+    found_model : SensorModel, optional
+        The nominal model with the found effects, their σ, the filter's online states and the
+        boresight (:func:`strapdown_ros.discrepancy.workflow.found_model`): what
+        ``--write-model`` writes.
     series : dict
         Per-pair arrays for the report (``before``/``after``: :func:`residual_series`).
     rejected : list
@@ -178,6 +182,7 @@ class DiscrepancyResult:
     boresight_sigma_model_rad: list = field(default_factory=list)
     repeatability_bound: float = float('nan')
     observable: bool = True
+    found_model: object = None
 
     def as_json(self) -> dict:
         """

@@ -25,7 +25,7 @@ from strapdown_ros.sensors.star_camera import StarCameraModel
 __all__ = ['effect_sigma', 'draw_hidden_effect', 'simulate_recording']
 
 
-def effect_sigma(rec: Recording, params: dict, names) -> dict:
+def effect_sigma(rec: Recording, model, names) -> dict:
     """
     Return the covariance of the separable combinations of effects on this recording.
 
@@ -33,7 +33,7 @@ def effect_sigma(rec: Recording, params: dict, names) -> dict:
     ----------
     rec : Recording
         The recording.
-    params : dict
+    model : SensorModel
         The model (the effects absent).
     names : str or sequence of str
         Effect names.
@@ -44,7 +44,7 @@ def effect_sigma(rec: Recording, params: dict, names) -> dict:
         ``{name: (q, q) covariance}`` in the units of the effect's combinations.
 
     """
-    params = dict(params)
+    params = model.values()
     epoch = float(rec.gyro_stamps[0])
     noise = noise_of(params)
     C = initial_boresight_estimate(rec, params, epoch)

@@ -16,6 +16,8 @@ described in doc/discrepancy.md.  No ROS imports.
 """
 from __future__ import annotations
 
+from dataclasses import dataclass, fields
+
 import numpy as np
 
 from strapdown_ros.discrepancy import diagnostics
@@ -32,11 +34,13 @@ from strapdown_ros.discrepancy.selection import (adds_to, heldout_score, RHO_MAX
 from strapdown_ros.discrepancy.uncertainty import (final_covariance, hac_lags,
                                                    repeatability_bound, report_steps)
 from strapdown_ros.rotation import dcm_to_ypr, quat_to_rotvec, ypr_error_to_rotation
-from strapdown_ros.sensors.effects import CANDIDATES, EFFECTS
+from strapdown_ros.sensors.effects import candidates, EFFECTS
+from strapdown_ros.sensors.sensor_model import SensorModel
 from strapdown_ros.text import json_clean
 
 __all__ = ['Recording', 'analyse', 'json_clean', 'DiscrepancyResult', 'DEFAULT_ALPHA',
-           'MIN_PAIRS', 'InputError', 'AnalysisError', 'BoresightUnobservable', 'STOPPED_BY']
+           'MIN_PAIRS', 'InputError', 'AnalysisError', 'BoresightUnobservable', 'STOPPED_BY',
+           'DiscrepancySettings', 'found_model']
 
 #: why the search stopped: the step limit (accepted effects), no candidate passing its test,
 #: none left to try (all added, excluded or failed numerically), or the safety bound on turns
@@ -48,8 +52,59 @@ DEFAULT_ALPHA = 0.01
 MIN_PAIRS = 12
 
 
-def analyse(rec: Recording, params: dict, alpha: float = DEFAULT_ALPHA, blocks: int = 6,
-            lags: int | None = None, max_steps: int = 6, candidates=CANDIDATES,
+@dataclass(frozen=True)
+class DiscrepancySettings:
+    """
+    What ``discrepancy`` takes besides the sensor model.
+
+    Attributes
+    ----------
+    alpha : float
+        Family-wise level (α/2 for the selection, α/2 for the verdict tests).
+    blocks : int
+        Contiguous time blocks of the held-out (leave-one-block-out) check.
+    lags : int or None
+        Ljung–Box lags (None: min(20, max(2, pairs/10))).
+    max_steps : int
+        Most effects ACCEPTED by the search; when it stops the search, ``stopped_by`` says
+        ``"max_steps"``.
+    candidates : tuple of str or None
+        Effect names to consider (None: the registry's library, read when the analysis runs).
+    min_rotation_deg : float
+        The calibrator's smallest rotation between exposures (the observability rule).
+    max_sigma : float
+        The calibrator's largest predicted boresight σ (the observability rule), rad.
+
+    """
+
+    alpha: float = DEFAULT_ALPHA
+    blocks: int = 6
+    lags: int | None = None
+    max_steps: int = 6
+    candidates: tuple | None = None
+    min_rotation_deg: float = 0.5
+    max_sigma: float = 1e-3
+
+    @classmethod
+    def from_values(cls, values) -> DiscrepancySettings:
+        """
+        Build the settings from values by name (the calibrator's settings among them).
+
+        Parameters
+        ----------
+        values : mapping
+            Name → value (defaults where absent).
+
+        Returns
+        -------
+        DiscrepancySettings
+            The settings.
+
+        """
+        return cls(**{f.name: values[f.name] for f in fields(cls) if f.name in values})
+
+
+def analyse(rec: Recording, model: SensorModel, settings: DiscrepancySettings | None = None,
             progress=None) -> DiscrepancyResult:
     """
     Find where the recording and its model disagree and which effects are missing.
@@ -68,19 +123,11 @@ def analyse(rec: Recording, params: dict, alpha: float = DEFAULT_ALPHA, blocks: 
     ----------
     rec : Recording
         The recording.
-    params : dict
-        The nominal model (validated node parameters, effect values included).
-    alpha : float
-        Family-wise level (α/2 for the selection, α/2 for the verdict tests).
-    blocks : int
-        Contiguous time blocks of the held-out (leave-one-block-out) check.
-    lags : int, optional
-        Ljung–Box lags (default min(20, max(2, pairs/10))).
-    max_steps : int
-        Most effects ACCEPTED by the search (rejected candidates do not count); when it stops
-        the search, ``stopped_by`` says ``"max_steps"``.
-    candidates : sequence of str
-        Effect names to consider.
+    model : SensorModel
+        The nominal model: its effects are compensated, its noise terms and priors weight the
+        pairs.
+    settings : DiscrepancySettings, optional
+        The level, blocks, lags, step limit, candidates and the observability rule.
     progress : callable, optional
         ``progress(text)`` is called between stages.
 
@@ -100,11 +147,20 @@ def analyse(rec: Recording, params: dict, alpha: float = DEFAULT_ALPHA, blocks: 
         A candidate whose own fit fails is only dropped (``failed_candidates``).
 
     """
+    if isinstance(model, dict):
+        raise TypeError('analyse takes a SensorModel and DiscrepancySettings '
+                        '(strapdown_ros.params.load_model_file), not a parameter dict')
+    s = settings or DiscrepancySettings()
     if len(rec.fix_stamps) < MIN_PAIRS + 1:
         raise InputError(f'{len(rec.fix_stamps)} camera fixes: the workflow needs at least '
                          f'{MIN_PAIRS + 1}')
-    search = _Search(rec, dict(params), alpha, blocks, lags, max_steps, candidates,
-                     progress or (lambda s: None))
+    # the working model point: the model's keys, changed as effects are accepted
+    params = {**model.values(), 'min_rotation_deg': float(s.min_rotation_deg),
+              'max_sigma': float(s.max_sigma)}
+    names = candidates() if s.candidates is None else tuple(s.candidates)
+    search = _Search(rec, params, s.alpha, s.blocks, s.lags, s.max_steps, names,
+                     progress or (lambda t: None))
+    search.model = model
     try:
         search.base_fit()
         search.forward()
@@ -441,6 +497,7 @@ class _Search:
             name = EFFECTS[s.effect].value_parameter.name
             model_out[name] = s.parameters[name]
         model_out['boresight'] = beta.tolist()
+        found = found_model(self.model, steps, beta, sig_beta, verdict)
         return DiscrepancyResult(
             verdict=verdict, rms_before=float(np.sqrt(np.mean(self.base0.whitened ** 2))),
             rms_after=float(np.sqrt(np.mean(final.whitened ** 2))),
@@ -457,7 +514,65 @@ class _Search:
             chi2_per_dof=float(tests_after['nis']['per_dof']),
             chi2_per_dof_band=_chi2_band(tests_after), sigma_method=sigma_method,
             hac_lags=lags if sigma_method != 'model' else None,
-            boresight_sigma_model_rad=sig_beta_model.tolist(), repeatability_bound=bound)
+            boresight_sigma_model_rad=sig_beta_model.tolist(), repeatability_bound=bound,
+            found_model=found)
+
+
+def found_model(model: SensorModel, steps, beta, sigma_beta, verdict: str) -> SensorModel:
+    """
+    Return the nominal model with the found effects and the boresight, ready to write.
+
+    Each found effect gets its value and, as its σ key, the largest σ of its components (the
+    σ reported, honest when the residuals are not white); the effects the attitude filter can
+    estimate online are added to ``augment``, so that it starts from the found value with the
+    found σ as its prior.  Each changed key records the rule that produced it.
+
+    Parameters
+    ----------
+    model : SensorModel
+        The nominal model the analysis started from.
+    steps : list of Step
+        The effects added.
+    beta : (3,) array_like
+        The boresight β, rad.
+    sigma_beta : (3,) array_like
+        Its σ, rad.
+    verdict : str
+        The verdict (recorded in the provenance).
+
+    Returns
+    -------
+    SensorModel
+        The found model.
+
+    """
+    updates, rules = {}, {}
+    online = list(model.augment)
+    for st in steps:
+        e = EFFECTS[st.effect]
+        name = e.value_parameter.name
+        updates[name] = st.parameters[name]
+        rule = (f'found by discrepancy: {st.effect}, LR {st.statistic:.4g} on {st.dof} dof, '
+                f'p {st.p_value:.3g}' + ('' if st.repeatable is not False
+                                         else '; not repeatable across time blocks'))
+        rules[name] = rule
+        if e.sigma_parameter:
+            updates[e.sigma_parameter] = float(np.max(np.atleast_1d(st.sigma[name])))
+            rules[e.sigma_parameter] = 'the σ of the found value (its largest component)'
+        if e.filter_state and st.effect != 'gyro_bias' and st.effect not in online:
+            online.append(st.effect)
+    updates['boresight'] = [float(b) for b in beta]
+    rules['boresight'] = f'estimated by discrepancy (verdict {verdict})'
+    updates['boresight_sigma'] = float(np.max(sigma_beta))
+    rules['boresight_sigma'] = 'the largest σ of the estimated boresight angles'
+    if online != list(model.augment):
+        updates['augment'] = ','.join(online)
+        rules['augment'] = 'every found effect the filter can estimate online'
+    out = model.with_values(updates)
+    prov = dict(out.provenance)
+    prov.update(rules)
+    return SensorModel.from_values(out.values(), stated=out.stated, provenance=prov,
+                                   source='discrepancy')
 
 
 def _significant(scores: list, level: float) -> list:

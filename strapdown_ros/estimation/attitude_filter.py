@@ -77,6 +77,15 @@ class AttitudeFilter:
         Fixes waiting for increments to reach their epoch; more are dropped and counted.
     checkpoint_interval : float
         Minimum time between the checkpoints taken at the end of :meth:`propagate`, s.
+    epoch : float, optional
+        The effect epoch of the time-dependent effects (``gyro_bias_drift``, ...): where their
+        time is 0, s (default: ``initial_time``).
+    time_offset : float
+        The known camera time offset when it is not a filter state, s: a fix stamped t is
+        applied at t − time_offset.
+    model : SensorModel, optional
+        The model the augmented effects are set up from (their other parameters, e.g. the
+        period of ``gyro_bias_periodic``); None: the registry's defaults.
     max_queued : int
         Increments :meth:`propagate` may hold before processing them as one block (0: every call
         processed at once).  They are processed when a waiting fix is due, a checkpoint is due,
@@ -93,7 +102,8 @@ class AttitudeFilter:
                  augment_sigma: dict | None = None, initial_values: dict | None = None,
                  boresight=(1.0, 0.0, 0.0, 0.0), process_noise: dict | None = None,
                  gate_probability: float = 0.9999, history: int = 20_000, max_pending: int = 256,
-                 checkpoint_interval: float = 1.0, max_queued: int = 1024):
+                 checkpoint_interval: float = 1.0, max_queued: int = 1024,
+                 epoch: float | None = None, time_offset: float = 0.0, model=None):
         for name, v in (('gyro_random_walk', gyro_random_walk), ('initial_sigma', initial_sigma),
                         ('bias_sigma', bias_sigma),
                         ('gyro_bias_random_walk', gyro_bias_random_walk)):
@@ -111,10 +121,14 @@ class AttitudeFilter:
         self.noise = dict(process_noise or {})
         self.noise['gyro_bias_random_walk'] = float(gyro_bias_random_walk)
         self.noise['gyro_bias_correlation_time'] = float(gyro_bias_correlation_time)
-        self.epoch = float(initial_time)               # effect epoch of the time-dependent effects
+        # effect epoch of the time-dependent effects (default: the start)
+        self.epoch = float(initial_time if epoch is None else epoch)
+        if not np.isfinite(time_offset):
+            raise ValueError('time_offset must be finite')
+        self._fixed_offset = float(time_offset)        # the known offset when it is no state
         self.gate = chi2_3_quantile(gate_probability)
         self.gate_probability = float(gate_probability)
-        self.layout = StateLayout.build(tuple(augment))
+        self.layout = StateLayout.build(tuple(augment), model)
         self._x = np.zeros(self.layout.size)            # the estimates (filter states), not errors
         q_bv = np.asarray(boresight, dtype=float)
         if q_bv.shape != (4,) or not np.all(np.isfinite(q_bv)) or np.linalg.norm(q_bv) < 0.5:
@@ -192,7 +206,7 @@ class AttitudeFilter:
         """Estimated camera time offset τ̂ (camera clock minus IMU clock), s."""
         self._drain()
         sl = self.layout.time_offset
-        return 0.0 if sl is None else float(self._x[sl][0])
+        return self._fixed_offset if sl is None else float(self._x[sl][0])
 
     def estimate(self, name: str) -> np.ndarray:
         """

@@ -11,6 +11,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from strapdown_ros.sensors.effects import EFFECTS
+from strapdown_ros.sensors.sensor_model import augment_choices
 
 __all__ = ['AUGMENT_CHOICES', 'FILTER_STATES', 'augment_names', 'augment_error',
            'triangular_factor', 'psd_factor', 'FixResult', 'FilterCounters', 'StateLayout',
@@ -158,13 +159,12 @@ class FilterCounters:
     implausible: int = 0
 
 
-#: names the ``augment`` argument accepts besides the registry's systematic gyro effects
+#: names the ``augment`` argument accepts besides the registry's gyro effects
 FILTER_STATES = ('time_offset', 'boresight')
-#: names the filter's ``augment`` parameter accepts: the registry's systematic gyro effects
-#: (the bias is always a state), the camera time offset and the boresight
-AUGMENT_CHOICES = tuple(n for n, e in EFFECTS.items()
-                        if e.sensor == 'gyro' and e.kind == 'systematic'
-                        and n != 'gyro_bias') + FILTER_STATES
+#: names the filter's ``augment`` parameter accepts: the registry's filter states (the bias is
+#: always a state), then the boresight (read from the registry when imported; the registry's
+#: own :func:`~strapdown_ros.sensors.sensor_model.augment_choices` is read at each use)
+AUGMENT_CHOICES = augment_choices()
 
 
 def augment_names(text: str) -> tuple:
@@ -201,9 +201,10 @@ def augment_error(text: str) -> str | None:
 
     """
     names = augment_names(text)
-    bad = [n for n in names if n not in AUGMENT_CHOICES]
+    choices = augment_choices()
+    bad = [n for n in names if n not in choices]
     if bad:
-        return (f"augment: unknown state {bad[0][:80]!r}; valid: {', '.join(AUGMENT_CHOICES)}")
+        return (f"augment: unknown state {bad[0][:80]!r}; valid: {', '.join(choices)}")
     if len(set(names)) != len(names):
         return 'augment: a name is given twice'
     return None
@@ -235,7 +236,7 @@ class StateLayout:
     size: int = 6
 
     @classmethod
-    def build(cls, augment) -> StateLayout:
+    def build(cls, augment, params=None) -> StateLayout:
         """
         Lay out the attitude error, the bias and the augmented states.
 
@@ -244,6 +245,8 @@ class StateLayout:
         augment : tuple of str
             Further states: systematic gyro effects of the registry, ``time_offset``,
             ``boresight`` (:data:`AUGMENT_CHOICES`).
+        params : mapping or SensorModel, optional
+            The model the effects are set up from (their other parameters, e.g. a period).
 
         Returns
         -------
@@ -257,16 +260,16 @@ class StateLayout:
 
         """
         lay = cls(gyro=[(EFFECTS['gyro_bias'], slice(3, 6))], size=6)
-        gyro = [n for n, e in EFFECTS.items() if e.sensor == 'gyro' and e.kind == 'systematic']
+        gyro = [n for n, e in EFFECTS.items() if e.sensor == 'gyro' and e.filter_state]
         if len(set(augment)) != len(augment) or 'gyro_bias' in augment:
             raise ValueError('augment: a name given twice (the bias is always a state)')
-        valid = [n for n in gyro + list(FILTER_STATES) if n != 'gyro_bias']
+        valid = augment_choices()
         for name in augment:
             if name not in valid:
                 raise ValueError(f'augment: unknown or unsupported state {name!r}; valid: '
                                  f"{', '.join(valid)}")
         for name in (n for n in augment if n in gyro):
-            e = EFFECTS[name]
+            e = EFFECTS[name] if params is None else EFFECTS[name].configured(params)
             lay.gyro.append((e, slice(lay.size, lay.size + e.filter_size())))
             lay.size += e.filter_size()
         if 'time_offset' in augment:

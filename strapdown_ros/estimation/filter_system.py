@@ -21,20 +21,21 @@ The attitude filter between validated streams and outputs, shared by the node an
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 import math
 
 import numpy as np
 
 from strapdown_ros.estimation.attitude_filter import AttitudeFilter
-from strapdown_ros.estimation.filter_support import augment_error, augment_names
+from strapdown_ros.estimation.filter_support import augment_error
 from strapdown_ros.estimation.model_check import ModelCheck
 from strapdown_ros.rotation import (dcm_to_quat, quat_conjugate, quat_cumprod, quat_multiply,
                                     quat_normalize, quat_to_dcm, rotvec_to_quat, ypr_to_dcm)
-from strapdown_ros.sensors.effects import EFFECTS
+from strapdown_ros.sensors.effects import EFFECTS, GyroEffects
+from strapdown_ros.sensors.sensor_model import SensorModel
 from strapdown_ros.streams.checks import StreamCheck
 
-__all__ = ['FilterSystem', 'FilterOutput', 'FixOutput']
+__all__ = ['FilterSystem', 'FilterSettings', 'FilterOutput', 'FixOutput']
 
 #: exposures are seconds apart: a camera stamp jump is an hour (calibrator_node's rule)
 CAMERA_JUMP_S = 3600.0
@@ -110,44 +111,132 @@ class FixOutput:
     check_ok: bool = True
 
 
+@dataclass(frozen=True)
+class FilterSettings:
+    """
+    What ``attitude_filter_node`` and ``filter_bag`` take besides the sensor model.
+
+    The field names are the nodes' parameter names (:data:`strapdown_ros.params.FILTER_PARAMS`).
+
+    Attributes
+    ----------
+    coning_algorithm : str
+        Coning algorithm of the filter's integrator.
+    initial_attitude_sigma : float
+        Prior 1σ of the attitude error per axis at the first fix, rad.
+    boresight_source : str
+        ``parameter`` (the model's boresight) or ``topic`` (fixes wait for a latched one).
+    use_camera_covariance : bool
+        Read each fix's covariance (false: the model's camera σ).
+    gate_probability : float
+        χ²(3) probability of the gate.
+    history : int
+        Increments kept for late fixes.
+    output_period : float
+        Stamp time between outputs, s.
+    model_check_window : int
+        Fixes in the live model check's window.
+    model_check_alpha : float
+        False-alarm probability of each model-check test.
+    max_stamp_jump : float
+        A stamp step beyond this is a jump, s.
+    resync_count : int
+        Consecutive messages that confirm a new timeline.
+
+    """
+
+    coning_algorithm: str = '2'
+    initial_attitude_sigma: float = 1e-3
+    boresight_source: str = 'parameter'
+    use_camera_covariance: bool = True
+    gate_probability: float = 0.9999
+    history: int = 20000
+    output_period: float = 0.1
+    model_check_window: int = 30
+    model_check_alpha: float = 0.001
+    max_stamp_jump: float = 1.0
+    resync_count: int = 5
+
+    @classmethod
+    def from_values(cls, values: dict) -> FilterSettings:
+        """
+        Build the settings from parameter values (other names are not read).
+
+        Parameters
+        ----------
+        values : dict
+            Validated parameters by name (defaults where absent).
+
+        Returns
+        -------
+        FilterSettings
+            The settings.
+
+        """
+        return cls(**{f.name: values[f.name] for f in fields(cls) if f.name in values})
+
+
 class FilterSystem:
     """
     Streams → :class:`strapdown_ros.estimation.attitude_filter.AttitudeFilter` → outputs.
 
+    The sensor model is applied whole: its gyro effects are compensated (those the filter
+    estimates online start at the model's value with the model's σ as their prior), the bias
+    starts at ``gyro_bias`` with prior ``gyro_bias_sigma`` and its process noise
+    ``gyro_bias_random_walk`` / ``gyro_bias_correlation_time``, a fix is applied at its stamp
+    minus ``camera_time_offset``, its covariance is scaled per VF axis by
+    ``camera_noise_scale``, and the boresight is the model's (or the latched topic's).
+
     Parameters
     ----------
-    p : dict
-        Validated parameters of ``attitude_filter_node``
-        (:data:`strapdown_ros.params.FILTER_PARAMS`).
+    model : SensorModel
+        The unit's sensor model.
+    settings : FilterSettings, optional
+        The filter's own settings (default: the defaults).
 
     Raises
     ------
     ValueError
-        The ``augment`` parameter names an unknown state.
+        The model's camera σ is zero (a fix without covariance would take it), or an active
+        effect needs the accelerometer.
 
     """
 
-    def __init__(self, p: dict):
-        self.p = p
-        err = augment_error(p['augment'])
+    def __init__(self, model: SensorModel, settings: FilterSettings | None = None):
+        if isinstance(model, dict):
+            raise TypeError('FilterSystem takes a SensorModel and FilterSettings '
+                            '(strapdown_ros.params.load_model_file), not a parameter dict')
+        s = self.settings = settings or FilterSettings()
+        self.model = model
+        self.augment = model.augment
+        err = augment_error(','.join(self.augment))
         if err:
             raise ValueError(err)
-        self.augment = augment_names(p['augment'])
-        self.period = 1.0 / float(p['gyro_rate'])
+        if min(model.camera_sigma_xy, model.camera_sigma_z) <= 0.0:
+            raise ValueError('camera_sigma_xy and camera_sigma_z must be > 0 for the filter: a '
+                             'fix without a covariance takes them')
+        self.period = model.gyro_period
         self.gyro_check = StreamCheck(self.period,
-                                      max_norm=2.0 * self.period * float(p['gyro_max_rate']),
-                                      jump_limit=float(p['max_stamp_jump']),
-                                      resync_count=int(p['resync_count']))
+                                      max_norm=2.0 * self.period * model.gyro_max_rate,
+                                      jump_limit=float(s.max_stamp_jump),
+                                      resync_count=int(s.resync_count))
         self.camera_check = StreamCheck(math.inf,
-                                        jump_limit=max(float(p['max_stamp_jump']), CAMERA_JUMP_S),
-                                        resync_count=int(p['resync_count']))
-        sxy, sz = float(p['camera_sigma_xy']), float(p['camera_sigma_z'])
-        self.default_covariance = np.diag([sxy ** 2, sxy ** 2, sz ** 2])
-        self.use_covariance = bool(p['use_camera_covariance'])
+                                        jump_limit=max(float(s.max_stamp_jump), CAMERA_JUMP_S),
+                                        resync_count=int(s.resync_count))
+        self.default_covariance = np.diag(model.camera_sigma ** 2)
+        self.use_covariance = bool(s.use_camera_covariance)
+        self.camera_effects = model.camera_effects()
+        # the model's gyro effects the filter does not estimate (the bias is always a state)
+        fixed = {n: model.effect_value(n) for n in model.active('gyro')
+                 if n not in self.augment and n != 'gyro_bias'
+                 and EFFECTS[n].kind in ('systematic', 'coupled')}
+        self.compensation = GyroEffects(values=fixed) if fixed else None
+        #: the effect epoch: the end stamp of the first increment taken, s
+        self.effect_epoch: float | None = None
         self.boresight = None
-        if p['boresight_source'] == 'parameter':
-            self.boresight = dcm_to_quat(ypr_to_dcm(*np.asarray(p['boresight'], dtype=float)))
-        self.output_ns = int(round(float(p['output_period']) * 1e9))
+        if s.boresight_source == 'parameter':
+            self.boresight = dcm_to_quat(ypr_to_dcm(*np.asarray(model.boresight, dtype=float)))
+        self.output_ns = int(round(float(s.output_period) * 1e9))
         self.filter: AttitudeFilter | None = None
         self.check: ModelCheck | None = None
         self.counts = {'fixes_received': 0, 'dropped_zero_quaternion': 0, 'normalised': 0,
@@ -291,6 +380,9 @@ class FilterSystem:
         if self.boresight is None:
             self.counts['dropped_no_boresight'] += 1
             return None
+        if self.camera_effects.noise_scale is not None \
+                and np.any(self.camera_effects.noise_scale != 1.0):
+            covariance = self.camera_effects.covariance(covariance)
         self.process()
         t = stamp_ns * 1e-9
         if self.filter is None:
@@ -336,6 +428,10 @@ class FilterSystem:
         t_ns = np.asarray(self._buf_t, dtype=np.int64)
         d = np.asarray(self._buf_d, dtype=float).reshape(-1, 3)
         self._buf_t, self._buf_d = [], []
+        if self.effect_epoch is None:          # the end stamp of the first increment taken
+            self.effect_epoch = float(t_ns[0]) * 1e-9
+            if self.compensation is not None:
+                self.compensation.epoch = self.effect_epoch
         if self.filter is None:
             self.counts['increments_before_start'] += len(t_ns)
             self._last_ns = int(t_ns[-1])
@@ -356,6 +452,8 @@ class FilterSystem:
         f = self.filter
         t = t_ns * 1e-9
         h = np.diff(np.concatenate([[self._last_ns * 1e-9], t]))
+        if self.compensation is not None:
+            d = self.compensation.compensate(d, t, h)
         self._signature(d, h, t)
         if self._pending:                      # a fix may be applied in this call
             self._flush_signature()
@@ -446,36 +544,51 @@ class FilterSystem:
         self._rate_time = 0.0
 
     def _start(self, stamp_ns: int, q_fix) -> None:
-        p = self.p
+        m, s = self.model, self.settings
         start_ns = self._last_ns if self._last_ns is not None and self._last_ns <= stamp_ns \
             else stamp_ns
         q0 = quat_normalize(quat_multiply(np.asarray(q_fix, dtype=float),
                                           quat_conjugate(self.boresight)))
-        sig = {'gyro_scale_factor': float(p['scale_sigma']),
-               'gyro_misalignment': float(p['misalignment_sigma']),
-               'time_offset': float(p['time_offset_sigma']),
-               'boresight': float(p['boresight_sigma'])}
-        for name in self.augment:
-            sig.setdefault(name, float(p['scale_sigma']))
+        # each online state starts at the model's value with the model's σ as its prior
+        sig = {n: (m.boresight_sigma if n == 'boresight' else m.effect_sigma(n))
+               for n in self.augment}
+        for n, v in sig.items():
+            if not v > 0.0:
+                key = 'boresight_sigma' if n == 'boresight' else EFFECTS[n].sigma_parameter
+                raise ValueError(f'the filter estimates {n} online (augment) but its prior '
+                                 f'{key} is 0: give the σ of its value')
+        init = {'gyro_bias': m.effect_value('gyro_bias')}
+        init.update({n: self._filter_values(n) for n in self.augment if n != 'boresight'})
+        bias = m.effects['gyro_bias']
+        epoch = self.effect_epoch if self.effect_epoch is not None else start_ns * 1e-9
         self.filter = AttitudeFilter(
-            q0, start_ns * 1e-9, algorithm=str(p['coning_algorithm']),
-            gyro_random_walk=float(p['gyro_random_walk']),
-            gyro_bias_random_walk=float(p['gyro_bias_random_walk']),
-            gyro_bias_correlation_time=float(p['gyro_bias_correlation_time']),
-            initial_sigma=float(p['initial_attitude_sigma']),
-            bias_sigma=float(p['gyro_bias_sigma']), augment=self.augment,
-            augment_sigma={n: sig[n] for n in self.augment}, boresight=self.boresight,
-            gate_probability=float(p['gate_probability']), history=int(p['history']))
+            q0, start_ns * 1e-9, algorithm=str(s.coning_algorithm),
+            gyro_random_walk=m.gyro.random_walk,
+            gyro_bias_random_walk=float(bias.option('gyro_bias_random_walk', 0.0)),
+            gyro_bias_correlation_time=float(bias.option('gyro_bias_correlation_time', 0.0)),
+            initial_sigma=float(s.initial_attitude_sigma),
+            bias_sigma=m.effect_sigma('gyro_bias'), augment=self.augment,
+            augment_sigma=sig, initial_values=init, boresight=self.boresight,
+            gate_probability=float(s.gate_probability), history=int(s.history),
+            epoch=epoch, model=m,
+            time_offset=0.0 if 'time_offset' in self.augment else self.camera_effects.time_offset)
         cands = [e for n, e in EFFECTS.items() if e.sensor == 'gyro' and e.kind == 'systematic'
                  and n != 'gyro_bias' and n not in self.augment
                  and hasattr(e, 'filter_partials')]
-        self.check = ModelCheck(int(p['model_check_window']), float(p['model_check_alpha']),
+        self.check = ModelCheck(int(s.model_check_window), float(s.model_check_alpha),
                                 cands, time_offset='time_offset' not in self.augment)
         self._last_ns = start_ns
         self._next_out = start_ns + self.output_ns
         self._pending = []
         self._sig, self._rot = None, np.array([1.0, 0.0, 0.0, 0.0])
         self._sig_buf, self._sig_len = [], 0
+
+    def _filter_values(self, name: str) -> np.ndarray:
+        """Return the filter states of an effect at the model's value (its combinations)."""
+        e = EFFECTS[name]
+        v = self.model.effect_value(name)
+        S = e.fit_basis()
+        return v if S is None else np.linalg.lstsq(S, v, rcond=None)[0]
 
     def _restart(self) -> None:
         if self.filter is not None:

@@ -11,6 +11,8 @@ attitude to start the integrator from.  No ROS imports.
 """
 from __future__ import annotations
 
+from dataclasses import dataclass, fields
+
 import numpy as np
 
 from strapdown_ros.earth import enu_rotation, geodetic_to_ecef
@@ -19,7 +21,7 @@ from strapdown_ros.navigation.covariance import NavigationCovariance
 from strapdown_ros.navigation.navigator import NavigationBatch, Navigator
 from strapdown_ros.sensors.model import SensorSigmas
 
-__all__ = ['NavigationChannel', 'ALIGNMENT_MODES', 'VELOCITY_UPDATES']
+__all__ = ['NavigationChannel', 'NavigationSettings', 'ALIGNMENT_MODES', 'VELOCITY_UPDATES']
 
 ALIGNMENT_MODES = ('given', 'static')
 VELOCITY_UPDATES = ('derived', 'printed')
@@ -30,18 +32,76 @@ def _spread(xs) -> float:
     return float(np.sqrt(np.mean(np.sum((np.array(xs) - np.mean(xs, 0)) ** 2, 1))))
 
 
+@dataclass(frozen=True)
+class NavigationSettings:
+    """
+    The settings of the navigation channel (the names of ``sins_node``'s parameters).
+
+    Attributes
+    ----------
+    initial_position : tuple of float
+        Latitude °, longitude °, height m (PZ-90).
+    initial_velocity : tuple of float
+        East, north, up m/s at that point.
+    initial_position_sigma, initial_velocity_sigma : float
+        1σ per axis, m and m/s.
+    initial_alignment : str
+        ``given`` or ``static``.
+    alignment_time : float
+        Static alignment window, s.
+    velocity_update : str
+        ``derived`` or ``printed``.
+    sculling_compensation : bool
+        Rotation and sculling from the fitted motion (false: rotation only).
+    gravity_model : str
+        Normal gravity model.
+    navigation_covariance_period : float
+        Propagation period of the covariance, s.
+
+    """
+
+    initial_position: tuple = (50.45, 30.52, 150.0)
+    initial_velocity: tuple = (0.0, 0.0, 0.0)
+    initial_position_sigma: float = 0.0
+    initial_velocity_sigma: float = 0.0
+    initial_alignment: str = 'given'
+    alignment_time: float = 60.0
+    velocity_update: str = 'derived'
+    sculling_compensation: bool = True
+    gravity_model: str = 'pz90_003'
+    navigation_covariance_period: float = 1.0
+
+    @classmethod
+    def from_values(cls, values) -> NavigationSettings:
+        """
+        Build the settings from parameter values (other names are not read).
+
+        Parameters
+        ----------
+        values : mapping
+            Parameter name → value (defaults where absent).
+
+        Returns
+        -------
+        NavigationSettings
+            The settings.
+
+        """
+        out = {f.name: values[f.name] for f in fields(cls) if f.name in values}
+        for k in ('initial_position', 'initial_velocity'):
+            if k in out:
+                out[k] = tuple(float(x) for x in out[k])
+        return cls(**out)
+
+
 class NavigationChannel:
     """
     Alignment and navigation over validated sensor data, with the state a node reports.
 
     Parameters
     ----------
-    p : dict
-        The node's parameters: ``initial_position`` (lat °, lon °, h m, PZ-90),
-        ``initial_velocity`` (east, north, up m/s at that point), ``initial_position_sigma``
-        (m), ``initial_velocity_sigma`` (m/s), ``initial_alignment`` (given | static),
-        ``alignment_time`` (s), ``velocity_update`` (derived | printed),
-        ``sculling_compensation``, ``gravity_model``, ``navigation_covariance_period`` (s).
+    p : NavigationSettings
+        Where it starts, how it aligns and which update it runs.
     gyro, accel : SensorSigmas
         Statistics of the sensor errors.
     gyro_period, accel_period : float
@@ -56,20 +116,21 @@ class NavigationChannel:
 
     """
 
-    def __init__(self, p: dict, gyro: SensorSigmas, accel: SensorSigmas, gyro_period: float,
+    def __init__(self, p: NavigationSettings, gyro: SensorSigmas, accel: SensorSigmas,
+                 gyro_period: float,
                  accel_period: float, samples_per_update: int):
-        lat, lon, h = (float(x) for x in p['initial_position'])
+        lat, lon, h = (float(x) for x in p.initial_position)
         self.position0 = geodetic_to_ecef(np.radians(lat), np.radians(lon), h)
         self.enu = enu_rotation(np.radians(lat), np.radians(lon))
-        self.velocity0 = self.enu @ np.asarray(p['initial_velocity'], dtype=float)
+        self.velocity0 = self.enu @ np.asarray(p.initial_velocity, dtype=float)
         self.p, self.gyro_sig, self.accel_sig = p, gyro, accel
         self.gyro_period, self.accel_period = float(gyro_period), float(accel_period)
         self.samples = int(samples_per_update)
-        self.mode = p['initial_alignment']
+        self.mode = p.initial_alignment
         if self.mode not in ALIGNMENT_MODES:
             raise ValueError(f'initial_alignment must be one of {ALIGNMENT_MODES}, '
                              f'got {self.mode!r}')
-        if p['velocity_update'] not in VELOCITY_UPDATES:
+        if p.velocity_update not in VELOCITY_UPDATES:
             raise ValueError(f'velocity_update must be one of {VELOCITY_UPDATES}')
         self.navigator: Navigator | None = None
         self.alignment: AlignmentResult | None = None
@@ -145,7 +206,7 @@ class NavigationChannel:
         if al['t0'] is None or al['t1'] is None:
             return False, None, None
         span = al['t1'] - al['t0']
-        if span < float(self.p['alignment_time']):
+        if span < float(self.p.alignment_time):
             return False, None, None
         if al['aa']:
             inc = np.concatenate([a[0] for a in al['aa']])
@@ -160,7 +221,7 @@ class NavigationChannel:
                                self.accel_sig,
                                f_spread=_spread(al['aa']) if len(al['aa']) > 1 else None,
                                w_spread=None, sample_period=0.1,
-                               gravity_model=self.p['gravity_model'])
+                               gravity_model=self.p.gravity_model)
         self.alignment = res
         t_end = al['t1']
         self._reset_alignment()
@@ -190,22 +251,22 @@ class NavigationChannel:
         """
         p = self.p
         p0 = np.zeros((9, 9))
-        p0[0:3, 0:3] = float(p['initial_position_sigma']) ** 2 * np.eye(3)
-        p0[3:6, 3:6] = float(p['initial_velocity_sigma']) ** 2 * np.eye(3)
+        p0[0:3, 0:3] = float(p.initial_position_sigma) ** 2 * np.eye(3)
+        p0[3:6, 3:6] = float(p.initial_velocity_sigma) ** 2 * np.eye(3)
         p0[6:9, 6:9] = (attitude_cov if attitude_cov is not None
                         else attitude_sigma ** 2 * np.eye(3))
-        derived = p['velocity_update'] == 'derived'
+        derived = p.velocity_update == 'derived'
         if derived:
-            form = 'exact' if p['sculling_compensation'] else 'rotation_only'
+            form = 'exact' if p.sculling_compensation else 'rotation_only'
         else:
             form = 'printed'
         accel_per_step = max(1, int(round(self.samples * self.gyro_period / self.accel_period)))
         covariance = NavigationCovariance(self.gyro_sig, self.accel_sig, p0,
-                                          float(p['navigation_covariance_period']))
+                                          float(p.navigation_covariance_period))
         self.navigator = Navigator(
             self.position0, self.velocity0, t0, self.samples, accel_per_step,
             self.gyro_period, self.accel_period, form=form,
-            scheme='exact' if derived else 'printed', gravity_model=p['gravity_model'],
+            scheme='exact' if derived else 'printed', gravity_model=p.gravity_model,
             covariance=covariance)
         for inc, t in self._early_accel:            # the steps' fits may reach back before t0
             keep = t > t0 - 1.0

@@ -62,9 +62,9 @@ from rclpy.node import Node
 from sensor_msgs.msg import Imu
 
 from strapdown_ros.estimation.chi_square import chi2_3_quantile
-from strapdown_ros.estimation.filter_system import FilterSystem
+from strapdown_ros.estimation.filter_system import FilterSettings, FilterSystem
 from strapdown_ros.nodes import ros_io, ros_params, ros_process, ros_status
-from strapdown_ros.params import FILTER_PARAMS
+from strapdown_ros.params import FILTER_PARAMS, model_from_parameters
 from strapdown_ros.streams.rate_increments import RateIncrementStream
 
 NODE_NAME = 'attitude_filter_node'
@@ -86,17 +86,22 @@ class AttitudeFilterNode(Node):
         self.log = ros_status.NodeLog(self.get_logger())
         self.p = ros_params.declare_validated(self, FILTER_PARAMS, on_change=self._on_change)
         p = self.p
-        self.system = FilterSystem(dict(p))
-        self.frame_id = p['frame_id']
-        self.ref_frame = p['reference_frame_id']
-        self.camera_frame = p['camera_frame_id']
+        # the edge: ROS parameters → the sensor model and the filter's typed settings
+        model, warnings = model_from_parameters(p, f'{NODE_NAME} parameters')
+        for w in warnings:
+            self.log.warn(w)
+        self.model = model
+        self.system = FilterSystem(model, FilterSettings.from_values(p))
+        self.frame_id = model.frame_id
+        self.ref_frame = model.reference_frame_id
+        self.camera_frame = model.camera_frame_id
         self.reject_frames = p['frame_mismatch'] == 'reject'
         self.use_cov = bool(p['use_camera_covariance'])
         self.imu_input = p['gyro_input'] == 'imu'
         self.gate = chi2_3_quantile(float(p['gate_probability']))
-        self.rate_variance = float(p['gyro_random_walk']) ** 2 / float(p['output_period'])
+        self.rate_variance = model.gyro.random_walk ** 2 / float(p['output_period'])
         # increments per output period: the core runs at least that often
-        self.batch = max(1, int(round(float(p['output_period']) * float(p['gyro_rate']))))
+        self.batch = max(1, int(round(float(p['output_period']) * model.gyro_rate)))
         self.undecodable = 0
         self.frame_mismatch = {'gyro': 0, 'camera': 0}
         self.boresight_counts = {'received': 0, 'dropped': 0}
@@ -123,8 +128,8 @@ class AttitudeFilterNode(Node):
         self.pub_diag = self.create_publisher(DiagnosticArray, '/diagnostics',
                                               ros_io.DIAGNOSTICS_QOS)
         if self.imu_input:
-            period = 1.0 / float(p['gyro_rate'])
-            self.gyro_rates = RateIncrementStream(period, float(p['gyro_max_rate']),
+            period = model.gyro_period
+            self.gyro_rates = RateIncrementStream(period, model.gyro_max_rate,
                                                   p['imu_rate_rule'], float(p['max_stamp_jump']),
                                                   int(p['resync_count']))
             self.last_imu = None
@@ -149,7 +154,9 @@ class AttitudeFilterNode(Node):
         camera_topic = 'star_camera/attitude_with_covariance' if self.use_cov \
             else 'star_camera/attitude'
         self.log.info(f'started: gyro input {gyro_topic}, camera {camera_topic}, boresight from '
-                      f"{p['boresight_source']}, augment: {p['augment'] or 'none'}")
+                      f"{p['boresight_source']}, estimated online: gyro_bias"
+                      f"{''.join(', ' + n for n in model.augment)}; compensated: "
+                      f"{', '.join(model.active('gyro') + model.active('camera')) or 'none'}")
 
     # --- parameters ---------------------------------------------------------------------
     def _on_change(self, new: dict) -> str | None:
@@ -345,6 +352,13 @@ class AttitudeFilterNode(Node):
             c.add(ros_status.WARN, f'dropped {g.dropped} gyro messages (NaN {g.nan}, out of range '
                   f'{g.out_of_range}, out of order {g.out_of_order}, duplicate {g.duplicate}, '
                   f'stamp outliers {g.stamp_outliers})')
+        m = self.model
+        clips = [g.clip_warning('gyro_max_rate', m.gyro_max_rate, 'rad/s', m.gyro_period)]
+        if self.imu_input:
+            clips.append(self.gyro_rates.check.clip_warning('gyro_max_rate', m.gyro_max_rate,
+                                                            'rad/s'))
+        for text in filter(None, clips):
+            c.add(ros_status.WARN, text)
         if self.imu_input and self.gyro_rates.check.dropped:
             c.add(ros_status.WARN, f'dropped {self.gyro_rates.check.dropped} angular-rate samples '
                   'of imu/data_raw')

@@ -80,12 +80,12 @@ from sensor_msgs.msg import Imu
 
 from strapdown_ros.calibration.boresight import imu_attitude_from_camera
 from strapdown_ros.calibration.state import CalibratorStateFile, state_identity, StateFileError
-from strapdown_ros.calibration.streaming import BoresightCalibrator
+from strapdown_ros.calibration.streaming import BoresightCalibrator, CalibratorSettings
 from strapdown_ros.nodes import ros_io, ros_params, ros_process, ros_status
 from strapdown_ros.nodes.calibrator_status import boresight_status
 from strapdown_ros.nodes.ros_io import (camera_qos, latched_qos, pose_with_covariance,
                                         rotation_block)
-from strapdown_ros.params import CALIBRATOR_PARAMS
+from strapdown_ros.params import CALIBRATOR_PARAMS, model_from_parameters
 from strapdown_ros.streams.checks import StreamCheck
 from strapdown_ros.streams.rate_increments import RateIncrementStream
 
@@ -112,14 +112,18 @@ class CalibratorNode(Node):
         self.p = ros_params.declare_validated(self, CALIBRATOR_PARAMS, on_change=self._on_change,
                                               apply=self._apply_change)
         p = self.p
-        self.gyro_period = 1.0 / float(p['gyro_rate'])
+        # the edge: ROS parameters → the sensor model and the calibrator's typed settings
+        model, warnings = model_from_parameters(p, f'{NODE_NAME} parameters')
+        for w in warnings:
+            self.log.warn(w)
+        self.model = model
+        self.gyro_period = model.gyro_period
         # as calibrate_bag builds it (effects compensated)
-        self.cal = BoresightCalibrator.from_params(p)
-        sxy, sz = float(p['camera_sigma_xy']), float(p['camera_sigma_z'])
-        self.default_p_avu = np.diag([sxy ** 2, sxy ** 2, sz ** 2])
+        self.cal = BoresightCalibrator.from_model(model, CalibratorSettings.from_values(p))
+        self.default_p_avu = np.diag(model.camera_sigma ** 2)
         jump, resync = float(p['max_stamp_jump']), int(p['resync_count'])
         self.gyro_check = StreamCheck(self.gyro_period,
-                                      max_norm=2.0 * self.gyro_period * float(p['gyro_max_rate']),
+                                      max_norm=2.0 * self.gyro_period * model.gyro_max_rate,
                                       jump_limit=jump, resync_count=resync)
         # exposures need not be periodic (no gap test) and are seconds apart: a jump is an hour
         self.camera_check = StreamCheck(math.inf, jump_limit=max(jump, CAMERA_JUMP_S),
@@ -162,7 +166,7 @@ class CalibratorNode(Node):
         self.imu_input = p['gyro_input'] == 'imu'
         # raw subscriptions: stamp, vector and frame decoded from the bytes in ros_io
         if self.imu_input:                  # rate samples made into Δθ (the rule of sins_node)
-            self.gyro_rates = RateIncrementStream(self.gyro_period, float(p['gyro_max_rate']),
+            self.gyro_rates = RateIncrementStream(self.gyro_period, model.gyro_max_rate,
                                                   p['imu_rate_rule'], jump, resync)
             self.last_imu = None                       # the latest Imu (bytes or message)
             self.create_subscription(Imu, 'imu/data_raw', self.on_imu_raw,

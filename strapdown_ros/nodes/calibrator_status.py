@@ -121,12 +121,20 @@ def boresight_status(node) -> tuple[int, str, dict]:
         message = (f'{message}; {node.cal.outlier_fixes} camera fix(es) dropped as outliers '
                    f"(both pairs off by more than {node.p['outlier_gate']:g} σ in rotation "
                    'angle, the pair skipping it consistent)')
+    m = node.model
+    clips = [g.clip_warning('gyro_max_rate', m.gyro_max_rate, 'rad/s', m.gyro_period)]
+    if node.imu_input:
+        clips.append(node.gyro_rates.check.clip_warning('gyro_max_rate', m.gyro_max_rate,
+                                                        'rad/s'))
+    for text in filter(None, clips):
+        level = max(level, ros_status.WARN)
+        message = f'{message}; {text}'
     g_drop = g.dropped
     if node.imu_input:
         r = node.gyro_rates.check
         values.update({'gyro_input': 'imu', 'imu_rate_rule': node.p['imu_rate_rule'],
                        'imu_stated_rate_variance': ros_io.stated_rate_variance(node.last_imu),
-                       'model_rate_variance': float(node.p['gyro_random_walk']) ** 2
+                       'model_rate_variance': node.model.gyro.random_walk ** 2
                        / node.gyro_period,
                        **node.gyro_rates.status('imu_gyro')})
         if r.dropped and level == ros_status.OK:

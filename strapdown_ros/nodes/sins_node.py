@@ -59,8 +59,8 @@ from rclpy.node import Node
 from sensor_msgs.msg import Imu
 
 from strapdown_ros.nodes import ros_io, ros_params, ros_process, ros_status
-from strapdown_ros.params import SINS_PARAMS
-from strapdown_ros.sins import odometry_arrays, SinsOutput, SinsSystem
+from strapdown_ros.params import model_from_parameters, SINS_PARAMS
+from strapdown_ros.sins import odometry_arrays, SinsOutput, SinsSettings, SinsSystem
 from strapdown_ros.streams.rate_increments import RateIncrementStream
 
 NODE_NAME = 'sins_node'
@@ -86,14 +86,20 @@ class SinsNode(Node):
         self.published = {'attitude': 0, 'imu': 0, 'imu_without_accel': 0}
         self.undecodable = 0                       # serialized input that is not a Vector3Stamped
         self.algorithm_changes = 0
-        self.frame_id = p['frame_id']
-        self.ref_frame = p['reference_frame_id']
+        # the edge: ROS parameters → the sensor model and the SINS's typed settings
+        model, warnings = model_from_parameters(p, f'{NODE_NAME} parameters')
+        for w in warnings:
+            self.log.warn(w)
+        self.frame_id = model.frame_id
+        self.ref_frame = model.reference_frame_id
         self.imu_input = p['gyro_input'] == 'imu'
         # with Imu input, Δv comes from the same messages: at the Imu rate, which is gyro_rate
-        sys_p = dict(p, accel_rate=p['gyro_rate']) if self.imu_input else p
+        if self.imu_input:
+            model = model.with_values({'accel_rate': model.gyro_rate},
+                                      rule='gyro_input imu: Δv at the Imu rate')
         # the numerical core; sins/imu records are made only while it has a subscriber
         # (asked once per block)
-        self.system = SinsSystem(sys_p, log=self.log,
+        self.system = SinsSystem(model, SinsSettings.from_values(p), log=self.log,
                                  imu_wanted=lambda: self.pub_imu.get_subscription_count() > 0)
         self._make_output_messages()
         qos = ros_io.stream_qos(int(p['qos_depth']))
@@ -109,12 +115,12 @@ class SinsNode(Node):
                                               ros_io.DIAGNOSTICS_QOS)
         # raw: the callbacks read stamp, vector and frame from the serialized bytes (ros_io)
         if self.imu_input:
-            period = 1.0 / float(p['gyro_rate'])
+            period = model.gyro_period
             jump, resync = float(p['max_stamp_jump']), int(p['resync_count'])
             rule = p['imu_rate_rule']
-            self.gyro_rates = RateIncrementStream(period, float(p['gyro_max_rate']), rule, jump,
+            self.gyro_rates = RateIncrementStream(period, model.gyro_max_rate, rule, jump,
                                                   resync)
-            self.accel_rates = RateIncrementStream(period, float(p['accel_max']), rule, jump,
+            self.accel_rates = RateIncrementStream(period, model.accel_max, rule, jump,
                                                    resync)
             self.last_imu = None                   # the latest Imu (bytes or message)
             self.create_subscription(Imu, 'imu/data_raw', self.on_imu_raw, qos,
@@ -414,7 +420,7 @@ class SinsNode(Node):
         self._imu_out = m
         self._att_out = QuaternionStamped()
         self._odom_out = Odometry()
-        self._odom_out.header.frame_id = self.p['earth_frame_id']
+        self._odom_out.header.frame_id = self.system.settings.earth_frame_id
         self._odom_out.child_frame_id = self.frame_id
         self._att_out.header.frame_id = self.ref_frame
 
@@ -452,6 +458,17 @@ class SinsNode(Node):
                   f'order {g.out_of_order + a.out_of_order}, duplicate '
                   f'{g.duplicate + a.duplicate}, stamp outliers '
                   f'{g.stamp_outliers + a.stamp_outliers})')
+        m = self.system.model
+        clips = [self.gyro_check.clip_warning('gyro_max_rate', m.gyro_max_rate, 'rad/s',
+                                              m.gyro_period),
+                 self.accel_check.clip_warning('accel_max', m.accel_max, 'm/s²',
+                                               1.0 / m.accel_rate)]
+        if self.imu_input:
+            clips += [self.gyro_rates.check.clip_warning('gyro_max_rate', m.gyro_max_rate,
+                                                         'rad/s'),
+                      self.accel_rates.check.clip_warning('accel_max', m.accel_max, 'm/s²')]
+        for text in filter(None, clips):
+            c.add(ros_status.WARN, text)
         if self.imu_input and (self.gyro_rates.check.dropped or self.accel_rates.check.dropped):
             gr, ar = self.gyro_rates.check, self.accel_rates.check
             c.add(ros_status.WARN,

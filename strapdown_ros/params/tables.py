@@ -17,35 +17,54 @@ from strapdown_ros.attitude.integrator import COVARIANCE_MODELS
 from strapdown_ros.earth import DEFAULT_GRAVITY_MODEL, GRAVITY_MODELS
 from strapdown_ros.motion.from_config import PROFILE_NAMES
 from strapdown_ros.params.spec import ParamSpec
-from strapdown_ros.sensors import NAVIGATION_GRADE_ACCEL, NAVIGATION_GRADE_GYRO, SensorSigmas
-from strapdown_ros.sensors.effects import effect_parameters
+from strapdown_ros.sensors import SensorSigmas
+from strapdown_ros.sensors.effect_base import EffectParameter
+from strapdown_ros.sensors.effects import EFFECTS
+from strapdown_ros.sensors.sensor_model import ACCEL_KEYS, MODEL_ALIASES, model_keys
 from strapdown_ros.streams.rate_increments import RATE_RULES
 
 
-#: physical bounds of the sensor statistics (a value beyond is no sensor, and overflows squares):
-#: bias σ (rad/s, m/s²), random walk (rad/√s, m/s/√s), quantum (rad, m/s)
-SENSOR_BOUNDS = {'gyro': {'bias': 100.0, 'random_walk': 1.0, 'quantum': 0.1},
-                 'accel': {'bias': 1000.0, 'random_walk': 100.0, 'quantum': 10.0}}
+def spec_of(key: EffectParameter, description: str | None = None) -> ParamSpec:
+    """
+    Return the node parameter of one model key (:mod:`strapdown_ros.sensors.sensor_model`).
+
+    Parameters
+    ----------
+    key : EffectParameter
+        The model key (name, unit, size, default, range).
+    description : str, optional
+        Another meaning for the table (default: the key's own).
+
+    Returns
+    -------
+    ParamSpec
+        The parameter, with the key's type, default and range.
+
+    """
+    default = key.default
+    if key.size > 1:
+        default = [float(x) for x in default]
+    elif isinstance(default, int) and not isinstance(default, bool):
+        default = float(default)
+    return ParamSpec(key.name, default, description or key.description, key.minimum,
+                     key.maximum, exclusive_minimum=key.exclusive_minimum,
+                     length=key.size if key.size > 1 else None)
 
 
-def _sensor_params(prefix: str, grade: SensorSigmas, rate: float, unit: str,
-                   rw_unit: str) -> list[ParamSpec]:
-    b = SENSOR_BOUNDS[prefix]
-    return [
-        ParamSpec(f'{prefix}_rate', rate, f'{prefix} output rate, Hz',
-                  0.0, 10000.0, exclusive_minimum=True),
-        ParamSpec(f'{prefix}_bias_sigma', grade.bias_sigma,
-                  f'1σ of the constant bias per axis, {unit}', 0.0, b['bias']),
-        ParamSpec(f'{prefix}_scale_sigma', grade.scale_sigma,
-                  '1σ of each scale-factor error (relative)', 0.0, 0.1),
-        ParamSpec(f'{prefix}_misalignment_sigma', grade.misalignment_sigma,
-                  '1σ of each axis misalignment (off-diagonal of M), rad', 0.0, 0.1),
-        ParamSpec(f'{prefix}_random_walk', grade.random_walk,
-                  f'white-noise random walk, {rw_unit}', 0.0, b['random_walk']),
-        ParamSpec(f'{prefix}_quantum', 0.0, f'pulse weight σ of level quantization (0 = off), '
-                  f"{'rad' if prefix == 'gyro' else 'm/s'}", 0.0, b['quantum']),
-    ]
+def _keys(names) -> list[ParamSpec]:
+    by_name = {k.name: k for k in model_keys()}
+    return [spec_of(by_name[n]) for n in names]
 
+
+#: every key of the sensor model (:func:`strapdown_ros.sensors.sensor_model.model_keys`): the
+#: consuming nodes (sins_node, calibrator_node, attitude_filter_node) declare them all, so that
+#: one model file configures each of them the same way
+MODEL_PARAMS = [spec_of(k) for k in model_keys()]
+#: the old names of renamed model keys, declared so that they keep working (−1: not given)
+ALIAS_PARAMS = [ParamSpec(old, -1.0, f'deprecated alias of {new} (-1: not given); a value '
+                          f'given here is used as {new}, with a warning', -1.0,
+                          next(k.maximum for k in model_keys() if k.name == new))
+                for old, new in MODEL_ALIASES.items()]
 
 PROFILE_PARAMS = [
     ParamSpec('profile', 'coning', 'motion profile', choices=PROFILE_NAMES),
@@ -89,34 +108,29 @@ PROFILE_PARAMS = [
 
 def _effect_specs(sensor: str, skip: Sequence[ParamSpec] = ()) -> list[ParamSpec]:
     """
-    Return the specs of the effect parameters of one sensor.
+    Return the specs of the model keys of one sensor's effects.
 
-    ParamSpecs of the effect parameters of one sensor (:mod:`strapdown_ros.sensors.effects`
-    owns them), except names already in ``skip``.
+    Every key the registry's effects of that sensor own (:mod:`strapdown_ros.sensors.effects`:
+    value, other parameters, σ), except names already in ``skip``.
     """
     have = {s.name for s in skip}
-    out = []
-    for e in effect_parameters(sensor):
-        if e.name in have:
-            continue
-        out.append(ParamSpec(e.name, list(e.default) if e.size > 1 else e.default, e.description,
-                             e.minimum, e.maximum, exclusive_minimum=e.exclusive_minimum,
-                             length=e.size if e.size > 1 else None))
-    return out
+    return [spec_of(k) for e in EFFECTS.values() if e.sensor == sensor
+            for k in e.model_parameters() if k.name not in have]
 
 
-_GYRO_SIGMAS = _sensor_params('gyro', NAVIGATION_GRADE_GYRO, 100.0, 'rad/s', 'rad/√s')
-#: gyro statistics (the random constants' σ) and the known systematic effects of the registry
-GYRO_PARAMS = _GYRO_SIGMAS + _effect_specs('gyro', _GYRO_SIGMAS)
-ACCEL_PARAMS = _sensor_params('accel', NAVIGATION_GRADE_ACCEL, 300.0, 'm/s²', 'm/s/√s')
+#: the gyro's model keys: its rate, then every gyro effect's keys (value, other parameters, σ)
+GYRO_PARAMS = _keys(['gyro_rate']) + _effect_specs('gyro')
+#: the accelerometer's model keys: its rate and statistics
+ACCEL_PARAMS = _keys(['accel_rate'] + [k.name for k in ACCEL_KEYS])
 
-COMMON_PARAMS = [
-    ParamSpec('frame_id', 'imu_link', 'body (IMU) frame id'),
-    ParamSpec('reference_frame_id', 'gcrs', 'inertial reference frame id of attitudes'),
+#: what every node of the package declares besides its own parameters
+NODE_COMMON_PARAMS = [
     ParamSpec('qos_depth', 500, 'history depth of the stream QoS', 1, 100000),
     ParamSpec('diagnostics_period', 1.0, 'period of /diagnostics, wall seconds', 0.0, 3600.0,
               exclusive_minimum=True),
 ]
+#: the body frame of the IMU simulator (model keys)
+COMMON_PARAMS = _keys(['frame_id', 'reference_frame_id']) + NODE_COMMON_PARAMS
 
 IMU_SIM_PARAMS = PROFILE_PARAMS + GYRO_PARAMS + ACCEL_PARAMS + COMMON_PARAMS + [
     ParamSpec('seed', 0, 'seed of the random error constants and noise', 0, 2**31 - 1),
@@ -133,12 +147,9 @@ IMU_SIM_PARAMS = PROFILE_PARAMS + GYRO_PARAMS + ACCEL_PARAMS + COMMON_PARAMS + [
               'nothing', 0, 1000),
 ]
 
-#: input validation of the consuming nodes (strapdown_ros/streams/checks.py)
-INPUT_PARAMS = [
-    ParamSpec('gyro_max_rate', 20.0,
-              'gyro range, rad/s: an increment with a component beyond 2 periods at this rate is '
-              'rejected as impossible',
-              0.0, 1e4, exclusive_minimum=True),
+#: the stream rules of the consuming nodes (strapdown_ros/streams/checks.py); the clip levels
+#: gyro_max_rate and accel_max are model keys
+STREAM_PARAMS = [
     ParamSpec('max_stamp_jump', 1.0,
               'a stamp step beyond this, s, forward or back, is a jump: a lone one is an '
               'outlier, resync_count consistent ones a new timeline',
@@ -150,6 +161,8 @@ INPUT_PARAMS = [
               '(counted, WARN) or accept (counted, WARN)',
               choices=('reject', 'accept')),
 ]
+#: input validation of the consuming nodes: the gyro clip level and the stream rules
+INPUT_PARAMS = _keys(['gyro_max_rate']) + STREAM_PARAMS
 #: the gyro input of the consuming nodes: integrated increments, or sensor_msgs/Imu rate samples
 #: made into increments by strapdown_ros/streams/rate_increments.py
 GYRO_INPUT_PARAMS = [
@@ -162,19 +175,15 @@ GYRO_INPUT_PARAMS = [
               "rate over the interval ending at its stamp, as imu_sim_node's imu/data_raw)",
               choices=RATE_RULES),
 ]
-ACCEL_INPUT_PARAMS = [
-    ParamSpec('accel_max', 500.0,
-              'accelerometer range, m/s²: a Δv with a component beyond 2 periods at this is '
-              'rejected as impossible',
-              0.0, 1e6, exclusive_minimum=True),
-]
+#: the accelerometer clip level (a model key)
+ACCEL_INPUT_PARAMS = _keys(['accel_max'])
 
 #: largest velocity component of the navigation, m/s (above any aircraft; orbital speed is
 #: 7.9 km/s)
 MAX_SPEED = 1e4
 
-SINS_PARAMS = GYRO_PARAMS + ACCEL_PARAMS + COMMON_PARAMS + INPUT_PARAMS + ACCEL_INPUT_PARAMS + \
-    GYRO_INPUT_PARAMS + [
+#: what sins_node and sins_bag take besides the sensor model (SinsSettings)
+SINS_SETTINGS = [
         ParamSpec('coning_algorithm', '2', 'coning algorithm (doc/coning_derivations.md)',
                   choices=tuple(algorithm_names())),
         ParamSpec('initial_orientation', [0.0, 0.0, 0.0, 1.0],
@@ -224,7 +233,9 @@ SINS_PARAMS = GYRO_PARAMS + ACCEL_PARAMS + COMMON_PARAMS + INPUT_PARAMS + ACCEL_
                   'least every this many wall seconds (0: every message at once); outputs keep '
                   'their own stamps',
                   0.0, 1.0),
-        ]
+]
+SINS_PARAMS = MODEL_PARAMS + NODE_COMMON_PARAMS + STREAM_PARAMS + GYRO_INPUT_PARAMS + \
+    SINS_SETTINGS
 
 
 def sigmas_from(values: dict, prefix: str) -> SensorSigmas:
@@ -250,53 +261,33 @@ def sigmas_from(values: dict, prefix: str) -> SensorSigmas:
 
 ARCSEC_RAD = np.pi / 180.0 / 3600.0
 
-STAR_CAMERA_PARAMS = PROFILE_PARAMS + [
-    ParamSpec('reference_frame_id', 'gcrs', 'inertial reference frame id of attitudes'),
-    ParamSpec('camera_frame_id', 'star_camera', 'camera frame (VF) id'),
-    ParamSpec('qos_depth', 500, 'history depth of the stream QoS', 1, 100000),
-    ParamSpec('diagnostics_period', 1.0, 'period of /diagnostics, wall seconds',
-              0.0, 3600.0, exclusive_minimum=True),
-    ParamSpec('seed', 0, 'seed of the camera noise', 0, 2**31 - 1),
-    ParamSpec('time_scale', 1.0, 'simulated seconds per wall second (as imu_sim_node)', 0.0, 1e6,
-              exclusive_minimum=True),
-    ParamSpec('duration', 0.0, 'simulated seconds to publish (0: the profile length, or forever)',
-              0.0),
-    ParamSpec('start_time', 0.0, 'header stamp of profile time 0, s (as imu_sim_node)', 0.0),
-    ParamSpec('publish_period', 0.005, 'wall period of the publishing timer, s',
-              0.0, 1.0, exclusive_minimum=True),
-    ParamSpec('wait_for_subscribers', 0,
-              'the simulated clock starts once the camera topics have this many subscribers in '
-              'all (0: at start-up), so that separately started consumers lose nothing',
-              0, 1000),
-    ParamSpec('camera_interval', 20.0, 'time between exposures, s',
-              0.0, 3600.0, exclusive_minimum=True),
-    ParamSpec('camera_first_exposure', 0.0,
-              'profile time of the first exposure, s (0: one interval)', 0.0),
-    ParamSpec('camera_sigma_xy', 0.6 * ARCSEC_RAD,
-              '1σ attitude noise about VF x and y, rad (004: 0.6″)', 0.0, 0.1),
-    ParamSpec('camera_sigma_z', 6.0 * ARCSEC_RAD,
-              '1σ attitude noise about the optical axis VF z, rad (004: 6″)',
-              0.0, 0.1),
-    ParamSpec('boresight', [0.0, 0.0, 0.0],
-              'true β = (heading ψ, pitch ϑ, roll γ) of VF relative to MF, rad',
-              length=3),
-    ParamSpec('camera_time_offset', 0.0,
-              'camera clock minus IMU clock, s (a fix stamped t shows t − offset)',
-              -10.0, 10.0),
-    ParamSpec('camera_exposure_time', 0.0, 'exposure duration, s', 0.0, 10.0),
-    ParamSpec('camera_stamp_at_exposure_start', False,
-              'stamp = exposure start while the attitude is mid-exposure'),
-]
+STAR_CAMERA_PARAMS = PROFILE_PARAMS + _keys(['reference_frame_id', 'camera_frame_id']) + \
+    NODE_COMMON_PARAMS + [
+        ParamSpec('seed', 0, 'seed of the camera noise', 0, 2**31 - 1),
+        ParamSpec('time_scale', 1.0, 'simulated seconds per wall second (as imu_sim_node)',
+                  0.0, 1e6, exclusive_minimum=True),
+        ParamSpec('duration', 0.0,
+                  'simulated seconds to publish (0: the profile length, or forever)', 0.0),
+        ParamSpec('start_time', 0.0, 'header stamp of profile time 0, s (as imu_sim_node)', 0.0),
+        ParamSpec('publish_period', 0.005, 'wall period of the publishing timer, s',
+                  0.0, 1.0, exclusive_minimum=True),
+        ParamSpec('wait_for_subscribers', 0,
+                  'the simulated clock starts once the camera topics have this many subscribers '
+                  'in all (0: at start-up), so that separately started consumers lose nothing',
+                  0, 1000),
+        ParamSpec('camera_interval', 20.0, 'time between exposures, s',
+                  0.0, 3600.0, exclusive_minimum=True),
+        ParamSpec('camera_first_exposure', 0.0,
+                  'profile time of the first exposure, s (0: one interval)', 0.0),
+    ] + _keys(['camera_sigma_xy', 'camera_sigma_z', 'boresight', 'camera_time_offset']) + [
+        ParamSpec('camera_exposure_time', 0.0, 'exposure duration, s', 0.0, 10.0),
+        ParamSpec('camera_stamp_at_exposure_start', False,
+                  'stamp = exposure start while the attitude is mid-exposure'),
+    ]
 STAR_CAMERA_PARAMS += _effect_specs('camera', STAR_CAMERA_PARAMS)
 
-
-CALIBRATOR_PARAMS = GYRO_PARAMS + INPUT_PARAMS + GYRO_INPUT_PARAMS + [
-    ParamSpec('reference_frame_id', 'gcrs', 'inertial reference frame id of attitudes'),
-    ParamSpec('frame_id', 'imu_link', 'IMU frame (MF) id'),
-    ParamSpec('camera_frame_id', 'star_camera', 'camera frame (VF) id'),
-    ParamSpec('qos_depth', 500, 'history depth of the stream QoS', 1, 100000),
-    ParamSpec('diagnostics_period', 1.0, 'period of /diagnostics, wall seconds',
-              0.0, 3600.0, exclusive_minimum=True),
+#: what calibrator_node and calibrate_bag take besides the sensor model (CalibratorSettings)
+CALIBRATOR_SETTINGS = [
     ParamSpec('weighted', True,
               'weight the pairs by E_imu and E_avu (false: unit weights as 004)'),
     ParamSpec('covariance_model', 'random_constant',
@@ -324,54 +315,21 @@ CALIBRATOR_PARAMS = GYRO_PARAMS + INPUT_PARAMS + GYRO_INPUT_PARAMS + [
     ParamSpec('use_camera_covariance', True,
               'read P_avu from star_camera/attitude_with_covariance (false: star_camera/attitude '
               'with camera_sigma_xy/z)'),
-    ParamSpec('camera_sigma_xy', 0.6 * ARCSEC_RAD,
-              'assumed camera σ about VF x, y when no covariance, rad', 0.0, 0.1),
-    ParamSpec('camera_sigma_z', 6.0 * ARCSEC_RAD,
-              'assumed camera σ about VF z when no covariance, rad', 0.0, 0.1),
 ]
-#: camera effects the calibrator compensates (time offset of the fixes, camera noise scale)
-CALIBRATOR_PARAMS += _effect_specs('camera')
+CALIBRATOR_PARAMS = MODEL_PARAMS + NODE_COMMON_PARAMS + STREAM_PARAMS + GYRO_INPUT_PARAMS + \
+    CALIBRATOR_SETTINGS
 
-#: attitude_filter_node and filter_bag (strapdown_ros/estimation/filter_system.py)
-FILTER_PARAMS = [s for s in _GYRO_SIGMAS if s.name in ('gyro_rate', 'gyro_bias_sigma',
-                                                       'gyro_random_walk')] + \
-    INPUT_PARAMS + GYRO_INPUT_PARAMS + [
-    ParamSpec('reference_frame_id', 'gcrs', 'inertial reference frame id of attitudes'),
-    ParamSpec('frame_id', 'imu_link', 'IMU frame (MF) id'),
-    ParamSpec('camera_frame_id', 'star_camera', 'camera frame (VF) id'),
-    ParamSpec('qos_depth', 500, 'history depth of the stream QoS', 1, 100000),
-    ParamSpec('diagnostics_period', 1.0, 'period of /diagnostics, wall seconds', 0.0, 3600.0,
-              exclusive_minimum=True),
+#: what attitude_filter_node and filter_bag take besides the sensor model (FilterSettings)
+FILTER_SETTINGS = [
     ParamSpec('coning_algorithm', '2', "coning algorithm of the filter's integrator",
               choices=tuple(algorithm_names())),
-    ParamSpec('gyro_bias_random_walk', 0.0, 'bias random walk σ_u, rad/s/√s (0: a random '
-              'constant)', 0.0, 1.0),
-    ParamSpec('gyro_bias_correlation_time', 0.0, 'τ > 0: the bias is first-order Gauss–Markov '
-              '(bias instability) driven by gyro_bias_random_walk, s (0: a random walk)',
-              0.0, 1e9),
     ParamSpec('initial_attitude_sigma', 1e-3, 'prior 1σ of the attitude error per axis, rad '
               '(the filter starts at the first fix)', 0.0, np.pi, exclusive_minimum=True),
-    ParamSpec('scale_sigma', 1e-3, 'prior 1σ of augmented gyro_scale_factor (and of other '
-              'augmented gyro effects but misalignment)', 0.0, 0.1, exclusive_minimum=True),
-    ParamSpec('misalignment_sigma', 1e-3, 'prior 1σ of augmented gyro_misalignment, rad',
-              0.0, 0.1, exclusive_minimum=True),
-    ParamSpec('time_offset_sigma', 0.01, 'prior 1σ of augmented time_offset, s', 0.0, 10.0,
-              exclusive_minimum=True),
-    ParamSpec('boresight_sigma', 1e-3, 'prior 1σ of augmented boresight, rad', 0.0, 0.5,
-              exclusive_minimum=True),
-    ParamSpec('augment', '', 'further filter states, comma-separated: registry gyro effects '
-              '(gyro_scale_factor, gyro_misalignment, ...), time_offset, boresight'),
     ParamSpec('boresight_source', 'parameter', 'boresight: parameter (boresight) or topic '
               '(the latched calibration/boresight; fixes wait for it, dropped and counted)',
               choices=('parameter', 'topic')),
-    ParamSpec('boresight', [0.0, 0.0, 0.0], 'known β = (heading ψ, pitch ϑ, roll γ) of VF '
-              'relative to MF, rad', length=3),
     ParamSpec('use_camera_covariance', True, 'read the fix covariance from '
               'star_camera/attitude_with_covariance (false: star_camera/attitude, camera σ)'),
-    ParamSpec('camera_sigma_xy', 0.6 * ARCSEC_RAD, 'camera σ about VF x, y when a fix has no '
-              'covariance, rad', 0.0, 0.1, exclusive_minimum=True),
-    ParamSpec('camera_sigma_z', 6.0 * ARCSEC_RAD, 'camera σ about VF z when a fix has no '
-              'covariance, rad', 0.0, 0.1, exclusive_minimum=True),
     ParamSpec('gate_probability', 0.9999, 'a fix whose NIS exceeds the χ²(3) quantile of this '
               'is gated (not applied) and counted', 0.5, 1.0 - 1e-12),
     ParamSpec('history', 20000, 'increments kept for late fixes', 16, 10**7),
@@ -382,6 +340,9 @@ FILTER_PARAMS = [s for s in _GYRO_SIGMAS if s.name in ('gyro_rate', 'gyro_bias_s
     ParamSpec('model_check_alpha', 0.001, 'false-alarm probability of each live model-check '
               'test (NIS band two-sided, whiteness)', 1e-9, 0.2),
 ]
+#: attitude_filter_node and filter_bag (strapdown_ros/estimation/filter_system.py)
+FILTER_PARAMS = MODEL_PARAMS + ALIAS_PARAMS + NODE_COMMON_PARAMS + STREAM_PARAMS + \
+    GYRO_INPUT_PARAMS + FILTER_SETTINGS
 
 
 #: every parameter name declared by any node or tool of the package
@@ -391,4 +352,12 @@ ALL_PARAMETER_NAMES = frozenset(s.name for s in IMU_SIM_PARAMS + SINS_PARAMS + S
 
 #: the nodes whose blocks a model file may hold (ROS 2 parameter-file schema)
 NODE_PARAMS = {'imu_sim_node': IMU_SIM_PARAMS, 'sins_node': SINS_PARAMS,
-               'star_camera_sim_node': STAR_CAMERA_PARAMS, 'calibrator_node': CALIBRATOR_PARAMS}
+               'star_camera_sim_node': STAR_CAMERA_PARAMS, 'calibrator_node': CALIBRATOR_PARAMS,
+               'attitude_filter_node': FILTER_PARAMS}
+#: each node's own parameters (not model keys): what its typed settings are built from
+NODE_SETTINGS = {'sins_node': NODE_COMMON_PARAMS + STREAM_PARAMS + GYRO_INPUT_PARAMS
+                 + SINS_SETTINGS,
+                 'calibrator_node': NODE_COMMON_PARAMS + STREAM_PARAMS + GYRO_INPUT_PARAMS
+                 + CALIBRATOR_SETTINGS,
+                 'attitude_filter_node': NODE_COMMON_PARAMS + STREAM_PARAMS + GYRO_INPUT_PARAMS
+                 + FILTER_SETTINGS}

@@ -10,9 +10,14 @@ from __future__ import annotations
 
 from strapdown_ros.recording.reader import (bounded, bounded_list, CAMERA_COV_TOPIC, CAMERA_TOPIC,
                                             DELTA_THETA_TYPE, GYRO_TOPIC, IMU_TYPE)
+from strapdown_ros.streams.checks import clip_text
 from strapdown_ros.streams.rate_increments import RATE_RULES
 
+#: frame ids named per stream in the facts of a recording
+MAX_FRAMES = 8
+
 __all__ = [
+    'recording_facts',
     'input_summary',
     'input_warnings',
     'input_lines',
@@ -20,6 +25,36 @@ __all__ = [
     'check_input_arguments',
     'input_options',
 ]
+
+
+def recording_facts(data: dict) -> dict:
+    """
+    Return what a recording shows of the sensor model: its gyro rate and its frames.
+
+    :func:`strapdown_ros.params.check_against_recording` compares them with the model.
+
+    Parameters
+    ----------
+    data : dict
+        The result of :func:`read_bag`.
+
+    Returns
+    -------
+    dict
+        ``gyro_rate_hz`` (from the median step of the stamps; None when unknown),
+        ``gyro_frames`` and ``reference_frames`` (header frame ids seen, most frequent first),
+        ``reference_child_frame`` (TF: the child frame read; else None).
+
+    """
+    period = data.get('gyro_period_s')
+    rate = 1.0 / period if period and 0 < period < float('inf') else None
+    frames = data.get('frames') or {}
+    tf = data.get('reference_frames') or {}
+    child = tf.get('child')
+    return {'gyro_rate_hz': rate,
+            'gyro_frames': [bounded(f) for f in list(frames.get('gyro', ()))[:MAX_FRAMES]],
+            'reference_frames': [bounded(f) for f in list(frames.get('camera', ()))[:MAX_FRAMES]],
+            'reference_child_frame': None if child is None else bounded(child)}
 
 
 def input_summary(data: dict) -> dict:
@@ -50,6 +85,7 @@ def input_summary(data: dict) -> dict:
         'reference_frames': data['reference_frames'],
         'reference_covariance': data['reference_covariance'],
         'unread_messages': dict(data['unread_messages']),
+        'gyro_clip': dict(data.get('gyro_clip') or {}),
     }
 
 
@@ -78,6 +114,11 @@ def input_warnings(prog: str, info: dict) -> list[str]:
             f"{prog}: WARNING: the messages read differ from the bag's own index (index − read: "
             f'{parts}): a corrupt or skipped chunk hides data; the result may be biased'
         )
+    clip = info.get('gyro_clip') or {}
+    if clip.get('count'):
+        text = clip_text(clip['count'], clip['largest'], clip['parameter'], clip['limit'],
+                         clip['unit'])
+        out.append(f'{prog}: WARNING: gyro: {text}')
     rs = info.get('rate_samples')
     if rs:
         dropped = {k: v for k, v in rs['dropped'].items() if v}

@@ -559,6 +559,7 @@ def read_bag(
                 'stamp_outlier': r_check.stamp_outliers,
                 'marked_absent': rate_absent,
             },
+            'largest_out_of_range_rad_s': r_check.largest_out_of_range,
             'intervals_not_integrated': max(len(rt) - 1 - len(inc_t), 0),
             'period_s': r_period if math.isfinite(r_period) else None,
         }
@@ -594,7 +595,14 @@ def read_bag(
     )
     frames_used = None if tf is None else {'parent': tf.parent, 'child': tf.child,
                                            'transform': tf_direction}
-    return {'gyro_topic': gyro_t, 'camera_topic': ref_t, 'camera_covariance_from_bag': with_cov,
+    clip = {'parameter': 'gyro_max_rate', 'limit': float(gyro_max_rate), 'unit': 'rad/s',
+            'count': (rate_info['dropped']['out_of_range'] if rate_info else 0)
+            + g_check.out_of_range,
+            'largest': max(rate_info['largest_out_of_range_rad_s'] if rate_info else 0.0,
+                           g_check.largest_out_of_range / g_period
+                           if np.isfinite(g_period) and g_period > 0 else 0.0)}
+    return {'gyro_clip': clip,
+            'gyro_topic': gyro_t, 'camera_topic': ref_t, 'camera_covariance_from_bag': with_cov,
             'gyro': gyro, 'camera': cam, 'camera_fixes': fix_counts, 'gyro_period_s': g_period,
             'frames': {k: sorted(v) for k, v in frames.items()}, 'gyro_type': gyro_type,
             'gyro_input': 'rates' if rates else 'delta_theta',

@@ -274,10 +274,12 @@ class McapOutput:
     odometry : callable
         ``odometry(NavigationOutput, rate_variance)`` returns the Odometry pose covariance,
         body velocity and twist covariance (:func:`strapdown_ros.sins.odometry_arrays`).
+    qos_depth : int
+        History depth of the offered QoS recorded with each topic.
 
     """
 
-    def __init__(self, path: Path, system, namespace: str, odometry):
+    def __init__(self, path: Path, system, namespace: str, odometry, qos_depth: int = 500):
         from rosbags.rosbag2 import StoragePlugin, Writer
         from rosbags.typesys import get_typestore, Stores
 
@@ -285,9 +287,9 @@ class McapOutput:
         self.store = get_typestore(Stores.ROS2_JAZZY)
         self.T = self.store.types
         self.odometry = odometry
-        p = system.p
-        self.frame_id, self.ref_frame = p['frame_id'], p['reference_frame_id']
-        self.earth_frame = p['earth_frame_id']
+        self.frame_id = system.model.frame_id
+        self.ref_frame = system.model.reference_frame_id
+        self.earth_frame = system.settings.earth_frame_id
         self.rate_variance = system.rate_variance
         g, a = system.rate_variance, system.accel_variance
         self.rate_cov = np.diag([g, g, g]).reshape(9)
@@ -307,7 +309,7 @@ class McapOutput:
         except BaseException:
             discard_directory(self.staged)
             raise
-        qos = offered_qos('stream', int(p['qos_depth']))
+        qos = offered_qos('stream', int(qos_depth))
         self.conns = {n: self.writer.add_connection(self.topics[n], OUTPUT_TYPES[n],
                                                     typestore=self.store,
                                                     offered_qos_profiles=[qos])

@@ -35,9 +35,6 @@ from strapdown_ros.sensors.model import SensorSigmas
 __all__ = ['CovarianceModel', 'COVARIANCE_MODELS', 'get_covariance_model', 'constant_jacobian',
            'constant_jacobian_basis', 'constant_variances']
 
-_SIGMA_OF = {'gyro_bias': 'bias_sigma', 'gyro_scale_factor': 'scale_sigma',
-             'gyro_misalignment': 'misalignment_sigma'}
-
 
 def constant_jacobian(rho: np.ndarray, T: np.ndarray) -> np.ndarray:
     """
@@ -256,10 +253,10 @@ class White004(CovarianceModel):
         T = np.broadcast_to(np.asarray(T, dtype=float), (len(rho),))
         t = np.zeros(len(rho))
         out = (g.random_walk ** 2 * T)[:, None, None] * np.eye(3)
-        for name, attr in _SIGMA_OF.items():
-            s = getattr(g, attr)
+        for e in EFFECTS.values():
+            s = getattr(g, e.statistic) if e.statistic else 0.0
             if s > 0:
-                D = EFFECTS[name].increment_jacobian(rho, T, t)
+                D = e.increment_jacobian(rho, T, t)
                 out = out + s ** 2 * (D @ np.swapaxes(D, 1, 2))
         return out
 

@@ -49,6 +49,59 @@ class EffectParameter:
     maximum: float | None = None
     exclusive_minimum: bool = False
 
+    def check(self, value) -> str | None:
+        """
+        Return a one-line error for a value outside this parameter's type or range, else None.
+
+        Parameters
+        ----------
+        value : object
+            The value (a string parameter takes a string; a number or a list of ``size``
+            numbers otherwise).
+
+        Returns
+        -------
+        str or None
+            The error, naming the parameter, the value and the valid values.
+
+        """
+        if isinstance(self.default, str):
+            return None if isinstance(value, str) else \
+                f'{self.name} must be a string, got {str(value)[:80]!r}'
+        if isinstance(self.default, bool):
+            return None if isinstance(value, bool) else \
+                f'{self.name} must be true or false, got {str(value)[:80]!r}'
+        try:
+            v = np.asarray(value, dtype=float).reshape(-1)
+        except (TypeError, ValueError):
+            return f'{self.name} must be {self._shape_text()}, got {str(value)[:80]!r}'
+        if v.shape != (self.size,) or not np.all(np.isfinite(v)):
+            return f'{self.name} must be {self._shape_text()}, got {str(value)[:80]!r}'
+        lo, hi = self.minimum, self.maximum
+        bad = (lo is not None and (np.any(v < lo) or (self.exclusive_minimum and np.any(v <= lo)))
+               ) or (hi is not None and np.any(v > hi))
+        if bad:
+            return f'{self.name}={_text(value)} is out of range; valid: {self.range_text()}'
+        return None
+
+    def range_text(self) -> str:
+        """Return the valid values in words, e.g. ``>= 0 and <= 0.1``."""
+        parts = []
+        if self.minimum is not None:
+            parts.append(('> ' if self.exclusive_minimum else '>= ') + f'{self.minimum:g}')
+        if self.maximum is not None:
+            parts.append(f'<= {self.maximum:g}')
+        return ' and '.join(parts) or 'any'
+
+    def _shape_text(self) -> str:
+        return 'a finite number' if self.size == 1 else f'a list of {self.size} finite numbers'
+
+
+def _text(value) -> str:
+    if isinstance(value, (list, tuple, np.ndarray)):
+        return '[' + ', '.join(f'{float(x):.6g}' for x in np.ravel(value)) + ']'
+    return f'{float(value):.6g}'
+
 
 # physical bounds of the effect parameters (each element): a rate beyond 100 rad/s is no bias, a
 # relative scale error beyond 0.5 and an axis misalignment beyond 0.5 rad are no small error,
@@ -85,8 +138,25 @@ class Effect:
     candidate: bool = True
     compensable: bool = True
     parameters: tuple[EffectParameter, ...] = ()
-    #: parameter giving the prior 1σ of the value parameter (per component), if any
+    #: model key of the 1σ of the value (one σ for every component): the uncertainty of the
+    #: stated value, and the prior an estimator starts from (the filter state of an effect it
+    #: estimates online, ``augment``).  None: the effect has no σ (the noise terms).
     sigma_parameter: str | None = None
+    #: default of the σ key, in the value's unit
+    prior_sigma: float = 0.0
+    #: largest valid σ (None: the largest |value| of the value parameter's range)
+    sigma_maximum: float | None = None
+    #: the σ is that of a random constant: the simulators draw value + σ·N(0, 1) per
+    #: component, and the discrepancy fit counts it as prior noise of the increment pairs
+    random_constant: bool = False
+    #: largest |value| the linearised discrepancy workflow reports as a small correction
+    #: (None: the value parameter's range); a larger fit is a wiring fault or a wrong unit
+    plausible_max: float | None = None
+    #: the attitude filter can estimate it online (a name of its ``augment`` parameter)
+    filter_state: bool = False
+    #: the field of :class:`~strapdown_ros.sensors.model.SensorSigmas` holding its σ, for the
+    #: random constants of the sensor statistics (bias, scale factor, misalignment)
+    statistic: str | None = None
     #: changes the mean of the residuals (systematic effects, and quantization's lag)
     has_mean: bool = True
     #: the zero-effect value of the estimated parameters (1 for multiplicative noise scales)
@@ -109,6 +179,57 @@ class Effect:
     def value_parameter(self) -> EffectParameter:
         """Return the parameter the workflow estimates and writes to the model."""
         return self.parameters[0]
+
+    @property
+    def sigma_spec(self) -> EffectParameter | None:
+        """Return the model key of the value's 1σ (None: the effect has none)."""
+        if self.sigma_parameter is None:
+            return None
+        p = self.value_parameter
+        hi = self.sigma_maximum
+        if hi is None:
+            hi = max(abs(p.minimum or 0.0), abs(p.maximum or 0.0)) or None
+        return EffectParameter(self.sigma_parameter, p.unit, 1, float(self.prior_sigma),
+                               f'1σ of {p.name} (each component), {p.unit}: the uncertainty '
+                               'of the stated value and the prior of an online estimate',
+                               0.0, hi)
+
+    def model_parameters(self) -> tuple[EffectParameter, ...]:
+        """
+        Return every model-file key of the effect: its parameters, then its σ.
+
+        Returns
+        -------
+        tuple of EffectParameter
+            The keys, the value parameter first.
+
+        """
+        sigma = self.sigma_spec
+        return self.parameters + ((sigma,) if sigma is not None else ())
+
+    def sigma(self, params) -> float:
+        """
+        Return the 1σ of the value stated in a model.
+
+        Parameters
+        ----------
+        params : mapping or SensorModel
+            Anything with ``get(name, default)``: model key → value.
+
+        Returns
+        -------
+        float
+            The σ (0 for an effect without one).
+
+        """
+        spec = self.sigma_spec
+        return 0.0 if spec is None else float(params.get(spec.name, spec.default))
+
+    def plausible_bound(self) -> float | None:
+        """Return the largest |value| reported as a small correction (None: no bound)."""
+        if self.plausible_max is not None:
+            return float(self.plausible_max)
+        return None
 
     @property
     def size(self) -> int:
@@ -136,8 +257,9 @@ class Effect:
 
         Parameters
         ----------
-        params : dict
-            Parameter name → value; the default is used where the name is absent.
+        params : mapping or SensorModel
+            Anything with ``get(name, default)``: model key → value; the default is used where
+            the name is absent.
 
         Returns
         -------
@@ -155,8 +277,8 @@ class Effect:
 
         Parameters
         ----------
-        params : dict
-            Parameter name → value.
+        params : mapping or SensorModel
+            Anything with ``get(name, default)``: model key → value.
 
         Returns
         -------
@@ -165,6 +287,23 @@ class Effect:
 
         """
         return bool(np.any(self.value(params) != self.neutral))
+
+    def configured(self, params) -> Effect:
+        """
+        Return the effect set up by its other parameters (most effects have none: itself).
+
+        Parameters
+        ----------
+        params : mapping or SensorModel
+            Anything with ``get(name, default)``: model key → value.
+
+        Returns
+        -------
+        Effect
+            The effect to apply.
+
+        """
+        return self
 
     # gyro systematic effects override these -------------------------------------------
     def direct_check(self, delta_theta: np.ndarray, theta: np.ndarray) -> str | None:

@@ -29,6 +29,7 @@ epoch a fix belongs to or on its noise; quantization and random walk are noise-m
 """
 from __future__ import annotations
 
+from contextlib import contextmanager
 from typing import Sequence
 
 import numpy as np
@@ -39,7 +40,8 @@ from strapdown_ros.sensors.gyro_effects import (GyroBias, GyroBiasDrift, GyroBia
                                                 GyroQuantization, GyroRandomWalk,
                                                 GyroScaleAsymmetry, GyroScaleFactor)
 
-__all__ = ['EFFECTS', 'CANDIDATES', 'get_effect', 'effect_parameters', 'GyroEffects',
+__all__ = ['EFFECTS', 'CANDIDATES', 'candidates', 'registered', 'get_effect', 'effect_parameters',
+           'GyroEffects',
            'CameraEffects', 'CameraNoiseAnisotropy', 'TimeOffset']
 
 
@@ -90,6 +92,9 @@ class TimeOffset(Effect):
     parameters = (EffectParameter('camera_time_offset', 's', 1, 0.0,
                                   'camera clock minus IMU clock, s (a fix stamped t shows '
                                   't − offset)', -10.0, 10.0),)
+    sigma_parameter = 'camera_time_offset_sigma'
+    prior_sigma = 0.01
+    filter_state = True
     summary = 'camera–IMU timestamp offset'
     signature_text = ('ε = (ΔSᵀ ω(t_start) − ω(t_end))·τ: only fixes taken while turning see '
                       'it, so it shows as spikes at the rotations (004 Fig. 2a)')
@@ -124,8 +129,44 @@ EFFECTS: dict[str, Effect] = {e.name: e for e in (
     TimeOffset(), GyroBias(), GyroBiasDrift(), GyroScaleFactor(), GyroScaleAsymmetry(),
     GyroMisalignment(), GyroQuantization(), CameraNoiseAnisotropy(), GyroBiasPeriodic(),
     GyroRandomWalk(), GyroGSensitivity())}
-#: the library the discrepancy workflow searches, in a fixed order
+#: the library the discrepancy workflow searches, in a fixed order (as imported; the registry's
+#: current library is :func:`candidates`)
 CANDIDATES: tuple[str, ...] = tuple(n for n, e in EFFECTS.items() if e.candidate)
+
+
+def candidates() -> tuple[str, ...]:
+    """Return the library the discrepancy workflow searches: the registry's candidate effects."""
+    return tuple(n for n, e in EFFECTS.items() if e.candidate)
+
+
+@contextmanager
+def registered(effect: Effect):
+    """
+    Hold one more effect in the registry for the duration of a ``with`` block.
+
+    A new effect of the package is a class and an entry in :data:`EFFECTS`; this puts one there
+    for a while (the tests prove that every consumer reads the registry, not a table of its
+    own).  Read at each use: the model keys, compensation, the filter's states, the discrepancy
+    library.  The nodes' ROS parameters are declared from the registry at import.
+
+    Parameters
+    ----------
+    effect : Effect
+        The effect; its name must be new.
+
+    Yields
+    ------
+    Effect
+        The effect.
+
+    """
+    if effect.name in EFFECTS:
+        raise ValueError(f'effect {effect.name!r} is registered already')
+    EFFECTS[effect.name] = effect
+    try:
+        yield effect
+    finally:
+        EFFECTS.pop(effect.name, None)
 
 
 def get_effect(name: str) -> Effect:
@@ -172,6 +213,18 @@ def effect_parameters(sensor: str) -> list[EffectParameter]:
     return [p for e in EFFECTS.values() if e.sensor == sensor for p in e.parameters]
 
 
+class _Overlay:
+    """``get(name, default)`` of ``first``, then of ``base`` (a mapping or a sensor model)."""
+
+    def __init__(self, base, first: dict):
+        self.base, self.first = base, first
+
+    def get(self, name, default=None):
+        if name in self.first:
+            return self.first[name]
+        return default if self.base is None else self.base.get(name, default)
+
+
 # ----------------------------------------------------------------------------- gyro bundle
 class GyroEffects:
     """
@@ -179,8 +232,10 @@ class GyroEffects:
 
     Parameters
     ----------
-    params : dict or None
-        Any of the effects' parameter names (others are ignored).
+    params : mapping, SensorModel or None
+        Anything with ``get(name, default)`` giving the effects' parameters by model key (a
+        :class:`~strapdown_ros.sensors.sensor_model.SensorModel`, or a dict; other keys are
+        not read).
     epoch : float or None
         The effect epoch t0 in the caller's time base (see the module docstring); None: the
         first stamp seen.
@@ -195,17 +250,15 @@ class GyroEffects:
 
     def __init__(self, params: dict | None = None, epoch: float | None = None,
                  values: dict[str, Sequence[float]] | None = None, with_delta_v: bool = False):
-        params = dict(params or {})
-        for name, v in (values or {}).items():
-            params[get_effect(name).value_parameter.name] = v
+        params = _Overlay(params, {get_effect(name).value_parameter.name: v
+                                   for name, v in (values or {}).items()})
         self.epoch = epoch
         self.effects: list[tuple[Effect, np.ndarray]] = []
         for e in EFFECTS.values():
             if e.sensor != 'gyro' or e.kind not in ('systematic', 'coupled') \
                     or not e.is_active(params):
                 continue
-            if isinstance(e, GyroBiasPeriodic):
-                e = GyroBiasPeriodic(float(params.get('gyro_bias_period', 600.0)))
+            e = e.configured(params)
             if e.needs_delta_v and not with_delta_v:
                 raise ValueError(f'{e.name} needs the accelerometer increments over each gyro '
                                  'interval, which this consumer does not have: set it to 0')
@@ -337,13 +390,14 @@ class CameraEffects:
 
     Parameters
     ----------
-    params : dict or None
-        Any of the camera effects' parameter names (defaults where absent).
+    params : mapping, SensorModel or None
+        Anything with ``get(name, default)`` giving the camera effects' parameters (defaults
+        where absent).
 
     """
 
-    def __init__(self, params: dict | None = None):
-        params = params or {}
+    def __init__(self, params=None):
+        params = _Overlay(params, {})
         self.time_offset = float(EFFECTS['time_offset'].value(params)[0])
         self.noise_scale = EFFECTS['camera_noise_anisotropy'].value(params)
 

@@ -42,8 +42,20 @@ class GyroBias(Effect):
     parameters = (EffectParameter('gyro_bias', 'rad/s', 3, [0.0, 0.0, 0.0],
                                   'known constant gyro bias b, body axes, rad/s (simulated and '
                                   'compensated)',
-                                  -MAX_BIAS_RATE, MAX_BIAS_RATE),)
+                                  -MAX_BIAS_RATE, MAX_BIAS_RATE),
+                  EffectParameter('gyro_bias_random_walk', 'rad/s/√s', 1, 0.0,
+                                  'bias random walk σ_u (rate random walk) of the attitude '
+                                  'filter, rad/s/√s (0: a random constant)', 0.0, 1.0),
+                  EffectParameter('gyro_bias_correlation_time', 's', 1, 0.0,
+                                  'τ > 0: the bias is first-order Gauss–Markov (bias '
+                                  'instability) driven by gyro_bias_random_walk, s (0: a random '
+                                  'walk)', 0.0, 1e9))
     sigma_parameter = 'gyro_bias_sigma'
+    statistic = 'bias_sigma'
+    prior_sigma = NAVIGATION_GRADE_GYRO.bias_sigma
+    sigma_maximum = MAX_BIAS_RATE
+    random_constant = True
+    filter_state = True
     #: bias random walk (rate random walk) σ_u, rad/s/√s, of the attitude filter
     filter_noise_parameter = 'gyro_bias_random_walk'
     #: bias instability as a first-order Gauss–Markov bias with this correlation time, s
@@ -100,6 +112,9 @@ class GyroBiasDrift(Effect):
                                   'linear bias ramp d: bias b + d·(t − t0), t0 = first gyro '
                                   'stamp, rad/s²',
                                   -MAX_BIAS_DRIFT, MAX_BIAS_DRIFT),)
+    sigma_parameter = 'gyro_bias_drift_sigma'
+    prior_sigma = 1e-6
+    filter_state = True
     summary = 'bias growing linearly with time'
     signature_text = 'as gyro_bias, weighted by the time since the first gyro stamp'
 
@@ -167,10 +182,30 @@ class GyroBiasPeriodic(Effect):
                   EffectParameter('gyro_bias_period', 's', 1, 600.0,
                                   'period P of gyro_bias_periodic, s',
                                   0.0, 1e7, exclusive_minimum=True))
+    sigma_parameter = 'gyro_bias_periodic_sigma'
+    prior_sigma = 1e-4
+    filter_state = True
     summary = 'bias oscillating with period P'
 
     def __init__(self, period: float = 600.0):
         self.period = float(period)
+
+    def configured(self, params) -> 'GyroBiasPeriodic':
+        """
+        Return the effect with the period the parameters give (``gyro_bias_period``).
+
+        Parameters
+        ----------
+        params : mapping or SensorModel
+            Anything with ``get(name, default)``: model key → value.
+
+        Returns
+        -------
+        GyroBiasPeriodic
+            The effect with that period.
+
+        """
+        return GyroBiasPeriodic(float(params.get('gyro_bias_period', self.parameters[1].default)))
 
     def bias_term(self, theta, t):
         """
@@ -221,6 +256,12 @@ class GyroScaleFactor(Effect):
                                   'known scale-factor errors s (relative), diagonal of M',
                                   -MAX_RELATIVE_ERROR, MAX_RELATIVE_ERROR),)
     sigma_parameter = 'gyro_scale_sigma'
+    statistic = 'scale_sigma'
+    prior_sigma = NAVIGATION_GRADE_GYRO.scale_sigma
+    sigma_maximum = 0.1
+    random_constant = True
+    plausible_max = 0.1
+    filter_state = True
     summary = 'scale-factor error, same for both rotation senses'
     signature_text = 'ε ∝ rotation about each gyro axis: Σ C_k diag(ρ_k) s'
 
@@ -273,6 +314,11 @@ class GyroScaleAsymmetry(Effect):
                                   'scale asymmetry a: scale 1 + s + a for positive, 1 + s − a '
                                   'for negative rates',
                                   -MAX_RELATIVE_ERROR, MAX_RELATIVE_ERROR),)
+    sigma_parameter = 'gyro_scale_asymmetry_sigma'
+    prior_sigma = 1e-3
+    sigma_maximum = 0.1
+    plausible_max = 0.1
+    filter_state = True
     summary = 'different scale factor for positive and negative rates'
     signature_text = ('ε ∝ |rotation| about each axis: Σ C_k diag(|ρ_k|) a (needs turns of '
                       'both senses to tell from scale)')
@@ -327,6 +373,12 @@ class GyroMisalignment(Effect):
                                   'M_yz, M_zx, M_zy, rad',
                                   -MAX_MISALIGNMENT, MAX_MISALIGNMENT),)
     sigma_parameter = 'gyro_misalignment_sigma'
+    statistic = 'misalignment_sigma'
+    prior_sigma = NAVIGATION_GRADE_GYRO.misalignment_sigma
+    sigma_maximum = 0.1
+    random_constant = True
+    plausible_max = 0.1
+    filter_state = True
     summary = 'non-orthogonal gyro axes (off-diagonal M)'
     signature_text = ('ε ∝ cross-axis rotation: Σ C_k M ρ_k; the antisymmetric part of M is a '
                       'rotation of the whole triad, the same signature as a boresight change, '
@@ -415,6 +467,8 @@ class GyroGSensitivity(Effect):
                                   'g-sensitivity G, row-major 3×3: rate bias G·f for the '
                                   'specific force f, body axes, rad/s per m/s²',
                                   -MAX_G_SENSITIVITY, MAX_G_SENSITIVITY),)
+    sigma_parameter = 'gyro_g_sensitivity_sigma'
+    prior_sigma = 1e-5
     summary = 'rate bias proportional to the specific force (g-dependent bias)'
     signature_text = 'ε = Σ C_k G Δv_k: follows the specific force, not the rotation'
 

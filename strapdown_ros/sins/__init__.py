@@ -9,7 +9,7 @@ integration, navigation, message by message), :mod:`~strapdown_ros.sins.system`
 Its names are imported from ``strapdown_ros.sins``.
 """
 from strapdown_ros.sins.core import (FEED_ACCEL_BLOCK, FEED_BLOCK, MAX_BATCH, NONFINITE_INFLATION,
-                                     SinsCore)
+                                     SinsCore, SinsSettings)
 from strapdown_ros.sins.outputs import (ACCEL_STALL_ERROR_FACTOR, ACCEL_STALL_ERROR_MIN_S,
                                         accel_stall_limits, AccelStall, AttitudeOutput,
                                         ImuOutput, NavigationOutput, NO_OUTPUT,
@@ -20,4 +20,5 @@ from strapdown_ros.sins.system import SinsSystem
 __all__ = ['ACCEL_STALL_ERROR_FACTOR', 'ACCEL_STALL_ERROR_MIN_S', 'AccelStall',
            'accel_stall_limits', 'AttitudeOutput', 'FEED_ACCEL_BLOCK', 'FEED_BLOCK',
            'ImuOutput', 'MAX_BATCH', 'NavigationOutput', 'NO_OUTPUT', 'NONFINITE_INFLATION',
-           'odometry_arrays', 'screen_stream', 'SinsCore', 'SinsOutput', 'SinsSystem']
+           'odometry_arrays', 'screen_stream', 'SinsCore', 'SinsOutput', 'SinsSettings',
+           'SinsSystem']

@@ -1,8 +1,9 @@
 """
 The SINS core of ``sins_node`` and ``sins_bag``: from raw increments to published numbers.
 
-:class:`SinsCore` takes the node's validated parameters
-(:data:`strapdown_ros.params.SINS_PARAMS`) and the raw stream of ``imu/delta_theta`` and
+:class:`SinsCore` takes the unit's sensor model
+(:class:`~strapdown_ros.sensors.sensor_model.SensorModel`), its own :class:`SinsSettings` and the
+raw stream of ``imu/delta_theta`` and
 ``imu/delta_velocity`` values (header stamp in integer nanoseconds, the vector, the header
 frame id) and owns everything between them and the published numbers:
 
@@ -30,6 +31,7 @@ the same order gives the same numbers, whoever calls it.  No ROS imports.
 from __future__ import annotations
 
 from collections import deque
+from dataclasses import dataclass, fields
 import math
 import time
 from typing import Callable
@@ -40,10 +42,9 @@ from strapdown_ros.attitude import kernel as attitude_kernel
 from strapdown_ros.attitude.increment_sums import IncrementAccumulator
 from strapdown_ros.attitude.integrator import AttitudeIntegrator
 from strapdown_ros.navigation import recursion as nav_recursion
-from strapdown_ros.navigation.channel import NavigationChannel
-from strapdown_ros.params import sigmas_from
+from strapdown_ros.navigation.channel import NavigationChannel, NavigationSettings
 from strapdown_ros.rotation import dcm_to_quat, from_ros_xyzw
-from strapdown_ros.sensors.effects import GyroEffects
+from strapdown_ros.sensors.sensor_model import SensorModel
 from strapdown_ros.sins.outputs import (accel_stall_limits, AccelStall, AttitudeOutput,
                                         ImuOutput, NavigationOutput, NO_OUTPUT, SinsOutput)
 from strapdown_ros.streams.checks import StreamCheck
@@ -63,6 +64,81 @@ def _finite_update(q: np.ndarray, cov: np.ndarray) -> bool:
     """Tell whether one update's attitude and covariance are finite (scalar reads: cheap)."""
     return math.isfinite(q[0] + q[1] + q[2] + q[3] + cov[0, 0] + cov[0, 1] + cov[0, 2]
                          + cov[1, 1] + cov[1, 2] + cov[2, 2])
+
+
+@dataclass(frozen=True)
+class SinsSettings:
+    """
+    What ``sins_node`` and ``sins_bag`` take besides the sensor model.
+
+    The field names are the node's parameter names (:data:`strapdown_ros.params.SINS_PARAMS`,
+    where each is described).
+
+    Attributes
+    ----------
+    coning_algorithm : str
+        The coning algorithm at the start (it may change later: the integrator holds it).
+    initial_orientation : tuple of float
+        q_ref_body as ROS x, y, z, w.
+    initial_attitude_sigma : float
+        1σ initial attitude error per axis, rad.
+    covariance_model : str
+        Gyro error model of the covariance.
+    quantization_correction : bool
+        Apply 000 eq. (5.6) with the model's gyro_quantum.
+    accel_wait : float
+        How long sins/imu waits for accelerometer data, stamp s.
+    navigation : bool
+        Run the navigation channel.
+    navigation_settings : NavigationSettings
+        Its settings.
+    earth_frame_id : str
+        Frame id of sins/odometry.
+    batch_period : float
+        Stamp time of a block, s.
+    max_stamp_jump : float
+        A stamp step beyond this is a jump, s.
+    resync_count : int
+        Consecutive messages that confirm a new timeline.
+    frame_mismatch : str
+        ``reject`` or ``accept`` a message in another frame.
+
+    """
+
+    coning_algorithm: str = '2'
+    initial_orientation: tuple = (0.0, 0.0, 0.0, 1.0)
+    initial_attitude_sigma: float = 0.0
+    covariance_model: str = 'random_constant'
+    quantization_correction: bool = False
+    accel_wait: float = 0.1
+    navigation: bool = False
+    navigation_settings: NavigationSettings = NavigationSettings()
+    earth_frame_id: str = 'earth'
+    batch_period: float = 0.01
+    max_stamp_jump: float = 1.0
+    resync_count: int = 5
+    frame_mismatch: str = 'reject'
+
+    @classmethod
+    def from_values(cls, values) -> SinsSettings:
+        """
+        Build the settings from parameter values (other names are not read).
+
+        Parameters
+        ----------
+        values : mapping
+            Parameter name → value (defaults where absent).
+
+        Returns
+        -------
+        SinsSettings
+            The settings.
+
+        """
+        out = {f.name: values[f.name] for f in fields(cls) if f.name in values}
+        if 'initial_orientation' in out:
+            out['initial_orientation'] = tuple(float(x) for x in out['initial_orientation'])
+        return cls(**out, navigation_settings=NavigationSettings.from_values(values))
 
 
 # --- the system ---------------------------------------------------------------------------------
@@ -86,8 +162,11 @@ class SinsCore:
 
     Parameters
     ----------
-    params : dict
-        Validated :data:`~strapdown_ros.params.SINS_PARAMS` (copied).
+    model : SensorModel
+        The unit's sensor model: rates, clip levels, frame, the gyro statistics of the
+        covariance and the gyro effects compensated per increment.
+    settings : SinsSettings, optional
+        The SINS's own settings (default: the defaults).
     log : callable(level, text), optional
         Where messages go (level ``info``, ``warn`` or ``error``; repeated warnings are
         throttled here).  None: messages are dropped.
@@ -102,37 +181,42 @@ class SinsCore:
 
     """
 
-    def __init__(self, params: dict, log: Callable[[str, str], None] | None = None,
+    def __init__(self, model: SensorModel, settings: SinsSettings | None = None,
+                 log: Callable[[str, str], None] | None = None,
                  imu_wanted: Callable[[], bool] | None = None):
-        p = self.p = dict(params)
-        q0_xyzw = np.asarray(p['initial_orientation'], dtype=float)
+        if isinstance(model, dict):
+            raise TypeError('SinsCore takes a SensorModel and SinsSettings '
+                            '(strapdown_ros.params.load_model_file), not a parameter dict')
+        s = self.settings = settings or SinsSettings()
+        self.model = model
+        q0_xyzw = np.asarray(s.initial_orientation, dtype=float)
         if np.linalg.norm(q0_xyzw) < 1e-6:
             raise ValueError('initial_orientation must not be the zero quaternion')
         self.initial_normalised = abs(np.linalg.norm(q0_xyzw) - 1.0) > 1e-6
-        period = 1.0 / float(p['gyro_rate'])
+        period = model.gyro_period
         self.integrator = AttitudeIntegrator(
-            p['coning_algorithm'], initial_attitude=from_ros_xyzw(q0_xyzw), nominal_period=period,
-            gyro=sigmas_from(p, 'gyro'), initial_sigma=float(p['initial_attitude_sigma']),
-            covariance_model=p['covariance_model'],
-            quantization_correction=bool(p['quantization_correction']))
+            s.coning_algorithm, initial_attitude=from_ros_xyzw(q0_xyzw), nominal_period=period,
+            gyro=model.gyro, initial_sigma=float(s.initial_attitude_sigma),
+            covariance_model=s.covariance_model,
+            quantization_correction=bool(s.quantization_correction))
         # known systematic gyro effects of the model (sensors.effects), compensated per increment
-        self.gyro_effects = GyroEffects(p)
+        self.gyro_effects = model.gyro_effects()
         self.compensating = self.gyro_effects.names()
         self._last_gyro_t: float | None = None
-        jump, resync = float(p['max_stamp_jump']), int(p['resync_count'])
-        self.gyro_check = StreamCheck(period, max_norm=2.0 * period * float(p['gyro_max_rate']),
+        jump, resync = float(s.max_stamp_jump), int(s.resync_count)
+        self.gyro_check = StreamCheck(period, max_norm=2.0 * period * model.gyro_max_rate,
                                       jump_limit=jump,
                                       resync_count=resync)
-        a_period = 1.0 / float(p['accel_rate'])
-        self.accel_check = StreamCheck(a_period, max_norm=2.0 * a_period * float(p['accel_max']),
+        a_period = 1.0 / model.accel_rate
+        self.accel_check = StreamCheck(a_period, max_norm=2.0 * a_period * model.accel_max,
                                        jump_limit=jump,
                                        resync_count=resync)
         # updates whose output was not finite (never output)
         self.nonfinite = 0
         self.rate_checks: dict = {}                # sensor_msgs/Imu rate samples (screen_imu)
         self.frame_mismatch = {'gyro': 0, 'accel': 0}
-        self.frame_id = p['frame_id']
-        self.reject_frames = p['frame_mismatch'] == 'reject'
+        self.frame_id = model.frame_id
+        self.reject_frames = s.frame_mismatch == 'reject'
         self.own_frames = ('', self.frame_id)
         self._good = self.integrator.snapshot()
         self.accel = IncrementAccumulator()
@@ -144,7 +228,7 @@ class SinsCore:
         self._accel_in: list = []                  # (t, (x, y, z))
         self.gyro_blocks: list = []               # screened arrays (feed): (stamps_ns, values)
         self.accel_blocks: list = []              # (t, values)
-        self.batch_span = float(p['batch_period'])
+        self.batch_span = float(s.batch_period)
         self._gyro_period = period
         self._block_end_ns: int | None = None      # stamp of the last sample processed
         self.batch_span_ns = int(round(self.batch_span * 1e9))
@@ -153,7 +237,7 @@ class SinsCore:
         # per axis, (rad/s)², of the mean rate of sins/imu
         self.rate_variance = g
         # (m/s²)²
-        self.accel_variance = float(p['accel_random_walk']) ** 2 * float(p['accel_rate'])
+        self.accel_variance = model.accel.random_walk ** 2 * model.accel_rate
         self._log_fn = log
         self._imu_wanted = imu_wanted or (lambda: True)
         self._throttle: dict[str, float] = {}
@@ -161,8 +245,8 @@ class SinsCore:
         self.has_output = False
         attitude_kernel.warm_up()      # compiled before the first message, if numba is there
         self.nav: NavigationChannel | None = None
-        if p['navigation']:
-            self.nav = NavigationChannel(p, sigmas_from(p, 'gyro'), sigmas_from(p, 'accel'),
+        if s.navigation:
+            self.nav = NavigationChannel(s.navigation_settings, model.gyro, model.accel,
                                          period, a_period,
                                          self.integrator.algorithm.samples)
             nav_recursion.warm_up()
@@ -369,7 +453,6 @@ class SinsCore:
         if self._gyro_in or self._accel_in or self.gyro_blocks or self.accel_blocks:
             self._run()
         self.integrator.set_algorithm(name)
-        self.p['coning_algorithm'] = name
         return True
 
     # --- processing ---------------------------------------------------------------------------
@@ -474,7 +557,7 @@ class SinsCore:
             return False
         if nav.mode == 'given':
             nav.start(float(t[0]) - self.integrator.nominal_period,
-                      attitude_sigma=float(self.p['initial_attitude_sigma']))
+                      attitude_sigma=float(self.settings.initial_attitude_sigma))
             return False
         periods = np.full(len(t), self.integrator.nominal_period)
         comp = self.gyro_effects.compensate(inc, t, periods) if self.compensating else inc
@@ -488,9 +571,9 @@ class SinsCore:
             self.integrator = AttitudeIntegrator(
                 self.integrator.algorithm_name, initial_attitude=dcm_to_quat(c_e_b),
                 initial_time=t_end, nominal_period=self.integrator.nominal_period,
-                gyro=sigmas_from(self.p, 'gyro'), initial_sigma=sigma,
-                covariance_model=self.p['covariance_model'],
-                quantization_correction=bool(self.p['quantization_correction']))
+                gyro=self.model.gyro, initial_sigma=sigma,
+                covariance_model=self.settings.covariance_model,
+                quantization_correction=bool(self.settings.quantization_correction))
             self._good = self.integrator.snapshot()
             self._nav_prev_q = self.integrator.q.copy()
             self._last_gyro_t = t_end
@@ -565,7 +648,7 @@ class SinsCore:
         """
         if not self.pending_imu:
             return
-        wait = float(self.p['accel_wait'])
+        wait = float(self.settings.accel_wait)
         newest = self.integrator.time if self.integrator.time is not None else -np.inf
         covered = self.accel.covered_until() + 1e-9
         ready = 0
@@ -592,7 +675,7 @@ class SinsCore:
         if self.nav is None or self.nav.navigator is None:
             return
         newest = self.integrator.time if self.integrator.time is not None else -np.inf
-        nb = self.nav.process(np.inf if final else newest, float(self.p['accel_wait']))
+        nb = self.nav.process(np.inf if final else newest, float(self.settings.accel_wait))
         if nb is None or not len(nb):
             return
         self._out[2].append(NavigationOutput(self._stamps_ns(nb.stamps), nb.position, nb.velocity,
@@ -628,7 +711,7 @@ class SinsCore:
 
         """
         stall = self.accel_stall_s()
-        warn_s, error_s = accel_stall_limits(self.p['accel_wait'])
+        warn_s, error_s = accel_stall_limits(self.settings.accel_wait)
         if stall is None or not stall > warn_s:
             return None
         what = 'no accelerometer increments received' if self.accel_check.last_ns is None else \

@@ -137,12 +137,12 @@ class SinsSystem(SinsCore):
             if self.reject_frames:
                 keep = ~mask
                 st, w, f = st[keep], w[keep], (None if f is None else f[keep])
-        p = self.p
-        period = 1.0 / float(p['gyro_rate'])
-        jump, resync = float(p['max_stamp_jump']), int(p['resync_count'])
+        m, s = self.model, self.settings
+        period = m.gyro_period
+        jump, resync = float(s.max_stamp_jump), int(s.resync_count)
         out = []
-        for name, values, max_rate in (('gyro', w, float(p['gyro_max_rate'])),
-                                       ('accel', f, float(p['accel_max']))):
+        for name, values, max_rate in (('gyro', w, m.gyro_max_rate),
+                                       ('accel', f, m.accel_max)):
             if values is None:
                 out.append(None)
                 continue

@@ -48,7 +48,7 @@ import math
 
 import numpy as np
 
-__all__ = ['StreamCheck', 'nominal_period', 'validate', 'segments']
+__all__ = ['StreamCheck', 'nominal_period', 'validate', 'segments', 'clip_text']
 
 
 class StreamCheck:
@@ -95,6 +95,7 @@ class StreamCheck:
         self.first_ns: int | None = None
         self.received = self.accepted = 0
         self.nan = self.out_of_range = self.out_of_order = self.duplicate = 0
+        self.largest_out_of_range = 0.0    # largest |component| of a message out of range
         self.gaps = self.missing = self.stamp_outliers = self.resyncs = 0
         self.last_jump_s: float | None = None
         self._held: list = []          # candidate new timeline: [(stamp_ns, value)]
@@ -122,6 +123,33 @@ class StreamCheck:
         if len(v) == 3:
             return max(abs(v[0]), abs(v[1]), abs(v[2]))
         return max(abs(c) for c in v)
+
+    def clip_warning(self, parameter: str, limit: float, unit: str,
+                     period: float | None = None) -> str | None:
+        """
+        Return the warning of the messages dropped beyond the clip level, or None.
+
+        Parameters
+        ----------
+        parameter : str
+            The model key of the clip level.
+        limit : float
+            Its value, ``unit``.
+        unit : str
+            The unit of the limit.
+        period : float, optional
+            For increments: their period, s (the largest is shown as a rate).
+
+        Returns
+        -------
+        str or None
+            :func:`clip_text`; None when nothing was out of range.
+
+        """
+        if not self.out_of_range:
+            return None
+        largest = self.largest_out_of_range / period if period else self.largest_out_of_range
+        return clip_text(self.out_of_range, largest, parameter, limit, unit)
 
     @property
     def held(self) -> int:
@@ -158,6 +186,8 @@ class StreamCheck:
                 return []
             if self.max_norm is not None and max(abs(x), abs(y), abs(z)) > self.max_norm:
                 self.out_of_range += 1
+                self.largest_out_of_range = max(self.largest_out_of_range, abs(x), abs(y),
+                                                abs(z))
                 return []
         else:
             if not self._finite(v):
@@ -165,6 +195,7 @@ class StreamCheck:
                 return []
             if self.max_norm is not None and self._norm(v) > self.max_norm:
                 self.out_of_range += 1
+                self.largest_out_of_range = max(self.largest_out_of_range, self._norm(v))
                 return []
         last = self.last_ns
         if last is None:
@@ -383,6 +414,7 @@ class StreamCheck:
         return {f'{prefix}_received': self.received, f'{prefix}_accepted': self.accepted,
                 f'{prefix}_rate_hz_from_stamps': self.rate_hz(), f'{prefix}_dropped_nan': self.nan,
                 f'{prefix}_dropped_out_of_range': self.out_of_range,
+                f'{prefix}_largest_out_of_range': self.largest_out_of_range,
                 f'{prefix}_dropped_out_of_order': self.out_of_order,
                 f'{prefix}_dropped_duplicate': self.duplicate,
                 f'{prefix}_dropped_stamp_outlier': self.stamp_outliers,
@@ -390,6 +422,35 @@ class StreamCheck:
                 f'{prefix}_missing_samples': self.missing, f'{prefix}_dropouts': self.dropouts,
                 f'{prefix}_stamp_bursts': self.bursts,
                 f'{prefix}_stamp_burst_messages': self.burst_messages}
+
+
+def clip_text(count: int, largest: float, parameter: str, limit: float, unit: str) -> str:
+    """
+    Return the one wording of samples beyond a clip level, naming the parameter.
+
+    Parameters
+    ----------
+    count : int
+        Samples dropped as out of range.
+    largest : float
+        The largest value among them, in ``unit``.
+    parameter : str
+        The model key of the clip level (``gyro_max_rate``, ``accel_max``).
+    limit : float
+        Its value, in ``unit``.
+    unit : str
+        The unit.
+
+    Returns
+    -------
+    str
+        E.g. ``12 samples beyond gyro_max_rate = 20 rad/s dropped (largest 25.3 rad/s): raise
+        gyro_max_rate in the model if the sensor's range is larger``.
+
+    """
+    return (f'{count} sample(s) beyond {parameter} = {limit:g} {unit} dropped (largest '
+            f'{largest:.4g} {unit}): raise {parameter} in the model if the range of the sensor '
+            'is larger')
 
 
 def nominal_period(stamps_ns) -> float:

@@ -45,229 +45,18 @@ import sys
 
 import numpy as np
 
-from strapdown_ros.calibration.streaming import BoresightCalibrator
+from strapdown_ros.calibration.replay import calibrate_recording, solution_record
+from strapdown_ros.calibration.streaming import CalibratorSettings
 from strapdown_ros.cli import check_outputs, FILE, OneLineParser, write_json
-from strapdown_ros.estimation.chi_square import FIT_LEVEL
-from strapdown_ros.params import CALIBRATOR_PARAMS, node_parameters, parse_overrides
+from strapdown_ros.params import (check_against_recording, filled_in, load_model_file,
+                                  parse_overrides)
 from strapdown_ros.recording import (add_input_arguments, BagError, check_input_arguments,
                                      input_lines, input_options, input_summary, input_warnings,
-                                     read_bag)
-from strapdown_ros.rotation import to_ros_xyzw
-from strapdown_ros.streams.checks import segments
+                                     read_bag, recording_facts)
 
-__all__ = ['main', 'calibrate', 'calibrator_parameters', 'make_calibrator', 'solution_json']
+__all__ = ['main']
 
 ARCSEC_PER_RAD = 180.0 / np.pi * 3600.0
-
-
-# --- parameters -------------------------------------------------------------------------------
-def calibrator_parameters(params_file: str | None = None, overrides: dict | None = None) -> dict:
-    """
-    Return calibrator_node's parameters from a ROS 2 parameter YAML, validated.
-
-    Parameters
-    ----------
-    params_file : str, optional
-        A ROS 2 parameter YAML (its ``calibrator_node`` and ``/**`` blocks).
-    overrides : dict, optional
-        Values that replace the file's (name → value).
-
-    Returns
-    -------
-    dict
-        Every calibrator_node parameter, name → checked value.
-
-    """
-    return node_parameters('calibrator_node', CALIBRATOR_PARAMS, params_file, overrides)
-
-
-def make_calibrator(p: dict) -> BoresightCalibrator:
-    """
-    Return the calibrator exactly as calibrator_node builds it.
-
-    Parameters
-    ----------
-    p : dict
-        calibrator_node parameters (:func:`calibrator_parameters`).
-
-    Returns
-    -------
-    BoresightCalibrator
-        The calibrator, its gyro effects compensated.
-
-    """
-    return BoresightCalibrator.from_params(p)
-
-
-def _match_segments(tg, g_segs, tc, c_segs) -> list[tuple[int, int]]:
-    """
-    Pair each gyro time base with its camera time base, in order.
-
-    Which gyro time base goes with which camera time base, in order.  As many of each (a clock
-    reset of both streams, the usual case): the k-th with the k-th.  Otherwise (one stream
-    resynchronised alone) by overlapping stamp ranges, walking both lists forward.
-    """
-    if len(g_segs) == len(c_segs):
-        return [(k, k) for k in range(len(g_segs))]
-    out, i, j = [], 0, 0
-    while i < len(g_segs) and j < len(c_segs):
-        g_lo, g_hi = tg[g_segs[i][0]], tg[g_segs[i][1] - 1]
-        c_lo, c_hi = tc[c_segs[j][0]], tc[c_segs[j][1] - 1]
-        if g_hi >= c_lo and c_hi >= g_lo:
-            out.append((i, j))
-        if g_hi <= c_hi:                               # the segment that ends first is done
-            i += 1
-        if c_hi <= g_hi:
-            j += 1
-    return out
-
-
-def calibrate(data: dict, p: dict):
-    """
-    Feed the calibrator as calibrator_node is fed and solve.
-
-    Feed the calibrator as calibrator_node is fed — gyro and fixes interleaved in stamp order — and
-    solve; returns (solution, calibrator, pairs discarded over gyro gaps and stamp jumps). The
-    calibrator's buffer stays bounded on recordings of any length.
-
-    Each stream is split into its time bases (``strapdown_ros.streams.checks.segments``: a
-    confirmed resynchronisation starts a new one; a burst that returned has already been removed by
-    ``validate``).  Gyro and camera segments are matched in order (the k-th with the k-th);
-    the calibrator restarts its gyro history (``restart_gyro``, as calibrator_node does on a
-    resynchronisation) at every gyro segment and its fix chain at every camera segment, so no
-    pair spans a jump and no stamp array handed to the search is out of order (segments matched
-    by :func:`_match_segments`).
-
-    Parameters
-    ----------
-    data : dict
-        The streams of :func:`strapdown_ros.recording.reader.read_bag`.
-    p : dict
-        calibrator_node parameters.
-
-    Returns
-    -------
-    solution : BoresightSolution
-        The boresight estimate.
-    calibrator : BoresightCalibrator
-        The calibrator after the recording.
-    discarded : int
-        Pairs discarded over gyro gaps and stamp jumps.
-
-    """
-    g, c = data['gyro'], data['camera']
-    t0 = min(g.stamps[0], c.stamps[0])                 # origin: float seconds keep ns resolution
-    cal = make_calibrator(p)
-    tg = (np.asarray(g.stamps, dtype=np.int64) - t0) * 1e-9
-    vg = np.asarray(g.values, dtype=float).reshape(-1, 3)
-    tc = (np.asarray(c.stamps, dtype=np.int64) - t0) * 1e-9
-    period = data.get('gyro_period_s') or 1.0 / float(p['gyro_rate'])
-    # the in-interval polynomial reads the neighbours
-    h = 1.5 * period
-    offset = abs(float(p['camera_time_offset']))      # a fix's epoch is its stamp − offset
-    lead = 3 * period + offset
-    g_segs = segments(g.stamps, getattr(g.check, 'segment_starts', []))
-    c_segs = segments(c.stamps, getattr(c.check, 'segment_starts', []))
-    discarded = 0
-    cur_g = cur_c = None                               # segments the calibrator is fed from
-    k = 0                                              # gyro samples of segment cur_g fed so far
-    for i, j in _match_segments(tg, g_segs, tc, c_segs):
-        (ga, gb), (ca, cb) = g_segs[i], c_segs[j]
-        seg_t, seg_v = tg[ga:gb], vg[ga:gb]
-        if cur_g != i:
-            if cur_g is not None:
-                cal.restart_gyro()
-            cur_g, k = i, 0
-        if cur_c is not None and cur_c != j:
-            cal.restart_camera()
-        cur_c = j
-        gaps = [(seg_t[n], seg_t[n + 1]) for n in np.flatnonzero(np.diff(seg_t) > 1.5 * period)]
-        for t, (q, P) in zip(tc[ca:cb], c.values[ca:cb]):
-            if t < seg_t[0] - offset or t > seg_t[-1] + offset:
-                continue                               # outside the gyro segment: no pair
-            k1 = int(np.searchsorted(seg_t, t + lead, side='right'))
-            new = 0
-            if k1 > k:
-                new = cal.add_gyro(seg_t[k:k1], seg_v[k:k1])
-                k = k1
-            new += cal.add_camera(t, q, P)
-            if new and gaps:                           # as calibrator_node discards them
-                tail = cal.pairs[len(cal.pairs) - new:]
-                keep = [pr for pr in tail
-                        if not any(pr.t_start - h < b and a < pr.t_end + h for a, b in gaps)]
-                discarded += len(tail) - len(keep)
-                del cal.pairs[len(cal.pairs) - new:]
-                cal.pairs.extend(keep)
-        if k < len(seg_t):                             # fixes still waiting for gyro coverage
-            cal.add_gyro(seg_t[k:], seg_v[k:])
-            k = len(seg_t)
-    return cal.solve(), cal, discarded
-
-
-# --- output ---------------------------------------------------------------------------------
-def _num(x):
-    x = float(x)
-    return x if np.isfinite(x) else None
-
-
-def _mat(m):
-    return None if m is None else [[_num(v) for v in row] for row in np.asarray(m, dtype=float)]
-
-
-def solution_json(sol, weighted: bool) -> dict:
-    """
-    Return the JSON record of a BoresightSolution (schema in the module docstring).
-
-    Parameters
-    ----------
-    sol : BoresightSolution
-        The solution.
-    weighted : bool
-        Whether the fit was weighted by the pair covariances.
-
-    Returns
-    -------
-    dict
-        Plain JSON values.
-
-    """
-    ok = bool(sol.observable and sol.beta is not None)
-    unobs = list(sol.unobservable_axes) if not ok else []
-    if not ok and not unobs:                   # too few pairs: nothing is observable
-        axes = [', '.join('1.00' if i == j else '0.00' for j in range(3)) for i in range(3)]
-        unobs = [f'rotation about VF axis ({a})' for a in axes]
-    out = {
-        'q_mf_vf_xyzw': [float(c) for c in to_ros_xyzw(sol.q_mf_vf)] if ok else None,
-        'rotation_covariance_mf_rad2': _mat(sol.rotation_covariance_mf) if ok else None,
-        'beta_rad': [float(b) for b in sol.beta] if ok else None,
-        'beta_sigma_rad': ([float(s) for s in np.sqrt(np.diag(sol.covariance_beta))]
-                           if ok else None),
-        'covariance_rad2': _mat(sol.covariance_beta) if ok else None,
-        'pairs': int(sol.pairs),
-        'observable': ok,
-        'unobservable_axes': unobs,
-        'residual_rms_rad': _num(sol.residual_rms),
-        'weighted': bool(sol.weighted if ok else weighted),
-        # extra keys
-        'message': sol.message,
-        'converged': bool(sol.converged),
-        'iterations': int(sol.iterations),
-        'chi2_per_dof': _num(sol.chi2_per_dof),
-        'fit_consistent': None if sol.fit_consistent is None else bool(sol.fit_consistent),
-        'chi2_per_dof_band': [_num(b) for b in sol.chi2_band] if ok else None,
-        'chi2_level': FIT_LEVEL,
-        'dof': int(sol.dof),
-        # σ from the stated noise alone; beta_sigma_rad is it scaled by √(χ²/dof) when χ²/dof > 1
-        'beta_sigma_stated_noise_rad': (
-            [float(v) for v in np.sqrt(np.diag(sol.covariance_beta_stated))]
-            if ok and sol.covariance_beta_stated is not None else None),
-    }
-    rep = sol.observability
-    if rep is not None:
-        out['observability'] = {'eigenvalues': [_num(v) for v in rep.eigenvalues],
-                                'predicted_sigma_rad': [_num(v) for v in rep.predicted_sigma],
-                                'condition': _num(rep.condition), 'weak': list(rep.weak)}
-    return out
 
 
 def _band_text(result: dict) -> str:
@@ -278,7 +67,7 @@ def _band_text(result: dict) -> str:
     return f" ({verdict}: band [{band[0]:.3g}, {band[1]:.3g}] at level {result['chi2_level']:g})"
 
 
-def _summary(bag: str, data: dict, result: dict, p: dict) -> str:
+def _summary(bag: str, data: dict, result: dict) -> str:
     g, c = data['gyro'], data['camera']
     cov_from = ('covariance from the bag' if data['camera_covariance_from_bag']
                 else 'assumed camera σ')
@@ -312,7 +101,7 @@ def _summary(bag: str, data: dict, result: dict, p: dict) -> str:
     else:
         fit = 'not observable'
     lines.append(f"  pairs {result['pairs']}, {weighting}, "
-                 f"covariance model {p['covariance_model']}, " + fit)
+                 f"covariance model {result['covariance_model']}, " + fit)
     if result['observable']:
         names = ('heading ψ', 'pitch ϑ', 'roll γ')
         untrusted = ('UNTRUSTED (fit inconsistent with the stated noise) '
@@ -336,7 +125,8 @@ def consistency_warning(result: dict) -> str | None:
     Parameters
     ----------
     result : dict
-        The JSON record of the solution (:func:`solution_json`).
+        The JSON record of the solution
+        (:func:`strapdown_ros.calibration.replay.solution_record`).
 
     Returns
     -------
@@ -385,7 +175,8 @@ def main(argv=None) -> int:
                        formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument('bag', help='rosbag2 bag directory, or a .mcap / .db3 file')
     ap.add_argument('--params', metavar='FILE',
-                    help='ROS 2 parameter YAML (calibrator_node and /** blocks)')
+                    help='the sensor model and settings: a ROS 2 parameter YAML (its model keys, '
+                         'and the settings of /** and calibrator_node)')
     ap.add_argument('--json', metavar='FILE', help='write the result as JSON')
     ap.add_argument('--force', action='store_true', help='overwrite an existing --json file')
     ap.add_argument('--unweighted', action='store_true',
@@ -404,19 +195,25 @@ def main(argv=None) -> int:
             over['weighted'] = False
         if args.covariance_model:
             over['covariance_model'] = args.covariance_model
-        p = calibrator_parameters(args.params, over)
+        mf = load_model_file(args.params, 'calibrator_node', over)
+        settings = CalibratorSettings.from_values(mf.settings)
         check_outputs([('--json', args.json, FILE)],
                       [('bag', args.bag), ('--params', args.params)], args.force)
-        data = read_bag(args.bag, args.namespace, bool(p['use_camera_covariance']),
-                        (p['camera_sigma_xy'], p['camera_sigma_xy'], p['camera_sigma_z']),
-                        float(p['gyro_max_rate']), float(p['max_stamp_jump']),
-                        int(p['resync_count']), **input_options(args))
+        for w in mf.warnings:
+            print(f'calibrate_bag: warning: {w}', file=sys.stderr)
+        model = mf.model
+        data = read_bag(args.bag, args.namespace, settings.use_camera_covariance,
+                        tuple(model.camera_sigma), model.gyro_max_rate,
+                        settings.max_stamp_jump, settings.resync_count, **input_options(args))
+        model = check_against_recording(model, recording_facts(data))
     except (ValueError, OSError, BagError) as exc:
         print(f'calibrate_bag: error: {exc}', file=sys.stderr)
         return 2
     for line in input_warnings('calibrate_bag', data):
         print(line, file=sys.stderr)
-    for kind, want in (('gyro', p['frame_id']), ('camera', p['reference_frame_id'])):
+    for line in filled_in(mf.model, model):
+        print(f'calibrate_bag: note: {line}', file=sys.stderr)
+    for kind, want in (('gyro', model.frame_id), ('camera', model.reference_frame_id)):
         other = [f for f in data['frames'][kind] if f != want]
         if other:
             print(f'calibrate_bag: warning: {kind} messages in frame '
@@ -428,14 +225,9 @@ def main(argv=None) -> int:
         print(f"calibrate_bag: error: no usable {'gyro' if not g.stamps else 'camera'} messages",
               file=sys.stderr)
         return 2
-    step = data['gyro_period_s']
-    if np.isfinite(step) and abs(step * float(p['gyro_rate']) - 1.0) > 0.1:
-        print(f'calibrate_bag: note: gyro stamps are {step:.6g} s apart ({1.0 / step:.6g} Hz); '
-              'gaps are judged '
-              f"against that, not gyro_rate = {p['gyro_rate']:g} Hz", file=sys.stderr)
-    sol, cal, discarded = calibrate(data, p)
-    result = solution_json(sol, bool(p['weighted']))
-    result['covariance_model'] = p['covariance_model']
+    sol, cal, discarded = calibrate_recording(data, model, settings)
+    result = solution_record(sol, settings.weighted)
+    result['covariance_model'] = settings.covariance_model
     result['dropped'] = {'gyro': dict(g.dropped),
                          'camera': {**c.dropped,
                                     'zero_quaternion': data['camera_fixes']['zero_quaternion'],
@@ -446,11 +238,11 @@ def main(argv=None) -> int:
     result['stamp_resyncs'] = {'gyro': g.resyncs, 'camera': c.resyncs}
     result['pairs_replayed_not_added'] = cal.replayed_pairs         # stamps of a pair already held
     period = data['gyro_period_s']
-    result['gyro_rate_from_stamps_hz'] = _num(1.0 / period) if np.isfinite(period) else None
+    result['gyro_rate_from_stamps_hz'] = float(1.0 / period) if np.isfinite(period) else None
     result['camera_fixes'] = {k: data['camera_fixes'][k] for k in ('normalised',
                                                                    'covariance_substituted')}
     result['camera_fixes']['outliers_dropped'] = cal.outlier_fixes
-    origin_s = min(g.stamps[0], c.stamps[0]) * 1e-9                     # calibrate()'s time origin
+    origin_s = min(g.stamps[0], c.stamps[0]) * 1e-9          # calibrate_recording's time origin
     result['camera_fixes']['outlier_stamps_s'] = [float(t) + origin_s for t in cal.outlier_stamps]
     result['messages'] = {'gyro': len(g.stamps), 'camera': len(c.stamps)}
     result['topics'] = {'gyro': data['gyro_topic'], 'camera': data['camera_topic']}
@@ -459,7 +251,7 @@ def main(argv=None) -> int:
     result['unread_messages'] = dict(data['unread_messages'])
     if data['rate_samples']:
         result['dropped']['gyro_rate_samples'] = dict(data['rate_samples']['dropped'])
-    print(_summary(args.bag, data, result, p))
+    print(_summary(args.bag, data, result))
     print('\n'.join(input_lines(result['input'])))
     warning = consistency_warning(result) if result['observable'] else None
     if warning:

@@ -53,7 +53,8 @@ from strapdown_ros.calibration.gyro import model_parameters
 from strapdown_ros.cli import check_outputs, FILE, OneLineParser, write_json
 from strapdown_ros.discrepancy.bag_input import load_recording, recording_lines
 from strapdown_ros.discrepancy.workflow import InputError, json_clean
-from strapdown_ros.params import load_model, write_model
+from strapdown_ros.params import (check_against_recording, filled_in, load_model_file,
+                                  write_model_file)
 from strapdown_ros.recording import (add_input_arguments, BagError, check_input_arguments,
                                      input_options, input_warnings)
 
@@ -251,18 +252,25 @@ def main(argv=None) -> int:
 
     try:
         _check(args)
-        model, doc = load_model(args.model)
+        mf = load_model_file(args.model, 'calibrator_node')
+        model, doc = mf.model, mf.doc
+        for w in mf.warnings:
+            print(f'{PROG}: warning: {w}', file=sys.stderr)
     except (ValueError, OSError) as exc:
         return fail(exc)
-    if float(model.get('gyro_quantum', 0.0)) > 0 and not args.quiet:
+    if model.gyro.quantum > 0 and not args.quiet:
         print(f'{PROG}: warning: gyro_quantum > 0: pulse quantization (000 §5) is not '
               'modelled; the σ may be '
               f'optimistic', file=sys.stderr)
     try:
-        rec, info = load_recording(args.bag, model, args.namespace,     # (no progress line yet: an
-                                   **input_options(args))               # unusable bag is one line)
+        rec, info = load_recording(args.bag, model, mf.settings,     # (no progress line yet:
+                                   args.namespace, **input_options(args))   # one line if unusable)
+        checked = check_against_recording(model, info['facts'])
         for line in input_warnings(PROG, info):
             print(line, file=sys.stderr)
+        for line in filled_in(model, checked):
+            print(f'{PROG}: note: {line}', file=sys.stderr)
+        model = checked
         if len(rec.fix_stamps) < 6:
             raise ValueError(f'{args.bag}: {len(rec.fix_stamps)} usable camera fixes '
                              '(need at least 6)')
@@ -289,10 +297,12 @@ def main(argv=None) -> int:
         if args.json:
             write_json(args.json, out)
         if cal.observable and args.write_model:
-            write_model(args.write_model, doc, gc.model_parameters(cal),
-                        f'written by calibrate_gyro_bag --method {cal.method}: '
-                        'gyro_scale_factor, gyro_misalignment, '
-                        f'gyro_bias estimated from {Path(args.bag).name}')
+            rule = f'estimated by calibrate_gyro_bag --method {cal.method}'
+            write_model_file(args.write_model,
+                             model.with_values(gc.model_parameters(cal), rule=rule),
+                             f'written by calibrate_gyro_bag --method {cal.method}: '
+                             'gyro_scale_factor, gyro_misalignment, '
+                             f'gyro_bias estimated from {Path(args.bag).name}', doc)
             print(f'  model with the estimated gyro errors: {args.write_model}')
     except OSError as exc:
         return fail(exc)

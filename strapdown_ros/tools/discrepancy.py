@@ -51,9 +51,10 @@ from strapdown_ros.discrepancy.bag_input import load_recording, recording_lines
 from strapdown_ros.discrepancy.diagnostics import allan_comparison
 from strapdown_ros.discrepancy.report import write_report
 from strapdown_ros.discrepancy.workflow import (analyse, AnalysisError, BoresightUnobservable,
-                                                DEFAULT_ALPHA, InputError, json_clean)
-from strapdown_ros.params import load_model
-from strapdown_ros.params import write_model as write_model_file
+                                                DEFAULT_ALPHA, DiscrepancySettings, InputError,
+                                                json_clean)
+from strapdown_ros.params import (check_against_recording, filled_in, load_model_file,
+                                  write_model_file)
 from strapdown_ros.recording import (add_input_arguments, BagError, check_input_arguments,
                                      input_options, input_warnings)
 
@@ -64,26 +65,27 @@ ARCSEC_PER_RAD = 180.0 / np.pi * 3600.0
 
 def write_model(path: str, doc: dict, result) -> None:
     """
-    Write the model file with the found effects and the estimated boresight.
+    Write the found model: the nominal model with the found effects, σ, online states, boresight.
 
-    The values go into ``/**`` (and into any node block that sets the same key, so that it does
-    not override the new value).
+    Every command and node reads it unchanged (one sensor model); each value written carries
+    the rule that produced it as a comment.
 
     Parameters
     ----------
     path : str
         The output model file (written atomically).
     doc : dict
-        The input model document (ROS 2 parameter YAML).
+        The input model document (its settings are kept).
     result : DiscrepancyResult
         The workflow's result.
 
     """
-    updates = dict(result.model_out)
-    updates['initial_boresight'] = updates['boresight']
-    write_model_file(path, doc, updates,
-                     f'written by discrepancy: verdict {result.verdict}; effects added: '
-                     f"{', '.join(s.effect for s in result.steps) or 'none'}")
+    added = ', '.join(s.effect for s in result.steps) or 'none'
+    consistent = '' if result.fit_consistent else \
+        '\nWARNING: the fit is not consistent with its stated noise: not a plain result'
+    write_model_file(path, result.found_model,
+                     f'written by discrepancy: verdict {result.verdict}; effects added: {added}'
+                     f'{consistent}', doc)
 
 
 def _summary(bag, info, res) -> str:
@@ -210,7 +212,11 @@ def main(argv=None) -> int:
         check_outputs([('--json', args.json, FILE), ('--write-model', args.write_model, FILE),
                        ('--report', args.report, DIRECTORY)],
                       [('bag', args.bag), ('--model', args.model)], args.force)
-        model, doc = load_model(args.model)
+        mf = load_model_file(args.model, 'calibrator_node')
+        model, doc = mf.model, mf.doc
+        settings = DiscrepancySettings.from_values({**mf.settings, 'alpha': alpha})
+        for w in mf.warnings:
+            print(f'discrepancy: warning: {w}', file=sys.stderr)
     except (ValueError, OSError) as exc:
         print(f'discrepancy: error: {exc}', file=sys.stderr)
         return 2
@@ -221,10 +227,15 @@ def main(argv=None) -> int:
                   flush=True)
     try:
         progress('reading the bag')
-        rec, info = load_recording(args.bag, model, args.namespace, **input_options(args))
+        rec, info = load_recording(args.bag, model, mf.settings, args.namespace,
+                                   **input_options(args))
+        checked = check_against_recording(model, info['facts'])
         for line in input_warnings('discrepancy', info):
             print(line, file=sys.stderr)
-        res = analyse(rec, model, alpha=alpha, progress=progress)
+        for line in filled_in(model, checked):
+            print(f'discrepancy: note: {line}', file=sys.stderr)
+        model = checked
+        res = analyse(rec, model, settings, progress=progress)
     except BoresightUnobservable as exc:
         unobs = list(exc.report.unobservable) if exc.report is not None else []
         if args.json:
@@ -248,11 +259,8 @@ def main(argv=None) -> int:
         print(f'discrepancy: error: {exc}', file=sys.stderr)
         return 2
     progress('Allan deviation on static segments')
-    after = dict(model)
-    for s in res.steps:
-        after.update(s.parameters)
     try:
-        allan = allan_comparison(rec.gyro_stamps, rec.delta_theta, model, after)
+        allan = allan_comparison(rec.gyro_stamps, rec.delta_theta, model, res.found_model)
     except Exception as exc:                       # the rest of the result stands
         allan = {'error': str(exc)}
     out = res.as_json()

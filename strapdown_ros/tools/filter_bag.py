@@ -21,10 +21,13 @@ import sys
 import numpy as np
 
 from strapdown_ros.cli import check_outputs, FILE, OneLineParser, write_text
-from strapdown_ros.estimation.filter_system import FilterSystem
-from strapdown_ros.params import FILTER_PARAMS, node_parameters
+from strapdown_ros.estimation.filter_system import FilterSettings
+from strapdown_ros.params import (check_against_recording, filled_in, load_model_file,
+                                  parse_overrides)
+from strapdown_ros.recording.filter_replay import run_filter
 from strapdown_ros.recording.options import (add_input_arguments, check_input_arguments,
-                                             input_options)
+                                             input_options, input_warnings,
+                                             recording_facts)
 from strapdown_ros.recording.reader import BagError, read_bag
 
 NODE_NAME = 'attitude_filter_node'
@@ -89,40 +92,6 @@ def fix_rows(fixes) -> str:
     return '\n'.join(lines) + '\n'
 
 
-def run_filter(data: dict, p: dict) -> FilterSystem:
-    """
-    Run the filter over the streams of a recording.
-
-    Fixes are given after the increments up to their stamps: the order a node sees live.
-
-    Parameters
-    ----------
-    data : dict
-        The streams of :func:`strapdown_ros.recording.reader.read_bag`.
-    p : dict
-        attitude_filter_node parameters.
-
-    Returns
-    -------
-    FilterSystem
-        The filter after the recording, its outputs and fix results kept.
-
-    """
-    system = FilterSystem(p)
-    g, c = data['gyro'], data['camera']
-    gt = np.asarray(g.stamps, dtype=np.int64)
-    k = 0
-    for ns, (q, P) in zip(c.stamps, c.values):
-        j = int(np.searchsorted(gt, ns, side='right'))
-        if j > k:
-            system.add_increments(g.stamps[k:j], g.values[k:j])
-            k = j
-        system.add_fix(int(ns), np.asarray(q, dtype=float), np.asarray(P, dtype=float))
-    system.add_increments(g.stamps[k:], g.values[k:])
-    system.process()
-    return system
-
-
 def main(argv=None) -> int:
     """
     Run the filter_bag command.
@@ -142,7 +111,10 @@ def main(argv=None) -> int:
     ap.add_argument('bag', help='bag directory or file')
     ap.add_argument('--output', required=True, help='CSV of the filter outputs')
     ap.add_argument('--fixes', help='CSV of the fixes (default: OUTPUT with _fixes)')
-    ap.add_argument('--params', help='ROS 2 parameter file (attitude_filter_node or /**)')
+    ap.add_argument('--params', help='the sensor model and settings: a ROS 2 parameter file '
+                    '(its model keys, and the settings of /** and attitude_filter_node)')
+    ap.add_argument('-p', dest='overrides', action='append', metavar='NAME:=VALUE',
+                    help='set one parameter (model key or setting), as ros2 run -p; repeatable')
     ap.add_argument('--namespace', default='', help='topic namespace')
     ap.add_argument('--force', action='store_true', help='replace existing outputs')
     add_input_arguments(ap)
@@ -158,15 +130,23 @@ def main(argv=None) -> int:
             raise ValueError(f'--params {args.params} is not a file')
         check_outputs([('--output', str(out), FILE), ('--fixes', str(fixes_path), FILE)],
                       [('bag', args.bag), ('--params', args.params)], args.force)
-        p = node_parameters(NODE_NAME, FILTER_PARAMS, args.params)
-        sxy, sz = float(p['camera_sigma_xy']), float(p['camera_sigma_z'])
-        data = read_bag(args.bag, args.namespace, bool(p['use_camera_covariance']),
-                        (sxy, sxy, sz), float(p['gyro_max_rate']), float(p['max_stamp_jump']),
-                        int(p['resync_count']), **input_options(args))
+        mf = load_model_file(args.params, NODE_NAME, parse_overrides(args.overrides))
+        for w in mf.warnings:
+            print(f'filter_bag: warning: {w}', file=sys.stderr)
+        settings = FilterSettings.from_values(mf.settings)
+        model = mf.model
+        data = read_bag(args.bag, args.namespace, settings.use_camera_covariance,
+                        tuple(model.camera_sigma), model.gyro_max_rate,
+                        settings.max_stamp_jump, settings.resync_count, **input_options(args))
+        model = check_against_recording(model, recording_facts(data))
     except (ValueError, BagError) as exc:
         print(f'filter_bag: error: {str(exc).splitlines()[0]}', file=sys.stderr)
         return 2
-    system = run_filter(data, p)
+    for line in input_warnings('filter_bag', data):
+        print(line, file=sys.stderr)
+    for line in filled_in(mf.model, model):
+        print(f'filter_bag: note: {line}', file=sys.stderr)
+    system = run_filter(data, model, settings)
     outputs, fixes = system.take()
     try:
         write_text(out, state_rows(outputs, system.augment))

@@ -41,8 +41,8 @@ import numpy as np
 from strapdown_ros.cli import check_output_dir, check_outputs, FILE, OneLineParser, write_json
 from strapdown_ros.discrepancy.bag_input import load_recording
 from strapdown_ros.discrepancy.repoimu_report import markdown, NOMINAL_MODEL
-from strapdown_ros.discrepancy.workflow import analyse
-from strapdown_ros.params import load_model
+from strapdown_ros.discrepancy.workflow import analyse, DiscrepancySettings
+from strapdown_ros.params import load_model_file
 from strapdown_ros.recording.repoimu import (find_repoimu, irregular_step_fraction,
                                              rate_plateau_samples, read_repoimu_csv, REALDATA_ENV,
                                              repoimu_trials, rest_mean_rate, write_bag,
@@ -130,9 +130,11 @@ def analyse_trial(csv: Path, model_file: Path, work: Path,
         last = (r.stderr.strip().splitlines() or [f'exit {r.returncode}'])[-1]
         out['discrepancy'] = {'error': last[:300], 'exit': r.returncode}
     try:
-        model, _ = load_model(str(model_file))
-        rec, _ = load_recording(str(bag), model, **(REAL_TOPICS if real else {}))
-        res = analyse(rec, model, candidates=TWO_EFFECTS)
+        mf = load_model_file(str(model_file), 'calibrator_node')
+        model = mf.model
+        rec, _ = load_recording(str(bag), model, mf.settings, **(REAL_TOPICS if real else {}))
+        res = analyse(rec, model, DiscrepancySettings.from_values(
+            {**mf.settings, 'candidates': TWO_EFFECTS}))
         two = {'verdict': res.verdict, 'rms_after': res.rms_after, 'named': [], 'values': {}}
         for s in res.steps:
             two['named'].append(s.effect)
@@ -191,7 +193,9 @@ def estimates_by_fix_interval(trial, model_file: Path, work: Path,
         ``fit_consistent``, ``chi2_per_dof``, ``pairs``; or ``error``.
 
     """
-    model, _ = load_model(str(model_file))
+    mf = load_model_file(str(model_file), 'calibrator_node')
+    model = mf.model
+    settings = DiscrepancySettings.from_values({**mf.settings, 'candidates': TWO_EFFECTS})
     real = reads_real_formats()
     out = {}
     for iv in intervals:
@@ -200,12 +204,12 @@ def estimates_by_fix_interval(trial, model_file: Path, work: Path,
             if real:
                 write_bag(bag, trial, gyro_format='imu', reference_format='pose',
                           reference_interval_s=iv)
-                rec, _ = load_recording(str(bag), model, **REAL_TOPICS)
+                rec, _ = load_recording(str(bag), model, mf.settings, **REAL_TOPICS)
             else:
                 write_bag(bag, trial, gyro_format='delta_theta', reference_format='quaternion',
                           reference_interval_s=iv)
-                rec, _ = load_recording(str(bag), model)
-            res = analyse(rec, model, candidates=TWO_EFFECTS)
+                rec, _ = load_recording(str(bag), model, mf.settings)
+            res = analyse(rec, model, settings)
         except Exception as exc:                 # one run's failure is reported
             out[f'{iv:g}'] = {'error': f'{type(exc).__name__}: {exc}'[:300]}
             continue

@@ -56,7 +56,6 @@ before any work), 3 no solution (e.g. the static alignment never succeeded).
 from __future__ import annotations
 
 import argparse
-import math
 from pathlib import Path
 import sys
 
@@ -64,36 +63,15 @@ import numpy as np
 
 from strapdown_ros.cli import check_outputs, REPLACED
 from strapdown_ros.earth import geodetic_to_ecef
-from strapdown_ros.params import (load_parameter_file, node_parameters, parse_overrides,
-                                  SINS_PARAMS)
+from strapdown_ros.params import check_against_recording, load_model_file, parse_overrides
 from strapdown_ros.recording import BagError
 from strapdown_ros.recording.imu_streams import ACCEL_TOPIC, GYRO_TOPIC, open_input
 from strapdown_ros.recording.sins_replay import CsvOutput, McapOutput, run
-from strapdown_ros.sins import odometry_arrays, SinsSystem
+from strapdown_ros.sins import odometry_arrays, SinsSettings, SinsSystem
 from strapdown_ros.streams.rate_increments import RATE_RULES
 from strapdown_ros.text import bounded
 
-__all__ = ['main', 'sins_parameters']
-
-
-def sins_parameters(params_file: str | None = None, overrides: dict | None = None) -> dict:
-    """
-    Return sins_node's parameters, validated by the node's specs.
-
-    Parameters
-    ----------
-    params_file : str, optional
-        A ROS 2 parameter YAML (its ``sins_node`` and ``/**`` blocks).
-    overrides : dict, optional
-        Values that replace the file's (name → value).
-
-    Returns
-    -------
-    dict
-        Every sins_node parameter, name → checked value.
-
-    """
-    return node_parameters('sins_node', SINS_PARAMS, params_file, overrides)
+__all__ = ['main']
 
 
 def _check_output(out: str, bag: str, force: bool, params: str | None = None) -> None:
@@ -111,46 +89,50 @@ def _check_output(out: str, bag: str, force: bool, params: str | None = None) ->
                          'not replacing it')
 
 
-def _recording_parameters(args, over: dict, p: dict, inp, say) -> tuple[dict, dict]:
+def _recording_model(mf, settings: SinsSettings, inp, say):
     """
-    Return the parameters with the recording's rates and body frame, and the rates.
+    Return the sensor model with the recording's rates and body frame, and the rates.
 
-    ``gyro_rate``/``accel_rate`` come from the stamps and ``frame_id`` from the Δθ headers,
-    unless the parameters name them; a mismatch is noted.
+    A rate or frame the model states must agree with the recording
+    (:func:`~strapdown_ros.params.check_against_recording`: an error naming both otherwise);
+    one it does not state is taken from the recording: ``gyro_rate``/``accel_rate`` from the
+    stamps, ``frame_id`` from the Δθ headers.
     """
-    if inp.imu_input and 'accel_rate' not in over and inp.accel is None:
-        inp.accel_rate = inp.gyro_rate            # Δv from the same Imu messages
-    rates = {'gyro_rate': inp.gyro_rate, 'accel_rate': inp.accel_rate}
+    model = mf.model
+    frames = [f for f, _ in inp.gyro.frames() if f]
+    model = check_against_recording(model, {'gyro_rate_hz': inp.gyro_rate,
+                                            'gyro_frames': frames})
+    if inp.imu_input and inp.accel is None and 'accel_rate' not in model.stated:
+        inp.accel_rate = model.gyro_rate            # Δv from the same Imu messages
+    if inp.accel_rate and 'accel_rate' not in model.stated:
+        model = model.with_values({'accel_rate': float(inp.accel_rate)},
+                                  rule='the median step of the accelerometer stamps')
+    rates = {'gyro_rate': model.gyro_rate, 'accel_rate': model.accel_rate}
     for name in ('gyro_rate', 'accel_rate'):
-        if name in over or rates[name] is None:
-            rates[name] = p[name]
-        elif not math.isclose(rates[name], p[name], rel_tol=0.01):
-            say(f'note: {name} {rates[name]:g} Hz from the stamps (the parameters say '
-                f'{p[name]:g} Hz; -p {name}:=... to impose one)')
-    # the body frame: the recording's own, unless the parameters name one
-    named = 'frame_id' in over or (
-        args.params and 'frame_id' in load_parameter_file(args.params, 'sins_node'))
-    frame = {}
-    if not named and inp.frame_id and inp.frame_id != p['frame_id']:
-        frame = {'frame_id': inp.frame_id}
+        if name not in mf.model.stated and getattr(mf.model, name) != rates[name]:
+            say(f'note: {name} {rates[name]:g} Hz from the stamps')
+    # the body frame: the recording's own, unless the model states one
+    if 'frame_id' not in model.stated and inp.frame_id and inp.frame_id != model.frame_id:
+        model = model.with_values({'frame_id': inp.frame_id},
+                                  rule="the recording's Δθ headers")
         say(f"note: frame_id {bounded(inp.frame_id)!r} from the recording's headers "
             '(-p frame_id:=... to impose one)')
-    others = [(f, c) for f, c in inp.gyro.frames() if f and f != (frame or p).get('frame_id')]
-    if others and not named:
+    others = [(f, c) for f, c in inp.gyro.frames() if f and f != model.frame_id]
+    if others:
         total = len(inp.gyro)
         kind = 'Imu' if inp.imu_input else 'Δθ'
         listed = ', '.join(f'{bounded(f)!r} ({c})' for f, c in others[:3])
         say(f'note: {sum(c for _, c in others)} of {total} {kind} message(s) '
             'name another frame than the body frame and are rejected by the frame rule: '
             + listed + (', …' if len(others) > 3 else ''))
-    p = sins_parameters(args.params, {**over, **rates, **frame})
-    if p['navigation']:
-        lat, lon, h = (float(x) for x in p['initial_position'])
+    if settings.navigation:
+        pos = settings.navigation_settings.initial_position
+        lat, lon, h = (float(x) for x in pos)
         r = float(np.linalg.norm(geodetic_to_ecef(np.radians(lat), np.radians(lon), h)))
         if not 6.0e6 < r < 8.0e6:
-            raise ValueError(f"initial_position {p['initial_position']} is not within "
+            raise ValueError(f'initial_position {list(pos)} is not within '
                              "±1000 km of the Earth's surface")
-    return p, rates
+    return model, rates
 
 
 def _summary(args, inp, system: SinsSystem, sink, counts: dict, rates: dict) -> str:
@@ -216,7 +198,7 @@ def _no_solution(system: SinsSystem) -> str | None:
     if nav is not None and nav.navigator is None:
         refused = nav.alignment is not None and not nav.alignment.ok
         why = ('the static alignment did not complete (alignment_time '
-               f"{float(system.p['alignment_time']):g} s"
+               f'{float(system.settings.navigation_settings.alignment_time):g} s'
                + (f'; last refusal: {nav.alignment.reason}' if refused else '') + ')')
     elif system.integrator.updates == 0:
         why = 'no attitude update'
@@ -225,7 +207,7 @@ def _no_solution(system: SinsSystem) -> str | None:
     if system.integrator.updates == 0 and system.frame_mismatch['gyro'] \
             and system.gyro_check.accepted == 0:
         why = ('every Δθ was rejected: its header.frame_id is not frame_id '
-               f"{bounded(system.p['frame_id'])!r} "
+               f'{bounded(system.model.frame_id)!r} '
                '(-p frame_id:=... or -p frame_mismatch:=accept)')
     return why
 
@@ -238,7 +220,8 @@ def _arguments() -> argparse.ArgumentParser:
                     help='OUT.csv: the solution as CSV; otherwise an MCAP bag directory with '
                          'sins/* topics')
     ap.add_argument('--params', metavar='FILE',
-                    help='ROS 2 parameter YAML (sins_node and /** blocks)')
+                    help='the sensor model and settings: a ROS 2 parameter YAML (its model keys, '
+                         'and the settings of /** and sins_node)')
     ap.add_argument('-p', '--param', action='append', default=[], metavar='NAME:=VALUE',
                     help='sins_node parameter override (repeatable), as ros2 run -p')
     ap.add_argument('--namespace', default='', help='topic namespace, e.g. /robot1')
@@ -289,19 +272,23 @@ def main(argv=None) -> int:
     inp = None
     try:
         over = parse_overrides(args.param)
-        p = sins_parameters(args.params, over)          # every parameter checked before the bag
+        mf = load_model_file(args.params, 'sins_node', over)   # checked before the bag
+        for w in mf.warnings:
+            say(f'warning: {w}')
+        settings = SinsSettings.from_values(mf.settings)
         _check_output(args.output, args.bag, args.force, args.params)
         if args.imu_topic and (args.gyro_topic or args.accel_topic):
             raise ValueError('--imu-topic gives both streams: '
                              'not with --gyro-topic/--accel-topic')
         inp = open_input(args.bag, args.namespace, args.gyro_topic, args.accel_topic,
-                         need_accel=bool(p['navigation']), imu_topic=args.imu_topic,
+                         need_accel=bool(settings.navigation), imu_topic=args.imu_topic,
                          progress=reading)
-        p, rates = _recording_parameters(args, over, p, inp, say)
+        model, rates = _recording_model(mf, settings, inp, say)
 
         def make_system():
-            return SinsSystem(p, log=lambda level, text: say(text if level == 'info' else
-                                                             f'{level}: {text}'),
+            return SinsSystem(model, settings,
+                              log=lambda level, text: say(text if level == 'info'
+                                                          else f'{level}: {text}'),
                               imu_wanted=(lambda: not csv_out))
         system = make_system()                          # parameters checked by the core now
     except (ValueError, OSError, BagError) as exc:

@@ -13,9 +13,9 @@ import numpy as np
 import pytest
 
 from strapdown_ros.calibration.state import CalibratorStateFile, state_identity, StateFileError
-from strapdown_ros.calibration.streaming import BoresightCalibrator
+from strapdown_ros.calibration.streaming import BoresightCalibrator, CalibratorSettings
 from strapdown_ros.motion.profiles import bench_profile
-from strapdown_ros.params import CALIBRATOR_PARAMS, check_all
+from strapdown_ros.params import CALIBRATOR_PARAMS, check_all, model_from_parameters
 from strapdown_ros.sensors import IntegratingSensor
 from strapdown_ros.sensors.star_camera import StarCameraModel
 
@@ -48,7 +48,8 @@ def _feed(cal, recording):
 
 
 def _fresh(p):
-    return BoresightCalibrator.from_params(p)
+    model, _ = model_from_parameters(p)
+    return BoresightCalibrator.from_model(model, CalibratorSettings.from_values(p))
 
 
 def test_replaying_the_same_recording_adds_nothing(tmp_path, recording):

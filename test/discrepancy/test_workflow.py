@@ -19,8 +19,8 @@ from strapdown_ros.attitude.integrator import AttitudeIntegrator  # noqa: E402
 from strapdown_ros.discrepancy import workflow as core  # noqa: E402
 from strapdown_ros.discrepancy.synthetic import (draw_hidden_effect,  # noqa: E402
                                                  effect_sigma, simulate_recording)
-from strapdown_ros.params import (CALIBRATOR_PARAMS, check_all,  # noqa: E402
-                                  IMU_SIM_PARAMS, load_model, SINS_PARAMS, STAR_CAMERA_PARAMS)
+from strapdown_ros.params import (check_all, IMU_SIM_PARAMS, load_model_file,  # noqa: E402
+                                  model_and_settings, STAR_CAMERA_PARAMS)
 from strapdown_ros.rotation import (dcm_to_quat, from_ros_xyzw, quat_angle_between,  # noqa: E402
                                     ypr_to_dcm)
 from strapdown_ros.sensors.effects import CANDIDATES, EFFECTS, GyroEffects  # noqa: E402
@@ -67,7 +67,8 @@ def sigmas():
     imu_p = check_all(IMU_SIM_PARAMS, {**SCENARIO, 'seed': 4242})
     cam_p = check_all(STAR_CAMERA_PARAMS, {**SCENARIO, 'seed': 4242})
     rec = simulate_recording(imu_p, cam_p, DURATION)
-    return effect_sigma(rec, check_all(CALIBRATOR_PARAMS, {'gyro_rate': 100.0}), CANDIDATES)
+    return effect_sigma(rec, model_and_settings('calibrator_node', {'gyro_rate': 100.0})[0],
+                        CANDIDATES)
 
 
 @pytest.mark.parametrize('name', CANDIDATES)
@@ -313,17 +314,15 @@ def test_sins_drift_shrinks_when_the_found_effect_is_compensated(tmp_path):
     g = _bag_series(bag, '/imu/delta_theta')
     truth = _bag_series(bag, '/imu/truth/attitude')
 
-    def final_error(params):
-        names = {s.name for s in SINS_PARAMS}
-        p = check_all(SINS_PARAMS, {k: v for k, v in params.items() if k in names})
+    def final_error(model):
         T = np.diff(g[:, 0], prepend=g[0, 0] - 0.01)
-        inc = GyroEffects(p).compensate(g[:, 1:], g[:, 0], T)
+        inc = GyroEffects(model).compensate(g[:, 1:], g[:, 0], T)
         integ = AttitudeIntegrator('2', initial_attitude=truth[0, 1:],
                                    initial_time=truth[0, 0] - 0.01, propagate_covariance=False)
         b = integ.push(inc, g[:, 0])
         return float(quat_angle_between(b.attitude[-1], truth[truth[:, 0] == b.stamps[-1]][0, 1:]))
-    nominal = final_error(load_model(str(_model(tmp_path)))[0])
-    found = final_error(load_model(str(out_model))[0])
+    nominal = final_error(load_model_file(str(_model(tmp_path))).model)
+    found = final_error(load_model_file(str(out_model)).model)
     assert found < 0.3 * nominal, (nominal, found)
 
 

@@ -8,6 +8,7 @@ and random small recordings (never a crash).
 Truth is what was injected (simulate_recording / record_sim parameters, exact rest intervals),
 never the workflow's own output.
 """
+from dataclasses import replace
 import json
 
 from hypothesis import given, HealthCheck, settings
@@ -18,9 +19,9 @@ import pytest
 from strapdown_ros.calibration.pairs import GyroRecord
 from strapdown_ros.discrepancy.diagnostics import allan_comparison, static_segments
 from strapdown_ros.discrepancy.synthetic import simulate_recording
-from strapdown_ros.discrepancy.workflow import (analyse, AnalysisError, InputError, json_clean,
-                                                Recording, STOPPED_BY)
-from strapdown_ros.params import CALIBRATOR_PARAMS, check_all, IMU_SIM_PARAMS, STAR_CAMERA_PARAMS
+from strapdown_ros.discrepancy.workflow import (analyse, AnalysisError, DiscrepancySettings,
+                                                InputError, json_clean, Recording, STOPPED_BY)
+from strapdown_ros.params import check_all, IMU_SIM_PARAMS, model_and_settings, STAR_CAMERA_PARAMS
 from strapdown_ros.rotation import quat_multiply, rotvec_to_quat
 from strapdown_ros.sensors.effects import CANDIDATES
 
@@ -35,8 +36,10 @@ def _recording(duration=300.0, rate=100.0, interval=1.0, seed=3, repeat=2, **ove
                               duration)
 
 
-def _model(rate=100.0, **over):
-    return check_all(CALIBRATOR_PARAMS, {'gyro_rate': rate, **over})
+def _model(rate=100.0, max_steps=6, **over):
+    """Return the sensor model and the workflow's settings (the calibrator's rule)."""
+    model, settings = model_and_settings('calibrator_node', {'gyro_rate': rate, **over})
+    return model, DiscrepancySettings.from_values({**settings, 'max_steps': max_steps})
 
 
 def _moving_fixes(rec, limit=1e-3):
@@ -64,7 +67,7 @@ def test_reference_noisier_in_motion_never_crashes(extra_sigma):
     assert 40 < moving.sum() < 150
     noise = np.random.default_rng(1).normal(0.0, extra_sigma, (len(moving), 3)) * moving[:, None]
     rec.fix_q = quat_multiply(rec.fix_q, rotvec_to_quat(noise))
-    r = analyse(rec, _model())
+    r = analyse(rec, *_model())
     assert r.verdict in VERDICTS
     assert r.stopped_by in STOPPED_BY
     js = json.loads(json.dumps(r.as_json()))
@@ -112,7 +115,7 @@ def test_random_small_recordings_return_or_raise_only_stated_errors(seed, bias, 
     rng = np.random.default_rng(seed)
     rec.fix_q = quat_multiply(rec.fix_q, rotvec_to_quat(rng.normal(0.0, cam, (len(rec.fix_q), 3))))
     try:
-        r = analyse(rec, _model(50.0), max_steps=3)
+        r = analyse(rec, *_model(50.0, max_steps=3))
     except (InputError, AnalysisError):
         return
     assert r.verdict in VERDICTS and r.stopped_by in STOPPED_BY
@@ -123,10 +126,10 @@ def test_step_limit_counts_accepted_effects_and_is_said():
     """Two hidden effects, a limit of one step: one effect added, stopped_by says the limit."""
     rec = _recording(seed=5, camera_exposure_time=0.1, camera_stamp_at_exposure_start=True,
                      gyro_bias=[3e-6, -2e-6, 2e-6])
-    r = analyse(rec, _model(), max_steps=1)
+    r = analyse(rec, *_model(max_steps=1))
     assert len(r.steps) == 1 and r.stopped_by == 'max_steps'
     assert r.as_json()['stopped_by'] == 'max_steps'
-    r = analyse(_recording(seed=8), _model())
+    r = analyse(_recording(seed=8), *_model())
     assert r.stopped_by in ('no_significant_candidate', 'no_candidates_left')
 
 
@@ -185,9 +188,11 @@ def test_sigma_honest_when_structure_is_unmodelled():
                      gyro_bias_periodic=[1e-4, -1e-4, 5e-5], gyro_bias_period=30.0)
     est = []
     for sub in (1, 2):
+        model, settings = _model()
         r = analyse(Recording(rec.gyro_stamps, rec.delta_theta, rec.fix_stamps[::sub],
-                              rec.fix_q[::sub], rec.fix_P[::sub]), _model(),
-                    candidates=[c for c in CANDIDATES if c != 'camera_noise_anisotropy'])
+                              rec.fix_q[::sub], rec.fix_P[::sub]), model,
+                    replace(settings, candidates=tuple(c for c in CANDIDATES
+                                                       if c != 'camera_noise_anisotropy')))
         assert r.verdict == 'unexplained_structure' and r.sigma_method in ('hac', 'hac_jackknife')
         assert not r.fit_consistent or r.tests_after['failed']
         s = {x.effect: x for x in r.steps}['time_offset']
@@ -214,7 +219,7 @@ def test_gyro_wiring_fault_is_unexplained_and_named(fault):
     rec = _recording(seed=11, interval=2.0)
     rec.delta_theta = (rec.delta_theta[:, [1, 0, 2]] if fault == 'swap_xy'
                        else rec.delta_theta * [1, 1, -1])
-    r = analyse(rec, _model())
+    r = analyse(rec, *_model())
     assert r.verdict == 'unexplained_structure'
     assert 'gyro axis swap/sign' in r.remaining['candidate_explanations']
     P = np.array(r.remaining['gyro_axis_swap_sign']['permutation'])
@@ -225,7 +230,7 @@ def test_gyro_wiring_fault_is_unexplained_and_named(fault):
 def test_correct_wiring_names_no_swap():
     """Correct wiring names no swap."""
     rec = _recording(seed=31, gyro_bias_periodic=[2e-6, -2e-6, 1e-6], gyro_bias_period=100.0)
-    r = analyse(rec, _model())
+    r = analyse(rec, *_model())
     if r.remaining:
         assert not r.remaining['gyro_axis_swap_sign']['explains']
         assert 'gyro axis swap/sign' not in r.remaining.get('candidate_explanations', [])
@@ -241,7 +246,7 @@ def test_bias_that_changes_half_way_is_not_repeatable():
     rec = _recording(seed=13, interval=2.0)
     late = rec.gyro_stamps > 150.0
     rec.delta_theta[late] += np.array([2e-6, -2e-6, 1e-6]) * 0.01
-    r = analyse(rec, _model())
+    r = analyse(rec, *_model())
     steps = {s.effect: s for s in r.steps}
     assert 'gyro_bias' in steps, list(steps)
     s = steps['gyro_bias']
@@ -263,7 +268,7 @@ def test_noisier_reference_gives_no_confident_wrong_answer():
     bias = np.array([1e-4, -1e-4, 5e-5])
     rec = _recording(duration=300.0, seed=5, camera_sigma_xy=5.2e-3, camera_sigma_z=5.2e-3,
                      gyro_bias=bias.tolist())
-    r = analyse(rec, _model(max_sigma=0.05))
+    r = analyse(rec, *_model(max_sigma=0.05))
     named = {s.effect: s for s in r.steps}
     assert 'gyro_bias' in named, (r.steps, r.not_separable, r.rejected)
     assert 'camera_noise_anisotropy' not in named

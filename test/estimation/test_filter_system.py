@@ -7,10 +7,10 @@ import numpy as np
 import pytest
 
 from strapdown_ros.estimation.chi_square import chi2_sf
-from strapdown_ros.estimation.filter_system import FilterSystem
+from strapdown_ros.estimation.filter_system import FilterSettings, FilterSystem
 from strapdown_ros.estimation.model_check import ljung_box
 from strapdown_ros.motion.profiles import PiecewiseRateProfile, Segment
-from strapdown_ros.params import check_all, FILTER_PARAMS
+from strapdown_ros.params import model_and_settings
 from strapdown_ros.rotation import quat_conjugate, quat_multiply, quat_to_rotvec, rotvec_to_quat
 from strapdown_ros.sensors import ARCSEC
 from strapdown_ros.sensors.model import IntegratingSensor, SensorErrorModel
@@ -37,10 +37,12 @@ def _run(scale, seconds=150, bias=(2e-6, -1e-6, 1.5e-6), augment='', seed=4, **e
     beta = np.array([100.0, -50.0, 30.0]) * ARCSEC
     cam = StarCameraModel(boresight=beta, interval=1.0, sigma=np.array([1.0, 1.0, 5.0]) * ARCSEC,
                           seed=seed + 1)
-    p = check_all(FILTER_PARAMS, dict(gyro_rate=RATE, gyro_random_walk=2e-6, gyro_bias_sigma=1e-5,
-                                      boresight=list(beta), augment=augment, output_period=0.5,
-                                      initial_attitude_sigma=1e-4, **extra))
-    sysf = FilterSystem(p)
+    # the augmented scale factor's prior is the model's gyro_scale_sigma
+    model, settings = model_and_settings('attitude_filter_node', dict(
+        gyro_rate=RATE, gyro_random_walk=2e-6, gyro_bias_sigma=1e-5, gyro_scale_sigma=1e-3,
+        boresight=list(beta), augment=augment, output_period=0.5, initial_attitude_sigma=1e-4,
+        **extra))
+    sysf = FilterSystem(model, FilterSettings.from_values(settings))
     fixes = cam.fixes(profile, seconds)
     st, meas, _ = gyro.sample(int(seconds * RATE))
     k = 0
@@ -110,8 +112,7 @@ def test_augmented_scale_factor_is_estimated_and_check_passes():
 
 def test_fix_rules_drop_and_count():
     """Fix rules drop and count."""
-    p = check_all(FILTER_PARAMS, {'gyro_rate': RATE})
-    s = FilterSystem(p)
+    s = FilterSystem(*model_and_settings('attitude_filter_node', {'gyro_rate': RATE})[:1])
     assert s.offer_fix(10**9, [0.0, 0.0, 0.0, 0.0]) is None
     assert s.counts['dropped_zero_quaternion'] == 1
     s.offer_fix(2 * 10**9, [2.0, 0.0, 0.0, 0.0], -np.eye(3))

@@ -87,17 +87,18 @@ def _analyse(trial, workdir, model_file, tag, real=None):
     if key in _runs:
         return _runs[key]
     from strapdown_ros.discrepancy.bag_input import load_recording
-    from strapdown_ros.discrepancy.workflow import analyse
-    from strapdown_ros.params import load_model
+    from strapdown_ros.discrepancy.workflow import analyse, DiscrepancySettings
+    from strapdown_ros.params import load_model_file
 
     bag = workdir / f"bag_{tag}_{'real' if real else 'own'}"
     if real:
         write_bag(bag, trial, gyro_format='imu', reference_format='pose')
     else:
         write_bag(bag, trial, gyro_format='delta_theta', reference_format='quaternion')
-    model, _ = load_model(str(model_file))
-    rec, _ = load_recording(str(bag), model, **(REAL_TOPICS if real else {}))
-    res = analyse(rec, model, candidates=CANDIDATES)
+    mf = load_model_file(str(model_file), 'calibrator_node')
+    rec, _ = load_recording(str(bag), mf.model, mf.settings, **(REAL_TOPICS if real else {}))
+    res = analyse(rec, mf.model, DiscrepancySettings.from_values(
+        {**mf.settings, 'candidates': CANDIDATES}))
     _runs[key] = res
     return res
 
@@ -299,8 +300,8 @@ def test_reference_with_added_noise_gives_no_confident_wrong_answer(trial, workd
     the clean recording within 3 combined σ; or the output says the fit is not consistent.
     """
     from strapdown_ros.discrepancy.bag_input import load_recording
-    from strapdown_ros.discrepancy.workflow import analyse
-    from strapdown_ros.params import load_model
+    from strapdown_ros.discrepancy.workflow import analyse, DiscrepancySettings
+    from strapdown_ros.params import load_model_file
     from strapdown_ros.recording.repoimu import rest_mean_rate
 
     rng = np.random.default_rng(20)
@@ -309,9 +310,9 @@ def test_reference_with_added_noise_gives_no_confident_wrong_answer(trial, workd
     noisy = dataclasses.replace(trial, q_reference_marker=q)
     bag = workdir / 'bag_noisy_reference'
     write_bag(bag, noisy, gyro_format='delta_theta', reference_format='quaternion')
-    model, _ = load_model(str(model_file))
-    rec, _ = load_recording(str(bag), model)
-    res = analyse(rec, model)
+    mf = load_model_file(str(model_file), 'calibrator_node')
+    rec, _ = load_recording(str(bag), mf.model, mf.settings)
+    res = analyse(rec, mf.model, DiscrepancySettings.from_values(mf.settings))
     clean = _analyse(trial, workdir, model_file, 'base')
     d = (np.asarray(res.boresight_rad) - clean.boresight_rad + np.pi) % (2 * np.pi) - np.pi
     s = np.hypot(res.boresight_sigma_rad, clean.boresight_sigma_rad)

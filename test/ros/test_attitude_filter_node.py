@@ -23,18 +23,19 @@ from ros_helpers import spin_until
 from sensor_msgs.msg import Imu
 from std_msgs.msg import Header
 
+from strapdown_ros.estimation.filter_system import FilterSettings
 from strapdown_ros.motion.profiles import PiecewiseRateProfile, Segment
 from strapdown_ros.nodes import ros_io, ros_status
 from strapdown_ros.nodes.attitude_filter_node import AttitudeFilterNode
 from strapdown_ros.nodes.imu_sim_node import ImuSimNode
 from strapdown_ros.nodes.star_camera_sim_node import StarCameraSimNode
-from strapdown_ros.params import FILTER_PARAMS
+from strapdown_ros.params import FILTER_PARAMS, model_from_parameters
+from strapdown_ros.recording.filter_replay import run_filter
 from strapdown_ros.rotation import (dcm_to_quat, from_ros_xyzw, quat_conjugate, quat_error_rotvec,
                                     quat_multiply, rotvec_to_quat, ypr_to_dcm)
 from strapdown_ros.sensors import ARCSEC
 from strapdown_ros.sensors.model import IntegratingSensor, SensorErrorModel
 from strapdown_ros.sensors.star_camera import StarCameraModel
-from strapdown_ros.tools.filter_bag import run_filter
 
 
 try:
@@ -175,7 +176,8 @@ def _tool_on(rec, p):
     fixes = SimpleNamespace(stamps=[ns_of(m) for m in rec['fix']],
                             values=[(q_of(m.pose.pose), ros_io.rotation_block(m))
                                     for m in rec['fix']])
-    return run_filter({'gyro': gyro, 'camera': fixes}, p)
+    model, _ = model_from_parameters(p)
+    return run_filter({'gyro': gyro, 'camera': fixes}, model, FilterSettings.from_values(p))
 
 
 def _compare(a, b, bias_atol, cov_rtol):

@@ -16,9 +16,9 @@ import pytest
 from strapdown_ros.calibration import gyro as gc
 from strapdown_ros.discrepancy.bag_input import load_recording
 from strapdown_ros.discrepancy.synthetic import simulate_recording
-from strapdown_ros.discrepancy.workflow import analyse
+from strapdown_ros.discrepancy.workflow import analyse, DiscrepancySettings
 from strapdown_ros.motion.from_config import profile_from_config
-from strapdown_ros.params import check_all, IMU_SIM_PARAMS, load_model, STAR_CAMERA_PARAMS
+from strapdown_ros.params import check_all, IMU_SIM_PARAMS, load_model_file, STAR_CAMERA_PARAMS
 from strapdown_ros.rotation import quat_conjugate, quat_multiply, rotvec_to_quat
 from strapdown_ros.sensors.effects import GyroEffects
 from strapdown_ros.tools import calibrate_gyro_bag, discrepancy, record_sim
@@ -98,9 +98,9 @@ def test_written_model_compensates_with_the_right_sign(calibrated, recording):
     increments back into the true ones (from the profile), up to the triad rotation.
     """
     _, out, _ = calibrated
-    model, _ = load_model(str(out))
+    model = load_model_file(str(out)).model
     for name in INJECTED:
-        assert name in model
+        assert name in model.stated
     rec, info = load_recording(str(recording[1]), model)
     st = rec.gyro_stamps
     t = st + info['stamp_origin_ns'] * 1e-9                        # profile time (start_time 0)
@@ -115,8 +115,8 @@ def test_written_model_compensates_with_the_right_sign(calibrated, recording):
     turning = np.linalg.norm(true, axis=1) > 1e-4
     raw_err = rec.delta_theta[turning] - true[turning] @ (np.eye(3) + A).T
     comp_err = comp[turning] - true[turning] @ (np.eye(3) + A).T
-    wrong = GyroEffects({k: (-np.asarray(v)).tolist() for k,
-                         v in model.items() if k in INJECTED}).compensate(
+    wrong = GyroEffects({k: (-np.asarray(model.get(k))).tolist()
+                         for k in INJECTED}).compensate(
         rec.delta_theta, st, np.full(len(st), 0.01))[turning] - true[turning] @ (np.eye(3) + A).T
     rms = lambda e: float(np.sqrt(np.mean(e ** 2)))       # noqa: E731
     assert rms(comp_err) < 0.2 * rms(raw_err) < 0.2 * rms(wrong), (rms(comp_err), rms(raw_err),
@@ -149,8 +149,8 @@ def test_nominal_model_is_not_adequate_on_that_recording(recording, tmp_path):
     over = {**SCENARIO, **INJECTED, 'camera_interval': 2.0, 'seed': 12}
     rec = simulate_recording(check_all(IMU_SIM_PARAMS, over), check_all(STAR_CAMERA_PARAMS, over),
                              170.0)
-    model, _ = load_model(str(recording[2]))
-    assert analyse(rec, model, max_steps=1).verdict != 'model_adequate'
+    model = load_model_file(str(recording[2])).model
+    assert analyse(rec, model, DiscrepancySettings(max_steps=1)).verdict != 'model_adequate'
 
 
 @pytest.fixture(scope='module')
@@ -257,7 +257,7 @@ def test_tkachenko_with_a_drifting_reference_estimates_the_drift():
     t = rec.fix_stamps
     # q_L_VF
     rec.fix_q = quat_multiply(quat_conjugate(rotvec_to_quat(np.outer(t - t[0], d))), rec.fix_q)
-    prep = gc.prepare(rec, load_model(None)[0])
+    prep = gc.prepare(rec, load_model_file(None).model)
     r = gc.calibrate_drifting_reference(prep, drift=True)
     truth = np.array(list(TRUTH.values()) + list(d))
     assert r.observable and r.labels[-3:] == gc.DRIFT_LABELS
@@ -274,7 +274,7 @@ def test_gyro_gap_is_not_spanned_and_both_methods_still_recover(recording):
     Increments missing for 1.5 s in mid-turn (the rotation in them is lost): nothing is formed
     across the gap — 002 drops the intervals spanning it, 000 uses the longer gap-free stretch.
     """
-    model, _ = load_model(str(recording[2]))
+    model = load_model_file(str(recording[2])).model
     rec, _ = load_recording(str(recording[1]), model)
     st = rec.gyro_stamps
     # inside the first z turn (45–50 s)

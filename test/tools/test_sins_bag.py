@@ -162,8 +162,8 @@ def test_the_recordings_own_body_frame_unless_one_is_named(tmp_path, capsys):
     Check: the recordings own body frame unless one is named.
 
     A recording from other software names its own body frame: sins_bag takes it from the headers
-    unless frame_id is given; given and different, every Δθ is rejected (the node's rule) and the
-    error says why.
+    unless frame_id is given; given and different, the model contradicts the recording: an error
+    naming both.
     """
     bag = _record(tmp_path / 'bag_imu', 'coning', 'frame_id:=imu')
     rc, stdout, err = _run_tool(capsys, bag, '--output', tmp_path / 'own.csv')
@@ -171,7 +171,8 @@ def test_the_recordings_own_body_frame_unless_one_is_named(tmp_path, capsys):
     assert len(_csv(tmp_path / 'own.csv')[1]) == int(DURATION * 100) // 2
     rc, stdout, err = _run_tool(capsys, bag, '-p', 'frame_id:=imu_link', '--output',
                                 tmp_path / 'named.csv')
-    assert rc == 3 and 'every Δθ was rejected' in err and "frame_id 'imu_link'" in err
+    # a stated frame that contradicts the recording is an error naming both (one sensor model)
+    assert rc == 2 and "frame_id 'imu_link'" in err and "'imu'" in err, err
 
 
 def test_mcap_output_has_the_node_topics_and_types(bags, tmp_path, capsys):
@@ -477,11 +478,11 @@ def test_huge_frame_ids_are_cheap_and_every_echo_is_bounded(tmp_path, capsys):
     assert len(cap.out) + len(cap.err) < 3000, (len(cap.out), len(cap.err))
     assert 'chars)' in cap.err and 'frame mismatch (rejected) 3' in cap.out
     assert wall < 20.0, wall                                     # ~1 s; 86 s before the fix
-    # a 2 MB frame id named as the body frame: one bounded line as well
+    # a 2 MB frame id named as the body frame contradicts the recording: one bounded line
     rc = sins_bag.main([str(bag), '-p', 'frame_id:=' + 'z' * 2_000_000,
                         '--output', str(tmp_path / 'z.csv')])
     cap = capsys.readouterr()
-    assert rc == 3 and len(cap.out) + len(cap.err) < 3000
+    assert rc == 2 and len(cap.out) + len(cap.err) < 3000
 
 
 def _imu_bag(path, g, a):
