@@ -63,6 +63,7 @@ setup(
             'calibrate_gyro_bag = strapdown_ros.tools.calibrate_gyro_bag:main',
             'sins_bag = strapdown_ros.tools.sins_bag:main',
             'filter_bag = strapdown_ros.tools.filter_bag:main',
+            'nominal_model = strapdown_ros.tools.nominal_model:main',
             'sins_bag_bench = strapdown_ros.bench.sins_bag_bench:main',
             'boresight_bench = strapdown_ros.bench.boresight_bench:main',
             'reproduce_seeds = strapdown_ros.reproductions.reproduce_seeds:main',
