@@ -532,7 +532,8 @@ def derivation_report(r: dict) -> str:
           + ', '.join(f'{100 * v:+.2g}% (α = {k})' for k, v in nt['alpha4_4plus'].items())
           + '.',
           '* The smallest drifts against the float64 floor (|slope| + 3σ of the same arithmetic '
-          f'fed exact rotation vectors; at the floor if within {FLOOR_FACTOR:g}× of it): ' + '; '.join(
+          f'fed exact rotation vectors; at the floor if within {FLOOR_FACTOR:g}× of it): '
+          + '; '.join(
               f"{k} at α = {v['alpha']:g}, Ωh = {v['omega_h']:g}: drift {v['rad_per_s']:.2e} "
               f"rad/s, theory {v['theory_rad_per_s']:.2e}, floor {v['floor_rad_per_s']:.1e} — "
               + ('at the floor' if abs(v['rad_per_s']) <= FLOOR_FACTOR * v['floor_rad_per_s']
