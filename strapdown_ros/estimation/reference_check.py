@@ -164,4 +164,3 @@ def reference_agreement(t_out, q_out, sigma_out, t_ref, q_ref, sigma_ref,
         sigma_rad=[float(x) for x in np.sqrt(np.mean(sig ** 2, axis=0))],
         rms_ratio=[float(x) for x in np.sqrt(np.mean(z ** 2, axis=0))],
         within_3_sigma=float(np.mean(np.abs(z) <= 3.0)))
-
