@@ -40,7 +40,6 @@ from __future__ import annotations
 import dataclasses
 import os
 from pathlib import Path
-import subprocess
 
 import numpy as np
 
@@ -49,7 +48,7 @@ from strapdown_ros.rotation import (quat_angle_between, quat_conjugate, quat_mul
 from strapdown_ros.streams.rate_increments import increments_from_rates
 
 __all__ = ['ImuTrial', 'read_repoimu_csv', 'repoimu_trials', 'find_repoimu', 'reference_indices',
-           'write_bag', 'extract_git_snapshot', 'REALDATA_ENV', 'TOPICS', 'GYRO_FORMATS',
+           'write_bag', 'REALDATA_ENV', 'TOPICS', 'GYRO_FORMATS',
            'REFERENCE_FORMATS', 'rest_mean_rate', 'xcorr_lag_s',
            'rate_plateau_samples', 'irregular_step_fraction']
 
@@ -198,66 +197,25 @@ def repoimu_trials(root, kinds=('TStick', 'Pendulum')) -> list[Path]:
     return out
 
 
-def extract_git_snapshot(git_dir, dest) -> Path:
+def find_repoimu() -> Path | None:
     """
-    Extract a work tree of a bare git snapshot (``git archive HEAD``) into ``dest``.
+    Where a RepoIMU copy is, from ``$STRAPDOWN_REALDATA``, or None.
 
-    Parameters
-    ----------
-    git_dir : str or Path
-        The git directory.
-    dest : str or Path
-        Directory to extract into (created).
-
-    Returns
-    -------
-    Path
-        ``dest``.
-
-    """
-    dest = Path(dest)
-    dest.mkdir(parents=True, exist_ok=True)
-    archive = subprocess.run(['git', '--git-dir', str(git_dir), 'archive', 'HEAD'], check=True,
-                             capture_output=True).stdout
-    subprocess.run(['tar', '-x', '-C', str(dest)], input=archive, check=True)
-    return dest
-
-
-def find_repoimu(scratch=None) -> Path | None:
-    """
-    Where a RepoIMU copy is on this machine, or None.
-
-    ``$STRAPDOWN_REALDATA`` (a directory with ``TStick/``) first; else ``shared/RepoIMU`` beside
-    the repository or ``/work/shared/RepoIMU`` (the project's shared data folder); else a git
-    snapshot under ``/work/.mirror/agnieszkaszczesna+RepoIMU/repo``, extracted into ``scratch``
-    when given.
-
-    Parameters
-    ----------
-    scratch : str or Path, optional
-        Directory to extract a git snapshot into.
+    The data set has no licence, so it is not shipped; it is found only through the environment
+    variable :data:`REALDATA_ENV` naming a directory with ``TStick/`` (and ``Pendulum/``).
 
     Returns
     -------
     Path or None
-        A directory with ``TStick/``, or None when no copy is found.
+        That directory, or None when the variable is unset or names no directory with
+        ``TStick/``.
 
     """
     env = os.environ.get(REALDATA_ENV, '').strip()
-    if env:
-        p = Path(env)
-        return p if (p / 'TStick').is_dir() else None
-    repo_root = Path(__file__).resolve().parents[1]
-    for shared in (repo_root.parent / 'shared' / 'RepoIMU', Path('/work/shared/RepoIMU')):
-        if (shared / 'TStick').is_dir():
-            return shared
-    git_dir = Path('/work/.mirror/agnieszkaszczesna+RepoIMU/repo')
-    if scratch is None or not (git_dir / 'HEAD').is_file():
+    if not env:
         return None
-    dest = Path(scratch) / 'RepoIMU'
-    if not (dest / 'TStick').is_dir():
-        extract_git_snapshot(git_dir, dest)
-    return dest
+    p = Path(env)
+    return p if (p / 'TStick').is_dir() else None
 
 
 def reference_indices(stamps_ns, interval_s: float) -> np.ndarray:
