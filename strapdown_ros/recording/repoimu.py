@@ -89,6 +89,8 @@ class ImuTrial:
         Orientation of the marker frame in the reference frame, scalar-first, unit.
     imu_frame, reference_frame, marker_frame : str
         Frame names written into the headers (see the module docstring).
+    reference_positions_m : ndarray, shape (m, 3), optional
+        Position of the marker frame in the reference frame, m (None: unknown, written as 0).
 
     """
 
@@ -101,6 +103,7 @@ class ImuTrial:
     imu_frame: str = 'repoimu_imu'
     reference_frame: str = 'repoimu_vicon'
     marker_frame: str = 'repoimu_marker'
+    reference_positions_m: np.ndarray | None = None
 
     @property
     def duration_s(self) -> float:
@@ -126,10 +129,12 @@ class ImuTrial:
         lo, hi = t0 + int(round(start_s * _NS)), t0 + int(round(end_s * _NS))
         k = (self.stamps_ns >= lo) & (self.stamps_ns <= hi)
         r = (self.reference_stamps_ns >= lo) & (self.reference_stamps_ns <= hi)
+        pos = self.reference_positions_m
         return dataclasses.replace(self, stamps_ns=self.stamps_ns[k], gyro=self.gyro[k],
                                    accel=self.accel[k],
                                    reference_stamps_ns=self.reference_stamps_ns[r],
-                                   q_reference_marker=self.q_reference_marker[r])
+                                   q_reference_marker=self.q_reference_marker[r],
+                                   reference_positions_m=None if pos is None else pos[r])
 
 
 def read_repoimu_csv(path, stamp_origin_ns: int = 0) -> ImuTrial:
@@ -280,10 +285,11 @@ class _Messages:
             linear_acceleration_covariance=cov_unknown)
         return self.serialize(m)
 
-    def pose(self, ns, frame, q) -> bytes:
+    def pose(self, ns, frame, q, position=(0.0, 0.0, 0.0)) -> bytes:
         T = self.T
+        x, y, z = (float(c) for c in position)
         m = T['geometry_msgs/msg/PoseStamped'](header=self.header(ns, frame), pose=T[
-            'geometry_msgs/msg/Pose'](position=T['geometry_msgs/msg/Point'](x=0.0, y=0.0, z=0.0),
+            'geometry_msgs/msg/Pose'](position=T['geometry_msgs/msg/Point'](x=x, y=y, z=z),
                                       orientation=self.quaternion(q)))
         return self.serialize(m)
 
@@ -297,7 +303,8 @@ class _Messages:
 
 
 def write_bag(bag, trial: ImuTrial, gyro_format: str = 'imu', reference_format: str = 'pose',
-              reference_interval_s: float = 1.0, storage: str = 'mcap') -> dict:
+              reference_interval_s: float | None = 1.0, storage: str = 'mcap',
+              compression: str = 'none') -> dict:
     """
     Write one trial (or an excerpt) as a rosbag2 bag.
 
@@ -312,10 +319,13 @@ def write_bag(bag, trial: ImuTrial, gyro_format: str = 'imu', reference_format: 
         rule over consecutive samples at most 1.5 nominal periods apart), or both.
     reference_format : {'pose', 'quaternion', 'both'}
         ``mocap/pose`` PoseStamped, ``star_camera/attitude`` QuaternionStamped, or both.
-    reference_interval_s : float
-        Time between reference fixes written, s (the reference is decimated).
+    reference_interval_s : float or None
+        Time between reference fixes written, s (the reference is decimated); None writes every
+        reference sample (the full motion-capture rate).
     storage : {'mcap', 'sqlite3'}
         rosbag2 storage plug-in.
+    compression : {'none', 'zstd'}
+        ``zstd``: MCAP chunks compressed with zstd (rosbag2's storage compression; mcap only).
 
     Returns
     -------
@@ -324,7 +334,7 @@ def write_bag(bag, trial: ImuTrial, gyro_format: str = 'imu', reference_format: 
         ``reference_fixes``, ``frames``.
 
     """
-    from rosbags.rosbag2 import StoragePlugin, Writer
+    from rosbags.rosbag2 import CompressionFormat, CompressionMode, StoragePlugin, Writer
     from rosbags.typesys import get_typestore, Stores
 
     if gyro_format not in GYRO_FORMATS:
@@ -334,11 +344,16 @@ def write_bag(bag, trial: ImuTrial, gyro_format: str = 'imu', reference_format: 
                          f"{', '.join(REFERENCE_FORMATS)}")
     if storage not in ('mcap', 'sqlite3'):
         raise ValueError(f'storage={storage!r}; valid: mcap, sqlite3')
+    if compression not in ('none', 'zstd') or (compression == 'zstd' and storage != 'mcap'):
+        raise ValueError(f'compression={compression!r} with storage={storage!r}; valid: none, '
+                         'or zstd with mcap')
     if len(trial.stamps_ns) < 2 or len(trial.reference_stamps_ns) < 2:
         raise ValueError(f'{trial.name}: fewer than 2 IMU samples or reference fixes')
     stamps = np.asarray(trial.stamps_ns, dtype=np.int64)
     period = float(np.median(np.diff(stamps))) / _NS
-    ref_k = reference_indices(trial.reference_stamps_ns, reference_interval_s)
+    ref_k = (np.arange(len(trial.reference_stamps_ns)) if reference_interval_s is None
+             else reference_indices(trial.reference_stamps_ns, reference_interval_s))
+    pos = trial.reference_positions_m
     names = GYRO_FORMATS[gyro_format] + REFERENCE_FORMATS[reference_format]
     store = get_typestore(Stores.ROS2_JAZZY)
     msgs = _Messages(store)
@@ -357,14 +372,18 @@ def write_bag(bag, trial: ImuTrial, gyro_format: str = 'imu', reference_format: 
         ns = int(trial.reference_stamps_ns[k])
         q = trial.q_reference_marker[k]
         if 'mocap/pose' in names:
-            batch.append((ns, 2, 'mocap/pose', msgs.pose(ns, trial.reference_frame, q)))
+            batch.append((ns, 2, 'mocap/pose', msgs.pose(
+                ns, trial.reference_frame, q, (0.0, 0.0, 0.0) if pos is None else pos[k])))
         if 'star_camera/attitude' in names:
             batch.append((ns, 3, 'star_camera/attitude',
                           msgs.quaternion_stamped(ns, trial.reference_frame, q)))
     batch.sort(key=lambda m: (m[0], m[1]))
     counts = {'/' + n: 0 for n in names}
     plugin = StoragePlugin.MCAP if storage == 'mcap' else StoragePlugin.SQLITE3
-    with Writer(Path(bag), version=Writer.VERSION_LATEST, storage_plugin=plugin) as writer:
+    writer = Writer(Path(bag), version=Writer.VERSION_LATEST, storage_plugin=plugin)
+    if compression == 'zstd':
+        writer.set_compression(CompressionMode.STORAGE, CompressionFormat.ZSTD)
+    with writer:
         conns = {n: writer.add_connection('/' + n, TOPICS[n], typestore=store) for n in names}
         for ns, _, name, data in batch:
             writer.write(conns[name], ns, data)
