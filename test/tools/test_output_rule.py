@@ -200,6 +200,21 @@ def test_commit_directory_keeps_the_old_one_until_the_new_one_is_in_place(tmp_pa
     assert (target / 'a').read_text() == 'new' and os.listdir(tmp_path) == ['out']
 
 
+def test_atomic_writes_respect_the_umask(tmp_path):
+    """A file written atomically gets 0666 less the umask, like open(path, 'w')."""
+    from strapdown_ros.cli import write_text
+
+    old = os.umask(0o027)
+    try:
+        write_text(tmp_path / 'a.txt', 'x')
+        with open(tmp_path / 'b.txt', 'w') as fh:
+            fh.write('x')
+    finally:
+        os.umask(old)
+    assert (tmp_path / 'a.txt').stat().st_mode & 0o777 == 0o640
+    assert (tmp_path / 'b.txt').stat().st_mode & 0o777 == 0o640
+
+
 def test_figures_are_written_atomically(tmp_path):
     matplotlib = pytest.importorskip('matplotlib')
     matplotlib.use('Agg')
