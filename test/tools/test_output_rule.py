@@ -35,6 +35,7 @@ EXISTING = {
     'record_sim': ['{bag}'],
     'sins_bag_bench': ['{bag}', '--json', '{old}'],
     'realdata_bag': ['{trial}', '{bag}'],
+    'gaitmap_bag': ['{data}', '{plots}'],
     'realdata_report': ['--data', '{data}', '--out', '{plots}'],
     'sins_bench': ['--json', '{old}'],
     'coning_bench': ['--plots', '{plots}'],
@@ -58,6 +59,7 @@ AS_INPUT = {
     'record_sim': ['{model}', '--params', '{model}'],
     'sins_bag_bench': ['{bag}', '--json', '{bag}/metadata.yaml'],
     'realdata_bag': ['{trial}', '{trial}'],
+    'gaitmap_bag': ['{data}', '{data}', '--force'],
     'realdata_report': ['--data', '{data}', '--out', '{data}'],
     'filter_bag': ['{bag}', '--output', '{bag}/metadata.yaml'],
 }
@@ -96,7 +98,7 @@ def files(tmp_path_factory):
     plots = d / 'plots'
     plots.mkdir()
     for name in ('coning_drift.png', 'nav_bench.md', 'boresight_errors.png',
-                 'discrepancy_detection.png', 'realdata.json'):
+                 'discrepancy_detection.png', 'realdata.json', 'LICENSE'):
         (plots / name).write_text('old')
     old = d / 'old.json'
     old.write_text('{"kept": true}\n')
