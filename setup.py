@@ -74,6 +74,7 @@ setup(
             'nav_bench = strapdown_ros.bench.nav_bench:main',
             'realdata_report = strapdown_ros.tools.realdata_report:main',
             'realdata_bag = strapdown_ros.tools.realdata_bag:main',
+            'gaitmap_bag = strapdown_ros.tools.gaitmap_bag:main',
             'filter_bench = strapdown_ros.bench.filter_bench:main',
         ],
     },

@@ -7,7 +7,9 @@ No ROS imports.
 
 A write goes to a temporary file in the target's own directory and is moved over the target with
 ``os.replace`` (atomic on POSIX): a reader sees the old file or the new one, never a part, and a
-failure leaves the old file as it was.  Errors name the target, never the temporary file.
+failure leaves the old file as it was.  Errors name the target, never the temporary file.  The
+file gets the permissions a plain ``open(path, 'w')`` would give it (0666 less the umask), not
+the temporary file's 0600.
 """
 from __future__ import annotations
 
@@ -19,6 +21,12 @@ import tempfile
 
 __all__ = ['atomic_write_text', 'atomic_savefig', 'stage_directory', 'commit_directory',
            'discard_directory', 'probe_writable']
+
+
+def _umask() -> int:
+    mask = os.umask(0o022)
+    os.umask(mask)
+    return mask
 
 
 def _directory(path) -> Path:
@@ -38,6 +46,7 @@ def _replacing(path, suffix: str):
     try:
         fd, tmp = tempfile.mkstemp(dir=_directory(path), prefix=f'.{Path(path).name}.',
                                    suffix=suffix)
+        os.chmod(tmp, 0o666 & ~_umask())
         yield fd, tmp
         os.replace(tmp, path)
         tmp = None

@@ -23,10 +23,10 @@ Cramér–Rao bound, its consistency, its cost, and one real recording.  The run
   increment per ``propagate`` call (as a node receives them) and in blocks; µs per increment
   (all work included) and per fix; median and min–max of ``--timing-runs``; one process, one
   thread (numpy's BLAS on 3×3..6×6 matrices does not thread); load average at the start.
-* **Real data** (RepoIMU, when found: ``$STRAPDOWN_REALDATA``, /work/shared/RepoIMU or the dev
-  mirror): one wand trial, bias + time offset + boresight states, the Vicon attitude as one fix
-  per second, σ from the data; the bias against the mean rate at rest and the time offset against
-  the rate cross-correlation (``strapdown_ros.recording.repoimu``).
+* **Real data** (RepoIMU, when ``$STRAPDOWN_REALDATA`` names a copy): one wand trial, bias +
+  time offset + boresight states, the Vicon attitude as one fix per second, σ from the data;
+  the bias against the mean rate at rest and the time offset against the rate cross-correlation
+  (``strapdown_ros.recording.repoimu``).
 
 Prints a markdown table on stdout; ``--json FILE``; ``--plots DIR`` (attitude error with its
 ±3σ band, bias convergence with ±3σ, NIS with its χ² band); ``--report FILE`` (markdown).  The

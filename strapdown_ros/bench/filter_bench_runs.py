@@ -8,7 +8,6 @@ on one RepoIMU wand trial.  The report is ``filter_bench_report``.
 from __future__ import annotations
 
 import math
-import tempfile
 import time
 
 import numpy as np
@@ -295,15 +294,14 @@ def realdata_run(a, progress) -> dict:
         with σ against the rest mean rate and the cross-correlation lag, and the mean NIS.
 
     """
-    with tempfile.TemporaryDirectory() as scratch:
-        root = repoimu.find_repoimu(scratch)
-        if root is None:
-            return {'available': False}
-        path = next((p for p in repoimu.repoimu_trials(root, ('TStick', )) if p.stem == a.trial),
-                    None)
-        if path is None:
-            return {'available': False, 'reason': f'trial {a.trial} not in {root}'}
-        trial = repoimu.read_repoimu_csv(path)
+    root = repoimu.find_repoimu()
+    if root is None:
+        return {'available': False}
+    path = next((p for p in repoimu.repoimu_trials(root, ('TStick', )) if p.stem == a.trial),
+                None)
+    if path is None:
+        return {'available': False, 'reason': f'trial {a.trial} not in {root}'}
+    trial = repoimu.read_repoimu_csv(path)
     progress(f'real data: {trial.name}')
     rest = repoimu.rest_mean_rate(trial)
     lag = repoimu.xcorr_lag_s(trial)

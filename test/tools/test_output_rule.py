@@ -35,6 +35,7 @@ EXISTING = {
     'record_sim': ['{bag}'],
     'sins_bag_bench': ['{bag}', '--json', '{old}'],
     'realdata_bag': ['{trial}', '{bag}'],
+    'gaitmap_bag': ['{data}', '{plots}'],
     'realdata_report': ['--data', '{data}', '--out', '{plots}'],
     'sins_bench': ['--json', '{old}'],
     'coning_bench': ['--plots', '{plots}'],
@@ -58,6 +59,7 @@ AS_INPUT = {
     'record_sim': ['{model}', '--params', '{model}'],
     'sins_bag_bench': ['{bag}', '--json', '{bag}/metadata.yaml'],
     'realdata_bag': ['{trial}', '{trial}'],
+    'gaitmap_bag': ['{data}', '{data}', '--force'],
     'realdata_report': ['--data', '{data}', '--out', '{data}'],
     'filter_bag': ['{bag}', '--output', '{bag}/metadata.yaml'],
 }
@@ -96,7 +98,7 @@ def files(tmp_path_factory):
     plots = d / 'plots'
     plots.mkdir()
     for name in ('coning_drift.png', 'nav_bench.md', 'boresight_errors.png',
-                 'discrepancy_detection.png', 'realdata.json'):
+                 'discrepancy_detection.png', 'realdata.json', 'LICENSE'):
         (plots / name).write_text('old')
     old = d / 'old.json'
     old.write_text('{"kept": true}\n')
@@ -198,6 +200,21 @@ def test_commit_directory_keeps_the_old_one_until_the_new_one_is_in_place(tmp_pa
     staged.mkdir()
     discard_directory(staged)
     assert (target / 'a').read_text() == 'new' and os.listdir(tmp_path) == ['out']
+
+
+def test_atomic_writes_respect_the_umask(tmp_path):
+    """A file written atomically gets 0666 less the umask, like open(path, 'w')."""
+    from strapdown_ros.cli import write_text
+
+    old = os.umask(0o027)
+    try:
+        write_text(tmp_path / 'a.txt', 'x')
+        with open(tmp_path / 'b.txt', 'w') as fh:
+            fh.write('x')
+    finally:
+        os.umask(old)
+    assert (tmp_path / 'a.txt').stat().st_mode & 0o777 == 0o640
+    assert (tmp_path / 'b.txt').stat().st_mode & 0o777 == 0o640
 
 
 def test_figures_are_written_atomically(tmp_path):
