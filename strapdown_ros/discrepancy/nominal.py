@@ -299,8 +299,8 @@ def nominal_model(stamps_ns, delta_theta, fix_stamps_ns, fix_q, facts: dict,
         if rest_rule == 'quiet':
             notes.append(f'no still rest (the rate constant within its noise for '
                          f'{MIN_REST_S:g} s): quiet segments (the rate varying by less than '
-                         f'{QUIET_RATE:g} rad/s) stand for rest; the angle random walk is an upper '
-                         'bound')
+                         f'{QUIET_RATE:g} rad/s) stand for rest; the angle random walk is an '
+                         'upper bound')
     else:
         w = np.diff(dth, axis=0) / np.sqrt(2.0)             # white part, motion mostly removed
         arw = float(1.4826 * np.median(np.abs(w - np.median(w, axis=0))) / np.sqrt(T))
