@@ -174,6 +174,7 @@ class Linearisation:
         self.col_boresight = np.array(cols).T
         # gyro-effect signatures ∂r/∂θ_model = −Cᵀ ε-signature: computed when first asked for
         self._sig = {}
+        self._whiteners = {}            # whitening of the residual covariance by noise terms
         # time offset: ∂r/∂τ_model = Cᵀ (ΔSᵀ ω_s − ω_e)
         w_s = self.gyro.rate_at(self.pairs.k_start)
         w_e = self.gyro.rate_at(self.pairs.k_end)
@@ -294,12 +295,20 @@ class Linearisation:
             The banded Cholesky factor of B.
 
         """
+        key = _noise_key(noise)
+        if mask is None and key in self._whiteners:
+            return self._whiteners[key]
         pairs = self.pairs if mask is None else self.pairs.subset(mask)
         R = self.R_cam if mask is None else self.R_cam[mask]
         P = self.fix_covariance(noise)
         fixP = np.stack([P[pairs.fix_start], P[pairs.fix_end]], axis=1)
         white = (self.random_walk ** 2 * pairs.duration)[:, None, None] * np.eye(3)
-        return Whitener(band_covariance(fixP, R, pairs.adjacent, white))
+        W = Whitener(band_covariance(fixP, R, pairs.adjacent, white))
+        if mask is None:
+            if len(self._whiteners) >= 4:                # a noise fit tries many: keep a few
+                self._whiteners.pop(next(iter(self._whiteners)))
+            self._whiteners[key] = W
+        return W
 
     def rows(self, mask) -> np.ndarray:
         """
@@ -361,6 +370,11 @@ class Linearisation:
             return fit(r, J, self.U, self.prior_var, self.whitener(noise))
         rows = self.rows(mask)
         return fit(r[rows], J[rows], self.U[rows], self.prior_var, self.whitener(noise, mask))
+
+
+def _noise_key(noise: dict) -> tuple:
+    return tuple((k, tuple(float(x) for x in np.atleast_1d(np.asarray(v, dtype=float))))
+                 for k, v in sorted(noise.items()))
 
 
 def noise_of(params: dict) -> dict:

@@ -10,11 +10,10 @@ the plausibility of a fitted value.  No ROS imports.
 """
 from __future__ import annotations
 
-from types import SimpleNamespace
-
 import numpy as np
 
-from strapdown_ros.calibration.boresight import axis_alignment, check_observability
+from strapdown_ros.calibration.boresight import axis_alignment
+from strapdown_ros.calibration.boresight_observability import judge_observability
 from strapdown_ros.calibration.pairs import build_pairs, GyroRecord
 from strapdown_ros.discrepancy.linearisation import (InputError, Linearisation,
                                                      NumericalFailure, Recording)
@@ -131,8 +130,9 @@ def boresight_observability(rec: Recording, params: dict, epoch: float | None = 
     Judge the observability of the boresight on this recording, by the calibrator's rule.
 
     The rule ``calibrate_bag`` and the calibrator use
-    (:func:`strapdown_ros.calibration.boresight.check_observability`): 004 §4.1's rotation
-    condition and the conditioning of the normal matrix in VF rotation axes.
+    (:func:`strapdown_ros.calibration.boresight_observability.judge_observability`): the
+    Fisher information of all the pairs together (shared fixes included) and the motion about
+    two axes above the fix noise, in O(N).
 
     Parameters
     ----------
@@ -154,11 +154,9 @@ def boresight_observability(rec: Recording, params: dict, epoch: float | None = 
     pairs = initial_pairs(rec, params, epoch)
     rw2 = float(params.get('gyro_random_walk', 0.0)) ** 2
     P = rec.fix_P
-    items = [SimpleNamespace(dq_cam=pairs.dq_cam[n], dq_imu=pairs.dq_imu[n],
-                             cov_cam=P[pairs.fix_start[n]] + P[pairs.fix_end[n]],
-                             cov_imu=rw2 * float(pairs.duration[n]) * np.eye(3))
-             for n in range(len(pairs))]
-    return check_observability(items,
+    fix_P = np.stack([P[pairs.fix_start], P[pairs.fix_end]], axis=1)
+    white = (rw2 * pairs.duration)[:, None, None] * np.eye(3)
+    return judge_observability(pairs.dq_cam, fix_P, pairs.adjacent, white,
                                min_rotation=np.radians(float(params.get('min_rotation_deg', 0.5))),
                                max_sigma=float(params.get('max_sigma', 1e-3)))
 

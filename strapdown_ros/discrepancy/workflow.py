@@ -18,6 +18,9 @@ from __future__ import annotations
 
 import numpy as np
 
+from strapdown_ros.calibration.reference_spacing import (choose_spacing, fix_interval,
+                                                         MAX_SPACING, stated_spacing,
+                                                         thin_fixes)
 from strapdown_ros.discrepancy import diagnostics
 from strapdown_ros.discrepancy.linearisation import (AnalysisError, BoresightUnobservable,
                                                      fit_noise, InputError, Linearisation,
@@ -50,7 +53,7 @@ MIN_PAIRS = 12
 
 def analyse(rec: Recording, params: dict, alpha: float = DEFAULT_ALPHA, blocks: int = 6,
             lags: int | None = None, max_steps: int = 6, candidates=CANDIDATES,
-            progress=None) -> DiscrepancyResult:
+            progress=None, reference_spacing: float | None = None) -> DiscrepancyResult:
     """
     Find where the recording and its model disagree and which effects are missing.
 
@@ -83,6 +86,10 @@ def analyse(rec: Recording, params: dict, alpha: float = DEFAULT_ALPHA, blocks: 
         Effect names to consider.
     progress : callable, optional
         ``progress(text)`` is called between stages.
+    reference_spacing : float, optional
+        Spacing of the fixes of the pairs, s: None chooses it from the data
+        (:mod:`strapdown_ros.calibration.reference_spacing`: the correlation of the reference's
+        error), 0 keeps every fix, a positive value keeps one fix per slot of that length.
 
     Returns
     -------
@@ -105,6 +112,7 @@ def analyse(rec: Recording, params: dict, alpha: float = DEFAULT_ALPHA, blocks: 
                          f'{MIN_PAIRS + 1}')
     search = _Search(rec, dict(params), alpha, blocks, lags, max_steps, candidates,
                      progress or (lambda s: None))
+    search.spacing_wanted = reference_spacing
     try:
         search.base_fit()
         search.forward()
@@ -176,11 +184,14 @@ class _Search:
             Fewer than :data:`MIN_PAIRS` increment pairs.
 
         """
-        rec, params = self.rec, self.params
+        params = self.params
         self.original = dict(params)
-        self.epoch = epoch = float(rec.gyro_stamps[0])
+        self.epoch = epoch = float(self.rec.gyro_stamps[0])
         self.noise = noise_of(params)
         self.nominal_noise = dict(self.noise)
+        self.stage = 'the spacing of the fixes'
+        self.rec = rec = self._spaced(self.rec, params, epoch)
+        self.stage = 'observability'
         rep = boresight_observability(rec, params, epoch)
         if not rep.observable:
             raise BoresightUnobservable(rep.message, rep)
@@ -200,6 +211,39 @@ class _Search:
                                                       self.a_tests, self.lags)
         self.series_before = residual_series(lin0, self.base0, [])
         self.base_done = True
+
+    def _spaced(self, rec: Recording, params: dict, epoch: float) -> Recording:
+        """
+        Return the recording with the fixes at the spacing of the pairs (the module rule).
+
+        Chosen from the whitened residuals of the nominal model at the full rate
+        (:func:`strapdown_ros.calibration.reference_spacing.choose_spacing`) unless
+        ``spacing_wanted`` states it; kept in ``spacing`` (a JSON record).
+        """
+        want = getattr(self, 'spacing_wanted', None)
+        stamps = rec.fix_stamps
+        interval = fix_interval(stamps)
+        if want is not None:
+            choice = stated_spacing(max(float(want), 0.0), stamps)
+        else:
+            # at most MAX_SPACING, and enough fixes left for the workflow
+            longest = min(MAX_SPACING, float(stamps[-1] - stamps[0]) / (2 * MIN_PAIRS))
+            if interval >= longest:
+                choice = choose_spacing(np.zeros((0, 3)), [], stamps, longest)
+            else:
+                self.say('spacing of the fixes: fit at the full rate')
+                C0 = initial_boresight_estimate(rec, params, epoch)
+                lin = Linearisation(rec, params, C0, epoch)
+                white = lin.evaluate([], self.noise).whitened
+                choice = choose_spacing(white, lin.pairs.adjacent, stamps, longest)
+        self.spacing = choice.as_dict()
+        if choice.step <= 1:
+            return rec
+        keep = thin_fixes(stamps, choice.spacing_s)
+        self.say(f'spacing of the fixes: {choice.spacing_s:.3g} s, {len(keep)} of {len(stamps)} '
+                 'fixes')
+        return Recording(rec.gyro_stamps, rec.delta_theta, stamps[keep], rec.fix_q[keep],
+                         rec.fix_P[keep], rec.gaps)
 
     # ------------------------------------------------------------------ the forward search
     def forward(self) -> None:
@@ -457,7 +501,8 @@ class _Search:
             chi2_per_dof=float(tests_after['nis']['per_dof']),
             chi2_per_dof_band=_chi2_band(tests_after), sigma_method=sigma_method,
             hac_lags=lags if sigma_method != 'model' else None,
-            boresight_sigma_model_rad=sig_beta_model.tolist(), repeatability_bound=bound)
+            boresight_sigma_model_rad=sig_beta_model.tolist(), repeatability_bound=bound,
+            reference_spacing=self.spacing)
 
 
 def _significant(scores: list, level: float) -> list:

@@ -45,6 +45,10 @@ import sys
 
 import numpy as np
 
+from strapdown_ros.calibration.reference_spacing import (choose_spacing, fix_interval,
+                                                         MAX_SPACING, parse_spacing,
+                                                         SpacingChoice, stated_spacing,
+                                                         thin_fixes)
 from strapdown_ros.calibration.streaming import BoresightCalibrator
 from strapdown_ros.cli import check_outputs, FILE, OneLineParser, write_json
 from strapdown_ros.estimation.chi_square import FIT_LEVEL
@@ -55,7 +59,8 @@ from strapdown_ros.recording import (add_input_arguments, BagError, check_input_
 from strapdown_ros.rotation import to_ros_xyzw
 from strapdown_ros.streams.checks import segments
 
-__all__ = ['main', 'calibrate', 'calibrator_parameters', 'make_calibrator', 'solution_json']
+__all__ = ['main', 'calibrate', 'calibrate_spaced', 'calibrator_parameters', 'make_calibrator',
+           'solution_json']
 
 ARCSEC_PER_RAD = 180.0 / np.pi * 3600.0
 
@@ -122,7 +127,7 @@ def _match_segments(tg, g_segs, tc, c_segs) -> list[tuple[int, int]]:
     return out
 
 
-def calibrate(data: dict, p: dict):
+def calibrate(data: dict, p: dict, keep=None):
     """
     Feed the calibrator as calibrator_node is fed and solve.
 
@@ -136,7 +141,8 @@ def calibrate(data: dict, p: dict):
     the calibrator restarts its gyro history (``restart_gyro``, as calibrator_node does on a
     resynchronisation) at every gyro segment and its fix chain at every camera segment, so no
     pair spans a jump and no stamp array handed to the search is out of order (segments matched
-    by :func:`_match_segments`).
+    by :func:`_match_segments`).  The fixes go in blocks (``add_cameras``: the same pairs as one
+    at a time), each after the gyro data that covers it.
 
     Parameters
     ----------
@@ -144,6 +150,8 @@ def calibrate(data: dict, p: dict):
         The streams of :func:`strapdown_ros.recording.reader.read_bag`.
     p : dict
         calibrator_node parameters.
+    keep : (n,) bool array_like, optional
+        The camera fixes used (default all): the spacing of the pairs.
 
     Returns
     -------
@@ -161,6 +169,9 @@ def calibrate(data: dict, p: dict):
     tg = (np.asarray(g.stamps, dtype=np.int64) - t0) * 1e-9
     vg = np.asarray(g.values, dtype=float).reshape(-1, 3)
     tc = (np.asarray(c.stamps, dtype=np.int64) - t0) * 1e-9
+    qc = np.array([v[0] for v in c.values], dtype=float).reshape(-1, 4)
+    Pc = np.array([v[1] for v in c.values], dtype=float).reshape(-1, 3, 3)
+    use = np.ones(len(tc), dtype=bool) if keep is None else np.asarray(keep, dtype=bool)
     period = data.get('gyro_period_s') or 1.0 / float(p['gyro_rate'])
     # the in-interval polynomial reads the neighbours
     h = 1.5 * period
@@ -182,26 +193,95 @@ def calibrate(data: dict, p: dict):
             cal.restart_camera()
         cur_c = j
         gaps = [(seg_t[n], seg_t[n + 1]) for n in np.flatnonzero(np.diff(seg_t) > 1.5 * period)]
-        for t, (q, P) in zip(tc[ca:cb], c.values[ca:cb]):
-            if t < seg_t[0] - offset or t > seg_t[-1] + offset:
-                continue                               # outside the gyro segment: no pair
-            k1 = int(np.searchsorted(seg_t, t + lead, side='right'))
-            new = 0
+        t_fix = tc[ca:cb]
+        inside = use[ca:cb] & (t_fix >= seg_t[0] - offset) & (t_fix <= seg_t[-1] + offset)
+        idx = ca + np.flatnonzero(inside)               # outside the gyro segment: no pair
+        need = np.searchsorted(seg_t, tc[idx] + lead, side='right')
+        a = 0
+        while a < len(idx):
+            # a block of fixes whose gyro data stays well inside the calibrator's bound
+            b = int(np.searchsorted(need, need[a] + BLOCK_GYRO, side='right'))
+            b = min(max(b, a + 1), a + BLOCK_FIXES)
+            k1 = int(need[b - 1])
             if k1 > k:
-                new = cal.add_gyro(seg_t[k:k1], seg_v[k:k1])
+                cal.add_gyro(seg_t[k:k1], seg_v[k:k1])
                 k = k1
-            new += cal.add_camera(t, q, P)
+            sel = idx[a:b]
+            new = cal.add_cameras(tc[sel], qc[sel], Pc[sel])
             if new and gaps:                           # as calibrator_node discards them
                 tail = cal.pairs[len(cal.pairs) - new:]
-                keep = [pr for pr in tail
-                        if not any(pr.t_start - h < b and a < pr.t_end + h for a, b in gaps)]
-                discarded += len(tail) - len(keep)
+                keep_tail = [pr for pr in tail
+                             if not any(pr.t_start - h < gb_ and ga_ < pr.t_end + h
+                                        for ga_, gb_ in gaps)]
+                discarded += len(tail) - len(keep_tail)
                 del cal.pairs[len(cal.pairs) - new:]
-                cal.pairs.extend(keep)
+                cal.pairs.extend(keep_tail)
+            a = b
         if k < len(seg_t):                             # fixes still waiting for gyro coverage
             cal.add_gyro(seg_t[k:], seg_v[k:])
             k = len(seg_t)
     return cal.solve(), cal, discarded
+
+
+#: fixes fed to the calibrator at once (``calibrate``), and the gyro samples a block may span
+BLOCK_FIXES = 4096
+BLOCK_GYRO = 200_000
+
+
+def calibrate_spaced(data: dict, p: dict, spacing: float | None = None):
+    """
+    Calibrate with the fixes of the pairs at the spacing the reference's error allows.
+
+    The rule of :mod:`strapdown_ros.calibration.reference_spacing`: calibrate on every fix,
+    choose the spacing from the whitened residuals (``spacing`` None), and calibrate again on
+    the fixes kept when it is more than one fix.  A stated ``spacing`` (s; 0: every fix) is
+    used as given.
+
+    Parameters
+    ----------
+    data : dict
+        The streams of :func:`strapdown_ros.recording.reader.read_bag`.
+    p : dict
+        calibrator_node parameters.
+    spacing : float, optional
+        Spacing of the fixes, s; None: chosen from the data.
+
+    Returns
+    -------
+    solution, calibrator, discarded
+        As :func:`calibrate`.
+    choice : SpacingChoice
+        The spacing and why.
+
+    """
+    c = data['camera']
+    t = (np.asarray(c.stamps, dtype=np.int64) - int(c.stamps[0])) * 1e-9
+    interval = fix_interval(t)
+    if spacing is not None:
+        choice = stated_spacing(spacing, t)
+        if choice.step <= 1:
+            return (*calibrate(data, p), choice)
+        return (*calibrate(data, p, keep=_kept(t, choice.spacing_s)), choice)
+    sol, cal, discarded = calibrate(data, p)
+    white = sol.whitened_residual
+    if interval >= MAX_SPACING or white is None or not sol.observable:
+        why = (f'fixes {interval:.3g} s apart, at least {MAX_SPACING:g} s: all kept'
+               if interval >= MAX_SPACING else
+               'every fix kept: no solution at the full rate to judge the spacing from')
+        return sol, cal, discarded, SpacingChoice(1, interval, interval, reason=why,
+                                                  pairs_full=len(cal.pairs))
+    pairs = cal.pairs
+    adjacent = np.array([abs(b.t_start - a.t_end) < 1e-9 for a, b in zip(pairs, pairs[1:])])
+    choice = choose_spacing(white, adjacent, t)
+    if choice.step <= 1:
+        return sol, cal, discarded, choice
+    return (*calibrate(data, p, keep=_kept(t, choice.spacing_s)), choice)
+
+
+def _kept(t, spacing):
+    keep = np.zeros(len(t), dtype=bool)
+    keep[thin_fixes(t, spacing)] = True
+    return keep
 
 
 # --- output ---------------------------------------------------------------------------------
@@ -299,6 +379,10 @@ def _summary(bag: str, data: dict, result: dict, p: dict) -> str:
     if any(rs.values()):
         lines.append(f"  STAMP RESYNCS: gyro {rs.get('gyro', 0)}, camera {rs.get('camera', 0)} "
                      '(clock resets): each time base calibrated on its own, no pair spans a reset')
+    sp = result.get('reference_spacing')
+    if sp and sp['step'] > 1:
+        lines.append(f"  reference spacing: one fix in {sp['step']} ({sp['spacing_s']:.3g} s): "
+                     f"{sp['reason']}")
     notes = [f"{n.replace('_', ' ')} {v}" for n, v in fx.items() if v and not isinstance(v, list)]
     if notes:
         lines.append('  camera fixes: ' + ', '.join(notes))
@@ -395,10 +479,15 @@ def main(argv=None) -> int:
     ap.add_argument('--namespace', default='', help='topic namespace, e.g. /robot1')
     ap.add_argument('-p', '--param', action='append', default=[], metavar='NAME:=VALUE',
                     help='calibrator_node parameter override (repeatable)')
+    ap.add_argument('--reference-spacing', default='auto', metavar='auto|SECONDS',
+                    help='spacing of the fixes of the increment pairs: auto (default: from the '
+                         'correlation of the reference error, doc/calibration.md), 0 (every '
+                         'fix) or seconds')
     add_input_arguments(ap)
     args = ap.parse_args(argv)
     try:
         check_input_arguments(args)
+        spacing = parse_spacing(args.reference_spacing)
         over = parse_overrides(args.param)
         if args.unweighted:
             over['weighted'] = False
@@ -433,8 +522,9 @@ def main(argv=None) -> int:
         print(f'calibrate_bag: note: gyro stamps are {step:.6g} s apart ({1.0 / step:.6g} Hz); '
               'gaps are judged '
               f"against that, not gyro_rate = {p['gyro_rate']:g} Hz", file=sys.stderr)
-    sol, cal, discarded = calibrate(data, p)
+    sol, cal, discarded, choice = calibrate_spaced(data, p, spacing)
     result = solution_json(sol, bool(p['weighted']))
+    result['reference_spacing'] = choice.as_dict()
     result['covariance_model'] = p['covariance_model']
     result['dropped'] = {'gyro': dict(g.dropped),
                          'camera': {**c.dropped,

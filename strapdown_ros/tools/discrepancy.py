@@ -46,6 +46,7 @@ import time
 
 import numpy as np
 
+from strapdown_ros.calibration.reference_spacing import parse_spacing
 from strapdown_ros.cli import check_outputs, DIRECTORY, FILE, OneLineParser, write_json
 from strapdown_ros.discrepancy.bag_input import load_recording, recording_lines
 from strapdown_ros.discrepancy.diagnostics import allan_comparison
@@ -194,6 +195,10 @@ def main(argv=None) -> int:
                     help='family-wise level of the selection (default 0.01)')
     ap.add_argument('--namespace', default='', help='topic namespace, e.g. /robot1')
     ap.add_argument('--quiet', action='store_true', help='no progress on stderr')
+    ap.add_argument('--reference-spacing', default='auto', metavar='auto|SECONDS',
+                    help='spacing of the fixes of the increment pairs: auto (default: from the '
+                         'correlation of the reference error, doc/discrepancy.md), 0 (every '
+                         'fix) or seconds')
     add_input_arguments(ap)
     args = ap.parse_args(argv)
     t0 = time.perf_counter()
@@ -202,6 +207,7 @@ def main(argv=None) -> int:
     try:
         if not (0.0 < alpha < 0.5):
             raise ValueError(f'--alpha must be in (0, 0.5), got {alpha}')
+        spacing = parse_spacing(args.reference_spacing)
         check_input_arguments(args)
         if not Path(args.bag).exists():
             raise ValueError(f'bag {args.bag} does not exist')
@@ -224,7 +230,7 @@ def main(argv=None) -> int:
         rec, info = load_recording(args.bag, model, args.namespace, **input_options(args))
         for line in input_warnings('discrepancy', info):
             print(line, file=sys.stderr)
-        res = analyse(rec, model, alpha=alpha, progress=progress)
+        res = analyse(rec, model, alpha=alpha, progress=progress, reference_spacing=spacing)
     except BoresightUnobservable as exc:
         unobs = list(exc.report.unobservable) if exc.report is not None else []
         if args.json:
