@@ -27,8 +27,8 @@ from strapdown_ros.sensors import SensorSigmas
 from strapdown_ros.sensors.covariance import constant_variances
 
 __all__ = ['CORRELATED_MAX_PAIRS', 'WEIGHTINGS', 'BoresightSolution', 'ChainedCovariance',
-           'axis_alignment', 'check_observability', 'imu_attitude_from_camera',
-           'increment_residuals', 'pair_arrays', 'solve_boresight']
+           'axis_alignment', 'axis_alignment_quat', 'check_observability',
+           'imu_attitude_from_camera', 'increment_residuals', 'pair_arrays', 'solve_boresight']
 
 
 # ---------------------------------------------------------------------- §4 the estimate
@@ -172,8 +172,28 @@ def axis_alignment(A_imu, A_cam) -> np.ndarray:
         C_MF^VF.
 
     """
-    u = quat_to_rotvec(dcm_to_quat(A_imu))
-    v = quat_to_rotvec(dcm_to_quat(A_cam))
+    return axis_alignment_quat(dcm_to_quat(A_imu), dcm_to_quat(A_cam))
+
+
+def axis_alignment_quat(dq_imu, dq_cam) -> np.ndarray:
+    """
+    Return :func:`axis_alignment` from the increments as quaternions (no DCM round trip).
+
+    Parameters
+    ----------
+    dq_imu : (n, 4) ndarray
+        ΔS_imu, scalar first.
+    dq_cam : (n, 4) ndarray
+        ΔS_avu, scalar first.
+
+    Returns
+    -------
+    (3, 3) ndarray
+        C_MF^VF.
+
+    """
+    u = quat_to_rotvec(np.asarray(dq_imu, dtype=float))
+    v = quat_to_rotvec(np.asarray(dq_cam, dtype=float))
     B = u.T @ v
     U, _, Vt = np.linalg.svd(B)
     d = np.sign(np.linalg.det(U @ Vt))
@@ -492,7 +512,7 @@ def solve_boresight(pairs, beta0=(0.0, 0.0, 0.0), weighted: bool = True, init: s
     if n < 2:
         return BoresightSolution(False, f'{n} increment pair(s): need at least 2', pairs=n)
     A_imu, A_cam, E_imu, E_cam = _stack(pairs)
-    C_axes = axis_alignment(A_imu, A_cam)
+    C_axes = axis_alignment_quat([p.dq_imu for p in pairs], [p.dq_cam for p in pairs])
     rep = check_observability(pairs, c_mf_vf=C_axes, min_rotation=min_rotation,
                               max_sigma=max_sigma)
     if not rep.observable:

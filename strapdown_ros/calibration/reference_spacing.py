@@ -10,19 +10,23 @@ small).  The rule, the same in ``calibrate_bag`` and ``discrepancy``:
 1. build the pairs of consecutive fixes at the full rate and fit the model (boresight and the
    gyro constants, the chained covariance of white fixes);
 2. whiten the residuals with that covariance: with white fix errors they are white; with
-   correlated ones they follow the fix error (the whitening of chained differences gives the
-   error itself back), so their autocorrelation ρ(k) at a lag of k fixes is that of the fix
-   error;
-3. keep every k-th fix, k the smallest lag (on a geometric grid) at which the correlation
-   left, |ρ(k)|, is within :data:`SIGNIFICANCE` standard errors of zero at the number of
-   pairs that spacing leaves (3N/k residuals): pairs at that spacing carry errors the model
-   treats correctly, so χ²/dof stays honest;
-4. at most :data:`MAX_SPACING` s apart: residuals still correlated there are structure the
-   model does not explain (an effect missing), not reference noise, and the pairs are taken
-   at that spacing (the rate of a 1-Hz reference).
+   correlated ones they follow the fix error at the short lags (the whitening of chained
+   differences gives the error itself back, except at the lowest frequencies, where the
+   gyro's random walk dominates and the fit removes the slowest part), so their
+   autocorrelation ρ(k) at a lag of k fixes starts as that of the fix error;
+3. when |ρ(1)| is within :data:`SIGNIFICANCE` standard errors of zero (3N residuals), every
+   fix is kept; otherwise τ, the lag at which ρ falls to 1/e (interpolated in log ρ), is the
+   reference's correlation time, and one fix in k is kept, k the smallest lag at which an
+   exponential correlation exp(−k/τ) is within :data:`TOLERANCE` standard error of zero
+   at the number of residuals that spacing leaves (3N/k): pairs at that spacing carry errors
+   the model treats correctly, so χ²/dof and σ stay honest (the exponential is conservative
+   for a correlation that falls faster after its 1/e time, as a moving average's does);
+4. at most :data:`MAX_SPACING` s apart: residuals that stay above 1/e that far are structure
+   the model does not explain (an effect missing), not reference noise, and the pairs are
+   taken at that spacing (the rate of a 1-Hz reference).
 
 Fixes already at least :data:`MAX_SPACING` apart are all kept.  O(N log N) at most: the lags
-examined are a geometric grid.  No ROS imports.
+examined are a geometric grid, stopped at the 1/e crossing.  No ROS imports.
 """
 from __future__ import annotations
 
@@ -33,13 +37,17 @@ import numpy as np
 from strapdown_ros.calibration.pair_covariance import chain_segments
 from strapdown_ros.text import json_clean
 
-__all__ = ['MAX_SPACING', 'SIGNIFICANCE', 'SpacingChoice', 'lag_grid', 'residual_correlation',
-           'choose_spacing', 'fix_interval', 'stated_spacing', 'thin_fixes', 'parse_spacing']
+__all__ = ['MAX_SPACING', 'SIGNIFICANCE', 'TOLERANCE', 'SpacingChoice', 'lag_grid',
+           'residual_correlation', 'choose_spacing', 'refine_spacing', 'fix_interval',
+           'stated_spacing', 'thin_fixes', 'parse_spacing']
 
 #: largest spacing of the fixes the rule chooses, s
 MAX_SPACING = 1.0
-#: the correlation left at the chosen spacing is within this many standard errors of zero
+#: the reference error counts as correlated when ρ between consecutive residuals is more than
+#: this many standard errors from zero (else every fix is kept)
 SIGNIFICANCE = 3.0
+#: ... and the correlation left at the chosen spacing within this many standard errors of zero
+TOLERANCE = 1.0
 
 
 @dataclass
@@ -65,6 +73,8 @@ class SpacingChoice:
         In words.
     pairs_full : int
         Pairs at the full rate.
+    correlation_time_s : float
+        The 1/e time of the correlation, s (NaN when not measured).
 
     """
 
@@ -76,6 +86,7 @@ class SpacingChoice:
     limit: float = float('nan')
     reason: str = ''
     pairs_full: int = 0
+    correlation_time_s: float = float('nan')
 
     def as_dict(self) -> dict:
         """
@@ -93,7 +104,9 @@ class SpacingChoice:
             'lags': [int(k) for k in self.lags],
             'correlation': [float(r) for r in self.correlation],
             'limit': float(self.limit), 'reason': self.reason,
-            'max_spacing_s': MAX_SPACING, 'significance': SIGNIFICANCE})
+            'correlation_time_s': float(self.correlation_time_s),
+            'max_spacing_s': MAX_SPACING, 'significance': SIGNIFICANCE,
+            'tolerance': TOLERANCE})
 
 
 def lag_grid(max_lag: int) -> np.ndarray:
@@ -168,7 +181,7 @@ def choose_spacing(white: np.ndarray, adjacent: np.ndarray, fix_stamps: np.ndarr
     max_spacing : float
         Largest spacing chosen, s.
     significance : float
-        Standard errors of zero the correlation left may be.
+        Standard errors from zero beyond which consecutive fixes count as correlated.
 
     Returns
     -------
@@ -186,30 +199,92 @@ def choose_spacing(white: np.ndarray, adjacent: np.ndarray, fix_stamps: np.ndarr
             pairs_full=n)
     max_lag = min(max_lag, max(1, n // 4))
     chain = chain_segments(adjacent, n)
+
+    def limit(k, level=TOLERANCE):
+        return level / np.sqrt(3.0 * n / k)
     lags, rho = [], []
-    limit = float('nan')
-    step = None
+    tau = None
     for k in lag_grid(max_lag):
         r = residual_correlation(white, chain, int(k))
         lags.append(int(k))
         rho.append(r)
-        limit = significance / np.sqrt(3.0 * n / k)
-        if np.isfinite(r) and abs(r) <= limit:
-            step = int(k)
+        if k == 1 and np.isfinite(r) and abs(r) <= limit(1, significance):
+            return SpacingChoice(1, interval, interval, lags, rho, limit(1, significance), (
+                f'residuals of consecutive fixes uncorrelated (ρ = {r:.2g}, |ρ| ≤ '
+                f'{limit(1, significance):.2g}): every fix kept'), n)
+        if np.isfinite(r) and r < np.exp(-1.0):
+            # the 1/e crossing, interpolated in log ρ from the lag before (ρ(0) = 1)
+            k0, r0 = (lags[-2], rho[-2]) if len(lags) > 1 else (0, 1.0)
+            lr0, lr1 = np.log(r0), np.log(max(r, 1e-12))
+            tau = k0 + (k - k0) * (lr0 + 1.0) / (lr0 - lr1)
             break
-    if step is None:
-        step = int(lags[-1])
-        why = (f'residuals still correlated {step * interval:.3g} s apart (ρ = {rho[-1]:.2g}): '
-               f'structure the model does not explain; pairs at the largest spacing, '
-               f'{max_spacing:g} s')
-    elif step == 1:
-        why = (f'residuals of consecutive fixes uncorrelated (ρ = {rho[0]:.2g}, '
-               f'|ρ| ≤ {limit:.2g}): every fix kept')
-    else:
-        why = (f'reference error correlated over about {lags[-2] * interval:.3g} s '
-               f'(ρ = {rho[0]:.2g} between consecutive fixes, {rho[-1]:.2g} at {step} fixes, '
-               f'|ρ| ≤ {limit:.2g}): one fix in {step} kept')
-    return SpacingChoice(step, interval, step * interval, lags, rho, limit, why, n)
+    if tau is None:
+        step = max_lag
+        why = (f'residuals still correlated {step * interval:.3g} s apart '
+               f'(ρ = {rho[-1]:.2g}): structure the model does not explain; pairs at the '
+               f'largest spacing, {max_lag * interval:.3g} s')
+        return SpacingChoice(step, interval, step * interval, lags, rho, limit(step), why, n)
+    ks = np.arange(1, max_lag + 1)
+    ok = np.exp(-ks / tau) <= limit(ks)
+    step = int(ks[np.argmax(ok)]) if np.any(ok) else max_lag
+    why = (f'reference error correlated with a 1/e time of {tau * interval:.3g} s '
+           f'(ρ = {rho[0]:.2g} between consecutive fixes): one fix in {step} kept, where '
+           f'exp(−k/τ) = {np.exp(-step / tau):.2g} ≤ {limit(step):.2g}')
+    return SpacingChoice(step, interval, step * interval, lags, rho, limit(step), why, n,
+                         tau * interval)
+
+
+def refine_spacing(choice: SpacingChoice, white: np.ndarray, adjacent: np.ndarray,
+                   max_spacing: float = MAX_SPACING, significance: float = SIGNIFICANCE
+                   ) -> SpacingChoice:
+    """
+    Check the spacing on the pairs it keeps, and widen it once if their residuals are correlated.
+
+    At the full rate the lowest frequencies of the whitened residuals are those of the gyro
+    and of the fit, not of the reference, so τ can come out short.  On the pairs kept, the
+    correlation between consecutive residuals is that of the reference error ``step`` fixes
+    apart, exp(−step/τ): when it is more than :data:`SIGNIFICANCE` standard errors from zero, τ
+    is taken from it and the step widened by the same rule (:data:`TOLERANCE`; at most to the
+    largest spacing).
+
+    Parameters
+    ----------
+    choice : SpacingChoice
+        The spacing chosen at the full rate (step > 1).
+    white : (N', 3) ndarray
+        Whitened residuals of the pairs kept.
+    adjacent : (N'−1,) array_like of bool
+        Pairs n, n+1 share a fix.
+    max_spacing : float
+        Largest spacing chosen, s.
+    significance : float
+        Standard errors from zero beyond which the pairs kept count as correlated.
+
+    Returns
+    -------
+    SpacingChoice
+        ``choice`` unchanged, or with a wider step and the reason.
+
+    """
+    white = np.asarray(white, dtype=float).reshape(-1, 3)
+    n = len(white)
+    if choice.step <= 1 or n < 8:
+        return choice
+    r = residual_correlation(white, chain_segments(adjacent, n), 1)
+    lim = significance / np.sqrt(3.0 * n)
+    if not (np.isfinite(r) and r > lim):
+        return choice
+    max_step = max(choice.step, int(np.floor(max_spacing / choice.interval_s + 1e-9)))
+    tau = -choice.step / np.log(min(r, 0.999))           # fixes of the full rate
+    full = max(choice.pairs_full, 1)
+    ks = np.arange(choice.step, max_step + 1)
+    ok = np.exp(-ks / tau) <= TOLERANCE / np.sqrt(3.0 * full / ks)
+    step = int(ks[np.argmax(ok)]) if np.any(ok) else max_step
+    why = (f'{choice.reason}; on the pairs kept the residuals were still correlated (ρ = {r:.2g} '
+           f'> {lim:.2g}): τ = {tau * choice.interval_s:.3g} s, one fix in {step} kept')
+    return SpacingChoice(step, choice.interval_s, step * choice.interval_s, choice.lags,
+                         choice.correlation, TOLERANCE / np.sqrt(3.0 * full / step), why,
+                         choice.pairs_full, tau * choice.interval_s)
 
 
 def fix_interval(fix_stamps) -> float:

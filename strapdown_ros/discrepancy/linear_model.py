@@ -110,21 +110,21 @@ def fit(r: np.ndarray, J: np.ndarray, U: np.ndarray, prior_var: np.ndarray, W: W
     U, pv = U[:, keep], prior_var[keep]
     nz, nx = J.shape[1], U.shape[1]
     A = W.apply(np.hstack([J, U, r[:, None]]))
-    Aj, Au, ar = A[:, :nz], A[:, nz:nz + nx], A[:, -1]
-    # stacked system with prior rows for x: [Aj Au; 0 P^-1/2] [z; x] ≈ [ar; 0]
-    M = np.vstack([np.hstack([Aj, Au]),
-                   np.hstack([np.zeros((nx, nz)), np.diag(1.0 / np.sqrt(pv))])])
-    y = np.concatenate([ar, np.zeros(nx)])
-    N = M.T @ M
-    g = M.T @ y
+    Aj, ar = A[:, :nz], A[:, -1]
+    # the stacked system with prior rows for x, [Aj Au; 0 P^-1/2] [z; x] ≈ [ar; 0], through its
+    # normal equations: one product AᵀA over all the rows (O(N), no copy of the design)
+    G = A.T @ A
+    N = G[:-1, :-1].copy()
+    N[nz:, nz:] += np.diag(1.0 / pv)
+    g = G[:-1, -1]
     sol = np.linalg.lstsq(N, g, rcond=1e-13)[0]
     z, x = sol[:nz], sol[nz:]
-    white = ar - Aj @ z - Au @ x
+    white = ar - A[:, :-1] @ sol
     chi2 = float(white @ white + np.sum(x * x / pv))
     cov = np.linalg.pinv(N, rcond=1e-13, hermitian=True)
     # log det Σ = log det B + log det(I + P Uᵀ B⁻¹ U) (matrix determinant lemma)
     if nx:
-        Sx = np.eye(nx) + (Au.T @ Au) * pv[None, :]
+        Sx = np.eye(nx) + G[nz:nz + nx, nz:nz + nx] * pv[None, :]
         logdet = W.logdet + float(np.linalg.slogdet(Sx)[1])
     else:
         logdet = W.logdet

@@ -12,13 +12,12 @@ from __future__ import annotations
 
 import numpy as np
 
-from strapdown_ros.calibration.boresight import axis_alignment
+from strapdown_ros.calibration.boresight import axis_alignment_quat
 from strapdown_ros.calibration.boresight_observability import judge_observability
-from strapdown_ros.calibration.pairs import build_pairs, GyroRecord
 from strapdown_ros.discrepancy.linearisation import (InputError, Linearisation,
-                                                     NumericalFailure, Recording)
-from strapdown_ros.rotation import quat_to_dcm, rotvec_to_dcm
-from strapdown_ros.sensors.effects import EFFECTS, GyroEffects
+                                                     NumericalFailure, pairs_at, Recording)
+from strapdown_ros.rotation import rotvec_to_dcm
+from strapdown_ros.sensors.effects import EFFECTS
 
 __all__ = ['PLAUSIBLE_MAX', 'check_plausible', 'initial_pairs', 'initial_boresight_estimate',
            'boresight_observability', 'refine_fit']
@@ -90,12 +89,7 @@ def initial_pairs(rec: Recording, params: dict, epoch: float):
         Fewer than two pairs: the gyro data do not cover consecutive fixes.
 
     """
-    lin0 = GyroEffects(params, epoch=epoch)
-    st = rec.gyro_stamps
-    T = np.diff(st, prepend=st[0] - (st[1] - st[0]))
-    g = GyroRecord(st, lin0.compensate(rec.delta_theta, st, T))
-    pairs = build_pairs(g, rec.fix_stamps, rec.fix_q,
-                        float(EFFECTS['time_offset'].value(params)[0]), rec.gaps)
+    pairs = pairs_at(rec, params, epoch)
     if len(pairs) < 2:
         raise InputError(f'only {len(pairs)} increment pair(s): the gyro data must cover '
                          'consecutive camera fixes')
@@ -122,7 +116,7 @@ def initial_boresight_estimate(rec: Recording, params: dict, epoch: float) -> np
 
     """
     pairs = initial_pairs(rec, params, epoch)
-    return axis_alignment(quat_to_dcm(pairs.dq_imu), quat_to_dcm(pairs.dq_cam))
+    return axis_alignment_quat(pairs.dq_imu, pairs.dq_cam)
 
 
 def boresight_observability(rec: Recording, params: dict, epoch: float | None = None):

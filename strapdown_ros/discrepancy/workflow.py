@@ -19,8 +19,8 @@ from __future__ import annotations
 import numpy as np
 
 from strapdown_ros.calibration.reference_spacing import (choose_spacing, fix_interval,
-                                                         MAX_SPACING, stated_spacing,
-                                                         thin_fixes)
+                                                         MAX_SPACING, refine_spacing,
+                                                         stated_spacing, thin_fixes)
 from strapdown_ros.discrepancy import diagnostics
 from strapdown_ros.discrepancy.linearisation import (AnalysisError, BoresightUnobservable,
                                                      fit_noise, InputError, Linearisation,
@@ -223,11 +223,11 @@ class _Search:
         want = getattr(self, 'spacing_wanted', None)
         stamps = rec.fix_stamps
         interval = fix_interval(stamps)
+        # at most MAX_SPACING, and enough fixes left for the workflow
+        longest = min(MAX_SPACING, float(stamps[-1] - stamps[0]) / (2 * MIN_PAIRS))
         if want is not None:
             choice = stated_spacing(max(float(want), 0.0), stamps)
         else:
-            # at most MAX_SPACING, and enough fixes left for the workflow
-            longest = min(MAX_SPACING, float(stamps[-1] - stamps[0]) / (2 * MIN_PAIRS))
             if interval >= longest:
                 choice = choose_spacing(np.zeros((0, 3)), [], stamps, longest)
             else:
@@ -236,14 +236,19 @@ class _Search:
                 lin = Linearisation(rec, params, C0, epoch)
                 white = lin.evaluate([], self.noise).whitened
                 choice = choose_spacing(white, lin.pairs.adjacent, stamps, longest)
+        if choice.step > 1 and want is None:
+            thin = _thinned(rec, choice.spacing_s)
+            lin = Linearisation(thin, params, initial_boresight_estimate(thin, params, epoch),
+                                epoch)
+            choice = refine_spacing(choice, lin.evaluate([], self.noise).whitened,
+                                    lin.pairs.adjacent, longest)
         self.spacing = choice.as_dict()
         if choice.step <= 1:
             return rec
-        keep = thin_fixes(stamps, choice.spacing_s)
-        self.say(f'spacing of the fixes: {choice.spacing_s:.3g} s, {len(keep)} of {len(stamps)} '
-                 'fixes')
-        return Recording(rec.gyro_stamps, rec.delta_theta, stamps[keep], rec.fix_q[keep],
-                         rec.fix_P[keep], rec.gaps)
+        thin = _thinned(rec, choice.spacing_s)
+        self.say(f'spacing of the fixes: {choice.spacing_s:.3g} s, {len(thin.fix_stamps)} of '
+                 f'{len(stamps)} fixes')
+        return thin
 
     # ------------------------------------------------------------------ the forward search
     def forward(self) -> None:
@@ -503,6 +508,13 @@ class _Search:
             hac_lags=lags if sigma_method != 'model' else None,
             boresight_sigma_model_rad=sig_beta_model.tolist(), repeatability_bound=bound,
             reference_spacing=self.spacing)
+
+
+def _thinned(rec: Recording, spacing: float) -> Recording:
+    """Return the recording with one fix per slot of ``spacing`` seconds."""
+    keep = thin_fixes(rec.fix_stamps, spacing)
+    return Recording(rec.gyro_stamps, rec.delta_theta, rec.fix_stamps[keep], rec.fix_q[keep],
+                     rec.fix_P[keep], rec.gaps)
 
 
 def _significant(scores: list, level: float) -> list:

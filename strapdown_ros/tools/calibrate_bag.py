@@ -47,8 +47,8 @@ import numpy as np
 
 from strapdown_ros.calibration.reference_spacing import (choose_spacing, fix_interval,
                                                          MAX_SPACING, parse_spacing,
-                                                         SpacingChoice, stated_spacing,
-                                                         thin_fixes)
+                                                         refine_spacing, SpacingChoice,
+                                                         stated_spacing, thin_fixes)
 from strapdown_ros.calibration.streaming import BoresightCalibrator
 from strapdown_ros.cli import check_outputs, FILE, OneLineParser, write_json
 from strapdown_ros.estimation.chi_square import FIT_LEVEL
@@ -275,7 +275,15 @@ def calibrate_spaced(data: dict, p: dict, spacing: float | None = None):
     choice = choose_spacing(white, adjacent, t)
     if choice.step <= 1:
         return sol, cal, discarded, choice
-    return (*calibrate(data, p, keep=_kept(t, choice.spacing_s)), choice)
+    sol, cal, discarded = calibrate(data, p, keep=_kept(t, choice.spacing_s))
+    if sol.whitened_residual is None:
+        return sol, cal, discarded, choice
+    pairs = cal.pairs
+    adjacent = np.array([abs(b.t_start - a.t_end) < 1e-9 for a, b in zip(pairs, pairs[1:])])
+    wider = refine_spacing(choice, sol.whitened_residual, adjacent)
+    if wider.step == choice.step:
+        return sol, cal, discarded, choice
+    return (*calibrate(data, p, keep=_kept(t, wider.spacing_s)), wider)
 
 
 def _kept(t, spacing):
