@@ -570,8 +570,8 @@ def main(argv=None) -> int:
             return 2
     if not result['observable']:
         if sol.pairs >= 2:
-            advice = ('Record rotations about at least two non-parallel axes between camera '
-                      'exposures.')
+            advice = ('Record rotations about at least two non-parallel axes, well above the '
+                      'reference noise.')
         else:
             advice = 'Needs two camera fixes whose interval the gyro data covers without a gap.'
         print(f'calibrate_bag: boresight NOT observable from this bag: {sol.message}; '

@@ -242,8 +242,8 @@ def main(argv=None) -> int:
                 print(f'discrepancy: error: {exc2}', file=sys.stderr)
                 return 2
         print(f'discrepancy: boresight NOT observable from this bag: {exc}; unobservable: '
-              f"{'; '.join(unobs)}.  Record rotations about at least two non-parallel axes "
-              f'between camera exposures; no model written.', file=sys.stderr)
+              f"{'; '.join(unobs)}.  Record rotations about at least two non-parallel axes, "
+              f'well above the reference noise; no model written.', file=sys.stderr)
         return 3
     except (AnalysisError, np.linalg.LinAlgError, FloatingPointError, OverflowError) as exc:
         # a numerical failure is never reported as bad input (LinAlgError is a ValueError)
