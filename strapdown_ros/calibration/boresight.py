@@ -218,8 +218,8 @@ def pair_arrays(pairs, c_mf_vf: np.ndarray | None = None):
     dq_cam : (N, 4) ndarray
         Camera increments.
     fix_P : (N, 2, 3, 3) ndarray
-        Covariances of the start and end fix of each pair (E_avu/2 each when the pairs do not
-        carry them).
+        Covariances of the start and end fix of each pair (0 and E_avu when the pairs do not
+        carry them: each pair then stands alone, its start the reference of its increment).
     adjacent : (N−1,) bool ndarray
         Pairs n, n+1 share a fix (their stamps meet and both carry fix covariances).
     white : (N, 3, 3) ndarray
@@ -235,8 +235,8 @@ def pair_arrays(pairs, c_mf_vf: np.ndarray | None = None):
         t1 = np.array([getattr(p, 't_end', np.nan) for p in pairs], dtype=float)
         adjacent = np.abs(t0[1:] - t1[:-1]) < 1e-9
     else:
-        half = 0.5 * np.array([p.cov_cam for p in pairs], dtype=float)
-        fix_P = np.stack([half, half], axis=1)
+        E_cam = np.array([p.cov_cam for p in pairs], dtype=float)
+        fix_P = np.stack([np.zeros_like(E_cam), E_cam], axis=1)
         adjacent = np.zeros(max(len(pairs) - 1, 0), dtype=bool)
     E = np.array([p.cov_imu_white if getattr(p, 'cov_imu_white', None) is not None
                   else p.cov_imu for p in pairs], dtype=float)

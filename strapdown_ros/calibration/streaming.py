@@ -556,8 +556,8 @@ class BoresightCalibrator:
         Return the options of ``solve_boresight``.
 
         Weighting: unit when ``weighted`` is off; with the random-constant gyro model the
-        correlated solution (shared fixes, common gyro constants) up to CORRELATED_MAX_PAIRS
-        pairs and pairwise weights beyond; with 004's white model pairwise weights.
+        correlated solution (shared fixes, common gyro constants; banded, O(n), at any number
+        of pairs); with 004's white model pairwise weights.
         """
         if not self.weighted:
             weighting = 'unit'

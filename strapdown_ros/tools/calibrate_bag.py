@@ -36,6 +36,13 @@ stderr (χ²/dof, band, meaning; ``beta_sigma_rad`` is ``beta_sigma_stated_noise
 Stamp faults are the nodes' (``strapdown_ros.streams.checks``): dropouts and stamp bursts are gaps
 (``gyro_gaps``), a burst's messages are removed (``dropped.gyro.stamp_burst``), each time base
 after a resynchronisation is calibrated separately.
+A reference at any rate: ``--reference-spacing auto`` (default) calibrates on every fix, chooses
+from the correlation of the whitened residuals how far apart the fixes of the pairs must be for
+their errors to be independent, and calibrates again on the fixes kept
+(``strapdown_ros.calibration.reference_spacing``; ``0`` keeps every fix, a number of seconds one
+fix per slot of that length); ``reference_spacing`` in the JSON records the choice and why.
+Observability is judged from the information of all the pairs together (``min_rotation_deg``:
+the attitude's RMS rotation about its second principal axis over the recording).
 Exit status: 0 solved, 2 bad arguments/parameters/bag, 3 not observable, 4 no convergence.
 """
 from __future__ import annotations

@@ -25,6 +25,10 @@ confirmed on held-out time blocks; verdict ``model_adequate``, ``explained`` or
 ``unexplained_structure``.  The Allan deviation of the gyro on static segments is set beside
 that of the model simulated on the same segments (allantools).
 
+A reference at any rate: ``--reference-spacing auto`` (default) keeps the fixes of the pairs
+as far apart as the correlation of the reference's error requires (every fix when it is white;
+``0`` keeps every fix, a number of seconds one per slot); ``reference_spacing`` in the JSON.
+
 Output: a summary on stdout; ``--json`` the full result (doc/discrepancy.md); ``--report DIR``
 ``report.md`` with PNG plots; ``--write-model`` the model with the found effects and the
 estimated boresight.  No output may be an input (the bag, the model) or another output; an

@@ -1,4 +1,4 @@
-"""Observability of the boresight from all the pairs together, and its cost: linear in the pairs."""
+"""Observability of the boresight from all the pairs together; its cost linear in the pairs."""
 import tracemalloc
 
 import numpy as np
@@ -94,7 +94,7 @@ def test_information_of_chained_pairs_equals_the_dense_generalised_least_squares
 
 
 def test_correlated_weighting_is_the_dense_gls_without_the_dense_matrix():
-    """ChainedCovariance gives Hᵀ Σ⁻¹ H, Hᵀ Σ⁻¹ f, fᵀ Σ⁻¹ f with Σ = B + U P_x Uᵀ built densely."""
+    """Give Hᵀ Σ⁻¹ H, Hᵀ Σ⁻¹ f, fᵀ Σ⁻¹ f (ChainedCovariance) as with Σ = B + U P_x Uᵀ built."""
     rng = np.random.default_rng(3)
     dq, fix_P, _, _ = chain(motion('rich', 0.3))
     n = len(dq)
@@ -145,6 +145,7 @@ def test_observability_memory_grows_linearly_with_the_pairs():
     ratio = (_peak_bytes(lambda: judge_observability(*large))
              / _peak_bytes(lambda: judge_observability(*small)))
     assert ratio < 5.0, ratio
+
     # the pair-list entry point too (IncrementPair objects, as the calibrator holds them)
     def pairs(arrays):
         dq, fix_P, _, white = arrays

@@ -42,7 +42,7 @@ def test_correlated_residuals_give_the_correlation_time_and_a_spacing_that_decor
 
 
 def test_structure_that_does_not_decorrelate_takes_the_largest_spacing():
-    """A random walk (an effect the model misses) is not reference noise: pairs MAX_SPACING apart."""
+    """Take a random walk (an effect the model misses) as structure: pairs MAX_SPACING apart."""
     stamps = np.arange(N + 1) * DT
     c = choose_spacing(np.cumsum(ar1(0.0), axis=0), np.ones(N - 1, bool), stamps)
     assert abs(c.spacing_s - MAX_SPACING) < 1e-9 and 'does not explain' in c.reason
@@ -60,7 +60,7 @@ def test_thinning_keeps_one_fix_per_slot_even_with_jitter_and_dropouts():
 
 
 def test_fixes_in_blocks_make_the_same_pairs_as_one_at_a_time():
-    """add_cameras (calibrate_bag) and add_camera (calibrator_node): the same pairs, same outlier."""
+    """Make the same pairs and outliers with add_cameras (calibrate_bag) as add_camera (node)."""
     prof = bench_profile(hold=2.0, rotation_time=3.0)
     s = IntegratingSensor(prof, 'gyro', 100.0)
     t, dth, _ = s.sample(int(40 * 100))

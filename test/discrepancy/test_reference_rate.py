@@ -24,13 +24,13 @@ RATE, SECONDS, TAU = 100.0, 90.0, 0.05
 
 @pytest.fixture(scope='module')
 def trial():
-    """The simulated trial: gyro rates and reference fixes at 100 Hz."""
+    """Return the simulated trial: gyro rates and reference fixes at 100 Hz."""
     return simulate(SECONDS, RATE, seed=7, correlation_time=TAU)
 
 
 @pytest.fixture(scope='module')
 def model(tmp_path_factory):
-    """The model file of the trial (the gyro's and the reference's σ)."""
+    """Return the model file of the trial (the gyro's and the reference's σ)."""
     path = tmp_path_factory.mktemp('model') / 'model.yaml'
     path.write_text(model_text(RATE))
     return path
