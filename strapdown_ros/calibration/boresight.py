@@ -259,8 +259,8 @@ def check_observability(pairs, c_mf_vf: np.ndarray | None = None,
     The rule of :func:`strapdown_ros.calibration.boresight_observability.judge_observability`,
     O(N): the Fisher information of a VF rotation of C from all the pairs (consecutive pairs
     share a camera fix), every direction's predicted σ at most ``max_sigma``; and the camera
-    attitudes turning about two axes by at least ``min_rotation`` (RMS over the recording)
-    and well above the fix noise (004 §4.1, judged over the recording, not pair by pair).
+    attitudes turning about two axes by at least ``min_rotation`` (between two fixes of the
+    recording) and well above the fix noise (004 §4.1, over the recording, not pair by pair).
 
     Parameters
     ----------
@@ -272,7 +272,8 @@ def check_observability(pairs, c_mf_vf: np.ndarray | None = None,
         W_n: when given, the information is Σ (I − R_n) W_n (I − R_nᵀ) with these weights
         (independent pairs) instead of that of the chained covariance.
     min_rotation : float
-        Smallest RMS rotation about the motion's second principal axis that counts, rad.
+        Smallest rotation about the motion's second principal axis (between two fixes of a
+        chain) that counts, rad.
     axis_tolerance : float
         Not used any more (the axes are judged by their spread against the noise); kept so
         that existing calls work.
@@ -468,8 +469,8 @@ def solve_boresight(pairs, beta0=(0.0, 0.0, 0.0), weighted: bool = True, init: s
     max_sigma : float
         Predicted σ above which a direction is unobservable, rad.
     min_rotation : float
-        Smallest RMS rotation about the motion's second principal axis that counts, rad
-        (:func:`check_observability`).
+        Smallest rotation about the motion's second principal axis (between two fixes of a
+        chain) that counts, rad (:func:`check_observability`).
     common_rotation_sigma : float
         σ (rad, per axis) of a rotation of the gyro triad common to all pairs: the
         antisymmetric part of the gyro misalignment rotates every ΔS_imu alike, so it is

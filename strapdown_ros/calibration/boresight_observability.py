@@ -14,9 +14,10 @@ all the pairs):
   judged by its motion, not by its rate.
 * **Motion about two axes, above the noise** (004 §4.1: rotations about one axis say nothing
   about rotations of C about that axis).  The camera attitudes of each chain, relative to its
-  first fix, scatter about their mean; the second principal axis of that scatter must carry
-  an RMS excursion of at least ``min_rotation`` and at least :data:`NOISE_FLOOR_RATIO` times
-  the scatter the fix noise alone gives in that direction.  Without it the information could
+  first fix, scatter about their mean; about the second principal axis of that scatter the
+  attitude must turn by at least ``min_rotation`` between two fixes of a chain (the range of
+  its projections) and scatter at least :data:`NOISE_FLOOR_RATIO` times what the fix noise
+  alone gives in that direction.  Without it the information could
   pass on noise alone (a noisy measured R_n has components about every axis).
 
 No ROS imports.
@@ -49,6 +50,9 @@ class RotationSpread:
     ----------
     rms : (3,) ndarray
         RMS excursion about each principal axis, rad, largest first.
+    extent : (3,) ndarray
+        The largest rotation about each principal axis between two fixes of one chain (the
+        range of the attitudes' projections on it), rad.
     axes : (3, 3) ndarray
         The principal axes (columns, VF axes at each chain's first fix), same order.
     noise_ratio : (3,) ndarray
@@ -60,6 +64,7 @@ class RotationSpread:
     """
 
     rms: np.ndarray
+    extent: np.ndarray
     axes: np.ndarray
     noise_ratio: np.ndarray
     points: int
@@ -149,7 +154,14 @@ def rotation_spread(dq_cam: np.ndarray, fix_P: np.ndarray, adjacent: np.ndarray
     if nl[0] > 1e-30 * max(nl[-1], 1e-300):
         iw = nv @ np.diag(1.0 / np.sqrt(nl)) @ nv.T                # Nf^(−1/2)
         ratio = np.sort(np.maximum(np.linalg.eigvalsh(iw @ S @ iw), 0.0))[::-1]
-    return RotationSpread(np.sqrt(lam / max(points, 1)), vec, ratio, points)
+    # range of the projections on each principal axis within each chain (its first fix at 0)
+    proj = v @ vec
+    hi = np.zeros((nc, 3))
+    lo = np.zeros((nc, 3))
+    np.maximum.at(hi, chain, proj)
+    np.minimum.at(lo, chain, proj)
+    extent = np.max(hi - lo, axis=0) if nc else np.zeros(3)
+    return RotationSpread(np.sqrt(lam / max(points, 1)), extent, vec, ratio, points)
 
 
 def _describe(v):
@@ -175,8 +187,8 @@ def judge_observability(dq_cam: np.ndarray, fix_P: np.ndarray, adjacent: np.ndar
     white : (N, 3, 3) ndarray
         The white gyro part of each pair in VF axes, rad².
     min_rotation : float
-        Smallest RMS excursion about the motion's second principal axis that counts, rad
-        (the parameter ``min_rotation_deg``).
+        Smallest rotation about the motion's second principal axis, between two fixes of a
+        chain, that counts, rad (the parameter ``min_rotation_deg``).
     max_sigma : float
         Directions whose predicted σ exceeds it (rad) are unobservable.
     information : (3, 3) ndarray, optional
@@ -194,19 +206,19 @@ def judge_observability(dq_cam: np.ndarray, fix_P: np.ndarray, adjacent: np.ndar
         F = boresight_information(quat_to_dcm(dq_cam), fix_P, adjacent, white)
     rep = analyze_information(F, describe=_describe, sigma_limit=max_sigma)
     sp = rotation_spread(dq_cam, fix_P, adjacent)
-    deg = np.degrees(sp.rms)
 
     def short(k):
-        return (f'RMS {deg[k]:.2g}° about the {("first", "second")[k]} axis, '
-                f"{sp.noise_ratio[k]:.3g}× the fix noise's scatter")
+        return (f'{np.degrees(sp.extent[k]):.2g}° (RMS {np.degrees(sp.rms[k]):.2g}°) about the '
+                f"{('first', 'second')[k]} axis, {sp.noise_ratio[k]:.3g}× the fix noise's "
+                'scatter')
     need = (f'needs ≥ {np.degrees(min_rotation):.2g}° and ≥ {NOISE_FLOOR_RATIO:g}× '
             f'the noise')
     why, named = '', []
-    if sp.rms[0] < min_rotation or sp.noise_ratio[0] < NOISE_FLOOR_RATIO:
+    if sp.extent[0] < min_rotation or sp.noise_ratio[0] < NOISE_FLOOR_RATIO:
         why = (f'no rotation above the noise and {np.degrees(min_rotation):.2g}° over the '
                f'recording (static motion: {short(0)}; {need})')
         named = [_describe(sp.axes[:, k]) for k in range(3)]
-    elif sp.rms[1] < min_rotation or sp.noise_ratio[1] < NOISE_FLOOR_RATIO:
+    elif sp.extent[1] < min_rotation or sp.noise_ratio[1] < NOISE_FLOOR_RATIO:
         why = (f'all increments share one axis (the attitude turns about one axis only: '
                f'{short(1)}; {need})')
         named = [_describe(sp.axes[:, 0])]

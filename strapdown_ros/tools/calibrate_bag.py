@@ -42,7 +42,7 @@ their errors to be independent, and calibrates again on the fixes kept
 (``strapdown_ros.calibration.reference_spacing``; ``0`` keeps every fix, a number of seconds one
 fix per slot of that length); ``reference_spacing`` in the JSON records the choice and why.
 Observability is judged from the information of all the pairs together (``min_rotation_deg``:
-the attitude's RMS rotation about its second principal axis over the recording).
+the attitude's rotation about its second principal axis between two fixes of the recording).
 Exit status: 0 solved, 2 bad arguments/parameters/bag, 3 not observable, 4 no convergence.
 """
 from __future__ import annotations
