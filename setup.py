@@ -76,6 +76,7 @@ setup(
             'realdata_bag = strapdown_ros.tools.realdata_bag:main',
             'gaitmap_bag = strapdown_ros.tools.gaitmap_bag:main',
             'filter_bench = strapdown_ros.bench.filter_bench:main',
+            'reference_rate_bench = strapdown_ros.bench.reference_rate_bench:main',
         ],
     },
 )

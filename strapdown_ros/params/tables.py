@@ -296,7 +296,9 @@ CALIBRATOR_SETTINGS = [
               'β0, rad (the solver aligns rotation axes first, so any β0 converges)',
               length=3),
     ParamSpec('min_rotation_deg', 0.5,
-              'increments below this angle do not count as rotations (004 §4.1)',
+              'smallest rotation of the attitude about its second principal axis between two '
+              'fixes of the recording that makes the boresight observable (004 §4.1, judged '
+              'over all pairs)',
               0.0, 180.0),
     ParamSpec('max_sigma', 1e-3,
               'publish only when every boresight direction has predicted σ below this, rad',

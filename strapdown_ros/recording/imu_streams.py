@@ -21,7 +21,8 @@ import time
 import numpy as np
 
 from strapdown_ros.recording.mcap_records import channel_ids, indexed_mcap, read_topics
-from strapdown_ros.recording.reader import BagError, open_reader, resolve_topic
+from strapdown_ros.recording.reader import (BagError, open_reader, records_in_bag_order,
+                                            resolve_topic)
 from strapdown_ros.streams.cdr import stamped_doubles
 from strapdown_ros.text import bounded
 
@@ -236,20 +237,6 @@ def _decode(reader, conn, records: list):
     return st, vals, idx, names
 
 
-def _records(reader, conns: list):
-    """
-    Yield (connection, log time, raw) of the connections in bag order.
-
-    With one bag, its own reader (rosbags' AnyReader merges several bags by time, at a cost
-    per record).
-    """
-    owners = {id(getattr(c, 'owner', None)) for c in conns}
-    inner = getattr(reader, 'readers', None)
-    if inner is not None and len(inner) == 1 and owners == {id(inner[0])}:
-        return inner[0].messages(connections=conns)
-    return reader.messages(connections=conns)
-
-
 def _read_chunks(reader, conns: list, progress):
     """Decode every record of the connections: ({topic: [chunk]}, {topic: [(log, k)]})."""
     t0, t1 = reader.start_time, reader.end_time
@@ -275,7 +262,7 @@ def _read_chunks(reader, conns: list, progress):
             if chunk:
                 report(int(max(int(g.log_ns[-1]) for g in chunk.values())))
         return parts, order
-    records = _records(reader, conns)
+    records = records_in_bag_order(reader, conns)
     while True:
         chunk = list(islice(records, READ_CHUNK))
         if not chunk:

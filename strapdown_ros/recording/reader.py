@@ -40,10 +40,12 @@ from rosbags.highlevel import AnyReader, AnyReaderError
 from rosbags.typesys import get_typestore, Stores
 
 from strapdown_ros.rotation import from_ros_xyzw, quat_conjugate
+from strapdown_ros.streams.cdr import stamped_doubles
 from strapdown_ros.streams.checks import nominal_period, StreamCheck, validate
 from strapdown_ros.streams.rate_increments import increments_from_rates, RATE_RULES
 
-__all__ = ['BagError', 'Accepted', 'open_reader', 'resolve_topic', 'read_bag', 'bounded',
+__all__ = ['BagError', 'Accepted', 'open_reader', 'records_in_bag_order', 'resolve_topic',
+           'read_bag', 'bounded',
            'bounded_list', 'GYRO_TOPIC', 'CAMERA_TOPIC', 'CAMERA_COV_TOPIC', 'DELTA_THETA_TYPE',
            'IMU_TYPE', 'REFERENCE_TYPES']
 
@@ -205,6 +207,33 @@ def _named_topic(topics: dict, name: str, namespace: str, option: str, path) -> 
     return found
 
 
+def records_in_bag_order(reader, conns: list):
+    """
+    Yield (connection, log time, raw) of the connections in bag order.
+
+    With one bag, its own reader (rosbags' AnyReader merges several bags by time, at a cost
+    per record).
+
+    Parameters
+    ----------
+    reader : rosbags.highlevel.AnyReader
+        The open reader.
+    conns : list
+        Its connections to read.
+
+    Returns
+    -------
+    iterator
+        (connection, log time ns, raw bytes).
+
+    """
+    owners = {id(getattr(c, 'owner', None)) for c in conns}
+    inner = getattr(reader, 'readers', None)
+    if inner is not None and len(inner) == 1 and owners == {id(inner[0])}:
+        return inner[0].messages(connections=conns)
+    return reader.messages(connections=conns)
+
+
 def _stamp_ns(header) -> int:
     return int(header.stamp.sec) * 1_000_000_000 + int(header.stamp.nanosec)
 
@@ -298,6 +327,84 @@ def _select(
     return g, c
 
 
+# --- fixed-layout messages, decoded with numpy ---------------------------------------------------
+#: message type → (float64 fields after the header, what they hold): the types whose plain CDR
+#: layout is a std_msgs/Header and then float64 only
+_LAYOUT = {
+    DELTA_THETA_TYPE: (3, 'vector'),
+    IMU_TYPE: (37, 'imu'),
+    'geometry_msgs/msg/QuaternionStamped': (4, 'quaternion'),
+    'geometry_msgs/msg/PoseStamped': (7, 'pose'),
+    'geometry_msgs/msg/PoseWithCovarianceStamped': (43, 'pose_with_covariance'),
+}
+_IMU_RATE, _IMU_RATE_COV = 13, 16            # angular_velocity, angular_velocity_covariance[0]
+
+
+def _decode_records(reader, records, msgtype, layout, path, topic) -> dict:
+    """
+    Decode the records of one topic with numpy (:func:`~.streams.cdr.stamped_doubles`).
+
+    The same values as the deserializer gives: records in another encoding go through it.
+    Returns ``items`` in the form the loop of :func:`read_bag` collects (gyro: (ns, (x, y, z));
+    reference: (ns, q_wxyz, P or None)), ``frames`` and ``absent`` (Imu messages marking the
+    rate absent).
+    """
+    count, kind = layout
+    st, vals, idx, names, bad = stamped_doubles(records, count)
+    frames = [names[i] for i in np.unique(idx[idx >= 0])]
+    for i in bad.tolist():
+        try:
+            msg = reader.deserialize(records[i], msgtype)
+        except AnyReaderError as exc:
+            raise BagError(
+                f'{path}: cannot deserialize a {bounded(msgtype)} message on '
+                f'{bounded(topic)}: {_first_line(exc)}'
+            ) from exc
+        st[i] = _stamp_ns(msg.header)
+        frames.append(msg.header.frame_id)
+        vals[i] = _fields(msg, kind, count)
+    st_list = st.tolist()
+    absent = 0
+    if kind in ('vector', 'imu'):
+        if kind == 'imu':
+            present = vals[:, _IMU_RATE_COV] != -1.0   # ROS: covariance[0] = -1 marks it absent
+            absent = int(np.sum(~present))
+            xyz = vals[present, _IMU_RATE:_IMU_RATE + 3]
+            st_list = [s for s, ok in zip(st_list, present.tolist()) if ok]
+        else:
+            xyz = vals
+        items = list(zip(st_list, map(tuple, xyz.tolist())))
+        return {'items': items, 'frames': set(frames), 'absent': absent}
+    q_xyzw = {'quaternion': vals[:, 0:4], 'pose': vals[:, 3:7],
+              'pose_with_covariance': vals[:, 3:7]}[kind]
+    q = from_ros_xyzw(q_xyzw)
+    if kind == 'pose_with_covariance':
+        P = vals[:, 7:43].reshape(-1, 6, 6)[:, 3:, 3:]
+        items = list(zip(st_list, q, P))
+    else:
+        items = [(s, qq, None) for s, qq in zip(st_list, q)]
+    return {'items': items, 'frames': set(frames), 'absent': 0}
+
+
+def _fields(msg, kind, count) -> np.ndarray:
+    """Return the float64 fields of a deserialized message in the plain-CDR order."""
+    out = np.full(count, np.nan)
+    if kind == 'vector':
+        out[:] = (msg.vector.x, msg.vector.y, msg.vector.z)
+    elif kind == 'imu':
+        w = msg.angular_velocity
+        out[_IMU_RATE:_IMU_RATE + 3] = (w.x, w.y, w.z)
+        out[_IMU_RATE_COV] = msg.angular_velocity_covariance[0]
+    else:
+        o = (msg.quaternion if kind == 'quaternion' else
+             msg.pose.orientation if kind == 'pose' else msg.pose.pose.orientation)
+        at = 0 if kind == 'quaternion' else 3
+        out[at:at + 4] = (o.x, o.y, o.z, o.w)
+        if kind == 'pose_with_covariance':
+            out[7:43] = np.asarray(msg.pose.covariance, dtype=float)
+    return out
+
+
 # --- reference fixes -------------------------------------------------------------------------
 def _strip(frame: str) -> str:
     return str(frame).lstrip('/')
@@ -305,35 +412,42 @@ def _strip(frame: str) -> str:
 
 def _process_fixes(raw, with_cov: bool, P_assumed):
     """Quaternion and covariance rules of calibrator_node, per fix: (ns, q_wxyz, P 3×3 or None)."""
-    out, rejected = [], 0
     counts = {'zero_quaternion': 0, 'bad_covariance': 0,
               'normalised': 0, 'covariance_substituted': 0}
-    from_messages = 0
-    for ns, q, P in raw:
-        norm = float(np.linalg.norm(q)) if np.all(np.isfinite(q)) else float('nan')
-        if np.isfinite(norm) and norm < 1e-6:
-            rejected += 1
-            counts['zero_quaternion'] += 1
-            continue
-        if not with_cov or P is None:
-            P = P_assumed
-        elif np.all(np.isfinite(P)):
-            P = 0.5 * (P + P.T)
-            if not np.any(P):
-                P = P_assumed  # all-zero covariance: "unknown" in ROS
-                counts['covariance_substituted'] += 1
-            elif np.min(np.linalg.eigvalsh(P)) < -1e-12 * max(np.trace(P), 1e-300):
-                rejected += 1
-                counts['bad_covariance'] += 1
-                continue
-            else:
-                from_messages += 1
-        finite = bool(np.isfinite(norm) and np.all(np.isfinite(P)))
-        if finite and abs(norm - 1.0) > 1e-9:
-            q = q / norm
-            counts['normalised'] += 1
-        out.append((ns, tuple(q) + tuple(np.asarray(P, dtype=float).ravel())))
-    return out, rejected, counts, from_messages
+    m = len(raw)
+    if m == 0:
+        return [], 0, counts, 0
+    ns = [r[0] for r in raw]
+    q = np.array([r[1] for r in raw], dtype=float).reshape(m, 4)
+    P_assumed = np.asarray(P_assumed, dtype=float)
+    given = np.array([with_cov and r[2] is not None for r in raw])
+    P = np.broadcast_to(P_assumed, (m, 3, 3)).copy()
+    if np.any(given):
+        P[given] = np.array([r[2] for r, g in zip(raw, given) if g], dtype=float)
+    q_fin = np.all(np.isfinite(q), axis=1)
+    norm = np.where(q_fin, np.linalg.norm(np.where(q_fin[:, None], q, 0.0), axis=1), np.nan)
+    zero = np.isfinite(norm) & (norm < 1e-6)
+    P_fin = np.all(np.isfinite(P), axis=(1, 2))
+    judge = given & P_fin & ~zero                    # the covariance rules of a stated P
+    P[judge] = 0.5 * (P[judge] + np.swapaxes(P[judge], 1, 2))
+    unknown = judge & ~np.any(P != 0.0, axis=(1, 2))  # all-zero covariance: "unknown" in ROS
+    P[unknown] = P_assumed
+    rest = judge & ~unknown
+    bad = np.zeros(m, dtype=bool)
+    if np.any(rest):
+        lo = np.linalg.eigvalsh(P[rest])[:, 0]
+        tr = np.trace(P[rest], axis1=1, axis2=2)
+        bad[rest] = lo < -1e-12 * np.maximum(tr, 1e-300)
+    keep = ~zero & ~bad
+    finite = np.isfinite(norm) & P_fin
+    scale = keep & finite & (np.abs(norm - 1.0) > 1e-9)
+    q[scale] = q[scale] / norm[scale, None]
+    counts.update(zero_quaternion=int(np.sum(zero)), bad_covariance=int(np.sum(bad)),
+                  normalised=int(np.sum(scale)), covariance_substituted=int(np.sum(unknown)))
+    from_messages = int(np.sum(rest & ~bad))
+    values = np.concatenate([q, P.reshape(m, 9)], axis=1)[keep].tolist()
+    out = [(t, tuple(v)) for t, v in zip((t for t, k in zip(ns, keep.tolist()) if k), values)]
+    return out, int(np.sum(zero) + np.sum(bad)), counts, from_messages
 
 
 def _orientation(q) -> np.ndarray:
@@ -474,8 +588,13 @@ def read_bag(
         frames = {'gyro': set(), 'camera': set()}
         tf = _TfCollector(reference_frames) if kind == 'tf' else None
         conns = [c for c in reader.connections if c.topic in (gyro_t, ref_t)]
-        for conn, _, raw in reader.messages(connections=conns):
+        fast = {gyro_t: [], ref_t: []}                 # plain-CDR records decoded with numpy
+        layout = {gyro_t: _LAYOUT.get(gyro_type), ref_t: _LAYOUT.get(ref_type)}
+        for conn, _, raw in records_in_bag_order(reader, conns):
             read[conn.topic] += 1
+            if layout[conn.topic] is not None:
+                fast[conn.topic].append(raw)
+                continue
             try:
                 msg = reader.deserialize(raw, conn.msgtype)
             except AnyReaderError as exc:
@@ -508,6 +627,17 @@ def read_bag(
                         _rotation_block(msg.pose.covariance),
                     )
                 )
+        for topic, records in fast.items():
+            if not records:
+                continue
+            dec = _decode_records(reader, records, topics[topic], layout[topic], path, topic)
+            if topic == gyro_t:
+                frames['gyro'].update(dec['frames'])
+                rate_absent += dec['absent']
+                raw_g.extend(dec['items'])
+            else:
+                frames['camera'].update(dec['frames'])
+                raw_fix.extend(dec['items'])
         tf_direction = None
         if tf is not None:
             raw_fix, tf_direction = tf.fixes(path, ref_t)
@@ -581,10 +711,16 @@ def read_bag(
     c_check = StreamCheck(
         np.inf, jump_limit=max(max_stamp_jump, 3600.0), resync_count=resync_count
     )
-    ct, cv, cgaps = validate([t for t, _ in raw_c], [v for _, v in raw_c], c_check)
+    # the stamp rules (no range rule for fixes) see (index, 0, NaN if any value of the fix is not
+    # finite): the same drops and counts as the whole fix, through the checks' 3-value path
+    cvals = np.array([v for _, v in raw_c], dtype=float).reshape(-1, 13)
+    flag = np.where(np.all(np.isfinite(cvals), axis=1), 0.0, np.nan).tolist()
+    ct, ck, cgaps = validate([t for t, _ in raw_c],
+                             [(float(k), 0.0, f) for k, f in enumerate(flag)], c_check)
+    kept = np.array([int(v[0]) for v in ck], dtype=int)
     cam = Accepted(
         ct,
-        [(np.array(v[:4]), np.array(v[4:]).reshape(3, 3)) for v in cv],
+        list(zip(cvals[kept, :4], cvals[kept, 4:].reshape(-1, 3, 3))),
         cgaps,
         c_check,
         fix_rejected,

@@ -25,6 +25,10 @@ confirmed on held-out time blocks; verdict ``model_adequate``, ``explained`` or
 ``unexplained_structure``.  The Allan deviation of the gyro on static segments is set beside
 that of the model simulated on the same segments (allantools).
 
+A reference at any rate: ``--reference-spacing auto`` (default) keeps the fixes of the pairs
+as far apart as the correlation of the reference's error requires (every fix when it is white;
+``0`` keeps every fix, a number of seconds one per slot); ``reference_spacing`` in the JSON.
+
 Output: a summary on stdout; ``--json`` the full result (doc/discrepancy.md); ``--report DIR``
 ``report.md`` with PNG plots; ``--write-model`` the model with the found effects and the
 estimated boresight.  No output may be an input (the bag, the model) or another output; an
@@ -46,6 +50,7 @@ import time
 
 import numpy as np
 
+from strapdown_ros.calibration.reference_spacing import parse_spacing
 from strapdown_ros.cli import check_outputs, DIRECTORY, FILE, OneLineParser, write_json
 from strapdown_ros.discrepancy.bag_input import load_recording, recording_lines
 from strapdown_ros.discrepancy.diagnostics import allan_comparison
@@ -196,6 +201,10 @@ def main(argv=None) -> int:
                     help='family-wise level of the selection (default 0.01)')
     ap.add_argument('--namespace', default='', help='topic namespace, e.g. /robot1')
     ap.add_argument('--quiet', action='store_true', help='no progress on stderr')
+    ap.add_argument('--reference-spacing', default='auto', metavar='auto|SECONDS',
+                    help='spacing of the fixes of the increment pairs: auto (default: from the '
+                         'correlation of the reference error, doc/discrepancy.md), 0 (every '
+                         'fix) or seconds')
     add_input_arguments(ap)
     args = ap.parse_args(argv)
     t0 = time.perf_counter()
@@ -204,6 +213,7 @@ def main(argv=None) -> int:
     try:
         if not (0.0 < alpha < 0.5):
             raise ValueError(f'--alpha must be in (0, 0.5), got {alpha}')
+        spacing = parse_spacing(args.reference_spacing)
         check_input_arguments(args)
         if not Path(args.bag).exists():
             raise ValueError(f'bag {args.bag} does not exist')
@@ -214,7 +224,8 @@ def main(argv=None) -> int:
                       [('bag', args.bag), ('--model', args.model)], args.force)
         mf = load_model_file(args.model, 'calibrator_node')
         model, doc = mf.model, mf.doc
-        settings = DiscrepancySettings.from_values({**mf.settings, 'alpha': alpha})
+        settings = DiscrepancySettings.from_values({**mf.settings, 'alpha': alpha,
+                                                    'reference_spacing': spacing})
         for w in mf.warnings:
             print(f'discrepancy: warning: {w}', file=sys.stderr)
     except (ValueError, OSError) as exc:
@@ -250,8 +261,8 @@ def main(argv=None) -> int:
                 print(f'discrepancy: error: {exc2}', file=sys.stderr)
                 return 2
         print(f'discrepancy: boresight NOT observable from this bag: {exc}; unobservable: '
-              f"{'; '.join(unobs)}.  Record rotations about at least two non-parallel axes "
-              f'between camera exposures; no model written.', file=sys.stderr)
+              f"{'; '.join(unobs)}.  Record rotations about at least two non-parallel axes, "
+              f'well above the reference noise; no model written.', file=sys.stderr)
         return 3
     except (AnalysisError, np.linalg.LinAlgError, FloatingPointError, OverflowError) as exc:
         # a numerical failure is never reported as bad input (LinAlgError is a ValueError)

@@ -346,7 +346,9 @@ def test_static_motion_is_reported_not_observable(ros, tmp_path):
               camera=[Parameter('camera_interval', value=5.0)])
     try:
         st, kv = _not_observable(g)
-        assert 'static' in st.message and int(kv['pairs']) == 29
+        # the Earth rate turns the bench 0.62° about one axis in 150 s: judged over the
+        # recording (not pair by pair) that is a turn about one axis, not observable either
+        assert ('static' in st.message or 'one axis' in st.message) and int(kv['pairs']) == 29
     finally:
         g.close()
 

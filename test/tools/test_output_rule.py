@@ -47,6 +47,7 @@ EXISTING = {
     'discrepancy_bench': ['--plots', '{plots}'],
     'filter_bench': ['--json', '{old}'],
     'filter_bag': ['{bag}', '--output', '{old}'],
+    'reference_rate_bench': ['--json', '{old}'],
 }
 
 #: script -> argv whose output is one of its inputs
