@@ -270,6 +270,13 @@ class Accepted:
         self.resyncs = check.resyncs
 
 
+def _as_rate(increment: float, period: float) -> float:
+    """Return an increment as a rate, rad/s, at most 1e308 (a 1e308 increment stays finite)."""
+    if not (np.isfinite(period) and period > 0):
+        return 0.0
+    return float(increment / period) if increment < 1e308 * period else 1e308
+
+
 # --- topic selection -------------------------------------------------------------------------
 def _select(
     topics: dict,
@@ -734,10 +741,8 @@ def read_bag(
     clip = {'parameter': 'gyro_max_rate', 'limit': float(gyro_max_rate), 'unit': 'rad/s',
             'count': (rate_info['dropped']['out_of_range'] if rate_info else 0)
             + g_check.out_of_range,
-            'largest': min(max(rate_info['largest_out_of_range_rad_s'] if rate_info else 0.0,
-                               g_check.largest_out_of_range / g_period
-                               if np.isfinite(g_period) and g_period > 0 else 0.0),
-                           1e308)}                # a 1e308 increment: finite in the JSON
+            'largest': max(rate_info['largest_out_of_range_rad_s'] if rate_info else 0.0,
+                           _as_rate(g_check.largest_out_of_range, g_period))}
     return {'gyro_clip': clip,
             'gyro_topic': gyro_t, 'camera_topic': ref_t, 'camera_covariance_from_bag': with_cov,
             'gyro': gyro, 'camera': cam, 'camera_fixes': fix_counts, 'gyro_period_s': g_period,

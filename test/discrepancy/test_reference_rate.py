@@ -14,8 +14,8 @@ import pytest
 from strapdown_ros.bench.reference_rate_scenario import (BORESIGHT, input_arguments, model_text,
                                                          REFERENCE_SIGMA, simulate, write_bag)
 from strapdown_ros.discrepancy.linearisation import Recording
-from strapdown_ros.discrepancy.workflow import analyse
-from strapdown_ros.params import load_model
+from strapdown_ros.discrepancy.workflow import analyse, DiscrepancySettings
+from strapdown_ros.params import load_model_file
 from strapdown_ros.streams.rate_increments import increments_from_rates
 from strapdown_ros.tools import calibrate_bag
 
@@ -55,9 +55,10 @@ def _agree(beta_full, sig_full, beta_1hz, sig_1hz):
 
 def test_discrepancy_at_full_rate_and_at_1_hz_agree(trial, model):
     """The workflow spaces the fixes out, keeps χ²/dof honest, and agrees with 1 Hz."""
-    params, _ = load_model(str(model))
-    full = analyse(_recording(trial), dict(params))
-    one = analyse(_recording(trial, int(RATE)), dict(params))
+    mf = load_model_file(str(model), 'calibrator_node')
+    settings = DiscrepancySettings.from_values(mf.settings)
+    full = analyse(_recording(trial), mf.model, settings)
+    one = analyse(_recording(trial, int(RATE)), mf.model, settings)
     sp = full.reference_spacing
     assert sp['step'] > 1 and abs(sp['correlation_time_s'] - TAU) < 0.3 * TAU, sp
     assert one.reference_spacing['step'] == 1
