@@ -627,7 +627,6 @@ def found_model(model: SensorModel, steps, beta, sigma_beta, verdict: str) -> Se
                                    source='discrepancy')
 
 
-
 def _thinned(rec: Recording, spacing: float) -> Recording:
     """Return the recording with one fix per slot of ``spacing`` seconds."""
     keep = thin_fixes(rec.fix_stamps, spacing)
