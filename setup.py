@@ -74,6 +74,7 @@ setup(
             'realdata_report = strapdown_ros.tools.realdata_report:main',
             'realdata_bag = strapdown_ros.tools.realdata_bag:main',
             'filter_bench = strapdown_ros.bench.filter_bench:main',
+            'model_check_bench = strapdown_ros.bench.model_check_bench:main',
         ],
     },
 )
