@@ -635,4 +635,4 @@ def bag_run(hours: float, seed: int, workdir: str | None, progress) -> dict:
             'mean_nis': float(np.mean(nis)) if nis else float('nan'),
             'record_sim': ' '.join(['record_sim'] + rec[3:]).replace(bag, 'BAG'),
             'filter_bag': 'filter_bag BAG --output OUT.csv',
-            'filter_bag_summary': done.stdout.strip().splitlines()}
+            'filter_bag_summary': done.stdout.replace(tmp, 'DIR').strip().splitlines()}

@@ -12,8 +12,8 @@ numbers.  Both tests below are exact for that null at any N (no large-sample ref
   band), whatever T: the share is independent of T (the direction of a Gaussian vector is
   independent of its length), so the two tests are independent.  The statistic is the smallest
   p-value over the J = ⌊N/2⌋ + 1 bands, and ``min(1, J·p_min)`` its p-value, a union bound
-  (Bonferroni) that never understates it (Fisher's test of a hidden periodicity, summed over
-  axes).  A bias, a ramp or a drift puts energy in the lowest bands, a periodic error in one
+  (Bonferroni) that never understates it (Fisher 1929's test of a hidden periodicity, summed
+  over axes).  A bias, a ramp or a drift puts energy in the lowest bands, a periodic error in one
   band; the Ljung–Box statistic this replaces has no exact reference at N = 30 (χ²(3L)
   rejects 0.4 % of white windows at a nominal 0.1 %).
 
