@@ -77,6 +77,7 @@ setup(
             'gaitmap_bag = strapdown_ros.tools.gaitmap_bag:main',
             'filter_bench = strapdown_ros.bench.filter_bench:main',
             'reference_rate_bench = strapdown_ros.bench.reference_rate_bench:main',
+            'model_check_bench = strapdown_ros.bench.model_check_bench:main',
         ],
     },
 )

@@ -531,6 +531,7 @@ class AttitudeFilter:
         self._trim_applied()
         if not nis <= self.gate:
             res = self._record(fix, 'gated', z, nis, S)
+            res.jacobian = H
             if not fix.counted:
                 self.counters.gated += 1
             fix.counted = True
@@ -558,6 +559,7 @@ class AttitudeFilter:
                 self.counters.implausible += 1
         fix.counted = True
         res = self._record(fix, 'applied', z, nis, S)
+        res.jacobian, res.gain = H, K
         self._checkpoint()
         return res
 

@@ -16,8 +16,9 @@ The attitude filter between validated streams and outputs, shared by the node an
   it: the filter restarts at the next fix (counted).
 * Outputs: one :class:`FilterOutput` every ``output_period`` of stamp time (at the first
   increment stamp at or past each multiple), and one :class:`FixOutput` per fix processed.
-* The live model check (:mod:`strapdown_ros.estimation.model_check`) sees every applied fix;
-  it only reports.
+* The live model check (:mod:`strapdown_ros.estimation.model_check`) sees every applied or
+  gated fix with the filter's gain and Jacobian, and the increments between fixes (for the
+  candidate effects' signatures); it only reports.
 """
 from __future__ import annotations
 
@@ -28,9 +29,9 @@ import numpy as np
 
 from strapdown_ros.estimation.attitude_filter import AttitudeFilter
 from strapdown_ros.estimation.filter_support import augment_error
-from strapdown_ros.estimation.model_check import ModelCheck
-from strapdown_ros.rotation import (dcm_to_quat, quat_conjugate, quat_cumprod, quat_multiply,
-                                    quat_normalize, quat_to_dcm, rotvec_to_quat, ypr_to_dcm)
+from strapdown_ros.estimation.model_check import check_candidates, ModelCheck, ModelCheckResult
+from strapdown_ros.rotation import (dcm_to_quat, quat_conjugate, quat_multiply, quat_normalize,
+                                    quat_to_dcm, ypr_to_dcm)
 from strapdown_ros.sensors.effects import EFFECTS, GyroEffects
 from strapdown_ros.sensors.sensor_model import SensorModel
 from strapdown_ros.streams.checks import StreamCheck
@@ -98,7 +99,11 @@ class FixOutput:
     check_text : str
         The live model check's verdict in words.
     check_ok : bool
-        Whether the model check passes.
+        Whether the model check passes (no WARN episode on).
+    check : ModelCheckResult, optional
+        The model check's verdict of the window ending at this fix.
+    innovation_covariance : ndarray (3, 3), optional
+        S of the innovation, rad² (applied or gated fixes).
 
     """
 
@@ -109,6 +114,8 @@ class FixOutput:
     lateness: float
     check_text: str = ''
     check_ok: bool = True
+    check: ModelCheckResult | None = None
+    innovation_covariance: np.ndarray | None = None
 
 
 @dataclass(frozen=True)
@@ -138,6 +145,8 @@ class FilterSettings:
         Fixes in the live model check's window.
     model_check_alpha : float
         False-alarm probability of each model-check test.
+    model_check_false_alarms_per_hour : float
+        The live check's false WARN episodes per hour of clean data.
     max_stamp_jump : float
         A stamp step beyond this is a jump, s.
     resync_count : int
@@ -154,6 +163,7 @@ class FilterSettings:
     output_period: float = 0.1
     model_check_window: int = 30
     model_check_alpha: float = 0.001
+    model_check_false_alarms_per_hour: float = 0.1
     max_stamp_jump: float = 1.0
     resync_count: int = 5
 
@@ -251,10 +261,8 @@ class FilterSystem:
         self._rate_sum = np.zeros(3)
         self._rate_time = 0.0
         self._last_rate = np.zeros(3)
-        self._sig = None                # model check: Σ C_j J_j since the last fix (start axes)
-        self._sig_buf: list = []        # (Δθ, h, t) not yet summed into _sig
+        self._sig_buf: list = []        # (Δθ, h, t) not yet given to the model check
         self._sig_len = 0
-        self._rot = np.array([1.0, 0.0, 0.0, 0.0])   # body at the last fix ← body now
         self.outputs: list = []
         self.fix_outputs: list = []
 
@@ -480,7 +488,7 @@ class FilterSystem:
         They are summed in one vectorised pass (:meth:`_flush_signature`) before the next fix
         is applied.
         """
-        if self.check is None or not self.check.effects:
+        if self.check is None:
             return
         self._sig_buf.append((d, h, t))
         self._sig_len += len(d)
@@ -488,7 +496,7 @@ class FilterSystem:
             self._flush_signature()
 
     def _flush_signature(self) -> None:
-        """Accumulate Σ C_j J_j of the model check's candidates since the last fix."""
+        """Give the model check the increments since the last fix, lumped and compensated."""
         if not self._sig_buf:
             return
         d = np.concatenate([b[0] for b in self._sig_buf])
@@ -501,34 +509,25 @@ class FilterSystem:
                    t[:n].reshape(-1, SIGNATURE_LUMP)[:, -1])] if n else []
         if n < len(d):
             groups.append((d[n:].sum(0)[None], np.array([h[n:].sum()]), t[-1:]))
+        bias = self.filter.estimate('gyro_bias')[None]
         for rho, hh, te in groups:
-            comp = rho - self.filter.estimate('gyro_bias')[None] * hh[:, None]
-            q = quat_cumprod(self._rot, rotvec_to_quat(comp))       # (m+1, 4) or (m, 4)
-            q = q[-len(rho):]
-            c = quat_to_dcm(q)                                    # start ← body at each end
-            J = [e.filter_partials(comp, hh, te - 0.5 * hh - self.filter.epoch)
-                 for e in self.check.effects]
-            part = [np.einsum('nij,njk->ik', c, Jk) for Jk in J]
-            self._sig = part if self._sig is None else [a + b for a, b in zip(self._sig, part)]
-            self._rot = q[-1]
+            self.check.accumulate(rho - bias * hh[:, None], hh,
+                                  te - 0.5 * hh - self.filter.epoch)
 
     def _fix_result(self, r) -> FixOutput:
         f = self.filter
         self.counts[r.status] = self.counts.get(r.status, 0) + 1
-        out = FixOutput(int(round(r.stamp * 1e9)), r.status, r.residual, r.nis, r.lateness)
+        out = FixOutput(int(round(r.stamp * 1e9)), r.status, r.residual, r.nis, r.lateness,
+                        innovation_covariance=r.innovation_covariance)
         if r.status in ('applied', 'gated') and self.check is not None \
                 and r.innovation_covariance is not None:
-            c_end = quat_to_dcm(self._rot)
-            sig = ([c_end.T @ s for s in self._sig] if self._sig is not None
-                   else [np.zeros((3, e.filter_size())) for e in self.check.effects])
+            self._flush_signature()
             c_vf_mf = quat_to_dcm(f.boresight).T
-            bias = f.estimate('gyro_bias')
-            v = self.check.add(r.residual, r.innovation_covariance, sig, c_vf_mf,
-                               self._last_rate - bias)
-            out.check_text, out.check_ok = v.text(), v.ok
-        if r.status == 'applied':      # a gated fix leaves the error growing: keep summing
-            self._sig = None
-            self._rot = np.array([1.0, 0.0, 0.0, 0.0])
+            v = self.check.add(r.stamp, r.residual, r.innovation_covariance, c_vf_mf,
+                               self._last_rate - f.estimate('gyro_bias'),
+                               gain=r.gain if r.status == 'applied' else None,
+                               jacobian=r.jacobian)
+            out.check_text, out.check_ok, out.check = v.text(), v.ok, v
         self.fix_outputs.append(out)
         return out
 
@@ -572,15 +571,18 @@ class FilterSystem:
             gate_probability=float(s.gate_probability), history=int(s.history),
             epoch=epoch, model=m,
             time_offset=0.0 if 'time_offset' in self.augment else self.camera_effects.time_offset)
-        cands = [e for n, e in EFFECTS.items() if e.sensor == 'gyro' and e.kind == 'systematic'
-                 and n != 'gyro_bias' and n not in self.augment
-                 and hasattr(e, 'filter_partials')]
+        cands, offset = check_candidates(self.augment)
+        f = self.filter
+        tau = [e.filter_correlation_time(f.noise) for e, _ in f.layout.gyro]
+        previous = self.check
         self.check = ModelCheck(int(s.model_check_window), float(s.model_check_alpha),
-                                cands, time_offset='time_offset' not in self.augment)
+                                cands, time_offset=offset,
+                                false_alarms_per_hour=float(s.model_check_false_alarms_per_hour),
+                                layout=f.layout, state_tau=np.concatenate(tau))
+        self.check.continue_counts(previous)
         self._last_ns = start_ns
         self._next_out = start_ns + self.output_ns
         self._pending = []
-        self._sig, self._rot = None, np.array([1.0, 0.0, 0.0, 0.0])
         self._sig_buf, self._sig_len = [], 0
 
     def _filter_values(self, name: str) -> np.ndarray:
@@ -632,5 +634,6 @@ class FilterSystem:
                         'implausible': c.implausible})
         if self.check is not None:
             out.update({'model_check_windows': self.check.windows,
-                        'model_check_failed': self.check.failed})
+                        'model_check_failed': self.check.failed,
+                        'model_check_episodes': self.check.episodes})
         return out

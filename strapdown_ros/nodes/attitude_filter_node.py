@@ -43,9 +43,9 @@ Publishes (stream QoS unless said; every ``output_period`` of stamp time):
 * ``/diagnostics``  every ``diagnostics_period``: the counters of the core (fixes applied,
   gated, too old, late fixes and the largest lateness, restarts, gaps, dropped input), each
   augmented state and its σ (``<name>_<k>``, ``<name>_sigma_<k>``), the gyro bias and σ, the
-  last NIS, and the live model check (``model_check``: its text; WARN when a test fails, e.g.
-  "innovations match gyro_scale_factor (p = …): run discrepancy on a recording"; the node never
-  changes its model itself).  The level is the worst of the conditions
+  last NIS, and the live model check (``model_check``: its text; WARN while a WARN episode is
+  on, e.g. "innovations match gyro_scale_factor (p = …): run discrepancy on a recording"; the
+  node never changes its model itself).  The level is the worst of the conditions
   (:class:`~strapdown_ros.nodes.ros_status.Conditions`).
 
 No parameter may change at runtime (the filter's model is its state); restart the node.

@@ -339,8 +339,12 @@ FILTER_SETTINGS = [
               'this much stamp time, s', 0.0, 3600.0, exclusive_minimum=True),
     ParamSpec('model_check_window', 30, "fixes in the live model check's sliding window",
               5, 10000),
-    ParamSpec('model_check_alpha', 0.001, 'false-alarm probability of each live model-check '
-              'test (NIS band two-sided, whiteness)', 1e-9, 0.2),
+    ParamSpec('model_check_alpha', 0.001, 'largest false-alarm probability of one live '
+              'model-check window (NIS band two-sided and whiteness together)', 1e-9, 0.2),
+    ParamSpec('model_check_false_alarms_per_hour', 0.1, 'stated rate of false WARN episodes '
+              'of the live model check per hour of clean data: each window is tested at '
+              'min(model_check_alpha, rate × fix interval / 3600 s) (0: at model_check_alpha)',
+              0.0, 3600.0),
 ]
 #: attitude_filter_node and filter_bag (strapdown_ros/estimation/filter_system.py)
 FILTER_PARAMS = MODEL_PARAMS + ALIAS_PARAMS + NODE_COMMON_PARAMS + STREAM_PARAMS + \

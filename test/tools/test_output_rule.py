@@ -46,6 +46,7 @@ EXISTING = {
     'reproduce_seeds': ['--json', '{old}'],
     'discrepancy_bench': ['--plots', '{plots}'],
     'filter_bench': ['--json', '{old}'],
+    'model_check_bench': ['--json', '{old}'],
     'filter_bag': ['{bag}', '--output', '{old}'],
     'reference_rate_bench': ['--json', '{old}'],
 }
