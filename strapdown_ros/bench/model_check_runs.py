@@ -26,13 +26,13 @@ import time
 import numpy as np
 
 from strapdown_ros.estimation.chi_square import chi2_band, chi2_sf
-from strapdown_ros.estimation.filter_system import FilterSystem
+from strapdown_ros.estimation.filter_system import FilterSettings, FilterSystem
 from strapdown_ros.estimation.model_check import ljung_box, ModelCheck
 from strapdown_ros.estimation.window_tests import spectral_whiteness
 from strapdown_ros.motion.profile_base import MotionProfile
 from strapdown_ros.motion.profiles import (bench_profile, ConingProfile, PiecewiseRateProfile,
                                            Segment)
-from strapdown_ros.params import FILTER_PARAMS, node_parameters, simulator_parameters
+from strapdown_ros.params import model_and_settings, simulator_parameters
 from strapdown_ros.rotation import quat_conjugate, quat_multiply, quat_to_rotvec, rotvec_to_quat
 from strapdown_ros.sensors.simulated import simulated_imu
 from strapdown_ros.sensors.star_camera import StarCameraModel
@@ -220,9 +220,9 @@ def simulate(profile, seconds: float, sim: dict, filt: dict | None = None,
     imu_p, cam_p = simulator_parameters(None, dict(sim))
     gyro, _ = simulated_imu(imu_p, profile)
     cam = StarCameraModel.from_params(cam_p)
-    p = node_parameters('attitude_filter_node', FILTER_PARAMS, None,
-                        dict({'gyro_rate': imu_p['gyro_rate']}, **(filt or {})))
-    system = FilterSystem(p)
+    model, settings = model_and_settings('attitude_filter_node',
+                                         dict({'gyro_rate': imu_p['gyro_rate']}, **(filt or {})))
+    system = FilterSystem(model, FilterSettings.from_values(settings))
     rate = float(imu_p['gyro_rate'])
     fixes_out, outputs, t_done = [], [], 0.0
     while t_done < seconds - 1e-9:

@@ -7,10 +7,10 @@ effect injected).
 """
 import numpy as np
 
-from strapdown_ros.estimation.filter_system import FilterSystem
+from strapdown_ros.estimation.filter_system import FilterSettings, FilterSystem
 from strapdown_ros.estimation.model_check import check_candidates, ModelCheck
 from strapdown_ros.motion.profiles import PiecewiseRateProfile, Segment
-from strapdown_ros.params import check_all, FILTER_PARAMS
+from strapdown_ros.params import model_and_settings
 from strapdown_ros.rotation import rotvec_to_quat
 from strapdown_ros.sensors import ARCSEC
 from strapdown_ros.sensors.effects import CANDIDATES, GyroEffects
@@ -90,10 +90,10 @@ def _run(seconds=100, offset=0.0, asymmetry=(0.0, 0.0, 0.0), seed=4):
                              seed=seed, effects=eff)
     cam = StarCameraModel(interval=1.0, sigma=np.array([1.0, 1.0, 5.0]) * ARCSEC,
                           seed=seed + 1, time_offset=offset)
-    p = check_all(FILTER_PARAMS, {'gyro_rate': RATE, 'gyro_random_walk': 2e-6,
-                                  'gyro_bias_sigma': 1e-5, 'output_period': 0.5,
-                                  'initial_attitude_sigma': 1e-4})
-    sysf = FilterSystem(p)
+    model, settings = model_and_settings('attitude_filter_node', {
+        'gyro_rate': RATE, 'gyro_random_walk': 2e-6, 'gyro_bias_sigma': 1e-5,
+        'output_period': 0.5, 'initial_attitude_sigma': 1e-4})
+    sysf = FilterSystem(model, FilterSettings.from_values(settings))
     st, meas, _ = gyro.sample(int(seconds * RATE))
     ns = np.round(st * 1e9).astype(np.int64)
     k = 0
