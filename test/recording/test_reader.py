@@ -470,7 +470,10 @@ def test_dropped_rate_samples_are_counted_and_become_gaps(tmp_path, motion, caps
         'out_of_order': 0,
         'out_of_range': 1,
         'stamp_outlier': 0,
+        'stamp_burst': 0,
         'marked_absent': 1,
+        'wrong_type': 0,
+        'undecodable': 0,
     }
     assert rs['received'] == len(motion.stamps) and rs['accepted'] == len(motion.stamps) - 3
     assert rs['intervals_not_integrated'] == 3

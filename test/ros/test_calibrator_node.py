@@ -404,7 +404,8 @@ def test_bad_camera_and_gyro_input_is_dropped_counted_and_reported(ros):
                           and cal.camera_check.received >= 7, 5.0)
         g, c = cal.gyro_check, cal.camera_check
         assert (g.accepted, g.nan, g.duplicate, g.gaps, g.missing) == (249, 1, 1, 1, 1)
-        assert (c.accepted, c.nan, c.duplicate, c.out_of_order) == (2, 1, 1, 1)
+        assert (c.accepted, c.duplicate, c.out_of_order) == (2, 1, 1)
+        assert cal.fix_screen.nan == 1                   # THE screening of a fix counts it
         assert (cal.camera_counts['normalised'] == 1
                 and cal.camera_counts['dropped_zero_quaternion'] == 1)
         assert cal.camera_counts['dropped_bad_covariance'] == 1
@@ -749,7 +750,8 @@ def test_one_input_path_node_and_calibrate_bag_agree_on_a_hostile_stream(ros, tm
                                         'out_of_order': g.out_of_order,
                                         'out_of_range': g.out_of_range,
                                         'stamp_outlier': g.stamp_outliers,
-                                        'stamp_burst': g.burst_messages}
+                                        'stamp_burst': g.burst_messages,
+                                        'wrong_type': 0, 'undecodable': 0}
         assert (g.nan, g.duplicate, g.out_of_order, g.out_of_range, g.stamp_outliers) == (1, 1, 1,
                                                                                           1, 1)
         # the burst: 5 increments lost in one gap, no resynchronisation left standing; it costs the
