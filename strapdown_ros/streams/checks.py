@@ -14,8 +14,9 @@ in the order they are applied to each message (stamps in integer nanoseconds):
    of the stream when that is longer) or backward of more than the *backward limit* (the same;
    ``jump_limit`` while the period is not known yet) is held as a *candidate* new timeline (at
    most ``resync_count`` messages).  A stream without a stated period (attitude fixes,
-   :meth:`StreamCheck.for_fixes`) takes its period from its own stamps as the gap rule does, and
-   its forward limit is ``initial_jump`` (an hour) until it has one.  A following message that
+   :meth:`StreamCheck.for_fixes`) takes its period from its own stamps as the gap rule does
+   (from 3 steps on: it only sets the jump limit), and its forward limit is ``initial_jump`` (an
+   hour) until it has one.  A following message that
    fits the old timeline discards the candidates as **stamp outliers** (a lone stamp far in the
    future costs one message and stops nothing); ``resync_count`` consecutive messages that fit
    the candidate timeline confirm it, and the held messages are released in order, so nothing
@@ -43,16 +44,19 @@ in the order they are applied to each message (stamps in integer nanoseconds):
       its output, so a burst of k wrong stamps costs only the pairs that contain it;
 5. **out of order** (an older stamp within the backward limit): dropped, counted;
 6. **gap** — THE gap rule of every stream, node and tool alike: the period is the median of the
-   stream's own last :attr:`StreamCheck.PERIOD_WINDOW` (255) accepted steps (recomputed every
-   :attr:`StreamCheck.PERIOD_EVERY` (64) steps; the stated period until 3 steps are known, none
-   judged on a stream without one), and a step longer than :attr:`StreamCheck.GAP_FACTOR` (1.75)
-   periods is a gap with ``max(1, round(step / period) − 1)`` samples missing.  It is accepted but
-   counted (``gaps``, ``missing``): the increments in between are lost.  Stamp jitter up to ±35 %
+   stream's own mean steps over :attr:`StreamCheck.PERIOD_SPAN` (16) steps, ``(t[k+16] − t[k])
+   / 16``, over its last :attr:`StreamCheck.PERIOD_WINDOW` (256) accepted stamps (a stamp's
+   jitter enters each 1/16th as much as one step; computed after 16 steps, with spans of 8,
+   then after 32, 64, 128 and every 255; no gap is judged before the first: a stated period,
+   ``gyro_rate``, is never the gap rule's), and a step longer than
+   :attr:`StreamCheck.GAP_FACTOR` (1.75) periods is a gap with
+   ``max(1, round(step / period) − 1)`` samples missing.  It is accepted but counted
+   (``gaps``, ``missing``): the increments in between are lost.  Stamp jitter up to ±35 %
    of the period (a step of at most 1.7 periods) gives no gap, so a host-stamped 1 kHz IMU with
    ±0.3 ms jitter loses nothing; a single missing sample is always seen while the jitter stays
    below ±12 % (beyond, a missing sample whose neighbours' jitter shortens its step below 1.75
-   periods goes unseen).  ``gap_marks`` names the accepted messages that follow a gap; a stated
-   period (``gyro_rate``) that is wrong is replaced after 3 steps.
+   periods goes unseen).  ``gap_marks`` names the accepted messages that follow a gap, so a
+   stated ``gyro_rate`` that is wrong (a 50 Hz IMU under the default 100) costs nothing.
 
 No ROS imports.
 """
@@ -104,12 +108,16 @@ class StreamCheck:
     MAX_BURST = 1000
     #: a step longer than this many periods is a gap (rule 6)
     GAP_FACTOR = 1.75
-    #: accepted steps in the median that is the period (rule 6)
-    PERIOD_WINDOW = 255
-    #: the median is recomputed every this many accepted steps
-    PERIOD_EVERY = 64
+    #: accepted stamps whose mean steps give the median that is the period (rule 6)
+    PERIOD_WINDOW = 256
+    #: steps each mean step of the median spans (at most; half the steps known, early on)
+    PERIOD_SPAN = 16
+    #: the median is recomputed every this many accepted steps (sooner while the window fills)
+    PERIOD_EVERY = 256
     #: steps needed before the median replaces the stated period and gaps are judged
-    PERIOD_MIN_STEPS = 3
+    PERIOD_MIN_STEPS = 16
+    #: the same for a stream without gaps (attitude fixes): its period only sets the jump limit
+    FIX_MIN_STEPS = 3
     #: forward limit of an attitude-fix stream before its period is known, s
     FIX_INITIAL_JUMP_S = 3600.0
 
@@ -123,8 +131,9 @@ class StreamCheck:
         self.initial_jump_ns = self.jump_limit_ns if initial_jump is None \
             else max(self.jump_limit_ns, float(initial_jump) * 1e9)
         self.count_gaps = bool(count_gaps)
-        self._steps: deque = deque(maxlen=self.PERIOD_WINDOW)   # accepted steps, ns
-        self._due = self.PERIOD_MIN_STEPS   # steps until the median is computed again
+        self._stamps: deque = deque(maxlen=self.PERIOD_WINDOW)   # accepted stamps, ns
+        self._min_steps = self.PERIOD_MIN_STEPS if self.count_gaps else self.FIX_MIN_STEPS
+        self._due = self._min_steps         # steps until the median is computed again
         self.period_ns = math.inf        # the median step (inf: not known yet)
         self.gap_marks: list[int] = []   # stamps released by the last offer that follow a gap
         self._limits()
@@ -193,24 +202,29 @@ class StreamCheck:
         else:
             self.jump_ns = self.initial_jump_ns
             self.back_ns = self.jump_limit_ns
-        self._gap_ns = self.GAP_FACTOR * ref if self.count_gaps else math.inf
+        self._gap_ns = self.GAP_FACTOR * self.period_ns if self.count_gaps else math.inf
 
     def _update_period(self) -> None:
-        if len(self._steps) < self.PERIOD_MIN_STEPS:
-            self._due = self.PERIOD_MIN_STEPS - len(self._steps)
+        a = self._stamps
+        n = len(a) - 1                            # steps in the window
+        if n < self._min_steps:
+            self._due = self._min_steps - max(n, 0)
             return
-        ordered = sorted(self._steps)             # the median (np.median's value, faster here)
-        h = len(ordered) // 2
-        self.period_ns = float(ordered[h]) if len(ordered) % 2 else (ordered[h - 1]
-                                                                     + ordered[h]) / 2
-        self._due = self.PERIOD_EVERY
+        m = min(self.PERIOD_SPAN, n // 2)
+        a = list(a)
+        spans = sorted([y - x for x, y in zip(a, a[m:])])     # integer ns: exact
+        h = len(spans) // 2                       # the median of the mean steps over m steps
+        mid = spans[h] if len(spans) % 2 else (spans[h - 1] + spans[h]) / 2
+        self.period_ns = mid / m
+        self._due = min(self.PERIOD_EVERY, max(n, self.PERIOD_MIN_STEPS))   # 16, 32, … 255
         self._limits()
 
     def _missing(self, step) -> int:
         return max(1, int(round(step / self.reference_ns)) - 1)
 
-    def _record(self, step) -> None:
-        self._steps.append(step)
+    def _record(self, stamp_ns) -> None:
+        """Keep an accepted stamp that ends a step (rule 6's window)."""
+        self._stamps.append(stamp_ns)
         self._due -= 1
         if not self._due:
             self._update_period()
@@ -315,7 +329,7 @@ class StreamCheck:
                 self.gaps += 1
                 self.missing += self._missing(step)
                 self.gap_marks.append(stamp_ns)
-            self._steps.append(step)
+            self._stamps.append(stamp_ns)
             self._due -= 1
             if not self._due:
                 self._update_period()
@@ -360,7 +374,28 @@ class StreamCheck:
                 'accepted_since': self.accepted_since,
                 'gaps': self.gaps, 'missing': self.missing, 'resyncs': self.resyncs,
                 'dropouts': self.dropouts, 'accepted': self.accepted, 'received': self.received,
-                'period': (tuple(self._steps), self._due, self.period_ns)}
+                'period': (tuple(self._stamps), self._due, self.period_ns)}
+
+    def confirm(self) -> list:
+        """
+        Confirm the candidate timeline now, as ``resync_count`` messages would (rule 4).
+
+        For a consumer that knows the jump from another stream: ``attitude_filter_node``
+        confirms a clock step of its fixes at the first fix on the new timeline of the gyro,
+        whose own step its ``resync_count`` increments have confirmed.
+
+        Returns
+        -------
+        list of (int, tuple)
+            The held messages, released in order (``resynced`` tells a clock step); empty when
+            none is held.
+
+        """
+        if not self._held:
+            return []
+        self.resynced = self.returned = False
+        self.retracted = 0
+        return self._confirm_jump()
 
     def _confirm_jump(self):
         """
@@ -406,8 +441,8 @@ class StreamCheck:
         self.resyncs, self.dropouts = before['resyncs'], before['dropouts']
         self.last_ns, self.first_ns = before['last_ns'], before['first_ns']
         self.accepted_since = before['accepted_since']
-        steps, self._due, self.period_ns = before['period']
-        self._steps = deque(steps, maxlen=self.PERIOD_WINDOW)
+        stamps, self._due, self.period_ns = before['period']
+        self._stamps = deque(stamps, maxlen=self.PERIOD_WINDOW)
         self._limits()
         self._before_jump = None
         out = []
@@ -424,8 +459,11 @@ class StreamCheck:
                 self.gaps += 1
                 self.missing += self._missing(step)
                 self.gap_marks.append(stamp_ns)
-            if step > 0:
-                self._record(step)
+            self._record(stamp_ns)
+        else:                                  # a new time base: its own window of stamps
+            self._stamps.clear()
+            self._stamps.append(stamp_ns)
+            self._due = self._min_steps if self.period_ns == math.inf else self._due
         if self.first_ns is None:
             self.first_ns = stamp_ns
         self.last_ns = stamp_ns
@@ -481,56 +519,29 @@ class StreamCheck:
         """
         Apply rule 6 to accepted steps at once, as :meth:`offer` applies it one by one.
 
-        The medians due inside the batch are computed over the same windows, so the periods, the
-        limits and the counters are those of the message-by-message path.  Returns how many of
-        the steps pass (a period update may shorten the forward limit below a later step).
+        In stretches between the period's updates (the period and the limits fixed in each),
+        so the periods, the limits and the counters are those of the message-by-message path.
+        Returns how many of the steps pass (a period update may shorten the forward limit below
+        a later step: that message is for :meth:`offer`).
         """
         n = len(steps)
         i = 0
-        while i < n and self.period_ns == math.inf:
-            step = int(steps[i])                       # the first few steps: one by one
-            if step > self.jump_ns:
-                return i
-            if step > self._gap_ns:
-                self._count_gap(step, int(st[i]))
-            self._record(step)
-            i += 1
-        if i >= n:
-            return n
-        st, steps = st[i:], steps[i:]
-        m = len(steps)
-        hist = np.fromiter(self._steps, dtype=np.float64, count=len(self._steps))
-        both = np.concatenate([hist, steps.astype(np.float64)])
-        ups = np.arange(self._due - 1, m, self.PERIOD_EVERY)    # the median follows these steps
-        meds = np.empty(len(ups))
-        w = self.PERIOD_WINDOW
-        ends = len(hist) + ups + 1                               # window: both[end − w:end]
-        full = ends >= w
-        if full.any():
-            view = np.lib.stride_tricks.sliding_window_view(both, w)
-            meds[full] = np.median(view[ends[full] - w], axis=1)
-        for j in np.flatnonzero(~full).tolist():
-            meds[j] = np.median(both[:ends[j]])
-        seg = np.searchsorted(ups, np.arange(m), side='left')   # 0: the current period
-        periods = np.concatenate([[self.reference_ns], meds])[seg]
-        ref = np.where(np.isfinite(periods), periods, self.nominal_ns)
-        over = steps > np.maximum(self.jump_limit_ns, 3.0 * ref)
-        if over.any():                                          # stop before it: offer() judges
-            cut = int(np.argmax(over))
-            return i + self._rule6_many(st[:cut], steps[:cut]) if cut else i
-        if self.count_gaps:
-            gap = steps > self.GAP_FACTOR * ref
-            for j in np.flatnonzero(gap).tolist():
-                self.gaps += 1
-                self.missing += max(1, int(round(int(steps[j]) / ref[j])) - 1)
-                self.gap_marks.append(int(st[j]))
-        self._steps.extend(steps[-w:].tolist())
-        if len(ups):
-            self.period_ns = float(meds[-1])
-            self._due = self.PERIOD_EVERY - (m - 1 - int(ups[-1]))
-            self._limits()
-        else:
+        while i < n:
+            m = min(n - i, self._due)
+            part = steps[i:i + m]
+            over = part > self.jump_ns
+            if over.any():
+                n = i + int(np.argmax(over))
+                continue
+            gap = part > self._gap_ns
+            if gap.any():
+                for j in np.flatnonzero(gap).tolist():
+                    self._count_gap(int(part[j]), int(st[i + j]))
+            self._stamps.extend(st[i:i + m].tolist())
             self._due -= m
+            if not self._due:
+                self._update_period()
+            i += m
         return n
 
     def _count_gap(self, step: int, stamp_ns: int) -> None:
