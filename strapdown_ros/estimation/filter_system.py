@@ -14,8 +14,9 @@ The attitude filter between validated streams and outputs, shared by the node an
   normalised without overflow, an all-zero covariance replaced by the model's, one that is not
   symmetric, not positive definite or beyond its bounds dropped; each counted.  Then the stamp
   rules of a fix stream (:meth:`StreamCheck.for_fixes`): a lone fix stamped ahead is a stamp
-  outlier (it never blinds the filter); a clock step confirmed by ``resync_count`` fixes restarts
-  the filter.
+  outlier (it never blinds the filter); a clock step of the fixes, confirmed by
+  ``resync_count`` fixes (or, when the gyro's clock stepped too, by the first fix on the gyro's
+  new timeline), restarts the filter.
 * The filter starts at the first fix: ``q_ref_body = q_fix ⊗ q_MF_VF⁻¹`` at the newest
   increment stamp not after it.  A gyro gap or stamp resynchronisation loses the rotation in
   it: the filter restarts at the next fix (counted).
@@ -27,6 +28,7 @@ The attitude filter between validated streams and outputs, shared by the node an
 from __future__ import annotations
 
 from dataclasses import dataclass, fields
+import math
 
 import numpy as np
 
@@ -37,7 +39,7 @@ from strapdown_ros.rotation import (dcm_to_quat, quat_conjugate, quat_cumprod, q
                                     quat_normalize, quat_to_dcm, rotvec_to_quat, ypr_to_dcm)
 from strapdown_ros.sensors.effects import EFFECTS, GyroEffects
 from strapdown_ros.sensors.sensor_model import SensorModel
-from strapdown_ros.streams.checks import gap_ends, StreamCheck
+from strapdown_ros.streams.checks import StreamCheck
 from strapdown_ros.streams.fixes import FixScreen
 
 __all__ = ['FilterSystem', 'FilterSettings', 'FilterOutput', 'FixOutput']
@@ -226,6 +228,9 @@ class FilterSystem:
                                       jump_limit=float(s.max_stamp_jump),
                                       resync_count=int(s.resync_count))
         self.camera_check = StreamCheck.for_fixes(float(s.max_stamp_jump), int(s.resync_count))
+        self._gyro_steps_used = 0      # gyro clock steps that confirmed a step of the fixes
+        # the gap rule of increments handed over without their gaps (add_increments)
+        self._increment_gaps = StreamCheck(self.period, jump_limit=math.inf)
         self.default_covariance = np.diag(model.camera_sigma ** 2)
         self.use_covariance = bool(s.use_camera_covariance)
         self.fix_screen = FixScreen(self.default_covariance, self.use_covariance)
@@ -245,7 +250,7 @@ class FilterSystem:
         self.check: ModelCheck | None = None
         self.counts = {'fixes_received': 0, 'dropped_zero_quaternion': 0, 'normalised': 0,
                        'dropped_bad_covariance': 0, 'covariance_substituted': 0,
-                       'dropped_nan': 0, 'dropped_no_boresight': 0,
+                       'dropped_nan': 0, 'dropped_not_unit': 0, 'dropped_no_boresight': 0,
                        'increments_before_start': 0, 'restarts': 0, 'gaps': 0,
                        'camera_resyncs': 0, 'applied': 0, 'gated': 0, 'too_old': 0,
                        'overflow': 0}
@@ -304,13 +309,16 @@ class FilterSystem:
         breaks : collection of int, optional
             The stamps that follow a gap or a stamp jump (the ends of the reader's gap
             intervals, judged by the check's rule 6); None: judged here by the same rule
-            (:func:`strapdown_ros.streams.checks.gap_ends`).
+            (a :class:`~strapdown_ros.streams.checks.StreamCheck` over the stamps of every
+            call).
 
         """
-        if breaks is None:
-            first = self._buf_t[-1] if self._buf_t else self._last_ns
-            stamps = ([] if first is None else [first]) + [int(t) for t in stamps_ns]
-            breaks = gap_ends(stamps, self.period)
+        if breaks is None:                     # judged here, by the same rule, across calls
+            rule = self._increment_gaps
+            breaks = set()
+            for ns in stamps_ns:
+                if rule.offer(int(ns), (0.0, 0.0, 0.0)) and rule.gap_marks:
+                    breaks.add(int(ns))
         for ns, v in zip(stamps_ns, values):
             if ns in breaks:
                 self.process()
@@ -325,8 +333,10 @@ class FilterSystem:
 
         THE screening of a reference fix (:class:`~strapdown_ros.streams.fixes.FixScreen`:
         each drop counted ``dropped_<reason>``), then the stamp rules of a fix stream; a
-        confirmed clock step of the fixes restarts the filter (``camera_resyncs``).  The filter
-        takes the fix after the buffered increments.
+        confirmed clock step of the fixes restarts the filter (``camera_resyncs``): confirmed by
+        ``resync_count`` fixes, or at once by the first fix on the new timeline of the gyro when
+        the gyro's clock stepped too (both clocks stepped: the gyro's ``resync_count``
+        increments confirmed it).  The filter takes the fix after the buffered increments.
 
         Parameters
         ----------
@@ -354,6 +364,13 @@ class FilterSystem:
         self.counts['covariance_substituted'] = self.fix_screen.covariance_substituted
         c = self.camera_check
         out = c.offer(int(stamp_ns), list(q) + list(np.ravel(P)))
+        g = self.gyro_check
+        if not out and c.held and g.resyncs > self._gyro_steps_used and g.last_ns is not None \
+                and abs(int(stamp_ns) - g.last_ns) <= g.jump_ns:
+            # both clocks stepped: the gyro's step, confirmed by its increments, confirms the
+            # fixes' at the first fix on the gyro's new timeline
+            self._gyro_steps_used = g.resyncs
+            out = c.confirm()
         if c.resynced:                         # a confirmed clock step of the fixes
             self.resync_fixes()
         res = None
