@@ -369,7 +369,8 @@ class AttitudeFilterNode(Node):
         if bad_fix:
             c.add(ros_status.WARN,
                   f'dropped {bad_fix} camera fixes (NaN {cam.nan + scr.nan}, zero quaternion '
-                  f'{scr.zero_quaternion}, bad covariance {scr.bad_covariance}, out of order '
+                  f'{scr.zero_quaternion}, not unit {scr.not_unit}, bad covariance '
+                  f'{scr.bad_covariance}, out of order '
                   f'{cam.out_of_order}, duplicate {cam.duplicate}, stamp outliers '
                   f'{cam.stamp_outliers})')
         if cam.resyncs:

@@ -137,8 +137,8 @@ class CalibratorNode(Node):
         self.solve_failures = 0
         self.gyro_frame_mismatch = 0
         self.reject_frames = p['frame_mismatch'] == 'reject'
-        self.camera_counts = {'dropped_zero_quaternion': 0, 'normalised': 0,
-                              'dropped_bad_covariance': 0,
+        self.camera_counts = {'dropped_zero_quaternion': 0, 'dropped_not_unit': 0,
+                              'normalised': 0, 'dropped_bad_covariance': 0,
                               'covariance_substituted': 0, 'frame_mismatch': 0}
         # stamps are handled relative to the first one
         self.origin_ns: int | None = None
@@ -395,6 +395,7 @@ class CalibratorNode(Node):
             c.received += 1
             why = screen.last_reason
             cc['dropped_zero_quaternion'] = screen.zero_quaternion
+            cc['dropped_not_unit'] = screen.not_unit
             cc['dropped_bad_covariance'] = screen.bad_covariance
             self.log.warn(f'camera fix dropped: {why.replace("_", " ")}', throttle=10.0,
                           key=f'camera_{why}')

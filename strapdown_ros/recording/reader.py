@@ -640,7 +640,7 @@ def read_bag(
                     'bad_covariance': screen.bad_covariance,
                     'normalised': screen.normalised,
                     'covariance_substituted': screen.covariance_substituted,
-                    'nan': screen.nan,
+                    'nan': screen.nan, 'not_unit': screen.not_unit,
                     'bad_covariance_reasons': dict(screen.bad_covariance_reasons)}
     return {'gyro_clip': clip,
             'gyro_topic': gyro_t, 'camera_topic': ref_t, 'camera_covariance_from_bag': with_cov,

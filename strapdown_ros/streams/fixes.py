@@ -12,26 +12,29 @@ eigenvalue computation overflows, and a failure is a named reason, counted.  The
 2. **zero quaternion**: its norm, computed as ``s·‖q/s‖`` with ``s = max |q_i|`` (never
    overflows, never underflows to a false zero), below :data:`MIN_QUATERNION_NORM`: dropped,
    counted ``zero_quaternion``;
-3. **not unit**: ``|‖q‖ − 1| > 1e-9``: normalised as ``(q/s) / ‖q/s‖`` (a quaternion scaled by
-   1e200 is the same rotation), counted ``normalised``;
-4. **no covariance**: the message has none, or it is all zero (ROS: unknown): the model's
+3. **far from unit**: a norm outside [1/:data:`MAX_NORM_RATIO`, :data:`MAX_NORM_RATIO`] (a
+   factor 2) is no rotation a sensor meant — (1e308, 0, 0, 1) would normalise to a half turn,
+   and a quaternion scaled by 1e200 is as broken a message: dropped, counted ``not_unit``;
+4. **not unit**: ``|‖q‖ − 1| > 1e-9`` within that factor: normalised as ``(q/s) / ‖q/s‖``,
+   counted ``normalised``;
+5. **no covariance**: the message has none, or it is all zero (ROS: unknown): the model's
    (``camera_sigma_xy``, ``camera_sigma_z``) is used; an all-zero one is counted
    ``covariance_substituted``;
-5. **covariance not symmetric**: after scaling by ``c = max |P_ij|``,
+6. **covariance not symmetric**: after scaling by ``c = max |P_ij|``,
    ``max |P_ij − P_ji| > SYMMETRY_TOLERANCE`` (1e-6 of the largest element): dropped, counted
    ``bad_covariance`` (reason ``asymmetric``); within the tolerance it is symmetrised;
-6. **not positive definite**: the eigenvalues of the scaled, symmetrised matrix (each element in
+7. **not positive definite**: the eigenvalues of the scaled, symmetrised matrix (each element in
    [−1, 1], so the eigen-solver cannot fail) below ``CONDITION_LIMIT`` (1e-12) times the largest
    one (negative, singular or numerically singular): dropped, counted ``bad_covariance``
    (reason ``not_positive_definite``);
-7. **beyond the bounds**: an eigenvalue above :data:`MAX_VARIANCE` (1 rad²: a fix whose σ
+8. **beyond the bounds**: an eigenvalue above :data:`MAX_VARIANCE` (1 rad²: a fix whose σ
    exceeds a radian says nothing a linearised estimator can use; 1e308 lands here) or below
    :data:`MIN_VARIANCE` (1e-24 rad², σ 1e-12 rad = 2e-7″: no instrument states that; its
    inverse would swamp every other weight): dropped, counted ``bad_covariance`` (reason
    ``out_of_bounds``).
 
 No rule clamps a value: a fix that fails one says nothing reliable, and the stream goes on
-without it.  :func:`unit_quaternion` is rules 1–3 alone (the latched boresight).  No ROS
+without it.  :func:`unit_quaternion` is rules 1–4 alone (the latched boresight).  No ROS
 imports.
 """
 from __future__ import annotations
@@ -41,11 +44,13 @@ import math
 import numpy as np
 
 __all__ = ['FixScreen', 'unit_quaternion', 'screen_covariance', 'MIN_QUATERNION_NORM',
-           'NORM_TOLERANCE', 'SYMMETRY_TOLERANCE', 'CONDITION_LIMIT', 'MAX_VARIANCE',
-           'MIN_VARIANCE', 'COVARIANCE_REASONS']
+           'MAX_NORM_RATIO', 'NORM_TOLERANCE', 'SYMMETRY_TOLERANCE', 'CONDITION_LIMIT',
+           'MAX_VARIANCE', 'MIN_VARIANCE', 'COVARIANCE_REASONS']
 
 #: a quaternion whose norm is below this is a zero quaternion (no rotation is stated)
 MIN_QUATERNION_NORM = 1e-6
+#: a quaternion whose norm is beyond this factor of 1 is dropped (``not_unit``)
+MAX_NORM_RATIO = 2.0
 #: a quaternion whose norm differs from 1 by more than this is normalised (and counted)
 NORM_TOLERANCE = 1e-9
 #: largest |P_ij − P_ji| of a covariance scaled to a largest element of 1 that is rounding
@@ -66,7 +71,7 @@ def _finite(a: np.ndarray) -> bool:
 
 def unit_quaternion(q) -> tuple[np.ndarray | None, str | None]:
     """
-    Return the unit quaternion of ``q``, or None with the reason (rules 1–3).
+    Return the unit quaternion of ``q``, or None with the reason (rules 1–4).
 
     Parameters
     ----------
@@ -78,8 +83,8 @@ def unit_quaternion(q) -> tuple[np.ndarray | None, str | None]:
     q_unit : ndarray (4,) or None
         ``q`` normalised without overflow; None when it is dropped.
     reason : str or None
-        ``nan`` or ``zero_quaternion`` when dropped; ``normalised`` when its norm was not 1;
-        None for a unit quaternion.
+        ``nan``, ``zero_quaternion`` or ``not_unit`` when dropped; ``normalised`` when its norm
+        was not 1; None for a unit quaternion.
 
     """
     a = np.asarray(q, dtype=float).reshape(-1)
@@ -92,6 +97,8 @@ def unit_quaternion(q) -> tuple[np.ndarray | None, str | None]:
     n = math.sqrt(float(u @ u))                  # in [1, 2]
     if s * n < MIN_QUATERNION_NORM:
         return None, 'zero_quaternion'
+    if not 1.0 / MAX_NORM_RATIO <= s * n <= MAX_NORM_RATIO:   # s·n may be inf: still no error
+        return None, 'not_unit'
     if abs(s * n - 1.0) <= NORM_TOLERANCE:
         return a, None
     return u / n, 'normalised'
@@ -147,7 +154,7 @@ class FixScreen:
     ----------
     received : int
         Fixes offered.
-    nan, zero_quaternion, bad_covariance : int
+    nan, zero_quaternion, not_unit, bad_covariance : int
         Fixes dropped, per rule.
     bad_covariance_reasons : dict
         ``bad_covariance`` per reason (:data:`COVARIANCE_REASONS`).
@@ -162,7 +169,7 @@ class FixScreen:
         self.default_covariance = np.asarray(default_covariance, dtype=float).reshape(3, 3)
         self.use_covariance = bool(use_covariance)
         self.received = 0
-        self.nan = self.zero_quaternion = self.bad_covariance = 0
+        self.nan = self.zero_quaternion = self.not_unit = self.bad_covariance = 0
         self.bad_covariance_reasons = dict.fromkeys(COVARIANCE_REASONS, 0)
         self.normalised = self.covariance_substituted = self.from_messages = 0
         self.last_reason: str | None = None
@@ -219,7 +226,7 @@ class FixScreen:
     @property
     def dropped(self) -> int:
         """Return the number of fixes dropped by any rule."""
-        return self.nan + self.zero_quaternion + self.bad_covariance
+        return self.nan + self.zero_quaternion + self.not_unit + self.bad_covariance
 
     def counts(self) -> dict:
         """
@@ -234,7 +241,7 @@ class FixScreen:
         """
         return {'received': self.received,
                 'dropped': {'nan': self.nan, 'zero_quaternion': self.zero_quaternion,
-                            'bad_covariance': self.bad_covariance},
+                            'not_unit': self.not_unit, 'bad_covariance': self.bad_covariance},
                 'bad_covariance_reasons': dict(self.bad_covariance_reasons),
                 'normalised': self.normalised,
                 'covariance_substituted': self.covariance_substituted,

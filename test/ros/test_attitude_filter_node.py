@@ -300,6 +300,40 @@ def test_boresight_from_the_latched_topic(ros):
             n.destroy_node()
 
 
+def test_an_overflowing_latched_boresight_is_dropped_and_the_next_one_taken(ros):
+    """Issue 27, finding 3: a boresight (1e308, 0, 0, 1e308) is dropped, counted; no crash."""
+    ns = '/t_filter_latched_bad'
+    pub_node = rclpy.create_node('calibrator_stub_bad', namespace=ns)
+    pub = pub_node.create_publisher(PoseWithCovarianceStamped, 'calibration/boresight',
+                                    ros_io.latched_qos())
+    bad = ros_io.pose_with_covariance(Time(sec=1), 'imu_link', Q_MF_VF, np.eye(3) * 1e-10)
+    o = bad.pose.pose.orientation
+    o.x, o.y, o.z, o.w = 1e308, 0.0, 0.0, 1e308
+    pub.publish(bad)
+    node = AttitudeFilterNode(namespace=ns, parameter_overrides=[
+        Parameter('boresight_source', value='topic')])
+    ex = Executor()
+    ex.add_node(pub_node)
+    ex.add_node(node)
+    try:
+        assert spin_until(ex, lambda: node.boresight_counts['received'] == 1, 10.0)
+        assert node.boresight_counts['dropped'] == 1 and node.system.boresight is None
+        t0 = 10**12
+        node.fix(_header(t0), Quaternion(x=0.0, y=0.0, z=0.0, w=1.0), None)      # no exception
+        assert node.system.counts['dropped_no_boresight'] == 1
+        pub.publish(ros_io.pose_with_covariance(Time(sec=2), 'imu_link', Q_MF_VF,
+                                                np.eye(3) * 1e-10))
+        assert spin_until(ex, lambda: node.system.boresight is not None, 10.0)
+        node.fix(_header(t0 + 10**9), Quaternion(x=0.0, y=0.0, z=0.0, w=1.0), None)
+        assert node.system.filter is not None
+        assert 'calibration/boresight message(s) dropped' in \
+            node.diagnostic_conditions(node.system.status()).message()
+    finally:
+        for n in (node, pub_node):
+            ex.remove_node(n)
+            n.destroy_node()
+
+
 def test_imu_rates_input(ros):
     """
     Check: imu rates input.
