@@ -341,25 +341,42 @@ def probe_writable(directory) -> str | None:
 
 
 # ------------------------------------------------------------------ stale temporaries
-def _is_live(entry: Path) -> bool:
-    """Tell whether a writer still holds a temporary (its lock; or it is too young to tell)."""
-    target = entry / _LOCK if entry.is_dir() else entry
+def _held(path) -> bool | None:
+    """Tell whether a live process holds the lock of ``path`` (None: it cannot be opened)."""
     try:
-        fd = os.open(target, os.O_RDONLY)
+        fd = os.open(path, os.O_RDONLY)
     except OSError:
-        fd = None
-    if fd is not None:
-        try:
-            fcntl.flock(fd, fcntl.LOCK_SH | fcntl.LOCK_NB)
-        except OSError as exc:
-            return exc.errno in (errno.EWOULDBLOCK, errno.EAGAIN, errno.EACCES)
-        finally:
-            os.close(fd)
+        return None
     try:
-        age = time.time() - entry.lstat().st_mtime
+        fcntl.flock(fd, fcntl.LOCK_SH | fcntl.LOCK_NB)
+        return False
+    except OSError as exc:
+        return exc.errno in (errno.EWOULDBLOCK, errno.EAGAIN, errno.EACCES)
+    finally:
+        os.close(fd)
+
+
+def _young(entry: Path) -> bool:
+    try:
+        return time.time() - entry.lstat().st_mtime < STALE_AGE_S
     except OSError:
         return False
-    return age < STALE_AGE_S
+
+
+def _is_live(entry: Path) -> bool:
+    """
+    Tell whether a writer still owns a temporary.
+
+    A staged directory's lock file, or a temporary file itself, held by a live process: yes; not
+    held: no (its writer died: ``kill -9`` releases the lock), except that a temporary younger
+    than :data:`STALE_AGE_S` without a lock file, or whose lock is free, may be a writer between
+    creating it and locking it.
+    """
+    if entry.is_dir() and not entry.is_symlink():
+        held = _held(entry / _LOCK)
+        return _young(entry) if held is None else held
+    held = _held(entry)
+    return bool(held) or _young(entry)
 
 
 def remove_stale(path) -> list[str]:
