@@ -75,6 +75,7 @@ setup(
             'realdata_report = strapdown_ros.tools.realdata_report:main',
             'realdata_bag = strapdown_ros.tools.realdata_bag:main',
             'filter_bench = strapdown_ros.bench.filter_bench:main',
+            'hostile_bench = strapdown_ros.bench.ros.hostile_bench:main',
         ],
     },
 )
