@@ -354,14 +354,10 @@ class FilterSystem:
 
         """
         self.counts['fixes_received'] += 1
-        got = self.fix_screen.screen(q_wxyz, covariance)
+        got = self._screen(q_wxyz, covariance)
         if got is None:
-            why = self.fix_screen.last_reason
-            self.counts[f'dropped_{why}'] += 1
             return None
         q, P = got
-        self.counts['normalised'] = self.fix_screen.normalised
-        self.counts['covariance_substituted'] = self.fix_screen.covariance_substituted
         c = self.camera_check
         out = c.offer(int(stamp_ns), list(q) + list(np.ravel(P)))
         g = self.gyro_check
@@ -375,12 +371,25 @@ class FilterSystem:
             self.resync_fixes()
         res = None
         for ns, v in out:
-            res = self.add_fix(ns, np.asarray(v[:4]), np.asarray(v[4:]).reshape(3, 3))
+            res = self._apply_fix(ns, np.asarray(v[:4]), np.asarray(v[4:]).reshape(3, 3))
         return res
+
+    def _screen(self, q_wxyz, covariance):
+        """Screen a fix (THE screening; drops counted ``dropped_<reason>``): (q, P) or None."""
+        screen = self.fix_screen
+        got = screen.screen(q_wxyz, covariance)
+        if got is None:
+            self.counts[f'dropped_{screen.last_reason}'] += 1
+        self.counts['normalised'] = screen.normalised
+        self.counts['covariance_substituted'] = screen.covariance_substituted
+        return got
 
     def add_fix(self, stamp_ns: int, q_wxyz, covariance) -> FixOutput | None:
         """
-        Take a fix already validated (unit quaternion, positive definite covariance).
+        Take a fix that passed the stamp rules (the recording reader's), in stamp order.
+
+        It passes THE screening of a fix too (the reader's fixes did already: for them it
+        changes nothing), so no caller can hand the filter a fix it cannot take.
 
         Parameters
         ----------
@@ -388,8 +397,8 @@ class FilterSystem:
             Stamp, ns.
         q_wxyz : array_like (4,)
             ``q_GCRS_VF``, scalar-first.
-        covariance : array_like (3, 3)
-            VF axes, rad².
+        covariance : array_like (3, 3) or None
+            VF axes, rad² (None: the model σ).
 
         Returns
         -------
@@ -397,6 +406,12 @@ class FilterSystem:
             The result, or None when the fix is dropped, starts the filter or waits.
 
         """
+        got = self._screen(q_wxyz, covariance)
+        if got is None:
+            return None
+        return self._apply_fix(stamp_ns, *got)
+
+    def _apply_fix(self, stamp_ns: int, q_wxyz, covariance) -> FixOutput | None:
         if self.boresight is None:
             self.counts['dropped_no_boresight'] += 1
             return None
