@@ -112,7 +112,7 @@ def test_filter_bag_prints_and_writes_what_it_read_and_dropped(hostile, capsys):
         reason = {'nan': 'nan', 'singular_covariance': 'bad_covariance',
                   'duplicate_stamp': 'duplicate'}[name]
         assert read['reference']['dropped'] == {reason: 1}, read
-        assert f"{len(rec.reference)} of {len(rec.reference) + 1} fixes kept; dropped " \
+        assert f'{len(rec.reference)} of {len(rec.reference) + 1} fixes kept; dropped ' \
             f"{reason.replace('_', ' ')} 1" in line, line
         if name == 'singular_covariance':
             assert read['reference']['bad_covariance'] == {'not_positive_definite': 1}
@@ -153,4 +153,3 @@ def test_filter_bag_writes_its_outputs_all_or_nothing(hostile, monkeypatch, caps
     assert len(err) == 1 and '--fixes' in err[0] and 'longer than the file system allows' \
         in err[0], err
     assert not any(len(p.name) > 200 for p in d.iterdir())
-
