@@ -78,6 +78,7 @@ setup(
             'filter_bench = strapdown_ros.bench.filter_bench:main',
             'reference_rate_bench = strapdown_ros.bench.reference_rate_bench:main',
             'model_check_bench = strapdown_ros.bench.model_check_bench:main',
+            'hostile_bench = strapdown_ros.bench.ros.hostile_bench:main',
         ],
     },
 )

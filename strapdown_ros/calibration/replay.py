@@ -17,46 +17,10 @@ from strapdown_ros.calibration.streaming import BoresightCalibrator, CalibratorS
 from strapdown_ros.estimation.chi_square import FIT_LEVEL
 from strapdown_ros.rotation import to_ros_xyzw
 from strapdown_ros.sensors.sensor_model import SensorModel
-from strapdown_ros.streams.checks import segments
+from strapdown_ros.streams.checks import match_segments, segments
 
 __all__ = ['calibrate_recording', 'calibrate_spaced', 'match_segments', 'solution_record',
            'BLOCK_FIXES', 'BLOCK_GYRO']
-
-
-def match_segments(tg, g_segs, tc, c_segs) -> list[tuple[int, int]]:
-    """
-    Pair each gyro time base with its camera time base, in order.
-
-    As many of each (a clock reset of both streams, the usual case): the k-th with the k-th.
-    Otherwise (one stream resynchronised alone) by overlapping stamp ranges, walking both lists
-    forward.
-
-    Parameters
-    ----------
-    tg, tc : ndarray
-        Gyro and camera stamps, s.
-    g_segs, c_segs : list of (int, int)
-        Index ranges of each stream's time bases.
-
-    Returns
-    -------
-    list of (int, int)
-        (gyro segment, camera segment) pairs.
-
-    """
-    if len(g_segs) == len(c_segs):
-        return [(k, k) for k in range(len(g_segs))]
-    out, i, j = [], 0, 0
-    while i < len(g_segs) and j < len(c_segs):
-        g_lo, g_hi = tg[g_segs[i][0]], tg[g_segs[i][1] - 1]
-        c_lo, c_hi = tc[c_segs[j][0]], tc[c_segs[j][1] - 1]
-        if g_hi >= c_lo and c_hi >= g_lo:
-            out.append((i, j))
-        if g_hi <= c_hi:                               # the segment that ends first is done
-            i += 1
-        if c_hi <= g_hi:
-            j += 1
-    return out
 
 
 def calibrate_recording(data: dict, model: SensorModel,
@@ -70,8 +34,8 @@ def calibrate_recording(data: dict, model: SensorModel,
     one); gyro and camera segments are matched in order (:func:`match_segments`); the
     calibrator restarts its gyro history at every gyro segment and its fix chain at every camera
     segment, so no pair spans a jump.  The fixes go in blocks (``add_cameras``: the same pairs
-    as one at a time), each after the gyro data that covers it.  Pairs spanning a gyro gap are
-    discarded, as the node does.
+    as one at a time), each after the gyro data that covers it.  Pairs spanning a gyro gap (the
+    reader's, by the check's rule 6) are discarded, as the node does.
 
     Parameters
     ----------
@@ -111,6 +75,7 @@ def calibrate_recording(data: dict, model: SensorModel,
     lead = 3 * period + offset
     g_segs = segments(g.stamps, getattr(g.check, 'segment_starts', []))
     c_segs = segments(c.stamps, getattr(c.check, 'segment_starts', []))
+    after_gap = {b for a, b in g.gaps}                 # stamps that follow a gap
     discarded = 0
     cur_g = cur_c = None                               # segments the calibrator is fed from
     k = 0                                              # gyro samples of segment cur_g fed so far
@@ -124,7 +89,8 @@ def calibrate_recording(data: dict, model: SensorModel,
         if cur_c is not None and cur_c != j:
             cal.restart_camera()
         cur_c = j
-        gaps = [(seg_t[n], seg_t[n + 1]) for n in np.flatnonzero(np.diff(seg_t) > 1.5 * period)]
+        gaps = [(seg_t[n - 1], seg_t[n]) for n in range(1, gb - ga)   # the reader's (rule 6)
+                if g.stamps[ga + n] in after_gap]
         t_fix = tc[ca:cb]
         inside = use[ca:cb] & (t_fix >= seg_t[0] - offset) & (t_fix <= seg_t[-1] + offset)
         idx = ca + np.flatnonzero(inside)               # outside the gyro segment: no pair

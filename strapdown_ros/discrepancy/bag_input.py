@@ -13,6 +13,7 @@ import numpy as np
 from strapdown_ros.discrepancy.linearisation import Recording
 from strapdown_ros.recording import (BagError, input_lines, input_summary, read_bag,
                                      recording_facts)
+from strapdown_ros.recording.options import usable_error
 
 __all__ = ['load_recording', 'recording_lines']
 
@@ -56,6 +57,9 @@ def load_recording(bag: str, model, settings: dict | None = None, namespace: str
                     float(settings.get('max_stamp_jump', 1.0)),
                     int(settings.get('resync_count', 5)), **options)
     g, c = data['gyro'], data['camera']
+    unusable = usable_error(data)                     # the tools' one wording
+    if unusable:
+        raise BagError(f'{bag}: {unusable}')
     if len(g.stamps) < 10:
         raise BagError(f"{bag}: {len(g.stamps)} usable gyro increments on {data['gyro_topic']}")
     origin = min(g.stamps[0], c.stamps[0]) if c.stamps else g.stamps[0]

@@ -6,11 +6,17 @@ The attitude filter between validated streams and outputs, shared by the node an
 * Gyro increments pass the nodes' input rules
   (:class:`strapdown_ros.streams.checks.StreamCheck`) in :meth:`FilterSystem.offer_gyro` (the node)
   or arrive already validated by the recording reader (:meth:`FilterSystem.add_increments`, the
-  tool); both then take the same path.
-* Camera fixes (``q_GCRS_VF``, covariance in VF axes or none) follow calibrator_node's rules
-  (:meth:`FilterSystem.offer_fix`): a zero quaternion is dropped, a non-unit one normalised, an
-  all-zero covariance replaced by the model's, one that is not positive semi-definite dropped;
-  each counted.
+  tool, with the reader's gaps); both then take the same path.  A gap is the check's (rule 6:
+  the period is the median step of the stamps, not ``gyro_rate``; ±30 % stamp jitter is no gap).
+* Camera fixes (``q_GCRS_VF``, covariance in VF axes or none) pass THE screening of a reference
+  fix (:class:`strapdown_ros.streams.fixes.FixScreen`, as calibrator_node and the reader) in
+  :meth:`FilterSystem.offer_fix`: a non-finite or zero quaternion is dropped, a non-unit one
+  normalised without overflow, an all-zero covariance replaced by the model's, one that is not
+  symmetric, not positive definite or beyond its bounds dropped; each counted.  Then the stamp
+  rules of a fix stream (:meth:`StreamCheck.for_fixes`): a lone fix stamped ahead is a stamp
+  outlier (it never blinds the filter); a clock step of the fixes, confirmed by
+  ``resync_count`` fixes (or, when the gyro's clock stepped too, by the first fix on the gyro's
+  new timeline), restarts the filter.
 * The filter starts at the first fix: ``q_ref_body = q_fix ⊗ q_MF_VF⁻¹`` at the newest
   increment stamp not after it.  A gyro gap or stamp resynchronisation loses the rotation in
   it: the filter restarts at the next fix (counted).
@@ -35,11 +41,12 @@ from strapdown_ros.rotation import (dcm_to_quat, quat_conjugate, quat_multiply, 
 from strapdown_ros.sensors.effects import EFFECTS, GyroEffects
 from strapdown_ros.sensors.sensor_model import SensorModel
 from strapdown_ros.streams.checks import StreamCheck
+from strapdown_ros.streams.fixes import FixScreen
 
 __all__ = ['FilterSystem', 'FilterSettings', 'FilterOutput', 'FixOutput']
 
-#: exposures are seconds apart: a camera stamp jump is an hour (calibrator_node's rule)
-CAMERA_JUMP_S = 3600.0
+#: the forward stamp limit of the fixes until their period is known, s (StreamCheck.for_fixes)
+CAMERA_JUMP_S = StreamCheck.FIX_INITIAL_JUMP_S
 #: increments lumped per step of the model check's signatures
 SIGNATURE_LUMP = 8
 #: increments held for the signatures before they are summed (bounds the buffer)
@@ -230,11 +237,13 @@ class FilterSystem:
                                       max_norm=2.0 * self.period * model.gyro_max_rate,
                                       jump_limit=float(s.max_stamp_jump),
                                       resync_count=int(s.resync_count))
-        self.camera_check = StreamCheck(math.inf,
-                                        jump_limit=max(float(s.max_stamp_jump), CAMERA_JUMP_S),
-                                        resync_count=int(s.resync_count))
+        self.camera_check = StreamCheck.for_fixes(float(s.max_stamp_jump), int(s.resync_count))
+        self._gyro_steps_used = 0      # gyro clock steps that confirmed a step of the fixes
+        # the gap rule of increments handed over without their gaps (add_increments)
+        self._increment_gaps = StreamCheck(self.period, jump_limit=math.inf)
         self.default_covariance = np.diag(model.camera_sigma ** 2)
         self.use_covariance = bool(s.use_camera_covariance)
+        self.fix_screen = FixScreen(self.default_covariance, self.use_covariance)
         self.camera_effects = model.camera_effects()
         # the model's gyro effects the filter does not estimate (the bias is always a state)
         fixed = {n: model.effect_value(n) for n in model.active('gyro')
@@ -251,8 +260,10 @@ class FilterSystem:
         self.check: ModelCheck | None = None
         self.counts = {'fixes_received': 0, 'dropped_zero_quaternion': 0, 'normalised': 0,
                        'dropped_bad_covariance': 0, 'covariance_substituted': 0,
-                       'dropped_no_boresight': 0, 'increments_before_start': 0, 'restarts': 0,
-                       'gaps': 0, 'applied': 0, 'gated': 0, 'too_old': 0, 'overflow': 0}
+                       'dropped_nan': 0, 'dropped_not_unit': 0, 'dropped_no_boresight': 0,
+                       'increments_before_start': 0, 'restarts': 0, 'gaps': 0,
+                       'camera_resyncs': 0, 'applied': 0, 'gated': 0, 'too_old': 0,
+                       'overflow': 0}
         self._buf_t: list = []          # accepted increments not yet processed (ns, value)
         self._buf_d: list = []
         self._last_ns: int | None = None   # newest increment stamp given to the filter
@@ -280,24 +291,22 @@ class FilterSystem:
 
         """
         g = self.gyro_check
-        prev = g.last_ns
         out = g.offer(stamp_ns, value)
         if g.resynced:
             self._restart()
-            prev = None
+        marks = g.gap_marks
         for ns, v in out:
-            if prev is not None and ns - prev > 1.5 * self.period * 1e9:
+            if marks and ns in marks:          # rule 6 of the check: the rotation in it is lost
                 self.counts['gaps'] += 1
                 self._restart()
-            prev = ns
             self._buf_t.append(int(ns))
             self._buf_d.append(v)
 
-    def add_increments(self, stamps_ns, values) -> None:
+    def add_increments(self, stamps_ns, values, breaks=None) -> None:
         """
         Take increments already validated (the recording reader), buffered as in offer_gyro.
 
-        A gap (beyond 1.5 nominal periods) restarts the filter as there.
+        A gap or stamp jump restarts the filter before the increment that follows it, as there.
 
         Parameters
         ----------
@@ -305,14 +314,21 @@ class FilterSystem:
             Stamps, ns.
         values : sequence of (3,) array_like
             Increments, rad, body axes.
+        breaks : collection of int, optional
+            The stamps that follow a gap or a stamp jump (the ends of the reader's gap
+            intervals, judged by the check's rule 6); None: judged here by the same rule
+            (a :class:`~strapdown_ros.streams.checks.StreamCheck` over the stamps of every
+            call).
 
         """
+        if breaks is None:                     # judged here, by the same rule, across calls
+            rule = self._increment_gaps
+            breaks = set()
+            for ns in stamps_ns:
+                if rule.offer(int(ns), (0.0, 0.0, 0.0)) and rule.gap_marks:
+                    breaks.add(int(ns))
         for ns, v in zip(stamps_ns, values):
-            if self._buf_t:
-                prev = self._buf_t[-1]
-            else:
-                prev = self._last_ns
-            if prev is not None and ns - prev > 1.5 * self.period * 1e9:
+            if ns in breaks:
                 self.process()
                 self.counts['gaps'] += 1
                 self._restart()
@@ -321,9 +337,14 @@ class FilterSystem:
 
     def offer_fix(self, stamp_ns: int, q_wxyz, covariance=None) -> FixOutput | None:
         """
-        Take one camera fix from a live stream: calibrator_node's rules, then the filter.
+        Take one camera fix from a live stream: the screening and stamp rules, then the filter.
 
-        The filter takes it after the buffered increments.
+        THE screening of a reference fix (:class:`~strapdown_ros.streams.fixes.FixScreen`:
+        each drop counted ``dropped_<reason>``), then the stamp rules of a fix stream; a
+        confirmed clock step of the fixes restarts the filter (``camera_resyncs``): confirmed by
+        ``resync_count`` fixes, or at once by the first fix on the new timeline of the gyro when
+        the gyro's clock stepped too (both clocks stepped: the gyro's ``resync_count``
+        increments confirmed it).  The filter takes the fix after the buffered increments.
 
         Parameters
         ----------
@@ -341,34 +362,42 @@ class FilterSystem:
 
         """
         self.counts['fixes_received'] += 1
-        q = np.asarray(q_wxyz, dtype=float)
-        norm = float(np.linalg.norm(q)) if np.all(np.isfinite(q)) else float('nan')
-        if math.isfinite(norm) and norm < 1e-6:
-            self.counts['dropped_zero_quaternion'] += 1
+        got = self._screen(q_wxyz, covariance)
+        if got is None:
             return None
-        P = self.default_covariance
-        if covariance is not None and self.use_covariance:
-            P = np.asarray(covariance, dtype=float).reshape(3, 3)
-            if np.all(np.isfinite(P)):
-                P = 0.5 * (P + P.T)
-                if not np.any(P):
-                    P = self.default_covariance
-                    self.counts['covariance_substituted'] += 1
-                elif np.min(np.linalg.eigvalsh(P)) <= 0:
-                    self.counts['dropped_bad_covariance'] += 1
-                    return None
-        if math.isfinite(norm) and abs(norm - 1.0) > 1e-9:
-            q = q / norm
-            self.counts['normalised'] += 1
-        out = self.camera_check.offer(int(stamp_ns), list(q) + list(np.ravel(P)))
+        q, P = got
+        c = self.camera_check
+        out = c.offer(int(stamp_ns), list(q) + list(np.ravel(P)))
+        g = self.gyro_check
+        if not out and c.held and g.resyncs > self._gyro_steps_used and g.last_ns is not None \
+                and abs(int(stamp_ns) - g.last_ns) <= g.jump_ns:
+            # both clocks stepped: the gyro's step, confirmed by its increments, confirms the
+            # fixes' at the first fix on the gyro's new timeline
+            self._gyro_steps_used = g.resyncs
+            out = c.confirm()
+        if c.resynced:                         # a confirmed clock step of the fixes
+            self.resync_fixes()
         res = None
         for ns, v in out:
-            res = self.add_fix(ns, np.asarray(v[:4]), np.asarray(v[4:]).reshape(3, 3))
+            res = self._apply_fix(ns, np.asarray(v[:4]), np.asarray(v[4:]).reshape(3, 3))
         return res
+
+    def _screen(self, q_wxyz, covariance):
+        """Screen a fix (THE screening; drops counted ``dropped_<reason>``): (q, P) or None."""
+        screen = self.fix_screen
+        got = screen.screen(q_wxyz, covariance)
+        if got is None:
+            self.counts[f'dropped_{screen.last_reason}'] += 1
+        self.counts['normalised'] = screen.normalised
+        self.counts['covariance_substituted'] = screen.covariance_substituted
+        return got
 
     def add_fix(self, stamp_ns: int, q_wxyz, covariance) -> FixOutput | None:
         """
-        Take a fix already validated (unit quaternion, positive definite covariance).
+        Take a fix that passed the stamp rules (the recording reader's), in stamp order.
+
+        It passes THE screening of a fix too (the reader's fixes did already: for them it
+        changes nothing), so no caller can hand the filter a fix it cannot take.
 
         Parameters
         ----------
@@ -376,8 +405,8 @@ class FilterSystem:
             Stamp, ns.
         q_wxyz : array_like (4,)
             ``q_GCRS_VF``, scalar-first.
-        covariance : array_like (3, 3)
-            VF axes, rad².
+        covariance : array_like (3, 3) or None
+            VF axes, rad² (None: the model σ).
 
         Returns
         -------
@@ -385,6 +414,12 @@ class FilterSystem:
             The result, or None when the fix is dropped, starts the filter or waits.
 
         """
+        got = self._screen(q_wxyz, covariance)
+        if got is None:
+            return None
+        return self._apply_fix(stamp_ns, *got)
+
+    def _apply_fix(self, stamp_ns: int, q_wxyz, covariance) -> FixOutput | None:
         if self.boresight is None:
             self.counts['dropped_no_boresight'] += 1
             return None
@@ -403,6 +438,16 @@ class FilterSystem:
             self._pending.sort()
             return None
         return self._fix_result(res)
+
+    def resync_fixes(self) -> None:
+        """
+        Restart at a confirmed clock step of the fixes (counted ``camera_resyncs``).
+
+        The fixes after it lie on another timeline than the filter's history: the filter
+        restarts at the next one (the gyro's own steps restart it through its check).
+        """
+        self.counts['camera_resyncs'] += 1
+        self._restart()
 
     def set_boresight(self, q_wxyz) -> None:
         """

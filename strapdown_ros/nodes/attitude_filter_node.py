@@ -65,6 +65,7 @@ from strapdown_ros.estimation.chi_square import chi2_3_quantile
 from strapdown_ros.estimation.filter_system import FilterSettings, FilterSystem
 from strapdown_ros.nodes import ros_io, ros_params, ros_process, ros_status
 from strapdown_ros.params import FILTER_PARAMS, model_from_parameters, not_applied_note
+from strapdown_ros.streams.fixes import unit_quaternion
 from strapdown_ros.streams.rate_increments import RateIncrementStream
 
 NODE_NAME = 'attitude_filter_node'
@@ -254,15 +255,15 @@ class AttitudeFilterNode(Node):
 
     def _on_boresight(self, msg: PoseWithCovarianceStamped):
         self.boresight_counts['received'] += 1
-        q = ros_io.quaternion_from_msg(msg.pose.pose.orientation)
-        norm = float(np.linalg.norm(q)) if np.all(np.isfinite(q)) else 0.0
-        if norm < 1e-6:
+        # the quaternion rules of THE screening of a fix: normalised without overflow
+        q, why = unit_quaternion(ros_io.quaternion_from_msg(msg.pose.pose.orientation))
+        if q is None:
             self.boresight_counts['dropped'] += 1
-            self.log.warn('calibration/boresight with a zero or non-finite quaternion dropped',
+            self.log.warn(f"calibration/boresight dropped: {why.replace('_', ' ')}",
                           throttle=10.0)
             return
-        self.system.set_boresight(q / norm)
-        self.log.info(f'boresight q_MF_VF from calibration/boresight: {np.round(q / norm, 9)}')
+        self.system.set_boresight(q)
+        self.log.info(f'boresight q_MF_VF from calibration/boresight: {np.round(q, 9)}')
 
     def _frame_ok(self, which: str, frame: str, expected: str) -> bool:
         if frame and frame != expected:
@@ -366,13 +367,18 @@ class AttitudeFilterNode(Node):
             c.add(ros_status.WARN, f'dropped {self.gyro_rates.check.dropped} angular-rate samples '
                   'of imu/data_raw')
         cam = self.system.camera_check
-        bad_fix = cam.dropped + st['dropped_zero_quaternion'] + st['dropped_bad_covariance']
+        scr = self.system.fix_screen
+        bad_fix = cam.dropped + scr.dropped
         if bad_fix:
             c.add(ros_status.WARN,
-                  f'dropped {bad_fix} camera fixes (NaN {cam.nan}, zero quaternion '
-                  f"{st['dropped_zero_quaternion']}, bad covariance "
-                  f"{st['dropped_bad_covariance']}, out of order {cam.out_of_order}, "
-                  f'duplicate {cam.duplicate})')
+                  f'dropped {bad_fix} camera fixes (NaN {cam.nan + scr.nan}, zero quaternion '
+                  f'{scr.zero_quaternion}, not unit {scr.not_unit}, bad covariance '
+                  f'{scr.bad_covariance}, out of order '
+                  f'{cam.out_of_order}, duplicate {cam.duplicate}, stamp outliers '
+                  f'{cam.stamp_outliers})')
+        if cam.resyncs:
+            c.add(ros_status.ERROR, f'camera stamps jumped {cam.resyncs} time(s) and stayed: '
+                  'resynchronised, the filter restarted')
         if self.boresight_counts['dropped']:
             c.add(ros_status.WARN, f"{self.boresight_counts['dropped']} calibration/boresight "
                   'message(s) dropped (zero or non-finite quaternion)')
@@ -409,10 +415,15 @@ class AttitudeFilterNode(Node):
         c = self.diagnostic_conditions(st)
         cam = self.system.camera_check
         values = dict(st)
-        values.update({'camera_received': cam.received, 'camera_accepted': cam.accepted,
-                       'camera_dropped_nan': cam.nan,
+        scr = self.system.fix_screen
+        values.update({'camera_received': scr.received, 'camera_accepted': cam.accepted,
+                       'camera_dropped_nan': cam.nan + scr.nan,
                        'camera_dropped_out_of_order': cam.out_of_order,
                        'camera_dropped_duplicate': cam.duplicate,
+                       'camera_dropped_stamp_outlier': cam.stamp_outliers,
+                       'camera_stamp_resyncs': cam.resyncs,
+                       **{f'camera_bad_covariance_{k}': v
+                          for k, v in scr.bad_covariance_reasons.items()},
                        'gyro_undecodable_dropped': self.undecodable,
                        'gyro_frame_mismatch': self.frame_mismatch['gyro'],
                        'camera_frame_mismatch': self.frame_mismatch['camera'],

@@ -333,7 +333,7 @@ FILTER_SETTINGS = [
     ParamSpec('use_camera_covariance', True, 'read the fix covariance from '
               'star_camera/attitude_with_covariance (false: star_camera/attitude, camera σ)'),
     ParamSpec('gate_probability', 0.9999, 'a fix whose NIS exceeds the χ²(3) quantile of this '
-              'is gated (not applied) and counted', 0.5, 1.0 - 1e-12),
+              'is gated (not applied) and counted', 0.5, 1.0, exclusive_maximum=True),
     ParamSpec('history', 20000, 'increments kept for late fixes', 16, 10**7),
     ParamSpec('output_period', 0.1, 'filter/attitude, filter/imu and the gyro errors every '
               'this much stamp time, s', 0.0, 3600.0, exclusive_minimum=True),

@@ -61,6 +61,7 @@ from strapdown_ros.params import (check_against_recording, filled_in, load_model
 from strapdown_ros.recording import (add_input_arguments, BagError, check_input_arguments,
                                      input_lines, input_options, input_summary, input_warnings,
                                      read_bag, recording_facts)
+from strapdown_ros.recording.options import frame_warnings, usable_error
 
 __all__ = ['main']
 
@@ -233,17 +234,14 @@ def main(argv=None) -> int:
     note = not_applied_note(model, ('gyro', 'reference'), 'calibrate_bag')
     if note:
         print(f'calibrate_bag: note: {note}', file=sys.stderr)
-    for kind, want in (('gyro', model.frame_id), ('camera', model.reference_frame_id)):
-        other = [f for f in data['frames'][kind] if f != want]
-        if other:
-            print(f'calibrate_bag: warning: {kind} messages in frame '
-                  f"{', '.join(map(repr, other))}, "
-                  f'parameters expect {want!r}', file=sys.stderr)
+    for line in frame_warnings('calibrate_bag', data, model.frame_id, model.reference_frame_id):
+        print(line, file=sys.stderr)
 
     g, c = data['gyro'], data['camera']
-    if not g.stamps or not c.stamps:
-        print(f"calibrate_bag: error: no usable {'gyro' if not g.stamps else 'camera'} messages",
-              file=sys.stderr)
+    unusable = usable_error(data)
+    if unusable:
+        print('\n'.join(input_lines(input_summary(data))))
+        print(f'calibrate_bag: error: {unusable}', file=sys.stderr)
         return 2
     sol, cal, discarded, choice = calibrate_spaced(data, model, settings, spacing)
     result = solution_record(sol, settings.weighted)

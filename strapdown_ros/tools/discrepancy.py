@@ -32,7 +32,9 @@ as far apart as the correlation of the reference's error requires (every fix whe
 Output: a summary on stdout; ``--json`` the full result (doc/discrepancy.md); ``--report DIR``
 ``report.md`` with PNG plots; ``--write-model`` the model with the found effects and the
 estimated boresight.  No output may be an input (the bag, the model) or another output; an
-existing one needs ``--force``; the files are written atomically.
+existing one needs ``--force``; the files are written atomically and all or nothing (every
+output to its temporary first, then all renamed into place; temporaries an earlier, killed run
+left are removed at start).
 
 Exit status: 0 for every verdict (a fit inconsistent with its stated noise is printed with a line
 starting ``WARNING:``); 2, with one line on stderr, for unusable input (missing or malformed bag
@@ -51,7 +53,8 @@ import time
 import numpy as np
 
 from strapdown_ros.calibration.reference_spacing import parse_spacing
-from strapdown_ros.cli import check_outputs, DIRECTORY, FILE, OneLineParser, write_json
+from strapdown_ros.cli import (all_or_nothing, check_outputs, DIRECTORY, FILE, OneLineParser,
+                               write_json)
 from strapdown_ros.discrepancy.bag_input import load_recording, recording_lines
 from strapdown_ros.discrepancy.diagnostics import allan_comparison
 from strapdown_ros.discrepancy.report import write_report
@@ -62,6 +65,7 @@ from strapdown_ros.params import (check_against_recording, filled_in, load_model
                                   not_applied_note, write_model_file)
 from strapdown_ros.recording import (add_input_arguments, BagError, check_input_arguments,
                                      input_options, input_warnings)
+from strapdown_ros.recording.options import frame_warnings
 
 __all__ = ['main', 'write_model']
 
@@ -241,7 +245,8 @@ def main(argv=None) -> int:
         rec, info = load_recording(args.bag, model, mf.settings, args.namespace,
                                    **input_options(args))
         checked = check_against_recording(model, info['facts'])
-        for line in input_warnings('discrepancy', info):
+        frames = frame_warnings('discrepancy', info, model.frame_id, model.reference_frame_id)
+        for line in input_warnings('discrepancy', info) + frames:
             print(line, file=sys.stderr)
         for line in filled_in(model, checked):
             print(f'discrepancy: note: {line}', file=sys.stderr)
@@ -281,17 +286,26 @@ def main(argv=None) -> int:
     out['allan'] = json_clean(allan)
     out['input'] = json_clean(info)
     print(_summary(args.bag, info, res))
+    made_report_dir = bool(args.report) and not Path(args.report).exists()
     try:
-        if args.json:
-            write_json(args.json, out)
+        with all_or_nothing():             # --json, --write-model and --report, or none
+            if args.json:
+                write_json(args.json, out)
+            if args.write_model:
+                write_model(args.write_model, doc, res)
+            if args.report:
+                progress('report and plots')
+                path = write_report(args.report, res, out)
         if args.write_model:
-            write_model(args.write_model, doc, res)
             print(f'  model with the found effects: {args.write_model}')
         if args.report:
-            progress('report and plots')
-            path = write_report(args.report, res, out)
             print(f'  report: {path}')
     except OSError as exc:
+        if made_report_dir:
+            try:
+                Path(args.report).rmdir()         # created for the report: empty again
+            except OSError:
+                pass
         print(f'discrepancy: error: {exc}', file=sys.stderr)
         return 2
     progress(f'done in {time.perf_counter() - t0:.1f} s')
