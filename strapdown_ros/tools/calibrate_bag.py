@@ -45,14 +45,13 @@ import sys
 
 import numpy as np
 
-from strapdown_ros.calibration.replay import calibrate_recording, solution_record
 from strapdown_ros.calibration.streaming import CalibratorSettings
 from strapdown_ros.cli import check_outputs, FILE, OneLineParser, write_json
-from strapdown_ros.params import (check_against_recording, filled_in, load_model_file,
-                                  not_applied_note, parse_overrides)
+from strapdown_ros.params import filled_in, load_model_file, not_applied_note, parse_overrides
 from strapdown_ros.recording import (add_input_arguments, BagError, check_input_arguments,
-                                     input_lines, input_options, input_summary, input_warnings,
-                                     read_bag, recording_facts)
+                                     input_lines, input_options, input_warnings)
+from strapdown_ros.runs.boresight import calibrate_boresight
+from strapdown_ros.runs.source import RecordingSource
 
 __all__ = ['main']
 
@@ -67,12 +66,12 @@ def _band_text(result: dict) -> str:
     return f" ({verdict}: band [{band[0]:.3g}, {band[1]:.3g}] at level {result['chi2_level']:g})"
 
 
-def _summary(bag: str, data: dict, result: dict) -> str:
-    g, c = data['gyro'], data['camera']
-    cov_from = ('covariance from the bag' if data['camera_covariance_from_bag']
+def _summary(bag: str, result: dict) -> str:
+    n, topics = result['messages'], result['topics']
+    cov_from = ('covariance from the bag' if result['camera_covariance_from_bag']
                 else 'assumed camera σ')
-    lines = [f"calibrate_bag: {bag}: {len(g.stamps)} Δθ from {data['gyro_topic']}, "
-             f"{len(c.stamps)} camera fixes from {data['camera_topic']} ({cov_from})"]
+    lines = [f"calibrate_bag: {bag}: {n['gyro']} Δθ from {topics['gyro']}, "
+             f"{n['camera']} camera fixes from {topics['camera']} ({cov_from})"]
     drops = {f'{k} {n}': v for k, d in result['dropped'].items() for n, v in d.items() if v}
     lines.append('  dropped: ' + (', '.join(f'{k} {v}' for k,
                                             v in drops.items()) if drops else 'none'))
@@ -201,15 +200,13 @@ def main(argv=None) -> int:
                       [('bag', args.bag), ('--params', args.params)], args.force)
         for w in mf.warnings:
             print(f'calibrate_bag: warning: {w}', file=sys.stderr)
-        model = mf.model
-        data = read_bag(args.bag, args.namespace, settings.use_camera_covariance,
-                        tuple(model.camera_sigma), model.gyro_max_rate,
-                        settings.max_stamp_jump, settings.resync_count, **input_options(args))
-        model = check_against_recording(model, recording_facts(data))
+        run = calibrate_boresight(RecordingSource(args.bag, args.namespace,
+                                                  **input_options(args)), mf.model, settings)
     except (ValueError, OSError, BagError) as exc:
         print(f'calibrate_bag: error: {exc}', file=sys.stderr)
         return 2
-    for line in input_warnings('calibrate_bag', data):
+    model, result = run.model, run.record
+    for line in input_warnings('calibrate_bag', result['input']):
         print(line, file=sys.stderr)
     for line in filled_in(mf.model, model):
         print(f'calibrate_bag: note: {line}', file=sys.stderr)
@@ -217,44 +214,12 @@ def main(argv=None) -> int:
     if note:
         print(f'calibrate_bag: note: {note}', file=sys.stderr)
     for kind, want in (('gyro', model.frame_id), ('camera', model.reference_frame_id)):
-        other = [f for f in data['frames'][kind] if f != want]
+        other = [f for f in run.frames[kind] if f != want]
         if other:
             print(f'calibrate_bag: warning: {kind} messages in frame '
                   f"{', '.join(map(repr, other))}, "
                   f'parameters expect {want!r}', file=sys.stderr)
-
-    g, c = data['gyro'], data['camera']
-    if not g.stamps or not c.stamps:
-        print(f"calibrate_bag: error: no usable {'gyro' if not g.stamps else 'camera'} messages",
-              file=sys.stderr)
-        return 2
-    sol, cal, discarded = calibrate_recording(data, model, settings)
-    result = solution_record(sol, settings.weighted)
-    result['covariance_model'] = settings.covariance_model
-    result['dropped'] = {'gyro': dict(g.dropped),
-                         'camera': {**c.dropped,
-                                    'zero_quaternion': data['camera_fixes']['zero_quaternion'],
-                                    'bad_covariance': data['camera_fixes']['bad_covariance']}}
-    result['gyro_gaps'] = {'gaps': g.check.gaps, 'missing': g.missing,
-                           'pairs_discarded': discarded,
-                           'dropouts': g.check.dropouts, 'stamp_bursts': g.check.bursts}
-    result['stamp_resyncs'] = {'gyro': g.resyncs, 'camera': c.resyncs}
-    result['pairs_replayed_not_added'] = cal.replayed_pairs         # stamps of a pair already held
-    period = data['gyro_period_s']
-    result['gyro_rate_from_stamps_hz'] = float(1.0 / period) if np.isfinite(period) else None
-    result['camera_fixes'] = {k: data['camera_fixes'][k] for k in ('normalised',
-                                                                   'covariance_substituted')}
-    result['camera_fixes']['outliers_dropped'] = cal.outlier_fixes
-    origin_s = min(g.stamps[0], c.stamps[0]) * 1e-9          # calibrate_recording's time origin
-    result['camera_fixes']['outlier_stamps_s'] = [float(t) + origin_s for t in cal.outlier_stamps]
-    result['messages'] = {'gyro': len(g.stamps), 'camera': len(c.stamps)}
-    result['topics'] = {'gyro': data['gyro_topic'], 'camera': data['camera_topic']}
-    result['camera_covariance_from_bag'] = data['camera_covariance_from_bag']
-    result['input'] = input_summary(data)
-    result['unread_messages'] = dict(data['unread_messages'])
-    if data['rate_samples']:
-        result['dropped']['gyro_rate_samples'] = dict(data['rate_samples']['dropped'])
-    print(_summary(args.bag, data, result))
+    print(_summary(args.bag, result))
     print('\n'.join(input_lines(result['input'])))
     warning = consistency_warning(result) if result['observable'] else None
     if warning:
@@ -266,17 +231,17 @@ def main(argv=None) -> int:
             print(f'calibrate_bag: error: {exc}', file=sys.stderr)
             return 2
     if not result['observable']:
-        if sol.pairs >= 2:
+        if result['pairs'] >= 2:
             advice = ('Record rotations about at least two non-parallel axes between camera '
                       'exposures.')
         else:
             advice = 'Needs two camera fixes whose interval the gyro data covers without a gap.'
-        print(f'calibrate_bag: boresight NOT observable from this bag: {sol.message}; '
+        print(f"calibrate_bag: boresight NOT observable from this bag: {result['message']}; "
               'unobservable: '
               f"{'; '.join(result['unobservable_axes'])}.  {advice}", file=sys.stderr)
         return 3
     if not result['converged']:
-        print(f'calibrate_bag: warning: {sol.message}', file=sys.stderr)
+        print(f"calibrate_bag: warning: {result['message']}", file=sys.stderr)
         return 4
     return 0
 

@@ -22,13 +22,12 @@ import numpy as np
 
 from strapdown_ros.cli import check_outputs, FILE, OneLineParser, write_text
 from strapdown_ros.estimation.filter_system import FilterSettings
-from strapdown_ros.params import (check_against_recording, filled_in, load_model_file,
-                                  not_applied_note, parse_overrides)
-from strapdown_ros.recording.filter_replay import run_filter
+from strapdown_ros.params import filled_in, load_model_file, not_applied_note, parse_overrides
 from strapdown_ros.recording.options import (add_input_arguments, check_input_arguments,
-                                             input_options, input_warnings,
-                                             recording_facts)
-from strapdown_ros.recording.reader import BagError, read_bag
+                                             input_options, input_warnings)
+from strapdown_ros.recording.reader import BagError
+from strapdown_ros.runs.filter import run_filter_on
+from strapdown_ros.runs.source import RecordingSource
 
 NODE_NAME = 'attitude_filter_node'
 
@@ -134,34 +133,31 @@ def main(argv=None) -> int:
         for w in mf.warnings:
             print(f'filter_bag: warning: {w}', file=sys.stderr)
         settings = FilterSettings.from_values(mf.settings)
-        model = mf.model
-        data = read_bag(args.bag, args.namespace, settings.use_camera_covariance,
-                        tuple(model.camera_sigma), model.gyro_max_rate,
-                        settings.max_stamp_jump, settings.resync_count, **input_options(args))
-        model = check_against_recording(model, recording_facts(data))
+        run = run_filter_on(RecordingSource(args.bag, args.namespace, **input_options(args)),
+                            mf.model, settings)
     except (ValueError, BagError) as exc:
         print(f'filter_bag: error: {str(exc).splitlines()[0]}', file=sys.stderr)
         return 2
-    for line in input_warnings('filter_bag', data):
+    model = run.model
+    for line in input_warnings('filter_bag', run.read):
         print(line, file=sys.stderr)
     for line in filled_in(mf.model, model):
         print(f'filter_bag: note: {line}', file=sys.stderr)
     note = not_applied_note(model, ('gyro', 'reference', 'filter'), 'filter_bag')
     if note:
         print(f'filter_bag: note: {note}', file=sys.stderr)
-    system = run_filter(data, model, settings)
-    outputs, fixes = system.take()
+    outputs, fixes = run.outputs, run.fixes
     try:
-        write_text(out, state_rows(outputs, system.augment))
+        write_text(out, state_rows(outputs, run.augment))
         write_text(fixes_path, fix_rows(fixes))
     except OSError as exc:
         print(f'filter_bag: error: {exc}', file=sys.stderr)
         return 2
-    st = system.status()
+    st = run.status
     print(f"filter_bag: {len(outputs)} outputs, {st['applied']} fixes applied, {st['gated']} "
           f"gated, {st['restarts']} restarts; {out}, {fixes_path}")
-    if system.check is not None:
-        print(f'filter_bag: {system.check.last.text()}')
+    if run.check_text is not None:
+        print(f'filter_bag: {run.check_text}')
     return 0
 
 

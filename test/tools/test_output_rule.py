@@ -16,6 +16,7 @@ import pytest
 
 from strapdown_ros.cli import write_figure
 from strapdown_ros.files import commit_directory, discard_directory, stage_directory
+from strapdown_ros.runs import sins as sins_run
 from strapdown_ros.tools import record_sim, sins_bag
 
 
@@ -226,11 +227,11 @@ def test_sins_bag_interrupted_keeps_the_old_output_bag(files, tmp_path, monkeypa
     out = tmp_path / 'out'
     assert sins_bag.main([str(files['bag']), '--output', str(out), '--quiet']) == 0
     before = _snapshot(out)
-    real = sins_bag.run
+    real = sins_run.run                         # the replay sins_bag's library call runs
 
     def interrupted(inp, make_system, sink, *a, **k):
         real(inp, make_system, sink, *a, **k)
         raise KeyboardInterrupt
-    monkeypatch.setattr(sins_bag, 'run', interrupted)
+    monkeypatch.setattr(sins_run, 'run', interrupted)
     assert sins_bag.main([str(files['bag']), '--output', str(out), '--force', '--quiet']) == 130
     assert _snapshot(out) == before and sorted(os.listdir(tmp_path)) == ['out']
