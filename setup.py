@@ -32,6 +32,9 @@ setup(
         # the compiled block kernel of the attitude core and the navigation loops (optional:
         # without numba the vectorised numpy path runs, tested against it; sins_bench prints both)
         'fast': ['numba'],
+        # fleet: the per-recording analyses as Dask distributed tasks (a LocalCluster or a
+        # scheduler address) and the effects table as Parquet
+        'fleet': ['dask[distributed]', 'pyarrow'],
         # the ROS 2 linters as demo_nodes_py runs them (ament_flake8 with the plugins its
         # ROS package depends on, ament_pep257)
         'test': ['pytest', 'pytest-timeout', 'hypothesis', 'colcon-core', 'colcon-ros',
@@ -75,6 +78,7 @@ setup(
             'realdata_report = strapdown_ros.tools.realdata_report:main',
             'realdata_bag = strapdown_ros.tools.realdata_bag:main',
             'filter_bench = strapdown_ros.bench.filter_bench:main',
+            'fleet = strapdown_ros.tools.fleet:main',
         ],
     },
 )

@@ -17,8 +17,8 @@ from pathlib import Path
 import shutil
 import tempfile
 
-__all__ = ['atomic_write_text', 'atomic_savefig', 'stage_directory', 'commit_directory',
-           'discard_directory', 'probe_writable']
+__all__ = ['atomic_write_text', 'atomic_write_bytes', 'atomic_savefig', 'stage_directory',
+           'commit_directory', 'discard_directory', 'probe_writable']
 
 
 def _directory(path) -> Path:
@@ -68,11 +68,27 @@ def atomic_write_text(path, text: str) -> None:
         The write failed; the message names ``path`` and the target is unchanged.
 
     """
+    data = text if isinstance(text, bytes) else text.encode('utf-8')
     with _replacing(path, '.tmp') as (fd, _):
-        with os.fdopen(fd, 'w', encoding='utf-8') as fh:
-            fh.write(text)
+        with os.fdopen(fd, 'wb') as fh:
+            fh.write(data)
             fh.flush()
             os.fsync(fh.fileno())
+
+
+def atomic_write_bytes(path, data: bytes) -> None:
+    """
+    Write ``data`` to ``path`` atomically, as :func:`atomic_write_text` writes text.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The target file; its directory must exist.
+    data : bytes
+        The whole content (a Parquet table, ...).
+
+    """
+    atomic_write_text(path, data)
 
 
 def atomic_savefig(fig, path, **kwargs) -> None:

@@ -27,7 +27,7 @@ NO_OUTPUT = {'imu_sim_node', 'sins_node', 'strapdown_demo', 'star_camera_sim_nod
              'calibrator_node', 'attitude_filter_node'}
 
 #: script -> argv with an EXISTING output (and no --force); {bag}, {model}, {old}, {trial},
-#: {data}, {plots} are filled in by the test
+#: {data}, {plots}, {manifest} are filled in by the test
 EXISTING = {
     'calibrate_bag': ['{bag}', '--json', '{old}'],
     'calibrate_gyro_bag': ['{bag}', '--method', 'integral', '--json', '{old}'],
@@ -47,6 +47,7 @@ EXISTING = {
     'discrepancy_bench': ['--plots', '{plots}'],
     'filter_bench': ['--json', '{old}'],
     'filter_bag': ['{bag}', '--output', '{old}'],
+    'fleet': ['{manifest}', '--out', '{plots}'],
 }
 
 #: script -> argv whose output is one of its inputs
@@ -61,6 +62,7 @@ AS_INPUT = {
     'realdata_bag': ['{trial}', '{trial}'],
     'realdata_report': ['--data', '{data}', '--out', '{data}'],
     'filter_bag': ['{bag}', '--output', '{bag}/metadata.yaml'],
+    'fleet': ['{manifest}', '--out', '{bag}', '--force'],
 }
 
 
@@ -101,8 +103,10 @@ def files(tmp_path_factory):
         (plots / name).write_text('old')
     old = d / 'old.json'
     old.write_text('{"kept": true}\n')
+    manifest = d / 'manifest.csv'
+    manifest.write_text('unit,recording,start_time,model\nu1,bag,2024-05-01T00:00:00Z,m.yaml\n')
     return {'bag': bag, 'model': model, 'old': old, 'trial': trial, 'data': data,
-            'plots': plots}
+            'plots': plots, 'manifest': manifest}
 
 
 def _snapshot(root: Path) -> dict:
