@@ -202,6 +202,8 @@ def main(argv=None) -> int:
             print(f'calibrate_bag: warning: {w}', file=sys.stderr)
         run = calibrate_boresight(RecordingSource(args.bag, args.namespace,
                                                   **input_options(args)), mf.model, settings)
+    except np.linalg.LinAlgError:                     # numerical, never reported as bad input
+        raise
     except (ValueError, OSError, BagError) as exc:
         print(f'calibrate_bag: error: {exc}', file=sys.stderr)
         return 2

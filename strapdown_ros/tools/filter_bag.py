@@ -135,6 +135,8 @@ def main(argv=None) -> int:
         settings = FilterSettings.from_values(mf.settings)
         run = run_filter_on(RecordingSource(args.bag, args.namespace, **input_options(args)),
                             mf.model, settings)
+    except np.linalg.LinAlgError:                     # numerical, never reported as bad input
+        raise
     except (ValueError, BagError) as exc:
         print(f'filter_bag: error: {str(exc).splitlines()[0]}', file=sys.stderr)
         return 2

@@ -59,6 +59,8 @@ import argparse
 from pathlib import Path
 import sys
 
+import numpy as np
+
 from strapdown_ros.cli import check_outputs, REPLACED
 from strapdown_ros.params import load_model_file, parse_overrides
 from strapdown_ros.recording import BagError
@@ -209,6 +211,8 @@ def main(argv=None) -> int:
                        imu_output=not csv_out)
     except SinkError as exc:                           # the writer's own refusal
         return err(f'cannot write {args.output}: {exc}')
+    except np.linalg.LinAlgError:                      # numerical, never reported as bad input
+        raise
     except (ValueError, OSError, BagError) as exc:
         return err(str(exc))
     except (KeyboardInterrupt, BrokenPipeError):
