@@ -32,7 +32,8 @@ from strapdown_ros.calibration.streaming import CalibratorSettings
 from strapdown_ros.discrepancy.bag_input import recording_from_data
 from strapdown_ros.discrepancy.workflow import DiscrepancySettings
 from strapdown_ros.params import load_model_file
-from strapdown_ros.recording import open_reader
+from strapdown_ros.recording import (CAMERA_COV_TOPIC, CAMERA_TOPIC, GYRO_TOPIC, open_reader,
+                                     resolve_topic)
 from strapdown_ros.runs.boresight import boresight_of_data
 from strapdown_ros.runs.discrepancy import discrepancy_of_recording
 from strapdown_ros.runs.gyro import gyro_of_recording, GyroOptions
@@ -44,8 +45,8 @@ from strapdown_ros.text import bounded
 __all__ = ['FleetOptions', 'analyse_recording', 'memory_estimate', 'effect_rows',
            'BYTES_PER_MESSAGE', 'BASE_BYTES', 'GYRO_EFFECTS', 'VERDICTS']
 
-#: measured peak memory of a task per message read (gyro and reference), bytes, with margin
-#: (doc/fleet.md: the task's peak RSS against the messages of the recording)
+#: peak memory of a task per message read (gyro and reference), bytes: about twice the growth
+#: fleet_bench measures (doc/fleet.md)
 BYTES_PER_MESSAGE = 2000
 #: the worker's own memory before a task (Python, numpy, scipy, rosbags, the package), bytes
 BASE_BYTES = 350 * 2 ** 20
@@ -91,28 +92,48 @@ class FleetOptions:
         return json.dumps(d, sort_keys=True, default=str)
 
 
-def memory_estimate(path: str) -> tuple[int, int]:
+def memory_estimate(path: str, inputs: dict | None = None) -> tuple[int, int]:
     """
     Estimate a task's peak memory from the recording's own index, before reading it.
+
+    Only the topics the task reads count: the gyro topic and the reference topic (the larger of
+    the candidates when the reader will choose), as the reader resolves them; a recording whose
+    topics do not resolve counts every message (the reader then refuses it anyway).
 
     Parameters
     ----------
     path : str
         The bag.
+    inputs : dict, optional
+        The input options (``namespace``, ``gyro_topic``, ``reference_topic``).
 
     Returns
     -------
     messages : int
-        Messages in the bag's index (every topic: a bound on what is read).
+        Messages of the topics read, from the bag's index.
     bytes : int
         :data:`BASE_BYTES` + :data:`BYTES_PER_MESSAGE` × messages.
 
     """
+    inputs = inputs or {}
+    ns = inputs.get('namespace') or ''
     reader = open_reader(path)
     try:
-        n = sum(int(getattr(c, 'msgcount', 0) or 0) for c in reader.connections)
+        counts: dict = {}
+        for c in reader.connections:
+            counts[c.topic] = counts.get(c.topic, 0) + int(getattr(c, 'msgcount', 0) or 0)
     finally:
         reader.close()
+
+    def find(name):
+        if name and name.startswith('/'):
+            return next((t for t in counts if t.strip('/') == name.strip('/')), None)
+        return resolve_topic(counts, name, ns) if name else None
+    gyro = find(inputs.get('gyro_topic') or GYRO_TOPIC)
+    refs = [find(inputs.get('reference_topic'))] if inputs.get('reference_topic') else \
+        [find(CAMERA_COV_TOPIC), find(CAMERA_TOPIC), find('tf')]
+    refs = [counts[r] for r in refs if r]
+    n = counts[gyro] + max(refs) if gyro and refs else sum(counts.values())
     return n, BASE_BYTES + BYTES_PER_MESSAGE * n
 
 
@@ -246,7 +267,7 @@ def analyse_recording(entry, options: FleetOptions | None = None) -> dict:
             disc_settings = DiscrepancySettings.from_values(
                 {**mf.settings, 'alpha': options.alpha, 'candidates': options.candidates})
             stage = 'size'
-            n, need = memory_estimate(entry.path)
+            n, need = memory_estimate(entry.path, options.inputs)
             out['memory'] = {'estimate_bytes': need, 'index_messages': n,
                              'budget_bytes': int(options.memory_mib * 2 ** 20)}
             if need > options.memory_mib * 2 ** 20:

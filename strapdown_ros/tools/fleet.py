@@ -20,7 +20,7 @@ LocalCluster of ``--workers`` processes (one thread each) or on the scheduler at
 the same paths).  Memory per task is bounded: each worker runs one task at a time under
 ``--memory-limit`` MiB (default 2048; Dask restarts a worker beyond 95 % of it and the recording
 becomes an error row), and a recording whose estimated peak (from its bag index: 350 MiB +
-2000 B per message) exceeds the limit is refused before it is read.
+2000 B per gyro and reference message) exceeds the limit is refused before it is read.
 
 Results are cached in DIR/cache by content hash (the bag's bytes, the model file, the options):
 a rerun analyses only what is new or changed.  A recording that fails is one error row with its

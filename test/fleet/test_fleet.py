@@ -212,3 +212,17 @@ def test_a_corrupt_recording_is_one_error_row(main_run, simulated, capsys):
     # the same bytes fail the same way: cached too, a rerun analyses nothing
     assert fleet.main([str(m2), '--out', str(out), '--quiet']) == 0
     assert '0 analysed, 9 from the cache' in capsys.readouterr().out
+
+
+def test_memory_per_task_is_bounded_before_the_recording_is_read(simulated):
+    """The estimate counts the topics read (not the truth topics); beyond the budget: refused."""
+    from strapdown_ros.fleet.analysis import (analyse_recording, BASE_BYTES, BYTES_PER_MESSAGE,
+                                              FleetOptions, memory_estimate)
+    from strapdown_ros.fleet.manifest import read_manifest
+    entry = read_manifest(simulated[1])[0][0]
+    n, need = memory_estimate(entry.path)
+    assert n == 170 * 20 + 85                       # Δθ at 20 Hz for 170 s + a fix every 2 s
+    assert need == BASE_BYTES + BYTES_PER_MESSAGE * n
+    r = analyse_recording(entry, FleetOptions(memory_mib=64))
+    assert r['status'] == 'error' and r['stage'] == 'size' and 'MemoryError' in r['reason']
+    assert 'messages' not in r                       # refused before it was read
