@@ -79,6 +79,7 @@ setup(
             'realdata_bag = strapdown_ros.tools.realdata_bag:main',
             'filter_bench = strapdown_ros.bench.filter_bench:main',
             'fleet = strapdown_ros.tools.fleet:main',
+            'fleet_bench = strapdown_ros.bench.fleet_bench:main',
         ],
     },
 )

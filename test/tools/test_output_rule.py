@@ -48,6 +48,7 @@ EXISTING = {
     'filter_bench': ['--json', '{old}'],
     'filter_bag': ['{bag}', '--output', '{old}'],
     'fleet': ['{manifest}', '--out', '{plots}'],
+    'fleet_bench': ['--json', '{old}'],
 }
 
 #: script -> argv whose output is one of its inputs
