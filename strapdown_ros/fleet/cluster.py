@@ -18,7 +18,6 @@ from __future__ import annotations
 
 from contextlib import contextmanager
 import logging
-import time
 
 from strapdown_ros.text import bounded
 
@@ -160,21 +159,3 @@ def worker_memory(client) -> dict:
 def _maxrss() -> int:
     import resource                                         # POSIX only
     return int(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss) * 1024
-
-
-def elapsed(t0: float) -> str:
-    """
-    Return the time since ``t0`` as ``[ 12.3 s]``.
-
-    Parameters
-    ----------
-    t0 : float
-        A ``time.perf_counter()`` value.
-
-    Returns
-    -------
-    str
-        The bracketed seconds.
-
-    """
-    return f'[{time.perf_counter() - t0:6.1f} s]'

@@ -77,7 +77,8 @@ def parse_time(text: str) -> datetime:
     Parameters
     ----------
     text : str
-        E.g. ``2024-05-01T12:00:00Z``, ``20240501T120000Z``, ``2024-05-01T12-00-00+02:00``.
+        E.g. ``2024-05-01T12:00:00Z``, ``20240501T120000Z``, ``2024-05-01T12-00-00+02:00``,
+        ``2024-05-01`` (midnight UTC).
 
     Returns
     -------
@@ -91,6 +92,8 @@ def parse_time(text: str) -> datetime:
 
     """
     s = text.strip()
+    if re.fullmatch(r'\d{4}-\d{2}-\d{2}', s):
+        s += 'T00:00:00Z'                            # a date alone: its midnight, UTC
     m = re.fullmatch(r'(\d{4})-?(\d{2})-?(\d{2})[T ](\d{2})[-:]?(\d{2})(?:[-:]?(\d{2})(\.\d+)?)?'
                      r'(Z|[+-]\d{2}(?::?\d{2})?)?', s)
     if not m:

@@ -387,10 +387,10 @@ def _summary(entries, results, changes, tests, pop, analysed_now, run_info) -> s
               for v in VERDICTS}
     lines = ['# Fleet report', '']
     if n:
-        first = min(e.start_time for e in entries)
-        last = max(e.start_time for e in entries)
-        lines.append(f'{len(units)} unit(s), {n} recording(s), from {first.isoformat()} to '
-                     f'{last.isoformat()}.  This run analysed {len(analysed_now)} recording(s) '
+        first = min(entries, key=lambda e: e.start_time).start_iso
+        last = max(entries, key=lambda e: e.start_time).start_iso
+        lines.append(f'{len(units)} unit(s), {n} recording(s), from {first} to '
+                     f'{last}.  This run analysed {len(analysed_now)} recording(s) '
                      f'(new or changed) and took {n - len(analysed_now)} from the cache; '
                      f'{len(errors)} recording(s) failed.')
     else:

@@ -122,7 +122,6 @@ def run_fleet(manifest, out_dir, scheduler: str | None = None, workers: int = 2,
     opts = FleetOptions(opts.inputs, opts.alpha, opts.candidates, opts.gyro, float(memory_mib))
     entries, skipped = read_manifest(manifest)
     out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
     cache = ResultCache(out)
     results, keys, todo, hits = {}, {}, [], 0
     key_text = opts.key()
@@ -164,9 +163,11 @@ def run_fleet(manifest, out_dir, scheduler: str | None = None, workers: int = 2,
             say(f'[{el:6.1f} s] {k}/{n} {bounded(e.unit, 40)} {bounded(e.recording, 60)}: '
                 f'{bounded(state, 160)}; ETA {eta:.0f} s')
         with dask_client(scheduler, workers, memory_mib) as client:
+            out.mkdir(parents=True, exist_ok=True)        # once the cluster answers
             map_tasks(client, analyse_recording, [(e, opts) for e in todo], done,
                       keys=[f'fleet-{keys[e.path][:16]}-{i}' for i, e in enumerate(todo)])
         wall = time.perf_counter() - t0
+    out.mkdir(parents=True, exist_ok=True)
     rows = effect_table(entries, results)
     changes, tests = detect_changes(rows, level)
     pop = population(latest_rows(rows), tests['repeatability'])

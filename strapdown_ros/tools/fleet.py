@@ -149,8 +149,8 @@ def main(argv=None) -> int:
         run = run_fleet(args.manifest, args.out, args.scheduler, args.workers, args.memory_limit,
                         options, args.level, say)
     except (ValueError, OSError) as exc:
-        print(f'{PROG}: error: {str(exc).splitlines()[0] if str(exc) else exc!r}',
-              file=sys.stderr)
+        text = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+        print(f'{PROG}: error: {text}', file=sys.stderr)
         return 2
     verdicts = ', '.join(f'{n} {v}' for v, n in sorted(run.verdicts.items()))
     print(f'{PROG}: {run.recordings} recording(s): {run.analysed} analysed, {run.cached} from '

@@ -226,3 +226,15 @@ def test_memory_per_task_is_bounded_before_the_recording_is_read(simulated):
     r = analyse_recording(entry, FleetOptions(memory_mib=64))
     assert r['status'] == 'error' and r['stage'] == 'size' and 'MemoryError' in r['reason']
     assert 'messages' not in r                       # refused before it was read
+
+
+def test_no_scheduler_at_the_address_is_one_line_and_writes_nothing(simulated, tmp_path,
+                                                                    monkeypatch, capsys):
+    from strapdown_ros.fleet import cluster
+    monkeypatch.setattr(cluster, 'CONNECT_TIMEOUT_S', 2)
+    out = tmp_path / 'out'
+    assert fleet.main([str(simulated[1]), '--out', str(out), '--scheduler',
+                       'tcp://127.0.0.1:9', '--quiet']) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith('fleet: error: cannot reach the Dask scheduler')
+    assert not out.exists()

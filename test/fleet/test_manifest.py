@@ -14,6 +14,7 @@ def test_iso_times_in_every_accepted_form():
                  '2024-05-01T12:30:05', '2024-05-01T14:30:05+02:00'):
         assert parse_time(text) == want, text
     assert parse_time('2024-05-01T12:30:05.25Z') == want + timedelta(microseconds=250000)
+    assert parse_time('2024-05-01') == datetime(2024, 5, 1, tzinfo=timezone.utc)
     with pytest.raises(ValueError, match='ISO 8601'):
         parse_time('1 May 2024')
 
