@@ -28,6 +28,7 @@ Exit 0; 2 for bad arguments.
 """
 from __future__ import annotations
 
+import importlib
 import math
 import os
 from pathlib import Path
@@ -94,7 +95,6 @@ def _noop(k: int) -> int:
 
 def _warm() -> None:
     """Import what a task imports (the first task of a worker would pay for it)."""
-    import importlib
     for name in ('scipy.linalg', 'scipy.stats', 'scipy.optimize', 'rosbags.highlevel',
                  'strapdown_ros.fleet.analysis'):
         importlib.import_module(name)
