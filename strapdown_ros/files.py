@@ -36,7 +36,7 @@ import shutil
 import tempfile
 import time
 
-__all__ = ['atomic_write_text', 'atomic_savefig', 'stage_directory', 'commit_directory',
+__all__ = ['atomic_write_text', 'atomic_write_bytes', 'atomic_savefig', 'stage_directory', 'commit_directory',
            'discard_directory', 'probe_writable', 'all_or_nothing', 'remove_stale',
            'temporary_prefix', 'file_mode', 'name_error', 'lock_file', 'STALE_AGE_S']
 
@@ -203,9 +203,29 @@ def atomic_write_text(path, text: str) -> None:
         The write failed; the message names ``path`` and the target is unchanged.
 
     """
+    atomic_write_bytes(path, text if isinstance(text, bytes) else text.encode('utf-8'))
+
+
+def atomic_write_bytes(path, data: bytes) -> None:
+    """
+    Write ``data`` to ``path`` atomically, as :func:`atomic_write_text` writes text.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The target file; its directory must exist.
+    data : bytes
+        The whole content (a Parquet table, ...).
+
+    Raises
+    ------
+    OSError
+        The write failed; the message names ``path`` and the target is unchanged.
+
+    """
     with _replacing(path, '.tmp') as (fd, _):
-        with os.fdopen(fd, 'w', encoding='utf-8') as fh:
-            fh.write(text)
+        with os.fdopen(fd, 'wb') as fh:
+            fh.write(data)
             fh.flush()
             os.fsync(fh.fileno())
 

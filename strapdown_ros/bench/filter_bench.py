@@ -5,7 +5,8 @@ The command ``filter_bench``: ``AttitudeFilter`` (MEKF) against exact truth, its
 Cramér–Rao bound, its consistency, its cost, and one real recording.  The runs are in
 ``filter_bench_runs``, the text and plots in ``filter_bench_report``.
 
-* **Monte Carlo** (``--runs``, default 100; ``--fixes`` per run): slow constant rotation, the
+* **Monte Carlo** (``--runs``, default 100; ``--fixes`` per run; in this process, or as Dask
+  tasks with ``--workers N`` or ``--scheduler ADDRESS``): slow constant rotation, the
   gyro's exact increments plus angle random walk and a bias random walk sampled from their exact
   joint law, a camera fix every ``--fix-interval`` s with known covariance R, initial errors drawn
   from the prior (the simulation of ``test/estimation/test_attitude_filter.py``).
@@ -88,6 +89,10 @@ def main(argv=None) -> int:
         '(documented run: doc/results/filter_bench/filter_bench.md)')
     arg('--plots', help='write the PNG plots into this directory '
         '(documented run: doc/results/filter_bench)')
+    arg('--workers', type=int, default=1,
+        help='Dask LocalCluster workers for the Monte Carlo runs (default 1: in this process)')
+    arg('--scheduler', metavar='ADDRESS',
+        help='run the Monte Carlo runs on a running Dask scheduler, e.g. tcp://host:8786')
     arg('--force', action='store_true', help='replace existing outputs')
     arg('--quiet', action='store_true', help='no progress on stderr')
     a = ap.parse_args(argv)
@@ -107,6 +112,8 @@ def main(argv=None) -> int:
             ap.error(f"--{name.replace('_', '-')} must be >= 0, got {v:g}")
     if not 1 <= a.timing_runs <= 100:
         ap.error('--timing-runs must be in [1, 100]')
+    if not 1 <= a.workers <= 256:
+        ap.error('--workers must be in [1, 256]')
     try:
         blocks = [int(b) for b in a.blocks.split(',') if b.strip()]
     except ValueError:
@@ -132,7 +139,11 @@ def main(argv=None) -> int:
                                                       'camera_sigma', 'prior_attitude',
                                                       'prior_bias', 'seed', 'timing_seconds',
                                                       'timing_runs')}}
-    mc = monte_carlo(a, progress)
+    try:
+        mc = monte_carlo(a, progress, a.scheduler, a.workers)
+    except OSError as exc:                            # no scheduler at the address
+        print(f'filter_bench: error: {exc}', file=sys.stderr)
+        return 2
     res['summary'] = summarize(mc, a.runs)
     if a.timing_seconds > 0:
         progress('timing')

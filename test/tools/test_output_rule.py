@@ -30,7 +30,7 @@ NO_OUTPUT = {'imu_sim_node', 'sins_node', 'strapdown_demo', 'star_camera_sim_nod
              'calibrator_node', 'attitude_filter_node'}
 
 #: script -> argv with an EXISTING output (and no --force); {bag}, {model}, {old}, {trial},
-#: {data}, {plots} are filled in by the test
+#: {data}, {plots}, {manifest} are filled in by the test
 EXISTING = {
     'calibrate_bag': ['{bag}', '--json', '{old}'],
     'calibrate_gyro_bag': ['{bag}', '--method', 'integral', '--json', '{old}'],
@@ -55,6 +55,8 @@ EXISTING = {
     'reference_rate_bench': ['--json', '{old}'],
     'hostile_bench': ['--json', '{old}'],
     'nominal_model': ['{bag}', '--output', '{old}'],
+    'fleet': ['{manifest}', '--out', '{plots}'],
+    'fleet_bench': ['--json', '{old}'],
 }
 
 #: script -> argv whose output is one of its inputs
@@ -70,6 +72,7 @@ AS_INPUT = {
     'gaitmap_bag': ['{data}', '{data}', '--force'],
     'realdata_report': ['--data', '{data}', '--out', '{data}'],
     'filter_bag': ['{bag}', '--output', '{bag}/metadata.yaml'],
+    'fleet': ['{manifest}', '--out', '{bag}', '--force'],
 }
 
 
@@ -110,8 +113,10 @@ def files(tmp_path_factory):
         (plots / name).write_text('old')
     old = d / 'old.json'
     old.write_text('{"kept": true}\n')
+    manifest = d / 'manifest.csv'
+    manifest.write_text('unit,recording,start_time,model\nu1,bag,2024-05-01T00:00:00Z,m.yaml\n')
     return {'bag': bag, 'model': model, 'old': old, 'trial': trial, 'data': data,
-            'plots': plots}
+            'plots': plots, 'manifest': manifest}
 
 
 def _snapshot(root: Path) -> dict:
@@ -251,7 +256,7 @@ def test_sins_bag_interrupted_keeps_the_old_output_bag(files, tmp_path, monkeypa
     out = tmp_path / 'out'
     assert sins_bag.main([str(files['bag']), '--output', str(out), '--quiet']) == 0
     before = _snapshot(out)
-    real = sins_bag.run
+    real = sins_run.run                         # the replay sins_bag's library call runs
 
     def interrupted(inp, make_system, sink, *a, **k):
         real(inp, make_system, sink, *a, **k)
