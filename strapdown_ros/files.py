@@ -36,9 +36,10 @@ import shutil
 import tempfile
 import time
 
-__all__ = ['atomic_write_text', 'atomic_write_bytes', 'atomic_savefig', 'stage_directory', 'commit_directory',
-           'discard_directory', 'probe_writable', 'all_or_nothing', 'remove_stale',
-           'temporary_prefix', 'file_mode', 'name_error', 'lock_file', 'STALE_AGE_S']
+__all__ = ['atomic_write_text', 'atomic_write_bytes', 'atomic_savefig', 'stage_directory',
+           'commit_directory', 'discard_directory', 'probe_writable', 'all_or_nothing',
+           'remove_stale', 'temporary_prefix', 'file_mode', 'name_error', 'lock_file',
+           'STALE_AGE_S']
 
 #: an unlocked temporary younger than this, s, may belong to a writer that has not locked it yet
 STALE_AGE_S = 2.0

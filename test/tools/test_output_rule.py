@@ -256,7 +256,7 @@ def test_sins_bag_interrupted_keeps_the_old_output_bag(files, tmp_path, monkeypa
     out = tmp_path / 'out'
     assert sins_bag.main([str(files['bag']), '--output', str(out), '--quiet']) == 0
     before = _snapshot(out)
-    real = sins_run.run                         # the replay sins_bag's library call runs
+    real = sins_bag.run                         # the replay sins_bag runs
 
     def interrupted(inp, make_system, sink, *a, **k):
         real(inp, make_system, sink, *a, **k)
