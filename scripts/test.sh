@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Run the test suite from the project venv (set up on first use).
 # Usage: scripts/test.sh [pytest args...]   e.g. scripts/test.sh -k coning -x
-# pytest's exit code is returned unchanged.
+# The exit code is pytest's (see the two parts below).
 set -euo pipefail
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 bash "$ROOT/scripts/setup_env.sh"
@@ -11,5 +11,24 @@ args=(-q)
 # default per-test timeout; a --timeout=N given by the caller takes precedence
 if "$PY" -c 'import pytest_timeout' >/dev/null 2>&1; then
     args+=(-o timeout=300)
+fi
+# The tests run in two parts.  Most run on every core (at most 4 workers), one file per worker
+# at a time (module fixtures are built once).  The ROS graph tests (test/ros and the load
+# bench's test) measure whether nodes keep up with their input, so they run after, alone on the
+# machine.  A -n N given by the caller applies to the first part; -n 0 runs it in one process.
+# The exit code is pytest's (the first part's if it failed, else the second's).
+if "$PY" -c 'import xdist' >/dev/null 2>&1; then
+    workers="$("$PY" -c 'import os; print(max(1, min(4, len(os.sched_getaffinity(0)))))')"
+    serial=(test/ros test/bench/test_load_bench.py)
+    rc=0
+    "$PY" -m pytest "${args[@]}" -n "$workers" --dist loadfile test \
+        --ignore=test/ros --ignore=test/bench/test_load_bench.py "$@" || rc=$?
+    rc2=0
+    "$PY" -m pytest "${args[@]}" "${serial[@]}" "$@" || rc2=$?
+    # 5: no test selected (a -k that matches only one part) is no failure of the other part
+    if [ "$rc" -eq 5 ] && [ "$rc2" -ne 5 ]; then rc=0; fi
+    if [ "$rc2" -eq 5 ] && [ "$rc" -ne 5 ]; then rc2=0; fi
+    if [ "$rc" -ne 0 ]; then exit "$rc"; fi
+    exit "$rc2"
 fi
 exec "$PY" -m pytest "${args[@]}" test "$@"

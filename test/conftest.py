@@ -1,14 +1,19 @@
 """
 Test-session isolation for ROS 2.
 
-Every pytest session gets its own ROS_DOMAIN_ID and keeps discovery on this machine
-(ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST) *before* anything imports rclpy, so parallel
-sessions (or another ROS graph on the machine) never see each other.
+Every pytest session, and each of its xdist workers (``pytest -n 2``), gets its own
+ROS_DOMAIN_ID and keeps discovery on this machine (ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST)
+*before* anything imports rclpy, so parallel sessions and workers (or another ROS graph on the
+machine) never see each other.
 """
 import os
 import sys
 
-_DOMAIN = str(1 + (os.getpid() % 100))          # 1..100, valid on Linux
+_WORKER = os.environ.get('PYTEST_XDIST_WORKER', '')   # gw0, gw1, ... under pytest -n N
+if _WORKER[2:].isdigit():                             # workers of one run: one domain each
+    _DOMAIN = str(1 + (os.getppid() % 12) * 8 + int(_WORKER[2:]) % 8)
+else:
+    _DOMAIN = str(1 + (os.getpid() % 100))            # 1..100, valid on Linux
 os.environ['ROS_DOMAIN_ID'] = _DOMAIN
 os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
 os.environ.pop('ROS_STATIC_PEERS', None)
