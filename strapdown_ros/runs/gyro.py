@@ -4,18 +4,22 @@ Calibrate the gyro (scale factors, misalignments, biases) on a recording: ``cali
 :func:`calibrate_gyro` reads the recording as ``discrepancy`` reads it, compensates the model's
 other effects and runs 002 (``integral``) or 000 (``tkachenko``) of
 :mod:`strapdown_ros.calibration.gyro`; it returns a :class:`GyroRun`: the JSON record the
-command writes (:func:`gyro_record`), the estimate and the model with the gyro errors found.
+command writes (:func:`gyro_record`), the estimate, the model with the gyro errors found and the
+notes on the input and the model (the command's warning and note lines, said as they arise).
 :func:`gyro_of_recording` does the same on a recording already read.  No printing.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
 from strapdown_ros.calibration import gyro as gc
-from strapdown_ros.discrepancy.bag_input import recording_from_data
-from strapdown_ros.runs.source import read_checked, RecordingSource
+from strapdown_ros.discrepancy.bag_input import load_recording
+from strapdown_ros.params import check_against_recording, filled_in, not_applied_note
+from strapdown_ros.recording import input_warnings
+from strapdown_ros.recording.options import frame_warnings
+from strapdown_ros.runs.source import RecordingSource
 from strapdown_ros.sensors.sensor_model import SensorModel
 from strapdown_ros.text import json_clean
 
@@ -88,9 +92,16 @@ class GyroRun:
         The model it ran with (checked against the recording).
     found_model : SensorModel or None
         ``model`` with ``gyro_scale_factor``, ``gyro_misalignment``, ``gyro_bias`` and their σ
-        keys replaced by the estimate; None when not observable.
+        keys replaced by the estimate; None when not observable, or when an estimate is beyond
+        the range of its key (``not_found`` says which).
     info : dict
         What reading found (drops, gaps, topics, the input record).
+    notes : tuple of str
+        The warnings and notes on the input and the model, each starting ``WARNING:``,
+        ``warning:`` or ``note:`` (:func:`calibrate_gyro`; empty from
+        :func:`gyro_of_recording`).
+    not_found : str or None
+        Why an observable estimate gave no ``found_model``.
 
     """
 
@@ -99,6 +110,8 @@ class GyroRun:
     model: SensorModel
     found_model: SensorModel | None
     info: dict
+    notes: tuple = field(default_factory=tuple)
+    not_found: str | None = None
 
     @property
     def observable(self) -> bool:
@@ -159,9 +172,16 @@ def gyro_record(cal, info: dict) -> dict:
 
 def calibrate_gyro(source: RecordingSource, model: SensorModel,
                    options: GyroOptions | None = None, settings: dict | None = None,
-                   progress=None) -> GyroRun:
+                   progress=None, say=None, who: str = 'calibrate_gyro_bag') -> GyroRun:
     """
     Read a recording and calibrate its gyro.
+
+    The recording is read with the nodes' input rules (refused when a stream has too little
+    usable), then the model is checked against it (a key it does not state is filled in from
+    the recording); the warnings on the input (an index that disagrees with what was read,
+    clipped increments, rate samples dropped, frames the model does not expect) and the notes
+    on the model (keys filled in, keys the gyro calibration does not apply) are said, then the
+    gyro is calibrated.
 
     Parameters
     ----------
@@ -175,6 +195,11 @@ def calibrate_gyro(source: RecordingSource, model: SensorModel,
         The stream rules (``max_stamp_jump``, ``resync_count``; defaults where absent).
     progress : callable, optional
         ``progress(text)`` between stages.
+    say : callable, optional
+        ``say(text)`` for each warning and note as it arises (also kept in
+        :attr:`GyroRun.notes`).
+    who : str
+        The consumer named in the note on model keys the calibration does not apply.
 
     Returns
     -------
@@ -191,12 +216,27 @@ def calibrate_gyro(source: RecordingSource, model: SensorModel,
     """
     options = options or GyroOptions()
     options.check()
-    settings = settings or {}
-    data, checked = read_checked(source, model, True,
-                                 float(settings.get('max_stamp_jump', 1.0)),
-                                 int(settings.get('resync_count', 5)))
-    rec, info = recording_from_data(data, source.path)
-    return gyro_of_recording(rec, info, checked, options, progress, source.path)
+    notes: list[str] = []
+
+    def note(text: str) -> None:
+        notes.append(text)
+        if say is not None:
+            say(text)
+
+    rec, info = load_recording(source.path, model, settings, source.namespace,
+                               **source.read_options())
+    checked = check_against_recording(model, info['facts'])
+    prefix = f'{who}: '
+    for line in input_warnings(who, info) + frame_warnings(who, info, model.frame_id,
+                                                           model.reference_frame_id):
+        note(line[len(prefix):] if line.startswith(prefix) else line)
+    for line in filled_in(model, checked):
+        note(f'note: {line}')
+    text = not_applied_note(checked, ('gyro', 'reference', 'filter'), who)
+    if text:
+        note(f'note: {text}')
+    run = gyro_of_recording(rec, info, checked, options, progress, source.path)
+    return replace(run, notes=tuple(notes))
 
 
 def gyro_of_recording(rec, info: dict, model: SensorModel, options: GyroOptions | None = None,
@@ -245,12 +285,12 @@ def gyro_of_recording(rec, info: dict, model: SensorModel, options: GyroOptions 
         cal = gc.calibrate_drifting_reference(
             prep, options.drift, options.sigma_limit,
             progress=lambda s: say(s.replace('tkachenko: ', '000: ')))
-    found = None
+    found = not_found = None
     if cal.observable:
         try:
             found = model.with_values(gc.model_parameters(cal),
                                       rule=f'estimated by calibrate_gyro_bag --method '
                                            f'{cal.method}')
-        except ValueError:                          # an estimate beyond a key's range
-            found = None
-    return GyroRun(gyro_record(cal, info), cal, model, found, info)
+        except ValueError as exc:                   # an estimate beyond a key's range
+            not_found = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+    return GyroRun(gyro_record(cal, info), cal, model, found, info, not_found=not_found)

@@ -105,7 +105,8 @@ class SinsRun:
     rate_rule : str
         How rate samples became increments.
     drops : dict
-        What the input rules dropped, by reason (non-zero counts only).
+        What the input rules dropped (and messages of another type on the topics), by reason
+        (non-zero counts only).
     gyro : dict
         ``missing`` increments, ``gaps`` and stamp ``resyncs`` of the gyro stream.
     nonfinite : int
@@ -253,14 +254,17 @@ def no_solution(system: SinsSystem) -> str | None:
     return why
 
 
-def _drops(system: SinsSystem) -> dict:
-    """Return what the input rules dropped, by reason (non-zero only)."""
+def _drops(system: SinsSystem, inp) -> dict:
+    """Return what the input rules and the reader dropped, by reason (non-zero only)."""
     checks = [system.gyro_check, system.accel_check] + list(system.rate_checks.values())
     drops = {k: sum(getattr(c, attr) for c in checks)
              for k, attr in (('NaN', 'nan'), ('out of range', 'out_of_range'),
                              ('out of order', 'out_of_order'), ('duplicate', 'duplicate'),
                              ('stamp outlier', 'stamp_outliers'))}
     drops = {k: v for k, v in drops.items() if v}
+    wrong = sum(getattr(inp, 'wrong_type', {}).values())   # messages of another type
+    if wrong:
+        drops['wrong type'] = wrong
     fm = system.frame_mismatch
     if fm['gyro'] or fm['accel']:
         how = 'rejected' if system.reject_frames else 'used'
@@ -355,7 +359,8 @@ def run_sins(source: RecordingSource, model: SensorModel, settings: SinsSettings
         counts=dict(counts), rates=dict(rates), gyro_topic=bounded(inp.gyro_conn.topic),
         accel_topic=a_topic, imu_input=bool(inp.imu_input),
         accel_from_imu=bool(inp.imu_input and inp.accel is None), rate_rule=source.rate_rule,
-        drops=_drops(system), gyro={'missing': g.missing, 'gaps': g.gaps, 'resyncs': g.resyncs},
+        drops=_drops(system, inp),
+        gyro={'missing': g.missing, 'gaps': g.gaps, 'resyncs': g.resyncs},
         nonfinite=int(system.nonfinite),
         stall=None if stall is None else {'seconds': float(stall.seconds),
                                           'level': stall.level, 'text': stall.text},

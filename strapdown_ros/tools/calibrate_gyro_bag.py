@@ -35,9 +35,13 @@ two-sided band at level 0.01 (``chi2_per_dof_band``), ``fit_consistent``.  Outsi
 line starting ``WARNING:`` goes to stderr and the summary says ``UNTRUSTED``; ``sigma`` is
 ``sigma_stated_noise`` scaled by √max(1, χ²/dof) (both methods); the exit status stays 0.
 
+The work is :func:`strapdown_ros.runs.gyro.calibrate_gyro` (the call the fleet makes too); this
+command checks the arguments, prints and writes.
+
 Exit status: 0 estimated; 2, with one line on stderr, for bad arguments or an unusable bag or
 model; 3 when the motion does not make the gyro errors observable (the combinations are named,
-nothing is written but the JSON report).
+nothing is written but the JSON report), or when an estimate is beyond the range of its model key
+(one line; the JSON report is written, the model is not).
 """
 from __future__ import annotations
 
@@ -48,72 +52,20 @@ import time
 
 import numpy as np
 
-from strapdown_ros.calibration import gyro as gc
-from strapdown_ros.calibration.gyro import model_parameters
 from strapdown_ros.cli import all_or_nothing, check_outputs, FILE, OneLineParser, write_json
-from strapdown_ros.discrepancy.bag_input import load_recording, recording_lines
-from strapdown_ros.discrepancy.workflow import InputError, json_clean
-from strapdown_ros.params import (check_against_recording, filled_in, load_model_file,
-                                  not_applied_note, write_model_file)
+from strapdown_ros.discrepancy.bag_input import recording_lines
+from strapdown_ros.discrepancy.workflow import InputError
+from strapdown_ros.params import load_model_file, write_model_file
 from strapdown_ros.recording import (add_input_arguments, BagError, check_input_arguments,
-                                     input_options, input_warnings)
-from strapdown_ros.recording.options import frame_warnings
+                                     input_options)
+from strapdown_ros.runs.gyro import calibrate_gyro, GyroOptions
+from strapdown_ros.runs.gyro import gyro_record as result_json   # the JSON record (old name)
+from strapdown_ros.runs.source import RecordingSource
 
 __all__ = ['main', 'result_json']
 
 PROG = 'calibrate_gyro_bag'
 DEG_H = np.degrees(1.0) * 3600.0                 # rad/s → °/h
-
-
-def _num(x):
-    x = float(x)
-    return x if np.isfinite(x) else None
-
-
-def result_json(cal, info: dict) -> dict:
-    """
-    Return the JSON record of a gyro calibration.
-
-    Parameters
-    ----------
-    cal : GyroCalibration
-        The estimate (:class:`strapdown_ros.calibration.gyro.GyroCalibration`).
-    info : dict
-        What was read from the bag (messages, fixes, topics).
-
-    Returns
-    -------
-    dict
-        Plain JSON values.
-
-    """
-    ok = bool(cal.observable)
-    rep = cal.observability
-    return json_clean({
-        'method': cal.method,
-        'observable': ok,
-        'labels': list(cal.labels),
-        'estimate': {n: _num(v) for n, v in zip(cal.labels, cal.x)} if ok else None,
-        'sigma': {n: _num(v) for n, v in zip(cal.labels, cal.sigma)} if ok else None,
-        'covariance': [[_num(v) for v in row] for row in cal.covariance] if ok else None,
-        'model_parameters': model_parameters(cal) if ok else None,
-        'unobservable': list(cal.unobservable),
-        'message': cal.message,
-        'observability': {'eigenvalues': [_num(v) for v in rep.eigenvalues],
-                          'predicted_sigma': [_num(v) for v in rep.predicted_sigma],
-                          'condition': _num(rep.condition), 'weak': list(rep.weak),
-                          'units': 'scale and misalignment 1; bias and drift '
-                                   f'{cal.rate_scale:.6g} rad/s (the RMS rate of the recording)'},
-        'fit_consistent': cal.extra.get('fit_consistent'),
-        'chi2_per_dof': _num(cal.extra['chi2_per_dof']) if 'chi2_per_dof' in cal.extra else None,
-        'chi2_per_dof_band': cal.extra.get('chi2_per_dof_band'),
-        # sigma is scaled by √max(1, χ²/dof); this is the σ of the stated noise alone
-        'sigma_stated_noise': ({n: _num(v / np.sqrt(cal.extra.get('covariance_scale', 1.0)))
-                                for n, v in zip(cal.labels, cal.sigma)} if ok else None),
-        'rate_scale_rad_s': cal.rate_scale,
-        'details': cal.extra,
-        'input': info,
-    })
 
 
 def _summary(bag, info, cal) -> str:
@@ -204,18 +156,15 @@ def _parse(argv):
     return ap.parse_args(argv)
 
 
+def _options(args) -> GyroOptions:
+    """Return the method and its options, as the library takes them."""
+    return GyroOptions(args.method, args.interval, args.drift, args.sigma_limit)
+
+
 def _check(args) -> None:
     """Check the arguments, input files and output paths, before any work."""
     check_input_arguments(args)
-    if args.drift and args.method != 'tkachenko':
-        raise ValueError('--drift needs --method tkachenko (002 has no reference drift)')
-    if args.interval is not None:
-        if args.method != 'integral':
-            raise ValueError('--interval needs --method integral')
-        if not (np.isfinite(args.interval) and args.interval > 0):
-            raise ValueError(f'--interval must be > 0 s, got {args.interval}')
-    if not (np.isfinite(args.sigma_limit) and args.sigma_limit > 0):
-        raise ValueError(f'--sigma-limit must be > 0, got {args.sigma_limit}')
+    _options(args).check()
     if not Path(args.bag).exists():
         raise ValueError(f'bag {args.bag} does not exist')
     if args.model and not Path(args.model).is_file():
@@ -236,7 +185,8 @@ def main(argv=None) -> int:
     Returns
     -------
     int
-        The exit status (0 success; 2 unusable arguments or input, one line on stderr).
+        The exit status (0 success; 2 unusable arguments or input, one line on stderr; 3 not
+        observable, or an estimate beyond its model key's range).
 
     """
     args = _parse(argv)
@@ -263,56 +213,34 @@ def main(argv=None) -> int:
         print(f'{PROG}: warning: gyro_quantum > 0: pulse quantization (000 §5) is not '
               'modelled; the σ may be '
               f'optimistic', file=sys.stderr)
+    source = RecordingSource(args.bag, args.namespace, **input_options(args))
     try:
-        rec, info = load_recording(args.bag, model, mf.settings,     # (no progress line yet:
-                                   args.namespace, **input_options(args))   # one line if unusable)
-        checked = check_against_recording(model, info['facts'])
-        frames = frame_warnings(PROG, info, model.frame_id, model.reference_frame_id)
-        for line in input_warnings(PROG, info) + frames:
-            print(line, file=sys.stderr)
-        for line in filled_in(model, checked):
-            print(f'{PROG}: note: {line}', file=sys.stderr)
-        note = not_applied_note(checked, ('gyro', 'reference', 'filter'), PROG)
-        if note:
-            print(f'{PROG}: note: {note}', file=sys.stderr)
-        model = checked
-        if len(rec.fix_stamps) < 6:
-            raise ValueError(f'{args.bag}: {len(rec.fix_stamps)} usable camera fixes '
-                             '(need at least 6)')
-        progress(f"read {info['gyro_messages']} increments and {info['camera_fixes']} "
-                 'camera fixes')
-        progress("compensating the model's other effects; "
-                 'initial boresight from the increment axes')
-        prep = gc.prepare(rec, model)
-        if args.method == 'integral':
-            progress(f'002 integral method over {prep.pairs} camera steps')
-            cal = gc.calibrate_integral(prep, args.interval, args.sigma_limit)
-        else:
-            cal = gc.calibrate_drifting_reference(
-                prep, args.drift, args.sigma_limit,
-                progress=lambda s: progress(s.replace('tkachenko: ', '000: ')))
+        run = calibrate_gyro(source, model, _options(args), mf.settings, progress,
+                             say=lambda text: print(f'{PROG}: {text}', file=sys.stderr),
+                             who=PROG)
     except (BagError, InputError, ValueError, OSError, np.linalg.LinAlgError) as exc:
         return fail(str(exc).splitlines()[0] if str(exc) else type(exc).__name__)
-    out = result_json(cal, info)
-    print(_summary(args.bag, info, cal))
+    cal, out = run.calibration, run.record
+    print(_summary(args.bag, run.info, cal))
     warning = consistency_warning(out)
     if warning:
         print(warning, file=sys.stderr)
+    found = run.found_model if cal.observable and args.write_model else None
     try:
         with all_or_nothing():                   # --json and --write-model, or neither
             if args.json:
                 write_json(args.json, out)
-            if cal.observable and args.write_model:
-                rule = f'estimated by calibrate_gyro_bag --method {cal.method}'
-                write_model_file(args.write_model,
-                                 model.with_values(gc.model_parameters(cal), rule=rule),
+            if found is not None:
+                write_model_file(args.write_model, found,
                                  f'written by calibrate_gyro_bag --method {cal.method}: '
                                  'gyro_scale_factor, gyro_misalignment, '
                                  f'gyro_bias estimated from {Path(args.bag).name}', doc)
-        if cal.observable and args.write_model:
+        if found is not None:
             print(f'  model with the estimated gyro errors: {args.write_model}')
     except OSError as exc:
         return fail(exc)
+    if cal.observable and args.write_model and found is None:   # an estimate beyond a key's range
+        return fail(f'--write-model {args.write_model} not written: {run.not_found}', 3)
     if not cal.observable:
         print(f'{PROG}: gyro errors NOT observable from this bag ({cal.method}): unobservable: '
               f"{'; '.join(cal.unobservable)}.  Record turns about three non-parallel axes, "

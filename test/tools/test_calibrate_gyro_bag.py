@@ -234,6 +234,30 @@ def test_arguments_and_files_are_checked_before_work(tmp_path, capsys, recording
     assert (tmp_path / 'exists.json').read_text() == '{}'
 
 
+def test_an_estimate_beyond_its_key_range_writes_the_json_not_the_model(
+        tmp_path, capsys, monkeypatch, recording):
+    """
+    An estimate no model file may hold: exit 3, one line naming the key, the JSON only.
+
+    The estimate is replaced by a scale factor of 10 (the key's range is ±0.5).
+    """
+    _, bag, model = recording
+    real = gc.model_parameters
+
+    def beyond(cal):
+        return {**real(cal), 'gyro_scale_factor': [10.0, 10.0, 10.0]}
+    monkeypatch.setattr(gc, 'model_parameters', beyond)
+    out, js = tmp_path / 'out.yaml', tmp_path / 'r.json'
+    assert _run(bag, '--method', 'integral', '--model', model, '--write-model', out,
+                '--json', js) == 3
+    lines = [ln for ln in capsys.readouterr().err.splitlines() if ln.strip()]
+    assert len(lines) == 1 and lines[0].startswith('calibrate_gyro_bag: error: --write-model')
+    assert 'gyro_scale_factor' in lines[0] and 'out of range' in lines[0], lines
+    assert not out.exists()
+    r = json.loads(js.read_text())
+    assert r['observable'] and r['model_parameters']['gyro_scale_factor'] == [10.0, 10.0, 10.0]
+
+
 def test_console_script_one_line_exit_2(tmp_path):
     p = subprocess.run([os.path.join(BIN, 'calibrate_gyro_bag'), str(tmp_path / 'none'),
                         '--method', 'tkachenko'],

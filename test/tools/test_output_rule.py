@@ -20,6 +20,7 @@ import pytest
 from strapdown_ros.cli import all_or_nothing, write_figure, write_text
 from strapdown_ros.files import (commit_directory, discard_directory, remove_stale,
                                  stage_directory)
+from strapdown_ros.runs import sins as runs_sins
 from strapdown_ros.tools import record_sim, sins_bag
 
 
@@ -256,12 +257,12 @@ def test_sins_bag_interrupted_keeps_the_old_output_bag(files, tmp_path, monkeypa
     out = tmp_path / 'out'
     assert sins_bag.main([str(files['bag']), '--output', str(out), '--quiet']) == 0
     before = _snapshot(out)
-    real = sins_bag.run                         # the replay sins_bag runs
+    real = runs_sins.run                        # the replay sins_bag runs, through run_sins
 
     def interrupted(inp, make_system, sink, *a, **k):
         real(inp, make_system, sink, *a, **k)
         raise KeyboardInterrupt
-    monkeypatch.setattr(sins_bag, 'run', interrupted)
+    monkeypatch.setattr(runs_sins, 'run', interrupted)
     assert sins_bag.main([str(files['bag']), '--output', str(out), '--force', '--quiet']) == 130
     assert _snapshot(out) == before and sorted(os.listdir(tmp_path)) == ['out']
 
