@@ -238,6 +238,11 @@ def quat_to_dcm(q: np.ndarray) -> np.ndarray:
 
     """
     q = np.asarray(q, dtype=float)
+    if q.shape == (4,):                               # one quaternion: the same arithmetic, fast
+        w, x, y, z = (float(c) for c in q)
+        return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
+                         [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
+                         [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)]])
     w, x, y, z = q[..., 0], q[..., 1], q[..., 2], q[..., 3]
     return np.stack([
         np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)], -1),

@@ -21,7 +21,8 @@ Subscribes:
   boresight is taken as known: its covariance is not used (``augment: boresight`` estimates a
   mounting error on top of it).
 
-Publishes (stream QoS unless said; every ``output_period`` of stamp time):
+Publishes (stream QoS unless said; one message per ``output_period`` of stamp time, at the
+first increment stamp of each period, the state at exactly that stamp):
 
 * ``filter/attitude``  geometry_msgs/QuaternionStamped: q_ref_body, frame ``reference_frame_id``.
 * ``filter/imu``  sensor_msgs/Imu, frame ``frame_id``: orientation = q_ref_body;
@@ -39,14 +40,23 @@ Publishes (stream QoS unless said; every ``output_period`` of stamp time):
   ``camera_frame_id``,
   stamp = the fix's; ``filter/nis`` geometry_msgs/Vector3Stamped, x = NIS, y = its degrees of
   freedom (3), z = the gate (χ²(3) quantile of ``gate_probability``); a gated fix is published
-  too (x > z).
+  too (x > z), and so is the fix that declares a divergence.
 * ``/diagnostics``  every ``diagnostics_period``: the counters of the core (fixes applied,
   gated, too old, late fixes and the largest lateness, restarts, gaps, dropped input), each
   augmented state and its σ (``<name>_<k>``, ``<name>_sigma_<k>``), the gyro bias and σ, the
   last NIS, and the live model check (``model_check``: its text; WARN when a test fails, e.g.
   "innovations match gyro_scale_factor (p = …): run discrepancy on a recording"; the node never
-  changes its model itself).  The level is the worst of the conditions
+  changes its model itself).  A divergence (``divergence_gated_fixes`` consecutive gated
+  fixes, or the NIS of the last ``divergence_nis_window`` fixes above its χ² quantile of
+  ``divergence_nis_probability``) re-initialises the attitude from the fix (the bias kept): an
+  ERROR (logged, and on /diagnostics until as many fixes have passed since; then a WARN that
+  counts the resets; values ``reset``, ``fixes_since_reset``, ``last_reset_stamp``,
+  ``last_reset_reason``).  The level is the worst of the conditions
   (:class:`~strapdown_ros.nodes.ros_status.Conditions`).
+
+At construction the node runs a throw-away filter of its model through a few seconds of
+synthetic data (:func:`~strapdown_ros.estimation.filter_system.warm_up`): the compiled kernel
+is loaded and every code path of a fix has run before the first message.
 
 No parameter may change at runtime (the filter's model is its state); restart the node.
 """
@@ -62,7 +72,7 @@ from rclpy.node import Node
 from sensor_msgs.msg import Imu
 
 from strapdown_ros.estimation.chi_square import chi2_3_quantile
-from strapdown_ros.estimation.filter_system import FilterSettings, FilterSystem
+from strapdown_ros.estimation.filter_system import FilterSettings, FilterSystem, warm_up
 from strapdown_ros.nodes import ros_io, ros_params, ros_process, ros_status
 from strapdown_ros.params import FILTER_PARAMS, model_from_parameters
 from strapdown_ros.streams.rate_increments import RateIncrementStream
@@ -91,7 +101,12 @@ class AttitudeFilterNode(Node):
         for w in warnings:
             self.log.warn(w)
         self.model = model
-        self.system = FilterSystem(model, FilterSettings.from_values(p))
+        settings = FilterSettings.from_values(p)
+        self.system = FilterSystem(model, settings)
+        try:            # the compiled kernel and every code path of a fix, before any message
+            warm_up(model, settings)
+        except ValueError as exc:                # the model cannot start a filter: said now
+            self.log.error(f'the filter cannot start with these parameters: {exc}')
         self.frame_id = model.frame_id
         self.ref_frame = model.reference_frame_id
         self.camera_frame = model.camera_frame_id
@@ -109,6 +124,10 @@ class AttitudeFilterNode(Node):
         self.last_output = None
         self.last_fix = None
         self.restarts_seen = 0
+        self.resets_seen = 0
+        #: fixes after a divergence reset during which /diagnostics stays at ERROR
+        self.recovery_fixes = max(int(p['divergence_gated_fixes']),
+                                  int(p['divergence_nis_window']), 1)
         depth = int(p['qos_depth'])
         qos = ros_io.stream_qos(depth)
         over = ros_io.QOS_OVERRIDES
@@ -284,6 +303,13 @@ class AttitudeFilterNode(Node):
             self.restarts_seen = restarts
             self.log.error('gyro gap or stamp jump: the rotation in it is lost; the filter '
                            'restarts at the next fix', throttle=5.0)
+        resets = self.system.counts['reset']
+        if resets > self.resets_seen:
+            self.resets_seen = resets
+            ns, why = self.system.resets[-1]
+            self.log.error(f'divergence at {ns * 1e-9:.3f} s: {why}; the attitude is '
+                           're-initialised from that fix (bias kept), '
+                           f'{resets} reset(s) so far', throttle=5.0, key='divergence')
 
     def _publish_output(self, o) -> None:
         st = ros_io.ns_to_stamp(o.stamp_ns)
@@ -392,6 +418,15 @@ class AttitudeFilterNode(Node):
         chk = self.system.check
         if chk is not None and not chk.last.ok:
             c.add(ros_status.WARN, f'live model check: {chk.last.text()}')
+        if st['reset']:
+            ns, why = self.system.resets[-1]
+            since = st.get('fixes_since_reset')
+            text = (f"divergence: {st['reset']} reset(s), the last at {ns * 1e-9:.3f} s ({why}); "
+                    'the attitude was re-initialised from the fix')
+            if since is not None and since < self.recovery_fixes:
+                c.add(ros_status.ERROR, f'{text}, {since} fix(es) since')
+            else:
+                c.add(ros_status.WARN, text)
         if g.missing:
             c.add(ros_status.ERROR, f'{g.missing} gyro increments missing in {g.gaps} gaps: the '
                   f"rotation is lost; the filter restarted {st['restarts']} time(s)")
@@ -427,10 +462,15 @@ class AttitudeFilterNode(Node):
             for name, (v, s) in o.augmented.items():
                 for k in range(len(v)):
                     values[f'{name}_{k}'] = float(v[k])
+                for k in range(len(s)):           # the boresight: 4 components, 3 σ
                     values[f'{name}_sigma_{k}'] = float(s[k])
         if self.last_fix is not None and self.last_fix.nis is not None:
             values['last_nis'] = float(self.last_fix.nis)
             values['last_fix_status'] = self.last_fix.status
+        if self.system.resets:
+            ns, why = self.system.resets[-1]
+            values['last_reset_stamp'] = ns * 1e-9
+            values['last_reset_reason'] = ros_status.bounded(why)
         chk = self.system.check
         values['model_check'] = (ros_status.bounded(chk.last.text()) if chk is not None
                                  else 'not started')

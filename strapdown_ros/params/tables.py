@@ -339,6 +339,16 @@ FILTER_SETTINGS = [
               5, 10000),
     ParamSpec('model_check_alpha', 0.001, 'false-alarm probability of each live model-check '
               'test (NIS band two-sided, whiteness)', 1e-9, 0.2),
+    ParamSpec('divergence_gated_fixes', 5, 'divergence after this many consecutive gated fixes: '
+              'the fix re-initialises the attitude (σ initial_attitude_sigma), the bias and '
+              'other states are kept; ERROR on /diagnostics, counted (0: not this rule)',
+              0, 10**6),
+    ParamSpec('divergence_nis_window', 10, 'divergence also when the NIS of the last this many '
+              'fixes (each clipped at the gate) sum above their χ²(3·window) quantile of '
+              'divergence_nis_probability (0: not this rule)', 0, 10**4),
+    ParamSpec('divergence_nis_probability', 0.999999, 'probability of that quantile (the '
+              "rule's false alarms per window on a consistent filter: at most 1 − this)",
+              0.5, 1.0 - 1e-12),
 ]
 #: attitude_filter_node and filter_bag (strapdown_ros/estimation/filter_system.py)
 FILTER_PARAMS = MODEL_PARAMS + ALIAS_PARAMS + NODE_COMMON_PARAMS + STREAM_PARAMS + \

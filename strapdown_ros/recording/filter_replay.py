@@ -38,14 +38,15 @@ def run_filter(data: dict, model: SensorModel, settings: FilterSettings | None =
     """
     system = FilterSystem(model, settings)
     g, c = data['gyro'], data['camera']
-    gt = np.asarray(g.stamps, dtype=np.int64)
+    gt = np.asarray(g.stamps, dtype=np.int64).reshape(-1)
+    gv = np.asarray(g.values, dtype=float).reshape(-1, 3)
     k = 0
     for ns, (q, P) in zip(c.stamps, c.values):
         j = int(np.searchsorted(gt, ns, side='right'))
         if j > k:
-            system.add_increments(g.stamps[k:j], g.values[k:j])
+            system.add_increments(gt[k:j], gv[k:j])
             k = j
         system.add_fix(int(ns), np.asarray(q, dtype=float), np.asarray(P, dtype=float))
-    system.add_increments(g.stamps[k:], g.values[k:])
+    system.add_increments(gt[k:], gv[k:])
     system.process()
     return system
