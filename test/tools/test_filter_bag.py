@@ -22,15 +22,17 @@ def _run(*args, cwd):
 def bag(tmp_path_factory):
     """Record a simulation with an injected gyro bias."""
     d = tmp_path_factory.mktemp('fbag')
-    (d / 'p.yaml').write_text(
+    # the simulated unit and the filter's model in two files (a model key has one value a file)
+    (d / 'sim.yaml').write_text(
         'imu_sim_node:\n  ros__parameters:\n    gyro_rate: 100.0\n'
         '    gyro_bias_sigma: 0.0\n    gyro_scale_sigma: 0.0\n    gyro_misalignment_sigma: 0.0\n'
         '    gyro_bias: [2.0e-6, -1.0e-6, 1.5e-6]\n'
-        'star_camera_sim_node:\n  ros__parameters:\n    camera_interval: 1.0\n'
+        'star_camera_sim_node:\n  ros__parameters:\n    camera_interval: 1.0\n')
+    (d / 'p.yaml').write_text(
         'attitude_filter_node:\n  ros__parameters:\n    gyro_rate: 100.0\n'
         '    gyro_bias_sigma: 1.0e-5\n    output_period: 1.0\n')
     r = _run('strapdown_ros.tools.record_sim', 'b', '--duration', '120', '--no-accel',
-             '--params', 'p.yaml', '-p', 'profile:=coning', cwd=d)
+             '--params', 'sim.yaml', '-p', 'profile:=coning', cwd=d)
     assert r.returncode == 0, r.stderr
     return d
 
