@@ -7,8 +7,9 @@ doc/nodes.md, and the README gives the two commands and the ROS 2 workflow.
 import os
 import re
 
-from strapdown_ros.params import (CALIBRATOR_PARAMS, FILTER_PARAMS, IMU_SIM_PARAMS, markdown_table,
-                                  SINS_PARAMS, STAR_CAMERA_PARAMS)
+from strapdown_ros.params import (IMU_SIM_PARAMS, markdown_table, MODEL_PARAMS, NODE_SETTINGS,
+                                  STAR_CAMERA_PARAMS)
+from strapdown_ros.params.tables import ALIAS_PARAMS
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 
@@ -24,8 +25,8 @@ LINK = re.compile(r'\]\(([^)#\s]*)(?:#([^)\s]*))?\)')
 
 
 def test_parameter_tables_are_current():
-    for specs in (IMU_SIM_PARAMS, SINS_PARAMS, STAR_CAMERA_PARAMS, CALIBRATOR_PARAMS,
-                  FILTER_PARAMS):
+    for specs in (MODEL_PARAMS + ALIAS_PARAMS, IMU_SIM_PARAMS, STAR_CAMERA_PARAMS,
+                  *NODE_SETTINGS.values()):
         assert markdown_table(specs) in NODES_PAGE, \
             'regenerate the tables of doc/nodes.md with: python -m strapdown_ros.params'
 
@@ -76,3 +77,12 @@ def test_readme_is_one_screen_and_links_resolve():
             if anchor and path.endswith('.md'):
                 with open(path, encoding='utf-8') as f:
                     assert anchor in _anchors(f.read()), f'{page}: no heading #{anchor} in {path}'
+
+
+def test_version_matches_the_changelog():
+    """setup.py, package.xml and the newest CHANGELOG.rst release carry one version."""
+    setup = re.search(r"version='([^']+)'", _read('setup.py')).group(1)
+    package = re.search(r'<version>([^<]+)</version>', _read('package.xml')).group(1)
+    newest = re.search(r'^(\d+\.\d+\.\d+) \(\d{4}-\d{2}-\d{2}\)$', _read('CHANGELOG.rst'),
+                       re.MULTILINE).group(1)
+    assert setup == package == newest, (setup, package, newest)

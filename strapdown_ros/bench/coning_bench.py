@@ -27,6 +27,7 @@ import numpy as np
 from strapdown_ros.attitude.coning import ALGORITHMS, theory_drift
 from strapdown_ros.attitude.coning_analysis import (cost_per_update, FLOOR_FACTOR, measure_case,
                                                     order_sweep, THESIS_CASES, THESIS_STEPS)
+from strapdown_ros.bench.coning_derivation_checks import derivation_checks, derivation_report
 from strapdown_ros.bench.coning_report import fmt, write_report
 from strapdown_ros.cli import check_outputs, DIRECTORY, FILE, write_figure, write_text
 from strapdown_ros.motion.profiles import ConingProfile
@@ -69,6 +70,10 @@ def parse_args(argv):
     ap.add_argument('--no-ode', action='store_true', help='skip the ODE peer reference')
     ap.add_argument('--sweep-periods', type=int, default=20,
                     help='cone periods per order-sweep point')
+    ap.add_argument('--derivation-checks', metavar='FILE',
+                    help='only write the figures of doc/coning_derivations.md to this Markdown '
+                         'file (documented run: doc/results/coning_bench/'
+                         'coning_derivation_checks.md; a few seconds)')
     args = ap.parse_args(argv)
     names = args.algorithms.split(',') if args.algorithms else list(ALGORITHMS)
     bad = [n for n in names if n not in ALGORITHMS]
@@ -329,6 +334,17 @@ def main(argv=None):
 
     """
     args = parse_args(sys.argv[1:] if argv is None else argv)
+    if args.derivation_checks:
+        try:
+            check_outputs([('--derivation-checks', args.derivation_checks, FILE)], [],
+                          args.force)
+        except ValueError as exc:
+            print(f'coning_bench: error: {exc}', file=sys.stderr)
+            return 2
+        text = derivation_report(derivation_checks())
+        write_text(args.derivation_checks, text)
+        print(text)
+        return 0
     try:                                       # everything that can fail, before minutes of work
         check_outputs([('--json', args.json, FILE), ('--report', args.report, FILE),
                        ('--plots', args.plots, DIRECTORY,

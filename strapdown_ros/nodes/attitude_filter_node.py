@@ -74,7 +74,7 @@ from sensor_msgs.msg import Imu
 from strapdown_ros.estimation.chi_square import chi2_3_quantile
 from strapdown_ros.estimation.filter_system import FilterSettings, FilterSystem, warm_up
 from strapdown_ros.nodes import ros_io, ros_params, ros_process, ros_status
-from strapdown_ros.params import FILTER_PARAMS, model_from_parameters
+from strapdown_ros.params import FILTER_PARAMS, model_from_parameters, not_applied_note
 from strapdown_ros.streams.rate_increments import RateIncrementStream
 
 NODE_NAME = 'attitude_filter_node'
@@ -100,6 +100,9 @@ class AttitudeFilterNode(Node):
         model, warnings = model_from_parameters(p, f'{NODE_NAME} parameters')
         for w in warnings:
             self.log.warn(w)
+        note = not_applied_note(model, ('gyro', 'reference', 'filter'), NODE_NAME)
+        if note:
+            self.log.info(note)
         self.model = model
         settings = FilterSettings.from_values(p)
         self.system = FilterSystem(model, settings)

@@ -85,7 +85,7 @@ from strapdown_ros.nodes import ros_io, ros_params, ros_process, ros_status
 from strapdown_ros.nodes.calibrator_status import boresight_status
 from strapdown_ros.nodes.ros_io import (camera_qos, latched_qos, pose_with_covariance,
                                         rotation_block)
-from strapdown_ros.params import CALIBRATOR_PARAMS, model_from_parameters
+from strapdown_ros.params import CALIBRATOR_PARAMS, model_from_parameters, not_applied_note
 from strapdown_ros.streams.checks import StreamCheck
 from strapdown_ros.streams.rate_increments import RateIncrementStream
 
@@ -116,6 +116,9 @@ class CalibratorNode(Node):
         model, warnings = model_from_parameters(p, f'{NODE_NAME} parameters')
         for w in warnings:
             self.log.warn(w)
+        note = not_applied_note(model, ('gyro', 'reference'), NODE_NAME)
+        if note:
+            self.log.info(note)
         self.model = model
         self.gyro_period = model.gyro_period
         # as calibrate_bag builds it (effects compensated)

@@ -59,7 +59,7 @@ from rclpy.node import Node
 from sensor_msgs.msg import Imu
 
 from strapdown_ros.nodes import ros_io, ros_params, ros_process, ros_status
-from strapdown_ros.params import model_from_parameters, SINS_PARAMS
+from strapdown_ros.params import model_from_parameters, not_applied_note, SINS_PARAMS
 from strapdown_ros.sins import odometry_arrays, SinsOutput, SinsSettings, SinsSystem
 from strapdown_ros.streams.rate_increments import RateIncrementStream
 
@@ -90,6 +90,9 @@ class SinsNode(Node):
         model, warnings = model_from_parameters(p, f'{NODE_NAME} parameters')
         for w in warnings:
             self.log.warn(w)
+        note = not_applied_note(model, ('gyro', 'accel'), NODE_NAME)
+        if note:
+            self.log.info(note)
         self.frame_id = model.frame_id
         self.ref_frame = model.reference_frame_id
         self.imu_input = p['gyro_input'] == 'imu'

@@ -12,7 +12,8 @@ from ``strapdown_ros.params``.  No ROS imports.
 from strapdown_ros.params.model_files import (check_against_recording, filled_in,
                                               load_model_file, model_and_settings,
                                               model_from_parameters, model_of_document,
-                                              ModelFile, settings_from_parameters,
+                                              ModelFile, not_applied_note,
+                                              settings_from_parameters,
                                               simulator_parameters, write_model_file)
 from strapdown_ros.params.spec import (load_parameter_file, markdown_table, ParamSpec,
                                        parse_overrides)
@@ -31,6 +32,7 @@ __all__ = ['ACCEL_INPUT_PARAMS', 'ACCEL_PARAMS', 'ALL_PARAMETER_NAMES', 'ARCSEC_
            'IMU_SIM_PARAMS', 'INPUT_PARAMS', 'load_model_file', 'load_parameter_file',
            'markdown_table', 'MAX_SPEED', 'model_and_settings', 'model_from_parameters',
            'model_of_document', 'MODEL_PARAMS', 'ModelFile', 'NODE_PARAMS', 'NODE_SETTINGS',
+           'not_applied_note',
            'ParamSpec', 'parse_overrides', 'PROFILE_PARAMS', 'settings_from_parameters',
            'sigmas_from', 'simulator_parameters', 'SINS_PARAMS', 'STAR_CAMERA_PARAMS',
            'write_model_file']

@@ -35,13 +35,14 @@ from strapdown_ros.params.spec import load_parameter_file, ParamSpec
 from strapdown_ros.params.tables import (ALIAS_PARAMS, IMU_SIM_PARAMS, NODE_PARAMS,
                                          NODE_SETTINGS, spec_of, STAR_CAMERA_PARAMS)
 from strapdown_ros.params.validation import check_all, combination_error
-from strapdown_ros.sensors.sensor_model import (MODEL_ALIASES, model_keys, nearest_key,
-                                                SensorModel)
+from strapdown_ros.sensors.sensor_model import (key_group, MODEL_ALIASES, model_keys,
+                                                nearest_key, SensorModel)
 from strapdown_ros.text import bounded
 
 __all__ = ['ModelFile', 'load_model_file', 'model_of_document', 'write_model_file',
            'model_from_parameters', 'settings_from_parameters', 'model_and_settings',
-           'check_against_recording', 'filled_in', 'simulator_parameters', 'MODEL_BLOCK',
+           'check_against_recording', 'filled_in', 'not_applied_note', 'simulator_parameters',
+           'MODEL_BLOCK',
            'RATE_TOLERANCE']
 
 #: the block a written model puts its keys in
@@ -444,6 +445,37 @@ def filled_in(before: SensorModel, after: SensorModel) -> list[str]:
             out.append(f"{k} {text}{' ' + unit if unit and unit != '1' else ''}: "
                        f"{after.provenance.get(k, 'from the recording')}")
     return out
+
+
+def not_applied_note(model: SensorModel, groups, who: str) -> str | None:
+    """
+    Return the note naming the stated model keys a consumer does not apply, or None.
+
+    Parameters
+    ----------
+    model : SensorModel
+        The model.
+    groups : iterable of str
+        What the consumer applies (:func:`~strapdown_ros.sensors.sensor_model.key_group`).
+    who : str
+        The consumer, for the text.
+
+    Returns
+    -------
+    str or None
+        E.g. ``the model states boresight, camera_time_offset, which sins_bag does not apply
+        (no reference input)``.
+
+    """
+    keys = model.not_applied(groups)
+    if not keys:
+        return None
+    why = {'accel': 'no accelerometer input', 'reference': 'no reference input',
+           'filter': 'no online estimation'}
+    missing = sorted({key_group(k) for k in keys})
+    shown = ', '.join(keys[:8]) + (f', … ({len(keys)} keys)' if len(keys) > 8 else '')
+    return (f'the model states {shown}, which {who} does not apply '
+            f"({'; '.join(why.get(g, g) for g in missing)})")
 
 
 def _yaml_value(v) -> str:

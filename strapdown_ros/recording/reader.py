@@ -598,9 +598,10 @@ def read_bag(
     clip = {'parameter': 'gyro_max_rate', 'limit': float(gyro_max_rate), 'unit': 'rad/s',
             'count': (rate_info['dropped']['out_of_range'] if rate_info else 0)
             + g_check.out_of_range,
-            'largest': max(rate_info['largest_out_of_range_rad_s'] if rate_info else 0.0,
-                           g_check.largest_out_of_range / g_period
-                           if np.isfinite(g_period) and g_period > 0 else 0.0)}
+            'largest': min(max(rate_info['largest_out_of_range_rad_s'] if rate_info else 0.0,
+                               g_check.largest_out_of_range / g_period
+                               if np.isfinite(g_period) and g_period > 0 else 0.0),
+                           1e308)}                # a 1e308 increment: finite in the JSON
     return {'gyro_clip': clip,
             'gyro_topic': gyro_t, 'camera_topic': ref_t, 'camera_covariance_from_bag': with_cov,
             'gyro': gyro, 'camera': cam, 'camera_fixes': fix_counts, 'gyro_period_s': g_period,

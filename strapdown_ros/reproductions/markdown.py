@@ -17,11 +17,12 @@ import re
 FIGURE_PLACES = {
     'seeds_000_errors.png': '### quantized_centred',
     'seeds_000_ablations.png': "### What makes the paper's",
-    'seeds_000_centring.png': '### Beyond the paper',
+    'seeds_000_centring.png': '### Quantized, Monte Carlo',
     'seeds_001_measures.png': '### Aircraft',
     'seeds_001_filter.png': '### Stationary filters',
     'seeds_004_sigma.png': '## 004 — boresight σ pattern',
     'seeds_004_theta_diff.png': '### 004 Fig. 3',
+    'seeds_004_fig2.png': '### 004 Fig. 2',
     'seeds_004_ablation.png': '### 004 §6 — why',
 }
 

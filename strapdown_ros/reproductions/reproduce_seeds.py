@@ -64,6 +64,9 @@ class Section:
         The run function's positional arguments from the parsed command line.
     report_module : str, optional
         The module of ``report`` and ``plots`` when they live apart from ``run``.
+    figures : tuple of str
+        The PNG files ``plots`` writes, in its order (their links can be placed without
+        drawing them: :func:`figure_paths`).
 
     """
 
@@ -75,6 +78,7 @@ class Section:
     plots: str | None
     args: Callable
     report_module: str | None = None
+    figures: tuple = ()
 
     def available(self) -> bool:
         """Return True when the section's module can be imported."""
@@ -106,17 +110,19 @@ class Section:
 #: the report, in order; adding a section is one entry (modules not present are skipped)
 REGISTRY = (
     Section('000', '000', '.tkachenko1983', 'section_000', 'report_000', 'plots_000',
-            lambda a: (a.seeds, a.quick), '.tkachenko1983_report'),
+            lambda a: (a.seeds, a.quick), '.tkachenko1983_report',
+            ('seeds_000_errors.png', 'seeds_000_centring.png', 'seeds_000_ablations.png')),
     Section('001', '001', '.vavilov1982', 'section_001', 'report_001', 'plots_001',
-            lambda a: (a.quick,)),
+            lambda a: (a.quick,), None, ('seeds_001_measures.png', 'seeds_001_filter.png')),
     Section('002', '002', '.ilyushenko2009', 'section_002', 'report_002', None,
             lambda a: (a.runs, a.quick)),
     Section('003', '003', '.aksyonenko2014', 'section_003', 'report_003', None,
             lambda a: (a.coning_duration,)),
     Section('004', '004', '.vasilyuk2024', 'section_004', 'report_004', 'plots_004',
-            lambda a: (a.runs, a.quick), '.vasilyuk2024_report'),
+            lambda a: (a.runs, a.quick), '.vasilyuk2024_report', ('seeds_004_sigma.png',)),
     Section('004', '004_extras', '.vasilyuk2024', 'section_004_extras', 'report_004_extras',
-            'plots_004_extras', lambda a: (a.quick,), '.vasilyuk2024_report'),
+            'plots_004_extras', lambda a: (a.quick,), '.vasilyuk2024_report',
+            ('seeds_004_theta_diff.png', 'seeds_004_fig2.png', 'seeds_004_ablation.png')),
 )
 
 
@@ -163,6 +169,27 @@ def report(res: dict, figures: dict | None = None, base: str = '.') -> str:
             paths = (figures or {}).get(s.key, [])
             L += [place_figures(s.fn(s.report)(res[s.key]), paths, base), '']
     return '\n'.join(L)
+
+
+def figure_paths(res: dict, outdir: str) -> dict:
+    """
+    Return the paths :func:`write_plots` would write, without drawing anything.
+
+    Parameters
+    ----------
+    res : dict
+        Section key → that section's results.
+    outdir : str
+        Directory of the figures.
+
+    Returns
+    -------
+    dict
+        Section key → paths of its PNG files (the names its :class:`Section` declares).
+
+    """
+    return {s.key: [os.path.join(outdir, f) for f in s.figures]
+            for s in sections() if s.key in res and s.plots}
 
 
 def write_plots(res: dict, outdir: str) -> dict:
@@ -213,7 +240,8 @@ def main(argv=None) -> int:
     ap.add_argument('--seeds', type=int, default=100, help='Monte Carlo runs for 000 (≥ 100 for '
                                                            'the record)')
     ap.add_argument('--runs', type=int, default=20, help='runs for the 002 and 004 sections')
-    ap.add_argument('--coning-duration', type=float, default=600.0, help='seconds per coning case')
+    ap.add_argument('--coning-duration', type=float, default=3600.0,
+                    help="seconds per coning case (default 3600, 003 §2.3's)")
     ap.add_argument('--quick', action='store_true', help='few runs (for tests)')
     ap.add_argument('--json', help='write the results as JSON')
     ap.add_argument('--report', help='write a Markdown report')

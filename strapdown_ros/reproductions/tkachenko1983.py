@@ -29,7 +29,8 @@ from strapdown_ros.sensors import IntegratingSensor, SensorErrorModel
 
 __all__ = ['Simulation000', 'simulate_000', 'run_tkachenko_experiment', 'monte_carlo_000',
            'agreement', 'ablations_000', 'float32_recursion_increments', 'section_000',
-           'ESTIMATORS', 'EXPLAINS_WITHIN', 'NO_EFFECT', 'SAME_PATTERN']
+           'ESTIMATORS', 'EXPLAINS_WITHIN', 'MC_CASES', 'MC_CASES_PRINTED', 'NO_EFFECT',
+           'SAME_PATTERN']
 
 QUANTUM = 2e-5
 
@@ -269,8 +270,9 @@ def monte_carlo_000(seeds: Sequence[int] = range(100), quantum: float = QUANTUM,
     -------
     dict
         Per case key (``mode[+iter][+weighted]``): the errors (seeds × 15: δw0, δc, δd), their
-        mean, std and RMS per component, the RMS over the c and d groups, the final w⁰ and the
-        w⁰ RMS.
+        mean, std and RMS per component, the RMS over the c and d groups, the RMS of c of each
+        seed (``rms_c_per_seed``), the final w⁰ (seeds × 3), its RMS over the seeds and
+        components (``rms_w0_final``) and the RMS of w⁰ over the epochs (``w_rms``).
 
     """
     res = {}
@@ -290,7 +292,10 @@ def monte_carlo_000(seeds: Sequence[int] = range(100), quantum: float = QUANTUM,
                     'rms_c_scale': float(np.sqrt(np.mean(e[:, 3:9] ** 2))),
                     'rms_c_bias': float(np.sqrt(np.mean(e[:, 9:12] ** 2))),
                     'rms_d': float(np.sqrt(np.mean(e[:, 12:15] ** 2))),
-                    'w0_final': np.array(wf), 'w_rms': float(np.sqrt(np.mean(np.square(wrms))))}
+                    'rms_c_per_seed': np.sqrt(np.mean(e[:, 3:12] ** 2, axis=1)),
+                    'w0_final': np.array(wf),
+                    'rms_w0_final': float(np.sqrt(np.mean(np.square(wf)))),
+                    'w_rms': float(np.sqrt(np.mean(np.square(wrms))))}
     return res
 
 
@@ -485,6 +490,31 @@ def ablations_000(noise_seeds: int = 10) -> dict:
 
 
 # --------------------------------------------------------------------------- the section
+def _mc_summary(m: dict) -> dict:
+    """Return the JSON-able RMS figures of one Monte Carlo case of :func:`monte_carlo_000`."""
+    return {'rms_c': m['rms_c'], 'rms_c_bias': m['rms_c_bias'], 'rms_d': m['rms_d'],
+            'rms_w': m['w_rms'], 'rms_w0_final': m['rms_w0_final'],
+            'rms_c_per_seed': _vec(m['rms_c_per_seed'])}
+
+
+def _rms_groups(run: dict) -> dict:
+    """RMS of c, of the biases c7–9, of d and of w⁰ (epochs, t_f) of one run (no randomness)."""
+    return {'rms_c': float(np.sqrt(np.mean(np.square(run['dc'])))),
+            'rms_c_bias': float(np.sqrt(np.mean(np.square(run['dc'][6:])))),
+            'rms_d': float(np.sqrt(np.mean(np.square(run['dd'])))),
+            'rms_w': float(run['w_rms']),
+            'rms_w0_final': float(np.sqrt(np.mean(np.square(run['w0']))))}
+
+
+#: the Monte Carlo cases (mode, iterate, weighted) of the modified estimator and of 000's method
+#: as printed; (5.6) is ``'corrected'``
+MC_CASES = (('raw', False, False), ('centred', False, False), ('corrected', False, False),
+            ('raw', True, False), ('centred', True, False), ('raw', False, True),
+            ('centred', False, True), ('centred', True, True))
+MC_CASES_PRINTED = (('raw', False, False), ('centred', False, False),
+                    ('corrected', False, False))
+
+
 def section_000(n_seeds: int, quick: bool = False) -> dict:
     """
     Run the 000 section of ``reproduce_seeds``.
@@ -499,8 +529,9 @@ def section_000(n_seeds: int, quick: bool = False) -> dict:
     Returns
     -------
     dict
-        The three cases (paper's errors beside ours), the headline agreements, the Monte
-        Carlo, the centring gain, the methods beyond the paper and the ablations (JSON-able).
+        The three cases (paper's errors beside ours; the centred case by (5.5) and by (5.6)),
+        the headline agreements, the Monte Carlo of both estimators, the centring gain, the
+        methods beyond the paper and the ablations (JSON-able).
 
     """
     quantum = QUANTUM
@@ -508,23 +539,25 @@ def section_000(n_seeds: int, quick: bool = False) -> dict:
     spec = {'unquantized': {'quantum': 0.0, 'mode': 'raw'},
             'quantized_raw': {'quantum': quantum, 'mode': 'raw'},
             'quantized_centred': {'quantum': quantum, 'mode': 'centred'}}
-    cases = (('raw', False, False), ('centred', False, False), ('raw', True, False),
-             ('centred', True, False), ('raw', False, True), ('centred', False, True),
-             ('centred', True, True))
-    mc = monte_carlo_000(range(n_seeds), quantum, cases)
+    mc = monte_carlo_000(range(n_seeds), quantum, MC_CASES)
+    mcp = monte_carlo_000(range(n_seeds), quantum, MC_CASES_PRINTED, coefficients='printed')
     out['headline'] = {}
     for case, kw in spec.items():
         first = run_tkachenko_experiment(seed=None, **kw)                 # Δθ0 = 0, as the paper
         printed = run_tkachenko_experiment(seed=None, coefficients='printed', **kw)
         iterated = run_tkachenko_experiment(seed=None, iterate=True, **kw)
-        rec = {'paper': {k: _vec(v) for k, v in PAPER_000[case].items()},
-               'ours': {k: _vec(first[k]) for k in ('w0', 'dc', 'dd')},
-               'ours_as_printed': {k: _vec(printed[k]) for k in ('w0', 'dc', 'dd')},
-               'ours_iterated': {k: _vec(iterated[k]) for k in ('w0', 'dc', 'dd')}}
+        runs = {'ours': first, 'ours_as_printed': printed, 'ours_iterated': iterated}
+        if kw['mode'] == 'centred':        # 000 prints one set for "(5.5) or (5.6)"
+            kc = dict(kw, mode='corrected')
+            runs['ours_corrected'] = run_tkachenko_experiment(seed=None, **kc)
+            runs['ours_as_printed_corrected'] = run_tkachenko_experiment(
+                seed=None, coefficients='printed', **kc)
+        rec = {'paper': {k: _vec(v) for k, v in PAPER_000[case].items()}}
         paper = _paper_cd(case)
-        head = {'ours': agreement(_cd(first), paper),
-                'ours_as_printed': agreement(_cd(printed), paper),
-                'ours_iterated': agreement(_cd(iterated), paper)}
+        head = {}
+        for key, run in runs.items():
+            rec[key] = {k: _vec(run[k]) for k in ('w0', 'dc', 'dd')}
+            head[key] = agreement(_cd(run), paper)
         if kw['quantum'] > 0:
             m = mc[kw['mode']]
             e, wf = m['errors'], np.asarray(m['w0_final'])
@@ -537,21 +570,24 @@ def section_000(n_seeds: int, quick: bool = False) -> dict:
                                   'c_bias': m['rms_c_bias'], 'd': m['rms_d']}
             # the initial remainder: is the paper's set a plausible draw of our Monte Carlo?
             z = (paper - e[:, 3:].mean(0)) / e[:, 3:].std(0, ddof=1)
+            zw = (np.asarray(PAPER_000[case]['w0']) - wf.mean(0)) / wf.std(0, ddof=1)
             mc_rms = float(np.sqrt(np.mean(e[:, 3:] ** 2)))
             head['monte_carlo'] = {'rms_ratio': float(np.sqrt(np.mean(paper ** 2)) / mc_rms),
                                    'z_rms': float(np.sqrt(np.mean(z ** 2))),
                                    'within_2sigma': int(np.sum(np.abs(z) <= 2)), 'n': int(len(z)),
+                                   'w0_z': _vec(zw),
+                                   'w0_z_rms': float(np.sqrt(np.mean(zw ** 2))),
                                    'seeds': n_seeds}
         else:   # no randomness without quantization: the single run is the distribution
             rec['ours_mc_mean'] = rec['ours']
             rec['ours_mc_std'] = {k: [0.0] * len(v) for k, v in rec['ours'].items()}
+            out['unquantized_rms'] = {'identity': _rms_groups(first),
+                                      'printed': _rms_groups(printed)}
         out['cases'][case] = rec
         out['headline'][case] = head
     raw, cen = mc['raw'], mc['centred']
-    out['beyond_paper'] = {k: {'rms_c': v['rms_c'], 'rms_c_bias': v['rms_c_bias'],
-                               'rms_d': v['rms_d'],
-                               'rms_w': v['w_rms']} for k, v in mc.items()}
-    mcp = monte_carlo_000(range(n_seeds), quantum, cases[:2], coefficients='printed')
+    out['beyond_paper'] = {k: _mc_summary(v) for k, v in mc.items()}
+    out['beyond_paper_printed'] = {k: _mc_summary(v) for k, v in mcp.items()}
     out['centring_gain'] = {'rms_c_raw': raw['rms_c'], 'rms_c_centred': cen['rms_c'],
                             'printed_rms_c_raw': mcp['raw']['rms_c'],
                             'printed_rms_c_centred': mcp['centred']['rms_c'],

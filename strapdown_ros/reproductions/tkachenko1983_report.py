@@ -153,19 +153,54 @@ def _claim_lines(r: dict) -> list[str]:
          '(paper/ours, signs, corr) | ours, modified estimator: RMS (paper/ours, signs, corr) |',
          '|---|---|---|---|']
     for case, rec in r['cases'].items():
-        cells = [f'{_rms(rec["paper"]):.2e}']
-        for key in ('ours_as_printed', 'ours'):
-            a = r['headline'][case][key]
-            cells.append(f"{_rms(rec[key]):.2e} ({a['rms_ratio']:.2f}, {a['signs']}/{a['n']}, "
-                         f"{a['corr']:+.2f})")
-        L.append(f'| {case} | ' + ' | '.join(cells) + ' |')
-    return L + ['']
+        rows = [(case, 'ours_as_printed', 'ours')]
+        if 'ours_corrected' in rec:
+            rows = [(f'{case} by (5.5)', 'ours_as_printed', 'ours'),
+                    (f'{case} by (5.6)', 'ours_as_printed_corrected', 'ours_corrected')]
+        for label, kp, ki in rows:
+            cells = [f'{_rms(rec["paper"]):.2e}']
+            for key in (kp, ki):
+                a = r['headline'][case][key]
+                cells.append(f"{_rms(rec[key]):.2e} ({a['rms_ratio']:.2f}, "
+                             f"{a['signs']}/{a['n']}, {a['corr']:+.2f})")
+            L.append(f'| {label} | ' + ' | '.join(cells) + ' |')
+    L.append('')
+    if 'beyond_paper_printed' in r:
+        seeds = r['centring_gain']['seeds']
+        parts = []
+        for est, b in (("000's method as printed", r['beyond_paper_printed']),
+                       ('the modified estimator', r['beyond_paper'])):
+            ch = [_change(b['raw'][k], b[m][k]) for m in ('centred', 'corrected')
+                  for k in ('rms_c', 'rms_d')]
+            ok = _centring_holds(b)
+            parts.append(f'with {est} (5.5) changes the RMS of c by {ch[0]}, of d by {ch[1]}, '
+                         f'and (5.6) by {ch[2]}, {ch[3]}: '
+                         + _verdict(ok, 'the claim reproduces', 'the claim does not reproduce'))
+        L += ['000 also says that with centring, (5.5) or (5.6), the errors "approached those of '
+              'the unquantized information". Over our Monte Carlo of '
+              f'{seeds} initial remainders (threshold: the RMS of c and of d each fall by at '
+              f'least {100 * NO_EFFECT:g}%), ' + '; '.join(parts) + '.', '']
+    return L
+
+
+def _change(before: float, after: float) -> str:
+    """Return the relative change from ``before`` to ``after`` as text (e.g. ``-0.08%``)."""
+    return f'{100 * (after / before - 1):+.2g}%'
+
+
+def _centring_holds(b: dict) -> bool:
+    """000's centring claim by the stated threshold: c and d each fall by ≥ NO_EFFECT."""
+    return all(b[m][k] <= (1 - NO_EFFECT) * b['raw'][k]
+               for m in ('centred', 'corrected') for k in ('rms_c', 'rms_d'))
 
 
 #: the rows of the error tables: the paper's published set first, then 000's method as printed
 ROW_NAMES = {'paper': "paper (000's published errors)", 'ours_as_printed': "ours: 000's method as "
                                                                            'printed',
-             'ours': 'ours: modified estimator', 'ours_iterated': 'ours: Gauss–Newton',
+             'ours_as_printed_corrected': "ours: 000's method as printed, increments by (5.6)",
+             'ours': 'ours: modified estimator',
+             'ours_corrected': 'ours: modified estimator, increments by (5.6)',
+             'ours_iterated': 'ours: Gauss–Newton',
              'ours_mc_mean': 'ours: modified, Monte Carlo mean',
              'ours_mc_std': 'ours: modified, Monte Carlo std'}
 
@@ -220,12 +255,18 @@ def report_000(r: dict) -> str:
                                                    'noise.',
                                 'is not a plausible draw of our quantization noise.'))
         L.append(line)
+        if 'ours_corrected' in hc:
+            L.append(f'* **{case}** with the increments corrected by (5.6) instead of (5.5), '
+                     f"000's method as printed: {_agree(hc['ours_as_printed_corrected'])}. "
+                     f"Modified estimator: {_agree(hc['ours_corrected'])}.")
     L += ['', 'Errors estimate − truth (w0: corrected attitude error w⁰ at t_f; dc, dd in the '
               "paper's units).", '']
     for case, rec in r['cases'].items():
         L += [f'### {case}', '', '| | w0 ×1e-5 | δc1…δc9 | δd1…δd3 |', '|---|---|---|---|']
-        for key in ('paper', 'ours_as_printed', 'ours', 'ours_iterated', 'ours_mc_mean',
-                    'ours_mc_std'):
+        for key in ('paper', 'ours_as_printed', 'ours_as_printed_corrected', 'ours',
+                    'ours_corrected', 'ours_iterated', 'ours_mc_mean', 'ours_mc_std'):
+            if key not in rec:
+                continue
             v = rec[key]
             L.append(f'| {ROW_NAMES[key]} | '
                      + ' '.join(f'{x * 1e5:+.2f}' for x in v['w0']) + ' | '
@@ -256,53 +297,141 @@ def report_000(r: dict) -> str:
           'at least.']
     q, hq = r['cases']['quantized_raw'], h['quantized_raw']['ours']
     q_ratio = np.array(q['ours']['dc']) / np.array(q['paper']['dc'])
-    L += ['* Quantized, raw, Δθ0 = 0: ours/paper for δc1…δc9 = '
+    L += ['* Quantized, raw, Δθ0 = 0, modified estimator: ours/paper for δc1…δc9 = '
           + ', '.join(f'{v:+.2f}' for v in q_ratio)
           + f" ({hq['signs']}/12 signs over δc, δd; RMS ratio {hq['rms_ratio']:.2f})."]
-    g = r['centring_gain']
-    gc, gd = 1 - g['rms_c_centred'] / g['rms_c_raw'], 1 - g['rms_d_centred'] / g['rms_d_raw']
-    gp = 1 - g['printed_rms_c_centred'] / g['printed_rms_c_raw']
-    gb = 1 - g['rms_c_bias_centred'] / g['rms_c_bias_raw']
-    L += [f"* Centring (5.5), Monte Carlo over {g['seeds']} seeds: RMS of c {g['rms_c_raw']:.2e} "
-          '→ '
-          f"{g['rms_c_centred']:.2e} ({100 * abs(gc):.0f}% {_verdict(gc > 0, 'less', 'more')}), "
-          'of the biases c7–9 '
-          f"{g['rms_c_bias_raw']:.2e} → {g['rms_c_bias_centred']:.2e} ({100 * abs(gb):.0f}% "
-          f"{_verdict(gb > 0, 'less', 'more')}), of d {g['rms_d_raw']:.2e} → "
-          f"{g['rms_d_centred']:.2e} "
-          f"({100 * abs(gd):.0f}% {_verdict(gd > 0, 'less', 'more')}). 000 says centring brings "
-          'the errors towards '
-          f"the unquantized ones: {_verdict(gc > 0 and gd > 0, 'agrees', 'does not agree')}. With "
-          'the printed '
-          f'coefficients the gain on c is {100 * gp:.1f}%.',
-          "* Corrections to 000's §2/§5 print used here, each checked in "
+    L += _centring_lines(r) + _w0_lines(r)
+    L += ["* Corrections to 000's §2/§5 print used here, each checked in "
           'test/calibration/test_drifting_reference.py: (2.5) sign of '
           'p×(w+w0); q_F = −½Δθ in (5.2); z = z′ − δz in (5.4); R(q_K) = σ²/48, not σ²/12.', '']
     L += _ablation_lines(r['ablations'])
-    b = r.get('beyond_paper')
-    if b:
-        base = b['raw']
-        L += [f"### Beyond the paper (σ = 2e-5, Monte Carlo over {g['seeds']} seeds)", '',
-              "RMS errors, and in brackets the ratio to the paper's method without centring (raw, "
-              'first order).', '',
-              '| method | c | c7–9 | d | w⁰ (attitude at the epochs) |', '|---|---|---|---|---|']
-        names = {'raw': 'raw (5.4), first order', 'centred': 'centred (5.5), first order',
-                 'raw+iter': 'raw, Gauss–Newton', 'centred+iter': 'centred, Gauss–Newton',
-                 'raw+weighted': 'raw, weighted R(δz)⁻¹', 'centred+weighted': 'centred, weighted',
-                 'centred+iter+weighted': 'centred, Gauss–Newton, weighted'}
-        for k, v in b.items():
-            L.append(f'| {names.get(k, k)} | ' + ' | '.join(
-                f'{v[qq]:.2e} ({v[qq] / base[qq]:.2f})' for qq in ('rms_c', 'rms_c_bias', 'rms_d',
-                                                                   'rms_w')) + ' |')
-        it_gain = 1 - b['centred+iter']['rms_c'] / b['centred']['rms_c']
-        w_gain = 1 - b['centred+weighted']['rms_c'] / b['centred']['rms_c']
-        best = min(b, key=lambda k: b[k]['rms_c'])
-        L += ['', '* On c, from the centred first-order solution: Gauss–Newton '
-                  f'{100 * it_gain:+.1f}%, weighting by '
-              f'R(δz)⁻¹ {100 * w_gain:+.1f}%; weighting '
-              f"{_verdict(w_gain > it_gain, 'gains more', 'gains less')} "
-              f'than iteration. Lowest RMS of c: {names.get(best, best)}.', '']
+    L += _beyond_lines(r)
     return '\n'.join(L)
+
+
+#: the Monte Carlo rows of the quantized table: (estimator key, case key, label)
+MC_ROWS = (('printed', 'raw', "000's method as printed: raw (5.4), first order"),
+           ('printed', 'centred', "000's method as printed: centred (5.5), first order"),
+           ('printed', 'corrected', "000's method as printed: increments by (5.6), first order"),
+           ('identity', 'raw', 'modified: raw (5.4), first order'),
+           ('identity', 'centred', 'modified: centred (5.5), first order'),
+           ('identity', 'corrected', 'modified: increments by (5.6), first order'),
+           ('identity', 'raw+iter', 'modified: raw, Gauss–Newton'),
+           ('identity', 'centred+iter', 'modified: centred, Gauss–Newton'),
+           ('identity', 'raw+weighted', 'modified: raw, weighted R(δz)⁻¹'),
+           ('identity', 'centred+weighted', 'modified: centred, weighted'),
+           ('identity', 'centred+iter+weighted', 'modified: centred, Gauss–Newton, weighted'))
+
+
+def _centring_lines(r: dict) -> list[str]:
+    """000's centring claim, judged for 000's method as printed first, then the modified one."""
+    un, seeds = r['unquantized_rms'], r['centring_gain']['seeds']
+    L = []
+    for name, b, u in (("000's method as printed", r['beyond_paper_printed'], un['printed']),
+                       ('modified estimator', r['beyond_paper'], un['identity'])):
+        parts = []
+        for m, f in (('centred', '(5.5)'), ('corrected', '(5.6)')):
+            parts.append(f'{f}: RMS of c {b["raw"]["rms_c"]:.4g} → {b[m]["rms_c"]:.4g} '
+                         f'({_change(b["raw"]["rms_c"], b[m]["rms_c"])}), of the biases c7–9 '
+                         f'{b["raw"]["rms_c_bias"]:.3g} → {b[m]["rms_c_bias"]:.3g} '
+                         f'({_change(b["raw"]["rms_c_bias"], b[m]["rms_c_bias"])}), of d '
+                         f'{b["raw"]["rms_d"]:.4g} → {b[m]["rms_d"]:.4g} '
+                         f'({_change(b["raw"]["rms_d"], b[m]["rms_d"])})')
+        ok = _centring_holds(b)
+        verdict = _verdict(ok, 'holds', 'does not hold')
+        if name.startswith('000'):
+            verdict += " with the paper's own method"
+        L.append(f'* Centring, {name}, Monte Carlo over {seeds} seeds — ' + '; '.join(parts)
+                 + f"; unquantized (one run): c {u['rms_c']:.3g}, d {u['rms_d']:.3g}. 000 says "
+                 'the centred errors approach the unquantized ones (threshold: the RMS of c and '
+                 f'of d each fall by at least {100 * NO_EFFECT:g}%, by (5.5) and by (5.6)): '
+                 f'{verdict}.')
+    return L
+
+
+def _w0_lines(r: dict) -> list[str]:
+    """Judge w⁰, the attitude error after the correction, which 000 prints too."""
+    parts, same, larger, total = [], 0, 0, 0
+    for case, rec in r['cases'].items():
+        pn = float(np.linalg.norm(rec['paper']['w0']))
+        cells = []
+        for key, name in (('ours_as_printed', "000's method as printed"),
+                          ('ours', 'modified')):
+            on = float(np.linalg.norm(rec[key]['w0']))
+            signs = int(np.sum(np.sign(rec[key]['w0']) == np.sign(rec['paper']['w0'])))
+            total += 1
+            same += abs(np.log(pn / on)) <= np.log(EXPLAINS_WITHIN)
+            larger += pn > on
+            cells.append(f'{name} {on:.2e} (paper/ours {pn / on:.2f}, {signs}/3 signs)')
+        parts.append(f'{case}: paper {pn:.2e}, ' + ', '.join(cells))
+    L = ['* w⁰, the attitude error left after the correction (000 prints it with each set; '
+         '|w⁰| at t_f, Δθ0 = 0): ' + '; '.join(parts) + f'. Same size (within '
+         f"{EXPLAINS_WITHIN:g}×, the ablations' threshold) in {same} of {total} comparisons; "
+         f"the paper's |w⁰| is the larger in {larger} of {total}."]
+    mc = {c: h['monte_carlo'] for c, h in r['headline'].items() if 'monte_carlo' in h}
+    if mc:
+        zs = ', '.join(f"{c} {m['w0_z_rms']:.2f}" for c, m in mc.items())
+        ok = all(m['w0_z_rms'] <= 2.0 for m in mc.values())
+        paper = {c: float(np.linalg.norm(r['cases'][c]['paper']['w0']))
+                 for c in ('quantized_raw', 'quantized_centred')}
+        ch = []
+        for name, b in (("000's method as printed", r['beyond_paper_printed']),
+                        ('modified', r['beyond_paper'])):
+            w = {m: b[m]['rms_w0_final'] for m in ('raw', 'centred', 'corrected')}
+            ch.append(f"{name} {_change(w['raw'], w['centred'])} by (5.5), "
+                      f"{_change(w['raw'], w['corrected'])} by (5.6)")
+        moved = [b[m]['rms_w0_final'] <= (1 - NO_EFFECT) * b['raw']['rms_w0_final']
+                 for b in (r['beyond_paper_printed'], r['beyond_paper'])
+                 for m in ('centred', 'corrected')]
+        verdict = ('brings w⁰ closer to the unquantized one with both estimators and both '
+                   'formulas' if all(moved) else
+                   'does not bring w⁰ closer with either estimator or formula' if not any(moved)
+                   else f'brings w⁰ closer in {sum(moved)} of {len(moved)} (estimator, formula) '
+                        'pairs')
+        L.append("* w⁰ against our Monte Carlo (modified estimator): RMS z of the paper's w⁰ "
+                 f'{zs} — ' + _verdict(ok, 'plausible draws of the quantization noise', 'not all '
+                                       'plausible draws of the quantization noise')
+                 + ' (plausible if RMS z ≤ 2). Centring changes the RMS of w⁰(t_f) over the '
+                 'seeds by ' + '; '.join(ch) + "; the paper's |w⁰| goes from "
+                 f"{paper['quantized_raw']:.2e} (raw) to {paper['quantized_centred']:.2e} "
+                 f'(centred). Verdict (threshold: a fall of at least {100 * NO_EFFECT:g}%): '
+                 f'centring {verdict}.')
+    return L
+
+
+def _beyond_lines(r: dict) -> list[str]:
+    """Tabulate the quantized Monte Carlo of both estimators and what goes beyond the paper."""
+    b, bp, un = r['beyond_paper'], r['beyond_paper_printed'], r['unquantized_rms']
+    seeds = r['centring_gain']['seeds']
+    base = bp['raw']
+    cols = ('rms_c', 'rms_c_bias', 'rms_d', 'rms_w0_final', 'rms_w')
+    L = [f'### Quantized, Monte Carlo over {seeds} seeds (σ = 2e-5): centring, and beyond the '
+         'paper', '',
+         "RMS errors over the seeds; in brackets the ratio to 000's method as printed, raw (5.4), "
+         "first order — the paper's method without centring. The unquantized rows are one run "
+         "each (no randomness); 'modified' is this project's estimator.", '',
+         '| method | c | c7–9 | d | w⁰ at t_f | w⁰ over the epochs |', '|---|---|---|---|---|---|']
+    for est, v in (('printed', un['printed']), ('identity', un['identity'])):
+        name = ("000's method as printed" if est == 'printed' else 'modified') + ': unquantized'
+        L.append(f'| {name} | ' + ' | '.join(f'{v[q]:.2e} ({v[q] / base[q]:.2f})' for q in cols)
+                 + ' |')
+    for est, key, name in MC_ROWS:
+        src = bp if est == 'printed' else b
+        if key not in src:
+            continue
+        v = src[key]
+        L.append(f'| {name} | ' + ' | '.join(f'{v[q]:.2e} ({v[q] / base[q]:.2f})' for q in cols)
+                 + ' |')
+    it_gain = 1 - b['centred+iter']['rms_c'] / b['centred']['rms_c']
+    w_gain = 1 - b['centred+weighted']['rms_c'] / b['centred']['rms_c']
+    best = min(b, key=lambda k: b[k]['rms_c'])
+    names = {key: name for est, key, name in MC_ROWS if est == 'identity'}
+    L += ['', '* On c, from the centred first-order solution of the modified estimator: '
+              f'Gauss–Newton {100 * it_gain:+.1f}%, weighting by R(δz)⁻¹ {100 * w_gain:+.1f}%; '
+              f"weighting {_verdict(w_gain > it_gain, 'gains more', 'gains less')} than "
+              f'iteration. Lowest RMS of c: {names.get(best, best)} '
+              f"({b[best]['rms_c'] / base['rms_c']:.2f} of 000's method as printed, raw).", '']
+    return L
 
 
 def plots_000(r: dict, outdir: str) -> list[str]:
@@ -353,20 +482,28 @@ def plots_000(r: dict, outdir: str) -> list[str]:
     axes[0].legend(fontsize=8, loc='lower left')
     fig.suptitle('000 §6: estimation errors, paper against ours (iterated: off scale below)')
     paths.append(save_figure(fig, outdir, 'seeds_000_errors.png'))
-    g = r['centring_gain']
-    fig, ax = plt.subplots(figsize=(6.5, 4))
-    raw = [g['rms_c_raw'], g['rms_c_bias_raw'], g['rms_d_raw']]
-    cen = [g['rms_c_centred'], g['rms_c_bias_centred'], g['rms_d_centred']]
-    xx = np.arange(3)
-    ax.bar(xx - 0.2, raw, 0.4, label='raw (5.4)')
-    ax.bar(xx + 0.2, cen, 0.4, label='centred (5.5)')
-    for i in range(3):
-        ax.annotate(f'{-100 * (1 - cen[i] / raw[i]):+.0f}%', (xx[i] + 0.2, cen[i]), ha='center',
-                    va='bottom')
-    ax.set_xticks(xx, ['c', 'c7–9 (biases)', 'd'])
+    seeds = r['centring_gain']['seeds']
+    fig, ax = plt.subplots(figsize=(8, 4.2))
+    keys, labels = ('rms_c', 'rms_c_bias', 'rms_d'), ['c', 'c7–9 (biases)', 'd']
+    xx = np.arange(len(keys))
+    bars = [(est, m) for est in ('printed', 'identity') for m in ('raw', 'centred', 'corrected')]
+    names = {'printed': "000's method as printed", 'identity': 'modified'}
+    forms = {'raw': 'raw (5.4)', 'centred': 'centred (5.5)', 'corrected': '(5.6)'}
+    width = 0.8 / len(bars)
+    for i, (est, m) in enumerate(bars):
+        src = r['beyond_paper_printed'] if est == 'printed' else r['beyond_paper']
+        vals = [src[m][k] for k in keys]
+        pos = xx - 0.4 + (i + 0.5) * width
+        ax.bar(pos, vals, width, label=f'{names[est]}, {forms[m]}',
+               color=('C3' if est == 'printed' else 'C0'), alpha=(1.0, 0.65, 0.35)[i % 3])
+        if m != 'raw':
+            for x, v, v0 in zip(pos, vals, [src['raw'][k] for k in keys]):
+                ax.annotate(f'{100 * (v / v0 - 1):+.0f}%', (x, v), ha='center', va='bottom',
+                            fontsize=6)
+    ax.set_xticks(xx, labels)
     ax.set_ylabel('RMS error over seeds')
-    ax.set_title(f"000 §6, σ = 2e-5: centring, Monte Carlo over {g['seeds']} seeds")
-    ax.legend()
+    ax.set_title(f'000 §6, σ = 2e-5: centring, Monte Carlo over {seeds} seeds')
+    ax.legend(fontsize=7)
     paths.append(save_figure(fig, outdir, 'seeds_000_centring.png'))
     a = r['ablations']
     fig, axes = plt.subplots(1, 2, figsize=(13, 5.5), sharey=True)

@@ -6,8 +6,9 @@ Vasilyuk et al. 2024 (paper 004): the §6 σ_β pattern, the Fig. 3 θ_diff chec
                                                        [--from-json FILE]
 
 * Fig. 3: on a 004 §6-like simulation (73 exposures 21 s apart, 004's gyro, camera 0.6″/0.6″/6″
-  looking up) the boresight is estimated with unit weights as 004 does, a SINS is aligned from the
-  first camera fix through that boresight and integrated, and θ_diff between the SINS and the
+  about VF x, y, z — our choice: 004 gives only σ ≤ 1″ for its camera attitudes — looking up)
+  the boresight is estimated with unit weights as 004 does, a SINS is aligned from the first
+  camera fix through that boresight and integrated, and θ_diff between the SINS and the
   camera-derived IMU attitude is checked against its predicted covariance
   (:func:`strapdown_ros.calibration.consistency.theta_diff_check`), in 004's printed form and in
   the derived one; a deliberately wrong boresight is checked too.
@@ -23,13 +24,15 @@ text and figures are in :mod:`.vasilyuk2024_report`.  No ROS imports.
 from __future__ import annotations
 
 import argparse
+from itertools import combinations
 import json
+from math import comb
 import os
 import sys
 
 import numpy as np
 
-from strapdown_ros.calibration.boresight import solve_boresight
+from strapdown_ros.calibration.boresight import increment_residuals, solve_boresight
 from strapdown_ros.calibration.boresight_increments import (camera_increment, gyro_increment,
                                                             IncrementPair)
 from strapdown_ros.calibration.consistency import (d1_finite_difference, d_matrices,
@@ -41,13 +44,24 @@ from strapdown_ros.reproductions.markdown import place_figures
 from strapdown_ros.reproductions.vasilyuk2024_report import (plots_004_extras,
                                                              report_004_extras)
 from strapdown_ros.rotation import (dcm_to_quat, quat_angle_between, quat_conjugate, quat_multiply,
-                                    quat_to_rotvec, rotvec_to_quat, ypr_to_dcm)
+                                    quat_to_dcm, quat_to_rotvec, rotvec_to_quat, ypr_to_dcm)
 from strapdown_ros.sensors import ARCSEC, NAVIGATION_GRADE_GYRO
 from strapdown_ros.sensors.covariance import constant_variances
 from strapdown_ros.sensors.star_camera import StarCameraModel
 
 __all__ = ['section_004', 'experiment_004_pairs', 'convergence_004', 'section_004_extras',
-           'simulate_004', 'trajectory_sigma', 'constants_covariance', 'ROWS', 'main']
+           'simulate_004', 'camera_increments_004', 'trajectory_sigma', 'constants_covariance',
+           'increment_angles', 'd_matrix_check',
+           'turn_conditioning', 'ROWS', 'TURN_DEG', 'OUTLIER_SIGMA', 'CONDITIONED_WITHIN',
+           'FIGURES', 'main', 'page']
+
+#: 004 §6: the turns are the increments of more than 0.5° (Fig. 1, Fig. 2 markers)
+TURN_DEG = 0.5
+#: an increment-angle difference or a residual is an outlier beyond this many σ
+OUTLIER_SIGMA = 3.0
+#: k turns "condition the system" when every trajectory-only σ_β with them alone (and the static
+#: pairs) is within this factor of its value with every turn
+CONDITIONED_WITHIN = 1.5
 
 #: 004 §6-like trajectory: 12 rotations between static segments (004's Fig. 1a: heading within
 #: 50°…300°, pitch within ±7°, roll within ±15°; the order and sizes here are ours), as
@@ -59,19 +73,24 @@ TURN_S = 10.0
 _PROFILES: dict = {}
 
 
+def _trajectory(n_fixes: int, interval: float, tilt_scale: float) -> PiecewiseRateProfile:
+    """Return the 004 §6-like motion: the turns of :data:`TURNS` between equal static holds."""
+    span = n_fixes * interval + 5.0
+    hold = (span - len(TURNS) * TURN_S) / (len(TURNS) + 1)
+    segs = [Segment(hold)]
+    for axis, deg in TURNS:
+        r = np.zeros(3)
+        r[axis] = np.radians(deg * (1.0 if axis == 2 else tilt_scale)) / TURN_S
+        segs += [Segment(TURN_S, r), Segment(hold)]
+    earth = EARTH_RATE * np.array([0.0, np.cos(LATITUDE), np.sin(LATITUDE)])
+    return PiecewiseRateProfile(segs, earth_rate=earth, gravity=(0.0, 0.0, STANDARD_GRAVITY))
+
+
 def _profile(n_fixes: int, interval: float, tilt_scale: float, imu_rate: float):
     key = (n_fixes, interval, tilt_scale, imu_rate)
     if key not in _PROFILES:
         span = n_fixes * interval + 5.0
-        hold = (span - len(TURNS) * TURN_S) / (len(TURNS) + 1)
-        segs = [Segment(hold)]
-        for axis, deg in TURNS:
-            r = np.zeros(3)
-            r[axis] = np.radians(deg * (1.0 if axis == 2 else tilt_scale)) / TURN_S
-            segs += [Segment(TURN_S, r), Segment(hold)]
-        earth = EARTH_RATE * np.array([0.0, np.cos(LATITUDE), np.sin(LATITUDE)])
-        prof = PiecewiseRateProfile(segs, earth_rate=earth,
-                                    gravity=(0.0, 0.0, STANDARD_GRAVITY))
+        prof = _trajectory(n_fixes, interval, tilt_scale)
         tg = np.arange(int(span * imu_rate) + 1) / imu_rate
         _PROFILES.clear()                                   # one at a time: 300k increments each
         _PROFILES[key] = (prof, tg[1:], prof.delta_theta(tg[:-1], tg[1:]))
@@ -123,9 +142,7 @@ def simulate_004(seed: int, n_fixes: int = 73, interval: float = 21.0, tilt_scal
         y = u @ (np.eye(3) + err.matrix).T + err.bias / imu_rate + noise
     else:
         y = u
-    cam = StarCameraModel(boresight=np.asarray(boresight, dtype=float), interval=interval,
-                          sigma=np.asarray(camera_sigma, dtype=float) * ARCSEC, seed=1000 + seed)
-    fixes = cam.fixes(prof, n_fixes)
+    fixes = _camera(seed, interval, camera_sigma, boresight).fixes(prof, n_fixes)
     pairs = []
     for f0, f1 in zip(fixes[:-1], fixes[1:]):
         out = gyro_increment(t, y, f0.stamp, f1.stamp, g if gyro else None,
@@ -137,6 +154,48 @@ def simulate_004(seed: int, n_fixes: int = 73, interval: float = 21.0, tilt_scal
         pairs.append(p)
     return {'pairs': pairs, 'fixes': fixes, 'beta_true': np.asarray(boresight, dtype=float),
             'profile': prof}
+
+
+def _camera(seed: int, interval: float, camera_sigma, boresight) -> StarCameraModel:
+    return StarCameraModel(boresight=np.asarray(boresight, dtype=float), interval=interval,
+                           sigma=np.asarray(camera_sigma, dtype=float) * ARCSEC,
+                           seed=1000 + seed)
+
+
+def camera_increments_004(seed: int, n_fixes: int = 73, interval: float = 21.0,
+                          tilt_scale: float = 1.0, camera_sigma=(0.6, 0.6, 6.0),
+                          boresight=(0.0, 0.0, 0.0)) -> np.ndarray:
+    """
+    Return the camera increments ΔS_avu of one :func:`simulate_004` run, without the gyro.
+
+    The same fixes as :func:`simulate_004` with the same arguments (the camera noise depends
+    on ``seed`` only), for the trajectory-only checks, at no cost of gyro increments.
+
+    Parameters
+    ----------
+    seed : int
+        Seed of the run.
+    n_fixes : int
+        Number of exposures.
+    interval : float
+        Time between exposures, s.
+    tilt_scale : float
+        Factor on the tilt turns.
+    camera_sigma : (3,) sequence of float
+        Camera attitude σ about VF x, y, z, arcsec.
+    boresight : (3,) sequence of float
+        True boresight (yaw, pitch, roll), rad.
+
+    Returns
+    -------
+    (n_fixes − 1, 4) ndarray
+        ΔS_avu of each pair of successive fixes, scalar first.
+
+    """
+    prof = _trajectory(n_fixes, interval, tilt_scale)
+    fixes = _camera(seed, interval, camera_sigma, boresight).fixes(prof, n_fixes)
+    return np.array([camera_increment(f0.attitude, f0.covariance, f1.attitude, f1.covariance)[0]
+                     for f0, f1 in zip(fixes[:-1], fixes[1:])])
 
 
 def trajectory_sigma(pairs, beta) -> np.ndarray:
@@ -159,19 +218,136 @@ def trajectory_sigma(pairs, beta) -> np.ndarray:
         σ of (ψ, ϑ, γ) for unit noise.
 
     """
-    rv = quat_to_rotvec(np.array([p.dq_cam for p in pairs]))
+    return _sigma_from_normal(_normal_terms(np.array([p.dq_cam for p in pairs])).sum(0), beta)
+
+
+def _normal_terms(dq_cam) -> np.ndarray:
+    """Each camera increment's term 2(1 − cos φ)(I − k kᵀ) of the normal matrix (VF axes)."""
+    rv = quat_to_rotvec(np.asarray(dq_cam, dtype=float))
     ang = np.linalg.norm(rv, axis=1)
     k = rv / np.maximum(ang, 1e-300)[:, None]
     across = np.eye(3)[None] - k[:, :, None] * k[:, None, :]          # I − k kᵀ per increment
-    N = np.einsum('n,nij->ij', 2 * (1 - np.cos(ang)), across)
+    return (2 * (1 - np.cos(ang)))[:, None, None] * across
+
+
+def _sigma_from_normal(N, beta) -> np.ndarray:
     D1, _ = d_matrices(beta)
     D1i = np.linalg.inv(D1)
     return np.sqrt(np.diag(D1i @ np.linalg.inv(N) @ D1i.T))
 
 
+def increment_angles(pairs, sol) -> dict:
+    """
+    Return the numbers of 004's Fig. 2: increment angles before calibration, residuals after.
+
+    Fig. 2a: φ^avu − φ^imu, the difference of the rotation angles of the camera and gyro
+    increments (no boresight needed), beside σ = √(σ_avu² + σ_imu²), each σ the projection of
+    E_avu, E_imu on the increment's axis.  Fig. 2b: the residuals f_n (004 (5)–(6)) at the
+    solution, beside their σ from Cᵀ E_imu C + E_avu.
+
+    Parameters
+    ----------
+    pairs : list of IncrementPair
+        The increment pairs.
+    sol : BoresightSolution
+        The boresight solved from them.
+
+    Returns
+    -------
+    dict
+        ``t`` (end of each pair, s), ``angle_deg``, ``diff_arcsec``, ``sigma_arcsec``, ``turn``
+        (angle above :data:`TURN_DEG`), ``residual_arcsec`` and ``residual_sigma_arcsec``
+        (n × 3, VF axes), with the thresholds :data:`TURN_DEG` and :data:`OUTLIER_SIGMA`
+        (JSON-able).
+
+    """
+    dq_c = np.array([p.dq_cam for p in pairs])
+    dq_i = np.array([p.dq_imu for p in pairs])
+    rc, ri = quat_to_rotvec(dq_c), quat_to_rotvec(dq_i)
+    ac, ai = np.linalg.norm(rc, axis=1), np.linalg.norm(ri, axis=1)
+    kc, ki = rc / ac[:, None], ri / ai[:, None]
+    E_c = np.array([p.cov_cam for p in pairs])
+    E_i = np.array([p.cov_imu for p in pairs])
+    s_c = np.sqrt(np.einsum('ni,nij,nj->n', kc, E_c, kc))
+    s_i = np.sqrt(np.einsum('ni,nij,nj->n', ki, E_i, ki))
+    C = sol.c_mf_vf
+    f = increment_residuals(C, quat_to_dcm(dq_i), quat_to_dcm(dq_c))
+    P_f = np.einsum('ji,njk,kl->nil', C, E_i, C) + E_c
+    return {'t': [float(p.t_end) for p in pairs], 'angle_deg': _vec(np.degrees(ac)),
+            'diff_arcsec': _vec((ac - ai) / ARCSEC),
+            'sigma_arcsec': _vec(np.hypot(s_c, s_i) / ARCSEC),
+            'turn': [bool(a > np.radians(TURN_DEG)) for a in ac],
+            'residual_arcsec': (f / ARCSEC).tolist(),
+            'residual_sigma_arcsec': (np.sqrt(np.einsum('nii->ni', P_f)) / ARCSEC).tolist(),
+            'turn_deg': TURN_DEG, 'outlier_sigma': OUTLIER_SIGMA}
+
+
+def turn_conditioning(dq_cam, beta, exhaustive: int = 20000) -> dict:
+    """
+    Return how many turns condition the calibration equations (004 §6: "only three of 12").
+
+    For k = 1, 2, … the k turn pairs (increments above :data:`TURN_DEG`) which, with the
+    static pairs, give the trajectory-only σ_β (:func:`trajectory_sigma`) closest to that of
+    every pair: the largest ratio of the three σ is minimised over every k-subset while there
+    are at most ``exhaustive`` of them, then by adding one turn at a time (greedy).
+
+    Parameters
+    ----------
+    dq_cam : (n, 4) array_like
+        The camera increments ΔS_avu of the pairs, scalar first.
+    beta : (3,) array_like
+        Boresight at which D1 is evaluated, rad.
+    exhaustive : int
+        Largest number of k-subsets searched in full.
+
+    Returns
+    -------
+    dict
+        ``turns`` (pairs rotating by more than :data:`TURN_DEG`), ``static``, ``sigma_all``
+        (relative σ_β with every pair), ``steps`` (per k up to ``needed``: the turn pairs used,
+        their angles, the σ_β ratios to ``sigma_all``, ``exhaustive``) and ``needed`` (the
+        smallest k with every ratio ≤ :data:`CONDITIONED_WITHIN`), with the two thresholds
+        (JSON-able).
+
+    """
+    dq = np.asarray(dq_cam, dtype=float)
+    terms = _normal_terms(dq)
+    ang = np.degrees(np.linalg.norm(quat_to_rotvec(dq), axis=1))
+    turn = [int(i) for i in np.flatnonzero(ang > TURN_DEG)]
+    static = [i for i in range(len(dq)) if i not in set(turn)]
+    D1, _ = d_matrices(beta)
+    D1i = np.linalg.inv(D1)
+    full = _sigma_from_normal(terms.sum(0), beta)
+    base = terms[static].sum(0)
+
+    def ratios(subsets):
+        N = base[None] + terms[np.array(subsets)].sum(1)
+        with np.errstate(all='ignore'):
+            cov = D1i[None] @ np.linalg.pinv(N, hermitian=True) @ D1i.T[None]
+            r = np.sqrt(np.abs(np.einsum('nii->ni', cov))) / full
+        bad = np.linalg.matrix_rank(N, hermitian=True) < 3
+        return np.where(bad[:, None], np.inf, r)
+    steps, needed, best = [], None, ()
+    for k in range(1, len(turn) + 1):
+        full_search = comb(len(turn), k) <= exhaustive
+        cands = (list(combinations(turn, k)) if full_search else
+                 [best + (i,) for i in turn if i not in best])
+        r = ratios(cands)
+        j = int(np.argmin(r.max(1)))
+        best = tuple(cands[j])
+        steps.append({'pairs': list(best), 'angles_deg': [float(ang[i]) for i in best],
+                      'sigma_ratio': _vec(r[j]), 'exhaustive': bool(full_search)})
+        if np.max(r[j]) <= CONDITIONED_WITHIN:
+            needed = k
+            break
+    return {'turns': len(turn), 'static': len(static), 'sigma_all': _vec(full),
+            'steps': steps, 'needed': needed, 'turn_deg': TURN_DEG,
+            'conditioned_within': CONDITIONED_WITHIN}
+
+
 ROWS = (  # name, description, simulate_004 keywords
-    ('baseline', '004-like: camera 0.6″/0.6″/6″ looking up, 12 turns (6 heading 30°–80°, 6 tilts '
-                 '5°–25°), N = 73, gyro on', {}),
+    ('baseline', '004-like: camera 0.6″/0.6″/6″ (our choice) looking up, 12 turns (6 heading '
+                 '30°–80°, 6 tilts 5°–25°), N = 73, gyro on', {}),
     ('camera_isotropic_0.6', 'camera 0.6″ about every axis', {'camera_sigma': (0.6, 0.6, 0.6)}),
     ('camera_isotropic_6', 'camera 6″ about every axis', {'camera_sigma': (6.0, 6.0, 6.0)}),
     ('gyro_off', 'error-free gyro increments', {'gyro': False}),
@@ -239,8 +415,13 @@ def constants_covariance(absorb_triad_rotation: bool = True) -> np.ndarray:
 
 
 def _theta_diff(seed: int, imu_rate: float, wrong_arcsec=(0.0, 30.0, 0.0), n_fixes: int = 73,
-                absorb_triad_rotation: bool = True) -> dict:
-    """Check Fig. 3 on one run: unit-weight boresight (004), SINS aligned at fix 1 through it."""
+                absorb_triad_rotation: bool = True, figures: bool = False) -> dict:
+    """
+    Check Fig. 3 on one run: unit-weight boresight (004), SINS aligned at fix 1 through it.
+
+    With ``figures`` the same run also gives 004's Fig. 2 (:func:`increment_angles`) and the
+    turn count of §6 (:func:`turn_conditioning`).
+    """
     sim = simulate_004(seed, imu_rate=imu_rate, sensitivity=True, n_fixes=n_fixes)
     pairs, fixes = sim['pairs'], sim['fixes']
     sol = solve_boresight(pairs, weighting='unit')
@@ -272,6 +453,9 @@ def _theta_diff(seed: int, imu_rate: float, wrong_arcsec=(0.0, 30.0, 0.0), n_fix
                            sigma_avu_arcsec=(chk.sigma_avu / ARCSEC).tolist())
             res[f'{label}_{form}'] = rec
     res['wrong_offset_arcsec'] = [float(v) for v in wrong_arcsec]
+    if figures:
+        res['fig2'] = increment_angles(pairs, sol)
+        res['turns'] = turn_conditioning([p.dq_cam for p in pairs], sim['beta_true'])
     # 004 §6's first-order log against the exact one
     q_ins, P_ins = sins_from_camera(q_vf, sol.beta, dq)
     a = theta_diff_check(q_vf, P_avu, sol.beta, sol.covariance_beta, q_ins, P_ins)
@@ -303,8 +487,21 @@ def _printed_alignment_check(imu_rate: float, boresight=(0.3, -0.2, np.pi / 2)) 
     return out
 
 
-def _d_matrix_check(count: int = 200) -> dict:
-    """Check the printed D1, D2 (004 §5) against finite differences of C(β) at random β."""
+def d_matrix_check(count: int = 200) -> dict:
+    """
+    Check the printed D1, D2 (004 §5) against finite differences of C(β) at random β.
+
+    Parameters
+    ----------
+    count : int
+        Random boresights (seed 0), each angle within ±1.5 rad.
+
+    Returns
+    -------
+    dict
+        ``count`` and the largest entry error of the printed and the derived D1, D2.
+
+    """
     rng = np.random.default_rng(0)
     worst = {'printed': 0.0, 'derived': 0.0}
     for _ in range(count):
@@ -333,15 +530,16 @@ def section_004_extras(quick: bool = False, runs: int | None = None) -> dict:
     Returns
     -------
     dict
-        The Fig. 3 check, its Monte Carlo, the printed-formula checks and the ablation rows
-        (JSON-able).
+        The Fig. 3 check, its Monte Carlo, Fig. 2 and the turn count of the same run, the
+        printed-formula checks and the ablation rows (JSON-able).
 
     """
     imu_rate = 20.0 if quick else 200.0
     runs = runs if runs is not None else (1 if quick else 8)
     quick_rows = ('baseline', 'camera_isotropic_0.6', 'tilts_x0.3')
     rows = ROWS if not quick else tuple(r for r in ROWS if r[0] in quick_rows)
-    fig3 = _theta_diff(0, imu_rate)
+    fig3 = _theta_diff(0, imu_rate, figures=True)
+    fig2, turns = fig3.pop('fig2'), fig3.pop('turns')
     mc_runs = 2 if quick else 20
     mc = {'derived': [], 'printed': [], 'wrong_derived': []}
     for seed in range(1, mc_runs + 1):
@@ -352,7 +550,8 @@ def section_004_extras(quick: bool = False, runs: int | None = None) -> dict:
         mc['wrong_derived'].append(not r['wrong_derived']['consistent'])
     return {'imu_rate_hz': imu_rate, 'quick': quick,
             'paper': {'sigma_beta_arcsec': [6.0, 0.6, 0.6]},
-            'fig3': fig3, 'd_matrices': _d_matrix_check(50 if quick else 200),
+            'fig3': fig3, 'fig2': fig2, 'turns': turns,
+            'd_matrices': d_matrix_check(50 if quick else 200),
             'printed_alignment': _printed_alignment_check(imu_rate),
             'fig3_mc': {'runs': mc_runs, 'nees_per_dof_derived': mc['derived'],
                         'nees_per_dof_printed': mc['printed'],
@@ -507,6 +706,37 @@ def section_004(runs: int, quick: bool = False) -> dict:
             'runs': runs}
 
 
+#: the figures :func:`.vasilyuk2024_report.plots_004_extras` writes, in its order
+FIGURES = ('seeds_004_theta_diff.png', 'seeds_004_fig2.png', 'seeds_004_ablation.png')
+
+
+def page(res: dict, figures=(), base: str = '.') -> str:
+    """
+    Return the page ``boresight_004.md`` of a :func:`section_004_extras` result.
+
+    Parameters
+    ----------
+    res : dict
+        The result (this command's ``--json``).
+    figures : sequence of str
+        Paths of the PNG figures (:data:`FIGURES`), linked after the table each illustrates.
+    base : str
+        Directory the figure links are relative to (the page's directory).
+
+    Returns
+    -------
+    str
+        The Markdown page.
+
+    """
+    return ('# 004 (Vasilyuk et al. 2024) — boresight: the turns, Fig. 2, the Fig. 3 consistency '
+            'check and the §6 σ_β pattern\n\n'
+            'Generated by `python -m strapdown_ros.reproductions.vasilyuk2024`; every number '
+            'comes from that run. Derivations of the corrected formulas: '
+            '`strapdown_ros/calibration/consistency.py`.\n\n'
+            + place_figures(report_004_extras(res), list(figures), base))
+
+
 class _Parser(argparse.ArgumentParser):
 
     def error(self, message):                    # one line, exit 2
@@ -549,8 +779,7 @@ def main(argv=None) -> int:
         if a.runs is not None and a.runs < 1:
             raise ValueError(f'--runs must be >= 1, got {a.runs}')
         check_outputs([('--report', a.report, FILE), ('--json', a.json, FILE),
-                       ('--plots', a.plots, DIRECTORY, ('seeds_004_theta_diff.png',
-                                                        'seeds_004_ablation.png'))],
+                       ('--plots', a.plots, DIRECTORY, FIGURES)],
                       [('--from-json', a.from_json)], a.force)
         res = None
         if a.from_json:
@@ -567,19 +796,14 @@ def main(argv=None) -> int:
         return 2
     if res is None:
         res = section_004_extras(a.quick, a.runs)
-    text = report_004_extras(res)
+    figures, base = [], os.getcwd()
     if a.plots:
         base = os.path.dirname(os.path.abspath(a.report)) if a.report else os.getcwd()
-        text = place_figures(text, plots_004_extras(res, a.plots), base)
+        figures = plots_004_extras(res, a.plots)
     if a.report:
-        write_text(a.report,
-                   '# 004 (Vasilyuk et al. 2024) — boresight: Fig. 3 consistency check and the '
-                   '§6 σ_β pattern\n\n'
-                   'Generated by `python -m strapdown_ros.reproductions.vasilyuk2024`; every '
-                   'number comes from that run. Derivations of the corrected formulas: '
-                   '`strapdown_ros/calibration/consistency.py`.\n\n' + text)
+        write_text(a.report, page(res, figures, base))
     else:
-        print(text)
+        print(place_figures(report_004_extras(res), figures, base))
     if a.json:
         write_text(a.json, json.dumps(res, indent=1))
     return 0

@@ -42,6 +42,11 @@ SHIP_SPEED = 15.0                # V0 for the ship [m/s] (001: μ1 ≈ 0.03)
 CIRCULATION_PERIOD = 420.0       # 7 min (001: 6–8 min)
 INCLINATION_DEG = 60.0           # orthodrome inclination ϑ, passing LATITUDE at τ = 0
 X0 = 1.5e-3                      # 001's characteristic error x° [rad]
+#: a shorter interval "suffices" for a variable when its Gramian measure reaches this fraction
+#: of the measure on 001's τ1 ∈ (0, 1/λ1)
+SUFFICES = 0.9
+#: a measured gain ratio "follows" a predicted one when within this factor of it
+GAIN_WITHIN = 1.1
 SHIP_NAMES = ('y1', 'y2', 'y3', 'y4', 'Δ')             # the ship's variables, (4.6)
 AIRCRAFT_NAMES = ('s1', 's2', 's3', 's4', 's5')        # the aircraft's variables, (4.8)
 FULL_NAMES = ('x1', 'x2', 'x3', 'x4', 'z', 'Δ')         # states of the full time-varying model
@@ -295,6 +300,42 @@ def _table(names, paper, columns: dict, paper_label: str = 'paper') -> list[str]
     return lines
 
 
+def _two_periods_verdict(ci: dict) -> str:
+    """001's "two circulation periods are needed", judged by the Gramian measures."""
+    g1, gl = ci['gramian']['one_period'], ci['gramian']['schuler_unit']
+    d1, dl = ci['full_delta']['one_period'], ci['full_delta']['schuler_unit']
+    fr = {'p1': g1[2] / gl[2], 'p2': g1[3] / gl[3], 'Δ (full model)': d1 / dl if dl else 0.0}
+    enough = [k for k, v in fr.items() if v >= SUFFICES]
+    short = [k for k, v in fr.items() if v < SUFFICES]
+    periods = ci['intervals_tau1']['schuler_unit'] / (2 * np.pi)
+    return ('001 says p1, p2 need τ1∈(0,1/λ1), "two circulation periods" (1/λ1 is '
+            f'{periods:.2f} periods here). After one period the measure is, as a fraction of '
+            'that on τ1∈(0,1/λ1): ' + ', '.join(f'{k} {v:.2f}' for k, v in fr.items())
+            + f'. Verdict (one period suffices for a variable that reaches ≥ {SUFFICES:g} of '
+            'it): ' + (f"one period suffices for {', '.join(enough)}" if enough else
+                       'one period suffices for none')
+            + ('' if not short else f"; it does not for {', '.join(short)}")
+            + '.')
+
+
+def _gain_verdict(o1: dict, o2: dict, ratio: list, kal: dict) -> str:
+    """001's "gains of the last three variables ∝ 1/(μ sin φ)", judged per variable."""
+    pred = o1['c'] / o2['c']
+    meas = [x / y for x, y in zip(kal['lat']['measures'][2:], kal['lat_low']['measures'][2:])]
+    names = ('y3', 'y4', 'Δ')
+    follows = [abs(np.log(r / pred)) <= np.log(GAIN_WITHIN) for r in ratio[2:]]
+    by_measure = [abs(np.log(r / m)) <= np.log(GAIN_WITHIN) for r, m in zip(ratio[2:], meas)]
+    yes = [n for n, f in zip(names, follows) if f]
+    instead = '; it follows 1/measure instead'
+    no = [f'{n} (×{r:.3f}, {r / pred:.2f} of it' + (instead if m else '') + ')'
+          for n, f, r, m in zip(names, follows, ratio[2:], by_measure) if not f]
+    return ('001: the observer gains of y3, y4, Δ are ∝ 1/(μ sin φ), i.e. ×'
+            f'{pred:.3f} from {o1["latitude_deg"]:g}° to {o2["latitude_deg"]:g}°. Verdict '
+            f'(a gain follows when within {GAIN_WITHIN:g}× of that): '
+            + (f"holds for {', '.join(yes)}" if yes else 'holds for none')
+            + (f"; does not hold for {'; '.join(no)}" if no else '') + '.')
+
+
 def report_001(res: dict) -> str:
     """
     Write the 001 section of the report.
@@ -422,6 +463,7 @@ def report_001(res: dict) -> str:
              f"Gramian's accuracy) is {ci['full_delta']['unit']:.2g} on τ1∈(0,1), "
              f"{ci['full_delta']['one_period']:.2g} after one "
              f"period and {ci['full_delta']['schuler_unit']:.2g} on τ1∈(0,1/λ1).")
+    L.append(_two_periods_verdict(ci))
     L += ['', '### Stationary filters for the ship', '']
     o1, o2 = fl['observer']['lat'], fl['observer']['lat_low']
     ratio = [x / y for x, y in zip(o2['gain'], o1['gain'])]
@@ -434,6 +476,7 @@ def report_001(res: dict) -> str:
                                                         fl['kalman']['lat_low']['measures'][2:]))
              + ", Δ's measure carrying b12 = cos φ too); "
              'those of y1, y2 by ' + ', '.join(f'{r:.3f}' for r in ratio[:2]) + '.')
+    L.append(_gain_verdict(o1, o2, ratio, fl['kalman']))
     k1, k2 = fl['kalman']['lat'], fl['kalman']['lat_low']
     L.append(f"Steady-state Kalman filter (Δσ = 0.1μ = {fl['kalman']['delta_sigma']:.2e} x° as "
              'white noise of that '
@@ -539,6 +582,33 @@ def plots_001(res: dict, outdir: str) -> list[str]:
     return out
 
 
+#: the figures :func:`plots_001` writes, in its order
+FIGURES = ('seeds_001_measures.png', 'seeds_001_filter.png')
+
+
+def page(res: dict, figures=(), base: str = '.') -> str:
+    """
+    Return the page ``observability_001.md`` of a :func:`section_001` result.
+
+    Parameters
+    ----------
+    res : dict
+        The result (this command's ``--json``).
+    figures : sequence of str
+        Paths of the PNG figures (:data:`FIGURES`), linked after the table each illustrates.
+    base : str
+        Directory the figure links are relative to (the page's directory).
+
+    Returns
+    -------
+    str
+        The Markdown page: the report, then the derivation text.
+
+    """
+    text = '# 001 (Vavilov 1982) — observability, reproduced\n\n' + report_001(res)
+    return place_figures(text, list(figures), base) + DERIVATIONS_001
+
+
 def main(argv=None) -> int:
     """
     Run the 001 page command (``python -m strapdown_ros.reproductions.vavilov1982``).
@@ -568,17 +638,16 @@ def main(argv=None) -> int:
     args = ap.parse_args(argv)
     try:                                        # the tools' one output rule
         check_outputs([('--report', args.report, FILE), ('--json', args.json, FILE),
-                       ('--plots', args.plots, DIRECTORY, ('seeds_001_measures.png',
-                                                           'seeds_001_filter.png'))],
+                       ('--plots', args.plots, DIRECTORY, FIGURES)],
                       [], args.force)
     except ValueError as exc:
         _error(str(exc))
     res = section_001(quick=args.quick)
-    text = '# 001 (Vavilov 1982) — observability, reproduced\n\n' + report_001(res)
+    figures, base = [], os.getcwd()
     if args.plots:
         base = os.path.dirname(os.path.abspath(args.report)) if args.report else os.getcwd()
-        text = place_figures(text, plots_001(res, args.plots), base)
-    text += DERIVATIONS_001
+        figures = plots_001(res, args.plots)
+    text = page(res, figures, base)
     if args.report:
         write_text(args.report, text)
     else:

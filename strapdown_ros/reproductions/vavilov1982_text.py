@@ -152,7 +152,8 @@ on T = 1/λ1 (time rescaled by T) m(p1) = μ1/(√2λ1), m(p2) = μ1/(√2λ1²)
   white noise of intensity Δσ² per unit τ (sample variance Δσ²/h), a random walk on every state
   keeps the steady gain non-zero; the discrete Riccati equation is solved by doubling (numpy).
   The constant-gain filter's actual covariance is propagated by the Joseph recursion, and the
-  Monte Carlo NEES is compared with the χ² band of its run-mean (Wilson–Hilferty quantiles).
+  Monte Carlo NEES is compared with the χ² band of its run-mean (exact χ² quantiles,
+  `strapdown_ros/estimation/chi_square.py`).
   For a scalar random walk of intensity q observed with measure m the steady σ is √(qΔσ/m) and
   the time constant Δσ/(qm): the latitude dependence of the weak variables tests these powers.
 

@@ -34,7 +34,8 @@ from strapdown_ros.sensors.effects import CameraEffects, EFFECTS, GyroEffects
 from strapdown_ros.sensors.model import NAVIGATION_GRADE_ACCEL, SensorSigmas
 
 __all__ = ['FIXED_KEYS', 'ACCEL_KEYS', 'MODEL_ALIASES', 'EffectState', 'SensorModel',
-           'model_keys', 'model_key_names', 'nearest_key', 'augment_choices', 'ARCSEC_RAD']
+           'model_keys', 'model_key_names', 'nearest_key', 'augment_choices', 'key_group',
+           'ARCSEC_RAD']
 
 ARCSEC_RAD = np.pi / 180.0 / 3600.0
 
@@ -571,11 +572,64 @@ class SensorModel:
         """Return the reference's effects: the time offset and the noise scale per axis."""
         return CameraEffects(self)
 
+    def not_applied(self, groups) -> list[str]:
+        """
+        Return the stated keys, off their default, that a consumer of ``groups`` does not apply.
+
+        So that no key is ignored silently: ``sins_bag`` (gyro, accel) names a stated boresight
+        it has no use for, ``calibrate_bag`` (gyro, reference) a stated accelerometer key.
+
+        Parameters
+        ----------
+        groups : iterable of str
+            What the consumer applies: ``gyro``, ``accel``, ``reference``, ``filter``
+            (:func:`key_group`).
+
+        Returns
+        -------
+        list of str
+            The keys, in key order.
+
+        """
+        groups = set(groups)
+        off = set(self.differs_from_default())
+        return [k for k in self.values() if k in self.stated and k in off
+                and key_group(k) not in groups]
+
     def differs_from_default(self) -> list[str]:
         """Return the model keys whose value is not the default, in key order."""
         d = SensorModel.from_values({}).values()
         mine = self.values()
         return [k for k in mine if mine[k] != d[k]]
+
+
+def key_group(name: str) -> str:
+    """
+    Return which part of the unit a model key describes.
+
+    Parameters
+    ----------
+    name : str
+        A model key.
+
+    Returns
+    -------
+    str
+        ``gyro`` (its rate, range, frame and effects), ``accel``, ``reference`` (the camera
+        effects, the reference's σ and frames, the boresight) or ``filter`` (``augment``).
+
+    """
+    if name == 'augment':
+        return 'filter'
+    if name.startswith('accel_'):
+        return 'accel'
+    if name in ('reference_frame_id', 'camera_frame_id', 'camera_sigma_xy', 'camera_sigma_z',
+                'boresight', 'boresight_sigma'):
+        return 'reference'
+    for e in EFFECTS.values():
+        if name in {k.name for k in e.model_parameters()}:
+            return 'reference' if e.sensor == 'camera' else 'gyro'
+    return 'gyro'
 
 
 #: the fields read directly by :meth:`SensorModel.get`

@@ -49,7 +49,7 @@ from strapdown_ros.calibration.replay import calibrate_recording, solution_recor
 from strapdown_ros.calibration.streaming import CalibratorSettings
 from strapdown_ros.cli import check_outputs, FILE, OneLineParser, write_json
 from strapdown_ros.params import (check_against_recording, filled_in, load_model_file,
-                                  parse_overrides)
+                                  not_applied_note, parse_overrides)
 from strapdown_ros.recording import (add_input_arguments, BagError, check_input_arguments,
                                      input_lines, input_options, input_summary, input_warnings,
                                      read_bag, recording_facts)
@@ -213,6 +213,9 @@ def main(argv=None) -> int:
         print(line, file=sys.stderr)
     for line in filled_in(mf.model, model):
         print(f'calibrate_bag: note: {line}', file=sys.stderr)
+    note = not_applied_note(model, ('gyro', 'reference'), 'calibrate_bag')
+    if note:
+        print(f'calibrate_bag: note: {note}', file=sys.stderr)
     for kind, want in (('gyro', model.frame_id), ('camera', model.reference_frame_id)):
         other = [f for f in data['frames'][kind] if f != want]
         if other:

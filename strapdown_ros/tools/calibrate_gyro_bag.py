@@ -54,7 +54,7 @@ from strapdown_ros.cli import check_outputs, FILE, OneLineParser, write_json
 from strapdown_ros.discrepancy.bag_input import load_recording, recording_lines
 from strapdown_ros.discrepancy.workflow import InputError, json_clean
 from strapdown_ros.params import (check_against_recording, filled_in, load_model_file,
-                                  write_model_file)
+                                  not_applied_note, write_model_file)
 from strapdown_ros.recording import (add_input_arguments, BagError, check_input_arguments,
                                      input_options, input_warnings)
 
@@ -270,6 +270,9 @@ def main(argv=None) -> int:
             print(line, file=sys.stderr)
         for line in filled_in(model, checked):
             print(f'{PROG}: note: {line}', file=sys.stderr)
+        note = not_applied_note(checked, ('gyro', 'reference', 'filter'), PROG)
+        if note:
+            print(f'{PROG}: note: {note}', file=sys.stderr)
         model = checked
         if len(rec.fix_stamps) < 6:
             raise ValueError(f'{args.bag}: {len(rec.fix_stamps)} usable camera fixes '

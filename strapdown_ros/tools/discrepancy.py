@@ -54,7 +54,7 @@ from strapdown_ros.discrepancy.workflow import (analyse, AnalysisError, Boresigh
                                                 DEFAULT_ALPHA, DiscrepancySettings, InputError,
                                                 json_clean)
 from strapdown_ros.params import (check_against_recording, filled_in, load_model_file,
-                                  write_model_file)
+                                  not_applied_note, write_model_file)
 from strapdown_ros.recording import (add_input_arguments, BagError, check_input_arguments,
                                      input_options, input_warnings)
 
@@ -234,6 +234,9 @@ def main(argv=None) -> int:
             print(line, file=sys.stderr)
         for line in filled_in(model, checked):
             print(f'discrepancy: note: {line}', file=sys.stderr)
+        note = not_applied_note(checked, ('gyro', 'reference', 'filter'), 'discrepancy')
+        if note:
+            print(f'discrepancy: note: {note}', file=sys.stderr)
         model = checked
         res = analyse(rec, model, settings, progress=progress)
     except BoresightUnobservable as exc:

@@ -32,7 +32,7 @@ from strapdown_ros.cli import check_outputs, DIRECTORY, FILE, OneLineParser, wri
 from strapdown_ros.estimation.filter_plots import PLOT_NAMES, write_filter_plots
 from strapdown_ros.estimation.filter_system import FilterSettings
 from strapdown_ros.params import (check_against_recording, filled_in, load_model_file,
-                                  parse_overrides)
+                                  not_applied_note, parse_overrides)
 from strapdown_ros.recording.filter_replay import run_filter
 from strapdown_ros.recording.options import (add_input_arguments, check_input_arguments,
                                              input_options, input_warnings,
@@ -182,6 +182,9 @@ def main(argv=None) -> int:
         print(line, file=sys.stderr)
     for line in filled_in(mf.model, model):
         print(f'filter_bag: note: {line}', file=sys.stderr)
+    note = not_applied_note(model, ('gyro', 'reference', 'filter'), 'filter_bag')
+    if note:
+        print(f'filter_bag: note: {note}', file=sys.stderr)
     system = run_filter(data, model, settings)
     outputs, fixes = system.take()
     try:

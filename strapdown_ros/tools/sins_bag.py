@@ -63,7 +63,8 @@ import numpy as np
 
 from strapdown_ros.cli import check_outputs, REPLACED
 from strapdown_ros.earth import geodetic_to_ecef
-from strapdown_ros.params import check_against_recording, load_model_file, parse_overrides
+from strapdown_ros.params import (check_against_recording, load_model_file, not_applied_note,
+                                  parse_overrides)
 from strapdown_ros.recording import BagError
 from strapdown_ros.recording.imu_streams import ACCEL_TOPIC, GYRO_TOPIC, open_input
 from strapdown_ros.recording.sins_replay import CsvOutput, McapOutput, run
@@ -284,6 +285,9 @@ def main(argv=None) -> int:
                          need_accel=bool(settings.navigation), imu_topic=args.imu_topic,
                          progress=reading)
         model, rates = _recording_model(mf, settings, inp, say)
+        note = not_applied_note(model, ('gyro', 'accel'), 'sins_bag')
+        if note:
+            say(f'note: {note}')
 
         def make_system():
             return SinsSystem(model, settings,

@@ -1,9 +1,13 @@
 """coning_bench at reduced duration: the JSON schema, the report, and agreement with theory."""
+from fractions import Fraction
 import json
 
 import pytest
 
+from strapdown_ros.attitude.coning import ALGORITHMS
 from strapdown_ros.bench import coning_bench
+from strapdown_ros.bench.coning_derivation_checks import (measure_drift, series_coefficients,
+                                                          SEVEN_OPTIMAL)
 
 SCHEMA = {
     'algorithm': str,
@@ -92,3 +96,29 @@ def test_unknown_algorithm_is_refused(capsys):
     with pytest.raises(SystemExit):
         coning_bench.main(['--algorithms', '2,bogus'])
     assert 'valid names: 1, 2' in capsys.readouterr().err
+
+
+def test_derivation_checks_against_the_literature():
+    """
+    The derivation page's series and drifts against the seed guide's published coefficients.
+
+    Exact series coefficients: two_sample c3 = 0, c5 = 1/30 ((Ωh)⁴/960 with N = 2);
+    four_sample_optimal c3 = c5 = c7 = 0, c9 = 1/315; the optimal two-previous-sample form
+    c3 = c5 = 0, c7 = 1/280.  Measured drift of two_sample at Ωh = 0.2, α = 0.01: (Ωh)⁴/960
+    within 1%.
+    """
+    assert series_coefficients(ALGORITHMS['two_sample'])[:2] == [0, Fraction(1, 30)]
+    assert series_coefficients(ALGORITHMS['four_sample_optimal']) == [0, 0, 0, Fraction(1, 315)]
+    assert series_coefficients(SEVEN_OPTIMAL)[:3] == [0, 0, Fraction(1, 280)]
+    d = measure_drift(ALGORITHMS['two_sample'], 0.2)['drift']
+    assert d == pytest.approx(0.2 ** 4 / 960, rel=0.01)
+
+
+def test_derivation_checks_output_rule(tmp_path, capsys):
+    """--derivation-checks keeps an existing file without --force (exit 2, one line)."""
+    out = tmp_path / 'checks.md'
+    out.write_text('old')
+    assert coning_bench.main(['--derivation-checks', str(out)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith('coning_bench: error:')
+    assert out.read_text() == 'old'

@@ -8,7 +8,6 @@ Earth-referenced navigation profiles: truth checked against independent referenc
   Rodrigues integral) and a Gauss–Legendre rule with twice the nodes and sub-intervals;
 * coordinated turn: lateral specific force; sculling: periodic velocity and the drift formula.
 """
-import time
 
 import numpy as np
 import pytest
@@ -186,15 +185,14 @@ def test_quadrature_converges_against_doubled_rule(name, kind):
     assert np.linalg.norm(pieces - long_default[1]) / (scale / h * 7.8) < 1e-12
 
 
-def test_long_run_is_fast():
+def test_long_run_is_one_vectorised_call():
+    """10 min at 300 Hz in one call each (the speed is a benchmark's: nav_bench, not a test)."""
     p = PROFILES['sculling']()
     t = np.arange(0, 600 * 300 + 1) / 300.0
-    start = time.perf_counter()
     dv = p.delta_v(t[:-1], t[1:])
     dth = p.delta_theta(t[:-1], t[1:])
-    elapsed = time.perf_counter() - start
     assert dv.shape == dth.shape == (180000, 3)
-    assert elapsed < 4.0, elapsed          # ~0.5 s on a laptop core for both
+    assert np.all(np.isfinite(dv)) and np.all(np.isfinite(dth))
 
 
 def test_straight_flight_geometry():

@@ -9,11 +9,12 @@ import json
 import numpy as np
 import pytest
 
+from strapdown_ros.attitude.coning_analysis import THESIS_RANKING
 from strapdown_ros.calibration.drifting_reference_model import (integrate_attitude, PAPER_000,
                                                                 PAPER_000_W0)
 from strapdown_ros.reproductions import reproduce_seeds
 from strapdown_ros.reproductions.tkachenko1983 import (EXPLAINS_WITHIN,
-                                                       float32_recursion_increments,
+                                                       float32_recursion_increments, NO_EFFECT,
                                                        run_tkachenko_experiment, SAME_PATTERN,
                                                        simulate_000)
 from strapdown_ros.rotation import quat_conjugate, quat_multiply, quat_to_rotvec, rotvec_to_quat
@@ -180,11 +181,38 @@ def test_float32_recursion_is_single_precision_roundoff():
 
 
 def test_000_centring_sentence_computed(result):
-    """The centring sentence states the computed gain."""
+    """
+    The centring verdict is computed, 000's method as printed first.
+
+    For each estimator the line states the (5.5) change of the RMS of c computed from the Monte
+    Carlo, and its verdict follows the stated threshold (c and d each fall by at least
+    NO_EFFECT, by (5.5) and by (5.6)); the paper's own method comes first.
+    """
     res, text, _ = result
-    g = res['000']['centring_gain']
-    gain = 1 - g['rms_c_centred'] / g['rms_c_raw']
-    assert f"({100 * abs(gain):.0f}% {'less' if gain > 0 else 'more'})" in text
+    r = res['000']
+    assert r['centring_gain']['printed_rms_c_raw'] == r['beyond_paper_printed']['raw']['rms_c']
+    where = []
+    for name, b in (("000's method as printed", r['beyond_paper_printed']),
+                    ('modified estimator', r['beyond_paper'])):
+        raw, cen = b['raw']['rms_c'], b['centred']['rms_c']
+        line = next(ln for ln in text.splitlines() if ln.startswith(f'* Centring, {name},'))
+        assert f'RMS of c {raw:.4g} → {cen:.4g} ({100 * (cen / raw - 1):+.2g}%)' in line
+        holds = all(b[m][k] <= (1 - NO_EFFECT) * b['raw'][k]
+                    for m in ('centred', 'corrected') for k in ('rms_c', 'rms_d'))
+        assert (': holds' if holds else ': does not hold') in line
+        where.append(text.index(line))
+    assert where[0] < where[1]
+
+
+def test_000_w0_verdict_computed(result):
+    """The w⁰ verdict states the norms of the paper's and our w⁰, recomputed here."""
+    res, text, _ = result
+    line = next(ln for ln in text.splitlines() if ln.startswith('* w⁰, the attitude error'))
+    for case, rec in res['000']['cases'].items():
+        pn = np.linalg.norm(PAPER_000[case]['w0'])
+        on = np.linalg.norm(rec['ours_as_printed']['w0'])
+        assert f"{case}: paper {pn:.2e}, 000's method as printed {on:.2e} " \
+               f'(paper/ours {pn / on:.2f}' in line
 
 
 def test_002_and_003_sections(result):
@@ -194,7 +222,7 @@ def test_002_and_003_sections(result):
     assert set(r['rms_000']) == set(r['rms_002']) == set(r['rms_002_adaptive'])
     assert all(v > 0 for v in r['rms_000'].values())
     assert res['003']['claim_case1']['0.01']['algorithm_1_above_1e-3']
-    for needle in ('## 000', '## 002', '## 003', 'Centring (5.5), Monte Carlo'):
+    for needle in ('## 000', '## 002', '## 003', "* Centring, 000's method as printed"):
         assert needle in text
 
 
@@ -214,20 +242,64 @@ def test_003_values_below_the_floor_are_marked(result):
 def test_plots_written_and_linked(result):
     """The 000 figures are written and linked from the report."""
     _, text, d = result
-    for name in ('seeds_000_errors.png', 'seeds_000_centring.png', 'seeds_000_ablations.png'):
+    declared = next(s for s in reproduce_seeds.sections() if s.key == '000').figures
+    assert sorted(p.name for p in (d / 'plots').glob('*.png')) == sorted(declared)
+    for name in declared:
         png = d / 'plots' / name
         assert png.read_bytes()[:8] == b'\x89PNG\r\n\x1a\n' and png.stat().st_size > 10_000
         assert f'(plots/{name})' in text
 
 
 def test_000_beyond_the_paper_gains_reported(result):
-    """Centring and weighting gains beyond the paper are reported."""
+    """
+    The quantized table has both estimators; its ratios are to 000's method as printed, raw.
+
+    Centring and weighting gains beyond the paper are reported.
+    """
     res, text, _ = result
-    b = res['000']['beyond_paper']
-    assert {'raw', 'centred', 'centred+iter', 'centred+weighted',
+    b, bp = res['000']['beyond_paper'], res['000']['beyond_paper_printed']
+    assert {'raw', 'centred', 'corrected', 'centred+iter', 'centred+weighted',
             'centred+iter+weighted'} <= set(b)
+    assert {'raw', 'centred', 'corrected'} == set(bp)
     assert b['centred+weighted']['rms_c'] < b['centred']['rms_c'] < b['raw']['rms_c']
-    assert 'Beyond the paper' in text
+    assert '### Quantized, Monte Carlo' in text
+    base = bp['raw']['rms_c']
+    assert (f"| 000's method as printed: raw (5.4), first order | {base:.2e} (1.00) |"
+            in text)
+    v = b['raw']['rms_c']
+    assert f'| modified: raw (5.4), first order | {v:.2e} ({v / base:.2f}) |' in text
+
+
+def test_003_claims_follow_the_drift_table(result):
+    """
+    The 003 verdicts follow from the drift table, recomputed here.
+
+    4+ against 4 where both are above the floor, algorithm (1) in case 2 against the
+    instrument error, the growth with α and ν and the ranking.
+    """
+    res, text, _ = result
+    r = res['003']
+    cases = {(c['alpha'], c['nu'], c['step']): c for c in r['cases']}
+    ratios = [abs(c['drift_deg_per_h']['4']) / abs(c['drift_deg_per_h']['4+'])
+              for c in r['cases'] if not (c['at_floor']['4'] or c['at_floor']['4+'])]
+    assert [x['ratio'] for x in r['runge_4_plus']] == pytest.approx(ratios, rel=1e-12)
+    for step in (0.01, 0.001):
+        d1 = abs(cases[(0.5, 1.0, step)]['drift_deg_per_h']['1'])
+        assert r['algorithm_1_case2'][str(step)] == pytest.approx(d1, rel=1e-12)
+        assert f'τ = {step} s: {d1:.2g} °/h, ×{d1 / 1e-3:.3g}' in text
+    grows = 0
+    for step in (0.01, 0.001):
+        small, big = cases[(0.087, 1.0, step)], cases[(0.5, 1.0, step)]
+        for n, v in small['drift_deg_per_h'].items():
+            if not (small['at_floor'][n] or big['at_floor'][n]):
+                grows += abs(big['drift_deg_per_h'][n]) > abs(v)
+    assert len(r['growth']['alpha']['grows']) == grows
+    held = 0
+    for c in r['cases']:
+        ranked = sorted((n for n in THESIS_RANKING if not c['at_floor'][n]),
+                        key=lambda n: abs(c['drift_deg_per_h'][n]))
+        held += ranked == [n for n in THESIS_RANKING if n in ranked]
+    assert f"The thesis's order holds in {held} of {len(r['cases'])} (case, τ)." in text
 
 
 def test_registry_is_table_driven():

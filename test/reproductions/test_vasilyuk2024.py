@@ -61,11 +61,52 @@ def test_trajectory_sigma_matches_the_heading_only_limit():
 
 
 def test_plots(quick, tmp_path):
-    """Both figures are written."""
+    """The declared figures are written, in the declared order."""
     pytest.importorskip('matplotlib')
     paths = plots_004_extras(quick, str(tmp_path))
-    assert len(paths) == 2 and all((tmp_path / p.rsplit('/', 1)[-1]).stat().st_size > 1000
-                                   for p in paths)
+    assert [p.rsplit('/', 1)[-1] for p in paths] == list(seeds_004.FIGURES)
+    assert all((tmp_path / p.rsplit('/', 1)[-1]).stat().st_size > 1000 for p in paths)
+
+
+def test_turn_conditioning_against_independent_truth():
+    """
+    Check the turn count against the normal matrix written out by hand.
+
+    A 60° turn about z, 10° turns about x and y, two static 0.1° pairs: the normal matrix is
+    diagonal, diag Σ 2(1 − cos φ)(I − k kᵀ), so every σ ratio is a square root of a ratio of
+    sums.  No single turn reaches 1.5× of the full σ; the z turn with either tilt does.
+    """
+    def q(axis, deg):
+        v = np.zeros(3)
+        v[axis] = np.radians(deg)
+        return rotvec_to_quat(v)
+    dq = [q(2, 60.0), q(0, 10.0), q(1, 10.0), q(0, 0.1), q(1, 0.1)]
+    r = seeds_004.turn_conditioning(dq, np.zeros(3))
+    a, b, s = (2 * (1 - np.cos(np.radians(x))) for x in (60.0, 10.0, 0.1))
+    full = np.array([1 + b + s, 1 + b + s, 2 * b + 2 * s])       # diag N over VF x, y, z
+    two = np.array([1 + s, 1 + b + s, b + 2 * s])                # z turn and the x tilt
+    assert r['turns'] == 3 and r['static'] == 2 and r['needed'] == 2
+    assert sorted(r['steps'][1]['angles_deg']) == pytest.approx([10.0, 60.0])
+    expected = np.sqrt(full / two)
+    if r['steps'][1]['pairs'] == [0, 2]:                         # the y tilt instead: swap x, y
+        expected = expected[[1, 0, 2]]
+    # D1 at β = 0 maps VF (x, y, z) onto (γ, ϑ, ψ) up to signs
+    assert sorted(r['steps'][1]['sigma_ratio']) == pytest.approx(sorted(expected), rel=1e-9)
+
+
+def test_increment_angles_against_injected_errors():
+    """Fig. 2's angle difference and σ: injected angle error and covariance along the axis."""
+    k = np.array([0.0, 0.6, 0.8])
+    E_c, E_i = np.diag([1.0, 4.0, 9.0]) * 1e-12, np.diag([2.0, 2.0, 2.0]) * 1e-12
+    pairs = [IncrementPair(0.0, 21.0, rotvec_to_quat(k * 0.2), rotvec_to_quat(k * (0.2 + 1e-5)),
+                           E_i, E_c)]
+    sol = type('S', (), {'c_mf_vf': np.eye(3)})()
+    g = seeds_004.increment_angles(pairs, sol)
+    arcsec = np.radians(1 / 3600)
+    assert g['diff_arcsec'][0] == pytest.approx(1e-5 / arcsec, rel=1e-6)
+    var = k @ E_c @ k + k @ E_i @ k
+    assert g['sigma_arcsec'][0] == pytest.approx(np.sqrt(var) / arcsec, rel=1e-9)
+    assert g['turn'] == [True]
 
 
 @pytest.mark.parametrize('args', [['--runs', '0'], ['--report', '/nonexistent/dir/r.md'],

@@ -5,7 +5,6 @@ Against the exact truth, against sins_node fed the same messages (same core: the
 MCAP and CSV outputs, argument errors.
 """
 import re
-import time as _time
 
 from geometry_msgs.msg import Vector3Stamped
 import numpy as np
@@ -470,14 +469,11 @@ def test_huge_frame_ids_are_cheap_and_every_echo_is_bounded(tmp_path, capsys):
                              _vector_msgs(g, lambda k, f: 'h' * 2_000_000 + str(k) if k in huge
                                           else f)),
         '/imu/delta_velocity': ('geometry_msgs/msg/Vector3Stamped', _vector_msgs(a))})
-    t0 = _time.perf_counter()
     rc = sins_bag.main([str(bag), '--output', str(tmp_path / 'huge.csv')])
-    wall = _time.perf_counter() - t0
     cap = capsys.readouterr()
     assert rc == 0, cap.err[:500]
     assert len(cap.out) + len(cap.err) < 3000, (len(cap.out), len(cap.err))
     assert 'chars)' in cap.err and 'frame mismatch (rejected) 3' in cap.out
-    assert wall < 20.0, wall                                     # ~1 s; 86 s before the fix
     # a 2 MB frame id named as the body frame contradicts the recording: one bounded line
     rc = sins_bag.main([str(bag), '-p', 'frame_id:=' + 'z' * 2_000_000,
                         '--output', str(tmp_path / 'z.csv')])
