@@ -97,8 +97,8 @@ class AttitudeFilter:
     divergence_gated_fixes : int
         Divergence is declared after this many consecutive gated fixes (0: never by this rule).
     divergence_nis_window : int
-        ... or when the NIS of the last this many fixes (each clipped at the gate) sum above
-        their χ²(3·window) quantile of ``divergence_nis_probability`` (0: never by this rule).
+        ... or when the NIS of the last this many fixes that pass the gate sum above their
+        χ²(3·window) quantile of ``divergence_nis_probability`` (0: never by this rule).
     divergence_nis_probability : float
         That quantile's probability.
     reset_sigma : float, optional
@@ -715,23 +715,24 @@ class AttitudeFilter:
         """
         Update the divergence rule with one fix; return why the filter diverged, or None.
 
-        Divergence: ``divergence_gated_fixes`` consecutive fixes gated, or the sum of the NIS of
-        the last ``divergence_nis_window`` fixes (each clipped at the gate, so that one outlier
-        weighs no more than one gated fix) above its χ²(3·window) quantile of probability
-        ``divergence_nis_probability``.
+        Divergence: ``divergence_gated_fixes`` consecutive gated fixes (a lock-out), or the sum of
+        the NIS of the last ``divergence_nis_window`` fixes that pass the gate above their
+        χ²(3·window) quantile of ``divergence_nis_probability`` (fixes applied, but the filter's
+        σ far too small for them).  A gated fix does not enter the sum: one outlier does not
+        declare divergence.
         """
         self._gated_run = self._gated_run + 1 if gated else 0
         self._fixes_since_reset += 1
-        if self.nis_window:
-            self._nis_recent.append(min(nis, self.gate) if np.isfinite(nis) else self.gate)
         if self.gated_limit and self._gated_run >= self.gated_limit:
             return (f'{self._gated_run} consecutive fixes gated (NIS {nis:.4g} > gate '
                     f'{self.gate:.4g})')
-        if self.nis_window and len(self._nis_recent) == self.nis_window:
-            total = float(sum(self._nis_recent))
-            if total > self.nis_limit:
-                return (f'NIS sum {total:.4g} over the last {self.nis_window} fixes above '
-                        f'{self.nis_limit:.4g} (each clipped at the gate)')
+        if self.nis_window and not gated:
+            self._nis_recent.append(nis)
+            if len(self._nis_recent) == self.nis_window:
+                total = float(sum(self._nis_recent))
+                if total > self.nis_limit:
+                    return (f'NIS sum {total:.4g} of the last {self.nis_window} fixes passing '
+                            f'the gate above {self.nis_limit:.4g}')
         return None
 
     def _reset(self, fix: CameraFix, z, nis, S, reason: str) -> FixResult:
@@ -828,6 +829,8 @@ class AttitudeFilter:
 
     # ------------------------------------------------------------------ history
     def _checkpoint(self) -> None:
+        while self._checkpoints and self._checkpoints[0].pieces < self._log.base:
+            self._checkpoints.popleft()                   # its increments are forgotten
         self._checkpoints.append(Checkpoint(
             self._last_stamp, self._log.next, self._order,
             self.integrator.checkpoint(), self._x.copy(), self.boresight.copy(), self._sqrt_p,

@@ -20,7 +20,8 @@ The attitude filter between validated streams and outputs, shared by the node an
   state at exactly that stamp (inside an unfinished coning update: its increments applied one
   by one, as for a fix there); and one :class:`FixOutput` per fix processed.
 * Divergence (``divergence_gated_fixes`` consecutive gated fixes, or the NIS of the last
-  ``divergence_nis_window`` fixes above their χ² quantile of ``divergence_nis_probability``):
+  ``divergence_nis_window`` fixes that pass the gate above their χ² quantile of
+  ``divergence_nis_probability``):
   the fix re-initialises the attitude with the covariance of ``initial_attitude_sigma``, the
   bias and the other states are kept; counted (``reset``) and listed (:attr:`FilterSystem.resets`).
 * The live model check (:mod:`strapdown_ros.estimation.model_check`) sees every applied fix;
@@ -54,6 +55,8 @@ SIGNATURE_LUMP = 8
 SIGNATURE_BUFFER = 4096
 #: divergence resets listed (the latest; all are counted)
 MAX_RESETS_KEPT = 1000
+#: increments buffered before :meth:`FilterSystem.due` asks for processing in any case
+MAX_BUFFERED = 4096
 
 
 @dataclass
@@ -162,8 +165,7 @@ class FilterSettings:
     divergence_gated_fixes : int
         Consecutive gated fixes that declare divergence (0: not this rule).
     divergence_nis_window : int
-        Fixes whose NIS (each clipped at the gate) are summed for the divergence rule (0: not
-        this rule).
+        Fixes passing the gate whose NIS are summed for the divergence rule (0: not this rule).
     divergence_nis_probability : float
         Divergence when that sum exceeds its χ²(3·window) quantile of this probability.
 
@@ -279,6 +281,7 @@ class FilterSystem:
         self._chunked = 0
         self._last_ns: int | None = None   # newest increment stamp given to the filter
         self._out0: int | None = None      # the outputs' origin: the filter's start, ns
+        self._due_ns = 0                   # the next output time, ns
         self._pending: list = []        # epochs (s) of fixes waiting for increments
         self._rate_sum = np.zeros(3)
         self._rate_time = 0.0
@@ -458,6 +461,32 @@ class FilterSystem:
         if self.filter is not None and 'boresight' not in self.augment:
             self.filter.boresight = q
 
+    def due(self) -> bool:
+        """
+        Tell whether :meth:`process` has work to publish: an output or a fix is reached.
+
+        True when the newest buffered increment reaches the next output time or a waiting
+        fix's epoch, or when :data:`MAX_BUFFERED` increments wait.  A node processes then: the
+        outputs go out as soon as their increments are in, and a burst of increments costs one
+        processing (the numbers do not depend on when it is called).
+
+        Returns
+        -------
+        bool
+            Whether to call :meth:`process` now.
+
+        """
+        n = self.buffered
+        if n >= MAX_BUFFERED:
+            return True
+        if not self._buf_t:
+            return False
+        if self.filter is None:                     # before the start: counted, not kept
+            return n > 64
+        newest = self._buf_t[-1]
+        return newest >= self._due_ns or (bool(self._pending)
+                                          and newest * 1e-9 >= self._pending[0])
+
     @property
     def buffered(self) -> int:
         """Increments accepted and not yet processed (:meth:`process` takes them)."""
@@ -514,6 +543,8 @@ class FilterSystem:
         results = f.propagate(d, t, marks=marks)
         reports = f.take_reports()
         self._last_ns = int(t_ns[-1])
+        self._due_ns = self._out0 + ((self._last_ns - self._out0) // self.output_ns + 1) \
+            * self.output_ns
         self._last_rate = d[-1] / h[-1]
         if len(marks):
             cd = np.cumsum(np.vstack([self._rate_sum[None], d]), axis=0)
@@ -599,7 +630,7 @@ class FilterSystem:
     def _emit(self, stamp_ns: int, r, rho_sum, seconds: float) -> None:
         lay = self.filter.layout
         P, x = r.covariance, r.states
-        sl = lay.slice_of('gyro_bias')
+        sl = slice(3, 6)                                  # the bias: always the first gyro state
         bias = x[sl].copy()
         rate = rho_sum / seconds - bias if seconds > 0 else np.zeros(3)
         aug = {}
@@ -650,6 +681,7 @@ class FilterSystem:
                                 cands, time_offset='time_offset' not in self.augment)
         self._last_ns = start_ns
         self._out0 = start_ns
+        self._due_ns = start_ns + self.output_ns
         self._rate_sum, self._rate_time = np.zeros(3), 0.0
         self._pending = []
         self._sig, self._rot = None, np.array([1.0, 0.0, 0.0, 0.0])

@@ -344,7 +344,7 @@ FILTER_SETTINGS = [
               'other states are kept; ERROR on /diagnostics, counted (0: not this rule)',
               0, 10**6),
     ParamSpec('divergence_nis_window', 10, 'divergence also when the NIS of the last this many '
-              'fixes (each clipped at the gate) sum above their χ²(3·window) quantile of '
+              'fixes that pass the gate sum above their χ²(3·window) quantile of '
               'divergence_nis_probability (0: not this rule)', 0, 10**4),
     ParamSpec('divergence_nis_probability', 0.999999, 'probability of that quantile (the '
               "rule's false alarms per window on a consistent filter: at most 1 − this)",
