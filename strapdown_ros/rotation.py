@@ -244,11 +244,17 @@ def quat_to_dcm(q: np.ndarray) -> np.ndarray:
                          [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
                          [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)]])
     w, x, y, z = q[..., 0], q[..., 1], q[..., 2], q[..., 3]
-    return np.stack([
-        np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)], -1),
-        np.stack([2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)], -1),
-        np.stack([2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)], -1),
-    ], -2)
+    C = np.empty(q.shape[:-1] + (3, 3))
+    C[..., 0, 0] = 1 - 2 * (y * y + z * z)
+    C[..., 0, 1] = 2 * (x * y - w * z)
+    C[..., 0, 2] = 2 * (x * z + w * y)
+    C[..., 1, 0] = 2 * (x * y + w * z)
+    C[..., 1, 1] = 1 - 2 * (x * x + z * z)
+    C[..., 1, 2] = 2 * (y * z - w * x)
+    C[..., 2, 0] = 2 * (x * z - w * y)
+    C[..., 2, 1] = 2 * (y * z + w * x)
+    C[..., 2, 2] = 1 - 2 * (x * x + y * y)
+    return C
 
 
 def dcm_to_quat(C: np.ndarray) -> np.ndarray:

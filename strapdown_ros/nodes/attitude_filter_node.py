@@ -47,11 +47,11 @@ first increment stamp of each period, the state at exactly that stamp):
   last NIS, and the live model check (``model_check``: its text; WARN when a test fails, e.g.
   "innovations match gyro_scale_factor (p = …): run discrepancy on a recording"; the node never
   changes its model itself).  A divergence (``divergence_gated_fixes`` consecutive gated
-  fixes, or the NIS of the last ``divergence_nis_window`` fixes above its χ² quantile of
-  ``divergence_nis_probability``) re-initialises the attitude from the fix (the bias kept): an
-  ERROR (logged, and on /diagnostics until as many fixes have passed since; then a WARN that
-  counts the resets; values ``reset``, ``fixes_since_reset``, ``last_reset_stamp``,
-  ``last_reset_reason``).  The level is the worst of the conditions
+  fixes, or the NIS of the last ``divergence_nis_window`` fixes passing the gate above its χ²
+  quantile of ``divergence_nis_probability``) re-initialises the attitude from the fix (the
+  bias kept): an ERROR (logged, and on /diagnostics until as many fixes have passed since;
+  then a WARN that counts the resets; values ``reset``, ``fixes_since_reset``,
+  ``last_reset_stamp``, ``last_reset_reason``).  The level is the worst of the conditions
   (:class:`~strapdown_ros.nodes.ros_status.Conditions`).
 
 At construction the node runs a throw-away filter of its model through a few seconds of
@@ -118,8 +118,6 @@ class AttitudeFilterNode(Node):
         self.imu_input = p['gyro_input'] == 'imu'
         self.gate = chi2_3_quantile(float(p['gate_probability']))
         self.rate_variance = model.gyro.random_walk ** 2 / float(p['output_period'])
-        # increments per output period: the core runs at least that often
-        self.batch = max(1, int(round(float(p['output_period']) * model.gyro_rate)))
         self.undecodable = 0
         self.frame_mismatch = {'gyro': 0, 'camera': 0}
         self.boresight_counts = {'received': 0, 'dropped': 0}
@@ -227,7 +225,7 @@ class AttitudeFilterNode(Node):
         """
         Take one Δθ: the frame rule, then the core.
 
-        The core runs once per ``output_period`` worth of increments.
+        The core runs when an output or a waiting fix is reached (:meth:`FilterSystem.due`).
 
         Parameters
         ----------
@@ -242,7 +240,7 @@ class AttitudeFilterNode(Node):
         if not self._frame_ok('gyro', frame_id, self.frame_id):
             return
         self.system.offer_gyro(int(stamp_ns), value)
-        if self.system.buffered >= self.batch:
+        if self.system.due():
             self.process()
 
     def _on_camera_cov(self, msg: PoseWithCovarianceStamped):
@@ -315,30 +313,35 @@ class AttitudeFilterNode(Node):
                            f'{resets} reset(s) so far', throttle=5.0, key='divergence')
 
     def _publish_output(self, o) -> None:
-        st = ros_io.ns_to_stamp(o.stamp_ns)
-        self.pub_att.publish(ros_io.quaternion_stamped(st, self.ref_frame, o.attitude))
-        m = Imu()
-        m.header.stamp = st
-        m.header.frame_id = self.frame_id
-        m.orientation = ros_io.quaternion_msg(o.attitude)
-        m.orientation_covariance = [float(c) for c in o.attitude_covariance.reshape(9)]
-        m.angular_velocity = ros_io.vector3(o.rate)
-        rate_cov = o.bias_covariance + self.rate_variance * np.eye(3)
-        m.angular_velocity_covariance = [float(c) for c in rate_cov.reshape(9)]
-        m.linear_acceleration_covariance = [-1.0] + [0.0] * 8
-        self.pub_imu.publish(m)
-        self.pub_bias.publish(ros_io.vector3_stamped(st, self.frame_id, o.bias))
-        t = TwistWithCovarianceStamped()
-        t.header.stamp = st
-        t.header.frame_id = self.frame_id
-        t.twist.twist.angular = ros_io.vector3(o.bias)
-        cov = np.zeros((6, 6))
-        cov[0, 0] = cov[1, 1] = cov[2, 2] = -1.0
-        cov[3:, 3:] = o.bias_covariance
-        t.twist.covariance = [float(c) for c in cov.reshape(36)]
-        self.pub_bias_cov.publish(t)
+        """Publish one output on the topics that have subscribers (none built for none)."""
         self.published['outputs'] += 1
         self.last_output = o
+        st = ros_io.ns_to_stamp(o.stamp_ns)
+        if self.pub_att.get_subscription_count():
+            self.pub_att.publish(ros_io.quaternion_stamped(st, self.ref_frame, o.attitude))
+        if self.pub_imu.get_subscription_count():
+            m = Imu()
+            m.header.stamp = st
+            m.header.frame_id = self.frame_id
+            m.orientation = ros_io.quaternion_msg(o.attitude)
+            m.orientation_covariance = [float(c) for c in o.attitude_covariance.reshape(9)]
+            m.angular_velocity = ros_io.vector3(o.rate)
+            rate_cov = o.bias_covariance + self.rate_variance * np.eye(3)
+            m.angular_velocity_covariance = [float(c) for c in rate_cov.reshape(9)]
+            m.linear_acceleration_covariance = [-1.0] + [0.0] * 8
+            self.pub_imu.publish(m)
+        if self.pub_bias.get_subscription_count():
+            self.pub_bias.publish(ros_io.vector3_stamped(st, self.frame_id, o.bias))
+        if self.pub_bias_cov.get_subscription_count():
+            t = TwistWithCovarianceStamped()
+            t.header.stamp = st
+            t.header.frame_id = self.frame_id
+            t.twist.twist.angular = ros_io.vector3(o.bias)
+            cov = np.zeros((6, 6))
+            cov[0, 0] = cov[1, 1] = cov[2, 2] = -1.0
+            cov[3:, 3:] = o.bias_covariance
+            t.twist.covariance = [float(c) for c in cov.reshape(36)]
+            self.pub_bias_cov.publish(t)
 
     def _publish_fix(self, f) -> None:
         self.last_fix = f
