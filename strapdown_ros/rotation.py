@@ -123,6 +123,13 @@ def quat_multiply(p: np.ndarray, q: np.ndarray) -> np.ndarray:
     """
     p = np.asarray(p, dtype=float)
     q = np.asarray(q, dtype=float)
+    if p.shape == (4,) and q.shape == (4,):           # two quaternions: the same arithmetic, fast
+        pw, px, py, pz = p.tolist()
+        qw, qx, qy, qz = q.tolist()
+        return np.array([pw * qw - px * qx - py * qy - pz * qz,
+                         pw * qx + px * qw + py * qz - pz * qy,
+                         pw * qy - px * qz + py * qw + pz * qx,
+                         pw * qz + px * qy - py * qx + pz * qw])
     pw, px, py, pz = p[..., 0], p[..., 1], p[..., 2], p[..., 3]
     qw, qx, qy, qz = q[..., 0], q[..., 1], q[..., 2], q[..., 3]
     return np.stack([

@@ -84,16 +84,21 @@ def state_rows(outputs, augment=None) -> str:
         The CSV text.
 
     """
-    lines = [','.join(state_header(outputs))]
-    for o in outputs:
-        q = o.attitude
-        vals = [o.stamp_ns * 1e-9, q[1], q[2], q[3], q[0],
-                *np.sqrt(np.diag(o.attitude_covariance)), *o.bias,
-                *np.sqrt(np.diag(o.bias_covariance))]
-        for v, s in o.augmented.values():
-            vals += list(v) + list(s)
-        lines.append(','.join(f'{x:.17g}' for x in vals))
-    return '\n'.join(lines) + '\n'
+    head = state_header(outputs)
+    if not outputs:
+        return ','.join(head) + '\n'
+    cols = [np.array([o.stamp_ns for o in outputs]) * 1e-9]
+    q = np.array([o.attitude for o in outputs])
+    cols += [q[:, 1:], q[:, :1]]                                      # x y z w
+    cols.append(np.sqrt(np.diagonal(np.array([o.attitude_covariance for o in outputs]), 0, 1, 2)))
+    cols.append(np.array([o.bias for o in outputs]))
+    cols.append(np.sqrt(np.diagonal(np.array([o.bias_covariance for o in outputs]), 0, 1, 2)))
+    for name in outputs[0].augmented:
+        cols.append(np.array([o.augmented[name][0] for o in outputs]))
+        cols.append(np.array([o.augmented[name][1] for o in outputs]))
+    table = np.column_stack(cols)
+    fmt = ','.join(['%.17g'] * table.shape[1])
+    return '\n'.join([','.join(head)] + [fmt % tuple(r) for r in table.tolist()]) + '\n'
 
 
 def fix_rows(fixes) -> str:
