@@ -84,8 +84,8 @@ def write_filter_plots(outdir: str, outputs, fixes, gate_probability: float) -> 
                     for f in used]).reshape(-1, 3)
     for i, ax in enumerate(axs):
         if len(tf):
-            ax.fill_between(tf, -3e6 * sig[:, i], 3e6 * sig[:, i], color='C0', alpha=0.2,
-                            step='mid', label='±3σ (S = HPHᵀ + R)')
+            ax.vlines(tf, -3e6 * sig[:, i], 3e6 * sig[:, i], color='C0', alpha=0.35, lw=3,
+                      label='±3σ of each fix (S = HPHᵀ + R)')
         for st, (col, mk, lab) in _MARK.items():
             sel = status == st
             if sel.any():
@@ -93,9 +93,10 @@ def write_filter_plots(outdir: str, outputs, fixes, gate_probability: float) -> 
         _resets(ax, t_reset)
         ax.set_ylabel(f"z_{'xyz'[i]} (VF), µrad")
         ax.grid(alpha=0.3)
-    axs[0].legend(fontsize=8, loc='upper right', ncol=2)
+    axs[0].legend(fontsize=8, loc='lower left', bbox_to_anchor=(0.0, 1.02), ncol=5,
+                  borderaxespad=0.0)
     axs[-1].set_xlabel('time since the first stamp, s')
-    fig.suptitle('Innovation of each fix (predicted minus measured) with ±3σ')
+    fig.suptitle('Innovation of each fix (predicted minus measured) with ±3σ', y=0.995)
     paths.append(save_figure(fig, outdir, PLOT_NAMES[0]))
 
     # bias and augmented states with their σ
@@ -129,7 +130,7 @@ def write_filter_plots(outdir: str, outputs, fixes, gate_probability: float) -> 
     paths.append(save_figure(fig, outdir, PLOT_NAMES[1]))
 
     # NIS with its band and the gate
-    fig, ax = plt.subplots(figsize=(10, 4.5))
+    fig, ax = plt.subplots(figsize=(11, 4.5))
     ax.axhspan(chi2_3_quantile(0.025), chi2_3_quantile(0.975), color='C0', alpha=0.12,
                label='χ²₃ 95 % band')
     nis = np.array([f.nis for f in used])
@@ -143,8 +144,8 @@ def write_filter_plots(outdir: str, outputs, fixes, gate_probability: float) -> 
     _resets(ax, t_reset)
     ax.set_xlabel('time since the first stamp, s')
     ax.set_ylabel('NIS')
-    ax.grid(alpha=0.3, which='both')
-    ax.legend(fontsize=8, loc='upper left', ncol=3)
+    ax.grid(alpha=0.3, which='major')
+    ax.legend(fontsize=8, loc='upper left', bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0)
     ax.set_title('Normalised innovation squared of each fix')
     paths.append(save_figure(fig, outdir, PLOT_NAMES[2]))
 
