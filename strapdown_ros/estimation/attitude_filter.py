@@ -7,10 +7,13 @@ Determination and Control*, ch. 6.  The nominal attitude ``q_ref_body`` comes fr
 package's own integrator (:class:`strapdown_ros.attitude.integrator.AttitudeIntegrator`) on
 increments compensated with the estimated gyro effects; the error state is the attitude error
 ε, the gyro bias and, by name, further states of the effect registry (:mod:`.filter_support`
-lays them out), the camera time offset and the boresight.  Propagation by
-:func:`strapdown_ros.estimation.error_model.block_transition`; a fix is gated on its NIS and
-applied in Joseph form on a square-root factor; a late fix rolls back to a checkpoint
-(:mod:`.fix_history`).  Model, equations and sources: doc/attitude_filter.md.  The node
+lays them out), the camera time offset and the boresight.  Between fixes the increments are
+integrated at once and the covariance carried as the running sums of the block
+(:class:`strapdown_ros.estimation.error_model.BlockSums`), committed to the square-root factor at
+fixes and every ``checkpoint_interval``; the state at any increment stamp is read from the sums
+(``propagate(..., marks)``).  A fix is gated on its NIS and applied in Joseph form on the
+square-root factor; a late fix rolls back to a checkpoint (:mod:`.fix_history`); consecutive
+gated fixes or an NIS excess declare divergence, and the fix re-initialises the attitude.  Model, equations and sources: doc/attitude_filter.md.  The node
 (``attitude_filter_node``) and the ``filter_bag`` tool reach it through
 :mod:`.filter_system`.  No ROS imports.
 """
@@ -367,8 +370,8 @@ class AttitudeFilter:
             End stamps, s, strictly increasing and after :attr:`newest_stamp`.
         marks : array_like of int, optional
             Indices of increments at whose end stamps the state is reported
-            (:meth:`take_reports`): attitude, covariance and estimates there, after the fixes
-            of that epoch.  The call then processes at once.
+            (:meth:`take_reports`): attitude, covariance and estimates there (after a waiting
+            fix of that very epoch).  The call then processes at once.
 
         Returns
         -------
