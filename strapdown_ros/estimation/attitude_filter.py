@@ -13,9 +13,9 @@ integrated at once and the covariance carried as the running sums of the block
 fixes and every ``checkpoint_interval``; the state at any increment stamp is read from the sums
 (``propagate(..., marks)``).  A fix is gated on its NIS and applied in Joseph form on the
 square-root factor; a late fix rolls back to a checkpoint (:mod:`.fix_history`); consecutive
-gated fixes or an NIS excess declare divergence, and the fix re-initialises the attitude.  Model, equations and sources: doc/attitude_filter.md.  The node
-(``attitude_filter_node``) and the ``filter_bag`` tool reach it through
-:mod:`.filter_system`.  No ROS imports.
+gated fixes or an NIS excess declare divergence, and the fix re-initialises the attitude.
+Model, equations and sources: doc/attitude_filter.md.  The node (``attitude_filter_node``) and
+the ``filter_bag`` tool reach it through :mod:`.filter_system`.  No ROS imports.
 """
 from __future__ import annotations
 
