@@ -175,8 +175,7 @@ def _render_monte_carlo(res: dict) -> list[str]:
         L.append(f"| time offset, ms | {rd['time_offset_s'] * 1e3:.2f} ± "
                  f"{rd['time_offset_sigma_s'] * 1e3:.2f} | −xcorr lag "
                  f"{rd['minus_xcorr_lag_s'] * 1e3:.2f} | {z_t:+.2f} |")
-    L += ['', '## Conclusions', ''] + [f'* {c}' for c in res['conclusions']]
-    return '\n'.join(L)
+    return L
 
 
 def conclusions(res: dict) -> list[str]:

@@ -131,7 +131,7 @@ class AttitudeFilter:
                  checkpoint_interval: float = 1.0, max_queued: int = 1024,
                  epoch: float | None = None, time_offset: float = 0.0, model=None,
                  divergence_gated_fixes: int = 5, divergence_nis_window: int = 10,
-                 divergence_nis_probability: float = 1.0 - 1e-6,
+                 divergence_nis_probability: float = 1.0 - 1e-9,
                  reset_sigma: float | None = None):
         for name, v in (('gyro_random_walk', gyro_random_walk), ('initial_sigma', initial_sigma),
                         ('bias_sigma', bias_sigma),

@@ -184,7 +184,7 @@ class FilterSettings:
     resync_count: int = 5
     divergence_gated_fixes: int = 5
     divergence_nis_window: int = 10
-    divergence_nis_probability: float = 0.999999
+    divergence_nis_probability: float = 0.999999999
 
     @classmethod
     def from_values(cls, values: dict) -> FilterSettings:

@@ -346,8 +346,9 @@ FILTER_SETTINGS = [
     ParamSpec('divergence_nis_window', 10, 'divergence also when the NIS of the last this many '
               'fixes that pass the gate sum above their χ²(3·window) quantile of '
               'divergence_nis_probability (0: not this rule)', 0, 10**4),
-    ParamSpec('divergence_nis_probability', 0.999999, 'probability of that quantile (the '
-              "rule's false alarms per window on a consistent filter: at most 1 − this)",
+    ParamSpec('divergence_nis_probability', 0.999999999, 'probability of that quantile '
+              "(default 1 − 1e-9: a mean NIS above 10.2 over 10 fixes; the rule's false alarms "
+              'per window on a consistent filter: at most 1 − this)',
               0.5, 1.0 - 1e-12),
 ]
 #: attitude_filter_node and filter_bag (strapdown_ros/estimation/filter_system.py)
