@@ -18,14 +18,21 @@ import time
 
 import numpy as np
 
+from strapdown_ros.bench.sins_bag_bench import raw_read
 from strapdown_ros.bench.stats import (pcrb_filter_smoother, rts_smooth,
                                        simulate_increments)
 from strapdown_ros.estimation import AttitudeFilter, chi2_3_quantile
+from strapdown_ros.estimation import model_check
 from strapdown_ros.estimation.chi_square import chi2_interval
+from strapdown_ros.estimation.filter_system import FilterSettings
 from strapdown_ros.estimation.steady_filter import discretize
+from strapdown_ros.params import load_model_file, parse_overrides
 from strapdown_ros.recording import repoimu
+from strapdown_ros.recording.filter_replay import run_filter
+from strapdown_ros.recording.reader import read_bag
 from strapdown_ros.rotation import quat_conjugate, quat_multiply, quat_to_rotvec, rotvec_to_quat
 from strapdown_ros.streams.rate_increments import increments_from_rates
+from strapdown_ros.tools.filter_bag import fix_rows, state_rows
 
 RATE = np.array([0.01, -0.02, 0.015])           # body rate of the Monte Carlo motion, rad/s
 Q_START = rotvec_to_quat(np.array([0.4, 0.1, -0.7]))
@@ -385,13 +392,6 @@ def phases(bag: str, params: list) -> dict:
         Seconds of each phase, increments, fixes and outputs.
 
     """
-    from strapdown_ros.estimation import model_check
-    from strapdown_ros.estimation.filter_system import FilterSettings
-    from strapdown_ros.params import load_model_file, parse_overrides
-    from strapdown_ros.recording.filter_replay import run_filter
-    from strapdown_ros.recording.reader import read_bag
-    from strapdown_ros.tools.filter_bag import fix_rows, state_rows
-
     mf = load_model_file(None, 'attitude_filter_node', parse_overrides(params))
     settings = FilterSettings.from_values(mf.settings)
     t0 = time.perf_counter()
@@ -448,8 +448,6 @@ def bag_timing(bag: str, runs: int, params: list, progress) -> dict:
         summary line and the phases.
 
     """
-    from strapdown_ros.bench.sins_bag_bench import raw_read
-
     load = list(os.getloadavg())
     with tempfile.TemporaryDirectory(prefix='filter_bench_') as tmp:
         out = str(Path(tmp) / 'out.csv')

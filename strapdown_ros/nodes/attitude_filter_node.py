@@ -314,12 +314,16 @@ class AttitudeFilterNode(Node):
 
     def _publish_output(self, o) -> None:
         """Publish one output on the topics that have subscribers (none built for none)."""
-        self.published['outputs'] += 1
         self.last_output = o
+        pubs = (self.pub_att, self.pub_imu, self.pub_bias, self.pub_bias_cov)
+        wanted = [p.get_subscription_count() > 0 for p in pubs]
+        if not any(wanted):
+            return
+        self.published['outputs'] += 1               # sent on at least one topic
         st = ros_io.ns_to_stamp(o.stamp_ns)
-        if self.pub_att.get_subscription_count():
+        if wanted[0]:
             self.pub_att.publish(ros_io.quaternion_stamped(st, self.ref_frame, o.attitude))
-        if self.pub_imu.get_subscription_count():
+        if wanted[1]:
             m = Imu()
             m.header.stamp = st
             m.header.frame_id = self.frame_id
@@ -330,9 +334,9 @@ class AttitudeFilterNode(Node):
             m.angular_velocity_covariance = [float(c) for c in rate_cov.reshape(9)]
             m.linear_acceleration_covariance = [-1.0] + [0.0] * 8
             self.pub_imu.publish(m)
-        if self.pub_bias.get_subscription_count():
+        if wanted[2]:
             self.pub_bias.publish(ros_io.vector3_stamped(st, self.frame_id, o.bias))
-        if self.pub_bias_cov.get_subscription_count():
+        if wanted[3]:
             t = TwistWithCovarianceStamped()
             t.header.stamp = st
             t.header.frame_id = self.frame_id

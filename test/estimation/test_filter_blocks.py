@@ -31,7 +31,7 @@ def _run(f, block, n=1234, marks=()):
     for i in range(0, n, block):
         j = min(n, i + block)
         while k < len(fixes) and fixes[k][0] <= st[j - 1]:
-            f.update(fixes[k][0], fixes[k][1], 1e-10 * np.eye(3))    # pending: applied at its epoch
+            f.update(fixes[k][0], fixes[k][1], 1e-10 * np.eye(3))  # applied at its epoch
             k += 1
         m = [x - i for x in marks if i <= x < j]
         f.propagate(d[i:j], st[i:j], marks=m)
