@@ -32,6 +32,9 @@ setup(
         # the compiled block kernel of the attitude core and the navigation loops (optional:
         # without numba the vectorised numpy path runs, tested against it; sins_bench prints both)
         'fast': ['numba'],
+        # fleet: the per-recording analyses as Dask distributed tasks (a LocalCluster or a
+        # scheduler address) and the effects table as Parquet
+        'fleet': ['dask[distributed]', 'pyarrow'],
         # the ROS 2 linters as demo_nodes_py runs them (ament_flake8 with the plugins its
         # ROS package depends on, ament_pep257)
         'test': ['pytest', 'pytest-timeout', 'hypothesis', 'colcon-core', 'colcon-ros',
@@ -74,7 +77,13 @@ setup(
             'nav_bench = strapdown_ros.bench.nav_bench:main',
             'realdata_report = strapdown_ros.tools.realdata_report:main',
             'realdata_bag = strapdown_ros.tools.realdata_bag:main',
+            'gaitmap_bag = strapdown_ros.tools.gaitmap_bag:main',
             'filter_bench = strapdown_ros.bench.filter_bench:main',
+            'reference_rate_bench = strapdown_ros.bench.reference_rate_bench:main',
+            'model_check_bench = strapdown_ros.bench.model_check_bench:main',
+            'hostile_bench = strapdown_ros.bench.ros.hostile_bench:main',
+            'fleet = strapdown_ros.tools.fleet:main',
+            'fleet_bench = strapdown_ros.bench.fleet_bench:main',
         ],
     },
 )

@@ -2,7 +2,7 @@
 # Idempotent development environment for strapdown_ros (no system ROS needed).
 #
 # Creates .venv in the repository root and installs the package editable with the
-# `ros`, `tools` and `test` extras (rclpy + messages come from PyPI). The install is
+# `ros`, `tools`, `test`, `bench`, `fast` and `fleet` extras (rclpy + messages come from PyPI). The install is
 # skipped when nothing relevant changed since the last successful run: a stamp file in
 # .venv holds a hash of the packaging metadata (setup.py, setup.cfg, package.xml,
 # pyproject.toml if any), the extras and the interpreter version.
@@ -19,7 +19,7 @@ cd "$ROOT"
 VENV="$ROOT/.venv"
 VPY="$VENV/bin/python"
 STAMP="$VENV/.strapdown_ros_setup.stamp"
-EXTRAS="ros,tools,test,bench,fast"
+EXTRAS="ros,tools,test,bench,fast,fleet"
 MIN_PIP="21.3"   # first pip with PEP 660 editables (console scripts land in .venv/bin)
 
 say() { printf '[setup_env] %s\n' "$*" >&2; }

@@ -7,10 +7,13 @@ traceback.
 
 :func:`check_outputs` is THE output rule of every tool that writes: no output may be an input
 (resolved paths; a file inside an input bag directory counts as the input), outputs differ from
-each other, an existing output needs ``--force``, and the target directory takes a real write
-(a probe file is created and removed there, before the work).  The writes themselves are atomic
+each other, an existing output needs ``--force``, every file name fits the file system, and the
+target directory takes a real write (a probe file is created and removed there, before the
+work); then the temporaries an earlier, killed run left beside the outputs are removed
+(:func:`strapdown_ros.files.remove_stale`).  The writes themselves are atomic
 (:func:`write_json`, :func:`write_text`: a temporary file in the same directory, then
-``os.replace``).
+``os.replace``, in the umask's mode), and a tool with several outputs writes them all or
+nothing (:func:`all_or_nothing`).
 """
 from __future__ import annotations
 
@@ -20,10 +23,12 @@ from pathlib import Path
 import sys
 from typing import Iterable, Sequence
 
-from strapdown_ros.files import atomic_savefig, atomic_write_text, probe_writable
+from strapdown_ros.files import (all_or_nothing, atomic_savefig, atomic_write_text, name_error,
+                                 probe_writable, remove_stale)
+from strapdown_ros.text import bounded
 
 __all__ = ['check_output_file', 'check_output_dir', 'check_outputs', 'OneLineParser', 'write_json',
-           'write_text', 'write_figure', 'FILE', 'DIRECTORY', 'REPLACED']
+           'write_text', 'write_figure', 'all_or_nothing', 'FILE', 'DIRECTORY', 'REPLACED']
 
 #: kinds of output: a file; a directory files are written into (created if absent); a file or a
 #: directory (a bag) that the tool replaces as a whole
@@ -118,7 +123,8 @@ def _inside(a: Path, b: Path) -> bool:
     return a == b or b in a.parents
 
 
-def check_outputs(outputs: Iterable[Sequence], inputs: Iterable[Sequence], force: bool) -> None:
+def check_outputs(outputs: Iterable[Sequence], inputs: Iterable[Sequence],
+                  force: bool) -> list[str]:
     """
     Apply the output rule of every tool, before any work.
 
@@ -135,13 +141,31 @@ def check_outputs(outputs: Iterable[Sequence], inputs: Iterable[Sequence], force
     force : bool
         ``--force`` was given: an existing output may be replaced.
 
+    Returns
+    -------
+    list of str
+        The temporaries of earlier runs removed beside the outputs.
+
     Raises
     ------
     ValueError
         One line naming the option and the path that break the rule.
 
     """
+    try:
+        return _check_outputs(outputs, inputs, force)
+    except OSError as exc:                  # e.g. a path the file system cannot hold
+        raise ValueError(f'{bounded(exc.filename or "an output")}: '
+                         f'{exc.strerror or exc}') from None
+
+
+def _check_outputs(outputs, inputs, force: bool) -> list[str]:
     outputs = [tuple(o) for o in outputs]
+    for o in outputs:
+        if o[1]:
+            why = name_error(o[1])
+            if why:
+                raise ValueError(f'{o[0]} {bounded(o[1])}: {why}')
     named = {str(o[1]): tuple(o[3]) for o in outputs if o[1] and len(o) > 3}
     outs = [(o[0], str(o[1]), o[2], Path(o[1]).resolve()) for o in outputs if o[1]]
     ins = [(w, str(p), Path(p).resolve()) for w, p in inputs if p]
@@ -184,6 +208,14 @@ def check_outputs(outputs: Iterable[Sequence], inputs: Iterable[Sequence], force
             if exists and not force:
                 raise ValueError(f'{opt} {path} exists (use --force to replace it)')
             _writable_dir(p.parent, opt, path)
+    removed = []
+    for opt, path, kind, r in outs:
+        if kind == DIRECTORY:
+            for name in named.get(path, ()):
+                removed += remove_stale(Path(path) / name)
+        else:
+            removed += remove_stale(path)
+    return removed
 
 
 def write_text(path, text: str) -> None:

@@ -84,8 +84,11 @@ def parse_args(argv=None) -> argparse.Namespace:
     ap.add_argument('--perf-pairs', type=int, default=1000,
                     help='pairs accumulated for the timing of solve()')
     ap.add_argument('--jobs', type=int, default=None,
-                    help='worker processes for the Monte Carlo '
-                    '(default: 2 cores at most; 1 with --quick)')
+                    help='Dask LocalCluster workers for the Monte Carlo; 1 runs it in this '
+                    'process (default: 2 cores at most; 1 with --quick)')
+    ap.add_argument('--scheduler', metavar='ADDRESS',
+                    help='run the Monte Carlo on a running Dask scheduler, e.g. '
+                    'tcp://host:8786 (default: a LocalCluster of --jobs)')
     args = ap.parse_args(argv)
     args.runs = args.runs if args.runs is not None else (24 if args.quick else 200)
     if args.runs < 2 or (args.runs < 100 and not args.quick):
@@ -157,7 +160,11 @@ def main(argv=None) -> int:
         jobs = args.jobs
     else:
         jobs = 1 if args.quick else max(1, min(2, os.cpu_count() or 1))
-    mc = monte_carlo(sc, runs, args.seed, jobs=jobs)
+    try:
+        mc = monte_carlo(sc, runs, args.seed, jobs=jobs, scheduler=args.scheduler)
+    except OSError as exc:                      # no scheduler at the address
+        print(f'boresight_bench: error: {exc}', file=sys.stderr)
+        return 2
     perf = performance(args.perf_pairs, repeats=5 if args.quick else 15)
     sm = summarize(sc, bnd, mc, runs)
     print_summary(sm, perf, mc, runs, jobs)
@@ -168,7 +175,8 @@ def main(argv=None) -> int:
            'summary': sm, 'performance': perf,
            'per_run_errors_arcsec': {k: np.round(v / ARCSEC, 4).tolist()
                                      for k, v in mc['errors'].items()},
-           'timing': {'scenario_s': sc.build_s, 'monte_carlo_s': mc['wall_s'], 'jobs': jobs}}
+           'timing': {'scenario_s': sc.build_s, 'monte_carlo_s': mc['wall_s'], 'jobs': jobs,
+                      'scheduler': args.scheduler}}
     res['findings'] = conclusions(sm)
     plots = make_plots(sc, bnd, mc, sm, args.plots) if args.plots else []
     res['plots'] = plots

@@ -3,11 +3,12 @@ Monte Carlo runs, pipeline checks and timing of the boresight benchmark.
 
 One run draws new gyro constants and noise and new camera noise, forms the increment pairs and
 runs every estimator (the package's calibrator and solver, a full-covariance reference and
-the OpenCV peers); ``monte_carlo`` repeats it, seeded per run.
+the OpenCV peers); ``monte_carlo`` repeats it, seeded per run: in this process, or as Dask tasks
+(an embedded LocalCluster of ``jobs`` workers, or the scheduler at ``scheduler``;
+:mod:`strapdown_ros.fleet.cluster`), the scenario sent to each worker once.
 """
 from __future__ import annotations
 
-import multiprocessing as mp
 import sys
 import time
 
@@ -24,6 +25,7 @@ from strapdown_ros.calibration.boresight import solve_boresight
 from strapdown_ros.calibration.boresight_increments import (camera_increment, gyro_increment,
                                                             IncrementPair)
 from strapdown_ros.calibration.streaming import BoresightCalibrator
+from strapdown_ros.fleet.cluster import dask_client, map_tasks, TaskError
 from strapdown_ros.rotation import (dcm_to_quat, dcm_to_ypr, quat_conjugate, quat_multiply,
                                     quat_to_dcm, rotvec_to_quat, ypr_to_dcm)
 from strapdown_ros.sensors import (ARCSEC, IntegratingSensor, NAVIGATION_GRADE_GYRO,
@@ -278,7 +280,6 @@ def _estimator_names() -> list[str]:
 
 _COV_NAMES = ('calibrator', 'weighted', 'weighted_model', 'weighted_residual', 'unweighted',
               'weighted_004cov', 'correlated_gls')
-_WORKER_SC: Scenario | None = None            # the scenario of forked workers
 
 
 def one_run(sc: Scenario, r: int, ss: np.random.SeedSequence) -> dict:
@@ -359,11 +360,8 @@ def one_run(sc: Scenario, r: int, ss: np.random.SeedSequence) -> dict:
     return out
 
 
-def _worker(args):
-    return one_run(_WORKER_SC, *args)
-
-
-def monte_carlo(sc: Scenario, runs: int, seed: int, progress: bool = True, jobs: int = 1) -> dict:
+def monte_carlo(sc: Scenario, runs: int, seed: int, progress: bool = True, jobs: int = 1,
+                scheduler: str | None = None) -> dict:
     """
     Run ``runs`` independent runs, seeded per run so the result does not depend on ``jobs``.
 
@@ -378,7 +376,9 @@ def monte_carlo(sc: Scenario, runs: int, seed: int, progress: bool = True, jobs:
     progress : bool, optional
         Print progress on stderr.
     jobs : int, optional
-        Worker processes (forked); 1 runs in this process.
+        Dask LocalCluster workers; 1 (and no scheduler) runs in this process.
+    scheduler : str, optional
+        A running Dask scheduler (``tcp://host:8786``) whose workers run the runs.
 
     Returns
     -------
@@ -386,8 +386,12 @@ def monte_carlo(sc: Scenario, runs: int, seed: int, progress: bool = True, jobs:
         Per-estimator arrays ``errors`` (runs, 3) rad, ``total`` (runs,), ``covs``
         (runs, 3, 3), ``failures``; ``chi2``, ``full_nees``, ``triad``, ``wall_s``, ``jobs``.
 
+    Raises
+    ------
+    RuntimeError
+        A run's worker was lost (a run that raises is the bench's own bug: it propagates).
+
     """
-    global _WORKER_SC
     children = np.random.SeedSequence(seed).spawn(runs)
     names = _estimator_names()
     err = {k: np.full((runs, 3), np.nan) for k in names}
@@ -401,6 +405,8 @@ def monte_carlo(sc: Scenario, runs: int, seed: int, progress: bool = True, jobs:
     tasks = list(enumerate(children))
 
     def collect(res, done):
+        if isinstance(res, TaskError):
+            raise RuntimeError(f'a Monte Carlo run was lost: {res}')
         r = res['r']
         for k, v in res['err'].items():
             err[k][r], tot[k][r] = v, res['tot'][k]
@@ -413,27 +419,20 @@ def monte_carlo(sc: Scenario, runs: int, seed: int, progress: bool = True, jobs:
             print(f'  run {done}/{runs}  {time.perf_counter() - t_start:.1f} s', file=sys.stderr,
                   flush=True)
 
-    pool = None
-    if jobs > 1:
-        if 'fork' in mp.get_all_start_methods():
-            _WORKER_SC = sc
-            pool = mp.get_context('fork').Pool(jobs)
-    if pool is None:
+    if jobs > 1 or scheduler:
+        with dask_client(scheduler, jobs) as client:
+            sc_f = client.scatter(sc, broadcast=True)          # once per worker, not per run
+            map_tasks(client, one_run, [(sc_f, r, ss) for r, ss in tasks],
+                      on_done=lambda i, res, done, total: collect(res, done))
+    else:
         for done, (r, ss) in enumerate(tasks, 1):
             collect(one_run(sc, r, ss), done)
-    else:
-        try:
-            for done, res in enumerate(pool.imap_unordered(_worker, tasks, chunksize=4), 1):
-                collect(res, done)
-        finally:
-            pool.close()
-            pool.join()
-            _WORKER_SC = None
     for k in failures:
         failures[k].sort(key=lambda m: int(m.split(':')[0].split()[1]))
     return {
         'errors': err, 'total': tot, 'covs': covs, 'chi2': chi2, 'full_nees': full_nees,
-        'failures': failures, 'triad': triad, 'wall_s': time.perf_counter() - t_start, 'jobs': jobs
+        'failures': failures, 'triad': triad, 'wall_s': time.perf_counter() - t_start,
+        'jobs': jobs, 'scheduler': scheduler
     }
 
 

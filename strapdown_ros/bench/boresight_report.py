@@ -415,7 +415,8 @@ def write_report(path: str, res: dict, plots: list[str]):
         f"{pf['pair_formation_ms_median']:.1f} ms.",
         (
             f"* Monte Carlo: {res['timing']['monte_carlo_s']:.1f} s for {cfg['runs']} runs on"
-            f" {res['timing']['jobs']} process(es) on {res['timing']['cpu_count']} cores, 1-minute"
+            f" {res['timing'].get('scheduler') or str(res['timing']['jobs']) + ' process(es)'}"
+            f" on {res['timing']['cpu_count']} cores, 1-minute"
             f" load average {res['timing']['load_average_1min'][0]:.1f} at the start and"
             f" {res['timing']['load_average_1min'][1]:.1f} at the end (other processes share the"
             ' machine; all estimators per run; the pair formation, 70 × `gyro_increment` over'
@@ -488,7 +489,8 @@ def print_summary(sm: dict, perf: dict, mc: dict, runs: int, jobs: int) -> None:
         Worker processes of the Monte Carlo.
 
     """
-    print(f"\n{runs} runs in {mc['wall_s']:.1f} s on {jobs} process(es) "
+    where = mc.get('scheduler') or f'{jobs} process(es)'
+    print(f"\n{runs} runs in {mc['wall_s']:.1f} s on {where} "
           f"({mc['wall_s'] / runs * 1e3:.0f} ms/run)")
     print(f"{'bound':<34}{'σψ″':>9}{'σϑ″':>9}{'σγ″':>9}{'total″':>9}")
     for k, v in sm['crlb'].items():

@@ -2,18 +2,15 @@
 Monte Carlo and speed runs of the discrepancy benchmark.
 
 The scenario (bench profile, 200 Hz gyro, a fix every 2 s), one job per (effect, seed, size)
-or null recording, run in spawned worker processes, scored against the injected effect; and
-the timing of the ``discrepancy`` command on a 900 s bag.  ``discrepancy_bench`` summarises
-and reports.
+or null recording, run as Dask tasks (an embedded LocalCluster of ``--workers`` processes, or
+the scheduler at ``--scheduler``: :mod:`strapdown_ros.fleet.cluster`), scored against the
+injected effect; and the timing of the ``discrepancy`` command's work on a 900 s bag (its
+library call, the JSON and the report).  ``discrepancy_bench`` summarises and reports.
 """
 from __future__ import annotations
 
-from concurrent.futures import as_completed, ProcessPoolExecutor
-import contextlib
-import io
 import json
 import math
-import multiprocessing as mp
 import os
 import shutil
 import sys
@@ -22,20 +19,23 @@ import time
 
 import numpy as np
 
+from strapdown_ros.cli import write_json
+from strapdown_ros.discrepancy.report import write_report
 from strapdown_ros.discrepancy.synthetic import (draw_hidden_effect, effect_sigma,
                                                  simulate_recording)
-from strapdown_ros.discrepancy.workflow import analyse, DiscrepancySettings
-from strapdown_ros.params import (check_all, IMU_SIM_PARAMS, model_and_settings,
+from strapdown_ros.discrepancy.workflow import analyse, DEFAULT_ALPHA, DiscrepancySettings
+from strapdown_ros.fleet.cluster import dask_client, map_tasks, TaskError
+from strapdown_ros.params import (check_all, IMU_SIM_PARAMS, load_model_file, model_and_settings,
                                   simulator_parameters, STAR_CAMERA_PARAMS)
 from strapdown_ros.recording.writer import record
+from strapdown_ros.runs.discrepancy import analyse_discrepancies
+from strapdown_ros.runs.source import RecordingSource
 from strapdown_ros.sensors.effects import CANDIDATES, EFFECTS
-from strapdown_ros.tools import discrepancy as cli
 
 BORESIGHT = [0.698, -0.436, 2.094]
 INJECT_SEED_OFFSET = 10000
 WITHIN = 3.0
 SPEED_DURATION, SPEED_REPEATS = 900.0, 5
-THREAD_VARS = ('OMP_NUM_THREADS', 'OPENBLAS_NUM_THREADS', 'MKL_NUM_THREADS')
 
 
 def separable_dimension(name: str) -> int:
@@ -90,11 +90,6 @@ def _simulate(seed, duration, overrides=None):
 
 def _model():
     return model_and_settings('calibrator_node')[0]
-
-
-def _init_worker():
-    for k in THREAD_VARS:
-        os.environ[k] = '1'
 
 
 def sigma_job(names, seed: int, duration: float) -> dict:
@@ -210,25 +205,31 @@ def _progress(label: str, done: int, total: int, t0: float):
     )
 
 
-def _pool_map(pool, fn, items, label):
+def _dask_map(client, fn, items, label):
+    """Run ``fn(*item)`` for every item as Dask tasks, with a progress bar; results in order."""
     t0 = time.perf_counter()
-    futs = {pool.submit(fn, *it): i for i, it in enumerate(items)}
-    out = [None] * len(items)
     _progress(label, 0, len(items), t0)
-    for done, f in enumerate(as_completed(futs), 1):
-        out[futs[f]] = f.result()
-        _progress(label, done, len(items), t0)
+    return map_tasks(client, fn, items,
+                     on_done=lambda i, res, done, total: _progress(label, done, total, t0))
+
+
+def _lost(job: dict, err: TaskError) -> dict:
+    """Return the record of a job whose worker was lost (an error in the summary)."""
+    out = {k: v for k, v in job.items() if k not in ('cov', 'duration', 'alpha')}
+    out.update(verdict='error', error=f'worker: {err}', steps=[], first=None, job_s=0.0)
     return out
 
 
 def monte_carlo(args) -> dict:
     """
-    Run every job in spawned worker processes with one BLAS thread each.
+    Run every job as a Dask task: a LocalCluster of ``--workers``, or ``--scheduler``.
+
+    The workers run numpy with one BLAS thread (Dask's nanny sets it before they start).
 
     Parameters
     ----------
     args : argparse.Namespace
-        Options of ``discrepancy_bench.parse_args``.
+        Options of ``discrepancy_bench.parse_args`` (``scheduler``, ``workers``, ...).
 
     Returns
     -------
@@ -236,39 +237,32 @@ def monte_carlo(args) -> dict:
         ``runs`` and ``nulls`` (records of ``run_job``), ``reference_sigma`` and wall times, s.
 
     """
-    saved = {k: os.environ.get(k) for k in THREAD_VARS}
-    _init_worker()  # the spawned workers import numpy with 1 BLAS thread
-    try:
-        with ProcessPoolExecutor(max_workers=args.workers, mp_context=mp.get_context('spawn'),
-                                 initializer=_init_worker) as pool:
-            t0 = time.perf_counter()
-            covs = dict.fromkeys(args.effects)
-            if args.sigma == 'reference':
-                covs = _pool_map(pool, sigma_job, [(args.effects, args.first_seed, args.duration)],
-                                 'sigma')[0]
-            t_sigma = time.perf_counter() - t0
-            jobs = []
-            for e in args.effects:
-                for i in range(args.seeds):
-                    seed = args.first_seed + i
-                    sizes = args.sizes if args.every_size else [args.sizes[i % len(args.sizes)]]
-                    for k in sizes:
-                        draw_seed = [seed, CANDIDATES.index(e), int(round(k * 1000))]
-                        jobs.append({'effect': e, 'seed': seed, 'size': float(k), 'cov': covs[e],
-                                     'duration': args.duration, 'alpha': args.alpha,
-                                     'draw_seed': draw_seed})
-            jobs += [
-                {'effect': None, 'seed': args.first_seed + i, 'size': 0.0,
-                 'duration': args.duration, 'alpha': args.alpha} for i in range(args.null_seeds)
-            ]
-            recs = _pool_map(pool, run_job, [(j,) for j in jobs], 'runs')
-            t_runs = time.perf_counter() - t0 - t_sigma
-    finally:
-        for k, v in saved.items():
-            if v is None:
-                os.environ.pop(k, None)
-            else:
-                os.environ[k] = v
+    with dask_client(getattr(args, 'scheduler', None), args.workers) as client:
+        t0 = time.perf_counter()
+        covs = dict.fromkeys(args.effects)
+        if args.sigma == 'reference':
+            covs = _dask_map(client, sigma_job, [(args.effects, args.first_seed, args.duration)],
+                             'sigma')[0]
+            if isinstance(covs, TaskError):
+                raise RuntimeError(f'the reference σ job failed: {covs}')
+        t_sigma = time.perf_counter() - t0
+        jobs = []
+        for e in args.effects:
+            for i in range(args.seeds):
+                seed = args.first_seed + i
+                sizes = args.sizes if args.every_size else [args.sizes[i % len(args.sizes)]]
+                for k in sizes:
+                    draw_seed = [seed, CANDIDATES.index(e), int(round(k * 1000))]
+                    jobs.append({'effect': e, 'seed': seed, 'size': float(k), 'cov': covs[e],
+                                 'duration': args.duration, 'alpha': args.alpha,
+                                 'draw_seed': draw_seed})
+        jobs += [
+            {'effect': None, 'seed': args.first_seed + i, 'size': 0.0,
+             'duration': args.duration, 'alpha': args.alpha} for i in range(args.null_seeds)
+        ]
+        recs = _dask_map(client, run_job, [(j,) for j in jobs], 'runs')
+        recs = [_lost(j, r) if isinstance(r, TaskError) else r for j, r in zip(jobs, recs)]
+        t_runs = time.perf_counter() - t0 - t_sigma
     sig = {
         e: None if c is None else np.sqrt(np.diag(np.atleast_2d(c))).tolist()
         for e, c in covs.items()
@@ -280,9 +274,29 @@ def monte_carlo(args) -> dict:
     }
 
 
+def _command_work(bag: str, model: str, json_path: str, report_dir: str) -> None:
+    """
+    Do the ``discrepancy`` command's work on a bag: its library call, the JSON and the report.
+
+    Raises what the call raises (the speed run counts it as an error).
+    """
+    mf = load_model_file(model, 'calibrator_node')
+    settings = DiscrepancySettings.from_values({**mf.settings, 'alpha': DEFAULT_ALPHA})
+    run = analyse_discrepancies(RecordingSource(bag), mf.model, settings, mf.settings)
+    if not run.observable:
+        raise ValueError(f'boresight not observable: {run.message}')
+    write_json(json_path, run.record)
+    write_report(report_dir, run.result, run.record)
+
+
 def speed(args) -> dict:
     """
-    Time ``SPEED_REPEATS`` runs of the ``discrepancy`` command on a 900 s, 200 Hz bag.
+    Time ``SPEED_REPEATS`` runs of the ``discrepancy`` command's work on a 900 s, 200 Hz bag.
+
+    The work is the command's library call
+    (:func:`strapdown_ros.runs.discrepancy.analyse_discrepancies`: read, check, analyse, the
+    Allan comparison), its JSON and its report, in this process; the command adds its argument
+    parsing and printing.
 
     Parameters
     ----------
@@ -292,7 +306,8 @@ def speed(args) -> dict:
     Returns
     -------
     dict
-        Times in s with their median summary, return codes, errors, the load average at start.
+        Times in s with their median summary, return codes (0 done, 1 failed), errors, the load
+        average at start.
 
     """
     load, times, rcs, errors = os.getloadavg(), [], [], []
@@ -306,19 +321,21 @@ def speed(args) -> dict:
         with open(model, 'w', encoding='utf-8') as fh:
             json.dump({'/**': {'ros__parameters': {}}}, fh)              # JSON is YAML
         for i in range(SPEED_REPEATS):
-            argv = [bag, '--model', model, '--json', os.path.join(tmp, f'r{i}.json'),
-                    '--report', os.path.join(tmp, f'report{i}')]
-            err, t0 = io.StringIO(), time.perf_counter()
-            with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(err):
-                rcs.append(cli.main(argv))
+            t0 = time.perf_counter()
+            try:
+                _command_work(bag, model, os.path.join(tmp, f'r{i}.json'),
+                              os.path.join(tmp, f'report{i}'))
+                rcs.append(0)
+            except Exception as exc:  # noqa: BLE001 - counted as a failed run, with its reason
+                rcs.append(1)
+                errors.append(f'{type(exc).__name__}: {str(exc)[:200]}')
             times.append(time.perf_counter() - t0)
-            if rcs[-1]:
-                errors.append((err.getvalue().strip().splitlines() or ['?'])[-1])
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
-    return {'mode': 'cli', 'duration_s': SPEED_DURATION, 'gyro_rate_hz': 200.0, 'fixes': fixes,
-            'return_codes': rcs, 'cli_errors': errors, 'time_s': median_summary(times),
-            'times_s': times, 'load_average_at_start': list(load)}
+    return {'mode': 'library call of the command, JSON and report', 'duration_s': SPEED_DURATION,
+            'gyro_rate_hz': 200.0, 'fixes': fixes, 'return_codes': rcs, 'cli_errors': errors,
+            'time_s': median_summary(times), 'times_s': times,
+            'load_average_at_start': list(load)}
 
 
 def median_summary(xs):

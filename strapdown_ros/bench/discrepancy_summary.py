@@ -291,11 +291,12 @@ def conclusions(res: dict) -> list[str]:
     sp = res.get('speed')
     if sp:
         out.append(
-            f"Speed of the discrepancy CLI on a bag: {span_text(sp['time_s'])} for"
+            f"Speed of the discrepancy command's work (library call, JSON, report) on a bag: "
+            f"{span_text(sp['time_s'])} for"
             f" {sp['duration_s']:g} s at {sp['gyro_rate_hz']:g} Hz with {sp['fixes']} fixes; load"
             f" average at start {sp['load_average_at_start'][0]:.2f}"
             + (f"; return codes {sorted(set(sp['return_codes']))}" if sp['return_codes'] else '')
-            + (f"; CLI error: {sp['cli_errors'][0]}." if sp.get('cli_errors') else '.')
+            + (f"; error: {sp['cli_errors'][0]}." if sp.get('cli_errors') else '.')
         )
     if sm['errors']:
         out.append(f"{len(sm['errors'])} runs raised an error (see the JSON).")

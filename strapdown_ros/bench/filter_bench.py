@@ -5,7 +5,8 @@ The command ``filter_bench``: ``AttitudeFilter`` (MEKF) against exact truth, its
 Cramér–Rao bound, its consistency, its cost, and one real recording.  The runs are in
 ``filter_bench_runs``, the text and plots in ``filter_bench_report``.
 
-* **Monte Carlo** (``--runs``, default 100; ``--fixes`` per run): slow constant rotation, the
+* **Monte Carlo** (``--runs``, default 100; ``--fixes`` per run; in this process, or as Dask
+  tasks with ``--workers N`` or ``--scheduler ADDRESS``): slow constant rotation, the
   gyro's exact increments plus angle random walk and a bias random walk sampled from their exact
   joint law, a camera fix every ``--fix-interval`` s with known covariance R, initial errors drawn
   from the prior (the simulation of ``test/estimation/test_attitude_filter.py``).
@@ -23,10 +24,10 @@ Cramér–Rao bound, its consistency, its cost, and one real recording.  The run
   increment per ``propagate`` call (as a node receives them) and in blocks; µs per increment
   (all work included) and per fix; median and min–max of ``--timing-runs``; one process, one
   thread (numpy's BLAS on 3×3..6×6 matrices does not thread); load average at the start.
-* **Real data** (RepoIMU, when found: ``$STRAPDOWN_REALDATA``, /work/shared/RepoIMU or the dev
-  mirror): one wand trial, bias + time offset + boresight states, the Vicon attitude as one fix
-  per second, σ from the data; the bias against the mean rate at rest and the time offset against
-  the rate cross-correlation (``strapdown_ros.recording.repoimu``).
+* **Real data** (RepoIMU, when ``$STRAPDOWN_REALDATA`` names a copy): one wand trial, bias +
+  time offset + boresight states, the Vicon attitude as one fix per second, σ from the data;
+  the bias against the mean rate at rest and the time offset against the rate cross-correlation
+  (``strapdown_ros.recording.repoimu``).
 * **filter_bag against a raw read** (``--bag BAG``): the whole ``filter_bag BAG --output OUT``
   command and a raw rosbags read of the same bag (AnyReader over every record, no decoding,
   ``sins_bag_bench``'s), each a separate process, ``--bag-runs`` pairs in alternating order;
@@ -103,6 +104,10 @@ def main(argv=None) -> int:
         '(documented run: doc/results/filter_bench/filter_bench.md)')
     arg('--plots', help='write the PNG plots into this directory '
         '(documented run: doc/results/filter_bench)')
+    arg('--workers', type=int, default=1,
+        help='Dask LocalCluster workers for the Monte Carlo runs (default 1: in this process)')
+    arg('--scheduler', metavar='ADDRESS',
+        help='run the Monte Carlo runs on a running Dask scheduler, e.g. tcp://host:8786')
     arg('--force', action='store_true', help='replace existing outputs')
     arg('--quiet', action='store_true', help='no progress on stderr')
     a = ap.parse_args(argv)
@@ -122,6 +127,8 @@ def main(argv=None) -> int:
             ap.error(f"--{name.replace('_', '-')} must be >= 0, got {v:g}")
     if not 1 <= a.timing_runs <= 100:
         ap.error('--timing-runs must be in [1, 100]')
+    if not 1 <= a.workers <= 256:
+        ap.error('--workers must be in [1, 256]')
     if a.only_bag and not a.bag:
         ap.error('--only-bag needs --bag')
     if a.bag and not os.path.exists(a.bag):
@@ -155,7 +162,11 @@ def main(argv=None) -> int:
                                                       'timing_runs')}}
     mc = None
     if not a.only_bag:
-        mc = monte_carlo(a, progress)
+        try:
+            mc = monte_carlo(a, progress, a.scheduler, a.workers)
+        except OSError as exc:                        # no scheduler at the address
+            print(f'filter_bench: error: {exc}', file=sys.stderr)
+            return 2
         res['summary'] = summarize(mc, a.runs)
         if a.timing_seconds > 0:
             progress('timing')

@@ -26,6 +26,7 @@ from strapdown_ros.estimation import model_check
 from strapdown_ros.estimation.chi_square import chi2_interval
 from strapdown_ros.estimation.filter_system import FilterSettings
 from strapdown_ros.estimation.steady_filter import discretize
+from strapdown_ros.fleet.cluster import dask_client, map_tasks, TaskError
 from strapdown_ros.params import load_model_file, parse_overrides
 from strapdown_ros.recording import repoimu
 from strapdown_ros.recording.filter_replay import run_filter
@@ -132,7 +133,87 @@ def _time_fix_now(f, w, R, count: int) -> float:
     return float(np.median(out) * 1e6)
 
 
-def monte_carlo(a, progress) -> dict:
+def one_run(a, run: int, Phi, bound_f) -> dict:
+    """
+    Run one Monte Carlo run of the bias filter and its RTS smoother (one Dask task).
+
+    Parameters
+    ----------
+    a : argparse.Namespace
+        Options of ``filter_bench`` (its settings: seed, rates, σ, priors).
+    run : int
+        The run (seed ``a.seed + run``).
+    Phi : ndarray
+        The error model's transition over one fix interval.
+    bound_f : ndarray
+        The filter's PCRB at each fix (run 0 compares its covariance with it).
+
+    Returns
+    -------
+    dict
+        Per fix: errors of the filter and the smoother, NEES, NIS, σ, true and estimated bias;
+        ``gated`` fixes; ``p_gap`` (run 0: the largest σ and correlation differences of P
+        against the PCRB before the first gated fix, and that fix).
+
+    """
+    T, k = a.gyro_period, int(round(a.fix_interval / a.gyro_period))
+    n, F = k * a.fixes, a.fixes
+    stamps = T * np.arange(1, n + 1)
+    R = a.camera_sigma ** 2 * np.eye(3)
+    out = {k_: np.zeros((F, 3)) for k_ in ('att', 'bias', 'att_s', 'bias_s', 'sig_att',
+                                           'sig_bias', 'nees', 'b_true', 'b_est')}
+    out['nis'] = np.zeros(F)
+    out['gated'] = 0
+    p_gap = [0.0, 0.0, a.fixes]         # σ, correlation differences; fixes before a gated one
+    rng = np.random.default_rng(a.seed + run)
+    b0 = rng.normal(0.0, a.prior_bias, 3)
+    d, b = simulate_increments(rng, T, n, a.arw, a.bias_rw, b0)
+    d = d + RATE * T
+    f = AttitudeFilter(quat_multiply(Q_START, rotvec_to_quat(rng.normal(0, a.prior_attitude,
+                                                                        3))), 0.0,
+                       gyro_random_walk=a.arw, gyro_bias_random_walk=a.bias_rw,
+                       initial_sigma=a.prior_attitude, bias_sigma=a.prior_bias)
+    pre, post, P_pre, P_post = [], [], [], []
+    for j in range(F):
+        f.propagate(d[j * k:(j + 1) * k], stamps[j * k:(j + 1) * k])
+        t = stamps[(j + 1) * k - 1]
+        q_true = quat_multiply(Q_START, rotvec_to_quat(RATE * t))
+        pre.append((f.attitude, f.estimate('gyro_bias')))
+        P_pre.append(f.P)
+        fix = quat_multiply(q_true, rotvec_to_quat(rng.normal(0.0, a.camera_sigma, 3)))
+        res = f.update(t, fix, R)
+        post.append((f.attitude, f.estimate('gyro_bias')))
+        P = f.P
+        P_post.append(P)
+        e = np.concatenate([attitude_error(q_true, f.attitude),
+                            f.estimate('gyro_bias') - b[(j + 1) * k - 1]])
+        out['att'][j], out['bias'][j] = e[:3], e[3:]
+        out['nees'][j] = (e @ np.linalg.solve(P, e),
+                          e[:3] @ np.linalg.solve(P[:3, :3], e[:3]),
+                          e[3:] @ np.linalg.solve(P[3:, 3:], e[3:]))
+        out['nis'][j] = res.nis if res.nis is not None else np.nan
+        out['gated'] += res.status == 'gated'
+        out['sig_att'][j] = np.sqrt(np.diag(P)[:3])
+        out['sig_bias'][j] = np.sqrt(np.diag(P)[3:])
+        b_fix = b[(j + 1) * k - 1]
+        out['b_true'][j], out['b_est'][j] = b_fix, e[3:] + b_fix
+        if run == 0 and res.status == 'gated':
+            p_gap[2] = min(p_gap[2], j)
+        if run == 0 and j < p_gap[2]:        # σ and correlations of P against the PCRB's
+            sd, sB = np.sqrt(np.diag(P)), np.sqrt(np.diag(bound_f[j]))
+            p_gap[0] = max(p_gap[0], float(np.max(np.abs(sd / sB - 1.0))))
+            p_gap[1] = max(p_gap[1], float(np.max(np.abs(P / np.outer(sd, sd)
+                                                         - bound_f[j] / np.outer(sB, sB)))))
+    smoothed = rts_smooth(pre, post, P_pre, P_post, Phi)
+    for j, (q_s, b_s) in enumerate(smoothed):
+        q_true = quat_multiply(Q_START, rotvec_to_quat(RATE * stamps[(j + 1) * k - 1]))
+        out['att_s'][j] = attitude_error(q_true, q_s)
+        out['bias_s'][j] = b_s - b[(j + 1) * k - 1]
+    out['p_gap'] = p_gap
+    return out
+
+
+def monte_carlo(a, progress, scheduler: str | None = None, workers: int = 1) -> dict:
     """
     Run the Monte Carlo of the bias filter and its bounds.
 
@@ -142,6 +223,10 @@ def monte_carlo(a, progress) -> dict:
         Options of ``filter_bench``.
     progress : callable
         Called with one line of progress text.
+    scheduler : str, optional
+        A running Dask scheduler (``tcp://host:8786``) whose workers run the runs.
+    workers : int
+        Dask LocalCluster workers; 1 (and no scheduler) runs them in this process.
 
     Returns
     -------
@@ -149,10 +234,14 @@ def monte_carlo(a, progress) -> dict:
         Per run and fix: errors of the filter and the RTS smoother (rad, rad/s), NEES, NIS,
         σ; the filter and smoother PCRBs; times of the fixes.
 
+    Raises
+    ------
+    RuntimeError
+        A run's worker was lost.
+
     """
-    T, dt, k = a.gyro_period, a.fix_interval, int(round(a.fix_interval / a.gyro_period))
-    n, F = k * a.fixes, a.fixes
-    stamps = T * np.arange(1, n + 1)
+    dt = a.fix_interval
+    F = a.fixes
     Phi, Qd = discretize(_error_dynamics(RATE), np.diag([a.arw ** 2] * 3 + [a.bias_rw ** 2] * 3),
                          dt)
     P0 = np.diag([a.prior_attitude ** 2] * 3 + [a.prior_bias ** 2] * 3)
@@ -160,60 +249,31 @@ def monte_carlo(a, progress) -> dict:
     bound_f, bound_s, bound_pre = pcrb_filter_smoother(Phi, Qd, P0, np.hstack([np.eye(3),
                                                                               np.zeros((3, 3))]),
                                                        R, F)
-    out = {k_: np.zeros((a.runs, F, 3)) for k_ in ('att', 'bias', 'att_s', 'bias_s', 'sig_att',
-                                                   'sig_bias')}
-    out.update(nees=np.zeros((a.runs, F, 3)), nis=np.zeros((a.runs, F)),
-               b_true=np.zeros((a.runs, F, 3)), b_est=np.zeros((a.runs, F, 3)))
-    p_gap = [0.0, 0.0, a.fixes]         # σ, correlation differences; fixes before a gated one
+    keys = ('att', 'bias', 'att_s', 'bias_s', 'sig_att', 'sig_bias', 'nees', 'b_true', 'b_est',
+            'nis')
+    out = {k_: np.zeros((a.runs, F) + (() if k_ == 'nis' else (3,))) for k_ in keys}
     out['gated'] = 0
-    for run in range(a.runs):
-        rng = np.random.default_rng(a.seed + run)
-        b0 = rng.normal(0.0, a.prior_bias, 3)
-        d, b = simulate_increments(rng, T, n, a.arw, a.bias_rw, b0)
-        d = d + RATE * T
-        f = AttitudeFilter(quat_multiply(Q_START, rotvec_to_quat(rng.normal(0, a.prior_attitude,
-                                                                            3))), 0.0,
-                           gyro_random_walk=a.arw, gyro_bias_random_walk=a.bias_rw,
-                           initial_sigma=a.prior_attitude, bias_sigma=a.prior_bias)
-        pre, post, P_pre, P_post = [], [], [], []
-        for j in range(F):
-            f.propagate(d[j * k:(j + 1) * k], stamps[j * k:(j + 1) * k])
-            t = stamps[(j + 1) * k - 1]
-            q_true = quat_multiply(Q_START, rotvec_to_quat(RATE * t))
-            pre.append((f.attitude, f.estimate('gyro_bias')))
-            P_pre.append(f.P)
-            fix = quat_multiply(q_true, rotvec_to_quat(rng.normal(0.0, a.camera_sigma, 3)))
-            res = f.update(t, fix, R)
-            post.append((f.attitude, f.estimate('gyro_bias')))
-            P = f.P
-            P_post.append(P)
-            e = np.concatenate([attitude_error(q_true, f.attitude),
-                                f.estimate('gyro_bias') - b[(j + 1) * k - 1]])
-            out['att'][run, j], out['bias'][run, j] = e[:3], e[3:]
-            out['nees'][run, j] = (e @ np.linalg.solve(P, e),
-                                   e[:3] @ np.linalg.solve(P[:3, :3], e[:3]),
-                                   e[3:] @ np.linalg.solve(P[3:, 3:], e[3:]))
-            out['nis'][run, j] = res.nis if res.nis is not None else np.nan
-            out['gated'] += res.status == 'gated'
-            out['sig_att'][run, j] = np.sqrt(np.diag(P)[:3])
-            out['sig_bias'][run, j] = np.sqrt(np.diag(P)[3:])
-            b_fix = b[(j + 1) * k - 1]
-            out['b_true'][run, j], out['b_est'][run, j] = b_fix, e[3:] + b_fix
-            if run == 0 and res.status == 'gated':
-                p_gap[2] = min(p_gap[2], j)
-            if run == 0 and j < p_gap[2]:        # σ and correlations of P against the PCRB's
-                sd, sB = np.sqrt(np.diag(P)), np.sqrt(np.diag(bound_f[j]))
-                p_gap[0] = max(p_gap[0], float(np.max(np.abs(sd / sB - 1.0))))
-                p_gap[1] = max(p_gap[1], float(np.max(np.abs(P / np.outer(sd, sd)
-                                                             - bound_f[j] / np.outer(sB, sB)))))
-        smoothed = rts_smooth(pre, post, P_pre, P_post, Phi)
-        for j, (q_s, b_s) in enumerate(smoothed):
-            q_true = quat_multiply(Q_START, rotvec_to_quat(RATE * stamps[(j + 1) * k - 1]))
-            out['att_s'][run, j] = attitude_error(q_true, q_s)
-            out['bias_s'][run, j] = b_s - b[(j + 1) * k - 1]
-        if (run + 1) % max(1, a.runs // 5) == 0:
-            progress(f'Monte Carlo {run + 1}/{a.runs}')
-    out.update(bound_f=bound_f, bound_s=bound_s, bound_pre=bound_pre, p_gap=p_gap,
+    step = max(1, a.runs // 5)
+
+    def collect(run, res, done):
+        if isinstance(res, TaskError):
+            raise RuntimeError(f'Monte Carlo run {run} was lost: {res}')
+        for k_ in keys:
+            out[k_][run] = res[k_]
+        out['gated'] += res['gated']
+        if run == 0:
+            out['p_gap'] = res['p_gap']
+        if done % step == 0:
+            progress(f'Monte Carlo {done}/{a.runs}')
+
+    if scheduler or workers > 1:
+        with dask_client(scheduler, workers) as client:
+            map_tasks(client, one_run, [(a, run, Phi, bound_f) for run in range(a.runs)],
+                      on_done=lambda i, res, done, total: collect(i, res, done))
+    else:
+        for run in range(a.runs):
+            collect(run, one_run(a, run, Phi, bound_f), run + 1)
+    out.update(bound_f=bound_f, bound_s=bound_s, bound_pre=bound_pre,
                t=dt * np.arange(1, F + 1))
     return out
 
@@ -307,15 +367,14 @@ def realdata_run(a, progress) -> dict:
         with σ against the rest mean rate and the cross-correlation lag, and the mean NIS.
 
     """
-    with tempfile.TemporaryDirectory() as scratch:
-        root = repoimu.find_repoimu(scratch)
-        if root is None:
-            return {'available': False}
-        path = next((p for p in repoimu.repoimu_trials(root, ('TStick', )) if p.stem == a.trial),
-                    None)
-        if path is None:
-            return {'available': False, 'reason': f'trial {a.trial} not in {root}'}
-        trial = repoimu.read_repoimu_csv(path)
+    root = repoimu.find_repoimu()
+    if root is None:
+        return {'available': False}
+    path = next((p for p in repoimu.repoimu_trials(root, ('TStick', )) if p.stem == a.trial),
+                None)
+    if path is None:
+        return {'available': False, 'reason': f'trial {a.trial} not in {root}'}
+    trial = repoimu.read_repoimu_csv(path)
     progress(f'real data: {trial.name}')
     rest = repoimu.rest_mean_rate(trial)
     lag = repoimu.xcorr_lag_s(trial)

@@ -16,17 +16,19 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from strapdown_ros.calibration.boresight_observability import judge_observability
+from strapdown_ros.calibration.pair_covariance import band_covariance, Whitener
 from strapdown_ros.estimation.chi_square import chi2_band
-from strapdown_ros.estimation.observability import analyze_information, ObservabilityReport
+from strapdown_ros.estimation.observability import ObservabilityReport
 from strapdown_ros.rotation import (dcm_to_quat, dcm_to_ypr, quat_conjugate, quat_multiply,
                                     quat_normalize, quat_to_dcm, quat_to_rotvec,
                                     ypr_error_to_rotation, ypr_to_dcm)
 from strapdown_ros.sensors import SensorSigmas
 from strapdown_ros.sensors.covariance import constant_variances
 
-__all__ = ['CORRELATED_MAX_PAIRS', 'WEIGHTINGS', 'BoresightSolution', 'axis_alignment',
-           'check_observability', 'imu_attitude_from_camera', 'increment_residuals',
-           'solve_boresight']
+__all__ = ['CORRELATED_MAX_PAIRS', 'WEIGHTINGS', 'BoresightSolution', 'ChainedCovariance',
+           'axis_alignment', 'axis_alignment_quat', 'check_observability',
+           'imu_attitude_from_camera', 'increment_residuals', 'pair_arrays', 'solve_boresight']
 
 
 # ---------------------------------------------------------------------- §4 the estimate
@@ -81,6 +83,12 @@ class BoresightSolution:
         The observability report.
     unobservable_axes : list of str
         Named unobservable rotation axes.
+    whitened_residual : (n, 3) ndarray or None
+        The residuals at the solution whitened by the chained covariance (shared fixes; the
+        gyro constants' estimate removed with the correlated weighting): unit variance and
+        white when the stated noise is right.  Their autocorrelation says how far apart fixes
+        must be for their errors to be independent
+        (:mod:`strapdown_ros.calibration.reference_spacing`).
 
     """
 
@@ -105,6 +113,7 @@ class BoresightSolution:
     pairs: int = 0
     observability: ObservabilityReport | None = None
     unobservable_axes: list = field(default_factory=list)
+    whitened_residual: np.ndarray | None = None
 
     @property
     def q_mf_vf(self) -> np.ndarray:
@@ -163,12 +172,80 @@ def axis_alignment(A_imu, A_cam) -> np.ndarray:
         C_MF^VF.
 
     """
-    u = quat_to_rotvec(dcm_to_quat(A_imu))
-    v = quat_to_rotvec(dcm_to_quat(A_cam))
+    return axis_alignment_quat(dcm_to_quat(A_imu), dcm_to_quat(A_cam))
+
+
+def axis_alignment_quat(dq_imu, dq_cam) -> np.ndarray:
+    """
+    Return :func:`axis_alignment` from the increments as quaternions (no DCM round trip).
+
+    Parameters
+    ----------
+    dq_imu : (n, 4) ndarray
+        ΔS_imu, scalar first.
+    dq_cam : (n, 4) ndarray
+        ΔS_avu, scalar first.
+
+    Returns
+    -------
+    (3, 3) ndarray
+        C_MF^VF.
+
+    """
+    u = quat_to_rotvec(np.asarray(dq_imu, dtype=float))
+    v = quat_to_rotvec(np.asarray(dq_cam, dtype=float))
     B = u.T @ v
     U, _, Vt = np.linalg.svd(B)
     d = np.sign(np.linalg.det(U @ Vt))
     return U @ np.diag([1.0, 1.0, d]) @ Vt
+
+
+def pair_arrays(pairs, c_mf_vf: np.ndarray | None = None):
+    """
+    Return the arrays of the chained-pair covariance from a list of pairs.
+
+    Parameters
+    ----------
+    pairs : sequence of IncrementPair
+        The pairs (or objects with ``dq_cam``, ``cov_cam``, ``cov_imu`` and optionally
+        ``t_start``, ``t_end``, ``cov_fix_start``, ``cov_fix_end``, ``cov_imu_white``).
+    c_mf_vf : (3, 3) ndarray, optional
+        C_MF^VF, to take the gyro covariance into VF axes (default: its mean variance on
+        every axis, which no rotation changes).
+
+    Returns
+    -------
+    dq_cam : (N, 4) ndarray
+        Camera increments.
+    fix_P : (N, 2, 3, 3) ndarray
+        Covariances of the start and end fix of each pair (0 and E_avu when the pairs do not
+        carry them: each pair then stands alone, its start the reference of its increment).
+    adjacent : (N−1,) bool ndarray
+        Pairs n, n+1 share a fix (their stamps meet and both carry fix covariances).
+    white : (N, 3, 3) ndarray
+        White gyro covariance of each pair, VF axes (E_imu when no white part is given).
+
+    """
+    dq_cam = np.array([p.dq_cam for p in pairs], dtype=float)
+    have_fix = all(getattr(p, 'cov_fix_start', None) is not None
+                   and getattr(p, 'cov_fix_end', None) is not None for p in pairs)
+    if have_fix:
+        fix_P = np.array([[p.cov_fix_start, p.cov_fix_end] for p in pairs], dtype=float)
+        t0 = np.array([getattr(p, 't_start', np.nan) for p in pairs], dtype=float)
+        t1 = np.array([getattr(p, 't_end', np.nan) for p in pairs], dtype=float)
+        adjacent = np.abs(t0[1:] - t1[:-1]) < 1e-9
+    else:
+        E_cam = np.array([p.cov_cam for p in pairs], dtype=float)
+        fix_P = np.stack([np.zeros_like(E_cam), E_cam], axis=1)
+        adjacent = np.zeros(max(len(pairs) - 1, 0), dtype=bool)
+    E = np.array([p.cov_imu_white if getattr(p, 'cov_imu_white', None) is not None
+                  else p.cov_imu for p in pairs], dtype=float)
+    if c_mf_vf is not None:
+        C = np.asarray(c_mf_vf, dtype=float)
+        white = C.T[None] @ E @ C[None]
+    else:
+        white = (np.trace(E, axis1=1, axis2=2) / 3.0)[:, None, None] * np.eye(3)
+    return dq_cam, fix_P, adjacent, white
 
 
 def check_observability(pairs, c_mf_vf: np.ndarray | None = None,
@@ -177,28 +254,31 @@ def check_observability(pairs, c_mf_vf: np.ndarray | None = None,
                         axis_tolerance: float = np.radians(2.0),
                         max_sigma: float = 1e-3) -> ObservabilityReport:
     """
-    Judge the observability of the boresight: 004 §4.1 and the conditioning of the normal matrix.
+    Judge the observability of the boresight from the information of all the pairs together.
 
-    Near the solution the residual of pair n responds to a small rotation δ of C (VF axes)
-    as f_n = (I − R_nᵀ) δ with R_n = ΔS_avu,n; the normal matrix is
-    Σ (I − R_n) W_n (I − R_nᵀ) = Σ 2(1 − cos φ_n)(I − k_n k_nᵀ) for unit weights: a rotation
-    about an axis k_n says nothing about rotations of C about k_n.
+    The rule of :func:`strapdown_ros.calibration.boresight_observability.judge_observability`,
+    O(N): the Fisher information of a VF rotation of C from all the pairs (consecutive pairs
+    share a camera fix), every direction's predicted σ at most ``max_sigma``; and the camera
+    attitudes turning about two axes by at least ``min_rotation`` (between two fixes of the
+    recording) and well above the fix noise (004 §4.1, over the recording, not pair by pair).
 
     Parameters
     ----------
     pairs : sequence of IncrementPair
         The pairs.
     c_mf_vf : (3, 3) ndarray, optional
-        Unused (the normal matrix is taken in VF axes).
+        C_MF^VF, to take E_imu into VF axes (default: its mean variance per axis).
     weights : (n, 3, 3) ndarray, optional
-        W_n; default unit weights scaled by the camera noise.
+        W_n: when given, the information is Σ (I − R_n) W_n (I − R_nᵀ) with these weights
+        (independent pairs) instead of that of the chained covariance.
     min_rotation : float
-        Smallest rotation between exposures that counts, rad.
+        Smallest rotation about the motion's second principal axis (between two fixes of a
+        chain) that counts, rad.
     axis_tolerance : float
-        Spread of rotation axes below which they count as one axis, rad.
+        Not used any more (the axes are judged by their spread against the noise); kept so
+        that existing calls work.
     max_sigma : float
-        Directions whose predicted σ exceeds it (rad) are unobservable, as are those whose
-        eigenvalue vanishes.
+        Directions whose predicted σ exceeds it (rad) are unobservable.
 
     Returns
     -------
@@ -206,71 +286,159 @@ def check_observability(pairs, c_mf_vf: np.ndarray | None = None,
         In VF rotation axes, the unobservable axes named.
 
     """
-    _, A_cam, E_imu, E_cam = _stack(pairs)
-    I3 = np.eye(3)
-    H = I3 - np.swapaxes(A_cam, 1, 2)
-    if weights is None:
-        W = np.broadcast_to(I3, H.shape)
-        scale = max(np.sqrt(np.mean([np.trace(e) / 3 for e in E_cam])), 1e-12)   # noise for σ
-        W = W / scale ** 2
-    else:
-        W = weights
-    N = np.einsum('nji,njk,nkl->il', H, W, H)
-
-    def describe(v):
-        v = v * np.sign(v[np.argmax(np.abs(v))])
-        return f'rotation about VF axis ({v[0]:.2f}, {v[1]:.2f}, {v[2]:.2f})'
-    rep = analyze_information(N, describe=describe, sigma_limit=max_sigma)
-    # the necessary condition of 004 §4.1, in words
-    rv = quat_to_rotvec(np.array([p.dq_cam for p in pairs]))
-    ang = np.linalg.norm(rv, axis=1)
-    big = ang >= min_rotation
-    if not np.any(big):
-        why = (f'no rotation above {np.degrees(min_rotation):.2g}° between exposures '
-               '(static motion)')
-    else:
-        k = rv[big] / ang[big, None]
-        spread = np.max(np.arccos(np.clip(np.abs(k @ k.T), -1, 1)))
-        why = 'all increments share one axis' if spread < axis_tolerance else ''
-    if why and rep.observable:
-        # the conditioning may pass on noise alone; the necessary condition still fails
-        rep.observable = False
-        rep.unobservable = [describe(rep.directions[:, 0])]
-    if not rep.observable:
-        if why.startswith('no rotation'):
-            rep.message = f'boresight not observable: {why}; weakest: {rep.unobservable[0]}'
-        else:
-            reason = why if why else f'predicted σ {rep.predicted_sigma[0]:.2g} rad'
-            rep.message = f'{rep.unobservable[0]} not observable: {reason}'
-    return rep
+    dq_cam, fix_P, adjacent, white = pair_arrays(pairs, c_mf_vf)
+    info = None
+    if weights is not None:
+        H = np.eye(3)[None] - np.swapaxes(quat_to_dcm(dq_cam), 1, 2)
+        info = np.einsum('nji,njk,nkl->il', H, np.asarray(weights, dtype=float), H)
+    return judge_observability(dq_cam, fix_P, adjacent, white, min_rotation=min_rotation,
+                               max_sigma=max_sigma, information=info)
 
 
 WEIGHTINGS = ('unit', 'pairwise', 'correlated', 'auto')
 #: "auto" uses the correlated (dense) solution up to this many pairs, pairwise weights beyond
-CORRELATED_MAX_PAIRS = 200       # a warm update stays under ~30 ms (dense 600×600 solve)
+#: the name of the former limit of the dense correlated solution; the correlated solution is
+#: banded now (O(n) time and memory), so 'auto' uses it at any number of pairs
+CORRELATED_MAX_PAIRS = 10 ** 12
 
 
-def _correlated_covariance(C, pairs, A_cam, E_cam, gyro: SensorSigmas) -> np.ndarray:
+class ChainedCovariance:
     """
-    Covariance (3n×3n) of the stacked residuals f_n ≈ Cᵀε_imu,n − ε_avu,n.
+    The covariance of the stacked residuals f_n ≈ Cᵀε_imu,n − ε_avu,n of chained pairs, in O(n).
 
-    * diagonal blocks: Cᵀ E_imu,white C + E_avu;
-    * adjacent pairs sharing a camera fix θ_n: cov(f_n, f_{n+1}) = −P_n R_{n+1}, since
-      ε_avu,n = θ_n − R_nᵀ θ_{n−1} (004 §3.3) and R_{n+1} = ΔS_avu,n+1;
-    * the gyro constants x = [b, vec M], common to all pairs: U P_x Uᵀ with U_n = Cᵀ G_n.
+    Σ = B + U P_x Uᵀ: B block tridiagonal (:mod:`strapdown_ros.calibration.pair_covariance`:
+    diagonal Cᵀ E_imu,white C + E_avu, and −P_n R_{n+1} between pairs that share camera fix n,
+    since ε_avu,n = θ_n − R_nᵀ θ_{n−1}, 004 §3.3); U_n = Cᵀ G_n the sensitivity to the gyro
+    constants x = [b, vec M], common to all pairs, with P_x their prior variances.  Σ⁻¹ is
+    applied through the banded factor of B and the Woodbury identity on the 12 constants: no
+    3n×3n matrix is formed.
+
+    Parameters
+    ----------
+    pairs : sequence of IncrementPair
+        The pairs, in time order.
+    A_cam : (n, 3, 3) ndarray
+        Their camera increments as DCMs.
+    gyro : SensorSigmas, optional
+        Gyro sigmas: the constants' prior (needs pairs with ``imu_sensitivity``); None: no
+        common constants, and E_imu whole (not only its white part) on the diagonal.
+
     """
-    n = len(pairs)
-    Sig = np.zeros((3 * n, 3 * n))
-    U = np.zeros((3 * n, 12))
-    for k, p in enumerate(pairs):
-        sl = slice(3 * k, 3 * k + 3)
-        Sig[sl, sl] = C.T @ p.cov_imu_white @ C + E_cam[k]
-        U[sl] = C.T @ p.imu_sensitivity
-        if k + 1 < n and p.cov_fix_end is not None and abs(pairs[k + 1].t_start - p.t_end) < 1e-9:
-            cross = -p.cov_fix_end @ A_cam[k + 1]
-            Sig[sl, 3 * k + 3:3 * k + 6] = cross
-            Sig[3 * k + 3:3 * k + 6, sl] = cross.T
-    return Sig + (U * constant_variances(gyro)) @ U.T
+
+    def __init__(self, pairs, A_cam: np.ndarray, gyro: SensorSigmas | None = None):
+        _, self.fix_P, self.adjacent, _ = pair_arrays(pairs)
+        self.A_cam = A_cam
+        with_constants = gyro is not None
+        self.E_white = np.array([p.cov_imu_white if with_constants else p.cov_imu
+                                 for p in pairs], dtype=float)
+        if with_constants:
+            self.G = np.array([p.imu_sensitivity for p in pairs], dtype=float)
+            var = constant_variances(gyro)
+            self.keep = var > 0
+            self.sqrt_var = np.sqrt(var[self.keep])
+        else:
+            self.G = None
+
+    def at(self, C: np.ndarray) -> dict:
+        """
+        Return the factors of Σ at the boresight C.
+
+        Parameters
+        ----------
+        C : (3, 3) ndarray
+            C_MF^VF.
+
+        Returns
+        -------
+        dict
+            The whitening of B, the whitened scaled constant columns and the Cholesky factor
+            of I + VᵀV.
+
+        """
+        white = C.T[None] @ self.E_white @ C[None]
+        W = Whitener(band_covariance(self.fix_P, self.A_cam, self.adjacent, white))
+        ctx = {'W': W, 'V': None}
+        if self.G is not None and np.any(self.keep):
+            U = np.einsum('ji,njk->nik', C, self.G[:, :, self.keep]).reshape(-1, int(
+                np.sum(self.keep)))
+            V = W.apply(U * self.sqrt_var)
+            ctx['V'] = V
+            ctx['M'] = np.linalg.cholesky(np.eye(V.shape[1]) + V.T @ V)
+        return ctx
+
+    @staticmethod
+    def _project(ctx, X):
+        """Return Σ^(−1/2)-whitened columns: L⁻¹X less their part the constants explain."""
+        A = ctx['W'].apply(X)
+        V = ctx['V']
+        if V is None:
+            return A, A
+        from scipy.linalg import cho_solve
+        return A, A - V @ cho_solve((ctx['M'], True), V.T @ A)
+
+    def normal(self, ctx, H: np.ndarray, f: np.ndarray):
+        """
+        Return Hᵀ Σ⁻¹ H, Hᵀ Σ⁻¹ f and fᵀ Σ⁻¹ f.
+
+        Parameters
+        ----------
+        ctx : dict
+            The factors of :meth:`at`.
+        H : (n, 3, 3) ndarray
+            The Jacobian of every pair's residual.
+        f : (n, 3) ndarray
+            The residuals.
+
+        Returns
+        -------
+        tuple
+            (3×3 normal matrix, 3-vector gradient, cost).
+
+        """
+        X = np.hstack([H.reshape(-1, 3), f.reshape(-1, 1)])
+        A, P = self._project(ctx, X)                 # Σ⁻¹ = L⁻ᵀ (I − V M⁻¹ Vᵀ) L⁻¹
+        G = A.T @ P
+        return G[:3, :3], G[:3, 3], float(G[3, 3])
+
+    def cost(self, ctx, f: np.ndarray) -> float:
+        """
+        Return fᵀ Σ⁻¹ f.
+
+        Parameters
+        ----------
+        ctx : dict
+            The factors of :meth:`at`.
+        f : (n, 3) ndarray
+            The residuals.
+
+        Returns
+        -------
+        float
+            The cost.
+
+        """
+        A, P = self._project(ctx, f.reshape(-1, 1))
+        return float(A[:, 0] @ P[:, 0])
+
+    def whitened(self, ctx, f: np.ndarray) -> np.ndarray:
+        """
+        Return the whitened residuals, the gyro constants' estimate removed.
+
+        Parameters
+        ----------
+        ctx : dict
+            The factors of :meth:`at`.
+        f : (n, 3) ndarray
+            The residuals.
+
+        Returns
+        -------
+        (n, 3) ndarray
+            L⁻¹(f − U x̂): unit variance and white when the stated noise is right.
+
+        """
+        _, P = self._project(ctx, f.reshape(-1, 1))
+        return P[:, 0].reshape(-1, 3)
 
 
 def solve_boresight(pairs, beta0=(0.0, 0.0, 0.0), weighted: bool = True, init: str = 'axes',
@@ -301,7 +469,8 @@ def solve_boresight(pairs, beta0=(0.0, 0.0, 0.0), weighted: bool = True, init: s
     max_sigma : float
         Predicted σ above which a direction is unobservable, rad.
     min_rotation : float
-        Smallest rotation between exposures that counts, rad.
+        Smallest rotation about the motion's second principal axis (between two fixes of a
+        chain) that counts, rad (:func:`check_observability`).
     common_rotation_sigma : float
         σ (rad, per axis) of a rotation of the gyro triad common to all pairs: the
         antisymmetric part of the gyro misalignment rotates every ΔS_imu alike, so it is
@@ -313,8 +482,8 @@ def solve_boresight(pairs, beta0=(0.0, 0.0, 0.0), weighted: bool = True, init: s
         'unit' (004); 'pairwise' (each pair by Cᵀ E_imu C + E_avu, independent pairs);
         'correlated' (generalised least squares with the full residual covariance: shared
         camera fixes and gyro constants common to all pairs; needs ``gyro`` and pairs with
-        sensitivities, O(n³)); 'auto' (correlated when possible and n ≤
-        CORRELATED_MAX_PAIRS, else pairwise).
+        sensitivities; banded, O(n): :class:`ChainedCovariance`); 'auto' (correlated when
+        possible, else pairwise).
     gyro : SensorSigmas, optional
         Gyro error sigmas, for the correlated weighting.
 
@@ -344,13 +513,16 @@ def solve_boresight(pairs, beta0=(0.0, 0.0, 0.0), weighted: bool = True, init: s
     if n < 2:
         return BoresightSolution(False, f'{n} increment pair(s): need at least 2', pairs=n)
     A_imu, A_cam, E_imu, E_cam = _stack(pairs)
-    rep = check_observability(pairs, min_rotation=min_rotation, max_sigma=max_sigma)
+    C_axes = axis_alignment_quat([p.dq_imu for p in pairs], [p.dq_cam for p in pairs])
+    rep = check_observability(pairs, c_mf_vf=C_axes, min_rotation=min_rotation,
+                              max_sigma=max_sigma)
     if not rep.observable:
         return BoresightSolution(False, rep.message, pairs=n, observability=rep,
                                  unobservable_axes=list(rep.unobservable))
+    chained = ChainedCovariance(pairs, A_cam, gyro) if weighting == 'correlated' else None
     beta = np.asarray(beta0, dtype=float).copy()
     if init == 'axes':
-        beta = dcm_to_ypr(axis_alignment(A_imu, A_cam))
+        beta = dcm_to_ypr(C_axes)
     elif init != 'given':
         raise ValueError(f"init must be 'axes' or 'given', got {init!r}")
 
@@ -375,12 +547,9 @@ def solve_boresight(pairs, beta0=(0.0, 0.0, 0.0), weighted: bool = True, init: s
         H = jacobian(b)
         f = increment_residuals(C, A_imu, A_cam)
         if weighting == 'correlated':
-            Sig = _correlated_covariance(C, pairs, A_cam, E_cam, gyro)
-            Hs = H.reshape(-1, 3)
-            WH_Wf = np.linalg.solve(Sig, np.hstack([Hs, f.reshape(-1, 1)]))
-            N = Hs.T @ WH_Wf[:, :3]
-            g = Hs.T @ WH_Wf[:, 3]
-            return C, f, H, Sig, None, N, g, float(f.reshape(-1) @ WH_Wf[:, 3])
+            ctx = chained.at(C)
+            N, g, cost = chained.normal(ctx, H, f)
+            return C, f, H, ctx, None, N, g, cost
         W = weights(C)
         HtW = np.einsum('nji,njk->nik', H, W)
         g = np.einsum('nij,nj->i', HtW, f)
@@ -390,7 +559,7 @@ def solve_boresight(pairs, beta0=(0.0, 0.0, 0.0), weighted: bool = True, init: s
     def frozen_cost(lin, f_t):
         """Return fᵀ W f of f_t with the weights of ``lin`` (the cost its step descends)."""
         if weighting == 'correlated':
-            return float(f_t.reshape(-1) @ np.linalg.solve(lin[3], f_t.reshape(-1)))
+            return chained.cost(lin[3], f_t)
         return float(np.einsum('ni,nij,nj->', f_t, lin[3], f_t))
 
     converged = False
@@ -441,6 +610,11 @@ def solve_boresight(pairs, beta0=(0.0, 0.0, 0.0), weighted: bool = True, init: s
         D2i = np.linalg.inv(D2)
         P = P + common_rotation_sigma ** 2 * D2i @ D2i.T
     beta_wrapped = dcm_to_ypr(C)                     # canonical angles of the same rotation
+    if weighting == 'correlated':
+        white = chained.whitened(W, f)
+    else:                                            # the chained covariance without constants
+        plain = ChainedCovariance(pairs, A_cam)
+        white = plain.whitened(plain.at(C), f)
     sol = BoresightSolution(
         observable=True,
         message='observable' if converged else f'not converged after {it} iterations',
@@ -449,7 +623,7 @@ def solve_boresight(pairs, beta0=(0.0, 0.0, 0.0), weighted: bool = True, init: s
         weighting=weighting, iterations=it, converged=converged,
         residual_rms=float(np.sqrt(np.mean(f ** 2))), chi2_per_dof=chi2, dof=dof,
         chi2_band=band, fit_consistent=consistent, covariance_beta_stated=P_model, pairs=n,
-        observability=rep)
+        observability=rep, whitened_residual=white)
     return sol
 
 

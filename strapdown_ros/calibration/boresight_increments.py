@@ -19,8 +19,9 @@ from strapdown_ros.rotation import (quat_conjugate, quat_cumprod, quat_multiply,
 from strapdown_ros.sensors import SensorSigmas
 from strapdown_ros.sensors.covariance import constant_jacobian, get_covariance_model
 
-__all__ = ['IncrementPair', 'angle_consistency', 'camera_increment', 'gyro_increment',
-           'r_partial']
+__all__ = ['IncrementPair', 'angle_consistencies', 'angle_consistency', 'camera_increment',
+           'camera_increments',
+           'gyro_increment', 'gyro_increments', 'r_partial']
 
 
 # ------------------------------------------------------------------ §2.2 ΔS_imu
@@ -140,6 +141,121 @@ def gyro_increment(stamps: np.ndarray, delta_theta: np.ndarray, t_start: float, 
     return quat_normalize(dq), cov
 
 
+def gyro_increments(stamps: np.ndarray, delta_theta: np.ndarray, t_start, t_end,
+                    gyro: SensorSigmas | None = None, covariance_model: str = 'random_constant'):
+    """
+    Return :func:`gyro_increment` for many pairs of epochs at once, in O(n + m).
+
+    The same quantities by the same formulas (004 §2.2–§2.3): the product of the interval
+    rotations between the epochs, the in-interval polynomial at both ends, E_imu summed over the
+    whole intervals the pair touches.  The products and the sums are taken as prefix products
+    and prefix sums over the record, differences of them per pair, instead of one loop per
+    pair; they agree with :func:`gyro_increment` to rounding (≈1e-13 relative over 10⁵
+    intervals).
+
+    Parameters
+    ----------
+    stamps : (n,) ndarray
+        End times of the increments, s, sorted.
+    delta_theta : (n, 3) ndarray
+        Gyro increments, rad.
+    t_start, t_end : (m,) array_like
+        The camera epochs of each pair, s.
+    gyro : SensorSigmas, optional
+        Gyro error sigmas; without them E_imu, G and the white part are zero.
+    covariance_model : str
+        Name of the gyro covariance model.
+
+    Returns
+    -------
+    valid : (m,) bool ndarray
+        Pairs the record covers (one increment before t_start's interval, the one containing
+        t_end) with t_end > t_start; the other rows are NaN.
+    dq : (m, 4) ndarray
+        ΔS_imu, scalar first.
+    cov : (m, 3, 3) ndarray
+        E_imu.
+    G : (m, 3, 12) ndarray
+        The sensitivity to the gyro constants.
+    white : (m, 3, 3) ndarray
+        The white part of E_imu.
+
+    """
+    stamps = np.asarray(stamps, dtype=float)
+    dth = np.asarray(delta_theta, dtype=float).reshape(-1, 3)
+    t_start = np.atleast_1d(np.asarray(t_start, dtype=float))
+    t_end = np.atleast_1d(np.asarray(t_end, dtype=float))
+    m, n = len(t_start), len(stamps)
+    dq = np.full((m, 4), np.nan)
+    cov = np.zeros((m, 3, 3))
+    G = np.zeros((m, 3, 12))
+    white = np.zeros((m, 3, 3))
+    if n < 2 or m == 0:
+        return np.zeros(m, dtype=bool), dq, cov, G, white
+    k0 = np.searchsorted(stamps, t_start, side='right')
+    k1 = np.searchsorted(stamps, t_end, side='left')
+    valid = (t_end > t_start) & (k0 >= 1) & (k1 < n)
+    k0, k1 = np.where(valid, k0, 1), np.where(valid, k1, 1)
+    k1 = np.maximum(k1, k0)
+    T = np.diff(stamps)                                   # T[k − 1]: interval k ≥ 1
+    rho, drho = dth[1:], dth[1:] - dth[:-1]               # of interval k at index k − 1
+    full = quat_normalize(r_partial(rho, drho, np.ones(n - 1)))
+    head = quat_normalize(r_partial(rho[k0 - 1], drho[k0 - 1],
+                                    (t_start - (stamps[k0] - T[k0 - 1])) / T[k0 - 1]))
+    tail = quat_normalize(r_partial(rho[k1 - 1], drho[k1 - 1],
+                                    (t_end - (stamps[k1] - T[k1 - 1])) / T[k1 - 1]))
+    one = np.array([1.0, 0.0, 0.0, 0.0])
+    Gq = np.vstack([one, quat_cumprod(one, full)])        # Gq[k]: product of intervals 1..k
+    mid = quat_multiply(quat_conjugate(Gq[k0]), Gq[k1 - 1])  # intervals k0+1 .. k1−1
+    same = k0 == k1
+    first = quat_multiply(quat_conjugate(head), full[k0 - 1])
+    chain = quat_multiply(quat_multiply(first, mid), tail)
+    d = np.where(same[:, None], quat_multiply(quat_conjugate(head), tail), chain)
+    dq[valid] = quat_normalize(d[valid])
+    if gyro is not None:
+        model = get_covariance_model(covariance_model)
+        A = quat_to_dcm(Gq[1:])                            # attitude after interval k (index k−1)
+        Q = np.asarray(model.white(rho, T, gyro), dtype=float).reshape(-1, 3, 3)
+        SW = np.concatenate([np.zeros((1, 3, 3)),
+                             np.cumsum(A @ Q @ np.swapaxes(A, 1, 2), axis=0)])
+        SJ = np.concatenate([np.zeros((1, 3, 12)),
+                             np.cumsum(A @ constant_jacobian(rho, T), axis=0)])
+        var = model.constant_variances(gyro)
+        Wg = SW[k1] - SW[k0 - 1]                           # Σ over intervals k0..k1, global axes
+        Jg = SJ[k1] - SJ[k0 - 1]
+        Aend = A[k1 - 1]                                    # the axes of MF at the end of k1
+        AendT = np.swapaxes(Aend, 1, 2)
+        W = AendT @ Wg @ Aend
+        Gs = AendT @ Jg
+        P = W + (Gs * var) @ np.swapaxes(Gs, 1, 2)
+        P = 0.5 * (P + np.swapaxes(P, 1, 2))
+        cov[valid], G[valid], white[valid] = P[valid], Gs[valid], W[valid]
+    return valid, dq, cov, G, white
+
+
+def camera_increments(q_prev: np.ndarray, P_prev: np.ndarray, q_next: np.ndarray,
+                      P_next: np.ndarray):
+    """
+    Return :func:`camera_increment` for many pairs of fixes at once.
+
+    Parameters
+    ----------
+    q_prev, q_next : (m, 4) ndarray
+        Camera fixes S_{n−1}, S_n, scalar first.
+    P_prev, P_next : (m, 3, 3) ndarray
+        Their covariances, VF axes, rad².
+
+    Returns
+    -------
+    tuple
+        ΔS_avu (m, 4) and E_avu (m, 3, 3).
+
+    """
+    dq = quat_normalize(quat_multiply(quat_conjugate(q_prev), q_next))
+    dS = quat_to_dcm(dq)
+    return dq, np.asarray(P_next) + np.swapaxes(dS, 1, 2) @ np.asarray(P_prev) @ dS
+
+
 def camera_increment(q_prev: np.ndarray, P_prev: np.ndarray, q_next: np.ndarray,
                      P_next: np.ndarray):
     """
@@ -233,3 +349,32 @@ def angle_consistency(pair: IncrementPair) -> tuple[float, float]:
         out.append(a)
         var += float(rv @ E @ rv) / a ** 2 if a > 1e-9 else float(np.trace(E)) / 3.0
     return out[0] - out[1], float(np.sqrt(max(var, 0.0)))
+
+
+def angle_consistencies(dq_cam: np.ndarray, cov_cam: np.ndarray, dq_imu: np.ndarray,
+                        cov_imu: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """
+    Return :func:`angle_consistency` for many pairs at once.
+
+    Parameters
+    ----------
+    dq_cam, dq_imu : (m, 4) ndarray
+        ΔS_avu and ΔS_imu, scalar first.
+    cov_cam, cov_imu : (m, 3, 3) ndarray
+        E_avu and E_imu.
+
+    Returns
+    -------
+    tuple of ndarray
+        φ_avu − φ_imu and its σ per pair, rad.
+
+    """
+    angles, var = [], 0.0
+    for dq, E in ((dq_cam, cov_cam), (dq_imu, cov_imu)):
+        rv = quat_to_rotvec(np.asarray(dq, dtype=float).reshape(-1, 4))
+        a = np.linalg.norm(rv, axis=1)
+        angles.append(a)
+        E = np.asarray(E, dtype=float).reshape(-1, 3, 3)
+        along = np.einsum('ni,nij,nj->n', rv, E, rv) / np.where(a > 1e-9, a * a, 1.0)
+        var = var + np.where(a > 1e-9, along, np.trace(E, axis1=1, axis2=2) / 3.0)
+    return angles[0] - angles[1], np.sqrt(np.maximum(var, 0.0))

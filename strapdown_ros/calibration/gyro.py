@@ -383,7 +383,9 @@ def _segment(prep: Prepared):
     """
     st = prep.stamps
     h = float(np.median(np.diff(st)))
-    brk = np.nonzero(np.diff(st) > 1.5 * h)[0]
+    # the reader's gaps (the check's rule 6), not a threshold of its own: stamp jitter is no gap
+    ends = np.array([b for a, b in prep.gaps if b > a], dtype=float)
+    brk = np.flatnonzero(np.isin(st[1:], ends)) if len(ends) else np.zeros(0, dtype=int)
     starts = np.concatenate([[0], brk + 1])
     ends = np.concatenate([brk + 1, [len(st)]])
     i = int(np.argmax(ends - starts))

@@ -296,10 +296,11 @@ def pair_integral(gyro: GyroRecord, pairs: PairSet, jacobian, chunk: int = 100_0
     """
     n = len(gyro.stamps)
     Ks, Ke = pairs.k_start, pairs.k_end
-    # running sums Z[k] = Σ_{i ≤ k} C_i D_i, read only where pairs need them
-    need = np.unique(np.concatenate([Ks, Ke - 1]))
-    Z_at, Y_at = {}, {}
-    ys_need = np.unique(np.concatenate([Ks, Ke]))
+    # running sums Z[k] = Σ_{i ≤ k} C_i D_i, read only where pairs need them (chunk by chunk:
+    # memory bounded by the chunk and the pairs, never by the whole record)
+    need_z = np.concatenate([Ks, Ke - 1])
+    need_y = np.concatenate([Ks, Ke])
+    Z_need = Y_need = None
     carry = None
     for lo in range(1, n, chunk):
         hi = min(n, lo + chunk)
@@ -311,18 +312,19 @@ def pair_integral(gyro: GyroRecord, pairs: PairSet, jacobian, chunk: int = 100_0
         if carry is not None:
             Z += carry
         carry = Z[-1].copy()
-        sel = need[(need >= lo) & (need < hi)]
-        for i, z in zip(sel, Z[sel - lo]):
-            Z_at[int(i)] = z
-        sel = ys_need[(ys_need >= lo) & (ys_need < hi)]
-        for i, y in zip(sel, Y[sel - lo]):
-            Y_at[int(i)] = y
-    p = carry.shape[-1] if carry is not None else 0
-    zero = np.zeros((3, p))
-    Zs = np.array([Z_at.get(int(i), zero) for i in Ks])
-    Ze = np.array([Z_at.get(int(i), zero) for i in Ke - 1])
-    Ys = np.array([Y_at[int(i)] for i in Ks])
-    Ye = np.array([Y_at[int(i)] for i in Ke])
+        if Z_need is None:
+            Z_need = np.zeros((len(need_z),) + Y.shape[1:])
+            Y_need = np.zeros((len(need_y),) + Y.shape[1:])
+        sel = (need_z >= lo) & (need_z < hi)
+        Z_need[sel] = Z[need_z[sel] - lo]
+        sel = (need_y >= lo) & (need_y < hi)
+        Y_need[sel] = Y[need_y[sel] - lo]
+    if Z_need is None:                                 # no interval: no pair can use one
+        Z_need = np.zeros((len(need_z), 3, 0))
+        Y_need = np.zeros((len(need_y), 3, 0))
+    N = len(Ks)
+    Zs, Ze = Z_need[:N], Z_need[N:]
+    Ys, Ye = Y_need[:N], Y_need[N:]
     total = Ze - Zs + (1.0 - pairs.x_start)[:, None, None] * Ys + pairs.x_end[:, None, None] * Ye
     Cend = quat_to_dcm(gyro.attitude_at(Ke, pairs.x_end))
     return np.einsum('nji,njp->nip', Cend, total)

@@ -9,53 +9,22 @@ from __future__ import annotations
 
 import numpy as np
 
+from strapdown_ros.calibration.reference_spacing import (choose_spacing, fix_interval,
+                                                         MAX_SPACING, refine_spacing,
+                                                         SpacingChoice, stated_spacing,
+                                                         thin_fixes)
 from strapdown_ros.calibration.streaming import BoresightCalibrator, CalibratorSettings
 from strapdown_ros.estimation.chi_square import FIT_LEVEL
 from strapdown_ros.rotation import to_ros_xyzw
 from strapdown_ros.sensors.sensor_model import SensorModel
-from strapdown_ros.streams.checks import segments
+from strapdown_ros.streams.checks import match_segments, segments
 
-__all__ = ['calibrate_recording', 'match_segments', 'solution_record']
-
-
-def match_segments(tg, g_segs, tc, c_segs) -> list[tuple[int, int]]:
-    """
-    Pair each gyro time base with its camera time base, in order.
-
-    As many of each (a clock reset of both streams, the usual case): the k-th with the k-th.
-    Otherwise (one stream resynchronised alone) by overlapping stamp ranges, walking both lists
-    forward.
-
-    Parameters
-    ----------
-    tg, tc : ndarray
-        Gyro and camera stamps, s.
-    g_segs, c_segs : list of (int, int)
-        Index ranges of each stream's time bases.
-
-    Returns
-    -------
-    list of (int, int)
-        (gyro segment, camera segment) pairs.
-
-    """
-    if len(g_segs) == len(c_segs):
-        return [(k, k) for k in range(len(g_segs))]
-    out, i, j = [], 0, 0
-    while i < len(g_segs) and j < len(c_segs):
-        g_lo, g_hi = tg[g_segs[i][0]], tg[g_segs[i][1] - 1]
-        c_lo, c_hi = tc[c_segs[j][0]], tc[c_segs[j][1] - 1]
-        if g_hi >= c_lo and c_hi >= g_lo:
-            out.append((i, j))
-        if g_hi <= c_hi:                               # the segment that ends first is done
-            i += 1
-        if c_hi <= g_hi:
-            j += 1
-    return out
+__all__ = ['calibrate_recording', 'calibrate_spaced', 'match_segments', 'solution_record',
+           'BLOCK_FIXES', 'BLOCK_GYRO']
 
 
 def calibrate_recording(data: dict, model: SensorModel,
-                        settings: CalibratorSettings | None = None):
+                        settings: CalibratorSettings | None = None, keep=None):
     """
     Feed the calibrator as calibrator_node is fed and solve.
 
@@ -64,8 +33,9 @@ def calibrate_recording(data: dict, model: SensorModel,
     (:func:`strapdown_ros.streams.checks.segments`: a confirmed resynchronisation starts a new
     one); gyro and camera segments are matched in order (:func:`match_segments`); the
     calibrator restarts its gyro history at every gyro segment and its fix chain at every camera
-    segment, so no pair spans a jump.  Pairs spanning a gyro gap are discarded, as the node
-    does.
+    segment, so no pair spans a jump.  The fixes go in blocks (``add_cameras``: the same pairs
+    as one at a time), each after the gyro data that covers it.  Pairs spanning a gyro gap (the
+    reader's, by the check's rule 6) are discarded, as the node does.
 
     Parameters
     ----------
@@ -75,6 +45,8 @@ def calibrate_recording(data: dict, model: SensorModel,
         The unit's sensor model.
     settings : CalibratorSettings, optional
         The calibrator's settings.
+    keep : (n,) bool array_like, optional
+        The camera fixes used (default all): the spacing of the pairs.
 
     Returns
     -------
@@ -92,6 +64,9 @@ def calibrate_recording(data: dict, model: SensorModel,
     tg = (np.asarray(g.stamps, dtype=np.int64) - t0) * 1e-9
     vg = np.asarray(g.values, dtype=float).reshape(-1, 3)
     tc = (np.asarray(c.stamps, dtype=np.int64) - t0) * 1e-9
+    qc = np.array([v[0] for v in c.values], dtype=float).reshape(-1, 4)
+    Pc = np.array([v[1] for v in c.values], dtype=float).reshape(-1, 3, 3)
+    use = np.ones(len(tc), dtype=bool) if keep is None else np.asarray(keep, dtype=bool)
     period = data.get('gyro_period_s') or model.gyro_period
     if not np.isfinite(period):
         period = model.gyro_period
@@ -100,6 +75,7 @@ def calibrate_recording(data: dict, model: SensorModel,
     lead = 3 * period + offset
     g_segs = segments(g.stamps, getattr(g.check, 'segment_starts', []))
     c_segs = segments(c.stamps, getattr(c.check, 'segment_starts', []))
+    after_gap = {b for a, b in g.gaps}                 # stamps that follow a gap
     discarded = 0
     cur_g = cur_c = None                               # segments the calibrator is fed from
     k = 0                                              # gyro samples of segment cur_g fed so far
@@ -113,21 +89,105 @@ def calibrate_recording(data: dict, model: SensorModel,
         if cur_c is not None and cur_c != j:
             cal.restart_camera()
         cur_c = j
-        gaps = [(seg_t[n], seg_t[n + 1]) for n in np.flatnonzero(np.diff(seg_t) > 1.5 * period)]
-        for t, (q, P) in zip(tc[ca:cb], c.values[ca:cb]):
-            if t < seg_t[0] - offset or t > seg_t[-1] + offset:
-                continue                               # outside the gyro segment: no pair
-            k1 = int(np.searchsorted(seg_t, t + lead, side='right'))
-            new = 0
+        gaps = [(seg_t[n - 1], seg_t[n]) for n in range(1, gb - ga)   # the reader's (rule 6)
+                if g.stamps[ga + n] in after_gap]
+        t_fix = tc[ca:cb]
+        inside = use[ca:cb] & (t_fix >= seg_t[0] - offset) & (t_fix <= seg_t[-1] + offset)
+        idx = ca + np.flatnonzero(inside)               # outside the gyro segment: no pair
+        need = np.searchsorted(seg_t, tc[idx] + lead, side='right')
+        a = 0
+        while a < len(idx):
+            # a block of fixes whose gyro data stays well inside the calibrator's bound
+            b = int(np.searchsorted(need, need[a] + BLOCK_GYRO, side='right'))
+            b = min(max(b, a + 1), a + BLOCK_FIXES)
+            k1 = int(need[b - 1])
             if k1 > k:
-                new = cal.add_gyro(seg_t[k:k1], seg_v[k:k1])
+                cal.add_gyro(seg_t[k:k1], seg_v[k:k1])
                 k = k1
-            new += cal.add_camera(t, q, P)
+            sel = idx[a:b]
+            new = cal.add_cameras(tc[sel], qc[sel], Pc[sel])
             discarded += cal.discard_new_pairs_over(new, gaps, h)
+            a = b
         if k < len(seg_t):                             # fixes still waiting for gyro coverage
             cal.add_gyro(seg_t[k:], seg_v[k:])
             k = len(seg_t)
     return cal.solve(), cal, discarded
+
+
+#: fixes fed to the calibrator at once (``calibrate_recording``), and the gyro samples a block
+#: may span
+BLOCK_FIXES = 4096
+BLOCK_GYRO = 200_000
+
+
+def calibrate_spaced(data: dict, model: SensorModel, settings: CalibratorSettings | None = None,
+                     spacing: float | None = None):
+    """
+    Calibrate with the fixes of the pairs at the spacing the reference's error allows.
+
+    The rule of :mod:`strapdown_ros.calibration.reference_spacing`: calibrate on every fix,
+    choose the spacing from the whitened residuals (``spacing`` None), and calibrate again on
+    the fixes kept when it is more than one fix.  A stated ``spacing`` (s; 0: every fix) is
+    used as given.
+
+    Parameters
+    ----------
+    data : dict
+        The streams of :func:`strapdown_ros.recording.reader.read_bag`.
+    model : SensorModel
+        The unit's sensor model.
+    settings : CalibratorSettings, optional
+        The calibrator's settings.
+    spacing : float, optional
+        Spacing of the fixes, s; None: chosen from the data.
+
+    Returns
+    -------
+    solution, calibrator, discarded
+        As :func:`calibrate_recording`.
+    choice : SpacingChoice
+        The spacing and why.
+
+    """
+    c = data['camera']
+    t = (np.asarray(c.stamps, dtype=np.int64) - int(c.stamps[0])) * 1e-9
+    interval = fix_interval(t)
+
+    def run(keep=None):
+        return calibrate_recording(data, model, settings, keep)
+    if spacing is not None:
+        choice = stated_spacing(spacing, t)
+        if choice.step <= 1:
+            return (*run(), choice)
+        return (*run(_kept(t, choice.spacing_s)), choice)
+    sol, cal, discarded = run()
+    white = sol.whitened_residual
+    if interval >= MAX_SPACING or white is None or not sol.observable:
+        why = (f'fixes {interval:.3g} s apart, at least {MAX_SPACING:g} s: all kept'
+               if interval >= MAX_SPACING else
+               'every fix kept: no solution at the full rate to judge the spacing from')
+        return sol, cal, discarded, SpacingChoice(1, interval, interval, reason=why,
+                                                  pairs_full=len(cal.pairs))
+    choice = choose_spacing(white, _adjacent(cal.pairs), t)
+    if choice.step <= 1:
+        return sol, cal, discarded, choice
+    sol, cal, discarded = run(_kept(t, choice.spacing_s))
+    if sol.whitened_residual is None:
+        return sol, cal, discarded, choice
+    wider = refine_spacing(choice, sol.whitened_residual, _adjacent(cal.pairs))
+    if wider.step == choice.step:
+        return sol, cal, discarded, choice
+    return (*run(_kept(t, wider.spacing_s)), wider)
+
+
+def _adjacent(pairs) -> np.ndarray:
+    return np.array([abs(b.t_start - a.t_end) < 1e-9 for a, b in zip(pairs, pairs[1:])])
+
+
+def _kept(t, spacing):
+    keep = np.zeros(len(t), dtype=bool)
+    keep[thin_fixes(t, spacing)] = True
+    return keep
 
 
 def _num(x):

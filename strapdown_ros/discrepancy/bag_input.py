@@ -13,8 +13,9 @@ import numpy as np
 from strapdown_ros.discrepancy.linearisation import Recording
 from strapdown_ros.recording import (BagError, input_lines, input_summary, read_bag,
                                      recording_facts)
+from strapdown_ros.recording.options import usable_error
 
-__all__ = ['load_recording', 'recording_lines']
+__all__ = ['load_recording', 'recording_from_data', 'recording_lines']
 
 
 def load_recording(bag: str, model, settings: dict | None = None, namespace: str = '',
@@ -55,7 +56,37 @@ def load_recording(bag: str, model, settings: dict | None = None, namespace: str
     data = read_bag(bag, namespace, True, tuple(model.camera_sigma), model.gyro_max_rate,
                     float(settings.get('max_stamp_jump', 1.0)),
                     int(settings.get('resync_count', 5)), **options)
+    return recording_from_data(data, bag)
+
+
+def recording_from_data(data: dict, bag: str = 'the recording'):
+    """
+    Turn the streams :func:`strapdown_ros.recording.read_bag` read into the core's Recording.
+
+    Parameters
+    ----------
+    data : dict
+        The streams (read with the camera covariance where the messages carry one).
+    bag : str
+        The recording's name, for the error line.
+
+    Returns
+    -------
+    rec : Recording
+        As :func:`load_recording`.
+    info : dict
+        As :func:`load_recording`.
+
+    Raises
+    ------
+    BagError
+        Fewer than 10 usable gyro increments.
+
+    """
     g, c = data['gyro'], data['camera']
+    unusable = usable_error(data)                     # the tools' one wording
+    if unusable:
+        raise BagError(f'{bag}: {unusable}')
     if len(g.stamps) < 10:
         raise BagError(f"{bag}: {len(g.stamps)} usable gyro increments on {data['gyro_topic']}")
     origin = min(g.stamps[0], c.stamps[0]) if c.stamps else g.stamps[0]

@@ -13,7 +13,8 @@ the stacked residual r (3N, VF axes) of N increment pairs is
   R_nᵀ P_{n−1} R_n`` on the diagonal and ``−P_n R_{n+1}`` between pairs that share fix n
   (004 §3.3, as the calibrator's correlated covariance in
   :mod:`strapdown_ros.calibration.boresight`).  It is block tridiagonal, so its Cholesky factor is
-  banded (bandwidth 5) and whitening costs O(N).
+  banded (bandwidth 5) and whitening costs O(N)
+  (:mod:`strapdown_ros.calibration.pair_covariance`, re-exported here).
 
 Marginalising x exactly, the residual covariance is Σ = B + U P_x Uᵀ, the calibrator's
 correlated covariance.  :func:`fit` returns the GLS estimate of z, the whitened residual and
@@ -26,96 +27,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from strapdown_ros.calibration.pair_covariance import band_covariance, Whitener
+
 __all__ = ['band_covariance', 'Whitener', 'Fit', 'fit', 'hac_covariance']
-
-
-def band_covariance(fix_P: np.ndarray, R_cam: np.ndarray, adjacent: np.ndarray,
-                    white_diag: np.ndarray) -> np.ndarray:
-    """
-    Return the covariance B of the white residual part in lower band storage.
-
-    Parameters
-    ----------
-    fix_P : (N, 2, 3, 3) ndarray
-        Covariances of the start and end fix of each pair (VF, rad²), after the noise effects.
-    R_cam : (N, 3, 3) ndarray
-        The camera increments ΔS_avu as rotation matrices.
-    adjacent : (N−1,) ndarray
-        1 where pairs n, n+1 share a fix, else 0.
-    white_diag : (N, 3, 3) ndarray
-        The white gyro part Cᵀ E_white C, rad².
-
-    Returns
-    -------
-    (6, 3N) ndarray
-        The lower band of B (scipy's ``cholesky_banded`` storage).
-
-    """
-    N = len(R_cam)
-    Rt = np.swapaxes(R_cam, 1, 2)
-    diag = white_diag + fix_P[:, 1] + Rt @ fix_P[:, 0] @ R_cam
-    full_lower = np.zeros((6, 3 * N))
-    for a in range(3):                       # within-block lower triangle
-        for b in range(a + 1):
-            full_lower[a - b, b::3][:N] = diag[:, a, b]
-    if N > 1:
-        # cov(f_{n+1}, f_n) = (−P_n R_{n+1})ᵀ = −R_{n+1}ᵀ P_n: rows of pair n+1, columns of n
-        cross = -np.swapaxes(R_cam[1:], 1, 2) @ fix_P[1:, 0]
-        cross = cross * adjacent[:, None, None]
-        for a in range(3):
-            for b in range(3):
-                d = 3 + a - b                 # row 3(n+1)+a, column 3n+b
-                full_lower[d, 3 * np.arange(N - 1) + b] = cross[:, a, b]
-    return full_lower
-
-
-class Whitener:
-    """
-    Banded Cholesky factor L of B (B = L Lᵀ): ``apply(X)`` = L⁻¹ X, ``logdet`` = log det B.
-
-    Parameters
-    ----------
-    band_lower : (6, 3N) ndarray
-        B in lower band storage (:func:`band_covariance`).
-
-    Raises
-    ------
-    numpy.linalg.LinAlgError
-        B has non-finite entries, is not positive definite, or its factor has a diagonal so
-        small that L⁻¹ is not finite.
-
-    """
-
-    def __init__(self, band_lower: np.ndarray):
-        from scipy.linalg import cholesky_banded
-
-        if not np.all(np.isfinite(band_lower)):
-            raise np.linalg.LinAlgError('residual covariance has non-finite entries')
-        self.L = cholesky_banded(band_lower, lower=True)
-        d = self.L[0]
-        if not np.all(d > 1e-150 * max(float(np.max(d)), 1e-300)):
-            raise np.linalg.LinAlgError('residual covariance is numerically singular')
-        self.logdet = 2.0 * float(np.sum(np.log(d)))
-        self.n = band_lower.shape[1]
-
-    def apply(self, X: np.ndarray) -> np.ndarray:
-        """
-        Whiten: return L⁻¹ X.
-
-        Parameters
-        ----------
-        X : (3N,) or (3N, k) ndarray
-            Residuals or columns.
-
-        Returns
-        -------
-        ndarray
-            L⁻¹ X, the same shape.
-
-        """
-        from scipy.linalg import solve_banded
-
-        return solve_banded((5, 0), self.L, X)
 
 
 @dataclass
@@ -196,21 +110,21 @@ def fit(r: np.ndarray, J: np.ndarray, U: np.ndarray, prior_var: np.ndarray, W: W
     U, pv = U[:, keep], prior_var[keep]
     nz, nx = J.shape[1], U.shape[1]
     A = W.apply(np.hstack([J, U, r[:, None]]))
-    Aj, Au, ar = A[:, :nz], A[:, nz:nz + nx], A[:, -1]
-    # stacked system with prior rows for x: [Aj Au; 0 P^-1/2] [z; x] ≈ [ar; 0]
-    M = np.vstack([np.hstack([Aj, Au]),
-                   np.hstack([np.zeros((nx, nz)), np.diag(1.0 / np.sqrt(pv))])])
-    y = np.concatenate([ar, np.zeros(nx)])
-    N = M.T @ M
-    g = M.T @ y
+    Aj, ar = A[:, :nz], A[:, -1]
+    # the stacked system with prior rows for x, [Aj Au; 0 P^-1/2] [z; x] ≈ [ar; 0], through its
+    # normal equations: one product AᵀA over all the rows (O(N), no copy of the design)
+    G = A.T @ A
+    N = G[:-1, :-1].copy()
+    N[nz:, nz:] += np.diag(1.0 / pv)
+    g = G[:-1, -1]
     sol = np.linalg.lstsq(N, g, rcond=1e-13)[0]
     z, x = sol[:nz], sol[nz:]
-    white = ar - Aj @ z - Au @ x
+    white = ar - A[:, :-1] @ sol
     chi2 = float(white @ white + np.sum(x * x / pv))
     cov = np.linalg.pinv(N, rcond=1e-13, hermitian=True)
     # log det Σ = log det B + log det(I + P Uᵀ B⁻¹ U) (matrix determinant lemma)
     if nx:
-        Sx = np.eye(nx) + (Au.T @ Au) * pv[None, :]
+        Sx = np.eye(nx) + G[nz:nz + nx, nz:nz + nx] * pv[None, :]
         logdet = W.logdet + float(np.linalg.slogdet(Sx)[1])
     else:
         logdet = W.logdet

@@ -13,15 +13,15 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from strapdown_ros.calibration.pairs import (build_pairs, GyroRecord, pair_integral,
-                                             pair_residuals, PairSet)
+from strapdown_ros.calibration.boresight import increment_residuals
+from strapdown_ros.calibration.pairs import build_pairs, GyroRecord, pair_integral, PairSet
 from strapdown_ros.discrepancy.linear_model import band_covariance, fit, Whitener
 from strapdown_ros.rotation import quat_to_dcm, rotvec_to_dcm
 from strapdown_ros.sensors.effects import EFFECTS, get_effect, GyroEffects
 
 __all__ = ['Recording', 'InputError', 'AnalysisError', 'BoresightUnobservable',
            'NumericalFailure', 'NUMERICAL_ERRORS', 'Linearisation', 'NOISE_SCALE_RANGE',
-           'QUANTUM_RANGE', 'noise_of', 'fit_noise']
+           'QUANTUM_RANGE', 'noise_of', 'fit_noise', 'pairs_at']
 
 #: range of a fitted camera-noise scale k (true σ ÷ stated σ per VF axis): an estimate at
 #: either end is not reported as a value (the candidate fails with that reason)
@@ -116,6 +116,100 @@ class Recording:
 
 
 # ----------------------------------------------------------------------------- the linearisation
+#: model points (gyro compensation, pairs, ε-signatures) kept per recording: a refit that moves
+#: only the boresight, or returns to an earlier point, reuses them
+_POINTS_KEPT = 3
+
+
+class _ModelPoint:
+    """
+    What the linearisation at one model point holds that does not depend on the boresight.
+
+    The compensated gyro record, the pairs, their increments as DCMs, the C-free parts of the
+    time-offset and quantization columns, and the ε-signatures of the effects (computed when
+    first asked for, several effects in one pass over the gyro record).
+    """
+
+    def __init__(self, rec: Recording, params: dict, epoch: float):
+        st, m = rec.gyro_stamps, rec.delta_theta
+        T = np.diff(st, prepend=st[0] - (st[1] - st[0]))
+        self.effects = GyroEffects(params, epoch=epoch)
+        self.gyro = GyroRecord(st, self.effects.compensate(m, st, T))
+        self.time_offset = float(EFFECTS['time_offset'].value(params)[0])
+        self.pairs = build_pairs(self.gyro, rec.fix_stamps, rec.fix_q, self.time_offset,
+                                 rec.gaps)
+        self.params = params
+        self.eps: dict = {}
+        if len(self.pairs) < 2:
+            return
+        self.R_cam = quat_to_dcm(self.pairs.dq_cam)
+        self.R_imu = quat_to_dcm(self.pairs.dq_imu)
+        w_s = self.gyro.rate_at(self.pairs.k_start)
+        w_e = self.gyro.rate_at(self.pairs.k_end)
+        self.rate_term = np.einsum('nji,nj->ni', self.R_imu, w_s) - w_e
+        # quantization: the output lags the integral by the remainder, mean σ/2 in the sense of
+        # the motion on each axis (000 §5.3): r_mean = σ/2 · Cᵀ(ΔS_imuᵀ s_s − s_e), s = soft
+        # sign of the rate over ±0.5 s (0 where an axis is not driven past its random walk)
+        w0 = max(3.0 * float(EFFECTS['gyro_random_walk'].value(params)[0]), 1e-7)
+        s_s = np.tanh(self.gyro.rate_at(self.pairs.k_start, 0.5) / w0)
+        s_e = np.tanh(self.gyro.rate_at(self.pairs.k_end, 0.5) / w0)
+        self.quant_term = 0.5 * (np.einsum('nji,nj->ni', self.R_imu, s_s) - s_e)
+
+    def epsilon(self, names, times) -> dict:
+        """Return the ε-signatures of effects (MF axes at τ_e), those missing in one pass."""
+        todo = [n for n in names if n not in self.eps]
+        if todo:
+            effects = [EFFECTS[n].configured(self.params) for n in todo]
+            widths: list = []
+
+            def jacobian(r_, T_, sl):
+                t = times(sl)
+                parts = [e.increment_jacobian(r_, T_, t) for e in effects]
+                widths[:] = [d.shape[-1] for d in parts]
+                return np.concatenate(parts, axis=2)
+            eps = pair_integral(self.gyro, self.pairs, jacobian)
+            k = 0
+            for n, q in zip(todo, widths or [0] * len(todo)):
+                self.eps[n] = eps[:, :, k:k + q]
+                k += q
+        return self.eps
+
+
+def _model_point(rec: Recording, params: dict, epoch: float) -> _ModelPoint:
+    """Return the model point of these parameters, from the recording's few kept ones."""
+    key = (float(epoch),) + tuple(                  # every effect parameter (values, options)
+        (k.name, repr(params.get(k.name, k.default))) for e in EFFECTS.values()
+        for k in e.parameters)
+    kept = rec.__dict__.setdefault('_points', {})
+    if key not in kept:
+        if len(kept) >= _POINTS_KEPT:
+            kept.pop(next(iter(kept)))
+        kept[key] = _ModelPoint(rec, params, epoch)
+    return kept[key]
+
+
+def pairs_at(rec: Recording, params: dict, epoch: float) -> PairSet:
+    """
+    Return the increment pairs of the model (its effects compensated), kept with the recording.
+
+    Parameters
+    ----------
+    rec : Recording
+        The recording.
+    params : dict
+        The model: effect values by ROS parameter name, SI units.
+    epoch : float
+        Origin of the effects' time, s.
+
+    Returns
+    -------
+    PairSet
+        The pairs (:func:`strapdown_ros.calibration.pairs.build_pairs`).
+
+    """
+    return _model_point(rec, params, epoch).pairs
+
+
 class Linearisation:
     """
     Residuals and columns of the model at one point (parameter values + boresight C).
@@ -140,23 +234,18 @@ class Linearisation:
 
     def __init__(self, rec: Recording, params: dict, C: np.ndarray, epoch: float):
         self.params, self.C = params, C
-        st, m = rec.gyro_stamps, rec.delta_theta
-        T = np.diff(st, prepend=st[0] - (st[1] - st[0]))
-        self.effects = GyroEffects(params, epoch=epoch)
-        rho = self.effects.compensate(m, st, T)
-        self.gyro = GyroRecord(st, rho)
-        self.time_offset = float(EFFECTS['time_offset'].value(params)[0])
-        self.pairs: PairSet = build_pairs(self.gyro, rec.fix_stamps, rec.fix_q,
-                                          self.time_offset, rec.gaps)
+        base = _model_point(rec, params, epoch)       # what does not depend on C (cached)
+        self.effects, self.gyro, self.time_offset = base.effects, base.gyro, base.time_offset
+        self.pairs: PairSet = base.pairs
         if len(self.pairs) < 2:
             raise InputError(f'only {len(self.pairs)} increment pair(s): the gyro data must '
                              'cover consecutive camera fixes')
         self.epoch = epoch
         self.rec = rec
+        self._base = base
         N = len(self.pairs)
-        self.R_cam = quat_to_dcm(self.pairs.dq_cam)
-        self.R_imu = quat_to_dcm(self.pairs.dq_imu)
-        self.f = pair_residuals(C, self.pairs)
+        self.R_cam, self.R_imu = base.R_cam, base.R_imu
+        self.f = increment_residuals(C, self.R_imu, self.R_cam)
         self.r = self.f.reshape(-1)
         # boresight correction δ: C → C exp([δ×]) (VF axes), central differences
         h = 1e-6
@@ -164,30 +253,23 @@ class Linearisation:
         for j in range(3):
             d = np.zeros(3)
             d[j] = h
-            diff = (pair_residuals(C @ rotvec_to_dcm(d), self.pairs)
-                    - pair_residuals(C @ rotvec_to_dcm(-d), self.pairs))
+            diff = (increment_residuals(C @ rotvec_to_dcm(d), self.R_imu, self.R_cam)
+                    - increment_residuals(C @ rotvec_to_dcm(-d), self.R_imu, self.R_cam))
             cols.append(diff.reshape(-1) / (2 * h))
         self.col_boresight = np.array(cols).T
         # gyro-effect signatures ∂r/∂θ_model = −Cᵀ ε-signature: computed when first asked for
         self._sig = {}
+        self._whiteners = {}            # whitening of the residual covariance by noise terms
         # time offset: ∂r/∂τ_model = Cᵀ (ΔSᵀ ω_s − ω_e)
-        w_s = self.gyro.rate_at(self.pairs.k_start)
-        w_e = self.gyro.rate_at(self.pairs.k_end)
-        E = np.einsum('nji,nj->ni', self.R_imu, w_s) - w_e
-        self._sig['time_offset'] = (E @ C).reshape(3 * N, 1)
+        self._sig['time_offset'] = (base.rate_term @ C).reshape(3 * N, 1)
         # nominal random constants (prior) U
         # the random constants of the registry (bias, scale factor, misalignment): their σ
         prior = [e for e in EFFECTS.values() if e.random_constant and e.sensor == 'gyro']
+        base.epsilon([e.name for e in prior], self._times)
         self.U = np.hstack([-self.signature(e.name) for e in prior])
         self.prior_var = np.concatenate([np.full(e.size, e.sigma(params) ** 2) for e in prior])
         self.random_walk = float(EFFECTS['gyro_random_walk'].value(params)[0])
-        # quantization: the output lags the integral by the remainder, mean σ/2 in the sense of
-        # the motion on each axis (000 §5.3): r_mean = σ/2 · Cᵀ(ΔS_imuᵀ s_s − s_e), s = soft sign
-        # of the rate over ±0.5 s (0 where an axis is not driven past its random walk)
-        w0 = max(3.0 * self.random_walk, 1e-7)
-        s_s = np.tanh(self.gyro.rate_at(self.pairs.k_start, 0.5) / w0)
-        s_e = np.tanh(self.gyro.rate_at(self.pairs.k_end, 0.5) / w0)
-        self.quant_col = (0.5 * (np.einsum('nji,nj->ni', self.R_imu, s_s) - s_e) @ C).reshape(-1)
+        self.quant_col = (base.quant_term @ C).reshape(-1)
 
     def _times(self, sl):
         st = self.gyro.stamps
@@ -210,9 +292,7 @@ class Linearisation:
 
         """
         if name not in self._sig:
-            e = EFFECTS[name].configured(self.params)
-            eps = pair_integral(self.gyro, self.pairs,
-                                lambda r_, T_, sl: e.increment_jacobian(r_, T_, self._times(sl)))
+            eps = self._base.epsilon([name], self._times)[name]
             sig = -np.einsum('ji,njp->nip', self.C, eps)
             self._sig[name] = sig.reshape(3 * len(self.pairs), -1)
         return self._sig[name]
@@ -291,12 +371,20 @@ class Linearisation:
             The banded Cholesky factor of B.
 
         """
+        key = _noise_key(noise)
+        if mask is None and key in self._whiteners:
+            return self._whiteners[key]
         pairs = self.pairs if mask is None else self.pairs.subset(mask)
         R = self.R_cam if mask is None else self.R_cam[mask]
         P = self.fix_covariance(noise)
         fixP = np.stack([P[pairs.fix_start], P[pairs.fix_end]], axis=1)
         white = (self.random_walk ** 2 * pairs.duration)[:, None, None] * np.eye(3)
-        return Whitener(band_covariance(fixP, R, pairs.adjacent, white))
+        W = Whitener(band_covariance(fixP, R, pairs.adjacent, white))
+        if mask is None:
+            if len(self._whiteners) >= 4:                # a noise fit tries many: keep a few
+                self._whiteners.pop(next(iter(self._whiteners)))
+            self._whiteners[key] = W
+        return W
 
     def rows(self, mask) -> np.ndarray:
         """
@@ -358,6 +446,11 @@ class Linearisation:
             return fit(r, J, self.U, self.prior_var, self.whitener(noise))
         rows = self.rows(mask)
         return fit(r[rows], J[rows], self.U[rows], self.prior_var, self.whitener(noise, mask))
+
+
+def _noise_key(noise: dict) -> tuple:
+    return tuple((k, tuple(float(x) for x in np.atleast_1d(np.asarray(v, dtype=float))))
+                 for k, v in sorted(noise.items()))
 
 
 def noise_of(params: dict) -> dict:

@@ -10,16 +10,14 @@ the plausibility of a fitted value.  No ROS imports.
 """
 from __future__ import annotations
 
-from types import SimpleNamespace
-
 import numpy as np
 
-from strapdown_ros.calibration.boresight import axis_alignment, check_observability
-from strapdown_ros.calibration.pairs import build_pairs, GyroRecord
+from strapdown_ros.calibration.boresight import axis_alignment_quat
+from strapdown_ros.calibration.boresight_observability import judge_observability
 from strapdown_ros.discrepancy.linearisation import (InputError, Linearisation,
-                                                     NumericalFailure, Recording)
-from strapdown_ros.rotation import quat_to_dcm, rotvec_to_dcm
-from strapdown_ros.sensors.effects import EFFECTS, GyroEffects
+                                                     NumericalFailure, pairs_at, Recording)
+from strapdown_ros.rotation import rotvec_to_dcm
+from strapdown_ros.sensors.effects import EFFECTS
 
 __all__ = ['check_plausible', 'initial_pairs', 'initial_boresight_estimate',
            'boresight_observability', 'refine_fit']
@@ -87,12 +85,7 @@ def initial_pairs(rec: Recording, params: dict, epoch: float):
         Fewer than two pairs: the gyro data do not cover consecutive fixes.
 
     """
-    lin0 = GyroEffects(params, epoch=epoch)
-    st = rec.gyro_stamps
-    T = np.diff(st, prepend=st[0] - (st[1] - st[0]))
-    g = GyroRecord(st, lin0.compensate(rec.delta_theta, st, T))
-    pairs = build_pairs(g, rec.fix_stamps, rec.fix_q,
-                        float(EFFECTS['time_offset'].value(params)[0]), rec.gaps)
+    pairs = pairs_at(rec, params, epoch)
     if len(pairs) < 2:
         raise InputError(f'only {len(pairs)} increment pair(s): the gyro data must cover '
                          'consecutive camera fixes')
@@ -119,7 +112,7 @@ def initial_boresight_estimate(rec: Recording, params: dict, epoch: float) -> np
 
     """
     pairs = initial_pairs(rec, params, epoch)
-    return axis_alignment(quat_to_dcm(pairs.dq_imu), quat_to_dcm(pairs.dq_cam))
+    return axis_alignment_quat(pairs.dq_imu, pairs.dq_cam)
 
 
 def boresight_observability(rec: Recording, params: dict, epoch: float | None = None):
@@ -127,8 +120,9 @@ def boresight_observability(rec: Recording, params: dict, epoch: float | None = 
     Judge the observability of the boresight on this recording, by the calibrator's rule.
 
     The rule ``calibrate_bag`` and the calibrator use
-    (:func:`strapdown_ros.calibration.boresight.check_observability`): 004 §4.1's rotation
-    condition and the conditioning of the normal matrix in VF rotation axes.
+    (:func:`strapdown_ros.calibration.boresight_observability.judge_observability`): the
+    Fisher information of all the pairs together (shared fixes included) and the motion about
+    two axes above the fix noise, in O(N).
 
     Parameters
     ----------
@@ -150,11 +144,9 @@ def boresight_observability(rec: Recording, params: dict, epoch: float | None = 
     pairs = initial_pairs(rec, params, epoch)
     rw2 = float(EFFECTS['gyro_random_walk'].value(params)[0]) ** 2
     P = rec.fix_P
-    items = [SimpleNamespace(dq_cam=pairs.dq_cam[n], dq_imu=pairs.dq_imu[n],
-                             cov_cam=P[pairs.fix_start[n]] + P[pairs.fix_end[n]],
-                             cov_imu=rw2 * float(pairs.duration[n]) * np.eye(3))
-             for n in range(len(pairs))]
-    return check_observability(items,
+    fix_P = np.stack([P[pairs.fix_start], P[pairs.fix_end]], axis=1)
+    white = (rw2 * pairs.duration)[:, None, None] * np.eye(3)
+    return judge_observability(pairs.dq_cam, fix_P, pairs.adjacent, white,
                                min_rotation=np.radians(float(params.get('min_rotation_deg', 0.5))),
                                max_sigma=float(params.get('max_sigma', 1e-3)))
 

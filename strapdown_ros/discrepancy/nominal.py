@@ -61,6 +61,8 @@ __all__ = ['NominalModel', 'nominal_model', 'RAIL_COUNT', 'DEFAULT_MAX_RATE', 'M
 RAIL_COUNT = 3
 #: gyro range of a MEMS gyro when the data show none, rad/s (about 2000 °/s)
 DEFAULT_MAX_RATE = 35.0
+#: a quiet window: the rate varies by less than this, rad/s (used when nothing is still)
+QUIET_RATE = 0.02
 #: shortest rest segment used, s
 MIN_REST_S = 1.0
 #: largest mean rate of a rest segment, rad/s (a MEMS bias is below 1 °/s)
@@ -129,9 +131,39 @@ def _adev(rate: np.ndarray, fs: float, taus: np.ndarray):
     return np.asarray(t2), np.asarray(ad)
 
 
+def _quiet_segments(t, dth, T):
+    """Return the index ranges where the rate varies by less than QUIET_RATE (0.25-s windows)."""
+    n = max(4, int(round(0.25 / T)))
+    m = len(t) // n
+    if m < 1:
+        return []
+    W = dth[: m * n].reshape(m, n, 3) / T
+    quiet = np.all(W.std(axis=1) < QUIET_RATE, axis=1)
+    out, i = [], 0
+    while i < m:
+        if not quiet[i]:
+            i += 1
+            continue
+        j = i + 1
+        while j < m and quiet[j]:
+            j += 1
+        if t[j * n - 1] - t[i * n] >= MIN_REST_S:
+            out.append((i * n, j * n))
+        i = j
+    return out
+
+
 def _rest_segments(t, dth, q_ref_at, T):
-    """Index ranges of rest, with their mean rates and the reference's rate over each."""
+    """
+    Return the index ranges of rest, their mean rates, the reference's rate, and the rule.
+
+    Rest where the rate is constant within its noise (:func:`static_segments`); where there is
+    none (a person standing sways), where the rate varies by less than :data:`QUIET_RATE`.
+    """
     segs = static_segments(t, dth, None, min_duration=MIN_REST_S, window=0.25)
+    rule = 'static'
+    if not segs:
+        segs, rule = _quiet_segments(t, dth, T), 'quiet'
     out = []
     for a, b in segs:
         w = dth[a:b].sum(axis=0) / (t[b - 1] - t[a] + T)
@@ -144,7 +176,7 @@ def _rest_segments(t, dth, q_ref_at, T):
         if np.degrees(np.linalg.norm(turn)) > MAX_REST_TURN_DEG:
             continue
         out.append((a, b, w, turn / (t[b - 1] - t[a] + T)))
-    return out
+    return out, rule
 
 
 def _rel(q0, q1):
@@ -250,16 +282,25 @@ def nominal_model(stamps_ns, delta_theta, fix_stamps_ns, fix_q, facts: dict,
 
     # ---- rest, ARW, bias instability, bias
     say('rest segments')
-    rest = _rest_segments(t, dth, q_ref_at, T)
+    rest, rest_rule = _rest_segments(t, dth, q_ref_at, T)
     rest_s = [float(t[b - 1] - t[a] + T) for a, b, _, _ in rest]
     measured['rest_segments_s'] = [[float(t[a]), float(t[b - 1])] for a, b, _, _ in rest]
     if rest:
         say(f'Allan deviation on {len(rest)} rest segment(s), {sum(rest_s):.3g} s')
         arw, curve = _arw(t, dth, rest, T)
         measured['allan'] = curve
+        measured['rest_rule'] = rest_rule
+        how = ('' if rest_rule == 'static' else
+               f' (no still rest: segments where the rate varies by less than {QUIET_RATE:g} '
+               'rad/s, so motion may add to it: an upper bound)')
         put('gyro_random_walk', float(arw),
             f'the Allan deviation of the rate on {len(rest)} rest segment(s) '
-            f'({sum(rest_s):.3g} s): N = σ_A(τ)√τ on its −½ slope')
+            f'({sum(rest_s):.3g} s): N = σ_A(τ)√τ on its −½ slope{how}')
+        if rest_rule == 'quiet':
+            notes.append(f'no still rest (the rate constant within its noise for '
+                         f'{MIN_REST_S:g} s): quiet segments (the rate varying by less than '
+                         f'{QUIET_RATE:g} rad/s) stand for rest; the angle random walk is an '
+                         'upper bound')
     else:
         w = np.diff(dth, axis=0) / np.sqrt(2.0)             # white part, motion mostly removed
         arw = float(1.4826 * np.median(np.abs(w - np.median(w, axis=0))) / np.sqrt(T))

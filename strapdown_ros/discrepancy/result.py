@@ -149,6 +149,9 @@ class DiscrepancyResult:
         Largest spread ratio called repeatable.
     observable : bool
         Whether the boresight is observable.
+    reference_spacing : dict
+        How far apart the fixes of the pairs are and why
+        (:meth:`strapdown_ros.calibration.reference_spacing.SpacingChoice.as_dict`).
 
     """
 
@@ -183,6 +186,7 @@ class DiscrepancyResult:
     repeatability_bound: float = float('nan')
     observable: bool = True
     found_model: object = None
+    reference_spacing: dict = field(default_factory=dict)
 
     def as_json(self) -> dict:
         """
@@ -216,7 +220,8 @@ class DiscrepancyResult:
             'chi2_per_dof': self.chi2_per_dof, 'chi2_per_dof_band': self.chi2_per_dof_band,
             'sigma_method': self.sigma_method, 'hac_lags': self.hac_lags,
             'repeatability_bound': self.repeatability_bound,
-            'pairs': self.pairs, 'fixes': self.fixes})
+            'pairs': self.pairs, 'fixes': self.fixes,
+            'reference_spacing': self.reference_spacing})
 
 
 def residual_series(lin: Linearisation, f, free) -> dict:

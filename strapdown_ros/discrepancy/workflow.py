@@ -20,6 +20,9 @@ from dataclasses import dataclass, fields
 
 import numpy as np
 
+from strapdown_ros.calibration.reference_spacing import (choose_spacing, fix_interval,
+                                                         MAX_SPACING, refine_spacing,
+                                                         stated_spacing, thin_fixes)
 from strapdown_ros.discrepancy import diagnostics
 from strapdown_ros.discrepancy.linearisation import (AnalysisError, BoresightUnobservable,
                                                      fit_noise, InputError, Linearisation,
@@ -74,6 +77,9 @@ class DiscrepancySettings:
         The calibrator's smallest rotation between exposures (the observability rule).
     max_sigma : float
         The calibrator's largest predicted boresight σ (the observability rule), rad.
+    reference_spacing : float or None
+        Seconds between the fixes used (0: every fix; None: chosen from the data,
+        :mod:`strapdown_ros.calibration.reference_spacing`).
 
     """
 
@@ -84,6 +90,7 @@ class DiscrepancySettings:
     candidates: tuple | None = None
     min_rotation_deg: float = 0.5
     max_sigma: float = 1e-3
+    reference_spacing: float | None = None
 
     @classmethod
     def from_values(cls, values) -> DiscrepancySettings:
@@ -127,7 +134,10 @@ def analyse(rec: Recording, model: SensorModel, settings: DiscrepancySettings | 
         The nominal model: its effects are compensated, its noise terms and priors weight the
         pairs.
     settings : DiscrepancySettings, optional
-        The level, blocks, lags, step limit, candidates and the observability rule.
+        The level, blocks, lags, step limit, candidates, the observability rule and the
+        spacing of the fixes of the pairs (``reference_spacing``: None chooses it from the data,
+        :mod:`strapdown_ros.calibration.reference_spacing`, the correlation of the reference's
+        error; 0 keeps every fix; a positive value keeps one fix per slot of that length).
     progress : callable, optional
         ``progress(text)`` is called between stages.
 
@@ -161,6 +171,7 @@ def analyse(rec: Recording, model: SensorModel, settings: DiscrepancySettings | 
     search = _Search(rec, params, s.alpha, s.blocks, s.lags, s.max_steps, names,
                      progress or (lambda t: None))
     search.model = model
+    search.spacing_wanted = s.reference_spacing
     try:
         search.base_fit()
         search.forward()
@@ -232,11 +243,14 @@ class _Search:
             Fewer than :data:`MIN_PAIRS` increment pairs.
 
         """
-        rec, params = self.rec, self.params
+        params = self.params
         self.original = dict(params)
-        self.epoch = epoch = float(rec.gyro_stamps[0])
+        self.epoch = epoch = float(self.rec.gyro_stamps[0])
         self.noise = noise_of(params)
         self.nominal_noise = dict(self.noise)
+        self.stage = 'the spacing of the fixes'
+        self.rec = rec = self._spaced(self.rec, params, epoch)
+        self.stage = 'observability'
         rep = boresight_observability(rec, params, epoch)
         if not rep.observable:
             raise BoresightUnobservable(rep.message, rep)
@@ -256,6 +270,44 @@ class _Search:
                                                       self.a_tests, self.lags)
         self.series_before = residual_series(lin0, self.base0, [])
         self.base_done = True
+
+    def _spaced(self, rec: Recording, params: dict, epoch: float) -> Recording:
+        """
+        Return the recording with the fixes at the spacing of the pairs (the module rule).
+
+        Chosen from the whitened residuals of the nominal model at the full rate
+        (:func:`strapdown_ros.calibration.reference_spacing.choose_spacing`) unless
+        ``spacing_wanted`` states it; kept in ``spacing`` (a JSON record).
+        """
+        want = getattr(self, 'spacing_wanted', None)
+        stamps = rec.fix_stamps
+        interval = fix_interval(stamps)
+        # at most MAX_SPACING, and enough fixes left for the workflow
+        longest = min(MAX_SPACING, float(stamps[-1] - stamps[0]) / (2 * MIN_PAIRS))
+        if want is not None:
+            choice = stated_spacing(max(float(want), 0.0), stamps)
+        else:
+            if interval >= longest:
+                choice = choose_spacing(np.zeros((0, 3)), [], stamps, longest)
+            else:
+                self.say('spacing of the fixes: fit at the full rate')
+                C0 = initial_boresight_estimate(rec, params, epoch)
+                lin = Linearisation(rec, params, C0, epoch)
+                white = lin.evaluate([], self.noise).whitened
+                choice = choose_spacing(white, lin.pairs.adjacent, stamps, longest)
+        if choice.step > 1 and want is None:
+            thin = _thinned(rec, choice.spacing_s)
+            lin = Linearisation(thin, params, initial_boresight_estimate(thin, params, epoch),
+                                epoch)
+            choice = refine_spacing(choice, lin.evaluate([], self.noise).whitened,
+                                    lin.pairs.adjacent, longest)
+        self.spacing = choice.as_dict()
+        if choice.step <= 1:
+            return rec
+        thin = _thinned(rec, choice.spacing_s)
+        self.say(f'spacing of the fixes: {choice.spacing_s:.3g} s, {len(thin.fix_stamps)} of '
+                 f'{len(stamps)} fixes')
+        return thin
 
     # ------------------------------------------------------------------ the forward search
     def forward(self) -> None:
@@ -515,7 +567,7 @@ class _Search:
             chi2_per_dof_band=_chi2_band(tests_after), sigma_method=sigma_method,
             hac_lags=lags if sigma_method != 'model' else None,
             boresight_sigma_model_rad=sig_beta_model.tolist(), repeatability_bound=bound,
-            found_model=found)
+            found_model=found, reference_spacing=self.spacing)
 
 
 def found_model(model: SensorModel, steps, beta, sigma_beta, verdict: str) -> SensorModel:
@@ -573,6 +625,13 @@ def found_model(model: SensorModel, steps, beta, sigma_beta, verdict: str) -> Se
     prov.update(rules)
     return SensorModel.from_values(out.values(), stated=out.stated, provenance=prov,
                                    source='discrepancy')
+
+
+def _thinned(rec: Recording, spacing: float) -> Recording:
+    """Return the recording with one fix per slot of ``spacing`` seconds."""
+    keep = thin_fixes(rec.fix_stamps, spacing)
+    return Recording(rec.gyro_stamps, rec.delta_theta, rec.fix_stamps[keep], rec.fix_q[keep],
+                     rec.fix_P[keep], rec.gaps)
 
 
 def _significant(scores: list, level: float) -> list:

@@ -792,6 +792,7 @@ class AttitudeFilter:
             return self._reset(fix, z, nis, S, reason)
         if gated:
             res = self._record(fix, 'gated', z, nis, S)
+            res.jacobian = H
             if not fix.counted:
                 self.counters.gated += 1
             fix.counted = True
@@ -821,6 +822,7 @@ class AttitudeFilter:
                 self.counters.implausible += 1
         fix.counted = True
         res = self._record(fix, 'applied', z, nis, S)
+        res.jacobian, res.gain = H, K
         self._checkpoint()
         return res
 

@@ -119,6 +119,11 @@ class FixResult:
         zᵀ S⁻¹ z.
     innovation_covariance : ndarray (3, 3), optional
         S = H P Hᵀ + R, rad².
+    jacobian : ndarray (3, n), optional
+        The fix Jacobian H of the error state (applied or gated fixes).
+    gain : ndarray (n, 3), optional
+        The gain K the fix was applied with (applied fixes; the live model check runs the
+        effects' signatures through it).
     reason : str
         Why divergence was declared (status ``reset``), else empty.
 
@@ -131,6 +136,8 @@ class FixResult:
     residual: np.ndarray | None = None
     nis: float | None = None
     innovation_covariance: np.ndarray | None = None
+    jacobian: np.ndarray | None = None
+    gain: np.ndarray | None = None
     reason: str = ''
 
 

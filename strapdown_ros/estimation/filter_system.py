@@ -6,11 +6,17 @@ The attitude filter between validated streams and outputs, shared by the node an
 * Gyro increments pass the nodes' input rules
   (:class:`strapdown_ros.streams.checks.StreamCheck`) in :meth:`FilterSystem.offer_gyro` (the node)
   or arrive already validated by the recording reader (:meth:`FilterSystem.add_increments`, the
-  tool); both then take the same path.
-* Camera fixes (``q_GCRS_VF``, covariance in VF axes or none) follow calibrator_node's rules
-  (:meth:`FilterSystem.offer_fix`): a zero quaternion is dropped, a non-unit one normalised, an
-  all-zero covariance replaced by the model's, one that is not positive semi-definite dropped;
-  each counted.
+  tool, with the reader's gaps); both then take the same path.  A gap is the check's (rule 6:
+  the period is the median step of the stamps, not ``gyro_rate``; ±30 % stamp jitter is no gap).
+* Camera fixes (``q_GCRS_VF``, covariance in VF axes or none) pass THE screening of a reference
+  fix (:class:`strapdown_ros.streams.fixes.FixScreen`, as calibrator_node and the reader) in
+  :meth:`FilterSystem.offer_fix`: a non-finite or zero quaternion is dropped, a non-unit one
+  normalised without overflow, an all-zero covariance replaced by the model's, one that is not
+  symmetric, not positive definite or beyond its bounds dropped; each counted.  Then the stamp
+  rules of a fix stream (:meth:`StreamCheck.for_fixes`): a lone fix stamped ahead is a stamp
+  outlier (it never blinds the filter); a clock step of the fixes, confirmed by
+  ``resync_count`` fixes (or, when the gyro's clock stepped too, by the first fix on the gyro's
+  new timeline), restarts the filter.
 * The filter starts at the first fix: ``q_ref_body = q_fix ⊗ q_MF_VF⁻¹`` at the newest
   increment stamp not after it.  A gyro gap or stamp resynchronisation loses the rotation in
   it: the filter restarts at the next fix (counted).
@@ -24,8 +30,10 @@ The attitude filter between validated streams and outputs, shared by the node an
   ``divergence_nis_probability``):
   the fix re-initialises the attitude with the covariance of ``initial_attitude_sigma``, the
   bias and the other states are kept; counted (``reset``) and listed (:attr:`FilterSystem.resets`).
-* The live model check (:mod:`strapdown_ros.estimation.model_check`) sees every applied fix;
-  it only reports.
+* The live model check (:mod:`strapdown_ros.estimation.model_check`) sees every applied or
+  gated fix with the filter's gain and Jacobian, and the increments between fixes (for the
+  candidate effects' signatures); it only reports.  A divergence reset restarts the effects'
+  responses and the interval's signatures there (:meth:`ModelCheck.restart`); its window goes on.
 """
 from __future__ import annotations
 
@@ -38,17 +46,18 @@ import numpy as np
 from strapdown_ros.attitude import kernel as attitude_kernel
 from strapdown_ros.estimation.attitude_filter import AttitudeFilter
 from strapdown_ros.estimation.filter_support import augment_error
-from strapdown_ros.estimation.model_check import ModelCheck
-from strapdown_ros.rotation import (dcm_to_quat, quat_conjugate, quat_cumprod, quat_multiply,
-                                    quat_normalize, quat_to_dcm, rotvec_to_quat, ypr_to_dcm)
+from strapdown_ros.estimation.model_check import check_candidates, ModelCheck, ModelCheckResult
+from strapdown_ros.rotation import (dcm_to_quat, quat_conjugate, quat_multiply, quat_normalize,
+                                    quat_to_dcm, ypr_to_dcm)
 from strapdown_ros.sensors.effects import EFFECTS, GyroEffects
 from strapdown_ros.sensors.sensor_model import SensorModel
 from strapdown_ros.streams.checks import StreamCheck
+from strapdown_ros.streams.fixes import FixScreen
 
 __all__ = ['FilterSystem', 'FilterSettings', 'FilterOutput', 'FixOutput', 'warm_up']
 
-#: exposures are seconds apart: a camera stamp jump is an hour (calibrator_node's rule)
-CAMERA_JUMP_S = 3600.0
+#: the forward stamp limit of the fixes until their period is known, s (StreamCheck.for_fixes)
+CAMERA_JUMP_S = StreamCheck.FIX_INITIAL_JUMP_S
 #: increments lumped per step of the model check's signatures
 SIGNATURE_LUMP = 8
 #: increments held for the signatures before they are summed (bounds the buffer)
@@ -112,7 +121,9 @@ class FixOutput:
     check_text : str
         The live model check's verdict in words.
     check_ok : bool
-        Whether the model check passes.
+        Whether the model check passes (no WARN episode on).
+    check : ModelCheckResult, optional
+        The model check's verdict of the window ending at this fix.
     innovation_covariance : ndarray (3, 3), optional
         S of the innovation, rad² (applied, gated or reset fixes).
     reason : str
@@ -127,6 +138,7 @@ class FixOutput:
     lateness: float
     check_text: str = ''
     check_ok: bool = True
+    check: ModelCheckResult | None = None
     innovation_covariance: np.ndarray | None = None
     reason: str = ''
 
@@ -158,6 +170,8 @@ class FilterSettings:
         Fixes in the live model check's window.
     model_check_alpha : float
         False-alarm probability of each model-check test.
+    model_check_false_alarms_per_hour : float
+        The live check's false WARN episodes per hour of clean data.
     max_stamp_jump : float
         A stamp step beyond this is a jump, s.
     resync_count : int
@@ -180,6 +194,7 @@ class FilterSettings:
     output_period: float = 0.1
     model_check_window: int = 30
     model_check_alpha: float = 0.001
+    model_check_false_alarms_per_hour: float = 0.1
     max_stamp_jump: float = 1.0
     resync_count: int = 5
     divergence_gated_fixes: int = 5
@@ -249,11 +264,13 @@ class FilterSystem:
                                       max_norm=2.0 * self.period * model.gyro_max_rate,
                                       jump_limit=float(s.max_stamp_jump),
                                       resync_count=int(s.resync_count))
-        self.camera_check = StreamCheck(math.inf,
-                                        jump_limit=max(float(s.max_stamp_jump), CAMERA_JUMP_S),
-                                        resync_count=int(s.resync_count))
+        self.camera_check = StreamCheck.for_fixes(float(s.max_stamp_jump), int(s.resync_count))
+        self._gyro_steps_used = 0      # gyro clock steps that confirmed a step of the fixes
+        # the gap rule of increments handed over without their gaps (add_increments)
+        self._increment_gaps = StreamCheck(self.period, jump_limit=math.inf)
         self.default_covariance = np.diag(model.camera_sigma ** 2)
         self.use_covariance = bool(s.use_camera_covariance)
+        self.fix_screen = FixScreen(self.default_covariance, self.use_covariance)
         self.camera_effects = model.camera_effects()
         # the model's gyro effects the filter does not estimate (the bias is always a state)
         fixed = {n: model.effect_value(n) for n in model.active('gyro')
@@ -270,9 +287,10 @@ class FilterSystem:
         self.check: ModelCheck | None = None
         self.counts = {'fixes_received': 0, 'dropped_zero_quaternion': 0, 'normalised': 0,
                        'dropped_bad_covariance': 0, 'covariance_substituted': 0,
-                       'dropped_no_boresight': 0, 'increments_before_start': 0, 'restarts': 0,
-                       'gaps': 0, 'applied': 0, 'gated': 0, 'reset': 0, 'too_old': 0,
-                       'overflow': 0}
+                       'dropped_nan': 0, 'dropped_not_unit': 0, 'dropped_no_boresight': 0,
+                       'increments_before_start': 0, 'restarts': 0, 'gaps': 0,
+                       'camera_resyncs': 0, 'applied': 0, 'gated': 0, 'reset': 0,
+                       'too_old': 0, 'overflow': 0}
         #: the divergences declared, (stamp ns of the fix, why), the latest MAX_RESETS_KEPT
         self.resets: deque = deque(maxlen=MAX_RESETS_KEPT)
         self._buf_t: list = []          # accepted increments not yet processed (ns, value)
@@ -286,10 +304,8 @@ class FilterSystem:
         self._rate_sum = np.zeros(3)
         self._rate_time = 0.0
         self._last_rate = np.zeros(3)
-        self._sig = None                # model check: Σ C_j J_j since the last fix (start axes)
-        self._sig_buf: list = []        # (Δθ, h, t) not yet summed into _sig
+        self._sig_buf: list = []        # (Δθ, h, t) not yet given to the model check
         self._sig_len = 0
-        self._rot = np.array([1.0, 0.0, 0.0, 0.0])   # body at the last fix ← body now
         self.outputs: list = []
         self.fix_outputs: list = []
 
@@ -307,25 +323,23 @@ class FilterSystem:
 
         """
         g = self.gyro_check
-        prev = g.last_ns
         out = g.offer(stamp_ns, value)
         if g.resynced:
             self._restart()
-            prev = None
+        marks = g.gap_marks
         for ns, v in out:
-            if prev is not None and ns - prev > 1.5 * self.period * 1e9:
+            if marks and ns in marks:          # rule 6 of the check: the rotation in it is lost
                 self.counts['gaps'] += 1
                 self._restart()
-            prev = ns
             self._buf_t.append(int(ns))
             self._buf_d.append(v)
 
-    def add_increments(self, stamps_ns, values) -> None:
+    def add_increments(self, stamps_ns, values, breaks=None) -> None:
         """
         Take increments already validated (the recording reader), buffered as in offer_gyro.
 
-        A gap (beyond 1.5 nominal periods) restarts the filter as there.  Arrays are taken
-        whole (no per-increment work).
+        A gap or stamp jump restarts the filter before the increment that follows it, as there.
+        Arrays are taken whole (no per-increment work when the breaks are given).
 
         Parameters
         ----------
@@ -333,25 +347,33 @@ class FilterSystem:
             Stamps, ns.
         values : sequence of (3,) array_like
             Increments, rad, body axes.
+        breaks : collection of int, optional
+            The stamps that follow a gap or a stamp jump (the ends of the reader's gap
+            intervals, judged by the check's rule 6); None: judged here by the same rule
+            (a :class:`~strapdown_ros.streams.checks.StreamCheck` over the stamps of every
+            call).
 
         """
         t = np.asarray(stamps_ns, dtype=np.int64).reshape(-1)
         if not len(t):
             return
         v = np.asarray(values, dtype=float).reshape(-1, 3)
-        prev = self._buf_t[-1] if self._buf_t else (self._chunks[-1][0][-1] if self._chunks
-                                                    else self._last_ns)
-        step = np.diff(t, prepend=t[0] if prev is None else prev)
-        gaps = np.flatnonzero(step > 1.5 * self.period * 1e9)
-        for lo, hi in zip(np.concatenate([[0], gaps]), np.concatenate([gaps, [len(t)]])):
-            if lo in gaps:
+        if breaks is None:                     # judged here, by the same rule, across calls
+            rule = self._increment_gaps
+            cuts = [i for i, ns in enumerate(t.tolist())
+                    if rule.offer(ns, (0.0, 0.0, 0.0)) and rule.gap_marks]
+        else:
+            b = breaks if isinstance(breaks, np.ndarray) else np.fromiter(breaks, np.int64)
+            cuts = np.flatnonzero(np.isin(t, b)).tolist()
+        edges = sorted(set([0] + cuts)) + [len(t)]
+        for lo, hi in zip(edges[:-1], edges[1:]):
+            if lo in cuts:
                 self.process()
                 self.counts['gaps'] += 1
                 self._restart()
-            if hi > lo:
-                self._hold()
-                self._chunks.append((t[lo:hi], v[lo:hi]))
-                self._chunked += hi - lo
+            self._hold()
+            self._chunks.append((t[lo:hi], v[lo:hi]))
+            self._chunked += hi - lo
 
     def _hold(self) -> None:
         """Move the single increments of offer_gyro into the chunks (their order kept)."""
@@ -363,9 +385,14 @@ class FilterSystem:
 
     def offer_fix(self, stamp_ns: int, q_wxyz, covariance=None) -> FixOutput | None:
         """
-        Take one camera fix from a live stream: calibrator_node's rules, then the filter.
+        Take one camera fix from a live stream: the screening and stamp rules, then the filter.
 
-        The filter takes it after the buffered increments.
+        THE screening of a reference fix (:class:`~strapdown_ros.streams.fixes.FixScreen`:
+        each drop counted ``dropped_<reason>``), then the stamp rules of a fix stream; a
+        confirmed clock step of the fixes restarts the filter (``camera_resyncs``): confirmed by
+        ``resync_count`` fixes, or at once by the first fix on the new timeline of the gyro when
+        the gyro's clock stepped too (both clocks stepped: the gyro's ``resync_count``
+        increments confirmed it).  The filter takes the fix after the buffered increments.
 
         Parameters
         ----------
@@ -383,34 +410,42 @@ class FilterSystem:
 
         """
         self.counts['fixes_received'] += 1
-        q = np.asarray(q_wxyz, dtype=float)
-        norm = float(np.linalg.norm(q)) if np.all(np.isfinite(q)) else float('nan')
-        if math.isfinite(norm) and norm < 1e-6:
-            self.counts['dropped_zero_quaternion'] += 1
+        got = self._screen(q_wxyz, covariance)
+        if got is None:
             return None
-        P = self.default_covariance
-        if covariance is not None and self.use_covariance:
-            P = np.asarray(covariance, dtype=float).reshape(3, 3)
-            if np.all(np.isfinite(P)):
-                P = 0.5 * (P + P.T)
-                if not np.any(P):
-                    P = self.default_covariance
-                    self.counts['covariance_substituted'] += 1
-                elif np.min(np.linalg.eigvalsh(P)) <= 0:
-                    self.counts['dropped_bad_covariance'] += 1
-                    return None
-        if math.isfinite(norm) and abs(norm - 1.0) > 1e-9:
-            q = q / norm
-            self.counts['normalised'] += 1
-        out = self.camera_check.offer(int(stamp_ns), list(q) + list(np.ravel(P)))
+        q, P = got
+        c = self.camera_check
+        out = c.offer(int(stamp_ns), list(q) + list(np.ravel(P)))
+        g = self.gyro_check
+        if not out and c.held and g.resyncs > self._gyro_steps_used and g.last_ns is not None \
+                and abs(int(stamp_ns) - g.last_ns) <= g.jump_ns:
+            # both clocks stepped: the gyro's step, confirmed by its increments, confirms the
+            # fixes' at the first fix on the gyro's new timeline
+            self._gyro_steps_used = g.resyncs
+            out = c.confirm()
+        if c.resynced:                         # a confirmed clock step of the fixes
+            self.resync_fixes()
         res = None
         for ns, v in out:
-            res = self.add_fix(ns, np.asarray(v[:4]), np.asarray(v[4:]).reshape(3, 3))
+            res = self._apply_fix(ns, np.asarray(v[:4]), np.asarray(v[4:]).reshape(3, 3))
         return res
+
+    def _screen(self, q_wxyz, covariance):
+        """Screen a fix (THE screening; drops counted ``dropped_<reason>``): (q, P) or None."""
+        screen = self.fix_screen
+        got = screen.screen(q_wxyz, covariance)
+        if got is None:
+            self.counts[f'dropped_{screen.last_reason}'] += 1
+        self.counts['normalised'] = screen.normalised
+        self.counts['covariance_substituted'] = screen.covariance_substituted
+        return got
 
     def add_fix(self, stamp_ns: int, q_wxyz, covariance) -> FixOutput | None:
         """
-        Take a fix already validated (unit quaternion, positive definite covariance).
+        Take a fix that passed the stamp rules (the recording reader's), in stamp order.
+
+        It passes THE screening of a fix too (the reader's fixes did already: for them it
+        changes nothing), so no caller can hand the filter a fix it cannot take.
 
         Parameters
         ----------
@@ -418,8 +453,8 @@ class FilterSystem:
             Stamp, ns.
         q_wxyz : array_like (4,)
             ``q_GCRS_VF``, scalar-first.
-        covariance : array_like (3, 3)
-            VF axes, rad².
+        covariance : array_like (3, 3) or None
+            VF axes, rad² (None: the model σ).
 
         Returns
         -------
@@ -427,6 +462,12 @@ class FilterSystem:
             The result, or None when the fix is dropped, starts the filter or waits.
 
         """
+        got = self._screen(q_wxyz, covariance)
+        if got is None:
+            return None
+        return self._apply_fix(stamp_ns, *got)
+
+    def _apply_fix(self, stamp_ns: int, q_wxyz, covariance) -> FixOutput | None:
         if self.boresight is None:
             self.counts['dropped_no_boresight'] += 1
             return None
@@ -445,6 +486,16 @@ class FilterSystem:
             self._pending.sort()
             return None
         return self._fix_result(res)
+
+    def resync_fixes(self) -> None:
+        """
+        Restart at a confirmed clock step of the fixes (counted ``camera_resyncs``).
+
+        The fixes after it lie on another timeline than the filter's history: the filter
+        restarts at the next one (the gyro's own steps restart it through its check).
+        """
+        self.counts['camera_resyncs'] += 1
+        self._restart()
 
     def set_boresight(self, q_wxyz) -> None:
         """
@@ -572,7 +623,7 @@ class FilterSystem:
         They are summed in one vectorised pass (:meth:`_flush_signature`) before the next fix
         is applied.
         """
-        if self.check is None or not self.check.effects:
+        if self.check is None:
             return
         self._sig_buf.append((d, h, t))
         self._sig_len += len(d)
@@ -580,7 +631,7 @@ class FilterSystem:
             self._flush_signature()
 
     def _flush_signature(self) -> None:
-        """Accumulate Σ C_j J_j of the model check's candidates since the last fix."""
+        """Give the model check the increments since the last fix, lumped and compensated."""
         if not self._sig_buf:
             return
         d = np.concatenate([b[0] for b in self._sig_buf])
@@ -593,16 +644,10 @@ class FilterSystem:
                    t[:n].reshape(-1, SIGNATURE_LUMP)[:, -1])] if n else []
         if n < len(d):
             groups.append((d[n:].sum(0)[None], np.array([h[n:].sum()]), t[-1:]))
+        bias = self.filter.estimate('gyro_bias')[None]
         for rho, hh, te in groups:
-            comp = rho - self.filter.estimate('gyro_bias')[None] * hh[:, None]
-            q = quat_cumprod(self._rot, rotvec_to_quat(comp))       # (m+1, 4) or (m, 4)
-            q = q[-len(rho):]
-            c = quat_to_dcm(q)                                    # start ← body at each end
-            J = [e.filter_partials(comp, hh, te - 0.5 * hh - self.filter.epoch)
-                 for e in self.check.effects]
-            part = [np.einsum('nij,njk->ik', c, Jk) for Jk in J]
-            self._sig = part if self._sig is None else [a + b for a, b in zip(self._sig, part)]
-            self._rot = q[-1]
+            self.check.accumulate(rho - bias * hh[:, None], hh,
+                                  te - 0.5 * hh - self.filter.epoch)
 
     def _fix_result(self, r) -> FixOutput:
         f = self.filter
@@ -611,19 +656,19 @@ class FilterSystem:
                         innovation_covariance=r.innovation_covariance, reason=r.reason)
         if r.status == 'reset':
             self.resets.append((out.stamp_ns, r.reason))
-        if r.status in ('applied', 'gated') and self.check is not None \
+            if self.check is not None:         # the attitude re-initialised: the check restarts
+                self._sig_buf, self._sig_len = [], 0
+                self.check.restart()
+                out.check_text, out.check_ok = self.check.last.text(), self.check.last.ok
+        elif r.status in ('applied', 'gated') and self.check is not None \
                 and r.innovation_covariance is not None:
-            c_end = quat_to_dcm(self._rot)
-            sig = ([c_end.T @ s for s in self._sig] if self._sig is not None
-                   else [np.zeros((3, e.filter_size())) for e in self.check.effects])
+            self._flush_signature()
             c_vf_mf = quat_to_dcm(f.boresight).T
-            bias = f.estimate('gyro_bias')
-            v = self.check.add(r.residual, r.innovation_covariance, sig, c_vf_mf,
-                               self._last_rate - bias)
-            out.check_text, out.check_ok = v.text(), v.ok
-        if r.status in ('applied', 'reset'):   # a gated fix leaves the error growing: keep summing
-            self._sig = None
-            self._rot = np.array([1.0, 0.0, 0.0, 0.0])
+            v = self.check.add(r.stamp, r.residual, r.innovation_covariance, c_vf_mf,
+                               self._last_rate - f.estimate('gyro_bias'),
+                               gain=r.gain if r.status == 'applied' else None,
+                               jacobian=r.jacobian)
+            out.check_text, out.check_ok, out.check = v.text(), v.ok, v
         self.fix_outputs.append(out)
         return out
 
@@ -674,17 +719,20 @@ class FilterSystem:
             divergence_nis_window=int(s.divergence_nis_window),
             divergence_nis_probability=float(s.divergence_nis_probability),
             time_offset=0.0 if 'time_offset' in self.augment else self.camera_effects.time_offset)
-        cands = [e for n, e in EFFECTS.items() if e.sensor == 'gyro' and e.kind == 'systematic'
-                 and n != 'gyro_bias' and n not in self.augment
-                 and hasattr(e, 'filter_partials')]
+        cands, offset = check_candidates(self.augment)
+        f = self.filter
+        tau = [e.filter_correlation_time(f.noise) for e, _ in f.layout.gyro]
+        previous = self.check
         self.check = ModelCheck(int(s.model_check_window), float(s.model_check_alpha),
-                                cands, time_offset='time_offset' not in self.augment)
+                                cands, time_offset=offset,
+                                false_alarms_per_hour=float(s.model_check_false_alarms_per_hour),
+                                layout=f.layout, state_tau=np.concatenate(tau))
+        self.check.continue_counts(previous)
         self._last_ns = start_ns
         self._out0 = start_ns
         self._due_ns = start_ns + self.output_ns
         self._rate_sum, self._rate_time = np.zeros(3), 0.0
         self._pending = []
-        self._sig, self._rot = None, np.array([1.0, 0.0, 0.0, 0.0])
         self._sig_buf, self._sig_len = [], 0
 
     def _filter_values(self, name: str) -> np.ndarray:
@@ -739,7 +787,8 @@ class FilterSystem:
                 out['fixes_since_reset'] = since
         if self.check is not None:
             out.update({'model_check_windows': self.check.windows,
-                        'model_check_failed': self.check.failed})
+                        'model_check_failed': self.check.failed,
+                        'model_check_episodes': self.check.episodes})
         return out
 
 

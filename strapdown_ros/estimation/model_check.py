@@ -2,23 +2,43 @@
 Live model check of the attitude filter: its innovations against the filter's own model.
 
 Are the innovations of the last N fixes what the model says they are, and if not, which effect
-of the registry do they look like?  :mod:`strapdown_ros.estimation.filter_system` feeds it
-every applied or gated fix.  Over a sliding window of N fixes applied or gated (a gated fix
-counts: an unmodelled effect makes the filter gate) (residual z_k, VF axes, with its
-innovation covariance S_k):
+of the library do they look like?  :mod:`strapdown_ros.estimation.filter_system` feeds it every
+applied or gated fix (a gated fix counts: an unmodelled effect makes the filter gate).
 
-* consistency: Σ NIS_k against the two-sided χ²(3N) band of probability ``1 − alpha``;
-* whiteness: the Ljung–Box statistic of the whitened innovations ``S_k^{-1/2} z_k`` (each
-  axis, lags 1..L, L = min(10, N // 5)), summed over the axes, against χ²(3L) at ``alpha``.
+**Tests** (:mod:`strapdown_ros.estimation.window_tests`, exact at any N): over the window of the
+whitened innovations ``w_k = L_k⁻¹ z_k`` (``S_k = L_k L_kᵀ``), the NIS sum against its χ²(3N)
+band and the spectral whiteness test, at the window's level α = min(``alpha``,
+r·Δt/3600) for a stated rate r of false WARN episodes per hour (Δt the mean time between the
+window's fixes).
 
-When either fails, each candidate effect (a systematic gyro effect of
-:data:`strapdown_ros.sensors.effects.EFFECTS` the filter does not carry, and the camera time
-offset when the filter does not estimate it) is fitted to the window by weighted least
-squares, ``z_k ≈ G_k c`` with G_k its signature (the effect's increment partials integrated
-over the interval before the fix and carried into VF axes, or the time offset's fix Jacobian),
-and the likelihood ratio ``Σ z_kᵀS_k⁻¹z_k − min_c Σ (z_k − G_k c)ᵀS_k⁻¹(z_k − G_k c)`` is
-compared with χ²(size of c): the best match is the effect with the smallest p-value.  The
-check only reports; the filter's model is never changed by it.
+**Sequential rule.** A window ends at every fix.  A WARN episode starts at a failing window and
+lasts until N windows in a row pass (the fixes of the failure have left the window); it counts
+once.  Since an episode starts only at a failing window, the expected number of episodes per
+hour of clean data is at most the expected number of failing windows, r.
+
+**Naming** (a failing window; none when the NIS sum is below its band: the stated noise is too
+large).  Each candidate, a library effect (``candidate`` in
+:data:`strapdown_ros.sensors.effects.EFFECTS`) that is a systematic gyro effect the filter does
+not carry, or the camera time offset when the filter does not estimate it, is fitted to the
+window, ``w_k ≈ L_k⁻¹ G_k c``, where G_k is the effect's signature **in the innovations** of
+this filter: the effect's error response run through the filter's own loop (Willsky & Jones
+1976, the generalised likelihood ratio for a failure in a Kalman filter), from the start::
+
+    E_k⁻ = Φ_k E_{k−1}⁺ + Γ_k,   G_k = H_k E_k⁻ + D_k,   E_k⁺ = E_k⁻ − K_k G_k
+
+with Φ_k the filter's error transition over the interval before fix k, K_k its gain (0 for a
+gated fix), H_k its fix Jacobian; Γ_k the gyro effect's increment partials integrated over the
+interval (rotated to the body axes at the fix), D_k = C_VF^MF ω(t_k) the time offset's
+(the camera shows the attitude τ earlier).  A filter that follows its fixes keeps only the
+change of ω τ between fixes (the angular acceleration), while a scale asymmetry builds up with
+the sign of the rate: with the full regressors the two separate under general motion.  The
+share of the window's energy the effect explains, ``LR / Σ|w_k|²`` with
+``LR = Σ|w_k|² − min_c Σ|w_k − A_k c|²``, is Beta(r/2, (3N − r)/2) without the effect (the F
+test, r the rank of the regressors), whatever the true scale of the noise; the best match is
+the candidate of the smallest p-value, named when that p-value is below α over the number of
+candidates.  With no such candidate and white innovations above their band, the window names
+the library's noise effect (``camera_noise_anisotropy``: stated noise too small).  The check
+only reports; the filter's model is never changed by it.
 """
 from __future__ import annotations
 
@@ -28,14 +48,23 @@ import math
 
 import numpy as np
 
-from strapdown_ros.estimation.chi_square import chi2_band, chi2_sf
+from strapdown_ros.estimation.window_tests import beta_log_sf, judge_window, window_level
+from strapdown_ros.rotation import quat_cumprod, quat_to_dcm, rotvec_to_quat
+from strapdown_ros.sensors.effects import EFFECTS
 
-__all__ = ['ModelCheck', 'ModelCheckResult', 'ljung_box']
+__all__ = ['ModelCheck', 'ModelCheckResult', 'ljung_box', 'check_candidates', 'NOISE_EFFECT']
+
+#: the library's noise effect, named when white innovations are too large and no mean effect fits
+NOISE_EFFECT = 'camera_noise_anisotropy'
 
 
 def ljung_box(x: np.ndarray, lags: int) -> float:
     """
     Return the Ljung–Box statistic ``n(n+2) Σ_{k=1}^{L} r_k²/(n−k)``, summed over columns.
+
+    Its χ²(m L) reference is a large-sample one (at n = 30, L = 6, m = 3 it rejects 0.4 % of
+    white windows at a nominal 0.1 %); the live check uses
+    :func:`strapdown_ros.estimation.window_tests.spectral_whiteness`.
 
     Parameters
     ----------
@@ -47,7 +76,7 @@ def ljung_box(x: np.ndarray, lags: int) -> float:
     Returns
     -------
     float
-        The statistic, χ²(m L) for white series.
+        The statistic, χ²(m L) for long white series.
 
     """
     x = np.asarray(x, dtype=float)
@@ -62,6 +91,31 @@ def ljung_box(x: np.ndarray, lags: int) -> float:
     return n * (n + 2) * q
 
 
+def check_candidates(augment=()) -> tuple[list, bool]:
+    """
+    Return the effects the live check may name for a filter carrying ``augment``.
+
+    Parameters
+    ----------
+    augment : sequence of str
+        The filter's augmented states.
+
+    Returns
+    -------
+    effects : list of Effect
+        Library candidates (``candidate``) that are systematic gyro effects with filter
+        partials, neither the bias nor a state of the filter.
+    time_offset : bool
+        The camera time offset is a candidate (in the library and not a state).
+
+    """
+    effects = [e for n, e in EFFECTS.items()
+               if e.candidate and e.sensor == 'gyro' and e.kind == 'systematic'
+               and n != 'gyro_bias' and n not in augment and hasattr(e, 'filter_partials')]
+    offset = EFFECTS['time_offset'].candidate and 'time_offset' not in augment
+    return effects, offset
+
+
 @dataclass
 class ModelCheckResult:
     """
@@ -72,19 +126,33 @@ class ModelCheckResult:
     fixes : int
         Fixes in the window.
     ok : bool
-        True while the window passes (or is not yet full).
+        True unless a WARN episode is on (a failing window starts one; N passing windows in a
+        row end it).
     nis_sum : float
         Σ NIS over the window.
     nis_band : tuple of float
-        Its two-sided band.
+        Its two-sided band at the window's level.
     whiteness_p : float
-        p-value of the Ljung–Box statistic.
+        p-value of the spectral whiteness test.
     best_effect : str, optional
-        The effect the innovations match best (failing windows).
+        The library effect the innovations match best (failing windows).
     best_p : float
-        Its p-value (small: the effect explains the innovations).
+        Its p-value (F test of its fit; small: the effect explains the innovations).
     best_estimate : ndarray, optional
-        The fitted effect value, in its units.
+        The fitted effect value, in its filter units.
+    window_ok : bool
+        This window passes both tests.
+    verdict : str
+        ``filling``, ``consistent``, ``noise_too_large``, ``noise_too_small``, ``effect`` or
+        ``unexplained``.
+    level : float
+        α of the window.
+    episodes : int
+        WARN episodes so far.
+    explained : bool
+        The best effect's fit leaves a residual inside the NIS band.
+    stamp : float
+        Stamp of the window's last fix, s.
 
     """
 
@@ -96,98 +164,204 @@ class ModelCheckResult:
     best_effect: str | None = None
     best_p: float = float('nan')
     best_estimate: np.ndarray | None = None
+    window_ok: bool = True
+    verdict: str = 'filling'
+    level: float = float('nan')
+    episodes: int = 0
+    explained: bool = False
+    stamp: float = float('nan')
 
     def text(self) -> str:
         """Return the verdict as one line for /diagnostics and logs."""
-        if self.fixes == 0 or (self.ok and not math.isfinite(self.nis_sum)):
+        if self.verdict == 'filling':
             return f'model check: {self.fixes} fix(es) in the window, not yet full'
         head = (f'NIS sum {self.nis_sum:.4g} over {self.fixes} fixes (band '
                 f'{self.nis_band[0]:.4g}–{self.nis_band[1]:.4g}), whiteness p = '
-                f'{self.whiteness_p:.3g}')
-        if self.ok:
-            return 'innovations consistent with the model: ' + head
-        if self.best_effect is None:
-            return 'innovations inconsistent with the model (no candidate effect): ' + head
-        return (f'innovations match {self.best_effect} (p = {self.best_p:.3g}); run discrepancy '
-                f'on a recording ({head})')
+                f'{self.whiteness_p:.3g}, window level {self.level:.2g}')
+        if self.verdict == 'consistent':
+            if self.ok:
+                return 'innovations consistent with the model: ' + head
+            return (f'WARN episode {self.episodes} holds until a full window passes; this window '
+                    'is consistent: ' + head)
+        if self.verdict == 'noise_too_large':
+            return f'stated noise too large (NIS sum below its band): {head}'
+        if self.verdict == 'noise_too_small':
+            return (f'stated noise too small: white innovations above their band and no mean '
+                    f'effect matches ({self.best_effect}, or the gyro noise): {head}')
+        if self.verdict == 'unexplained':
+            return ('innovations inconsistent with the model, no library effect matches (an '
+                    f'effect outside the library, or the stated noise): {head}')
+        rest = '' if self.explained else '; the rest is still inconsistent'
+        p = f'{self.best_p:.3g}' if self.best_p > 0 else '< 1e-300'
+        return (f'innovations match {self.best_effect} (p = {p}{rest}); run discrepancy on a '
+                f'recording ({head})')
 
 
 class ModelCheck:
     """
-    The sliding-window test of the innovations and the naming of the best-matching effect.
+    The sliding-window tests of the innovations, the WARN episodes and the naming.
 
     Parameters
     ----------
     window : int
         Fixes per window, N ≥ 5.
     alpha : float
-        Probability of a false alarm of each test (the NIS band is two-sided at ``alpha``).
+        Largest false-alarm probability of one window (both tests together).
     effects : sequence of Effect
-        Candidate gyro effects (registry objects with ``filter_partials``), not filter states.
+        Candidate gyro effects (registry objects with ``filter_partials``), not filter states
+        (:func:`check_candidates`).
     time_offset : bool
-        The camera time offset is a candidate (its fix Jacobian).
+        The camera time offset is a candidate.
+    false_alarms_per_hour : float
+        Stated rate r of false WARN episodes per hour of clean data (0: every window at
+        ``alpha``).
+    layout : StateLayout, optional
+        The filter's error-state layout (``size``, ``gyro``): the loop the signatures run
+        through.  None: the attitude error only.
+    state_tau : array_like, optional
+        Correlation time of each gyro state of the layout, s (inf: a random walk).
 
     """
 
-    def __init__(self, window: int = 30, alpha: float = 0.001, effects=(), time_offset=False):
+    def __init__(self, window: int = 30, alpha: float = 0.001, effects=(), time_offset=False,
+                 false_alarms_per_hour: float = 0.1, layout=None, state_tau=None):
         if int(window) < 5:
             raise ValueError('the model-check window needs at least 5 fixes')
         if not 0.0 < alpha < 0.5:
             raise ValueError('alpha must be in (0, 0.5)')
+        if not (math.isfinite(false_alarms_per_hour) and false_alarms_per_hour >= 0.0):
+            raise ValueError('false_alarms_per_hour must be finite and >= 0')
         self.window = int(window)
         self.alpha = float(alpha)
+        self.rate = float(false_alarms_per_hour)
         self.effects = list(effects)
         self.time_offset = bool(time_offset)
         self.names = [e.name for e in self.effects] + (['time_offset'] if time_offset else [])
-        self._sizes = [e.filter_size() for e in self.effects] + ([1] if time_offset else [])
+        self.size = 3 if layout is None else int(layout.size)
+        self.states = [] if layout is None else [(e, sl) for e, sl in layout.gyro]
+        cols = sum(sl.stop - sl.start for _, sl in self.states)
+        tau = np.full(cols, np.inf) if state_tau is None else np.asarray(state_tau, dtype=float)
+        if tau.shape != (cols,):
+            raise ValueError('state_tau needs one correlation time per gyro state')
+        self._lam = np.where(np.isfinite(tau) & (tau > 0), 1.0 / np.where(tau > 0, tau, 1.0),
+                             0.0)
+        sizes = [e.filter_size() for e in self.effects] + ([1] if time_offset else [])
+        self._E = [np.zeros((self.size, m)) for m in sizes]
+        self._cuts = np.cumsum([e.filter_size() for e in self.effects])[:-1]
+        self._state_cols = cols
         self._rows: deque = deque(maxlen=self.window)
-        lo, hi = chi2_band(3 * self.window, self.alpha)
-        self.band = (lo * 3 * self.window, hi * 3 * self.window)
-        self.lags = max(1, min(10, self.window // 5))
         self.last = ModelCheckResult(0, True)
-        self.windows = self.failed = 0
+        self.windows = self.failed = self.episodes = 0
+        self.warn = False
+        self._passing = 0
+        self._start_interval()
 
-    def signature(self, rho, h, t_mid, c_end_body) -> list[np.ndarray]:
+    # ------------------------------------------------------------------ signatures
+    def _start_interval(self) -> None:
+        self._rot = np.array([1.0, 0.0, 0.0, 0.0])     # body at the last fix ← body now
+        self._elapsed = 0.0
+        self._sums = np.zeros((3, sum(e.filter_size() for e in self.effects)))
+        self._state_sums = np.zeros((3, self._state_cols))
+
+    def accumulate(self, rho, h, t) -> None:
         """
-        Return the signature of each gyro candidate over the interval since the last fix.
+        Add increments of the interval since the last fix to the signatures.
 
         Parameters
         ----------
-        rho : ndarray (n, 3)
-            Increments, rad, body axes.
-        h : ndarray (n,)
+        rho : ndarray (m, 3)
+            Bias-compensated increments (lumped), rad, body axes.
+        h : ndarray (m,)
             Their lengths, s.
-        t_mid : ndarray (n,)
+        t : ndarray (m,)
             Their middle times since the effect epoch, s.
-        c_end_body : ndarray (n, 3, 3)
-            Rotation from each increment's body axes to the body axes at the end of the
-            interval (since the last applied fix).
-
-        Returns
-        -------
-        list of ndarray (3, size)
-            One per candidate, body axes at the interval's end.
 
         """
-        return [np.einsum('nij,njk->ik', c_end_body, e.filter_partials(rho, h, t_mid))
-                for e in self.effects]
+        rho = np.asarray(rho, dtype=float).reshape(-1, 3)
+        h = np.asarray(h, dtype=float).reshape(-1)
+        t = np.asarray(t, dtype=float).reshape(-1)
+        if len(rho) == 0:
+            return
+        q = quat_cumprod(self._rot, rotvec_to_quat(rho))[-len(rho):]
+        c = quat_to_dcm(q)                         # body at the last fix ← body at each end
+        if self.effects:
+            J = np.concatenate([e.filter_partials(rho, h, t) for e in self.effects], axis=2)
+            self._sums += np.einsum('nij,njk->ik', c, J)
+        if self.states:
+            J = np.concatenate([e.filter_partials(rho, h, t) for e, _ in self.states], axis=2)
+            if np.any(self._lam > 0):
+                u = self._elapsed + np.cumsum(h) - 0.5 * h      # since the interval's start
+                J = J * np.exp(-u[:, None] * self._lam)[:, None, :]
+            self._state_sums += np.einsum('nij,njk->ik', c, J)
+        self._rot = q[-1]
+        self._elapsed += float(h.sum())
 
-    def add(self, z, S, gyro_signatures, c_vf_mf, rate_body) -> ModelCheckResult:
+    def _transition(self, ce: np.ndarray) -> np.ndarray:
+        """Return the filter's error transition over the interval (body axes at both ends)."""
+        phi = np.eye(self.size)
+        phi[:3, :3] = ce
+        if self.states:
+            sl = slice(self.states[0][1].start, self.states[-1][1].stop)   # contiguous
+            phi[:3, sl] = -ce @ self._state_sums
+            phi[sl, sl] = np.diag(np.exp(-self._elapsed * self._lam))
+        return phi
+
+    def restart_response(self) -> None:
+        """Forget the effects' error responses (after the filter re-initialises its attitude)."""
+        self._E = [np.zeros_like(E) for E in self._E]
+
+    def restart(self) -> None:
+        """
+        Go on after the filter re-initialised its attitude from a fix (a divergence reset).
+
+        The attitude rows of the effects' error responses are zeroed (the attitude error is the
+        fix's own noise, whatever the effects did before); the rows of the other states stay
+        (the filter keeps those estimates).  The interval's signatures restart at that fix.  The
+        window keeps its innovations (each was whitened with the responses of its time), so an
+        effect that keeps the filter diverging is still named; the WARN state and the counts
+        carry on.
+        """
+        for E in self._E:
+            E[:3] = 0.0
+        self._start_interval()
+
+    def continue_counts(self, previous: ModelCheck | None) -> None:
+        """
+        Carry the window, failure and episode counts of the check of a previous filter run.
+
+        Parameters
+        ----------
+        previous : ModelCheck or None
+            The check before a restart.
+
+        """
+        if previous is not None:
+            self.windows, self.failed = previous.windows, previous.failed
+            self.episodes = previous.episodes
+            self.last.episodes = self.episodes
+
+    # ------------------------------------------------------------------ fixes
+    def add(self, stamp: float, z, S, c_vf_mf, rate_body, gain=None,
+            jacobian=None) -> ModelCheckResult:
         """
         Add one applied or gated fix and judge the window ending at it.
 
         Parameters
         ----------
+        stamp : float
+            Stamp of the fix, s.
         z : array_like (3,)
             Residual, VF axes, rad.
         S : array_like (3, 3)
             Its innovation covariance, rad².
-        gyro_signatures : list of ndarray (3, size)
-            The signatures of the interval before it (:meth:`signature`, body axes).
         c_vf_mf : ndarray (3, 3)
             C_VF^MF.
         rate_body : array_like (3,)
-            The body rate at the fix, rad/s.
+            The bias-compensated body rate at the fix, rad/s.
+        gain : ndarray (n, 3), optional
+            The filter's gain K (None: not applied, a gated fix).
+        jacobian : ndarray (3, n), optional
+            The filter's fix Jacobian H (None: ``[C_VF^MF, 0]``).
 
         Returns
         -------
@@ -195,44 +369,95 @@ class ModelCheck:
             The verdict of the window ending at this fix.
 
         """
-        G = [c_vf_mf @ g for g in gyro_signatures]
-        if self.time_offset:
-            G.append(-(c_vf_mf @ np.asarray(rate_body, dtype=float))[:, None])
-        self._rows.append((np.asarray(z, dtype=float), np.asarray(S, dtype=float), G))
+        c_vf_mf = np.asarray(c_vf_mf, dtype=float)
+        ce = quat_to_dcm(self._rot).T                 # body at the fix ← body at the last fix
+        phi = self._transition(ce)
+        H = np.zeros((3, self.size))
+        if jacobian is None:
+            H[:, :3] = c_vf_mf
+        else:
+            H[:] = np.asarray(jacobian, dtype=float).reshape(3, self.size)
+        K = None if gain is None else np.asarray(gain, dtype=float).reshape(self.size, 3)
+        G = []
+        gamma = np.split(ce @ self._sums, self._cuts, axis=1) if self.effects else []
+        for j, E in enumerate(self._E):
+            E = phi @ E
+            if j < len(self.effects):
+                E[:3] += gamma[j]
+                g = H @ E
+            else:                                      # the camera time offset
+                g = H @ E + (c_vf_mf @ np.asarray(rate_body, dtype=float))[:, None]
+            if K is not None:
+                E = E - K @ g
+            self._E[j] = E
+            G.append(g)
+        self._start_interval()
+        L = np.linalg.cholesky(np.asarray(S, dtype=float))
+        w = np.linalg.solve(L, np.asarray(z, dtype=float))
+        self._rows.append((float(stamp), w, [np.linalg.solve(L, g) for g in G]))
         if len(self._rows) < self.window:
-            self.last = ModelCheckResult(len(self._rows), True)
+            self.last = ModelCheckResult(len(self._rows), True, episodes=self.episodes,
+                                         stamp=float(stamp))
             return self.last
         self.last = self._test()
-        self.windows += 1
-        self.failed += int(not self.last.ok)
         return self.last
 
     def _test(self) -> ModelCheckResult:
         n = len(self._rows)
-        white = np.empty((n, 3))
-        L = []
-        nis = 0.0
-        for k, (z, S, _) in enumerate(self._rows):
-            Lk = np.linalg.cholesky(S)
-            w = np.linalg.solve(Lk, z)
-            white[k] = w
-            L.append(Lk)
-            nis += float(w @ w)
-        q = ljung_box(white, self.lags)
-        p_white = chi2_sf(q, 3 * self.lags)
-        ok = self.band[0] <= nis <= self.band[1] and p_white >= self.alpha
-        res = ModelCheckResult(n, ok, nis, self.band, p_white)
-        if ok or not self.names:
+        stamps = [r[0] for r in self._rows]
+        white = np.array([r[1] for r in self._rows])
+        level = window_level(self.rate, (stamps[-1] - stamps[0]) / (n - 1), self.alpha)
+        v = judge_window(white, level)
+        self.windows += 1
+        if v.ok:
+            if self.warn:
+                self._passing += 1
+                if self._passing >= self.window:
+                    self.warn = False
+        else:
+            self.failed += 1
+            self._passing = 0
+            if not self.warn:
+                self.warn = True
+                self.episodes += 1
+        res = ModelCheckResult(n, not self.warn, v.nis_sum, v.nis_band, v.whiteness_p,
+                               window_ok=v.ok, verdict='consistent', level=level,
+                               episodes=self.episodes, stamp=stamps[-1])
+        if v.ok:
             return res
-        best = (math.inf, -math.inf, None, None)
-        for j, (name, size) in enumerate(zip(self.names, self._sizes)):
-            A = np.vstack([np.linalg.solve(L[k], self._rows[k][2][j]) for k in range(n)])
-            c, *_ = np.linalg.lstsq(A, white.reshape(-1), rcond=None)
-            r = white.reshape(-1) - A @ c
-            lr = nis - float(r @ r)
-            p = chi2_sf(max(lr, 0.0), size)
-            # the smallest p-value; where p underflows, the largest likelihood ratio per state
-            if (p, -lr / size) < (best[0], -best[1]):
-                best = (p, lr / size, name, c)
-        res.best_p, _, res.best_effect, res.best_estimate = best
+        if v.nis_low:
+            res.verdict = 'noise_too_large'
+            return res
+        self._name(res, white, v)
         return res
+
+    def _name(self, res: ModelCheckResult, white: np.ndarray, v) -> None:
+        """Fit every candidate's signature to the window; name the best if significant."""
+        y = white.reshape(-1)
+        total = float(y @ y)
+        best = None
+        for j, name in enumerate(self.names):
+            A = np.vstack([r[2][j] for r in self._rows])
+            U, s, Vt = np.linalg.svd(A, full_matrices=False)
+            rank = int(np.sum(s > 1e-9 * s[0])) if len(s) and s[0] > 0 else 0
+            if rank == 0:
+                continue
+            proj = U[:, :rank].T @ y
+            lr = float(proj @ proj)
+            # the F test of the effect: its share of the window's energy, Beta(r/2, (3N − r)/2)
+            # with no effect, whatever the noise's true scale
+            score = beta_log_sf(lr / total, 0.5 * rank, 0.5 * (len(y) - rank))
+            if best is None or score < best[0]:
+                c = Vt[:rank].T @ (proj / s[:rank])
+                best = (score, lr, rank, name, c)
+        if best is not None and best[0] < math.log(v.level / max(1, len(self.names))):
+            score, lr, rank, name, c = best
+            res.verdict, res.best_effect, res.best_estimate = 'effect', name, c
+            res.best_p = math.exp(score)
+            res.explained = total - lr <= res.nis_band[1]
+            return
+        if v.nis_high and not v.not_white and NOISE_EFFECT in EFFECTS \
+                and EFFECTS[NOISE_EFFECT].candidate:
+            res.verdict, res.best_effect = 'noise_too_small', NOISE_EFFECT
+            return
+        res.verdict = 'unexplained'

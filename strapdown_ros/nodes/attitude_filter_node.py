@@ -44,14 +44,15 @@ first increment stamp of each period, the state at exactly that stamp):
 * ``/diagnostics``  every ``diagnostics_period``: the counters of the core (fixes applied,
   gated, too old, late fixes and the largest lateness, restarts, gaps, dropped input), each
   augmented state and its σ (``<name>_<k>``, ``<name>_sigma_<k>``), the gyro bias and σ, the
-  last NIS, and the live model check (``model_check``: its text; WARN when a test fails, e.g.
-  "innovations match gyro_scale_factor (p = …): run discrepancy on a recording"; the node never
-  changes its model itself).  A divergence (``divergence_gated_fixes`` consecutive gated
-  fixes, or the NIS of the last ``divergence_nis_window`` fixes passing the gate above its χ²
-  quantile of ``divergence_nis_probability``) re-initialises the attitude from the fix (the
-  bias kept): an ERROR (logged, and on /diagnostics until as many fixes have passed since;
-  then a WARN that counts the resets; values ``reset``, ``fixes_since_reset``,
-  ``last_reset_stamp``, ``last_reset_reason``).  The level is the worst of the conditions
+  last NIS, and the live model check (``model_check``: its text; WARN while a WARN episode is
+  on, e.g. "innovations match gyro_scale_factor (p = …): run discrepancy on a recording"; the
+  node never changes its model itself).  A divergence (``divergence_gated_fixes`` consecutive
+  gated fixes, or the NIS of the last ``divergence_nis_window`` fixes passing the gate above
+  its χ² quantile of ``divergence_nis_probability``) re-initialises the attitude from the fix
+  (the bias kept) and restarts the live model check: an ERROR (logged, and on /diagnostics
+  until as many fixes have passed since; then a WARN that counts the resets; values ``reset``,
+  ``fixes_since_reset``, ``last_reset_stamp``, ``last_reset_reason``).  The level is the worst
+  of the conditions
   (:class:`~strapdown_ros.nodes.ros_status.Conditions`).
 
 At construction the node runs a throw-away filter of its model through a few seconds of
@@ -75,6 +76,7 @@ from strapdown_ros.estimation.chi_square import chi2_3_quantile
 from strapdown_ros.estimation.filter_system import FilterSettings, FilterSystem, warm_up
 from strapdown_ros.nodes import ros_io, ros_params, ros_process, ros_status
 from strapdown_ros.params import FILTER_PARAMS, model_from_parameters, not_applied_note
+from strapdown_ros.streams.fixes import unit_quaternion
 from strapdown_ros.streams.rate_increments import RateIncrementStream
 
 NODE_NAME = 'attitude_filter_node'
@@ -271,15 +273,15 @@ class AttitudeFilterNode(Node):
 
     def _on_boresight(self, msg: PoseWithCovarianceStamped):
         self.boresight_counts['received'] += 1
-        q = ros_io.quaternion_from_msg(msg.pose.pose.orientation)
-        norm = float(np.linalg.norm(q)) if np.all(np.isfinite(q)) else 0.0
-        if norm < 1e-6:
+        # the quaternion rules of THE screening of a fix: normalised without overflow
+        q, why = unit_quaternion(ros_io.quaternion_from_msg(msg.pose.pose.orientation))
+        if q is None:
             self.boresight_counts['dropped'] += 1
-            self.log.warn('calibration/boresight with a zero or non-finite quaternion dropped',
+            self.log.warn(f"calibration/boresight dropped: {why.replace('_', ' ')}",
                           throttle=10.0)
             return
-        self.system.set_boresight(q / norm)
-        self.log.info(f'boresight q_MF_VF from calibration/boresight: {np.round(q / norm, 9)}')
+        self.system.set_boresight(q)
+        self.log.info(f'boresight q_MF_VF from calibration/boresight: {np.round(q, 9)}')
 
     def _frame_ok(self, which: str, frame: str, expected: str) -> bool:
         if frame and frame != expected:
@@ -399,13 +401,18 @@ class AttitudeFilterNode(Node):
             c.add(ros_status.WARN, f'dropped {self.gyro_rates.check.dropped} angular-rate samples '
                   'of imu/data_raw')
         cam = self.system.camera_check
-        bad_fix = cam.dropped + st['dropped_zero_quaternion'] + st['dropped_bad_covariance']
+        scr = self.system.fix_screen
+        bad_fix = cam.dropped + scr.dropped
         if bad_fix:
             c.add(ros_status.WARN,
-                  f'dropped {bad_fix} camera fixes (NaN {cam.nan}, zero quaternion '
-                  f"{st['dropped_zero_quaternion']}, bad covariance "
-                  f"{st['dropped_bad_covariance']}, out of order {cam.out_of_order}, "
-                  f'duplicate {cam.duplicate})')
+                  f'dropped {bad_fix} camera fixes (NaN {cam.nan + scr.nan}, zero quaternion '
+                  f'{scr.zero_quaternion}, not unit {scr.not_unit}, bad covariance '
+                  f'{scr.bad_covariance}, out of order '
+                  f'{cam.out_of_order}, duplicate {cam.duplicate}, stamp outliers '
+                  f'{cam.stamp_outliers})')
+        if cam.resyncs:
+            c.add(ros_status.ERROR, f'camera stamps jumped {cam.resyncs} time(s) and stayed: '
+                  'resynchronised, the filter restarted')
         if self.boresight_counts['dropped']:
             c.add(ros_status.WARN, f"{self.boresight_counts['dropped']} calibration/boresight "
                   'message(s) dropped (zero or non-finite quaternion)')
@@ -451,10 +458,15 @@ class AttitudeFilterNode(Node):
         c = self.diagnostic_conditions(st)
         cam = self.system.camera_check
         values = dict(st)
-        values.update({'camera_received': cam.received, 'camera_accepted': cam.accepted,
-                       'camera_dropped_nan': cam.nan,
+        scr = self.system.fix_screen
+        values.update({'camera_received': scr.received, 'camera_accepted': cam.accepted,
+                       'camera_dropped_nan': cam.nan + scr.nan,
                        'camera_dropped_out_of_order': cam.out_of_order,
                        'camera_dropped_duplicate': cam.duplicate,
+                       'camera_dropped_stamp_outlier': cam.stamp_outliers,
+                       'camera_stamp_resyncs': cam.resyncs,
+                       **{f'camera_bad_covariance_{k}': v
+                          for k, v in scr.bad_covariance_reasons.items()},
                        'gyro_undecodable_dropped': self.undecodable,
                        'gyro_frame_mismatch': self.frame_mismatch['gyro'],
                        'camera_frame_mismatch': self.frame_mismatch['camera'],

@@ -49,13 +49,17 @@ add information; a later invalid solve — possible after a runtime change of ``
 ``max_pairs`` window — publishes nothing and leaves the last valid estimate latched.)
 
 Input validation (as ``sins_node``): NaN/Inf, out-of-order and duplicate stamps are dropped
-and counted on both inputs; a gyro gap (missing increments: their rotation is lost) is
-counted, reported as ERROR, and every increment pair that spans it is discarded.  A camera
-quaternion that is not unit is normalised and counted; a zero one is dropped.  A camera
-covariance whose rotation block is all zero (the ROS "unknown") is replaced by the
-``camera_sigma_*`` diagonal and counted; one that is not symmetric positive semi-definite
-is dropped.  Stamps are handled in integer nanoseconds relative to the first stamp seen on
-any input; timing comes only from header stamps.
+and counted on both inputs; a gyro gap (missing increments: their rotation is lost; the gap
+rule of :class:`~strapdown_ros.streams.checks.StreamCheck`, the period from the stamps) is
+counted, reported as ERROR, and every increment pair that spans it is discarded.  Each camera
+fix passes THE screening of a reference fix (:class:`~strapdown_ros.streams.fixes.FixScreen`,
+as ``attitude_filter_node`` and the offline tools): a quaternion that is not unit is
+normalised without overflow and counted, a zero or non-finite one dropped; a covariance whose
+rotation block is all zero (the ROS "unknown") is replaced by the ``camera_sigma_*`` diagonal
+and counted; one that is not symmetric, not positive definite or beyond its bounds is dropped
+and counted; then the stamp rules of a fix stream (a lone fix stamped ahead is an outlier).
+Stamps are handled in integer nanoseconds relative to the first stamp seen on any input; timing
+comes only from header stamps.
 
 ``state_file`` (strapdown_ros.calibration.state): the pairs persist with their identity (the
 parameters that define the estimate, the frames, the resolved topics); a file of another
@@ -87,10 +91,12 @@ from strapdown_ros.nodes.ros_io import (camera_qos, latched_qos, pose_with_covar
                                         rotation_block)
 from strapdown_ros.params import CALIBRATOR_PARAMS, model_from_parameters, not_applied_note
 from strapdown_ros.streams.checks import StreamCheck
+from strapdown_ros.streams.fixes import FixScreen
 from strapdown_ros.streams.rate_increments import RateIncrementStream
 
 NODE_NAME = 'calibrator_node'
-CAMERA_JUMP_S = 3600.0     # a camera stamp step beyond this (s) is a jump
+#: the forward stamp limit of the fixes until their period is known, s (StreamCheck.for_fixes)
+CAMERA_JUMP_S = StreamCheck.FIX_INITIAL_JUMP_S
 # a not-observable reason that keeps its wording is repeated at most this often
 LOG_THROTTLE_S = 30.0
 
@@ -128,14 +134,14 @@ class CalibratorNode(Node):
         self.gyro_check = StreamCheck(self.gyro_period,
                                       max_norm=2.0 * self.gyro_period * model.gyro_max_rate,
                                       jump_limit=jump, resync_count=resync)
-        # exposures need not be periodic (no gap test) and are seconds apart: a jump is an hour
-        self.camera_check = StreamCheck(math.inf, jump_limit=max(jump, CAMERA_JUMP_S),
-                                        resync_count=resync)
+        # exposures need not be periodic (no gap test); their period from their own stamps
+        self.camera_check = StreamCheck.for_fixes(jump, resync)
+        self.fix_screen = FixScreen(self.default_p_avu, bool(p['use_camera_covariance']))
         self.solve_failures = 0
         self.gyro_frame_mismatch = 0
         self.reject_frames = p['frame_mismatch'] == 'reject'
-        self.camera_counts = {'dropped_zero_quaternion': 0, 'normalised': 0,
-                              'dropped_bad_covariance': 0,
+        self.camera_counts = {'dropped_zero_quaternion': 0, 'dropped_not_unit': 0,
+                              'normalised': 0, 'dropped_bad_covariance': 0,
                               'covariance_substituted': 0, 'frame_mismatch': 0}
         # stamps are handled relative to the first one
         self.origin_ns: int | None = None
@@ -312,7 +318,8 @@ class CalibratorNode(Node):
     def _gyro_frame_ok(self, f: str) -> bool:
         if f and f != self.frame_id:                   # the frame rule of sins_node
             self.gyro_frame_mismatch += 1
-            self.log.warn(f'gyro increment in frame {f!r}, expected {self.frame_id!r}: '
+            self.log.warn(f'gyro increment in frame {ros_status.bounded(f, 80)!r}, expected '
+                          f'{self.frame_id!r}: '
                           f"{'rejected' if self.reject_frames else 'used'}",
                           throttle=10.0, key='gyro_frame')
             if self.reject_frames:
@@ -340,13 +347,14 @@ class CalibratorNode(Node):
                     f'gyro stamps jumped by {g.last_jump_s:.6g} s and stayed: resynchronised; no '
                     'increment pair spans the jump')
         new = 0
+        marks = g.gap_marks
         for ns_i, v in out:
             t = self._rel(ns_i)
-            if prev_ns is not None and ns_i - prev_ns > 1.5 * self.gyro_period * 1e9:
+            if prev_ns is not None and marks and ns_i in marks:    # the check's rule 6
                 # the rotation of the missing increments is lost: no pair may span (prev, t]
                 self.gaps.append(((prev_ns - self.origin_ns) * 1e-9, t))
                 self.log.error(
-                    f'gyro gap: {int(round((ns_i - prev_ns) / (self.gyro_period * 1e9))) - 1} '
+                    f'gyro gap: {max(1, int(round((ns_i - prev_ns) / g.reference_ns)) - 1)} '
                     'increment(s) missing '
                     f'before stamp {ns_i * 1e-9:.6f} s; pairs spanning it are discarded',
                     throttle=5.0, key='gyro_gap')
@@ -380,33 +388,26 @@ class CalibratorNode(Node):
 
     def _on_camera(self, header, q_msg, P):
         ns = ros_io.stamp_to_ns(header.stamp)
-        q = ros_io.quaternion_from_msg(q_msg)
         c = self.camera_check
-        norm = float(np.linalg.norm(q)) if np.all(np.isfinite(q)) else float('nan')
-        if math.isfinite(norm) and norm < 1e-6:
+        screen = self.fix_screen
+        got = screen.screen(ros_io.quaternion_from_msg(q_msg), P)     # THE screening of a fix
+        cc = self.camera_counts
+        cc['normalised'] = screen.normalised
+        cc['covariance_substituted'] = screen.covariance_substituted
+        if got is None:
             c.received += 1
-            self.camera_counts['dropped_zero_quaternion'] += 1
-            self.log.warn('camera fix with a zero quaternion dropped',
-                          throttle=10.0, key='zero_quaternion')
+            why = screen.last_reason
+            cc['dropped_zero_quaternion'] = screen.zero_quaternion
+            cc['dropped_not_unit'] = screen.not_unit
+            cc['dropped_bad_covariance'] = screen.bad_covariance
+            self.log.warn(f'camera fix dropped: {why.replace("_", " ")}', throttle=10.0,
+                          key=f'camera_{why}')
             return
-        if np.all(np.isfinite(P)) and self.use_cov:
-            P = 0.5 * (P + P.T)
-            if not np.any(P):
-                P = self.default_p_avu            # all-zero covariance: "unknown" in ROS
-                self.camera_counts['covariance_substituted'] += 1
-            elif np.min(np.linalg.eigvalsh(P)) < -1e-12 * max(np.trace(P), 1e-300):
-                c.received += 1
-                self.camera_counts['dropped_bad_covariance'] += 1
-                self.log.warn('camera fix with a covariance that is not positive semi-definite '
-                              'dropped', throttle=10.0, key='camera_covariance')
-                return
-        if abs(norm - 1.0) > 1e-9 and math.isfinite(norm):
-            q = q / norm
-            self.camera_counts['normalised'] += 1
+        q, P = got
         if header.frame_id and header.frame_id != self.ref_frame:
             self.camera_counts['frame_mismatch'] += 1
-            self.log.warn(f'camera attitude in frame {header.frame_id!r}, '
-                          f'expected {self.ref_frame!r}: '
+            frame = ros_status.bounded(header.frame_id, 80)
+            self.log.warn(f'camera attitude in frame {frame!r}, expected {self.ref_frame!r}: '
                           f"{'rejected' if self.reject_frames else 'used'}",
                           throttle=30.0, key='camera_frame')
             if self.reject_frames:

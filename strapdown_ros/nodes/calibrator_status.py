@@ -91,7 +91,8 @@ def boresight_status(node) -> tuple[int, str, dict]:
                    'pairs_discarded_gyro_gap': node.pairs_discarded_gap,
                    **g.as_dict('gyro'),
                    'camera_received': c.received, 'camera_accepted': c.accepted,
-                   'camera_dropped_nan': c.nan, 'camera_dropped_out_of_order': c.out_of_order,
+                   'camera_dropped_nan': c.nan + node.fix_screen.nan,
+                   'camera_dropped_out_of_order': c.out_of_order,
                    'camera_dropped_duplicate': c.duplicate,
                    'camera_dropped_stamp_outlier': c.stamp_outliers,
                    'camera_stamp_resyncs': c.resyncs, 'solve_failures': node.solve_failures,
@@ -143,8 +144,7 @@ def boresight_status(node) -> tuple[int, str, dict]:
                        f'(NaN {r.nan}, out of range {r.out_of_range}, out of order '
                        f'{r.out_of_order}, duplicate {r.duplicate}, stamp outliers '
                        f'{r.stamp_outliers})')
-    cc = node.camera_counts
-    c_drop = c.dropped + cc['dropped_zero_quaternion'] + cc['dropped_bad_covariance']
+    c_drop = c.dropped + node.fix_screen.dropped
     if g_drop or c_drop:
         level = max(level, ros_status.WARN)
         message = f'{message}; dropped {g_drop} gyro and {c_drop} camera messages'

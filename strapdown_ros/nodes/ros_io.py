@@ -82,9 +82,11 @@ def decode_vector3_stamped(data: bytes) -> tuple[int, tuple[float, float, float]
         Header stamp (ns), the vector, header.frame_id; None when undecodable.
 
     """
-    got = cdr.vector3_stamped(data)
+    got = cdr.vector3_stamped(data, exact=True)
     if got is not None:
         return got
+    if len(data) >= 2 and data[0] == 0 and data[1] == 1:
+        return None                    # little-endian CDR of another layout: not this type
     try:
         m = deserialize_message(data, Vector3Stamped)
     except Exception:                                  # malformed bytes

@@ -33,6 +33,8 @@ class ParamSpec:
         The valid names of a string parameter.
     exclusive_minimum : bool
         ``minimum`` itself is invalid.
+    exclusive_maximum : bool
+        ``maximum`` itself is invalid.
     length : int or None
         Length of an array parameter.
     element_ranges : tuple of (float or None, float or None), optional
@@ -54,6 +56,7 @@ class ParamSpec:
     element_ranges: tuple | None = None
     #: the unit of the element ranges' text (e.g. ("°", "°", "m"))
     element_names: tuple | None = None
+    exclusive_maximum: bool = False
 
     def normalise(self, value):
         """
@@ -160,7 +163,7 @@ class ParamSpec:
     def _range_error(self, value, label: str | None = None) -> str | None:
         lo, hi = self.minimum, self.maximum
         bad = (lo is not None and (value < lo or (self.exclusive_minimum and value <= lo))) or \
-              (hi is not None and value > hi)
+              (hi is not None and (value > hi or (self.exclusive_maximum and value >= hi)))
         if not bad:
             return None
         shown = f'{label}={value:.6g}' if label else f'{self.name}={value!r}'
@@ -181,7 +184,7 @@ class ParamSpec:
         if self.minimum is not None:
             parts.append(('> ' if self.exclusive_minimum else '>= ') + num(self.minimum))
         if self.maximum is not None:
-            parts.append(f'<= {num(self.maximum)}')
+            parts.append(('< ' if self.exclusive_maximum else '<= ') + num(self.maximum))
         if self.length is not None:
             parts.append(f'{self.length} finite numbers')
         return ' and '.join(parts) if parts else 'any'

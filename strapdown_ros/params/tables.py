@@ -296,7 +296,9 @@ CALIBRATOR_SETTINGS = [
               'β0, rad (the solver aligns rotation axes first, so any β0 converges)',
               length=3),
     ParamSpec('min_rotation_deg', 0.5,
-              'increments below this angle do not count as rotations (004 §4.1)',
+              'smallest rotation of the attitude about its second principal axis between two '
+              'fixes of the recording that makes the boresight observable (004 §4.1, judged '
+              'over all pairs)',
               0.0, 180.0),
     ParamSpec('max_sigma', 1e-3,
               'publish only when every boresight direction has predicted σ below this, rad',
@@ -331,14 +333,18 @@ FILTER_SETTINGS = [
     ParamSpec('use_camera_covariance', True, 'read the fix covariance from '
               'star_camera/attitude_with_covariance (false: star_camera/attitude, camera σ)'),
     ParamSpec('gate_probability', 0.9999, 'a fix whose NIS exceeds the χ²(3) quantile of this '
-              'is gated (not applied) and counted', 0.5, 1.0 - 1e-12),
+              'is gated (not applied) and counted', 0.5, 1.0, exclusive_maximum=True),
     ParamSpec('history', 20000, 'increments kept for late fixes', 16, 10**7),
     ParamSpec('output_period', 0.1, 'filter/attitude, filter/imu and the gyro errors every '
               'this much stamp time, s', 0.0, 3600.0, exclusive_minimum=True),
     ParamSpec('model_check_window', 30, "fixes in the live model check's sliding window",
               5, 10000),
-    ParamSpec('model_check_alpha', 0.001, 'false-alarm probability of each live model-check '
-              'test (NIS band two-sided, whiteness)', 1e-9, 0.2),
+    ParamSpec('model_check_alpha', 0.001, 'largest false-alarm probability of one live '
+              'model-check window (NIS band two-sided and whiteness together)', 1e-9, 0.2),
+    ParamSpec('model_check_false_alarms_per_hour', 0.1, 'stated rate of false WARN episodes '
+              'of the live model check per hour of clean data: each window is tested at '
+              'min(model_check_alpha, rate × fix interval / 3600 s) (0: at model_check_alpha)',
+              0.0, 3600.0),
     ParamSpec('divergence_gated_fixes', 5, 'divergence after this many consecutive gated fixes: '
               'the fix re-initialises the attitude (σ initial_attitude_sigma), the bias and '
               'other states are kept; ERROR on /diagnostics, counted (0: not this rule)',

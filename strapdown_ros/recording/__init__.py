@@ -4,7 +4,8 @@ Reading and writing recordings (rosbag2 bags) for the offline tools.
 One reader of gyro increments or rate samples and of attitude references in the common ROS
 message formats (:mod:`.reader`), the tools' input options and reports (:mod:`.options`), the
 MCAP chunk reader of ``sins_bag`` (:mod:`.mcap_records`), the simulated-bag writer
-(:mod:`.writer`) and the RepoIMU converter (:mod:`.repoimu`).
+(:mod:`.writer`), the RepoIMU converter (:mod:`.repoimu`) and that of the shipped real-data
+excerpt, gaitmap's example recording (:mod:`.gaitmap`).
 
 Imports rosbags (the ``tools`` extra); the numerical core never imports this package.
 """

@@ -21,7 +21,8 @@ import time
 import numpy as np
 
 from strapdown_ros.recording.mcap_records import channel_ids, indexed_mcap, read_topics
-from strapdown_ros.recording.reader import BagError, open_reader, resolve_topic
+from strapdown_ros.recording.reader import (BagError, open_reader, records_in_bag_order,
+                                            resolve_topic)
 from strapdown_ros.streams.cdr import stamped_doubles
 from strapdown_ros.text import bounded
 
@@ -180,6 +181,8 @@ class ImuRecording:
         self.gyro_rate, self.accel_rate, self.path = gyro_rate, accel_rate, path
         self.frame_id = frame_id
         self.gyro, self.accel = gyro, accel
+        #: messages of another type on the topics read ({topic: n}): not read, counted
+        self.wrong_type: dict = {}
 
     @property
     def namespace(self) -> str:
@@ -236,20 +239,6 @@ def _decode(reader, conn, records: list):
     return st, vals, idx, names
 
 
-def _records(reader, conns: list):
-    """
-    Yield (connection, log time, raw) of the connections in bag order.
-
-    With one bag, its own reader (rosbags' AnyReader merges several bags by time, at a cost
-    per record).
-    """
-    owners = {id(getattr(c, 'owner', None)) for c in conns}
-    inner = getattr(reader, 'readers', None)
-    if inner is not None and len(inner) == 1 and owners == {id(inner[0])}:
-        return inner[0].messages(connections=conns)
-    return reader.messages(connections=conns)
-
-
 def _read_chunks(reader, conns: list, progress):
     """Decode every record of the connections: ({topic: [chunk]}, {topic: [(log, k)]})."""
     t0, t1 = reader.start_time, reader.end_time
@@ -275,7 +264,7 @@ def _read_chunks(reader, conns: list, progress):
             if chunk:
                 report(int(max(int(g.log_ns[-1]) for g in chunk.values())))
         return parts, order
-    records = _records(reader, conns)
+    records = records_in_bag_order(reader, conns)
     while True:
         chunk = list(islice(records, READ_CHUNK))
         if not chunk:
@@ -362,7 +351,12 @@ def read_streams(reader, conns: list, path, progress=None) -> dict:
 
 def _find_topics(reader, path, namespace, gyro_topic, accel_topic, need_accel, imu_topic):
     """Find the Δθ (or Imu) topic and the Δv topic (or None), their types checked."""
-    topics = {c.topic: c.msgtype for c in reader.connections}
+    types: dict = {}                # topic → {type: messages}: a topic recorded with several
+    for c in reader.connections:    # types is read as its supported type (the most messages)
+        t = types.setdefault(c.topic, {})
+        t[c.msgtype] = t.get(c.msgtype, 0) + int(getattr(c, 'msgcount', 0) or 0)
+    ok = (VECTOR3_STAMPED, IMU)
+    topics = {t: max(ty, key=lambda k: (k in ok, ty[k])) for t, ty in types.items()}
     where = f' under namespace {bounded(namespace)!r}' if namespace.strip('/') else ''
     listing = f"; topics in the bag: {bounded(', '.join(sorted(topics)) or 'none', 400)}"
     if imu_topic:
@@ -431,9 +425,13 @@ def open_input(bag, namespace: str = '', gyro_topic: str | None = None,
     try:
         g, a = _find_topics(reader, path, namespace, gyro_topic, accel_topic, need_accel,
                             imu_topic)
-        gc = next(c for c in reader.connections if c.topic == g)
-        ac = next((c for c in reader.connections if c.topic == a), None) if a else None
-        conns = [c for c in reader.connections if c.topic in {g, a}]
+        gc = _connection(reader, g)
+        ac = _connection(reader, a) if a else None
+        used = {g: gc.msgtype, **({a: ac.msgtype} if ac is not None else {})}
+        conns = [c for c in reader.connections if used.get(c.topic) == c.msgtype]
+        wrong = {t: sum(int(getattr(c, 'msgcount', 0) or 0) for c in reader.connections
+                        if c.topic == t and c.msgtype != used.msgtype)
+                 for t, used in ((g, gc), (a, ac)) if used is not None}
         streams = read_streams(reader, conns, path, progress)
     except BagError:
         reader.close()
@@ -458,4 +456,13 @@ def open_input(bag, namespace: str = '', gyro_topic: str | None = None,
                        '(or no acceleration); navigation needs it')
     named = [(n, c) for n, c in gs.frames() if n]
     frame_id = named[0][0] if named else ''
-    return ImuRecording(reader, gc, ac, g_rate, a_rate, path, frame_id, gs, accel_stream)
+    inp = ImuRecording(reader, gc, ac, g_rate, a_rate, path, frame_id, gs, accel_stream)
+    inp.wrong_type = {t: n for t, n in wrong.items() if n}
+    return inp
+
+
+def _connection(reader, topic: str):
+    """Return the connection of ``topic`` of its supported type (the one with most messages)."""
+    cands = [c for c in reader.connections if c.topic == topic]
+    return max(cands, key=lambda c: (c.msgtype in (VECTOR3_STAMPED, IMU),
+                                     int(getattr(c, 'msgcount', 0) or 0)))

@@ -21,12 +21,18 @@ camera (maps child-frame vectors to the parent frame), from
 * ``tf2_msgs/msg/TFMessage`` (``/tf``) with ``--reference-frames PARENT CHILD``: the transforms
   PARENT → CHILD, or the inverse of CHILD → PARENT when only that is recorded.
 
-A reference without a covariance, with an all-zero one (ROS "unknown") or a zero rotation block
-takes its σ from the model (``camera_sigma_xy``/``camera_sigma_z``).  A quaternion that is not
-unit is normalised, a zero one dropped, a covariance that is not positive semi-definite dropped;
-all counted.  The number of messages read per topic is compared with the bag's own index
-(rosbags: the connections' message counts): a chunk the storage reader skipped (a corrupt
-record, an unknown opcode) shows as ``unread_messages`` instead of passing silently.
+Every fix goes through THE screening of a reference fix
+(:class:`strapdown_ros.streams.fixes.FixScreen`, as in the nodes): a reference without a
+covariance, with an all-zero one (ROS "unknown") or a zero rotation block takes its σ from the
+model (``camera_sigma_xy``/``camera_sigma_z``); a quaternion that is not unit is normalised
+without overflow, a zero or non-finite one dropped; a covariance that is not symmetric, not
+positive definite or beyond its bounds dropped; then the stamp rules of a fix stream
+(:meth:`StreamCheck.for_fixes`).  Every drop is counted under its reason.  A message on a used
+topic whose connection has another type, or whose bytes do not decode, is dropped and counted
+(``wrong_type``, ``undecodable``); the bag is refused only when no message of a topic is usable.
+The number of messages read per topic is compared with the bag's own index (rosbags: the
+connections' message counts): a chunk the storage reader skipped (a corrupt record, an unknown
+opcode) shows as ``unread_messages`` instead of passing silently.
 
 rosbags is an optional extra (``tools``); only the offline tools import this module.
 """
@@ -34,13 +40,16 @@ from __future__ import annotations
 
 import math
 from pathlib import Path
+import sys
 
 import numpy as np
-from rosbags.highlevel import AnyReader, AnyReaderError
+from rosbags.highlevel import AnyReader
 from rosbags.typesys import get_typestore, Stores
 
 from strapdown_ros.rotation import from_ros_xyzw, quat_conjugate
+from strapdown_ros.streams.cdr import stamped_doubles
 from strapdown_ros.streams.checks import nominal_period, StreamCheck, validate
+from strapdown_ros.streams.fixes import FixScreen
 from strapdown_ros.streams.rate_increments import increments_from_rates, RATE_RULES
 
 __all__ = ['BagError', 'Accepted', 'open_reader', 'resolve_topic', 'read_bag', 'bounded',
@@ -66,6 +75,9 @@ _WITH_COVARIANCE = ('pose_with_covariance', 'odometry')
 MAX_LISTED = 12  # topics or frame pairs named in one error line
 MAX_NAME = 80  # characters of one echoed name
 MAX_PAIRS_KEPT = 64  # distinct TF frame pairs remembered for the error line
+MAX_FRAMES_KEPT = 16  # distinct header frame ids counted per stream (the rest: one count)
+#: the key under which frame ids beyond MAX_FRAMES_KEPT are counted
+OTHER_FRAMES = '(other frames)'
 
 
 class BagError(RuntimeError):
@@ -205,6 +217,33 @@ def _named_topic(topics: dict, name: str, namespace: str, option: str, path) -> 
     return found
 
 
+def records_in_bag_order(reader, conns: list):
+    """
+    Yield (connection, log time, raw) of the connections in bag order.
+
+    With one bag, its own reader (rosbags' AnyReader merges several bags by time, at a cost
+    per record).
+
+    Parameters
+    ----------
+    reader : rosbags.highlevel.AnyReader
+        The open reader.
+    conns : list
+        Its connections to read.
+
+    Returns
+    -------
+    iterator
+        (connection, log time ns, raw bytes).
+
+    """
+    owners = {id(getattr(c, 'owner', None)) for c in conns}
+    inner = getattr(reader, 'readers', None)
+    if inner is not None and len(inner) == 1 and owners == {id(inner[0])}:
+        return inner[0].messages(connections=conns)
+    return reader.messages(connections=conns)
+
+
 def _stamp_ns(header) -> int:
     return int(header.stamp.sec) * 1_000_000_000 + int(header.stamp.nanosec)
 
@@ -223,10 +262,13 @@ class Accepted:
         The check that accepted them (its counts).
     extra_received : int
         Messages dropped before the check (e.g. zero quaternions), counted as received.
+    extra_dropped : dict, optional
+        Those messages per reason (``nan`` adds to the check's).
 
     """
 
-    def __init__(self, stamps, values, gaps, check, extra_received: int = 0):
+    def __init__(self, stamps, values, gaps, check, extra_received: int = 0,
+                 extra_dropped: dict | None = None):
         self.stamps, self.values, self.gaps, self.check = stamps, values, gaps, check
         self.received = check.received + extra_received
         self.missing = check.missing
@@ -238,6 +280,8 @@ class Accepted:
             'stamp_outlier': check.stamp_outliers,
             'stamp_burst': check.burst_messages,
         }
+        for k, v in (extra_dropped or {}).items():
+            self.dropped[k] = self.dropped.get(k, 0) + int(v)
         self.resyncs = check.resyncs
 
 
@@ -298,42 +342,118 @@ def _select(
     return g, c
 
 
+# --- fixed-layout messages, decoded with numpy ---------------------------------------------------
+#: message type → (float64 fields after the header, what they hold): the types whose plain CDR
+#: layout is a std_msgs/Header and then float64 only
+_LAYOUT = {
+    DELTA_THETA_TYPE: (3, 'vector'),
+    IMU_TYPE: (37, 'imu'),
+    'geometry_msgs/msg/QuaternionStamped': (4, 'quaternion'),
+    'geometry_msgs/msg/PoseStamped': (7, 'pose'),
+    'geometry_msgs/msg/PoseWithCovarianceStamped': (43, 'pose_with_covariance'),
+}
+_IMU_RATE, _IMU_RATE_COV = 13, 16            # angular_velocity, angular_velocity_covariance[0]
+
+
+def _decode_records(reader, records, msgtype, layout, path, topic) -> dict:
+    """
+    Decode the records of one topic with numpy (:func:`~.streams.cdr.stamped_doubles`).
+
+    The same values as the deserializer gives: records in another encoding go through it, and
+    records it cannot decode either are counted (``undecodable``) and dropped.  Returns
+    ``items`` in the form the loop of :func:`read_bag` collects (gyro: (ns, (x, y, z));
+    reference: (ns, q_wxyz, P or None)), ``frames`` (frame id → messages) and ``absent`` (Imu
+    messages marking the rate absent).
+    """
+    count, kind = layout
+    st, vals, idx, names, bad = stamped_doubles(records, count)
+    frames: dict = {}
+    for i, n in zip(*np.unique(idx[idx >= 0], return_counts=True)):
+        frames[names[i]] = frames.get(names[i], 0) + int(n)
+    undecodable = np.zeros(len(records), dtype=bool)
+    for i in bad.tolist():
+        try:
+            msg = reader.deserialize(records[i], msgtype)
+            st[i] = _stamp_ns(msg.header)
+            vals[i] = _fields(msg, kind, count)
+            frames[msg.header.frame_id] = frames.get(msg.header.frame_id, 0) + 1
+        except Exception:  # noqa: BLE001 - bytes that are not this type: counted, dropped
+            undecodable[i] = True
+    if np.any(undecodable):
+        st, vals = st[~undecodable], vals[~undecodable]
+    st_list = st.tolist()
+    absent = 0
+    if kind in ('vector', 'imu'):
+        if kind == 'imu':
+            present = vals[:, _IMU_RATE_COV] != -1.0   # ROS: covariance[0] = -1 marks it absent
+            absent = int(np.sum(~present))
+            xyz = vals[present, _IMU_RATE:_IMU_RATE + 3]
+            st_list = [s for s, ok in zip(st_list, present.tolist()) if ok]
+        else:
+            xyz = vals
+        items = list(zip(st_list, map(tuple, xyz.tolist())))
+        return {'items': items, 'frames': frames, 'absent': absent,
+                'undecodable': int(undecodable.sum())}
+    q_xyzw = {'quaternion': vals[:, 0:4], 'pose': vals[:, 3:7],
+              'pose_with_covariance': vals[:, 3:7]}[kind]
+    q = from_ros_xyzw(q_xyzw)
+    if kind == 'pose_with_covariance':
+        P = vals[:, 7:43].reshape(-1, 6, 6)[:, 3:, 3:]
+        items = list(zip(st_list, q, P))
+    else:
+        items = [(s, qq, None) for s, qq in zip(st_list, q)]
+    return {'items': items, 'frames': frames, 'absent': 0,
+            'undecodable': int(undecodable.sum())}
+
+
+def _fields(msg, kind, count) -> np.ndarray:
+    """Return the float64 fields of a deserialized message in the plain-CDR order."""
+    out = np.full(count, np.nan)
+    if kind == 'vector':
+        out[:] = (msg.vector.x, msg.vector.y, msg.vector.z)
+    elif kind == 'imu':
+        w = msg.angular_velocity
+        out[_IMU_RATE:_IMU_RATE + 3] = (w.x, w.y, w.z)
+        out[_IMU_RATE_COV] = msg.angular_velocity_covariance[0]
+    else:
+        o = (msg.quaternion if kind == 'quaternion' else
+             msg.pose.orientation if kind == 'pose' else msg.pose.pose.orientation)
+        at = 0 if kind == 'quaternion' else 3
+        out[at:at + 4] = (o.x, o.y, o.z, o.w)
+        if kind == 'pose_with_covariance':
+            out[7:43] = np.asarray(msg.pose.covariance, dtype=float)
+    return out
+
+
 # --- reference fixes -------------------------------------------------------------------------
 def _strip(frame: str) -> str:
     return str(frame).lstrip('/')
 
 
-def _process_fixes(raw, with_cov: bool, P_assumed):
-    """Quaternion and covariance rules of calibrator_node, per fix: (ns, q_wxyz, P 3×3 or None)."""
-    out, rejected = [], 0
-    counts = {'zero_quaternion': 0, 'bad_covariance': 0,
-              'normalised': 0, 'covariance_substituted': 0}
-    from_messages = 0
+def _process_fixes(raw, screen: FixScreen):
+    """Screen each fix (:class:`FixScreen`); return (ns, q_wxyz + P 3×3) of the fixes kept."""
+    out = []
     for ns, q, P in raw:
-        norm = float(np.linalg.norm(q)) if np.all(np.isfinite(q)) else float('nan')
-        if np.isfinite(norm) and norm < 1e-6:
-            rejected += 1
-            counts['zero_quaternion'] += 1
-            continue
-        if not with_cov or P is None:
-            P = P_assumed
-        elif np.all(np.isfinite(P)):
-            P = 0.5 * (P + P.T)
-            if not np.any(P):
-                P = P_assumed  # all-zero covariance: "unknown" in ROS
-                counts['covariance_substituted'] += 1
-            elif np.min(np.linalg.eigvalsh(P)) < -1e-12 * max(np.trace(P), 1e-300):
-                rejected += 1
-                counts['bad_covariance'] += 1
-                continue
-            else:
-                from_messages += 1
-        finite = bool(np.isfinite(norm) and np.all(np.isfinite(P)))
-        if finite and abs(norm - 1.0) > 1e-9:
-            q = q / norm
-            counts['normalised'] += 1
-        out.append((ns, tuple(q) + tuple(np.asarray(P, dtype=float).ravel())))
-    return out, rejected, counts, from_messages
+        got = screen.screen(q, P)
+        if got is not None:
+            out.append((ns, tuple(got[0]) + tuple(np.asarray(got[1], dtype=float).ravel())))
+    return out
+
+
+def _rate(increment: float, period: float) -> float:
+    """Return an increment as a rate, rad/s, never beyond the largest float (1e308 / 0.01)."""
+    if not (np.isfinite(period) and period > 0):
+        return 0.0
+    return float(min(increment, period * sys.float_info.max) / period)
+
+
+def _count_frame(frames: dict, frame, n: int = 1) -> None:
+    """Count header frame ids (bounded: at most MAX_FRAMES_KEPT distinct names)."""
+    name = bounded(frame, 200)
+    if name in frames or len(frames) < MAX_FRAMES_KEPT:
+        frames[name] = frames.get(name, 0) + n
+    else:
+        frames[OTHER_FRAMES] = frames.get(OTHER_FRAMES, 0) + n
 
 
 def _orientation(q) -> np.ndarray:
@@ -444,13 +564,14 @@ def read_bag(
     path = Path(path)
     reader = open_reader(path)
     try:
-        topics: dict = {}
+        types: dict = {}                   # topic → {type: messages in the index}
         for c in reader.connections:
-            if topics.setdefault(c.topic, c.msgtype) != c.msgtype:
-                raise BagError(
-                    f'{path}: topic {bounded(c.topic)} is recorded with two types, '
-                    f'{bounded(topics[c.topic])} and {bounded(c.msgtype)}'
-                )
+            t = types.setdefault(c.topic, {})
+            t[c.msgtype] = t.get(c.msgtype, 0) + int(getattr(c, 'msgcount', 0) or 0)
+        # a topic recorded with several types is read as its supported type (the most
+        # messages); the other connections' messages are counted as wrong_type
+        supported = set(GYRO_TYPES) | set(REFERENCE_TYPES)
+        topics = {t: max(ty, key=lambda k: (k in supported, ty[k])) for t, ty in types.items()}
         gyro_t, ref_t = _select(
             topics,
             path,
@@ -469,49 +590,73 @@ def read_bag(
             if c.topic in expected:
                 expected[c.topic] += int(getattr(c, 'msgcount', 0) or 0)
         read = {gyro_t: 0, ref_t: 0}
+        skipped = {'gyro': {'wrong_type': 0, 'undecodable': 0},
+                   'camera': {'wrong_type': 0, 'undecodable': 0}}
         raw_g, raw_fix = [], []
         rate_absent = 0
-        frames = {'gyro': set(), 'camera': set()}
+        frames: dict = {'gyro': {}, 'camera': {}}
         tf = _TfCollector(reference_frames) if kind == 'tf' else None
         conns = [c for c in reader.connections if c.topic in (gyro_t, ref_t)]
-        for conn, _, raw in reader.messages(connections=conns):
+        fast = {gyro_t: [], ref_t: []}                 # plain-CDR records decoded with numpy
+        layout = {gyro_t: _LAYOUT.get(gyro_type), ref_t: _LAYOUT.get(ref_type)}
+        for conn, _, raw in records_in_bag_order(reader, conns):
             read[conn.topic] += 1
+            stream = 'gyro' if conn.topic == gyro_t else 'camera'
+            if conn.msgtype != topics[conn.topic]:
+                skipped[stream]['wrong_type'] += 1
+                continue
+            if layout[conn.topic] is not None:
+                fast[conn.topic].append(raw)
+                continue
             try:
                 msg = reader.deserialize(raw, conn.msgtype)
-            except AnyReaderError as exc:
-                raise BagError(
-                    f'{path}: cannot deserialize a {bounded(conn.msgtype)} message on '
-                    f'{bounded(conn.topic)}: '
-                    f'{_first_line(exc)}'
-                ) from exc
-            if conn.topic == gyro_t:
-                frames['gyro'].add(msg.header.frame_id)
-                if rates and float(msg.angular_velocity_covariance[0]) == -1.0:
-                    rate_absent += 1              # ROS: covariance[0] = -1 marks the field absent
+                if conn.topic == gyro_t:
+                    ns = _stamp_ns(msg.header)
+                    frame = msg.header.frame_id
+                    if rates and float(msg.angular_velocity_covariance[0]) == -1.0:
+                        rate_absent += 1      # ROS: covariance[0] = -1 marks the field absent
+                        _count_frame(frames['gyro'], frame)
+                        continue
+                    v = msg.angular_velocity if rates else msg.vector
+                    value = (float(v.x), float(v.y), float(v.z))
+                elif kind == 'tf':
+                    tf.add(msg)
                     continue
-                v = msg.angular_velocity if rates else msg.vector
-                raw_g.append((_stamp_ns(msg.header), (float(v.x), float(v.y), float(v.z))))
+                else:
+                    ns = _stamp_ns(msg.header)
+                    frame = msg.header.frame_id
+                    if kind == 'quaternion':
+                        value = (_orientation(msg.quaternion), None)
+                    elif kind == 'pose':
+                        value = (_orientation(msg.pose.orientation), None)
+                    else:  # PoseWithCovarianceStamped, Odometry
+                        value = (_orientation(msg.pose.pose.orientation),
+                                 _rotation_block(msg.pose.covariance))
+            except Exception:  # noqa: BLE001 - bytes that are not this type: counted, dropped
+                skipped[stream]['undecodable'] += 1
                 continue
-            if kind == 'tf':
-                tf.add(msg)
+            _count_frame(frames[stream], frame)
+            if stream == 'gyro':
+                raw_g.append((ns, value))
+            else:
+                raw_fix.append((ns, value[0], value[1]))
+        for topic, records in fast.items():
+            if not records:
                 continue
-            frames['camera'].add(msg.header.frame_id)
-            if kind == 'quaternion':
-                raw_fix.append((_stamp_ns(msg.header), _orientation(msg.quaternion), None))
-            elif kind == 'pose':
-                raw_fix.append((_stamp_ns(msg.header), _orientation(msg.pose.orientation), None))
-            else:  # PoseWithCovarianceStamped, Odometry
-                raw_fix.append(
-                    (
-                        _stamp_ns(msg.header),
-                        _orientation(msg.pose.pose.orientation),
-                        _rotation_block(msg.pose.covariance),
-                    )
-                )
+            stream = 'gyro' if topic == gyro_t else 'camera'
+            dec = _decode_records(reader, records, topics[topic], layout[topic], path, topic)
+            for name, n in dec['frames'].items():
+                _count_frame(frames[stream], name, n)
+            skipped[stream]['undecodable'] += dec['undecodable']
+            if stream == 'gyro':
+                rate_absent += dec['absent']
+                raw_g.extend(dec['items'])
+            else:
+                raw_fix.extend(dec['items'])
         tf_direction = None
         if tf is not None:
             raw_fix, tf_direction = tf.fixes(path, ref_t)
-            frames['camera'].add(tf.parent)
+            frames['camera'][bounded(tf.parent, 200)] = len(raw_fix)
     except BagError:
         raise
     except Exception as exc:  # noqa: BLE001 - a corrupted record, whatever the reader says
@@ -525,9 +670,16 @@ def read_bag(
         for t in (gyro_t, ref_t)
         if expected[t] > 0 and expected[t] != read[t]
     }
+    for stream, topic in (('gyro', gyro_t), ('camera', ref_t)):
+        n_skip = sum(skipped[stream].values())
+        if n_skip and n_skip == read[topic]:
+            why = ', '.join(f'{k} {v}' for k, v in skipped[stream].items() if v)
+            raise BagError(f'{path}: no usable message on {bounded(topic)}: all {n_skip} '
+                           f'dropped ({why}; type {bounded(topics[topic])})')
 
     # gyro: rate samples → increments, then the increments' rules with the period from the stamps
     rate_info = None
+    rate_gaps: list = []
     if rates:
         if rate_absent and not raw_g:
             raise BagError(
@@ -541,15 +693,16 @@ def read_bag(
             jump_limit=max_stamp_jump,
             resync_count=resync_count,
         )
-        rt, rv, _ = validate([t for t, _ in raw_g], [v for _, v in raw_g], r_check)
+        rt, rv, rate_gaps = validate([t for t, _ in raw_g], [v for _, v in raw_g], r_check)
+        # THE gap rule decides which intervals are integrated (no step threshold of its own)
         inc_t, inc_v = increments_from_rates(
             rt,
             np.asarray(rv, dtype=float).reshape(-1, 3),
             rate_rule,
-            1.5 * r_period if math.isfinite(r_period) else math.inf,
+            breaks=[b for _, b in rate_gaps],
         )
         rate_info = {
-            'received': r_check.received + rate_absent,
+            'received': r_check.received + rate_absent + sum(skipped['gyro'].values()),
             'accepted': len(rt),
             'dropped': {
                 'nan': r_check.nan,
@@ -557,11 +710,18 @@ def read_bag(
                 'out_of_order': r_check.out_of_order,
                 'out_of_range': r_check.out_of_range,
                 'stamp_outlier': r_check.stamp_outliers,
+                'stamp_burst': r_check.burst_messages,
                 'marked_absent': rate_absent,
+                **skipped['gyro'],
             },
             'largest_out_of_range_rad_s': r_check.largest_out_of_range,
             'intervals_not_integrated': max(len(rt) - 1 - len(inc_t), 0),
+            'gaps': r_check.gaps,
+            'missing': r_check.missing,
+            'resyncs': r_check.resyncs,
             'period_s': r_period if math.isfinite(r_period) else None,
+            'period_s_from_stamps': r_check.period_s if math.isfinite(r_check.period_ns)
+            else None,
         }
         g_stamps, g_values = [int(t) for t in inc_t], [np.array(v) for v in inc_v]
     else:
@@ -573,22 +733,27 @@ def read_bag(
         jump_limit=max_stamp_jump,
         resync_count=resync_count,
     )
-    gyro = Accepted(*validate(g_stamps, g_values, g_check), g_check)
+    gyro = Accepted(*validate(g_stamps, g_values, g_check), g_check,
+                    0 if rates else sum(skipped['gyro'].values()),
+                    None if rates else skipped['gyro'])
 
-    # reference: the quaternion and covariance rules, then the stamp rules
-    P_assumed = np.diag(np.asarray(camera_sigma, dtype=float) ** 2)
-    raw_c, fix_rejected, fix_counts, from_messages = _process_fixes(raw_fix, with_cov, P_assumed)
-    c_check = StreamCheck(
-        np.inf, jump_limit=max(max_stamp_jump, 3600.0), resync_count=resync_count
-    )
+    # reference: THE screening of a fix, then the stamp rules of a fix stream
+    screen = FixScreen(np.diag(np.asarray(camera_sigma, dtype=float) ** 2), with_cov)
+    raw_c = _process_fixes(raw_fix, screen)
+    c_check = StreamCheck.for_fixes(max_stamp_jump, resync_count)
     ct, cv, cgaps = validate([t for t, _ in raw_c], [v for _, v in raw_c], c_check)
+    fix_counts = screen.counts()
+    before_check = dict(fix_counts['dropped'])
+    before_check.update(skipped['camera'])
     cam = Accepted(
         ct,
         [(np.array(v[:4]), np.array(v[4:]).reshape(3, 3)) for v in cv],
         cgaps,
         c_check,
-        fix_rejected,
+        screen.dropped + sum(skipped['camera'].values()),
+        before_check,
     )
+    from_messages = screen.from_messages
     n_model = len(raw_c) - from_messages
     ref_cov = (
         'from_model' if from_messages == 0 else ('from_messages' if n_model == 0 else 'mixed')
@@ -598,16 +763,22 @@ def read_bag(
     clip = {'parameter': 'gyro_max_rate', 'limit': float(gyro_max_rate), 'unit': 'rad/s',
             'count': (rate_info['dropped']['out_of_range'] if rate_info else 0)
             + g_check.out_of_range,
-            'largest': min(max(rate_info['largest_out_of_range_rad_s'] if rate_info else 0.0,
-                               g_check.largest_out_of_range / g_period
-                               if np.isfinite(g_period) and g_period > 0 else 0.0),
-                           1e308)}                # a 1e308 increment: finite in the JSON
+            'largest': max(rate_info['largest_out_of_range_rad_s'] if rate_info else 0.0,
+                           _rate(g_check.largest_out_of_range, g_period))}
+    camera_fixes = {'zero_quaternion': screen.zero_quaternion,
+                    'bad_covariance': screen.bad_covariance,
+                    'normalised': screen.normalised,
+                    'covariance_substituted': screen.covariance_substituted,
+                    'nan': screen.nan, 'not_unit': screen.not_unit,
+                    'bad_covariance_reasons': dict(screen.bad_covariance_reasons)}
     return {'gyro_clip': clip,
             'gyro_topic': gyro_t, 'camera_topic': ref_t, 'camera_covariance_from_bag': with_cov,
-            'gyro': gyro, 'camera': cam, 'camera_fixes': fix_counts, 'gyro_period_s': g_period,
-            'frames': {k: sorted(v) for k, v in frames.items()}, 'gyro_type': gyro_type,
+            'gyro': gyro, 'camera': cam, 'camera_fixes': camera_fixes, 'gyro_period_s': g_period,
+            'frames': {k: sorted(v) for k, v in frames.items()},
+            'frame_counts': {k: dict(v) for k, v in frames.items()}, 'gyro_type': gyro_type,
             'gyro_input': 'rates' if rates else 'delta_theta',
             'rate_rule': rate_rule if rates else None, 'rate_samples': rate_info,
             'reference_type': ref_type, 'reference_frames': frames_used,
             'reference_covariance': ref_cov, 'reference_covariance_from_model': n_model,
-            'unread_messages': unread, 'messages_in_bag_index': expected}
+            'unread_messages': unread, 'messages_in_bag_index': expected,
+            'messages_read': dict(read)}

@@ -40,7 +40,6 @@ from __future__ import annotations
 import dataclasses
 import os
 from pathlib import Path
-import subprocess
 
 import numpy as np
 
@@ -49,7 +48,7 @@ from strapdown_ros.rotation import (quat_angle_between, quat_conjugate, quat_mul
 from strapdown_ros.streams.rate_increments import increments_from_rates
 
 __all__ = ['ImuTrial', 'read_repoimu_csv', 'repoimu_trials', 'find_repoimu', 'reference_indices',
-           'write_bag', 'extract_git_snapshot', 'REALDATA_ENV', 'TOPICS', 'GYRO_FORMATS',
+           'write_bag', 'REALDATA_ENV', 'TOPICS', 'GYRO_FORMATS',
            'REFERENCE_FORMATS', 'rest_mean_rate', 'xcorr_lag_s',
            'rate_plateau_samples', 'irregular_step_fraction']
 
@@ -90,6 +89,8 @@ class ImuTrial:
         Orientation of the marker frame in the reference frame, scalar-first, unit.
     imu_frame, reference_frame, marker_frame : str
         Frame names written into the headers (see the module docstring).
+    reference_positions_m : ndarray, shape (m, 3), optional
+        Position of the marker frame in the reference frame, m (None: unknown, written as 0).
 
     """
 
@@ -102,6 +103,7 @@ class ImuTrial:
     imu_frame: str = 'repoimu_imu'
     reference_frame: str = 'repoimu_vicon'
     marker_frame: str = 'repoimu_marker'
+    reference_positions_m: np.ndarray | None = None
 
     @property
     def duration_s(self) -> float:
@@ -127,10 +129,12 @@ class ImuTrial:
         lo, hi = t0 + int(round(start_s * _NS)), t0 + int(round(end_s * _NS))
         k = (self.stamps_ns >= lo) & (self.stamps_ns <= hi)
         r = (self.reference_stamps_ns >= lo) & (self.reference_stamps_ns <= hi)
+        pos = self.reference_positions_m
         return dataclasses.replace(self, stamps_ns=self.stamps_ns[k], gyro=self.gyro[k],
                                    accel=self.accel[k],
                                    reference_stamps_ns=self.reference_stamps_ns[r],
-                                   q_reference_marker=self.q_reference_marker[r])
+                                   q_reference_marker=self.q_reference_marker[r],
+                                   reference_positions_m=None if pos is None else pos[r])
 
 
 def read_repoimu_csv(path, stamp_origin_ns: int = 0) -> ImuTrial:
@@ -198,66 +202,25 @@ def repoimu_trials(root, kinds=('TStick', 'Pendulum')) -> list[Path]:
     return out
 
 
-def extract_git_snapshot(git_dir, dest) -> Path:
+def find_repoimu() -> Path | None:
     """
-    Extract a work tree of a bare git snapshot (``git archive HEAD``) into ``dest``.
+    Where a RepoIMU copy is, from ``$STRAPDOWN_REALDATA``, or None.
 
-    Parameters
-    ----------
-    git_dir : str or Path
-        The git directory.
-    dest : str or Path
-        Directory to extract into (created).
-
-    Returns
-    -------
-    Path
-        ``dest``.
-
-    """
-    dest = Path(dest)
-    dest.mkdir(parents=True, exist_ok=True)
-    archive = subprocess.run(['git', '--git-dir', str(git_dir), 'archive', 'HEAD'], check=True,
-                             capture_output=True).stdout
-    subprocess.run(['tar', '-x', '-C', str(dest)], input=archive, check=True)
-    return dest
-
-
-def find_repoimu(scratch=None) -> Path | None:
-    """
-    Where a RepoIMU copy is on this machine, or None.
-
-    ``$STRAPDOWN_REALDATA`` (a directory with ``TStick/``) first; else ``shared/RepoIMU`` beside
-    the repository or ``/work/shared/RepoIMU`` (the project's shared data folder); else a git
-    snapshot under ``/work/.mirror/agnieszkaszczesna+RepoIMU/repo``, extracted into ``scratch``
-    when given.
-
-    Parameters
-    ----------
-    scratch : str or Path, optional
-        Directory to extract a git snapshot into.
+    The data set has no licence, so it is not shipped; it is found only through the environment
+    variable :data:`REALDATA_ENV` naming a directory with ``TStick/`` (and ``Pendulum/``).
 
     Returns
     -------
     Path or None
-        A directory with ``TStick/``, or None when no copy is found.
+        That directory, or None when the variable is unset or names no directory with
+        ``TStick/``.
 
     """
     env = os.environ.get(REALDATA_ENV, '').strip()
-    if env:
-        p = Path(env)
-        return p if (p / 'TStick').is_dir() else None
-    repo_root = Path(__file__).resolve().parents[1]
-    for shared in (repo_root.parent / 'shared' / 'RepoIMU', Path('/work/shared/RepoIMU')):
-        if (shared / 'TStick').is_dir():
-            return shared
-    git_dir = Path('/work/.mirror/agnieszkaszczesna+RepoIMU/repo')
-    if scratch is None or not (git_dir / 'HEAD').is_file():
+    if not env:
         return None
-    dest = Path(scratch) / 'RepoIMU'
-    if not (dest / 'TStick').is_dir():
-        extract_git_snapshot(git_dir, dest)
-    return dest
+    p = Path(env)
+    return p if (p / 'TStick').is_dir() else None
 
 
 def reference_indices(stamps_ns, interval_s: float) -> np.ndarray:
@@ -322,10 +285,11 @@ class _Messages:
             linear_acceleration_covariance=cov_unknown)
         return self.serialize(m)
 
-    def pose(self, ns, frame, q) -> bytes:
+    def pose(self, ns, frame, q, position=(0.0, 0.0, 0.0)) -> bytes:
         T = self.T
+        x, y, z = (float(c) for c in position)
         m = T['geometry_msgs/msg/PoseStamped'](header=self.header(ns, frame), pose=T[
-            'geometry_msgs/msg/Pose'](position=T['geometry_msgs/msg/Point'](x=0.0, y=0.0, z=0.0),
+            'geometry_msgs/msg/Pose'](position=T['geometry_msgs/msg/Point'](x=x, y=y, z=z),
                                       orientation=self.quaternion(q)))
         return self.serialize(m)
 
@@ -339,7 +303,8 @@ class _Messages:
 
 
 def write_bag(bag, trial: ImuTrial, gyro_format: str = 'imu', reference_format: str = 'pose',
-              reference_interval_s: float = 1.0, storage: str = 'mcap') -> dict:
+              reference_interval_s: float | None = 1.0, storage: str = 'mcap',
+              compression: str = 'none') -> dict:
     """
     Write one trial (or an excerpt) as a rosbag2 bag.
 
@@ -354,10 +319,13 @@ def write_bag(bag, trial: ImuTrial, gyro_format: str = 'imu', reference_format: 
         rule over consecutive samples at most 1.5 nominal periods apart), or both.
     reference_format : {'pose', 'quaternion', 'both'}
         ``mocap/pose`` PoseStamped, ``star_camera/attitude`` QuaternionStamped, or both.
-    reference_interval_s : float
-        Time between reference fixes written, s (the reference is decimated).
+    reference_interval_s : float or None
+        Time between reference fixes written, s (the reference is decimated); None writes every
+        reference sample (the full motion-capture rate).
     storage : {'mcap', 'sqlite3'}
         rosbag2 storage plug-in.
+    compression : {'none', 'zstd'}
+        ``zstd``: MCAP chunks compressed with zstd (rosbag2's storage compression; mcap only).
 
     Returns
     -------
@@ -366,7 +334,7 @@ def write_bag(bag, trial: ImuTrial, gyro_format: str = 'imu', reference_format: 
         ``reference_fixes``, ``frames``.
 
     """
-    from rosbags.rosbag2 import StoragePlugin, Writer
+    from rosbags.rosbag2 import CompressionFormat, CompressionMode, StoragePlugin, Writer
     from rosbags.typesys import get_typestore, Stores
 
     if gyro_format not in GYRO_FORMATS:
@@ -376,11 +344,16 @@ def write_bag(bag, trial: ImuTrial, gyro_format: str = 'imu', reference_format: 
                          f"{', '.join(REFERENCE_FORMATS)}")
     if storage not in ('mcap', 'sqlite3'):
         raise ValueError(f'storage={storage!r}; valid: mcap, sqlite3')
+    if compression not in ('none', 'zstd') or (compression == 'zstd' and storage != 'mcap'):
+        raise ValueError(f'compression={compression!r} with storage={storage!r}; valid: none, '
+                         'or zstd with mcap')
     if len(trial.stamps_ns) < 2 or len(trial.reference_stamps_ns) < 2:
         raise ValueError(f'{trial.name}: fewer than 2 IMU samples or reference fixes')
     stamps = np.asarray(trial.stamps_ns, dtype=np.int64)
     period = float(np.median(np.diff(stamps))) / _NS
-    ref_k = reference_indices(trial.reference_stamps_ns, reference_interval_s)
+    ref_k = (np.arange(len(trial.reference_stamps_ns)) if reference_interval_s is None
+             else reference_indices(trial.reference_stamps_ns, reference_interval_s))
+    pos = trial.reference_positions_m
     names = GYRO_FORMATS[gyro_format] + REFERENCE_FORMATS[reference_format]
     store = get_typestore(Stores.ROS2_JAZZY)
     msgs = _Messages(store)
@@ -399,14 +372,18 @@ def write_bag(bag, trial: ImuTrial, gyro_format: str = 'imu', reference_format: 
         ns = int(trial.reference_stamps_ns[k])
         q = trial.q_reference_marker[k]
         if 'mocap/pose' in names:
-            batch.append((ns, 2, 'mocap/pose', msgs.pose(ns, trial.reference_frame, q)))
+            batch.append((ns, 2, 'mocap/pose', msgs.pose(
+                ns, trial.reference_frame, q, (0.0, 0.0, 0.0) if pos is None else pos[k])))
         if 'star_camera/attitude' in names:
             batch.append((ns, 3, 'star_camera/attitude',
                           msgs.quaternion_stamped(ns, trial.reference_frame, q)))
     batch.sort(key=lambda m: (m[0], m[1]))
     counts = {'/' + n: 0 for n in names}
     plugin = StoragePlugin.MCAP if storage == 'mcap' else StoragePlugin.SQLITE3
-    with Writer(Path(bag), version=Writer.VERSION_LATEST, storage_plugin=plugin) as writer:
+    writer = Writer(Path(bag), version=Writer.VERSION_LATEST, storage_plugin=plugin)
+    if compression == 'zstd':
+        writer.set_compression(CompressionMode.STORAGE, CompressionFormat.ZSTD)
+    with writer:
         conns = {n: writer.add_connection('/' + n, TOPICS[n], typestore=store) for n in names}
         for ns, _, name, data in batch:
             writer.write(conns[name], ns, data)

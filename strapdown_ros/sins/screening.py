@@ -12,7 +12,8 @@ import numpy as np
 from strapdown_ros.streams.checks import StreamCheck
 
 
-def screen_stream(check: StreamCheck, stamps_ns: np.ndarray, values: np.ndarray) -> list:
+def screen_stream(check: StreamCheck, stamps_ns: np.ndarray, values: np.ndarray,
+                  gap_marks: list | None = None) -> list:
     """
     Run a whole recorded stream through ``check`` in order.
 
@@ -28,6 +29,8 @@ def screen_stream(check: StreamCheck, stamps_ns: np.ndarray, values: np.ndarray)
         Stamps, ns, in bag order.
     values : ndarray (n, 3)
         The vectors.
+    gap_marks : list, optional
+        Filled with the accepted stamps that follow a gap (rule 6 of the check).
 
     Returns
     -------
@@ -42,6 +45,8 @@ def screen_stream(check: StreamCheck, stamps_ns: np.ndarray, values: np.ndarray)
     i, n, width = 0, len(stamps_ns), 64
     while i < n:
         k = check.offer_many(stamps_ns[i:i + width], values[i:i + width])
+        if gap_marks is not None and check.gap_marks:
+            gap_marks.extend(check.gap_marks)
         if k:
             full = k == min(width, n - i)
             parts_t.append(stamps_ns[i:i + k])
@@ -52,6 +57,8 @@ def screen_stream(check: StreamCheck, stamps_ns: np.ndarray, values: np.ndarray)
         width = 64
         v = values[i]
         got = check.offer(int(stamps_ns[i]), (float(v[0]), float(v[1]), float(v[2])))
+        if gap_marks is not None and check.gap_marks:
+            gap_marks.extend(check.gap_marks)
         if got and check.resynced and parts_t:
             segments.append((np.concatenate(parts_t), np.concatenate(parts_v)))
             parts_t, parts_v = [], []

@@ -156,8 +156,9 @@ class SinsSystem(SinsCore):
                 s_n = st
             check = StreamCheck(period, max_norm=max_rate, jump_limit=jump, resync_count=resync)
             self.rate_checks[name] = check
-            pieces = [increments_from_rates(a, b, rule, max_step_s=1.5 * period)
-                      for a, b in screen_stream(check, s_n, values)]
+            marks: list = []          # intervals the check calls gaps are not integrated
+            segs = screen_stream(check, s_n, values, marks)
+            pieces = [increments_from_rates(a, b, rule, breaks=marks) for a, b in segs]
             out.append((np.concatenate([x[0] for x in pieces]),
                         np.concatenate([x[1] for x in pieces])))
         return out[0], out[1]

@@ -28,7 +28,7 @@ _XYZ = struct.Struct('<3d')
 _F64 = struct.Struct('<d')
 
 
-def vector3_stamped(data) -> tuple[int, tuple[float, float, float], str] | None:
+def vector3_stamped(data, exact: bool = False):
     """
     Decode a Vector3Stamped from plain little-endian CDR bytes.
 
@@ -36,19 +36,22 @@ def vector3_stamped(data) -> tuple[int, tuple[float, float, float], str] | None:
     ----------
     data : bytes-like
         The serialized message (any buffer).
+    exact : bool
+        Also refuse bytes longer than the layout (beyond 3 bytes of padding): those of a longer
+        message, e.g. a QuaternionStamped, would otherwise decode as a Vector3Stamped.
 
     Returns
     -------
     (int, (float, float, float), str) or None
-        ``(stamp_ns, (x, y, z), frame_id)``; None for any other encoding or bytes too short for
-        the layout.
+        ``(stamp_ns, (x, y, z), frame_id)``; None for any other encoding or bytes too short (or,
+        ``exact``, too long) for the layout.
 
     """
     if len(data) >= 16 and data[0] == 0 and data[1] == 1:
         sec, nanosec, n = _STAMP_AND_LENGTH.unpack_from(data, 4)
         end = 16 + n
         off = 4 + ((end - 4 + 7) & ~7)
-        if off + 24 <= len(data):
+        if off + 24 <= len(data) and not (exact and len(data) > off + 27):
             frame = bytes(data[16:end - 1]).decode('utf-8', 'replace') if n else ''
             return sec * 1_000_000_000 + nanosec, _XYZ.unpack_from(data, off), frame
     return None

@@ -10,19 +10,25 @@ in the order they are applied to each message (stamps in integer nanoseconds):
    e.g. ``gyro_max_rate`` × 2 nominal periods for an increment) is physically impossible:
    dropped, counted ``out_of_range`` (a finite 1e308 would otherwise overflow downstream);
 3. **duplicate** stamp: dropped, counted;
-4. **stamp jump**: a step of more than ``jump_limit`` seconds, forward or backward, is held as a
-   *candidate* new timeline (at most ``resync_count`` messages).  A following message that fits
-   the old timeline discards the candidates as **stamp outliers** (a lone stamp far in the
+4. **stamp jump**: a step forward of more than the *forward limit* (``jump_limit``, or 3 periods
+   of the stream when that is longer) or backward of more than the *backward limit* (the same;
+   ``jump_limit`` while the period is not known yet) is held as a *candidate* new timeline (at
+   most ``resync_count`` messages).  A stream without a stated period (attitude fixes,
+   :meth:`StreamCheck.for_fixes`) takes its period from its own stamps as the gap rule does
+   (from 3 steps on: it only sets the jump limit), and its forward limit is ``initial_jump`` (an
+   hour) until it has one.  A following message that
+   fits the old timeline discards the candidates as **stamp outliers** (a lone stamp far in the
    future costs one message and stops nothing); ``resync_count`` consecutive messages that fit
    the candidate timeline confirm it, and the held messages are released in order, so nothing
    is lost.  What the confirmed jump is:
 
    a. **dropout** — a *forward* jump of at most ``max_dropout`` seconds on a stream with a
-      nominal period: the stamps go on on the same timeline, messages were simply not
-      received (a driver stall, a saturated sensor whose values were dropped).  Counted as a
-      gap (rule 6) with ``round(step / period) − 1`` increments missing; no new time base;
+      period (stated, or from its stamps): the stamps go on on the same timeline, messages were
+      simply not received (a driver stall, a saturated sensor whose values were dropped).
+      Counted as a gap (rule 6) with ``round(step / period) − 1`` increments missing; no new
+      time base;
    b. **resynchronisation** — a backward jump, or a forward one beyond ``max_dropout`` (or on
-      a stream without a nominal period): a clock reset.  Counted ``resyncs``; ``resynced``
+      a stream without a period yet): a clock reset.  Counted ``resyncs``; ``resynced``
       tells the consumer to restart its time base;
    c. **burst that returns** — when, within ``max_burst`` accepted messages after a dropout or
       resynchronisation, a second confirmed jump lands back on the timeline from before it
@@ -36,19 +42,33 @@ in the order they are applied to each message (stamps in integer nanoseconds):
       ``resynced``) tells them to restart their time base, ``retracted`` how many of the
       latest delivered messages were the burst; offline, :func:`validate` removes them from
       its output, so a burst of k wrong stamps costs only the pairs that contain it;
-5. **out of order** (an older stamp within ``jump_limit``): dropped, counted;
-6. **gap**: a step above 1.5 nominal periods is accepted but counted (``gaps``, ``missing``):
-   the increments in between are lost.
+5. **out of order** (an older stamp within the backward limit): dropped, counted;
+6. **gap** — THE gap rule of every stream, node and tool alike: the period is the median of the
+   stream's own mean steps over :attr:`StreamCheck.PERIOD_SPAN` (16) steps, ``(t[k+16] − t[k])
+   / 16``, over its last :attr:`StreamCheck.PERIOD_WINDOW` (256) accepted stamps (a stamp's
+   jitter enters each 1/16th as much as one step; computed after 16 steps, with spans of 8,
+   then after 32, 64, 128 and every 255; no gap is judged before the first: a stated period,
+   ``gyro_rate``, is never the gap rule's), and a step longer than
+   :attr:`StreamCheck.GAP_FACTOR` (1.75) periods is a gap with
+   ``max(1, round(step / period) − 1)`` samples missing.  It is accepted but counted
+   (``gaps``, ``missing``): the increments in between are lost.  Stamp jitter up to ±35 %
+   of the period (a step of at most 1.7 periods) gives no gap, so a host-stamped 1 kHz IMU with
+   ±0.3 ms jitter loses nothing; a single missing sample is always seen while the jitter stays
+   below ±12 % (beyond, a missing sample whose neighbours' jitter shortens its step below 1.75
+   periods goes unseen).  ``gap_marks`` names the accepted messages that follow a gap, so a
+   stated ``gyro_rate`` that is wrong (a 50 Hz IMU under the default 100) costs nothing.
 
 No ROS imports.
 """
 from __future__ import annotations
 
+from collections import deque
 import math
 
 import numpy as np
 
-__all__ = ['StreamCheck', 'nominal_period', 'validate', 'segments', 'clip_text']
+__all__ = ['StreamCheck', 'nominal_period', 'validate', 'segments', 'clip_text', 'gap_ends',
+           'match_segments']
 
 
 class StreamCheck:
@@ -63,17 +83,22 @@ class StreamCheck:
     Parameters
     ----------
     nominal_period : float
-        Nominal message period, s (inf: none known, no gaps counted).
+        Stated message period, s (inf: none); rule 6 replaces it by the median step of the
+        stamps as soon as 3 steps are known.
     max_norm : float or None
         Largest valid absolute component (None: no range check).
     jump_limit : float
-        A stamp step beyond this, s, forward or back, is a jump (at least 3 nominal periods).
+        A stamp step beyond this, s, forward or back, is a jump (at least 3 periods).
     resync_count : int
         Consecutive messages that confirm a new timeline.
     max_dropout : float or None
         Longest forward jump, s, that counts as a dropout (None: :attr:`MAX_DROPOUT_S`).
     max_burst : int or None
         Most accepted messages a burst that returns may hold (None: :attr:`MAX_BURST`).
+    count_gaps : bool
+        Judge and count gaps (rule 6): increments and rate samples; not attitude fixes.
+    initial_jump : float or None
+        Forward limit, s, while the stream has no period yet (None: ``jump_limit``).
 
     """
 
@@ -81,15 +106,37 @@ class StreamCheck:
     MAX_DROPOUT_S = 3600.0
     #: a jump back to the old timeline within this many accepted messages makes a burst (rule 4c)
     MAX_BURST = 1000
+    #: a step longer than this many periods is a gap (rule 6)
+    GAP_FACTOR = 1.75
+    #: accepted stamps whose mean steps give the median that is the period (rule 6)
+    PERIOD_WINDOW = 256
+    #: steps each mean step of the median spans (at most; half the steps known, early on)
+    PERIOD_SPAN = 16
+    #: the median is recomputed every this many accepted steps (sooner while the window fills)
+    PERIOD_EVERY = 256
+    #: steps needed before the median replaces the stated period and gaps are judged
+    PERIOD_MIN_STEPS = 16
+    #: the same for a stream without gaps (attitude fixes): its period only sets the jump limit
+    FIX_MIN_STEPS = 3
+    #: forward limit of an attitude-fix stream before its period is known, s
+    FIX_INITIAL_JUMP_S = 3600.0
 
     def __init__(self, nominal_period: float = math.inf, max_norm: float | None = None,
                  jump_limit: float = 1.0, resync_count: int = 5, max_dropout: float | None = None,
-                 max_burst: int | None = None):
+                 max_burst: int | None = None, count_gaps: bool = True,
+                 initial_jump: float | None = None):
         self.nominal_ns = nominal_period * 1e9
         self.max_norm = max_norm
-        self.jump_ns = max(jump_limit * 1e9,
-                           3.0 * self.nominal_ns if math.isfinite(self.nominal_ns) else 0.0)
-        self._gap_ns = 1.5 * self.nominal_ns   # inf without a nominal period: no gaps
+        self.jump_limit_ns = float(jump_limit) * 1e9
+        self.initial_jump_ns = self.jump_limit_ns if initial_jump is None \
+            else max(self.jump_limit_ns, float(initial_jump) * 1e9)
+        self.count_gaps = bool(count_gaps)
+        self._stamps: deque = deque(maxlen=self.PERIOD_WINDOW)   # accepted stamps, ns
+        self._min_steps = self.PERIOD_MIN_STEPS if self.count_gaps else self.FIX_MIN_STEPS
+        self._due = self._min_steps         # steps until the median is computed again
+        self.period_ns = math.inf        # the median step (inf: not known yet)
+        self.gap_marks: list[int] = []   # stamps released by the last offer that follow a gap
+        self._limits()
         self.resync_count = max(1, int(resync_count))
         self.last_ns: int | None = None
         self.first_ns: int | None = None
@@ -109,6 +156,78 @@ class StreamCheck:
         self.retracted = 0             # ... and the latest this many delivered messages were it
         self._before_jump: dict | None = None   # the state before the last dropout/resync
         self.segment_starts: list[int] = []      # set by validate()
+
+    @classmethod
+    def for_fixes(cls, jump_limit: float = 1.0, resync_count: int = 5) -> StreamCheck:
+        """
+        Return the stamp rules of a stream of attitude fixes (a star camera, motion capture).
+
+        No stated period, no gaps counted; the period comes from the stamps (rule 6), so that a
+        fix stamped a few periods ahead is a candidate jump and, when the next one continues the
+        old timeline, a stamp outlier (one future fix never blinds a consumer); until 3 steps
+        are known the forward limit is :attr:`FIX_INITIAL_JUMP_S`.
+
+        Parameters
+        ----------
+        jump_limit : float
+            ``max_stamp_jump``, s.
+        resync_count : int
+            Consecutive fixes that confirm a new timeline.
+
+        Returns
+        -------
+        StreamCheck
+            The rules.
+
+        """
+        return cls(math.inf, jump_limit=jump_limit, resync_count=resync_count, count_gaps=False,
+                   initial_jump=cls.FIX_INITIAL_JUMP_S)
+
+    # --- the period and the limits (rules 4 and 6) ----------------------------------------------
+    @property
+    def reference_ns(self) -> float:
+        """Return the period of the rules, ns: the median step, else the stated one (inf: none)."""
+        return self.period_ns if math.isfinite(self.period_ns) else self.nominal_ns
+
+    @property
+    def period_s(self) -> float:
+        """Return the period of the stream from its stamps, s (inf: not known yet)."""
+        return self.period_ns * 1e-9
+
+    def _limits(self) -> None:
+        ref = self.reference_ns
+        if math.isfinite(ref):
+            self.jump_ns = max(self.jump_limit_ns, 3.0 * ref)
+            self.back_ns = self.jump_ns
+        else:
+            self.jump_ns = self.initial_jump_ns
+            self.back_ns = self.jump_limit_ns
+        self._gap_ns = self.GAP_FACTOR * self.period_ns if self.count_gaps else math.inf
+
+    def _update_period(self) -> None:
+        a = self._stamps
+        n = len(a) - 1                            # steps in the window
+        if n < self._min_steps:
+            self._due = self._min_steps - max(n, 0)
+            return
+        m = min(self.PERIOD_SPAN, n // 2)
+        a = list(a)
+        spans = sorted([y - x for x, y in zip(a, a[m:])])     # integer ns: exact
+        h = len(spans) // 2                       # the median of the mean steps over m steps
+        mid = spans[h] if len(spans) % 2 else (spans[h - 1] + spans[h]) / 2
+        self.period_ns = mid / m
+        self._due = min(self.PERIOD_EVERY, max(n, self.PERIOD_MIN_STEPS))   # 16, 32, … 255
+        self._limits()
+
+    def _missing(self, step) -> int:
+        return max(1, int(round(step / self.reference_ns)) - 1)
+
+    def _record(self, stamp_ns) -> None:
+        """Keep an accepted stamp that ends a step (rule 6's window)."""
+        self._stamps.append(stamp_ns)
+        self._due -= 1
+        if not self._due:
+            self._update_period()
 
     # --- the rules -------------------------------------------------------------------------
     @staticmethod
@@ -179,6 +298,8 @@ class StreamCheck:
         self.received += 1
         self.resynced = self.returned = False
         self.retracted = 0
+        if self.gap_marks:
+            self.gap_marks = []
         if len(v) == 3:                        # the hot path, rules 1 and 2 without calls
             x, y, z = v
             if not (isfinite(x) and isfinite(y) and isfinite(z)):
@@ -206,7 +327,12 @@ class StreamCheck:
         if 0 < step <= self.jump_ns:           # the usual case: the next stamp (rule 6 inline)
             if step > self._gap_ns:
                 self.gaps += 1
-                self.missing += int(round(step / self.nominal_ns)) - 1
+                self.missing += self._missing(step)
+                self.gap_marks.append(stamp_ns)
+            self._stamps.append(stamp_ns)
+            self._due -= 1
+            if not self._due:
+                self._update_period()
             self.last_ns = stamp_ns
             self.accepted += 1
             self.accepted_since += 1
@@ -214,10 +340,10 @@ class StreamCheck:
         if step == 0:
             self.duplicate += 1
             return []
-        if abs(step) > self.jump_ns:
+        if step > self.jump_ns or -step > self.back_ns:
             self._held.append((stamp_ns, v))
             return []
-        self.out_of_order += 1                 # step < 0 within jump_limit
+        self.out_of_order += 1                 # step < 0 within the backward limit
         return []
 
     def _fits(self, prev_ns: int, stamp_ns: int) -> bool:
@@ -247,7 +373,29 @@ class StreamCheck:
         return {'last_ns': self.last_ns, 'first_ns': self.first_ns,
                 'accepted_since': self.accepted_since,
                 'gaps': self.gaps, 'missing': self.missing, 'resyncs': self.resyncs,
-                'dropouts': self.dropouts, 'accepted': self.accepted, 'received': self.received}
+                'dropouts': self.dropouts, 'accepted': self.accepted, 'received': self.received,
+                'period': (tuple(self._stamps), self._due, self.period_ns)}
+
+    def confirm(self) -> list:
+        """
+        Confirm the candidate timeline now, as ``resync_count`` messages would (rule 4).
+
+        For a consumer that knows the jump from another stream: ``attitude_filter_node``
+        confirms a clock step of its fixes at the first fix on the new timeline of the gyro,
+        whose own step its ``resync_count`` increments have confirmed.
+
+        Returns
+        -------
+        list of (int, tuple)
+            The held messages, released in order (``resynced`` tells a clock step); empty when
+            none is held.
+
+        """
+        if not self._held:
+            return []
+        self.resynced = self.returned = False
+        self.retracted = 0
+        return self._confirm_jump()
 
     def _confirm_jump(self):
         """
@@ -259,7 +407,7 @@ class StreamCheck:
         held, self._held = self._held, []
         first = held[0][0]
         before = self._before_jump
-        nominal = self.nominal_ns if math.isfinite(self.nominal_ns) else 0.0
+        nominal = self.reference_ns if math.isfinite(self.reference_ns) else 0.0
         if before is not None and self.accepted - before['accepted'] <= self.max_burst:
             since = self.received - before['received']
             back = first - before['last_ns']
@@ -269,7 +417,7 @@ class StreamCheck:
         self._before_jump = self._snapshot()
         step = first - self.last_ns
         self.last_jump_s = step * 1e-9
-        if math.isfinite(self.nominal_ns) and 0 < step <= self.max_dropout_ns:
+        if math.isfinite(self.reference_ns) and 0 < step <= self.max_dropout_ns:
             self.dropouts += 1                          # the same timeline, messages not received
             out = []
             for s, val in held:
@@ -293,6 +441,9 @@ class StreamCheck:
         self.resyncs, self.dropouts = before['resyncs'], before['dropouts']
         self.last_ns, self.first_ns = before['last_ns'], before['first_ns']
         self.accepted_since = before['accepted_since']
+        stamps, self._due, self.period_ns = before['period']
+        self._stamps = deque(stamps, maxlen=self.PERIOD_WINDOW)
+        self._limits()
         self._before_jump = None
         out = []
         for s, val in held:
@@ -306,7 +457,13 @@ class StreamCheck:
             step = stamp_ns - self.last_ns
             if step > self._gap_ns:
                 self.gaps += 1
-                self.missing += int(round(step / self.nominal_ns)) - 1
+                self.missing += self._missing(step)
+                self.gap_marks.append(stamp_ns)
+            self._record(stamp_ns)
+        else:                                  # a new time base: its own window of stamps
+            self._stamps.clear()
+            self._stamps.append(stamp_ns)
+            self._due = self._min_steps if self.period_ns == math.inf else self._due
         if self.first_ns is None:
             self.first_ns = stamp_ns
         self.last_ns = stamp_ns
@@ -345,18 +502,52 @@ class StreamCheck:
         if self.max_norm is not None:
             ok &= np.abs(v).max(axis=1) <= self.max_norm
         k = int(np.argmin(ok)) if not ok.all() else len(st)
+        # the flags offer() clears for every message (the burst flags, where the rules have them)
+        self.resynced = False
+        if hasattr(self, 'retracted'):
+            self.returned, self.retracted = False, 0
+        self.gap_marks = []
+        k = self._rule6_many(st[:k], steps[:k])
         if k:
-            for step in steps[:k][steps[:k] > self._gap_ns].tolist():   # rule 6, as in offer
-                self.gaps += 1
-                self.missing += int(round(step / self.nominal_ns)) - 1
             self.received += k
             self.accepted += k
             self.accepted_since += k
             self.last_ns = int(st[k - 1])
-            self.resynced = False                   # the flags offer() clears for every message
-            if hasattr(self, 'retracted'):          # (the burst flags, where the rules have them)
-                self.returned, self.retracted = False, 0
         return k
+
+    def _rule6_many(self, st, steps) -> int:
+        """
+        Apply rule 6 to accepted steps at once, as :meth:`offer` applies it one by one.
+
+        In stretches between the period's updates (the period and the limits fixed in each),
+        so the periods, the limits and the counters are those of the message-by-message path.
+        Returns how many of the steps pass (a period update may shorten the forward limit below
+        a later step: that message is for :meth:`offer`).
+        """
+        n = len(steps)
+        i = 0
+        while i < n:
+            m = min(n - i, self._due)
+            part = steps[i:i + m]
+            over = part > self.jump_ns
+            if over.any():
+                n = i + int(np.argmax(over))
+                continue
+            gap = part > self._gap_ns
+            if gap.any():
+                for j in np.flatnonzero(gap).tolist():
+                    self._count_gap(int(part[j]), int(st[i + j]))
+            self._stamps.extend(st[i:i + m].tolist())
+            self._due -= m
+            if not self._due:
+                self._update_period()
+            i += m
+        return n
+
+    def _count_gap(self, step: int, stamp_ns: int) -> None:
+        self.gaps += 1
+        self.missing += self._missing(step)
+        self.gap_marks.append(stamp_ns)
 
     def accept(self, stamp_ns: int, v) -> bool:
         """
@@ -421,7 +612,9 @@ class StreamCheck:
                 f'{prefix}_stamp_resyncs': self.resyncs, f'{prefix}_gaps': self.gaps,
                 f'{prefix}_missing_samples': self.missing, f'{prefix}_dropouts': self.dropouts,
                 f'{prefix}_stamp_bursts': self.bursts,
-                f'{prefix}_stamp_burst_messages': self.burst_messages}
+                f'{prefix}_stamp_burst_messages': self.burst_messages,
+                f'{prefix}_period_s_from_stamps':
+                    self.period_s if math.isfinite(self.period_ns) else 0.0}
 
 
 def clip_text(count: int, largest: float, parameter: str, limit: float, unit: str) -> str:
@@ -500,8 +693,8 @@ def validate(stamps_ns, values, check: StreamCheck):
     values : list
         The accepted vectors.
     gaps : list of (int, int)
-        Intervals (a, b), ns, that no increment pair may span: gaps (steps above 1.5 nominal
-        periods, dropouts and returns from a burst included) and confirmed resynchronisations
+        Intervals (a, b), ns, that no increment pair may span: gaps (rule 6, dropouts and
+        returns from a burst included) and confirmed resynchronisations
         (last stamp before, first after; b < a for a backward jump).
 
     """
@@ -524,9 +717,9 @@ def validate(stamps_ns, values, check: StreamCheck):
                 gaps.append((out_t[-1], got[0][0]))         # across the jump (either direction)
                 starts.append(len(out_t))
                 prev = None
+        after_gap = check.gap_marks
         for s, val in got:
-            if prev is not None and math.isfinite(check.nominal_ns) \
-                    and s - prev > 1.5 * check.nominal_ns:
+            if prev is not None and s in after_gap:        # rule 6, as the check judged it
                 gaps.append((prev, s))
             out_t.append(s)
             out_v.append(val)
@@ -554,3 +747,79 @@ def segments(stamps_ns, starts) -> list[tuple[int, int]]:
     """
     bounds = [0] + [int(k) for k in starts] + [len(stamps_ns)]
     return [(a, b) for a, b in zip(bounds[:-1], bounds[1:]) if b > a]
+
+
+def gap_ends(stamps_ns, nominal_period: float = math.inf) -> set:
+    """
+    Return the stamps that follow a gap by rule 6, for stamps already validated.
+
+    The same rule as :class:`StreamCheck` applies to a live stream (the period the median of the
+    stamps' own steps, the stated one until 3 are known), for a consumer handed increments
+    without the check that accepted them.
+
+    Parameters
+    ----------
+    stamps_ns : sequence of int
+        Strictly increasing stamps, ns (the first may be the last one already taken).
+    nominal_period : float
+        The stated period, s.
+
+    Returns
+    -------
+    set of int
+        The stamps whose step from the previous one is a gap.
+
+    """
+    st = np.asarray(stamps_ns, dtype=np.int64).reshape(-1)
+    if len(st) < 2:
+        return set()
+    check = StreamCheck(nominal_period, jump_limit=math.inf)
+    check.offer(int(st[0]), (0.0, 0.0, 0.0))
+    marks: set = set()
+    i = 1
+    zeros = np.zeros((len(st), 3))
+    while i < len(st):
+        k = check.offer_many(st[i:], zeros[i:])
+        marks.update(check.gap_marks)
+        if not k:                                  # not increasing: judged one by one
+            check.offer(int(st[i]), (0.0, 0.0, 0.0))
+            marks.update(check.gap_marks)
+            k = 1
+        i += k
+    return marks
+
+
+def match_segments(tg, g_segs, tc, c_segs) -> list[tuple[int, int]]:
+    """
+    Pair each gyro time base with its reference time base, in order.
+
+    As many of each (a clock reset of both streams, the usual case): the k-th with the k-th.
+    Otherwise (one stream resynchronised alone) by overlapping stamp ranges, walking both lists
+    forward.
+
+    Parameters
+    ----------
+    tg, tc : ndarray
+        Gyro and reference stamps (any unit, the same for both).
+    g_segs, c_segs : list of (int, int)
+        Index ranges of each stream's time bases (:func:`segments`).
+
+    Returns
+    -------
+    list of (int, int)
+        (gyro segment, reference segment) pairs.
+
+    """
+    if len(g_segs) == len(c_segs):
+        return [(k, k) for k in range(len(g_segs))]
+    out, i, j = [], 0, 0
+    while i < len(g_segs) and j < len(c_segs):
+        g_lo, g_hi = tg[g_segs[i][0]], tg[g_segs[i][1] - 1]
+        c_lo, c_hi = tc[c_segs[j][0]], tc[c_segs[j][1] - 1]
+        if g_hi >= c_lo and c_hi >= g_lo:
+            out.append((i, j))
+        if g_hi <= c_hi:                               # the segment that ends first is done
+            i += 1
+        if c_hi <= g_hi:
+            j += 1
+    return out

@@ -24,10 +24,12 @@ outputs them).  One rule makes the increments, stated once and used by every nod
 
     Exact when the sample is that mean.
 
-The first sample starts the stream and gives no increment.  An interval longer than
-``max_step`` (1.5 nominal periods in the nodes and tools) is not integrated: the rotation over
-it is unknown, the increment is not formed, and the increment stream downstream sees a gap with
-its missing increments counted, exactly as for a Δθ stream with a dropout.  Samples must be
+The first sample starts the stream and gives no increment.  An interval that the gap rule of
+:class:`~strapdown_ros.streams.checks.StreamCheck` (rule 6: longer than 1.75 periods, the period
+the median step of the stamps) calls a gap is not integrated: the rotation over it is unknown,
+the increment is not formed, and the increment stream downstream sees a gap of at least three
+periods with its missing increments counted, exactly as for a Δθ stream with a dropout.  Stamp
+jitter of ±30 % of the period is no gap, so nothing is lost to it.  Samples must be
 validated first (finite, in range, in order: :class:`strapdown_ros.streams.checks.StreamCheck`);
 after a stamp resynchronisation the integrator is restarted (:meth:`RateIntegrator.reset`).
 :class:`RateIncrementStream` is that whole input rule for one stream (validation, integration,
@@ -55,7 +57,8 @@ def _check_rule(rule: str) -> str:
     return rule
 
 
-def increments_from_rates(stamps_ns, rates, rule: str = 'trapezoid', max_step_s: float = math.inf):
+def increments_from_rates(stamps_ns, rates, rule: str = 'trapezoid', max_step_s: float = math.inf,
+                          breaks=None):
     """
     Increments from a validated stream of rate samples (offline form).
 
@@ -69,6 +72,9 @@ def increments_from_rates(stamps_ns, rates, rule: str = 'trapezoid', max_step_s:
         How a sample stands for the rate (module docstring).
     max_step_s : float
         Longest interval integrated, s; longer ones (dropouts, jumps) give no increment.
+    breaks : array_like of int, optional
+        Stamps that follow a gap or a stamp jump (the ends of :func:`~.checks.validate`'s gap
+        intervals): the interval ending at each gives no increment.
 
     Returns
     -------
@@ -87,6 +93,8 @@ def increments_from_rates(stamps_ns, rates, rule: str = 'trapezoid', max_step_s:
         return np.zeros(0, dtype=np.int64), np.zeros((0, 3))
     dt_ns = np.diff(t)
     ok = (dt_ns > 0) & (dt_ns <= max_step_s * 1e9)
+    if breaks is not None and len(breaks):
+        ok &= ~np.isin(t[1:], np.asarray(list(breaks), dtype=np.int64))
     dt = dt_ns * 1e-9
     if rule == 'trapezoid':
         inc = 0.5 * (w[:-1] + w[1:]) * dt[:, None]
@@ -163,16 +171,17 @@ class RateIncrementStream:
 
     Each rate sample goes through :class:`strapdown_ros.streams.checks.StreamCheck` (non-finite,
     per-axis range ``max_rate``, duplicate, out of order, stamp jump and resynchronisation, gap)
-    and each accepted sample through :class:`RateIntegrator` with ``max_step`` = 1.5 nominal
-    periods; after a confirmed resynchronisation the integrator restarts (the first sample of the
-    new timeline gives no increment).  The increments returned are what an integrating sensor
-    would publish; they enter the consumer's increment path unchanged, so an interval that could
-    not be integrated shows there as a gap with its missing increments counted.
+    and each accepted sample through :class:`RateIntegrator`; an interval the check calls a gap
+    (rule 6) is not integrated (counted ``skipped``), and after a confirmed resynchronisation the
+    integrator restarts (the first sample of the new timeline gives no increment).  The increments
+    returned are what an integrating sensor would publish; they enter the consumer's increment
+    path unchanged, so an interval that could not be integrated shows there as a gap (at least 3
+    periods: no jitter hides it) with its missing increments counted.
 
     Parameters
     ----------
     nominal_period : float
-        Nominal sample period, s (1 / rate).
+        Stated sample period, s (1 / rate); the check's period comes from the stamps.
     max_rate : float
         Sensor range per axis: rad/s for a gyro, m/s² for an accelerometer.
     rule : {'trapezoid', 'mean'}
@@ -188,7 +197,7 @@ class RateIncrementStream:
                  jump_limit: float = 1.0, resync_count: int = 5):
         self.check = StreamCheck(nominal_period, max_norm=max_rate, jump_limit=jump_limit,
                                  resync_count=resync_count)
-        self.integrator = RateIntegrator(rule, max_step_s=1.5 * nominal_period)
+        self.integrator = RateIntegrator(rule)      # the check's gap rule decides, not a step
         self._offer, self._push = self.check.offer, self.integrator.push     # the hot path
 
     def push(self, stamp_ns: int, rate) -> list:
@@ -213,13 +222,18 @@ class RateIncrementStream:
         if not got:
             return got
         push = self._push
-        if len(got) == 1 and not self.check.resynced:      # the usual case: one in, one out
+        check = self.check
+        marks = check.gap_marks
+        if len(got) == 1 and not check.resynced and not marks:   # the usual case: one in, one out
             inc = push(*got[0])
             return [inc] if inc is not None else []
-        if self.check.resynced:
+        if check.resynced:
             self.integrator.reset()
         out = []
         for s, w in got:
+            if s in marks:                      # the interval before it is a gap: not integrated
+                self.integrator.skipped += 1
+                self.integrator.reset()
             inc = push(s, w)
             if inc is not None:
                 out.append(inc)

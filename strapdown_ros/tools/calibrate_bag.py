@@ -36,6 +36,13 @@ stderr (χ²/dof, band, meaning; ``beta_sigma_rad`` is ``beta_sigma_stated_noise
 Stamp faults are the nodes' (``strapdown_ros.streams.checks``): dropouts and stamp bursts are gaps
 (``gyro_gaps``), a burst's messages are removed (``dropped.gyro.stamp_burst``), each time base
 after a resynchronisation is calibrated separately.
+A reference at any rate: ``--reference-spacing auto`` (default) calibrates on every fix, chooses
+from the correlation of the whitened residuals how far apart the fixes of the pairs must be for
+their errors to be independent, and calibrates again on the fixes kept
+(``strapdown_ros.calibration.reference_spacing``; ``0`` keeps every fix, a number of seconds one
+fix per slot of that length); ``reference_spacing`` in the JSON records the choice and why.
+Observability is judged from the information of all the pairs together (``min_rotation_deg``:
+the attitude's rotation about its second principal axis between two fixes of the recording).
 Exit status: 0 solved, 2 bad arguments/parameters/bag, 3 not observable, 4 no convergence.
 """
 from __future__ import annotations
@@ -45,7 +52,8 @@ import sys
 
 import numpy as np
 
-from strapdown_ros.calibration.replay import calibrate_recording, solution_record
+from strapdown_ros.calibration.reference_spacing import parse_spacing
+from strapdown_ros.calibration.replay import calibrate_spaced, solution_record
 from strapdown_ros.calibration.streaming import CalibratorSettings
 from strapdown_ros.cli import check_outputs, FILE, OneLineParser, write_json
 from strapdown_ros.params import (check_against_recording, filled_in, load_model_file,
@@ -53,6 +61,7 @@ from strapdown_ros.params import (check_against_recording, filled_in, load_model
 from strapdown_ros.recording import (add_input_arguments, BagError, check_input_arguments,
                                      input_lines, input_options, input_summary, input_warnings,
                                      read_bag, recording_facts)
+from strapdown_ros.recording.options import frame_warnings, usable_error
 
 __all__ = ['main']
 
@@ -88,6 +97,10 @@ def _summary(bag: str, data: dict, result: dict) -> str:
     if any(rs.values()):
         lines.append(f"  STAMP RESYNCS: gyro {rs.get('gyro', 0)}, camera {rs.get('camera', 0)} "
                      '(clock resets): each time base calibrated on its own, no pair spans a reset')
+    sp = result.get('reference_spacing')
+    if sp and sp['step'] > 1:
+        lines.append(f"  reference spacing: one fix in {sp['step']} ({sp['spacing_s']:.3g} s): "
+                     f"{sp['reason']}")
     notes = [f"{n.replace('_', ' ')} {v}" for n, v in fx.items() if v and not isinstance(v, list)]
     if notes:
         lines.append('  camera fixes: ' + ', '.join(notes))
@@ -186,10 +199,15 @@ def main(argv=None) -> int:
     ap.add_argument('--namespace', default='', help='topic namespace, e.g. /robot1')
     ap.add_argument('-p', '--param', action='append', default=[], metavar='NAME:=VALUE',
                     help='calibrator_node parameter override (repeatable)')
+    ap.add_argument('--reference-spacing', default='auto', metavar='auto|SECONDS',
+                    help='spacing of the fixes of the increment pairs: auto (default: from the '
+                         'correlation of the reference error, doc/calibration.md), 0 (every '
+                         'fix) or seconds')
     add_input_arguments(ap)
     args = ap.parse_args(argv)
     try:
         check_input_arguments(args)
+        spacing = parse_spacing(args.reference_spacing)
         over = parse_overrides(args.param)
         if args.unweighted:
             over['weighted'] = False
@@ -216,20 +234,18 @@ def main(argv=None) -> int:
     note = not_applied_note(model, ('gyro', 'reference'), 'calibrate_bag')
     if note:
         print(f'calibrate_bag: note: {note}', file=sys.stderr)
-    for kind, want in (('gyro', model.frame_id), ('camera', model.reference_frame_id)):
-        other = [f for f in data['frames'][kind] if f != want]
-        if other:
-            print(f'calibrate_bag: warning: {kind} messages in frame '
-                  f"{', '.join(map(repr, other))}, "
-                  f'parameters expect {want!r}', file=sys.stderr)
+    for line in frame_warnings('calibrate_bag', data, model.frame_id, model.reference_frame_id):
+        print(line, file=sys.stderr)
 
     g, c = data['gyro'], data['camera']
-    if not g.stamps or not c.stamps:
-        print(f"calibrate_bag: error: no usable {'gyro' if not g.stamps else 'camera'} messages",
-              file=sys.stderr)
+    unusable = usable_error(data)
+    if unusable:
+        print('\n'.join(input_lines(input_summary(data))))
+        print(f'calibrate_bag: error: {unusable}', file=sys.stderr)
         return 2
-    sol, cal, discarded = calibrate_recording(data, model, settings)
+    sol, cal, discarded, choice = calibrate_spaced(data, model, settings, spacing)
     result = solution_record(sol, settings.weighted)
+    result['reference_spacing'] = choice.as_dict()
     result['covariance_model'] = settings.covariance_model
     result['dropped'] = {'gyro': dict(g.dropped),
                          'camera': {**c.dropped,
@@ -245,7 +261,7 @@ def main(argv=None) -> int:
     result['camera_fixes'] = {k: data['camera_fixes'][k] for k in ('normalised',
                                                                    'covariance_substituted')}
     result['camera_fixes']['outliers_dropped'] = cal.outlier_fixes
-    origin_s = min(g.stamps[0], c.stamps[0]) * 1e-9          # calibrate_recording's time origin
+    origin_s = min(g.stamps[0], c.stamps[0]) * 1e-9          # the replay's time origin
     result['camera_fixes']['outlier_stamps_s'] = [float(t) + origin_s for t in cal.outlier_stamps]
     result['messages'] = {'gyro': len(g.stamps), 'camera': len(c.stamps)}
     result['topics'] = {'gyro': data['gyro_topic'], 'camera': data['camera_topic']}
@@ -267,8 +283,8 @@ def main(argv=None) -> int:
             return 2
     if not result['observable']:
         if sol.pairs >= 2:
-            advice = ('Record rotations about at least two non-parallel axes between camera '
-                      'exposures.')
+            advice = ('Record rotations about at least two non-parallel axes, well above the '
+                      'reference noise.')
         else:
             advice = 'Needs two camera fixes whose interval the gyro data covers without a gap.'
         print(f'calibrate_bag: boresight NOT observable from this bag: {sol.message}; '

@@ -50,13 +50,14 @@ import numpy as np
 
 from strapdown_ros.calibration import gyro as gc
 from strapdown_ros.calibration.gyro import model_parameters
-from strapdown_ros.cli import check_outputs, FILE, OneLineParser, write_json
+from strapdown_ros.cli import all_or_nothing, check_outputs, FILE, OneLineParser, write_json
 from strapdown_ros.discrepancy.bag_input import load_recording, recording_lines
 from strapdown_ros.discrepancy.workflow import InputError, json_clean
 from strapdown_ros.params import (check_against_recording, filled_in, load_model_file,
                                   not_applied_note, write_model_file)
 from strapdown_ros.recording import (add_input_arguments, BagError, check_input_arguments,
                                      input_options, input_warnings)
+from strapdown_ros.recording.options import frame_warnings
 
 __all__ = ['main', 'result_json']
 
@@ -266,7 +267,8 @@ def main(argv=None) -> int:
         rec, info = load_recording(args.bag, model, mf.settings,     # (no progress line yet:
                                    args.namespace, **input_options(args))   # one line if unusable)
         checked = check_against_recording(model, info['facts'])
-        for line in input_warnings(PROG, info):
+        frames = frame_warnings(PROG, info, model.frame_id, model.reference_frame_id)
+        for line in input_warnings(PROG, info) + frames:
             print(line, file=sys.stderr)
         for line in filled_in(model, checked):
             print(f'{PROG}: note: {line}', file=sys.stderr)
@@ -297,15 +299,17 @@ def main(argv=None) -> int:
     if warning:
         print(warning, file=sys.stderr)
     try:
-        if args.json:
-            write_json(args.json, out)
+        with all_or_nothing():                   # --json and --write-model, or neither
+            if args.json:
+                write_json(args.json, out)
+            if cal.observable and args.write_model:
+                rule = f'estimated by calibrate_gyro_bag --method {cal.method}'
+                write_model_file(args.write_model,
+                                 model.with_values(gc.model_parameters(cal), rule=rule),
+                                 f'written by calibrate_gyro_bag --method {cal.method}: '
+                                 'gyro_scale_factor, gyro_misalignment, '
+                                 f'gyro_bias estimated from {Path(args.bag).name}', doc)
         if cal.observable and args.write_model:
-            rule = f'estimated by calibrate_gyro_bag --method {cal.method}'
-            write_model_file(args.write_model,
-                             model.with_values(gc.model_parameters(cal), rule=rule),
-                             f'written by calibrate_gyro_bag --method {cal.method}: '
-                             'gyro_scale_factor, gyro_misalignment, '
-                             f'gyro_bias estimated from {Path(args.bag).name}', doc)
             print(f'  model with the estimated gyro errors: {args.write_model}')
     except OSError as exc:
         return fail(exc)

@@ -25,10 +25,16 @@ confirmed on held-out time blocks; verdict ``model_adequate``, ``explained`` or
 ``unexplained_structure``.  The Allan deviation of the gyro on static segments is set beside
 that of the model simulated on the same segments (allantools).
 
+A reference at any rate: ``--reference-spacing auto`` (default) keeps the fixes of the pairs
+as far apart as the correlation of the reference's error requires (every fix when it is white;
+``0`` keeps every fix, a number of seconds one per slot); ``reference_spacing`` in the JSON.
+
 Output: a summary on stdout; ``--json`` the full result (doc/discrepancy.md); ``--report DIR``
 ``report.md`` with PNG plots; ``--write-model`` the model with the found effects and the
 estimated boresight.  No output may be an input (the bag, the model) or another output; an
-existing one needs ``--force``; the files are written atomically.
+existing one needs ``--force``; the files are written atomically and all or nothing (every
+output to its temporary first, then all renamed into place; temporaries an earlier, killed run
+left are removed at start).
 
 Exit status: 0 for every verdict (a fit inconsistent with its stated noise is printed with a line
 starting ``WARNING:``); 2, with one line on stderr, for unusable input (missing or malformed bag
@@ -46,7 +52,9 @@ import time
 
 import numpy as np
 
-from strapdown_ros.cli import check_outputs, DIRECTORY, FILE, OneLineParser, write_json
+from strapdown_ros.calibration.reference_spacing import parse_spacing
+from strapdown_ros.cli import (all_or_nothing, check_outputs, DIRECTORY, FILE, OneLineParser,
+                               write_json)
 from strapdown_ros.discrepancy.bag_input import load_recording, recording_lines
 from strapdown_ros.discrepancy.diagnostics import allan_comparison
 from strapdown_ros.discrepancy.report import write_report
@@ -57,6 +65,7 @@ from strapdown_ros.params import (check_against_recording, filled_in, load_model
                                   not_applied_note, write_model_file)
 from strapdown_ros.recording import (add_input_arguments, BagError, check_input_arguments,
                                      input_options, input_warnings)
+from strapdown_ros.recording.options import frame_warnings
 
 __all__ = ['main', 'write_model']
 
@@ -196,6 +205,10 @@ def main(argv=None) -> int:
                     help='family-wise level of the selection (default 0.01)')
     ap.add_argument('--namespace', default='', help='topic namespace, e.g. /robot1')
     ap.add_argument('--quiet', action='store_true', help='no progress on stderr')
+    ap.add_argument('--reference-spacing', default='auto', metavar='auto|SECONDS',
+                    help='spacing of the fixes of the increment pairs: auto (default: from the '
+                         'correlation of the reference error, doc/discrepancy.md), 0 (every '
+                         'fix) or seconds')
     add_input_arguments(ap)
     args = ap.parse_args(argv)
     t0 = time.perf_counter()
@@ -204,6 +217,7 @@ def main(argv=None) -> int:
     try:
         if not (0.0 < alpha < 0.5):
             raise ValueError(f'--alpha must be in (0, 0.5), got {alpha}')
+        spacing = parse_spacing(args.reference_spacing)
         check_input_arguments(args)
         if not Path(args.bag).exists():
             raise ValueError(f'bag {args.bag} does not exist')
@@ -214,7 +228,8 @@ def main(argv=None) -> int:
                       [('bag', args.bag), ('--model', args.model)], args.force)
         mf = load_model_file(args.model, 'calibrator_node')
         model, doc = mf.model, mf.doc
-        settings = DiscrepancySettings.from_values({**mf.settings, 'alpha': alpha})
+        settings = DiscrepancySettings.from_values({**mf.settings, 'alpha': alpha,
+                                                    'reference_spacing': spacing})
         for w in mf.warnings:
             print(f'discrepancy: warning: {w}', file=sys.stderr)
     except (ValueError, OSError) as exc:
@@ -230,7 +245,8 @@ def main(argv=None) -> int:
         rec, info = load_recording(args.bag, model, mf.settings, args.namespace,
                                    **input_options(args))
         checked = check_against_recording(model, info['facts'])
-        for line in input_warnings('discrepancy', info):
+        frames = frame_warnings('discrepancy', info, model.frame_id, model.reference_frame_id)
+        for line in input_warnings('discrepancy', info) + frames:
             print(line, file=sys.stderr)
         for line in filled_in(model, checked):
             print(f'discrepancy: note: {line}', file=sys.stderr)
@@ -250,8 +266,8 @@ def main(argv=None) -> int:
                 print(f'discrepancy: error: {exc2}', file=sys.stderr)
                 return 2
         print(f'discrepancy: boresight NOT observable from this bag: {exc}; unobservable: '
-              f"{'; '.join(unobs)}.  Record rotations about at least two non-parallel axes "
-              f'between camera exposures; no model written.', file=sys.stderr)
+              f"{'; '.join(unobs)}.  Record rotations about at least two non-parallel axes, "
+              f'well above the reference noise; no model written.', file=sys.stderr)
         return 3
     except (AnalysisError, np.linalg.LinAlgError, FloatingPointError, OverflowError) as exc:
         # a numerical failure is never reported as bad input (LinAlgError is a ValueError)
@@ -270,17 +286,26 @@ def main(argv=None) -> int:
     out['allan'] = json_clean(allan)
     out['input'] = json_clean(info)
     print(_summary(args.bag, info, res))
+    made_report_dir = bool(args.report) and not Path(args.report).exists()
     try:
-        if args.json:
-            write_json(args.json, out)
+        with all_or_nothing():             # --json, --write-model and --report, or none
+            if args.json:
+                write_json(args.json, out)
+            if args.write_model:
+                write_model(args.write_model, doc, res)
+            if args.report:
+                progress('report and plots')
+                path = write_report(args.report, res, out)
         if args.write_model:
-            write_model(args.write_model, doc, res)
             print(f'  model with the found effects: {args.write_model}')
         if args.report:
-            progress('report and plots')
-            path = write_report(args.report, res, out)
             print(f'  report: {path}')
     except OSError as exc:
+        if made_report_dir:
+            try:
+                Path(args.report).rmdir()         # created for the report: empty again
+            except OSError:
+                pass
         print(f'discrepancy: error: {exc}', file=sys.stderr)
         return 2
     progress(f'done in {time.perf_counter() - t0:.1f} s')

@@ -1,8 +1,8 @@
 """
 filter_bag: the star-camera-aided attitude filter of ``attitude_filter_node`` on a recording.
 
-    filter_bag BAG --output OUT.csv [--fixes FIXES.csv] [--params FILE] [-p NAME:=VALUE]
-               [--plots DIR] [--force]
+    filter_bag BAG --output OUT.csv [--fixes FIXES.csv] [--json FILE] [--params FILE]
+               [-p NAME:=VALUE] [--plots DIR] [--force]
 
 The bag is read by :mod:`strapdown_ros.recording` (Δθ or sensor_msgs/Imu rates; the camera or
 another attitude reference) with the nodes' input rules; the increments and fixes go, in stamp
@@ -18,8 +18,11 @@ fixes, or an NIS excess: parameters ``divergence_*``) is printed as it happened;
 re-initialised its attitude from that fix and went on.  ``--plots DIR`` writes the innovation
 with its ±3σ, the bias and augmented states with their σ, the NIS with its band and the fixes
 applied, gated and reset (PNG).  Parameters come from ``--params`` (the node's block
-``attitude_filter_node`` or ``/**``) and ``-p NAME:=VALUE``.  Errors: one line on stderr,
-exit 2.
+``attitude_filter_node`` or ``/**``) and ``-p NAME:=VALUE``.
+What was read and dropped is printed as every tool prints it (messages per topic, drops per
+reason, gaps, resynchronisations, frames) and, with ``--json``, written with the filter's counts.
+The outputs are written all or nothing (temporaries, then renamed together; the plots after).
+Errors: one line on stderr, exit 2 (bad arguments or input); 4 when the filter fails numerically.
 """
 from __future__ import annotations
 
@@ -28,16 +31,19 @@ import sys
 
 import numpy as np
 
-from strapdown_ros.cli import check_outputs, DIRECTORY, FILE, OneLineParser, write_text
+from strapdown_ros.cli import (all_or_nothing, check_outputs, DIRECTORY, FILE, OneLineParser,
+                               write_json, write_text)
 from strapdown_ros.estimation.filter_plots import PLOT_NAMES, write_filter_plots
 from strapdown_ros.estimation.filter_system import FilterSettings
 from strapdown_ros.params import (check_against_recording, filled_in, load_model_file,
                                   not_applied_note, parse_overrides)
 from strapdown_ros.recording.filter_replay import run_filter
 from strapdown_ros.recording.options import (add_input_arguments, check_input_arguments,
-                                             input_options, input_warnings,
-                                             recording_facts)
+                                             frame_warnings, input_lines, input_options,
+                                             input_summary, input_warnings, recording_facts,
+                                             usable_error)
 from strapdown_ros.recording.reader import BagError, read_bag
+from strapdown_ros.text import json_clean
 
 NODE_NAME = 'attitude_filter_node'
 #: divergence resets printed one per line (the rest are counted)
@@ -148,6 +154,8 @@ def main(argv=None) -> int:
     ap.add_argument('bag', help='bag directory or file')
     ap.add_argument('--output', required=True, help='CSV of the filter outputs')
     ap.add_argument('--fixes', help='CSV of the fixes (default: OUTPUT with _fixes)')
+    ap.add_argument('--json', metavar='FILE',
+                    help='what was read and dropped, and the filter counts, as JSON')
     ap.add_argument('--params', help='the sensor model and settings: a ROS 2 parameter file '
                     '(its model keys, and the settings of /** and attitude_filter_node)')
     ap.add_argument('-p', dest='overrides', action='append', metavar='NAME:=VALUE',
@@ -168,9 +176,13 @@ def main(argv=None) -> int:
             raise ValueError(f'bag {args.bag} does not exist')
         if args.params and not Path(args.params).is_file():
             raise ValueError(f'--params {args.params} is not a file')
-        check_outputs([('--output', str(out), FILE), ('--fixes', str(fixes_path), FILE),
-                       ('--plots', args.plots, DIRECTORY, PLOT_NAMES)],
-                      [('bag', args.bag), ('--params', args.params)], args.force)
+        stale = check_outputs([('--output', str(out), FILE), ('--fixes', str(fixes_path), FILE),
+                               ('--json', args.json, FILE),
+                               ('--plots', args.plots, DIRECTORY, PLOT_NAMES)],
+                              [('bag', args.bag), ('--params', args.params)], args.force)
+        for path in stale:
+            print(f'filter_bag: note: removed {path}, a temporary an earlier run left',
+                  file=sys.stderr)
         mf = load_model_file(args.params, NODE_NAME, parse_overrides(args.overrides))
         for w in mf.warnings:
             print(f'filter_bag: warning: {w}', file=sys.stderr)
@@ -180,25 +192,44 @@ def main(argv=None) -> int:
                         tuple(model.camera_sigma), model.gyro_max_rate,
                         settings.max_stamp_jump, settings.resync_count, **input_options(args))
         model = check_against_recording(model, recording_facts(data))
-    except (ValueError, BagError) as exc:
+    except (ValueError, OSError, BagError) as exc:
         print(f'filter_bag: error: {str(exc).splitlines()[0]}', file=sys.stderr)
         return 2
     for line in input_warnings('filter_bag', data):
+        print(line, file=sys.stderr)
+    for line in frame_warnings('filter_bag', data, model.frame_id, model.reference_frame_id):
         print(line, file=sys.stderr)
     for line in filled_in(mf.model, model):
         print(f'filter_bag: note: {line}', file=sys.stderr)
     note = not_applied_note(model, ('gyro', 'reference', 'filter'), 'filter_bag')
     if note:
         print(f'filter_bag: note: {note}', file=sys.stderr)
-    system = run_filter(data, model, settings)
-    outputs, fixes = system.take()
+    info = input_summary(data)
+    print(f'filter_bag: {args.bag}')
+    print('\n'.join(input_lines(info)))
+    unusable = usable_error(data)
+    if unusable:
+        print(f'filter_bag: error: {unusable}', file=sys.stderr)
+        return 2
     try:
-        write_text(out, state_rows(outputs, system.augment))
-        write_text(fixes_path, fix_rows(fixes))
+        system = run_filter(data, model, settings)
+    except (ValueError, ArithmeticError) as exc:     # numerical: never reported as bad input
+        print(f'filter_bag: error: the filter failed: {str(exc).splitlines()[0][:300]}',
+              file=sys.stderr)
+        return 4
+    outputs, fixes = system.take()
+    st = system.status()
+    try:
+        with all_or_nothing():                       # OUT, FIXES and --json, or none of them
+            write_text(out, state_rows(outputs, system.augment))
+            write_text(fixes_path, fix_rows(fixes))
+            if args.json:
+                write_json(args.json, json_clean({'input': info, 'counts': st,
+                                                  'outputs': len(outputs),
+                                                  'fixes': len(fixes)}))
     except OSError as exc:
         print(f'filter_bag: error: {exc}', file=sys.stderr)
         return 2
-    st = system.status()
     t0 = outputs[0].stamp_ns if outputs else (fixes[0].stamp_ns if fixes else 0)
     for k, (ns, why) in enumerate(system.resets):
         if k < RESETS_PRINTED:

@@ -25,12 +25,13 @@ import sys
 
 import numpy as np
 
-from strapdown_ros.cli import check_outputs, FILE, OneLineParser, write_json
+from strapdown_ros.cli import all_or_nothing, check_outputs, FILE, OneLineParser, write_json
 from strapdown_ros.discrepancy.nominal import nominal_model
 from strapdown_ros.params import write_model_file
 from strapdown_ros.recording import (add_input_arguments, BagError, check_input_arguments,
-                                     input_options, input_summary, input_warnings, read_bag,
-                                     recording_facts)
+                                     input_lines, input_options, input_summary, input_warnings,
+                                     read_bag, recording_facts)
+from strapdown_ros.recording.options import usable_error
 from strapdown_ros.text import bounded, json_clean
 
 __all__ = ['main']
@@ -89,6 +90,9 @@ def main(argv=None) -> int:
         g, c = data['gyro'], data['camera']
         for line in input_warnings(PROG, data):
             print(line, file=sys.stderr)
+        unusable = usable_error(data)                 # the tools' one wording
+        if unusable:
+            raise ValueError(unusable)
         nm = nominal_model(g.stamps, np.asarray(g.values, dtype=float), c.stamps,
                            np.array([v[0] for v in c.values]).reshape(-1, 4),
                            recording_facts(data), progress)
@@ -100,6 +104,7 @@ def main(argv=None) -> int:
     values = model.values()
     lines = [f'{PROG}: {bounded(args.bag)}: {len(g.stamps)} gyro increments '
              f"({data['gyro_topic']}), {len(c.stamps)} reference fixes ({data['camera_topic']})"]
+    lines += input_lines(input_summary(data))
     for k in sorted(model.stated, key=list(values).index):
         lines.append(f'  {k} = {_value_text(values[k])}  ({model.provenance.get(k, "")})')
     for k, v in nm.settings.items():
@@ -110,21 +115,27 @@ def main(argv=None) -> int:
             'recording; each value with its rule')
     comment = '\n'.join([head] + [f'note: {n}' for n in nm.notes])
     try:
-        write_model_file(args.output, model, comment,
-                         {'calibrator_node': {'ros__parameters': nm.settings}}
-                         if nm.settings else None, setting_rules=nm.setting_rules)
-        if args.json:
-            write_json(args.json, json_clean({
-                'values': {k: values[k] for k in model.stated},
-                'rules': {k: model.provenance.get(k) for k in model.stated},
-                'settings': nm.settings, 'setting_rules': nm.setting_rules, 'notes': nm.notes,
-                'measured': nm.measured, 'input': input_summary(data)}))
+        with all_or_nothing():                   # the model and --json, or neither
+            _write(args, model, comment, nm, values, data)
     except OSError as exc:
         print(f'{PROG}: error: {exc}', file=sys.stderr)
         return 2
     lines.append(f'  model: {args.output}')
     print('\n'.join(lines))
     return 0
+
+
+def _write(args, model, comment, nm, values, data) -> None:
+    """Write the model file and the JSON record (inside all_or_nothing)."""
+    write_model_file(args.output, model, comment,
+                     {'calibrator_node': {'ros__parameters': nm.settings}}
+                     if nm.settings else None, setting_rules=nm.setting_rules)
+    if args.json:
+        write_json(args.json, json_clean({
+            'values': {k: values[k] for k in model.stated},
+            'rules': {k: model.provenance.get(k) for k in model.stated},
+            'settings': nm.settings, 'setting_rules': nm.setting_rules, 'notes': nm.notes,
+            'measured': nm.measured, 'input': input_summary(data)}))
 
 
 if __name__ == '__main__':

@@ -4,8 +4,8 @@ realdata_report: the discrepancy workflow and calibrate_bag over every trial of 
     realdata_report [--data DIR] [--kinds TStick,Pendulum] [--model MODEL.yaml]
                     [--out doc/realdata] [--limit N] [--force] [--decimation-check]
 
-DIR: a RepoIMU copy (``TStick/`` and ``Pendulum/``; default ``$STRAPDOWN_REALDATA``, else
-``shared/RepoIMU``).  Each trial is written as a bag
+DIR: a RepoIMU copy (``TStick/`` and ``Pendulum/``; default ``$STRAPDOWN_REALDATA``).  Each
+trial is written as a bag
 (:func:`strapdown_ros.recording.repoimu.write_bag`:
 sensor_msgs/Imu + PoseStamped when the installed tools read them, else Δθ increments +
 QuaternionStamped; the Vicon attitude decimated to one fix per second) and analysed three ways:
@@ -271,8 +271,7 @@ def main(argv=None) -> int:
     """
     ap = OneLineParser(prog='realdata_report', description=__doc__,
                        formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument('--data', default='', help=f'RepoIMU directory (default ${REALDATA_ENV}, '
-                                               'else shared/RepoIMU)')
+    ap.add_argument('--data', default='', help=f'RepoIMU directory (default ${REALDATA_ENV})')
     ap.add_argument('--kinds', default='TStick,Pendulum', help='sub-directories to run')
     ap.add_argument('--model', help='nominal model YAML (default: the built-in one, printed in '
                                     'the report)')
@@ -286,8 +285,8 @@ def main(argv=None) -> int:
     try:
         root = Path(args.data) if args.data else find_repoimu()
         if root is None or not root.is_dir():
-            raise ValueError(f'no data set: give --data DIR, set {REALDATA_ENV} or place '
-                             'RepoIMU in shared/RepoIMU')
+            raise ValueError(f'no data set: give --data DIR or set {REALDATA_ENV} to a RepoIMU '
+                             'copy')
         trials = repoimu_trials(root, tuple(k for k in args.kinds.split(',') if k))
         if not trials:
             raise ValueError(f'{root}: no trial CSV under {args.kinds}')

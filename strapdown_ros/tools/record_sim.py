@@ -85,9 +85,12 @@ def main(argv=None) -> int:
         if any(imu_p[s.name] != cam_p[s.name] for s in PROFILE_PARAMS):
             print('record_sim: warning: imu_sim_node and star_camera_sim_node have different '
                   'profile parameters; each uses its own, as the nodes would', file=sys.stderr)
-        check_outputs([('bag', args.bag, REPLACED)],
-                      [('--params', args.params), ('profile_file', imu_p.get('profile_file'))],
-                      args.force)
+        stale = check_outputs([('bag', args.bag, REPLACED)],
+                              [('--params', args.params),
+                               ('profile_file', imu_p.get('profile_file'))], args.force)
+        for path in stale:                 # a staging an earlier, killed run left
+            print(f'record_sim: note: removed {path}, a temporary an earlier run left',
+                  file=sys.stderr)
         out = Path(args.bag)
         if out.is_dir() and not out.is_symlink():
             if not (out / 'metadata.yaml').exists() and any(out.iterdir()):

@@ -161,6 +161,9 @@ def _summary(args, inp, system: SinsSystem, sink, counts: dict, rates: dict) -> 
                              ('out of order', 'out_of_order'), ('duplicate', 'duplicate'),
                              ('stamp outlier', 'stamp_outliers'))}
     drops = {k: v for k, v in drops.items() if v}
+    wrong = sum(getattr(inp, 'wrong_type', {}).values())
+    if wrong:
+        drops['wrong type'] = wrong
     fm = system.frame_mismatch
     if fm['gyro'] or fm['accel']:
         how = 'rejected' if system.reject_frames else 'used'

@@ -379,7 +379,7 @@ def test_analysis_failure_is_exit_4_not_bad_input(tmp_path, capsys, monkeypatch)
     def fail(*a, **k):
         raise core.AnalysisError('the analysis cannot be computed: the base fit failed '
                                  'numerically (test)')
-    monkeypatch.setattr(discrepancy, 'analyse', fail)    # the tool's binding of the core's analyse
+    monkeypatch.setattr(discrepancy, 'analyse', fail)   # the command's binding of it
     assert discrepancy.main([str(bag), '--model', str(_model(tmp_path)), '--quiet']) == 4
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and err[0].startswith('discrepancy: analysis failed:'), err

@@ -122,3 +122,96 @@ def test_fix_rules_drop_and_count():
     assert s.filter is not None
     s.offer_gyro(3 * 10**9 + 20_000_000, (float('nan'), 0.0, 0.0))
     assert s.gyro_check.nan == 1
+
+
+def _stream(rate=100.0, seconds=12.0, interval=1.0, seed=9):
+    """Δθ at ``rate`` and a fix every ``interval`` s of a turning body (stamps in ns)."""
+    profile = PiecewiseRateProfile([Segment(2.0, np.array([0.05, 0.0, 0.0])),
+                                    Segment(2.0, np.array([0.0, 0.05, 0.0]))] * 4)
+    gyro = IntegratingSensor(profile, 'gyro', rate, SensorErrorModel(random_walk=1e-6),
+                             seed=seed)
+    st, meas, _ = gyro.sample(int(seconds * rate))
+    cam = StarCameraModel(interval=interval, sigma=np.array([1.0, 1.0, 5.0]) * ARCSEC,
+                          seed=seed + 1)
+    fixes = cam.fixes(profile, int(seconds / interval) - 1)
+    return ([int(round(t * 1e9)) for t in st], meas,
+            [(int(round(f.stamp * 1e9)), f.attitude, f.covariance) for f in fixes])
+
+
+def _live(system, gyro_ns, meas, fixes, shift=None):
+    """Feed a FilterSystem as the node does, in stamp order (``shift``: fix index → ns)."""
+    k = 0
+    for i, (ns, q, P) in enumerate(fixes):
+        while k < len(gyro_ns) and gyro_ns[k] <= ns:
+            system.offer_gyro(gyro_ns[k], tuple(meas[k]))
+            k += 1
+        system.offer_fix(ns + (shift or {}).get(i, 0), q, P)
+    system.process()
+
+
+def test_overflowing_fixes_are_dropped_and_counted_not_a_crash():
+    """Issue 27, findings 1, 2, 5: x = w = 1e200, a 1e308 covariance, a singular one."""
+    model, settings = model_and_settings('attitude_filter_node', {'gyro_rate': 100.0})
+    s = FilterSystem(model, FilterSettings.from_values(settings))
+    g, meas, fixes = _stream()
+    hostile = {3: ([1e200, 1e200, 0.0, 0.0], None), 5: (fixes[5][1], np.eye(3) * 1e308),
+               7: (fixes[7][1], np.diag([1e-6, 1e-6, 0.0])), 8: (fixes[8][1], np.eye(3) * -1.0)}
+    k = 0
+    for i, (ns, q, P) in enumerate(fixes):
+        while k < len(g) and g[k] <= ns:
+            s.offer_gyro(g[k], tuple(meas[k]))
+            k += 1
+        if i in hostile:                              # one more message at the same stamp
+            assert s.offer_fix(ns - 1000, *hostile[i]) is None
+        s.offer_fix(ns, q, P)
+    s.process()
+    c = s.counts
+    assert (c['dropped_not_unit'], c['dropped_bad_covariance']) == (1, 3)
+    assert s.fix_screen.bad_covariance_reasons == {'asymmetric': 0, 'not_positive_definite': 2,
+                                                   'out_of_bounds': 1}
+    assert c['applied'] == len(fixes) - 1 and c['restarts'] == 0 and c['gated'] == 0
+
+
+def test_gaps_come_from_the_stamps_not_gyro_rate():
+    """Issue 27, finding 7: a 100 Hz stream under gyro_rate 200 (live) or 50 (offline)."""
+    g, meas, fixes = _stream()
+    for rate in (200.0, 50.0):
+        model, settings = model_and_settings('attitude_filter_node', {'gyro_rate': rate})
+        s = FilterSystem(model, FilterSettings.from_values(settings))
+        _live(s, g, meas, fixes)
+        assert (s.counts['gaps'], s.counts['restarts'], s.gyro_check.gaps) == (0, 0, 0), rate
+        assert s.counts['applied'] == len(fixes) - 1
+        t = FilterSystem(model, FilterSettings.from_values(settings))
+        k = 0
+        for ns, q, P in fixes:                        # the tool's path, without the reader
+            j = int(np.searchsorted(g, ns, side='right'))
+            t.add_increments(g[k:j], meas[k:j])
+            k = j
+            t.add_fix(ns, q, P)
+        assert (t.counts['gaps'], t.counts['restarts']) == (0, 0)
+        t.add_increments([g[-1] + 30_000_000], [meas[-1]])       # 2 increments missing
+        assert t.counts['gaps'] == 1
+
+
+def test_a_future_fix_is_an_outlier_and_a_clock_step_restarts_once():
+    """Issue 27, finding 10: one fix 100 s ahead blinds nothing; both clocks step back 100 s."""
+    model, settings = model_and_settings('attitude_filter_node', {'gyro_rate': 100.0})
+    g, meas, fixes = _stream()
+    s = FilterSystem(model, FilterSettings.from_values(settings))
+    _live(s, g, meas, fixes, shift={5: 100 * 10**9})
+    assert s.camera_check.stamp_outliers == 1 and s.counts['camera_resyncs'] == 0
+    assert s.counts['applied'] == len(fixes) - 2 and s.counts['restarts'] == 0
+    s = FilterSystem(model, FilterSettings.from_values(settings))
+    step = 100 * 10**9                                # both clocks back 100 s after fix 5
+    k = 0
+    for i, (ns, q, P) in enumerate(fixes):            # received in time order, stamped back
+        while k < len(g) and g[k] <= ns:
+            s.offer_gyro(g[k] - (step if g[k] > fixes[5][0] else 0), tuple(meas[k]))
+            k += 1
+        s.offer_fix(ns - (step if i > 5 else 0), q, P)
+    s.process()
+    assert s.gyro_check.resyncs == 1 and s.camera_check.resyncs == 1
+    assert s.filter is not None and s.counts['camera_resyncs'] == 1
+    # the first fix on the gyro's new timeline confirms the step and restarts the filter:
+    # every later fix is applied
+    assert s.counts['applied'] == len(fixes) - 2 and s.counts['restarts'] == 1, s.counts

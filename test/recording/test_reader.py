@@ -470,7 +470,10 @@ def test_dropped_rate_samples_are_counted_and_become_gaps(tmp_path, motion, caps
         'out_of_order': 0,
         'out_of_range': 1,
         'stamp_outlier': 0,
+        'stamp_burst': 0,
         'marked_absent': 1,
+        'wrong_type': 0,
+        'undecodable': 0,
     }
     assert rs['received'] == len(motion.stamps) and rs['accepted'] == len(motion.stamps) - 3
     assert rs['intervals_not_integrated'] == 3
@@ -741,3 +744,62 @@ def test_corrupt_first_chunk_is_reported_not_silent(tmp_path, capsys):
     assert discrepancy.main([str(bag), '--model', str(model), '--json', str(d), '--quiet']) == 0
     assert json.loads(d.read_text())['input']['unread_messages'] == {'/imu/delta_theta': hidden}
     assert 'WARNING:' in capsys.readouterr().err
+
+
+def test_overflowing_and_singular_fixes_cost_one_fix_not_the_bag(tmp_path):
+    """
+    Issue 27, findings 4, 5, 6: a fix scaled by 1e200, one with a 1e308 covariance, a singular one.
+
+    The reader passed the first on unnormalised (garbage downstream), refused the whole bag on
+    the second (eigvalsh raised) and passed the third to a filter that needs it positive
+    definite.  Now each is one fix dropped under its reason; the rest is read as clean.
+    """
+    from strapdown_ros.bench.hostile_input import (clean_recording, kind_named, streams_with,
+                                                   write_bag)
+
+    rec = clean_recording()
+    clean = read_bag(write_bag(tmp_path / 'clean', rec, accel=False))
+    for name, reason, why in (('scaled_1e200', 'not_unit', None),
+                              ('huge_covariance', 'bad_covariance', 'out_of_bounds'),
+                              ('singular_covariance', 'bad_covariance', 'not_positive_definite')):
+        bag = write_bag(tmp_path / name,
+                        streams_with(rec, kind_named(f'reference:{name}'), 10), accel=False)
+        got = read_bag(bag)
+        c = got['camera']
+        assert c.dropped[reason] == 1 and c.received == clean['camera'].received + 1
+        if why:
+            assert got['camera_fixes']['bad_covariance_reasons'][why] == 1
+        assert c.stamps == clean['camera'].stamps
+        for (q, P), (q0, P0) in zip(c.values, clean['camera'].values):
+            np.testing.assert_array_equal(q, q0)
+            np.testing.assert_array_equal(P, P0)
+
+
+def test_imu_stamp_jitter_of_30_percent_loses_nothing(tmp_path):
+    """
+    Issue 27, finding 8: a 1 kHz IMU stamped with ±0.3 ms uniform jitter, no sample missing.
+
+    The gap rule's period is the median step of the stamps and a gap is a step above 1.75
+    periods: no interval is left unintegrated and no increment is missing; three samples lost in
+    a row are one gap, counted on the rates and on the increments alike.
+    """
+    rng = np.random.default_rng(3)
+    bw = BagWriter()
+    n = 4000
+    t = ORIGIN_NS + (np.arange(n) * 1_000_000 + rng.uniform(-0.3, 0.3, n) * 1_000_000).astype(
+        np.int64)
+    rates = PROFILE.body_rate((t - ORIGIN_NS) * 1e-9 + 10.0)
+    fixes = [('/camera/pose', ORIGIN_NS + k * 500_000_000,
+              bw.pose_stamped(ORIGIN_NS + k * 500_000_000, [1.0, 0.0, 0.0, 0.0]))
+             for k in range(1, 8)]
+    for name, keep in (('jitter', np.ones(n, bool)), ('lost', ~np.isin(np.arange(n),
+                                                                       [2000, 2001, 2002]))):
+        msgs = [('/imu/data', int(s), bw.imu(int(s), w)) for s, w in zip(t[keep], rates[keep])]
+        d = read_bag(bw.write(tmp_path / name, msgs + fixes), gyro_topic='/imu/data',
+                     reference_topic='/camera/pose')
+        rs, g = d['rate_samples'], d['gyro']
+        lost = int((~keep).sum() > 0)
+        assert (rs['gaps'], rs['intervals_not_integrated']) == (lost, lost), rs
+        assert (g.check.gaps, len(g.gaps)) == (lost, lost)
+        assert len(g.stamps) == keep.sum() - 1 - lost
+        assert abs(d['gyro_period_s'] - 1e-3) < 2e-5

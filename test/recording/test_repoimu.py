@@ -2,10 +2,11 @@
 The discrepancy workflow on a real recording: RepoIMU (IMU + Vicon), one T-stick trial.
 
 The data set is not shipped (no licence to redistribute it; see test/data/README.md).  The
-tests on it run when a copy is found — ``$STRAPDOWN_REALDATA`` naming a directory with
-``TStick/``, ``shared/RepoIMU``, or the development snapshot under /work/.mirror — and are
-skipped with the reason otherwise.  The tests at the end (the converter on a synthetic file in
-RepoIMU's layout, the tools' argument errors) need no data and run everywhere.
+tests on it run when ``$STRAPDOWN_REALDATA`` names a directory with ``TStick/`` and are skipped
+with the reason otherwise (the shipped real-data excerpt, gaitmap's, is tested in
+test/recording/test_gaitmap.py and never skipped).  The tests at the end (the converter on a
+synthetic file in RepoIMU's layout, the tools' argument errors) need no data and run
+everywhere.
 
 Truth here is never the tool's own output: the gyro bias is checked against the mean rate over
 the rest segment at the start (found from the Vicon attitude, not from the gyro), the lag against
@@ -47,11 +48,11 @@ def workdir(tmp_path_factory):
 
 
 @pytest.fixture(scope='module')
-def trial(workdir):
+def trial():
     """Give the RepoIMU trial, or skip when the data set is not there."""
-    root = find_repoimu(scratch=workdir)
+    root = find_repoimu()
     if root is None or not (root / TRIAL).is_file():
-        pytest.skip('RepoIMU not found: set STRAPDOWN_REALDATA to a directory with TStick/ '
+        pytest.skip(f'RepoIMU not found: set STRAPDOWN_REALDATA to a directory with {TRIAL} '
                     '(the data set is not shipped; see test/data/README.md)')
     return read_repoimu_csv(root / TRIAL)
 

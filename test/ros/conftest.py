@@ -8,6 +8,6 @@ import importlib.util
 
 ROS_TESTS = ['test_attitude_filter_node.py', 'test_calibrator_node.py', 'test_diagnostics.py',
              'test_imu_input_nodes.py', 'test_nodes.py', 'test_signals.py',
-             'test_sins_node_navigation.py']
+             'test_sins_node_navigation.py', 'test_hostile_nodes.py']
 
 collect_ignore = [] if importlib.util.find_spec('rclpy') else ROS_TESTS

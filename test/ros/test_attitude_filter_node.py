@@ -256,7 +256,7 @@ def test_bad_input_is_dropped_counted_and_reported(ros):
         node.fix(_header(t0 + 6 * 10**8), Quaternion(x=math.nan, y=0.0, z=0.0, w=1.0), None)
         st = node.system.status()
         assert node.system.gyro_check.nan == 1
-        assert st['dropped_zero_quaternion'] == 1 and node.system.camera_check.nan == 1
+        assert st['dropped_zero_quaternion'] == 1 and st['dropped_nan'] == 1   # the screening
         node.fix(_header(t0 + 10**9), Quaternion(x=0.0, y=0.0, z=0.0, w=1.0), None)
         assert node.system.counts['restarts'] == 1        # the dropped Δθ is a gap: restart
         for k in range(101, 201):
@@ -294,6 +294,40 @@ def test_boresight_from_the_latched_topic(ros):
         expect = quat_multiply(q_fix, quat_conjugate(Q_MF_VF))     # q_ref_body at the start
         got = node.system.filter.attitude
         np.testing.assert_allclose(got * np.sign(got[0] * expect[0]), expect, atol=1e-12)
+    finally:
+        for n in (node, pub_node):
+            ex.remove_node(n)
+            n.destroy_node()
+
+
+def test_an_overflowing_latched_boresight_is_dropped_and_the_next_one_taken(ros):
+    """Issue 27, finding 3: a boresight (1e308, 0, 0, 1e308) is dropped, counted; no crash."""
+    ns = '/t_filter_latched_bad'
+    pub_node = rclpy.create_node('calibrator_stub_bad', namespace=ns)
+    pub = pub_node.create_publisher(PoseWithCovarianceStamped, 'calibration/boresight',
+                                    ros_io.latched_qos())
+    bad = ros_io.pose_with_covariance(Time(sec=1), 'imu_link', Q_MF_VF, np.eye(3) * 1e-10)
+    o = bad.pose.pose.orientation
+    o.x, o.y, o.z, o.w = 1e308, 0.0, 0.0, 1e308
+    pub.publish(bad)
+    node = AttitudeFilterNode(namespace=ns, parameter_overrides=[
+        Parameter('boresight_source', value='topic')])
+    ex = Executor()
+    ex.add_node(pub_node)
+    ex.add_node(node)
+    try:
+        assert spin_until(ex, lambda: node.boresight_counts['received'] == 1, 10.0)
+        assert node.boresight_counts['dropped'] == 1 and node.system.boresight is None
+        t0 = 10**12
+        node.fix(_header(t0), Quaternion(x=0.0, y=0.0, z=0.0, w=1.0), None)      # no exception
+        assert node.system.counts['dropped_no_boresight'] == 1
+        pub.publish(ros_io.pose_with_covariance(Time(sec=2), 'imu_link', Q_MF_VF,
+                                                np.eye(3) * 1e-10))
+        assert spin_until(ex, lambda: node.system.boresight is not None, 10.0)
+        node.fix(_header(t0 + 10**9), Quaternion(x=0.0, y=0.0, z=0.0, w=1.0), None)
+        assert node.system.filter is not None
+        assert 'calibration/boresight message(s) dropped' in \
+            node.diagnostic_conditions(node.system.status()).message()
     finally:
         for n in (node, pub_node):
             ex.remove_node(n)

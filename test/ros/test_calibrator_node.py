@@ -24,6 +24,9 @@ from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, ReliabilityPolicy
 from ros_helpers import spin_until
 
+from strapdown_ros.bench.hostile_input import clean_recording, kind_named, streams_with
+from strapdown_ros.bench.hostile_tools import problems
+from strapdown_ros.bench.ros.hostile_nodes import run_node
 from strapdown_ros.motion.profiles import bench_profile
 from strapdown_ros.nodes.calibrator_node import CalibratorNode
 from strapdown_ros.nodes.imu_sim_node import ImuSimNode
@@ -346,7 +349,9 @@ def test_static_motion_is_reported_not_observable(ros, tmp_path):
               camera=[Parameter('camera_interval', value=5.0)])
     try:
         st, kv = _not_observable(g)
-        assert 'static' in st.message and int(kv['pairs']) == 29
+        # the Earth rate turns the bench 0.62° about one axis in 150 s: judged over the
+        # recording (not pair by pair) that is a turn about one axis, not observable either
+        assert ('static' in st.message or 'one axis' in st.message) and int(kv['pairs']) == 29
     finally:
         g.close()
 
@@ -404,7 +409,8 @@ def test_bad_camera_and_gyro_input_is_dropped_counted_and_reported(ros):
                           and cal.camera_check.received >= 7, 5.0)
         g, c = cal.gyro_check, cal.camera_check
         assert (g.accepted, g.nan, g.duplicate, g.gaps, g.missing) == (249, 1, 1, 1, 1)
-        assert (c.accepted, c.nan, c.duplicate, c.out_of_order) == (2, 1, 1, 1)
+        assert (c.accepted, c.duplicate, c.out_of_order) == (2, 1, 1)
+        assert cal.fix_screen.nan == 1                   # THE screening of a fix counts it
         assert (cal.camera_counts['normalised'] == 1
                 and cal.camera_counts['dropped_zero_quaternion'] == 1)
         assert cal.camera_counts['dropped_bad_covariance'] == 1
@@ -517,6 +523,26 @@ def test_overflowing_increment_is_rejected_and_loses_nothing(ros):
     beta, out_of_range, failures = _node_estimate('/t_poison', poison=True)
     assert out_of_range == 1 and failures == 0
     np.testing.assert_array_equal(beta, beta_clean)
+
+
+def test_overflowing_fixes_are_dropped_counted_and_cost_nothing(ros):
+    """
+    Issue 27, findings 1, 2, 5: fixes that crashed the node or were taken when they were not.
+
+    One more fix with a rotation-block covariance of 1e308 (eigvalsh raised), one scaled by
+    1e200 (its norm overflowed), one with a singular covariance: each is dropped and counted by
+    the one screening of a fix; the estimate is the clean one to the bit.
+    """
+    rec = clean_recording()
+    clean = run_node('calibrator_node', rec)
+    assert clean.traceback is None and clean.estimate is not None
+    for name, reason in (('huge_covariance', 'bad_covariance'), ('scaled_1e200', 'not_unit'),
+                         ('singular_covariance', 'bad_covariance')):
+        kind = kind_named(f'reference:{name}')
+        got = run_node('calibrator_node', streams_with(rec, kind, 10, frames_used=False))
+        assert problems(kind, clean, got) == []
+        assert got.read['reference']['dropped'][reason] == 1
+        np.testing.assert_array_equal(got.estimate, clean.estimate)
 
 
 def test_inconsistent_noise_is_a_warn_with_the_reason(ros):
@@ -749,7 +775,8 @@ def test_one_input_path_node_and_calibrate_bag_agree_on_a_hostile_stream(ros, tm
                                         'out_of_order': g.out_of_order,
                                         'out_of_range': g.out_of_range,
                                         'stamp_outlier': g.stamp_outliers,
-                                        'stamp_burst': g.burst_messages}
+                                        'stamp_burst': g.burst_messages,
+                                        'wrong_type': 0, 'undecodable': 0}
         assert (g.nan, g.duplicate, g.out_of_order, g.out_of_range, g.stamp_outliers) == (1, 1, 1,
                                                                                           1, 1)
         # the burst: 5 increments lost in one gap, no resynchronisation left standing; it costs the

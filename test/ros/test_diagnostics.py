@@ -261,14 +261,14 @@ def test_calibrator_lists_every_condition_at_the_worst_level(ros, monkeypatch):
     cal = CalibratorNode(namespace='/t_diag_cal', parameter_overrides=list(IDEAL[:4]))
     diag = Diagnostics(cal, monkeypatch)
     try:
-        for k in range(1, 11):
+        for k in range(1, 21):                  # the gap rule's period: 16 steps of stamps
             cal.on_gyro(_msg(1_000_000_000 + k * 10_000_000, (1e-4, 0.0, 0.0)))
-        cal.on_gyro(_msg(1_000_000_000 + 11 * 10_000_000, (1e-4, 0.0, 0.0), frame='camera'))
+        cal.on_gyro(_msg(1_000_000_000 + 21 * 10_000_000, (1e-4, 0.0, 0.0), frame='camera'))
         cal.on_gyro_raw(b'garbage')
         level, message, _ = diag.now()
         assert level == ros_status.WARN and 'waiting' in message and 'unexpected frame' in message
         assert 'could not be decoded' in message, message
-        cal.on_gyro(_msg(1_000_000_000 + 30 * 10_000_000, (1e-4, 0.0, 0.0)))   # 18 missing
+        cal.on_gyro(_msg(1_000_000_000 + 40 * 10_000_000, (1e-4, 0.0, 0.0)))   # 18 missing
         level, message, _ = diag.now()
         assert (level == ros_status.ERROR and 'missing' in message
                 and 'could not be decoded' in message)

@@ -248,32 +248,32 @@ def test_bad_imu_input_is_dropped_counted_and_reported(ros):
         def send(k, rate=w, frame='imu_link'):
             pub.publish(_imu_msg(k, rate, frame))
             ex.spin_once(timeout_sec=0.005)
-        for k in range(1, 11):
+        for k in range(1, 21):                 # 16 steps give the gap rule its period
             send(k)
-        send(11, (math.nan, 0.0, 0.0))    # NaN: dropped; the interval 10 → 12 is not integrated
-        send(10)                               # duplicate stamp
+        send(21, (math.nan, 0.0, 0.0))    # NaN: dropped; the interval 20 → 22 is not integrated
+        send(20)                               # duplicate stamp
         send(5)                                # out of order
-        send(12, frame='camera')               # another frame: rejected (frame_mismatch reject)
-        send(12)
-        for k in range(13, 21):
+        send(22, frame='camera')               # another frame: rejected (frame_mismatch reject)
+        send(22)
+        for k in range(23, 31):
             send(k)
-        assert spin_until(ex, lambda: sins.gyro_rates.check.received >= 22
-                          and cal.gyro_rates.check.received >= 22, 5.0)
+        assert spin_until(ex, lambda: sins.gyro_rates.check.received >= 32
+                          and cal.gyro_rates.check.received >= 32, 5.0)
         for node in (sins, cal):
             r = node.gyro_rates
             c = r.check
-            assert (c.nan, c.duplicate, c.out_of_order, c.accepted) == (1, 1, 1, 19)
-            assert (r.integrator.formed, r.integrator.skipped) == (17, 1)
-            # the increments: 9 before the NaN, 8 after; the two over (0.10, 0.12] missing
+            assert (c.nan, c.duplicate, c.out_of_order, c.accepted) == (1, 1, 1, 29)
+            assert (r.integrator.formed, r.integrator.skipped) == (27, 1)
+            # the increments: 19 before the NaN, 8 after; the two over (0.20, 0.22] missing
             g = node.gyro_check
-            assert (g.accepted, g.gaps, g.missing) == (17, 1, 2)
-        assert sins.integrator.updates == 17
+            assert (g.accepted, g.gaps, g.missing) == (27, 1, 2)
+        assert sins.integrator.updates == 27
         assert sins.frame_mismatch['gyro'] == 1 and cal.gyro_frame_mismatch == 1
         # the node goes on: 1 rad/s for 0.1 s more after the bad messages
-        for k in range(21, 31):
+        for k in range(31, 41):
             send(k, (1.0, 0.0, 0.0))
-        assert spin_until(ex, lambda: sins.integrator.updates == 27
-                          and cal.gyro_rates.check.received == 32, 5.0)
+        assert spin_until(ex, lambda: sins.integrator.updates == 37
+                          and cal.gyro_rates.check.received == 42, 5.0)
         sins.publish_diagnostics()
         cal.publish_diagnostics()
         assert spin_until(ex, lambda: _status(diags, f'{ns}/sins_node')[0] is not None
@@ -285,7 +285,7 @@ def test_bad_imu_input_is_dropped_counted_and_reported(ros):
                        for k in ('_nan', '_duplicate', '_out_of_order', '')]
             assert dropped == ['1', '1', '1', '3'], name
             formed = kv['imu_gyro_increments_formed'], kv['imu_gyro_increments_skipped']
-            assert formed == ('27', '1'), name
+            assert formed == ('37', '1'), name
             assert kv['gyro_missing_samples'] == '2', name
     finally:
         _close(ex, nodes)

@@ -28,8 +28,10 @@ RANK = {
     'discrepancy': 7,
     'params': 8,
     'sins': 9,
-    'nodes': 10, 'tools': 10, 'reproductions': 10,
-    'bench': 11, 'demo': 11,
+    'runs': 10,
+    'fleet': 11,
+    'nodes': 12, 'tools': 12, 'reproductions': 12,
+    'bench': 13, 'demo': 13,
 }
 #: the only places that may import rclpy or message packages
 ROS_ROOMS = ('nodes', 'bench/ros', 'demo.py')
@@ -37,7 +39,8 @@ ROS_PACKAGES = ('rclpy', 'rcl_interfaces', 'builtin_interfaces', 'std_msgs', 'ge
                 'sensor_msgs', 'nav_msgs', 'diagnostic_msgs', 'rosidl_runtime_py')
 #: optional extras, imported where they are used (the core needs numpy only)
 OPTIONAL = ('numba', 'matplotlib', 'cv2', 'scipy', 'rosbags', 'yaml', 'allantools', 'pyins',
-            'hypothesis', 'pandas', 'resource') + ROS_PACKAGES
+            'hypothesis', 'pandas', 'resource', 'dask', 'distributed', 'pyarrow',
+            'psutil') + ROS_PACKAGES
 
 
 def modules():

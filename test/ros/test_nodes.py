@@ -192,18 +192,18 @@ def test_bad_input_is_dropped_counted_and_reported(ros):
             m.vector.x, m.vector.y, m.vector.z = v
             pub.publish(m)
             ex.spin_once(timeout_sec=0.005)
-        for k in range(1, 11):
+        for k in range(1, 21):                    # 16 steps give the gap rule its period
             send(k)
-        send(11, (float('nan'), 0.0, 0.0))       # NaN
-        send(10)                                  # duplicate stamp
+        send(21, (float('nan'), 0.0, 0.0))       # NaN
+        send(20)                                  # duplicate stamp
         send(5)                                   # out of order
-        send(12)                                  # gap: sample 11 is missing (its NaN was dropped)
-        send(13)
-        assert spin_until(ex, lambda: sins.gyro_check.received >= 15, 5.0)
+        send(22)                                  # gap: sample 21 is missing (its NaN was dropped)
+        send(23)
+        assert spin_until(ex, lambda: sins.gyro_check.received >= 25, 5.0)
         g = sins.gyro_check
-        assert (g.accepted, g.nan, g.duplicate, g.out_of_order, g.gaps, g.missing) == (12, 1, 1, 1,
+        assert (g.accepted, g.nan, g.duplicate, g.out_of_order, g.gaps, g.missing) == (22, 1, 1, 1,
                                                                                        1, 1)
-        assert sins.integrator.updates == 12
+        assert sins.integrator.updates == 22
         sins.publish_diagnostics()
         assert spin_until(ex, lambda: any(s.name.startswith(f'{ns}/sins_node')
                                           for d in diags for s in d.status), 5.0)

@@ -19,12 +19,33 @@ def feed(check, stamps, values=None):
 
 def test_nan_range_duplicate_out_of_order_gap():
     c = StreamCheck(0.01, max_norm=2 * 0.01 * 20.0)
-    vals = [(0.001, 0, 0), (math.nan, 0, 0), (1e308, 1e308, 0.0), (1000.0, 0, 0), (0.001, 0, 0),
-            (0.001, 0, 0), (0.001, 0, 0), (0.001, 0, 0)]
-    got = feed(c, [1 * MS, 2 * MS, 3 * MS, 4 * MS, 5 * MS, 5 * MS, 4 * MS, 8 * MS], vals)
-    assert got == [1 * MS, 5 * MS, 8 * MS]
+    head = [(-k) * MS for k in range(16, 0, -1)] + [0]     # 16 steps: the period from the stamps
+    vals = [(0.001, 0, 0)] * 17 + [(0.001, 0, 0), (math.nan, 0, 0), (1e308, 1e308, 0.0),
+                                   (1000.0, 0, 0), (0.001, 0, 0), (0.001, 0, 0), (0.001, 0, 0),
+                                   (0.001, 0, 0)]
+    got = feed(c, head + [1 * MS, 2 * MS, 3 * MS, 4 * MS, 5 * MS, 5 * MS, 4 * MS, 8 * MS], vals)
+    assert got == head + [1 * MS, 5 * MS, 8 * MS]
     assert (c.nan, c.out_of_range, c.duplicate, c.out_of_order) == (1, 2, 1, 1)
     assert (c.gaps, c.missing) == (2, 5)          # 1→5 (3 missing), 5→8 (2 missing)
+
+
+def test_gaps_come_from_the_stamps_not_the_stated_period():
+    """A 50 Hz stream under a stated 100 Hz, and ±30 % stamp jitter: no gap; a lost one seen."""
+    rng = np.random.default_rng(1)
+    c = StreamCheck(0.01)                              # stated 100 Hz
+    t = np.arange(500) * 2 * MS                        # 50 Hz
+    feed(c, t)
+    assert (c.gaps, c.missing) == (0, 0) and abs(c.period_s - 0.02) < 1e-12
+    k = np.arange(60_000)
+    jit = (k * 1_000_000 + rng.uniform(-0.3, 0.3, k.size) * 1_000_000).astype(np.int64)
+    c = StreamCheck(1e-3)
+    feed(c, jit)
+    assert (c.gaps, c.missing) == (0, 0)               # ±30 % of the period: never a gap
+    clean = (k * 1_000_000).astype(np.int64)
+    c = StreamCheck(1e-3)
+    feed(c, np.delete(clean, [1000, 2000, 2001, 30_000]))
+    assert (c.gaps, c.missing) == (3, 4)
+    assert c.gap_marks == [] and c.period_s == 1e-3
 
 
 def test_lone_future_stamp_is_an_outlier_and_stops_nothing():

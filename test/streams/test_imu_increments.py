@@ -54,35 +54,36 @@ def test_a_clean_stream_gives_the_offline_increments_and_the_exact_integral():
 
 
 def test_bad_samples_are_dropped_counted_and_the_lost_interval_is_a_gap():
-    st = (10**12 + T_NS * np.arange(1, 21)).astype(np.int64)
+    st = (10**12 + T_NS * np.arange(1, 41)).astype(np.int64)
     w = _rate((st - 10**12) * 1e-9)
     s = RateIncrementStream(0.01, 20.0, 'trapezoid')
     out = []
     for k, (ns, v) in enumerate(zip(st, w)):
         v = tuple(float(c) for c in v)
-        if k == 5:
+        if k == 25:
             out += s.push(int(ns), (math.nan, 0.0, 0.0))          # NaN: dropped
             continue
         out += s.push(int(ns), v)
-        if k == 8:
+        if k == 28:
             out += s.push(int(ns), v)                           # duplicate stamp: dropped
             out += s.push(int(st[3]), v)                        # out of order: dropped
-        if k == 10:
+        if k == 30:
             out += s.push(int(ns), (25.0, 0.0, 0.0))            # beyond the range: dropped
     c = s.check
     assert (c.nan, c.duplicate, c.out_of_order, c.out_of_range, c.dropped) == (1, 1, 1, 1, 4)
-    assert c.accepted == 19 and c.gaps == 1 and c.missing == 1
-    # the interval over the NaN (samples 4 → 6, 2 periods) is not integrated: 18 steps, 17 formed
+    assert c.accepted == 39 and c.gaps == 1 and c.missing == 1
+    # the interval over the NaN (samples 24 → 26, 2 periods; the gap rule judges from 16 steps
+    # of the stamps on) is not integrated: 38 steps, 37 formed
     stamps = [o[0] for o in out]
-    assert s.integrator.formed == 17 and s.integrator.skipped == 1
-    assert int(st[5]) not in stamps and int(st[6]) not in stamps
-    t_off, inc_off = increments_from_rates(np.delete(st, 5), np.delete(w, 5, axis=0), 'trapezoid',
-                                           0.015)
+    assert s.integrator.formed == 37 and s.integrator.skipped == 1
+    assert int(st[25]) not in stamps and int(st[26]) not in stamps
+    t_off, inc_off = increments_from_rates(np.delete(st, 25), np.delete(w, 25, axis=0),
+                                           'trapezoid', 0.015)
     assert stamps == list(t_off)
     np.testing.assert_array_equal(np.array([o[1] for o in out]), inc_off)
     kv = s.status('imu_gyro')
     assert (kv['imu_gyro_dropped'], kv['imu_gyro_increments_formed'],
-            kv['imu_gyro_increments_skipped']) == (4, 17, 1)
+            kv['imu_gyro_increments_skipped']) == (4, 37, 1)
 
 
 def test_a_stamp_resync_restarts_the_integrator():

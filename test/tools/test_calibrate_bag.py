@@ -171,7 +171,8 @@ def test_nan_and_duplicate_are_dropped_and_counted(tmp_path, capsys):
     assert 'gyro nan 1' in out and 'gyro duplicate 1' in out and 'GYRO GAPS' in out
     r = json.loads(f.read_text())
     assert r['dropped']['gyro'] == {'nan': 1, 'duplicate': 1, 'out_of_order': 0, 'out_of_range': 0,
-                                    'stamp_outlier': 0, 'stamp_burst': 0}
+                                    'stamp_outlier': 0, 'stamp_burst': 0, 'wrong_type': 0,
+                                    'undecodable': 0}
     assert r['messages']['gyro'] == len(msgs) - 2
     # the dropped NaN increment is a gap (its rotation is lost): the pair spanning it is discarded
     assert r['gyro_gaps'] == {**NO_GAPS, 'gaps': 1, 'missing': 1, 'pairs_discarded': 1}

@@ -11,11 +11,15 @@ import os
 from pathlib import Path
 import re
 import signal
+import stat
+import subprocess
+import sys
 
 import pytest
 
-from strapdown_ros.cli import write_figure
-from strapdown_ros.files import commit_directory, discard_directory, stage_directory
+from strapdown_ros.cli import all_or_nothing, write_figure, write_text
+from strapdown_ros.files import (commit_directory, discard_directory, remove_stale,
+                                 stage_directory)
 from strapdown_ros.tools import record_sim, sins_bag
 
 
@@ -26,7 +30,7 @@ NO_OUTPUT = {'imu_sim_node', 'sins_node', 'strapdown_demo', 'star_camera_sim_nod
              'calibrator_node', 'attitude_filter_node'}
 
 #: script -> argv with an EXISTING output (and no --force); {bag}, {model}, {old}, {trial},
-#: {data}, {plots} are filled in by the test
+#: {data}, {plots}, {manifest} are filled in by the test
 EXISTING = {
     'calibrate_bag': ['{bag}', '--json', '{old}'],
     'calibrate_gyro_bag': ['{bag}', '--method', 'integral', '--json', '{old}'],
@@ -35,6 +39,7 @@ EXISTING = {
     'record_sim': ['{bag}'],
     'sins_bag_bench': ['{bag}', '--json', '{old}'],
     'realdata_bag': ['{trial}', '{bag}'],
+    'gaitmap_bag': ['{data}', '{plots}'],
     'realdata_report': ['--data', '{data}', '--out', '{plots}'],
     'sins_bench': ['--json', '{old}'],
     'coning_bench': ['--plots', '{plots}'],
@@ -45,7 +50,13 @@ EXISTING = {
     'reproduce_seeds': ['--json', '{old}'],
     'discrepancy_bench': ['--plots', '{plots}'],
     'filter_bench': ['--json', '{old}'],
+    'model_check_bench': ['--json', '{old}'],
     'filter_bag': ['{bag}', '--output', '{old}'],
+    'reference_rate_bench': ['--json', '{old}'],
+    'hostile_bench': ['--json', '{old}'],
+    'nominal_model': ['{bag}', '--output', '{old}'],
+    'fleet': ['{manifest}', '--out', '{plots}'],
+    'fleet_bench': ['--json', '{old}'],
 }
 
 #: script -> argv whose output is one of its inputs
@@ -58,8 +69,10 @@ AS_INPUT = {
     'record_sim': ['{model}', '--params', '{model}'],
     'sins_bag_bench': ['{bag}', '--json', '{bag}/metadata.yaml'],
     'realdata_bag': ['{trial}', '{trial}'],
+    'gaitmap_bag': ['{data}', '{data}', '--force'],
     'realdata_report': ['--data', '{data}', '--out', '{data}'],
     'filter_bag': ['{bag}', '--output', '{bag}/metadata.yaml'],
+    'fleet': ['{manifest}', '--out', '{bag}', '--force'],
 }
 
 
@@ -96,12 +109,14 @@ def files(tmp_path_factory):
     plots = d / 'plots'
     plots.mkdir()
     for name in ('coning_drift.png', 'nav_bench.md', 'boresight_errors.png',
-                 'discrepancy_detection.png', 'realdata.json'):
+                 'discrepancy_detection.png', 'realdata.json', 'LICENSE'):
         (plots / name).write_text('old')
     old = d / 'old.json'
     old.write_text('{"kept": true}\n')
+    manifest = d / 'manifest.csv'
+    manifest.write_text('unit,recording,start_time,model\nu1,bag,2024-05-01T00:00:00Z,m.yaml\n')
     return {'bag': bag, 'model': model, 'old': old, 'trial': trial, 'data': data,
-            'plots': plots}
+            'plots': plots, 'manifest': manifest}
 
 
 def _snapshot(root: Path) -> dict:
@@ -200,6 +215,21 @@ def test_commit_directory_keeps_the_old_one_until_the_new_one_is_in_place(tmp_pa
     assert (target / 'a').read_text() == 'new' and os.listdir(tmp_path) == ['out']
 
 
+def test_atomic_writes_respect_the_umask(tmp_path):
+    """A file written atomically gets 0666 less the umask, like open(path, 'w')."""
+    from strapdown_ros.cli import write_text
+
+    old = os.umask(0o027)
+    try:
+        write_text(tmp_path / 'a.txt', 'x')
+        with open(tmp_path / 'b.txt', 'w') as fh:
+            fh.write('x')
+    finally:
+        os.umask(old)
+    assert (tmp_path / 'a.txt').stat().st_mode & 0o777 == 0o640
+    assert (tmp_path / 'b.txt').stat().st_mode & 0o777 == 0o640
+
+
 def test_figures_are_written_atomically(tmp_path):
     matplotlib = pytest.importorskip('matplotlib')
     matplotlib.use('Agg')
@@ -226,7 +256,7 @@ def test_sins_bag_interrupted_keeps_the_old_output_bag(files, tmp_path, monkeypa
     out = tmp_path / 'out'
     assert sins_bag.main([str(files['bag']), '--output', str(out), '--quiet']) == 0
     before = _snapshot(out)
-    real = sins_bag.run
+    real = sins_bag.run                         # the replay sins_bag runs
 
     def interrupted(inp, make_system, sink, *a, **k):
         real(inp, make_system, sink, *a, **k)
@@ -234,3 +264,64 @@ def test_sins_bag_interrupted_keeps_the_old_output_bag(files, tmp_path, monkeypa
     monkeypatch.setattr(sins_bag, 'run', interrupted)
     assert sins_bag.main([str(files['bag']), '--output', str(out), '--force', '--quiet']) == 130
     assert _snapshot(out) == before and sorted(os.listdir(tmp_path)) == ['out']
+
+
+def test_files_take_the_umask_and_several_outputs_are_all_or_nothing(tmp_path):
+    """
+    Issue 27, findings 13 and 15: mkstemp's 0600 whatever the umask; outputs one by one.
+
+    Every atomically written file gets 0666 & ~umask; inside all_or_nothing() the targets change
+    only when the block ends, an exception leaves them all as they were, and a rename that fails
+    puts back the ones already replaced.
+    """
+    old = os.umask(0o027)
+    try:
+        write_text(tmp_path / 'a.txt', 'a')
+        assert stat.S_IMODE(os.stat(tmp_path / 'a.txt').st_mode) == 0o640
+        os.umask(0o002)
+        write_text(tmp_path / 'a.txt', 'b')
+        assert stat.S_IMODE(os.stat(tmp_path / 'a.txt').st_mode) == 0o664
+    finally:
+        os.umask(old)
+    with all_or_nothing():
+        write_text(tmp_path / 'a.txt', 'new')
+        write_text(tmp_path / 'c.txt', 'c')
+        assert (tmp_path / 'a.txt').read_text() == 'b' and not (tmp_path / 'c.txt').exists()
+    assert (tmp_path / 'a.txt').read_text() == 'new' and (tmp_path / 'c.txt').read_text() == 'c'
+    with pytest.raises(RuntimeError):
+        with all_or_nothing():
+            write_text(tmp_path / 'a.txt', 'lost')
+            raise RuntimeError('the disk filled')
+    (tmp_path / 'd').mkdir()
+    (tmp_path / 'd' / 'x').write_text('x')                       # a target that cannot be replaced
+    with pytest.raises(OSError, match='no output was changed'):
+        with all_or_nothing():
+            write_text(tmp_path / 'a.txt', 'v3')
+            write_text(tmp_path / 'd', 'v3')
+    assert (tmp_path / 'a.txt').read_text() == 'new'
+    assert sorted(os.listdir(tmp_path)) == ['a.txt', 'c.txt', 'd']
+
+
+def test_a_staging_left_by_kill_9_is_removed_at_the_next_run(tmp_path):
+    """
+    Issue 27, finding 14: record_sim's hidden staging stayed forever after kill -9.
+
+    A process that stages a bag and dies by SIGKILL leaves its staging; the next run's output
+    check removes it (its writer's lock is free) and says so; a live writer's staging is kept.
+    """
+    pytest.importorskip('rosbags')
+    code = ('from strapdown_ros.files import stage_directory\n'
+            f'p = stage_directory({str(tmp_path / "bag")!r}); p.mkdir()\n'
+            "(p / 'part.mcap').write_bytes(b'x' * 100000)\n"
+            'import os, signal; os.kill(os.getpid(), signal.SIGKILL)\n')
+    r = subprocess.run([sys.executable, '-c', code], env={**os.environ, 'PYTHONPATH': str(ROOT)},
+                       capture_output=True, timeout=60)
+    assert r.returncode == -signal.SIGKILL
+    left = [p.name for p in tmp_path.iterdir()]
+    assert len(left) == 1 and left[0].startswith('.bag.') and left[0].endswith('.part')
+    live = stage_directory(tmp_path / 'other')                   # this process's: kept
+    assert remove_stale(tmp_path / 'other') == []
+    discard_directory(live)
+    assert record_sim.main([str(tmp_path / 'bag'), '--no-accel', '--duration', '2',
+                            '-p', 'camera_interval:=1.0']) == 0
+    assert sorted(p.name for p in tmp_path.iterdir()) == ['bag']
