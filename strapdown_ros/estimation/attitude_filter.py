@@ -828,7 +828,7 @@ class AttitudeFilter:
 
     def _record(self, fix: CameraFix, status: str, z=None, nis=None, S=None,
                 reason: str = '') -> FixResult:
-        res = FixResult(fix.stamp, fix.epoch, status, fix.lateness, z, nis, S, reason)
+        res = FixResult(fix.stamp, fix.epoch, status, fix.lateness, z, nis, S, reason=reason)
         self.results.append(res)
         return res
 
