@@ -91,7 +91,7 @@ def test_real_recording_with_too_small_reference_sigma_keeps_applying_fixes(tmp_
     ten times smaller, the fixes after the rest at the start are applied again and again (with
     the rule off nearly all of them are gated).
     """
-    root = find_repoimu(scratch=tmp_path)
+    root = find_repoimu()
     trial = None if root is None else root / 'TStick' / 'TStick_Test08_Trial1.csv'
     if trial is None or not trial.is_file():
         pytest.skip('RepoIMU not found: set STRAPDOWN_REALDATA to a directory with TStick/ '
