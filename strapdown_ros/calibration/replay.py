@@ -128,7 +128,7 @@ def calibrate_spaced(data: dict, model: SensorModel, settings: CalibratorSetting
     The rule of :mod:`strapdown_ros.calibration.reference_spacing`: calibrate on every fix,
     choose the spacing from the whitened residuals (``spacing`` None), and calibrate again on
     the fixes kept when it is more than one fix.  A stated ``spacing`` (s; 0: every fix) is
-    used as given.
+    used as given, and so is the model's ``reference_spacing`` when the model states it.
 
     Parameters
     ----------
@@ -139,7 +139,8 @@ def calibrate_spaced(data: dict, model: SensorModel, settings: CalibratorSetting
     settings : CalibratorSettings, optional
         The calibrator's settings.
     spacing : float, optional
-        Spacing of the fixes, s; None: chosen from the data.
+        Spacing of the fixes, s; None: the model's ``reference_spacing`` where it states one,
+        else chosen from the data.
 
     Returns
     -------
@@ -155,6 +156,8 @@ def calibrate_spaced(data: dict, model: SensorModel, settings: CalibratorSetting
 
     def run(keep=None):
         return calibrate_recording(data, model, settings, keep)
+    if spacing is None and 'reference_spacing' in model.stated:
+        spacing = model.reference_spacing               # the model states it: one spacing
     if spacing is not None:
         choice = stated_spacing(spacing, t)
         if choice.step <= 1:

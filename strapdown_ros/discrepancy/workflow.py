@@ -172,6 +172,8 @@ def analyse(rec: Recording, model: SensorModel, settings: DiscrepancySettings | 
                      progress or (lambda t: None))
     search.model = model
     search.spacing_wanted = s.reference_spacing
+    if s.reference_spacing is None and 'reference_spacing' in model.stated:
+        search.spacing_wanted = model.reference_spacing   # the model states it: one spacing
     try:
         search.base_fit()
         search.forward()
@@ -549,7 +551,7 @@ class _Search:
             name = EFFECTS[s.effect].value_parameter.name
             model_out[name] = s.parameters[name]
         model_out['boresight'] = beta.tolist()
-        found = found_model(self.model, steps, beta, sig_beta, verdict)
+        found = found_model(self.model, steps, beta, sig_beta, verdict, self.spacing)
         return DiscrepancyResult(
             verdict=verdict, rms_before=float(np.sqrt(np.mean(self.base0.whitened ** 2))),
             rms_after=float(np.sqrt(np.mean(final.whitened ** 2))),
@@ -570,14 +572,17 @@ class _Search:
             found_model=found, reference_spacing=self.spacing)
 
 
-def found_model(model: SensorModel, steps, beta, sigma_beta, verdict: str) -> SensorModel:
+def found_model(model: SensorModel, steps, beta, sigma_beta, verdict: str,
+                spacing: dict | None = None) -> SensorModel:
     """
     Return the nominal model with the found effects and the boresight, ready to write.
 
     Each found effect gets its value and, as its σ key, the largest σ of its components (the
     σ reported, honest when the residuals are not white); the effects the attitude filter can
     estimate online are added to ``augment``, so that it starts from the found value with the
-    found σ as its prior.  Each changed key records the rule that produced it.
+    found σ as its prior.  The spacing of the fixes the pairs used becomes the model's
+    ``reference_spacing``, so that the filter takes the reference as the fit did.  Each changed
+    key records the rule that produced it.
 
     Parameters
     ----------
@@ -591,6 +596,8 @@ def found_model(model: SensorModel, steps, beta, sigma_beta, verdict: str) -> Se
         Its σ, rad.
     verdict : str
         The verdict (recorded in the provenance).
+    spacing : dict, optional
+        The spacing record of the pairs (:meth:`SpacingChoice.as_dict`).
 
     Returns
     -------
@@ -617,6 +624,11 @@ def found_model(model: SensorModel, steps, beta, sigma_beta, verdict: str) -> Se
     rules['boresight'] = f'estimated by discrepancy (verdict {verdict})'
     updates['boresight_sigma'] = float(np.max(sigma_beta))
     rules['boresight_sigma'] = 'the largest σ of the estimated boresight angles'
+    if spacing and spacing.get('step', 1) > 1 and spacing.get('spacing_s'):
+        updates['reference_spacing'] = float(f"{spacing['spacing_s']:.6g}")
+        rules['reference_spacing'] = ('the spacing of the fixes of the pairs: one fix in '
+                                      f"{spacing['step']} ({spacing.get('reason') or ''})"
+                                      )[:400].replace(' ()', '')
     if online != list(model.augment):
         updates['augment'] = ','.join(online)
         rules['augment'] = 'every found effect the filter can estimate online'

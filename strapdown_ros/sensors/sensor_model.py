@@ -89,6 +89,11 @@ FIXED_KEYS: tuple[EffectParameter, ...] = (
     EffectParameter('camera_sigma_z', 'rad', 1, 6.0 * ARCSEC_RAD,
                     '1σ attitude noise of the reference about VF z (the optical axis), rad; '
                     'used where a fix has no covariance', 0.0, 0.1),
+    EffectParameter('reference_spacing', 's', 1, 0.0,
+                    "the spacing at which the reference's fixes are used, s: its errors are "
+                    'correlated over shorter spacings, so the attitude filter takes the first fix '
+                    'of each slot of this length and leaves the others (0: every fix; '
+                    '``discrepancy --write-model`` writes the spacing it measured)', 0.0, 3600.0),
     EffectParameter('boresight', 'rad', 3, [0.0, 0.0, 0.0],
                     'β = (heading ψ, pitch ϑ, roll γ) of VF relative to MF, rad (the true one '
                     'in the simulator; the known one in the filter)', -10.0, 10.0),
@@ -251,6 +256,8 @@ class SensorModel:
         The accelerometer statistics.
     camera_sigma_xy, camera_sigma_z : float
         The reference's stated noise where a fix has no covariance, rad.
+    reference_spacing : float
+        The spacing at which the reference's fixes are used, s (0: every fix).
     boresight : tuple of float
         β = (ψ, ϑ, γ) of VF relative to MF, rad.
     boresight_sigma : float
@@ -278,6 +285,7 @@ class SensorModel:
     accel: SensorSigmas = field(default_factory=SensorSigmas)
     camera_sigma_xy: float = 0.6 * ARCSEC_RAD
     camera_sigma_z: float = 6.0 * ARCSEC_RAD
+    reference_spacing: float = 0.0
     boresight: tuple = (0.0, 0.0, 0.0)
     boresight_sigma: float = 1e-3
     boresight_estimated: bool = False
@@ -356,6 +364,7 @@ class SensorModel:
                    gyro_max_rate=float(v['gyro_max_rate']), accel_max=float(v['accel_max']),
                    accel=accel, camera_sigma_xy=float(v['camera_sigma_xy']),
                    camera_sigma_z=float(v['camera_sigma_z']),
+                   reference_spacing=float(v['reference_spacing']),
                    boresight=tuple(float(x) for x in v['boresight']),
                    boresight_sigma=float(v['boresight_sigma']),
                    boresight_estimated='boresight' in augment, effects=effects,
@@ -376,7 +385,8 @@ class SensorModel:
                'frame_id': self.frame_id, 'reference_frame_id': self.reference_frame_id,
                'camera_frame_id': self.camera_frame_id, 'gyro_max_rate': self.gyro_max_rate,
                'accel_max': self.accel_max, 'camera_sigma_xy': self.camera_sigma_xy,
-               'camera_sigma_z': self.camera_sigma_z, 'boresight': list(self.boresight),
+               'camera_sigma_z': self.camera_sigma_z,
+               'reference_spacing': self.reference_spacing, 'boresight': list(self.boresight),
                'boresight_sigma': self.boresight_sigma,
                'augment': ','.join(self.augment)}
         for f in ('bias_sigma', 'scale_sigma', 'misalignment_sigma', 'random_walk', 'quantum'):
@@ -624,7 +634,7 @@ def key_group(name: str) -> str:
     if name.startswith('accel_'):
         return 'accel'
     if name in ('reference_frame_id', 'camera_frame_id', 'camera_sigma_xy', 'camera_sigma_z',
-                'boresight', 'boresight_sigma'):
+                'reference_spacing', 'boresight', 'boresight_sigma'):
         return 'reference'
     for e in EFFECTS.values():
         if name in {k.name for k in e.model_parameters()}:
@@ -635,4 +645,4 @@ def key_group(name: str) -> str:
 #: the fields read directly by :meth:`SensorModel.get`
 _DIRECT = frozenset(('gyro_rate', 'accel_rate', 'frame_id', 'reference_frame_id',
                      'camera_frame_id', 'gyro_max_rate', 'accel_max', 'camera_sigma_xy',
-                     'camera_sigma_z', 'boresight_sigma'))
+                     'camera_sigma_z', 'reference_spacing', 'boresight_sigma'))

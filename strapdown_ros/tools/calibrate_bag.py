@@ -200,7 +200,8 @@ def main(argv=None) -> int:
     ap.add_argument('-p', '--param', action='append', default=[], metavar='NAME:=VALUE',
                     help='calibrator_node parameter override (repeatable)')
     ap.add_argument('--reference-spacing', default='auto', metavar='auto|SECONDS',
-                    help='spacing of the fixes of the increment pairs: auto (default: from the '
+                    help='spacing of the fixes of the increment pairs: auto (default: the '
+                         "model's reference_spacing where it states one, else from the "
                          'correlation of the reference error, doc/calibration.md), 0 (every '
                          'fix) or seconds')
     add_input_arguments(ap)

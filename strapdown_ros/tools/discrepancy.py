@@ -206,7 +206,8 @@ def main(argv=None) -> int:
     ap.add_argument('--namespace', default='', help='topic namespace, e.g. /robot1')
     ap.add_argument('--quiet', action='store_true', help='no progress on stderr')
     ap.add_argument('--reference-spacing', default='auto', metavar='auto|SECONDS',
-                    help='spacing of the fixes of the increment pairs: auto (default: from the '
+                    help='spacing of the fixes of the increment pairs: auto (default: the '
+                         "model's reference_spacing where it states one, else from the "
                          'correlation of the reference error, doc/discrepancy.md), 0 (every '
                          'fix) or seconds')
     add_input_arguments(ap)

@@ -20,7 +20,7 @@ from strapdown_ros.discrepancy import workflow as core  # noqa: E402
 from strapdown_ros.discrepancy.synthetic import (draw_hidden_effect,  # noqa: E402
                                                  effect_sigma, simulate_recording)
 from strapdown_ros.params import (check_all, IMU_SIM_PARAMS, load_model_file,  # noqa: E402
-                                  model_and_settings, STAR_CAMERA_PARAMS)
+                                  model_and_settings, STAR_CAMERA_PARAMS, write_model_file)
 from strapdown_ros.rotation import (dcm_to_quat, from_ros_xyzw, quat_angle_between,  # noqa: E402
                                     ypr_to_dcm)
 from strapdown_ros.sensors.effects import CANDIDATES, EFFECTS, GyroEffects  # noqa: E402
@@ -449,3 +449,23 @@ def test_effect_not_repeatable_across_time_blocks_is_said(tmp_path, capsys):
     assert out.count('not repeatable across time blocks') == len(flagged)
     assert r['verdict'] == 'unexplained_structure'
     assert r['stopped_by'] == 'no_significant_candidate' and 'search stopped: no candidate' in out
+
+
+def test_the_found_model_carries_the_spacing_of_the_pairs(tmp_path):
+    """
+    The spacing the pairs used becomes the model's reference_spacing, and reads back unchanged.
+
+    One fix in 27 at 10 ms is 0.27 s; a spacing of one fix (every fix) writes nothing.
+    """
+    base = load_model_file(None).model
+    found = core.found_model(base, [], [0.1, 0.2, 0.3], [1e-3] * 3, 'model_adequate',
+                             {'step': 27, 'spacing_s': 0.27, 'reason': 'test'})
+    assert found.reference_spacing == pytest.approx(0.27)
+    assert 'reference_spacing' in found.stated
+    path = tmp_path / 'found.yaml'
+    write_model_file(str(path), found, 'test')
+    again = load_model_file(str(path)).model
+    assert again.reference_spacing == pytest.approx(0.27)
+    every = core.found_model(base, [], [0.1, 0.2, 0.3], [1e-3] * 3, 'model_adequate',
+                             {'step': 1, 'spacing_s': 0.01, 'reason': 'test'})
+    assert every.reference_spacing == 0.0
