@@ -123,6 +123,13 @@ def quat_multiply(p: np.ndarray, q: np.ndarray) -> np.ndarray:
     """
     p = np.asarray(p, dtype=float)
     q = np.asarray(q, dtype=float)
+    if p.shape == (4,) and q.shape == (4,):           # two quaternions: the same arithmetic, fast
+        pw, px, py, pz = p.tolist()
+        qw, qx, qy, qz = q.tolist()
+        return np.array([pw * qw - px * qx - py * qy - pz * qz,
+                         pw * qx + px * qw + py * qz - pz * qy,
+                         pw * qy - px * qz + py * qw + pz * qx,
+                         pw * qz + px * qy - py * qx + pz * qw])
     pw, px, py, pz = p[..., 0], p[..., 1], p[..., 2], p[..., 3]
     qw, qx, qy, qz = q[..., 0], q[..., 1], q[..., 2], q[..., 3]
     return np.stack([
@@ -238,12 +245,23 @@ def quat_to_dcm(q: np.ndarray) -> np.ndarray:
 
     """
     q = np.asarray(q, dtype=float)
+    if q.shape == (4,):                               # one quaternion: the same arithmetic, fast
+        w, x, y, z = (float(c) for c in q)
+        return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
+                         [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
+                         [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)]])
     w, x, y, z = q[..., 0], q[..., 1], q[..., 2], q[..., 3]
-    return np.stack([
-        np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)], -1),
-        np.stack([2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)], -1),
-        np.stack([2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)], -1),
-    ], -2)
+    C = np.empty(q.shape[:-1] + (3, 3))
+    C[..., 0, 0] = 1 - 2 * (y * y + z * z)
+    C[..., 0, 1] = 2 * (x * y - w * z)
+    C[..., 0, 2] = 2 * (x * z + w * y)
+    C[..., 1, 0] = 2 * (x * y + w * z)
+    C[..., 1, 1] = 1 - 2 * (x * x + z * z)
+    C[..., 1, 2] = 2 * (y * z - w * x)
+    C[..., 2, 0] = 2 * (x * z - w * y)
+    C[..., 2, 1] = 2 * (y * z + w * x)
+    C[..., 2, 2] = 1 - 2 * (x * x + y * y)
+    return C
 
 
 def dcm_to_quat(C: np.ndarray) -> np.ndarray:

@@ -28,6 +28,14 @@ Cramér–Rao bound, its consistency, its cost, and one real recording.  The run
   time offset + boresight states, the Vicon attitude as one fix per second, σ from the data;
   the bias against the mean rate at rest and the time offset against the rate cross-correlation
   (``strapdown_ros.recording.repoimu``).
+* **filter_bag against a raw read** (``--bag BAG``): the whole ``filter_bag BAG --output OUT``
+  command and a raw rosbags read of the same bag (AnyReader over every record, no decoding,
+  ``sins_bag_bench``'s), each a separate process, ``--bag-runs`` pairs in alternating order;
+  median and min–max of each, the ratio of the medians and of each pair; then the phases of one
+  filter_bag in this process (reading, the filter with the live model check's share, the CSV
+  text).  The target: filter_bag within 2× the raw read on a 1 h 100 Hz recording with 1 Hz
+  fixes (``record_sim BAG --duration 3600 --no-accel -p camera_interval:=1.0``).
+  ``--only-bag`` runs this part alone.
 
 Prints a markdown table on stdout; ``--json FILE``; ``--plots DIR`` (attitude error with its
 ±3σ band, bias convergence with ±3σ, NIS with its χ² band); ``--report FILE`` (markdown).  The
@@ -41,7 +49,8 @@ import sys
 import time
 
 from strapdown_ros.bench.filter_bench_report import conclusions, render, write_plots
-from strapdown_ros.bench.filter_bench_runs import monte_carlo, realdata_run, run_timing, summarize
+from strapdown_ros.bench.filter_bench_runs import (bag_timing, monte_carlo, realdata_run,
+                                                   run_timing, summarize)
 from strapdown_ros.cli import check_outputs, DIRECTORY, FILE, OneLineParser, write_json, write_text
 from strapdown_ros.text import json_clean
 
@@ -58,7 +67,8 @@ def main(argv=None) -> int:
     Returns
     -------
     int
-        0 (figures are printed, not asserted); bad arguments exit 2 with one line on stderr.
+        0 (figures are printed, not asserted); bad arguments exit 2 with one line on stderr; 1
+        when filter_bag fails on --bag.
 
     """
     argv = sys.argv[1:] if argv is None else list(argv)
@@ -83,6 +93,11 @@ def main(argv=None) -> int:
         help='σ of a Vicon fix per axis, rad '
              '(default 0.005, as doc/results/realdata/nominal.yaml)')
     arg('--no-realdata', action='store_true', help='skip the real-data run')
+    arg('--bag', help='time filter_bag on this bag beside a raw read of it')
+    arg('--bag-runs', type=int, default=5, help='alternating pairs of that timing (default 5)')
+    arg('--bag-param', action='append', default=[], metavar='NAME:=VALUE',
+        help='a parameter override given to filter_bag (repeatable)')
+    arg('--only-bag', action='store_true', help='only the --bag timing')
     arg('--json', help='write the figures to this JSON file '
         '(documented run: doc/results/filter_bench/filter_bench.json)')
     arg('--report', help='write the markdown report to this file '
@@ -114,6 +129,12 @@ def main(argv=None) -> int:
         ap.error('--timing-runs must be in [1, 100]')
     if not 1 <= a.workers <= 256:
         ap.error('--workers must be in [1, 256]')
+    if a.only_bag and not a.bag:
+        ap.error('--only-bag needs --bag')
+    if a.bag and not os.path.exists(a.bag):
+        ap.error(f'--bag {a.bag} does not exist')
+    if not 1 <= a.bag_runs <= 100:
+        ap.error('--bag-runs must be in [1, 100]')
     try:
         blocks = [int(b) for b in a.blocks.split(',') if b.strip()]
     except ValueError:
@@ -122,7 +143,7 @@ def main(argv=None) -> int:
         ap.error('--blocks: integers in [1, 1000]')
     try:
         check_outputs([('--json', a.json, FILE), ('--report', a.report, FILE),
-                       ('--plots', a.plots, DIRECTORY)], [], a.force)
+                       ('--plots', a.plots, DIRECTORY)], [('--bag', a.bag)], a.force)
     except ValueError as exc:
         ap.error(str(exc))
     t0 = time.perf_counter()
@@ -139,27 +160,35 @@ def main(argv=None) -> int:
                                                       'camera_sigma', 'prior_attitude',
                                                       'prior_bias', 'seed', 'timing_seconds',
                                                       'timing_runs')}}
-    try:
-        mc = monte_carlo(a, progress, a.scheduler, a.workers)
-    except OSError as exc:                            # no scheduler at the address
-        print(f'filter_bench: error: {exc}', file=sys.stderr)
-        return 2
-    res['summary'] = summarize(mc, a.runs)
-    if a.timing_seconds > 0:
-        progress('timing')
-        res['timing'] = run_timing(a.timing_seconds, a.timing_runs, blocks)
-    if a.no_realdata:
-        res['realdata'] = {'available': False, 'reason': '--no-realdata'}
-    else:
+    mc = None
+    if not a.only_bag:
         try:
-            res['realdata'] = realdata_run(a, progress)
-        except (ValueError, OSError) as exc:          # a data problem: reported, not a crash
-            res['realdata'] = {'available': False, 'reason': f'{type(exc).__name__}: '
-                               f'{str(exc)[:200]}'}
+            mc = monte_carlo(a, progress, a.scheduler, a.workers)
+        except OSError as exc:                        # no scheduler at the address
+            print(f'filter_bench: error: {exc}', file=sys.stderr)
+            return 2
+        res['summary'] = summarize(mc, a.runs)
+        if a.timing_seconds > 0:
+            progress('timing')
+            res['timing'] = run_timing(a.timing_seconds, a.timing_runs, blocks)
+        if a.no_realdata:
+            res['realdata'] = {'available': False, 'reason': '--no-realdata'}
+        else:
+            try:
+                res['realdata'] = realdata_run(a, progress)
+            except (ValueError, OSError) as exc:      # a data problem: reported, not a crash
+                res['realdata'] = {'available': False, 'reason': f'{type(exc).__name__}: '
+                                   f'{str(exc)[:200]}'}
+    if a.bag:
+        try:
+            res['bag_timing'] = bag_timing(a.bag, a.bag_runs, a.bag_param, progress)
+        except RuntimeError as exc:
+            print(f'filter_bench: error: {exc}', file=sys.stderr)
+            return 1
     res['conclusions'] = conclusions(res)
     text = render(res)
     print(text)
-    if a.plots:
+    if a.plots and mc is not None:
         res['plots'] = [os.path.basename(p) for p in write_plots(a.plots, mc)]
     res['wall_s'] = time.perf_counter() - t0
     if a.json:

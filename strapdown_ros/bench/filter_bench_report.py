@@ -19,6 +19,8 @@ from strapdown_ros.figures import save_figure
 
 TARGET_RATIO = 1.1
 TARGET_US = 50.0
+#: filter_bag within this many times a raw read of the same bag
+TARGET_BAG_RATIO = 2.0
 
 
 def render(res: dict) -> str:
@@ -36,9 +38,66 @@ def render(res: dict) -> str:
         The markdown.
 
     """
+    L = ['# filter_bench', '', '```', res['command'], '```', '']
+    if 'summary' in res:
+        L += _render_monte_carlo(res)
+    bt = res.get('bag_timing')
+    if bt:
+        L += render_bag_timing(bt)
+    L += ['', '## Conclusions', ''] + [f'* {c}' for c in res['conclusions']]
+    return '\n'.join(L)
+
+
+def render_bag_timing(bt: dict) -> list[str]:
+    """
+    Render the filter_bag-against-raw-read section.
+
+    Parameters
+    ----------
+    bt : dict
+        ``filter_bench_runs.bag_timing``'s result.
+
+    Returns
+    -------
+    list of str
+        The markdown lines.
+
+    """
+    raw, fb = stats(bt['raw_process_s']), stats(bt['filter_bag_s'])
+    per = bt['ratio_per_run']
+    ph = bt['phases']
+    shown = ' '.join(f'-p {p}' for p in bt['params'])
+    L = ['', f"## filter_bag on {bt['bag']} beside a raw read ({bt['records']} records)", '',
+         f"{bt['runs']} pairs in alternating order, separate processes, median (min–max); load "
+         f"average at the start {' '.join(f'{x:.2f}' for x in bt['load_at_start'])}.", '',
+         '| command | wall time, s |', '|---|---:|',
+         '| raw read: rosbags AnyReader over every record (the whole process) | '
+         f"{median_range(raw, '.2f')} |",
+         '| raw read: the iteration alone | '
+         f"{median_range(stats(bt['raw_iteration_s']), '.2f')} |",
+         f"| `filter_bag BAG --output OUT.csv{(' ' + shown) if shown else ''}` (whole command) | "
+         f"{median_range(fb, '.2f')} |", '',
+         f"filter_bag / raw read: **{fb['median'] / raw['median']:.2f}×** (per pair "
+         f'{min(per):.2f}–{max(per):.2f}×); the target ≤ {TARGET_BAG_RATIO:g}× is '
+         f"{'met' if fb['median'] / raw['median'] <= TARGET_BAG_RATIO else 'NOT met'}.", '',
+         f"filter_bag's summary: {bt['summary']}", '',
+         f"Phases of one filter_bag in this process ({ph['increments']} increments, "
+         f"{ph['fixes']} fixes, {ph['outputs']} outputs):", '',
+         '| phase | s | µs per increment |', '|---|---:|---:|']
+    n = max(ph['increments'], 1)
+    for key, name in (('read_s', 'read the bag (recording.reader.read_bag)'),
+                      ('filter_s', 'the filter (run_filter), all of it'),
+                      ('model_check_add_s', '… of which the live model check (ModelCheck.add)'),
+                      ('csv_text_s', 'the CSV text of the outputs and fixes')):
+        L.append(f'| {name} | {ph[key]:.2f} | {ph[key] / n * 1e6:.2f} |')
+    return L
+
+
+def _render_monte_carlo(res: dict) -> list[str]:
+    """Render the Monte Carlo, timing and real-data sections."""
     s, set_ = res['summary'], res['settings']
     att = s['attitude']
-    L = ['# filter_bench', '', '```', res['command'], '```', '',
+    L = [
          f"Monte Carlo: {set_['runs']} runs × {set_['fixes']} fixes every "
          f"{set_['fix_interval']:g} s; gyro {1 / set_['gyro_period']:g} Hz, ARW "
          f"{set_['arw']:.1e} rad/√s, bias RW {set_['bias_rw']:.1e} rad/s/√s; camera σ "
@@ -116,8 +175,7 @@ def render(res: dict) -> str:
         L.append(f"| time offset, ms | {rd['time_offset_s'] * 1e3:.2f} ± "
                  f"{rd['time_offset_sigma_s'] * 1e3:.2f} | −xcorr lag "
                  f"{rd['minus_xcorr_lag_s'] * 1e3:.2f} | {z_t:+.2f} |")
-    L += ['', '## Conclusions', ''] + [f'* {c}' for c in res['conclusions']]
-    return '\n'.join(L)
+    return L
 
 
 def conclusions(res: dict) -> list[str]:
@@ -135,7 +193,20 @@ def conclusions(res: dict) -> list[str]:
         The sentences.
 
     """
-    s, out = res['summary'], []
+    out = []
+    bt = res.get('bag_timing')
+    if bt:
+        ratio = stats(bt['filter_bag_s'])['median'] / stats(bt['raw_process_s'])['median']
+        ph = bt['phases']
+        out.append(f'filter_bag takes {ratio:.2f}× the time of a raw read of the bag: '
+                   f"{'within' if ratio <= TARGET_BAG_RATIO else 'ABOVE'} the target "
+                   f'{TARGET_BAG_RATIO:g}× at this load.  Of its work in one process, reading '
+                   f"the bag took {ph['read_s']:.2f} s, the filter {ph['filter_s']:.2f} s (the "
+                   f"live model check {ph['model_check_add_s']:.2f} s of it) and the CSV text "
+                   f"{ph['csv_text_s']:.2f} s.")
+    if 'summary' not in res:
+        return out
+    s = res['summary']
     r1, r2 = s['attitude']['filter_over_filter_pcrb'], s['attitude']['smoother_over_smoother_pcrb']
     out.append(f"The filter's attitude RMS is {r1:.3f} × √(filter PCRB) and the RTS smoother's "
                f'{r2:.3f} × √(smoother PCRB): '

@@ -2,25 +2,38 @@
 Runs of the attitude-filter benchmark: Monte Carlo with its bounds, timing, one real trial.
 
 The simulation and the posterior Cramér–Rao bounds of ``filter_bench`` (see its help), the
-summary against the bounds and the χ² bands, the cost per increment and per fix, and the run
-on one RepoIMU wand trial.  The report is ``filter_bench_report``.
+summary against the bounds and the χ² bands, the cost per increment and per fix, the run
+on one RepoIMU wand trial, and ``filter_bag`` timed beside a raw read of a bag.  The report is
+``filter_bench_report``.
 """
 from __future__ import annotations
 
 import math
+import os
+from pathlib import Path
+import subprocess
+import sys
+import tempfile
 import time
 
 import numpy as np
 
+from strapdown_ros.bench.sins_bag_bench import raw_read
 from strapdown_ros.bench.stats import (pcrb_filter_smoother, rts_smooth,
                                        simulate_increments)
 from strapdown_ros.estimation import AttitudeFilter, chi2_3_quantile
+from strapdown_ros.estimation import model_check
 from strapdown_ros.estimation.chi_square import chi2_interval
+from strapdown_ros.estimation.filter_system import FilterSettings
 from strapdown_ros.estimation.steady_filter import discretize
 from strapdown_ros.fleet.cluster import dask_client, map_tasks, TaskError
+from strapdown_ros.params import load_model_file, parse_overrides
 from strapdown_ros.recording import repoimu
+from strapdown_ros.recording.filter_replay import run_filter
+from strapdown_ros.recording.reader import read_bag
 from strapdown_ros.rotation import quat_conjugate, quat_multiply, quat_to_rotvec, rotvec_to_quat
 from strapdown_ros.streams.rate_increments import increments_from_rates
+from strapdown_ros.tools.filter_bag import fix_rows, state_rows
 
 RATE = np.array([0.01, -0.02, 0.015])           # body rate of the Monte Carlo motion, rad/s
 Q_START = rotvec_to_quat(np.array([0.4, 0.1, -0.7]))
@@ -402,3 +415,117 @@ def realdata_run(a, progress) -> dict:
             'time_offset_s': f.time_offset,
             'time_offset_sigma_s': float(f.sigma('time_offset')[0]),
             'minus_xcorr_lag_s': -lag, 'mean_nis': float(np.mean(nis)) if nis else None}
+
+
+def _filter_bag_run(bag: str, out: str, params: list) -> dict:
+    """Time one whole ``filter_bag`` command, as a user runs it (a separate process)."""
+    script = Path(sys.executable).parent / 'filter_bag'
+    head = ([str(script)] if script.exists()
+            else [sys.executable, '-m', 'strapdown_ros.tools.filter_bag'])
+    cmd = head + [bag, '--output', out, '--force'] + [x for p in params for x in ('-p', p)]
+    t0 = time.perf_counter()
+    res = subprocess.run(cmd, capture_output=True, text=True)
+    wall = time.perf_counter() - t0
+    if res.returncode != 0:
+        raise RuntimeError(f'filter_bag exited {res.returncode}: {res.stderr.strip()[-300:]}')
+    summary = [x for x in res.stdout.splitlines() if 'outputs,' in x]
+    return {'wall_s': wall, 'summary': summary[0] if summary else ''}
+
+
+def phases(bag: str, params: list) -> dict:
+    """
+    Time the phases of filter_bag in this process: read the bag, run the filter, write the CSV.
+
+    The live model check's share of the filter (its ``add``) is timed on its own.
+
+    Parameters
+    ----------
+    bag : str
+        The bag.
+    params : list of str
+        ``NAME:=VALUE`` parameter overrides.
+
+    Returns
+    -------
+    dict
+        Seconds of each phase, increments, fixes and outputs.
+
+    """
+    mf = load_model_file(None, 'attitude_filter_node', parse_overrides(params))
+    settings = FilterSettings.from_values(mf.settings)
+    t0 = time.perf_counter()
+    data = read_bag(bag, '', settings.use_camera_covariance, tuple(mf.model.camera_sigma),
+                    mf.model.gyro_max_rate, settings.max_stamp_jump, settings.resync_count)
+    t1 = time.perf_counter()
+    spent = [0.0]
+    add = model_check.ModelCheck.add
+
+    def timed(self, *a, **kw):
+        t = time.perf_counter()
+        try:
+            return add(self, *a, **kw)
+        finally:
+            spent[0] += time.perf_counter() - t
+    model_check.ModelCheck.add = timed
+    try:
+        system = run_filter(data, mf.model, settings)
+    finally:
+        model_check.ModelCheck.add = add
+    t2 = time.perf_counter()
+    outputs, fixes = system.take()
+    _ = state_rows(outputs), fix_rows(fixes)
+    t3 = time.perf_counter()
+    return {'read_s': t1 - t0, 'filter_s': t2 - t1, 'model_check_add_s': spent[0],
+            'csv_text_s': t3 - t2, 'increments': len(data['gyro'].stamps),
+            'fixes': len(fixes), 'outputs': len(outputs)}
+
+
+def bag_timing(bag: str, runs: int, params: list, progress) -> dict:
+    """
+    Time filter_bag beside a raw read of the same bag, alternating, in separate processes.
+
+    The raw read is ``sins_bag_bench``'s (rosbags' AnyReader over every record, no decoding).
+    One untimed run of each first (numba's cache, the page cache); then ``runs`` pairs, the
+    order alternating (A B, B A, …); then the phases of one filter_bag in this process.
+
+    Parameters
+    ----------
+    bag : str
+        A rosbag2 bag (e.g. ``record_sim OUT --duration 3600 --no-accel -p
+        camera_interval:=1.0``).
+    runs : int
+        Pairs timed.
+    params : list of str
+        ``NAME:=VALUE`` overrides given to filter_bag.
+    progress : callable
+        Called with one line of progress text.
+
+    Returns
+    -------
+    dict
+        Wall times of every run, the per-run ratios, the load average at the start, filter_bag's
+        summary line and the phases.
+
+    """
+    load = list(os.getloadavg())
+    with tempfile.TemporaryDirectory(prefix='filter_bench_') as tmp:
+        out = str(Path(tmp) / 'out.csv')
+        _filter_bag_run(bag, out, params)
+        raw_read(bag)
+        raws, fbs = [], []
+        for k in range(runs):
+            for which in (('raw', 'filter_bag') if k % 2 == 0 else ('filter_bag', 'raw')):
+                if which == 'raw':
+                    raws.append(raw_read(bag))
+                else:
+                    fbs.append(_filter_bag_run(bag, out, params))
+            progress(f"bag run {k + 1}/{runs}: raw read {raws[-1]['wall_s']:.2f} s, "
+                     f"filter_bag {fbs[-1]['wall_s']:.2f} s")
+    progress('phases of filter_bag in this process')
+    return {'bag': bag, 'params': list(params), 'runs': runs, 'load_at_start': load,
+            'raw_process_s': [r['wall_s'] for r in raws],
+            'raw_iteration_s': [r['iteration_s'] for r in raws],
+            'records': raws[0]['records'],
+            'filter_bag_s': [f['wall_s'] for f in fbs],
+            'ratio_per_run': [f['wall_s'] / r['wall_s'] for f, r in zip(fbs, raws)],
+            'summary': fbs[0]['summary'], 'phases': phases(bag, params)}

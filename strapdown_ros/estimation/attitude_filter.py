@@ -7,12 +7,15 @@ Determination and Control*, ch. 6.  The nominal attitude ``q_ref_body`` comes fr
 package's own integrator (:class:`strapdown_ros.attitude.integrator.AttitudeIntegrator`) on
 increments compensated with the estimated gyro effects; the error state is the attitude error
 ε, the gyro bias and, by name, further states of the effect registry (:mod:`.filter_support`
-lays them out), the camera time offset and the boresight.  Propagation by
-:func:`strapdown_ros.estimation.error_model.block_transition`; a fix is gated on its NIS and
-applied in Joseph form on a square-root factor; a late fix rolls back to a checkpoint
-(:mod:`.fix_history`).  Model, equations and sources: doc/attitude_filter.md.  The node
-(``attitude_filter_node``) and the ``filter_bag`` tool reach it through
-:mod:`.filter_system`.  No ROS imports.
+lays them out), the camera time offset and the boresight.  Between fixes the increments are
+integrated at once and the covariance carried as the running sums of the block
+(:class:`strapdown_ros.estimation.error_model.BlockSums`), committed to the square-root factor at
+fixes and every ``checkpoint_interval``; the state at any increment stamp is read from the sums
+(``propagate(..., marks)``).  A fix is gated on its NIS and applied in Joseph form on the
+square-root factor; a late fix rolls back to a checkpoint (:mod:`.fix_history`); consecutive
+gated fixes or an NIS excess declare divergence, and the fix re-initialises the attitude.
+Model, equations and sources: doc/attitude_filter.md.  The node (``attitude_filter_node``) and
+the ``filter_bag`` tool reach it through :mod:`.filter_system`.  No ROS imports.
 """
 from __future__ import annotations
 
@@ -22,12 +25,14 @@ import numpy as np
 
 from strapdown_ros.attitude.integrator import AttitudeIntegrator
 from strapdown_ros.estimation.chi_square import chi2_3_quantile
-from strapdown_ros.estimation.error_model import block_transition
+from strapdown_ros.estimation.chi_square import chi2_quantile
+from strapdown_ros.estimation.error_model import BlockSums
 from strapdown_ros.estimation.filter_support import (checked_fix, FilterCounters, FixResult,
-                                                     psd_factor, StateLayout, triangular_factor)
+                                                     psd_factor, StateLayout, StateReport,
+                                                     triangular_factor)
 from strapdown_ros.estimation.fix_history import CameraFix, Checkpoint, IncrementLog
-from strapdown_ros.rotation import (quat_conjugate, quat_multiply, quat_normalize, quat_to_dcm,
-                                    quat_to_rotvec, rotvec_to_quat)
+from strapdown_ros.rotation import (quat_conjugate, quat_cumprod, quat_multiply, quat_normalize,
+                                    quat_to_dcm, quat_to_rotvec, rotvec_to_quat)
 from strapdown_ros.sensors.effects import EFFECTS, GyroEffects
 
 __all__ = ['AttitudeFilter']
@@ -87,11 +92,32 @@ class AttitudeFilter:
         The model the augmented effects are set up from (their other parameters, e.g. the
         period of ``gyro_bias_periodic``); None: the registry's defaults.
     max_queued : int
-        Increments :meth:`propagate` may hold before processing them as one block (0: every call
-        processed at once).  They are processed when a waiting fix is due, a checkpoint is due,
-        the queue is full, or any estimate, the covariance or :meth:`update` is asked for: a
-        caller sees the state of immediate processing; one increment per call then costs a
-        fraction of the work (``filter_bench``).
+        Increments :meth:`propagate` may hold before processing them (0: every call processed
+        at once).  They are processed when a waiting fix is due, the queue is full, a state is
+        to be reported (``marks``), or any estimate, the covariance or :meth:`update` is asked
+        for: a caller sees the state of immediate processing; one increment per call then costs
+        a fraction of the work (``filter_bench``).
+    divergence_gated_fixes : int
+        Divergence is declared after this many consecutive gated fixes (0: never by this rule).
+    divergence_nis_window : int
+        ... or when the NIS of the last this many fixes that pass the gate sum above their
+        χ²(3·window) quantile of ``divergence_nis_probability`` (0: never by this rule).
+    divergence_nis_probability : float
+        That quantile's probability.
+    reset_sigma : float, optional
+        1σ of the attitude error per axis after a divergence reset, rad (default:
+        ``initial_sigma``).
+
+    Notes
+    -----
+    Between fixes the increments are integrated at once and the covariance is carried as the
+    running sums of the block (:class:`~strapdown_ros.estimation.error_model.BlockSums`); the
+    block is committed to the square-root factor at each fix and every ``checkpoint_interval``
+    of stamp time (at the first update end past it), where a checkpoint is kept.  On divergence
+    the fix that declares it re-initialises the attitude (``q_ref_body = q_fix ⊗ q_MF_VF⁻¹``)
+    with the covariance ``reset_sigma²·I``, uncorrelated with the other states, which keep their
+    estimates and covariance; it is reported with status ``reset`` and counted
+    (``counters.resets``).
 
     """
 
@@ -103,7 +129,10 @@ class AttitudeFilter:
                  boresight=(1.0, 0.0, 0.0, 0.0), process_noise: dict | None = None,
                  gate_probability: float = 0.9999, history: int = 20_000, max_pending: int = 256,
                  checkpoint_interval: float = 1.0, max_queued: int = 1024,
-                 epoch: float | None = None, time_offset: float = 0.0, model=None):
+                 epoch: float | None = None, time_offset: float = 0.0, model=None,
+                 divergence_gated_fixes: int = 5, divergence_nis_window: int = 10,
+                 divergence_nis_probability: float = 1.0 - 1e-9,
+                 reset_sigma: float | None = None):
         for name, v in (('gyro_random_walk', gyro_random_walk), ('initial_sigma', initial_sigma),
                         ('bias_sigma', bias_sigma),
                         ('gyro_bias_random_walk', gyro_bias_random_walk)):
@@ -113,6 +142,12 @@ class AttitudeFilter:
             raise ValueError('initial_time must be finite')
         if int(history) < 16 or int(max_pending) < 1 or int(max_queued) < 0:
             raise ValueError('history must be >= 16, max_pending >= 1 and max_queued >= 0')
+        if int(divergence_gated_fixes) < 0 or int(divergence_nis_window) < 0 \
+                or not 0.5 <= divergence_nis_probability < 1.0:
+            raise ValueError('divergence_gated_fixes and divergence_nis_window must be >= 0, '
+                             'divergence_nis_probability in [0.5, 1)')
+        if not (np.isfinite(checkpoint_interval) and checkpoint_interval > 0):
+            raise ValueError('checkpoint_interval must be > 0')
         self.max_queued = int(max_queued)
         self.integrator = AttitudeIntegrator(algorithm, initial_attitude,
                                              initial_time=initial_time,
@@ -128,6 +163,14 @@ class AttitudeFilter:
         self._fixed_offset = float(time_offset)        # the known offset when it is no state
         self.gate = chi2_3_quantile(gate_probability)
         self.gate_probability = float(gate_probability)
+        self.gated_limit = int(divergence_gated_fixes)
+        self.nis_window = int(divergence_nis_window)
+        self.nis_limit = (chi2_quantile(float(divergence_nis_probability), 3 * self.nis_window)
+                          if self.nis_window else np.inf)
+        rs = initial_sigma if reset_sigma is None else reset_sigma
+        if not (np.isfinite(rs) and rs > 0):
+            raise ValueError('reset_sigma (default initial_sigma) must be > 0')
+        self.reset_sigma = float(rs)
         self.layout = StateLayout.build(tuple(augment), model)
         self._x = np.zeros(self.layout.size)            # the estimates (filter states), not errors
         q_bv = np.asarray(boresight, dtype=float)
@@ -156,6 +199,15 @@ class AttitudeFilter:
                                         for e, _ in self.layout.gyro])
         self._g_tau = np.concatenate([e.filter_correlation_time(self.noise)
                                       for e, _ in self.layout.gyro])
+        self._nq = len(self._g_tau)                     # gyro states (bias first)
+        #: Gauss–Markov states: the compensation's cells, 5 % of the shortest correlation time
+        self._cell = 0.05 * float(np.min(self._g_tau))
+        #: longest open block, s: the checkpoint interval (and at most 2 correlation times)
+        self.block_length = min(float(checkpoint_interval), 2.0 * float(np.min(self._g_tau)))
+        self._x_time = float(initial_time)              # the estimates are those at this time
+        self._effects = None                            # the compensation of the estimates
+        self._effects_cell = None
+        self._bias_only = len(self.layout.gyro) == 1
         self.counters = FilterCounters()
         self.results: deque = deque(maxlen=1000)       # the last fix results (bounded)
         self.history = int(history)
@@ -166,6 +218,7 @@ class AttitudeFilter:
         self._open_dt = np.zeros(0)
         self._last_rate = np.zeros(3)
         self._last_stamp = float(initial_time)  # newest piece stamp
+        self._block_t0 = self._last_stamp
         self._queue_d: list = []                # increments received, not processed yet
         self._queue_t: list = []
         self._queued = 0
@@ -174,15 +227,22 @@ class AttitudeFilter:
         self._applied: deque = deque()         # fixes applied (or gated), for re-processing
         self._seq = 0
         self._order = 0
+        self._marks: list = []                  # stamps to report the state at (propagate)
+        self.reports: list = []
+        self._gated_run = 0                     # the divergence rule's memory
+        self._nis_recent: deque = deque(maxlen=max(self.nis_window, 1))
+        self._fixes_since_reset = 0
         self._checkpoints: deque = deque(maxlen=512)
+        self._block: BlockSums | None = None
+        self._new_block()
         self._checkpoint()
 
     # ------------------------------------------------------------------ layout and estimates
     @property
     def x(self) -> np.ndarray:
-        """Return the estimates of the filter states (not errors), in the layout's order."""
+        """Return the estimates of the filter states (not errors) at :attr:`time`."""
         self._drain()
-        return self._x
+        return self._decayed(float(self.integrator.time) - self._x_time)
 
     @property
     def attitude(self) -> np.ndarray:
@@ -206,7 +266,7 @@ class AttitudeFilter:
         """Estimated camera time offset τ̂ (camera clock minus IMU clock), s."""
         self._drain()
         sl = self.layout.time_offset
-        return self._fixed_offset if sl is None else float(self._x[sl][0])
+        return self._fixed_offset if sl is None else float(self._x[sl][0])   # not decaying
 
     def estimate(self, name: str) -> np.ndarray:
         """
@@ -232,7 +292,7 @@ class AttitudeFilter:
         self._drain()
         if name == 'boresight':
             return self.boresight.copy()
-        return self._x[self.layout.slice_of(name)].copy()
+        return self.x[self.layout.slice_of(name)].copy()
 
     def sigma(self, name: str) -> np.ndarray:
         """
@@ -263,11 +323,19 @@ class AttitudeFilter:
         """
         Error-state covariance (n, n).
 
-        ``S Sᵀ`` of the square-root factor the filter keeps, symmetric and positive
-        semi-definite by construction.
+        ``S Sᵀ`` of the square-root factor the filter keeps, propagated over the open block
+        (``ΦSSᵀΦᵀ + Q``), symmetric and positive semi-definite.
         """
         self._drain()
-        P = self._sqrt_p @ self._sqrt_p.T
+        if not self._block.m:
+            P = self._sqrt_p @ self._sqrt_p.T
+            return 0.5 * (P + P.T)
+        phi, Q, _ = self._block.transition(self._block.state(), self.sigma_v)
+        k = 3 + self._nq
+        F = self._sqrt_p.copy()
+        F[:k] = phi[0] @ self._sqrt_p[:k]
+        P = F @ F.T
+        P[:k, :k] += Q[0]
         return 0.5 * (P + P.T)
 
     def implausible(self) -> list[str]:
@@ -282,18 +350,15 @@ class AttitudeFilter:
             Effect names.
 
         """
-        self._drain()
-        return self.layout.implausible(self._x)
+        return self.layout.implausible(self.x)
 
-    def _gyro_effects(self, decay_time: float = 0.0) -> GyroEffects:
-        """Return the estimated gyro effects, Gauss–Markov states decayed over ``decay_time`` s."""
-        x = self._x.copy()
-        x[3:3 + len(self._g_tau)] *= np.exp(-decay_time / self._g_tau)
+    def _gyro_effects(self, x: np.ndarray) -> GyroEffects:
+        """Return the gyro effects of estimates ``x`` (the compensation)."""
         values = {e.name: e.filter_values(x[sl]) for e, sl in self.layout.gyro}
         return GyroEffects(values=values, epoch=self.epoch)
 
     # ------------------------------------------------------------------ public stream interface
-    def propagate(self, delta_theta, stamps) -> list[FixResult]:
+    def propagate(self, delta_theta, stamps, marks=None) -> list[FixResult]:
         """
         Consume gyro increments and apply the waiting fixes whose epochs they reach.
 
@@ -303,6 +368,10 @@ class AttitudeFilter:
             Measured increments, rad, body axes.
         stamps : array_like (n,)
             End stamps, s, strictly increasing and after :attr:`newest_stamp`.
+        marks : array_like of int, optional
+            Indices of increments at whose end stamps the state is reported
+            (:meth:`take_reports`): attitude, covariance and estimates there (after a waiting
+            fix of that very epoch).  The call then processes at once.
 
         Returns
         -------
@@ -321,20 +390,33 @@ class AttitudeFilter:
         if t[0] <= self._queued_stamp or (len(t) > 1 and (np.diff(t) <= 0).any()):
             raise ValueError('stamps must increase strictly and follow the newest stamp')
         self._queued_stamp = float(t[-1])
+        marked = marks is not None and len(marks) > 0
         due = bool(self._pending) and self._pending[0].epoch <= t[-1]
-        if (not due and self._checkpoints and self._queued + len(t) <= self.max_queued
-                and t[-1] - self._checkpoints[-1].epoch < self.checkpoint_interval):
+        if not (due or marked) and self._queued + len(t) <= self.max_queued:
             self._queue_d.append(d)              # processed as one block later
             self._queue_t.append(t)
             self._queued += len(t)
             return []
+        if marked:
+            self._marks = sorted(float(x) for x in t[np.asarray(marks, dtype=int)])
         if self._queued:
             d, t = np.concatenate(self._queue_d + [d]), np.concatenate(self._queue_t + [t])
             self._queue_d, self._queue_t, self._queued = [], [], 0
         out = self._advance(d, t)
-        if (not self._checkpoints
-                or self._last_stamp - self._checkpoints[-1].epoch >= self.checkpoint_interval):
-            self._checkpoint()
+        self._marks = []
+        return out
+
+    def take_reports(self) -> list[StateReport]:
+        """
+        Return the states reported at the marks of :meth:`propagate` since the last call.
+
+        Returns
+        -------
+        list of StateReport
+            In stamp order.
+
+        """
+        out, self.reports = self.reports, []
         return out
 
     def update(self, stamp: float, attitude, covariance, boresight=None) -> FixResult:
@@ -360,8 +442,9 @@ class AttitudeFilter:
         Returns
         -------
         FixResult
-            Status ``applied``, ``gated``, ``pending``, ``too_old`` or ``overflow``, with the
-            residual and its NIS when it was applied or gated.
+            Status ``applied``, ``gated``, ``reset`` (divergence declared: the attitude was
+            re-initialised from this fix), ``pending``, ``too_old`` or ``overflow``, with the
+            residual and its NIS when it was applied, gated or reset.
 
         Raises
         ------
@@ -391,7 +474,9 @@ class AttitudeFilter:
             self._pending.sort(key=lambda f: (f.epoch, f.seq))
             return FixResult(fix.stamp, fix.epoch, 'pending')
         if fix.epoch == self._last_stamp:
-            return self._apply(fix)
+            out = self._apply(fix)
+            self._report_held()
+            return out
         return self._late(fix)
 
     # ------------------------------------------------------------------ processing
@@ -413,104 +498,275 @@ class AttitudeFilter:
         while True:
             while self._pending and self._pending[0].epoch <= start:   # due at the newest stamp
                 out.append(self._apply(self._pending.pop(0)))
+            self._report_held()
             if len(t) == 0:
                 break
             if not self._pending or self._pending[0].epoch > t[-1]:
                 self._push(d, t)
                 break
-            fix = self._pending.pop(0)
-            i = int(np.searchsorted(t, fix.epoch, side='left'))      # t[i] >= epoch
+            epoch = self._pending[0].epoch
+            i = int(np.searchsorted(t, epoch, side='left'))          # t[i] >= epoch
             t_prev = t[i - 1] if i > 0 else start
-            if t[i] == fix.epoch:
+            if t[i] == epoch:
                 self._push(d[:i + 1], t[:i + 1])
                 d, t = d[i + 1:], t[i + 1:]
             else:                    # split the increment at the epoch (constant rate inside it)
-                frac = (fix.epoch - t_prev) / (t[i] - t_prev)
+                frac = (epoch - t_prev) / (t[i] - t_prev)
                 head_d = np.vstack([d[:i], frac * d[i:i + 1]])
-                self._push(head_d, np.append(t[:i], fix.epoch))
+                self._push(head_d, np.append(t[:i], epoch))
                 d = np.vstack([(1.0 - frac) * d[i:i + 1], d[i + 1:]])
                 t = t[i:]
-            start = fix.epoch
-            out.append(self._apply(fix))
+            start = epoch
         return out
 
     def _push(self, d: np.ndarray, t: np.ndarray) -> None:
         """
-        Compensate, integrate and propagate the covariance over increments (pieces).
+        Integrate increments (pieces) into the open block, committing it at its length limit.
 
-        With Gauss–Markov states, in blocks of at most 5 % of the shortest correlation time
-        (the compensation uses the estimate decayed to the middle of a block).
+        The block is committed (P ← ΦPΦᵀ + Q on the factor, a checkpoint) at the first update
+        end past :attr:`block_length` after the block's start: a point of the data, not of how
+        the increments arrived.
         """
-        if len(t) == 0:
-            return
-        step = 0.05 * float(np.min(self._g_tau))
-        if np.isfinite(step) and t[-1] - self._last_stamp > step:
-            k = np.floor((t - self._last_stamp) / step)
-            cuts = np.flatnonzero(np.diff(k)) + 1
-            for dd, tt in zip(np.split(d, cuts), np.split(t, cuts)):
-                self._push_block(dd, tt)
-            return
-        self._push_block(d, t)
+        while len(t):
+            n_new = self.integrator.algorithm.samples
+            first = n_new - len(self._open_rho) - 1           # piece index of the first update end
+            cut, limited = len(t), False
+            if first < len(t):
+                ends = np.arange(first, len(t), n_new)
+                k = int(np.searchsorted(t[ends], self._block_t0 + self.block_length, side='right'))
+                if k < len(ends):
+                    cut, limited = int(ends[k]) + 1, True
+            self._push_part(d[:cut], t[:cut])
+            if limited:
+                self._commit()
+                self._checkpoint()
+            d, t = d[cut:], t[cut:]
 
-    def _push_block(self, d: np.ndarray, t: np.ndarray) -> None:
+    def _compensate(self, d: np.ndarray, t: np.ndarray, dt: np.ndarray) -> np.ndarray:
+        """
+        Compensate increments with the estimated gyro effects.
+
+        Gauss–Markov states: the estimate decayed to the middle of its cell (cells of 5 % of the
+        shortest correlation time, counted from the last fix).
+        """
+        if not np.isfinite(self._cell):
+            if self._bias_only:                           # the bias alone: ρ = ρ̃ − b̂·T
+                return d - self._x[3:6] * dt[:, None]
+            if self._effects is None:
+                self._effects = self._gyro_effects(self._x)
+            return self._effects.compensate(d, t, dt)
+        cells = np.floor((t - self._x_time) / self._cell)
+        cuts = np.flatnonzero(np.diff(cells)) + 1
+        out = []
+        for dd, tt, hh, cc in zip(np.split(d, cuts), np.split(t, cuts), np.split(dt, cuts),
+                                  cells[np.concatenate(([0], cuts))]):
+            if self._effects is None or self._effects_cell != cc:
+                self._effects = self._gyro_effects(self._decayed((cc + 0.5) * self._cell))
+                self._effects_cell = cc
+            out.append(self._effects.compensate(dd, tt, hh))
+        return np.concatenate(out)
+
+    def _partials(self, c, rho, h, t_mid) -> np.ndarray:
+        """Return ``C_j J_j`` (m, 3, q) of the gyro states over m updates."""
+        J = [e.filter_partials(rho, h, t_mid) for e, _ in self.layout.gyro]
+        return c @ (J[0] if len(J) == 1 else np.concatenate(J, axis=2))
+
+    def _push_part(self, d: np.ndarray, t: np.ndarray) -> None:
         self._log.append(d, t)
-        dt = np.diff(np.concatenate([[self._last_stamp], t]))
-        rho = self._gyro_effects(0.5 * (t[-1] - self._last_stamp)).compensate(d, t, dt)
+        t_start = self._last_stamp
+        dt = np.diff(np.concatenate([[t_start], t]))
+        rho = self._compensate(d, t, dt)
         self._last_rate = rho[-1] / dt[-1]
-        self._last_stamp = float(t[-1])
         q_before = self.integrator.q
+        before = self._block.state()
+        work_rho = np.concatenate([self._open_rho, rho])
+        work_dt = np.concatenate([self._open_dt, dt])
+        p = len(self._open_rho)
         batch = self.integrator.push(rho, t)
+        self._last_stamp = float(t[-1])
         n_new = self.integrator.algorithm.samples
-        open_rho = np.concatenate([self._open_rho, rho])
-        open_dt = np.concatenate([self._open_dt, dt])
         m = len(batch)
-        used = m * n_new
-        self._open_rho, self._open_dt = open_rho[used:], open_dt[used:]
+        marks = [s for s in self._marks if t_start < s <= t[-1] and not self._held(s)]
+        run = None
         if m:
             c = quat_to_dcm(batch.attitude)
             rho_sum = batch.mean_rate * batch.interval[:, None]
-            self._propagate_covariance(quat_to_dcm(q_before), c, rho_sum, batch.interval,
-                                       batch.stamps - 0.5 * batch.interval - self.epoch)
+            A = self._partials(c, rho_sum, batch.interval,
+                               batch.stamps - 0.5 * batch.interval - self.epoch)
+            run = self._block.add(c, A, batch.interval, running=bool(marks))
+        self._open_rho, self._open_dt = work_rho[m * n_new:], work_dt[m * n_new:]
+        if marks:
+            self._report(marks, t, p, n_new, q_before, before, batch, run, work_rho, work_dt)
+
+    def _held(self, stamp: float) -> bool:
+        """Tell whether a mark waits for a fix of its epoch (reported after it)."""
+        return bool(self._pending) and self._pending[0].epoch <= stamp
+
+    def _report(self, marks, t, p, n_new, q_before, before, batch, run, work_rho,
+                work_dt) -> None:
+        """Report the state at marks inside the piece just pushed (not committing anything)."""
+        stamps = np.asarray(marks)
+        K = len(stamps)
+        w = p + np.searchsorted(t, stamps)                        # work index of each mark
+        done = (w + 1) // n_new                                   # updates of this push up to it
+        q_out = np.concatenate([q_before[None], batch.attitude])[done]
+        h_v = np.zeros(K)
+        rho_v = np.zeros((K, 3))
+        for k in np.flatnonzero(done * n_new < w + 1):           # inside an update: a lumped rest
+            piece = work_rho[done[k] * n_new:w[k] + 1]
+            q_out[k] = quat_cumprod(q_out[k], rotvec_to_quat(piece))[-1]
+            rho_v[k] = piece.sum(0)
+            h_v[k] = work_dt[done[k] * n_new:w[k] + 1].sum()
+        base = tuple(np.repeat(b, K, axis=0) if run is None
+                     else np.concatenate([b, r])[done] for b, r in zip(before, run or before))
+        c_v = quat_to_dcm(q_out)
+        if h_v.any():
+            A_v = self._partials(c_v, rho_v, np.where(h_v > 0, h_v, 1.0),
+                                 stamps - 0.5 * h_v - self.epoch) * (h_v > 0)[:, None, None]
+            sums = self._block.extended(base, c_v, A_v, h_v)
+        else:
+            sums = base
+        phi, Q, _ = self._block.transition(sums, self.sigma_v)
+        self._add_reports(stamps, q_out, phi, Q)
+
+    def _add_reports(self, stamps, q, phi, Q) -> None:
+        k = 3 + self._nq
+        F = np.broadcast_to(self._sqrt_p, (len(stamps),) + self._sqrt_p.shape).copy()
+        F[:, :k] = phi @ self._sqrt_p[:k]
+        P = F @ np.swapaxes(F, -1, -2)
+        P[:, :k, :k] += Q
+        P = 0.5 * (P + np.swapaxes(P, -1, -2))
+        x = self._x
+        if np.isfinite(self._cell):
+            x = np.broadcast_to(x, (len(stamps), len(x))).copy()
+            x[:, 3:3 + self._nq] *= np.exp(-np.outer(stamps - self._x_time, 1.0 / self._g_tau))
+        else:
+            x = np.broadcast_to(x, (len(stamps), len(x)))
+        bv = self.boresight.copy()
+        self.reports.extend(StateReport(float(s), q[j], P[j], x[j].copy(), bv)
+                            for j, s in enumerate(stamps))
+        done = {float(s) for s in stamps}
+        self._marks = [m for m in self._marks if m not in done]
+
+    def _report_held(self) -> None:
+        """Report the marks at the newest stamp once its fixes are applied (committed state)."""
+        held = [s for s in self._marks if s <= self._last_stamp and not self._held(s)]
+        if not held:
+            return
+        K = len(held)
+        k = 3 + self._nq
+        phi = np.broadcast_to(np.eye(k), (K, k, k))
+        Q = np.zeros((K, k, k))
+        q = np.broadcast_to(self.integrator.q, (K, 4))
+        if self._block.m or len(self._open_rho):
+            raise RuntimeError('attitude filter: a held mark with an open block')   # never
+        self._add_reports(np.asarray(held), q, phi, Q)
+
+    def _commit(self) -> None:
+        """Commit the open block to the covariance factor and start a new block."""
+        if self._block.m:
+            phi, Q, _ = self._block.transition(self._block.state(), self.sigma_v)
+            k = 3 + self._nq
+            S = self._sqrt_p.copy()
+            S[:k] = phi[0] @ self._sqrt_p[:k]
+            Qf = np.zeros((len(S), k))
+            Qf[:k] = psd_factor(Q[0])
+            self._sqrt_p = triangular_factor(S, Qf)       # P ← ΦPΦᵀ + Q
+        self._new_block()
+
+    def _new_block(self) -> None:
+        c0 = quat_to_dcm(self.integrator.q)
+        if self._block is None:
+            self._block = BlockSums(c0, self._nq, self._g_noise, self._g_tau)
+        else:
+            self._block.restart(c0)
+        self._block_t0 = self._last_stamp
 
     def _flush(self) -> None:
         """
-        Complete the unfinished update: attitude and covariance are then at the newest stamp.
+        Complete the unfinished update and commit: attitude and covariance at the newest stamp.
 
-        Its increments are applied one by one, the integrator's rule when the algorithm changes.
+        The unfinished update's increments are applied one by one, the integrator's rule when
+        the algorithm changes, as one lumped update of the block.
         """
-        if len(self._open_rho) == 0:
-            return
-        q_before = self.integrator.q
-        self.integrator.set_algorithm(self.integrator.algorithm_name)
-        h = np.array([self._open_dt.sum()])
-        self._propagate_covariance(quat_to_dcm(q_before), quat_to_dcm(self.integrator.q)[None],
-                                   self._open_rho.sum(0)[None], h,
-                                   np.array([self._last_stamp - 0.5 * h[0] - self.epoch]))
-        self.integrator.time = self._last_stamp
-        self._open_rho, self._open_dt = np.zeros((0, 3)), np.zeros(0)
+        if len(self._open_rho):
+            self.integrator.set_algorithm(self.integrator.algorithm_name)
+            h = np.array([self._open_dt.sum()])
+            c = quat_to_dcm(self.integrator.q)[None]
+            rho = self._open_rho.sum(0)[None]
+            A = self._partials(c, rho, h, np.array([self._last_stamp - 0.5 * h[0] - self.epoch]))
+            self._block.add(c, A, h)
+            self.integrator.time = self._last_stamp
+            self._open_rho, self._open_dt = np.zeros((0, 3)), np.zeros(0)
+        self._commit()
 
-    def _propagate_covariance(self, c0, c, rho, h, t_mid) -> None:
-        """
-        Propagate P over m updates.
+    def _decayed(self, elapsed: float) -> np.ndarray:
+        """Return the estimates ``elapsed`` s after the last fix (Gauss–Markov states decay)."""
+        x = self._x.copy()
+        if np.isfinite(self._cell):
+            x[3:3 + self._nq] *= np.exp(-elapsed / self._g_tau)
+        return x
 
-        Attitudes C_j (m,3,3), lumped increments ρ_j, lengths h_j, times since the effect epoch
-        (:func:`strapdown_ros.estimation.error_model.block_transition`).
+    def _settle(self, epoch: float) -> None:
+        """Make the estimates those at ``epoch`` (the decay since the last fix applied)."""
+        if np.isfinite(self._cell) and epoch != self._x_time:
+            self._x = self._decayed(epoch - self._x_time)
+            self._effects = None
+        self._x_time = float(epoch)
+
+    def _divergence(self, nis: float, gated: bool) -> str | None:
         """
-        lay = self.layout
-        A = np.concatenate([c @ e.filter_partials(rho, h, t_mid) for e, _ in lay.gyro], axis=2)
-        k = 3 + A.shape[2]                        # ε and the gyro states, contiguous
-        phi_k, q_k, decay = block_transition(c0, c, A, h, self.sigma_v, self._g_noise,
-                                             self._g_tau)
-        phi = np.eye(lay.size)
-        phi[:k, :k] = phi_k
-        Q = np.zeros((lay.size, lay.size))
-        Q[:k, :k] = q_k
-        self._x[3:k] = self._x[3:k] * decay         # a Gauss–Markov estimate decays as the state
-        self._sqrt_p = triangular_factor(phi @ self._sqrt_p, psd_factor(Q))     # P ← ΦPΦᵀ + Q
+        Update the divergence rule with one fix; return why the filter diverged, or None.
+
+        Divergence: ``divergence_gated_fixes`` consecutive gated fixes (a lock-out), or the sum of
+        the NIS of the last ``divergence_nis_window`` fixes that pass the gate above their
+        χ²(3·window) quantile of ``divergence_nis_probability`` (fixes applied, but the filter's
+        σ far too small for them).  A gated fix does not enter the sum: one outlier does not
+        declare divergence.
+        """
+        self._gated_run = self._gated_run + 1 if gated else 0
+        self._fixes_since_reset += 1
+        if self.gated_limit and self._gated_run >= self.gated_limit:
+            return (f'{self._gated_run} consecutive fixes gated (NIS {nis:.4g} > gate '
+                    f'{self.gate:.4g})')
+        if self.nis_window and not gated:
+            self._nis_recent.append(nis)
+            if len(self._nis_recent) == self.nis_window:
+                total = float(sum(self._nis_recent))
+                if total > self.nis_limit:
+                    return (f'NIS sum {total:.4g} of the last {self.nis_window} fixes passing '
+                            f'the gate above {self.nis_limit:.4g}')
+        return None
+
+    def _reset(self, fix: CameraFix, z, nis, S, reason: str) -> FixResult:
+        """Re-initialise the attitude from the fix, inflate its covariance, keep the rest."""
+        self.integrator.q = quat_normalize(quat_multiply(fix.attitude,
+                                                         quat_conjugate(self.boresight)))
+        n = self.layout.size
+        sq = np.zeros((n, n))
+        sq[:3, :3] = self.reset_sigma * np.eye(3)
+        sq[3:, 3:] = triangular_factor(self._sqrt_p[3:, :])   # the other states: P kept
+        self._sqrt_p = sq
+        self._gated_run, self._fixes_since_reset = 0, 0
+        self._nis_recent.clear()
+        self._new_block()
+        if not fix.counted:
+            self.counters.resets += 1
+            self.counters.last_reset = fix.epoch
+        fix.counted = True
+        res = self._record(fix, 'reset', z, nis, S, reason)
+        self._checkpoint()
+        return res
+
+    @property
+    def fixes_since_reset(self) -> int | None:
+        """Return the fixes processed since the last divergence reset (None: none yet)."""
+        return self._fixes_since_reset if self.counters.resets else None
 
     def _apply(self, fix: CameraFix) -> FixResult:
         """Measurement update at the newest stamp (= the fix epoch)."""
         self._flush()
+        self._settle(fix.epoch)
         lay = self.layout
         c_bv = quat_to_dcm(self.boresight)                 # C_MF^VF
         q_pred = quat_multiply(self.integrator.q, self.boresight)
@@ -521,7 +777,8 @@ class AttitudeFilter:
             H[:, lay.boresight] = np.eye(3)
         if lay.time_offset is not None:
             H[:, lay.time_offset] = EFFECTS['time_offset'].fix_jacobian(self._last_rate, c_bv.T)
-        P = self.P
+        P = self._sqrt_p @ self._sqrt_p.T
+        P = 0.5 * (P + P.T)
         S = H @ P @ H.T + fix.covariance
         S = 0.5 * (S + S.T)
         nis = float(z @ np.linalg.solve(S, z))
@@ -529,7 +786,11 @@ class AttitudeFilter:
         fix.order = self._order
         self._order += 1
         self._trim_applied()
-        if not nis <= self.gate:
+        gated = not nis <= self.gate
+        reason = self._divergence(nis, gated)
+        if reason is not None:
+            return self._reset(fix, z, nis, S, reason)
+        if gated:
             res = self._record(fix, 'gated', z, nis, S)
             res.jacobian = H
             if not fix.counted:
@@ -548,14 +809,16 @@ class AttitudeFilter:
                                          K @ np.linalg.cholesky(fix.covariance))
         self.integrator.q = quat_normalize(quat_multiply(self.integrator.q,
                                                          rotvec_to_quat(-dx[:3])))
+        self._new_block()
         self._x[3:] -= dx[3:]
+        self._effects = None
         if lay.boresight is not None:
             self.boresight = quat_normalize(quat_multiply(self.boresight,
                                                           rotvec_to_quat(-dx[lay.boresight])))
             self._x[lay.boresight] = 0.0          # the boresight estimate lives in the quaternion
         if not fix.counted:
             self.counters.applied += 1
-            if self.implausible():
+            if self.layout.implausible(self._x):
                 self.counters.implausible += 1
         fix.counted = True
         res = self._record(fix, 'applied', z, nis, S)
@@ -563,17 +826,21 @@ class AttitudeFilter:
         self._checkpoint()
         return res
 
-    def _record(self, fix: CameraFix, status: str, z=None, nis=None, S=None) -> FixResult:
-        res = FixResult(fix.stamp, fix.epoch, status, fix.lateness, z, nis, S)
+    def _record(self, fix: CameraFix, status: str, z=None, nis=None, S=None,
+                reason: str = '') -> FixResult:
+        res = FixResult(fix.stamp, fix.epoch, status, fix.lateness, z, nis, S, reason=reason)
         self.results.append(res)
         return res
 
     # ------------------------------------------------------------------ history
     def _checkpoint(self) -> None:
+        while self._checkpoints and self._checkpoints[0].pieces < self._log.base:
+            self._checkpoints.popleft()                   # its increments are forgotten
         self._checkpoints.append(Checkpoint(
             self._last_stamp, self._log.next, self._order,
             self.integrator.checkpoint(), self._x.copy(), self.boresight.copy(), self._sqrt_p,
-            self._open_rho, self._open_dt, self._last_rate, self._last_stamp))
+            self._open_rho, self._open_dt, self._last_rate, self._last_stamp, self._x_time,
+            (self._gated_run, tuple(self._nis_recent), self._fixes_since_reset)))
 
     def _late(self, fix: CameraFix) -> FixResult:
         fix.lateness = self._last_stamp - fix.epoch
@@ -596,6 +863,11 @@ class AttitudeFilter:
         self._sqrt_p = cp.covariance
         self._open_rho, self._open_dt, self._last_rate = cp.open_rho, cp.open_dt, cp.last_rate
         self._last_stamp = cp.last_stamp
+        self._x_time = cp.state_time
+        self._gated_run, recent, self._fixes_since_reset = cp.divergence
+        self._nis_recent = deque(recent, maxlen=self._nis_recent.maxlen)
+        self._effects = None
+        self._new_block()
         self._log.rewind(cp.pieces)
         while self._checkpoints and self._checkpoints[-1] is not cp:
             self._checkpoints.pop()

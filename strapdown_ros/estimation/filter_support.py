@@ -15,7 +15,7 @@ from strapdown_ros.sensors.sensor_model import augment_choices
 
 __all__ = ['AUGMENT_CHOICES', 'FILTER_STATES', 'augment_names', 'augment_error',
            'triangular_factor', 'psd_factor', 'FixResult', 'FilterCounters', 'StateLayout',
-           'checked_fix']
+           'StateReport', 'checked_fix']
 
 
 def checked_fix(stamp: float, attitude, covariance):
@@ -109,7 +109,8 @@ class FixResult:
     epoch : float
         IMU-clock epoch it was applied at (stamp − τ̂), s.
     status : str
-        ``applied``, ``gated``, ``pending``, ``too_old`` or ``overflow``.
+        ``applied``, ``gated``, ``reset`` (divergence: the attitude re-initialised from this
+        fix), ``pending``, ``too_old`` or ``overflow``.
     lateness : float
         Newest increment stamp − epoch at arrival (0: not late), s.
     residual : ndarray (3,), optional
@@ -123,6 +124,8 @@ class FixResult:
     gain : ndarray (n, 3), optional
         The gain K the fix was applied with (applied fixes; the live model check runs the
         effects' signatures through it).
+    reason : str
+        Why divergence was declared (status ``reset``), else empty.
 
     """
 
@@ -135,6 +138,34 @@ class FixResult:
     innovation_covariance: np.ndarray | None = None
     jacobian: np.ndarray | None = None
     gain: np.ndarray | None = None
+    reason: str = ''
+
+
+@dataclass
+class StateReport:
+    """
+    The filter's state at one increment stamp (a mark of ``AttitudeFilter.propagate``).
+
+    Parameters
+    ----------
+    stamp : float
+        The increment's end stamp, s.
+    attitude : ndarray (4,)
+        ``q_ref_body`` there, scalar-first.
+    covariance : ndarray (n, n)
+        The error-state covariance there.
+    states : ndarray (n,)
+        The estimates of the filter states there (layout order).
+    boresight : ndarray (4,)
+        ``q_MF_VF``, scalar-first.
+
+    """
+
+    stamp: float
+    attitude: np.ndarray
+    covariance: np.ndarray
+    states: np.ndarray
+    boresight: np.ndarray
 
 
 @dataclass
@@ -152,6 +183,10 @@ class FilterCounters:
         Largest and last lateness of a late fix, s.
     implausible : int
         Updates after which an estimate left its registry range.
+    resets : int
+        Divergences declared (the attitude re-initialised from a fix).
+    last_reset : float
+        Epoch of the last reset, s (NaN: none).
 
     """
 
@@ -164,6 +199,8 @@ class FilterCounters:
     max_lateness: float = 0.0
     last_lateness: float = 0.0
     implausible: int = 0
+    resets: int = 0
+    last_reset: float = float('nan')
 
 
 #: names the ``augment`` argument accepts besides the registry's gyro effects

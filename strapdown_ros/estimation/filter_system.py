@@ -20,19 +20,30 @@ The attitude filter between validated streams and outputs, shared by the node an
 * The filter starts at the first fix: ``q_ref_body = q_fix ⊗ q_MF_VF⁻¹`` at the newest
   increment stamp not after it.  A gyro gap or stamp resynchronisation loses the rotation in
   it: the filter restarts at the next fix (counted).
-* Outputs: one :class:`FilterOutput` every ``output_period`` of stamp time (at the first
-  increment stamp at or past each multiple), and one :class:`FixOutput` per fix processed.
+* Outputs: one :class:`FilterOutput` per ``output_period`` of stamp time, at the first
+  increment stamp at or past each multiple of it after the start (one row per period, each at
+  its own increment stamp; an increment that passes several multiples gives one row), with the
+  state at exactly that stamp (inside an unfinished coning update: its increments applied one
+  by one, as for a fix there); and one :class:`FixOutput` per fix processed.
+* Divergence (``divergence_gated_fixes`` consecutive gated fixes, or the NIS of the last
+  ``divergence_nis_window`` fixes that pass the gate above their χ² quantile of
+  ``divergence_nis_probability``):
+  the fix re-initialises the attitude with the covariance of ``initial_attitude_sigma``, the
+  bias and the other states are kept; counted (``reset``) and listed (:attr:`FilterSystem.resets`).
 * The live model check (:mod:`strapdown_ros.estimation.model_check`) sees every applied or
   gated fix with the filter's gain and Jacobian, and the increments between fixes (for the
-  candidate effects' signatures); it only reports.
+  candidate effects' signatures); it only reports.  A divergence reset restarts the effects'
+  responses and the interval's signatures there (:meth:`ModelCheck.restart`); its window goes on.
 """
 from __future__ import annotations
 
+from collections import deque
 from dataclasses import dataclass, fields
 import math
 
 import numpy as np
 
+from strapdown_ros.attitude import kernel as attitude_kernel
 from strapdown_ros.estimation.attitude_filter import AttitudeFilter
 from strapdown_ros.estimation.filter_support import augment_error
 from strapdown_ros.estimation.model_check import check_candidates, ModelCheck, ModelCheckResult
@@ -43,7 +54,7 @@ from strapdown_ros.sensors.sensor_model import SensorModel
 from strapdown_ros.streams.checks import StreamCheck
 from strapdown_ros.streams.fixes import FixScreen
 
-__all__ = ['FilterSystem', 'FilterSettings', 'FilterOutput', 'FixOutput']
+__all__ = ['FilterSystem', 'FilterSettings', 'FilterOutput', 'FixOutput', 'warm_up']
 
 #: the forward stamp limit of the fixes until their period is known, s (StreamCheck.for_fixes)
 CAMERA_JUMP_S = StreamCheck.FIX_INITIAL_JUMP_S
@@ -51,6 +62,10 @@ CAMERA_JUMP_S = StreamCheck.FIX_INITIAL_JUMP_S
 SIGNATURE_LUMP = 8
 #: increments held for the signatures before they are summed (bounds the buffer)
 SIGNATURE_BUFFER = 4096
+#: divergence resets listed (the latest; all are counted)
+MAX_RESETS_KEPT = 1000
+#: increments buffered before :meth:`FilterSystem.due` asks for processing in any case
+MAX_BUFFERED = 4096
 
 
 @dataclass
@@ -96,7 +111,7 @@ class FixOutput:
     stamp_ns : int
         Stamp of the fix, ns.
     status : str
-        ``applied``, ``gated``, ``pending``, ``too_old`` or ``overflow``.
+        ``applied``, ``gated``, ``reset``, ``pending``, ``too_old`` or ``overflow``.
     innovation : ndarray (3,), optional
         The residual z, VF axes, rad.
     nis : float, optional
@@ -110,7 +125,9 @@ class FixOutput:
     check : ModelCheckResult, optional
         The model check's verdict of the window ending at this fix.
     innovation_covariance : ndarray (3, 3), optional
-        S of the innovation, rad² (applied or gated fixes).
+        S of the innovation, rad² (applied, gated or reset fixes).
+    reason : str
+        Why divergence was declared (status ``reset``).
 
     """
 
@@ -123,6 +140,7 @@ class FixOutput:
     check_ok: bool = True
     check: ModelCheckResult | None = None
     innovation_covariance: np.ndarray | None = None
+    reason: str = ''
 
 
 @dataclass(frozen=True)
@@ -158,6 +176,12 @@ class FilterSettings:
         A stamp step beyond this is a jump, s.
     resync_count : int
         Consecutive messages that confirm a new timeline.
+    divergence_gated_fixes : int
+        Consecutive gated fixes that declare divergence (0: not this rule).
+    divergence_nis_window : int
+        Fixes passing the gate whose NIS are summed for the divergence rule (0: not this rule).
+    divergence_nis_probability : float
+        Divergence when that sum exceeds its χ²(3·window) quantile of this probability.
 
     """
 
@@ -173,6 +197,9 @@ class FilterSettings:
     model_check_false_alarms_per_hour: float = 0.1
     max_stamp_jump: float = 1.0
     resync_count: int = 5
+    divergence_gated_fixes: int = 5
+    divergence_nis_window: int = 10
+    divergence_nis_probability: float = 0.999999999
 
     @classmethod
     def from_values(cls, values: dict) -> FilterSettings:
@@ -262,12 +289,17 @@ class FilterSystem:
                        'dropped_bad_covariance': 0, 'covariance_substituted': 0,
                        'dropped_nan': 0, 'dropped_not_unit': 0, 'dropped_no_boresight': 0,
                        'increments_before_start': 0, 'restarts': 0, 'gaps': 0,
-                       'camera_resyncs': 0, 'applied': 0, 'gated': 0, 'too_old': 0,
-                       'overflow': 0}
+                       'camera_resyncs': 0, 'applied': 0, 'gated': 0, 'reset': 0,
+                       'too_old': 0, 'overflow': 0}
+        #: the divergences declared, (stamp ns of the fix, why), the latest MAX_RESETS_KEPT
+        self.resets: deque = deque(maxlen=MAX_RESETS_KEPT)
         self._buf_t: list = []          # accepted increments not yet processed (ns, value)
         self._buf_d: list = []
+        self._chunks: list = []         # ... and arrays of them, (ns (n,), values (n, 3))
+        self._chunked = 0
         self._last_ns: int | None = None   # newest increment stamp given to the filter
-        self._next_out: int | None = None
+        self._out0: int | None = None      # the outputs' origin: the filter's start, ns
+        self._due_ns = 0                   # the next output time, ns
         self._pending: list = []        # epochs (s) of fixes waiting for increments
         self._rate_sum = np.zeros(3)
         self._rate_time = 0.0
@@ -307,6 +339,7 @@ class FilterSystem:
         Take increments already validated (the recording reader), buffered as in offer_gyro.
 
         A gap or stamp jump restarts the filter before the increment that follows it, as there.
+        Arrays are taken whole (no per-increment work when the breaks are given).
 
         Parameters
         ----------
@@ -321,19 +354,34 @@ class FilterSystem:
             call).
 
         """
+        t = np.asarray(stamps_ns, dtype=np.int64).reshape(-1)
+        if not len(t):
+            return
+        v = np.asarray(values, dtype=float).reshape(-1, 3)
         if breaks is None:                     # judged here, by the same rule, across calls
             rule = self._increment_gaps
-            breaks = set()
-            for ns in stamps_ns:
-                if rule.offer(int(ns), (0.0, 0.0, 0.0)) and rule.gap_marks:
-                    breaks.add(int(ns))
-        for ns, v in zip(stamps_ns, values):
-            if ns in breaks:
+            cuts = [i for i, ns in enumerate(t.tolist())
+                    if rule.offer(ns, (0.0, 0.0, 0.0)) and rule.gap_marks]
+        else:
+            b = breaks if isinstance(breaks, np.ndarray) else np.fromiter(breaks, np.int64)
+            cuts = np.flatnonzero(np.isin(t, b)).tolist()
+        edges = sorted(set([0] + cuts)) + [len(t)]
+        for lo, hi in zip(edges[:-1], edges[1:]):
+            if lo in cuts:
                 self.process()
                 self.counts['gaps'] += 1
                 self._restart()
-            self._buf_t.append(int(ns))
-            self._buf_d.append(tuple(float(c) for c in v))
+            self._hold()
+            self._chunks.append((t[lo:hi], v[lo:hi]))
+            self._chunked += hi - lo
+
+    def _hold(self) -> None:
+        """Move the single increments of offer_gyro into the chunks (their order kept)."""
+        if self._buf_t:
+            self._chunks.append((np.asarray(self._buf_t, dtype=np.int64),
+                                 np.asarray(self._buf_d, dtype=float).reshape(-1, 3)))
+            self._chunked += len(self._buf_t)
+            self._buf_t, self._buf_d = [], []
 
     def offer_fix(self, stamp_ns: int, q_wxyz, covariance=None) -> FixOutput | None:
         """
@@ -464,10 +512,36 @@ class FilterSystem:
         if self.filter is not None and 'boresight' not in self.augment:
             self.filter.boresight = q
 
+    def due(self) -> bool:
+        """
+        Tell whether :meth:`process` has work to publish: an output or a fix is reached.
+
+        True when the newest buffered increment reaches the next output time or a waiting
+        fix's epoch, or when :data:`MAX_BUFFERED` increments wait.  A node processes then: the
+        outputs go out as soon as their increments are in, and a burst of increments costs one
+        processing (the numbers do not depend on when it is called).
+
+        Returns
+        -------
+        bool
+            Whether to call :meth:`process` now.
+
+        """
+        n = self.buffered
+        if n >= MAX_BUFFERED:
+            return True
+        if not self._buf_t:
+            return False
+        if self.filter is None:                     # before the start: counted, not kept
+            return n > 64
+        newest = self._buf_t[-1]
+        return newest >= self._due_ns or (bool(self._pending)
+                                          and newest * 1e-9 >= self._pending[0])
+
     @property
     def buffered(self) -> int:
         """Increments accepted and not yet processed (:meth:`process` takes them)."""
-        return len(self._buf_t)
+        return len(self._buf_t) + self._chunked
 
     # ------------------------------------------------------------------ processing
     def process(self) -> None:
@@ -476,11 +550,16 @@ class FilterSystem:
 
         Outputs are emitted at output times and fix results as pending fixes are reached.
         """
-        if not self._buf_t:
+        self._hold()
+        if not self._chunks:
             return
-        t_ns = np.asarray(self._buf_t, dtype=np.int64)
-        d = np.asarray(self._buf_d, dtype=float).reshape(-1, 3)
-        self._buf_t, self._buf_d = [], []
+        chunks, self._chunks, self._chunked = self._chunks, [], 0
+        t_ns = np.concatenate([c[0] for c in chunks]) if len(chunks) > 1 else chunks[0][0]
+        d = np.concatenate([c[1] for c in chunks]) if len(chunks) > 1 else chunks[0][1]
+        self._take(t_ns, d)
+
+    def _take(self, t_ns: np.ndarray, d: np.ndarray) -> None:
+        """Propagate over accepted increments (arrays), cut at the waiting fixes' epochs."""
         if self.effect_epoch is None:          # the end stamp of the first increment taken
             self.effect_epoch = float(t_ns[0]) * 1e-9
             if self.compensation is not None:
@@ -493,9 +572,7 @@ class FilterSystem:
         t_ns, d = t_ns[keep], d[keep]
         while len(t_ns):
             cut = len(t_ns)
-            if self._next_out is not None:
-                cut = min(cut, int(np.searchsorted(t_ns, self._next_out, side='left')) + 1)
-            if self._pending:
+            if self._pending:      # the model check's signature ends at the fix
                 cut = min(cut, int(np.searchsorted(t_ns * 1e-9, self._pending[0],
                                                    side='left')) + 1)
             self._propagate(d[:cut], t_ns[:cut])
@@ -510,21 +587,34 @@ class FilterSystem:
         self._signature(d, h, t)
         if self._pending:                      # a fix may be applied in this call
             self._flush_signature()
-        results = f.propagate(d, t)
+        # one output per output period: at the first stamp of each period after the start
+        cells = (t_ns - self._out0) // self.output_ns
+        prev = (self._last_ns - self._out0) // self.output_ns
+        marks = np.flatnonzero(np.diff(np.concatenate([[prev], cells])) > 0)
+        results = f.propagate(d, t, marks=marks)
+        reports = f.take_reports()
         self._last_ns = int(t_ns[-1])
-        self._rate_sum += d.sum(0)
-        self._rate_time += float(h.sum())
+        self._due_ns = self._out0 + ((self._last_ns - self._out0) // self.output_ns + 1) \
+            * self.output_ns
         self._last_rate = d[-1] / h[-1]
+        if len(marks):
+            cd = np.cumsum(np.vstack([self._rate_sum[None], d]), axis=0)
+            ch = np.cumsum(np.concatenate([[self._rate_time], h]))
+            lo_d, lo_h = self._rate_sum, self._rate_time
+            for i, r in zip(marks, reports):
+                self._emit(int(t_ns[i]), r, cd[i + 1] - lo_d, ch[i + 1] - lo_h)
+                lo_d, lo_h = cd[i + 1], ch[i + 1]
+            self._rate_sum = d[marks[-1] + 1:].sum(0)
+            self._rate_time = float(h[marks[-1] + 1:].sum())
+        else:
+            self._rate_sum = self._rate_sum + d.sum(0)
+            self._rate_time += float(h.sum())
         for r in results:
             if r.epoch in self._pending:
                 self._pending.remove(r.epoch)
             self._fix_result(r)
         while self._pending and self._pending[0] <= f.newest_stamp:
             self._pending.pop(0)               # applied by re-processing, or not reached
-        if self._next_out is not None and self._last_ns >= self._next_out:
-            self._emit()
-            while self._next_out <= self._last_ns:
-                self._next_out += self.output_ns
 
     def _signature(self, d, h, t) -> None:
         """
@@ -563,8 +653,14 @@ class FilterSystem:
         f = self.filter
         self.counts[r.status] = self.counts.get(r.status, 0) + 1
         out = FixOutput(int(round(r.stamp * 1e9)), r.status, r.residual, r.nis, r.lateness,
-                        innovation_covariance=r.innovation_covariance)
-        if r.status in ('applied', 'gated') and self.check is not None \
+                        innovation_covariance=r.innovation_covariance, reason=r.reason)
+        if r.status == 'reset':
+            self.resets.append((out.stamp_ns, r.reason))
+            if self.check is not None:         # the attitude re-initialised: the check restarts
+                self._sig_buf, self._sig_len = [], 0
+                self.check.restart()
+                out.check_text, out.check_ok = self.check.last.text(), self.check.last.ok
+        elif r.status in ('applied', 'gated') and self.check is not None \
                 and r.innovation_covariance is not None:
             self._flush_signature()
             c_vf_mf = quat_to_dcm(f.boresight).T
@@ -576,16 +672,21 @@ class FilterSystem:
         self.fix_outputs.append(out)
         return out
 
-    def _emit(self) -> None:
-        f = self.filter
-        P = f.P
-        bias = f.estimate('gyro_bias')
-        rate = (self._rate_sum / self._rate_time - bias) if self._rate_time > 0 else np.zeros(3)
-        aug = {name: (f.estimate(name), f.sigma(name)) for name in self.augment}
-        self.outputs.append(FilterOutput(int(round(f.time * 1e9)), f.attitude.copy(),
-                                         P[:3, :3].copy(), rate, bias, P[3:6, 3:6].copy(), aug))
-        self._rate_sum = np.zeros(3)
-        self._rate_time = 0.0
+    def _emit(self, stamp_ns: int, r, rho_sum, seconds: float) -> None:
+        lay = self.filter.layout
+        P, x = r.covariance, r.states
+        sl = slice(3, 6)                                  # the bias: always the first gyro state
+        bias = x[sl].copy()
+        rate = rho_sum / seconds - bias if seconds > 0 else np.zeros(3)
+        aug = {}
+        for name in self.augment:
+            if name == 'boresight':
+                aug[name] = (r.boresight.copy(), np.sqrt(np.diag(P)[lay.boresight]))
+            else:
+                s = lay.slice_of(name)
+                aug[name] = (x[s].copy(), np.sqrt(np.diag(P)[s]))
+        self.outputs.append(FilterOutput(stamp_ns, r.attitude.copy(), P[:3, :3].copy(), rate,
+                                         bias, P[sl, sl].copy(), aug))
 
     def _start(self, stamp_ns: int, q_fix) -> None:
         m, s = self.model, self.settings
@@ -614,7 +715,9 @@ class FilterSystem:
             bias_sigma=m.effect_sigma('gyro_bias'), augment=self.augment,
             augment_sigma=sig, initial_values=init, boresight=self.boresight,
             gate_probability=float(s.gate_probability), history=int(s.history),
-            epoch=epoch, model=m,
+            epoch=epoch, model=m, divergence_gated_fixes=int(s.divergence_gated_fixes),
+            divergence_nis_window=int(s.divergence_nis_window),
+            divergence_nis_probability=float(s.divergence_nis_probability),
             time_offset=0.0 if 'time_offset' in self.augment else self.camera_effects.time_offset)
         cands, offset = check_candidates(self.augment)
         f = self.filter
@@ -626,7 +729,9 @@ class FilterSystem:
                                 layout=f.layout, state_tau=np.concatenate(tau))
         self.check.continue_counts(previous)
         self._last_ns = start_ns
-        self._next_out = start_ns + self.output_ns
+        self._out0 = start_ns
+        self._due_ns = start_ns + self.output_ns
+        self._rate_sum, self._rate_time = np.zeros(3), 0.0
         self._pending = []
         self._sig_buf, self._sig_len = [], 0
 
@@ -677,8 +782,40 @@ class FilterSystem:
             out.update({'late_fixes': c.late, 'max_lateness_s': c.max_lateness,
                         'reprocessed_increments': c.reprocessed_increments,
                         'implausible': c.implausible})
+            since = self.filter.fixes_since_reset
+            if since is not None:
+                out['fixes_since_reset'] = since
         if self.check is not None:
             out.update({'model_check_windows': self.check.windows,
                         'model_check_failed': self.check.failed,
                         'model_check_episodes': self.check.episodes})
         return out
+
+
+def warm_up(model: SensorModel, settings: FilterSettings | None = None) -> None:
+    """
+    Run a throw-away filter of this model through a few seconds of synthetic data.
+
+    The compiled integrator kernel (numba's cache), numpy's linear algebra and every code path
+    of a fix are loaded before the first real message, so that a node does not stall at its
+    first fix.
+
+    Parameters
+    ----------
+    model : SensorModel
+        The unit's sensor model.
+    settings : FilterSettings, optional
+        The filter's settings.
+
+    """
+    attitude_kernel.warm_up()
+    s = FilterSystem(model, settings)
+    if s.boresight is None:
+        s.set_boresight([1.0, 0.0, 0.0, 0.0])
+    n = max(4, int(round(1.0 / model.gyro_period)))
+    t0 = 1_000_000_000
+    step = int(round(model.gyro_period * 1e9))
+    for k in range(3):                     # start, then two fixes, each after a second of data
+        s.add_fix(t0 + k * n * step, np.array([1.0, 0.0, 0.0, 0.0]), s.default_covariance)
+        s.add_increments(t0 + (k * n + np.arange(1, n + 1)) * step, np.zeros((n, 3)))
+        s.process()

@@ -80,6 +80,11 @@ class Checkpoint:
         Rate of the newest piece, rad/s.
     last_stamp : float
         Stamp of the newest piece, s.
+    state_time : float
+        Time the estimates hold at (the last fix; Gauss–Markov states decay from it), s.
+    divergence : tuple
+        The divergence rule's memory (consecutive gated fixes, the recent clipped NIS, fixes
+        since the last reset).
 
     """
 
@@ -94,6 +99,8 @@ class Checkpoint:
     open_dt: np.ndarray
     last_rate: np.ndarray
     last_stamp: float
+    state_time: float = 0.0
+    divergence: tuple = (0, (), 0)
 
 
 class IncrementLog:

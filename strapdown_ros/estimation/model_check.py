@@ -310,6 +310,21 @@ class ModelCheck:
         """Forget the effects' error responses (after the filter re-initialises its attitude)."""
         self._E = [np.zeros_like(E) for E in self._E]
 
+    def restart(self) -> None:
+        """
+        Go on after the filter re-initialised its attitude from a fix (a divergence reset).
+
+        The attitude rows of the effects' error responses are zeroed (the attitude error is the
+        fix's own noise, whatever the effects did before); the rows of the other states stay
+        (the filter keeps those estimates).  The interval's signatures restart at that fix.  The
+        window keeps its innovations (each was whitened with the responses of its time), so an
+        effect that keeps the filter diverging is still named; the WARN state and the counts
+        carry on.
+        """
+        for E in self._E:
+            E[:3] = 0.0
+        self._start_interval()
+
     def continue_counts(self, previous: ModelCheck | None) -> None:
         """
         Carry the window, failure and episode counts of the check of a previous filter run.

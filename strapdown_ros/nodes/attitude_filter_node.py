@@ -21,7 +21,8 @@ Subscribes:
   boresight is taken as known: its covariance is not used (``augment: boresight`` estimates a
   mounting error on top of it).
 
-Publishes (stream QoS unless said; every ``output_period`` of stamp time):
+Publishes (stream QoS unless said; one message per ``output_period`` of stamp time, at the
+first increment stamp of each period, the state at exactly that stamp):
 
 * ``filter/attitude``  geometry_msgs/QuaternionStamped: q_ref_body, frame ``reference_frame_id``.
 * ``filter/imu``  sensor_msgs/Imu, frame ``frame_id``: orientation = q_ref_body;
@@ -39,14 +40,24 @@ Publishes (stream QoS unless said; every ``output_period`` of stamp time):
   ``camera_frame_id``,
   stamp = the fix's; ``filter/nis`` geometry_msgs/Vector3Stamped, x = NIS, y = its degrees of
   freedom (3), z = the gate (χ²(3) quantile of ``gate_probability``); a gated fix is published
-  too (x > z).
+  too (x > z), and so is the fix that declares a divergence.
 * ``/diagnostics``  every ``diagnostics_period``: the counters of the core (fixes applied,
   gated, too old, late fixes and the largest lateness, restarts, gaps, dropped input), each
   augmented state and its σ (``<name>_<k>``, ``<name>_sigma_<k>``), the gyro bias and σ, the
   last NIS, and the live model check (``model_check``: its text; WARN while a WARN episode is
   on, e.g. "innovations match gyro_scale_factor (p = …): run discrepancy on a recording"; the
-  node never changes its model itself).  The level is the worst of the conditions
+  node never changes its model itself).  A divergence (``divergence_gated_fixes`` consecutive
+  gated fixes, or the NIS of the last ``divergence_nis_window`` fixes passing the gate above
+  its χ² quantile of ``divergence_nis_probability``) re-initialises the attitude from the fix
+  (the bias kept) and restarts the live model check: an ERROR (logged, and on /diagnostics
+  until as many fixes have passed since; then a WARN that counts the resets; values ``reset``,
+  ``fixes_since_reset``, ``last_reset_stamp``, ``last_reset_reason``).  The level is the worst
+  of the conditions
   (:class:`~strapdown_ros.nodes.ros_status.Conditions`).
+
+At construction the node runs a throw-away filter of its model through a few seconds of
+synthetic data (:func:`~strapdown_ros.estimation.filter_system.warm_up`): the compiled kernel
+is loaded and every code path of a fix has run before the first message.
 
 No parameter may change at runtime (the filter's model is its state); restart the node.
 """
@@ -62,7 +73,7 @@ from rclpy.node import Node
 from sensor_msgs.msg import Imu
 
 from strapdown_ros.estimation.chi_square import chi2_3_quantile
-from strapdown_ros.estimation.filter_system import FilterSettings, FilterSystem
+from strapdown_ros.estimation.filter_system import FilterSettings, FilterSystem, warm_up
 from strapdown_ros.nodes import ros_io, ros_params, ros_process, ros_status
 from strapdown_ros.params import FILTER_PARAMS, model_from_parameters, not_applied_note
 from strapdown_ros.streams.fixes import unit_quaternion
@@ -95,7 +106,12 @@ class AttitudeFilterNode(Node):
         if note:
             self.log.info(note)
         self.model = model
-        self.system = FilterSystem(model, FilterSettings.from_values(p))
+        settings = FilterSettings.from_values(p)
+        self.system = FilterSystem(model, settings)
+        try:            # the compiled kernel and every code path of a fix, before any message
+            warm_up(model, settings)
+        except ValueError as exc:                # the model cannot start a filter: said now
+            self.log.error(f'the filter cannot start with these parameters: {exc}')
         self.frame_id = model.frame_id
         self.ref_frame = model.reference_frame_id
         self.camera_frame = model.camera_frame_id
@@ -104,8 +120,6 @@ class AttitudeFilterNode(Node):
         self.imu_input = p['gyro_input'] == 'imu'
         self.gate = chi2_3_quantile(float(p['gate_probability']))
         self.rate_variance = model.gyro.random_walk ** 2 / float(p['output_period'])
-        # increments per output period: the core runs at least that often
-        self.batch = max(1, int(round(float(p['output_period']) * model.gyro_rate)))
         self.undecodable = 0
         self.frame_mismatch = {'gyro': 0, 'camera': 0}
         self.boresight_counts = {'received': 0, 'dropped': 0}
@@ -113,6 +127,10 @@ class AttitudeFilterNode(Node):
         self.last_output = None
         self.last_fix = None
         self.restarts_seen = 0
+        self.resets_seen = 0
+        #: fixes after a divergence reset during which /diagnostics stays at ERROR
+        self.recovery_fixes = max(int(p['divergence_gated_fixes']),
+                                  int(p['divergence_nis_window']), 1)
         depth = int(p['qos_depth'])
         qos = ros_io.stream_qos(depth)
         over = ros_io.QOS_OVERRIDES
@@ -209,7 +227,7 @@ class AttitudeFilterNode(Node):
         """
         Take one Δθ: the frame rule, then the core.
 
-        The core runs once per ``output_period`` worth of increments.
+        The core runs when an output or a waiting fix is reached (:meth:`FilterSystem.due`).
 
         Parameters
         ----------
@@ -224,7 +242,7 @@ class AttitudeFilterNode(Node):
         if not self._frame_ok('gyro', frame_id, self.frame_id):
             return
         self.system.offer_gyro(int(stamp_ns), value)
-        if self.system.buffered >= self.batch:
+        if self.system.due():
             self.process()
 
     def _on_camera_cov(self, msg: PoseWithCovarianceStamped):
@@ -288,32 +306,48 @@ class AttitudeFilterNode(Node):
             self.restarts_seen = restarts
             self.log.error('gyro gap or stamp jump: the rotation in it is lost; the filter '
                            'restarts at the next fix', throttle=5.0)
+        resets = self.system.counts['reset']
+        if resets > self.resets_seen:
+            self.resets_seen = resets
+            ns, why = self.system.resets[-1]
+            self.log.error(f'divergence at {ns * 1e-9:.3f} s: {why}; the attitude is '
+                           're-initialised from that fix (bias kept), '
+                           f'{resets} reset(s) so far', throttle=5.0, key='divergence')
 
     def _publish_output(self, o) -> None:
-        st = ros_io.ns_to_stamp(o.stamp_ns)
-        self.pub_att.publish(ros_io.quaternion_stamped(st, self.ref_frame, o.attitude))
-        m = Imu()
-        m.header.stamp = st
-        m.header.frame_id = self.frame_id
-        m.orientation = ros_io.quaternion_msg(o.attitude)
-        m.orientation_covariance = [float(c) for c in o.attitude_covariance.reshape(9)]
-        m.angular_velocity = ros_io.vector3(o.rate)
-        rate_cov = o.bias_covariance + self.rate_variance * np.eye(3)
-        m.angular_velocity_covariance = [float(c) for c in rate_cov.reshape(9)]
-        m.linear_acceleration_covariance = [-1.0] + [0.0] * 8
-        self.pub_imu.publish(m)
-        self.pub_bias.publish(ros_io.vector3_stamped(st, self.frame_id, o.bias))
-        t = TwistWithCovarianceStamped()
-        t.header.stamp = st
-        t.header.frame_id = self.frame_id
-        t.twist.twist.angular = ros_io.vector3(o.bias)
-        cov = np.zeros((6, 6))
-        cov[0, 0] = cov[1, 1] = cov[2, 2] = -1.0
-        cov[3:, 3:] = o.bias_covariance
-        t.twist.covariance = [float(c) for c in cov.reshape(36)]
-        self.pub_bias_cov.publish(t)
-        self.published['outputs'] += 1
+        """Publish one output on the topics that have subscribers (none built for none)."""
         self.last_output = o
+        pubs = (self.pub_att, self.pub_imu, self.pub_bias, self.pub_bias_cov)
+        wanted = [p.get_subscription_count() > 0 for p in pubs]
+        if not any(wanted):
+            return
+        self.published['outputs'] += 1               # sent on at least one topic
+        st = ros_io.ns_to_stamp(o.stamp_ns)
+        if wanted[0]:
+            self.pub_att.publish(ros_io.quaternion_stamped(st, self.ref_frame, o.attitude))
+        if wanted[1]:
+            m = Imu()
+            m.header.stamp = st
+            m.header.frame_id = self.frame_id
+            m.orientation = ros_io.quaternion_msg(o.attitude)
+            m.orientation_covariance = [float(c) for c in o.attitude_covariance.reshape(9)]
+            m.angular_velocity = ros_io.vector3(o.rate)
+            rate_cov = o.bias_covariance + self.rate_variance * np.eye(3)
+            m.angular_velocity_covariance = [float(c) for c in rate_cov.reshape(9)]
+            m.linear_acceleration_covariance = [-1.0] + [0.0] * 8
+            self.pub_imu.publish(m)
+        if wanted[2]:
+            self.pub_bias.publish(ros_io.vector3_stamped(st, self.frame_id, o.bias))
+        if wanted[3]:
+            t = TwistWithCovarianceStamped()
+            t.header.stamp = st
+            t.header.frame_id = self.frame_id
+            t.twist.twist.angular = ros_io.vector3(o.bias)
+            cov = np.zeros((6, 6))
+            cov[0, 0] = cov[1, 1] = cov[2, 2] = -1.0
+            cov[3:, 3:] = o.bias_covariance
+            t.twist.covariance = [float(c) for c in cov.reshape(36)]
+            self.pub_bias_cov.publish(t)
 
     def _publish_fix(self, f) -> None:
         self.last_fix = f
@@ -401,6 +435,15 @@ class AttitudeFilterNode(Node):
         chk = self.system.check
         if chk is not None and not chk.last.ok:
             c.add(ros_status.WARN, f'live model check: {chk.last.text()}')
+        if st['reset']:
+            ns, why = self.system.resets[-1]
+            since = st.get('fixes_since_reset')
+            text = (f"divergence: {st['reset']} reset(s), the last at {ns * 1e-9:.3f} s ({why}); "
+                    'the attitude was re-initialised from the fix')
+            if since is not None and since < self.recovery_fixes:
+                c.add(ros_status.ERROR, f'{text}, {since} fix(es) since')
+            else:
+                c.add(ros_status.WARN, text)
         if g.missing:
             c.add(ros_status.ERROR, f'{g.missing} gyro increments missing in {g.gaps} gaps: the '
                   f"rotation is lost; the filter restarted {st['restarts']} time(s)")
@@ -441,10 +484,15 @@ class AttitudeFilterNode(Node):
             for name, (v, s) in o.augmented.items():
                 for k in range(len(v)):
                     values[f'{name}_{k}'] = float(v[k])
+                for k in range(len(s)):           # the boresight: 4 components, 3 σ
                     values[f'{name}_sigma_{k}'] = float(s[k])
         if self.last_fix is not None and self.last_fix.nis is not None:
             values['last_nis'] = float(self.last_fix.nis)
             values['last_fix_status'] = self.last_fix.status
+        if self.system.resets:
+            ns, why = self.system.resets[-1]
+            values['last_reset_stamp'] = ns * 1e-9
+            values['last_reset_reason'] = ros_status.bounded(why)
         chk = self.system.check
         values['model_check'] = (ros_status.bounded(chk.last.text()) if chk is not None
                                  else 'not started')

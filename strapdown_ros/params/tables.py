@@ -345,6 +345,17 @@ FILTER_SETTINGS = [
               'of the live model check per hour of clean data: each window is tested at '
               'min(model_check_alpha, rate × fix interval / 3600 s) (0: at model_check_alpha)',
               0.0, 3600.0),
+    ParamSpec('divergence_gated_fixes', 5, 'divergence after this many consecutive gated fixes: '
+              'the fix re-initialises the attitude (σ initial_attitude_sigma), the bias and '
+              'other states are kept; ERROR on /diagnostics, counted (0: not this rule)',
+              0, 10**6),
+    ParamSpec('divergence_nis_window', 10, 'divergence also when the NIS of the last this many '
+              'fixes that pass the gate sum above their χ²(3·window) quantile of '
+              'divergence_nis_probability (0: not this rule)', 0, 10**4),
+    ParamSpec('divergence_nis_probability', 0.999999999, 'probability of that quantile '
+              "(default 1 − 1e-9: a mean NIS above 10.2 over 10 fixes; the rule's false alarms "
+              'per window on a consistent filter: at most 1 − this)',
+              0.5, 1.0 - 1e-12),
 ]
 #: attitude_filter_node and filter_bag (strapdown_ros/estimation/filter_system.py)
 FILTER_PARAMS = MODEL_PARAMS + ALIAS_PARAMS + NODE_COMMON_PARAMS + STREAM_PARAMS + \

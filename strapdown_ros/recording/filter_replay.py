@@ -42,14 +42,16 @@ def run_filter(data: dict, model: SensorModel, settings: FilterSettings | None =
     """
     system = FilterSystem(model, settings)
     g, c = data['gyro'], data['camera']
-    if not g.stamps or not c.stamps:
+    if not len(g.stamps) or not len(c.stamps):
         return system
-    gt = np.asarray(g.stamps, dtype=np.int64)
+    gt = np.asarray(g.stamps, dtype=np.int64).reshape(-1)
+    gv = np.asarray(g.values, dtype=float).reshape(-1, 3)
     ct = np.asarray(c.stamps, dtype=np.int64)
     if hasattr(g, 'gaps'):
         breaks = {b for _, b in g.gaps}                # the reader's gaps and jumps (rule 6)
     else:                                              # streams without them: the same rule
         breaks = gap_ends(g.stamps, model.gyro_period)
+    breaks = np.fromiter(breaks, np.int64)             # arrays: taken whole by the filter
     g_segs = segments(g.stamps, getattr(getattr(g, 'check', None), 'segment_starts', []))
     c_segs = segments(c.stamps, getattr(getattr(c, 'check', None), 'segment_starts', []))
     cur_g = cur_c = None
@@ -58,7 +60,7 @@ def run_filter(data: dict, model: SensorModel, settings: FilterSettings | None =
         (ga, gb), (ca, cb) = g_segs[i], c_segs[j]
         if cur_g != i:
             if k < end:
-                system.add_increments(g.stamps[k:end], g.values[k:end], breaks)
+                system.add_increments(gt[k:end], gv[k:end], breaks)
             cur_g, k, end = i, ga, gb
         if cur_c is not None and cur_c != j:
             system.resync_fixes()                      # the fixes' clock stepped
@@ -67,11 +69,11 @@ def run_filter(data: dict, model: SensorModel, settings: FilterSettings | None =
             ns = int(ct[n])
             jj = ga + int(np.searchsorted(gt[ga:gb], ns, side='right'))
             if jj > k:
-                system.add_increments(g.stamps[k:jj], g.values[k:jj], breaks)
+                system.add_increments(gt[k:jj], gv[k:jj], breaks)
                 k = jj
             q, P = c.values[n]
             system.add_fix(ns, np.asarray(q, dtype=float), np.asarray(P, dtype=float))
     if k < end:
-        system.add_increments(g.stamps[k:end], g.values[k:end], breaks)
+        system.add_increments(gt[k:end], gv[k:end], breaks)
     system.process()
     return system

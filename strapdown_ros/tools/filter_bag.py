@@ -1,19 +1,27 @@
 """
 filter_bag: the star-camera-aided attitude filter of ``attitude_filter_node`` on a recording.
 
-    filter_bag BAG --output OUT.csv [--fixes FIXES.csv] [--json FILE] [--params FILE] [--force]
+    filter_bag BAG --output OUT.csv [--fixes FIXES.csv] [--json FILE] [--params FILE]
+               [-p NAME:=VALUE] [--plots DIR] [--force]
 
 The bag is read by :mod:`strapdown_ros.recording` (Δθ or sensor_msgs/Imu rates; the camera or
 another attitude reference) with the nodes' input rules; the increments and fixes go, in stamp
 order, through :class:`~strapdown_ros.estimation.filter_system.FilterSystem`, the core the node
-runs.  OUT has one row per filter output (every ``output_period`` of stamp time): stamp, q x y z
-w, attitude σ (3, rad), gyro bias (3, rad/s) and its σ, then each augmented state and its σ.
-FIXES (default: OUT with ``_fixes`` before the suffix) has one row per fix: stamp, status,
-innovation (3, VF axes, rad), NIS, lateness, and the live model check's verdict.
-Parameters come from ``--params`` (the node's block ``attitude_filter_node`` or ``/**``).
+runs.  OUT has one row per ``output_period`` of stamp time (at the first increment stamp of
+each period): stamp, q x y z w, attitude σ (3, rad), gyro bias (3, rad/s) and its σ, then each
+augmented state and its σ (``<name>_<k>``, ``<name>_sigma_<k>``; the boresight is the
+quaternion ``q_MF_VF`` w x y z, its σ the 3 angles of its error, rad).  FIXES (default: OUT
+with ``_fixes`` before the suffix) has one row per fix: stamp, status (``applied``, ``gated``,
+``reset``, ``too_old``, ``overflow``), innovation (3, VF axes, rad), NIS, lateness, the live
+model check's verdict, and why a divergence was declared.  A divergence (consecutive gated
+fixes, or an NIS excess: parameters ``divergence_*``) is printed as it happened; the filter
+re-initialised its attitude from that fix and went on.  ``--plots DIR`` writes the innovation
+with its ±3σ, the bias and augmented states with their σ, the NIS with its band and the fixes
+applied, gated and reset (PNG).  Parameters come from ``--params`` (the node's block
+``attitude_filter_node`` or ``/**``) and ``-p NAME:=VALUE``.
 What was read and dropped is printed as every tool prints it (messages per topic, drops per
 reason, gaps, resynchronisations, frames) and, with ``--json``, written with the filter's counts.
-The outputs are written all or nothing (temporaries, then renamed together).
+The outputs are written all or nothing (temporaries, then renamed together; the plots after).
 Errors: one line on stderr, exit 2 (bad arguments or input); 4 when the filter fails numerically.
 """
 from __future__ import annotations
@@ -23,8 +31,9 @@ import sys
 
 import numpy as np
 
-from strapdown_ros.cli import (all_or_nothing, check_outputs, FILE, OneLineParser, write_json,
-                               write_text)
+from strapdown_ros.cli import (all_or_nothing, check_outputs, DIRECTORY, FILE, OneLineParser,
+                               write_json, write_text)
+from strapdown_ros.estimation.filter_plots import PLOT_NAMES, write_filter_plots
 from strapdown_ros.estimation.filter_system import FilterSettings
 from strapdown_ros.params import (check_against_recording, filled_in, load_model_file,
                                   not_applied_note, parse_overrides)
@@ -37,9 +46,34 @@ from strapdown_ros.recording.reader import BagError, read_bag
 from strapdown_ros.text import json_clean
 
 NODE_NAME = 'attitude_filter_node'
+#: divergence resets printed one per line (the rest are counted)
+RESETS_PRINTED = 20
 
 
-def state_rows(outputs, augment) -> str:
+def state_header(outputs) -> list[str]:
+    """
+    Return the column names of the filter outputs.
+
+    Parameters
+    ----------
+    outputs : list
+        The filter's outputs; the augmented columns come from the first.
+
+    Returns
+    -------
+    list of str
+        The names, one per field of every row.
+
+    """
+    head = ['stamp', 'qx', 'qy', 'qz', 'qw', 'sigma_x', 'sigma_y', 'sigma_z',
+            'bias_x', 'bias_y', 'bias_z', 'bias_sigma_x', 'bias_sigma_y', 'bias_sigma_z']
+    for name, (v, s) in (outputs[0].augmented.items() if outputs else []):
+        head += [f'{name}_{k}' for k in range(len(v))]
+        head += [f'{name}_sigma_{k}' for k in range(len(s))]
+    return head
+
+
+def state_rows(outputs, augment=None) -> str:
     """
     Return the CSV text of the filter outputs, header first.
 
@@ -56,21 +90,21 @@ def state_rows(outputs, augment) -> str:
         The CSV text.
 
     """
-    head = ['stamp', 'qx', 'qy', 'qz', 'qw', 'sigma_x', 'sigma_y', 'sigma_z',
-            'bias_x', 'bias_y', 'bias_z', 'bias_sigma_x', 'bias_sigma_y', 'bias_sigma_z']
-    for name, (v, _) in (outputs[0].augmented.items() if outputs else []):
-        head += [f'{name}_{k}' for k in range(len(v))]
-        head += [f'{name}_sigma_{k}' for k in range(len(v))]
-    lines = [','.join(head)]
-    for o in outputs:
-        q = o.attitude
-        vals = [o.stamp_ns * 1e-9, q[1], q[2], q[3], q[0],
-                *np.sqrt(np.diag(o.attitude_covariance)), *o.bias,
-                *np.sqrt(np.diag(o.bias_covariance))]
-        for v, s in o.augmented.values():
-            vals += list(v) + list(s)
-        lines.append(','.join(f'{x:.17g}' for x in vals))
-    return '\n'.join(lines) + '\n'
+    head = state_header(outputs)
+    if not outputs:
+        return ','.join(head) + '\n'
+    cols = [np.array([o.stamp_ns for o in outputs]) * 1e-9]
+    q = np.array([o.attitude for o in outputs])
+    cols += [q[:, 1:], q[:, :1]]                                      # x y z w
+    cols.append(np.sqrt(np.diagonal(np.array([o.attitude_covariance for o in outputs]), 0, 1, 2)))
+    cols.append(np.array([o.bias for o in outputs]))
+    cols.append(np.sqrt(np.diagonal(np.array([o.bias_covariance for o in outputs]), 0, 1, 2)))
+    for name in outputs[0].augmented:
+        cols.append(np.array([o.augmented[name][0] for o in outputs]))
+        cols.append(np.array([o.augmented[name][1] for o in outputs]))
+    table = np.column_stack(cols)
+    fmt = ','.join(['%.17g'] * table.shape[1])
+    return '\n'.join([','.join(head)] + [fmt % tuple(r) for r in table.tolist()]) + '\n'
 
 
 def fix_rows(fixes) -> str:
@@ -80,7 +114,7 @@ def fix_rows(fixes) -> str:
     Parameters
     ----------
     fixes : list
-        The filter's fix results (stamp, status, innovation, NIS, lateness, check).
+        The filter's fix results (stamp, status, innovation, NIS, lateness, check, reason).
 
     Returns
     -------
@@ -88,13 +122,16 @@ def fix_rows(fixes) -> str:
         The CSV text.
 
     """
-    lines = ['stamp,status,innovation_x,innovation_y,innovation_z,nis,lateness,check_ok,check']
+    lines = ['stamp,status,innovation_x,innovation_y,innovation_z,nis,lateness,check_ok,check,'
+             'reason']
     for f in fixes:
         z = f.innovation if f.innovation is not None else [float('nan')] * 3
         nis = f.nis if f.nis is not None else float('nan')
         text = f.check_text.replace('"', "'")
+        why = f.reason.replace('"', "'")
         lines.append(f'{f.stamp_ns * 1e-9:.17g},{f.status},{z[0]:.17g},{z[1]:.17g},'
-                     f'{z[2]:.17g},{nis:.17g},{f.lateness:.17g},{int(f.check_ok)},"{text}"')
+                     f'{z[2]:.17g},{nis:.17g},{f.lateness:.17g},{int(f.check_ok)},"{text}",'
+                     f'"{why}"')
     return '\n'.join(lines) + '\n'
 
 
@@ -113,7 +150,7 @@ def main(argv=None) -> int:
         The exit status (0 success; 2 unusable arguments or input, one line on stderr).
 
     """
-    ap = OneLineParser(prog='filter_bag', description=__doc__.split('\n')[0])
+    ap = OneLineParser(prog='filter_bag', description=__doc__.strip().split('\n')[0])
     ap.add_argument('bag', help='bag directory or file')
     ap.add_argument('--output', required=True, help='CSV of the filter outputs')
     ap.add_argument('--fixes', help='CSV of the fixes (default: OUTPUT with _fixes)')
@@ -123,6 +160,9 @@ def main(argv=None) -> int:
                     '(its model keys, and the settings of /** and attitude_filter_node)')
     ap.add_argument('-p', dest='overrides', action='append', metavar='NAME:=VALUE',
                     help='set one parameter (model key or setting), as ros2 run -p; repeatable')
+    ap.add_argument('--plots', metavar='DIR', help='write PNG plots into DIR: the innovation '
+                    'with its ±3σ, the bias and augmented states with their σ, the NIS with its '
+                    'band, the fixes applied, gated and reset')
     ap.add_argument('--namespace', default='', help='topic namespace')
     ap.add_argument('--force', action='store_true', help='replace existing outputs')
     add_input_arguments(ap)
@@ -137,7 +177,8 @@ def main(argv=None) -> int:
         if args.params and not Path(args.params).is_file():
             raise ValueError(f'--params {args.params} is not a file')
         stale = check_outputs([('--output', str(out), FILE), ('--fixes', str(fixes_path), FILE),
-                               ('--json', args.json, FILE)],
+                               ('--json', args.json, FILE),
+                               ('--plots', args.plots, DIRECTORY, PLOT_NAMES)],
                               [('bag', args.bag), ('--params', args.params)], args.force)
         for path in stale:
             print(f'filter_bag: note: removed {path}, a temporary an earlier run left',
@@ -189,10 +230,29 @@ def main(argv=None) -> int:
     except OSError as exc:
         print(f'filter_bag: error: {exc}', file=sys.stderr)
         return 2
+    t0 = outputs[0].stamp_ns if outputs else (fixes[0].stamp_ns if fixes else 0)
+    for k, (ns, why) in enumerate(system.resets):
+        if k < RESETS_PRINTED:
+            print(f'filter_bag: divergence at {ns * 1e-9:.3f} s ({(ns - t0) * 1e-9:.3f} s after '
+                  f'the start): {why}; the attitude was re-initialised from that fix '
+                  '(bias kept)')
+    if st['reset'] > RESETS_PRINTED:
+        print(f"filter_bag: ... and {st['reset'] - RESETS_PRINTED} more divergence resets "
+              f'(status reset in {fixes_path})')
     print(f"filter_bag: {len(outputs)} outputs, {st['applied']} fixes applied, {st['gated']} "
-          f"gated, {st['restarts']} restarts; {out}, {fixes_path}")
+          f"gated, {st['reset']} divergence resets, {st['restarts']} restarts; {out}, "
+          f'{fixes_path}')
     if system.check is not None:
         print(f'filter_bag: {system.check.last.text()}')
+    if args.plots:
+        try:
+            Path(args.plots).mkdir(parents=True, exist_ok=True)
+            written = write_filter_plots(args.plots, outputs, fixes,
+                                         settings.gate_probability)
+        except OSError as exc:
+            print(f'filter_bag: error: {exc}', file=sys.stderr)
+            return 2
+        print(f"filter_bag: plots {', '.join(written)}")
     return 0
 
 

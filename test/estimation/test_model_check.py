@@ -76,7 +76,12 @@ def test_candidates_are_library_effects_outside_the_filter():
     assert 'gyro_scale_factor' not in [e.name for e in effects] and not offset
 
 
-def _run(seconds=100, offset=0.0, asymmetry=(0.0, 0.0, 0.0), seed=4):
+#: the divergence rules off: the check alone, on a filter that never resets
+NO_RESETS = {'divergence_gated_fixes': 0, 'divergence_nis_window': 0}
+
+
+def _run(seconds=100, offset=0.0, asymmetry=(0.0, 0.0, 0.0), seed=4, extra=NO_RESETS,
+         counts=None):
     """Three-axis piecewise motion (4-s segments, rates ±0.05 rad/s) through FilterSystem."""
     rng = np.random.default_rng(3)
     profile = PiecewiseRateProfile([Segment(4.0, rng.uniform(-0.05, 0.05, 3))
@@ -92,7 +97,7 @@ def _run(seconds=100, offset=0.0, asymmetry=(0.0, 0.0, 0.0), seed=4):
                           seed=seed + 1, time_offset=offset)
     model, settings = model_and_settings('attitude_filter_node', {
         'gyro_rate': RATE, 'gyro_random_walk': 2e-6, 'gyro_bias_sigma': 1e-5,
-        'output_period': 0.5, 'initial_attitude_sigma': 1e-4})
+        'output_period': 0.5, 'initial_attitude_sigma': 1e-4, **extra})
     sysf = FilterSystem(model, FilterSettings.from_values(settings))
     st, meas, _ = gyro.sample(int(seconds * RATE))
     ns = np.round(st * 1e9).astype(np.int64)
@@ -104,6 +109,8 @@ def _run(seconds=100, offset=0.0, asymmetry=(0.0, 0.0, 0.0), seed=4):
             k = j
         sysf.add_fix(int(round(fx.stamp * 1e9)), fx.attitude, fx.covariance)
     sysf.process()
+    if counts is not None:
+        counts.update(sysf.status())
     return [f.check for f in sysf.take()[1] if f.check is not None and not f.check.window_ok]
 
 
@@ -119,3 +126,19 @@ def test_time_offset_and_scale_asymmetry_are_told_apart():
     assert len(failing) >= 30
     assert all(c.best_effect == 'gyro_scale_asymmetry' for c in failing), \
         {c.best_effect for c in failing}
+
+
+def test_the_effect_is_still_named_when_it_makes_the_filter_diverge():
+    """
+    A 5 ms camera offset gates fix after fix: divergence resets, and the check still names it.
+
+    The reset restarts the effects' attitude responses (:meth:`ModelCheck.restart`), not the
+    window: the failing windows name the offset, its value within 1 ms.
+    """
+    counts = {}
+    failing = _run(offset=0.005, extra={}, counts=counts)
+    assert counts['reset'] >= 5
+    assert len(failing) >= 40
+    assert all(c.best_effect == 'time_offset' for c in failing), \
+        {c.best_effect for c in failing}
+    assert abs(np.median([c.best_estimate[0] for c in failing]) - 0.005) < 0.001

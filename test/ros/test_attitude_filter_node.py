@@ -411,3 +411,36 @@ def test_unmodelled_scale_factor_is_a_warn_on_diagnostics(ros):
         assert node.system.augment == ()                 # the model is unchanged
     finally:
         node.destroy_node()
+
+
+def test_divergence_is_an_error_on_diagnostics_then_a_warn(ros):
+    """
+    Gated fixes in a row: ERROR on /diagnostics naming the divergence, fixes applied again.
+
+    The gyro reports a rotation that did not happen (0.01 rad about x, once), so every later
+    exact fix disagrees by it: the fifth gated one re-initialises the attitude; the fixes after
+    it are applied; once as many fixes as the rule's window have passed, the ERROR becomes a
+    WARN that counts the reset.
+    """
+    node = AttitudeFilterNode(namespace='/t_filter_divergence', parameter_overrides=[
+        Parameter('output_period', value=0.1), Parameter('use_camera_covariance', value=False)])
+    try:
+        t0, k = 10**12, 0
+        node.fix(_header(t0), Quaternion(x=0.0, y=0.0, z=0.0, w=1.0), None)        # the start
+        for second in range(1, 31):
+            for _ in range(100):
+                k += 1
+                node.gyro(t0 + k * 10**7, (0.01, 0.0, 0.0) if k == 250 else (0.0, 0.0, 0.0))
+            node.fix(_header(t0 + second * 10**9), Quaternion(x=0.0, y=0.0, z=0.0, w=1.0), None)
+            if second == 8:                                 # gated at 3..7, reset at the 7th
+                st = node.system.status()
+                assert st['reset'] == 1 and st['gated'] == 4, st
+                c = node.diagnostic_conditions(st)
+                assert c.level == ros_status.ERROR and 'divergence: 1 reset(s)' in c.message()
+                assert '5 consecutive fixes gated' in c.message(), c.message()
+        st = node.system.status()
+        assert st['reset'] == 1 and st['applied'] == 30 - 5 and st['fixes_since_reset'] == 23
+        c = node.diagnostic_conditions(st)
+        assert c.level == ros_status.WARN and 'divergence: 1 reset(s)' in c.message(), c.message()
+    finally:
+        node.destroy_node()

@@ -4,12 +4,15 @@ Measure the highest Δθ rate a node takes without loss, against bare rclpy, and
 The command ``node_rate_bench``; the ROS side is ``rate_probe`` (the rates) and
 ``callback_cost``.
 
-1. **Sustained rate.**  Four processes are started: a bare counting subscriber
+1. **Sustained rate.**  Five processes are started: a bare counting subscriber
    (``strapdown_ros.bench.ros.rate_probe``: same QoS, same executor, same spin loop, a callback
    that only counts; it takes deserialized messages, as a plain rclpy subscriber does), the same
-   subscriber taking the serialized bytes (``counting_node_raw``; sins_node and calibrator_node
-   subscribe raw and decode the stamp, vector and frame themselves), ``sins_node`` and
-   ``calibrator_node``.  For each, the rate is bisected on a log
+   subscriber taking the serialized bytes (``counting_node_raw``; the package's nodes subscribe
+   raw and decode the stamp, vector and frame themselves), ``sins_node``, ``calibrator_node``
+   and ``attitude_filter_node`` (sent a camera fix every second as well: the exact attitude, so
+   every fix is applied; its first fix, in the first trial, starts the filter — a stall there
+   shows as a lost first trial) (``--subjects`` runs fewer).  For each, the rate is bisected on
+   a log
    scale between ``--lo`` and ``--hi``: a trial publishes ``rate`` × ``--seconds`` Δθ, paced by
    the wall clock in 2 ms bursts (the publisher sleeps, it does not spin), and passes when the
    subject's own count (its ``/diagnostics``) shows every message received.  Each bisection
@@ -84,6 +87,9 @@ def parse_args(argv):
     ap.add_argument('--callback-runs', type=int, default=5,
                     help='runs of the callback-cost measurement (0: skip)')
     ap.add_argument('--no-rate', action='store_true', help='skip the sustained-rate part')
+    ap.add_argument('--subjects', default=','.join(probe.SUBJECTS),
+                    help='subjects of the rate part, comma-separated, counting_node first '
+                    f"(default: all, {','.join(probe.SUBJECTS)})")
     ap.add_argument('--json', metavar='FILE', help='write the figures as JSON '
                     '(documented run: doc/results/node_rate_bench/node_rate_bench.json)')
     ap.add_argument('--quiet', action='store_true', help='no progress on stderr')
@@ -104,6 +110,12 @@ def parse_args(argv):
             f'--algorithm {args.algorithm!r} is not valid; valid values:'
             f" {', '.join(algorithm_names())}"
         )
+    subjects = [x.strip() for x in args.subjects.split(',') if x.strip()]
+    bad = [x for x in subjects if x not in probe.SUBJECTS]
+    if bad or not subjects or subjects[0] != 'counting_node' or len(set(subjects)) < len(subjects):
+        ap.error(f'--subjects: counting_node first, then any of {", ".join(probe.SUBJECTS[1:])} '
+                 'once each')
+    args.subjects = tuple(subjects)
     try:
         check_outputs([('--json', args.json, FILE)], [], args.force)
     except ValueError as exc:
@@ -236,7 +248,7 @@ def main(argv=None) -> int:
                 say(f'repeat {k + 1}/{args.repeats}')
                 reps.append(
                     probe.rate_repeat(args.lo, args.hi, args.steps, args.seconds, args.algorithm,
-                                      say))
+                                      say, args.subjects))
             out['rate'] = reps
             lines += [
                 '',
@@ -252,14 +264,14 @@ def main(argv=None) -> int:
                 ),
                 '|---|---:|---:|---:|',
             ]
-            for n in probe.SUBJECTS:
+            for n in args.subjects:
                 r = _stats([x['rates_hz'][n] for x in reps])
                 cells = []
                 for key, ref in (('ratio', 'counting_node'), ('ratio_to_raw',
                                                               'counting_node_raw')):
                     if n == ref:
                         cells.append('1')
-                    elif n in reps[0][key]:
+                    elif n in reps[0].get(key, {}):
                         q = _stats([x[key][n] for x in reps])
                         cells.append(f"{q['median']:.2f} ({q['min']:.2f}–{q['max']:.2f})")
                     else:
@@ -268,11 +280,24 @@ def main(argv=None) -> int:
                     f"| {n} | {r['median']:.0f} ({r['min']:.0f}–{r['max']:.0f}) | {cells[0]} |"
                     f' {cells[1]} |'
                 )
-            q = _stats([x['ratio']['sins_node'] for x in reps])
-            lines.append(
-                f"\nsins_node median ratio {q['median']:.2f} — target ≥ {RATIO_TARGET:g} "
-                f"{'met' if q['median'] >= RATIO_TARGET else 'NOT met'}."
-            )
+            for n in ('sins_node', 'attitude_filter_node'):
+                if n not in args.subjects:
+                    continue
+                q = _stats([x['ratio'][n] for x in reps])
+                first = sum(x['first_trial_passed'][n] for x in reps)
+                met = 'met' if q['median'] >= RATIO_TARGET else 'NOT met'
+                fix = ', its first fix' if n == 'attitude_filter_node' else ''
+                lines.append(
+                    f"\n{n} median ratio {q['median']:.2f} ({q['min']:.2f}–{q['max']:.2f}) — "
+                    f'target ≥ {RATIO_TARGET:g} {met}; first trial ({args.lo:g} Hz{fix}) '
+                    f'without loss in {first} of {len(reps)} repeats.'
+                )
+                if n in reps[0].get('fixes', {}):
+                    fx = [x['fixes'][n] for x in reps]
+                    lines.append(
+                        f'{n}: camera fixes sent per repeat {[f["sent"] for f in fx]}, applied '
+                        f'{[f.get("applied") for f in fx]}, gated {[f.get("gated") for f in fx]}, '
+                        f'divergence resets {[f.get("reset") for f in fx]} (its /diagnostics).')
     except RuntimeError as exc:
         print(f'node_rate_bench: error: {exc}', file=sys.stderr)
         return 1

@@ -12,7 +12,11 @@ reads every subject the same way.
 
 :meth:`Harness.trial` publishes Δθ at a given rate in bursts every ``slot`` seconds of wall time
 and sleeps in between (it never busy-spins, so on a 2-core machine it does not starve the node
-it measures).  Stamps continue across trials at 1/rate steps, strictly increasing.
+it measures).  Stamps continue across trials at 1/rate steps, strictly increasing.  A subject
+that takes camera fixes (``attitude_filter_node``) is also sent one fix per second (every
+``rate`` increments, stamped with the last increment's stamp): ``q_GCRS_VF`` = exp(k·Δθ) after k
+increments of the constant Δθ, the exact attitude, so every fix is applied; its first fix (in
+the first trial) starts the filter.
 """
 from __future__ import annotations
 
@@ -24,14 +28,19 @@ import sys
 import time
 
 from diagnostic_msgs.msg import DiagnosticArray
-from geometry_msgs.msg import Vector3Stamped
+from geometry_msgs.msg import QuaternionStamped, Vector3Stamped
+import numpy as np
 import rclpy
 from rclpy.node import Node
 
 from strapdown_ros.nodes import ros_io, ros_process, ros_status
+from strapdown_ros.rotation import rotvec_to_quat
 
 NODE_NAME = 'counting_node'
-SUBJECTS = ('counting_node', 'counting_node_raw', 'sins_node', 'calibrator_node')
+SUBJECTS = ('counting_node', 'counting_node_raw', 'sins_node', 'calibrator_node',
+            'attitude_filter_node')
+#: subjects that take camera fixes (star_camera/attitude, one per second of stamps)
+CAMERA_SUBJECTS = ('attitude_filter_node',)
 
 
 class CountingNode(Node):
@@ -61,7 +70,16 @@ class CountingNode(Node):
                                               ros_io.DIAGNOSTICS_QOS)
         self.create_timer(float(period), self._diag)
 
-    def _on_gyro(self, msg):
+    def on_gyro(self, msg):
+        """
+        Count one message.
+
+        Parameters
+        ----------
+        msg : geometry_msgs.msg.Vector3Stamped or bytes
+            The message (unused).
+
+        """
         self.received += 1
 
     def _diag(self):
@@ -109,6 +127,7 @@ class Subject:
         'counting_node_raw': 'strapdown_ros.bench.ros.rate_probe',
         'sins_node': 'strapdown_ros.nodes.sins_node',
         'calibrator_node': 'strapdown_ros.nodes.calibrator_node',
+        'attitude_filter_node': 'strapdown_ros.nodes.attitude_filter_node',
     }
 
     def __init__(self, harness: Node, name: str, params: dict):
@@ -127,7 +146,35 @@ class Subject:
         self.stamp_ns = 1_000_000_000
         self.msg = Vector3Stamped()
         self.msg.header.frame_id = 'imu_link'
-        self.msg.vector.x, self.msg.vector.y, self.msg.vector.z = 1e-6, -2e-6, 3e-6
+        self.step = np.array([1e-6, -2e-6, 3e-6])
+        self.msg.vector.x, self.msg.vector.y, self.msg.vector.z = (float(c) for c in self.step)
+        self.sent = 0                                   # Δθ published to it, all trials
+        self.fixes = 0
+        self.next_fix = 1                               # the first fix after the first Δθ
+        self.fix_counts: dict = {}                      # applied, gated, reset (its diagnostics)
+        self.camera = None
+        if name in CAMERA_SUBJECTS:
+            self.camera = harness.create_publisher(QuaternionStamped,
+                                                   f'{self.ns}/star_camera/attitude',
+                                                   ros_io.camera_qos(100))
+
+    def fix_due(self, rate: float) -> None:
+        """
+        Publish a camera fix when a second of increments has passed since the last one.
+
+        Parameters
+        ----------
+        rate : float
+            The trial's rate, Hz (a fix every ``rate`` increments).
+
+        """
+        if self.camera is None or self.sent < self.next_fix:
+            return
+        self.next_fix = self.sent + max(1, int(round(rate)))
+        st = ros_io.ns_to_stamp(self.stamp_ns)
+        q = rotvec_to_quat(self.step * self.sent)      # exact: k equal increments from identity
+        self.camera.publish(ros_io.quaternion_stamped(st, '', q))   # no frame: any is taken
+        self.fixes += 1
 
     def on_status(self, status) -> bool:
         """
@@ -150,6 +197,8 @@ class Subject:
             if kv.key == 'gyro_received':
                 self.received = int(kv.value)
                 self.updated = time.monotonic()
+            elif kv.key in ('applied', 'gated', 'reset'):
+                self.fix_counts[kv.key] = int(kv.value)
         return True
 
     def stop(self) -> None:
@@ -279,6 +328,7 @@ class Harness:
         step = int(round(1e9 / rate))
         m, pub = s.msg, s.pub
         sent = 0
+        fixes = s.camera is not None
         t0 = time.monotonic()
         while sent < n:
             due = min(n, int((time.monotonic() - t0) * rate) + 1)
@@ -287,6 +337,9 @@ class Harness:
                 m.header.stamp.sec, m.header.stamp.nanosec = divmod(s.stamp_ns, 1_000_000_000)
                 pub.publish(m)
                 sent += 1
+                if fixes:
+                    s.sent += 1
+                    s.fix_due(rate)
             nxt = t0 + (sent + 0.5) / rate
             time.sleep(max(0.0, min(slot, nxt - time.monotonic())))
         wall = time.monotonic() - t0
@@ -319,7 +372,7 @@ class Harness:
 
 # --- the harness's measurements (called by bench/ros/node_rate_bench.py) ---------------------
 def rate_repeat(lo_hz: float, hi_hz: float, steps: int, seconds: float, algorithm: str,
-                say) -> dict:
+                say, subjects=SUBJECTS) -> dict:
     """
     Run one repeat: a fresh process per subject, interleaved bisections.
 
@@ -335,12 +388,15 @@ def rate_repeat(lo_hz: float, hi_hz: float, steps: int, seconds: float, algorith
         Coning algorithm of sins_node.
     say : callable
         Called with one line of progress text.
+    subjects : sequence of str
+        The subjects (of :data:`SUBJECTS`; ``counting_node`` first: the ratios' reference).
 
     Returns
     -------
     dict
-        Highest passing rate per subject, Hz, the brackets, every trial, and the ratios to the
-        counting subscribers.
+        Highest passing rate per subject, Hz, the brackets, every trial, whether the first trial
+        (at ``lo_hz``, with the filter's first fix) passed, and the ratios to the counting
+        subscribers.
 
     """
     h = Harness(ros_process.make_executor)
@@ -349,22 +405,24 @@ def rate_repeat(lo_hz: float, hi_hz: float, steps: int, seconds: float, algorith
         'counting_node_raw': {'raw': 'true'},
         'sins_node': {'coning_algorithm': algorithm},
         'calibrator_node': {},
+        'attitude_filter_node': {'coning_algorithm': algorithm, 'use_camera_covariance': 'false'},
     }
+    SUBJECTS_RUN = tuple(subjects)
     try:
-        subj = {n: h.add(n, params[n]) for n in SUBJECTS}
+        subj = {n: h.add(n, params[n]) for n in SUBJECTS_RUN}
         for n, s in subj.items():
             if not h.ready(s):
                 raise RuntimeError(f'{n} did not come up: ' +
                                    (s.proc.stderr.read() if s.proc.poll() is not None else ''))
-        lo = {n: lo_hz for n in SUBJECTS}
-        hi = {n: hi_hz for n in SUBJECTS}
+        lo = {n: lo_hz for n in SUBJECTS_RUN}
+        hi = {n: hi_hz for n in SUBJECTS_RUN}
         passed_lo = {}
-        for n in SUBJECTS:                                  # the lower end must pass
+        for n in SUBJECTS_RUN:                              # the lower end must pass
             r = h.trial(subj[n], lo_hz, seconds)
             passed_lo[n] = r['lost'] == 0
         trials = []
         for step in range(steps):
-            for n in SUBJECTS:                              # the subjects in turn at every step
+            for n in SUBJECTS_RUN:                          # the subjects in turn at every step
                 if not passed_lo[n]:
                     continue
                 mid = math.sqrt(lo[n] * hi[n])
@@ -376,25 +434,17 @@ def rate_repeat(lo_hz: float, hi_hz: float, steps: int, seconds: float, algorith
                 else:
                     hi[n] = mid
             say('step %d: ' % (step + 1) + ', '.join(f'{n} {lo[n]:.0f}–{hi[n]:.0f} Hz'
-                                                     for n in SUBJECTS))
-        rates = {n: (lo[n] if passed_lo[n] else 0.0) for n in SUBJECTS}
-        return {
-            'rates_hz': rates,
-            'bracket_hi_hz': hi,
-            'trials': trials,
-            'ratio': {
-                n: rates[n] / rates['counting_node'] if rates['counting_node'] else math.nan
-                for n in SUBJECTS[1:]
-            },
-            'ratio_to_raw': {
-                n: (
-                    rates[n] / rates['counting_node_raw']
-                    if rates['counting_node_raw']
-                    else math.nan
-                )
-                for n in SUBJECTS[2:]
-            },
-        }
+                                                     for n in SUBJECTS_RUN))
+        rates = {n: (lo[n] if passed_lo[n] else 0.0) for n in SUBJECTS_RUN}
+        out = {'rates_hz': rates, 'bracket_hi_hz': hi, 'trials': trials,
+               'first_trial_passed': passed_lo, 'ratio': {}, 'ratio_to_raw': {},
+               'fixes': {n: dict(subj[n].fix_counts, sent=subj[n].fixes)
+                         for n in SUBJECTS_RUN if subj[n].camera is not None}}
+        for key, ref in (('ratio', 'counting_node'), ('ratio_to_raw', 'counting_node_raw')):
+            if ref in rates:
+                out[key] = {n: rates[n] / rates[ref] if rates[ref] else math.nan
+                            for n in SUBJECTS_RUN if n not in ('counting_node', ref)}
+        return out
     finally:
         h.close()
 
