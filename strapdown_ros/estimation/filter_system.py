@@ -229,7 +229,8 @@ class FilterSystem:
     starts at ``gyro_bias`` with prior ``gyro_bias_sigma`` and its process noise
     ``gyro_bias_random_walk`` / ``gyro_bias_correlation_time``, a fix is applied at its stamp
     minus ``camera_time_offset``, its covariance is scaled per VF axis by
-    ``camera_noise_scale``, and the boresight is the model's (or the latched topic's).
+    ``camera_noise_scale``, the fixes are taken at the model's ``reference_spacing`` (the others
+    counted ``spaced``), and the boresight is the model's (or the latched topic's).
 
     Parameters
     ----------
@@ -290,7 +291,12 @@ class FilterSystem:
                        'dropped_nan': 0, 'dropped_not_unit': 0, 'dropped_no_boresight': 0,
                        'increments_before_start': 0, 'restarts': 0, 'gaps': 0,
                        'camera_resyncs': 0, 'applied': 0, 'gated': 0, 'reset': 0,
-                       'too_old': 0, 'overflow': 0}
+                       'too_old': 0, 'overflow': 0, 'spaced': 0}
+        #: the reference spacing rule (the model's ``reference_spacing``), ns; 0: every fix
+        self.spacing_ns = int(round(float(model.reference_spacing) * 1e9))
+        self._spaced_last: int | None = None   # the last fix taken under the spacing rule, ns
+        self._fix_prev: int | None = None      # the last fix offered to it, ns
+        self._fix_interval = 0                 # the latest interval between them, ns
         #: the divergences declared, (stamp ns of the fix, why), the latest MAX_RESETS_KEPT
         self.resets: deque = deque(maxlen=MAX_RESETS_KEPT)
         self._buf_t: list = []          # accepted increments not yet processed (ns, value)
@@ -467,9 +473,35 @@ class FilterSystem:
             return None
         return self._apply_fix(stamp_ns, *got)
 
+    def _spaced_out(self, stamp_ns: int) -> bool:
+        """
+        Return whether the reference spacing rule leaves this fix out (counted ``spaced``).
+
+        The reference's errors are correlated over less than the model's ``reference_spacing``,
+        so the filter takes the first fix and then one fix a spacing later: a fix is left out
+        while it is less than the spacing, less half the interval between fixes, after the
+        last one taken (regular fixes: one in ``round(spacing / interval)``, the slots of
+        :func:`strapdown_ros.calibration.reference_spacing.thin_fixes`).  A fix that starts the
+        filter is always taken.
+        """
+        prev, self._fix_prev = self._fix_prev, int(stamp_ns)
+        if self.spacing_ns <= 0:
+            return False
+        if prev is not None and stamp_ns > prev:
+            self._fix_interval = int(stamp_ns) - prev
+        last = self._spaced_last
+        if self.filter is not None and last is not None and \
+                0 <= stamp_ns - last < self.spacing_ns - self._fix_interval // 2:
+            self.counts['spaced'] += 1
+            return True
+        self._spaced_last = int(stamp_ns)
+        return False
+
     def _apply_fix(self, stamp_ns: int, q_wxyz, covariance) -> FixOutput | None:
         if self.boresight is None:
             self.counts['dropped_no_boresight'] += 1
+            return None
+        if self._spaced_out(stamp_ns):
             return None
         if self.camera_effects.noise_scale is not None \
                 and np.any(self.camera_effects.noise_scale != 1.0):

@@ -19,10 +19,13 @@ import numpy as np
 from strapdown_ros.rotation import (dcm_to_ypr, quat_conjugate, quat_multiply, quat_normalize,
                                     quat_to_dcm, quat_to_rotvec, rotvec_to_quat)
 
-__all__ = ['ReferenceAgreement', 'reference_agreement', 'MAX_LAG_S']
+__all__ = ['ReferenceAgreement', 'reference_agreement', 'agreement_with_fixes', 'MAX_LAG_S',
+           'MIN_HELD_OUT']
 
 #: the lag window searched, s (either sign)
 MAX_LAG_S = 0.2
+#: the fewest fixes the filter did not apply that make a held-out comparison
+MIN_HELD_OUT = 10
 
 
 @dataclass
@@ -46,6 +49,8 @@ class ReferenceAgreement:
         RMS of residual / σ per axis (1: the stated σ is honest).
     within_3_sigma : float
         Share of the axis samples within 3σ.
+    held_out : bool
+        The samples are fixes the filter never applied (:func:`agreement_with_fixes`).
 
     """
 
@@ -56,6 +61,7 @@ class ReferenceAgreement:
     sigma_rad: list
     rms_ratio: list
     within_3_sigma: float
+    held_out: bool = False
 
     def as_dict(self) -> dict:
         """Return the record as plain JSON values."""
@@ -87,10 +93,25 @@ def _boresight(q_f, q_ref):
     return q if q[0] >= 0 else -q
 
 
+def _continuous(q: np.ndarray) -> np.ndarray:
+    """Return quaternions with the sign of each chosen next to its predecessor (for a slerp)."""
+    q = q.copy()
+    flip = np.cumsum(np.concatenate([[0], np.sum(q[1:] * q[:-1], axis=1) < 0])) % 2 == 1
+    q[flip] = -q[flip]
+    return q
+
+
 def reference_agreement(t_out, q_out, sigma_out, t_ref, q_ref, sigma_ref,
-                        max_lag: float = MAX_LAG_S) -> ReferenceAgreement | None:
+                        max_lag: float = MAX_LAG_S, at: str = 'reference',
+                        use=None) -> ReferenceAgreement | None:
     """
     Compare a filter's attitude with a reference, the lag and a constant boresight taken out.
+
+    The two are compared at the stamps of one of them, the other interpolated (slerp; σ
+    linear): ``at='reference'`` interpolates the filter's outputs to the reference stamps,
+    ``at='filter'`` the reference to the output stamps.  Interpolate the denser of the two:
+    a slerp across outputs 0.1 s apart misses the attitude's curvature in fast motion by more
+    than any σ (a foot swinging at 10 rad/s).
 
     Parameters
     ----------
@@ -104,38 +125,55 @@ def reference_agreement(t_out, q_out, sigma_out, t_ref, q_ref, sigma_ref,
         Reference stamps, s.
     q_ref : (m, 4) array_like
         The reference ``q_ref_VF``, scalar first.
-    sigma_ref : (3,) array_like
-        The reference's σ about VF x, y, z, rad.
+    sigma_ref : (3,) or (m, 3) array_like
+        The reference's σ about VF x, y, z, rad (one for all samples, or one per sample).
     max_lag : float
         The lag window searched, s.
+    at : str
+        ``reference`` or ``filter``: whose stamps the comparison is made at.
+    use : (n,) or (m,) array_like of bool, optional
+        Which of those stamps count (default: all).
 
     Returns
     -------
     ReferenceAgreement or None
-        None when fewer than 10 reference samples fall inside the filter's outputs.
+        None when fewer than 10 samples can be compared.
 
     """
+    if at not in ('reference', 'filter'):
+        raise ValueError(f"at must be 'reference' or 'filter', not {at!r}")
     t_out = np.asarray(t_out, dtype=float)
-    q_out = quat_normalize(np.asarray(q_out, dtype=float))
+    q_out = _continuous(quat_normalize(np.asarray(q_out, dtype=float).reshape(-1, 4)))
     sig_out = np.asarray(sigma_out, dtype=float).reshape(-1, 3)
     t_ref = np.asarray(t_ref, dtype=float)
-    q_ref = quat_normalize(np.asarray(q_ref, dtype=float))
-    if len(t_out) < 2:
+    q_ref = quat_normalize(np.asarray(q_ref, dtype=float).reshape(-1, 4))
+    s_ref = np.broadcast_to(np.asarray(sigma_ref, dtype=float), (len(t_ref), 3))
+    if len(t_out) < 2 or len(t_ref) < 2:
         return None
-    # sign continuity of the filter's quaternions for the slerp
-    for i in range(1, len(q_out)):
-        if np.dot(q_out[i], q_out[i - 1]) < 0:
-            q_out[i] = -q_out[i]
+    if at == 'filter':
+        q_ref = _continuous(q_ref)
+    n_at = len(t_ref) if at == 'reference' else len(t_out)
+    use = np.ones(n_at, dtype=bool) if use is None else np.asarray(use, dtype=bool)
+
+    def pairs(lag):
+        """Return the filter and the reference at the comparison stamps, for a reference lag."""
+        if at == 'reference':
+            t = t_ref - lag
+            sel = use & (t >= t_out[0]) & (t <= t_out[-1])
+            q_f, s_f = _interp(t_out, q_out, sig_out, t[sel])
+            return sel, q_f, s_f, q_ref[sel], s_ref[sel]
+        t = t_out + lag
+        sel = use & (t >= t_ref[0]) & (t <= t_ref[-1])
+        q_r, s_r = _interp(t_ref, q_ref, s_ref, t[sel])
+        return sel, q_out[sel], sig_out[sel], q_r, s_r
 
     def cost(lag):
-        t = t_ref - lag
-        sel = (t >= t_out[0]) & (t <= t_out[-1])
+        sel, q_f, s_f, q_r, s_r = pairs(lag)
         if sel.sum() < 10:
             return np.inf, None
-        q_f, s_f = _interp(t_out, q_out, sig_out, t[sel])
-        q_b = _boresight(q_f, q_ref[sel])
-        r = _residuals(q_f, q_ref[sel], q_b)
-        return float(np.mean(np.sum(r ** 2, axis=1))), (sel, q_f, s_f, q_b, r)
+        q_b = _boresight(q_f, q_r)
+        r = _residuals(q_f, q_r, q_b)
+        return float(np.mean(np.sum(r ** 2, axis=1))), (sel, s_f, s_r, q_b, r)
 
     lags = np.linspace(-max_lag, max_lag, 81)
     costs = [cost(x)[0] for x in lags]
@@ -151,11 +189,11 @@ def reference_agreement(t_out, q_out, sigma_out, t_ref, q_ref, sigma_ref,
         else:
             lo = a
     lag = 0.5 * (lo + hi)
-    _, (sel, q_f, s_f, q_b, r) = cost(lag)
+    _, (sel, s_f, s_r, q_b, r) = cost(lag)
     # the filter's σ in VF axes: C_VF^body diag(σ²) C_body^VF (its diagonal), with the reference's
     C = quat_to_dcm(q_b)                              # VF → body
     var_vf = np.einsum('ji,nj,ji->ni', C, s_f ** 2, C)
-    sig = np.sqrt(var_vf + np.asarray(sigma_ref, dtype=float) ** 2)
+    sig = np.sqrt(var_vf + s_r ** 2)
     z = r / sig
     return ReferenceAgreement(
         samples=int(sel.sum()), lag_s=float(lag),
@@ -164,3 +202,67 @@ def reference_agreement(t_out, q_out, sigma_out, t_ref, q_ref, sigma_ref,
         sigma_rad=[float(x) for x in np.sqrt(np.mean(sig ** 2, axis=0))],
         rms_ratio=[float(x) for x in np.sqrt(np.mean(z ** 2, axis=0))],
         within_3_sigma=float(np.mean(np.abs(z) <= 3.0)))
+
+
+def agreement_with_fixes(outputs, fix_stamps_ns, fixes, applied_ns=(), noise_scale=None,
+                         max_lag: float = MAX_LAG_S) -> ReferenceAgreement | None:
+    """
+    Compare a filter's outputs with the reference fixes it did not apply.
+
+    The fixes the filter applied pull its attitude towards themselves, so they are left out
+    when at least :data:`MIN_HELD_OUT` others remain (``held_out`` True): a reference at its
+    full rate, taken at the model's ``reference_spacing``, leaves most of its fixes to this
+    check.  Otherwise every fix is compared (``held_out`` False).  The denser of the two is
+    interpolated (:func:`reference_agreement`): fixes closer together than the outputs are
+    interpolated to the output stamps, an output then counting when neither fix around it was
+    applied.  Each fix's σ is the square root of its covariance's diagonal, scaled per VF axis
+    by ``noise_scale`` as the filter scales it.
+
+    Parameters
+    ----------
+    outputs : list of FilterOutput
+        The filter's outputs (stamp, ``q_ref_body``, its covariance in body axes).
+    fix_stamps_ns : sequence of int
+        The fixes' stamps, ns, ascending.
+    fixes : sequence of (q, P)
+        Each fix: ``q_ref_VF`` scalar-first (4,) and its covariance (3, 3), VF axes, rad².
+    applied_ns : iterable of int
+        The stamps of the fixes the filter applied.
+    noise_scale : (3,) array_like, optional
+        The model's ``camera_noise_scale`` (None: 1).
+    max_lag : float
+        The lag window searched, s.
+
+    Returns
+    -------
+    ReferenceAgreement or None
+        None when fewer than 10 samples can be compared.
+
+    """
+    if len(outputs) < 2 or len(fixes) < 2:
+        return None
+    t_out = np.array([o.stamp_ns for o in outputs], dtype=np.int64)
+    origin = int(t_out[0])
+    q_out = np.array([o.attitude for o in outputs], dtype=float)
+    s_out = np.sqrt(np.maximum(np.array([np.diag(o.attitude_covariance) for o in outputs]),
+                               0.0))
+    st = np.asarray(fix_stamps_ns, dtype=np.int64)
+    q_ref = np.array([np.asarray(f[0], dtype=float) for f in fixes])
+    var = np.array([np.diag(np.asarray(f[1], dtype=float).reshape(3, 3)) for f in fixes])
+    scale = np.ones(3) if noise_scale is None else np.asarray(noise_scale, dtype=float)
+    s_ref = np.sqrt(np.maximum(var, 0.0)) * scale
+    applied = np.isin(st, np.fromiter(applied_ns, dtype=np.int64))
+    dense = np.median(np.diff(st)) < np.median(np.diff(t_out))
+    if dense:               # the fixes around each output stamp: neither of them applied
+        k = np.clip(np.searchsorted(st, t_out) - 1, 0, len(st) - 2)
+        use = ~(applied[k] | applied[k + 1])
+    else:
+        use = ~applied
+    held = int(use.sum()) >= MIN_HELD_OUT
+    if not held:
+        use = None
+    res = reference_agreement((t_out - origin) * 1e-9, q_out, s_out, (st - origin) * 1e-9,
+                              q_ref, s_ref, max_lag, 'filter' if dense else 'reference', use)
+    if res is not None:
+        res.held_out = held
+    return res

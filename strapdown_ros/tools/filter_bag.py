@@ -35,14 +35,13 @@ from strapdown_ros.cli import (all_or_nothing, check_outputs, DIRECTORY, FILE, O
                                write_json, write_text)
 from strapdown_ros.estimation.filter_plots import PLOT_NAMES, write_filter_plots
 from strapdown_ros.estimation.filter_system import FilterSettings
-from strapdown_ros.params import (check_against_recording, filled_in, load_model_file,
-                                  not_applied_note, parse_overrides)
-from strapdown_ros.recording.filter_replay import run_filter
+from strapdown_ros.params import filled_in, load_model_file, not_applied_note, parse_overrides
 from strapdown_ros.recording.options import (add_input_arguments, check_input_arguments,
                                              frame_warnings, input_lines, input_options,
-                                             input_summary, input_warnings, recording_facts,
-                                             usable_error)
-from strapdown_ros.recording.reader import BagError, read_bag
+                                             input_summary, input_warnings, usable_error)
+from strapdown_ros.recording.reader import BagError
+from strapdown_ros.runs.filter import filter_of_data
+from strapdown_ros.runs.source import read_checked, RecordingSource
 from strapdown_ros.text import json_clean
 
 NODE_NAME = 'attitude_filter_node'
@@ -135,6 +134,56 @@ def fix_rows(fixes) -> str:
     return '\n'.join(lines) + '\n'
 
 
+def spacing_line(spacing: float, counts: dict) -> str:
+    """
+    Return the line on the reference spacing rule ('' when every fix is taken).
+
+    Parameters
+    ----------
+    spacing : float
+        The model's ``reference_spacing``, s.
+    counts : dict
+        The filter's counts (``spaced``).
+
+    Returns
+    -------
+    str
+        The line.
+
+    """
+    if not spacing > 0:
+        return ''
+    return (f"reference spacing {spacing:.3g} s (the model's reference_spacing): "
+            f"{counts.get('spaced', 0)} fixes in between left to the reference check")
+
+
+def agreement_line(agree) -> str:
+    """
+    Return the line on the outputs against the reference ('' when there was none to compare).
+
+    Parameters
+    ----------
+    agree : ReferenceAgreement or None
+        :func:`strapdown_ros.estimation.reference_check.agreement_with_fixes`.
+
+    Returns
+    -------
+    str
+        The line: the RMS per VF axis in units of the σ stated together, the share within 3σ.
+
+    """
+    if agree is None:
+        return ''
+    which = ('the fixes it did not apply' if agree.held_out else
+             'every fix (fewer than 10 left unapplied: not independent of the filter)')
+    ratio = ', '.join(f'{r:.3g}' for r in agree.rms_ratio)
+    sig = ', '.join(f'{s:.3g}' for s in agree.sigma_rad)
+    return (f'against the reference, {which} ({agree.samples}), with a lag of '
+            f'{agree.lag_s * 1e3:.3g} ms and a constant boresight taken out: RMS / σ = {ratio} '
+            f'about VF x, y, z (σ {sig} rad, the filter and the reference together; 1 is '
+            f'honest), {100 * agree.within_3_sigma:.1f}% within 3σ')
+
+
 def main(argv=None) -> int:
     """
     Run the filter_bag command.
@@ -188,10 +237,9 @@ def main(argv=None) -> int:
             print(f'filter_bag: warning: {w}', file=sys.stderr)
         settings = FilterSettings.from_values(mf.settings)
         model = mf.model
-        data = read_bag(args.bag, args.namespace, settings.use_camera_covariance,
-                        tuple(model.camera_sigma), model.gyro_max_rate,
-                        settings.max_stamp_jump, settings.resync_count, **input_options(args))
-        model = check_against_recording(model, recording_facts(data))
+        source = RecordingSource(str(args.bag), args.namespace, **input_options(args))
+        data, model = read_checked(source, model, settings.use_camera_covariance,
+                                   settings.max_stamp_jump, settings.resync_count)
     except (ValueError, OSError, BagError) as exc:
         print(f'filter_bag: error: {str(exc).splitlines()[0]}', file=sys.stderr)
         return 2
@@ -204,34 +252,34 @@ def main(argv=None) -> int:
     note = not_applied_note(model, ('gyro', 'reference', 'filter'), 'filter_bag')
     if note:
         print(f'filter_bag: note: {note}', file=sys.stderr)
-    info = input_summary(data)
     print(f'filter_bag: {args.bag}')
-    print('\n'.join(input_lines(info)))
+    print('\n'.join(input_lines(input_summary(data))))
     unusable = usable_error(data)
     if unusable:
         print(f'filter_bag: error: {unusable}', file=sys.stderr)
         return 2
     try:
-        system = run_filter(data, model, settings)
+        run = filter_of_data(data, model, settings)
     except (ValueError, ArithmeticError) as exc:     # numerical: never reported as bad input
         print(f'filter_bag: error: the filter failed: {str(exc).splitlines()[0][:300]}',
               file=sys.stderr)
         return 4
-    outputs, fixes = system.take()
-    st = system.status()
+    outputs, fixes, st = run.outputs, run.fixes, run.status
+    agree = run.agreement
     try:
         with all_or_nothing():                       # OUT, FIXES and --json, or none of them
-            write_text(out, state_rows(outputs, system.augment))
+            write_text(out, state_rows(outputs, run.augment))
             write_text(fixes_path, fix_rows(fixes))
             if args.json:
-                write_json(args.json, json_clean({'input': info, 'counts': st,
-                                                  'outputs': len(outputs),
-                                                  'fixes': len(fixes)}))
+                write_json(args.json, json_clean({
+                    'input': run.read, 'counts': st, 'outputs': len(outputs),
+                    'fixes': len(fixes), 'reference_spacing_s': model.reference_spacing,
+                    'reference_agreement': agree.as_dict() if agree is not None else None}))
     except OSError as exc:
         print(f'filter_bag: error: {exc}', file=sys.stderr)
         return 2
     t0 = outputs[0].stamp_ns if outputs else (fixes[0].stamp_ns if fixes else 0)
-    for k, (ns, why) in enumerate(system.resets):
+    for k, (ns, why) in enumerate(run.resets):
         if k < RESETS_PRINTED:
             print(f'filter_bag: divergence at {ns * 1e-9:.3f} s ({(ns - t0) * 1e-9:.3f} s after '
                   f'the start): {why}; the attitude was re-initialised from that fix '
@@ -242,8 +290,11 @@ def main(argv=None) -> int:
     print(f"filter_bag: {len(outputs)} outputs, {st['applied']} fixes applied, {st['gated']} "
           f"gated, {st['reset']} divergence resets, {st['restarts']} restarts; {out}, "
           f'{fixes_path}')
-    if system.check is not None:
-        print(f'filter_bag: {system.check.last.text()}')
+    for line in (spacing_line(model.reference_spacing, st), agreement_line(agree)):
+        if line:
+            print(f'filter_bag: {line}')
+    if run.check_text is not None:
+        print(f'filter_bag: {run.check_text}')
     if args.plots:
         try:
             Path(args.plots).mkdir(parents=True, exist_ok=True)
