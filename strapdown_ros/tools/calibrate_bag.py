@@ -169,8 +169,8 @@ def sigma_note(result: dict) -> str | None:
                 'it adds effects or a noise term')
     return (head + f'; they assume independent pairs, but the residuals are correlated in time '
             f"(Ljung–Box p {wt['p_value']:.3g} < {wt['level']:g}): these σ may be too small; "
-            "discrepancy's Newey–West sandwich (and its noise model) covers the correlation, so "
-            'its σ are larger')
+            'discrepancy replaces them by the Newey–West sandwich (never smaller) when its own '
+            'whiteness test, at its stricter level, fails too')
 
 
 def consistency_warning(result: dict) -> str | None:

@@ -253,3 +253,26 @@ def test_report_files_follow_the_umask_and_titles_fit(tmp_path):
     title = after_title(res)
     assert all(len(line) <= 60 for line in title.splitlines())
     assert re.sub(r'\s+', ' ', title).endswith('camera_noise_anisotropy')
+
+
+@pytest.mark.parametrize('white', [True, False])
+def test_calibrate_bag_names_its_sigma_method_and_its_assumption(white):
+    """
+    calibrate_bag's σ sentence names the method and says whether independence holds.
+
+    Parameters
+    ----------
+    white : bool
+        Whether the Ljung–Box test of the whitened residuals passes.
+
+    """
+    from strapdown_ros.tools.calibrate_bag import sigma_note
+    wt = {'p_value': 0.5 if white else 1e-6, 'level': 0.01, 'white': white}
+    text = sigma_note({'sigma_method': 'model_scaled_sqrt_chi2', 'chi2_per_dof': 4.0,
+                       'residual_whiteness': wt})
+    assert 'model_scaled_sqrt_chi2' in text and '√(χ²/dof) = 2' in text
+    if white:
+        assert 'are white (Ljung–Box p 0.5 ≥ 0.01)' in text and 'too small' not in text
+    else:
+        assert 'correlated in time (Ljung–Box p 1e-06 < 0.01)' in text and 'too small' in text
+    assert sigma_note({'sigma_method': None}) is None
