@@ -80,6 +80,7 @@ setup(
             'gaitmap_bag = strapdown_ros.tools.gaitmap_bag:main',
             'filter_bench = strapdown_ros.bench.filter_bench:main',
             'reference_rate_bench = strapdown_ros.bench.reference_rate_bench:main',
+            'repeatability_bench = strapdown_ros.bench.repeatability_bench:main',
             'model_check_bench = strapdown_ros.bench.model_check_bench:main',
             'hostile_bench = strapdown_ros.bench.ros.hostile_bench:main',
             'fleet = strapdown_ros.tools.fleet:main',

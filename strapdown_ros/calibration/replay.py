@@ -15,12 +15,13 @@ from strapdown_ros.calibration.reference_spacing import (choose_spacing, fix_int
                                                          thin_fixes)
 from strapdown_ros.calibration.streaming import BoresightCalibrator, CalibratorSettings
 from strapdown_ros.estimation.chi_square import FIT_LEVEL
+from strapdown_ros.estimation.model_check import ljung_box
 from strapdown_ros.rotation import to_ros_xyzw
 from strapdown_ros.sensors.sensor_model import SensorModel
 from strapdown_ros.streams.checks import match_segments, segments
 
 __all__ = ['calibrate_recording', 'calibrate_spaced', 'match_segments', 'solution_record',
-           'BLOCK_FIXES', 'BLOCK_GYRO']
+           'residual_whiteness', 'BLOCK_FIXES', 'BLOCK_GYRO']
 
 
 def calibrate_recording(data: dict, model: SensorModel,
@@ -202,6 +203,38 @@ def _mat(m):
     return None if m is None else [[_num(v) for v in row] for row in np.asarray(m, dtype=float)]
 
 
+def residual_whiteness(white) -> dict | None:
+    """
+    Return the Ljung–Box test of the whitened residuals of a solution, at the fit's level.
+
+    The σ of the solution assume independent pairs; correlated residuals make them too small
+    (``discrepancy`` then reports the Newey–West sandwich instead).
+
+    Parameters
+    ----------
+    white : (n, 3) array_like or None
+        The whitened residuals (:attr:`BoresightSolution.whitened_residual`).
+
+    Returns
+    -------
+    dict or None
+        ``statistic``, ``dof``, ``lags``, ``p_value``, ``level``, ``white`` (p ≥ level); None
+        with fewer than 8 pairs.
+
+    """
+    from scipy.stats import chi2
+    if white is None:
+        return None
+    w = np.asarray(white, dtype=float).reshape(-1, 3)
+    if len(w) < 8 or not np.all(np.isfinite(w)):
+        return None
+    lags = int(min(20, max(2, len(w) // 10)))
+    q = ljung_box(w, lags)
+    p = float(chi2.sf(q, 3 * lags))
+    return {'statistic': float(q), 'dof': 3 * lags, 'lags': lags, 'p_value': p,
+            'level': FIT_LEVEL, 'white': bool(p >= FIT_LEVEL)}
+
+
 def solution_record(sol, weighted: bool) -> dict:
     """
     Return the JSON record of a BoresightSolution (the schema of ``calibrate_bag --json``).
@@ -246,10 +279,15 @@ def solution_record(sol, weighted: bool) -> dict:
         'chi2_level': FIT_LEVEL,
         'dof': int(sol.dof),
         # σ from the stated noise alone; beta_sigma_rad is it scaled by √(χ²/dof) when χ²/dof > 1
+        # (sigma_method: model, model_scaled_sqrt_chi2, or residual_scatter_004 unweighted)
         'beta_sigma_stated_noise_rad': (
             [float(v) for v in np.sqrt(np.diag(sol.covariance_beta_stated))]
             if ok and sol.covariance_beta_stated is not None else None),
     }
+    out['sigma_method'] = (None if not ok else 'residual_scatter_004' if not out['weighted']
+                           else 'model_scaled_sqrt_chi2' if (sol.chi2_per_dof or 0.0) > 1.0
+                           else 'model')
+    out['residual_whiteness'] = residual_whiteness(sol.whitened_residual) if ok else None
     rep = sol.observability
     if rep is not None:
         out['observability'] = {'eigenvalues': [_num(v) for v in rep.eigenvalues],

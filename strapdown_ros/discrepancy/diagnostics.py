@@ -120,7 +120,12 @@ def describe_remaining(series: dict, lin=None) -> dict:
     -------
     dict
         Dominant period and lag, correlation with rate, accumulated angle and rotation angle,
-        where the largest whitened residuals are.
+        where the largest whitened residuals are; its size per VF axis (``residual_rms_rad``,
+        ``expected_rms_rad``, ``whitened_ms_by_axis``, ``largest_axis`` 0–2); its correlation
+        in time per VF axis (``autocorrelation_by_axis``: the largest at lags 1–3,
+        ``correlated_axis``); during fast
+        motion (``fast_motion``: the fastest third of the pairs against the slowest) and at
+        reversals of the turning sense (``reversals``).
 
     """
     t = np.asarray(series['t'], dtype=float)
@@ -155,6 +160,57 @@ def describe_remaining(series: dict, lin=None) -> dict:
     big = np.argsort(mag)[::-1][:5]
     out['largest_whitened_at_s'] = [float(t[i]) for i in big]
     out['largest_whitened'] = [float(mag[i]) for i in big]
+    out.update(_where_it_is(series))
+    return out
+
+
+def _where_it_is(series: dict) -> dict:
+    """
+    Return the size, the axis and the motion of the structure left.
+
+    Size per VF axis: the RMS residual against the RMS the model predicts, and the mean
+    squared whitened residual (1 as the model predicts); the axis with the largest.  When: the
+    mean squared whitened residual (per component) of the fastest third of the pairs (peak rate
+    between the fixes) against the slowest third, and of the pairs with a reversal of the turning
+    sense against those without.
+    """
+    out: dict = {}
+    w = np.asarray(series['whitened'], dtype=float)
+    if 'residual' in series and 'sigma' in series:
+        r = np.asarray(series['residual'], dtype=float)
+        sg = np.asarray(series['sigma'], dtype=float)
+        out['residual_rms_rad'] = np.sqrt(np.mean(r ** 2, axis=0)).tolist()
+        out['expected_rms_rad'] = np.sqrt(np.mean(sg ** 2, axis=0)).tolist()
+    ms = np.mean(w ** 2, axis=0)
+    out['whitened_ms_by_axis'] = ms.tolist()
+    out['largest_axis'] = int(np.argmax(ms))
+    # the correlated part: the autocorrelation at lags 1–3 per axis, and the share of the
+    # residual's variance it implies (ρ of an AR(1) is the share of a slow part in white noise)
+    lag = max(1, min(3, len(w) // 4))
+    rho = np.array([np.max(autocorrelation(w[:, c], lag)) if len(w) > lag + 1 else 0.0
+                    for c in range(3)])
+    out['autocorrelation_by_axis'] = rho.tolist()
+    out['correlated_axis'] = int(np.argmax(rho))
+    per = np.mean(w ** 2, axis=1)
+    peak = np.asarray(series.get('rate_peak', []), dtype=float)
+    if len(peak) == len(per) and len(per) >= 6 and np.ptp(peak) > 0:
+        lo, hi = np.percentile(peak, [100.0 / 3.0, 200.0 / 3.0])
+        fast, slow = per[peak >= hi], per[peak <= lo]
+        if len(fast) and len(slow):
+            out['fast_motion'] = {'rate_above_rad_s': float(hi), 'rate_below_rad_s': float(lo),
+                                  'ms_fast': float(np.mean(fast)),
+                                  'ms_slow': float(np.mean(slow)),
+                                  'ratio': float(np.mean(fast) / max(np.mean(slow), 1e-300))}
+    rev = np.asarray(series.get('reversals', []), dtype=float)
+    if len(rev) == len(per) and len(per):
+        with_r = rev > 0
+        entry = {'pairs': int(np.sum(with_r)), 'fraction': float(np.mean(with_r))}
+        if 0 < np.sum(with_r) < len(per):
+            entry.update({'ms_with': float(np.mean(per[with_r])),
+                          'ms_without': float(np.mean(per[~with_r])),
+                          'ratio': float(np.mean(per[with_r])
+                                         / max(np.mean(per[~with_r]), 1e-300))})
+        out['reversals'] = entry
     return out
 
 

@@ -7,29 +7,32 @@ Every sentence is computed from the result it describes
 Plots (before = the nominal model, after = with the effects found):
 
 * ``residuals.png`` (the main plot): the residual of each increment pair against time, per VF
-  axis, before and after on separate axes, each in ″, ′ or ° as fits its size, with the model's
-  ±3σ;
+  axis, before and after on separate axes, each in ″, ′ or ° as fits its size, with the ±3σ of
+  the model as found (its noise terms applied), and the normalised residual the tests judge;
 * ``autocorrelation.png``: autocorrelation of the whitened residuals with the 95% band;
 * ``cross_correlation.png``: squared whitened residual against the body rate at the fix epochs
   and against the accumulated rotation angle;
-* ``fig2a.png``: the difference of the angles turned (camera − gyro) against the angle turned
-  (004 Fig. 2a), before and after on separate axes;
+* ``fig2a.png``: the difference of the angles turned (camera − gyro) against the angle the gyro
+  turned between the fixes (Σ|Δθ|; 004 Fig. 2a), before and after on separate axes;
 * ``allan.png``: Allan deviation of the gyro on static segments, measured against the model
   simulated on the same segments.
 """
 from __future__ import annotations
 
 from pathlib import Path
+import textwrap
 
 import numpy as np
 
 from strapdown_ros.cli import write_figure, write_text
 from strapdown_ros.discrepancy.diagnostics import autocorrelation
+from strapdown_ros.discrepancy.sentences import (AXES, boresight_sigma_sentence,
+                                                 consistency_warning, remaining_sentences,
+                                                 repeatability_sentence, sigma_sentence)
 
-__all__ = ['write_report', 'angle_unit']
+__all__ = ['write_report', 'angle_unit', 'after_title']
 
 ARCSEC = 180.0 / np.pi * 3600.0
-AXES = ('VF x', 'VF y', 'VF z')
 
 
 def _plt():
@@ -74,38 +77,79 @@ def _effects_words(res) -> str:
     return ', '.join(s.effect for s in res.steps) or 'nothing added'
 
 
+def _wrap(text: str, width: int) -> str:
+    """Return a title wrapped to lines of at most ``width`` characters (it fits its axes)."""
+    return '\n'.join(textwrap.wrap(text, width)) or text
+
+
+def after_title(res, width: int = 60) -> str:
+    """
+    Return the title of an "after" panel, wrapped so that it fits its axes.
+
+    Parameters
+    ----------
+    res : DiscrepancyResult
+        The result (its effects are named).
+    width : int
+        Most characters per line.
+
+    Returns
+    -------
+    str
+        The title.
+
+    """
+    return _wrap(f'after: with {_effects_words(res)}', width)
+
+
 def _residuals(plt, res, path):
     """
     Plot the residual of each pair against time (the main plot).
 
-    Before and after on separate axes, each in a unit that fits its size.
+    Before and after on separate columns, each in a unit that fits its size, with the ±3σ the
+    model predicts (its noise terms as found); the last row is the normalised (whitened)
+    residual the tests judge, with its ±3 band: where the raw residuals sit inside their
+    per-pair band but the fixes' errors are correlated, this row shows what the tests see.
     """
-    fig, axs = plt.subplots(3, 2, figsize=(12, 7.5), sharex=True)
+    fig, axs = plt.subplots(4, 2, figsize=(12, 9.5), sharex=True)
     for col, (name, colour) in enumerate((('before', '0.35'), ('after', 'C0'))):
         s = res.series[name]
         k, unit = angle_unit(s['residual'])
         for c in range(3):
             ax = axs[c, col]
             ax.plot(s['t'], s['residual'][:, c] * k, '.', ms=3, color=colour,
-                    label='residual' if c == 0 else None)
+                    label='residual' if (c, col) == (0, 0) else None)
             band = 3 * s['sigma'][:, c] * k
             ax.fill_between(s['t'], -band, band, color='C1', alpha=0.2,
-                            label='±3σ the model expects' if c == 0 else None)
+                            label='±3σ the model predicts (each pair alone)'
+                            if (c, col) == (0, 0) else None)
             ax.set_ylabel(f'about {AXES[c]}, {unit}')
             ax.grid(True, alpha=0.3)
+        ax = axs[3, col]
+        w = np.asarray(s['whitened'])
+        for c in range(3):
+            ax.plot(s['t'], w[:, c], '.', ms=2, color=f'C{c + 2}',
+                    label=f'normalised, about {AXES[c]}' if col == 0 else None)
+        ax.axhspan(-3.0, 3.0, color='C1', alpha=0.2)
+        ax.set_ylabel('normalised residual\n(÷ what the model predicts)')
+        ax.grid(True, alpha=0.3)
+        ms = float(np.mean(w ** 2))
+        ax.set_title(f'normalised residual the tests judge: mean square {ms:.3g} (1 as '
+                     'predicted)', fontsize=9)
         axs[0, col].set_title('before: the nominal model' if name == 'before' else
-                              f'after: with {_effects_words(res)}', fontsize=10)
-        axs[0, col].legend(loc='upper right', fontsize=8)
+                              after_title(res), fontsize=10)
         axs[-1, col].set_xlabel('time, s')
-    fig.suptitle('Residual of each increment pair (camera vs gyro) before and after adding the '
-                 f"found effects — verdict: {res.verdict.replace('_', ' ')}", fontsize=11)
-    fig.tight_layout()
+    fig.suptitle(_wrap('Residual of each increment pair (camera vs gyro) before and after adding '
+                       f"the found effects — verdict: {res.verdict.replace('_', ' ')}", 100),
+                 fontsize=11)
+    fig.legend(loc='lower center', ncol=5, fontsize=8, frameon=False)
+    fig.tight_layout(rect=(0, 0.04, 1, 1))
     write_figure(fig, path, dpi=110)
     plt.close(fig)
 
 
 def _autocorrelation(plt, res, path):
-    fig, ax = plt.subplots(figsize=(8, 4))
+    fig, ax = plt.subplots(figsize=(9, 4))
     for name, col in (('before', '0.5'), ('after', 'C0')):
         w = res.series[name]['whitened']
         lags = max(2, min(30, len(w) // 4))
@@ -120,14 +164,14 @@ def _autocorrelation(plt, res, path):
     ax.set_title('Does a residual predict the next ones? '
                  '(normalised residuals; inside the band: no)',
                  fontsize=10)
-    ax.legend(fontsize=8)
+    ax.legend(fontsize=8, loc='upper left', bbox_to_anchor=(1.01, 1.0))
     fig.tight_layout()
     write_figure(fig, path, dpi=110)
     plt.close(fig)
 
 
 def _cross(plt, res, path):
-    fig, axs = plt.subplots(1, 2, figsize=(11, 4))
+    fig, axs = plt.subplots(1, 2, figsize=(11, 4.6))
     for ax, key, label in ((axs[0], 'rate', 'body rate at the fix epochs, °/s'),
                            (axs[1], 'accumulated_angle', 'accumulated rotation angle, °')):
         for name, col in (('before', '0.55'), ('after', 'C0')):
@@ -140,7 +184,8 @@ def _cross(plt, res, path):
         ax.axhline(1.0, color='C1', lw=1)
         ax.set_xlabel(label)
         ax.set_ylabel('residual² ÷ expected (mean of 3 axes)')
-        ax.legend(fontsize=8)
+        ax.legend(fontsize=8, loc='upper center', bbox_to_anchor=(0.5, -0.16), ncol=2,
+                  frameon=False)
     fig.suptitle('Does the residual grow with the turning rate or with the angle turned so far?')
     fig.tight_layout()
     write_figure(fig, path, dpi=110)
@@ -149,30 +194,33 @@ def _cross(plt, res, path):
 
 def _fig2a(plt, res, path):
     """
-    Plot the difference of the rotation angles (camera − gyro) against the angle (004 Fig. 2a).
+    Plot the difference of the rotation angles (camera − gyro) against the angle turned.
 
+    004 Fig. 2a, with the angle the gyro turned between the two fixes (Σ|Δθ| of its increments)
+    on the x axis: the net angle between two fixes cannot exceed 180° however fast the motion.
     Before and after on separate axes, each in a unit that fits.
     """
-    fig, axs = plt.subplots(1, 2, figsize=(12, 4.5))
+    fig, axs = plt.subplots(1, 2, figsize=(12, 5))
     for ax, (name, colour) in zip(axs, (('before', '0.35'), ('after', 'C0'))):
         s = res.series[name]
         d = s['phi_cam'] - s['phi_imu']
+        x = np.degrees(s.get('path_angle', s['phi_cam']))
         sig = np.sqrt(np.sum(s['sigma'] ** 2, axis=1) / 3.0)
         k, unit = angle_unit(np.concatenate([d, 3 * sig]))
-        ax.plot(np.degrees(s['phi_cam']), d * k, '.', ms=4, color=colour, label='pairs')
-        order = np.argsort(s['phi_cam'])
-        ax.plot(np.degrees(s['phi_cam'][order]), 3 * sig[order] * k, color='C1', lw=1,
-                label='±3σ the model expects')
-        ax.plot(np.degrees(s['phi_cam'][order]), -3 * sig[order] * k, color='C1', lw=1)
-        ax.set_xlabel('angle the camera turned between the two fixes, °')
+        ax.plot(x, d * k, '.', ms=4, color=colour, label='pairs' if name == 'before' else None)
+        order = np.argsort(x)
+        ax.plot(x[order], 3 * sig[order] * k, color='C1', lw=1,
+                label='±3σ the model predicts' if name == 'before' else None)
+        ax.plot(x[order], -3 * sig[order] * k, color='C1', lw=1)
+        ax.set_xlabel('angle turned between the two fixes (Σ|Δθ| of the gyro), °')
         ax.set_ylabel(f'camera angle − gyro angle, {unit}')
         ax.set_title('before: the nominal model' if name == 'before'
-                     else f'after: with {_effects_words(res)}', fontsize=10)
+                     else after_title(res), fontsize=10)
         ax.grid(True, alpha=0.3)
-        ax.legend(fontsize=8)
     fig.suptitle('Does the gyro turn by the angle the camera saw? Difference per pair against '
                  'the angle turned', fontsize=11)
-    fig.tight_layout()
+    fig.legend(loc='lower center', ncol=2, fontsize=8, frameon=False)
+    fig.tight_layout(rect=(0, 0.05, 1, 1))
     write_figure(fig, path, dpi=110)
     plt.close(fig)
 
@@ -180,7 +228,7 @@ def _fig2a(plt, res, path):
 def _allan(plt, allan, path) -> bool:
     if not allan or 'taus_s' not in allan:
         return False
-    fig, ax = plt.subplots(figsize=(7, 4.5))
+    fig, ax = plt.subplots(figsize=(8.5, 4.5))
     t = np.asarray(allan['taus_s'])
     ax.loglog(t, np.asarray(allan['measured']), 'o-', ms=3, label='measured')
     ax.loglog(t, np.asarray(allan['simulated_before']), '--', color='0.5', label='model, before')
@@ -190,7 +238,7 @@ def _allan(plt, allan, path) -> bool:
     ax.set_ylabel('Allan deviation of the rate, rad/s')
     ax.set_title(f"Gyro noise at rest ({allan['static_segments']} segment(s), "
                  f"{allan['static_seconds']:.0f} s): measured vs the model", fontsize=10)
-    ax.legend(fontsize=8)
+    ax.legend(fontsize=8, loc='upper left', bbox_to_anchor=(1.01, 1.0))
     ax.grid(True, which='both', alpha=0.3)
     fig.tight_layout()
     write_figure(fig, path, dpi=110)
@@ -233,7 +281,7 @@ def write_report(outdir: str, res, out: dict) -> str:
     _fig2a(plt, res, d / 'fig2a.png')
     has_allan = _allan(plt, out.get('allan'), d / 'allan.png')
     L = (_summary_lines(res, out) + _step_lines(res, out) + _test_lines(res, out)
-         + _remaining_lines(res.remaining) + _allan_lines(out.get('allan'))
+         + _remaining_lines(res) + _allan_lines(out.get('allan'))
          + _boresight_and_plot_lines(res, has_allan))
     path = d / 'report.md'
     write_text(path, '\n'.join(L) + '\n')
@@ -260,17 +308,13 @@ def _summary_lines(res, out: dict) -> list:
              'below); an effect is added only if the held-out −2 log L per residual also '
              'improves; signatures with |correlation| above '
              f"{out['selection']['separability_bound']} are reported as not separable.")
-    if not out.get('fit_consistent', True):
-        lo, hi = out['chi2_per_dof_band']
-        L += ['', '**WARNING: the fit is not consistent with its stated noise** (χ²/dof '
-              f"{out['chi2_per_dof']:.4g}, outside [{lo:.3g}, {hi:.3g}] at the test level): the "
-              'values below are not plain results.']
-    if out.get('sigma_method') in ('hac', 'hac_jackknife'):
-        jk = (', raised to the leave-one-block-out jackknife over time where that is larger'
-              if out['sigma_method'] == 'hac_jackknife' else '')
-        L += ['', f"σ: the residuals fail {', '.join(out['tests_after']['failed'])}, so every σ "
-              f"is the Newey–West sandwich over {out['hac_lags']} pairs{jk} (never below the "
-              "model's σ; noise terms: the leave-one-block-out jackknife)."]
+    warning = consistency_warning(res)
+    if warning:
+        L += ['', '**' + warning.replace('WARNING: ', 'WARNING:** ', 1) + '.']
+    sigma = sigma_sentence(res)
+    if sigma:
+        L += ['', sigma + '.  Noise terms: their Fisher σ, raised to the leave-one-block-out '
+              'jackknife.']
     stop = {'max_steps': f"the step limit ({out.get('max_steps')} accepted effects) stopped the "
                          'search: more effects may be missing',
             'no_significant_candidate': 'the search stopped because no candidate left passes its '
@@ -297,10 +341,10 @@ def _step_lines(res, out: dict) -> list:
     if not res.steps:
         L.append('| – | none passed | | | | | | |')
     for k, s in enumerate(res.steps, 1):
-        if s.repeatable is False:
-            L += ['', f'Step {k} (`{s.effect}`) is **not repeatable across time blocks**: the '
-                  f'leave-one-block-out estimates spread {s.spread_ratio:.3g}× its σ (bound '
-                  f"{out['repeatability_bound']:.3g}); not a plain finding."]
+        text = repeatability_sentence(s)
+        if text:
+            L += ['', f'Step {k} (`{s.effect}`) is **' + text.replace(
+                'across time blocks:', 'across time blocks**:', 1) + '.']
     if out.get('failed_candidates'):
         seen: dict = {}
         for f in out['failed_candidates']:
@@ -335,11 +379,12 @@ def _test_lines(res, out: dict) -> list:
     return L
 
 
-def _remaining_lines(rm: dict) -> list:
+def _remaining_lines(res) -> list:
     """Return what structure remains (empty when the tests pass)."""
+    rm = res.remaining
     if not rm:
         return []
-    L = ['', '## What remains', '']
+    L = ['', '## What remains', ''] + remaining_sentences(res) + ['']
     if 'dominant_period_s' in rm:
         L.append(f"- dominant period {rm['dominant_period_s']:.4g} s (normalised periodogram "
                  f"power {rm['dominant_period_power']:.2f});")
@@ -397,17 +442,24 @@ def _boresight_and_plot_lines(res, has_allan: bool) -> list:
     s = np.asarray(res.boresight_sigma_rad) * ARCSEC
     L = ['', '## Boresight (estimated in every fit)', '',
          f'β = ({b[0]:.6f}°, {b[1]:.6f}°, {b[2]:.6f}°) ± '
-         f'({s[0]:.3g}″, {s[1]:.3g}″, {s[2]:.3g}″).', '',
-         '## Plots', '',
-         'Residual of each increment pair (camera vs gyro) against time, before and after '
-         'adding the found effects; the shaded band is ±3σ of what the model expects:', '',
-         '![residual against time](residuals.png)', '',
-         'Difference of the angles the camera and the gyro turned between two fixes, against '
-         'that angle (004 Fig. 2a):', '', '![angle difference against angle](fig2a.png)', '',
-         'Autocorrelation of the normalised residuals (white: inside the band):', '',
-         '![autocorrelation](autocorrelation.png)', '',
-         'Normalised residual against the turning rate and the angle turned so far:', '',
-         '![cross-correlation](cross_correlation.png)', '']
+         f'({s[0]:.3g}″, {s[1]:.3g}″, {s[2]:.3g}″) (σ: {res.sigma_method}).', '']
+    compare = boresight_sigma_sentence(res)
+    if compare:
+        L += [compare[0].upper() + compare[1:] + '.', '']
+    L += ['## Plots', '',
+          'Residual of each increment pair (camera vs gyro) against time, before and after '
+          'adding the found effects; the shaded band is ±3σ of what the model (its noise terms '
+          'as found) predicts for each pair alone; the last row is the normalised residual the '
+          'tests judge (the fixes shared by consecutive pairs taken into account), with its ±3 '
+          'band:', '',
+          '![residual against time](residuals.png)', '',
+          'Difference of the angles the camera and the gyro turned between two fixes, against '
+          'the angle the gyro turned between them (Σ|Δθ|; 004 Fig. 2a):', '',
+          '![angle difference against angle](fig2a.png)', '',
+          'Autocorrelation of the normalised residuals (white: inside the band):', '',
+          '![autocorrelation](autocorrelation.png)', '',
+          'Normalised residual against the turning rate and the angle turned so far:', '',
+          '![cross-correlation](cross_correlation.png)', '']
     if has_allan:
         L += ['Allan deviation of the gyro at rest, measured and simulated from the model:', '',
               '![Allan deviation](allan.png)', '']

@@ -51,9 +51,19 @@ class Step:
     spread : dict
         Their jackknife σ, by ROS parameter name.
     spread_ratio : float, optional
-        Largest jackknife σ ÷ reported σ over the combinations.
+        Largest jackknife σ ÷ the σ judged (model or sandwich) over the combinations.
     repeatable : bool, optional
-        Whether the spread ratio is inside the repeatability bound.
+        Whether the effect takes one value in every time block (``repeatability``).
+    fold_sigma : list, optional
+        Noise terms: the Fisher σ of each fold's θ.
+    repeatability : dict, optional
+        The test of one value in every time block, each block judged by its own information
+        (:mod:`strapdown_ros.discrepancy.repeatability`): statistic, dof, p-value, level,
+        method and the blocks.
+    sigma_method : str
+        How ``sigma`` was computed: ``model``, ``hac``, ``hac_jackknife`` (systematic effects,
+        as the result's ``sigma_method``), ``fisher`` or ``fisher_jackknife`` (noise terms: the
+        curvature of −2 log L, raised to the time-block jackknife).
 
     """
 
@@ -70,6 +80,9 @@ class Step:
     spread: dict = field(default_factory=dict)
     spread_ratio: float | None = None
     repeatable: bool | None = None
+    fold_sigma: list | None = None
+    repeatability: dict | None = None
+    sigma_method: str = 'model'
 
     def as_dict(self) -> dict:
         """
@@ -85,7 +98,8 @@ class Step:
                 'sigma_model': self.sigma_model, 'statistic': self.statistic,
                 'p_value': self.p_value, 'heldout_gain': self.heldout_gain, 'dof': self.dof,
                 'repeatable': self.repeatable, 'spread': self.spread,
-                'spread_ratio': self.spread_ratio, 'fold_values': self.fold_values}
+                'spread_ratio': self.spread_ratio, 'fold_values': self.fold_values,
+                'repeatability': self.repeatability, 'sigma_method': self.sigma_method}
 
 
 @dataclass
@@ -152,6 +166,14 @@ class DiscrepancyResult:
     reference_spacing : dict
         How far apart the fixes of the pairs are and why
         (:meth:`strapdown_ros.calibration.reference_spacing.SpacingChoice.as_dict`).
+    boresight_sigma_calibrate_bag_rule_rad : list
+        The boresight σ by ``calibrate_bag``'s rule on the same pairs: the boresight alone with
+        the stated noise (``boresight_sigma_base_model_rad``), scaled by √(χ²/dof) of that fit
+        (``chi2_per_dof_base``) when above 1, rad.
+    boresight_sigma_base_model_rad : list
+        The model's boresight σ with no effect added, rad.
+    chi2_per_dof_base : float
+        χ²/dof of the fit with no effect added.
 
     """
 
@@ -187,6 +209,9 @@ class DiscrepancyResult:
     observable: bool = True
     found_model: object = None
     reference_spacing: dict = field(default_factory=dict)
+    boresight_sigma_calibrate_bag_rule_rad: list = field(default_factory=list)
+    boresight_sigma_base_model_rad: list = field(default_factory=list)
+    chi2_per_dof_base: float = float('nan')
 
     def as_json(self) -> dict:
         """
@@ -219,12 +244,19 @@ class DiscrepancyResult:
             'max_steps': self.max_steps, 'fit_consistent': self.fit_consistent,
             'chi2_per_dof': self.chi2_per_dof, 'chi2_per_dof_band': self.chi2_per_dof_band,
             'sigma_method': self.sigma_method, 'hac_lags': self.hac_lags,
+            'boresight_sigma_method': self.sigma_method,
+            'sigma_methods': {'boresight': self.sigma_method,
+                              **{s.effect: s.sigma_method for s in self.steps}},
+            'boresight_sigma_calibrate_bag_rule_rad':
+                self.boresight_sigma_calibrate_bag_rule_rad,
+            'boresight_sigma_base_model_rad': self.boresight_sigma_base_model_rad,
+            'chi2_per_dof_base': self.chi2_per_dof_base,
             'repeatability_bound': self.repeatability_bound,
             'pairs': self.pairs, 'fixes': self.fixes,
             'reference_spacing': self.reference_spacing})
 
 
-def residual_series(lin: Linearisation, f, free) -> dict:
+def residual_series(lin: Linearisation, f, free, noise: dict | None = None) -> dict:
     """
     Return the per-pair arrays the report plots.
 
@@ -236,13 +268,19 @@ def residual_series(lin: Linearisation, f, free) -> dict:
         The fit (``lin.evaluate(free, noise)``).
     free : list of str
         The systematic effects of the fit.
+    noise : dict, optional
+        The noise terms of the fit (the camera-noise scale, the quantization remainder): the
+        predicted σ is the model's as found (default: none, the stated noise).
 
     Returns
     -------
     dict
-        ``t`` (s), ``residual`` (N, 3) rad and its predicted ``sigma``, ``whitened`` (N, 3),
-        rotation angles ``phi_cam``, ``phi_imu`` (004 Fig. 2a) rad, ``rate`` at the epochs
-        rad/s, ``accumulated_angle`` rad.
+        ``t`` (s), ``residual`` (N, 3) rad and its predicted ``sigma`` (the model with its
+        noise terms), ``whitened`` (N, 3), rotation angles ``phi_cam``, ``phi_imu``
+        (004 Fig. 2a, the net angle between the fixes) rad, ``path_angle`` (the angle the gyro
+        turned between the fixes, Σ|Δθ|) rad, ``rate`` at the epochs and ``rate_peak`` (the
+        largest between them) rad/s, ``reversals`` (sign changes of the body rate about any axis
+        between the fixes), ``accumulated_angle`` rad.
 
     """
     N = len(lin.pairs)
@@ -253,9 +291,45 @@ def residual_series(lin: Linearisation, f, free) -> dict:
     w_e = np.linalg.norm(lin.gyro.rate_at(lin.pairs.k_end), axis=1)
     w_s = np.linalg.norm(lin.gyro.rate_at(lin.pairs.k_start), axis=1)
     acc = np.cumsum(phi_imu)
-    P = lin.fix_covariance({})
-    sig = np.sqrt(np.diagonal(P[lin.pairs.fix_end] + P[lin.pairs.fix_start], axis1=1, axis2=2)
-                  + lin.random_walk ** 2 * lin.pairs.duration[:, None])
-    return {'t': lin.pairs.t_end, 'residual': resid, 'sigma': sig,
+    P = lin.fix_covariance(noise or {})
+    var = (np.diagonal(P[lin.pairs.fix_end] + P[lin.pairs.fix_start], axis1=1, axis2=2)
+           + lin.random_walk ** 2 * lin.pairs.duration[:, None])
+    path, peak, flips = _motion_between_fixes(lin)
+    return {'t': lin.pairs.t_end, 'residual': resid, 'sigma': np.sqrt(var),
             'whitened': f.whitened.reshape(N, 3), 'phi_cam': phi_cam, 'phi_imu': phi_imu,
-            'rate': np.maximum(w_e, w_s), 'accumulated_angle': acc}
+            'path_angle': path, 'rate': np.maximum(w_e, w_s), 'rate_peak': peak,
+            'reversals': flips, 'accumulated_angle': acc}
+
+
+def _motion_between_fixes(lin: Linearisation):
+    """
+    Return, per pair, the angle turned (Σ|Δθ|), the peak rate and the rate reversals.
+
+    The rate is the mean over ±2 increments; a reversal is a change of sign about an axis
+    between two moments where that axis turns faster than a dead band (5 % of the 95th
+    percentile of the rate, at least 5× the model's white rate noise).
+    """
+    g = lin.gyro
+    rho = g.rho
+    n = len(rho)
+    T = np.maximum(np.diff(g.stamps, prepend=g.stamps[0] - (g.stamps[1] - g.stamps[0])), 1e-12)
+    cum = np.concatenate([[0.0], np.cumsum(np.linalg.norm(rho, axis=1))])
+    ks = np.clip(lin.pairs.k_start, 0, n - 1)
+    ke = np.clip(lin.pairs.k_end, 0, n - 1)
+    path = cum[ke + 1] - cum[ks]
+    kern = np.ones(5) / 5.0
+    rate = np.column_stack([np.convolve(rho[:, c] / T, kern, mode='same') for c in range(3)])
+    norm = np.linalg.norm(rate, axis=1)
+    idx = np.column_stack([ks, np.maximum(ke + 1, ks + 1)]).ravel()
+    peak = np.maximum.reduceat(norm, np.minimum(idx, n - 1))[::2] if n else np.zeros(len(ks))
+    noise = 5.0 * lin.random_walk / np.sqrt(float(np.median(T)))
+    dead = max(0.05 * float(np.percentile(np.abs(rate), 95)) if n else 0.0, noise)
+    flips = np.zeros(len(ks))
+    for c in range(3):
+        sgn = np.where(rate[:, c] > dead, 1, np.where(rate[:, c] < -dead, -1, 0))
+        at = np.where(sgn != 0, np.arange(n), 0)
+        last = sgn[np.maximum.accumulate(at)]          # the last sign outside the dead band
+        change = np.concatenate([[0], (last[1:] != last[:-1]) & (last[:-1] != 0)])
+        cum_c = np.cumsum(change)
+        flips += cum_c[ke] - cum_c[ks]
+    return path, peak, flips

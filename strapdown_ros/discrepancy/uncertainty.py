@@ -3,9 +3,11 @@ The σ the discrepancy workflow reports: the model's, the sandwich, the jackknif
 
 When the final residuals pass the NIS and whiteness tests every σ is the model's; when either
 fails, the Newey–West sandwich (:func:`strapdown_ros.discrepancy.linear_model.hac_covariance`),
-never below the model's, and never below the leave-one-block-out jackknife over time
-(:func:`jackknife_floor`).  Each added effect's leave-one-block-out estimates must scatter as
-its σ says (:func:`report_steps`).  Used by :mod:`strapdown_ros.discrepancy.workflow`.
+never below the model's, and never below the leave-one-block-out jackknife over time, each block
+weighted by its own information (:func:`jackknife_floor`).  Each added effect must take one value
+in every time block, judged by each block's own information (:func:`report_steps`,
+:mod:`strapdown_ros.discrepancy.repeatability`).  Used by
+:mod:`strapdown_ros.discrepancy.workflow`.
 No ROS imports.
 """
 from __future__ import annotations
@@ -14,6 +16,9 @@ import numpy as np
 
 from strapdown_ros.discrepancy.linear_model import hac_covariance
 from strapdown_ros.discrepancy.linearisation import fit_noise, Linearisation, NUMERICAL_ERRORS
+from strapdown_ros.discrepancy.repeatability import (block_spans, noise_repeatability,
+                                                     systematic_repeatability,
+                                                     weighted_jackknife)
 from strapdown_ros.discrepancy.selection import TimeBlocks
 from strapdown_ros.sensors.effects import EFFECTS
 
@@ -46,9 +51,11 @@ def jackknife_floor(lin: Linearisation, free, noise: dict, split: TimeBlocks, co
     """
     Raise every σ of z to at least its leave-one-block-out jackknife σ over time.
 
-    σ_jk = √((K−1)/K Σ_k (z_k − z̄)²), z_k fitted without time block k: a delete-a-block
-    jackknife, which needs no bandwidth and covers structure as slow as a block.  Correlations
-    are kept (the matrix is rescaled by the ratio of σ's).
+    The delete-a-block jackknife over time, each block weighted by its own information
+    (:func:`strapdown_ros.discrepancy.repeatability.weighted_jackknife`: the plain
+    (K−1)/K Σ_k (z_k − z̄)² overstates σ when the blocks differ in information, as on uneven
+    motion); it needs no bandwidth and covers structure as slow as a block.  Correlations are
+    kept (the matrix is rescaled by the ratio of σ's).
 
     Parameters
     ----------
@@ -71,14 +78,9 @@ def jackknife_floor(lin: Linearisation, free, noise: dict, split: TimeBlocks, co
         Whether any σ grew.
 
     """
-    try:
-        zf = np.array([lin.evaluate(free, noise, train).z for train, _ in split.folds(lin)])
-    except NUMERICAL_ERRORS:
+    jk = _fold_jackknife(lin, free, noise, split)
+    if jk is None or len(jk) != cov_z.shape[0]:
         return cov_z, False
-    kf = len(zf)
-    if kf < 2 or zf.shape[1] != cov_z.shape[0]:
-        return cov_z, False
-    jk = np.sqrt((kf - 1) / kf * np.sum((zf - zf.mean(axis=0)) ** 2, axis=0))
     d = np.sqrt(np.maximum(np.diag(cov_z), 0.0))
     grow = jk > d
     if not np.any(grow):
@@ -88,6 +90,26 @@ def jackknife_floor(lin: Linearisation, free, noise: dict, split: TimeBlocks, co
     zero = grow & ~(d > 0)
     out[zero, zero] = jk[zero] ** 2
     return out, True
+
+
+def _fold_jackknife(lin: Linearisation, free, noise: dict, split: TimeBlocks):
+    """Return the information-weighted jackknife σ of z over the time blocks (None: failed)."""
+    try:
+        full = lin.evaluate(free, noise)
+        fits = [lin.evaluate(free, noise, train) for train, _ in split.folds(lin)]
+    except NUMERICAL_ERRORS:
+        return None
+    if len(fits) < 2:
+        return None
+    return weighted_jackknife(np.array([f.z for f in fits]), full.z, _information(full.cov_z),
+                              np.array([_information(f.cov_z) for f in fits]))
+
+
+def _information(cov: np.ndarray) -> np.ndarray:
+    """Return 1 / the diagonal of a covariance (∞ where it is 0)."""
+    d = np.diag(cov)
+    with np.errstate(divide='ignore'):
+        return np.where(d > 0, 1.0 / np.where(d > 0, d, 1.0), np.inf)
 
 
 def effect_values(name: str, params: dict, cov=None, theta=None, sigma=None):
@@ -205,9 +227,16 @@ def repeatability_bound(folds: int, level: float) -> float:
 
 
 def report_steps(steps, lin: Linearisation, final, free, noise: dict, params: dict,
-                 split: TimeBlocks, cov_z, cov_judged, method: str, bound: float) -> None:
+                 split: TimeBlocks, cov_z, cov_judged, method: str, bound: float,
+                 level: float | None = None, lags: int | None = None) -> None:
     """
     Fill in every added effect's value, σ, leave-one-block-out spread and repeatability.
+
+    Repeatability (``repeatability``, ``repeatable``): the effect takes one value in every
+    time block, each block judged by its own information
+    (:mod:`strapdown_ros.discrepancy.repeatability`; the Newey–West form when ``method`` is not
+    ``model``).  ``spread``: the information-weighted leave-one-block-out jackknife σ;
+    ``spread_ratio``: it over the σ judged (kept for the record; it no longer decides).
 
     Parameters
     ----------
@@ -226,14 +255,21 @@ def report_steps(steps, lin: Linearisation, final, free, noise: dict, params: di
     split : TimeBlocks
         The time blocks.
     cov_z, cov_judged : ndarray (p, p)
-        The reported covariance and the one the repeatability check judges
+        The reported covariance and the one the spread ratio is judged against
         (:func:`final_covariance`).
     method : str
         The σ method (noise terms take the jackknife σ when it is not ``model``).
     bound : float
-        The repeatability bound (:func:`repeatability_bound`).
+        The former spread-ratio bound (:func:`repeatability_bound`), kept for the record.
+    level : float, optional
+        Level of the repeatability test (default: the level behind ``bound``, 0.01/6).
+    lags : int, optional
+        Bandwidth of the Newey–West form of the test, pairs (used when ``method`` is not
+        ``model``; default :func:`hac_lags`).
 
     """
+    level = 0.01 / 6.0 if level is None else float(level)
+    robust_lags = None if method == 'model' else (lags or hac_lags(len(lin.pairs)))
     k = 3
     offsets = {}
     for name in free:
@@ -242,28 +278,38 @@ def report_steps(steps, lin: Linearisation, final, free, noise: dict, params: di
         offsets[name] = (k, q)
         k += q
     folds = split.folds(lin)
-    kf = len(folds)
+    spans = block_spans(lin, split)
+    fold_fits = None
+    if any(s.effect in offsets for s in steps):
+        try:
+            fold_fits = [lin.evaluate(free, noise, train) for train, _ in folds]
+        except NUMERICAL_ERRORS:
+            fold_fits = None
     for s in steps:
         if s.effect in offsets:
             a, q = offsets[s.effect]
             s.parameters, s.sigma = effect_values(s.effect, params, cov_z[a:a + q, a:a + q])
             _, s.sigma_model = effect_values(s.effect, params, final.cov_z[a:a + q, a:a + q])
-            try:
-                zf = np.array([lin.evaluate(free, noise, train).z[a:a + q]
-                               for train, _ in folds])
-            except NUMERICAL_ERRORS:
-                zf = None
             sd = np.sqrt(np.maximum(np.diag(cov_judged[a:a + q, a:a + q]), 0.0))
             S = EFFECTS[s.effect].fit_basis()
             v0 = EFFECTS[s.effect].value(params)
-            if zf is not None:
+            if fold_fits is not None:
+                zf = np.array([f.z[a:a + q] for f in fold_fits])
                 vals = [(v0 + (z if S is None else S @ z)) for z in zf]
                 s.fold_values = [v.tolist() for v in vals]
-                jk = np.sqrt((kf - 1) / kf * np.sum((zf - zf.mean(axis=0)) ** 2, axis=0))
+                jk = weighted_jackknife(zf, final.z[a:a + q],
+                                        _information(final.cov_z)[a:a + q],
+                                        np.array([_information(f.cov_z)[a:a + q]
+                                                  for f in fold_fits]))
                 s.spread_ratio = float(np.max(jk / np.where(sd > 0, sd, np.inf)))
-                dev = np.array(vals) - np.mean(vals, axis=0)
-                full_jk = np.sqrt((kf - 1) / kf * np.sum(dev ** 2, axis=0))
+                full_jk = jk if S is None else np.sqrt(np.maximum(np.diag(
+                    S @ np.diag(jk ** 2) @ S.T), 0.0))
                 s.spread = effect_values(s.effect, params, theta=v0, sigma=full_jk)[1]
+            try:
+                s.repeatability = systematic_repeatability(lin, final, free, noise, s.effect,
+                                                           split, level, robust_lags)
+            except NUMERICAL_ERRORS:
+                s.repeatability = None
         else:
             try:
                 _, _, sig = fit_noise(lin, free, noise, s.effect)
@@ -273,13 +319,21 @@ def report_steps(steps, lin: Linearisation, final, free, noise: dict, params: di
             s.sigma_model = effect_values(s.effect, params, theta=theta, sigma=sig)[1]
             if s.fold_theta:
                 ft = np.asarray(s.fold_theta, dtype=float)
-                jk = np.sqrt((len(ft) - 1) / len(ft)
-                             * np.sum((ft - ft.mean(axis=0)) ** 2, axis=0))
                 s.fold_values = ft.tolist()
+                if s.fold_sigma:
+                    fs = np.asarray(s.fold_sigma, dtype=float).reshape(ft.shape)
+                    jk = weighted_jackknife(ft, theta, _information(np.diag(sig ** 2)),
+                                            1.0 / np.maximum(fs ** 2, 1e-300))
+                    s.repeatability = noise_repeatability(theta, sig, ft, fs, spans, level)
+                else:
+                    jk = np.sqrt((len(ft) - 1) / len(ft)
+                                 * np.sum((ft - ft.mean(axis=0)) ** 2, axis=0))
                 s.spread = effect_values(s.effect, params, theta=theta, sigma=jk)[1]
                 s.spread_ratio = float(np.max(jk / np.where(sig > 0, sig, np.inf)))
                 if method in ('hac', 'hac_jackknife'):
                     sig = np.maximum(sig, jk)       # noise terms: the time-block jackknife
             s.parameters, s.sigma = effect_values(s.effect, params, theta=theta, sigma=sig)
-        if s.spread_ratio is not None:
+        if s.repeatability is not None:
+            s.repeatable = bool(s.repeatability['repeatable'])
+        elif s.spread_ratio is not None:
             s.repeatable = bool(s.spread_ratio <= bound)

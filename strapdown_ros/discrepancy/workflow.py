@@ -227,6 +227,7 @@ class _Search:
         self.excluded: set = set()
         self.failed_now: set = set()      # failed numerically since the last accepted effect
         self.first_scores: list = []
+        self.fold_sigma: list = []        # the Fisher σ of the last noise term's fold fits
         self.stopped_by = None
 
     # ------------------------------------------------------------------ the base fit
@@ -270,7 +271,7 @@ class _Search:
         self.ho_before = heldout_score(lin0, [], self.noise, self.split)
         self.tests_before = diagnostics.verdict_tests(self.base0.whitened, len(lin0.pairs),
                                                       self.a_tests, self.lags)
-        self.series_before = residual_series(lin0, self.base0, [])
+        self.series_before = residual_series(lin0, self.base0, [], self.noise)
         self.base_done = True
 
     def _spaced(self, rec: Recording, params: dict, epoch: float) -> Recording:
@@ -407,10 +408,11 @@ class _Search:
         by_fold = None
         try:
             if EFFECTS[name].kind == 'noise':
-                by_fold = []
+                by_fold, self.fold_sigma = [], []
                 for train, _ in self.split.folds(lin):
-                    theta_tr, _, _ = fit_noise(lin, self.free, self.noise, name, train)
+                    theta_tr, _, sig_tr = fit_noise(lin, self.free, self.noise, name, train)
                     by_fold.append({**self.noise, name: theta_tr.tolist()})
+                    self.fold_sigma.append(sig_tr.tolist())
             else:
                 trial_free.append(name)
             ho_b = heldout_score(lin, self.free, self.noise, self.split)
@@ -453,7 +455,8 @@ class _Search:
         self.noise, self.params, self.free, self.C = t_noise, t_params, t_free, t_C
         folds = [d[name] for d in by_fold] if by_fold else None
         self.steps.append(Step(name, {}, {}, best['statistic'], best['p_value'], gain,
-                               best['dof'], fold_theta=folds))
+                               best['dof'], fold_theta=folds,
+                               fold_sigma=list(self.fold_sigma) if folds else None))
         self.failed_now.clear()
 
     # ------------------------------------------------------------------ backward elimination
@@ -528,11 +531,11 @@ class _Search:
                                                            tests_after, lags)
         bound = repeatability_bound(len(self.split.folds(lin)), tests_after['level'])
         report_steps(steps, lin, final, free, noise, self.params, self.split, cov_z,
-                     cov_judged, sigma_method, bound)
+                     cov_judged, sigma_method, bound, level=tests_after['level'], lags=lags)
         ho_after = heldout_score(lin, free, noise, self.split) if steps else self.ho_before
         verdict = (('model_adequate' if not steps else 'explained') if passed
                    else 'unexplained_structure')
-        series_after = residual_series(lin, final, free)
+        series_after = residual_series(lin, final, free, noise)
         remaining = {} if passed else diagnostics.describe_remaining(series_after, lin)
         if not passed:
             # on the increments of the nominal model: the effects fitted since may have bent
@@ -546,6 +549,14 @@ class _Search:
         # boresight σ: δ is a VF rotation of C; β from δ through D2⁻¹ (004 eq. 8)
         sig_beta = np.sqrt(np.maximum(np.diag(D2i @ cov_z[:3, :3] @ D2i.T), 0.0))
         sig_beta_model = np.sqrt(np.maximum(np.diag(D2i @ final.cov_z[:3, :3] @ D2i.T), 0.0))
+        # what calibrate_bag's rule gives on these pairs: the boresight alone (the gyro
+        # constants marginalised, the stated noise), σ scaled by √(χ²/dof) when above 1
+        b0 = self.base0
+        sig_base = np.sqrt(np.maximum(np.diag(D2i @ b0.cov_z[:3, :3] @ D2i.T), 0.0))
+        chi2_base = b0.chi2 / max(b0.dof, 1)
+        for s in steps:
+            s.sigma_method = (sigma_method if EFFECTS[s.effect].kind != 'noise' else
+                              'fisher' if sigma_method == 'model' else 'fisher_jackknife')
         model_out = {}
         for s in steps:
             name = EFFECTS[s.effect].value_parameter.name
@@ -569,7 +580,10 @@ class _Search:
             chi2_per_dof_band=_chi2_band(tests_after), sigma_method=sigma_method,
             hac_lags=lags if sigma_method != 'model' else None,
             boresight_sigma_model_rad=sig_beta_model.tolist(), repeatability_bound=bound,
-            found_model=found, reference_spacing=self.spacing)
+            found_model=found, reference_spacing=self.spacing,
+            boresight_sigma_calibrate_bag_rule_rad=(sig_base
+                                                    * np.sqrt(max(1.0, chi2_base))).tolist(),
+            boresight_sigma_base_model_rad=sig_base.tolist(), chi2_per_dof_base=chi2_base)
 
 
 def found_model(model: SensorModel, steps, beta, sigma_beta, verdict: str,

@@ -63,7 +63,7 @@ from strapdown_ros.recording import (add_input_arguments, BagError, check_input_
                                      read_bag, recording_facts)
 from strapdown_ros.recording.options import frame_warnings, usable_error
 
-__all__ = ['main']
+__all__ = ['main', 'sigma_note', 'consistency_warning']
 
 ARCSEC_PER_RAD = 180.0 / np.pi * 3600.0
 
@@ -126,7 +126,51 @@ def _summary(bag: str, data: dict, result: dict) -> str:
         q_text = ', '.join(f'{v:.9f}' for v in result['q_mf_vf_xyzw'])
         lines.append(f'  {untrusted}q_mf_vf (x, y, z, w) = [{q_text}], '
                      f"σ about MF x, y, z = {', '.join(f'{s:.3g}' for s in sig_mf)}″")
+        note = sigma_note(result)
+        if note:
+            lines.append(f'  {note}')
     return '\n'.join(lines)
+
+
+def sigma_note(result: dict) -> str | None:
+    """
+    Return how the σ of β were computed and what they assume, from the record's numbers.
+
+    ``discrepancy`` estimates the same boresight; its σ differ from these when its residuals are
+    correlated (it then uses the Newey–West sandwich, these assume independent pairs) or when it
+    adds effects or a noise model: the sentence says which applies here.
+
+    Parameters
+    ----------
+    result : dict
+        The JSON record (``sigma_method``, ``chi2_per_dof``, ``residual_whiteness``).
+
+    Returns
+    -------
+    str or None
+        The sentence; None when there is no solution.
+
+    """
+    method = result.get('sigma_method')
+    if not method:
+        return None
+    chi2 = result.get('chi2_per_dof')
+    head = {'model': "σ (sigma_method model): the stated noise's, gyro constants marginalised",
+            'model_scaled_sqrt_chi2': 'σ (sigma_method model_scaled_sqrt_chi2): the stated '
+                                      f"noise's, scaled by √(χ²/dof) = {np.sqrt(chi2 or 1.0):.3g}",
+            'residual_scatter_004': 'σ (sigma_method residual_scatter_004): from the residual '
+                                    'scatter (004 §4.3, unit weights)'}[method]
+    wt = result.get('residual_whiteness')
+    if not wt:
+        return head + '; they assume independent pairs (too few pairs to test it)'
+    if wt['white']:
+        return (head + f'; they assume independent pairs, and the residuals are white (Ljung–Box '
+                f"p {wt['p_value']:.3g} ≥ {wt['level']:g}): discrepancy gives the same σ unless "
+                'it adds effects or a noise term')
+    return (head + f'; they assume independent pairs, but the residuals are correlated in time '
+            f"(Ljung–Box p {wt['p_value']:.3g} < {wt['level']:g}): these σ may be too small; "
+            'discrepancy replaces them by the Newey–West sandwich (never smaller) when its own '
+            'whiteness test, at its stricter level, fails too')
 
 
 def consistency_warning(result: dict) -> str | None:

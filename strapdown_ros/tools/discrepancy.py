@@ -58,6 +58,9 @@ from strapdown_ros.cli import (all_or_nothing, check_outputs, DIRECTORY, FILE, O
 from strapdown_ros.discrepancy.bag_input import load_recording, recording_lines
 from strapdown_ros.discrepancy.diagnostics import allan_comparison
 from strapdown_ros.discrepancy.report import write_report
+from strapdown_ros.discrepancy.sentences import (boresight_sigma_sentence, consistency_warning,
+                                                 remaining_sentences, repeatability_sentence,
+                                                 sigma_sentence)
 from strapdown_ros.discrepancy.workflow import (analyse, AnalysisError, BoresightUnobservable,
                                                 DEFAULT_ALPHA, DiscrepancySettings, InputError,
                                                 json_clean)
@@ -101,17 +104,12 @@ def _summary(bag, info, res) -> str:
     j = res.as_json()
     lines = recording_lines('discrepancy', bag, info, f'{res.pairs} increment pairs, ')
     lines.append(f'  verdict: {res.verdict}')
-    if not res.fit_consistent:
-        lo, hi = res.chi2_per_dof_band
-        lines.append(f'WARNING: the fit is not consistent with its stated noise: χ²/dof '
-                     f'{res.chi2_per_dof:.4g} outside [{lo:.3g}, {hi:.3g}] at the test level; the '
-                     f'values below are not plain results')
-    if res.sigma_method != 'model':
-        jk = (', raised to the leave-one-block-out jackknife where that is larger'
-              if res.sigma_method == 'hac_jackknife' else '')
-        lines.append(f'  σ: Newey–West sandwich over {res.hac_lags} pairs{jk} (the residuals '
-                     f"fail {', '.join(res.tests_after['failed'])}: the model's σ would be too "
-                     f'small)')
+    warning = consistency_warning(res)
+    if warning:
+        lines.append(warning)
+    sigma = sigma_sentence(res)
+    if sigma:
+        lines.append(f'  {sigma}')
     lines.append(f'  whitened RMS {res.rms_before:.3g} → {res.rms_after:.3g} '
                  '(1 = as the model predicts); held out '
                  f'{res.heldout_rms_before:.3g} → {res.heldout_rms_after:.3g}')
@@ -119,11 +117,10 @@ def _summary(bag, info, res) -> str:
         vals = '; '.join(f'{n} = {_fmt(v)} ± {_fmt(s.sigma[n])}' for n, v in s.parameters.items())
         lines.append(f'  step {k}: {s.effect}: {vals}  (LR {s.statistic:.4g}, dof {s.dof}, '
                      f'p {s.p_value:.3g}, '
-                     f'held-out gain {s.heldout_gain:.3g})')
-        if s.repeatable is False:
-            lines.append(f'    not repeatable across time blocks: leave-one-block-out spread '
-                         f"{'; '.join(f'{n} ± {_fmt(v)}' for n, v in s.spread.items())} "
-                         f'({s.spread_ratio:.3g}× the σ above): not a plain finding')
+                     f'held-out gain {s.heldout_gain:.3g}, σ {s.sigma_method})')
+        text = repeatability_sentence(s)
+        if text:
+            lines.append(f'    {text}')
     stops = {'max_steps': f'the step limit ({res.max_steps} accepted effects) stopped the search; '
                           f'more may be missing',
              'no_significant_candidate': 'search stopped: no candidate left passes its test',
@@ -161,10 +158,14 @@ def _summary(bag, info, res) -> str:
                          f"axis-alignment RMS drops to {sw.get('ratio', float('nan')):.2g}× "
                          f'(which axis, the camera cannot tell: a rotation goes into the '
                          f'boresight)')
+    lines += [f'  {t}' for t in remaining_sentences(res)]
     b = np.degrees(res.boresight_rad)
     s = np.asarray(res.boresight_sigma_rad) * ARCSEC_PER_RAD
     lines.append(f'  boresight β = ({b[0]:.6f}, {b[1]:.6f}, {b[2]:.6f})° '
-                 f'± ({s[0]:.3g}, {s[1]:.3g}, {s[2]:.3g})″')
+                 f'± ({s[0]:.3g}, {s[1]:.3g}, {s[2]:.3g})″ (σ {res.sigma_method})')
+    text = boresight_sigma_sentence(res)
+    if text:
+        lines.append(f'  {text}')
     return '\n'.join(lines)
 
 

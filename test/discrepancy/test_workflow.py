@@ -445,7 +445,8 @@ def test_effect_not_repeatable_across_time_blocks_is_said(tmp_path, capsys):
     flagged = [s for s in r['steps'] if s['repeatable'] is False]
     assert flagged, r['steps']
     for s in flagged:
-        assert s['spread_ratio'] > r['repeatability_bound'] and len(s['fold_values']) == 6
+        t = s['repeatability']
+        assert t['p_value'] < t['level'] and len(s['fold_values']) == 6
     assert out.count('not repeatable across time blocks') == len(flagged)
     assert r['verdict'] == 'unexplained_structure'
     assert r['stopped_by'] == 'no_significant_candidate' and 'search stopped: no candidate' in out

@@ -28,7 +28,8 @@ ROOT = Path(__file__).resolve().parents[2]
 
 #: console scripts that write no file (nodes)
 NO_OUTPUT = {'imu_sim_node', 'sins_node', 'strapdown_demo', 'star_camera_sim_node',
-             'calibrator_node', 'attitude_filter_node'}
+             'calibrator_node', 'attitude_filter_node',
+             'repeatability_bench'}                      # prints its figures, writes no file
 
 #: script -> argv with an EXISTING output (and no --force); {bag}, {model}, {old}, {trial},
 #: {data}, {plots}, {manifest} are filled in by the test
