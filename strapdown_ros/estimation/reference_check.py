@@ -51,6 +51,9 @@ class ReferenceAgreement:
         Share of the axis samples within 3σ.
     held_out : bool
         The samples are fixes the filter never applied (:func:`agreement_with_fixes`).
+    at : str
+        Whose stamps the samples are: ``reference`` (the filter interpolated) or ``filter``
+        (the reference interpolated to the outputs).
 
     """
 
@@ -62,6 +65,7 @@ class ReferenceAgreement:
     rms_ratio: list
     within_3_sigma: float
     held_out: bool = False
+    at: str = 'reference'
 
     def as_dict(self) -> dict:
         """Return the record as plain JSON values."""
@@ -201,7 +205,7 @@ def reference_agreement(t_out, q_out, sigma_out, t_ref, q_ref, sigma_ref,
         rms_rad=[float(x) for x in np.sqrt(np.mean(r ** 2, axis=0))],
         sigma_rad=[float(x) for x in np.sqrt(np.mean(sig ** 2, axis=0))],
         rms_ratio=[float(x) for x in np.sqrt(np.mean(z ** 2, axis=0))],
-        within_3_sigma=float(np.mean(np.abs(z) <= 3.0)))
+        within_3_sigma=float(np.mean(np.abs(z) <= 3.0)), at=at)
 
 
 def agreement_with_fixes(outputs, fix_stamps_ns, fixes, applied_ns=(), noise_scale=None,

@@ -174,11 +174,16 @@ def agreement_line(agree) -> str:
     """
     if agree is None:
         return ''
-    which = ('the fixes it did not apply' if agree.held_out else
-             'every fix (fewer than 10 left unapplied: not independent of the filter)')
+    if agree.at == 'filter':
+        which = (f'at {agree.samples} outputs, interpolated from the fixes around each '
+                 + ('(neither of them applied)' if agree.held_out else
+                    '(fewer than 10 outputs away from applied fixes: not independent)'))
+    else:
+        which = (f'at {agree.samples} ' + ('fixes it did not apply' if agree.held_out else
+                                          'fixes (fewer than 10 unapplied: not independent)'))
     ratio = ', '.join(f'{r:.3g}' for r in agree.rms_ratio)
     sig = ', '.join(f'{s:.3g}' for s in agree.sigma_rad)
-    return (f'against the reference, {which} ({agree.samples}), with a lag of '
+    return (f'against the reference {which}, with a lag of '
             f'{agree.lag_s * 1e3:.3g} ms and a constant boresight taken out: RMS / σ = {ratio} '
             f'about VF x, y, z (σ {sig} rad, the filter and the reference together; 1 is '
             f'honest), {100 * agree.within_3_sigma:.1f}% within 3σ')
