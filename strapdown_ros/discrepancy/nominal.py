@@ -35,6 +35,8 @@ cannot support a value it says so and writes a stated default.  The rules:
   alignment of the pairs; the robust variance of the pair residuals per VF axis, less the gyro's
   random walk over the pair, is 2σ²(1 − ρ(spacing)): its plateau gives σ and the spacing where it
   is reached the reference's correlation time.
+* **boresight**: that axis alignment, written as the starting boresight (discrepancy and
+  calibrate_bag refine it), so that the filter can run on the nominal model.
 * what the nominal model cannot know (scale factors, misalignments: the discrepancy workflow
   finds them) gets σ 0 and says so.
 
@@ -279,6 +281,10 @@ def nominal_model(stamps_ns, delta_theta, fix_stamps_ns, fix_q, facts: dict,
     C, spacing_rows = _reference_noise(gyro, tf, q, T, say)
     measured['reference_noise_by_spacing'] = spacing_rows
     measured['boresight_axis_alignment_rad'] = dcm_to_ypr(C).tolist() if C is not None else None
+    if C is not None:                  # a starting boresight, so the filter can use this model
+        put('boresight', [float(x) for x in dcm_to_ypr(C)],
+            'axis alignment: the rotation that best maps the rotation vectors of the gyro onto '
+            "those of the reference over pairs that turn (a start; discrepancy's fit refines it)")
 
     # ---- rest, ARW, bias instability, bias
     say('rest segments')

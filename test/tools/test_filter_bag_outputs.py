@@ -120,6 +120,42 @@ def test_real_recording_with_too_small_reference_sigma_keeps_applying_fixes(tmp_
           f'fixes applied, {late.count("reset")} resets; rule off: {late_off.count("applied")}')
 
 
+def test_shipped_real_recording_with_too_small_reference_sigma_keeps_applying_fixes(
+        tmp_path, capsys):
+    """
+    Real data that ships (test/data/gaitmap, a foot IMU and its shoe's markers at 100 Hz).
+
+    nominal_model's reference σ stated five times smaller, a fix taken every 0.25 s: divergence
+    is declared and reported, and fixes are applied to the end of the walk; with the rule off,
+    fewer than half as many are applied after the first 10 s.
+    """
+    bag = Path(__file__).resolve().parents[1] / 'data' / 'gaitmap' / 'gaitmap_left'
+    model = tmp_path / 'nominal.yaml'
+    topics = ['--gyro-topic', '/imu/data', '--reference-topic', '/mocap/pose']
+    assert nominal_model.main([str(bag), *topics, '--output', str(model), '--quiet']) == 0
+    sig = {}
+    for line in model.read_text().splitlines():
+        key = line.split(':')[0].strip()
+        if key in ('camera_sigma_xy', 'camera_sigma_z'):
+            sig[key] = float(line.split(':')[1].split('#')[0])
+    small = ['-p', f"camera_sigma_xy:={sig['camera_sigma_xy'] / 5}",
+             '-p', f"camera_sigma_z:={sig['camera_sigma_z'] / 5}",
+             '-p', 'reference_spacing:=0.25']
+    out = tmp_path / 'o.csv'
+    args = [*topics, '--params', str(model), *small]
+    fixes, text = _filter(capsys, bag, out, *args)
+    t0 = float(fixes[0]['stamp'])
+    late = [f['status'] for f in fixes if float(f['stamp']) > t0 + 10.0]
+    assert 'divergence at' in text and late.count('reset') >= 1
+    assert late.count('applied') >= 10
+    assert float(fixes[-1]['stamp']) > t0 + 35.0                  # to the end of the walk
+    off, _ = _filter(capsys, bag, out, *args, *OFF)
+    late_off = [f['status'] for f in off if float(f['stamp']) > t0 + 10.0]
+    assert late_off.count('applied') < late.count('applied') / 2
+    print(f'\ngaitmap left foot, σ/5: after 10 s {late.count("applied")} of {len(late)} '
+          f'fixes applied, {late.count("reset")} resets; rule off: {late_off.count("applied")}')
+
+
 def test_one_row_per_output_period_at_the_gyro_period(lag_bag, capsys):
     """
     output_period = the gyro period (10 ms) with a 2-sample coning algorithm: one row per period.
