@@ -8,7 +8,9 @@ against the task's memory budget), then runs, on what it read,
    the verdict and the effects missing from the unit's model;
 2. the boresight calibration (:func:`strapdown_ros.runs.boresight.boresight_of_data`) with the
    model the discrepancy found (its found effects compensated; the nominal model when nothing
-   was found or the boresight was not observable);
+   was found or the boresight was not observable), at the spacing of the fixes ``calibrate_bag``
+   takes by default (the model's ``reference_spacing`` where it states one, else chosen from the
+   data), with its σ and verdict;
 3. the gyro calibration, 002 by default (:func:`strapdown_ros.runs.gyro.gyro_of_recording`):
    scale factors, misalignments and biases with their σ, in every recording whose motion makes
    them observable.

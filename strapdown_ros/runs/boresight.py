@@ -2,25 +2,32 @@
 Calibrate the boresight C_MF^VF on a recording: the library call of ``calibrate_bag``.
 
 :func:`calibrate_boresight` reads the recording (:func:`~strapdown_ros.runs.source.read_checked`),
-feeds calibrator_node's calibrator in stamp order
-(:func:`strapdown_ros.calibration.replay.calibrate_recording`) and returns a
-:class:`BoresightRun`: the JSON record ``calibrate_bag --json`` writes, the model checked against
-the recording and the model with the boresight found.  :func:`boresight_of_data` does the same on
-streams already read (the fleet reads a recording once for all its analyses).  No printing.
+says the warnings and notes on the input and the model, refuses a stream with too little usable
+(:class:`~strapdown_ros.runs.source.UnusableRecording`), feeds calibrator_node's calibrator in
+stamp order at the spacing of the reference fixes its error allows
+(:func:`strapdown_ros.calibration.replay.calibrate_spaced`: stated, the model's
+``reference_spacing``, or chosen from the data) and returns a :class:`BoresightRun`: the JSON
+record ``calibrate_bag --json`` writes, the model checked against the recording and the model
+with the boresight found.  :func:`boresight_of_data` does the same on streams already read (the
+fleet reads a recording once for all its analyses).  No printing.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from strapdown_ros.calibration.replay import calibrate_recording, solution_record
+from strapdown_ros.calibration.replay import calibrate_spaced, solution_record
 from strapdown_ros.calibration.streaming import CalibratorSettings
 from strapdown_ros.recording import input_summary
-from strapdown_ros.runs.source import read_checked, RecordingSource
+from strapdown_ros.runs.source import (check_usable, read_checked, recording_notes,
+                                       RecordingSource)
 from strapdown_ros.sensors.sensor_model import SensorModel
 
-__all__ = ['BoresightRun', 'calibrate_boresight', 'boresight_of_data']
+__all__ = ['BoresightRun', 'calibrate_boresight', 'boresight_of_data', 'CONSUMERS']
+
+#: the consumers of the model keys the boresight calibration applies
+CONSUMERS = ('gyro', 'reference')
 
 
 @dataclass(frozen=True)
@@ -40,6 +47,10 @@ class BoresightRun:
         found; None when not observable.
     frames : dict
         ``gyro`` and ``camera``: the header frame ids seen.
+    notes : tuple of str
+        The warnings and notes on the input and the model, each starting ``WARNING:``,
+        ``warning:`` or ``note:`` (:func:`calibrate_boresight`; empty from
+        :func:`boresight_of_data`).
 
     """
 
@@ -47,6 +58,7 @@ class BoresightRun:
     model: SensorModel
     found_model: SensorModel | None
     frames: dict
+    notes: tuple = field(default_factory=tuple)
 
     @property
     def observable(self) -> bool:
@@ -55,9 +67,14 @@ class BoresightRun:
 
 
 def calibrate_boresight(source: RecordingSource, model: SensorModel,
-                        settings: CalibratorSettings | None = None) -> BoresightRun:
+                        settings: CalibratorSettings | None = None, spacing: float | None = None,
+                        say=None, who: str = 'calibrate_bag') -> BoresightRun:
     """
     Read a recording and calibrate its boresight as calibrator_node would.
+
+    The recording is read with the nodes' input rules, the model checked against it; the
+    warnings on the input, the notes on the model and the warnings on the frames are said, in
+    that order, before a stream with too little usable is refused.
 
     Parameters
     ----------
@@ -67,6 +84,14 @@ def calibrate_boresight(source: RecordingSource, model: SensorModel,
         The unit's sensor model.
     settings : CalibratorSettings, optional
         The calibrator's settings (default: the defaults).
+    spacing : float, optional
+        Spacing of the fixes of the pairs, s (0: every fix); None: the model's
+        ``reference_spacing`` where it states one, else chosen from the data.
+    say : callable, optional
+        ``say(text)`` for each warning and note as it arises (also kept in
+        :attr:`BoresightRun.notes`).
+    who : str
+        The consumer named in the note on model keys the calibration does not apply.
 
     Returns
     -------
@@ -77,18 +102,29 @@ def calibrate_boresight(source: RecordingSource, model: SensorModel,
     ------
     BagError
         The bag cannot be used.
+    UnusableRecording
+        Too few usable gyro increments or reference fixes (a ValueError).
     ValueError
-        The model contradicts the recording, or no usable gyro or camera message.
+        The model contradicts the recording.
+    ArithmeticError, numpy.linalg.LinAlgError
+        The calibration failed numerically (never bad input).
 
     """
     settings = settings or CalibratorSettings()
     data, checked = read_checked(source, model, settings.use_camera_covariance,
                                  settings.max_stamp_jump, settings.resync_count)
-    return boresight_of_data(data, checked, settings)
+    inputs, frames, model_notes = recording_notes(who, data, model, checked, CONSUMERS)
+    notes = inputs + model_notes + frames
+    if say is not None:
+        for text in notes:
+            say(text)
+    run = boresight_of_data(data, checked, settings, spacing)
+    return replace(run, notes=tuple(notes))
 
 
 def boresight_of_data(data: dict, model: SensorModel,
-                      settings: CalibratorSettings | None = None) -> BoresightRun:
+                      settings: CalibratorSettings | None = None,
+                      spacing: float | None = None) -> BoresightRun:
     """
     Calibrate the boresight on streams already read.
 
@@ -100,6 +136,9 @@ def boresight_of_data(data: dict, model: SensorModel,
         The sensor model, checked against the recording.
     settings : CalibratorSettings, optional
         The calibrator's settings.
+    spacing : float, optional
+        Spacing of the fixes of the pairs, s; None: the model's ``reference_spacing`` where it
+        states one, else chosen from the data (``calibrate_bag --reference-spacing auto``).
 
     Returns
     -------
@@ -108,16 +147,18 @@ def boresight_of_data(data: dict, model: SensorModel,
 
     Raises
     ------
-    ValueError
-        No usable gyro or camera message.
+    UnusableRecording
+        Too few usable gyro increments or reference fixes.
+    ArithmeticError, numpy.linalg.LinAlgError
+        The calibration failed numerically.
 
     """
     settings = settings or CalibratorSettings()
+    check_usable(data)
     g, c = data['gyro'], data['camera']
-    if not g.stamps or not c.stamps:
-        raise ValueError(f"no usable {'gyro' if not g.stamps else 'camera'} messages")
-    sol, cal, discarded = calibrate_recording(data, model, settings)
+    sol, cal, discarded, choice = calibrate_spaced(data, model, settings, spacing)
     result = solution_record(sol, settings.weighted)
+    result['reference_spacing'] = choice.as_dict()
     result['covariance_model'] = settings.covariance_model
     result['dropped'] = {'gyro': dict(g.dropped),
                          'camera': {**c.dropped,
@@ -133,7 +174,7 @@ def boresight_of_data(data: dict, model: SensorModel,
     result['camera_fixes'] = {k: data['camera_fixes'][k] for k in ('normalised',
                                                                    'covariance_substituted')}
     result['camera_fixes']['outliers_dropped'] = cal.outlier_fixes
-    origin_s = min(g.stamps[0], c.stamps[0]) * 1e-9          # calibrate_recording's time origin
+    origin_s = min(g.stamps[0], c.stamps[0]) * 1e-9          # the replay's time origin
     result['camera_fixes']['outlier_stamps_s'] = [float(t) + origin_s for t in cal.outlier_stamps]
     result['messages'] = {'gyro': len(g.stamps), 'camera': len(c.stamps)}
     result['topics'] = {'gyro': data['gyro_topic'], 'camera': data['camera_topic']}

@@ -4,22 +4,27 @@ Analyse where a recording and its model disagree: the library call of ``discrepa
 :func:`analyse_discrepancies` reads the recording, checks the model against it, runs the
 discrepancy workflow (:func:`strapdown_ros.discrepancy.workflow.analyse`) and, on request, the
 Allan comparison on static segments; it returns a :class:`DiscrepancyRun`: the result, the JSON
-document ``discrepancy --json`` writes, and the found model.  A recording whose motion does not
+document ``discrepancy --json`` writes, the found model and the warnings and notes on the input
+and the model (said as they arise).  A recording whose motion does not
 determine the boresight is a result too (``observable`` false), not an exception.
 :func:`discrepancy_of_recording` does the same on a recording already read.  No printing.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
-from strapdown_ros.discrepancy.bag_input import recording_from_data
+from strapdown_ros.discrepancy.bag_input import load_recording
 from strapdown_ros.discrepancy.diagnostics import allan_comparison
 from strapdown_ros.discrepancy.workflow import (analyse, BoresightUnobservable,
                                                 DiscrepancySettings, json_clean)
-from strapdown_ros.runs.source import read_checked, RecordingSource
+from strapdown_ros.params import check_against_recording
+from strapdown_ros.runs.source import recording_notes, RecordingSource
 from strapdown_ros.sensors.sensor_model import SensorModel
 
-__all__ = ['DiscrepancyRun', 'analyse_discrepancies', 'discrepancy_of_recording']
+__all__ = ['DiscrepancyRun', 'analyse_discrepancies', 'discrepancy_of_recording', 'CONSUMERS']
+
+#: the consumers of the model keys the discrepancy workflow applies
+CONSUMERS = ('gyro', 'reference', 'filter')
 
 
 @dataclass(frozen=True)
@@ -45,6 +50,10 @@ class DiscrepancyRun:
         Why not, when not observable.
     unobservable : list of str
         The unobservable combinations, when not observable.
+    notes : tuple of str
+        The warnings and notes on the input and the model, each starting ``WARNING:``,
+        ``warning:`` or ``note:`` (:func:`analyse_discrepancies`; empty from
+        :func:`discrepancy_of_recording`).
 
     """
 
@@ -55,6 +64,7 @@ class DiscrepancyRun:
     observable: bool = True
     message: str = ''
     unobservable: list = field(default_factory=list)
+    notes: tuple = field(default_factory=tuple)
 
     @property
     def found_model(self) -> SensorModel | None:
@@ -65,9 +75,13 @@ class DiscrepancyRun:
 def analyse_discrepancies(source: RecordingSource, model: SensorModel,
                           settings: DiscrepancySettings | None = None,
                           read_settings: dict | None = None, allan: bool = True,
-                          progress=None) -> DiscrepancyRun:
+                          progress=None, say=None, who: str = 'discrepancy') -> DiscrepancyRun:
     """
     Read a recording and find where it and its model disagree.
+
+    The recording is read with the nodes' input rules (refused when a stream has too little
+    usable), then the model is checked against it; the warnings on the input and the frames and
+    the notes on the model are said, then the workflow runs.
 
     Parameters
     ----------
@@ -83,6 +97,11 @@ def analyse_discrepancies(source: RecordingSource, model: SensorModel,
         Also compare the Allan deviation on static segments (``allan`` in the record).
     progress : callable, optional
         ``progress(text)`` between stages.
+    say : callable, optional
+        ``say(text)`` for each warning and note as it arises (also kept in
+        :attr:`DiscrepancyRun.notes`).
+    who : str
+        The consumer named in the note on model keys the analysis does not apply.
 
     Returns
     -------
@@ -92,20 +111,27 @@ def analyse_discrepancies(source: RecordingSource, model: SensorModel,
     Raises
     ------
     BagError
-        The bag cannot be used.
+        The bag cannot be used, or a stream has too little usable.
     InputError
         Too few fixes or pairs.
     ValueError
         The model contradicts the recording.
-    AnalysisError
+    AnalysisError, numpy.linalg.LinAlgError, FloatingPointError, OverflowError
         A base fit failed numerically (never reported as bad input).
 
     """
-    rs = read_settings or {}
-    data, checked = read_checked(source, model, True, float(rs.get('max_stamp_jump', 1.0)),
-                                 int(rs.get('resync_count', 5)))
-    rec, info = recording_from_data(data, source.path)
-    return discrepancy_of_recording(rec, info, checked, settings, allan, progress)
+    if progress is not None:
+        progress('reading the bag')
+    rec, info = load_recording(source.path, model, read_settings, source.namespace,
+                               **source.read_options())
+    checked = check_against_recording(model, info['facts'])
+    inputs, frames, model_notes = recording_notes(who, info, model, checked, CONSUMERS)
+    notes = inputs + frames + model_notes
+    if say is not None:
+        for text in notes:
+            say(text)
+    run = discrepancy_of_recording(rec, info, checked, settings, allan, progress)
+    return replace(run, notes=tuple(notes))
 
 
 def discrepancy_of_recording(rec, info: dict, model: SensorModel,

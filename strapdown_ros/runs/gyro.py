@@ -16,10 +16,8 @@ import numpy as np
 
 from strapdown_ros.calibration import gyro as gc
 from strapdown_ros.discrepancy.bag_input import load_recording
-from strapdown_ros.params import check_against_recording, filled_in, not_applied_note
-from strapdown_ros.recording import input_warnings
-from strapdown_ros.recording.options import frame_warnings
-from strapdown_ros.runs.source import RecordingSource
+from strapdown_ros.params import check_against_recording
+from strapdown_ros.runs.source import recording_notes, RecordingSource
 from strapdown_ros.sensors.sensor_model import SensorModel
 from strapdown_ros.text import json_clean
 
@@ -226,15 +224,10 @@ def calibrate_gyro(source: RecordingSource, model: SensorModel,
     rec, info = load_recording(source.path, model, settings, source.namespace,
                                **source.read_options())
     checked = check_against_recording(model, info['facts'])
-    prefix = f'{who}: '
-    for line in input_warnings(who, info) + frame_warnings(who, info, model.frame_id,
-                                                           model.reference_frame_id):
-        note(line[len(prefix):] if line.startswith(prefix) else line)
-    for line in filled_in(model, checked):
-        note(f'note: {line}')
-    text = not_applied_note(checked, ('gyro', 'reference', 'filter'), who)
-    if text:
-        note(f'note: {text}')
+    inputs, frames, model_notes = recording_notes(who, info, model, checked,
+                                                  ('gyro', 'reference', 'filter'))
+    for line in inputs + frames + model_notes:
+        note(line)
     run = gyro_of_recording(rec, info, checked, options, progress, source.path)
     return replace(run, notes=tuple(notes))
 

@@ -11,11 +11,56 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from strapdown_ros.params import check_against_recording
-from strapdown_ros.recording import read_bag, recording_facts
+from strapdown_ros.params import check_against_recording, filled_in, not_applied_note
+from strapdown_ros.recording import input_warnings, read_bag, recording_facts
+from strapdown_ros.recording.options import frame_warnings, input_summary, usable_error
 from strapdown_ros.sensors.sensor_model import SensorModel
 
-__all__ = ['RecordingSource', 'read_checked']
+__all__ = ['RecordingSource', 'read_checked', 'recording_notes', 'UnusableRecording',
+           'check_usable']
+
+
+class UnusableRecording(ValueError):
+    """
+    A stream of the recording has too little usable to work on (bad input, not a failure).
+
+    Parameters
+    ----------
+    message : str
+        The one line (:func:`strapdown_ros.recording.options.usable_error`).
+    summary : dict
+        What was read and how (:func:`strapdown_ros.recording.input_summary`), for the
+        command's input lines.
+
+    """
+
+    def __init__(self, message: str, summary: dict):
+        super().__init__(message)
+        self.summary = summary
+
+    def __reduce__(self):
+        """Return how to pickle it (a Dask task's error crosses processes)."""
+        return (type(self), (str(self), self.summary))
+
+
+def check_usable(data: dict) -> None:
+    """
+    Refuse a recording with too little usable in a stream.
+
+    Parameters
+    ----------
+    data : dict
+        The streams of :func:`strapdown_ros.recording.read_bag`.
+
+    Raises
+    ------
+    UnusableRecording
+        Fewer than 2 gyro increments or no reference fix kept.
+
+    """
+    unusable = usable_error(data)
+    if unusable:
+        raise UnusableRecording(unusable, input_summary(data))
 
 
 @dataclass(frozen=True)
@@ -106,3 +151,49 @@ def read_checked(source: RecordingSource, model: SensorModel,
                     tuple(model.camera_sigma), model.gyro_max_rate, float(max_stamp_jump),
                     int(resync_count), **source.read_options())
     return data, check_against_recording(model, recording_facts(data))
+
+
+def recording_notes(who: str, data: dict, model: SensorModel, checked: SensorModel,
+                    consumers: tuple) -> tuple[list[str], list[str], list[str]]:
+    """
+    Return what a command says about a recording and its model before the work, by kind.
+
+    Each line lacks the command's ``who:`` prefix (it starts ``WARNING:``, ``warning:`` or
+    ``note:``); the caller says them in its command's order.
+
+    Parameters
+    ----------
+    who : str
+        The command, named in the note on model keys it does not apply.
+    data : dict
+        The streams of :func:`strapdown_ros.recording.read_bag`, or a record holding
+        :func:`strapdown_ros.recording.input_summary`.
+    model : SensorModel
+        The model as stated.
+    checked : SensorModel
+        The model checked against the recording (:func:`read_checked`).
+    consumers : tuple of str
+        The consumers of the model keys the command applies (``gyro``, ``reference``,
+        ``filter``).
+
+    Returns
+    -------
+    inputs : list of str
+        The warnings on the input (an index that disagrees with what was read, clipped
+        increments, rate samples dropped).
+    frames : list of str
+        The warnings on header frames the model does not expect.
+    notes : list of str
+        The notes on the model: keys filled in from the recording, keys not applied.
+
+    """
+    prefix = f'{who}: '
+
+    def bare(lines):
+        return [line[len(prefix):] if line.startswith(prefix) else line for line in lines]
+    notes = [f'note: {line}' for line in filled_in(model, checked)]
+    text = not_applied_note(checked, consumers, who)
+    if text:
+        notes.append(f'note: {text}')
+    return (bare(input_warnings(who, data)),
+            bare(frame_warnings(who, data, checked.frame_id, checked.reference_frame_id)), notes)

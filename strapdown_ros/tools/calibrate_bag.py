@@ -43,7 +43,11 @@ their errors to be independent, and calibrates again on the fixes kept
 fix per slot of that length); ``reference_spacing`` in the JSON records the choice and why.
 Observability is judged from the information of all the pairs together (``min_rotation_deg``:
 the attitude's rotation about its second principal axis between two fixes of the recording).
-Exit status: 0 solved, 2 bad arguments/parameters/bag, 3 not observable, 4 no convergence.
+The work is :func:`strapdown_ros.runs.boresight.boresight_of_data` on the recording read by
+:func:`strapdown_ros.runs.source.read_checked` (the calls the fleet makes too); this command checks
+the arguments, prints and writes.
+Exit status: 0 solved, 2 bad arguments/parameters/bag, 3 not observable, 4 no convergence or a
+numerical failure of the calibration (one line on stderr, never reported as bad input).
 """
 from __future__ import annotations
 
@@ -53,15 +57,14 @@ import sys
 import numpy as np
 
 from strapdown_ros.calibration.reference_spacing import parse_spacing
-from strapdown_ros.calibration.replay import calibrate_spaced, solution_record
 from strapdown_ros.calibration.streaming import CalibratorSettings
 from strapdown_ros.cli import check_outputs, FILE, OneLineParser, write_json
-from strapdown_ros.params import (check_against_recording, filled_in, load_model_file,
-                                  not_applied_note, parse_overrides)
+from strapdown_ros.params import load_model_file, parse_overrides
 from strapdown_ros.recording import (add_input_arguments, BagError, check_input_arguments,
-                                     input_lines, input_options, input_summary, input_warnings,
-                                     read_bag, recording_facts)
-from strapdown_ros.recording.options import frame_warnings, usable_error
+                                     input_lines, input_options)
+from strapdown_ros.runs.boresight import boresight_of_data, CONSUMERS
+from strapdown_ros.runs.source import (read_checked, recording_notes, RecordingSource,
+                                       UnusableRecording)
 
 __all__ = ['main', 'sigma_note', 'consistency_warning']
 
@@ -76,12 +79,12 @@ def _band_text(result: dict) -> str:
     return f" ({verdict}: band [{band[0]:.3g}, {band[1]:.3g}] at level {result['chi2_level']:g})"
 
 
-def _summary(bag: str, data: dict, result: dict) -> str:
-    g, c = data['gyro'], data['camera']
-    cov_from = ('covariance from the bag' if data['camera_covariance_from_bag']
+def _summary(bag: str, result: dict) -> str:
+    n, topic = result['messages'], result['topics']
+    cov_from = ('covariance from the bag' if result['camera_covariance_from_bag']
                 else 'assumed camera σ')
-    lines = [f"calibrate_bag: {bag}: {len(g.stamps)} Δθ from {data['gyro_topic']}, "
-             f"{len(c.stamps)} camera fixes from {data['camera_topic']} ({cov_from})"]
+    lines = [f"calibrate_bag: {bag}: {n['gyro']} Δθ from {topic['gyro']}, "
+             f"{n['camera']} camera fixes from {topic['camera']} ({cov_from})"]
     drops = {f'{k} {n}': v for k, d in result['dropped'].items() for n, v in d.items() if v}
     lines.append('  dropped: ' + (', '.join(f'{k} {v}' for k,
                                             v in drops.items()) if drops else 'none'))
@@ -250,6 +253,9 @@ def main(argv=None) -> int:
                          'fix) or seconds')
     add_input_arguments(ap)
     args = ap.parse_args(argv)
+
+    def say(text):
+        print(f'calibrate_bag: {text}', file=sys.stderr)
     try:
         check_input_arguments(args)
         spacing = parse_spacing(args.reference_spacing)
@@ -263,59 +269,28 @@ def main(argv=None) -> int:
         check_outputs([('--json', args.json, FILE)],
                       [('bag', args.bag), ('--params', args.params)], args.force)
         for w in mf.warnings:
-            print(f'calibrate_bag: warning: {w}', file=sys.stderr)
-        model = mf.model
-        data = read_bag(args.bag, args.namespace, settings.use_camera_covariance,
-                        tuple(model.camera_sigma), model.gyro_max_rate,
-                        settings.max_stamp_jump, settings.resync_count, **input_options(args))
-        model = check_against_recording(model, recording_facts(data))
+            say(f'warning: {w}')
+        source = RecordingSource(args.bag, args.namespace, **input_options(args))
+        data, model = read_checked(source, mf.model, settings.use_camera_covariance,
+                                   settings.max_stamp_jump, settings.resync_count)
     except (ValueError, OSError, BagError) as exc:
-        print(f'calibrate_bag: error: {exc}', file=sys.stderr)
+        say(f'error: {exc}')
         return 2
-    for line in input_warnings('calibrate_bag', data):
-        print(line, file=sys.stderr)
-    for line in filled_in(mf.model, model):
-        print(f'calibrate_bag: note: {line}', file=sys.stderr)
-    note = not_applied_note(model, ('gyro', 'reference'), 'calibrate_bag')
-    if note:
-        print(f'calibrate_bag: note: {note}', file=sys.stderr)
-    for line in frame_warnings('calibrate_bag', data, model.frame_id, model.reference_frame_id):
-        print(line, file=sys.stderr)
-
-    g, c = data['gyro'], data['camera']
-    unusable = usable_error(data)
-    if unusable:
-        print('\n'.join(input_lines(input_summary(data))))
-        print(f'calibrate_bag: error: {unusable}', file=sys.stderr)
+    inputs, frames, notes = recording_notes('calibrate_bag', data, mf.model, model, CONSUMERS)
+    for text in inputs + notes + frames:
+        say(text)
+    try:
+        run = boresight_of_data(data, model, settings, spacing)
+    except UnusableRecording as exc:               # what was read, then why it is not enough
+        print('\n'.join(input_lines(exc.summary)))
+        say(f'error: {exc}')
         return 2
-    sol, cal, discarded, choice = calibrate_spaced(data, model, settings, spacing)
-    result = solution_record(sol, settings.weighted)
-    result['reference_spacing'] = choice.as_dict()
-    result['covariance_model'] = settings.covariance_model
-    result['dropped'] = {'gyro': dict(g.dropped),
-                         'camera': {**c.dropped,
-                                    'zero_quaternion': data['camera_fixes']['zero_quaternion'],
-                                    'bad_covariance': data['camera_fixes']['bad_covariance']}}
-    result['gyro_gaps'] = {'gaps': g.check.gaps, 'missing': g.missing,
-                           'pairs_discarded': discarded,
-                           'dropouts': g.check.dropouts, 'stamp_bursts': g.check.bursts}
-    result['stamp_resyncs'] = {'gyro': g.resyncs, 'camera': c.resyncs}
-    result['pairs_replayed_not_added'] = cal.replayed_pairs         # stamps of a pair already held
-    period = data['gyro_period_s']
-    result['gyro_rate_from_stamps_hz'] = float(1.0 / period) if np.isfinite(period) else None
-    result['camera_fixes'] = {k: data['camera_fixes'][k] for k in ('normalised',
-                                                                   'covariance_substituted')}
-    result['camera_fixes']['outliers_dropped'] = cal.outlier_fixes
-    origin_s = min(g.stamps[0], c.stamps[0]) * 1e-9          # the replay's time origin
-    result['camera_fixes']['outlier_stamps_s'] = [float(t) + origin_s for t in cal.outlier_stamps]
-    result['messages'] = {'gyro': len(g.stamps), 'camera': len(c.stamps)}
-    result['topics'] = {'gyro': data['gyro_topic'], 'camera': data['camera_topic']}
-    result['camera_covariance_from_bag'] = data['camera_covariance_from_bag']
-    result['input'] = input_summary(data)
-    result['unread_messages'] = dict(data['unread_messages'])
-    if data['rate_samples']:
-        result['dropped']['gyro_rate_samples'] = dict(data['rate_samples']['dropped'])
-    print(_summary(args.bag, data, result))
+    except (ValueError, ArithmeticError) as exc:   # numerical: never reported as bad input
+        why = str(exc).splitlines()[0][:300] if str(exc) else type(exc).__name__
+        say(f'error: the calibration failed: {why}')
+        return 4
+    result = run.record
+    print(_summary(args.bag, result))
     print('\n'.join(input_lines(result['input'])))
     warning = consistency_warning(result) if result['observable'] else None
     if warning:
@@ -324,20 +299,19 @@ def main(argv=None) -> int:
         try:
             write_json(args.json, result, indent=2)
         except (OSError, ValueError) as exc:
-            print(f'calibrate_bag: error: {exc}', file=sys.stderr)
+            say(f'error: {exc}')
             return 2
     if not result['observable']:
-        if sol.pairs >= 2:
+        if result['pairs'] >= 2:
             advice = ('Record rotations about at least two non-parallel axes, well above the '
                       'reference noise.')
         else:
             advice = 'Needs two camera fixes whose interval the gyro data covers without a gap.'
-        print(f'calibrate_bag: boresight NOT observable from this bag: {sol.message}; '
-              'unobservable: '
-              f"{'; '.join(result['unobservable_axes'])}.  {advice}", file=sys.stderr)
+        say(f"boresight NOT observable from this bag: {result['message']}; unobservable: "
+            f"{'; '.join(result['unobservable_axes'])}.  {advice}")
         return 3
     if not result['converged']:
-        print(f'calibrate_bag: warning: {sol.message}', file=sys.stderr)
+        say(f"warning: {result['message']}")
         return 4
     return 0
 

@@ -36,6 +36,10 @@ existing one needs ``--force``; the files are written atomically and all or noth
 output to its temporary first, then all renamed into place; temporaries an earlier, killed run
 left are removed at start).
 
+The work is :func:`strapdown_ros.runs.discrepancy.analyse_discrepancies` (read, check the model,
+the workflow, the Allan comparison: the call the fleet makes too); this command checks the
+arguments, prints and writes.
+
 Exit status: 0 for every verdict (a fit inconsistent with its stated noise is printed with a line
 starting ``WARNING:``); 2, with one line on stderr, for unusable input (missing or malformed bag
 or model, no camera topic, too few fixes, a model key no node of the package knows); 3 when the
@@ -55,20 +59,18 @@ import numpy as np
 from strapdown_ros.calibration.reference_spacing import parse_spacing
 from strapdown_ros.cli import (all_or_nothing, check_outputs, DIRECTORY, FILE, OneLineParser,
                                write_json)
-from strapdown_ros.discrepancy.bag_input import load_recording, recording_lines
-from strapdown_ros.discrepancy.diagnostics import allan_comparison
+from strapdown_ros.discrepancy.bag_input import recording_lines
 from strapdown_ros.discrepancy.report import write_report
 from strapdown_ros.discrepancy.sentences import (boresight_sigma_sentence, consistency_warning,
                                                  remaining_sentences, repeatability_sentence,
                                                  sigma_sentence)
-from strapdown_ros.discrepancy.workflow import (analyse, AnalysisError, BoresightUnobservable,
-                                                DEFAULT_ALPHA, DiscrepancySettings, InputError,
-                                                json_clean)
-from strapdown_ros.params import (check_against_recording, filled_in, load_model_file,
-                                  not_applied_note, write_model_file)
+from strapdown_ros.discrepancy.workflow import (AnalysisError, DEFAULT_ALPHA,
+                                                DiscrepancySettings, InputError)
+from strapdown_ros.params import load_model_file, write_model_file
 from strapdown_ros.recording import (add_input_arguments, BagError, check_input_arguments,
-                                     input_options, input_warnings)
-from strapdown_ros.recording.options import frame_warnings
+                                     input_options)
+from strapdown_ros.runs.discrepancy import analyse_discrepancies
+from strapdown_ros.runs.source import RecordingSource
 
 __all__ = ['main', 'write_model']
 
@@ -242,35 +244,11 @@ def main(argv=None) -> int:
         if not args.quiet:
             print(f'discrepancy: [{time.perf_counter() - t0:6.1f} s] {text}', file=sys.stderr,
                   flush=True)
+    source = RecordingSource(args.bag, args.namespace, **input_options(args))
     try:
-        progress('reading the bag')
-        rec, info = load_recording(args.bag, model, mf.settings, args.namespace,
-                                   **input_options(args))
-        checked = check_against_recording(model, info['facts'])
-        frames = frame_warnings('discrepancy', info, model.frame_id, model.reference_frame_id)
-        for line in input_warnings('discrepancy', info) + frames:
-            print(line, file=sys.stderr)
-        for line in filled_in(model, checked):
-            print(f'discrepancy: note: {line}', file=sys.stderr)
-        note = not_applied_note(checked, ('gyro', 'reference', 'filter'), 'discrepancy')
-        if note:
-            print(f'discrepancy: note: {note}', file=sys.stderr)
-        model = checked
-        res = analyse(rec, model, settings, progress=progress)
-    except BoresightUnobservable as exc:
-        unobs = list(exc.report.unobservable) if exc.report is not None else []
-        if args.json:
-            try:
-                write_json(args.json, json_clean({'observable': False, 'message': str(exc),
-                                                  'unobservable': unobs, 'verdict': None,
-                                                  'input': info}))
-            except OSError as exc2:
-                print(f'discrepancy: error: {exc2}', file=sys.stderr)
-                return 2
-        print(f'discrepancy: boresight NOT observable from this bag: {exc}; unobservable: '
-              f"{'; '.join(unobs)}.  Record rotations about at least two non-parallel axes, "
-              f'well above the reference noise; no model written.', file=sys.stderr)
-        return 3
+        run = analyse_discrepancies(source, model, settings, mf.settings, progress=progress,
+                                    say=lambda text: print(f'discrepancy: {text}',
+                                                           file=sys.stderr))
     except (AnalysisError, np.linalg.LinAlgError, FloatingPointError, OverflowError) as exc:
         # a numerical failure is never reported as bad input (LinAlgError is a ValueError)
         msg = str(exc).splitlines()[0][:300] if str(exc) else type(exc).__name__
@@ -279,15 +257,20 @@ def main(argv=None) -> int:
     except (BagError, InputError, ValueError, OSError) as exc:
         print(f'discrepancy: error: {exc}', file=sys.stderr)
         return 2
-    progress('Allan deviation on static segments')
-    try:
-        allan = allan_comparison(rec.gyro_stamps, rec.delta_theta, model, res.found_model)
-    except Exception as exc:                       # the rest of the result stands
-        allan = {'error': str(exc)}
-    out = res.as_json()
-    out['allan'] = json_clean(allan)
-    out['input'] = json_clean(info)
-    print(_summary(args.bag, info, res))
+    if not run.observable:
+        if args.json:
+            try:
+                write_json(args.json, run.record)
+            except OSError as exc:
+                print(f'discrepancy: error: {exc}', file=sys.stderr)
+                return 2
+        print(f'discrepancy: boresight NOT observable from this bag: {run.message}; '
+              f"unobservable: {'; '.join(run.unobservable)}.  Record rotations about at least "
+              'two non-parallel axes, well above the reference noise; no model written.',
+              file=sys.stderr)
+        return 3
+    res, out = run.result, run.record
+    print(_summary(args.bag, run.info, res))
     made_report_dir = bool(args.report) and not Path(args.report).exists()
     try:
         with all_or_nothing():             # --json, --write-model and --report, or none

@@ -23,6 +23,7 @@ from strapdown_ros.params import (check_all, IMU_SIM_PARAMS, load_model_file,  #
                                   model_and_settings, STAR_CAMERA_PARAMS, write_model_file)
 from strapdown_ros.rotation import (dcm_to_quat, from_ros_xyzw, quat_angle_between,  # noqa: E402
                                     ypr_to_dcm)
+from strapdown_ros.runs import discrepancy as runs_discrepancy  # noqa: E402
 from strapdown_ros.sensors.effects import CANDIDATES, EFFECTS, GyroEffects  # noqa: E402
 from strapdown_ros.tools import calibrate_bag, discrepancy, record_sim  # noqa: E402
 
@@ -379,7 +380,7 @@ def test_analysis_failure_is_exit_4_not_bad_input(tmp_path, capsys, monkeypatch)
     def fail(*a, **k):
         raise core.AnalysisError('the analysis cannot be computed: the base fit failed '
                                  'numerically (test)')
-    monkeypatch.setattr(discrepancy, 'analyse', fail)   # the command's binding of it
+    monkeypatch.setattr(runs_discrepancy, 'analyse', fail)   # the library call's binding
     assert discrepancy.main([str(bag), '--model', str(_model(tmp_path)), '--quiet']) == 4
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and err[0].startswith('discrepancy: analysis failed:'), err
