@@ -179,8 +179,9 @@ def agreement_line(agree) -> str:
                  + ('(neither of them applied)' if agree.held_out else
                     '(fewer than 10 outputs away from applied fixes: not independent)'))
     else:
-        which = (f'at {agree.samples} ' + ('fixes it did not apply' if agree.held_out else
-                                          'fixes (fewer than 10 unapplied: not independent)'))
+        kind = ('fixes it did not apply' if agree.held_out else
+                'fixes (fewer than 10 unapplied: not independent)')
+        which = f'at {agree.samples} {kind}'
     ratio = ', '.join(f'{r:.3g}' for r in agree.rms_ratio)
     sig = ', '.join(f'{s:.3g}' for s in agree.sigma_rad)
     return (f'against the reference {which}, with a lag of '
