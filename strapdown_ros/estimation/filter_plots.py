@@ -5,7 +5,8 @@ From the filter's outputs (:class:`~strapdown_ros.estimation.filter_system.Filte
 fix results (:class:`~strapdown_ros.estimation.filter_system.FixOutput`): the innovation of
 every fix with its ±3σ (σ from S = HPHᵀ + R), the gyro bias and the augmented states with
 their ±1σ and ±3σ, the NIS with its χ²(3) band and the gate, and the fixes applied, gated and
-reset over time with the attitude σ.  Divergence resets are drawn in every plot.  matplotlib
+reset over time with the attitude σ, and (given a reference agreement) the residual against
+the reference with its ±3σ.  Divergence resets are drawn in every plot but the last.  matplotlib
 is imported here only (an optional extra); no ROS imports.
 """
 from __future__ import annotations
@@ -20,7 +21,7 @@ from strapdown_ros.sensors.effects import EFFECTS
 __all__ = ['PLOT_NAMES', 'write_filter_plots']
 
 #: the files :func:`write_filter_plots` writes (the output rule checks them)
-PLOT_NAMES = ('innovation.png', 'states.png', 'nis.png', 'resets.png')
+PLOT_NAMES = ('innovation.png', 'states.png', 'nis.png', 'resets.png', 'reference.png')
 
 _MARK = {'applied': ('C0', '.', 'applied'), 'gated': ('C3', 'x', 'gated'),
          'reset': ('m', 'v', 'reset (divergence)')}
@@ -43,7 +44,8 @@ def _unit_scale(name: str) -> tuple[float, str]:
     return 1.0, unit
 
 
-def write_filter_plots(outdir: str, outputs, fixes, gate_probability: float) -> list[str]:
+def write_filter_plots(outdir: str, outputs, fixes, gate_probability: float,
+                       agreement=None) -> list[str]:
     """
     Write the plots of one filter run.
 
@@ -57,11 +59,15 @@ def write_filter_plots(outdir: str, outputs, fixes, gate_probability: float) -> 
         The fix results, in processing order.
     gate_probability : float
         The χ²(3) probability of the gate.
+    agreement : ReferenceAgreement, optional
+        The outputs against the reference
+        (:func:`strapdown_ros.estimation.reference_check.agreement_with_fixes`): with its
+        series, ``reference.png`` shows the residual per VF axis with the ±3σ stated.
 
     Returns
     -------
     list of str
-        The paths written (:data:`PLOT_NAMES`).
+        The paths written (:data:`PLOT_NAMES`; ``reference.png`` with an agreement only).
 
     """
     import matplotlib
@@ -169,4 +175,29 @@ def write_filter_plots(outdir: str, outputs, fixes, gate_probability: float) -> 
     ax2.grid(alpha=0.3, which='both')
     ax2.legend(fontsize=8, loc='upper right')
     paths.append(save_figure(fig, outdir, PLOT_NAMES[3]))
+    if agreement is not None and agreement.series is not None:
+        paths.append(_reference_plot(plt, outdir, agreement, (outputs[0].stamp_ns - t0) * 1e-9))
     return paths
+
+
+def _reference_plot(plt, outdir: str, agreement, shift: float) -> str:
+    """Write reference.png: the residual against the reference per VF axis, with ±3σ."""
+    ser = agreement.series
+    t = np.asarray(ser['t']) + shift
+    r, sig = np.asarray(ser['residual']) * 1e3, np.asarray(ser['sigma']) * 1e3
+    fig, axs = plt.subplots(3, 1, figsize=(10, 8), sharex=True)
+    for i, ax in enumerate(axs):
+        ax.fill_between(t, -3 * sig[:, i], 3 * sig[:, i], color='C0', alpha=0.2, lw=0,
+                        label='±3σ stated (the filter and the reference)')
+        ax.plot(t, r[:, i], '.', ms=2, color='C3', label='filter − reference')
+        ax.set_ylabel(f"VF {'xyz'[i]}, mrad")
+        ax.grid(alpha=0.3)
+        ax.set_title(f'RMS / σ = {agreement.rms_ratio[i]:.3g}', fontsize=9, loc='right')
+    axs[0].legend(fontsize=8, loc='lower left', bbox_to_anchor=(0.0, 1.02), ncol=2,
+                  frameon=False)
+    axs[-1].set_xlabel('time since the first stamp, s')
+    which = 'fixes it did not apply' if agreement.held_out else 'every fix'
+    fig.suptitle(f'Attitude against the reference ({which}; lag {agreement.lag_s * 1e3:.3g} ms '
+                 f'and a constant rotation taken out): {100 * agreement.within_3_sigma:.1f}% '
+                 'within 3σ', fontsize=10)
+    return save_figure(fig, outdir, PLOT_NAMES[4])

@@ -54,6 +54,9 @@ class ReferenceAgreement:
     at : str
         Whose stamps the samples are: ``reference`` (the filter interpolated) or ``filter``
         (the reference interpolated to the outputs).
+    series : dict or None
+        The samples for a plot: ``t`` (n,) s, ``residual`` (n, 3) and ``sigma`` (n, 3) rad, VF
+        axes (not in :meth:`as_dict`).
 
     """
 
@@ -66,10 +69,11 @@ class ReferenceAgreement:
     within_3_sigma: float
     held_out: bool = False
     at: str = 'reference'
+    series: dict | None = None
 
     def as_dict(self) -> dict:
-        """Return the record as plain JSON values."""
-        return dict(self.__dict__)
+        """Return the record as plain JSON values (without the series)."""
+        return {k: v for k, v in self.__dict__.items() if k != 'series'}
 
 
 def _interp(t_out, q_out, sig_out, t):
@@ -177,7 +181,8 @@ def reference_agreement(t_out, q_out, sigma_out, t_ref, q_ref, sigma_ref,
             return np.inf, None
         q_b = _boresight(q_f, q_r)
         r = _residuals(q_f, q_r, q_b)
-        return float(np.mean(np.sum(r ** 2, axis=1))), (sel, s_f, s_r, q_b, r)
+        t_at = (t_ref - lag)[sel] if at == 'reference' else t_out[sel]   # filter time
+        return float(np.mean(np.sum(r ** 2, axis=1))), (sel, s_f, s_r, q_b, r, t_at)
 
     lags = np.linspace(-max_lag, max_lag, 81)
     costs = [cost(x)[0] for x in lags]
@@ -193,7 +198,7 @@ def reference_agreement(t_out, q_out, sigma_out, t_ref, q_ref, sigma_ref,
         else:
             lo = a
     lag = 0.5 * (lo + hi)
-    _, (sel, s_f, s_r, q_b, r) = cost(lag)
+    _, (sel, s_f, s_r, q_b, r, t_at) = cost(lag)
     # the filter's σ in VF axes: C_VF^body diag(σ²) C_body^VF (its diagonal), with the reference's
     C = quat_to_dcm(q_b)                              # VF → body
     var_vf = np.einsum('ji,nj,ji->ni', C, s_f ** 2, C)
@@ -205,7 +210,8 @@ def reference_agreement(t_out, q_out, sigma_out, t_ref, q_ref, sigma_ref,
         rms_rad=[float(x) for x in np.sqrt(np.mean(r ** 2, axis=0))],
         sigma_rad=[float(x) for x in np.sqrt(np.mean(sig ** 2, axis=0))],
         rms_ratio=[float(x) for x in np.sqrt(np.mean(z ** 2, axis=0))],
-        within_3_sigma=float(np.mean(np.abs(z) <= 3.0)), at=at)
+        within_3_sigma=float(np.mean(np.abs(z) <= 3.0)), at=at,
+        series={'t': t_at, 'residual': r, 'sigma': sig})
 
 
 def agreement_with_fixes(outputs, fix_stamps_ns, fixes, applied_ns=(), noise_scale=None,

@@ -217,7 +217,7 @@ def main(argv=None) -> int:
                     help='set one parameter (model key or setting), as ros2 run -p; repeatable')
     ap.add_argument('--plots', metavar='DIR', help='write PNG plots into DIR: the innovation '
                     'with its ±3σ, the bias and augmented states with their σ, the NIS with its '
-                    'band, the fixes applied, gated and reset')
+                    'band, the fixes applied, gated and reset, the attitude against the reference')
     ap.add_argument('--namespace', default='', help='topic namespace')
     ap.add_argument('--force', action='store_true', help='replace existing outputs')
     add_input_arguments(ap)
@@ -305,7 +305,7 @@ def main(argv=None) -> int:
         try:
             Path(args.plots).mkdir(parents=True, exist_ok=True)
             written = write_filter_plots(args.plots, outputs, fixes,
-                                         settings.gate_probability)
+                                         settings.gate_probability, agree)
         except OSError as exc:
             print(f'filter_bag: error: {exc}', file=sys.stderr)
             return 2
