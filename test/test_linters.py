@@ -18,9 +18,15 @@ PATHS = [str(REPO / 'strapdown_ros'), str(REPO / 'test'), str(REPO / 'setup.py')
 
 
 @pytest.mark.linter
-def test_flake8():
-    """Run ament_flake8: no code style errors or warnings."""
+def test_flake8(tmp_path, monkeypatch):
+    """
+    Run ament_flake8: no code style errors or warnings.
+
+    ament_flake8 walks its working directory for AMENT_IGNORE markers, the virtual environment
+    included; from an empty directory it checks the same absolute paths in 2/3 of the time.
+    """
     main_with_errors = pytest.importorskip('ament_flake8.main').main_with_errors
+    monkeypatch.chdir(tmp_path)
     rc, errors = main_with_errors(argv=PATHS)
     assert rc == 0, f'Found {len(errors)} code style errors / warnings:\n' + '\n'.join(errors)
 
