@@ -8,8 +8,10 @@ cannot support a value it says so and writes a stated default.  The rules:
 * **rate and frames**: the gyro rate from the median step of the stamps; ``frame_id`` and
   ``reference_frame_id`` from the most frequent header frame ids; ``camera_frame_id`` from the
   child frame of a TF or Odometry reference.
-* **clip level**: samples that sit at one rail (at least :data:`RAIL_COUNT` rates within
-  1e-6 of the largest |rate| of an axis, above 1 rad/s) name the gyro's range; ``gyro_max_rate``
+* **clip level** (:func:`clip_level`): samples that sit at one rail (at least
+  :data:`RAIL_COUNT` rates within 1e-6 of the largest |rate| of an axis, above 1 rad/s) name
+  the gyro's range (a top reached within 0.2 % in several separate visits, :func:`noisy_rail`,
+  is reported as a possible clip level); ``gyro_max_rate``
   is then 1.05 × the rail, so that the clipped samples are read (their rotation is
   underestimated, and said so).  Otherwise 1.5 × the largest rate seen, at least the MEMS default
   of :data:`DEFAULT_MAX_RATE`.
@@ -54,13 +56,19 @@ from strapdown_ros.calibration.pairs import build_pairs, GyroRecord, pair_residu
 from strapdown_ros.discrepancy.diagnostics import static_segments
 from strapdown_ros.rotation import (dcm_to_ypr, quat_conjugate, quat_multiply, quat_to_dcm,
                                     quat_to_rotvec)
-from strapdown_ros.sensors.sensor_model import SensorModel
+from strapdown_ros.sensors.sensor_model import model_keys, SensorModel
 
-__all__ = ['NominalModel', 'nominal_model', 'RAIL_COUNT', 'DEFAULT_MAX_RATE', 'MIN_REST_S',
+__all__ = ['NominalModel', 'nominal_model', 'clip_level', 'noisy_rail', 'RAIL_COUNT',
+           'RAIL_TOLERANCE',
+           'RAIL_VISITS', 'DEFAULT_MAX_RATE', 'MIN_REST_S',
            'MAX_REST_RATE', 'MAX_REST_TURN_DEG', 'MIN_INSTABILITY_REST_S', 'DEFAULT_BIAS_SIGMA']
 
 #: rates at one rail that name the gyro's clip level
 RAIL_COUNT = 3
+#: a rail with noise on it: the samples within this fraction of the axis' largest |rate| ...
+RAIL_TOLERANCE = 2e-3
+#: ... reached in at least this many separate visits
+RAIL_VISITS = 3
 #: gyro range of a MEMS gyro when the data show none, rad/s (about 2000 °/s)
 DEFAULT_MAX_RATE = 35.0
 #: a quiet window: the rate varies by less than this, rad/s (used when nothing is still)
@@ -113,9 +121,33 @@ def _most_common(frames) -> str | None:
     return Counter(frames).most_common(1)[0][0] if frames else None
 
 
-def _clip_level(rates: np.ndarray):
-    """(rail rad/s or None, axis, count, largest |rate|) of the rate samples."""
-    a = np.abs(rates)
+def clip_level(rates: np.ndarray):
+    """
+    Return the gyro's clip level as the rate samples show it, or None.
+
+    An axis clips when its largest |rate| (above 1 rad/s) is reached by :data:`RAIL_COUNT`
+    samples within 1e-6: a flat rail.
+
+    Parameters
+    ----------
+    rates : (n, 3) ndarray
+        Rate samples, rad/s.
+
+    Returns
+    -------
+    rail : float or None
+        The clip level, rad/s (the largest |rate| of that axis).
+    axis : int or None
+        Its axis.
+    count : int
+        The samples at it.
+    top : float
+        The largest |rate| of any axis, rad/s.
+
+    """
+    a = np.abs(np.asarray(rates, dtype=float)).reshape(-1, 3)
+    if len(a) == 0:
+        return None, None, 0, 0.0
     top = a.max(axis=0)
     best = (None, None, 0)
     for ax in range(3):
@@ -125,6 +157,45 @@ def _clip_level(rates: np.ndarray):
         if n >= RAIL_COUNT and n > best[2]:
             best = (float(top[ax]), ax, n)
     return best[0], best[1], best[2], float(top.max())
+
+
+def noisy_rail(rates: np.ndarray):
+    """
+    Return a level the rate keeps returning to, within :data:`RAIL_TOLERANCE`, or None.
+
+    A gyro whose output near saturation carries a little noise sits on no flat rail, but the
+    motion returns to the same top, within 0.2 %, in :data:`RAIL_VISITS` or more separate visits
+    (a natural motion seldom does; a rate table of constant amplitude does too).  It is reported
+    as a possible clip level, not used as the gyro's range.
+
+    Parameters
+    ----------
+    rates : (n, 3) ndarray
+        Rate samples, rad/s.
+
+    Returns
+    -------
+    level : float or None
+        The largest |rate| of that axis, rad/s.
+    axis : int or None
+        Its axis.
+    count : int
+        The samples within the tolerance.
+    visits : int
+        The separate visits.
+
+    """
+    a = np.abs(np.asarray(rates, dtype=float)).reshape(-1, 3)
+    best = (None, None, 0, 0)
+    for ax in range(3 if len(a) else 0):
+        top = a[:, ax].max()
+        if top <= 1.0:
+            continue
+        near = a[:, ax] >= top * (1.0 - RAIL_TOLERANCE)
+        visits = int(np.sum(near[1:] & ~near[:-1]) + near[0])
+        if visits >= RAIL_VISITS and int(near.sum()) > best[2]:
+            best = (float(top), ax, int(near.sum()), visits)
+    return best
 
 
 def _adev(rate: np.ndarray, fs: float, taus: np.ndarray):
@@ -232,7 +303,21 @@ def nominal_model(stamps_ns, delta_theta, fix_stamps_ns, fix_q, facts: dict,
     values, rules, notes, measured = {}, {}, [], {}
     settings, setting_rules = {}, {}
 
+    bounds = {k.name: (k.minimum, k.maximum) for k in model_keys()}
+
     def put(key, value, rule):
+        lo, hi = bounds.get(key, (None, None))
+        if isinstance(value, float) and hi is not None and value > hi:
+            notes.append(f'{key}: the data say {value:.6g}, beyond the largest value the key '
+                         f'takes ({hi:g}): {hi:g} is written; such a value means the data break '
+                         'the rule behind it (a clipping gyro, a reference that jumps)')
+            rule = f'{rule}; {value:.6g} from the data, above the key\'s range: its maximum'
+            value = float(hi)
+        elif isinstance(value, float) and lo is not None and value < lo:
+            notes.append(f'{key}: the data say {value:.6g}, below the key\'s range: {lo:g} is '
+                         'written')
+            rule = f'{rule}; {value:.6g} from the data, below the key\'s range: its minimum'
+            value = float(lo)
         values[key] = value
         rules[key] = rule
 
@@ -253,7 +338,7 @@ def nominal_model(stamps_ns, delta_theta, fix_stamps_ns, fix_q, facts: dict,
     # ---- clip level
     h = np.concatenate([[T], steps])
     rates = dth / h[:, None]
-    rail, axis, count, top = _clip_level(rates)
+    rail, axis, count, top = clip_level(rates)
     measured['largest_rate_rad_s'] = top
     if rail is not None:
         put('gyro_max_rate', round(1.05 * rail, 6),
@@ -266,6 +351,14 @@ def nominal_model(stamps_ns, delta_theta, fix_stamps_ns, fix_q, facts: dict,
         put('gyro_max_rate', round(max(DEFAULT_MAX_RATE, 1.5 * top), 6),
             f'1.5 × the largest rate seen ({top:.4g} rad/s), at least {DEFAULT_MAX_RATE:g} '
             '(no rail in the data)')
+        level, ax, n, visits = noisy_rail(rates)
+        if level is not None:
+            notes.append(f'POSSIBLE CLIPPING: the rate about {"xyz"[ax]} returns to {level:.6g} '
+                         f'rad/s within {100 * RAIL_TOLERANCE:g} % in {visits} separate visits '
+                         f'({n} samples): a gyro that saturates with noise on its output, or a '
+                         'motion of constant amplitude; if the gyro clips there, its rotation is '
+                         'underestimated there and the fits will show it')
+            measured['possible_clip_level_rad_s'] = level
 
     # ---- the reference at any time (nearest fix within two reference steps)
     fix_step = float(np.median(np.diff(tf))) if len(tf) > 1 else np.inf
@@ -408,10 +501,12 @@ def nominal_model(stamps_ns, delta_theta, fix_stamps_ns, fix_q, facts: dict,
                      'default camera σ is not stated')
     if 'camera_sigma_xy' in values:
         cam = max(values['camera_sigma_xy'], values['camera_sigma_z'])
-        settings['max_sigma'] = float(max(1e-3, MAX_SIGMA_FACTOR * cam))
+        # within the setting's range (≤ 1 rad: a direction known worse is no estimate)
+        settings['max_sigma'] = float(min(max(1e-3, MAX_SIGMA_FACTOR * cam), 1.0))
         setting_rules['max_sigma'] = (f'calibrator and discrepancy: a boresight direction counts '
                                       f'as observable when known to {MAX_SIGMA_FACTOR:g} × the '
-                                      'reference σ (at least 1e-3 rad, the star-camera default)')
+                                      'reference σ (at least 1e-3 rad, the star-camera default; '
+                                      'at most 1 rad)')
     model = SensorModel.from_values(values, stated=set(values), provenance=rules,
                                     source='nominal_model')
     return NominalModel(model, settings, setting_rules, notes, measured)

@@ -12,6 +12,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from strapdown_ros.discrepancy.nominal import clip_level, noisy_rail
 from strapdown_ros.params import load_model_file
 from strapdown_ros.tools import nominal_model, record_sim
 
@@ -70,3 +71,33 @@ def test_noise_and_bias(found):
     b, s = np.asarray(m.effect_value('gyro_bias')), m.effect_sigma('gyro_bias')
     assert np.all(np.abs(b - BIAS) <= 3.0 * s), (b, s)
     assert s < 2e-4                                               # 60 s of rest: well known
+
+
+def test_a_flat_rail_is_the_clip_level_and_a_noisy_one_is_reported():
+    """
+    A flat rail, a rail with 0.05 % noise, and smooth peaks.
+
+    Truth: the rail is where the simulated sensor stops the rate (7.36 rad/s on x).  A flat
+    rail is the clip level; a noisy one is no clip level but is reported as a possible one (five
+    visits); a sinusoid of 0.2 Hz at 100 Hz whose peaks differ by 1 % from one to the next is
+    neither.
+    """
+    rng = np.random.default_rng(1)
+    t = np.arange(0.0, 25.0, 0.01)
+    w = np.zeros((len(t), 3))
+    w[:, 0] = 9.0 * np.sin(2 * np.pi * 0.2 * t)
+    w[:, 1] = 0.5
+    w += rng.normal(0.0, 1e-3, w.shape)                           # the gyro's white noise
+    flat = w.copy()
+    flat[:, 0] = np.clip(flat[:, 0], -7.36, 7.36)
+    rail, axis, count, _ = clip_level(flat)
+    assert (rail, axis) == (pytest.approx(7.36), 0) and count > 100
+    noisy = flat.copy()
+    at = np.abs(noisy[:, 0]) >= 7.36
+    noisy[at, 0] *= 1.0 - 5e-4 * (1.0 + rng.random(int(at.sum())))
+    assert clip_level(noisy)[0] is None
+    level, axis, count, visits = noisy_rail(noisy)
+    assert axis == 0 and level == pytest.approx(7.36, rel=1e-3) and count > 100 and visits >= 5
+    smooth = w.copy()
+    smooth[:, 0] *= 1.0 + 0.01 * np.floor(t / 2.5)              # each peak 1 % above the last
+    assert clip_level(smooth)[0] is None and noisy_rail(smooth)[0] is None
