@@ -311,12 +311,12 @@ def nominal_model(stamps_ns, delta_theta, fix_stamps_ns, fix_q, facts: dict,
             notes.append(f'{key}: the data say {value:.6g}, beyond the largest value the key '
                          f'takes ({hi:g}): {hi:g} is written; such a value means the data break '
                          'the rule behind it (a clipping gyro, a reference that jumps)')
-            rule = f'{rule}; {value:.6g} from the data, above the key\'s range: its maximum'
+            rule = f"{rule}; {value:.6g} from the data, above the key's range: its maximum"
             value = float(hi)
         elif isinstance(value, float) and lo is not None and value < lo:
-            notes.append(f'{key}: the data say {value:.6g}, below the key\'s range: {lo:g} is '
+            notes.append(f"{key}: the data say {value:.6g}, below the key's range: {lo:g} is "
                          'written')
-            rule = f'{rule}; {value:.6g} from the data, below the key\'s range: its minimum'
+            rule = f"{rule}; {value:.6g} from the data, below the key's range: its minimum"
             value = float(lo)
         values[key] = value
         rules[key] = rule
