@@ -16,7 +16,7 @@ described in doc/discrepancy.md.  No ROS imports.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, fields
+from dataclasses import dataclass, fields, replace
 
 import numpy as np
 
@@ -517,10 +517,42 @@ class _Search:
         return False
 
     # ------------------------------------------------------------------ the final fit
+    def judge_again(self, noise: dict) -> None:
+        """
+        Judge the observability again with the reference noise found, as calibrate_bag will.
+
+        The first judgement used the stated fix noise; where the search found the reference
+        noisier (``camera_noise_scale`` above 1), the found model makes ``calibrate_bag`` and the
+        calibrator judge the same motion against that noise, so the workflow does too.
+
+        Parameters
+        ----------
+        noise : dict
+            The noise terms found.
+
+        Raises
+        ------
+        BoresightUnobservable
+            The motion does not determine the boresight against the noise found.
+
+        """
+        scale = noise.get('camera_noise_anisotropy')
+        if scale is None or not np.any(np.asarray(scale, dtype=float) > 1.0):
+            return
+        self.stage = 'observability with the noise found'
+        e = EFFECTS['camera_noise_anisotropy']
+        rec = replace(self.rec, fix_P=e.fix_covariance(self.rec.fix_P, np.asarray(scale)))
+        rep = boresight_observability(rec, self.params, self.epoch)
+        if not rep.observable:
+            rep.message = ('with the reference noise found (camera_noise_scale '
+                           f"{', '.join(f'{k:.3g}' for k in scale)}): {rep.message}")
+            raise BoresightUnobservable(rep.message, rep)
+
     def result(self) -> DiscrepancyResult:
         """Fit the final model jointly, judge its residuals, and assemble the result."""
         self.stage = 'the final joint fit'
         rec, free, noise, steps = self.rec, self.free, self.noise, self.steps
+        self.judge_again(noise)
         lin = Linearisation(rec, self.params, self.C, self.epoch)
         final = lin.evaluate(free, noise)
         tests_after = diagnostics.verdict_tests(final.whitened, len(lin.pairs), self.a_tests,

@@ -19,8 +19,9 @@ import pytest
 from strapdown_ros.calibration.pairs import GyroRecord
 from strapdown_ros.discrepancy.diagnostics import allan_comparison, static_segments
 from strapdown_ros.discrepancy.synthetic import simulate_recording
-from strapdown_ros.discrepancy.workflow import (analyse, AnalysisError, DiscrepancySettings,
-                                                InputError, json_clean, Recording, STOPPED_BY)
+from strapdown_ros.discrepancy.workflow import (analyse, AnalysisError, BoresightUnobservable,
+                                                DiscrepancySettings, InputError, json_clean,
+                                                Recording, STOPPED_BY)
 from strapdown_ros.params import check_all, IMU_SIM_PARAMS, model_and_settings, STAR_CAMERA_PARAMS
 from strapdown_ros.rotation import quat_multiply, rotvec_to_quat
 from strapdown_ros.sensors.effects import CANDIDATES
@@ -54,7 +55,9 @@ def test_reference_noisier_in_motion_never_crashes(extra_sigma):
     Reference noisier in motion never crashes.
 
     Extra camera noise (10× to 1700× the stated 0.6″) only on the fixes taken while turning:
-    the camera-noise fit used to run off (scale 2e9) and crash the analysis as 'bad input'.
+    the camera-noise fit used to run off (scale 2e9) and crash the analysis as 'bad input'.  With
+    the noise found that large, the boresight may fall beyond ``max_sigma``: then it is stated
+    unobservable (as calibrate_bag would with the found model), never a crash.
 
     Parameters
     ----------
@@ -67,7 +70,11 @@ def test_reference_noisier_in_motion_never_crashes(extra_sigma):
     assert 40 < moving.sum() < 150
     noise = np.random.default_rng(1).normal(0.0, extra_sigma, (len(moving), 3)) * moving[:, None]
     rec.fix_q = quat_multiply(rec.fix_q, rotvec_to_quat(noise))
-    r = analyse(rec, *_model())
+    try:
+        r = analyse(rec, *_model())
+    except BoresightUnobservable as exc:    # a stated outcome: the noise found is too large
+        assert extra_sigma >= 3e-4 and 'reference noise found' in str(exc)
+        return
     assert r.verdict in VERDICTS
     assert r.stopped_by in STOPPED_BY
     js = json.loads(json.dumps(r.as_json()))
