@@ -677,11 +677,15 @@ def validate(stamps_ns, values, check: StreamCheck):
     are strictly increasing.  The index in the output where each time base after a
     resynchronisation starts is left in ``check.segment_starts`` (empty without one).
 
+    Arrays are taken at array speed: the regular stretches by :meth:`StreamCheck.offer_many`
+    (the counters and the output those of offering every message in turn), each other message
+    by :meth:`StreamCheck.offer`.
+
     Parameters
     ----------
-    stamps_ns : iterable of int
+    stamps_ns : iterable of int, or ndarray (n,) int64
         Stamps, ns, in bag order.
-    values : iterable of sequence of float
+    values : iterable of sequence of float, or ndarray (n, 3)
         The vectors.
     check : StreamCheck
         The stream's rules and counters (updated).
@@ -691,41 +695,88 @@ def validate(stamps_ns, values, check: StreamCheck):
     stamps : list of int
         The accepted stamps, ns, in order.
     values : list
-        The accepted vectors.
+        The accepted vectors (rows of ``values`` when it is an array).
     gaps : list of (int, int)
         Intervals (a, b), ns, that no increment pair may span: gaps (rule 6, dropouts and
         returns from a burst included) and confirmed resynchronisations
         (last stamp before, first after; b < a for a backward jump).
 
     """
-    out_t, out_v, gaps = [], [], []
-    starts: list[int] = []
-    marks: list[tuple[int, int, int]] = []       # (len(out_t), len(gaps), len(starts)) per jump
-    for ns, v in zip(stamps_ns, values):
+    run = _Validation(check)
+    if isinstance(values, np.ndarray) and values.ndim == 2 and values.shape[1] == 3:
+        st = np.asarray(stamps_ns, dtype=np.int64).reshape(-1)
+        i, n, width = 0, len(st), 64
+        while i < n:
+            before = check.last_ns
+            k = check.offer_many(st[i:i + width], values[i:i + width])
+            if k:
+                run.many(st[i:i + k], values[i:i + k], before)
+                full = k == min(width, n - i)
+                i += k
+                width = min(2 * width, 1 << 16) if full else 64
+                continue
+            width = 64
+            run.one(int(st[i]), values[i])
+            i += 1
+    else:
+        for ns, v in zip(stamps_ns, values):
+            run.one(int(ns), v)
+    check.segment_starts = run.starts
+    return run.out_t, run.out_v, run.gaps
+
+
+class _Validation:
+    """The output of :func:`validate` as messages are offered (one by one, or many at once)."""
+
+    def __init__(self, check: StreamCheck):
+        self.check = check
+        self.out_t: list = []
+        self.out_v: list = []
+        self.gaps: list = []
+        self.starts: list[int] = []
+        self.marks: list[tuple[int, int, int]] = []    # (len(out_t), len(gaps), len(starts))
+
+    def many(self, st: np.ndarray, v: np.ndarray, before: int | None) -> None:
+        """
+        Take messages :meth:`StreamCheck.offer_many` accepted (steps within the jump limit).
+
+        ``before`` is the check's last stamp before them.
+        """
+        after_gap = self.check.gap_marks
+        if after_gap:
+            where = np.searchsorted(st, np.asarray(after_gap, dtype=np.int64))
+            for j, s in zip(where.tolist(), after_gap):
+                prev = int(st[j - 1]) if j > 0 else before
+                if prev is not None:
+                    self.gaps.append((prev, int(s)))
+        self.out_t.extend(st.tolist())
+        self.out_v.extend(v)
+
+    def one(self, ns: int, v) -> None:
+        """Offer one message and take what the check releases."""
+        check, out_t, gaps, starts = self.check, self.out_t, self.gaps, self.starts
         prev = check.last_ns
-        got = check.offer(int(ns), v)
+        got = check.offer(ns, v)
         if not got:
-            continue
+            return
         if check.returned:
-            n_out, n_gaps, n_starts = marks.pop() if marks else (len(out_t) - check.retracted,
-                                                                 len(gaps), len(starts))
-            del out_t[n_out:], out_v[n_out:], gaps[n_gaps:], starts[n_starts:]
+            n_out, n_gaps, n_starts = self.marks.pop() if self.marks else (
+                len(out_t) - check.retracted, len(gaps), len(starts))
+            del out_t[n_out:], self.out_v[n_out:], gaps[n_gaps:], starts[n_starts:]
             prev = out_t[-1] if out_t else None
         elif check.resynced or (prev is not None and got[0][0] - prev > check.jump_ns):
-            marks = [(len(out_t), len(gaps), len(starts))]    # the state a return goes back to
+            self.marks = [(len(out_t), len(gaps), len(starts))]   # the state a return goes to
             if check.resynced and out_t:
-                gaps.append((out_t[-1], got[0][0]))         # across the jump (either direction)
+                gaps.append((out_t[-1], got[0][0]))          # across the jump (either direction)
                 starts.append(len(out_t))
                 prev = None
         after_gap = check.gap_marks
         for s, val in got:
-            if prev is not None and s in after_gap:        # rule 6, as the check judged it
+            if prev is not None and s in after_gap:          # rule 6, as the check judged it
                 gaps.append((prev, s))
             out_t.append(s)
-            out_v.append(val)
+            self.out_v.append(val)
             prev = s
-    check.segment_starts = starts
-    return out_t, out_v, gaps
 
 
 def segments(stamps_ns, starts) -> list[tuple[int, int]]:

@@ -135,3 +135,52 @@ def test_raw_decoder_big_endian_and_garbage():
     for junk in (b'\x00\x01\x00\x00' + b'\xff' * 12, b'\x07\x07', b'\x00\x01\x00\x00\x01\x00',
                  b'', b'\x00'):
         assert decode_vector3_stamped(junk) is None
+
+
+faults = st.lists(st.tuples(st.integers(0, 6), st.floats(0, 1), st.integers(1, 400)), max_size=12)
+
+
+@settings(max_examples=80, deadline=None)
+@given(st.integers(5, 2500), faults, st.integers(0, 2**32 - 1))
+def test_validate_at_array_speed_equals_message_by_message(n, fault_list, seed):
+    """
+    validate() over arrays (the regular stretches at once) against one message at a time.
+
+    Stamps, values, gaps, time bases and every counter must be the same, whatever the faults:
+    NaN, out of range, duplicates, clock steps both ways, bursts that return, dropouts, outliers.
+    """
+    from strapdown_ros.streams.checks import validate
+
+    rng = np.random.default_rng(seed)
+    t = np.cumsum(np.full(n, 10_000_000)).astype(np.int64)
+    v = rng.normal(0.0, 1e-3, (n, 3))
+    for kind, where, size in fault_list:
+        k = int(where * (len(t) - 1))
+        if kind == 0:
+            v[k, 0] = np.nan
+        elif kind == 1:
+            v[k] = 1.0
+        elif kind == 2 and k:
+            t[k] = t[k - 1]
+        elif kind == 3:
+            t[k:] += (size - 200) * 10_000_000
+        elif kind == 4:
+            t[k:k + size % 8 + 1] += 5_000_000_000
+        elif kind == 5 and len(t) > size + 2:
+            keep = np.ones(len(t), bool)
+            keep[k:k + size % 30 + 1] = False
+            t, v = t[keep], v[keep]
+        elif kind == 6:
+            t[k] -= 3_000_000_000
+    a = StreamCheck(0.01, max_norm=0.5, jump_limit=1.0, resync_count=5)
+    b = StreamCheck(0.01, max_norm=0.5, jump_limit=1.0, resync_count=5)
+    one = validate(t.tolist(), [tuple(x) for x in v.tolist()], a)
+    many = validate(t, v, b)
+    assert one[0] == many[0] and one[2] == many[2]
+    np.testing.assert_array_equal(np.array(one[1]).reshape(-1, 3),
+                                  np.array(many[1]).reshape(-1, 3))
+    assert a.segment_starts == b.segment_starts
+    for name in ('received', 'accepted', 'nan', 'duplicate', 'out_of_order', 'out_of_range',
+                 'gaps', 'missing', 'resyncs', 'stamp_outliers', 'burst_messages', 'period_ns',
+                 'largest_out_of_range', 'last_ns'):
+        assert getattr(a, name) == getattr(b, name), name
