@@ -34,6 +34,12 @@ The number of messages read per topic is compared with the bag's own index (rosb
 connections' message counts): a chunk the storage reader skipped (a corrupt record, an unknown
 opcode) shows as ``unread_messages`` instead of passing silently.
 
+Speed: one MCAP file with a chunk index whose two topics have a fixed plain-CDR layout (every
+type above but TFMessage and Odometry) is read a chunk at a time
+(:mod:`strapdown_ros.recording.mcap_records`, as ``sins_bag`` reads) and its stream rules run at
+array speed (:func:`strapdown_ros.streams.checks.validate`); any other bag record by record
+through rosbags.  Both give the same streams and counts (test/recording/test_reader_paths.py).
+
 rosbags is an optional extra (``tools``); only the offline tools import this module.
 """
 from __future__ import annotations
@@ -46,6 +52,7 @@ import numpy as np
 from rosbags.highlevel import AnyReader
 from rosbags.typesys import get_typestore, Stores
 
+from strapdown_ros.recording.mcap_records import channel_ids, indexed_mcap, read_topics
 from strapdown_ros.rotation import from_ros_xyzw, quat_conjugate
 from strapdown_ros.streams.cdr import stamped_doubles
 from strapdown_ros.streams.checks import nominal_period, StreamCheck, validate
@@ -355,45 +362,83 @@ _LAYOUT = {
 _IMU_RATE, _IMU_RATE_COV = 13, 16            # angular_velocity, angular_velocity_covariance[0]
 
 
-def _decode_records(reader, records, msgtype, layout, path, topic) -> dict:
+def _decode_records(reader, parts, msgtype, layout) -> dict:
     """
     Decode the records of one topic with numpy (:func:`~.streams.cdr.stamped_doubles`).
 
     The same values as the deserializer gives: records in another encoding go through it, and
-    records it cannot decode either are counted (``undecodable``) and dropped.  Returns
-    ``items`` in the form the loop of :func:`read_bag` collects (gyro: (ns, (x, y, z));
-    reference: (ns, q_wxyz, P or None)), ``frames`` (frame id → messages) and ``absent`` (Imu
-    messages marking the rate absent).
+    records it cannot decode either are counted (``undecodable``) and dropped.
+
+    Parameters
+    ----------
+    reader : rosbags.highlevel.AnyReader
+        The open reader (its deserializer).
+    parts : list of (records, log_ns)
+        The topic's records a part at a time (a list of bytes, or an array of equal-length
+        rows), in bag order within each part; ``log_ns`` (ndarray, or None) their log times,
+        to merge parts that overlap in time in rosbags' order (by log time, then part).
+    msgtype : str
+        The message type.
+    layout : (int, str)
+        Float64 fields after the header and what they hold (``_LAYOUT``).
+
+    Returns
+    -------
+    dict
+        Gyro: ``stamps`` (n,) int64 and ``values`` (n, 3) (Imu messages marking the rate absent
+        left out and counted in ``absent``).  Reference: ``items`` (ns, q_wxyz, P or None), the
+        form the loop of :func:`read_bag` collects.  Both: ``frames`` (frame id → messages)
+        and ``undecodable``.
+
     """
     count, kind = layout
-    st, vals, idx, names, bad = stamped_doubles(records, count)
+    decoded = [stamped_doubles(records, count) for records, _ in parts]
+    names: list = []
+    known: dict = {}
+    idx_l = []
+    for _, _, idx, nm, _ in decoded:
+        remap = np.array([known.setdefault(x, len(known)) for x in nm] or [0], dtype=np.int64)
+        idx_l.append(np.where(idx >= 0, remap[np.maximum(idx, 0)], -1))
+    names = list(known)
+    st = np.concatenate([d[0] for d in decoded])
+    vals = np.concatenate([d[1] for d in decoded])
+    idx = np.concatenate(idx_l)
+    offsets = np.cumsum([0] + [len(d[0]) for d in decoded])
+    bad = np.concatenate([d[4] + o for d, o in zip(decoded, offsets[:-1])]).astype(np.int64)
     frames: dict = {}
     for i, n in zip(*np.unique(idx[idx >= 0], return_counts=True)):
         frames[names[i]] = frames.get(names[i], 0) + int(n)
-    undecodable = np.zeros(len(records), dtype=bool)
+    undecodable = np.zeros(len(st), dtype=bool)
     for i in bad.tolist():
+        p = int(np.searchsorted(offsets, i, side='right')) - 1
+        rec = parts[p][0][i - offsets[p]]
         try:
-            msg = reader.deserialize(records[i], msgtype)
+            msg = reader.deserialize(rec.tobytes() if isinstance(rec, np.ndarray) else rec,
+                                     msgtype)
             st[i] = _stamp_ns(msg.header)
             vals[i] = _fields(msg, kind, count)
             frames[msg.header.frame_id] = frames.get(msg.header.frame_id, 0) + 1
         except Exception:  # noqa: BLE001 - bytes that are not this type: counted, dropped
             undecodable[i] = True
+    if len(parts) > 1 and all(log is not None for _, log in parts):
+        log_ns = np.concatenate([log for _, log in parts])
+        if not np.all(np.diff(log_ns) >= 0):          # parts overlapping in time: rosbags' order
+            part = np.repeat(np.arange(len(parts)), np.diff(offsets))
+            perm = np.lexsort((np.arange(len(st)), part, log_ns))
+            st, vals, undecodable = st[perm], vals[perm], undecodable[perm]
     if np.any(undecodable):
         st, vals = st[~undecodable], vals[~undecodable]
-    st_list = st.tolist()
     absent = 0
     if kind in ('vector', 'imu'):
         if kind == 'imu':
             present = vals[:, _IMU_RATE_COV] != -1.0   # ROS: covariance[0] = -1 marks it absent
             absent = int(np.sum(~present))
-            xyz = vals[present, _IMU_RATE:_IMU_RATE + 3]
-            st_list = [s for s, ok in zip(st_list, present.tolist()) if ok]
+            st, xyz = st[present], vals[present, _IMU_RATE:_IMU_RATE + 3]
         else:
             xyz = vals
-        items = list(zip(st_list, map(tuple, xyz.tolist())))
-        return {'items': items, 'frames': frames, 'absent': absent,
-                'undecodable': int(undecodable.sum())}
+        return {'stamps': st, 'values': np.ascontiguousarray(xyz), 'frames': frames,
+                'absent': absent, 'undecodable': int(undecodable.sum())}
+    st_list = st.tolist()
     q_xyzw = {'quaternion': vals[:, 0:4], 'pose': vals[:, 3:7],
               'pose_with_covariance': vals[:, 3:7]}[kind]
     q = from_ros_xyzw(q_xyzw)
@@ -404,6 +449,26 @@ def _decode_records(reader, records, msgtype, layout, path, topic) -> dict:
         items = [(s, qq, None) for s, qq in zip(st_list, q)]
     return {'items': items, 'frames': frames, 'absent': 0,
             'undecodable': int(undecodable.sum())}
+
+
+def _chunked_records(reader, conns, topics, layout):
+    """
+    Read the records of the connections a chunk at a time, when the bag allows it.
+
+    One MCAP file with a chunk index (:func:`~.mcap_records.indexed_mcap`), every connection of
+    its topic's type and of a fixed layout: {topic: [(records, log_ns) per chunk]}.  Otherwise
+    None (read through rosbags' reader, record by record).
+    """
+    if not conns or any(c.msgtype != topics[c.topic] or layout[c.topic] is None for c in conns):
+        return None
+    storage = indexed_mcap(reader)
+    if storage is None:
+        return None
+    out: dict = {c.topic: [] for c in conns}
+    for chunk in read_topics(storage, channel_ids(storage, conns)):
+        for topic, got in chunk.items():
+            out[topic].append((got.rows if got.rows is not None else got.records, got.log_ns))
+    return out
 
 
 def _fields(msg, kind, count) -> np.ndarray:
@@ -599,14 +664,21 @@ def read_bag(
         conns = [c for c in reader.connections if c.topic in (gyro_t, ref_t)]
         fast = {gyro_t: [], ref_t: []}                 # plain-CDR records decoded with numpy
         layout = {gyro_t: _LAYOUT.get(gyro_type), ref_t: _LAYOUT.get(ref_type)}
-        for conn, _, raw in records_in_bag_order(reader, conns):
+        chunked = _chunked_records(reader, conns, topics, layout)
+        if chunked is not None:                        # one indexed MCAP file, every type known
+            for topic, parts in chunked.items():
+                fast[topic] = parts
+                read[topic] += sum(len(r) for r, _ in parts)
+        for conn, _, raw in (records_in_bag_order(reader, conns) if chunked is None else ()):
             read[conn.topic] += 1
             stream = 'gyro' if conn.topic == gyro_t else 'camera'
             if conn.msgtype != topics[conn.topic]:
                 skipped[stream]['wrong_type'] += 1
                 continue
             if layout[conn.topic] is not None:
-                fast[conn.topic].append(raw)
+                if not fast[conn.topic]:
+                    fast[conn.topic].append(([], None))
+                fast[conn.topic][0][0].append(raw)
                 continue
             try:
                 msg = reader.deserialize(raw, conn.msgtype)
@@ -640,19 +712,27 @@ def read_bag(
                 raw_g.append((ns, value))
             else:
                 raw_fix.append((ns, value[0], value[1]))
-        for topic, records in fast.items():
-            if not records:
+        gyro_parts = []                                # (stamps, xyz) arrays of the gyro
+        for topic, parts in fast.items():
+            if not parts:
                 continue
             stream = 'gyro' if topic == gyro_t else 'camera'
-            dec = _decode_records(reader, records, topics[topic], layout[topic], path, topic)
+            dec = _decode_records(reader, parts, topics[topic], layout[topic])
             for name, n in dec['frames'].items():
                 _count_frame(frames[stream], name, n)
             skipped[stream]['undecodable'] += dec['undecodable']
             if stream == 'gyro':
                 rate_absent += dec['absent']
-                raw_g.extend(dec['items'])
+                gyro_parts.append((dec['stamps'], dec['values']))
             else:
                 raw_fix.extend(dec['items'])
+        if raw_g:                                      # decoded one by one (another layout)
+            gyro_parts.insert(0, (np.array([t for t, _ in raw_g], dtype=np.int64),
+                                  np.array([v for _, v in raw_g], dtype=float).reshape(-1, 3)))
+        g_raw_t = (np.concatenate([p[0] for p in gyro_parts]) if gyro_parts
+                   else np.zeros(0, np.int64))
+        g_raw_v = (np.concatenate([p[1] for p in gyro_parts]) if gyro_parts
+                   else np.zeros((0, 3)))
         tf_direction = None
         if tf is not None:
             raw_fix, tf_direction = tf.fixes(path, ref_t)
@@ -681,19 +761,19 @@ def read_bag(
     rate_info = None
     rate_gaps: list = []
     if rates:
-        if rate_absent and not raw_g:
+        if rate_absent and not len(g_raw_t):
             raise BagError(
                 f'{path}: every {IMU_TYPE} message on {bounded(gyro_t)} marks angular_velocity '
                 f'absent (angular_velocity_covariance[0] = -1)'
             )
-        r_period = nominal_period([t for t, _ in raw_g])
+        r_period = nominal_period(g_raw_t)
         r_check = StreamCheck(
             r_period,
             max_norm=float(gyro_max_rate),
             jump_limit=max_stamp_jump,
             resync_count=resync_count,
         )
-        rt, rv, rate_gaps = validate([t for t, _ in raw_g], [v for _, v in raw_g], r_check)
+        rt, rv, rate_gaps = validate(g_raw_t, g_raw_v, r_check)
         # THE gap rule decides which intervals are integrated (no step threshold of its own)
         inc_t, inc_v = increments_from_rates(
             rt,
@@ -723,9 +803,10 @@ def read_bag(
             'period_s_from_stamps': r_check.period_s if math.isfinite(r_check.period_ns)
             else None,
         }
-        g_stamps, g_values = [int(t) for t in inc_t], [np.array(v) for v in inc_v]
+        g_stamps = np.asarray(inc_t, dtype=np.int64).reshape(-1)
+        g_values = np.asarray(inc_v, dtype=float).reshape(-1, 3)
     else:
-        g_stamps, g_values = [t for t, _ in raw_g], [np.array(v) for _, v in raw_g]
+        g_stamps, g_values = g_raw_t, g_raw_v
     g_period = nominal_period(g_stamps)
     g_check = StreamCheck(
         g_period,

@@ -1,0 +1,84 @@
+"""
+The two ways ``read_bag`` reads a recording give the same streams.
+
+An indexed MCAP file whose topics all have a fixed layout is read a chunk at a time, decoded
+with numpy and screened at array speed; any other bag goes through rosbags' reader record by
+record and the rules message by message.  The truth here is the record-by-record path, which
+the node-rule tests check against exact motion: the chunked path must give the same stamps,
+values, gaps, counters and descriptions, on the shipped real recording (sensor_msgs/Imu rates,
+PoseStamped reference, written by other software) and on a simulated Δθ recording with faults.
+"""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from realdata_helpers import DATA
+
+pytest.importorskip('rosbags')
+
+from strapdown_ros.bench.hostile_input import (clean_recording, KINDS,  # noqa: E402
+                                               streams_with, write_bag)
+from strapdown_ros.recording import reader  # noqa: E402
+
+
+def _both(monkeypatch, path, **kw):
+    used = []
+    chunked = reader._chunked_records
+
+    def spy(*a):
+        out = chunked(*a)
+        used.append(out is not None)
+        return out
+    with monkeypatch.context() as m:
+        m.setattr(reader, '_chunked_records', spy)
+        fast = reader.read_bag(path, **kw)
+    assert used == [True]                                   # the chunked path was taken
+    with monkeypatch.context() as m:
+        m.setattr(reader, '_chunked_records', lambda *a: None)
+        slow = reader.read_bag(path, **kw)
+    return fast, slow
+
+
+def _same_stream(a, b):
+    assert list(map(int, a.stamps)) == list(map(int, b.stamps))
+    if len(a.values) and isinstance(a.values[0], tuple) and len(a.values[0]) == 2:
+        for k in (0, 1):                                         # fixes: (q, P)
+            np.testing.assert_array_equal(np.array([v[k] for v in a.values]),
+                                          np.array([v[k] for v in b.values]))
+    else:
+        np.testing.assert_array_equal(np.asarray(a.values, dtype=float),
+                                      np.asarray(b.values, dtype=float))
+    assert [tuple(map(int, g)) for g in a.gaps] == [tuple(map(int, g)) for g in b.gaps]
+    assert a.received == b.received and a.dropped == b.dropped and a.missing == b.missing
+    assert list(a.check.segment_starts) == list(b.check.segment_starts)
+
+
+def _same(fast, slow):
+    _same_stream(fast['gyro'], slow['gyro'])
+    _same_stream(fast['camera'], slow['camera'])
+    for key in ('gyro_clip', 'camera_fixes', 'frames', 'frame_counts', 'rate_samples',
+                'reference_covariance', 'unread_messages', 'messages_read', 'gyro_input'):
+        assert fast[key] == slow[key], key
+
+
+def test_the_shipped_imu_recording_reads_the_same_by_chunks(monkeypatch):
+    bag = DATA / 'gaitmap_left'
+    fast, slow = _both(monkeypatch, bag, gyro_max_rate=35.0, use_camera_covariance=False,
+                       camera_sigma=(1e-3, 1e-3, 1e-3), gyro_topic='/imu/data',
+                       reference_topic='/mocap/pose')
+    assert fast['gyro_input'] == 'rates' and len(fast['gyro'].stamps) > 7000
+    _same(fast, slow)
+
+
+@pytest.mark.parametrize('stream', ['gyro', 'reference'])
+def test_a_hostile_delta_theta_recording_reads_the_same_by_chunks(tmp_path, monkeypatch, stream):
+    """Every hostile kind of one stream at once (values, stamps, frames), in one bag."""
+    rec = clean_recording(seed=3)
+    kinds = [k for k in KINDS if k.stream == stream
+             and k.name not in ('wrong_type', 'empty_topic')]    # another type: record by record
+    for j, kind in enumerate(kinds):
+        rec = streams_with(rec, kind, 40 + 37 * j if stream == 'gyro' else 3 + 2 * j)
+    bag = write_bag(tmp_path / stream, rec, accel=False)
+    fast, slow = _both(monkeypatch, bag)
+    assert sum(fast['gyro' if stream == 'gyro' else 'camera'].dropped.values()) > 0
+    _same(fast, slow)
