@@ -671,15 +671,15 @@ class FilterSystem:
         t = np.concatenate([b[2] for b in self._sig_buf])
         self._sig_buf, self._sig_len = [], 0
         n = len(d) // SIGNATURE_LUMP * SIGNATURE_LUMP
-        groups = [(d[:n].reshape(-1, SIGNATURE_LUMP, 3).sum(1),
-                   h[:n].reshape(-1, SIGNATURE_LUMP).sum(1),
-                   t[:n].reshape(-1, SIGNATURE_LUMP)[:, -1])] if n else []
-        if n < len(d):
-            groups.append((d[n:].sum(0)[None], np.array([h[n:].sum()]), t[-1:]))
+        rho = d[:n].reshape(-1, SIGNATURE_LUMP, 3).sum(1)
+        hh = h[:n].reshape(-1, SIGNATURE_LUMP).sum(1)
+        te = t[:n].reshape(-1, SIGNATURE_LUMP)[:, -1]
+        if n < len(d):                         # the rest: one lump more, in the same call
+            rho = np.vstack([rho, d[n:].sum(0)[None]])
+            hh = np.append(hh, h[n:].sum())
+            te = np.append(te, t[-1])
         bias = self.filter.estimate('gyro_bias')[None]
-        for rho, hh, te in groups:
-            self.check.accumulate(rho - bias * hh[:, None], hh,
-                                  te - 0.5 * hh - self.filter.epoch)
+        self.check.accumulate(rho - bias * hh[:, None], hh, te - 0.5 * hh - self.filter.epoch)
 
     def _fix_result(self, r) -> FixOutput:
         f = self.filter

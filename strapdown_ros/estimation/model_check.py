@@ -393,8 +393,12 @@ class ModelCheck:
             G.append(g)
         self._start_interval()
         L = np.linalg.cholesky(np.asarray(S, dtype=float))
-        w = np.linalg.solve(L, np.asarray(z, dtype=float))
-        self._rows.append((float(stamp), w, [np.linalg.solve(L, g) for g in G]))
+        # L⁻¹ applied to the residual and every signature at once
+        rhs = np.hstack([np.asarray(z, dtype=float).reshape(3, 1)] + G)
+        white = np.linalg.solve(L, rhs)
+        cuts = np.cumsum([1] + [g.shape[1] for g in G])[:-1]
+        parts = np.split(white, cuts, axis=1)
+        self._rows.append((float(stamp), parts[0][:, 0], parts[1:]))
         if len(self._rows) < self.window:
             self.last = ModelCheckResult(len(self._rows), True, episodes=self.episodes,
                                          stamp=float(stamp))
