@@ -387,7 +387,8 @@ def add_input_arguments(parser) -> None:
         '--reference-topic',
         metavar='TOPIC',
         help='attitude reference topic (q_ref_body): QuaternionStamped, PoseStamped, '
-        'PoseWithCovarianceStamped, nav_msgs/Odometry or tf2_msgs/TFMessage (default: '
+        'TransformStamped, PoseWithCovarianceStamped, nav_msgs/Odometry or tf2_msgs/TFMessage '
+        '(default: '
         f'{CAMERA_COV_TOPIC} or {CAMERA_TOPIC}; /tf with --reference-frames)',
     )
     g.add_argument(

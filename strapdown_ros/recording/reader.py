@@ -15,7 +15,9 @@ Attitude reference (``--reference-topic``, default ``star_camera/attitude_with_c
 when present and its covariance is wanted, else ``star_camera/attitude``): q_ref_body of the
 camera (maps child-frame vectors to the parent frame), from
 
-* ``geometry_msgs/msg/QuaternionStamped`` or ``PoseStamped`` (no covariance);
+* ``geometry_msgs/msg/QuaternionStamped``, ``PoseStamped`` or ``TransformStamped`` (no
+  covariance; a TransformStamped's rotation maps ``child_frame_id`` vectors to
+  ``header.frame_id``, as motion-capture drivers such as vicon_bridge publish it);
 * ``geometry_msgs/msg/PoseWithCovarianceStamped`` or ``nav_msgs/msg/Odometry``
   (``pose.covariance`` rows/columns 3–5: the rotation block, rad²);
 * ``tf2_msgs/msg/TFMessage`` (``/tf``) with ``--reference-frames PARENT CHILD``: the transforms
@@ -74,6 +76,7 @@ GYRO_TYPES = (DELTA_THETA_TYPE, IMU_TYPE)
 REFERENCE_TYPES = {
     'geometry_msgs/msg/QuaternionStamped': 'quaternion',
     'geometry_msgs/msg/PoseStamped': 'pose',
+    'geometry_msgs/msg/TransformStamped': 'transform',
     'geometry_msgs/msg/PoseWithCovarianceStamped': 'pose_with_covariance',
     'nav_msgs/msg/Odometry': 'odometry',
     'tf2_msgs/msg/TFMessage': 'tf',
@@ -701,6 +704,8 @@ def read_bag(
                         value = (_orientation(msg.quaternion), None)
                     elif kind == 'pose':
                         value = (_orientation(msg.pose.orientation), None)
+                    elif kind == 'transform':         # header.frame_id ← child_frame_id
+                        value = (_orientation(msg.transform.rotation), None)
                     else:  # PoseWithCovarianceStamped, Odometry
                         value = (_orientation(msg.pose.pose.orientation),
                                  _rotation_block(msg.pose.covariance))

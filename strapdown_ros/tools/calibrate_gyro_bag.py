@@ -13,8 +13,8 @@ any rates, stamps from the headers, read and validated as ``calibrate_bag`` and 
 read them (drops, gyro gaps).  No truth topic is needed and the boresight need not be known: it
 is found from the increment axes.  Other formats (``strapdown_ros.recording``): ``--gyro-topic``
 of sensor_msgs/msg/Imu rates (increments by ``--rate-rule``), ``--reference-topic`` of
-PoseStamped, PoseWithCovarianceStamped, nav_msgs/msg/Odometry or QuaternionStamped, or TF with
-``--reference-frames PARENT CHILD``.
+PoseStamped, TransformStamped, PoseWithCovarianceStamped, nav_msgs/msg/Odometry or
+QuaternionStamped, or TF with ``--reference-frames PARENT CHILD``.
 
 Methods (``strapdown_ros.calibration.gyro``):
 ``integral`` — 002 (Ilyushenko): mean rates over consecutive camera intervals (``--interval`` s,

@@ -6,9 +6,9 @@ nominal_model: the starting sensor model of one's own recording, each value with
                   [--json FILE] [--namespace NS] [--force] [--quiet]
 
 Reads the gyro (``sensor_msgs/Imu`` rates or ``Vector3Stamped`` Δθ) and the attitude reference
-(PoseStamped, PoseWithCovarianceStamped, Odometry, QuaternionStamped or TF) of a rosbag2
-recording, with no clip level (so that clipped samples are seen), and writes the model file
-``discrepancy --model``, ``calibrate_bag``, ``filter_bag`` and the nodes start from: the gyro
+(PoseStamped, TransformStamped, PoseWithCovarianceStamped, Odometry, QuaternionStamped or TF) of
+a rosbag2 recording, with no clip level (so that clipped samples are seen), and writes the model
+file ``discrepancy --model``, ``calibrate_bag``, ``filter_bag`` and the nodes start from: the gyro
 rate and frame ids, the clip level, the angle random walk and bias instability from the Allan
 deviation of the rest segments, a bias prior from the rest mean, the reference's noise from its
 residual against the gyro.  Each value is written with the rule that produced it, as a comment

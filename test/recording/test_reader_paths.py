@@ -82,3 +82,46 @@ def test_a_hostile_delta_theta_recording_reads_the_same_by_chunks(tmp_path, monk
     fast, slow = _both(monkeypatch, bag)
     assert sum(fast['gyro' if stream == 'gyro' else 'camera'].dropped.values()) > 0
     _same(fast, slow)
+
+
+def test_a_transform_stamped_reference_reads_as_the_pose_it_carries(tmp_path):
+    """
+    A motion-capture driver's TransformStamped (vicon_bridge) gives the fixes of the same pose.
+
+    The shipped recording's PoseStamped reference is rewritten as TransformStamped (rotation =
+    the pose's orientation, translation = its position, child frame the marker's), the Imu
+    records copied as they are; the two bags must give the same fixes and gyro stream.
+    """
+    from rosbags.rosbag2 import Reader, StoragePlugin, Writer
+    from rosbags.typesys import get_typestore, Stores
+
+    store = get_typestore(Stores.ROS2_JAZZY)
+    T = store.types
+    src, out = DATA / 'gaitmap_left', tmp_path / 'transform'
+    with Reader(src) as r, Writer(out, version=9, storage_plugin=StoragePlugin.MCAP) as w:
+        imu = next(c for c in r.connections if c.topic == '/imu/data')
+        pose = next(c for c in r.connections if c.topic == '/mocap/pose')
+        c_imu = w.add_connection('/imu/data', imu.msgtype, typestore=store)
+        c_tf = w.add_connection('/vicon/foot/foot', 'geometry_msgs/msg/TransformStamped',
+                                typestore=store)
+        for conn, log, raw in r.messages():
+            if conn.id == imu.id:
+                w.write(c_imu, log, raw)
+            elif conn.id == pose.id:
+                m = store.deserialize_cdr(raw, pose.msgtype)
+                p = m.pose.position
+                tf = T['geometry_msgs/msg/TransformStamped'](
+                    header=m.header, child_frame_id='foot',
+                    transform=T['geometry_msgs/msg/Transform'](
+                        translation=T['geometry_msgs/msg/Vector3'](x=p.x, y=p.y, z=p.z),
+                        rotation=m.pose.orientation))
+                w.write(c_tf, log, store.serialize_cdr(tf, 'geometry_msgs/msg/TransformStamped'))
+    kw = {'gyro_max_rate': 35.0, 'use_camera_covariance': False,
+          'camera_sigma': (1e-3, 1e-3, 1e-3), 'gyro_topic': '/imu/data'}
+    a = reader.read_bag(src, reference_topic='/mocap/pose', **kw)
+    b = reader.read_bag(out, reference_topic='/vicon/foot/foot', **kw)
+    assert b['reference_type'] == 'geometry_msgs/msg/TransformStamped'
+    assert len(b['camera'].stamps) > 1000
+    _same_stream(a['gyro'], b['gyro'])
+    _same_stream(a['camera'], b['camera'])
+    assert a['frames']['camera'] == b['frames']['camera']
