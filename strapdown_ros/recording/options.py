@@ -381,7 +381,7 @@ def add_input_arguments(parser) -> None:
         '--gyro-topic',
         metavar='TOPIC',
         help=f'gyro topic: {DELTA_THETA_TYPE} increments or {IMU_TYPE} rates, by its type in the '
-        f'bag (default {GYRO_TOPIC} under --namespace)',
+        f'bag (default {GYRO_TOPIC} under --namespace, else the one Imu topic of the bag)',
     )
     g.add_argument(
         '--reference-topic',
@@ -389,7 +389,8 @@ def add_input_arguments(parser) -> None:
         help='attitude reference topic (q_ref_body): QuaternionStamped, PoseStamped, '
         'TransformStamped, PoseWithCovarianceStamped, nav_msgs/Odometry or tf2_msgs/TFMessage '
         '(default: '
-        f'{CAMERA_COV_TOPIC} or {CAMERA_TOPIC}; /tf with --reference-frames)',
+        f'{CAMERA_COV_TOPIC} or {CAMERA_TOPIC}, else the one topic of these types; /tf with '
+        '--reference-frames)',
     )
     g.add_argument(
         '--reference-frames',

@@ -1,7 +1,8 @@
 """
 One reader of recordings for the offline tools: gyro and attitude reference from a rosbag2 bag.
 
-Gyro (``--gyro-topic``, default ``imu/delta_theta``), chosen by the topic's type in the bag:
+Gyro (``--gyro-topic``, default ``imu/delta_theta``, else the bag's one ``sensor_msgs/msg/Imu``
+topic if it has exactly one), chosen by the topic's type in the bag:
 
 * ``geometry_msgs/msg/Vector3Stamped``: increments Δθ (rad), stamped at the interval end;
 * ``sensor_msgs/msg/Imu``: ``angular_velocity`` rate samples (rad/s).  They are validated by
@@ -12,8 +13,9 @@ Gyro (``--gyro-topic``, default ``imu/delta_theta``), chosen by the topic's type
   as Δθ messages (validation, gaps, missing counts).
 
 Attitude reference (``--reference-topic``, default ``star_camera/attitude_with_covariance``
-when present and its covariance is wanted, else ``star_camera/attitude``): q_ref_body of the
-camera (maps child-frame vectors to the parent frame), from
+when present and its covariance is wanted, else ``star_camera/attitude``, else the bag's one
+topic of a type below but TF if it has exactly one): q_ref_body of the camera (maps child-frame
+vectors to the parent frame), from
 
 * ``geometry_msgs/msg/QuaternionStamped``, ``PoseStamped`` or ``TransformStamped`` (no
   covariance; a TransformStamped's rotation maps ``child_frame_id`` vectors to
@@ -296,6 +298,12 @@ class Accepted:
 
 
 # --- topic selection -------------------------------------------------------------------------
+def _only_topic(topics: dict, types) -> str | None:
+    """Return the one topic of these types in the bag, or None (none, or several)."""
+    found = [t for t, ty in topics.items() if ty in types]
+    return found[0] if len(found) == 1 else None
+
+
 def _select(
     topics: dict,
     path,
@@ -325,6 +333,12 @@ def _select(
         # the covariance topic when its covariance is wanted, or when it is the only one (σ then
         # from the model)
         c = cov if (cov and (use_camera_covariance or plain is None)) else plain
+    # no default topic and no option: the one topic of a driver's type, when there is one
+    # (an Imu topic for the gyro; a pose-like topic for the reference), else the error below
+    if g is None and not gyro_topic:
+        g = _only_topic(topics, (IMU_TYPE,))
+    if c is None and not reference_topic and not reference_frames:
+        c = _only_topic(topics, [t for t, k in REFERENCE_TYPES.items() if k != 'tf'])
     if g is None or c is None:
         missing = [n for n, t in ((GYRO_TOPIC, g), (CAMERA_TOPIC, c)) if t is None]
         raise BagError(f"{path}: no {' and no '.join(missing)}{where}; {_topics_line(topics)}")

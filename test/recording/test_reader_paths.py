@@ -125,3 +125,35 @@ def test_a_transform_stamped_reference_reads_as_the_pose_it_carries(tmp_path):
     _same_stream(a['gyro'], b['gyro'])
     _same_stream(a['camera'], b['camera'])
     assert a['frames']['camera'] == b['frames']['camera']
+
+
+def test_a_driver_bag_needs_no_topic_options_when_its_topics_are_unique(tmp_path):
+    """One Imu topic and one pose-like topic: taken without --gyro-topic/--reference-topic."""
+    kw = {'gyro_max_rate': 35.0, 'use_camera_covariance': False,
+          'camera_sigma': (1e-3, 1e-3, 1e-3)}
+    named = reader.read_bag(DATA / 'gaitmap_left', gyro_topic='/imu/data',
+                            reference_topic='/mocap/pose', **kw)
+    found = reader.read_bag(DATA / 'gaitmap_left', **kw)
+    assert (found['gyro_topic'], found['camera_topic']) == ('/imu/data', '/mocap/pose')
+    _same_stream(named['gyro'], found['gyro'])
+    _same_stream(named['camera'], found['camera'])
+    # two Imu topics: which one is the user's to say
+    from rosbags.rosbag2 import Reader, StoragePlugin, Writer
+    from rosbags.typesys import get_typestore, Stores
+
+    store = get_typestore(Stores.ROS2_JAZZY)
+    out = tmp_path / 'two_imus'
+    with Reader(DATA / 'gaitmap_left') as r, \
+            Writer(out, version=9, storage_plugin=StoragePlugin.MCAP) as w:
+        conns = {}
+        for c in r.connections:
+            conns[c.id] = [w.add_connection(c.topic, c.msgtype, typestore=store)]
+            if c.topic == '/imu/data':
+                conns[c.id].append(w.add_connection('/imu/data_raw', c.msgtype, typestore=store))
+        for conn, log, raw in r.messages():
+            for c in conns[conn.id]:
+                w.write(c, log, raw)
+    with pytest.raises(reader.BagError, match='no imu/delta_theta.*/imu/data_raw'):
+        reader.read_bag(out, **kw)
+    assert reader.read_bag(out, gyro_topic='/imu/data_raw', **kw)['gyro_topic'] == \
+        '/imu/data_raw'
