@@ -362,6 +362,9 @@ def _find_topics(reader, path, namespace, gyro_topic, accel_topic, need_accel, i
     if imu_topic:
         gyro_topic = accel_topic = imu_topic
     g = find_topic(topics, gyro_topic or GYRO_TOPIC, namespace)
+    imus = [t for t, ty in topics.items() if ty == IMU]
+    if g is None and not gyro_topic and not accel_topic and len(imus) == 1:
+        g = imus[0]                    # a driver's bag: its one Imu topic gives both streams
     if g is None:
         raise BagError(f'{path}: no {bounded(gyro_topic or GYRO_TOPIC)}{where}{listing}')
     if topics[g] not in (VECTOR3_STAMPED, IMU):
@@ -400,8 +403,9 @@ def open_input(bag, namespace: str = '', gyro_topic: str | None = None,
     namespace : str
         Namespace of the relative topic names ('' for none).
     gyro_topic, accel_topic : str, optional
-        The Δθ and Δv topics (default :data:`GYRO_TOPIC`, :data:`ACCEL_TOPIC`); a gyro topic
-        of type sensor_msgs/Imu gives Δv too unless ``accel_topic`` names another.
+        The Δθ and Δv topics (default :data:`GYRO_TOPIC`, :data:`ACCEL_TOPIC`, else the bag's
+        one sensor_msgs/Imu topic when it has exactly one); a gyro topic of type sensor_msgs/Imu
+        gives Δv too unless ``accel_topic`` names another.
     need_accel : bool
         The Δv stream is required (navigation).
     imu_topic : str, optional

@@ -15,7 +15,9 @@ with a single namespace is found without it; ``--gyro-topic``/``--accel-topic`` 
 topics (absolute, or relative to the namespace).  ``--imu-topic`` (or a ``--gyro-topic`` of
 that type) reads sensor_msgs/msg/Imu instead: angular_velocity and linear_acceleration are rate
 samples, made into Δθ and Δv by ``--rate-rule`` as sins_node's ``gyro_input: imu`` does; a
-message whose linear_acceleration_covariance[0] is −1 has no Δv.
+message whose linear_acceleration_covariance[0] is −1 has no Δv.  A bag with neither Δθ topic
+nor topic options but exactly one sensor_msgs/msg/Imu topic (a driver's recording) is read from
+that topic.
 
 Parameters are sins_node's: a ROS 2 parameter file (``--params``; the ``sins_node`` and ``/**``
 blocks) and ``-p name:=value`` overrides, validated as the node validates them.  ``gyro_rate``

@@ -157,3 +157,17 @@ def test_a_driver_bag_needs_no_topic_options_when_its_topics_are_unique(tmp_path
         reader.read_bag(out, **kw)
     assert reader.read_bag(out, gyro_topic='/imu/data_raw', **kw)['gyro_topic'] == \
         '/imu/data_raw'
+
+
+def test_sins_bag_input_takes_a_driver_bags_one_imu_topic():
+    from strapdown_ros.recording.imu_streams import open_input
+
+    named = open_input(DATA / 'gaitmap_left', imu_topic='/imu/data')
+    found = open_input(DATA / 'gaitmap_left')
+    try:
+        assert found.gyro_conn.topic == '/imu/data' and found.imu_input
+        np.testing.assert_array_equal(found.gyro.stamps_ns, named.gyro.stamps_ns)
+        np.testing.assert_array_equal(found.gyro.values, named.gyro.values)
+    finally:
+        named.close()
+        found.close()
