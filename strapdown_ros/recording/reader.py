@@ -65,7 +65,7 @@ from strapdown_ros.streams.rate_increments import increments_from_rates, RATE_RU
 
 __all__ = ['BagError', 'Accepted', 'open_reader', 'resolve_topic', 'read_bag', 'bounded',
            'bounded_list', 'GYRO_TOPIC', 'CAMERA_TOPIC', 'CAMERA_COV_TOPIC', 'DELTA_THETA_TYPE',
-           'IMU_TYPE', 'REFERENCE_TYPES']
+           'IMU_TYPE', 'REFERENCE_TYPES', 'chunked_records']
 
 GYRO_TOPIC = 'imu/delta_theta'
 CAMERA_TOPIC = 'star_camera/attitude'
@@ -468,13 +468,30 @@ def _decode_records(reader, parts, msgtype, layout) -> dict:
             'undecodable': int(undecodable.sum())}
 
 
-def _chunked_records(reader, conns, topics, layout):
+def chunked_records(reader, conns, topics, layout):
     """
     Read the records of the connections a chunk at a time, when the bag allows it.
 
     One MCAP file with a chunk index (:func:`~.mcap_records.indexed_mcap`), every connection of
-    its topic's type and of a fixed layout: {topic: [(records, log_ns) per chunk]}.  Otherwise
-    None (read through rosbags' reader, record by record).
+    its topic's type and of a fixed layout.  :func:`read_bag` reads any other bag record by
+    record through rosbags, with the same result.
+
+    Parameters
+    ----------
+    reader : rosbags.highlevel.AnyReader
+        The open reader.
+    conns : list
+        Its connections to read.
+    topics : dict
+        Topic → the type it is read as.
+    layout : dict
+        Topic → its fixed plain-CDR layout (float64 fields after the header), or None.
+
+    Returns
+    -------
+    dict or None
+        {topic: [(records, log_ns) per chunk]}; None when the bag is not read this way.
+
     """
     if not conns or any(c.msgtype != topics[c.topic] or layout[c.topic] is None for c in conns):
         return None
@@ -681,7 +698,7 @@ def read_bag(
         conns = [c for c in reader.connections if c.topic in (gyro_t, ref_t)]
         fast = {gyro_t: [], ref_t: []}                 # plain-CDR records decoded with numpy
         layout = {gyro_t: _LAYOUT.get(gyro_type), ref_t: _LAYOUT.get(ref_type)}
-        chunked = _chunked_records(reader, conns, topics, layout)
+        chunked = chunked_records(reader, conns, topics, layout)
         if chunked is not None:                        # one indexed MCAP file, every type known
             for topic, parts in chunked.items():
                 fast[topic] = parts

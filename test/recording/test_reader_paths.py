@@ -23,18 +23,18 @@ from strapdown_ros.recording import reader  # noqa: E402
 
 def _both(monkeypatch, path, **kw):
     used = []
-    chunked = reader._chunked_records
+    chunked = reader.chunked_records
 
     def spy(*a):
         out = chunked(*a)
         used.append(out is not None)
         return out
     with monkeypatch.context() as m:
-        m.setattr(reader, '_chunked_records', spy)
+        m.setattr(reader, 'chunked_records', spy)
         fast = reader.read_bag(path, **kw)
     assert used == [True]                                   # the chunked path was taken
     with monkeypatch.context() as m:
-        m.setattr(reader, '_chunked_records', lambda *a: None)
+        m.setattr(reader, 'chunked_records', lambda *a: None)
         slow = reader.read_bag(path, **kw)
     return fast, slow
 
