@@ -44,6 +44,22 @@ __all__ = [
 _CONJUGATE_SIGNS = np.array([1.0, -1.0, -1.0, -1.0])
 
 
+def _dcm_terms():
+    """Return the terms of C(q) in the products q_i q_j (index 4 i + j of q qᵀ, w x y z)."""
+    w, x, y, z = range(4)
+    rows = [  # (a, b, sign): C_ij is 1 − 2(a + b) on the diagonal, 2(a + sign·b) off it
+        (y * 4 + y, z * 4 + z, 1.0), (x * 4 + y, w * 4 + z, -1.0), (x * 4 + z, w * 4 + y, 1.0),
+        (x * 4 + y, w * 4 + z, 1.0), (x * 4 + x, z * 4 + z, 1.0), (y * 4 + z, w * 4 + x, -1.0),
+        (x * 4 + z, w * 4 + y, -1.0), (y * 4 + z, w * 4 + x, 1.0), (x * 4 + x, y * 4 + y, 1.0)]
+    a, b, sign = (np.array(c) for c in zip(*rows))
+    diagonal = np.eye(3).reshape(9) > 0
+    return a, b, sign, np.where(diagonal, -2.0, 2.0), np.where(diagonal, 1.0, 0.0)
+
+
+#: quat_to_dcm's index and factor arrays (:func:`_dcm_terms`)
+_DCM_TERMS = _dcm_terms()
+
+
 def skew(v: np.ndarray) -> np.ndarray:
     """
     Return the cross-product matrix ``[v×]``, so that ``[v×] @ u == v × u``.
@@ -282,18 +298,12 @@ def quat_to_dcm(q: np.ndarray) -> np.ndarray:
         return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
                          [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
                          [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)]])
-    w, x, y, z = q[..., 0], q[..., 1], q[..., 2], q[..., 3]
-    C = np.empty(q.shape[:-1] + (3, 3))
-    C[..., 0, 0] = 1 - 2 * (y * y + z * z)
-    C[..., 0, 1] = 2 * (x * y - w * z)
-    C[..., 0, 2] = 2 * (x * z + w * y)
-    C[..., 1, 0] = 2 * (x * y + w * z)
-    C[..., 1, 1] = 1 - 2 * (x * x + z * z)
-    C[..., 1, 2] = 2 * (y * z - w * x)
-    C[..., 2, 0] = 2 * (x * z - w * y)
-    C[..., 2, 1] = 2 * (y * z + w * x)
-    C[..., 2, 2] = 1 - 2 * (x * x + y * y)
-    return C
+    # the same arithmetic on every quaternion at once: each element is a ± b of two products
+    # of the outer product q qᵀ, then 1 − 2(a + b) on the diagonal and 2(a ± b) off it
+    # (:data:`_DCM_TERMS`), in 8 array operations instead of 40
+    qq = (q[..., :, None] * q[..., None, :]).reshape(q.shape[:-1] + (16,))
+    a, b, sign, scale, offset = _DCM_TERMS
+    return (offset + scale * (qq[..., a] + sign * qq[..., b])).reshape(q.shape[:-1] + (3, 3))
 
 
 def dcm_to_quat(C: np.ndarray) -> np.ndarray:
