@@ -88,9 +88,12 @@ def unit_quaternion(q) -> tuple[np.ndarray | None, str | None]:
 
     """
     a = np.asarray(q, dtype=float).reshape(-1)
-    if a.shape != (4,) or not _finite(a):
+    if a.shape != (4,):
         return None, 'nan'
-    s = float(np.abs(a).max())
+    e = a.tolist()                               # (the checks on Python floats: 4 numbers)
+    if not all(map(math.isfinite, e)):
+        return None, 'nan'
+    s = max(map(abs, e))
     if s == 0.0:
         return None, 'zero_quaternion'
     u = a / s                                    # each |u_i| <= 1: the norm cannot overflow
