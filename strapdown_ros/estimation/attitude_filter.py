@@ -624,7 +624,7 @@ class AttitudeFilter:
             base = tuple(np.repeat(b, K, axis=0) for b in self._block.state())
         else:
             q_out = np.concatenate([q_before[None], batch.attitude])[done]
-            base = tuple(r[done] for r in run)
+            base = tuple(None if r is None else r[done] for r in run)
         inside = np.flatnonzero(done * n_new < w + 1)            # inside an update: a lumped rest
         if len(inside):
             h_v = np.zeros(K)
@@ -648,9 +648,12 @@ class AttitudeFilter:
         k = 3 + self._nq
         K = len(stamps)
         S = self._sqrt_p
-        F = np.empty((K,) + S.shape)                   # the factor propagated to each stamp
-        F[:, :k] = phi @ S[:k]
-        F[:, k:] = S[k:]
+        if k == len(S):                                # Φ covers the whole state
+            F = phi @ S                                # the factor propagated to each stamp
+        else:
+            F = np.empty((K,) + S.shape)
+            F[:, :k] = phi @ S[:k]
+            F[:, k:] = S[k:]
         P = F @ np.swapaxes(F, -1, -2)
         P[:, :k, :k] += Q
         P = 0.5 * (P + np.swapaxes(P, -1, -2))
@@ -682,10 +685,13 @@ class AttitudeFilter:
         if self._block.m:
             phi, Q, _ = self._block.transition(self._block.state(), self.sigma_v)
             k = 3 + self._nq
-            S = self._sqrt_p.copy()
-            S[:k] = phi[0] @ self._sqrt_p[:k]
-            Qf = np.zeros((len(S), k))
-            Qf[:k] = psd_factor(Q[0])
+            if k == len(self._sqrt_p):                   # Φ covers the whole state
+                S, Qf = phi[0] @ self._sqrt_p, psd_factor(Q[0])
+            else:
+                S = self._sqrt_p.copy()
+                S[:k] = phi[0] @ self._sqrt_p[:k]
+                Qf = np.zeros((len(S), k))
+                Qf[:k] = psd_factor(Q[0])
             self._sqrt_p = triangular_factor(S, Qf)       # P ← ΦPΦᵀ + Q
         self._new_block()
 

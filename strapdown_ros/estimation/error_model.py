@@ -115,7 +115,8 @@ class BlockSums:
         -------
         tuple or None
             With ``running``: ``(c, T, E, α, β, Γ, Λ)`` before the m updates (row 0, the
-            sums :meth:`state` gave) and after each of them (rows 1…m), leading axis m + 1.
+            sums :meth:`state` gave) and after each of them (rows 1…m), leading axis m + 1;
+            without gyro-state noise α, β, Γ, Λ are None (zero, and never read).
 
         """
         m = len(h)
@@ -152,9 +153,7 @@ class BlockSums:
             self.alpha, self.beta = alpha[-1], beta[-1]
             self.gamma, self.twelfth = gamma[-1], tw[-1]
         elif running:
-            z3 = np.zeros((m + 1, 3, 3))
-            out = (np.concatenate((self.c_end[None], c)), T, E, np.zeros((m + 1, self.q)),
-                   np.zeros((m + 1, 3, self.q)), z3, z3)
+            out = (np.concatenate((self.c_end[None], c)), T, E, None, None, None, None)
         self.m += m
         self.c_end = c[-1]
         self.T = float(T[-1])
@@ -168,7 +167,8 @@ class BlockSums:
         Parameters
         ----------
         sums : tuple
-            K sets of sums (:meth:`state` or rows of :meth:`add`'s running output).
+            K sets of sums (:meth:`state` or rows of :meth:`add`'s running output; α, β, Γ, Λ
+            may be None without gyro-state noise).
         c_v : ndarray (K, 3, 3)
             Attitude at the end of each extra update.
         A_v : ndarray (K, 3, q)
@@ -208,7 +208,7 @@ class BlockSums:
         Parameters
         ----------
         sums : tuple
-            K sets of sums (leading axis K).
+            K sets of sums (leading axis K; α, β, Γ, Λ are read only with gyro-state noise).
         sigma_v : float
             Angle random walk, rad/√s.
 

@@ -601,7 +601,8 @@ class FilterSystem:
             self._last_ns = int(t_ns[-1])
             return
         keep = t_ns > self._last_ns
-        t_ns, d = t_ns[keep], d[keep]
+        if not keep.all():
+            t_ns, d = t_ns[keep], d[keep]
         while len(t_ns):
             cut = len(t_ns)
             if self._pending:      # the model check's signature ends at the fix
