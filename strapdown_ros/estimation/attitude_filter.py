@@ -195,6 +195,7 @@ class AttitudeFilter:
         if not np.all(np.isfinite(p0)) or np.any(p0 < 0):
             raise ValueError('prior sigmas must be finite and >= 0')
         self._sqrt_p = np.diag(np.sqrt(p0))          # P = S Sᵀ (square-root form)
+        self._identity = np.eye(self.layout.size)
         self._g_noise = np.concatenate([e.filter_process_noise(self.noise)
                                         for e, _ in self.layout.gyro])
         self._g_tau = np.concatenate([e.filter_correlation_time(self.noise)
@@ -202,6 +203,7 @@ class AttitudeFilter:
         self._nq = len(self._g_tau)                     # gyro states (bias first)
         #: Gauss–Markov states: the compensation's cells, 5 % of the shortest correlation time
         self._cell = 0.05 * float(np.min(self._g_tau))
+        self._markov = bool(np.isfinite(self._cell))       # some estimate decays
         #: longest open block, s: the checkpoint interval (and at most 2 correlation times)
         self.block_length = min(float(checkpoint_interval), 2.0 * float(np.min(self._g_tau)))
         self._x_time = float(initial_time)              # the estimates are those at this time
@@ -292,7 +294,8 @@ class AttitudeFilter:
         self._drain()
         if name == 'boresight':
             return self.boresight.copy()
-        return self.x[self.layout.slice_of(name)].copy()
+        sl = self.layout.slice_of(name)
+        return self._decayed(float(self.integrator.time) - self._x_time)[sl]    # (a copy)
 
     def sigma(self, name: str) -> np.ndarray:
         """
@@ -387,7 +390,7 @@ class AttitudeFilter:
             return []
         if not (np.isfinite(d).all() and np.isfinite(t).all()):
             raise ValueError('increments and stamps must be finite')
-        if t[0] <= self._queued_stamp or (len(t) > 1 and (np.diff(t) <= 0).any()):
+        if t[0] <= self._queued_stamp or (len(t) > 1 and (t[1:] <= t[:-1]).any()):
             raise ValueError('stamps must increase strictly and follow the newest stamp')
         self._queued_stamp = float(t[-1])
         marked = marks is not None and len(marks) > 0
@@ -398,7 +401,7 @@ class AttitudeFilter:
             self._queued += len(t)
             return []
         if marked:
-            self._marks = sorted(float(x) for x in t[np.asarray(marks, dtype=int)])
+            self._marks = sorted(t[np.asarray(marks, dtype=int)].tolist())
         if self._queued:
             d, t = np.concatenate(self._queue_d + [d]), np.concatenate(self._queue_t + [t])
             self._queue_d, self._queue_t, self._queued = [], [], 0
@@ -549,7 +552,7 @@ class AttitudeFilter:
         Gauss–Markov states: the estimate decayed to the middle of its cell (cells of 5 % of the
         shortest correlation time, counted from the last fix).
         """
-        if not np.isfinite(self._cell):
+        if not self._markov:
             if self._bias_only:                           # the bias alone: ρ = ρ̃ − b̂·T
                 return d - self._x[3:6] * dt[:, None]
             if self._effects is None:
@@ -568,25 +571,28 @@ class AttitudeFilter:
 
     def _partials(self, c, rho, h, t_mid) -> np.ndarray:
         """Return ``C_j J_j`` (m, 3, q) of the gyro states over m updates."""
+        if self._bias_only:              # the bias alone: J_j = h_j·I, so C_j J_j = h_j C_j
+            return c * h[:, None, None]
         J = [e.filter_partials(rho, h, t_mid) for e, _ in self.layout.gyro]
         return c @ (J[0] if len(J) == 1 else np.concatenate(J, axis=2))
 
     def _push_part(self, d: np.ndarray, t: np.ndarray) -> None:
         self._log.append(d, t)
-        t_start = self._last_stamp
-        dt = np.diff(np.concatenate([[t_start], t]))
+        t_start, t_end = self._last_stamp, float(t[-1])
+        dt = np.empty(len(t))                            # the lengths of the pieces
+        dt[0] = t[0] - t_start
+        np.subtract(t[1:], t[:-1], out=dt[1:])
         rho = self._compensate(d, t, dt)
         self._last_rate = rho[-1] / dt[-1]
         q_before = self.integrator.q
-        before = self._block.state()
         work_rho = np.concatenate([self._open_rho, rho])
         work_dt = np.concatenate([self._open_dt, dt])
         p = len(self._open_rho)
         batch = self.integrator.push(rho, t)
-        self._last_stamp = float(t[-1])
+        self._last_stamp = t_end
         n_new = self.integrator.algorithm.samples
         m = len(batch)
-        marks = [s for s in self._marks if t_start < s <= t[-1] and not self._held(s)]
+        marks = [s for s in self._marks if t_start < s <= t_end and not self._held(s)]
         run = None
         if m:
             c = quat_to_dcm(batch.attitude)
@@ -596,56 +602,68 @@ class AttitudeFilter:
             run = self._block.add(c, A, batch.interval, running=bool(marks))
         self._open_rho, self._open_dt = work_rho[m * n_new:], work_dt[m * n_new:]
         if marks:
-            self._report(marks, t, p, n_new, q_before, before, batch, run, work_rho, work_dt)
+            self._report(marks, t, p, n_new, q_before, batch, run, work_rho, work_dt)
 
     def _held(self, stamp: float) -> bool:
         """Tell whether a mark waits for a fix of its epoch (reported after it)."""
         return bool(self._pending) and self._pending[0].epoch <= stamp
 
-    def _report(self, marks, t, p, n_new, q_before, before, batch, run, work_rho,
-                work_dt) -> None:
-        """Report the state at marks inside the piece just pushed (not committing anything)."""
+    def _report(self, marks, t, p, n_new, q_before, batch, run, work_rho, work_dt) -> None:
+        """
+        Report the state at marks inside the piece just pushed (not committing anything).
+
+        ``run``: the block's running sums of this push (row 0: before it), None when it
+        completed no update.
+        """
         stamps = np.asarray(marks)
         K = len(stamps)
         w = p + np.searchsorted(t, stamps)                        # work index of each mark
         done = (w + 1) // n_new                                   # updates of this push up to it
-        q_out = np.concatenate([q_before[None], batch.attitude])[done]
-        h_v = np.zeros(K)
-        rho_v = np.zeros((K, 3))
-        for k in np.flatnonzero(done * n_new < w + 1):           # inside an update: a lumped rest
-            piece = work_rho[done[k] * n_new:w[k] + 1]
-            q_out[k] = quat_cumprod(q_out[k], rotvec_to_quat(piece))[-1]
-            rho_v[k] = piece.sum(0)
-            h_v[k] = work_dt[done[k] * n_new:w[k] + 1].sum()
-        base = tuple(np.repeat(b, K, axis=0) if run is None
-                     else np.concatenate([b, r])[done] for b, r in zip(before, run or before))
-        c_v = quat_to_dcm(q_out)
-        if h_v.any():
+        if run is None:
+            q_out = np.repeat(q_before[None], K, axis=0)
+            base = tuple(np.repeat(b, K, axis=0) for b in self._block.state())
+        else:
+            q_out = np.concatenate([q_before[None], batch.attitude])[done]
+            base = tuple(None if r is None else r[done] for r in run)
+        inside = np.flatnonzero(done * n_new < w + 1)            # inside an update: a lumped rest
+        if len(inside):
+            h_v = np.zeros(K)
+            rho_v = np.zeros((K, 3))
+            for k in inside:
+                piece = work_rho[done[k] * n_new:w[k] + 1]
+                q_out[k] = quat_cumprod(q_out[k], rotvec_to_quat(piece))[-1]
+                rho_v[k] = piece.sum(0)
+                h_v[k] = work_dt[done[k] * n_new:w[k] + 1].sum()
+            c_v = quat_to_dcm(q_out)
             A_v = self._partials(c_v, rho_v, np.where(h_v > 0, h_v, 1.0),
                                  stamps - 0.5 * h_v - self.epoch) * (h_v > 0)[:, None, None]
             sums = self._block.extended(base, c_v, A_v, h_v)
-        else:
+        else:                        # every mark at an update's end: the sums there as they are
             sums = base
         phi, Q, _ = self._block.transition(sums, self.sigma_v)
         self._add_reports(stamps, q_out, phi, Q)
 
     def _add_reports(self, stamps, q, phi, Q) -> None:
+        """Report the states at K stamps: attitudes q (K, 4), the open block's Φ and Q there."""
         k = 3 + self._nq
-        F = np.broadcast_to(self._sqrt_p, (len(stamps),) + self._sqrt_p.shape).copy()
-        F[:, :k] = phi @ self._sqrt_p[:k]
+        K = len(stamps)
+        S = self._sqrt_p
+        if k == len(S):                                # Φ covers the whole state
+            F = phi @ S                                # the factor propagated to each stamp
+        else:
+            F = np.empty((K,) + S.shape)
+            F[:, :k] = phi @ S[:k]
+            F[:, k:] = S[k:]
         P = F @ np.swapaxes(F, -1, -2)
         P[:, :k, :k] += Q
         P = 0.5 * (P + np.swapaxes(P, -1, -2))
-        x = self._x
-        if np.isfinite(self._cell):
-            x = np.broadcast_to(x, (len(stamps), len(x))).copy()
+        x = np.repeat(self._x[None], K, axis=0)        # each report its own row (no copies)
+        if self._markov:
             x[:, 3:3 + self._nq] *= np.exp(-np.outer(stamps - self._x_time, 1.0 / self._g_tau))
-        else:
-            x = np.broadcast_to(x, (len(stamps), len(x)))
         bv = self.boresight.copy()
-        self.reports.extend(StateReport(float(s), q[j], P[j], x[j].copy(), bv)
-                            for j, s in enumerate(stamps))
-        done = {float(s) for s in stamps}
+        stamps = np.asarray(stamps, dtype=float).tolist()
+        self.reports.extend(StateReport(s, q[j], P[j], x[j], bv) for j, s in enumerate(stamps))
+        done = set(stamps)
         self._marks = [m for m in self._marks if m not in done]
 
     def _report_held(self) -> None:
@@ -667,10 +685,13 @@ class AttitudeFilter:
         if self._block.m:
             phi, Q, _ = self._block.transition(self._block.state(), self.sigma_v)
             k = 3 + self._nq
-            S = self._sqrt_p.copy()
-            S[:k] = phi[0] @ self._sqrt_p[:k]
-            Qf = np.zeros((len(S), k))
-            Qf[:k] = psd_factor(Q[0])
+            if k == len(self._sqrt_p):                   # Φ covers the whole state
+                S, Qf = phi[0] @ self._sqrt_p, psd_factor(Q[0])
+            else:
+                S = self._sqrt_p.copy()
+                S[:k] = phi[0] @ self._sqrt_p[:k]
+                Qf = np.zeros((len(S), k))
+                Qf[:k] = psd_factor(Q[0])
             self._sqrt_p = triangular_factor(S, Qf)       # P ← ΦPΦᵀ + Q
         self._new_block()
 
@@ -703,13 +724,13 @@ class AttitudeFilter:
     def _decayed(self, elapsed: float) -> np.ndarray:
         """Return the estimates ``elapsed`` s after the last fix (Gauss–Markov states decay)."""
         x = self._x.copy()
-        if np.isfinite(self._cell):
+        if self._markov:
             x[3:3 + self._nq] *= np.exp(-elapsed / self._g_tau)
         return x
 
     def _settle(self, epoch: float) -> None:
         """Make the estimates those at ``epoch`` (the decay since the last fix applied)."""
-        if np.isfinite(self._cell) and epoch != self._x_time:
+        if self._markov and epoch != self._x_time:
             self._x = self._decayed(epoch - self._x_time)
             self._effects = None
         self._x_time = float(epoch)
@@ -779,9 +800,12 @@ class AttitudeFilter:
             H[:, lay.time_offset] = EFFECTS['time_offset'].fix_jacobian(self._last_rate, c_bv.T)
         P = self._sqrt_p @ self._sqrt_p.T
         P = 0.5 * (P + P.T)
-        S = H @ P @ H.T + fix.covariance
+        HP = H @ P
+        S = HP @ H.T + fix.covariance
         S = 0.5 * (S + S.T)
-        nis = float(z @ np.linalg.solve(S, z))
+        # S⁻¹ [z, HP] in one solve: the NIS, and the gain when the fix is applied
+        solved = np.linalg.solve(S, np.column_stack((z, HP)))
+        nis = float(z @ solved[:, 0])
         self._applied.append(fix)
         fix.order = self._order
         self._order += 1
@@ -798,12 +822,12 @@ class AttitudeFilter:
             fix.counted = True
             self._checkpoint()
             return res
-        K = np.linalg.solve(S, H @ P).T
+        K = solved[:, 1:].T
         dx = K @ z
-        if not (np.all(np.isfinite(K)) and np.all(np.isfinite(dx))):
+        if not (np.isfinite(K).all() and np.isfinite(dx).all()):
             raise FloatingPointError('attitude filter: non-finite gain in the update (numerical '
                                      'failure, not bad input); the state is not corrected')
-        IKH = np.eye(lay.size) - K @ H
+        IKH = self._identity - K @ H
         # Joseph form P ← (I − KH)P(I − KH)ᵀ + KRKᵀ, as the factor of [(I − KH)S, K R^½]
         self._sqrt_p = triangular_factor(IKH @ self._sqrt_p,
                                          K @ np.linalg.cholesky(fix.covariance))

@@ -60,6 +60,7 @@ class BlockSums:
         self.lam = 1.0 / np.asarray(tau, dtype=float).reshape(self.q)        # 0 where τ = inf
         self.markov = bool(np.any(self.lam > 0))
         self.noisy = bool(np.any(self.s > 0))
+        self._diagonal = np.arange(3, 3 + self.q)        # the gyro states' diagonal in Φ, Q
         self.restart(self.c0)
 
     def restart(self, c0: np.ndarray) -> None:
@@ -108,51 +109,51 @@ class BlockSums:
         h : ndarray (m,)
             Update lengths, s.
         running : bool
-            Also return the sums after every update.
+            Also return the sums before the first update and after every update.
 
         Returns
         -------
         tuple or None
-            With ``running``: ``(c, T, E, α, β, Γ, Λ)`` after each of the m updates (leading
-            axis m), as :meth:`state`.
+            With ``running``: ``(c, T, E, α, β, Γ, Λ)`` before the m updates (row 0, the
+            sums :meth:`state` gave) and after each of them (rows 1…m), leading axis m + 1;
+            without gyro-state noise α, β, Γ, Λ are None (zero, and never read).
 
         """
         m = len(h)
         if m == 0:
             return None
         h = np.asarray(h, dtype=float)
-        # every running sum is a sequential accumulation that starts from the previous total,
-        # so adding updates in pieces gives the same numbers as adding them at once
-        T = np.cumsum(np.concatenate(([self.T], h)))[1:]
+        # every running sum is a sequential accumulation that starts from the previous total
+        # (row 0), so adding updates in pieces gives the same numbers as adding them at once
+        T = np.cumsum(np.concatenate(([self.T], h)))
         if self.markov:
-            u = T - 0.5 * h
+            u = T[1:] - 0.5 * h
             grow = np.exp(np.outer(u, self.lam))                       # e^{λu}, (m, q)
             weighted = A / grow[:, None, :]
         else:
             grow = None
             weighted = A
-        E = np.cumsum(np.concatenate((self.E[None], weighted)), axis=0)[1:]
+        E = np.cumsum(np.concatenate((self.E[None], weighted)), axis=0)
         out = None
         if self.noisy:
             w = self.s[None, :] * h[:, None]                             # (m, q)
-            D = (E * grow[:, None, :] if self.markov else E) - 0.5 * A
+            D = (E[1:] * grow[:, None, :] if self.markov else E[1:]) - 0.5 * A
             wg = w * grow if self.markov else w
             alpha = np.cumsum(np.concatenate((self.alpha[None],
-                                              wg * grow if self.markov else w)), axis=0)[1:]
-            beta = np.cumsum(np.concatenate((self.beta[None], D * wg[:, None, :])), axis=0)[1:]
+                                              wg * grow if self.markov else w)), axis=0)
+            beta = np.cumsum(np.concatenate((self.beta[None], D * wg[:, None, :])), axis=0)
             gamma = np.cumsum(np.concatenate((self.gamma[None],
                                               np.einsum('mic,mc,mjc->mij', D, w, D))),
-                              axis=0)[1:]
+                              axis=0)
             tw = np.cumsum(np.concatenate((self.twelfth[None],
                                            np.einsum('mic,mc,mjc->mij', A, w, A) / 12.0)),
-                           axis=0)[1:]
+                           axis=0)
             if running:
-                out = (c, T, E, alpha, beta, gamma, tw)
+                out = (np.concatenate((self.c_end[None], c)), T, E, alpha, beta, gamma, tw)
             self.alpha, self.beta = alpha[-1], beta[-1]
             self.gamma, self.twelfth = gamma[-1], tw[-1]
         elif running:
-            z3 = np.zeros((m, 3, 3))
-            out = (c, T, E, np.zeros((m, self.q)), np.zeros((m, 3, self.q)), z3, z3)
+            out = (np.concatenate((self.c_end[None], c)), T, E, None, None, None, None)
         self.m += m
         self.c_end = c[-1]
         self.T = float(T[-1])
@@ -166,7 +167,8 @@ class BlockSums:
         Parameters
         ----------
         sums : tuple
-            K sets of sums (:meth:`state` or rows of :meth:`add`'s running output).
+            K sets of sums (:meth:`state` or rows of :meth:`add`'s running output; α, β, Γ, Λ
+            may be None without gyro-state noise).
         c_v : ndarray (K, 3, 3)
             Attitude at the end of each extra update.
         A_v : ndarray (K, 3, q)
@@ -206,7 +208,7 @@ class BlockSums:
         Parameters
         ----------
         sums : tuple
-            K sets of sums (leading axis K).
+            K sets of sums (leading axis K; α, β, Γ, Λ are read only with gyro-state noise).
         sigma_v : float
             Angle random walk, rad/√s.
 
@@ -227,7 +229,7 @@ class BlockSums:
         phi[:, :3, :3] = ce @ self.c0
         phi[:, :3, 3:] = -(ce @ E)
         decay = np.exp(-np.outer(T, self.lam)) if self.markov else np.ones((K, q))
-        idx = np.arange(3, 3 + q)
+        idx = self._diagonal
         phi[:, idx, idx] = decay
         Q = np.zeros((K, 3 + q, 3 + q))
         Q[:, 0, 0] = Q[:, 1, 1] = Q[:, 2, 2] = sigma_v ** 2 * T
@@ -240,7 +242,8 @@ class BlockSums:
             Q[:, :3, 3:] = q_ec
             Q[:, 3:, :3] = np.swapaxes(q_ec, -1, -2)
             Q[:, idx, idx] = alpha * decay * decay
-        Q = 0.5 * (Q + np.swapaxes(Q, -1, -2))
+            Q = 0.5 * (Q + np.swapaxes(Q, -1, -2))
+        # (without the gyro noise Q is diagonal: symmetric as it is)
         return phi, Q, decay
 
 

@@ -7,6 +7,8 @@ covariance factors, and the result and counter records.  No ROS imports.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import cached_property, lru_cache
+import math
 
 import numpy as np
 
@@ -47,9 +49,10 @@ def checked_fix(stamp: float, attitude, covariance):
     """
     q = np.asarray(attitude, dtype=float)
     R = np.asarray(covariance, dtype=float)
-    if q.shape != (4,) or not np.all(np.isfinite(q)) or abs(np.linalg.norm(q) - 1.0) > 1e-3:
+    if q.shape != (4,) or not np.isfinite(q).all() \
+            or abs(math.sqrt(float(q @ q)) - 1.0) > 1e-3:        # (np.linalg.norm's formula)
         raise ValueError('the fix attitude must be a finite unit quaternion [w, x, y, z]')
-    if R.shape != (3, 3) or not np.all(np.isfinite(R)):
+    if R.shape != (3, 3) or not np.isfinite(R).all():
         raise ValueError('the fix covariance must be a finite 3x3 matrix')
     R = 0.5 * (R + R.T)
     if np.linalg.eigvalsh(R)[0] <= 0:
@@ -74,8 +77,19 @@ def triangular_factor(*blocks: np.ndarray) -> np.ndarray:
         S (lower triangular), so that S Sᵀ is positive semi-definite by construction.
 
     """
-    r = np.linalg.qr(np.hstack(blocks).T, mode='r')
-    return r.T
+    # mode 'raw' is the factorisation of mode 'r' without its triu: LAPACK's output
+    # transposed, Rᵀ in its lower triangle
+    h, _ = np.linalg.qr(np.hstack(blocks).T, mode='raw')
+    n, k = h.shape[0], min(h.shape)
+    return np.where(_lower_triangle(n, k), h[:, :k], 0.0)
+
+
+@lru_cache(maxsize=64)
+def _lower_triangle(n: int, k: int) -> np.ndarray:
+    """Return the (n, k) mask of the lower triangle (read-only: it is shared)."""
+    mask = np.tri(n, k, dtype=bool)
+    mask.flags.writeable = False
+    return mask
 
 
 def psd_factor(Q: np.ndarray) -> np.ndarray:
@@ -324,6 +338,21 @@ class StateLayout:
             lay.size += 3
         return lay
 
+    @cached_property
+    def _slices(self) -> dict:
+        """Return the state groups by name (:meth:`named_slices`; fixed once built)."""
+        return dict(self.named_slices())
+
+    @cached_property
+    def _bounded(self) -> list:
+        """Return (effect, slice, registry parameter) of the states :meth:`implausible` checks."""
+        named = [(e, sl) for e, sl in self.gyro]
+        if self.time_offset is not None:
+            named.append((EFFECTS['time_offset'], self.time_offset))
+        return [(e, sl, e.value_parameter) for e, sl in named
+                if e.value_parameter.minimum is not None
+                or e.value_parameter.maximum is not None]
+
     def named_slices(self) -> list:
         """
         Return the augmented state groups by name, bias included, ε excluded.
@@ -361,7 +390,7 @@ class StateLayout:
             ``name`` is not a state of this layout.
 
         """
-        sl = dict(self.named_slices()).get(name)
+        sl = self._slices.get(name)
         if sl is None:
             raise ValueError(f'{name!r} is not a state of this filter')
         return sl
@@ -382,13 +411,9 @@ class StateLayout:
 
         """
         out = []
-        named = [(e, sl) for e, sl in self.gyro]
-        if self.time_offset is not None:
-            named.append((EFFECTS['time_offset'], self.time_offset))
-        for e, sl in named:
+        for e, sl, p in self._bounded:
             v = e.filter_values(x[sl]) if e.sensor == 'gyro' else x[sl]
-            p = e.value_parameter
-            if (p.minimum is not None and np.any(v < p.minimum)) or \
-                    (p.maximum is not None and np.any(v > p.maximum)):
+            if (p.minimum is not None and (v < p.minimum).any()) or \
+                    (p.maximum is not None and (v > p.maximum).any()):
                 out.append(e.name)
         return out

@@ -370,7 +370,7 @@ class FilterSystem:
                     if rule.offer(ns, (0.0, 0.0, 0.0)) and rule.gap_marks]
         else:
             b = breaks if isinstance(breaks, np.ndarray) else np.fromiter(breaks, np.int64)
-            cuts = np.flatnonzero(np.isin(t, b)).tolist()
+            cuts = np.flatnonzero(np.isin(t, b)).tolist() if len(b) else []
         edges = sorted(set([0] + cuts)) + [len(t)]
         for lo, hi in zip(edges[:-1], edges[1:]):
             if lo in cuts:
@@ -601,7 +601,8 @@ class FilterSystem:
             self._last_ns = int(t_ns[-1])
             return
         keep = t_ns > self._last_ns
-        t_ns, d = t_ns[keep], d[keep]
+        if not keep.all():
+            t_ns, d = t_ns[keep], d[keep]
         while len(t_ns):
             cut = len(t_ns)
             if self._pending:      # the model check's signature ends at the fix
@@ -613,7 +614,9 @@ class FilterSystem:
     def _propagate(self, d, t_ns) -> None:
         f = self.filter
         t = t_ns * 1e-9
-        h = np.diff(np.concatenate([[self._last_ns * 1e-9], t]))
+        h = np.empty(len(t))                   # the increments' lengths, s
+        h[0] = t[0] - self._last_ns * 1e-9
+        np.subtract(t[1:], t[:-1], out=h[1:])
         if self.compensation is not None:
             d = self.compensation.compensate(d, t, h)
         self._signature(d, h, t)
@@ -630,12 +633,12 @@ class FilterSystem:
             * self.output_ns
         self._last_rate = d[-1] / h[-1]
         if len(marks):
+            # the increments and seconds since the previous output, at each mark
             cd = np.cumsum(np.vstack([self._rate_sum[None], d]), axis=0)
             ch = np.cumsum(np.concatenate([[self._rate_time], h]))
-            lo_d, lo_h = self._rate_sum, self._rate_time
-            for i, r in zip(marks, reports):
-                self._emit(int(t_ns[i]), r, cd[i + 1] - lo_d, ch[i + 1] - lo_h)
-                lo_d, lo_h = cd[i + 1], ch[i + 1]
+            hi = marks + 1
+            lo = np.concatenate(([0], hi[:-1]))
+            self._emit(t_ns[marks], reports, cd[hi] - cd[lo], ch[hi] - ch[lo])
             self._rate_sum = d[marks[-1] + 1:].sum(0)
             self._rate_time = float(h[marks[-1] + 1:].sum())
         else:
@@ -704,21 +707,40 @@ class FilterSystem:
         self.fix_outputs.append(out)
         return out
 
-    def _emit(self, stamp_ns: int, r, rho_sum, seconds: float) -> None:
+    def _emit(self, stamps_ns, reports, rho_sums, seconds) -> None:
+        """Append the outputs of K reports (arrays over the K rows, then one row each)."""
+        K = min(len(reports), len(stamps_ns))             # (equal: every mark is reported)
+        if K == 0:
+            return
+        if K < len(reports) or K < len(stamps_ns):
+            reports, stamps_ns, rho_sums, seconds = (reports[:K], stamps_ns[:K],
+                                                     rho_sums[:K], seconds[:K])
         lay = self.filter.layout
-        P, x = r.covariance, r.states
-        sl = slice(3, 6)                                  # the bias: always the first gyro state
-        bias = x[sl].copy()
-        rate = rho_sum / seconds - bias if seconds > 0 else np.zeros(3)
-        aug = {}
-        for name in self.augment:
-            if name == 'boresight':
-                aug[name] = (r.boresight.copy(), np.sqrt(np.diag(P)[lay.boresight]))
-            else:
-                s = lay.slice_of(name)
-                aug[name] = (x[s].copy(), np.sqrt(np.diag(P)[s]))
-        self.outputs.append(FilterOutput(stamp_ns, r.attitude.copy(), P[:3, :3].copy(), rate,
-                                         bias, P[sl, sl].copy(), aug))
+        q = np.array([r.attitude for r in reports])                  # (K, 4)
+        x = np.array([r.states for r in reports])                    # (K, n)
+        P = np.array([r.covariance for r in reports])                # (K, n, n)
+        bias = x[:, 3:6]                                  # the bias: always the first gyro state
+        if (seconds > 0).all():
+            rate = rho_sums / seconds[:, None] - bias
+        else:                                             # no time since the last output: 0
+            moved = seconds > 0
+            rate = np.zeros_like(bias)
+            rate[moved] = rho_sums[moved] / seconds[moved, None] - bias[moved]
+        att_cov, bias_cov = P[:, :3, :3].copy(), P[:, 3:6, 3:6].copy()
+        aug = []                                          # (name, estimates (K, w), σ (K, w))
+        if self.augment:
+            sigma = np.sqrt(np.diagonal(P, axis1=1, axis2=2))        # (K, n)
+            for name in self.augment:
+                if name == 'boresight':
+                    aug.append((name, np.array([r.boresight for r in reports]),
+                                sigma[:, lay.boresight]))
+                else:
+                    s = lay.slice_of(name)
+                    aug.append((name, x[:, s], sigma[:, s]))
+        out = self.outputs
+        for i, ns in enumerate(stamps_ns.tolist()):
+            out.append(FilterOutput(ns, q[i], att_cov[i], rate[i], bias[i], bias_cov[i],
+                                    {name: (est[i], sig[i]) for name, est, sig in aug}))
 
     def _start(self, stamp_ns: int, q_fix) -> None:
         m, s = self.model, self.settings

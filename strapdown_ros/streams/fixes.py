@@ -88,9 +88,12 @@ def unit_quaternion(q) -> tuple[np.ndarray | None, str | None]:
 
     """
     a = np.asarray(q, dtype=float).reshape(-1)
-    if a.shape != (4,) or not _finite(a):
+    if a.shape != (4,):
         return None, 'nan'
-    s = float(np.max(np.abs(a)))
+    e = a.tolist()                               # (the checks on Python floats: 4 numbers)
+    if not all(map(math.isfinite, e)):
+        return None, 'nan'
+    s = max(map(abs, e))
     if s == 0.0:
         return None, 'zero_quaternion'
     u = a / s                                    # each |u_i| <= 1: the norm cannot overflow
@@ -122,18 +125,20 @@ def screen_covariance(P) -> tuple[np.ndarray | None, str | None]:
 
     """
     a = np.asarray(P, dtype=float).reshape(3, 3)
-    c = float(np.max(np.abs(a)))
+    c = float(np.abs(a).max())
     u = a / c                                    # elements in [-1, 1]: nothing below overflows
-    if float(np.max(np.abs(u - u.T))) > SYMMETRY_TOLERANCE:
+    e = u.tolist()                               # (the checks on Python floats: 9 numbers)
+    if max(abs(e[i][j] - e[j][i]) for i, j in ((0, 1), (0, 2), (1, 2))) > SYMMETRY_TOLERANCE:
         return None, 'asymmetric'
     u = 0.5 * (u + u.T)
     try:
-        lam = np.linalg.eigvalsh(u)
+        lam = np.linalg.eigvalsh(u).tolist()
     except np.linalg.LinAlgError:                # not expected for a bounded matrix
         return None, 'not_positive_definite'
-    if not _finite(lam) or lam[-1] <= 0.0 or lam[0] < CONDITION_LIMIT * lam[-1]:
+    lo, hi = lam[0], lam[-1]
+    if not all(map(math.isfinite, lam)) or hi <= 0.0 or lo < CONDITION_LIMIT * hi:
         return None, 'not_positive_definite'
-    if lam[-1] * c > MAX_VARIANCE or lam[0] * c < MIN_VARIANCE:
+    if hi * c > MAX_VARIANCE or lo * c < MIN_VARIANCE:
         return None, 'out_of_bounds'
     return u * c, None
 
