@@ -249,8 +249,8 @@ def spectral_whiteness(white: np.ndarray) -> tuple[float, int]:
         p6 = beta_sf(energy[j6] / total, 3.0, half - 3.0)
         # P(Beta(3/2, b) > x) ≥ P(Beta(1, b) > x) = (1 − x)^b (larger a: stochastically larger):
         # when that bound is above p6, the mean's band cannot have the smaller p
-        b3 = half - 1.5
-        if math.exp(b3 * math.log1p(-energy[j3] / total)) * (1.0 - 1e-9) > p6:
+        x3 = energy[j3] / total
+        if x3 < 1.0 and math.exp((half - 1.5) * math.log1p(-x3)) * (1.0 - 1e-9) > p6:
             return min(1.0, len(e) * p6), j6
     best, band = 1.0, 0
     for dof, j in tops:            # one shape: the largest share, the smallest p

@@ -47,8 +47,10 @@ def test_whiteness_p_is_the_smallest_band_p_times_the_bands():
     """The screened test gives min(1, J·min_j P(Beta_j > E_j/T)) over every band, exactly."""
     rng = np.random.default_rng(7)
     for n in (5, 6, 29, 30):
-        for k in range(40):
-            w = rng.standard_normal((n, 3)) + (0.4 * k / 40) * np.sign(np.arange(n) - n / 2)[:, None]
+        for k in range(41):
+            step = np.sign(np.arange(n) - n / 2)[:, None]
+            w = rng.standard_normal((n, 3)) + (0.4 * k / 40) * step
+            w = np.ones((n, 3)) if k == 40 else w            # all in the mean's band
             e, d = band_energies(w), band_dof(n)
             ps = [beta_sf(e[j] / e.sum(), d[j] / 2, (3 * n - d[j]) / 2) for j in range(len(e))]
             p, band = spectral_whiteness(w)
