@@ -394,7 +394,8 @@ class ModelCheck:
         if self.states:
             sl = self._state_slice
             phi[:3, sl] = -ce @ self._sums[:, self._fitted:]
-            phi[self._state_diag] = np.exp(-self._elapsed * self._lam)
+            if self._decays:                           # else exp(0) = 1: the identity's
+                phi[self._state_diag] = np.exp(-self._elapsed * self._lam)
         return phi
 
     def restart_response(self) -> None:
