@@ -470,12 +470,16 @@ def quat_cumprod(q0: np.ndarray, dq: np.ndarray) -> np.ndarray:
     q0 = np.asarray(q0, dtype=float)
     x = np.asarray(dq, dtype=float)
     n = x.shape[0]
-    if n <= 16:                                       # short: sequential
-        out = np.empty_like(x)
-        q = q0
-        for k in range(n):
-            q = quat_multiply(q, x[k])
-            out[k] = q
+    if n <= 16:                                       # short: sequential, quat_multiply's
+        pw, px, py, pz = q0.reshape(4).tolist()       # arithmetic on floats
+        rows = []
+        for qw, qx, qy, qz in x.tolist():
+            pw, px, py, pz = (pw * qw - px * qx - py * qy - pz * qz,
+                              pw * qx + px * qw + py * qz - pz * qy,
+                              pw * qy - px * qz + py * qw + pz * qx,
+                              pw * qz + px * qy - py * qx + pz * qw)
+            rows.append((pw, px, py, pz))
+        out = np.array(rows, dtype=float).reshape(n, 4)
         return out / np.linalg.norm(out, axis=-1, keepdims=True)
     b = 16                                            # block length: few passes, long vectors
     m = -(-n // b)                                    # number of blocks

@@ -37,10 +37,10 @@ def _gamma_p(a: float, x: float) -> float:
             ap += 1.0
             term *= x / ap
             total += term
-            if abs(term) < abs(total) * 1e-15:
+            if term < total * 1e-15:          # both positive (a, x > 0): |term| < |total|·1e-15
                 break
         return min(1.0, total * math.exp(log_pre))
-    tiny = 1e-300
+    tiny = 1e-300                             # |v| < tiny as a chained comparison: no abs()
     b = x + 1.0 - a
     c, d = 1.0 / tiny, 1.0 / b
     h = d
@@ -48,12 +48,14 @@ def _gamma_p(a: float, x: float) -> float:
         an = -k * (k - a)
         b += 2.0
         d = an * d + b
-        d = tiny if abs(d) < tiny else d
+        if -tiny < d < tiny:
+            d = tiny
         c = b + an / c
-        c = tiny if abs(c) < tiny else c
+        if -tiny < c < tiny:
+            c = tiny
         d = 1.0 / d
         h *= d * c
-        if abs(d * c - 1.0) < 1e-15:
+        if -1e-15 < d * c - 1.0 < 1e-15:
             break
     return max(0.0, 1.0 - math.exp(log_pre) * h)
 

@@ -42,7 +42,6 @@ only reports; the filter's model is never changed by it.
 """
 from __future__ import annotations
 
-from collections import deque
 from dataclasses import dataclass
 import math
 
@@ -50,12 +49,15 @@ import numpy as np
 
 from strapdown_ros.estimation.window_tests import beta_log_sf, judge_window, window_level
 from strapdown_ros.rotation import quat_cumprod, quat_to_dcm, rotvec_to_quat
+from strapdown_ros.sensors.effect_base import Effect
 from strapdown_ros.sensors.effects import EFFECTS
 
 __all__ = ['ModelCheck', 'ModelCheckResult', 'ljung_box', 'check_candidates', 'NOISE_EFFECT']
 
 #: the library's noise effect, named when white innovations are too large and no mean effect fits
 NOISE_EFFECT = 'camera_noise_anisotropy'
+#: increments up to which the signatures' attitude chain is computed on floats, not numpy
+CHAIN_ON_FLOATS = 48
 
 
 def ljung_box(x: np.ndarray, lags: int) -> float:
@@ -114,6 +116,76 @@ def check_candidates(augment=()) -> tuple[list, bool]:
                and n != 'gyro_bias' and n not in augment and hasattr(e, 'filter_partials')]
     offset = EFFECTS['time_offset'].candidate and 'time_offset' not in augment
     return effects, offset
+
+
+def _partials(effect) -> tuple:
+    """
+    Return ``(f, S)``: the effect's filter partials are ``f(ρ, T, t)``, times S unless None.
+
+    The base class's :meth:`~strapdown_ros.sensors.effect_base.Effect.filter_partials` with its
+    fit basis taken once (it does not change between fixes).
+    """
+    if type(effect).filter_partials is Effect.filter_partials:
+        return effect.increment_jacobian, effect.fit_basis()
+    return effect.filter_partials, None
+
+
+def _attitude_chain(q0: np.ndarray, rho: np.ndarray) -> tuple:
+    """
+    Return the DCMs ``C(q_k)`` of ``q_k = q0 ⊗ exp(ρ_1) ⊗ … ⊗ exp(ρ_k)`` and ``q_m``.
+
+    :func:`~strapdown_ros.rotation.quat_cumprod` of
+    :func:`~strapdown_ros.rotation.rotvec_to_quat` and then
+    :func:`~strapdown_ros.rotation.quat_to_dcm`, equal to round-off; for the few increments of
+    one fix interval on floats (a few numpy calls cost more than the arithmetic).
+    """
+    if len(rho) > CHAIN_ON_FLOATS:
+        q = quat_cumprod(q0, rotvec_to_quat(rho))
+        return quat_to_dcm(q), q[-1]
+    pw, px, py, pz = q0.tolist()
+    out = []
+    for a, b, c in rho.tolist():
+        angle = math.sqrt(a * a + b * b + c * c)
+        s = math.sin(0.5 * angle) / angle if angle > 0.0 else 0.5
+        qw, qx, qy, qz = math.cos(0.5 * angle), a * s, b * s, c * s
+        pw, px, py, pz = (pw * qw - px * qx - py * qy - pz * qz,
+                          pw * qx + px * qw + py * qz - pz * qy,
+                          pw * qy - px * qz + py * qw + pz * qx,
+                          pw * qz + px * qy - py * qx + pz * qw)
+        r = 1.0 / math.sqrt(pw * pw + px * px + py * py + pz * pz)
+        w, x, y, z = pw * r, px * r, py * r, pz * r
+        out.append((1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y),
+                    2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x),
+                    2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)))
+    return np.array(out).reshape(-1, 3, 3), np.array([w, x, y, z])
+
+
+def _lower_cholesky_inverse(S) -> np.ndarray:
+    """
+    Return L⁻¹ for the 3×3 ``S = L Lᵀ`` (its lower triangle), L lower triangular.
+
+    The Cholesky factor numpy's would be, on floats; LinAlgError as numpy's when S is not
+    positive definite.
+    """
+    (a, _, _), (b, c, _), (d, e, f) = np.asarray(S, dtype=float).reshape(3, 3).tolist()
+    if not a > 0.0:
+        raise np.linalg.LinAlgError('Matrix is not positive definite')
+    l00 = math.sqrt(a)
+    l10, l20 = b / l00, d / l00
+    c -= l10 * l10
+    if not c > 0.0:
+        raise np.linalg.LinAlgError('Matrix is not positive definite')
+    l11 = math.sqrt(c)
+    l21 = (e - l20 * l10) / l11
+    f -= l20 * l20 + l21 * l21
+    if not f > 0.0:
+        raise np.linalg.LinAlgError('Matrix is not positive definite')
+    l22 = math.sqrt(f)
+    m00, m11, m22 = 1.0 / l00, 1.0 / l11, 1.0 / l22
+    m10 = -l10 * m00 * m11
+    m21 = -l21 * m11 * m22
+    m20 = -(l20 * m00 + l21 * m10) * m22
+    return np.array([[m00, 0.0, 0.0], [m10, m11, 0.0], [m20, m21, m22]])
 
 
 @dataclass
@@ -245,11 +317,31 @@ class ModelCheck:
             raise ValueError('state_tau needs one correlation time per gyro state')
         self._lam = np.where(np.isfinite(tau) & (tau > 0), 1.0 / np.where(tau > 0, tau, 1.0),
                              0.0)
+        self._decays = bool(np.any(self._lam > 0))
         sizes = [e.filter_size() for e in self.effects] + ([1] if time_offset else [])
-        self._E = [np.zeros((self.size, m)) for m in sizes]
-        self._cuts = np.cumsum([e.filter_size() for e in self.effects])[:-1]
+        # every signature in one block of columns: the effects', then the time offset's
+        self._width = int(sum(sizes))
+        self._fitted = int(sum(sizes[:len(self.effects)]))
+        starts = np.concatenate([[0], np.cumsum(sizes)]).astype(int).tolist()
+        self._columns = [slice(a, b) for a, b in zip(starts[:-1], starts[1:])]
+        self._E = np.zeros((self.size, self._width))
+        self._partials = [_partials(e) for e in self.effects] \
+            + [_partials(e) for e, _ in self.states]
         self._state_cols = cols
-        self._rows: deque = deque(maxlen=self.window)
+        self._eye = np.eye(self.size)
+        self._eye3 = np.eye(3)
+        if self.states:      # contiguous
+            first, last = self.states[0][1].start, self.states[-1][1].stop
+            self._state_slice = slice(first, last)
+            self._state_diag = (np.arange(first, last), np.arange(first, last))
+        # the window: each row written twice, at k mod N and k mod N + N, so that the last N
+        # rows are always one contiguous slice, in order
+        n = self.window
+        self._stamps = np.zeros(2 * n)
+        self._white = np.zeros((2 * n, 3))
+        self._signatures = np.zeros((2 * n, 3, self._width))
+        self._filled = 0
+        self._next = 0
         self.last = ModelCheckResult(0, True)
         self.windows = self.failed = self.episodes = 0
         self.warn = False
@@ -259,9 +351,10 @@ class ModelCheck:
     # ------------------------------------------------------------------ signatures
     def _start_interval(self) -> None:
         self._rot = np.array([1.0, 0.0, 0.0, 0.0])     # body at the last fix ← body now
+        self._dcm = self._eye3                         # its DCM
         self._elapsed = 0.0
-        self._sums = np.zeros((3, sum(e.filter_size() for e in self.effects)))
-        self._state_sums = np.zeros((3, self._state_cols))
+        # the effects' increment partials, then the filter's gyro states'
+        self._sums = np.zeros((3, self._fitted + self._state_cols))
 
     def accumulate(self, rho, h, t) -> None:
         """
@@ -282,33 +375,32 @@ class ModelCheck:
         t = np.asarray(t, dtype=float).reshape(-1)
         if len(rho) == 0:
             return
-        q = quat_cumprod(self._rot, rotvec_to_quat(rho))[-len(rho):]
-        c = quat_to_dcm(q)                         # body at the last fix ← body at each end
-        if self.effects:
-            J = np.concatenate([e.filter_partials(rho, h, t) for e in self.effects], axis=2)
-            self._sums += np.einsum('nij,njk->ik', c, J)
-        if self.states:
-            J = np.concatenate([e.filter_partials(rho, h, t) for e, _ in self.states], axis=2)
-            if np.any(self._lam > 0):
+        c, self._rot = _attitude_chain(self._rot, rho)  # body at the last fix ← at each end
+        self._dcm = c[-1]
+        if self._partials:
+            parts = [f(rho, h, t) if S is None else f(rho, h, t) @ S for f, S in self._partials]
+            J = np.concatenate(parts, axis=2)
+            if self._decays and self.states:
                 u = self._elapsed + np.cumsum(h) - 0.5 * h      # since the interval's start
-                J = J * np.exp(-u[:, None] * self._lam)[:, None, :]
-            self._state_sums += np.einsum('nij,njk->ik', c, J)
-        self._rot = q[-1]
+                J[:, :, self._fitted:] *= np.exp(-u[:, None] * self._lam)[:, None, :]
+            # Σ_k C_k J_k as one product: (3, 3m) by (3m, columns)
+            self._sums += c.transpose(1, 0, 2).reshape(3, -1) @ J.reshape(-1, J.shape[2])
         self._elapsed += float(h.sum())
 
     def _transition(self, ce: np.ndarray) -> np.ndarray:
         """Return the filter's error transition over the interval (body axes at both ends)."""
-        phi = np.eye(self.size)
+        phi = self._eye.copy()
         phi[:3, :3] = ce
         if self.states:
-            sl = slice(self.states[0][1].start, self.states[-1][1].stop)   # contiguous
-            phi[:3, sl] = -ce @ self._state_sums
-            phi[sl, sl] = np.diag(np.exp(-self._elapsed * self._lam))
+            sl = self._state_slice
+            phi[:3, sl] = -ce @ self._sums[:, self._fitted:]
+            if self._decays:                           # else exp(0) = 1: the identity's
+                phi[self._state_diag] = np.exp(-self._elapsed * self._lam)
         return phi
 
     def restart_response(self) -> None:
         """Forget the effects' error responses (after the filter re-initialises its attitude)."""
-        self._E = [np.zeros_like(E) for E in self._E]
+        self._E = np.zeros_like(self._E)
 
     def restart(self) -> None:
         """
@@ -321,8 +413,7 @@ class ModelCheck:
         effect that keeps the filter diverging is still named; the WARN state and the counts
         carry on.
         """
-        for E in self._E:
-            E[:3] = 0.0
+        self._E[:3] = 0.0
         self._start_interval()
 
     def continue_counts(self, previous: ModelCheck | None) -> None:
@@ -370,46 +461,45 @@ class ModelCheck:
 
         """
         c_vf_mf = np.asarray(c_vf_mf, dtype=float)
-        ce = quat_to_dcm(self._rot).T                 # body at the fix ← body at the last fix
+        ce = self._dcm.T                              # body at the fix ← body at the last fix
         phi = self._transition(ce)
-        H = np.zeros((3, self.size))
         if jacobian is None:
+            H = np.zeros((3, self.size))
             H[:, :3] = c_vf_mf
         else:
-            H[:] = np.asarray(jacobian, dtype=float).reshape(3, self.size)
-        K = None if gain is None else np.asarray(gain, dtype=float).reshape(self.size, 3)
-        G = []
-        gamma = np.split(ce @ self._sums, self._cuts, axis=1) if self.effects else []
-        for j, E in enumerate(self._E):
-            E = phi @ E
-            if j < len(self.effects):
-                E[:3] += gamma[j]
-                g = H @ E
-            else:                                      # the camera time offset
-                g = H @ E + (c_vf_mf @ np.asarray(rate_body, dtype=float))[:, None]
-            if K is not None:
-                E = E - K @ g
-            self._E[j] = E
-            G.append(g)
+            H = np.asarray(jacobian, dtype=float).reshape(3, self.size)
+        # every signature at once: E⁻ = Φ E⁺ + Γ, G = H E⁻ + D, E⁺ = E⁻ − K G
+        E = phi @ self._E
+        if self.effects:
+            E[:3, :self._fitted] += ce @ self._sums[:, :self._fitted]
+        G = H @ E
+        if self.time_offset:                           # the camera time offset, the last column
+            G[:, -1] += c_vf_mf @ np.asarray(rate_body, dtype=float)
+        if gain is not None:
+            E -= np.asarray(gain, dtype=float).reshape(self.size, 3) @ G
+        self._E = E
         self._start_interval()
-        L = np.linalg.cholesky(np.asarray(S, dtype=float))
-        # L⁻¹ applied to the residual and every signature at once
-        rhs = np.hstack([np.asarray(z, dtype=float).reshape(3, 1)] + G)
-        white = np.linalg.solve(L, rhs)
-        cuts = np.cumsum([1] + [g.shape[1] for g in G])[:-1]
-        parts = np.split(white, cuts, axis=1)
-        self._rows.append((float(stamp), parts[0][:, 0], parts[1:]))
-        if len(self._rows) < self.window:
-            self.last = ModelCheckResult(len(self._rows), True, episodes=self.episodes,
+        # L⁻¹ applied to the residual and every signature
+        inv = _lower_cholesky_inverse(S)
+        k = self._next
+        n = self.window
+        self._white[k] = self._white[k + n] = inv @ np.asarray(z, dtype=float).reshape(3)
+        self._signatures[k] = self._signatures[k + n] = inv @ G
+        self._stamps[k] = self._stamps[k + n] = float(stamp)
+        self._next = (k + 1) % n
+        self._filled = min(self._filled + 1, n)
+        if self._filled < n:
+            self.last = ModelCheckResult(self._filled, True, episodes=self.episodes,
                                          stamp=float(stamp))
             return self.last
         self.last = self._test()
         return self.last
 
     def _test(self) -> ModelCheckResult:
-        n = len(self._rows)
-        stamps = [r[0] for r in self._rows]
-        white = np.array([r[1] for r in self._rows])
+        n = self.window
+        rows = slice(self._next, self._next + n)      # the last n fixes, in order
+        stamps = self._stamps[rows].tolist()
+        white = self._white[rows]
         level = window_level(self.rate, (stamps[-1] - stamps[0]) / (n - 1), self.alpha)
         v = judge_window(white, level)
         self.windows += 1
@@ -432,16 +522,17 @@ class ModelCheck:
         if v.nis_low:
             res.verdict = 'noise_too_large'
             return res
-        self._name(res, white, v)
+        self._name(res, white, self._signatures[rows].reshape(3 * n, -1), v)
         return res
 
-    def _name(self, res: ModelCheckResult, white: np.ndarray, v) -> None:
+    def _name(self, res: ModelCheckResult, white: np.ndarray, signatures: np.ndarray,
+              v) -> None:
         """Fit every candidate's signature to the window; name the best if significant."""
         y = white.reshape(-1)
         total = float(y @ y)
         best = None
         for j, name in enumerate(self.names):
-            A = np.vstack([r[2][j] for r in self._rows])
+            A = signatures[:, self._columns[j]]
             U, s, Vt = np.linalg.svd(A, full_matrices=False)
             rank = int(np.sum(s > 1e-9 * s[0])) if len(s) and s[0] > 0 else 0
             if rank == 0:

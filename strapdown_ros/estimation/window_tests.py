@@ -31,7 +31,15 @@ import math
 
 import numpy as np
 
-from strapdown_ros.estimation.chi_square import chi2_band, chi2_sf
+from strapdown_ros.estimation.chi_square import chi2_band, chi2_quantile, chi2_sf
+
+#: windows up to this many fixes take their band energies from a cached DFT matrix, not an FFT
+DFT_BY_MATRIX = 256
+#: largest integer shape a for which :func:`beta_sf` sums the finite series
+FINITE_SUM_MAX = 64
+#: relative half-width of the level buckets of the cached NIS screen (levels keyed to 3 digits
+#: are within 0.5 % of their key)
+SCREEN_WIDTH = 0.01
 
 __all__ = ['beta_sf', 'beta_log_sf', 'band_dof', 'band_energies', 'spectral_whiteness',
            'nis_p_values', 'nis_band', 'window_level', 'WindowVerdict', 'judge_window']
@@ -39,28 +47,30 @@ __all__ = ['beta_sf', 'beta_log_sf', 'band_dof', 'band_energies', 'spectral_whit
 
 def _beta_fraction(a: float, b: float, x: float) -> float:
     """Continued fraction of the incomplete beta function (Numerical Recipes §6.4, Lentz)."""
-    tiny = 1e-300
+    tiny = 1e-300                     # |v| < tiny written as a chained comparison: no abs()
     qab, qap, qam = a + b, a + 1.0, a - 1.0
     c = 1.0
     d = 1.0 - qab * x / qap
-    d = 1.0 / (tiny if abs(d) < tiny else d)
+    d = 1.0 / (tiny if -tiny < d < tiny else d)
     h = d
     for m in range(1, 10000):
         m2 = 2 * m
         aa = m * (b - m) * x / ((qam + m2) * (a + m2))
         d = 1.0 + aa * d
-        d = 1.0 / (tiny if abs(d) < tiny else d)
+        d = 1.0 / (tiny if -tiny < d < tiny else d)
         c = 1.0 + aa / c
-        c = tiny if abs(c) < tiny else c
+        if -tiny < c < tiny:
+            c = tiny
         h *= d * c
         aa = -(a + m) * (qab + m) * x / ((a + m2) * (qap + m2))
         d = 1.0 + aa * d
-        d = 1.0 / (tiny if abs(d) < tiny else d)
+        d = 1.0 / (tiny if -tiny < d < tiny else d)
         c = 1.0 + aa / c
-        c = tiny if abs(c) < tiny else c
+        if -tiny < c < tiny:
+            c = tiny
         de = d * c
         h *= de
-        if abs(de - 1.0) < 1e-15:
+        if -1e-15 < de - 1.0 < 1e-15:
             break
     return h
 
@@ -99,7 +109,15 @@ def beta_sf(x: float, a: float, b: float) -> float:
         The survival function ``I_{1−x}(b, a)``.
 
     """
-    return _beta_cdf(1.0 - float(x), float(b), float(a))
+    x, a, b = float(x), float(a), float(b)
+    if 0.0 < x < 1.0 and a.is_integer() and 1.0 <= a <= FINITE_SUM_MAX and b > 0.0:
+        # integer a: P(X > x) = (1 − x)^b Σ_{j<a} (b)_j x^j / j!, positive terms, no fraction
+        term = total = 1.0
+        for j in range(1, int(a)):
+            term *= (b + (j - 1)) * x / j
+            total += term
+        return math.exp(b * math.log1p(-x)) * total
+    return _beta_cdf(1.0 - x, b, a)
 
 
 def beta_log_sf(x: float, a: float, b: float) -> float:
@@ -169,12 +187,34 @@ def band_energies(white: np.ndarray) -> np.ndarray:
     """
     w = np.asarray(white, dtype=float)
     n = len(w)
+    if 0 < n <= DFT_BY_MATRIX:     # short windows: one product with the cached DFT matrix
+        m = _dft_matrix(n)
+        f = m @ w
+        return _band_weights(n, w.shape[1]) @ (f * f).reshape(-1)
     f = np.fft.rfft(w, axis=0)
     e = (f.real ** 2 + f.imag ** 2).sum(axis=1) * (2.0 / n)
     e[0] *= 0.5
     if n % 2 == 0:
         e[-1] *= 0.5
     return e
+
+
+@lru_cache(maxsize=16)
+def _dft_matrix(n: int) -> np.ndarray:
+    """Return the real and imaginary parts of the rfft of n samples, stacked: (2(⌊n/2⌋+1), n)."""
+    j = np.arange(n // 2 + 1)[:, None] * np.arange(n)[None, :] % n    # exact angle indices
+    angle = (2.0 * np.pi / n) * j
+    return np.vstack([np.cos(angle), -np.sin(angle)])
+
+
+@lru_cache(maxsize=16)
+def _band_weights(n: int, axes: int) -> np.ndarray:
+    """Return the map from the squared DFT parts (row-major, ``axes`` columns) to the bands."""
+    e = np.full(n // 2 + 1, 2.0 / n)
+    e[0] *= 0.5
+    if n % 2 == 0:
+        e[-1] *= 0.5
+    return np.kron(np.hstack([np.diag(e), np.diag(e)]), np.ones((1, axes)))
 
 
 def spectral_whiteness(white: np.ndarray) -> tuple[float, int]:
@@ -200,10 +240,21 @@ def spectral_whiteness(white: np.ndarray) -> tuple[float, int]:
     if not total > 0.0:
         return 1.0, 0
     half = 1.5 * len(white)
+    energy = e.tolist()
+    groups = _band_groups(len(white))
+    # the largest share of each shape
+    tops = [(dof, max(idx, key=energy.__getitem__)) for dof, idx in groups]   # argmax: the first
+    if len(tops) == 2:             # the mean's shape (3) first, then the others' (6)
+        (_, j3), (_, j6) = tops
+        p6 = beta_sf(energy[j6] / total, 3.0, half - 3.0)
+        # P(Beta(3/2, b) > x) ≥ P(Beta(1, b) > x) = (1 − x)^b (larger a: stochastically larger):
+        # when that bound is above p6, the mean's band cannot have the smaller p
+        x3 = energy[j3] / total
+        if x3 < 1.0 and math.exp((half - 1.5) * math.log1p(-x3)) * (1.0 - 1e-9) > p6:
+            return min(1.0, len(e) * p6), j6
     best, band = 1.0, 0
-    for dof, idx in _band_groups(len(white)):  # one shape: the largest share, the smallest p
-        j = int(idx[np.argmax(e[idx])])
-        p = beta_sf(e[j] / total, 0.5 * dof, half - 0.5 * dof)
+    for dof, j in tops:            # one shape: the largest share, the smallest p
+        p = beta_sf(energy[j] / total, 0.5 * dof, half - 0.5 * dof)
         if p < best:
             best, band = p, j
     return min(1.0, len(e) * best), band
@@ -212,7 +263,8 @@ def spectral_whiteness(white: np.ndarray) -> tuple[float, int]:
 @lru_cache(maxsize=64)
 def _band_groups(n: int) -> tuple:
     d = band_dof(n)
-    return tuple((dof, np.flatnonzero(d == dof)) for dof in (3.0, 6.0) if np.any(d == dof))
+    return tuple((dof, np.flatnonzero(d == dof).tolist()) for dof in (3.0, 6.0)
+                 if np.any(d == dof))
 
 
 def nis_p_values(total: float, dof: int) -> tuple[float, float]:
@@ -240,6 +292,26 @@ def nis_p_values(total: float, dof: int) -> tuple[float, float]:
 def _band(dof: int, level: float) -> tuple[float, float]:
     lo, hi = chi2_band(dof, level)
     return lo * dof, hi * dof
+
+
+@lru_cache(maxsize=256)
+def _nis_screen(dof: int, level_key: float) -> tuple[float, float]:
+    """
+    Return (lo, hi): a NIS sum in [lo, hi] is in neither α/4 tail of the levels near the key.
+
+    Near: within ``SCREEN_WIDTH`` of ``level_key``.  The bounds are checked on the distribution
+    function itself (else the empty screen: every sum takes its p-values).
+    """
+    p = 0.25 * level_key * (1.0 + SCREEN_WIDTH)
+    if not 0.0 < p < 0.5:
+        return math.inf, -math.inf
+    lo = chi2_quantile(p, dof) * (1.0 + 1e-9)
+    hi = chi2_quantile(1.0 - p, dof) * (1.0 - 1e-9)
+    low, _ = nis_p_values(lo, dof)
+    _, high = nis_p_values(hi, dof)
+    if not (low >= p and high >= p and lo <= hi):
+        return math.inf, -math.inf
+    return lo, hi
 
 
 def nis_band(dof: int, level: float) -> tuple[float, float]:
@@ -308,11 +380,29 @@ class WindowVerdict:
     def __init__(self, nis_sum: float, dof: int, level: float, whiteness_p: float, band: int):
         self.nis_sum, self.dof, self.level = float(nis_sum), int(dof), float(level)
         self.whiteness_p, self.band = float(whiteness_p), int(band)
-        self.p_low, self.p_high = nis_p_values(nis_sum, dof)
-        self.nis_low = self.p_low < 0.25 * level
-        self.nis_high = self.p_high < 0.25 * level
+        self._p = None
+        lo, hi = _nis_screen(self.dof, float(f'{self.level:.3g}'))
+        if lo <= self.nis_sum <= hi:       # inside both tails at this level: no p-value needed
+            self.nis_low = self.nis_high = False
+        else:
+            self.nis_low = self.p_low < 0.25 * level
+            self.nis_high = self.p_high < 0.25 * level
         self.not_white = self.whiteness_p < 0.5 * level
         self.ok = not (self.nis_low or self.nis_high or self.not_white)
+
+    @property
+    def p_low(self) -> float:
+        """Return P(χ² ≤ NIS sum) (:func:`nis_p_values`)."""
+        if self._p is None:
+            self._p = nis_p_values(self.nis_sum, self.dof)
+        return self._p[0]
+
+    @property
+    def p_high(self) -> float:
+        """Return P(χ² ≥ NIS sum) (:func:`nis_p_values`)."""
+        if self._p is None:
+            self._p = nis_p_values(self.nis_sum, self.dof)
+        return self._p[1]
 
     @property
     def nis_band(self) -> tuple[float, float]:

@@ -34,6 +34,30 @@ def test_beta_survival_against_closed_forms():
     assert beta_sf(0.0, 3.0, 42.0) == 1.0 and beta_sf(1.0, 3.0, 42.0) == 0.0
 
 
+def test_beta_survival_with_an_integer_shape_against_polynomials():
+    """Beta(2, 2) and Beta(3, 2) have polynomial sf; the series meets the continued fraction."""
+    for x in (1e-6, 0.01, 0.1, 0.37, 0.9):
+        assert beta_sf(x, 2.0, 2.0) == pytest.approx(1 - 3 * x ** 2 + 2 * x ** 3, rel=1e-12)
+        assert beta_sf(x, 3.0, 2.0) == pytest.approx(1 - 4 * x ** 3 + 3 * x ** 4, rel=1e-12)
+        assert beta_sf(x, 3.0, 42.0) == pytest.approx(math.exp(beta_log_sf(x, 3.0, 42.0)),
+                                                      rel=1e-12)
+
+
+def test_whiteness_p_is_the_smallest_band_p_times_the_bands():
+    """The screened test gives min(1, J·min_j P(Beta_j > E_j/T)) over every band, exactly."""
+    rng = np.random.default_rng(7)
+    for n in (5, 6, 29, 30):
+        for k in range(41):
+            step = np.sign(np.arange(n) - n / 2)[:, None]
+            w = rng.standard_normal((n, 3)) + (0.4 * k / 40) * step
+            w = np.ones((n, 3)) if k == 40 else w            # all in the mean's band
+            e, d = band_energies(w), band_dof(n)
+            ps = [beta_sf(e[j] / e.sum(), d[j] / 2, (3 * n - d[j]) / 2) for j in range(len(e))]
+            p, band = spectral_whiteness(w)
+            assert p == pytest.approx(min(1.0, len(e) * min(ps)), rel=1e-12)
+            assert ps[band] == pytest.approx(min(ps), rel=1e-12)
+
+
 def test_band_energies_sum_to_the_nis_and_find_a_sinusoid():
     """Parseval: the bands sum to Σ|w|²; a sinusoid at 5 cycles per window loads band 5."""
     rng = np.random.default_rng(1)
