@@ -14,6 +14,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import math
+
 import numpy as np
 
 from strapdown_ros.rotation import (dcm_to_ypr, quat_conjugate, quat_multiply, quat_normalize,
@@ -190,13 +192,18 @@ def reference_agreement(t_out, q_out, sigma_out, t_ref, q_ref, sigma_ref,
     if not np.isfinite(costs[k]):
         return None
     lo, hi = lags[max(k - 1, 0)], lags[min(k + 1, len(lags) - 1)]
-    for _ in range(30):                                # golden-section refinement
-        a = hi - 0.618 * (hi - lo)
-        b = lo + 0.618 * (hi - lo)
-        if cost(a)[0] < cost(b)[0]:
-            hi = b
+    g = 0.5 * (math.sqrt(5.0) - 1.0)                  # golden-section refinement: each step
+    a, b = hi - g * (hi - lo), lo + g * (hi - lo)      # keeps one point and its cost
+    fa, fb = cost(a)[0], cost(b)[0]
+    for _ in range(30):
+        if fa < fb:
+            hi, b, fb = b, a, fa
+            a = hi - g * (hi - lo)
+            fa = cost(a)[0]
         else:
-            lo = a
+            lo, a, fa = a, b, fb
+            b = lo + g * (hi - lo)
+            fb = cost(b)[0]
     lag = 0.5 * (lo + hi)
     _, (sel, s_f, s_r, q_b, r, t_at) = cost(lag)
     # the filter's σ in VF axes: C_VF^body diag(σ²) C_body^VF (its diagonal), with the reference's
@@ -254,11 +261,12 @@ def agreement_with_fixes(outputs, fix_stamps_ns, fixes, applied_ns=(), noise_sca
     t_out = np.array([o.stamp_ns for o in outputs], dtype=np.int64)
     origin = int(t_out[0])
     q_out = np.array([o.attitude for o in outputs], dtype=float)
-    s_out = np.sqrt(np.maximum(np.array([np.diag(o.attitude_covariance) for o in outputs]),
-                               0.0))
+    cov_out = np.array([o.attitude_covariance for o in outputs], dtype=float)
+    s_out = np.sqrt(np.maximum(np.diagonal(cov_out, axis1=1, axis2=2), 0.0))
     st = np.asarray(fix_stamps_ns, dtype=np.int64)
-    q_ref = np.array([np.asarray(f[0], dtype=float) for f in fixes])
-    var = np.array([np.diag(np.asarray(f[1], dtype=float).reshape(3, 3)) for f in fixes])
+    q_ref = np.array([f[0] for f in fixes], dtype=float).reshape(-1, 4)
+    var = np.diagonal(np.array([f[1] for f in fixes], dtype=float).reshape(-1, 3, 3),
+                      axis1=1, axis2=2)
     scale = np.ones(3) if noise_scale is None else np.asarray(noise_scale, dtype=float)
     s_ref = np.sqrt(np.maximum(var, 0.0)) * scale
     applied = np.isin(st, np.fromiter(applied_ns, dtype=np.int64))
