@@ -410,7 +410,6 @@ def _decode_records(reader, parts, msgtype, layout) -> dict:
     """
     count, kind = layout
     decoded = [stamped_doubles(records, count) for records, _ in parts]
-    names: list = []
     known: dict = {}
     idx_l = []
     for _, _, idx, nm, _ in decoded:
