@@ -276,12 +276,16 @@ class Accepted:
         Messages dropped before the check (e.g. zero quaternions), counted as received.
     extra_dropped : dict, optional
         Those messages per reason (``nan`` adds to the check's).
+    screened : bool
+        The values are fixes that passed THE screening of a fix
+        (:class:`~strapdown_ros.streams.fixes.FixScreen`): a consumer need not screen them again.
 
     """
 
     def __init__(self, stamps, values, gaps, check, extra_received: int = 0,
-                 extra_dropped: dict | None = None):
+                 extra_dropped: dict | None = None, screened: bool = False):
         self.stamps, self.values, self.gaps, self.check = stamps, values, gaps, check
+        self.screened = bool(screened)
         self.received = check.received + extra_received
         self.missing = check.missing
         self.dropped = {
@@ -530,12 +534,9 @@ def _strip(frame: str) -> str:
 
 def _process_fixes(raw, screen: FixScreen):
     """Screen each fix (:class:`FixScreen`); return (ns, q_wxyz + P 3×3) of the fixes kept."""
-    out = []
-    for ns, q, P in raw:
-        got = screen.screen(q, P)
-        if got is not None:
-            out.append((ns, tuple(got[0]) + tuple(np.asarray(got[1], dtype=float).ravel())))
-    return out
+    got = screen.screen_many([q for _, q, _ in raw], [P for _, _, P in raw])
+    return [(ns, tuple(g[0].tolist()) + tuple(np.asarray(g[1], dtype=float).ravel().tolist()))
+            for (ns, _, _), g in zip(raw, got) if g is not None]
 
 
 def _rate(increment: float, period: float) -> float:
@@ -868,6 +869,7 @@ def read_bag(
         c_check,
         screen.dropped + sum(skipped['camera'].values()),
         before_check,
+        screened=True,
     )
     from_messages = screen.from_messages
     n_model = len(raw_c) - from_messages

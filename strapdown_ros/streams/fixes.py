@@ -223,6 +223,73 @@ class FixScreen:
             self.normalised += 1
         return u, P
 
+    def screen_many(self, quaternions, covariances) -> list:
+        """
+        Screen fixes in order: the results and counts of :meth:`screen` on each in turn.
+
+        The fixes every rule clearly passes (a finite quaternion within half the tolerance of
+        unit norm; a finite covariance, not all zero, symmetric within half the tolerance, whose
+        eigenvalues clear each bound by a factor 2) are screened as arrays at once, with the
+        arithmetic of :meth:`screen` (the same symmetrisation; a stack of 3×3 eigenvalue problems
+        is solved matrix by matrix); every other fix goes through :meth:`screen` itself, so no
+        decision near a bound depends on the path.
+
+        Parameters
+        ----------
+        quaternions : sequence of array_like (4,)
+            The quaternions, scalar-first, any scale.
+        covariances : sequence of (array_like (3, 3) or None)
+            Each fix's covariance, rad² (None: the message has none).
+
+        Returns
+        -------
+        list of ((q_unit, P) or None)
+            One per fix, as :meth:`screen` returns it.
+
+        """
+        n = len(quaternions)
+        if len(covariances) != n:
+            raise ValueError('one covariance (or None) per quaternion')
+        out: list = [None] * n
+        fast = np.zeros(n, dtype=bool)
+        own = self.use_covariance and n > 0 and all(c is not None for c in covariances)
+        try:
+            q = np.asarray(quaternions, dtype=float).reshape(n, 4)
+            P = (np.asarray(covariances, dtype=float).reshape(n, 3, 3) if own
+                 else np.zeros((n, 3, 3)))
+        except (ValueError, TypeError):                # ragged or odd: one at a time
+            own = False
+            q = np.zeros((n, 4))
+            P = np.zeros((n, 3, 3))
+        if own or all(c is None for c in covariances) or not self.use_covariance:
+            with np.errstate(all='ignore'):
+                fast = np.isfinite(q).all(1) & np.isfinite(P).all((1, 2))
+                s = np.abs(q).max(1)
+                u = q / np.where(s > 0, s, 1.0)[:, None]
+                norm = s * np.sqrt((u * u).sum(1))
+                fast &= np.abs(norm - 1.0) <= 0.5 * NORM_TOLERANCE
+                if own:
+                    c = np.abs(P).max((1, 2))
+                    fast &= c > 0
+                    a = P / np.where(fast, c, 1.0)[:, None, None]
+                    asym = np.abs(a - np.swapaxes(a, 1, 2)).max((1, 2))
+                    fast &= asym <= 0.5 * SYMMETRY_TOLERANCE
+                    sym = 0.5 * (a + np.swapaxes(a, 1, 2))
+                    lam = np.linalg.eigvalsh(np.where(fast[:, None, None], sym, np.eye(3)))
+                    lo, hi = lam[:, 0], lam[:, -1]
+                    fast &= (hi > 0) & (lo >= 2.0 * CONDITION_LIMIT * hi)
+                    fast &= (hi * c <= 0.5 * MAX_VARIANCE) & (lo * c >= 2.0 * MIN_VARIANCE)
+                    kept = sym * c[:, None, None]
+        for i in np.flatnonzero(fast).tolist():
+            out[i] = (q[i], kept[i] if own else self.default_covariance)
+        fast_n = int(fast.sum())
+        self.received += fast_n
+        if own:
+            self.from_messages += fast_n
+        for i in np.flatnonzero(~fast).tolist():
+            out[i] = self.screen(quaternions[i], covariances[i])
+        return out
+
     def _drop(self, reason: str):
         setattr(self, reason, getattr(self, reason) + 1)
         self.last_reason = reason
