@@ -446,12 +446,14 @@ class FilterSystem:
         self.counts['covariance_substituted'] = screen.covariance_substituted
         return got
 
-    def add_fix(self, stamp_ns: int, q_wxyz, covariance) -> FixOutput | None:
+    def add_fix(self, stamp_ns: int, q_wxyz, covariance, screened: bool = False
+                ) -> FixOutput | None:
         """
         Take a fix that passed the stamp rules (the recording reader's), in stamp order.
 
-        It passes THE screening of a fix too (the reader's fixes did already: for them it
-        changes nothing), so no caller can hand the filter a fix it cannot take.
+        It passes THE screening of a fix too, unless it has passed it already (``screened``:
+        the recording reader's fixes, whose screening is counted in the reader's summary), so
+        no caller can hand the filter a fix it cannot take.
 
         Parameters
         ----------
@@ -461,6 +463,9 @@ class FilterSystem:
             ``q_GCRS_VF``, scalar-first.
         covariance : array_like (3, 3) or None
             VF axes, rad² (None: the model σ).
+        screened : bool
+            The fix passed :class:`~strapdown_ros.streams.fixes.FixScreen` already: a unit
+            quaternion and its covariance, used as they are.
 
         Returns
         -------
@@ -468,6 +473,8 @@ class FilterSystem:
             The result, or None when the fix is dropped, starts the filter or waits.
 
         """
+        if screened and covariance is not None:
+            return self._apply_fix(stamp_ns, q_wxyz, covariance)
         got = self._screen(q_wxyz, covariance)
         if got is None:
             return None

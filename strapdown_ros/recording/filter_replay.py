@@ -47,6 +47,7 @@ def run_filter(data: dict, model: SensorModel, settings: FilterSettings | None =
     gt = np.asarray(g.stamps, dtype=np.int64).reshape(-1)
     gv = np.asarray(g.values, dtype=float).reshape(-1, 3)
     ct = np.asarray(c.stamps, dtype=np.int64)
+    screened = bool(getattr(c, 'screened', False))    # the reader's fixes: screened once
     if hasattr(g, 'gaps'):
         breaks = {b for _, b in g.gaps}                # the reader's gaps and jumps (rule 6)
     else:                                              # streams without them: the same rule
@@ -72,7 +73,8 @@ def run_filter(data: dict, model: SensorModel, settings: FilterSettings | None =
                 system.add_increments(gt[k:jj], gv[k:jj], breaks)
                 k = jj
             q, P = c.values[n]
-            system.add_fix(ns, np.asarray(q, dtype=float), np.asarray(P, dtype=float))
+            system.add_fix(ns, np.asarray(q, dtype=float), np.asarray(P, dtype=float),
+                           screened=screened)
     if k < end:
         system.add_increments(gt[k:end], gv[k:end], breaks)
     system.process()
