@@ -102,8 +102,10 @@ def state_rows(outputs, augment=None) -> str:
         cols.append(np.array([o.augmented[name][0] for o in outputs]))
         cols.append(np.array([o.augmented[name][1] for o in outputs]))
     table = np.column_stack(cols)
-    fmt = ','.join(['%.17g'] * table.shape[1])
-    return '\n'.join([','.join(head)] + [fmt % tuple(r) for r in table.tolist()]) + '\n'
+    row = ','.join(['%.17g'] * table.shape[1])
+    # one % over the whole table: the same text as row by row, without a tuple per row
+    return ','.join(head) + '\n' + ('\n'.join([row] * len(table)) + '\n') % tuple(
+        table.ravel().tolist())
 
 
 def fix_rows(fixes) -> str:
