@@ -640,14 +640,15 @@ class FilterSystem:
             * self.output_ns
         self._last_rate = d[-1] / h[-1]
         if len(marks):
-            # the increments and seconds since the previous output, at each mark
-            cd = np.cumsum(np.vstack([self._rate_sum[None], d]), axis=0)
-            ch = np.cumsum(np.concatenate([[self._rate_time], h]))
-            hi = marks + 1
-            lo = np.concatenate(([0], hi[:-1]))
-            self._emit(t_ns[marks], reports, cd[hi] - cd[lo], ch[hi] - ch[lo])
-            self._rate_sum = d[marks[-1] + 1:].sum(0)
-            self._rate_time = float(h[marks[-1] + 1:].sum())
+            # the increments and seconds since the previous output, at each mark: the sums
+            # carried from earlier calls, then this call's increments up to each mark
+            end = int(marks[-1]) + 1
+            starts = np.concatenate(([0], marks[:-1] + 2))
+            rho = np.add.reduceat(np.vstack([self._rate_sum[None], d[:end]]), starts, axis=0)
+            sec = np.add.reduceat(np.concatenate([[self._rate_time], h[:end]]), starts)
+            self._emit(t_ns[marks], reports, rho, sec)
+            self._rate_sum = d[end:].sum(0)
+            self._rate_time = float(h[end:].sum())
         else:
             self._rate_sum = self._rate_sum + d.sum(0)
             self._rate_time += float(h.sum())

@@ -215,3 +215,31 @@ def test_a_future_fix_is_an_outlier_and_a_clock_step_restarts_once():
     # the first fix on the gyro's new timeline confirms the step and restarts the filter:
     # every later fix is applied
     assert s.counts['applied'] == len(fixes) - 2 and s.counts['restarts'] == 1, s.counts
+
+
+def test_output_rate_is_the_mean_since_the_previous_output_whatever_the_chunks():
+    """The rate of each output: Σ Δθ / Σ h since the previous output, less the bias estimate."""
+    g, meas, fixes = _stream(seconds=8.0)
+    model, settings = model_and_settings('attitude_filter_node', {'gyro_rate': 100.0,
+                                                                  'output_period': 0.3})
+    runs = []
+    for chunk in (1, 7, 10_000):                  # increments per call: live, odd, whole
+        s = FilterSystem(model, FilterSettings.from_values(settings))
+        k = 0
+        for ns, q, P in fixes:
+            j = int(np.searchsorted(g, ns, side='right'))
+            for a in range(k, j, chunk):
+                s.add_increments(g[a:min(j, a + chunk)], meas[a:min(j, a + chunk)])
+            k = j
+            s.add_fix(ns, q, P)
+        s.process()
+        runs.append(s.outputs)
+    outs = runs[0]
+    assert len(outs) >= 20 and all(len(r) == len(outs) for r in runs)
+    g = np.asarray(g)
+    for prev, o in zip(outs[:-1], outs[1:]):
+        inside = (g > prev.stamp_ns) & (g <= o.stamp_ns)
+        truth = meas[inside].sum(0) / ((o.stamp_ns - prev.stamp_ns) * 1e-9) - o.bias
+        for r in runs:
+            same = next(x for x in r if x.stamp_ns == o.stamp_ns)
+            np.testing.assert_allclose(same.rate, truth, rtol=1e-9, atol=1e-15)
