@@ -724,29 +724,31 @@ class FilterSystem:
             reports, stamps_ns, rho_sums, seconds = (reports[:K], stamps_ns[:K],
                                                      rho_sums[:K], seconds[:K])
         lay = self.filter.layout
-        q = np.array([r.attitude for r in reports])                  # (K, 4)
+        q = np.array([r.attitude for r in reports])                  # (K, 4), copies
         x = np.array([r.states for r in reports])                    # (K, n)
-        P = np.array([r.covariance for r in reports])                # (K, n, n)
         bias = x[:, 3:6]                                  # the bias: always the first gyro state
-        if (seconds > 0).all():
-            rate = rho_sums / seconds[:, None] - bias
-        else:                                             # no time since the last output: 0
-            moved = seconds > 0
-            rate = np.zeros_like(bias)
-            rate[moved] = rho_sums[moved] / seconds[moved, None] - bias[moved]
+        moved = seconds > 0                               # no time since the last output: rate 0
+        rate = np.divide(rho_sums, seconds[:, None], out=np.zeros_like(rho_sums),
+                         where=moved[:, None]) - bias * moved[:, None]
+        out = self.outputs
+        if not self.augment:
+            for i, (ns, r) in enumerate(zip(stamps_ns.tolist(), reports)):
+                P = r.covariance
+                out.append(FilterOutput(ns, q[i], P[:3, :3].copy(), rate[i], bias[i],
+                                        P[3:6, 3:6].copy(), {}))
+            return
+        P = np.array([r.covariance for r in reports])                # (K, n, n)
         att_cov, bias_cov = P[:, :3, :3].copy(), P[:, 3:6, 3:6].copy()
         aug = []                                          # (name, estimates (K, w), σ (K, w))
-        if self.augment:
-            sigma = np.sqrt(np.diagonal(P, axis1=1, axis2=2))        # (K, n)
-            for name in self.augment:
-                if name == 'boresight':
-                    aug.append((name, np.array([r.boresight for r in reports]),
-                                sigma[:, lay.boresight]))
-                else:
-                    s = lay.slice_of(name)
-                    aug.append((name, x[:, s], sigma[:, s]))
-        out = self.outputs
-        for i, ns in enumerate(stamps_ns.tolist()):
+        sigma = np.sqrt(np.diagonal(P, axis1=1, axis2=2))            # (K, n)
+        for name in self.augment:
+            if name == 'boresight':
+                aug.append((name, np.array([r.boresight for r in reports]),
+                            sigma[:, lay.boresight]))
+            else:
+                s = lay.slice_of(name)
+                aug.append((name, x[:, s], sigma[:, s]))
+        for i, (ns, r) in enumerate(zip(stamps_ns.tolist(), reports)):
             out.append(FilterOutput(ns, q[i], att_cov[i], rate[i], bias[i], bias_cov[i],
                                     {name: (est[i], sig[i]) for name, est, sig in aug}))
 
