@@ -20,7 +20,7 @@ from rosbags.convert import convert  # noqa: E402
 
 from strapdown_ros.recording.reader import read_bag  # noqa: E402
 
-KW = dict(gyro_max_rate=35.0, use_camera_covariance=False, camera_sigma=(1e-3, 1e-3, 1e-3))
+KW = {'gyro_max_rate': 35.0, 'use_camera_covariance': False, 'camera_sigma': (1e-3, 1e-3, 1e-3)}
 
 
 def _converted(tmp_path: Path, name: str) -> Path:
