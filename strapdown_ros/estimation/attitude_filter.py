@@ -24,6 +24,7 @@ from collections import deque
 import numpy as np
 
 from strapdown_ros.attitude.integrator import AttitudeIntegrator
+from strapdown_ros.estimation import filter_kernel
 from strapdown_ros.estimation.chi_square import chi2_3_quantile
 from strapdown_ros.estimation.chi_square import chi2_quantile
 from strapdown_ros.estimation.error_model import BlockSums
@@ -36,6 +37,13 @@ from strapdown_ros.rotation import (quat_conjugate, quat_cumprod, quat_multiply,
 from strapdown_ros.sensors.effects import EFFECTS, GyroEffects
 
 __all__ = ['AttitudeFilter']
+
+# the compiled path's empty arguments (the kernels' types fixed: one compilation each)
+_NO_ATTITUDE = np.zeros((0, 4))
+_NO_LENGTHS = np.zeros(0)
+_NO_PARTIALS = np.zeros((1, 3, 1))
+_NO_DCM = np.zeros((1, 3, 3))
+_NO_MARKS = np.zeros(0, dtype=np.int64)
 
 
 class AttitudeFilter:
@@ -210,6 +218,8 @@ class AttitudeFilter:
         self._effects = None                            # the compensation of the estimates
         self._effects_cell = None
         self._bias_only = len(self.layout.gyro) == 1
+        # the compiled numerics (filter_kernel), if numba is there and STRAPDOWN_KERNEL allows
+        self._compiled = filter_kernel.available()
         self.counters = FilterCounters()
         self.results: deque = deque(maxlen=1000)       # the last fix results (bounded)
         self.history = int(history)
@@ -573,8 +583,12 @@ class AttitudeFilter:
         """Return ``C_j J_j`` (m, 3, q) of the gyro states over m updates."""
         if self._bias_only:              # the bias alone: J_j = h_j·I, so C_j J_j = h_j C_j
             return c * h[:, None, None]
+        return c @ self._gyro_partials(rho, h, t_mid)
+
+    def _gyro_partials(self, rho, h, t_mid) -> np.ndarray:
+        """Return ``J_j = ∂ρ̃_j/∂c`` (m, 3, q) of the gyro states over m updates."""
         J = [e.filter_partials(rho, h, t_mid) for e, _ in self.layout.gyro]
-        return c @ (J[0] if len(J) == 1 else np.concatenate(J, axis=2))
+        return J[0] if len(J) == 1 else np.concatenate(J, axis=2)
 
     def _push_part(self, d: np.ndarray, t: np.ndarray) -> None:
         self._log.append(d, t)
@@ -593,6 +607,10 @@ class AttitudeFilter:
         n_new = self.integrator.algorithm.samples
         m = len(batch)
         marks = [s for s in self._marks if t_start < s <= t_end and not self._held(s)]
+        if self._compiled:
+            self._push_compiled(batch, marks, t, p, n_new, q_before, work_rho, work_dt)
+            self._open_rho, self._open_dt = work_rho[m * n_new:], work_dt[m * n_new:]
+            return
         run = None
         if m:
             c = quat_to_dcm(batch.attitude)
@@ -603,6 +621,60 @@ class AttitudeFilter:
         self._open_rho, self._open_dt = work_rho[m * n_new:], work_dt[m * n_new:]
         if marks:
             self._report(marks, t, p, n_new, q_before, batch, run, work_rho, work_dt)
+
+    def _push_compiled(self, batch, marks, t, p, n_new, q_before, work_rho, work_dt) -> None:
+        """
+        Add a push's updates to the block and report its marks: one compiled call.
+
+        The same numbers as :meth:`BlockSums.add` and :meth:`_report` (filter_kernel).
+        """
+        m = len(batch)
+        if m:
+            att, h = batch.attitude, batch.interval
+            J = _NO_PARTIALS if self._bias_only else self._gyro_partials(
+                batch.mean_rate * h[:, None], h, batch.stamps - 0.5 * h - self.epoch)
+        else:
+            att, h, J = _NO_ATTITUDE, _NO_LENGTHS, _NO_PARTIALS
+        if not marks:
+            filter_kernel.push_block(att, J, h, self._bias_only, self._block, _NO_MARKS, _NO_DCM,
+                                     _NO_PARTIALS, _NO_LENGTHS, self._sqrt_p, self.sigma_v)
+            return
+        stamps = np.asarray(marks)
+        K = len(stamps)
+        w = p + np.searchsorted(t, stamps)                        # work index of each mark
+        done = (w + 1) // n_new                                   # updates of this push up to it
+        if m:
+            q_out = np.concatenate([q_before[None], att])[done]
+        else:
+            q_out = np.repeat(q_before[None], K, axis=0)
+        inside = np.flatnonzero(done * n_new < w + 1)            # inside an update: a lumped rest
+        if len(inside):
+            c_v, A_v, h_v = self._lumped_rests(stamps, w, done, n_new, q_out, inside, work_rho,
+                                               work_dt)
+        else:
+            c_v, A_v, h_v = _NO_DCM, _NO_PARTIALS, np.zeros(K)
+        P = filter_kernel.push_block(att, J, h, self._bias_only, self._block, done, c_v, A_v,
+                                     h_v, self._sqrt_p, self.sigma_v)
+        self._store_reports(stamps, q_out, P)
+
+    def _lumped_rests(self, stamps, w, done, n_new, q_out, inside, work_rho, work_dt):
+        """
+        Return the lumped rest of the unfinished update at each mark (h 0: none).
+
+        The attitudes ``q_out`` of the marks inside an update are advanced over their rests.
+        """
+        K = len(stamps)
+        h_v = np.zeros(K)
+        rho_v = np.zeros((K, 3))
+        for k in inside:
+            piece = work_rho[done[k] * n_new:w[k] + 1]
+            q_out[k] = quat_cumprod(q_out[k], rotvec_to_quat(piece))[-1]
+            rho_v[k] = piece.sum(0)
+            h_v[k] = work_dt[done[k] * n_new:w[k] + 1].sum()
+        c_v = quat_to_dcm(q_out)
+        A_v = self._partials(c_v, rho_v, np.where(h_v > 0, h_v, 1.0),
+                             stamps - 0.5 * h_v - self.epoch) * (h_v > 0)[:, None, None]
+        return c_v, A_v, h_v
 
     def _held(self, stamp: float) -> bool:
         """Tell whether a mark waits for a fix of its epoch (reported after it)."""
@@ -627,16 +699,8 @@ class AttitudeFilter:
             base = tuple(None if r is None else r[done] for r in run)
         inside = np.flatnonzero(done * n_new < w + 1)            # inside an update: a lumped rest
         if len(inside):
-            h_v = np.zeros(K)
-            rho_v = np.zeros((K, 3))
-            for k in inside:
-                piece = work_rho[done[k] * n_new:w[k] + 1]
-                q_out[k] = quat_cumprod(q_out[k], rotvec_to_quat(piece))[-1]
-                rho_v[k] = piece.sum(0)
-                h_v[k] = work_dt[done[k] * n_new:w[k] + 1].sum()
-            c_v = quat_to_dcm(q_out)
-            A_v = self._partials(c_v, rho_v, np.where(h_v > 0, h_v, 1.0),
-                                 stamps - 0.5 * h_v - self.epoch) * (h_v > 0)[:, None, None]
+            c_v, A_v, h_v = self._lumped_rests(stamps, w, done, n_new, q_out, inside, work_rho,
+                                               work_dt)
             sums = self._block.extended(base, c_v, A_v, h_v)
         else:                        # every mark at an update's end: the sums there as they are
             sums = base
@@ -656,7 +720,11 @@ class AttitudeFilter:
             F[:, k:] = S[k:]
         P = F @ np.swapaxes(F, -1, -2)
         P[:, :k, :k] += Q
-        P = 0.5 * (P + np.swapaxes(P, -1, -2))
+        self._store_reports(stamps, q, 0.5 * (P + np.swapaxes(P, -1, -2)))
+
+    def _store_reports(self, stamps, q, P) -> None:
+        """Report the states at K stamps: attitudes q (K, 4), covariances P (K, n, n)."""
+        K = len(stamps)
         x = np.repeat(self._x[None], K, axis=0)        # each report its own row (no copies)
         if self._markov:
             x[:, 3:3 + self._nq] *= np.exp(-np.outer(stamps - self._x_time, 1.0 / self._g_tau))
@@ -682,7 +750,9 @@ class AttitudeFilter:
 
     def _commit(self) -> None:
         """Commit the open block to the covariance factor and start a new block."""
-        if self._block.m:
+        if self._block.m and self._compiled:
+            self._sqrt_p = filter_kernel.commit_block(self._block, self._sqrt_p, self.sigma_v)
+        elif self._block.m:
             phi, Q, _ = self._block.transition(self._block.state(), self.sigma_v)
             k = 3 + self._nq
             if k == len(self._sqrt_p):                   # Φ covers the whole state
@@ -798,14 +868,17 @@ class AttitudeFilter:
             H[:, lay.boresight] = np.eye(3)
         if lay.time_offset is not None:
             H[:, lay.time_offset] = EFFECTS['time_offset'].fix_jacobian(self._last_rate, c_bv.T)
-        P = self._sqrt_p @ self._sqrt_p.T
-        P = 0.5 * (P + P.T)
-        HP = H @ P
-        S = HP @ H.T + fix.covariance
-        S = 0.5 * (S + S.T)
-        # S⁻¹ [z, HP] in one solve: the NIS, and the gain when the fix is applied
-        solved = np.linalg.solve(S, np.column_stack((z, HP)))
-        nis = float(z @ solved[:, 0])
+        if self._compiled:              # the numerics below, Joseph form included, compiled
+            nis, S, K, dx, joseph = filter_kernel.fix_update(self._sqrt_p, H, fix.covariance, z)
+        else:
+            P = self._sqrt_p @ self._sqrt_p.T
+            P = 0.5 * (P + P.T)
+            HP = H @ P
+            S = HP @ H.T + fix.covariance
+            S = 0.5 * (S + S.T)
+            # S⁻¹ [z, HP] in one solve: the NIS, and the gain when the fix is applied
+            solved = np.linalg.solve(S, np.column_stack((z, HP)))
+            nis = float(z @ solved[:, 0])
         self._applied.append(fix)
         fix.order = self._order
         self._order += 1
@@ -822,15 +895,19 @@ class AttitudeFilter:
             fix.counted = True
             self._checkpoint()
             return res
-        K = solved[:, 1:].T
-        dx = K @ z
+        if not self._compiled:
+            K = solved[:, 1:].T
+            dx = K @ z
         if not (np.isfinite(K).all() and np.isfinite(dx).all()):
             raise FloatingPointError('attitude filter: non-finite gain in the update (numerical '
                                      'failure, not bad input); the state is not corrected')
-        IKH = self._identity - K @ H
-        # Joseph form P ← (I − KH)P(I − KH)ᵀ + KRKᵀ, as the factor of [(I − KH)S, K R^½]
-        self._sqrt_p = triangular_factor(IKH @ self._sqrt_p,
-                                         K @ np.linalg.cholesky(fix.covariance))
+        if self._compiled:
+            self._sqrt_p = joseph
+        else:
+            IKH = self._identity - K @ H
+            # Joseph form P ← (I − KH)P(I − KH)ᵀ + KRKᵀ, as the factor of [(I − KH)S, K R^½]
+            self._sqrt_p = triangular_factor(IKH @ self._sqrt_p,
+                                             K @ np.linalg.cholesky(fix.covariance))
         self.integrator.q = quat_normalize(quat_multiply(self.integrator.q,
                                                          rotvec_to_quat(-dx[:3])))
         self._new_block()
