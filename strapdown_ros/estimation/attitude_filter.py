@@ -20,6 +20,7 @@ the ``filter_bag`` tool reach it through :mod:`.filter_system`.  No ROS imports.
 from __future__ import annotations
 
 from collections import deque
+from itertools import repeat
 
 import numpy as np
 
@@ -606,7 +607,8 @@ class AttitudeFilter:
         self._last_stamp = t_end
         n_new = self.integrator.algorithm.samples
         m = len(batch)
-        marks = [s for s in self._marks if t_start < s <= t_end and not self._held(s)]
+        held = self._pending[0].epoch if self._pending else np.inf   # marks from there: held
+        marks = [s for s in self._marks if t_start < s <= t_end and s < held]
         if self._compiled:
             self._push_compiled(batch, marks, t, p, n_new, q_before, work_rho, work_dt)
             self._open_rho, self._open_dt = work_rho[m * n_new:], work_dt[m * n_new:]
@@ -728,9 +730,8 @@ class AttitudeFilter:
         x = np.repeat(self._x[None], K, axis=0)        # each report its own row (no copies)
         if self._markov:
             x[:, 3:3 + self._nq] *= np.exp(-np.outer(stamps - self._x_time, 1.0 / self._g_tau))
-        bv = self.boresight.copy()
         stamps = np.asarray(stamps, dtype=float).tolist()
-        self.reports.extend(StateReport(s, q[j], P[j], x[j], bv) for j, s in enumerate(stamps))
+        self.reports.extend(map(StateReport, stamps, q, P, x, repeat(self.boresight.copy())))
         done = set(stamps)
         self._marks = [m for m in self._marks if m not in done]
 
@@ -751,7 +752,7 @@ class AttitudeFilter:
     def _commit(self) -> None:
         """Commit the open block to the covariance factor and start a new block."""
         if self._block.m and self._compiled:
-            self._sqrt_p = filter_kernel.commit_block(self._block, self._sqrt_p, self.sigma_v)
+            self._sqrt_p = filter_kernel.update(self._sqrt_p, self._block, self.sigma_v, True)[0]
         elif self._block.m:
             phi, Q, _ = self._block.transition(self._block.state(), self.sigma_v)
             k = 3 + self._nq
@@ -765,20 +766,23 @@ class AttitudeFilter:
             self._sqrt_p = triangular_factor(S, Qf)       # P ← ΦPΦᵀ + Q
         self._new_block()
 
-    def _new_block(self) -> None:
-        c0 = quat_to_dcm(self.integrator.q)
+    def _new_block(self, c0=None) -> None:
+        """Start a new block at the current attitude (its DCM ``c0`` when known)."""
+        if c0 is None:
+            c0 = quat_to_dcm(self.integrator.q)
         if self._block is None:
             self._block = BlockSums(c0, self._nq, self._g_noise, self._g_tau)
         else:
             self._block.restart(c0)
         self._block_t0 = self._last_stamp
 
-    def _flush(self) -> None:
+    def _flush(self, commit: bool = True) -> None:
         """
         Complete the unfinished update and commit: attitude and covariance at the newest stamp.
 
         The unfinished update's increments are applied one by one, the integrator's rule when
-        the algorithm changes, as one lumped update of the block.
+        the algorithm changes, as one lumped update of the block.  ``commit`` False: the block
+        is left open (the compiled update commits it).
         """
         if len(self._open_rho):
             self.integrator.set_algorithm(self.integrator.algorithm_name)
@@ -789,7 +793,8 @@ class AttitudeFilter:
             self._block.add(c, A, h)
             self.integrator.time = self._last_stamp
             self._open_rho, self._open_dt = np.zeros((0, 3)), np.zeros(0)
-        self._commit()
+        if commit:
+            self._commit()
 
     def _decayed(self, elapsed: float) -> np.ndarray:
         """Return the estimates ``elapsed`` s after the last fix (Gauss–Markov states decay)."""
@@ -856,21 +861,24 @@ class AttitudeFilter:
 
     def _apply(self, fix: CameraFix) -> FixResult:
         """Measurement update at the newest stamp (= the fix epoch)."""
-        self._flush()
+        self._flush(commit=not self._compiled)     # compiled: the commit in the update's call
         self._settle(fix.epoch)
         lay = self.layout
         c_bv = quat_to_dcm(self.boresight)                 # C_MF^VF
-        q_pred = quat_multiply(self.integrator.q, self.boresight)
-        z = quat_to_rotvec(quat_multiply(quat_conjugate(fix.attitude), q_pred))
         H = np.zeros((3, lay.size))
         H[:, :3] = c_bv.T
         if lay.boresight is not None:
             H[:, lay.boresight] = np.eye(3)
         if lay.time_offset is not None:
             H[:, lay.time_offset] = EFFECTS['time_offset'].fix_jacobian(self._last_rate, c_bv.T)
-        if self._compiled:              # the numerics below, Joseph form included, compiled
-            nis, S, K, dx, joseph = filter_kernel.fix_update(self._sqrt_p, H, fix.covariance, z)
+        if self._compiled:     # the commit and the numerics below, resets included, compiled
+            self._sqrt_p, nis, z, S, K, dx, joseph, q_new, bv_new, c_new = filter_kernel.update(
+                self._sqrt_p, self._block, self.sigma_v, self._block.m > 0,
+                (H, fix.covariance, self.integrator.q, self.boresight, fix.attitude,
+                 -1 if lay.boresight is None else lay.boresight.start))
         else:
+            q_pred = quat_multiply(self.integrator.q, self.boresight)
+            z = quat_to_rotvec(quat_multiply(quat_conjugate(fix.attitude), q_pred))
             P = self._sqrt_p @ self._sqrt_p.T
             P = 0.5 * (P + P.T)
             HP = H @ P
@@ -888,6 +896,8 @@ class AttitudeFilter:
         if reason is not None:
             return self._reset(fix, z, nis, S, reason)
         if gated:
+            if self._compiled:
+                self._new_block()                  # (the numpy path's, at its commit)
             res = self._record(fix, 'gated', z, nis, S)
             res.jacobian = H
             if not fix.counted:
@@ -899,23 +909,27 @@ class AttitudeFilter:
             K = solved[:, 1:].T
             dx = K @ z
         if not (np.isfinite(K).all() and np.isfinite(dx).all()):
+            if self._compiled:
+                self._new_block()                  # (the numpy path's, at its commit)
             raise FloatingPointError('attitude filter: non-finite gain in the update (numerical '
                                      'failure, not bad input); the state is not corrected')
         if self._compiled:
-            self._sqrt_p = joseph
+            self._sqrt_p, self.integrator.q, self.boresight = joseph, q_new, bv_new
+            self._new_block(c_new)
         else:
             IKH = self._identity - K @ H
             # Joseph form P ← (I − KH)P(I − KH)ᵀ + KRKᵀ, as the factor of [(I − KH)S, K R^½]
             self._sqrt_p = triangular_factor(IKH @ self._sqrt_p,
                                              K @ np.linalg.cholesky(fix.covariance))
-        self.integrator.q = quat_normalize(quat_multiply(self.integrator.q,
-                                                         rotvec_to_quat(-dx[:3])))
-        self._new_block()
+            self.integrator.q = quat_normalize(quat_multiply(self.integrator.q,
+                                                             rotvec_to_quat(-dx[:3])))
+            self._new_block()
+            if lay.boresight is not None:
+                self.boresight = quat_normalize(quat_multiply(
+                    self.boresight, rotvec_to_quat(-dx[lay.boresight])))
         self._x[3:] -= dx[3:]
         self._effects = None
         if lay.boresight is not None:
-            self.boresight = quat_normalize(quat_multiply(self.boresight,
-                                                          rotvec_to_quat(-dx[lay.boresight])))
             self._x[lay.boresight] = 0.0          # the boresight estimate lives in the quaternion
         if not fix.counted:
             self.counters.applied += 1

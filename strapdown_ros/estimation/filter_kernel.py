@@ -49,7 +49,7 @@ import numpy as np
 
 from strapdown_ros.attitude.kernel import kernels_allowed, njit_optional
 
-__all__ = ['available', 'push_block', 'commit_block', 'fix_update']
+__all__ = ['available', 'push_block', 'update']
 
 
 def _transition_py(c0, c, T, E, alpha, beta, gamma, tw, lam, markov, noisy, sigma_v, phi, Q):
@@ -150,28 +150,23 @@ def _dcm_py(q, C):
     C[2, 2] = 1 - 2 * (x * x + y * y)
 
 
-def _lumped_py(A, h, E, alpha, beta, gamma, tw, s, lam, markov, noisy, u):
+def _lumped_py(A, h, E, alpha, beta, gamma, tw, s, lam, markov, noisy, u, grow, D):
     """Add one update (A = C J, length h, middle u from the block start) to the sums in place."""
     q = E.shape[1]
-    grow = np.ones(q)
-    if markov:
-        for j in range(q):
-            grow[j] = math.exp(u * lam[j])
+    for j in range(q):
+        grow[j] = math.exp(u * lam[j]) if markov else 1.0
     for i in range(3):
         for j in range(q):
             E[i, j] += A[i, j] / grow[j] if markov else A[i, j]
     if not noisy:
         return
-    w = np.empty(q)
-    for j in range(q):
-        w[j] = s[j] * h
-    D = np.empty((3, q))
     for i in range(3):
         for j in range(q):
             D[i, j] = (E[i, j] * grow[j] if markov else E[i, j]) - 0.5 * A[i, j]
     for j in range(q):
-        wg = w[j] * grow[j] if markov else w[j]
-        alpha[j] += wg * grow[j] if markov else w[j]
+        w = s[j] * h
+        wg = w * grow[j] if markov else w
+        alpha[j] += wg * grow[j] if markov else w
         for i in range(3):
             beta[i, j] += D[i, j] * wg
     for i in range(3):
@@ -179,10 +174,42 @@ def _lumped_py(A, h, E, alpha, beta, gamma, tw, s, lam, markov, noisy, u):
             a = 0.0
             b = 0.0
             for v in range(q):
-                a += D[i, v] * w[v] * D[j, v]
-                b += A[i, v] * w[v] * A[j, v]
+                w = s[v] * h
+                a += D[i, v] * w * D[j, v]
+                b += A[i, v] * w * A[j, v]
             gamma[i, j] += a
             tw[i, j] += b / 12.0
+
+
+def _keep_py(row, c, T, E, alpha, beta, gamma, tw, back):
+    """Copy a set of sums into a flat row (``back``: from the row into the arrays)."""
+    q = E.shape[1]
+    o = 0
+    for i in range(3):
+        for j in range(3):
+            if back:
+                c[i, j], gamma[i, j], tw[i, j] = row[o], row[o + 9], row[o + 18]
+            else:
+                row[o], row[o + 9], row[o + 18] = c[i, j], gamma[i, j], tw[i, j]
+            o += 1
+    o = 27
+    for i in range(3):
+        for j in range(q):
+            if back:
+                E[i, j], beta[i, j] = row[o], row[o + 3 * q]
+            else:
+                row[o], row[o + 3 * q] = E[i, j], beta[i, j]
+            o += 1
+    o = 27 + 6 * q
+    for j in range(q):
+        if back:
+            alpha[j] = row[o + j]
+        else:
+            row[o + j] = alpha[j]
+    if back:
+        return row[27 + 7 * q]
+    row[27 + 7 * q] = T
+    return T
 
 
 def _push_py(att, J, h, bias_only, c_prev, T, E, alpha, beta, gamma, tw, s, lam, markov,
@@ -192,17 +219,11 @@ def _push_py(att, J, h, bias_only, c_prev, T, E, alpha, beta, gamma, tw, s, lam,
     K = done.shape[0]
     n = S.shape[0]
     k = 3 + q
-    # the sums at the marks (after done[r] updates of this push)
-    cK = np.empty((K, 3, 3))
-    TK = np.empty(K)
-    EK = np.empty((K, 3, q))
-    aK = np.empty((K, q))
-    bK = np.empty((K, 3, q))
-    gK = np.empty((K, 3, 3))
-    wK = np.empty((K, 3, 3))
-    C = np.empty((3, 3))
-    c_end = c_prev.copy()
+    C = c_prev.copy()
     A = np.empty((3, q))
+    grow = np.empty(q)
+    D = np.empty((3, q))
+    kept = np.empty((K, 28 + 7 * q))                     # the sums at each mark
     r = 0
     for j in range(m + 1):
         if j > 0:
@@ -218,72 +239,147 @@ def _push_py(att, J, h, bias_only, c_prev, T, E, alpha, beta, gamma, tw, s, lam,
                             acc += C[a, v] * J[j - 1, v, b]
                         A[a, b] = acc
             T = T + hj
-            _lumped(A, hj, E, alpha, beta, gamma, tw, s, lam, markov, noisy, T - 0.5 * hj)
-            c_end[:, :] = C
-        while r < K and done[r] == j:
-            cK[r] = c_end
-            TK[r] = T
-            EK[r] = E
-            aK[r] = alpha
-            bK[r] = beta
-            gK[r] = gamma
-            wK[r] = tw
+            _lumped(A, hj, E, alpha, beta, gamma, tw, s, lam, markov, noisy, T - 0.5 * hj,
+                    grow, D)
+        while r < K and done[r] == j:                    # marks after j updates of this push
+            _keep(kept[r], C, T, E, alpha, beta, gamma, tw, False)
             r += 1
     # the reports: the transition at each mark (one lumped update more where h_v > 0)
     P = np.empty((K, n, n))
     phi = np.empty((k, k))
     Qk = np.empty((k, k))
     F = np.empty((n, n))
+    cr = np.empty((3, 3))
+    Er = np.empty((3, q))
+    ar = np.empty(q)
+    br = np.empty((3, q))
+    gr = np.empty((3, 3))
+    wr = np.empty((3, 3))
     for r in range(K):
+        Tr = _keep(kept[r], cr, 0.0, Er, ar, br, gr, wr, True)
         if h_v[r] > 0:
-            cK[r] = c_v[r]
-            _lumped(A_v[r], h_v[r], EK[r], aK[r], bK[r], gK[r], wK[r], s, lam,
-                    markov, noisy, TK[r] + 0.5 * h_v[r])
-            TK[r] = TK[r] + h_v[r]
-        _transition(c0, cK[r], TK[r], EK[r], aK[r], bK[r], gK[r], wK[r], lam, markov, noisy,
-                    sigma_v, phi, Qk)
-        for a in range(k):
-            for b in range(n):
-                acc = 0.0
-                for v in range(k):
-                    acc += phi[a, v] * S[v, b]
-                F[a, b] = acc
-        F[k:] = S[k:]
-        _symmetric_product(F, P[r])
-        for a in range(k):
-            for b in range(k):
-                P[r, a, b] += Qk[a, b]
+            for a in range(3):
+                for b in range(3):
+                    cr[a, b] = c_v[r, a, b]
+                for b in range(q):
+                    A[a, b] = A_v[r, a, b]
+            _lumped(A, h_v[r], Er, ar, br, gr, wr, s, lam, markov, noisy, Tr + 0.5 * h_v[r],
+                    grow, D)
+            Tr = Tr + h_v[r]
+        _transition(c0, cr, Tr, Er, ar, br, gr, wr, lam, markov, noisy, sigma_v, phi, Qk)
         for a in range(n):
-            for b in range(a + 1, n):
-                x = 0.5 * (P[r, a, b] + P[r, b, a])
-                P[r, a, b] = x
-                P[r, b, a] = x
-    return T, c_end, P
-
-
-def _symmetric_product_py(F, out):
-    """Fill out with F Fᵀ."""
-    n = F.shape[0]
-    for a in range(n):
-        for b in range(n):
-            acc = 0.0
-            for v in range(F.shape[1]):
-                acc += F[a, v] * F[b, v]
-            out[a, b] = acc
+            for b in range(n):
+                if a < k:
+                    acc = 0.0
+                    for v in range(k):
+                        acc += phi[a, v] * S[v, b]
+                    F[a, b] = acc
+                else:
+                    F[a, b] = S[a, b]
+        for a in range(n):
+            for b in range(a, n):
+                acc = 0.0
+                for v in range(n):
+                    acc += F[a, v] * F[b, v]
+                if a < k and b < k:
+                    acc = 0.5 * ((acc + Qk[a, b]) + (acc + Qk[b, a]))
+                P[r, a, b] = acc
+                P[r, b, a] = acc
+    return T, C, P
 
 
 def _lower_factor_py(M):
-    """Return Rᵀ (lower triangular) of the QR factorisation of Mᵀ (``triangular_factor``)."""
-    n = M.shape[0]
-    R = np.linalg.qr(np.ascontiguousarray(M.T))[1]
+    """
+    Return L (n, n) lower triangular with L Lᵀ = M Mᵀ: Rᵀ of the QR factorisation of Mᵀ.
+
+    Householder reflections as LAPACK's unblocked ``dgeqr2`` (``dlarfg``: β = −sign(α)‖x‖),
+    numpy's ``qr`` of :func:`~.filter_support.triangular_factor`.
+    """
+    n, c = M.shape
+    A = np.empty((c, n))
+    for i in range(c):
+        for j in range(n):
+            A[i, j] = M[j, i]
+    for j in range(n):
+        alpha = A[j, j]
+        xn = 0.0
+        for i in range(j + 1, c):
+            xn += A[i, j] * A[i, j]
+        if xn == 0.0:
+            continue                                      # H = I, R_jj = α
+        beta = -math.copysign(math.sqrt(alpha * alpha + xn), alpha)
+        tau = (beta - alpha) / beta
+        scale = 1.0 / (alpha - beta)
+        for i in range(j + 1, c):
+            A[i, j] *= scale                             # v, with v_j = 1
+        A[j, j] = beta
+        for col in range(j + 1, n):
+            d = A[j, col]
+            for i in range(j + 1, c):
+                d += A[i, j] * A[i, col]
+            d *= tau
+            A[j, col] -= d
+            for i in range(j + 1, c):
+                A[i, col] -= d * A[i, j]
     L = np.zeros((n, n))
-    for a in range(min(n, R.shape[0])):
+    for a in range(n):
         for b in range(a, n):
-            L[b, a] = R[a, b]
+            L[b, a] = A[a, b]
     return L
 
 
-def _commit_py(c0, c, T, E, alpha, beta, gamma, tw, lam, markov, noisy, sigma_v, S):
+def _psd_root_py(Q, B):
+    """
+    Fill B with V diag(√λ₊) of a symmetric positive semi-definite Q (cyclic Jacobi).
+
+    Eigenvalues below zero by round-off are taken as zero (:func:`~.filter_support.psd_factor`).
+    """
+    k = Q.shape[0]
+    A = np.empty((k, k))
+    V = np.zeros((k, k))
+    scale = 0.0
+    for a in range(k):
+        V[a, a] = 1.0
+        for b in range(k):
+            A[a, b] = 0.5 * (Q[a, b] + Q[b, a])
+            scale += A[a, b] * A[a, b]
+    for sweep in range(60):
+        off = 0.0
+        for a in range(k):
+            for b in range(a + 1, k):
+                off += A[a, b] * A[a, b]
+        if off <= 1e-36 * scale:                          # off-diagonal far below round-off
+            break
+        for a in range(k):
+            for b in range(a + 1, k):
+                if A[a, b] == 0.0:
+                    continue
+                theta = (A[b, b] - A[a, a]) / (2.0 * A[a, b])
+                if abs(theta) > 1e150:
+                    t = 0.5 / theta
+                else:
+                    t = math.copysign(1.0, theta) / (abs(theta) + math.sqrt(theta * theta + 1.0))
+                cs = 1.0 / math.sqrt(t * t + 1.0)
+                sn = t * cs
+                for v in range(k):                         # A ← Jᵀ A J, V ← V J
+                    x, y = A[v, a], A[v, b]
+                    A[v, a], A[v, b] = cs * x - sn * y, sn * x + cs * y
+                for v in range(k):
+                    x, y = A[a, v], A[b, v]
+                    A[a, v], A[b, v] = cs * x - sn * y, sn * x + cs * y
+                for v in range(k):
+                    x, y = V[v, a], V[v, b]
+                    V[v, a], V[v, b] = cs * x - sn * y, sn * x + cs * y
+                A[a, b] = 0.0                               # (zero by the choice of the angle)
+                A[b, a] = 0.0
+    for b in range(k):
+        root = math.sqrt(A[b, b]) if A[b, b] > 0.0 else 0.0
+        for a in range(k):
+            B[a, b] = V[a, b] * root
+
+
+def _committed_py(S, c0, c, T, E, alpha, beta, gamma, tw, lam, markov, noisy, sigma_v):
+    """Return the factor S propagated over a block: the QR of ``[ΦS, Q^½]ᵀ``."""
     n = S.shape[0]
     q = E.shape[1]
     k = 3 + q
@@ -300,27 +396,67 @@ def _commit_py(c0, c, T, E, alpha, beta, gamma, tw, lam, markov, noisy, sigma_v,
                 M[a, b] = acc
             else:
                 M[a, b] = S[a, b]
-    Qs = np.empty((k, k))
+    B = np.empty((k, k))
+    _psd_root(Q, B)
     for a in range(k):
         for b in range(k):
-            Qs[a, b] = 0.5 * (Q[a, b] + Q[b, a])
-    lam_q, V = np.linalg.eigh(Qs)
-    for b in range(k):
-        r = math.sqrt(lam_q[b]) if lam_q[b] > 0.0 else 0.0
-        for a in range(k):
-            M[a, n + b] = V[a, b] * r
+            M[a, n + b] = B[a, b]
     return _lower_factor(M)
 
 
-def _fix_py(S, H, R, z):
+def _qmul_py(pw, px, py, pz, qw, qx, qy, qz):
+    """Return p ⊗ q (``rotation.quat_multiply``)."""
+    return (pw * qw - px * qx - py * qy - pz * qz, pw * qx + px * qw + py * qz - pz * qy,
+            pw * qy - px * qz + py * qw + pz * qx, pw * qz + px * qy - py * qx + pz * qw)
+
+
+def _corrected_py(q, e0, e1, e2):
+    """Return normalise(q ⊗ exp(−e)) (rotation: rotvec_to_quat, quat_multiply, quat_normalize)."""
+    x, y, z = -e0, -e1, -e2
+    a = math.sqrt(x * x + y * y + z * z)
+    u = math.pi * (a / (2.0 * math.pi)) if a else math.pi * 1e-20      # (np.sinc's argument)
+    half_sinc = 0.5 * (math.sin(u) / u)
+    w, x, y, z = _qmul(q[0], q[1], q[2], q[3], math.cos(0.5 * a), x * half_sinc, y * half_sinc,
+                       z * half_sinc)
+    r = math.sqrt(w * w + x * x + y * y + z * z)
+    out = np.empty(4)
+    out[0], out[1], out[2], out[3] = w / r, x / r, y / r, z / r
+    return out
+
+
+def _update_py(S, commit, c0, c, T, E, alpha, beta, gamma, tw, lam, markov, noisy, sigma_v,
+               fix, H, R, q, bv, fq, bore):
     n = S.shape[0]
-    P = np.empty((n, n))
-    _symmetric_product(S, P)
+    if commit:
+        S = _committed(S, c0, c, T, E, alpha, beta, gamma, tw, lam, markov, noisy, sigma_v)
+    Sz = np.zeros((3, 3))
+    gain = np.zeros((n, 3))
+    dx = np.zeros(n)
+    z = np.zeros(3)
+    cn = np.empty((3, 3))
+    if not fix:
+        return S, 0, np.nan, z, Sz, gain, dx, S, q, bv, cn
+    # z = log(q_fixᵀ ⊗ q ⊗ q_bv) (rotation.quat_to_rotvec)
+    pw, px, py, pz = _qmul(q[0], q[1], q[2], q[3], bv[0], bv[1], bv[2], bv[3])
+    w, x, y, e = _qmul(fq[0], -fq[1], -fq[2], -fq[3], pw, px, py, pz)
+    if w < 0.0:
+        w, x, y, e = -w, -x, -y, -e
+    s = math.sqrt(x * x + y * y + e * e)
+    if s > 1e-12:
+        f = 2.0 * math.atan2(s, w) / s
+    elif w > 0.0:
+        f = 2.0 / w * (1.0 + s * s / (3.0 * (w * w)))
+    else:
+        f = np.nan
+    z[0], z[1], z[2] = x * f, y * f, e * f
+    P = np.empty((n, n))                                 # P = S Sᵀ (symmetric as computed)
     for a in range(n):
-        for b in range(a + 1, n):
-            x = 0.5 * (P[a, b] + P[b, a])
-            P[a, b] = x
-            P[b, a] = x
+        for b in range(a, n):
+            acc = 0.0
+            for v in range(n):
+                acc += S[a, v] * S[b, v]
+            P[a, b] = acc
+            P[b, a] = acc
     HP = np.empty((3, n))
     for a in range(3):
         for b in range(n):
@@ -328,7 +464,7 @@ def _fix_py(S, H, R, z):
             for v in range(n):
                 acc += H[a, v] * P[v, b]
             HP[a, b] = acc
-    Sz = np.empty((3, 3))
+    finite = True
     for a in range(3):
         for b in range(3):
             acc = 0.0
@@ -336,54 +472,89 @@ def _fix_py(S, H, R, z):
                 acc += HP[a, v] * H[b, v]
             Sz[a, b] = acc + R[a, b]
     for a in range(3):
-        for b in range(a + 1, 3):
+        for b in range(a, 3):
             x = 0.5 * (Sz[a, b] + Sz[b, a])
             Sz[a, b] = x
             Sz[b, a] = x
-    rhs = np.empty((3, n + 1))
+            finite = finite and math.isfinite(x)
+    if not finite:
+        return S, 1, np.nan, z, Sz, gain, dx, S, q, bv, cn    # (numpy's solve: NaN)
+    # S_z⁻¹ [z, HP]: LU with partial pivoting (LAPACK's dgesv)
+    LU = Sz.copy()
+    X = np.empty((3, n + 1))
     for a in range(3):
-        rhs[a, 0] = z[a]
+        X[a, 0] = z[a]
         for b in range(n):
-            rhs[a, b + 1] = HP[a, b]
-    gain = np.full((n, 3), np.nan)
-    dx = np.full(n, np.nan)
-    if not np.isfinite(Sz).all():                        # (numpy's solve gives NaN there)
-        return np.nan, Sz, gain, dx, S.copy()
-    solved = np.linalg.solve(Sz, rhs)
-    nis = z[0] * solved[0, 0] + z[1] * solved[1, 0] + z[2] * solved[2, 0]
+            X[a, b + 1] = HP[a, b]
+    for j in range(3):
+        piv = j
+        for i in range(j + 1, 3):
+            if abs(LU[i, j]) > abs(LU[piv, j]):
+                piv = i
+        if LU[piv, j] == 0.0:
+            return S, 2, np.nan, z, Sz, gain, dx, S, q, bv, cn    # singular
+        if piv != j:
+            for b in range(3):
+                LU[j, b], LU[piv, b] = LU[piv, b], LU[j, b]
+            for b in range(n + 1):
+                X[j, b], X[piv, b] = X[piv, b], X[j, b]
+        for i in range(j + 1, 3):
+            f = LU[i, j] / LU[j, j]
+            for b in range(j + 1, 3):
+                LU[i, b] -= f * LU[j, b]
+            for b in range(n + 1):
+                X[i, b] -= f * X[j, b]
+    for b in range(n + 1):
+        for i in range(2, -1, -1):
+            acc = X[i, b]
+            for v in range(i + 1, 3):
+                acc -= LU[i, v] * X[v, b]
+            X[i, b] = acc / LU[i, i]
+    nis = z[0] * X[0, 0] + z[1] * X[1, 0] + z[2] * X[2, 0]
+    finite = True
     for a in range(n):
         for b in range(3):
-            gain[a, b] = solved[b, a + 1]
-    for a in range(n):
+            gain[a, b] = X[b, a + 1]
         dx[a] = gain[a, 0] * z[0] + gain[a, 1] * z[1] + gain[a, 2] * z[2]
-    if not (np.isfinite(gain).all() and np.isfinite(dx).all()):
-        return nis, Sz, gain, dx, S.copy()                # the caller refuses the update
-    L = np.linalg.cholesky(R)
-    M = np.zeros((n, n + 3))                             # [(I − KH)S, K R^½]
-    IKH = np.empty((n, n))
-    for a in range(n):
-        for b in range(n):
-            kh = gain[a, 0] * H[0, b] + gain[a, 1] * H[1, b] + gain[a, 2] * H[2, b]
-            IKH[a, b] = (1.0 if a == b else 0.0) - kh
+        finite = finite and math.isfinite(dx[a]) and math.isfinite(gain[a, 0]) \
+            and math.isfinite(gain[a, 1]) and math.isfinite(gain[a, 2])
+    if not finite:
+        return S, 3, nis, z, Sz, gain, dx, S, q, bv, cn   # the caller refuses the update
+    L = np.zeros((3, 3))                                 # R^½: Cholesky, lower
+    for a in range(3):
+        for b in range(a + 1):
+            acc = R[a, b]
+            for v in range(b):
+                acc -= L[a, v] * L[b, v]
+            L[a, b] = math.sqrt(acc) if a == b else acc / L[b, b]
+    M = np.empty((n, n + 3))                             # [(I − KH)S, K R^½]
     for a in range(n):
         for b in range(n):
             acc = 0.0
             for v in range(n):
-                acc += IKH[a, v] * S[v, b]
+                kh = gain[a, 0] * H[0, v] + gain[a, 1] * H[1, v] + gain[a, 2] * H[2, v]
+                acc += ((1.0 if a == v else 0.0) - kh) * S[v, b]
             M[a, b] = acc
         for b in range(3):
             M[a, n + b] = gain[a, 0] * L[0, b] + gain[a, 1] * L[1, b] + gain[a, 2] * L[2, b]
-    return nis, Sz, gain, dx, _lower_factor(M)
+    # the reset of the attitude (and of the boresight when it is a state)
+    q_new = _corrected(q, dx[0], dx[1], dx[2])
+    _dcm(q_new, cn)
+    bv_new = bv if bore < 0 else _corrected(bv, dx[bore], dx[bore + 1], dx[bore + 2])
+    return S, 0, nis, z, Sz, gain, dx, _lower_factor(M), q_new, bv_new, cn
 
 
 _transition = _transition_py
 _dcm = _dcm_py
 _lumped = _lumped_py
-_symmetric_product = _symmetric_product_py
+_keep = _keep_py
 _lower_factor = _lower_factor_py
+_psd_root = _psd_root_py
+_qmul = _qmul_py
+_corrected = _corrected_py
+_committed = _committed_py
 _push = _push_py
-_commit = _commit_py
-_fix = _fix_py
+_update = _update_py
 _compiled = None
 
 
@@ -397,16 +568,17 @@ def available() -> bool:
         True when numba is importable, compiles them and ``STRAPDOWN_KERNEL`` allows it.
 
     """
-    global _compiled, _transition, _dcm, _lumped, _symmetric_product, _lower_factor, \
-        _push, _commit, _fix
+    global _compiled, _transition, _dcm, _lumped, _keep, _lower_factor, _psd_root, _qmul, \
+        _corrected, _committed, _push, _update
     if not kernels_allowed():
         return False
     if _compiled is None:
-        got = njit_optional(_transition_py, _dcm_py, _lumped_py, _symmetric_product_py,
-                            _lower_factor_py, _push_py, _commit_py, _fix_py)
+        got = njit_optional(_transition_py, _dcm_py, _lumped_py, _keep_py, _lower_factor_py,
+                            _psd_root_py, _qmul_py, _corrected_py, _committed_py, _push_py,
+                            _update_py)
         if got:
-            (_transition, _dcm, _lumped, _symmetric_product, _lower_factor, _push, _commit,
-             _fix) = got
+            (_transition, _dcm, _lumped, _keep, _lower_factor, _psd_root, _qmul, _corrected,
+             _committed, _push, _update) = got
         _compiled = bool(got)
     return _compiled
 
@@ -450,57 +622,50 @@ def push_block(attitude, partials, h, bias_only, block, done, c_v, A_v, h_v, S, 
     return P
 
 
-def commit_block(block, S, sigma_v):
+def update(S, block, sigma_v, commit, fix=None):
     """
-    Return the square-root factor propagated over a block: P ← ΦPΦᵀ + Q.
+    Commit the open block to the factor and apply a fix: one compiled call.
 
     Parameters
     ----------
-    block : BlockSums
-        The block (its sums after its last update).
     S : ndarray (n, n)
         The square-root factor at the block's start.
+    block : BlockSums
+        The open block (its sums after its last update).
     sigma_v : float
         Angle random walk, rad/√s.
+    commit : bool
+        Commit the block (``P ← ΦPΦᵀ + Q``) first; else S is the factor at the fix.
+    fix : tuple, optional
+        ``(H, R, q, q_bv, q_fix, boresight)``: the fix Jacobian (3, n), its covariance (3, 3)
+        (symmetric positive definite), the attitude ``q_ref_body``, the boresight ``q_MF_VF``,
+        the fix ``q_GCRS_VF`` and the index of the boresight states (−1: none).  None: the
+        commit alone.
 
     Returns
     -------
-    ndarray (n, n)
-        The lower triangular factor at the block's end.
+    tuple
+        ``(committed, nis, z, Sz, gain, dx, factor, q, q_bv, c)``: the factor at the fix before
+        it (S when not committing), zᵀS_z⁻¹z (NaN when S_z is not finite or there is no fix),
+        the residual z, S_z = HPHᵀ + R, K, δx = Kz, the factor after the fix in Joseph form
+        (``committed`` when the gain is not finite), the attitude and boresight reset with δx
+        and the attitude's DCM (read when the fix is applied).
+
+    Raises
+    ------
+    numpy.linalg.LinAlgError
+        S_z is singular (as numpy's ``solve`` says).
 
     """
-    return _commit(block.c0, block.c_end, block.T, block.E, block.alpha, block.beta,
-                   block.gamma, block.twelfth, block.lam, block.markov, block.noisy, sigma_v, S)
+    if fix is None:
+        fix = _NO_FIX
+    out = _update(S, commit, block.c0, block.c_end, block.T, block.E, block.alpha, block.beta,
+                  block.gamma, block.twelfth, block.lam, block.markov, block.noisy, sigma_v,
+                  fix is not _NO_FIX, *fix)
+    if out[1] == 2:
+        raise np.linalg.LinAlgError('Singular matrix')     # (numpy's solve says so)
+    return (out[0], float(out[2])) + out[3:]
 
 
-def fix_update(S, H, R, z):
-    """
-    Return the measurement update of one fix.
-
-    Parameters
-    ----------
-    S : ndarray (n, n)
-        Square-root factor of the covariance.
-    H : ndarray (3, n)
-        The fix Jacobian.
-    R : ndarray (3, 3)
-        The fix covariance, symmetric positive definite.
-    z : ndarray (3,)
-        The residual.
-
-    Returns
-    -------
-    nis : float
-        zᵀ S_z⁻¹ z (NaN when S_z is not finite).
-    Sz : ndarray (3, 3)
-        The innovation covariance.
-    gain : ndarray (n, 3)
-        K.
-    dx : ndarray (n,)
-        K z.
-    factor : ndarray (n, n)
-        The factor after the update in Joseph form (S itself when the gain is not finite).
-
-    """
-    nis, Sz, gain, dx, factor = _fix(S, H, R, z)
-    return float(nis), Sz, gain, dx, factor
+_NO_FIX = (np.zeros((3, 1)), np.eye(3), np.array([1.0, 0.0, 0.0, 0.0]),
+           np.array([1.0, 0.0, 0.0, 0.0]), np.array([1.0, 0.0, 0.0, 0.0]), -1)
