@@ -546,10 +546,11 @@ class AttitudeFilter:
             first = n_new - len(self._open_rho) - 1           # piece index of the first update end
             cut, limited = len(t), False
             if first < len(t):
-                ends = np.arange(first, len(t), n_new)
-                k = int(np.searchsorted(t[ends], self._block_t0 + self.block_length, side='right'))
-                if k < len(ends):
-                    cut, limited = int(ends[k]) + 1, True
+                # the first update end (first + k·n_new) whose stamp is past the block's length
+                past = int(np.searchsorted(t, self._block_t0 + self.block_length, side='right'))
+                end = first + max(0, -((first - past) // n_new)) * n_new
+                if end < len(t):
+                    cut, limited = end + 1, True
             self._push_part(d[:cut], t[:cut])
             if limited:
                 self._commit()
@@ -600,9 +601,12 @@ class AttitudeFilter:
         rho = self._compensate(d, t, dt)
         self._last_rate = rho[-1] / dt[-1]
         q_before = self.integrator.q
-        work_rho = np.concatenate([self._open_rho, rho])
-        work_dt = np.concatenate([self._open_dt, dt])
         p = len(self._open_rho)
+        if p or rho is d:                        # (the open rest, or a copy of the caller's)
+            work_rho = np.concatenate([self._open_rho, rho])
+            work_dt = np.concatenate([self._open_dt, dt])
+        else:
+            work_rho, work_dt = rho, dt
         batch = self.integrator.push(rho, t)
         self._last_stamp = t_end
         n_new = self.integrator.algorithm.samples
