@@ -43,8 +43,6 @@ __all__ = ['AttitudeFilter']
 _NO_ATTITUDE = np.zeros((0, 4))
 _NO_LENGTHS = np.zeros(0)
 _NO_PARTIALS = np.zeros((1, 3, 1))
-_NO_DCM = np.zeros((1, 3, 3))
-_NO_MARKS = np.zeros(0, dtype=np.int64)
 
 
 class AttitudeFilter:
@@ -641,27 +639,24 @@ class AttitudeFilter:
                 batch.mean_rate * h[:, None], h, batch.stamps - 0.5 * h - self.epoch)
         else:
             att, h, J = _NO_ATTITUDE, _NO_LENGTHS, _NO_PARTIALS
-        if not marks:
-            filter_kernel.push_block(att, J, h, self._bias_only, self._block, _NO_MARKS, _NO_DCM,
-                                     _NO_PARTIALS, _NO_LENGTHS, self._sqrt_p, self.sigma_v)
-            return
-        stamps = np.asarray(marks)
-        K = len(stamps)
-        w = p + np.searchsorted(t, stamps)                        # work index of each mark
-        done = (w + 1) // n_new                                   # updates of this push up to it
-        if m:
-            q_out = np.concatenate([q_before[None], att])[done]
-        else:
-            q_out = np.repeat(q_before[None], K, axis=0)
-        inside = np.flatnonzero(done * n_new < w + 1)            # inside an update: a lumped rest
-        if len(inside):
+        stamps = np.asarray(marks, dtype=float) if marks else _NO_LENGTHS
+        out = filter_kernel.push_block(att, J, h, self._bias_only, self._block, stamps, t, p,
+                                       n_new, q_before, self._sqrt_p, self.sigma_v)
+        if out is None:             # a mark inside an update: its lumped rest (as _report's)
+            w = p + np.searchsorted(t, stamps)                    # work index of each mark
+            done = (w + 1) // n_new                               # updates of this push up to it
+            q_out = (np.concatenate([q_before[None], att])[done] if m
+                     else np.repeat(q_before[None], len(stamps), axis=0))
+            inside = np.flatnonzero(done * n_new < w + 1)
             c_v, A_v, h_v = self._lumped_rests(stamps, w, done, n_new, q_out, inside, work_rho,
                                                work_dt)
+            P = filter_kernel.push_block(att, J, h, self._bias_only, self._block, stamps, t, p,
+                                         n_new, q_before, self._sqrt_p, self.sigma_v,
+                                         rests=(done, c_v, A_v, h_v))[0]
         else:
-            c_v, A_v, h_v = _NO_DCM, _NO_PARTIALS, np.zeros(K)
-        P = filter_kernel.push_block(att, J, h, self._bias_only, self._block, done, c_v, A_v,
-                                     h_v, self._sqrt_p, self.sigma_v)
-        self._store_reports(stamps, q_out, P)
+            P, q_out = out
+        if marks:
+            self._store_reports(stamps, q_out, P)
 
     def _lumped_rests(self, stamps, w, done, n_new, q_out, inside, work_rho, work_dt):
         """

@@ -213,12 +213,23 @@ def _keep_py(row, c, T, E, alpha, beta, gamma, tw, back):
 
 
 def _push_py(att, J, h, bias_only, c_prev, T, E, alpha, beta, gamma, tw, s, lam, markov,
-             noisy, c0, done, c_v, A_v, h_v, S, sigma_v):
+             noisy, c0, marks, t, p, n_new, q_before, rests, done, c_v, A_v, h_v, S, sigma_v):
     m = h.shape[0]
     q = E.shape[1]
-    K = done.shape[0]
+    K = marks.shape[0]
     n = S.shape[0]
     k = 3 + q
+    q_out = np.empty((K, 4))
+    if not rests:                   # the updates each mark comes after; none inside an update?
+        done = np.empty(K, dtype=np.int64)
+        for r in range(K):
+            w = p + np.searchsorted(t, marks[r])          # work index of the mark
+            done[r] = (w + 1) // n_new
+            if done[r] * n_new < w + 1:                  # a lumped rest: the caller's, first
+                return T, c_prev, np.empty((0, n, n)), q_out, True
+    for r in range(K):
+        for a in range(4):
+            q_out[r, a] = q_before[a] if done[r] == 0 else att[done[r] - 1, a]
     C = c_prev.copy()
     A = np.empty((3, q))
     grow = np.empty(q)
@@ -257,7 +268,7 @@ def _push_py(att, J, h, bias_only, c_prev, T, E, alpha, beta, gamma, tw, s, lam,
     wr = np.empty((3, 3))
     for r in range(K):
         Tr = _keep(kept[r], cr, 0.0, Er, ar, br, gr, wr, True)
-        if h_v[r] > 0:
+        if rests and h_v[r] > 0:
             for a in range(3):
                 for b in range(3):
                     cr[a, b] = c_v[r, a, b]
@@ -285,7 +296,7 @@ def _push_py(att, J, h, bias_only, c_prev, T, E, alpha, beta, gamma, tw, s, lam,
                     acc = 0.5 * ((acc + Qk[a, b]) + (acc + Qk[b, a]))
                 P[r, a, b] = acc
                 P[r, b, a] = acc
-    return T, C, P
+    return T, C, P, q_out, False
 
 
 def _lower_factor_py(M):
@@ -583,9 +594,10 @@ def available() -> bool:
     return _compiled
 
 
-def push_block(attitude, partials, h, bias_only, block, done, c_v, A_v, h_v, S, sigma_v):
+def push_block(attitude, partials, h, bias_only, block, marks, t, p, n_new, q_before, S,
+               sigma_v, rests=None):
     """
-    Add m updates to a block's running sums and report the covariance at K marks.
+    Add m updates to a block's running sums and report the state at K marks.
 
     Parameters
     ----------
@@ -599,27 +611,47 @@ def push_block(attitude, partials, h, bias_only, block, done, c_v, A_v, h_v, S, 
         The bias is the only gyro state: ``J_j = h_j I``.
     block : BlockSums
         The open block; its sums are advanced in place (``T``, ``c_end`` and ``m`` too).
-    done : ndarray (K,) of int
-        Updates of this push each mark comes after (0: before the first), non-decreasing.
-    c_v, A_v, h_v : ndarray (K, 3, 3), (K, 3, q), (K,)
-        One lumped update more at each mark whose ``h_v`` > 0: attitude, ``C J``, length.
+    marks : ndarray (K,)
+        Stamps to report at, increasing, among the push's piece stamps ``t``.
+    t : ndarray (pieces,)
+        The stamps of the push's pieces (after ``p`` pieces of an unfinished update).
+    p : int
+        Pieces of the unfinished update before the push.
+    n_new : int
+        Pieces per update.
+    q_before : ndarray (4,)
+        The attitude before the push.
     S : ndarray (n, n)
         The square-root factor of the covariance at the block's start.
     sigma_v : float
         Angle random walk, rad/√s.
+    rests : tuple, optional
+        ``(done, c_v, A_v, h_v)``: the updates each mark comes after and one lumped update
+        more at the marks inside an update (``h_v`` > 0: attitude, ``C J``, length).
 
     Returns
     -------
-    ndarray (K, n, n)
-        The covariance at each mark.
+    tuple or None
+        ``(P, q)``: the covariance (K, n, n) and attitude (K, 4) at each mark; None when a mark
+        is inside an update and ``rests`` is not given (nothing added then).
 
     """
-    T, c_end, P = _push(attitude, partials, h, bias_only, block.c_end, block.T, block.E,
-                        block.alpha, block.beta, block.gamma, block.twelfth, block.s, block.lam,
-                        block.markov, block.noisy, block.c0, done, c_v, A_v, h_v, S, sigma_v)
+    given = rests is not None
+    done, c_v, A_v, h_v = rests if given else _NO_RESTS
+    T, c_end, P, q_out, need = _push(
+        attitude, partials, h, bias_only, block.c_end, block.T, block.E, block.alpha, block.beta,
+        block.gamma, block.twelfth, block.s, block.lam, block.markov, block.noisy, block.c0,
+        marks, t, p, n_new, q_before, given, done, np.ascontiguousarray(c_v),
+        np.ascontiguousarray(A_v), h_v, S, sigma_v)
+    if need:
+        return None
     block.T, block.c_end = T, c_end
     block.m += len(h)
-    return P
+    return P, q_out
+
+
+_NO_RESTS = (np.zeros(0, dtype=np.int64), np.zeros((1, 3, 3)), np.zeros((1, 3, 1)),
+             np.zeros(0))
 
 
 def update(S, block, sigma_v, commit, fix=None):

@@ -427,8 +427,9 @@ class StateLayout:
         """
         out = []
         for e, sl, p in self._bounded:
-            v = e.filter_values(x[sl]) if e.sensor == 'gyro' else x[sl]
-            if (p.minimum is not None and (v < p.minimum).any()) or \
-                    (p.maximum is not None and (v > p.maximum).any()):
+            v = (e.filter_values(x[sl]) if e.sensor == 'gyro' else x[sl]).tolist()
+            lo, hi = p.minimum, p.maximum              # (floats: a few values each)
+            if (lo is not None and any(u < lo for u in v)) or \
+                    (hi is not None and any(u > hi for u in v)):
                 out.append(e.name)
         return out
