@@ -871,7 +871,8 @@ class AttitudeFilter:
         if lay.time_offset is not None:
             H[:, lay.time_offset] = EFFECTS['time_offset'].fix_jacobian(self._last_rate, c_bv.T)
         if self._compiled:     # the commit and the numerics below, resets included, compiled
-            self._sqrt_p, nis, z, S, K, dx, joseph, q_new, bv_new, c_new = filter_kernel.update(
+            (self._sqrt_p, nis, z, S, K, dx, finite, joseph, q_new, bv_new,
+             c_new) = filter_kernel.update(
                 self._sqrt_p, self._block, self.sigma_v, self._block.m > 0,
                 (H, fix.covariance, self.integrator.q, self.boresight, fix.attitude,
                  -1 if lay.boresight is None else lay.boresight.start))
@@ -907,7 +908,8 @@ class AttitudeFilter:
         if not self._compiled:
             K = solved[:, 1:].T
             dx = K @ z
-        if not (np.isfinite(K).all() and np.isfinite(dx).all()):
+            finite = np.isfinite(K).all() and np.isfinite(dx).all()
+        if not finite:
             if self._compiled:
                 self._new_block()                  # (the numpy path's, at its commit)
             raise FloatingPointError('attitude filter: non-finite gain in the update (numerical '

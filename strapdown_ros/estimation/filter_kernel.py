@@ -677,11 +677,12 @@ def update(S, block, sigma_v, commit, fix=None):
     Returns
     -------
     tuple
-        ``(committed, nis, z, Sz, gain, dx, factor, q, q_bv, c)``: the factor at the fix before
-        it (S when not committing), zᵀS_z⁻¹z (NaN when S_z is not finite or there is no fix),
-        the residual z, S_z = HPHᵀ + R, K, δx = Kz, the factor after the fix in Joseph form
-        (``committed`` when the gain is not finite), the attitude and boresight reset with δx
-        and the attitude's DCM (read when the fix is applied).
+        ``(committed, nis, z, Sz, gain, dx, finite, factor, q, q_bv, c)``: the factor at the
+        fix before it (S when not committing), zᵀS_z⁻¹z (NaN when S_z is not finite or there
+        is no fix), the residual z, S_z = HPHᵀ + R, K, δx = Kz, whether K and δx are finite,
+        the factor after the fix in Joseph form (``committed`` when the gain is not finite),
+        the attitude and boresight reset with δx and the attitude's DCM (read when the fix is
+        applied).
 
     Raises
     ------
@@ -696,7 +697,7 @@ def update(S, block, sigma_v, commit, fix=None):
                   fix is not _NO_FIX, *fix)
     if out[1] == 2:
         raise np.linalg.LinAlgError('Singular matrix')     # (numpy's solve says so)
-    return (out[0], float(out[2])) + out[3:]
+    return (out[0], float(out[2])) + out[3:7] + (out[1] != 3,) + out[7:]
 
 
 _NO_FIX = (np.zeros((3, 1)), np.eye(3), np.array([1.0, 0.0, 0.0, 0.0]),
