@@ -4,11 +4,13 @@ The attitude filter's per-fix numerics as compiled loops (optional, with numba).
 :class:`~strapdown_ros.estimation.attitude_filter.AttitudeFilter` spends a fix cycle on small
 arrays (the error state has 6 to a few tens of components), where numpy's call overhead, not
 the arithmetic, is the cost.  With numba (the ``bench`` extra brings it; compiled by the
-package's one optional compiler :func:`~strapdown_ros.attitude.kernel.njit_optional`) three
+package's one optional compiler :func:`~strapdown_ros.attitude.kernel.njit_optional`) two
 calls do the numerics of a cycle; without it, or with ``STRAPDOWN_KERNEL=numpy``
 (:func:`~strapdown_ros.attitude.kernel.kernels_allowed`), the filter runs its vectorised numpy
-path.  Both compute the same mathematics in the same order of accumulation, equal to round-off
-(the tests run both on the same fixes and compare them).  The equations are those of
+path.  Both compute the same mathematics, the running sums in the same order of accumulation,
+equal to round-off (the tests run both on the same fixes and compare them; a filter's closed
+loop carries the round-off of its attitude, ~1e-16 rad, into residuals of ~1e-5 rad, so a
+residual agrees to 1e-15 rad, not to 1e-12 of itself).  The equations are those of
 :mod:`.error_model` and doc/attitude_filter.md (Propagation; Blocks, running sums, outputs;
 Update); general in the number q of gyro states and the size n of the error state.
 
@@ -30,16 +32,22 @@ transition from the block's start (:meth:`~.error_model.BlockSums.transition`)::
 and the covariance reported there, ``P = ½(F Fᵀ + (F Fᵀ)ᵀ) + [Q 0; 0 0]`` with F the factor S
 whose first 3 + q rows are propagated by Φ.
 
-:func:`commit_block` — the block committed to the square-root factor: ``P ← ΦPΦᵀ + Q`` as the
-QR factorisation of ``[ΦS, Q^½]ᵀ`` (Q^½ = V diag(√λ₊) from the eigen-decomposition of Q,
-:func:`~.filter_support.psd_factor`; S ← Rᵀ, :func:`~.filter_support.triangular_factor`).
+:func:`update` — at a fix (or a block's length), the block committed to the square-root
+factor: ``P ← ΦPΦᵀ + Q`` as the QR factorisation of ``[ΦS, Q^½]ᵀ`` (Q^½ = V diag(√λ₊) of
+Q's eigen-decomposition, :func:`~.filter_support.psd_factor`; S ← Rᵀ,
+:func:`~.filter_support.triangular_factor`); then the measurement update: the residual
+``z = log(q_fixᵀ ⊗ q ⊗ q_bv)``, ``P = SSᵀ``, ``S_z = ½(HPHᵀ + R + (…)ᵀ)``, ``S_z⁻¹[z, HP]`` in
+one solve, ``NIS = zᵀS_z⁻¹z``, ``K = PHᵀS_z⁻¹``, ``δx = Kz``, the Joseph form
+``P ← (I − KH)P(I − KH)ᵀ + KRKᵀ`` as the QR factorisation of ``[(I − KH)S, K R^½]ᵀ`` (R^½ the
+Cholesky factor) and the resets ``q ← q ⊗ exp(−δε)``, ``q_bv ← q_bv ⊗ exp(−δη)`` (doc:
+Update).
 
-:func:`fix_update` — the measurement update: ``P = ½(SSᵀ + (SSᵀ)ᵀ)``, ``S_z = ½(HPHᵀ + R +
-(…)ᵀ)``, ``S_z⁻¹[z, HP]`` in one solve, ``NIS = zᵀS_z⁻¹z``, ``K = PHᵀS_z⁻¹``, ``δx = Kz`` and
-the Joseph form ``P ← (I − KH)P(I − KH)ᵀ + KRKᵀ`` as the QR factorisation of
-``[(I − KH)S, K R^½]ᵀ`` (R^½ the Cholesky factor).
-
-Each kernel is compiled (or loaded from numba's cache) at its first use.  No ROS imports.
+The small linear algebra is written out (a few loops each, no LAPACK call: the kernels load
+from numba's cache in a few tens of ms and run cold in microseconds): Householder QR as LAPACK's
+unblocked ``dgeqr2`` (β = −sign(α)‖x‖, numpy's ``qr``), Q^½ by cyclic Jacobi rotations (the QR
+of ``[ΦS, B]ᵀ`` depends on B only through BBᵀ = Q), the 3×3 solve by LU with partial pivoting
+(``dgesv``), R^½ by Cholesky.  Each kernel is compiled (or loaded from numba's cache) at its
+first use.  No ROS imports.
 """
 from __future__ import annotations
 
