@@ -286,15 +286,7 @@ def _push_py(att, J, h, bias_only, c_prev, T, E, alpha, beta, gamma, tw, s, lam,
                     grow, D)
             Tr = Tr + h_v[r]
         _transition(c0, cr, Tr, Er, ar, br, gr, wr, lam, markov, noisy, sigma_v, phi, Qk)
-        for a in range(n):
-            for b in range(n):
-                if a < k:
-                    acc = 0.0
-                    for v in range(k):
-                        acc += phi[a, v] * S[v, b]
-                    F[a, b] = acc
-                else:
-                    F[a, b] = S[a, b]
+        _propagated(phi, S, F)
         for a in range(n):
             for b in range(a, n):
                 acc = 0.0
@@ -305,6 +297,21 @@ def _push_py(att, J, h, bias_only, c_prev, T, E, alpha, beta, gamma, tw, s, lam,
                 P[r, a, b] = acc
                 P[r, b, a] = acc
     return T, C, P, q_out, False
+
+
+def _propagated_py(phi, S, out):
+    """Fill the first n columns of out with S whose first 3 + q rows are propagated by Φ."""
+    k = phi.shape[0]
+    n = S.shape[0]
+    for a in range(n):
+        for b in range(n):
+            if a < k:
+                acc = 0.0
+                for v in range(k):
+                    acc += phi[a, v] * S[v, b]
+                out[a, b] = acc
+            else:
+                out[a, b] = S[a, b]
 
 
 def _lower_factor_py(M):
@@ -406,15 +413,7 @@ def _committed_py(S, c0, c, T, E, alpha, beta, gamma, tw, lam, markov, noisy, si
     Q = np.empty((k, k))
     _transition(c0, c, T, E, alpha, beta, gamma, tw, lam, markov, noisy, sigma_v, phi, Q)
     M = np.zeros((n, n + k))                             # [ΦS, Q^½] (Q^½ zero below row k)
-    for a in range(n):
-        for b in range(n):
-            if a < k:
-                acc = 0.0
-                for v in range(k):
-                    acc += phi[a, v] * S[v, b]
-                M[a, b] = acc
-            else:
-                M[a, b] = S[a, b]
+    _propagated(phi, S, M)
     B = np.empty((k, k))
     _psd_root(Q, B)
     for a in range(k):
@@ -567,6 +566,7 @@ _transition = _transition_py
 _dcm = _dcm_py
 _lumped = _lumped_py
 _keep = _keep_py
+_propagated = _propagated_py
 _lower_factor = _lower_factor_py
 _psd_root = _psd_root_py
 _qmul = _qmul_py
@@ -587,17 +587,17 @@ def available() -> bool:
         True when numba is importable, compiles them and ``STRAPDOWN_KERNEL`` allows it.
 
     """
-    global _compiled, _transition, _dcm, _lumped, _keep, _lower_factor, _psd_root, _qmul, \
-        _corrected, _committed, _push, _update
+    global _compiled, _transition, _dcm, _lumped, _keep, _propagated, _lower_factor, \
+        _psd_root, _qmul, _corrected, _committed, _push, _update
     if not kernels_allowed():
         return False
     if _compiled is None:
-        got = njit_optional(_transition_py, _dcm_py, _lumped_py, _keep_py, _lower_factor_py,
-                            _psd_root_py, _qmul_py, _corrected_py, _committed_py, _push_py,
-                            _update_py)
+        got = njit_optional(_transition_py, _dcm_py, _lumped_py, _keep_py, _propagated_py,
+                            _lower_factor_py, _psd_root_py, _qmul_py, _corrected_py,
+                            _committed_py, _push_py, _update_py)
         if got:
-            (_transition, _dcm, _lumped, _keep, _lower_factor, _psd_root, _qmul, _corrected,
-             _committed, _push, _update) = got
+            (_transition, _dcm, _lumped, _keep, _propagated, _lower_factor, _psd_root, _qmul,
+             _corrected, _committed, _push, _update) = got
         _compiled = bool(got)
     return _compiled
 
