@@ -20,10 +20,12 @@ the ``filter_bag`` tool reach it through :mod:`.filter_system`.  No ROS imports.
 from __future__ import annotations
 
 from collections import deque
+from itertools import repeat
 
 import numpy as np
 
 from strapdown_ros.attitude.integrator import AttitudeIntegrator
+from strapdown_ros.estimation import filter_kernel
 from strapdown_ros.estimation.chi_square import chi2_3_quantile
 from strapdown_ros.estimation.chi_square import chi2_quantile
 from strapdown_ros.estimation.error_model import BlockSums
@@ -36,6 +38,11 @@ from strapdown_ros.rotation import (quat_conjugate, quat_cumprod, quat_multiply,
 from strapdown_ros.sensors.effects import EFFECTS, GyroEffects
 
 __all__ = ['AttitudeFilter']
+
+# the compiled path's empty arguments (the kernels' types fixed: one compilation each)
+_NO_ATTITUDE = np.zeros((0, 4))
+_NO_LENGTHS = np.zeros(0)
+_NO_PARTIALS = np.zeros((1, 3, 1))
 
 
 class AttitudeFilter:
@@ -210,6 +217,8 @@ class AttitudeFilter:
         self._effects = None                            # the compensation of the estimates
         self._effects_cell = None
         self._bias_only = len(self.layout.gyro) == 1
+        # the compiled numerics (filter_kernel), if numba is there and STRAPDOWN_KERNEL allows
+        self._compiled = filter_kernel.available()
         self.counters = FilterCounters()
         self.results: deque = deque(maxlen=1000)       # the last fix results (bounded)
         self.history = int(history)
@@ -535,10 +544,11 @@ class AttitudeFilter:
             first = n_new - len(self._open_rho) - 1           # piece index of the first update end
             cut, limited = len(t), False
             if first < len(t):
-                ends = np.arange(first, len(t), n_new)
-                k = int(np.searchsorted(t[ends], self._block_t0 + self.block_length, side='right'))
-                if k < len(ends):
-                    cut, limited = int(ends[k]) + 1, True
+                # the first update end (first + k·n_new) whose stamp is past the block's length
+                past = int(np.searchsorted(t, self._block_t0 + self.block_length, side='right'))
+                end = first + max(0, -((first - past) // n_new)) * n_new
+                if end < len(t):
+                    cut, limited = end + 1, True
             self._push_part(d[:cut], t[:cut])
             if limited:
                 self._commit()
@@ -573,8 +583,12 @@ class AttitudeFilter:
         """Return ``C_j J_j`` (m, 3, q) of the gyro states over m updates."""
         if self._bias_only:              # the bias alone: J_j = h_j·I, so C_j J_j = h_j C_j
             return c * h[:, None, None]
+        return c @ self._gyro_partials(rho, h, t_mid)
+
+    def _gyro_partials(self, rho, h, t_mid) -> np.ndarray:
+        """Return ``J_j = ∂ρ̃_j/∂c`` (m, 3, q) of the gyro states over m updates."""
         J = [e.filter_partials(rho, h, t_mid) for e, _ in self.layout.gyro]
-        return c @ (J[0] if len(J) == 1 else np.concatenate(J, axis=2))
+        return J[0] if len(J) == 1 else np.concatenate(J, axis=2)
 
     def _push_part(self, d: np.ndarray, t: np.ndarray) -> None:
         self._log.append(d, t)
@@ -585,14 +599,22 @@ class AttitudeFilter:
         rho = self._compensate(d, t, dt)
         self._last_rate = rho[-1] / dt[-1]
         q_before = self.integrator.q
-        work_rho = np.concatenate([self._open_rho, rho])
-        work_dt = np.concatenate([self._open_dt, dt])
         p = len(self._open_rho)
+        if p or rho is d:                        # (the open rest, or a copy of the caller's)
+            work_rho = np.concatenate([self._open_rho, rho])
+            work_dt = np.concatenate([self._open_dt, dt])
+        else:
+            work_rho, work_dt = rho, dt
         batch = self.integrator.push(rho, t)
         self._last_stamp = t_end
         n_new = self.integrator.algorithm.samples
         m = len(batch)
-        marks = [s for s in self._marks if t_start < s <= t_end and not self._held(s)]
+        held = self._pending[0].epoch if self._pending else np.inf   # marks from there: held
+        marks = [s for s in self._marks if t_start < s <= t_end and s < held]
+        if self._compiled:
+            self._push_compiled(batch, marks, t, p, n_new, q_before, work_rho, work_dt)
+            self._open_rho, self._open_dt = work_rho[m * n_new:], work_dt[m * n_new:]
+            return
         run = None
         if m:
             c = quat_to_dcm(batch.attitude)
@@ -603,6 +625,57 @@ class AttitudeFilter:
         self._open_rho, self._open_dt = work_rho[m * n_new:], work_dt[m * n_new:]
         if marks:
             self._report(marks, t, p, n_new, q_before, batch, run, work_rho, work_dt)
+
+    def _push_compiled(self, batch, marks, t, p, n_new, q_before, work_rho, work_dt) -> None:
+        """
+        Add a push's updates to the block and report its marks: one compiled call.
+
+        The same numbers as :meth:`BlockSums.add` and :meth:`_report` (filter_kernel).
+        """
+        m = len(batch)
+        if m:
+            att, h = batch.attitude, batch.interval
+            J = _NO_PARTIALS if self._bias_only else self._gyro_partials(
+                batch.mean_rate * h[:, None], h, batch.stamps - 0.5 * h - self.epoch)
+        else:
+            att, h, J = _NO_ATTITUDE, _NO_LENGTHS, _NO_PARTIALS
+        stamps = np.asarray(marks, dtype=float) if marks else _NO_LENGTHS
+        out = filter_kernel.push_block(att, J, h, self._bias_only, self._block, stamps, t, p,
+                                       n_new, q_before, self._sqrt_p, self.sigma_v)
+        if out is None:             # a mark inside an update: its lumped rest (as _report's)
+            w = p + np.searchsorted(t, stamps)                    # work index of each mark
+            done = (w + 1) // n_new                               # updates of this push up to it
+            q_out = (np.concatenate([q_before[None], att])[done] if m
+                     else np.repeat(q_before[None], len(stamps), axis=0))
+            inside = np.flatnonzero(done * n_new < w + 1)
+            c_v, A_v, h_v = self._lumped_rests(stamps, w, done, n_new, q_out, inside, work_rho,
+                                               work_dt)
+            P = filter_kernel.push_block(att, J, h, self._bias_only, self._block, stamps, t, p,
+                                         n_new, q_before, self._sqrt_p, self.sigma_v,
+                                         rests=(done, c_v, A_v, h_v))[0]
+        else:
+            P, q_out = out
+        if marks:
+            self._store_reports(stamps, q_out, P)
+
+    def _lumped_rests(self, stamps, w, done, n_new, q_out, inside, work_rho, work_dt):
+        """
+        Return the lumped rest of the unfinished update at each mark (h 0: none).
+
+        The attitudes ``q_out`` of the marks inside an update are advanced over their rests.
+        """
+        K = len(stamps)
+        h_v = np.zeros(K)
+        rho_v = np.zeros((K, 3))
+        for k in inside:
+            piece = work_rho[done[k] * n_new:w[k] + 1]
+            q_out[k] = quat_cumprod(q_out[k], rotvec_to_quat(piece))[-1]
+            rho_v[k] = piece.sum(0)
+            h_v[k] = work_dt[done[k] * n_new:w[k] + 1].sum()
+        c_v = quat_to_dcm(q_out)
+        A_v = self._partials(c_v, rho_v, np.where(h_v > 0, h_v, 1.0),
+                             stamps - 0.5 * h_v - self.epoch) * (h_v > 0)[:, None, None]
+        return c_v, A_v, h_v
 
     def _held(self, stamp: float) -> bool:
         """Tell whether a mark waits for a fix of its epoch (reported after it)."""
@@ -627,16 +700,8 @@ class AttitudeFilter:
             base = tuple(None if r is None else r[done] for r in run)
         inside = np.flatnonzero(done * n_new < w + 1)            # inside an update: a lumped rest
         if len(inside):
-            h_v = np.zeros(K)
-            rho_v = np.zeros((K, 3))
-            for k in inside:
-                piece = work_rho[done[k] * n_new:w[k] + 1]
-                q_out[k] = quat_cumprod(q_out[k], rotvec_to_quat(piece))[-1]
-                rho_v[k] = piece.sum(0)
-                h_v[k] = work_dt[done[k] * n_new:w[k] + 1].sum()
-            c_v = quat_to_dcm(q_out)
-            A_v = self._partials(c_v, rho_v, np.where(h_v > 0, h_v, 1.0),
-                                 stamps - 0.5 * h_v - self.epoch) * (h_v > 0)[:, None, None]
+            c_v, A_v, h_v = self._lumped_rests(stamps, w, done, n_new, q_out, inside, work_rho,
+                                               work_dt)
             sums = self._block.extended(base, c_v, A_v, h_v)
         else:                        # every mark at an update's end: the sums there as they are
             sums = base
@@ -656,13 +721,16 @@ class AttitudeFilter:
             F[:, k:] = S[k:]
         P = F @ np.swapaxes(F, -1, -2)
         P[:, :k, :k] += Q
-        P = 0.5 * (P + np.swapaxes(P, -1, -2))
+        self._store_reports(stamps, q, 0.5 * (P + np.swapaxes(P, -1, -2)))
+
+    def _store_reports(self, stamps, q, P) -> None:
+        """Report the states at K stamps: attitudes q (K, 4), covariances P (K, n, n)."""
+        K = len(stamps)
         x = np.repeat(self._x[None], K, axis=0)        # each report its own row (no copies)
         if self._markov:
             x[:, 3:3 + self._nq] *= np.exp(-np.outer(stamps - self._x_time, 1.0 / self._g_tau))
-        bv = self.boresight.copy()
         stamps = np.asarray(stamps, dtype=float).tolist()
-        self.reports.extend(StateReport(s, q[j], P[j], x[j], bv) for j, s in enumerate(stamps))
+        self.reports.extend(map(StateReport, stamps, q, P, x, repeat(self.boresight.copy())))
         done = set(stamps)
         self._marks = [m for m in self._marks if m not in done]
 
@@ -682,7 +750,9 @@ class AttitudeFilter:
 
     def _commit(self) -> None:
         """Commit the open block to the covariance factor and start a new block."""
-        if self._block.m:
+        if self._block.m and self._compiled:
+            self._sqrt_p = filter_kernel.update(self._sqrt_p, self._block, self.sigma_v, True)[0]
+        elif self._block.m:
             phi, Q, _ = self._block.transition(self._block.state(), self.sigma_v)
             k = 3 + self._nq
             if k == len(self._sqrt_p):                   # Φ covers the whole state
@@ -695,20 +765,23 @@ class AttitudeFilter:
             self._sqrt_p = triangular_factor(S, Qf)       # P ← ΦPΦᵀ + Q
         self._new_block()
 
-    def _new_block(self) -> None:
-        c0 = quat_to_dcm(self.integrator.q)
+    def _new_block(self, c0=None) -> None:
+        """Start a new block at the current attitude (its DCM ``c0`` when known)."""
+        if c0 is None:
+            c0 = quat_to_dcm(self.integrator.q)
         if self._block is None:
             self._block = BlockSums(c0, self._nq, self._g_noise, self._g_tau)
         else:
             self._block.restart(c0)
         self._block_t0 = self._last_stamp
 
-    def _flush(self) -> None:
+    def _flush(self, commit: bool = True) -> None:
         """
         Complete the unfinished update and commit: attitude and covariance at the newest stamp.
 
         The unfinished update's increments are applied one by one, the integrator's rule when
-        the algorithm changes, as one lumped update of the block.
+        the algorithm changes, as one lumped update of the block.  ``commit`` False: the block
+        is left open (the compiled update commits it).
         """
         if len(self._open_rho):
             self.integrator.set_algorithm(self.integrator.algorithm_name)
@@ -719,7 +792,8 @@ class AttitudeFilter:
             self._block.add(c, A, h)
             self.integrator.time = self._last_stamp
             self._open_rho, self._open_dt = np.zeros((0, 3)), np.zeros(0)
-        self._commit()
+        if commit:
+            self._commit()
 
     def _decayed(self, elapsed: float) -> np.ndarray:
         """Return the estimates ``elapsed`` s after the last fix (Gauss–Markov states decay)."""
@@ -786,26 +860,33 @@ class AttitudeFilter:
 
     def _apply(self, fix: CameraFix) -> FixResult:
         """Measurement update at the newest stamp (= the fix epoch)."""
-        self._flush()
+        self._flush(commit=not self._compiled)     # compiled: the commit in the update's call
         self._settle(fix.epoch)
         lay = self.layout
         c_bv = quat_to_dcm(self.boresight)                 # C_MF^VF
-        q_pred = quat_multiply(self.integrator.q, self.boresight)
-        z = quat_to_rotvec(quat_multiply(quat_conjugate(fix.attitude), q_pred))
         H = np.zeros((3, lay.size))
         H[:, :3] = c_bv.T
         if lay.boresight is not None:
             H[:, lay.boresight] = np.eye(3)
         if lay.time_offset is not None:
             H[:, lay.time_offset] = EFFECTS['time_offset'].fix_jacobian(self._last_rate, c_bv.T)
-        P = self._sqrt_p @ self._sqrt_p.T
-        P = 0.5 * (P + P.T)
-        HP = H @ P
-        S = HP @ H.T + fix.covariance
-        S = 0.5 * (S + S.T)
-        # S⁻¹ [z, HP] in one solve: the NIS, and the gain when the fix is applied
-        solved = np.linalg.solve(S, np.column_stack((z, HP)))
-        nis = float(z @ solved[:, 0])
+        if self._compiled:     # the commit and the numerics below, resets included, compiled
+            (self._sqrt_p, nis, z, S, K, dx, finite, joseph, q_new, bv_new,
+             c_new) = filter_kernel.update(
+                self._sqrt_p, self._block, self.sigma_v, self._block.m > 0,
+                (H, fix.covariance, self.integrator.q, self.boresight, fix.attitude,
+                 -1 if lay.boresight is None else lay.boresight.start))
+        else:
+            q_pred = quat_multiply(self.integrator.q, self.boresight)
+            z = quat_to_rotvec(quat_multiply(quat_conjugate(fix.attitude), q_pred))
+            P = self._sqrt_p @ self._sqrt_p.T
+            P = 0.5 * (P + P.T)
+            HP = H @ P
+            S = HP @ H.T + fix.covariance
+            S = 0.5 * (S + S.T)
+            # S⁻¹ [z, HP] in one solve: the NIS, and the gain when the fix is applied
+            solved = np.linalg.solve(S, np.column_stack((z, HP)))
+            nis = float(z @ solved[:, 0])
         self._applied.append(fix)
         fix.order = self._order
         self._order += 1
@@ -815,6 +896,8 @@ class AttitudeFilter:
         if reason is not None:
             return self._reset(fix, z, nis, S, reason)
         if gated:
+            if self._compiled:
+                self._new_block()                  # (the numpy path's, at its commit)
             res = self._record(fix, 'gated', z, nis, S)
             res.jacobian = H
             if not fix.counted:
@@ -822,23 +905,32 @@ class AttitudeFilter:
             fix.counted = True
             self._checkpoint()
             return res
-        K = solved[:, 1:].T
-        dx = K @ z
-        if not (np.isfinite(K).all() and np.isfinite(dx).all()):
+        if not self._compiled:
+            K = solved[:, 1:].T
+            dx = K @ z
+            finite = np.isfinite(K).all() and np.isfinite(dx).all()
+        if not finite:
+            if self._compiled:
+                self._new_block()                  # (the numpy path's, at its commit)
             raise FloatingPointError('attitude filter: non-finite gain in the update (numerical '
                                      'failure, not bad input); the state is not corrected')
-        IKH = self._identity - K @ H
-        # Joseph form P ← (I − KH)P(I − KH)ᵀ + KRKᵀ, as the factor of [(I − KH)S, K R^½]
-        self._sqrt_p = triangular_factor(IKH @ self._sqrt_p,
-                                         K @ np.linalg.cholesky(fix.covariance))
-        self.integrator.q = quat_normalize(quat_multiply(self.integrator.q,
-                                                         rotvec_to_quat(-dx[:3])))
-        self._new_block()
+        if self._compiled:
+            self._sqrt_p, self.integrator.q, self.boresight = joseph, q_new, bv_new
+            self._new_block(c_new)
+        else:
+            IKH = self._identity - K @ H
+            # Joseph form P ← (I − KH)P(I − KH)ᵀ + KRKᵀ, as the factor of [(I − KH)S, K R^½]
+            self._sqrt_p = triangular_factor(IKH @ self._sqrt_p,
+                                             K @ np.linalg.cholesky(fix.covariance))
+            self.integrator.q = quat_normalize(quat_multiply(self.integrator.q,
+                                                             rotvec_to_quat(-dx[:3])))
+            self._new_block()
+            if lay.boresight is not None:
+                self.boresight = quat_normalize(quat_multiply(
+                    self.boresight, rotvec_to_quat(-dx[lay.boresight])))
         self._x[3:] -= dx[3:]
         self._effects = None
         if lay.boresight is not None:
-            self.boresight = quat_normalize(quat_multiply(self.boresight,
-                                                          rotvec_to_quat(-dx[lay.boresight])))
             self._x[lay.boresight] = 0.0          # the boresight estimate lives in the quaternion
         if not fix.counted:
             self.counters.applied += 1

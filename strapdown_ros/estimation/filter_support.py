@@ -49,17 +49,32 @@ def checked_fix(stamp: float, attitude, covariance):
     """
     q = np.asarray(attitude, dtype=float)
     R = np.asarray(covariance, dtype=float)
-    if q.shape != (4,) or not np.isfinite(q).all() \
+    if q.shape != (4,) or not all(map(math.isfinite, q.tolist())) \
             or abs(math.sqrt(float(q @ q)) - 1.0) > 1e-3:        # (np.linalg.norm's formula)
         raise ValueError('the fix attitude must be a finite unit quaternion [w, x, y, z]')
-    if R.shape != (3, 3) or not np.isfinite(R).all():
+    if R.shape != (3, 3) or not all(map(math.isfinite, R.ravel().tolist())):
         raise ValueError('the fix covariance must be a finite 3x3 matrix')
     R = 0.5 * (R + R.T)
-    if np.linalg.eigvalsh(R)[0] <= 0:
+    if not _clearly_positive_definite(R.tolist()) and np.linalg.eigvalsh(R)[0] <= 0:
         raise ValueError('the fix covariance must be positive definite')
-    if not np.isfinite(stamp):
+    if not math.isfinite(stamp):
         raise ValueError('the fix stamp must be finite')
     return q, R
+
+
+def _clearly_positive_definite(e: list) -> bool:
+    """
+    Tell whether a symmetric 3×3 matrix (rows of floats) is positive definite by a wide margin.
+
+    Gershgorin: every eigenvalue is at least min_i (e_ii − Σ_{j≠i} |e_ij|); above 1e-9 of the
+    largest diagonal element, far above the round-off of an eigenvalue solver, so
+    ``eigvalsh`` would find the smallest eigenvalue positive too (the answer is the same,
+    without its cost).  False says nothing: the caller asks ``eigvalsh``.
+    """
+    top = max(e[0][0], e[1][1], e[2][2])
+    low = min(e[0][0] - abs(e[0][1]) - abs(e[0][2]), e[1][1] - abs(e[1][0]) - abs(e[1][2]),
+              e[2][2] - abs(e[2][0]) - abs(e[2][1]))
+    return top > 0.0 and low > 1e-9 * top
 
 
 def triangular_factor(*blocks: np.ndarray) -> np.ndarray:
@@ -155,7 +170,7 @@ class FixResult:
     reason: str = ''
 
 
-@dataclass
+@dataclass(slots=True)
 class StateReport:
     """
     The filter's state at one increment stamp (a mark of ``AttitudeFilter.propagate``).
@@ -412,8 +427,9 @@ class StateLayout:
         """
         out = []
         for e, sl, p in self._bounded:
-            v = e.filter_values(x[sl]) if e.sensor == 'gyro' else x[sl]
-            if (p.minimum is not None and (v < p.minimum).any()) or \
-                    (p.maximum is not None and (v > p.maximum).any()):
+            v = (e.filter_values(x[sl]) if e.sensor == 'gyro' else x[sl]).tolist()
+            lo, hi = p.minimum, p.maximum              # (floats: a few values each)
+            if (lo is not None and any(u < lo for u in v)) or \
+                    (hi is not None and any(u > hi for u in v)):
                 out.append(e.name)
         return out
