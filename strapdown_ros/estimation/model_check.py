@@ -47,9 +47,13 @@ import math
 
 import numpy as np
 
-from strapdown_ros.estimation.window_tests import beta_log_sf, judge_window, window_level
+from strapdown_ros.estimation import check_kernel
+from strapdown_ros.estimation.check_kernel import (chain_step, dcm_entries,
+                                                  lower_cholesky_inverse)
+from strapdown_ros.estimation.window_tests import (band_tables, beta_log_sf, judge_window,
+                                                   window_level)
 from strapdown_ros.rotation import quat_cumprod, quat_to_dcm, rotvec_to_quat
-from strapdown_ros.sensors.effect_base import Effect
+from strapdown_ros.sensors.effect_base import Effect, linear_partials, partial_features
 from strapdown_ros.sensors.effects import EFFECTS
 
 __all__ = ['ModelCheck', 'ModelCheckResult', 'ljung_box', 'check_candidates', 'NOISE_EFFECT']
@@ -143,20 +147,11 @@ def _attitude_chain(q0: np.ndarray, rho: np.ndarray) -> tuple:
         q = quat_cumprod(q0, rotvec_to_quat(rho))
         return quat_to_dcm(q), q[-1]
     pw, px, py, pz = q0.tolist()
+    w, x, y, z = pw, px, py, pz
     out = []
     for a, b, c in rho.tolist():
-        angle = math.sqrt(a * a + b * b + c * c)
-        s = math.sin(0.5 * angle) / angle if angle > 0.0 else 0.5
-        qw, qx, qy, qz = math.cos(0.5 * angle), a * s, b * s, c * s
-        pw, px, py, pz = (pw * qw - px * qx - py * qy - pz * qz,
-                          pw * qx + px * qw + py * qz - pz * qy,
-                          pw * qy - px * qz + py * qw + pz * qx,
-                          pw * qz + px * qy - py * qx + pz * qw)
-        r = 1.0 / math.sqrt(pw * pw + px * px + py * py + pz * pz)
-        w, x, y, z = pw * r, px * r, py * r, pz * r
-        out.append((1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y),
-                    2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x),
-                    2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)))
+        pw, px, py, pz, w, x, y, z = chain_step(pw, px, py, pz, a, b, c)
+        out.append(dcm_entries(w, x, y, z))
     return np.array(out).reshape(-1, 3, 3), np.array([w, x, y, z])
 
 
@@ -168,23 +163,9 @@ def _lower_cholesky_inverse(S) -> np.ndarray:
     positive definite.
     """
     (a, _, _), (b, c, _), (d, e, f) = np.asarray(S, dtype=float).reshape(3, 3).tolist()
-    if not a > 0.0:
+    ok, m00, m10, m11, m20, m21, m22 = lower_cholesky_inverse(a, b, c, d, e, f)
+    if not ok:
         raise np.linalg.LinAlgError('Matrix is not positive definite')
-    l00 = math.sqrt(a)
-    l10, l20 = b / l00, d / l00
-    c -= l10 * l10
-    if not c > 0.0:
-        raise np.linalg.LinAlgError('Matrix is not positive definite')
-    l11 = math.sqrt(c)
-    l21 = (e - l20 * l10) / l11
-    f -= l20 * l20 + l21 * l21
-    if not f > 0.0:
-        raise np.linalg.LinAlgError('Matrix is not positive definite')
-    l22 = math.sqrt(f)
-    m00, m11, m22 = 1.0 / l00, 1.0 / l11, 1.0 / l22
-    m10 = -l10 * m00 * m11
-    m21 = -l21 * m11 * m22
-    m20 = -(l20 * m00 + l21 * m10) * m22
     return np.array([[m00, 0.0, 0.0], [m10, m11, 0.0], [m20, m21, m22]])
 
 
@@ -327,7 +308,19 @@ class ModelCheck:
         self._E = np.zeros((self.size, self._width))
         self._partials = [_partials(e) for e in self.effects] \
             + [_partials(e) for e, _ in self.states]
+        # every partial as one product of the increments' features, when the effects allow
+        basis = linear_partials(self.effects + [e for e, _ in self.states])
+        self._basis = None if basis is None else basis.reshape(len(basis), -1)
         self._state_cols = cols
+        # the compiled loops (check_kernel), with the decay rate of every column of the sums
+        self._kernel = check_kernel.compiled() if basis is not None else None
+        if self._kernel is not None:
+            self._sparse = check_kernel.sparse_basis(basis)
+            self._lam_all = np.concatenate([np.zeros(self._fitted), self._lam])
+            self._first = self.states[0][1].start if self.states else 0
+            self._no_gain = np.zeros((self.size, 3))
+            self._tables = band_tables(self.window)
+            self._energy = np.zeros(len(self._tables[1]) + 1)
         self._eye = np.eye(self.size)
         self._eye3 = np.eye(3)
         if self.states:      # contiguous
@@ -351,35 +344,68 @@ class ModelCheck:
     # ------------------------------------------------------------------ signatures
     def _start_interval(self) -> None:
         self._rot = np.array([1.0, 0.0, 0.0, 0.0])     # body at the last fix ← body now
-        self._dcm = self._eye3                         # its DCM
+        self._dcm = np.eye(3)                          # its DCM (the kernel writes into it)
         self._elapsed = 0.0
         # the effects' increment partials, then the filter's gyro states'
         self._sums = np.zeros((3, self._fitted + self._state_cols))
 
-    def accumulate(self, rho, h, t) -> None:
+    def accumulate(self, d, h, t, lump: int = 1, bias=None, epoch: float = 0.0) -> None:
         """
         Add increments of the interval since the last fix to the signatures.
 
+        The increments are lumped ``lump`` at a time (the last lump takes the rest), each lump
+        compensated for the bias: ``ρ = Σ d − b Σ h``, at its middle ``t_end − Σ h / 2``.
+
         Parameters
         ----------
-        rho : ndarray (m, 3)
-            Bias-compensated increments (lumped), rad, body axes.
+        d : ndarray (m, 3)
+            Increments, rad, body axes.
         h : ndarray (m,)
             Their lengths, s.
         t : ndarray (m,)
-            Their middle times since the effect epoch, s.
+            Their end stamps, s.
+        lump : int
+            Increments per lump, ≥ 1.
+        bias : ndarray (3,), optional
+            The rate b taken off, rad/s (None: none).
+        epoch : float
+            The effect epoch the times are counted from, s.
 
         """
-        rho = np.asarray(rho, dtype=float).reshape(-1, 3)
-        h = np.asarray(h, dtype=float).reshape(-1)
-        t = np.asarray(t, dtype=float).reshape(-1)
-        if len(rho) == 0:
+        d = np.ascontiguousarray(d, dtype=float).reshape(-1, 3)
+        h = np.ascontiguousarray(h, dtype=float).reshape(-1)
+        t = np.ascontiguousarray(t, dtype=float).reshape(-1)
+        if len(d) == 0:
             return
+        lump = max(1, int(lump))
+        if self._kernel is not None:
+            b = np.zeros(3) if bias is None else np.ascontiguousarray(bias, dtype=float)
+            self._elapsed = self._kernel[0](d, h, t, lump, b.reshape(3), float(epoch),
+                                            self._rot, self._dcm, self._sums, self._sparse,
+                                            self._lam_all, self._elapsed)
+            return
+        n = len(d) // lump * lump
+        rho = d[:n].reshape(-1, lump, 3).sum(1)
+        hh = h[:n].reshape(-1, lump).sum(1)
+        te = t[:n].reshape(-1, lump)[:, -1]
+        if n < len(d):                         # the rest: one lump more
+            rho = np.vstack([rho, d[n:].sum(0)[None]])
+            hh = np.append(hh, h[n:].sum())
+            te = np.append(te, t[-1])
+        if bias is not None:
+            rho = rho - np.asarray(bias, dtype=float).reshape(1, 3) * hh[:, None]
+        self._lumps(rho, hh, te - 0.5 * hh - float(epoch))
+
+    def _lumps(self, rho, h, t) -> None:
+        """Add bias-compensated lumps (middle times t since the epoch) to the signatures."""
         c, self._rot = _attitude_chain(self._rot, rho)  # body at the last fix ← at each end
         self._dcm = c[-1]
         if self._partials:
-            parts = [f(rho, h, t) if S is None else f(rho, h, t) @ S for f, S in self._partials]
-            J = np.concatenate(parts, axis=2)
+            if self._basis is not None:                 # one product for every effect
+                J = (partial_features(rho, h, t) @ self._basis).reshape(len(rho), 3, -1)
+            else:
+                J = np.concatenate([f(rho, h, t) if S is None else f(rho, h, t) @ S
+                                    for f, S in self._partials], axis=2)
             if self._decays and self.states:
                 u = self._elapsed + np.cumsum(h) - 0.5 * h      # since the interval's start
                 J[:, :, self._fitted:] *= np.exp(-u[:, None] * self._lam)[:, None, :]
@@ -460,6 +486,8 @@ class ModelCheck:
             The verdict of the window ending at this fix.
 
         """
+        if self._kernel is not None:
+            return self._add_compiled(stamp, z, S, c_vf_mf, rate_body, gain, jacobian)
         c_vf_mf = np.asarray(c_vf_mf, dtype=float)
         ce = self._dcm.T                              # body at the fix ← body at the last fix
         phi = self._transition(ce)
@@ -485,6 +513,35 @@ class ModelCheck:
         n = self.window
         self._white[k] = self._white[k + n] = inv @ np.asarray(z, dtype=float).reshape(3)
         self._signatures[k] = self._signatures[k + n] = inv @ G
+        return self._advance(stamp)
+
+    def _add_compiled(self, stamp, z, S, c_vf_mf, rate_body, gain, jacobian):
+        """Run :meth:`add` compiled (check_kernel): the same numbers to round-off."""
+        c_vf_mf = np.ascontiguousarray(c_vf_mf, dtype=float).reshape(3, 3)
+        if jacobian is None:
+            H = np.zeros((3, self.size))
+            H[:, :3] = c_vf_mf
+        else:
+            H = np.ascontiguousarray(jacobian, dtype=float).reshape(3, self.size)
+        K = self._no_gain if gain is None else \
+            np.ascontiguousarray(gain, dtype=float).reshape(self.size, 3)
+        k = self._next
+        bad = self._kernel[1](self._E, self._rot, self._dcm, self._sums, self._fitted, self._first,
+                              self._lam_all, self._elapsed, H, K, gain is not None, c_vf_mf,
+                              np.ascontiguousarray(rate_body, dtype=float).reshape(3),
+                              self.time_offset,
+                              np.ascontiguousarray(S, dtype=float).reshape(3, 3),
+                              np.ascontiguousarray(z, dtype=float).reshape(3), self._white,
+                              self._signatures, k, k + self.window)
+        self._elapsed = 0.0                          # (the kernel restarted the interval)
+        if bad:
+            raise np.linalg.LinAlgError('Matrix is not positive definite')
+        return self._advance(stamp)
+
+    def _advance(self, stamp) -> ModelCheckResult:
+        """Close the row of the fix just written; judge the window once it is full."""
+        k = self._next
+        n = self.window
         self._stamps[k] = self._stamps[k + n] = float(stamp)
         self._next = (k + 1) % n
         self._filled = min(self._filled + 1, n)
@@ -497,11 +554,17 @@ class ModelCheck:
 
     def _test(self) -> ModelCheckResult:
         n = self.window
-        rows = slice(self._next, self._next + n)      # the last n fixes, in order
-        stamps = self._stamps[rows].tolist()
+        k = self._next
+        rows = slice(k, k + n)                        # the last n fixes, in order
+        first, last = float(self._stamps[k]), float(self._stamps[k + n - 1])
         white = self._white[rows]
-        level = window_level(self.rate, (stamps[-1] - stamps[0]) / (n - 1), self.alpha)
-        v = judge_window(white, level)
+        level = window_level(self.rate, (last - first) / (n - 1), self.alpha)
+        if self._kernel is not None:
+            e = self._energy                          # the band energies, then the NIS sum
+            self._kernel[2](self._white, k, n, self._tables[0], self._tables[1], e)
+            v = judge_window(white, level, e[:-1], float(e[-1]))
+        else:
+            v = judge_window(white, level)
         self.windows += 1
         if v.ok:
             if self.warn:
@@ -516,7 +579,7 @@ class ModelCheck:
                 self.episodes += 1
         res = ModelCheckResult(n, not self.warn, v.nis_sum, v.nis_band, v.whiteness_p,
                                window_ok=v.ok, verdict='consistent', level=level,
-                               episodes=self.episodes, stamp=stamps[-1])
+                               episodes=self.episodes, stamp=last)
         if v.ok:
             return res
         if v.nis_low:

@@ -41,8 +41,9 @@ FINITE_SUM_MAX = 64
 #: are within 0.5 % of their key)
 SCREEN_WIDTH = 0.01
 
-__all__ = ['beta_sf', 'beta_log_sf', 'band_dof', 'band_energies', 'spectral_whiteness',
-           'nis_p_values', 'nis_band', 'window_level', 'WindowVerdict', 'judge_window']
+__all__ = ['beta_sf', 'beta_log_sf', 'band_dof', 'band_energies', 'band_tables',
+           'spectral_whiteness', 'nis_p_values', 'nis_band', 'window_level', 'WindowVerdict',
+           'judge_window']
 
 
 def _beta_fraction(a: float, b: float, x: float) -> float:
@@ -188,9 +189,10 @@ def band_energies(white: np.ndarray) -> np.ndarray:
     w = np.asarray(white, dtype=float)
     n = len(w)
     if 0 < n <= DFT_BY_MATRIX:     # short windows: one product with the cached DFT matrix
-        m = _dft_matrix(n)
+        m, weights = band_tables(n)
         f = m @ w
-        return _band_weights(n, w.shape[1]) @ (f * f).reshape(-1)
+        s = (f * f).sum(1)
+        return weights * (s[:len(weights)] + s[len(weights):])
     f = np.fft.rfft(w, axis=0)
     e = (f.real ** 2 + f.imag ** 2).sum(axis=1) * (2.0 / n)
     e[0] *= 0.5
@@ -200,24 +202,38 @@ def band_energies(white: np.ndarray) -> np.ndarray:
 
 
 @lru_cache(maxsize=16)
-def _dft_matrix(n: int) -> np.ndarray:
-    """Return the real and imaginary parts of the rfft of n samples, stacked: (2(⌊n/2⌋+1), n)."""
+def band_tables(n: int) -> tuple[np.ndarray, np.ndarray]:
+    """
+    Return the tables of :func:`band_energies` for a window of n fixes.
+
+    ``E_j = v_j Σ_axes ((M w)_j² + (M w)_{J+j}²)``, J = ⌊n/2⌋ + 1.
+
+    Parameters
+    ----------
+    n : int
+        Fixes in the window, ≥ 1.
+
+    Returns
+    -------
+    m : ndarray (2J, n)
+        The real and imaginary parts of the rfft of n samples, stacked.
+    v : ndarray (J,)
+        The band weights: 2/n, 1/n for the mean and (n even) the Nyquist band.
+
+    """
     j = np.arange(n // 2 + 1)[:, None] * np.arange(n)[None, :] % n    # exact angle indices
     angle = (2.0 * np.pi / n) * j
-    return np.vstack([np.cos(angle), -np.sin(angle)])
-
-
-@lru_cache(maxsize=16)
-def _band_weights(n: int, axes: int) -> np.ndarray:
-    """Return the map from the squared DFT parts (row-major, ``axes`` columns) to the bands."""
-    e = np.full(n // 2 + 1, 2.0 / n)
-    e[0] *= 0.5
+    m = np.vstack([np.cos(angle), -np.sin(angle)])
+    v = np.full(n // 2 + 1, 2.0 / n)
+    v[0] *= 0.5
     if n % 2 == 0:
-        e[-1] *= 0.5
-    return np.kron(np.hstack([np.diag(e), np.diag(e)]), np.ones((1, axes)))
+        v[-1] *= 0.5
+    m.setflags(write=False)
+    v.setflags(write=False)
+    return m, v
 
 
-def spectral_whiteness(white: np.ndarray) -> tuple[float, int]:
+def spectral_whiteness(white: np.ndarray, energies=None) -> tuple[float, int]:
     """
     Return the exact-null whiteness p-value of a window and its most loaded band.
 
@@ -225,6 +241,8 @@ def spectral_whiteness(white: np.ndarray) -> tuple[float, int]:
     ----------
     white : ndarray (n, 3)
         Whitened innovations, one row per fix.
+    energies : ndarray (⌊n/2⌋ + 1,), optional
+        Their :func:`band_energies`, when already computed.
 
     Returns
     -------
@@ -235,12 +253,12 @@ def spectral_whiteness(white: np.ndarray) -> tuple[float, int]:
         The band of the smallest p (0: the window's mean; j: j cycles per window).
 
     """
-    e = band_energies(white)
-    total = float(e.sum())
+    e = band_energies(white) if energies is None else energies
+    energy = e.tolist()
+    total = sum(energy)
     if not total > 0.0:
         return 1.0, 0
     half = 1.5 * len(white)
-    energy = e.tolist()
     groups = _band_groups(len(white))
     # the largest share of each shape
     tops = [(dof, max(idx, key=energy.__getitem__)) for dof, idx in groups]   # argmax: the first
@@ -410,7 +428,8 @@ class WindowVerdict:
         return nis_band(self.dof, 0.5 * self.level)
 
 
-def judge_window(white: np.ndarray, level: float) -> WindowVerdict:
+def judge_window(white: np.ndarray, level: float, energies=None,
+                 nis_sum: float | None = None) -> WindowVerdict:
     """
     Test one window of whitened innovations at level α.
 
@@ -420,6 +439,10 @@ def judge_window(white: np.ndarray, level: float) -> WindowVerdict:
         Whitened innovations.
     level : float
         α of the window.
+    energies : ndarray (⌊n/2⌋ + 1,), optional
+        Their :func:`band_energies`, when already computed.
+    nis_sum : float, optional
+        Their Σ |w_k|², when already computed.
 
     Returns
     -------
@@ -428,5 +451,7 @@ def judge_window(white: np.ndarray, level: float) -> WindowVerdict:
 
     """
     w = np.asarray(white, dtype=float)
-    p, band = spectral_whiteness(w)
-    return WindowVerdict(float((w * w).sum()), w.size, level, p, band)
+    p, band = spectral_whiteness(w, energies)
+    if nis_sum is None:
+        nis_sum = float((w * w).sum())
+    return WindowVerdict(nis_sum, w.size, level, p, band)
