@@ -27,7 +27,7 @@ stamps t_i) since the last fix, ``lump`` at a time (the last lump takes the rest
     S = L Lᵀ;  w = L⁻¹ z;  A = L⁻¹ G                       written to two rows of the window
     q = 1, C = I, Σ = 0                                      the next interval starts
 
-**One window** (``window``): the band energies of window_tests.band_energies and the NIS
+**One window** (``fix``, once the window is full): the band energies of window_tests.band_energies and the NIS
 sum of the whitened innovations w_k of the window's n rows::
 
     E_j = v_j Σ_axes ((M w)_j² + (M w)_{J+j}²),   T = Σ_k |w_k|²     (M, v: band_tables(n))
@@ -132,7 +132,7 @@ def lower_cholesky_inverse(a: float, b: float, c: float, d: float, e: float,
 
 
 # what the compiled loops call (compiled before them)
-_step, _dcm, _chol = chain_step, dcm_entries, lower_cholesky_inverse
+_step, _dcm, _chol, _window = chain_step, dcm_entries, lower_cholesky_inverse, None
 
 
 def _accumulate_py(d, h, t, lump, bias, epoch, rot, dcm, sums, basis, lam, elapsed):
@@ -193,8 +193,12 @@ def _accumulate_py(d, h, t, lump, bias, epoch, rot, dcm, sums, basis, lam, elaps
 
 
 def _fix_py(E, rot, dcm, sums, fitted, s0, lam, elapsed, H, K, has_gain, cvfmf, rate, offset, S,
-            z, white, sig, k1, k2):
-    """Run one fix of the signatures, restart the interval, whiten; 1: S not positive definite."""
+            z, white, sig, k1, k2, start, m, v, energy):
+    """
+    Run one fix of the signatures, restart the interval, whiten; 1: S not positive definite.
+
+    With start ≥ 0, write the window's energies and NIS sum from that row into ``energy``.
+    """
     n, width = E.shape
     ns = sums.shape[1] - fitted
     En = np.empty((n, width))
@@ -261,6 +265,8 @@ def _fix_py(E, rot, dcm, sums, fitted, s0, lam, elapsed, H, K, has_gain, cvfmf, 
         sig[k1, 0, c] = sig[k2, 0, c] = a0
         sig[k1, 1, c] = sig[k2, 1, c] = a1
         sig[k1, 2, c] = sig[k2, 2, c] = a2
+    if start >= 0:
+        _window(white, start, m.shape[1], m, v, energy)
     return 0
 
 
@@ -309,7 +315,7 @@ _compiled = None
 
 def compiled():
     """
-    Return the compiled ``(accumulate, fix, window)`` loops, or None.
+    Return the compiled ``(accumulate, fix)`` loops, or None.
 
     Returns
     -------
@@ -317,13 +323,13 @@ def compiled():
         None without numba, when it cannot compile them, or with ``STRAPDOWN_KERNEL=numpy``.
 
     """
-    global _compiled, _step, _dcm, _chol
+    global _compiled, _step, _dcm, _chol, _window
     if not kernels_allowed():
         return None
     if _compiled is None:
-        got = njit_optional(chain_step, dcm_entries, lower_cholesky_inverse)
+        got = njit_optional(chain_step, dcm_entries, lower_cholesky_inverse, _window_py)
         if got:
-            _step, _dcm, _chol = got
-            got = njit_optional(_accumulate_py, _fix_py, _window_py)
+            _step, _dcm, _chol, _window = got
+            got = njit_optional(_accumulate_py, _fix_py)
         _compiled = got if got else False
     return _compiled or None

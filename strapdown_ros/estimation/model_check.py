@@ -50,8 +50,8 @@ import numpy as np
 from strapdown_ros.estimation import check_kernel
 from strapdown_ros.estimation.check_kernel import (chain_step, dcm_entries,
                                                   lower_cholesky_inverse)
-from strapdown_ros.estimation.window_tests import (band_tables, beta_log_sf, judge_window,
-                                                   window_level)
+from strapdown_ros.estimation.window_tests import (band_tables, beta_log_sf, judge_energies,
+                                                   judge_window, window_level)
 from strapdown_ros.rotation import quat_cumprod, quat_to_dcm, rotvec_to_quat
 from strapdown_ros.sensors.effect_base import Effect, linear_partials, partial_features
 from strapdown_ros.sensors.effects import EFFECTS
@@ -319,6 +319,7 @@ class ModelCheck:
             self._lam_all = np.concatenate([np.zeros(self._fitted), self._lam])
             self._first = self.states[0][1].start if self.states else 0
             self._no_gain = np.zeros((self.size, 3))
+            self._zero3 = np.zeros(3)
             self._tables = band_tables(self.window)
             self._energy = np.zeros(len(self._tables[1]) + 1)
         self._eye = np.eye(self.size)
@@ -373,16 +374,17 @@ class ModelCheck:
 
         """
         d = np.ascontiguousarray(d, dtype=float).reshape(-1, 3)
-        h = np.ascontiguousarray(h, dtype=float).reshape(-1)
-        t = np.ascontiguousarray(t, dtype=float).reshape(-1)
-        if len(d) == 0:
+        m = len(d)
+        h = np.ascontiguousarray(h, dtype=float).reshape(m)
+        t = np.ascontiguousarray(t, dtype=float).reshape(m)
+        if m == 0:
             return
         lump = max(1, int(lump))
         if self._kernel is not None:
-            b = np.zeros(3) if bias is None else np.ascontiguousarray(bias, dtype=float)
-            self._elapsed = self._kernel[0](d, h, t, lump, b.reshape(3), float(epoch),
-                                            self._rot, self._dcm, self._sums, self._sparse,
-                                            self._lam_all, self._elapsed)
+            b = self._zero3 if bias is None else np.ascontiguousarray(bias, dtype=float).reshape(3)
+            self._elapsed = self._kernel[0](d, h, t, lump, b, float(epoch), self._rot, self._dcm,
+                                            self._sums, self._sparse, self._lam_all,
+                                            self._elapsed)
             return
         n = len(d) // lump * lump
         rho = d[:n].reshape(-1, lump, 3).sum(1)
@@ -526,19 +528,22 @@ class ModelCheck:
         K = self._no_gain if gain is None else \
             np.ascontiguousarray(gain, dtype=float).reshape(self.size, 3)
         k = self._next
+        n = self.window
+        full = self._filled + 1 >= n                 # the window's energies, in the same call
         bad = self._kernel[1](self._E, self._rot, self._dcm, self._sums, self._fitted, self._first,
                               self._lam_all, self._elapsed, H, K, gain is not None, c_vf_mf,
                               np.ascontiguousarray(rate_body, dtype=float).reshape(3),
                               self.time_offset,
                               np.ascontiguousarray(S, dtype=float).reshape(3, 3),
                               np.ascontiguousarray(z, dtype=float).reshape(3), self._white,
-                              self._signatures, k, k + self.window)
+                              self._signatures, k, k + n, (k + 1) % n if full else -1,
+                              self._tables[0], self._tables[1], self._energy)
         self._elapsed = 0.0                          # (the kernel restarted the interval)
         if bad:
             raise np.linalg.LinAlgError('Matrix is not positive definite')
-        return self._advance(stamp)
+        return self._advance(stamp, self._energy)
 
-    def _advance(self, stamp) -> ModelCheckResult:
+    def _advance(self, stamp, energy=None) -> ModelCheckResult:
         """Close the row of the fix just written; judge the window once it is full."""
         k = self._next
         n = self.window
@@ -549,20 +554,20 @@ class ModelCheck:
             self.last = ModelCheckResult(self._filled, True, episodes=self.episodes,
                                          stamp=float(stamp))
             return self.last
-        self.last = self._test()
+        self.last = self._test(energy)
         return self.last
 
-    def _test(self) -> ModelCheckResult:
+    def _test(self, energy=None) -> ModelCheckResult:
+        """Judge the window (``energy``: its band energies and NIS sum, from the kernel)."""
         n = self.window
         k = self._next
         rows = slice(k, k + n)                        # the last n fixes, in order
         first, last = float(self._stamps[k]), float(self._stamps[k + n - 1])
         white = self._white[rows]
         level = window_level(self.rate, (last - first) / (n - 1), self.alpha)
-        if self._kernel is not None:
-            e = self._energy                          # the band energies, then the NIS sum
-            self._kernel[2](self._white, k, n, self._tables[0], self._tables[1], e)
-            v = judge_window(white, level, e[:-1], float(e[-1]))
+        if energy is not None:                        # the band energies, then the NIS sum
+            e = energy.tolist()
+            v = judge_energies(e[:-1], e[-1], n, level)
         else:
             v = judge_window(white, level)
         self.windows += 1

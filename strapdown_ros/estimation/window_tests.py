@@ -42,8 +42,8 @@ FINITE_SUM_MAX = 64
 SCREEN_WIDTH = 0.01
 
 __all__ = ['beta_sf', 'beta_log_sf', 'band_dof', 'band_energies', 'band_tables',
-           'spectral_whiteness', 'nis_p_values', 'nis_band', 'window_level', 'WindowVerdict',
-           'judge_window']
+           'spectral_whiteness', 'band_whiteness', 'nis_p_values', 'nis_band', 'window_level',
+           'WindowVerdict', 'judge_window', 'judge_energies']
 
 
 def _beta_fraction(a: float, b: float, x: float) -> float:
@@ -233,7 +233,7 @@ def band_tables(n: int) -> tuple[np.ndarray, np.ndarray]:
     return m, v
 
 
-def spectral_whiteness(white: np.ndarray, energies=None) -> tuple[float, int]:
+def spectral_whiteness(white: np.ndarray) -> tuple[float, int]:
     """
     Return the exact-null whiteness p-value of a window and its most loaded band.
 
@@ -241,8 +241,6 @@ def spectral_whiteness(white: np.ndarray, energies=None) -> tuple[float, int]:
     ----------
     white : ndarray (n, 3)
         Whitened innovations, one row per fix.
-    energies : ndarray (⌊n/2⌋ + 1,), optional
-        Their :func:`band_energies`, when already computed.
 
     Returns
     -------
@@ -253,36 +251,79 @@ def spectral_whiteness(white: np.ndarray, energies=None) -> tuple[float, int]:
         The band of the smallest p (0: the window's mean; j: j cycles per window).
 
     """
-    e = band_energies(white) if energies is None else energies
-    energy = e.tolist()
+    return band_whiteness(band_energies(white), len(white))
+
+
+def band_whiteness(energies, n: int) -> tuple[float, int]:
+    """
+    Return :func:`spectral_whiteness` from the window's band energies.
+
+    Parameters
+    ----------
+    energies : array_like (⌊n/2⌋ + 1,)
+        The :func:`band_energies` of the window (three axes).
+    n : int
+        Fixes in the window.
+
+    Returns
+    -------
+    p : float
+        The whiteness p-value.
+    band : int
+        The band of the smallest p.
+
+    """
+    energy = energies.tolist() if isinstance(energies, np.ndarray) else list(energies)
     total = sum(energy)
     if not total > 0.0:
         return 1.0, 0
-    half = 1.5 * len(white)
-    groups = _band_groups(len(white))
-    # the largest share of each shape
-    tops = [(dof, max(idx, key=energy.__getitem__)) for dof, idx in groups]   # argmax: the first
+    half = 1.5 * n
+    tops = _band_tops(energy, n)
     if len(tops) == 2:             # the mean's shape (3) first, then the others' (6)
         (_, j3), (_, j6) = tops
         p6 = beta_sf(energy[j6] / total, 3.0, half - 3.0)
-        # P(Beta(3/2, b) > x) ≥ P(Beta(1, b) > x) = (1 − x)^b (larger a: stochastically larger):
-        # when that bound is above p6, the mean's band cannot have the smaller p
+        # P(Beta(3/2, b) > x) ≥ P(Beta(1, b) > x) = (1 − x)^b (larger a: stochastically larger)
+        # and ≥ 2 √x (1 − x)^b / B(1/2, b) (I_x(a + 1, b) = I_x(a, b) − x^a (1 − x)^b /
+        # (a B(a, b)), DLMF 8.17.20, at a = 1/2): when the larger bound is above p6, the mean's
+        # band cannot have the smaller p
         x3 = energy[j3] / total
-        if x3 < 1.0 and math.exp((half - 1.5) * math.log1p(-x3)) * (1.0 - 1e-9) > p6:
-            return min(1.0, len(e) * p6), j6
+        if x3 < 1.0:
+            bound = math.exp((half - 1.5) * math.log1p(-x3)) \
+                * max(1.0, _half_shape_front(half) * math.sqrt(x3))
+            if bound * (1.0 - 1e-9) > p6:
+                return min(1.0, len(energy) * p6), j6
     best, band = 1.0, 0
-    for dof, j in tops:            # one shape: the largest share, the smallest p
-        p = beta_sf(energy[j] / total, 0.5 * dof, half - 0.5 * dof)
+    for dof, j in tops:            # each shape: the largest share, the smallest p
+        p = p6 if dof == 6.0 and len(tops) == 2 else \
+            beta_sf(energy[j] / total, 0.5 * dof, half - 0.5 * dof)
         if p < best:
             best, band = p, j
-    return min(1.0, len(e) * best), band
+    return min(1.0, len(energy) * best), band
+
+
+def _band_tops(energy: list, n: int) -> list:
+    """
+    Return ``(dof, j)`` of the most loaded band of each shape (the first of equal ones).
+
+    The bands of :func:`band_dof`: the mean (3), the Nyquist band (3, n even), the others (6);
+    the mean's shape first.
+    """
+    last = len(energy) - 1
+    if n == 1:
+        return [(3.0, 0)]
+    if n % 2:                      # 0: the mean; 1..last: six each
+        return [(3.0, 0), (6.0, energy.index(max(energy[1:]), 1))]
+    j3 = 0 if energy[0] >= energy[last] else last
+    if n == 2:
+        return [(3.0, j3)]
+    return [(3.0, j3), (6.0, energy.index(max(energy[1:last]), 1))]
 
 
 @lru_cache(maxsize=64)
-def _band_groups(n: int) -> tuple:
-    d = band_dof(n)
-    return tuple((dof, np.flatnonzero(d == dof).tolist()) for dof in (3.0, 6.0)
-                 if np.any(d == dof))
+def _half_shape_front(half: float) -> float:
+    """Return 2 / B(1/2, b), b = half − 3/2: the front of the bound of the mean's band."""
+    b = half - 1.5
+    return 2.0 * math.exp(math.lgamma(b + 0.5) - math.lgamma(0.5) - math.lgamma(b))
 
 
 def nis_p_values(total: float, dof: int) -> tuple[float, float]:
@@ -428,8 +469,7 @@ class WindowVerdict:
         return nis_band(self.dof, 0.5 * self.level)
 
 
-def judge_window(white: np.ndarray, level: float, energies=None,
-                 nis_sum: float | None = None) -> WindowVerdict:
+def judge_window(white: np.ndarray, level: float) -> WindowVerdict:
     """
     Test one window of whitened innovations at level α.
 
@@ -439,10 +479,6 @@ def judge_window(white: np.ndarray, level: float, energies=None,
         Whitened innovations.
     level : float
         α of the window.
-    energies : ndarray (⌊n/2⌋ + 1,), optional
-        Their :func:`band_energies`, when already computed.
-    nis_sum : float, optional
-        Their Σ |w_k|², when already computed.
 
     Returns
     -------
@@ -451,7 +487,29 @@ def judge_window(white: np.ndarray, level: float, energies=None,
 
     """
     w = np.asarray(white, dtype=float)
-    p, band = spectral_whiteness(w, energies)
-    if nis_sum is None:
-        nis_sum = float((w * w).sum())
-    return WindowVerdict(nis_sum, w.size, level, p, band)
+    return judge_energies(band_energies(w), float((w * w).sum()), len(w), level)
+
+
+def judge_energies(energies, nis_sum: float, n: int, level: float) -> WindowVerdict:
+    """
+    Test one window at level α from its band energies and NIS sum (:func:`judge_window`).
+
+    Parameters
+    ----------
+    energies : array_like (⌊n/2⌋ + 1,)
+        The window's :func:`band_energies`.
+    nis_sum : float
+        Its Σ |w_k|².
+    n : int
+        Fixes in the window (three axes each).
+    level : float
+        α of the window.
+
+    Returns
+    -------
+    WindowVerdict
+        Its tests.
+
+    """
+    p, band = band_whiteness(energies, n)
+    return WindowVerdict(nis_sum, 3 * n, level, p, band)
