@@ -27,12 +27,14 @@ stamps t_i) since the last fix, ``lump`` at a time (the last lump takes the rest
     S = L Lᵀ;  w = L⁻¹ z;  A = L⁻¹ G                       written to two rows of the window
     q = 1, C = I, Σ = 0                                      the next interval starts
 
-**One window** (``fix``, once the window is full): the band energies of window_tests.band_energies and the NIS
-sum of the whitened innovations w_k of the window's n rows::
+**One window** (``fix``, once the window is full): the band energies of
+window_tests.band_energies and the NIS sum of the whitened innovations w_k of its n rows::
 
     E_j = v_j Σ_axes ((M w)_j² + (M w)_{J+j}²),   T = Σ_k |w_k|²     (M, v: band_tables(n))
 
-No ROS imports.
+The loops take the check's state as one array (:func:`workspace`, cut by :func:`views`): a
+compiled call costs about half a microsecond per array argument, more than the arithmetic of a
+six-state filter.  No ROS imports.
 """
 from __future__ import annotations
 
@@ -42,7 +44,8 @@ import numpy as np
 
 from strapdown_ros.attitude.kernel import kernels_allowed, njit_optional
 
-__all__ = ['compiled', 'sparse_basis', 'chain_step', 'dcm_entries', 'lower_cholesky_inverse']
+__all__ = ['compiled', 'workspace', 'views', 'sparse_basis', 'chain_step', 'dcm_entries',
+           'lower_cholesky_inverse', 'HEADER']
 
 
 def chain_step(pw: float, px: float, py: float, pz: float, r0: float, r1: float,
@@ -131,14 +134,105 @@ def lower_cholesky_inverse(a: float, b: float, c: float, d: float, e: float,
     return True, m00, m10, m11, m20, m21, m22
 
 
-# what the compiled loops call (compiled before them)
-_step, _dcm, _chol, _window = chain_step, dcm_entries, lower_cholesky_inverse, None
+#: the workspace's header: size, width, fitted, columns, first state row, window, basis rows
+HEADER = 7
 
 
-def _accumulate_py(d, h, t, lump, bias, epoch, rot, dcm, sums, basis, lam, elapsed):
-    """Add the lumps of d to the sums; update rot, dcm (in place); return the new elapsed."""
+def workspace(size: int, width: int, fitted: int, columns: int, first: int, window: int,
+              basis_rows: int) -> np.ndarray:
+    """
+    Return a zeroed workspace of the compiled loops, its header written.
+
+    One array holds the check's state, so that a compiled call takes few arguments (each array
+    argument costs the call more than the arithmetic of a small filter); :func:`views` cuts it.
+
+    Parameters
+    ----------
+    size : int
+        The filter's error states n.
+    width : int
+        The signatures' columns (the candidates', then the time offset's).
+    fitted : int
+        Of which the candidate effects'.
+    columns : int
+        Columns of the interval's sums (the candidates', then the filter's gyro states').
+    first : int
+        Row of the first gyro state in the filter's layout.
+    window : int
+        Fixes N in the window.
+    basis_rows : int
+        Rows of the sparse basis (:func:`sparse_basis`).
+
+    Returns
+    -------
+    ndarray
+        The workspace.
+
+    """
+    bands = window // 2 + 1
+    n = (HEADER + 4 + 9 + 1 + 3 * columns + size * width + columns + bands + 2 * bands * window
+         + bands + 1 + 2 * window * 3 + 2 * window * 3 * width + 4 * basis_rows)
+    ws = np.zeros(n)
+    ws[:HEADER] = size, width, fitted, columns, first, window, basis_rows
+    return ws
+
+
+def views(ws: np.ndarray) -> tuple:
+    """
+    Return the parts of a :func:`workspace`, views into it.
+
+    Parameters
+    ----------
+    ws : ndarray
+        The workspace.
+
+    Returns
+    -------
+    tuple
+        ``rot`` (4,) the attitude since the last fix; ``dcm`` (3, 3) its DCM; ``clock`` (1,) the
+        seconds since the last fix; ``sums`` (3, columns); ``E`` (size, width) the effects'
+        error responses; ``lam`` (columns,) the decay rate of each column of the sums; ``v``
+        (J,) and ``m`` (2J, N) the band tables; ``energy`` (J + 1,) the window's band energies
+        and NIS sum; ``white`` (2N, 3) and ``sig`` (2N, 3, width) the window's rows (each
+        twice); ``basis`` (rows, 4) the sparse basis; then ``fitted`` and ``first``.
+
+    """
+    size, width, fitted, columns = int(ws[0]), int(ws[1]), int(ws[2]), int(ws[3])
+    first, window, rows = int(ws[4]), int(ws[5]), int(ws[6])
+    bands = window // 2 + 1
+    o = HEADER
+    rot = ws[o:o + 4]
+    o += 4
+    dcm = ws[o:o + 9].reshape((3, 3))
+    o += 9
+    clock = ws[o:o + 1]
+    o += 1
+    sums = ws[o:o + 3 * columns].reshape((3, columns))
+    o += 3 * columns
+    E = ws[o:o + size * width].reshape((size, width))
+    o += size * width
+    lam = ws[o:o + columns]
+    o += columns
+    v = ws[o:o + bands]
+    o += bands
+    m = ws[o:o + 2 * bands * window].reshape((2 * bands, window))
+    o += 2 * bands * window
+    energy = ws[o:o + bands + 1]
+    o += bands + 1
+    white = ws[o:o + 6 * window].reshape((2 * window, 3))
+    o += 6 * window
+    sig = ws[o:o + 6 * window * width].reshape((2 * window, 3, width))
+    o += 6 * window * width
+    basis = ws[o:o + 4 * rows].reshape((rows, 4))
+    return rot, dcm, clock, sums, E, lam, v, m, energy, white, sig, basis, fitted, first
+
+
+def _accumulate_py(ws, d, h, t, lump, bias, epoch):
+    """Add the lumps of d to the workspace's sums, attitude and clock."""
+    rot, dcm, clock, sums, _, lam, _, _, _, _, _, basis, _, _ = _views(ws)
     m = d.shape[0]
     cols = sums.shape[1]
+    elapsed = clock[0]
     u = np.empty(8)
     J = np.empty((3, cols))
     pw, px, py, pz = rot[0], rot[1], rot[2], rot[3]
@@ -189,16 +283,17 @@ def _accumulate_py(d, h, t, lump, bias, epoch, rot, dcm, sums, basis, lam, elaps
                 sums[i, c] += a0 * J[0, c] + a1 * J[1, c] + a2 * J[2, c]
         start = stop
     rot[0], rot[1], rot[2], rot[3] = w, x, y, z
-    return elapsed + cum
+    clock[0] = elapsed + cum
 
 
-def _fix_py(E, rot, dcm, sums, fitted, s0, lam, elapsed, H, K, has_gain, cvfmf, rate, offset, S,
-            z, white, sig, k1, k2, start, m, v, energy):
+def _fix_py(ws, H, K, has_gain, cvfmf, rate, offset, S, z, k1, k2, start):
     """
     Run one fix of the signatures, restart the interval, whiten; 1: S not positive definite.
 
-    With start ≥ 0, write the window's energies and NIS sum from that row into ``energy``.
+    With start ≥ 0, write the window's energies and NIS sum from that row.
     """
+    rot, dcm, clock, sums, E, lam, v, m, energy, white, sig, _, fitted, s0 = _views(ws)
+    elapsed = clock[0]
     n, width = E.shape
     ns = sums.shape[1] - fitted
     En = np.empty((n, width))
@@ -241,12 +336,7 @@ def _fix_py(E, rot, dcm, sums, fitted, s0, lam, elapsed, H, K, has_gain, cvfmf, 
         for c in range(width):
             E[r, c] = En[r, c]
     # the next interval starts at this fix
-    rot[0], rot[1], rot[2], rot[3] = 1.0, 0.0, 0.0, 0.0
-    for i in range(3):
-        for j in range(3):
-            dcm[i, j] = 1.0 if i == j else 0.0
-        for c in range(sums.shape[1]):
-            sums[i, c] = 0.0
+    _restart_interval(rot, dcm, clock, sums)
     # L⁻¹, S = L Lᵀ (the lower triangle of S)
     ok, m00, m10, m11, m20, m21, m22 = _chol(S[0, 0], S[1, 0], S[1, 1], S[2, 0], S[2, 1], S[2, 2])
     if not ok:
@@ -268,6 +358,17 @@ def _fix_py(E, rot, dcm, sums, fitted, s0, lam, elapsed, H, K, has_gain, cvfmf, 
     if start >= 0:
         _window(white, start, m.shape[1], m, v, energy)
     return 0
+
+
+def _restart_interval_py(rot, dcm, clock, sums):
+    """Start the interval of the next fix: q = 1, C = I, no time, Σ = 0 (in place)."""
+    rot[0], rot[1], rot[2], rot[3] = 1.0, 0.0, 0.0, 0.0
+    clock[0] = 0.0
+    for i in range(3):
+        for j in range(3):
+            dcm[i, j] = 1.0 if i == j else 0.0
+        for c in range(sums.shape[1]):
+            sums[i, c] = 0.0
 
 
 def _window_py(white, start, n, m, v, out):
@@ -310,6 +411,9 @@ def sparse_basis(basis: np.ndarray) -> np.ndarray:
     return np.ascontiguousarray(np.column_stack(nz + (basis[nz],)), dtype=float)
 
 
+# what the compiled loops call (compiled before them, these names then bound to them)
+_step, _dcm, _chol, _views = chain_step, dcm_entries, lower_cholesky_inverse, views
+_window, _restart_interval = _window_py, _restart_interval_py
 _compiled = None
 
 
@@ -323,13 +427,14 @@ def compiled():
         None without numba, when it cannot compile them, or with ``STRAPDOWN_KERNEL=numpy``.
 
     """
-    global _compiled, _step, _dcm, _chol, _window
+    global _compiled, _step, _dcm, _chol, _views, _window, _restart_interval
     if not kernels_allowed():
         return None
     if _compiled is None:
-        got = njit_optional(chain_step, dcm_entries, lower_cholesky_inverse, _window_py)
+        got = njit_optional(chain_step, dcm_entries, lower_cholesky_inverse, views, _window_py,
+                            _restart_interval_py)
         if got:
-            _step, _dcm, _chol, _window = got
+            _step, _dcm, _chol, _views, _window, _restart_interval = got
             got = njit_optional(_accumulate_py, _fix_py)
         _compiled = got if got else False
     return _compiled or None

@@ -49,7 +49,7 @@ import numpy as np
 
 from strapdown_ros.estimation import check_kernel
 from strapdown_ros.estimation.check_kernel import (chain_step, dcm_entries,
-                                                  lower_cholesky_inverse)
+                                                   lower_cholesky_inverse)
 from strapdown_ros.estimation.window_tests import (band_tables, beta_log_sf, judge_energies,
                                                    judge_window, window_level)
 from strapdown_ros.rotation import quat_cumprod, quat_to_dcm, rotvec_to_quat
@@ -305,23 +305,12 @@ class ModelCheck:
         self._fitted = int(sum(sizes[:len(self.effects)]))
         starts = np.concatenate([[0], np.cumsum(sizes)]).astype(int).tolist()
         self._columns = [slice(a, b) for a, b in zip(starts[:-1], starts[1:])]
-        self._E = np.zeros((self.size, self._width))
         self._partials = [_partials(e) for e in self.effects] \
             + [_partials(e) for e, _ in self.states]
         # every partial as one product of the increments' features, when the effects allow
         basis = linear_partials(self.effects + [e for e, _ in self.states])
         self._basis = None if basis is None else basis.reshape(len(basis), -1)
         self._state_cols = cols
-        # the compiled loops (check_kernel), with the decay rate of every column of the sums
-        self._kernel = check_kernel.compiled() if basis is not None else None
-        if self._kernel is not None:
-            self._sparse = check_kernel.sparse_basis(basis)
-            self._lam_all = np.concatenate([np.zeros(self._fitted), self._lam])
-            self._first = self.states[0][1].start if self.states else 0
-            self._no_gain = np.zeros((self.size, 3))
-            self._zero3 = np.zeros(3)
-            self._tables = band_tables(self.window)
-            self._energy = np.zeros(len(self._tables[1]) + 1)
         self._eye = np.eye(self.size)
         self._eye3 = np.eye(3)
         if self.states:      # contiguous
@@ -332,8 +321,26 @@ class ModelCheck:
         # rows are always one contiguous slice, in order
         n = self.window
         self._stamps = np.zeros(2 * n)
-        self._white = np.zeros((2 * n, 3))
-        self._signatures = np.zeros((2 * n, 3, self._width))
+        # the compiled loops (check_kernel) keep the state in one workspace, these views of it
+        self._kernel = check_kernel.compiled() if basis is not None else None
+        if self._kernel is not None:
+            sparse = check_kernel.sparse_basis(basis)
+            self._ws = check_kernel.workspace(
+                self.size, self._width, self._fitted, self._fitted + cols,
+                self.states[0][1].start if self.states else 0, n, len(sparse))
+            (self._rot, self._dcm, self._clock, self._sums, self._E, lam, v, m, self._energy,
+             self._white, self._signatures, basis_rows, _, _) = check_kernel.views(self._ws)
+            lam[self._fitted:] = self._lam
+            m[:], v[:] = band_tables(n)
+            basis_rows[:] = sparse
+            self._zero3 = np.zeros(3)
+            self._no_gain = np.zeros((self.size, 3))
+        else:
+            self._E = np.zeros((self.size, self._width))
+            self._white = np.zeros((2 * n, 3))
+            self._signatures = np.zeros((2 * n, 3, self._width))
+            self._rot, self._dcm = np.zeros(4), np.eye(3)
+            self._clock, self._sums = np.zeros(1), np.zeros((3, self._fitted + cols))
         self._filled = 0
         self._next = 0
         self.last = ModelCheckResult(0, True)
@@ -344,11 +351,12 @@ class ModelCheck:
 
     # ------------------------------------------------------------------ signatures
     def _start_interval(self) -> None:
-        self._rot = np.array([1.0, 0.0, 0.0, 0.0])     # body at the last fix ← body now
-        self._dcm = np.eye(3)                          # its DCM (the kernel writes into it)
-        self._elapsed = 0.0
-        # the effects' increment partials, then the filter's gyro states'
-        self._sums = np.zeros((3, self._fitted + self._state_cols))
+        # body at the last fix ← body now, its DCM, the seconds since, the partials' sums (the
+        # effects', then the filter's gyro states'): in place (the kernel's workspace)
+        self._rot[:] = 1.0, 0.0, 0.0, 0.0
+        self._dcm[:] = self._eye3
+        self._clock[0] = 0.0
+        self._sums[:] = 0.0
 
     def accumulate(self, d, h, t, lump: int = 1, bias=None, epoch: float = 0.0) -> None:
         """
@@ -382,9 +390,7 @@ class ModelCheck:
         lump = max(1, int(lump))
         if self._kernel is not None:
             b = self._zero3 if bias is None else np.ascontiguousarray(bias, dtype=float).reshape(3)
-            self._elapsed = self._kernel[0](d, h, t, lump, b, float(epoch), self._rot, self._dcm,
-                                            self._sums, self._sparse, self._lam_all,
-                                            self._elapsed)
+            self._kernel[0](self._ws, d, h, t, lump, b, float(epoch))
             return
         n = len(d) // lump * lump
         rho = d[:n].reshape(-1, lump, 3).sum(1)
@@ -409,11 +415,11 @@ class ModelCheck:
                 J = np.concatenate([f(rho, h, t) if S is None else f(rho, h, t) @ S
                                     for f, S in self._partials], axis=2)
             if self._decays and self.states:
-                u = self._elapsed + np.cumsum(h) - 0.5 * h      # since the interval's start
+                u = self._clock[0] + np.cumsum(h) - 0.5 * h     # since the interval's start
                 J[:, :, self._fitted:] *= np.exp(-u[:, None] * self._lam)[:, None, :]
             # Σ_k C_k J_k as one product: (3, 3m) by (3m, columns)
             self._sums += c.transpose(1, 0, 2).reshape(3, -1) @ J.reshape(-1, J.shape[2])
-        self._elapsed += float(h.sum())
+        self._clock[0] += float(h.sum())
 
     def _transition(self, ce: np.ndarray) -> np.ndarray:
         """Return the filter's error transition over the interval (body axes at both ends)."""
@@ -423,12 +429,12 @@ class ModelCheck:
             sl = self._state_slice
             phi[:3, sl] = -ce @ self._sums[:, self._fitted:]
             if self._decays:                           # else exp(0) = 1: the identity's
-                phi[self._state_diag] = np.exp(-self._elapsed * self._lam)
+                phi[self._state_diag] = np.exp(-float(self._clock[0]) * self._lam)
         return phi
 
     def restart_response(self) -> None:
         """Forget the effects' error responses (after the filter re-initialises its attitude)."""
-        self._E = np.zeros_like(self._E)
+        self._E[:] = 0.0
 
     def restart(self) -> None:
         """
@@ -530,15 +536,12 @@ class ModelCheck:
         k = self._next
         n = self.window
         full = self._filled + 1 >= n                 # the window's energies, in the same call
-        bad = self._kernel[1](self._E, self._rot, self._dcm, self._sums, self._fitted, self._first,
-                              self._lam_all, self._elapsed, H, K, gain is not None, c_vf_mf,
+        bad = self._kernel[1](self._ws, H, K, gain is not None, c_vf_mf,
                               np.ascontiguousarray(rate_body, dtype=float).reshape(3),
                               self.time_offset,
                               np.ascontiguousarray(S, dtype=float).reshape(3, 3),
-                              np.ascontiguousarray(z, dtype=float).reshape(3), self._white,
-                              self._signatures, k, k + n, (k + 1) % n if full else -1,
-                              self._tables[0], self._tables[1], self._energy)
-        self._elapsed = 0.0                          # (the kernel restarted the interval)
+                              np.ascontiguousarray(z, dtype=float).reshape(3), k, k + n,
+                              (k + 1) % n if full else -1)
         if bad:
             raise np.linalg.LinAlgError('Matrix is not positive definite')
         return self._advance(stamp, self._energy)
