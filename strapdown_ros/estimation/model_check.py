@@ -432,6 +432,27 @@ class ModelCheck:
                 phi[self._state_diag] = np.exp(-float(self._clock[0]) * self._lam)
         return phi
 
+    @property
+    def compiled(self) -> bool:
+        """Whether the check runs the compiled loops (check_kernel), not its numpy path."""
+        return self._kernel is not None
+
+    def window_rows(self) -> tuple[np.ndarray, np.ndarray]:
+        """
+        Return the whitened rows of the fixes in the window, oldest first.
+
+        Returns
+        -------
+        white : ndarray (m, 3)
+            ``w_k = L_k⁻¹ z_k`` of the m ≤ N fixes so far.
+        signatures : ndarray (m, 3, width)
+            ``L_k⁻¹ G_k``: each candidate's columns (the time offset's last).
+
+        """
+        n, m = self.window, self._filled
+        rows = slice(self._next + n - m, self._next + n)
+        return self._white[rows].copy(), self._signatures[rows].copy()
+
     def restart_response(self) -> None:
         """Forget the effects' error responses (after the filter re-initialises its attitude)."""
         self._E[:] = 0.0
