@@ -28,7 +28,8 @@ stamps t_i) since the last fix, ``lump`` at a time (the last lump takes the rest
     q = 1, C = I, Σ = 0                                      the next interval starts
 
 **One window** (``fix``, once the window is full): the band energies of
-window_tests.band_energies and the NIS sum of the whitened innovations w_k of its n rows::
+window_tests.band_energies, the NIS sum of the whitened innovations w_k of its n rows and the
+whiteness p-value (window_tests.whiteness_of_bands, compiled into the loop)::
 
     E_j = v_j Σ_axes ((M w)_j² + (M w)_{J+j}²),   T = Σ_k |w_k|²     (M, v: band_tables(n))
 
@@ -42,7 +43,8 @@ import math
 
 import numpy as np
 
-from strapdown_ros.attitude.kernel import kernels_allowed, njit_optional
+from strapdown_ros.attitude.kernel import jitable_optional, kernels_allowed, njit_optional
+from strapdown_ros.estimation.window_tests import compiled_helpers, whiteness_of_bands
 
 __all__ = ['compiled', 'workspace', 'views', 'sparse_basis', 'chain_step', 'dcm_entries',
            'lower_cholesky_inverse', 'HEADER']
@@ -171,7 +173,7 @@ def workspace(size: int, width: int, fitted: int, columns: int, first: int, wind
     """
     bands = window // 2 + 1
     n = (HEADER + 4 + 9 + 1 + 3 * columns + size * width + columns + bands + 2 * bands * window
-         + bands + 1 + 2 * window * 3 + 2 * window * 3 * width + 4 * basis_rows)
+         + bands + 3 + 2 * window * 3 + 2 * window * 3 * width + 4 * basis_rows)
     ws = np.zeros(n)
     ws[:HEADER] = size, width, fitted, columns, first, window, basis_rows
     return ws
@@ -192,9 +194,10 @@ def views(ws: np.ndarray) -> tuple:
         ``rot`` (4,) the attitude since the last fix; ``dcm`` (3, 3) its DCM; ``clock`` (1,) the
         seconds since the last fix; ``sums`` (3, columns); ``E`` (size, width) the effects'
         error responses; ``lam`` (columns,) the decay rate of each column of the sums; ``v``
-        (J,) and ``m`` (2J, N) the band tables; ``energy`` (J + 1,) the window's band energies
-        and NIS sum; ``white`` (2N, 3) and ``sig`` (2N, 3, width) the window's rows (each
-        twice); ``basis`` (rows, 4) the sparse basis; then ``fitted`` and ``first``.
+        (J,) and ``m`` (2J, N) the band tables; ``energy`` (J + 3,) the window's band
+        energies, NIS sum, whiteness p-value and its band; ``white`` (2N, 3) and ``sig``
+        (2N, 3, width) the window's rows (each twice); ``basis`` (rows, 4) the sparse basis;
+        then ``fitted`` and ``first``.
 
     """
     size, width, fitted, columns = int(ws[0]), int(ws[1]), int(ws[2]), int(ws[3])
@@ -217,8 +220,8 @@ def views(ws: np.ndarray) -> tuple:
     o += bands
     m = ws[o:o + 2 * bands * window].reshape((2 * bands, window))
     o += 2 * bands * window
-    energy = ws[o:o + bands + 1]
-    o += bands + 1
+    energy = ws[o:o + bands + 3]
+    o += bands + 3
     white = ws[o:o + 6 * window].reshape((2 * window, 3))
     o += 6 * window
     sig = ws[o:o + 6 * window * width].reshape((2 * window, 3, width))
@@ -356,7 +359,11 @@ def _fix_py(ws, H, K, has_gain, cvfmf, rate, offset, S, z, k1, k2, start):
         sig[k1, 1, c] = sig[k2, 1, c] = a1
         sig[k1, 2, c] = sig[k2, 2, c] = a2
     if start >= 0:
+        bands = v.shape[0]
         _window(white, start, m.shape[1], m, v, energy)
+        p, band = whiteness_of_bands(energy[:bands], m.shape[1])
+        energy[bands + 1] = p
+        energy[bands + 2] = band
     return 0
 
 
@@ -431,8 +438,10 @@ def compiled():
     if not kernels_allowed():
         return None
     if _compiled is None:
-        got = njit_optional(chain_step, dcm_entries, lower_cholesky_inverse, views, _window_py,
-                            _restart_interval_py)
+        got = None
+        if jitable_optional(*compiled_helpers()):         # window_tests' p-value, compiled in
+            got = njit_optional(chain_step, dcm_entries, lower_cholesky_inverse, views,
+                                _window_py, _restart_interval_py)
         if got:
             _step, _dcm, _chol, _views, _window, _restart_interval = got
             got = njit_optional(_accumulate_py, _fix_py)

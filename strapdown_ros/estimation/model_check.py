@@ -50,8 +50,8 @@ import numpy as np
 from strapdown_ros.estimation import check_kernel
 from strapdown_ros.estimation.check_kernel import (chain_step, dcm_entries,
                                                    lower_cholesky_inverse)
-from strapdown_ros.estimation.window_tests import (band_tables, beta_log_sf, judge_energies,
-                                                   judge_window, window_level)
+from strapdown_ros.estimation.window_tests import (band_tables, beta_log_sf, judge_window,
+                                                   window_level, WindowVerdict)
 from strapdown_ros.rotation import quat_cumprod, quat_to_dcm, rotvec_to_quat
 from strapdown_ros.sensors.effect_base import Effect, linear_partials, partial_features
 from strapdown_ros.sensors.effects import EFFECTS
@@ -587,13 +587,12 @@ class ModelCheck:
         k = self._next
         rows = slice(k, k + n)                        # the last n fixes, in order
         first, last = float(self._stamps[k]), float(self._stamps[k + n - 1])
-        white = self._white[rows]
         level = window_level(self.rate, (last - first) / (n - 1), self.alpha)
-        if energy is not None:                        # the band energies, then the NIS sum
-            e = energy.tolist()
-            v = judge_energies(e[:-1], e[-1], n, level)
+        if energy is not None:      # the kernel's band energies, NIS sum, whiteness p and band
+            *_, nis, p, band = energy.tolist()
+            v = WindowVerdict(nis, 3 * n, level, p, int(band))
         else:
-            v = judge_window(white, level)
+            v = judge_window(self._white[rows], level)
         self.windows += 1
         if v.ok:
             if self.warn:
@@ -614,7 +613,7 @@ class ModelCheck:
         if v.nis_low:
             res.verdict = 'noise_too_large'
             return res
-        self._name(res, white, self._signatures[rows].reshape(3 * n, -1), v)
+        self._name(res, self._white[rows], self._signatures[rows].reshape(3 * n, -1), v)
         return res
 
     def _name(self, res: ModelCheckResult, white: np.ndarray, signatures: np.ndarray,

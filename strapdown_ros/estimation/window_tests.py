@@ -42,8 +42,9 @@ FINITE_SUM_MAX = 64
 SCREEN_WIDTH = 0.01
 
 __all__ = ['beta_sf', 'beta_log_sf', 'band_dof', 'band_energies', 'band_tables',
-           'spectral_whiteness', 'band_whiteness', 'nis_p_values', 'nis_band', 'window_level',
-           'WindowVerdict', 'judge_window', 'judge_energies']
+           'spectral_whiteness', 'band_whiteness', 'whiteness_of_bands', 'compiled_helpers',
+           'nis_p_values', 'nis_band', 'window_level',
+           'WindowVerdict', 'judge_window']
 
 
 def _beta_fraction(a: float, b: float, x: float) -> float:
@@ -111,7 +112,7 @@ def beta_sf(x: float, a: float, b: float) -> float:
 
     """
     x, a, b = float(x), float(a), float(b)
-    if 0.0 < x < 1.0 and a.is_integer() and 1.0 <= a <= FINITE_SUM_MAX and b > 0.0:
+    if 0.0 < x < 1.0 and 1.0 <= a <= FINITE_SUM_MAX and a == math.floor(a) and b > 0.0:
         # integer a: P(X > x) = (1 − x)^b Σ_{j<a} (b)_j x^j / j!, positive terms, no fraction
         term = total = 1.0
         for j in range(1, int(a)):
@@ -267,20 +268,52 @@ def band_whiteness(energies, n: int) -> tuple[float, int]:
 
     Returns
     -------
+    (float, int)
+        :func:`whiteness_of_bands` of them.
+
+    """
+    energy = energies if isinstance(energies, list) else np.asarray(energies, dtype=float).tolist()
+    return whiteness_of_bands(energy, int(n))
+
+
+def whiteness_of_bands(energy, n: int) -> tuple[float, int]:
+    """
+    Return :func:`band_whiteness` of a list of band energies (or, compiled, an array).
+
+    Plain arithmetic that a compiled loop may call too (:func:`compiled_helpers`).
+
+    Parameters
+    ----------
+    energy : list of float, or ndarray
+        The band energies, ⌊n/2⌋ + 1 of them.
+    n : int
+        Fixes in the window (n ≥ 1).
+
+    Returns
+    -------
     p : float
         The whiteness p-value.
     band : int
         The band of the smallest p.
 
     """
-    energy = energies.tolist() if isinstance(energies, np.ndarray) else list(energies)
-    total = sum(energy)
+    bands = len(energy)
+    total = 0.0
+    for j in range(bands):
+        total += energy[j]
     if not total > 0.0:
         return 1.0, 0
     half = 1.5 * n
-    tops = _band_tops(energy, n)
-    if len(tops) == 2:             # the mean's shape (3) first, then the others' (6)
-        (_, j3), (_, j6) = tops
+    # the most loaded band of each shape (the first of equal ones): the mean and (n even) the
+    # Nyquist band have 3 degrees of freedom, the others 6 (band_dof)
+    last = bands - 1
+    j3 = last if n % 2 == 0 and n > 1 and energy[last] > energy[0] else 0
+    j6 = -1
+    for j in range(1, last + (n % 2)):
+        if j6 < 0 or energy[j] > energy[j6]:
+            j6 = j
+    p3 = 2.0                       # not computed yet
+    if j6 >= 0:
         p6 = beta_sf(energy[j6] / total, 3.0, half - 3.0)
         # P(Beta(3/2, b) > x) ≥ P(Beta(1, b) > x) = (1 − x)^b (larger a: stochastically larger)
         # and ≥ 2 √x (1 − x)^b / B(1/2, b) (I_x(a + 1, b) = I_x(a, b) − x^a (1 − x)^b /
@@ -288,42 +321,33 @@ def band_whiteness(energies, n: int) -> tuple[float, int]:
         # band cannot have the smaller p
         x3 = energy[j3] / total
         if x3 < 1.0:
-            bound = math.exp((half - 1.5) * math.log1p(-x3)) \
-                * max(1.0, _half_shape_front(half) * math.sqrt(x3))
+            front = 2.0 * math.exp(math.lgamma(half - 1.0) - math.lgamma(0.5)
+                                   - math.lgamma(half - 1.5))
+            bound = math.exp((half - 1.5) * math.log1p(-x3)) * max(1.0, front * math.sqrt(x3))
             if bound * (1.0 - 1e-9) > p6:
-                return min(1.0, len(energy) * p6), j6
-    best, band = 1.0, 0
-    for dof, j in tops:            # each shape: the largest share, the smallest p
-        p = p6 if dof == 6.0 and len(tops) == 2 else \
-            beta_sf(energy[j] / total, 0.5 * dof, half - 0.5 * dof)
-        if p < best:
-            best, band = p, j
-    return min(1.0, len(energy) * best), band
+                return min(1.0, bands * p6), j6
+        p3 = beta_sf(x3, 1.5, half - 1.5)
+        if p6 < p3:
+            return min(1.0, bands * p6), j6
+    if p3 > 1.0:
+        p3 = beta_sf(energy[j3] / total, 1.5, half - 1.5)
+    return min(1.0, bands * p3), j3
 
 
-def _band_tops(energy: list, n: int) -> list:
+def compiled_helpers() -> tuple:
     """
-    Return ``(dof, j)`` of the most loaded band of each shape (the first of equal ones).
+    Return the functions of this module a compiled loop may call, callees first.
 
-    The bands of :func:`band_dof`: the mean (3), the Nyquist band (3, n even), the others (6);
-    the mean's shape first.
+    For :func:`~strapdown_ros.attitude.kernel.jitable_optional`; the check's compiled fix loop
+    (:mod:`strapdown_ros.estimation.check_kernel`) calls :func:`whiteness_of_bands`.
+
+    Returns
+    -------
+    tuple of callable
+        The beta survival functions and :func:`whiteness_of_bands`.
+
     """
-    last = len(energy) - 1
-    if n == 1:
-        return [(3.0, 0)]
-    if n % 2:                      # 0: the mean; 1..last: six each
-        return [(3.0, 0), (6.0, energy.index(max(energy[1:]), 1))]
-    j3 = 0 if energy[0] >= energy[last] else last
-    if n == 2:
-        return [(3.0, j3)]
-    return [(3.0, j3), (6.0, energy.index(max(energy[1:last]), 1))]
-
-
-@lru_cache(maxsize=64)
-def _half_shape_front(half: float) -> float:
-    """Return 2 / B(1/2, b), b = half − 3/2: the front of the bound of the mean's band."""
-    b = half - 1.5
-    return 2.0 * math.exp(math.lgamma(b + 0.5) - math.lgamma(0.5) - math.lgamma(b))
+    return _beta_fraction, _log_front, _beta_cdf, beta_sf, whiteness_of_bands
 
 
 def nis_p_values(total: float, dof: int) -> tuple[float, float]:
@@ -487,29 +511,5 @@ def judge_window(white: np.ndarray, level: float) -> WindowVerdict:
 
     """
     w = np.asarray(white, dtype=float)
-    return judge_energies(band_energies(w), float((w * w).sum()), len(w), level)
-
-
-def judge_energies(energies, nis_sum: float, n: int, level: float) -> WindowVerdict:
-    """
-    Test one window at level α from its band energies and NIS sum (:func:`judge_window`).
-
-    Parameters
-    ----------
-    energies : array_like (⌊n/2⌋ + 1,)
-        The window's :func:`band_energies`.
-    nis_sum : float
-        Its Σ |w_k|².
-    n : int
-        Fixes in the window (three axes each).
-    level : float
-        α of the window.
-
-    Returns
-    -------
-    WindowVerdict
-        Its tests.
-
-    """
-    p, band = band_whiteness(energies, n)
-    return WindowVerdict(nis_sum, 3 * n, level, p, band)
+    p, band = band_whiteness(band_energies(w), len(w))
+    return WindowVerdict(float((w * w).sum()), w.size, level, p, band)
