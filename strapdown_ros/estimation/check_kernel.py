@@ -44,7 +44,8 @@ import math
 import numpy as np
 
 from strapdown_ros.attitude.kernel import jitable_optional, kernels_allowed, njit_optional
-from strapdown_ros.estimation.window_tests import compiled_helpers, whiteness_of_bands
+from strapdown_ros.estimation.window_tests import (beta_log_sf, compiled_helpers,
+                                                   whiteness_of_bands)
 
 __all__ = ['compiled', 'workspace', 'views', 'sparse_basis', 'chain_step', 'dcm_entries',
            'lower_cholesky_inverse', 'HEADER']
@@ -426,7 +427,7 @@ _compiled = None
 
 def compiled():
     """
-    Return the compiled ``(accumulate, fix)`` loops, or None.
+    Return the compiled ``(accumulate, fix)`` loops and window_tests.beta_log_sf, or None.
 
     Returns
     -------
@@ -444,6 +445,6 @@ def compiled():
                                 _window_py, _restart_interval_py)
         if got:
             _step, _dcm, _chol, _views, _window, _restart_interval = got
-            got = njit_optional(_accumulate_py, _fix_py)
+            got = njit_optional(_accumulate_py, _fix_py, beta_log_sf)
         _compiled = got if got else False
     return _compiled or None

@@ -305,6 +305,9 @@ class ModelCheck:
         self._fitted = int(sum(sizes[:len(self.effects)]))
         starts = np.concatenate([[0], np.cumsum(sizes)]).astype(int).tolist()
         self._columns = [slice(a, b) for a, b in zip(starts[:-1], starts[1:])]
+        # the candidates by their number of columns (their SVDs one call per width)
+        self._groups = [(w, [j for j, sz in enumerate(sizes) if sz == w])
+                        for w in sorted(set(sizes))]
         self._partials = [_partials(e) for e in self.effects] \
             + [_partials(e) for e, _ in self.states]
         # every partial as one product of the increments' features, when the effects allow
@@ -616,15 +619,29 @@ class ModelCheck:
         self._name(res, self._white[rows], self._signatures[rows].reshape(3 * n, -1), v)
         return res
 
+    def _decompose(self, signatures: np.ndarray) -> list:
+        """Return the thin SVD of each candidate's columns, those of equal width in one call."""
+        out = [None] * len(self.names)
+        for cols, members in self._groups:
+            if len(members) == 1:
+                j = members[0]
+                out[j] = np.linalg.svd(signatures[:, self._columns[j]], full_matrices=False)
+                continue
+            stack = np.stack([signatures[:, self._columns[j]] for j in members])
+            U, s, Vt = np.linalg.svd(stack, full_matrices=False)
+            for i, j in enumerate(members):
+                out[j] = U[i], s[i], Vt[i]
+        return out
+
     def _name(self, res: ModelCheckResult, white: np.ndarray, signatures: np.ndarray,
               v) -> None:
         """Fit every candidate's signature to the window; name the best if significant."""
         y = white.reshape(-1)
         total = float(y @ y)
         best = None
-        for j, name in enumerate(self.names):
-            A = signatures[:, self._columns[j]]
-            U, s, Vt = np.linalg.svd(A, full_matrices=False)
+        log_sf = beta_log_sf if self._kernel is None else self._kernel[2]
+        for j, (U, s, Vt) in enumerate(self._decompose(signatures)):
+            name = self.names[j]
             rank = int(np.sum(s > 1e-9 * s[0])) if len(s) and s[0] > 0 else 0
             if rank == 0:
                 continue
@@ -632,7 +649,7 @@ class ModelCheck:
             lr = float(proj @ proj)
             # the F test of the effect: its share of the window's energy, Beta(r/2, (3N − r)/2)
             # with no effect, whatever the noise's true scale
-            score = beta_log_sf(lr / total, 0.5 * rank, 0.5 * (len(y) - rank))
+            score = log_sf(lr / total, 0.5 * rank, 0.5 * (len(y) - rank))
             if best is None or score < best[0]:
                 c = Vt[:rank].T @ (proj / s[:rank])
                 best = (score, lr, rank, name, c)
