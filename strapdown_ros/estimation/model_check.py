@@ -39,6 +39,13 @@ the candidate of the smallest p-value, named when that p-value is below α over 
 candidates.  With no such candidate and white innovations above their band, the window names
 the library's noise effect (``camera_noise_anisotropy``: stated noise too small).  The check
 only reports; the filter's model is never changed by it.
+
+**Cost.**  With numba the per-fix arithmetic (the signatures of the interval, the recursion, the
+whitening, the window's energies and whiteness p-value) runs as two compiled loops
+(:mod:`strapdown_ros.estimation.check_kernel`), the effects' partials read once as constant
+combinations of the increments' features (``effect_base.linear_partials``); otherwise, or with
+``STRAPDOWN_KERNEL=numpy``, the numpy path below runs: the same verdicts, the numbers to
+round-off.
 """
 from __future__ import annotations
 
@@ -313,7 +320,6 @@ class ModelCheck:
         # every partial as one product of the increments' features, when the effects allow
         basis = linear_partials(self.effects + [e for e, _ in self.states])
         self._basis = None if basis is None else basis.reshape(len(basis), -1)
-        self._state_cols = cols
         self._eye = np.eye(self.size)
         self._eye3 = np.eye(3)
         if self.states:      # contiguous
@@ -585,7 +591,7 @@ class ModelCheck:
         return self.last
 
     def _test(self, energy=None) -> ModelCheckResult:
-        """Judge the window (``energy``: its band energies and NIS sum, from the kernel)."""
+        """Judge the window (``energy``: its band energies, NIS sum, whiteness p and band)."""
         n = self.window
         k = self._next
         rows = slice(k, k + n)                        # the last n fixes, in order
@@ -622,7 +628,7 @@ class ModelCheck:
     def _decompose(self, signatures: np.ndarray) -> list:
         """Return the thin SVD of each candidate's columns, those of equal width in one call."""
         out = [None] * len(self.names)
-        for cols, members in self._groups:
+        for _, members in self._groups:
             if len(members) == 1:
                 j = members[0]
                 out[j] = np.linalg.svd(signatures[:, self._columns[j]], full_matrices=False)
