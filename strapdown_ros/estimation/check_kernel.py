@@ -446,5 +446,23 @@ def compiled():
         if got:
             _step, _dcm, _chol, _views, _window, _restart_interval = got
             got = njit_optional(_accumulate_py, _fix_py, beta_log_sf)
-        _compiled = got if got else False
+        _compiled = got if got and _runs(got) else False
     return _compiled or None
+
+
+def _runs(loops) -> bool:
+    """Compile (or load from the cache) the loops on a small case; False when numba fails."""
+    accumulate, fix, log_sf = loops
+    ws = workspace(3, 1, 0, 0, 0, 2, 0)
+    rot, dcm = views(ws)[:2]
+    rot[0], dcm[:] = 1.0, np.eye(3)
+    h = np.full(2, 0.01)
+    try:
+        accumulate(ws, np.zeros((2, 3)), h, np.cumsum(h), 1, np.zeros(3), 0.0)
+        for k in range(2):
+            fix(ws, np.eye(3), np.zeros((3, 3)), True, np.eye(3), np.zeros(3), True, np.eye(3),
+                np.ones(3), k, k + 2, (k + 1) % 2 if k else -1)
+        log_sf(0.5, 1.5, 10.0)
+    except Exception:                   # numba present but unable to compile them: numpy path
+        return False
+    return True
