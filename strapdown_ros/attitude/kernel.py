@@ -35,7 +35,8 @@ import numpy as np
 
 from strapdown_ros.sensors.covariance import constant_jacobian_basis
 
-__all__ = ['available', 'block_update', 'warm_up', 'kernels_allowed', 'njit_optional']
+__all__ = ['available', 'block_update', 'warm_up', 'kernels_allowed', 'njit_optional',
+           'jitable_optional']
 
 ENV = 'STRAPDOWN_KERNEL'
 
@@ -205,6 +206,34 @@ def njit_optional(*functions):
         return tuple(numba.njit(cache=True)(f) for f in functions)
     except Exception:                                    # no numba, or it cannot compile
         return None
+
+
+def jitable_optional(*functions) -> bool:
+    """
+    Let compiled loops call plain-Python functions (numba's ``register_jitable``).
+
+    The functions stay what they are for Python callers; a loop compiled afterwards by
+    :func:`njit_optional` compiles them into itself.  (numba's cache does not see a change of
+    such a function in another file: the loop's own file must change too, or its cache go.)
+
+    Parameters
+    ----------
+    *functions : callable
+        Plain-Python functions numba can compile.
+
+    Returns
+    -------
+    bool
+        True when they are registered; False without numba.
+
+    """
+    try:
+        from numba.extending import register_jitable
+        for f in functions:
+            register_jitable(f)
+        return True
+    except Exception:                                    # no numba
+        return False
 
 
 def available() -> bool:

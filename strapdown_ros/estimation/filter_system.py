@@ -675,22 +675,18 @@ class FilterSystem:
 
     def _flush_signature(self) -> None:
         """Give the model check the increments since the last fix, lumped and compensated."""
-        if not self._sig_buf:
+        buf = self._sig_buf
+        if not buf:
             return
-        d = np.concatenate([b[0] for b in self._sig_buf])
-        h = np.concatenate([b[1] for b in self._sig_buf])
-        t = np.concatenate([b[2] for b in self._sig_buf])
+        if len(buf) == 1:
+            d, h, t = buf[0]
+        else:
+            d = np.concatenate([b[0] for b in buf])
+            h = np.concatenate([b[1] for b in buf])
+            t = np.concatenate([b[2] for b in buf])
         self._sig_buf, self._sig_len = [], 0
-        n = len(d) // SIGNATURE_LUMP * SIGNATURE_LUMP
-        rho = d[:n].reshape(-1, SIGNATURE_LUMP, 3).sum(1)
-        hh = h[:n].reshape(-1, SIGNATURE_LUMP).sum(1)
-        te = t[:n].reshape(-1, SIGNATURE_LUMP)[:, -1]
-        if n < len(d):                         # the rest: one lump more, in the same call
-            rho = np.vstack([rho, d[n:].sum(0)[None]])
-            hh = np.append(hh, h[n:].sum())
-            te = np.append(te, t[-1])
-        bias = self.filter.estimate('gyro_bias')[None]
-        self.check.accumulate(rho - bias * hh[:, None], hh, te - 0.5 * hh - self.filter.epoch)
+        self.check.accumulate(d, h, t, SIGNATURE_LUMP, self.filter.estimate('gyro_bias'),
+                              self.filter.epoch)
 
     def _fix_result(self, r) -> FixOutput:
         f = self.filter

@@ -39,6 +39,13 @@ the candidate of the smallest p-value, named when that p-value is below α over 
 candidates.  With no such candidate and white innovations above their band, the window names
 the library's noise effect (``camera_noise_anisotropy``: stated noise too small).  The check
 only reports; the filter's model is never changed by it.
+
+**Cost.**  With numba the per-fix arithmetic (the signatures of the interval, the recursion, the
+whitening, the window's energies and whiteness p-value) runs as two compiled loops
+(:mod:`strapdown_ros.estimation.check_kernel`), the effects' partials read once as constant
+combinations of the increments' features (``effect_base.linear_partials``); otherwise, or with
+``STRAPDOWN_KERNEL=numpy``, the numpy path below runs: the same verdicts, the numbers to
+round-off.
 """
 from __future__ import annotations
 
@@ -47,9 +54,13 @@ import math
 
 import numpy as np
 
-from strapdown_ros.estimation.window_tests import beta_log_sf, judge_window, window_level
+from strapdown_ros.estimation import check_kernel
+from strapdown_ros.estimation.check_kernel import (chain_step, dcm_entries,
+                                                   lower_cholesky_inverse)
+from strapdown_ros.estimation.window_tests import (band_tables, beta_log_sf, judge_window,
+                                                   window_level, WindowVerdict)
 from strapdown_ros.rotation import quat_cumprod, quat_to_dcm, rotvec_to_quat
-from strapdown_ros.sensors.effect_base import Effect
+from strapdown_ros.sensors.effect_base import Effect, linear_partials, partial_features
 from strapdown_ros.sensors.effects import EFFECTS
 
 __all__ = ['ModelCheck', 'ModelCheckResult', 'ljung_box', 'check_candidates', 'NOISE_EFFECT']
@@ -143,20 +154,11 @@ def _attitude_chain(q0: np.ndarray, rho: np.ndarray) -> tuple:
         q = quat_cumprod(q0, rotvec_to_quat(rho))
         return quat_to_dcm(q), q[-1]
     pw, px, py, pz = q0.tolist()
+    w, x, y, z = pw, px, py, pz
     out = []
     for a, b, c in rho.tolist():
-        angle = math.sqrt(a * a + b * b + c * c)
-        s = math.sin(0.5 * angle) / angle if angle > 0.0 else 0.5
-        qw, qx, qy, qz = math.cos(0.5 * angle), a * s, b * s, c * s
-        pw, px, py, pz = (pw * qw - px * qx - py * qy - pz * qz,
-                          pw * qx + px * qw + py * qz - pz * qy,
-                          pw * qy - px * qz + py * qw + pz * qx,
-                          pw * qz + px * qy - py * qx + pz * qw)
-        r = 1.0 / math.sqrt(pw * pw + px * px + py * py + pz * pz)
-        w, x, y, z = pw * r, px * r, py * r, pz * r
-        out.append((1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y),
-                    2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x),
-                    2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)))
+        pw, px, py, pz, w, x, y, z = chain_step(pw, px, py, pz, a, b, c)
+        out.append(dcm_entries(w, x, y, z))
     return np.array(out).reshape(-1, 3, 3), np.array([w, x, y, z])
 
 
@@ -168,23 +170,9 @@ def _lower_cholesky_inverse(S) -> np.ndarray:
     positive definite.
     """
     (a, _, _), (b, c, _), (d, e, f) = np.asarray(S, dtype=float).reshape(3, 3).tolist()
-    if not a > 0.0:
+    ok, m00, m10, m11, m20, m21, m22 = lower_cholesky_inverse(a, b, c, d, e, f)
+    if not ok:
         raise np.linalg.LinAlgError('Matrix is not positive definite')
-    l00 = math.sqrt(a)
-    l10, l20 = b / l00, d / l00
-    c -= l10 * l10
-    if not c > 0.0:
-        raise np.linalg.LinAlgError('Matrix is not positive definite')
-    l11 = math.sqrt(c)
-    l21 = (e - l20 * l10) / l11
-    f -= l20 * l20 + l21 * l21
-    if not f > 0.0:
-        raise np.linalg.LinAlgError('Matrix is not positive definite')
-    l22 = math.sqrt(f)
-    m00, m11, m22 = 1.0 / l00, 1.0 / l11, 1.0 / l22
-    m10 = -l10 * m00 * m11
-    m21 = -l21 * m11 * m22
-    m20 = -(l20 * m00 + l21 * m10) * m22
     return np.array([[m00, 0.0, 0.0], [m10, m11, 0.0], [m20, m21, m22]])
 
 
@@ -324,10 +312,14 @@ class ModelCheck:
         self._fitted = int(sum(sizes[:len(self.effects)]))
         starts = np.concatenate([[0], np.cumsum(sizes)]).astype(int).tolist()
         self._columns = [slice(a, b) for a, b in zip(starts[:-1], starts[1:])]
-        self._E = np.zeros((self.size, self._width))
+        # the candidates by their number of columns (their SVDs one call per width)
+        self._groups = [(w, [j for j, sz in enumerate(sizes) if sz == w])
+                        for w in sorted(set(sizes))]
         self._partials = [_partials(e) for e in self.effects] \
             + [_partials(e) for e, _ in self.states]
-        self._state_cols = cols
+        # every partial as one product of the increments' features, when the effects allow
+        basis = linear_partials(self.effects + [e for e, _ in self.states])
+        self._basis = None if basis is None else basis.reshape(len(basis), -1)
         self._eye = np.eye(self.size)
         self._eye3 = np.eye(3)
         if self.states:      # contiguous
@@ -338,8 +330,26 @@ class ModelCheck:
         # rows are always one contiguous slice, in order
         n = self.window
         self._stamps = np.zeros(2 * n)
-        self._white = np.zeros((2 * n, 3))
-        self._signatures = np.zeros((2 * n, 3, self._width))
+        # the compiled loops (check_kernel) keep the state in one workspace, these views of it
+        self._kernel = check_kernel.compiled() if basis is not None else None
+        if self._kernel is not None:
+            sparse = check_kernel.sparse_basis(basis)
+            self._ws = check_kernel.workspace(
+                self.size, self._width, self._fitted, self._fitted + cols,
+                self.states[0][1].start if self.states else 0, n, len(sparse))
+            (self._rot, self._dcm, self._clock, self._sums, self._E, lam, v, m, self._energy,
+             self._white, self._signatures, basis_rows, _, _) = check_kernel.views(self._ws)
+            lam[self._fitted:] = self._lam
+            m[:], v[:] = band_tables(n)
+            basis_rows[:] = sparse
+            self._zero3 = np.zeros(3)
+            self._no_gain = np.zeros((self.size, 3))
+        else:
+            self._E = np.zeros((self.size, self._width))
+            self._white = np.zeros((2 * n, 3))
+            self._signatures = np.zeros((2 * n, 3, self._width))
+            self._rot, self._dcm = np.zeros(4), np.eye(3)
+            self._clock, self._sums = np.zeros(1), np.zeros((3, self._fitted + cols))
         self._filled = 0
         self._next = 0
         self.last = ModelCheckResult(0, True)
@@ -350,42 +360,75 @@ class ModelCheck:
 
     # ------------------------------------------------------------------ signatures
     def _start_interval(self) -> None:
-        self._rot = np.array([1.0, 0.0, 0.0, 0.0])     # body at the last fix ← body now
-        self._dcm = self._eye3                         # its DCM
-        self._elapsed = 0.0
-        # the effects' increment partials, then the filter's gyro states'
-        self._sums = np.zeros((3, self._fitted + self._state_cols))
+        # body at the last fix ← body now, its DCM, the seconds since, the partials' sums (the
+        # effects', then the filter's gyro states'): in place (the kernel's workspace)
+        self._rot[:] = 1.0, 0.0, 0.0, 0.0
+        self._dcm[:] = self._eye3
+        self._clock[0] = 0.0
+        self._sums[:] = 0.0
 
-    def accumulate(self, rho, h, t) -> None:
+    def accumulate(self, d, h, t, lump: int = 1, bias=None, epoch: float = 0.0) -> None:
         """
         Add increments of the interval since the last fix to the signatures.
 
+        The increments are lumped ``lump`` at a time (the last lump takes the rest), each lump
+        compensated for the bias: ``ρ = Σ d − b Σ h``, at its middle ``t_end − Σ h / 2``.
+
         Parameters
         ----------
-        rho : ndarray (m, 3)
-            Bias-compensated increments (lumped), rad, body axes.
+        d : ndarray (m, 3)
+            Increments, rad, body axes.
         h : ndarray (m,)
             Their lengths, s.
         t : ndarray (m,)
-            Their middle times since the effect epoch, s.
+            Their end stamps, s.
+        lump : int
+            Increments per lump, ≥ 1.
+        bias : ndarray (3,), optional
+            The rate b taken off, rad/s (None: none).
+        epoch : float
+            The effect epoch the times are counted from, s.
 
         """
-        rho = np.asarray(rho, dtype=float).reshape(-1, 3)
-        h = np.asarray(h, dtype=float).reshape(-1)
-        t = np.asarray(t, dtype=float).reshape(-1)
-        if len(rho) == 0:
+        d = np.ascontiguousarray(d, dtype=float).reshape(-1, 3)
+        m = len(d)
+        h = np.ascontiguousarray(h, dtype=float).reshape(m)
+        t = np.ascontiguousarray(t, dtype=float).reshape(m)
+        if m == 0:
             return
+        lump = max(1, int(lump))
+        if self._kernel is not None:
+            b = self._zero3 if bias is None else np.ascontiguousarray(bias, dtype=float).reshape(3)
+            self._kernel[0](self._ws, d, h, t, lump, b, float(epoch))
+            return
+        n = len(d) // lump * lump
+        rho = d[:n].reshape(-1, lump, 3).sum(1)
+        hh = h[:n].reshape(-1, lump).sum(1)
+        te = t[:n].reshape(-1, lump)[:, -1]
+        if n < len(d):                         # the rest: one lump more
+            rho = np.vstack([rho, d[n:].sum(0)[None]])
+            hh = np.append(hh, h[n:].sum())
+            te = np.append(te, t[-1])
+        if bias is not None:
+            rho = rho - np.asarray(bias, dtype=float).reshape(1, 3) * hh[:, None]
+        self._lumps(rho, hh, te - 0.5 * hh - float(epoch))
+
+    def _lumps(self, rho, h, t) -> None:
+        """Add bias-compensated lumps (middle times t since the epoch) to the signatures."""
         c, self._rot = _attitude_chain(self._rot, rho)  # body at the last fix ← at each end
         self._dcm = c[-1]
         if self._partials:
-            parts = [f(rho, h, t) if S is None else f(rho, h, t) @ S for f, S in self._partials]
-            J = np.concatenate(parts, axis=2)
+            if self._basis is not None:                 # one product for every effect
+                J = (partial_features(rho, h, t) @ self._basis).reshape(len(rho), 3, -1)
+            else:
+                J = np.concatenate([f(rho, h, t) if S is None else f(rho, h, t) @ S
+                                    for f, S in self._partials], axis=2)
             if self._decays and self.states:
-                u = self._elapsed + np.cumsum(h) - 0.5 * h      # since the interval's start
+                u = self._clock[0] + np.cumsum(h) - 0.5 * h     # since the interval's start
                 J[:, :, self._fitted:] *= np.exp(-u[:, None] * self._lam)[:, None, :]
             # Σ_k C_k J_k as one product: (3, 3m) by (3m, columns)
             self._sums += c.transpose(1, 0, 2).reshape(3, -1) @ J.reshape(-1, J.shape[2])
-        self._elapsed += float(h.sum())
+        self._clock[0] += float(h.sum())
 
     def _transition(self, ce: np.ndarray) -> np.ndarray:
         """Return the filter's error transition over the interval (body axes at both ends)."""
@@ -395,12 +438,33 @@ class ModelCheck:
             sl = self._state_slice
             phi[:3, sl] = -ce @ self._sums[:, self._fitted:]
             if self._decays:                           # else exp(0) = 1: the identity's
-                phi[self._state_diag] = np.exp(-self._elapsed * self._lam)
+                phi[self._state_diag] = np.exp(-float(self._clock[0]) * self._lam)
         return phi
+
+    @property
+    def compiled(self) -> bool:
+        """Whether the check runs the compiled loops (check_kernel), not its numpy path."""
+        return self._kernel is not None
+
+    def window_rows(self) -> tuple[np.ndarray, np.ndarray]:
+        """
+        Return the whitened rows of the fixes in the window, oldest first.
+
+        Returns
+        -------
+        white : ndarray (m, 3)
+            ``w_k = L_k⁻¹ z_k`` of the m ≤ N fixes so far.
+        signatures : ndarray (m, 3, width)
+            ``L_k⁻¹ G_k``: each candidate's columns (the time offset's last).
+
+        """
+        n, m = self.window, self._filled
+        rows = slice(self._next + n - m, self._next + n)
+        return self._white[rows].copy(), self._signatures[rows].copy()
 
     def restart_response(self) -> None:
         """Forget the effects' error responses (after the filter re-initialises its attitude)."""
-        self._E = np.zeros_like(self._E)
+        self._E[:] = 0.0
 
     def restart(self) -> None:
         """
@@ -460,6 +524,8 @@ class ModelCheck:
             The verdict of the window ending at this fix.
 
         """
+        if self._kernel is not None:
+            return self._add_compiled(stamp, z, S, c_vf_mf, rate_body, gain, jacobian)
         c_vf_mf = np.asarray(c_vf_mf, dtype=float)
         ce = self._dcm.T                              # body at the fix ← body at the last fix
         phi = self._transition(ce)
@@ -485,6 +551,35 @@ class ModelCheck:
         n = self.window
         self._white[k] = self._white[k + n] = inv @ np.asarray(z, dtype=float).reshape(3)
         self._signatures[k] = self._signatures[k + n] = inv @ G
+        return self._advance(stamp)
+
+    def _add_compiled(self, stamp, z, S, c_vf_mf, rate_body, gain, jacobian):
+        """Run :meth:`add` compiled (check_kernel): the same numbers to round-off."""
+        c_vf_mf = np.ascontiguousarray(c_vf_mf, dtype=float).reshape(3, 3)
+        if jacobian is None:
+            H = np.zeros((3, self.size))
+            H[:, :3] = c_vf_mf
+        else:
+            H = np.ascontiguousarray(jacobian, dtype=float).reshape(3, self.size)
+        K = self._no_gain if gain is None else \
+            np.ascontiguousarray(gain, dtype=float).reshape(self.size, 3)
+        k = self._next
+        n = self.window
+        full = self._filled + 1 >= n                 # the window's energies, in the same call
+        bad = self._kernel[1](self._ws, H, K, gain is not None, c_vf_mf,
+                              np.ascontiguousarray(rate_body, dtype=float).reshape(3),
+                              self.time_offset,
+                              np.ascontiguousarray(S, dtype=float).reshape(3, 3),
+                              np.ascontiguousarray(z, dtype=float).reshape(3), k, k + n,
+                              (k + 1) % n if full else -1)
+        if bad:
+            raise np.linalg.LinAlgError('Matrix is not positive definite')
+        return self._advance(stamp, self._energy)
+
+    def _advance(self, stamp, energy=None) -> ModelCheckResult:
+        """Close the row of the fix just written; judge the window once it is full."""
+        k = self._next
+        n = self.window
         self._stamps[k] = self._stamps[k + n] = float(stamp)
         self._next = (k + 1) % n
         self._filled = min(self._filled + 1, n)
@@ -492,16 +587,21 @@ class ModelCheck:
             self.last = ModelCheckResult(self._filled, True, episodes=self.episodes,
                                          stamp=float(stamp))
             return self.last
-        self.last = self._test()
+        self.last = self._test(energy)
         return self.last
 
-    def _test(self) -> ModelCheckResult:
+    def _test(self, energy=None) -> ModelCheckResult:
+        """Judge the window (``energy``: its band energies, NIS sum, whiteness p and band)."""
         n = self.window
-        rows = slice(self._next, self._next + n)      # the last n fixes, in order
-        stamps = self._stamps[rows].tolist()
-        white = self._white[rows]
-        level = window_level(self.rate, (stamps[-1] - stamps[0]) / (n - 1), self.alpha)
-        v = judge_window(white, level)
+        k = self._next
+        rows = slice(k, k + n)                        # the last n fixes, in order
+        first, last = float(self._stamps[k]), float(self._stamps[k + n - 1])
+        level = window_level(self.rate, (last - first) / (n - 1), self.alpha)
+        if energy is not None:      # the kernel's band energies, NIS sum, whiteness p and band
+            *_, nis, p, band = energy.tolist()
+            v = WindowVerdict(nis, 3 * n, level, p, int(band))
+        else:
+            v = judge_window(self._white[rows], level)
         self.windows += 1
         if v.ok:
             if self.warn:
@@ -516,14 +616,28 @@ class ModelCheck:
                 self.episodes += 1
         res = ModelCheckResult(n, not self.warn, v.nis_sum, v.nis_band, v.whiteness_p,
                                window_ok=v.ok, verdict='consistent', level=level,
-                               episodes=self.episodes, stamp=stamps[-1])
+                               episodes=self.episodes, stamp=last)
         if v.ok:
             return res
         if v.nis_low:
             res.verdict = 'noise_too_large'
             return res
-        self._name(res, white, self._signatures[rows].reshape(3 * n, -1), v)
+        self._name(res, self._white[rows], self._signatures[rows].reshape(3 * n, -1), v)
         return res
+
+    def _decompose(self, signatures: np.ndarray) -> list:
+        """Return the thin SVD of each candidate's columns, those of equal width in one call."""
+        out = [None] * len(self.names)
+        for _, members in self._groups:
+            if len(members) == 1:
+                j = members[0]
+                out[j] = np.linalg.svd(signatures[:, self._columns[j]], full_matrices=False)
+                continue
+            stack = np.stack([signatures[:, self._columns[j]] for j in members])
+            U, s, Vt = np.linalg.svd(stack, full_matrices=False)
+            for i, j in enumerate(members):
+                out[j] = U[i], s[i], Vt[i]
+        return out
 
     def _name(self, res: ModelCheckResult, white: np.ndarray, signatures: np.ndarray,
               v) -> None:
@@ -531,9 +645,9 @@ class ModelCheck:
         y = white.reshape(-1)
         total = float(y @ y)
         best = None
-        for j, name in enumerate(self.names):
-            A = signatures[:, self._columns[j]]
-            U, s, Vt = np.linalg.svd(A, full_matrices=False)
+        log_sf = beta_log_sf if self._kernel is None else self._kernel[2]
+        for j, (U, s, Vt) in enumerate(self._decompose(signatures)):
+            name = self.names[j]
             rank = int(np.sum(s > 1e-9 * s[0])) if len(s) and s[0] > 0 else 0
             if rank == 0:
                 continue
@@ -541,7 +655,7 @@ class ModelCheck:
             lr = float(proj @ proj)
             # the F test of the effect: its share of the window's energy, Beta(r/2, (3N − r)/2)
             # with no effect, whatever the noise's true scale
-            score = beta_log_sf(lr / total, 0.5 * rank, 0.5 * (len(y) - rank))
+            score = log_sf(lr / total, 0.5 * rank, 0.5 * (len(y) - rank))
             if best is None or score < best[0]:
                 c = Vt[:rank].T @ (proj / s[:rank])
                 best = (score, lr, rank, name, c)

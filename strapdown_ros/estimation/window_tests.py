@@ -41,8 +41,10 @@ FINITE_SUM_MAX = 64
 #: are within 0.5 % of their key)
 SCREEN_WIDTH = 0.01
 
-__all__ = ['beta_sf', 'beta_log_sf', 'band_dof', 'band_energies', 'spectral_whiteness',
-           'nis_p_values', 'nis_band', 'window_level', 'WindowVerdict', 'judge_window']
+__all__ = ['beta_sf', 'beta_log_sf', 'band_dof', 'band_energies', 'band_tables',
+           'spectral_whiteness', 'band_whiteness', 'whiteness_of_bands', 'compiled_helpers',
+           'nis_p_values', 'nis_band', 'window_level',
+           'WindowVerdict', 'judge_window']
 
 
 def _beta_fraction(a: float, b: float, x: float) -> float:
@@ -110,7 +112,7 @@ def beta_sf(x: float, a: float, b: float) -> float:
 
     """
     x, a, b = float(x), float(a), float(b)
-    if 0.0 < x < 1.0 and a.is_integer() and 1.0 <= a <= FINITE_SUM_MAX and b > 0.0:
+    if 0.0 < x < 1.0 and 1.0 <= a <= FINITE_SUM_MAX and a == math.floor(a) and b > 0.0:
         # integer a: P(X > x) = (1 − x)^b Σ_{j<a} (b)_j x^j / j!, positive terms, no fraction
         term = total = 1.0
         for j in range(1, int(a)):
@@ -188,9 +190,10 @@ def band_energies(white: np.ndarray) -> np.ndarray:
     w = np.asarray(white, dtype=float)
     n = len(w)
     if 0 < n <= DFT_BY_MATRIX:     # short windows: one product with the cached DFT matrix
-        m = _dft_matrix(n)
+        m, weights = band_tables(n)
         f = m @ w
-        return _band_weights(n, w.shape[1]) @ (f * f).reshape(-1)
+        s = (f * f).sum(1)
+        return weights * (s[:len(weights)] + s[len(weights):])
     f = np.fft.rfft(w, axis=0)
     e = (f.real ** 2 + f.imag ** 2).sum(axis=1) * (2.0 / n)
     e[0] *= 0.5
@@ -200,21 +203,35 @@ def band_energies(white: np.ndarray) -> np.ndarray:
 
 
 @lru_cache(maxsize=16)
-def _dft_matrix(n: int) -> np.ndarray:
-    """Return the real and imaginary parts of the rfft of n samples, stacked: (2(⌊n/2⌋+1), n)."""
+def band_tables(n: int) -> tuple[np.ndarray, np.ndarray]:
+    """
+    Return the tables of :func:`band_energies` for a window of n fixes.
+
+    ``E_j = v_j Σ_axes ((M w)_j² + (M w)_{J+j}²)``, J = ⌊n/2⌋ + 1.
+
+    Parameters
+    ----------
+    n : int
+        Fixes in the window, ≥ 1.
+
+    Returns
+    -------
+    m : ndarray (2J, n)
+        The real and imaginary parts of the rfft of n samples, stacked.
+    v : ndarray (J,)
+        The band weights: 2/n, 1/n for the mean and (n even) the Nyquist band.
+
+    """
     j = np.arange(n // 2 + 1)[:, None] * np.arange(n)[None, :] % n    # exact angle indices
     angle = (2.0 * np.pi / n) * j
-    return np.vstack([np.cos(angle), -np.sin(angle)])
-
-
-@lru_cache(maxsize=16)
-def _band_weights(n: int, axes: int) -> np.ndarray:
-    """Return the map from the squared DFT parts (row-major, ``axes`` columns) to the bands."""
-    e = np.full(n // 2 + 1, 2.0 / n)
-    e[0] *= 0.5
+    m = np.vstack([np.cos(angle), -np.sin(angle)])
+    v = np.full(n // 2 + 1, 2.0 / n)
+    v[0] *= 0.5
     if n % 2 == 0:
-        e[-1] *= 0.5
-    return np.kron(np.hstack([np.diag(e), np.diag(e)]), np.ones((1, axes)))
+        v[-1] *= 0.5
+    m.setflags(write=False)
+    v.setflags(write=False)
+    return m, v
 
 
 def spectral_whiteness(white: np.ndarray) -> tuple[float, int]:
@@ -235,36 +252,102 @@ def spectral_whiteness(white: np.ndarray) -> tuple[float, int]:
         The band of the smallest p (0: the window's mean; j: j cycles per window).
 
     """
-    e = band_energies(white)
-    total = float(e.sum())
+    return band_whiteness(band_energies(white), len(white))
+
+
+def band_whiteness(energies, n: int) -> tuple[float, int]:
+    """
+    Return :func:`spectral_whiteness` from the window's band energies.
+
+    Parameters
+    ----------
+    energies : array_like (⌊n/2⌋ + 1,)
+        The :func:`band_energies` of the window (three axes).
+    n : int
+        Fixes in the window.
+
+    Returns
+    -------
+    (float, int)
+        :func:`whiteness_of_bands` of them.
+
+    """
+    energy = energies if isinstance(energies, list) else np.asarray(energies, dtype=float).tolist()
+    return whiteness_of_bands(energy, int(n))
+
+
+def whiteness_of_bands(energy, n: int) -> tuple[float, int]:
+    """
+    Return :func:`band_whiteness` of a list of band energies (or, compiled, an array).
+
+    Plain arithmetic that a compiled loop may call too (:func:`compiled_helpers`).
+
+    Parameters
+    ----------
+    energy : list of float, or ndarray
+        The band energies, ⌊n/2⌋ + 1 of them.
+    n : int
+        Fixes in the window (n ≥ 1).
+
+    Returns
+    -------
+    p : float
+        The whiteness p-value.
+    band : int
+        The band of the smallest p.
+
+    """
+    bands = len(energy)
+    total = 0.0
+    for j in range(bands):
+        total += energy[j]
     if not total > 0.0:
         return 1.0, 0
-    half = 1.5 * len(white)
-    energy = e.tolist()
-    groups = _band_groups(len(white))
-    # the largest share of each shape
-    tops = [(dof, max(idx, key=energy.__getitem__)) for dof, idx in groups]   # argmax: the first
-    if len(tops) == 2:             # the mean's shape (3) first, then the others' (6)
-        (_, j3), (_, j6) = tops
+    half = 1.5 * n
+    # the most loaded band of each shape (the first of equal ones): the mean and (n even) the
+    # Nyquist band have 3 degrees of freedom, the others 6 (band_dof)
+    last = bands - 1
+    j3 = last if n % 2 == 0 and n > 1 and energy[last] > energy[0] else 0
+    j6 = -1
+    for j in range(1, last + (n % 2)):
+        if j6 < 0 or energy[j] > energy[j6]:
+            j6 = j
+    p3 = 2.0                       # not computed yet
+    if j6 >= 0:
         p6 = beta_sf(energy[j6] / total, 3.0, half - 3.0)
-        # P(Beta(3/2, b) > x) ≥ P(Beta(1, b) > x) = (1 − x)^b (larger a: stochastically larger):
-        # when that bound is above p6, the mean's band cannot have the smaller p
+        # P(Beta(3/2, b) > x) ≥ P(Beta(1, b) > x) = (1 − x)^b (larger a: stochastically larger)
+        # and ≥ 2 √x (1 − x)^b / B(1/2, b) (I_x(a + 1, b) = I_x(a, b) − x^a (1 − x)^b /
+        # (a B(a, b)), DLMF 8.17.20, at a = 1/2): when the larger bound is above p6, the mean's
+        # band cannot have the smaller p
         x3 = energy[j3] / total
-        if x3 < 1.0 and math.exp((half - 1.5) * math.log1p(-x3)) * (1.0 - 1e-9) > p6:
-            return min(1.0, len(e) * p6), j6
-    best, band = 1.0, 0
-    for dof, j in tops:            # one shape: the largest share, the smallest p
-        p = beta_sf(energy[j] / total, 0.5 * dof, half - 0.5 * dof)
-        if p < best:
-            best, band = p, j
-    return min(1.0, len(e) * best), band
+        if x3 < 1.0:
+            front = 2.0 * math.exp(math.lgamma(half - 1.0) - math.lgamma(0.5)
+                                   - math.lgamma(half - 1.5))
+            bound = math.exp((half - 1.5) * math.log1p(-x3)) * max(1.0, front * math.sqrt(x3))
+            if bound * (1.0 - 1e-9) > p6:
+                return min(1.0, bands * p6), j6
+        p3 = beta_sf(x3, 1.5, half - 1.5)
+        if p6 < p3:
+            return min(1.0, bands * p6), j6
+    if p3 > 1.0:
+        p3 = beta_sf(energy[j3] / total, 1.5, half - 1.5)
+    return min(1.0, bands * p3), j3
 
 
-@lru_cache(maxsize=64)
-def _band_groups(n: int) -> tuple:
-    d = band_dof(n)
-    return tuple((dof, np.flatnonzero(d == dof).tolist()) for dof in (3.0, 6.0)
-                 if np.any(d == dof))
+def compiled_helpers() -> tuple:
+    """
+    Return the functions of this module a compiled loop may call, callees first.
+
+    For :func:`~strapdown_ros.attitude.kernel.jitable_optional`; the check's compiled fix loop
+    (:mod:`strapdown_ros.estimation.check_kernel`) calls :func:`whiteness_of_bands`.
+
+    Returns
+    -------
+    tuple of callable
+        The beta survival functions and :func:`whiteness_of_bands`.
+
+    """
+    return _beta_fraction, _log_front, _beta_cdf, beta_sf, whiteness_of_bands
 
 
 def nis_p_values(total: float, dof: int) -> tuple[float, float]:
@@ -428,5 +511,5 @@ def judge_window(white: np.ndarray, level: float) -> WindowVerdict:
 
     """
     w = np.asarray(white, dtype=float)
-    p, band = spectral_whiteness(w)
+    p, band = band_whiteness(band_energies(w), len(w))
     return WindowVerdict(float((w * w).sum()), w.size, level, p, band)

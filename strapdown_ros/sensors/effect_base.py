@@ -11,7 +11,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ['EffectParameter', 'Effect', 'MAX_BIAS_RATE', 'MAX_BIAS_DRIFT', 'MAX_RELATIVE_ERROR',
+__all__ = ['EffectParameter', 'Effect', 'PARTIAL_FEATURES', 'partial_features', 'linear_partials',
+           'MAX_BIAS_RATE', 'MAX_BIAS_DRIFT', 'MAX_RELATIVE_ERROR',
            'MAX_MISALIGNMENT', 'MAX_RANDOM_WALK', 'MAX_QUANTUM', 'MAX_CAMERA_NOISE_SCALE',
            'MAX_G_SENSITIVITY']
 
@@ -528,3 +529,80 @@ class Effect:
 
     def __repr__(self):
         return f'<effect {self.name}>'
+
+
+#: the per-increment quantities u the filter partials of the registry's systematic gyro effects
+#: are linear in (:func:`linear_partials`): ρ (3), |ρ| (3), T and T·t
+PARTIAL_FEATURES = ('rho_x', 'rho_y', 'rho_z', 'abs_rho_x', 'abs_rho_y', 'abs_rho_z', 'T', 'T_t')
+
+
+def partial_features(rho: np.ndarray, T: np.ndarray, t: np.ndarray) -> np.ndarray:
+    """
+    Return the features u of :data:`PARTIAL_FEATURES` of each increment.
+
+    Parameters
+    ----------
+    rho : (n, 3) ndarray
+        Increments, rad.
+    T : (n,) ndarray
+        Interval lengths, s.
+    t : (n,) ndarray
+        Times since the effect epoch, s.
+
+    Returns
+    -------
+    (n, 8) ndarray
+        ``[ρ, |ρ|, T, T·t]`` per increment.
+
+    """
+    rho = np.asarray(rho, dtype=float).reshape(-1, 3)
+    T = np.asarray(T, dtype=float).reshape(-1, 1)
+    t = np.asarray(t, dtype=float).reshape(-1, 1)
+    return np.hstack([rho, np.abs(rho), T, T * t])
+
+
+def linear_partials(effects) -> np.ndarray | None:
+    """
+    Return the constant B with ``Σ_f u_f B_f`` = the effects' filter partials, side by side.
+
+    ``u`` are the :func:`partial_features` of an increment.  Each effect's
+    :meth:`Effect.filter_partials` stays the one definition: B is read from it at probe
+    increments (ρ = ±e_j, T = 1 with t = 0 and t = 1) and the expansion is checked against
+    it at random increments; an effect whose partials are not such a combination gives None
+    (its caller evaluates the partials themselves).  One product then gives every effect's
+    partials of many increments.
+
+    Parameters
+    ----------
+    effects : sequence of Effect
+        Systematic gyro effects.
+
+    Returns
+    -------
+    (8, 3, Σ filter_size) ndarray or None
+        B, the effects' columns in order; None when an effect is not linear in the features.
+
+    """
+    zero, eye = np.zeros(3), np.eye(3)
+    probe_rho = np.vstack([eye, -eye, [zero, zero]])
+    probe_T = np.array([0.0] * 6 + [1.0, 1.0])
+    probe_t = np.array([0.0] * 7 + [1.0])
+    rng = np.random.default_rng(0)
+    test_rho = rng.standard_normal((16, 3)) * 0.01
+    test_T = rng.uniform(1e-3, 0.1, 16)
+    test_t = rng.uniform(0.0, 1e4, 16)
+    u = partial_features(test_rho, test_T, test_t)
+    parts = []
+    for e in effects:
+        P = np.asarray(e.filter_partials(probe_rho, probe_T, probe_t), dtype=float)
+        B = np.concatenate([0.5 * (P[:3] - P[3:6]), 0.5 * (P[:3] + P[3:6]), P[6:7],
+                            P[7:8] - P[6:7]])
+        want = np.asarray(e.filter_partials(test_rho, test_T, test_t), dtype=float)
+        got = np.einsum('nf,fij->nij', u, B)
+        scale = np.max(np.abs(want), axis=0, initial=0.0) + 1e-300
+        if want.shape != got.shape or not np.all(np.abs(got - want) <= 1e-12 * scale):
+            return None
+        parts.append(B)
+    if not parts:
+        return np.zeros((len(PARTIAL_FEATURES), 3, 0))
+    return np.concatenate(parts, axis=2)
