@@ -30,6 +30,8 @@ MAX_LAG_S = 0.2
 MIN_HELD_OUT = 10
 #: samples × lags the lag grid computes at once (memory: 4 doubles each, and a few more)
 GRID_ELEMENTS = 200_000
+#: stamps the whole lag grid is costed on (every k-th); its best points again on all of them
+GRID_SAMPLES = 600
 
 
 @dataclass
@@ -188,17 +190,18 @@ def reference_agreement(t_out, q_out, sigma_out, t_ref, q_ref, sigma_ref,
         t_at = (t_ref - lag)[sel] if at == 'reference' else t_out[sel]   # filter time
         return float(np.mean(np.sum(r ** 2, axis=1))), (sel, s_f, s_r, q_b, r, t_at)
 
-    def grid_costs(lags):
-        """Return cost(lag)[0] for many lags at once: the same sums, masked, per lag."""
+    def grid_costs(lags, every=1):
+        """Return cost(lag)[0] for many lags at once (of every ``every``-th stamp), masked."""
         t_at, t_to = (t_ref, t_out) if at == 'reference' else (t_out, t_ref)
         q_to, sig_to = (q_out, sig_out) if at == 'reference' else (q_ref, s_ref)
         q_fixed = q_ref if at == 'reference' else q_out
+        t_at, q_fixed, used = t_at[::every], q_fixed[::every], use[::every]
         sign = -1.0 if at == 'reference' else 1.0
         out = []
         step = max(1, GRID_ELEMENTS // max(len(t_at), 1))
         for a in range(0, len(lags), step):
             t = t_at[None, :] + sign * lags[a:a + step, None]                 # (L, n)
-            w = (use & (t >= t_to[0]) & (t <= t_to[-1])).astype(float)
+            w = (used & (t >= t_to[0]) & (t <= t_to[-1])).astype(float)
             q_i, _ = _interp(t_to, q_to, sig_to, t.reshape(-1))
             q_i = q_i.reshape(t.shape + (4,))
             q_f, q_r = (q_i, q_fixed[None]) if at == 'reference' else (q_fixed[None], q_i)
@@ -210,13 +213,19 @@ def reference_agreement(t_out, q_out, sigma_out, t_ref, q_ref, sigma_ref,
             r = _residuals(q_f, q_r, q_b[:, None, :])
             n = w.sum(1)
             c = np.einsum('lni,ln->l', r * r, w) / np.where(n > 0, n, 1.0)
-            out += np.where(n >= 10, c, np.inf).tolist()
+            out += np.where(n >= 10 / every, c, np.inf).tolist()
         return out
 
+    # the grid on at most GRID_SAMPLES stamps finds where the minimum is; the grid points
+    # around it are costed on every stamp, and the best of them brackets the refinement
     lags = np.linspace(-max_lag, max_lag, 81)
-    costs = grid_costs(lags)
-    k = int(np.argmin(costs))
-    if not np.isfinite(costs[k]):
+    every = max(1, n_at // GRID_SAMPLES)
+    scan = grid_costs(lags, every)
+    k = int(np.argmin(scan))
+    near = np.arange(max(k - 2, 0), min(k + 3, len(lags)))
+    costs = grid_costs(lags[near]) if every > 1 else [scan[j] for j in near]
+    k = int(near[int(np.argmin(costs))])
+    if not np.isfinite(min(costs)):
         return None
     lo, hi = lags[max(k - 1, 0)], lags[min(k + 1, len(lags) - 1)]
     g = 0.5 * (math.sqrt(5.0) - 1.0)                  # golden-section refinement: each step

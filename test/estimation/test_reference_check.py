@@ -8,6 +8,7 @@ sampling error.
 import numpy as np
 import pytest
 
+from strapdown_ros.estimation import reference_check
 from strapdown_ros.estimation.reference_check import reference_agreement
 from strapdown_ros.rotation import dcm_to_quat, quat_multiply, rotvec_to_quat, ypr_to_dcm
 
@@ -64,3 +65,29 @@ def test_a_dense_reference_is_interpolated_to_sparse_outputs_in_fast_motion():
     # the reference's noise is interpolated between two fixes: at most its σ
     assert all(0.8 < r < 1.15 for r in at_out.rms_ratio), at_out.rms_ratio
     assert abs(at_out.lag_s) < 2e-3
+
+
+def test_the_lag_grid_on_a_subsample_finds_the_lag_of_the_full_grid(monkeypatch):
+    """
+    Fast motion and a 37 ms lag, 5900 reference stamps: the grid costed on every k-th stamp.
+
+    The lag and every number equal those of the grid costed on every stamp, and the lag is the
+    true one.
+    """
+    rng = np.random.default_rng(5)
+
+    def fast(t):
+        w = np.stack([1.5 * np.sin(9.0 * t), 0.8 * np.cos(6.0 * t), 0.5 * np.sin(4.0 * t)], 1)
+        return rotvec_to_quat(w)
+    sig_f, sig_r, lag = np.array([2e-3, 2e-3, 2e-3]), np.array([3e-3, 3e-3, 3e-3]), 0.037
+    t_out = np.arange(0.0, 60.0, 0.01)
+    q_out = quat_multiply(fast(t_out), rotvec_to_quat(rng.normal(0.0, sig_f, (len(t_out), 3))))
+    t_ref = np.arange(0.5, 59.5, 0.01)
+    q_ref = quat_multiply(fast(t_ref - lag),
+                          rotvec_to_quat(rng.normal(0.0, sig_r, (len(t_ref), 3))))
+    s_out = np.tile(sig_f, (len(t_out), 1))
+    sub = reference_agreement(t_out, q_out, s_out, t_ref, q_ref, sig_r, 0.2, 'reference')
+    monkeypatch.setattr(reference_check, 'GRID_SAMPLES', 10 ** 9)
+    full = reference_agreement(t_out, q_out, s_out, t_ref, q_ref, sig_r, 0.2, 'reference')
+    assert sub.lag_s == pytest.approx(lag, abs=1e-3)
+    assert sub.as_dict() == full.as_dict()
