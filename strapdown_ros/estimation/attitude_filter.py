@@ -20,7 +20,6 @@ the ``filter_bag`` tool reach it through :mod:`.filter_system`.  No ROS imports.
 from __future__ import annotations
 
 from collections import deque
-from itertools import repeat
 
 import numpy as np
 
@@ -30,8 +29,8 @@ from strapdown_ros.estimation.chi_square import chi2_3_quantile
 from strapdown_ros.estimation.chi_square import chi2_quantile
 from strapdown_ros.estimation.error_model import BlockSums
 from strapdown_ros.estimation.filter_support import (checked_fix, FilterCounters, FixResult,
-                                                     psd_factor, StateLayout, StateReport,
-                                                     triangular_factor)
+                                                     psd_factor, ReportBatch, StateLayout,
+                                                     StateReport, triangular_factor)
 from strapdown_ros.estimation.fix_history import CameraFix, Checkpoint, IncrementLog
 from strapdown_ros.rotation import (quat_conjugate, quat_cumprod, quat_multiply, quat_normalize,
                                     quat_to_dcm, quat_to_rotvec, rotvec_to_quat)
@@ -239,7 +238,7 @@ class AttitudeFilter:
         self._seq = 0
         self._order = 0
         self._marks: list = []                  # stamps to report the state at (propagate)
-        self.reports: list = []
+        self._reports: list = []                # ReportBatch of the marks, not yet taken
         self._gated_run = 0                     # the divergence rule's memory
         self._nis_recent: deque = deque(maxlen=max(self.nis_window, 1))
         self._fixes_since_reset = 0
@@ -428,8 +427,22 @@ class AttitudeFilter:
             In stamp order.
 
         """
-        out, self.reports = self.reports, []
-        return out
+        return self.take_report_batch().reports()
+
+    def take_report_batch(self) -> ReportBatch:
+        """
+        Return the states reported at the marks since the last call, as arrays.
+
+        What :meth:`take_reports` returns, without an object per stamp.
+
+        Returns
+        -------
+        ReportBatch
+            In stamp order.
+
+        """
+        out, self._reports = self._reports, []
+        return ReportBatch.joined(out, self.layout.size)
 
     def update(self, stamp: float, attitude, covariance, boresight=None) -> FixResult:
         """
@@ -729,9 +742,10 @@ class AttitudeFilter:
         x = np.repeat(self._x[None], K, axis=0)        # each report its own row (no copies)
         if self._markov:
             x[:, 3:3 + self._nq] *= np.exp(-np.outer(stamps - self._x_time, 1.0 / self._g_tau))
-        stamps = np.asarray(stamps, dtype=float).tolist()
-        self.reports.extend(map(StateReport, stamps, q, P, x, repeat(self.boresight.copy())))
-        done = set(stamps)
+        stamps = np.array(stamps, dtype=float)
+        self._reports.append(ReportBatch(stamps, np.array(q, dtype=float), P, x,
+                                         np.repeat(self.boresight[None], K, axis=0)))
+        done = set(stamps.tolist())
         self._marks = [m for m in self._marks if m not in done]
 
     def _report_held(self) -> None:

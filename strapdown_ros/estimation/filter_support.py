@@ -17,7 +17,7 @@ from strapdown_ros.sensors.sensor_model import augment_choices
 
 __all__ = ['AUGMENT_CHOICES', 'FILTER_STATES', 'augment_names', 'augment_error',
            'triangular_factor', 'psd_factor', 'FixResult', 'FilterCounters', 'StateLayout',
-           'StateReport', 'checked_fix']
+           'StateReport', 'ReportBatch', 'checked_fix']
 
 
 def checked_fix(stamp: float, attitude, covariance):
@@ -195,6 +195,75 @@ class StateReport:
     covariance: np.ndarray
     states: np.ndarray
     boresight: np.ndarray
+
+
+@dataclass(slots=True)
+class ReportBatch:
+    """
+    The filter's states at K increment stamps, as arrays (rows in stamp order).
+
+    Parameters
+    ----------
+    stamps : ndarray (K,)
+        The increments' end stamps, s.
+    attitude : ndarray (K, 4)
+        ``q_ref_body`` there, scalar-first.
+    covariance : ndarray (K, n, n)
+        The error-state covariance there.
+    states : ndarray (K, n)
+        The estimates of the filter states there (layout order).
+    boresight : ndarray (K, 4)
+        ``q_MF_VF``, scalar-first.
+
+    """
+
+    stamps: np.ndarray
+    attitude: np.ndarray
+    covariance: np.ndarray
+    states: np.ndarray
+    boresight: np.ndarray
+
+    def __len__(self) -> int:
+        """Return K, the number of stamps."""
+        return len(self.stamps)
+
+    @classmethod
+    def joined(cls, parts, n: int) -> ReportBatch:
+        """
+        Return the batches ``parts`` one after the other (an empty batch of n states if none).
+
+        Parameters
+        ----------
+        parts : list of ReportBatch
+            In stamp order.
+        n : int
+            The number of filter states.
+
+        Returns
+        -------
+        ReportBatch
+            Their rows, in order.
+
+        """
+        if len(parts) == 1:
+            return parts[0]
+        if not parts:
+            return cls(np.zeros(0), np.zeros((0, 4)), np.zeros((0, n, n)), np.zeros((0, n)),
+                       np.zeros((0, 4)))
+        return cls(*(np.concatenate([getattr(b, f) for b in parts]) for f in cls.__slots__))
+
+    def reports(self) -> list[StateReport]:
+        """
+        Return one :class:`StateReport` per row.
+
+        Returns
+        -------
+        list of StateReport
+            In stamp order.
+
+        """
+        return list(map(StateReport, self.stamps.tolist(), self.attitude, self.covariance,
+                        self.states, self.boresight))
 
 
 @dataclass

@@ -634,7 +634,7 @@ class FilterSystem:
         prev = (self._last_ns - self._out0) // self.output_ns
         marks = np.flatnonzero(np.diff(np.concatenate([[prev], cells])) > 0)
         results = f.propagate(d, t, marks=marks)
-        reports = f.take_reports()
+        reports = f.take_report_batch()
         self._last_ns = int(t_ns[-1])
         self._due_ns = self._out0 + ((self._last_ns - self._out0) // self.output_ns + 1) \
             * self.output_ns
@@ -712,41 +712,30 @@ class FilterSystem:
         return out
 
     def _emit(self, stamps_ns, reports, rho_sums, seconds) -> None:
-        """Append the outputs of K reports (arrays over the K rows, then one row each)."""
+        """Append the outputs of the K reports of a batch (arrays, then one row each)."""
         K = min(len(reports), len(stamps_ns))             # (equal: every mark is reported)
         if K == 0:
             return
-        if K < len(reports) or K < len(stamps_ns):
-            reports, stamps_ns, rho_sums, seconds = (reports[:K], stamps_ns[:K],
-                                                     rho_sums[:K], seconds[:K])
         lay = self.filter.layout
-        q = np.array([r.attitude for r in reports])                  # (K, 4), copies
-        x = np.array([r.states for r in reports])                    # (K, n)
+        q, x, P = reports.attitude[:K], reports.states[:K], reports.covariance[:K]
+        stamps_ns, rho_sums, seconds = stamps_ns[:K], rho_sums[:K], seconds[:K]
         bias = x[:, 3:6]                                  # the bias: always the first gyro state
         moved = seconds > 0                               # no time since the last output: rate 0
         rate = np.divide(rho_sums, seconds[:, None], out=np.zeros_like(rho_sums),
                          where=moved[:, None]) - bias * moved[:, None]
-        out = self.outputs
-        if not self.augment:
-            for i, (ns, r) in enumerate(zip(stamps_ns.tolist(), reports)):
-                P = r.covariance
-                out.append(FilterOutput(ns, q[i], P[:3, :3].copy(), rate[i], bias[i],
-                                        P[3:6, 3:6].copy(), {}))
-            return
-        P = np.array([r.covariance for r in reports])                # (K, n, n)
         att_cov, bias_cov = P[:, :3, :3].copy(), P[:, 3:6, 3:6].copy()
         aug = []                                          # (name, estimates (K, w), σ (K, w))
-        sigma = np.sqrt(np.diagonal(P, axis1=1, axis2=2))            # (K, n)
-        for name in self.augment:
-            if name == 'boresight':
-                aug.append((name, np.array([r.boresight for r in reports]),
-                            sigma[:, lay.boresight]))
-            else:
-                s = lay.slice_of(name)
-                aug.append((name, x[:, s], sigma[:, s]))
-        for i, (ns, r) in enumerate(zip(stamps_ns.tolist(), reports)):
-            out.append(FilterOutput(ns, q[i], att_cov[i], rate[i], bias[i], bias_cov[i],
-                                    {name: (est[i], sig[i]) for name, est, sig in aug}))
+        if self.augment:
+            sigma = np.sqrt(np.diagonal(P, axis1=1, axis2=2))        # (K, n)
+            for name in self.augment:
+                if name == 'boresight':
+                    aug.append((name, reports.boresight[:K], sigma[:, lay.boresight]))
+                else:
+                    s = lay.slice_of(name)
+                    aug.append((name, x[:, s], sigma[:, s]))
+        self.outputs.extend(map(FilterOutput, stamps_ns.tolist(), q, att_cov, rate, bias,
+                                bias_cov, [{name: (est[i], sig[i]) for name, est, sig in aug}
+                                           for i in range(K)]))
 
     def _start(self, stamp_ns: int, q_fix) -> None:
         m, s = self.model, self.settings
