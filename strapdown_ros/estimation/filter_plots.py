@@ -14,6 +14,7 @@ from __future__ import annotations
 import numpy as np
 
 from strapdown_ros.estimation.chi_square import chi2_3_quantile
+from strapdown_ros.estimation.filter_system import FilterOutputs
 from strapdown_ros.figures import save_figure
 from strapdown_ros.rotation import quat_to_rotvec
 from strapdown_ros.sensors.effects import EFFECTS
@@ -53,7 +54,7 @@ def write_filter_plots(outdir: str, outputs, fixes, gate_probability: float,
     ----------
     outdir : str
         The directory (it exists).
-    outputs : list of FilterOutput
+    outputs : FilterOutputs or list of FilterOutput
         The filter's outputs, in stamp order.
     fixes : list of FixOutput
         The fix results, in processing order.
@@ -74,7 +75,8 @@ def write_filter_plots(outdir: str, outputs, fixes, gate_probability: float,
     matplotlib.use('Agg')
     import matplotlib.pyplot as plt
 
-    stamps = [o.stamp_ns for o in outputs] + [f.stamp_ns for f in fixes]
+    outputs = FilterOutputs.of(outputs)               # the arrays
+    stamps = outputs.stamps_ns.tolist() + [f.stamp_ns for f in fixes]
     t0 = min(stamps) if stamps else 0
     used = [f for f in fixes if f.nis is not None and f.innovation is not None]
     tf = np.array([(f.stamp_ns - t0) * 1e-9 for f in used])
@@ -106,13 +108,10 @@ def write_filter_plots(outdir: str, outputs, fixes, gate_probability: float,
     paths.append(save_figure(fig, outdir, PLOT_NAMES[0]))
 
     # bias and augmented states with their σ
-    to = np.array([(o.stamp_ns - t0) * 1e-9 for o in outputs])
-    groups = [('gyro_bias', np.array([o.bias for o in outputs]).reshape(-1, 3),
-               np.sqrt(np.array([np.diag(o.bias_covariance) for o in outputs]).reshape(-1, 3)))]
-    names = list(outputs[0].augmented) if outputs else []
-    for name in names:
-        v = np.array([o.augmented[name][0] for o in outputs])
-        s = np.array([o.augmented[name][1] for o in outputs])
+    to = (outputs.stamps_ns - t0) * 1e-9
+    groups = [('gyro_bias', outputs.bias,
+               np.sqrt(np.diagonal(outputs.bias_covariance, axis1=1, axis2=2)))]
+    for name, (v, s) in outputs.augmented.items():
         if name == 'boresight':                 # the quaternion as a rotation vector
             v = quat_to_rotvec(v)
         groups.append((name, v.reshape(len(outputs), -1), s.reshape(len(outputs), -1)))
@@ -166,7 +165,7 @@ def write_filter_plots(outdir: str, outputs, fixes, gate_probability: float,
     ax.legend(fontsize=8, loc='upper left')
     ax.set_title(f'Fixes applied, gated and reset: {len(t_reset)} divergence reset(s)')
     if outputs:
-        sa = np.sqrt(np.array([np.diag(o.attitude_covariance) for o in outputs]))
+        sa = np.sqrt(np.diagonal(outputs.attitude_covariance, axis1=1, axis2=2))
         for i in range(3):
             ax2.semilogy(to, sa[:, i], lw=1, label=f"σ_{'xyz'[i]}")
     _resets(ax2, t_reset)

@@ -38,6 +38,7 @@ The attitude filter between validated streams and outputs, shared by the node an
 from __future__ import annotations
 
 from collections import deque
+from collections.abc import Sequence
 from dataclasses import dataclass, fields
 import math
 
@@ -54,7 +55,8 @@ from strapdown_ros.sensors.sensor_model import SensorModel
 from strapdown_ros.streams.checks import StreamCheck
 from strapdown_ros.streams.fixes import FixScreen
 
-__all__ = ['FilterSystem', 'FilterSettings', 'FilterOutput', 'FixOutput', 'warm_up']
+__all__ = ['FilterSystem', 'FilterSettings', 'FilterOutput', 'FilterOutputs', 'FixOutput',
+           'warm_up']
 
 #: the forward stamp limit of the fixes until their period is known, s (StreamCheck.for_fixes)
 CAMERA_JUMP_S = StreamCheck.FIX_INITIAL_JUMP_S
@@ -99,6 +101,127 @@ class FilterOutput:
     bias: np.ndarray
     bias_covariance: np.ndarray
     augmented: dict
+
+
+class FilterOutputs(Sequence):
+    """
+    The filter's outputs as arrays, one row per output: a sequence of :class:`FilterOutput`.
+
+    Indexing or iterating gives one :class:`FilterOutput` per row (a node publishes them); a
+    whole recording's tools read the arrays.
+
+    Parameters
+    ----------
+    stamps_ns : ndarray (N,) of int
+        Times of the states, ns.
+    attitude : ndarray (N, 4)
+        ``q_ref_body`` [w, x, y, z].
+    attitude_covariance : ndarray (N, 3, 3)
+        Covariance of ε (body axes), rad².
+    rate : ndarray (N, 3)
+        Bias-compensated mean body rate since the previous output, rad/s.
+    bias : ndarray (N, 3)
+        Gyro bias estimate, rad/s.
+    bias_covariance : ndarray (N, 3, 3)
+        Its covariance, (rad/s)².
+    augmented : dict
+        ``{name: (estimates (N, w), σ (N, w))}`` of the augmented states, in augment order.
+
+    """
+
+    FIELDS = ('stamps_ns', 'attitude', 'attitude_covariance', 'rate', 'bias',
+              'bias_covariance')
+
+    def __init__(self, stamps_ns, attitude, attitude_covariance, rate, bias, bias_covariance,
+                 augmented: dict):
+        self.stamps_ns = np.asarray(stamps_ns, dtype=np.int64).reshape(-1)
+        self.attitude = np.asarray(attitude, dtype=float).reshape(-1, 4)
+        self.attitude_covariance = np.asarray(attitude_covariance, dtype=float).reshape(-1, 3, 3)
+        self.rate = np.asarray(rate, dtype=float).reshape(-1, 3)
+        self.bias = np.asarray(bias, dtype=float).reshape(-1, 3)
+        self.bias_covariance = np.asarray(bias_covariance, dtype=float).reshape(-1, 3, 3)
+        self.augmented = dict(augmented)
+
+    @classmethod
+    def empty(cls) -> FilterOutputs:
+        """
+        Return no outputs.
+
+        Returns
+        -------
+        FilterOutputs
+            Zero rows (and no augmented columns).
+
+        """
+        return cls(np.zeros(0, np.int64), np.zeros((0, 4)), np.zeros((0, 3, 3)),
+                   np.zeros((0, 3)), np.zeros((0, 3)), np.zeros((0, 3, 3)), {})
+
+    @classmethod
+    def joined(cls, parts) -> FilterOutputs:
+        """
+        Return the rows of ``parts`` one after the other.
+
+        Parameters
+        ----------
+        parts : list of FilterOutputs
+            In order, with the same augmented states (at least one part).
+
+        Returns
+        -------
+        FilterOutputs
+            Their rows.
+
+        """
+        if len(parts) == 1:
+            return parts[0]
+        cols = [np.concatenate([getattr(p, f) for p in parts]) for f in cls.FIELDS]
+        aug = {n: tuple(np.concatenate([p.augmented[n][k] for p in parts]) for k in (0, 1))
+               for n in parts[0].augmented}
+        return cls(*cols, aug)
+
+    @classmethod
+    def of(cls, outputs) -> FilterOutputs:
+        """
+        Return outputs as arrays: ``outputs`` itself, or the rows of FilterOutput objects.
+
+        Parameters
+        ----------
+        outputs : FilterOutputs or sequence of FilterOutput
+            The outputs.
+
+        Returns
+        -------
+        FilterOutputs
+            The same rows.
+
+        """
+        if isinstance(outputs, FilterOutputs):
+            return outputs
+        outputs = list(outputs)
+        if not outputs:
+            return cls.empty()
+        aug = {n: tuple(np.array([o.augmented[n][k] for o in outputs]) for k in (0, 1))
+               for n in outputs[0].augmented}
+        return cls(*([getattr(o, 'stamp_ns' if f == 'stamps_ns' else f) for o in outputs]
+                     for f in cls.FIELDS), aug)
+
+    def __len__(self) -> int:
+        """Return the number of outputs."""
+        return len(self.stamps_ns)
+
+    def __getitem__(self, i):
+        """Return output ``i`` (a FilterOutput), or the outputs of a slice (FilterOutputs)."""
+        if isinstance(i, slice):
+            return FilterOutputs(*(getattr(self, f)[i] for f in self.FIELDS),
+                                 {n: (e[i], s[i]) for n, (e, s) in self.augmented.items()})
+        return FilterOutput(int(self.stamps_ns[i]), self.attitude[i],
+                            self.attitude_covariance[i], self.rate[i], self.bias[i],
+                            self.bias_covariance[i],
+                            {n: (e[i], s[i]) for n, (e, s) in self.augmented.items()})
+
+    def __iter__(self):
+        """Iterate over the outputs, one FilterOutput each."""
+        return (self[i] for i in range(len(self)))
 
 
 @dataclass
@@ -312,7 +435,7 @@ class FilterSystem:
         self._last_rate = np.zeros(3)
         self._sig_buf: list = []        # (Δθ, h, t) not yet given to the model check
         self._sig_len = 0
-        self.outputs: list = []
+        self._output_parts: list = []          # FilterOutputs of each call, not yet taken
         self.fix_outputs: list = []
 
     # ------------------------------------------------------------------ input
@@ -733,9 +856,8 @@ class FilterSystem:
                 else:
                     s = lay.slice_of(name)
                     aug.append((name, x[:, s], sigma[:, s]))
-        self.outputs.extend(map(FilterOutput, stamps_ns.tolist(), q, att_cov, rate, bias,
-                                bias_cov, [{name: (est[i], sig[i]) for name, est, sig in aug}
-                                           for i in range(K)]))
+        self._output_parts.append(FilterOutputs(stamps_ns, q, att_cov, rate, bias, bias_cov,
+                                                {name: (est, sig) for name, est, sig in aug}))
 
     def _start(self, stamp_ns: int, q_fix) -> None:
         m, s = self.model, self.settings
@@ -803,15 +925,23 @@ class FilterSystem:
 
         Returns
         -------
-        outputs : list of FilterOutput
-            The filter states.
+        outputs : FilterOutputs
+            The filter states (a sequence of FilterOutput, and its arrays).
         fixes : list of FixOutput
             The fixes processed.
 
         """
         out, fixes = self.outputs, self.fix_outputs
-        self.outputs, self.fix_outputs = [], []
+        self._output_parts, self.fix_outputs = [], []
         return out, fixes
+
+    @property
+    def outputs(self) -> FilterOutputs:
+        """Return the outputs produced since the last :meth:`take` (FilterOutput rows)."""
+        if not self._output_parts:
+            return FilterOutputs.empty()
+        self._output_parts = [FilterOutputs.joined(self._output_parts)]
+        return self._output_parts[0]
 
     def status(self) -> dict:
         """

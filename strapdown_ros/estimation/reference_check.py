@@ -273,8 +273,9 @@ def agreement_with_fixes(outputs, fix_stamps_ns, fixes, applied_ns=(), noise_sca
 
     Parameters
     ----------
-    outputs : list of FilterOutput
-        The filter's outputs (stamp, ``q_ref_body``, its covariance in body axes).
+    outputs : list of FilterOutput, or FilterOutputs
+        The filter's outputs (stamp, ``q_ref_body``, its covariance in body axes); of a
+        ``FilterOutputs``, its arrays are read.
     fix_stamps_ns : sequence of int
         The fixes' stamps, ns, ascending.
     fixes : sequence of (q, P)
@@ -294,10 +295,15 @@ def agreement_with_fixes(outputs, fix_stamps_ns, fixes, applied_ns=(), noise_sca
     """
     if len(outputs) < 2 or len(fixes) < 2:
         return None
-    t_out = np.array([o.stamp_ns for o in outputs], dtype=np.int64)
+    if hasattr(outputs, 'stamps_ns'):                # the arrays of FilterOutputs
+        t_out = np.asarray(outputs.stamps_ns, dtype=np.int64)
+        q_out = np.asarray(outputs.attitude, dtype=float)
+        cov_out = np.asarray(outputs.attitude_covariance, dtype=float)
+    else:
+        t_out = np.array([o.stamp_ns for o in outputs], dtype=np.int64)
+        q_out = np.array([o.attitude for o in outputs], dtype=float)
+        cov_out = np.array([o.attitude_covariance for o in outputs], dtype=float)
     origin = int(t_out[0])
-    q_out = np.array([o.attitude for o in outputs], dtype=float)
-    cov_out = np.array([o.attitude_covariance for o in outputs], dtype=float)
     s_out = np.sqrt(np.maximum(np.diagonal(cov_out, axis1=1, axis2=2), 0.0))
     st = np.asarray(fix_stamps_ns, dtype=np.int64)
     q_ref = np.array([f[0] for f in fixes], dtype=float).reshape(-1, 4)

@@ -34,7 +34,7 @@ import numpy as np
 from strapdown_ros.cli import (all_or_nothing, check_outputs, DIRECTORY, FILE, OneLineParser,
                                write_json, write_text)
 from strapdown_ros.estimation.filter_plots import PLOT_NAMES, write_filter_plots
-from strapdown_ros.estimation.filter_system import FilterSettings
+from strapdown_ros.estimation.filter_system import FilterOutputs, FilterSettings
 from strapdown_ros.params import filled_in, load_model_file, not_applied_note, parse_overrides
 from strapdown_ros.recording.options import (add_input_arguments, check_input_arguments,
                                              frame_warnings, input_lines, input_options,
@@ -78,7 +78,7 @@ def state_rows(outputs, augment=None) -> str:
 
     Parameters
     ----------
-    outputs : list
+    outputs : FilterOutputs or list of FilterOutput
         The filter's outputs (stamp, attitude, σ, state).
     augment : object
         Not read: the augmented columns come from the outputs themselves.
@@ -92,15 +92,13 @@ def state_rows(outputs, augment=None) -> str:
     head = state_header(outputs)
     if not outputs:
         return ','.join(head) + '\n'
-    cols = [np.array([o.stamp_ns for o in outputs]) * 1e-9]
-    q = np.array([o.attitude for o in outputs])
-    cols += [q[:, 1:], q[:, :1]]                                      # x y z w
-    cols.append(np.sqrt(np.diagonal(np.array([o.attitude_covariance for o in outputs]), 0, 1, 2)))
-    cols.append(np.array([o.bias for o in outputs]))
-    cols.append(np.sqrt(np.diagonal(np.array([o.bias_covariance for o in outputs]), 0, 1, 2)))
-    for name in outputs[0].augmented:
-        cols.append(np.array([o.augmented[name][0] for o in outputs]))
-        cols.append(np.array([o.augmented[name][1] for o in outputs]))
+    out = FilterOutputs.of(outputs)
+    cols = [out.stamps_ns * 1e-9, out.attitude[:, 1:], out.attitude[:, :1]]   # x y z w
+    cols.append(np.sqrt(np.diagonal(out.attitude_covariance, 0, 1, 2)))
+    cols.append(out.bias)
+    cols.append(np.sqrt(np.diagonal(out.bias_covariance, 0, 1, 2)))
+    for est, sig in out.augmented.values():
+        cols += [est, sig]
     table = np.column_stack(cols)
     row = ','.join(['%.17g'] * table.shape[1])
     # one % over the whole table: the same text as row by row, without a tuple per row
