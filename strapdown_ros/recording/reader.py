@@ -53,7 +53,7 @@ from pathlib import Path
 import sys
 
 import numpy as np
-from rosbags.highlevel import AnyReader
+from rosbags.highlevel import AnyReader, AnyReaderError
 from rosbags.typesys import get_typestore, Stores
 
 from strapdown_ros.recording.mcap_records import channel_ids, indexed_mcap, read_topics
@@ -85,6 +85,8 @@ REFERENCE_TYPES = {
 }
 _WITH_COVARIANCE = ('pose_with_covariance', 'odometry')
 MAX_LISTED = 12  # topics or frame pairs named in one error line
+#: rosbags' words for a bag without message definitions (then opened with the Jazzy store)
+NO_DEFINITIONS = 'no type definitions'
 MAX_NAME = 80  # characters of one echoed name
 MAX_PAIRS_KEPT = 64  # distinct TF frame pairs remembered for the error line
 MAX_FRAMES_KEPT = 16  # distinct header frame ids counted per stream (the rest: one count)
@@ -149,12 +151,16 @@ def _first_line(exc) -> str:
 
 def open_reader(path):
     """
-    Open a bag directory or file with ``rosbags`` (Jazzy type store).
+    Open a bag directory or file with ``rosbags``.
+
+    The message types are the bag's own definitions; a bag without them (a rosbag2 bag from
+    before Iron) is opened again with the Jazzy type store (building that store costs a
+    tenth of a second, so it is not built for a bag that does not need it).
 
     Parameters
     ----------
     path : str or Path
-        rosbag2 bag directory, or a single ``.mcap`` / ``.db3`` file.
+        rosbag2 bag directory, a single ``.mcap`` / ``.db3`` file, or a ROS 1 ``.bag``.
 
     Returns
     -------
@@ -167,8 +173,14 @@ def open_reader(path):
     if not path.exists():
         raise BagError(f'{path} does not exist')
     try:
-        reader = AnyReader([path], default_typestore=get_typestore(Stores.ROS2_JAZZY))
-        reader.open()
+        try:
+            reader = AnyReader([path])
+            reader.open()
+        except AnyReaderError as exc:
+            if NO_DEFINITIONS not in str(exc):
+                raise
+            reader = AnyReader([path], default_typestore=get_typestore(Stores.ROS2_JAZZY))
+            reader.open()
     except Exception as exc:  # noqa: BLE001 - any unreadable bag is reported
         raise BagError(f'cannot open {path}: {_first_line(exc)}') from None
     return reader

@@ -9,6 +9,7 @@ rates and a PoseStamped reference, written by other software) is converted to bo
 from __future__ import annotations
 
 from pathlib import Path
+import sqlite3
 
 import numpy as np
 import pytest
@@ -18,7 +19,7 @@ pytest.importorskip('rosbags')
 
 from rosbags.convert import convert  # noqa: E402
 
-from strapdown_ros.recording.reader import read_bag  # noqa: E402
+from strapdown_ros.recording.reader import open_reader, read_bag  # noqa: E402
 
 KW = {'gyro_max_rate': 35.0, 'use_camera_covariance': False, 'camera_sigma': (1e-3, 1e-3, 1e-3)}
 
@@ -54,3 +55,18 @@ def test_the_shipped_recording_in_another_container_reads_the_same(tmp_path, nam
     assert other['gyro_input'] == 'rates' and len(other['gyro'].stamps) > 7000
     assert other['reference_type'] == mcap['reference_type']
     _same(mcap, other)
+
+
+def test_a_sqlite3_bag_without_message_definitions_reads_with_the_jazzy_types(tmp_path):
+    """rosbag2 before Iron kept no definitions: the Jazzy type store decodes the messages."""
+    bag = _converted(tmp_path, 'left_sqlite3')
+    con = sqlite3.connect(next(bag.glob('*.db3')))
+    con.execute('DELETE FROM message_definitions')
+    con.commit()
+    con.close()
+    reader = open_reader(bag)
+    try:
+        assert all(c.msgdef.data == '' for c in reader.connections)
+    finally:
+        reader.close()
+    _same(read_bag(DATA / 'gaitmap_left', **KW), read_bag(bag, **KW))
