@@ -32,6 +32,8 @@ MIN_HELD_OUT = 10
 GRID_ELEMENTS = 200_000
 #: stamps the whole lag grid is costed on (every k-th); its best points again on all of them
 GRID_SAMPLES = 600
+#: the lag is refined to this, s (a microsecond: a thousandth of the shortest lag that matters)
+LAG_RESOLUTION_S = 1e-6
 
 
 @dataclass
@@ -231,7 +233,7 @@ def reference_agreement(t_out, q_out, sigma_out, t_ref, q_ref, sigma_ref,
     g = 0.5 * (math.sqrt(5.0) - 1.0)                  # golden-section refinement: each step
     a, b = hi - g * (hi - lo), lo + g * (hi - lo)      # keeps one point and its cost
     fa, fb = cost(a)[0], cost(b)[0]
-    for _ in range(30):
+    while hi - lo > LAG_RESOLUTION_S:
         if fa < fb:
             hi, b, fb = b, a, fa
             a = hi - g * (hi - lo)
