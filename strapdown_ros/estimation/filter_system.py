@@ -396,6 +396,9 @@ class FilterSystem:
         self.use_covariance = bool(s.use_camera_covariance)
         self.fix_screen = FixScreen(self.default_covariance, self.use_covariance)
         self.camera_effects = model.camera_effects()
+        #: the fixes' covariance is scaled (camera_noise_scale other than 1)
+        self._scaled_noise = self.camera_effects.noise_scale is not None \
+            and bool(np.any(self.camera_effects.noise_scale != 1.0))
         # the model's gyro effects the filter does not estimate (the bias is always a state)
         fixed = {n: model.effect_value(n) for n in model.active('gyro')
                  if n not in self.augment and n != 'gyro_bias'
@@ -633,8 +636,7 @@ class FilterSystem:
             return None
         if self._spaced_out(stamp_ns):
             return None
-        if self.camera_effects.noise_scale is not None \
-                and np.any(self.camera_effects.noise_scale != 1.0):
+        if self._scaled_noise:
             covariance = self.camera_effects.covariance(covariance)
         self.process()
         t = stamp_ns * 1e-9
