@@ -429,7 +429,9 @@ def _filter_bag_run(bag: str, out: str, params: list) -> dict:
     if res.returncode != 0:
         raise RuntimeError(f'filter_bag exited {res.returncode}: {res.stderr.strip()[-300:]}')
     summary = [x for x in res.stdout.splitlines() if 'outputs,' in x]
-    return {'wall_s': wall, 'summary': summary[0] if summary else ''}
+    # the outputs' names without the temporary directory (no path of one run in a report)
+    line = summary[0].replace(str(Path(out).parent) + os.sep, '') if summary else ''
+    return {'wall_s': wall, 'summary': line}
 
 
 def phases(bag: str, params: list) -> dict:
