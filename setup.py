@@ -13,7 +13,7 @@ ROS_FROM_PYPI = ['ros-jazzy-rclpy[fastrtps]', 'ros-jazzy-common-interfaces']
 
 setup(
     name=package_name,
-    version='0.4.1',
+    version='0.4.2',
     packages=find_packages(exclude=['test', 'test.*']),
     data_files=[
         ('share/ament_index/resource_index/packages', ['resource/' + package_name]),
