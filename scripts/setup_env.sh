@@ -128,8 +128,9 @@ for exe in imu_sim_node sins_node strapdown_demo sins_bench coning_bench; do
 done
 
 # numba's on-disk cache (njit(cache=True), strapdown_ros/__pycache__): one tiny sins_bag run with
-# navigation compiles every kernel the offline tools and the nodes use, so the first real run
-# after an install loads them instead of compiling (~35 s).  Optional: a failure only means that
+# navigation and the attitude filter's warm-up (its kernels and the live check's) compile every
+# kernel the offline tools and the nodes use, so the first real run after an install loads them
+# instead of compiling (~35 s and ~27 s).  Optional: a failure only means that
 # the first run compiles; STRAPDOWN_SKIP_WARMUP=1 skips it.
 warm_kernels() {
     local d rc=1
@@ -139,7 +140,11 @@ warm_kernels() {
 from strapdown_ros.bench.sins_bag_bench import navigation_parameters
 navigation_parameters('coordinated_turn', pathlib.Path(sys.argv[1]))" "$d/p.yaml" \
         && "$VENV/bin/sins_bag" "$d/bag" --params "$d/p.yaml" --output "$d/o.csv" --quiet \
-            >/dev/null 2>&1; then
+            >/dev/null 2>&1 \
+        && "$VENV/bin/python" -c "from strapdown_ros.params import model_and_settings
+from strapdown_ros.estimation.filter_system import FilterSettings, warm_up
+m, s = model_and_settings('attitude_filter_node', {})
+warm_up(m, FilterSettings.from_values(s))" >/dev/null 2>&1; then
         rc=0
     fi
     rm -rf "$d"
